@@ -1,0 +1,67 @@
+#!/usr/bin/env bash
+# The project's one set-up script: Debian packages, a --system-site-packages venv made from
+# Debian's /usr/bin/python3, and the project installed into it (editable) with its extras.
+# Used by the Makefile and the Dockerfile. Idempotent: a second run changes nothing and takes
+# about a second.
+#
+#   bash .ci/setup.sh            # apt packages + .venv + editable install
+#   VENV=/opt/venv bash .ci/setup.sh
+set -euo pipefail
+
+ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+VENV=${VENV:-$ROOT/.venv}
+EXTRAS=${EXTRAS:-test,plot}
+
+# DOLFINx 0.5.2 and its PETSc/MPI stack exist only as Debian packages for /usr/bin/python3.
+APT_PACKAGES=(
+  python3-dolfinx python3-dolfinx-real python3-petsc4py python3-slepc4py python3-mpi4py
+  python3-scipy python3-venv python3-dev openmpi-bin g++ make git ca-certificates
+)
+
+missing=()
+for pkg in "${APT_PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$pkg")
+  fi
+done
+if ((${#missing[@]})); then
+  echo "setup: installing Debian packages: ${missing[*]}"
+  SUDO=""
+  if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
+  $SUDO apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
+
+if [ -n "${SETUP_APT_ONLY:-}" ]; then
+  echo "setup: Debian packages done (SETUP_APT_ONLY set)"
+  exit 0
+fi
+
+if [ ! -x "$VENV/bin/python" ]; then
+  echo "setup: creating $VENV from /usr/bin/python3 (--system-site-packages)"
+  /usr/bin/python3 -m venv --system-site-packages "$VENV"
+fi
+
+# Pin the ABI-matched Debian builds so that pip never replaces them as a dependency of
+# something else (matplotlib would otherwise pull a newer numpy).
+CONSTRAINTS="$VENV/constraints.txt"
+/usr/bin/python3 - > "$CONSTRAINTS.new" <<'PY'
+import importlib.metadata as md
+for name in ("numpy", "mpi4py", "petsc4py", "slepc4py", "scipy"):
+    try:
+        print(f"{name}=={md.version(name)}")
+    except md.PackageNotFoundError:
+        pass
+PY
+mv "$CONSTRAINTS.new" "$CONSTRAINTS"
+
+# Reinstall only when the project metadata, the extras or this script changed.
+STAMP="$VENV/.cosserat-fem-installed"
+WANT=$(cat "$ROOT/pyproject.toml" "$ROOT/.ci/setup.sh" "$CONSTRAINTS" | sha256sum | cut -c1-16)-$EXTRAS
+if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ] || [ ! -x "$VENV/bin/cosserat-fem" ]; then
+  echo "setup: installing cosserat-fem[$EXTRAS] (editable) into $VENV"
+  "$VENV/bin/python" -m pip install -q --disable-pip-version-check \
+    -c "$CONSTRAINTS" -e "$ROOT[$EXTRAS]"
+  echo "$WANT" > "$STAMP"
+fi
+"$VENV/bin/python" -c "import dolfinx, cosserat_fem; print('setup: dolfinx', dolfinx.__version__, '| cosserat-fem', cosserat_fem.__version__)"

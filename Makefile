@@ -1,0 +1,28 @@
+# cosserat-fem: every target sets itself up first (apt packages, .venv, editable install)
+# through the one set-up script, .ci/setup.sh, which is idempotent and fast when done.
+SHELL := /bin/bash
+VENV ?= .venv
+PY := $(VENV)/bin/python
+# Open MPI refuses to run as root unless told; containers and CI run as root.
+export OMPI_ALLOW_RUN_AS_ROOT := 1
+export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
+export OMPI_MCA_rmaps_base_oversubscribe := 1
+
+.PHONY: setup demo test lint clean
+
+setup:
+	@VENV=$(VENV) bash .ci/setup.sh
+
+## The main job: the paper's cantilever (Figs. 4-6), outputs in demos/output/.
+demo: setup
+	$(PY) demos/cao_tucker_2008.py
+
+## Lint, then the whole test suite (serial and mpirun -n 2 cases).
+test: setup lint
+	$(PY) -m pytest -q tests
+
+lint: setup
+	$(VENV)/bin/ruff check .
+
+clean:
+	rm -rf demos/output results .pytest_cache .ruff_cache
