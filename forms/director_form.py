@@ -1,0 +1,141 @@
+"""The balance laws (6) in vector/director form, written directly in UFL.
+
+This is a second, independent construction of the residual of :mod:`.general_form`, used by
+the tests to check that form term by term. It shares nothing with it but the unknown:
+
+* the directors are the rows of the product Dφ Dθ Dψ of the elementary rotations (15)-(17)
+  (not the multiplied-out (18));
+* the curvature is u = ½ Σ d_i × ∂s d_i (3) and the angular velocity w = ½ Σ d_i × ∂t d_i (4),
+  with ∂t d_i and ∂tt d_i by UFL's chain rule through the Euler angles (not (25)-(26), (64));
+* the constitutive laws are the tensors (9)-(10): n = Σ K_ii (v·d_i − δ_i3) d_i,
+  m = Σ J_ii (u·d_i) d_i, h = Σ I_ii (w·d_i) d_i with I33 = ρ (c11 + c22) (46);
+* the scaled stiffnesses come from the physical constants, not from the groups (48).
+
+Units: length ℓ, time 1/ω0, force F* = ρ A ℓ² ω0². The weak form is the principle of virtual
+work for (6),
+
+    ∫ (r̈ − f)·δr + n·δr' + (∂t h − v × n − l)·δϑ + m·δϑ' dσ − Σ_free ends (f^b·δr + l^b·δϑ),
+
+with δr = (v7, v8, v9) and δϑ = Σ_i v_{9+i} d_i / Î_i, which is (65) row by row.
+"""
+
+from __future__ import annotations
+
+import ufl
+
+from .groups import RodConstants
+from .kinematics import split
+
+
+def _elementary_rotations(theta, psi, phi):
+    """(15), (16), (17)."""
+    c, s = ufl.cos, ufl.sin
+    d_psi = ufl.as_matrix([[c(psi), 0.0, -s(psi)], [0.0, 1.0, 0.0], [s(psi), 0.0, c(psi)]])
+    d_theta = ufl.as_matrix(
+        [[1.0, 0.0, 0.0], [0.0, c(theta), s(theta)], [0.0, -s(theta), c(theta)]]
+    )
+    d_phi = ufl.as_matrix([[c(phi), s(phi), 0.0], [-s(phi), c(phi), 0.0], [0.0, 0.0, 1.0]])
+    return d_phi * d_theta * d_psi
+
+
+def _rows(M):
+    return [ufl.as_vector([M[i, j] for j in range(3)]) for i in range(3)]
+
+
+def _axial(ds, dds):
+    """½ Σ d_i × d_i^(•) for director lists ds and their derivatives dds, eqs. (3)-(4)."""
+    return 0.5 * sum((ufl.cross(d, dd) for d, dd in zip(ds, dds, strict=True)), ufl.zero(3))
+
+
+def director_residual_terms(
+    U,
+    Udot,
+    V,
+    rod: RodConstants,
+    dx: ufl.Measure,
+    force_density=None,
+    torque_density=None,
+    end_loads: tuple = (),
+) -> dict[str, ufl.Form]:
+    """Residual of (6) in director form, split like :class:`.general_form.ResidualTerms`.
+
+    force_density f [N/m], torque_density l [N m/m]: UFL 3-vectors in the fixed basis or None.
+    end_loads: tuples (ds, f^b [N] or None, l^b [N m] or None).
+    """
+    sec = rod.section
+    ell, rho, w0 = rod.length, rod.density, rod.omega0
+    fstar = rho * sec.area * ell**2 * w0**2
+    K = [sec.shear_coefficient * rod.shear_modulus * sec.area / fstar] * 2
+    K.append(rod.young_modulus * sec.area / fstar)
+    J = [
+        rod.young_modulus * sec.c11 / (fstar * ell**2),
+        rod.young_modulus * sec.c22 / (fstar * ell**2),
+        rod.shear_modulus * sec.c33 / (fstar * ell**2),
+    ]
+    inertia = [rho * c * w0**2 / fstar for c in (sec.c11, sec.c22, sec.c11 + sec.c22)]
+
+    p, q = split(U)
+    pdot, qdot = split(Udot)
+    vp, vq = split(V)
+
+    # Directors and their derivatives through the Euler angles (chain rule by UFL).
+    ang = ufl.variable(ufl.as_vector([p[3], p[4], p[5]]))
+    qa = ufl.as_vector([q[3], q[4], q[5]])
+    qa_dot = ufl.as_vector([qdot[3], qdot[4], qdot[5]])
+    D = _elementary_rotations(ang[0], ang[1], ang[2])
+    i, j, k = ufl.indices(3)
+    D_t = ufl.as_tensor(ufl.diff(D, ang)[i, j, k] * qa[k], (i, j))
+    D_tt = ufl.as_tensor(ufl.diff(D, ang)[i, j, k] * qa_dot[k], (i, j)) + ufl.as_tensor(
+        ufl.diff(D_t, ang)[i, j, k] * qa[k], (i, j)
+    )
+    d, d_t, d_tt = _rows(D), _rows(D_t), _rows(D_tt)
+    d_s = [ufl.as_vector([di[m].dx(0) for m in range(3)]) for di in d]
+
+    u = _axial(d, d_s)
+    w = _axial(d, d_t)
+    w_t = _axial(d, d_tt)
+    r_s = ufl.as_vector([p[0].dx(0), p[1].dx(0), 1.0 + p[2].dx(0)])
+    e3 = [0.0, 0.0, 1.0]
+
+    n = sum((K[a] * (ufl.dot(r_s, d[a]) - e3[a]) * d[a] for a in range(3)), ufl.zero(3))
+    m = sum((J[a] * ufl.dot(u, d[a]) * d[a] for a in range(3)), ufl.zero(3))
+    h_t = sum(
+        (
+            inertia[a]
+            * ((ufl.dot(w_t, d[a]) + ufl.dot(w, d_t[a])) * d[a] + ufl.dot(w, d[a]) * d_t[a])
+            for a in range(3)
+        ),
+        ufl.zero(3),
+    )
+
+    dr = ufl.as_vector([vq[0], vq[1], vq[2]])
+    dth = sum((vq[3 + a] / inertia[a] * d[a] for a in range(3)), ufl.zero(3))
+    dr_s = ufl.as_vector([dr[a].dx(0) for a in range(3)])
+    dth_s = ufl.as_vector([dth[a].dx(0) for a in range(3)])
+    r_tt = ufl.as_vector([qdot[0], qdot[1], qdot[2]])
+
+    terms: dict[str, ufl.Form] = {
+        "kinematic": ufl.inner(pdot - q, vp) * dx,
+        "inertia": (ufl.dot(r_tt, dr) + ufl.dot(h_t, dth)) * dx,
+        "elastic": (ufl.dot(n, dr_s) + ufl.dot(m, dth_s) - ufl.dot(ufl.cross(r_s, n), dth)) * dx,
+    }
+    if force_density is not None or torque_density is not None:
+        load = 0
+        if force_density is not None:
+            load = load - ufl.dot(force_density * ell / fstar, dr)
+        if torque_density is not None:
+            load = load - ufl.dot(torque_density / fstar, dth)
+        terms["distributed_load"] = load * dx
+    end_form = None
+    for ds, fb, lb in end_loads:
+        if fb is None and lb is None:
+            continue
+        integrand = 0
+        if fb is not None:
+            integrand = integrand - ufl.dot(fb / fstar, dr)
+        if lb is not None:
+            integrand = integrand - ufl.dot(lb / (fstar * ell), dth)
+        end_form = integrand * ds if end_form is None else end_form + integrand * ds
+    if end_form is not None:
+        terms["end_load"] = end_form
+    return terms

@@ -1,0 +1,266 @@
+"""The general form (65) of Cao & Tucker (2008) in UFL, with the errata of docs/errata.md.
+
+With p = (x/ℓ, y/ℓ, z/ℓ, θ, ψ, φ) and q = dp/dτ, eq. (65) reads
+
+    ṗ = q,        Ma(p) q̇ + b(p, p')' = g(p, p', q),
+
+on σ ∈ [0, 1], with Ma = diag(I₃, Mm) (66), the flux b (63), the source g (67). A clamped end
+is p = q = 0 (55); a free end carries the natural condition a_m b = −g_b (section 5), a_m = +1
+at σ = 1 and −1 at σ = 0, with the free-end data (62) corrected as
+
+    g_b = ( (g0/ℓ) f^b ,  (g1/ℓ) l^b_1, (g2/ℓ) l^b_2, (g3/ℓ) l^b_3 ),
+
+where f^b [N] and l^b [N m] are the end force and torque in fixed directions (42) and
+l^b_i = d_i · l^b (43). Multiplying by a test function V = (v_p, v_q) and integrating b' by
+parts gives the weak form
+
+    F = ∫ (ṗ − q)·v_p dσ + ∫ (Ma q̇ − g)·v_q − b·v_q' dσ − Σ_free ends g_b·v_q = 0.
+
+Each row is a balance law of (6)/(39) divided by its reference (see :mod:`.groups`): rows 1-3
+the force balance (49)-(51) by ρ A ω0² ℓ, rows 4-6 the moment balance about d1, d2, d3
+(52)-(54) by ρ c11 ω0², ρ c22 ω0², ρ I3 ω0².
+
+The source g (67) is split by origin so that tests can compare term by term:
+``inertial`` (the velocity products of (64) and the gyroscopic terms), ``elastic`` (contact
+force and torque terms), ``load`` (distributed force and torque).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import ufl
+
+from .groups import Groups
+from .kinematics import (
+    angles,
+    angular_map,
+    angular_map_rate,
+    angular_velocity,
+    curvature,
+    rotation_matrix,
+    split,
+    stretch_shear_strain,
+    translations,
+)
+
+END_LOAD_SIGNS = {"balance": 1.0, "printed": -1.0}
+END_LOAD_SCALINGS = ("balance", "printed")
+
+
+@dataclass(frozen=True)
+class EndLoadConvention:
+    """How the free-end data g_b is formed (docs/errata.md, errata 2 and 3).
+
+    sign:    ``"balance"`` (default): n(ℓ) = f^b, m(ℓ) = l^b, i.e. a_m b = −g_b as in section 5;
+             ``"printed"``: eqs. (41), (44)-(45), (56)-(61), a_m n + f^b = 0, which makes the
+             free end move against the applied load.
+    scaling: ``"balance"`` (default): g_b = ((g0/ℓ) f^b, (g_i/ℓ) l^b_i), dimensionless;
+             ``"printed"``: eq. (62), g_b = g0 (f^b, l^b_i).
+    """
+
+    sign: str = "balance"
+    scaling: str = "balance"
+
+
+@dataclass
+class DistributedLoads:
+    """Force density f [N/m] and torque density l [N m/m] in the fixed basis (36).
+
+    UFL 3-vectors of σ and t, or ``None`` when absent (an absent load adds no term).
+    """
+
+    force: ufl.core.expr.Expr | None = None
+    torque: ufl.core.expr.Expr | None = None
+
+
+@dataclass
+class EndLoads:
+    """End force f^b [N] and torque l^b [N m] in fixed directions (42) on one free end.
+
+    ``ds`` is the boundary measure restricted to that end.
+    """
+
+    ds: ufl.Measure
+    force: ufl.core.expr.Expr | None = None
+    torque: ufl.core.expr.Expr | None = None
+
+
+@dataclass
+class Source:
+    """The source g of (67), split by origin; each part is a UFL 6-vector."""
+
+    inertial: ufl.core.expr.Expr
+    elastic: ufl.core.expr.Expr
+    load: ufl.core.expr.Expr | None = None
+
+
+@dataclass
+class ResidualTerms:
+    """The weak residual F of (65) as named UFL forms (absent terms are ``None``)."""
+
+    kinematic: ufl.Form
+    inertia: ufl.Form
+    elastic: ufl.Form
+    distributed_load: ufl.Form | None = None
+    end_load: ufl.Form | None = None
+    extra: dict[str, ufl.Form] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, ufl.Form]:
+        terms = {
+            "kinematic": self.kinematic,
+            "inertia": self.inertia,
+            "elastic": self.elastic,
+            "distributed_load": self.distributed_load,
+            "end_load": self.end_load,
+        }
+        terms.update(self.extra)
+        return {k: v for k, v in terms.items() if v is not None}
+
+    def total(self) -> ufl.Form:
+        forms = list(self.as_dict().values())
+        total = forms[0]
+        for f in forms[1:]:
+            total = total + f
+        return total
+
+
+def mass_matrix(p) -> ufl.core.expr.Expr:
+    """Ma of eq. (66): the 6×6 block diagonal diag(I₃, Mm(θ, φ)) acting on q̇."""
+    mm = angular_map(p[3], p[5])
+    rows = [[1.0 if i == j else 0.0 for j in range(6)] for i in range(3)]
+    rows += [[0.0, 0.0, 0.0, mm[i, 0], mm[i, 1], mm[i, 2]] for i in range(3)]
+    return ufl.as_matrix(rows)
+
+
+def flux(p, dp, G: Groups) -> ufl.core.expr.Expr:
+    """The flux b of eq. (63).
+
+    Rows 1-3: b = −(g0/ℓ) n, the contact force (32) in the fixed basis, written as in (63):
+    b = −ν01 r' + ((ν01 − ν02) v3 + ν02) d3, with r' = (p1', p2', 1 + p3') and v3 of (29).
+    Rows 4-6: b = −(ν11 û1, ν21 û2, ν31 û3), the contact torque components m_i = J_ii u_i (13).
+    """
+    D = rotation_matrix(p[3], p[4], p[5])
+    v = stretch_shear_strain(p, dp)
+    u = curvature(p, dp)
+    r_prime = ufl.as_vector([dp[0], dp[1], 1.0 + dp[2]])
+    axial = (G.nu01 - G.nu02) * v[2] + G.nu02
+    b_force = [-G.nu01 * r_prime[j] + axial * D[2, j] for j in range(3)]
+    b_torque = [-G.nu11 * u[0], -G.nu21 * u[1], -G.nu31 * u[2]]
+    return ufl.as_vector(b_force + b_torque)
+
+
+def source(p, dp, q, G: Groups, loads: DistributedLoads | None = None) -> Source:
+    """The source g of eq. (67), split into inertial, elastic and load parts.
+
+    inertial (rows 4-6), from (52)-(54) with (64): g = −(dMm/dτ) q_ang − (ŵ2 ŵ3, −ŵ3 ŵ1, ν33 ŵ1 ŵ2);
+      the gyroscopic coefficients of rows 4-5 are (I33 − I22)/I11 = 1 and (I11 − I33)/I22 = −1
+      for I33 = ρ (c11 + c22) (46).
+    elastic: row 4: ν12 û2 û3 − ((ν13 − ν14) v3 + ν14) v2,
+             row 5: −ν22 û1 û3 + ((ν23 − ν24) v3 + ν24) v1,
+             row 6: ν32 û1 û2    (the v × n terms vanish in row 6 since K11 = K22).
+    load:    (g0 f, g1 l1, g2 l2, g3 l3) with l_i = d_i · l (38).
+    """
+    v = stretch_shear_strain(p, dp)
+    u = curvature(p, dp)
+    w = angular_velocity(p, q)
+    qa = angles(q)
+    mdot_q = angular_map_rate(p[3], p[5], q[3], q[5]) * qa
+    gyro = ufl.as_vector([w[1] * w[2], -w[2] * w[0], G.nu33 * w[0] * w[1]])
+    inertial = ufl.as_vector([0.0, 0.0, 0.0] + [-mdot_q[i] - gyro[i] for i in range(3)])
+    elastic = ufl.as_vector(
+        [
+            0.0,
+            0.0,
+            0.0,
+            G.nu12 * u[1] * u[2] - ((G.nu13 - G.nu14) * v[2] + G.nu14) * v[1],
+            -G.nu22 * u[0] * u[2] + ((G.nu23 - G.nu24) * v[2] + G.nu24) * v[0],
+            G.nu32 * u[0] * u[1],
+        ]
+    )
+    load = None
+    if loads is not None and (loads.force is not None or loads.torque is not None):
+        zero3 = ufl.as_vector([0.0, 0.0, 0.0])
+        f = loads.force if loads.force is not None else zero3
+        if loads.torque is not None:
+            l_d = rotation_matrix(p[3], p[4], p[5]) * loads.torque
+        else:
+            l_d = zero3
+        load = ufl.as_vector(
+            [G.g0 * f[0], G.g0 * f[1], G.g0 * f[2], G.g1 * l_d[0], G.g2 * l_d[1], G.g3 * l_d[2]]
+        )
+    return Source(inertial=inertial, elastic=elastic, load=load)
+
+
+def end_data(p, G: Groups, end: EndLoads, convention: EndLoadConvention) -> ufl.core.expr.Expr:
+    """Free-end data g_b of (62), corrected (module docstring); l^b_i = d_i · l^b by (43)."""
+    sign = END_LOAD_SIGNS[convention.sign]
+    if convention.scaling == "balance":
+        scales = [G.g0 / G.length] * 3 + [G.g1 / G.length, G.g2 / G.length, G.g3 / G.length]
+    elif convention.scaling == "printed":
+        scales = [G.g0] * 6
+    else:
+        raise ValueError(f"unknown end-load scaling {convention.scaling!r}")
+    zero3 = ufl.as_vector([0.0, 0.0, 0.0])
+    fb = end.force if end.force is not None else zero3
+    lb = rotation_matrix(p[3], p[4], p[5]) * end.torque if end.torque is not None else zero3
+    comps = [fb[0], fb[1], fb[2], lb[0], lb[1], lb[2]]
+    return ufl.as_vector([sign * scales[i] * comps[i] for i in range(6)])
+
+
+def residual_terms(
+    U,
+    Udot,
+    V,
+    G: Groups,
+    dx: ufl.Measure,
+    loads: DistributedLoads | None = None,
+    end_loads: tuple[EndLoads, ...] = (),
+    convention: EndLoadConvention = EndLoadConvention(),
+) -> ResidualTerms:
+    """The weak residual of (65) (module docstring), term by term.
+
+    U, Udot: the 12-component state (p, q) and its τ-derivative, as UFL expressions (the
+    time integrator decides what they are); V: the test function.
+    """
+    p, q = split(U)
+    pdot, qdot = split(Udot)
+    vp, vq = split(V)
+    dU = U.dx(0)
+    dp = ufl.as_vector([dU[i] for i in range(6)])
+    dV = V.dx(0)
+    dvq = ufl.as_vector([dV[i] for i in range(6, 12)])
+
+    g = source(p, dp, q, G, loads)
+    kinematic = ufl.inner(pdot - q, vp) * dx
+    inertia = ufl.inner(mass_matrix(p) * qdot - g.inertial, vq) * dx
+    elastic = (-ufl.inner(flux(p, dp, G), dvq) - ufl.inner(g.elastic, vq)) * dx
+    distributed = -ufl.inner(g.load, vq) * dx if g.load is not None else None
+    end_form = None
+    for end in end_loads:
+        if end.force is None and end.torque is None:
+            continue
+        term = -ufl.inner(end_data(p, G, end, convention), vq) * end.ds
+        end_form = term if end_form is None else end_form + term
+    return ResidualTerms(
+        kinematic=kinematic,
+        inertia=inertia,
+        elastic=elastic,
+        distributed_load=distributed,
+        end_load=end_form,
+    )
+
+
+__all__ = [
+    "DistributedLoads",
+    "EndLoadConvention",
+    "EndLoads",
+    "ResidualTerms",
+    "Source",
+    "end_data",
+    "flux",
+    "mass_matrix",
+    "residual_terms",
+    "source",
+    "translations",
+]
