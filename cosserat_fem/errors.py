@@ -1,0 +1,91 @@
+"""Exceptions of cosserat-fem.
+
+Every error the user can cause or meet is a :class:`CosseratError` carrying a one-line message,
+so that the command line can print it without a traceback:
+
+* :class:`SceneError`: bad input (scene file, ``--set`` overrides). The message starts with the
+  dotted key at fault, e.g. ``rod.material.poisson_ratio: must lie in (-1, 0.5), got 0.7``.
+* :class:`SolverError`: numerical trouble during a run (Newton divergence, a singular
+  Jacobian, non-finite values), with the time and place where it happened and a suggestion.
+"""
+
+from __future__ import annotations
+
+
+def _one_line(text: str) -> str:
+    """Collapse ``text`` to a single line (newlines and runs of blanks become one space)."""
+    return " ".join(str(text).split())
+
+
+class CosseratError(Exception):
+    """Base class of all cosserat-fem errors; ``str()`` is a single line."""
+
+    def __init__(self, message: str) -> None:
+        self.message = _one_line(message)
+        super().__init__(self.message)
+
+    def __str__(self) -> str:
+        return self.message
+
+
+class SceneError(CosseratError):
+    """Invalid scene input; the message starts with the dotted key at fault."""
+
+
+class SolverError(CosseratError):
+    """Numerical failure of a run.
+
+    Attributes:
+        time: simulation time [s] at which it happened, if known.
+        where: the component involved (e.g. ``"newton"``, ``"linear solver"``), if known.
+        reason: what went wrong.
+        suggestion: what the user might change (e.g. ``"reduce time.step"``), if any.
+    """
+
+    def __init__(
+        self,
+        reason: str,
+        *,
+        time: float | None = None,
+        where: str | None = None,
+        suggestion: str | None = None,
+    ) -> None:
+        self.time = time
+        self.where = where
+        self.reason = _one_line(reason)
+        self.suggestion = _one_line(suggestion) if suggestion else None
+        super().__init__(self._compose())
+
+    def _compose(self) -> str:
+        """The one-line message: ``[where] at t = ... s: reason; suggestion``."""
+        head = []
+        if self.where:
+            head.append(self.where)
+        if self.time is not None:
+            head.append(f"at t = {self.time:.6g} s")
+        text = (" ".join(head) + ": " if head else "") + self.reason
+        if self.suggestion:
+            text += f" (suggestion: {self.suggestion})"
+        return text
+
+
+def show_value(value: object) -> str:
+    """Render a user-supplied value the way it would be written in TOML, for error messages.
+
+    ``True`` → ``true``, strings in double quotes, floats via ``repr`` (``nan``, ``inf``),
+    lists element-wise; anything else via ``repr``. Long renderings are shortened.
+    """
+    if isinstance(value, bool):
+        text = "true" if value else "false"
+    elif isinstance(value, str):
+        text = '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    elif isinstance(value, float | int):
+        text = repr(value)
+    elif isinstance(value, list | tuple):
+        text = "[" + ", ".join(show_value(v) for v in value) + "]"
+    elif isinstance(value, dict):
+        text = "{" + ", ".join(f"{k} = {show_value(v)}" for k, v in value.items()) + "}"
+    else:
+        text = repr(value)
+    text = _one_line(text)
+    return text if len(text) <= 120 else text[:117] + "..."

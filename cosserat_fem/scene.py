@@ -1,0 +1,845 @@
+"""TOML scenes: schema, validation, ``--set`` overrides and the resolved :class:`Scene`.
+
+A scene file describes one run (rod, material, supports, loads, time span, discretisation,
+solver and output). :func:`load_scene` reads it, applies ``dotted.key=value`` overrides and
+validates everything before any work is done; every problem is reported as a single
+:class:`~cosserat_fem.errors.SceneError` whose message starts with the dotted key at fault,
+states what is allowed and shows the offending value. The schema (keys, defaults, ranges) is
+the table :data:`SCHEMA` below; ``scenes/cao_tucker_2008.toml`` is a commented example.
+
+Overrides: the value is read as a TOML value if possible (``1e-5``, ``true``, ``"bdf2"``,
+``[0, 0, "1e3*t"]``), else taken as a bare string (``time.integrator=bdf2``). Overriding one of
+``rod.material.poisson_ratio`` / ``rod.material.shear_modulus`` removes the other, so that
+either can be set from the command line whichever the file gives.
+"""
+
+from __future__ import annotations
+
+import difflib
+import keyword
+import math
+import tomllib
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from cosserat_fem.errors import SceneError, show_value
+from cosserat_fem.expressions import RESERVED_NAMES, Expression, parse_vector
+
+#: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
+SCENE_CONSTANTS = ("L", "omega0")
+#: First cantilever eigenvalue used by the paper's reference frequency (Cao & Tucker 2008, §6).
+CANTILEVER_EIGENVALUE = 1.875
+#: Relative tolerance for "is an integer number of time steps".
+STEP_TOLERANCE = 1e-9
+
+_EXCLUSIVE = ("rod.material.poisson_ratio", "rod.material.shear_modulus")
+
+
+# ======================================================================= resolved scene objects
+@dataclass(frozen=True)
+class SectionSpec:
+    """Cross-section: ``a`` along d1 (thickness), ``b`` along d2 (width), both in m."""
+
+    shape: str
+    a: float
+    b: float
+    shear_coefficient: float
+    torsion_constant: str
+
+
+@dataclass(frozen=True)
+class Material:
+    """Linear elastic material; exactly one of ``poisson_ratio`` / ``shear_modulus_value``."""
+
+    density: float
+    young_modulus: float
+    poisson_ratio: float | None
+    shear_modulus_value: float | None
+
+    @property
+    def shear_modulus(self) -> float:
+        """G [Pa]: as given, or E / (2 (1 + ν))."""
+        if self.shear_modulus_value is not None:
+            return self.shear_modulus_value
+        assert self.poisson_ratio is not None
+        return self.young_modulus / (2.0 * (1.0 + self.poisson_ratio))
+
+
+@dataclass(frozen=True)
+class Rod:
+    """Straight rod of length ``length`` [m]."""
+
+    length: float
+    section: SectionSpec
+    material: Material
+
+
+@dataclass(frozen=True)
+class Model:
+    """Modelling choices; ``reference_frequency`` [rad/s] is None for "auto"."""
+
+    reference_frequency: float | None
+    torsion_inertia: str
+    end_load_sign: str
+    end_load_scaling: str
+
+
+@dataclass(frozen=True)
+class Supports:
+    """Support of each end: "clamped" or "free"."""
+
+    start: str
+    end: str
+
+
+@dataclass(frozen=True)
+class EndLoad:
+    """Force [N] and torque [N m] on a free end, fixed directions e1, e2, e3; functions of t."""
+
+    force: tuple[Expression, ...]
+    torque: tuple[Expression, ...]
+
+
+@dataclass(frozen=True)
+class Loads:
+    """Distributed force [N/m] and torque [N m/m] (functions of s, t) and end loads."""
+
+    force_density: tuple[Expression, ...]
+    torque_density: tuple[Expression, ...]
+    start: EndLoad | None
+    end: EndLoad | None
+
+
+@dataclass(frozen=True)
+class Time:
+    """Time span [s] and integrator."""
+
+    start: float
+    end: float
+    step: float
+    integrator: str
+    rho_inf: float
+
+    @property
+    def n_steps(self) -> int:
+        """Number of time steps, round((end - start) / step)."""
+        return round((self.end - self.start) / self.step)
+
+
+@dataclass(frozen=True)
+class Discretisation:
+    """Mesh and element: ``elements`` cells of Lagrange ``degree``; quadrature resolved."""
+
+    elements: int
+    degree: int
+    quadrature_degree: int
+
+
+@dataclass(frozen=True)
+class Solver:
+    """Newton solver settings."""
+
+    jacobian: str
+    lag: int
+    refresh_iterations: int
+    rtol: float
+    atol: float
+    stol: float
+    max_iterations: int
+    linear_solver: str
+
+
+@dataclass(frozen=True)
+class Output:
+    """Output directory (stored as written) and XDMF settings."""
+
+    directory: str
+    xdmf: bool
+    xdmf_interval: float
+
+    def xdmf_every(self, step: float) -> int:
+        """Steps between XDMF writes (1 if the interval is 0)."""
+        if self.xdmf_interval == 0.0:
+            return 1
+        return max(1, round(self.xdmf_interval / step))
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene; ``source`` (file name or "<dict>") does not take part in equality."""
+
+    title: str
+    parameters: dict[str, float]
+    rod: Rod
+    model: Model
+    supports: Supports
+    loads: Loads
+    time: Time
+    discretisation: Discretisation
+    solver: Solver
+    output: Output
+    source: str = field(default="<dict>", compare=False)
+
+    @property
+    def omega0(self) -> float:
+        """The reference frequency ω0 [rad/s]: as given, or :func:`auto_reference_frequency`."""
+        given = self.model.reference_frequency
+        return given if given is not None else auto_reference_frequency(self.rod)
+
+    def expression_names(self) -> dict[str, float]:
+        """Constant values for load expressions: ``L``, ``omega0`` and the parameters."""
+        return {"L": self.rod.length, "omega0": self.omega0, **self.parameters}
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain, JSON-serialisable dict with resolved defaults; ``scene_from_dict`` inverts it."""
+        return _scene_to_dict(self)
+
+
+def auto_reference_frequency(rod: Rod) -> float:
+    """ω0 = 1.875² / L² · sqrt(E c22 / (ρ A)), c22 = b a³/12, A = a b (paper, §6)."""
+    a, b = rod.section.a, rod.section.b
+    c22, area = b * a**3 / 12.0, a * b
+    stiffness = rod.material.young_modulus * c22 / (rod.material.density * area)
+    return CANTILEVER_EIGENVALUE**2 / rod.length**2 * math.sqrt(stiffness)
+
+
+# ========================================================================== schema primitives
+def _fmt(x: float) -> str:
+    """A bound for messages: integers without ".0", else ``repr``."""
+    return str(int(x)) if float(x).is_integer() and abs(x) < 1e15 else repr(float(x))
+
+
+@dataclass(frozen=True)
+class _Interval:
+    """Allowed range; None = unbounded on that side."""
+
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+
+    def contains(self, x: float) -> bool:
+        lo_ok = self.lo is None or (x > self.lo if self.lo_open else x >= self.lo)
+        hi_ok = self.hi is None or (x < self.hi if self.hi_open else x <= self.hi)
+        return lo_ok and hi_ok
+
+    def describe(self) -> str:
+        if self.lo is not None and self.hi is not None:
+            left, right = "(" if self.lo_open else "[", ")" if self.hi_open else "]"
+            return f"in {left}{_fmt(self.lo)}, {_fmt(self.hi)}{right}"
+        if self.lo is not None:
+            return f"{'>' if self.lo_open else '>='} {_fmt(self.lo)}"
+        if self.hi is not None:
+            return f"{'<' if self.hi_open else '<='} {_fmt(self.hi)}"
+        return "finite"
+
+
+POSITIVE = _Interval(lo=0.0, lo_open=True)
+NON_NEGATIVE = _Interval(lo=0.0)
+ANY = _Interval()
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Field:
+    """A leaf key: ``required`` or else ``default``."""
+
+    required: bool = False
+    default: Any = None
+
+    def describe(self) -> str:
+        raise NotImplementedError
+
+    def check(self, key: str, value: Any) -> Any:
+        raise NotImplementedError
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Number(_Field):
+    """A finite number in ``interval``; ``integer`` → int; ``auto`` → also the string "auto"."""
+
+    interval: _Interval = ANY
+    unit: str = ""
+    integer: bool = False
+    auto: bool = False
+
+    def describe(self) -> str:
+        kind = "an integer" if self.integer else "a number"
+        text = f"{kind} {self.interval.describe()}" if self.interval != ANY else kind
+        text += f" [{self.unit}]" if self.unit else ""
+        return f'"auto" or {text}' if self.auto else text
+
+    def check(self, key: str, value: Any) -> Any:
+        if self.auto and value == "auto":
+            return "auto"
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        if not math.isfinite(value):
+            raise SceneError(f"{key}: must be {self.describe()}, finite, got {show_value(value)}")
+        if self.integer and not float(value).is_integer():
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        number = int(value) if self.integer else float(value)
+        if not self.interval.contains(number):
+            raise SceneError(self._range_message(key, value))
+        return number
+
+    def _range_message(self, key: str, value: Any) -> str:
+        if self.auto:
+            return f"{key}: must be {self.describe()}, got {show_value(value)}"
+        rule = self.interval.describe()
+        verb = "lie" if rule.startswith("in ") else "be"
+        unit = f" [{self.unit}]" if self.unit else ""
+        return f"{key}: must {verb} {rule}{unit}, got {show_value(value)}"
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Choice(_Field):
+    """One of a fixed set of strings."""
+
+    choices: tuple[str, ...] = ()
+
+    def describe(self) -> str:
+        return "one of " + ", ".join(show_value(c) for c in self.choices)
+
+    def check(self, key: str, value: Any) -> Any:
+        if isinstance(value, str) and value in self.choices:
+            return value
+        hint = ""
+        if isinstance(value, str):
+            close = difflib.get_close_matches(value, self.choices, n=1, cutoff=0.5)
+            hint = f" (did you mean {show_value(close[0])}?)" if close else ""
+        raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}{hint}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Text(_Field):
+    """A string (non-empty if ``non_empty``)."""
+
+    non_empty: bool = False
+
+    def describe(self) -> str:
+        return "a non-empty string" if self.non_empty else "a string"
+
+    def check(self, key: str, value: Any) -> Any:
+        if not isinstance(value, str) or (self.non_empty and not value.strip()):
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        return value
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Flag(_Field):
+    """A boolean."""
+
+    def describe(self) -> str:
+        return "true or false"
+
+    def check(self, key: str, value: Any) -> Any:
+        if not isinstance(value, bool):
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        return value
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Vector(_Field):
+    """A list of 3 numbers/expression strings; parsed later, when the names are known."""
+
+    unit: str = ""
+
+    def describe(self) -> str:
+        return f"a list of 3 numbers or expression strings [{self.unit}]"
+
+    def check(self, key: str, value: Any) -> Any:
+        if not isinstance(value, list) or len(value) != 3:
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        return list(value)
+
+
+@dataclass(frozen=True)
+class _Table:
+    """A table of fields; an ``optional`` table resolves to None when absent."""
+
+    fields: Mapping[str, _Field | _Table | _Parameters]
+    optional: bool = False
+
+
+@dataclass(frozen=True)
+class _Parameters:
+    """The free-form [parameters] table: identifier = finite number."""
+
+
+_ZERO3 = [0, 0, 0]
+_END_LOAD = _Table(
+    {
+        "force": _Vector(default=_ZERO3, unit="N"),
+        "torque": _Vector(default=_ZERO3, unit="N m"),
+    },
+    optional=True,
+)
+
+#: The scene schema (nested tables; leaves carry type, range and default).
+SCHEMA = _Table(
+    {
+        "title": _Text(default=""),
+        "parameters": _Parameters(),
+        "rod": _Table(
+            {
+                "length": _Number(required=True, interval=POSITIVE, unit="m"),
+                "section": _Table(
+                    {
+                        "shape": _Choice(choices=("rectangle",), default="rectangle"),
+                        "a": _Number(required=True, interval=POSITIVE, unit="m"),
+                        "b": _Number(required=True, interval=POSITIVE, unit="m"),
+                        "shear_coefficient": _Number(
+                            default=5.0 / 6.0, interval=_Interval(0.0, 1.0, lo_open=True)
+                        ),
+                        "torsion_constant": _Choice(
+                            choices=("series", "approximate"), default="series"
+                        ),
+                    }
+                ),
+                "material": _Table(
+                    {
+                        "density": _Number(required=True, interval=POSITIVE, unit="kg/m^3"),
+                        "young_modulus": _Number(required=True, interval=POSITIVE, unit="Pa"),
+                        "poisson_ratio": _Number(
+                            interval=_Interval(-1.0, 0.5, lo_open=True, hi_open=True)
+                        ),
+                        "shear_modulus": _Number(interval=POSITIVE, unit="Pa"),
+                    }
+                ),
+            }
+        ),
+        "model": _Table(
+            {
+                "reference_frequency": _Number(
+                    default="auto", interval=POSITIVE, unit="rad/s", auto=True
+                ),
+                "torsion_inertia": _Choice(choices=("polar", "printed"), default="polar"),
+                "end_load_sign": _Choice(choices=("balance", "printed"), default="balance"),
+                "end_load_scaling": _Choice(choices=("balance", "printed"), default="balance"),
+            }
+        ),
+        "supports": _Table(
+            {
+                "start": _Choice(choices=("clamped", "free"), default="clamped"),
+                "end": _Choice(choices=("free", "clamped"), default="free"),
+            }
+        ),
+        "loads": _Table(
+            {
+                "force_density": _Vector(default=_ZERO3, unit="N/m"),
+                "torque_density": _Vector(default=_ZERO3, unit="N m/m"),
+                "start": _END_LOAD,
+                "end": _END_LOAD,
+            }
+        ),
+        "time": _Table(
+            {
+                "start": _Number(default=0.0, unit="s"),
+                "end": _Number(required=True, unit="s"),
+                "step": _Number(required=True, interval=POSITIVE, unit="s"),
+                "integrator": _Choice(choices=("bdf2", "generalized-alpha"), default="bdf2"),
+                "rho_inf": _Number(default=0.5, interval=_Interval(0.0, 1.0)),
+            }
+        ),
+        "discretisation": _Table(
+            {
+                "elements": _Number(default=20, integer=True, interval=_Interval(lo=1)),
+                "degree": _Number(default=2, integer=True, interval=_Interval(1, 5)),
+                "quadrature_degree": _Number(
+                    default="auto", integer=True, interval=_Interval(lo=1), auto=True
+                ),
+            }
+        ),
+        "solver": _Table(
+            {
+                "jacobian": _Choice(choices=("full", "lagged", "frozen"), default="full"),
+                "lag": _Number(default=10, integer=True, interval=_Interval(lo=1)),
+                "refresh_iterations": _Number(default=4, integer=True, interval=_Interval(lo=1)),
+                "rtol": _Number(default=1e-10, interval=_Interval(0.0, 1.0, True, True)),
+                "atol": _Number(default=1e-12, interval=POSITIVE),
+                "stol": _Number(default=1e-8, interval=_Interval(0.0, 1.0, True, True)),
+                "max_iterations": _Number(default=25, integer=True, interval=_Interval(lo=1)),
+                "linear_solver": _Choice(
+                    choices=("auto", "petsc", "mumps", "superlu"), default="auto"
+                ),
+            }
+        ),
+        "output": _Table(
+            {
+                "directory": _Text(default="results", non_empty=True),
+                "xdmf": _Flag(default=True),
+                "xdmf_interval": _Number(default=0.0, interval=NON_NEGATIVE, unit="s"),
+            }
+        ),
+    }
+)
+
+
+# ============================================================================ generic checking
+def _join(prefix: str, name: str) -> str:
+    return f"{prefix}.{name}" if prefix else name
+
+
+def _leaf_paths(table: _Table, prefix: str = "") -> list[str]:
+    """All dotted keys of the schema (tables included)."""
+    paths = []
+    for name, spec in table.fields.items():
+        key = _join(prefix, name)
+        paths.append(key)
+        if isinstance(spec, _Table):
+            paths.extend(_leaf_paths(spec, key))
+    return paths
+
+
+def _unknown_key(key: str, siblings: Sequence[str]) -> SceneError:
+    """Error for an unknown key, with a did-you-mean from this level or the whole schema."""
+    prefix, _, name = key.rpartition(".")
+    close = difflib.get_close_matches(name, siblings, n=1, cutoff=0.6)
+    hint = _join(prefix, close[0]) if close else None
+    if hint is None:
+        paths = _leaf_paths(SCHEMA)
+        close = difflib.get_close_matches(key, paths, n=1, cutoff=0.75)
+        by_name = [p for p in paths if p.rpartition(".")[2] == name]
+        hint = close[0] if close else (by_name[0] if by_name else None)
+    text = f"{key}: unknown key"
+    text += f" (did you mean {hint!r}?)" if hint else ""
+    allowed = ", ".join(siblings)
+    return SceneError(f"{text}; allowed {'in ' + prefix if prefix else 'at top level'}: {allowed}")
+
+
+def _check_table(key: str, data: Any, spec: _Table) -> dict[str, Any]:
+    """Validate one table: unknown keys, then each field in schema order; defaults filled in."""
+    if not isinstance(data, dict):
+        raise SceneError(f"{key}: must be a table, got {show_value(data)}")
+    for name in data:
+        if name not in spec.fields:
+            raise _unknown_key(_join(key, name), list(spec.fields))
+    return {
+        name: _check_entry(_join(key, name), data, name, sub) for name, sub in spec.fields.items()
+    }
+
+
+def _check_entry(key: str, data: dict[str, Any], name: str, spec: Any) -> Any:
+    """Validate ``data[name]`` (absent → default, None, or a missing-key error)."""
+    present = name in data
+    if isinstance(spec, _Parameters):
+        return _check_parameters(key, data.get(name, {}))
+    if isinstance(spec, _Table):
+        if not present and spec.optional:
+            return None
+        return _check_table(key, data.get(name, {}), spec)
+    if present:
+        return spec.check(key, data[name])
+    if spec.required:
+        raise SceneError(f"{key}: required key is missing ({spec.describe()})")
+    return spec.default
+
+
+def _check_parameters(key: str, data: Any) -> dict[str, float]:
+    """[parameters]: identifier names, not reserved, finite numbers."""
+    if not isinstance(data, dict):
+        raise SceneError(f"{key}: must be a table of name = number, got {show_value(data)}")
+    reserved = RESERVED_NAMES | set(SCENE_CONSTANTS)
+    out = {}
+    for name, value in data.items():
+        item = _join(key, name)
+        if not name.isidentifier() or keyword.iskeyword(name):
+            raise SceneError(f"{item}: parameter names must be identifiers, got {name!r}")
+        if name in reserved:
+            raise SceneError(
+                f"{item}: {name!r} is reserved; not allowed: {', '.join(sorted(reserved))}"
+            )
+        out[name] = _Number().check(item, value)
+    return out
+
+
+# ================================================================================= overrides
+def _lookup_spec(path: list[str]) -> Any:
+    """The schema entry at a dotted path (``parameters.X`` accepted); SceneError if unknown."""
+    spec: Any = SCHEMA
+    for depth, name in enumerate(path):
+        key = ".".join(path[: depth + 1])
+        if isinstance(spec, _Parameters):
+            if depth != len(path) - 1:
+                raise SceneError(f"{key}: parameters are numbers, not tables")
+            return _Number()
+        if not isinstance(spec, _Table):
+            raise SceneError(f"{key}: unknown key; {'.'.join(path[:depth])} is not a table")
+        if name not in spec.fields:
+            raise _unknown_key(key, list(spec.fields))
+        spec = spec.fields[name]
+    return spec
+
+
+def _override_value(text: str) -> Any:
+    """A TOML value if ``text`` parses as one, else the bare string."""
+    try:
+        document = tomllib.loads(f"v = {text}")
+    except tomllib.TOMLDecodeError:
+        return text
+    return document["v"] if list(document) == ["v"] else text
+
+
+def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> dict[str, Any]:
+    """Return a copy of ``data`` with ``dotted.key=value`` overrides applied in order."""
+    result = _copy_tables(data)
+    for text in overrides:
+        raw_key, sep, raw_value = text.partition("=")
+        key = raw_key.strip()
+        if not sep or not key:
+            raise SceneError(f"--set {text!r}: expected dotted.key=value")
+        path = [part.strip() for part in key.split(".")]
+        spec = _lookup_spec(path)
+        if isinstance(spec, _Table | _Parameters):
+            raise SceneError(f"{key}: is a table; set one of its keys instead (--set {key}.X=...)")
+        _set_path(result, path, _override_value(raw_value.strip()))
+        if key in _EXCLUSIVE:
+            other = _EXCLUSIVE[1 - _EXCLUSIVE.index(key)]
+            _table_at(result, path[:-1]).pop(other.rpartition(".")[2], None)
+    return result
+
+
+def _copy_tables(data: Any) -> Any:
+    """Copy nested dicts (values shared otherwise)."""
+    return {k: _copy_tables(v) for k, v in data.items()} if isinstance(data, dict) else data
+
+
+def _table_at(data: dict[str, Any], path: list[str]) -> dict[str, Any]:
+    """The table at ``path``, created if absent; SceneError if something else is there."""
+    table = data
+    for depth, name in enumerate(path):
+        table = table.setdefault(name, {})
+        if not isinstance(table, dict):
+            key = ".".join(path[: depth + 1])
+            raise SceneError(f"{key}: must be a table, got {show_value(table)}")
+    return table
+
+
+def _set_path(data: dict[str, Any], path: list[str], value: Any) -> None:
+    _table_at(data, path[:-1])[path[-1]] = value
+
+
+# ==================================================================================== building
+def _build_rod(raw: dict[str, Any]) -> Rod:
+    section = SectionSpec(**raw["section"])
+    mat = raw["material"]
+    nu, g = mat["poisson_ratio"], mat["shear_modulus"]
+    if (nu is None) == (g is None):
+        state = (
+            f"both are given (poisson_ratio = {show_value(nu)}, shear_modulus = {show_value(g)})"
+            if nu is not None
+            else "neither is given"
+        )
+        raise SceneError(
+            f"rod.material: exactly one of poisson_ratio (in (-1, 0.5)) and shear_modulus "
+            f"(> 0, Pa) must be given, but {state}"
+        )
+    material = Material(mat["density"], mat["young_modulus"], nu, g)
+    return Rod(raw["length"], section, material)
+
+
+def _build_model(raw: dict[str, Any]) -> Model:
+    frequency = raw["reference_frequency"]
+    return Model(
+        reference_frequency=None if frequency == "auto" else frequency,
+        torsion_inertia=raw["torsion_inertia"],
+        end_load_sign=raw["end_load_sign"],
+        end_load_scaling=raw["end_load_scaling"],
+    )
+
+
+def _build_supports(raw: dict[str, Any]) -> Supports:
+    if raw["start"] == "free" and raw["end"] == "free":
+        raise SceneError(
+            'supports: at least one end must be "clamped" (supports.start or supports.end); '
+            "a free-free rod has rigid-body modes and the problem is singular, "
+            'got start = "free", end = "free"'
+        )
+    return Supports(raw["start"], raw["end"])
+
+
+def _build_loads(raw: dict[str, Any], supports: Supports, constants: set[str]) -> Loads:
+    names = {"s", "t", *constants}
+    force = parse_vector(raw["force_density"], names, "loads.force_density")
+    torque = parse_vector(raw["torque_density"], names, "loads.torque_density")
+    ends = {}
+    for end in ("start", "end"):
+        ends[end] = _build_end_load(raw[end], end, getattr(supports, end), names)
+    return Loads(force, torque, ends["start"], ends["end"])
+
+
+def _build_end_load(
+    raw: dict[str, Any] | None, end: str, support: str, names: set[str]
+) -> EndLoad | None:
+    if raw is None:
+        return None
+    key = f"loads.{end}"
+    if support != "free":
+        raise SceneError(
+            f"{key}: end loads are only allowed on a free end, "
+            f'but supports.{end} = "{support}" (remove [{key}] or set supports.{end} = "free")'
+        )
+    vectors = {}
+    for name in ("force", "torque"):
+        vector = parse_vector(raw[name], names, f"{key}.{name}")
+        for i, component in enumerate(vector):
+            if component.depends_on("s"):
+                raise SceneError(
+                    f"{key}.{name}[{i}]: end loads may depend on t and constants only, "
+                    f"not on the arc length s, got {show_value(component.source)}"
+                )
+        vectors[name] = vector
+    return EndLoad(vectors["force"], vectors["torque"])
+
+
+def _integral_ratio(span: float, step: float) -> bool:
+    ratio = span / step
+    return abs(ratio - round(ratio)) <= STEP_TOLERANCE * ratio
+
+
+def _build_time(raw: dict[str, Any]) -> Time:
+    start, end, step = raw["start"], raw["end"], raw["step"]
+    if not end > start:
+        raise SceneError(
+            f"time.end: must be > time.start = {_fmt(start)} [s], got {show_value(end)}"
+        )
+    span = end - start
+    if step > span * (1.0 + STEP_TOLERANCE):
+        raise SceneError(
+            f"time.step: must be <= time.end - time.start = {span!r} [s], got {show_value(step)}"
+        )
+    if not _integral_ratio(span, step):
+        suggestion = span / math.ceil(span / step)
+        raise SceneError(
+            f"time.step: (time.end - time.start) / time.step must be an integer (within "
+            f"{STEP_TOLERANCE:g} relative), got {span!r} / {step!r} = {span / step!r} "
+            f"(e.g. time.step = {suggestion:.10g})"
+        )
+    return Time(start, end, step, raw["integrator"], raw["rho_inf"])
+
+
+def _build_discretisation(raw: dict[str, Any]) -> Discretisation:
+    quadrature = raw["quadrature_degree"]
+    if quadrature == "auto":
+        quadrature = 2 * raw["degree"]
+    return Discretisation(raw["elements"], raw["degree"], quadrature)
+
+
+def _build_output(raw: dict[str, Any], time: Time) -> Output:
+    interval = raw["xdmf_interval"]
+    if interval > 0.0 and not (
+        interval >= time.step * (1.0 - STEP_TOLERANCE) and _integral_ratio(interval, time.step)
+    ):
+        raise SceneError(
+            f"output.xdmf_interval: must be 0 (every step) or an integer multiple of "
+            f"time.step = {time.step!r} [s], got {show_value(interval)}"
+        )
+    return Output(raw["directory"], raw["xdmf"], interval)
+
+
+def scene_from_dict(
+    data: dict[str, Any], source: str = "<dict>", overrides: Sequence[str] = ()
+) -> Scene:
+    """Validate a scene given as nested dicts (as from TOML) and resolve it.
+
+    ``overrides`` (``dotted.key=value``) are applied first. Raises :class:`SceneError`.
+    """
+    if not isinstance(data, dict):
+        raise SceneError(f"{source}: a scene must be a table of keys, got {show_value(data)}")
+    raw = _check_table("", apply_overrides(data, overrides), SCHEMA)
+    parameters = raw["parameters"]
+    rod = _build_rod(raw["rod"])
+    supports = _build_supports(raw["supports"])
+    loads = _build_loads(raw["loads"], supports, {*SCENE_CONSTANTS, *parameters})
+    time = _build_time(raw["time"])
+    return Scene(
+        title=raw["title"],
+        parameters=parameters,
+        rod=rod,
+        model=_build_model(raw["model"]),
+        supports=supports,
+        loads=loads,
+        time=time,
+        discretisation=_build_discretisation(raw["discretisation"]),
+        solver=Solver(**raw["solver"]),
+        output=_build_output(raw["output"], time),
+        source=source,
+    )
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    """Read a TOML file; every failure (missing, unreadable, malformed) is a SceneError."""
+    try:
+        with open(path, "rb") as stream:
+            return tomllib.load(stream)
+    except FileNotFoundError:
+        raise SceneError(f"{path}: scene file not found") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: malformed TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise SceneError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot read scene file ({exc.strerror})") from None
+
+
+def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
+    """Read, override and validate a TOML scene file."""
+    return scene_from_dict(read_toml(path), source=str(path), overrides=overrides)
+
+
+# =================================================================================== to_dict
+def _vector(values: tuple[Expression, ...]) -> list[str]:
+    return [e.source for e in values]
+
+
+def _end_load_dict(load: EndLoad) -> dict[str, Any]:
+    return {"force": _vector(load.force), "torque": _vector(load.torque)}
+
+
+def _material_dict(material: Material) -> dict[str, Any]:
+    out: dict[str, Any] = {"density": material.density, "young_modulus": material.young_modulus}
+    if material.poisson_ratio is not None:
+        out["poisson_ratio"] = material.poisson_ratio
+    else:
+        out["shear_modulus"] = material.shear_modulus_value
+    return out
+
+
+def _loads_dict(loads: Loads) -> dict[str, Any]:
+    out: dict[str, Any] = {
+        "force_density": _vector(loads.force_density),
+        "torque_density": _vector(loads.torque_density),
+    }
+    for end in ("start", "end"):
+        load = getattr(loads, end)
+        if load is not None:
+            out[end] = _end_load_dict(load)
+    return out
+
+
+def _fields(obj: Any) -> dict[str, Any]:
+    return dict(vars(obj))
+
+
+def _scene_to_dict(scene: Scene) -> dict[str, Any]:
+    model = _fields(scene.model)
+    if model["reference_frequency"] is None:
+        model["reference_frequency"] = "auto"
+    return {
+        "title": scene.title,
+        "parameters": dict(scene.parameters),
+        "rod": {
+            "length": scene.rod.length,
+            "section": _fields(scene.rod.section),
+            "material": _material_dict(scene.rod.material),
+        },
+        "model": model,
+        "supports": _fields(scene.supports),
+        "loads": _loads_dict(scene.loads),
+        "time": _fields(scene.time),
+        "discretisation": _fields(scene.discretisation),
+        "solver": _fields(scene.solver),
+        "output": _fields(scene.output),
+    }
