@@ -1,0 +1,1 @@
+"""Independent closed-form references (pure numpy/scipy, no DOLFINx) for checking the rod solver."""
