@@ -1,0 +1,204 @@
+"""Implicit time integrators for first-order systems  F(U, dU/dτ, τ; V) = 0.
+
+An integrator knows nothing of rods. It is given the unknown Function ``U`` (the state at the
+new time level, which Newton solves for) and a callable ``residual(U_eval, Udot_eval,
+time_eval) -> ufl.Form``; it returns the residual form in which U_eval, Udot_eval and
+time_eval are the scheme's UFL combinations of ``U``, its own history Functions and
+Constants, and it updates the history after each accepted step.
+
+* :class:`Static`: Udot = 0 (equilibrium; used for static loads).
+* :class:`BDF2`: variable-step two-step backward differentiation formula,
+  Udot_{n+1} = [(1+2ω)/(1+ω) U_{n+1} − (1+ω) U_n + ω²/(1+ω) U_{n−1}] / h_n, ω = h_n/h_{n−1};
+  second order and L-stable. "Proper start": its first step is an implicit-midpoint step,
+  F((U_0 + U_1)/2, (U_1 − U_0)/h, τ_0 + h/2) = 0 (one-step, second order, local error O(h³)),
+  so no first-order error enters the history.
+* :class:`GeneralizedAlpha`: Jansen, Whiting & Hulbert (2000), CMAME 190:305-319, for
+  first-order systems, with spectral radius at infinity ρ∞ ∈ [0, 1]:
+  αm = ½ (3 − ρ∞)/(1 + ρ∞), αf = 1/(1 + ρ∞), γ = ½ + αm − αf;
+  U_{n+1} = U_n + h U̇_n + γ h (U̇_{n+1} − U̇_n),
+  F(U_n + αf (U_{n+1} − U_n), U̇_n + αm (U̇_{n+1} − U̇_n), τ_n + αf h) = 0.
+  Second order for every ρ∞; ρ∞ = 1 is the (non-dissipative) midpoint rule. The initial
+  rate U̇_0 is made consistent by one linear solve (``initial_rate``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from petsc4py import PETSc
+
+ResidualFactory = Callable[[object, object, object], ufl.Form]
+
+
+def _constant(U: fem.Function, value: float = 0.0) -> fem.Constant:
+    return fem.Constant(U.function_space.mesh, PETSc.ScalarType(value))
+
+
+class Integrator:
+    """Common interface. Subclasses define the forms and the history update."""
+
+    name = "integrator"
+    order = 0
+
+    def __init__(self, U: fem.Function, residual: ResidualFactory, time: float = 0.0):
+        self.U = U
+        self.time = float(time)
+        self.time_eval = _constant(U, time)
+        self._factory = residual
+        self.steps_taken = 0
+
+    def residual_form(self) -> ufl.Form:
+        raise NotImplementedError
+
+    def prepare(self, h: float) -> None:
+        """Set the Constants for a step of size h from ``self.time`` and predict U."""
+        raise NotImplementedError
+
+    def accept(self, h: float) -> None:
+        """Update the history after a converged step of size h."""
+        self.time += h
+        self.steps_taken += 1
+
+    def _copy(self, dst: fem.Function, src: fem.Function) -> None:
+        dst.x.array[:] = src.x.array
+
+
+class Static(Integrator):
+    """Equilibrium: F(U, 0, τ) = 0. ``prepare`` only sets the load time."""
+
+    name = "static"
+
+    def residual_form(self) -> ufl.Form:
+        return self._factory(self.U, ufl.zero(self.U.ufl_shape), self.time_eval)
+
+    def prepare(self, h: float) -> None:
+        self.time_eval.value = self.time + h
+
+
+class BDF2(Integrator):
+    """Variable-step BDF2 started by one implicit-midpoint step (module docstring)."""
+
+    name = "bdf2"
+    order = 2
+
+    def __init__(self, U, residual, time=0.0):
+        super().__init__(U, residual, time)
+        V = U.function_space
+        self.U_n = fem.Function(V, name="U_n")
+        self.U_nm1 = fem.Function(V, name="U_nm1")
+        self._copy(self.U_n, U)
+        self._copy(self.U_nm1, U)
+        self.a0, self.a1, self.a2 = (_constant(U) for _ in range(3))
+        self.mid = _constant(U, 1.0)  # 1 for the midpoint start, 0 for BDF2 steps
+        self.h_prev: float | None = None
+
+    def residual_form(self) -> ufl.Form:
+        U, Un, Unm1 = self.U, self.U_n, self.U_nm1
+        U_eval = U + self.mid * 0.5 * (Un - U)
+        Udot = self.a0 * U + self.a1 * Un + self.a2 * Unm1
+        return self._factory(U_eval, Udot, self.time_eval)
+
+    def prepare(self, h: float) -> None:
+        if self.h_prev is None:  # implicit-midpoint start
+            self.mid.value = 1.0
+            self.a0.value, self.a1.value, self.a2.value = 1.0 / h, -1.0 / h, 0.0
+            self.time_eval.value = self.time + 0.5 * h
+            self._copy(self.U, self.U_n)
+            return
+        w = h / self.h_prev
+        self.mid.value = 0.0
+        self.a0.value = (1.0 + 2.0 * w) / ((1.0 + w) * h)
+        self.a1.value = -(1.0 + w) / h
+        self.a2.value = w * w / ((1.0 + w) * h)
+        self.time_eval.value = self.time + h
+        # Predictor: linear extrapolation through U_{n-1}, U_n.
+        self.U.x.array[:] = (1.0 + w) * self.U_n.x.array - w * self.U_nm1.x.array
+
+    def accept(self, h: float) -> None:
+        self._copy(self.U_nm1, self.U_n)
+        self._copy(self.U_n, self.U)
+        self.h_prev = h
+        super().accept(h)
+
+
+def alpha_parameters(rho_inf: float) -> tuple[float, float, float]:
+    """(αm, αf, γ) of Jansen, Whiting & Hulbert (2000) for spectral radius ρ∞ ∈ [0, 1]."""
+    if not 0.0 <= rho_inf <= 1.0:
+        raise ValueError(f"rho_inf must lie in [0, 1], got {rho_inf}")
+    alpha_m = 0.5 * (3.0 - rho_inf) / (1.0 + rho_inf)
+    alpha_f = 1.0 / (1.0 + rho_inf)
+    return alpha_m, alpha_f, 0.5 + alpha_m - alpha_f
+
+
+class GeneralizedAlpha(Integrator):
+    """Generalized-α for first-order systems (module docstring)."""
+
+    name = "generalized-alpha"
+    order = 2
+
+    def __init__(self, U, residual, time=0.0, rho_inf: float = 0.5):
+        super().__init__(U, residual, time)
+        self.rho_inf = rho_inf
+        self.alpha_m, self.alpha_f, self.gamma = alpha_parameters(rho_inf)
+        V = U.function_space
+        self.U_n = fem.Function(V, name="U_n")
+        self.Udot_n = fem.Function(V, name="Udot_n")
+        self._copy(self.U_n, U)
+        self.inv_gh = _constant(U, 1.0)
+        self.h = _constant(U, 1.0)
+
+    def _rate_new(self):
+        """U̇_{n+1} as a UFL expression of the unknown U = U_{n+1}."""
+        return self.Udot_n + self.inv_gh * (self.U - self.U_n - self.h * self.Udot_n)
+
+    def residual_form(self) -> ufl.Form:
+        am, af = self.alpha_m, self.alpha_f
+        U_eval = self.U_n + af * (self.U - self.U_n)
+        Udot_eval = self.Udot_n + am * (self._rate_new() - self.Udot_n)
+        return self._factory(U_eval, Udot_eval, self.time_eval)
+
+    def initial_rate_problem(self) -> tuple[ufl.Form, ufl.Form, fem.Function]:
+        """Forms (a, L) of the linear problem for a consistent U̇_0 (F is affine in U̇)."""
+        V = self.U.function_space
+        W = fem.Function(V, name="Udot0")
+        F0 = self._factory(self.U_n, W, self.time_eval)
+        dW = ufl.TrialFunction(V)
+        a = ufl.derivative(F0, W, dW)
+        L = -ufl.replace(F0, {W: ufl.zero(self.U.ufl_shape)})
+        return a, L, W
+
+    def set_initial_rate(self, rate: np.ndarray) -> None:
+        self.Udot_n.x.array[:] = rate
+
+    def prepare(self, h: float) -> None:
+        self.h.value = h
+        self.inv_gh.value = 1.0 / (self.gamma * h)
+        self.time_eval.value = self.time + self.alpha_f * h
+        # Predictor: U_{n+1} = U_n + h U̇_n (then U̇_{n+1} = U̇_n).
+        self.U.x.array[:] = self.U_n.x.array + h * self.Udot_n.x.array
+
+    def accept(self, h: float) -> None:
+        g = self.gamma
+        new_rate = self.Udot_n.x.array + (
+            self.U.x.array - self.U_n.x.array - h * self.Udot_n.x.array
+        ) / (g * h)
+        self.Udot_n.x.array[:] = new_rate
+        self._copy(self.U_n, self.U)
+        super().accept(h)
+
+
+INTEGRATORS = {"bdf2": BDF2, "generalized-alpha": GeneralizedAlpha, "static": Static}
+
+
+def make_integrator(name: str, U, residual: ResidualFactory, time: float, rho_inf: float = 0.5):
+    if name == "generalized-alpha":
+        return GeneralizedAlpha(U, residual, time, rho_inf=rho_inf)
+    try:
+        return INTEGRATORS[name](U, residual, time)
+    except KeyError:
+        raise ValueError(
+            f"unknown integrator {name!r}; expected one of {sorted(INTEGRATORS)}"
+        ) from None

@@ -1,0 +1,186 @@
+"""From a scene to a discrete rod: mesh, space, boundary conditions and the residual.
+
+The rod is the interval σ ∈ [0, 1] (σ = s/ℓ, eq. (47)) with ``elements`` cells and a
+12-component Lagrange field U = (p, q) of the scene's degree (one ``VectorElement``, blocked
+dofs, see docs/developers.md). A clamped end gets the Dirichlet condition p = q = 0 (55); a
+free end gets the natural condition through the boundary form of
+:func:`cosserat_fem.forms.general_form.residual_terms`. Loads are the scene's expressions
+of s [m] and t [s], turned into UFL with s = ℓ σ and t = τ/ω0; loads that are identically
+zero are left out of the form.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+import ufl
+from dolfinx import fem, mesh
+from mpi4py import MPI
+
+from .forms.general_form import DistributedLoads, EndLoadConvention, EndLoads, residual_terms
+from .forms.groups import Groups, RodConstants, dimensionless_groups
+from .forms.section import Section, rectangle
+from .scene import Scene
+
+START_TAG, END_TAG = 1, 2
+
+
+def _drop_build_chatter(record: logging.LogRecord) -> bool:
+    return record.name != "root" or record.levelno >= logging.WARNING
+
+
+def quiet_jit_logging() -> None:
+    """Keep the console clean during JIT compilation.
+
+    FFCx installs a root handler (``logging.basicConfig``) and setuptools' distutils resets the
+    root level to INFO on every C build, so each compiled form would print its compiler lines.
+    A filter on the root handlers drops INFO records of the root logger only.
+    """
+    for handler in logging.getLogger().handlers:
+        if _drop_build_chatter not in handler.filters:
+            handler.addFilter(_drop_build_chatter)
+
+
+def section_of(scene: Scene) -> Section:
+    spec = scene.rod.section
+    if spec.shape != "rectangle":
+        raise ValueError(f"unsupported section shape {spec.shape!r}")
+    return rectangle(spec.a, spec.b, spec.shear_coefficient, spec.torsion_constant)
+
+
+def rod_constants(scene: Scene) -> RodConstants:
+    """Physical constants of the scene's rod, with ω0 resolved (section 6 when 'auto')."""
+    mat = scene.rod.material
+    return RodConstants(
+        length=scene.rod.length,
+        section=section_of(scene),
+        density=mat.density,
+        young_modulus=mat.young_modulus,
+        shear_modulus=mat.shear_modulus,
+        omega0=scene.expression_names()["omega0"],
+        torsion_inertia=scene.model.torsion_inertia,
+    )
+
+
+@dataclass
+class RodModel:
+    """The discrete rod of a scene; ``residual`` is the factory the integrators call."""
+
+    scene: Scene
+    msh: mesh.Mesh
+    V: fem.FunctionSpace
+    U: fem.Function
+    bcs: list
+    dx: ufl.Measure
+    ds: ufl.Measure
+    rod: RodConstants
+    groups: Groups
+    convention: EndLoadConvention
+    skipped: list[str]
+
+    @property
+    def omega0(self) -> float:
+        return self.rod.omega0
+
+    @property
+    def length(self) -> float:
+        return self.rod.length
+
+    def global_dofs(self) -> int:
+        imap = self.V.dofmap.index_map
+        return imap.size_global * self.V.dofmap.index_map_bs
+
+    def _symbols(self, time_eval) -> dict:
+        sigma = ufl.SpatialCoordinate(self.msh)[0]
+        names = dict(self.scene.expression_names())
+        names["s"] = self.length * sigma
+        names["t"] = time_eval / self.omega0
+        return names
+
+    @staticmethod
+    def _vector(exprs, symbols):
+        if exprs is None or all(e.is_zero for e in exprs):
+            return None
+        return ufl.as_vector([e.to_ufl(symbols) for e in exprs])
+
+    def residual(self, U_eval, Udot_eval, time_eval) -> ufl.Form:
+        """The weak residual (65) at (U_eval, Udot_eval), loads at τ = time_eval."""
+        return self.residual_terms(U_eval, Udot_eval, time_eval).total()
+
+    def residual_terms(self, U_eval, Udot_eval, time_eval):
+        sym = self._symbols(time_eval)
+        loads = self.scene.loads
+        distributed = DistributedLoads(
+            force=self._vector(loads.force_density, sym),
+            torque=self._vector(loads.torque_density, sym),
+        )
+        ends = []
+        for tag, end in ((START_TAG, loads.start), (END_TAG, loads.end)):
+            if end is None:
+                continue
+            ends.append(
+                EndLoads(
+                    ds=self.ds(tag),
+                    force=self._vector(end.force, sym),
+                    torque=self._vector(end.torque, sym),
+                )
+            )
+        V = ufl.TestFunction(self.V)
+        return residual_terms(
+            U_eval, Udot_eval, V, self.groups, self.dx, distributed, tuple(ends), self.convention
+        )
+
+
+def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> RodModel:
+    quiet_jit_logging()
+    disc = scene.discretisation
+    msh = mesh.create_interval(comm, disc.elements, [0.0, 1.0])
+    cell = msh.ufl_cell()
+    element = ufl.VectorElement("Lagrange", cell, disc.degree, dim=12)
+    V = fem.FunctionSpace(msh, element)
+    U = fem.Function(V, name="U")
+
+    tdim = msh.topology.dim
+    msh.topology.create_connectivity(tdim - 1, tdim)
+    start = mesh.locate_entities_boundary(msh, 0, lambda x: np.isclose(x[0], 0.0))
+    end = mesh.locate_entities_boundary(msh, 0, lambda x: np.isclose(x[0], 1.0))
+    facets = np.concatenate([start, end]).astype(np.int32)
+    values = np.concatenate([np.full(len(start), START_TAG), np.full(len(end), END_TAG)])
+    order = np.argsort(facets)
+    tags = mesh.meshtags(msh, 0, facets[order], values[order].astype(np.int32))
+
+    bcs = []
+    for kind, ents in ((scene.supports.start, start), (scene.supports.end, end)):
+        if kind == "clamped":
+            dofs = fem.locate_dofs_topological(V, 0, ents)
+            bcs.append(fem.dirichletbc(np.zeros(12, dtype=np.float64), dofs, V))
+
+    # FFCx 0.5 reads the quadrature degree from the measure's metadata only; a
+    # form_compiler_params={"quadrature_degree": q} is silently ignored.
+    q = disc.quadrature_degree
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": q})
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
+    rod = rod_constants(scene)
+    skipped = [
+        name
+        for name, exprs in (
+            ("force_density", scene.loads.force_density),
+            ("torque_density", scene.loads.torque_density),
+        )
+        if exprs is None or all(e.is_zero for e in exprs)
+    ]
+    return RodModel(
+        scene=scene,
+        msh=msh,
+        V=V,
+        U=U,
+        bcs=bcs,
+        dx=dx,
+        ds=ds,
+        rod=rod,
+        groups=dimensionless_groups(rod),
+        convention=EndLoadConvention(scene.model.end_load_sign, scene.model.end_load_scaling),
+        skipped=skipped,
+    )

@@ -1,0 +1,291 @@
+"""The time loop: a scene in, probes, XDMF and a summary out.
+
+Time runs in τ = ω0 t (47) inside the integrator; everything written is in SI units.
+After each step the state is checked: Newton must converge, U must be finite and the
+Euler-angle chart must stay regular (|cos θ| ≥ ``CHART_COS_MIN``, since det Ma = cos θ (66)).
+Trouble stops the run with a :class:`~cosserat_fem.errors.SolverError` that names the time,
+the place along the rod and the reason; the outputs written so far stay readable and
+``summary.json`` records the failure.
+"""
+
+from __future__ import annotations
+
+import platform
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from dolfinx.fem.petsc import LinearProblem
+from mpi4py import MPI
+
+from . import __version__
+from .errors import SceneError, SolverError
+from .integrators import GeneralizedAlpha, make_integrator
+from .model import RodModel, build_model
+from .newton import NewtonFailure, NewtonSettings, NewtonSolver
+from .output import PointProbe, ProbeWriter, XdmfWriter, write_json
+from .scene import Scene
+
+CHART_COS_MIN = 1e-2
+Observer = Callable[[int, float, RodModel], None]
+
+
+@dataclass
+class RunResult:
+    """What a run produced (on every rank; file paths are the same on all ranks)."""
+
+    out_dir: Path
+    steps: int
+    time_reached: float
+    summary: dict
+    model: RodModel = field(repr=False)
+
+
+def probe_sigma(scene: Scene) -> float:
+    """The probe point: the free end at s = ℓ, else the free end at s = 0, else mid-span."""
+    if scene.supports.end == "free":
+        return 1.0
+    if scene.supports.start == "free":
+        return 0.0
+    return 0.5
+
+
+def newton_settings(scene: Scene) -> NewtonSettings:
+    s = scene.solver
+    return NewtonSettings(
+        jacobian=s.jacobian,
+        lag=s.lag,
+        refresh_iterations=s.refresh_iterations,
+        rtol=s.rtol,
+        atol=s.atol,
+        stol=s.stol,
+        max_iterations=s.max_iterations,
+        linear_solver=s.linear_solver,
+    )
+
+
+def prepare_output_dir(path: Path, comm: MPI.Comm) -> Path:
+    error = None
+    if comm.rank == 0:
+        try:
+            path.mkdir(parents=True, exist_ok=True)
+            probe = path / ".write-test"
+            probe.write_text("")
+            probe.unlink()
+        except OSError as exc:
+            error = f"output.directory: cannot write to {str(path)!r} ({exc.strerror or exc})"
+    error = comm.bcast(error, root=0)
+    if error:
+        raise SceneError(error)
+    return path
+
+
+def _worst_place(model: RodModel, values: np.ndarray) -> tuple[float, float]:
+    """(s [m], value) of the largest |value| over the rod; values: local per-block array."""
+    imap = model.V.dofmap.index_map
+    n = imap.size_local
+    coords = model.V.tabulate_dof_coordinates()[:n, 0]
+    local = np.abs(values[:n]) if n else np.zeros(1)
+    i = int(np.argmax(local)) if n else 0
+    mine = (float(local[i]) if n else -1.0, float(coords[i]) * model.length if n else 0.0)
+    return max(model.msh.comm.allgather(mine))[::-1]
+
+
+def _check_state(model: RodModel, t: float) -> None:
+    blocks = model.U.x.array.reshape(-1, 12)
+    n = model.V.dofmap.index_map.size_local
+    finite = bool(np.isfinite(blocks[:n]).all())
+    cos_min = float(np.min(np.abs(np.cos(blocks[:n, 3])))) if n and finite else 1.0
+    comm = model.msh.comm
+    finite = comm.allreduce(finite, op=MPI.LAND)
+    cos_min = comm.allreduce(cos_min, op=MPI.MIN)
+    if not finite:
+        bad = np.where(np.isfinite(blocks).all(axis=1), 0.0, 1.0)
+        s, _ = _worst_place(model, bad)
+        raise SolverError(
+            time=t,
+            where=f"s = {s:.4g} m",
+            reason="the solution became non-finite (NaN/inf)",
+            suggestion="reduce time.step or check the loads",
+        )
+    if cos_min < CHART_COS_MIN:
+        s, _ = _worst_place(model, 1.0 / np.maximum(np.abs(np.cos(blocks[:, 3])), 1e-300))
+        raise SolverError(
+            time=t,
+            where=f"s = {s:.4g} m",
+            reason=(
+                f"Euler-angle chart singular: |cos θ| = {cos_min:.2e} "
+                "(θ near ±π/2, where det Ma = cos θ vanishes)"
+            ),
+            suggestion="the rod's tangent turned towards e2; this chart cannot continue",
+        )
+
+
+def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: str) -> None:
+    """U̇_0 from F(U_0, U̇_0, τ_0) = 0, affine in U̇_0 (one linear solve)."""
+    a, L, _ = integrator.initial_rate_problem()
+    problem = LinearProblem(
+        a,
+        L,
+        bcs=model.bcs,
+        petsc_options={
+            "ksp_type": "preonly",
+            "pc_type": "lu",
+            "pc_factor_mat_solver_type": lu_package,
+        },
+    )
+    integrator.set_initial_rate(problem.solve().x.array)
+
+
+def run(
+    scene: Scene,
+    out_dir: str | Path | None = None,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    observers: tuple[Observer, ...] = (),
+    write_outputs: bool = True,
+) -> RunResult:
+    """Integrate the scene from rest over its time span; see the module docstring."""
+    t_start = time.perf_counter()
+    out = Path(out_dir if out_dir is not None else scene.output.directory)
+    if write_outputs:
+        prepare_output_dir(out, comm)
+    model = build_model(scene, comm)
+    tspan = scene.time
+    omega0 = model.omega0
+    integrator = make_integrator(
+        tspan.integrator, model.U, model.residual, tspan.start * omega0, rho_inf=tspan.rho_inf
+    )
+    solver = NewtonSolver(
+        integrator.residual_form(),
+        model.U,
+        model.bcs,
+        newton_settings(scene),
+    )
+    if isinstance(integrator, GeneralizedAlpha):
+        _consistent_rate(integrator, model, solver.lu_package)
+
+    probe = PointProbe(model.U, probe_sigma(scene), model.length)
+    probes = xdmf = None
+    if write_outputs:
+        probes = ProbeWriter(out / "probes.csv", probe)
+        probes.write(tspan.start)
+        if scene.output.xdmf:
+            xdmf = XdmfWriter(out / "solution.xdmf", model.U, model.length)
+            xdmf.write(tspan.start)
+    xdmf_every = scene.output.xdmf_every(tspan.step)
+    setup_time = time.perf_counter() - t_start
+
+    summary = {
+        "status": "running",
+        "cosserat_fem": __version__,
+        "scene_file": scene.source,
+        "mpi_ranks": comm.size,
+        "dofs": model.global_dofs(),
+        "elements": scene.discretisation.elements,
+        "degree": scene.discretisation.degree,
+        "quadrature_degree": scene.discretisation.quadrature_degree,
+        "integrator": integrator.name,
+        "omega0_rad_s": omega0,
+        "probe_s_m": probe.sigma * model.length,
+        "lu_package": solver.lu_package,
+        "skipped_terms": model.skipped,
+        "groups": model.groups.as_dict(),
+        "python": platform.python_version(),
+        "scene": scene.to_dict(),
+    }
+    h = tspan.step * omega0
+    n_steps = tspan.n_steps
+    step = 0
+    t = tspan.start
+    t_loop = time.perf_counter()
+    output_time = 0.0
+    failure: SolverError | None = None
+    try:
+        for step in range(1, n_steps + 1):
+            t_new = tspan.start + step * tspan.step
+            integrator.prepare(h)
+            try:
+                solver.solve()
+            except NewtonFailure as exc:
+                s, _ = _worst_place(model, solver.b.array.reshape(-1, 12).max(axis=1))
+                raise SolverError(
+                    time=t_new,
+                    where=f"s = {s:.4g} m (largest residual)",
+                    reason=f"Newton did not converge ({exc.reason}, {exc.iterations} iterations)",
+                    suggestion="reduce time.step, or use solver.jacobian = 'full'",
+                ) from None
+            _check_state(model, t_new)
+            integrator.accept(h)
+            t = t_new
+            t0 = time.perf_counter()
+            if probes is not None:
+                probes.write(t)
+            if xdmf is not None and step % xdmf_every == 0:
+                xdmf.write(t)
+            for obs in observers:
+                obs(step, t, model)
+            output_time += time.perf_counter() - t0
+    except SolverError as exc:
+        failure = exc
+        step -= 1
+    finally:
+        loop_time = time.perf_counter() - t_loop
+        if probes is not None:
+            probes.close()
+        if xdmf is not None:
+            xdmf.close()
+    summary.update(
+        {
+            "status": "failed" if failure else "completed",
+            "message": str(failure) if failure else "",
+            "steps": step,
+            "time_reached_s": t,
+            "newton": solver.stats.as_dict(),
+            "wall_time_s": {
+                "setup": setup_time,
+                "jit_compile": solver.compile_time,
+                "solve_loop": loop_time,
+                "solve_loop_without_output": loop_time - output_time,
+                "output": output_time,
+                "total": time.perf_counter() - t_start,
+            },
+        }
+    )
+    if write_outputs:
+        write_json(out / "summary.json", summary, comm)
+    solver.destroy()
+    if failure:
+        raise failure
+    return RunResult(out_dir=out, steps=step, time_reached=t, summary=summary, model=model)
+
+
+def solve_static(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, time_s: float | None = None):
+    """Static equilibrium F(U, 0, τ) = 0 under the scene's loads at ``time_s`` (default start).
+
+    One Newton solve from the straight rod; suitable for loads that are not too large (load
+    stepping and continuation are the job of the ``static`` command). Returns the model, whose
+    ``U`` holds the solution, and the number of Newton iterations.
+    """
+    model = build_model(scene, comm)
+    integrator = make_integrator("static", model.U, model.residual, 0.0)
+    settings = newton_settings(scene)
+    settings.jacobian = "full"
+    solver = NewtonSolver(integrator.residual_form(), model.U, model.bcs, settings)
+    t = scene.time.start if time_s is None else time_s
+    integrator.time = 0.0
+    integrator.prepare(t * model.omega0)
+    try:
+        iterations = solver.solve()
+    except NewtonFailure as exc:
+        raise SolverError(
+            time=t,
+            where=None,
+            reason=f"static Newton solve did not converge ({exc.reason})",
+            suggestion="reduce the load (load stepping comes with the static command)",
+        ) from None
+    finally:
+        solver.destroy()
+    _check_state(model, t)
+    return model, iterations
