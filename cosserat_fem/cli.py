@@ -80,6 +80,11 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _report(exc: Exception, args) -> None:
+    """One line on stderr, from rank 0 only (every rank raises the same collective error)."""
+    from mpi4py import MPI
+
+    if MPI.COMM_WORLD.rank != 0:
+        return
     if getattr(args, "debug", False):
         traceback.print_exc()
     print(f"cosserat-fem: error: {exc}", file=sys.stderr)

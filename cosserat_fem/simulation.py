@@ -119,7 +119,7 @@ def _check_state(model: RodModel, t: float) -> None:
                 f"Euler-angle chart singular: |cos θ| = {cos_min:.2e} "
                 "(θ near ±π/2, where det Ma = cos θ vanishes)"
             ),
-            suggestion="the rod's tangent turned towards e2; this chart cannot continue",
+            suggestion="d3 is nearly parallel to e2, which the Euler angles (18) cannot represent",
         )
 
 
@@ -256,6 +256,7 @@ def run(
     if write_outputs:
         write_json(out / "summary.json", summary, comm)
     solver.destroy()
+    comm.barrier()  # every file is closed on every rank before anyone reads them
     if failure:
         raise failure
     return RunResult(out_dir=out, steps=step, time_reached=t, summary=summary, model=model)

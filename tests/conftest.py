@@ -1,0 +1,48 @@
+"""Shared helpers: running the CLI, demos and mpirun in subprocesses."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PYTHON = sys.executable  # the venv's interpreter (make test runs pytest from .venv)
+
+
+def subprocess_env() -> dict[str, str]:
+    env = dict(os.environ)
+    # Open MPI refuses to run as root (containers, CI) unless told; 2 ranks on 2 cores.
+    env.update(
+        OMPI_ALLOW_RUN_AS_ROOT="1",
+        OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+        OMPI_MCA_rmaps_base_oversubscribe="1",
+    )
+    return env
+
+
+def run_command(args: list[str], ranks: int = 1, timeout: float = 600, cwd: Path = ROOT):
+    """Run ``args`` (a Python script and its arguments) serially or under mpirun."""
+    cmd = [PYTHON, *args]
+    if ranks > 1:
+        mpirun = shutil.which("mpirun")
+        if mpirun is None:
+            pytest.fail("mpirun not found: install openmpi-bin (make setup does)")
+        cmd = [mpirun, "-n", str(ranks), *cmd]
+    return subprocess.run(
+        cmd, cwd=cwd, env=subprocess_env(), capture_output=True, text=True, timeout=timeout
+    )
+
+
+def parse_qoi(stdout: str) -> dict[str, float]:
+    """The ``QOI name = value`` lines a demo prints."""
+    values = {}
+    for line in stdout.splitlines():
+        if line.startswith("QOI "):
+            name, value = line[4:].split("=")
+            values[name.strip()] = float(value)
+    return values

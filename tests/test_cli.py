@@ -1,0 +1,142 @@
+"""The command line: outputs of a run, bad input, numerical trouble."""
+
+from __future__ import annotations
+
+import json
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+from conftest import ROOT, run_command
+
+SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
+CLI = ["-m", "cosserat_fem.cli"]
+
+
+def cli(*args: str, ranks: int = 1):
+    return run_command([*CLI, *args], ranks)
+
+
+def test_run_writes_probes_summary_and_xdmf(tmp_path):
+    out = tmp_path / "run"
+    proc = cli(
+        "run",
+        SCENE,
+        "--out",
+        str(out),
+        "--set",
+        "time.end=0.002",
+        "--set",
+        "output.xdmf_interval=5e-4",
+    )
+    assert proc.returncode == 0, proc.stderr
+    lines = (out / "probes.csv").read_text().splitlines()
+    assert lines[0] == "t,x,y,z,theta,psi,phi"
+    data = np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1)
+    assert data.shape == (201, 7)  # the initial state and 200 steps
+    assert np.allclose(data[:, 0], np.linspace(0.0, 0.002, 201), rtol=0, atol=1e-15)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed"
+    assert summary["steps"] == 200 and summary["time_reached_s"] == pytest.approx(0.002)
+    # 16 cubic elements: 49 nodes of 12 unknowns
+    assert summary["dofs"] == 12 * 49
+    assert summary["newton"]["iterations"] >= 200
+    assert summary["wall_time_s"]["solve_loop"] > 0
+    assert summary["scene"]["time"]["end"] == 0.002
+    tree = ET.parse(out / "solution.xdmf")
+    steps = tree.getroot().findall(".//Grid[@GridType='Collection']/Grid")
+    times = sorted({float(g.find("Time").get("Value")) for g in steps})
+    assert times == pytest.approx([0.0, 5e-4, 1e-3, 1.5e-3, 2e-3])
+    names = {a.get("Name") for a in tree.getroot().iter("Attribute")}
+    assert names == {"displacement", "angles"}
+    assert (out / "solution.h5").stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    ("args", "fragment"),
+    [
+        (["--set", "time.stepp=1e-5"], "time.stepp: unknown key"),
+        (["--set", "rod.length=-1"], "rod.length:"),
+        (["--set", "rod.material.poisson_ratio=nan"], "rod.material.poisson_ratio:"),
+        (["--set", 'loads.force_density=[0, "sin(", 0]'], "loads.force_density[1]:"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(tmp_path, args, fragment):
+    proc = cli("run", SCENE, "--out", str(tmp_path / "x"), *args)
+    assert proc.returncode == 2
+    assert "Traceback" not in proc.stderr
+    err = proc.stderr.strip().splitlines()
+    assert len(err) == 1 and fragment in err[0], proc.stderr
+
+
+def test_missing_scene_file(tmp_path):
+    proc = cli("run", str(tmp_path / "nope.toml"))
+    assert proc.returncode == 2 and "not found" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_unwritable_output_folder(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("")
+    proc = cli("run", SCENE, "--out", str(blocker / "sub"), "--set", "time.end=1e-4")
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1
+    assert "output.directory" in proc.stderr
+
+
+def test_newton_failure_is_reported_with_time_and_place(tmp_path):
+    """One Newton iteration and unreachable tolerances: the first loaded step fails."""
+    out = tmp_path / "fail"
+    proc = cli(
+        "run",
+        SCENE,
+        "--out",
+        str(out),
+        "--set",
+        "solver.max_iterations=1",
+        "--set",
+        "solver.rtol=1e-30",
+        "--set",
+        "solver.atol=1e-30",
+        "--set",
+        "solver.stol=1e-30",
+        "--set",
+        "time.end=1e-4",
+    )
+    assert proc.returncode == 3, proc.stderr
+    assert "t = 1e-05 s" in proc.stderr and "s = " in proc.stderr and "Newton" in proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and summary["steps"] == 0
+    assert (out / "probes.csv").read_text().splitlines() == [
+        "t,x,y,z,theta,psi,phi",
+        ",".join(["0.0000000000e+00"] + ["0.0000000000000000e+00"] * 6),
+    ]
+
+
+def test_euler_angle_singularity_is_detected(tmp_path):
+    """A tip torque 2e5 N m about e1 spins the free end towards θ = π/2, where det Ma = cos θ
+    vanishes: the run stops there with the place and time, keeping the steps before."""
+    out = tmp_path / "chart"
+    proc = cli(
+        "run",
+        SCENE,
+        "--out",
+        str(out),
+        "--set",
+        "loads.force_density=[0,0,0]",
+        "--set",
+        "loads.end.torque=[2e5,0,0]",
+        "--set",
+        "time.end=0.01",
+        "--set",
+        "output.xdmf=false",
+    )
+    assert proc.returncode == 3
+    assert "Euler-angle chart singular" in proc.stderr and "s = 1 m" in proc.stderr
+    data = np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1)
+    assert 1.4 < data[-1, 4] < np.pi / 2  # the last written θ(ℓ) is close to, not past, π/2
+    assert np.isfinite(data).all()
+
+
+def test_errors_under_mpi_are_reported_once(tmp_path):
+    proc = cli("run", SCENE, "--out", str(tmp_path / "x"), "--set", "rod.length=0", ranks=2)
+    assert proc.returncode == 2
+    assert proc.stderr.count("cosserat-fem: error: rod.length:") == 1, proc.stderr
