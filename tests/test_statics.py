@@ -135,3 +135,18 @@ def test_printed_scaling_is_off_by_the_length():
     balance = tip(common)
     printed = tip(common + ["model.end_load_scaling=printed"])
     assert printed[0] == pytest.approx(2.0 * balance[0], rel=1e-8)
+
+
+@pytest.mark.parametrize("axis", [0, 1, 2])
+def test_uniform_torque_density(beams, axis):
+    """A uniform torque density m [N m/m] about e_axis: the internal moment m (ℓ − s) gives the
+    tip rotation m ℓ²/(2 E c) in bending and the tip twist m ℓ²/(2 G c33) in torsion (quadratic
+    in s, exact for cubic elements)."""
+    *_, rod = beams
+    s, E, G, ell = rod.section, rod.young_modulus, rod.shear_modulus, rod.length
+    m = 2.0
+    density = [0, 0, 0]
+    density[axis] = m
+    u = tip([f"loads.torque_density={density}"])
+    stiffness = (E * s.c11, E * s.c22, G * s.c33)[axis]
+    assert u[3 + axis] == pytest.approx(m * ell**2 / (2 * stiffness), rel=TOL)
