@@ -26,32 +26,13 @@ from pathlib import Path
 
 import numpy as np
 
-from cosserat_fem.reference.timoshenko import TimoshenkoBeam, forced_response
+from cosserat_fem.reference.rod_planes import sine_load_tip_response
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 RESULTS = ROOT / "benchmarks" / "results"
-
-
-def timoshenko_tip(scene, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Linear Timoshenko x(ℓ,t), y(ℓ,t) for the paper's load 2e3 sin(πs/ℓ) sin(8ω0 t)."""
-    rod, mat = scene.rod, scene.rod.material
-    common = dict(
-        length=rod.length,
-        young=mat.young_modulus,
-        kappa=rod.section.shear_coefficient,
-        density=mat.density,
-        poisson=mat.young_modulus / (2 * mat.shear_modulus) - 1.0,
-    )
-    a, b = rod.section.a, rod.section.b
-    omega = 8.0 * scene.expression_names()["omega0"]
-    x_plane = TimoshenkoBeam.rectangular(depth=a, width=b, **common)  # bends about d2: c22
-    y_plane = TimoshenkoBeam.rectangular(depth=b, width=a, **common)  # bends about d1: c11
-    x, _ = forced_response(x_plane, 2e3, omega, times, modes=25, static_correction=True)
-    y, _ = forced_response(y_plane, 2e3, omega, times, modes=20, static_correction=True)
-    return x, y
 
 
 def rel_l2(u: np.ndarray, ref: np.ndarray) -> float:
@@ -102,7 +83,8 @@ def main() -> None:
         probes, summary = run_config(common + overrides, RESULTS / "run")
         wall = time.perf_counter() - t0
         t = probes[:, 0]
-        xr, yr = timoshenko_tip(load_scene(SCENE, common), t)
+        scene = load_scene(SCENE, common)
+        xr, yr = sine_load_tip_response(scene, t, q0=2e3, omega=8.0 * scene.omega0)
         row = {
             "label": label,
             "overrides": overrides,

@@ -53,8 +53,14 @@ def test_frozen_jacobian_is_refreshed_when_convergence_slows(tmp_path):
     rod no longer contracts fast, steps need more iterations, and the policy refreshes it."""
     scene = load_scene(
         SCENE,
-        ["loads.force_density=[0,0,0]", "loads.end.force=[2e4,0,0]", "time.end=0.004",
-         "output.xdmf=false", "solver.jacobian=frozen", "solver.refresh_iterations=4"],
+        [
+            "loads.force_density=[0,0,0]",
+            "loads.end.force=[2e4,0,0]",
+            "time.end=0.004",
+            "output.xdmf=false",
+            "solver.jacobian=frozen",
+            "solver.refresh_iterations=4",
+        ],
     )
     newton = run(scene, tmp_path).summary["newton"]
     assert newton["jacobian_assemblies"] > 1

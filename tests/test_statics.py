@@ -21,6 +21,7 @@ import pytest
 from cosserat_fem.model import rod_constants
 from cosserat_fem.output import PointProbe
 from cosserat_fem.reference import timoshenko as tb
+from cosserat_fem.reference.rod_planes import bending_planes
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import solve_static
 
@@ -38,21 +39,8 @@ def tip(overrides: list[str]) -> np.ndarray:
 @pytest.fixture(scope="module")
 def beams():
     """Timoshenko beams of the two bending planes: x bends about d2 (I = c22), y about d1."""
-    rod = rod_constants(load_scene(SCENE))
-    s = rod.section
-    common = dict(
-        length=rod.length,
-        area=s.area,
-        young=rod.young_modulus,
-        shear=rod.shear_modulus,
-        kappa=s.shear_coefficient,
-        density=rod.density,
-    )
-    return (
-        tb.TimoshenkoBeam(inertia=s.c22, **common),
-        tb.TimoshenkoBeam(inertia=s.c11, **common),
-        rod,
-    )
+    scene = load_scene(SCENE)
+    return (*bending_planes(scene), rod_constants(scene))
 
 
 def test_end_force_in_x(beams):

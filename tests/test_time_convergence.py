@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
-from cosserat_fem.reference.timoshenko import TimoshenkoBeam, forced_response
+from cosserat_fem.reference.rod_planes import sine_load_tip_response
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 
@@ -30,16 +30,7 @@ def tip_error(tmp_path, overrides: list[str]) -> float:
     run(scene, out)
     data = np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1)
     t, x = data[:, 0], data[:, 1]
-    beam = TimoshenkoBeam.rectangular(
-        length=1.0,
-        depth=0.04,
-        width=0.06,
-        young=7.1e10,
-        poisson=0.32,
-        kappa=0.833,
-        density=2730.0,
-    )
-    x_ref, _ = forced_response(beam, 2e2, 8 * scene.omega0, t, modes=25, static_correction=True)
+    x_ref, _ = sine_load_tip_response(scene, t, q0=2e2, omega=8 * scene.omega0)
     return float(np.sqrt(np.mean((x - x_ref) ** 2) / np.mean(x_ref**2)))
 
 
