@@ -15,7 +15,8 @@ EXTRAS=${EXTRAS:-test,plot}
 # DOLFINx 0.5.2 and its PETSc/MPI stack exist only as Debian packages for /usr/bin/python3.
 APT_PACKAGES=(
   python3-dolfinx python3-dolfinx-real python3-petsc4py python3-slepc4py python3-mpi4py
-  python3-scipy python3-venv python3-dev openmpi-bin g++ make git ca-certificates
+  python3-scipy python3-matplotlib python3-venv python3-dev openmpi-bin g++ make git
+  ca-certificates
 )
 
 missing=()
@@ -43,11 +44,14 @@ if [ ! -x "$VENV/bin/python" ]; then
 fi
 
 # Pin the ABI-matched Debian builds so that pip never replaces them as a dependency of
-# something else (matplotlib would otherwise pull a newer numpy).
+# something else (matplotlib would otherwise pull a newer numpy). matplotlib itself comes from
+# Debian too: a second, pip-installed copy in the venv breaks 3D plots as soon as Debian's
+# python3-matplotlib is present (ParaView depends on it), because the mpl_toolkits namespace
+# of /usr/lib/python3/dist-packages then shadows the venv's.
 CONSTRAINTS="$VENV/constraints.txt"
 /usr/bin/python3 - > "$CONSTRAINTS.new" <<'PY'
 import importlib.metadata as md
-for name in ("numpy", "mpi4py", "petsc4py", "slepc4py", "scipy"):
+for name in ("numpy", "mpi4py", "petsc4py", "slepc4py", "scipy", "matplotlib"):
     try:
         print(f"{name}=={md.version(name)}")
     except md.PackageNotFoundError:
