@@ -38,10 +38,17 @@ def test_demo_against_linear_timoshenko(demo_runs):
     assert qoi["rel_l2_error_y"] < 1e-3
     assert qoi["max_abs_x_m"] == pytest.approx(qoi["timoshenko_max_abs_x_m"], rel=1e-3)
     assert qoi["max_abs_y_m"] == pytest.approx(qoi["timoshenko_max_abs_y_m"], rel=1e-3)
-    # The purely nonlinear responses are second order: the free end moves inwards
-    # (z ≤ 0 up to round-off, the shortening ½∫(x'² + y'²) ds is ~1e-6 m) and twists little.
-    assert -1e-5 < qoi["min_z_m"] < -1e-7 and qoi["max_z_m"] < 1e-9
-    assert 1e-7 < max(-qoi["min_phi_rad"], qoi["max_phi_rad"]) < 1e-4
+    # z(ℓ,t) and φ(ℓ,t) are purely nonlinear (second order in the deflection): they must follow
+    # second-order perturbation theory (reference/second_order.py). Expected difference over
+    # 0.012 s: the time error of the default step (2.1e-3 for φ and 8e-4 for z over 0.06 s in
+    # the convergence study, growing linearly with the horizon: ~4e-4 and ~2e-4 here) plus the
+    # third-order terms the theory leaves out (1.5e-4 and 8e-5, measured at tiny steps).
+    # Measured 5.6e-4 (φ) and 2.2e-4 (z); tolerances 1.5e-3 and 1e-3.
+    assert qoi["rel_l2_error_z"] < 1e-3
+    assert qoi["rel_l2_error_phi"] < 1.5e-3
+    assert qoi["min_z_m"] == pytest.approx(qoi["second_order_min_z_m"], rel=1e-3)
+    assert qoi["min_phi_rad"] == pytest.approx(qoi["second_order_min_phi_rad"], rel=1.5e-3)
+    assert qoi["max_z_m"] < 1e-12  # the free end only ever moves inwards (foreshortening)
     for name in (
         "fig4_free_end.png",
         "fig5_x_surface.png",

@@ -9,25 +9,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from .second_order import RodData
 from .timoshenko import TimoshenkoBeam, forced_response
 
 
 def bending_planes(scene) -> tuple[TimoshenkoBeam, TimoshenkoBeam]:
     """(x-plane, y-plane) Timoshenko beams of the scene's rectangular rod."""
-    rod, mat = scene.rod, scene.rod.material
-    common = dict(
-        length=rod.length,
-        area=rod.section.a * rod.section.b,
-        young=mat.young_modulus,
-        shear=mat.shear_modulus,
-        kappa=rod.section.shear_coefficient,
-        density=mat.density,
-    )
-    a, b = rod.section.a, rod.section.b
-    return (
-        TimoshenkoBeam(inertia=b * a**3 / 12.0, **common),
-        TimoshenkoBeam(inertia=a * b**3 / 12.0, **common),
-    )
+    rod = RodData.from_scene(scene)
+    return rod.beam_x, rod.beam_y
 
 
 def sine_load_tip_response(
