@@ -17,18 +17,15 @@ def cli(*args: str, ranks: int = 1):
     return run_command([*CLI, *args], ranks)
 
 
+def run_scene(out, *overrides: str, ranks: int = 1):
+    """``cosserat-fem run`` on the paper's scene with ``--set`` overrides."""
+    sets = [arg for item in overrides for arg in ("--set", item)]
+    return cli("run", SCENE, "--out", str(out), *sets, ranks=ranks)
+
+
 def test_run_writes_probes_summary_and_xdmf(tmp_path):
     out = tmp_path / "run"
-    proc = cli(
-        "run",
-        SCENE,
-        "--out",
-        str(out),
-        "--set",
-        "time.end=0.002",
-        "--set",
-        "output.xdmf_interval=5e-4",
-    )
+    proc = run_scene(out, "time.end=0.002", "output.xdmf_interval=5e-4")
     assert proc.returncode == 0, proc.stderr
     lines = (out / "probes.csv").read_text().splitlines()
     assert lines[0] == "t,x,y,z,theta,psi,phi"
@@ -77,7 +74,7 @@ def test_missing_scene_file(tmp_path):
 def test_unwritable_output_folder(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("")
-    proc = cli("run", SCENE, "--out", str(blocker / "sub"), "--set", "time.end=1e-4")
+    proc = run_scene(blocker / "sub", "time.end=1e-4")
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1
     assert "output.directory" in proc.stderr
 
@@ -85,20 +82,12 @@ def test_unwritable_output_folder(tmp_path):
 def test_newton_failure_is_reported_with_time_and_place(tmp_path):
     """One Newton iteration and unreachable tolerances: the first loaded step fails."""
     out = tmp_path / "fail"
-    proc = cli(
-        "run",
-        SCENE,
-        "--out",
-        str(out),
-        "--set",
+    proc = run_scene(
+        out,
         "solver.max_iterations=1",
-        "--set",
         "solver.rtol=1e-30",
-        "--set",
         "solver.atol=1e-30",
-        "--set",
         "solver.stol=1e-30",
-        "--set",
         "time.end=1e-4",
     )
     assert proc.returncode == 3, proc.stderr
@@ -115,18 +104,11 @@ def test_euler_angle_singularity_is_detected(tmp_path):
     """A tip torque 2e5 N m about e1 spins the free end towards θ = π/2, where det Ma = cos θ
     vanishes: the run stops there with the place and time, keeping the steps before."""
     out = tmp_path / "chart"
-    proc = cli(
-        "run",
-        SCENE,
-        "--out",
-        str(out),
-        "--set",
+    proc = run_scene(
+        out,
         "loads.force_density=[0,0,0]",
-        "--set",
         "loads.end.torque=[2e5,0,0]",
-        "--set",
         "time.end=0.01",
-        "--set",
         "output.xdmf=false",
     )
     assert proc.returncode == 3
@@ -137,6 +119,6 @@ def test_euler_angle_singularity_is_detected(tmp_path):
 
 
 def test_errors_under_mpi_are_reported_once(tmp_path):
-    proc = cli("run", SCENE, "--out", str(tmp_path / "x"), "--set", "rod.length=0", ranks=2)
+    proc = run_scene(tmp_path / "x", "rod.length=0", ranks=2)
     assert proc.returncode == 2
     assert proc.stderr.count("cosserat-fem: error: rod.length:") == 1, proc.stderr
