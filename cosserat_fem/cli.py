@@ -1,4 +1,4 @@
-"""Command line: ``cosserat-fem run SCENE [--out DIR] [--set KEY=VALUE ...]``.
+"""Command line: ``cosserat-fem run|modes SCENE [--out DIR] [--set KEY=VALUE ...]``.
 
 Exit status: 0 success, 2 bad input (scene, options, output folder), 3 numerical trouble
 (the run stopped; outputs written so far are kept). Errors are one line on stderr; ``--debug``
@@ -35,7 +35,51 @@ def _parser() -> argparse.ArgumentParser:
     )
     run.add_argument("--quiet", action="store_true", help="print nothing on success")
     run.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+
+    modes = sub.add_parser("modes", help="natural frequencies and mode shapes (SLEPc)")
+    modes.add_argument("scene", help="scene file (TOML)")
+    modes.add_argument("--count", type=int, default=10, help="number of modes (default 10)")
+    modes.add_argument("--out", metavar="DIR", help="output folder (default: output.directory)")
+    modes.add_argument(
+        "--about",
+        choices=("undeformed", "static"),
+        default="undeformed",
+        help="linearise about the straight rod or the static state under the scene's loads",
+    )
+    modes.add_argument(
+        "--set",
+        metavar="KEY=VALUE",
+        action="append",
+        default=[],
+        dest="overrides",
+        help="override a scene value (repeatable)",
+    )
+    modes.add_argument("--quiet", action="store_true", help="print nothing on success")
+    modes.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     return parser
+
+
+def _modes(args) -> int:
+    from pathlib import Path
+
+    from mpi4py import MPI
+
+    from .modes import compute_modes, write_modes
+    from .scene import load_scene
+    from .simulation import prepare_output_dir
+
+    if args.count < 1:
+        raise SceneError(f"--count: must be at least 1, got {args.count}")
+    scene = load_scene(args.scene, args.overrides)
+    out = prepare_output_dir(Path(args.out or scene.output.directory), MPI.COMM_WORLD)
+    model, modes = compute_modes(scene, args.count, about=args.about)
+    write_modes(out, model, modes)
+    if MPI.COMM_WORLD.rank == 0 and not args.quiet:
+        print(f"{'mode':>4} {'omega [rad/s]':>16} {'f [Hz]':>12}  kind")
+        for i, mode in enumerate(modes, start=1):
+            print(f"{i:4d} {mode.omega:16.6f} {mode.frequency_hz:12.4f}  {mode.kind}")
+        print(f"-> {out / 'modes.csv'}, {out / 'modes.xdmf'}")
+    return 0
 
 
 def _run(args) -> int:
@@ -64,6 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.command == "run":
             return _run(args)
+        if args.command == "modes":
+            return _modes(args)
     except SceneError as exc:
         _report(exc, args)
         return 2

@@ -109,7 +109,8 @@ class RodModel:
         """The weak residual (65) at (U_eval, Udot_eval), loads at τ = time_eval."""
         return self.residual_terms(U_eval, Udot_eval, time_eval).total()
 
-    def residual_terms(self, U_eval, Udot_eval, time_eval):
+    def residual_terms(self, U_eval, Udot_eval, time_eval, test=None):
+        """The terms of (65); ``test`` defaults to the test function of the 12-component space."""
         sym = self._symbols(time_eval)
         loads = self.scene.loads
         distributed = DistributedLoads(
@@ -127,7 +128,7 @@ class RodModel:
                     torque=self._vector(end.torque, sym),
                 )
             )
-        V = ufl.TestFunction(self.V)
+        V = ufl.TestFunction(self.V) if test is None else test
         return residual_terms(
             U_eval, Udot_eval, V, self.groups, self.dx, distributed, tuple(ends), self.convention
         )

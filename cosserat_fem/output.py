@@ -97,7 +97,10 @@ class XdmfWriter:
     """
 
     def __init__(self, path: Path, U: fem.Function, length: float, jit_params: dict | None = None):
+        """``U`` holds (p1, ..., p6) in its first six components; ``write`` may be given another
+        Function of the same space (e.g. one mode shape after another)."""
         msh = U.function_space.mesh
+        self.U = U
         P1 = fem.VectorFunctionSpace(msh, ("Lagrange", 1), dim=3)
         self.displacement = fem.Function(P1, name="displacement")
         self.angles = fem.Function(P1, name="angles")
@@ -111,7 +114,9 @@ class XdmfWriter:
         self.file.write_mesh(msh)
         self.writes = 0
 
-    def write(self, t: float) -> None:
+    def write(self, t: float, U: fem.Function | None = None) -> None:
+        if U is not None and U is not self.U:
+            self.U.x.array[:] = U.x.array
         self.displacement.interpolate(self._disp_expr)
         self.angles.interpolate(self._ang_expr)
         self.file.write_function(self.displacement, t)

@@ -138,3 +138,19 @@ def test_uniform_torque_density(beams, axis):
     u = tip([f"loads.torque_density={density}"])
     stiffness = (E * s.c11, E * s.c22, G * s.c33)[axis]
     assert u[3 + axis] == pytest.approx(m * ell**2 / (2 * stiffness), rel=TOL)
+
+
+def test_slender_rod_under_a_small_axial_force():
+    """Regression: a thin rod (a = 4 mm) under a tiny axial tip force, ‖U‖ ~ 1e-8. The Newton
+    update's round-off floor is absolute (~3e-16), so a purely relative step test never
+    converged; the absolute part xatol ends the solve. z(ℓ) = Pℓ/(EA) exactly (linear)."""
+    P = -5e-3
+    u = tip(
+        [
+            f"loads.end.force=[0,0,{P}]",
+            "rod.section.a=0.004",
+            "rod.section.b=0.006",
+            "model.reference_frequency=auto",
+        ]
+    )
+    assert u[2] == pytest.approx(P * 1.0 / (7.1e10 * 0.004 * 0.006), rel=TOL)

@@ -1,0 +1,220 @@
+"""Natural frequencies and mode shapes of a rod about a static state, by SLEPc.
+
+The general form (65) is linearised about a state p0 at rest (the straight rod, or the static
+equilibrium under the scene's loads at the start time). With U = (p, q), q = ṗ, the second block
+of (65) reads Ma(p) p̈ + b(p, p')' − g(p, p', ṗ) = 0; its velocity terms (the products of (64)
+and the gyroscopic terms) are quadratic in ṗ and vanish at rest, so the linearisation is
+
+    M p̈ + K p = 0,   M = ∂F/∂p̈ |p0,   K = ∂F/∂p |p0,
+
+with F the weak residual of the second block on a 6-component space (same mesh and degree as
+the dynamics). K includes the load stiffness of state-dependent loads (torques in fixed
+directions, (38) and (43)). Modes e^{iωt} φ solve the generalized eigenproblem
+
+    K φ = λ M φ,   ω = ω0 √λ  [rad/s]   (λ in units of the time scale τ = ω0 t, (47)).
+
+K and M are not symmetric in general (each row is a balance law divided by its own inertia,
+(48)), so the problem is solved as a generalized non-Hermitian one with shift-and-invert about 0
+(LU: PETSc in serial, MUMPS in parallel). Clamped dofs get 1 on K's diagonal and 0 on M's, which
+sends their eigenvalues to infinity, away from the wanted ones.
+
+Each mode is classified by where its kinetic energy lies: bending-x (x and ψ), bending-y
+(y and θ), axial (z) or torsion (φ), with the physical weights ρ A ℓ² for the translations
+p1..p3 and ρ c11, ρ c22, ρ (c11 + c22) for θ, ψ, φ.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import ufl
+from dolfinx import fem, mesh
+from dolfinx.fem.petsc import assemble_matrix
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .model import RodModel, build_model
+from .output import XdmfWriter
+
+KINDS = ("bending-x", "bending-y", "axial", "torsion")
+# Which of p1..p6 = (x/ℓ, y/ℓ, z/ℓ, θ, ψ, φ) belongs to which kind of motion.
+_GROUPS = {"bending-x": (0, 4), "bending-y": (1, 3), "axial": (2,), "torsion": (5,)}
+
+
+@dataclass
+class Mode:
+    """One natural mode: ω [rad/s], its kind, kinetic-energy fractions, shape (6 components)."""
+
+    omega: float
+    kind: str
+    fractions: dict[str, float]
+    shape: fem.Function
+
+    @property
+    def frequency_hz(self) -> float:
+        return self.omega / (2.0 * np.pi)
+
+
+@dataclass
+class ModalProblem:
+    """Assembled K, M on the 6-component space of a model, and its base state p0."""
+
+    model: RodModel
+    P: fem.FunctionSpace
+    p0: fem.Function
+    K: PETSc.Mat
+    M: PETSc.Mat
+
+
+def clamped_conditions(model: RodModel, P: fem.FunctionSpace) -> list:
+    """p = 0 at every clamped end, on the 6-component space P."""
+    bcs = []
+    for kind, coord in ((model.scene.supports.start, 0.0), (model.scene.supports.end, 1.0)):
+        if kind == "clamped":
+            ends = mesh.locate_entities_boundary(
+                model.msh, 0, lambda x, c=coord: np.isclose(x[0], c)
+            )
+            dofs = fem.locate_dofs_topological(P, 0, ends)
+            bcs.append(fem.dirichletbc(np.zeros(6, dtype=np.float64), dofs, P))
+    return bcs
+
+
+def assemble_modal_problem(model: RodModel, base: np.ndarray | None = None) -> ModalProblem:
+    """K and M about p0 (``base``: a 12-component state array of ``model.V``; None = straight).
+
+    The 12- and 6-component spaces share their node numbering (same mesh and scalar element,
+    blocked dofs), so p0 is the first six entries of each 12-block.
+    """
+    element = ufl.VectorElement(
+        "Lagrange", model.msh.ufl_cell(), model.scene.discretisation.degree, dim=6
+    )
+    P = fem.FunctionSpace(model.msh, element)
+    p0 = fem.Function(P, name="p0")
+    if base is not None:
+        p0.x.array[:] = base.reshape(-1, 12)[:, :6].ravel()
+    acc = fem.Function(P, name="p_ddot")
+    v, dp = ufl.TestFunction(P), ufl.TrialFunction(P)
+    zeros = [0.0] * 6
+    U = ufl.as_vector([p0[i] for i in range(6)] + zeros)
+    Udot = ufl.as_vector(zeros + [acc[i] for i in range(6)])
+    V = ufl.as_vector(zeros + [v[i] for i in range(6)])
+    time = fem.Constant(model.msh, PETSc.ScalarType(model.scene.time.start * model.omega0))
+    F = model.residual_terms(U, Udot, time, test=V).total()
+    bcs = clamped_conditions(model, P)
+    K = assemble_matrix(fem.form(ufl.derivative(F, p0, dp)), bcs=bcs, diagonal=1.0)
+    K.assemble()
+    M = assemble_matrix(fem.form(ufl.derivative(F, acc, dp)), bcs=bcs, diagonal=0.0)
+    M.assemble()
+    return ModalProblem(model=model, P=P, p0=p0, K=K, M=M)
+
+
+def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
+    """The ``count`` lowest modes, sorted by frequency."""
+    from slepc4py import SLEPc
+
+    comm = problem.model.msh.comm
+    eps = SLEPc.EPS().create(comm)
+    eps.setOperators(problem.K, problem.M)
+    eps.setProblemType(SLEPc.EPS.ProblemType.GNHEP)
+    eps.setDimensions(nev=count, ncv=max(2 * count + 10, 30))
+    eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
+    eps.setTarget(0.0)
+    eps.setTolerances(tol=1e-13, max_it=500)
+    st = eps.getST()
+    st.setType(SLEPc.ST.Type.SINVERT)
+    st.setShift(0.0)
+    ksp = st.getKSP()
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("petsc" if comm.size == 1 else "mumps")
+    eps.solve()
+    found = eps.getConverged()
+    if found < count:
+        raise RuntimeError(f"SLEPc found {found} of {count} modes")
+    vr, vi = problem.K.createVecs()
+    pairs = []
+    for i in range(found):
+        lam = eps.getEigenpair(i, vr, vi)
+        shape = fem.Function(problem.P, name="mode")
+        shape.vector.array[:] = vr.array
+        shape.x.scatter_forward()
+        pairs.append((lam.real, shape))
+    pairs.sort(key=lambda pair: pair[0])
+    weights = _kinetic_weights(problem.model)
+    modes = []
+    for lam, shape in pairs[:count]:
+        omega = problem.model.omega0 * float(np.sqrt(max(lam, 0.0)))
+        fractions = _energy_fractions(shape, weights)
+        kind = max(fractions, key=fractions.get)
+        modes.append(Mode(omega=omega, kind=kind, fractions=fractions, shape=_normalised(shape)))
+    eps.destroy()
+    return modes
+
+
+def _kinetic_weights(model: RodModel) -> np.ndarray:
+    """ρ A ℓ² for p1..p3 (p = x/ℓ) and ρ c11, ρ c22, ρ (c11 + c22) for θ, ψ, φ, per unit σ."""
+    rod, sec = model.rod, model.rod.section
+    trans = rod.density * sec.area * rod.length**2
+    return np.array([trans] * 3 + [rod.density * c for c in (sec.c11, sec.c22, sec.c11 + sec.c22)])
+
+
+def _energy_fractions(shape: fem.Function, weights: np.ndarray) -> dict[str, float]:
+    comm = shape.function_space.mesh.comm
+    per_component = []
+    for i in range(6):
+        form = fem.form(weights[i] * shape[i] ** 2 * ufl.dx)
+        per_component.append(comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))
+    total = sum(per_component)
+    return {kind: sum(per_component[i] for i in idx) / total for kind, idx in _GROUPS.items()}
+
+
+def _normalised(shape: fem.Function) -> fem.Function:
+    """Scale so that the largest |component| is 1 with a positive sign."""
+    comm = shape.function_space.mesh.comm
+    local = shape.x.array
+    i = int(np.argmax(np.abs(local))) if local.size else 0
+    mine = (abs(local[i]), local[i]) if local.size else (0.0, 1.0)
+    _, value = max(comm.allgather(mine))
+    shape.x.array[:] /= value
+    return shape
+
+
+def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WORLD):
+    """The scene's ``count`` lowest modes about the straight rod or its static state."""
+    if about == "static":
+        from .simulation import solve_static
+
+        model, _ = solve_static(scene, comm)
+        base = model.U.x.array.copy()
+    elif about == "undeformed":
+        model, base = build_model(scene, comm), None
+    else:
+        raise ValueError(f"about must be 'undeformed' or 'static', got {about!r}")
+    problem = assemble_modal_problem(model, base)
+    return model, solve_eigenproblem(problem, count)
+
+
+def write_modes(out: Path, model: RodModel, modes: list[Mode]) -> None:
+    """``modes.csv`` (rank 0) and ``modes.xdmf`` (shapes as a series indexed by mode number)."""
+    comm = model.msh.comm
+    if comm.rank == 0:
+        with open(out / "modes.csv", "w", newline="", encoding="utf-8") as stream:
+            writer = csv.writer(stream)
+            writer.writerow(
+                ["mode", "omega_rad_s", "frequency_hz", "kind"]
+                + [f"fraction_{k.replace('-', '_')}" for k in KINDS]
+            )
+            for i, mode in enumerate(modes, start=1):
+                writer.writerow(
+                    [i, f"{mode.omega:.12e}", f"{mode.frequency_hz:.12e}", mode.kind]
+                    + [f"{mode.fractions[k]:.6f}" for k in KINDS]
+                )
+    if modes:
+        scratch = fem.Function(modes[0].shape.function_space, name="mode")
+        writer = XdmfWriter(out / "modes.xdmf", scratch, model.length)
+        for i, mode in enumerate(modes, start=1):
+            writer.write(float(i), mode.shape)
+        writer.close()
