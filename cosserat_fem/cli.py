@@ -1,4 +1,4 @@
-"""Command line: ``cosserat-fem run|modes SCENE [--out DIR] [--set KEY=VALUE ...]``.
+"""Command line: ``cosserat-fem run|static|modes SCENE [--out DIR] [--set KEY=VALUE ...]``.
 
 Exit status: 0 success, 2 bad input (scene, options, output folder), 3 numerical trouble
 (the run stopped; outputs written so far are kept). Errors are one line on stderr; ``--debug``
@@ -15,17 +15,11 @@ from . import __version__
 from .errors import CosseratError, SceneError, SolverError
 
 
-def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="cosserat-fem",
-        description="Nonlinear dynamics of Cosserat rods (Cao & Tucker 2008) with FEniCSx.",
-    )
-    parser.add_argument("--version", action="version", version=f"cosserat-fem {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    run = sub.add_parser("run", help="integrate a scene in time and write its outputs")
-    run.add_argument("scene", help="scene file (TOML), e.g. scenes/cao_tucker_2008.toml")
-    run.add_argument("--out", metavar="DIR", help="output folder (default: output.directory)")
-    run.add_argument(
+def _common(sub: argparse.ArgumentParser) -> None:
+    """The arguments every command takes."""
+    sub.add_argument("scene", help="scene file (TOML), e.g. scenes/cao_tucker_2008.toml")
+    sub.add_argument("--out", metavar="DIR", help="output folder (default: output.directory)")
+    sub.add_argument(
         "--set",
         metavar="KEY=VALUE",
         action="append",
@@ -33,53 +27,29 @@ def _parser() -> argparse.ArgumentParser:
         dest="overrides",
         help="override a scene value by its dotted key, e.g. --set time.step=1e-5 (repeatable)",
     )
-    run.add_argument("--quiet", action="store_true", help="print nothing on success")
-    run.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    sub.add_argument("--quiet", action="store_true", help="print nothing on success")
+    sub.add_argument("--debug", action="store_true", help="show tracebacks on errors")
 
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="cosserat-fem",
+        description="Nonlinear dynamics of Cosserat rods (Cao & Tucker 2008) with FEniCSx.",
+    )
+    parser.add_argument("--version", action="version", version=f"cosserat-fem {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    _common(sub.add_parser("run", help="integrate a scene in time and write its outputs"))
+    _common(sub.add_parser("static", help="static equilibrium by load stepping"))
     modes = sub.add_parser("modes", help="natural frequencies and mode shapes (SLEPc)")
-    modes.add_argument("scene", help="scene file (TOML)")
+    _common(modes)
     modes.add_argument("--count", type=int, default=10, help="number of modes (default 10)")
-    modes.add_argument("--out", metavar="DIR", help="output folder (default: output.directory)")
     modes.add_argument(
         "--about",
         choices=("undeformed", "static"),
         default="undeformed",
         help="linearise about the straight rod or the static state under the scene's loads",
     )
-    modes.add_argument(
-        "--set",
-        metavar="KEY=VALUE",
-        action="append",
-        default=[],
-        dest="overrides",
-        help="override a scene value (repeatable)",
-    )
-    modes.add_argument("--quiet", action="store_true", help="print nothing on success")
-    modes.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     return parser
-
-
-def _modes(args) -> int:
-    from pathlib import Path
-
-    from mpi4py import MPI
-
-    from .modes import compute_modes, write_modes
-    from .scene import load_scene
-    from .simulation import prepare_output_dir
-
-    if args.count < 1:
-        raise SceneError(f"--count: must be at least 1, got {args.count}")
-    scene = load_scene(args.scene, args.overrides)
-    out = prepare_output_dir(Path(args.out or scene.output.directory), MPI.COMM_WORLD)
-    model, modes = compute_modes(scene, args.count, about=args.about)
-    write_modes(out, model, modes)
-    if MPI.COMM_WORLD.rank == 0 and not args.quiet:
-        print(f"{'mode':>4} {'omega [rad/s]':>16} {'f [Hz]':>12}  kind")
-        for i, mode in enumerate(modes, start=1):
-            print(f"{i:4d} {mode.omega:16.6f} {mode.frequency_hz:12.4f}  {mode.kind}")
-        print(f"-> {out / 'modes.csv'}, {out / 'modes.xdmf'}")
-    return 0
 
 
 def _run(args) -> int:
@@ -103,6 +73,52 @@ def _run(args) -> int:
     return 0
 
 
+def _static(args) -> int:
+    from mpi4py import MPI
+
+    from .output import PointProbe
+    from .scene import load_scene
+    from .simulation import probe_sigma
+    from .statics import static_path
+
+    scene = load_scene(args.scene, args.overrides)
+    result = static_path(scene, args.out)
+    probe = PointProbe(result.model.U, probe_sigma(scene), result.model.length)
+    tip = MPI.COMM_WORLD.bcast(probe.values(), root=probe.owner)
+    if MPI.COMM_WORLD.rank == 0 and not args.quiet:
+        print(
+            f"cosserat-fem: static, {len(result.load_factors) - 1} load steps "
+            f"({result.bisections} halvings), {sum(result.iterations)} Newton iterations"
+        )
+        names = ("x", "y", "z", "theta", "psi", "phi")
+        print("  probe: " + ", ".join(f"{n} = {v:.10g}" for n, v in zip(names, tip, strict=True)))
+    return 0
+
+
+def _modes(args) -> int:
+    """Modes about the straight rod or the static state."""
+    from pathlib import Path
+
+    from mpi4py import MPI
+
+    from .modes import compute_modes, write_modes
+    from .scene import load_scene
+    from .simulation import prepare_output_dir
+
+    if args.count < 1:
+        raise SceneError(f"--count: must be at least 1, got {args.count}")
+    scene = load_scene(args.scene, args.overrides)
+    out = prepare_output_dir(Path(args.out or scene.output.directory), MPI.COMM_WORLD)
+    model, modes = compute_modes(scene, args.count, about=args.about)
+    write_modes(out, model, modes)
+    if MPI.COMM_WORLD.rank == 0 and not args.quiet:
+        print(f"{'mode':>4} {'omega [rad/s]':>16} {'f [Hz]':>12}  kind")
+        for i, mode in enumerate(modes, start=1):
+            print(f"{i:4d} {mode.omega:16.6f} {mode.frequency_hz:12.4f}  {mode.kind}")
+        print(f"-> {out / 'modes.csv'}, {out / 'modes.xdmf'}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     try:
@@ -110,6 +126,8 @@ def main(argv: list[str] | None = None) -> int:
             return _run(args)
         if args.command == "modes":
             return _modes(args)
+        if args.command == "static":
+            return _static(args)
     except SceneError as exc:
         _report(exc, args)
         return 2
@@ -122,17 +140,22 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("cosserat-fem: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # an internal error: one line, the traceback with --debug
+        _report(
+            CosseratError(f"internal error: {type(exc).__name__}: {exc}".splitlines()[0]), args, exc
+        )
+        return 1
     return 1
 
 
-def _report(exc: Exception, args) -> None:
+def _report(exc: Exception, args, cause: BaseException | None = None) -> None:
     """One line on stderr, from rank 0 only (every rank raises the same collective error)."""
     from mpi4py import MPI
 
     if MPI.COMM_WORLD.rank != 0:
         return
     if getattr(args, "debug", False):
-        traceback.print_exc()
+        traceback.print_exception(cause or exc)
     print(f"cosserat-fem: error: {exc}", file=sys.stderr)
 
 

@@ -18,6 +18,7 @@ import numpy as np
 import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from .forms.general_form import DistributedLoads, EndLoadConvention, EndLoads, residual_terms
 from .forms.groups import Groups, RodConstants, dimensionless_groups
@@ -79,6 +80,7 @@ class RodModel:
     groups: Groups
     convention: EndLoadConvention
     skipped: list[str]
+    load_factor: fem.Constant
 
     @property
     def omega0(self) -> float:
@@ -99,11 +101,11 @@ class RodModel:
         names["t"] = time_eval / self.omega0
         return names
 
-    @staticmethod
-    def _vector(exprs, symbols):
+    def _vector(self, exprs, symbols):
+        """A load vector times the load factor λ (1 in dynamics; stepped in statics)."""
         if exprs is None or all(e.is_zero for e in exprs):
             return None
-        return ufl.as_vector([e.to_ufl(symbols) for e in exprs])
+        return self.load_factor * ufl.as_vector([e.to_ufl(symbols) for e in exprs])
 
     def residual(self, U_eval, Udot_eval, time_eval) -> ufl.Form:
         """The weak residual (65) at (U_eval, Udot_eval), loads at τ = time_eval."""
@@ -184,4 +186,5 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> RodModel:
         groups=dimensionless_groups(rod),
         convention=EndLoadConvention(scene.model.end_load_sign, scene.model.end_load_scaling),
         skipped=skipped,
+        load_factor=fem.Constant(msh, PETSc.ScalarType(1.0)),
     )

@@ -185,7 +185,7 @@ def _normalised(shape: fem.Function) -> fem.Function:
 def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WORLD):
     """The scene's ``count`` lowest modes about the straight rod or its static state."""
     if about == "static":
-        from .simulation import solve_static
+        from .statics import solve_static
 
         model, _ = solve_static(scene, comm)
         base = model.U.x.array.copy()

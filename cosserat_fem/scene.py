@@ -129,6 +129,17 @@ class Time:
 
 
 @dataclass(frozen=True)
+class Static:
+    """Static solves (``cosserat-fem static``): the loads at ``time`` [s], applied in
+    ``load_steps`` equal increments of the load factor; a failed increment is halved, down to
+    2^-``max_bisections`` of the nominal increment."""
+
+    load_steps: int
+    max_bisections: int
+    time: float
+
+
+@dataclass(frozen=True)
 class Discretisation:
     """Mesh and element: ``elements`` cells of Lagrange ``degree``; quadrature resolved."""
 
@@ -180,6 +191,7 @@ class Scene:
     discretisation: Discretisation
     solver: Solver
     output: Output
+    static: Static = field(default_factory=lambda: Static(1, 10, 0.0))
     source: str = field(default="<dict>", compare=False)
 
     @property
@@ -441,6 +453,13 @@ SCHEMA = _Table(
                 "step": _Number(required=True, interval=POSITIVE, unit="s"),
                 "integrator": _Choice(choices=("bdf2", "generalized-alpha"), default="bdf2"),
                 "rho_inf": _Number(default=0.5, interval=_Interval(0.0, 1.0)),
+            }
+        ),
+        "static": _Table(
+            {
+                "load_steps": _Number(default=1, integer=True, interval=_Interval(lo=1)),
+                "max_bisections": _Number(default=10, integer=True, interval=_Interval(lo=0)),
+                "time": _Number(default=0.0, unit="s"),
             }
         ),
         "discretisation": _Table(
@@ -765,6 +784,7 @@ def scene_from_dict(
         discretisation=_build_discretisation(raw["discretisation"]),
         solver=Solver(**raw["solver"]),
         output=_build_output(raw["output"], time),
+        static=Static(**raw["static"]),
         source=source,
     )
 
@@ -842,4 +862,5 @@ def _scene_to_dict(scene: Scene) -> dict[str, Any]:
         "discretisation": _fields(scene.discretisation),
         "solver": _fields(scene.solver),
         "output": _fields(scene.output),
+        "static": _fields(scene.static),
     }

@@ -93,7 +93,8 @@ def _worst_place(model: RodModel, values: np.ndarray) -> tuple[float, float]:
     return max(model.msh.comm.allgather(mine))[::-1]
 
 
-def _check_state(model: RodModel, t: float) -> None:
+def check_state(model: RodModel, t: float | None, where_prefix: str = "") -> None:
+    """Stop with a SolverError if U is not finite or the Euler-angle chart is (nearly) singular."""
     blocks = model.U.x.array.reshape(-1, 12)
     n = model.V.dofmap.index_map.size_local
     finite = bool(np.isfinite(blocks[:n]).all())
@@ -106,7 +107,7 @@ def _check_state(model: RodModel, t: float) -> None:
         s, _ = _worst_place(model, bad)
         raise SolverError(
             time=t,
-            where=f"s = {s:.4g} m",
+            where=f"{where_prefix}{', ' if where_prefix else ''}s = {s:.4g} m",
             reason="the solution became non-finite (NaN/inf)",
             suggestion="reduce time.step or check the loads",
         )
@@ -114,7 +115,7 @@ def _check_state(model: RodModel, t: float) -> None:
         s, _ = _worst_place(model, 1.0 / np.maximum(np.abs(np.cos(blocks[:, 3])), 1e-300))
         raise SolverError(
             time=t,
-            where=f"s = {s:.4g} m",
+            where=f"{where_prefix}{', ' if where_prefix else ''}s = {s:.4g} m",
             reason=(
                 f"Euler-angle chart singular: |cos θ| = {cos_min:.2e} "
                 "(θ near ±π/2, where det Ma = cos θ vanishes)"
@@ -216,7 +217,7 @@ def run(
                     reason=f"Newton did not converge ({exc.reason}, {exc.iterations} iterations)",
                     suggestion="reduce time.step, or use solver.jacobian = 'full'",
                 ) from None
-            _check_state(model, t_new)
+            check_state(model, t_new)
             integrator.accept(h)
             t = t_new
             t0 = time.perf_counter()
@@ -260,33 +261,3 @@ def run(
     if failure:
         raise failure
     return RunResult(out_dir=out, steps=step, time_reached=t, summary=summary, model=model)
-
-
-def solve_static(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, time_s: float | None = None):
-    """Static equilibrium F(U, 0, τ) = 0 under the scene's loads at ``time_s`` (default start).
-
-    One Newton solve from the straight rod; suitable for loads that are not too large (load
-    stepping and continuation are the job of the ``static`` command). Returns the model, whose
-    ``U`` holds the solution, and the number of Newton iterations.
-    """
-    model = build_model(scene, comm)
-    integrator = make_integrator("static", model.U, model.residual, 0.0)
-    settings = newton_settings(scene)
-    settings.jacobian = "full"
-    solver = NewtonSolver(integrator.residual_form(), model.U, model.bcs, settings)
-    t = scene.time.start if time_s is None else time_s
-    integrator.time = 0.0
-    integrator.prepare(t * model.omega0)
-    try:
-        iterations = solver.solve()
-    except NewtonFailure as exc:
-        raise SolverError(
-            time=t,
-            where=None,
-            reason=f"static Newton solve did not converge ({exc.reason})",
-            suggestion="reduce the load (load stepping comes with the static command)",
-        ) from None
-    finally:
-        solver.destroy()
-    _check_state(model, t)
-    return model, iterations

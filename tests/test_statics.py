@@ -23,7 +23,7 @@ from cosserat_fem.output import PointProbe
 from cosserat_fem.reference import timoshenko as tb
 from cosserat_fem.reference.rod_planes import bending_planes
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import solve_static
+from cosserat_fem.statics import solve_static
 
 SCENE = Path(__file__).resolve().parents[1] / "scenes" / "cao_tucker_2008.toml"
 BASE = ["loads.force_density=[0,0,0]", "discretisation.elements=4", "discretisation.degree=3"]

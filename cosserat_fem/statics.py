@@ -1,0 +1,176 @@
+"""Static equilibrium by load stepping: F(U, 0, τ; λ) = 0 for a load factor λ from 0 to 1.
+
+All loads of the scene (distributed force and torque, end force and torque), evaluated at the
+time ``static.time``, are multiplied by λ. The factor grows in ``static.load_steps`` equal
+increments; each increment is a Newton solve from a secant predictor
+U = U_n + (Δλ/Δλ_{n−1}) (U_n − U_{n−1}). An increment that fails (Newton divergence, a
+non-finite state, or the Euler-angle chart's singularity cos θ → 0) is retried with half the
+increment, down to 2^−``static.max_bisections`` of the nominal increment (then the run stops
+with the reason); after a success the increment doubles again up to its nominal size. This
+load control with step halving follows the equilibrium path up to, but not past, a limit
+point; the rolled-up cantilever and the elastica have none.
+
+Outputs are those of a dynamic run with the load factor in place of time: ``probes.csv``
+(header ``t,x,y,z,theta,psi,phi``; for a static run the column ``t`` holds λ, one row per
+accepted load step, the last row the final state), ``solution.xdmf`` (one entry per accepted
+step, "time" = λ) and ``summary.json``.
+"""
+
+from __future__ import annotations
+
+import time as clock
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from . import __version__
+from .errors import SolverError
+from .integrators import make_integrator
+from .model import RodModel, build_model
+from .newton import NewtonFailure, NewtonSolver
+from .output import PointProbe, ProbeWriter, XdmfWriter, write_json
+from .scene import Scene
+from .simulation import check_state, newton_settings, prepare_output_dir, probe_sigma
+
+
+@dataclass
+class StaticResult:
+    model: RodModel
+    load_factors: list[float]
+    iterations: list[int]
+    bisections: int
+    summary: dict
+
+
+def static_path(
+    scene: Scene,
+    out_dir: str | Path | None = None,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    write_outputs: bool = True,
+) -> StaticResult:
+    """Follow the static equilibrium path from the straight rod to the full loads."""
+    t_start = clock.perf_counter()
+    out = Path(out_dir if out_dir is not None else scene.output.directory)
+    if write_outputs:
+        prepare_output_dir(out, comm)
+    model = build_model(scene, comm)
+    integrator = make_integrator("static", model.U, model.residual, 0.0)
+    settings = newton_settings(scene)
+    settings.jacobian = "full"
+    solver = NewtonSolver(integrator.residual_form(), model.U, model.bcs, settings)
+    integrator.prepare(scene.static.time * model.omega0)
+
+    probes = xdmf = None
+    if write_outputs:
+        probes = ProbeWriter(
+            out / "probes.csv", PointProbe(model.U, probe_sigma(scene), model.length)
+        )
+        probes.write(0.0)
+        if scene.output.xdmf:
+            xdmf = XdmfWriter(out / "solution.xdmf", model.U, model.length)
+            xdmf.write(0.0)
+
+    nominal = 1.0 / scene.static.load_steps
+    smallest = nominal / 2**scene.static.max_bisections
+    lam, step, prev_step = 0.0, nominal, None
+    U_n = model.U.x.array.copy()
+    U_nm1 = None
+    factors, iterations, bisections = [0.0], [], 0
+    failure = None
+    try:
+        while lam < 1.0 - 1e-14:
+            trial = min(lam + step, 1.0)
+            model.load_factor.value = trial
+            if U_nm1 is not None and prev_step:
+                model.U.x.array[:] = U_n + (trial - lam) / prev_step * (U_n - U_nm1)
+            else:
+                model.U.x.array[:] = U_n
+            try:
+                its = solver.solve()
+                check_state(model, scene.static.time, where_prefix=f"load factor {trial:.6g}")
+                _check_no_chart_crossing(model, U_n, lam, trial)
+            except (NewtonFailure, SolverError) as exc:
+                bisections += 1
+                step *= 0.5
+                if step < smallest * (1.0 - 1e-12):
+                    raise SolverError(
+                        time=None,
+                        where=f"load factor {trial:.6g} (last converged {lam:.6g})",
+                        reason=f"no load increment down to 1/{2**scene.static.max_bisections} of "
+                        f"the nominal one converges: {exc.reason}",
+                        suggestion=getattr(exc, "suggestion", None)
+                        or "increase static.load_steps, or the load passes a limit point",
+                    ) from None
+                continue
+            U_nm1, U_n = U_n, model.U.x.array.copy()
+            prev_step, lam = trial - lam, trial
+            step = min(2.0 * step, nominal)
+            factors.append(lam)
+            iterations.append(its)
+            if probes is not None:
+                probes.write(lam)
+            if xdmf is not None:
+                xdmf.write(lam)
+    except SolverError as exc:
+        failure = exc
+        model.U.x.array[:] = U_n
+    finally:
+        if probes is not None:
+            probes.close()
+        if xdmf is not None:
+            xdmf.close()
+        solver.destroy()
+    summary = {
+        "status": "failed" if failure else "completed",
+        "message": str(failure) if failure else "",
+        "kind": "static",
+        "probe_t_column": "load factor",
+        "cosserat_fem": __version__,
+        "scene_file": scene.source,
+        "mpi_ranks": comm.size,
+        "dofs": model.global_dofs(),
+        "load_factors": factors,
+        "newton_iterations": iterations,
+        "bisections": bisections,
+        "wall_time_s": {"total": clock.perf_counter() - t_start},
+        "scene": scene.to_dict(),
+    }
+    if write_outputs:
+        write_json(out / "summary.json", summary, comm)
+    comm.barrier()
+    if failure:
+        raise failure
+    return StaticResult(model, factors, iterations, bisections, summary)
+
+
+def _check_no_chart_crossing(model: RodModel, U_prev, lam: float, trial: float) -> None:
+    """A load step may not carry θ across ±π/2 at any node (cos θ changes sign).
+
+    The Euler-angle chart (18) is singular there (det Ma = cos θ, (66)): no continuous path,
+    and so no motion, passes through it. A large load step could otherwise jump over it and
+    land on a state the path never reaches; the step is rejected and, once halving cannot
+    avoid the crossing, the run stops with this reason.
+    """
+    n = model.V.dofmap.index_map.size_local
+    before = np.cos(U_prev.reshape(-1, 12)[:n, 3])
+    after = np.cos(model.U.x.array.reshape(-1, 12)[:n, 3])
+    crossed = bool(np.any(before * after <= 0.0))
+    if model.msh.comm.allreduce(crossed, op=MPI.LOR):
+        raise SolverError(
+            time=None,
+            where=f"load factor between {lam:.6g} and {trial:.6g}",
+            reason="θ reaches ±π/2, the singularity of the Euler-angle chart (det Ma = cos θ)",
+            suggestion="orient the rod so that large bending is about e2 (carried by ψ, which "
+            "the chart allows without bound)",
+        )
+
+
+def solve_static(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[RodModel, int]:
+    """Static equilibrium under the scene's loads, without writing outputs.
+
+    Returns the model (``model.U`` holds the solution) and the total Newton iterations.
+    """
+    result = static_path(scene, comm=comm, write_outputs=False)
+    return result.model, sum(result.iterations)
