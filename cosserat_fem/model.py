@@ -111,8 +111,8 @@ class RodModel:
         """The weak residual (65) at (U_eval, Udot_eval), loads at τ = time_eval."""
         return self.residual_terms(U_eval, Udot_eval, time_eval).total()
 
-    def residual_terms(self, U_eval, Udot_eval, time_eval, test=None):
-        """The terms of (65); ``test`` defaults to the test function of the 12-component space."""
+    def load_vectors(self, time_eval) -> tuple[DistributedLoads, tuple[EndLoads, ...]]:
+        """The scene's loads at τ = time_eval as UFL vectors (absent ones are None)."""
         sym = self._symbols(time_eval)
         loads = self.scene.loads
         distributed = DistributedLoads(
@@ -130,9 +130,14 @@ class RodModel:
                     torque=self._vector(end.torque, sym),
                 )
             )
+        return distributed, tuple(ends)
+
+    def residual_terms(self, U_eval, Udot_eval, time_eval, test=None):
+        """The terms of (65); ``test`` defaults to the test function of the 12-component space."""
+        distributed, ends = self.load_vectors(time_eval)
         V = ufl.TestFunction(self.V) if test is None else test
         return residual_terms(
-            U_eval, Udot_eval, V, self.groups, self.dx, distributed, tuple(ends), self.convention
+            U_eval, Udot_eval, V, self.groups, self.dx, distributed, ends, self.convention
         )
 
 

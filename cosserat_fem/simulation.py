@@ -146,13 +146,20 @@ def run(
     comm: MPI.Comm = MPI.COMM_WORLD,
     observers: tuple[Observer, ...] = (),
     write_outputs: bool = True,
+    initial_state: np.ndarray | None = None,
 ) -> RunResult:
-    """Integrate the scene from rest over its time span; see the module docstring."""
+    """Integrate the scene over its time span; see the module docstring.
+
+    The rod starts from rest in its straight state, or from ``initial_state`` (the array of a
+    12-component state U = (p, q) on the same discretisation, e.g. a static solution).
+    """
     t_start = time.perf_counter()
     out = Path(out_dir if out_dir is not None else scene.output.directory)
     if write_outputs:
         prepare_output_dir(out, comm)
     model = build_model(scene, comm)
+    if initial_state is not None:
+        model.U.x.array[:] = initial_state
     tspan = scene.time
     omega0 = model.omega0
     integrator = make_integrator(

@@ -1,0 +1,49 @@
+"""Energy bookkeeping of a run: E = T + V of the rod and the power P of its loads [SI].
+
+The integrands are those of :mod:`cosserat_fem.forms.energy`; the forms are compiled once and
+evaluated on the current state (collectively under MPI). The load power is evaluated at a given
+time τ, so that the work of the loads can be integrated in time alongside the run.
+"""
+
+from __future__ import annotations
+
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from .forms.energy import kinetic_energy_density, load_power, strain_energy_density
+from .model import RodModel
+
+
+class EnergyMonitor:
+    """T, V [J] of ``model.U`` and the power P [W] of the scene's loads."""
+
+    def __init__(self, model: RodModel):
+        self.model = model
+        self.tau = fem.Constant(model.msh, PETSc.ScalarType(0.0))
+        U, rod, dx = model.U, model.rod, model.dx
+        self._T = fem.form(kinetic_energy_density(U, rod) * dx)
+        self._V = fem.form(strain_energy_density(U, rod) * dx)
+        distributed, ends = model.load_vectors(self.tau)
+        power = None
+        if distributed.force is not None or distributed.torque is not None:
+            power = rod.length * load_power(U, rod, distributed.force, distributed.torque) * dx
+        for end in ends:
+            if end.force is not None or end.torque is not None:
+                term = load_power(U, rod, end.force, end.torque) * end.ds
+                power = term if power is None else power + term
+        self._P = fem.form(power) if power is not None else None
+
+    def _sum(self, form) -> float:
+        return self.model.msh.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM)
+
+    def energies(self) -> tuple[float, float]:
+        """(kinetic, strain) energy [J]."""
+        return self._sum(self._T), self._sum(self._V)
+
+    def power(self, t: float) -> float:
+        """Power of the loads at time t [s] on the current state [W]."""
+        if self._P is None:
+            return 0.0
+        self.tau.value = t * self.model.omega0
+        return self._sum(self._P)

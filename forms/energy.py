@@ -1,0 +1,70 @@
+"""Energy of the rod and power of its loads, in SI units, as UFL integrands per unit σ.
+
+With (9)-(13), (25), (26), (29), (46) and the scalings (47) (x = ℓ p1, t = τ/ω0, so
+∂t r = ℓ ω0 q_trans, w = ω0 ŵ, u = û/ℓ):
+
+    kinetic  T = ½ ∫₀^ℓ [ρA |∂t r|² + ρ (c11 w1² + c22 w2² + (c11 + c22) w3²)] ds,
+    strain   V = ½ ∫₀^ℓ [κGA (v1² + v2²) + EA (v3 − 1)² + E c11 u1² + E c22 u2² + G c33 u3²] ds,
+
+and the power of the loads (36), (42) in fixed directions is
+
+    P = ∫₀^ℓ (f · ∂t r + l · w) ds + Σ_free ends (f^b · ∂t r + l^b · w),
+
+with l · w = Σ_i l_i w_i, l_i = d_i · l (38). For the rod of (6) with the consistent rotary
+inertia (docs/errata.md, erratum 1), dE/dt = P with E = T + V. Integrands are per unit σ
+(ds = ℓ dσ): integrate them with ``* dx`` over the interval mesh σ ∈ [0, 1].
+"""
+
+from __future__ import annotations
+
+import ufl
+
+from .groups import RodConstants
+from .kinematics import angular_velocity, curvature, rotation_matrix, split, stretch_shear_strain
+
+
+def _rates(U, rod: RodConstants):
+    p, q = split(U)
+    ell, w0 = rod.length, rod.omega0
+    r_dot = ell * w0 * ufl.as_vector([q[0], q[1], q[2]])
+    w = w0 * angular_velocity(p, q)  # director components
+    return p, r_dot, w
+
+
+def kinetic_energy_density(U, rod: RodConstants):
+    """ℓ × the kinetic energy per unit length [J per unit σ]."""
+    _, r_dot, w = _rates(U, rod)
+    s = rod.section
+    inertia = (s.c11, s.c22, s.c11 + s.c22)
+    rot = sum(inertia[i] * w[i] ** 2 for i in range(3))
+    return 0.5 * rod.length * rod.density * (s.area * ufl.dot(r_dot, r_dot) + rot)
+
+
+def strain_energy_density(U, rod: RodConstants):
+    """ℓ × the strain energy per unit length [J per unit σ]."""
+    p, _ = split(U)
+    dU = U.dx(0)
+    dp = ufl.as_vector([dU[i] for i in range(6)])
+    v = stretch_shear_strain(p, dp)
+    u = curvature(p, dp) / rod.length
+    s, E, G = rod.section, rod.young_modulus, rod.shear_modulus
+    kGA = s.shear_coefficient * G * s.area
+    stretch = kGA * (v[0] ** 2 + v[1] ** 2) + E * s.area * (v[2] - 1.0) ** 2
+    bend = E * s.c11 * u[0] ** 2 + E * s.c22 * u[1] ** 2 + G * s.c33 * u[2] ** 2
+    return 0.5 * rod.length * (stretch + bend)
+
+
+def load_power(U, rod: RodConstants, force=None, torque=None):
+    """f · ∂t r + l · w for loads in fixed directions, force and torque UFL 3-vectors or None.
+
+    For densities (f [N/m], l [N m/m]) this is the power per unit length, to be multiplied by
+    ℓ and integrated with ``dx``; for end loads (f^b [N], l^b [N m]) the power at that end,
+    to be integrated with the end's ``ds``.
+    """
+    p, r_dot, w = _rates(U, rod)
+    power = 0
+    if force is not None:
+        power = power + ufl.dot(force, r_dot)
+    if torque is not None:
+        power = power + ufl.dot(rotation_matrix(p[3], p[4], p[5]) * torque, w)
+    return power

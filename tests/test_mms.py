@@ -1,0 +1,55 @@
+"""Observed orders of convergence for the full nonlinear dynamic system (65), by manufactured
+solutions (cosserat_fem/mms.py): a stocky rod (0.3 m x 0.4 m, ℓ = 1 m), every unknown moving,
+angles of 0.2-0.3 rad.
+
+* Space: p linear in τ (every integrator is exact for it), τ ∈ [0, 0.5], 5 steps: the L2 error
+  of p converges at k + 1 for Lagrange degree k (measured 1.98, 3.01, 4.00); required within
+  0.1 of k + 1.
+* Time: p harmonic in τ, τ ∈ [0, 2], 16 quartic elements (spatial error ~1e-9): second order
+  for BDF2 and generalized-α (measured 1.99 and 2.05 from 40 to 80 steps); within 0.1 of 2.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+from conftest import ROOT
+
+from cosserat_fem.mms import run_mms
+from cosserat_fem.scene import load_scene
+
+SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
+STOCKY = [
+    "loads.force_density=[0,0,0]",
+    "rod.section.a=0.3",
+    "rod.section.b=0.4",
+    "model.reference_frequency=auto",
+    "time.rho_inf=0.5",
+]
+
+
+def error(overrides, family, tau_end, steps) -> float:
+    return run_mms(load_scene(SCENE, STOCKY + overrides), family, tau_end, steps).error_p
+
+
+@pytest.mark.parametrize(("degree", "elements"), [(1, 16), (2, 8), (3, 8)])
+@pytest.mark.parametrize("integrator", ["bdf2", "generalized-alpha"])
+def test_spatial_order(degree, elements, integrator):
+    common = [f"discretisation.degree={degree}", f"time.integrator={integrator}"]
+    coarse, fine = (
+        error(common + [f"discretisation.elements={n}"], "linear_in_time", 0.5, 5)
+        for n in (elements, 2 * elements)
+    )
+    assert abs(math.log2(coarse / fine) - (degree + 1)) < 0.1, (coarse, fine)
+
+
+@pytest.mark.parametrize("integrator", ["bdf2", "generalized-alpha"])
+def test_temporal_order(integrator):
+    common = [
+        "discretisation.degree=4",
+        "discretisation.elements=16",
+        f"time.integrator={integrator}",
+    ]
+    coarse, fine = (error(common, "harmonic", 2.0, steps) for steps in (40, 80))
+    assert abs(math.log2(coarse / fine) - 2.0) < 0.1, (coarse, fine)
