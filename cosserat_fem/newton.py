@@ -136,23 +136,31 @@ class NewtonSolver:
         self.snes = PETSc.SNES().create(comm)
         prefix = f"cosserat_newton_{next(_prefix_counter)}_"
         self.snes.setOptionsPrefix(prefix)
-        opts = PETSc.Options()
-        opts[prefix + "snes_type"] = "newtonls"
-        opts[prefix + "snes_linesearch_type"] = "basic"
-        opts[prefix + "snes_rtol"] = settings.rtol
-        opts[prefix + "snes_atol"] = settings.atol
-        opts[prefix + "snes_stol"] = settings.stol  # (reported; _converged decides)
-        opts[prefix + "snes_max_it"] = settings.max_iterations
-        opts[prefix + "snes_max_funcs"] = 10 * settings.max_iterations + 10
-        opts[prefix + "ksp_type"] = "preonly"
-        opts[prefix + "pc_type"] = "lu"
-        opts[prefix + "pc_factor_mat_solver_type"] = self._lu_package(comm, settings.linear_solver)
+        # Configured through the API, not the options database: PETSc 3.18 keeps at most 512
+        # options, and a session that builds many solvers (a test suite) would fill it.
+        # setFromOptions still lets a user override any of it with -<prefix>snes_... options.
+        self.snes.setType("newtonls")
+        self.snes.setTolerances(
+            rtol=settings.rtol,
+            atol=settings.atol,
+            stol=settings.stol,
+            max_it=settings.max_iterations,
+        )
+        self.snes.setMaxFunctionEvaluations(10 * settings.max_iterations + 10)
+        self.lu_package = self._lu_package(comm, settings.linear_solver)
+        ksp = self.snes.getKSP()
+        ksp.setType("preonly")
+        ksp.getPC().setType("lu")
+        ksp.getPC().setFactorSolverType(self.lu_package)
+        # petsc4py 3.18 has no line-search API: set it as an option and remove it again.
+        options = PETSc.Options()
+        options[prefix + "snes_linesearch_type"] = "basic"
         self.snes.setFromOptions()
+        options.delValue(prefix + "snes_linesearch_type")
         self.snes.setConvergenceTest(self._converged)
         self._f0 = 0.0
         self.snes.setFunction(self._residual, self.b)
         self.snes.setJacobian(self._jacobian, self.A)
-        self.lu_package = opts[prefix + "pc_factor_mat_solver_type"]
 
     @staticmethod
     def _lu_package(comm, choice: str) -> str:

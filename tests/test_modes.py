@@ -24,32 +24,18 @@ from conftest import ROOT, run_command
 
 from cosserat_fem.model import rod_constants
 from cosserat_fem.modes import compute_modes
-from cosserat_fem.reference.rod_planes import bending_planes
-from cosserat_fem.reference.timoshenko import mode_shapes, natural_frequencies
+from cosserat_fem.reference.rod_planes import bending_planes, linear_spectrum
+from cosserat_fem.reference.timoshenko import mode_shapes
 from cosserat_fem.scene import load_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 COUNT = 12
 
 
-def closed_form_spectrum(scene, count: int) -> list[tuple[float, str]]:
-    rod = rod_constants(scene)
-    s = rod.section
-    bx, by = bending_planes(scene)
-    spectrum = [(w, "bending-x") for w in natural_frequencies(bx, count)]
-    spectrum += [(w, "bending-y") for w in natural_frequencies(by, count)]
-    bar = math.pi / (2 * rod.length)
-    torsion = math.sqrt(rod.shear_modulus * s.c33 / (rod.density * (s.c11 + s.c22)))
-    for k in range(1, count + 1):
-        spectrum.append(((2 * k - 1) * bar * math.sqrt(rod.young_modulus / rod.density), "axial"))
-        spectrum.append(((2 * k - 1) * bar * torsion, "torsion"))
-    return sorted(spectrum)[:count]
-
-
 def relative_errors(overrides: list[str]) -> tuple[np.ndarray, list[str], list[str]]:
     scene = load_scene(SCENE, overrides)
     _, modes = compute_modes(scene, COUNT)
-    ref = closed_form_spectrum(scene, COUNT)
+    ref = linear_spectrum(scene, COUNT)
     errors = np.array([m.omega / w - 1.0 for m, (w, _) in zip(modes, ref, strict=True)])
     return errors, [m.kind for m in modes], [k for _, k in ref]
 

@@ -7,10 +7,12 @@ about d1 (c11 = a b³/12, angle θ ≈ −y'); for small motions each plane is a
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .second_order import RodData
-from .timoshenko import TimoshenkoBeam, forced_response
+from .timoshenko import TimoshenkoBeam, forced_response, natural_frequencies
 
 
 def bending_planes(scene) -> tuple[TimoshenkoBeam, TimoshenkoBeam]:
@@ -31,3 +33,21 @@ def sine_load_tip_response(
     x, _ = forced_response(x_plane, q0, omega, times, modes=25, static_correction=True)
     y, _ = forced_response(y_plane, q0, omega, times, modes=20, static_correction=True)
     return x, y
+
+
+def linear_spectrum(scene, count: int) -> list[tuple[float, str]]:
+    """The ``count`` lowest natural frequencies [rad/s] of the scene's clamped-free rod, with
+    their kinds, from the closed forms of the linearised Cosserat rod: Timoshenko bending in
+    both planes, axial bar ω_k = (2k−1) π/(2ℓ) √(E/ρ), torsion bar
+    ω_k = (2k−1) π/(2ℓ) √(G c33/(ρ (c11 + c22))) (consistent rotary inertia)."""
+    rod = RodData.from_scene(scene)
+    x_plane, y_plane = rod.beam_x, rod.beam_y
+    spectrum = [(w, "bending-x") for w in natural_frequencies(x_plane, count)]
+    spectrum += [(w, "bending-y") for w in natural_frequencies(y_plane, count)]
+    bar = math.pi / (2.0 * rod.length)
+    axial = math.sqrt(rod.young / rod.density)
+    torsion = math.sqrt(rod.shear * rod.c33 / (rod.density * rod.torsion_inertia("polar")))
+    for k in range(1, count + 1):
+        spectrum.append(((2 * k - 1) * bar * axial, "axial"))
+        spectrum.append(((2 * k - 1) * bar * torsion, "torsion"))
+    return sorted(spectrum)[:count]
