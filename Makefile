@@ -8,7 +8,7 @@ export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 
-.PHONY: setup demo test lint verify clean
+.PHONY: setup demo test lint verify bench clean
 
 setup:
 	@VENV=$(VENV) bash .ci/setup.sh
@@ -24,6 +24,10 @@ test: setup lint
 ## Regenerate docs/verification.md (modes, large deflections, orders, energy; a few minutes).
 verify: setup
 	$(PY) benchmarks/verify.py
+
+## Work-precision benchmark against PyElastica (benchmarks/results/; about 15 minutes).
+bench: setup
+	$(PY) benchmarks/work_precision.py
 
 lint: setup
 	$(VENV)/bin/ruff check .

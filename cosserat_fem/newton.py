@@ -77,7 +77,7 @@ class NewtonStatistics:
 
     def as_dict(self) -> dict:
         d = dict(self.__dict__)
-        d.pop("history")
+        d["max_iterations_in_a_solve"] = max(d.pop("history"), default=0)
         return d
 
 

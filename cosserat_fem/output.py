@@ -41,6 +41,14 @@ class PointProbe:
             raise RuntimeError(f"probe point σ = {sigma} lies outside the mesh")
         self.cell = owned[0] if (owned and comm.rank == self.owner) else None
         self._scale = np.array([length, length, length, 1.0, 1.0, 1.0])
+        # Fast path: a probe on a node of the Lagrange space reads that node's values.
+        self._node = None
+        if self.cell is not None:
+            n_local = U.function_space.dofmap.index_map.size_local
+            coords = U.function_space.tabulate_dof_coordinates()[:n_local, 0]
+            hits = np.flatnonzero(np.abs(coords - sigma) < 1e-12)
+            if hits.size:
+                self._node = int(hits[0])
 
     @property
     def is_owner(self) -> bool:
@@ -50,6 +58,9 @@ class PointProbe:
         """(x, y, z, θ, ψ, φ) on the owning rank, None elsewhere."""
         if self.cell is None:
             return None
+        if self._node is not None:
+            bs = self.U.function_space.dofmap.index_map_bs
+            return self.U.x.array[bs * self._node : bs * self._node + 6] * self._scale
         u = self.U.eval(self.point, np.array([self.cell], dtype=np.int32))
         return u[:6] * self._scale
 

@@ -97,11 +97,17 @@ def check_state(model: RodModel, t: float | None, where_prefix: str = "") -> Non
     """Stop with a SolverError if U is not finite or the Euler-angle chart is (nearly) singular."""
     blocks = model.U.x.array.reshape(-1, 12)
     n = model.V.dofmap.index_map.size_local
-    finite = bool(np.isfinite(blocks[:n]).all())
-    cos_min = float(np.min(np.abs(np.cos(blocks[:n, 3])))) if n and finite else 1.0
+    # One number and (in parallel) one reduction per step: the smallest |cos θ|, or −1 if
+    # any owned value is not finite.
+    value = 1.0
+    if n:
+        value = float(np.min(np.abs(np.cos(blocks[:n, 3]))))
+        if not np.isfinite(blocks[:n]).all():
+            value = -1.0
     comm = model.msh.comm
-    finite = comm.allreduce(finite, op=MPI.LAND)
-    cos_min = comm.allreduce(cos_min, op=MPI.MIN)
+    if comm.size > 1:
+        value = comm.allreduce(value, op=MPI.MIN)
+    finite, cos_min = value >= 0.0, value
     if not finite:
         bad = np.where(np.isfinite(blocks).all(axis=1), 0.0, 1.0)
         s, _ = _worst_place(model, bad)

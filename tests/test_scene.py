@@ -52,7 +52,9 @@ def test_paper_scene_resolves() -> None:
     assert scene.expression_names() == {"L": 1.0, "omega0": PAPER_OMEGA0}
     assert scene.time.n_steps == round(0.06 / scene.time.step)
     assert scene.discretisation.quadrature_degree == 2 * scene.discretisation.degree
-    assert scene.output.xdmf_every(scene.time.step) == round(2e-4 / scene.time.step)
+    assert scene.output.xdmf_every(scene.time.step) == round(
+        scene.output.xdmf_interval / scene.time.step
+    )
     assert scene.supports.start == "clamped" and scene.supports.end == "free"
     assert scene.loads.start is None and scene.loads.end is None
     assert scene.loads.force_density[2].is_zero
