@@ -70,7 +70,7 @@ def modes_section() -> str:
         "## 1. Natural frequencies of the paper's cantilever",
         "",
         "`cosserat-fem modes scenes/cao_tucker_2008.toml --count 12` at the scene's default "
-        "discretisation (16 cubic elements) against the closed forms of the linearised rod "
+        "discretisation (8 cubic elements) against the closed forms of the linearised rod "
         "(Timoshenko frequency equation with shear and rotary inertia in each bending plane; "
         "axial and torsional bars, the latter with I33 = ρ(c11 + c22)).",
         "",

@@ -748,7 +748,8 @@ def _build_discretisation(raw: dict[str, Any]) -> Discretisation:
 
 def _build_output(raw: dict[str, Any], time: Time) -> Output:
     interval = raw["xdmf_interval"]
-    if interval > 0.0 and not (
+    # Checked only when fields are written: with xdmf = false the interval is unused.
+    if raw["xdmf"] and interval > 0.0 and not (
         interval >= time.step * (1.0 - STEP_TOLERANCE) and _integral_ratio(interval, time.step)
     ):
         raise SceneError(

@@ -35,8 +35,8 @@ def test_run_writes_probes_summary_and_xdmf(tmp_path):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "completed"
     assert summary["steps"] == 200 and summary["time_reached_s"] == pytest.approx(0.002)
-    # 16 cubic elements: 49 nodes of 12 unknowns
-    assert summary["dofs"] == 12 * 49
+    disc = summary["scene"]["discretisation"]
+    assert summary["dofs"] == 12 * (disc["elements"] * disc["degree"] + 1)
     assert summary["newton"]["iterations"] >= 200
     assert summary["wall_time_s"]["solve_loop"] > 0
     assert summary["scene"]["time"]["end"] == 0.002

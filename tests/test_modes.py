@@ -41,8 +41,9 @@ def relative_errors(overrides: list[str]) -> tuple[np.ndarray, list[str], list[s
 
 
 def test_default_settings_against_closed_forms():
-    """The paper's scene as it is (16 cubic elements): the 12 lowest modes, their kinds, and
-    frequencies within 1e-4 (measured ≤ 3e-5: the h^6 error of mode 11, bending-x 5)."""
+    """The paper's scene as it is (8 cubic elements): the 12 lowest modes and their kinds, and
+    the first eight frequencies within 1e-3 (measured ≤ 5.0e-4, the h^6 error of mode 8,
+    bending-x 4; modes 9-12 are within 1.4e-3)."""
     errors, kinds, expected = relative_errors([])
     assert kinds == expected
     assert expected[:9] == [
@@ -56,7 +57,8 @@ def test_default_settings_against_closed_forms():
         "bending-x",
         "axial",
     ]
-    assert np.abs(errors).max() < 1e-4
+    assert np.abs(errors[:8]).max() < 1e-3
+    assert np.abs(errors).max() < 2e-3
 
 
 @pytest.mark.parametrize(

@@ -1,6 +1,6 @@
 """Guards on the cost of the default scene, without timing (timings live in benchmarks/).
 
-The paper's scene at its default settings (16 cubic elements, generalized-α ρ∞ = 0.8,
+The paper's scene at its default settings (8 cubic elements, generalized-α ρ∞ = 0.8,
 Δt = 10 μs, frozen Jacobian): one Jacobian assembly and LU factorisation for the whole run (the
 frozen policy refreshes only when a step needs more than 4 iterations, which this small-amplitude
 motion never does), no retried steps, and on average at most 3.2 Newton iterations a step

@@ -21,7 +21,12 @@ from cosserat_fem.simulation import run
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 LOAD = "2e2*sin(pi*s/L)*sin(8*omega0*t)"
-COMMON = [f'loads.force_density=["{LOAD}","{LOAD}",0]', "time.end=0.006", "output.xdmf=false"]
+COMMON = [
+    f'loads.force_density=["{LOAD}","{LOAD}",0]',
+    "time.end=0.006",
+    "output.xdmf=false",
+    "discretisation.elements=16",
+]
 
 
 def tip_error(tmp_path, overrides: list[str]) -> float:
