@@ -114,8 +114,7 @@ def run_mms(
     solver = NewtonSolver(integrator.residual_form(), model.U, model.bcs, settings)
     h = tau_end / steps
     for _ in range(steps):
-        integrator.prepare(h)
-        solver.solve()
+        integrator.step(h, solver.solve)
         integrator.accept(h)
     solver.destroy()
     tau_end_const = fem.Constant(model.msh, PETSc.ScalarType(integrator.time))

@@ -2,8 +2,9 @@
 
 Quantities are written in SI units: positions in m (x = ℓ p1, ...), angles in rad, time in
 s. The probe row is written by the one rank that owns the probe point, so a step costs no
-communication; rows are flushed to disk every ``flush_every`` rows and at the end, so a run
-that stops early keeps what it computed.
+communication; rows are handed to the operating system every ``flush_every`` rows and at the
+end, so a run that stops early, or is killed, keeps what it computed up to the last flush
+(``fsync`` only at the end: what is flushed to the page cache survives a killed process).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from dolfinx import fem, geometry, io
 from mpi4py import MPI
 
 PROBE_HEADER = ("t", "x", "y", "z", "theta", "psi", "phi")
+_ROW_FORMAT = "%.10e," + ",".join(["%.16e"] * (len(PROBE_HEADER) - 1)) + "\n"
 
 
 class PointProbe:
@@ -72,6 +74,7 @@ class ProbeWriter:
         self.probe = probe
         self.flush_every = flush_every
         self._pending = 0
+        self._rows = np.empty((flush_every, len(PROBE_HEADER)))
         self._file = None
         if probe.is_owner:
             self._file = open(path, "w", encoding="utf-8")  # noqa: SIM115 - closed in close()
@@ -79,23 +82,30 @@ class ProbeWriter:
             self._file.flush()
 
     def write(self, t: float) -> None:
+        """Buffer the row of time t; every ``flush_every`` rows go to the file."""
         if self._file is None:
             return
-        vals = self.probe.values()
-        self._file.write(f"{t:.10e}," + ",".join(f"{v:.16e}" for v in vals) + "\n")
+        row = self._rows[self._pending]
+        row[0] = t
+        row[1:] = self.probe.values()
         self._pending += 1
         if self._pending >= self.flush_every:
             self.flush()
 
-    def flush(self) -> None:
+    def flush(self, sync: bool = False) -> None:
         if self._file is not None:
+            if self._pending:
+                # One formatting call for the whole block (about 10x cheaper than per value).
+                block = tuple(self._rows[: self._pending].ravel())
+                self._file.write((_ROW_FORMAT * self._pending) % block)
             self._file.flush()
-            os.fsync(self._file.fileno())
+            if sync:
+                os.fsync(self._file.fileno())
             self._pending = 0
 
     def close(self) -> None:
         if self._file is not None:
-            self.flush()
+            self.flush(sync=True)
             self._file.close()
             self._file = None
 

@@ -451,7 +451,9 @@ SCHEMA = _Table(
                 "start": _Number(default=0.0, unit="s"),
                 "end": _Number(required=True, unit="s"),
                 "step": _Number(required=True, interval=POSITIVE, unit="s"),
-                "integrator": _Choice(choices=("bdf2", "generalized-alpha"), default="bdf2"),
+                "integrator": _Choice(
+                    choices=("bdf2", "generalized-alpha", "sdirk3", "sdirk4"), default="bdf2"
+                ),
                 "rho_inf": _Number(default=0.5, interval=_Interval(0.0, 1.0)),
             }
         ),

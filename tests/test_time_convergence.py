@@ -1,10 +1,18 @@
-"""Second order in time for BDF2 and generalized-α, against the closed-form Timoshenko response.
+"""Orders in time against the closed-form Timoshenko response.
 
 The paper's cantilever with its load scaled down 10x (so that the geometric nonlinearity, which
-scales with the load squared, falls to ~2e-6 relative) over 0 ≤ t ≤ 6 ms, 16 cubic elements
-(spatial error < 1e-5, benchmarks/convergence.py). Time errors at the steps used are 1e-4 to
-1e-2, so the observed order log2(e(2Δt)/e(Δt)) measures the integrator alone. Both methods
-are second order; measured orders are 1.99-2.02 for these steps, so we require 2 ± 0.1.
+scales with the load squared, falls to ~2e-6 relative) over 0 ≤ t ≤ 6 ms, 16 cubic elements.
+The floor of the comparison (space and nonlinearity) is 6e-7: SDIRK4 at Δt = 10 μs measures
+5.9e-7 and stops improving. Time errors at the steps used are 2.6e-5 to 1e-2, at least 40x that
+floor, so the observed order log2(e(2Δt)/e(Δt)) measures the integrator alone (the floor moves
+it by at most 0.04).
+
+* BDF2 and generalized-α are second order: measured 1.99-2.02 at Δt = 40 → 20 μs; 2 ± 0.1.
+* SDIRK3 is third order: measured 2.91 at Δt = 80 → 40 μs. Its stages are only first-order
+  accurate (stage order 1), and on the stiff semi-discrete rod (axial and shear modes with
+  ω Δt ≫ 1, driven by the load) SDIRK methods lose order as Δt shrinks: 2.86 at 40 → 20 μs.
+  SDIRK4 shows it more (3.12, then 2.70), which is why it is not tested here but by
+  manufactured solutions on a stocky rod (tests/test_mms.py, 3.99). 3 ± 0.15 for SDIRK3.
 """
 
 from __future__ import annotations
@@ -39,17 +47,22 @@ def tip_error(tmp_path, overrides: list[str]) -> float:
     return float(np.sqrt(np.mean((x - x_ref) ** 2) / np.mean(x_ref**2)))
 
 
+SECOND = ((4e-5, 2e-5), 2.0, 0.1)
+
+
 @pytest.mark.parametrize(
-    "integrator",
+    ("integrator", "steps_order_tolerance"),
     [
-        ["time.integrator=bdf2"],
-        ["time.integrator=generalized-alpha", "time.rho_inf=0.8"],
-        ["time.integrator=generalized-alpha", "time.rho_inf=0.0"],
+        (["time.integrator=bdf2"], SECOND),
+        (["time.integrator=generalized-alpha", "time.rho_inf=0.8"], SECOND),
+        (["time.integrator=generalized-alpha", "time.rho_inf=0.0"], SECOND),
+        (["time.integrator=sdirk3"], ((8e-5, 4e-5), 3.0, 0.15)),
     ],
-    ids=["bdf2", "galpha-0.8", "galpha-0.0"],
+    ids=["bdf2", "galpha-0.8", "galpha-0.0", "sdirk3"],
 )
-def test_second_order_in_time(tmp_path, integrator):
-    errors = [tip_error(tmp_path, integrator + [f"time.step={dt}"]) for dt in (4e-5, 2e-5)]
+def test_order_in_time(tmp_path, integrator, steps_order_tolerance):
+    steps, expected, tolerance = steps_order_tolerance
+    errors = [tip_error(tmp_path, integrator + [f"time.step={dt}"]) for dt in steps]
     order = math.log2(errors[0] / errors[1])
-    assert 1e-4 < errors[1] < 1e-2, errors  # well above the spatial and nonlinear floors
-    assert abs(order - 2.0) < 0.1, (errors, order)
+    assert 2e-5 < errors[1] < 1e-2, errors  # well above the spatial and nonlinear floors
+    assert abs(order - expected) < tolerance, (errors, order)

@@ -3,7 +3,7 @@
 # Results go to benchmarks/pyelastica/results/ (git-ignored).
 set -euo pipefail
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
-VENV="${PYELASTICA_VENV:-/work/main/benchmarks/results/pyelastica-venv}"
+VENV="${PYELASTICA_VENV:-$(cd "$HERE/.." && pwd)/results/pyelastica-venv}"
 bash "$HERE/setup.sh"
 PY="$VENV/bin/python"
 cd "$HERE"

@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
 # Create (idempotently) the PyElastica virtual environment for the benchmark.
-#   bash benchmarks/pyelastica/setup.sh            -> ${PYELASTICA_VENV:-/work/main/benchmarks/results/pyelastica-venv}
+#   bash benchmarks/pyelastica/setup.sh    -> ${PYELASTICA_VENV:-benchmarks/results/pyelastica-venv}
 # Needs: a python3 >= 3.10 able to create a venv, and access to PyPI.
 # The venv is separate from the cosserat-fem one (no dolfinx, no system site packages).
 set -euo pipefail
 
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
-VENV="${PYELASTICA_VENV:-/work/main/benchmarks/results/pyelastica-venv}"
+VENV="${PYELASTICA_VENV:-$(cd "$HERE/.." && pwd)/results/pyelastica-venv}"
 REQ="$HERE/requirements.txt"
 PIN="$(grep -E '^pyelastica==' "$REQ" | head -n1 | cut -d= -f3)"
 
