@@ -18,8 +18,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from dolfinx.fem.petsc import LinearProblem
+from dolfinx import fem
+from dolfinx.fem.petsc import apply_lifting, assemble_matrix, assemble_vector, set_bc
 from mpi4py import MPI
+from petsc4py import PETSc
 
 from . import __version__
 from .errors import SceneError, SolverError
@@ -94,57 +96,96 @@ def _worst_place(model: RodModel, values: np.ndarray) -> tuple[float, float]:
     return max(model.msh.comm.allgather(mine))[::-1]
 
 
-def check_state(model: RodModel, t: float | None, where_prefix: str = "") -> None:
-    """Stop with a SolverError if U is not finite or the Euler-angle chart is (nearly) singular."""
+CHART_SUGGESTION = (
+    "d3 is nearly parallel to e2, which the Euler angles (18) cannot represent; orient the rod "
+    "so that large bending is about e2 (carried by ψ, which the chart allows without bound)"
+)
+
+
+def check_state(
+    model: RodModel, t: float | None, where_prefix: str = "", previous: np.ndarray | None = None
+) -> None:
+    """Stop with a SolverError if U is not finite, if the Euler-angle chart is (nearly)
+    singular, |cos θ| < ``CHART_COS_MIN``, or, given the ``previous`` state array, if θ crossed
+    ±π/2 at some node since then (cos θ changed sign: a step jumped over the singularity,
+    through which no continuous motion passes, det Ma = cos θ (66))."""
     blocks = model.U.x.array.reshape(-1, 12)
     n = model.V.dofmap.index_map.size_local
-    # One number and (in parallel) one reduction per step: the smallest |cos θ|, or −1 if
-    # any owned value is not finite (a NaN or inf anywhere makes the sum non-finite).
+    # One number and (in parallel) one reduction per step: the smallest |cos θ|; −0.5 if θ
+    # crossed ±π/2, −1 if any owned value is not finite (a NaN or inf makes the sum so).
     value = 1.0
     if n:
-        value = float(np.abs(np.cos(blocks[:n, 3])).min())
+        cos_theta = np.cos(blocks[:n, 3])
+        value = float(np.abs(cos_theta).min())
+        if previous is not None:
+            before = np.cos(previous.reshape(-1, 12)[:n, 3])
+            if float((before * cos_theta).min()) <= 0.0:
+                value = -0.5
         if not math.isfinite(value + float(blocks[:n].sum())):
             value = -1.0
     comm = model.msh.comm
     if comm.size > 1:
         value = comm.allreduce(value, op=MPI.MIN)
-    finite, cos_min = value >= 0.0, value
-    if not finite:
+    if value >= CHART_COS_MIN:
+        return
+    prefix = f"{where_prefix}{', ' if where_prefix else ''}"
+    if value == -1.0:
         bad = np.where(np.isfinite(blocks).all(axis=1), 0.0, 1.0)
         s, _ = _worst_place(model, bad)
         raise SolverError(
             time=t,
-            where=f"{where_prefix}{', ' if where_prefix else ''}s = {s:.4g} m",
+            where=f"{prefix}s = {s:.4g} m",
             reason="the solution became non-finite (NaN/inf)",
             suggestion="reduce time.step or check the loads",
         )
-    if cos_min < CHART_COS_MIN:
-        s, _ = _worst_place(model, 1.0 / np.maximum(np.abs(np.cos(blocks[:, 3])), 1e-300))
+    if value == -0.5:
+        before = np.cos(previous.reshape(-1, 12)[:, 3])
+        crossed = np.where(before * np.cos(blocks[:, 3]) <= 0.0, 1.0, 0.0)
+        s, _ = _worst_place(model, crossed)
         raise SolverError(
             time=t,
-            where=f"{where_prefix}{', ' if where_prefix else ''}s = {s:.4g} m",
-            reason=(
-                f"Euler-angle chart singular: |cos θ| = {cos_min:.2e} "
-                "(θ near ±π/2, where det Ma = cos θ vanishes)"
-            ),
-            suggestion="d3 is nearly parallel to e2, which the Euler angles (18) cannot represent",
+            where=f"{prefix}s = {s:.4g} m",
+            reason="Euler-angle chart singular: θ crossed ±π/2 within the step "
+            "(det Ma = cos θ changed sign)",
+            suggestion=CHART_SUGGESTION,
         )
+    s, _ = _worst_place(model, 1.0 / np.maximum(np.abs(np.cos(blocks[:, 3])), 1e-300))
+    raise SolverError(
+        time=t,
+        where=f"{prefix}s = {s:.4g} m",
+        reason=(
+            f"Euler-angle chart singular: |cos θ| = {value:.2e} "
+            "(θ near ±π/2, where det Ma = cos θ vanishes)"
+        ),
+        suggestion=CHART_SUGGESTION,
+    )
 
 
 def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: str) -> None:
-    """U̇_0 from F(U_0, U̇_0, τ_0) = 0, affine in U̇_0 (one linear solve)."""
-    a, L, _ = integrator.initial_rate_problem()
-    problem = LinearProblem(
-        a,
-        L,
-        bcs=model.bcs,
-        petsc_options={
-            "ksp_type": "preonly",
-            "pc_type": "lu",
-            "pc_factor_mat_solver_type": lu_package,
-        },
-    )
-    integrator.set_initial_rate(problem.solve().x.array)
+    """U̇_0 from F(U_0, U̇_0, τ_0) = 0, affine in U̇_0 (one linear solve).
+
+    Assembled and solved through the API, not dolfinx's ``LinearProblem``: that sets three
+    PETSc options per instance and never removes them, and PETSc 3.18 holds 512, so a process
+    that runs ~170 scenes (the work-precision benchmark) would fail with error 55.
+    """
+    a, L, W = integrator.initial_rate_problem()
+    a_form, L_form = fem.form(a), fem.form(L)
+    A = assemble_matrix(a_form, bcs=model.bcs)
+    A.assemble()
+    b = assemble_vector(L_form)
+    apply_lifting(b, [a_form], bcs=[model.bcs])
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    set_bc(b, model.bcs)
+    ksp = PETSc.KSP().create(model.msh.comm)
+    ksp.setOperators(A)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType(lu_package)
+    ksp.solve(b, W.vector)
+    W.x.scatter_forward()
+    integrator.set_initial_rate(W.x.array)
+    for obj in (ksp, A, b):
+        obj.destroy()
 
 
 def run(
@@ -217,6 +258,7 @@ def run(
     t_loop = time.perf_counter()
     output_time = 0.0
     failure: SolverError | None = None
+    previous = model.U.x.array.copy()  # the last accepted state (chart-crossing check)
     try:
         for step in range(1, n_steps + 1):
             t_new = tspan.start + step * tspan.step
@@ -230,8 +272,9 @@ def run(
                     reason=f"Newton did not converge ({exc.reason}, {exc.iterations} iterations)",
                     suggestion="reduce time.step, or use solver.jacobian = 'full'",
                 ) from None
-            check_state(model, t_new)
+            check_state(model, t_new, previous=previous)
             integrator.accept(h)
+            previous[:] = model.U.x.array
             t = t_new
             t0 = time.perf_counter()
             if probes is not None:

@@ -22,7 +22,6 @@ import time as clock
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 from mpi4py import MPI
 
 from . import __version__
@@ -89,8 +88,12 @@ def static_path(
                 model.U.x.array[:] = U_n
             try:
                 its = solver.solve()
-                check_state(model, scene.static.time, where_prefix=f"load factor {trial:.6g}")
-                _check_no_chart_crossing(model, U_n, lam, trial)
+                check_state(
+                    model,
+                    scene.static.time,
+                    where_prefix=f"load factor {trial:.6g} (from {lam:.6g})",
+                    previous=U_n,
+                )
             except (NewtonFailure, SolverError) as exc:
                 bisections += 1
                 step *= 0.5
@@ -143,28 +146,6 @@ def static_path(
     if failure:
         raise failure
     return StaticResult(model, factors, iterations, bisections, summary)
-
-
-def _check_no_chart_crossing(model: RodModel, U_prev, lam: float, trial: float) -> None:
-    """A load step may not carry θ across ±π/2 at any node (cos θ changes sign).
-
-    The Euler-angle chart (18) is singular there (det Ma = cos θ, (66)): no continuous path,
-    and so no motion, passes through it. A large load step could otherwise jump over it and
-    land on a state the path never reaches; the step is rejected and, once halving cannot
-    avoid the crossing, the run stops with this reason.
-    """
-    n = model.V.dofmap.index_map.size_local
-    before = np.cos(U_prev.reshape(-1, 12)[:n, 3])
-    after = np.cos(model.U.x.array.reshape(-1, 12)[:n, 3])
-    crossed = bool(np.any(before * after <= 0.0))
-    if model.msh.comm.allreduce(crossed, op=MPI.LOR):
-        raise SolverError(
-            time=None,
-            where=f"load factor between {lam:.6g} and {trial:.6g}",
-            reason="θ reaches ±π/2, the singularity of the Euler-angle chart (det Ma = cos θ)",
-            suggestion="orient the rod so that large bending is about e2 (carried by ψ, which "
-            "the chart allows without bound)",
-        )
 
 
 def solve_static(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[RodModel, int]:

@@ -26,12 +26,12 @@ def demo_runs(tmp_path_factory):
 def test_demo_against_linear_timoshenko(demo_runs):
     """x(ℓ,t), y(ℓ,t) against the closed-form linear Timoshenko response.
 
-    Expected difference at the default settings (8 cubic elements, generalized-α at
-    Δt = 10 μs; benchmarks/README.md): the time error, a phase error growing linearly with the
-    horizon, measured 6.7e-5 (x) and 6.9e-4 (y) over 0.06 s, so about 1/5 of that over 0.012 s;
-    spatial error < 1e-4; geometric nonlinearity ~2e-5. Measured over 0.012 s: 2.2e-5 (x),
-    1.4e-4 (y). A tolerance of 1e-3 on the relative L2 error and on the maxima leaves a
-    margin of about 5 for y.
+    Expected difference at the default settings (8 cubic elements, SDIRK3 at Δt = 30 μs;
+    benchmarks/README.md): the time error, a phase error growing with the horizon, measured
+    2.1e-4 (x) and 4.3e-4 (y) over 0.06 s, so about 1/5 of that over 0.012 s; spatial error
+    of 8 cubic elements ~3e-4 at most; geometric nonlinearity ~2e-5. Measured over 0.012 s:
+    5.2e-5 (x), 8.4e-5 (y). A tolerance of 1e-3 on the relative L2 error and on the maxima
+    covers the spatial error with a margin of 3.
     """
     qoi, out = demo_runs[1]
     assert qoi["t_end_s"] == pytest.approx(END)
@@ -41,10 +41,10 @@ def test_demo_against_linear_timoshenko(demo_runs):
     assert qoi["max_abs_y_m"] == pytest.approx(qoi["timoshenko_max_abs_y_m"], rel=1e-3)
     # z(ℓ,t) and φ(ℓ,t) are purely nonlinear (second order in the deflection): they must follow
     # second-order perturbation theory (reference/second_order.py). Expected difference over
-    # 0.012 s: the time error of the default step (2.0e-3 for φ and 7.2e-4 for z over 0.06 s,
-    # growing linearly with the horizon: ~4e-4 and ~1.5e-4 here) plus the third-order terms the
-    # theory leaves out (1.5e-4 and 8e-5, measured at tiny steps). Measured 4.8e-4 (φ) and
-    # 1.5e-4 (z); tolerances 1.5e-3 and 1e-3.
+    # 0.012 s: the time error of the default step (1.7e-3 for φ and 7.5e-4 for z over 0.06 s,
+    # growing with the horizon: ~3.5e-4 and ~1.5e-4 here) plus the third-order terms the
+    # theory leaves out (1.5e-4 and 8e-5, measured at tiny steps). Measured 4.2e-4 (φ) and
+    # 2.1e-4 (z); tolerances 1.5e-3 and 1e-3.
     assert qoi["rel_l2_error_z"] < 1e-3
     assert qoi["rel_l2_error_phi"] < 1.5e-3
     assert qoi["min_z_m"] == pytest.approx(qoi["second_order_min_z_m"], rel=1e-3)

@@ -19,7 +19,7 @@ from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
-COMMON = ["time.end=0.003", "output.xdmf=false"]
+COMMON = ["time.end=0.003", "time.step=1e-5", "output.xdmf=false"]
 
 
 @pytest.fixture(scope="module", params=["generalized-alpha", "sdirk3"])
@@ -61,6 +61,8 @@ def test_frozen_jacobian_is_refreshed_when_convergence_slows(tmp_path):
             "loads.force_density=[0,0,0]",
             "loads.end.force=[2e4,0,0]",
             "time.end=0.004",
+            "time.step=1e-5",
+            "time.integrator=generalized-alpha",
             "output.xdmf=false",
             "solver.jacobian=frozen",
             "solver.refresh_iterations=4",
