@@ -35,7 +35,6 @@ the new state.
 
 from __future__ import annotations
 
-from collections import deque
 from collections.abc import Callable
 
 import numpy as np
@@ -266,7 +265,10 @@ class SDIRK(Integrator):
         self.Z = fem.Function(V, name="Z")  # U_n + h Σ_{j<i} a_ij K_j of the current stage
         self.inv_gh = _constant(U, 1.0)
         self.K = np.zeros((len(self.b), U.x.array.size))  # stage rates K_i of this step
-        self._history: deque[tuple[float, np.ndarray]] = deque(maxlen=len(self.b) + 1)
+        # The last s + 1 stage rates and their times, a ring buffer (slot = count mod s + 1).
+        self._rates = np.zeros((len(self.b) + 1, U.x.array.size))
+        self._times = np.zeros(len(self.b) + 1)
+        self._stored = 0
 
     def residual_form(self) -> ufl.Form:
         return self._factory(self.U, self.inv_gh * (self.U - self.Z), self.time_eval)
@@ -276,30 +278,33 @@ class SDIRK(Integrator):
 
     def _rate_guess(self, tau: float) -> np.ndarray | float:
         """Lagrange extrapolation of the stored stage rates to time τ (0 with no history)."""
-        if not self._history:
+        m = min(self._stored, len(self._times))
+        if m == 0:
             return 0.0
-        nodes = [t for t, _ in self._history]
-        guess = np.zeros_like(self._history[0][1])
-        for j, (tj, kj) in enumerate(self._history):
-            weight = 1.0
-            for m, tm in enumerate(nodes):
-                if m != j:
-                    weight *= (tau - tm) / (tj - tm)
-            guess += weight * kj
-        return guess
+        nodes = self._times[:m]
+        weights = np.ones(m)
+        for j in range(m):
+            for k in range(m):
+                if k != j:
+                    weights[j] *= (tau - nodes[k]) / (nodes[j] - nodes[k])
+        return weights @ self._rates[:m]
 
     def step(self, h: float, solve: Callable[[], int]) -> int:
         self.prepare(h)
-        u, iterations = self.U.x.array, 0
+        u, iterations, gh = self.U.x.array, 0, self.gamma * h
+        z = self.Z.x.array
         for i in range(len(self.b)):
-            z = self.U_n + h * (self.A[i, :i] @ self.K[:i])
-            self.Z.x.array[:] = z
+            np.add(self.U_n, h * (self.A[i, :i] @ self.K[:i]), out=z)
             tau = self.time + self.c[i] * h
             self.time_eval.value = tau
-            u[:] = z + self.gamma * h * self._rate_guess(tau)
+            np.add(z, gh * self._rate_guess(tau), out=u)
             iterations += solve()
-            self.K[i] = (u - z) / (self.gamma * h)
-            self._history.append((tau, self.K[i].copy()))
+            np.subtract(u, z, out=self.K[i])
+            self.K[i] *= 1.0 / gh
+            slot = self._stored % len(self._times)
+            self._rates[slot] = self.K[i]
+            self._times[slot] = tau
+            self._stored += 1
         u[:] = self.U_n + h * (self.b @ self.K)
         return iterations
 
@@ -308,10 +313,9 @@ class SDIRK(Integrator):
         super().accept(h)
 
     def reject(self) -> None:
-        """Forget the stage rates of a step that is not accepted."""
-        for _ in range(len(self.b)):
-            if self._history:
-                self._history.pop()
+        """Undo a step that is not accepted; its stage rates overwrote older ones in the ring
+        buffer, so the predictor starts afresh."""
+        self._stored = 0
         self.U.x.array[:] = self.U_n
 
 
