@@ -40,6 +40,8 @@ class SolverError(CosseratError):
         where: the component involved (e.g. ``"newton"``, ``"linear solver"``), if known.
         reason: what went wrong.
         suggestion: what the user might change (e.g. ``"reduce time.step"``), if any.
+        retry: whether a smaller step may avoid it (Newton failure, non-finite values, a step
+            over the chart singularity), as opposed to a state that is itself the trouble.
     """
 
     def __init__(
@@ -49,7 +51,9 @@ class SolverError(CosseratError):
         time: float | None = None,
         where: str | None = None,
         suggestion: str | None = None,
+        retry: bool = False,
     ) -> None:
+        self.retry = retry
         self.time = time
         self.where = where
         self.reason = _one_line(reason)

@@ -83,6 +83,15 @@ class Integrator:
         self.time += h
         self.steps_taken += 1
 
+    def reject(self) -> None:
+        """Undo a step that is not accepted: U back to the last accepted state (the history
+        is only updated by :meth:`accept`)."""
+        self.U.x.array[:] = self.last_accepted()
+
+    def last_accepted(self) -> np.ndarray:
+        """The state array at ``self.time``."""
+        raise NotImplementedError
+
     def _copy(self, dst: fem.Function, src: fem.Function) -> None:
         dst.x.array[:] = src.x.array
 
@@ -143,6 +152,9 @@ class BDF2(Integrator):
         self._copy(self.U_n, self.U)
         self.h_prev = h
         super().accept(h)
+
+    def last_accepted(self) -> np.ndarray:
+        return self.U_n.x.array
 
 
 def alpha_parameters(rho_inf: float) -> tuple[float, float, float]:
@@ -223,6 +235,9 @@ class GeneralizedAlpha(Integrator):
         vn += increment
         un[:] = u
         super().accept(h)
+
+    def last_accepted(self) -> np.ndarray:
+        return self.U_n.x.array
 
     @property
     def _arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -316,7 +331,10 @@ class SDIRK(Integrator):
         """Undo a step that is not accepted; its stage rates overwrote older ones in the ring
         buffer, so the predictor starts afresh."""
         self._stored = 0
-        self.U.x.array[:] = self.U_n
+        super().reject()
+
+    def last_accepted(self) -> np.ndarray:
+        return self.U_n
 
 
 INTEGRATORS = ("bdf2", "generalized-alpha", "sdirk3", "sdirk4", "static")

@@ -121,6 +121,7 @@ class Time:
     step: float
     integrator: str
     rho_inf: float
+    max_halvings: int = 6
 
     @property
     def n_steps(self) -> int:
@@ -455,6 +456,7 @@ SCHEMA = _Table(
                     choices=("bdf2", "generalized-alpha", "sdirk3", "sdirk4"), default="bdf2"
                 ),
                 "rho_inf": _Number(default=0.5, interval=_Interval(0.0, 1.0)),
+                "max_halvings": _Number(default=6, integer=True, interval=_Interval(0, 30)),
             }
         ),
         "static": _Table(
@@ -738,7 +740,7 @@ def _build_time(raw: dict[str, Any]) -> Time:
             f"{STEP_TOLERANCE:g} relative), got {span!r} / {step!r} = {span / step!r} "
             f"(e.g. time.step = {suggestion:.10g})"
         )
-    return Time(start, end, step, raw["integrator"], raw["rho_inf"])
+    return Time(start, end, step, raw["integrator"], raw["rho_inf"], raw["max_halvings"])
 
 
 def _build_discretisation(raw: dict[str, Any]) -> Discretisation:

@@ -137,6 +137,7 @@ def check_state(
             where=f"{prefix}s = {s:.4g} m",
             reason="the solution became non-finite (NaN/inf)",
             suggestion="reduce time.step or check the loads",
+            retry=True,
         )
     if value == -0.5:
         before = np.cos(previous.reshape(-1, 12)[:, 3])
@@ -148,6 +149,7 @@ def check_state(
             reason="Euler-angle chart singular: θ crossed ±π/2 within the step "
             "(det Ma = cos θ changed sign)",
             suggestion=CHART_SUGGESTION,
+            retry=True,
         )
     s, _ = _worst_place(model, 1.0 / np.maximum(np.abs(np.cos(blocks[:, 3])), 1e-300))
     raise SolverError(
@@ -251,31 +253,65 @@ def run(
         "python": platform.python_version(),
         "scene": scene.to_dict(),
     }
-    h = tspan.step * omega0
     n_steps = tspan.n_steps
-    step = 0
+    halvings = tspan.max_halvings
+    whole = 2**halvings  # a nominal step in units of the smallest allowed sub-step
+    step = 0  # nominal steps completed: outputs are written at start + step * time.step
     t = tspan.start
     t_loop = time.perf_counter()
     output_time = 0.0
     failure: SolverError | None = None
     previous = model.U.x.array.copy()  # the last accepted state (chart-crossing check)
+    level, done = 0, 0  # current halving level; progress into the nominal step, in units
+    rejected, smallest = 0, tspan.step
     try:
-        for step in range(1, n_steps + 1):
-            t_new = tspan.start + step * tspan.step
+        while step < n_steps:
+            units = whole >> level
+            t_new = tspan.start + (step + (done + units) / whole) * tspan.step
+            h = (t_new - t) * omega0
             try:
                 integrator.step(h, solver.solve)
+                check_state(model, t_new, previous=previous)
+                cause = None
             except NewtonFailure as exc:
                 s, _ = _worst_place(model, solver.b.array.reshape(-1, 12).max(axis=1))
-                raise SolverError(
+                cause = SolverError(
                     time=t_new,
                     where=f"s = {s:.4g} m (largest residual)",
                     reason=f"Newton did not converge ({exc.reason}, {exc.iterations} iterations)",
                     suggestion="reduce time.step, or use solver.jacobian = 'full'",
-                ) from None
-            check_state(model, t_new, previous=previous)
+                    retry=True,
+                )
+            except SolverError as exc:
+                if not exc.retry:
+                    raise
+                cause = exc
+            if cause is not None:
+                # Reject the step and retry with half of it, at most time.max_halvings times.
+                integrator.reject()
+                rejected += 1
+                if level >= halvings:
+                    raise SolverError(
+                        time=cause.time,
+                        where=cause.where,
+                        reason=f"{cause.reason}; the step was rejected {level} times, down to "
+                        f"{tspan.step / 2**level:.3g} s (time.max_halvings = {halvings})",
+                        suggestion=cause.suggestion,
+                    )
+                level += 1
+                solver.request_jacobian()  # the Jacobian depends on the step size
+                continue
             integrator.accept(h)
             previous[:] = model.U.x.array
             t = t_new
+            smallest = min(smallest, tspan.step / 2**level)
+            done += units
+            if done < whole:
+                continue
+            step, done = step + 1, 0
+            if level:
+                level = 0
+                solver.request_jacobian()
             t0 = time.perf_counter()
             if probes is not None:
                 probes.write(t)
@@ -286,7 +322,6 @@ def run(
             output_time += time.perf_counter() - t0
     except SolverError as exc:
         failure = exc
-        step -= 1
     finally:
         loop_time = time.perf_counter() - t_loop
         if probes is not None:
@@ -299,6 +334,8 @@ def run(
             "message": str(failure) if failure else "",
             "steps": step,
             "time_reached_s": t,
+            "rejected_steps": rejected,
+            "smallest_step_s": smallest,
             "newton": solver.stats.as_dict(),
             "wall_time_s": {
                 "setup": setup_time,
