@@ -42,6 +42,8 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
+from .adaptive import lagrange_weights
+
 ResidualFactory = Callable[[object, object, object], ufl.Form]
 
 
@@ -284,6 +286,9 @@ class SDIRK(Integrator):
         self._rates = np.zeros((len(self.b) + 1, U.x.array.size))
         self._times = np.zeros(len(self.b) + 1)
         self._stored = 0
+        self._saved = self._rates.copy()
+        self._saved_times = self._times.copy()
+        self._saved_stored = 0
 
     def residual_form(self) -> ufl.Form:
         return self._factory(self.U, self.inv_gh * (self.U - self.Z), self.time_eval)
@@ -296,18 +301,15 @@ class SDIRK(Integrator):
         m = min(self._stored, len(self._times))
         if m == 0:
             return 0.0
-        nodes = self._times[:m]
-        weights = np.ones(m)
-        for j in range(m):
-            for k in range(m):
-                if k != j:
-                    weights[j] *= (tau - nodes[k]) / (nodes[j] - nodes[k])
-        return weights @ self._rates[:m]
+        return lagrange_weights(self._times[:m], tau) @ self._rates[:m]
 
     def step(self, h: float, solve: Callable[[], int]) -> int:
         self.prepare(h)
         u, iterations, gh = self.U.x.array, 0, self.gamma * h
         z = self.Z.x.array
+        self._saved[:] = self._rates  # for reject(): the stage rates before this step
+        self._saved_times[:] = self._times
+        self._saved_stored = self._stored
         for i in range(len(self.b)):
             np.add(self.U_n, h * (self.A[i, :i] @ self.K[:i]), out=z)
             tau = self.time + self.c[i] * h
@@ -328,9 +330,10 @@ class SDIRK(Integrator):
         super().accept(h)
 
     def reject(self) -> None:
-        """Undo a step that is not accepted; its stage rates overwrote older ones in the ring
-        buffer, so the predictor starts afresh."""
-        self._stored = 0
+        """Undo a step that is not accepted, stage rates included."""
+        self._rates[:] = self._saved
+        self._times[:] = self._saved_times
+        self._stored = self._saved_stored
         super().reject()
 
     def last_accepted(self) -> np.ndarray:

@@ -122,6 +122,10 @@ class Time:
     integrator: str
     rho_inf: float
     max_halvings: int = 6
+    adaptive: bool = False
+    rtol: float = 1e-4
+    atol: float = 1e-10
+    max_step: float = 0.0  # 0: no limit
 
     @property
     def n_steps(self) -> int:
@@ -457,6 +461,10 @@ SCHEMA = _Table(
                 ),
                 "rho_inf": _Number(default=0.5, interval=_Interval(0.0, 1.0)),
                 "max_halvings": _Number(default=6, integer=True, interval=_Interval(0, 30)),
+                "adaptive": _Flag(default=False),
+                "rtol": _Number(default=1e-4, interval=_Interval(0.0, 1.0, True, True)),
+                "atol": _Number(default=1e-10, interval=POSITIVE),
+                "max_step": _Number(default=0.0, interval=NON_NEGATIVE, unit="s"),
             }
         ),
         "static": _Table(
@@ -740,7 +748,18 @@ def _build_time(raw: dict[str, Any]) -> Time:
             f"{STEP_TOLERANCE:g} relative), got {span!r} / {step!r} = {span / step!r} "
             f"(e.g. time.step = {suggestion:.10g})"
         )
-    return Time(start, end, step, raw["integrator"], raw["rho_inf"], raw["max_halvings"])
+    return Time(
+        start,
+        end,
+        step,
+        raw["integrator"],
+        raw["rho_inf"],
+        raw["max_halvings"],
+        raw["adaptive"],
+        raw["rtol"],
+        raw["atol"],
+        raw["max_step"],
+    )
 
 
 def _build_discretisation(raw: dict[str, Any]) -> Discretisation:

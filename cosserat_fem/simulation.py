@@ -24,6 +24,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import __version__
+from .adaptive import SHRINK, StateHistory, StepController
 from .errors import SceneError, SolverError
 from .integrators import GeneralizedAlpha, make_integrator
 from .model import RodModel, build_model
@@ -162,6 +163,190 @@ def check_state(
         suggestion=CHART_SUGGESTION,
     )
 
+class _Outputs:
+    """Probes, XDMF frames and observers at the output grid t_k = start + k time.step.
+
+    ``state``, when given, is the (interpolated) state array at t_k; model.U is swapped for
+    it while the outputs read it, then restored.
+    """
+
+    def __init__(self, model: RodModel, probes, xdmf, xdmf_every: int, observers):
+        self.model, self.probes, self.xdmf = model, probes, xdmf
+        self.xdmf_every, self.observers = xdmf_every, observers
+        self.time = 0.0  # wall time spent in outputs
+
+    def __call__(self, k: int, t: float, state: np.ndarray | None = None) -> None:
+        t0 = time.perf_counter()
+        u = self.model.U.x.array
+        kept = None
+        if state is not None:
+            kept = u.copy()
+            u[:] = state
+        if self.probes is not None:
+            self.probes.write(t)
+        if self.xdmf is not None and k % self.xdmf_every == 0:
+            self.xdmf.write(t)
+        for obs in self.observers:
+            obs(k, t, self.model)
+        if kept is not None:
+            u[:] = kept
+        self.time += time.perf_counter() - t0
+
+
+class _Stepper:
+    """One attempted step of the integrator with the state checks, and the step counters."""
+
+    def __init__(self, model: RodModel, integrator, solver: NewtonSolver):
+        self.model, self.integrator, self.solver = model, integrator, solver
+        self.omega0 = model.omega0
+        self.previous = model.U.x.array.copy()  # the last accepted state (chart crossing)
+        self.t = integrator.time / self.omega0
+        self.accepted = self.rejected = self.outputs = 0
+        self.smallest = self.largest = None
+
+    def attempt(self, t_new: float) -> SolverError | None:
+        """Take a step to t_new [s]; None if it converged and the state is fine, else the
+        retryable SolverError (U is then left as the integrator made it: reject or accept)."""
+        try:
+            self.integrator.step((t_new - self.t) * self.omega0, self.solver.solve)
+            check_state(self.model, t_new, previous=self.previous)
+        except NewtonFailure as exc:
+            s, _ = _worst_place(self.model, self.solver.b.array.reshape(-1, 12).max(axis=1))
+            return SolverError(
+                time=t_new,
+                where=f"s = {s:.4g} m (largest residual)",
+                reason=f"Newton did not converge ({exc.reason}, {exc.iterations} iterations)",
+                suggestion="reduce time.step, or use solver.jacobian = 'full'",
+                retry=True,
+            )
+        except SolverError as exc:
+            if not exc.retry:
+                raise
+            return exc
+        return None
+
+    def accept(self, t_new: float) -> None:
+        h = t_new - self.t
+        self.integrator.accept(h * self.omega0)
+        self.previous[:] = self.model.U.x.array
+        self.t = t_new
+        self.accepted += 1
+        self.smallest = h if self.smallest is None else min(self.smallest, h)
+        self.largest = h if self.largest is None else max(self.largest, h)
+
+    def reject(self) -> None:
+        self.integrator.reject()
+        self.rejected += 1
+
+    def counts(self) -> dict:
+        return {
+            "steps": self.outputs,
+            "time_reached_s": self.t,
+            "accepted_steps": self.accepted,
+            "rejected_steps": self.rejected,
+            "smallest_step_s": self.smallest,
+            "largest_step_s": self.largest,
+        }
+
+
+def _fixed_loop(tspan, stepper: _Stepper, emit: _Outputs) -> None:
+    """Steps of time.step; a failed step is retried with half of it, at most
+    time.max_halvings times, and the next nominal step is full again."""
+    halvings = tspan.max_halvings
+    whole = 2**halvings  # a nominal step in units of the smallest allowed sub-step
+    level, done = 0, 0  # halving level; progress into the nominal step, in those units
+    while stepper.outputs < tspan.n_steps:
+        units = whole >> level
+        t_new = tspan.start + (stepper.outputs + (done + units) / whole) * tspan.step
+        cause = stepper.attempt(t_new)
+        if cause is not None:
+            stepper.reject()
+            if level >= halvings:
+                raise SolverError(
+                    time=cause.time,
+                    where=cause.where,
+                    reason=f"{cause.reason}; the step was rejected {level} times, down to "
+                    f"{tspan.step / 2**level:.3g} s (time.max_halvings = {halvings})",
+                    suggestion=cause.suggestion,
+                )
+            level += 1
+            stepper.solver.request_jacobian()  # the Jacobian depends on the step size
+            continue
+        stepper.accept(t_new)
+        done += units
+        if done < whole:
+            continue
+        stepper.outputs, done = stepper.outputs + 1, 0
+        if level:
+            level = 0
+            stepper.solver.request_jacobian()
+        emit(stepper.outputs, stepper.t)
+
+
+MAX_CONSECUTIVE_REJECTIONS = 12
+
+
+def _adaptive_loop(tspan, stepper: _Stepper, emit: _Outputs) -> None:
+    """Steps chosen by the local error estimate of cosserat_fem.adaptive; outputs on the grid
+    start + k time.step by interpolation."""
+    model, solver = stepper.model, stepper.solver
+    order = stepper.integrator.order
+    bs = model.V.dofmap.index_map_bs
+    n_owned = model.V.dofmap.index_map.size_local * bs
+    # The error of p = U[0:6] is controlled, not that of the rates q (cosserat_fem.adaptive).
+    control = StepController(
+        tspan.rtol, tspan.atol, order, model.msh.comm, n_owned, block=bs, controlled=slice(0, 6)
+    )
+    history = StateHistory(capacity=order + 2)
+    history.push(stepper.t, model.U.x.array)
+    span = tspan.end - tspan.start
+    h_max = tspan.max_step or span
+    h_min = 1e-12 * span
+    h = min(tspan.step, h_max)
+    consecutive = 0
+    while stepper.t < tspan.end - 1e-12 * span:
+        h = min(h, tspan.end - stepper.t)
+        t_new = stepper.t + h
+        cause = stepper.attempt(t_new)
+        error = None
+        if cause is None and len(history) == order + 2:
+            u = model.U.x.array
+            error = control.error_norm(u - history.polynomial(t_new, order + 2), u)
+        if cause is not None or (error is not None and error > 1.0):
+            stepper.reject()
+            consecutive += 1
+            h *= control.factor(error, rejected=True) if cause is None else SHRINK
+            if consecutive > MAX_CONSECUTIVE_REJECTIONS or h < h_min:
+                reason = cause.reason if cause else f"local error estimate {error:.3g} > 1"
+                raise SolverError(
+                    time=t_new,
+                    where=cause.where if cause else None,
+                    reason=f"{reason}; {consecutive} steps rejected in a row, the last "
+                    f"{h:.3g} s (time.rtol = {tspan.rtol:g})",
+                    suggestion=cause.suggestion if cause else "loosen time.rtol/time.atol",
+                )
+            solver.request_jacobian()  # the Jacobian depends on the step size
+            continue
+        consecutive = 0
+        stepper.accept(t_new)
+        history.push(t_new, model.U.x.array)
+        control.accept(model.U.x.array)
+        while stepper.outputs < tspan.n_steps:
+            t_k = tspan.start + (stepper.outputs + 1) * tspan.step
+            if t_k > t_new + 1e-9 * tspan.step:
+                break
+            stepper.outputs += 1
+            exact = abs(t_k - t_new) <= 1e-9 * tspan.step
+            emit(stepper.outputs, t_k, None if exact else history.polynomial(t_k, 4))
+        if error is not None:
+            h_next = min(h * control.factor(error), h_max)
+            if h_next != h:
+                # A new Jacobian for the new step: one kept across a change of ±25 % made
+                # modified Newton contract 4x per iteration only, and the frozen policy then
+                # refreshed it anyway (measured: fewer iterations, the same run time).
+                solver.request_jacobian()
+            h = h_next
+
 
 def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: str) -> None:
     """U̇_0 from F(U_0, U̇_0, τ_0) = 0, affine in U̇_0 (one linear solve).
@@ -226,13 +411,13 @@ def run(
 
     probe = PointProbe(model.U, probe_sigma(scene), model.length)
     probes = xdmf = None
+    failure: SolverError | None = None
     if write_outputs:
         probes = ProbeWriter(out / "probes.csv", probe)
         probes.write(tspan.start)
         if scene.output.xdmf:
             xdmf = XdmfWriter(out / "solution.xdmf", model.U, model.length)
             xdmf.write(tspan.start)
-    xdmf_every = scene.output.xdmf_every(tspan.step)
     setup_time = time.perf_counter() - t_start
 
     summary = {
@@ -253,73 +438,12 @@ def run(
         "python": platform.python_version(),
         "scene": scene.to_dict(),
     }
-    n_steps = tspan.n_steps
-    halvings = tspan.max_halvings
-    whole = 2**halvings  # a nominal step in units of the smallest allowed sub-step
-    step = 0  # nominal steps completed: outputs are written at start + step * time.step
-    t = tspan.start
+    emit = _Outputs(model, probes, xdmf, scene.output.xdmf_every(tspan.step), observers)
+    stepper = _Stepper(model, integrator, solver)
+    loop = _adaptive_loop if tspan.adaptive else _fixed_loop
     t_loop = time.perf_counter()
-    output_time = 0.0
-    failure: SolverError | None = None
-    previous = model.U.x.array.copy()  # the last accepted state (chart-crossing check)
-    level, done = 0, 0  # current halving level; progress into the nominal step, in units
-    rejected, smallest = 0, tspan.step
     try:
-        while step < n_steps:
-            units = whole >> level
-            t_new = tspan.start + (step + (done + units) / whole) * tspan.step
-            h = (t_new - t) * omega0
-            try:
-                integrator.step(h, solver.solve)
-                check_state(model, t_new, previous=previous)
-                cause = None
-            except NewtonFailure as exc:
-                s, _ = _worst_place(model, solver.b.array.reshape(-1, 12).max(axis=1))
-                cause = SolverError(
-                    time=t_new,
-                    where=f"s = {s:.4g} m (largest residual)",
-                    reason=f"Newton did not converge ({exc.reason}, {exc.iterations} iterations)",
-                    suggestion="reduce time.step, or use solver.jacobian = 'full'",
-                    retry=True,
-                )
-            except SolverError as exc:
-                if not exc.retry:
-                    raise
-                cause = exc
-            if cause is not None:
-                # Reject the step and retry with half of it, at most time.max_halvings times.
-                integrator.reject()
-                rejected += 1
-                if level >= halvings:
-                    raise SolverError(
-                        time=cause.time,
-                        where=cause.where,
-                        reason=f"{cause.reason}; the step was rejected {level} times, down to "
-                        f"{tspan.step / 2**level:.3g} s (time.max_halvings = {halvings})",
-                        suggestion=cause.suggestion,
-                    )
-                level += 1
-                solver.request_jacobian()  # the Jacobian depends on the step size
-                continue
-            integrator.accept(h)
-            previous[:] = model.U.x.array
-            t = t_new
-            smallest = min(smallest, tspan.step / 2**level)
-            done += units
-            if done < whole:
-                continue
-            step, done = step + 1, 0
-            if level:
-                level = 0
-                solver.request_jacobian()
-            t0 = time.perf_counter()
-            if probes is not None:
-                probes.write(t)
-            if xdmf is not None and step % xdmf_every == 0:
-                xdmf.write(t)
-            for obs in observers:
-                obs(step, t, model)
-            output_time += time.perf_counter() - t0
+        loop(tspan, stepper, emit)
     except SolverError as exc:
         failure = exc
     finally:
@@ -328,14 +452,12 @@ def run(
             probes.close()
         if xdmf is not None:
             xdmf.close()
+    output_time = emit.time
     summary.update(
         {
             "status": "failed" if failure else "completed",
             "message": str(failure) if failure else "",
-            "steps": step,
-            "time_reached_s": t,
-            "rejected_steps": rejected,
-            "smallest_step_s": smallest,
+            **stepper.counts(),
             "newton": solver.stats.as_dict(),
             "wall_time_s": {
                 "setup": setup_time,
@@ -353,4 +475,10 @@ def run(
     comm.barrier()  # every file is closed on every rank before anyone reads them
     if failure:
         raise failure
-    return RunResult(out_dir=out, steps=step, time_reached=t, summary=summary, model=model)
+    return RunResult(
+        out_dir=out,
+        steps=summary["steps"],
+        time_reached=summary["time_reached_s"],
+        summary=summary,
+        model=model,
+    )
