@@ -129,8 +129,11 @@ class StepController:
     def _field_max(self, state: np.ndarray) -> np.ndarray:
         u = np.abs(state[: self.n_owned].reshape(-1, self.block)[:, self.controlled])
         local = u.max(axis=0) if u.size else np.zeros(self.peak.size)
+        local = local.astype(np.float64)
         if self.comm.size > 1:
-            return self.comm.allreduce(local, op=MPI.MAX)
+            result = np.empty_like(local)
+            self.comm.Allreduce(np.ascontiguousarray(local), result, op=MPI.MAX)
+            return result
         return local
 
     def factor(self, error: float, rejected: bool = False) -> float:
