@@ -16,9 +16,10 @@ below the best point plotted.
 
 Configurations (families): element degree 1-3 × elements × time step × integrator (BDF2;
 generalized-α with ρ∞ = 0, 0.5, 0.8, 1; SDIRK3 and SDIRK4) × Jacobian policy (full, lagged,
-frozen). Wall time is the solve loop (probes written every step, no XDMF), median of
-``REPEATS`` runs in one process with a warm JIT cache; the JIT time of a cold cache is measured
-separately in a fresh process (:func:`jit_times`).
+frozen), and adaptive steps (SDIRK3, generalized-α) at several tolerances. Wall time is the
+solve loop (probes written every step, no XDMF), median of ``REPEATS`` runs in one process with
+a warm JIT cache; the JIT time of a cold cache is measured separately in a fresh process
+(:func:`jit_times`).
 
 Peer: PyElastica (benchmarks/pyelastica/, its own venv made by its setup.sh) on the same scene
 at several resolutions, each at about 90 % of its largest stable time step, numba compile time
@@ -205,6 +206,22 @@ def families(quick: bool) -> dict[str, list[list[str]]]:
         add(f"P3x{n} SDIRK3", 3, n, SDIRK3, rk)
     for n in (12, 16) if not quick else (16,):
         add(f"P3x{n} SDIRK4", 3, n, SDIRK4, rk)
+    # Adaptive steps (time.step is then the first step and the output interval).
+    tolerances = ("1e-3", "1e-4", "1e-5", "1e-6") if not quick else ("1e-4",)
+    for label, integrator in (("SDIRK3", SDIRK3), ("gen-α 0.8", GEN_ALPHA_08)):
+        fams[f"P3x16 {label} adaptive"] = [
+            [
+                "discretisation.degree=3",
+                "discretisation.elements=16",
+                *integrator,
+                "solver.jacobian=frozen",
+                "time.adaptive=true",
+                "time.atol=1e-12",
+                "time.step=1e-5",
+                f"time.rtol={rtol}",
+            ]
+            for rtol in tolerances
+        ]
     # Jacobian policies (frozen is the default of every family above).
     for policy in ("full", "lagged"):
         add(f"P3x16 gen-α 0.8 {policy} Jacobian", 3, 16, GEN_ALPHA_08, two_step[:4], policy)
@@ -450,7 +467,10 @@ def best_config(rows: list[dict], target: float) -> dict | None:
 
 
 def _short(row: dict) -> str:
-    """'family, Δt = ...' for a row of ours."""
+    """'family, Δt = ...' (or 'rtol = ...') for a row of ours."""
+    rtol = [c for c in row["config"].split() if c.startswith("time.rtol=")]
+    if rtol:
+        return f"{row['family']}, rtol = {rtol[0].split('=')[1]}"
     step = [c for c in row["config"].split() if c.startswith("time.step=")]
     return f"{row['family']}, Δt = {step[0].split('=')[1]} s" if step else row["family"]
 
@@ -511,7 +531,7 @@ def main() -> None:
                 )
             rows.append(row)
             print(
-                f"  {family:32s} {over[-1]:16s} err {row['error']:.2e} wall {row['wall_s']:.2f} s"
+                f"  {family:32s} {over[-1]:17s} err {row['error']:.2e} wall {row['wall_s']:.2f} s"
                 f" it/step {row['newton_iterations'] / row['steps']:.2f}",
                 flush=True,
             )
@@ -698,6 +718,8 @@ def plot(rows: list[dict], peers: dict, scale_rows: list[dict]) -> None:
     for i, (family, pts) in enumerate(curves.items()):
         e, w = zip(*sorted(pts, key=lambda p: p[1]), strict=True)
         style = "s-" if "SDIRK" in family else ("^--" if "Jacobian" in family else "o-")
+        if "adaptive" in family:
+            style = "v-."
         ax.loglog(w, e, style, ms=3.5, lw=1, color=cmap(i % 20), label=family)
     for key, style, label in (
         ("standard", "ks--", "PyElastica (its standard clamp)"),
