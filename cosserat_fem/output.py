@@ -2,15 +2,23 @@
 
 Quantities are written in SI units: positions in m (x = ℓ p1, ...), angles in rad, time in
 s. The probe row is written by the one rank that owns the probe point, so a step costs no
-communication; rows are handed to the operating system every ``flush_every`` rows and at the
-end, so a run that stops early, or is killed, keeps what it computed up to the last flush
-(``fsync`` only at the end: what is flushed to the page cache survives a killed process).
+communication.
+
+A run that stops early, or is killed (even with SIGKILL), leaves readable outputs up to the
+last step written (tests/test_kill.py): the XDMF/HDF5 pair is consistent between frames
+(:class:`XdmfWriter`), and probe rows reach the file before every XDMF frame, so probes.csv
+always covers the last frame on disk and loses at most the rows computed since
+(:class:`ProbeWriter`). ``fsync`` only at the end: what reached the page cache survives a
+killed process, though not a power cut.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import shutil
+import time
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -67,29 +75,49 @@ class PointProbe:
         return u[:6] * self._scale
 
 
-class ProbeWriter:
-    """``probes.csv`` with the header t,x,y,z,theta,psi,phi, written by the probe's owner."""
+# The open probe writers of this process: XdmfWriter.write flushes them before each frame.
+_PROBE_WRITERS: weakref.WeakSet[ProbeWriter] = weakref.WeakSet()
 
-    def __init__(self, path: Path, probe: PointProbe, flush_every: int = 200):
+
+class ProbeWriter:
+    """``probes.csv`` with the header t,x,y,z,theta,psi,phi, written by the probe's owner.
+
+    Rows are buffered and handed to the operating system when ``flush_every`` rows are
+    pending, when ``max_delay`` seconds (wall time) have passed since the last flush, and
+    before every XDMF frame (:meth:`XdmfWriter.write` flushes every open ProbeWriter of its
+    process). So a killed run loses at most the rows since the last XDMF frame (7 rows at
+    the default scene's 8 steps a frame) or of the last ``max_delay`` s, and probes.csv
+    always reaches the last frame of the XDMF file. Measured per row, default scene: the
+    same ~12 us a row (full run) as flushing every 200 rows only; flushing every row cost
+    ~23 us a row more on a busy ext4 file system (a write() can wait ~3 ms for a journal
+    commit of another process), 3-5 % of a ~0.5 ms step.
+    """
+
+    def __init__(
+        self, path: Path, probe: PointProbe, flush_every: int = 200, max_delay: float = 0.05
+    ):
         self.probe = probe
         self.flush_every = flush_every
+        self.max_delay = max_delay
         self._pending = 0
         self._rows = np.empty((flush_every, len(PROBE_HEADER)))
         self._file = None
+        self._deadline = 0.0
         if probe.is_owner:
             self._file = open(path, "w", encoding="utf-8")  # noqa: SIM115 - closed in close()
             self._file.write(",".join(PROBE_HEADER) + "\n")
-            self._file.flush()
+            self.flush()
+            _PROBE_WRITERS.add(self)
 
     def write(self, t: float) -> None:
-        """Buffer the row of time t; every ``flush_every`` rows go to the file."""
+        """Buffer the row of time t; see the class docstring for when rows go to the file."""
         if self._file is None:
             return
         row = self._rows[self._pending]
         row[0] = t
         row[1:] = self.probe.values()
         self._pending += 1
-        if self._pending >= self.flush_every:
+        if self._pending >= self.flush_every or time.monotonic() >= self._deadline:
             self.flush()
 
     def flush(self, sync: bool = False) -> None:
@@ -102,12 +130,14 @@ class ProbeWriter:
             if sync:
                 os.fsync(self._file.fileno())
             self._pending = 0
+            self._deadline = time.monotonic() + self.max_delay
 
     def close(self) -> None:
         if self._file is not None:
             self.flush(sync=True)
             self._file.close()
             self._file = None
+            _PROBE_WRITERS.discard(self)
 
 
 class XdmfWriter:
@@ -115,6 +145,34 @@ class XdmfWriter:
 
     Fields are interpolated into P1 (XDMF keeps vertex values only). The mesh coordinate is
     σ = s/ℓ along the first axis.
+
+    Kill-safe: a killed run (SIGKILL included) leaves ``<name>.xdmf`` listing exactly the
+    frames written so far and ``<name>.h5`` holding them, readable by ParaView. An HDF5 file
+    that is open for writing is not consistent on disk (DOLFINx 0.5.2 keeps it open until
+    ``close()`` and has no flush: a killed run left an .h5 that did not open at all), and
+    DOLFINx rewrites the whole XML file in place for every function written (a kill during
+    that rewrite left an empty .xdmf, 14 kills in 60). So each frame:
+
+    1. reopens the file in append mode ("a") under a working name ``<name>.xdmf-partial``
+       (a hard link to the published XML, unlinked as soon as DOLFINx has read it, so that
+       DOLFINx's rewrites go to a new file and never touch the published one; the same stem
+       keeps the HDF5 file ``<name>.h5`` and the references in the XML unchanged),
+    2. writes both functions and closes the file (HDF5 metadata and superblock on disk),
+    3. publishes the XML by an atomic rename onto ``<name>.xdmf``.
+
+    While a frame is being written the .h5 on disk is the closed file of the previous frame
+    plus new, not yet referenced blocks at its end; the only window in which a kill can
+    damage it is HDF5's own close (~0.1 ms a frame, in which metadata is written). A
+    ``<name>.xdmf-partial`` left by a kill is a scratch file: ignore or delete it.
+
+    Cost, default scene (8 cubic elements, 251 frames, serial, ext4; median of 7 runs): 1.54
+    instead of 1.43 ms a frame, +0.11 ms or 3 % of the ~4 ms of solving between frames
+    (reopen, link, rename ~0.6 ms, mostly repaid because DOLFINx's first XML rewrite of a
+    frame now creates a new file instead of truncating one that is being written back; with
+    a busy disk the old writer waited for that writeback twice a frame and this one was the
+    faster, 3.9 against 7.8 ms). The .h5 grows by ~1.4 kB a frame of metadata that a reopened
+    file does not reuse (656 kB instead of 314 kB). The XML loses its ``<!DOCTYPE>`` line on
+    the first reopen (pugixml drops it when reading); ParaView does not need it.
     """
 
     def __init__(self, path: Path, U: fem.Function, length: float, jit_params: dict | None = None):
@@ -131,21 +189,65 @@ class XdmfWriter:
             ufl.as_vector([length * U[0], length * U[1], length * U[2]]), pts, jit_params=jp
         )
         self._ang_expr = fem.Expression(ufl.as_vector([U[3], U[4], U[5]]), pts, jit_params=jp)
-        self.file = io.XDMFFile(msh.comm, str(path), "w")
-        self.file.write_mesh(msh)
+        self.path = Path(path)
+        # Same stem, other extension: DOLFINx derives the HDF5 name "<stem>.h5" from it.
+        suffix = self.path.suffix or ".xdmf"
+        self._work = self.path.with_suffix(suffix + "-partial")
+        self._comm = msh.comm
+        self.file: io.XDMFFile | None = io.XDMFFile(self._comm, str(self._work), "w")
+        try:
+            self.file.write_mesh(msh)
+        finally:
+            self._close_file()
+        self._publish()
         self.writes = 0
 
     def write(self, t: float, U: fem.Function | None = None) -> None:
         if U is not None and U is not self.U:
             self.U.x.array[:] = U.x.array
+        for probes in list(_PROBE_WRITERS):  # probes.csv reaches every frame on disk
+            probes.flush()
         self.displacement.interpolate(self._disp_expr)
         self.angles.interpolate(self._ang_expr)
-        self.file.write_function(self.displacement, t)
-        self.file.write_function(self.angles, t)
+        self._reopen()
+        try:
+            self.file.write_function(self.displacement, t)
+            self.file.write_function(self.angles, t)
+        finally:
+            self._close_file()
+        self._publish()
         self.writes += 1
 
     def close(self) -> None:
-        self.file.close()
+        """Nothing stays open between frames; kept for the writer interface."""
+        self._close_file()
+
+    def _reopen(self) -> None:
+        """Open the file in append mode under the working name, which is then unlinked."""
+        comm = self._comm
+        if comm.rank == 0:
+            self._work.unlink(missing_ok=True)  # a frame that raised left it
+            try:
+                os.link(self.path, self._work)
+            except OSError:  # no hard links on this file system
+                shutil.copyfile(self.path, self._work)
+        if comm.size > 1:
+            comm.barrier()  # every rank reads the XML in the constructor
+        self.file = io.XDMFFile(comm, str(self._work), "a")
+        if comm.size > 1:
+            comm.barrier()
+        if comm.rank == 0:
+            self._work.unlink()
+
+    def _close_file(self) -> None:
+        if self.file is not None:
+            self.file.close()
+            self.file = None
+
+    def _publish(self) -> None:
+        # Rank 0 alone writes the XML (in write_function/write_mesh) and renames it.
+        if self._comm.rank == 0:
+            os.replace(self._work, self.path)
 
 
 def write_json(path: Path, data: dict, comm: MPI.Comm) -> None:

@@ -1,0 +1,280 @@
+"""A run killed with SIGKILL halfway leaves its outputs readable up to the last written step.
+
+The paper's scene runs at Δt = 10 μs on 32 cubic elements (~1 ms a step, XDMF every 24 steps)
+with a planned end of 0.02 s; once probes.csv holds ``KILL_AFTER_ROWS`` rows (t = 10 ms,
+halfway), and ``AFTER_ROWS_DELAY`` later (so that the kill does not follow a flush of
+probes.csv), every process of the run gets SIGKILL (under mpirun the ranks too: Open MPI puts
+them in process groups of their own and does not take them down with a killed mpirun). Then:
+
+* probes.csv ends with a whole line and parses with numpy; the rows are t = k Δt for
+  k = 0, 1, 2, ... without a gap (t is printed with 11 significant digits, k Δt has at most
+  6, so the parsed value is k Δt to rounding: tolerance 1e-15 s);
+* solution.xdmf is well-formed XML, every HDF5 dataset it references exists in solution.h5
+  with the XML's dimensions and finite values (what ParaView needs to open the series), both
+  series list the same frames t = i 2.4e-4 s (17 significant digits in the XML: 1e-15 s), and
+  nothing is lost but the frame being written: the last frame is at most 24 steps (one
+  frame) behind the last probe row, and never ahead of it (probe rows are flushed before
+  each frame);
+* every frame's free-end values (the mesh vertex at σ = 1 of ``displacement`` and ``angles``)
+  equal the probes.csv row of its time to 1e-12 m and 1e-12 rad. Both are ℓ U (resp. U) at the
+  free-end node, the probe printed with 17 significant digits and the P1 field interpolated
+  at that vertex, so they agree to rounding (they came out bitwise equal; amplitudes here are
+  ~1e-3 m and ~4e-3 rad, so 1e-12 is a relative ~1e-9, far below any real discrepancy).
+
+solution.h5 is read with the HDF5 C library that DOLFINx itself uses (ctypes; no h5py, no
+DOLFINx), so a file that the HDF5 library cannot open fails the test, as it would in ParaView.
+Before XdmfWriter closed the file after each frame, a killed run left an .h5 that did not open
+at all ("bad object header version number"), and now and then an empty .xdmf.
+
+Runtime: ~2 s serial, 3-7 s under mpirun -n 2 (warm JIT cache; more on a loaded machine).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import io
+import os
+import shutil
+import signal
+import subprocess
+import time
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import PYTHON, ROOT, subprocess_env
+
+SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
+DT = 1e-5  # s, time.step
+FRAME = 2.4e-4  # s, output.xdmf_interval set for the run: every 24 steps
+STEPS_PER_FRAME = 24
+KILL_AFTER_ROWS = 1000  # of 2001: t = 10 ms of 20 ms
+AFTER_ROWS_DELAY = 0.1  # s, ~100 steps serial, ~50 under mpirun -n 2
+DEADLINE = 25.0  # s to reach KILL_AFTER_ROWS
+TIME_TOL = 1e-15  # s
+VALUE_TOL = 1e-12  # m, rad
+
+
+# --- HDF5 through its C library -------------------------------------------------------------
+
+
+class H5File:
+    """Read-only access to the datasets of an HDF5 file (libhdf5 >= 1.10: hid_t is 64-bit)."""
+
+    _lib = None
+
+    @classmethod
+    def lib(cls):
+        if cls._lib is None:
+            for name in ("hdf5_openmpi", "hdf5_mpich", "hdf5_serial", "hdf5"):
+                found = ctypes.util.find_library(name)
+                if found:
+                    break
+            else:
+                pytest.fail("no HDF5 C library found (DOLFINx depends on one: libhdf5-*)")
+            lib = ctypes.CDLL(found)
+            hid = ctypes.c_int64
+            lib.H5Fopen.restype = hid
+            lib.H5Fopen.argtypes = [ctypes.c_char_p, ctypes.c_uint, hid]
+            lib.H5Dopen2.restype = hid
+            lib.H5Dopen2.argtypes = [hid, ctypes.c_char_p, hid]
+            lib.H5Dget_space.restype = hid
+            lib.H5Dget_space.argtypes = [hid]
+            lib.H5Sget_simple_extent_ndims.argtypes = [hid]
+            lib.H5Sget_simple_extent_dims.argtypes = [hid, ctypes.c_void_p, ctypes.c_void_p]
+            lib.H5Dread.argtypes = [hid, hid, hid, hid, hid, ctypes.c_void_p]
+            for fn in ("H5Dclose", "H5Sclose", "H5Fclose"):
+                getattr(lib, fn).argtypes = [hid]
+            lib.H5Eset_auto2.argtypes = [hid, ctypes.c_void_p, ctypes.c_void_p]
+            assert lib.H5open() >= 0
+            lib.H5Eset_auto2(0, None, None)  # no error stack on stderr: we raise instead
+            cls._lib = lib
+        return cls._lib
+
+    def __init__(self, path: Path):
+        lib = self.lib()
+        self.fid = lib.H5Fopen(str(path).encode(), 0, 0)  # H5F_ACC_RDONLY, H5P_DEFAULT
+        if self.fid < 0:
+            raise OSError(f"the HDF5 library cannot open {path}")
+
+    def read(self, name: str) -> np.ndarray:
+        """The dataset ``name`` as float64 (HDF5 converts integer topology too)."""
+        lib = self.lib()
+        dset = lib.H5Dopen2(self.fid, name.encode(), 0)
+        if dset < 0:
+            raise KeyError(f"no dataset {name}")
+        try:
+            space = lib.H5Dget_space(dset)
+            ndims = lib.H5Sget_simple_extent_ndims(space)
+            dims = (ctypes.c_uint64 * max(ndims, 1))()
+            lib.H5Sget_simple_extent_dims(space, dims, None)
+            lib.H5Sclose(space)
+            out = np.empty(tuple(dims[:ndims]), dtype=np.float64)
+            native_double = ctypes.c_int64.in_dll(lib, "H5T_NATIVE_DOUBLE_g").value
+            if lib.H5Dread(dset, native_double, 0, 0, 0, out.ctypes.data) < 0:
+                raise OSError(f"cannot read dataset {name}")
+            return out
+        finally:
+            lib.H5Dclose(dset)
+
+    def close(self) -> None:
+        self.lib().H5Fclose(self.fid)
+
+
+# --- the killed run ---------------------------------------------------------------------------
+
+
+def _children(pid: int) -> list[int]:
+    """Processes whose parent is ``pid`` (the ranks that mpirun started)."""
+    kids = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / "stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                kids.append(int(entry.name))
+    return kids
+
+
+def _gone(pid: int) -> bool:
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return True
+    return stat.rsplit(")", 1)[1].split()[0] in ("Z", "X")  # a zombie holds no files
+
+
+def _probe_rows(path: Path) -> int:
+    try:
+        return path.read_bytes().count(b"\n") - 1
+    except OSError:
+        return 0
+
+
+def run_and_kill(out: Path, ranks: int) -> None:
+    cmd = [PYTHON, "-m", "cosserat_fem.cli", "run", SCENE, "--out", str(out)]
+    settings = ("time.end=0.02", f"time.step={DT}", "discretisation.elements=32")
+    for item in (*settings, "output.xdmf=true", f"output.xdmf_interval={FRAME!r}"):
+        cmd += ["--set", item]
+    if ranks > 1:
+        mpirun = shutil.which("mpirun")
+        if mpirun is None:
+            pytest.fail("mpirun not found: install openmpi-bin (make setup does)")
+        cmd = [mpirun, "-n", str(ranks), *cmd]
+    log = out.parent / f"{out.name}.log"
+    with open(log, "wb") as stream:
+        proc = subprocess.Popen(
+            cmd, cwd=ROOT, env=subprocess_env(), stdout=stream, stderr=subprocess.STDOUT
+        )
+    victims: list[int] = []
+    try:
+        start = time.monotonic()
+        while _probe_rows(out / "probes.csv") < KILL_AFTER_ROWS:
+            if proc.poll() is not None:
+                pytest.fail(
+                    f"the run ended (code {proc.returncode}) before it was killed:\n"
+                    + log.read_text(errors="replace")[-3000:]
+                )
+            if time.monotonic() - start > DEADLINE:
+                pytest.fail(f"{KILL_AFTER_ROWS} probe rows not reached in {DEADLINE} s")
+            time.sleep(0.005)
+        time.sleep(AFTER_ROWS_DELAY)
+        victims = [*_children(proc.pid), proc.pid] if ranks > 1 else [proc.pid]
+        assert len(victims) == ranks + (ranks > 1), victims
+    finally:
+        if not victims:  # failing: take the whole run down all the same
+            victims = [*_children(proc.pid), proc.pid] if ranks > 1 else [proc.pid]
+        for pid in victims:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+        proc.wait(timeout=30)
+        deadline = time.monotonic() + 10
+        while not all(_gone(pid) for pid in victims) and time.monotonic() < deadline:
+            time.sleep(0.01)
+    assert proc.returncode == -signal.SIGKILL
+    assert all(_gone(pid) for pid in victims)
+
+
+# --- what it left -----------------------------------------------------------------------------
+
+
+def read_probes(path: Path) -> np.ndarray:
+    text = path.read_text()
+    assert text.endswith("\n"), f"last line cut: {text[-200:]!r}"
+    assert text.splitlines()[0] == "t,x,y,z,theta,psi,phi"
+    data = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1, ndmin=2)
+    assert data.shape[1] == 7 and np.isfinite(data).all()
+    k = np.rint(data[:, 0] / DT)
+    assert np.array_equal(k, np.arange(len(data))), "probe times not k Δt, k = 0, 1, ..."
+    assert np.allclose(data[:, 0], k * DT, rtol=0, atol=TIME_TOL)
+    return data
+
+
+def read_xdmf(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """{name: (times, free-end values of each frame, geometry)} after checking every
+    HDF5 reference of the XML against the .h5."""
+    root = ET.parse(path).getroot()  # raises on a cut or empty file
+    h5 = H5File(path.with_suffix(".h5"))
+    try:
+        data = {}
+        for item in root.iter("DataItem"):
+            assert item.get("Format") == "HDF"
+            filename, dataset = item.text.strip().split(":")
+            assert filename == path.with_suffix(".h5").name
+            values = h5.read(dataset)
+            dims = tuple(int(n) for n in item.get("Dimensions").split())
+            assert values.shape == dims, (dataset, values.shape, dims)
+            assert np.isfinite(values).all(), dataset
+            data[dataset] = values
+        domain = root.find("Domain")
+        geometry = domain.find("Grid[@Name='mesh']/Geometry/DataItem").text.split(":")[1]
+        x = data[geometry]
+        tip = int(np.argmax(x[:, 0]))
+        assert x[tip, 0] == 1.0
+        series = {}
+        for name in ("displacement", "angles"):
+            grids = domain.findall(f"Grid[@GridType='Collection'][@Name='{name}']/Grid")
+            times = np.array([float(g.find("Time").get("Value")) for g in grids])
+            tips = np.array(
+                [data[g.find("Attribute/DataItem").text.split(":")[1]][tip] for g in grids]
+            )
+            series[name] = (times, tips.reshape(-1, 3))
+        return series
+    finally:
+        h5.close()
+
+
+@pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=pytest.mark.mpi)])
+def test_sigkill_leaves_readable_outputs(tmp_path, ranks):
+    out = tmp_path / "run"
+    run_and_kill(out, ranks)
+
+    probes = read_probes(out / "probes.csv")
+    assert len(probes) >= KILL_AFTER_ROWS
+
+    series = read_xdmf(out / "solution.xdmf")
+    times, disp = series["displacement"]
+    times_a, ang = series["angles"]
+    assert np.array_equal(times, times_a), "a frame with one of its two fields"
+    assert len(times) >= 10
+    i = np.arange(len(times))
+    assert np.allclose(times, i * FRAME, rtol=0, atol=TIME_TOL)
+
+    last_probe_step = len(probes) - 1
+    last_frame_step = STEPS_PER_FRAME * (len(times) - 1)
+    assert 0 <= last_probe_step - last_frame_step <= STEPS_PER_FRAME, (
+        last_probe_step,
+        last_frame_step,
+    )
+
+    rows = probes[STEPS_PER_FRAME * i]
+    assert np.allclose(rows[:, 0], times, rtol=0, atol=TIME_TOL)
+    assert np.abs(disp - rows[:, 1:4]).max() <= VALUE_TOL
+    assert np.abs(ang - rows[:, 4:7]).max() <= VALUE_TOL
+    assert np.abs(disp[-1]).max() > 1e-6  # the rod has moved: a real comparison
