@@ -110,21 +110,29 @@ class StepController:
         per_block = len(range(block)[controlled])
         self._n_global = max(comm.allreduce(n_owned // block * per_block), 1)
         self.peak = np.zeros(per_block)  # largest |value| of each controlled field so far
+        self._candidate_peak: np.ndarray | None = None  # the same with the candidate state
 
     def error_norm(self, estimate: np.ndarray, state: np.ndarray) -> float:
         """Weighted RMS norm of the controlled entries of ``estimate`` (one reduction), with
         the peak magnitudes updated by ``state`` (the candidate)."""
         n = self.n_owned
         e = estimate[:n].reshape(-1, self.block)[:, self.controlled]
-        peak = np.maximum(self.peak, self._field_max(state))
-        scale = self.atol + self.rtol * peak
+        self._candidate_peak = np.maximum(self.peak, self._field_max(state))
+        scale = self.atol + self.rtol * self._candidate_peak
         local = float(np.sum((e / scale) ** 2))
         total = self.comm.allreduce(local) if self.comm.size > 1 else local
         return math.sqrt(total / self._n_global)
 
     def accept(self, state: np.ndarray) -> None:
-        """Take the accepted state's field magnitudes into the peaks."""
-        self.peak = np.maximum(self.peak, self._field_max(state))
+        """Take the accepted state's field magnitudes into the peaks (computed by
+        :meth:`error_norm` for this state already, when it estimated its error)."""
+        if self._candidate_peak is None:
+            self._candidate_peak = np.maximum(self.peak, self._field_max(state))
+        self.peak, self._candidate_peak = self._candidate_peak, None
+
+    def reject(self) -> None:
+        """The candidate of the last :meth:`error_norm` was rejected: forget its peaks."""
+        self._candidate_peak = None
 
     def _field_max(self, state: np.ndarray) -> np.ndarray:
         u = np.abs(state[: self.n_owned].reshape(-1, self.block)[:, self.controlled])

@@ -186,7 +186,8 @@ class GeneralizedAlpha(Integrator):
         self.h = _constant(U, 1.0)
         self._Udot_prev: np.ndarray | None = None
         self._h_prev = 1.0
-        self._views: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        # Views of U, U_n and U̇_n (the Functions' own memory; Function.x costs 1.2 μs a call).
+        self._arrays = (self.U.x.array, self.U_n.x.array, self.Udot_n.x.array)
 
     def _rate_new(self):
         """U̇_{n+1} as a UFL expression of the unknown U = U_{n+1}."""
@@ -241,12 +242,6 @@ class GeneralizedAlpha(Integrator):
     def last_accepted(self) -> np.ndarray:
         return self.U_n.x.array
 
-    @property
-    def _arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Views of U, U_n and U̇_n (the Functions' own memory)."""
-        if self._views is None:
-            self._views = (self.U.x.array, self.U_n.x.array, self.Udot_n.x.array)
-        return self._views
 
 
 def _sdirk_tableau(order: int) -> tuple[float, np.ndarray, np.ndarray]:
@@ -266,9 +261,10 @@ class SDIRK(Integrator):
     """A-stable SDIRK of order 3 or 4 (module docstring).
 
     Predictor: each stage starts from U = Z_i + γ h K̃_i, where K̃_i extrapolates the last
-    s + 1 stage rates (this step's and the previous steps', at their own times) by a
-    polynomial of degree s to the stage time τ_n + c_i h; its error is O(h^(s+1)), so a frozen
-    Jacobian needs about two iterations a stage.
+    s + 1 stage rates (this step's and those of the accepted steps before it, at their own
+    times) by a polynomial of degree s to the stage time τ_n + c_i h; its error is
+    O(h^(s+1)), so a frozen Jacobian needs about two iterations a stage. Only accepted steps
+    enter the stored rates, so a rejected step leaves nothing to undo but U.
     """
 
     def __init__(self, U, residual, time=0.0, order: int = 3):
@@ -281,14 +277,14 @@ class SDIRK(Integrator):
         self.U_n = U.x.array.copy()
         self.Z = fem.Function(V, name="Z")  # U_n + h Σ_{j<i} a_ij K_j of the current stage
         self.inv_gh = _constant(U, 1.0)
-        self.K = np.zeros((len(self.b), U.x.array.size))  # stage rates K_i of this step
-        # The last s + 1 stage rates and their times, a ring buffer (slot = count mod s + 1).
-        self._rates = np.zeros((len(self.b) + 1, U.x.array.size))
-        self._times = np.zeros(len(self.b) + 1)
+        stages = len(self.b)
+        self.K = np.zeros((stages, U.x.array.size))  # stage rates K_i of this step
+        self._taus = np.zeros(stages)  # their times
+        # The last s + 1 stage rates of accepted steps, a ring buffer in the order computed
+        # (slot = count mod s + 1), and their times.
+        self._rates = np.zeros((stages + 1, U.x.array.size))
+        self._times = np.zeros(stages + 1)
         self._stored = 0
-        self._saved = self._rates.copy()
-        self._saved_times = self._times.copy()
-        self._saved_stored = 0
 
     def residual_form(self) -> ufl.Form:
         return self._factory(self.U, self.inv_gh * (self.U - self.Z), self.time_eval)
@@ -296,45 +292,41 @@ class SDIRK(Integrator):
     def prepare(self, h: float) -> None:
         self.inv_gh.value = 1.0 / (self.gamma * h)
 
-    def _rate_guess(self, tau: float) -> np.ndarray | float:
-        """Lagrange extrapolation of the stored stage rates to time τ (0 with no history)."""
-        m = min(self._stored, len(self._times))
-        if m == 0:
+    def _rate_guess(self, stage: int, tau: float) -> np.ndarray | float:
+        """Lagrange extrapolation to time τ of the newest s + 1 stage rates known before
+        stage ``stage`` of this step (0 with none)."""
+        size = len(self._times)
+        old = min(self._stored, size - stage)
+        slots = [(self._stored - old + j) % size for j in range(old)]
+        if old + stage == 0:
             return 0.0
-        return lagrange_weights(self._times[:m], tau) @ self._rates[:m]
+        w = lagrange_weights(np.concatenate([self._times[slots], self._taus[:stage]]), tau)
+        return w[:old] @ self._rates[slots] + w[old:] @ self.K[:stage]
 
     def step(self, h: float, solve: Callable[[], int]) -> int:
         self.prepare(h)
         u, iterations, gh = self.U.x.array, 0, self.gamma * h
         z = self.Z.x.array
-        self._saved[:] = self._rates  # for reject(): the stage rates before this step
-        self._saved_times[:] = self._times
-        self._saved_stored = self._stored
         for i in range(len(self.b)):
             np.add(self.U_n, h * (self.A[i, :i] @ self.K[:i]), out=z)
             tau = self.time + self.c[i] * h
             self.time_eval.value = tau
-            np.add(z, gh * self._rate_guess(tau), out=u)
+            np.add(z, gh * self._rate_guess(i, tau), out=u)
             iterations += solve()
             np.subtract(u, z, out=self.K[i])
             self.K[i] *= 1.0 / gh
-            slot = self._stored % len(self._times)
-            self._rates[slot] = self.K[i]
-            self._times[slot] = tau
-            self._stored += 1
+            self._taus[i] = tau
         u[:] = self.U_n + h * (self.b @ self.K)
         return iterations
 
     def accept(self, h: float) -> None:
         self.U_n[:] = self.U.x.array
+        for i in range(len(self.b)):
+            slot = self._stored % len(self._times)
+            self._rates[slot] = self.K[i]
+            self._times[slot] = self._taus[i]
+            self._stored += 1
         super().accept(h)
-
-    def reject(self) -> None:
-        """Undo a step that is not accepted, stage rates included."""
-        self._rates[:] = self._saved
-        self._times[:] = self._saved_times
-        self._stored = self._saved_stored
-        super().reject()
 
     def last_accepted(self) -> np.ndarray:
         return self.U_n

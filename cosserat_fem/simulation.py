@@ -103,32 +103,37 @@ CHART_SUGGESTION = (
 )
 
 
+def cos_theta(model: RodModel, state: np.ndarray) -> np.ndarray:
+    """cos θ at the owned nodes of a state array (det Ma = cos θ, (66))."""
+    n = model.V.dofmap.index_map.size_local
+    return np.cos(state.reshape(-1, 12)[:n, 3])
+
+
 def check_state(
-    model: RodModel, t: float | None, where_prefix: str = "", previous: np.ndarray | None = None
-) -> None:
+    model: RodModel, t: float | None, where_prefix: str = "", before: np.ndarray | None = None
+) -> np.ndarray:
     """Stop with a SolverError if U is not finite, if the Euler-angle chart is (nearly)
-    singular, |cos θ| < ``CHART_COS_MIN``, or, given the ``previous`` state array, if θ crossed
-    ±π/2 at some node since then (cos θ changed sign: a step jumped over the singularity,
-    through which no continuous motion passes, det Ma = cos θ (66))."""
+    singular, |cos θ| < ``CHART_COS_MIN``, or, given cos θ of the previous accepted state
+    (``before``, from :func:`cos_theta` or an earlier call), if θ crossed ±π/2 at some node
+    since then (cos θ changed sign: a step jumped over the singularity, through which no
+    continuous motion passes, det Ma = cos θ (66)). Returns cos θ of U at the owned nodes."""
     blocks = model.U.x.array.reshape(-1, 12)
     n = model.V.dofmap.index_map.size_local
+    cos_now = cos_theta(model, model.U.x.array)
     # One number and (in parallel) one reduction per step: the smallest |cos θ|; −0.5 if θ
     # crossed ±π/2, −1 if any owned value is not finite (a NaN or inf makes the sum so).
     value = 1.0
     if n:
-        cos_theta = np.cos(blocks[:n, 3])
-        value = float(np.abs(cos_theta).min())
-        if previous is not None:
-            before = np.cos(previous.reshape(-1, 12)[:n, 3])
-            if float((before * cos_theta).min()) <= 0.0:
-                value = -0.5
+        value = float(np.abs(cos_now).min())
+        if before is not None and float((before * cos_now).min()) <= 0.0:
+            value = -0.5
         if not math.isfinite(value + float(blocks[:n].sum())):
             value = -1.0
     comm = model.msh.comm
     if comm.size > 1:
         value = comm.allreduce(value, op=MPI.MIN)
     if value >= CHART_COS_MIN:
-        return
+        return cos_now
     prefix = f"{where_prefix}{', ' if where_prefix else ''}"
     if value == -1.0:
         bad = np.where(np.isfinite(blocks).all(axis=1), 0.0, 1.0)
@@ -141,9 +146,7 @@ def check_state(
             retry=True,
         )
     if value == -0.5:
-        before = np.cos(previous.reshape(-1, 12)[:, 3])
-        crossed = np.where(before * np.cos(blocks[:, 3]) <= 0.0, 1.0, 0.0)
-        s, _ = _worst_place(model, crossed)
+        s, _ = _worst_place(model, np.where(before * cos_now <= 0.0, 1.0, 0.0))
         raise SolverError(
             time=t,
             where=f"{prefix}s = {s:.4g} m",
@@ -199,7 +202,8 @@ class _Stepper:
     def __init__(self, model: RodModel, integrator, solver: NewtonSolver):
         self.model, self.integrator, self.solver = model, integrator, solver
         self.omega0 = model.omega0
-        self.previous = model.U.x.array.copy()  # the last accepted state (chart crossing)
+        self.cos_accepted = cos_theta(model, model.U.x.array)  # chart-crossing check
+        self._cos_candidate = self.cos_accepted
         self.t = integrator.time / self.omega0
         self.accepted = self.rejected = self.outputs = 0
         self.smallest = self.largest = None
@@ -209,9 +213,10 @@ class _Stepper:
         retryable SolverError (U is then left as the integrator made it: reject or accept)."""
         try:
             self.integrator.step((t_new - self.t) * self.omega0, self.solver.solve)
-            check_state(self.model, t_new, previous=self.previous)
+            self._cos_candidate = check_state(self.model, t_new, before=self.cos_accepted)
         except NewtonFailure as exc:
-            s, _ = _worst_place(self.model, self.solver.b.array.reshape(-1, 12).max(axis=1))
+            residual = np.abs(self.solver.b.array.reshape(-1, 12)).max(axis=1)
+            s, _ = _worst_place(self.model, residual)
             return SolverError(
                 time=t_new,
                 where=f"s = {s:.4g} m (largest residual)",
@@ -228,7 +233,7 @@ class _Stepper:
     def accept(self, t_new: float) -> None:
         h = t_new - self.t
         self.integrator.accept(h * self.omega0)
-        self.previous[:] = self.model.U.x.array
+        self.cos_accepted = self._cos_candidate
         self.t = t_new
         self.accepted += 1
         self.smallest = h if self.smallest is None else min(self.smallest, h)
@@ -314,6 +319,7 @@ def _adaptive_loop(tspan, stepper: _Stepper, emit: _Outputs) -> None:
             error = control.error_norm(u - history.polynomial(t_new, order + 2), u)
         if cause is not None or (error is not None and error > 1.0):
             stepper.reject()
+            control.reject()
             consecutive += 1
             h *= control.factor(error, rejected=True) if cause is None else SHRINK
             if consecutive > MAX_CONSECUTIVE_REJECTIONS or h < h_min:

@@ -31,7 +31,7 @@ from .model import RodModel, build_model
 from .newton import NewtonFailure, NewtonSolver
 from .output import PointProbe, ProbeWriter, XdmfWriter, write_json
 from .scene import Scene
-from .simulation import check_state, newton_settings, prepare_output_dir, probe_sigma
+from .simulation import check_state, cos_theta, newton_settings, prepare_output_dir, probe_sigma
 
 
 @dataclass
@@ -92,7 +92,7 @@ def static_path(
                     model,
                     scene.static.time,
                     where_prefix=f"load factor {trial:.6g} (from {lam:.6g})",
-                    previous=U_n,
+                    before=cos_theta(model, U_n),
                 )
             except (NewtonFailure, SolverError) as exc:
                 bisections += 1
