@@ -245,7 +245,12 @@ class XdmfWriter:
             self.file = None
 
     def _publish(self) -> None:
-        # Rank 0 alone writes the XML (in write_function/write_mesh) and renames it.
+        # Rank 0 alone writes the XML (in write_function/write_mesh) and renames it, once
+        # every rank has returned from closing the HDF5 file: parallel HDF5 spreads the
+        # metadata writes over the ranks, and rank 0 may leave H5Fclose before rank 1 has
+        # written its share (a kill then left an XML naming a dataset the .h5 did not hold).
+        if self._comm.size > 1:
+            self._comm.barrier()
         if self._comm.rank == 0:
             os.replace(self._work, self.path)
 
