@@ -88,6 +88,18 @@ class StateHistory:
     def newest(self) -> tuple[float, np.ndarray]:
         return self._items[-1]
 
+    def state_dict(self) -> dict:
+        items = list(self._items)
+        return {
+            "times": np.array([t for t, _ in items]),
+            "states": np.array([u for _, u in items]),
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        self._items.clear()
+        for t, u in zip(state["times"], state["states"], strict=True):
+            self.push(float(t), u)
+
 
 class StepController:
     """Error norm and step-size proposals of the module docstring for a method of order p."""
@@ -132,6 +144,13 @@ class StepController:
 
     def reject(self) -> None:
         """The candidate of the last :meth:`error_norm` was rejected: forget its peaks."""
+        self._candidate_peak = None
+
+    def state_dict(self) -> dict:
+        return {"peak": self.peak.copy()}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.peak = np.array(state["peak"], dtype=np.float64)
         self._candidate_peak = None
 
     def _field_max(self, state: np.ndarray) -> np.ndarray:

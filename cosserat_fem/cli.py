@@ -1,4 +1,5 @@
-"""Command line: ``cosserat-fem run|static|modes SCENE [--out DIR] [--set KEY=VALUE ...]``.
+"""Command line: ``cosserat-fem run|static|modes SCENE [--out DIR] [--set KEY=VALUE ...]``,
+and ``cosserat-fem run --restart DIR [--set time.end=...]`` to continue a stopped run.
 
 Exit status: 0 success, 2 bad input (scene, options, output folder), 3 numerical trouble
 (the run stopped; outputs written so far are kept). Errors are one line on stderr; ``--debug``
@@ -15,9 +16,13 @@ from . import __version__
 from .errors import CosseratError, SceneError, SolverError
 
 
-def _common(sub: argparse.ArgumentParser) -> None:
+def _common(sub: argparse.ArgumentParser, scene_optional: bool = False) -> None:
     """The arguments every command takes."""
-    sub.add_argument("scene", help="scene file (TOML), e.g. scenes/cao_tucker_2008.toml")
+    sub.add_argument(
+        "scene",
+        nargs="?" if scene_optional else None,
+        help="scene file (TOML), e.g. scenes/cao_tucker_2008.toml",
+    )
     sub.add_argument("--out", metavar="DIR", help="output folder (default: output.directory)")
     sub.add_argument(
         "--set",
@@ -38,7 +43,14 @@ def _parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"cosserat-fem {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    _common(sub.add_parser("run", help="integrate a scene in time and write its outputs"))
+    run = sub.add_parser("run", help="integrate a scene in time and write its outputs")
+    _common(run, scene_optional=True)
+    run.add_argument(
+        "--restart",
+        metavar="DIR",
+        help="continue the run in DIR from its last checkpoint (no SCENE: the checkpoint's own "
+        "is used; --set may change time.end, time.max_halvings, solver.*, output.checkpoint*)",
+    )
     _common(sub.add_parser("static", help="static equilibrium by load stepping"))
     modes = sub.add_parser("modes", help="natural frequencies and mode shapes (SLEPc)")
     _common(modes)
@@ -58,8 +70,12 @@ def _run(args) -> int:
     from .scene import load_scene
     from .simulation import run
 
-    scene = load_scene(args.scene, args.overrides)
-    result = run(scene, args.out)
+    if args.restart is not None:
+        result = _restart(args)
+    elif args.scene is None:
+        raise SceneError("run: give a SCENE file, or --restart DIR to continue a run")
+    else:
+        result = run(load_scene(args.scene, args.overrides), args.out)
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         s = result.summary
         wall = s["wall_time_s"]
@@ -71,6 +87,30 @@ def _run(args) -> int:
             f"(total {wall['total']:.2f} s) -> {result.out_dir}"
         )
     return 0
+
+
+def _restart(args):
+    """Continue the run in args.restart (cosserat_fem/checkpoint.py)."""
+    from .checkpoint import load_checkpoint, restart_overrides
+    from .scene import scene_from_dict
+    from .simulation import run
+
+    if args.scene is not None or args.out is not None:
+        which = "SCENE" if args.scene is not None else "--out"
+        raise SceneError(
+            f"run --restart: {which} cannot be given (the run continues in its own folder "
+            "with its own scene)"
+        )
+    restart_overrides(args.overrides)
+    checkpoint = load_checkpoint(args.restart)
+    source = f"{args.restart}/checkpoint"
+    scene = scene_from_dict(checkpoint.meta["scene"], source=source, overrides=args.overrides)
+    if not scene.time.end > checkpoint.time:
+        raise SceneError(
+            f"time.end: the checkpoint is at t = {checkpoint.time:.10g} s; give a later end "
+            f"to continue (--set time.end=...), got {scene.time.end:.10g}"
+        )
+    return run(scene, restart=checkpoint)
 
 
 def _static(args) -> int:

@@ -94,6 +94,15 @@ class Integrator:
         """The state array at ``self.time``."""
         raise NotImplementedError
 
+    def state_dict(self) -> dict:
+        """Everything the next steps depend on besides U (arrays are this rank's, copies):
+        with :meth:`load_state_dict` a restarted run continues bit for bit."""
+        return {"time": self.time, "steps_taken": self.steps_taken}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.time = float(state["time"])
+        self.steps_taken = int(state["steps_taken"])
+
     def _copy(self, dst: fem.Function, src: fem.Function) -> None:
         dst.x.array[:] = src.x.array
 
@@ -157,6 +166,21 @@ class BDF2(Integrator):
 
     def last_accepted(self) -> np.ndarray:
         return self.U_n.x.array
+
+    def state_dict(self) -> dict:
+        return {
+            **super().state_dict(),
+            "U_n": self.U_n.x.array.copy(),
+            "U_nm1": self.U_nm1.x.array.copy(),
+            "h_prev": np.nan if self.h_prev is None else self.h_prev,
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        super().load_state_dict(state)
+        self.U_n.x.array[:] = state["U_n"]
+        self.U_nm1.x.array[:] = state["U_nm1"]
+        h_prev = float(state["h_prev"])
+        self.h_prev = None if np.isnan(h_prev) else h_prev
 
 
 def alpha_parameters(rho_inf: float) -> tuple[float, float, float]:
@@ -242,6 +266,23 @@ class GeneralizedAlpha(Integrator):
     def last_accepted(self) -> np.ndarray:
         return self.U_n.x.array
 
+    def state_dict(self) -> dict:
+        previous = self._Udot_prev
+        return {
+            **super().state_dict(),
+            "U_n": self.U_n.x.array.copy(),
+            "Udot_n": self.Udot_n.x.array.copy(),
+            "Udot_prev": np.zeros(0) if previous is None else previous.copy(),
+            "h_prev": self._h_prev,
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        super().load_state_dict(state)
+        self.U_n.x.array[:] = state["U_n"]
+        self.Udot_n.x.array[:] = state["Udot_n"]
+        previous = np.asarray(state["Udot_prev"])
+        self._Udot_prev = previous.copy() if previous.size else None
+        self._h_prev = float(state["h_prev"])
 
 
 def _sdirk_tableau(order: int) -> tuple[float, np.ndarray, np.ndarray]:
@@ -330,6 +371,22 @@ class SDIRK(Integrator):
 
     def last_accepted(self) -> np.ndarray:
         return self.U_n
+
+    def state_dict(self) -> dict:
+        return {
+            **super().state_dict(),
+            "U_n": self.U_n.copy(),
+            "rates": self._rates.copy(),
+            "rate_times": self._times.copy(),
+            "stored": self._stored,
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        super().load_state_dict(state)
+        self.U_n[:] = state["U_n"]
+        self._rates[:] = state["rates"]
+        self._times[:] = state["rate_times"]
+        self._stored = int(state["stored"])
 
 
 INTEGRATORS = ("bdf2", "generalized-alpha", "sdirk3", "sdirk4", "static")

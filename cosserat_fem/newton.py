@@ -51,12 +51,14 @@ from __future__ import annotations
 
 import itertools
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
+import numpy as np
 import ufl
 from dolfinx import fem
 from dolfinx.fem.petsc import assemble_matrix, assemble_vector, create_matrix, create_vector, set_bc
 from petsc4py import PETSc
+from ufl.algorithms.analysis import extract_coefficients, extract_constants
 
 JACOBIAN_POLICIES = ("full", "lagged", "frozen")
 _prefix_counter = itertools.count()
@@ -139,8 +141,13 @@ class NewtonSolver:
         t0 = time.perf_counter()
         self.F_form = fem.form(F, form_compiler_params=fcp, jit_params=jp)
         dU = ufl.TrialFunction(U.function_space)
-        self.J_form = fem.form(ufl.derivative(F, U, dU), form_compiler_params=fcp, jit_params=jp)
+        J = ufl.derivative(F, U, dU)
+        self.J_form = fem.form(J, form_compiler_params=fcp, jit_params=jp)
         self.compile_time = time.perf_counter() - t0
+        # What the Jacobian is assembled from, and (for a reused Jacobian) their values at its
+        # last assembly: a restarted run re-assembles the very same matrix (load_state_dict).
+        self._J_inputs = (extract_coefficients(J), extract_constants(J))
+        self._J_snapshot: dict | None = None
 
         self.b = create_vector(self.F_form)
         # SNES iterates on its own vector: the callbacks copy trial points into U, which must
@@ -218,6 +225,12 @@ class NewtonSolver:
         A.zeroEntries()
         assemble_matrix(A, self.J_form, bcs=self.bcs)
         A.assemble()
+        if self.settings.jacobian != "full":
+            coefficients, constants = self._J_inputs
+            self._J_snapshot = {
+                **{f"coefficient{i}": c.x.array.copy() for i, c in enumerate(coefficients)},
+                **{f"constant{i}": np.array(c.value) for i, c in enumerate(constants)},
+            }
         self._need_jacobian = False
         self._solves_since_jacobian = 0
         self.stats.jacobian_assemblies += 1
@@ -287,6 +300,57 @@ class NewtonSolver:
         it = self.snes.getIterationNumber()
         self.stats.iterations += it
         return it, self.snes.getConvergedReason()
+
+    # -- checkpoint/restart ---------------------------------------------------------------
+    def state_dict(self) -> dict:
+        """The policy's state, the counters and the inputs of the reused Jacobian."""
+        counters = {
+            f"stats.{f.name}": getattr(self.stats, f.name)
+            for f in fields(self.stats)
+            if f.name != "history"
+        }
+        state = {
+            "need_jacobian": self._need_jacobian,
+            "solves_since_jacobian": self._solves_since_jacobian,
+            "stats.history": np.array(self.stats.history, dtype=np.int64),
+            **counters,
+        }
+        if self._J_snapshot is not None:
+            state.update({f"jacobian.{k}": v for k, v in self._J_snapshot.items()})
+        return state
+
+    def load_state_dict(self, state: dict) -> None:
+        """Restore :meth:`state_dict`; a reused Jacobian is re-assembled from the saved inputs
+        (the same matrix, so the same LU factors and the same iterates as the first run)."""
+        for f in fields(self.stats):
+            if f.name != "history":
+                kind = type(getattr(self.stats, f.name))
+                setattr(self.stats, f.name, kind(state[f"stats.{f.name}"]))
+        self.stats.history = [int(i) for i in state["stats.history"]]
+        self._solves_since_jacobian = int(state["solves_since_jacobian"])
+        self._need_jacobian = bool(state["need_jacobian"])
+        if self.settings.jacobian == "full" or "jacobian.coefficient0" not in state:
+            self._need_jacobian = True
+            return
+        coefficients, constants = self._J_inputs
+        kept_c = [c.x.array.copy() for c in coefficients]
+        kept_k = [np.array(c.value) for c in constants]
+        for i, c in enumerate(coefficients):
+            c.x.array[:] = state[f"jacobian.coefficient{i}"]
+        for i, c in enumerate(constants):
+            c.value = state[f"jacobian.constant{i}"]
+        self.A.zeroEntries()
+        assemble_matrix(self.A, self.J_form, bcs=self.bcs)
+        self.A.assemble()
+        self._J_snapshot = {
+            k.removeprefix("jacobian."): np.array(v) for k, v in state.items()
+            if k.startswith("jacobian.")
+        }
+        for c, value in zip(coefficients, kept_c, strict=True):
+            c.x.array[:] = value
+        for c, value in zip(constants, kept_k, strict=True):
+            c.value = value
+        # The saved "need a new Jacobian" flag stands: a pending refresh still happens.
 
     def destroy(self) -> None:
         self.snes.destroy()

@@ -94,8 +94,14 @@ class ProbeWriter:
     """
 
     def __init__(
-        self, path: Path, probe: PointProbe, flush_every: int = 200, max_delay: float = 0.05
+        self,
+        path: Path,
+        probe: PointProbe,
+        flush_every: int = 200,
+        max_delay: float = 0.05,
+        append: bool = False,
     ):
+        """``append``: continue an existing file (a restart, which has cut it back)."""
         self.probe = probe
         self.flush_every = flush_every
         self.max_delay = max_delay
@@ -104,8 +110,10 @@ class ProbeWriter:
         self._file = None
         self._deadline = 0.0
         if probe.is_owner:
-            self._file = open(path, "w", encoding="utf-8")  # noqa: SIM115 - closed in close()
-            self._file.write(",".join(PROBE_HEADER) + "\n")
+            mode = "a" if append else "w"
+            self._file = open(path, mode, encoding="utf-8")  # noqa: SIM115 - closed in close()
+            if not append:
+                self._file.write(",".join(PROBE_HEADER) + "\n")
             self.flush()
             _PROBE_WRITERS.add(self)
 
@@ -175,9 +183,18 @@ class XdmfWriter:
     the first reopen (pugixml drops it when reading); ParaView does not need it.
     """
 
-    def __init__(self, path: Path, U: fem.Function, length: float, jit_params: dict | None = None):
+    def __init__(
+        self,
+        path: Path,
+        U: fem.Function,
+        length: float,
+        jit_params: dict | None = None,
+        resume: tuple[int, int] | None = None,
+    ):
         """``U`` holds (p1, ..., p6) in its first six components; ``write`` may be given another
-        Function of the same space (e.g. one mode shape after another)."""
+        Function of the same space (e.g. one mode shape after another). ``resume = (n,
+        frames)``: continue the existing file, which holds ``frames`` frames, as restart n;
+        its new frames go into ``<stem>-restart<n>.h5``."""
         msh = U.function_space.mesh
         self.U = U
         P1 = fem.VectorFunctionSpace(msh, ("Lagrange", 1), dim=3)
@@ -194,7 +211,13 @@ class XdmfWriter:
         suffix = self.path.suffix or ".xdmf"
         self._work = self.path.with_suffix(suffix + "-partial")
         self._comm = msh.comm
-        self.file: io.XDMFFile | None = io.XDMFFile(self._comm, str(self._work), "w")
+        self.file: io.XDMFFile | None = None
+        if resume is not None:
+            restart, self.writes = resume
+            stem = f"{self.path.stem}-restart{restart}"
+            self._work = self.path.with_name(stem + suffix + "-partial")
+            return
+        self.file = io.XDMFFile(self._comm, str(self._work), "w")
         try:
             self.file.write_mesh(msh)
         finally:

@@ -33,6 +33,7 @@ SCENE_CONSTANTS = ("L", "omega0")
 CANTILEVER_EIGENVALUE = 1.875
 #: Relative tolerance for "is an integer number of time steps".
 STEP_TOLERANCE = 1e-9
+CHECKPOINTS_PER_RUN = 10  # output.checkpoint_interval = "auto"
 
 _EXCLUSIVE = ("rod.material.poisson_ratio", "rod.material.shear_modulus")
 
@@ -169,11 +170,17 @@ class Solver:
 
 @dataclass(frozen=True)
 class Output:
-    """Output directory (stored as written) and XDMF settings."""
+    """Output directory (stored as written), XDMF and checkpoint settings.
+
+    ``checkpoint_interval`` [s] is resolved: a positive multiple of the step, or 0 for a
+    checkpoint at the end of the run only (cosserat_fem/checkpoint.py).
+    """
 
     directory: str
     xdmf: bool
     xdmf_interval: float
+    checkpoint: bool = True
+    checkpoint_interval: float = 0.0
 
     def xdmf_every(self, step: float) -> int:
         """Steps between XDMF writes (1 if the interval is 0)."""
@@ -502,6 +509,10 @@ SCHEMA = _Table(
                 "directory": _Text(default="results", non_empty=True),
                 "xdmf": _Flag(default=True),
                 "xdmf_interval": _Number(default=0.0, interval=NON_NEGATIVE, unit="s"),
+                "checkpoint": _Flag(default=True),
+                "checkpoint_interval": _Number(
+                    default="auto", interval=NON_NEGATIVE, unit="s", auto=True
+                ),
             }
         ),
     }
@@ -779,7 +790,20 @@ def _build_output(raw: dict[str, Any], time: Time) -> Output:
             f"output.xdmf_interval: must be 0 (every step) or an integer multiple of "
             f"time.step = {time.step!r} [s], got {show_value(interval)}"
         )
-    return Output(raw["directory"], raw["xdmf"], interval)
+    checkpoint_interval = raw["checkpoint_interval"]
+    if checkpoint_interval == "auto":  # about ten checkpoints a run, on the step grid
+        checkpoint_interval = max(1, round(time.n_steps / CHECKPOINTS_PER_RUN)) * time.step
+    elif raw["checkpoint"] and checkpoint_interval > 0.0 and not (
+        checkpoint_interval >= time.step * (1.0 - STEP_TOLERANCE)
+        and _integral_ratio(checkpoint_interval, time.step)
+    ):
+        raise SceneError(
+            f"output.checkpoint_interval: must be 0 (at the end only), 'auto' or an integer "
+            f"multiple of time.step = {time.step!r} [s], got {show_value(checkpoint_interval)}"
+        )
+    return Output(
+        raw["directory"], raw["xdmf"], interval, raw["checkpoint"], float(checkpoint_interval)
+    )
 
 
 def scene_from_dict(

@@ -25,6 +25,7 @@ from petsc4py import PETSc
 
 from . import __version__
 from .adaptive import SHRINK, StateHistory, StepController
+from .checkpoint import Checkpoint, CheckpointWriter, cut_outputs
 from .errors import SceneError, SolverError
 from .integrators import GeneralizedAlpha, make_integrator
 from .model import RodModel, build_model
@@ -207,10 +208,30 @@ class _Stepper:
         self.t = integrator.time / self.omega0
         self.accepted = self.rejected = self.outputs = 0
         self.smallest = self.largest = None
+        self.pending = False  # a step was attempted and neither accepted nor rejected
+
+    _COUNTERS = ("t", "accepted", "rejected", "outputs", "smallest", "largest")
+
+    def state_dict(self) -> dict:
+        return {k: np.nan if getattr(self, k) is None else getattr(self, k) for k in self._COUNTERS}
+
+    def load_state_dict(self, state: dict) -> None:
+        for k in self._COUNTERS:
+            value = float(state[k])
+            value = None if math.isnan(value) else value
+            setattr(self, k, int(value) if k in ("accepted", "rejected", "outputs") else value)
+        self.cos_accepted = self._cos_candidate = cos_theta(self.model, self.model.U.x.array)
+
+    def back_to_accepted(self) -> None:
+        """U back to the last accepted state if a step is pending (a run that stops)."""
+        if self.pending:
+            self.integrator.reject()
+            self.pending = False
 
     def attempt(self, t_new: float) -> SolverError | None:
         """Take a step to t_new [s]; None if it converged and the state is fine, else the
         retryable SolverError (U is then left as the integrator made it: reject or accept)."""
+        self.pending = True
         try:
             self.integrator.step((t_new - self.t) * self.omega0, self.solver.solve)
             self._cos_candidate = check_state(self.model, t_new, before=self.cos_accepted)
@@ -233,6 +254,7 @@ class _Stepper:
     def accept(self, t_new: float) -> None:
         h = t_new - self.t
         self.integrator.accept(h * self.omega0)
+        self.pending = False
         self.cos_accepted = self._cos_candidate
         self.t = t_new
         self.accepted += 1
@@ -241,6 +263,7 @@ class _Stepper:
 
     def reject(self) -> None:
         self.integrator.reject()
+        self.pending = False
         self.rejected += 1
 
     def counts(self) -> dict:
@@ -254,13 +277,57 @@ class _Stepper:
         }
 
 
-def _fixed_loop(tspan, stepper: _Stepper, emit: _Outputs) -> None:
+class _Checkpoints:
+    """Saves the whole state of a run (cosserat_fem/checkpoint.py) when due and at its end.
+
+    ``loop`` is the time loop's own state: numbers, and objects with a ``state_dict``.
+    """
+
+    def __init__(self, writer: CheckpointWriter | None, stepper: _Stepper, xdmf):
+        self.writer, self.stepper, self.xdmf = writer, stepper, xdmf
+        self._saved_at: float | None = None
+
+    def maybe(self, loop: dict) -> None:
+        if self.writer is not None and self.writer.due(self.stepper.t):
+            self.save(loop)
+
+    def save(self, loop: dict) -> None:
+        stepper = self.stepper
+        if self.writer is None or self._saved_at == stepper.t:
+            return
+        parts = {
+            "state": {"U": stepper.model.U.x.array.copy()},
+            "integrator": stepper.integrator.state_dict(),
+            "newton": stepper.solver.state_dict(),
+            "stepper": stepper.state_dict(),
+            "loop": {k: v for k, v in loop.items() if not hasattr(v, "state_dict")},
+            **{k: v.state_dict() for k, v in loop.items() if hasattr(v, "state_dict")},
+        }
+        outputs = {
+            "probe_rows": stepper.outputs + 1,
+            "xdmf_frames": None if self.xdmf is None else self.xdmf.writes,
+        }
+        self.writer.save(stepper.t, parts, outputs)
+        self._saved_at = stepper.t
+
+
+def _fixed_loop(tspan, stepper: _Stepper, emit: _Outputs, save: _Checkpoints, loop: dict) -> None:
     """Steps of time.step; a failed step is retried with half of it, at most
-    time.max_halvings times, and the next nominal step is full again."""
+    time.max_halvings times, and the next nominal step is full again. ``loop`` holds the
+    halving level and the part of the nominal step done (a restart's, then kept current)."""
     halvings = tspan.max_halvings
     whole = 2**halvings  # a nominal step in units of the smallest allowed sub-step
-    level, done = 0, 0  # halving level; progress into the nominal step, in those units
+    # Halving level; progress into the nominal step, in those units.
+    level = min(int(loop.get("level", 0)), halvings)
+    done = float(loop.get("done", 0.0)) * whole
+    if done != int(done):
+        raise SceneError(
+            f"time.max_halvings: the checkpoint stopped {done / whole:g} into a step, which "
+            f"steps of 2^-{halvings} cannot reach; use at least the first run's value"
+        )
+    done = int(done)
     while stepper.outputs < tspan.n_steps:
+        loop["level"], loop["done"] = level, done / whole
         units = whole >> level
         t_new = tspan.start + (stepper.outputs + (done + units) / whole) * tspan.step
         cause = stepper.attempt(t_new)
@@ -286,14 +353,18 @@ def _fixed_loop(tspan, stepper: _Stepper, emit: _Outputs) -> None:
             level = 0
             stepper.solver.request_jacobian()
         emit(stepper.outputs, stepper.t)
+        loop["level"], loop["done"] = 0, 0.0
+        save.maybe(loop)
 
 
 MAX_CONSECUTIVE_REJECTIONS = 12
 
 
-def _adaptive_loop(tspan, stepper: _Stepper, emit: _Outputs) -> None:
+def _adaptive_loop(
+    tspan, stepper: _Stepper, emit: _Outputs, save: _Checkpoints, loop: dict, resume=None
+) -> None:
     """Steps chosen by the local error estimate of cosserat_fem.adaptive; outputs on the grid
-    start + k time.step by interpolation."""
+    start + k time.step by interpolation. ``resume``: a checkpoint's parts to continue from."""
     model, solver = stepper.model, stepper.solver
     order = stepper.integrator.order
     bs = model.V.dofmap.index_map_bs
@@ -303,13 +374,20 @@ def _adaptive_loop(tspan, stepper: _Stepper, emit: _Outputs) -> None:
         tspan.rtol, tspan.atol, order, model.msh.comm, n_owned, block=bs, controlled=slice(0, 6)
     )
     history = StateHistory(capacity=order + 2)
-    history.push(stepper.t, model.U.x.array)
     span = tspan.end - tspan.start
     h_max = tspan.max_step or span
     h_min = 1e-12 * span
-    h = min(tspan.step, h_max)
+    if resume is None:
+        history.push(stepper.t, model.U.x.array)
+        h = min(tspan.step, h_max)
+    else:
+        history.load_state_dict(resume["history"])
+        control.load_state_dict(resume["control"])
+        h = float(resume["loop"]["h"])
+    loop.update(history=history, control=control, h=h)
     consecutive = 0
     while stepper.t < tspan.end - 1e-12 * span:
+        loop["h"] = h
         h = min(h, tspan.end - stepper.t)
         t_new = stepper.t + h
         cause = stepper.attempt(t_new)
@@ -332,6 +410,7 @@ def _adaptive_loop(tspan, stepper: _Stepper, emit: _Outputs) -> None:
                     suggestion=cause.suggestion if cause else "loosen time.rtol/time.atol",
                 )
             solver.request_jacobian()  # the Jacobian depends on the step size
+            loop["h"] = h
             continue
         consecutive = 0
         stepper.accept(t_new)
@@ -352,6 +431,8 @@ def _adaptive_loop(tspan, stepper: _Stepper, emit: _Outputs) -> None:
                 # refreshed it anyway (measured: fewer iterations, the same run time).
                 solver.request_jacobian()
             h = h_next
+        loop["h"] = h
+        save.maybe(loop)
 
 
 def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: str) -> None:
@@ -388,18 +469,25 @@ def run(
     observers: tuple[Observer, ...] = (),
     write_outputs: bool = True,
     initial_state: np.ndarray | None = None,
+    restart: Checkpoint | None = None,
 ) -> RunResult:
     """Integrate the scene over its time span; see the module docstring.
 
     The rod starts from rest in its straight state, or from ``initial_state`` (the array of a
-    12-component state U = (p, q) on the same discretisation, e.g. a static solution).
+    12-component state U = (p, q) on the same discretisation, e.g. a static solution), or
+    continues the run of the checkpoint ``restart`` in its folder (cosserat_fem/checkpoint.py;
+    ``scene`` is then the checkpoint's, with the overrides a restart allows).
     """
     t_start = time.perf_counter()
+    if restart is not None:
+        out_dir, write_outputs = restart.run_dir, True
     out = Path(out_dir if out_dir is not None else scene.output.directory)
     if write_outputs:
         prepare_output_dir(out, comm)
     model = build_model(scene, comm)
-    if initial_state is not None:
+    if restart is not None:
+        model.U.x.array[:] = restart.parts["state"]["U"]
+    elif initial_state is not None:
         model.U.x.array[:] = initial_state
     tspan = scene.time
     omega0 = model.omega0
@@ -412,18 +500,41 @@ def run(
         model.bcs,
         newton_settings(scene),
     )
-    if isinstance(integrator, GeneralizedAlpha):
+    if restart is not None:
+        integrator.load_state_dict(restart.parts["integrator"])
+        solver.load_state_dict(restart.parts["newton"])
+    elif isinstance(integrator, GeneralizedAlpha):
         _consistent_rate(integrator, model, solver.lu_package)
 
     probe = PointProbe(model.U, probe_sigma(scene), model.length)
-    probes = xdmf = None
+    probes = xdmf = checkpoint_writer = None
     failure: SolverError | None = None
     if write_outputs:
-        probes = ProbeWriter(out / "probes.csv", probe)
-        probes.write(tspan.start)
-        if scene.output.xdmf:
-            xdmf = XdmfWriter(out / "solution.xdmf", model.U, model.length)
-            xdmf.write(tspan.start)
+        probe_path, xdmf_path = out / "probes.csv", out / "solution.xdmf"
+        if restart is None:
+            probes = ProbeWriter(probe_path, probe)
+            probes.write(tspan.start)
+            if scene.output.xdmf:
+                xdmf = XdmfWriter(xdmf_path, model.U, model.length)
+                xdmf.write(tspan.start)
+        else:
+            cut_outputs(
+                restart, probe_path, xdmf_path if scene.output.xdmf else None, probe.is_owner, comm
+            )
+            probes = ProbeWriter(probe_path, probe, append=True)
+            if scene.output.xdmf:
+                frames = restart.meta["outputs"]["xdmf_frames"]
+                resume = (int(restart.meta["restarts"]) + 1, frames)
+                xdmf = XdmfWriter(xdmf_path, model.U, model.length, resume=resume)
+        if scene.output.checkpoint:
+            checkpoint_writer = CheckpointWriter(
+                out,
+                comm,
+                scene.output.checkpoint_interval,
+                tspan.start,
+                scene.to_dict(),
+                previous=restart,
+            )
     setup_time = time.perf_counter() - t_start
 
     summary = {
@@ -439,6 +550,8 @@ def run(
         "omega0_rad_s": omega0,
         "probe_s_m": probe.sigma * model.length,
         "lu_package": solver.lu_package,
+        "restarted_from_s": restart.time if restart is not None else None,
+        "restarts": int(restart.meta["restarts"]) + 1 if restart is not None else 0,
         "skipped_terms": model.skipped,
         "groups": model.groups.as_dict(),
         "python": platform.python_version(),
@@ -446,14 +559,25 @@ def run(
     }
     emit = _Outputs(model, probes, xdmf, scene.output.xdmf_every(tspan.step), observers)
     stepper = _Stepper(model, integrator, solver)
-    loop = _adaptive_loop if tspan.adaptive else _fixed_loop
+    loop_state: dict = {}
+    if restart is not None:
+        stepper.load_state_dict(restart.parts["stepper"])
+        loop_state.update(restart.parts["loop"])
+    save = _Checkpoints(checkpoint_writer, stepper, xdmf)
     t_loop = time.perf_counter()
     try:
-        loop(tspan, stepper, emit)
+        if tspan.adaptive:
+            parts = restart.parts if restart is not None else None
+            _adaptive_loop(tspan, stepper, emit, save, loop_state, resume=parts)
+        else:
+            _fixed_loop(tspan, stepper, emit, save, loop_state)
     except SolverError as exc:
         failure = exc
     finally:
         loop_time = time.perf_counter() - t_loop
+        if failure is not None or stepper.outputs == tspan.n_steps:
+            stepper.back_to_accepted()
+            save.save(loop_state)  # the last accepted state, to continue or extend the run
         if probes is not None:
             probes.close()
         if xdmf is not None:
@@ -464,6 +588,7 @@ def run(
             "status": "failed" if failure else "completed",
             "message": str(failure) if failure else "",
             **stepper.counts(),
+            "checkpoints_written": checkpoint_writer.written if checkpoint_writer else 0,
             "newton": solver.stats.as_dict(),
             "wall_time_s": {
                 "setup": setup_time,

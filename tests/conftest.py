@@ -46,3 +46,20 @@ def parse_qoi(stdout: str) -> dict[str, float]:
             name, value = line[4:].split("=")
             values[name.strip()] = float(value)
     return values
+
+
+def inject_newton_failures(monkeypatch, fails) -> None:
+    """Make Newton solve number n (counting from 1 over all solvers) raise NewtonFailure when
+    ``fails(n)`` is true; undone by monkeypatch.undo() or at the end of the test."""
+    from cosserat_fem.newton import NewtonFailure, NewtonSolver
+
+    real_solve = NewtonSolver.solve
+    calls = {"n": 0}
+
+    def solve(self):
+        calls["n"] += 1
+        if fails(calls["n"]):
+            raise NewtonFailure("injected", 0)
+        return real_solve(self)
+
+    monkeypatch.setattr(NewtonSolver, "solve", solve)

@@ -21,8 +21,9 @@ them in process groups of their own and does not take them down with a killed mp
   at that vertex, so they agree to rounding (they came out bitwise equal; amplitudes here are
   ~1e-3 m and ~4e-3 rad, so 1e-12 is a relative ~1e-9, far below any real discrepancy).
 
-solution.h5 is read with the HDF5 C library that DOLFINx itself uses (ctypes; no h5py, no
-DOLFINx), so a file that the HDF5 library cannot open fails the test, as it would in ParaView.
+solution.h5 is read with the HDF5 C library that DOLFINx itself uses (tests/xdmf_files.py: ctypes;
+no h5py, no DOLFINx), so a file that the HDF5 library cannot open fails the test, as it would in
+ParaView.
 Before XdmfWriter closed the file after each frame, a killed run left an .h5 that did not open
 at all ("bad object header version number"), and now and then an empty .xdmf.
 
@@ -31,20 +32,19 @@ Runtime: ~2 s serial, 3-7 s under mpirun -n 2 (warm JIT cache; more on a loaded 
 
 from __future__ import annotations
 
-import ctypes
-import ctypes.util
 import io
+import json
 import os
 import shutil
 import signal
 import subprocess
 import time
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import PYTHON, ROOT, subprocess_env
+from conftest import PYTHON, ROOT, run_command, subprocess_env
+from xdmf_files import read_xdmf
 
 SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
 DT = 1e-5  # s, time.step
@@ -55,72 +55,6 @@ AFTER_ROWS_DELAY = 0.1  # s, ~100 steps serial, ~50 under mpirun -n 2
 DEADLINE = 25.0  # s to reach KILL_AFTER_ROWS
 TIME_TOL = 1e-15  # s
 VALUE_TOL = 1e-12  # m, rad
-
-
-# --- HDF5 through its C library -------------------------------------------------------------
-
-
-class H5File:
-    """Read-only access to the datasets of an HDF5 file (libhdf5 >= 1.10: hid_t is 64-bit)."""
-
-    _lib = None
-
-    @classmethod
-    def lib(cls):
-        if cls._lib is None:
-            for name in ("hdf5_openmpi", "hdf5_mpich", "hdf5_serial", "hdf5"):
-                found = ctypes.util.find_library(name)
-                if found:
-                    break
-            else:
-                pytest.fail("no HDF5 C library found (DOLFINx depends on one: libhdf5-*)")
-            lib = ctypes.CDLL(found)
-            hid = ctypes.c_int64
-            lib.H5Fopen.restype = hid
-            lib.H5Fopen.argtypes = [ctypes.c_char_p, ctypes.c_uint, hid]
-            lib.H5Dopen2.restype = hid
-            lib.H5Dopen2.argtypes = [hid, ctypes.c_char_p, hid]
-            lib.H5Dget_space.restype = hid
-            lib.H5Dget_space.argtypes = [hid]
-            lib.H5Sget_simple_extent_ndims.argtypes = [hid]
-            lib.H5Sget_simple_extent_dims.argtypes = [hid, ctypes.c_void_p, ctypes.c_void_p]
-            lib.H5Dread.argtypes = [hid, hid, hid, hid, hid, ctypes.c_void_p]
-            for fn in ("H5Dclose", "H5Sclose", "H5Fclose"):
-                getattr(lib, fn).argtypes = [hid]
-            lib.H5Eset_auto2.argtypes = [hid, ctypes.c_void_p, ctypes.c_void_p]
-            assert lib.H5open() >= 0
-            lib.H5Eset_auto2(0, None, None)  # no error stack on stderr: we raise instead
-            cls._lib = lib
-        return cls._lib
-
-    def __init__(self, path: Path):
-        lib = self.lib()
-        self.fid = lib.H5Fopen(str(path).encode(), 0, 0)  # H5F_ACC_RDONLY, H5P_DEFAULT
-        if self.fid < 0:
-            raise OSError(f"the HDF5 library cannot open {path}")
-
-    def read(self, name: str) -> np.ndarray:
-        """The dataset ``name`` as float64 (HDF5 converts integer topology too)."""
-        lib = self.lib()
-        dset = lib.H5Dopen2(self.fid, name.encode(), 0)
-        if dset < 0:
-            raise KeyError(f"no dataset {name}")
-        try:
-            space = lib.H5Dget_space(dset)
-            ndims = lib.H5Sget_simple_extent_ndims(space)
-            dims = (ctypes.c_uint64 * max(ndims, 1))()
-            lib.H5Sget_simple_extent_dims(space, dims, None)
-            lib.H5Sclose(space)
-            out = np.empty(tuple(dims[:ndims]), dtype=np.float64)
-            native_double = ctypes.c_int64.in_dll(lib, "H5T_NATIVE_DOUBLE_g").value
-            if lib.H5Dread(dset, native_double, 0, 0, 0, out.ctypes.data) < 0:
-                raise OSError(f"cannot read dataset {name}")
-            return out
-        finally:
-            lib.H5Dclose(dset)
-
-    def close(self) -> None:
-        self.lib().H5Fclose(self.fid)
 
 
 # --- the killed run ---------------------------------------------------------------------------
@@ -155,10 +89,18 @@ def _probe_rows(path: Path) -> int:
         return 0
 
 
+SETTINGS = (
+    "time.end=0.02",
+    f"time.step={DT}",
+    "discretisation.elements=32",
+    "output.xdmf=true",
+    f"output.xdmf_interval={FRAME!r}",
+)  # checkpoints at the default interval: every 2 ms, a tenth of the run
+
+
 def run_and_kill(out: Path, ranks: int) -> None:
     cmd = [PYTHON, "-m", "cosserat_fem.cli", "run", SCENE, "--out", str(out)]
-    settings = ("time.end=0.02", f"time.step={DT}", "discretisation.elements=32")
-    for item in (*settings, "output.xdmf=true", f"output.xdmf_interval={FRAME!r}"):
+    for item in SETTINGS:
         cmd += ["--set", item]
     if ranks > 1:
         mpirun = shutil.which("mpirun")
@@ -216,40 +158,6 @@ def read_probes(path: Path) -> np.ndarray:
     return data
 
 
-def read_xdmf(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """{name: (times, free-end values of each frame, geometry)} after checking every
-    HDF5 reference of the XML against the .h5."""
-    root = ET.parse(path).getroot()  # raises on a cut or empty file
-    h5 = H5File(path.with_suffix(".h5"))
-    try:
-        data = {}
-        for item in root.iter("DataItem"):
-            assert item.get("Format") == "HDF"
-            filename, dataset = item.text.strip().split(":")
-            assert filename == path.with_suffix(".h5").name
-            values = h5.read(dataset)
-            dims = tuple(int(n) for n in item.get("Dimensions").split())
-            assert values.shape == dims, (dataset, values.shape, dims)
-            assert np.isfinite(values).all(), dataset
-            data[dataset] = values
-        domain = root.find("Domain")
-        geometry = domain.find("Grid[@Name='mesh']/Geometry/DataItem").text.split(":")[1]
-        x = data[geometry]
-        tip = int(np.argmax(x[:, 0]))
-        assert x[tip, 0] == 1.0
-        series = {}
-        for name in ("displacement", "angles"):
-            grids = domain.findall(f"Grid[@GridType='Collection'][@Name='{name}']/Grid")
-            times = np.array([float(g.find("Time").get("Value")) for g in grids])
-            tips = np.array(
-                [data[g.find("Attribute/DataItem").text.split(":")[1]][tip] for g in grids]
-            )
-            series[name] = (times, tips.reshape(-1, 3))
-        return series
-    finally:
-        h5.close()
-
-
 @pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=pytest.mark.mpi)])
 def test_sigkill_leaves_readable_outputs(tmp_path, ranks):
     out = tmp_path / "run"
@@ -278,3 +186,29 @@ def test_sigkill_leaves_readable_outputs(tmp_path, ranks):
     assert np.abs(disp - rows[:, 1:4]).max() <= VALUE_TOL
     assert np.abs(ang - rows[:, 4:7]).max() <= VALUE_TOL
     assert np.abs(disp[-1]).max() > 1e-6  # the rod has moved: a real comparison
+
+
+@pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=pytest.mark.mpi)])
+def test_sigkill_then_restart_gives_the_uninterrupted_run(tmp_path, ranks):
+    """``run --restart`` continues the killed run from its last checkpoint (t = 10 ms, the
+    last of every 2 ms before the kill at ~11 ms), cuts probes.csv and the XDMF file back to
+    it and gives the probes and frames of an uninterrupted run, byte for byte
+    (tests/test_restart.py says why equality is the right test)."""
+    out, whole = tmp_path / "killed", tmp_path / "whole"
+    run_and_kill(out, ranks)
+    rows_killed = len(read_probes(out / "probes.csv"))
+    cli = ["-m", "cosserat_fem.cli", "run"]
+    proc = run_command([*cli, "--restart", str(out)], ranks)
+    assert proc.returncode == 0, proc.stderr
+    proc = run_command([*cli, SCENE, "--out", str(whole), *(f"--set={s}" for s in SETTINGS)], ranks)
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "completed" and summary["restarts"] == 1
+    t0 = summary["restarted_from_s"]
+    assert 1000 * DT <= t0 < rows_killed * DT  # rows after the checkpoint were cut, then redone
+    assert (out / "probes.csv").read_bytes() == (whole / "probes.csv").read_bytes()
+    series, reference = read_xdmf(out / "solution.xdmf"), read_xdmf(whole / "solution.xdmf")
+    for name in ("displacement", "angles"):
+        assert len(series[name][0]) == 2000 // STEPS_PER_FRAME + 1
+        for got, expected in zip(series[name], reference[name], strict=True):
+            assert np.array_equal(got, expected)

@@ -15,9 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, inject_newton_failures
 
-from cosserat_fem.newton import NewtonFailure, NewtonSolver
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 
@@ -37,20 +36,11 @@ def undisturbed(tmp_path_factory):
 
 
 def test_injected_newton_failures_are_recovered(tmp_path, monkeypatch, undisturbed):
-    real_solve = NewtonSolver.solve
-    calls = {"n": 0}
     # Solve calls, counting from 1: two a step (SDIRK3). Call 199 is the first of step 100; it
     # and its retry shift later steps by 2 calls: 1200 is the first of step 599, 1201 the first
     # of its first half.
     fail_at = {2 * 99 + 1, 2 * 599 + 2, 2 * 599 + 3}
-
-    def solve(self):
-        calls["n"] += 1
-        if calls["n"] in fail_at:
-            raise NewtonFailure("injected", 0)
-        return real_solve(self)
-
-    monkeypatch.setattr(NewtonSolver, "solve", solve)
+    inject_newton_failures(monkeypatch, fail_at.__contains__)
     summary = run(load_scene(SCENE, OVERRIDES), tmp_path).summary
     assert summary["status"] == "completed"
     assert summary["steps"] == 2000
@@ -70,16 +60,7 @@ def test_injected_newton_failures_are_recovered(tmp_path, monkeypatch, undisturb
 def test_failure_after_max_halvings_keeps_the_outputs(tmp_path, monkeypatch, undisturbed):
     """Every solve from step 50 on fails: the step is halved max_halvings = 3 times, then the
     run stops with the reason and the time, and probes.csv holds the 49 good steps."""
-    real_solve = NewtonSolver.solve
-    calls = {"n": 0}
-
-    def solve(self):
-        calls["n"] += 1
-        if calls["n"] > 2 * 49:
-            raise NewtonFailure("injected", 0)
-        return real_solve(self)
-
-    monkeypatch.setattr(NewtonSolver, "solve", solve)
+    inject_newton_failures(monkeypatch, lambda n: n > 2 * 49)
     with pytest.raises(Exception) as info:
         run(load_scene(SCENE, OVERRIDES + ["time.max_halvings=3"]), tmp_path)
     message = str(info.value)

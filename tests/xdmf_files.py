@@ -1,0 +1,118 @@
+"""Reading a run's XDMF/HDF5 output as ParaView would, without DOLFINx or h5py.
+
+The .h5 files are read with the HDF5 C library that DOLFINx itself uses (ctypes), so a file
+that the HDF5 library cannot open fails the test, as it would in ParaView. Used by
+tests/test_kill.py and tests/test_restart.py.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import re
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+# --- HDF5 through its C library ------------------------------------------------------------
+
+
+class H5File:
+    """Read-only access to the datasets of an HDF5 file (libhdf5 >= 1.10: hid_t is 64-bit)."""
+
+    _lib = None
+
+    @classmethod
+    def lib(cls):
+        if cls._lib is None:
+            for name in ("hdf5_openmpi", "hdf5_mpich", "hdf5_serial", "hdf5"):
+                found = ctypes.util.find_library(name)
+                if found:
+                    break
+            else:
+                pytest.fail("no HDF5 C library found (DOLFINx depends on one: libhdf5-*)")
+            lib = ctypes.CDLL(found)
+            hid = ctypes.c_int64
+            lib.H5Fopen.restype = hid
+            lib.H5Fopen.argtypes = [ctypes.c_char_p, ctypes.c_uint, hid]
+            lib.H5Dopen2.restype = hid
+            lib.H5Dopen2.argtypes = [hid, ctypes.c_char_p, hid]
+            lib.H5Dget_space.restype = hid
+            lib.H5Dget_space.argtypes = [hid]
+            lib.H5Sget_simple_extent_ndims.argtypes = [hid]
+            lib.H5Sget_simple_extent_dims.argtypes = [hid, ctypes.c_void_p, ctypes.c_void_p]
+            lib.H5Dread.argtypes = [hid, hid, hid, hid, hid, ctypes.c_void_p]
+            for fn in ("H5Dclose", "H5Sclose", "H5Fclose"):
+                getattr(lib, fn).argtypes = [hid]
+            lib.H5Eset_auto2.argtypes = [hid, ctypes.c_void_p, ctypes.c_void_p]
+            assert lib.H5open() >= 0
+            lib.H5Eset_auto2(0, None, None)  # no error stack on stderr: we raise instead
+            cls._lib = lib
+        return cls._lib
+
+    def __init__(self, path: Path):
+        lib = self.lib()
+        self.fid = lib.H5Fopen(str(path).encode(), 0, 0)  # H5F_ACC_RDONLY, H5P_DEFAULT
+        if self.fid < 0:
+            raise OSError(f"the HDF5 library cannot open {path}")
+
+    def read(self, name: str) -> np.ndarray:
+        """The dataset ``name`` as float64 (HDF5 converts integer topology too)."""
+        lib = self.lib()
+        dset = lib.H5Dopen2(self.fid, name.encode(), 0)
+        if dset < 0:
+            raise KeyError(f"no dataset {name}")
+        try:
+            space = lib.H5Dget_space(dset)
+            ndims = lib.H5Sget_simple_extent_ndims(space)
+            dims = (ctypes.c_uint64 * max(ndims, 1))()
+            lib.H5Sget_simple_extent_dims(space, dims, None)
+            lib.H5Sclose(space)
+            out = np.empty(tuple(dims[:ndims]), dtype=np.float64)
+            native_double = ctypes.c_int64.in_dll(lib, "H5T_NATIVE_DOUBLE_g").value
+            if lib.H5Dread(dset, native_double, 0, 0, 0, out.ctypes.data) < 0:
+                raise OSError(f"cannot read dataset {name}")
+            return out
+        finally:
+            lib.H5Dclose(dset)
+
+    def close(self) -> None:
+        self.lib().H5Fclose(self.fid)
+
+
+def read_xdmf(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """{name: (times, free-end values of each frame)} of ``displacement`` and ``angles``, after
+    checking every HDF5 reference of the XML: to ``<stem>.h5`` or, after restarts,
+    ``<stem>-restart<n>.h5`` in the same folder, with the XML's dimensions, finite values."""
+    root = ET.parse(path).getroot()  # raises on a cut or empty file
+    allowed = re.compile(re.escape(path.stem) + r"(-restart[0-9]+)?\.h5")
+    files: dict[str, H5File] = {}
+    try:
+        data = {}
+        for item in root.iter("DataItem"):
+            assert item.get("Format") == "HDF"
+            filename, dataset = item.text.strip().split(":")
+            assert allowed.fullmatch(filename), filename
+            if filename not in files:
+                files[filename] = H5File(path.with_name(filename))
+            values = files[filename].read(dataset)
+            dims = tuple(int(n) for n in item.get("Dimensions").split())
+            assert values.shape == dims, (dataset, values.shape, dims)
+            assert np.isfinite(values).all(), dataset
+            data[item.text.strip()] = values
+        domain = root.find("Domain")
+        x = data[domain.find("Grid[@Name='mesh']/Geometry/DataItem").text.strip()]
+        tip = int(np.argmax(x[:, 0]))
+        assert x[tip, 0] == 1.0
+        series = {}
+        for name in ("displacement", "angles"):
+            grids = domain.findall(f"Grid[@GridType='Collection'][@Name='{name}']/Grid")
+            times = np.array([float(g.find("Time").get("Value")) for g in grids])
+            tips = np.array([data[g.find("Attribute/DataItem").text.strip()][tip] for g in grids])
+            series[name] = (times, tips.reshape(-1, 3))
+        return series
+    finally:
+        for h5 in files.values():
+            h5.close()
