@@ -34,6 +34,8 @@ CANTILEVER_EIGENVALUE = 1.875
 #: Relative tolerance for "is an integer number of time steps".
 STEP_TOLERANCE = 1e-9
 CHECKPOINTS_PER_RUN = 10  # output.checkpoint_interval = "auto"
+#: What output.fields may ask the XDMF file to hold (cosserat_fem/output.py).
+XDMF_FIELDS = ("displacement", "angles", "strains", "forces")
 
 _EXCLUSIVE = ("rod.material.poisson_ratio", "rod.material.shear_modulus")
 
@@ -179,6 +181,7 @@ class Output:
     directory: str
     xdmf: bool
     xdmf_interval: float
+    fields: tuple[str, ...] = XDMF_FIELDS
     checkpoint: bool = True
     checkpoint_interval: float = 0.0
 
@@ -379,6 +382,23 @@ class _Vector(_Field):
         return list(value)
 
 
+@dataclass(frozen=True, kw_only=True)
+class _ChoiceList(_Field):
+    """A list of distinct strings, each one of ``choices`` (kept in the given order)."""
+
+    choices: tuple[str, ...] = ()
+
+    def describe(self) -> str:
+        return "a list of distinct strings from " + ", ".join(show_value(c) for c in self.choices)
+
+    def check(self, key: str, value: Any) -> Any:
+        if not isinstance(value, list | tuple) or len(set(map(str, value))) != len(value):
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        for i, item in enumerate(value):
+            _Choice(choices=self.choices).check(f"{key}[{i}]", item)
+        return tuple(value)
+
+
 @dataclass(frozen=True)
 class _Table:
     """A table of fields; an ``optional`` table resolves to None when absent."""
@@ -509,6 +529,7 @@ SCHEMA = _Table(
                 "directory": _Text(default="results", non_empty=True),
                 "xdmf": _Flag(default=True),
                 "xdmf_interval": _Number(default=0.0, interval=NON_NEGATIVE, unit="s"),
+                "fields": _ChoiceList(choices=XDMF_FIELDS, default=XDMF_FIELDS),
                 "checkpoint": _Flag(default=True),
                 "checkpoint_interval": _Number(
                     default="auto", interval=NON_NEGATIVE, unit="s", auto=True
@@ -802,7 +823,12 @@ def _build_output(raw: dict[str, Any], time: Time) -> Output:
             f"multiple of time.step = {time.step!r} [s], got {show_value(checkpoint_interval)}"
         )
     return Output(
-        raw["directory"], raw["xdmf"], interval, raw["checkpoint"], float(checkpoint_interval)
+        raw["directory"],
+        raw["xdmf"],
+        interval,
+        raw["fields"],
+        raw["checkpoint"],
+        float(checkpoint_interval),
     )
 
 
@@ -909,6 +935,6 @@ def _scene_to_dict(scene: Scene) -> dict[str, Any]:
         "time": _fields(scene.time),
         "discretisation": _fields(scene.discretisation),
         "solver": _fields(scene.solver),
-        "output": _fields(scene.output),
+        "output": {**_fields(scene.output), "fields": list(scene.output.fields)},
         "static": _fields(scene.static),
     }
