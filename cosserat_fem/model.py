@@ -20,12 +20,20 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .forms.general_form import DistributedLoads, EndLoadConvention, EndLoads, residual_terms
+from .forms.general_form import (
+    DistributedLoads,
+    EndLoadConvention,
+    EndLoads,
+    ViscousDamping,
+    residual_terms,
+)
 from .forms.groups import Groups, RodConstants, dimensionless_groups
-from .forms.section import Section, rectangle
+from .forms.section import Section
 from .scene import Scene
 
 START_TAG, END_TAG = 1, 2
+#: The components of U = (p, q) a pinned end holds: x, y, z, φ and their rates.
+PINNED_COMPONENTS = (0, 1, 2, 5, 6, 7, 8, 11)
 
 
 def _drop_build_chatter(record: logging.LogRecord) -> bool:
@@ -45,10 +53,7 @@ def quiet_jit_logging() -> None:
 
 
 def section_of(scene: Scene) -> Section:
-    spec = scene.rod.section
-    if spec.shape != "rectangle":
-        raise ValueError(f"unsupported section shape {spec.shape!r}")
-    return rectangle(spec.a, spec.b, spec.shear_coefficient, spec.torsion_constant)
+    return scene.rod.section.constants()
 
 
 def rod_constants(scene: Scene) -> RodConstants:
@@ -115,8 +120,13 @@ class RodModel:
         """The scene's loads at τ = time_eval as UFL vectors (absent ones are None)."""
         sym = self._symbols(time_eval)
         loads = self.scene.loads
+        force = self._vector(loads.force_density, sym)
+        if loads.has_gravity:  # the weight density ρ A g [N/m]
+            weight = self.rod.density * self.rod.section.area
+            gravity = self.load_factor * ufl.as_vector([weight * g for g in loads.gravity])
+            force = gravity if force is None else force + gravity
         distributed = DistributedLoads(
-            force=self._vector(loads.force_density, sym),
+            force=force,
             torque=self._vector(loads.torque_density, sym),
         )
         ends = []
@@ -136,9 +146,32 @@ class RodModel:
         """The terms of (65); ``test`` defaults to the test function of the 12-component space."""
         distributed, ends = self.load_vectors(time_eval)
         V = ufl.TestFunction(self.V) if test is None else test
+        d = self.scene.damping
+        damping = ViscousDamping(d.translational, d.rotational, self.omega0) if d.active else None
         return residual_terms(
-            U_eval, Udot_eval, V, self.groups, self.dx, distributed, ends, self.convention
+            U_eval, Udot_eval, V, self.groups, self.dx, distributed, ends, self.convention, damping
         )
+
+    def initial_state(self) -> np.ndarray:
+        """U at time.start from the scene's [initial] fields (zero where none is given):
+        p = (x/ℓ, y/ℓ, z/ℓ, θ, ψ, φ), q = dp/dτ = (ẋ/(ℓ ω0), ..., θ̇/ω0, ...)."""
+        U = fem.Function(self.V)
+        given = self.scene.initial.fields()
+        if given:
+            values = dict(self.scene.expression_names())
+            x = self.V.tabulate_dof_coordinates()[:, 0] * self.length  # s at the nodes
+            state = np.zeros((len(x), 12))
+            scale = {"displacement": 1.0 / self.length, "angles": 1.0}
+            scale["velocity"] = 1.0 / (self.length * self.omega0)
+            scale["angle_rates"] = 1.0 / self.omega0
+            first = {"displacement": 0, "angles": 3, "velocity": 6, "angle_rates": 9}
+            for name, vector in given.items():
+                for i, e in enumerate(vector):
+                    state[:, first[name] + i] = scale[name] * np.broadcast_to(
+                        np.asarray(e.evaluate(s=x, **values), dtype=float), x.shape
+                    )
+            U.x.array[:] = state.reshape(-1)
+        return U.x.array
 
 
 def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> RodModel:
@@ -164,6 +197,10 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> RodModel:
         if kind == "clamped":
             dofs = fem.locate_dofs_topological(V, 0, ents)
             bcs.append(fem.dirichletbc(np.zeros(12, dtype=np.float64), dofs, V))
+        elif kind == "pinned":  # x, y, z, φ and their rates held; θ, ψ free
+            for i in PINNED_COMPONENTS:
+                dofs = fem.locate_dofs_topological(V.sub(i), 0, ents)
+                bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), dofs, V.sub(i)))
 
     # FFCx 0.5 reads the quadrature degree from the measure's metadata only; a
     # form_compiler_params={"quadrature_degree": q} is silently ignored.
@@ -179,6 +216,8 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> RodModel:
         )
         if exprs is None or all(e.is_zero for e in exprs)
     ]
+    skipped += [] if scene.loads.has_gravity else ["gravity"]
+    skipped += [] if scene.damping.active else ["damping"]
     return RodModel(
         scene=scene,
         msh=msh,

@@ -20,12 +20,13 @@ import keyword
 import math
 import tomllib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from cosserat_fem.errors import SceneError, show_value
 from cosserat_fem.expressions import RESERVED_NAMES, Expression, parse_vector
+from cosserat_fem.forms.section import Section, cowper_circle, rectangle, tube
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
 SCENE_CONSTANTS = ("L", "omega0")
@@ -36,6 +37,7 @@ STEP_TOLERANCE = 1e-9
 CHECKPOINTS_PER_RUN = 10  # output.checkpoint_interval = "auto"
 #: What output.fields may ask the XDMF file to hold (cosserat_fem/output.py).
 XDMF_FIELDS = ("displacement", "angles", "strains", "forces")
+SUPPORTS = ("clamped", "free", "pinned")
 
 _EXCLUSIVE = ("rod.material.poisson_ratio", "rod.material.shear_modulus")
 
@@ -43,13 +45,53 @@ _EXCLUSIVE = ("rod.material.poisson_ratio", "rod.material.shear_modulus")
 # ======================================================================= resolved scene objects
 @dataclass(frozen=True)
 class SectionSpec:
-    """Cross-section: ``a`` along d1 (thickness), ``b`` along d2 (width), both in m."""
+    """Cross-section, SI units, by ``shape`` (the keys of :data:`SECTION_KEYS`):
+
+    * rectangle: ``a`` along d1 (thickness), ``b`` along d2 (width) [m], c33 by the
+      ``torsion_constant`` rule (the Saint-Venant series, or the paper's approximation);
+    * circle: ``diameter`` [m]; tube: ``outer_diameter``, ``inner_diameter`` [m];
+    * constants: ``area`` [m²], ``c11``, ``c22``, ``c33`` [m⁴] given explicitly.
+
+    ``shear_coefficient`` κ is resolved: given, or 5/6 (rectangle) or Cowper's value for ν
+    (circle, tube); "constants" needs it given.
+    """
 
     shape: str
-    a: float
-    b: float
     shear_coefficient: float
-    torsion_constant: str
+    a: float | None = None
+    b: float | None = None
+    torsion_constant: str | None = None
+    diameter: float | None = None
+    outer_diameter: float | None = None
+    inner_diameter: float | None = None
+    area: float | None = None
+    c11: float | None = None
+    c22: float | None = None
+    c33: float | None = None
+
+    def constants(self) -> Section:
+        """A, c11, c22, c33, κ (cosserat_fem.forms.section)."""
+        k = self.shear_coefficient
+        if self.shape == "rectangle":
+            return rectangle(self.a, self.b, k, self.torsion_constant)
+        if self.shape == "circle":
+            return tube(self.diameter, 0.0, k)
+        if self.shape == "tube":
+            return tube(self.outer_diameter, self.inner_diameter, k)
+        return Section(self.area, self.c11, self.c22, self.c33, k)
+
+    def given(self) -> dict[str, Any]:
+        """The keys of this shape (for to_dict)."""
+        return {k: v for k, v in vars(self).items() if v is not None}
+
+
+#: The keys each section shape takes besides ``shape`` and ``shear_coefficient``.
+SECTION_KEYS = {
+    "rectangle": ("a", "b", "torsion_constant"),
+    "circle": ("diameter",),
+    "tube": ("outer_diameter", "inner_diameter"),
+    "constants": ("area", "c11", "c22", "c33"),
+}
 
 
 @dataclass(frozen=True)
@@ -91,7 +133,9 @@ class Model:
 
 @dataclass(frozen=True)
 class Supports:
-    """Support of each end: "clamped" or "free"."""
+    """Support of each end: "clamped" (p = q = 0), "free" (natural conditions), or "pinned":
+    a fork bearing, the position and the twist φ held, the bending angles θ, ψ free (the end
+    torque about d1, d2 is the given end torque, zero by default)."""
 
     start: str
     end: str
@@ -113,6 +157,44 @@ class Loads:
     torque_density: tuple[Expression, ...]
     start: EndLoad | None
     end: EndLoad | None
+    gravity: tuple[float, float, float] = (0.0, 0.0, 0.0)  # m/s², adds ρ A g to the force
+
+    @property
+    def has_gravity(self) -> bool:
+        return any(g != 0.0 for g in self.gravity)
+
+
+@dataclass(frozen=True)
+class Damping:
+    """Viscous damping densities: force −c_t ṙ [N/m] with ``translational`` c_t [N s/m²], and
+    torque −c_r ω [N m/m] with ``rotational`` c_r [N s] (ω the angular velocity). For a
+    slender rod c_t damps every bending mode alike: ζ_n = c_t / (2 ρ A ω_n)."""
+
+    translational: float = 0.0
+    rotational: float = 0.0
+
+    @property
+    def active(self) -> bool:
+        return self.translational > 0.0 or self.rotational > 0.0
+
+
+@dataclass(frozen=True)
+class Initial:
+    """The state at time.start as functions of s [m] (None: at rest, straight): position
+    displacement [m], angles (θ, ψ, φ) [rad], velocity [m/s], angle rates [rad/s]."""
+
+    displacement: tuple[Expression, ...] | None = None
+    angles: tuple[Expression, ...] | None = None
+    velocity: tuple[Expression, ...] | None = None
+    angle_rates: tuple[Expression, ...] | None = None
+
+    def fields(self) -> dict[str, tuple[Expression, ...]]:
+        """The fields given, non-zero, by name."""
+        return {
+            name: value
+            for name, value in vars(self).items()
+            if value is not None and not all(e.is_zero for e in value)
+        }
 
 
 @dataclass(frozen=True)
@@ -207,6 +289,8 @@ class Scene:
     solver: Solver
     output: Output
     static: Static = field(default_factory=lambda: Static(1, 10, 0.0))
+    damping: Damping = field(default_factory=Damping)
+    initial: Initial = field(default_factory=Initial)
     source: str = field(default="<dict>", compare=False)
 
     @property
@@ -225,9 +309,10 @@ class Scene:
 
 
 def auto_reference_frequency(rod: Rod) -> float:
-    """ω0 = 1.875² / L² · sqrt(E c22 / (ρ A)), c22 = b a³/12, A = a b (paper, §6)."""
-    a, b = rod.section.a, rod.section.b
-    c22, area = b * a**3 / 12.0, a * b
+    """ω0 = 1.875² / L² · sqrt(E c22 / (ρ A)) (paper, §6: c22 = b a³/12, A = a b for its
+    rectangle): the first cantilever bending frequency about d2."""
+    section = rod.section.constants()
+    c22, area = section.c22, section.area
     stiffness = rod.material.young_modulus * c22 / (rod.material.density * area)
     return CANTILEVER_EIGENVALUE**2 / rod.length**2 * math.sqrt(stiffness)
 
@@ -431,14 +516,19 @@ SCHEMA = _Table(
                 "length": _Number(required=True, interval=POSITIVE, unit="m"),
                 "section": _Table(
                     {
-                        "shape": _Choice(choices=("rectangle",), default="rectangle"),
-                        "a": _Number(required=True, interval=POSITIVE, unit="m"),
-                        "b": _Number(required=True, interval=POSITIVE, unit="m"),
+                        "shape": _Choice(choices=tuple(SECTION_KEYS), default="rectangle"),
+                        "a": _Number(interval=POSITIVE, unit="m"),
+                        "b": _Number(interval=POSITIVE, unit="m"),
+                        "torsion_constant": _Choice(choices=("series", "approximate")),
+                        "diameter": _Number(interval=POSITIVE, unit="m"),
+                        "outer_diameter": _Number(interval=POSITIVE, unit="m"),
+                        "inner_diameter": _Number(interval=NON_NEGATIVE, unit="m"),
+                        "area": _Number(interval=POSITIVE, unit="m^2"),
+                        "c11": _Number(interval=POSITIVE, unit="m^4"),
+                        "c22": _Number(interval=POSITIVE, unit="m^4"),
+                        "c33": _Number(interval=POSITIVE, unit="m^4"),
                         "shear_coefficient": _Number(
-                            default=5.0 / 6.0, interval=_Interval(0.0, 1.0, lo_open=True)
-                        ),
-                        "torsion_constant": _Choice(
-                            choices=("series", "approximate"), default="series"
+                            default="auto", interval=_Interval(0.0, 1.0, lo_open=True), auto=True
                         ),
                     }
                 ),
@@ -466,8 +556,8 @@ SCHEMA = _Table(
         ),
         "supports": _Table(
             {
-                "start": _Choice(choices=("clamped", "free"), default="clamped"),
-                "end": _Choice(choices=("free", "clamped"), default="free"),
+                "start": _Choice(choices=SUPPORTS, default="clamped"),
+                "end": _Choice(choices=SUPPORTS, default="free"),
             }
         ),
         "loads": _Table(
@@ -476,6 +566,21 @@ SCHEMA = _Table(
                 "torque_density": _Vector(default=_ZERO3, unit="N m/m"),
                 "start": _END_LOAD,
                 "end": _END_LOAD,
+                "gravity": _Vector(default=_ZERO3, unit="m/s^2"),
+            }
+        ),
+        "damping": _Table(
+            {
+                "translational": _Number(default=0.0, interval=NON_NEGATIVE, unit="N s/m^2"),
+                "rotational": _Number(default=0.0, interval=NON_NEGATIVE, unit="N s"),
+            }
+        ),
+        "initial": _Table(
+            {
+                "displacement": _Vector(default=_ZERO3, unit="m"),
+                "angles": _Vector(default=_ZERO3, unit="rad"),
+                "velocity": _Vector(default=_ZERO3, unit="m/s"),
+                "angle_rates": _Vector(default=_ZERO3, unit="rad/s"),
             }
         ),
         "time": _Table(
@@ -685,8 +790,39 @@ def _set_path(data: dict[str, Any], path: list[str], value: Any) -> None:
 
 
 # ==================================================================================== building
+def _build_section(raw: dict[str, Any], poisson_ratio: float) -> SectionSpec:
+    shape = raw["shape"]
+    keys = SECTION_KEYS[shape]
+    for name, value in raw.items():
+        if value is not None and name not in (*keys, "shape", "shear_coefficient"):
+            raise SceneError(
+                f"rod.section.{name}: not a key of shape {shape!r}, which takes "
+                f"{', '.join(keys)} (and shear_coefficient)"
+            )
+    values = dict(raw)
+    if shape == "rectangle" and values["torsion_constant"] is None:
+        values["torsion_constant"] = "series"
+    for name in keys:
+        if values[name] is None:
+            raise SceneError(f"rod.section.{name}: required for shape {shape!r} (a number > 0)")
+    if shape == "tube" and not values["inner_diameter"] < values["outer_diameter"]:
+        raise SceneError(
+            f"rod.section.inner_diameter: must be < outer_diameter = "
+            f"{_fmt(values['outer_diameter'])} [m], got {show_value(values['inner_diameter'])}"
+        )
+    if values["shear_coefficient"] == "auto":
+        if shape == "constants":
+            raise SceneError(
+                'rod.section.shear_coefficient: required for shape "constants" (in (0, 1])'
+            )
+        ratio = values["inner_diameter"] / values["outer_diameter"] if shape == "tube" else 0.0
+        values["shear_coefficient"] = (
+            5.0 / 6.0 if shape == "rectangle" else cowper_circle(poisson_ratio, ratio)
+        )
+    return SectionSpec(**values)
+
+
 def _build_rod(raw: dict[str, Any]) -> Rod:
-    section = SectionSpec(**raw["section"])
     mat = raw["material"]
     nu, g = mat["poisson_ratio"], mat["shear_modulus"]
     if (nu is None) == (g is None):
@@ -700,7 +836,8 @@ def _build_rod(raw: dict[str, Any]) -> Rod:
             f"(> 0, Pa) must be given, but {state}"
         )
     material = Material(mat["density"], mat["young_modulus"], nu, g)
-    return Rod(raw["length"], section, material)
+    poisson = material.young_modulus / (2.0 * material.shear_modulus) - 1.0
+    return Rod(raw["length"], _build_section(raw["section"], poisson), material)
 
 
 def _build_model(raw: dict[str, Any]) -> Model:
@@ -714,11 +851,12 @@ def _build_model(raw: dict[str, Any]) -> Model:
 
 
 def _build_supports(raw: dict[str, Any]) -> Supports:
-    if raw["start"] == "free" and raw["end"] == "free":
+    kinds = (raw["start"], raw["end"])
+    if "clamped" not in kinds and kinds != ("pinned", "pinned"):
         raise SceneError(
-            'supports: at least one end must be "clamped" (supports.start or supports.end); '
-            "a free-free rod has rigid-body modes and the problem is singular, "
-            'got start = "free", end = "free"'
+            'supports: one end must be "clamped", or both "pinned"; otherwise the rod has '
+            "rigid-body motions (a free or pendulum mechanism) and the problem is singular, "
+            f'got start = "{kinds[0]}", end = "{kinds[1]}"'
         )
     return Supports(raw["start"], raw["end"])
 
@@ -730,7 +868,42 @@ def _build_loads(raw: dict[str, Any], supports: Supports, constants: set[str]) -
     ends = {}
     for end in ("start", "end"):
         ends[end] = _build_end_load(raw[end], end, getattr(supports, end), names)
-    return Loads(force, torque, ends["start"], ends["end"])
+    gravity = _constant_vector(raw["gravity"], constants, "loads.gravity")
+    return Loads(force, torque, ends["start"], ends["end"], gravity)
+
+
+def _constant_vector(raw: list, constants: set[str], key: str) -> tuple[float, float, float]:
+    """Three numbers (expressions of the constants only)."""
+    vector = parse_vector(raw, set(constants), key)
+    return tuple(float(e.evaluate()) for e in vector)
+
+
+def _build_initial(raw: dict[str, Any], supports: Supports, values: dict[str, float]) -> Initial:
+    """Initial fields of s [m]; at a support they must vanish where it holds the rod (else the
+    first step would jump to the support's values): all six of p and q at a clamped end,
+    position, velocity, φ and its rate at a pinned one."""
+    fields = {}
+    for name in ("displacement", "angles", "velocity", "angle_rates"):
+        vector = parse_vector(raw[name], {"s", *values}, f"initial.{name}")
+        fields[name] = None if all(e.is_zero for e in vector) else vector
+    length = values["L"]
+    for end, s_end in (("start", 0.0), ("end", length)):
+        kind = getattr(supports, end)
+        held = {"clamped": (0, 1, 2), "pinned": (0, 1, 2)}.get(kind, ())
+        for name, vector in fields.items():
+            if vector is None:
+                continue
+            components = held if name in ("displacement", "velocity") or kind == "clamped" else ()
+            if kind == "pinned" and name in ("angles", "angle_rates"):
+                components = (2,)
+            for i in components:
+                value = float(vector[i].evaluate(s=s_end, **values))
+                if abs(value) > 1e-12 * max(1.0, abs(length)):
+                    raise SceneError(
+                        f"initial.{name}[{i}]: must vanish at the {kind} {end} (s = "
+                        f"{_fmt(s_end)} m), got {value:.6g} from {show_value(vector[i].source)}"
+                    )
+    return Initial(**fields)
 
 
 def _build_end_load(
@@ -739,9 +912,9 @@ def _build_end_load(
     if raw is None:
         return None
     key = f"loads.{end}"
-    if support != "free":
+    if support == "clamped":
         raise SceneError(
-            f"{key}: end loads are only allowed on a free end, "
+            f"{key}: end loads are only allowed on a free or pinned end, "
             f'but supports.{end} = "{support}" (remove [{key}] or set supports.{end} = "free")'
         )
     vectors = {}
@@ -754,6 +927,11 @@ def _build_end_load(
                     f"not on the arc length s, got {show_value(component.source)}"
                 )
         vectors[name] = vector
+    if support == "pinned" and not all(e.is_zero for e in vectors["force"]):
+        raise SceneError(
+            f"{key}.force: a pinned end holds its position, so an end force there is taken by "
+            "the support; give only an end torque (about e1, e2; the twist is held too)"
+        )
     return EndLoad(vectors["force"], vectors["torque"])
 
 
@@ -847,7 +1025,7 @@ def scene_from_dict(
     supports = _build_supports(raw["supports"])
     loads = _build_loads(raw["loads"], supports, {*SCENE_CONSTANTS, *parameters})
     time = _build_time(raw["time"])
-    return Scene(
+    scene = Scene(
         title=raw["title"],
         parameters=parameters,
         rod=rod,
@@ -859,8 +1037,11 @@ def scene_from_dict(
         solver=Solver(**raw["solver"]),
         output=_build_output(raw["output"], time),
         static=Static(**raw["static"]),
+        damping=Damping(**raw["damping"]),
         source=source,
     )
+    initial = _build_initial(raw["initial"], supports, scene.expression_names())
+    return replace(scene, initial=initial)
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:
@@ -910,6 +1091,7 @@ def _loads_dict(loads: Loads) -> dict[str, Any]:
         load = getattr(loads, end)
         if load is not None:
             out[end] = _end_load_dict(load)
+    out["gravity"] = list(loads.gravity)
     return out
 
 
@@ -926,7 +1108,7 @@ def _scene_to_dict(scene: Scene) -> dict[str, Any]:
         "parameters": dict(scene.parameters),
         "rod": {
             "length": scene.rod.length,
-            "section": _fields(scene.rod.section),
+            "section": scene.rod.section.given(),
             "material": _material_dict(scene.rod.material),
         },
         "model": model,
@@ -937,4 +1119,6 @@ def _scene_to_dict(scene: Scene) -> dict[str, Any]:
         "solver": _fields(scene.solver),
         "output": {**_fields(scene.output), "fields": list(scene.output.fields)},
         "static": _fields(scene.static),
+        "damping": _fields(scene.damping),
+        "initial": {k: _vector(v) for k, v in vars(scene.initial).items() if v is not None},
     }

@@ -489,6 +489,8 @@ def run(
         model.U.x.array[:] = restart.parts["state"]["U"]
     elif initial_state is not None:
         model.U.x.array[:] = initial_state
+    elif scene.initial.fields():
+        model.U.x.array[:] = model.initial_state()
     tspan = scene.time
     omega0 = model.omega0
     integrator = make_integrator(

@@ -86,6 +86,17 @@ class EndLoads:
     torque: ufl.core.expr.Expr | None = None
 
 
+@dataclass(frozen=True)
+class ViscousDamping:
+    """Viscous damping densities in SI units: force f_d = −c_t ṙ [N/m] (``translational`` c_t
+    [N s/m²]) and torque l_d = −c_r ω [N m/m] (``rotational`` c_r [N s]), ω = ω0 ŵ the angular
+    velocity (26); ``omega0`` [rad/s] converts the rates: ṙ = ℓ ω0 (q1, q2, q3)."""
+
+    translational: float
+    rotational: float
+    omega0: float
+
+
 @dataclass
 class Source:
     """The source g of (67), split by origin; each part is a UFL 6-vector."""
@@ -192,6 +203,26 @@ def source(p, dp, q, G: Groups, loads: DistributedLoads | None = None) -> Source
     return Source(inertial=inertial, elastic=elastic, load=load)
 
 
+def damping_source(p, q, G: Groups, damping: ViscousDamping) -> ufl.core.expr.Expr:
+    """The damping densities as rows of g (67), like the loads: (g0 f_d, g_i l_d,i) with
+    f_d = −c_t ℓ ω0 (q1, q2, q3) in the fixed basis and l_d,i = −c_r ω0 ŵ_i in the directors
+    (a torque density enters row 3 + i through d_i · l, (38)). The power they take,
+    −∫ (c_t |ṙ|² + c_r |ω|²) ds ≤ 0, is the energy's loss rate."""
+    w = angular_velocity(p, q)
+    ct = damping.translational * G.length * damping.omega0 * G.g0
+    cr = damping.rotational * damping.omega0
+    return ufl.as_vector(
+        [
+            -ct * q[0],
+            -ct * q[1],
+            -ct * q[2],
+            -cr * G.g1 * w[0],
+            -cr * G.g2 * w[1],
+            -cr * G.g3 * w[2],
+        ]
+    )
+
+
 def end_data(p, G: Groups, end: EndLoads, convention: EndLoadConvention) -> ufl.core.expr.Expr:
     """Free-end data g_b of (62), corrected (module docstring); l^b_i = d_i · l^b by (43)."""
     sign = END_LOAD_SIGNS[convention.sign]
@@ -217,6 +248,7 @@ def residual_terms(
     loads: DistributedLoads | None = None,
     end_loads: tuple[EndLoads, ...] = (),
     convention: EndLoadConvention = EndLoadConvention(),
+    damping: ViscousDamping | None = None,
 ) -> ResidualTerms:
     """The weak residual of (65) (module docstring), term by term.
 
@@ -242,12 +274,16 @@ def residual_terms(
             continue
         term = -ufl.inner(end_data(p, G, end, convention), vq) * end.ds
         end_form = term if end_form is None else end_form + term
+    extra = {}
+    if damping is not None:
+        extra["damping"] = -ufl.inner(damping_source(p, q, G, damping), vq) * dx
     return ResidualTerms(
         kinematic=kinematic,
         inertia=inertia,
         elastic=elastic,
         distributed_load=distributed,
         end_load=end_form,
+        extra=extra,
     )
 
 
@@ -257,6 +293,8 @@ __all__ = [
     "EndLoads",
     "ResidualTerms",
     "Source",
+    "ViscousDamping",
+    "damping_source",
     "end_data",
     "flux",
     "mass_matrix",

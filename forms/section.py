@@ -1,6 +1,8 @@
 """Cross-section constants of Cao & Tucker (2008), eq. (46) and the text after it.
 
-Conventions (paper, eqs. (11) and (46)): the director d1 points across the dimension ``a``
+Shapes: the paper's rectangle (:func:`rectangle`), the circle and circular tube (:func:`tube`),
+or the constants given explicitly (:class:`Section`). Rectangle conventions (paper, eqs. (11)
+and (46)): the director d1 points across the dimension ``a``
 (the thickness), d2 across ``b`` (the width). Then
 
 * c11 = ∫ η² dA = a b³ / 12   (bending about d1: displacement y, angle θ),
@@ -66,5 +68,29 @@ def rectangle(
         c11=a * b**3 / 12.0,
         c22=b * a**3 / 12.0,
         c33=rectangle_torsion_constant(a, b, torsion_rule),
+        shear_coefficient=shear_coefficient,
+    )
+
+
+def cowper_circle(poisson_ratio: float, ratio: float = 0.0) -> float:
+    """Cowper's (1966) shear coefficient of a circular tube with inner/outer diameter ratio
+    m (m = 0: the solid circle, 6(1+ν)/(7+6ν)):
+    κ = 6 (1+ν)(1+m²)² / [(7+6ν)(1+m²)² + (20+12ν) m²]."""
+    nu, m2 = poisson_ratio, ratio * ratio
+    numerator = 6.0 * (1.0 + nu) * (1.0 + m2) ** 2
+    return numerator / ((7.0 + 6.0 * nu) * (1.0 + m2) ** 2 + (20.0 + 12.0 * nu) * m2)
+
+
+def tube(outer_diameter: float, inner_diameter: float, shear_coefficient: float) -> Section:
+    """Circular tube (inner diameter 0: the solid circle): A = π (D² − d²)/4,
+    c11 = c22 = π (D⁴ − d⁴)/64, and the torsion constant of a circular section is its polar
+    moment, c33 = c11 + c22 = π (D⁴ − d⁴)/32 (no warping)."""
+    D, d = outer_diameter, inner_diameter
+    second_moment = math.pi * (D**4 - d**4) / 64.0
+    return Section(
+        area=math.pi * (D * D - d * d) / 4.0,
+        c11=second_moment,
+        c22=second_moment,
+        c33=2.0 * second_moment,
         shear_coefficient=shear_coefficient,
     )
