@@ -454,6 +454,99 @@ class Expression:
         return _walk(self.tree, lambda n: self._leaf(n, env), apply)
 
 
+# ------------------------------------------------------------------------------- derivative
+_ZERO, _ONE = ("num", 0.0), ("num", 1.0)
+
+
+def _add(a: Node, b: Node) -> Node:
+    return b if a == _ZERO else a if b == _ZERO else ("add", a, b)
+
+
+def _sub(a: Node, b: Node) -> Node:
+    return a if b == _ZERO else ("neg", b) if a == _ZERO else ("sub", a, b)
+
+
+def _mul(a: Node, b: Node) -> Node:
+    if _ZERO in (a, b):
+        return _ZERO
+    return b if a == _ONE else a if b == _ONE else ("mul", a, b)
+
+
+def _div(a: Node, b: Node) -> Node:
+    return _ZERO if a == _ZERO else a if b == _ONE else ("div", a, b)
+
+
+def _call(name: str, *args: Node) -> Node:
+    return ("call", name, *args)
+
+
+def _step(x: Node) -> Node:
+    return _call("heaviside", x)
+
+
+def _derivative(node: Node, name: str) -> Node:
+    """d node / d name as a tree (zeros folded). heaviside' = 0: a jump has no derivative
+    here, so a prescribed motion with a step gets no velocity at the step."""
+    kind = node[0]
+    if kind == "num":
+        return _ZERO
+    if kind == "var":
+        return _ONE if node[1] == name else _ZERO
+    if kind in ("add", "sub"):
+        da, db = (_derivative(c, name) for c in node[1:])
+        return _add(da, db) if kind == "add" else _sub(da, db)
+    if kind in ("neg", "pos"):
+        d = _derivative(node[1], name)
+        return d if kind == "pos" or d == _ZERO else ("neg", d)
+    if kind == "mul":
+        a, b = node[1:]
+        return _add(_mul(_derivative(a, name), b), _mul(a, _derivative(b, name)))
+    if kind == "div":
+        a, b = node[1:]
+        da, db = _derivative(a, name), _derivative(b, name)
+        return _sub(_div(da, b), _div(_mul(a, db), ("mul", b, b)))
+    if kind == "pow":
+        a, b = node[1:]
+        da, db = _derivative(a, name), _derivative(b, name)
+        if db == _ZERO:  # a^b, b free of the variable: b a^(b−1) a'
+            return _mul(_mul(b, ("pow", a, ("sub", b, _ONE))), da)
+        return _mul(node, _add(_mul(db, _call("log", a)), _div(_mul(b, da), a)))
+    fname, args = node[1], node[2:]
+    if fname in ("min", "max"):
+        a, b = args
+        first = _step(("sub", b, a) if fname == "min" else ("sub", a, b))
+        return _add(
+            _mul(first, _derivative(a, name)),
+            _mul(("sub", _ONE, first), _derivative(b, name)),
+        )
+    (a,) = args
+    da = _derivative(a, name)
+    if da == _ZERO or fname == "heaviside":
+        return _ZERO
+    outer = {
+        "sin": lambda: _call("cos", a),
+        "cos": lambda: ("neg", _call("sin", a)),
+        "tan": lambda: ("div", _ONE, ("pow", _call("cos", a), ("num", 2.0))),
+        "asin": lambda: ("div", _ONE, _call("sqrt", ("sub", _ONE, ("mul", a, a)))),
+        "acos": lambda: ("neg", ("div", _ONE, _call("sqrt", ("sub", _ONE, ("mul", a, a))))),
+        "atan": lambda: ("div", _ONE, ("add", _ONE, ("mul", a, a))),
+        "sinh": lambda: _call("cosh", a),
+        "cosh": lambda: _call("sinh", a),
+        "tanh": lambda: ("div", _ONE, ("pow", _call("cosh", a), ("num", 2.0))),
+        "exp": lambda: node,
+        "log": lambda: ("div", _ONE, a),
+        "sqrt": lambda: ("div", _ONE, ("mul", ("num", 2.0), node)),
+        "abs": lambda: ("sub", _step(a), _step(("neg", a))),
+        "ramp": lambda: _step(a),
+    }[fname]()
+    return _mul(outer, da)
+
+
+def derivative(expr: Expression, name: str) -> Expression:
+    """d expr / d name, an Expression of the same names (its source reads "d/dt(...)")."""
+    return Expression(f"d/d{name}({expr.source})", expr.names, _derivative(expr.tree, name))
+
+
 def parse_vector(
     value: object, allowed_names: Iterable[str] | None, key: str
 ) -> tuple[Expression, Expression, Expression]:

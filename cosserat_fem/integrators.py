@@ -63,6 +63,7 @@ class Integrator:
         self.time_eval = _constant(U, time)
         self._factory = residual
         self.steps_taken = 0
+        self.unknown_time = self.time  # τ of the unknown U in the current solve
 
     def residual_form(self) -> ufl.Form:
         raise NotImplementedError
@@ -117,6 +118,7 @@ class Static(Integrator):
 
     def prepare(self, h: float) -> None:
         self.time_eval.value = self.time + h
+        self.unknown_time = self.time + h
 
 
 class BDF2(Integrator):
@@ -143,6 +145,7 @@ class BDF2(Integrator):
         return self._factory(U_eval, Udot, self.time_eval)
 
     def prepare(self, h: float) -> None:
+        self.unknown_time = self.time + h
         if self.h_prev is None:  # implicit-midpoint start
             self.mid.value = 1.0
             self.a0.value, self.a1.value, self.a2.value = 1.0 / h, -1.0 / h, 0.0
@@ -237,6 +240,7 @@ class GeneralizedAlpha(Integrator):
         self.Udot_n.x.array[:] = rate
 
     def prepare(self, h: float) -> None:
+        self.unknown_time = self.time + h
         self.h.value = h
         self.inv_gh.value = 1.0 / (self.gamma * h)
         self.time_eval.value = self.time + self.alpha_f * h
@@ -352,6 +356,7 @@ class SDIRK(Integrator):
             np.add(self.U_n, h * (self.A[i, :i] @ self.K[:i]), out=z)
             tau = self.time + self.c[i] * h
             self.time_eval.value = tau
+            self.unknown_time = tau
             np.add(z, gh * self._rate_guess(i, tau), out=u)
             iterations += solve()
             np.subtract(u, z, out=self.K[i])

@@ -12,7 +12,7 @@ zero are left out of the form.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import ufl
@@ -20,6 +20,7 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from .expressions import derivative
 from .forms.general_form import (
     DistributedLoads,
     EndLoadConvention,
@@ -71,6 +72,17 @@ def rod_constants(scene: Scene) -> RodConstants:
 
 
 @dataclass
+class SupportMotion:
+    """A prescribed support translation X(t) [m] (supports.*_motion), its rate X'(t) [m/s]
+    and the Dirichlet Constants of the support's 12 (clamped) or 8 (pinned) components."""
+
+    position: tuple
+    rate: tuple
+    acceleration: tuple
+    values: dict[int, fem.Constant]
+
+
+@dataclass
 class RodModel:
     """The discrete rod of a scene; ``residual`` is the factory the integrators call."""
 
@@ -86,10 +98,34 @@ class RodModel:
     convention: EndLoadConvention
     skipped: list[str]
     load_factor: fem.Constant
+    motions: list[SupportMotion] = field(default_factory=list)
 
     @property
     def omega0(self) -> float:
         return self.rod.omega0
+
+    def move_supports(self, tau: float, rates: bool = False) -> None:
+        """Set the Dirichlet values of prescribed support motions at τ = ω0 t (47):
+        p_i = X_i(t)/ℓ, q_i = dp_i/dτ = X_i'(t)/(ℓ ω0), i = x, y, z; with ``rates``, their
+        τ-derivatives instead (q_i and X_i''(t)/(ℓ ω0²), for the initial-rate problem)."""
+        if not self.motions:
+            return
+        values = dict(self.scene.expression_names(), t=tau / self.omega0)
+        w, ell = self.omega0, self.length
+        for m in self.motions:
+            p, q = (m.rate, m.acceleration) if rates else (m.position, m.rate)
+            scale = (1.0 / ell, 1.0 / (ell * w))
+            scale = (scale[1], scale[1] / w) if rates else scale
+            for i in range(3):
+                m.values[i].value = p[i].evaluate(**values) * scale[0]
+                m.values[6 + i].value = q[i].evaluate(**values) * scale[1]
+
+    def support_dofs_to(self, state: np.ndarray, tau: float) -> None:
+        """Write the moving supports' values at τ into a state array (their dofs only)."""
+        if not self.motions:
+            return
+        self.move_supports(tau)
+        fem.set_bc(state, self.bcs)
 
     @property
     def length(self) -> float:
@@ -192,15 +228,28 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> RodModel:
     order = np.argsort(facets)
     tags = mesh.meshtags(msh, 0, facets[order], values[order].astype(np.int32))
 
-    bcs = []
-    for kind, ents in ((scene.supports.start, start), (scene.supports.end, end)):
-        if kind == "clamped":
+    bcs, motions = [], []
+    for name, ents in (("start", start), ("end", end)):
+        kind, motion = getattr(scene.supports, name), scene.supports.motion(name)
+        if kind == "clamped" and motion is None:
             dofs = fem.locate_dofs_topological(V, 0, ents)
             bcs.append(fem.dirichletbc(np.zeros(12, dtype=np.float64), dofs, V))
-        elif kind == "pinned":  # x, y, z, φ and their rates held; θ, ψ free
-            for i in PINNED_COMPONENTS:
-                dofs = fem.locate_dofs_topological(V.sub(i), 0, ents)
-                bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), dofs, V.sub(i)))
+            continue
+        if kind == "free":
+            continue
+        # Held components one by one: x, y, z, φ and their rates (pinned: θ, ψ free), or all
+        # twelve (clamped); x, y, z and their rates follow the prescribed motion, if any.
+        components = PINNED_COMPONENTS if kind == "pinned" else range(12)
+        values = {}
+        for i in components:
+            value = fem.Constant(msh, PETSc.ScalarType(0.0))
+            dofs = fem.locate_dofs_topological(V.sub(i), 0, ents)
+            bcs.append(fem.dirichletbc(value, dofs, V.sub(i)))
+            values[i] = value
+        if motion is not None:
+            rates = tuple(derivative(e, "t") for e in motion)
+            accelerations = tuple(derivative(e, "t") for e in rates)
+            motions.append(SupportMotion(motion, rates, accelerations, values))
 
     # FFCx 0.5 reads the quadrature degree from the measure's metadata only; a
     # form_compiler_params={"quadrature_degree": q} is silently ignored.
@@ -231,4 +280,5 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> RodModel:
         convention=EndLoadConvention(scene.model.end_load_sign, scene.model.end_load_scaling),
         skipped=skipped,
         load_factor=fem.Constant(msh, PETSc.ScalarType(1.0)),
+        motions=motions,
     )

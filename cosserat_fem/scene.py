@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from cosserat_fem.errors import SceneError, show_value
-from cosserat_fem.expressions import RESERVED_NAMES, Expression, parse_vector
+from cosserat_fem.expressions import RESERVED_NAMES, Expression, derivative, parse_vector
 from cosserat_fem.forms.section import Section, cowper_circle, rectangle, tube
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
@@ -135,10 +135,19 @@ class Model:
 class Supports:
     """Support of each end: "clamped" (p = q = 0), "free" (natural conditions), or "pinned":
     a fork bearing, the position and the twist φ held, the bending angles θ, ψ free (the end
-    torque about d1, d2 is the given end torque, zero by default)."""
+    torque about d1, d2 is the given end torque, zero by default).
+
+    ``start_motion``/``end_motion``: a prescribed translation (x, y, z)(t) [m] of a clamped or
+    pinned end (base excitation; None: at rest); its directors do not turn.
+    """
 
     start: str
     end: str
+    start_motion: tuple[Expression, ...] | None = None
+    end_motion: tuple[Expression, ...] | None = None
+
+    def motion(self, end: str) -> tuple[Expression, ...] | None:
+        return self.start_motion if end == "start" else self.end_motion
 
 
 @dataclass(frozen=True)
@@ -558,6 +567,8 @@ SCHEMA = _Table(
             {
                 "start": _Choice(choices=SUPPORTS, default="clamped"),
                 "end": _Choice(choices=SUPPORTS, default="free"),
+                "start_motion": _Vector(default=_ZERO3, unit="m"),
+                "end_motion": _Vector(default=_ZERO3, unit="m"),
             }
         ),
         "loads": _Table(
@@ -850,7 +861,7 @@ def _build_model(raw: dict[str, Any]) -> Model:
     )
 
 
-def _build_supports(raw: dict[str, Any]) -> Supports:
+def _build_supports(raw: dict[str, Any], constants: set[str]) -> Supports:
     kinds = (raw["start"], raw["end"])
     if "clamped" not in kinds and kinds != ("pinned", "pinned"):
         raise SceneError(
@@ -858,7 +869,17 @@ def _build_supports(raw: dict[str, Any]) -> Supports:
             "rigid-body motions (a free or pendulum mechanism) and the problem is singular, "
             f'got start = "{kinds[0]}", end = "{kinds[1]}"'
         )
-    return Supports(raw["start"], raw["end"])
+    motions = {}
+    for end, kind in zip(("start", "end"), kinds, strict=True):
+        key = f"supports.{end}_motion"
+        vector = parse_vector(raw[f"{end}_motion"], {"t", *constants}, key)
+        motions[end] = None if all(e.is_zero for e in vector) else vector
+        if motions[end] is not None and kind == "free":
+            raise SceneError(
+                f'{key}: a prescribed motion needs a held end (clamped or pinned), but '
+                f'supports.{end} = "free"'
+            )
+    return Supports(raw["start"], raw["end"], motions["start"], motions["end"])
 
 
 def _build_loads(raw: dict[str, Any], supports: Supports, constants: set[str]) -> Loads:
@@ -878,10 +899,13 @@ def _constant_vector(raw: list, constants: set[str], key: str) -> tuple[float, f
     return tuple(float(e.evaluate()) for e in vector)
 
 
-def _build_initial(raw: dict[str, Any], supports: Supports, values: dict[str, float]) -> Initial:
-    """Initial fields of s [m]; at a support they must vanish where it holds the rod (else the
-    first step would jump to the support's values): all six of p and q at a clamped end,
-    position, velocity, φ and its rate at a pinned one."""
+def _build_initial(
+    raw: dict[str, Any], supports: Supports, values: dict[str, float], t0: float
+) -> Initial:
+    """Initial fields of s [m]. Where a support holds the rod they must take its values at
+    t0 (else the first step would jump to them): all of p and q at a clamped end, position,
+    velocity, φ and its rate at a pinned one; zero, or the support's prescribed motion and its
+    rate for x, y, z."""
     fields = {}
     for name in ("displacement", "angles", "velocity", "angle_rates"):
         vector = parse_vector(raw[name], {"s", *values}, f"initial.{name}")
@@ -889,19 +913,27 @@ def _build_initial(raw: dict[str, Any], supports: Supports, values: dict[str, fl
     length = values["L"]
     for end, s_end in (("start", 0.0), ("end", length)):
         kind = getattr(supports, end)
-        held = {"clamped": (0, 1, 2), "pinned": (0, 1, 2)}.get(kind, ())
-        for name, vector in fields.items():
-            if vector is None:
-                continue
-            components = held if name in ("displacement", "velocity") or kind == "clamped" else ()
-            if kind == "pinned" and name in ("angles", "angle_rates"):
-                components = (2,)
+        if kind == "free":
+            continue
+        motion = supports.motion(end)
+        held = {"displacement": (0, 1, 2), "velocity": (0, 1, 2)}
+        held.update({"angles": (0, 1, 2), "angle_rates": (0, 1, 2)} if kind == "clamped" else {})
+        held.update({"angles": (2,), "angle_rates": (2,)} if kind == "pinned" else {})
+        for name, components in held.items():
             for i in components:
-                value = float(vector[i].evaluate(s=s_end, **values))
-                if abs(value) > 1e-12 * max(1.0, abs(length)):
+                want = 0.0
+                if motion is not None and name in ("displacement", "velocity"):
+                    e = motion[i] if name == "displacement" else derivative(motion[i], "t")
+                    want = float(e.evaluate(t=t0, **values))
+                got = 0.0
+                if fields[name] is not None:
+                    got = float(fields[name][i].evaluate(s=s_end, **values))
+                if abs(got - want) > 1e-12 * max(1.0, abs(want), abs(length)):
+                    source = show_value(fields[name][i].source) if fields[name] else "0"
+                    what = "its prescribed motion" if motion is not None else "0"
                     raise SceneError(
-                        f"initial.{name}[{i}]: must vanish at the {kind} {end} (s = "
-                        f"{_fmt(s_end)} m), got {value:.6g} from {show_value(vector[i].source)}"
+                        f"initial.{name}[{i}]: must equal {what} ({want:.6g}) at the {kind} "
+                        f"{end} (s = {_fmt(s_end)} m), got {got:.6g} from {source}"
                     )
     return Initial(**fields)
 
@@ -1022,7 +1054,7 @@ def scene_from_dict(
     raw = _check_table("", apply_overrides(data, overrides), SCHEMA)
     parameters = raw["parameters"]
     rod = _build_rod(raw["rod"])
-    supports = _build_supports(raw["supports"])
+    supports = _build_supports(raw["supports"], {*SCENE_CONSTANTS, *parameters})
     loads = _build_loads(raw["loads"], supports, {*SCENE_CONSTANTS, *parameters})
     time = _build_time(raw["time"])
     scene = Scene(
@@ -1040,7 +1072,7 @@ def scene_from_dict(
         damping=Damping(**raw["damping"]),
         source=source,
     )
-    initial = _build_initial(raw["initial"], supports, scene.expression_names())
+    initial = _build_initial(raw["initial"], supports, scene.expression_names(), time.start)
     return replace(scene, initial=initial)
 
 
@@ -1112,7 +1144,15 @@ def _scene_to_dict(scene: Scene) -> dict[str, Any]:
             "material": _material_dict(scene.rod.material),
         },
         "model": model,
-        "supports": _fields(scene.supports),
+        "supports": {
+            "start": scene.supports.start,
+            "end": scene.supports.end,
+            **{
+                f"{end}_motion": _vector(scene.supports.motion(end))
+                for end in ("start", "end")
+                if scene.supports.motion(end) is not None
+            },
+        },
         "loads": _loads_dict(scene.loads),
         "time": _fields(scene.time),
         "discretisation": _fields(scene.discretisation),

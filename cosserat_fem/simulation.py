@@ -210,6 +210,11 @@ class _Stepper:
         self.smallest = self.largest = None
         self.pending = False  # a step was attempted and neither accepted nor rejected
 
+    def _solve(self) -> int:
+        """One Newton solve, with moving supports at the time of the unknown."""
+        self.model.move_supports(self.integrator.unknown_time)
+        return self.solver.solve()
+
     _COUNTERS = ("t", "accepted", "rejected", "outputs", "smallest", "largest")
 
     def state_dict(self) -> dict:
@@ -233,7 +238,10 @@ class _Stepper:
         retryable SolverError (U is then left as the integrator made it: reject or accept)."""
         self.pending = True
         try:
-            self.integrator.step((t_new - self.t) * self.omega0, self.solver.solve)
+            self.integrator.step((t_new - self.t) * self.omega0, self._solve)
+            # A method whose new state is not its last stage (SDIRK3/4) meets a moving
+            # support's values only to its order: put them in exactly.
+            self.model.support_dofs_to(self.model.U.x.array, t_new * self.omega0)
             self._cos_candidate = check_state(self.model, t_new, before=self.cos_accepted)
         except NewtonFailure as exc:
             residual = np.abs(self.solver.b.array.reshape(-1, 12)).max(axis=1)
@@ -444,6 +452,7 @@ def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: 
     """
     a, L, W = integrator.initial_rate_problem()
     a_form, L_form = fem.form(a), fem.form(L)
+    model.move_supports(integrator.time, rates=True)  # moving supports: U̇ = their rates
     A = assemble_matrix(a_form, bcs=model.bcs)
     A.assemble()
     b = assemble_vector(L_form)
@@ -457,6 +466,7 @@ def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: 
     ksp.getPC().setFactorSolverType(lu_package)
     ksp.solve(b, W.vector)
     W.x.scatter_forward()
+    model.move_supports(integrator.time)
     integrator.set_initial_rate(W.x.array)
     for obj in (ksp, A, b):
         obj.destroy()
@@ -517,7 +527,7 @@ def run(
             probes = ProbeWriter(probe_path, probe)
             probes.write(tspan.start)
             if scene.output.xdmf:
-                xdmf = XdmfWriter(xdmf_path, model.U, model.length)
+                xdmf = XdmfWriter(xdmf_path, model)
                 xdmf.write(tspan.start)
         else:
             cut_outputs(
@@ -527,7 +537,7 @@ def run(
             if scene.output.xdmf:
                 frames = restart.meta["outputs"]["xdmf_frames"]
                 resume = (int(restart.meta["restarts"]) + 1, frames)
-                xdmf = XdmfWriter(xdmf_path, model.U, model.length, resume=resume)
+                xdmf = XdmfWriter(xdmf_path, model, resume=resume)
         if scene.output.checkpoint:
             checkpoint_writer = CheckpointWriter(
                 out,

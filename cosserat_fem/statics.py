@@ -25,7 +25,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from . import __version__
-from .errors import SolverError
+from .errors import SceneError, SolverError
 from .integrators import make_integrator
 from .model import RodModel, build_model
 from .newton import NewtonFailure, NewtonSolver
@@ -54,6 +54,11 @@ def static_path(
     out = Path(out_dir if out_dir is not None else scene.output.directory)
     if write_outputs:
         prepare_output_dir(out, comm)
+    if scene.supports.start_motion or scene.supports.end_motion:
+        raise SceneError(
+            "supports.*_motion: prescribed support motion is for time integration (run), "
+            "not for static solves"
+        )
     model = build_model(scene, comm)
     integrator = make_integrator("static", model.U, model.residual, 0.0)
     settings = newton_settings(scene)
@@ -68,7 +73,7 @@ def static_path(
         )
         probes.write(0.0)
         if scene.output.xdmf:
-            xdmf = XdmfWriter(out / "solution.xdmf", model.U, model.length)
+            xdmf = XdmfWriter(out / "solution.xdmf", model)
             xdmf.write(0.0)
 
     nominal = 1.0 / scene.static.load_steps
