@@ -10,13 +10,16 @@ set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 VENV=${VENV:-$ROOT/.venv}
-EXTRAS=${EXTRAS:-test,plot}
+EXTRAS=${EXTRAS:-test,plot,render}
 
 # DOLFINx 0.5.2 and its PETSc/MPI stack exist only as Debian packages for /usr/bin/python3.
 APT_PACKAGES=(
   python3-dolfinx python3-dolfinx-real python3-petsc4py python3-slepc4py python3-mpi4py
   python3-scipy python3-matplotlib python3-venv python3-dev openmpi-bin g++ make git
   ca-certificates
+  # ParaView's own Python (pvpython) and a virtual screen for it: tests/test_visualisation.py
+  # opens the XDMF output as ParaView does (`xvfb-run -a pvpython ...`).
+  paraview python3-paraview xvfb xauth
 )
 
 missing=()

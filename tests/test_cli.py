@@ -46,6 +46,7 @@ def test_run_writes_probes_summary_and_xdmf(tmp_path):
     times = sorted({float(g.find("Time").get("Value")) for g in steps})
     assert times == pytest.approx([0.0, 5e-4, 1e-3, 1.5e-3, 2e-3])
     names = {a.get("Name") for a in tree.getroot().iter("Attribute")}
+    # the paper's scene asks for output.fields = displacement and angles only
     assert names == {"displacement", "angles"}
     assert (out / "solution.h5").stat().st_size > 0
 

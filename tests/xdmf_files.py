@@ -93,6 +93,8 @@ def read_xdmf(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         data = {}
         for item in root.iter("DataItem"):
             assert item.get("Format") == "HDF"
+            if item.text.strip() in data:  # the mesh, referenced by every frame
+                continue
             filename, dataset = item.text.strip().split(":")
             assert allowed.fullmatch(filename), filename
             if filename not in files:
@@ -102,17 +104,50 @@ def read_xdmf(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
             assert values.shape == dims, (dataset, values.shape, dims)
             assert np.isfinite(values).all(), dataset
             data[item.text.strip()] = values
-        domain = root.find("Domain")
-        x = data[domain.find("Grid[@Name='mesh']/Geometry/DataItem").text.strip()]
-        tip = int(np.argmax(x[:, 0]))
-        assert x[tip, 0] == 1.0
-        series = {}
-        for name in ("displacement", "angles"):
-            grids = domain.findall(f"Grid[@GridType='Collection'][@Name='{name}']/Grid")
-            times = np.array([float(g.find("Time").get("Value")) for g in grids])
-            tips = np.array([data[g.find("Attribute/DataItem").text.strip()][tip] for g in grids])
-            series[name] = (times, tips.reshape(-1, 3))
+        # One temporal collection (cosserat_fem/output.py): each frame holds the mesh, the
+        # reference centreline (0, 0, s) [m] whose free end has the largest s, and the arrays.
+        grids = root.findall("Domain/Grid[@GridType='Collection']/Grid")
+        times = np.array([float(g.find("Time").get("Value")) for g in grids])
+        series = {name: (times, []) for name in ("displacement", "angles")}
+        for grid in grids:
+            x = data[grid.find("Geometry/DataItem").text.strip()]
+            assert x.shape[1] == 3 and not x[:, :2].any()
+            tip = int(np.argmax(x[:, 2]))
+            for name, (_, tips) in series.items():
+                item = grid.find(f"Attribute[@Name='{name}']/DataItem")
+                tips.append(data[item.text.strip()][tip])
+        series = {name: (t, np.array(tips).reshape(-1, 3)) for name, (t, tips) in series.items()}
         return series
+    finally:
+        for h5 in files.values():
+            h5.close()
+
+
+def read_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarray]]:
+    """(points (N, 3), times (T,), {array: (T, N, 3)}) of every frame, points sorted along the
+    rod (by z, the reference centreline (0, 0, s)); read with the HDF5 C library as above."""
+    root = ET.parse(path).getroot()
+    grids = root.findall("Domain/Grid[@GridType='Collection']/Grid")
+    files: dict[str, H5File] = {}
+
+    def dataset(item) -> np.ndarray:
+        filename, name = item.text.strip().split(":")
+        if filename not in files:
+            files[filename] = H5File(path.with_name(filename))
+        return files[filename].read(name)
+
+    try:
+        points = dataset(grids[0].find("Geometry/DataItem"))
+        order = np.argsort(points[:, 2], kind="stable")
+        times = np.array([float(g.find("Time").get("Value")) for g in grids])
+        names = [a.get("Name") for a in grids[0].findall("Attribute")]
+        arrays = {
+            name: np.array(
+                [dataset(g.find(f"Attribute[@Name='{name}']/DataItem"))[order] for g in grids]
+            )
+            for name in names
+        }
+        return points[order], times, arrays
     finally:
         for h5 in files.values():
             h5.close()

@@ -1,0 +1,121 @@
+"""``cosserat-fem plot RUN_DIR``: PNG figures of any run, with matplotlib (Agg, no screen).
+
+* ``free_end.png``: the free-end histories of probes.csv, x, y, z [m] and θ, ψ, φ [rad]
+  against t [s] (the load factor for a static run), laid out as the paper's Fig. 4;
+* ``x_surface.png``, ``y_surface.png``: the surfaces x(s,t) and y(s,t) [m] over the rod and
+  the XDMF frames (the paper's Figs. 5 and 6); a run with a single frame gets the curves
+  x(s), y(s) instead.
+
+Figures are 10 × 8 and 7 × 5 inches at 130 dpi: 1300 × 1040 and 910 × 650 pixels. Reads the
+run with :mod:`cosserat_fem.results` (no DOLFINx). matplotlib comes from Debian
+(python3-matplotlib, see .ci/setup.sh).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .errors import CosseratError, SceneError
+from .results import Run, open_run
+
+DPI = 130
+HISTORY_SIZE = (10.0, 8.0)  # inches
+SURFACE_SIZE = (7.0, 5.0)
+
+
+def _pyplot():
+    try:
+        import matplotlib
+    except ImportError as exc:
+        raise CosseratError(
+            f"plot needs matplotlib ({exc}): apt-get install python3-matplotlib"
+        ) from None
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def output_folder(out: str | Path | None, run: Run, command: str) -> Path:
+    """``out`` (made if missing) or the run's folder; a folder that cannot be made is bad
+    input."""
+    target = Path(out) if out is not None else run.directory
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SceneError(f"{command} --out: cannot write to {str(target)!r} ({exc})") from None
+    return target
+
+
+def plot_free_end(run: Run, out: Path) -> Path:
+    plt = _pyplot()
+    rows = run.probes
+    t = rows[:, 0]
+    fig, axes = plt.subplots(3, 2, figsize=HISTORY_SIZE, sharex=True)
+    panels = [(1, "x(ℓ) [m]"), (4, "θ(ℓ) [rad]"), (2, "y(ℓ) [m]"), (5, "ψ(ℓ) [rad]")]
+    panels += [(3, "z(ℓ) [m]"), (6, "φ(ℓ) [rad]")]
+    marker = "o-" if len(t) < 40 else "-"
+    for ax, (column, label) in zip(axes.flat, panels, strict=True):
+        ax.plot(t, rows[:, column], marker, lw=0.8, ms=3)
+        ax.set_ylabel(label)
+        ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel(run.time_label)
+    fig.suptitle(f"Free end: {run.title}", fontsize=10)
+    fig.tight_layout()
+    path = out / "free_end.png"
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+    return path
+
+
+def plot_surfaces(run: Run, out: Path) -> list[Path]:
+    plt = _pyplot()
+    series = run.series()
+    if "displacement" not in series.arrays:
+        raise CosseratError(f"{run.xdmf}: no displacement array (output.fields)")
+    disp = series.arrays["displacement"]  # (T, N, 3)
+    paths = []
+    for column, name in ((0, "x"), (1, "y")):
+        fig = plt.figure(figsize=SURFACE_SIZE)
+        if len(series.times) > 1:
+            ax = fig.add_subplot(projection="3d")
+            S, T = np.meshgrid(series.s, series.times)
+            # Antialiased and shaded: without, mplot3d's depth sorting of the thin facets
+            # (many frames, few points) drew spikes through the surface.
+            ax.plot_surface(S, T, disp[:, :, column], cmap="viridis", linewidth=0,
+                            antialiased=True, shade=True, rcount=min(len(series.times), 300),
+                            ccount=min(len(series.s), 200))  # fmt: skip
+            ax.view_init(elev=30, azim=-60)
+            ax.set_xlabel("s [m]")
+            ax.set_ylabel(run.time_label)
+            ax.set_zlabel(f"{name}(s,t) [m]")
+            ax.ticklabel_format(axis="z", style="sci", scilimits=(-2, 2))
+        else:
+            ax = fig.add_subplot()
+            ax.plot(series.s, disp[0, :, column], "o-", ms=3)
+            ax.set_xlabel("s [m]")
+            ax.set_ylabel(f"{name}(s) [m] at {run.time_label} = {series.times[0]:.6g}")
+            ax.grid(alpha=0.3)
+        ax.set_title(f"{name}(s, t): {run.title}", fontsize=9)
+        fig.tight_layout()
+        path = out / f"{name}_surface.png"
+        fig.savefig(path, dpi=DPI)
+        plt.close(fig)
+        paths.append(path)
+    return paths
+
+
+def plot_run(directory: str | Path, out: str | Path | None = None) -> list[Path]:
+    """The figures of the run in ``directory``, written to ``out`` (default: that folder)."""
+    run = open_run(directory, "plot")
+    target = output_folder(out, run, "plot")
+    paths = []
+    if run.probes is not None and len(run.probes):
+        paths.append(plot_free_end(run, target))
+    if run.xdmf is not None:
+        paths += plot_surfaces(run, target)
+    return paths

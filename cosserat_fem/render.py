@@ -1,0 +1,222 @@
+"""``cosserat-fem render RUN_DIR``: the rod drawn in 3D, off-screen, with pyvista (VTK).
+
+From the run's XDMF (read by :mod:`cosserat_fem.results`, no DOLFINx) it writes
+
+* ``rod_peak.png``: the deformed rod at the frame of largest free-end displacement,
+* ``rod_last.png``: at the last frame,
+* ``rod_frames.png``: a few frames over each other, darker with time,
+* ``rod.gif`` (or ``rod.mp4`` with ``--format mp4``, which needs imageio-ffmpeg): the
+  animation over all frames (at most ``--frames`` of them, evenly spaced).
+
+The rod is the deformed centreline r(s, t) = (0, 0, s) + k (x, y, z)(s, t) [m] as a tube,
+coloured by the magnitude of the contact torque |m| [N m] when the file has it (else of the
+displacement), with the undeformed rod as a thin grey line and the axes labelled in metres.
+Deflections of a stiff rod are a small fraction of its length: the magnification k (written
+in every picture) is chosen so that the largest displacement is about a fifth of the length,
+rounded down to 1, 2 or 5 times a power of ten (``--scale`` sets it; 1 for large
+deflections). pyvista and vtk come from PyPI (the ``render`` extra). With no X display VTK
+renders through EGL; under ``xvfb-run`` through X.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .errors import CosseratError, SceneError
+from .plot import output_folder
+from .results import RodSeries, open_run
+
+WINDOW = (1024, 768)  # pixels of every picture and animation frame
+
+
+def _pyvista():
+    if not os.environ.get("DISPLAY"):
+        # No X server: use EGL directly instead of trying X first (and warning).
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    try:
+        import pyvista
+    except ImportError as exc:
+        raise CosseratError(
+            f"render needs pyvista ({exc}); install the render extra: pip install -e .[render]"
+        ) from None
+    pyvista.OFF_SCREEN = True
+    return pyvista
+
+
+def magnification(series: RodSeries) -> float:
+    """Largest displacement → about a fifth of the length, rounded down to 1, 2, 5 × 10^n,
+    never below 1."""
+    peak = float(np.abs(series.arrays["displacement"]).max())
+    if peak == 0.0 or peak >= 0.2 * series.length:
+        return 1.0
+    raw = 0.2 * series.length / peak
+    decade = 10.0 ** math.floor(math.log10(raw))
+    step = max(m for m in (1.0, 2.0, 5.0) if m * decade <= raw * (1 + 1e-12))
+    return max(1.0, step * decade)
+
+
+class _Scene:
+    """One pyvista plotter for every picture: the undeformed rod, the frame of the axes, the
+    colour bar and the camera are set up once; a picture replaces the tube(s) and the
+    caption and renders once (software OpenGL here: ~0.05 s a render at 1024 × 768)."""
+
+    def __init__(self, series: RodSeries, scale: float, title: str, time_label: str):
+        pv = _pyvista()
+        self.pv = pv
+        self.series, self.scale = series, scale
+        self.title, self.time_label = title, time_label
+        self.positions = series.positions(scale)  # (T, N, 3)
+        if "torque_m" in series.arrays:
+            self.colour_name = "torque m [N m]"
+            self.colour = np.linalg.norm(series.arrays["torque_m"], axis=2)
+        else:
+            self.colour_name = "displacement [m]"
+            self.colour = np.linalg.norm(series.arrays["displacement"], axis=2)
+        top = float(self.colour.max())
+        self.clim = (0.0, top if top > 0 else 1.0)
+        self.radius = 0.012 * series.length
+        lo = np.minimum(self.positions.min(axis=(0, 1)), series.reference.min(axis=0))
+        hi = np.maximum(self.positions.max(axis=(0, 1)), series.reference.max(axis=0))
+        pad = 0.05 * series.length
+        bounds = (lo[0] - pad, hi[0] + pad, lo[1] - pad, hi[1] + pad, lo[2], hi[2])
+        try:
+            p = pv.Plotter(off_screen=True, window_size=WINDOW)
+        except Exception as exc:  # no OpenGL context at all
+            raise CosseratError(f"render: VTK cannot render off-screen here ({exc})") from None
+        self.plotter = p
+        p.set_background("white")
+        p.enable_depth_peeling()  # the fainter tubes of rod_frames.png are translucent
+        p.add_mesh(pv.lines_from_points(series.reference), color="darkgrey", line_width=2,
+                   render=False)  # fmt: skip
+        p.add_mesh(pv.Box(bounds=bounds), opacity=0.0, render=False)  # fixes the framing
+        # The tick labels give the true x and y of the drawn rod (the lateral coordinates of
+        # the picture are magnified by ``scale``; the axial one is s + scale z ≈ s).
+        ranges = [bounds[0] / scale, bounds[1] / scale, bounds[2] / scale, bounds[3] / scale,
+                  bounds[4], bounds[5]]  # fmt: skip
+        p.show_bounds(
+            bounds=bounds, axes_ranges=ranges, xtitle="x [m]", ytitle="y [m]", ztitle="z [m]",
+            color="black", grid=False, location="outer", font_size=10, fmt="%.2g",
+            n_xlabels=3, n_ylabels=3, n_zlabels=5, render=False,
+        )  # fmt: skip
+        self.caption = p.add_text("", position="upper_left", font_size=11, color="black",
+                                  render=False)  # fmt: skip
+        self.tubes: list = []
+        self._actors: list = []
+        # Camera: from the −y side, a little from +x and above, z (the rod) up.
+        centre = 0.5 * (np.array(bounds[::2]) + np.array(bounds[1::2]))
+        size = float(np.linalg.norm(np.array(bounds[1::2]) - np.array(bounds[::2])))
+        view = np.array([0.55, -1.0, 0.4])
+        view /= np.linalg.norm(view)
+        p.camera_position = [tuple(centre + 1.6 * size * view), tuple(centre), (0.0, 0.0, 1.0)]
+        p.reset_camera(render=False)
+        p.camera.zoom(0.8)  # room for the axes' labels and the caption
+
+    def _tube(self, frame: int):
+        line = self.pv.lines_from_points(self.positions[frame])
+        line.point_data[self.colour_name] = self.colour[frame]
+        return line.tube(radius=self.radius, n_sides=20, capping=True)
+
+    def _caption(self, frame: int) -> str:
+        t = self.series.times[frame]
+        return (
+            f"{self.title}\n{self.time_label} = {t:.6g}   displacement x {self.scale:g}"
+            "   (grey: undeformed, along z)"
+        )
+
+    def show(self, frames: list[int], text: str) -> None:
+        """The tubes of ``frames`` (the last opaque, earlier ones fainter) and the caption."""
+        p = self.plotter
+        while len(self.tubes) < len(frames):
+            tube = self._tube(frames[len(self.tubes)])
+            actor = p.add_mesh(
+                tube, scalars=self.colour_name, clim=self.clim, cmap="viridis",
+                show_scalar_bar=not self.tubes, render=False,
+                scalar_bar_args={
+                    "title": f"{self.colour_name}\n(magnitude)", "color": "black",
+                    "vertical": True, "position_x": 0.84, "position_y": 0.1, "width": 0.06,
+                    "title_font_size": 14, "label_font_size": 12, "fmt": "%.3g",
+                },  # fmt: skip
+            )  # fmt: skip
+            self.tubes.append(tube)
+            self._actors.append(actor)
+        for i, (tube, actor) in enumerate(zip(self.tubes, self._actors, strict=True)):
+            if i < len(frames):
+                tube.copy_from(self._tube(frames[i]))
+                faint = 0.25 + 0.5 * i / max(1, len(frames) - 1)
+                actor.prop.opacity = 1.0 if i == len(frames) - 1 else faint
+            actor.SetVisibility(i < len(frames))
+        self.caption.set_text("upper_left", text)
+        self.plotter.render()  # screenshot() alone returned the previous picture
+
+    def picture(self, frames: list[int], text: str, path: Path) -> Path:
+        self.show(frames, text)
+        self.plotter.screenshot(str(path))
+        return path
+
+    def image(self, frame: int) -> np.ndarray:
+        self.show([frame], self._caption(frame))
+        return self.plotter.screenshot(return_img=True)
+
+    def close(self) -> None:
+        self.plotter.close()
+
+
+def render_run(
+    directory: str | Path,
+    out: str | Path | None = None,
+    scale: float | None = None,
+    fmt: str = "gif",
+    max_frames: int = 120,
+    fps: int = 15,
+) -> list[Path]:
+    """The pictures and the animation of the run in ``directory`` (see the module docstring)."""
+    if fmt not in ("gif", "mp4"):
+        raise SceneError(f"render --format: must be gif or mp4, got {fmt!r}")
+    if max_frames < 1:
+        raise SceneError(f"render --frames: must be at least 1, got {max_frames}")
+    if scale is not None and not (math.isfinite(scale) and scale > 0):
+        raise SceneError(f"render --scale: must be a positive number, got {scale!r}")
+    run = open_run(directory, "render")
+    series = run.series()
+    if "displacement" not in series.arrays:
+        raise SceneError(f"render: {str(run.xdmf)!r} has no displacement (output.fields)")
+    target = output_folder(out, run, "render")
+    k = magnification(series) if scale is None else scale
+    scene = _Scene(series, k, run.title, run.time_label)
+    paths = []
+    try:
+        tip = np.linalg.norm(series.arrays["displacement"][:, -1, :], axis=1)
+        peak, last = int(np.argmax(tip)), len(series.times) - 1
+        paths.append(scene.picture([peak], scene._caption(peak), target / "rod_peak.png"))
+        paths.append(scene.picture([last], scene._caption(last), target / "rod_last.png"))
+        some = sorted(set(np.linspace(0, last, min(8, last + 1)).round().astype(int).tolist()))
+        text = (
+            f"{run.title}\n{len(some)} frames, {run.time_label} = "
+            f"{series.times[some[0]]:.4g} ... {series.times[some[-1]]:.4g}   displacement x {k:g}"
+        )
+        paths.append(scene.picture(some, text, target / "rod_frames.png"))
+        paths.append(_animate(scene, target / f"rod.{fmt}", max_frames, fps))
+    finally:
+        scene.close()
+    return paths
+
+
+def _animate(scene: _Scene, path: Path, max_frames: int, fps: int) -> Path:
+    try:
+        import imageio.v2 as imageio
+    except ImportError as exc:
+        raise CosseratError(f"render needs imageio for the animation ({exc})") from None
+    count = len(scene.series.times)
+    frames = sorted(set(np.linspace(0, count - 1, min(max_frames, count)).round().astype(int)))
+    options = {"duration": 1000.0 / fps, "loop": 0} if path.suffix == ".gif" else {"fps": fps}
+    try:
+        with imageio.get_writer(path, **options) as writer:
+            for frame in frames:
+                writer.append_data(scene.image(int(frame)))
+    except (ImportError, ValueError, RuntimeError) as exc:
+        raise CosseratError(f"render: cannot write {str(path)!r} ({exc})") from None
+    return path

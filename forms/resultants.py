@@ -1,0 +1,76 @@
+"""Strains and contact force and torque of the rod in SI units, as UFL expressions.
+
+For the output (cosserat_fem/output.py): the quantities that the general form (65) carries,
+unscaled. With p = (x/ℓ, y/ℓ, z/ℓ, θ, ψ, φ) and a prime d/dσ (σ = s/ℓ), all components in the
+director basis (d1, d2, d3) of (18) (``X_i = d_i · X``):
+
+* v_i = d_i · ∂r/∂s, eq. (29), dimensionless (:func:`.kinematics.stretch_shear_strain`);
+* u_i, the curvature (3) in the director basis, eq. (25), [1/m]: u = û/ℓ
+  (:func:`.kinematics.curvature`);
+* n = Σ K_ii (v_i − δ_i3) d_i, the contact force (9)-(10) [N], K = diag(κGA, κGA, EA);
+* m = Σ J_ii u_i d_i, the contact torque (13) [N m], J = diag(E c11, E c22, G c33).
+
+The reference configuration is the straight rod along e3 (r' = (p1', p2', 1 + p3'), (14),
+(27)): there v = (0, 0, 1), u = n = m = 0. n(s) and m(s) are the force and torque that the
+part (s, ℓ] exerts on [0, s] (docs/errata.md, erratum 2), so at a free end s = ℓ they equal the
+applied end force and torque, n(ℓ) = f^b, m(ℓ) = l^b. The flux (63) of the general form is
+these resultants scaled by the references of its rows (see :mod:`.groups`),
+
+    b = −( (g0/ℓ) Dᵀ n,  (g1/ℓ) m1, (g2/ℓ) m2, (g3/ℓ) m3 ),
+
+with Dᵀ n the contact force in the fixed basis (tests/test_visualisation.py checks this
+identity against :func:`.general_form.flux`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import ufl
+
+from .groups import RodConstants
+from .kinematics import curvature, split, stretch_shear_strain
+
+
+def section_stiffnesses(rod: RodConstants) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """(K11, K22, K33) = (κGA, κGA, EA) [N] and (J11, J22, J33) = (E c11, E c22, G c33)
+    [N m²], the constitutive tensors K = Σ K_ii d_i ⊗ d_i, J = Σ J_ii d_i ⊗ d_i of (10)-(13)."""
+    s, E, G = rod.section, rod.young_modulus, rod.shear_modulus
+    kga = s.shear_coefficient * G * s.area
+    return (kga, kga, E * s.area), (E * s.c11, E * s.c22, G * s.c33)
+
+
+def strains(p, dp, length: float) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
+    """(v, u): the stretch-shear strain (29) [-] and the curvature (25) [1/m], director basis."""
+    return stretch_shear_strain(p, dp), curvature(p, dp) / length
+
+
+def contact_force(v, rod: RodConstants) -> ufl.core.expr.Expr:
+    """n_i = K_ii (v_i − δ_i3) [N], director components, from the strain v of (29)."""
+    K, _ = section_stiffnesses(rod)
+    return ufl.as_vector([K[0] * v[0], K[1] * v[1], K[2] * (v[2] - 1.0)])
+
+
+def contact_torque(u, rod: RodConstants) -> ufl.core.expr.Expr:
+    """m_i = J_ii u_i [N m], director components, from the curvature u [1/m]."""
+    _, J = section_stiffnesses(rod)
+    return ufl.as_vector([J[i] * u[i] for i in range(3)])
+
+
+@dataclass
+class Resultants:
+    """v [-], u [1/m], n [N], m [N m]: UFL 3-vectors, director components."""
+
+    v: ufl.core.expr.Expr
+    u: ufl.core.expr.Expr
+    n: ufl.core.expr.Expr
+    m: ufl.core.expr.Expr
+
+
+def resultants(U, rod: RodConstants) -> Resultants:
+    """v, u, n, m of the state U = (p, q) (12 components, or p alone with 6) on σ ∈ [0, 1]."""
+    p = split(U)[0] if U.ufl_shape == (12,) else U
+    dU = U.dx(0)
+    dp = ufl.as_vector([dU[i] for i in range(6)])
+    v, u = strains(p, dp, rod.length)
+    return Resultants(v=v, u=u, n=contact_force(v, rod), m=contact_torque(u, rod))
