@@ -113,14 +113,18 @@ class StepController:
         n_owned: int,
         block: int = 1,
         controlled: slice = slice(None),
+        counted: int | None = None,
     ):
         """``n_owned`` entries of the state arrays are this rank's, in blocks of ``block``;
-        the norm takes the ``controlled`` entries of each block."""
+        the norm takes the ``controlled`` entries of each block, and averages over
+        ``counted`` of them a block (default: as many; more for a reduced model whose
+        remaining fields are zero, so that it takes the steps of the full one)."""
         self.rtol, self.atol, self.order = rtol, atol, order
         self.comm, self.n_owned = comm, n_owned
         self.block, self.controlled = block, controlled
         per_block = len(range(block)[controlled])
-        self._n_global = max(comm.allreduce(n_owned // block * per_block), 1)
+        counted = per_block if counted is None else counted
+        self._n_global = max(comm.allreduce(n_owned // block * counted), 1)
         self.peak = np.zeros(per_block)  # largest |value| of each controlled field so far
         self._candidate_peak: np.ndarray | None = None  # the same with the candidate state
 

@@ -1,5 +1,6 @@
 """Command line: ``cosserat-fem run|static|modes SCENE [--out DIR] [--set KEY=VALUE ...]``,
-and ``cosserat-fem run --restart DIR [--set time.end=...]`` to continue a stopped run.
+and ``cosserat-fem run --restart DIR [--set time.end=...]`` to continue a stopped run;
+``cosserat-fem plot|render RUN_DIR [--out DIR]`` draw a run's outputs (no DOLFINx needed).
 
 Exit status: 0 success, 2 bad input (scene, options, output folder), 3 numerical trouble
 (the run stopped; outputs written so far are kept). Errors are one line on stderr; ``--debug``
@@ -33,6 +34,9 @@ def _common(sub: argparse.ArgumentParser, scene_optional: bool = False) -> None:
         help="override a scene value by its dotted key, e.g. --set time.step=1e-5 (repeatable)",
     )
     sub.add_argument("--quiet", action="store_true", help="print nothing on success")
+    sub.add_argument(
+        "--verbose", action="store_true", help="also log step rejections, checkpoints, ..."
+    )
     sub.add_argument("--debug", action="store_true", help="show tracebacks on errors")
 
 
@@ -52,6 +56,11 @@ def _parser() -> argparse.ArgumentParser:
         "is used; --set may change time.end, time.max_halvings, solver.*, output.checkpoint*)",
     )
     _common(sub.add_parser("static", help="static equilibrium by load stepping"))
+    _common(
+        sub.add_parser(
+            "validate", help="check a scene and print it resolved, with units, doing no work"
+        )
+    )
     modes = sub.add_parser("modes", help="natural frequencies and mode shapes (SLEPc)")
     _common(modes)
     modes.add_argument("--count", type=int, default=10, help="number of modes (default 10)")
@@ -61,32 +70,85 @@ def _parser() -> argparse.ArgumentParser:
         default="undeformed",
         help="linearise about the straight rod or the static state under the scene's loads",
     )
+    plot = sub.add_parser(
+        "plot", help="PNG figures of a run: free-end histories, x(s,t) and y(s,t) surfaces"
+    )
+    _run_dir(plot)
+    render = sub.add_parser(
+        "render", help="3D pictures and an animation of a run's rod (pyvista, off-screen)"
+    )
+    _run_dir(render)
+    render.add_argument(
+        "--scale",
+        type=float,
+        default=None,
+        help="displacement magnification (default: the largest becomes ~1/5 of the length)",
+    )
+    render.add_argument(
+        "--format", choices=("gif", "mp4"), default="gif", help="animation format (default gif)"
+    )
+    render.add_argument(
+        "--frames", type=int, default=120, help="most frames in the animation (default 120)"
+    )
     return parser
+
+
+def _run_dir(sub: argparse.ArgumentParser) -> None:
+    """The arguments of the commands that read a run's outputs (plot, render)."""
+    sub.add_argument("run_dir", metavar="RUN_DIR", help="the folder of a run (its --out)")
+    sub.add_argument("--out", metavar="DIR", help="where the files go (default: RUN_DIR)")
+    sub.add_argument("--quiet", action="store_true", help="print nothing on success")
+    sub.add_argument("--verbose", action="store_true", help=argparse.SUPPRESS)
+    sub.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+
+
+def _plot(args) -> int:
+    """Figures of the run in args.run_dir (cosserat_fem/plot.py; no DOLFINx)."""
+    from .plot import plot_run
+
+    paths = plot_run(args.run_dir, args.out)
+    if not args.quiet:
+        print("-> " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _render(args) -> int:
+    """Pictures and animation of the run in args.run_dir (cosserat_fem/render.py)."""
+    from .render import render_run
+
+    paths = render_run(args.run_dir, args.out, args.scale, args.format, args.frames)
+    if not args.quiet:
+        print("-> " + ", ".join(str(p) for p in paths))
+    return 0
 
 
 def _run(args) -> int:
     from mpi4py import MPI
 
+    from .progress import ProgressBar, summary_screen
     from .scene import load_scene
     from .simulation import run
 
+    rank = MPI.COMM_WORLD.rank
     if args.restart is not None:
         result = _restart(args)
     elif args.scene is None:
         raise SceneError("run: give a SCENE file, or --restart DIR to continue a run")
     else:
-        result = run(load_scene(args.scene, args.overrides), args.out)
-    if MPI.COMM_WORLD.rank == 0 and not args.quiet:
-        s = result.summary
-        wall = s["wall_time_s"]
-        nt = s["newton"]
-        print(
-            f"cosserat-fem: {s['steps']} steps to t = {s['time_reached_s']:.6g} s, "
-            f"{s['dofs']} dofs, {nt['iterations']} Newton iterations, "
-            f"{nt['jacobian_assemblies']} Jacobians; solve loop {wall['solve_loop']:.2f} s "
-            f"(total {wall['total']:.2f} s) -> {result.out_dir}"
-        )
+        scene = load_scene(args.scene, args.overrides)
+        bar = ProgressBar(scene.time.start, scene.time.end, enabled=_bar_wanted(args, rank))
+        try:
+            result = run(scene, args.out, progress=bar)
+        finally:
+            bar.close()
+    if rank == 0 and not args.quiet:
+        print(summary_screen(result.summary, result.out_dir))
     return 0
+
+
+def _bar_wanted(args, rank: int) -> bool | None:
+    """None: on a terminal (ProgressBar decides); False under --quiet and off rank 0."""
+    return None if rank == 0 and not args.quiet else False
 
 
 def _restart(args):
@@ -110,7 +172,17 @@ def _restart(args):
             f"time.end: the checkpoint is at t = {checkpoint.time:.10g} s; give a later end "
             f"to continue (--set time.end=...), got {scene.time.end:.10g}"
         )
-    return run(scene, restart=checkpoint)
+    from mpi4py import MPI
+
+    from .progress import ProgressBar
+
+    bar = ProgressBar(
+        checkpoint.time, scene.time.end, enabled=_bar_wanted(args, MPI.COMM_WORLD.rank)
+    )
+    try:
+        return run(scene, restart=checkpoint, progress=bar)
+    finally:
+        bar.close()
 
 
 def _static(args) -> int:
@@ -159,11 +231,35 @@ def _modes(args) -> int:
     return 0
 
 
+def _validate(args) -> int:
+    from mpi4py import MPI
+
+    from .describe import describe_scene
+    from .scene import load_scene
+
+    scene = load_scene(args.scene, args.overrides)
+    if MPI.COMM_WORLD.rank == 0 and not args.quiet:
+        print(describe_scene(scene))
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    from mpi4py import MPI
+
+    from .progress import configure_logging
+
+    level = "quiet" if args.quiet else "verbose" if args.verbose else "normal"
+    configure_logging(level, MPI.COMM_WORLD.rank)
     try:
+        if args.command == "validate":
+            return _validate(args)
         if args.command == "run":
             return _run(args)
+        if args.command == "plot":
+            return _plot(args)
+        if args.command == "render":
+            return _render(args)
         if args.command == "modes":
             return _modes(args)
         if args.command == "static":

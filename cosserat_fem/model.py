@@ -35,6 +35,11 @@ from .scene import Scene
 START_TAG, END_TAG = 1, 2
 #: The components of U = (p, q) a pinned end holds: x, y, z, φ and their rates.
 PINNED_COMPONENTS = (0, 1, 2, 5, 6, 7, 8, 11)
+#: The unknowns solved: all twelve, or those of motion in the x-z plane, (x, z, ψ) and their
+#: rates (y = θ = φ = 0 is an invariant set of (65) when no load, support or initial state
+#: leaves the plane: every y, θ, φ row of F vanishes there; tests/test_planar.py).
+FULL = tuple(range(12))
+PLANAR_XZ = (0, 2, 4, 6, 8, 10)
 
 
 def _drop_build_chatter(record: logging.LogRecord) -> bool:
@@ -99,6 +104,37 @@ class RodModel:
     skipped: list[str]
     load_factor: fem.Constant
     motions: list[SupportMotion] = field(default_factory=list)
+    components: tuple[int, ...] = FULL  # the components of (p, q) that U holds, in order
+
+    @property
+    def reduced(self) -> bool:
+        return self.components != FULL
+
+    def index(self, component: int) -> int | None:
+        """Position in U's blocks of full component ``component`` (None if not solved)."""
+        return self.components.index(component) if component in self.components else None
+
+    def full(self, u) -> ufl.core.expr.Expr:
+        """The 12-component (p, q) of a UFL vector of U's layout (zeros where not solved)."""
+        if not self.reduced:
+            return u
+        return ufl.as_vector([u[self.index(i)] if i in self.components else 0.0 for i in FULL])
+
+    def own_layout(self, state: np.ndarray) -> np.ndarray:
+        """A state array in U's layout, from one in U's layout or in the full 12 components."""
+        nodes = self.U.x.array.size // len(self.components)
+        if self.reduced and np.size(state) == nodes * 12:
+            return np.asarray(state).reshape(nodes, 12)[:, self.components].ravel()
+        return np.asarray(state)
+
+    def full_array(self, state: np.ndarray) -> np.ndarray:
+        """(nodes, 12) values of a state array of U's layout."""
+        blocks = state.reshape(-1, len(self.components))
+        if not self.reduced:
+            return blocks
+        out = np.zeros((blocks.shape[0], 12))
+        out[:, self.components] = blocks
+        return out
 
     @property
     def omega0(self) -> float:
@@ -116,7 +152,7 @@ class RodModel:
             p, q = (m.rate, m.acceleration) if rates else (m.position, m.rate)
             scale = (1.0 / ell, 1.0 / (ell * w))
             scale = (scale[1], scale[1] / w) if rates else scale
-            for i in range(3):
+            for i in (i for i in range(3) if i in m.values):
                 m.values[i].value = p[i].evaluate(**values) * scale[0]
                 m.values[6 + i].value = q[i].evaluate(**values) * scale[1]
 
@@ -149,8 +185,12 @@ class RodModel:
         return self.load_factor * ufl.as_vector([e.to_ufl(symbols) for e in exprs])
 
     def residual(self, U_eval, Udot_eval, time_eval) -> ufl.Form:
-        """The weak residual (65) at (U_eval, Udot_eval), loads at τ = time_eval."""
-        return self.residual_terms(U_eval, Udot_eval, time_eval).total()
+        """The weak residual (65) at (U_eval, Udot_eval) of U's layout, loads at τ = time_eval
+        (a reduced U is embedded in the 12 components, tested by its own components only)."""
+        test = self.full(ufl.TestFunction(self.V))
+        return self.residual_terms(
+            self.full(U_eval), self.full(Udot_eval), time_eval, test=test
+        ).total()
 
     def load_vectors(self, time_eval) -> tuple[DistributedLoads, tuple[EndLoads, ...]]:
         """The scene's loads at τ = time_eval as UFL vectors (absent ones are None)."""
@@ -206,18 +246,22 @@ class RodModel:
                     state[:, first[name] + i] = scale[name] * np.broadcast_to(
                         np.asarray(e.evaluate(s=x, **values), dtype=float), x.shape
                     )
-            U.x.array[:] = state.reshape(-1)
+            U.x.array[:] = state[:, self.components].reshape(-1)
         return U.x.array
 
 
-def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> RodModel:
+def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = True) -> RodModel:
+    """The discrete rod; ``planar``: solve only the x-z unknowns when the scene stays in that
+    plane (:meth:`Scene.planar_xz`, and discretisation.planar = "auto")."""
     quiet_jit_logging()
     disc = scene.discretisation
     msh = mesh.create_interval(comm, disc.elements, [0.0, 1.0])
     cell = msh.ufl_cell()
-    element = ufl.VectorElement("Lagrange", cell, disc.degree, dim=12)
+    components = PLANAR_XZ if planar and scene.planar_xz() else FULL
+    element = ufl.VectorElement("Lagrange", cell, disc.degree, dim=len(components))
     V = fem.FunctionSpace(msh, element)
     U = fem.Function(V, name="U")
+    U.rod_components = components  # its layout, for readers such as output.PointProbe
 
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
@@ -233,18 +277,19 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> RodModel:
         kind, motion = getattr(scene.supports, name), scene.supports.motion(name)
         if kind == "clamped" and motion is None:
             dofs = fem.locate_dofs_topological(V, 0, ents)
-            bcs.append(fem.dirichletbc(np.zeros(12, dtype=np.float64), dofs, V))
+            bcs.append(fem.dirichletbc(np.zeros(len(components), dtype=np.float64), dofs, V))
             continue
         if kind == "free":
             continue
         # Held components one by one: x, y, z, φ and their rates (pinned: θ, ψ free), or all
         # twelve (clamped); x, y, z and their rates follow the prescribed motion, if any.
-        components = PINNED_COMPONENTS if kind == "pinned" else range(12)
+        held = PINNED_COMPONENTS if kind == "pinned" else FULL
         values = {}
-        for i in components:
+        for i in (i for i in held if i in components):
+            j = components.index(i)
             value = fem.Constant(msh, PETSc.ScalarType(0.0))
-            dofs = fem.locate_dofs_topological(V.sub(i), 0, ents)
-            bcs.append(fem.dirichletbc(value, dofs, V.sub(i)))
+            dofs = fem.locate_dofs_topological(V.sub(j), 0, ents)
+            bcs.append(fem.dirichletbc(value, dofs, V.sub(j)))
             values[i] = value
         if motion is not None:
             rates = tuple(derivative(e, "t") for e in motion)
@@ -267,6 +312,7 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> RodModel:
     ]
     skipped += [] if scene.loads.has_gravity else ["gravity"]
     skipped += [] if scene.damping.active else ["damping"]
+    skipped += ["out-of-plane unknowns y, theta, phi"] if components != FULL else []
     return RodModel(
         scene=scene,
         msh=msh,
@@ -281,4 +327,5 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> RodModel:
         skipped=skipped,
         load_factor=fem.Constant(msh, PETSc.ScalarType(1.0)),
         motions=motions,
+        components=components,
     )

@@ -192,10 +192,11 @@ def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WO
     if about == "static":
         from .statics import solve_static
 
-        model, _ = solve_static(scene, comm)
-        base = model.U.x.array.copy()
+        static, _ = solve_static(scene, comm)
+        base = static.full_array(static.U.x.array).ravel()  # a planar solve, embedded
+        model = build_model(scene, comm, planar=False)  # the modes leave the plane too
     elif about == "undeformed":
-        model, base = build_model(scene, comm), None
+        model, base = build_model(scene, comm, planar=False), None
     else:
         raise ValueError(f"about must be 'undeformed' or 'static', got {about!r}")
     problem = assemble_modal_problem(model, base)
@@ -219,7 +220,9 @@ def write_modes(out: Path, model: RodModel, modes: list[Mode]) -> None:
                 )
     if modes:
         scratch = fem.Function(modes[0].shape.function_space, name="mode")
-        writer = XdmfWriter(out / "modes.xdmf", scratch, model.length)
+        # Displacement and angles only: strains and resultants of an eigenvector of
+        # arbitrary amplitude would be nonlinear functions of that amplitude.
+        writer = XdmfWriter(out / "modes.xdmf", model, ("displacement", "angles"), U=scratch)
         for i, mode in enumerate(modes, start=1):
             writer.write(float(i), mode.shape)
         writer.close()

@@ -245,6 +245,7 @@ class Discretisation:
     elements: int
     degree: int
     quadrature_degree: int
+    planar: str = "auto"  # "auto": solve the x-z unknowns only when the scene stays planar
 
 
 @dataclass(frozen=True)
@@ -307,6 +308,25 @@ class Scene:
         """The reference frequency ω0 [rad/s]: as given, or :func:`auto_reference_frequency`."""
         given = self.model.reference_frequency
         return given if given is not None else auto_reference_frequency(self.rod)
+
+    def planar_xz(self) -> bool:
+        """Whether the motion stays in the x-z plane (y = θ = φ = 0 for all time): asked for
+        (discretisation.planar = "auto") and nothing leaves the plane: no force along e2, no
+        torque about e1 or e3 (distributed, at the ends), no gravity along e2, no initial y, θ,
+        φ or their rates, no support motion along e2."""
+        if self.discretisation.planar != "auto":
+            return False
+        loads, init = self.loads, self.initial
+        vectors = [(loads.force_density, (1,)), (loads.torque_density, (0, 2))]
+        for end in (loads.start, loads.end):
+            if end is not None:
+                vectors += [(end.force, (1,)), (end.torque, (0, 2))]
+        vectors += [(m, (1,)) for m in (self.supports.start_motion, self.supports.end_motion)]
+        vectors += [(init.displacement, (1,)), (init.velocity, (1,))]
+        vectors += [(init.angles, (0, 2)), (init.angle_rates, (0, 2))]
+        if loads.gravity[1] != 0.0:
+            return False
+        return all(v is None or all(v[i].is_zero for i in idx) for v, idx in vectors)
 
     def expression_names(self) -> dict[str, float]:
         """Constant values for load expressions: ``L``, ``omega0`` and the parameters."""
@@ -624,6 +644,7 @@ SCHEMA = _Table(
                 "quadrature_degree": _Number(
                     default="auto", integer=True, interval=_Interval(lo=1), auto=True
                 ),
+                "planar": _Choice(choices=("auto", "off"), default="auto"),
             }
         ),
         "solver": _Table(
@@ -1008,7 +1029,7 @@ def _build_discretisation(raw: dict[str, Any]) -> Discretisation:
     quadrature = raw["quadrature_degree"]
     if quadrature == "auto":
         quadrature = 2 * raw["degree"]
-    return Discretisation(raw["elements"], raw["degree"], quadrature)
+    return Discretisation(raw["elements"], raw["degree"], quadrature, raw["planar"])
 
 
 def _build_output(raw: dict[str, Any], time: Time) -> Output:

@@ -31,9 +31,12 @@ from .integrators import GeneralizedAlpha, make_integrator
 from .model import RodModel, build_model
 from .newton import NewtonFailure, NewtonSettings, NewtonSolver
 from .output import PointProbe, ProbeWriter, XdmfWriter, write_json
+from .progress import LOGGER
 from .scene import Scene
 
 CHART_COS_MIN = 1e-2
+UNKNOWN_NAMES = ("x", "y", "z", "theta", "psi", "phi")
+UNKNOWN_NAMES += tuple(f"d{n}/dtau" for n in UNKNOWN_NAMES)
 Observer = Callable[[int, float, RodModel], None]
 
 
@@ -105,9 +108,13 @@ CHART_SUGGESTION = (
 
 
 def cos_theta(model: RodModel, state: np.ndarray) -> np.ndarray:
-    """cos θ at the owned nodes of a state array (det Ma = cos θ, (66))."""
+    """cos θ at the owned nodes of a state array (det Ma = cos θ, (66); 1 if θ ≡ 0 is not
+    solved for)."""
     n = model.V.dofmap.index_map.size_local
-    return np.cos(state.reshape(-1, 12)[:n, 3])
+    theta = model.index(3)
+    if theta is None:
+        return np.ones(n)
+    return np.cos(state.reshape(-1, len(model.components))[:n, theta])
 
 
 def check_state(
@@ -118,7 +125,7 @@ def check_state(
     (``before``, from :func:`cos_theta` or an earlier call), if θ crossed ±π/2 at some node
     since then (cos θ changed sign: a step jumped over the singularity, through which no
     continuous motion passes, det Ma = cos θ (66)). Returns cos θ of U at the owned nodes."""
-    blocks = model.U.x.array.reshape(-1, 12)
+    blocks = model.U.x.array.reshape(-1, len(model.components))
     n = model.V.dofmap.index_map.size_local
     cos_now = cos_theta(model, model.U.x.array)
     # One number and (in parallel) one reduction per step: the smallest |cos θ|; −0.5 if θ
@@ -156,7 +163,8 @@ def check_state(
             suggestion=CHART_SUGGESTION,
             retry=True,
         )
-    s, _ = _worst_place(model, 1.0 / np.maximum(np.abs(np.cos(blocks[:, 3])), 1e-300))
+    cos_all = np.cos(model.full_array(model.U.x.array)[:, 3])
+    s, _ = _worst_place(model, 1.0 / np.maximum(np.abs(cos_all), 1e-300))
     raise SolverError(
         time=t,
         where=f"{prefix}s = {s:.4g} m",
@@ -166,6 +174,7 @@ def check_state(
         ),
         suggestion=CHART_SUGGESTION,
     )
+
 
 class _Outputs:
     """Probes, XDMF frames and observers at the output grid t_k = start + k time.step.
@@ -244,7 +253,8 @@ class _Stepper:
             self.model.support_dofs_to(self.model.U.x.array, t_new * self.omega0)
             self._cos_candidate = check_state(self.model, t_new, before=self.cos_accepted)
         except NewtonFailure as exc:
-            residual = np.abs(self.solver.b.array.reshape(-1, 12)).max(axis=1)
+            blocks = len(self.model.components)
+            residual = np.abs(self.solver.b.array.reshape(-1, blocks)).max(axis=1)
             s, _ = _worst_place(self.model, residual)
             return SolverError(
                 time=t_new,
@@ -317,6 +327,7 @@ class _Checkpoints:
         }
         self.writer.save(stepper.t, parts, outputs)
         self._saved_at = stepper.t
+        LOGGER.info("checkpoint %d at t = %.6g s", self.writer.generation, stepper.t)
 
 
 def _fixed_loop(tspan, stepper: _Stepper, emit: _Outputs, save: _Checkpoints, loop: dict) -> None:
@@ -341,6 +352,7 @@ def _fixed_loop(tspan, stepper: _Stepper, emit: _Outputs, save: _Checkpoints, lo
         cause = stepper.attempt(t_new)
         if cause is not None:
             stepper.reject()
+            LOGGER.info("step to t = %.6g s rejected (%s), level %d", t_new, cause.reason, level)
             if level >= halvings:
                 raise SolverError(
                     time=cause.time,
@@ -377,9 +389,17 @@ def _adaptive_loop(
     order = stepper.integrator.order
     bs = model.V.dofmap.index_map_bs
     n_owned = model.V.dofmap.index_map.size_local * bs
-    # The error of p = U[0:6] is controlled, not that of the rates q (cosserat_fem.adaptive).
+    # The error of p (the first half of each block) is controlled, not that of the rates q
+    # (cosserat_fem.adaptive).
     control = StepController(
-        tspan.rtol, tspan.atol, order, model.msh.comm, n_owned, block=bs, controlled=slice(0, 6)
+        tspan.rtol,
+        tspan.atol,
+        order,
+        model.msh.comm,
+        n_owned,
+        block=bs,
+        controlled=slice(0, bs // 2),
+        counted=6,  # the six fields of p, also when a planar model solves three of them
     )
     history = StateHistory(capacity=order + 2)
     span = tspan.end - tspan.start
@@ -405,6 +425,11 @@ def _adaptive_loop(
             error = control.error_norm(u - history.polynomial(t_new, order + 2), u)
         if cause is not None or (error is not None and error > 1.0):
             stepper.reject()
+            LOGGER.info(
+                "step to t = %.6g s rejected: %s",
+                t_new,
+                cause.reason if cause else f"error estimate {error:.3g} > 1",
+            )
             control.reject()
             consecutive += 1
             h *= control.factor(error, rejected=True) if cause is None else SHRINK
@@ -472,6 +497,15 @@ def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: 
         obj.destroy()
 
 
+def _leaves_plane(model: RodModel, state: np.ndarray) -> bool:
+    """Whether a planar model was given a 12-component state with y, θ, φ or a rate of them
+    non-zero (collective)."""
+    nodes = model.U.x.array.size // len(model.components)
+    full = model.reduced and np.size(state) == 12 * nodes
+    local = full and bool(np.any(np.asarray(state).reshape(nodes, 12)[:, 1::2] != 0.0))
+    return model.msh.comm.allreduce(local, op=MPI.LOR)
+
+
 def run(
     scene: Scene,
     out_dir: str | Path | None = None,
@@ -480,13 +514,15 @@ def run(
     write_outputs: bool = True,
     initial_state: np.ndarray | None = None,
     restart: Checkpoint | None = None,
+    progress: Callable[[float, int, int], None] | None = None,
 ) -> RunResult:
     """Integrate the scene over its time span; see the module docstring.
 
     The rod starts from rest in its straight state, or from ``initial_state`` (the array of a
     12-component state U = (p, q) on the same discretisation, e.g. a static solution), or
     continues the run of the checkpoint ``restart`` in its folder (cosserat_fem/checkpoint.py;
-    ``scene`` is then the checkpoint's, with the overrides a restart allows).
+    ``scene`` is then the checkpoint's, with the overrides a restart allows). ``progress``
+    is called with (t [s], steps taken, Newton iterations) after every output step.
     """
     t_start = time.perf_counter()
     if restart is not None:
@@ -495,10 +531,12 @@ def run(
     if write_outputs:
         prepare_output_dir(out, comm)
     model = build_model(scene, comm)
+    if initial_state is not None and _leaves_plane(model, initial_state):
+        model = build_model(scene, comm, planar=False)  # it keeps all twelve unknowns
     if restart is not None:
         model.U.x.array[:] = restart.parts["state"]["U"]
     elif initial_state is not None:
-        model.U.x.array[:] = initial_state
+        model.U.x.array[:] = model.own_layout(initial_state)
     elif scene.initial.fields():
         model.U.x.array[:] = model.initial_state()
     tspan = scene.time
@@ -565,10 +603,16 @@ def run(
         "restarted_from_s": restart.time if restart is not None else None,
         "restarts": int(restart.meta["restarts"]) + 1 if restart is not None else 0,
         "skipped_terms": model.skipped,
+        "solved_unknowns": [UNKNOWN_NAMES[i] for i in model.components],
         "groups": model.groups.as_dict(),
         "python": platform.python_version(),
         "scene": scene.to_dict(),
     }
+    if progress is not None:
+        observers = (
+            *observers,
+            lambda k, t, m: progress(t, stepper.accepted, solver.stats.iterations),
+        )
     emit = _Outputs(model, probes, xdmf, scene.output.xdmf_every(tspan.step), observers)
     stepper = _Stepper(model, integrator, solver)
     loop_state: dict = {}
