@@ -1,0 +1,73 @@
+"""``cosserat-fem validate``: a scene resolved, with units, and what a run of it will solve."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .scene import SCHEMA, Scene, _Parameters, _Table
+
+
+def _unit(spec: Any) -> str:
+    unit = getattr(spec, "unit", "")
+    return f" [{unit}]" if unit else ""
+
+
+def _show(value: Any) -> str:
+    if isinstance(value, list | tuple):
+        return "[" + ", ".join(_show(v) for v in value) + "]"
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, bool):
+        return str(value).lower()
+    return f"{value:.10g}" if isinstance(value, float) else str(value)
+
+
+def _lines(data: dict, table: _Table, prefix: str) -> list[str]:
+    out = []
+    for name, value in data.items():
+        spec = table.fields.get(name)
+        key = f"{prefix}.{name}" if prefix else name
+        if isinstance(spec, _Table) and isinstance(value, dict):
+            out += _lines(value, spec, key)
+        elif isinstance(spec, _Parameters) and isinstance(value, dict):
+            out += [f"  {key}.{k} = {_show(v)}" for k, v in value.items()]
+        else:
+            out.append(f"  {key} = {_show(value)}{_unit(spec)}")
+    return out
+
+
+def describe_scene(scene: Scene) -> str:
+    """The resolved scene (every key, defaults filled in, with units) and derived numbers."""
+    section = scene.rod.section.constants()
+    mat = scene.rod.material
+    planar = scene.planar_xz()
+    unknowns = "x, z, psi and their rates (planar in x-z)" if planar else "all 12 of p and q"
+    nodes = scene.discretisation.elements * scene.discretisation.degree + 1
+    loads = scene.loads
+    absent = [
+        name
+        for name, vector in (
+            ("force_density", loads.force_density),
+            ("torque_density", loads.torque_density),
+        )
+        if all(e.is_zero for e in vector)
+    ]
+    absent += [] if loads.has_gravity else ["gravity"]
+    absent += [] if scene.damping.active else ["damping"]
+    lines = [f"cosserat-fem: {scene.source}: valid", f"  title = {_show(scene.title)}"]
+    data = scene.to_dict()
+    data.pop("title")
+    lines += _lines(data, SCHEMA, "")
+    lines += [
+        "derived:",
+        f"  section: A = {section.area:.6g} m^2, c11 = {section.c11:.6g} m^4, "
+        f"c22 = {section.c22:.6g} m^4, c33 = {section.c33:.6g} m^4, "
+        f"kappa = {section.shear_coefficient:.6g}",
+        f"  material: G = {mat.shear_modulus:.6g} Pa",
+        f"  omega0 = {scene.omega0:.10g} rad/s (tau = omega0 t)",
+        f"  time: {scene.time.n_steps} steps of {scene.time.step:.6g} s"
+        + (" (adaptive: first step and output interval)" if scene.time.adaptive else ""),
+        f"  unknowns: {unknowns}; {nodes * (6 if planar else 12)} dofs",
+        f"  not in the form (zero): {', '.join(absent) or 'nothing'}",
+    ]
+    return "\n".join(lines)

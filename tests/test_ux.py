@@ -1,0 +1,80 @@
+"""What the command line shows: progress bar, logging levels, the end summary, validate."""
+
+from __future__ import annotations
+
+import io
+
+import pytest
+from conftest import ROOT, run_command
+
+from cosserat_fem.progress import ProgressBar
+
+CLI = ["-m", "cosserat_fem.cli"]
+SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
+SHORT = ["--set", "time.end=0.003", "--set", "output.xdmf=false"]
+
+
+class FakeTerminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def test_progress_bar_on_a_terminal_only(monkeypatch):
+    clock = iter(range(100))
+    monkeypatch.setattr("cosserat_fem.progress.time.monotonic", lambda: float(next(clock)))
+    term = FakeTerminal()
+    bar = ProgressBar(0.0, 2.0, stream=term)
+    bar(0.5, 10, 40)  # 25 %: elapsed 1 s (clock ticks 1 s a call), ETA 3 s
+    bar(2.0, 40, 100)
+    bar.close()
+    frames = term.getvalue().split("\r")
+    assert " 25.0%" in frames[1] and "10 steps" in frames[1] and "4.00 it/step" in frames[1]
+    assert "ETA  3.0 s" in frames[1]
+    assert "100.0%" in frames[2] and "ETA  0.0 s" in frames[2]
+    assert frames[-1] == ""  # the line is cleared at the end
+    pipe = io.StringIO()  # not a terminal: silent
+    quiet = ProgressBar(0.0, 2.0, stream=pipe)
+    quiet(1.0, 5, 5)
+    quiet.close()
+    assert pipe.getvalue() == ""
+
+
+@pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=pytest.mark.mpi)])
+def test_run_prints_one_summary(tmp_path, ranks):
+    proc = run_command([*CLI, "run", SCENE, "--out", str(tmp_path), *SHORT], ranks)
+    assert proc.returncode == 0, proc.stderr
+    assert "\r" not in proc.stderr  # no progress bar in a pipe
+    lines = proc.stdout.strip().splitlines()
+    assert lines[0].startswith("cosserat-fem: completed: t = 0.003 s in 100 output steps")
+    assert sum(line.startswith("cosserat-fem:") for line in lines) == 1  # rank 0 only
+    assert any(line.strip().startswith("Newton:") for line in lines)
+    assert f"{ranks} MPI rank(s)" in proc.stdout
+
+
+def test_quiet_and_verbose(tmp_path):
+    quiet = run_command([*CLI, "run", SCENE, "--out", str(tmp_path / "q"), *SHORT, "--quiet"])
+    assert quiet.returncode == 0 and quiet.stdout == "" and quiet.stderr == ""
+    verbose = run_command([*CLI, "run", SCENE, "--out", str(tmp_path / "v"), *SHORT, "--verbose"])
+    assert verbose.returncode == 0
+    # checkpoints every 0.3 ms ("auto": a tenth of the run), logged at --verbose
+    assert verbose.stderr.count("cosserat-fem: checkpoint ") == 10
+
+
+def test_validate_prints_the_resolved_scene_with_units():
+    proc = run_command([*CLI, "validate", SCENE, "--set", "time.step=1e-5"])
+    assert proc.returncode == 0, proc.stderr
+    out = proc.stdout
+    assert "rod.material.young_modulus = 7.1e+10 [Pa]" in out
+    assert "time.step = 1e-05 [s]" in out and "6000 steps of 1e-05 s" in out
+    assert "omega0 = 207.0236 rad/s" in out and "300 dofs" in out
+    assert "discretisation.quadrature_degree = 6" in out  # "auto" resolved
+    bad = run_command([*CLI, "validate", SCENE, "--set", "time.stepp=1"])
+    assert bad.returncode == 2 and "did you mean 'time.step'" in bad.stderr
+    assert "Traceback" not in bad.stderr
+
+
+def test_help_lists_the_commands():
+    proc = run_command([*CLI, "--help"])
+    assert proc.returncode == 0
+    for command in ("run", "static", "modes", "validate"):
+        assert command in proc.stdout
