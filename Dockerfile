@@ -15,7 +15,9 @@ WORKDIR /src
 COPY .ci/setup.sh .ci/setup.sh
 RUN SETUP_APT_ONLY=1 bash .ci/setup.sh && rm -rf /var/lib/apt/lists/*
 
-# Layer 2: the project, installed by the same script into /opt/venv.
+# Layer 2: the project, installed by the same script into /opt/venv. PIP_CERT (a build
+# argument, unset by default) points pip at an extra CA bundle behind a TLS-intercepting proxy.
+ARG PIP_CERT
 COPY . .
 RUN bash .ci/setup.sh
 ENV PATH=/opt/venv/bin:$PATH

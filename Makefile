@@ -8,7 +8,7 @@ export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 
-.PHONY: setup demo test lint verify bench clean
+.PHONY: setup demo test lint verify bench clean container-test
 
 setup:
 	@VENV=$(VENV) bash .ci/setup.sh
@@ -28,6 +28,10 @@ verify: setup
 ## Work-precision benchmark against PyElastica (benchmarks/results/; about 15 minutes).
 bench: setup
 	$(PY) benchmarks/work_precision.py
+
+## Build the Dockerfile (docker, or rootful podman) and run make test and the MPI demo in it.
+container-test:
+	bash .ci/container-test.sh
 
 lint: setup
 	$(VENV)/bin/ruff check .
