@@ -95,6 +95,15 @@ class Report:
         self()
 
 
+def rod_table(side: float) -> dict:
+    """The slender rod's [rod] table: ℓ = LENGTH, a square section of the given side [m]."""
+    return {
+        "length": LENGTH,
+        "section": {"a": side, "b": side, "shear_coefficient": KAPPA},
+        "material": {"density": DENSITY, "young_modulus": YOUNG, "poisson_ratio": POISSON},
+    }
+
+
 def slender_scene(
     degree: int,
     elements: int,
@@ -107,15 +116,7 @@ def slender_scene(
     """The slender cantilever as a scene (statics; time keys only to satisfy the schema)."""
     return scene_from_dict(
         {
-            "rod": {
-                "length": LENGTH,
-                "section": {"a": side, "b": side, "shear_coefficient": KAPPA},
-                "material": {
-                    "density": DENSITY,
-                    "young_modulus": YOUNG,
-                    "poisson_ratio": POISSON,
-                },
-            },
+            "rod": rod_table(side),
             "loads": {"force_density": list(force_density), "end": {"force": list(force)}},
             "time": {"end": 1.0, "step": 1.0},
             "discretisation": {
@@ -355,15 +356,7 @@ def part_slender(report: Report, quick: bool) -> None:
         end = round(math.pi / omega1 / dt) * dt  # half a first period
         scene = scene_from_dict(
             {
-                "rod": {
-                    "length": LENGTH,
-                    "section": {"a": side, "b": side, "shear_coefficient": KAPPA},
-                    "material": {
-                        "density": DENSITY,
-                        "young_modulus": YOUNG,
-                        "poisson_ratio": POISSON,
-                    },
-                },
+                "rod": rod_table(side),
                 "loads": {"end": {"force": [P_dyn, 0, 0]}},
                 "time": {"end": end, "step": dt, "integrator": integrator, "rho_inf": 0.8},
                 "discretisation": {"elements": 8, "degree": 3},

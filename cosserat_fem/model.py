@@ -250,6 +250,33 @@ class RodModel:
         return U.x.array
 
 
+def support_conditions(
+    V: fem.FunctionSpace, scene: Scene, ends: dict[str, np.ndarray], components: tuple[int, ...]
+) -> tuple[list, dict[str, dict[int, fem.Constant]]]:
+    """Dirichlet conditions of the scene's supports (55) on a space whose blocks hold the
+    ``components`` of (p, q): all of them zero at a clamped end at rest; else, one by one, the
+    held ones (clamped: all; pinned: x, y, z, φ and their rates) with a Constant value each
+    (what a prescribed motion sets). ``ends``: the vertices of each end. Returns the
+    conditions and, by end, {full component: its Constant}."""
+    bcs, held = [], {}
+    for name, ents in ends.items():
+        kind, moving = getattr(scene.supports, name), scene.supports.motion(name) is not None
+        held[name] = {}
+        if kind == "clamped" and not moving:
+            dofs = fem.locate_dofs_topological(V, 0, ents)
+            bcs.append(fem.dirichletbc(np.zeros(len(components), dtype=np.float64), dofs, V))
+            continue
+        if kind == "free":
+            continue
+        for i in (i for i in (PINNED_COMPONENTS if kind == "pinned" else FULL) if i in components):
+            j = components.index(i)
+            value = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
+            dofs = fem.locate_dofs_topological(V.sub(j), 0, ents)
+            bcs.append(fem.dirichletbc(value, dofs, V.sub(j)))
+            held[name][i] = value
+    return bcs, held
+
+
 def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = True) -> RodModel:
     """The discrete rod; ``planar``: solve only the x-z unknowns when the scene stays in that
     plane (:meth:`Scene.planar_xz`, and discretisation.planar = "auto")."""
@@ -272,29 +299,14 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     order = np.argsort(facets)
     tags = mesh.meshtags(msh, 0, facets[order], values[order].astype(np.int32))
 
-    bcs, motions = [], []
-    for name, ents in (("start", start), ("end", end)):
-        kind, motion = getattr(scene.supports, name), scene.supports.motion(name)
-        if kind == "clamped" and motion is None:
-            dofs = fem.locate_dofs_topological(V, 0, ents)
-            bcs.append(fem.dirichletbc(np.zeros(len(components), dtype=np.float64), dofs, V))
-            continue
-        if kind == "free":
-            continue
-        # Held components one by one: x, y, z, φ and their rates (pinned: θ, ψ free), or all
-        # twelve (clamped); x, y, z and their rates follow the prescribed motion, if any.
-        held = PINNED_COMPONENTS if kind == "pinned" else FULL
-        values = {}
-        for i in (i for i in held if i in components):
-            j = components.index(i)
-            value = fem.Constant(msh, PETSc.ScalarType(0.0))
-            dofs = fem.locate_dofs_topological(V.sub(j), 0, ents)
-            bcs.append(fem.dirichletbc(value, dofs, V.sub(j)))
-            values[i] = value
+    bcs, held = support_conditions(V, scene, {"start": start, "end": end}, components)
+    motions = []
+    for name in ("start", "end"):
+        motion = scene.supports.motion(name)
         if motion is not None:
             rates = tuple(derivative(e, "t") for e in motion)
             accelerations = tuple(derivative(e, "t") for e in rates)
-            motions.append(SupportMotion(motion, rates, accelerations, values))
+            motions.append(SupportMotion(motion, rates, accelerations, held[name]))
 
     # FFCx 0.5 reads the quadrature degree from the measure's metadata only; a
     # form_compiler_params={"quadrature_degree": q} is silently ignored.

@@ -36,7 +36,7 @@ from dolfinx.fem.petsc import assemble_matrix
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .model import PINNED_COMPONENTS, RodModel, build_model
+from .model import FULL, RodModel, build_model, support_conditions
 from .output import XdmfWriter
 
 KINDS = ("bending-x", "bending-y", "axial", "torsion")
@@ -70,21 +70,13 @@ class ModalProblem:
 
 
 def clamped_conditions(model: RodModel, P: fem.FunctionSpace) -> list:
-    """The supports on the 6-component space P: p = 0 at a clamped end; x, y, z, φ = 0 at a
-    pinned one (model.PINNED_COMPONENTS)."""
-    bcs = []
-    for kind, coord in ((model.scene.supports.start, 0.0), (model.scene.supports.end, 1.0)):
-        if kind not in ("clamped", "pinned"):
-            continue
-        ends = mesh.locate_entities_boundary(model.msh, 0, lambda x, c=coord: np.isclose(x[0], c))
-        if kind == "clamped":
-            dofs = fem.locate_dofs_topological(P, 0, ends)
-            bcs.append(fem.dirichletbc(np.zeros(6, dtype=np.float64), dofs, P))
-            continue
-        for i in (c for c in PINNED_COMPONENTS if c < 6):
-            dofs = fem.locate_dofs_topological(P.sub(i), 0, ends)
-            bcs.append(fem.dirichletbc(PETSc.ScalarType(0.0), dofs, P.sub(i)))
-    return bcs
+    """The supports on the 6-component space P of p (model.support_conditions: p = 0 at a
+    clamped end; x, y, z, φ = 0 at a pinned one)."""
+    ends = {
+        name: mesh.locate_entities_boundary(model.msh, 0, lambda x, c=coord: np.isclose(x[0], c))
+        for name, coord in (("start", 0.0), ("end", 1.0))
+    }
+    return support_conditions(P, model.scene, ends, FULL[:6])[0]
 
 
 def assemble_modal_problem(model: RodModel, base: np.ndarray | None = None) -> ModalProblem:
