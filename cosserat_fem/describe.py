@@ -53,7 +53,8 @@ def describe_scene(scene: Scene) -> str:
         if all(e.is_zero for e in vector)
     ]
     absent += [] if loads.has_gravity else ["gravity"]
-    absent += [] if scene.damping.active else ["damping"]
+    absent += [] if scene.damping.viscous else ["damping"]
+    absent += [] if scene.damping.kelvin_voigt else ["kelvin_voigt"]
     lines = [f"cosserat-fem: {scene.source}: valid", f"  title = {_show(scene.title)}"]
     data = scene.to_dict()
     data.pop("title")

@@ -1,4 +1,5 @@
-"""Energy bookkeeping of a run: E = T + V of the rod and the power P of its loads [SI].
+"""Energy bookkeeping of a run: E = T + V of the rod and the power P of its loads and its
+damping [SI].
 
 The integrands are those of :mod:`cosserat_fem.forms.energy`; the forms are compiled once and
 evaluated on the current state (collectively under MPI). The load power is evaluated at a given
@@ -11,12 +12,17 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .forms.energy import kinetic_energy_density, load_power, strain_energy_density
+from .forms.energy import (
+    damping_power,
+    kinetic_energy_density,
+    load_power,
+    strain_energy_density,
+)
 from .model import RodModel
 
 
 class EnergyMonitor:
-    """T, V [J] of ``model.U`` and the power P [W] of the scene's loads."""
+    """T, V [J] of ``model.U`` and the power P [W] of the scene's loads and damping."""
 
     def __init__(self, model: RodModel):
         self.model = model
@@ -32,6 +38,14 @@ class EnergyMonitor:
             if end.force is not None or end.torque is not None:
                 term = load_power(U, rod, end.force, end.torque) * end.ds
                 power = term if power is None else power + term
+        d = model.scene.damping
+        if d.active:
+            term = (
+                rod.length
+                * damping_power(U, rod, d.translational, d.rotational, d.retardation_time)
+                * dx
+            )
+            power = term if power is None else power + term
         self._P = fem.form(power) if power is not None else None
 
     def _sum(self, form) -> float:
@@ -42,7 +56,7 @@ class EnergyMonitor:
         return self._sum(self._T), self._sum(self._V)
 
     def power(self, t: float) -> float:
-        """Power of the loads at time t [s] on the current state [W]."""
+        """Power of the loads and the damping at time t [s] on the current state [W]."""
         if self._P is None:
             return 0.0
         self.tau.value = t * self.model.omega0

@@ -25,6 +25,7 @@ from .forms.general_form import (
     DistributedLoads,
     EndLoadConvention,
     EndLoads,
+    KelvinVoigtDamping,
     ViscousDamping,
     residual_terms,
 )
@@ -223,9 +224,21 @@ class RodModel:
         distributed, ends = self.load_vectors(time_eval)
         V = ufl.TestFunction(self.V) if test is None else test
         d = self.scene.damping
-        damping = ViscousDamping(d.translational, d.rotational, self.omega0) if d.active else None
+        viscous = ViscousDamping(d.translational, d.rotational, self.omega0) if d.viscous else None
+        kelvin_voigt = (
+            KelvinVoigtDamping(d.retardation_time, self.omega0) if d.kelvin_voigt else None
+        )
         return residual_terms(
-            U_eval, Udot_eval, V, self.groups, self.dx, distributed, ends, self.convention, damping
+            U_eval,
+            Udot_eval,
+            V,
+            self.groups,
+            self.dx,
+            distributed,
+            ends,
+            self.convention,
+            viscous,
+            kelvin_voigt,
         )
 
     def initial_state(self) -> np.ndarray:
@@ -323,7 +336,8 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
         if exprs is None or all(e.is_zero for e in exprs)
     ]
     skipped += [] if scene.loads.has_gravity else ["gravity"]
-    skipped += [] if scene.damping.active else ["damping"]
+    skipped += [] if scene.damping.viscous else ["damping"]
+    skipped += [] if scene.damping.kelvin_voigt else ["kelvin_voigt"]
     skipped += ["out-of-plane unknowns y, theta, phi"] if components != FULL else []
     return RodModel(
         scene=scene,

@@ -182,7 +182,8 @@ FIELD_ARRAYS: dict[str, tuple[str, ...]] = {
 def _field_expressions(U, model: RodModel, fields: tuple[str, ...]) -> list[tuple[str, object]]:
     """(array name, UFL 3-vector) of the requested fields; see :class:`XdmfWriter`."""
     U = model.full(U)  # a planar model's unknowns in the 12 components (zeros out of plane)
-    res = resultants(U, model.rod) if {"strains", "forces"} & set(fields) else None
+    tau = model.scene.damping.retardation_time  # n, m with their Kelvin–Voigt parts
+    res = resultants(U, model.rod, tau) if {"strains", "forces"} & set(fields) else None
     ell = model.length
     exprs = {
         "displacement": lambda: ufl.as_vector([ell * U[0], ell * U[1], ell * U[2]]),

@@ -177,14 +177,27 @@ class Loads:
 class Damping:
     """Viscous damping densities: force −c_t ṙ [N/m] with ``translational`` c_t [N s/m²], and
     torque −c_r ω [N m/m] with ``rotational`` c_r [N s] (ω the angular velocity). For a
-    slender rod c_t damps every bending mode alike: ζ_n = c_t / (2 ρ A ω_n)."""
+    slender rod c_t damps every bending mode alike: ζ_n = c_t / (2 ρ A ω_n).
+
+    Kelvin–Voigt (material) damping with ``retardation_time`` τ_d [s]: E and G act on
+    (1 + τ_d ∂t) of the strains, n = K (v − e3 + τ_d v̇), m = J (u + τ_d u̇); it damps each
+    mode in proportion to its frequency, ζ_n = τ_d ω_n / 2 (forms/general_form.py)."""
 
     translational: float = 0.0
     rotational: float = 0.0
+    retardation_time: float = 0.0
+
+    @property
+    def viscous(self) -> bool:
+        return self.translational > 0.0 or self.rotational > 0.0
+
+    @property
+    def kelvin_voigt(self) -> bool:
+        return self.retardation_time > 0.0
 
     @property
     def active(self) -> bool:
-        return self.translational > 0.0 or self.rotational > 0.0
+        return self.viscous or self.kelvin_voigt
 
 
 @dataclass(frozen=True)
@@ -604,6 +617,7 @@ SCHEMA = _Table(
             {
                 "translational": _Number(default=0.0, interval=NON_NEGATIVE, unit="N s/m^2"),
                 "rotational": _Number(default=0.0, interval=NON_NEGATIVE, unit="N s"),
+                "retardation_time": _Number(default=0.0, interval=NON_NEGATIVE, unit="s"),
             }
         ),
         "initial": _Table(
@@ -897,7 +911,7 @@ def _build_supports(raw: dict[str, Any], constants: set[str]) -> Supports:
         motions[end] = None if all(e.is_zero for e in vector) else vector
         if motions[end] is not None and kind == "free":
             raise SceneError(
-                f'{key}: a prescribed motion needs a held end (clamped or pinned), but '
+                f"{key}: a prescribed motion needs a held end (clamped or pinned), but "
                 f'supports.{end} = "free"'
             )
     return Supports(raw["start"], raw["end"], motions["start"], motions["end"])
@@ -1035,8 +1049,12 @@ def _build_discretisation(raw: dict[str, Any]) -> Discretisation:
 def _build_output(raw: dict[str, Any], time: Time) -> Output:
     interval = raw["xdmf_interval"]
     # Checked only when fields are written: with xdmf = false the interval is unused.
-    if raw["xdmf"] and interval > 0.0 and not (
-        interval >= time.step * (1.0 - STEP_TOLERANCE) and _integral_ratio(interval, time.step)
+    if (
+        raw["xdmf"]
+        and interval > 0.0
+        and not (
+            interval >= time.step * (1.0 - STEP_TOLERANCE) and _integral_ratio(interval, time.step)
+        )
     ):
         raise SceneError(
             f"output.xdmf_interval: must be 0 (every step) or an integer multiple of "
@@ -1045,9 +1063,13 @@ def _build_output(raw: dict[str, Any], time: Time) -> Output:
     checkpoint_interval = raw["checkpoint_interval"]
     if checkpoint_interval == "auto":  # about ten checkpoints a run, on the step grid
         checkpoint_interval = max(1, round(time.n_steps / CHECKPOINTS_PER_RUN)) * time.step
-    elif raw["checkpoint"] and checkpoint_interval > 0.0 and not (
-        checkpoint_interval >= time.step * (1.0 - STEP_TOLERANCE)
-        and _integral_ratio(checkpoint_interval, time.step)
+    elif (
+        raw["checkpoint"]
+        and checkpoint_interval > 0.0
+        and not (
+            checkpoint_interval >= time.step * (1.0 - STEP_TOLERANCE)
+            and _integral_ratio(checkpoint_interval, time.step)
+        )
     ):
         raise SceneError(
             f"output.checkpoint_interval: must be 0 (at the end only), 'auto' or an integer "

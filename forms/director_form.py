@@ -56,11 +56,18 @@ def director_residual_terms(
     force_density=None,
     torque_density=None,
     end_loads: tuple = (),
+    viscous_damping: tuple[float, float] | None = None,
+    retardation_time: float | None = None,
 ) -> dict[str, ufl.Form]:
     """Residual of (6) in director form, split like :class:`.general_form.ResidualTerms`.
 
     force_density f [N/m], torque_density l [N m/m]: UFL 3-vectors in the fixed basis or None.
     end_loads: tuples (ds, f^b [N] or None, l^b [N m] or None).
+    viscous_damping (c_t [N s/m²], c_r [N s]): the densities f_d = −c_t ∂t r and l_d = −c_r w,
+    term ``damping``. retardation_time τ_d [s]: Kelvin–Voigt contact force and torque
+    n_v = Σ K_ii τ_d ∂t(∂s r · d_i) d_i, m_v = Σ J_ii τ_d ∂t(u · d_i) d_i, term
+    ``kelvin_voigt``, with ∂t(u · d_i) = ∂t u · d_i + u · ∂t d_i and
+    ∂t u = ½ Σ (∂t d_i × ∂s d_i + d_i × ∂s ∂t d_i) from (3).
     """
     sec = rod.section
     ell, rho, w0 = rod.length, rod.density, rod.omega0
@@ -138,4 +145,21 @@ def director_residual_terms(
         end_form = integrand * ds if end_form is None else end_form + integrand * ds
     if end_form is not None:
         terms["end_load"] = end_form
+    if viscous_damping is not None:
+        c_t, c_r = viscous_damping
+        f_d = -c_t * ell * w0 * ufl.as_vector([q[0], q[1], q[2]])
+        l_d = -c_r * w0 * w
+        terms["damping"] = (-ufl.dot(f_d * ell / fstar, dr) - ufl.dot(l_d / fstar, dth)) * dx
+    if retardation_time is not None:
+        eta = retardation_time * w0
+        r_st = ufl.as_vector([q[a].dx(0) for a in range(3)])
+        d_st = [ufl.as_vector([dt[m].dx(0) for m in range(3)]) for dt in d_t]
+        u_t = _axial(d_t, d_s) + _axial(d, d_st)
+        v_rates = [ufl.dot(r_st, d[a]) + ufl.dot(r_s, d_t[a]) for a in range(3)]
+        u_rates = [ufl.dot(u_t, d[a]) + ufl.dot(u, d_t[a]) for a in range(3)]
+        n_v = sum((eta * K[a] * v_rates[a] * d[a] for a in range(3)), ufl.zero(3))
+        m_v = sum((eta * J[a] * u_rates[a] * d[a] for a in range(3)), ufl.zero(3))
+        terms["kelvin_voigt"] = (
+            ufl.dot(n_v, dr_s) + ufl.dot(m_v, dth_s) - ufl.dot(ufl.cross(r_s, n_v), dth)
+        ) * dx
     return terms

@@ -11,7 +11,12 @@ and the power of the loads (36), (42) in fixed directions is
     P = ∫₀^ℓ (f · ∂t r + l · w) ds + Σ_free ends (f^b · ∂t r + l^b · w),
 
 with l · w = Σ_i l_i w_i, l_i = d_i · l (38). For the rod of (6) with the consistent rotary
-inertia (docs/errata.md, erratum 1), dE/dt = P with E = T + V. Integrands are per unit σ
+inertia (docs/errata.md, erratum 1), dE/dt = P with E = T + V. Damping adds its power
+
+    P_d = −∫₀^ℓ [c_t |∂t r|² + c_r |w|² + τ_d (K v̇ · v̇ + J u̇ · u̇)] ds ≤ 0
+
+(viscous densities −c_t ∂t r, −c_r w; Kelvin–Voigt parts τ_d K v̇, τ_d J u̇ of n and m, whose
+power against the strain rates is what the elastic parts' is against V). Integrands are per unit σ
 (ds = ℓ dσ): integrate them with ``* dx`` over the interval mesh σ ∈ [0, 1].
 """
 
@@ -20,7 +25,15 @@ from __future__ import annotations
 import ufl
 
 from .groups import RodConstants
-from .kinematics import angular_velocity, curvature, rotation_matrix, split, stretch_shear_strain
+from .kinematics import (
+    angular_velocity,
+    curvature,
+    rotation_matrix,
+    split,
+    strain_rates,
+    stretch_shear_strain,
+)
+from .resultants import section_stiffnesses
 
 
 def _rates(U, rod: RodConstants):
@@ -67,4 +80,26 @@ def load_power(U, rod: RodConstants, force=None, torque=None):
         power = power + ufl.dot(force, r_dot)
     if torque is not None:
         power = power + ufl.dot(rotation_matrix(p[3], p[4], p[5]) * torque, w)
+    return power
+
+
+def damping_power(
+    U, rod: RodConstants, translational=0.0, rotational=0.0, retardation_time=0.0
+) -> ufl.core.expr.Expr:
+    """P_d per unit length [W/m] (module docstring), to be multiplied by ℓ and integrated with
+    ``dx``: c_t [N s/m²], c_r [N s], τ_d [s]."""
+    p, r_dot, w = _rates(U, rod)
+    power = -translational * ufl.dot(r_dot, r_dot) - rotational * ufl.dot(w, w)
+    if retardation_time > 0.0:
+        q = split(U)[1]
+        dU = U.dx(0)
+        dp = ufl.as_vector([dU[i] for i in range(6)])
+        dq = ufl.as_vector([dU[i] for i in range(6, 12)])
+        v_dot, u_dot = strain_rates(p, dp, q, dq)
+        v_t = rod.omega0 * v_dot
+        u_t = rod.omega0 / rod.length * u_dot
+        K, J = section_stiffnesses(rod)
+        power = power - retardation_time * sum(
+            K[i] * v_t[i] ** 2 + J[i] * u_t[i] ** 2 for i in range(3)
+        )
     return power

@@ -40,6 +40,7 @@ from .kinematics import (
     curvature,
     rotation_matrix,
     split,
+    strain_rates,
     stretch_shear_strain,
     translations,
 )
@@ -94,6 +95,19 @@ class ViscousDamping:
 
     translational: float
     rotational: float
+    omega0: float
+
+
+@dataclass(frozen=True)
+class KelvinVoigtDamping:
+    """Kelvin–Voigt damping of the section: the contact force and torque (9)-(13) become
+    n = Σ K_ii (v_i − δ_i3 + τ_d v̇_i) d_i and m = Σ J_ii (u_i + τ_d u̇_i) d_i, with the
+    ``retardation_time`` τ_d [s] of a material whose E and G both carry (1 + τ_d ∂t), and the
+    director-component rates of :func:`.kinematics.strain_rates`. Linearised about the straight
+    rod the damping operator is τ_d × the stiffness operator, so every mode decays at
+    τ_d ω_n²/2 (modal damping ratio ζ_n = τ_d ω_n/2). ``omega0`` [rad/s] converts the rates."""
+
+    retardation_time: float
     omega0: float
 
 
@@ -223,6 +237,35 @@ def damping_source(p, q, G: Groups, damping: ViscousDamping) -> ufl.core.expr.Ex
     )
 
 
+def kelvin_voigt_terms(
+    p, dp, q, dq, G: Groups, damping: KelvinVoigtDamping
+) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
+    """The viscous parts (b_v, g_v) of the flux b (63) and the source g (67).
+
+    In the scaling of the rows (:mod:`.groups`), with F* = ρ A ℓ² ω0² = ℓ/g0, the dimensionless
+    contact force N̂ = n/F* and torque M̂ = m/(F* ℓ) (director components) and the rotary
+    inertias Î_i = I_ii/(ρ A ℓ²) = g0/(ℓ g_i), the elastic flux (63) is b = −(Dᵀ N̂, M̂_i/Î_i)
+    and the elastic source of the moment rows (67) is ((û × M̂) + (v × N̂))_i/Î_i, which is the
+    moment balance (6) in director components, m' + u × m + v × n. The viscous parts are the
+    same expressions of N̂_v = η (ν01 v̇1, ν01 v̇2, ν02 v̇3) and M̂_v = η (ν11 Î1 û̇1, ν21 Î2 û̇2,
+    ν31 Î3 û̇3), η = ω0 τ_d, and enter the free-end condition a_m b = −g_b with the elastic
+    flux: n(ℓ) = f^b holds for the whole contact force."""
+    eta = damping.omega0 * damping.retardation_time
+    D = rotation_matrix(p[3], p[4], p[5])
+    v = stretch_shear_strain(p, dp)
+    u = curvature(p, dp)
+    v_dot, u_dot = strain_rates(p, dp, q, dq)
+    inertia = [G.g0 / (G.length * g) for g in (G.g1, G.g2, G.g3)]
+    n_v = eta * ufl.as_vector([G.nu01 * v_dot[0], G.nu01 * v_dot[1], G.nu02 * v_dot[2]])
+    stiff = (G.nu11, G.nu21, G.nu31)
+    m_v = eta * ufl.as_vector([stiff[i] * inertia[i] * u_dot[i] for i in range(3)])
+    force = D.T * n_v
+    moment = ufl.cross(u, m_v) + ufl.cross(v, n_v)
+    flux_v = ufl.as_vector([-force[i] for i in range(3)] + [-m_v[i] / inertia[i] for i in range(3)])
+    source_v = ufl.as_vector([0.0, 0.0, 0.0] + [moment[i] / inertia[i] for i in range(3)])
+    return flux_v, source_v
+
+
 def end_data(p, G: Groups, end: EndLoads, convention: EndLoadConvention) -> ufl.core.expr.Expr:
     """Free-end data g_b of (62), corrected (module docstring); l^b_i = d_i · l^b by (43)."""
     sign = END_LOAD_SIGNS[convention.sign]
@@ -249,6 +292,7 @@ def residual_terms(
     end_loads: tuple[EndLoads, ...] = (),
     convention: EndLoadConvention = EndLoadConvention(),
     damping: ViscousDamping | None = None,
+    kelvin_voigt: KelvinVoigtDamping | None = None,
 ) -> ResidualTerms:
     """The weak residual of (65) (module docstring), term by term.
 
@@ -277,6 +321,10 @@ def residual_terms(
     extra = {}
     if damping is not None:
         extra["damping"] = -ufl.inner(damping_source(p, q, G, damping), vq) * dx
+    if kelvin_voigt is not None:
+        dq = ufl.as_vector([dU[i] for i in range(6, 12)])
+        b_v, g_v = kelvin_voigt_terms(p, dp, q, dq, G, kelvin_voigt)
+        extra["kelvin_voigt"] = (-ufl.inner(b_v, dvq) - ufl.inner(g_v, vq)) * dx
     return ResidualTerms(
         kinematic=kinematic,
         inertia=inertia,
@@ -291,12 +339,14 @@ __all__ = [
     "DistributedLoads",
     "EndLoadConvention",
     "EndLoads",
+    "KelvinVoigtDamping",
     "ResidualTerms",
     "Source",
     "ViscousDamping",
     "damping_source",
     "end_data",
     "flux",
+    "kelvin_voigt_terms",
     "mass_matrix",
     "residual_terms",
     "source",

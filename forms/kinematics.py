@@ -82,3 +82,19 @@ def curvature(p, dp) -> ufl.core.expr.Expr:
 def angular_velocity(p, q) -> ufl.core.expr.Expr:
     """ŵ = w/ω0, components in the director basis, eq. (26): ŵ = Mm (θ̇, ψ̇, φ̇)."""
     return angular_map(p[3], p[5]) * angles(q)
+
+
+def strain_rates(p, dp, q, dq) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
+    """τ-derivatives of the director components of v (29) and û (25), the objective strain
+    rates of a Kelvin–Voigt law.
+
+    v_i = d_i · r' with ḋ_i = w × d_i (4) gives v̇ = D (q1', q2', q3') + v × ŵ (the second
+    term vanishes for a rigid rotation, where r' turns with the directors); û = Mm (θ', ψ', φ')
+    gives û̇ = (dMm/dτ) (θ', ψ', φ') + Mm (θ̇', ψ̇', φ̇'), with q' = dq/dσ."""
+    D = rotation_matrix(p[3], p[4], p[5])
+    v = stretch_shear_strain(p, dp)
+    w = angular_velocity(p, q)
+    v_dot = D * translations(dq) + ufl.cross(v, w)
+    mdot = angular_map_rate(p[3], p[5], q[3], q[5])
+    u_dot = mdot * angles(dp) + angular_map(p[3], p[5]) * angles(dq)
+    return v_dot, u_dot

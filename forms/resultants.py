@@ -8,7 +8,10 @@ director basis (d1, d2, d3) of (18) (``X_i = d_i · X``):
 * u_i, the curvature (3) in the director basis, eq. (25), [1/m]: u = û/ℓ
   (:func:`.kinematics.curvature`);
 * n = Σ K_ii (v_i − δ_i3) d_i, the contact force (9)-(10) [N], K = diag(κGA, κGA, EA);
-* m = Σ J_ii u_i d_i, the contact torque (13) [N m], J = diag(E c11, E c22, G c33).
+* m = Σ J_ii u_i d_i, the contact torque (13) [N m], J = diag(E c11, E c22, G c33);
+* with Kelvin–Voigt damping (retardation time τ_d [s], :class:`.general_form.KelvinVoigtDamping`)
+  n and m include their viscous parts τ_d K v̇ and τ_d J u̇ (rates of
+  :func:`.kinematics.strain_rates`), the whole contact force and torque.
 
 The reference configuration is the straight rod along e3 (r' = (p1', p2', 1 + p3'), (14),
 (27)): there v = (0, 0, 1), u = n = m = 0. n(s) and m(s) are the force and torque that the
@@ -29,7 +32,7 @@ from dataclasses import dataclass
 import ufl
 
 from .groups import RodConstants
-from .kinematics import curvature, split, stretch_shear_strain
+from .kinematics import curvature, split, strain_rates, stretch_shear_strain
 
 
 def section_stiffnesses(rod: RodConstants) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -67,10 +70,20 @@ class Resultants:
     m: ufl.core.expr.Expr
 
 
-def resultants(U, rod: RodConstants) -> Resultants:
-    """v, u, n, m of the state U = (p, q) (12 components, or p alone with 6) on σ ∈ [0, 1]."""
+def resultants(U, rod: RodConstants, retardation_time: float = 0.0) -> Resultants:
+    """v, u, n, m of the state U = (p, q) (12 components, or p alone with 6) on σ ∈ [0, 1];
+    a ``retardation_time`` τ_d > 0 adds the Kelvin–Voigt parts to n and m (needs q)."""
     p = split(U)[0] if U.ufl_shape == (12,) else U
     dU = U.dx(0)
     dp = ufl.as_vector([dU[i] for i in range(6)])
     v, u = strains(p, dp, rod.length)
-    return Resultants(v=v, u=u, n=contact_force(v, rod), m=contact_torque(u, rod))
+    n, m = contact_force(v, rod), contact_torque(u, rod)
+    if retardation_time > 0.0:
+        q = split(U)[1]
+        dq = ufl.as_vector([dU[i] for i in range(6, 12)])
+        v_dot, u_dot = strain_rates(p, dp, q, dq)  # per unit τ = ω0 t
+        K, J = section_stiffnesses(rod)
+        scale = retardation_time * rod.omega0
+        n = n + ufl.as_vector([scale * K[i] * v_dot[i] for i in range(3)])
+        m = m + ufl.as_vector([scale * J[i] * u_dot[i] / rod.length for i in range(3)])
+    return Resultants(v=v, u=u, n=n, m=m)

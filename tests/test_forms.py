@@ -17,6 +17,8 @@ from cosserat_fem.forms.general_form import (
     DistributedLoads,
     EndLoadConvention,
     EndLoads,
+    KelvinVoigtDamping,
+    ViscousDamping,
     residual_terms,
 )
 from cosserat_fem.forms.groups import RodConstants, dimensionless_groups
@@ -100,6 +102,48 @@ def test_general_form_equals_director_form_term_by_term(rod, degree):
         scale = np.abs(a).max()
         assert scale > 0, name
         assert np.abs(a - b).max() <= 1e-12 * scale, name
+
+
+@pytest.mark.parametrize("torsion_inertia", ["polar", "printed"])
+@pytest.mark.parametrize("degree", [1, 3])
+def test_damping_terms_equal_the_director_form(rod, degree, torsion_inertia):
+    """Viscous damping and Kelvin–Voigt damping at random states: the general form's rows
+    (``damping_source``; ``kelvin_voigt_terms`` with the strain rates of
+    ``kinematics.strain_rates``) against the director form's (∂t d_i by UFL's chain rule,
+    ∂t u from (3), n_v and m_v in the fixed basis). Same round-off bound as above. With the
+    printed torsion inertia the torsion row (12) is the director form's times
+    (c11 + c22)/c33, like every other term of that row (erratum 1): the viscous torsion row
+    is scaled by the row's own reference."""
+    from dataclasses import replace
+
+    rod = replace(rod, torsion_inertia=torsion_inertia)
+    msh, V, U, Udot, dx, loads = _setup(degree, seed=10 + degree)
+    viscous, tau = (3.0e2, 0.7), 2.5e-4
+    general = residual_terms(
+        U,
+        Udot,
+        ufl.TestFunction(V),
+        dimensionless_groups(rod),
+        dx,
+        damping=ViscousDamping(*viscous, rod.omega0),
+        kelvin_voigt=KelvinVoigtDamping(tau, rod.omega0),
+    ).as_dict()
+    director = director_residual_terms(
+        U, Udot, ufl.TestFunction(V), rod, dx, viscous_damping=viscous, retardation_time=tau
+    )
+    factor = 1.0
+    if torsion_inertia == "printed":
+        factor = (rod.section.c11 + rod.section.c22) / rod.section.c33
+    for name in ("damping", "kelvin_voigt"):
+        a, b = _assemble(general[name]), _assemble(director[name])
+        b.reshape(-1, 12)[:, 11] *= factor
+        scale = np.abs(a).max()
+        assert scale > 0, name
+        assert np.abs(a - b).max() <= 1e-12 * scale, name
+    # The viscous flux is of the elastic's size times η = ω0 τ_d ~ 0.04 at these rates: it is
+    # not a negligible addition that would pass any comparison.
+    ratio = np.abs(_assemble(general["kelvin_voigt"])).max()
+    assert ratio > 1e-3 * np.abs(_assemble(general["elastic"])).max()
 
 
 def _row_ratio(rod_a, rod_b, name, convention_b=EndLoadConvention()):
