@@ -6,6 +6,8 @@ from typing import Any
 
 from .scene import SCHEMA, Scene, _Parameters, _Table
 
+IN_PLANE = {"x-z": "x, z, psi", "y-z": "y, z, theta"}
+
 
 def _unit(spec: Any) -> str:
     unit = getattr(spec, "unit", "")
@@ -40,8 +42,10 @@ def describe_scene(scene: Scene) -> str:
     """The resolved scene (every key, defaults filled in, with units) and derived numbers."""
     section = scene.rod.section.constants()
     mat = scene.rod.material
-    planar = scene.planar_xz()
-    unknowns = "x, z, psi and their rates (planar in x-z)" if planar else "all 12 of p and q"
+    plane = scene.plane()
+    unknowns = "all 12 of p and q"
+    if plane is not None:
+        unknowns = f"{IN_PLANE[plane]} and their rates (planar in {plane})"
     nodes = scene.discretisation.elements * scene.discretisation.degree + 1
     loads = scene.loads
     absent = [
@@ -68,7 +72,7 @@ def describe_scene(scene: Scene) -> str:
         f"  omega0 = {scene.omega0:.10g} rad/s (tau = omega0 t)",
         f"  time: {scene.time.n_steps} steps of {scene.time.step:.6g} s"
         + (" (adaptive: first step and output interval)" if scene.time.adaptive else ""),
-        f"  unknowns: {unknowns}; {nodes * (6 if planar else 12)} dofs",
+        f"  unknowns: {unknowns}; {nodes * (6 if plane else 12)} dofs",
         f"  not in the form (zero): {', '.join(absent) or 'nothing'}",
     ]
     return "\n".join(lines)

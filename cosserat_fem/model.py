@@ -36,11 +36,14 @@ from .scene import Scene
 START_TAG, END_TAG = 1, 2
 #: The components of U = (p, q) a pinned end holds: x, y, z, φ and their rates.
 PINNED_COMPONENTS = (0, 1, 2, 5, 6, 7, 8, 11)
-#: The unknowns solved: all twelve, or those of motion in the x-z plane, (x, z, ψ) and their
+#: The unknowns solved: all twelve, or those of motion in one plane: x-z, (x, z, ψ) and their
 #: rates (y = θ = φ = 0 is an invariant set of (65) when no load, support or initial state
-#: leaves the plane: every y, θ, φ row of F vanishes there; tests/test_planar.py).
+#: leaves the plane: every y, θ, φ row of F vanishes there), or y-z, (y, z, θ) and their rates
+#: (x = ψ = φ = 0 likewise; θ carries the bending, so the chart limit |θ| < π/2 applies);
+#: tests/test_planar.py.
 FULL = tuple(range(12))
-PLANAR_XZ = (0, 2, 4, 6, 8, 10)
+PLANAR = {"x-z": (0, 2, 4, 6, 8, 10), "y-z": (1, 2, 3, 7, 8, 9)}
+UNKNOWN_SYMBOLS = ("x", "y", "z", "theta", "psi", "phi")
 
 
 def _drop_build_chatter(record: logging.LogRecord) -> bool:
@@ -122,11 +125,15 @@ class RodModel:
         return ufl.as_vector([u[self.index(i)] if i in self.components else 0.0 for i in FULL])
 
     def own_layout(self, state: np.ndarray) -> np.ndarray:
-        """A state array in U's layout, from one in U's layout or in the full 12 components."""
+        """A state array in U's layout from one of all 12 components at each node (a reduced
+        state cannot be told x-z from y-z by its size: :meth:`full_array` it first)."""
         nodes = self.U.x.array.size // len(self.components)
-        if self.reduced and np.size(state) == nodes * 12:
-            return np.asarray(state).reshape(nodes, 12)[:, self.components].ravel()
-        return np.asarray(state)
+        if np.size(state) != nodes * 12:
+            raise ValueError(
+                f"initial state: {np.size(state)} values, expected 12 per node ({nodes * 12}); "
+                "embed a planar model's U with RodModel.full_array"
+            )
+        return np.asarray(state).reshape(nodes, 12)[:, self.components].ravel()
 
     def full_array(self, state: np.ndarray) -> np.ndarray:
         """(nodes, 12) values of a state array of U's layout."""
@@ -291,13 +298,14 @@ def support_conditions(
 
 
 def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = True) -> RodModel:
-    """The discrete rod; ``planar``: solve only the x-z unknowns when the scene stays in that
-    plane (:meth:`Scene.planar_xz`, and discretisation.planar = "auto")."""
+    """The discrete rod; ``planar``: solve only the in-plane unknowns when the scene stays in
+    the x-z or the y-z plane (:meth:`Scene.plane`, and discretisation.planar = "auto")."""
     quiet_jit_logging()
     disc = scene.discretisation
     msh = mesh.create_interval(comm, disc.elements, [0.0, 1.0])
     cell = msh.ufl_cell()
-    components = PLANAR_XZ if planar and scene.planar_xz() else FULL
+    plane = scene.plane() if planar else None
+    components = PLANAR[plane] if plane is not None else FULL
     element = ufl.VectorElement("Lagrange", cell, disc.degree, dim=len(components))
     V = fem.FunctionSpace(msh, element)
     U = fem.Function(V, name="U")
@@ -338,7 +346,9 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     skipped += [] if scene.loads.has_gravity else ["gravity"]
     skipped += [] if scene.damping.viscous else ["damping"]
     skipped += [] if scene.damping.kelvin_voigt else ["kelvin_voigt"]
-    skipped += ["out-of-plane unknowns y, theta, phi"] if components != FULL else []
+    if plane is not None:
+        dropped = ", ".join(UNKNOWN_SYMBOLS[i] for i in range(6) if i not in components)
+        skipped += [f"out-of-plane unknowns {dropped}"]
     return RodModel(
         scene=scene,
         msh=msh,

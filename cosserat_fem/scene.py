@@ -173,6 +173,11 @@ class Loads:
         return any(g != 0.0 for g in self.gravity)
 
 
+#: Planes of motion (Scene.plane): the normal e_k, the axes of torques that leave the plane
+#: and the angles (θ, ψ, φ) = (0, 1, 2) that stay zero in it.
+PLANES = {"x-z": ((1,), (0, 2), (0, 2)), "y-z": ((0,), (1, 2), (1, 2))}
+
+
 @dataclass(frozen=True)
 class Damping:
     """Viscous damping densities: force −c_t ṙ [N/m] with ``translational`` c_t [N s/m²], and
@@ -322,22 +327,33 @@ class Scene:
         given = self.model.reference_frequency
         return given if given is not None else auto_reference_frequency(self.rod)
 
-    def planar_xz(self) -> bool:
-        """Whether the motion stays in the x-z plane (y = θ = φ = 0 for all time): asked for
-        (discretisation.planar = "auto") and nothing leaves the plane: no force along e2, no
-        torque about e1 or e3 (distributed, at the ends), no gravity along e2, no initial y, θ,
-        φ or their rates, no support motion along e2."""
+    def plane(self) -> str | None:
+        """The plane the motion stays in, "x-z" or "y-z" (checked in that order: a scene in
+        both moves along the axis only, and x-z keeps clear of the chart limit |θ| < π/2),
+        or None: asked for (discretisation.planar = "auto") and nothing leaves the plane."""
         if self.discretisation.planar != "auto":
-            return False
+            return None
+        return next((name for name in PLANES if self._stays_in(name)), None)
+
+    def planar_xz(self) -> bool:
+        """Whether the motion stays in the x-z plane (y = θ = φ = 0 for all time)."""
+        return self.plane() == "x-z"
+
+    def _stays_in(self, plane: str) -> bool:
+        """Nothing leaves the plane: no force or support motion along its normal e_k (e2 for
+        x-z, e1 for y-z), no torque about the other two axes (distributed, at the ends), no
+        gravity along e_k, no initial displacement or velocity along e_k, no initial angles
+        or rates other than the in-plane one (ψ for x-z, θ for y-z)."""
+        normal, torques, angles = PLANES[plane]
         loads, init = self.loads, self.initial
-        vectors = [(loads.force_density, (1,)), (loads.torque_density, (0, 2))]
+        vectors = [(loads.force_density, normal), (loads.torque_density, torques)]
         for end in (loads.start, loads.end):
             if end is not None:
-                vectors += [(end.force, (1,)), (end.torque, (0, 2))]
-        vectors += [(m, (1,)) for m in (self.supports.start_motion, self.supports.end_motion)]
-        vectors += [(init.displacement, (1,)), (init.velocity, (1,))]
-        vectors += [(init.angles, (0, 2)), (init.angle_rates, (0, 2))]
-        if loads.gravity[1] != 0.0:
+                vectors += [(end.force, normal), (end.torque, torques)]
+        vectors += [(m, normal) for m in (self.supports.start_motion, self.supports.end_motion)]
+        vectors += [(init.displacement, normal), (init.velocity, normal)]
+        vectors += [(init.angles, angles), (init.angle_rates, angles)]
+        if any(loads.gravity[i] != 0.0 for i in normal):
             return False
         return all(v is None or all(v[i].is_zero for i in idx) for v, idx in vectors)
 

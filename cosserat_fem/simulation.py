@@ -498,11 +498,12 @@ def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: 
 
 
 def _leaves_plane(model: RodModel, state: np.ndarray) -> bool:
-    """Whether a planar model was given a 12-component state with y, θ, φ or a rate of them
-    non-zero (collective)."""
+    """Whether a planar model was given a 12-component state with an out-of-plane component
+    (y, θ, φ for x-z; x, ψ, φ for y-z) or a rate of one non-zero (collective)."""
     nodes = model.U.x.array.size // len(model.components)
     full = model.reduced and np.size(state) == 12 * nodes
-    local = full and bool(np.any(np.asarray(state).reshape(nodes, 12)[:, 1::2] != 0.0))
+    out = [i for i in range(12) if i not in model.components]
+    local = full and bool(np.any(np.asarray(state).reshape(nodes, 12)[:, out] != 0.0))
     return model.msh.comm.allreduce(local, op=MPI.LOR)
 
 

@@ -8,6 +8,12 @@ vanishes. The reduced model solves (x, z, ψ) and their rates, testing the same 
 the in-plane test functions only: the same equations, assembled with the out-of-plane terms
 known to be zero, so the answers agree to round-off (the tests ask for 1e-12 of the largest
 motion; measured 8e-16 m against 3e-3), in dynamics and in statics (the roll-up to a full circle).
+
+Likewise x = ψ = φ = 0 in the y-z plane: with ψ = φ = 0, d1 = e1, d2 = (0, cos θ, sin θ),
+d3 = (0, −sin θ, cos θ), û = (θ', 0, 0), ŵ = (θ̇, 0, 0), v1 = x' = 0, and the x, ψ, φ rows
+vanish (their sources hold û2, û3, v1, n1 or a product with ŵ2, ŵ3; dMm/dτ q_ang has only
+−sin θ θ̇ ψ̇ and −cos θ θ̇² ψ-column terms, zero with ψ̇ = 0). The reduced model solves
+(y, z, θ); θ carries the bending, so the chart check still guards |θ| < π/2.
 """
 
 from __future__ import annotations
@@ -22,38 +28,59 @@ from cosserat_fem.simulation import run
 from cosserat_fem.statics import static_path
 
 PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
-IN_PLANE = [
-    'loads.force_density=["2e3*sin(pi*s/L)*sin(8*omega0*t)", 0, "1e3*s/L"]',
-    "output.xdmf=false",
-    "time.end=0.006",
-]
 
 
 def probes(out):
     return np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1)
 
 
-@pytest.mark.parametrize("adaptive", [False, True])
-def test_planar_dynamics_equal_the_full_run(tmp_path, adaptive):
+#: By plane: the in-plane load (the paper's in x or y, an axial ramp), the unknowns solved,
+#: the skipped ones, the probe columns (t, x, y, z, θ, ψ, φ) that move and that stay zero.
+PLANES = {
+    "x-z": (
+        'loads.force_density=["2e3*sin(pi*s/L)*sin(8*omega0*t)", 0, "1e3*s/L"]',
+        ["x", "z", "psi", "dx/dtau", "dz/dtau", "dpsi/dtau"],
+        "out-of-plane unknowns y, theta, phi",
+        [1, 3, 5],
+        [2, 4, 6],
+    ),
+    "y-z": (
+        'loads.force_density=[0, "2e3*sin(pi*s/L)*sin(8*omega0*t)", "1e3*s/L"]',
+        ["y", "z", "theta", "dy/dtau", "dz/dtau", "dtheta/dtau"],
+        "out-of-plane unknowns x, psi, phi",
+        [2, 3, 4],
+        [1, 5, 6],
+    ),
+}
+
+
+@pytest.mark.parametrize("plane, adaptive", [("x-z", False), ("x-z", True), ("y-z", False)])
+def test_planar_dynamics_equal_the_full_run(tmp_path, plane, adaptive):
+    load, unknowns, skipped, moving, still = PLANES[plane]
     runs = {}
     for planar in ("auto", "off"):
         sets = [
-            *IN_PLANE,
+            load,
+            "output.xdmf=false",
+            "time.end=0.006",
             f"discretisation.planar={planar!r}",
             f"time.adaptive={str(adaptive).lower()}",
         ]
-        result = run(load_scene(PAPER, sets), tmp_path / planar)
+        scene = load_scene(PAPER, sets)
+        assert scene.plane() == (plane if planar == "auto" else None)
+        result = run(scene, tmp_path / planar)
         runs[planar] = (result.summary, probes(tmp_path / planar))
     reduced, full = runs["auto"], runs["off"]
-    assert reduced[0]["solved_unknowns"] == ["x", "z", "psi", "dx/dtau", "dz/dtau", "dpsi/dtau"]
+    assert reduced[0]["solved_unknowns"] == unknowns
     assert len(full[0]["solved_unknowns"]) == 12
     assert reduced[0]["dofs"] * 2 == full[0]["dofs"]
-    assert "out-of-plane unknowns y, theta, phi" in reduced[0]["skipped_terms"]
+    assert skipped in reduced[0]["skipped_terms"]
     assert reduced[0]["accepted_steps"] == full[0]["accepted_steps"]
     scale = np.abs(full[1][:, 1:]).max(axis=0)
-    assert scale[0] > 1e-4 and scale[2] > 1e-7  # x and z move
+    assert scale[moving[0] - 1] > 1e-4 and scale[moving[1] - 1] > 1e-7  # bending and z move
+    assert scale[moving[2] - 1] > 1e-4  # the bending angle
     assert np.abs(reduced[1] - full[1]).max() <= 1e-12 * scale.max()
-    assert np.all(reduced[1][:, [2, 4, 6]] == 0.0)  # y, θ, φ are exactly zero
+    assert np.all(reduced[1][:, still] == 0.0)  # the out-of-plane ones are exactly zero
 
 
 def test_out_of_plane_scenes_are_not_reduced(tmp_path):
@@ -64,11 +91,19 @@ def test_out_of_plane_scenes_are_not_reduced(tmp_path):
     assert load_scene(
         PAPER, ["loads.force_density=[1, 0, 0]", "loads.end.torque=[0, 5, 0]"]
     ).planar_xz()
+    in_yz = ["loads.force_density=[0, 1, 0]", "loads.end.torque=[5, 0, 0]"]
+    assert load_scene(PAPER, in_yz).plane() == "y-z"
+    assert load_scene(PAPER, [*in_yz, "loads.gravity=[-9.81, 0, 0]"]).plane() is None
+    assert load_scene(PAPER, [*in_yz, "loads.end.torque=[5, 1, 0]"]).plane() is None
+    assert load_scene(PAPER, [*in_yz, "initial.angle_rates=[0, 0, 's'] "]).plane() is None
+    assert load_scene(PAPER, ["loads.force_density=[0, 0, 1]"]).plane() == "x-z"  # both: x-z
     # a given initial state that leaves the plane keeps the twelve unknowns
     unloaded = load_scene(PAPER, ["loads.force_density=[0, 0, 0]", "output.xdmf=false"])
     assert unloaded.planar_xz()
     bent = load_scene(PAPER, ["loads.force_density=[0, 0, 0]", "loads.end.force=[0, 1e3, 0]"])
-    state = static_path(bent, write_outputs=False).model.U.x.array.copy()
+    static = static_path(bent, write_outputs=False).model
+    assert static.scene.plane() == "y-z"  # solved in y-z, handed over in all 12 components
+    state = static.full_array(static.U.x.array).ravel().copy()
     sets = ["loads.force_density=[0, 0, 0]", "output.xdmf=false", "time.end=3e-4"]
     summary = run(load_scene(PAPER, sets), tmp_path, initial_state=state).summary
     assert len(summary["solved_unknowns"]) == 12
@@ -76,12 +111,21 @@ def test_out_of_plane_scenes_are_not_reduced(tmp_path):
 
 
 def test_planar_statics_equal_the_full_solve():
-    """The roll-up of scenes/rollup.toml (an end torque about e2: a full circle)."""
-    tips = {}
-    for planar in ("auto", "off"):
-        scene = load_scene(ROOT / "scenes" / "rollup.toml", [f"discretisation.planar={planar!r}"])
-        result = static_path(scene, write_outputs=False)
-        assert result.model.reduced == (planar == "auto")
-        tips[planar] = PointProbe(result.model.U, 1.0, result.model.length).values()
-    assert np.abs(tips["auto"] - tips["off"]).max() <= 1e-12
-    assert tips["auto"][4] == pytest.approx(2 * np.pi, rel=1e-6)  # ψ(ℓ) = 2π: rolled up
+    """The roll-up of scenes/rollup.toml (an end torque about e2: a full circle, x-z), and the
+    paper's cantilever under a large end force along e2 (y-z; tip y ≈ 0.2 ℓ, θ ≈ −0.3 rad)."""
+    cases = [
+        (ROOT / "scenes" / "rollup.toml", [], 4, 2 * np.pi),
+        (PAPER, ["loads.force_density=[0, 0, 0]", "loads.end.force=[0, 5e4, 0]"], 3, None),
+    ]
+    for path, sets, angle, expected in cases:
+        tips = {}
+        for planar in ("auto", "off"):
+            scene = load_scene(path, [*sets, f"discretisation.planar={planar!r}"])
+            result = static_path(scene, write_outputs=False)
+            assert result.model.reduced == (planar == "auto")
+            tips[planar] = PointProbe(result.model.U, 1.0, result.model.length).values()
+        assert np.abs(tips["auto"] - tips["off"]).max() <= 1e-12 * np.abs(tips["off"]).max()
+        if expected is not None:
+            assert tips["auto"][angle] == pytest.approx(expected, rel=1e-6)  # ψ(ℓ) = 2π
+        else:
+            assert abs(tips["auto"][angle]) > 0.1  # a large rotation, carried by θ
