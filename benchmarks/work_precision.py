@@ -18,8 +18,8 @@ Configurations (families): element degree 1-3 × elements × time step × integr
 generalized-α with ρ∞ = 0, 0.5, 0.8, 1; SDIRK3 and SDIRK4) × Jacobian policy (full, lagged,
 frozen), and adaptive steps (SDIRK3, generalized-α) at several tolerances. Wall time is the
 solve loop (probes written every step, no XDMF), median of ``REPEATS`` runs in one process with
-a warm JIT cache, taken in passes over all configurations (:func:`timed_rows`); the JIT time of a cold cache is measured separately in a fresh process
-(:func:`jit_times`).
+a warm JIT cache, taken in passes over all configurations (:func:`timed_rows`); the JIT time
+of a cold cache is measured separately in a fresh process (:func:`jit_times`).
 
 Peer: PyElastica (benchmarks/pyelastica/, its own venv made by its setup.sh) on the same scene
 at several resolutions, each at about 90 % of its largest stable time step, numba compile time

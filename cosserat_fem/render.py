@@ -82,15 +82,18 @@ class _Scene:
         lo = np.minimum(self.positions.min(axis=(0, 1)), series.reference.min(axis=0))
         hi = np.maximum(self.positions.max(axis=(0, 1)), series.reference.max(axis=0))
         pad = 0.05 * series.length
-        bounds = (lo[0] - pad, hi[0] + pad, lo[1] - pad, hi[1] + pad, lo[2], hi[2])
+        # Lateral extents symmetric about the undeformed axis, so that the middle tick is 0.
+        half = np.maximum(np.abs(lo[:2]), np.abs(hi[:2])) + pad
+        bounds = (-half[0], half[0], -half[1], half[1], lo[2], hi[2])
         try:
             p = pv.Plotter(off_screen=True, window_size=WINDOW)
         except Exception as exc:  # no OpenGL context at all
             raise CosseratError(f"render: VTK cannot render off-screen here ({exc})") from None
         self.plotter = p
         p.set_background("white")
-        p.enable_depth_peeling()  # the fainter tubes of rod_frames.png are translucent
-        p.add_mesh(pv.lines_from_points(series.reference), color="darkgrey", line_width=2,
+        # No depth peeling: with it, Mesa's off-screen renderer (EGL and xvfb alike) drew
+        # translucent tubes not at all, and rod_frames.png showed its last frame alone.
+        p.add_mesh(self._polyline(series.reference), color="darkgrey", line_width=2,
                    render=False)  # fmt: skip
         p.add_mesh(pv.Box(bounds=bounds), opacity=0.0, render=False)  # fixes the framing
         # The tick labels give the true x and y of the drawn rod (the lateral coordinates of
@@ -115,8 +118,14 @@ class _Scene:
         p.reset_camera(render=False)
         p.camera.zoom(0.8)  # room for the axes' labels and the caption
 
+    def _polyline(self, points: np.ndarray):
+        """One polyline through the points (``lines_from_points`` makes a cell a segment, and
+        a tube of those is a stack of capped pieces whose caps show through translucency)."""
+        cells = np.concatenate([[len(points)], np.arange(len(points))])
+        return self.pv.PolyData(np.asarray(points, dtype=float), lines=cells)  # no vertex cells
+
     def _tube(self, frame: int):
-        line = self.pv.lines_from_points(self.positions[frame])
+        line = self._polyline(self.positions[frame])
         line.point_data[self.colour_name] = self.colour[frame]
         return line.tube(radius=self.radius, n_sides=20, capping=True)
 
