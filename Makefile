@@ -25,7 +25,7 @@ test: setup lint
 verify: setup
 	$(PY) benchmarks/verify.py
 
-## Work-precision benchmark against PyElastica (benchmarks/results/; about 15 minutes).
+## Work-precision benchmark against PyElastica (benchmarks/results/; about 25 minutes).
 bench: setup
 	$(PY) benchmarks/work_precision.py
 
