@@ -112,7 +112,7 @@ def test_out_of_plane_scenes_are_not_reduced(tmp_path):
 
 def test_planar_statics_equal_the_full_solve():
     """The roll-up of scenes/rollup.toml (an end torque about e2: a full circle, x-z), and the
-    paper's cantilever under a large end force along e2 (y-z; tip y ≈ 0.2 ℓ, θ ≈ −0.3 rad)."""
+    paper's cantilever under a large end force along e2 (y-z; tip y = 0.30 ℓ, θ = −0.45 rad)."""
     cases = [
         (ROOT / "scenes" / "rollup.toml", [], 4, 2 * np.pi),
         (PAPER, ["loads.force_density=[0, 0, 0]", "loads.end.force=[0, 5e4, 0]"], 3, None),
