@@ -269,7 +269,7 @@ def test_kelvin_voigt_decays_each_mode_at_tau_omega_squared_over_2(tmp_path):
     Released from the first Euler–Bernoulli mode in both planes at once (tips 1 mm; the
     planes are uncoupled to first order), τ_d set for ζ = τ_d ω/2 = 1 % in the x plane
     (1.5 % in y): the tips' peaks decay at τ_d ω1x²/2 and τ_d ω1y²/2. The initial shape's
-    higher-mode content (the EB shape is not the Timoshenko mode) decays 37x faster (ζ2/ζ1 =
+    higher-mode content (the EB shape is not the Timoshenko mode) decays 39x faster (ζ2/ζ1 =
     ω2/ω1 = 6.2, rates ∝ ω²), so only peaks after the first period are fitted; SDIRK3's own
     damping at ω h ≤ 0.015 is ~1e-9 of the amplitude a step. What is left is the reading of
     the peaks on the step grid, of relative size (ω h)²/12 ≤ 2e-5: measured 8.6e-6 (x) and
