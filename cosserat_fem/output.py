@@ -180,7 +180,8 @@ FIELD_ARRAYS: dict[str, tuple[str, ...]] = {
 
 
 def _field_expressions(U, model: RodModel, fields: tuple[str, ...]) -> list[tuple[str, object]]:
-    """(array name, UFL 3-vector) of the requested fields; see :class:`XdmfWriter`."""
+    """(array name, UFL 3-vector) of the requested fields of ``U`` (in the model's layout);
+    see :class:`XdmfWriter`."""
     U = model.full(U)  # a planar model's unknowns in the 12 components (zeros out of plane)
     tau = model.scene.damping.retardation_time  # n, m with their Kelvin–Voigt parts
     res = resultants(U, model.rod, tau) if {"strains", "forces"} & set(fields) else None
@@ -380,9 +381,7 @@ class XdmfWriter:
         P1 = self.line.space
         self.functions: list[fem.Function] = []
         components = []
-        # (p, q) in all twelve components, also for a reduced (planar) model's U.
-        full = model.full(self.U) if hasattr(model, "full") else self.U
-        parts = _field_expressions(full, model, self.fields)
+        parts = _field_expressions(self.U, model, self.fields)  # embeds a planar U once
         for name, expr in parts:
             self.functions.append(fem.Function(P1, name=name))
             components += [expr[i] for i in range(3)]
