@@ -555,6 +555,23 @@ def adaptive_overhead(report: Report, ref: np.ndarray, repeats: int) -> None:
     )
 
 
+def _impulse_row(kind: str, label: str, s: dict, e, loop: float, bare: float) -> list:
+    """A row of the impulse table: kind, setting, accepted and rejected steps, errors, times,
+    Jacobians (``s``: a run's summary; ``e``: its errors)."""
+    return [
+        kind,
+        label,
+        s["accepted_steps"],
+        s["rejected_steps"] if kind == "adaptive" else 0,
+        f"{max(e[:2]):.2e}",
+        f"{e[2]:.1e}",
+        f"{e[3]:.1e}",
+        f"{loop:.3f}",
+        f"{bare:.3f}",
+        s["newton"]["jacobian_assemblies"],
+    ]
+
+
 def part_impulse(report: Report, quick: bool) -> None:
     report("## B. Where adaptive steps pay off: scenes/impulse.toml")
     report()
@@ -610,19 +627,9 @@ def part_impulse(report: Report, quick: bool) -> None:
                 }
             )
             rows.append(
-                [
-                    "fixed",
-                    f"Δt = {dt * 1e6:.2f} μs (T/Δt = {duration / dt:.2f})",
-                    s["accepted_steps"],
-                    0,
-                    f"{max(e[:2]):.2e}",
-                    f"{e[2]:.1e}",
-                    f"{e[3]:.1e}",
-                    f"{loop:.3f}",
-                    f"{bare:.3f}",
-                    s["newton"]["jacobian_assemblies"],
-                ]
-            )
+                _impulse_row("fixed", f"Δt = {dt * 1e6:.2f} μs (T/Δt = {duration / dt:.2f})",
+                             s, e, loop, bare)
+            )  # fmt: skip
         starts = ("1e-5", "1e-6") if integrator == "generalized-alpha" else ("1e-5",)
         rtols = (1e-3, 1e-4) if quick else (3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5)
         for first in starts:
@@ -644,19 +651,9 @@ def part_impulse(report: Report, quick: bool) -> None:
                     }
                 )
                 rows.append(
-                    [
-                        "adaptive",
-                        f"rtol = {rtol:g}, time.step = {first}",
-                        s["accepted_steps"],
-                        s["rejected_steps"],
-                        f"{max(e[:2]):.2e}",
-                        f"{e[2]:.1e}",
-                        f"{e[3]:.1e}",
-                        f"{loop:.3f}",
-                        f"{bare:.3f}",
-                        s["newton"]["jacobian_assemblies"],
-                    ]
-                )
+                    _impulse_row("adaptive", f"rtol = {rtol:g}, time.step = {first}",
+                                 s, e, loop, bare)
+                )  # fmt: skip
         report(f"### {label}")
         report()
         report.table(

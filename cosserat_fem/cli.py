@@ -102,21 +102,17 @@ def _run_dir(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("--debug", action="store_true", help="show tracebacks on errors")
 
 
-def _plot(args) -> int:
-    """Figures of the run in args.run_dir (cosserat_fem/plot.py; no DOLFINx)."""
-    from .plot import plot_run
+def _draw(args) -> int:
+    """Figures (cosserat_fem/plot.py) or pictures and an animation (cosserat_fem/render.py) of
+    the run in args.run_dir; no DOLFINx."""
+    if args.command == "plot":
+        from .plot import plot_run
 
-    paths = plot_run(args.run_dir, args.out)
-    if not args.quiet:
-        print("-> " + ", ".join(str(p) for p in paths))
-    return 0
+        paths = plot_run(args.run_dir, args.out)
+    else:
+        from .render import render_run
 
-
-def _render(args) -> int:
-    """Pictures and animation of the run in args.run_dir (cosserat_fem/render.py)."""
-    from .render import render_run
-
-    paths = render_run(args.run_dir, args.out, args.scale, args.format, args.frames)
+        paths = render_run(args.run_dir, args.out, args.scale, args.format, args.frames)
     if not args.quiet:
         print("-> " + ", ".join(str(p) for p in paths))
     return 0
@@ -131,31 +127,30 @@ def _run(args) -> int:
 
     rank = MPI.COMM_WORLD.rank
     if args.restart is not None:
-        result = _restart(args)
+        scene, checkpoint = _restart(args)
+        start, where = checkpoint.time, {"restart": checkpoint}
     elif args.scene is None:
         raise SceneError("run: give a SCENE file, or --restart DIR to continue a run")
     else:
         scene = load_scene(args.scene, args.overrides)
-        bar = ProgressBar(scene.time.start, scene.time.end, enabled=_bar_wanted(args, rank))
-        try:
-            result = run(scene, args.out, progress=bar)
-        finally:
-            bar.close()
+        start, where = scene.time.start, {"out_dir": args.out}
+    # The bar on a terminal (it decides), never under --quiet or off rank 0.
+    enabled = None if rank == 0 and not args.quiet else False
+    bar = ProgressBar(start, scene.time.end, enabled=enabled)
+    try:
+        result = run(scene, progress=bar, **where)
+    finally:
+        bar.close()
     if rank == 0 and not args.quiet:
         print(summary_screen(result.summary, result.out_dir))
     return 0
 
 
-def _bar_wanted(args, rank: int) -> bool | None:
-    """None: on a terminal (ProgressBar decides); False under --quiet and off rank 0."""
-    return None if rank == 0 and not args.quiet else False
-
-
 def _restart(args):
-    """Continue the run in args.restart (cosserat_fem/checkpoint.py)."""
+    """The scene and checkpoint to continue the run in args.restart (cosserat_fem/checkpoint.py)
+    with the overrides a restart allows."""
     from .checkpoint import load_checkpoint, restart_overrides
     from .scene import scene_from_dict
-    from .simulation import run
 
     if args.scene is not None or args.out is not None:
         which = "SCENE" if args.scene is not None else "--out"
@@ -172,17 +167,7 @@ def _restart(args):
             f"time.end: the checkpoint is at t = {checkpoint.time:.10g} s; give a later end "
             f"to continue (--set time.end=...), got {scene.time.end:.10g}"
         )
-    from mpi4py import MPI
-
-    from .progress import ProgressBar
-
-    bar = ProgressBar(
-        checkpoint.time, scene.time.end, enabled=_bar_wanted(args, MPI.COMM_WORLD.rank)
-    )
-    try:
-        return run(scene, restart=checkpoint, progress=bar)
-    finally:
-        bar.close()
+    return scene, checkpoint
 
 
 def _static(args) -> int:
@@ -256,10 +241,8 @@ def main(argv: list[str] | None = None) -> int:
             return _validate(args)
         if args.command == "run":
             return _run(args)
-        if args.command == "plot":
-            return _plot(args)
-        if args.command == "render":
-            return _render(args)
+        if args.command in ("plot", "render"):
+            return _draw(args)
         if args.command == "modes":
             return _modes(args)
         if args.command == "static":

@@ -4,9 +4,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from .scene import SCHEMA, Scene, _Parameters, _Table
-
-IN_PLANE = {"x-z": "x, z, psi", "y-z": "y, z, theta"}
+from .forms.kinematics import P_NAMES
+from .scene import PLANAR, SCHEMA, Scene, _Parameters, _Table
 
 
 def _unit(spec: Any) -> str:
@@ -45,20 +44,10 @@ def describe_scene(scene: Scene) -> str:
     plane = scene.plane()
     unknowns = "all 12 of p and q"
     if plane is not None:
-        unknowns = f"{IN_PLANE[plane]} and their rates (planar in {plane})"
+        solved = ", ".join(P_NAMES[i] for i in PLANAR[plane] if i < 6)
+        unknowns = f"{solved} and their rates (planar in {plane})"
     nodes = scene.discretisation.elements * scene.discretisation.degree + 1
-    loads = scene.loads
-    absent = [
-        name
-        for name, vector in (
-            ("force_density", loads.force_density),
-            ("torque_density", loads.torque_density),
-        )
-        if all(e.is_zero for e in vector)
-    ]
-    absent += [] if loads.has_gravity else ["gravity"]
-    absent += [] if scene.damping.viscous else ["damping"]
-    absent += [] if scene.damping.kelvin_voigt else ["kelvin_voigt"]
+    absent = scene.absent_terms()
     lines = [f"cosserat-fem: {scene.source}: valid", f"  title = {_show(scene.title)}"]
     data = scene.to_dict()
     data.pop("title")

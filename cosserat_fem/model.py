@@ -30,8 +30,9 @@ from .forms.general_form import (
     residual_terms,
 )
 from .forms.groups import Groups, RodConstants, dimensionless_groups
+from .forms.kinematics import P_NAMES
 from .forms.section import Section
-from .scene import Scene
+from .scene import PLANAR, Scene
 
 START_TAG, END_TAG = 1, 2
 #: The components of U = (p, q) a pinned end holds: x, y, z, φ and their rates.
@@ -40,10 +41,8 @@ PINNED_COMPONENTS = (0, 1, 2, 5, 6, 7, 8, 11)
 #: rates (y = θ = φ = 0 is an invariant set of (65) when no load, support or initial state
 #: leaves the plane: every y, θ, φ row of F vanishes there), or y-z, (y, z, θ) and their rates
 #: (x = ψ = φ = 0 likewise; θ carries the bending, so the chart limit |θ| < π/2 applies);
-#: tests/test_planar.py.
+#: tests/test_planar.py; the components of each plane: scene.PLANAR.
 FULL = tuple(range(12))
-PLANAR = {"x-z": (0, 2, 4, 6, 8, 10), "y-z": (1, 2, 3, 7, 8, 9)}
-UNKNOWN_SYMBOLS = ("x", "y", "z", "theta", "psi", "phi")
 
 
 def _drop_build_chatter(record: logging.LogRecord) -> bool:
@@ -205,7 +204,7 @@ class RodModel:
         sym = self._symbols(time_eval)
         loads = self.scene.loads
         force = self._vector(loads.force_density, sym)
-        if loads.has_gravity:  # the weight density ρ A g [N/m]
+        if loads.has_gravity:  # the weight ρ A g [N/m], a force density f of (36), fixed basis
             weight = self.rod.density * self.rod.section.area
             gravity = self.load_factor * ufl.as_vector([weight * g for g in loads.gravity])
             force = gravity if force is None else force + gravity
@@ -335,19 +334,9 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": q})
     ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
     rod = rod_constants(scene)
-    skipped = [
-        name
-        for name, exprs in (
-            ("force_density", scene.loads.force_density),
-            ("torque_density", scene.loads.torque_density),
-        )
-        if exprs is None or all(e.is_zero for e in exprs)
-    ]
-    skipped += [] if scene.loads.has_gravity else ["gravity"]
-    skipped += [] if scene.damping.viscous else ["damping"]
-    skipped += [] if scene.damping.kelvin_voigt else ["kelvin_voigt"]
+    skipped = scene.absent_terms()
     if plane is not None:
-        dropped = ", ".join(UNKNOWN_SYMBOLS[i] for i in range(6) if i not in components)
+        dropped = ", ".join(P_NAMES[i] for i in range(6) if i not in components)
         skipped += [f"out-of-plane unknowns {dropped}"]
     return RodModel(
         scene=scene,

@@ -28,12 +28,13 @@ import ufl
 from dolfinx import fem, geometry, io, mesh
 from mpi4py import MPI
 
+from .forms.kinematics import P_NAMES
 from .forms.resultants import resultants
 
 if TYPE_CHECKING:
     from .model import RodModel
 
-PROBE_HEADER = ("t", "x", "y", "z", "theta", "psi", "phi")
+PROBE_HEADER = ("t", *P_NAMES)
 _ROW_FORMAT = "%.10e," + ",".join(["%.16e"] * (len(PROBE_HEADER) - 1)) + "\n"
 
 

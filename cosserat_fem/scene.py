@@ -178,6 +178,17 @@ class Loads:
 PLANES = {"x-z": ((1,), (0, 2), (0, 2)), "y-z": ((0,), (1, 2), (1, 2))}
 
 
+def _in_plane(normal: tuple[int, ...], angles: tuple[int, ...]) -> tuple[int, ...]:
+    """The components of U = (p, q) that a plane keeps: the translations but its normal, the
+    angles it does not hold at zero, and their rates."""
+    p = [i for i in range(3) if i not in normal] + [3 + a for a in range(3) if a not in angles]
+    return (*p, *(6 + i for i in p))
+
+
+#: The components of U = (p, q) solved in each plane (x-z: x, z, ψ; y-z: y, z, θ; + rates).
+PLANAR = {name: _in_plane(normal, angles) for name, (normal, _, angles) in PLANES.items()}
+
+
 @dataclass(frozen=True)
 class Damping:
     """Viscous damping densities: force −c_t ṙ [N/m] with ``translational`` c_t [N s/m²], and
@@ -263,7 +274,7 @@ class Discretisation:
     elements: int
     degree: int
     quadrature_degree: int
-    planar: str = "auto"  # "auto": solve the x-z unknowns only when the scene stays planar
+    planar: str = "auto"  # "auto": solve the in-plane unknowns of a scene in x-z or y-z
 
 
 @dataclass(frozen=True)
@@ -335,9 +346,21 @@ class Scene:
             return None
         return next((name for name in PLANES if self._stays_in(name)), None)
 
-    def planar_xz(self) -> bool:
-        """Whether the motion stays in the x-z plane (y = θ = φ = 0 for all time)."""
-        return self.plane() == "x-z"
+    def absent_terms(self) -> list[str]:
+        """The load and damping terms that are zero, so not in the form (``skipped_terms``
+        of summary.json, ``validate``)."""
+        loads, damping = self.loads, self.damping
+        absent = [
+            name
+            for name, exprs in (
+                ("force_density", loads.force_density),
+                ("torque_density", loads.torque_density),
+            )
+            if exprs is None or all(e.is_zero for e in exprs)
+        ]
+        absent += [] if loads.has_gravity else ["gravity"]
+        absent += [] if damping.viscous else ["damping"]
+        return absent + ([] if damping.kelvin_voigt else ["kelvin_voigt"])
 
     def _stays_in(self, plane: str) -> bool:
         """Nothing leaves the plane: no force or support motion along its normal e_k (e2 for

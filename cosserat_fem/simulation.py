@@ -27,6 +27,7 @@ from . import __version__
 from .adaptive import SHRINK, StateHistory, StepController
 from .checkpoint import Checkpoint, CheckpointWriter, cut_outputs
 from .errors import SceneError, SolverError
+from .forms.kinematics import P_NAMES
 from .integrators import GeneralizedAlpha, make_integrator
 from .model import RodModel, build_model
 from .newton import NewtonFailure, NewtonSettings, NewtonSolver
@@ -35,8 +36,7 @@ from .progress import LOGGER
 from .scene import Scene
 
 CHART_COS_MIN = 1e-2
-UNKNOWN_NAMES = ("x", "y", "z", "theta", "psi", "phi")
-UNKNOWN_NAMES += tuple(f"d{n}/dtau" for n in UNKNOWN_NAMES)
+UNKNOWN_NAMES = (*P_NAMES, *(f"d{n}/dtau" for n in P_NAMES))  # of (p, q)
 Observer = Callable[[int, float, RodModel], None]
 
 

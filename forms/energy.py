@@ -29,11 +29,11 @@ from .kinematics import (
     angular_velocity,
     curvature,
     rotation_matrix,
+    sigma_derivatives,
     split,
-    strain_rates,
     stretch_shear_strain,
 )
-from .resultants import section_stiffnesses
+from .resultants import kelvin_voigt_parts
 
 
 def _rates(U, rod: RodConstants):
@@ -56,8 +56,7 @@ def kinetic_energy_density(U, rod: RodConstants):
 def strain_energy_density(U, rod: RodConstants):
     """ℓ × the strain energy per unit length [J per unit σ]."""
     p, _ = split(U)
-    dU = U.dx(0)
-    dp = ufl.as_vector([dU[i] for i in range(6)])
+    dp, _ = sigma_derivatives(U)
     v = stretch_shear_strain(p, dp)
     u = curvature(p, dp) / rod.length
     s, E, G = rod.section, rod.young_modulus, rod.shear_modulus
@@ -88,18 +87,9 @@ def damping_power(
 ) -> ufl.core.expr.Expr:
     """P_d per unit length [W/m] (module docstring), to be multiplied by ℓ and integrated with
     ``dx``: c_t [N s/m²], c_r [N s], τ_d [s]."""
-    p, r_dot, w = _rates(U, rod)
+    _, r_dot, w = _rates(U, rod)
     power = -translational * ufl.dot(r_dot, r_dot) - rotational * ufl.dot(w, w)
-    if retardation_time > 0.0:
-        q = split(U)[1]
-        dU = U.dx(0)
-        dp = ufl.as_vector([dU[i] for i in range(6)])
-        dq = ufl.as_vector([dU[i] for i in range(6, 12)])
-        v_dot, u_dot = strain_rates(p, dp, q, dq)
-        v_t = rod.omega0 * v_dot
-        u_t = rod.omega0 / rod.length * u_dot
-        K, J = section_stiffnesses(rod)
-        power = power - retardation_time * sum(
-            K[i] * v_t[i] ** 2 + J[i] * u_t[i] ** 2 for i in range(3)
-        )
+    if retardation_time > 0.0:  # −(n_v · ∂t v + m_v · ∂t u)
+        kv = kelvin_voigt_parts(U, rod, retardation_time)
+        power = power - ufl.dot(kv.n, kv.v_rate) - ufl.dot(kv.m, kv.u_rate)
     return power

@@ -39,6 +39,7 @@ from .kinematics import (
     angular_velocity,
     curvature,
     rotation_matrix,
+    sigma_derivatives,
     split,
     strain_rates,
     stretch_shear_strain,
@@ -302,10 +303,8 @@ def residual_terms(
     p, q = split(U)
     pdot, qdot = split(Udot)
     vp, vq = split(V)
-    dU = U.dx(0)
-    dp = ufl.as_vector([dU[i] for i in range(6)])
-    dV = V.dx(0)
-    dvq = ufl.as_vector([dV[i] for i in range(6, 12)])
+    dp, dq = sigma_derivatives(U)
+    dvq = sigma_derivatives(V)[1]
 
     g = source(p, dp, q, G, loads)
     kinematic = ufl.inner(pdot - q, vp) * dx
@@ -322,7 +321,6 @@ def residual_terms(
     if damping is not None:
         extra["damping"] = -ufl.inner(damping_source(p, q, G, damping), vq) * dx
     if kelvin_voigt is not None:
-        dq = ufl.as_vector([dU[i] for i in range(6, 12)])
         b_v, g_v = kelvin_voigt_terms(p, dp, q, dq, G, kelvin_voigt)
         extra["kelvin_voigt"] = (-ufl.inner(b_v, dvq) - ufl.inner(g_v, vq)) * dx
     return ResidualTerms(

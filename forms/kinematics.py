@@ -49,12 +49,22 @@ def angular_map_rate(theta, phi, theta_dot, phi_dot) -> ufl.core.expr.Expr:
     )
 
 
+#: Names of the components of p (47), in order (probes, summaries, output tables).
+P_NAMES = ("x", "y", "z", "theta", "psi", "phi")
+
+
 def split(vec12):
     """(p, q) from the 12-component unknown U = (p, q)."""
     return (
         ufl.as_vector([vec12[i] for i in range(6)]),
         ufl.as_vector([vec12[i] for i in range(6, 12)]),
     )
+
+
+def sigma_derivatives(U) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
+    """(p', q') = d/dσ of the two halves of the 12-component U = (p, q)."""
+    dU = U.dx(0)
+    return split(ufl.as_vector([dU[i] for i in range(12)]))
 
 
 def translations(p6):

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import ufl
 
 from .groups import RodConstants
-from .kinematics import curvature, split, strain_rates, stretch_shear_strain
+from .kinematics import curvature, sigma_derivatives, split, strain_rates, stretch_shear_strain
 
 
 def section_stiffnesses(rod: RodConstants) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -70,6 +70,32 @@ class Resultants:
     m: ufl.core.expr.Expr
 
 
+@dataclass
+class KelvinVoigtParts:
+    """The strain rates ∂t v [1/s], ∂t u [1/(m s)] and the viscous contact force
+    n_v = τ_d K ∂t v [N] and torque m_v = τ_d J ∂t u [N m]: UFL 3-vectors, director
+    components (:class:`.general_form.KelvinVoigtDamping`)."""
+
+    v_rate: ufl.core.expr.Expr
+    u_rate: ufl.core.expr.Expr
+    n: ufl.core.expr.Expr
+    m: ufl.core.expr.Expr
+
+
+def kelvin_voigt_parts(U, rod: RodConstants, retardation_time: float) -> KelvinVoigtParts:
+    """The Kelvin–Voigt parts of the 12-component state U = (p, q), retardation time τ_d [s];
+    the rates of :func:`.kinematics.strain_rates` are per unit τ = ω0 t, hence the ω0."""
+    p, q = split(U)
+    dp, dq = sigma_derivatives(U)
+    v_dot, u_dot = strain_rates(p, dp, q, dq)
+    v_rate = rod.omega0 * v_dot
+    u_rate = rod.omega0 / rod.length * u_dot
+    K, J = section_stiffnesses(rod)
+    n = ufl.as_vector([retardation_time * K[i] * v_rate[i] for i in range(3)])
+    m = ufl.as_vector([retardation_time * J[i] * u_rate[i] for i in range(3)])
+    return KelvinVoigtParts(v_rate=v_rate, u_rate=u_rate, n=n, m=m)
+
+
 def resultants(U, rod: RodConstants, retardation_time: float = 0.0) -> Resultants:
     """v, u, n, m of the state U = (p, q) (12 components, or p alone with 6) on σ ∈ [0, 1];
     a ``retardation_time`` τ_d > 0 adds the Kelvin–Voigt parts to n and m (needs q)."""
@@ -79,11 +105,6 @@ def resultants(U, rod: RodConstants, retardation_time: float = 0.0) -> Resultant
     v, u = strains(p, dp, rod.length)
     n, m = contact_force(v, rod), contact_torque(u, rod)
     if retardation_time > 0.0:
-        q = split(U)[1]
-        dq = ufl.as_vector([dU[i] for i in range(6, 12)])
-        v_dot, u_dot = strain_rates(p, dp, q, dq)  # per unit τ = ω0 t
-        K, J = section_stiffnesses(rod)
-        scale = retardation_time * rod.omega0
-        n = n + ufl.as_vector([scale * K[i] * v_dot[i] for i in range(3)])
-        m = m + ufl.as_vector([scale * J[i] * u_dot[i] / rod.length for i in range(3)])
+        viscous = kelvin_voigt_parts(U, rod, retardation_time)
+        n, m = n + viscous.n, m + viscous.m
     return Resultants(v=v, u=u, n=n, m=m)

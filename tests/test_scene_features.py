@@ -204,18 +204,8 @@ def test_viscous_damping_decays_modes_at_ct_over_2_rho_a(tmp_path):
     area = 0.04 * 0.06
     omega1 = 207.0236
     ct = 2 * 0.02 * RHO * area * omega1
-    sc = scene(
-        {
-            "initial": {
-                "displacement": [shape, 0, 0],
-                "angles": [0, slope, 0],
-            },
-            "damping": {"translational": ct},
-        },
-        (*NO_LOADS, "time.end=0.1", "time.step=5e-5", "output.xdmf=false"),
-    )
-    out = run(sc, tmp_path).out_dir
-    data = np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1)
+    initial = {"displacement": [shape, 0, 0], "angles": [0, slope, 0]}
+    data, _ = released(tmp_path, initial, {"translational": ct}, 0.1, 5e-5)
     assert data[0, 1] == pytest.approx(1e-3, rel=1e-12)  # the initial field, at the tip
     rate, peaks = decay_rate(data[:, 0], data[:, 1], start=True)
     assert peaks >= 3
@@ -235,6 +225,20 @@ def decay_rate(t: np.ndarray, x: np.ndarray, start: bool = False) -> tuple[float
     return -np.polyfit(tp, np.log(xp), 1)[0], len(peaks)
 
 
+def released(tmp_path, initial: dict, damping: dict, end: float, step: float):
+    """(probes.csv rows, summary) of the paper's rod, unloaded, released from the
+    ``initial`` fields with ``damping``."""
+    sets = (*NO_LOADS, f"time.end={end!r}", f"time.step={step!r}", "output.xdmf=false")
+    result = run(scene({"initial": initial, "damping": damping}, sets), tmp_path)
+    return np.loadtxt(result.out_dir / "probes.csv", delimiter=",", skiprows=1), result.summary
+
+
+def first_torsion_mode(omega: float) -> dict:
+    """The [initial] table of the first torsion mode of the clamped-free bar from rest in
+    its rates: φ̇(s, 0) = Φ ω sin(π s/(2ℓ)), Φ = 1e-4 rad (linear: couplings are second order)."""
+    return {"angle_rates": [0, 0, f"{1e-4 * omega!r}*sin(pi*s/(2*L))"]}
+
+
 def test_rotational_damping_decays_torsion_at_cr_over_2_rho_i33(tmp_path):
     """Twisted from rest by the initial rate field of the first torsion mode, φ̇(s, 0) =
     Φ ω_t sin(π s/(2ℓ)), ω_t = π/(2ℓ) √(G c33/(ρ I33)) (4186 rad/s; I33 = c11 + c22), with c_r
@@ -247,15 +251,7 @@ def test_rotational_damping_decays_torsion_at_cr_over_2_rho_i33(tmp_path):
     inertia = RHO * (sec.c11 + sec.c22)
     omega = math.pi / (2 * L) * math.sqrt(G * sec.c33 / inertia)
     cr = 2 * 0.02 * inertia * omega
-    rate0 = 1e-4 * omega
-    sc = scene(
-        {
-            "initial": {"angle_rates": [0, 0, f"{rate0!r}*sin(pi*s/(2*L))"]},
-            "damping": {"rotational": cr},
-        },
-        (*NO_LOADS, "time.end=0.006", "time.step=1e-5", "output.xdmf=false"),
-    )
-    data = np.loadtxt(run(sc, tmp_path).out_dir / "probes.csv", delimiter=",", skiprows=1)
+    data, _ = released(tmp_path, first_torsion_mode(omega), {"rotational": cr}, 0.006, 1e-5)
     rate, peaks = decay_rate(data[:, 0], data[:, 6])
     assert peaks >= 3
     assert rate == pytest.approx(cr / (2 * inertia), rel=2e-3)
@@ -284,16 +280,10 @@ def test_kelvin_voigt_decays_each_mode_at_tau_omega_squared_over_2(tmp_path):
     assert wx < wy < wt
     shape, slope, _ = _first_bending_mode(1e-3)
     tau = 2 * 0.01 / wx
-    sc = scene(
-        {
-            "initial": {"displacement": [shape, shape, 0], "angles": [f"-{slope}", slope, 0]},
-            "damping": {"retardation_time": tau},
-        },
-        (*NO_LOADS, "time.end=0.16", "time.step=5e-5", "output.xdmf=false"),
-    )
-    result = run(sc, tmp_path / "bending")
-    assert "kelvin_voigt" not in result.summary["skipped_terms"]
-    data = np.loadtxt(result.out_dir / "probes.csv", delimiter=",", skiprows=1)
+    initial = {"displacement": [shape, shape, 0], "angles": [f"-{slope}", slope, 0]}
+    damping = {"retardation_time": tau}
+    data, summary = released(tmp_path / "bending", initial, damping, 0.16, 5e-5)
+    assert "kelvin_voigt" not in summary["skipped_terms"]
     late = data[:, 0] > 2 * math.pi / wx  # after the first period
     for column, omega in ((1, wx), (2, wy)):
         rate, peaks = decay_rate(data[late, 0], data[late, column])
@@ -301,17 +291,8 @@ def test_kelvin_voigt_decays_each_mode_at_tau_omega_squared_over_2(tmp_path):
         assert rate == pytest.approx(tau * omega**2 / 2, rel=1e-4), column
 
     tau = 2 * 0.02 / wt
-    rate0 = 1e-4 * wt
-    sc = scene(
-        {
-            "initial": {"angle_rates": [0, 0, f"{rate0!r}*sin(pi*s/(2*L))"]},
-            "damping": {"retardation_time": tau},
-        },
-        (*NO_LOADS, "time.end=0.006", "time.step=1e-5", "output.xdmf=false"),
-    )
-    data = np.loadtxt(
-        run(sc, tmp_path / "torsion").out_dir / "probes.csv", delimiter=",", skiprows=1
-    )
+    damping = {"retardation_time": tau}
+    data, _ = released(tmp_path / "torsion", first_torsion_mode(wt), damping, 0.006, 1e-5)
     rate, peaks = decay_rate(data[:, 0], data[:, 6])
     assert peaks >= 3
     assert rate == pytest.approx(tau * wt**2 / 2, rel=2e-3)
