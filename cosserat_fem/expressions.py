@@ -15,6 +15,42 @@ An :class:`Expression` can be evaluated with Python floats or numpy arrays
 (:meth:`Expression.evaluate`) or turned into UFL (:meth:`Expression.to_ufl`). Constant
 subexpressions are checked when parsing (``1/0`` or ``log(-1)`` are input errors) and folded to
 floats in UFL.
+
+Names are compared as written. Python's parser folds identifiers by Unicode NFKC, so a
+fullwidth ``ｔ``, a mathematical ``𝑡`` or the ligature ``ﬁ`` would silently be read as ``t`` or
+``fi``; such names are refused (:func:`check_name` does the same for the names a scene
+declares). Non-ASCII names that NFKC leaves alone (Greek ``ω``) are allowed.
+
+Chains and limits. A chain ``a + b - c + ...`` (or ``a * b / c * ...``) is not nesting, although
+:mod:`ast` builds it as a left-deep tree. It is flattened without recursion into its signed
+operands; up to :data:`BALANCE_ABOVE` (16) operands it is rebuilt left to right as written, so
+short expressions give the same floating-point results as Python, and above that it is rebuilt
+as a balanced tree of depth about log2(n), so that the recursive walkers here and in UFL/FFCx
+stay shallow. The rebalanced chain is the same sum (product) in exact arithmetic; its round-off
+is bounded like the left-to-right one's (n eps sum|terms| for n terms) but differs from it, and
+an intermediate product may overflow where the written order would not (or the other way round).
+True nesting (parentheses around an operation, calls, signs, powers) is limited instead:
+
+* :data:`MAX_DEPTH` (100) levels of the internal tree. Every call, sign, power and nested chain
+  adds one level; a chain of n operands adds n - 1 levels up to 16 operands and ceil(log2 n)
+  above. It guards the recursive walkers (2-3 Python frames a level; a derivative is a few
+  levels deeper than its expression; Python allows 1000 frames).
+* :data:`MAX_NODES` (2000) numbers, names, operators and calls, counted on the text before it
+  is parsed. Measured with ``cosserat-fem run scenes/cao_tucker_2008.toml --set
+  time.end=0.0006 --quiet`` and an end torque of n terms ``c*sin(k*t)`` (7 nodes a term, new
+  coefficients each time so that FFCx compiles anew; 2 shared cores): the whole run took 2.2 s
+  for n = 1, 2.5 s for n = 100 (700 nodes), 6.6 s for n = 1000 (7000 nodes) and 28 s for
+  n = 3000 (21000 nodes); n = 285 (1995 nodes) took 4.1-5.0 s against 2.8-3.2 s for n = 1 in
+  the same session. Nearly all of it is the ``fem.form`` compile (under cProfile: 2.1 s for
+  n = 1, 3.4 s for n = 300, 9.5 s for n = 1000, 21 s for n = 2000), growing faster than
+  linearly. So 2000 nodes cost 1-2 s of compile more than a one-term load, while 20000 would
+  cost half a minute. The limit also keeps a flat chain well inside what Python's own parser
+  can build: it constructs the left-deep AST recursively and fails near 3000 levels (fewer
+  when called from deep in a stack).
+* :data:`MAX_LENGTH` (20000) characters: ten per node, room for long names and literals; it
+  bounds the work done before the node count (and the length of number literals).
+
+Every refusal is a :class:`SceneError` of one line: the key, a reason, the column and the text.
 """
 
 from __future__ import annotations
@@ -23,9 +59,13 @@ import ast
 import difflib
 import math
 import numbers
+import re
+import sys
+import unicodedata
+import warnings
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -49,10 +89,37 @@ FUNCTIONS: dict[str, int] = {
 #: Names a user constant may not take (variables, built-in constants, functions).
 RESERVED_NAMES: frozenset[str] = frozenset({"s", "t", *CONSTANTS, *FUNCTIONS})
 
-_MAX_DEPTH = 100  # nesting limit of the expression tree (guards the recursive walkers)
+#: Levels of the internal tree (guards the recursive walkers; see the module docstring).
+MAX_DEPTH = 100
+#: Numbers, names, operators and calls in one expression (bounds the FFCx compile time).
+MAX_NODES = 2000
+#: Characters of one expression string (after stripping blanks at both ends).
+MAX_LENGTH = 20000
+#: Chains of + - (or * /) with more operands than this are rebuilt as balanced trees.
+BALANCE_ABOVE = 16
+
+_DEPTH_RULE = (
+    "each call, sign, power and parenthesised operation is one level; a chain a+b+... of n "
+    f"terms counts n-1 levels up to {BALANCE_ABOVE} terms and about log2(n) above"
+)
 
 _BINARY = {ast.Add: "add", ast.Sub: "sub", ast.Mult: "mul", ast.Div: "div", ast.Pow: "pow"}
 _UNARY = {ast.UAdd: "pos", ast.USub: "neg"}
+_OPERATORS = {ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/"}
+# Associative chains: operator → (the chain's operators, "same" op, "inverse" op).
+_CHAINS: dict[type, tuple[tuple[type, ...], str, str]] = {
+    **dict.fromkeys((ast.Add, ast.Sub), ((ast.Add, ast.Sub), "add", "sub")),
+    **dict.fromkeys((ast.Mult, ast.Div), ((ast.Mult, ast.Div), "mul", "div")),
+}
+
+# One node of the internal tree per match, for valid expressions: a number, a name (a variable
+# or a called function) or an operator. Non-ASCII characters count as name characters.
+_TOKEN = re.compile(
+    r"0[xXoObB]\w*"
+    r"|(?:\d[\d_]*(?:\.[\d_]*)?|\.\d[\d_]*)(?:[eE][+-]?\d[\d_]*)?[jJ]?"
+    r"|(?:[A-Za-z_]|[^\x00-\x7f\s])(?:\w|[^\x00-\x7f\s])*"
+    r"|\*\*|[-+*/]"
+)
 
 # Internal tree: ("num", value) | ("var", name) | (op, child[, child]) | ("call", fname, *args)
 Node = tuple[Any, ...]
@@ -159,40 +226,148 @@ def _is_real(value: object) -> bool:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
+# ------------------------------------------------------------------------------------- names
+def check_name(name: str, key: str) -> None:
+    """Refuse a name that Python would read as another one (Unicode NFKC folding).
+
+    Python folds identifiers by NFKC, so ``ｔ`` (fullwidth), ``𝑡`` (mathematical italic) or
+    ``ﬁ`` (ligature) in an expression are read as ``t`` and ``fi``; a parameter declared with
+    such a name could never be used as written and would silently shadow or alias another.
+    Raises :class:`SceneError` starting with ``key``; NFKC-stable names (``ω``) pass. Whether
+    ``name`` is an identifier at all is not checked here.
+    """
+    folded = unicodedata.normalize("NFKC", name)
+    if folded != name:
+        raise SceneError(
+            f"{key}: the name {name!r} is read by Python as {folded!r} (Unicode NFKC); "
+            "write it as plain letters"
+        )
+
+
 # ------------------------------------------------------------------------------------- parser
+class _Built(NamedTuple):
+    """A converted subtree: the tree, its height (a leaf is 0) and its value if constant."""
+
+    tree: Node
+    height: int
+    value: float | None
+
+
+class _Span(NamedTuple):
+    """A source range in :mod:`ast` coordinates (lines from 1, UTF-8 byte columns): a group of
+    operands inside a long chain, shown after ``lead``, the operator written before it."""
+
+    lineno: int
+    col_offset: int
+    end_lineno: int
+    end_col_offset: int
+    lead: str = ""
+
+
+class _Operand(NamedTuple):
+    """A chain operand (or a merged group of operands ``first .. last - 1``): its value is
+    ``built`` if not ``inverted``, else ``-built`` (for + -) or ``1/built`` (for * /)."""
+
+    built: _Built
+    inverted: bool
+    first: int
+    last: int
+
+
+class _Source:
+    """The text, split into lines the way :mod:`ast` counts them, for columns and segments."""
+
+    def __init__(self, text: str) -> None:
+        self.text = text
+        self.ascii = text.isascii()  # ASCII names are NFKC-stable
+        self.lines = [line.encode("utf-8") for line in re.split(r"\r\n|\r|\n", text)]
+
+    def line(self, lineno: int) -> bytes:
+        return self.lines[lineno - 1] if 0 < lineno <= len(self.lines) else b""
+
+    def place(self, where: Any) -> str:
+        """`` at column N`` (characters, from 1) or `` at line L, column N``."""
+        column = len(self.line(where.lineno)[: where.col_offset].decode("utf-8", "replace")) + 1
+        if where.lineno > 1:
+            return f" at line {where.lineno}, column {column}"
+        return f" at column {column}"
+
+    def segment(self, where: Any) -> str:
+        """The text of a node or span, exactly as written."""
+        first, last = where.lineno, where.end_lineno
+        if first == last:
+            raw = self.line(first)[where.col_offset : where.end_col_offset]
+        else:
+            parts = [self.line(first)[where.col_offset :]]
+            parts += [self.line(k) for k in range(first + 1, last)]
+            parts.append(self.line(last)[: where.end_col_offset])
+            raw = b"\n".join(parts)
+        return raw.decode("utf-8", "replace")
+
+    def shown(self, where: Any) -> str:
+        """The segment for a message: quoted, shortened, parentheses cut off at its ends
+        restored, after the operator that precedes a group of a long chain."""
+        text = self.segment(where)
+        level = lowest = 0
+        for char in text:
+            level += (char == "(") - (char == ")")
+            lowest = min(lowest, level)
+        text = "(" * -lowest + text + ")" * (level - lowest)
+        return _short(f"{where.lead} {text}" if getattr(where, "lead", "") else text)
+
+
+def _short(text: str, limit: int = 60) -> str:
+    """``repr`` of a (one-line) source segment, shortened in the middle if long."""
+    text = " ".join(text.split())
+    if len(text) > limit:
+        text = text[: limit // 2 - 2] + " ... " + text[-(limit // 2 - 3) :]
+    return repr(text)
+
+
 class _Parser:
-    """Converts a Python AST into the internal tree, enforcing the whitelist."""
+    """Converts a Python AST into the internal tree, enforcing the whitelist and the limits.
+
+    Recursion follows true nesting only (bounded by :data:`MAX_DEPTH`); chains are walked
+    iteratively. Heights and constant values are computed bottom-up, once per node.
+    """
 
     def __init__(self, text: str, allowed: frozenset[str] | None, key: str) -> None:
         self.text = text
+        self.source = _Source(text)
         self.allowed = allowed  # None: any identifier is accepted as a variable
         self.key = key
         self.names: set[str] = set()
 
-    def fail(self, reason: str, node: ast.AST | None = None, hint: str = "") -> SceneError:
-        where = f" at column {node.col_offset + 1}" if node is not None else ""
-        return SceneError(f"{self.key}: {reason}{where} in {show_value(self.text)}{hint}")
+    def fail(self, reason: str, where: Any = None, hint: str = "") -> SceneError:
+        place = self.source.place(where) if where is not None else ""
+        return SceneError(f"{self.key}: {reason}{place} in {show_value(self.text)}{hint}")
 
-    def convert(self, node: ast.AST, depth: int = 0) -> Node:
-        if depth > _MAX_DEPTH:
-            raise self.fail(f"expression nested deeper than {_MAX_DEPTH} levels")
+    def too_deep(self, where: Any, height: int | None = None) -> SceneError:
+        found = f"{height} levels" if height is not None else f"more than {MAX_DEPTH} levels"
+        return self.fail(
+            f"expression nested deeper than {MAX_DEPTH} levels (found {found}; {_DEPTH_RULE})",
+            where,
+        )
+
+    def convert(self, node: ast.AST, depth: int = 0) -> _Built:
+        if depth > MAX_DEPTH:
+            raise self.too_deep(node)
         if isinstance(node, ast.Constant):
             return self.number(node)
         if isinstance(node, ast.Name):
             return self.name(node)
+        if isinstance(node, ast.BinOp) and type(node.op) in _CHAINS:
+            return self.chain(node, depth)
         if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
-            tree = (_BINARY[type(node.op)], *self.children([node.left, node.right], depth))
-            return self.checked(tree, node)
+            left = self.convert(node.left, depth + 1)
+            right = self.convert(node.right, depth + 1)
+            return self.build(_BINARY[type(node.op)], (left, right), node)
         if isinstance(node, ast.UnaryOp) and type(node.op) in _UNARY:
-            return self.checked(
-                (_UNARY[type(node.op)], self.convert(node.operand, depth + 1)), node
-            )
+            operand = self.convert(node.operand, depth + 1)
+            return self.build(_UNARY[type(node.op)], (operand,), node)
         if isinstance(node, ast.Call):
             return self.call(node, depth)
         raise self.fail(f"{self.describe(node)} not allowed", node)
-
-    def children(self, kids: list[ast.expr], depth: int) -> list[Node]:
-        return [self.convert(kid, depth + 1) for kid in kids]
 
     @staticmethod
     def describe(node: ast.AST) -> str:
@@ -205,23 +380,38 @@ class _Parser:
             return f"operator {type(node.op).__name__!r} (only unary + - are allowed)"
         return f"construct {type(node).__name__!r}"
 
-    def number(self, node: ast.Constant) -> Node:
+    def number(self, node: ast.Constant) -> _Built:
         value = node.value
         if isinstance(value, bool) or not isinstance(value, int | float):
-            raise self.fail(f"literal {value!r} not allowed (only numbers)", node)
+            shown = repr(value)
+            shown = shown if len(shown) <= 60 else f"{shown[:40]}...{shown[-15:]}"
+            raise self.fail(f"literal {shown} not allowed (only numbers)", node)
         number = _finite_float(value)
         if number is None:
-            raise self.fail("number literal is not finite", node)
-        return ("num", number)
+            raise self.fail("number literal is not finite (beyond ±1.8e308)", node)
+        return _Built(("num", number), 0, number)
 
-    def name(self, node: ast.Name) -> Node:
+    def check_written(self, node: ast.Name) -> None:
+        """Refuse a name whose text differs from what Python read (NFKC folding)."""
+        if self.source.ascii:
+            return
+        written = self.source.segment(node)
+        if written != node.id:
+            raise self.fail(
+                f"the name {written!r} is read by Python as {node.id!r} (Unicode NFKC)",
+                node,
+                "; write it as plain letters",
+            )
+
+    def name(self, node: ast.Name) -> _Built:
+        self.check_written(node)
         ident = node.id
         if ident in FUNCTIONS:
             raise self.fail(f"function {ident!r} used without arguments; write {ident}(...)", node)
         if ident not in CONSTANTS and self.allowed is not None and ident not in self.allowed:
             raise self.fail(f"unknown name {ident!r}", node, self.suggest(ident))
         self.names.add(ident)
-        return ("var", ident)
+        return _Built(("var", ident), 0, CONSTANTS.get(ident))
 
     def suggest(self, ident: str) -> str:
         pool = sorted(set(CONSTANTS) | (self.allowed or set()))
@@ -229,10 +419,11 @@ class _Parser:
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         return f"{hint}; allowed names: {', '.join(pool)}"
 
-    def call(self, node: ast.Call, depth: int) -> Node:
+    def call(self, node: ast.Call, depth: int) -> _Built:
         func = node.func
         if not isinstance(func, ast.Name):
             raise self.fail("only calls of plain function names are allowed", node)
+        self.check_written(func)
         if func.id not in FUNCTIONS:
             close = difflib.get_close_matches(func.id, sorted(FUNCTIONS), n=1, cutoff=0.6)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
@@ -246,39 +437,99 @@ class _Parser:
             raise self.fail(
                 f"{func.id}() takes {arity} argument{plural}, got {len(node.args)}", node
             )
-        args = self.children(node.args, depth)
-        return self.checked(("call", func.id, *args), node)
+        args = []
+        for arg in node.args:
+            args.append(self.convert(arg, depth + 1))
+        return self.build(func.id, tuple(args), node, call=True)
 
-    def checked(self, tree: Node, node: ast.AST) -> Node:
-        """Evaluate constant subtrees now, so that ``1/0`` or ``log(-1)`` fail at parse time."""
-        if _free_names(tree):
-            return tree
+    def chain(self, node: ast.BinOp, depth: int) -> _Built:
+        """A chain of + - (or * /): flattened iteratively along the left spine of the AST,
+        then rebuilt left to right (up to BALANCE_ABOVE operands) or balanced."""
+        ops, same, inverse = _CHAINS[type(node.op)]
+        spine: list[ast.BinOp] = []  # spine[i] is the written chain of operands 0 .. i+1
+        current: ast.AST = node
+        while isinstance(current, ast.BinOp) and isinstance(current.op, ops):
+            spine.append(current)
+            current = current.left
+        spine.reverse()
+        operands = [_Operand(self.convert(current, depth + 1), False, 0, 1)]
+        for i, binop in enumerate(spine, start=1):
+            inverted = isinstance(binop.op, ast.Sub | ast.Div)
+            operands.append(_Operand(self.convert(binop.right, depth + 1), inverted, i, i + 1))
+
+        def merge(a: _Operand, b: _Operand) -> _Operand:
+            if a.first == 0:  # the written prefix: an AST node of its own
+                where: Any = spine[b.last - 2]
+            else:
+                before, end = spine[a.first - 1], spine[b.last - 2]
+                start, lead = before.right, _OPERATORS[type(before.op)]
+                where = _Span(
+                    start.lineno, start.col_offset, end.end_lineno, end.end_col_offset, lead
+                )
+            if not a.inverted:  # a + b, a - b (a * b, a / b)
+                op, pair, inverted = (inverse if b.inverted else same), (a, b), False
+            elif not b.inverted:  # -a + b = b - a (1/a * b = b / a)
+                op, pair, inverted = inverse, (b, a), False
+            else:  # -a - b = -(a + b) (1/a / b = 1/(a * b))
+                op, pair, inverted = same, (a, b), True
+            built = self.build(op, (pair[0].built, pair[1].built), where)
+            return _Operand(built, inverted, a.first, b.last)
+
+        if len(operands) <= BALANCE_ABOVE:  # as written: ((a + b) - c) + ...
+            result = operands[0]
+            for operand in operands[1:]:
+                result = merge(result, operand)
+        else:  # pairwise, level by level: depth ceil(log2 n)
+            level = operands
+            while len(level) > 1:
+                merged = [merge(level[i], level[i + 1]) for i in range(0, len(level) - 1, 2)]
+                level = merged + level[len(merged) * 2 :]
+            result = level[0]
+        assert not result.inverted  # the first operand is never inverted, nor any group of it
+        return result.built
+
+    def build(
+        self, op: str, args: tuple[_Built, ...], where: Any, call: bool = False
+    ) -> _Built:
+        """A new node: its height checked, and its value if the arguments are constant
+        (so that ``1/0`` or ``log(-1)`` fail at parse time)."""
+        trees = tuple(arg.tree for arg in args)
+        tree = ("call", op, *trees) if call else (op, *trees)
+        height = 1 + max(arg.height for arg in args)
+        if height > MAX_DEPTH:
+            raise self.too_deep(where, height)
+        if any(arg.value is None for arg in args):
+            return _Built(tree, height, None)
         try:
-            value = _walk(tree, _constant_leaf, lambda op, args: _SCALAR_OPS[op](*args))
+            value = _SCALAR_OPS[op](*(arg.value for arg in args))
             finite = math.isfinite(value)
         except (ArithmeticError, ValueError) as exc:
-            segment = ast.get_source_segment(self.text, node) or self.text
-            raise self.fail(f"{segment!r} cannot be evaluated ({exc})", node) from None
+            segment = self.source.shown(where)
+            raise self.fail(
+                f"{segment} cannot be evaluated ({_reason(exc)})", where, self.pairwise(where)
+            ) from None
         if not finite:
-            segment = ast.get_source_segment(self.text, node) or self.text
-            raise self.fail(f"{segment!r} is not finite", node)
-        return tree
+            segment = self.source.shown(where)
+            raise self.fail(f"{segment} is not finite", where, self.pairwise(where))
+        return _Built(tree, height, float(value))
+
+    @staticmethod
+    def pairwise(where: Any) -> str:
+        """A note for a refused group of a long chain (its grouping is not the written one)."""
+        if not isinstance(where, _Span):
+            return ""
+        return f" (a chain of more than {BALANCE_ABOVE} terms is evaluated pairwise)"
 
 
-def _free_names(tree: Node) -> set[str]:
-    """Variable names of the tree other than the built-in constants."""
-    found: set[str] = set()
-
-    def leaf(node: Node) -> None:
-        if node[0] == "var" and node[1] not in CONSTANTS:
-            found.add(node[1])
-
-    _walk(tree, leaf, lambda op, args: None)
-    return found
-
-
-def _constant_leaf(node: Node) -> float:
-    return node[1] if node[0] == "num" else CONSTANTS[node[1]]
+def _reason(exc: BaseException) -> str:
+    """The message of an exception, or a description if it has none (MemoryError...)."""
+    text = " ".join(str(exc).split())
+    if text:
+        return text
+    return {
+        "MemoryError": "the parser ran out of stack",
+        "RecursionError": "maximum recursion depth exceeded",
+    }.get(type(exc).__name__, type(exc).__name__)
 
 
 def _finite_float(value: object) -> float | None:
@@ -299,6 +550,24 @@ def _syntax_error_place(exc: SyntaxError, text: str) -> str:
     return f" at column {offset}" if 0 < offset <= len(lines[0]) else " at the end"
 
 
+def _syntax_reason(exc: SyntaxError) -> str:
+    """Python's message, except for its advice on the int-literal limit (meant for programs)."""
+    message = " ".join(str(exc.msg).split()) or "invalid syntax"
+    if "integer string conversion" in message:  # Python's 4300-digit limit of int literals
+        digits = re.search(r"value has (\d+) digits", message)
+        found = f", found {digits.group(1)}" if digits else ""
+        return f"an integer literal has more than {sys.get_int_max_str_digits()} digits{found}"
+    return message
+
+
+def _show_number(value: object) -> str:
+    """``show_value`` of a number, or its size if it is an int too long to print."""
+    try:
+        return show_value(value)
+    except ValueError:  # an int too long for str() (Python's 4300-digit limit)
+        return f"an integer of about {int(int(value).bit_length() * math.log10(2)) + 1} digits"
+
+
 def _parse_tree(
     value: object, allowed: frozenset[str] | None, key: str
 ) -> tuple[str, Node, frozenset[str]]:
@@ -306,7 +575,7 @@ def _parse_tree(
     if _is_real(value):
         number = _finite_float(value)
         if number is None:
-            raise SceneError(f"{key}: must be a finite number, got {show_value(value)}")
+            raise SceneError(f"{key}: must be a finite number, got {_show_number(value)}")
         source = str(value) if isinstance(value, numbers.Integral) else repr(number)
         return source, ("num", number), frozenset()
     if not isinstance(value, str):
@@ -316,16 +585,42 @@ def _parse_tree(
     text = value.strip()
     if not text:
         raise SceneError(f"{key}: empty expression string")
+    shown = show_value(text)
+    if len(text) > MAX_LENGTH:
+        raise SceneError(
+            f"{key}: expression of {len(text)} characters, more than the limit of {MAX_LENGTH}, "
+            f"in {shown}"
+        )
+    count = sum(1 for _ in _TOKEN.finditer(text))
+    if count > MAX_NODES:
+        raise SceneError(
+            f"{key}: expression of {count} numbers, names and operators, more than the limit of "
+            f"{MAX_NODES} (a bigger one takes long to compile), in {shown}"
+        )
     try:
-        body = ast.parse(text, mode="eval").body
+        with warnings.catch_warnings():  # "invalid decimal literal" etc.: not for our stderr
+            warnings.simplefilter("ignore")
+            body = ast.parse(text, mode="eval").body
     except SyntaxError as exc:
         column = _syntax_error_place(exc, text)
-        raise SceneError(f"{key}: syntax error{column} in {show_value(text)} ({exc.msg})") from None
-    except (RecursionError, MemoryError, ValueError) as exc:
-        raise SceneError(f"{key}: cannot parse {show_value(text)} ({exc})") from None
+        reason = _syntax_reason(exc)
+        raise SceneError(f"{key}: syntax error{column} in {shown} ({reason})") from None
+    except (RecursionError, MemoryError) as exc:
+        raise SceneError(
+            f"{key}: cannot parse {shown}: too deeply nested or too long a chain for Python's "
+            f"parser ({_reason(exc)})"
+        ) from None
+    except (ValueError, OverflowError) as exc:  # null bytes, lone surrogates
+        raise SceneError(f"{key}: cannot parse {shown} ({_reason(exc)})") from None
     parser = _Parser(text, allowed, key)
-    tree = parser.convert(body)
-    return text, tree, frozenset(parser.names)
+    try:
+        built = parser.convert(body)
+    except RecursionError:  # only when called with little of the recursion limit left
+        raise SceneError(
+            f"{key}: cannot parse {shown}: nested more deeply than the recursion limit allows "
+            "here (maximum recursion depth exceeded)"
+        ) from None
+    return text, built.tree, frozenset(parser.names)
 
 
 # --------------------------------------------------------------------------------- Expression
