@@ -7,8 +7,11 @@
   x(s), y(s) instead.
 
 Figures are 10 × 8 and 7 × 5 inches at 130 dpi: 1300 × 1040 and 910 × 650 pixels. Reads the
-run with :mod:`cosserat_fem.results` (no DOLFINx). matplotlib comes from Debian
-(python3-matplotlib, see .ci/setup.sh).
+run with :mod:`cosserat_fem.results` (no DOLFINx), all of it before drawing anything: a damaged
+file is bad input (one line naming it, exit 2) and leaves no figure behind. Non-finite values
+are refused there, not plotted. A run killed at any moment plots what it has: a cut last probe
+row is dropped, and an XDMF file without frames yet gives the free-end figure alone.
+matplotlib comes from Debian (python3-matplotlib, see .ci/setup.sh).
 """
 
 from __future__ import annotations
@@ -18,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CosseratError, SceneError
-from .results import Run, open_run
+from .results import NoFramesError, RodSeries, Run, open_run
 
 DPI = 130
 HISTORY_SIZE = (10.0, 8.0)  # inches
@@ -49,6 +52,23 @@ def output_folder(out: str | Path | None, run: Run, command: str) -> Path:
     return target
 
 
+def _label(text: str) -> str:
+    """``text`` (a scene's title: user input) drawn literally: a ``$`` would start mathtext,
+    whose parser raises on most strings that are not TeX."""
+    return text.replace("$", r"\$")
+
+
+def _save(fig, path: Path) -> Path:
+    plt = _pyplot()
+    try:
+        fig.savefig(path, dpi=DPI)
+    except OSError as exc:
+        raise SceneError(f"plot: cannot write {str(path)!r} ({exc})") from None
+    finally:
+        plt.close(fig)
+    return path
+
+
 def plot_free_end(run: Run, out: Path) -> Path:
     plt = _pyplot()
     rows = run.probes
@@ -64,19 +84,17 @@ def plot_free_end(run: Run, out: Path) -> Path:
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel(run.time_label)
-    fig.suptitle(f"Free end: {run.title}", fontsize=10)
+    fig.suptitle(_label(f"Free end: {run.title}"), fontsize=10)
     fig.tight_layout()
-    path = out / "free_end.png"
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    return path
+    return _save(fig, out / "free_end.png")
 
 
-def plot_surfaces(run: Run, out: Path) -> list[Path]:
+def plot_surfaces(run: Run, out: Path, series: RodSeries | None = None) -> list[Path]:
+    """x(s, t) and y(s, t) of ``series`` (default: read from the run's XDMF file)."""
     plt = _pyplot()
-    series = run.series()
+    series = run.series() if series is None else series
     if "displacement" not in series.arrays:
-        raise CosseratError(f"{run.xdmf}: no displacement array (output.fields)")
+        raise SceneError(f"{str(run.xdmf)!r}: no displacement array (output.fields)")
     disp = series.arrays["displacement"]  # (T, N, 3)
     paths = []
     for column, name in ((0, "x"), (1, "y")):
@@ -100,22 +118,34 @@ def plot_surfaces(run: Run, out: Path) -> list[Path]:
             ax.set_xlabel("s [m]")
             ax.set_ylabel(f"{name}(s) [m] at {run.time_label} = {series.times[0]:.6g}")
             ax.grid(alpha=0.3)
-        ax.set_title(f"{name}(s, t): {run.title}", fontsize=9)
+        ax.set_title(_label(f"{name}(s, t): {run.title}"), fontsize=9)
         fig.tight_layout()
-        path = out / f"{name}_surface.png"
-        fig.savefig(path, dpi=DPI)
-        plt.close(fig)
-        paths.append(path)
+        paths.append(_save(fig, out / f"{name}_surface.png"))
     return paths
 
 
 def plot_run(directory: str | Path, out: str | Path | None = None) -> list[Path]:
-    """The figures of the run in ``directory``, written to ``out`` (default: that folder)."""
+    """The figures of the run in ``directory``, written to ``out`` (default: that folder).
+    Everything is read (and checked) first; a run with neither probe rows nor XDMF frames
+    (killed at its start) is bad input, as nothing can be drawn."""
     run = open_run(directory, "plot")
+    rows = run.probes is not None and len(run.probes) > 0
+    series = None
+    if run.xdmf is not None:
+        try:
+            series = run.series()
+        except NoFramesError:
+            series = None
+        if series is not None and "displacement" not in series.arrays:
+            raise SceneError(f"{str(run.xdmf)!r}: no displacement array (output.fields)")
+    if not rows and series is None:
+        probes = str(run.directory / "probes.csv")
+        xdmf = f"{str(run.xdmf)!r} no frames" if run.xdmf else "there is no solution.xdmf"
+        raise SceneError(f"plot: nothing to plot yet: {probes!r} holds no rows and {xdmf}")
     target = output_folder(out, run, "plot")
     paths = []
-    if run.probes is not None and len(run.probes):
+    if rows:
         paths.append(plot_free_end(run, target))
-    if run.xdmf is not None:
-        paths += plot_surfaces(run, target)
+    if series is not None:
+        paths += plot_surfaces(run, target, series)
     return paths

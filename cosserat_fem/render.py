@@ -13,9 +13,12 @@ coloured by the magnitude of the contact torque |m| [N m] when the file has it (
 displacement), with the undeformed rod as a thin grey line and the axes labelled in metres.
 Deflections of a stiff rod are a small fraction of its length: the magnification k (written
 in every picture) is chosen so that the largest displacement is about a fifth of the length,
-rounded down to 1, 2 or 5 times a power of ten (``--scale`` sets it; 1 for large
-deflections). pyvista and vtk come from PyPI (the ``render`` extra). With no X display VTK
+rounded down to 1, 2 or 5 times a power of ten, at most 1e12 (``--scale`` sets it; 1 for
+large deflections). pyvista and vtk come from PyPI (the ``render`` extra). With no X display VTK
 renders through EGL; under ``xvfb-run`` through X.
+
+The run is read and checked by :mod:`cosserat_fem.results` before anything is drawn: a damaged
+file is bad input (one line naming it, exit 2), and so is an XDMF file without frames.
 """
 
 from __future__ import annotations
@@ -31,6 +34,9 @@ from .plot import output_folder
 from .results import RodSeries, open_run
 
 WINDOW = (1024, 768)  # pixels of every picture and animation frame
+#: Largest automatic magnification (a displacement below ~1e-13 of the length is round-off;
+#: and 0.2 ℓ over a subnormal peak would overflow to inf).
+MAX_SCALE = 1e12
 
 
 def _pyvista():
@@ -49,11 +55,11 @@ def _pyvista():
 
 def magnification(series: RodSeries) -> float:
     """Largest displacement → about a fifth of the length, rounded down to 1, 2, 5 × 10^n,
-    never below 1."""
+    never below 1 nor above MAX_SCALE."""
     peak = float(np.abs(series.arrays["displacement"]).max())
     if peak == 0.0 or peak >= 0.2 * series.length:
         return 1.0
-    raw = 0.2 * series.length / peak
+    raw = min(0.2 * series.length / peak, MAX_SCALE)
     decade = 10.0 ** math.floor(math.log10(raw))
     step = max(m for m in (1.0, 2.0, 5.0) if m * decade <= raw * (1 + 1e-12))
     return max(1.0, step * decade)
@@ -193,8 +199,19 @@ def render_run(
     series = run.series()
     if "displacement" not in series.arrays:
         raise SceneError(f"render: {str(run.xdmf)!r} has no displacement (output.fields)")
-    target = output_folder(out, run, "render")
     k = magnification(series) if scale is None else scale
+    drawn = series.positions(k)
+    if not np.isfinite(drawn).all():
+        raise SceneError(f"render --scale: {k:g} magnifies the displacement beyond the float range")
+    # A frame whose points all coincide (to double precision) has no tube: VTK's tube filter
+    # gives an empty mesh, which pyvista refuses to draw. No run writes one.
+    single = np.flatnonzero(np.abs(np.diff(drawn, axis=1)).max(axis=(1, 2)) == 0.0)
+    if single.size:
+        raise SceneError(
+            f"render: {str(run.xdmf)!r}: at time {series.times[single[0]]:.6g} every point of "
+            f"the rod (displaced x {k:g}) is at one place; nothing to draw"
+        )
+    target = output_folder(out, run, "render")
     scene = _Scene(series, k, run.title, run.time_label)
     paths = []
     try:
