@@ -1,0 +1,304 @@
+"""The JIT cache survives killed and failed compiles, and keeps the compiler quiet.
+
+:mod:`cosserat_fem.jit` (defects D7 and D16). Every test compiles a tiny P1 form whose constant
+is random, into a private cache directory, so the module is new. Each test that covers a defect
+also checks that plain FFCx behaves as the defect report says (so the test would fail without
+:func:`cosserat_fem.jit.install`).
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import os
+import random
+import signal
+import subprocess
+import sys
+import sysconfig
+import time
+from pathlib import Path
+
+import pytest
+
+from cosserat_fem import jit
+from cosserat_fem.errors import CosseratError
+
+PYTHON = sys.executable
+
+# Compiles constant * u * v * dx into args["cache"] with dolfinx.jit.ffcx_jit (which says
+# whether it compiled or loaded from the cache) and prints the outcome as JSON. The mesh and
+# element modules come from the default (warm) cache.
+SCRIPT = r"""
+import json, os, sys, time
+args = json.loads(sys.argv[1])
+import ufl
+from dolfinx import fem, mesh
+from dolfinx.jit import ffcx_jit
+from mpi4py import MPI
+from cosserat_fem import jit
+if args["install"]:
+    jit.install()
+msh = mesh.create_unit_interval(MPI.COMM_SELF, 2)
+V = fem.FunctionSpace(msh, ("Lagrange", 1))
+form = args["constant"] * ufl.TrialFunction(V) * ufl.TestFunction(V) * ufl.dx
+if args.get("go"):
+    open(args["ready"], "w").close()
+    while not os.path.exists(args["go"]):
+        time.sleep(0.002)
+start = time.monotonic()
+try:
+    params = {"cache_dir": args["cache"], "timeout": args.get("timeout", 10)}
+    code = ffcx_jit(MPI.COMM_SELF, form, jit_params=params)[2]
+    result = {"compiled": code[0] is not None}
+except Exception as exc:
+    result = {"error": f"{type(exc).__name__}: {exc}"}
+result["seconds"] = time.monotonic() - start
+print(json.dumps(result))
+"""
+
+
+def constant() -> float:
+    return 1.2345 + random.random()
+
+
+def slow_compiler(tmp_path: Path, seconds: float) -> dict[str, str]:
+    """Environment whose C compiler (CC, also used to link) sleeps first: a compile that is
+    surely still running when another process arrives or the test kills it."""
+    cc = sysconfig.get_config_var("CC").split()[0]
+    wrapper = tmp_path / "slowcc"
+    wrapper.write_text(f'#!/bin/sh\nsleep {seconds}\nexec {cc} "$@"\n')
+    wrapper.chmod(0o755)
+    return {**os.environ, "CC": str(wrapper)}
+
+
+_started: list[subprocess.Popen] = []
+
+
+@pytest.fixture(autouse=True)
+def reap():
+    """Kill what a failed test left running (e.g. a process waiting for the go file)."""
+    yield
+    while _started:
+        proc = _started.pop()
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+
+
+def start(args: dict, env: dict | None = None) -> subprocess.Popen:
+    proc = subprocess.Popen(
+        [PYTHON, "-c", SCRIPT, json.dumps(args)],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,  # its own process group, for killpg
+    )
+    _started.append(proc)
+    return proc
+
+
+def outcome(proc: subprocess.Popen, timeout: float = 60) -> dict:
+    out, err = proc.communicate(timeout=timeout)
+    assert proc.returncode == 0, err
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def run(args: dict) -> dict:
+    return outcome(start(args))
+
+
+def files(cache: Path, suffix: str) -> list[Path]:
+    return sorted(cache.glob("libffcx_forms_*" + suffix))
+
+
+def lock_is_free(lock: Path) -> bool:
+    with open(lock) as f:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return False
+        return True
+
+
+@pytest.fixture
+def installed():
+    """install() for the test; afterwards the state before it (the lead may install at start)."""
+    before = jit.installed()
+    jit.install()
+    yield
+    if not before:
+        jit.uninstall()
+
+
+@pytest.fixture(scope="module")
+def space():
+    from dolfinx import fem, mesh
+    from mpi4py import MPI
+
+    return fem.FunctionSpace(mesh.create_unit_interval(MPI.COMM_SELF, 2), ("Lagrange", 1))
+
+
+def mass_form(space, cache: Path, value: float | None = None, **jit_params):
+    import ufl
+    from dolfinx import fem
+
+    value = constant() if value is None else value
+    a = value * ufl.TrialFunction(space) * ufl.TestFunction(space) * ufl.dx
+    return fem.form(a, jit_params={"cache_dir": str(cache), **jit_params})
+
+
+@pytest.mark.parametrize("killed", ["install", "plain"])
+def test_killed_compile_does_not_block_the_next_run(tmp_path, killed):
+    """D7: a compile killed with SIGKILL (its whole process group, as Ctrl-C in a terminal
+    would, here while the slowed C compiler runs) leaves <module>.c without <module>.c.cached.
+
+    Plain FFCx then waits `timeout` seconds (10 by default, 1 here) and raises "JIT compilation
+    timed out" on every later run. With install() the next process gets the module's lock
+    (the dead process's lock died with it), knows the compile died, and compiles at once. The
+    killed compile ran with install() or, as caches broken before this fix, without it.
+    """
+    cache = tmp_path / "cache"
+    args = {"cache": str(cache), "constant": constant(), "install": killed == "install"}
+    proc = start(args, env=slow_compiler(tmp_path, 30))
+    deadline = time.monotonic() + 60
+    while not any(f.stat().st_size > 0 for f in files(cache, ".c")):  # source written: gcc
+        assert proc.poll() is None, proc.communicate()
+        assert time.monotonic() < deadline, "the compile did not start"
+        time.sleep(0.01)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.communicate()
+    assert files(cache, ".c") and not files(cache, ".c.cached")
+
+    plain = run({**args, "install": False, "timeout": 1})
+    assert "JIT compilation timed out" in plain.get("error", ""), plain
+
+    fixed = run({**args, "install": True})
+    assert fixed.get("compiled") is True, fixed
+    assert fixed["seconds"] < 8, fixed  # a compile takes ~0.5 s; no 10 s wait
+    assert len(files(cache, ".c.cached")) == 1 and not files(cache, ".c.failed")
+    assert run({**args, "install": True})["compiled"] is False  # now a warm cache
+
+
+def test_live_concurrent_compile_is_waited_for(tmp_path):
+    """Two processes that need the same new module at the same moment: one compiles (slowed
+    to ~3 s), the other waits for it on the lock and then loads the result; nobody takes the
+    live compile for a dead one and compiles over it. Plain FFCx passes all but the lock check
+    (its 10 s wait is long enough here): this guards install() against a regression."""
+    cache = tmp_path / "cache"
+    env = slow_compiler(tmp_path, 1.5)
+    procs, value = [], constant()
+    for i in range(2):
+        args = {
+            "cache": str(cache),
+            "constant": value,
+            "install": True,
+            "ready": str(tmp_path / f"ready{i}"),
+            "go": str(tmp_path / "go"),
+        }
+        procs.append(start(args, env=env))
+    deadline = time.monotonic() + 60
+    while not all((tmp_path / f"ready{i}").exists() for i in range(2)):
+        assert time.monotonic() < deadline and all(p.poll() is None for p in procs)
+        time.sleep(0.01)
+    (tmp_path / "go").touch()
+    results = [outcome(p) for p in procs]
+    assert sorted(r.get("compiled") for r in results) == [False, True], results
+    waiter = next(r for r in results if not r["compiled"])
+    assert waiter["seconds"] > 0.5, results  # it did arrive during the compile
+    assert len(files(cache, ".c.cached")) == 1 and not files(cache, ".c.failed")
+    assert lock_is_free(files(cache, ".lock")[0])
+
+
+def test_wait_for_a_hung_compile_names_the_process(tmp_path, monkeypatch, space, installed):
+    """A live compile that outlasts the wait (jit.WAIT_TIMEOUT, 300 s; 0.5 s here) gives a
+    one-line error naming the C file, the process compiling it and its lock file."""
+    cache, value = tmp_path / "cache", constant()
+    args = {"cache": str(cache), "constant": value, "install": True}
+    proc = start(args, env=slow_compiler(tmp_path, 30))
+    try:
+        deadline = time.monotonic() + 60
+        while not files(cache, ".c"):  # created once the lock is held
+            assert proc.poll() is None and time.monotonic() < deadline, "no compile started"
+            time.sleep(0.01)
+        monkeypatch.setattr(jit, "WAIT_TIMEOUT", 0.5)
+        with pytest.raises(jit.JITLockTimeout) as info:
+            mass_form(space, cache, value, timeout=0)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+    message = str(info.value)
+    assert "\n" not in message and isinstance(info.value, TimeoutError)
+    assert f"process {proc.pid}" in message
+    assert str(files(cache, ".c")[0]) in message and str(files(cache, ".lock")[0]) in message
+
+
+def test_compiler_warnings_do_not_reach_stderr(tmp_path, capfd, space, installed):
+    """D16: gcc runs in a subprocess that inherits fd 2. FFCx's code for a cell integral
+    leaves parameters unused (w, c, entity_local_index, ...), so -Wextra makes gcc warn on any
+    form; Debian's -Wall warns on some. Plain FFCx lets the warnings through (checked first, so
+    that the test proves something); with install() they stay off the terminal."""
+    wextra = {"cffi_extra_compile_args": ["-O2", "-g0", "-Wextra"]}
+    jit.uninstall()
+    try:
+        mass_form(space, tmp_path / "plain", **wextra)
+    finally:
+        jit.install()
+    assert "warning: unused parameter" in capfd.readouterr().err
+
+    mass_form(space, tmp_path / "patched", **wextra)
+    assert "warning" not in capfd.readouterr().err
+
+    with jit.capture_stderr() as captured:  # the helper on its own: any child's fd 2
+        subprocess.run(["sh", "-c", "echo from-a-child >&2"], check=True)
+    assert captured.text == "from-a-child\n"
+    assert capfd.readouterr().err == ""
+
+
+def test_compile_failure_is_one_line_naming_the_log(tmp_path, capfd, space, installed):
+    """A failing C compile (a header with #error forced in by -include) raises one line with
+    the compiler's first error and the path of the full log. Plain FFCx raises cffi's
+    "CompileError: command 'x86_64-linux-gnu-gcc' failed with exit code 1", with gcc's lines on
+    stderr and no log. A second attempt fails the same way (no timeout)."""
+    header = tmp_path / "broken.h"
+    header.write_text("#error cosserat_test_broken_header\n")
+    cache = tmp_path / "cache"
+    broken = {"cffi_extra_compile_args": ["-O2", "-include", str(header)], "timeout": 1}
+    for _ in range(2):
+        with pytest.raises(jit.JITCompileError) as info:
+            mass_form(space, cache, **broken)
+        message = str(info.value)
+        assert isinstance(info.value, CosseratError)
+        assert "\n" not in message
+        assert "error: #error cosserat_test_broken_header" in message
+        log = info.value.log_path
+        assert str(log) in message and log.exists()
+        assert "cosserat_test_broken_header" in log.read_text()
+    assert "cosserat_test_broken_header" not in capfd.readouterr().err
+    assert files(cache, ".c.failed") and not files(cache, ".c")
+    assert lock_is_free(files(cache, ".lock")[0])
+
+
+def test_interrupted_compile_leaves_nothing_that_blocks(tmp_path, monkeypatch, space, installed):
+    """KeyboardInterrupt during the C compile: FFCx renames .c to .c.failed only on Exception,
+    so plain FFCx leaves .c behind and the next compile times out. With install() the .c is
+    renamed (so even processes without install() are not blocked) and the lock is free."""
+    import cffi
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    cache, value = tmp_path / "cache", constant()
+    with monkeypatch.context() as patch:
+        patch.setattr(cffi.FFI, "compile", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            mass_form(space, cache, value, timeout=1)
+    assert not files(cache, ".c") and files(cache, ".c.failed")
+    assert lock_is_free(files(cache, ".lock")[0])
+    jit.uninstall()  # plain FFCx compiles it now (it would time out on a leftover .c)
+    try:
+        mass_form(space, cache, value, timeout=1)
+    finally:
+        jit.install()
+    assert len(files(cache, ".c.cached")) == 1
