@@ -11,29 +11,42 @@ the probes of an uninterrupted run to round-off (in fact identically, ``tests/te
   (``NewtonSolver.state_dict``); the counters continue;
 * the time loop's position (time, step counters, a fixed step's halving level, an adaptive
   step's size, error-estimate history and field peaks);
-* how far the outputs got: the probe rows and XDMF frames at the checkpoint's time.
+* how far the outputs got: the probe rows (and the SHA-256 of probes.csv up to them) and the
+  XDMF frames at the checkpoint's time.
 
 Layout, in the run's output folder::
 
-    checkpoint/checkpoint.json         the index: generation, time, ranks, scene, outputs
+    checkpoint/checkpoint.json         the index: run id, ranks, scene, and the two newest
+                                       checkpoints (generation, slot, time, outputs, digests)
     checkpoint/state<g mod 2>.rank<r>.npz   rank r's arrays of generation g
 
 Checkpoints alternate between two slots and the index is replaced atomically after every
 rank has written its slot, so a run killed at any moment (SIGKILL included) leaves the index
-naming a complete checkpoint. Arrays are per rank: a restart needs the same number of ranks
-(the same mesh partition). When to write them: ``output.checkpoint_interval`` (simulated
+naming a complete checkpoint. The index holds the SHA-256 of every rank's state file: a
+truncated or bit-flipped file is found, named, and the previous checkpoint (the other slot)
+used instead when it is intact. Arrays are per rank: a restart needs the same number of ranks
+(the same mesh partition). A write that fails (disk full, file size limit) leaves the index
+naming the last complete checkpoint (:class:`~cosserat_fem.errors.OutputError`).
+When to write them: ``output.checkpoint_interval`` (simulated
 time; "auto" = a tenth of the run) and at the end of the run, completed or stopped by a
 solver failure (the last accepted state), unless ``output.checkpoint = false``.
 
 On restart (``cosserat-fem run --restart DIR``) the scene is the checkpoint's own; only keys
 that do not change the discrete problem may be overridden (:data:`RESTART_KEYS`), e.g.
-``--set time.end=0.12`` to continue a completed run. Outputs written after the checkpoint (by
-a run killed later) are cut back to it: probes.csv to its rows, the XDMF file to its frames;
-new frames go into ``<name>-restart<n>.h5``, referenced by the one ``<name>.xdmf``.
+``--set time.end=0.12`` to continue a completed run. Everything is checked before anything
+is touched (:func:`check_outputs`): the outputs must be the checkpoint's run's (the run id of
+summary.json and solution.xdmf, written when the run started, and the digest of probes.csv up
+to the checkpoint's rows), and must reach the checkpoint. Only then are the outputs written
+after the checkpoint (by a run killed later) cut back to it (:func:`cut_outputs`): probes.csv
+to its rows, the XDMF file to its frames, ``<name>-restart<m>.h5`` files of later restarts
+deleted; new frames go into ``<name>-restart<n>.h5``, referenced by the one ``<name>.xdmf``.
+A new run into a folder removes the checkpoint of an earlier one (cosserat_fem/run_folder.py).
 """
 
 from __future__ import annotations
 
+import hashlib
+import io
 import json
 import math
 import os
@@ -45,9 +58,10 @@ from typing import Any
 import numpy as np
 from mpi4py import MPI
 
-from .errors import SceneError
+from .errors import OutputError, SceneError
+from .parallel import agree
 
-FORMAT = 1
+FORMAT = 2
 DIRECTORY = "checkpoint"
 INDEX = "checkpoint.json"
 #: Scene keys a restart may override (prefixes end with "."): none changes the discretisation,
@@ -58,7 +72,10 @@ RESTART_KEYS = (
     "solver.",
     "output.checkpoint",
     "output.checkpoint_interval",
+    "limits.",
 )
+#: Keys a restart keeps, whatever the overrides (messages do not suggest them).
+FIXED_KEYS = ("time.start", "time.step")
 
 
 def _flatten(parts: dict[str, dict]) -> dict[str, np.ndarray]:
@@ -76,8 +93,8 @@ def _unflatten(arrays: dict[str, np.ndarray]) -> dict[str, dict[str, np.ndarray]
 
 @dataclass
 class Checkpoint:
-    """A loaded checkpoint: the index (``meta``, the same on every rank) and this rank's
-    state, by part (``parts["integrator"]["U_n"]``, ...)."""
+    """A loaded checkpoint: the index entry (``meta``: run id, scene, time, outputs, ...; the
+    same on every rank) and this rank's state, by part (``parts["integrator"]["U_n"]``, ...)."""
 
     run_dir: Path
     meta: dict[str, Any]
@@ -86,6 +103,15 @@ class Checkpoint:
     @property
     def time(self) -> float:
         return float(self.meta["time"])
+
+    @property
+    def run_id(self) -> str:
+        return str(self.meta["run_id"])
+
+    @property
+    def restart_number(self) -> int:
+        """The number of the restart that continues this checkpoint (1 for the first)."""
+        return int(self.meta["restarts"]) + 1
 
 
 class CheckpointWriter:
@@ -98,18 +124,24 @@ class CheckpointWriter:
         interval: float,
         start: float,
         scene: dict,
+        run_id: str,
         previous: Checkpoint | None = None,
     ):
         self.directory = Path(run_dir) / DIRECTORY
         self.comm = comm
         self.interval, self.start = interval, start
-        self.scene = scene
+        self.scene, self.run_id = scene, run_id
         self.generation = int(previous.meta["generation"]) if previous else 0
-        self.restarts = int(previous.meta["restarts"]) + 1 if previous else 0
+        self.restarts = previous.restart_number if previous else 0
+        self._entries: list[dict] = [_entry(previous.meta)] if previous else []
         self.written = 0
+        problem = None
         if comm.rank == 0:
-            self.directory.mkdir(exist_ok=True)
-        comm.barrier()
+            try:
+                self.directory.mkdir(exist_ok=True)
+            except OSError as exc:
+                problem = OutputError(f"checkpoint: cannot make {str(self.directory)!r} ({exc})")
+        agree(comm, problem)
         self._next = math.inf
         self._schedule(previous.time if previous else start)
 
@@ -124,75 +156,177 @@ class CheckpointWriter:
     def due(self, t: float) -> bool:
         return t >= self._next - 1e-9 * self.interval
 
-    def save(self, t: float, parts: dict[str, dict], outputs: dict[str, int]) -> None:
-        """Write generation g + 1 of the state ``parts`` at time t [s] (collective)."""
+    def save(self, t: float, parts: dict[str, dict], outputs: dict[str, Any]) -> None:
+        """Write generation g + 1 of the state ``parts`` at time t [s] (collective). An
+        OutputError on every rank if any rank cannot write; the index then still names the
+        last complete checkpoint."""
         generation = self.generation + 1
         slot = generation % 2
         path = self.directory / f"state{slot}.rank{self.comm.rank}.npz"
-        tmp = path.with_name(path.name + ".tmp")
+        buffer = io.BytesIO()
         arrays = _flatten(parts)
         arrays["meta.generation"] = np.asarray(generation)
-        with open(tmp, "wb") as stream:
-            np.savez(stream, **arrays)
-        os.replace(tmp, path)
-        self.comm.barrier()  # every rank's slot is complete before the index names it
+        np.savez(buffer, **arrays)
+        data = buffer.getvalue()
+        problem = _write_atomically(path, data)
+        digests = self.comm.allgather(hashlib.sha256(data).hexdigest())
+        agree(self.comm, problem)  # every rank's slot is complete before the index names it
+        problem = None
         if self.comm.rank == 0:
-            index = {
-                "format": FORMAT,
+            entry = {
                 "generation": generation,
                 "slot": slot,
                 "time": t,
-                "ranks": self.comm.size,
                 "restarts": self.restarts,
                 "outputs": outputs,
-                "scene": self.scene,
+                "digests": digests,
             }
-            tmp_index = self.directory / (INDEX + ".tmp")
-            tmp_index.write_text(json.dumps(index, indent=1) + "\n", encoding="utf-8")
-            os.replace(tmp_index, self.directory / INDEX)
-        self.comm.barrier()
+            index = {
+                "format": FORMAT,
+                "run_id": self.run_id,
+                "ranks": self.comm.size,
+                "scene": self.scene,
+                "checkpoints": [entry, *self._entries[:1]],
+            }
+            index["checksum"] = _checksum(index)
+            text = json.dumps(index, indent=1) + "\n"
+            problem = _write_atomically(self.directory / INDEX, text.encode("utf-8"))
+            if problem is None:
+                self._entries = [entry]
+        agree(self.comm, problem)
         self.generation = generation
         self.written += 1
         self._schedule(t)
 
 
+def _checksum(index: dict) -> str:
+    """SHA-256 of the index's content (all but the checksum itself), in a canonical form:
+    a changed digit of a time or a count is found, not only damage to the state files."""
+    content = {k: v for k, v in index.items() if k != "checksum"}
+    return hashlib.sha256(json.dumps(content, sort_keys=True).encode("utf-8")).hexdigest()
+
+
+def _entry(meta: dict) -> dict:
+    return {k: meta[k] for k in ("generation", "slot", "time", "restarts", "outputs", "digests")}
+
+
+def _write_atomically(path: Path, data: bytes) -> OutputError | None:
+    """Write ``data`` to ``path`` through a temporary file and a rename; the error, if any
+    (the temporary file is removed, ``path`` is untouched)."""
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        with open(tmp, "wb") as stream:
+            stream.write(data)
+        os.replace(tmp, path)
+    except OSError as exc:
+        try:
+            tmp.unlink(missing_ok=True)
+        except OSError:
+            pass
+        return OutputError(f"checkpoint: cannot write {str(path)!r} ({exc.strerror or exc})")
+    return None
+
+
+# ---------------------------------------------------------------------------------- loading
+_INDEX_FIELDS = {"format": int, "run_id": str, "ranks": int, "scene": dict, "checkpoints": list}
+_ENTRY_FIELDS = {
+    "generation": int,
+    "slot": int,
+    "time": float,
+    "restarts": int,
+    "outputs": dict,
+    "digests": list,
+}
+
+
+def _index_problem(meta: Any, path: Path) -> str | None:
+    """What is wrong with a parsed index, or None."""
+    where = f"{str(path)!r}"
+    if not isinstance(meta, dict):
+        return f"{where} is not a checkpoint index"
+    if meta.get("format") != FORMAT:
+        return (
+            f"{where} has format {meta.get('format')!r}, not {FORMAT} (written by another "
+            "version of cosserat-fem)"
+        )
+    if meta.get("checksum") != _checksum(meta):
+        return f"{where} does not match its checksum (damaged or edited)"
+    entries = meta.get("checkpoints")
+    checks = [(meta, _INDEX_FIELDS)]
+    checks += [(e, _ENTRY_FIELDS) for e in entries or [] if isinstance(e, dict)]
+    if not entries or not all(isinstance(e, dict) for e in entries):
+        return f"{where} names no checkpoint"
+    for table, fields in checks:
+        for name, kind in fields.items():
+            value = table.get(name)
+            ok = isinstance(value, kind) and not isinstance(value, bool)
+            if kind is float:
+                ok = isinstance(value, int | float) and not isinstance(value, bool)
+                ok = ok and math.isfinite(value)
+            if not ok:
+                return f"{where}: {name} is missing or not a {kind.__name__}"
+    return None
+
+
+def _read_state(path: Path, entry: dict, rank: int) -> tuple[dict | None, str | None]:
+    """This rank's arrays of ``entry`` from ``path``, checked against the index's digest and
+    generation; (None, what is wrong) if it cannot be used."""
+    try:
+        data = path.read_bytes()
+        digests = entry["digests"]
+        if len(digests) <= rank or hashlib.sha256(data).hexdigest() != digests[rank]:
+            return None, f"{path.name} does not match its checksum (damaged or replaced)"
+        with np.load(io.BytesIO(data)) as npz:
+            arrays = {name: npz[name] for name in npz.files}
+        if int(arrays.pop("meta.generation")) != entry["generation"]:
+            return None, f"{path.name} is not of generation {entry['generation']}"
+    except Exception as exc:  # noqa: BLE001 - any failure to read is a damaged checkpoint
+        return None, f"cannot read {path.name} ({type(exc).__name__}: {exc})"
+    return arrays, None
+
+
 def load_checkpoint(run_dir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Checkpoint:
-    """The last complete checkpoint of the run in ``run_dir``; SceneError if there is none or
-    it does not fit this run (another number of ranks, an unknown format)."""
+    """The last intact checkpoint of the run in ``run_dir`` (the newest, else the previous
+    one if the newest is damaged); SceneError if there is none or it does not fit this run
+    (another number of ranks, another format). Collective: every rank agrees on what it
+    found before any goes on."""
     run_dir = Path(run_dir)
     index_path = run_dir / DIRECTORY / INDEX
     meta, error = None, None
     if comm.rank == 0:
         try:
             meta = json.loads(index_path.read_text(encoding="utf-8"))
+            error = _index_problem(meta, index_path)
         except FileNotFoundError:
-            error = f"--restart: no checkpoint in {str(run_dir)!r} (no {DIRECTORY}/{INDEX})"
+            error = f"no checkpoint in {str(run_dir)!r} (no {DIRECTORY}/{INDEX})"
         except (OSError, ValueError) as exc:
-            error = f"--restart: cannot read {str(index_path)!r} ({exc})"
-        if meta is not None and meta.get("format") != FORMAT:
-            found = meta.get("format")
-            error = f"--restart: {str(index_path)!r} has format {found!r}, not {FORMAT}"
+            error = f"cannot read {str(index_path)!r} ({exc})"
     meta, error = comm.bcast((meta, error), root=0)
     if error:
-        raise SceneError(error)
+        raise SceneError(f"--restart: {error}")
     if meta["ranks"] != comm.size:
         raise SceneError(
             f"--restart: the checkpoint was written by {meta['ranks']} MPI ranks; restart "
             f"with the same number (mpirun -n {meta['ranks']}), not {comm.size}"
         )
-    path = run_dir / DIRECTORY / f"state{meta['slot']}.rank{comm.rank}.npz"
-    problem = None
-    try:
-        with np.load(path) as data:
-            arrays = {name: data[name] for name in data.files}
-        if int(arrays.pop("meta.generation")) != meta["generation"]:
-            problem = f"{path.name} is not of generation {meta['generation']}"
-    except (OSError, ValueError, KeyError) as exc:
-        arrays, problem = {}, f"cannot read {path.name} ({exc})"
-    problems = [p for p in comm.allgather(problem) if p]
-    if problems:
-        raise SceneError(f"--restart: damaged checkpoint in {str(run_dir)!r}: {problems[0]}")
-    return Checkpoint(run_dir, meta, _unflatten(arrays))
+    found = []
+    for entry in meta["checkpoints"][:2]:
+        path = run_dir / DIRECTORY / f"state{entry['slot']}.rank{comm.rank}.npz"
+        arrays, problem = _read_state(path, entry, comm.rank)
+        problems = [p for p in comm.allgather(problem) if p]
+        if not problems:
+            common = {k: v for k, v in meta.items() if k not in ("checkpoints", "checksum")}
+            if found:
+                from .progress import LOGGER
+
+                LOGGER.warning(
+                    "checkpoint: %s; continuing from the previous checkpoint at t = %.6g s",
+                    found[0],
+                    entry["time"],
+                )
+            return Checkpoint(run_dir, {**common, **entry}, _unflatten(arrays))
+        found.append(problems[0])
+    raise SceneError(f"--restart: damaged checkpoint in {str(run_dir)!r}: {found[0]}")
 
 
 def restart_overrides(overrides: list[str] | tuple[str, ...]) -> None:
@@ -208,22 +342,102 @@ def restart_overrides(overrides: list[str] | tuple[str, ...]) -> None:
 
 
 # --------------------------------------------------------------------------------- outputs
-def cut_probes(path: Path, rows: int) -> None:
-    """Keep the header and the first ``rows`` rows of probes.csv (rows after the checkpoint,
-    and a line cut by a kill, go)."""
-    with open(path, "r+b") as stream:
-        end = 0
+ET.register_namespace("xi", "http://www.w3.org/2001/XInclude")
+
+
+@dataclass
+class RestartPlan:
+    """What :func:`check_outputs` found (on rank 0): where probes.csv is cut (bytes) and how
+    many XDMF frames are kept."""
+
+    probes: Path | None
+    probe_bytes: int | None
+    xdmf: Path | None
+    frames: int | None
+    restart_number: int
+
+
+def _probe_prefix(path: Path, rows: int) -> tuple[int, Any]:
+    """(bytes, sha256) of the header and the first ``rows`` rows of probes.csv."""
+    digest = hashlib.sha256()
+    end = 0
+    with open(path, "rb") as stream:
         for _ in range(rows + 1):
             line = stream.readline()
             if not line.endswith(b"\n"):
                 raise SceneError(
                     f"--restart: {str(path)!r} holds fewer than the checkpoint's {rows} rows"
                 )
+            digest.update(line)
             end += len(line)
-        stream.truncate(end)
+    return end, digest
 
 
-ET.register_namespace("xi", "http://www.w3.org/2001/XInclude")
+def _xdmf_problem(path: Path, frames: int, run_id: str) -> str | None:
+    """Why the XDMF file cannot be continued from ``frames`` frames of run ``run_id``."""
+    from .output import XDMF_GRID, xdmf_run_id
+
+    root = ET.parse(path).getroot()
+    if xdmf_run_id(root) != run_id:
+        return f"{str(path)!r} was written by another run than the checkpoint's"
+    domain = root.find("Domain")
+    collection = None if domain is None else domain.find(f"Grid[@Name='{XDMF_GRID}']")
+    steps = [] if collection is None else collection.findall("Grid")
+    if len(steps) < frames:
+        return f"{str(path)!r} holds {len(steps)} frames, fewer than the checkpoint's {frames}"
+    for step in steps[:frames]:
+        for item in step.iter("DataItem"):
+            name = (item.text or "").strip().split(":", 1)[0]
+            if not (path.parent / name).is_file():
+                return f"{str(path)!r} refers to {name}, which is missing"
+    return None
+
+
+def check_outputs(
+    checkpoint: Checkpoint, probes: Path | None, xdmf: Path | None, comm: MPI.Comm
+) -> RestartPlan:
+    """Check, touching nothing, that the outputs in the checkpoint's folder are its run's and
+    reach it (module docstring), on rank 0; SceneError on every rank otherwise (collective).
+    The folder is shared by the ranks, as the XDMF file already requires."""
+    outputs = checkpoint.meta["outputs"]
+    run_dir = checkpoint.run_dir
+    problem, offset = None, None
+    if comm.rank == 0:
+        try:
+            problem = _summary_problem(run_dir / "summary.json", checkpoint.run_id)
+            if problem is None and xdmf is not None:
+                if outputs.get("xdmf_frames") is None:
+                    problem = "the checkpointed run wrote no XDMF file"
+                else:
+                    problem = _xdmf_problem(xdmf, int(outputs["xdmf_frames"]), checkpoint.run_id)
+            if problem is None and probes is not None:
+                offset, digest = _probe_prefix(probes, int(outputs["probe_rows"]))
+                if digest.hexdigest() != outputs.get("probes_sha256"):
+                    problem = (
+                        f"{str(probes)!r} differs from the checkpointed run's rows (written by "
+                        "another run, or edited)"
+                    )
+        except SceneError as exc:
+            problem = str(exc).removeprefix("--restart: ")
+        except (OSError, ValueError, ET.ParseError) as exc:
+            problem = f"cannot read the outputs in {str(run_dir)!r} ({exc})"
+    agree(comm, SceneError(f"--restart: {problem}") if problem else None)
+    frames = outputs.get("xdmf_frames") if xdmf is not None else None
+    return RestartPlan(probes, offset, xdmf, frames, checkpoint.restart_number)
+
+
+def _summary_problem(path: Path, run_id: str) -> str | None:
+    """Why summary.json does not show the checkpoint's run (written when the run started)."""
+    try:
+        summary = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        summary = None
+    if not isinstance(summary, dict) or summary.get("run_id") != run_id:
+        return (
+            f"the outputs in {str(path.parent)!r} are not the checkpoint's run's (the run id "
+            "of summary.json differs): another run was written into the folder after it"
+        )
+    return None
 
 
 def cut_xdmf(path: Path, frames: int) -> None:
@@ -233,37 +447,33 @@ def cut_xdmf(path: Path, frames: int) -> None:
     for collection in tree.getroot().iter("Grid"):
         if collection.get("GridType") != "Collection":
             continue
-        steps = collection.findall("Grid")
-        if len(steps) < frames:
-            raise SceneError(
-                f"--restart: {str(path)!r} holds {len(steps)} frames of "
-                f"{collection.get('Name')!r}, fewer than the checkpoint's {frames}"
-            )
-        for step in steps[frames:]:
+        for step in collection.findall("Grid")[frames:]:
             collection.remove(step)
     tmp = path.with_name(path.name + ".tmp")
     tree.write(tmp, encoding="utf-8", xml_declaration=True)
     os.replace(tmp, path)
 
 
-def cut_outputs(
-    checkpoint: Checkpoint, probes: Path | None, xdmf: Path | None, probe_owner: bool, comm
-) -> None:
-    """Cut probes.csv (on the probe's owner) and the XDMF file (rank 0) back to the
-    checkpoint; a problem on any rank is raised on every rank."""
-    outputs = checkpoint.meta["outputs"]
+def cut_outputs(plan: RestartPlan, comm: MPI.Comm) -> None:
+    """Cut the outputs back to the checkpoint as ``plan`` (from :func:`check_outputs`) says,
+    on rank 0: probes.csv, the XDMF file, and the HDF5 files of later restarts (which hold
+    frames after the checkpoint only: a restart killed before its first checkpoint left
+    one). An OutputError on every rank if a file cannot be changed (collective)."""
     problem = None
-    try:
-        if probes is not None and probe_owner:
-            cut_probes(probes, outputs["probe_rows"])
-        if xdmf is not None and comm.rank == 0:
-            if outputs["xdmf_frames"] is None:
-                raise SceneError("--restart: the checkpointed run wrote no XDMF file")
-            cut_xdmf(xdmf, outputs["xdmf_frames"])
-    except SceneError as exc:
-        problem = str(exc)
-    except (OSError, ET.ParseError) as exc:
-        problem = f"--restart: cannot continue the outputs in {str(checkpoint.run_dir)!r} ({exc})"
-    problems = [p for p in comm.allgather(problem) if p]
-    if problems:
-        raise SceneError(problems[0])
+    if comm.rank == 0:
+        try:
+            if plan.probes is not None:
+                with open(plan.probes, "r+b") as stream:
+                    stream.truncate(plan.probe_bytes)
+            if plan.xdmf is not None:
+                cut_xdmf(plan.xdmf, plan.frames)
+                stem, folder = plan.xdmf.stem, plan.xdmf.parent
+                for old in folder.glob(f"{stem}-restart*.h5"):
+                    number = old.stem.removeprefix(f"{stem}-restart")
+                    if number.isdigit() and int(number) >= plan.restart_number:
+                        old.unlink()
+        except (OSError, ET.ParseError) as exc:
+            problem = OutputError(
+                f"--restart: cannot cut the outputs back to the checkpoint ({exc})"
+            )
+    agree(comm, problem)

@@ -2,19 +2,24 @@
 and ``cosserat-fem run --restart DIR [--set time.end=...]`` to continue a stopped run;
 ``cosserat-fem plot|render RUN_DIR [--out DIR]`` draw a run's outputs (no DOLFINx needed).
 
-Exit status: 0 success, 2 bad input (scene, options, output folder), 3 numerical trouble
-(the run stopped; outputs written so far are kept). Errors are one line on stderr; ``--debug``
-shows the traceback as well.
+Exit status: 0 success, 2 bad input (scene, options, output folder, a run that would
+exceed its limits), 3 numerical trouble, 4 a run stopped by an output it could not write
+(disk full, file size limit) or by a limit (limits.wall_time); 1 an internal error. A run
+that stops keeps the outputs written so far and its checkpoint. Errors are one line on
+stderr; ``--debug`` shows the traceback as well, and Python's warnings (which go to the log
+at ``--verbose`` otherwise).
 """
 
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import traceback
+import warnings
 
 from . import __version__
-from .errors import CosseratError, SceneError, SolverError
+from .errors import CosseratError, SceneError, SolverError, StopError
 
 
 def _common(sub: argparse.ArgumentParser, scene_optional: bool = False) -> None:
@@ -40,13 +45,26 @@ def _common(sub: argparse.ArgumentParser, scene_optional: bool = False) -> None:
     sub.add_argument("--debug", action="store_true", help="show tracebacks on errors")
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with the one-line errors of the rest of the command line (exit status 2)."""
+
+    def error(self, message: str):
+        print(
+            f"cosserat-fem: error: {' '.join(message.split())} (see {self.prog} --help)",
+            file=sys.stderr,
+        )
+        sys.exit(2)
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="cosserat-fem",
         description="Nonlinear dynamics of Cosserat rods (Cao & Tucker 2008) with FEniCSx.",
     )
     parser.add_argument("--version", action="version", version=f"cosserat-fem {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    sub = parser.add_subparsers(
+        dest="command", required=True, metavar="COMMAND", parser_class=_Parser
+    )
     run = sub.add_parser("run", help="integrate a scene in time and write its outputs")
     _common(run, scene_optional=True)
     run.add_argument(
@@ -149,7 +167,7 @@ def _run(args) -> int:
 def _restart(args):
     """The scene and checkpoint to continue the run in args.restart (cosserat_fem/checkpoint.py)
     with the overrides a restart allows."""
-    from .checkpoint import load_checkpoint, restart_overrides
+    from .checkpoint import FIXED_KEYS, load_checkpoint, restart_overrides
     from .scene import scene_from_dict
 
     if args.scene is not None or args.out is not None:
@@ -161,7 +179,9 @@ def _restart(args):
     restart_overrides(args.overrides)
     checkpoint = load_checkpoint(args.restart)
     source = f"{args.restart}/checkpoint"
-    scene = scene_from_dict(checkpoint.meta["scene"], source=source, overrides=args.overrides)
+    scene = scene_from_dict(
+        checkpoint.meta["scene"], source=source, overrides=args.overrides, fixed=FIXED_KEYS
+    )
     if not scene.time.end > checkpoint.time:
         raise SceneError(
             f"time.end: the checkpoint is at t = {checkpoint.time:.10g} s; give a later end "
@@ -198,13 +218,12 @@ def _modes(args) -> int:
 
     from mpi4py import MPI
 
-    from .modes import compute_modes, write_modes
+    from .modes import check_count, compute_modes, write_modes
+    from .run_folder import prepare_output_dir
     from .scene import load_scene
-    from .simulation import prepare_output_dir
 
-    if args.count < 1:
-        raise SceneError(f"--count: must be at least 1, got {args.count}")
     scene = load_scene(args.scene, args.overrides)
+    check_count(scene, args.count)
     out = prepare_output_dir(Path(args.out or scene.output.directory), MPI.COMM_WORLD)
     model, modes = compute_modes(scene, args.count, about=args.about)
     write_modes(out, model, modes)
@@ -217,25 +236,55 @@ def _modes(args) -> int:
 
 
 def _validate(args) -> int:
+    """The scene resolved, and what ``run`` and ``static`` of it cost at least
+    (cosserat_fem/budget.py), refused if that exceeds its limits (exit 2), as they would
+    refuse it."""
     from mpi4py import MPI
 
+    from . import budget
     from .describe import describe_scene
+    from .parallel import ranks_on_node
     from .scene import load_scene
 
+    comm = MPI.COMM_WORLD
     scene = load_scene(args.scene, args.overrides)
-    if MPI.COMM_WORLD.rank == 0 and not args.quiet:
+    out = args.out or scene.output.directory
+    node = ranks_on_node(comm)
+    costs = {c: budget.check(scene, c, out, node, comm.size) for c in ("run", "static")}
+    if comm.rank == 0 and not args.quiet:
         print(describe_scene(scene))
+        for command, estimate in costs.items():
+            print(f"  {command}: {estimate.describe()} (estimated lower bounds)")
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command line; returns the exit status (module docstring)."""
     args = _parser().parse_args(argv)
+    status = _main(args)
+    if status not in (0, 130):
+        from .parallel import agree_or_abort
+
+        agree_or_abort(status)  # an error the other ranks did not meet must not hang them
+    return status
+
+
+def _main(args) -> int:
     from mpi4py import MPI
 
+    from .parallel import prepare_agreement
     from .progress import configure_logging
 
     level = "quiet" if args.quiet else "verbose" if args.verbose else "normal"
     configure_logging(level, MPI.COMM_WORLD.rank)
+    prepare_agreement()
+    # A write past the file size limit (ulimit -f) fails with EFBIG, which the outputs report
+    # (exit 4), instead of SIGXFSZ killing the process with a core dump.
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    # Python's warnings (numpy's on non-finite values, FFCx's) go to the log, not around the
+    # one-line messages: shown with --verbose or --debug.
+    if not args.debug:
+        warnings.simplefilter("ignore" if not args.verbose else "default")
     try:
         if args.command == "validate":
             return _validate(args)
@@ -253,18 +302,33 @@ def main(argv: list[str] | None = None) -> int:
     except SolverError as exc:
         _report(exc, args)
         return 3
+    except StopError as exc:
+        _report(exc, args)
+        return 4
     except CosseratError as exc:
         _report(exc, args)
         return 1
     except KeyboardInterrupt:
         print("cosserat-fem: interrupted", file=sys.stderr)
         return 130
+    except RuntimeError as exc:
+        if str(exc).startswith(_MPI_JIT_FAILURE):  # dolfinx's wrapper of rank 0's JIT error
+            _report(CosseratError(str(exc).removeprefix(_MPI_JIT_FAILURE)), args, exc)
+            return 1
+        _report(
+            CosseratError(f"internal error: {type(exc).__name__}: {exc}".splitlines()[0]), args, exc
+        )
+        return 1
     except Exception as exc:  # an internal error: one line, the traceback with --debug
         _report(
             CosseratError(f"internal error: {type(exc).__name__}: {exc}".splitlines()[0]), args, exc
         )
         return 1
     return 1
+
+
+#: How dolfinx.jit.mpi_jit_decorator wraps a compile error of rank 0 under MPI.
+_MPI_JIT_FAILURE = "Failed just-in-time compilation of form: "
 
 
 def _report(exc: Exception, args, cause: BaseException | None = None) -> None:

@@ -7,6 +7,12 @@ so that the command line can print it without a traceback:
   dotted key at fault, e.g. ``rod.material.poisson_ratio: must lie in (-1, 0.5), got 0.7``.
 * :class:`SolverError`: numerical trouble during a run (Newton divergence, a singular
   Jacobian, non-finite values), with the time and place where it happened and a suggestion.
+* :class:`StopError`: the run stopped for a reason outside its numerics, keeping what it
+  wrote and its checkpoint so that ``run --restart`` continues it: an output that could not be
+  written (:class:`OutputError`: disk full, file size limit, I/O error) or a limit of the
+  scene reached (:class:`LimitReached`: ``limits.wall_time``).
+
+Exit status of the command line: 2 SceneError, 3 SolverError, 4 StopError, 1 anything else.
 """
 
 from __future__ import annotations
@@ -71,6 +77,18 @@ class SolverError(CosseratError):
         if self.suggestion:
             text += f" (suggestion: {self.suggestion})"
         return text
+
+
+class StopError(CosseratError):
+    """The run stopped with its outputs and checkpoint kept; ``run --restart`` continues it."""
+
+
+class OutputError(StopError):
+    """An output (probes, XDMF/HDF5, checkpoint, summary) could not be written."""
+
+
+class LimitReached(StopError):
+    """The run reached a limit of its scene (``limits.wall_time``)."""
 
 
 def show_value(value: object) -> str:

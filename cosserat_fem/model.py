@@ -12,15 +12,19 @@ zero are left out of the form.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass, field
 
+import basix
 import numpy as np
 import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .expressions import derivative
+from . import jit
+from .errors import SceneError
+from .expressions import Expression, derivative
 from .forms.general_form import (
     DistributedLoads,
     EndLoadConvention,
@@ -32,6 +36,7 @@ from .forms.general_form import (
 from .forms.groups import Groups, RodConstants, dimensionless_groups
 from .forms.kinematics import P_NAMES
 from .forms.section import Section
+from .parallel import agree
 from .scene import PLANAR, Scene
 
 START_TAG, END_TAG = 1, 2
@@ -67,27 +72,24 @@ def section_of(scene: Scene) -> Section:
 
 def rod_constants(scene: Scene) -> RodConstants:
     """Physical constants of the scene's rod, with ω0 resolved (section 6 when 'auto')."""
-    mat = scene.rod.material
-    return RodConstants(
-        length=scene.rod.length,
-        section=section_of(scene),
-        density=mat.density,
-        young_modulus=mat.young_modulus,
-        shear_modulus=mat.shear_modulus,
-        omega0=scene.expression_names()["omega0"],
-        torsion_inertia=scene.model.torsion_inertia,
-    )
+    return scene.rod_constants()
 
 
 @dataclass
 class SupportMotion:
-    """A prescribed support translation X(t) [m] (supports.*_motion), its rate X'(t) [m/s]
-    and the Dirichlet Constants of the support's 12 (clamped) or 8 (pinned) components."""
+    """A prescribed support translation X(t) [m] (supports.``end``_motion), its rate X'(t)
+    [m/s] and the Dirichlet Constants of the support's 12 (clamped) or 8 (pinned) components."""
 
+    end: str
     position: tuple
     rate: tuple
     acceleration: tuple
     values: dict[int, fem.Constant]
+
+
+def _what(component: int) -> str:
+    """What a support's component holds: the position, or its rate."""
+    return "its position" if component < 6 else "its rate"
 
 
 @dataclass
@@ -150,18 +152,75 @@ class RodModel:
     def move_supports(self, tau: float, rates: bool = False) -> None:
         """Set the Dirichlet values of prescribed support motions at τ = ω0 t (47):
         p_i = X_i(t)/ℓ, q_i = dp_i/dτ = X_i'(t)/(ℓ ω0), i = x, y, z; with ``rates``, their
-        τ-derivatives instead (q_i and X_i''(t)/(ℓ ω0²), for the initial-rate problem)."""
+        τ-derivatives instead (q_i and X_i''(t)/(ℓ ω0²), for the initial-rate problem).
+        SceneError naming the motion if a value is not finite (``log(t - 1)`` at t < 1)."""
         if not self.motions:
             return
-        values = dict(self.scene.expression_names(), t=tau / self.omega0)
+        t = tau / self.omega0
+        values = dict(self.scene.expression_names(), t=t)
         w, ell = self.omega0, self.length
         for m in self.motions:
             p, q = (m.rate, m.acceleration) if rates else (m.position, m.rate)
             scale = (1.0 / ell, 1.0 / (ell * w))
             scale = (scale[1], scale[1] / w) if rates else scale
             for i in (i for i in range(3) if i in m.values):
-                m.values[i].value = p[i].evaluate(**values) * scale[0]
-                m.values[6 + i].value = q[i].evaluate(**values) * scale[1]
+                for j, e, factor in ((i, p[i], scale[0]), (6 + i, q[i], scale[1])):
+                    try:
+                        value = e.evaluate(**values) * factor
+                    except ValueError:
+                        value = math.nan
+                    if not math.isfinite(value):
+                        raise SceneError(
+                            f"supports.{m.end}_motion[{i}]: {_what(j)} {e.source!r} is not "
+                            f"finite at t = {t:.6g} s"
+                        )
+                    m.values[j].value = value
+
+    def load_entries(self) -> list[tuple[str, Expression]]:
+        """(dotted key, expression) of every load and support motion of the scene."""
+        loads, supports = self.scene.loads, self.scene.supports
+        entries = [("loads.force_density", loads.force_density)]
+        entries.append(("loads.torque_density", loads.torque_density))
+        for end in ("start", "end"):
+            load = getattr(loads, end)
+            if load is not None:
+                entries += [(f"loads.{end}.force", load.force)]
+                entries += [(f"loads.{end}.torque", load.torque)]
+            if supports.motion(end) is not None:
+                entries += [(f"supports.{end}_motion", supports.motion(end))]
+        return [
+            (f"{key}[{i}]", e)
+            for key, vector in entries
+            if vector is not None
+            for i, e in enumerate(vector)
+            if not e.is_constant
+        ]
+
+    def nonfinite_load(self, times: list[float]) -> str | None:
+        """What is not finite among the loads and support motions at ``times`` [s], at the
+        nodes and quadrature points of the rod: "key = "source" is nan at t = ..., s = ... m",
+        or None (collective). A solve that fails asks this before it blames the step."""
+        cells = self.msh.geometry.dofmap.array.reshape(-1, 2)
+        x = self.msh.geometry.x[:, 0]
+        degree = self.scene.discretisation.quadrature_degree
+        xi, _ = basix.make_quadrature(basix.CellType.interval, degree)
+        xi = np.concatenate([[0.0], xi[:, 0], [1.0]])
+        s = self.length * (x[cells[:, :1]] + xi[None, :] * (x[cells[:, 1:]] - x[cells[:, :1]]))
+        s = s.ravel()
+        names = self.scene.expression_names()
+        found = None
+        for t in times:
+            for key, e in self.load_entries():
+                with np.errstate(all="ignore"):
+                    values = e.evaluate(s=s, t=np.full_like(s, t), **names)
+                bad = np.flatnonzero(~np.isfinite(values))
+                if bad.size and found is None:
+                    where = f", s = {s[bad[0]]:.4g} m" if e.depends_on("s") else ""
+                    found = (
+                        f"{key} = {e.source!r} is {values[bad[0]]} at t = {t:.6g} s{where}"
+                    )
+        found_all = [f for f in self.msh.comm.allgather(found) if f]
+        return found_all[0] if found_all else None
 
     def support_dofs_to(self, state: np.ndarray, tau: float) -> None:
         """Write the moving supports' values at τ into a state array (their dofs only)."""
@@ -265,6 +324,16 @@ class RodModel:
                     state[:, first[name] + i] = scale[name] * np.broadcast_to(
                         np.asarray(e.evaluate(s=x, **values), dtype=float), x.shape
                     )
+            bad, problem = ~np.isfinite(state), None
+            if bad.any():
+                node, column = np.argwhere(bad)[0]
+                name = next(n for n, c in first.items() if c <= column < c + 3)
+                i = column - first[name]
+                problem = SceneError(
+                    f"initial.{name}[{i}]: {given[name][i].source!r} is not finite at "
+                    f"s = {x[node]:.4g} m"
+                )
+            agree(self.msh.comm, problem)
             U.x.array[:] = state[:, self.components].reshape(-1)
         return U.x.array
 
@@ -300,6 +369,7 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     """The discrete rod; ``planar``: solve only the in-plane unknowns when the scene stays in
     the x-z or the y-z plane (:meth:`Scene.plane`, and discretisation.planar = "auto")."""
     quiet_jit_logging()
+    jit.install()  # crash-safe, quiet compiles (cosserat_fem/jit.py)
     disc = scene.discretisation
     msh = mesh.create_interval(comm, disc.elements, [0.0, 1.0])
     cell = msh.ufl_cell()
@@ -326,7 +396,7 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
         if motion is not None:
             rates = tuple(derivative(e, "t") for e in motion)
             accelerations = tuple(derivative(e, "t") for e in rates)
-            motions.append(SupportMotion(motion, rates, accelerations, held[name]))
+            motions.append(SupportMotion(name, motion, rates, accelerations, held[name]))
 
     # FFCx 0.5 reads the quadrature degree from the measure's metadata only; a
     # form_compiler_params={"quadrature_degree": q} is silently ignored.

@@ -36,8 +36,12 @@ from dolfinx.fem.petsc import assemble_matrix
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from . import budget
+from .errors import OutputError, SceneError, SolverError
 from .model import FULL, RodModel, build_model, support_conditions
 from .output import XdmfWriter
+from .parallel import agree, ranks_on_node
+from .scene import Scene
 
 KINDS = ("bending-x", "bending-y", "axial", "torsion")
 # Which of p1..p6 = (x/ℓ, y/ℓ, z/ℓ, θ, ψ, φ) belongs to which kind of motion.
@@ -130,7 +134,12 @@ def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
     eps.solve()
     found = eps.getConverged()
     if found < count:
-        raise RuntimeError(f"SLEPc found {found} of {count} modes")
+        eps.destroy()
+        raise SolverError(
+            f"SLEPc converged {found} of the {count} modes asked for",
+            where="modes",
+            suggestion="ask for fewer (--count) or refine the mesh (discretisation.elements)",
+        )
     vr, vi = problem.K.createVecs()
     pairs = []
     for i in range(found):
@@ -179,8 +188,30 @@ def _normalised(shape: fem.Function) -> fem.Function:
     return shape
 
 
+def max_modes(scene: Scene) -> int:
+    """How many modes the discretisation has: the free dofs of p, six per Lagrange node less
+    those a support holds (six at a clamped end, four at a pinned one: x, y, z, φ)."""
+    disc = scene.discretisation
+    nodes = disc.elements * disc.degree + 1
+    held = {"clamped": 6, "pinned": 4, "free": 0}
+    return 6 * nodes - held[scene.supports.start] - held[scene.supports.end]
+
+
+def check_count(scene: Scene, count: int) -> None:
+    """SceneError unless 1 <= count <= :func:`max_modes`."""
+    most = max_modes(scene)
+    if not 1 <= count <= most:
+        raise SceneError(
+            f"--count: must lie in [1, {most}] (the modes of {scene.discretisation.elements} "
+            f"elements of degree {scene.discretisation.degree}: six unknowns a node less the "
+            f"held ones; more elements give more), got {count}"
+        )
+
+
 def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WORLD):
     """The scene's ``count`` lowest modes about the straight rod or its static state."""
+    check_count(scene, count)
+    budget.check(scene, "modes", None, ranks_on_node(comm), comm.size, modes=count)
     if about == "static":
         from .statics import solve_static
 
@@ -198,18 +229,25 @@ def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WO
 def write_modes(out: Path, model: RodModel, modes: list[Mode]) -> None:
     """``modes.csv`` (rank 0) and ``modes.xdmf`` (shapes as a series indexed by mode number)."""
     comm = model.msh.comm
+    problem = None
     if comm.rank == 0:
-        with open(out / "modes.csv", "w", newline="", encoding="utf-8") as stream:
-            writer = csv.writer(stream)
-            writer.writerow(
-                ["mode", "omega_rad_s", "frequency_hz", "kind"]
-                + [f"fraction_{k.replace('-', '_')}" for k in KINDS]
-            )
-            for i, mode in enumerate(modes, start=1):
+        try:
+            with open(out / "modes.csv", "w", newline="", encoding="utf-8") as stream:
+                writer = csv.writer(stream)
                 writer.writerow(
-                    [i, f"{mode.omega:.12e}", f"{mode.frequency_hz:.12e}", mode.kind]
-                    + [f"{mode.fractions[k]:.6f}" for k in KINDS]
+                    ["mode", "omega_rad_s", "frequency_hz", "kind"]
+                    + [f"fraction_{k.replace('-', '_')}" for k in KINDS]
                 )
+                for i, mode in enumerate(modes, start=1):
+                    writer.writerow(
+                        [i, f"{mode.omega:.12e}", f"{mode.frequency_hz:.12e}", mode.kind]
+                        + [f"{mode.fractions[k]:.6f}" for k in KINDS]
+                    )
+        except OSError as exc:
+            problem = OutputError(
+                f"output: cannot write {str(out / 'modes.csv')!r} ({exc.strerror or exc})"
+            )
+    agree(comm, problem)
     if modes:
         scratch = fem.Function(modes[0].shape.function_space, name="mode")
         # Displacement and angles only: strains and resultants of an eigenvector of

@@ -14,8 +14,9 @@ killed process, though not a power cut.
 
 from __future__ import annotations
 
-import json
+import hashlib
 import os
+import resource
 import time
 import weakref
 import xml.etree.ElementTree as ET
@@ -28,8 +29,10 @@ import ufl
 from dolfinx import fem, geometry, io, mesh
 from mpi4py import MPI
 
+from .errors import OutputError
 from .forms.kinematics import P_NAMES
 from .forms.resultants import resultants
+from .parallel import agree
 
 if TYPE_CHECKING:
     from .model import RodModel
@@ -114,6 +117,11 @@ class ProbeWriter:
     same ~12 us a row (full run) as flushing every 200 rows only; flushing every row cost
     ~23 us a row more on a busy ext4 file system (a write() can wait ~3 ms for a journal
     commit of another process), 3-5 % of a ~0.5 ms step.
+
+    The SHA-256 of the bytes written (:meth:`digest`) goes into each checkpoint, so that a
+    restart can prove that probes.csv is the checkpointed run's (cosserat_fem/checkpoint.py).
+    A write that fails (disk full, file size limit) raises :class:`OutputError` at once in
+    serial; under MPI the owner keeps it and every rank raises it at :meth:`check`.
     """
 
     def __init__(
@@ -122,23 +130,56 @@ class ProbeWriter:
         probe: PointProbe,
         flush_every: int = 200,
         max_delay: float = 0.05,
-        append: bool = False,
+        resume: bool = False,
     ):
-        """``append``: continue an existing file (a restart, which has cut it back)."""
+        """``resume``: continue the existing file (a restart, which has cut it back)."""
+        self.path = Path(path)
         self.probe = probe
+        self.comm = probe.U.function_space.mesh.comm
         self.flush_every = flush_every
         self.max_delay = max_delay
+        self.error: OutputError | None = None
         self._pending = 0
         self._rows = np.empty((flush_every, len(PROBE_HEADER)))
         self._file = None
         self._deadline = 0.0
+        self._sha = hashlib.sha256()
         if probe.is_owner:
-            mode = "a" if append else "w"
-            self._file = open(path, mode, encoding="utf-8")  # noqa: SIM115 - closed in close()
-            if not append:
-                self._file.write(",".join(PROBE_HEADER) + "\n")
+            try:
+                if resume:
+                    self._sha.update(self.path.read_bytes())
+                self._file = open(path, "a" if resume else "w", encoding="utf-8")  # noqa: SIM115
+            except OSError as exc:
+                self._fail(exc)
+            if not resume:
+                self._write(",".join(PROBE_HEADER) + "\n")
             self.flush()
             _PROBE_WRITERS.add(self)
+        self.check()
+
+    def _fail(self, exc: OSError) -> None:
+        self.error = OutputError(
+            f"output: cannot write {str(self.path)!r} ({exc.strerror or exc}); the rows "
+            "before are kept"
+        )
+        self._file = None
+        if self.comm.size == 1:
+            raise self.error
+
+    def _write(self, text: str) -> None:
+        if self._file is None:
+            return
+        try:
+            self._file.write(text)
+            self._file.flush()
+        except OSError as exc:
+            self._fail(exc)
+            return
+        self._sha.update(text.encode("utf-8"))
+
+    def check(self) -> None:
+        """Raise, on every rank, an error the owner met (collective under MPI)."""
+        agree(self.comm, self.error)
 
     def write(self, t: float) -> None:
         """Buffer the row of time t; see the class docstring for when rows go to the file."""
@@ -156,19 +197,30 @@ class ProbeWriter:
             if self._pending:
                 # One formatting call for the whole block (about 10x cheaper than per value).
                 block = tuple(self._rows[: self._pending].ravel())
-                self._file.write((_ROW_FORMAT * self._pending) % block)
-            self._file.flush()
-            if sync:
-                os.fsync(self._file.fileno())
-            self._pending = 0
+                self._pending = 0
+                self._write((_ROW_FORMAT * (len(block) // len(PROBE_HEADER))) % block)
+            if sync and self._file is not None:
+                try:
+                    os.fsync(self._file.fileno())
+                except OSError as exc:
+                    self._fail(exc)
             self._deadline = time.monotonic() + self.max_delay
+
+    def digest(self) -> str | None:
+        """SHA-256 of what probes.csv holds (rows pending are written first); None off the
+        owner."""
+        if not self.probe.is_owner:
+            return None
+        self.flush()
+        return self._sha.hexdigest()
 
     def close(self) -> None:
         if self._file is not None:
             self.flush(sync=True)
-            self._file.close()
+            if self._file is not None:
+                self._file.close()
             self._file = None
-            _PROBE_WRITERS.discard(self)
+        _PROBE_WRITERS.discard(self)
 
 
 #: The point arrays of each ``output.fields`` entry, in the order they are written.
@@ -360,13 +412,15 @@ class XdmfWriter:
         U: fem.Function | None = None,
         jit_params: dict | None = None,
         resume: tuple[int, int] | None = None,
+        run_id: str | None = None,
     ):
         """``model``: the discrete rod (mesh, constants); ``fields``: a subset of
         :data:`FIELD_ARRAYS` (default the scene's ``output.fields``); ``U``: the Function
         written (default ``model.U``), holding (p, q); ``write`` may be given another Function
         of the same space (e.g. one mode shape after another). ``resume = (n, frames)``:
         continue the existing file, which holds ``frames`` frames, as restart n; its new
-        frames go into ``<stem>-restart<n>.h5``."""
+        frames go into ``<stem>-restart<n>.h5``. ``run_id``: the identity of the run, written
+        into the XML (checked by a restart, cosserat_fem/checkpoint.py)."""
         msh = model.msh
         self.U = model.U if U is None else U
         self.fields = tuple(model.scene.output.fields if fields is None else fields)
@@ -399,6 +453,8 @@ class XdmfWriter:
         self._work = self.path.with_suffix(suffix + "-partial")
         self.file: io.XDMFFile | None = None
         self._doc: _XdmfDocument | None = None  # rank 0 only
+        # Bytes a frame adds to the .h5 (measured after each frame; at first the data alone).
+        self._frame_bytes = len(self.functions) * (24 * self.line.n_points + 1400)
         if resume is not None:
             restart, self.writes = resume
             stem = f"{self.path.stem}-restart{restart}"
@@ -406,6 +462,18 @@ class XdmfWriter:
             if self._comm.rank == 0:
                 self._doc = _XdmfDocument(self.path.read_text(encoding="utf-8"))
             return
+        self._guard(self._write_mesh)
+        if self._comm.rank == 0:
+            self._doc = _XdmfDocument(self._work.read_text(encoding="utf-8"), run_id)
+        self._guard(self._publish)
+        self.writes = 0
+
+    @property
+    def h5(self) -> Path:
+        """The HDF5 file new frames go into (DOLFINx names it after the working XML)."""
+        return self._work.with_suffix(".h5")
+
+    def _write_mesh(self) -> None:
         self.file = io.XDMFFile(self._comm, str(self._work), "w")
         try:
             self.file.write_mesh(self.mesh)
@@ -413,10 +481,41 @@ class XdmfWriter:
             self._close_file()
         if self._comm.size > 1:
             self._comm.barrier()
-        if self._comm.rank == 0:
-            self._doc = _XdmfDocument(self._work.read_text(encoding="utf-8"))
-        self._publish()
-        self.writes = 0
+
+    def _guard(self, action, t: float | None = None) -> None:
+        """Run ``action`` (collective); a failed write becomes an OutputError on every rank,
+        and the published XML and the frames before stay as they were."""
+        problem = None
+        try:
+            action()
+        except (OSError, RuntimeError) as exc:
+            self._close_file()
+            when = f" at t = {t:.6g}" if t is not None else ""
+            problem = OutputError(
+                f"output: cannot write the XDMF frame{when} to {str(self.h5.parent)!r} "
+                f"({getattr(exc, 'strerror', None) or exc}); the frames before are kept"
+            )
+        agree(self._comm, problem)
+
+    def _room_problem(self) -> str | None:
+        """Why the next frame may not fit (rank 0): the HDF5 library cannot recover from a
+        write that fails half-way (it crashed, and left an .h5 that no longer opened), so a
+        frame is written only if twice its size, and the new XML, fit under the file size
+        limit (ulimit -f) and in the free space of the file system."""
+        need = 2 * self._frame_bytes + 65536
+        xml = self._doc.nbytes if self._doc is not None else 0
+        try:
+            size = self.h5.stat().st_size if self.h5.exists() else 0
+            limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+            if limit != resource.RLIM_INFINITY and max(size + need, xml + need) > limit:
+                return f"the file size limit (ulimit -f) of {limit} bytes would be reached"
+            info = os.statvfs(self.path.parent)
+            free = info.f_bavail * info.f_frsize
+            if need + xml > free:
+                return f"no space left on the device ({free} bytes free)"
+        except OSError as exc:
+            return str(exc.strerror or exc)
+        return None
 
     def write(self, t: float, U: fem.Function | None = None) -> None:
         if U is not None and U is not self.U:
@@ -424,25 +523,39 @@ class XdmfWriter:
         for probes in list(_PROBE_WRITERS):  # probes.csv reaches every frame on disk
             probes.flush()
         if self.functions:
+            problem = self._room_problem() if self._comm.rank == 0 else None
+            if self._comm.size > 1:
+                problem = self._comm.bcast(problem, root=0)
+            if problem:
+                raise OutputError(
+                    f"output: the XDMF frame at t = {t:.6g} was not written to "
+                    f"{str(self.h5)!r}: {problem}; the frames before are kept"
+                )
             self._expr.eval(self.line.cells, self._values)
             mean = self.line.point_values(self._values)
             for k, function in enumerate(self.functions):
                 function.x.array[:] = mean[:, 3 * k : 3 * k + 3].ravel()
-            self._reopen()
-            try:
-                last = len(self.functions) - 1
-                for i, function in enumerate(self.functions):
-                    self.file.write_function(function, t)
-                    if i < last and self._comm.rank == 0:
-                        # DOLFINx rewrites the whole scratch XML for every function: a new
-                        # file each time, not one truncated and rewritten (ext4 then
-                        # allocates its blocks at once, and frees them again with a discard:
-                        # ~1.7 ms, against 0.05 ms for a new file that is unlinked).
-                        self._work.unlink()
-            finally:
-                self._close_file()
-            self._publish()
+            before = self.h5.stat().st_size if self._comm.rank == 0 and self.h5.exists() else 0
+            self._guard(lambda: self._write_frame(t), t)
+            self._guard(self._publish, t)
+            if self._comm.rank == 0:
+                self._frame_bytes = max(self._frame_bytes, self.h5.stat().st_size - before)
         self.writes += 1
+
+    def _write_frame(self, t: float) -> None:
+        self._reopen()
+        try:
+            last = len(self.functions) - 1
+            for i, function in enumerate(self.functions):
+                self.file.write_function(function, t)
+                if i < last and self._comm.rank == 0:
+                    # DOLFINx rewrites the whole scratch XML for every function: a new
+                    # file each time, not one truncated and rewritten (ext4 then
+                    # allocates its blocks at once, and frees them again with a discard:
+                    # ~1.7 ms, against 0.05 ms for a new file that is unlinked).
+                    self._work.unlink()
+        finally:
+            self._close_file()
 
     def close(self) -> None:
         """Nothing stays open between frames; kept for the writer interface."""
@@ -465,8 +578,8 @@ class XdmfWriter:
 
     def _close_file(self) -> None:
         if self.file is not None:
-            self.file.close()
-            self.file = None
+            file, self.file = self.file, None
+            file.close()
 
     def _publish(self) -> None:
         # Rank 0 alone writes the XML (DOLFINx's scratch one in write_function/write_mesh,
@@ -477,10 +590,16 @@ class XdmfWriter:
         if self._comm.size > 1:
             self._comm.barrier()
         if self._comm.rank == 0:
-            self._doc.add_frame(self._work.read_text(encoding="utf-8"))
+            frame = self._work.read_text(encoding="utf-8")
             self._work.unlink()  # written anew (see write), then renamed onto the XML
-            self._work.write_text(self._doc.text(), encoding="utf-8")
-            os.replace(self._work, self.path)
+            self._doc.add_frame(frame)
+            try:
+                self._work.write_text(self._doc.text(), encoding="utf-8")
+                os.replace(self._work, self.path)
+            except OSError:
+                self._doc.drop_last()  # not published: the document stays the file's
+                self._work.unlink(missing_ok=True)
+                raise
 
 
 _XDMF_HEAD = (
@@ -489,6 +608,15 @@ _XDMF_HEAD = (
 )
 #: The one temporal collection of the published XML (and the name of each of its frames).
 XDMF_GRID = "rod"
+#: The name of the Information element of the Domain that holds the run's identity.
+RUN_ID = "run_id"
+
+
+def xdmf_run_id(root: ET.Element) -> str | None:
+    """The run identity written into an XDMF file by :class:`XdmfWriter` (None if none)."""
+    domain = root.find("Domain")
+    item = None if domain is None else domain.find(f"Information[@Name='{RUN_ID}']")
+    return None if item is None else item.get("Value")
 
 
 def _element_text(element: ET.Element, level: int) -> str:
@@ -514,9 +642,12 @@ class _XdmfDocument:
     arrays it holds, instead of one DOLFINx rewrite per array of a file that grows with
     every frame (measured: 9 instead of 2 ms a frame for six arrays at 251 frames)."""
 
-    def __init__(self, xml: str):
-        """From DOLFINx's XML after ``write_mesh`` (grid "mesh") or a published file."""
-        domain = ET.fromstring(xml).find("Domain")
+    def __init__(self, xml: str, run_id: str | None = None):
+        """From DOLFINx's XML after ``write_mesh`` (grid "mesh") and the run's identity, or
+        from a published file (which holds its run's)."""
+        root = ET.fromstring(xml)
+        self.run_id = run_id if run_id is not None else xdmf_run_id(root)
+        domain = root.find("Domain")
         mesh = domain.find("Grid[@Name='mesh']")
         if mesh is None:
             collection = domain.find(f"Grid[@Name='{XDMF_GRID}']")
@@ -527,6 +658,7 @@ class _XdmfDocument:
         collection = domain.find(f"Grid[@Name='{XDMF_GRID}']")
         if collection is not None:
             self.frames = [_element_text(g, 3) for g in collection.findall("Grid")]
+        self.nbytes = sum(map(len, self.frames)) + 1024  # about len(text())
 
     def template(self) -> str:
         """The mesh alone, as DOLFINx writes it: the scratch file DOLFINx appends a frame to."""
@@ -559,24 +691,27 @@ class _XdmfDocument:
             )
         parts.append("      </Grid>\n")
         self.frames.append("".join(parts))
+        self.nbytes += len(self.frames[-1])
+
+    def drop_last(self) -> None:
+        """Forget the last frame added (it could not be published)."""
+        self.nbytes -= len(self.frames.pop())
 
     def text(self) -> str:
+        identity = ""
+        if self.run_id is not None:
+            value = quoteattr(self.run_id)
+            identity = f"    <Information Name={quoteattr(RUN_ID)} Value={value} />\n"
         return "".join(
             [
                 _XDMF_HEAD,
                 "  <Domain>\n",
+                identity,
                 f'    <Grid Name="{XDMF_GRID}" GridType="Collection" CollectionType="Temporal">\n',
                 *self.frames,
                 "    </Grid>\n  </Domain>\n</Xdmf>\n",
             ]
         )
-
-
-def write_json(path: Path, data: dict, comm: MPI.Comm) -> None:
-    if comm.rank == 0:
-        tmp = path.with_suffix(".json.tmp")
-        tmp.write_text(json.dumps(data, indent=2, sort_keys=False) + "\n", encoding="utf-8")
-        tmp.replace(path)
 
 
 class LineSampler:

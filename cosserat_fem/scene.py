@@ -25,19 +25,33 @@ from pathlib import Path
 from typing import Any
 
 from cosserat_fem.errors import SceneError, show_value
-from cosserat_fem.expressions import RESERVED_NAMES, Expression, derivative, parse_vector
+from cosserat_fem.expressions import (
+    RESERVED_NAMES,
+    Expression,
+    check_name,
+    derivative,
+    parse_vector,
+)
+from cosserat_fem.forms.groups import (
+    Groups,
+    RodConstants,
+    dimensionless_groups,
+    euler_bernoulli_omega0,
+)
 from cosserat_fem.forms.section import Section, cowper_circle, rectangle, tube
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
 SCENE_CONSTANTS = ("L", "omega0")
-#: First cantilever eigenvalue used by the paper's reference frequency (Cao & Tucker 2008, §6).
-CANTILEVER_EIGENVALUE = 1.875
 #: Relative tolerance for "is an integer number of time steps".
 STEP_TOLERANCE = 1e-9
 CHECKPOINTS_PER_RUN = 10  # output.checkpoint_interval = "auto"
 #: What output.fields may ask the XDMF file to hold (cosserat_fem/output.py).
 XDMF_FIELDS = ("displacement", "angles", "strains", "forces")
 SUPPORTS = ("clamped", "free", "pinned")
+#: Upper bounds of keys whose size alone makes a run impossible here (cosserat_fem/budget.py
+#: estimates the others): quadrature points per cell, Newton iterations per solve.
+MAX_QUADRATURE = 100
+MAX_NEWTON_ITERATIONS = 1000
 
 _EXCLUSIVE = ("rod.material.poisson_ratio", "rod.material.shear_modulus")
 
@@ -314,6 +328,17 @@ class Output:
 
 
 @dataclass(frozen=True)
+class Limits:
+    """What a run may cost before it is refused (cosserat_fem/budget.py): ``wall_time`` [s],
+    the estimated wall time of the run and the most it may run before it stops with a
+    checkpoint; ``memory`` [bytes], the estimated memory (None: "auto", the memory available
+    on this machine). Raise them to run a very large case on purpose."""
+
+    wall_time: float = 86400.0
+    memory: float | None = None
+
+
+@dataclass(frozen=True)
 class Scene:
     """A validated scene; ``source`` (file name or "<dict>") does not take part in equality."""
 
@@ -330,6 +355,7 @@ class Scene:
     static: Static = field(default_factory=lambda: Static(1, 10, 0.0))
     damping: Damping = field(default_factory=Damping)
     initial: Initial = field(default_factory=Initial)
+    limits: Limits = field(default_factory=Limits)
     source: str = field(default="<dict>", compare=False)
 
     @property
@@ -380,6 +406,19 @@ class Scene:
             return False
         return all(v is None or all(v[i].is_zero for i in idx) for v, idx in vectors)
 
+    def rod_constants(self) -> RodConstants:
+        """Physical constants of the rod, with ω0 resolved (section 6 when "auto")."""
+        mat = self.rod.material
+        return RodConstants(
+            length=self.rod.length,
+            section=self.rod.section.constants(),
+            density=mat.density,
+            young_modulus=mat.young_modulus,
+            shear_modulus=mat.shear_modulus,
+            omega0=self.omega0,
+            torsion_inertia=self.model.torsion_inertia,
+        )
+
     def expression_names(self) -> dict[str, float]:
         """Constant values for load expressions: ``L``, ``omega0`` and the parameters."""
         return {"L": self.rod.length, "omega0": self.omega0, **self.parameters}
@@ -392,10 +431,9 @@ class Scene:
 def auto_reference_frequency(rod: Rod) -> float:
     """ω0 = 1.875² / L² · sqrt(E c22 / (ρ A)) (paper, §6: c22 = b a³/12, A = a b for its
     rectangle): the first cantilever bending frequency about d2."""
+    mat = rod.material
     section = rod.section.constants()
-    c22, area = section.c22, section.area
-    stiffness = rod.material.young_modulus * c22 / (rod.material.density * area)
-    return CANTILEVER_EIGENVALUE**2 / rod.length**2 * math.sqrt(stiffness)
+    return euler_bernoulli_omega0(rod.length, section, mat.density, mat.young_modulus)
 
 
 # ========================================================================== schema primitives
@@ -686,7 +724,8 @@ SCHEMA = _Table(
         "static": _Table(
             {
                 "load_steps": _Number(default=1, integer=True, interval=_Interval(lo=1)),
-                "max_bisections": _Number(default=10, integer=True, interval=_Interval(lo=0)),
+                # 2^-30 of a load increment: below that no increment is worth trying.
+                "max_bisections": _Number(default=10, integer=True, interval=_Interval(0, 30)),
                 "time": _Number(default=0.0, unit="s"),
             }
         ),
@@ -694,8 +733,10 @@ SCHEMA = _Table(
             {
                 "elements": _Number(default=20, integer=True, interval=_Interval(lo=1)),
                 "degree": _Number(default=2, integer=True, interval=_Interval(1, 5)),
+                # Exact for polynomials of degree 100 (51 Gauss points a cell), ten times the
+                # default 2 * degree of degree 5; FFCx itself warns beyond 100 points.
                 "quadrature_degree": _Number(
-                    default="auto", integer=True, interval=_Interval(lo=1), auto=True
+                    default="auto", integer=True, interval=_Interval(1, MAX_QUADRATURE), auto=True
                 ),
                 "planar": _Choice(choices=("auto", "off"), default="auto"),
             }
@@ -708,7 +749,9 @@ SCHEMA = _Table(
                 "rtol": _Number(default=1e-10, interval=_Interval(0.0, 1.0, True, True)),
                 "atol": _Number(default=1e-12, interval=POSITIVE),
                 "stol": _Number(default=1e-8, interval=_Interval(0.0, 1.0, True, True)),
-                "max_iterations": _Number(default=25, integer=True, interval=_Interval(lo=1)),
+                "max_iterations": _Number(
+                    default=25, integer=True, interval=_Interval(1, MAX_NEWTON_ITERATIONS)
+                ),
                 "linear_solver": _Choice(
                     choices=("auto", "petsc", "mumps", "superlu"), default="auto"
                 ),
@@ -724,6 +767,12 @@ SCHEMA = _Table(
                 "checkpoint_interval": _Number(
                     default="auto", interval=NON_NEGATIVE, unit="s", auto=True
                 ),
+            }
+        ),
+        "limits": _Table(
+            {
+                "wall_time": _Number(default=Limits.wall_time, interval=POSITIVE, unit="s"),
+                "memory": _Number(default="auto", interval=POSITIVE, unit="bytes", auto=True),
             }
         ),
     }
@@ -800,6 +849,9 @@ def _check_parameters(key: str, data: Any) -> dict[str, float]:
         item = _join(key, name)
         if not name.isidentifier() or keyword.iskeyword(name):
             raise SceneError(f"{item}: parameter names must be identifiers, got {name!r}")
+        # Python reads identifiers in expressions by NFKC: as written the name could never
+        # be used, or would silently be another one (a fullwidth t would be the time t).
+        check_name(name, item)
         if name in reserved:
             raise SceneError(
                 f"{item}: {name!r} is reserved; not allowed: {', '.join(sorted(reserved))}"
@@ -921,6 +973,12 @@ def _build_rod(raw: dict[str, Any]) -> Rod:
             f"(> 0, Pa) must be given, but {state}"
         )
     material = Material(mat["density"], mat["young_modulus"], nu, g)
+    if not (math.isfinite(material.shear_modulus) and material.shear_modulus > 0.0):
+        raise SceneError(
+            f"rod.material: the shear modulus E/(2 (1 + nu)) = {material.shear_modulus:.3g} Pa "
+            f"is not a positive finite number in double precision (young_modulus = "
+            f"{show_value(material.young_modulus)})"
+        )
     poisson = material.young_modulus / (2.0 * material.shear_modulus) - 1.0
     return Rod(raw["length"], _build_section(raw["section"], poisson), material)
 
@@ -998,10 +1056,12 @@ def _build_initial(
                 want = 0.0
                 if motion is not None and name in ("displacement", "velocity"):
                     e = motion[i] if name == "displacement" else derivative(motion[i], "t")
-                    want = float(e.evaluate(t=t0, **values))
+                    key = f"supports.{end}_motion[{i}]"
+                    want = _finite_value(e, key, f"t = {_fmt(t0)} s", t=t0, **values)
                 got = 0.0
                 if fields[name] is not None:
-                    got = float(fields[name][i].evaluate(s=s_end, **values))
+                    key, where = f"initial.{name}[{i}]", f"s = {_fmt(s_end)} m"
+                    got = _finite_value(fields[name][i], key, where, s=s_end, **values)
                 if abs(got - want) > 1e-12 * max(1.0, abs(want), abs(length)):
                     source = show_value(fields[name][i].source) if fields[name] else "0"
                     what = "its prescribed motion" if motion is not None else "0"
@@ -1010,6 +1070,17 @@ def _build_initial(
                         f"{end} (s = {_fmt(s_end)} m), got {got:.6g} from {source}"
                     )
     return Initial(**fields)
+
+
+def _finite_value(e: Expression, key: str, where: str, **values: float) -> float:
+    """The value of ``e`` at ``values``; SceneError naming ``key`` if it is not finite."""
+    try:
+        value = float(e.evaluate(**values))
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise SceneError(f"{key}: {show_value(e.source)} is not finite at {where}")
+    return value
 
 
 def _build_end_load(
@@ -1042,27 +1113,44 @@ def _build_end_load(
 
 
 def _integral_ratio(span: float, step: float) -> bool:
+    """Whether span / step is a whole number (within STEP_TOLERANCE), and finite."""
     ratio = span / step
-    return abs(ratio - round(ratio)) <= STEP_TOLERANCE * ratio
+    return math.isfinite(ratio) and abs(ratio - round(ratio)) <= STEP_TOLERANCE * ratio
 
 
-def _build_time(raw: dict[str, Any]) -> Time:
+def _build_time(raw: dict[str, Any], fixed: frozenset[str] = frozenset()) -> Time:
+    """The time span; ``fixed``: keys the caller may not change (a restart keeps time.step and
+    time.start), so that a message does not suggest them."""
     start, end, step = raw["start"], raw["end"], raw["step"]
     if not end > start:
         raise SceneError(
             f"time.end: must be > time.start = {_fmt(start)} [s], got {show_value(end)}"
         )
     span = end - start
-    if step > span * (1.0 + STEP_TOLERANCE):
+    if not math.isfinite(span / step):
+        raise SceneError(
+            f"time.end: (time.end - time.start) / time.step = {span / step:g} steps is out of "
+            f"the range of double precision (time.start = {show_value(start)}, "
+            f"time.end = {show_value(end)}, time.step = {show_value(step)})"
+        )
+    if step > span * (1.0 + STEP_TOLERANCE) and "time.step" not in fixed:
         raise SceneError(
             f"time.step: must be <= time.end - time.start = {span!r} [s], got {show_value(step)}"
         )
     if not _integral_ratio(span, step):
-        suggestion = span / math.ceil(span / step)
+        below = start + max(1, math.floor(span / step)) * step
+        above = start + math.ceil(span / step) * step
+        ends = f"time.end = {below:.10g} or {above:.10g}"
+        if "time.step" in fixed:
+            raise SceneError(
+                f"time.end: time.end - time.start must be a whole number of steps of "
+                f"time.step = {step!r} s (fixed on a restart), got {span!r} s = "
+                f"{span / step:.10g} steps (e.g. {ends})"
+            )
         raise SceneError(
             f"time.step: (time.end - time.start) / time.step must be an integer (within "
             f"{STEP_TOLERANCE:g} relative), got {span!r} / {step!r} = {span / step!r} "
-            f"(e.g. time.step = {suggestion:.10g})"
+            f"(e.g. time.step = {span / math.ceil(span / step):.10g}, or {ends})"
         )
     return Time(
         start,
@@ -1124,12 +1212,93 @@ def _build_output(raw: dict[str, Any], time: Time) -> Output:
     )
 
 
+def _build_limits(raw: dict[str, Any]) -> Limits:
+    memory = raw["memory"]
+    return Limits(raw["wall_time"], None if memory == "auto" else float(memory))
+
+
+#: The groups of (48) that are positive for every valid rod (the others may be any sign).
+_POSITIVE_GROUPS = frozenset(
+    "g0 nu01 nu02 g1 g2 g3 nu11 nu13 nu14 nu21 nu23 nu24 nu31".split()
+)
+
+
+def _check_derived(scene: Scene) -> None:
+    """The constants derived from valid inputs must be positive, finite numbers: a section of
+    a = 1e-200 m has c22 = b a³/12 = 0 in double precision, one of 1e200 m an infinite c22,
+    and the groups (48) combine every input. SceneError naming the keys they come from."""
+    spec = scene.rod.section
+    given = ", ".join(
+        f"rod.section.{k} = {_fmt(v)}" for k, v in spec.given().items() if _is_number(v)
+    )
+    try:
+        section = spec.constants()
+    except (ArithmeticError, ValueError) as exc:
+        raise SceneError(
+            f"rod.section: the section constants cannot be computed from {given} "
+            f"({_arithmetic(exc)})"
+        ) from None
+    constants = {"area": (section.area, "m^2")}
+    constants.update({c: (getattr(section, c), "m^4") for c in ("c11", "c22", "c33")})
+    for name, (value, unit) in constants.items():
+        if not (math.isfinite(value) and value > 0.0):
+            raise SceneError(
+                f"rod.section: the derived {name} = {value:.3g} {unit} is not a positive finite "
+                f"number in double precision (from {given})"
+            )
+    try:
+        omega0 = scene.omega0
+    except (ArithmeticError, ValueError):
+        omega0 = math.nan
+    if not (math.isfinite(omega0) and omega0 > 0.0):
+        raise SceneError(
+            "model.reference_frequency: omega0 = 1.875^2/L^2 sqrt(E c22/(rho A)) from rod.* is "
+            f"not a positive finite number ({omega0:.3g} rad/s); give it explicitly"
+        )
+    try:
+        bad = _bad_groups(dimensionless_groups(scene.rod_constants()))
+    except (ArithmeticError, ValueError) as exc:
+        bad = [_arithmetic(exc)]
+    if bad:
+        raise SceneError(
+            f"rod: the dimensionless groups of (48) are not finite ({bad[0]}): rod.length, "
+            "rod.section, rod.material and model.reference_frequency are out of the range of "
+            "double precision together"
+        )
+
+
+def _arithmetic(exc: Exception) -> str:
+    """What an arithmetic failure was, in words (OverflowError's text is an errno tuple)."""
+    if isinstance(exc, OverflowError):
+        return "overflow"
+    if isinstance(exc, ZeroDivisionError):
+        return "division by zero"
+    return str(exc) or type(exc).__name__
+
+
+def _bad_groups(groups: Groups) -> list[str]:
+    bad = []
+    for name, value in groups.as_dict().items():
+        positive = name not in _POSITIVE_GROUPS or value > 0.0
+        if not (math.isfinite(value) and positive):
+            bad.append(f"{name} = {value:.3g}")
+    return bad
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 def scene_from_dict(
-    data: dict[str, Any], source: str = "<dict>", overrides: Sequence[str] = ()
+    data: dict[str, Any],
+    source: str = "<dict>",
+    overrides: Sequence[str] = (),
+    fixed: Sequence[str] = (),
 ) -> Scene:
     """Validate a scene given as nested dicts (as from TOML) and resolve it.
 
-    ``overrides`` (``dotted.key=value``) are applied first. Raises :class:`SceneError`.
+    ``overrides`` (``dotted.key=value``) are applied first; ``fixed``: keys the caller may
+    not change (a restart's), which messages then do not suggest. Raises :class:`SceneError`.
     """
     if not isinstance(data, dict):
         raise SceneError(f"{source}: a scene must be a table of keys, got {show_value(data)}")
@@ -1138,7 +1307,7 @@ def scene_from_dict(
     rod = _build_rod(raw["rod"])
     supports = _build_supports(raw["supports"], {*SCENE_CONSTANTS, *parameters})
     loads = _build_loads(raw["loads"], supports, {*SCENE_CONSTANTS, *parameters})
-    time = _build_time(raw["time"])
+    time = _build_time(raw["time"], frozenset(fixed))
     scene = Scene(
         title=raw["title"],
         parameters=parameters,
@@ -1152,8 +1321,10 @@ def scene_from_dict(
         output=_build_output(raw["output"], time),
         static=Static(**raw["static"]),
         damping=Damping(**raw["damping"]),
+        limits=_build_limits(raw["limits"]),
         source=source,
     )
+    _check_derived(scene)
     initial = _build_initial(raw["initial"], supports, scene.expression_names(), time.start)
     return replace(scene, initial=initial)
 
@@ -1243,4 +1414,8 @@ def _scene_to_dict(scene: Scene) -> dict[str, Any]:
         "static": _fields(scene.static),
         "damping": _fields(scene.damping),
         "initial": {k: _vector(v) for k, v in vars(scene.initial).items() if v is not None},
+        "limits": {
+            "wall_time": scene.limits.wall_time,
+            "memory": "auto" if scene.limits.memory is None else scene.limits.memory,
+        },
     }

@@ -23,16 +23,26 @@ from dolfinx.fem.petsc import apply_lifting, assemble_matrix, assemble_vector, s
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import __version__
+from . import __version__, budget
 from .adaptive import SHRINK, StateHistory, StepController
-from .checkpoint import Checkpoint, CheckpointWriter, cut_outputs
-from .errors import SceneError, SolverError
+from .checkpoint import Checkpoint, CheckpointWriter, check_outputs, cut_outputs
+from .errors import LimitReached, OutputError, SceneError, SolverError, StopError
 from .forms.kinematics import P_NAMES
 from .integrators import GeneralizedAlpha, make_integrator
 from .model import RodModel, build_model
 from .newton import NewtonFailure, NewtonSettings, NewtonSolver
-from .output import PointProbe, ProbeWriter, XdmfWriter, write_json
+from .output import PointProbe, ProbeWriter, XdmfWriter
+from .parallel import ranks_on_node
 from .progress import LOGGER
+from .run_folder import (
+    PROBES,
+    SUMMARY,
+    XDMF,
+    claim,
+    new_run_id,
+    prepare_output_dir,
+    write_summary,
+)
 from .scene import Scene
 
 CHART_COS_MIN = 1e-2
@@ -72,22 +82,6 @@ def newton_settings(scene: Scene) -> NewtonSettings:
         max_iterations=s.max_iterations,
         linear_solver=s.linear_solver,
     )
-
-
-def prepare_output_dir(path: Path, comm: MPI.Comm) -> Path:
-    error = None
-    if comm.rank == 0:
-        try:
-            path.mkdir(parents=True, exist_ok=True)
-            probe = path / ".write-test"
-            probe.write_text("")
-            probe.unlink()
-        except OSError as exc:
-            error = f"output.directory: cannot write to {str(path)!r} ({exc.strerror or exc})"
-    error = comm.bcast(error, root=0)
-    if error:
-        raise SceneError(error)
-    return path
 
 
 def _worst_place(model: RodModel, values: np.ndarray) -> tuple[float, float]:
@@ -197,6 +191,8 @@ class _Outputs:
             u[:] = state
         if self.probes is not None:
             self.probes.write(t)
+            if self.probes.comm.size > 1:
+                self.probes.check()  # the owner's write error, on every rank
         if self.xdmf is not None and k % self.xdmf_every == 0:
             self.xdmf.write(t)
         for obs in self.observers:
@@ -206,11 +202,19 @@ class _Outputs:
         self.time += time.perf_counter() - t0
 
 
+#: Accepted steps between two looks at the clock for limits.wall_time.
+DEADLINE_EVERY = 64
+
+
 class _Stepper:
     """One attempted step of the integrator with the state checks, and the step counters."""
 
-    def __init__(self, model: RodModel, integrator, solver: NewtonSolver):
+    def __init__(self, model: RodModel, integrator, solver: NewtonSolver, deadline: float):
+        """``deadline``: the time.perf_counter() value at which the run stops with a
+        checkpoint (limits.wall_time)."""
         self.model, self.integrator, self.solver = model, integrator, solver
+        self.deadline = deadline
+        self._ticks = 0
         self.omega0 = model.omega0
         self.cos_accepted = cos_theta(model, model.U.x.array)  # chart-crossing check
         self._cos_candidate = self.cos_accepted
@@ -253,21 +257,38 @@ class _Stepper:
             self.model.support_dofs_to(self.model.U.x.array, t_new * self.omega0)
             self._cos_candidate = check_state(self.model, t_new, before=self.cos_accepted)
         except NewtonFailure as exc:
+            self._blame_loads(t_new)
             blocks = len(self.model.components)
             residual = np.abs(self.solver.b.array.reshape(-1, blocks)).max(axis=1)
             s, _ = _worst_place(self.model, residual)
+            reason = f"Newton did not converge ({exc.reason}, {exc.iterations} iterations)"
+            suggestion = "reduce time.step, or use solver.jacobian = 'full'"
+            if exc.reason == "DIVERGED_FNORM_NAN" and exc.iterations == 0:
+                # Not finite before any iteration: the loads and the state are finite (checked
+                # above), so their products with the groups (48) leave double precision.
+                reason += ": the residual is not finite at the start of the step"
+                suggestion = "check the magnitude of the loads"
             return SolverError(
                 time=t_new,
                 where=f"s = {s:.4g} m (largest residual)",
-                reason=f"Newton did not converge ({exc.reason}, {exc.iterations} iterations)",
-                suggestion="reduce time.step, or use solver.jacobian = 'full'",
+                reason=reason,
+                suggestion=suggestion,
                 retry=True,
             )
         except SolverError as exc:
             if not exc.retry:
                 raise
+            self._blame_loads(t_new)
             return exc
         return None
+
+    def _blame_loads(self, t_new: float) -> None:
+        """A SceneError naming the load that is not finite during the step to t_new [s], if
+        one is: then no smaller step can help (collective)."""
+        stage = self.integrator.unknown_time / self.omega0
+        problem = self.model.nonfinite_load([self.t, 0.5 * (self.t + t_new), stage, t_new])
+        if problem:
+            raise SceneError(f"{problem}: the load is not finite there")
 
     def accept(self, t_new: float) -> None:
         h = t_new - self.t
@@ -278,6 +299,26 @@ class _Stepper:
         self.accepted += 1
         self.smallest = h if self.smallest is None else min(self.smallest, h)
         self.largest = h if self.largest is None else max(self.largest, h)
+
+    def check_deadline(self) -> None:
+        """LimitReached once past the deadline. Called by the loops where their state is
+        whole (after an output step, so that the checkpoint taken on the way out continues
+        exactly); looks at the clock every ``DEADLINE_EVERY`` calls, every rank alike (rank
+        0's clock decides)."""
+        self._ticks += 1
+        if self._ticks % DEADLINE_EVERY:
+            return
+        comm = self.model.msh.comm
+        stop = time.perf_counter() > self.deadline
+        if comm.size > 1:
+            stop = comm.bcast(stop, root=0)
+        if stop:
+            wall = self.model.scene.limits.wall_time
+            raise LimitReached(
+                f"limits.wall_time: the run stopped at t = {self.t:.6g} s after its limit of "
+                f"{wall:g} s of wall time; continue it with run --restart DIR "
+                "(--set limits.wall_time=... to allow more)"
+            )
 
     def reject(self) -> None:
         self.integrator.reject()
@@ -301,8 +342,8 @@ class _Checkpoints:
     ``loop`` is the time loop's own state: numbers, and objects with a ``state_dict``.
     """
 
-    def __init__(self, writer: CheckpointWriter | None, stepper: _Stepper, xdmf):
-        self.writer, self.stepper, self.xdmf = writer, stepper, xdmf
+    def __init__(self, writer: CheckpointWriter | None, stepper: _Stepper, probes, xdmf):
+        self.writer, self.stepper, self.probes, self.xdmf = writer, stepper, probes, xdmf
         self._saved_at: float | None = None
 
     def maybe(self, loop: dict) -> None:
@@ -321,8 +362,14 @@ class _Checkpoints:
             "loop": {k: v for k, v in loop.items() if not hasattr(v, "state_dict")},
             **{k: v.state_dict() for k, v in loop.items() if hasattr(v, "state_dict")},
         }
+        digest = self.probes.digest()  # on the probe's owner, which may not be rank 0
+        comm = stepper.model.msh.comm
+        if comm.size > 1:
+            self.probes.check()
+            digest = comm.bcast(digest, root=self.probes.probe.owner)
         outputs = {
             "probe_rows": stepper.outputs + 1,
+            "probes_sha256": digest,
             "xdmf_frames": None if self.xdmf is None else self.xdmf.writes,
         }
         self.writer.save(stepper.t, parts, outputs)
@@ -375,6 +422,7 @@ def _fixed_loop(tspan, stepper: _Stepper, emit: _Outputs, save: _Checkpoints, lo
         emit(stepper.outputs, stepper.t)
         loop["level"], loop["done"] = 0, 0.0
         save.maybe(loop)
+        stepper.check_deadline()
 
 
 MAX_CONSECUTIVE_REJECTIONS = 12
@@ -466,6 +514,7 @@ def _adaptive_loop(
             h = h_next
         loop["h"] = h
         save.maybe(loop)
+        stepper.check_deadline()
 
 
 def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: str) -> None:
@@ -524,13 +573,31 @@ def run(
     continues the run of the checkpoint ``restart`` in its folder (cosserat_fem/checkpoint.py;
     ``scene`` is then the checkpoint's, with the overrides a restart allows). ``progress``
     is called with (t [s], steps taken, Newton iterations) after every output step.
+
+    Before any work the scene's cost is checked against its limits (cosserat_fem/budget.py)
+    and, on a restart, the folder's outputs against the checkpoint: nothing is touched
+    unless the run can go on. Raises SolverError (numerical trouble), StopError (an output
+    that cannot be written, a limit reached) or SceneError (bad input).
     """
     t_start = time.perf_counter()
     if restart is not None:
         out_dir, write_outputs = restart.run_dir, True
     out = Path(out_dir if out_dir is not None else scene.output.directory)
+    tspan = scene.time
+    budget.check(
+        scene,
+        "run",
+        out if write_outputs else None,
+        ranks_on_node(comm),
+        comm.size,
+        start=restart.time if restart is not None else None,
+    )
+    plan = None
     if write_outputs:
         prepare_output_dir(out, comm)
+        if restart is not None:  # checked before anything is built or touched
+            xdmf_path = out / XDMF if scene.output.xdmf else None
+            plan = check_outputs(restart, out / PROBES, xdmf_path, comm)
     model = build_model(scene, comm)
     if initial_state is not None and _leaves_plane(model, initial_state):
         model = build_model(scene, comm, planar=False)  # it keeps all twelve unknowns
@@ -540,7 +607,6 @@ def run(
         model.U.x.array[:] = model.own_layout(initial_state)
     elif scene.initial.fields():
         model.U.x.array[:] = model.initial_state()
-    tspan = scene.time
     omega0 = model.omega0
     integrator = make_integrator(
         tspan.integrator, model.U, model.residual, tspan.start * omega0, rho_inf=tspan.rho_inf
@@ -558,38 +624,9 @@ def run(
         _consistent_rate(integrator, model, solver.lu_package)
 
     probe = PointProbe(model.U, probe_sigma(scene), model.length)
-    probes = xdmf = checkpoint_writer = None
-    failure: SolverError | None = None
-    if write_outputs:
-        probe_path, xdmf_path = out / "probes.csv", out / "solution.xdmf"
-        if restart is None:
-            probes = ProbeWriter(probe_path, probe)
-            probes.write(tspan.start)
-            if scene.output.xdmf:
-                xdmf = XdmfWriter(xdmf_path, model)
-                xdmf.write(tspan.start)
-        else:
-            cut_outputs(
-                restart, probe_path, xdmf_path if scene.output.xdmf else None, probe.is_owner, comm
-            )
-            probes = ProbeWriter(probe_path, probe, append=True)
-            if scene.output.xdmf:
-                frames = restart.meta["outputs"]["xdmf_frames"]
-                resume = (int(restart.meta["restarts"]) + 1, frames)
-                xdmf = XdmfWriter(xdmf_path, model, resume=resume)
-        if scene.output.checkpoint:
-            checkpoint_writer = CheckpointWriter(
-                out,
-                comm,
-                scene.output.checkpoint_interval,
-                tspan.start,
-                scene.to_dict(),
-                previous=restart,
-            )
-    setup_time = time.perf_counter() - t_start
-
     summary = {
         "status": "running",
+        "run_id": restart.run_id if restart is not None else new_run_id(comm),
         "cosserat_fem": __version__,
         "scene_file": scene.source,
         "mpi_ranks": comm.size,
@@ -602,50 +639,54 @@ def run(
         "probe_s_m": probe.sigma * model.length,
         "lu_package": solver.lu_package,
         "restarted_from_s": restart.time if restart is not None else None,
-        "restarts": int(restart.meta["restarts"]) + 1 if restart is not None else 0,
+        "restarts": restart.restart_number if restart is not None else 0,
         "skipped_terms": model.skipped,
         "solved_unknowns": [UNKNOWN_NAMES[i] for i in model.components],
         "groups": model.groups.as_dict(),
         "python": platform.python_version(),
         "scene": scene.to_dict(),
     }
+    stepper = _Stepper(model, integrator, solver, t_start + scene.limits.wall_time)
+    loop_state: dict = {}
+    if restart is not None:
+        stepper.load_state_dict(restart.parts["stepper"])
+        loop_state.update(restart.parts["loop"])
     if progress is not None:
         observers = (
             *observers,
             lambda k, t, m: progress(t, stepper.accepted, solver.stats.iterations),
         )
-    emit = _Outputs(model, probes, xdmf, scene.output.xdmf_every(tspan.step), observers)
-    stepper = _Stepper(model, integrator, solver)
-    loop_state: dict = {}
-    if restart is not None:
-        stepper.load_state_dict(restart.parts["stepper"])
-        loop_state.update(restart.parts["loop"])
-    save = _Checkpoints(checkpoint_writer, stepper, xdmf)
-    t_loop = time.perf_counter()
+    outputs = _RunOutputs(scene, model, probe, out, summary, comm) if write_outputs else None
+    failure: SolverError | StopError | None = None
+    setup_time = loop_time = 0.0
+    emit = _Outputs(model, None, None, scene.output.xdmf_every(tspan.step), observers)
+    save = _Checkpoints(None, stepper, None, None)
     try:
-        if tspan.adaptive:
-            parts = restart.parts if restart is not None else None
-            _adaptive_loop(tspan, stepper, emit, save, loop_state, resume=parts)
-        else:
-            _fixed_loop(tspan, stepper, emit, save, loop_state)
-    except SolverError as exc:
+        if outputs is not None:
+            outputs.open(restart, plan)
+            emit.probes, emit.xdmf = outputs.probes, outputs.xdmf
+            save = _Checkpoints(outputs.checkpoints, stepper, outputs.probes, outputs.xdmf)
+        setup_time = time.perf_counter() - t_start
+        t_loop = time.perf_counter()
+        try:
+            if tspan.adaptive:
+                parts = restart.parts if restart is not None else None
+                _adaptive_loop(tspan, stepper, emit, save, loop_state, resume=parts)
+            else:
+                _fixed_loop(tspan, stepper, emit, save, loop_state)
+        finally:
+            loop_time = time.perf_counter() - t_loop
+    except (SolverError, StopError, SceneError) as exc:
         failure = exc
     finally:
-        loop_time = time.perf_counter() - t_loop
-        if failure is not None or stepper.outputs == tspan.n_steps:
-            stepper.back_to_accepted()
-            save.save(loop_state)  # the last accepted state, to continue or extend the run
-        if probes is not None:
-            probes.close()
-        if xdmf is not None:
-            xdmf.close()
+        failure = _finish(stepper, save, loop_state, outputs, failure, tspan.n_steps)
     output_time = emit.time
     summary.update(
         {
-            "status": "failed" if failure else "completed",
+            "status": _status(failure),
             "message": str(failure) if failure else "",
             **stepper.counts(),
-            "checkpoints_written": checkpoint_writer.written if checkpoint_writer else 0,
+            "checkpoints_written": save.writer.written if save.writer else 0,
             "newton": solver.stats.as_dict(),
             "wall_time_s": {
                 "setup": setup_time,
@@ -657,8 +698,8 @@ def run(
             },
         }
     )
-    if write_outputs:
-        write_json(out / "summary.json", summary, comm)
+    if outputs is not None and outputs.opened:
+        write_summary(out / SUMMARY, summary, comm, strict=failure is None)
     solver.destroy()
     comm.barrier()  # every file is closed on every rank before anyone reads them
     if failure:
@@ -670,3 +711,79 @@ def run(
         summary=summary,
         model=model,
     )
+
+
+def _status(failure: Exception | None) -> str:
+    if failure is None:
+        return "completed"
+    return "stopped" if isinstance(failure, StopError) else "failed"
+
+
+def _finish(stepper, save, loop_state, outputs, failure, n_steps: int):
+    """The end of a run, stopped or not: a last checkpoint of the last accepted state (to
+    continue or extend the run), unless an output failed (the outputs then end before the
+    steps taken: the last periodic checkpoint stands); the outputs closed. Returns the
+    failure to report (a failed last checkpoint if there was none)."""
+    ended = failure is not None or stepper.outputs == n_steps
+    if ended and not isinstance(failure, OutputError):
+        stepper.back_to_accepted()
+        try:
+            save.save(loop_state)
+        except OutputError as exc:
+            failure = failure or exc
+    if outputs is not None:
+        try:
+            outputs.close()
+        except OutputError as exc:
+            failure = failure or exc
+    return failure
+
+
+class _RunOutputs:
+    """The files of a run in its folder: probes.csv, the XDMF pair, the checkpoints."""
+
+    def __init__(self, scene: Scene, model: RodModel, probe, out: Path, summary: dict, comm):
+        self.scene, self.model, self.probe = scene, model, probe
+        self.out, self.summary, self.comm = out, summary, comm
+        self.probes = self.xdmf = self.checkpoints = None
+        self.opened = False
+
+    def open(self, restart: Checkpoint | None, plan) -> None:
+        """A new run claims the folder (cosserat_fem/run_folder.py); a restart cuts the
+        outputs back to its checkpoint (checked already: ``plan``). Then summary.json says
+        "running", and the writers open."""
+        scene, model, out, comm = self.scene, self.model, self.out, self.comm
+        if restart is None:
+            claim(out, comm, scene.output.xdmf, self.summary)
+        else:
+            cut_outputs(plan, comm)
+            write_summary(out / SUMMARY, self.summary, comm)
+        self.opened = True
+        self.probes = ProbeWriter(out / PROBES, self.probe, resume=restart is not None)
+        if scene.output.xdmf:
+            if restart is None:
+                self.xdmf = XdmfWriter(out / XDMF, model, run_id=self.summary["run_id"])
+            else:
+                resume = (restart.restart_number, plan.frames)
+                self.xdmf = XdmfWriter(out / XDMF, model, resume=resume)
+        if restart is None:
+            self.probes.write(scene.time.start)
+            if self.xdmf is not None:
+                self.xdmf.write(scene.time.start)
+        if scene.output.checkpoint:
+            self.checkpoints = CheckpointWriter(
+                out,
+                comm,
+                scene.output.checkpoint_interval,
+                scene.time.start,
+                scene.to_dict(),
+                self.summary["run_id"],
+                previous=restart,
+            )
+
+    def close(self) -> None:
+        if self.probes is not None:
+            self.probes.close()
+            self.probes.check()
+        if self.xdmf is not None:
+            self.xdmf.close()

@@ -24,14 +24,16 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from . import __version__
-from .errors import SceneError, SolverError
+from . import __version__, budget
+from .errors import OutputError, SceneError, SolverError
 from .integrators import make_integrator
 from .model import RodModel, build_model
 from .newton import NewtonFailure, NewtonSolver
-from .output import PointProbe, ProbeWriter, XdmfWriter, write_json
+from .output import PointProbe, ProbeWriter, XdmfWriter
+from .parallel import ranks_on_node
+from .run_folder import PROBES, SUMMARY, XDMF, claim, new_run_id, prepare_output_dir, write_summary
 from .scene import Scene
-from .simulation import check_state, cos_theta, newton_settings, prepare_output_dir, probe_sigma
+from .simulation import check_state, cos_theta, newton_settings, probe_sigma
 
 
 @dataclass
@@ -52,29 +54,51 @@ def static_path(
     """Follow the static equilibrium path from the straight rod to the full loads."""
     t_start = clock.perf_counter()
     out = Path(out_dir if out_dir is not None else scene.output.directory)
-    if write_outputs:
-        prepare_output_dir(out, comm)
+    budget.check(scene, "static", out if write_outputs else None, ranks_on_node(comm), comm.size)
     if scene.supports.start_motion or scene.supports.end_motion:
         raise SceneError(
             "supports.*_motion: prescribed support motion is for time integration (run), "
             "not for static solves"
         )
+    if write_outputs:
+        prepare_output_dir(out, comm)
     model = build_model(scene, comm)
+    problem = model.nonfinite_load([scene.static.time])
+    if problem:
+        raise SceneError(f"{problem}: the load is not finite there (static.time)")
     integrator = make_integrator("static", model.U, model.residual, 0.0)
     settings = newton_settings(scene)
     settings.jacobian = "full"
     solver = NewtonSolver(integrator.residual_form(), model.U, model.bcs, settings)
     integrator.prepare(scene.static.time * model.omega0)
 
+    summary = {
+        "status": "running",
+        "run_id": new_run_id(comm),
+        "kind": "static",
+        "probe_t_column": "load factor",
+        "cosserat_fem": __version__,
+        "scene_file": scene.source,
+        "mpi_ranks": comm.size,
+        "dofs": model.global_dofs(),
+        "scene": scene.to_dict(),
+    }
     probes = xdmf = None
     if write_outputs:
-        probes = ProbeWriter(
-            out / "probes.csv", PointProbe(model.U, probe_sigma(scene), model.length)
-        )
-        probes.write(0.0)
-        if scene.output.xdmf:
-            xdmf = XdmfWriter(out / "solution.xdmf", model)
-            xdmf.write(0.0)
+        claim(out, comm, scene.output.xdmf, summary)
+        try:
+            probes = ProbeWriter(
+                out / PROBES, PointProbe(model.U, probe_sigma(scene), model.length)
+            )
+            probes.write(0.0)
+            if scene.output.xdmf:
+                xdmf = XdmfWriter(out / XDMF, model, run_id=summary["run_id"])
+                xdmf.write(0.0)
+        except OutputError:
+            if probes is not None:
+                probes.close()
+            solver.destroy()
+            raise
 
     nominal = 1.0 / scene.static.load_steps
     smallest = nominal / 2**scene.static.max_bisections
@@ -119,34 +143,37 @@ def static_path(
             iterations.append(its)
             if probes is not None:
                 probes.write(lam)
+                if comm.size > 1:
+                    probes.check()
             if xdmf is not None:
                 xdmf.write(lam)
-    except SolverError as exc:
+    except (SolverError, OutputError) as exc:
         failure = exc
         model.U.x.array[:] = U_n
     finally:
-        if probes is not None:
-            probes.close()
+        try:
+            if probes is not None:
+                probes.close()
+                probes.check()
+        except OutputError as exc:
+            failure = failure or exc
         if xdmf is not None:
             xdmf.close()
         solver.destroy()
-    summary = {
-        "status": "failed" if failure else "completed",
-        "message": str(failure) if failure else "",
-        "kind": "static",
-        "probe_t_column": "load factor",
-        "cosserat_fem": __version__,
-        "scene_file": scene.source,
-        "mpi_ranks": comm.size,
-        "dofs": model.global_dofs(),
-        "load_factors": factors,
-        "newton_iterations": iterations,
-        "bisections": bisections,
-        "wall_time_s": {"total": clock.perf_counter() - t_start},
-        "scene": scene.to_dict(),
-    }
+    summary.update(
+        {
+            "status": ("stopped" if isinstance(failure, OutputError) else "failed")
+            if failure
+            else "completed",
+            "message": str(failure) if failure else "",
+            "load_factors": factors,
+            "newton_iterations": iterations,
+            "bisections": bisections,
+            "wall_time_s": {"total": clock.perf_counter() - t_start},
+        }
+    )
     if write_outputs:
-        write_json(out / "summary.json", summary, comm)
+        write_summary(out / SUMMARY, summary, comm, strict=failure is None)
     comm.barrier()
     if failure:
         raise failure

@@ -103,10 +103,8 @@ def test_restart_after_a_crash_gives_the_uninterrupted_run(tmp_path, name):
     else:
         assert checkpoint.time == pytest.approx(100 * dt, rel=1e-12)
     steps_done = int(checkpoint.time / dt * (1 + 1e-12))
-    assert checkpoint.meta["outputs"] == {
-        "probe_rows": steps_done + 1,
-        "xdmf_frames": steps_done // 8 + 1,
-    }
+    assert checkpoint.meta["outputs"]["probe_rows"] == steps_done + 1
+    assert checkpoint.meta["outputs"]["xdmf_frames"] == steps_done // 8 + 1
     again = scene_from_dict(checkpoint.meta["scene"])
     assert again == scene
     result = run(again, restart=checkpoint)
