@@ -13,6 +13,7 @@ at ``--verbose`` otherwise).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import signal
 import sys
 import traceback
@@ -280,7 +281,8 @@ def _main(args) -> int:
     prepare_agreement()
     # A write past the file size limit (ulimit -f) fails with EFBIG, which the outputs report
     # (exit 4), instead of SIGXFSZ killing the process with a core dump.
-    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    with contextlib.suppress(ValueError):  # only the main thread may set handlers
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     # Python's warnings (numpy's on non-finite values, FFCx's) go to the log, not around the
     # one-line messages: shown with --verbose or --debug.
     if not args.debug:

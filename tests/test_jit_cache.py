@@ -28,7 +28,8 @@ PYTHON = sys.executable
 
 # Compiles constant * u * v * dx into args["cache"] with dolfinx.jit.ffcx_jit (which says
 # whether it compiled or loaded from the cache) and prints the outcome as JSON. The mesh and
-# element modules come from the default (warm) cache.
+# element modules come from the default cache (compiled there with the usual compiler if it is
+# cold, as on a fresh machine); args["cc"], a slowed compiler, is used for the form only.
 SCRIPT = r"""
 import json, os, sys, time
 args = json.loads(sys.argv[1])
@@ -42,6 +43,8 @@ if args["install"]:
 msh = mesh.create_unit_interval(MPI.COMM_SELF, 2)
 V = fem.FunctionSpace(msh, ("Lagrange", 1))
 form = args["constant"] * ufl.TrialFunction(V) * ufl.TestFunction(V) * ufl.dx
+if args.get("cc"):  # the slowed compiler for the form alone, not for the elements above
+    os.environ["CC"] = args["cc"]
 if args.get("go"):
     open(args["ready"], "w").close()
     while not os.path.exists(args["go"]):
@@ -62,14 +65,14 @@ def constant() -> float:
     return 1.2345 + random.random()
 
 
-def slow_compiler(tmp_path: Path, seconds: float) -> dict[str, str]:
-    """Environment whose C compiler (CC, also used to link) sleeps first: a compile that is
-    surely still running when another process arrives or the test kills it."""
+def slow_compiler(tmp_path: Path, seconds: float) -> str:
+    """A C compiler (for the form's compile: args["cc"]; it also links) that sleeps first: a
+    compile that is surely still running when another process arrives or the test kills it."""
     cc = sysconfig.get_config_var("CC").split()[0]
     wrapper = tmp_path / "slowcc"
     wrapper.write_text(f'#!/bin/sh\nsleep {seconds}\nexec {cc} "$@"\n')
     wrapper.chmod(0o755)
-    return {**os.environ, "CC": str(wrapper)}
+    return str(wrapper)
 
 
 _started: list[subprocess.Popen] = []
@@ -86,10 +89,9 @@ def reap():
             proc.communicate()
 
 
-def start(args: dict, env: dict | None = None) -> subprocess.Popen:
+def start(args: dict) -> subprocess.Popen:
     proc = subprocess.Popen(
         [PYTHON, "-c", SCRIPT, json.dumps(args)],
-        env=env,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -161,7 +163,7 @@ def test_killed_compile_does_not_block_the_next_run(tmp_path, killed):
     """
     cache = tmp_path / "cache"
     args = {"cache": str(cache), "constant": constant(), "install": killed == "install"}
-    proc = start(args, env=slow_compiler(tmp_path, 30))
+    proc = start({**args, "cc": slow_compiler(tmp_path, 30)})
     deadline = time.monotonic() + 60
     while not any(f.stat().st_size > 0 for f in files(cache, ".c")):  # source written: gcc
         assert proc.poll() is None, proc.communicate()
@@ -187,7 +189,7 @@ def test_live_concurrent_compile_is_waited_for(tmp_path):
     live compile for a dead one and compiles over it. Plain FFCx passes all but the lock check
     (its 10 s wait is long enough here): this guards install() against a regression."""
     cache = tmp_path / "cache"
-    env = slow_compiler(tmp_path, 1.5)
+    cc = slow_compiler(tmp_path, 1.5)
     procs, value = [], constant()
     for i in range(2):
         args = {
@@ -196,8 +198,9 @@ def test_live_concurrent_compile_is_waited_for(tmp_path):
             "install": True,
             "ready": str(tmp_path / f"ready{i}"),
             "go": str(tmp_path / "go"),
+            "cc": cc,
         }
-        procs.append(start(args, env=env))
+        procs.append(start(args))
     deadline = time.monotonic() + 60
     while not all((tmp_path / f"ready{i}").exists() for i in range(2)):
         assert time.monotonic() < deadline and all(p.poll() is None for p in procs)
@@ -216,7 +219,7 @@ def test_wait_for_a_hung_compile_names_the_process(tmp_path, monkeypatch, space,
     one-line error naming the C file, the process compiling it and its lock file."""
     cache, value = tmp_path / "cache", constant()
     args = {"cache": str(cache), "constant": value, "install": True}
-    proc = start(args, env=slow_compiler(tmp_path, 30))
+    proc = start({**args, "cc": slow_compiler(tmp_path, 30)})
     try:
         deadline = time.monotonic() + 60
         while not files(cache, ".c"):  # created once the lock is held
