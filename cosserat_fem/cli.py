@@ -231,7 +231,8 @@ def _modes(args) -> int:
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         print(f"{'mode':>4} {'omega [rad/s]':>16} {'f [Hz]':>12}  kind")
         for i, mode in enumerate(modes, start=1):
-            print(f"{i:4d} {mode.omega:16.6f} {mode.frequency_hz:12.4f}  {mode.kind}")
+            note = f"  ({mode.note})" if mode.note else ""
+            print(f"{i:4d} {mode.omega:16.6f} {mode.frequency_hz:12.4f}  {mode.kind}{note}")
         print(f"-> {out / 'modes.csv'}, {out / 'modes.xdmf'}")
     return 0
 

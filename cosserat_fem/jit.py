@@ -21,9 +21,9 @@ FFCx and ``dolfinx.jit`` look up at call time) so that
 * a warm cache (``.c.cached`` present) is loaded without taking the lock, as before; so are the
   other MPI ranks after rank 0 compiled (``dolfinx.jit.mpi_jit_decorator``).
 * during the C compile, file descriptor 2 goes to a temporary file: compiler warnings do not
-  reach the terminal (they are logged at DEBUG on ``cosserat_fem.jit``). A failed compile raises
-  :class:`JITCompileError`, one line with the compiler's first error and the path of the full
-  log, ``<cache>/<module>.log``.
+  reach the terminal (they are logged at INFO on ``cosserat_fem.jit``: ``--verbose``). A failed
+  compile raises :class:`JITCompileError`, one line with the compiler's first error and the path
+  of the full log, ``<cache>/<module>.log``.
 * an interrupted compile (KeyboardInterrupt, SystemExit) renames ``.c`` to ``.c.failed`` as
   FFCx does for errors, so that even processes without :func:`install` are not blocked.
 
@@ -357,8 +357,8 @@ def _compile_objects(
                     module_name, log_path, first_error_line(captured.text)
                 ) from exc
             raise
-        if captured.text.strip():
-            LOGGER.debug("C compiler output for %s:\n%s", module_name, captured.text.rstrip())
+        if captured.text.strip():  # warnings of a compile that succeeded: shown at --verbose
+            LOGGER.info("C compiler output for %s:\n%s", module_name, captured.text.rstrip())
         return result
     except BaseException as exc:
         if not isinstance(exc, Exception):  # FFCx's own clean-up runs on Exception only

@@ -110,7 +110,7 @@ def run_mms(
     if isinstance(integrator, GeneralizedAlpha):
         integrator.set_initial_rate(_interpolate(model.V, exact0.Udot))
     settings = newton_settings(scene)
-    settings.jacobian = "full"
+    settings.jacobian = "full"  # the order measured is the integrator's, not the stop rule's
     solver = NewtonSolver(integrator.residual_form(), model.U, model.bcs, settings)
     h = tau_end / steps
     for _ in range(steps):

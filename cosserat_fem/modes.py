@@ -26,6 +26,7 @@ p1..p3 and ρ c11, ρ c22, ρ (c11 + c22) for θ, ψ, φ.
 from __future__ import annotations
 
 import csv
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -50,16 +51,36 @@ _GROUPS = {"bending-x": (0, 4), "bending-y": (1, 3), "axial": (2,), "torsion": (
 
 @dataclass
 class Mode:
-    """One natural mode: ω [rad/s], its kind, kinetic-energy fractions, shape (6 components)."""
+    """One natural mode: ω [rad/s], its kind, kinetic-energy fractions, shape (6 components),
+    and the eigenvalue λ of K φ = λ M φ it comes from (dimensionless, ω = ω0 √λ).
+
+    A λ that is negative (a state beyond a stability limit: the mode grows like e^{ω0 √−λ t})
+    or complex (flutter, e.g. under follower-like loads) has no ω: ``omega`` is NaN and
+    ``note`` says which, with the growth rate; round-off of the non-symmetric K, M (an
+    imaginary part below 1e-8 |λ|, a negative λ below 1e-12 of the largest |λ| found) is not
+    taken for either."""
 
     omega: float
     kind: str
     fractions: dict[str, float]
     shape: fem.Function
+    eigenvalue: complex = 0j
+    note: str = ""
 
     @property
     def frequency_hz(self) -> float:
         return self.omega / (2.0 * np.pi)
+
+
+def angular_frequency(lam: complex, omega0: float, scale: float) -> tuple[float, str]:
+    """(ω [rad/s], note) of the eigenvalue λ (see :class:`Mode`); ``scale``: the largest |λ|
+    found, for what counts as round-off."""
+    if abs(lam.imag) > 1e-8 * abs(lam):
+        return math.nan, f"complex eigenvalue {lam.real:.6g}{lam.imag:+.6g}i (flutter)"
+    if lam.real < -1e-12 * scale:
+        rate = omega0 * math.sqrt(-lam.real)
+        return math.nan, f"negative eigenvalue {lam.real:.6g}: unstable, grows at {rate:.6g} 1/s"
+    return omega0 * math.sqrt(max(lam.real, 0.0)), ""
 
 
 @dataclass
@@ -147,15 +168,16 @@ def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
         shape = fem.Function(problem.P, name="mode")
         shape.vector.array[:] = vr.array
         shape.x.scatter_forward()
-        pairs.append((lam.real, shape))
-    pairs.sort(key=lambda pair: pair[0])
+        pairs.append((complex(lam), shape))
+    pairs.sort(key=lambda pair: (pair[0].real, pair[0].imag))
     weights = _kinetic_weights(problem.model)
+    scale = max((abs(lam) for lam, _ in pairs), default=1.0)
     modes = []
     for lam, shape in pairs[:count]:
-        omega = problem.model.omega0 * float(np.sqrt(max(lam, 0.0)))
+        omega, note = angular_frequency(lam, problem.model.omega0, scale)
         fractions = _energy_fractions(shape, weights)
         kind = max(fractions, key=fractions.get)
-        modes.append(Mode(omega=omega, kind=kind, fractions=fractions, shape=_normalised(shape)))
+        modes.append(Mode(omega, kind, fractions, _normalised(shape), lam, note))
     eps.destroy()
     return modes
 
@@ -237,11 +259,14 @@ def write_modes(out: Path, model: RodModel, modes: list[Mode]) -> None:
                 writer.writerow(
                     ["mode", "omega_rad_s", "frequency_hz", "kind"]
                     + [f"fraction_{k.replace('-', '_')}" for k in KINDS]
+                    + ["eigenvalue_re", "eigenvalue_im", "note"]
                 )
                 for i, mode in enumerate(modes, start=1):
+                    lam = mode.eigenvalue
                     writer.writerow(
                         [i, f"{mode.omega:.12e}", f"{mode.frequency_hz:.12e}", mode.kind]
                         + [f"{mode.fractions[k]:.6f}" for k in KINDS]
+                        + [f"{lam.real:.12e}", f"{lam.imag:.12e}", mode.note]
                     )
         except OSError as exc:
             problem = OutputError(

@@ -120,9 +120,10 @@ _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinsta
 class NewtonSolver:
     """SNES Newton solver for F(U; V) = 0 with Dirichlet conditions ``bcs`` on U.
 
-    The Dirichlet values must be satisfied by every initial guess (here they are homogeneous
-    and the predictors keep them), so no lifting is needed: the residual rows of constrained
-    dofs are set to x − g = x.
+    The residual rows of constrained dofs are x − g and the Jacobian's rows and columns there
+    the identity's, so a guess off the Dirichlet values g still converges, but its first
+    update ignores their coupling to the free dofs: the caller puts g into the guess (the time
+    loop does for moving supports; docs/decisions.md, "Dirichlet values in the guess").
     """
 
     def __init__(

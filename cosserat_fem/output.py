@@ -18,7 +18,6 @@ import hashlib
 import os
 import resource
 import time
-import weakref
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -101,22 +100,18 @@ class PointProbe:
         return out
 
 
-# The open probe writers of this process: XdmfWriter.write flushes them before each frame.
-_PROBE_WRITERS: weakref.WeakSet[ProbeWriter] = weakref.WeakSet()
-
-
 class ProbeWriter:
     """``probes.csv`` with the header t,x,y,z,theta,psi,phi, written by the probe's owner.
 
-    Rows are buffered and handed to the operating system when ``flush_every`` rows are
-    pending, when ``max_delay`` seconds (wall time) have passed since the last flush, and
-    before every XDMF frame (:meth:`XdmfWriter.write` flushes every open ProbeWriter of its
-    process). So a killed run loses at most the rows since the last XDMF frame (7 rows at
-    the default scene's 8 steps a frame) or of the last ``max_delay`` s, and probes.csv
-    always reaches the last frame of the XDMF file. Measured per row, default scene: the
-    same ~12 us a row (full run) as flushing every 200 rows only; flushing every row cost
-    ~23 us a row more on a busy ext4 file system (a write() can wait ~3 ms for a journal
-    commit of another process), 3-5 % of a ~0.5 ms step.
+    Rows are buffered and handed to the operating system when ``flush_every`` rows are pending,
+    when ``max_delay`` seconds (wall time) have passed since the last flush, and before every
+    XDMF frame (the run flushes its probes before it writes a frame, cosserat_fem/simulation.py
+    and statics.py). So a killed run loses at most the rows since the last XDMF frame (7 rows at
+    the default scene's 8 steps a frame) or of the last ``max_delay`` s, and probes.csv always
+    reaches the last frame of the XDMF file. Measured per row, default scene: the same ~12 us a
+    row (full run) as flushing every 200 rows only; flushing every row cost ~23 us a row more on
+    a busy ext4 file system (a write() can wait ~3 ms for a journal commit of another process),
+    3-5 % of a ~0.5 ms step.
 
     The SHA-256 of the bytes written (:meth:`digest`) goes into each checkpoint, so that a
     restart can prove that probes.csv is the checkpointed run's (cosserat_fem/checkpoint.py).
@@ -154,7 +149,6 @@ class ProbeWriter:
             if not resume:
                 self._write(",".join(PROBE_HEADER) + "\n")
             self.flush()
-            _PROBE_WRITERS.add(self)
         self.check()
 
     def _fail(self, exc: OSError) -> None:
@@ -220,7 +214,6 @@ class ProbeWriter:
             if self._file is not None:
                 self._file.close()
             self._file = None
-        _PROBE_WRITERS.discard(self)
 
 
 #: The point arrays of each ``output.fields`` entry, in the order they are written.
@@ -520,8 +513,6 @@ class XdmfWriter:
     def write(self, t: float, U: fem.Function | None = None) -> None:
         if U is not None and U is not self.U:
             self.U.x.array[:] = U.x.array
-        for probes in list(_PROBE_WRITERS):  # probes.csv reaches every frame on disk
-            probes.flush()
         if self.functions:
             problem = self._room_problem() if self._comm.rank == 0 else None
             if self._comm.size > 1:

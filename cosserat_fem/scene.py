@@ -122,7 +122,8 @@ class Material:
         """G [Pa]: as given, or E / (2 (1 + ν))."""
         if self.shear_modulus_value is not None:
             return self.shear_modulus_value
-        assert self.poisson_ratio is not None
+        if self.poisson_ratio is None:
+            raise ValueError("Material: give poisson_ratio or shear_modulus_value")
         return self.young_modulus / (2.0 * (1.0 + self.poisson_ratio))
 
 
@@ -980,6 +981,14 @@ def _build_rod(raw: dict[str, Any]) -> Rod:
             f"{show_value(material.young_modulus)})"
         )
     poisson = material.young_modulus / (2.0 * material.shear_modulus) - 1.0
+    uses_poisson = raw["section"]["shape"] in ("circle", "tube")
+    if uses_poisson and raw["section"]["shear_coefficient"] == "auto" and not -1.0 < poisson < 0.5:
+        # Cowper's shear coefficient is a formula in nu for an isotropic section.
+        raise SceneError(
+            f"rod.material.shear_modulus: E/(2 G) - 1 = {poisson:.6g} is not a Poisson ratio "
+            "in (-1, 0.5), which Cowper's shear coefficient of a circle or tube needs; give "
+            "rod.section.shear_coefficient"
+        )
     return Rod(raw["length"], _build_section(raw["section"], poisson), material)
 
 
@@ -1043,6 +1052,10 @@ def _build_initial(
         vector = parse_vector(raw[name], {"s", *values}, f"initial.{name}")
         fields[name] = None if all(e.is_zero for e in vector) else vector
     length = values["L"]
+    # What "equal" means for each field: 1e-12 of its value or of its scale (m, rad, m/s,
+    # rad/s: the length, a radian, and their rates at omega0).
+    scale = {"displacement": length, "angles": 1.0}
+    scale.update(velocity=length * values["omega0"], angle_rates=values["omega0"])
     for end, s_end in (("start", 0.0), ("end", length)):
         kind = getattr(supports, end)
         if kind == "free":
@@ -1062,7 +1075,7 @@ def _build_initial(
                 if fields[name] is not None:
                     key, where = f"initial.{name}[{i}]", f"s = {_fmt(s_end)} m"
                     got = _finite_value(fields[name][i], key, where, s=s_end, **values)
-                if abs(got - want) > 1e-12 * max(1.0, abs(want), abs(length)):
+                if abs(got - want) > 1e-12 * max(abs(want), scale[name]):
                     source = show_value(fields[name][i].source) if fields[name] else "0"
                     what = "its prescribed motion" if motion is not None else "0"
                     raise SceneError(

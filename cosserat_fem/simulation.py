@@ -194,6 +194,8 @@ class _Outputs:
             if self.probes.comm.size > 1:
                 self.probes.check()  # the owner's write error, on every rank
         if self.xdmf is not None and k % self.xdmf_every == 0:
+            if self.probes is not None:
+                self.probes.flush()  # probes.csv reaches every frame on disk (kill-safe)
             self.xdmf.write(t)
         for obs in self.observers:
             obs(k, t, self.model)
@@ -224,8 +226,10 @@ class _Stepper:
         self.pending = False  # a step was attempted and neither accepted nor rejected
 
     def _solve(self) -> int:
-        """One Newton solve, with moving supports at the time of the unknown."""
-        self.model.move_supports(self.integrator.unknown_time)
+        """One Newton solve, with moving supports at the time of the unknown: their values
+        are put into the initial guess too (the Jacobian's rows and columns of held dofs are
+        those of the identity, so a guess off them costs Newton an iteration)."""
+        self.model.support_dofs_to(self.model.U.x.array, self.integrator.unknown_time)
         return self.solver.solve()
 
     _COUNTERS = ("t", "accepted", "rejected", "outputs", "smallest", "largest")

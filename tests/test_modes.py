@@ -134,3 +134,29 @@ def test_modes_command_serial_and_mpi(tmp_path):
     for a, b in zip(serial, parallel, strict=True):
         assert float(b["omega_rad_s"]) == pytest.approx(float(a["omega_rad_s"]), rel=1e-9)
         assert a["kind"] == b["kind"]
+
+
+def test_a_state_beyond_buckling_reports_a_negative_eigenvalue():
+    """About the straight state under a compressive tip force of 1.5 Euler loads for bending
+    in x (P_E = π² EI / (4 ℓ²), below the one for y), the first bending-x eigenvalue of
+    K φ = λ M φ is negative: the state is unstable, the mode grows like e^{σ t}. It used to be
+    reported as ω = 0 (max(λ, 0)); now ω is NaN and the note gives σ = ω0 √−λ; the other
+    modes stay real and positive. The single-mode (Rayleigh) estimate σ ≈ ω1 √(P/P_E − 1)
+    is no closed form for the cantilever (its buckling mode is not its first vibration mode),
+    so it only guards the magnitude: measured σ / estimate = 1.07, allowed 0.8-1.25."""
+    common = ["loads.force_density=[0,0,0]"]
+    scene0 = load_scene(SCENE, common)
+    rod = rod_constants(scene0)
+    bx, by = bending_planes(scene0)
+    P_E = math.pi**2 * bx.EI / (4 * rod.length**2)
+    assert 1.5 * P_E < math.pi**2 * by.EI / (4 * rod.length**2)
+    _, free = compute_modes(scene0, 1)
+    scene = load_scene(SCENE, common + [f"loads.end.force=[0,0,{-1.5 * P_E}]"])
+    _, modes = compute_modes(scene, 4, about="static")
+    first, rest = modes[0], modes[1:]
+    assert first.kind == "bending-x" and math.isnan(first.omega)
+    assert first.eigenvalue.real < 0 and "negative eigenvalue" in first.note
+    sigma = scene.omega0 * math.sqrt(-first.eigenvalue.real)
+    assert f"grows at {sigma:.6g} 1/s" in first.note
+    assert 0.8 < sigma / (free[0].omega * math.sqrt(0.5)) < 1.25
+    assert all(m.omega > 0 and not m.note for m in rest)
