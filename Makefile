@@ -8,7 +8,7 @@ export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 
-.PHONY: setup demo test lint verify bench clean container-test
+.PHONY: setup demo test unit lint verify bench clean container-test
 
 setup:
 	@VENV=$(VENV) bash .ci/setup.sh
@@ -20,6 +20,10 @@ demo: setup
 ## Lint, then the whole test suite (serial and mpirun -n 2 cases).
 test: setup lint
 	$(PY) -m pytest -q tests
+
+## The unit tests alone (integrators, Newton stop rule, step controller, interpolation): seconds.
+unit: setup
+	$(PY) -m pytest -q tests/unit
 
 ## Regenerate docs/verification.md (modes, large deflections, orders, energy; a few minutes).
 verify: setup

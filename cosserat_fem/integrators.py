@@ -339,10 +339,15 @@ class SDIRK(Integrator):
 
     def _rate_guess(self, stage: int, tau: float) -> np.ndarray | float:
         """Lagrange extrapolation to time τ of the newest s + 1 stage rates known before
-        stage ``stage`` of this step (0 with none)."""
+        stage ``stage`` of this step (0 with none). A stored rate whose time coincides with
+        that of a newer one is left out (SDIRK4's first stage lies beyond its step, so after
+        a step ratio of (γ − 1)/γ a stage time repeats exactly: the weights divided by zero)."""
         size = len(self._times)
         old = min(self._stored, size - stage)
         slots = [(self._stored - old + j) % size for j in range(old)]
+        later = [*(self._times[j] for j in slots), *self._taus[:stage]]
+        slots = [j for i, j in enumerate(slots) if self._times[j] not in later[i + 1 :]]
+        old = len(slots)
         if old + stage == 0:
             return 0.0
         w = lagrange_weights(np.concatenate([self._times[slots], self._taus[:stage]]), tau)

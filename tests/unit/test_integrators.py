@@ -31,7 +31,7 @@ the methods' defining equations (the literature, not the module's code):
   (a rank-one update of I − z A, whose determinant is (1 − γz)^s): the coefficients of P are
   those of the characteristic polynomial of A − 1 bᵀ (numpy.poly), and R(∞) =
   det(A − 1 bᵀ)/γ^s. For the two-stage method this is 1 − bᵀ A⁻¹ 1 = 1 − (4γ − 1)/(2γ²) =
-  1 − √3 = −0.7320508 (γ = (3 + √3)/6); for Crouzeix's three-stage method −0.6303937.
+  1 − √3 = −0.7320508 (γ = (3 + √3)/6); for Crouzeix's three-stage method −0.6304149.
 
 Order (a smooth solution, fixed steps): y' = 1 − y² (tanh τ), y' = cos(τ) y (exp(sin τ),
 a time-dependent residual), y' = −2 (y − sin τ) + cos τ (sin τ + e^(−2τ), a forced one) and
@@ -269,7 +269,7 @@ def alpha_matrix_step(hM: np.ndarray, rho_inf: float) -> np.ndarray:
 def test_sdirk_tableau_order_conditions_and_stiff_limit(order):
     """The module's tableau is the literature's, satisfies the order conditions of its order
     (all trees up to order 4: 1, 1/2, 1/3, 1/6, 1/4, 1/8, 1/12, 1/24, sums of at most a few
-    dozen products of O(1) numbers, so 20 ε), has c = A1 and R(∞) = −0.73 and −0.63 as the
+    dozen products of O(1) numbers, so 20 ε), and has R(∞) = −0.73 and −0.63 as the
     module docstring states (rounded there to two digits), exactly 1 − √3 for order 3."""
     g, A, b = sdirk_literature(order)
     g_mod, A_mod, b_mod = _sdirk_tableau(order)
@@ -314,7 +314,8 @@ def test_alpha_parameters_and_stiff_limit():
         assert abs(np.linalg.det(G) - rho**2) < 1e-6
         assert abs(np.trace(G) + 2 * rho) < 1e-6
         assert abs(max(abs(np.linalg.eigvals(G))) - rho) < 1e-3
-        # Resolved modes: the principal eigenvalue is e^z to second order, O(z³) (z = 1e-2).
+        # Resolved modes: the principal eigenvalue is e^z to second order, O(z³) at z = −1e-2
+        # (measured 3.3e-7 at ρ∞ = 0 down to z³/12 = 8.3e-8 at ρ∞ = 1, the midpoint rule).
         z = -1e-2
         principal = min(np.linalg.eigvals(alpha_G(z, rho)), key=lambda m: abs(m - 1))
         assert abs(principal - math.exp(z)) < 1e-6
@@ -329,7 +330,8 @@ def test_sdirk_amplification(linear_system, order):
     R(z)^k = (P(z)/(1 − γz)^s)^k and the oscillator against the Kronecker stage solve; the
     stiff mode z = −1e8 is R(∞) + O(1/|z|). Bound 32 ε relative: each stage is one division of
     a sum of O(1) terms (the stage values of the stiff mode are O(1/|z|) but exact to relative
-    ε, their rates O(1)), a dozen roundings a step, three steps."""
+    ε, their rates O(1)), a dozen roundings a step, three steps. Measured: at most 2.5 ε
+    (SDIRK3) and 7.9 ε (SDIRK4); R(−1e8) − R(∞) = 2.8e-8 and 2.4e-8."""
     M = diagonal_plus_oscillator(DIAG_Z, OMEGA_H, H)
     linear_system.M.value = M
     y0 = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0])
@@ -357,12 +359,13 @@ def test_sdirk_amplification(linear_system, order):
 def test_bdf2_amplification(linear_system, steps):
     """BDF2 after its midpoint start on y' = M y: step 1 is R(z) = (1 + z/2)/(1 − z/2); the
     later steps follow the variable-step BDF2 formula, whose weights are computed here from
-    the quadratic Lagrange interpolant (ratios 2, 1/4, 6, 1/6 in the variable case); at
+    the quadratic Lagrange interpolant (ratios 2, 1/4, 3, 1/6 in the variable case); at
     constant steps the scalar modes are c1 r1^n + c2 r2^n with the recurrence's roots. The
     stiff mode: the midpoint start is A- but not L-stable, y1 = −1 + 4e-8, and BDF2 then damps
-    by |r| = (3 − 2z)^(−1/2) ≈ 1e-4 a step. Bound 64 ε relative: one linear solve a step with
+    by |r| = (3 − 2z)^(−1/2) = 7e-5 a step. Bound 32 ε relative: one linear solve a step with
     three terms on the right, errors carried through five steps (|r| ≤ 1 for the stable
-    modes; the root formula itself rounds the powers r^n)."""
+    modes; the root formula itself rounds the powers r^n). Measured: at most 5.4 ε (variable
+    steps), 4.0 ε (constant)."""
     M = diagonal_plus_oscillator(DIAG_Z, OMEGA_H, H)
     linear_system.M.value = M
     y0 = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0])
@@ -373,7 +376,7 @@ def test_bdf2_amplification(linear_system, steps):
         run.close()
     reference = bdf2_reference(M, y0, steps)
     errors = relative_errors(states, reference)
-    assert errors.max() <= 64 * EPS, errors.max(axis=0) / EPS
+    assert errors.max() <= 32 * EPS, errors.max(axis=0) / EPS
     z = np.array(DIAG_Z) * steps[0] / H
     np.testing.assert_allclose(states[1, :6], (1 + z / 2) / (1 - z / 2), rtol=8 * EPS)
     if steps[1] == steps[0]:
@@ -397,8 +400,11 @@ def test_generalized_alpha_amplification(linear_system, rho_inf):
     measured G(z) are read off U and h·U̇_n; three steps give G(z)^k. The measured G at
     z = −1e8 has det G = ρ∞² and tr G = −2ρ∞ to O(1/|z|) + round-off (1e-6), so |R(∞)| = ρ∞;
     with ρ∞ = 1 the scheme is the implicit midpoint rule, y1 = (1 + z/2)/(1 − z/2) y0 for
-    any ẏ0. Bound 64 ε relative to the magnitude of each column: the update of ẏ divides a
-    difference of O(1) terms by γ (≥ 1/2), so its round-off is a few ε of the largest term."""
+    any ẏ0. Bound 32 ε relative to the magnitude of each column: the update of ẏ divides a
+    difference of O(1) terms by γ (≥ 1/2), so its round-off is a few ε of the largest term.
+    Measured: at most 1.0, 5.5 and 3.0 ε (ρ∞ = 0, 0.5, 1), the oscillator 1.5 ε; det G − ρ∞²
+    and tr G + 2ρ∞ at most 4e-8 (O(1/|z|)); the spectral radius of the measured G is ρ∞ to
+    8e-9 for ρ∞ = 0.5 and 1, and 7e-5 = |z|^(−1/2)/√2 for ρ∞ = 0 (the Jordan block)."""
     zs = (-1e8, -1e8, -2.0, -2.0, 0.3, 0.3)
     M = diagonal_plus_oscillator(zs, OMEGA_H, H)
     linear_system.M.value = M
@@ -429,14 +435,15 @@ def test_generalized_alpha_amplification(linear_system, rho_inf):
             # predictor extrapolates the rates of two steps (window_scale), and G's entry
             # G21 → −(1 + ρ∞)² at z → −∞ carries an error of y into hẏ one step later.
             scale = np.max([np.abs(P).max(axis=0) for P in powers[-4:]], axis=0)
-            assert (np.abs(got - Gk) / scale).max() <= 64 * EPS, (k, z, got, Gk)
-    # The oscillator (and the rest) against the 2n x 2n map, scaled by the block's size.
+            assert (np.abs(got - Gk) / scale).max() <= 32 * EPS, (k, z, got, Gk)
+    # The oscillator against the 2n x 2n map, scaled by the block's size.
     osc = [N - 2, N - 1, 2 * N - 2, 2 * N - 1]
     err = np.abs(measured[:, osc] - reference[:, osc]).max() / np.abs(reference[:, osc]).max()
-    assert err <= 64 * EPS, err / EPS
+    assert err <= 32 * EPS, err / EPS
     G = np.array([[measured[1, 0], measured[1, 1]], [measured[1, N], measured[1, N + 1]]])
     assert abs(np.linalg.det(G) - rho_inf**2) < 1e-6
     assert abs(np.trace(G) + 2 * rho_inf) < 1e-6
+    assert abs(max(abs(np.linalg.eigvals(G))) - rho_inf) < 1e-3
     if rho_inf == 1.0:
         z = np.array(zs)
         np.testing.assert_allclose(measured[1, :6], y0[:6] * (1 + z / 2) / (1 - z / 2),
@@ -538,3 +545,80 @@ def test_factory_names():
         assert isinstance(make_integrator(name, U, system.linear, 0.0), cls)
     with pytest.raises(ValueError):
         make_integrator("euler", U, system.linear, 0.0)
+
+
+# ---------------------------------------------------------------------- the solve callback
+@pytest.mark.parametrize("name", list(ORDERS))
+def test_times_seen_by_the_solves(linear_system, name):
+    """Each solve evaluates the residual at the documented time: BDF2's midpoint start at
+    τ + h/2, then τ + h; generalized-α at τ + αf h (ρ∞ = 0.5: αf = 2/3); SDIRK stage i at
+    τ + c_i h, c = A1 — for SDIRK4 c = (γ, 1/2, 1 − γ) = (1.0686, 0.5, −0.0686): its first
+    stage lies beyond the step and its last before it (at a negative time in the first step
+    from τ = 0). ``unknown_time`` is the same time except for the implicit-midpoint step
+    (τ + h, the time of the unknown U) and generalized-α (τ + h)."""
+    linear_system.M.value = -np.eye(N)
+    run = Run(linear_system, linear_system.linear, name, np.ones(N))
+    seen = []
+
+    def solve():
+        seen.append((float(run.integrator.time_eval.value), run.integrator.unknown_time))
+        return run.solver.solve()
+
+    try:
+        for _ in range(2):
+            run.integrator.step(0.25, solve)
+            run.integrator.accept(0.25)
+    finally:
+        run.close()
+    if name == "bdf2":
+        expected = [(0.125, 0.25), (0.5, 0.5)]
+    elif name == "generalized-alpha":
+        expected = [(0.25 * 2 / 3, 0.25), (0.25 + 0.25 * 2 / 3, 0.5)]
+    else:
+        _, A, _ = sdirk_literature(int(name[-1]))
+        expected = [(tau + c * 0.25,) * 2 for tau in (0.0, 0.25) for c in A.sum(axis=1)]
+    np.testing.assert_allclose(seen, expected, rtol=0, atol=4 * EPS)
+
+
+@pytest.mark.parametrize("name", list(ORDERS))
+def test_rejected_step_leaves_no_trace(linear_system, name):
+    """step(h') then reject() puts U back to the last accepted state, and the history is only
+    changed by accept(): a run with a rejected attempt in the middle is bit for bit the run
+    without it."""
+    M = diagonal_plus_oscillator(DIAG_Z, OMEGA_H, H)
+    linear_system.M.value = M
+    y0 = np.linspace(1.0, 2.0, N)
+    results = []
+    for attempt in (False, True):
+        run = Run(linear_system, linear_system.linear, name, y0)
+        try:
+            run.advance([H, 0.5 * H])
+            if attempt:
+                run.integrator.step(2 * H, run.solver.solve)
+                run.integrator.reject()
+                np.testing.assert_array_equal(run.U.x.array, run.integrator.last_accepted())
+            results.append(run.advance([0.75 * H, H]))
+        finally:
+            run.close()
+    np.testing.assert_array_equal(results[0], results[1])
+
+
+def test_sdirk4_step_whose_stage_time_repeats_a_stored_one(linear_system):
+    """SDIRK4 on y' = −y: a step of 1, then one of h2 = (γ − 1)/γ, whose first stage time
+    τ_1 + γ h2 = γ equals (in floating point) the stored first stage time of step 1, γ · 1.
+    The step is an ordinary linear solve: y2 = R(−1) R(−h2) to round-off is expected. The
+    stage-rate predictor used to divide by zero there (the repeated time as two nodes): a NaN
+    guess and a Newton failure at iteration 0 on a well-posed step, which an adaptive run
+    (after rejections, or on its last step) could meet; the older rate of a repeated time is
+    now left out of the extrapolation."""
+    g, _, _ = sdirk_literature(4)
+    h2 = (g - 1.0) / g
+    assert 1.0 + g * h2 == g  # the coincidence, exact in floating point
+    linear_system.M.value = -np.eye(N)
+    run = Run(linear_system, linear_system.linear, "sdirk4", np.ones(N))
+    try:
+        states = run.advance([1.0, h2])
+    finally:
+        run.close()
+    expected = sdirk_R(-1.0, 4) * sdirk_R(-h2, 4)
+    np.testing.assert_allclose(states[-1], expected, rtol=32 * EPS)

@@ -1,0 +1,289 @@
+"""Unit tests of Newton's stop rule, cosserat_fem.newton.NewtonSolver._converged.
+
+The rule (module docstring of cosserat_fem/newton.py), with norms = (‖U‖, ‖δU_k‖, ‖F(U_k)‖):
+stop when ‖F‖ ≤ atol, or ‖F‖ ≤ rtol ‖F(U_0)‖, or ‖δU_k‖ ≤ stol ‖U‖ + xatol (the update
+test); with a reused Jacobian (lagged, frozen) also, from the second iteration on, when
+η_k ‖δU_k‖ ≤ stol ‖U‖ + xatol, η = ρ/(1 − ρ), ρ the larger of ‖δU_k‖/‖δU_{k−1}‖ and
+‖F_k‖/‖F_{k−1}‖ (ρ < 1 only).
+
+``_converged(snes, it, norms)`` reads only the solver's settings and its own running norms
+(‖F_0‖, ‖F_{k−1}‖, ‖δU_{k−1}‖), never the SNES it is given, so the constructed sequences are fed
+to it directly, on a real NewtonSolver (the smallest one: two DG0 unknowns on one cell, F =
+U∘U − g) with snes=None. Two real SNES solves then check that PETSc hands it the norms in the
+documented order and that a frozen-Jacobian solve stops where the documented rule, written out
+independently here, says it must.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import ufl
+from dolfinx import fem, mesh
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from cosserat_fem import jit
+from cosserat_fem.newton import NewtonSettings, NewtonSolver
+
+pytestmark = pytest.mark.unit
+
+R = PETSc.SNES.ConvergedReason
+ITERATING, ABS, REL, STEP = R.ITERATING, R.CONVERGED_FNORM_ABS, R.CONVERGED_FNORM_RELATIVE, \
+    R.CONVERGED_SNORM_RELATIVE
+NAN, MAX_IT = R.DIVERGED_FNORM_NAN, R.DIVERGED_MAX_IT
+DEFAULT = NewtonSettings()
+TOL = DEFAULT.stol * 1.0 + DEFAULT.xatol  # the step tolerance at ‖U‖ = 1 (1e-8 + 1e-13)
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _quiet_safe_jit():
+    before = jit.installed()
+    jit.install()
+    yield
+    if not before:
+        jit.uninstall()
+
+
+class Squares:
+    """F(U) = U∘U − g on two DG0 unknowns of a one-cell mesh (rows exactly U_i² − g_i)."""
+
+    def __init__(self, settings: NewtonSettings, g=(4.0, 9.0)):
+        msh = mesh.create_unit_interval(MPI.COMM_SELF, 1)
+        V = fem.VectorFunctionSpace(msh, ("DG", 0), dim=2)
+        self.U = fem.Function(V)
+        self.g = fem.Constant(msh, PETSc.ScalarType(g))
+        F = ufl.inner(ufl.elem_mult(self.U, self.U) - self.g, ufl.TestFunction(V)) * ufl.dx
+        self.solver = NewtonSolver(F, self.U, [], settings)
+
+
+@pytest.fixture(scope="module")
+def problem():
+    squares = Squares(NewtonSettings())
+    yield squares
+    squares.solver.destroy()
+
+
+def feed(solver: NewtonSolver, settings: NewtonSettings, norms) -> tuple[int, int]:
+    """(iteration, reason) at which the rule stops on the sequence ``norms`` of (‖U‖, ‖δU‖,
+    ‖F‖), iteration 0 first; (len, ITERATING) if it never stops."""
+    solver.settings = settings
+    for it, triple in enumerate(norms):
+        reason = solver._converged(None, it, triple)
+        if reason != ITERATING:
+            return it, reason
+    return len(norms), ITERATING
+
+
+def frozen(**changes) -> NewtonSettings:
+    return dataclasses.replace(DEFAULT, jacobian="frozen", **changes)
+
+
+def full(**changes) -> NewtonSettings:
+    return dataclasses.replace(DEFAULT, jacobian="full", **changes)
+
+
+# ---------------------------------------------------------------------- constructed sequences
+def test_quadratic_sequence_stops_by_the_update_test(problem):
+    """Full Newton, ‖U‖ = 1, updates 1e-1, 1e-2, 1e-4, 1e-8 (quadratic), residuals falling to
+    a round-off floor of 1e-6 (badly scaled rows: above rtol ‖F_0‖ = 1e-7 and atol): only the
+    update test can stop it, at iteration 4 where ‖δU‖ = 1e-8 ≤ 1e-8 + 1e-13. The same sequence
+    with the last update 1.1e-8 does not stop."""
+    norms = [(1.0, 0.0, 1e3), (1.0, 1e-1, 1e-2), (1.0, 1e-2, 1e-4), (1.0, 1e-4, 1e-6),
+             (1.0, 1e-8, 1e-6)]
+    assert feed(problem.solver, full(), norms) == (4, STEP)
+    norms[-1] = (1.0, 1.1e-8, 1e-6)
+    assert feed(problem.solver, full(), norms) == (5, ITERATING)
+
+
+def test_update_test_boundary(problem):
+    """‖δU‖ exactly stol ‖U‖ + xatol stops (≤), the next double above it does not; at
+    ‖U‖ = 3 the tolerance is 3e-8 + 1e-13 (relative part scales with ‖U‖)."""
+    st = full()
+    for x in (1.0, 3.0):
+        tol = st.stol * x + st.xatol
+        start = (x, 0.0, 1.0)
+        assert feed(problem.solver, st, [start, (x, tol, 0.5)]) == (1, STEP)
+        above = np.nextafter(tol, np.inf)
+        assert feed(problem.solver, st, [start, (x, above, 0.5)]) == (2, ITERATING)
+
+
+def test_linear_sequence_stops_by_the_error_estimate(problem):
+    """A reused Jacobian, contraction ρ = 0.1 in both updates and residuals, updates 5e-4,
+    5e-5, ..., 5e-8: the error estimate ρ/(1 − ρ) ‖δU‖ = 5.6e-9 ≤ 1e-8 stops it at iteration 5
+    (‖δU_5‖ = 5e-8 itself is 5x too large for the update test, which full Newton waits for:
+    iteration 6, 5e-9)."""
+    updates = [5e-4 * 0.1**k for k in range(6)]
+    residuals = [1e2 * 0.1**k for k in range(6)]
+    norms = [(1.0, 0.0, 1e3)] + [(1.0, y, f) for y, f in zip(updates, residuals, strict=True)]
+    assert feed(problem.solver, frozen(), norms) == (5, STEP)
+    lagged = dataclasses.replace(DEFAULT, jacobian="lagged")
+    assert feed(problem.solver, lagged, norms) == (5, STEP)
+    assert feed(problem.solver, full(), norms) == (6, STEP)
+
+
+def test_estimate_needs_a_second_iteration(problem):
+    """ρ_1 is not guessed: at iteration 1 only the update test applies, even with a reused
+    Jacobian and even right after a solve whose last updates were tiny (the running norms of
+    the previous solve must not stand in for ρ_1). ‖δU_1‖ = 2 tol: not stopped."""
+    previous = [(1.0, 0.0, 1.0), (1.0, 1e-3, 1e-2), (1.0, 1e-9, 1e-8)]
+    assert feed(problem.solver, frozen(), previous) == (2, STEP)
+    norms = [(1.0, 0.0, 1.0), (1.0, 2 * TOL, 1e-3)]
+    assert feed(problem.solver, frozen(), norms) == (2, ITERATING)
+
+
+@pytest.mark.parametrize(
+    ("updates", "residuals", "stop"),
+    [
+        # Update ratio 8e-5 (the update ratio alone: η‖δU‖ = 6.4e-4 tol, a stop), residual
+        # ratio 0.2: η = 0.25, η‖δU_2‖ = 2 tol, not stopped; at 3, ρ = 0.2, 0.4 tol: stopped.
+        ((1e-3, 8 * TOL, 1.6 * TOL), (1.0, 0.2, 0.04), 3),
+        # The mirror: residual ratio 1e-6, update ratio 0.5: η = 1, ‖δU_2‖ = 1.5 tol, not
+        # stopped; at 3, ‖δU_3‖ = 0.75 tol passes the update test itself (the residuals stay
+        # above rtol ‖F_0‖ = 1e-7).
+        ((3 * TOL, 1.5 * TOL, 0.75 * TOL), (1e2, 1e-4, 5e-5), 3),
+    ],
+    ids=["residual-ratio-0.2", "update-ratio-0.5"],
+)
+def test_contraction_is_the_larger_ratio(problem, updates, residuals, stop):
+    """ρ is the larger of the update and residual ratios (module docstring: the update ratio
+    alone read 1.5e-4 where the residual fell by 0.2 an iteration, and let the energy drift)."""
+    norms = [(1.0, 0.0, 1e3)] + [(1.0, y, f) for y, f in zip(updates, residuals, strict=True)]
+    assert feed(problem.solver, frozen(), norms) == (stop, STEP)
+    # Not earlier: the sequence cut after iteration 2 keeps iterating.
+    assert feed(problem.solver, frozen(), norms[:3]) == (3, ITERATING)
+
+
+def test_no_estimate_when_not_contracting(problem):
+    """ρ ≥ 1 (the updates grow by 1.5): η = ρ/(1 − ρ) would be negative and "stop" any
+    sequence; the rule requires ρ < 1, so only the update test can end it."""
+    norms = [(1.0, 0.0, 1.0), (1.0, 2 * TOL, 0.5), (1.0, 3 * TOL, 0.4), (1.0, 4.5 * TOL, 0.3)]
+    assert feed(problem.solver, frozen(), norms) == (4, ITERATING)
+
+
+def test_absolute_and_relative_residual_tests(problem):
+    """atol at iteration 0 (the initial guess solves it: no iteration at all) and later
+    (whatever the update); rtol relative to ‖F_0‖ of this solve; just above either: not."""
+    st = full()
+    assert feed(problem.solver, st, [(1.0, 0.0, st.atol)]) == (0, ABS)
+    assert feed(problem.solver, st, [(1.0, 0.0, 2 * st.atol)]) == (1, ITERATING)
+    assert feed(problem.solver, st, [(1.0, 0.0, 1.0), (1.0, 0.5, st.atol)]) == (1, ABS)
+    f0 = 1e3  # rtol ‖F_0‖ = 1e-7
+    assert feed(problem.solver, st, [(1.0, 0.0, f0), (1.0, 0.5, 1e-7)]) == (1, REL)
+    assert feed(problem.solver, st, [(1.0, 0.0, f0), (1.0, 0.5, 1.01e-7)]) == (2, ITERATING)
+    # A new solve starts from its own ‖F_0‖ (1e-3 now): 1e-7 is no longer small enough.
+    assert feed(problem.solver, st, [(1.0, 0.0, 1e-3), (1.0, 0.5, 1e-7)]) == (2, ITERATING)
+
+
+def test_absolute_update_part_for_tiny_states(problem):
+    """xatol: at ‖U‖ = 0 an update of xatol stops, 2 xatol does not; at ‖U‖ = 1.6e-8 (the
+    module docstring's thin rod) an update at the round-off floor, 3e-16, is 2e-8 of ‖U‖ and
+    would never meet stol ‖U‖ = 1.6e-16: with xatol = 0 the solve runs to max_iterations."""
+    st = full()
+    assert feed(problem.solver, st, [(0.0, 0.0, 1.0), (0.0, st.xatol, 0.5)]) == (1, STEP)
+    assert feed(problem.solver, st, [(0.0, 0.0, 1.0), (0.0, 2 * st.xatol, 0.5)]) == (
+        2, ITERATING)
+    stall = [(1.6e-8, 0.0, 1.0)] + [(1.6e-8, 3e-16, 1e-9)] * st.max_iterations
+    assert feed(problem.solver, st, stall) == (1, STEP)
+    assert feed(problem.solver, full(xatol=0.0), stall) == (st.max_iterations, MAX_IT)
+
+
+def test_nan_and_iteration_limit(problem):
+    """A NaN norm (‖F‖ or ‖δU‖) is DIVERGED_FNORM_NAN at once, at iteration 0 too; at
+    max_iterations the solve is DIVERGED_MAX_IT, one before it still iterates."""
+    nan = math.nan
+    assert feed(problem.solver, full(), [(1.0, 0.0, nan)]) == (0, NAN)
+    assert feed(problem.solver, full(), [(1.0, 0.0, 1.0), (1.0, nan, 0.5)]) == (1, NAN)
+    assert feed(problem.solver, frozen(), [(1.0, 0.0, 1.0), (1.0, 0.1, nan)]) == (1, NAN)
+    slow = [(1.0, 0.0, 1.0)] + [(1.0, 0.5, 0.9)] * 5
+    assert feed(problem.solver, full(max_iterations=5), slow) == (5, MAX_IT)
+    assert feed(problem.solver, full(max_iterations=6), slow) == (6, ITERATING)
+
+
+# ---------------------------------------------------------------------- real SNES solves
+def documented_rule(norms, st: NewtonSettings) -> int:
+    """The iteration at which the module docstring's rule stops, written out from it."""
+    f0 = norms[0][2]
+    if f0 <= st.atol:
+        return 0
+    for k in range(1, len(norms)):
+        x, y, f = norms[k]
+        tol = st.stol * x + st.xatol
+        if f <= st.atol or f <= st.rtol * f0 or y <= tol:
+            return k
+        if k >= 2 and st.jacobian != "full":
+            rho = max(y / norms[k - 1][1], f / norms[k - 1][2])
+            if rho < 1 and rho / (1 - rho) * y <= tol:
+                return k
+    return -1
+
+
+def recorded_solve(problem: Squares, start) -> list[tuple[int, tuple, np.ndarray, int]]:
+    """Solve from ``start``, recording (it, norms, iterate, reason) of every call of the rule
+    (the SNES calls it after evaluating F at the new iterate, which it holds as its solution)."""
+    solver, calls = problem.solver, []
+
+    def recording(snes, it, norms):
+        reason = solver._converged(snes, it, norms)
+        calls.append((it, tuple(norms), snes.getSolution().array.copy(), reason))
+        return reason
+
+    solver.snes.setConvergenceTest(recording)
+    try:
+        problem.U.x.array[:] = start
+        solver.solve()
+    finally:
+        solver.snes.setConvergenceTest(solver._converged)
+    return calls
+
+
+def test_snes_hands_the_norms_in_the_documented_order():
+    """Full Newton on U² = (4, 9) from (1, 1): at iteration k ≥ 1 the norms are (‖U_k‖,
+    ‖U_k − U_{k−1}‖, ‖U_k² − g‖) to round-off (1e-12 relative: norms of 2-vectors of O(1)
+    entries, the update read as a difference of iterates); at iteration 0 PETSc passes
+    (0, 0, ‖F_0‖). Measured: updates 4.3, 1.7, 0.38, 2.3e-2, 9.2e-5, 1.4e-9 (quadratic); the
+    last iterate is the root (2, 3) to ε, with ‖F‖ = 0 (so atol, tested first, ends it)."""
+    problem = Squares(NewtonSettings())
+    try:
+        calls = recorded_solve(problem, [1.0, 1.0])
+    finally:
+        problem.solver.destroy()
+    g = np.array([4.0, 9.0])
+    assert calls[0][0] == 0 and calls[0][1][2] == pytest.approx(np.linalg.norm(1.0 - g), rel=1e-14)
+    for (it, (x, y, f), u, _), (_, _, u_before, _) in zip(calls[1:], calls[:-1], strict=True):
+        assert it >= 1
+        assert x == pytest.approx(np.linalg.norm(u), rel=1e-12)
+        assert y == pytest.approx(np.linalg.norm(u - u_before), rel=1e-12, abs=1e-15)
+        assert f == pytest.approx(np.linalg.norm(u * u - g), rel=1e-12, abs=1e-14)
+    assert calls[-1][3] > 0 and all(c[3] == ITERATING for c in calls[:-1])
+    assert documented_rule([c[1] for c in calls], NewtonSettings()) == calls[-1][0]
+    np.testing.assert_allclose(problem.U.x.array, [2.0, 3.0], rtol=0, atol=4e-16 * 3)
+
+
+def test_frozen_jacobian_solve_stops_by_the_estimate():
+    """Modified Newton: the Jacobian of a first solve from (1.9, 2.9) (diag(3.8, 5.8)) is
+    reused, so iterations contract linearly, towards ρ = max |1 − 2u*/J| = 0.0526 (1 − 4/3.8;
+    the other unknown's 0.0345 fades; measured 0.023, 0.049, 0.050, 0.052); the
+    solve must stop at the first iteration the documented rule allows, which is before the
+    update test alone would (that is what the estimate is for), and the result must be within
+    the estimated error η ‖δU‖ ≤ stol ‖U‖ + xatol of the root (checked with 2x margin: η
+    bounds the remaining error only asymptotically)."""
+    st = frozen()
+    problem = Squares(st)
+    try:
+        calls = recorded_solve(problem, [1.9, 2.9])
+    finally:
+        problem.solver.destroy()
+    norms = [c[1] for c in calls]
+    stop = calls[-1][0]
+    assert calls[-1][3] == STEP
+    assert documented_rule(norms, st) == stop
+    assert stop >= 2
+    assert documented_rule(norms, full()) == -1  # the update test alone: not yet
+    ratios = [norms[k][1] / norms[k - 1][1] for k in range(2, len(norms))]
+    assert all(r < 0.06 for r in ratios) and abs(ratios[-1] - 0.2 / 3.8) < 0.005, ratios
+    error = np.linalg.norm(problem.U.x.array - [2.0, 3.0])
+    assert error <= 2 * (st.stol * np.linalg.norm([2.0, 3.0]) + st.xatol)
