@@ -133,7 +133,7 @@ def slender_scene(
 
 def tip_values(scene) -> tuple[np.ndarray, list[int], int]:
     result = static_path(scene, write_outputs=False)
-    tip = PointProbe(result.model.U, 1.0, LENGTH).values()
+    tip = PointProbe(result.model, 1.0).values()
     return tip, result.iterations, result.bisections
 
 

@@ -119,7 +119,7 @@ def modes_section() -> str:
 def rollup_gap(overrides) -> float:
     scene = load_scene(SCENES / "rollup.toml", overrides)
     result = static_path(scene, write_outputs=False)
-    tip = PointProbe(result.model.U, 1.0, result.model.length).values()
+    tip = PointProbe(result.model, 1.0).values()
     return math.hypot(tip[0], scene.rod.length + tip[2]) / scene.rod.length
 
 
@@ -175,7 +175,7 @@ def statics_section() -> str:
             [f"parameters.alpha={alpha}", "discretisation.elements=32"],
         )
         result = static_path(scene, write_outputs=False)
-        tip = PointProbe(result.model.U, 1.0, result.model.length).values()
+        tip = PointProbe(result.model, 1.0).values()
         rod = rod_constants(scene)
         s = rod.section
         EI = rod.young_modulus * s.c22

@@ -201,7 +201,7 @@ def _static(args) -> int:
 
     scene = load_scene(args.scene, args.overrides)
     result = static_path(scene, args.out)
-    probe = PointProbe(result.model.U, probe_sigma(scene), result.model.length)
+    probe = PointProbe(result.model, probe_sigma(scene))
     tip = MPI.COMM_WORLD.bcast(probe.values(), root=probe.owner)
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         print(

@@ -27,7 +27,7 @@ class EnergyMonitor:
     def __init__(self, model: RodModel):
         self.model = model
         self.tau = fem.Constant(model.msh, PETSc.ScalarType(0.0))
-        U, rod, dx = model.full(model.U), model.rod, model.dx
+        U, rod, dx = model.layout.full(model.U), model.rod, model.dx
         self._T = fem.form(kinetic_energy_density(U, rod) * dx)
         self._V = fem.form(strain_energy_density(U, rod) * dx)
         distributed, ends = model.load_vectors(self.tau)

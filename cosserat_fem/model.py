@@ -36,18 +36,18 @@ from .forms.general_form import (
 from .forms.groups import Groups, RodConstants, dimensionless_groups
 from .forms.kinematics import P_NAMES
 from .forms.section import Section
+from .layout import FULL, Layout
 from .parallel import agree
 from .scene import PLANAR, Scene
 
 START_TAG, END_TAG = 1, 2
 #: The components of U = (p, q) a pinned end holds: x, y, z, φ and their rates.
 PINNED_COMPONENTS = (0, 1, 2, 5, 6, 7, 8, 11)
-#: The unknowns solved: all twelve, or those of motion in one plane: x-z, (x, z, ψ) and their
-#: rates (y = θ = φ = 0 is an invariant set of (65) when no load, support or initial state
-#: leaves the plane: every y, θ, φ row of F vanishes there), or y-z, (y, z, θ) and their rates
-#: (x = ψ = φ = 0 likewise; θ carries the bending, so the chart limit |θ| < π/2 applies);
-#: tests/test_planar.py; the components of each plane: scene.PLANAR.
-FULL = tuple(range(12))
+# The unknowns solved (the model's Layout): all twelve, or those of motion in one plane: x-z,
+# (x, z, ψ) and their rates (y = θ = φ = 0 is an invariant set of (65) when no load, support or
+# initial state leaves the plane: every y, θ, φ row of F vanishes there), or y-z, (y, z, θ) and
+# their rates (x = ψ = φ = 0 likewise; θ carries the bending, so the chart limit |θ| < π/2
+# applies); tests/test_planar.py; the components of each plane: scene.PLANAR.
 
 
 def _drop_build_chatter(record: logging.LogRecord) -> bool:
@@ -109,41 +109,12 @@ class RodModel:
     skipped: list[str]
     load_factor: fem.Constant
     motions: list[SupportMotion] = field(default_factory=list)
-    components: tuple[int, ...] = FULL  # the components of (p, q) that U holds, in order
+    layout: Layout = field(default_factory=Layout)  # the components of (p, q) U holds
 
     @property
-    def reduced(self) -> bool:
-        return self.components != FULL
-
-    def index(self, component: int) -> int | None:
-        """Position in U's blocks of full component ``component`` (None if not solved)."""
-        return self.components.index(component) if component in self.components else None
-
-    def full(self, u) -> ufl.core.expr.Expr:
-        """The 12-component (p, q) of a UFL vector of U's layout (zeros where not solved)."""
-        if not self.reduced:
-            return u
-        return ufl.as_vector([u[self.index(i)] if i in self.components else 0.0 for i in FULL])
-
-    def own_layout(self, state: np.ndarray) -> np.ndarray:
-        """A state array in U's layout from one of all 12 components at each node (a reduced
-        state cannot be told x-z from y-z by its size: :meth:`full_array` it first)."""
-        nodes = self.U.x.array.size // len(self.components)
-        if np.size(state) != nodes * 12:
-            raise ValueError(
-                f"initial state: {np.size(state)} values, expected 12 per node ({nodes * 12}); "
-                "embed a planar model's U with RodModel.full_array"
-            )
-        return np.asarray(state).reshape(nodes, 12)[:, self.components].ravel()
-
-    def full_array(self, state: np.ndarray) -> np.ndarray:
-        """(nodes, 12) values of a state array of U's layout."""
-        blocks = state.reshape(-1, len(self.components))
-        if not self.reduced:
-            return blocks
-        out = np.zeros((blocks.shape[0], 12))
-        out[:, self.components] = blocks
-        return out
+    def nodes(self) -> int:
+        """Lagrange nodes of this rank (owned and ghost): blocks of U's array."""
+        return self.U.x.array.size // self.layout.size
 
     @property
     def omega0(self) -> float:
@@ -253,10 +224,9 @@ class RodModel:
     def residual(self, U_eval, Udot_eval, time_eval) -> ufl.Form:
         """The weak residual (65) at (U_eval, Udot_eval) of U's layout, loads at τ = time_eval
         (a reduced U is embedded in the 12 components, tested by its own components only)."""
-        test = self.full(ufl.TestFunction(self.V))
-        return self.residual_terms(
-            self.full(U_eval), self.full(Udot_eval), time_eval, test=test
-        ).total()
+        full = self.layout.full
+        test = full(ufl.TestFunction(self.V))
+        return self.residual_terms(full(U_eval), full(Udot_eval), time_eval, test=test).total()
 
     def load_vectors(self, time_eval) -> tuple[DistributedLoads, tuple[EndLoads, ...]]:
         """The scene's loads at τ = time_eval as UFL vectors (absent ones are None)."""
@@ -334,7 +304,7 @@ class RodModel:
                     f"s = {x[node]:.4g} m"
                 )
             agree(self.msh.comm, problem)
-            U.x.array[:] = state[:, self.components].reshape(-1)
+            U.x.array[:] = state[:, list(self.layout.components)].reshape(-1)
         return U.x.array
 
 
@@ -378,7 +348,6 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     element = ufl.VectorElement("Lagrange", cell, disc.degree, dim=len(components))
     V = fem.FunctionSpace(msh, element)
     U = fem.Function(V, name="U")
-    U.rod_components = components  # its layout, for readers such as output.PointProbe
 
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
@@ -422,5 +391,5 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
         skipped=skipped,
         load_factor=fem.Constant(msh, PETSc.ScalarType(1.0)),
         motions=motions,
-        components=components,
+        layout=Layout(components),
     )

@@ -238,7 +238,7 @@ def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WO
         from .statics import solve_static
 
         static, _ = solve_static(scene, comm)
-        base = static.full_array(static.U.x.array).ravel()  # a planar solve, embedded
+        base = static.layout.full_array(static.U.x.array).ravel()  # a planar solve, embedded
         model = build_model(scene, comm, planar=False)  # the modes leave the plane too
     elif about == "undeformed":
         model, base = build_model(scene, comm, planar=False), None

@@ -40,23 +40,16 @@ PROBE_HEADER = ("t", *P_NAMES)
 _ROW_FORMAT = "%.10e," + ",".join(["%.16e"] * (len(PROBE_HEADER) - 1)) + "\n"
 
 
-def p_layout(U: fem.Function) -> tuple[np.ndarray, np.ndarray]:
-    """(positions in U's blocks, components of p = (x/ℓ, y/ℓ, z/ℓ, θ, ψ, φ)) of the p values U
-    holds: U's blocks are (p, q) in full, or the components ``U.rod_components`` of a reduced
-    (planar) model, cosserat_fem.model."""
-    bs = U.function_space.dofmap.index_map_bs
-    components = getattr(U, "rod_components", None) or tuple(range(bs))
-    slots = [j for j, i in enumerate(components) if i < 6]
-    return np.array(slots, dtype=int), np.array([components[j] for j in slots], dtype=int)
-
-
 class PointProbe:
-    """Evaluates (x, y, z, θ, ψ, φ) in SI units at σ = ``sigma`` on its owning rank."""
+    """Evaluates (x, y, z, θ, ψ, φ) in SI units [m, rad] at σ = ``sigma`` of a model's rod, on
+    its owning rank (the components of p the model does not solve are 0)."""
 
-    def __init__(self, U: fem.Function, sigma: float, length: float):
+    def __init__(self, model: RodModel, sigma: float, U: fem.Function | None = None):
+        """``U``: the Function read (default ``model.U``), of the model's space and layout."""
+        U = model.U if U is None else U
         msh = U.function_space.mesh
         self.U = U
-        self.length = length
+        self.length = model.length
         self.sigma = sigma
         self.point = np.array([[sigma, 0.0, 0.0]])
         tree = geometry.BoundingBoxTree(msh, msh.topology.dim)
@@ -70,9 +63,11 @@ class PointProbe:
         if self.owner == comm.size:
             raise RuntimeError(f"probe point σ = {sigma} lies outside the mesh")
         self.cell = owned[0] if (owned and comm.rank == self.owner) else None
-        self._scale = np.array([length, length, length, 1.0, 1.0, 1.0])
-        self._slots, self._p = p_layout(U)
-        self._scale = self._scale[self._p]
+        layout = model.layout
+        self._bs = layout.size
+        self._slots = np.arange(layout.p_count)
+        self._p = np.array(layout.components[: layout.p_count], dtype=int)
+        self._scale = layout.si_scale(model.length, model.omega0)[: layout.p_count]
         # Fast path: a probe on a node of the Lagrange space reads that node's values.
         self._node = None
         if self.cell is not None:
@@ -91,7 +86,7 @@ class PointProbe:
         if self.cell is None:
             return None
         if self._node is not None:
-            bs = self.U.function_space.dofmap.index_map_bs
+            bs = self._bs
             block = self.U.x.array[bs * self._node : bs * (self._node + 1)]
         else:
             block = self.U.eval(self.point, np.array([self.cell], dtype=np.int32))
@@ -228,7 +223,7 @@ FIELD_ARRAYS: dict[str, tuple[str, ...]] = {
 def _field_expressions(U, model: RodModel, fields: tuple[str, ...]) -> list[tuple[str, object]]:
     """(array name, UFL 3-vector) of the requested fields of ``U`` (in the model's layout);
     see :class:`XdmfWriter`."""
-    U = model.full(U)  # a planar model's unknowns in the 12 components (zeros out of plane)
+    U = model.layout.full(U)  # a planar model's unknowns in the 12 components (zeros elsewhere)
     tau = model.scene.damping.retardation_time  # n, m with their Kelvin–Voigt parts
     res = resultants(U, model.rod, tau) if {"strains", "forces"} & set(fields) else None
     ell = model.length
@@ -706,9 +701,12 @@ class _XdmfDocument:
 
 
 class LineSampler:
-    """Samples (x, y, z, θ, ψ, φ) in SI units at many σ points; results gathered on rank 0."""
+    """Samples (x, y, z, θ, ψ, φ) in SI units at many σ points of a model's rod; results
+    gathered on rank 0 (the components of p the model does not solve are 0)."""
 
-    def __init__(self, U: fem.Function, sigmas: np.ndarray, length: float):
+    def __init__(self, model: RodModel, sigmas: np.ndarray, U: fem.Function | None = None):
+        """``U``: the Function read (default ``model.U``), of the model's space and layout."""
+        U = model.U if U is None else U
         msh = U.function_space.mesh
         self.U = U
         self.sigmas = np.asarray(sigmas, dtype=float)
@@ -731,16 +729,17 @@ class LineSampler:
         self._mine = np.flatnonzero(owner == comm.rank)
         self._points = pts[self._mine]
         self._cells = cells[self._mine]
-        self._scale = np.array([length] * 3 + [1.0] * 3)
+        layout = model.layout
+        self._p = np.array(layout.components[: layout.p_count], dtype=int)
+        self._scale = layout.si_scale(model.length, model.omega0)[: layout.p_count]
         self.comm = comm
 
     def sample(self) -> np.ndarray | None:
         """Array (len(sigmas), 6) on rank 0, None elsewhere."""
         local = np.zeros((len(self.sigmas), 6))
         if len(self._mine):
-            slots, p = p_layout(self.U)
             values = self.U.eval(self._points, self._cells)
-            local[np.ix_(self._mine, p)] = values[:, slots] * self._scale[p]
+            local[np.ix_(self._mine, self._p)] = values[:, : len(self._p)] * self._scale
         total = np.zeros_like(local) if self.comm.rank == 0 else None
         self.comm.Reduce(local, total, op=MPI.SUM, root=0)
         return total

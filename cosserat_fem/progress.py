@@ -88,7 +88,9 @@ def summary_screen(summary: dict, out_dir) -> str:
     wall, newton = summary["wall_time_s"], summary["newton"]
     accepted = summary.get("accepted_steps") or summary["steps"]
     per_step = newton["iterations"] / max(accepted, 1)
-    positions = [u for u in summary["solved_unknowns"] if "/" not in u]
+    from .forms.kinematics import P_NAMES  # here: the CLI imports this module for every command
+
+    positions = [u for u in summary["solved_unknowns"] if u in P_NAMES]
     lines = [
         f"cosserat-fem: {summary['status']}: t = {summary['time_reached_s']:.6g} s in "
         f"{summary['steps']} output steps ({accepted} steps taken, "

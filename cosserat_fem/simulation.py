@@ -27,7 +27,6 @@ from . import __version__, budget
 from .adaptive import SHRINK, StateHistory, StepController
 from .checkpoint import Checkpoint, CheckpointWriter, check_outputs, cut_outputs
 from .errors import LimitReached, OutputError, SceneError, SolverError, StopError
-from .forms.kinematics import P_NAMES
 from .integrators import GeneralizedAlpha, make_integrator
 from .model import RodModel, build_model
 from .newton import NewtonFailure, NewtonSettings, NewtonSolver
@@ -46,7 +45,6 @@ from .run_folder import (
 from .scene import Scene
 
 CHART_COS_MIN = 1e-2
-UNKNOWN_NAMES = (*P_NAMES, *(f"d{n}/dtau" for n in P_NAMES))  # of (p, q)
 Observer = Callable[[int, float, RodModel], None]
 
 
@@ -105,10 +103,10 @@ def cos_theta(model: RodModel, state: np.ndarray) -> np.ndarray:
     """cos θ at the owned nodes of a state array (det Ma = cos θ, (66); 1 if θ ≡ 0 is not
     solved for)."""
     n = model.V.dofmap.index_map.size_local
-    theta = model.index(3)
+    theta = model.layout.index(3)
     if theta is None:
         return np.ones(n)
-    return np.cos(state.reshape(-1, len(model.components))[:n, theta])
+    return np.cos(state.reshape(-1, model.layout.size)[:n, theta])
 
 
 def check_state(
@@ -119,7 +117,7 @@ def check_state(
     (``before``, from :func:`cos_theta` or an earlier call), if θ crossed ±π/2 at some node
     since then (cos θ changed sign: a step jumped over the singularity, through which no
     continuous motion passes, det Ma = cos θ (66)). Returns cos θ of U at the owned nodes."""
-    blocks = model.U.x.array.reshape(-1, len(model.components))
+    blocks = model.U.x.array.reshape(-1, model.layout.size)
     n = model.V.dofmap.index_map.size_local
     cos_now = cos_theta(model, model.U.x.array)
     # One number and (in parallel) one reduction per step: the smallest |cos θ|; −0.5 if θ
@@ -157,7 +155,7 @@ def check_state(
             suggestion=CHART_SUGGESTION,
             retry=True,
         )
-    cos_all = np.cos(model.full_array(model.U.x.array)[:, 3])
+    cos_all = np.cos(model.layout.full_array(model.U.x.array)[:, 3])
     s, _ = _worst_place(model, 1.0 / np.maximum(np.abs(cos_all), 1e-300))
     raise SolverError(
         time=t,
@@ -262,7 +260,7 @@ class _Stepper:
             self._cos_candidate = check_state(self.model, t_new, before=self.cos_accepted)
         except NewtonFailure as exc:
             self._blame_loads(t_new)
-            blocks = len(self.model.components)
+            blocks = self.model.layout.size
             residual = np.abs(self.solver.b.array.reshape(-1, blocks)).max(axis=1)
             s, _ = _worst_place(self.model, residual)
             reason = f"Newton did not converge ({exc.reason}, {exc.iterations} iterations)"
@@ -439,9 +437,9 @@ def _adaptive_loop(
     start + k time.step by interpolation. ``resume``: a checkpoint's parts to continue from."""
     model, solver = stepper.model, stepper.solver
     order = stepper.integrator.order
-    bs = model.V.dofmap.index_map_bs
-    n_owned = model.V.dofmap.index_map.size_local * bs
-    # The error of p (the first half of each block) is controlled, not that of the rates q
+    layout = model.layout
+    n_owned = model.V.dofmap.index_map.size_local * layout.size
+    # The error of p (the first entries of each block) is controlled, not that of the rates q
     # (cosserat_fem.adaptive).
     control = StepController(
         tspan.rtol,
@@ -449,8 +447,8 @@ def _adaptive_loop(
         order,
         model.msh.comm,
         n_owned,
-        block=bs,
-        controlled=slice(0, bs // 2),
+        block=layout.size,
+        controlled=slice(0, layout.p_count),
         counted=6,  # the six fields of p, also when a planar model solves three of them
     )
     history = StateHistory(capacity=order + 2)
@@ -553,9 +551,9 @@ def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: 
 def _leaves_plane(model: RodModel, state: np.ndarray) -> bool:
     """Whether a planar model was given a 12-component state with an out-of-plane component
     (y, θ, φ for x-z; x, ψ, φ for y-z) or a rate of one non-zero (collective)."""
-    nodes = model.U.x.array.size // len(model.components)
-    full = model.reduced and np.size(state) == 12 * nodes
-    out = [i for i in range(12) if i not in model.components]
+    nodes, layout = model.nodes, model.layout
+    full = layout.reduced and np.size(state) == 12 * nodes
+    out = [i for i in range(12) if i not in layout.components]
     local = full and bool(np.any(np.asarray(state).reshape(nodes, 12)[:, out] != 0.0))
     return model.msh.comm.allreduce(local, op=MPI.LOR)
 
@@ -608,7 +606,7 @@ def run(
     if restart is not None:
         model.U.x.array[:] = restart.parts["state"]["U"]
     elif initial_state is not None:
-        model.U.x.array[:] = model.own_layout(initial_state)
+        model.U.x.array[:] = model.layout.from_full(initial_state, model.nodes)
     elif scene.initial.fields():
         model.U.x.array[:] = model.initial_state()
     omega0 = model.omega0
@@ -627,7 +625,7 @@ def run(
     elif isinstance(integrator, GeneralizedAlpha):
         _consistent_rate(integrator, model, solver.lu_package)
 
-    probe = PointProbe(model.U, probe_sigma(scene), model.length)
+    probe = PointProbe(model, probe_sigma(scene))
     summary = {
         "status": "running",
         "run_id": restart.run_id if restart is not None else new_run_id(comm),
@@ -645,7 +643,7 @@ def run(
         "restarted_from_s": restart.time if restart is not None else None,
         "restarts": restart.restart_number if restart is not None else 0,
         "skipped_terms": model.skipped,
-        "solved_unknowns": [UNKNOWN_NAMES[i] for i in model.components],
+        "solved_unknowns": list(model.layout.names),
         "groups": model.groups.as_dict(),
         "python": platform.python_version(),
         "scene": scene.to_dict(),

@@ -94,7 +94,7 @@ def static_path(
         claim(out, comm, scene.output.xdmf, summary)
         try:
             probes = ProbeWriter(
-                out / PROBES, PointProbe(model.U, probe_sigma(scene), model.length)
+                out / PROBES, PointProbe(model, probe_sigma(scene))
             )
             probes.write(0.0)
             if scene.output.xdmf:

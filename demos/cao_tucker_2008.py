@@ -108,7 +108,7 @@ sampler: LineSampler | None = None
 def sample_fields(step: int, t: float, model) -> None:
     global sampler
     if sampler is None:
-        sampler = LineSampler(model.U, stations, model.length)
+        sampler = LineSampler(model, stations)
         values = sampler.sample()  # the initial state (at rest)
         if comm.rank == 0:
             frames_t.append(scene.time.start)

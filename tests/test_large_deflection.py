@@ -36,7 +36,7 @@ def tip_after(scene_path, overrides):
     scene = load_scene(scene_path, overrides)
     result = static_path(scene, write_outputs=False)
     assert result.load_factors[-1] == 1.0
-    return scene, PointProbe(result.model.U, 1.0, result.model.length).values()
+    return scene, PointProbe(result.model, 1.0).values()
 
 
 def rollup_gap(overrides) -> tuple[float, float]:

@@ -124,7 +124,7 @@ def test_out_of_plane_scenes_are_not_reduced(tmp_path):
     bent = load_scene(PAPER, ["loads.force_density=[0, 0, 0]", "loads.end.force=[0, 1e3, 0]"])
     static = static_path(bent, write_outputs=False).model
     assert static.scene.plane() == "y-z"  # solved in y-z, handed over in all 12 components
-    state = static.full_array(static.U.x.array).ravel().copy()
+    state = static.layout.full_array(static.U.x.array).ravel().copy()
     sets = ["loads.force_density=[0, 0, 0]", "output.xdmf=false", "time.end=3e-4"]
     summary = run(load_scene(PAPER, sets), tmp_path, initial_state=state).summary
     assert len(summary["solved_unknowns"]) == 12
@@ -143,8 +143,8 @@ def test_planar_statics_equal_the_full_solve():
         for planar in ("auto", "off"):
             scene = load_scene(path, [*sets, f"discretisation.planar={planar!r}"])
             result = static_path(scene, write_outputs=False)
-            assert result.model.reduced == (planar == "auto")
-            tips[planar] = PointProbe(result.model.U, 1.0, result.model.length).values()
+            assert result.model.layout.reduced == (planar == "auto")
+            tips[planar] = PointProbe(result.model, 1.0).values()
         assert np.abs(tips["auto"] - tips["off"]).max() <= 1e-12 * np.abs(tips["off"]).max()
         if expected is not None:
             assert tips["auto"][angle] == pytest.approx(expected, rel=1e-6)  # ψ(ℓ) = 2π

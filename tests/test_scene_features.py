@@ -164,7 +164,7 @@ def test_pinned_pinned_spectrum():
 
 def static_probe(sc, sigma: float) -> np.ndarray:
     model, _ = solve_static(sc)
-    probe = PointProbe(model.U, sigma, model.length)
+    probe = PointProbe(model, sigma)
     return probe.values()
 
 

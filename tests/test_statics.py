@@ -33,7 +33,7 @@ TOL = 1e-8
 def tip(overrides: list[str]) -> np.ndarray:
     """(x, y, z, θ, ψ, φ) at s = ℓ, SI units."""
     model, _ = solve_static(load_scene(SCENE, BASE + overrides))
-    return PointProbe(model.U, 1.0, model.length).values()
+    return PointProbe(model, 1.0).values()
 
 
 @pytest.fixture(scope="module")

@@ -104,7 +104,7 @@ def solve(degree, elements, quadrature="auto", alpha=ALPHA, load_steps=1):
     """(tip x / Timoshenko's linear value, Newton iterations per load step, tip values)."""
     problem = scene(degree, elements, quadrature, alpha, load_steps)
     result = static_path(problem, write_outputs=False)
-    tip = PointProbe(result.model.U, 1.0, LENGTH).values()
+    tip = PointProbe(result.model, 1.0).values()
     linear = tip_deflection_end_force(BEAM, alpha * BEAM.EI / LENGTH**2)
     return tip[0] / linear, result.iterations, tip
 
