@@ -25,7 +25,7 @@ test: setup lint
 unit: setup
 	$(PY) -m pytest -q tests/unit
 
-## Regenerate docs/verification.md (modes, large deflections, orders, energy; a few minutes).
+## Regenerate docs/verification.md (modes, large deflections, orders, energy; 15-20 s here).
 verify: setup
 	$(PY) benchmarks/verify.py
 

@@ -49,7 +49,8 @@ import ufl
 from dolfinx import fem
 from dolfinx.fem.petsc import assemble_matrix
 
-from cosserat_fem import adaptive, newton, simulation
+from cosserat_fem import adaptive
+from cosserat_fem.events import Observer
 from cosserat_fem.integrators import make_integrator
 from cosserat_fem.model import build_model, rod_constants
 from cosserat_fem.output import PointProbe
@@ -131,8 +132,28 @@ def slender_scene(
     )
 
 
-def tip_values(scene) -> tuple[np.ndarray, list[int], int]:
-    result = static_path(scene, write_outputs=False)
+class NewtonLog(Observer):
+    """Every Newton iteration's norms and SNES reason (the newton_iteration event)."""
+
+    def __init__(self):
+        self.rows: list[tuple] = []
+
+    def newton_iteration(self, loop, it, norms, reason) -> None:
+        self.rows.append((it, *norms, reason))
+
+
+class AcceptedTimes(Observer):
+    """The end times [s] of the accepted steps (the step_accepted event)."""
+
+    def __init__(self):
+        self.times: list[float] = []
+
+    def step_accepted(self, loop) -> None:
+        self.times.append(loop.state.t)
+
+
+def tip_values(scene, observers=()) -> tuple[np.ndarray, list[int], int]:
+    result = static_path(scene, write_outputs=False, observers=observers)
     tip = PointProbe(result.model, 1.0).values()
     return tip, result.iterations, result.bisections
 
@@ -261,64 +282,55 @@ def part_slender(report: Report, quick: bool) -> None:
     # -- Newton ----------------------------------------------------------------------------
     report("### Newton at ℓ/a = 1000")
     report()
-    log: list[tuple] = []
-    original = newton.NewtonSolver._converged
-
-    def logged(self, snes, it, norms):
-        reason = original(self, snes, it, norms)
-        log.append((it, *norms, reason))
-        return reason
-
-    newton.NewtonSolver._converged = logged
-    try:
-        for degree, n in ((2, 16), (3, 8)):
-            log.clear()
-            tip_values(slender_scene(degree, n, "auto", (P, 0, 0)))
-            report(
-                f"Small load (α = {alpha:g}), P{degree} × {n}, full Newton from the straight rod:"
-            )
-            report()
-            report.table(
-                ["iteration", "‖U‖", "‖δU‖/‖U‖", "‖F‖", "SNES reason"],
-                [
-                    [it, f"{x:.3e}", f"{(y / x if x else 0):.1e}", f"{f:.2e}", r]
-                    for it, x, y, f, r in log
-                ],
-            )
-        rows = []
-        sides = (4e-2, 1e-3) if quick else (4e-2, 4e-3, 2e-3, 1e-3)
-        for side in sides:
-            EI = YOUNG * side**4 / 12
-            for steps in (20, 40, 80):
-                log.clear()
-                scene = slender_scene(4, 16, "auto", (10.0 * EI, 0, 0), side, steps)
-                _, its, bisections = tip_values(scene)
-                relative = sum(1 for row in log if row[-1] == 3)
-                rows.append(
-                    [
-                        f"{LENGTH / side:.0f}",
-                        steps,
-                        sum(its),
-                        max(its),
-                        bisections,
-                        relative,
-                    ]
-                )
-        report("Elastica α = 10, P4 × 16, full Newton, secant predictor:")
+    newton_log = NewtonLog()
+    log = newton_log.rows
+    # The Newton iterations, observed through the newton_iteration event.
+    for degree, n in ((2, 16), (3, 8)):
+        log.clear()
+        tip_values(slender_scene(degree, n, "auto", (P, 0, 0)), (newton_log,))
+        report(
+            f"Small load (α = {alpha:g}), P{degree} × {n}, full Newton from the straight rod:"
+        )
         report()
         report.table(
+            ["iteration", "‖U‖", "‖δU‖/‖U‖", "‖F‖", "SNES reason"],
             [
-                "ℓ/a",
-                "load steps",
-                "Newton its",
-                "most in a step",
-                "bisections",
-                "solves ended by ‖F‖ ≤ rtol ‖F0‖",
+                [it, f"{x:.3e}", f"{(y / x if x else 0):.1e}", f"{f:.2e}", r]
+                for it, x, y, f, r in log
             ],
-            rows,
         )
-    finally:
-        newton.NewtonSolver._converged = original
+    rows = []
+    sides = (4e-2, 1e-3) if quick else (4e-2, 4e-3, 2e-3, 1e-3)
+    for side in sides:
+        EI = YOUNG * side**4 / 12
+        for steps in (20, 40, 80):
+            log.clear()
+            scene = slender_scene(4, 16, "auto", (10.0 * EI, 0, 0), side, steps)
+            _, its, bisections = tip_values(scene, (newton_log,))
+            relative = sum(1 for row in log if row[-1] == 3)
+            rows.append(
+                [
+                    f"{LENGTH / side:.0f}",
+                    steps,
+                    sum(its),
+                    max(its),
+                    bisections,
+                    relative,
+                ]
+            )
+    report("Elastica α = 10, P4 × 16, full Newton, secant predictor:")
+    report()
+    report.table(
+        [
+            "ℓ/a",
+            "load steps",
+            "Newton its",
+            "most in a step",
+            "bisections",
+            "solves ended by ‖F‖ ≤ rtol ‖F0‖",
+        ],
+        rows,
+    )
 
     rows = []
     for side in (4e-2, 1e-3):
@@ -463,20 +475,10 @@ def timed(scene, out: Path, repeats: int) -> tuple[np.ndarray, dict, float, floa
 
 
 def step_profile(scene) -> np.ndarray:
-    """Accepted step end times of an adaptive run (the stepper's accept, wrapped)."""
-    times: list[float] = []
-    original = simulation._Stepper.accept
-
-    def accept(self, t_new):
-        times.append(t_new)
-        original(self, t_new)
-
-    simulation._Stepper.accept = accept
-    try:
-        run(scene, write_outputs=False)
-    finally:
-        simulation._Stepper.accept = original
-    return np.array(times)
+    """Accepted step end times of an adaptive run (the step_accepted event)."""
+    accepted = AcceptedTimes()
+    run(scene, write_outputs=False, observers=(accepted,))
+    return np.array(accepted.times)
 
 
 def adaptive_overhead(report: Report, ref: np.ndarray, repeats: int) -> None:

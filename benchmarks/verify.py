@@ -2,9 +2,13 @@
 
     make verify        (or: .venv/bin/python benchmarks/verify.py)
 
-Every number in the report comes from this script (a few minutes on two cores); the test suite
-asserts the same quantities with tolerances (tests/test_modes.py, test_large_deflection.py,
-test_mms.py, test_energy.py). Log-log plots go to docs/figures/ (generated, not committed).
+Every number in the report comes from this script (15-20 s on the two-core development machine,
+measured twice with `time make verify`); the test suite asserts the same quantities with
+tolerances (tests/test_modes.py, test_large_deflection.py, test_mms.py, test_energy.py).
+Log-log plots go to docs/figures/ (generated, not committed).
+The settings of every study are the constants below, and the report states them (meshes,
+steps, the default discretisation read from the scene): tests/test_verification_report.py
+checks the committed report against them without re-running anything.
 """
 
 from __future__ import annotations
@@ -21,8 +25,8 @@ import numpy as np  # noqa: E402
 
 from cosserat_fem.energy import EnergyMonitor  # noqa: E402
 from cosserat_fem.mms import run_mms  # noqa: E402
+from cosserat_fem.modal import compute_modes  # noqa: E402
 from cosserat_fem.model import rod_constants  # noqa: E402
-from cosserat_fem.modes import compute_modes  # noqa: E402
 from cosserat_fem.output import PointProbe  # noqa: E402
 from cosserat_fem.reference.elastica import (  # noqa: E402
     MATTIASSON_1981,
@@ -39,6 +43,27 @@ SCENES = ROOT / "scenes"
 DOC = ROOT / "docs" / "verification.md"
 FIGURES = ROOT / "docs" / "figures"
 WORK = ROOT / "benchmarks" / "results" / "verify"
+
+# The studies' settings (tests/test_verification_report.py reads them).
+PAPER = SCENES / "cao_tucker_2008.toml"
+MODES_COUNT = 12
+MODES_MESHES = {2: (8, 16, 32), 3: (8, 16, 32), 4: (8, 16, 32)}  # degree: elements
+ROLLUP_MESHES = {3: (8, 16, 32), 4: (8, 16, 32)}
+TWO_TURNS_ELEMENTS = 40  # at the roll-up scene's degree
+TWO_TURNS_LOAD_STEPS = 32
+ELASTICA_ELEMENTS = 32  # at the elastica scene's degree
+MMS_SPACE_MESHES = {1: (4, 8, 16, 32), 2: (4, 8, 16, 32), 3: (4, 8, 16, 32)}
+MMS_SPACE_TAU, MMS_SPACE_STEPS = 0.5, 5
+MMS_TIME_DEGREE, MMS_TIME_ELEMENTS = 4, 16
+MMS_TIME_TAU, MMS_TIME_STEPS = 2.0, (10, 20, 40, 80)
+ENERGY_STEPS = (4e-5, 2e-5, 1e-5)  # s
+ENERGY_END = 0.01  # s
+DEGREE_NAMES = {1: "linear", 2: "quadratic", 3: "cubic", 4: "quartic", 5: "quintic"}
+
+
+def elements_phrase(elements: int, degree: int) -> str:
+    """'8 cubic elements': how the report names a mesh (the test parses it back)."""
+    return f"{elements} {DEGREE_NAMES[degree]} elements"
 
 
 def order(a: float, b: float, ratio: float = 2.0) -> float:
@@ -62,15 +87,17 @@ def loglog(name: str, series: dict[str, tuple[list, list]], xlabel: str, ylabel:
 
 # ----------------------------------------------------------------------------------- modes
 def modes_section() -> str:
-    paper = SCENES / "cao_tucker_2008.toml"
+    paper = PAPER
     scene = load_scene(paper)
-    _, modes = compute_modes(scene, 12)
-    ref = linear_spectrum(scene, 12)
+    mesh = scene.discretisation
+    _, modes = compute_modes(scene, MODES_COUNT)
+    ref = linear_spectrum(scene, MODES_COUNT)
     lines = [
         "## 1. Natural frequencies of the paper's cantilever",
         "",
-        "`cosserat-fem modes scenes/cao_tucker_2008.toml --count 12` at the scene's default "
-        "discretisation (8 cubic elements) against the closed forms of the linearised rod "
+        f"`cosserat-fem modes scenes/cao_tucker_2008.toml --count {MODES_COUNT}` at the "
+        f"scene's default discretisation ({elements_phrase(mesh.elements, mesh.degree)}) "
+        "against the closed forms of the linearised rod "
         "(Timoshenko frequency equation with shear and rotary inertia in each bending plane; "
         "axial and torsional bars, the latter with I33 = ρ(c11 + c22)).",
         "",
@@ -83,18 +110,18 @@ def modes_section() -> str:
     series = {}
     rows = [
         "",
-        "Largest relative error of the 12 frequencies against the number of elements:",
+        f"Largest relative error of the {MODES_COUNT} frequencies against the number of elements:",
         "",
         "| degree | elements | dofs | max error | order |",
         "|---|---|---|---|---|",
     ]
-    for degree, counts in ((2, (8, 16, 32)), (3, (8, 16, 32)), (4, (8, 16, 32))):
+    for degree, counts in MODES_MESHES.items():
         xs, ys = [], []
         for n in counts:
             sc = load_scene(
                 paper, [f"discretisation.degree={degree}", f"discretisation.elements={n}"]
             )
-            model, ms = compute_modes(sc, 12)
+            model, ms = compute_modes(sc, MODES_COUNT)
             err = max(abs(m.omega / w - 1) for m, (w, _) in zip(ms, ref, strict=True))
             rate = "" if not ys else f"{order(ys[-1], err):.2f}"
             rows.append(f"| {degree} | {n} | {model.global_dofs()} | {err:.2e} | {rate} |")
@@ -136,19 +163,27 @@ def statics_section() -> str:
         "|---|---|---|---|",
     ]
     series = {}
-    for degree in (3, 4):
+    for degree, counts in ROLLUP_MESHES.items():
         xs, ys = [], []
-        for n in (8, 16, 32):
+        for n in counts:
             gap = rollup_gap([f"discretisation.degree={degree}", f"discretisation.elements={n}"])
             rate = "" if not ys else f"{order(ys[-1], gap):.2f}"
             lines.append(f"| {degree} | {n} | {gap:.2e} | {rate} |")
             xs.append(n)
             ys.append(gap)
         series[f"P{degree}"] = (xs, ys)
-    gap4 = rollup_gap(["parameters.turns=2", "discretisation.elements=40", "static.load_steps=32"])
+    gap4 = rollup_gap(
+        [
+            "parameters.turns=2",
+            f"discretisation.elements={TWO_TURNS_ELEMENTS}",
+            f"static.load_steps={TWO_TURNS_LOAD_STEPS}",
+        ]
+    )
+    rollup_degree = load_scene(SCENES / "rollup.toml").discretisation.degree
     lines += [
         "",
-        f"Two full turns (M = 4π E c22/ℓ, 40 quartic elements): gap/ℓ = {gap4:.1e}.",
+        f"Two full turns (M = 4π E c22/ℓ, {elements_phrase(TWO_TURNS_ELEMENTS, rollup_degree)}"
+        f"): gap/ℓ = {gap4:.1e}.",
         "Bending about e2 is carried by ψ, which the Euler-angle chart allows without bound. "
         "Bending about e1 is carried by θ, and the chart (18) is singular at θ = ±π/2 "
         "(det Ma = cos θ): rolled about e1, the static path stops just before a quarter turn "
@@ -157,11 +192,13 @@ def statics_section() -> str:
         loglog("rollup_gap", series, "elements", "tip gap / ℓ"),
         "",
     ]
+    elastica_degree = load_scene(SCENES / "tip_load_elastica.toml").discretisation.degree
     lines += [
         "### Elastica (`scenes/tip_load_elastica.toml`)",
         "",
         "Slender rod (2 mm square, ℓ/a = 500), fixed-direction tip force P ⟂ rod, "
-        "32 quartic elements. 'exact rod': the extensible, shearable rod of the same "
+        f"{elements_phrase(ELASTICA_ELEMENTS, elastica_degree)}. 'exact rod': the extensible, "
+        "shearable rod of the same "
         "stiffnesses solved by `solve_bvp`; 'elastica': the inextensible limit (elliptic "
         "integrals); Mattiasson (1981) to five digits.",
         "",
@@ -172,7 +209,7 @@ def statics_section() -> str:
     for alpha, (u_tab, w_tab) in MATTIASSON_1981.items():
         scene = load_scene(
             SCENES / "tip_load_elastica.toml",
-            [f"parameters.alpha={alpha}", "discretisation.elements=32"],
+            [f"parameters.alpha={alpha}", f"discretisation.elements={ELASTICA_ELEMENTS}"],
         )
         result = static_path(scene, write_outputs=False)
         tip = PointProbe(result.model, 1.0).values()
@@ -213,7 +250,7 @@ STOCKY = [
 
 
 def mms_section() -> str:
-    paper = SCENES / "cao_tucker_2008.toml"
+    paper = PAPER
     lines = [
         "## 3. Orders of convergence (manufactured solutions)",
         "",
@@ -221,15 +258,16 @@ def mms_section() -> str:
         "stocky rod (0.3 m × 0.4 m, ℓ = 1 m); `cosserat_fem/mms.py`. Relative L2 error of "
         "p at the final time.",
         "",
-        "### Space (p linear in τ, reproduced exactly by the integrators; BDF2)",
+        f"### Space (p linear in τ, reproduced exactly by the integrators; BDF2, τ ∈ [0, "
+        f"{MMS_SPACE_TAU:g}], {MMS_SPACE_STEPS} steps)",
         "",
         "| degree | elements | error | order |",
         "|---|---|---|---|",
     ]
     series = {}
-    for degree in (1, 2, 3):
+    for degree, counts in MMS_SPACE_MESHES.items():
         xs, ys = [], []
-        for n in (4, 8, 16, 32):
+        for n in counts:
             sc = load_scene(
                 paper,
                 STOCKY
@@ -239,7 +277,7 @@ def mms_section() -> str:
                     "time.integrator=bdf2",
                 ],
             )
-            e = run_mms(sc, "linear_in_time", 0.5, 5).error_p
+            e = run_mms(sc, "linear_in_time", MMS_SPACE_TAU, MMS_SPACE_STEPS).error_p
             rate = "" if not ys else f"{order(ys[-1], e):.2f}"
             lines.append(f"| {degree} | {n} | {e:.2e} | {rate} |")
             xs.append(1.0 / n)
@@ -249,7 +287,8 @@ def mms_section() -> str:
         "",
         loglog("mms_space", series, "h", "L2 error of p"),
         "",
-        "### Time (p harmonic in τ, 16 quartic elements, τ ∈ [0, 2])",
+        f"### Time (p harmonic in τ, {elements_phrase(MMS_TIME_ELEMENTS, MMS_TIME_DEGREE)}, "
+        f"τ ∈ [0, {MMS_TIME_TAU:g}])",
         "",
         "| integrator | steps | error | order |",
         "|---|---|---|---|",
@@ -261,14 +300,20 @@ def mms_section() -> str:
         ("generalized-α ρ∞=1", ["time.integrator=generalized-alpha", "time.rho_inf=1.0"]),
     ):
         xs, ys = [], []
-        for steps in (10, 20, 40, 80):
+        for steps in MMS_TIME_STEPS:
             sc = load_scene(
-                paper, STOCKY + over + ["discretisation.degree=4", "discretisation.elements=16"]
+                paper,
+                STOCKY
+                + over
+                + [
+                    f"discretisation.degree={MMS_TIME_DEGREE}",
+                    f"discretisation.elements={MMS_TIME_ELEMENTS}",
+                ],
             )
-            e = run_mms(sc, "harmonic", 2.0, steps).error_p
+            e = run_mms(sc, "harmonic", MMS_TIME_TAU, steps).error_p
             rate = "" if not ys else f"{order(ys[-1], e):.2f}"
             lines.append(f"| {label} | {steps} | {e:.2e} | {rate} |")
-            xs.append(2.0 / steps)
+            xs.append(MMS_TIME_TAU / steps)
             ys.append(e)
         series[label] = (xs, ys)
     lines += ["", loglog("mms_time", series, "Δτ", "L2 error of p"), ""]
@@ -288,13 +333,13 @@ class _Recorder:
 
 
 def energy_section() -> str:
-    paper = SCENES / "cao_tucker_2008.toml"
+    paper = PAPER
     common = [
         "output.xdmf=false",
         "time.integrator=generalized-alpha",
         "time.rho_inf=1.0",
         "solver.jacobian=full",
-        "time.end=0.01",
+        f"time.end={ENERGY_END}",
     ]
     unloaded = ["loads.force_density=[0,0,0]"]
     static, _ = solve_static(
@@ -305,14 +350,15 @@ def energy_section() -> str:
         "## 4. Energy",
         "",
         f"**Free vibration**: the paper's rod released from its static state under a tip "
-        f"force (3e4, 2e4, 0) N (E = {E0:.1f} J), generalized-α with ρ∞ = 1, 10 ms. "
+        f"force (3e4, 2e4, 0) N (E = {E0:.1f} J), generalized-α with ρ∞ = 1, "
+        f"{ENERGY_END * 1e3:g} ms. "
         "**Forced**: the paper's load from rest; W = ∫ P dt by the trapezoidal rule.",
         "",
         "| Δt [μs] | max drift of E / E(0) | order | max abs(ΔE − W) / max E | order |",
         "|---|---|---|---|---|",
     ]
     drifts, mismatch = [], []
-    for dt in (4e-5, 2e-5, 1e-5):
+    for dt in ENERGY_STEPS:
         rec = _Recorder()
         run(
             load_scene(paper, unloaded + common + [f"time.step={dt}"]),
@@ -334,8 +380,8 @@ def energy_section() -> str:
         loglog(
             "energy",
             {
-                "free-vibration drift": ([40, 20, 10], drifts),
-                "work mismatch (forced)": ([40, 20, 10], mismatch),
+                "free-vibration drift": ([dt * 1e6 for dt in ENERGY_STEPS], drifts),
+                "work mismatch (forced)": ([dt * 1e6 for dt in ENERGY_STEPS], mismatch),
             },
             "Δt [μs]",
             "relative error",
@@ -352,9 +398,12 @@ def main() -> None:
         "# Verification",
         "",
         "Generated by `make verify` (`benchmarks/verify.py`); do not edit by hand. The test "
-        "suite asserts these quantities with tolerances justified in each test's docstring. "
-        "The plots are written to `docs/figures/` by the same command (generated files, not "
-        "kept in git).",
+        "suite holds these studies (tests/test_modes.py, test_large_deflection.py, test_mms.py, "
+        "test_energy.py: orders, the default mesh's frequencies, the finest meshes' errors), "
+        "each figure at the tolerance its test's docstring justifies; the other figures are "
+        "this run's measurements, and tests/test_verification_report.py checks that the "
+        "report states the generator's settings. The plots are written to `docs/figures/` by "
+        "the same command (generated files, not kept in git).",
         "",
     ]
     for section in (modes_section, statics_section, mms_section, energy_section):

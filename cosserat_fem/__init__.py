@@ -2,7 +2,24 @@
 
 The physics (pure UFL) lives in :mod:`cosserat_fem.forms` (the top-level ``forms/`` folder);
 this package is the machinery: scenes, spaces and boundary conditions, time integrators,
-the SNES solver, outputs and the command line.
+the SNES solver, outputs and the command line. The Python API, ``cosserat_fem.load``,
+``run``, ``resume``, ``static`` and ``modes``, is :mod:`cosserat_fem.api`.
 """
 
 __version__ = "0.1.0"
+
+#: The Python API (cosserat_fem/api.py), imported on first use: ``import cosserat_fem`` stays
+#: light (the command line's plot and validate need no DOLFINx).
+_API = ("load", "run", "resume", "static", "modes")
+
+
+def __getattr__(name: str):
+    if name in _API:
+        from . import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'cosserat_fem' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_API])

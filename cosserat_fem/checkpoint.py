@@ -61,7 +61,7 @@ from mpi4py import MPI
 from .errors import OutputError, SceneError
 from .parallel import agree
 
-FORMAT = 2
+FORMAT = 3  # 3: the time loop's state in one part, "loop" (cosserat_fem/loop.py)
 DIRECTORY = "checkpoint"
 INDEX = "checkpoint.json"
 #: Scene keys a restart may override (prefixes end with "."): none changes the discretisation,

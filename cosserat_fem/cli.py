@@ -18,6 +18,7 @@ import signal
 import sys
 import traceback
 import warnings
+from pathlib import Path
 
 from . import __version__
 from .errors import CosseratError, SceneError, SolverError, StopError
@@ -138,26 +139,33 @@ def _draw(args) -> int:
 
 
 def _run(args) -> int:
+    """``run``: a scene, or ``--restart DIR``, through the Python API (cosserat_fem/api.py)."""
     from mpi4py import MPI
 
+    from . import api
     from .progress import ProgressBar, summary_screen
-    from .scene import load_scene
-    from .simulation import run
 
     rank = MPI.COMM_WORLD.rank
+    checkpoint = None
     if args.restart is not None:
-        scene, checkpoint = _restart(args)
-        start, where = checkpoint.time, {"restart": checkpoint}
+        if args.scene is not None or args.out is not None:
+            which = "SCENE" if args.scene is not None else "--out"
+            raise SceneError(
+                f"run --restart: {which} cannot be given (the run continues in its own folder "
+                "with its own scene)"
+            )
+        scene, checkpoint = api.resume(args.restart, args.overrides)
+        start, out = checkpoint.time, None
     elif args.scene is None:
         raise SceneError("run: give a SCENE file, or --restart DIR to continue a run")
     else:
-        scene = load_scene(args.scene, args.overrides)
-        start, where = scene.time.start, {"out_dir": args.out}
+        scene = api.load(args.scene, args.overrides)
+        start, out = scene.time.start, args.out or scene.output.directory
     # The bar on a terminal (it decides), never under --quiet or off rank 0.
     enabled = None if rank == 0 and not args.quiet else False
     bar = ProgressBar(start, scene.time.end, enabled=enabled)
     try:
-        result = run(scene, progress=bar, **where)
+        result = api.run(scene, out, restart=checkpoint, progress=bar, record=False)
     finally:
         bar.close()
     if rank == 0 and not args.quiet:
@@ -165,75 +173,41 @@ def _run(args) -> int:
     return 0
 
 
-def _restart(args):
-    """The scene and checkpoint to continue the run in args.restart (cosserat_fem/checkpoint.py)
-    with the overrides a restart allows."""
-    from .checkpoint import FIXED_KEYS, load_checkpoint, restart_overrides
-    from .scene import scene_from_dict
-
-    if args.scene is not None or args.out is not None:
-        which = "SCENE" if args.scene is not None else "--out"
-        raise SceneError(
-            f"run --restart: {which} cannot be given (the run continues in its own folder "
-            "with its own scene)"
-        )
-    restart_overrides(args.overrides)
-    checkpoint = load_checkpoint(args.restart)
-    source = f"{args.restart}/checkpoint"
-    scene = scene_from_dict(
-        checkpoint.meta["scene"], source=source, overrides=args.overrides, fixed=FIXED_KEYS
-    )
-    if not scene.time.end > checkpoint.time:
-        raise SceneError(
-            f"time.end: the checkpoint is at t = {checkpoint.time:.10g} s; give a later end "
-            f"to continue (--set time.end=...), got {scene.time.end:.10g}"
-        )
-    return scene, checkpoint
-
-
 def _static(args) -> int:
+    """``static``: load stepping through the Python API; the probe's final values."""
     from mpi4py import MPI
 
-    from .output import PointProbe
-    from .scene import load_scene
-    from .simulation import probe_sigma
-    from .statics import static_path
+    from . import api
+    from .forms.kinematics import P_NAMES
 
-    scene = load_scene(args.scene, args.overrides)
-    result = static_path(scene, args.out)
-    probe = PointProbe(result.model, probe_sigma(scene))
-    tip = MPI.COMM_WORLD.bcast(probe.values(), root=probe.owner)
+    scene = api.load(args.scene, args.overrides)
+    result = api.static(scene, args.out or scene.output.directory)
+    tip = result.probes[-1, 1:]
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         print(
             f"cosserat-fem: static, {len(result.load_factors) - 1} load steps "
             f"({result.bisections} halvings), {sum(result.iterations)} Newton iterations"
         )
-        names = ("x", "y", "z", "theta", "psi", "phi")
-        print("  probe: " + ", ".join(f"{n} = {v:.10g}" for n, v in zip(names, tip, strict=True)))
+        print("  probe: " + ", ".join(f"{n} = {v:.10g}" for n, v in zip(P_NAMES, tip, strict=True)))
     return 0
 
 
 def _modes(args) -> int:
-    """Modes about the straight rod or the static state."""
-    from pathlib import Path
-
+    """``modes``: about the straight rod or the static state, through the Python API."""
     from mpi4py import MPI
 
-    from .modes import check_count, compute_modes, write_modes
-    from .run_folder import prepare_output_dir
-    from .scene import load_scene
+    from . import api
 
-    scene = load_scene(args.scene, args.overrides)
-    check_count(scene, args.count)
-    out = prepare_output_dir(Path(args.out or scene.output.directory), MPI.COMM_WORLD)
-    model, modes = compute_modes(scene, args.count, about=args.about)
-    write_modes(out, model, modes)
+    scene = api.load(args.scene, args.overrides)
+    out = args.out or scene.output.directory
+    modes = api.modes(scene, args.count, args.about, out)
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         print(f"{'mode':>4} {'omega [rad/s]':>16} {'f [Hz]':>12}  kind")
         for i, mode in enumerate(modes, start=1):
             note = f"  ({mode.note})" if mode.note else ""
             print(f"{i:4d} {mode.omega:16.6f} {mode.frequency_hz:12.4f}  {mode.kind}{note}")
-        print(f"-> {out / 'modes.csv'}, {out / 'modes.xdmf'}")
+        names = ("modes.csv", "modes.xdmf", "modes.json")
+        print("-> " + ", ".join(str(Path(out) / name) for name in names))
     return 0
 
 

@@ -36,9 +36,8 @@ from petsc4py import PETSc
 
 from .integrators import GeneralizedAlpha, make_integrator
 from .model import RodModel, build_model
-from .newton import NewtonSolver
+from .newton import NewtonSettings, NewtonSolver
 from .scene import Scene
-from .simulation import newton_settings
 
 # Amplitudes: x/ℓ, y/ℓ, z/ℓ of a few per cent, angles of a few tenths of a radian.
 AMPLITUDES = (0.04, -0.03, 0.01, 0.25, -0.3, 0.2)
@@ -109,7 +108,7 @@ def run_mms(
     integrator = make_integrator(tspan.integrator, model.U, residual, 0.0, rho_inf=tspan.rho_inf)
     if isinstance(integrator, GeneralizedAlpha):
         integrator.set_initial_rate(_interpolate(model.V, exact0.Udot))
-    settings = newton_settings(scene)
+    settings = NewtonSettings.of(scene.solver)
     settings.jacobian = "full"  # the order measured is the integrator's, not the stop rule's
     solver = NewtonSolver(integrator.residual_form(), model.U, model.bcs, settings)
     h = tau_end / steps

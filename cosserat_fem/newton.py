@@ -10,48 +10,18 @@ serial, MUMPS under MPI). The Jacobian policy decides when the matrix is re-asse
 * ``frozen``: kept until a solve needs more than ``refresh_iterations`` iterations, then
   re-assembled for the next solve (modified Newton).
 
-Line search: none (``basic``, the full Newton step). The residual rows have very different
-scales (axial rows carry ν02 ≈ 6e5 for the paper's rod), so a full step that is excellent in
-the solution norm can raise ‖F‖ through a second-order axial residual ν02 ψ²/2; the ``bt``
-line search then damps good steps (measured: 5 iterations instead of 3 for a small static
-load, 6 with ``l2``).
+A solve that fails with an old matrix is retried once with a fresh one before failure is
+reported. A matrix that is not re-assembled keeps its PETSc object state, so the LU factors
+are reused (PCSetUp sees an unchanged operator). No line search (``basic``: the full step).
 
-Convergence (our own test, :meth:`NewtonSolver._converged`): ‖F‖ ≤ atol, or ‖F‖ ≤ rtol ‖F0‖,
-or ‖δU_k‖ ≤ stol ‖U‖ + xatol (the update test). With a reused Jacobian (``lagged``,
-``frozen``) the iteration converges linearly, and from the second iteration on it also stops
-when its estimated error is that small: η_k ‖δU_k‖ ≤ stol ‖U‖ + xatol, with the observed
-contraction ρ_k and η_k = ρ_k/(1 − ρ_k) (Hairer & Wanner, Solving ODEs II, section IV.8,
-eq. (8.10): the distance of U_k to the solution is at most η_k ‖δU_k‖). ρ_k is the larger of
-the update ratio ‖δU_k‖/‖δU_{k−1}‖ and the residual ratio ‖F(U_k)‖/‖F(U_{k−1})‖. The update
-ratio alone is too optimistic when the first update is mostly a part of the error that an old
-matrix removes at once and the rest lies where it contracts slowly: in a free vibration at
-Δt = 0.8 ms (tests/test_stress_dynamics.py) it read ρ ≈ 1.5e-4 (median) while the residual
-fell only by 0.2 an iteration, the stop accepted last updates up to 1e4 × the tolerance, and
-the midpoint rule gained 6.4e-4 of the energy in 0.6 s, 4.1e-3 in 6 s; with the larger ratio
-3.0e-7 and 2.5e-6 (the update test alone: 1.6e-7 and 7.5e-7; full Newton: 6e-8, bounded).
-The price on the paper's scene: 2.87 iterations a stage instead of 2.39 (SDIRK3; 2.13 instead
-of 2.0 a generalized-α step), the free-end error unchanged to 2e-7 of itself. The update test
-alone needs 3.68 a stage (2.98 a generalized-α step: the second update, 1.7e-8 ‖U‖, just
-misses 1e-8, although the second iterate is already within 3e-11 ‖U‖ of the solution).
-Full Newton keeps the update test alone: it converges quadratically, so after
-‖δU_k‖ ≤ 1e-8 ‖U‖ the error is of order 1e-16 ‖U‖, which the large-deflection tests rely on
-(an estimate-based stop left roll-up gaps of 7e-8). Hairer & Wanner let the previous solve's
-rate stand in for ρ_1; tried here with it and with the residual reduction ‖F(U_1)‖/‖F(U_0)‖,
-both too optimistic at times (badly scaled residual rows; rates gone stale), so ρ_1 is not
-guessed. The update test ends most solves: the residual's round-off floor grows with the
-deformation (measured 3e-13 at strains of 1e-4 up to 1.5e-11 at rotations of 0.3 rad), so a
-fixed atol could stall. The absolute part xatol = 1e-13 (U is dimensionless: 1e-13 ℓ in
-position, 1e-13 rad) covers tiny states, where the update's round-off floor is absolute (about
-3e-16, set by terms such as 1 + p3′) and a purely relative test can never be met (measured: a
-thin rod under a small axial load, ‖U‖ = 1.6e-8, stalled at ‖δU‖/‖U‖ = 2e-8).
-
-In serial there are no ghost entries, so the ghost updates of the callbacks are skipped
-(about 6 μs each, four a Newton iteration).
-
-With ``lagged`` and ``frozen``, a solve that fails with an old matrix is retried once with a
-fresh one before failure is reported. A matrix that is not re-assembled keeps its PETSc
-object state, so the LU factors are reused rather than recomputed (PCSetUp sees an unchanged
-operator).
+Convergence (:meth:`NewtonSolver._converged`): ‖F‖ ≤ atol, or ‖F‖ ≤ rtol ‖F0‖, or the
+update test ‖δU_k‖ ≤ stol ‖U‖ + xatol. With a reused Jacobian the iteration converges
+linearly, and from the second iteration on it also stops when its estimated error is that
+small: η_k ‖δU_k‖ ≤ stol ‖U‖ + xatol, η_k = ρ_k/(1 − ρ_k) (Hairer & Wanner, Solving ODEs II,
+IV.8, eq. (8.10)), with the contraction ρ_k the larger of the update ratio ‖δU_k‖/‖δU_{k−1}‖
+and the residual ratio ‖F(U_k)‖/‖F(U_{k−1})‖. Full Newton keeps the update test alone.
+Why each of these, with the measurements: docs/decisions.md, "The Newton stop rule" and
+"No line search".
 """
 
 from __future__ import annotations
@@ -82,6 +52,13 @@ class NewtonSettings:
     xatol: float = 1e-13
     max_iterations: int = 25
     linear_solver: str = "auto"  # auto | petsc | mumps | superlu
+
+    @classmethod
+    def of(cls, solver) -> NewtonSettings:
+        """The settings of an object with these attributes (a scene's [solver] table); those
+        it lacks keep their defaults."""
+        names = [f.name for f in fields(cls) if hasattr(solver, f.name)]
+        return cls(**{name: getattr(solver, name) for name in names})
 
 
 @dataclass
@@ -141,6 +118,7 @@ class NewtonSolver:
         self.bcs = bcs
         self.settings = settings
         self.stats = NewtonStatistics()
+        self.iteration_hook = None  # f(it, norms, reason) after each convergence test
         comm = U.function_space.mesh.comm
         self._parallel = comm.size > 1
         self._update_prev = 0.0  # ‖δU_{k−1}‖ of the current solve
@@ -246,7 +224,14 @@ class NewtonSolver:
         self.stats.time_jacobian += time.perf_counter() - t0
 
     def _converged(self, snes, it: int, norms) -> int:
-        """Convergence test of the module docstring; norms = (‖U‖, ‖δU‖, ‖F‖)."""
+        """Convergence test of the module docstring; norms = (‖U‖, ‖δU‖, ‖F‖). Each result
+        goes to ``iteration_hook(it, norms, reason)`` if one is set (an observer's)."""
+        reason = self._test(it, norms)
+        if self.iteration_hook is not None:
+            self.iteration_hook(it, norms, reason)
+        return reason
+
+    def _test(self, it: int, norms) -> int:
         xnorm, ynorm, fnorm = norms
         reasons, st = PETSc.SNES.ConvergedReason, self.settings
         if fnorm != fnorm or ynorm != ynorm:

@@ -40,6 +40,16 @@ PROBE_HEADER = ("t", *P_NAMES)
 _ROW_FORMAT = "%.10e," + ",".join(["%.16e"] * (len(PROBE_HEADER) - 1)) + "\n"
 
 
+def probe_sigma(scene) -> float:
+    """The probe point σ of a scene: the free end at s = ℓ, else the free end at s = 0, else
+    mid-span."""
+    if scene.supports.end == "free":
+        return 1.0
+    if scene.supports.start == "free":
+        return 0.0
+    return 0.5
+
+
 class PointProbe:
     """Evaluates (x, y, z, θ, ψ, φ) in SI units [m, rad] at σ = ``sigma`` of a model's rod, on
     its owning rank (the components of p the model does not solve are 0)."""
@@ -350,46 +360,18 @@ class XdmfWriter:
     ================  ==============  ============================================  =======
 
     v, u, n, m are those of forms/resultants.py (reference state v = (0, 0, 1), u = n = m = 0;
-    n(s), m(s) act on [0, s] from (s, ℓ], so at a free end they are the applied end load).
-    A cell of degree k is drawn as k equal segments (one point per Lagrange node), and all
-    arrays come from one compiled expression evaluated at the k + 1 points of every cell.
-    Strains and resultants contain derivatives of the finite-element field, which jump
-    between cells: a vertex takes the mean of its two cells' values (an end vertex its one
-    cell's, so n(ℓ), m(ℓ) are the discrete free-end values); displacement and angles are
-    continuous, and at the vertices equal the probe's values to round-off.
-
-    Layout: one temporal collection ``rod`` whose frames each carry the mesh, the time and
-    all the arrays (float data marked ``Precision="8"``), so that ParaView shows one dataset
-    with every array in double precision (DOLFINx's own layout, one collection per function,
-    shows up as separate blocks, and float32). DOLFINx still writes the data (HDF5); the
-    published XML is kept by rank 0 (:class:`_XdmfDocument`).
+    n(s), m(s) act on [0, s] from (s, ℓ], so at a free end they are the applied end load). A
+    cell of degree k is drawn as k equal segments (one point per Lagrange node); at a vertex
+    the strains and resultants, which jump between cells, take the mean of the two cells'.
+    One temporal collection ``rod`` whose frames each carry the mesh, the time and all the
+    arrays in double precision, so that ParaView shows one dataset.
 
     Kill-safe: a killed run (SIGKILL included) leaves ``<name>.xdmf`` listing exactly the
-    frames written so far and ``<name>.h5`` holding them, readable by ParaView. An HDF5 file
-    that is open for writing is not consistent on disk (DOLFINx 0.5.2 keeps it open until
-    ``close()`` and has no flush: a killed run left an .h5 that did not open at all), and
-    DOLFINx rewrites the whole XML file in place for every function written (a kill during
-    that rewrite left an empty .xdmf, 14 kills in 60). So each frame:
-
-    1. opens, in append mode ("a"), a scratch XML under a working name
-       ``<name>.xdmf-partial`` that holds the mesh only (the same stem keeps the HDF5 file
-       ``<name>.h5``, or ``<name>-restart<n>.h5`` after a restart); DOLFINx rewrites that small
-       file for every array and never touches the published one,
-    2. writes all the arrays and closes the file (HDF5 metadata and superblock on disk),
-    3. adds the frame (read from the scratch XML) to rank 0's document and publishes it: the
-       whole XML written to the working name, then an atomic rename onto ``<name>.xdmf``.
-
-    While a frame is being written the .h5 on disk is the closed file of the previous frame
-    plus new, not yet referenced blocks at its end; the only window in which a kill can
-    damage it is HDF5's own close (~0.1 ms a frame, in which metadata is written). A
-    ``<name>.xdmf-partial`` left by a kill is a scratch file: ignore or delete it.
-
-    Files are written anew, never truncated and rewritten: on ext4 (mounted with discard
-    here) truncating a file that held data cost ~1.7 ms (its blocks are allocated at once
-    and freed with a discard), a new file 0.05 ms. Cost, default scene (8 cubic elements,
-    251 frames, serial; in one process with HEAD's writer, interleaved, 7 runs): see README
-    "Seeing the result". The .h5 grows by ~1.4 kB a frame and array of metadata that a
-    reopened file does not reuse.
+    frames written so far and ``<name>.h5`` holding them. Each frame goes into a scratch XML
+    ``<name>.xdmf-partial`` (the HDF5 file closed after it), then the published XML is
+    replaced atomically; a frame is written only if twice its size fits in the file system
+    and under ``ulimit -f`` (an HDF5 write that fails half-way leaves an unreadable file), else
+    an OutputError. Why this layout and what it costs: docs/decisions.md, "XDMF frames".
     """
 
     def __init__(

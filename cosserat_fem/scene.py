@@ -33,12 +33,19 @@ from cosserat_fem.expressions import (
     parse_vector,
 )
 from cosserat_fem.forms.groups import (
+    TORSION_INERTIAS,
     Groups,
     RodConstants,
     dimensionless_groups,
     euler_bernoulli_omega0,
 )
-from cosserat_fem.forms.section import Section, cowper_circle, rectangle, tube
+from cosserat_fem.forms.section import (
+    TORSION_CONSTANT_RULES,
+    Section,
+    cowper_circle,
+    rectangle,
+    tube,
+)
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
 SCENE_CONSTANTS = ("L", "omega0")
@@ -137,7 +144,7 @@ class Rod:
 
 
 @dataclass(frozen=True)
-class Model:
+class ModelChoices:
     """Modelling choices; ``reference_frequency`` [rad/s] is None for "auto"."""
 
     reference_frequency: float | None
@@ -272,7 +279,7 @@ class Time:
 
 
 @dataclass(frozen=True)
-class Static:
+class StaticSettings:
     """Static solves (``cosserat-fem static``): the loads at ``time`` [s], applied in
     ``load_steps`` equal increments of the load factor; a failed increment is halved, down to
     2^-``max_bisections`` of the nominal increment."""
@@ -346,14 +353,14 @@ class Scene:
     title: str
     parameters: dict[str, float]
     rod: Rod
-    model: Model
+    model: ModelChoices
     supports: Supports
     loads: Loads
     time: Time
     discretisation: Discretisation
     solver: Solver
     output: Output
-    static: Static = field(default_factory=lambda: Static(1, 10, 0.0))
+    static: StaticSettings = field(default_factory=lambda: StaticSettings(1, 10, 0.0))
     damping: Damping = field(default_factory=Damping)
     initial: Initial = field(default_factory=Initial)
     limits: Limits = field(default_factory=Limits)
@@ -639,7 +646,7 @@ SCHEMA = _Table(
                         "shape": _Choice(choices=tuple(SECTION_KEYS), default="rectangle"),
                         "a": _Number(interval=POSITIVE, unit="m"),
                         "b": _Number(interval=POSITIVE, unit="m"),
-                        "torsion_constant": _Choice(choices=("series", "approximate")),
+                        "torsion_constant": _Choice(choices=TORSION_CONSTANT_RULES),
                         "diameter": _Number(interval=POSITIVE, unit="m"),
                         "outer_diameter": _Number(interval=POSITIVE, unit="m"),
                         "inner_diameter": _Number(interval=NON_NEGATIVE, unit="m"),
@@ -669,7 +676,7 @@ SCHEMA = _Table(
                 "reference_frequency": _Number(
                     default="auto", interval=POSITIVE, unit="rad/s", auto=True
                 ),
-                "torsion_inertia": _Choice(choices=("polar", "printed"), default="polar"),
+                "torsion_inertia": _Choice(choices=TORSION_INERTIAS, default="polar"),
                 "end_load_sign": _Choice(choices=("balance", "printed"), default="balance"),
                 "end_load_scaling": _Choice(choices=("balance", "printed"), default="balance"),
             }
@@ -711,8 +718,10 @@ SCHEMA = _Table(
                 "start": _Number(default=0.0, unit="s"),
                 "end": _Number(required=True, unit="s"),
                 "step": _Number(required=True, interval=POSITIVE, unit="s"),
+                # SDIRK3 and a frozen Jacobian: the fastest to an error of 1e-3 on the paper's
+                # scene (benchmarks/README.md), the defaults the README states.
                 "integrator": _Choice(
-                    choices=("bdf2", "generalized-alpha", "sdirk3", "sdirk4"), default="bdf2"
+                    choices=("bdf2", "generalized-alpha", "sdirk3", "sdirk4"), default="sdirk3"
                 ),
                 "rho_inf": _Number(default=0.5, interval=_Interval(0.0, 1.0)),
                 "max_halvings": _Number(default=6, integer=True, interval=_Interval(0, 30)),
@@ -744,7 +753,7 @@ SCHEMA = _Table(
         ),
         "solver": _Table(
             {
-                "jacobian": _Choice(choices=("full", "lagged", "frozen"), default="full"),
+                "jacobian": _Choice(choices=("full", "lagged", "frozen"), default="frozen"),
                 "lag": _Number(default=10, integer=True, interval=_Interval(lo=1)),
                 "refresh_iterations": _Number(default=4, integer=True, interval=_Interval(lo=1)),
                 "rtol": _Number(default=1e-10, interval=_Interval(0.0, 1.0, True, True)),
@@ -888,23 +897,34 @@ def _override_value(text: str) -> Any:
     return document["v"] if list(document) == ["v"] else text
 
 
-def apply_overrides(data: dict[str, Any], overrides: Sequence[str]) -> dict[str, Any]:
-    """Return a copy of ``data`` with ``dotted.key=value`` overrides applied in order."""
+Overrides = Sequence[str] | Mapping[str, Any]
+
+
+def apply_overrides(data: dict[str, Any], overrides: Overrides) -> dict[str, Any]:
+    """Return a copy of ``data`` with the overrides applied in order: ``dotted.key=value``
+    strings (the command line's ``--set``; the value read as TOML), or a mapping of dotted
+    keys to values (the Python API)."""
     result = _copy_tables(data)
-    for text in overrides:
-        raw_key, sep, raw_value = text.partition("=")
-        key = raw_key.strip()
-        if not sep or not key:
-            raise SceneError(f"--set {text!r}: expected dotted.key=value")
+    items = overrides.items() if isinstance(overrides, Mapping) else map(_split, overrides)
+    for key, value in items:
+        key = str(key).strip()
         path = [part.strip() for part in key.split(".")]
         spec = _lookup_spec(path)
         if isinstance(spec, _Table | _Parameters):
             raise SceneError(f"{key}: is a table; set one of its keys instead (--set {key}.X=...)")
-        _set_path(result, path, _override_value(raw_value.strip()))
+        _set_path(result, path, value)
         if key in _EXCLUSIVE:
             other = _EXCLUSIVE[1 - _EXCLUSIVE.index(key)]
             _table_at(result, path[:-1]).pop(other.rpartition(".")[2], None)
     return result
+
+
+def _split(text: str) -> tuple[str, Any]:
+    """(key, value) of a ``dotted.key=value`` override."""
+    raw_key, sep, raw_value = text.partition("=")
+    if not sep or not raw_key.strip():
+        raise SceneError(f"--set {text!r}: expected dotted.key=value")
+    return raw_key.strip(), _override_value(raw_value.strip())
 
 
 def _copy_tables(data: Any) -> Any:
@@ -992,9 +1012,9 @@ def _build_rod(raw: dict[str, Any]) -> Rod:
     return Rod(raw["length"], _build_section(raw["section"], poisson), material)
 
 
-def _build_model(raw: dict[str, Any]) -> Model:
+def _build_model(raw: dict[str, Any]) -> ModelChoices:
     frequency = raw["reference_frequency"]
-    return Model(
+    return ModelChoices(
         reference_frequency=None if frequency == "auto" else frequency,
         torsion_inertia=raw["torsion_inertia"],
         end_load_sign=raw["end_load_sign"],
@@ -1305,7 +1325,7 @@ def _is_number(value: Any) -> bool:
 def scene_from_dict(
     data: dict[str, Any],
     source: str = "<dict>",
-    overrides: Sequence[str] = (),
+    overrides: Overrides = (),
     fixed: Sequence[str] = (),
 ) -> Scene:
     """Validate a scene given as nested dicts (as from TOML) and resolve it.
@@ -1332,7 +1352,7 @@ def scene_from_dict(
         discretisation=_build_discretisation(raw["discretisation"]),
         solver=Solver(**raw["solver"]),
         output=_build_output(raw["output"], time),
-        static=Static(**raw["static"]),
+        static=StaticSettings(**raw["static"]),
         damping=Damping(**raw["damping"]),
         limits=_build_limits(raw["limits"]),
         source=source,
@@ -1357,7 +1377,7 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise SceneError(f"{path}: cannot read scene file ({exc.strerror})") from None
 
 
-def load_scene(path: str | Path, overrides: Sequence[str] = ()) -> Scene:
+def load_scene(path: str | Path, overrides: Overrides = ()) -> Scene:
     """Read, override and validate a TOML scene file."""
     return scene_from_dict(read_toml(path), source=str(path), overrides=overrides)
 

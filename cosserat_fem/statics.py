@@ -10,40 +10,138 @@ with the reason); after a success the increment doubles again up to its nominal 
 load control with step halving follows the equilibrium path up to, but not past, a limit
 point; the rolled-up cantilever and the elastica have none.
 
-Outputs are those of a dynamic run with the load factor in place of time: ``probes.csv``
-(header ``t,x,y,z,theta,psi,phi``; for a static run the column ``t`` holds λ, one row per
-accepted load step, the last row the final state), ``solution.xdmf`` (one entry per accepted
-step, "time" = λ) and ``summary.json``.
+The load stepping is a source of the events of cosserat_fem/events.py with the load factor
+λ in place of time (:class:`StaticLoop`), and its outputs are those observers of a dynamic
+run: ``probes.csv`` (header ``t,x,y,z,theta,psi,phi``; for a static run the column ``t``
+holds λ, one row per accepted load step, the last row the final state), ``solution.xdmf``
+(one entry per accepted step, "time" = λ) and ``summary.json``. Every load step assembles
+the Jacobian (full Newton): the matrix changes with the load.
 """
 
 from __future__ import annotations
 
 import time as clock
-from dataclasses import dataclass
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 from mpi4py import MPI
 
 from . import __version__, budget
-from .errors import OutputError, SceneError, SolverError
+from .checks import check_state, cos_theta
+from .errors import SceneError, SolverError, StopError
+from .events import Events, Observer
 from .integrators import make_integrator
 from .model import RodModel, build_model
-from .newton import NewtonFailure, NewtonSolver
-from .output import PointProbe, ProbeWriter, XdmfWriter
+from .newton import NewtonFailure, NewtonSettings, NewtonSolver
+from .observers import FolderStart, FolderSummary, ProbeObserver, ProbeRecorder, XdmfObserver
+from .output import PointProbe, probe_sigma
 from .parallel import ranks_on_node
 from .progress import LOGGER
-from .run_folder import PROBES, SUMMARY, XDMF, claim, new_run_id, prepare_output_dir, write_summary
+from .run_folder import PROBES, XDMF, new_run_id, prepare_output_dir
 from .scene import Scene
-from .simulation import check_state, cos_theta, newton_settings, probe_sigma
 
 
 @dataclass
 class StaticResult:
+    """The model (its U holds the final state), the load factors reached, the Newton
+    iterations of each accepted load step, the bisections and the summary; with
+    ``record=True`` the probe's rows (λ, x, y, z, θ, ψ, φ) [1, m, rad] at every load factor."""
+
     model: RodModel
     load_factors: list[float]
     iterations: list[int]
     bisections: int
     summary: dict
+    probes: np.ndarray | None = field(default=None, repr=False)
+
+
+@dataclass
+class StaticState:
+    """Where load stepping is: ``t`` the load factor λ of the last accepted state (in the
+    place of time, for the observers), accepted load steps, bisections (``rejected``),
+    output steps."""
+
+    t: float = 0.0
+    accepted: int = 0
+    rejected: int = 0
+    outputs: int = 0
+
+
+class StaticLoop:
+    """Load stepping of the module docstring, announcing each step to ``events``."""
+
+    restarted = False
+
+    def __init__(self, model: RodModel, solver: NewtonSolver, scene: Scene, events: Events):
+        self.model, self.solver, self.scene, self.events = model, solver, scene, events
+        self.state = StaticState()
+        self.factors: list[float] = [0.0]
+        self.iterations: list[int] = []
+        if events.listens("newton_iteration"):
+            solver.iteration_hook = lambda it, norms, reason: events.newton_iteration(
+                self, it, norms, reason
+            )
+
+    @property
+    def completed(self) -> bool:
+        return self.state.t >= 1.0 - 1e-14
+
+    def run(self) -> None:
+        model, solver, st, events = self.model, self.solver, self.state, self.events
+        static = self.scene.static
+        events.started(self)
+        nominal = 1.0 / static.load_steps
+        smallest = nominal / 2**static.max_bisections
+        step, prev_step = nominal, None
+        U_n = model.U.x.array.copy()
+        U_nm1 = None
+        try:
+            while not self.completed:
+                lam = st.t
+                trial = min(lam + step, 1.0)
+                events.step_attempted(self, trial)
+                model.load_factor.value = trial
+                if U_nm1 is not None and prev_step:
+                    model.U.x.array[:] = U_n + (trial - lam) / prev_step * (U_n - U_nm1)
+                else:
+                    model.U.x.array[:] = U_n
+                try:
+                    its = solver.solve()
+                    events.solve_done(self, its)
+                    check_state(
+                        model,
+                        static.time,
+                        where_prefix=f"load factor {trial:.6g} (from {lam:.6g})",
+                        before=cos_theta(model, U_n),
+                    )
+                except (NewtonFailure, SolverError) as exc:
+                    st.rejected += 1
+                    step *= 0.5
+                    events.step_rejected(self, exc if isinstance(exc, SolverError) else None)
+                    if step < smallest * (1.0 - 1e-12):
+                        raise SolverError(
+                            time=None,
+                            where=f"load factor {trial:.6g} (last converged {lam:.6g})",
+                            reason=f"no load increment down to 1/{2**static.max_bisections} "
+                            f"of the nominal one converges: {exc.reason}",
+                            suggestion=getattr(exc, "suggestion", None)
+                            or "increase static.load_steps, or the load passes a limit point",
+                        ) from None
+                    continue
+                U_nm1, U_n = U_n, model.U.x.array.copy()
+                prev_step, st.t = trial - lam, trial
+                step = min(2.0 * step, nominal)
+                st.accepted += 1
+                st.outputs += 1
+                self.factors.append(trial)
+                self.iterations.append(its)
+                events.step_accepted(self)
+                events.output(self, st.outputs, trial)
+                events.step_finished(self)
+        finally:
+            model.U.x.array[:] = U_n  # the last accepted state
 
 
 def static_path(
@@ -51,8 +149,12 @@ def static_path(
     out_dir: str | Path | None = None,
     comm: MPI.Comm = MPI.COMM_WORLD,
     write_outputs: bool = True,
+    observers: Sequence[Observer | Callable] = (),
+    record: bool = False,
 ) -> StaticResult:
-    """Follow the static equilibrium path from the straight rod to the full loads."""
+    """Follow the static equilibrium path from the straight rod to the full loads (module
+    docstring); ``observers`` as for cosserat_fem.simulation.run, with λ in place of t;
+    ``record``: keep the probe's rows in memory (``StaticResult.probes``)."""
     t_start = clock.perf_counter()
     out = Path(out_dir if out_dir is not None else scene.output.directory)
     budget.check(scene, "static", out if write_outputs else None, ranks_on_node(comm), comm.size)
@@ -68,7 +170,7 @@ def static_path(
     if problem:
         raise SceneError(f"{problem}: the load is not finite there (static.time)")
     integrator = make_integrator("static", model.U, model.residual, 0.0)
-    settings = newton_settings(scene)
+    settings = NewtonSettings.of(scene.solver)
     if settings.jacobian != "full":
         # The matrix changes with every load increment, and the large-deflection tests rely on
         # full Newton's quadratic end (a reused matrix left roll-up gaps of 7e-8).
@@ -89,103 +191,52 @@ def static_path(
         "newton": "full",
         "scene": scene.to_dict(),
     }
-    probes = xdmf = None
-    if write_outputs:
-        claim(out, comm, scene.output.xdmf, summary)
-        try:
-            probes = ProbeWriter(
-                out / PROBES, PointProbe(model, probe_sigma(scene))
-            )
-            probes.write(0.0)
-            if scene.output.xdmf:
-                xdmf = XdmfWriter(out / XDMF, model, run_id=summary["run_id"])
-                xdmf.write(0.0)
-        except OutputError:
-            if probes is not None:
-                probes.close()
-            solver.destroy()
-            raise
 
-    nominal = 1.0 / scene.static.load_steps
-    smallest = nominal / 2**scene.static.max_bisections
-    lam, step, prev_step = 0.0, nominal, None
-    U_n = model.U.x.array.copy()
-    U_nm1 = None
-    factors, iterations, bisections = [0.0], [], 0
-    failure = None
-    try:
-        while lam < 1.0 - 1e-14:
-            trial = min(lam + step, 1.0)
-            model.load_factor.value = trial
-            if U_nm1 is not None and prev_step:
-                model.U.x.array[:] = U_n + (trial - lam) / prev_step * (U_n - U_nm1)
-            else:
-                model.U.x.array[:] = U_n
-            try:
-                its = solver.solve()
-                check_state(
-                    model,
-                    scene.static.time,
-                    where_prefix=f"load factor {trial:.6g} (from {lam:.6g})",
-                    before=cos_theta(model, U_n),
-                )
-            except (NewtonFailure, SolverError) as exc:
-                bisections += 1
-                step *= 0.5
-                if step < smallest * (1.0 - 1e-12):
-                    raise SolverError(
-                        time=None,
-                        where=f"load factor {trial:.6g} (last converged {lam:.6g})",
-                        reason=f"no load increment down to 1/{2**scene.static.max_bisections} of "
-                        f"the nominal one converges: {exc.reason}",
-                        suggestion=getattr(exc, "suggestion", None)
-                        or "increase static.load_steps, or the load passes a limit point",
-                    ) from None
-                continue
-            U_nm1, U_n = U_n, model.U.x.array.copy()
-            prev_step, lam = trial - lam, trial
-            step = min(2.0 * step, nominal)
-            factors.append(lam)
-            iterations.append(its)
-            if probes is not None:
-                probes.write(lam)
-                if comm.size > 1:
-                    probes.check()
-            if xdmf is not None:
-                if probes is not None:
-                    probes.flush()  # probes.csv reaches every frame on disk (kill-safe)
-                xdmf.write(lam)
-    except (SolverError, OutputError) as exc:
-        failure = exc
-        model.U.x.array[:] = U_n
-    finally:
-        try:
-            if probes is not None:
-                probes.close()
-                probes.check()
-        except OutputError as exc:
-            failure = failure or exc
-        if xdmf is not None:
-            xdmf.close()
-        solver.destroy()
-    summary.update(
-        {
-            "status": ("stopped" if isinstance(failure, OutputError) else "failed")
-            if failure
-            else "completed",
-            "message": str(failure) if failure else "",
-            "load_factors": factors,
-            "newton_iterations": iterations,
-            "bisections": bisections,
-            "wall_time_s": {"total": clock.perf_counter() - t_start},
-        }
-    )
+    def finish(loop: StaticLoop, failure: BaseException | None) -> dict:
+        summary.update(
+            {
+                "status": "completed" if failure is None else
+                "stopped" if isinstance(failure, StopError) else "failed",
+                "message": str(failure) if failure else "",
+                "load_factors": loop.factors,
+                "newton_iterations": loop.iterations,
+                "bisections": loop.state.rejected,
+                "wall_time_s": {"total": clock.perf_counter() - t_start},
+            }
+        )
+        return summary
+
+    chain: list = []
+    probe = PointProbe(model, probe_sigma(scene))
     if write_outputs:
-        write_summary(out / SUMMARY, summary, comm, strict=failure is None)
+        begin = FolderStart(out, comm, scene.output.xdmf, summary)
+        probes = ProbeObserver(out / PROBES, probe)
+        chain += [begin, probes]
+        if scene.output.xdmf:
+            chain.append(XdmfObserver(out / XDMF, model, 1, probes, summary["run_id"]))
+    recorder = ProbeRecorder(probe) if record else None
+    chain += [*observers, *([recorder] if recorder is not None else [])]
+    if write_outputs:
+        chain.append(FolderSummary(out, comm, begin, finish))
+    events = Events(chain)
+    loop = StaticLoop(model, solver, scene, events)
+    failure: BaseException | None = None
+    try:
+        loop.run()
+    except (SolverError, StopError) as exc:
+        failure = exc
+    except BaseException as exc:
+        events.ended(loop, exc)
+        solver.destroy()
+        raise
+    failure = events.ended(loop, failure)
+    finish(loop, failure)
+    solver.destroy()
     comm.barrier()
     if failure:
         raise failure
-    return StaticResult(model, factors, iterations, bisections, summary)
+    rows = recorder.rows() if recorder is not None else None
+    return StaticResult(model, loop.factors, loop.iterations, loop.state.rejected, summary, rows)
 
 
 def solve_static(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[RodModel, int]:

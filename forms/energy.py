@@ -3,7 +3,7 @@
 With (9)-(13), (25), (26), (29), (46) and the scalings (47) (x = ℓ p1, t = τ/ω0, so
 ∂t r = ℓ ω0 q_trans, w = ω0 ŵ, u = û/ℓ):
 
-    kinetic  T = ½ ∫₀^ℓ [ρA |∂t r|² + ρ (c11 w1² + c22 w2² + (c11 + c22) w3²)] ds,
+    kinetic  T = ½ ∫₀^ℓ [ρA |∂t r|² + ρ (c11 w1² + c22 w2² + I3 w3²)] ds,
     strain   V = ½ ∫₀^ℓ [κGA (v1² + v2²) + EA (v3 − 1)² + E c11 u1² + E c22 u2² + G c33 u3²] ds,
 
 and the power of the loads (36), (42) in fixed directions is
@@ -48,7 +48,7 @@ def kinetic_energy_density(U, rod: RodConstants):
     """ℓ × the kinetic energy per unit length [J per unit σ]."""
     _, r_dot, w = _rates(U, rod)
     s = rod.section
-    inertia = (s.c11, s.c22, s.c11 + s.c22)
+    inertia = rod.rotary_inertias
     rot = sum(inertia[i] * w[i] ** 2 for i in range(3))
     return 0.5 * rod.length * rod.density * (s.area * ufl.dot(r_dot, r_dot) + rot)
 

@@ -159,7 +159,7 @@ def mass_matrix(p) -> ufl.core.expr.Expr:
     return ufl.as_matrix(rows)
 
 
-def flux(p, dp, G: Groups) -> ufl.core.expr.Expr:
+def flux(p, dp, groups: Groups) -> ufl.core.expr.Expr:
     """The flux b of eq. (63).
 
     Rows 1-3: b = −(g0/ℓ) n, the contact force (32) in the fixed basis, written as in (63):
@@ -170,13 +170,13 @@ def flux(p, dp, G: Groups) -> ufl.core.expr.Expr:
     v = stretch_shear_strain(p, dp)
     u = curvature(p, dp)
     r_prime = ufl.as_vector([dp[0], dp[1], 1.0 + dp[2]])
-    axial = (G.nu01 - G.nu02) * v[2] + G.nu02
-    b_force = [-G.nu01 * r_prime[j] + axial * D[2, j] for j in range(3)]
-    b_torque = [-G.nu11 * u[0], -G.nu21 * u[1], -G.nu31 * u[2]]
+    axial = (groups.nu01 - groups.nu02) * v[2] + groups.nu02
+    b_force = [-groups.nu01 * r_prime[j] + axial * D[2, j] for j in range(3)]
+    b_torque = [-groups.nu11 * u[0], -groups.nu21 * u[1], -groups.nu31 * u[2]]
     return ufl.as_vector(b_force + b_torque)
 
 
-def source(p, dp, q, G: Groups, loads: DistributedLoads | None = None) -> Source:
+def source(p, dp, q, groups: Groups, loads: DistributedLoads | None = None) -> Source:
     """The source g of eq. (67), split into inertial, elastic and load parts.
 
     inertial (rows 4-6), from (52)-(54) with (64): g = −(dMm/dτ) q_ang − (ŵ2 ŵ3, −ŵ3 ŵ1, ν33 ŵ1 ŵ2);
@@ -192,16 +192,16 @@ def source(p, dp, q, G: Groups, loads: DistributedLoads | None = None) -> Source
     w = angular_velocity(p, q)
     qa = angles(q)
     mdot_q = angular_map_rate(p[3], p[5], q[3], q[5]) * qa
-    gyro = ufl.as_vector([w[1] * w[2], -w[2] * w[0], G.nu33 * w[0] * w[1]])
+    gyro = ufl.as_vector([w[1] * w[2], -w[2] * w[0], groups.nu33 * w[0] * w[1]])
     inertial = ufl.as_vector([0.0, 0.0, 0.0] + [-mdot_q[i] - gyro[i] for i in range(3)])
     elastic = ufl.as_vector(
         [
             0.0,
             0.0,
             0.0,
-            G.nu12 * u[1] * u[2] - ((G.nu13 - G.nu14) * v[2] + G.nu14) * v[1],
-            -G.nu22 * u[0] * u[2] + ((G.nu23 - G.nu24) * v[2] + G.nu24) * v[0],
-            G.nu32 * u[0] * u[1],
+            groups.nu12 * u[1] * u[2] - ((groups.nu13 - groups.nu14) * v[2] + groups.nu14) * v[1],
+            -groups.nu22 * u[0] * u[2] + ((groups.nu23 - groups.nu24) * v[2] + groups.nu24) * v[0],
+            groups.nu32 * u[0] * u[1],
         ]
     )
     load = None
@@ -212,34 +212,34 @@ def source(p, dp, q, G: Groups, loads: DistributedLoads | None = None) -> Source
             l_d = rotation_matrix(p[3], p[4], p[5]) * loads.torque
         else:
             l_d = zero3
-        load = ufl.as_vector(
-            [G.g0 * f[0], G.g0 * f[1], G.g0 * f[2], G.g1 * l_d[0], G.g2 * l_d[1], G.g3 * l_d[2]]
-        )
+        scale = (groups.g1, groups.g2, groups.g3)
+        force = [groups.g0 * f[i] for i in range(3)]
+        load = ufl.as_vector(force + [scale[i] * l_d[i] for i in range(3)])
     return Source(inertial=inertial, elastic=elastic, load=load)
 
 
-def damping_source(p, q, G: Groups, damping: ViscousDamping) -> ufl.core.expr.Expr:
+def damping_source(p, q, groups: Groups, damping: ViscousDamping) -> ufl.core.expr.Expr:
     """The damping densities as rows of g (67), like the loads: (g0 f_d, g_i l_d,i) with
     f_d = −c_t ℓ ω0 (q1, q2, q3) in the fixed basis and l_d,i = −c_r ω0 ŵ_i in the directors
     (a torque density enters row 3 + i through d_i · l, (38)). The power they take,
     −∫ (c_t |ṙ|² + c_r |ω|²) ds ≤ 0, is the energy's loss rate."""
     w = angular_velocity(p, q)
-    ct = damping.translational * G.length * damping.omega0 * G.g0
+    ct = damping.translational * groups.length * damping.omega0 * groups.g0
     cr = damping.rotational * damping.omega0
     return ufl.as_vector(
         [
             -ct * q[0],
             -ct * q[1],
             -ct * q[2],
-            -cr * G.g1 * w[0],
-            -cr * G.g2 * w[1],
-            -cr * G.g3 * w[2],
+            -cr * groups.g1 * w[0],
+            -cr * groups.g2 * w[1],
+            -cr * groups.g3 * w[2],
         ]
     )
 
 
 def kelvin_voigt_terms(
-    p, dp, q, dq, G: Groups, damping: KelvinVoigtDamping
+    p, dp, q, dq, groups: Groups, damping: KelvinVoigtDamping
 ) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
     """The viscous parts (b_v, g_v) of the flux b (63) and the source g (67).
 
@@ -256,9 +256,10 @@ def kelvin_voigt_terms(
     v = stretch_shear_strain(p, dp)
     u = curvature(p, dp)
     v_dot, u_dot = strain_rates(p, dp, q, dq)
-    inertia = [G.g0 / (G.length * g) for g in (G.g1, G.g2, G.g3)]
-    n_v = eta * ufl.as_vector([G.nu01 * v_dot[0], G.nu01 * v_dot[1], G.nu02 * v_dot[2]])
-    stiff = (G.nu11, G.nu21, G.nu31)
+    inertia = [groups.g0 / (groups.length * g) for g in (groups.g1, groups.g2, groups.g3)]
+    axial = (groups.nu01, groups.nu01, groups.nu02)
+    n_v = eta * ufl.as_vector([axial[i] * v_dot[i] for i in range(3)])
+    stiff = (groups.nu11, groups.nu21, groups.nu31)
     m_v = eta * ufl.as_vector([stiff[i] * inertia[i] * u_dot[i] for i in range(3)])
     force = D.T * n_v
     moment = ufl.cross(u, m_v) + ufl.cross(v, n_v)
@@ -267,13 +268,14 @@ def kelvin_voigt_terms(
     return flux_v, source_v
 
 
-def end_data(p, G: Groups, end: EndLoads, convention: EndLoadConvention) -> ufl.core.expr.Expr:
+def end_data(p, groups: Groups, end: EndLoads, convention: EndLoadConvention) -> ufl.core.expr.Expr:
     """Free-end data g_b of (62), corrected (module docstring); l^b_i = d_i · l^b by (43)."""
     sign = END_LOAD_SIGNS[convention.sign]
     if convention.scaling == "balance":
-        scales = [G.g0 / G.length] * 3 + [G.g1 / G.length, G.g2 / G.length, G.g3 / G.length]
+        ell = groups.length
+        scales = [groups.g0 / ell] * 3 + [g / ell for g in (groups.g1, groups.g2, groups.g3)]
     elif convention.scaling == "printed":
-        scales = [G.g0] * 6
+        scales = [groups.g0] * 6
     else:
         raise ValueError(f"unknown end-load scaling {convention.scaling!r}")
     zero3 = ufl.as_vector([0.0, 0.0, 0.0])
@@ -287,7 +289,7 @@ def residual_terms(
     U,
     Udot,
     V,
-    G: Groups,
+    groups: Groups,
     dx: ufl.Measure,
     loads: DistributedLoads | None = None,
     end_loads: tuple[EndLoads, ...] = (),
@@ -306,22 +308,22 @@ def residual_terms(
     dp, dq = sigma_derivatives(U)
     dvq = sigma_derivatives(V)[1]
 
-    g = source(p, dp, q, G, loads)
+    g = source(p, dp, q, groups, loads)
     kinematic = ufl.inner(pdot - q, vp) * dx
     inertia = ufl.inner(mass_matrix(p) * qdot - g.inertial, vq) * dx
-    elastic = (-ufl.inner(flux(p, dp, G), dvq) - ufl.inner(g.elastic, vq)) * dx
+    elastic = (-ufl.inner(flux(p, dp, groups), dvq) - ufl.inner(g.elastic, vq)) * dx
     distributed = -ufl.inner(g.load, vq) * dx if g.load is not None else None
     end_form = None
     for end in end_loads:
         if end.force is None and end.torque is None:
             continue
-        term = -ufl.inner(end_data(p, G, end, convention), vq) * end.ds
+        term = -ufl.inner(end_data(p, groups, end, convention), vq) * end.ds
         end_form = term if end_form is None else end_form + term
     extra = {}
     if damping is not None:
-        extra["damping"] = -ufl.inner(damping_source(p, q, G, damping), vq) * dx
+        extra["damping"] = -ufl.inner(damping_source(p, q, groups, damping), vq) * dx
     if kelvin_voigt is not None:
-        b_v, g_v = kelvin_voigt_terms(p, dp, q, dq, G, kelvin_voigt)
+        b_v, g_v = kelvin_voigt_terms(p, dp, q, dq, groups, kelvin_voigt)
         extra["kelvin_voigt"] = (-ufl.inner(b_v, dvq) - ufl.inner(g_v, vq)) * dx
     return ResidualTerms(
         kinematic=kinematic,

@@ -47,6 +47,12 @@ class RodConstants:
     torsion_inertia: str = "polar"
 
     @property
+    def rotary_inertias(self) -> tuple[float, float, float]:
+        """I11/ρ, I22/ρ, I33/ρ [m⁴]: c11, c22 (46) and the torsion row's I3 (module
+        docstring), the one source for the equations, the energy and the modes."""
+        return self.section.c11, self.section.c22, self.torsion_row_inertia
+
+    @property
     def torsion_row_inertia(self) -> float:
         """I3 / ρ [m⁴] that divides the torsion row (see the module docstring)."""
         s = self.section

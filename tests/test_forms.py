@@ -176,8 +176,9 @@ def test_printed_end_load_conventions(rod):
     a, b = _row_ratio(rod, rod, "end_load", EndLoadConvention(sign="printed"))
     np.testing.assert_allclose(b, -a, rtol=0, atol=1e-15 * np.abs(a).max())
     a, b = _row_ratio(rod, rod, "end_load", EndLoadConvention(scaling="printed"))
-    G = dimensionless_groups(rod)
-    expected = [rod.length] * 3 + [G.g0 * rod.length / g for g in (G.g1, G.g2, G.g3)]
+    groups = dimensionless_groups(rod)
+    rotations = (groups.g1, groups.g2, groups.g3)
+    expected = [rod.length] * 3 + [groups.g0 * rod.length / g for g in rotations]
     for j, factor in enumerate(expected):
         np.testing.assert_allclose(
             b[:, 6 + j], factor * a[:, 6 + j], rtol=1e-12, atol=1e-14 * np.abs(a).max()
@@ -203,7 +204,7 @@ def test_paper_reference_frequency_and_groups():
     sec = rectangle(0.04, 0.06, 0.833)
     w0 = euler_bernoulli_omega0(1.0, sec, 2730.0, 7.1e10)
     assert w0 == pytest.approx(207.0236, rel=2e-6)
-    G = dimensionless_groups(RodConstants(1.0, sec, 2730.0, 7.1e10, 7.1e10 / 2.64, 207.0236))
-    assert G.nu11 == G.nu21 == pytest.approx(7.1e10 / (2730.0 * 207.0236**2), rel=1e-14)
-    assert G.nu02 == pytest.approx(G.nu11, rel=1e-14)  # EA g0/ℓ = E/(ρ ℓ² ω0²)
-    assert G.nu33 == pytest.approx((sec.c22 - sec.c11) / (sec.c11 + sec.c22), rel=1e-14)
+    groups = dimensionless_groups(RodConstants(1.0, sec, 2730.0, 7.1e10, 7.1e10 / 2.64, 207.0236))
+    assert groups.nu11 == groups.nu21 == pytest.approx(7.1e10 / (2730.0 * 207.0236**2), rel=1e-14)
+    assert groups.nu02 == pytest.approx(groups.nu11, rel=1e-14)  # EA g0/ℓ = E/(ρ ℓ² ω0²)
+    assert groups.nu33 == pytest.approx((sec.c22 - sec.c11) / (sec.c11 + sec.c22), rel=1e-14)

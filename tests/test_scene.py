@@ -119,7 +119,9 @@ def test_defaults_of_a_minimal_scene() -> None:
     assert scene.model.reference_frequency is None
     assert scene.time.n_steps == 4
     assert (scene.discretisation.elements, scene.discretisation.degree) == (20, 2)
-    assert scene.solver.jacobian == "full" and scene.solver.max_iterations == 25
+    # The defaults the README states: SDIRK3 and a frozen Jacobian.
+    assert scene.time.integrator == "sdirk3" and scene.solver.jacobian == "frozen"
+    assert scene.solver.max_iterations == 25
     assert scene.output.directory == "results" and scene.output.xdmf_every(0.25) == 1
     assert scene.to_dict()["model"]["reference_frequency"] == "auto"
     assert scene_from_dict(scene.to_dict()) == scene

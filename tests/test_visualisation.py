@@ -161,17 +161,17 @@ def test_resultants_are_the_flux_of_the_general_form():
     p, _ = split(U)
     dU = U.dx(0)
     dp = ufl.as_vector([dU[i] for i in range(6)])
-    res, G, ell = resultants(U, model.rod), model.groups, model.length
+    res, groups, ell = resultants(U, model.rod), model.groups, model.length
     D = rotation_matrix(p[3], p[4], p[5])
     n_fixed = D.T * res.n
     ours = ufl.as_vector(
-        [-G.g0 / ell * n_fixed[i] for i in range(3)]
-        + [-g / ell * res.m[i] for i, g in enumerate((G.g1, G.g2, G.g3))]
+        [-groups.g0 / ell * n_fixed[i] for i in range(3)]
+        + [-g / ell * res.m[i] for i, g in enumerate((groups.g1, groups.g2, groups.g3))]
     )
     points = np.array([[0.1], [0.5], [0.9]])
     cells = np.arange(model.msh.topology.index_map(1).size_local, dtype=np.int32)
     a = fem.Expression(ours, points).eval(cells)
-    b = fem.Expression(flux(p, dp, G), points).eval(cells)
+    b = fem.Expression(flux(p, dp, groups), points).eval(cells)
     assert np.abs(b).max() > 1.0  # a large-rotation state, not the trivial one
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
 

@@ -20,7 +20,8 @@ sends their eigenvalues to infinity, away from the wanted ones.
 
 Each mode is classified by where its kinetic energy lies: bending-x (x and ψ), bending-y
 (y and θ), axial (z) or torsion (φ), with the physical weights ρ A ℓ² for the translations
-p1..p3 and ρ c11, ρ c22, ρ (c11 + c22) for θ, ψ, φ.
+p1..p3 and ρ c11, ρ c22, ρ I3 for θ, ψ, φ (I3 = c11 + c22, or c33 with torsion_inertia =
+"printed": forms/groups.py).
 """
 
 from __future__ import annotations
@@ -37,11 +38,12 @@ from dolfinx.fem.petsc import assemble_matrix
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import budget
+from . import __version__, budget
 from .errors import OutputError, SceneError, SolverError
 from .model import FULL, RodModel, build_model, support_conditions
 from .output import XdmfWriter
 from .parallel import agree, ranks_on_node
+from .run_folder import write_summary
 from .scene import Scene
 
 KINDS = ("bending-x", "bending-y", "axial", "torsion")
@@ -94,7 +96,7 @@ class ModalProblem:
     M: PETSc.Mat
 
 
-def clamped_conditions(model: RodModel, P: fem.FunctionSpace) -> list:
+def modal_supports(model: RodModel, P: fem.FunctionSpace) -> list:
     """The supports on the 6-component space P of p (model.support_conditions: p = 0 at a
     clamped end; x, y, z, φ = 0 at a pinned one)."""
     ends = {
@@ -125,7 +127,7 @@ def assemble_modal_problem(model: RodModel, base: np.ndarray | None = None) -> M
     V = ufl.as_vector(zeros + [v[i] for i in range(6)])
     time = fem.Constant(model.msh, PETSc.ScalarType(model.scene.time.start * model.omega0))
     F = model.residual_terms(U, Udot, time, test=V).total()
-    bcs = clamped_conditions(model, P)
+    bcs = modal_supports(model, P)
     K = assemble_matrix(fem.form(ufl.derivative(F, p0, dp)), bcs=bcs, diagonal=1.0)
     K.assemble()
     M = assemble_matrix(fem.form(ufl.derivative(F, acc, dp)), bcs=bcs, diagonal=0.0)
@@ -183,10 +185,11 @@ def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
 
 
 def _kinetic_weights(model: RodModel) -> np.ndarray:
-    """ρ A ℓ² for p1..p3 (p = x/ℓ) and ρ c11, ρ c22, ρ (c11 + c22) for θ, ψ, φ, per unit σ."""
-    rod, sec = model.rod, model.rod.section
-    trans = rod.density * sec.area * rod.length**2
-    return np.array([trans] * 3 + [rod.density * c for c in (sec.c11, sec.c22, sec.c11 + sec.c22)])
+    """ρ A ℓ² for p1..p3 (p = x/ℓ) and ρ c11, ρ c22, ρ I3 for θ, ψ, φ, per unit σ (I3: the
+    torsion row's, forms/groups.py)."""
+    rod = model.rod
+    trans = rod.density * rod.section.area * rod.length**2
+    return np.array([trans] * 3 + [rod.density * c for c in rod.rotary_inertias])
 
 
 def _energy_fractions(shape: fem.Function, weights: np.ndarray) -> dict[str, float]:
@@ -248,8 +251,10 @@ def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WO
     return model, solve_eigenproblem(problem, count)
 
 
-def write_modes(out: Path, model: RodModel, modes: list[Mode]) -> None:
-    """``modes.csv`` (rank 0) and ``modes.xdmf`` (shapes as a series indexed by mode number)."""
+def write_modes(out: Path, model: RodModel, modes: list[Mode], about: str = "undeformed") -> None:
+    """``modes.csv`` (rank 0), ``modes.xdmf`` (shapes as a series indexed by mode number) and
+    ``modes.json``, the summary of the modal analysis (cosserat_fem/run_folder.py; not
+    summary.json, which belongs to the run or static solve of the folder, if any)."""
     comm = model.msh.comm
     problem = None
     if comm.rank == 0:
@@ -281,3 +286,19 @@ def write_modes(out: Path, model: RodModel, modes: list[Mode]) -> None:
         for i, mode in enumerate(modes, start=1):
             writer.write(float(i), mode.shape)
         writer.close()
+    scene = model.scene
+    summary = {
+        "status": "completed",
+        "kind": "modes",
+        "about": about,
+        "cosserat_fem": __version__,
+        "scene_file": scene.source,
+        "mpi_ranks": comm.size,
+        "modes": [
+            {"omega_rad_s": m.omega, "kind": m.kind, "eigenvalue": [m.eigenvalue.real,
+             m.eigenvalue.imag], "note": m.note}
+            for m in modes
+        ],
+        "scene": scene.to_dict(),
+    }
+    write_summary(out / "modes.json", summary, comm)

@@ -1,0 +1,121 @@
+"""The Python API: scenes, runs, static solves and modes from a script or a notebook, with
+results as NumPy arrays in memory. The command line is a thin layer over the same functions.
+
+    import numpy as np
+    import cosserat_fem as cf
+
+    scene = cf.load("scenes/cao_tucker_2008.toml", {"time.end": 0.003})
+    result = cf.run(scene, fields=np.linspace(0.0, 1.0, 5))   # out="DIR": files as well
+    t, x_tip = result.probes[:, 0], result.probes[:, 1]       # [s], [m]
+    x_rod = result.field_values[-1, :, 0]                     # x(s) at the end [m]
+    modes = cf.modes(scene, count=4)                          # [m.frequency_hz for m in modes]
+
+Everything is SI: lengths in m, angles in rad, times in s. Under ``mpirun`` every rank
+calls the same functions and gets the same arrays.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .events import Observer
+from .scene import Scene, load_scene, scene_from_dict
+
+
+def load(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | Sequence[str] = ()
+         ) -> Scene:  # fmt: skip
+    """A validated scene from a TOML file or a dict of tables (as TOML reads), with
+    ``overrides``: a mapping of dotted keys to values (``{"time.end": 0.01}``) or
+    ``"dotted.key=value"`` strings as the command line's ``--set``. Bad input raises a
+    :class:`~cosserat_fem.errors.SceneError` naming the key."""
+    if isinstance(source, Mapping):
+        return scene_from_dict(dict(source), overrides=overrides)
+    return load_scene(source, overrides)
+
+
+def run(
+    scene: Scene,
+    out: str | Path | None = None,
+    *,
+    fields: Sequence[float] | np.ndarray | None = None,
+    field_every: int = 1,
+    observers: Sequence[Observer | Callable] = (),
+    initial_state: np.ndarray | None = None,
+    restart=None,
+    progress: Callable[[float, int, int], None] | None = None,
+    record: bool = True,
+):
+    """Integrate the scene in time; a :class:`~cosserat_fem.simulation.RunResult` whose
+    ``probes`` are the probe's rows (t, x, y, z, θ, ψ, φ) at every output time (unless
+    ``record`` is false) and, with ``fields`` (stations σ = s/ℓ in [0, 1]), ``field_times``
+    (T,) and ``field_values`` (T, stations, 6) every ``field_every`` output times. Files
+    (probes.csv, XDMF, checkpoints, summary.json) only with ``out``, or in the checkpoint's
+    folder with ``restart`` (from :func:`resume`). ``observers``: cosserat_fem/events.py;
+    ``progress(t [s], steps, Newton iterations)`` at every output time."""
+    from .simulation import run as run_scene
+
+    return run_scene(
+        scene,
+        out,
+        observers=observers,
+        write_outputs=out is not None or restart is not None,
+        initial_state=initial_state,
+        restart=restart,
+        progress=progress,
+        record=record,
+        fields=None if fields is None else np.asarray(fields, dtype=float),
+        field_every=field_every,
+    )
+
+
+def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()):
+    """The scene and the checkpoint to continue the run in ``folder`` (``run(scene,
+    restart=checkpoint)``), with the overrides a restart allows (cosserat_fem/checkpoint.py:
+    time.end, solver.*, limits.*, ...); SceneError if there is no usable checkpoint, or
+    time.end is not later than it."""
+    from .checkpoint import FIXED_KEYS, load_checkpoint, restart_overrides
+    from .errors import SceneError
+
+    texts = [f"{k}=" for k in overrides] if isinstance(overrides, Mapping) else overrides
+    restart_overrides(texts)
+    checkpoint = load_checkpoint(folder)
+    scene = scene_from_dict(checkpoint.meta["scene"], source=f"{folder}/checkpoint",
+                            overrides=overrides, fixed=FIXED_KEYS)  # fmt: skip
+    if not scene.time.end > checkpoint.time:
+        raise SceneError(
+            f"time.end: the checkpoint is at t = {checkpoint.time:.10g} s; give a later end "
+            f"to continue (--set time.end=...), got {scene.time.end:.10g}"
+        )
+    return scene, checkpoint
+
+
+def static(scene: Scene, out: str | Path | None = None, *, observers=()):
+    """Static equilibrium under the scene's loads by load stepping; a
+    :class:`~cosserat_fem.statics.StaticResult` whose ``probes`` are the probe's rows
+    (λ, x, y, z, θ, ψ, φ) at every accepted load factor λ. Files only with ``out``."""
+    from .statics import static_path
+
+    return static_path(scene, out, write_outputs=out is not None, observers=observers,
+                       record=True)  # fmt: skip
+
+
+def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | Path | None = None):
+    """The ``count`` lowest natural modes (cosserat_fem/modal.py) about the straight rod or,
+    with ``about="static"``, the static state under the scene's loads: a list of
+    :class:`~cosserat_fem.modal.Mode` (``omega`` [rad/s], ``frequency_hz``, ``kind``,
+    ``shape``); modes.csv, modes.xdmf and modes.json only with ``out``."""
+    from mpi4py import MPI
+
+    from .modal import check_count, compute_modes, write_modes
+    from .run_folder import prepare_output_dir
+
+    check_count(scene, count)
+    folder = None if out is None else prepare_output_dir(Path(out), MPI.COMM_WORLD)
+    model, found = compute_modes(scene, count, about=about)
+    if folder is not None:
+        write_modes(folder, model, found, about)
+    return found

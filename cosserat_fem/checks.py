@@ -1,0 +1,108 @@
+"""State checks after a step or a load increment: a finite state, a regular Euler-angle chart.
+
+det Ma = cos θ (66): the chart of the Euler angles (18) is singular at θ = ±π/2. After each
+step U must be finite, |cos θ| ≥ :data:`CHART_COS_MIN` at every node, and cos θ must not have
+changed sign since the last accepted state (a step that jumped over the singularity, which no
+continuous motion passes). Trouble is a :class:`~cosserat_fem.errors.SolverError` naming the
+time and the place along the rod.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from mpi4py import MPI
+
+from .errors import SolverError
+from .model import RodModel
+
+CHART_COS_MIN = 1e-2
+
+
+def worst_place(model: RodModel, values: np.ndarray) -> tuple[float, float]:
+    """(s [m], value) of the largest |value| over the rod; values: local per-block array."""
+    imap = model.V.dofmap.index_map
+    n = imap.size_local
+    coords = model.V.tabulate_dof_coordinates()[:n, 0]
+    local = np.abs(values[:n]) if n else np.zeros(1)
+    i = int(np.argmax(local)) if n else 0
+    mine = (float(local[i]) if n else -1.0, float(coords[i]) * model.length if n else 0.0)
+    return max(model.msh.comm.allgather(mine))[::-1]
+
+
+CHART_SUGGESTION = (
+    "d3 is nearly parallel to e2, which the Euler angles (18) cannot represent; orient the rod "
+    "so that large bending is about e2 (carried by ψ, which the chart allows without bound)"
+)
+
+
+def cos_theta(model: RodModel, state: np.ndarray) -> np.ndarray:
+    """cos θ at the owned nodes of a state array (det Ma = cos θ, (66); 1 if θ ≡ 0 is not
+    solved for)."""
+    n = model.V.dofmap.index_map.size_local
+    theta = model.layout.index(3)
+    if theta is None:
+        return np.ones(n)
+    return np.cos(state.reshape(-1, model.layout.size)[:n, theta])
+
+
+def check_state(
+    model: RodModel, t: float | None, where_prefix: str = "", before: np.ndarray | None = None
+) -> np.ndarray:
+    """Stop with a SolverError if U is not finite, if the Euler-angle chart is (nearly)
+    singular, |cos θ| < ``CHART_COS_MIN``, or, given cos θ of the previous accepted state
+    (``before``, from :func:`cos_theta` or an earlier call), if θ crossed ±π/2 at some node
+    since then (cos θ changed sign: a step jumped over the singularity, through which no
+    continuous motion passes, det Ma = cos θ (66)). Returns cos θ of U at the owned nodes."""
+    blocks = model.U.x.array.reshape(-1, model.layout.size)
+    n = model.V.dofmap.index_map.size_local
+    cos_now = cos_theta(model, model.U.x.array)
+    # One number and (in parallel) one reduction per step: the smallest |cos θ|; −0.5 if θ
+    # crossed ±π/2, −1 if any owned value is not finite (a NaN or inf makes the sum so).
+    value = 1.0
+    if n:
+        value = float(np.abs(cos_now).min())
+        if before is not None and float((before * cos_now).min()) <= 0.0:
+            value = -0.5
+        if not math.isfinite(value + float(blocks[:n].sum())):
+            value = -1.0
+    comm = model.msh.comm
+    if comm.size > 1:
+        value = comm.allreduce(value, op=MPI.MIN)
+    if value >= CHART_COS_MIN:
+        return cos_now
+    prefix = f"{where_prefix}{', ' if where_prefix else ''}"
+    if value == -1.0:
+        bad = np.where(np.isfinite(blocks).all(axis=1), 0.0, 1.0)
+        s, _ = worst_place(model, bad)
+        raise SolverError(
+            time=t,
+            where=f"{prefix}s = {s:.4g} m",
+            reason="the solution became non-finite (NaN/inf)",
+            suggestion="reduce time.step or check the loads",
+            retry=True,
+        )
+    if value == -0.5:
+        s, _ = worst_place(model, np.where(before * cos_now <= 0.0, 1.0, 0.0))
+        raise SolverError(
+            time=t,
+            where=f"{prefix}s = {s:.4g} m",
+            reason="Euler-angle chart singular: θ crossed ±π/2 within the step "
+            "(det Ma = cos θ changed sign)",
+            suggestion=CHART_SUGGESTION,
+            retry=True,
+        )
+    cos_all = np.cos(model.layout.full_array(model.U.x.array)[:, 3])
+    s, _ = worst_place(model, 1.0 / np.maximum(np.abs(cos_all), 1e-300))
+    raise SolverError(
+        time=t,
+        where=f"{prefix}s = {s:.4g} m",
+        reason=(
+            f"Euler-angle chart singular: |cos θ| = {value:.2e} "
+            "(θ near ±π/2, where det Ma = cos θ vanishes)"
+        ),
+        suggestion=CHART_SUGGESTION,
+    )
+
+

@@ -1,0 +1,268 @@
+"""Observers of a run's events (cosserat_fem/events.py): what a run writes and records.
+
+Each observer has one job; a run is composed of the ones it needs (cosserat_fem/simulation.py,
+statics.py), in this order:
+
+* :class:`FolderStart`: a new run claims its folder (an earlier run's stale files removed,
+  summary.json "running" with the run's identity, cosserat_fem/run_folder.py); a restart cuts
+  the outputs back to its checkpoint (checked before anything was built);
+* :class:`ProbeObserver`: probes.csv, a row per output time;
+* :class:`XdmfObserver`: an XDMF frame every ``output.xdmf_interval`` (probes.csv flushed
+  first, so that it reaches every frame on disk);
+* :class:`ProgressObserver`: the progress bar (or any callback of (t, steps, iterations));
+* user observers, :class:`ProbeRecorder`, :class:`FieldRecorder` (the Python API's arrays);
+* :class:`CheckpointObserver`: checkpoints when due and at the end (cosserat_fem/checkpoint.py);
+* :class:`DeadlineObserver`: stops the run at ``limits.wall_time``, with a checkpoint;
+* :class:`FolderSummary`: summary.json at the end.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .checkpoint import Checkpoint, CheckpointWriter, cut_outputs
+from .errors import LimitReached, SceneError, SolverError
+from .events import Observer
+from .output import LineSampler, PointProbe, ProbeWriter, XdmfWriter
+from .progress import LOGGER
+from .run_folder import SUMMARY, claim, write_summary
+
+
+class FolderStart(Observer):
+    """Claims the folder of a new run, or cuts a restart's outputs back to its checkpoint
+    (``plan``, from checkpoint.check_outputs); then summary.json says "running"."""
+
+    def __init__(self, folder: Path, comm, writes_xdmf: bool, summary: dict, plan=None):
+        self.folder, self.comm, self.writes_xdmf = folder, comm, writes_xdmf
+        self.summary, self.plan = summary, plan
+        self.claimed = False
+
+    def started(self, loop) -> None:
+        if self.plan is None:
+            claim(self.folder, self.comm, self.writes_xdmf, self.summary)
+        else:
+            cut_outputs(self.plan, self.comm)
+            write_summary(self.folder / SUMMARY, self.summary, self.comm)
+        self.claimed = True
+
+
+class FolderSummary(Observer):
+    """summary.json at the end: ``finish(loop, failure)`` gives its content. A summary that
+    cannot be written is an OutputError unless the run already failed (the earlier one
+    stays)."""
+
+    def __init__(self, folder: Path, comm, start: FolderStart, finish):
+        self.folder, self.comm, self.start, self.finish = folder, comm, start, finish
+
+    def ended(self, loop, failure) -> None:
+        if self.start.claimed:
+            write_summary(
+                self.folder / SUMMARY, self.finish(loop, failure), self.comm, failure is None
+            )
+
+
+class ProbeObserver(Observer):
+    """probes.csv: the probe's values (x, y, z, θ, ψ, φ) [m, rad] at every output time."""
+
+    def __init__(self, path: Path, probe: PointProbe, resume: bool = False):
+        self.path, self.probe, self.resume = path, probe, resume
+        self.writer: ProbeWriter | None = None
+
+    def started(self, loop) -> None:
+        self.writer = ProbeWriter(self.path, self.probe, resume=self.resume)
+        if not self.resume:
+            self.writer.write(loop.state.t)
+
+    def output(self, loop, k: int, t: float) -> None:
+        self.writer.write(t)
+        if self.writer.comm.size > 1:
+            self.writer.check()  # the owner's write error, on every rank
+
+    def flush(self) -> None:
+        if self.writer is not None:
+            self.writer.flush()
+
+    def digest(self) -> str | None:
+        """SHA-256 of probes.csv so far, the same on every rank (collective)."""
+        digest = self.writer.digest()  # on the probe's owner, which may not be rank 0
+        comm = self.writer.comm
+        if comm.size > 1:
+            self.writer.check()
+            digest = comm.bcast(digest, root=self.probe.owner)
+        return digest
+
+    def ended(self, loop, failure) -> None:
+        if self.writer is not None:
+            self.writer.close()
+            self.writer.check()
+
+
+class XdmfObserver(Observer):
+    """solution.xdmf + .h5: a frame every ``every`` output steps (and the start), the fields
+    of ``output.fields``; ``resume = (n, frames)`` continues a restart's file."""
+
+    def __init__(self, path: Path, model, every: int, probes: ProbeObserver | None,
+                 run_id: str | None = None, resume: tuple[int, int] | None = None):  # fmt: skip
+        self.path, self.model, self.every, self.probes = path, model, every, probes
+        self.run_id, self.resume = run_id, resume
+        self.writer: XdmfWriter | None = None
+
+    def started(self, loop) -> None:
+        self.writer = XdmfWriter(self.path, self.model, resume=self.resume, run_id=self.run_id)
+        if self.resume is None:
+            self.writer.write(loop.state.t)
+
+    def output(self, loop, k: int, t: float) -> None:
+        if k % self.every == 0:
+            if self.probes is not None:
+                self.probes.flush()  # probes.csv reaches every frame on disk (kill-safe)
+            self.writer.write(t)
+
+    @property
+    def frames(self) -> int | None:
+        return None if self.writer is None else self.writer.writes
+
+    def ended(self, loop, failure) -> None:
+        if self.writer is not None:
+            self.writer.close()
+
+
+class ProgressObserver(Observer):
+    """Calls ``callback(t [s], steps taken, Newton iterations)`` at every output time."""
+
+    def __init__(self, callback):
+        self.callback = callback
+
+    def output(self, loop, k: int, t: float) -> None:
+        self.callback(t, loop.state.accepted, loop.solver.stats.iterations)
+
+
+class CheckpointObserver(Observer):
+    """Checkpoints every ``output.checkpoint_interval`` (at a step's end, where the loop's
+    state is whole) and at the end of a run that completed or stopped for a reason a restart
+    can continue from (numerical trouble, a non-finite load, a limit): the last accepted
+    state. Not after an output failure (the outputs then end before the steps taken: the
+    last periodic checkpoint stands) nor an interruption (as after a kill)."""
+
+    RESUMABLE = (SolverError, SceneError, LimitReached)
+
+    def __init__(self, folder: Path, comm, scene, run_id: str, probes: ProbeObserver,
+                 xdmf: XdmfObserver | None, previous: Checkpoint | None = None):  # fmt: skip
+        self.folder, self.comm, self.scene, self.run_id = folder, comm, scene, run_id
+        self.probes, self.xdmf, self.previous = probes, xdmf, previous
+        self.writer: CheckpointWriter | None = None
+        self._saved_at: float | None = None
+
+    @property
+    def written(self) -> int:
+        return 0 if self.writer is None else self.writer.written
+
+    def started(self, loop) -> None:
+        out = self.scene.output
+        self.writer = CheckpointWriter(self.folder, self.comm, out.checkpoint_interval,
+                                       self.scene.time.start, self.scene.to_dict(), self.run_id,
+                                       previous=self.previous)  # fmt: skip
+
+    def step_finished(self, loop) -> None:
+        if self.writer.due(loop.state.t):
+            self.save(loop)
+
+    def save(self, loop) -> None:
+        t = loop.state.t
+        if self._saved_at == t:
+            return
+        outputs = {
+            "probe_rows": loop.state.outputs + 1,
+            "probes_sha256": self.probes.digest(),
+            "xdmf_frames": None if self.xdmf is None else self.xdmf.frames,
+        }
+        self.writer.save(t, loop.state_dict(), outputs)
+        self._saved_at = t
+        LOGGER.info("checkpoint %d at t = %.6g s", self.writer.generation, t)
+
+    def ended(self, loop, failure) -> None:
+        if self.writer is None:
+            return
+        if (failure is None and loop.completed) or isinstance(failure, self.RESUMABLE):
+            self.save(loop)
+
+
+class DeadlineObserver(Observer):
+    """Stops the run (LimitReached, exit 4, with a checkpoint) once ``deadline``, a
+    time.perf_counter() value, has passed: limits.wall_time. Looks at the clock every
+    ``every`` steps, where the loop's state is whole, every rank alike (rank 0's clock)."""
+
+    def __init__(self, deadline: float, wall_time: float, comm, every: int = 64):
+        self.deadline, self.wall_time, self.comm, self.every = deadline, wall_time, comm, every
+        self._ticks = 0
+
+    def step_finished(self, loop) -> None:
+        self._ticks += 1
+        if self._ticks % self.every:
+            return
+        stop = time.perf_counter() > self.deadline
+        if self.comm.size > 1:
+            stop = self.comm.bcast(stop, root=0)
+        if stop:
+            raise LimitReached(
+                f"limits.wall_time: the run stopped at t = {loop.state.t:.6g} s after its limit "
+                f"of {self.wall_time:g} s of wall time; continue it with run --restart DIR "
+                "(--set limits.wall_time=... to allow more)"
+            )
+
+
+class ProbeRecorder(Observer):
+    """The probe's rows (t, x, y, z, θ, ψ, φ) [s, m, rad] in memory, at the start and every
+    output time: ``rows()`` on every rank (one broadcast at the end)."""
+
+    def __init__(self, probe: PointProbe):
+        self.probe = probe
+        self._rows: list[np.ndarray] = []
+
+    def started(self, loop) -> None:
+        if not loop.restarted:
+            self.output(loop, 0, loop.state.t)
+
+    def output(self, loop, k: int, t: float) -> None:
+        values = self.probe.values()
+        if values is not None:
+            self._rows.append(np.concatenate([[t], values]))
+
+    def rows(self) -> np.ndarray:
+        comm = self.probe.U.function_space.mesh.comm
+        rows = np.array(self._rows).reshape(-1, 7)
+        return rows if comm.size == 1 else comm.bcast(rows, root=self.probe.owner)
+
+
+class FieldRecorder(Observer):
+    """The fields p = (x, y, z, θ, ψ, φ) [m, rad] at arc lengths σ ℓ (``sigmas``: σ in
+    [0, 1]) every ``every`` output times and at the start: ``times`` (T,), ``values``
+    (T, len(sigmas), 6), the same on every rank."""
+
+    def __init__(self, model, sigmas, every: int = 1):
+        self.sampler = LineSampler(model, np.asarray(sigmas, dtype=float))
+        self.every = every
+        self._times: list[float] = []
+        self._values: list[np.ndarray] = []
+
+    def started(self, loop) -> None:
+        if not loop.restarted:
+            self._sample(loop.state.t)
+
+    def output(self, loop, k: int, t: float) -> None:
+        if k % self.every == 0:
+            self._sample(t)
+
+    def _sample(self, t: float) -> None:
+        self._times.append(t)
+        self._values.append(self.sampler.sample())  # on rank 0
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        comm = self.sampler.comm
+        values = np.array(self._values) if comm.rank == 0 else None
+        if comm.size > 1:
+            values = comm.bcast(values, root=0)
+        return np.array(self._times), values
