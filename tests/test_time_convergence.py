@@ -7,7 +7,14 @@ The floor of the comparison (space and nonlinearity) is 6e-7: SDIRK4 at Δt = 10
 floor, so the observed order log2(e(2Δt)/e(Δt)) measures the integrator alone (the floor moves
 it by at most 0.04).
 
-* BDF2 and generalized-α are second order: measured 1.99-2.02 at Δt = 40 → 20 μs; 2 ± 0.1.
+* BDF2 and generalized-α are second order: measured 1.995 (BDF2), 2.012 (ρ∞ = 0.8) and 1.992
+  (ρ∞ = 0) at Δt = 40 → 20 μs; required 2 ± 0.03. What moves an observed order off 2 here:
+  the floor, by at most 0.005 at these steps (6e-7 against errors of 1.3e-4 to 6e-4 at
+  20 μs), and the higher terms of the time error, e = C Δt² (1 + O(Δt)), whose effect is
+  largest at the coarsest pair and does not grow as Δt halves: 1.981, 2.012, 1.974 at
+  80 → 40 μs (within 0.026), then within 0.012 at 40 → 20 μs, and 2.002, 2.022, 2.002 at
+  20 → 10 μs, where the floor's share reaches 0.02 for generalized-α. A first-order error
+  term as large as the second-order one at 20 μs would make it log2(6/2) = 1.58.
 * SDIRK3 is third order: measured 2.91 at Δt = 80 → 40 μs. Its stages are only first-order
   accurate (stage order 1), and on the stiff semi-discrete rod (axial and shear modes with
   ω Δt ≫ 1, driven by the load) SDIRK methods lose order as Δt shrinks: 2.86 at 40 → 20 μs.
@@ -47,7 +54,7 @@ def tip_error(tmp_path, overrides: list[str]) -> float:
     return float(np.sqrt(np.mean((x - x_ref) ** 2) / np.mean(x_ref**2)))
 
 
-SECOND = ((4e-5, 2e-5), 2.0, 0.1)
+SECOND = ((4e-5, 2e-5), 2.0, 0.03)
 
 
 @pytest.mark.parametrize(
