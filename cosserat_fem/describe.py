@@ -5,7 +5,8 @@ from __future__ import annotations
 from typing import Any
 
 from .forms.kinematics import P_NAMES
-from .scene import PLANAR, SCHEMA, Scene, _Parameters, _Table
+from .scene import PLANAR, Scene
+from .schema import SCHEMA, Parameters, Table
 
 
 def _unit(spec: Any) -> str:
@@ -23,14 +24,14 @@ def _show(value: Any) -> str:
     return f"{value:.10g}" if isinstance(value, float) else str(value)
 
 
-def _lines(data: dict, table: _Table, prefix: str) -> list[str]:
+def _lines(data: dict, table: Table, prefix: str) -> list[str]:
     out = []
     for name, value in data.items():
         spec = table.fields.get(name)
         key = f"{prefix}.{name}" if prefix else name
-        if isinstance(spec, _Table) and isinstance(value, dict):
+        if isinstance(spec, Table) and isinstance(value, dict):
             out += _lines(value, spec, key)
-        elif isinstance(spec, _Parameters) and isinstance(value, dict):
+        elif isinstance(spec, Parameters) and isinstance(value, dict):
             out += [f"  {key}.{k} = {_show(v)}" for k, v in value.items()]
         else:
             out.append(f"  {key} = {_show(value)}{_unit(spec)}")

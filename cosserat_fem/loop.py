@@ -108,6 +108,7 @@ class TimeLoop:
         self.restarted = restart is not None
         self.pending = False  # a step was attempted and neither accepted nor rejected
         self.stepping_since: float | None = None
+        self.stepping_until: float | None = None
         self.history: StateHistory | None = None
         self.control: StepController | None = None
         if tspan.adaptive:
@@ -260,13 +261,17 @@ class TimeLoop:
     # -- the loops --------------------------------------------------------------------------
     def run(self) -> None:
         """The steps from the state's time to the span's end (see the module docstring).
-        ``stepping_since``: the time.perf_counter() value when the first step began."""
+        ``stepping_since``, ``stepping_until``: the time.perf_counter() values when the first
+        step began and the last one ended."""
         self.events.started(self)
         self.stepping_since = time.perf_counter()
-        if self.tspan.adaptive:
-            self.run_adaptive()
-        else:
-            self.run_fixed()
+        try:
+            if self.tspan.adaptive:
+                self.run_adaptive()
+            else:
+                self.run_fixed()
+        finally:
+            self.stepping_until = time.perf_counter()
 
     def run_fixed(self) -> None:
         """Steps of time.step; a failed step is retried with half of it, at most

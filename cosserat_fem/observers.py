@@ -27,6 +27,7 @@ from .checkpoint import Checkpoint, CheckpointWriter, cut_outputs
 from .errors import LimitReached, SceneError, SolverError
 from .events import Observer
 from .output import LineSampler, PointProbe, ProbeWriter, XdmfWriter
+from .parallel import from_root
 from .progress import LOGGER
 from .run_folder import SUMMARY, claim, write_summary
 
@@ -203,10 +204,7 @@ class DeadlineObserver(Observer):
         self._ticks += 1
         if self._ticks % self.every:
             return
-        stop = time.perf_counter() > self.deadline
-        if self.comm.size > 1:
-            stop = self.comm.bcast(stop, root=0)
-        if stop:
+        if from_root(self.comm, time.perf_counter() > self.deadline):
             raise LimitReached(
                 f"limits.wall_time: the run stopped at t = {loop.state.t:.6g} s after its limit "
                 f"of {self.wall_time:g} s of wall time; continue it with run --restart DIR "

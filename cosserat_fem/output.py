@@ -31,7 +31,7 @@ from mpi4py import MPI
 from .errors import OutputError
 from .forms.kinematics import P_NAMES
 from .forms.resultants import resultants
-from .parallel import agree
+from .parallel import agree, from_root
 
 if TYPE_CHECKING:
     from .model import RodModel
@@ -491,9 +491,7 @@ class XdmfWriter:
         if U is not None and U is not self.U:
             self.U.x.array[:] = U.x.array
         if self.functions:
-            problem = self._room_problem() if self._comm.rank == 0 else None
-            if self._comm.size > 1:
-                problem = self._comm.bcast(problem, root=0)
+            problem = from_root(self._comm, self._room_problem() if self._comm.rank == 0 else None)
             if problem:
                 raise OutputError(
                     f"output: the XDMF frame at t = {t:.6g} was not written to "

@@ -36,6 +36,11 @@ def agree(comm: MPI.Comm, problem: CosseratError | None) -> None:
         raise kind(message)
 
 
+def from_root(comm: MPI.Comm, value):
+    """Rank 0's ``value`` on every rank (a decision every rank must take alike)."""
+    return value if comm.size == 1 else comm.bcast(value, root=0)
+
+
 def ranks_on_node(comm: MPI.Comm) -> int:
     """How many ranks of ``comm`` share this rank's node (and its memory); collective."""
     if comm.size == 1:

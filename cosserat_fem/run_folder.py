@@ -20,7 +20,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from .errors import OutputError, SceneError
-from .parallel import agree
+from .parallel import agree, from_root
 
 PROBES, XDMF, SUMMARY = "probes.csv", "solution.xdmf", "summary.json"
 
@@ -44,7 +44,7 @@ def prepare_output_dir(path: Path, comm: MPI.Comm) -> Path:
 
 def new_run_id(comm: MPI.Comm) -> str:
     """A new identity, the same on every rank."""
-    return comm.bcast(uuid.uuid4().hex if comm.rank == 0 else None, root=0)
+    return from_root(comm, uuid.uuid4().hex if comm.rank == 0 else None)
 
 
 def stale_outputs(folder: Path, writes_xdmf: bool) -> list[Path]:

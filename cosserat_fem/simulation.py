@@ -32,8 +32,8 @@ from petsc4py import PETSc
 
 from . import __version__, budget
 from .checkpoint import Checkpoint, check_outputs
-from .errors import SceneError, SolverError, StopError
-from .events import Events, Observer
+from .errors import StopError
+from .events import Events, Observer, drive
 from .integrators import GeneralizedAlpha, make_integrator
 from .loop import TimeLoop
 from .model import RodModel, build_model
@@ -141,17 +141,53 @@ def run(
     t_start = time.perf_counter()
     if restart is not None:
         out_dir, write_outputs = restart.run_dir, True
-    out = Path(out_dir if out_dir is not None else scene.output.directory)
-    tspan = scene.time
-    start = restart.time if restart is not None else None
-    folder = out if write_outputs else None
-    budget.check(scene, "run", folder, ranks_on_node(comm), comm.size, start=start)
-    plan = None
+    out = None
     if write_outputs:
+        out = Path(out_dir if out_dir is not None else scene.output.directory)
+    start = restart.time if restart is not None else None
+    budget.check(scene, "run", out, ranks_on_node(comm), comm.size, start=start)
+    plan = None
+    if out is not None:
         prepare_output_dir(out, comm)
         if restart is not None:  # checked before anything is built or touched
-            plan = check_outputs(restart, out / PROBES, out / XDMF if scene.output.xdmf else None,
-                                 comm)  # fmt: skip
+            xdmf = out / XDMF if scene.output.xdmf else None
+            plan = check_outputs(restart, out / PROBES, xdmf, comm)
+    model, integrator, solver = _discretise(scene, comm, initial_state, restart)
+    probe = PointProbe(model, probe_sigma(scene))
+    summary = _summary_start(scene, model, integrator, solver, probe, comm, restart)
+    parts = _RunParts(scene, model, solver, probe, summary, comm, t_start)
+    if out is not None:
+        parts.files(out, restart, plan)
+    if progress is not None:
+        parts.chain.append(ProgressObserver(progress))
+    parts.chain += list(observers)
+    parts.records(record, fields, field_every)
+    events = parts.events(out, restart)
+    loop = TimeLoop(model, integrator, solver, scene.time, events,
+                    restart.parts if restart is not None else None)  # fmt: skip
+    try:
+        failure = drive(loop)
+    finally:
+        solver.destroy()
+    parts.summary_at_end(loop, failure)
+    comm.barrier()  # every file is closed on every rank before anyone reads them
+    if failure:
+        raise failure
+    times, values = parts.sampled.arrays() if parts.sampled is not None else (None, None)
+    return RunResult(
+        out_dir=out,
+        steps=summary["steps"],
+        time_reached=summary["time_reached_s"],
+        summary=summary,
+        model=model,
+        probes=parts.recorder.rows() if parts.recorder is not None else None,
+        field_times=times,
+        field_values=values,
+    )
+
+
+def _discretise(scene: Scene, comm, initial_state, restart):
+    """The model (in its initial state), the integrator and the Newton solver of a run."""
     model = build_model(scene, comm)
     if initial_state is not None and _leaves_plane(model, initial_state):
         model = build_model(scene, comm, planar=False)  # it keeps all twelve unknowns
@@ -161,6 +197,7 @@ def run(
         model.U.x.array[:] = model.layout.from_full(initial_state, model.nodes)
     elif scene.initial.fields():
         model.U.x.array[:] = model.initial_state()
+    tspan = scene.time
     integrator = make_integrator(
         tspan.integrator, model.U, model.residual, tspan.start * model.omega0, rho_inf=tspan.rho_inf
     )
@@ -168,94 +205,84 @@ def run(
     solver = NewtonSolver(integrator.residual_form(), model.U, model.bcs, settings)
     if restart is None and isinstance(integrator, GeneralizedAlpha):
         _consistent_rate(integrator, model, solver.lu_package)
-    probe = PointProbe(model, probe_sigma(scene))
-    summary = _summary_start(scene, model, integrator, solver, probe, comm, restart)
+    return model, integrator, solver
 
-    chain: list = []
-    recorder = ProbeRecorder(probe) if record else None
-    sampled = FieldRecorder(model, fields, field_every) if fields is not None else None
-    checkpoints = None
-    if write_outputs:
-        begin = FolderStart(out, comm, scene.output.xdmf, summary, plan)
-        probes = ProbeObserver(out / PROBES, probe, resume=restart is not None)
-        chain += [begin, probes]
+
+class _RunParts:
+    """The observers of a run, in the order of cosserat_fem/observers.py, and its summary."""
+
+    def __init__(self, scene, model, solver, probe, summary: dict, comm, t_start: float):
+        self.scene, self.model, self.solver, self.probe = scene, model, solver, probe
+        self.summary, self.comm, self.t_start = summary, comm, t_start
+        self.chain: list = []
+        self.recorder = self.sampled = self.checkpoints = None
+        self._files = None
+        self._events: Events | None = None
+
+    def files(self, out: Path, restart: Checkpoint | None, plan) -> None:
+        """The folder claimed (or cut back), probes.csv and the XDMF pair."""
+        scene = self.scene
+        begin = FolderStart(out, self.comm, scene.output.xdmf, self.summary, plan)
+        probes = ProbeObserver(out / PROBES, self.probe, resume=restart is not None)
         xdmf = None
         if scene.output.xdmf:
-            every = scene.output.xdmf_every(tspan.step)
+            every = scene.output.xdmf_every(scene.time.step)
             resume = (restart.restart_number, plan.frames) if restart is not None else None
-            xdmf = XdmfObserver(out / XDMF, model, every, probes, summary["run_id"], resume)
-            chain.append(xdmf)
-    if progress is not None:
-        chain.append(ProgressObserver(progress))
-    chain += [*observers, *(o for o in (recorder, sampled) if o is not None)]
-    if write_outputs and scene.output.checkpoint:
-        checkpoints = CheckpointObserver(out, comm, scene, summary["run_id"], probes, xdmf,
-                                         previous=restart)  # fmt: skip
-        chain.append(checkpoints)
-    chain.append(DeadlineObserver(t_start + scene.limits.wall_time, scene.limits.wall_time, comm))
-    timing = {"start": t_start}
+            xdmf = XdmfObserver(out / XDMF, self.model, every, probes, self.summary["run_id"],
+                                resume)  # fmt: skip
+        self.chain += [begin, probes, *([xdmf] if xdmf else [])]
+        self._files = (begin, probes, xdmf)
 
-    def finish(loop: TimeLoop, failure: BaseException | None) -> dict:
-        """summary.json at the end: the status, the loop's counters, Newton's, wall times."""
-        # The solve loop from its first step (the folder claimed and the first frame written
-        # belong to the set-up, as the first row of probes.csv does).
-        stepping = loop.stepping_since or timing["loop"]
-        loop_time = timing.get("ended", time.perf_counter()) - stepping
-        summary.update(
+    def records(self, record: bool, fields, field_every: int) -> None:
+        """The probe's rows and sampled fields in memory, for the Python API."""
+        if record:
+            self.recorder = ProbeRecorder(self.probe)
+            self.chain.append(self.recorder)
+        if fields is not None:
+            self.sampled = FieldRecorder(self.model, fields, field_every)
+            self.chain.append(self.sampled)
+
+    def events(self, out: Path | None, restart: Checkpoint | None) -> Events:
+        """The chain closed by the checkpoints, the wall-time limit and the summary."""
+        scene, comm = self.scene, self.comm
+        if self._files is not None and scene.output.checkpoint:
+            _, probes, xdmf = self._files
+            self.checkpoints = CheckpointObserver(out, comm, scene, self.summary["run_id"],
+                                                  probes, xdmf, previous=restart)  # fmt: skip
+            self.chain.append(self.checkpoints)
+        wall = scene.limits.wall_time
+        self.chain.append(DeadlineObserver(self.t_start + wall, wall, comm))
+        if self._files is not None:
+            self.chain.append(FolderSummary(out, comm, self._files[0], self.summary_at_end))
+        self._events = Events(self.chain)
+        return self._events
+
+    def summary_at_end(self, loop: TimeLoop, failure: BaseException | None) -> dict:
+        """summary.json at the end: the status, the loop's counters, Newton's, wall times
+        (the solve loop from its first step: the folder claimed and the first frame written
+        belong to the set-up, as the first row of probes.csv does)."""
+        now = time.perf_counter()
+        since = loop.stepping_since or now
+        loop_time = (loop.stepping_until or now) - since
+        output = self._events.output_time
+        self.summary.update(
             {
                 "status": _status(failure),
                 "message": str(failure) if failure else "",
                 **loop.state.counts(),
-                "checkpoints_written": checkpoints.written if checkpoints else 0,
-                "newton": solver.stats.as_dict(),
+                "checkpoints_written": self.checkpoints.written if self.checkpoints else 0,
+                "newton": self.solver.stats.as_dict(),
                 "wall_time_s": {
-                    "setup": stepping - t_start,
-                    "jit_compile": solver.compile_time,
+                    "setup": since - self.t_start,
+                    "jit_compile": self.solver.compile_time,
                     "solve_loop": loop_time,
-                    "solve_loop_without_output": loop_time - events.output_time,
-                    "output": events.output_time,
-                    "total": time.perf_counter() - t_start,
+                    "solve_loop_without_output": loop_time - output,
+                    "output": output,
+                    "total": now - self.t_start,
                 },
             }
         )
-        return summary
-
-    if write_outputs:
-        chain.append(FolderSummary(out, comm, begin, finish))
-    events = Events(chain)
-    loop = TimeLoop(model, integrator, solver, tspan, events,
-                    restart.parts if restart is not None else None)  # fmt: skip
-    timing["loop"] = time.perf_counter()
-    failure: BaseException | None = None
-    try:
-        loop.run()
-    except (SolverError, StopError, SceneError) as exc:
-        failure = exc
-    except BaseException as exc:  # Ctrl-C, or an observer's own exception: as after a kill
-        timing["ended"] = time.perf_counter()
-        loop.back_to_accepted()
-        events.ended(loop, exc)
-        solver.destroy()
-        raise
-    timing["ended"] = time.perf_counter()
-    loop.back_to_accepted()
-    failure = events.ended(loop, failure)
-    finish(loop, failure)
-    solver.destroy()
-    comm.barrier()  # every file is closed on every rank before anyone reads them
-    if failure:
-        raise failure
-    times, values = sampled.arrays() if sampled is not None else (None, None)
-    return RunResult(
-        out_dir=out if write_outputs else None,
-        steps=summary["steps"],
-        time_reached=summary["time_reached_s"],
-        summary=summary,
-        model=model,
-        probes=recorder.rows() if recorder is not None else None,
-        field_times=times,
-        field_values=values,
-    )
+        return self.summary
 
 
 def _status(failure: BaseException | None) -> str:

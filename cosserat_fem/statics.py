@@ -31,7 +31,7 @@ from mpi4py import MPI
 from . import __version__, budget
 from .checks import check_state, cos_theta
 from .errors import SceneError, SolverError, StopError
-from .events import Events, Observer
+from .events import Events, Observer, drive
 from .integrators import make_integrator
 from .model import RodModel, build_model
 from .newton import NewtonFailure, NewtonSettings, NewtonSolver
@@ -87,6 +87,9 @@ class StaticLoop:
     @property
     def completed(self) -> bool:
         return self.state.t >= 1.0 - 1e-14
+
+    def back_to_accepted(self) -> None:
+        """Nothing to do: a load step that fails restores the last accepted state itself."""
 
     def run(self) -> None:
         model, solver, st, events = self.model, self.solver, self.state, self.events
@@ -218,20 +221,12 @@ def static_path(
     chain += [*observers, *([recorder] if recorder is not None else [])]
     if write_outputs:
         chain.append(FolderSummary(out, comm, begin, finish))
-    events = Events(chain)
-    loop = StaticLoop(model, solver, scene, events)
-    failure: BaseException | None = None
+    loop = StaticLoop(model, solver, scene, Events(chain))
     try:
-        loop.run()
-    except (SolverError, StopError) as exc:
-        failure = exc
-    except BaseException as exc:
-        events.ended(loop, exc)
+        failure = drive(loop)
+    finally:
         solver.destroy()
-        raise
-    failure = events.ended(loop, failure)
     finish(loop, failure)
-    solver.destroy()
     comm.barrier()
     if failure:
         raise failure

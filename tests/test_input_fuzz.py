@@ -25,7 +25,8 @@ from cosserat_fem import budget
 from cosserat_fem.cli import main
 from cosserat_fem.describe import describe_scene
 from cosserat_fem.errors import SceneError
-from cosserat_fem.scene import SCHEMA, read_toml, scene_from_dict
+from cosserat_fem.scene import read_toml, scene_from_dict
+from cosserat_fem.schema import SCHEMA
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 BASE = read_toml(SCENE)

@@ -1,0 +1,461 @@
+"""The resolved scene: a scene validated, with its defaults filled in, expressions parsed and
+derived choices made ("auto" resolved), in SI units. Built by cosserat_fem/scene.py from data
+the schema (cosserat_fem/schema.py) has checked; :meth:`Scene.to_dict` gives the data back.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from cosserat_fem.expressions import Expression
+from cosserat_fem.forms.groups import RodConstants, euler_bernoulli_omega0
+from cosserat_fem.forms.section import Section, rectangle, tube
+from cosserat_fem.schema import DEFAULT_WALL_TIME, XDMF_FIELDS
+
+
+@dataclass(frozen=True)
+class SectionSpec:
+    """Cross-section, SI units, by ``shape`` (the keys of :data:`SECTION_KEYS`):
+
+    * rectangle: ``a`` along d1 (thickness), ``b`` along d2 (width) [m], c33 by the
+      ``torsion_constant`` rule (the Saint-Venant series, or the paper's approximation);
+    * circle: ``diameter`` [m]; tube: ``outer_diameter``, ``inner_diameter`` [m];
+    * constants: ``area`` [m²], ``c11``, ``c22``, ``c33`` [m⁴] given explicitly.
+
+    ``shear_coefficient`` κ is resolved: given, or 5/6 (rectangle) or Cowper's value for ν
+    (circle, tube); "constants" needs it given.
+    """
+
+    shape: str
+    shear_coefficient: float
+    a: float | None = None
+    b: float | None = None
+    torsion_constant: str | None = None
+    diameter: float | None = None
+    outer_diameter: float | None = None
+    inner_diameter: float | None = None
+    area: float | None = None
+    c11: float | None = None
+    c22: float | None = None
+    c33: float | None = None
+
+    def constants(self) -> Section:
+        """A, c11, c22, c33, κ (cosserat_fem.forms.section)."""
+        k = self.shear_coefficient
+        if self.shape == "rectangle":
+            return rectangle(self.a, self.b, k, self.torsion_constant)
+        if self.shape == "circle":
+            return tube(self.diameter, 0.0, k)
+        if self.shape == "tube":
+            return tube(self.outer_diameter, self.inner_diameter, k)
+        return Section(self.area, self.c11, self.c22, self.c33, k)
+
+    def given(self) -> dict[str, Any]:
+        """The keys of this shape (for to_dict)."""
+        return {k: v for k, v in vars(self).items() if v is not None}
+
+
+
+
+@dataclass(frozen=True)
+class Material:
+    """Linear elastic material; exactly one of ``poisson_ratio`` / ``shear_modulus_value``."""
+
+    density: float
+    young_modulus: float
+    poisson_ratio: float | None
+    shear_modulus_value: float | None
+
+    @property
+    def shear_modulus(self) -> float:
+        """G [Pa]: as given, or E / (2 (1 + ν))."""
+        if self.shear_modulus_value is not None:
+            return self.shear_modulus_value
+        if self.poisson_ratio is None:
+            raise ValueError("Material: give poisson_ratio or shear_modulus_value")
+        return self.young_modulus / (2.0 * (1.0 + self.poisson_ratio))
+
+
+@dataclass(frozen=True)
+class Rod:
+    """Straight rod of length ``length`` [m]."""
+
+    length: float
+    section: SectionSpec
+    material: Material
+
+
+@dataclass(frozen=True)
+class ModelChoices:
+    """Modelling choices; ``reference_frequency`` [rad/s] is None for "auto"."""
+
+    reference_frequency: float | None
+    torsion_inertia: str
+    end_load_sign: str
+    end_load_scaling: str
+
+
+@dataclass(frozen=True)
+class Supports:
+    """Support of each end: "clamped" (p = q = 0), "free" (natural conditions), or "pinned":
+    a fork bearing, the position and the twist φ held, the bending angles θ, ψ free (the end
+    torque about d1, d2 is the given end torque, zero by default).
+
+    ``start_motion``/``end_motion``: a prescribed translation (x, y, z)(t) [m] of a clamped or
+    pinned end (base excitation; None: at rest); its directors do not turn.
+    """
+
+    start: str
+    end: str
+    start_motion: tuple[Expression, ...] | None = None
+    end_motion: tuple[Expression, ...] | None = None
+
+    def motion(self, end: str) -> tuple[Expression, ...] | None:
+        return self.start_motion if end == "start" else self.end_motion
+
+
+@dataclass(frozen=True)
+class EndLoad:
+    """Force [N] and torque [N m] on a free end, fixed directions e1, e2, e3; functions of t."""
+
+    force: tuple[Expression, ...]
+    torque: tuple[Expression, ...]
+
+
+@dataclass(frozen=True)
+class Loads:
+    """Distributed force [N/m] and torque [N m/m] (functions of s, t) and end loads."""
+
+    force_density: tuple[Expression, ...]
+    torque_density: tuple[Expression, ...]
+    start: EndLoad | None
+    end: EndLoad | None
+    gravity: tuple[float, float, float] = (0.0, 0.0, 0.0)  # m/s², adds ρ A g to the force
+
+    @property
+    def has_gravity(self) -> bool:
+        return any(g != 0.0 for g in self.gravity)
+
+
+#: Planes of motion (Scene.plane): the normal e_k, the axes of torques that leave the plane
+#: and the angles (θ, ψ, φ) = (0, 1, 2) that stay zero in it.
+PLANES = {"x-z": ((1,), (0, 2), (0, 2)), "y-z": ((0,), (1, 2), (1, 2))}
+
+
+def _in_plane(normal: tuple[int, ...], angles: tuple[int, ...]) -> tuple[int, ...]:
+    """The components of U = (p, q) that a plane keeps: the translations but its normal, the
+    angles it does not hold at zero, and their rates."""
+    p = [i for i in range(3) if i not in normal] + [3 + a for a in range(3) if a not in angles]
+    return (*p, *(6 + i for i in p))
+
+
+#: The components of U = (p, q) solved in each plane (x-z: x, z, ψ; y-z: y, z, θ; + rates).
+PLANAR = {name: _in_plane(normal, angles) for name, (normal, _, angles) in PLANES.items()}
+
+
+@dataclass(frozen=True)
+class Damping:
+    """Viscous damping densities: force −c_t ṙ [N/m] with ``translational`` c_t [N s/m²], and
+    torque −c_r ω [N m/m] with ``rotational`` c_r [N s] (ω the angular velocity). For a
+    slender rod c_t damps every bending mode alike: ζ_n = c_t / (2 ρ A ω_n).
+
+    Kelvin–Voigt (material) damping with ``retardation_time`` τ_d [s]: E and G act on
+    (1 + τ_d ∂t) of the strains, n = K (v − e3 + τ_d v̇), m = J (u + τ_d u̇); it damps each
+    mode in proportion to its frequency, ζ_n = τ_d ω_n / 2 (forms/general_form.py)."""
+
+    translational: float = 0.0
+    rotational: float = 0.0
+    retardation_time: float = 0.0
+
+    @property
+    def viscous(self) -> bool:
+        return self.translational > 0.0 or self.rotational > 0.0
+
+    @property
+    def kelvin_voigt(self) -> bool:
+        return self.retardation_time > 0.0
+
+    @property
+    def active(self) -> bool:
+        return self.viscous or self.kelvin_voigt
+
+
+@dataclass(frozen=True)
+class Initial:
+    """The state at time.start as functions of s [m] (None: at rest, straight): position
+    displacement [m], angles (θ, ψ, φ) [rad], velocity [m/s], angle rates [rad/s]."""
+
+    displacement: tuple[Expression, ...] | None = None
+    angles: tuple[Expression, ...] | None = None
+    velocity: tuple[Expression, ...] | None = None
+    angle_rates: tuple[Expression, ...] | None = None
+
+    def fields(self) -> dict[str, tuple[Expression, ...]]:
+        """The fields given, non-zero, by name."""
+        return {
+            name: value
+            for name, value in vars(self).items()
+            if value is not None and not all(e.is_zero for e in value)
+        }
+
+
+@dataclass(frozen=True)
+class Time:
+    """Time span [s] and integrator."""
+
+    start: float
+    end: float
+    step: float
+    integrator: str
+    rho_inf: float
+    max_halvings: int = 6
+    adaptive: bool = False
+    rtol: float = 1e-4
+    atol: float = 1e-10
+    max_step: float = 0.0  # 0: no limit
+
+    @property
+    def n_steps(self) -> int:
+        """Number of time steps, round((end - start) / step)."""
+        return round((self.end - self.start) / self.step)
+
+
+@dataclass(frozen=True)
+class StaticSettings:
+    """Static solves (``cosserat-fem static``): the loads at ``time`` [s], applied in
+    ``load_steps`` equal increments of the load factor; a failed increment is halved, down to
+    2^-``max_bisections`` of the nominal increment."""
+
+    load_steps: int
+    max_bisections: int
+    time: float
+
+
+@dataclass(frozen=True)
+class Discretisation:
+    """Mesh and element: ``elements`` cells of Lagrange ``degree``; quadrature resolved."""
+
+    elements: int
+    degree: int
+    quadrature_degree: int
+    planar: str = "auto"  # "auto": solve the in-plane unknowns of a scene in x-z or y-z
+
+
+@dataclass(frozen=True)
+class Solver:
+    """Newton solver settings."""
+
+    jacobian: str
+    lag: int
+    refresh_iterations: int
+    rtol: float
+    atol: float
+    stol: float
+    max_iterations: int
+    linear_solver: str
+
+
+@dataclass(frozen=True)
+class Output:
+    """Output directory (stored as written), XDMF and checkpoint settings.
+
+    ``checkpoint_interval`` [s] is resolved: a positive multiple of the step, or 0 for a
+    checkpoint at the end of the run only (cosserat_fem/checkpoint.py).
+    """
+
+    directory: str
+    xdmf: bool
+    xdmf_interval: float
+    fields: tuple[str, ...] = XDMF_FIELDS
+    checkpoint: bool = True
+    checkpoint_interval: float = 0.0
+
+    def xdmf_every(self, step: float) -> int:
+        """Steps between XDMF writes (1 if the interval is 0)."""
+        if self.xdmf_interval == 0.0:
+            return 1
+        return max(1, round(self.xdmf_interval / step))
+
+
+@dataclass(frozen=True)
+class Limits:
+    """What a run may cost before it is refused (cosserat_fem/budget.py): ``wall_time`` [s],
+    the estimated wall time of the run and the most it may run before it stops with a
+    checkpoint; ``memory`` [bytes], the estimated memory (None: "auto", the memory available
+    on this machine). Raise them to run a very large case on purpose."""
+
+    wall_time: float = DEFAULT_WALL_TIME
+    memory: float | None = None
+
+
+@dataclass(frozen=True)
+class Scene:
+    """A validated scene; ``source`` (file name or "<dict>") does not take part in equality."""
+
+    title: str
+    parameters: dict[str, float]
+    rod: Rod
+    model: ModelChoices
+    supports: Supports
+    loads: Loads
+    time: Time
+    discretisation: Discretisation
+    solver: Solver
+    output: Output
+    static: StaticSettings = field(default_factory=lambda: StaticSettings(1, 10, 0.0))
+    damping: Damping = field(default_factory=Damping)
+    initial: Initial = field(default_factory=Initial)
+    limits: Limits = field(default_factory=Limits)
+    source: str = field(default="<dict>", compare=False)
+
+    @property
+    def omega0(self) -> float:
+        """The reference frequency ω0 [rad/s]: as given, or :func:`auto_reference_frequency`."""
+        given = self.model.reference_frequency
+        return given if given is not None else auto_reference_frequency(self.rod)
+
+    def plane(self) -> str | None:
+        """The plane the motion stays in, "x-z" or "y-z" (checked in that order: a scene in
+        both moves along the axis only, and x-z keeps clear of the chart limit |θ| < π/2),
+        or None: asked for (discretisation.planar = "auto") and nothing leaves the plane."""
+        if self.discretisation.planar != "auto":
+            return None
+        return next((name for name in PLANES if self._stays_in(name)), None)
+
+    def absent_terms(self) -> list[str]:
+        """The load and damping terms that are zero, so not in the form (``skipped_terms``
+        of summary.json, ``validate``)."""
+        loads, damping = self.loads, self.damping
+        absent = [
+            name
+            for name, exprs in (
+                ("force_density", loads.force_density),
+                ("torque_density", loads.torque_density),
+            )
+            if exprs is None or all(e.is_zero for e in exprs)
+        ]
+        absent += [] if loads.has_gravity else ["gravity"]
+        absent += [] if damping.viscous else ["damping"]
+        return absent + ([] if damping.kelvin_voigt else ["kelvin_voigt"])
+
+    def _stays_in(self, plane: str) -> bool:
+        """Nothing leaves the plane: no force or support motion along its normal e_k (e2 for
+        x-z, e1 for y-z), no torque about the other two axes (distributed, at the ends), no
+        gravity along e_k, no initial displacement or velocity along e_k, no initial angles
+        or rates other than the in-plane one (ψ for x-z, θ for y-z)."""
+        normal, torques, angles = PLANES[plane]
+        loads, init = self.loads, self.initial
+        vectors = [(loads.force_density, normal), (loads.torque_density, torques)]
+        for end in (loads.start, loads.end):
+            if end is not None:
+                vectors += [(end.force, normal), (end.torque, torques)]
+        vectors += [(m, normal) for m in (self.supports.start_motion, self.supports.end_motion)]
+        vectors += [(init.displacement, normal), (init.velocity, normal)]
+        vectors += [(init.angles, angles), (init.angle_rates, angles)]
+        if any(loads.gravity[i] != 0.0 for i in normal):
+            return False
+        return all(v is None or all(v[i].is_zero for i in idx) for v, idx in vectors)
+
+    def rod_constants(self) -> RodConstants:
+        """Physical constants of the rod, with ω0 resolved (section 6 when "auto")."""
+        mat = self.rod.material
+        return RodConstants(
+            length=self.rod.length,
+            section=self.rod.section.constants(),
+            density=mat.density,
+            young_modulus=mat.young_modulus,
+            shear_modulus=mat.shear_modulus,
+            omega0=self.omega0,
+            torsion_inertia=self.model.torsion_inertia,
+        )
+
+    def expression_names(self) -> dict[str, float]:
+        """Constant values for load expressions: ``L``, ``omega0`` and the parameters."""
+        return {"L": self.rod.length, "omega0": self.omega0, **self.parameters}
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain, JSON-serialisable dict with resolved defaults; ``scene_from_dict`` inverts it."""
+        return _scene_to_dict(self)
+
+
+def auto_reference_frequency(rod: Rod) -> float:
+    """ω0 = 1.875² / L² · sqrt(E c22 / (ρ A)) (paper, §6: c22 = b a³/12, A = a b for its
+    rectangle): the first cantilever bending frequency about d2."""
+    mat = rod.material
+    section = rod.section.constants()
+    return euler_bernoulli_omega0(rod.length, section, mat.density, mat.young_modulus)
+
+
+
+# =================================================================================== to_dict
+def _vector(values: tuple[Expression, ...]) -> list[str]:
+    return [e.source for e in values]
+
+
+def _end_load_dict(load: EndLoad) -> dict[str, Any]:
+    return {"force": _vector(load.force), "torque": _vector(load.torque)}
+
+
+def _material_dict(material: Material) -> dict[str, Any]:
+    out: dict[str, Any] = {"density": material.density, "young_modulus": material.young_modulus}
+    if material.poisson_ratio is not None:
+        out["poisson_ratio"] = material.poisson_ratio
+    else:
+        out["shear_modulus"] = material.shear_modulus_value
+    return out
+
+
+def _loads_dict(loads: Loads) -> dict[str, Any]:
+    out: dict[str, Any] = {
+        "force_density": _vector(loads.force_density),
+        "torque_density": _vector(loads.torque_density),
+    }
+    for end in ("start", "end"):
+        load = getattr(loads, end)
+        if load is not None:
+            out[end] = _end_load_dict(load)
+    out["gravity"] = list(loads.gravity)
+    return out
+
+
+def _fields(obj: Any) -> dict[str, Any]:
+    return dict(vars(obj))
+
+
+def _scene_to_dict(scene: Scene) -> dict[str, Any]:
+    model = _fields(scene.model)
+    if model["reference_frequency"] is None:
+        model["reference_frequency"] = "auto"
+    return {
+        "title": scene.title,
+        "parameters": dict(scene.parameters),
+        "rod": {
+            "length": scene.rod.length,
+            "section": scene.rod.section.given(),
+            "material": _material_dict(scene.rod.material),
+        },
+        "model": model,
+        "supports": {
+            "start": scene.supports.start,
+            "end": scene.supports.end,
+            **{
+                f"{end}_motion": _vector(scene.supports.motion(end))
+                for end in ("start", "end")
+                if scene.supports.motion(end) is not None
+            },
+        },
+        "loads": _loads_dict(scene.loads),
+        "time": _fields(scene.time),
+        "discretisation": _fields(scene.discretisation),
+        "solver": _fields(scene.solver),
+        "output": {**_fields(scene.output), "fields": list(scene.output.fields)},
+        "static": _fields(scene.static),
+        "damping": _fields(scene.damping),
+        "initial": {k: _vector(v) for k, v in vars(scene.initial).items() if v is not None},
+        "limits": {
+            "wall_time": scene.limits.wall_time,
+            "memory": "auto" if scene.limits.memory is None else scene.limits.memory,
+        },
+    }
+
