@@ -23,7 +23,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from cosserat_fem.energy import EnergyMonitor  # noqa: E402
+from cosserat_fem.energy import EnergyMonitor, EnergyRecorder  # noqa: E402
 from cosserat_fem.mms import run_mms  # noqa: E402
 from cosserat_fem.modal import compute_modes  # noqa: E402
 from cosserat_fem.model import rod_constants  # noqa: E402
@@ -150,6 +150,23 @@ def rollup_gap(overrides) -> float:
     return math.hypot(tip[0], scene.rod.length + tip[2]) / scene.rod.length
 
 
+def mesh_study(meshes: dict, measure, lines: list[str], x, label) -> dict:
+    """For each degree and element count of ``meshes``, ``measure(degree, n)`` as a table row
+    ``| degree | n | value | order |`` appended to ``lines``; the series (x(n), value) by
+    ``label(degree)`` for the log-log plot."""
+    series = {}
+    for degree, counts in meshes.items():
+        xs, ys = [], []
+        for n in counts:
+            value = measure(degree, n)
+            rate = "" if not ys else f"{order(ys[-1], value):.2f}"
+            lines.append(f"| {degree} | {n} | {value:.2e} | {rate} |")
+            xs.append(x(n))
+            ys.append(value)
+        series[label(degree)] = (xs, ys)
+    return series
+
+
 def statics_section() -> str:
     lines = [
         "## 2. Large static deflections",
@@ -162,16 +179,15 @@ def statics_section() -> str:
         "| degree | elements | gap/ℓ | order |",
         "|---|---|---|---|",
     ]
-    series = {}
-    for degree, counts in ROLLUP_MESHES.items():
-        xs, ys = [], []
-        for n in counts:
-            gap = rollup_gap([f"discretisation.degree={degree}", f"discretisation.elements={n}"])
-            rate = "" if not ys else f"{order(ys[-1], gap):.2f}"
-            lines.append(f"| {degree} | {n} | {gap:.2e} | {rate} |")
-            xs.append(n)
-            ys.append(gap)
-        series[f"P{degree}"] = (xs, ys)
+    series = mesh_study(
+        ROLLUP_MESHES,
+        lambda degree, n: rollup_gap(
+            [f"discretisation.degree={degree}", f"discretisation.elements={n}"]
+        ),
+        lines,
+        x=lambda n: n,
+        label=lambda degree: f"P{degree}",
+    )
     gap4 = rollup_gap(
         [
             "parameters.turns=2",
@@ -264,25 +280,18 @@ def mms_section() -> str:
         "| degree | elements | error | order |",
         "|---|---|---|---|",
     ]
-    series = {}
-    for degree, counts in MMS_SPACE_MESHES.items():
-        xs, ys = [], []
-        for n in counts:
-            sc = load_scene(
-                paper,
-                STOCKY
-                + [
-                    f"discretisation.degree={degree}",
-                    f"discretisation.elements={n}",
-                    "time.integrator=bdf2",
-                ],
-            )
-            e = run_mms(sc, "linear_in_time", MMS_SPACE_TAU, MMS_SPACE_STEPS).error_p
-            rate = "" if not ys else f"{order(ys[-1], e):.2f}"
-            lines.append(f"| {degree} | {n} | {e:.2e} | {rate} |")
-            xs.append(1.0 / n)
-            ys.append(e)
-        series[f"P{degree} (expected {degree + 1})"] = (xs, ys)
+    def space_error(degree: int, n: int) -> float:
+        overrides = [f"discretisation.degree={degree}", f"discretisation.elements={n}"]
+        sc = load_scene(paper, [*STOCKY, *overrides, "time.integrator=bdf2"])
+        return run_mms(sc, "linear_in_time", MMS_SPACE_TAU, MMS_SPACE_STEPS).error_p
+
+    series = mesh_study(
+        MMS_SPACE_MESHES,
+        space_error,
+        lines,
+        x=lambda n: 1.0 / n,
+        label=lambda degree: f"P{degree} (expected {degree + 1})",
+    )
     lines += [
         "",
         loglog("mms_space", series, "h", "L2 error of p"),
@@ -321,17 +330,6 @@ def mms_section() -> str:
 
 
 # -------------------------------------------------------------------------------- energy
-class _Recorder:
-    def __init__(self):
-        self.monitor, self.E, self.P = None, [], []
-
-    def __call__(self, step, t, model):
-        if self.monitor is None:
-            self.monitor = EnergyMonitor(model)
-        self.E.append(sum(self.monitor.energies()))
-        self.P.append(self.monitor.power(t))
-
-
 def energy_section() -> str:
     paper = PAPER
     common = [
@@ -359,7 +357,7 @@ def energy_section() -> str:
     ]
     drifts, mismatch = [], []
     for dt in ENERGY_STEPS:
-        rec = _Recorder()
+        rec = EnergyRecorder()
         run(
             load_scene(paper, unloaded + common + [f"time.step={dt}"]),
             WORK,
@@ -367,7 +365,7 @@ def energy_section() -> str:
             initial_state=static.U.x.array.copy(),
         )
         drifts.append(np.abs(np.array(rec.E) - E0).max() / E0)
-        rec = _Recorder()
+        rec = EnergyRecorder()
         run(load_scene(paper, common + [f"time.step={dt}"]), WORK, observers=(rec,))
         E, P = np.array([0.0, *rec.E]), np.array([0.0, *rec.P])
         W = np.concatenate([[0.0], np.cumsum(0.5 * (P[1:] + P[:-1]) * dt)])

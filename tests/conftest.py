@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import subprocess
@@ -63,3 +64,18 @@ def inject_newton_failures(monkeypatch, fails) -> None:
         return real_solve(self)
 
     monkeypatch.setattr(NewtonSolver, "solve", solve)
+
+
+@contextlib.contextmanager
+def jit_installed():
+    """cosserat_fem.jit.install() for a block (crash-safe, quiet compiles: other processes
+    share the FFCx cache); the state before it is restored afterwards."""
+    from cosserat_fem import jit
+
+    before = jit.installed()
+    jit.install()
+    try:
+        yield
+    finally:
+        if not before:
+            jit.uninstall()

@@ -19,7 +19,7 @@ import math
 import numpy as np
 from conftest import ROOT
 
-from cosserat_fem.energy import EnergyMonitor
+from cosserat_fem.energy import EnergyMonitor, EnergyRecorder
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 from cosserat_fem.statics import solve_static
@@ -34,20 +34,6 @@ COMMON = [
 ]
 
 
-class Recorder:
-    """Observer: E = T + V and the load power P after every step."""
-
-    def __init__(self):
-        self.monitor, self.t, self.E, self.P = None, [], [], []
-
-    def __call__(self, step, t, model):
-        if self.monitor is None:
-            self.monitor = EnergyMonitor(model)
-        self.t.append(t)
-        self.E.append(sum(self.monitor.energies()))
-        self.P.append(self.monitor.power(t))
-
-
 def test_free_vibration_conserves_energy_at_order_two(tmp_path):
     unloaded = ["loads.force_density=[0,0,0]"]
     static, _ = solve_static(
@@ -56,7 +42,7 @@ def test_free_vibration_conserves_energy_at_order_two(tmp_path):
     E0 = sum(EnergyMonitor(static).energies())
     drifts = []
     for dt in (4e-5, 2e-5, 1e-5):
-        rec = Recorder()
+        rec = EnergyRecorder()
         run(
             load_scene(SCENE, unloaded + COMMON + [f"time.step={dt}"]),
             tmp_path,
@@ -72,7 +58,7 @@ def test_free_vibration_conserves_energy_at_order_two(tmp_path):
 def test_energy_change_equals_work_of_the_loads(tmp_path):
     mismatches = []
     for dt in (2e-5, 1e-5):
-        rec = Recorder()
+        rec = EnergyRecorder()
         run(load_scene(SCENE, COMMON + [f"time.step={dt}"]), tmp_path, observers=(rec,))
         E = np.array([0.0, *rec.E])  # at rest at t = 0
         P = np.array([0.0, *rec.P])  # the load vanishes at t = 0
@@ -106,7 +92,7 @@ def test_damped_energy_loss_equals_the_dissipated_power(tmp_path):
     E0 = sum(EnergyMonitor(static).energies())
     mismatches, lost = [], None
     for dt in (2e-5, 1e-5):
-        rec = Recorder()
+        rec = EnergyRecorder()
         run(
             load_scene(SCENE, unloaded + damping + COMMON + [f"time.step={dt}"]),
             tmp_path,

@@ -20,6 +20,7 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import jit_installed
 
 from cosserat_fem import jit
 from cosserat_fem.errors import CosseratError
@@ -127,11 +128,8 @@ def lock_is_free(lock: Path) -> bool:
 @pytest.fixture
 def installed():
     """install() for the test; afterwards the state before it (the lead may install at start)."""
-    before = jit.installed()
-    jit.install()
-    yield
-    if not before:
-        jit.uninstall()
+    with jit_installed():
+        yield
 
 
 @pytest.fixture(scope="module")

@@ -37,6 +37,16 @@ def undisturbed(tmp_path_factory):
     return probes(out)
 
 
+def recovered(summary: dict, rejected: int, smallest: float, jacobians: int) -> None:
+    """A run that completed its 2000 steps after ``rejected`` rejections, its smallest step
+    ``smallest`` [s], with ``jacobians`` Jacobian assemblies."""
+    assert summary["status"] == "completed"
+    assert summary["steps"] == 2000
+    assert summary["rejected_steps"] == rejected
+    assert summary["smallest_step_s"] == pytest.approx(smallest)
+    assert summary["newton"]["jacobian_assemblies"] == jacobians
+
+
 def test_injected_newton_failures_are_recovered(tmp_path, monkeypatch, undisturbed):
     # Solve calls, counting from 1: two a step (SDIRK3). Call 199 is the first of step 100; it
     # and its retry shift later steps by 2 calls: 1200 is the first of step 599, 1201 the first
@@ -44,14 +54,10 @@ def test_injected_newton_failures_are_recovered(tmp_path, monkeypatch, undisturb
     fail_at = {2 * 99 + 1, 2 * 599 + 2, 2 * 599 + 3}
     inject_newton_failures(monkeypatch, fail_at.__contains__)
     summary = run(load_scene(SCENE, OVERRIDES), tmp_path).summary
-    assert summary["status"] == "completed"
-    assert summary["steps"] == 2000
-    assert summary["rejected_steps"] == 3
-    assert summary["smallest_step_s"] == pytest.approx(3e-5 / 4)
     # A fresh Jacobian after each change of the step that reaches Newton: 1 + 2 (step 100:
     # half, then nominal) + 2 (step 599: the injected failure of the half step comes before
     # any assembly, then a quarter, then nominal).
-    assert summary["newton"]["jacobian_assemblies"] == 5
+    recovered(summary, rejected=3, smallest=3e-5 / 4, jacobians=5)
     data = probes(tmp_path)
     np.testing.assert_allclose(data[:, 0], undisturbed[:, 0], rtol=0, atol=1e-15)
     for j in (1, 2):
@@ -129,11 +135,7 @@ def test_a_state_that_fails_the_checks_is_rejected_and_retried(
     rejections = [r.getMessage() for r in caplog.records if "rejected" in r.getMessage()]
     assert len(rejections) == 1 and reason in rejections[0], rejections
     assert "t = 0.003 s" in rejections[0], rejections  # step 100 of 30 μs
-    assert summary["status"] == "completed"
-    assert summary["steps"] == 2000
-    assert summary["rejected_steps"] == 1
-    assert summary["smallest_step_s"] == pytest.approx(3e-5 / 2)
-    assert summary["newton"]["jacobian_assemblies"] == 3
+    recovered(summary, rejected=1, smallest=3e-5 / 2, jacobians=3)
     data = probes(tmp_path)
     np.testing.assert_allclose(data[:, 0], undisturbed[:, 0], rtol=0, atol=1e-15)
     assert np.isfinite(data).all()

@@ -36,7 +36,7 @@ from dolfinx.fem.petsc import assemble_vector, set_bc
 from petsc4py import PETSc
 from scipy.optimize import minimize_scalar
 
-from cosserat_fem.energy import EnergyMonitor
+from cosserat_fem.energy import EnergyMonitor, EnergyRecorder
 from cosserat_fem.modal import assemble_modal_problem, compute_modes, modal_supports
 from cosserat_fem.model import build_model
 from cosserat_fem.reference.rod_planes import bending_planes
@@ -171,19 +171,6 @@ def energy_of(overrides: list[str], full: np.ndarray) -> float:
     model = build_model(scene_of(overrides), **_full_model())
     model.U.x.array[:] = np.ravel(full)
     return sum(EnergyMonitor(model).energies())
-
-
-class EnergyRecorder:
-    """Observer: E = T + V after every step."""
-
-    def __init__(self):
-        self.monitor, self.t, self.E = None, [], []
-
-    def __call__(self, step, t, model):
-        if self.monitor is None:
-            self.monitor = EnergyMonitor(model)
-        self.t.append(t)
-        self.E.append(sum(self.monitor.energies()))
 
 
 def free_vibration(tmp_path, overrides: list[str], full: np.ndarray, E0: float):

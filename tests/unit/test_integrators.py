@@ -45,12 +45,12 @@ import math
 import numpy as np
 import pytest
 import ufl
+from conftest import jit_installed
 from dolfinx import fem, mesh
 from dolfinx.fem.petsc import assemble_matrix, assemble_vector
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from cosserat_fem import jit
 from cosserat_fem.integrators import (
     BDF2,
     SDIRK,
@@ -73,13 +73,8 @@ H = 0.5  # the step (τ units): M = diag(z)/h, so that h enters the forms
 
 @pytest.fixture(scope="module", autouse=True)
 def _quiet_safe_jit():
-    """The project's crash-safe JIT (other processes share the FFCx cache); the state before
-    it is restored afterwards."""
-    before = jit.installed()
-    jit.install()
-    yield
-    if not before:
-        jit.uninstall()
+    with jit_installed():  # the project's crash-safe, quiet compiles (tests/conftest.py)
+        yield
 
 
 class OdeSystem:

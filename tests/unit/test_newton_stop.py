@@ -22,11 +22,11 @@ import math
 import numpy as np
 import pytest
 import ufl
+from conftest import jit_installed
 from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from cosserat_fem import jit
 from cosserat_fem.newton import NewtonSettings, NewtonSolver
 
 pytestmark = pytest.mark.unit
@@ -41,11 +41,8 @@ TOL = DEFAULT.stol * 1.0 + DEFAULT.xatol  # the step tolerance at ‖U‖ = 1 (1
 
 @pytest.fixture(scope="module", autouse=True)
 def _quiet_safe_jit():
-    before = jit.installed()
-    jit.install()
-    yield
-    if not before:
-        jit.uninstall()
+    with jit_installed():  # the project's crash-safe, quiet compiles (tests/conftest.py)
+        yield
 
 
 class Squares:
