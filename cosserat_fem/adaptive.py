@@ -89,6 +89,8 @@ class StateHistory:
         return self._items[-1]
 
     def state_dict(self) -> dict:
+        """The stored states for a checkpoint: ``times`` (n,) and ``states`` (n, size), oldest
+        first."""
         items = list(self._items)
         return {
             "times": np.array([t for t, _ in items]),
@@ -158,6 +160,8 @@ class StepController:
         self._candidate_peak = None
 
     def _field_max(self, state: np.ndarray) -> np.ndarray:
+        """Largest |value| of each controlled field of ``state`` over the owned entries of every
+        rank (collective under MPI)."""
         u = np.abs(state[: self.n_owned].reshape(-1, self.block)[:, self.controlled])
         local = u.max(axis=0) if u.size else np.zeros(self.peak.size)
         local = local.astype(np.float64)

@@ -72,6 +72,7 @@ def _bytes(n: float) -> str:
 
 
 def _duration(s: float) -> str:
+    """``s`` seconds as text for a message: in s, h, days or years."""
     if s >= 86400 * 365:
         return f"{s / (86400 * 365):.3g} years"
     if s >= 86400:

@@ -84,6 +84,7 @@ def _flatten(parts: dict[str, dict]) -> dict[str, np.ndarray]:
 
 
 def _unflatten(arrays: dict[str, np.ndarray]) -> dict[str, dict[str, np.ndarray]]:
+    """{"part": {"key": array}} from {"part.key": array}: the inverse of :func:`_flatten`."""
     parts: dict[str, dict[str, np.ndarray]] = {}
     for name, value in arrays.items():
         part, key = name.split(".", 1)

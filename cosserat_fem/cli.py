@@ -51,6 +51,8 @@ class _Parser(argparse.ArgumentParser):
     """argparse with the one-line errors of the rest of the command line (exit status 2)."""
 
     def error(self, message: str):
+        """One line on stderr naming the problem and ``--help``, then exit status 2 (never
+        returns)."""
         print(
             f"cosserat-fem: error: {' '.join(message.split())} (see {self.prog} --help)",
             file=sys.stderr,
@@ -59,6 +61,8 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _parser() -> argparse.ArgumentParser:
+    """The parser of the commands run, static, validate, modes, plot and render and their
+    options."""
     parser = _Parser(
         prog="cosserat-fem",
         description="Nonlinear dynamics of Cosserat rods (Cao & Tucker 2008) with FEniCSx.",
@@ -246,6 +250,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _main(args) -> int:
+    """Run the command of ``args``; returns its exit status (module docstring): 0, 2 for a
+    SceneError, 3 a SolverError, 4 a StopError, 1 any other error, 130 Ctrl-C, each error
+    reported as one line (:func:`_report`)."""
     from mpi4py import MPI
 
     from .parallel import prepare_agreement
@@ -292,14 +299,10 @@ def _main(args) -> int:
         if str(exc).startswith(_MPI_JIT_FAILURE):  # dolfinx's wrapper of rank 0's JIT error
             _report(CosseratError(str(exc).removeprefix(_MPI_JIT_FAILURE)), args, exc)
             return 1
-        _report(
-            CosseratError(f"internal error: {type(exc).__name__}: {exc}".splitlines()[0]), args, exc
-        )
+        _report_internal(exc, args)
         return 1
     except Exception as exc:  # an internal error: one line, the traceback with --debug
-        _report(
-            CosseratError(f"internal error: {type(exc).__name__}: {exc}".splitlines()[0]), args, exc
-        )
+        _report_internal(exc, args)
         return 1
     return 1
 
@@ -317,6 +320,19 @@ def _report(exc: Exception, args, cause: BaseException | None = None) -> None:
     if getattr(args, "debug", False):
         traceback.print_exception(cause or exc)
     print(f"cosserat-fem: error: {exc}", file=sys.stderr)
+
+
+def _report_internal(exc: Exception, args) -> None:
+    """An internal error (a bug), one line from every rank that meets it (it may be one
+    rank alone: its message must not be lost), named by rank under MPI."""
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD
+    if getattr(args, "debug", False):
+        traceback.print_exception(exc)
+    where = f" (rank {comm.rank})" if comm.size > 1 else ""
+    text = f"internal error: {type(exc).__name__}: {exc}".splitlines()[0]
+    print(f"cosserat-fem: error{where}: {CosseratError(text)}", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -15,6 +15,8 @@ def _unit(spec: Any) -> str:
 
 
 def _show(value: Any) -> str:
+    """``value`` as a scene file writes it: strings quoted, booleans in lower case, floats to 10
+    digits, lists in brackets."""
     if isinstance(value, list | tuple):
         return "[" + ", ".join(_show(v) for v in value) + "]"
     if isinstance(value, str):
@@ -25,6 +27,8 @@ def _show(value: Any) -> str:
 
 
 def _lines(data: dict, table: Table, prefix: str) -> list[str]:
+    """Lines ``  key = value [unit]`` of ``data`` (a part of :meth:`Scene.to_dict`) with the
+    units of ``table``; keys dotted after ``prefix``, nested tables flattened."""
     out = []
     for name, value in data.items():
         spec = table.fields.get(name)

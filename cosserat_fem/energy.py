@@ -75,6 +75,7 @@ class EnergyRecorder(Observer):
         self.P: list[float] = []
 
     def output(self, loop, k: int, t: float) -> None:
+        """Appends t [s], E = T + V [J] and P [W]; the monitor is built at the first output."""
         if self.monitor is None:
             self.monitor = EnergyMonitor(loop.model)
         self.t.append(t)

@@ -104,6 +104,7 @@ class Events:
         self.output_time = 0.0
 
     def _bound(self, name: str) -> list[Callable]:
+        """The bound ``name`` hooks of the observers that override it, in the observers' order."""
         base = getattr(Observer, name)
         return [
             getattr(o, name)

@@ -343,6 +343,8 @@ class _Parser:
         return SceneError(f"{self.key}: {reason}{place} in {show_value(self.text)}{hint}")
 
     def too_deep(self, where: Any, height: int | None = None) -> SceneError:
+        """The SceneError for nesting beyond MAX_DEPTH at ``where`` (``height``: the levels
+        found, if known)."""
         found = f"{height} levels" if height is not None else f"more than {MAX_DEPTH} levels"
         return self.fail(
             f"expression nested deeper than {MAX_DEPTH} levels (found {found}; {_DEPTH_RULE})",
@@ -350,6 +352,8 @@ class _Parser:
         )
 
     def convert(self, node: ast.AST, depth: int = 0) -> _Built:
+        """The internal tree of the AST ``node`` at nesting ``depth``; SceneError for anything
+        outside the whitelist or deeper than MAX_DEPTH."""
         if depth > MAX_DEPTH:
             raise self.too_deep(node)
         if isinstance(node, ast.Constant):
@@ -371,6 +375,7 @@ class _Parser:
 
     @staticmethod
     def describe(node: ast.AST) -> str:
+        """What a refused AST node is, in words, for a message."""
         for kind, text in _REFUSED.items():
             if isinstance(node, kind):
                 return text
@@ -381,6 +386,8 @@ class _Parser:
         return f"construct {type(node).__name__!r}"
 
     def number(self, node: ast.Constant) -> _Built:
+        """A number literal as a leaf; SceneError for any other literal (bool, string, complex,
+        ...) or a number beyond the float range."""
         value = node.value
         if isinstance(value, bool) or not isinstance(value, int | float):
             shown = repr(value)
@@ -404,6 +411,9 @@ class _Parser:
             )
 
     def name(self, node: ast.Name) -> _Built:
+        """A name as a leaf (its value known for ``pi`` and ``e``), recorded in ``names``;
+        SceneError for a function name without a call, a name not allowed, or one Python reads
+        differently."""
         self.check_written(node)
         ident = node.id
         if ident in FUNCTIONS:
@@ -420,6 +430,8 @@ class _Parser:
         return f"{hint}; allowed names: {', '.join(pool)}"
 
     def call(self, node: ast.Call, depth: int) -> _Built:
+        """A call of a whitelisted function with its number of positional arguments; SceneError
+        otherwise."""
         func = node.func
         if not isinstance(func, ast.Name):
             raise self.fail("only calls of plain function names are allowed", node)
@@ -458,6 +470,9 @@ class _Parser:
             operands.append(_Operand(self.convert(binop.right, depth + 1), inverted, i, i + 1))
 
         def merge(a: _Operand, b: _Operand) -> _Operand:
+            """Adjacent operands a, b (a written first) as one operand, with its source range for
+            messages; an inverted operand goes into the operator: a + b, a - b, b - a or -(a + b)
+            (likewise for * /)."""
             if a.first == 0:  # the written prefix: an AST node of its own
                 where: Any = spine[b.last - 2]
             else:
@@ -713,6 +728,8 @@ class Expression:
         return float(result)
 
     def _evaluate_array(self, env: dict[str, object], arrays: list[np.ndarray]) -> np.ndarray:
+        """The tree evaluated with numpy (math errors give nan/inf), broadcast to the shape of
+        ``arrays``."""
         env = {
             k: np.asarray(v, dtype=float) if isinstance(v, np.ndarray) else v
             for k, v in env.items()

@@ -145,6 +145,8 @@ class BDF2(Integrator):
         return self._factory(U_eval, Udot, self.time_eval)
 
     def prepare(self, h: float) -> None:
+        """First step: the implicit-midpoint start from U = U_n; later steps: the BDF2
+        coefficients for ω = h/h_prev and the linear predictor."""
         self.unknown_time = self.time + h
         if self.h_prev is None:  # implicit-midpoint start
             self.mid.value = 1.0
@@ -171,6 +173,7 @@ class BDF2(Integrator):
         return self.U_n.x.array
 
     def state_dict(self) -> dict:
+        """Adds U_n, U_{n−1} and h_prev (NaN before the first step, which is the midpoint start)."""
         return {
             **super().state_dict(),
             "U_n": self.U_n.x.array.copy(),
@@ -179,6 +182,7 @@ class BDF2(Integrator):
         }
 
     def load_state_dict(self, state: dict) -> None:
+        """The inverse of :meth:`state_dict`."""
         super().load_state_dict(state)
         self.U_n.x.array[:] = state["U_n"]
         self.U_nm1.x.array[:] = state["U_nm1"]
@@ -240,6 +244,8 @@ class GeneralizedAlpha(Integrator):
         self.Udot_n.x.array[:] = rate
 
     def prepare(self, h: float) -> None:
+        """The Constants for a step of h from τ_n (evaluation at τ_n + αf h) and the second-order
+        predictor of the comment below."""
         self.unknown_time = self.time + h
         self.h.value = h
         self.inv_gh.value = 1.0 / (self.gamma * h)
@@ -253,6 +259,8 @@ class GeneralizedAlpha(Integrator):
             u += (0.5 * h * h / self._h_prev) * (vn - self._Udot_prev)
 
     def accept(self, h: float) -> None:
+        """U̇_{n+1} = U̇_n + (U_{n+1} − U_n − h U̇_n)/(γ h) and U_n = U_{n+1}; U̇_n and h are
+        kept for the next predictor."""
         u, un, vn = self._arrays
         if self._Udot_prev is None:
             self._Udot_prev = vn.copy()
@@ -271,6 +279,8 @@ class GeneralizedAlpha(Integrator):
         return self.U_n.x.array
 
     def state_dict(self) -> dict:
+        """Adds U_n, U̇_n and the previous rate (empty before the first step) with its step
+        h_prev."""
         previous = self._Udot_prev
         return {
             **super().state_dict(),
@@ -281,6 +291,7 @@ class GeneralizedAlpha(Integrator):
         }
 
     def load_state_dict(self, state: dict) -> None:
+        """The inverse of :meth:`state_dict`."""
         super().load_state_dict(state)
         self.U_n.x.array[:] = state["U_n"]
         self.Udot_n.x.array[:] = state["Udot_n"]
@@ -354,6 +365,8 @@ class SDIRK(Integrator):
         return w[:old] @ self._rates[slots] + w[old:] @ self.K[:stage]
 
     def step(self, h: float, solve: Callable[[], int]) -> int:
+        """The stages one after the other (module docstring), each from the predictor of the
+        class docstring, then U = U_n + h Σ b_i K_i; returns the Newton iterations of all stages."""
         self.prepare(h)
         u, iterations, gh = self.U.x.array, 0, self.gamma * h
         z = self.Z.x.array
@@ -371,6 +384,8 @@ class SDIRK(Integrator):
         return iterations
 
     def accept(self, h: float) -> None:
+        """U_n = U; this step's stage rates and their times go into the ring buffer of the
+        predictor."""
         self.U_n[:] = self.U.x.array
         for i in range(len(self.b)):
             slot = self._stored % len(self._times)
@@ -383,6 +398,7 @@ class SDIRK(Integrator):
         return self.U_n
 
     def state_dict(self) -> dict:
+        """Adds U_n and the predictor's ring buffer: stage rates, their times, the count stored."""
         return {
             **super().state_dict(),
             "U_n": self.U_n.copy(),
@@ -392,6 +408,7 @@ class SDIRK(Integrator):
         }
 
     def load_state_dict(self, state: dict) -> None:
+        """The inverse of :meth:`state_dict`."""
         super().load_state_dict(state)
         self.U_n[:] = state["U_n"]
         self._rates[:] = state["rates"]
@@ -403,6 +420,9 @@ INTEGRATORS = ("bdf2", "generalized-alpha", "sdirk3", "sdirk4", "static")
 
 
 def make_integrator(name: str, U, residual: ResidualFactory, time: float, rho_inf: float = 0.5):
+    """The integrator ``name`` (one of INTEGRATORS) of ``U`` and ``residual``, starting at
+    τ = ``time`` (τ = ω0 t, (47)); ``rho_inf``: generalized-α's ρ∞. ValueError for another
+    name."""
     if name == "generalized-alpha":
         return GeneralizedAlpha(U, residual, time, rho_inf=rho_inf)
     if name in ("sdirk3", "sdirk4"):

@@ -232,6 +232,8 @@ def _acquire(lock_path: Path, c_file: Path, wait: float) -> int:
 
 
 def _wait_for_lock(fd: int, lock_path: Path, c_file: Path, wait: float) -> None:
+    """Poll ``fd``'s flock (backing off to every 0.2 s) until it is ours; JITLockTimeout naming
+    the holder after ``wait`` seconds."""
     start = time.monotonic()
     pause, told = 0.01, False
     LOGGER.debug("waiting for %s to finish compiling %s", _holder(lock_path), c_file)
@@ -371,6 +373,7 @@ def _compile_objects(
 
 
 def _is_compiler_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is cffi's VerificationError: the C compiler or the linker failed."""
     try:
         from cffi import VerificationError
     except ImportError:  # pragma: no cover - FFCx needs cffi
@@ -381,6 +384,8 @@ def _is_compiler_error(exc: BaseException) -> bool:
 def _write_log(
     cache_dir: Path, module_name: str, c_file: Path, exc: BaseException, output: str
 ) -> Path:
+    """The exception and the compiler's ``output`` in ``<cache>/<module>.log`` (a temporary file
+    if the cache is not writable); returns its path."""
     log_path = cache_dir / (module_name + ".log")
     text = (
         f"JIT compilation of {module_name} failed: {type(exc).__name__}: {exc}\n"
@@ -403,6 +408,8 @@ def _wrap_compile(original: Callable[..., Any]) -> Callable[..., Any]:
 
     @functools.wraps(original)
     def compile_(*args, **kwargs):
+        """``original`` with a frame for the locks taken inside it, released when it ends; an
+        interrupted compile renames their ``.c`` to ``.c.failed``."""
         frames = _frames()
         frames.append([])
         try:

@@ -61,6 +61,8 @@ class LoopState:
         return {k: math.nan if v is None else v for k, v in values.items()}
 
     def load_state_dict(self, state: dict) -> None:
+        """The inverse of :meth:`state_dict` (NaN back to None); keys not in ``state`` keep their
+        values."""
         for f in fields(self):
             if f.name not in state:
                 continue
@@ -124,6 +126,8 @@ class TimeLoop:
 
     # -- state ----------------------------------------------------------------------------
     def _adaptive_parts(self) -> None:
+        """For adaptive steps: the step controller (the error of p only) and the history of the
+        last order + 2 accepted states (cosserat_fem/adaptive.py)."""
         layout, order = self.model.layout, self.integrator.order
         n_owned = self.model.V.dofmap.index_map.size_local * layout.size
         # The error of p (the first entries of each block) is controlled, not that of the
@@ -153,6 +157,8 @@ class TimeLoop:
         return parts
 
     def load_state_dict(self, parts: dict) -> None:
+        """The inverse of :meth:`state_dict`: U, integrator, Newton solver, loop and, for
+        adaptive steps, history and controller."""
         self.model.U.x.array[:] = parts["state"]["U"]
         self.integrator.load_state_dict(parts["integrator"])
         self.solver.load_state_dict(parts["newton"])
@@ -221,6 +227,8 @@ class TimeLoop:
             raise SceneError(f"{problem}: the load is not finite there")
 
     def accept(self, t_new: float) -> None:
+        """Keep the step to t_new [s]: the integrator's history, the counters and the smallest
+        and largest step [s]; then the step_accepted event."""
         st = self.state
         h = t_new - st.t
         self.integrator.accept(h * self.omega0)

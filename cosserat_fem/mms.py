@@ -55,6 +55,9 @@ class ExactSolution:
 
 
 def exact_solution(model: RodModel, tau, family: str) -> ExactSolution:
+    """U_ex = (p_ex, ∂τ p_ex) and U̇_ex = (∂τ p_ex, ∂ττ p_ex) of ``family`` ("linear_in_time" or
+    "harmonic", module docstring) at τ = ``tau`` (a UFL Constant or expression); ValueError for
+    another family."""
     sigma = ufl.SpatialCoordinate(model.msh)[0]
     p, pt, ptt = [], [], []
     for a, k, w, c in zip(AMPLITUDES, WAVENUMBERS, FREQUENCIES, PHASES, strict=True):

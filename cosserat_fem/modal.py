@@ -193,6 +193,8 @@ def _kinetic_weights(model: RodModel) -> np.ndarray:
 
 
 def _energy_fractions(shape: fem.Function, weights: np.ndarray) -> dict[str, float]:
+    """The part of the kinetic energy Σ_i ∫ w_i φ_i² dσ of mode ``shape`` in each kind of motion
+    (KINDS), ``weights`` w from :func:`_kinetic_weights` (collective)."""
     comm = shape.function_space.mesh.comm
     per_component = []
     for i in range(6):

@@ -209,6 +209,8 @@ class RodModel:
         return imap.size_global * self.V.dofmap.index_map_bs
 
     def _symbols(self, time_eval) -> dict:
+        """The values of the scene's expression names in UFL: constants and [parameters], s = ℓ σ
+        [m] and t = τ/ω0 [s] with τ = ``time_eval`` (47)."""
         sigma = ufl.SpatialCoordinate(self.msh)[0]
         names = dict(self.scene.expression_names())
         names["s"] = self.length * sigma

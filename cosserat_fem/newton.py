@@ -43,6 +43,11 @@ _prefix_counter = itertools.count()
 
 @dataclass
 class NewtonSettings:
+    """The solver's settings (module docstring). The defaults are those of the solver used
+    on its own (full Newton, as the unit tests and the manufactured solutions use it); a
+    scene's [solver] table has its own, the schema's (cosserat_fem/schema.py), and
+    :meth:`of` copies every one of them: a run never meets these defaults but ``xatol``."""
+
     jacobian: str = "full"
     lag: int = 10
     refresh_iterations: int = 4
@@ -176,6 +181,8 @@ class NewtonSolver:
 
     @staticmethod
     def _lu_package(comm, choice: str) -> str:
+        """The LU package for solver.linear_solver = ``choice``: "auto" is PETSc's own in serial,
+        MUMPS under MPI; ValueError for PETSc's own under MPI."""
         if choice == "auto":
             return "petsc" if comm.size == 1 else "mumps"
         if choice == "petsc" and comm.size > 1:
@@ -184,6 +191,7 @@ class NewtonSolver:
 
     # -- SNES callbacks -------------------------------------------------------------------
     def _update_state(self, x: PETSc.Vec) -> None:
+        """Copy SNES's vector ``x`` into U (ghost values updated under MPI)."""
         if self._parallel:
             x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
         x.copy(self.U.vector)
@@ -193,6 +201,8 @@ class NewtonSolver:
             )
 
     def _residual(self, snes, x: PETSc.Vec, b: PETSc.Vec) -> None:
+        """SNES callback: b = F(x), with x − g in the rows of the Dirichlet dofs (class
+        docstring)."""
         t0 = time.perf_counter()
         self._update_state(x)
         with b.localForm() as b_local:
@@ -205,6 +215,8 @@ class NewtonSolver:
         self.stats.time_residual += time.perf_counter() - t0
 
     def _jacobian(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
+        """SNES callback: J(x) into A when the policy asks for it (identity rows and columns at
+        the Dirichlet dofs); for a reused Jacobian its inputs are kept for a checkpoint."""
         if not (self._need_jacobian or self.settings.jacobian == "full"):
             return
         t0 = time.perf_counter()
@@ -232,6 +244,8 @@ class NewtonSolver:
         return reason
 
     def _test(self, it: int, norms) -> int:
+        """The SNES reason after iteration ``it``, norms = (‖U‖, ‖δU‖, ‖F‖), by the tests of the
+        module docstring; keeps ‖δU‖ and ‖F‖ for the next contraction estimate."""
         xnorm, ynorm, fnorm = norms
         reasons, st = PETSc.SNES.ConvergedReason, self.settings
         if fnorm != fnorm or ynorm != ynorm:
@@ -287,6 +301,8 @@ class NewtonSolver:
         return iterations
 
     def _run(self) -> tuple[int, int]:
+        """One SNES solve from U, which then holds the result: (iterations, SNES converged
+        reason)."""
         t0 = time.perf_counter()
         self.U.vector.copy(self.x)
         self.snes.solve(None, self.x)
@@ -348,6 +364,7 @@ class NewtonSolver:
         # The saved "need a new Jacobian" flag stands: a pending refresh still happens.
 
     def destroy(self) -> None:
+        """Free the PETSc objects (SNES, matrix, vectors); the solver is unusable afterwards."""
         self.snes.destroy()
         self.A.destroy()
         self.b.destroy()

@@ -42,6 +42,7 @@ class FolderStart(Observer):
         self.claimed = False
 
     def started(self, loop) -> None:
+        """Collective: the folder claimed or cut back to the checkpoint, then summary.json."""
         if self.plan is None:
             claim(self.folder, self.comm, self.writes_xdmf, self.summary)
         else:
@@ -172,6 +173,8 @@ class CheckpointObserver(Observer):
             self.save(loop)
 
     def save(self, loop) -> None:
+        """A checkpoint of the loop's state at its time t [s] with how far the outputs got (probe
+        rows, their SHA-256, XDMF frames); none if one was written at t already. Collective."""
         t = loop.state.t
         if self._saved_at == t:
             return
@@ -201,6 +204,7 @@ class DeadlineObserver(Observer):
         self._ticks = 0
 
     def step_finished(self, loop) -> None:
+        """Every ``every`` steps: LimitReached once rank 0's clock has passed the deadline."""
         self._ticks += 1
         if self._ticks % self.every:
             return
@@ -259,6 +263,8 @@ class FieldRecorder(Observer):
         self._values.append(self.sampler.sample())  # on rank 0
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """(``times`` (T,) [s], ``values`` (T, len(sigmas), 6) [m, rad]) on every rank
+        (collective)."""
         comm = self.sampler.comm
         values = np.array(self._values) if comm.rank == 0 else None
         if comm.size > 1:

@@ -157,6 +157,8 @@ class ProbeWriter:
         self.check()
 
     def _fail(self, exc: OSError) -> None:
+        """Keep the OutputError of a failed write and write no more; raised at once in serial, at
+        :meth:`check` under MPI."""
         self.error = OutputError(
             f"output: cannot write {str(self.path)!r} ({exc.strerror or exc}); the rows "
             "before are kept"
@@ -166,6 +168,7 @@ class ProbeWriter:
             raise self.error
 
     def _write(self, text: str) -> None:
+        """``text`` to the file (flushed) and into the SHA-256; a failure goes to :meth:`_fail`."""
         if self._file is None:
             return
         try:
@@ -192,6 +195,7 @@ class ProbeWriter:
             self.flush()
 
     def flush(self, sync: bool = False) -> None:
+        """Hand the pending rows to the operating system; ``sync``: fsync too (at the end)."""
         if self._file is not None:
             if self._pending:
                 # One formatting call for the whole block (about 10x cheaper than per value).
@@ -214,6 +218,7 @@ class ProbeWriter:
         return self._sha.hexdigest()
 
     def close(self) -> None:
+        """Flush, fsync and close the owner's file; a failure is handled as by :meth:`_fail`."""
         if self._file is not None:
             self.flush(sync=True)
             if self._file is not None:
@@ -444,6 +449,7 @@ class XdmfWriter:
         return self._work.with_suffix(".h5")
 
     def _write_mesh(self) -> None:
+        """DOLFINx's XML and .h5 of the output mesh, under the working name (collective)."""
         self.file = io.XDMFFile(self._comm, str(self._work), "w")
         try:
             self.file.write_mesh(self.mesh)
@@ -488,6 +494,9 @@ class XdmfWriter:
         return None
 
     def write(self, t: float, U: fem.Function | None = None) -> None:
+        """A frame at t [s] (a load factor, a mode number) of U, or of ``U`` copied into it;
+        OutputError if it may not fit (:meth:`_room_problem`) or is not written, the frames
+        before kept. Collective."""
         if U is not None and U is not self.U:
             self.U.x.array[:] = U.x.array
         if self.functions:
@@ -509,6 +518,7 @@ class XdmfWriter:
         self.writes += 1
 
     def _write_frame(self, t: float) -> None:
+        """DOLFINx's write of every array at t: the .h5 and a scratch XML of this frame alone."""
         self._reopen()
         try:
             last = len(self.functions) - 1
@@ -548,6 +558,8 @@ class XdmfWriter:
             file.close()
 
     def _publish(self) -> None:
+        """Add the frame of the scratch XML to the document and replace the published XML with it
+        atomically (rank 0); if that fails the document drops the frame again."""
         # Rank 0 alone writes the XML (DOLFINx's scratch one in write_function/write_mesh,
         # then the published one) and renames it, once every rank has returned from closing
         # the HDF5 file: parallel HDF5 spreads the metadata writes over the ranks, and rank 0
@@ -664,6 +676,7 @@ class _XdmfDocument:
         self.nbytes -= len(self.frames.pop())
 
     def text(self) -> str:
+        """The published XML: the run's identity and the collection ``rod`` of every frame."""
         identity = ""
         if self.run_id is not None:
             value = quoteattr(self.run_id)
@@ -706,6 +719,9 @@ class LineSampler:
                 claim[i], cells[i] = comm.rank, owned[0]
         owner = np.empty_like(claim)
         comm.Allreduce(claim, owner, op=MPI.MIN)
+        if (owner == comm.size).any():
+            outside = self.sigmas[owner == comm.size][0]
+            raise ValueError(f"sampling point σ = {outside} lies outside the mesh [0, 1]")
         self._mine = np.flatnonzero(owner == comm.rank)
         self._points = pts[self._mine]
         self._cells = cells[self._mine]

@@ -29,6 +29,7 @@ SURFACE_SIZE = (7.0, 5.0)
 
 
 def _pyplot():
+    """matplotlib.pyplot with the Agg backend; CosseratError if matplotlib is missing."""
     try:
         import matplotlib
     except ImportError as exc:
@@ -59,6 +60,7 @@ def _label(text: str) -> str:
 
 
 def _save(fig, path: Path) -> Path:
+    """``fig`` as PNG at DPI to ``path``, then closed; SceneError if it cannot be written."""
     plt = _pyplot()
     try:
         fig.savefig(path, dpi=DPI)
@@ -70,12 +72,15 @@ def _save(fig, path: Path) -> Path:
 
 
 def plot_free_end(run: Run, out: Path) -> Path:
+    """free_end.png: the probe's x, y, z [m] and θ, ψ, φ [rad] against t [s] (the load factor for
+    a static run), laid out as the paper's Fig. 4."""
     plt = _pyplot()
     rows = run.probes
     t = rows[:, 0]
     fig, axes = plt.subplots(3, 2, figsize=HISTORY_SIZE, sharex=True)
-    panels = [(1, "x(ℓ) [m]"), (4, "θ(ℓ) [rad]"), (2, "y(ℓ) [m]"), (5, "ψ(ℓ) [rad]")]
-    panels += [(3, "z(ℓ) [m]"), (6, "φ(ℓ) [rad]")]
+    at = run.probe_place
+    panels = [(1, f"x({at}) [m]"), (4, f"θ({at}) [rad]"), (2, f"y({at}) [m]")]
+    panels += [(5, f"ψ({at}) [rad]"), (3, f"z({at}) [m]"), (6, f"φ({at}) [rad]")]
     marker = "o-" if len(t) < 40 else "-"
     for ax, (column, label) in zip(axes.flat, panels, strict=True):
         ax.plot(t, rows[:, column], marker, lw=0.8, ms=3)
@@ -84,7 +89,8 @@ def plot_free_end(run: Run, out: Path) -> Path:
         ax.grid(alpha=0.3)
     for ax in axes[-1]:
         ax.set_xlabel(run.time_label)
-    fig.suptitle(_label(f"Free end: {run.title}"), fontsize=10)
+    where = "Free end" if at == "ℓ" else f"At {at}"
+    fig.suptitle(_label(f"{where}: {run.title}"), fontsize=10)
     fig.tight_layout()
     return _save(fig, out / "free_end.png")
 

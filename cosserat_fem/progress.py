@@ -34,6 +34,7 @@ def configure_logging(level: str, rank: int) -> None:
 
 
 def _clock(seconds: float) -> str:
+    """Seconds as "12.3 s" below a minute, else m:ss or h:mm:ss (negative as 0)."""
     seconds = max(0.0, seconds)
     if seconds < 60:
         return f"{seconds:4.1f} s"

@@ -2,7 +2,7 @@
 
 From the run's XDMF (read by :mod:`cosserat_fem.results`, no DOLFINx) it writes
 
-* ``rod_peak.png``: the deformed rod at the frame of largest free-end displacement,
+* ``rod_peak.png``: the deformed rod at the frame of largest displacement (anywhere),
 * ``rod_last.png``: at the last frame,
 * ``rod_frames.png``: a few frames over each other, darker with time,
 * ``rod.gif`` (or ``rod.mp4`` with ``--format mp4``, which needs imageio-ffmpeg): the
@@ -40,6 +40,8 @@ MAX_SCALE = 1e12
 
 
 def _pyvista():
+    """pyvista set for off-screen rendering (EGL without an X display); CosseratError if it is
+    missing."""
     if not os.environ.get("DISPLAY"):
         # No X server: use EGL directly instead of trying X first (and warning).
         os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
@@ -136,6 +138,7 @@ class _Scene:
         return line.tube(radius=self.radius, n_sides=20, capping=True)
 
     def _caption(self, frame: int) -> str:
+        """The caption of ``frame``: title, time (or load factor) and magnification."""
         t = self.series.times[frame]
         return (
             f"{self.title}\n{self.time_label} = {t:.6g}   displacement x {self.scale:g}"
@@ -215,8 +218,9 @@ def render_run(
     scene = _Scene(series, k, run.title, run.time_label)
     paths = []
     try:
-        tip = np.linalg.norm(series.arrays["displacement"][:, -1, :], axis=1)
-        peak, last = int(np.argmax(tip)), len(series.times) - 1
+        # The frame where the rod is displaced most (anywhere along it: an end may be held).
+        largest = np.linalg.norm(series.arrays["displacement"], axis=2).max(axis=1)
+        peak, last = int(np.argmax(largest)), len(series.times) - 1
         paths.append(scene.picture([peak], scene._caption(peak), target / "rod_peak.png"))
         paths.append(scene.picture([last], scene._caption(last), target / "rod_last.png"))
         some = sorted(set(np.linspace(0, last, min(8, last + 1)).round().astype(int).tolist()))
@@ -232,6 +236,8 @@ def render_run(
 
 
 def _animate(scene: _Scene, path: Path, max_frames: int, fps: int) -> Path:
+    """The animation (GIF or MP4 by ``path``'s suffix) of at most ``max_frames`` evenly spaced
+    frames at ``fps`` frames a second; CosseratError if imageio is missing or fails."""
     try:
         import imageio.v2 as imageio
     except ImportError as exc:
@@ -243,6 +249,8 @@ def _animate(scene: _Scene, path: Path, max_frames: int, fps: int) -> Path:
         with imageio.get_writer(path, **options) as writer:
             for frame in frames:
                 writer.append_data(scene.image(int(frame)))
+    except OSError as exc:
+        raise SceneError(f"render: cannot write {str(path)!r} ({exc.strerror or exc})") from None
     except (ImportError, ValueError, RuntimeError) as exc:
         raise CosseratError(f"render: cannot write {str(path)!r} ({exc})") from None
     return path

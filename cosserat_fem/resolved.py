@@ -11,7 +11,6 @@ from typing import Any
 from cosserat_fem.expressions import Expression
 from cosserat_fem.forms.groups import RodConstants, euler_bernoulli_omega0
 from cosserat_fem.forms.section import Section, rectangle, tube
-from cosserat_fem.schema import DEFAULT_WALL_TIME, XDMF_FIELDS
 
 
 @dataclass(frozen=True)
@@ -131,7 +130,7 @@ class Loads:
     torque_density: tuple[Expression, ...]
     start: EndLoad | None
     end: EndLoad | None
-    gravity: tuple[float, float, float] = (0.0, 0.0, 0.0)  # m/s², adds ρ A g to the force
+    gravity: tuple[float, float, float]  # m/s², adds ρ A g to the force
 
     @property
     def has_gravity(self) -> bool:
@@ -164,9 +163,9 @@ class Damping:
     (1 + τ_d ∂t) of the strains, n = K (v − e3 + τ_d v̇), m = J (u + τ_d u̇); it damps each
     mode in proportion to its frequency, ζ_n = τ_d ω_n / 2 (forms/general_form.py)."""
 
-    translational: float = 0.0
-    rotational: float = 0.0
-    retardation_time: float = 0.0
+    translational: float
+    rotational: float
+    retardation_time: float
 
     @property
     def viscous(self) -> bool:
@@ -209,11 +208,11 @@ class Time:
     step: float
     integrator: str
     rho_inf: float
-    max_halvings: int = 6
-    adaptive: bool = False
-    rtol: float = 1e-4
-    atol: float = 1e-10
-    max_step: float = 0.0  # 0: no limit
+    max_halvings: int
+    adaptive: bool
+    rtol: float
+    atol: float
+    max_step: float  # 0: no limit
 
     @property
     def n_steps(self) -> int:
@@ -239,7 +238,7 @@ class Discretisation:
     elements: int
     degree: int
     quadrature_degree: int
-    planar: str = "auto"  # "auto": solve the in-plane unknowns of a scene in x-z or y-z
+    planar: str  # "auto": solve the in-plane unknowns of a scene in x-z or y-z
 
 
 @dataclass(frozen=True)
@@ -267,9 +266,9 @@ class Output:
     directory: str
     xdmf: bool
     xdmf_interval: float
-    fields: tuple[str, ...] = XDMF_FIELDS
-    checkpoint: bool = True
-    checkpoint_interval: float = 0.0
+    fields: tuple[str, ...]
+    checkpoint: bool
+    checkpoint_interval: float
 
     def xdmf_every(self, step: float) -> int:
         """Steps between XDMF writes (1 if the interval is 0)."""
@@ -285,8 +284,8 @@ class Limits:
     checkpoint; ``memory`` [bytes], the estimated memory (None: "auto", the memory available
     on this machine). Raise them to run a very large case on purpose."""
 
-    wall_time: float = DEFAULT_WALL_TIME
-    memory: float | None = None
+    wall_time: float
+    memory: float | None
 
 
 @dataclass(frozen=True)
@@ -303,10 +302,10 @@ class Scene:
     discretisation: Discretisation
     solver: Solver
     output: Output
-    static: StaticSettings = field(default_factory=lambda: StaticSettings(1, 10, 0.0))
-    damping: Damping = field(default_factory=Damping)
-    initial: Initial = field(default_factory=Initial)
-    limits: Limits = field(default_factory=Limits)
+    static: StaticSettings
+    damping: Damping
+    limits: Limits
+    initial: Initial = field(default_factory=Initial)  # built last, from the resolved rest
     source: str = field(default="<dict>", compare=False)
 
     @property
@@ -398,6 +397,8 @@ def _end_load_dict(load: EndLoad) -> dict[str, Any]:
 
 
 def _material_dict(material: Material) -> dict[str, Any]:
+    """[rod.material]: density [kg/m³], young_modulus [Pa] and the one of poisson_ratio and
+    shear_modulus [Pa] that was given."""
     out: dict[str, Any] = {"density": material.density, "young_modulus": material.young_modulus}
     if material.poisson_ratio is not None:
         out["poisson_ratio"] = material.poisson_ratio
@@ -407,6 +408,7 @@ def _material_dict(material: Material) -> dict[str, Any]:
 
 
 def _loads_dict(loads: Loads) -> dict[str, Any]:
+    """[loads]: expressions as their sources, end loads where given, gravity [m/s²]."""
     out: dict[str, Any] = {
         "force_density": _vector(loads.force_density),
         "torque_density": _vector(loads.torque_density),
@@ -424,6 +426,8 @@ def _fields(obj: Any) -> dict[str, Any]:
 
 
 def _scene_to_dict(scene: Scene) -> dict[str, Any]:
+    """The scene as the tables of a scene file, every key given (expressions as their sources;
+    reference_frequency and limits.memory "auto" where so chosen): :meth:`Scene.to_dict`."""
     model = _fields(scene.model)
     if model["reference_frequency"] is None:
         model["reference_frequency"] = "auto"

@@ -96,6 +96,7 @@ def _reason(exc: BaseException, size: int = 160) -> str:
 
 
 def _json_type(value: object) -> str:
+    """What a JSON value is, in words, for a message ("an object", "a number", ...)."""
     if isinstance(value, bool):
         return "a boolean"
     if value is None:
@@ -124,6 +125,7 @@ def _is_file(path: Path) -> bool:
 
 
 def _check_size(path: Path, limit: int) -> None:
+    """SceneError if ``path`` cannot be looked at or holds more than ``limit`` bytes."""
     try:
         size = path.stat().st_size
     except OSError as exc:
@@ -149,6 +151,8 @@ def _read_bytes(path: Path, limit: int) -> bytes:
 
 
 def _decode(path: Path, data: bytes, where: str = "") -> str:
+    """``data`` as UTF-8 text; SceneError naming the first bad byte and its offset (``where``: a
+    prefix such as "line 3: ")."""
     try:
         return data.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -222,6 +226,18 @@ class Run:
         scene = (self.summary or {}).get("scene") or {}
         length = (scene.get("rod") or {}).get("length")
         return None if length is None else float(length)
+
+    @property
+    def probe_place(self) -> str:
+        """Where probes.csv's values are taken, for a label: "ℓ" (the end at s = ℓ), "0", or
+        "s = ... m" (from summary.json's probe_s_m; "ℓ" when it does not say)."""
+        summary = self.summary or {}
+        where, length = summary.get("probe_s_m"), self.length
+        if not isinstance(where, int | float) or isinstance(where, bool) or length is None:
+            return "ℓ"
+        if where == length:
+            return "ℓ"
+        return "0" if where == 0 else f"s = {where:g} m"
 
     def series(self) -> RodSeries:
         if self.xdmf is None:
@@ -369,6 +385,7 @@ def _probe_row(path: Path, number: int, raw: bytes) -> list[float] | None:
 
 
 def _h5py():
+    """h5py; CosseratError if it is missing (the plot extra)."""
     try:
         import h5py
     except ImportError as exc:
@@ -403,6 +420,8 @@ class _Datasets:
         return SceneError(f"{_where(self.xdmf)}: {what}: {problem}")
 
     def _open(self, name: str, what: str):
+        """The h5py File ``name`` of the XDMF file's folder, opened once; SceneError if it is
+        missing or not HDF5."""
         if name not in self.files:
             path = self.folder / name
             if not _is_file(path):
@@ -471,6 +490,7 @@ class _Datasets:
         return values
 
     def close(self) -> None:
+        """Close the open .h5 files (errors ignored)."""
         for f in self.files.values():
             try:
                 f.close()
@@ -528,6 +548,8 @@ def _item(path: Path, grid: ET.Element, part: str, where: str) -> ET.Element:
 
 
 def _time(path: Path, grid: ET.Element, index: int) -> float:
+    """The Time Value of frame ``index`` (from 0): t [s], a load factor or a mode number;
+    SceneError if it is missing or not a finite number within MAX_MAGNITUDE."""
     time = grid.find("Time")
     value = None if time is None else time.get("Value")
     if value is None:

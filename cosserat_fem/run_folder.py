@@ -82,6 +82,19 @@ def claim(folder: Path, comm: MPI.Comm, writes_xdmf: bool, summary: dict) -> Non
     write_summary(folder / SUMMARY, summary, comm)
 
 
+def status_of(failure: BaseException | None) -> str:
+    """summary.json's status of a run that ended with ``failure``: "completed" (none),
+    "interrupted" (Ctrl-C), "stopped" (a StopError: an output, a limit; resumable) or
+    "failed"."""
+    from .errors import StopError
+
+    if failure is None:
+        return "completed"
+    if isinstance(failure, KeyboardInterrupt):
+        return "interrupted"
+    return "stopped" if isinstance(failure, StopError) else "failed"
+
+
 def write_summary(path: Path, data: dict, comm: MPI.Comm, strict: bool = True) -> None:
     """Write summary.json atomically on rank 0 (collective). A failure is an OutputError on
     every rank, or, with ``strict=False`` (the summary at the end of a run that already

@@ -59,6 +59,9 @@ CHECKPOINTS_PER_RUN = 10  # output.checkpoint_interval = "auto"
 
 # ==================================================================================== building
 def _build_section(raw: dict[str, Any], poisson_ratio: float) -> SectionSpec:
+    """[rod.section] resolved: only and all the keys of its shape; a rectangle's torsion_constant
+    "series" by default; shear_coefficient "auto" as 5/6 (rectangle) or Cowper's value for
+    ν = ``poisson_ratio`` (circle, tube). SceneError naming the key."""
     shape = raw["shape"]
     keys = SECTION_KEYS[shape]
     for name, value in raw.items():
@@ -91,6 +94,9 @@ def _build_section(raw: dict[str, Any], poisson_ratio: float) -> SectionSpec:
 
 
 def _build_rod(raw: dict[str, Any]) -> Rod:
+    """[rod]: length [m], section, material with exactly one of ν and G [Pa]; G must be positive
+    and finite, E/(2 G) − 1 a Poisson ratio where Cowper's κ needs one. SceneError naming the
+    key."""
     mat = raw["material"]
     nu, g = mat["poisson_ratio"], mat["shear_modulus"]
     if (nu is None) == (g is None):
@@ -123,6 +129,8 @@ def _build_rod(raw: dict[str, Any]) -> Rod:
 
 
 def _build_model(raw: dict[str, Any]) -> ModelChoices:
+    """[model]; reference_frequency "auto" as None (ω0 [rad/s] from the rod,
+    :func:`auto_reference_frequency`)."""
     frequency = raw["reference_frequency"]
     return ModelChoices(
         reference_frequency=None if frequency == "auto" else frequency,
@@ -133,6 +141,8 @@ def _build_model(raw: dict[str, Any]) -> ModelChoices:
 
 
 def _build_supports(raw: dict[str, Any], constants: set[str]) -> Supports:
+    """[supports]: one end clamped or both pinned (else SceneError); motions [m] as expressions
+    of t and ``constants``, None if zero, refused at a free end."""
     kinds = (raw["start"], raw["end"])
     if "clamped" not in kinds and kinds != ("pinned", "pinned"):
         raise SceneError(
@@ -154,6 +164,8 @@ def _build_supports(raw: dict[str, Any], constants: set[str]) -> Supports:
 
 
 def _build_loads(raw: dict[str, Any], supports: Supports, constants: set[str]) -> Loads:
+    """[loads]: force [N/m] and torque [N m/m] densities of s, t and ``constants``, end loads
+    (:func:`_build_end_load`), gravity [m/s²] of the constants only."""
     names = {"s", "t", *constants}
     force = parse_vector(raw["force_density"], names, "loads.force_density")
     torque = parse_vector(raw["torque_density"], names, "loads.torque_density")
@@ -229,6 +241,8 @@ def _finite_value(e: Expression, key: str, where: str, **values: float) -> float
 def _build_end_load(
     raw: dict[str, Any] | None, end: str, support: str, names: set[str]
 ) -> EndLoad | None:
+    """[loads.<end>] (force [N], torque [N m], expressions of t and constants), None if absent;
+    SceneError at a clamped end, for a dependence on s, or for a force at a pinned end."""
     if raw is None:
         return None
     key = f"loads.{end}"
@@ -251,6 +265,12 @@ def _build_end_load(
         raise SceneError(
             f"{key}.force: a pinned end holds its position, so an end force there is taken by "
             "the support; give only an end torque (about e1, e2; the twist is held too)"
+        )
+    if support == "pinned" and not vectors["torque"][2].is_zero:
+        raise SceneError(
+            f"{key}.torque[2]: a pinned end holds its twist φ, so a torque about e3 there is "
+            f"taken by the support; give the torque about e1, e2 only, got "
+            f"{show_value(vectors['torque'][2].source)}"
         )
     return EndLoad(vectors["force"], vectors["torque"])
 
@@ -317,6 +337,9 @@ def _build_discretisation(raw: dict[str, Any]) -> Discretisation:
 
 
 def _build_output(raw: dict[str, Any], time: Time) -> Output:
+    """[output]: xdmf_interval and checkpoint_interval [s] checked as 0 or whole multiples of
+    time.step; checkpoint_interval "auto" as about 1/CHECKPOINTS_PER_RUN of the run, on the step
+    grid."""
     interval = raw["xdmf_interval"]
     # Checked only when fields are written: with xdmf = false the interval is unused.
     if (
@@ -420,6 +443,8 @@ def _arithmetic(exc: Exception) -> str:
 
 
 def _bad_groups(groups: Groups) -> list[str]:
+    """``name = value`` of each group of (48) that is not finite, or not positive where it must
+    be (_POSITIVE_GROUPS)."""
     bad = []
     for name, value in groups.as_dict().items():
         positive = name not in _POSITIVE_GROUPS or value > 0.0

@@ -26,14 +26,17 @@ from typing import Any
 
 from cosserat_fem.errors import SceneError, show_value
 from cosserat_fem.expressions import RESERVED_NAMES, check_name
-from cosserat_fem.forms.groups import TORSION_INERTIAS
+from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.section import TORSION_CONSTANT_RULES
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
 SCENE_CONSTANTS = ("L", "omega0")
 #: Relative tolerance for "is an integer number of time steps".
 STEP_TOLERANCE = 1e-9
-#: What output.fields may ask the XDMF file to hold (cosserat_fem/output.py).
+#: What output.fields may ask the XDMF file to hold (cosserat_fem/output.py). The names of
+#: heavier modules' choices (this one, the integrators, the Jacobian policies) are spelled out
+#: here, so that reading a scene needs no UFL or DOLFINx; tests/unit/test_one_source.py holds
+#: them equal to the implementers' registries.
 XDMF_FIELDS = ("displacement", "angles", "strains", "forces")
 SUPPORTS = ("clamped", "free", "pinned")
 #: Upper bounds of keys whose size alone makes a run impossible here (cosserat_fem/budget.py
@@ -75,6 +78,7 @@ class Interval:
         return lo_ok and hi_ok
 
     def describe(self) -> str:
+        """The range in words, for messages: "in [lo, hi)", "> lo", "<= hi" or "finite"."""
         if self.lo is not None and self.hi is not None:
             left, right = "(" if self.lo_open else "[", ")" if self.hi_open else "]"
             return f"in {left}{fmt(self.lo)}, {fmt(self.hi)}{right}"
@@ -120,11 +124,17 @@ class Number(Field):
         return f'"auto" or {text}' if self.auto else text
 
     def check(self, key: str, value: Any) -> Any:
+        """``value`` as a float (an int if ``integer``), or "auto"; SceneError naming ``key``
+        unless it is a finite number in the interval."""
         if self.auto and value == "auto":
             return "auto"
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
-        if not math.isfinite(value):
+        try:
+            finite = math.isfinite(value)
+        except OverflowError:  # an integer beyond any float (from a dict, not TOML)
+            finite = False
+        if not finite:
             raise SceneError(f"{key}: must be {self.describe()}, finite, got {show_value(value)}")
         if self.integer and not float(value).is_integer():
             raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
@@ -134,6 +144,7 @@ class Number(Field):
         return number
 
     def _range_message(self, key: str, value: Any) -> str:
+        """The message for a number outside the interval, with the unit."""
         if self.auto:
             return f"{key}: must be {self.describe()}, got {show_value(value)}"
         rule = self.interval.describe()
@@ -152,6 +163,8 @@ class Choice(Field):
         return "one of " + ", ".join(show_value(c) for c in self.choices)
 
     def check(self, key: str, value: Any) -> Any:
+        """``value`` if it is one of the choices; else SceneError naming ``key``, with the
+        closest choice as a hint."""
         if isinstance(value, str) and value in self.choices:
             return value
         hint = ""
@@ -214,6 +227,8 @@ class ChoiceList(Field):
         return "a list of distinct strings from " + ", ".join(show_value(c) for c in self.choices)
 
     def check(self, key: str, value: Any) -> Any:
+        """``value`` as a tuple if it is a list of distinct choices; else SceneError naming
+        ``key`` (and the index of a bad item)."""
         if not isinstance(value, list | tuple) or len(set(map(str, value))) != len(value):
             raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
         for i, item in enumerate(value):
@@ -287,8 +302,8 @@ SCHEMA = Table(
                     default="auto", interval=POSITIVE, unit="rad/s", auto=True
                 ),
                 "torsion_inertia": Choice(choices=TORSION_INERTIAS, default="polar"),
-                "end_load_sign": Choice(choices=("balance", "printed"), default="balance"),
-                "end_load_scaling": Choice(choices=("balance", "printed"), default="balance"),
+                "end_load_sign": Choice(choices=tuple(END_LOAD_SIGNS), default="balance"),
+                "end_load_scaling": Choice(choices=END_LOAD_SCALINGS, default="balance"),
             }
         ),
         "supports": Table(

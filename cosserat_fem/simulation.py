@@ -32,7 +32,6 @@ from petsc4py import PETSc
 
 from . import __version__, budget
 from .checkpoint import Checkpoint, check_outputs
-from .errors import StopError
 from .events import Events, Observer, drive
 from .integrators import GeneralizedAlpha, make_integrator
 from .loop import TimeLoop
@@ -51,7 +50,7 @@ from .observers import (
 )
 from .output import PointProbe, probe_sigma
 from .parallel import ranks_on_node
-from .run_folder import PROBES, XDMF, new_run_id, prepare_output_dir
+from .run_folder import PROBES, XDMF, new_run_id, prepare_output_dir, status_of
 from .scene import Scene
 
 
@@ -267,7 +266,7 @@ class _RunParts:
         output = self._events.output_time
         self.summary.update(
             {
-                "status": _status(failure),
+                "status": status_of(failure),
                 "message": str(failure) if failure else "",
                 **loop.state.counts(),
                 "checkpoints_written": self.checkpoints.written if self.checkpoints else 0,
@@ -283,14 +282,6 @@ class _RunParts:
             }
         )
         return self.summary
-
-
-def _status(failure: BaseException | None) -> str:
-    if failure is None:
-        return "completed"
-    if isinstance(failure, KeyboardInterrupt):
-        return "interrupted"
-    return "stopped" if isinstance(failure, StopError) else "failed"
 
 
 def _summary_start(scene, model, integrator, solver, probe, comm, restart) -> dict:

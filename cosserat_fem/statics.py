@@ -30,7 +30,7 @@ from mpi4py import MPI
 
 from . import __version__, budget
 from .checks import check_state, cos_theta
-from .errors import SceneError, SolverError, StopError
+from .errors import SceneError, SolverError
 from .events import Events, Observer, drive
 from .integrators import make_integrator
 from .model import RodModel, build_model
@@ -39,7 +39,7 @@ from .observers import FolderStart, FolderSummary, ProbeObserver, ProbeRecorder,
 from .output import PointProbe, probe_sigma
 from .parallel import ranks_on_node
 from .progress import LOGGER
-from .run_folder import PROBES, XDMF, new_run_id, prepare_output_dir
+from .run_folder import PROBES, XDMF, new_run_id, prepare_output_dir, status_of
 from .scene import Scene
 
 
@@ -92,6 +92,9 @@ class StaticLoop:
         """Nothing to do: a load step that fails restores the last accepted state itself."""
 
     def run(self) -> None:
+        """The load steps from λ = 0 to 1, the increment halved on failure and doubled back after
+        a success (module docstring); SolverError once one below 2^−max_bisections of the nominal
+        increment fails. U ends at the last accepted state."""
         model, solver, st, events = self.model, self.solver, self.state, self.events
         static = self.scene.static
         events.started(self)
@@ -122,7 +125,12 @@ class StaticLoop:
                 except (NewtonFailure, SolverError) as exc:
                     st.rejected += 1
                     step *= 0.5
-                    events.step_rejected(self, exc if isinstance(exc, SolverError) else None)
+                    cause = exc if isinstance(exc, SolverError) else SolverError(
+                        f"Newton did not converge ({exc.reason}, {exc.iterations} iterations)",
+                        where=f"load factor {trial:.6g}",
+                        retry=True,
+                    )
+                    events.step_rejected(self, cause)
                     if step < smallest * (1.0 - 1e-12):
                         raise SolverError(
                             time=None,
@@ -191,15 +199,17 @@ def static_path(
         "scene_file": scene.source,
         "mpi_ranks": comm.size,
         "dofs": model.global_dofs(),
+        "probe_s_m": probe_sigma(scene) * model.length,
         "newton": "full",
         "scene": scene.to_dict(),
     }
 
     def finish(loop: StaticLoop, failure: BaseException | None) -> dict:
+        """summary.json at the end: status, message, the load factors and Newton iterations of
+        the accepted steps, bisections and the wall time [s]."""
         summary.update(
             {
-                "status": "completed" if failure is None else
-                "stopped" if isinstance(failure, StopError) else "failed",
+                "status": status_of(failure),
                 "message": str(failure) if failure else "",
                 "load_factors": loop.factors,
                 "newton_iterations": loop.iterations,

@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 
 import ufl
 
+from .conventions import END_LOAD_SIGNS
 from .groups import Groups
 from .kinematics import (
     angles,
@@ -45,9 +46,6 @@ from .kinematics import (
     stretch_shear_strain,
     translations,
 )
-
-END_LOAD_SIGNS = {"balance": 1.0, "printed": -1.0}
-END_LOAD_SCALINGS = ("balance", "printed")
 
 
 @dataclass(frozen=True)

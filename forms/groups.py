@@ -27,8 +27,6 @@ from dataclasses import dataclass
 
 from .section import Section
 
-TORSION_INERTIAS = ("polar", "printed")
-
 
 @dataclass(frozen=True)
 class RodConstants:

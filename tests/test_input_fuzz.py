@@ -61,6 +61,7 @@ HOSTILE = [
     10**30,
     -(10**30),
     2**63,
+    10**400,  # beyond any float (a dict from Python; TOML integers stop at 64 bits)
 ]
 
 

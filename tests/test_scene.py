@@ -551,3 +551,12 @@ def test_errors_are_one_line() -> None:
     assert (error.time, error.where, error.suggestion) == (0.0123, "newton", "reduce time.step")
     assert str(SolverError("singular Jacobian")) == "singular Jacobian"
     assert str(SceneError("a.b: bad\nthing")) == "a.b: bad thing"
+
+
+def test_a_pinned_end_takes_no_torque_about_e3() -> None:
+    """A pinned (fork) end holds its twist φ: a torque about e3 there would be taken by the
+    support silently, so it is refused; torques about e1 and e2 are the end's load."""
+    pinned = ["supports.end=pinned", "loads.force_density=[0,0,0]"]
+    assert load_scene(PAPER, [*pinned, "loads.end.torque=[1,2,0]"]).loads.end.torque[1].source
+    with pytest.raises(SceneError, match=r"loads.end.torque\[2\]: a pinned end holds its twist"):
+        load_scene(PAPER, [*pinned, "loads.end.torque=[0,0,5]"])
