@@ -67,7 +67,7 @@ def run(
         restart=restart,
         progress=progress,
         record=record,
-        fields=None if fields is None else np.asarray(fields, dtype=float),
+        fields=fields,
         field_every=field_every,
     )
 

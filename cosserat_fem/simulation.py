@@ -32,6 +32,7 @@ from petsc4py import PETSc
 
 from . import __version__, budget
 from .checkpoint import Checkpoint, check_outputs
+from .errors import SceneError
 from .events import Events, Observer, drive
 from .integrators import GeneralizedAlpha, make_integrator
 from .loop import TimeLoop
@@ -138,6 +139,7 @@ def run(
     ``fields``: stations σ ∈ [0, 1] at which to keep p every ``field_every`` output times.
     """
     t_start = time.perf_counter()
+    fields = _stations(fields, field_every)
     if restart is not None:
         out_dir, write_outputs = restart.run_dir, True
     out = None
@@ -183,6 +185,23 @@ def run(
         field_times=times,
         field_values=values,
     )
+
+
+def _stations(fields, field_every) -> np.ndarray | None:
+    """The sampling stations σ as an array, checked before any work: finite, in [0, 1], at
+    least one; ``field_every`` a whole number ≥ 1 (SceneError naming the argument)."""
+    if isinstance(field_every, bool) or not isinstance(field_every, int) or field_every < 1:
+        raise SceneError(f"field_every: must be a whole number >= 1, got {field_every!r}")
+    if fields is None:
+        return None
+    try:
+        stations = np.asarray(fields, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise SceneError(f"fields: must be numbers σ = s/ℓ in [0, 1], got {fields!r}") from None
+    inside = np.isfinite(stations) & (stations >= 0.0) & (stations <= 1.0)
+    if stations.size == 0 or not inside.all():
+        raise SceneError(f"fields: must be numbers σ = s/ℓ in [0, 1], at least one, got {fields!r}")
+    return stations
 
 
 def _discretise(scene: Scene, comm, initial_state, restart):

@@ -81,3 +81,21 @@ def test_overrides_as_a_mapping_or_as_strings():
     with pytest.raises(SceneError, match="time.stepp: unknown key"):
         cf.load(SCENE, {"time.stepp": 1})
     assert cf.load(cf.load(SCENE).to_dict(), {"time.end": 0.006}).time.end == 0.006
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "key"),
+    [
+        ({"field_every": 0}, "field_every"),
+        ({"field_every": 1.5}, "field_every"),
+        ({"fields": [0.5, 1.2]}, "fields"),
+        ({"fields": [float("nan")]}, "fields"),
+        ({"fields": []}, "fields"),
+        ({"fields": "abc"}, "fields"),
+    ],
+)
+def test_bad_sampling_arguments_are_refused_before_any_work(kwargs, key):
+    """A field_every of 0 would divide by zero at the first output, a station off the rod
+    would fail only after the set-up: both refused at once, naming the argument."""
+    with pytest.raises(SceneError, match=f"^{key}: "):
+        cf.run(cf.load(SCENE, {"time.end": 0.0003}), **kwargs)
