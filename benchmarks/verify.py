@@ -201,9 +201,12 @@ def statics_section() -> str:
         f"Two full turns (M = 4π E c22/ℓ, {elements_phrase(TWO_TURNS_ELEMENTS, rollup_degree)}"
         f"): gap/ℓ = {gap4:.1e}.",
         "Bending about e2 is carried by ψ, which the Euler-angle chart allows without bound. "
-        "Bending about e1 is carried by θ, and the chart (18) is singular at θ = ±π/2 "
-        "(det Ma = cos θ): rolled about e1, the static path stops just before a quarter turn "
-        "of the tip with that reason (`tests/test_large_deflection.py`).",
+        "Bending about e1 is carried by θ. In the y-z plane, where such a scene is solved "
+        "by default, the solved block of Ma is 1 and the rod rolls up about e1 as about e2 "
+        "(the section turned, E c11 = EI: gap/ℓ ≤ 1e-8 for one and two turns, "
+        "`tests/test_large_deflection.py`). Solved in 3D (`discretisation.planar = \"off\"`) "
+        "the chart (18) is singular at θ = ±π/2 (det Ma = cos θ), and the static path stops "
+        "just before a quarter turn of the tip with that reason.",
         "",
         loglog("rollup_gap", series, "elements", "tip gap / ℓ"),
         "",

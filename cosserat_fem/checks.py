@@ -5,6 +5,11 @@ step U must be finite, |cos θ| ≥ :data:`CHART_COS_MIN` at every node, and cos
 changed sign since the last accepted state (a step that jumped over the singularity, which no
 continuous motion passes). Trouble is a :class:`~cosserat_fem.errors.SolverError` naming the
 time and the place along the rod.
+
+The chart is singular only where θ and ψ are both solved for. In the planes (layout.py) the
+angular block of Ma that is solved is Mm's entry for the one angle: 1 for ψ in x-z
+(θ = φ = 0) and for θ in y-z (ψ = φ = 0), so a planar rod turns through any angle in either
+plane (tests/test_large_deflection.py, the roll-up about e1 and e2).
 """
 
 from __future__ import annotations
@@ -38,11 +43,11 @@ CHART_SUGGESTION = (
 
 
 def cos_theta(model: RodModel, state: np.ndarray) -> np.ndarray:
-    """cos θ at the owned nodes of a state array (det Ma = cos θ, (66); 1 if θ ≡ 0 is not
-    solved for)."""
+    """cos θ at the owned nodes of a state array (det Ma = cos θ, (66)); 1 where the solved
+    block of Ma does not depend on θ (θ or ψ not solved for: module docstring)."""
     n = model.V.dofmap.index_map.size_local
     theta = model.layout.index(3)
-    if theta is None:
+    if theta is None or model.layout.index(4) is None:
         return np.ones(n)
     return np.cos(state.reshape(-1, model.layout.size)[:n, theta])
 
