@@ -23,6 +23,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import jit
+from .charts import reset_chart
 from .errors import SceneError
 from .expressions import Expression, derivative
 from .forms.general_form import (
@@ -34,7 +35,7 @@ from .forms.general_form import (
     residual_terms,
 )
 from .forms.groups import Groups, RodConstants, dimensionless_groups
-from .forms.kinematics import P_NAMES
+from .forms.kinematics import P_NAMES, quaternion_chart
 from .forms.section import Section
 from .layout import FULL, Layout
 from .parallel import agree
@@ -110,6 +111,42 @@ class RodModel:
     load_factor: fem.Constant
     motions: list[SupportMotion] = field(default_factory=list)
     layout: Layout = field(default_factory=Layout)  # the components of (p, q) U holds
+    #: The quaternions Q(σ) of the frame the angles are measured from (forms/kinematics.py,
+    #: "Charts"; cosserat_fem/charts.py), or None: the fixed basis, the paper's chart.
+    chart: fem.Function | None = None
+
+    @property
+    def needs_chart(self) -> bool:
+        """Whether the Euler-angle chart can be singular: θ and ψ both solved (checks.py)."""
+        return self.layout.index(3) is not None and self.layout.index(4) is not None
+
+    def use_chart(self) -> None:
+        """Measure the angles from a frame of quaternions from now on (starting at the fixed
+        basis, Q = (1, 0, 0, 0)): forms built after this carry it. The quaternions share U's
+        Lagrange nodes (checked)."""
+        if self.chart is not None:
+            return
+        degree = self.V.ufl_element().degree()
+        Q = fem.Function(fem.VectorFunctionSpace(self.msh, ("Lagrange", degree), dim=4), name="Q")
+        coords = Q.function_space.tabulate_dof_coordinates()
+        if not np.array_equal(coords, self.V.tabulate_dof_coordinates()):
+            raise RuntimeError("the chart's quaternions do not share the nodes of U")
+        Q.x.array.reshape(-1, 4)[:, 0] = 1.0
+        self.chart = Q
+
+    def chart_form(self):
+        """The UFL chart of :attr:`chart` for the forms (None without one)."""
+        return None if self.chart is None else quaternion_chart(self.chart)
+
+    def reset_chart(self, state: np.ndarray | None = None) -> np.ndarray:
+        """Move the chart onto the rod's rotation at every node (cosserat_fem/charts.py,
+        :func:`~cosserat_fem.charts.reset_chart`): U (or ``state``, an array of U's layout,
+        changed in place) gets zero angles and their rates ŵ; returns the new state array."""
+        state = self.U.x.array if state is None else state
+        full, Q = reset_chart(self.layout.full_array(state), self.chart.x.array.reshape(-1, 4))
+        self.chart.x.array[:] = Q.ravel()
+        state.reshape(-1, self.layout.size)[:] = full[:, list(self.layout.components)]
+        return state
 
     @property
     def nodes(self) -> int:
@@ -276,6 +313,7 @@ class RodModel:
             self.convention,
             viscous,
             kelvin_voigt,
+            self.chart_form(),
         )
 
     def initial_state(self) -> np.ndarray:

@@ -28,8 +28,9 @@ import ufl
 from dolfinx import fem, geometry, io, mesh
 from mpi4py import MPI
 
+from .charts import euler_angles, euler_matrix, quaternion_frame
 from .errors import OutputError
-from .forms.kinematics import P_NAMES
+from .forms.kinematics import P_NAMES, directors
 from .forms.resultants import resultants
 from .parallel import agree, from_root
 
@@ -52,13 +53,22 @@ def probe_sigma(scene) -> float:
 
 class PointProbe:
     """Evaluates (x, y, z, θ, ψ, φ) in SI units [m, rad] at σ = ``sigma`` of a model's rod, on
-    its owning rank (the components of p the model does not solve are 0)."""
+    its owning rank (the components of p the model does not solve are 0).
+
+    With a chart (cosserat_fem/charts.py) the angles are those of (18) for the rod's own
+    directors D A, measured from the fixed basis as without one, and continued from the
+    previous call's (of the two triples and their turns of 2π, the one nearest:
+    :func:`~cosserat_fem.charts.euler_angles`), so that they stay continuous through a
+    reset of the chart; only through θ = ±π/2 exactly, where ψ and φ are not defined apart,
+    may ψ and φ jump."""
 
     def __init__(self, model: RodModel, sigma: float, U: fem.Function | None = None):
         """``U``: the Function read (default ``model.U``), of the model's space and layout."""
         U = model.U if U is None else U
         msh = U.function_space.mesh
         self.U = U
+        self.chart = model.chart
+        self._last: np.ndarray | None = None  # the angles of the previous call (with a chart)
         self.length = model.length
         self.sigma = sigma
         self.point = np.array([[sigma, 0.0, 0.0]])
@@ -102,6 +112,13 @@ class PointProbe:
             block = self.U.eval(self.point, np.array([self.cell], dtype=np.int32))
         out = np.zeros(6)
         out[self._p] = block[self._slots] * self._scale
+        if self.chart is not None:
+            if self._node is not None:
+                Q = self.chart.x.array[4 * self._node : 4 * self._node + 4]
+            else:
+                Q = self.chart.eval(self.point, np.array([self.cell], dtype=np.int32))
+            D = euler_matrix(*out[3:6]) @ quaternion_frame(Q)
+            out[3:6] = self._last = euler_angles(D, out[3:6] if self._last is None else self._last)
         return out
 
 
@@ -240,17 +257,29 @@ def _field_expressions(U, model: RodModel, fields: tuple[str, ...]) -> list[tupl
     see :class:`XdmfWriter`."""
     U = model.layout.full(U)  # a planar model's unknowns in the 12 components (zeros elsewhere)
     tau = model.scene.damping.retardation_time  # n, m with their Kelvin–Voigt parts
-    res = resultants(U, model.rod, tau) if {"strains", "forces"} & set(fields) else None
+    chart = model.chart_form()
+    res = resultants(U, model.rod, tau, chart) if {"strains", "forces"} & set(fields) else None
     ell = model.length
     exprs = {
         "displacement": lambda: ufl.as_vector([ell * U[0], ell * U[1], ell * U[2]]),
-        "angles": lambda: ufl.as_vector([U[3], U[4], U[5]]),
+        "angles": lambda: _fixed_basis_angles(U, chart),
         "strain_v": lambda: res.v,
         "curvature_u": lambda: res.u,
         "force_n": lambda: res.n,
         "torque_m": lambda: res.m,
     }
     return [(name, exprs[name]()) for field in fields for name in FIELD_ARRAYS[field]]
+
+
+def _fixed_basis_angles(U, chart) -> ufl.core.expr.Expr:
+    """(θ, ψ, φ) of U, or with a chart those of (18) for the directors D A, with |θ| ≤ π/2 and
+    ψ, φ in (−π, π] (cosserat_fem/charts.py euler_angles, without continuation)."""
+    if chart is None:
+        return ufl.as_vector([U[3], U[4], U[5]])
+    D = directors(ufl.as_vector([U[i] for i in range(6)]), chart)
+    return ufl.as_vector(
+        [ufl.asin(-D[2, 1]), ufl.atan_2(D[2, 0], D[2, 2]), ufl.atan_2(D[0, 1], D[1, 1])]
+    )
 
 
 def _output_nodes(msh: mesh.Mesh, k: int) -> tuple[np.ndarray, np.ndarray, int]:
@@ -702,6 +731,8 @@ class LineSampler:
         U = model.U if U is None else U
         msh = U.function_space.mesh
         self.U = U
+        self.chart = model.chart
+        self._last: np.ndarray | None = None  # the angles of the previous call (with a chart)
         self.sigmas = np.asarray(sigmas, dtype=float)
         pts = np.zeros((len(self.sigmas), 3))
         pts[:, 0] = self.sigmas

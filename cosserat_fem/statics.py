@@ -29,6 +29,7 @@ import numpy as np
 from mpi4py import MPI
 
 from . import __version__, budget
+from .charts import RESET_THETA
 from .checks import check_state, cos_theta
 from .errors import SceneError, SolverError
 from .events import Events, Observer, drive
@@ -79,6 +80,7 @@ class StaticLoop:
         self.state = StaticState()
         self.factors: list[float] = [0.0]
         self.iterations: list[int] = []
+        self.chart_resets = 0
         if events.listens("newton_iteration"):
             solver.iteration_hook = lambda it, norms, reason: events.newton_iteration(
                 self, it, norms, reason
@@ -87,6 +89,24 @@ class StaticLoop:
     @property
     def completed(self) -> bool:
         return self.state.t >= 1.0 - 1e-14
+
+    def _move_chart(self, U_n: np.ndarray) -> bool:
+        """Before a load step: move the chart onto the rod's rotation (changing U_n in place)
+        when |θ| > charts.RESET_THETA at some node, so that the step starts far from the
+        chart's singularity (cosserat_fem/charts.py). Returns whether it moved."""
+        model = self.model
+        if model.chart is None:
+            return False
+        n = model.V.dofmap.index_map.size_local
+        theta = np.abs(U_n.reshape(-1, model.layout.size)[:n, model.layout.index(3)])
+        largest = float(theta.max()) if n else 0.0
+        if model.msh.comm.size > 1:
+            largest = model.msh.comm.allreduce(largest, op=MPI.MAX)
+        if largest <= RESET_THETA:
+            return False
+        model.reset_chart(U_n)
+        self.chart_resets += 1
+        return True
 
     def back_to_accepted(self) -> None:
         """Nothing to do: a load step that fails restores the last accepted state itself."""
@@ -105,6 +125,8 @@ class StaticLoop:
         U_nm1 = None
         try:
             while not self.completed:
+                if self._move_chart(U_n):
+                    U_nm1 = None  # the secant predictor's old state is in the old chart
                 lam = st.t
                 trial = min(lam + step, 1.0)
                 events.step_attempted(self, trial)
@@ -177,6 +199,8 @@ def static_path(
     if write_outputs:
         prepare_output_dir(out, comm)
     model = build_model(scene, comm)
+    if model.needs_chart:
+        model.use_chart()  # rotations of any size (cosserat_fem/charts.py)
     problem = model.nonfinite_load([scene.static.time])
     if problem:
         raise SceneError(f"{problem}: the load is not finite there (static.time)")
@@ -214,6 +238,7 @@ def static_path(
                 "load_factors": loop.factors,
                 "newton_iterations": loop.iterations,
                 "bisections": loop.state.rejected,
+                "chart_resets": loop.chart_resets,
                 "wall_time_s": {"total": clock.perf_counter() - t_start},
             }
         )

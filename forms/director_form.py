@@ -9,7 +9,10 @@ the tests to check that form term by term. It shares nothing with it but the unk
   with ∂t d_i and ∂tt d_i by UFL's chain rule through the Euler angles (not (25)-(26), (64));
 * the constitutive laws are the tensors (9)-(10): n = Σ K_ii (v·d_i − δ_i3) d_i,
   m = Σ J_ii (u·d_i) d_i, h = Σ I_ii (w·d_i) d_i with I33 = ρ (c11 + c22) (46);
-* the scaled stiffnesses come from the physical constants, not from the groups (48).
+* the scaled stiffnesses come from the physical constants, not from the groups (48);
+* in a chart of quaternions Q(σ), the directors are the rows of that product times the frame
+  Aᵀ = (n0² − |n|²) I + 2 n nᵀ + 2 n0 [n]× of the normalised quaternion (n0, n) = Q/|Q|
+  (Euler–Rodrigues; not kinematics.py's quaternion_frame, nor its frame curvature κ̂).
 
 Units: length ℓ, time 1/ω0, force F* = ρ A ℓ² ω0². The weak form is the principle of virtual
 work for (6),
@@ -38,6 +41,15 @@ def _elementary_rotations(theta, psi, phi):
     return d_phi * d_theta * d_psi
 
 
+def _euler_rodrigues_frame(Q):
+    """The frame matrix (row j = a_j) of the normalised quaternion Q/|Q| (module docstring)."""
+    n = Q / ufl.sqrt(ufl.dot(Q, Q))
+    v = ufl.as_vector([n[1], n[2], n[3]])
+    cross = ufl.as_matrix([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    R = (n[0] ** 2 - ufl.dot(v, v)) * ufl.Identity(3) + 2.0 * ufl.outer(v, v) + 2.0 * n[0] * cross
+    return R.T
+
+
 def _rows(M):
     return [ufl.as_vector([M[i, j] for j in range(3)]) for i in range(3)]
 
@@ -58,6 +70,7 @@ def director_residual_terms(
     end_loads: tuple = (),
     viscous_damping: tuple[float, float] | None = None,
     retardation_time: float | None = None,
+    chart_quaternion=None,
 ) -> dict[str, ufl.Form]:
     """Residual of (6) in director form, split like :class:`.general_form.ResidualTerms`.
 
@@ -67,7 +80,8 @@ def director_residual_terms(
     term ``damping``. retardation_time τ_d [s]: Kelvin–Voigt contact force and torque
     n_v = Σ K_ii τ_d ∂t(∂s r · d_i) d_i, m_v = Σ J_ii τ_d ∂t(u · d_i) d_i, term
     ``kelvin_voigt``, with ∂t(u · d_i) = ∂t u · d_i + u · ∂t d_i and
-    ∂t u = ½ Σ (∂t d_i × ∂s d_i + d_i × ∂s ∂t d_i) from (3).
+    ∂t u = ½ Σ (∂t d_i × ∂s d_i + d_i × ∂s ∂t d_i) from (3). chart_quaternion: a UFL
+    4-vector Q(σ), the angles measured from its frame (module docstring).
     """
     sec = rod.section
     ell, rho, w0 = rod.length, rod.density, rod.omega0
@@ -90,6 +104,8 @@ def director_residual_terms(
     qa = ufl.as_vector([q[3], q[4], q[5]])
     qa_dot = ufl.as_vector([qdot[3], qdot[4], qdot[5]])
     D = _elementary_rotations(ang[0], ang[1], ang[2])
+    if chart_quaternion is not None:
+        D = D * _euler_rodrigues_frame(chart_quaternion)
     i, j, k = ufl.indices(3)
     D_t = ufl.as_tensor(ufl.diff(D, ang)[i, j, k] * qa[k], (i, j))
     D_tt = ufl.as_tensor(ufl.diff(D, ang)[i, j, k] * qa_dot[k], (i, j)) + ufl.as_tensor(

@@ -26,9 +26,10 @@ import ufl
 
 from .groups import RodConstants
 from .kinematics import (
+    Chart,
     angular_velocity,
     curvature,
-    rotation_matrix,
+    directors,
     sigma_derivatives,
     split,
     stretch_shear_strain,
@@ -53,12 +54,12 @@ def kinetic_energy_density(U, rod: RodConstants):
     return 0.5 * rod.length * rod.density * (s.area * ufl.dot(r_dot, r_dot) + rot)
 
 
-def strain_energy_density(U, rod: RodConstants):
-    """ℓ × the strain energy per unit length [J per unit σ]."""
+def strain_energy_density(U, rod: RodConstants, chart: Chart | None = None):
+    """ℓ × the strain energy per unit length [J per unit σ] (angles measured in ``chart``)."""
     p, _ = split(U)
     dp, _ = sigma_derivatives(U)
-    v = stretch_shear_strain(p, dp)
-    u = curvature(p, dp) / rod.length
+    v = stretch_shear_strain(p, dp, chart)
+    u = curvature(p, dp, chart) / rod.length
     s, E, G = rod.section, rod.young_modulus, rod.shear_modulus
     kGA = s.shear_coefficient * G * s.area
     stretch = kGA * (v[0] ** 2 + v[1] ** 2) + E * s.area * (v[2] - 1.0) ** 2
@@ -66,7 +67,7 @@ def strain_energy_density(U, rod: RodConstants):
     return 0.5 * rod.length * (stretch + bend)
 
 
-def load_power(U, rod: RodConstants, force=None, torque=None):
+def load_power(U, rod: RodConstants, force=None, torque=None, chart: Chart | None = None):
     """f · ∂t r + l · w for loads in fixed directions, force and torque UFL 3-vectors or None.
 
     For densities (f [N/m], l [N m/m]) this is the power per unit length, to be multiplied by
@@ -78,18 +79,23 @@ def load_power(U, rod: RodConstants, force=None, torque=None):
     if force is not None:
         power = power + ufl.dot(force, r_dot)
     if torque is not None:
-        power = power + ufl.dot(rotation_matrix(p[3], p[4], p[5]) * torque, w)
+        power = power + ufl.dot(directors(p, chart) * torque, w)
     return power
 
 
 def damping_power(
-    U, rod: RodConstants, translational=0.0, rotational=0.0, retardation_time=0.0
+    U,
+    rod: RodConstants,
+    translational=0.0,
+    rotational=0.0,
+    retardation_time=0.0,
+    chart: Chart | None = None,
 ) -> ufl.core.expr.Expr:
     """P_d per unit length [W/m] (module docstring), to be multiplied by ℓ and integrated with
     ``dx``: c_t [N s/m²], c_r [N s], τ_d [s]."""
     _, r_dot, w = _rates(U, rod)
     power = -translational * ufl.dot(r_dot, r_dot) - rotational * ufl.dot(w, w)
     if retardation_time > 0.0:  # −(n_v · ∂t v + m_v · ∂t u)
-        kv = kelvin_voigt_parts(U, rod, retardation_time)
+        kv = kelvin_voigt_parts(U, rod, retardation_time, chart)
         power = power - ufl.dot(kv.n, kv.v_rate) - ufl.dot(kv.m, kv.u_rate)
     return power

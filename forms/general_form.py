@@ -34,12 +34,13 @@ import ufl
 from .conventions import END_LOAD_SIGNS
 from .groups import Groups
 from .kinematics import (
+    Chart,
     angles,
     angular_map,
     angular_map_rate,
     angular_velocity,
     curvature,
-    rotation_matrix,
+    directors,
     sigma_derivatives,
     split,
     strain_rates,
@@ -157,16 +158,17 @@ def mass_matrix(p) -> ufl.core.expr.Expr:
     return ufl.as_matrix(rows)
 
 
-def flux(p, dp, groups: Groups) -> ufl.core.expr.Expr:
+def flux(p, dp, groups: Groups, chart: Chart | None = None) -> ufl.core.expr.Expr:
     """The flux b of eq. (63).
 
     Rows 1-3: b = −(g0/ℓ) n, the contact force (32) in the fixed basis, written as in (63):
     b = −ν01 r' + ((ν01 − ν02) v3 + ν02) d3, with r' = (p1', p2', 1 + p3') and v3 of (29).
     Rows 4-6: b = −(ν11 û1, ν21 û2, ν31 û3), the contact torque components m_i = J_ii u_i (13).
+    In a ``chart`` the directors and strains are those of forms/kinematics.py's charts.
     """
-    D = rotation_matrix(p[3], p[4], p[5])
-    v = stretch_shear_strain(p, dp)
-    u = curvature(p, dp)
+    D = directors(p, chart)
+    v = stretch_shear_strain(p, dp, chart)
+    u = curvature(p, dp, chart)
     r_prime = ufl.as_vector([dp[0], dp[1], 1.0 + dp[2]])
     axial = (groups.nu01 - groups.nu02) * v[2] + groups.nu02
     b_force = [-groups.nu01 * r_prime[j] + axial * D[2, j] for j in range(3)]
@@ -174,7 +176,9 @@ def flux(p, dp, groups: Groups) -> ufl.core.expr.Expr:
     return ufl.as_vector(b_force + b_torque)
 
 
-def source(p, dp, q, groups: Groups, loads: DistributedLoads | None = None) -> Source:
+def source(
+    p, dp, q, groups: Groups, loads: DistributedLoads | None = None, chart: Chart | None = None
+) -> Source:
     """The source g of eq. (67), split into inertial, elastic and load parts.
 
     inertial (rows 4-6), from (52)-(54) with (64): g = −(dMm/dτ) q_ang − (ŵ2 ŵ3, −ŵ3 ŵ1, ν33 ŵ1 ŵ2);
@@ -184,9 +188,10 @@ def source(p, dp, q, groups: Groups, loads: DistributedLoads | None = None) -> S
              row 5: −ν22 û1 û3 + ((ν23 − ν24) v3 + ν24) v1,
              row 6: ν32 û1 û2    (the v × n terms vanish in row 6 since K11 = K22).
     load:    (g0 f, g1 l1, g2 l2, g3 l3) with l_i = d_i · l (38).
+    In a ``chart``, v, û and the directors are those of forms/kinematics.py's charts.
     """
-    v = stretch_shear_strain(p, dp)
-    u = curvature(p, dp)
+    v = stretch_shear_strain(p, dp, chart)
+    u = curvature(p, dp, chart)
     w = angular_velocity(p, q)
     qa = angles(q)
     mdot_q = angular_map_rate(p[3], p[5], q[3], q[5]) * qa
@@ -207,7 +212,7 @@ def source(p, dp, q, groups: Groups, loads: DistributedLoads | None = None) -> S
         zero3 = ufl.as_vector([0.0, 0.0, 0.0])
         f = loads.force if loads.force is not None else zero3
         if loads.torque is not None:
-            l_d = rotation_matrix(p[3], p[4], p[5]) * loads.torque
+            l_d = directors(p, chart) * loads.torque
         else:
             l_d = zero3
         scale = (groups.g1, groups.g2, groups.g3)
@@ -237,7 +242,7 @@ def damping_source(p, q, groups: Groups, damping: ViscousDamping) -> ufl.core.ex
 
 
 def kelvin_voigt_terms(
-    p, dp, q, dq, groups: Groups, damping: KelvinVoigtDamping
+    p, dp, q, dq, groups: Groups, damping: KelvinVoigtDamping, chart: Chart | None = None
 ) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
     """The viscous parts (b_v, g_v) of the flux b (63) and the source g (67).
 
@@ -250,10 +255,10 @@ def kelvin_voigt_terms(
     ν31 Î3 û̇3), η = ω0 τ_d, and enter the free-end condition a_m b = −g_b with the elastic
     flux: n(ℓ) = f^b holds for the whole contact force."""
     eta = damping.omega0 * damping.retardation_time
-    D = rotation_matrix(p[3], p[4], p[5])
-    v = stretch_shear_strain(p, dp)
-    u = curvature(p, dp)
-    v_dot, u_dot = strain_rates(p, dp, q, dq)
+    D = directors(p, chart)
+    v = stretch_shear_strain(p, dp, chart)
+    u = curvature(p, dp, chart)
+    v_dot, u_dot = strain_rates(p, dp, q, dq, chart)
     inertia = [groups.g0 / (groups.length * g) for g in (groups.g1, groups.g2, groups.g3)]
     axial = (groups.nu01, groups.nu01, groups.nu02)
     n_v = eta * ufl.as_vector([axial[i] * v_dot[i] for i in range(3)])
@@ -266,7 +271,9 @@ def kelvin_voigt_terms(
     return flux_v, source_v
 
 
-def end_data(p, groups: Groups, end: EndLoads, convention: EndLoadConvention) -> ufl.core.expr.Expr:
+def end_data(
+    p, groups: Groups, end: EndLoads, convention: EndLoadConvention, chart: Chart | None = None
+) -> ufl.core.expr.Expr:
     """Free-end data g_b of (62), corrected (module docstring); l^b_i = d_i · l^b by (43)."""
     sign = END_LOAD_SIGNS[convention.sign]
     if convention.scaling == "balance":
@@ -278,7 +285,7 @@ def end_data(p, groups: Groups, end: EndLoads, convention: EndLoadConvention) ->
         raise ValueError(f"unknown end-load scaling {convention.scaling!r}")
     zero3 = ufl.as_vector([0.0, 0.0, 0.0])
     fb = end.force if end.force is not None else zero3
-    lb = rotation_matrix(p[3], p[4], p[5]) * end.torque if end.torque is not None else zero3
+    lb = directors(p, chart) * end.torque if end.torque is not None else zero3
     comps = [fb[0], fb[1], fb[2], lb[0], lb[1], lb[2]]
     return ufl.as_vector([sign * scales[i] * comps[i] for i in range(6)])
 
@@ -294,11 +301,13 @@ def residual_terms(
     convention: EndLoadConvention = EndLoadConvention(),
     damping: ViscousDamping | None = None,
     kelvin_voigt: KelvinVoigtDamping | None = None,
+    chart: Chart | None = None,
 ) -> ResidualTerms:
     """The weak residual of (65) (module docstring), term by term.
 
     U, Udot: the 12-component state (p, q) and its τ-derivative, as UFL expressions (the
-    time integrator decides what they are); V: the test function.
+    time integrator decides what they are); V: the test function; ``chart``: the frame the
+    angles are measured from (forms/kinematics.py; None: the fixed basis, as in the paper).
     """
     p, q = split(U)
     pdot, qdot = split(Udot)
@@ -306,22 +315,22 @@ def residual_terms(
     dp, dq = sigma_derivatives(U)
     dvq = sigma_derivatives(V)[1]
 
-    g = source(p, dp, q, groups, loads)
+    g = source(p, dp, q, groups, loads, chart)
     kinematic = ufl.inner(pdot - q, vp) * dx
     inertia = ufl.inner(mass_matrix(p) * qdot - g.inertial, vq) * dx
-    elastic = (-ufl.inner(flux(p, dp, groups), dvq) - ufl.inner(g.elastic, vq)) * dx
+    elastic = (-ufl.inner(flux(p, dp, groups, chart), dvq) - ufl.inner(g.elastic, vq)) * dx
     distributed = -ufl.inner(g.load, vq) * dx if g.load is not None else None
     end_form = None
     for end in end_loads:
         if end.force is None and end.torque is None:
             continue
-        term = -ufl.inner(end_data(p, groups, end, convention), vq) * end.ds
+        term = -ufl.inner(end_data(p, groups, end, convention, chart), vq) * end.ds
         end_form = term if end_form is None else end_form + term
     extra = {}
     if damping is not None:
         extra["damping"] = -ufl.inner(damping_source(p, q, groups, damping), vq) * dx
     if kelvin_voigt is not None:
-        b_v, g_v = kelvin_voigt_terms(p, dp, q, dq, groups, kelvin_voigt)
+        b_v, g_v = kelvin_voigt_terms(p, dp, q, dq, groups, kelvin_voigt, chart)
         extra["kelvin_voigt"] = (-ufl.inner(b_v, dvq) - ufl.inner(g_v, vq)) * dx
     return ResidualTerms(
         kinematic=kinematic,

@@ -2,11 +2,63 @@
 
 The unknown is p = (p1, ..., p6) = (x/ℓ, y/ℓ, z/ℓ, θ, ψ, φ) (47), q = dp/dτ; a prime is
 d/dσ. All functions take and return UFL expressions.
+
+**Charts.** The paper measures the angles from the fixed basis e_j: the directors are
+d_i = Σ_j D_ij e_j with D of (18). Measured instead from a reference frame a_j(σ) that does
+not move in time (a :class:`Chart`, row j of A holding a_j in the fixed basis),
+d_i = Σ_j D_ij a_j, so the directors' matrix is D A. The strains follow from (3), (4) and (29)
+with the frame's own curvature κ, a_j' = κ × a_j (components κ_j = κ · a_j):
+
+* v = D A r' (29);
+* û = Mm (θ', ψ', φ') + D κ (25): the curvature of the directors relative to the frame plus
+  the frame's, in director components (d_i · κ = (D κ)_i);
+* ŵ = Mm (θ̇, ψ̇, φ̇) (26), unchanged: the frame does not move;
+* the rate of D κ is (D κ) × ŵ (κ is fixed in space, ḋ_i = w × d_i (4)).
+
+With A = I (κ = 0) these are the paper's. The balance laws (6) and everything built on v, û,
+ŵ and the directors are unchanged, so the general form (65) keeps Ma = diag(I₃, Mm) (66) and
+its singularity, det Mm = cos θ, now at θ = ±π/2 *relative to the frame*: the time loop moves
+the frame to the rod's rotation before θ gets there (cosserat_fem/charts.py).
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import ufl
+
+
+@dataclass(frozen=True)
+class Chart:
+    """A reference frame of the Euler angles (module docstring): ``frame`` A (3×3, row j the
+    frame vector a_j in the fixed basis, orthonormal) and ``curvature`` κ̂ = ℓ κ, the frame's
+    curvature in its own components (a_j' = κ̂ × a_j with ' = d/dσ)."""
+
+    frame: ufl.core.expr.Expr
+    curvature: ufl.core.expr.Expr
+
+
+def quaternion_frame(Q) -> ufl.core.expr.Expr:
+    """A of a quaternion Q = (q0, q1, q2, q3) of any nonzero length: A = R(Q)ᵀ, with R(Q) the
+    rotation taking e_j to a_j,
+
+        R = I + 2 (q0 [v]× + [v]×²)/|Q|²,   v = (q1, q2, q3),
+
+    an exact rotation for every Q ≠ 0, so that an interpolated, unnormalised field of
+    quaternions gives an orthonormal frame at every point."""
+    q0, v = Q[0], ufl.as_vector([Q[1], Q[2], Q[3]])
+    hat = ufl.as_matrix([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    R = ufl.Identity(3) + 2.0 / ufl.dot(Q, Q) * (q0 * hat + hat * hat)
+    return R.T
+
+
+def quaternion_chart(Q) -> Chart:
+    """The :class:`Chart` of a field of quaternions Q(σ) (:func:`quaternion_frame`), with
+    κ̂ from the skew matrix A' Aᵀ: a_j' = Σ_l (A' Aᵀ)_jl a_l = κ̂ × a_j, so
+    (A' Aᵀ)_jl = (κ̂ × a_j) · a_l = ε_jlm κ̂_m."""
+    A = quaternion_frame(Q)
+    W = A.dx(0) * A.T
+    return Chart(A, ufl.as_vector([W[1, 2], W[2, 0], W[0, 1]]))
 
 
 def rotation_matrix(theta, psi, phi) -> ufl.core.expr.Expr:
@@ -77,16 +129,29 @@ def angles(p6):
     return ufl.as_vector([p6[3], p6[4], p6[5]])
 
 
-def stretch_shear_strain(p, dp) -> ufl.core.expr.Expr:
-    """v_i = d_i · ∂r/∂s, eq. (29), dimensionless: r' = (p1', p2', 1 + p3') by (14), (27)."""
+def directors(p, chart: Chart | None = None) -> ufl.core.expr.Expr:
+    """The directors' matrix, row i holding d_i in the fixed basis: D of (18), or D A in a
+    chart (module docstring)."""
     D = rotation_matrix(p[3], p[4], p[5])
+    return D if chart is None else D * chart.frame
+
+
+def stretch_shear_strain(p, dp, chart: Chart | None = None) -> ufl.core.expr.Expr:
+    """v_i = d_i · ∂r/∂s, eq. (29), dimensionless: r' = (p1', p2', 1 + p3') by (14), (27)."""
     r_prime = ufl.as_vector([dp[0], dp[1], 1.0 + dp[2]])
-    return D * r_prime
+    return directors(p, chart) * r_prime
 
 
-def curvature(p, dp) -> ufl.core.expr.Expr:
-    """û = ℓ u, components in the director basis, eq. (25): û = Mm (θ', ψ', φ')."""
-    return angular_map(p[3], p[5]) * angles(dp)
+def frame_curvature(p, chart: Chart | None) -> ufl.core.expr.Expr | None:
+    """D κ̂: the curvature of a chart's frame in director components (None without one)."""
+    return None if chart is None else rotation_matrix(p[3], p[4], p[5]) * chart.curvature
+
+
+def curvature(p, dp, chart: Chart | None = None) -> ufl.core.expr.Expr:
+    """û = ℓ u, components in the director basis, eq. (25): û = Mm (θ', ψ', φ'), plus D κ̂ in
+    a chart (module docstring)."""
+    u = angular_map(p[3], p[5]) * angles(dp)
+    return u if chart is None else u + frame_curvature(p, chart)
 
 
 def angular_velocity(p, q) -> ufl.core.expr.Expr:
@@ -94,17 +159,22 @@ def angular_velocity(p, q) -> ufl.core.expr.Expr:
     return angular_map(p[3], p[5]) * angles(q)
 
 
-def strain_rates(p, dp, q, dq) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
+def strain_rates(
+    p, dp, q, dq, chart: Chart | None = None
+) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
     """τ-derivatives of the director components of v (29) and û (25), the objective strain
     rates of a Kelvin–Voigt law.
 
     v_i = d_i · r' with ḋ_i = w × d_i (4) gives v̇ = D (q1', q2', q3') + v × ŵ (the second
     term vanishes for a rigid rotation, where r' turns with the directors); û = Mm (θ', ψ', φ')
-    gives û̇ = (dMm/dτ) (θ', ψ', φ') + Mm (θ̇', ψ̇', φ̇'), with q' = dq/dσ."""
-    D = rotation_matrix(p[3], p[4], p[5])
-    v = stretch_shear_strain(p, dp)
+    gives û̇ = (dMm/dτ) (θ', ψ', φ') + Mm (θ̇', ψ̇', φ̇'), with q' = dq/dσ, plus (D κ̂) × ŵ in
+    a chart (module docstring)."""
+    D = directors(p, chart)
+    v = stretch_shear_strain(p, dp, chart)
     w = angular_velocity(p, q)
     v_dot = D * translations(dq) + ufl.cross(v, w)
     mdot = angular_map_rate(p[3], p[5], q[3], q[5])
     u_dot = mdot * angles(dp) + angular_map(p[3], p[5]) * angles(dq)
+    if chart is not None:
+        u_dot = u_dot + ufl.cross(frame_curvature(p, chart), w)
     return v_dot, u_dot

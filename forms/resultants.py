@@ -32,7 +32,14 @@ from dataclasses import dataclass
 import ufl
 
 from .groups import RodConstants
-from .kinematics import curvature, sigma_derivatives, split, strain_rates, stretch_shear_strain
+from .kinematics import (
+    Chart,
+    curvature,
+    sigma_derivatives,
+    split,
+    strain_rates,
+    stretch_shear_strain,
+)
 
 
 def section_stiffnesses(rod: RodConstants) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -43,9 +50,12 @@ def section_stiffnesses(rod: RodConstants) -> tuple[tuple[float, ...], tuple[flo
     return (kga, kga, E * s.area), (E * s.c11, E * s.c22, G * s.c33)
 
 
-def strains(p, dp, length: float) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
-    """(v, u): the stretch-shear strain (29) [-] and the curvature (25) [1/m], director basis."""
-    return stretch_shear_strain(p, dp), curvature(p, dp) / length
+def strains(
+    p, dp, length: float, chart: Chart | None = None
+) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
+    """(v, u): the stretch-shear strain (29) [-] and the curvature (25) [1/m], director basis
+    (angles measured in ``chart``, forms/kinematics.py)."""
+    return stretch_shear_strain(p, dp, chart), curvature(p, dp, chart) / length
 
 
 def contact_force(v, rod: RodConstants) -> ufl.core.expr.Expr:
@@ -82,12 +92,14 @@ class KelvinVoigtParts:
     m: ufl.core.expr.Expr
 
 
-def kelvin_voigt_parts(U, rod: RodConstants, retardation_time: float) -> KelvinVoigtParts:
+def kelvin_voigt_parts(
+    U, rod: RodConstants, retardation_time: float, chart: Chart | None = None
+) -> KelvinVoigtParts:
     """The Kelvin–Voigt parts of the 12-component state U = (p, q), retardation time τ_d [s];
     the rates of :func:`.kinematics.strain_rates` are per unit τ = ω0 t, hence the ω0."""
     p, q = split(U)
     dp, dq = sigma_derivatives(U)
-    v_dot, u_dot = strain_rates(p, dp, q, dq)
+    v_dot, u_dot = strain_rates(p, dp, q, dq, chart)
     v_rate = rod.omega0 * v_dot
     u_rate = rod.omega0 / rod.length * u_dot
     K, J = section_stiffnesses(rod)
@@ -96,15 +108,18 @@ def kelvin_voigt_parts(U, rod: RodConstants, retardation_time: float) -> KelvinV
     return KelvinVoigtParts(v_rate=v_rate, u_rate=u_rate, n=n, m=m)
 
 
-def resultants(U, rod: RodConstants, retardation_time: float = 0.0) -> Resultants:
+def resultants(
+    U, rod: RodConstants, retardation_time: float = 0.0, chart: Chart | None = None
+) -> Resultants:
     """v, u, n, m of the state U = (p, q) (12 components, or p alone with 6) on σ ∈ [0, 1];
-    a ``retardation_time`` τ_d > 0 adds the Kelvin–Voigt parts to n and m (needs q)."""
+    a ``retardation_time`` τ_d > 0 adds the Kelvin–Voigt parts to n and m (needs q); angles
+    measured in ``chart`` (forms/kinematics.py)."""
     p = split(U)[0] if U.ufl_shape == (12,) else U
     dU = U.dx(0)
     dp = ufl.as_vector([dU[i] for i in range(6)])
-    v, u = strains(p, dp, rod.length)
+    v, u = strains(p, dp, rod.length, chart)
     n, m = contact_force(v, rod), contact_torque(u, rod)
     if retardation_time > 0.0:
-        viscous = kelvin_voigt_parts(U, rod, retardation_time)
+        viscous = kelvin_voigt_parts(U, rod, retardation_time, chart)
         n, m = n + viscous.n, m + viscous.m
     return Resultants(v=v, u=u, n=n, m=m)

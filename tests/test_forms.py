@@ -22,6 +22,7 @@ from cosserat_fem.forms.general_form import (
     residual_terms,
 )
 from cosserat_fem.forms.groups import RodConstants, dimensionless_groups
+from cosserat_fem.forms.kinematics import quaternion_chart
 from cosserat_fem.forms.section import rectangle, rectangle_torsion_constant
 from dolfinx import fem, mesh
 from dolfinx.fem.petsc import assemble_vector
@@ -208,3 +209,84 @@ def test_paper_reference_frequency_and_groups():
     assert groups.nu11 == groups.nu21 == pytest.approx(7.1e10 / (2730.0 * 207.0236**2), rel=1e-14)
     assert groups.nu02 == pytest.approx(groups.nu11, rel=1e-14)  # EA g0/ℓ = E/(ρ ℓ² ω0²)
     assert groups.nu33 == pytest.approx((sec.c22 - sec.c11) / (sec.c11 + sec.c22), rel=1e-14)
+
+
+def _chart_quaternion(msh, degree: int, seed: int) -> fem.Function:
+    """A field of quaternions Q(σ) far from any rotation's identity and far from Q = 0
+    (|Q| ≥ 0.5 at the nodes; the interpolant stays away from 0 as well)."""
+    Q = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", degree), dim=4))
+    rng = np.random.default_rng(seed)
+    values = rng.standard_normal((Q.x.array.size // 4, 4))
+    values[:, 0] += 1.5
+    Q.x.array[:] = values.ravel()
+    return Q
+
+
+@pytest.mark.parametrize("degree", [1, 3])
+def test_charted_general_form_equals_the_director_form(rod, degree):
+    """Angles measured from a frame A(σ) of quaternions (forms/kinematics.py, "Charts"): the
+    general form with v = D A r', û = Mm θ' + D κ̂ against the director form whose directors
+    are the rows of the elementary rotations times the Euler–Rodrigues frame of Q/|Q|, u and
+    w by UFL's chain rule. Every term, damping included, to the round-off bound of the module
+    docstring; the frame turns the directors by O(1), so a missing frame or κ̂ term fails."""
+    msh, V, U, Udot, dx, loads = _setup(degree, seed=20 + degree)
+    Q = _chart_quaternion(msh, degree, seed=30 + degree)
+    viscous, tau = (3.0e2, 0.7), 2.5e-4
+    ends = tuple(EndLoads(ds, f, t) for ds, f, t in loads["ends"])
+    general = residual_terms(
+        U,
+        Udot,
+        ufl.TestFunction(V),
+        dimensionless_groups(rod),
+        dx,
+        DistributedLoads(loads["f"], loads["l"]),
+        ends,
+        damping=ViscousDamping(*viscous, rod.omega0),
+        kelvin_voigt=KelvinVoigtDamping(tau, rod.omega0),
+        chart=quaternion_chart(Q),
+    ).as_dict()
+    director = director_residual_terms(
+        U,
+        Udot,
+        ufl.TestFunction(V),
+        rod,
+        dx,
+        loads["f"],
+        loads["l"],
+        tuple(loads["ends"]),
+        viscous_damping=viscous,
+        retardation_time=tau,
+        chart_quaternion=Q,
+    )
+    plain = _general(rod, U, Udot, V, dx, loads)
+    assert set(general) == set(director) == {*TERMS, "damping", "kelvin_voigt"}
+    for name in general:
+        a, b = _assemble(general[name]), _assemble(director[name])
+        scale = np.abs(a).max()
+        assert scale > 0, name
+        assert np.abs(a - b).max() <= 1e-12 * scale, name
+        if name in ("elastic", "distributed_load", "end_load"):
+            assert np.abs(a - _assemble(plain[name])).max() > 1e-2 * scale, name
+
+
+def test_identity_chart_equals_the_paper_chart(rod):
+    """Q ≡ (1, 0, 0, 0): A = I and κ̂ = 0 exactly, so every term equals the chart-free form's
+    to round-off (the products with exact ones and zeros differ only in summation order)."""
+    msh, V, U, Udot, dx, loads = _setup(2, seed=41)
+    Q = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 2), dim=4))
+    Q.x.array.reshape(-1, 4)[:, 0] = 1.0
+    ends = tuple(EndLoads(ds, f, t) for ds, f, t in loads["ends"])
+    charted = residual_terms(
+        U,
+        Udot,
+        ufl.TestFunction(V),
+        dimensionless_groups(rod),
+        dx,
+        DistributedLoads(loads["f"], loads["l"]),
+        ends,
+        chart=quaternion_chart(Q),
+    ).as_dict()
+    plain = _general(rod, U, Udot, V, dx, loads)
+    for name in TERMS:
+        a, b = _assemble(charted[name]), _assemble(plain[name])
+        assert np.abs(a - b).max() <= 1e-14 * np.abs(b).max(), name

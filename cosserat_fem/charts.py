@@ -1,0 +1,149 @@
+"""Charts of the Euler angles: the reference frame they are measured from, and its resets.
+
+The paper's angles (θ, ψ, φ) are singular at θ = ±π/2, det Ma = cos θ (66). Measured from a
+frame A(σ) of quaternions instead of the fixed basis (forms/kinematics.py, "Charts"), the
+directors are D(θ, ψ, φ) A, and moving the frame onto the rod's rotation brings the angles back
+to zero. :func:`reset_chart` does that at the Lagrange nodes, where it changes nothing of the
+state: the directors, the position and the angular velocity ŵ are the same before and after
+(the nodal values of A become those of the old D A; the angles become 0 and their rates
+Mm (θ̇, ψ̇, φ̇) = ŵ, since Mm = I at zero angles). Between the nodes the frame is the
+normalised interpolant of the nodal quaternions, so a reset moves the interpolated rotation
+by the interpolation error of the rotation field, O(h^(k+1)) for elements of degree k: the
+discrete state changes by that much at a reset (docs/decisions.md, "Charts").
+
+Why quaternions, not a rotation vector or a new set of Euler angles: docs/decisions.md,
+"Charts". The numpy functions here mirror the UFL ones of forms/kinematics.py at the nodes
+(tests/unit/test_charts.py checks them against each other).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: A reset moves the frame when |θ| exceeds this at some node [rad]: far enough from π/2 that a
+#: step of up to ~0.5 rad of θ stays regular (|cos θ| ≥ 0.1 until θ = 1.47).
+RESET_THETA = 0.9
+
+
+def euler_matrix(theta, psi, phi) -> np.ndarray:
+    """D of eq. (18) for arrays of angles: (..., 3, 3), row i the director d_i."""
+    cth, sth = np.cos(theta), np.sin(theta)
+    cps, sps = np.cos(psi), np.sin(psi)
+    cph, sph = np.cos(phi), np.sin(phi)
+    return np.stack(
+        [
+            np.stack([cph * cps + sph * sth * sps, sph * cth, -cph * sps + sph * sth * cps], -1),
+            np.stack([-sph * cps + cph * sth * sps, cph * cth, sph * sps + cph * sth * cps], -1),
+            np.stack([cth * sps, -sth, cth * cps], -1),
+        ],
+        -2,
+    )
+
+
+def angular_map(theta, phi) -> np.ndarray:
+    """Mm of eq. (66) for arrays of angles: (..., 3, 3)."""
+    cth, sth = np.cos(theta), np.sin(theta)
+    cph, sph = np.cos(phi), np.sin(phi)
+    zero, one = np.zeros_like(cth), np.ones_like(cth)
+    return np.stack(
+        [
+            np.stack([cph, sph * cth, zero], -1),
+            np.stack([-sph, cph * cth, zero], -1),
+            np.stack([zero, -sth, one], -1),
+        ],
+        -2,
+    )
+
+
+def quaternion_frame(Q: np.ndarray) -> np.ndarray:
+    """A = R(Q)ᵀ of (..., 4) quaternions of any nonzero length: (..., 3, 3), row j the frame
+    vector a_j (forms/kinematics.quaternion_frame)."""
+    Q = np.asarray(Q, dtype=float)
+    q0, v = Q[..., 0], Q[..., 1:]
+    hat = np.zeros((*Q.shape[:-1], 3, 3))
+    hat[..., 0, 1], hat[..., 0, 2] = -v[..., 2], v[..., 1]
+    hat[..., 1, 0], hat[..., 1, 2] = v[..., 2], -v[..., 0]
+    hat[..., 2, 0], hat[..., 2, 1] = -v[..., 1], v[..., 0]
+    scale = (2.0 / np.einsum("...i,...i", Q, Q))[..., None, None]
+    R = np.eye(3) + scale * (q0[..., None, None] * hat + hat @ hat)
+    return np.swapaxes(R, -1, -2)
+
+
+def quaternion_of_frame(D: np.ndarray) -> np.ndarray:
+    """The unit quaternion (..., 4) of the rotation R = Dᵀ taking e_j to the rows d_j of D
+    (Shepperd's method: the largest of the four squares first, for accuracy), q0 ≥ 0."""
+    R = np.swapaxes(np.asarray(D, dtype=float), -1, -2)
+    tr = np.trace(R, axis1=-2, axis2=-1)
+    diag = np.diagonal(R, axis1=-2, axis2=-1)
+    squares = np.concatenate([(1.0 + tr)[..., None], 1.0 + 2.0 * diag - tr[..., None]], -1)
+    pick = np.argmax(squares, axis=-1)
+    out = np.empty((*R.shape[:-2], 4))
+    r = R
+    for case in range(4):
+        sel = pick == case
+        if not sel.any():
+            continue
+        m = r[sel]
+        big = 0.5 * np.sqrt(squares[sel, case])
+        f = 0.25 / big
+        if case == 0:
+            q = [big, (m[:, 2, 1] - m[:, 1, 2]) * f, (m[:, 0, 2] - m[:, 2, 0]) * f,
+                 (m[:, 1, 0] - m[:, 0, 1]) * f]  # fmt: skip
+        elif case == 1:
+            q = [(m[:, 2, 1] - m[:, 1, 2]) * f, big, (m[:, 0, 1] + m[:, 1, 0]) * f,
+                 (m[:, 0, 2] + m[:, 2, 0]) * f]  # fmt: skip
+        elif case == 2:
+            q = [(m[:, 0, 2] - m[:, 2, 0]) * f, (m[:, 0, 1] + m[:, 1, 0]) * f, big,
+                 (m[:, 1, 2] + m[:, 2, 1]) * f]  # fmt: skip
+        else:
+            q = [(m[:, 1, 0] - m[:, 0, 1]) * f, (m[:, 0, 2] + m[:, 2, 0]) * f,
+                 (m[:, 1, 2] + m[:, 2, 1]) * f, big]  # fmt: skip
+        out[sel] = np.stack(q, -1)
+    return np.where(out[..., :1] < 0.0, -out, out)
+
+
+def euler_angles(D: np.ndarray, near: np.ndarray | None = None) -> np.ndarray:
+    """Angles (θ, ψ, φ) of (18) with D(θ, ψ, φ) = D, for (..., 3, 3) matrices: (..., 3).
+
+    D[2, 1] = −sin θ, (D[2, 0], D[2, 2]) = cos θ (sin ψ, cos ψ), (D[0, 1], D[1, 1]) =
+    cos θ (sin φ, cos φ). Two triples give each D, (θ, ψ, φ) and (π − θ, ψ + π, φ + π), each
+    up to turns of 2π; without ``near`` the one with |θ| ≤ π/2 and ψ, φ in (−π, π], else the
+    one nearest ``near`` (a continued output, e.g. the previous row). At θ = ±π/2 only ψ ∓ φ
+    is defined (the chart's singularity): that is where a continued triple may jump."""
+    D = np.asarray(D, dtype=float)
+    theta = np.arcsin(np.clip(-D[..., 2, 1], -1.0, 1.0))
+    psi = np.arctan2(D[..., 2, 0], D[..., 2, 2])
+    phi = np.arctan2(D[..., 0, 1], D[..., 1, 1])
+    first = np.stack([theta, psi, phi], -1)
+    if near is None:
+        return first
+    second = np.stack([np.pi - theta, psi + np.pi, phi + np.pi], -1)
+    best, err = None, None
+    for cand in (first, second):
+        cand = cand + 2.0 * np.pi * np.round((near - cand) / (2.0 * np.pi))
+        e = np.sum((cand - near) ** 2, axis=-1)
+        if best is None:
+            best, err = cand, e
+        else:
+            take = (e < err)[..., None]
+            best = np.where(take, cand, best)
+            err = np.minimum(e, err)
+    return best
+
+
+def reset_chart(full: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The nodal state ``full`` (nodes, 12) of U = (p, q) and the nodal quaternions ``Q``
+    (nodes, 4) of its chart, moved to the chart of the rod's own rotation (module
+    docstring): the new quaternions are those of D(θ, ψ, φ) A(Q), signed like the old ones
+    (the field stays continuous: a reset turns a node's frame by less than π); the angles
+    become 0 and their rates ŵ = Mm (θ̇, ψ̇, φ̇). Returns (full, Q), new arrays."""
+    theta, psi, phi = full[:, 3], full[:, 4], full[:, 5]
+    D = euler_matrix(theta, psi, phi) @ quaternion_frame(Q)
+    Q_new = quaternion_of_frame(D)
+    flip = np.einsum("ij,ij->i", Q_new, Q) < 0.0
+    Q_new[flip] *= -1.0
+    w = np.einsum("nij,nj->ni", angular_map(theta, phi), full[:, 9:12])
+    out = full.copy()
+    out[:, 3:6] = 0.0
+    out[:, 9:12] = w
+    return out, Q_new
