@@ -84,6 +84,10 @@ class StateHistory:
         weights = lagrange_weights([ti for ti, _ in newest], t)
         return sum(w * u for w, (_, u) in zip(weights, newest, strict=True))
 
+    def map_states(self, state_map) -> None:
+        """Every stored state in new variables (Integrator.change_variables)."""
+        self._items = deque(((t, state_map(u)) for t, u in self._items), self._items.maxlen)
+
     @property
     def newest(self) -> tuple[float, np.ndarray]:
         return self._items[-1]

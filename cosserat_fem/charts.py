@@ -131,19 +131,76 @@ def euler_angles(D: np.ndarray, near: np.ndarray | None = None) -> np.ndarray:
     return best
 
 
-def reset_chart(full: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The nodal state ``full`` (nodes, 12) of U = (p, q) and the nodal quaternions ``Q``
-    (nodes, 4) of its chart, moved to the chart of the rod's own rotation (module
-    docstring): the new quaternions are those of D(θ, ψ, φ) A(Q), signed like the old ones
-    (the field stays continuous: a reset turns a node's frame by less than π); the angles
-    become 0 and their rates ŵ = Mm (θ̇, ψ̇, φ̇). Returns (full, Q), new arrays."""
-    theta, psi, phi = full[:, 3], full[:, 4], full[:, 5]
-    D = euler_matrix(theta, psi, phi) @ quaternion_frame(Q)
+def angular_map_rate(theta, phi, theta_dot, phi_dot) -> np.ndarray:
+    """dMm/dτ = ∂Mm/∂θ θ̇ + ∂Mm/∂φ φ̇ for arrays: (..., 3, 3) (kinematics.angular_map_rate)."""
+    cth, sth = np.cos(theta), np.sin(theta)
+    cph, sph = np.cos(phi), np.sin(phi)
+    zero = np.zeros_like(cth)
+    return np.stack(
+        [
+            np.stack([-sph * phi_dot, cph * cth * phi_dot - sph * sth * theta_dot, zero], -1),
+            np.stack([-cph * phi_dot, -sph * cth * phi_dot - cph * sth * theta_dot, zero], -1),
+            np.stack([zero, -cth * theta_dot, zero], -1),
+        ],
+        -2,
+    )
+
+
+def _apply(M: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return np.einsum("nij,nj->ni", M, x)
+
+
+def change_chart(full: np.ndarray, Q_old: np.ndarray, Q_new: np.ndarray) -> np.ndarray:
+    """The nodal states ``full`` (nodes, 12) of U = (p, q) with angles measured from the frame
+    of ``Q_old`` (nodes, 4), measured from that of ``Q_new`` instead: the same directors
+    D(θ, ψ, φ) A(Q_old) = D(θ', ψ', φ') A(Q_new) (the triple with |θ'| ≤ π/2) and the same
+    ŵ = Mm (θ̇, ψ̇, φ̇) (26). Positions and their rates are unchanged. A new array."""
+    a, qa = full[:, 3:6], full[:, 9:12]
+    D = euler_matrix(*a.T) @ quaternion_frame(Q_old)
+    a_new = euler_angles(D @ np.swapaxes(quaternion_frame(Q_new), -1, -2))
+    out = full.copy()
+    out[:, 3:6] = a_new
+    w = _apply(angular_map(a[:, 0], a[:, 2]), qa)
+    out[:, 9:12] = np.linalg.solve(angular_map(a_new[:, 0], a_new[:, 2]), w[..., None])[..., 0]
+    return out
+
+
+def change_chart_rate(
+    full: np.ndarray, rate: np.ndarray, Q_old: np.ndarray, Q_new: np.ndarray
+) -> np.ndarray:
+    """The rate U̇ = (ṗ, q̇) (nodes, 12) at the state ``full`` in the chart of ``Q_old``, in
+    the chart of ``Q_new`` (:func:`change_chart`): the angular velocity implied by the angles'
+    rate, Mm ṗ_a, and the angular acceleration d(Mm q_a)/dτ = Mm q̇_a + (dMm/dτ) q_a, with dMm/dτ
+    along ṗ_a, are the same in both. A new array."""
+    new = change_chart(full, Q_old, Q_new)
+    a, qa, a2, qa2 = full[:, 3:6], full[:, 9:12], new[:, 3:6], new[:, 9:12]
+    Mm, Mm2 = angular_map(a[:, 0], a[:, 2]), angular_map(a2[:, 0], a2[:, 2])
+    pa = rate[:, 3:6]
+    out = rate.copy()
+    pa2 = np.linalg.solve(Mm2, _apply(Mm, pa)[..., None])[..., 0]
+    out[:, 3:6] = pa2
+    wdot = _apply(Mm, rate[:, 9:12]) + _apply(
+        angular_map_rate(a[:, 0], a[:, 2], pa[:, 0], pa[:, 2]), qa
+    )
+    rest = wdot - _apply(angular_map_rate(a2[:, 0], a2[:, 2], pa2[:, 0], pa2[:, 2]), qa2)
+    out[:, 9:12] = np.linalg.solve(Mm2, rest[..., None])[..., 0]
+    return out
+
+
+def chart_of(full: np.ndarray, Q: np.ndarray) -> np.ndarray:
+    """The quaternions (nodes, 4) of the rods' own rotation D(θ, ψ, φ) A(Q) at the nodes,
+    signed like ``Q`` (the field stays continuous: a reset turns a node's frame by less
+    than π)."""
+    D = euler_matrix(full[:, 3], full[:, 4], full[:, 5]) @ quaternion_frame(Q)
     Q_new = quaternion_of_frame(D)
     flip = np.einsum("ij,ij->i", Q_new, Q) < 0.0
     Q_new[flip] *= -1.0
-    w = np.einsum("nij,nj->ni", angular_map(theta, phi), full[:, 9:12])
-    out = full.copy()
-    out[:, 3:6] = 0.0
-    out[:, 9:12] = w
-    return out, Q_new
+    return Q_new
+
+
+def reset_chart(full: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The nodal state ``full`` (nodes, 12) and the nodal quaternions ``Q`` (nodes, 4) of its
+    chart, moved to the chart of the rod's own rotation (module docstring, :func:`chart_of`):
+    the angles become 0 (to round-off) and their rates ŵ. Returns (full, Q), new arrays."""
+    Q_new = chart_of(full, Q)
+    return change_chart(full, Q, Q_new), Q_new

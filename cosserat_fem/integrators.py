@@ -45,6 +45,10 @@ from petsc4py import PETSc
 from .adaptive import lagrange_weights
 
 ResidualFactory = Callable[[object, object, object], ufl.Form]
+#: A change of variables (:meth:`Integrator.change_variables`): state array -> state array.
+StateMap = Callable[[np.ndarray], np.ndarray]
+#: The same change for a rate: (state array, rate array at it) -> rate array.
+RateMap = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 def _constant(U: fem.Function, value: float = 0.0) -> fem.Constant:
@@ -94,6 +98,14 @@ class Integrator:
     def last_accepted(self) -> np.ndarray:
         """The state array at ``self.time``."""
         raise NotImplementedError
+
+    def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
+        """Between steps, the unknowns change to new variables of the same motion (a new
+        chart): ``state_map(U)`` gives a state array in the new variables, ``rate_map(U, U̇)``
+        the rate U̇ at the old state U in them. U and every stored state and rate are mapped;
+        history whose states are not stored is dropped (a predictor then starts afresh), which
+        keeps the method's order (docs/decisions.md, "Charts")."""
+        self.U.x.array[:] = state_map(self.U.x.array)
 
     def state_dict(self) -> dict:
         """Everything the next steps depend on besides U (arrays are this rank's, copies):
@@ -171,6 +183,12 @@ class BDF2(Integrator):
 
     def last_accepted(self) -> np.ndarray:
         return self.U_n.x.array
+
+    def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
+        """U, U_n and U_{n−1} mapped: the next step's BDF2 formula and predictor go on."""
+        super().change_variables(state_map, rate_map)
+        self.U_n.x.array[:] = state_map(self.U_n.x.array)
+        self.U_nm1.x.array[:] = state_map(self.U_nm1.x.array)
 
     def state_dict(self) -> dict:
         """Adds U_n, U_{n−1} and h_prev (NaN before the first step, which is the midpoint start)."""
@@ -277,6 +295,15 @@ class GeneralizedAlpha(Integrator):
 
     def last_accepted(self) -> np.ndarray:
         return self.U_n.x.array
+
+    def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
+        """U, U_n and U̇_n (at U_n) mapped; the previous rate, whose state is not kept, is
+        dropped: the next predictor is U_n + h U̇_n."""
+        u_n = self.U_n.x.array.copy()
+        super().change_variables(state_map, rate_map)
+        self.Udot_n.x.array[:] = rate_map(u_n, self.Udot_n.x.array)
+        self.U_n.x.array[:] = state_map(u_n)
+        self._Udot_prev = None
 
     def state_dict(self) -> dict:
         """Adds U_n, U̇_n and the previous rate (empty before the first step) with its step
@@ -396,6 +423,13 @@ class SDIRK(Integrator):
 
     def last_accepted(self) -> np.ndarray:
         return self.U_n
+
+    def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
+        """U and U_n mapped; the predictor's stage rates, whose states are not kept, are
+        dropped (the next step's first stage starts from U_n)."""
+        super().change_variables(state_map, rate_map)
+        self.U_n[:] = state_map(self.U_n)
+        self._stored = 0
 
     def state_dict(self) -> dict:
         """Adds U_n and the predictor's ring buffer: stage rates, their times, the count stored."""

@@ -23,8 +23,10 @@ import time
 from dataclasses import dataclass, fields
 
 import numpy as np
+from mpi4py import MPI
 
 from .adaptive import SHRINK, StateHistory, StepController
+from .charts import RESET_THETA
 from .checks import check_state, cos_theta, worst_place
 from .errors import SceneError, SolverError
 from .events import Events
@@ -52,8 +54,9 @@ class LoopState:
     level: int = 0
     done: float = 0.0
     h: float = math.nan
+    chart_resets: int = 0
 
-    _INTEGERS = ("accepted", "rejected", "outputs", "level")
+    _INTEGERS = ("accepted", "rejected", "outputs", "level", "chart_resets")
 
     def state_dict(self) -> dict[str, float]:
         """Numbers only (None as NaN), for a checkpoint."""
@@ -83,7 +86,44 @@ class LoopState:
             "rejected_steps": self.rejected,
             "smallest_step_s": self.smallest,
             "largest_step_s": self.largest,
+            "chart_resets": self.chart_resets,
         }
+
+
+def activate_chart(model: RodModel, integrator, solver: NewtonSolver) -> None:
+    """The residual carries the model's chart from now on: its forms are compiled (once, the
+    first time the chart moves; until then the paper's forms cost less)."""
+    model.use_chart(active=True)
+    solver.set_form(integrator.residual_form())
+
+
+def watch_chart(
+    model: RodModel, integrator, solver: NewtonSolver, history: StateHistory | None = None
+) -> float | None:
+    """Between steps: if |θ| > charts.RESET_THETA at some node, move the chart onto the rod's
+    rotation (cosserat_fem/charts.py), mapping the integrator's states and rates (and those of
+    an adaptive ``history``) into it (Integrator.change_variables). Returns the largest |θ|
+    if it moved, else None. Collective."""
+    if model.chart is None:
+        return None
+    n = model.V.dofmap.index_map.size_local
+    theta = model.U.x.array.reshape(-1, model.layout.size)[:n, model.layout.index(3)]
+    largest = float(np.abs(theta).max()) if n else 0.0
+    if model.msh.comm.size > 1:
+        largest = model.msh.comm.allreduce(largest, op=MPI.MAX)
+    if largest <= RESET_THETA:
+        return None
+    Q_new = model.new_chart()
+    state_map, rate_map = model.chart_maps(Q_new)
+    integrator.change_variables(state_map, rate_map)
+    if history is not None:
+        history.map_states(state_map)
+    model.set_chart(Q_new)
+    if model.chart_active:
+        solver.request_jacobian()  # the matrix of the old chart's angles
+    else:
+        activate_chart(model, integrator, solver)
+    return largest
 
 
 class TimeLoop:
@@ -146,12 +186,19 @@ class TimeLoop:
 
     def state_dict(self) -> dict[str, dict]:
         """Everything the remaining steps depend on, by part (cosserat_fem/checkpoint.py)."""
+        model = self.model
         parts = {
-            "state": {"U": self.model.U.x.array.copy()},
+            "state": {"U": model.U.x.array.copy()},
             "integrator": self.integrator.state_dict(),
             "newton": self.solver.state_dict(),
             "loop": self.state.state_dict(),
         }
+        if model.chart is not None:
+            parts["chart"] = {
+                "Q": model.chart.x.array.copy(),
+                "active": float(model.chart_active),
+                "moved": float(model.chart_moved),
+            }
         if self.history is not None:
             parts.update(history=self.history.state_dict(), control=self.control.state_dict())
         return parts
@@ -159,8 +206,15 @@ class TimeLoop:
     def load_state_dict(self, parts: dict) -> None:
         """The inverse of :meth:`state_dict`: U, integrator, Newton solver, loop and, for
         adaptive steps, history and controller."""
-        self.model.U.x.array[:] = parts["state"]["U"]
+        model = self.model
+        model.U.x.array[:] = parts["state"]["U"]
         self.integrator.load_state_dict(parts["integrator"])
+        chart = parts.get("chart")
+        if chart is not None and model.chart is not None:
+            model.chart.x.array[:] = chart["Q"]
+            model.chart_moved = bool(chart["moved"])
+            if chart["active"] and not model.chart_active:
+                self._activate_chart()
         self.solver.load_state_dict(parts["newton"])
         self.state.load_state_dict(parts["loop"])
         if self.history is not None:
@@ -170,6 +224,21 @@ class TimeLoop:
     @property
     def completed(self) -> bool:
         return self.state.outputs == self.tspan.n_steps
+
+    # -- the chart of the angles ------------------------------------------------------------
+    def _activate_chart(self) -> None:
+        """The residual carries the chart from now on (a restart of a run whose chart moved)."""
+        activate_chart(self.model, self.integrator, self.solver)
+
+    def _watch_chart(self, t: float) -> None:
+        """After an accepted step to t [s]: :func:`watch_chart`, and the chart-crossing check
+        starts again from the new chart's angles."""
+        largest = watch_chart(self.model, self.integrator, self.solver, self.history)
+        if largest is None:
+            return
+        self._cos_accepted = self._cos_candidate = cos_theta(self.model, self.model.U.x.array)
+        self.state.chart_resets += 1
+        LOGGER.info("t = %.6g s: chart moved onto the rod (|θ| reached %.3f rad)", t, largest)
 
     # -- one step ---------------------------------------------------------------------------
     def _solve(self) -> int:
@@ -238,6 +307,7 @@ class TimeLoop:
         st.accepted += 1
         st.smallest = h if st.smallest is None else min(st.smallest, h)
         st.largest = h if st.largest is None else max(st.largest, h)
+        self._watch_chart(t_new)
         self.events.step_accepted(self)
 
     def reject(self, cause: SolverError | None) -> None:
@@ -271,6 +341,7 @@ class TimeLoop:
         """The steps from the state's time to the span's end (see the module docstring).
         ``stepping_since``, ``stepping_until``: the time.perf_counter() values when the first
         step began and the last one ended."""
+        self._watch_chart(self.state.t)  # an initial state may be near the singularity
         self.events.started(self)
         self.stepping_since = time.perf_counter()
         try:

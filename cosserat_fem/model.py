@@ -23,7 +23,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import jit
-from .charts import reset_chart
+from .charts import change_chart, change_chart_rate, chart_of
 from .errors import SceneError
 from .expressions import Expression, derivative
 from .forms.general_form import (
@@ -114,38 +114,70 @@ class RodModel:
     #: The quaternions Q(σ) of the frame the angles are measured from (forms/kinematics.py,
     #: "Charts"; cosserat_fem/charts.py), or None: the fixed basis, the paper's chart.
     chart: fem.Function | None = None
+    #: Whether the residual carries the chart (until the first reset a run solves the paper's
+    #: forms, which cost less; outputs carry the chart whenever there is one).
+    chart_active: bool = False
+    #: Whether the chart has left the fixed basis (Q ≢ (1, 0, 0, 0)).
+    chart_moved: bool = False
 
     @property
     def needs_chart(self) -> bool:
         """Whether the Euler-angle chart can be singular: θ and ψ both solved (checks.py)."""
         return self.layout.index(3) is not None and self.layout.index(4) is not None
 
-    def use_chart(self) -> None:
-        """Measure the angles from a frame of quaternions from now on (starting at the fixed
-        basis, Q = (1, 0, 0, 0)): forms built after this carry it. The quaternions share U's
+    def use_chart(self, active: bool = True) -> None:
+        """Give the model a chart, Q = (1, 0, 0, 0) (the fixed basis) to start with, if it has
+        none; ``active``: the residuals built from now on carry it. The quaternions share U's
         Lagrange nodes (checked)."""
-        if self.chart is not None:
-            return
-        degree = self.V.ufl_element().degree()
-        Q = fem.Function(fem.VectorFunctionSpace(self.msh, ("Lagrange", degree), dim=4), name="Q")
-        coords = Q.function_space.tabulate_dof_coordinates()
-        if not np.array_equal(coords, self.V.tabulate_dof_coordinates()):
-            raise RuntimeError("the chart's quaternions do not share the nodes of U")
-        Q.x.array.reshape(-1, 4)[:, 0] = 1.0
-        self.chart = Q
+        if self.chart is None:
+            degree = self.V.ufl_element().degree()
+            space = fem.VectorFunctionSpace(self.msh, ("Lagrange", degree), dim=4)
+            if not np.array_equal(
+                space.tabulate_dof_coordinates(), self.V.tabulate_dof_coordinates()
+            ):
+                raise RuntimeError("the chart's quaternions do not share the nodes of U")
+            self.chart = fem.Function(space, name="Q")
+            self.chart.x.array.reshape(-1, 4)[:, 0] = 1.0
+        self.chart_active = self.chart_active or active
 
     def chart_form(self):
-        """The UFL chart of :attr:`chart` for the forms (None without one)."""
+        """The UFL chart of :attr:`chart` (None without one)."""
         return None if self.chart is None else quaternion_chart(self.chart)
 
-    def reset_chart(self, state: np.ndarray | None = None) -> np.ndarray:
-        """Move the chart onto the rod's rotation at every node (cosserat_fem/charts.py,
-        :func:`~cosserat_fem.charts.reset_chart`): U (or ``state``, an array of U's layout,
-        changed in place) gets zero angles and their rates ŵ; returns the new state array."""
+    def chart_maps(self, Q_new: np.ndarray):
+        """(state_map, rate_map) of :meth:`Integrator.change_variables` from the current chart to
+        the nodal quaternions ``Q_new``, for state arrays of U's layout."""
+        layout, Q_old = self.layout, self.chart.x.array.reshape(-1, 4).copy()
+        pick = list(layout.components)
+
+        def state_map(state: np.ndarray) -> np.ndarray:
+            return change_chart(layout.full_array(state), Q_old, Q_new)[:, pick].ravel()
+
+        def rate_map(state: np.ndarray, rate: np.ndarray) -> np.ndarray:
+            full, dfull = layout.full_array(state), layout.full_array(rate)
+            return change_chart_rate(full, dfull, Q_old, Q_new)[:, pick].ravel()
+
+        return state_map, rate_map
+
+    def new_chart(self, state: np.ndarray | None = None) -> np.ndarray:
+        """The nodal quaternions (nodes, 4) of the rod's own rotation in ``state`` (default U):
+        the chart in which its angles are zero (cosserat_fem/charts.py ``chart_of``)."""
         state = self.U.x.array if state is None else state
-        full, Q = reset_chart(self.layout.full_array(state), self.chart.x.array.reshape(-1, 4))
-        self.chart.x.array[:] = Q.ravel()
-        state.reshape(-1, self.layout.size)[:] = full[:, list(self.layout.components)]
+        return chart_of(self.layout.full_array(state), self.chart.x.array.reshape(-1, 4))
+
+    def set_chart(self, Q: np.ndarray) -> None:
+        """The chart's nodal quaternions (nodes, 4); marks it moved."""
+        self.chart.x.array[:] = np.asarray(Q).ravel()
+        self.chart_moved = True
+
+    def reset_chart(self, state: np.ndarray | None = None) -> np.ndarray:
+        """Move the chart onto the rod's rotation at every node: U (or ``state``, an array of
+        U's layout, changed in place) gets zero angles and their rates ŵ (charts.reset_chart);
+        returns the state array."""
+        state = self.U.x.array if state is None else state
+        Q_new = self.new_chart(state)
+        state[:] = self.chart_maps(Q_new)[0](state)
+        self.set_chart(Q_new)
         return state
 
     @property
@@ -224,9 +256,7 @@ class RodModel:
                 bad = np.flatnonzero(~np.isfinite(values))
                 if bad.size and found is None:
                     where = f", s = {s[bad[0]]:.4g} m" if e.depends_on("s") else ""
-                    found = (
-                        f"{key} = {e.source!r} is {values[bad[0]]} at t = {t:.6g} s{where}"
-                    )
+                    found = f"{key} = {e.source!r} is {values[bad[0]]} at t = {t:.6g} s{where}"
         found_all = [f for f in self.msh.comm.allgather(found) if f]
         return found_all[0] if found_all else None
 
@@ -260,12 +290,14 @@ class RodModel:
             return None
         return self.load_factor * ufl.as_vector([e.to_ufl(symbols) for e in exprs])
 
-    def residual(self, U_eval, Udot_eval, time_eval) -> ufl.Form:
+    def residual(self, U_eval, Udot_eval, time_eval, charted: bool | None = None) -> ufl.Form:
         """The weak residual (65) at (U_eval, Udot_eval) of U's layout, loads at τ = time_eval
-        (a reduced U is embedded in the 12 components, tested by its own components only)."""
+        (a reduced U is embedded in the 12 components, tested by its own components only);
+        angles measured in the chart if ``charted`` (default: :attr:`chart_active`)."""
         full = self.layout.full
         test = full(ufl.TestFunction(self.V))
-        return self.residual_terms(full(U_eval), full(Udot_eval), time_eval, test=test).total()
+        terms = self.residual_terms(full(U_eval), full(Udot_eval), time_eval, test, charted)
+        return terms.total()
 
     def load_vectors(self, time_eval) -> tuple[DistributedLoads, tuple[EndLoads, ...]]:
         """The scene's loads at τ = time_eval as UFL vectors (absent ones are None)."""
@@ -293,8 +325,10 @@ class RodModel:
             )
         return distributed, tuple(ends)
 
-    def residual_terms(self, U_eval, Udot_eval, time_eval, test=None):
-        """The terms of (65); ``test`` defaults to the test function of the 12-component space."""
+    def residual_terms(self, U_eval, Udot_eval, time_eval, test=None, charted=None):
+        """The terms of (65); ``test`` defaults to the test function of the 12-component space;
+        ``charted`` as for :meth:`residual`."""
+        charted = self.chart_active if charted is None else charted
         distributed, ends = self.load_vectors(time_eval)
         V = ufl.TestFunction(self.V) if test is None else test
         d = self.scene.damping
@@ -313,7 +347,7 @@ class RodModel:
             self.convention,
             viscous,
             kelvin_voigt,
-            self.chart_form(),
+            self.chart_form() if charted else None,
         )
 
     def initial_state(self) -> np.ndarray:

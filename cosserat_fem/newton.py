@@ -128,18 +128,9 @@ class NewtonSolver:
         self._parallel = comm.size > 1
         self._update_prev = 0.0  # ‖δU_{k−1}‖ of the current solve
         self._f_prev = 0.0  # ‖F(U_{k−1})‖ of the current solve
-        fcp = form_compiler_params or {}
-        jp = jit_params or {}
-        t0 = time.perf_counter()
-        self.F_form = fem.form(F, form_compiler_params=fcp, jit_params=jp)
-        dU = ufl.TrialFunction(U.function_space)
-        J = ufl.derivative(F, U, dU)
-        self.J_form = fem.form(J, form_compiler_params=fcp, jit_params=jp)
-        self.compile_time = time.perf_counter() - t0
-        # What the Jacobian is assembled from, and (for a reused Jacobian) their values at its
-        # last assembly: a restarted run re-assembles the very same matrix (load_state_dict).
-        self._J_inputs = (extract_coefficients(J), extract_constants(J))
-        self._J_snapshot: dict | None = None
+        self._compile_params = (form_compiler_params or {}, jit_params or {})
+        self.compile_time = 0.0
+        self._compile(F)
 
         self.b = create_vector(self.F_form)
         # SNES iterates on its own vector: the callbacks copy trial points into U, which must
@@ -178,6 +169,26 @@ class NewtonSolver:
         self._f0 = 0.0
         self.snes.setFunction(self._residual, self.b)
         self.snes.setJacobian(self._jacobian, self.A)
+
+    def _compile(self, F: ufl.Form) -> None:
+        """The residual and Jacobian forms of F; what the Jacobian is assembled from, and (for
+        a reused Jacobian) their values at its last assembly: a restarted run re-assembles the
+        very same matrix (load_state_dict)."""
+        fcp, jp = self._compile_params
+        t0 = time.perf_counter()
+        self.F_form = fem.form(F, form_compiler_params=fcp, jit_params=jp)
+        J = ufl.derivative(F, self.U, ufl.TrialFunction(self.U.function_space))
+        self.J_form = fem.form(J, form_compiler_params=fcp, jit_params=jp)
+        self.compile_time += time.perf_counter() - t0
+        self._J_inputs = (extract_coefficients(J), extract_constants(J))
+        self._J_snapshot: dict | None = None
+
+    def set_form(self, F: ufl.Form) -> None:
+        """Solve F = 0 from now on, F a residual of the same unknown (e.g. the forms of a new
+        chart, cosserat_fem/charts.py); the next solve assembles a new Jacobian. The matrix
+        keeps its sparsity (same space), the statistics go on."""
+        self._compile(F)
+        self.request_jacobian()
 
     @staticmethod
     def _lu_package(comm, choice: str) -> str:

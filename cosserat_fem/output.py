@@ -51,6 +51,32 @@ def probe_sigma(scene) -> float:
     return 0.5
 
 
+class FixedBasisAngles:
+    """The angles (θ, ψ, φ) that the samplers report: those of (18) measured from the fixed
+    basis. With a chart that has moved (cosserat_fem/charts.py) they are the angles of the
+    rod's directors D A, continued from the previous call's (of the two triples and their
+    turns of 2π, the one nearest: :func:`~cosserat_fem.charts.euler_angles`), so that they
+    stay continuous through the chart's resets; only where θ passes ±π/2 itself, where ψ and
+    φ are not defined apart, may they jump. Before the first reset they are the unknowns'."""
+
+    def __init__(self, model: RodModel):
+        self.model = model
+        self.last: np.ndarray | None = None  # the angles of the previous call
+
+    def __call__(self, angles: np.ndarray, chart_values) -> np.ndarray:
+        """Fixed-basis angles (points, 3) of the chart angles ``angles`` at points whose
+        chart quaternions ``chart_values()`` gives (points, 4), called only once the chart
+        has moved."""
+        model = self.model
+        if model.chart is None or not model.chart_moved:
+            if model.chart is not None:
+                self.last = angles.copy()
+            return angles
+        D = euler_matrix(*angles.T) @ quaternion_frame(chart_values())
+        self.last = euler_angles(D, angles if self.last is None else self.last)
+        return self.last
+
+
 class PointProbe:
     """Evaluates (x, y, z, θ, ψ, φ) in SI units [m, rad] at σ = ``sigma`` of a model's rod, on
     its owning rank (the components of p the model does not solve are 0).
@@ -67,8 +93,7 @@ class PointProbe:
         U = model.U if U is None else U
         msh = U.function_space.mesh
         self.U = U
-        self.chart = model.chart
-        self._last: np.ndarray | None = None  # the angles of the previous call (with a chart)
+        self.angles = FixedBasisAngles(model)
         self.length = model.length
         self.sigma = sigma
         self.point = np.array([[sigma, 0.0, 0.0]])
@@ -112,14 +137,15 @@ class PointProbe:
             block = self.U.eval(self.point, np.array([self.cell], dtype=np.int32))
         out = np.zeros(6)
         out[self._p] = block[self._slots] * self._scale
-        if self.chart is not None:
-            if self._node is not None:
-                Q = self.chart.x.array[4 * self._node : 4 * self._node + 4]
-            else:
-                Q = self.chart.eval(self.point, np.array([self.cell], dtype=np.int32))
-            D = euler_matrix(*out[3:6]) @ quaternion_frame(Q)
-            out[3:6] = self._last = euler_angles(D, out[3:6] if self._last is None else self._last)
+        out[3:6] = self.angles(out[None, 3:6], self._chart_value)[0]
         return out
+
+    def _chart_value(self) -> np.ndarray:
+        """The chart's quaternion at the probe point, (1, 4)."""
+        chart = self.angles.model.chart
+        if self._node is not None:
+            return chart.x.array[None, 4 * self._node : 4 * self._node + 4]
+        return chart.eval(self.point, np.array([self.cell], dtype=np.int32))
 
 
 class ProbeWriter:
@@ -731,8 +757,7 @@ class LineSampler:
         U = model.U if U is None else U
         msh = U.function_space.mesh
         self.U = U
-        self.chart = model.chart
-        self._last: np.ndarray | None = None  # the angles of the previous call (with a chart)
+        self.angles = FixedBasisAngles(model)
         self.sigmas = np.asarray(sigmas, dtype=float)
         pts = np.zeros((len(self.sigmas), 3))
         pts[:, 0] = self.sigmas
@@ -767,6 +792,10 @@ class LineSampler:
         if len(self._mine):
             values = self.U.eval(self._points, self._cells)
             local[np.ix_(self._mine, self._p)] = values[:, : len(self._p)] * self._scale
+            local[self._mine, 3:6] = self.angles(
+                local[self._mine, 3:6],
+                lambda: self.angles.model.chart.eval(self._points, self._cells),
+            )
         total = np.zeros_like(local) if self.comm.rank == 0 else None
         self.comm.Reduce(local, total, op=MPI.SUM, root=0)
         return total

@@ -209,6 +209,8 @@ def _discretise(scene: Scene, comm, initial_state, restart):
     model = build_model(scene, comm)
     if initial_state is not None and _leaves_plane(model, initial_state):
         model = build_model(scene, comm, planar=False)  # it keeps all twelve unknowns
+    if model.needs_chart:
+        model.use_chart(active=False)  # moved when θ nears ±π/2 (cosserat_fem/charts.py)
     if restart is not None:
         model.U.x.array[:] = restart.parts["state"]["U"]
     elif initial_state is not None:

@@ -106,25 +106,25 @@ def test_newton_failure_is_reported_with_time_and_place(tmp_path):
     ]
 
 
-def test_euler_angle_singularity_is_detected(tmp_path):
-    """A tip torque 2e5 N m about e1 spins the free end towards θ = π/2, where det Ma = cos θ
-    vanishes when the rod is solved in 3D: the run stops there with the place and time,
-    keeping the steps before. (In the y-z plane, which the scene would otherwise be solved in,
-    the solved block of Ma is 1: cosserat_fem/checks.py.)"""
+def test_a_whip_in_3d_turns_through_the_euler_angle_singularity(tmp_path):
+    """A tip torque 2e5 N m about e1 spins the free end through θ = π/2, where det Ma = cos θ
+    vanishes, when the rod is solved in 3D: the chart moves onto the rod (3 times in 2 ms,
+    cosserat_fem/charts.py) and the run completes; probes.csv's angles, measured from the
+    fixed basis and continued, pass π/2 and reach 3.2 rad (tests/test_rotations.py holds
+    the motion against the y-z plane's)."""
     out = tmp_path / "chart"
     proc = run_scene(
         out,
         "loads.force_density=[0,0,0]",
         "loads.end.torque=[2e5,0,0]",
         "discretisation.planar='off'",
-        "time.end=0.01",
+        "time.end=0.002",
         "output.xdmf=false",
     )
-    assert proc.returncode == 3
-    assert "Euler-angle chart singular" in proc.stderr and "s = 1 m" in proc.stderr
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((out / "summary.json").read_text())["chart_resets"] == 3
     data = np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1)
-    assert 1.4 < data[-1, 4] < np.pi / 2  # the last written θ(ℓ) is close to, not past, π/2
-    assert np.isfinite(data).all()
+    assert 3.1 < data[:, 4].max() < 3.3 and np.isfinite(data).all()
 
 
 def test_errors_under_mpi_are_reported_once(tmp_path):

@@ -89,10 +89,10 @@ def test_hundred_times_the_load_completes(tmp_path):
     """100x the paper's load: tip deflections of 0.2 ℓ and more, θ beyond 1 rad; the run
     completes with the nominal 30 μs steps (the frozen Jacobian refreshed at nearly every
     step). Required: completed, 2000 steps, the free end's |θ| above 0.9 rad at some time
-    (the large-rotation regime is reached: measured 1.03) and below π/2 throughout (the
-    chart; a state at it stops the run). Its motion is resolved in time only for the first
-    ~20 ms: past ~25 ms runs at 30 μs, 15 μs and adaptive steps part (docs/stability.md,
-    case 1), so no later value is asserted. ~3 s."""
+    (the large-rotation regime is reached: measured 1.03) and below π/2 throughout (so the
+    chart never moves: the paper's forms throughout). Its motion is resolved in time only
+    for the first ~20 ms: past ~25 ms runs at 30 μs, 15 μs and adaptive steps part
+    (docs/stability.md, case 1), so no later value is asserted. ~3 s."""
     summary = run(load_scene(SCENE, paper_load(100.0)), tmp_path).summary
     assert summary["status"] == "completed"
     assert summary["steps"] == 2000
@@ -101,37 +101,31 @@ def test_hundred_times_the_load_completes(tmp_path):
 
 
 @pytest.mark.parametrize("adaptive", [False, True], ids=["fixed", "adaptive"])
-def test_thousand_times_the_load_stops_at_the_chart_singularity(tmp_path, adaptive):
-    """1000x the paper's load drives θ(s = 0.25 m) to π/2, where the Euler-angle chart is
-    singular (det Ma = cos θ): the run must stop there, with that reason and place, and keep
-    its outputs. With fixed steps a step jumps over θ = π/2 (cos θ changes sign), is halved
-    time.max_halvings = 6 times, and the run stops; with adaptive steps (rtol = 1e-4) the
-    steps shrink onto the singularity until |cos θ| < 1e-2, which is not retried.
-
-    The two step sequences are independent, yet both must find the same motion reaching the
-    singularity: at the same place, and at 8.40 ms within one nominal step, 30 μs (measured
-    8.4047 and 8.3991 ms; 8.40 ms is that measurement, shared by both). probes.csv keeps
-    every output step before it (280 of them, 279 adaptive), and summary.json says
-    "failed"."""
+def test_thousand_times_the_load_passes_the_chart_singularity(tmp_path, adaptive):
+    """1000x the paper's load drives θ(s = 0.25 m) to π/2 at 8.40 ms, where the Euler-angle
+    chart is singular (det Ma = cos θ). Until the charts of cosserat_fem/charts.py, both step
+    sequences stopped there with that reason (measured 8.4047 ms fixed, 8.3991 ms adaptive).
+    Now the chart moves onto the rod before θ gets there, and the run goes on through ever
+    larger rotations until the motion is no longer resolved: with fixed steps Newton fails
+    to converge at 9.16 ms even at 1/64 of the step (5 moves of the chart), with adaptive
+    steps (rtol = 1e-4) the steps shrink below 1e-13 s at 10.08 ms (314 moves), measured.
+    Required: past 8.5 ms, at least one move of the chart, a stop (if any) whose reason is
+    not the chart, and outputs kept: probes.csv has every output step before the stop."""
     extra = ["time.adaptive=true", "time.rtol=1e-4"] if adaptive else []
-    with pytest.raises(SolverError) as info:
+    try:
         run(load_scene(SCENE, paper_load(1000.0) + extra), tmp_path)
-    error = info.value
-    message = str(error)
-    assert "s = 0.25 m" in message, message
-    if adaptive:
-        assert "|cos θ| = " in message, message
-        assert float(message.split("|cos θ| = ")[1].split()[0]) < 1e-2
-    else:
-        assert "θ crossed ±π/2 within the step" in message, message
-        assert "rejected 6 times" in message, message
-    assert 8.0e-3 < error.time < 9.0e-3, error.time
-    assert abs(error.time - 8.40e-3) < 3e-5, error.time  # both sequences: one nominal step
-    data = probes(tmp_path)
-    assert data[-1, 0] <= error.time and len(data) >= 270
-    assert np.isfinite(data).all() and np.abs(data[:, 4]).max() < 0.5 * math.pi
+        stopped_at = None
+    except SolverError as error:
+        assert "chart" not in str(error), str(error)
+        stopped_at = error.time
     summary = json.loads((tmp_path / "summary.json").read_text())
-    assert summary["status"] == "failed"
+    assert summary["time_reached_s"] > 8.5e-3
+    assert summary["chart_resets"] >= 1
+    data = probes(tmp_path)
+    assert np.isfinite(data).all()
+    if stopped_at is not None:
+        assert summary["status"] == "failed"
+        assert data[-1, 0] <= stopped_at and len(data) >= int(8.5e-3 / 3e-5)
 
 
 # ================================================================== case 3: long steps

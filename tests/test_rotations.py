@@ -1,0 +1,161 @@
+"""Rotations of any size in dynamics: the chart of the angles moves onto the rod when θ nears
+the singularity (cosserat_fem/charts.py, docs/decisions.md "Charts"), and nothing else notices.
+
+The motion: the paper's cantilever whipped by a sudden tip torque of 2e5 N m about e1, Δt =
+10 μs, 2 ms. The free end turns through θ = π/2 at ~0.4 ms and reaches 3.2 rad; in 3D the chart
+moves three times. About e1 the motion stays in the y-z plane, where the solved block of Ma is
+1 and no chart is needed (cosserat_fem/checks.py): the planar solve is the reference of the
+3D one. They differ only by the frame's interpolation between the nodes, which a move of the
+chart changes (O(h^(k+1)) of the rotation field's derivatives, cubic elements here), so the
+difference must converge under refinement, and fast: measured 2.3e-5 rad (8 elements) and
+3.3e-7 rad (16), order 6.1. Required: order ≥ 5 and ≤ 1e-6 rad at 16 elements.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from conftest import ROOT, run_command
+
+from cosserat_fem.checkpoint import load_checkpoint
+from cosserat_fem.scene import load_scene, scene_from_dict
+from cosserat_fem.simulation import run
+
+SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
+CLI = ["-m", "cosserat_fem.cli"]
+WHIP = [
+    "time.step=1e-5",
+    "time.end=0.002",
+    "loads.force_density=[0,0,0]",
+    "loads.end.torque=[2e5,0,0]",
+    "output.xdmf=false",
+]
+IN_3D = "discretisation.planar='off'"
+
+
+def whip(extra: list[str]):
+    return load_scene(SCENE, [*WHIP, *extra])
+
+
+@pytest.fixture(scope="module")
+def whip_runs():
+    """{(elements, plane): (probe rows, summary)} of the whip, in the y-z plane and in 3D."""
+    runs = {}
+    for elements in (8, 16):
+        for planar in ("auto", IN_3D):
+            extra = [f"discretisation.elements={elements}"]
+            extra += [] if planar == "auto" else [planar]
+            result = run(whip(extra), write_outputs=False, record=True)
+            runs[elements, "3d" if planar == IN_3D else "y-z"] = (result.probes, result.summary)
+    return runs
+
+
+def test_the_whip_in_3d_passes_the_singularity_and_equals_the_plane(whip_runs):
+    """Module docstring: the same motion in 3D (charted) and in y-z (no chart)."""
+    gaps = {}
+    for elements in (8, 16):
+        rows_3d, summary_3d = whip_runs[elements, "3d"]
+        rows_yz, summary_yz = whip_runs[elements, "y-z"]
+        assert summary_3d["status"] == "completed" and summary_3d["chart_resets"] == 3
+        assert summary_yz["chart_resets"] == 0
+        assert np.abs(rows_yz[:, 4]).max() > 3.0  # θ(ℓ) passes π/2 and goes on to ~3.2
+        # x, ψ, φ stay zero in 3D too (to round-off of the frame products).
+        assert np.abs(rows_3d[:, [1, 5, 6]]).max() < 1e-12
+        gaps[elements] = np.abs(rows_3d[:, 2:5] - rows_yz[:, 2:5]).max()
+    order = math.log2(gaps[8] / gaps[16])
+    assert order >= 5.0, gaps
+    assert gaps[16] <= 1e-6, gaps
+
+
+RESTART_CONFIGS = {
+    "sdirk3-frozen": [],
+    "bdf2-full": ["time.integrator=bdf2", "solver.jacobian=full"],
+    "generalized-alpha-frozen": ["time.integrator=generalized-alpha"],
+    "sdirk3-adaptive": ["time.adaptive=true", "time.rtol=1e-5"],
+}
+
+
+class Crash(RuntimeError):
+    pass
+
+
+def crash_at(step: int):
+    def observer(k, t, model):
+        if k == step:
+            raise Crash(f"crash at step {k}")
+
+    return observer
+
+
+@pytest.mark.parametrize("name", list(RESTART_CONFIGS))
+def test_restart_across_moves_of_the_chart_gives_the_uninterrupted_run(tmp_path, name):
+    """The chart (its quaternions, whether the residual carries it, whether it moved) is part
+    of the checkpoint, and a move maps the integrator's history (tests/test_restart.py says
+    why equality is the test). The chart moves at steps 24, 90 and 169 (fixed steps); the
+    run crashes at step 180, after the checkpoint at step 100, and the restart must give the
+    uninterrupted run's probes byte for byte, and the same counters."""
+    scene = whip([IN_3D, *RESTART_CONFIGS[name], "output.checkpoint_interval=1e-3"])
+    run(scene, tmp_path / "whole")
+    out = tmp_path / "crashed"
+    with pytest.raises(Crash):
+        run(scene, out, observers=(crash_at(180),))
+    checkpoint = load_checkpoint(out)
+    assert 1e-3 * (1 - 1e-9) <= checkpoint.time < 1.8e-3
+    assert checkpoint.parts["chart"]["moved"] == 1.0
+    assert checkpoint.parts["loop"]["chart_resets"] == 2
+    result = run(scene_from_dict(checkpoint.meta["scene"]), restart=checkpoint)
+    whole = json.loads((tmp_path / "whole/summary.json").read_text())
+    assert whole["chart_resets"] == result.summary["chart_resets"] == 3
+    assert (out / "probes.csv").read_bytes() == (tmp_path / "whole/probes.csv").read_bytes()
+    for key in ("solves", "iterations", "jacobian_assemblies"):
+        assert result.summary["newton"][key] == whole["newton"][key], key
+
+
+@pytest.mark.mpi
+def test_the_whip_under_mpi_equals_the_serial_run(tmp_path):
+    """mpirun -n 2 against the serial run: the chart moves at the same steps (the decision is
+    one reduction of the largest |θ|) and the free end agrees to the Newton tolerance (MUMPS
+    and PETSc's LU round differently; the iterates stop within stol = 1e-8 of ‖U‖ of the
+    solution, which the 200 steps carry: allowed 1e-7 of the motion, ~1 m and ~3 rad)."""
+    sets = [a for s in [*WHIP, IN_3D] for a in ("--set", s)]
+    outs = {}
+    for ranks in (1, 2):
+        out = tmp_path / f"n{ranks}"
+        proc = run_command([*CLI, "run", str(SCENE), "--out", str(out), *sets], ranks=ranks)
+        assert proc.returncode == 0, proc.stderr
+        outs[ranks] = (
+            np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1),
+            json.loads((out / "summary.json").read_text()),
+        )
+    assert outs[1][1]["chart_resets"] == outs[2][1]["chart_resets"] == 3
+    assert np.abs(outs[1][0] - outs[2][0]).max() <= 1e-7
+
+
+def test_adaptive_steps_through_the_singularity():
+    """Adaptive steps (rtol = 1e-6) through three moves of the chart. A smooth torque,
+    4e5 sin²(πt/4 ms) N m (the sudden one excites axial and shear waves that 10 μs steps do not
+    resolve: 0.07 rad against 2.5 μs): θ(ℓ) reaches 3.5 rad. The error estimate compares the
+    new state with the history mapped into the new chart, so the moves cost the controller
+    nothing: rejected steps within 1.5x those of the same adaptive run in the y-z plane
+    (measured 34 and 28), and the free end within 1e-4 of fixed 2.5 μs steps (measured
+    2.2e-5; their own error is 1e-6, from 7e-5 at 10 μs and order 3; the y-z adaptive run is
+    2.9e-5 from the 3D one, so the chart adds nothing beyond the controller's error)."""
+    smooth = ['loads.end.torque=["4e5*sin(pi*t/0.004)**2",0,0]']
+    adaptive = ["time.adaptive=true", "time.rtol=1e-6"]
+    results = {
+        name: run(whip([*smooth, *extra]), write_outputs=False, record=True)
+        for name, extra in {
+            "adaptive": [IN_3D, *adaptive],
+            "adaptive y-z": adaptive,
+            "fixed 2.5 us": [IN_3D, "time.step=2.5e-6"],
+        }.items()
+    }
+    summary = results["adaptive"].summary
+    assert summary["status"] == "completed" and summary["chart_resets"] == 3
+    assert summary["rejected_steps"] <= 1.5 * results["adaptive y-z"].summary["rejected_steps"]
+    fine = results["fixed 2.5 us"].probes[::4]
+    assert np.abs(results["adaptive"].probes[:, 4]).max() > 3.0
+    assert np.abs(results["adaptive"].probes[:, 2:5] - fine[:, 2:5]).max() <= 1e-4
