@@ -38,8 +38,12 @@ is touched (:func:`check_outputs`): the outputs must be the checkpoint's run's (
 summary.json and solution.xdmf, written when the run started, and the digest of probes.csv up
 to the checkpoint's rows), and must reach the checkpoint. Only then are the outputs written
 after the checkpoint (by a run killed later) cut back to it (:func:`cut_outputs`): probes.csv
-to its rows, the XDMF file to its frames, ``<name>-restart<m>.h5`` files of later restarts
-deleted; new frames go into ``<name>-restart<n>.h5``, referenced by the one ``<name>.xdmf``.
+to its rows, the XDMF file to its frames, and then (the XML cut first, so that a kill
+half-way leaves no XML naming a deleted file) the frame files after them,
+``<name>.frames/<i>.h5`` for i >= the checkpoint's frames, deleted; new frames go into new
+frame files, ``<name>.frames/<frames>.h5`` on, referenced by the one ``<name>.xdmf``
+(cosserat_fem/output.py). Outputs of the earlier single-file layout are continued the same
+way (their ``<name>-restart<m>.h5`` files of later restarts deleted).
 A new run into a folder removes the checkpoint of an earlier one (cosserat_fem/run_folder.py).
 """
 
@@ -457,9 +461,13 @@ def cut_xdmf(path: Path, frames: int) -> None:
 
 def cut_outputs(plan: RestartPlan, comm: MPI.Comm) -> None:
     """Cut the outputs back to the checkpoint as ``plan`` (from :func:`check_outputs`) says,
-    on rank 0: probes.csv, the XDMF file, and the HDF5 files of later restarts (which hold
-    frames after the checkpoint only: a restart killed before its first checkpoint left
-    one). An OutputError on every rank if a file cannot be changed (collective)."""
+    on rank 0: probes.csv, the XDMF file, then (once the XML no longer names them) the frame
+    files after the checkpoint's frames and the scratch XML of a killed frame in its frames
+    folder, and the HDF5 files of later restarts of the earlier single-file layout (which
+    hold frames after the checkpoint only: a restart killed before its first checkpoint left
+    them). An OutputError on every rank if a file cannot be changed (collective)."""
+    from .output import frames_folder
+
     problem = None
     if comm.rank == 0:
         try:
@@ -468,8 +476,16 @@ def cut_outputs(plan: RestartPlan, comm: MPI.Comm) -> None:
                     stream.truncate(plan.probe_bytes)
             if plan.xdmf is not None:
                 cut_xdmf(plan.xdmf, plan.frames)
-                stem, folder = plan.xdmf.stem, plan.xdmf.parent
-                for old in folder.glob(f"{stem}-restart*.h5"):
+                folder = frames_folder(plan.xdmf)
+                if folder.is_dir():
+                    for old in folder.iterdir():
+                        later = old.suffix == ".h5" and old.stem.isdigit()
+                        if (later and int(old.stem) >= plan.frames) or (
+                            old.suffix == ".xdmf-partial"
+                        ):
+                            old.unlink()
+                stem = plan.xdmf.stem
+                for old in plan.xdmf.parent.glob(f"{stem}-restart*.h5"):
                     number = old.stem.removeprefix(f"{stem}-restart")
                     if number.isdigit() and int(number) >= plan.restart_number:
                         old.unlink()

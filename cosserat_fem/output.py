@@ -17,6 +17,7 @@ from __future__ import annotations
 import hashlib
 import os
 import resource
+import shutil
 import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -399,6 +400,25 @@ class CentrelineOutput:
         return full[self.dof_ids]
 
 
+#: The folder of an XDMF file's HDF5 files: ``<stem>.frames`` beside ``<stem>.xdmf``.
+FRAMES_SUFFIX = ".frames"
+#: The HDF5 file of the mesh in that folder (written once, when the series starts).
+MESH_FILE = "mesh.h5"
+#: Digits of a frame file's name: frame i (from 0) is ``<stem>.frames/<i, zero padded>.h5``.
+FRAME_DIGITS = 6
+
+
+def frames_folder(xdmf: Path) -> Path:
+    """The folder of the HDF5 files of the XDMF file ``xdmf`` (see :class:`XdmfWriter`)."""
+    xdmf = Path(xdmf)
+    return xdmf.with_name(xdmf.stem + FRAMES_SUFFIX)
+
+
+def frame_file(index: int) -> str:
+    """The name, in :func:`frames_folder`, of the HDF5 file of frame ``index`` (from 0)."""
+    return f"{index:0{FRAME_DIGITS}d}.h5"
+
+
 class XdmfWriter:
     """XDMF/HDF5 time series of the rod as a curve in 3D, for ParaView.
 
@@ -426,12 +446,18 @@ class XdmfWriter:
     One temporal collection ``rod`` whose frames each carry the mesh, the time and all the
     arrays in double precision, so that ParaView shows one dataset.
 
-    Kill-safe: a killed run (SIGKILL included) leaves ``<name>.xdmf`` listing exactly the
-    frames written so far and ``<name>.h5`` holding them. Each frame goes into a scratch XML
-    ``<name>.xdmf-partial`` (the HDF5 file closed after it), then the published XML is
-    replaced atomically; a frame is written only if twice its size fits in the file system
-    and under ``ulimit -f`` (an HDF5 write that fails half-way leaves an unreadable file), else
-    an OutputError. Why this layout and what it costs: docs/decisions.md, "XDMF frames".
+    Files: the XML ``<name>.xdmf`` and the folder ``<name>.frames/`` of HDF5 files: the mesh
+    in ``mesh.h5``, frame i (from 0, restarts included) in ``<i, 6 digits>.h5``, e.g.
+    ``solution.frames/000012.h5``; the XML names them relative to its own folder.
+
+    Kill-safe: a killed run (SIGKILL included, at any moment) leaves ``<name>.xdmf`` listing
+    exactly the frames written so far, each in a closed HDF5 file that is never opened for
+    writing again. Each frame is written by DOLFINx into its own new file (with a scratch XML
+    ``<name>.frames/<i>.xdmf-partial``) and closed, and only then is the published XML
+    replaced atomically; a kill can damage only the frame in flight, which the XML does not
+    name yet. A frame is written only if twice its size fits in the file system and under
+    ``ulimit -f`` (an HDF5 write that fails half-way crashed the library), else an
+    OutputError. Why this layout and what it costs: docs/decisions.md, "XDMF frames".
     """
 
     def __init__(
@@ -448,9 +474,11 @@ class XdmfWriter:
         :data:`FIELD_ARRAYS` (default the scene's ``output.fields``); ``U``: the Function
         written (default ``model.U``), holding (p, q); ``write`` may be given another Function
         of the same space (e.g. one mode shape after another). ``resume = (n, frames)``:
-        continue the existing file, which holds ``frames`` frames, as restart n; its new
-        frames go into ``<stem>-restart<n>.h5``. ``run_id``: the identity of the run, written
-        into the XML (checked by a restart, cosserat_fem/checkpoint.py)."""
+        continue, as restart n, the existing XML, which holds ``frames`` frames (cut back to
+        them, later frame files deleted: cosserat_fem/checkpoint.py); the new frames go into
+        new frame files from index ``frames`` on. Otherwise the XML and the frames folder of
+        an earlier series are removed first. ``run_id``: the identity of the run, written into
+        the XML (checked by a restart, cosserat_fem/checkpoint.py)."""
         msh = model.msh
         self.U = model.U if U is None else U
         self.fields = tuple(model.scene.output.fields if fields is None else fields)
@@ -478,40 +506,55 @@ class XdmfWriter:
             )
             self._values = np.empty((len(self.line.cells), (k + 1) * len(components)))
         self.path = Path(path)
-        # Same stem, other extension: DOLFINx derives the HDF5 name "<stem>.h5" from it.
         suffix = self.path.suffix or ".xdmf"
-        self._work = self.path.with_suffix(suffix + "-partial")
+        # The published XML is written under this name, then renamed onto self.path.
+        self._work = self.path.with_name(self.path.stem + suffix + "-partial")
+        self.folder = frames_folder(self.path)
         self.file: io.XDMFFile | None = None
+        self._scratch: Path | None = None  # DOLFINx's XML of the file being written
         self._doc: _XdmfDocument | None = None  # rank 0 only
-        # Bytes a frame adds to the .h5 (measured after each frame; at first the data alone).
+        # Bytes of a frame file (measured after each frame; at first the data alone).
         self._frame_bytes = len(self.functions) * (24 * self.line.n_points + 1400)
+        prefix = self.folder.name + "/"
         if resume is not None:
-            restart, self.writes = resume
-            stem = f"{self.path.stem}-restart{restart}"
-            self._work = self.path.with_name(stem + suffix + "-partial")
+            self.writes = resume[1]
             if self._comm.rank == 0:
-                self._doc = _XdmfDocument(self.path.read_text(encoding="utf-8"))
+                self._doc = _XdmfDocument(self.path.read_text(encoding="utf-8"), prefix)
+                self.folder.mkdir(exist_ok=True)  # outputs of the single-file layout
             return
+        self.writes = 0
         self._guard(self._write_mesh)
         if self._comm.rank == 0:
-            self._doc = _XdmfDocument(self._work.read_text(encoding="utf-8"), run_id)
-        self._guard(self._publish)
-        self.writes = 0
+            self._doc = _XdmfDocument(self._scratch.read_text(encoding="utf-8"), prefix, run_id)
+            self._scratch.unlink()
+        self._guard(lambda: self._publish(None))
 
     @property
     def h5(self) -> Path:
-        """The HDF5 file new frames go into (DOLFINx names it after the working XML)."""
-        return self._work.with_suffix(".h5")
+        """The HDF5 file the next frame goes into."""
+        return self.folder / frame_file(self.writes)
 
     def _write_mesh(self) -> None:
-        """DOLFINx's XML and .h5 of the output mesh, under the working name (collective)."""
-        self.file = io.XDMFFile(self._comm, str(self._work), "w")
+        """A new series: the XML and frames folder of an earlier one removed (the XML first),
+        then DOLFINx's XML and .h5 of the output mesh, ``mesh.h5`` (collective)."""
+        comm = self._comm
+        self._scratch = (self.folder / MESH_FILE).with_suffix(".xdmf-partial")
+        if comm.rank == 0:
+            self.path.unlink(missing_ok=True)
+            if self.folder.is_dir() and not self.folder.is_symlink():
+                shutil.rmtree(self.folder)
+            else:
+                self.folder.unlink(missing_ok=True)
+            self.folder.mkdir()
+        if comm.size > 1:
+            comm.barrier()
+        self.file = io.XDMFFile(comm, str(self._scratch), "w")
         try:
             self.file.write_mesh(self.mesh)
         finally:
             self._close_file()
-        if self._comm.size > 1:
-            self._comm.barrier()
+        if comm.size > 1:
+            comm.barrier()
 
     def _guard(self, action, t: float | None = None) -> None:
         """Run ``action`` (collective); a failed write becomes an OutputError on every rank,
@@ -523,7 +566,7 @@ class XdmfWriter:
             self._close_file()
             when = f" at t = {t:.6g}" if t is not None else ""
             problem = OutputError(
-                f"output: cannot write the XDMF frame{when} to {str(self.h5.parent)!r} "
+                f"output: cannot write the XDMF frame{when} to {str(self.folder)!r} "
                 f"({getattr(exc, 'strerror', None) or exc}); the frames before are kept"
             )
         agree(self._comm, problem)
@@ -532,15 +575,15 @@ class XdmfWriter:
         """Why the next frame may not fit (rank 0): the HDF5 library cannot recover from a
         write that fails half-way (it crashed, and left an .h5 that no longer opened), so a
         frame is written only if twice its size, and the new XML, fit under the file size
-        limit (ulimit -f) and in the free space of the file system."""
+        limit (ulimit -f; the XML is the largest file) and in the free space of the file
+        system."""
         need = 2 * self._frame_bytes + 65536
         xml = self._doc.nbytes if self._doc is not None else 0
         try:
-            size = self.h5.stat().st_size if self.h5.exists() else 0
             limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
-            if limit != resource.RLIM_INFINITY and max(size + need, xml + need) > limit:
+            if limit != resource.RLIM_INFINITY and xml + need > limit:
                 return f"the file size limit (ulimit -f) of {limit} bytes would be reached"
-            info = os.statvfs(self.path.parent)
+            info = os.statvfs(self.folder)
             free = info.f_bavail * info.f_frsize
             if need + xml > free:
                 return f"no space left on the device ({free} bytes free)"
@@ -565,15 +608,16 @@ class XdmfWriter:
             mean = self.line.point_values(self._values)
             for k, function in enumerate(self.functions):
                 function.x.array[:] = mean[:, 3 * k : 3 * k + 3].ravel()
-            before = self.h5.stat().st_size if self._comm.rank == 0 and self.h5.exists() else 0
+            h5 = self.h5
             self._guard(lambda: self._write_frame(t), t)
-            self._guard(self._publish, t)
+            self._guard(lambda: self._publish(self._scratch), t)
             if self._comm.rank == 0:
-                self._frame_bytes = max(self._frame_bytes, self.h5.stat().st_size - before)
+                self._frame_bytes = max(self._frame_bytes, h5.stat().st_size)
         self.writes += 1
 
     def _write_frame(self, t: float) -> None:
-        """DOLFINx's write of every array at t: the .h5 and a scratch XML of this frame alone."""
+        """DOLFINx's write of every array at t into the new file :attr:`h5`, with a scratch XML
+        of this frame alone beside it."""
         self._reopen()
         try:
             last = len(self.functions) - 1
@@ -584,7 +628,7 @@ class XdmfWriter:
                     # file each time, not one truncated and rewritten (ext4 then
                     # allocates its blocks at once, and frees them again with a discard:
                     # ~1.7 ms, against 0.05 ms for a new file that is unlinked).
-                    self._work.unlink()
+                    self._scratch.unlink()
         finally:
             self._close_file()
 
@@ -593,28 +637,34 @@ class XdmfWriter:
         self._close_file()
 
     def _reopen(self) -> None:
-        """Open, in append mode, a scratch XML under the working name that holds the mesh
-        only, so that DOLFINx's XML rewrites stay small and never touch the published file."""
+        """Open, in append mode, the scratch XML ``<i>.xdmf-partial`` of frame i, which holds
+        the mesh only (DOLFINx refers to it), so that DOLFINx creates the new HDF5 file
+        ``<i>.h5`` and its XML rewrites stay small and never touch the published file."""
         comm = self._comm
+        self._scratch = self.h5.with_suffix(".xdmf-partial")
         if comm.rank == 0:
-            self._work.unlink(missing_ok=True)  # a frame that raised may have left it
-            self._work.write_text(self._doc.template(), encoding="utf-8")
+            # A frame killed or failed before its publication may have left both; neither is
+            # named by the published XML.
+            self.h5.unlink(missing_ok=True)
+            self._scratch.unlink(missing_ok=True)
+            self._scratch.write_text(self._doc.template(), encoding="utf-8")
         if comm.size > 1:
             comm.barrier()  # every rank reads the XML in the constructor
-        self.file = io.XDMFFile(comm, str(self._work), "a")
+        self.file = io.XDMFFile(comm, str(self._scratch), "a")
         if comm.size > 1:
             comm.barrier()
         if comm.rank == 0:
-            self._work.unlink()  # DOLFINx's first rewrite makes a new file (see write)
+            self._scratch.unlink()  # DOLFINx's first rewrite makes a new file (see write)
 
     def _close_file(self) -> None:
         if self.file is not None:
             file, self.file = self.file, None
             file.close()
 
-    def _publish(self) -> None:
-        """Add the frame of the scratch XML to the document and replace the published XML with it
-        atomically (rank 0); if that fails the document drops the frame again."""
+    def _publish(self, scratch: Path | None) -> None:
+        """Add the frame of DOLFINx's ``scratch`` XML (None: no frame) to the document and
+        replace the published XML with it atomically (rank 0); if that fails the document
+        drops the frame again."""
         # Rank 0 alone writes the XML (DOLFINx's scratch one in write_function/write_mesh,
         # then the published one) and renames it, once every rank has returned from closing
         # the HDF5 file: parallel HDF5 spreads the metadata writes over the ranks, and rank 0
@@ -623,14 +673,17 @@ class XdmfWriter:
         if self._comm.size > 1:
             self._comm.barrier()
         if self._comm.rank == 0:
-            frame = self._work.read_text(encoding="utf-8")
-            self._work.unlink()  # written anew (see write), then renamed onto the XML
-            self._doc.add_frame(frame)
+            if scratch is not None:
+                frame = scratch.read_text(encoding="utf-8")
+                scratch.unlink()
+                self._doc.add_frame(frame)
             try:
+                self._work.unlink(missing_ok=True)  # a new file (see _write_frame)
                 self._work.write_text(self._doc.text(), encoding="utf-8")
                 os.replace(self._work, self.path)
             except OSError:
-                self._doc.drop_last()  # not published: the document stays the file's
+                if scratch is not None:
+                    self._doc.drop_last()  # not published: the document stays the file's
                 self._work.unlink(missing_ok=True)
                 raise
 
@@ -675,16 +728,22 @@ class _XdmfDocument:
     arrays it holds, instead of one DOLFINx rewrite per array of a file that grows with
     every frame (measured: 9 instead of 2 ms a frame for six arrays at 251 frames)."""
 
-    def __init__(self, xml: str, run_id: str | None = None):
+    def __init__(self, xml: str, prefix: str = "", run_id: str | None = None):
         """From DOLFINx's XML after ``write_mesh`` (grid "mesh") and the run's identity, or
-        from a published file (which holds its run's)."""
+        from a published file (which holds its run's). ``prefix``: the folder of the HDF5
+        files relative to the published XML, put before the file names of DOLFINx's XML (which
+        lies in that folder)."""
         root = ET.fromstring(xml)
+        self.prefix = prefix
         self.run_id = run_id if run_id is not None else xdmf_run_id(root)
         domain = root.find("Domain")
         mesh = domain.find("Grid[@Name='mesh']")
         if mesh is None:
             collection = domain.find(f"Grid[@Name='{XDMF_GRID}']")
             mesh = collection.find("Grid")
+        else:
+            for item in mesh.iter("DataItem"):
+                item.text = prefix + item.text.strip()
         parts = [mesh.find("Topology"), mesh.find("Geometry")]
         self.mesh = "".join(_element_text(e, 4) for e in parts)
         self.frames: list[str] = []
@@ -704,11 +763,12 @@ class _XdmfDocument:
 
     def add_frame(self, xml: str) -> None:
         """Append the frame of ``xml``, DOLFINx's scratch file of one frame (one grid per
-        function, each with the same Time and one Attribute)."""
+        function, each with the same Time and one Attribute; file names without the prefix)."""
         domain = ET.fromstring(xml).find("Domain")
         grids = [c.find("Grid") for c in domain.findall("Grid[@GridType='Collection']")]
         if not grids:
             return
+        prefix = self.prefix
         parts = [f'      <Grid Name="{XDMF_GRID}" GridType="Uniform">\n', self.mesh]
         parts.append(f"        <Time Value={quoteattr(grids[0].find('Time').get('Value'))} />\n")
         for grid in grids:  # formatted directly: ElementTree's serializer cost ~0.1 ms each
@@ -719,7 +779,8 @@ class _XdmfDocument:
                 f"        <Attribute Name={quoteattr(a.get('Name'))} AttributeType="
                 f"{quoteattr(a.get('AttributeType'))} Center={quoteattr(a.get('Center'))}>\n"
                 f"          <DataItem Dimensions={quoteattr(item.get('Dimensions'))} "
-                f'Format="HDF" Precision="{precision}">{escape(item.text.strip())}</DataItem>\n'
+                f'Format="HDF" Precision="{precision}">{escape(prefix + item.text.strip())}'
+                "</DataItem>\n"
                 "        </Attribute>\n"
             )
         parts.append("      </Grid>\n")

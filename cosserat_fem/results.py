@@ -33,12 +33,16 @@ exception. What is read has passed these checks:
 * solution.xdmf: XML without entity declarations (an entity-expansion bomb is refused before
   anything is expanded), root ``Xdmf`` with a ``Domain``; each frame a ``Time`` whose value
   is a number, each ``Attribute`` a name and an HDF ``DataItem`` ``file.h5:/dataset`` whose
-  file is a plain name in the XDMF file's folder; each dataset there, numeric, of the
-  XML's ``Dimensions``; the geometry (N, 2 or 3) as its ``GeometryType`` says, N >= 2 points
-  spanning a positive length; the topology integers in [0, N); every array (N, 3). At most
-  :data:`MAX_VALUES` numbers are read from the .h5 files of one XDMF file. An XDMF file
-  without any frame (a run killed before its first) raises :class:`NoFramesError`, which
-  ``plot`` takes as "no surfaces" when probes.csv has rows.
+  file is a plain name in the XDMF file's folder (the single-file layout of earlier versions:
+  ``solution.h5``, ``solution-restart<n>.h5``) or a file of the frames folder beside it,
+  ``<name>.frames/mesh.h5`` or ``<name>.frames/<digits>.h5`` (one file a frame, written by
+  :class:`cosserat_fem.output.XdmfWriter`; one folder level, no ``..``, no absolute path,
+  nothing else); each dataset there, numeric, of the XML's ``Dimensions``; the geometry
+  (N, 2 or 3) as its ``GeometryType`` says, N >= 2 points spanning a positive length; the
+  topology integers in [0, N); every array (N, 3). At most :data:`MAX_VALUES` numbers are
+  read from the .h5 files of one XDMF file. An XDMF file without any frame (a run killed
+  before its first) raises :class:`NoFramesError`, which ``plot`` takes as "no surfaces"
+  when probes.csv has rows.
 * A scratch ``solution.xdmf-partial`` or ``summary.json.tmp`` left by a killed run is never
   read.
 """
@@ -47,6 +51,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import xml.etree.ElementTree as ET
 import xml.parsers.expat
 from dataclasses import dataclass
@@ -401,6 +406,11 @@ def _h5py():
 _H5_ERRORS = (OSError, RuntimeError, ValueError, TypeError, KeyError, IndexError)
 
 
+#: The one reference that is not a plain name: a file of the frames folder beside the XDMF file
+#: (cosserat_fem/output.py, ``frames_folder``): one folder level, no ".." or absolute path.
+_FRAME_FILE = re.compile(r"[^/\\]+\.frames/(?:mesh|[0-9]{6,})\.h5")
+
+
 class _Datasets:
     """Open .h5 files of one XDMF file, by the ``file.h5:/path`` references of its XML."""
 
@@ -446,8 +456,13 @@ class _Datasets:
         name, colon, dataset = text.partition(":")
         if not (colon and name and dataset):
             raise self._bad(what, f"DataItem {_show(text)} is not 'file.h5:/dataset'")
-        if "/" in name or "\\" in name or name in (".", ".."):
-            raise self._bad(what, f"{_show(name)} is not a file name in the XDMF file's folder")
+        plain = not ("/" in name or "\\" in name or name in (".", ".."))
+        if not (plain or _FRAME_FILE.fullmatch(name)):
+            raise self._bad(
+                what,
+                f"{_show(name)} is not a file name in the XDMF file's folder, nor a frame file "
+                "'<name>.frames/<digits>.h5' or '<name>.frames/mesh.h5'",
+            )
         dims = item.get("Dimensions")
         expected = None
         if dims is not None:

@@ -3,9 +3,11 @@
 A folder holds the outputs of one run at a time. A new ``run`` or ``static`` into a folder
 first removes what an earlier run left there that it will not overwrite itself, so that no
 stale file can be mistaken for its own: the earlier run's checkpoint (a restart would
-otherwise continue it after the new outputs), the HDF5 files of its restarts, a scratch XML
-of a killed frame, and its XDMF pair when the new run writes none. Only these names are
-removed; other files in the folder are left alone. Then it writes summary.json with the
+otherwise continue it after the new outputs), its XDMF file and frames folder
+(``solution.frames/``, cosserat_fem/output.py), and the HDF5 files and scratch XML of the
+earlier single-file layout (``solution.h5``, ``solution-restart<n>.h5``,
+``solution.xdmf-partial``). Only these names are removed; other files in the folder are left
+alone. Then it writes summary.json with the
 status "running" and a new run identity (:func:`new_run_id`) before any other output, which
 the checkpoint and the XDMF file carry too (cosserat_fem/checkpoint.py).
 """
@@ -48,16 +50,18 @@ def new_run_id(comm: MPI.Comm) -> str:
 
 
 def stale_outputs(folder: Path, writes_xdmf: bool) -> list[Path]:
-    """The files of an earlier run in ``folder`` that a new run would not overwrite."""
+    """The files of an earlier run in ``folder`` that a new run removes (whether or not it
+    writes an XDMF file, ``writes_xdmf``), in the order they are removed: the checkpoint, the
+    XDMF file (so that no XML names a removed file; a new XDMF series publishes its own), its
+    frames folder, and the HDF5 files and scratch XML of the earlier single-file layout."""
     from .checkpoint import DIRECTORY
+    from .output import frames_folder
 
     stem = Path(XDMF).stem
-    stale = [folder / DIRECTORY]
+    stale = [folder / DIRECTORY, folder / XDMF, frames_folder(folder / XDMF), folder / f"{stem}.h5"]
     stale += sorted(folder.glob(f"{stem}-restart*.h5"))
     stale += sorted(folder.glob(f"{stem}*.xdmf-partial"))
-    if not writes_xdmf:
-        stale += [folder / XDMF, folder / f"{stem}.h5"]
-    return [p for p in stale if p.exists()]
+    return [p for p in stale if p.exists() or p.is_symlink()]
 
 
 def claim(folder: Path, comm: MPI.Comm, writes_xdmf: bool, summary: dict) -> None:
@@ -68,7 +72,7 @@ def claim(folder: Path, comm: MPI.Comm, writes_xdmf: bool, summary: dict) -> Non
     if comm.rank == 0:
         try:
             for path in stale_outputs(folder, writes_xdmf):
-                if path.is_dir():
+                if path.is_dir() and not path.is_symlink():
                     (path / "checkpoint.json").unlink(missing_ok=True)
                     shutil.rmtree(path)
                 else:

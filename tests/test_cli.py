@@ -48,7 +48,9 @@ def test_run_writes_probes_summary_and_xdmf(tmp_path):
     names = {a.get("Name") for a in tree.getroot().iter("Attribute")}
     # the paper's scene asks for output.fields = displacement and angles only
     assert names == {"displacement", "angles"}
-    assert (out / "solution.h5").stat().st_size > 0
+    frames = sorted(p.name for p in (out / "solution.frames").iterdir())
+    assert frames == ["000000.h5", "000001.h5", "000002.h5", "000003.h5", "000004.h5", "mesh.h5"]
+    assert all((out / "solution.frames" / name).stat().st_size > 0 for name in frames)
 
 
 @pytest.mark.parametrize(

@@ -65,7 +65,8 @@ def test_demo_against_linear_timoshenko(demo_runs):
         "fig5_x_surface.png",
         "fig6_y_surface.png",
         "solution.xdmf",
-        "solution.h5",
+        "solution.frames/mesh.h5",
+        "solution.frames/000000.h5",
         "probes.csv",
         "summary.json",
     ):

@@ -36,6 +36,7 @@ from __future__ import annotations
 import json
 import os
 import random
+import re
 import resource
 import shutil
 import signal
@@ -51,8 +52,17 @@ from conftest import PYTHON, ROOT, run_command, subprocess_env
 SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
 SETTINGS = ("time.end=0.0006", "output.xdmf_interval=6e-5")
 SEED = 20240612
-FILES = ("probes.csv", "summary.json", "solution.xdmf", "solution.h5")
+#: The files a case damages: the text files, frame 0's HDF5 file and the mesh's (one file a
+#: frame in the frames folder, cosserat_fem/output.py; the other frames are copied as they are).
+FILES = (
+    "probes.csv",
+    "summary.json",
+    "solution.xdmf",
+    "solution.frames/000000.h5",
+    "solution.frames/mesh.h5",
+)
 TEXT_FILES = FILES[:3]
+FRAMES = "solution.frames"
 BOMB_SECONDS = 1.0  # an entity bomb must be refused this fast (measured ~1 ms)
 # The helper's guards against a reader that runs away (the old one read the 10^9-point
 # geometry: 24 GB, until the OOM killer stopped it; one that opened the FIFO would block for
@@ -138,30 +148,46 @@ def _swap(a: str, b: str):
 
 
 def _replace_path(name: str, make):
-    """Replace the file ``name`` by what ``make(path)`` puts there (a folder, a FIFO, ...)."""
+    """Replace the file or folder ``name`` by what ``make(path)`` puts there (a folder, a FIFO,
+    ..., nothing)."""
 
     def damage(folder: Path) -> None:
-        (folder / name).unlink()
-        make(folder / name)
+        path = folder / name
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+        make(path)
 
     return damage
 
 
-def _h5(edit):
-    """Edit solution.h5 with h5py: ``edit(file)``."""
+def _h5(edit, name: str = FILES[3]):
+    """Edit the HDF5 file ``name`` (default frame 0's) with h5py: ``edit(file)``."""
 
     def damage(folder: Path) -> None:
         import h5py
 
-        with h5py.File(folder / "solution.h5", "r+") as f:
+        with h5py.File(folder / name, "r+") as f:
             edit(f)
 
     return damage
 
 
+def _every_frame(edit):
+    """Edit every frame's HDF5 file with h5py: ``edit(file)``."""
+
+    def damage(folder: Path) -> None:
+        for path in sorted((folder / FRAMES).glob("[0-9]*.h5")):
+            _h5(edit, str(path.relative_to(folder)))(folder)
+
+    return damage
+
+
 def _dataset(name: str, make):
-    """Replace dataset ``name`` of solution.h5 by ``make(old values)`` (an array), or by what
-    ``make(old values, file, name)`` creates when it takes three arguments."""
+    """Replace dataset ``name`` (of mesh.h5 for /Mesh/..., else of frame 0's file) by
+    ``make(old values)`` (an array), or by what ``make(old values, file, name)`` creates when
+    it takes three arguments."""
 
     def edit(f) -> None:
         import numpy as np
@@ -173,7 +199,7 @@ def _dataset(name: str, make):
         else:
             f[name] = make(old)
 
-    return _h5(edit)
+    return _h5(edit, FILES[4] if name.startswith("/Mesh/") else FILES[3])
 
 
 def _both(*damages):
@@ -188,7 +214,7 @@ GEOMETRY = "/Mesh/mesh/geometry"
 TOPOLOGY = "/Mesh/mesh/topology"
 DISP0 = "/Function/displacement/0"
 FIRST_TIME = '<Time Value="0" />'
-DISP0_ITEM = "solution.h5:/Function/displacement/0"
+DISP0_ITEM = "solution.frames/000000.h5:/Function/displacement/0"
 
 
 def _billion_laughs() -> str:
@@ -209,6 +235,32 @@ def _quadratic_blowup() -> str:
     )
 
 
+def _single_file(folder: Path) -> None:
+    """solution.h5: every dataset of the frames folder's files in one file (the single-file
+    layout of earlier versions; each frame's datasets are named by its time, so none clash)."""
+    import h5py
+
+    def copy(out, f) -> None:
+        names: list[str] = []
+        f.visititems(lambda n, o: names.append(n) if isinstance(o, h5py.Dataset) else None)
+        for name in names:
+            out[name] = f[name][()]
+
+    with h5py.File(folder / "solution.h5", "w") as out:
+        for source in sorted((folder / FRAMES).glob("*.h5")):
+            with h5py.File(source, "r") as f:
+                copy(out, f)
+
+
+def _single_file_layout(folder: Path) -> None:
+    """The genuine run as XdmfWriter wrote it before one file a frame: the same XML naming
+    solution.h5 only, which holds every dataset; the frames folder removed."""
+    _single_file(folder)
+    shutil.rmtree(folder / FRAMES)
+    single = re.compile(r"solution\.frames/\w+\.h5:")
+    _text(folder, "solution.xdmf", lambda t: single.sub("solution.h5:", t))
+
+
 def _earlier_layout(folder: Path) -> None:
     """The genuine data in DOLFINx's own layout: a grid "mesh" with σ along the first axis (XY,
     as DOLFINx writes an interval mesh) and one temporal collection per array; summary.json's
@@ -219,6 +271,7 @@ def _earlier_layout(folder: Path) -> None:
     summary = json.loads((folder / "summary.json").read_text())
     summary["scene"]["rod"]["length"] = 2.0
     (folder / "summary.json").write_text(json.dumps(summary))
+    _single_file(folder)
     with h5py.File(folder / "solution.h5", "r+") as f:
         z = np.asarray(f[GEOMETRY])[:, 2]  # s on the genuine rod of 1 m: σ
         f["/Mesh/old/geometry"] = np.column_stack([z, np.zeros_like(z)])
@@ -283,7 +336,7 @@ def hand_written(genuine: Path) -> list[Case]:
         fields[column] = value
         return "".join([*lines[:2], ",".join(fields) + "\n", *lines[3:]])
 
-    P, S, X, H = FILES
+    P, S, X, H, M = FILES
     cases = []
 
     def refuse(category, name, damage, names):
@@ -410,20 +463,36 @@ def hand_written(genuine: Path) -> list[Case]:
     refuse(
         "xdmf", "Dimensions not integers", _replace(X, 'Dimensions="24 2"', 'Dimensions="a"'), (X,)
     )
-    refuse("xdmf", "a missing .h5", _replace(X, "solution.h5:", "missing.h5:", 1), (X,))
-    refuse(
-        "xdmf", "a dataset not in the .h5", _replace(X, DISP0_ITEM, "solution.h5:/nothing"), (X,)
-    )
-    refuse("xdmf", "a group, not a dataset", _replace(X, DISP0_ITEM, "solution.h5:/Function"), (X,))
+    refuse("xdmf", "a missing .h5", _replace(X, f"{M}:", "missing.h5:", 1), (X,))
+    refuse("xdmf", "a missing frame file", _replace(X, f"{H}:", f"{FRAMES}/000099.h5:"), (X,))
+    refuse("xdmf", "a dataset not in the .h5", _replace(X, DISP0_ITEM, f"{H}:/nothing"), (X,))
+    refuse("xdmf", "a group, not a dataset", _replace(X, DISP0_ITEM, f"{H}:/Function"), (X,))
     refuse(
         "xdmf",
         "a reference out of the folder",
-        _replace(X, "solution.h5:", "../../../../etc/passwd:", 1),
+        _replace(X, f"{M}:", "../../../../etc/passwd:", 1),
         (X,),
     )
-    refuse("xdmf", "an absolute reference", _replace(X, "solution.h5:", "/dev/zero:", 1), (X,))
-    refuse("xdmf", "summary.json as the .h5", _replace(X, "solution.h5:", "summary.json:"), (X, S))
-    refuse("xdmf", "the run folder as the .h5", _replace(X, "solution.h5:", ".:"), (X,))
+    refuse("xdmf", "an absolute reference", _replace(X, f"{M}:", "/dev/zero:", 1), (X,))
+    refuse("xdmf", "summary.json as the .h5", _replace(X, f"{M}:", "summary.json:"), (X, S))
+    refuse("xdmf", "the run folder as the .h5", _replace(X, f"{M}:", ".:"), (X,))
+    # A file of the frames folder: exactly <name>.frames/<digits or mesh>.h5, one level.
+    for bad in (
+        f"{FRAMES}/../../../../etc/passwd",
+        f"{FRAMES}/../summary.json",
+        f"/{FRAMES}/000000.h5",
+        f"{FRAMES}/sub/000000.h5",
+        f"{FRAMES}//000000.h5",
+        f"./{FRAMES}/000000.h5",
+        f"{FRAMES}/000000.h5/..",
+        "solution.frame/000000.h5",
+        f"{FRAMES}/x.h5",
+        f"{FRAMES}/.h5",
+        f"{FRAMES}\\000000.h5",
+        f"{FRAMES}/",
+    ):
+        refuse("xdmf", f"a reference {bad!r}", _replace(X, f"{H}:", f"{bad}:"), (X,))
+    refuse("xdmf", "the frames folder as the .h5", _replace(X, f"{H}:", f"{FRAMES}:"), (X, FRAMES))
     refuse(
         "xdmf",
         "GeometryType X_Y_Z",
@@ -473,10 +542,19 @@ def hand_written(genuine: Path) -> list[Case]:
     refuse("xdmf", "a huge (sparse) solution.xdmf", _sparse(X, (1 << 30) + 1), (X,))
     refuse("xdmf", "solution.xdmf a folder", _replace_path(X, lambda p: p.mkdir()), (X,))
 
-    # solution.h5 and the arrays
+    # the HDF5 files (frame 0's, the mesh's) and the arrays
     refuse("h5", "random bytes", _write(H, noise * 20), (H,))
     refuse("h5", "an empty .h5", _write(H, b""), (H,))
     refuse("h5", "the .h5 a folder", _replace_path(H, lambda p: p.mkdir()), (H, X))
+    refuse("h5", "random bytes as mesh.h5", _write(M, noise * 20), (M,))
+    refuse("h5", "a frame file missing", _replace_path(H, lambda p: None), (H, X))
+    refuse("h5", "the frames folder missing", _replace_path(FRAMES, lambda p: None), (H, M, X))
+    refuse(
+        "h5",
+        "the frames folder a file",
+        _replace_path(FRAMES, lambda p: p.write_bytes(noise)),
+        (H, M, X),
+    )
     refuse(
         "h5",
         "the .h5 a link to /dev/zero",
@@ -491,8 +569,8 @@ def hand_written(genuine: Path) -> list[Case]:
             _dataset(GEOMETRY, lambda a: a[:, :2]),
             _replace(
                 X,
-                'Dimensions="25 3" Format="HDF" Precision="8">solution.h5:/Mesh',
-                'Dimensions="25 2" Format="HDF" Precision="8">solution.h5:/Mesh',
+                'Dimensions="25 3" Format="HDF" Precision="8">solution.frames/mesh.h5:/Mesh',
+                'Dimensions="25 2" Format="HDF" Precision="8">solution.frames/mesh.h5:/Mesh',
                 11,
             ),
         ),
@@ -540,8 +618,8 @@ def hand_written(genuine: Path) -> list[Case]:
             ),
             _replace(
                 X,
-                'Dimensions="25 3" Format="HDF" Precision="8">solution.h5:/Mesh',
-                'Dimensions="1000000000 3" Format="HDF" Precision="8">solution.h5:/Mesh',
+                f'Dimensions="25 3" Format="HDF" Precision="8">{M}:/Mesh',
+                f'Dimensions="1000000000 3" Format="HDF" Precision="8">{M}:/Mesh',
                 11,
             ),
         ),
@@ -550,7 +628,7 @@ def hand_written(genuine: Path) -> list[Case]:
     read(
         "h5",
         "subnormal displacements",
-        _h5(
+        _every_frame(
             lambda f: [
                 f[f"/Function/displacement/{k}"].write_direct(np.full((25, 3), 5e-324))
                 for k in f["/Function/displacement"]
@@ -561,9 +639,16 @@ def hand_written(genuine: Path) -> list[Case]:
     huge = _dataset(DISP0, lambda a: np.full(a.shape, 1e99))
     read("h5", "displacements of 1e99 m", huge, plot=True)
     read("h5", "the earlier layout (DOLFINx's)", _earlier_layout, plot=True)
+    read("h5", "the single-file layout (before one file a frame)", _single_file_layout, plot=True)
+
     # every point displaced onto the fixed end: numbers a run never writes, but plausible
     # ones; plot draws them, render refuses them (test_render_refuses_a_damaged_folder)
-    collapse = _h5(lambda f: f[DISP0].write_direct(-np.asarray(f[GEOMETRY])))
+    def collapse(folder: Path) -> None:
+        import h5py
+
+        with h5py.File(folder / M, "r") as mesh, h5py.File(folder / H, "r+") as frame:
+            frame[DISP0].write_direct(-np.asarray(mesh[GEOMETRY]))
+
     read("h5", "the rod collapsed to a point", collapse, plot=True)
 
     # what a killed run leaves (tests/test_kill.py): all of it must read and plot
@@ -824,8 +909,9 @@ def helper_main(genuine: Path, work: Path, report: Path) -> None:
     for i, case in enumerate(cases):
         folder = work / f"case{i}"
         folder.mkdir(parents=True)
-        for name in FILES:
+        for name in TEXT_FILES:
             shutil.copyfile(genuine / name, folder / name)
+        shutil.copytree(genuine / FRAMES, folder / FRAMES)
         try:
             case.damage(folder)
         except Exception as exc:  # the test's own mistake: say so
@@ -930,8 +1016,8 @@ CATEGORIES = {
     "summary": "summary.json: not JSON, not an object, nested too deep, fields of wrong types",
     "xdmf": "solution.xdmf: not XML, foreign XML, missing elements, bad Time values and "
     "DataItems, references out of the folder or to missing files/datasets, entity bombs",
-    "h5": "solution.h5: random/empty, wrong shapes and kinds, bad topology, NaN/inf, a 10^9-"
-    "point geometry; readable odd values; the earlier layout",
+    "h5": "the frames folder's HDF5 files: random/empty, missing, wrong shapes and kinds, bad "
+    "topology, NaN/inf, a 10^9-point geometry; readable odd values; the earlier layouts",
     "kill": "a killed run's leftovers: cut rows and headers, scratch files, no frames yet",
     "truncate": "every file truncated at random offsets (probes.csv must always read)",
     "flip": "random byte flips in every file",
@@ -964,6 +1050,15 @@ def test_the_earlier_layout_is_read(report):
     (r,) = [r for r in results if r["name"] == "the earlier layout (DOLFINx's)"]
     assert r["read"] == "ok" and r["shape"] == [11, 25], r
     assert abs(r["length"] - 2.0) < 1e-12, r
+
+
+def test_the_single_file_layout_is_read(report):
+    """Outputs of the single-file layout (every frame in solution.h5, named by the XML as
+    ``solution.h5:/...``), made from the genuine data, still read: 11 frames of 25 points."""
+    results, _ = report
+    (r,) = [r for r in results if r["name"] == "the single-file layout (before one file a frame)"]
+    assert r["read"] == "ok" and r["shape"] == [11, 25] and not r["problems"], r
+    assert abs(r["length"] - 1.0) < 1e-12, r
 
 
 def test_entity_bombs_are_refused_quickly(report):
@@ -1015,7 +1110,7 @@ def test_d12_binary_probes_csv(tmp_path):
         ("d12", "probes.csv"),
         ("title", "summary.json"),
         ("topology", "solution.xdmf"),
-        ("points", "solution.h5"),
+        ("points", "solution.frames/000000.h5"),
         ("time", "solution.xdmf"),
     ],
 )

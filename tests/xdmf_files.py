@@ -82,12 +82,17 @@ class H5File:
         self.lib().H5Fclose(self.fid)
 
 
-def read_xdmf(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+def read_xdmf(path: Path, names: bool = True) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """{name: (times, free-end values of each frame)} of ``displacement`` and ``angles``, after
-    checking every HDF5 reference of the XML: to ``<stem>.h5`` or, after restarts,
-    ``<stem>-restart<n>.h5`` in the same folder, with the XML's dimensions, finite values."""
+    checking every HDF5 reference of the XML: to ``<stem>.frames/mesh.h5`` and one file a
+    frame, ``<stem>.frames/<i, 6 digits>.h5``, i = 0, 1, ... in order (restarts included;
+    cosserat_fem/output.py), with the XML's dimensions, finite values. ``names=False``: any
+    file names (e.g. those of the earlier single-file layout, ``<stem>.h5``), the rest checked
+    all the same."""
     root = ET.parse(path).getroot()  # raises on a cut or empty file
-    allowed = re.compile(re.escape(path.stem) + r"(-restart[0-9]+)?\.h5")
+    folder = re.escape(path.stem) + r"\.frames/"
+    mesh_file = re.compile(folder + r"mesh\.h5")
+    frame_file = re.compile(folder + r"([0-9]{6})\.h5")
     files: dict[str, H5File] = {}
     try:
         data = {}
@@ -96,9 +101,10 @@ def read_xdmf(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
             if item.text.strip() in data:  # the mesh, referenced by every frame
                 continue
             filename, dataset = item.text.strip().split(":")
-            assert allowed.fullmatch(filename), filename
+            if names:
+                assert mesh_file.fullmatch(filename) or frame_file.fullmatch(filename), filename
             if filename not in files:
-                files[filename] = H5File(path.with_name(filename))
+                files[filename] = H5File(path.parent / filename)
             values = files[filename].read(dataset)
             dims = tuple(int(n) for n in item.get("Dimensions").split())
             assert values.shape == dims, (dataset, values.shape, dims)
@@ -108,6 +114,11 @@ def read_xdmf(path: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         # reference centreline (0, 0, s) [m] whose free end has the largest s, and the arrays.
         grids = root.findall("Domain/Grid[@GridType='Collection']/Grid")
         times = np.array([float(g.find("Time").get("Value")) for g in grids])
+        for i, grid in enumerate(grids if names else ()):  # frame i in its own file
+            for item in grid.findall("Attribute/DataItem"):
+                assert frame_file.fullmatch(item.text.split(":")[0])[1] == f"{i:06d}", i
+            for item in grid.findall("Topology/DataItem") + grid.findall("Geometry/DataItem"):
+                assert mesh_file.fullmatch(item.text.split(":")[0]), item.text
         series = {name: (times, []) for name in ("displacement", "angles")}
         for grid in grids:
             x = data[grid.find("Geometry/DataItem").text.strip()]
@@ -133,7 +144,7 @@ def read_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, dict[str, np.ndarra
     def dataset(item) -> np.ndarray:
         filename, name = item.text.strip().split(":")
         if filename not in files:
-            files[filename] = H5File(path.with_name(filename))
+            files[filename] = H5File(path.parent / filename)
         return files[filename].read(name)
 
     try:
