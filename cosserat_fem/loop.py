@@ -98,20 +98,26 @@ def activate_chart(model: RodModel, integrator, solver: NewtonSolver) -> None:
 
 
 def watch_chart(
-    model: RodModel, integrator, solver: NewtonSolver, history: StateHistory | None = None
+    model: RodModel,
+    integrator,
+    solver: NewtonSolver,
+    history: StateHistory | None = None,
+    cos: np.ndarray | None = None,
 ) -> float | None:
-    """Between steps: if |θ| > charts.RESET_THETA at some node, move the chart onto the rod's
-    rotation (cosserat_fem/charts.py), mapping the integrator's states and rates (and those of
-    an adaptive ``history``) into it (Integrator.change_variables). Returns the largest |θ|
-    if it moved, else None. Collective."""
+    """Between steps: if the chart nears its singularity at some node, |cos θ| < cos
+    charts.RESET_THETA (θ within 0.67 rad of ±π/2), move it onto the rod's rotation
+    (cosserat_fem/charts.py), mapping the integrator's states and rates (and those of an
+    adaptive ``history``) into it (Integrator.change_variables). ``cos``: cos θ at the owned
+    nodes if known (checks.cos_theta). Returns the angle |θ| the test found (the one of the
+    smallest |cos θ|) if the chart moved, else None. Collective."""
     if model.chart is None:
         return None
-    n = model.V.dofmap.index_map.size_local
-    theta = model.U.x.array.reshape(-1, model.layout.size)[:n, model.layout.index(3)]
-    largest = float(np.abs(theta).max()) if n else 0.0
+    if cos is None:
+        cos = cos_theta(model, model.U.x.array)
+    smallest = float(np.abs(cos).min()) if cos.size else 1.0
     if model.msh.comm.size > 1:
-        largest = model.msh.comm.allreduce(largest, op=MPI.MAX)
-    if largest <= RESET_THETA:
+        smallest = model.msh.comm.allreduce(smallest, op=MPI.MIN)
+    if smallest >= math.cos(RESET_THETA):
         return None
     Q_new = model.new_chart()
     state_map, rate_map = model.chart_maps(Q_new)
@@ -123,7 +129,7 @@ def watch_chart(
         solver.request_jacobian()  # the matrix of the old chart's angles
     else:
         activate_chart(model, integrator, solver)
-    return largest
+    return math.acos(min(smallest, 1.0))
 
 
 class TimeLoop:
@@ -233,10 +239,11 @@ class TimeLoop:
     def _watch_chart(self, t: float) -> None:
         """After an accepted step to t [s]: :func:`watch_chart`, and the chart-crossing check
         starts again from the new chart's angles."""
-        largest = watch_chart(self.model, self.integrator, self.solver, self.history)
+        model = self.model
+        largest = watch_chart(model, self.integrator, self.solver, self.history, self._cos_accepted)
         if largest is None:
             return
-        self._cos_accepted = self._cos_candidate = cos_theta(self.model, self.model.U.x.array)
+        self._cos_accepted = self._cos_candidate = cos_theta(model, model.U.x.array)
         self.state.chart_resets += 1
         LOGGER.info("t = %.6g s: chart moved onto the rod (|θ| reached %.3f rad)", t, largest)
 

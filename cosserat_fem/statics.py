@@ -20,6 +20,7 @@ the Jacobian (full Newton): the matrix changes with the load.
 
 from __future__ import annotations
 
+import math
 import time as clock
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -92,17 +93,16 @@ class StaticLoop:
 
     def _move_chart(self, U_n: np.ndarray) -> bool:
         """Before a load step: move the chart onto the rod's rotation (changing U_n in place)
-        when |θ| > charts.RESET_THETA at some node, so that the step starts far from the
-        chart's singularity (cosserat_fem/charts.py). Returns whether it moved."""
+        when |cos θ| < cos charts.RESET_THETA at some node, so that the step starts far from
+        the chart's singularity (cosserat_fem/charts.py). Returns whether it moved."""
         model = self.model
         if model.chart is None:
             return False
-        n = model.V.dofmap.index_map.size_local
-        theta = np.abs(U_n.reshape(-1, model.layout.size)[:n, model.layout.index(3)])
-        largest = float(theta.max()) if n else 0.0
+        cos = cos_theta(model, U_n)
+        smallest = float(np.abs(cos).min()) if cos.size else 1.0
         if model.msh.comm.size > 1:
-            largest = model.msh.comm.allreduce(largest, op=MPI.MAX)
-        if largest <= RESET_THETA:
+            smallest = model.msh.comm.allreduce(smallest, op=MPI.MIN)
+        if smallest >= math.cos(RESET_THETA):
             return False
         model.reset_chart(U_n)
         self.chart_resets += 1
@@ -147,10 +147,14 @@ class StaticLoop:
                 except (NewtonFailure, SolverError) as exc:
                     st.rejected += 1
                     step *= 0.5
-                    cause = exc if isinstance(exc, SolverError) else SolverError(
-                        f"Newton did not converge ({exc.reason}, {exc.iterations} iterations)",
-                        where=f"load factor {trial:.6g}",
-                        retry=True,
+                    cause = (
+                        exc
+                        if isinstance(exc, SolverError)
+                        else SolverError(
+                            f"Newton did not converge ({exc.reason}, {exc.iterations} iterations)",
+                            where=f"load factor {trial:.6g}",
+                            retry=True,
+                        )
                     )
                     events.step_rejected(self, cause)
                     if step < smallest * (1.0 - 1e-12):
