@@ -284,7 +284,7 @@ def _field_expressions(U, model: RodModel, fields: tuple[str, ...]) -> list[tupl
     see :class:`XdmfWriter`."""
     U = model.layout.full(U)  # a planar model's unknowns in the 12 components (zeros elsewhere)
     tau = model.scene.damping.retardation_time  # n, m with their Kelvin–Voigt parts
-    chart = model.chart_form()
+    chart = model.chart_form() if model.chart_moved else None
     res = resultants(U, model.rod, tau, chart) if {"strains", "forces"} & set(fields) else None
     ell = model.length
     exprs = {
@@ -299,8 +299,8 @@ def _field_expressions(U, model: RodModel, fields: tuple[str, ...]) -> list[tupl
 
 
 def _fixed_basis_angles(U, chart) -> ufl.core.expr.Expr:
-    """(θ, ψ, φ) of U, or with a chart those of (18) for the directors D A, with |θ| ≤ π/2 and
-    ψ, φ in (−π, π] (cosserat_fem/charts.py euler_angles, without continuation)."""
+    """(θ, ψ, φ) of U, or in a chart (one that has moved) those of (18) for the directors D A,
+    with |θ| ≤ π/2 and ψ, φ in (−π, π] (cosserat_fem/charts.py euler_angles, not continued)."""
     if chart is None:
         return ufl.as_vector([U[3], U[4], U[5]])
     D = directors(ufl.as_vector([U[i] for i in range(6)]), chart)
@@ -492,19 +492,12 @@ class XdmfWriter:
         self.line = CentrelineOutput(msh, model.length, k)
         self.mesh = self.line.mesh
         P1 = self.line.space
-        self.functions: list[fem.Function] = []
-        components = []
-        parts = _field_expressions(self.U, model, self.fields)  # embeds a planar U once
-        for name, expr in parts:
-            self.functions.append(fem.Function(P1, name=name))
-            components += [expr[i] for i in range(3)]
+        self.functions = [
+            fem.Function(P1, name=name) for field in self.fields for name in FIELD_ARRAYS[field]
+        ]
+        self.model, self._jit_params, self._k = model, jit_params or {}, k
         self._expr = None
-        if components:
-            points = np.linspace(0.0, 1.0, k + 1)[:, None]  # reference points j/k, in order
-            self._expr = fem.Expression(
-                ufl.as_vector(components), points, jit_params=jit_params or {}
-            )
-            self._values = np.empty((len(self.line.cells), (k + 1) * len(components)))
+        self._compile()
         self.path = Path(path)
         suffix = self.path.suffix or ".xdmf"
         # The published XML is written under this name, then renamed onto self.path.
@@ -591,6 +584,20 @@ class XdmfWriter:
             return str(exc.strerror or exc)
         return None
 
+    def _compile(self) -> None:
+        """The expression of every array at the output points; with a chart that has moved,
+        the charted one (angles of the directors from the fixed basis; until then the
+        unknowns' angles, which the paper's chart measures from it)."""
+        self._charted = self.model.chart_moved
+        parts = _field_expressions(self.U, self.model, self.fields)  # embeds a planar U once
+        components = [expr[i] for _, expr in parts for i in range(3)]
+        if components:
+            points = np.linspace(0.0, 1.0, self._k + 1)[:, None]  # reference points j/k
+            self._expr = fem.Expression(
+                ufl.as_vector(components), points, jit_params=self._jit_params
+            )
+            self._values = np.empty((len(self.line.cells), (self._k + 1) * len(components)))
+
     def write(self, t: float, U: fem.Function | None = None) -> None:
         """A frame at t [s] (a load factor, a mode number) of U, or of ``U`` copied into it;
         OutputError if it may not fit (:meth:`_room_problem`) or is not written, the frames
@@ -604,6 +611,8 @@ class XdmfWriter:
                     f"output: the XDMF frame at t = {t:.6g} was not written to "
                     f"{str(self.h5)!r}: {problem}; the frames before are kept"
                 )
+            if self._charted != self.model.chart_moved:
+                self._compile()
             self._expr.eval(self.line.cells, self._values)
             mean = self.line.point_values(self._values)
             for k, function in enumerate(self.functions):
