@@ -114,7 +114,7 @@ def watch_chart(
         return None
     if cos is None:
         cos = cos_theta(model, model.U.x.array)
-    smallest = float(np.abs(cos).min()) if cos.size else 1.0
+    smallest = model.chart_margin(cos)
     if model.msh.comm.size > 1:
         smallest = model.msh.comm.allreduce(smallest, op=MPI.MIN)
     if smallest >= math.cos(RESET_THETA):

@@ -217,10 +217,11 @@ def _normalised(shape: fem.Function) -> fem.Function:
 
 def max_modes(scene: Scene) -> int:
     """How many modes the discretisation has: the free dofs of p, six per Lagrange node less
-    those a support holds (six at a clamped end, four at a pinned one: x, y, z, φ)."""
+    those a support holds (six at a clamped end, four at a pinned one: x, y, z, φ, three at a
+    spherical one)."""
     disc = scene.discretisation
     nodes = disc.elements * disc.degree + 1
-    held = {"clamped": 6, "pinned": 4, "free": 0}
+    held = {"clamped": 6, "pinned": 4, "spherical": 3, "free": 0}
     return 6 * nodes - held[scene.supports.start] - held[scene.supports.end]
 
 
@@ -236,7 +237,14 @@ def check_count(scene: Scene, count: int) -> None:
 
 
 def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WORLD):
-    """The scene's ``count`` lowest modes about the straight rod or its static state."""
+    """The scene's ``count`` lowest modes about the straight rod or its static state; a
+    SceneError for a mechanism (its stiffness is singular: the rigid-body modes)."""
+    if scene.supports.mechanism:
+        raise SceneError(
+            f'supports: modes of a mechanism (start = "{scene.supports.start}", end = '
+            f'"{scene.supports.end}") are not computed yet: its rigid-body motions make the '
+            "stiffness singular; clamp one end or pin both"
+        )
     check_count(scene, count)
     budget.check(scene, "modes", None, ranks_on_node(comm), comm.size, modes=count)
     if about == "static":

@@ -44,6 +44,10 @@ from .scene import PLANAR, Scene
 START_TAG, END_TAG = 1, 2
 #: The components of U = (p, q) a pinned end holds: x, y, z, φ and their rates.
 PINNED_COMPONENTS = (0, 1, 2, 5, 6, 7, 8, 11)
+#: The components a spherical end holds: x, y, z and their rates.
+SPHERICAL_COMPONENTS = (0, 1, 2, 6, 7, 8)
+#: The components each kind of support holds.
+HELD_COMPONENTS = {"clamped": FULL, "pinned": PINNED_COMPONENTS, "spherical": SPHERICAL_COMPONENTS}
 # The unknowns solved (the model's Layout): all twelve, or those of motion in one plane: x-z,
 # (x, z, ψ) and their rates (y = θ = φ = 0 is an invariant set of (65) when no load, support or
 # initial state leaves the plane: every y, θ, φ row of F vanishes there), or y-z, (y, z, θ) and
@@ -119,6 +123,10 @@ class RodModel:
     chart_active: bool = False
     #: Whether the chart has left the fixed basis (Q ≢ (1, 0, 0, 0)).
     chart_moved: bool = False
+    #: U's blocks (local) at a pinned end, a fork: its φ = 0 holds d1 ⊥ e2 only in the
+    #: paper's chart, so the chart never moves there (a fork's θ = ±π/2 is the gimbal lock
+    #: of the joint itself).
+    fork_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int32))
 
     @property
     def needs_chart(self) -> bool:
@@ -146,24 +154,43 @@ class RodModel:
 
     def chart_maps(self, Q_new: np.ndarray):
         """(state_map, rate_map) of :meth:`Integrator.change_variables` from the current chart to
-        the nodal quaternions ``Q_new``, for state arrays of U's layout."""
+        the nodal quaternions ``Q_new``, for state arrays of U's layout; the nodes whose
+        quaternion does not change keep their values bit for bit."""
         layout, Q_old = self.layout, self.chart.x.array.reshape(-1, 4).copy()
         pick = list(layout.components)
+        moved = np.any(Q_new != Q_old, axis=1)
+        Q_from, Q_to = Q_old[moved], Q_new[moved]
 
         def state_map(state: np.ndarray) -> np.ndarray:
-            return change_chart(layout.full_array(state), Q_old, Q_new)[:, pick].ravel()
+            full = layout.full_array(state).copy()
+            full[moved] = change_chart(full[moved], Q_from, Q_to)
+            return full[:, pick].ravel()
 
         def rate_map(state: np.ndarray, rate: np.ndarray) -> np.ndarray:
-            full, dfull = layout.full_array(state), layout.full_array(rate)
-            return change_chart_rate(full, dfull, Q_old, Q_new)[:, pick].ravel()
+            full, dfull = layout.full_array(state), layout.full_array(rate).copy()
+            dfull[moved] = change_chart_rate(full[moved], dfull[moved], Q_from, Q_to)
+            return dfull[:, pick].ravel()
 
         return state_map, rate_map
 
     def new_chart(self, state: np.ndarray | None = None) -> np.ndarray:
         """The nodal quaternions (nodes, 4) of the rod's own rotation in ``state`` (default U):
-        the chart in which its angles are zero (cosserat_fem/charts.py ``chart_of``)."""
+        the chart in which its angles are zero (cosserat_fem/charts.py ``chart_of``), but at
+        :attr:`fork_nodes`, which keep theirs."""
         state = self.U.x.array if state is None else state
-        return chart_of(self.layout.full_array(state), self.chart.x.array.reshape(-1, 4))
+        Q_old = self.chart.x.array.reshape(-1, 4)
+        Q_new = chart_of(self.layout.full_array(state), Q_old)
+        Q_new[self.fork_nodes] = Q_old[self.fork_nodes]
+        return Q_new
+
+    def chart_margin(self, cos: np.ndarray) -> float:
+        """The smallest |cos θ| (``cos``: cos θ at the owned nodes, checks.cos_theta) over the
+        nodes whose chart may move (not :attr:`fork_nodes`); 1 if none. Local."""
+        values = np.abs(cos)
+        if self.fork_nodes.size:
+            values = values.copy()
+            values[self.fork_nodes[self.fork_nodes < values.size]] = 1.0
+        return float(values.min()) if values.size else 1.0
 
     def set_chart(self, Q: np.ndarray) -> None:
         """The chart's nodal quaternions (nodes, 4); marks it moved."""
@@ -387,7 +414,8 @@ def support_conditions(
 ) -> tuple[list, dict[str, dict[int, fem.Constant]]]:
     """Dirichlet conditions of the scene's supports (55) on a space whose blocks hold the
     ``components`` of (p, q): all of them zero at a clamped end at rest; else, one by one, the
-    held ones (clamped: all; pinned: x, y, z, φ and their rates) with a Constant value each
+    held ones (clamped: all; pinned: x, y, z, φ and their rates; spherical: x, y, z and
+    theirs) with a Constant value each
     (what a prescribed motion sets). ``ends``: the vertices of each end. Returns the
     conditions and, by end, {full component: its Constant}."""
     bcs, held = [], {}
@@ -400,7 +428,7 @@ def support_conditions(
             continue
         if kind == "free":
             continue
-        for i in (i for i in (PINNED_COMPONENTS if kind == "pinned" else FULL) if i in components):
+        for i in (i for i in HELD_COMPONENTS[kind] if i in components):
             j = components.index(i)
             value = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
             dofs = fem.locate_dofs_topological(V.sub(j), 0, ents)
@@ -433,6 +461,12 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     tags = mesh.meshtags(msh, 0, facets[order], values[order].astype(np.int32))
 
     bcs, held = support_conditions(V, scene, {"start": start, "end": end}, components)
+    forks = [start if scene.supports.start == "pinned" else None]
+    forks += [end if scene.supports.end == "pinned" else None]
+    fork_nodes = np.concatenate(
+        [np.zeros(0, dtype=np.int32)]
+        + [fem.locate_dofs_topological(V, 0, ents) for ents in forks if ents is not None]
+    ).astype(np.int32)
     motions = []
     for name in ("start", "end"):
         motion = scene.supports.motion(name)
@@ -466,4 +500,5 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
         load_factor=fem.Constant(msh, PETSc.ScalarType(1.0)),
         motions=motions,
         layout=Layout(components),
+        fork_nodes=fork_nodes,
     )

@@ -97,18 +97,29 @@ class ModelChoices:
 
 @dataclass(frozen=True)
 class Supports:
-    """Support of each end: "clamped" (p = q = 0), "free" (natural conditions), or "pinned":
-    a fork bearing, the position and the twist φ held, the bending angles θ, ψ free (the end
-    torque about d1, d2 is the given end torque, zero by default).
+    """Support of each end: "clamped" (p = q = 0), "free" (natural conditions), "pinned": a
+    fork bearing, the position and the twist φ held, the bending angles θ, ψ free (the end
+    torque about d1, d2 is the given end torque, zero by default), or "spherical": a ball
+    joint, the position held, every rotation free.
 
-    ``start_motion``/``end_motion``: a prescribed translation (x, y, z)(t) [m] of a clamped or
-    pinned end (base excitation; None: at rest); its directors do not turn.
+    ``start_motion``/``end_motion``: a prescribed translation (x, y, z)(t) [m] of a held end
+    (base excitation; None: at rest).
     """
 
     start: str
     end: str
     start_motion: tuple[Expression, ...] | None = None
     end_motion: tuple[Expression, ...] | None = None
+
+    @property
+    def mechanism(self) -> bool:
+        """Whether the supports leave the rod a rigid-body motion (a pendulum, a free or a
+        spinning rod): neither end clamped, and not a fork at one end with the position held
+        at the other (which holds the six: three translations twice over, the twist by φ)."""
+        kinds = {self.start, self.end}
+        if "clamped" in kinds:
+            return False
+        return not ("pinned" in kinds and kinds <= {"pinned", "spherical"})
 
     def motion(self, end: str) -> tuple[Expression, ...] | None:
         return self.start_motion if end == "start" else self.end_motion

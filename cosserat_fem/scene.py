@@ -141,15 +141,10 @@ def _build_model(raw: dict[str, Any]) -> ModelChoices:
 
 
 def _build_supports(raw: dict[str, Any], constants: set[str]) -> Supports:
-    """[supports]: one end clamped or both pinned (else SceneError); motions [m] as expressions
-    of t and ``constants``, None if zero, refused at a free end."""
+    """[supports]: any pair of supports (a mechanism, e.g. pinned–free or free–free, is for
+    runs: static paths and modes refuse it); motions [m] as expressions of t and
+    ``constants``, None if zero, refused at a free end."""
     kinds = (raw["start"], raw["end"])
-    if "clamped" not in kinds and kinds != ("pinned", "pinned"):
-        raise SceneError(
-            'supports: one end must be "clamped", or both "pinned"; otherwise the rod has '
-            "rigid-body motions (a free or pendulum mechanism) and the problem is singular, "
-            f'got start = "{kinds[0]}", end = "{kinds[1]}"'
-        )
     motions = {}
     for end, kind in zip(("start", "end"), kinds, strict=True):
         key = f"supports.{end}_motion"
@@ -157,7 +152,7 @@ def _build_supports(raw: dict[str, Any], constants: set[str]) -> Supports:
         motions[end] = None if all(e.is_zero for e in vector) else vector
         if motions[end] is not None and kind == "free":
             raise SceneError(
-                f"{key}: a prescribed motion needs a held end (clamped or pinned), but "
+                f"{key}: a prescribed motion needs a held end (clamped, pinned or spherical), but "
                 f'supports.{end} = "free"'
             )
     return Supports(raw["start"], raw["end"], motions["start"], motions["end"])
@@ -242,13 +237,14 @@ def _build_end_load(
     raw: dict[str, Any] | None, end: str, support: str, names: set[str]
 ) -> EndLoad | None:
     """[loads.<end>] (force [N], torque [N m], expressions of t and constants), None if absent;
-    SceneError at a clamped end, for a dependence on s, or for a force at a pinned end."""
+    SceneError at a clamped end, for a dependence on s, or for a force at a pinned or
+    spherical end."""
     if raw is None:
         return None
     key = f"loads.{end}"
     if support == "clamped":
         raise SceneError(
-            f"{key}: end loads are only allowed on a free or pinned end, "
+            f"{key}: end loads are only allowed on a free, pinned or spherical end, "
             f'but supports.{end} = "{support}" (remove [{key}] or set supports.{end} = "free")'
         )
     vectors = {}
@@ -261,10 +257,11 @@ def _build_end_load(
                     f"not on the arc length s, got {show_value(component.source)}"
                 )
         vectors[name] = vector
-    if support == "pinned" and not all(e.is_zero for e in vectors["force"]):
+    if support in ("pinned", "spherical") and not all(e.is_zero for e in vectors["force"]):
+        held = "about e1, e2; the twist is held too" if support == "pinned" else "any axis"
         raise SceneError(
-            f"{key}.force: a pinned end holds its position, so an end force there is taken by "
-            "the support; give only an end torque (about e1, e2; the twist is held too)"
+            f"{key}.force: a {support} end holds its position, so an end force there is taken "
+            f"by the support; give only an end torque ({held})"
         )
     if support == "pinned" and not vectors["torque"][2].is_zero:
         raise SceneError(

@@ -38,7 +38,7 @@ STEP_TOLERANCE = 1e-9
 #: here, so that reading a scene needs no UFL or DOLFINx; tests/unit/test_one_source.py holds
 #: them equal to the implementers' registries.
 XDMF_FIELDS = ("displacement", "angles", "strains", "forces")
-SUPPORTS = ("clamped", "free", "pinned")
+SUPPORTS = ("clamped", "free", "pinned", "spherical")
 #: Upper bounds of keys whose size alone makes a run impossible here (cosserat_fem/budget.py
 #: estimates the others): quadrature points per cell, Newton iterations per solve.
 MAX_QUADRATURE = 100

@@ -98,8 +98,7 @@ class StaticLoop:
         model = self.model
         if model.chart is None:
             return False
-        cos = cos_theta(model, U_n)
-        smallest = float(np.abs(cos).min()) if cos.size else 1.0
+        smallest = model.chart_margin(cos_theta(model, U_n))
         if model.msh.comm.size > 1:
             smallest = model.msh.comm.allreduce(smallest, op=MPI.MIN)
         if smallest >= math.cos(RESET_THETA):
@@ -195,6 +194,12 @@ def static_path(
     t_start = clock.perf_counter()
     out = Path(out_dir if out_dir is not None else scene.output.directory)
     budget.check(scene, "static", out if write_outputs else None, ranks_on_node(comm), comm.size)
+    if scene.supports.mechanism:
+        raise SceneError(
+            f'supports: a static equilibrium needs the rod held (start = "{scene.supports.start}"'
+            f', end = "{scene.supports.end}" leave it a mechanism, whose rigid-body motion no '
+            "load stops); clamp one end or pin both, or follow its motion with run"
+        )
     if scene.supports.start_motion or scene.supports.end_motion:
         raise SceneError(
             "supports.*_motion: prescribed support motion is for time integration (run), "

@@ -322,11 +322,11 @@ MALFORMED = [
         'supports.start = "clamped"',
     ),
     (
-        "both-ends-free",
-        [('start = "clamped"', 'start = "free"'), ('end = "free"', 'end = "free"')],
+        "motion-of-a-free-end",
+        [('end = "free"', 'end = "free"\nend_motion = ["1e-3*t", 0, 0]')],
         [],
-        "supports:",
-        "rigid-body",
+        "supports.end_motion:",
+        "needs a held end",
     ),
     (
         "xdmf-interval-not-multiple",

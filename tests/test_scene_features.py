@@ -311,7 +311,10 @@ def test_kelvin_voigt_decays_each_mode_at_tau_omega_squared_over_2(tmp_path):
             {"rod.section": {"shape": "constants", "area": 1, "c11": 1, "c22": 1, "c33": 1}},
             "rod.section.shear_coefficient: required",
         ),
-        ({"supports": {"start": "pinned", "end": "free"}}, "supports: one end must be"),
+        (
+            {"supports": {"start": "spherical"}, "loads.start": {"force": [0, 1, 0]}},
+            "loads.start.force: a spherical end holds its position",
+        ),
         (
             {**PINNED, "loads.end": {"force": [1, 0, 0]}},
             "loads.end.force: a pinned end holds its position",
