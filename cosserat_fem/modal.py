@@ -145,11 +145,14 @@ def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
     eps.setProblemType(SLEPc.EPS.ProblemType.GNHEP)
     eps.setDimensions(nev=count, ncv=max(2 * count + 10, 30))
     eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
-    eps.setTarget(0.0)
+    # A mechanism's K is singular (its rigid-body modes, λ = 0): shift-invert about λ = −1
+    # (ω = i ω0: K + M is positive definite), which finds the same lowest modes.
+    shift = -1.0 if problem.model.scene.supports.mechanism else 0.0
+    eps.setTarget(shift)
     eps.setTolerances(tol=1e-13, max_it=500)
     st = eps.getST()
     st.setType(SLEPc.ST.Type.SINVERT)
-    st.setShift(0.0)
+    st.setShift(shift)
     ksp = st.getKSP()
     ksp.setType("preonly")
     ksp.getPC().setType("lu")
@@ -174,9 +177,12 @@ def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
     pairs.sort(key=lambda pair: (pair[0].real, pair[0].imag))
     weights = _kinetic_weights(problem.model)
     scale = max((abs(lam) for lam, _ in pairs), default=1.0)
+    rigid = rigid_body_modes(problem.model.scene.supports)
     modes = []
-    for lam, shape in pairs[:count]:
+    for i, (lam, shape) in enumerate(pairs[:count]):
         omega, note = angular_frequency(lam, problem.model.omega0, scale)
+        if i < rigid:  # λ = 0 to the round-off of K's largest eigenvalues, of either sign
+            omega, note = 0.0, f"rigid-body mode (λ = {lam.real:.2g}, round-off)"
         fractions = _energy_fractions(shape, weights)
         kind = max(fractions, key=fractions.get)
         modes.append(Mode(omega, kind, fractions, _normalised(shape), lam, note))
@@ -215,6 +221,23 @@ def _normalised(shape: fem.Function) -> fem.Function:
     return shape
 
 
+#: The rigid-body modes each mechanism has (scene.Supports.mechanism), by its two supports:
+#: a free rod three translations and three rotations; a fork at one end the two rotations
+#: about it (it holds the twist), a ball joint three; two ball joints the twist about the
+#: line through them.
+RIGID_BODY_MODES = {
+    ("free", "free"): 6,
+    ("free", "pinned"): 2,
+    ("free", "spherical"): 3,
+    ("spherical", "spherical"): 1,
+}
+
+
+def rigid_body_modes(supports) -> int:
+    """How many rigid-body modes (ω = 0) the supports leave (:data:`RIGID_BODY_MODES`)."""
+    return RIGID_BODY_MODES.get(tuple(sorted((supports.start, supports.end))), 0)
+
+
 def max_modes(scene: Scene) -> int:
     """How many modes the discretisation has: the free dofs of p, six per Lagrange node less
     those a support holds (six at a clamped end, four at a pinned one: x, y, z, φ, three at a
@@ -237,13 +260,15 @@ def check_count(scene: Scene, count: int) -> None:
 
 
 def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WORLD):
-    """The scene's ``count`` lowest modes about the straight rod or its static state; a
-    SceneError for a mechanism (its stiffness is singular: the rigid-body modes)."""
-    if scene.supports.mechanism:
+    """The scene's ``count`` lowest modes about the straight rod or its static state. A
+    mechanism (scene.Supports.mechanism) has rigid-body modes, ω = 0 (six for a free rod),
+    before its flexible ones; it has modes about the straight rod only (its static state
+    is not determined: a SceneError)."""
+    if scene.supports.mechanism and about == "static":
         raise SceneError(
-            f'supports: modes of a mechanism (start = "{scene.supports.start}", end = '
-            f'"{scene.supports.end}") are not computed yet: its rigid-body motions make the '
-            "stiffness singular; clamp one end or pin both"
+            f'supports: modes about the static state of a mechanism (start = '
+            f'"{scene.supports.start}", end = "{scene.supports.end}"): it has none, its '
+            "rigid-body motions leave it undetermined; use --about undeformed"
         )
     check_count(scene, count)
     budget.check(scene, "modes", None, ranks_on_node(comm), comm.size, modes=count)
