@@ -43,7 +43,7 @@ H5_ARRAY_METADATA_BYTES = 1400
 XML_BYTES_PER_FRAME_ARRAY = 100
 WRITE_BYTES_PER_S = 2e9
 #: Arrays written per output.fields entry (cosserat_fem/output.py FIELD_ARRAYS).
-_ARRAYS_PER_FIELD = {"displacement": 1, "angles": 1, "strains": 2, "forces": 2}
+_ARRAYS_PER_FIELD = {"displacement": 1, "angles": 1, "strains": 2, "forces": 2, "directors": 3}
 
 
 @dataclass(frozen=True)

@@ -276,6 +276,7 @@ FIELD_ARRAYS: dict[str, tuple[str, ...]] = {
     "angles": ("angles",),
     "strains": ("strain_v", "curvature_u"),
     "forces": ("force_n", "torque_m"),
+    "directors": ("director_d1", "director_d2", "director_d3"),
 }
 
 
@@ -294,8 +295,15 @@ def _field_expressions(U, model: RodModel, fields: tuple[str, ...]) -> list[tupl
         "curvature_u": lambda: res.u,
         "force_n": lambda: res.n,
         "torque_m": lambda: res.m,
+        **{f"director_d{i + 1}": (lambda i=i: _director(U, chart, i)) for i in range(3)},
     }
     return [(name, exprs[name]()) for field in fields for name in FIELD_ARRAYS[field]]
+
+
+def _director(U, chart, i: int) -> ufl.core.expr.Expr:
+    """The director d_(i+1) of U in the fixed basis (row i of D, or of D A in a chart)."""
+    D = directors(ufl.as_vector([U[k] for k in range(6)]), chart)
+    return ufl.as_vector([D[i, j] for j in range(3)])
 
 
 def _fixed_basis_angles(U, chart) -> ufl.core.expr.Expr:
@@ -437,6 +445,7 @@ class XdmfWriter:
     ``strains``       curvature_u     u_i = d_i · u (25), director basis            1/m
     ``forces``        force_n         contact force n_i = d_i · n (9)-(10)          N
     ``forces``        torque_m        contact torque m_i = d_i · m (13)             N m
+    ``directors``     director_d1..3  the directors d_i, fixed basis e_j (18)       1
     ================  ==============  ============================================  =======
 
     v, u, n, m are those of forms/resultants.py (reference state v = (0, 0, 1), u = n = m = 0;

@@ -37,7 +37,9 @@ STEP_TOLERANCE = 1e-9
 #: heavier modules' choices (this one, the integrators, the Jacobian policies) are spelled out
 #: here, so that reading a scene needs no UFL or DOLFINx; tests/unit/test_one_source.py holds
 #: them equal to the implementers' registries.
-XDMF_FIELDS = ("displacement", "angles", "strains", "forces")
+XDMF_FIELDS = ("displacement", "angles", "strains", "forces", "directors")
+#: What output.fields holds when a scene does not say: all but the directors.
+XDMF_DEFAULT_FIELDS = XDMF_FIELDS[:4]
 SUPPORTS = ("clamped", "free", "pinned", "spherical")
 #: Upper bounds of keys whose size alone makes a run impossible here (cosserat_fem/budget.py
 #: estimates the others): quadrature points per cell, Newton iterations per solve.
@@ -397,7 +399,7 @@ SCHEMA = Table(
                 "directory": Text(default="results", non_empty=True),
                 "xdmf": Flag(default=True),
                 "xdmf_interval": Number(default=0.0, interval=NON_NEGATIVE, unit="s"),
-                "fields": ChoiceList(choices=XDMF_FIELDS, default=XDMF_FIELDS),
+                "fields": ChoiceList(choices=XDMF_FIELDS, default=XDMF_DEFAULT_FIELDS),
                 "checkpoint": Flag(default=True),
                 "checkpoint_interval": Number(
                     default="auto", interval=NON_NEGATIVE, unit="s", auto=True
