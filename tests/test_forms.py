@@ -75,7 +75,9 @@ def _setup(degree: int, seed: int):
     return msh, V, U, Udot, dx, loads
 
 
-def _general(rod, U, Udot, V, dx, loads, convention=EndLoadConvention()):
+def _general(rod, U, Udot, V, dx, loads, convention=EndLoadConvention(), **terms):
+    """The general form's terms with every load of ``loads``; ``terms``: more keyword
+    arguments of residual_terms (damping, chart)."""
     ends = tuple(EndLoads(ds, f, t) for ds, f, t in loads["ends"])
     v = ufl.TestFunction(V)
     return residual_terms(
@@ -87,6 +89,7 @@ def _general(rod, U, Udot, V, dx, loads, convention=EndLoadConvention()):
         DistributedLoads(loads["f"], loads["l"]),
         ends,
         convention,
+        **terms,
     ).as_dict()
 
 
@@ -232,19 +235,17 @@ def test_charted_general_form_equals_the_director_form(rod, degree):
     msh, V, U, Udot, dx, loads = _setup(degree, seed=20 + degree)
     Q = _chart_quaternion(msh, degree, seed=30 + degree)
     viscous, tau = (3.0e2, 0.7), 2.5e-4
-    ends = tuple(EndLoads(ds, f, t) for ds, f, t in loads["ends"])
-    general = residual_terms(
+    general = _general(
+        rod,
         U,
         Udot,
-        ufl.TestFunction(V),
-        dimensionless_groups(rod),
+        V,
         dx,
-        DistributedLoads(loads["f"], loads["l"]),
-        ends,
+        loads,
         damping=ViscousDamping(*viscous, rod.omega0),
         kelvin_voigt=KelvinVoigtDamping(tau, rod.omega0),
         chart=quaternion_chart(Q),
-    ).as_dict()
+    )
     director = director_residual_terms(
         U,
         Udot,
@@ -275,17 +276,7 @@ def test_identity_chart_equals_the_paper_chart(rod):
     msh, V, U, Udot, dx, loads = _setup(2, seed=41)
     Q = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 2), dim=4))
     Q.x.array.reshape(-1, 4)[:, 0] = 1.0
-    ends = tuple(EndLoads(ds, f, t) for ds, f, t in loads["ends"])
-    charted = residual_terms(
-        U,
-        Udot,
-        ufl.TestFunction(V),
-        dimensionless_groups(rod),
-        dx,
-        DistributedLoads(loads["f"], loads["l"]),
-        ends,
-        chart=quaternion_chart(Q),
-    ).as_dict()
+    charted = _general(rod, U, Udot, V, dx, loads, chart=quaternion_chart(Q))
     plain = _general(rod, U, Udot, V, dx, loads)
     for name in TERMS:
         a, b = _assemble(charted[name]), _assemble(plain[name])
