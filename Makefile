@@ -25,7 +25,7 @@ test: setup lint
 unit: setup
 	$(PY) -m pytest -q tests/unit
 
-## Regenerate docs/verification.md (modes, large deflections, orders, energy, rotations; ~25 s).
+## Regenerate docs/verification.md (modes, large deflections, orders, energy, rotations; ~40 s).
 verify: setup
 	$(PY) benchmarks/verify.py
 

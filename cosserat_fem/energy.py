@@ -23,41 +23,55 @@ from .model import RodModel
 
 
 class EnergyMonitor:
-    """T, V [J] of ``model.U`` and the power P [W] of the scene's loads and damping."""
+    """T, V [J] of ``model.U`` and the power P [W] of the scene's loads and damping; once the
+    model's chart has moved (cosserat_fem/charts.py) the forms measure the angles in it
+    (recompiled then)."""
 
     def __init__(self, model: RodModel):
         self.model = model
         self.tau = fem.Constant(model.msh, PETSc.ScalarType(0.0))
+        self._compile()
+
+    def _compile(self) -> None:
+        model = self.model
+        self._charted = model.chart_moved
+        chart = model.chart_form() if model.chart_moved else None
         U, rod, dx = model.layout.full(model.U), model.rod, model.dx
         self._T = fem.form(kinetic_energy_density(U, rod) * dx)
-        self._V = fem.form(strain_energy_density(U, rod) * dx)
+        self._V = fem.form(strain_energy_density(U, rod, chart) * dx)
         distributed, ends = model.load_vectors(self.tau)
         power = None
         if distributed.force is not None or distributed.torque is not None:
-            power = rod.length * load_power(U, rod, distributed.force, distributed.torque) * dx
+            density = load_power(U, rod, distributed.force, distributed.torque, chart)
+            power = rod.length * density * dx
         for end in ends:
             if end.force is not None or end.torque is not None:
-                term = load_power(U, rod, end.force, end.torque) * end.ds
+                term = load_power(U, rod, end.force, end.torque, chart) * end.ds
                 power = term if power is None else power + term
         d = model.scene.damping
         if d.active:
-            term = (
-                rod.length
-                * damping_power(U, rod, d.translational, d.rotational, d.retardation_time)
-                * dx
+            density = damping_power(
+                U, rod, d.translational, d.rotational, d.retardation_time, chart
             )
+            term = rod.length * density * dx
             power = term if power is None else power + term
         self._P = fem.form(power) if power is not None else None
+
+    def _current(self) -> None:
+        if self._charted != self.model.chart_moved:
+            self._compile()
 
     def _sum(self, form) -> float:
         return self.model.msh.comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM)
 
     def energies(self) -> tuple[float, float]:
         """(kinetic, strain) energy [J]."""
+        self._current()
         return self._sum(self._T), self._sum(self._V)
 
     def power(self, t: float) -> float:
         """Power of the loads and the damping at time t [s] on the current state [W]."""
+        self._current()
         if self._P is None:
             return 0.0
         self.tau.value = t * self.model.omega0

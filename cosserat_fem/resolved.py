@@ -78,11 +78,13 @@ class Material:
 
 @dataclass(frozen=True)
 class Rod:
-    """Straight rod of length ``length`` [m]."""
+    """Straight rod of length ``length`` [m]; ``rotary_inertia`` (I11, I22, I33) [kg m] per
+    unit length, or None: those of the section, (46)."""
 
     length: float
     section: SectionSpec
     material: Material
+    rotary_inertia: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -378,6 +380,7 @@ class Scene:
             shear_modulus=mat.shear_modulus,
             omega0=self.omega0,
             torsion_inertia=self.model.torsion_inertia,
+            inertia=self.rod.rotary_inertia,
         )
 
     def expression_names(self) -> dict[str, float]:
@@ -449,6 +452,11 @@ def _scene_to_dict(scene: Scene) -> dict[str, Any]:
             "length": scene.rod.length,
             "section": scene.rod.section.given(),
             "material": _material_dict(scene.rod.material),
+            **(
+                {"rotary_inertia": list(scene.rod.rotary_inertia)}
+                if scene.rod.rotary_inertia is not None
+                else {}
+            ),
         },
         "model": model,
         "supports": {

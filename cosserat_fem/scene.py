@@ -125,7 +125,17 @@ def _build_rod(raw: dict[str, Any]) -> Rod:
             "in (-1, 0.5), which Cowper's shear coefficient of a circle or tube needs; give "
             "rod.section.shear_coefficient"
         )
-    return Rod(raw["length"], _build_section(raw["section"], poisson), material)
+    inertia = raw["rotary_inertia"]
+    if inertia is not None:
+        for i, value in enumerate(inertia):
+            ok = isinstance(value, int | float) and not isinstance(value, bool)
+            if not (ok and math.isfinite(value) and value > 0.0):
+                raise SceneError(
+                    f"rod.rotary_inertia[{i}]: must be a positive number [kg m] (a mass moment "
+                    f"of inertia per unit length), got {show_value(value)}"
+                )
+        inertia = tuple(float(v) for v in inertia)
+    return Rod(raw["length"], _build_section(raw["section"], poisson), material, inertia)
 
 
 def _build_model(raw: dict[str, Any]) -> ModelChoices:

@@ -286,6 +286,9 @@ SCHEMA = Table(
                         ),
                     }
                 ),
+                # [I11, I22, I33] per unit length [kg m], the rotary inertias of (46) given
+                # apart from the section (absent: ρ c11, ρ c22, ρ (c11 + c22))
+                "rotary_inertia": Vector(unit="kg m"),
                 "material": Table(
                     {
                         "density": Number(required=True, interval=POSITIVE, unit="kg/m^3"),

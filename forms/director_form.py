@@ -8,7 +8,8 @@ the tests to check that form term by term. It shares nothing with it but the unk
 * the curvature is u = ½ Σ d_i × ∂s d_i (3) and the angular velocity w = ½ Σ d_i × ∂t d_i (4),
   with ∂t d_i and ∂tt d_i by UFL's chain rule through the Euler angles (not (25)-(26), (64));
 * the constitutive laws are the tensors (9)-(10): n = Σ K_ii (v·d_i − δ_i3) d_i,
-  m = Σ J_ii (u·d_i) d_i, h = Σ I_ii (w·d_i) d_i with I33 = ρ (c11 + c22) (46);
+  m = Σ J_ii (u·d_i) d_i, h = Σ I_ii (w·d_i) d_i with I33 = ρ (c11 + c22) (46), or the
+  rotary inertias given apart from the section (``RodConstants.mass_inertias``);
 * the scaled stiffnesses come from the physical constants, not from the groups (48);
 * in a chart of quaternions Q(σ), the directors are the rows of that product times the frame
   Aᵀ = (n0² − |n|²) I + 2 n nᵀ + 2 n0 [n]× of the normalised quaternion (n0, n) = Q/|Q|
@@ -93,7 +94,7 @@ def director_residual_terms(
         rod.young_modulus * sec.c22 / (fstar * ell**2),
         rod.shear_modulus * sec.c33 / (fstar * ell**2),
     ]
-    inertia = [rho * c * w0**2 / fstar for c in (sec.c11, sec.c22, sec.c11 + sec.c22)]
+    inertia = [i * w0**2 / fstar for i in rod.mass_inertias]
 
     p, q = split(U)
     pdot, qdot = split(Udot)

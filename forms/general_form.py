@@ -183,7 +183,8 @@ def source(
 
     inertial (rows 4-6), from (52)-(54) with (64): g = −(dMm/dτ) q_ang − (ŵ2 ŵ3, −ŵ3 ŵ1, ν33 ŵ1 ŵ2);
       the gyroscopic coefficients of rows 4-5 are (I33 − I22)/I11 = 1 and (I11 − I33)/I22 = −1
-      for I33 = ρ (c11 + c22) (46).
+      for I33 = ρ (c11 + c22) (46), ``groups.gamma1``, ``gamma2`` for rotary inertias given
+      apart from the section.
     elastic: row 4: ν12 û2 û3 − ((ν13 − ν14) v3 + ν14) v2,
              row 5: −ν22 û1 û3 + ((ν23 − ν24) v3 + ν24) v1,
              row 6: ν32 û1 û2    (the v × n terms vanish in row 6 since K11 = K22).
@@ -195,7 +196,16 @@ def source(
     w = angular_velocity(p, q)
     qa = angles(q)
     mdot_q = angular_map_rate(p[3], p[5], q[3], q[5]) * qa
-    gyro = ufl.as_vector([w[1] * w[2], -w[2] * w[0], groups.nu33 * w[0] * w[1]])
+    # Gyroscopic coefficients (I33 − I22)/I11 = 1 and (I11 − I33)/I22 = −1 for (46), or those
+    # of rotary inertias given apart from the section (forms/groups.py).
+    g1, g2 = groups.gamma1, groups.gamma2
+    gyro = ufl.as_vector(
+        [
+            w[1] * w[2] if g1 == 1.0 else g1 * w[1] * w[2],
+            -w[2] * w[0] if g2 == -1.0 else g2 * w[2] * w[0],
+            groups.nu33 * w[0] * w[1],
+        ]
+    )
     inertial = ufl.as_vector([0.0, 0.0, 0.0] + [-mdot_q[i] - gyro[i] for i in range(3)])
     elastic = ufl.as_vector(
         [

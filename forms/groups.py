@@ -18,6 +18,12 @@ that (52)-(53) use. Here the torsion row is divided by ρ I3 ω0² with I3 chose
   ν31 = G c33/(ρ ℓ² ω0² (c11 + c22)), ν32 = E (c22 − c11)/(ρ ℓ² ω0² (c11 + c22)),
   ν33 = (c22 − c11)/(c11 + c22), g3 = 1/(ρ (c11 + c22) ω0²);
 * ``"printed"``: I3 = c33, which reproduces (48) and (54) exactly as printed.
+
+Rotary inertias given apart from the section (``RodConstants.inertia``: I11, I22, I33 per unit
+length, e.g. Simo & Vu-Quoc's benchmarks, whose mass is not that of a solid section) divide the
+rows instead, and the gyroscopic coefficients of rows 4 and 5, (I33 − I22)/I11 and
+(I11 − I33)/I22 (1 and −1 for (46)), become ``gamma1``, ``gamma2``; row 6's is ν33 =
+(I22 − I11)/I33. The bending and torsion stiffnesses E c11, E c22, G c33 stay the section's.
 """
 
 from __future__ import annotations
@@ -43,17 +49,33 @@ class RodConstants:
     shear_modulus: float
     omega0: float
     torsion_inertia: str = "polar"
+    #: (I11, I22, I33) [kg m] per unit length given apart from the section, or None: (46).
+    inertia: tuple[float, float, float] | None = None
 
     @property
     def rotary_inertias(self) -> tuple[float, float, float]:
         """I11/ρ, I22/ρ, I33/ρ [m⁴]: c11, c22 (46) and the torsion row's I3 (module
-        docstring), the one source for the equations, the energy and the modes."""
+        docstring), or the given ones over ρ: the one source for the equations, the energy and
+        the modes."""
+        if self.inertia is not None:
+            return tuple(i / self.density for i in self.inertia)
         return self.section.c11, self.section.c22, self.torsion_row_inertia
+
+    @property
+    def mass_inertias(self) -> tuple[float, float, float]:
+        """(I11, I22, I33) [kg m] per unit length of the balance laws (6): given, or
+        ρ (c11, c22, c11 + c22) (46), whatever divides the torsion row."""
+        if self.inertia is not None:
+            return self.inertia
+        s = self.section
+        return self.density * s.c11, self.density * s.c22, self.density * (s.c11 + s.c22)
 
     @property
     def torsion_row_inertia(self) -> float:
         """I3 / ρ [m⁴] that divides the torsion row (see the module docstring)."""
         s = self.section
+        if self.inertia is not None:
+            return self.inertia[2] / self.density
         if self.torsion_inertia == "polar":
             return s.c11 + s.c22
         if self.torsion_inertia == "printed":
@@ -94,6 +116,8 @@ class Groups:
     nu31: float
     nu32: float
     nu33: float
+    gamma1: float = 1.0
+    gamma2: float = -1.0
 
     def as_dict(self) -> dict[str, float]:
         return dict(self.__dict__)
@@ -104,12 +128,15 @@ def dimensionless_groups(rod: RodConstants) -> Groups:
     s = rod.section
     rho, E, G, ell, w0 = rod.density, rod.young_modulus, rod.shear_modulus, rod.length, rod.omega0
     A, c11, c22, c33, kappa = s.area, s.c11, s.c22, s.c33, s.shear_coefficient
-    i3 = rod.torsion_row_inertia
+    i1, i2, i3 = rod.rotary_inertias
     g0 = 1.0 / (rho * A * w0**2 * ell)
-    g1 = 1.0 / (rho * c11 * w0**2)
-    g2 = 1.0 / (rho * c22 * w0**2)
+    g1 = 1.0 / (rho * i1 * w0**2)
+    g2 = 1.0 / (rho * i2 * w0**2)
     g3 = 1.0 / (rho * i3 * w0**2)
     scale = rho * ell**2 * w0**2
+    gyro = {}
+    if rod.inertia is not None:  # else exactly 1 and −1 (module docstring)
+        gyro = {"gamma1": (i3 - i2) / i1, "gamma2": (i1 - i3) / i2}
     return Groups(
         length=ell,
         g0=g0,
@@ -118,15 +145,16 @@ def dimensionless_groups(rod: RodConstants) -> Groups:
         g1=g1,
         g2=g2,
         g3=g3,
-        nu11=E / scale,
-        nu12=(G * c33 - E * c22) / (scale * c11),
+        nu11=E * (c11 / i1) / scale,
+        nu12=(G * c33 - E * c22) / (scale * i1),
         nu13=kappa * G * A * g1,
         nu14=E * A * g1,
-        nu21=E / scale,
-        nu22=(G * c33 - E * c11) / (scale * c22),
+        nu21=E * (c22 / i2) / scale,
+        nu22=(G * c33 - E * c11) / (scale * i2),
         nu23=kappa * G * A * g2,
         nu24=E * A * g2,
         nu31=G * c33 / (scale * i3),
         nu32=E * (c22 - c11) / (scale * i3),
-        nu33=(c22 - c11) / i3,
+        nu33=(i2 - i1) / i3,
+        **gyro,
     )

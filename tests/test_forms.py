@@ -281,3 +281,29 @@ def test_identity_chart_equals_the_paper_chart(rod):
     for name in TERMS:
         a, b = _assemble(charted[name]), _assemble(plain[name])
         assert np.abs(a - b).max() <= 1e-14 * np.abs(b).max(), name
+
+
+def test_rotary_inertias_given_apart_from_the_section(rod):
+    """Rotary inertias not those of the section (I11, I22, I33 per unit length, here unequal
+    and unrelated to c11, c22: Simo & Vu-Quoc's benchmarks give them so): the general form,
+    whose rows are divided by them and whose gyroscopic coefficients become (I33 − I22)/I11,
+    (I11 − I33)/I22, (I22 − I11)/I33 (forms/groups.py), against the director form with
+    h = Σ I_ii (w · d_i) d_i; every term, with a chart, to the round-off bound of the module
+    docstring. The inertia term must differ from the section's (a test that could not fail
+    otherwise)."""
+    from dataclasses import replace
+
+    given = replace(rod, inertia=(0.31, 0.77, 1.93))
+    msh, V, U, Udot, dx, loads = _setup(2, seed=51)
+    Q = _chart_quaternion(msh, 2, seed=52)
+    general = _general(given, U, Udot, V, dx, loads, chart=quaternion_chart(Q))
+    director = director_residual_terms(
+        U, Udot, ufl.TestFunction(V), given, dx, loads["f"], loads["l"], tuple(loads["ends"]),
+        chart_quaternion=Q,
+    )  # fmt: skip
+    for name in TERMS:
+        a, b = _assemble(general[name]), _assemble(director[name])
+        assert np.abs(a - b).max() <= 1e-12 * np.abs(a).max(), name
+    section = _general(rod, U, Udot, V, dx, loads, chart=quaternion_chart(Q))
+    inertia = _assemble(general["inertia"])
+    assert np.abs(inertia - _assemble(section["inertia"])).max() > 1e-2 * np.abs(inertia).max()
