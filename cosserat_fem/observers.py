@@ -26,7 +26,14 @@ import numpy as np
 from .checkpoint import Checkpoint, CheckpointWriter, cut_outputs
 from .errors import LimitReached, SceneError, SolverError
 from .events import Observer
-from .output import LineSampler, PointProbe, ProbeWriter, XdmfWriter
+from .output import (
+    PROBE_HEADER,
+    LineSampler,
+    PointProbe,
+    ProbeWriter,
+    XdmfWriter,
+    last_probe_row,
+)
 from .parallel import from_root
 from .progress import LOGGER
 from .run_folder import SUMMARY, claim, write_summary
@@ -67,13 +74,17 @@ class FolderSummary(Observer):
 
 
 class ProbeObserver(Observer):
-    """probes.csv: the probe's values (x, y, z, θ, ψ, φ) [m, rad] at every output time."""
+    """probes.csv: the probe's values (x, y, z, θ, ψ, φ) [m, rad] at every output time; a
+    restart continues the angles (PointProbe: from the fixed basis, continued) from the
+    file's last row."""
 
     def __init__(self, path: Path, probe: PointProbe, resume: bool = False):
         self.path, self.probe, self.resume = path, probe, resume
         self.writer: ProbeWriter | None = None
 
     def started(self, loop) -> None:
+        if self.resume and self.probe.is_owner:
+            self.probe.seed(last_probe_row(self.path))
         self.writer = ProbeWriter(self.path, self.probe, resume=self.resume)
         if not self.resume:
             self.writer.write(loop.state.t)
@@ -235,7 +246,7 @@ class ProbeRecorder(Observer):
 
     def rows(self) -> np.ndarray:
         comm = self.probe.U.function_space.mesh.comm
-        rows = np.array(self._rows).reshape(-1, 7)
+        rows = np.array(self._rows).reshape(-1, len(PROBE_HEADER))
         return rows if comm.size == 1 else comm.bcast(rows, root=self.probe.owner)
 
 

@@ -141,12 +141,28 @@ class PointProbe:
         out[3:6] = self.angles(out[None, 3:6], self._chart_value)[0]
         return out
 
+    def seed(self, row: np.ndarray) -> None:
+        """Continue from a row (t, x, ..., φ) of probes.csv: a restart's last row, so that its
+        angles continue from there as the uninterrupted run's do (class docstring)."""
+        self.angles.last = np.asarray(row[4:7], dtype=float).reshape(1, 3)
+
     def _chart_value(self) -> np.ndarray:
         """The chart's quaternion at the probe point, (1, 4)."""
         chart = self.angles.model.chart
         if self._node is not None:
             return chart.x.array[None, 4 * self._node : 4 * self._node + 4]
         return chart.eval(self.point, np.array([self.cell], dtype=np.int32))
+
+
+def last_probe_row(path: Path) -> np.ndarray:
+    """The last whole row of probes.csv (a restart's, already cut back to its checkpoint),
+    as numbers."""
+    with open(path, "rb") as stream:
+        stream.seek(0, os.SEEK_END)
+        size = stream.tell()
+        stream.seek(max(0, size - 4096))
+        lines = stream.read().decode("utf-8").splitlines()
+    return np.array([float(v) for v in lines[-1].split(",")])
 
 
 class ProbeWriter:
