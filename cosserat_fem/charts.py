@@ -3,10 +3,10 @@
 The paper's angles (θ, ψ, φ) are singular at θ = ±π/2, det Ma = cos θ (66). Measured from a
 frame A(σ) of quaternions instead of the fixed basis (forms/kinematics.py, "Charts"), the
 directors are D(θ, ψ, φ) A, and moving the frame onto the rod's rotation brings the angles back
-to zero. :func:`reset_chart` does that at the Lagrange nodes, where it changes nothing of the
-state: the directors, the position and the angular velocity ŵ are the same before and after
-(the nodal values of A become those of the old D A; the angles become 0 and their rates
-Mm (θ̇, ψ̇, φ̇) = ŵ, since Mm = I at zero angles). Between the nodes the frame is the
+to zero. :func:`chart_of` and :func:`change_chart` do that at the Lagrange nodes, where it
+changes nothing of the state: the directors, the position and the angular velocity ŵ are the
+same before and after (the nodal values of A become those of the old D A; the angles become 0
+and their rates Mm (θ̇, ψ̇, φ̇) = ŵ, since Mm = I at zero angles). Between the nodes the frame is the
 normalised interpolant of the nodal quaternions, so a reset moves the interpolated rotation
 by the interpolation error of the rotation field, O(h^(k+1)) for elements of degree k: the
 discrete state changes by that much at a reset (docs/decisions.md, "Charts").
@@ -196,11 +196,3 @@ def chart_of(full: np.ndarray, Q: np.ndarray) -> np.ndarray:
     flip = np.einsum("ij,ij->i", Q_new, Q) < 0.0
     Q_new[flip] *= -1.0
     return Q_new
-
-
-def reset_chart(full: np.ndarray, Q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The nodal state ``full`` (nodes, 12) and the nodal quaternions ``Q`` (nodes, 4) of its
-    chart, moved to the chart of the rod's own rotation (module docstring, :func:`chart_of`):
-    the angles become 0 (to round-off) and their rates ŵ. Returns (full, Q), new arrays."""
-    Q_new = chart_of(full, Q)
-    return change_chart(full, Q, Q_new), Q_new

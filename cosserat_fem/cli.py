@@ -186,7 +186,7 @@ def _static(args) -> int:
 
     scene = api.load(args.scene, args.overrides)
     result = api.static(scene, args.out or scene.output.directory)
-    tip = result.probes[-1, 1 : 1 + len(P_NAMES)]
+    tip = result.probes[-1, 1:]
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         print(
             f"cosserat-fem: static, {len(result.load_factors) - 1} load steps "

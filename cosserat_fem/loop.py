@@ -23,10 +23,8 @@ import time
 from dataclasses import dataclass, fields
 
 import numpy as np
-from mpi4py import MPI
 
 from .adaptive import SHRINK, StateHistory, StepController
-from .charts import RESET_THETA
 from .checks import check_state, cos_theta, worst_place
 from .errors import SceneError, SolverError
 from .events import Events
@@ -112,12 +110,8 @@ def watch_chart(
     smallest |cos θ|) if the chart moved, else None. Collective."""
     if model.chart is None:
         return None
-    if cos is None:
-        cos = cos_theta(model, model.U.x.array)
-    smallest = model.chart_margin(cos)
-    if model.msh.comm.size > 1:
-        smallest = model.msh.comm.allreduce(smallest, op=MPI.MIN)
-    if smallest >= math.cos(RESET_THETA):
+    largest = model.chart_move_due(cos_theta(model, model.U.x.array) if cos is None else cos)
+    if largest is None:
         return None
     Q_new = model.new_chart()
     state_map, rate_map = model.chart_maps(Q_new)
@@ -129,7 +123,7 @@ def watch_chart(
         solver.request_jacobian()  # the matrix of the old chart's angles
     else:
         activate_chart(model, integrator, solver)
-    return math.acos(min(smallest, 1.0))
+    return largest
 
 
 class TimeLoop:

@@ -22,7 +22,7 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import jit
+from . import charts, jit
 from .charts import change_chart, change_chart_rate, chart_of
 from .errors import SceneError
 from .expressions import Expression, derivative
@@ -229,6 +229,19 @@ class RodModel:
             values[self.fork_nodes[self.fork_nodes < values.size]] = 1.0
         return float(values.min()) if values.size else 1.0
 
+    def chart_move_due(self, cos: np.ndarray) -> float | None:
+        """The angle |θ| of the node nearest the chart's singularity if a move is due there,
+        |cos θ| < cos charts.RESET_THETA (``cos`` as for :meth:`chart_margin`), else None
+        (also without a chart). Collective."""
+        if self.chart is None:
+            return None
+        smallest = self.chart_margin(cos)
+        if self.msh.comm.size > 1:
+            smallest = self.msh.comm.allreduce(smallest, op=MPI.MIN)
+        if smallest >= math.cos(charts.RESET_THETA):
+            return None
+        return math.acos(min(smallest, 1.0))
+
     def set_chart(self, Q: np.ndarray) -> None:
         """The chart's nodal quaternions (nodes, 4); marks it moved."""
         self.chart.x.array[:] = np.asarray(Q).ravel()
@@ -236,8 +249,8 @@ class RodModel:
 
     def reset_chart(self, state: np.ndarray | None = None) -> np.ndarray:
         """Move the chart onto the rod's rotation at every node: U (or ``state``, an array of
-        U's layout, changed in place) gets zero angles and their rates ŵ (charts.reset_chart);
-        returns the state array."""
+        U's layout, changed in place) gets zero angles and their rates ŵ (charts.chart_of,
+        change_chart); returns the state array. Collective."""
         state = self.U.x.array if state is None else state
         Q_new = self.new_chart(state)
         state[:] = self.chart_maps(Q_new)[0](state)

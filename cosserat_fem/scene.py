@@ -433,10 +433,11 @@ def _check_derived(scene: Scene) -> None:
     except (ArithmeticError, ValueError) as exc:
         bad = [_arithmetic(exc)]
     if bad:
+        inertia = ", rod.rotary_inertia" if scene.rod.rotary_inertia is not None else ""
         raise SceneError(
             f"rod: the dimensionless groups of (48) are not finite ({bad[0]}): rod.length, "
-            "rod.section, rod.material and model.reference_frequency are out of the range of "
-            "double precision together"
+            f"rod.section, rod.material{inertia} and model.reference_frequency are out of the "
+            "range of double precision together"
         )
 
 

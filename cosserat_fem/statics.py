@@ -20,7 +20,6 @@ the Jacobian (full Newton): the matrix changes with the load.
 
 from __future__ import annotations
 
-import math
 import time as clock
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -30,7 +29,6 @@ import numpy as np
 from mpi4py import MPI
 
 from . import __version__, budget
-from .charts import RESET_THETA
 from .checks import check_state, cos_theta
 from .errors import SceneError, SolverError
 from .events import Events, Observer, drive
@@ -96,12 +94,7 @@ class StaticLoop:
         when |cos θ| < cos charts.RESET_THETA at some node, so that the step starts far from
         the chart's singularity (cosserat_fem/charts.py). Returns whether it moved."""
         model = self.model
-        if model.chart is None:
-            return False
-        smallest = model.chart_margin(cos_theta(model, U_n))
-        if model.msh.comm.size > 1:
-            smallest = model.msh.comm.allreduce(smallest, op=MPI.MIN)
-        if smallest >= math.cos(RESET_THETA):
+        if model.chart is None or model.chart_move_due(cos_theta(model, U_n)) is None:
             return False
         model.reset_chart(U_n)
         self.chart_resets += 1

@@ -143,10 +143,9 @@ def test_a_free_flying_rod_takes_the_impulse_of_its_load():
     part of it), while the rod turns (its free end by 0.19 rad in 6 ms)."""
     from dolfinx import fem
 
-    from cosserat_fem.events import Observer
-
     class Momentum(Observer):
-        values: list = []
+        def __init__(self):
+            self.values: list = []
 
         def output(self, loop, k, t):
             model = loop.model

@@ -19,7 +19,7 @@ import math
 import pytest
 from conftest import ROOT
 
-from cosserat_fem import loop
+from cosserat_fem import charts
 from cosserat_fem.mms import run_mms
 from cosserat_fem.scene import load_scene
 
@@ -96,7 +96,7 @@ def test_sdirk4_keeps_its_order_across_moves_of_the_chart(monkeypatch):
     """The ``harmonic`` family with the chart moved whenever |θ| > 0.1 (4 and 5 moves): SDIRK4
     keeps the fourth order it shows without moves (measured 3.998 against 4.009, 20 → 40
     steps), within 0.1."""
-    monkeypatch.setattr(loop, "RESET_THETA", 0.1)
+    monkeypatch.setattr(charts, "RESET_THETA", 0.1)
     common = ["discretisation.degree=4", "discretisation.elements=16", "time.integrator=sdirk4"]
     runs = [run_mms(load_scene(SCENE, STOCKY + common), "harmonic", 2.0, n) for n in (20, 40)]
     assert all(r.chart_resets >= 4 for r in runs)

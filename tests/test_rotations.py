@@ -19,6 +19,7 @@ import math
 import numpy as np
 import pytest
 from conftest import ROOT, run_command
+from test_restart import Crash, crash_at
 
 from cosserat_fem.checkpoint import load_checkpoint
 from cosserat_fem.scene import load_scene, scene_from_dict
@@ -77,18 +78,6 @@ RESTART_CONFIGS = {
     "generalized-alpha-frozen": ["time.integrator=generalized-alpha"],
     "sdirk3-adaptive": ["time.adaptive=true", "time.rtol=1e-5"],
 }
-
-
-class Crash(RuntimeError):
-    pass
-
-
-def crash_at(step: int):
-    def observer(k, t, model):
-        if k == step:
-            raise Crash(f"crash at step {k}")
-
-    return observer
 
 
 @pytest.mark.parametrize("name", list(RESTART_CONFIGS))
