@@ -16,10 +16,11 @@ Costs (lower bounds, each below what was measured; docs/reliability.md):
   assembly, 25 ns a dof measured, and two triangular solves), a full Newton iteration at
   least 100 µs + 1 µs a dof (Jacobian assembly and LU factorisation: 0.68 ms measured at 300
   dofs, 6 µs a dof at 3.6e6); at least one solve per step or load step;
-* disk: a probe row is 170 bytes; an XDMF frame holds 8 bytes per value and point and at least
-  1.4 kB of HDF5 metadata per array, and the XML listing every frame is rewritten at each
-  frame (so the frames cost time quadratic in their number: at least 100 bytes a frame and
-  array written per frame, at 2 GB/s).
+* disk: a probe row is 170 bytes, 24 more for each column of output.probe_fields; an XDMF
+  frame holds 8 bytes per value and point and at least 1.4 kB of HDF5 metadata per array,
+  and the XML listing every frame is rewritten at each frame (so the frames cost time
+  quadratic in their number: at least 100 bytes a frame and array written per frame, at
+  2 GB/s).
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import SceneError
+from .results import PROBE_COLUMNS, probe_columns
 from .scene import PLANAR, Scene
 
 MEMORY_BASE = 80e6  # bytes
@@ -39,6 +41,7 @@ REUSED_SOLVE_PER_DOF_S = 0.1e-6  # s
 FULL_ITERATION_S = 100e-6  # s
 FULL_ITERATION_PER_DOF_S = 1e-6  # s
 PROBE_ROW_BYTES = 170
+PROBE_COLUMN_BYTES = 24
 H5_ARRAY_METADATA_BYTES = 1400
 XML_BYTES_PER_FRAME_ARRAY = 100
 WRITE_BYTES_PER_S = 2e9
@@ -112,7 +115,9 @@ def estimate(scene: Scene, command: str, start: float | None = None, modes: int 
         time_driver = "time.step" if 2 * _solve_seconds(0, full) > _solve_seconds(n, full) else (
             "discretisation.elements"
         )
-        disk = (steps + 1) * PROBE_ROW_BYTES
+        extra = len(probe_columns(scene.output.probe_fields)) - len(PROBE_COLUMNS)
+        row = PROBE_ROW_BYTES + PROBE_COLUMN_BYTES * extra
+        disk = (steps + 1) * row
         disk_driver = "time.step"
         if scene.output.xdmf:
             frames = math.floor(steps / float(scene.output.xdmf_every(t.step))) + 1.0
@@ -122,7 +127,7 @@ def estimate(scene: Scene, command: str, start: float | None = None, modes: int 
             xml = XML_BYTES_PER_FRAME_ARRAY * arrays * frames**2 / 2.0
             disk += frames * frame
             seconds += xml / WRITE_BYTES_PER_S
-            if frames * frame > (steps + 1) * PROBE_ROW_BYTES:
+            if frames * frame > (steps + 1) * row:
                 disk_driver = "output.xdmf_interval"
             if xml / WRITE_BYTES_PER_S > seconds / 2:
                 time_driver = "output.xdmf_interval"

@@ -27,7 +27,6 @@ from .checkpoint import Checkpoint, CheckpointWriter, cut_outputs
 from .errors import LimitReached, SceneError, SolverError
 from .events import Observer
 from .output import (
-    PROBE_HEADER,
     LineSampler,
     PointProbe,
     ProbeWriter,
@@ -228,8 +227,8 @@ class DeadlineObserver(Observer):
 
 
 class ProbeRecorder(Observer):
-    """The probe's rows (t, x, y, z, θ, ψ, φ) [s, m, rad] in memory, at the start and every
-    output time: ``rows()`` on every rank (one broadcast at the end)."""
+    """The probe's rows (t, x, y, z, θ, ψ, φ, ...) [s, m, rad] (its ``columns``) in memory, at
+    the start and every output time: ``rows()`` on every rank (one broadcast at the end)."""
 
     def __init__(self, probe: PointProbe):
         self.probe = probe
@@ -246,7 +245,7 @@ class ProbeRecorder(Observer):
 
     def rows(self) -> np.ndarray:
         comm = self.probe.U.function_space.mesh.comm
-        rows = np.array(self._rows).reshape(-1, len(PROBE_HEADER))
+        rows = np.array(self._rows).reshape(-1, len(self.probe.columns))
         return rows if comm.size == 1 else comm.bcast(rows, root=self.probe.owner)
 
 

@@ -29,17 +29,15 @@ import ufl
 from dolfinx import fem, geometry, io, mesh
 from mpi4py import MPI
 
-from .charts import euler_angles, euler_matrix, quaternion_frame
+from .charts import euler_angles, euler_matrix, quaternion_frame, quaternion_of_frame
 from .errors import OutputError
-from .forms.kinematics import P_NAMES, directors
+from .forms.kinematics import directors
 from .forms.resultants import resultants
 from .parallel import agree, from_root
+from .results import PROBE_FIELD_COLUMNS, probe_columns
 
 if TYPE_CHECKING:
     from .model import RodModel
-
-PROBE_HEADER = ("t", *P_NAMES)
-_ROW_FORMAT = "%.10e," + ",".join(["%.16e"] * (len(PROBE_HEADER) - 1)) + "\n"
 
 
 def probe_sigma(scene) -> float:
@@ -63,6 +61,7 @@ class FixedBasisAngles:
     def __init__(self, model: RodModel):
         self.model = model
         self.last: np.ndarray | None = None  # the angles of the previous call
+        self.frame: np.ndarray | None = None  # its directors D A (in a moved chart)
 
     def __call__(self, angles: np.ndarray, chart_values) -> np.ndarray:
         """Fixed-basis angles (points, 3) of the chart angles ``angles`` at points whose
@@ -75,12 +74,25 @@ class FixedBasisAngles:
             return angles
         D = euler_matrix(*angles.T) @ quaternion_frame(chart_values())
         self.last = euler_angles(D, angles if self.last is None else self.last)
+        self.frame = D
         return self.last
+
+    def directors(self, angles: np.ndarray) -> np.ndarray:
+        """The directors D (points, 3, 3) of the last call, whose angles it returned as
+        ``angles``: D A as computed in a moved chart (not rebuilt from the angles, which lose
+        digits near θ = ±π/2), else D(θ, ψ, φ) of (18)."""
+        model = self.model
+        if model.chart is not None and model.chart_moved:
+            return self.frame
+        return euler_matrix(*angles.T)
 
 
 class PointProbe:
     """Evaluates (x, y, z, θ, ψ, φ) in SI units [m, rad] at σ = ``sigma`` of a model's rod, on
-    its owning rank (the components of p the model does not solve are 0).
+    its owning rank (the components of p the model does not solve are 0), followed by the
+    ``fields`` of ``output.probe_fields`` (:data:`~cosserat_fem.results.PROBE_FIELD_COLUMNS`):
+    the quaternion of the directors (q0, q1, q2, q3), signed as the previous call's so that it
+    is continuous in time, and the directors d1, d2, d3 in the fixed basis.
 
     With a chart (cosserat_fem/charts.py) the angles are those of (18) for the rod's own
     directors D A, measured from the fixed basis as without one, and continued from the
@@ -89,9 +101,25 @@ class PointProbe:
     reset of the chart; only through θ = ±π/2 exactly, where ψ and φ are not defined apart,
     may ψ and φ jump."""
 
-    def __init__(self, model: RodModel, sigma: float, U: fem.Function | None = None):
-        """``U``: the Function read (default ``model.U``), of the model's space and layout."""
+    def __init__(
+        self,
+        model: RodModel,
+        sigma: float,
+        U: fem.Function | None = None,
+        fields: tuple[str, ...] = (),
+    ):
+        """``U``: the Function read (default ``model.U``), of the model's space and layout;
+        ``fields``: output.probe_fields."""
         U = model.U if U is None else U
+        unknown = set(fields) - set(PROBE_FIELD_COLUMNS)
+        if unknown:
+            raise ValueError(
+                f"probe fields {sorted(unknown)} are none of {list(PROBE_FIELD_COLUMNS)}"
+            )
+        self.columns = probe_columns(tuple(fields))
+        self._quaternion = "quaternion" in fields
+        self._directors = "directors" in fields
+        self._last_q: np.ndarray | None = None  # the quaternion of the previous call
         msh = U.function_space.mesh
         self.U = U
         self.angles = FixedBasisAngles(model)
@@ -128,7 +156,7 @@ class PointProbe:
         return self.cell is not None
 
     def values(self) -> np.ndarray | None:
-        """(x, y, z, θ, ψ, φ) on the owning rank, None elsewhere."""
+        """(x, y, z, θ, ψ, φ, ...) (``columns`` but t) on the owning rank, None elsewhere."""
         if self.cell is None:
             return None
         if self._node is not None:
@@ -136,15 +164,29 @@ class PointProbe:
             block = self.U.x.array[bs * self._node : bs * (self._node + 1)]
         else:
             block = self.U.eval(self.point, np.array([self.cell], dtype=np.int32))
-        out = np.zeros(6)
+        out = np.zeros(len(self.columns) - 1)
         out[self._p] = block[self._slots] * self._scale
         out[3:6] = self.angles(out[None, 3:6], self._chart_value)[0]
+        if self._quaternion or self._directors:
+            D = self.angles.directors(out[None, 3:6])[0]
+            at = 6
+            if self._quaternion:
+                q = quaternion_of_frame(D)
+                if self._last_q is not None and q @ self._last_q < 0.0:
+                    q = -q
+                out[at : at + 4] = self._last_q = q
+                at += 4
+            if self._directors:
+                out[at : at + 9] = D.ravel()
         return out
 
     def seed(self, row: np.ndarray) -> None:
-        """Continue from a row (t, x, ..., φ) of probes.csv: a restart's last row, so that its
-        angles continue from there as the uninterrupted run's do (class docstring)."""
+        """Continue from a row (t, x, ..., φ, ...) of probes.csv: a restart's last row, so that
+        its angles and quaternion continue from there as the uninterrupted run's do (class
+        docstring)."""
         self.angles.last = np.asarray(row[4:7], dtype=float).reshape(1, 3)
+        if self._quaternion:
+            self._last_q = np.asarray(row[7:11], dtype=float)
 
     def _chart_value(self) -> np.ndarray:
         """The chart's quaternion at the probe point, (1, 4)."""
@@ -166,7 +208,8 @@ def last_probe_row(path: Path) -> np.ndarray:
 
 
 class ProbeWriter:
-    """``probes.csv`` with the header t,x,y,z,theta,psi,phi, written by the probe's owner.
+    """``probes.csv`` with the header t,x,y,z,theta,psi,phi (and the columns of the probe's
+    ``output.probe_fields``), written by the probe's owner.
 
     Rows are buffered and handed to the operating system when ``flush_every`` rows are pending,
     when ``max_delay`` seconds (wall time) have passed since the last flush, and before every
@@ -200,7 +243,8 @@ class ProbeWriter:
         self.max_delay = max_delay
         self.error: OutputError | None = None
         self._pending = 0
-        self._rows = np.empty((flush_every, len(PROBE_HEADER)))
+        self._rows = np.empty((flush_every, len(probe.columns)))
+        self._format = "%.10e," + ",".join(["%.16e"] * (len(probe.columns) - 1)) + "\n"
         self._file = None
         self._deadline = 0.0
         self._sha = hashlib.sha256()
@@ -212,7 +256,7 @@ class ProbeWriter:
             except OSError as exc:
                 self._fail(exc)
             if not resume:
-                self._write(",".join(PROBE_HEADER) + "\n")
+                self._write(",".join(probe.columns) + "\n")
             self.flush()
         self.check()
 
@@ -261,7 +305,7 @@ class ProbeWriter:
                 # One formatting call for the whole block (about 10x cheaper than per value).
                 block = tuple(self._rows[: self._pending].ravel())
                 self._pending = 0
-                self._write((_ROW_FORMAT * (len(block) // len(PROBE_HEADER))) % block)
+                self._write((self._format * (len(block) // len(self.probe.columns))) % block)
             if sync and self._file is not None:
                 try:
                     os.fsync(self._file.fileno())

@@ -282,6 +282,8 @@ class Output:
     fields: tuple[str, ...]
     checkpoint: bool
     checkpoint_interval: float
+    #: What probes.csv holds besides t, x, y, z, θ, ψ, φ (cosserat_fem/results.PROBE_FIELD_COLUMNS).
+    probe_fields: tuple[str, ...] = ()
 
     def xdmf_every(self, step: float) -> int:
         """Steps between XDMF writes (1 if the interval is 0)."""
@@ -472,7 +474,11 @@ def _scene_to_dict(scene: Scene) -> dict[str, Any]:
         "time": _fields(scene.time),
         "discretisation": _fields(scene.discretisation),
         "solver": _fields(scene.solver),
-        "output": {**_fields(scene.output), "fields": list(scene.output.fields)},
+        "output": {
+            **_fields(scene.output),
+            "fields": list(scene.output.fields),
+            "probe_fields": list(scene.output.probe_fields),
+        },
         "static": _fields(scene.static),
         "damping": _fields(scene.damping),
         "initial": {k: _vector(v) for k, v in vars(scene.initial).items() if v is not None},

@@ -24,10 +24,11 @@ exception. What is read has passed these checks:
   not plotted: a run never writes them (it stops with a SolverError before a non-finite
   state reaches its outputs), so they mean damage; and matplotlib and VTK fail on values
   near the float range anyway.
-* probes.csv: the header ``t,x,y,z,theta,psi,phi``, then every whole line seven numbers
-  (blank lines are skipped). The text after the last newline is a row cut by a killed run
-  and is dropped, whatever it holds; an empty file or a cut header (a run killed as it
-  made the file) reads as no rows.
+* probes.csv: the header ``t,x,y,z,theta,psi,phi``, optionally followed by the columns of
+  ``output.probe_fields`` (:data:`PROBE_FIELD_COLUMNS`, in that order), then every whole line
+  as many numbers as the header names (blank lines are skipped). The text after the last
+  newline is a row cut by a killed run and is dropped, whatever it holds; an empty file or a
+  cut header (a run killed as it made the file) reads as no rows.
 * summary.json: a JSON object; ``kind`` and ``scene.title`` strings, ``scene`` and
   ``scene.rod`` objects, ``scene.rod.length`` a positive number, where present.
 * solution.xdmf: XML without entity declarations (an entity-expansion bomb is refused before
@@ -63,6 +64,28 @@ from .errors import CosseratError, SceneError
 
 PROBE_COLUMNS = ("t", "x", "y", "z", "theta", "psi", "phi")
 PROBE_HEADER = ",".join(PROBE_COLUMNS)
+#: The columns that each choice of ``output.probe_fields`` appends to probes.csv, in this order
+#: (the schema's choices): the unit quaternion (q0 the scalar part) of the rotation that takes
+#: e_j to the directors d_j, continued in sign from row to row; the directors' components in
+#: the fixed basis (d1_x = d1 · e1, ...).
+PROBE_FIELD_COLUMNS = {
+    "quaternion": ("q0", "q1", "q2", "q3"),
+    "directors": tuple(f"d{j}_{c}" for j in (1, 2, 3) for c in "xyz"),
+}
+
+
+def probe_columns(fields: tuple[str, ...] = ()) -> tuple[str, ...]:
+    """probes.csv's columns with the ``output.probe_fields`` ``fields``: t, x, ..., φ, then each
+    field's columns in the order of :data:`PROBE_FIELD_COLUMNS`."""
+    extra = [c for name, cols in PROBE_FIELD_COLUMNS.items() if name in fields for c in cols]
+    return (*PROBE_COLUMNS, *extra)
+
+
+#: Every header a probes.csv may have, and its columns.
+_HEADERS = {
+    ",".join(probe_columns(fields)): probe_columns(fields)
+    for fields in [(), ("quaternion",), ("directors",), ("quaternion", "directors")]
+}
 #: Largest files read [bytes]: probes.csv ~150 bytes a row (about 7 million rows), an XDMF
 #: file ~1-2.5 kB a frame (some 60 000 frames), summary.json ~4 kB.
 MAX_PROBES_BYTES = 1 << 30
@@ -203,12 +226,14 @@ class RodSeries:
 
 @dataclass
 class Run:
-    """A run folder's outputs: summary (or None), probes (rows, or None), XDMF path (or None)."""
+    """A run folder's outputs: summary (or None), probes (rows, or None), XDMF path (or None),
+    and the names of the probes' columns."""
 
     directory: Path
     summary: dict | None
     probes: np.ndarray | None
     xdmf: Path | None
+    probe_columns: tuple[str, ...] = PROBE_COLUMNS
 
     @property
     def time_label(self) -> str:
@@ -258,9 +283,9 @@ def open_run(directory: str | Path, command: str) -> Run:
         raise SceneError(f"{command}: {str(path)!r} is not a folder")
     summary_path, probes_path = path / "summary.json", path / "probes.csv"
     summary = read_summary(summary_path) if _is_file(summary_path) else None
-    probes = read_probes(probes_path) if _is_file(probes_path) else None
+    columns, probes = read_probe_table(probes_path) if _is_file(probes_path) else (None, None)
     xdmf = path / "solution.xdmf"
-    run = Run(path, summary, probes, xdmf if _is_file(xdmf) else None)
+    run = Run(path, summary, probes, xdmf if _is_file(xdmf) else None, columns or PROBE_COLUMNS)
     if run.probes is None and run.xdmf is None:
         raise SceneError(
             f"{command}: {str(path)!r} holds no run outputs (probes.csv, solution.xdmf); "
@@ -315,9 +340,16 @@ def read_summary(path: str | Path) -> dict:
 
 
 def read_probes(path: str | Path) -> np.ndarray:
-    """Rows (t, x, y, z, θ, ψ, φ) of probes.csv, (n, 7); a cut last line (a killed run) is
-    dropped, an empty file or a cut header is no rows; anything else that is not seven finite
-    numbers on each whole line is bad input (see the module docstring)."""
+    """Rows (t, x, y, z, θ, ψ, φ, ...) of probes.csv, (n, columns): the columns that its header
+    names (:func:`read_probe_table`)."""
+    return read_probe_table(path)[1]
+
+
+def read_probe_table(path: str | Path) -> tuple[tuple[str, ...], np.ndarray]:
+    """(columns, rows) of probes.csv: the header's names and the rows (n, len(columns)); a cut
+    last line (a killed run) is dropped, an empty file or a cut header is no rows (of the base
+    columns); anything else that is not a known header and as many finite numbers on each
+    whole line is bad input (see the module docstring)."""
     path = Path(path)
     _check_size(path, MAX_PROBES_BYTES)
     blocks: list[np.ndarray] = []
@@ -328,16 +360,17 @@ def read_probes(path: str | Path) -> np.ndarray:
             if not first.endswith(b"\n"):
                 # No whole line: a run killed as it made the file left an empty file or a
                 # cut header.
-                if not stream.read(1) and PROBE_HEADER.encode().startswith(first):
-                    return np.empty((0, len(PROBE_COLUMNS)))
+                if not stream.read(1) and any(h.encode().startswith(first) for h in _HEADERS):
+                    return PROBE_COLUMNS, np.empty((0, len(PROBE_COLUMNS)))
                 raise SceneError(
                     f"{_where(path)}: not a probes.csv (no header line {PROBE_HEADER!r})"
                 )
             header = _decode(path, first, "line 1: ").rstrip("\n").rstrip("\r")
-            if header != PROBE_HEADER:
+            columns = _HEADERS.get(header)
+            if columns is None:
                 raise SceneError(
                     f"{_where(path)}: not a probes.csv (header {_show(header)}, expected "
-                    f"{PROBE_HEADER!r})"
+                    f"{PROBE_HEADER!r} and the columns of output.probe_fields)"
                 )
             number = 1
             while raw := stream.readline(MAX_LINE_BYTES):
@@ -349,7 +382,7 @@ def read_probes(path: str | Path) -> np.ndarray:
                             "bytes; not a probes.csv"
                         )
                     break  # the row being written when the run was killed
-                row = _probe_row(path, number, raw)
+                row = _probe_row(path, number, raw, columns)
                 if row is not None:
                     rows.append(row)
                 if len(rows) == 65536:
@@ -357,23 +390,23 @@ def read_probes(path: str | Path) -> np.ndarray:
                     rows = []
     except OSError as exc:
         raise SceneError(f"{_where(path)}: cannot read it ({exc})") from None
-    blocks.append(np.array(rows, dtype=float).reshape(-1, len(PROBE_COLUMNS)))
-    return np.concatenate(blocks)
+    blocks.append(np.array(rows, dtype=float).reshape(-1, len(columns)))
+    return columns, np.concatenate(blocks)
 
 
-def _probe_row(path: Path, number: int, raw: bytes) -> list[float] | None:
+def _probe_row(path: Path, number: int, raw: bytes, columns: tuple[str, ...]) -> list[float] | None:
     """The numbers of line ``number`` of probes.csv (None for a blank line)."""
     text = _decode(path, raw, f"line {number}: ").rstrip("\n").rstrip("\r")
     if not text.strip():
         return None
     values = text.split(",")
-    if len(values) != len(PROBE_COLUMNS):
+    if len(values) != len(columns):
         raise SceneError(
             f"{_where(path)}: line {number} has {len(values)} values, expected "
-            f"{len(PROBE_COLUMNS)} ({PROBE_HEADER})"
+            f"{len(columns)} ({_show(','.join(columns), 200)})"
         )
     row = []
-    for name, value in zip(PROBE_COLUMNS, values, strict=True):
+    for name, value in zip(columns, values, strict=True):
         try:
             v = float(value)
         except ValueError:

@@ -382,6 +382,7 @@ def _build_output(raw: dict[str, Any], time: Time) -> Output:
         raw["fields"],
         raw["checkpoint"],
         float(checkpoint_interval),
+        raw["probe_fields"],
     )
 
 

@@ -28,6 +28,7 @@ from cosserat_fem.errors import SceneError, show_value
 from cosserat_fem.expressions import RESERVED_NAMES, check_name
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.section import TORSION_CONSTANT_RULES
+from cosserat_fem.results import PROBE_FIELD_COLUMNS
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
 SCENE_CONSTANTS = ("L", "omega0")
@@ -403,6 +404,7 @@ SCHEMA = Table(
                 "xdmf": Flag(default=True),
                 "xdmf_interval": Number(default=0.0, interval=NON_NEGATIVE, unit="s"),
                 "fields": ChoiceList(choices=XDMF_FIELDS, default=XDMF_DEFAULT_FIELDS),
+                "probe_fields": ChoiceList(choices=tuple(PROBE_FIELD_COLUMNS), default=()),
                 "checkpoint": Flag(default=True),
                 "checkpoint_interval": Number(
                     default="auto", interval=NON_NEGATIVE, unit="s", auto=True

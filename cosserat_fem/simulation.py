@@ -154,7 +154,7 @@ def run(
             xdmf = out / XDMF if scene.output.xdmf else None
             plan = check_outputs(restart, out / PROBES, xdmf, comm)
     model, integrator, solver = _discretise(scene, comm, initial_state, restart)
-    probe = PointProbe(model, probe_sigma(scene))
+    probe = PointProbe(model, probe_sigma(scene), fields=scene.output.probe_fields)
     summary = _summary_start(scene, model, integrator, solver, probe, comm, restart)
     parts = _RunParts(scene, model, solver, probe, summary, comm, t_start)
     if out is not None:

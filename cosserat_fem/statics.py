@@ -247,7 +247,7 @@ def static_path(
         return summary
 
     chain: list = []
-    probe = PointProbe(model, probe_sigma(scene))
+    probe = PointProbe(model, probe_sigma(scene), fields=scene.output.probe_fields)
     if write_outputs:
         begin = FolderStart(out, comm, scene.output.xdmf, summary)
         probes = ProbeObserver(out / PROBES, probe)

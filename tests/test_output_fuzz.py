@@ -392,6 +392,14 @@ def hand_written(genuine: Path) -> list[Case]:
     read("probes", "CRLF line ends", _write(P, probes.replace("\n", "\r\n")), rows_=rows)
     read("probes", "a blank line", _write(P, "".join([*lines[:5], "\n", *lines[5:]])), rows_=rows)
     read("probes", "values just within 1e100", _write(P, row_with("-1e99")), True, rows)
+    # output.probe_fields: known extra columns, in their order, with as many values a row
+    q = ",q0,q1,q2,q3"
+    with_q = [header.rstrip("\n") + q + "\n"] + [x.rstrip("\n") + ",1,0,0,0\n" for x in lines[1:]]
+    read("probes", "the quaternion's columns", _write(P, "".join(with_q)), True, rows)
+    refuse("probes", "the quaternion's header, rows of 7", _write(P, with_q[0] + lines[1]), (P,))
+    d = "".join(f",d{j}_{c}" for j in (1, 2, 3) for c in "xyz")
+    swapped = header.rstrip("\n") + d + q + "\n" + lines[1].rstrip("\n") + ",0" * 13 + "\n"
+    refuse("probes", "the directors before the quaternion", _write(P, swapped), (P,))
 
     # summary.json
     refuse("summary", "binary summary.json", _write(S, noise), (S,))
@@ -786,7 +794,9 @@ def _consistency(run, series) -> list[str]:
     problems = []
     if run.probes is not None:
         p = run.probes
-        if not (isinstance(p, np.ndarray) and p.ndim == 2 and p.shape[1] == 7):
+        if not (
+            isinstance(p, np.ndarray) and p.ndim == 2 and p.shape[1] == len(run.probe_columns)
+        ):
             problems.append(f"probes of shape {getattr(p, 'shape', None)}")
         elif not np.isfinite(p).all():
             problems.append("non-finite probes")

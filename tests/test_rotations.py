@@ -86,8 +86,10 @@ def test_restart_across_moves_of_the_chart_gives_the_uninterrupted_run(tmp_path,
     of the checkpoint, and a move maps the integrator's history (tests/test_restart.py says
     why equality is the test). The chart moves at steps 24, 90 and 169 (fixed steps); the
     run crashes at step 180, after the checkpoint at step 100, and the restart must give the
-    uninterrupted run's probes byte for byte, and the same counters."""
-    scene = whip([IN_3D, *RESTART_CONFIGS[name], "output.checkpoint_interval=1e-3"])
+    uninterrupted run's probes byte for byte, and the same counters; probes.csv holds the
+    quaternion too, whose sign a restart continues from the last row as it does the angles."""
+    extra = ["output.checkpoint_interval=1e-3", "output.probe_fields=['quaternion']"]
+    scene = whip([IN_3D, *RESTART_CONFIGS[name], *extra])
     run(scene, tmp_path / "whole")
     out = tmp_path / "crashed"
     with pytest.raises(Crash):
@@ -217,23 +219,40 @@ def test_outputs_need_no_decoding_of_charts(tmp_path):
     ``director_d1..3`` (output.fields "directors") are the rod's directors in the fixed
     basis, orthonormal; its ``angles`` give the same directors through (18) (the triple with
     |θ| ≤ π/2 once the chart has moved), and so do probes.csv's angles, continued from row to
-    row; at the free end all three agree to round-off (1e-12)."""
+    row; and so do probes.csv's quaternion and directors (output.probe_fields), the quaternion
+    of unit length and continuous from row to row: between two rows it changes by
+    2 sin(α/4) ≤ α/2, α the angle of the rotation between them, which is at most the sum of
+    the changes of the three angles (18) (a turn of the sign would jump by ~2); at the free
+    end all agree to round-off (1e-12)."""
     from xdmf_files import read_arrays
 
-    from cosserat_fem.charts import euler_matrix
+    from cosserat_fem.charts import euler_matrix, quaternion_frame
+    from cosserat_fem.results import PROBE_FIELD_COLUMNS, open_run
 
     out = tmp_path / "whip"
     fields = "output.fields=['displacement', 'angles', 'directors']"
-    scene = whip([IN_3D, "output.xdmf=true", "output.xdmf_interval=1e-4", fields])
-    result = run(scene, out)
+    probe_fields = "output.probe_fields=['directors', 'quaternion']"  # either order
+    scene = whip([IN_3D, "output.xdmf=true", "output.xdmf_interval=1e-4", fields, probe_fields])
+    result = run(scene, out, record=True)
     assert result.summary["chart_resets"] == 3
     _, times, arrays = read_arrays(out / "solution.xdmf")
     assert len(times) == 21
-    probes = np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1)[::10]
+    table = open_run(out, "test")
+    q_columns, d_columns = PROBE_FIELD_COLUMNS["quaternion"], PROBE_FIELD_COLUMNS["directors"]
+    assert table.probe_columns[7:] == (*q_columns, *d_columns)
+    assert np.array_equal(table.probes[:, 1:], result.probes[:, 1:])  # %.16e: exact
+    q = table.probes[:, 7:11]
+    assert np.abs(np.linalg.norm(q, axis=1) - 1.0).max() < 1e-14
+    turn = np.abs(np.diff(table.probes[:, 4:7], axis=0)).sum(axis=1)
+    assert (np.linalg.norm(np.diff(q, axis=0), axis=1) <= 0.5 * turn + 1e-12).all()
+    assert q[:, 0].min() < -0.02  # the end turned past π: a sign of q0 >= 0 would jump
+    probes = table.probes[::10]
     D = np.stack([arrays[f"director_d{i}"][:, -1] for i in (1, 2, 3)], axis=1)  # (T, 3, 3)
     assert np.abs(D @ np.swapaxes(D, 1, 2) - np.eye(3)).max() < 1e-12
     assert np.abs(euler_matrix(*arrays["angles"][:, -1].T) - D).max() < 1e-12
     assert np.abs(euler_matrix(*probes[:, 4:7].T) - D).max() < 1e-12
+    assert np.abs(probes[:, 11:20].reshape(-1, 3, 3) - D).max() < 1e-12
+    assert np.abs(quaternion_frame(probes[:, 7:11]) - D).max() < 1e-12
     assert probes[:, 4].max() > 3.0  # continued past π/2; the XDMF triple is not
     assert np.abs(arrays["angles"][:, -1, 0]).max() <= math.pi / 2
 
@@ -264,3 +283,26 @@ def test_a_move_keeps_the_frame_continuous_past_half_a_turn():
     Q = model.chart.x.array.reshape(-1, 4)[np.argsort(sigma)]
     assert (np.einsum("ij,ij->i", Q[1:], Q[:-1]) > 0.0).all()
     assert abs(after - before) <= 1e-6 * before, (before, after)
+
+
+def test_a_restart_continues_the_sign_of_the_probe_quaternion():
+    """q and −q are the same rotation: probes.csv's quaternion takes the sign nearest the
+    previous row's, and a restart seeds that from the last row (PointProbe.seed), as the
+    uninterrupted run would continue it. A rod turned by θ = 3 rad about e1 at its end: the
+    quaternion is ±(cos 1.5, −sin 1.5, 0, 0); a fresh probe gives q0 ≥ 0, one seeded with the
+    other sign (and its angles) keeps that sign, and both give the rod's directors (18)."""
+    from cosserat_fem.charts import euler_matrix, quaternion_frame
+    from cosserat_fem.model import build_model
+    from cosserat_fem.output import PointProbe
+
+    model = build_model(load_scene(SCENE, [IN_3D]))
+    sigma = model.V.tabulate_dof_coordinates()[:, 0]
+    model.U.x.array.reshape(-1, 12)[:, 3] = 3.0 * sigma
+    fresh = PointProbe(model, 1.0, fields=("quaternion",)).values()
+    assert fresh[6] == pytest.approx(math.cos(1.5), abs=1e-15)
+    seeded = PointProbe(model, 1.0, fields=("quaternion",))
+    seeded.seed(np.concatenate([[0.0], fresh[:6], -fresh[6:10]]))
+    again = seeded.values()
+    assert np.array_equal(again[6:10], -fresh[6:10])
+    D = euler_matrix(3.0, 0.0, 0.0)
+    assert np.abs(quaternion_frame(again[6:10]) - D).max() < 1e-15
