@@ -57,13 +57,17 @@ KEEP = 1.2
 
 def lagrange_weights(nodes: np.ndarray | list[float], t: float) -> np.ndarray:
     """Weights w_j with P(t) = Σ w_j u_j for the polynomial P through (nodes_j, u_j)."""
-    nodes = np.asarray(nodes, dtype=float)
-    weights = np.ones(nodes.size)
-    for j in range(nodes.size):
-        for k in range(nodes.size):
+    # Python floats, not numpy scalars: the same IEEE products in the same order, 3x cheaper
+    # (a predictor calls this for every stage).
+    xs = [float(x) for x in nodes]
+    weights = []
+    for j, xj in enumerate(xs):
+        w = 1.0
+        for k, xk in enumerate(xs):
             if k != j:
-                weights[j] *= (t - nodes[k]) / (nodes[j] - nodes[k])
-    return weights
+                w *= (t - xk) / (xj - xk)
+        weights.append(w)
+    return np.array(weights)
 
 
 class StateHistory:

@@ -368,6 +368,8 @@ class SDIRK(Integrator):
         self._rates = np.zeros((stages + 1, U.x.array.size))
         self._times = np.zeros(stages + 1)
         self._stored = 0
+        self._guess = np.zeros(U.x.array.size)  # the predictor's result and a scratch term
+        self._term = np.zeros(U.x.array.size)
 
     def residual_form(self) -> ufl.Form:
         return self._factory(self.U, self.inv_gh * (self.U - self.Z), self.time_eval)
@@ -380,16 +382,24 @@ class SDIRK(Integrator):
         stage ``stage`` of this step (0 with none). A stored rate whose time coincides with
         that of a newer one is left out (SDIRK4's first stage lies beyond its step, so after
         a step ratio of (γ − 1)/γ a stage time repeats exactly: the weights divided by zero)."""
-        size = len(self._times)
+        times, taus = self._times.tolist(), self._taus[:stage].tolist()
+        size = len(times)
         old = min(self._stored, size - stage)
         slots = [(self._stored - old + j) % size for j in range(old)]
-        later = [*(self._times[j] for j in slots), *self._taus[:stage]]
-        slots = [j for i, j in enumerate(slots) if self._times[j] not in later[i + 1 :]]
+        later = [*(times[j] for j in slots), *taus]
+        slots = [j for i, j in enumerate(slots) if times[j] not in later[i + 1 :]]
         old = len(slots)
         if old + stage == 0:
             return 0.0
-        w = lagrange_weights(np.concatenate([self._times[slots], self._taus[:stage]]), tau)
-        return w[:old] @ self._rates[slots] + w[old:] @ self.K[:stage]
+        w = lagrange_weights([*(times[j] for j in slots), *taus], tau).tolist()
+        # Σ w_j rate_j into a kept buffer, one term at a time: for the small arrays of a rod a
+        # fancy-indexed matrix product cost several times more (its copies and dispatch).
+        rows = [*(self._rates[j] for j in slots), *self.K[:stage]]
+        out, term = self._guess, self._term
+        np.multiply(rows[0], w[0], out=out)
+        for wj, row in zip(w[1:], rows[1:], strict=True):
+            out += np.multiply(row, wj, out=term)
+        return out
 
     def step(self, h: float, solve: Callable[[], int]) -> int:
         """The stages one after the other (module docstring), each from the predictor of the
@@ -402,7 +412,9 @@ class SDIRK(Integrator):
             tau = self.time + self.c[i] * h
             self.time_eval.value = tau
             self.unknown_time = tau
-            np.add(z, gh * self._rate_guess(i, tau), out=u)
+            guess = self._rate_guess(i, tau)
+            np.multiply(guess, gh, out=u)
+            u += z
             iterations += solve()
             np.subtract(u, z, out=self.K[i])
             self.K[i] *= 1.0 / gh
