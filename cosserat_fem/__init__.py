@@ -2,7 +2,7 @@
 
 The physics (pure UFL) lives in :mod:`cosserat_fem.forms` (the top-level ``forms/`` folder);
 this package is the machinery: scenes, spaces and boundary conditions, time integrators,
-the SNES solver, outputs and the command line. The Python API, ``cosserat_fem.load``,
+the Newton solver, outputs and the command line. The Python API, ``cosserat_fem.load``,
 ``run``, ``resume``, ``static`` and ``modes``, is :mod:`cosserat_fem.api`.
 """
 

@@ -12,7 +12,8 @@ Hooks, in the order a step meets them (``loop`` is the source: its ``state`` (t,
 * ``started(loop)``: set up, before the first step (also of a restart: ``loop.restarted``);
 * ``step_attempted(loop, t_new)``: a step (or load increment) to t_new is about to be taken;
 * ``newton_iteration(loop, it, norms, reason)``: a Newton iteration's convergence test ran;
-  ``norms`` = (‖U‖, ‖δU‖, ‖F‖), ``reason`` PETSc's SNES reason (0: iterating);
+  ``norms`` = (‖U‖, ‖δU‖, ‖F‖), ``reason`` a PETSc SNES converged reason (0: iterating;
+  cosserat_fem/newton.py);
 * ``solve_done(loop, iterations)``: a nonlinear solve (one stage) converged;
 * ``step_rejected(loop, cause)``: the step failed (``cause``: the SolverError) or its error
   estimate was too large (``cause`` None); it will be retried smaller;

@@ -1,8 +1,11 @@
-"""Newton's method by PETSc SNES for a DOLFINx residual form, with Jacobian policies.
+"""Newton's method for a DOLFINx residual form, with Jacobian policies.
 
-Each nonlinear solve is a petsc4py SNES (``newtonls``) with the exact UFL Jacobian assembled
-into a blocked (BAIJ) matrix and a direct solve (KSP ``preonly`` + LU: PETSc's own LU in
-serial, MUMPS under MPI). The Jacobian policy decides when the matrix is re-assembled:
+Each nonlinear solve iterates U_{k+1} = U_k − δU_k, J δU_k = F(U_k), with the full step (no
+line search), the exact UFL Jacobian J assembled into a blocked (BAIJ) matrix and a direct
+solve: a PETSc KSP ``preonly`` + LU (PETSc's own LU in serial, MUMPS under MPI). The loop is
+SNES ``newtonls`` with the ``basic`` line search written out (docs/decisions.md, "The lean
+Newton loop"): the same iterates, norms, iteration counts and reasons, without SNES's calls
+into Python. The Jacobian policy decides when the matrix is re-assembled:
 
 * ``full``:   at every Newton iteration (quadratic convergence);
 * ``lagged``: at the first iteration of every ``lag``-th solve, otherwise the last matrix
@@ -12,28 +15,34 @@ serial, MUMPS under MPI). The Jacobian policy decides when the matrix is re-asse
 
 A solve that fails with an old matrix is retried once with a fresh one before failure is
 reported. A matrix that is not re-assembled keeps its PETSc object state, so the LU factors
-are reused (PCSetUp sees an unchanged operator). No line search (``basic``: the full step).
+are reused (PCSetUp sees an unchanged operator).
 
-Convergence (:meth:`NewtonSolver._converged`): ‖F‖ ≤ atol, or ‖F‖ ≤ rtol ‖F0‖, or the
-update test ‖δU_k‖ ≤ stol ‖U‖ + xatol. With a reused Jacobian the iteration converges
-linearly, and from the second iteration on it also stops when its estimated error is that
-small: η_k ‖δU_k‖ ≤ stol ‖U‖ + xatol, η_k = ρ_k/(1 − ρ_k) (Hairer & Wanner, Solving ODEs II,
-IV.8, eq. (8.10)), with the contraction ρ_k the larger of the update ratio ‖δU_k‖/‖δU_{k−1}‖
-and the residual ratio ‖F(U_k)‖/‖F(U_{k−1})‖. Full Newton keeps the update test alone.
-Why each of these, with the measurements: docs/decisions.md, "The Newton stop rule" and
-"No line search".
+Convergence (:meth:`NewtonSolver._converged`), called with norms = (‖U_k‖, ‖δU_k‖,
+‖F(U_k)‖) after each iteration k ≥ 1 and with (0, 0, ‖F(U_0)‖) at k = 0, as SNES calls its
+test: ‖F‖ ≤ atol, or ‖F‖ ≤ rtol ‖F0‖, or the update test ‖δU_k‖ ≤ stol ‖U‖ + xatol. With a
+reused Jacobian the iteration converges linearly, and from the second iteration on it also
+stops when its estimated error is that small: η_k ‖δU_k‖ ≤ stol ‖U‖ + xatol,
+η_k = ρ_k/(1 − ρ_k) (Hairer & Wanner, Solving ODEs II, IV.8, eq. (8.10)), with the
+contraction ρ_k the larger of the update ratio ‖δU_k‖/‖δU_{k−1}‖ and the residual ratio
+‖F(U_k)‖/‖F(U_{k−1})‖. Full Newton keeps the update test alone. A solve also ends, without
+the test, when ‖F‖ is not finite (``DIVERGED_FNORM_NAN``) or the linear solve fails, e.g. at
+a zero pivot (``DIVERGED_LINEAR_SOLVE``), after the iterations completed before. Outcomes
+are PETSc's SNES reasons (``PETSc.SNES.ConvergedReason``; :class:`NewtonFailure` carries
+the name). Why each of these, with the measurements: docs/decisions.md, "The Newton stop
+rule" and "No line search".
 """
 
 from __future__ import annotations
 
 import itertools
+import math
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 
 import numpy as np
 import ufl
-from dolfinx import fem
-from dolfinx.fem.petsc import assemble_matrix, assemble_vector, create_matrix, create_vector, set_bc
+from dolfinx import cpp, fem
+from dolfinx.fem.petsc import assemble_matrix, create_matrix, create_vector
 from petsc4py import PETSc
 from ufl.algorithms.analysis import extract_coefficients, extract_constants
 
@@ -79,12 +88,11 @@ class NewtonStatistics:
     time_jacobian: float = 0.0
     time_solve: float = 0.0
     last_iterations: int = 0
-    history: list[int] = field(default_factory=list, repr=False)
+    #: The most iterations a solve took (a running maximum: nothing grows with the run's length).
+    max_iterations_in_a_solve: int = 0
 
     def as_dict(self) -> dict:
-        d = dict(self.__dict__)
-        d["max_iterations_in_a_solve"] = max(d.pop("history"), default=0)
-        return d
+        return dict(self.__dict__)
 
 
 class NewtonFailure(RuntimeError):
@@ -97,15 +105,19 @@ class NewtonFailure(RuntimeError):
 
 
 _REASONS = {v: k for k, v in vars(PETSc.SNES.ConvergedReason).items() if isinstance(v, int)}
+_INSERT, _ADD = PETSc.InsertMode.INSERT, PETSc.InsertMode.ADD
+_FORWARD, _REVERSE = PETSc.ScatterMode.FORWARD, PETSc.ScatterMode.REVERSE
 
 
 class NewtonSolver:
-    """SNES Newton solver for F(U; V) = 0 with Dirichlet conditions ``bcs`` on U.
+    """Newton solver for F(U; V) = 0 with Dirichlet conditions ``bcs`` on U (module docstring).
 
     The residual rows of constrained dofs are x − g and the Jacobian's rows and columns there
     the identity's, so a guess off the Dirichlet values g still converges, but its first
     update ignores their coupling to the free dofs: the caller puts g into the guess (the time
     loop does for moving supports; docs/decisions.md, "Dirichlet values in the guess").
+    The iterates are U's own vector (without a line search F is only evaluated at iterates);
+    ``b`` holds F at the last one (also after a failure).
     """
 
     def __init__(
@@ -128,47 +140,33 @@ class NewtonSolver:
         self._parallel = comm.size > 1
         self._update_prev = 0.0  # ‖δU_{k−1}‖ of the current solve
         self._f_prev = 0.0  # ‖F(U_{k−1})‖ of the current solve
+        self._f0 = 0.0
         self._compile_params = (form_compiler_params or {}, jit_params or {})
         self.compile_time = 0.0
         self._compile(F)
 
-        self.b = create_vector(self.F_form)
-        # SNES iterates on its own vector: the callbacks copy trial points into U, which must
-        # never alias the current iterate (a line search evaluates F away from it).
-        self.x = create_vector(self.F_form)
+        self._u = U.vector  # the iterate: U's own PETSc vector
+        index_map = U.function_space.dofmap.index_map
+        owned = index_map.size_local * U.function_space.dofmap.index_map_bs
+        self._u_owned = U.x.array[:owned]  # its owned values, for the Dirichlet rows
+        self.b = create_vector(self.F_form)  # F(U)
+        self.dx = create_vector(self.F_form)  # the Newton update δU
         self._initial = create_vector(self.F_form)  # the initial guess, kept for a retry
         self.A = create_matrix(self.J_form, mat_type="baij")
         self._need_jacobian = True
         self._solves_since_jacobian = 0
 
-        self.snes = PETSc.SNES().create(comm)
-        prefix = f"cosserat_newton_{next(_prefix_counter)}_"
-        self.snes.setOptionsPrefix(prefix)
+        self.lu_package = self._lu_package(comm, settings.linear_solver)
+        self.ksp = PETSc.KSP().create(comm)
         # Configured through the API, not the options database: PETSc 3.18 keeps at most 512
         # options, and a session that builds many solvers (a test suite) would fill it.
-        # setFromOptions still lets a user override any of it with -<prefix>snes_... options.
-        self.snes.setType("newtonls")
-        self.snes.setTolerances(
-            rtol=settings.rtol,
-            atol=settings.atol,
-            stol=settings.stol,
-            max_it=settings.max_iterations,
-        )
-        self.snes.setMaxFunctionEvaluations(10 * settings.max_iterations + 10)
-        self.lu_package = self._lu_package(comm, settings.linear_solver)
-        ksp = self.snes.getKSP()
-        ksp.setType("preonly")
-        ksp.getPC().setType("lu")
-        ksp.getPC().setFactorSolverType(self.lu_package)
-        # petsc4py 3.18 has no line-search API: set it as an option and remove it again.
-        options = PETSc.Options()
-        options[prefix + "snes_linesearch_type"] = "basic"
-        self.snes.setFromOptions()
-        options.delValue(prefix + "snes_linesearch_type")
-        self.snes.setConvergenceTest(self._converged)
-        self._f0 = 0.0
-        self.snes.setFunction(self._residual, self.b)
-        self.snes.setJacobian(self._jacobian, self.A)
+        # setFromOptions still lets a user override any of it with -<prefix>ksp_/pc_ options.
+        self.ksp.setOptionsPrefix(f"cosserat_newton_{next(_prefix_counter)}_")
+        self.ksp.setType("preonly")
+        self.ksp.getPC().setType("lu")
+        self.ksp.getPC().setFactorSolverType(self.lu_package)
+        self.ksp.setOperators(self.A)
+        self.ksp.setFromOptions()
 
     def _compile(self, F: ufl.Form) -> None:
         """The residual and Jacobian forms of F; what the Jacobian is assembled from, and (for
@@ -200,38 +198,53 @@ class NewtonSolver:
             raise ValueError("PETSc's own LU is serial only; use linear_solver = 'mumps'")
         return choice
 
-    # -- SNES callbacks -------------------------------------------------------------------
-    def _update_state(self, x: PETSc.Vec) -> None:
-        """Copy SNES's vector ``x`` into U (ghost values updated under MPI)."""
-        if self._parallel:
-            x.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
-        x.copy(self.U.vector)
-        if self._parallel:
-            self.U.vector.ghostUpdate(
-                addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD
-            )
-
-    def _residual(self, snes, x: PETSc.Vec, b: PETSc.Vec) -> None:
-        """SNES callback: b = F(x), with x − g in the rows of the Dirichlet dofs (class
-        docstring)."""
+    # -- residual, Jacobian, convergence test ----------------------------------------------
+    def _residual(self) -> None:
+        """b = F(U), with x − g in the rows of the Dirichlet dofs (class docstring). Under MPI
+        U's ghosts are updated first and b's ghost contributions added."""
         t0 = time.perf_counter()
-        self._update_state(x)
-        with b.localForm() as b_local:
-            b_local.set(0.0)
-        assemble_vector(b, self.F_form)
+        b = self.b
         if self._parallel:
-            b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-        set_bc(b, self.bcs, x, -1.0)
+            self._u.ghostUpdate(addv=_INSERT, mode=_FORWARD)
+            with b.localForm() as local:
+                self._assemble(local.array_w, dirichlet=False)
+            b.ghostUpdate(addv=_ADD, mode=_REVERSE)
+            cpp.fem.set_bc(b.array_w, self.bcs, self._u_owned, -1.0)
+        else:
+            self._assemble(b.array_w, dirichlet=True)
+        # b's arrays are released (VecRestoreArray): its state has moved on, so PETSc does
+        # not answer with a norm it cached before.
         self.stats.residual_assemblies += 1
         self.stats.time_residual += time.perf_counter() - t0
 
-    def _jacobian(self, snes, x: PETSc.Vec, A: PETSc.Mat, P: PETSc.Mat) -> None:
-        """SNES callback: J(x) into A when the policy asks for it (identity rows and columns at
-        the Dirichlet dofs); for a reused Jacobian its inputs are kept for a checkpoint."""
+    def _norms(self) -> tuple[float, float, float]:
+        """(‖U‖, ‖δU‖, ‖F‖) after an iteration, in one reduction as SNES's line search takes
+        them (which rounds differently from three norms under MPI)."""
+        u, dx, b = self._u, self.dx, self.b
+        b.normBegin()
+        dx.normBegin()
+        u.normBegin()
+        fnorm, ynorm = b.normEnd(), dx.normEnd()
+        return u.normEnd(), ynorm, fnorm
+
+    def _assemble(self, array: np.ndarray, dirichlet: bool) -> None:
+        """F(U) into ``array`` (zeroed first): DOLFINx's assemble_vector without its Python
+        layers (coefficients and constants packed anew); with ``dirichlet`` (``array`` then
+        the owned values) also the rows x − g of the Dirichlet dofs."""
+        form = self.F_form
+        array.fill(0.0)
+        coefficients, constants = cpp.fem.pack_coefficients(form), cpp.fem.pack_constants(form)
+        cpp.fem.assemble_vector(array, form, constants, coefficients)
+        if dirichlet:
+            cpp.fem.set_bc(array, self.bcs, self._u_owned, -1.0)
+
+    def _jacobian(self) -> None:
+        """J(U) into A when the policy asks for it (identity rows and columns at the Dirichlet
+        dofs); for a reused Jacobian its inputs are kept for a checkpoint."""
         if not (self._need_jacobian or self.settings.jacobian == "full"):
             return
         t0 = time.perf_counter()
-        self._update_state(x)
+        A = self.A
         A.zeroEntries()
         assemble_matrix(A, self.J_form, bcs=self.bcs)
         A.assemble()
@@ -248,7 +261,8 @@ class NewtonSolver:
 
     def _converged(self, snes, it: int, norms) -> int:
         """Convergence test of the module docstring; norms = (‖U‖, ‖δU‖, ‖F‖). Each result
-        goes to ``iteration_hook(it, norms, reason)`` if one is set (an observer's)."""
+        goes to ``iteration_hook(it, norms, reason)`` if one is set (an observer's). ``snes``
+        is not read (the place of SNES's argument in its convergence test; None)."""
         reason = self._test(it, norms)
         if self.iteration_hook is not None:
             self.iteration_hook(it, norms, reason)
@@ -290,21 +304,22 @@ class NewtonSolver:
         if policy == "lagged" and self._solves_since_jacobian >= self.settings.lag:
             self._need_jacobian = True
         initial = self._initial
-        self.U.vector.copy(initial)
+        self._u.copy(initial)
         fresh = self._need_jacobian or policy == "full"
         iterations, reason = self._run()
         if reason <= 0 and not fresh:
             # An old Jacobian may be the cause: retry once from the same guess with a new one.
             self.stats.retries += 1
-            initial.copy(self.U.vector)
-            self.U.vector.ghostUpdate(addv=PETSc.InsertMode.INSERT, mode=PETSc.ScatterMode.FORWARD)
+            initial.copy(self._u)
             self._need_jacobian = True
             more, reason = self._run()
             iterations += more
         self._solves_since_jacobian += 1
         self.stats.solves += 1
         self.stats.last_iterations = iterations
-        self.stats.history.append(iterations)
+        self.stats.max_iterations_in_a_solve = max(
+            self.stats.max_iterations_in_a_solve, iterations
+        )
         if reason <= 0:
             raise NewtonFailure(_REASONS.get(reason, str(reason)), iterations)
         if policy == "frozen" and iterations > self.settings.refresh_iterations:
@@ -312,29 +327,45 @@ class NewtonSolver:
         return iterations
 
     def _run(self) -> tuple[int, int]:
-        """One SNES solve from U, which then holds the result: (iterations, SNES converged
-        reason)."""
+        """Newton's iterations from U, which then holds the last iterate: (iterations, SNES
+        reason). The steps, norms and exits of SNES newtonls with the basic line search."""
         t0 = time.perf_counter()
-        self.U.vector.copy(self.x)
-        self.snes.solve(None, self.x)
-        self._update_state(self.x)
+        reasons = PETSc.SNES.ConvergedReason
+        u, dx, ksp = self._u, self.dx, self.ksp
+        self._residual()
+        fnorm = self.b.norm()
+        it = 0
+        if not math.isfinite(fnorm):
+            reason = reasons.DIVERGED_FNORM_NAN
+        else:
+            reason = self._converged(None, 0, (0.0, 0.0, fnorm))
+        while reason == reasons.ITERATING and it < self.settings.max_iterations:
+            self._jacobian()
+            ksp.solve(self.b, dx)
+            if ksp.getConvergedReason() < 0:
+                reason = reasons.DIVERGED_LINEAR_SOLVE
+                break
+            u.axpy(-1.0, dx)
+            self._residual()
+            norms = self._norms()
+            if not math.isfinite(norms[2]):
+                reason = reasons.DIVERGED_FNORM_NAN
+                break
+            it += 1
+            reason = self._converged(None, it, norms)
+        if reason == reasons.ITERATING:
+            reason = reasons.DIVERGED_MAX_IT
         self.stats.time_solve += time.perf_counter() - t0
-        it = self.snes.getIterationNumber()
         self.stats.iterations += it
-        return it, self.snes.getConvergedReason()
+        return it, reason
 
     # -- checkpoint/restart ---------------------------------------------------------------
     def state_dict(self) -> dict:
         """The policy's state, the counters and the inputs of the reused Jacobian."""
-        counters = {
-            f"stats.{f.name}": getattr(self.stats, f.name)
-            for f in fields(self.stats)
-            if f.name != "history"
-        }
+        counters = {f"stats.{f.name}": getattr(self.stats, f.name) for f in fields(self.stats)}
         state = {
             "need_jacobian": self._need_jacobian,
             "solves_since_jacobian": self._solves_since_jacobian,
-            "stats.history": np.array(self.stats.history, dtype=np.int64),
             **counters,
         }
         if self._J_snapshot is not None:
@@ -344,11 +375,12 @@ class NewtonSolver:
     def load_state_dict(self, state: dict) -> None:
         """Restore :meth:`state_dict`; a reused Jacobian is re-assembled from the saved inputs
         (the same matrix, so the same LU factors and the same iterates as the first run)."""
+        if "stats.history" in state:  # a checkpoint of before the running maximum
+            history = np.asarray(state["stats.history"])
+            state = {**state, "stats.max_iterations_in_a_solve": int(history.max(initial=0))}
         for f in fields(self.stats):
-            if f.name != "history":
-                kind = type(getattr(self.stats, f.name))
-                setattr(self.stats, f.name, kind(state[f"stats.{f.name}"]))
-        self.stats.history = [int(i) for i in state["stats.history"]]
+            kind = type(getattr(self.stats, f.name))
+            setattr(self.stats, f.name, kind(state[f"stats.{f.name}"]))
         self._solves_since_jacobian = int(state["solves_since_jacobian"])
         self._need_jacobian = bool(state["need_jacobian"])
         if self.settings.jacobian == "full" or "jacobian.coefficient0" not in state:
@@ -375,9 +407,9 @@ class NewtonSolver:
         # The saved "need a new Jacobian" flag stands: a pending refresh still happens.
 
     def destroy(self) -> None:
-        """Free the PETSc objects (SNES, matrix, vectors); the solver is unusable afterwards."""
-        self.snes.destroy()
+        """Free the PETSc objects (KSP, matrix, vectors); the solver is unusable afterwards."""
+        self.ksp.destroy()
         self.A.destroy()
         self.b.destroy()
-        self.x.destroy()
+        self.dx.destroy()
         self._initial.destroy()

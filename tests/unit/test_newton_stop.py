@@ -220,20 +220,19 @@ def documented_rule(norms, st: NewtonSettings) -> int:
 
 def recorded_solve(problem: Squares, start) -> list[tuple[int, tuple, np.ndarray, int]]:
     """Solve from ``start``, recording (it, norms, iterate, reason) of every call of the rule
-    (the SNES calls it after evaluating F at the new iterate, which it holds as its solution)."""
+    (through the solver's iteration hook; Newton calls the rule after evaluating F at the new
+    iterate, which U then holds)."""
     solver, calls = problem.solver, []
 
-    def recording(snes, it, norms):
-        reason = solver._converged(snes, it, norms)
-        calls.append((it, tuple(norms), snes.getSolution().array.copy(), reason))
-        return reason
+    def recording(it, norms, reason):
+        calls.append((it, tuple(norms), problem.U.x.array.copy(), reason))
 
-    solver.snes.setConvergenceTest(recording)
+    solver.iteration_hook = recording
     try:
         problem.U.x.array[:] = start
         solver.solve()
     finally:
-        solver.snes.setConvergenceTest(solver._converged)
+        solver.iteration_hook = None
     return calls
 
 
