@@ -26,8 +26,11 @@ def subprocess_env() -> dict[str, str]:
     return env
 
 
-def run_command(args: list[str], ranks: int = 1, timeout: float = 600, cwd: Path = ROOT):
-    """Run ``args`` (a Python script and its arguments) serially or under mpirun."""
+def run_command(
+    args: list[str], ranks: int = 1, timeout: float = 600, cwd: Path = ROOT, env: dict | None = None
+):
+    """Run ``args`` (a Python script and its arguments) serially or under mpirun; ``env``:
+    variables added to the environment."""
     cmd = [PYTHON, *args]
     if ranks > 1:
         mpirun = shutil.which("mpirun")
@@ -35,7 +38,12 @@ def run_command(args: list[str], ranks: int = 1, timeout: float = 600, cwd: Path
             pytest.fail("mpirun not found: install openmpi-bin (make setup does)")
         cmd = [mpirun, "-n", str(ranks), *cmd]
     return subprocess.run(
-        cmd, cwd=cwd, env=subprocess_env(), capture_output=True, text=True, timeout=timeout
+        cmd,
+        cwd=cwd,
+        env={**subprocess_env(), **(env or {})},
+        capture_output=True,
+        text=True,
+        timeout=timeout,
     )
 
 
