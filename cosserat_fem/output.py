@@ -14,8 +14,14 @@ killed process, though not a power cut.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
+import ctypes.util
 import hashlib
+import math
+import mmap
 import os
+import re
 import resource
 import shutil
 import time
@@ -26,14 +32,14 @@ from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
 import ufl
-from dolfinx import fem, geometry, io, mesh
+from dolfinx import fem, geometry, mesh
 from mpi4py import MPI
 
 from .charts import euler_angles, euler_matrix, quaternion_frame, quaternion_of_frame
 from .errors import OutputError
 from .forms.kinematics import directors
 from .forms.resultants import resultants
-from .parallel import agree, from_root
+from .parallel import agree
 from .results import PROBE_FIELD_COLUMNS, probe_columns
 
 if TYPE_CHECKING:
@@ -399,15 +405,18 @@ def _output_nodes(msh: mesh.Mesh, k: int) -> tuple[np.ndarray, np.ndarray, int]:
 
 
 class CentrelineOutput:
-    """The output mesh, the reference centreline (0, 0, ℓ σ) [m] in 3D with each solver
-    cell split into ``k`` equal segments (named "mesh"), and the map from values at the
-    output points of the solver's owned cells to the P1 dofs of that mesh.
+    """The output points of a rod and the map to them from values at the points of the
+    solver's owned cells: each solver cell split into ``k`` equal segments (one point per
+    Lagrange node of degree k), the points numbered along the rod (in the order of σ).
 
-    A point's value is the mean of its cells' values (a vertex inside the rod has two cells,
-    the other points one; the mean of one value is that value, bitwise). Rank 0 gathers the
-    values of all cells, averages them per point and broadcasts the (small) result; every
-    rank then takes the points of its part of the output mesh, which DOLFINx partitions on
-    its own. In serial there is no communication."""
+    Rank 0 holds ``geometry``, the points on the reference centreline (0, 0, ℓ σ) [m]
+    (n_points, 3), and ``topology``, the segments as pairs of point numbers (sorted); both are
+    None on the other ranks. A point's value is the mean of its cells' values (a vertex inside
+    the rod has two cells, the other points one; the mean of one value is that value, bitwise,
+    and of two the same in either order). Rank 0 gathers the values of all cells and averages
+    them per point (in serial there is no communication). Nothing depends on the mesh's
+    partition: under MPI the points, segments and values (of the same state) are a serial
+    run's, bit for bit."""
 
     def __init__(self, msh: mesh.Mesh, length: float, k: int):
         comm = self.comm = msh.comm
@@ -421,37 +430,37 @@ class CentrelineOutput:
             sigma_all = comm.gather(sigma.ravel(), root=0)
         else:
             ids_all, sigma_all = [ids.ravel()], [sigma.ravel()]
-        x3 = np.zeros((0, 3))
-        segments = np.zeros((0, 2), dtype=np.int64)
+        self.geometry: np.ndarray | None = None
+        self.topology: np.ndarray | None = None
         self._first = self._second = None
         if comm.rank == 0:
             flat = np.concatenate(ids_all)
-            x3 = np.zeros((self.n_points, 3))
-            x3[flat, 2] = length * np.concatenate(sigma_all)
-            per_cell = flat.reshape(-1, k + 1)
-            segments = np.column_stack([per_cell[:, :k].ravel(), per_cell[:, 1:].ravel()])
-            # Rows (k + 1) c + j of the gathered values (point j of gathered cell c) per id.
-            order = np.argsort(flat, kind="stable")
-            seen = np.bincount(flat, minlength=self.n_points)
+            n = self.n_points
+            seen = np.bincount(flat, minlength=n)
             if seen.min() < 1 or seen.max() > 2:
                 raise RuntimeError("output points: every point must have one or two cells")
-            start = np.concatenate([[0], np.cumsum(seen)[:-1]])
-            self._first, self._second = order[start], order[start + seen - 1]
-        cell = ufl.Cell("interval", geometric_dimension=3)
-        domain = ufl.Mesh(ufl.VectorElement("Lagrange", cell, 1, dim=3))
-        self.mesh = mesh.create_mesh(comm, segments, x3, domain, ghost_mode=mesh.GhostMode.none)
-        self.mesh.name = "mesh"
-        self.space = fem.VectorFunctionSpace(self.mesh, ("Lagrange", 1), dim=3)
-        # The id of every local dof (owned and ghost) of the P1 space on the output mesh.
-        imap = self.space.dofmap.index_map
-        self.dof_ids = np.empty(imap.size_local + imap.num_ghosts, dtype=np.int64)
-        line_index = np.asarray(self.mesh.geometry.input_global_indices, dtype=np.int64)
-        line_nodes = self.mesh.geometry.dofmap.array.reshape(-1, 2)
-        self.dof_ids[self.space.dofmap.list.array.reshape(-1, 2)] = line_index[line_nodes]
+            at = np.zeros(n)
+            at[flat] = np.concatenate(sigma_all)  # a vertex has the same σ in both its cells
+            order = np.argsort(at, kind="stable")  # the ids in the order of σ
+            number = np.empty(n, dtype=np.int64)
+            number[order] = np.arange(n)
+            rows = number[flat]  # the point of each gathered row
+            self.geometry = np.zeros((n, 3))
+            self.geometry[:, 2] = length * at[order]
+            per_cell = rows.reshape(-1, k + 1)
+            pairs = np.column_stack([per_cell[:, :k].ravel(), per_cell[:, 1:].ravel()])
+            pairs.sort(axis=1)
+            self.topology = pairs[np.lexsort((pairs[:, 1], pairs[:, 0]))]
+            # Rows (k + 1) c + j of the gathered values (point j of gathered cell c) per point.
+            by_point = np.argsort(rows, kind="stable")
+            count = seen[order]
+            start = np.concatenate([[0], np.cumsum(count)[:-1]])
+            self._first, self._second = by_point[start], by_point[start + count - 1]
 
-    def point_values(self, values: np.ndarray) -> np.ndarray:
-        """(points of the output mesh's local dofs, m) from ``values`` (owned cells,
-        (k + 1) m): the values at the k + 1 points of each owned solver cell, point-major."""
+    def point_values(self, values: np.ndarray) -> np.ndarray | None:
+        """(n_points, m) at the output points on rank 0, None elsewhere, from ``values`` (owned
+        cells, (k + 1) m): the values at the k + 1 points of each owned solver cell,
+        point-major. Collective."""
         m = values.shape[1] // (self.k + 1)
         rows = values.reshape(-1, m)
         comm = self.comm
@@ -460,12 +469,9 @@ class CentrelineOutput:
             sizes = [c * m for c in self.counts]
             comm.Gatherv(np.ascontiguousarray(rows), (gathered, sizes), root=0)
             rows = gathered
-        full = np.empty((self.n_points, m))
-        if comm.rank == 0:
-            full[:] = 0.5 * (rows[self._first] + rows[self._second])
-        if comm.size > 1:
-            comm.Bcast(full, root=0)
-        return full[self.dof_ids]
+        if comm.rank != 0:
+            return None
+        return 0.5 * (rows[self._first] + rows[self._second])
 
 
 #: The folder of an XDMF file's HDF5 files: ``<stem>.frames`` beside ``<stem>.xdmf``.
@@ -485,6 +491,267 @@ def frames_folder(xdmf: Path) -> Path:
 def frame_file(index: int) -> str:
     """The name, in :func:`frames_folder`, of the HDF5 file of frame ``index`` (from 0)."""
     return f"{index:0{FRAME_DIGITS}d}.h5"
+
+
+class _Hdf5:
+    """HDF5 files made in memory by the HDF5 C library that DOLFINx has loaded, called through
+    ctypes (h5py brings a library of its own, which cannot share a process with DOLFINx's).
+
+    :meth:`image` builds a file with the core driver and no backing store and returns its
+    bytes: the library never writes to disk, so a write that fails (disk full, ``ulimit -f``)
+    is Python's OSError, never a failure inside HDF5. The files have superblock version 0 and
+    contiguous datasets, as DOLFINx writes them: readable by every HDF5 since 1.8, and no
+    "file open for writing" flag is ever set in them. HDF5's own error report on stderr is
+    switched off during the calls (a failure raises RuntimeError)."""
+
+    _lib = None
+
+    def __init__(self):
+        lib = self.library()
+        hid = ctypes.c_int64
+        self.lib = lib
+        self.float64 = (hid.in_dll(lib, "H5T_IEEE_F64LE_g").value,
+                        hid.in_dll(lib, "H5T_NATIVE_DOUBLE_g").value)  # fmt: skip
+        self.int64 = (hid.in_dll(lib, "H5T_STD_I64LE_g").value,
+                      hid.in_dll(lib, "H5T_NATIVE_INT64_g").value)  # fmt: skip
+        self.fapl = lib.H5Pcreate(hid.in_dll(lib, "H5P_CLS_FILE_ACCESS_ID_g").value)
+        self.lcpl = lib.H5Pcreate(hid.in_dll(lib, "H5P_CLS_LINK_CREATE_ID_g").value)
+        self.dcpl = lib.H5Pcreate(hid.in_dll(lib, "H5P_CLS_DATASET_CREATE_ID_g").value)
+        if (
+            min(self.fapl, self.lcpl, self.dcpl) < 0
+            or lib.H5Pset_fapl_core(self.fapl, 1 << 16, 0) < 0
+            or lib.H5Pset_create_intermediate_group(self.lcpl, 1) < 0
+            or lib.H5Pset_obj_track_times(self.dcpl, 0) < 0  # the same bytes for the same data
+        ):
+            raise RuntimeError("HDF5: cannot set up in-memory files")
+
+    @classmethod
+    def library(cls) -> ctypes.CDLL:
+        """The HDF5 C library already in this process (DOLFINx's), with the prototypes used."""
+        if cls._lib is not None:
+            return cls._lib
+        found = None
+        pattern = re.compile(r"/libhdf5(?:_openmpi|_mpich|_serial)?\.so(?:\.[0-9]+)*$")
+        try:
+            with open("/proc/self/maps", encoding="utf-8", errors="replace") as maps:
+                for line in maps:
+                    fields = line.split(maxsplit=5)
+                    if len(fields) == 6 and pattern.search(fields[5].strip()):
+                        found = fields[5].strip()
+                        break
+        except OSError:
+            pass
+        for name in ("hdf5_openmpi", "hdf5_mpich", "hdf5_serial", "hdf5"):
+            found = found or ctypes.util.find_library(name)
+        if not found:
+            raise RuntimeError("the HDF5 C library (DOLFINx's) was not found")
+        lib = ctypes.CDLL(found)
+        hid, herr, size = ctypes.c_int64, ctypes.c_int, ctypes.c_size_t
+        pointer, text = ctypes.c_void_p, ctypes.c_char_p
+        for name, result, arguments in (
+            ("H5open", herr, []),
+            ("H5Fcreate", hid, [text, ctypes.c_uint, hid, hid]),
+            ("H5Fopen", hid, [text, ctypes.c_uint, hid]),
+            ("H5Fflush", herr, [hid, ctypes.c_int]),
+            ("H5Fget_file_image", ctypes.c_ssize_t, [hid, pointer, size]),
+            ("H5Fclose", herr, [hid]),
+            ("H5Pcreate", hid, [hid]),
+            ("H5Pset_fapl_core", herr, [hid, size, ctypes.c_uint]),
+            ("H5Pset_create_intermediate_group", herr, [hid, ctypes.c_uint]),
+            ("H5Pset_obj_track_times", herr, [hid, ctypes.c_uint]),
+            ("H5Screate_simple", hid, [ctypes.c_int, pointer, pointer]),
+            ("H5Sget_simple_extent_ndims", ctypes.c_int, [hid]),
+            ("H5Sget_simple_extent_dims", ctypes.c_int, [hid, pointer, pointer]),
+            ("H5Sclose", herr, [hid]),
+            ("H5Dcreate2", hid, [hid, text, hid, hid, hid, hid, hid]),
+            ("H5Dopen2", hid, [hid, text, hid]),
+            ("H5Dget_space", hid, [hid]),
+            ("H5Dwrite", herr, [hid, hid, hid, hid, hid, pointer]),
+            ("H5Dread", herr, [hid, hid, hid, hid, hid, pointer]),
+            ("H5Dget_offset", ctypes.c_uint64, [hid]),
+            ("H5Dclose", herr, [hid]),
+            ("H5Eget_auto2", herr, [hid, pointer, pointer]),
+            ("H5Eset_auto2", herr, [hid, pointer, pointer]),
+        ):
+            function = getattr(lib, name)
+            function.restype, function.argtypes = result, arguments
+        if lib.H5open() < 0:
+            raise RuntimeError(f"HDF5: cannot initialise {found}")
+        cls._lib = lib
+        return lib
+
+    @contextlib.contextmanager
+    def _quiet(self):
+        """HDF5's printing of its error stack off (restored after)."""
+        handler, data = ctypes.c_void_p(), ctypes.c_void_p()
+        self.lib.H5Eget_auto2(0, ctypes.byref(handler), ctypes.byref(data))
+        self.lib.H5Eset_auto2(0, None, None)
+        try:
+            yield
+        finally:
+            self.lib.H5Eset_auto2(0, handler, data)
+
+    def image(self, datasets: list[tuple[str, np.ndarray]]) -> tuple[ctypes.Array, list[int]]:
+        """The bytes of an HDF5 file holding the float64 or int64 ``datasets`` (name: a path
+        from the root, its groups made as needed), and where each dataset's values begin in
+        them; RuntimeError if HDF5 fails."""
+        lib = self.lib
+        with self._quiet():
+            f = lib.H5Fcreate(b"cosserat-fem-image.h5", 2, 0, self.fapl)  # H5F_ACC_TRUNC
+            if f < 0:
+                raise RuntimeError("HDF5: cannot make an in-memory file")
+            try:
+                offsets = [self._dataset(f, name, values) for name, values in datasets]
+                size = lib.H5Fget_file_image(f, None, 0) if lib.H5Fflush(f, 0) >= 0 else -1
+                image = ctypes.create_string_buffer(max(size, 0))
+                if size <= 0 or lib.H5Fget_file_image(f, image, size) != size:
+                    raise RuntimeError("HDF5: cannot take the in-memory file's image")
+            finally:
+                lib.H5Fclose(f)
+        return image, offsets
+
+    def _dataset(self, f: int, name: str, values: np.ndarray) -> int:
+        """Make and write a dataset in the open file f; where its values begin in the file."""
+        lib = self.lib
+        dims = (ctypes.c_uint64 * values.ndim)(*values.shape)
+        stored, memory = self.float64 if values.dtype == np.float64 else self.int64
+        if values.dtype not in (np.float64, np.int64) or not values.flags.c_contiguous:
+            raise TypeError(f"HDF5 dataset {name}: C-ordered float64 or int64 values only")
+        space = lib.H5Screate_simple(values.ndim, dims, None)
+        dataset = lib.H5Dcreate2(f, name.encode(), stored, space, self.lcpl, self.dcpl, 0)
+        lib.H5Sclose(space)
+        if dataset < 0:
+            raise RuntimeError(f"HDF5: cannot make the dataset {name}")
+        try:
+            if lib.H5Dwrite(dataset, memory, 0, 0, 0, values.ctypes.data) < 0:
+                raise RuntimeError(f"HDF5: cannot write the dataset {name}")
+            return lib.H5Dget_offset(dataset)
+        finally:
+            lib.H5Dclose(dataset)
+
+    def read(self, path: Path, name: str) -> np.ndarray:
+        """The dataset ``name`` of the HDF5 file ``path`` as float64; RuntimeError if it cannot
+        be read."""
+        lib = self.lib
+        with self._quiet():
+            f = lib.H5Fopen(str(path).encode(), 0, 0)  # H5F_ACC_RDONLY
+            if f < 0:
+                raise RuntimeError(f"HDF5: cannot open {str(path)!r}")
+            try:
+                dataset = lib.H5Dopen2(f, name.encode(), 0)
+                if dataset < 0:
+                    raise RuntimeError(f"HDF5: no dataset {name} in {str(path)!r}")
+                try:
+                    space = lib.H5Dget_space(dataset)
+                    ndims = lib.H5Sget_simple_extent_ndims(space)
+                    dims = (ctypes.c_uint64 * max(ndims, 1))()
+                    lib.H5Sget_simple_extent_dims(space, dims, None)
+                    lib.H5Sclose(space)
+                    values = np.empty(tuple(dims[: max(ndims, 0)]), dtype=np.float64)
+                    if ndims < 0 or lib.H5Dread(dataset, self.float64[1], 0, 0, 0,
+                                                values.ctypes.data) < 0:  # fmt: skip
+                        raise RuntimeError(f"HDF5: cannot read {name} of {str(path)!r}")
+                finally:
+                    lib.H5Dclose(dataset)
+            finally:
+                lib.H5Fclose(f)
+        return values
+
+
+class _FrameImages:
+    """The bytes of the frame files of a series: the datasets ``/Function/<array>/<key>``,
+    each (points, 3), made by HDF5 (:class:`_Hdf5`) for the first key of each length and then
+    by copying an image of that length with the key and the values put in their places (about
+    0.01 instead of 0.2 ms). The copy is used only if, for that first frame, it gives the very
+    bytes HDF5 made (superblock 0 and the object formats of HDF5 1.8 carry no checksums, and
+    time stamps are off, so the bytes depend on the names and values alone); otherwise HDF5
+    makes every frame's file."""
+
+    def __init__(self, h5: _Hdf5, arrays: list[str]):
+        self.h5, self.arrays = h5, arrays
+        self._templates: dict[int, tuple[bytes, list[int], list[int]] | None] = {}
+
+    def _datasets(self, key: str, values: np.ndarray) -> list[tuple[str, np.ndarray]]:
+        return [
+            (f"/Function/{name}/{key}", np.ascontiguousarray(values[:, 3 * i : 3 * i + 3]))
+            for i, name in enumerate(self.arrays)
+        ]
+
+    def __call__(self, key: str, values: np.ndarray):
+        """The bytes (bytes-like) of the file of ``values`` (points, 3 per array) at ``key``."""
+        if len(key) not in self._templates:
+            image = self.h5.image(self._datasets(key, values))[0]
+            self._templates[len(key)] = self._template(key, values, bytes(image))
+            return image
+        template = self._templates[len(key)]
+        if template is None:
+            return self.h5.image(self._datasets(key, values))[0]
+        return self._copy(template, key, values)
+
+    def _copy(self, template, key: str, values: np.ndarray) -> bytearray:
+        base, keys, data = template
+        image = bytearray(base)
+        name = key.encode()
+        for at in keys:
+            image[at : at + len(name)] = name
+        n = len(values)
+        for i, at in enumerate(data):
+            into = np.frombuffer(image, dtype="<f8", count=3 * n, offset=at).reshape(n, 3)
+            into[:] = values[:, 3 * i : 3 * i + 3]
+        return image
+
+    def _template(self, key: str, values: np.ndarray, made: bytes):
+        """(image, where the key is, where the values are) for keys of len(key), from images
+        of the keys "aa..." and "bb..." (the key: the bytes where they differ); None unless
+        the copy for ``key`` and ``values`` is ``made``, HDF5's image of them."""
+        length, zero = len(key), np.zeros_like(values)
+        a, data = self.h5.image(self._datasets("a" * length, zero))
+        b = bytes(self.h5.image(self._datasets("b" * length, zero))[0])
+        a = bytes(a)
+        if not len(a) == len(b) == len(made):
+            return None
+        differ = np.flatnonzero(np.frombuffer(a, np.uint8) != np.frombuffer(b, np.uint8))
+        keys = [int(at) for at in differ[::length]] if differ.size else []
+        if len(differ) != length * len(self.arrays) or any(
+            a[at : at + length] != b"a" * length for at in keys
+        ):
+            return None
+        template = (a, keys, [int(at) for at in data])
+        return template if self._copy(template, key, values) == made else None
+
+
+def _time_text(t: float) -> str:
+    """A frame's time as the XML gives it (as DOLFINx's XDMFFile did: 17 significant digits);
+    with "_" for "." it names the frame's datasets."""
+    return f"{t:.17g}"
+
+
+def _free_bytes(folder: Path) -> int:
+    """The bytes free (to this user) in the file system of ``folder``."""
+    info = os.statvfs(folder)
+    return info.f_bavail * info.f_frsize
+
+
+def _blocks(size: int) -> int:
+    """``size`` bytes rounded up to whole blocks of 4 KiB (what a file of that size takes)."""
+    return -(-size // 4096) * 4096
+
+
+def _write_file(path: Path, data) -> None:
+    """``data`` (bytes-like) into a new file ``path`` (a file of that name, which nothing
+    names, is replaced)."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+    try:
+        _pwrite_all(fd, data, 0)
+    finally:
+        os.close(fd)
+
+
+def _pwrite_all(fd: int, data, offset: int) -> None:
+    view = memoryview(data).cast("B")
+    while view:
+        written = os.pwrite(fd, view, offset)
+        view, offset = view[written:], offset + written
 
 
 class XdmfWriter:
@@ -513,21 +780,35 @@ class XdmfWriter:
     cell of degree k is drawn as k equal segments (one point per Lagrange node); at a vertex
     the strains and resultants, which jump between cells, take the mean of the two cells'.
     One temporal collection ``rod`` whose frames each carry the mesh, the time and all the
-    arrays in double precision, so that ParaView shows one dataset.
+    arrays in double precision, so that ParaView shows one dataset. The points are numbered
+    along the rod (σ from 0 to 1); under MPI rank 0 gathers the values and writes every file,
+    for the same state the very files of a serial run.
 
     Files: the XML ``<name>.xdmf`` and the folder ``<name>.frames/`` of HDF5 files: the mesh
-    in ``mesh.h5``, frame i (from 0, restarts included) in ``<i, 6 digits>.h5``, e.g.
-    ``solution.frames/000012.h5``; the XML names them relative to its own folder.
+    in ``mesh.h5`` (``/Mesh/mesh/geometry``, ``/Mesh/mesh/topology``), frame i (from 0,
+    restarts included) in ``<i, 6 digits>.h5`` (``/Function/<array>/<t>``, t as in the XML's
+    Time with "_" for "."), e.g. ``solution.frames/000012.h5``; the XML names them relative
+    to its own folder. After ``</Xdmf>`` the XML ends with a processing instruction
+    ``<?cosserat-fem-spare ...?>`` of blanks: room for the frames to come.
 
-    Kill-safe: a killed run (SIGKILL included, at any moment) leaves ``<name>.xdmf`` listing
-    exactly the frames written so far, each in a closed HDF5 file that is never opened for
-    writing again. Each frame is written by DOLFINx into its own new file (with a scratch XML
-    ``<name>.frames/<i>.xdmf-partial``) and closed, and only then is the published XML
-    replaced atomically; a kill can damage only the frame in flight, which the XML does not
-    name yet. A frame is written only if twice its size fits in the file system and under
-    ``ulimit -f`` (an HDF5 write that fails half-way crashed the library), else an
-    OutputError. Why this layout and what it costs: docs/decisions.md, "XDMF frames".
+    Kill-safe: after a kill at any moment (SIGKILL included), ``<name>.xdmf`` is well-formed
+    and names exactly the frames written before, each in a complete HDF5 file that is never
+    opened for writing again (the file of a frame killed in flight, which it does not name, is
+    replaced by the next write of that frame or deleted by a restart). A frame is (1) written
+    into a new HDF5 file (its bytes made in memory, :class:`_Hdf5`) and (2) added to the XML
+    in place: the frame and new closing tags are written into the spare room, still inside
+    the processing instruction (the document is unchanged), then one write of blanks, which
+    lies within one memory page (Linux does not split such a write on a kill), turns the old
+    closing tags and the instruction's opening into whitespace. When the room is used up, the
+    XML is written anew, with room as large as the file was (16 KiB to 4 MiB; less under a
+    file size limit), under a working name and renamed onto ``<name>.xdmf``. A frame is
+    written only if its file and the XML fit in the file system and under ``ulimit -f``, else
+    an OutputError (the frames before kept). Why this layout and what it costs:
+    docs/decisions.md, "XDMF frames".
     """
+
+    #: The least and the most spare room [bytes] after ``</Xdmf>`` when the XML is rewritten.
+    SPARE = (16 << 10, 4 << 20)
 
     def __init__(
         self,
@@ -544,10 +825,11 @@ class XdmfWriter:
         written (default ``model.U``), holding (p, q); ``write`` may be given another Function
         of the same space (e.g. one mode shape after another). ``resume = (n, frames)``:
         continue, as restart n, the existing XML, which holds ``frames`` frames (cut back to
-        them, later frame files deleted: cosserat_fem/checkpoint.py); the new frames go into
-        new frame files from index ``frames`` on. Otherwise the XML and the frames folder of
-        an earlier series are removed first. ``run_id``: the identity of the run, written into
-        the XML (checked by a restart, cosserat_fem/checkpoint.py)."""
+        them, later frame files deleted: cosserat_fem/checkpoint.py), in its mesh's order of
+        the points; the new frames go into new frame files from index ``frames`` on.
+        Otherwise the XML and the frames folder of an earlier series are removed first.
+        ``run_id``: the identity of the run, written into the XML (checked by a restart,
+        cosserat_fem/checkpoint.py)."""
         msh = model.msh
         self.U = model.U if U is None else U
         self.fields = tuple(model.scene.output.fields if fields is None else fields)
@@ -556,102 +838,144 @@ class XdmfWriter:
             raise ValueError(f"unknown XDMF fields {unknown}; expected some of {FIELD_ARRAYS}")
         self._comm = msh.comm
         # A cell of degree k is drawn as k segments: the output points are the Lagrange
-        # nodes for equispaced ones (P1 XDMF keeps values at mesh points only).
+        # nodes for equispaced ones.
         k = max(1, self.U.function_space.ufl_element().degree())
         self.line = CentrelineOutput(msh, model.length, k)
-        self.mesh = self.line.mesh
-        P1 = self.line.space
-        self.functions = [
-            fem.Function(P1, name=name) for field in self.fields for name in FIELD_ARRAYS[field]
-        ]
+        self.arrays = [name for field in self.fields for name in FIELD_ARRAYS[field]]
         self.model, self._jit_params, self._k = model, jit_params or {}, k
         self._expr = None
         self._compile()
         self.path = Path(path)
         suffix = self.path.suffix or ".xdmf"
-        # The published XML is written under this name, then renamed onto self.path.
+        # A rewritten XML is written under this name, then renamed onto self.path.
         self._work = self.path.with_name(self.path.stem + suffix + "-partial")
         self.folder = frames_folder(self.path)
-        self.file: io.XDMFFile | None = None
-        self._scratch: Path | None = None  # DOLFINx's XML of the file being written
         self._doc: _XdmfDocument | None = None  # rank 0 only
-        # Bytes of a frame file (measured after each frame; at first the data alone).
-        self._frame_bytes = len(self.functions) * (24 * self.line.n_points + 1400)
-        prefix = self.folder.name + "/"
-        if resume is not None:
-            self.writes = resume[1]
-            if self._comm.rank == 0:
-                self._doc = _XdmfDocument(self.path.read_text(encoding="utf-8"), prefix)
-                self.folder.mkdir(exist_ok=True)  # outputs of the single-file layout
-            return
-        self.writes = 0
-        self._guard(self._write_mesh)
+        self._h5: _Hdf5 | None = None  # rank 0 only
+        self._images: _FrameImages | None = None  # rank 0 only
+        self._to_file: np.ndarray | None = None  # a resumed file's order of the points
+        self._free = (0, -math.inf)  # free bytes of the file system, and until when to trust
+        self.writes = 0 if resume is None else resume[1]
+        problem = None
         if self._comm.rank == 0:
-            self._doc = _XdmfDocument(self._scratch.read_text(encoding="utf-8"), prefix, run_id)
-            self._scratch.unlink()
-        self._guard(lambda: self._publish(None))
+            try:
+                self._h5 = _Hdf5()
+                self._images = _FrameImages(self._h5, self.arrays)
+                if resume is not None:
+                    self._resume()
+                else:
+                    self._start(run_id)
+            except OutputError as exc:
+                problem = exc
+            except (OSError, RuntimeError, ValueError, ET.ParseError) as exc:
+                problem = OutputError(
+                    f"output: cannot write the XDMF file {str(self.path)!r} "
+                    f"({getattr(exc, 'strerror', None) or exc})"
+                )
+        agree(self._comm, problem)
 
     @property
     def h5(self) -> Path:
         """The HDF5 file the next frame goes into."""
         return self.folder / frame_file(self.writes)
 
-    def _write_mesh(self) -> None:
-        """A new series: the XML and frames folder of an earlier one removed (the XML first),
-        then DOLFINx's XML and .h5 of the output mesh, ``mesh.h5`` (collective)."""
-        comm = self._comm
-        self._scratch = (self.folder / MESH_FILE).with_suffix(".xdmf-partial")
-        if comm.rank == 0:
-            self.path.unlink(missing_ok=True)
-            if self.folder.is_dir() and not self.folder.is_symlink():
-                shutil.rmtree(self.folder)
-            else:
-                self.folder.unlink(missing_ok=True)
-            self.folder.mkdir()
-        if comm.size > 1:
-            comm.barrier()
-        self.file = io.XDMFFile(comm, str(self._scratch), "w")
-        try:
-            self.file.write_mesh(self.mesh)
-        finally:
-            self._close_file()
-        if comm.size > 1:
-            comm.barrier()
+    def _start(self, run_id: str | None) -> None:
+        """A new series (rank 0): the XML and frames folder of an earlier one removed (the XML
+        first), ``mesh.h5`` written, the XML without frames published."""
+        self.path.unlink(missing_ok=True)
+        if self.folder.is_dir() and not self.folder.is_symlink():
+            shutil.rmtree(self.folder)
+        else:
+            self.folder.unlink(missing_ok=True)
+        self.folder.mkdir()
+        line = self.line
+        image = self._h5.image(
+            [("/Mesh/mesh/geometry", line.geometry), ("/Mesh/mesh/topology", line.topology)]
+        )[0]
+        self._check_room(len(image), 0, "the XDMF mesh", self.folder / MESH_FILE)
+        _write_file(self.folder / MESH_FILE, image)
+        mesh = _mesh_xml(self.folder.name + "/" + MESH_FILE, len(line.geometry),
+                         len(line.topology))  # fmt: skip
+        self._doc = _XdmfDocument(self.path, self._work, mesh, run_id)
+        self._rewrite(None, "the XDMF file")
 
-    def _guard(self, action, t: float | None = None) -> None:
-        """Run ``action`` (collective); a failed write becomes an OutputError on every rank,
-        and the published XML and the frames before stay as they were."""
+    def _resume(self) -> None:
+        """Continue the published XML (rank 0): its frames and mesh kept, the values of the
+        new frames put in the order of that mesh's points; the XML published anew (the same
+        document, with spare room)."""
+        text = self.path.read_text(encoding="utf-8")
+        self._doc = _XdmfDocument.parse(self.path, self._work, text)
+        self.folder.mkdir(exist_ok=True)  # outputs of the single-file layout
+        if self._doc.mesh is None:  # no frame yet: the mesh as a new series writes it
+            line = self.line
+            _write_file(self.folder / MESH_FILE, self._h5.image(
+                [("/Mesh/mesh/geometry", line.geometry), ("/Mesh/mesh/topology", line.topology)]
+            )[0])  # fmt: skip
+            self._doc.mesh = _mesh_xml(self.folder.name + "/" + MESH_FILE,
+                                       len(line.geometry), len(line.topology))  # fmt: skip
+        else:
+            self._to_file = self._file_order()
+        self._rewrite(None, "the XDMF file")
+
+    def _file_order(self) -> np.ndarray | None:
+        """The output point (numbered in the order of σ) at each point of the resumed file's
+        mesh (None if they are the same): earlier writers numbered the points as DOLFINx's
+        output mesh did (under MPI not in the order of σ)."""
+        item = ET.fromstring(f"<m>{self._doc.mesh}</m>").find("Geometry/DataItem")
+        name, _, dataset = (item.text or "").strip().partition(":")
+        x = self._h5.read(self.path.parent / name, dataset)
+        mine = self.line.geometry
+        if x.shape == mine.shape:
+            if np.array_equal(x, mine):
+                return None
+            order = np.argsort(x[:, 2], kind="stable")  # the file's points in the order of σ
+            if np.allclose(x[order], mine, rtol=0.0, atol=1e-12 * max(mine[-1, 2], 1.0)):
+                at = np.empty_like(order)
+                at[order] = np.arange(len(order))
+                return at
+        raise OutputError(
+            f"output: cannot continue {str(self.path)!r}: its mesh ({name}) is not this "
+            "rod's output mesh"
+        )
+
+    def _check_room(self, file_bytes: int, xml_bytes: int, what: str, where: Path) -> None:
+        """OutputError unless a new file of ``file_bytes`` and an XML of ``xml_bytes`` (0: not
+        rewritten) fit under ``ulimit -f`` and in the file system (the limits are kept for
+        :meth:`_rewrite`)."""
+        limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+        limit = math.inf if limit == resource.RLIM_INFINITY else limit
+        need = _blocks(file_bytes) + _blocks(xml_bytes) + (64 << 10)
+        now = time.monotonic()
+        # The free space is asked for again after a second, or when less than 1 GiB more than
+        # needed is left; in between it is counted down (statvfs cost ~10-30 us a frame).
+        if now > self._free[1] or self._free[0] < need + (1 << 30):
+            self._free = (_free_bytes(self.folder), now + 1.0)
+        free = self._free[0]
+        self._limits = (limit, free)
         problem = None
-        try:
-            action()
-        except (OSError, RuntimeError) as exc:
-            self._close_file()
-            when = f" at t = {t:.6g}" if t is not None else ""
-            problem = OutputError(
-                f"output: cannot write the XDMF frame{when} to {str(self.folder)!r} "
-                f"({getattr(exc, 'strerror', None) or exc}); the frames before are kept"
+        if max(file_bytes, xml_bytes) > limit:
+            problem = f"the file size limit (ulimit -f) of {limit} bytes would be reached"
+        elif need > free:
+            problem = f"no space left on the device ({free} bytes free)"
+        if problem:
+            raise OutputError(
+                f"output: {what} was not written to {str(where)!r}: {problem}; the frames "
+                "before are kept"
             )
-        agree(self._comm, problem)
+        self._free = (free - need + (64 << 10), self._free[1])
 
-    def _room_problem(self) -> str | None:
-        """Why the next frame may not fit (rank 0): the HDF5 library cannot recover from a
-        write that fails half-way (it crashed, and left an .h5 that no longer opened), so a
-        frame is written only if twice its size, and the new XML, fit under the file size
-        limit (ulimit -f; the XML is the largest file) and in the free space of the file
-        system."""
-        need = 2 * self._frame_bytes + 65536
-        xml = self._doc.nbytes if self._doc is not None else 0
-        try:
-            limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
-            if limit != resource.RLIM_INFINITY and xml + need > limit:
-                return f"the file size limit (ulimit -f) of {limit} bytes would be reached"
-            info = os.statvfs(self.folder)
-            free = info.f_bavail * info.f_frsize
-            if need + xml > free:
-                return f"no space left on the device ({free} bytes free)"
-        except OSError as exc:
-            return str(exc.strerror or exc)
-        return None
+    def _rewrite(self, frame: bytes | None, what: str, written: int = 0) -> None:
+        """The XML published anew with ``frame`` added (rank 0), with spare room (class
+        docstring) as far as the limits allow; ``written``: bytes written since the limits
+        were taken."""
+        size = self._doc.rewrite_size(frame)
+        if frame is None:
+            self._check_room(0, size, what, self.path)
+        limit, free = self._limits
+        free -= _blocks(written) + _blocks(size) + (64 << 10)
+        low, high = self.SPARE
+        spare = min(max(size, low), high, limit - size, free)
+        self._doc.rewrite(frame, int(max(spare, 0)))
 
     def _compile(self) -> None:
         """The expression of every array at the output points; with a chart that has moved,
@@ -669,101 +993,69 @@ class XdmfWriter:
 
     def write(self, t: float, U: fem.Function | None = None) -> None:
         """A frame at t [s] (a load factor, a mode number) of U, or of ``U`` copied into it;
-        OutputError if it may not fit (:meth:`_room_problem`) or is not written, the frames
-        before kept. Collective."""
+        OutputError if it may not fit or is not written, the frames before kept. Collective."""
         if U is not None and U is not self.U:
             self.U.x.array[:] = U.x.array
-        if self.functions:
-            problem = from_root(self._comm, self._room_problem() if self._comm.rank == 0 else None)
-            if problem:
-                raise OutputError(
-                    f"output: the XDMF frame at t = {t:.6g} was not written to "
-                    f"{str(self.h5)!r}: {problem}; the frames before are kept"
-                )
+        if self.arrays:
             if self._charted != self.model.chart_moved:
                 self._compile()
             self._expr.eval(self.line.cells, self._values)
-            mean = self.line.point_values(self._values)
-            for k, function in enumerate(self.functions):
-                function.x.array[:] = mean[:, 3 * k : 3 * k + 3].ravel()
-            h5 = self.h5
-            self._guard(lambda: self._write_frame(t), t)
-            self._guard(lambda: self._publish(self._scratch), t)
+            values = self.line.point_values(self._values)
+            problem = None
             if self._comm.rank == 0:
-                self._frame_bytes = max(self._frame_bytes, h5.stat().st_size)
+                try:
+                    self._write_frame(t, values)
+                except OutputError as exc:
+                    problem = exc
+                except (OSError, RuntimeError) as exc:
+                    problem = OutputError(
+                        f"output: cannot write the XDMF frame at t = {t:.6g} to "
+                        f"{str(self.folder)!r} ({getattr(exc, 'strerror', None) or exc}); the "
+                        "frames before are kept"
+                    )
+            agree(self._comm, problem)
         self.writes += 1
 
-    def _write_frame(self, t: float) -> None:
-        """DOLFINx's write of every array at t into the new file :attr:`h5`, with a scratch XML
-        of this frame alone beside it."""
-        self._reopen()
-        try:
-            last = len(self.functions) - 1
-            for i, function in enumerate(self.functions):
-                self.file.write_function(function, t)
-                if i < last and self._comm.rank == 0:
-                    # DOLFINx rewrites the whole scratch XML for every function: a new
-                    # file each time, not one truncated and rewritten (ext4 then
-                    # allocates its blocks at once, and frees them again with a discard:
-                    # ~1.7 ms, against 0.05 ms for a new file that is unlinked).
-                    self._scratch.unlink()
-        finally:
-            self._close_file()
+    def _write_frame(self, t: float, values: np.ndarray) -> None:
+        """Rank 0: the frame's HDF5 file, then the frame added to the XML (class docstring)."""
+        if self._to_file is not None:
+            values = values[self._to_file]
+        value = _time_text(t)
+        key = value.replace(".", "_")
+        image = self._images(key, values)
+        h5 = self.h5
+        frame = self._doc.frame(value, f"{self.folder.name}/{h5.name}", key, self.arrays,
+                                len(values))  # fmt: skip
+        rewrite = not self._doc.fits(frame)
+        what = f"the XDMF frame at t = {t:.6g}"
+        self._check_room(len(image), self._doc.rewrite_size(frame) if rewrite else 0, what, h5)
+        _write_file(h5, image)
+        if rewrite:
+            self._rewrite(frame, what, len(image))
+        else:
+            self._doc.append(frame)
 
     def close(self) -> None:
-        """Nothing stays open between frames; kept for the writer interface."""
-        self._close_file()
+        """Close the XML (rank 0); the files are complete after every frame."""
+        if self._doc is not None:
+            self._doc.close()
 
-    def _reopen(self) -> None:
-        """Open, in append mode, the scratch XML ``<i>.xdmf-partial`` of frame i, which holds
-        the mesh only (DOLFINx refers to it), so that DOLFINx creates the new HDF5 file
-        ``<i>.h5`` and its XML rewrites stay small and never touch the published file."""
-        comm = self._comm
-        self._scratch = self.h5.with_suffix(".xdmf-partial")
-        if comm.rank == 0:
-            # A frame killed or failed before its publication may have left both; neither is
-            # named by the published XML.
-            self.h5.unlink(missing_ok=True)
-            self._scratch.unlink(missing_ok=True)
-            self._scratch.write_text(self._doc.template(), encoding="utf-8")
-        if comm.size > 1:
-            comm.barrier()  # every rank reads the XML in the constructor
-        self.file = io.XDMFFile(comm, str(self._scratch), "a")
-        if comm.size > 1:
-            comm.barrier()
-        if comm.rank == 0:
-            self._scratch.unlink()  # DOLFINx's first rewrite makes a new file (see write)
 
-    def _close_file(self) -> None:
-        if self.file is not None:
-            file, self.file = self.file, None
-            file.close()
-
-    def _publish(self, scratch: Path | None) -> None:
-        """Add the frame of DOLFINx's ``scratch`` XML (None: no frame) to the document and
-        replace the published XML with it atomically (rank 0); if that fails the document
-        drops the frame again."""
-        # Rank 0 alone writes the XML (DOLFINx's scratch one in write_function/write_mesh,
-        # then the published one) and renames it, once every rank has returned from closing
-        # the HDF5 file: parallel HDF5 spreads the metadata writes over the ranks, and rank 0
-        # may leave H5Fclose before rank 1 has written its share (a kill then left an XML
-        # naming a dataset the .h5 did not hold).
-        if self._comm.size > 1:
-            self._comm.barrier()
-        if self._comm.rank == 0:
-            if scratch is not None:
-                frame = scratch.read_text(encoding="utf-8")
-                scratch.unlink()
-                self._doc.add_frame(frame)
-            try:
-                self._work.unlink(missing_ok=True)  # a new file (see _write_frame)
-                self._work.write_text(self._doc.text(), encoding="utf-8")
-                os.replace(self._work, self.path)
-            except OSError:
-                if scratch is not None:
-                    self._doc.drop_last()  # not published: the document stays the file's
-                self._work.unlink(missing_ok=True)
-                raise
+def _mesh_xml(file: str, points: int, cells: int) -> str:
+    """The Topology and Geometry of a frame: the mesh in the HDF5 file ``file`` (relative to
+    the XML), as DOLFINx's XDMFFile wrote them."""
+    name = escape(file)
+    return (
+        f'        <Topology TopologyType="PolyLine" NumberOfElements="{cells}" '
+        'NodesPerElement="2">\n'
+        f'          <DataItem Dimensions="{cells} 2" NumberType="Int" Format="HDF">{name}:'
+        "/Mesh/mesh/topology</DataItem>\n"
+        "        </Topology>\n"
+        '        <Geometry GeometryType="XYZ">\n'
+        f'          <DataItem Dimensions="{points} 3" Format="HDF" Precision="8">{name}:'
+        "/Mesh/mesh/geometry</DataItem>\n"
+        "        </Geometry>\n"
+    )
 
 
 _XDMF_HEAD = (
@@ -774,6 +1066,19 @@ _XDMF_HEAD = (
 XDMF_GRID = "rod"
 #: The name of the Information element of the Domain that holds the run's identity.
 RUN_ID = "run_id"
+#: The end of the document, and the opening of the processing instruction of spare room after
+#: it (closed by ``?>`` at the end of the file): the blanks a frame is added with replace them.
+_XDMF_TAIL = b"    </Grid>\n  </Domain>\n</Xdmf>\n"
+_SPARE_OPEN = b"<?cosserat-fem-spare"
+_SPARE_CLOSE = b"?>\n"
+_SWITCH = len(_XDMF_TAIL) + len(_SPARE_OPEN)
+_PAGE = max(mmap.PAGESIZE, 4096)
+
+
+def _pad(offset: int) -> int:
+    """Blanks to put at ``offset`` so that the _SWITCH bytes after them lie in one page."""
+    within = offset % _PAGE
+    return 0 if within + _SWITCH <= _PAGE else _PAGE - within
 
 
 def xdmf_run_id(root: ET.Element) -> str | None:
@@ -795,96 +1100,121 @@ def _element_text(element: ET.Element, level: int) -> str:
 
 
 class _XdmfDocument:
-    """The published XDMF XML, held by rank 0 as text: one temporal collection ``rod`` whose
-    frames each hold the mesh (Topology, Geometry), the Time and every array of that time,
-    so that ParaView shows one dataset carrying all the arrays (DOLFINx writes one collection
-    per function, which ParaView shows as separate blocks: "Warp By Vector" with
-    ``displacement`` would then move only the displacement block).
+    """The published XDMF XML, held by rank 0, and its file: one temporal collection ``rod``
+    whose frames each hold the mesh (Topology, Geometry), the Time and every array of that
+    time, so that ParaView shows one dataset carrying all the arrays (DOLFINx writes one
+    collection per function, which ParaView shows as separate blocks: "Warp By Vector" with
+    ``displacement`` would then move only the displacement block). How a frame is added
+    (:meth:`append`, :meth:`rewrite`): :class:`XdmfWriter`."""
 
-    Each frame's attributes are taken from the scratch XML that DOLFINx wrote for that frame
-    alone (constant size), so a frame costs one write of the published file however many
-    arrays it holds, instead of one DOLFINx rewrite per array of a file that grows with
-    every frame (measured: 9 instead of 2 ms a frame for six arrays at 251 frames)."""
+    def __init__(self, path: Path, work: Path, mesh: str | None, run_id: str | None,
+                 frames: list[bytes] | None = None):  # fmt: skip
+        """``mesh``: the Topology and Geometry of every frame; ``work``: the working name of a
+        rewrite; ``frames``: those of a published file."""
+        self.path, self.work = path, work
+        self.mesh, self.run_id = mesh, run_id
+        self.frames: list[bytes] = frames or []
+        self._frame_bytes = sum(map(len, self.frames))
+        self._fd: int | None = None  # the published file, open for the appends
+        self._tail = self._end = 0  # where its closing tags and its "?>" begin
 
-    def __init__(self, xml: str, prefix: str = "", run_id: str | None = None):
-        """From DOLFINx's XML after ``write_mesh`` (grid "mesh") and the run's identity, or
-        from a published file (which holds its run's). ``prefix``: the folder of the HDF5
-        files relative to the published XML, put before the file names of DOLFINx's XML (which
-        lies in that folder)."""
+    @classmethod
+    def parse(cls, path: Path, work: Path, xml: str) -> _XdmfDocument:
+        """The document of a published file (of any earlier writer): its run's identity, its
+        frames, and the mesh of the first (else of the grid "mesh", else none)."""
         root = ET.fromstring(xml)
-        self.prefix = prefix
-        self.run_id = run_id if run_id is not None else xdmf_run_id(root)
         domain = root.find("Domain")
-        mesh = domain.find("Grid[@Name='mesh']")
-        if mesh is None:
-            collection = domain.find(f"Grid[@Name='{XDMF_GRID}']")
-            mesh = collection.find("Grid")
-        else:
-            for item in mesh.iter("DataItem"):
-                item.text = prefix + item.text.strip()
-        parts = [mesh.find("Topology"), mesh.find("Geometry")]
-        self.mesh = "".join(_element_text(e, 4) for e in parts)
-        self.frames: list[str] = []
         collection = domain.find(f"Grid[@Name='{XDMF_GRID}']")
-        if collection is not None:
-            self.frames = [_element_text(g, 3) for g in collection.findall("Grid")]
-        self.nbytes = sum(map(len, self.frames)) + 1024  # about len(text())
+        grids = [] if collection is None else collection.findall("Grid")
+        mesh = grids[0] if grids else domain.find("Grid[@Name='mesh']")
+        parts = [] if mesh is None else [mesh.find("Topology"), mesh.find("Geometry")]
+        text = "".join(_element_text(e, 4) for e in parts if e is not None) or None
+        frames = [_element_text(g, 3).encode() for g in grids]
+        return cls(path, work, text, xdmf_run_id(root), frames)
 
-    def template(self) -> str:
-        """The mesh alone, as DOLFINx writes it: the scratch file DOLFINx appends a frame to."""
-        return (
-            _XDMF_HEAD
-            + '  <Domain>\n    <Grid Name="mesh" GridType="Uniform">\n'
-            + self.mesh
-            + "    </Grid>\n  </Domain>\n</Xdmf>\n"
-        )
-
-    def add_frame(self, xml: str) -> None:
-        """Append the frame of ``xml``, DOLFINx's scratch file of one frame (one grid per
-        function, each with the same Time and one Attribute; file names without the prefix)."""
-        domain = ET.fromstring(xml).find("Domain")
-        grids = [c.find("Grid") for c in domain.findall("Grid[@GridType='Collection']")]
-        if not grids:
-            return
-        prefix = self.prefix
-        parts = [f'      <Grid Name="{XDMF_GRID}" GridType="Uniform">\n', self.mesh]
-        parts.append(f"        <Time Value={quoteattr(grids[0].find('Time').get('Value'))} />\n")
-        for grid in grids:  # formatted directly: ElementTree's serializer cost ~0.1 ms each
-            a = grid.find("Attribute")
-            item = a.find("DataItem")
-            precision = item.get("Precision", "8")
+    def frame(self, value: str, file: str, key: str, arrays: list[str], points: int) -> bytes:
+        """The text of a frame at the time ``value`` whose ``arrays`` are the datasets
+        ``/Function/<array>/<key>`` of the HDF5 file ``file`` (relative to the XML)."""
+        parts = [f'      <Grid Name="{XDMF_GRID}" GridType="Uniform">\n', self.mesh,
+                 f"        <Time Value={quoteattr(value)} />\n"]  # fmt: skip
+        where = escape(file)
+        for name in arrays:
             parts.append(
-                f"        <Attribute Name={quoteattr(a.get('Name'))} AttributeType="
-                f"{quoteattr(a.get('AttributeType'))} Center={quoteattr(a.get('Center'))}>\n"
-                f"          <DataItem Dimensions={quoteattr(item.get('Dimensions'))} "
-                f'Format="HDF" Precision="{precision}">{escape(prefix + item.text.strip())}'
-                "</DataItem>\n"
+                f'        <Attribute Name="{name}" AttributeType="Vector" Center="Node">\n'
+                f'          <DataItem Dimensions="{points} 3" Format="HDF" Precision="8">'
+                f"{where}:/Function/{name}/{escape(key)}</DataItem>\n"
                 "        </Attribute>\n"
             )
         parts.append("      </Grid>\n")
-        self.frames.append("".join(parts))
-        self.nbytes += len(self.frames[-1])
+        return "".join(parts).encode()
 
-    def drop_last(self) -> None:
-        """Forget the last frame added (it could not be published)."""
-        self.nbytes -= len(self.frames.pop())
-
-    def text(self) -> str:
-        """The published XML: the run's identity and the collection ``rod`` of every frame."""
+    def _head(self) -> bytes:
         identity = ""
         if self.run_id is not None:
             value = quoteattr(self.run_id)
             identity = f"    <Information Name={quoteattr(RUN_ID)} Value={value} />\n"
-        return "".join(
-            [
-                _XDMF_HEAD,
-                "  <Domain>\n",
-                identity,
-                f'    <Grid Name="{XDMF_GRID}" GridType="Collection" CollectionType="Temporal">\n',
-                *self.frames,
-                "    </Grid>\n  </Domain>\n</Xdmf>\n",
-            ]
+        return (
+            f"{_XDMF_HEAD}  <Domain>\n{identity}"
+            f'    <Grid Name="{XDMF_GRID}" GridType="Collection" CollectionType="Temporal">\n'
+        ).encode()
+
+    def rewrite_size(self, frame: bytes | None) -> int:
+        """The bytes of a rewrite with ``frame`` added, without spare room (at most)."""
+        extra = 0 if frame is None else len(frame)
+        head = len(self._head()) + self._frame_bytes + extra
+        return head + _SWITCH + _SWITCH + len(_SPARE_CLOSE)
+
+    def rewrite(self, frame: bytes | None, spare: int) -> None:
+        """Publish the document, with ``frame`` added, and ``spare`` blanks of room after it:
+        written under the working name, then renamed onto the published file (atomic)."""
+        frames = self.frames if frame is None else [*self.frames, frame]
+        text = self._head() + b"".join(frames)
+        text += b" " * _pad(len(text))
+        data = b"".join([text, _XDMF_TAIL, _SPARE_OPEN, b" " * spare, _SPARE_CLOSE])
+        self.work.unlink(missing_ok=True)  # a new file (truncating one costs a discard)
+        fd = os.open(self.work, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
+        try:
+            _pwrite_all(fd, data, 0)
+            os.replace(self.work, self.path)
+        except BaseException:
+            os.close(fd)
+            self.work.unlink(missing_ok=True)
+            raise
+        self.close()
+        self._fd, self._tail, self._end = fd, len(text), len(data) - len(_SPARE_CLOSE)
+        if frame is not None:
+            self.frames.append(frame)
+            self._frame_bytes += len(frame)
+
+    def _new_tail(self, frame: bytes) -> int:
+        """Where the closing tags begin once ``frame`` is appended."""
+        tail = self._tail + _SWITCH + 1 + len(frame)
+        return tail + _pad(tail)
+
+    def fits(self, frame: bytes) -> bool:
+        """Whether ``frame`` can be appended in the spare room."""
+        return self._fd is not None and self._new_tail(frame) + _SWITCH <= self._end
+
+    def append(self, frame: bytes) -> None:
+        """Add ``frame`` in place (it :meth:`fits`): (1) the frame, blanks, the closing tags
+        and the opening of the spare's processing instruction written into the spare, which
+        lies inside that instruction (the document is unchanged, whatever part of this is
+        written); (2) the old closing tags and opening, in one page, made blanks."""
+        start = self._tail + _SWITCH
+        tail = self._new_tail(frame)
+        staged = b"".join(
+            [b" ", frame, b" " * (tail - start - 1 - len(frame)), _XDMF_TAIL, _SPARE_OPEN]
         )
+        _pwrite_all(self._fd, staged, start)
+        _pwrite_all(self._fd, b" " * _SWITCH, self._tail)
+        self._tail = tail
+        self.frames.append(frame)
+        self._frame_bytes += len(frame)
+
+    def close(self) -> None:
+        if self._fd is not None:
+            fd, self._fd = self._fd, None
+            os.close(fd)
 
 
 class LineSampler:

@@ -32,7 +32,9 @@ exception. What is read has passed these checks:
 * summary.json: a JSON object; ``kind`` and ``scene.title`` strings, ``scene`` and
   ``scene.rod`` objects, ``scene.rod.length`` a positive number, where present.
 * solution.xdmf: XML without entity declarations (an entity-expansion bomb is refused before
-  anything is expanded), root ``Xdmf`` with a ``Domain``; each frame a ``Time`` whose value
+  anything is expanded), root ``Xdmf`` with a ``Domain`` (after the root, the writer's
+  processing instruction of spare blanks, ``<?cosserat-fem-spare ...?>``, or any other, is
+  skipped; frames may be separated by runs of blanks); each frame a ``Time`` whose value
   is a number, each ``Attribute`` a name and an HDF ``DataItem`` ``file.h5:/dataset`` whose
   file is a plain name in the XDMF file's folder (the single-file layout of earlier versions:
   ``solution.h5``, ``solution-restart<n>.h5``) or a file of the frames folder beside it,
@@ -40,7 +42,8 @@ exception. What is read has passed these checks:
   :class:`cosserat_fem.output.XdmfWriter`; one folder level, no ``..``, no absolute path,
   nothing else); each dataset there, numeric, of the XML's ``Dimensions``; the geometry
   (N, 2 or 3) as its ``GeometryType`` says, N >= 2 points spanning a positive length; the
-  topology integers in [0, N); every array (N, 3). At most :data:`MAX_VALUES` numbers are
+  topology integers in [0, N) (a message about the geometry or topology names its .h5 file
+  first); every array (N, 3). At most :data:`MAX_VALUES` numbers are
   read from the .h5 files of one XDMF file. An XDMF file without any frame (a run killed
   before its first) raises :class:`NoFramesError`, which ``plot`` takes as "no surfaces"
   when probes.csv has rows.
@@ -479,6 +482,13 @@ class _Datasets:
                 ) from None
         return self.files[name]
 
+    def where(self, item: ET.Element, what: str) -> str:
+        """The dataset of DataItem ``item`` (of ``what``) for a message: the .h5 file first,
+        then the XDMF file."""
+        name, _, dataset = (item.text or "").strip().partition(":")
+        in_xml = f"({what} in {self.xdmf.name})"
+        return f"{_where(self.folder / name)}: dataset {_show(dataset)} {in_xml}"
+
     def read(self, item: ET.Element, what: str, shape: tuple[int, ...] | None = None):
         """The dataset that DataItem ``item`` (of ``what``) refers to, as float64, after the
         checks of the module docstring; ``shape`` the one it must have, if known."""
@@ -504,9 +514,7 @@ class _Datasets:
             except ValueError:
                 raise self._bad(what, f"Dimensions {_show(dims)} are not integers") from None
         h5 = self._open(name, what)
-        h5_where = (
-            f"{_where(self.folder / name)}: dataset {_show(dataset)} ({what} in {self.xdmf.name})"
-        )
+        h5_where = self.where(item, what)
         h5py = _h5py()
         try:
             obj = h5.get(dataset)
@@ -674,19 +682,19 @@ def read_xdmf(path: str | Path, length: float | None = None) -> RodSeries:
         x = data.read(geometry_item, "geometry")
         if x.ndim != 2 or x.shape[1] != columns or len(x) < 2:
             raise SceneError(
-                f"{_where(path)}: geometry of shape {x.shape}; expected (N, {columns}) for "
-                f"GeometryType {geometry_type}, N >= 2 points"
+                f"{data.where(geometry_item, 'geometry')}: shape {x.shape}; expected "
+                f"(N, {columns}) for GeometryType {geometry_type}, N >= 2 points"
             )
         cells = data.read(topology_item, "topology")
         if cells.ndim != 2 or cells.shape[1] < 2 or len(cells) < 1:
             raise SceneError(
-                f"{_where(path)}: topology of shape {cells.shape}; expected (cells, points "
-                "per cell >= 2)"
+                f"{data.where(topology_item, 'topology')}: shape {cells.shape}; expected "
+                "(cells, points per cell >= 2)"
             )
         if (cells != np.round(cells)).any() or cells.min() < 0 or cells.max() >= len(x):
             raise SceneError(
-                f"{_where(path)}: topology refers to points that are not there (indices "
-                f"must be integers in [0, {len(x) - 1}])"
+                f"{data.where(topology_item, 'topology')}: refers to points that are not "
+                f"there (indices must be integers in [0, {len(x) - 1}])"
             )
         times = np.array(sorted(frames))
         names = sorted(set.intersection(*(set(frames[t]) for t in times)))
@@ -708,7 +716,8 @@ def read_xdmf(path: str | Path, length: float | None = None) -> RodSeries:
     else:  # earlier layout: σ = s/ℓ along the first axis
         s = x[:, 0] * (1.0 if length is None else length)
     if not s.max() > s.min():
-        raise SceneError(f"{_where(path)}: the mesh has no length (all its points at one s)")
+        where = f"{_where(path)} (geometry {(geometry_item.text or '').strip()!r})"
+        raise SceneError(f"{where}: the mesh has no length (all its points at one s)")
     order = np.argsort(s, kind="stable")
     s = s[order]
     reference = np.zeros((len(s), 3))

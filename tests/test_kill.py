@@ -189,12 +189,15 @@ def test_sigkill_leaves_readable_outputs(tmp_path, ranks):
     assert np.abs(disp[-1]).max() > 1e-6  # the rod has moved: a real comparison
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=pytest.mark.mpi)])
 def test_sigkill_then_restart_gives_the_uninterrupted_run(tmp_path, ranks):
     """``run --restart`` continues the killed run from its last checkpoint (t = 10 ms, the
-    last of every 2 ms before the kill at ~11 ms), cuts probes.csv and the XDMF file back to
-    it and gives the probes and frames of an uninterrupted run, byte for byte
-    (tests/test_restart.py says why equality is the right test)."""
+    last of every 2 ms before the kill at ~11 ms; 8 ms when a loaded machine delays the 10 ms
+    checkpoint past the kill, which comes 0.1 s after the 1000th probe row reaches the file),
+    cuts probes.csv and the XDMF file back to it and gives the probes and frames of an
+    uninterrupted run, byte for byte (tests/test_restart.py says why equality is the right
+    test)."""
     out, whole = tmp_path / "killed", tmp_path / "whole"
     run_and_kill(out, ranks)
     rows_killed = len(read_probes(out / "probes.csv"))
@@ -206,7 +209,7 @@ def test_sigkill_then_restart_gives_the_uninterrupted_run(tmp_path, ranks):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "completed" and summary["restarts"] == 1
     t0 = summary["restarted_from_s"]
-    assert 1000 * DT <= t0 < rows_killed * DT  # rows after the checkpoint were cut, then redone
+    assert 799.5 * DT <= t0 < rows_killed * DT  # rows after the checkpoint were cut, then redone
     assert (out / "probes.csv").read_bytes() == (whole / "probes.csv").read_bytes()
     series, reference = read_xdmf(out / "solution.xdmf"), read_xdmf(whole / "solution.xdmf")
     for name in ("displacement", "angles"):

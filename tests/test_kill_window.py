@@ -1,36 +1,44 @@
-"""SIGKILL inside HDF5's close of a frame damages no frame the published XML names.
+"""SIGKILL at every write of one XDMF frame damages no frame the published XML names.
 
-The close of an HDF5 file writes its metadata in place: group B-trees and heaps, object
-headers, the superblock. When every frame went into one file, those were shared with the
-earlier frames, and a kill between two of these writes lost earlier frames (CI once failed in
-tests/test_kill_random.py with ``KeyError: 'no dataset /Function/angles/0'``: frame 0 gone).
-The window is ~0.1 ms a frame, so random kills hit it rarely; here it is hit on purpose, at
-every write of one close.
+A frame is written by rank 0 with plain system calls (cosserat_fem/output.py,
+``XdmfWriter``): the frame's HDF5 file, made in memory, in one write to a new file; then the
+XML, in place: the frame and new closing tags written into the spare room at its end (inside
+a processing instruction, so the document does not change), then one write of blanks, within
+one memory page, over the old closing tags. When the spare room is used up the XML is
+rewritten under a working name and renamed. Random kills (tests/test_kill_random.py) rarely
+fall between two of these calls; here every one is hit on purpose.
 
 How: the run (the paper's scene to t = 0.6 ms, an XDMF frame every step) runs in a child
 process with a small shared library preloaded (``LD_PRELOAD``, compiled here with gcc, which
-the form compiler needs anyway) that wraps the C library's write calls (write, pwrite,
-pwritev, ftruncate). The child wraps DOLFINx's ``XDMFFile`` so that, during the close of the
-file of frame ``FRAME`` (the writer opens and closes one XDMFFile for the mesh, then one a
-frame), the library counts the write calls and sends SIGKILL to its own process just before
-the n-th. A first run, not killed, counts the write calls of that close (N); then one run is
-killed before each write n = 1 ... N. After every kill: solution.xdmf is well-formed, every
-dataset it names is readable with the HDF5 C library (tests/xdmf_files.py) with the XML's
-dimensions and finite values, it names exactly the ``FRAME`` frames before the one in
-flight, and each frame's free-end values equal the probes.csv row of its time (to 1e-12, as
-tests/test_kill.py). File names are not checked here, so the same test runs on the earlier
-single-file layout.
+the form compiler needs anyway) that wraps the C library's calls that change files (write,
+pwrite, writev, pwritev, ftruncate, rename, unlink). The child wraps ``XdmfWriter.write``:
+a first run, not killed, lists the calls of frames 6-13 (their offsets and sizes); the frame
+killed is the first of them whose XML write crosses a page boundary. Then one run is killed
+before each call n = 1 ... N of that frame, and, for each call that crosses a page boundary,
+one run is killed after the call has written up to the first boundary: Linux copies a write
+into the page cache a page at a time and checks for a fatal signal between pages, so this is
+the partial write a SIGKILL can leave; a write within one page is whole or not done. After
+every kill: solution.xdmf is well-formed, every dataset it names is readable with the HDF5 C
+library (tests/xdmf_files.py) with the XML's dimensions and finite values, it names exactly
+the frames before the one in flight, and each frame's free-end values equal the probes.csv row
+of its time (to 1e-12, as tests/test_kill.py). Both ways of adding a frame are tested: in
+place (the default) and by a rewrite (no spare room: ``XdmfWriter.SPARE = (0, 0)``). The
+test also checks the premise of the in-place write: its last call is the blanks over the old
+closing tags, within one page.
 
-On that layout (one .h5 for all frames; measured 2026-12-01 with PYTHONPATH set to the code
-before the per-frame files) the close made 9 write calls and the kills before writes 2-6 all
-lost frame 0 ("no dataset /Function/displacement/0", "... /angles/0"); with one file a frame
-the close makes 4 and every kill leaves all earlier frames readable. Runtime: ~1 s a run.
+History: when every frame went into one .h5 (measured 2026-12-01 with the code before the
+per-frame files), the HDF5 close made 9 write calls and the kills before writes 2-6 all lost
+frame 0; with DOLFINx writing one file a frame the close made 4 and no kill lost a frame. Now
+a frame makes 3 calls in place (the frame file, the staged frame, the blanks) and 4 when the
+XML is rewritten (the frame file, an unlink of a stale working file, the new XML, the
+rename): 11 kills in all (5 in place, 6 by a rewrite; with the page-boundary cuts) after two
+listing runs. Runtime: ~1-2 s a run.
 """
 
 from __future__ import annotations
 
 import io
-import re
+import json
 import shutil
 import signal
 import subprocess
@@ -43,7 +51,8 @@ from xdmf_files import read_xdmf
 
 SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
 DT = 3e-5  # s, the scene's time.step
-FRAME = 6  # the frame (from 0) whose close is killed: frames 0-5 are published before it
+FIRST, LAST = 6, 14  # the frames (from 0) listed; the one killed is among them
+PAGE = 4096  # bytes: the granularity at which Linux may cut a killed write
 VALUE_TOL = 1e-12  # m, rad
 TIME_TOL = 1e-15  # s
 
@@ -51,61 +60,93 @@ SHIM = r"""
 #define _GNU_SOURCE
 #include <dlfcn.h>
 #include <signal.h>
+#include <stdio.h>
 #include <sys/types.h>
 #include <sys/uio.h>
 #include <unistd.h>
-static long armed = 0, seen = 0;
-void shim_arm(long n) { armed = n; seen = 0; }     /* n > 0: SIGKILL before write n */
-long shim_disarm(void) { armed = 0; return seen; } /* the write calls since shim_arm */
-static void hit(void) {
-  if (armed) { seen++; if (armed > 0 && seen == armed) kill(getpid(), SIGKILL); }
+#define MAX_CALLS 64
+static long armed = 0, seen = 0, split = 0;
+static char kinds[MAX_CALLS][12];
+static long long offsets[MAX_CALLS], sizes[MAX_CALLS];
+/* n > 0: SIGKILL before call n (split: after its bytes up to the first page boundary);
+   n < 0: count and list the calls only. */
+void shim_arm(long n, long cut) { armed = n; seen = 0; split = cut; }
+long shim_disarm(void) { armed = 0; return seen; }
+const char *shim_kind(long i) { return kinds[i]; }
+long long shim_offset(long i) { return offsets[i]; }
+long long shim_size(long i) { return sizes[i]; }
+/* Before a call: note it; 1 if the call is to be cut at the first page boundary. */
+static int hit(const char *kind, long long offset, long long size) {
+  if (!armed) return 0;
+  if (seen < MAX_CALLS) {
+    snprintf(kinds[seen], sizeof kinds[seen], "%s", kind);
+    offsets[seen] = offset; sizes[seen] = size;
+  }
+  seen++;
+  if (armed > 0 && seen == armed) {
+    if (split && offset >= 0 && offset % 4096 + size > 4096) return 1;
+    kill(getpid(), SIGKILL);
+  }
+  return 0;
 }
+static size_t first_part(long long offset) { return (size_t)(4096 - offset % 4096); }
 #define NEXT(f) static __typeof__(f) *real; if (!real) real = dlsym(RTLD_NEXT, #f)
-ssize_t write(int d, const void *b, size_t n) { NEXT(write); hit(); return real(d, b, n); }
+ssize_t write(int d, const void *b, size_t n) {
+  NEXT(write);
+  off_t at = lseek(d, 0, SEEK_CUR);
+  if (hit("write", at, n)) { real(d, b, first_part(at)); kill(getpid(), SIGKILL); }
+  return real(d, b, n); }
 ssize_t pwrite(int d, const void *b, size_t n, off_t o) {
-  NEXT(pwrite); hit(); return real(d, b, n, o); }
+  NEXT(pwrite);
+  if (hit("pwrite", o, n)) { real(d, b, first_part(o), o); kill(getpid(), SIGKILL); }
+  return real(d, b, n, o); }
 ssize_t pwrite64(int d, const void *b, size_t n, off_t o) {
-  NEXT(pwrite64); hit(); return real(d, b, n, o); }
-ssize_t writev(int d, const struct iovec *v, int c) { NEXT(writev); hit(); return real(d, v, c); }
+  NEXT(pwrite64);
+  if (hit("pwrite", o, n)) { real(d, b, first_part(o), o); kill(getpid(), SIGKILL); }
+  return real(d, b, n, o); }
+ssize_t writev(int d, const struct iovec *v, int c) {
+  NEXT(writev); hit("writev", -1, -1); return real(d, v, c); }
 ssize_t pwritev(int d, const struct iovec *v, int c, off_t o) {
-  NEXT(pwritev); hit(); return real(d, v, c, o); }
-int ftruncate(int d, off_t l) { NEXT(ftruncate); hit(); return real(d, l); }
+  NEXT(pwritev); hit("pwritev", -1, -1); return real(d, v, c, o); }
+int ftruncate(int d, off_t l) { NEXT(ftruncate); hit("ftruncate", -1, -1); return real(d, l); }
+int rename(const char *a, const char *b) { NEXT(rename); hit("rename", -1, -1); return real(a, b); }
+int renameat(int fa, const char *a, int fb, const char *b) {
+  NEXT(renameat); hit("rename", -1, -1); return real(fa, a, fb, b); }
+int unlink(const char *p) { NEXT(unlink); hit("unlink", -1, -1); return real(p); }
+int unlinkat(int d, const char *p, int f) {
+  NEXT(unlinkat); hit("unlink", -1, -1); return real(d, p, f); }
 """
 
 CHILD = r"""
-import ctypes, os, sys, types
+import ctypes, json, os, sys
 shim = ctypes.CDLL(os.environ["KILL_SHIM"])  # the preloaded library itself
-shim.shim_arm.argtypes = [ctypes.c_long]
+shim.shim_arm.argtypes = [ctypes.c_long, ctypes.c_long]
 shim.shim_disarm.restype = ctypes.c_long
-from dolfinx import io as dolfinx_io
+shim.shim_kind.restype = ctypes.c_char_p
+shim.shim_offset.restype = shim.shim_size.restype = ctypes.c_longlong
+for f in (shim.shim_kind, shim.shim_offset, shim.shim_size):
+    f.argtypes = [ctypes.c_long]
 from cosserat_fem import output
 from cosserat_fem.cli import main
 
-out, target, n = sys.argv[1], int(sys.argv[2]), int(sys.argv[3])
-XDMFFile = dolfinx_io.XDMFFile
+out, how, target, n, split = sys.argv[1], sys.argv[2], *map(int, sys.argv[3:6])
+if how == "rewrite":
+    output.XdmfWriter.SPARE = (0, 0)  # no spare room: every frame rewrites the XML
+write = output.XdmfWriter.write
 
-class Killing:
-    closes = 0
+def killing(self, t, U=None):
+    frame = self.writes
+    watched = frame == target or (target < 0 and FIRST <= frame < LAST)
+    if watched:
+        shim.shim_arm(n if frame == target else -1, split)
+    write(self, t, U)
+    if watched:
+        count = shim.shim_disarm()
+        calls = [[shim.shim_kind(i).decode(), shim.shim_offset(i), shim.shim_size(i)]
+                 for i in range(count)]
+        print("calls", json.dumps({"frame": frame, "calls": calls}), flush=True)
 
-    def __init__(self, *args):
-        self.file = XDMFFile(*args)
-
-    def write_mesh(self, *args):
-        self.file.write_mesh(*args)
-
-    def write_function(self, *args):
-        self.file.write_function(*args)
-
-    def close(self):
-        Killing.closes += 1
-        if Killing.closes == target:
-            shim.shim_arm(n)
-        self.file.close()
-        seen = shim.shim_disarm()
-        if Killing.closes == target:
-            print(f"writes in the close: {seen}", flush=True)
-
-output.io = types.SimpleNamespace(XDMFFile=Killing)
+output.XdmfWriter.write = killing
 sys.exit(main(["run", SCENE, "--out", out, "--quiet", "--set", "time.end=0.0006",
                "--set", "output.xdmf_interval=0"]))
 """
@@ -124,28 +165,35 @@ def shim(tmp_path_factory) -> Path:
     return library
 
 
-def run_child(shim: Path, out: Path, n: int) -> subprocess.CompletedProcess:
-    """The run into ``out``, killed before the n-th write call of frame FRAME's close (n = -1:
-    not killed, the write calls counted)."""
+def run_child(shim: Path, out: Path, how: str, frame: int = -1, n: int = -1, split: bool = False):
+    """The run into ``out`` (``how``: "append" or "rewrite"), killed before call n of frame
+    ``frame``'s write, or (``split``) after that call's bytes up to the first page boundary;
+    frame -1: not killed, the calls of frames FIRST..LAST-1 listed."""
     env = subprocess_env() | {"KILL_SHIM": str(shim), "LD_PRELOAD": str(shim)}
-    script = f"SCENE = {SCENE!r}\n" + CHILD
-    # Close 1 is the mesh's, close k + 2 frame k's.
-    args = [PYTHON, "-c", script, str(out), str(FRAME + 2), str(n)]
+    script = f"SCENE = {SCENE!r}\nFIRST, LAST = {FIRST}, {LAST}\n" + CHILD
+    args = [PYTHON, "-c", script, str(out), how, str(frame), str(n), str(int(split))]
     # Not cwd=ROOT: python -c puts the working folder first on sys.path, before PYTHONPATH.
     return subprocess.run(args, cwd=out.parent, env=env, capture_output=True, text=True,
                           timeout=300)  # fmt: skip
 
 
-def check_outputs(out: Path) -> None:
-    """Every frame the XML names readable, the frames before the killed one all there, each
-    with the probes' values of its time."""
+def crosses(call: list) -> bool:
+    """Whether a write call (kind, offset, size) crosses a page boundary: the kernel may cut
+    it there when the process is killed."""
+    _, offset, size = call
+    return offset >= 0 and offset % PAGE + size > PAGE
+
+
+def check_outputs(out: Path, frames: int) -> None:
+    """Every frame the XML names readable, the ``frames`` frames before the killed one all
+    there, each with the probes' values of its time."""
     text = (out / "probes.csv").read_text()
     probes = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1, ndmin=2)
-    series = read_xdmf(out / "solution.xdmf", names=False)
+    series = read_xdmf(out / "solution.xdmf")
     times, disp = series["displacement"]
     times_a, ang = series["angles"]
     assert np.array_equal(times, times_a)
-    assert np.allclose(times, np.arange(FRAME) * DT, rtol=0, atol=TIME_TOL), times
+    assert np.allclose(times, np.arange(frames) * DT, rtol=0, atol=TIME_TOL), times
     rows = probes[: len(times)]
     assert np.allclose(rows[:, 0], times, rtol=0, atol=TIME_TOL)
     assert np.abs(disp - rows[:, 1:4]).max() <= VALUE_TOL
@@ -153,18 +201,37 @@ def check_outputs(out: Path) -> None:
     assert np.abs(disp[-1]).max() > 0  # the rod has moved: a real comparison
 
 
-def test_sigkill_at_every_write_of_a_frames_close(shim, tmp_path):
-    counted = run_child(shim, tmp_path / "counted", -1)
+@pytest.mark.parametrize("how", ["append", "rewrite"])
+def test_sigkill_at_every_write_of_a_frame(shim, tmp_path, how):
+    counted = run_child(shim, tmp_path / "counted", how)
     assert counted.returncode == 0, counted.stderr
-    writes = int(re.search(r"writes in the close: (\d+)", counted.stdout)[1])
-    assert writes >= 2, counted.stdout  # the close does write its metadata
+    listed = [json.loads(line[len("calls ") :]) for line in counted.stdout.splitlines()
+              if line.startswith("calls ")]  # fmt: skip
+    calls = {item["frame"]: item["calls"] for item in listed}
+    assert sorted(calls) == list(range(FIRST, LAST)), counted.stdout
+    appended = []
+    for frame, made in calls.items():
+        assert made[0][:2] == ["pwrite", 0], made  # the frame's HDF5 file, in one write
+        if [c[0] for c in made] == ["pwrite"] * 3:  # in place
+            appended.append(frame)
+            assert not crosses(made[-1]), (frame, made)  # the premise: the blanks in one page
+        else:
+            assert [c[0] for c in made] == ["pwrite", "unlink", "pwrite", "rename"], made
+    assert appended == (list(calls) if how == "append" else []), calls
+    # The frame killed: the first whose XML write (after the frame file's) crosses a page.
+    frame = next((f for f, made in calls.items() if any(map(crosses, made[1:]))), None)
+    assert frame is not None, calls  # ~1 kB frames: about one in four crosses
     failures = []
-    for n in range(1, writes + 1):
-        out = tmp_path / f"killed{n}"
-        proc = run_child(shim, out, n)
-        assert proc.returncode == -signal.SIGKILL, (n, proc.stderr[-2000:])
-        try:
-            check_outputs(out)
-        except (AssertionError, KeyError, OSError) as exc:
-            failures.append(f"killed before write {n} of {writes}: {type(exc).__name__} {exc}")
+    for n, call in enumerate(calls[frame], start=1):
+        for split in (False, True) if crosses(call) else (False,):
+            out = tmp_path / f"killed{n}{'-split' if split else ''}"
+            proc = run_child(shim, out, how, frame, n, split)
+            where = f"killed {'inside' if split else 'before'} call {n} ({call}) of frame {frame}"
+            if proc.returncode != -signal.SIGKILL:
+                failures.append(f"{where}: exit {proc.returncode}: {proc.stderr[-2000:]}")
+                continue
+            try:
+                check_outputs(out, frame)
+            except (AssertionError, KeyError, OSError) as exc:
+                failures.append(f"{where}: {type(exc).__name__} {exc}")
     assert not failures, "\n".join(failures)
