@@ -8,7 +8,7 @@ export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 
-.PHONY: setup demo test unit lint verify bench clean container-test
+.PHONY: setup demo test test-long unit lint verify bench clean container-test
 
 setup:
 	@VENV=$(VENV) bash .ci/setup.sh
@@ -17,9 +17,15 @@ setup:
 demo: setup
 	$(PY) demos/cao_tucker_2008.py
 
-## Lint, then the whole test suite (serial and mpirun -n 2 cases).
+## Lint, then the test suite (serial and mpirun -n 2 cases) without the long set, its files
+## dealt to one pytest worker per core (pytest-xdist; a file's tests share its fixtures).
 test: setup lint
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q -n auto --dist loadfile -m "not long" tests
+
+## The long set (pytest -m long): stress cases, kills and restarts, ParaView and rendering,
+## killed compiles. CI runs it after make test (.ci/run).
+test-long: setup
+	$(PY) -m pytest -q -m long tests
 
 ## The unit tests alone (integrators, Newton stop rule, step controller, interpolation): seconds.
 unit: setup

@@ -36,7 +36,7 @@ from conftest import ROOT
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 
-pytestmark = pytest.mark.stress
+pytestmark = [pytest.mark.stress, pytest.mark.long]
 
 SCENE = ROOT / "scenes" / "impulse.toml"
 BASE = ["output.xdmf=false"]

@@ -149,6 +149,7 @@ def mass_form(space, cache: Path, value: float | None = None, **jit_params):
     return fem.form(a, jit_params={"cache_dir": str(cache), **jit_params})
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("killed", ["install", "plain"])
 def test_killed_compile_does_not_block_the_next_run(tmp_path, killed):
     """D7: a compile killed with SIGKILL (its whole process group, as Ctrl-C in a terminal
@@ -181,6 +182,7 @@ def test_killed_compile_does_not_block_the_next_run(tmp_path, killed):
     assert run({**args, "install": True})["compiled"] is False  # now a warm cache
 
 
+@pytest.mark.long
 def test_live_concurrent_compile_is_waited_for(tmp_path):
     """Two processes that need the same new module at the same moment: one compiles (slowed
     to ~3 s), the other waits for it on the lock and then loads the result; nobody takes the

@@ -29,6 +29,7 @@ REPEATS = int(os.environ.get("KILL_REPEATS", "1"))
 FIRST_SEED = int(os.environ.get("KILL_SEED", str(time.time_ns() % 1_000_000)))
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("seed", [FIRST_SEED + i for i in range(REPEATS)])
 def test_sigkill_at_a_random_moment_leaves_readable_outputs(tmp_path, monkeypatch, seed):
     draw = random.Random(seed)

@@ -22,7 +22,7 @@ from cosserat_fem.reference.second_order import RodData, second_order_tip_respon
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 
-pytestmark = pytest.mark.stress
+pytestmark = [pytest.mark.stress, pytest.mark.long]
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 Q0 = 2e3  # N/m, the paper's load amplitude

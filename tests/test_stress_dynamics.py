@@ -49,7 +49,7 @@ from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 from cosserat_fem.statics import solve_static
 
-pytestmark = pytest.mark.stress
+pytestmark = [pytest.mark.stress, pytest.mark.long]
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 UNLOADED = ["loads.force_density=[0,0,0]", "output.xdmf=false"]

@@ -63,7 +63,7 @@ from cosserat_fem.reference.timoshenko import TimoshenkoBeam, tip_deflection_end
 from cosserat_fem.scene import scene_from_dict
 from cosserat_fem.statics import static_path
 
-pytestmark = pytest.mark.stress
+pytestmark = [pytest.mark.stress, pytest.mark.long]
 
 LENGTH, SIDE = 1.0, 1e-3  # ℓ/a = 1000
 YOUNG, POISSON, KAPPA, DENSITY = 7.1e10, 0.32, 0.833, 2730.0

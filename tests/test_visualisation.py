@@ -176,6 +176,7 @@ def test_resultants_are_the_flux_of_the_general_form():
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12 * np.abs(b).max())
 
 
+@pytest.mark.long
 @pytest.mark.skipif(shutil.which("pvpython") is None, reason="ParaView (pvpython) not installed")
 def test_paraview_reads_the_rod(dynamic_run, tmp_path):
     png, report = tmp_path / "paraview.png", tmp_path / "paraview.json"
@@ -212,6 +213,7 @@ def test_paraview_reads_the_rod(dynamic_run, tmp_path):
     assert 0.01 < drawn < 0.6 and contrast > 5.0, (drawn, contrast)
 
 
+@pytest.mark.long
 def test_plot_and_render_a_run(dynamic_run, static_run, tmp_path):
     proc = cli("plot", str(dynamic_run), "--out", str(tmp_path / "plots"))
     assert proc.returncode == 0, proc.stderr
