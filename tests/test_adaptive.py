@@ -27,7 +27,7 @@ from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
-BASE = ["output.xdmf=false", "time.end=0.012"]
+BASE = ["output.xdmf=false", "time.end=0.012", "solver.stol=1e-8"]  # stol: argued below
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,7 @@ from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
-COMMON = ["time.end=0.003", "time.step=1e-5", "output.xdmf=false"]
+COMMON = ["time.end=0.003", "time.step=1e-5", "output.xdmf=false", "solver.stol=1e-8"]
 
 
 @pytest.fixture(scope="module", params=["generalized-alpha", "sdirk3"])

@@ -495,13 +495,13 @@ def test_forcing_above_the_highest_resolved_frequency_is_bounded(tmp_path, linea
     of a sinusoid at the alias Ω_a = Ω − 2πk/Δt (ΩΔt − 10π = −1.42 rad a step, |Ω_a| =
     4.7e4 rad/s): the response is that of the linearised rod to these samples, which the same
     scheme applied to M p̈ + K p + f g(t) = 0 (the rod linearised by cosserat_fem.modal)
-    reproduces. What may differ: Newton's stop, here solver.stol = 1e-12 (the scene's 1e-8
+    reproduces. What may differ: Newton's stop, here solver.stol = 1e-12 (1e-8
     would allow each step an error of 1e-8 of the state, 4e-5 over the 4000 steps, which the
     A-stable schemes do not amplify but may add up: at most 4e-9 with 1e-12), round-off
     (~1e-14 m), and the rod's nonlinearity, relative O(ψ²) with ψ the largest bending angle:
     ψ = 5.3e-5, 7.3e-5 and 1.3e-4 rad (SDIRK3, midpoint, BDF2), ψ² = 3e-9 to 1.7e-8.
     Measured 6.3e-9, 9.2e-9 and 2.8e-8 (1.6-2.3 ψ²), and 2.1e-9 for ρ∞ = 0.8, whose tip
-    moves only 3.7e-6 ℓ (8e-15 m: round-off); with the scene's stol of 1e-8 the same within
+    moves only 3.7e-6 ℓ (8e-15 m: round-off); with stol = 1e-8 the same within
     5e-9. Required within 1e-6 of its maximum: about 60 ψ² for BDF2, 400x the round-off.
     It is bounded, the amplitude over the second half of the run within 20 % of the first
     half's (every scheme is A-stable: the unresolved modes never grow; damped or not, the
