@@ -379,7 +379,8 @@ class SDIRK(Integrator):
 
     def _rate_guess(self, stage: int, tau: float) -> np.ndarray | float:
         """Lagrange extrapolation to time τ of the newest s + 1 stage rates known before
-        stage ``stage`` of this step (0 with none). A stored rate whose time coincides with
+        stage ``stage`` of this step (0 with none), in a kept buffer that the next call
+        overwrites. A stored rate whose time coincides with
         that of a newer one is left out (SDIRK4's first stage lies beyond its step, so after
         a step ratio of (γ − 1)/γ a stage time repeats exactly: the weights divided by zero)."""
         times, taus = self._times.tolist(), self._taus[:stage].tolist()

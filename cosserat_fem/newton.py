@@ -259,10 +259,9 @@ class NewtonSolver:
         self.stats.jacobian_assemblies += 1
         self.stats.time_jacobian += time.perf_counter() - t0
 
-    def _converged(self, snes, it: int, norms) -> int:
+    def _converged(self, it: int, norms) -> int:
         """Convergence test of the module docstring; norms = (‖U‖, ‖δU‖, ‖F‖). Each result
-        goes to ``iteration_hook(it, norms, reason)`` if one is set (an observer's). ``snes``
-        is not read (the place of SNES's argument in its convergence test; None)."""
+        goes to ``iteration_hook(it, norms, reason)`` if one is set (an observer's)."""
         reason = self._test(it, norms)
         if self.iteration_hook is not None:
             self.iteration_hook(it, norms, reason)
@@ -338,7 +337,7 @@ class NewtonSolver:
         if not math.isfinite(fnorm):
             reason = reasons.DIVERGED_FNORM_NAN
         else:
-            reason = self._converged(None, 0, (0.0, 0.0, fnorm))
+            reason = self._converged(0, (0.0, 0.0, fnorm))
         while reason == reasons.ITERATING and it < self.settings.max_iterations:
             self._jacobian()
             ksp.solve(self.b, dx)
@@ -352,7 +351,7 @@ class NewtonSolver:
                 reason = reasons.DIVERGED_FNORM_NAN
                 break
             it += 1
-            reason = self._converged(None, it, norms)
+            reason = self._converged(it, norms)
         if reason == reasons.ITERATING:
             reason = reasons.DIVERGED_MAX_IT
         self.stats.time_solve += time.perf_counter() - t0

@@ -888,16 +888,20 @@ class XdmfWriter:
         else:
             self.folder.unlink(missing_ok=True)
         self.folder.mkdir()
+        self._doc = _XdmfDocument(self.path, self._work, self._write_mesh(), run_id)
+        self._rewrite(None, "the XDMF file")
+
+    def _write_mesh(self) -> str:
+        """``mesh.h5`` written (rank 0; OutputError if it may not fit); the Topology and
+        Geometry that name it."""
         line = self.line
         image = self._h5.image(
             [("/Mesh/mesh/geometry", line.geometry), ("/Mesh/mesh/topology", line.topology)]
         )[0]
         self._check_room(len(image), 0, "the XDMF mesh", self.folder / MESH_FILE)
         _write_file(self.folder / MESH_FILE, image)
-        mesh = _mesh_xml(self.folder.name + "/" + MESH_FILE, len(line.geometry),
+        return _mesh_xml(self.folder.name + "/" + MESH_FILE, len(line.geometry),
                          len(line.topology))  # fmt: skip
-        self._doc = _XdmfDocument(self.path, self._work, mesh, run_id)
-        self._rewrite(None, "the XDMF file")
 
     def _resume(self) -> None:
         """Continue the published XML (rank 0): its frames and mesh kept, the values of the
@@ -907,12 +911,7 @@ class XdmfWriter:
         self._doc = _XdmfDocument.parse(self.path, self._work, text)
         self.folder.mkdir(exist_ok=True)  # outputs of the single-file layout
         if self._doc.mesh is None:  # no frame yet: the mesh as a new series writes it
-            line = self.line
-            _write_file(self.folder / MESH_FILE, self._h5.image(
-                [("/Mesh/mesh/geometry", line.geometry), ("/Mesh/mesh/topology", line.topology)]
-            )[0])  # fmt: skip
-            self._doc.mesh = _mesh_xml(self.folder.name + "/" + MESH_FILE,
-                                       len(line.geometry), len(line.topology))  # fmt: skip
+            self._doc.mesh = self._write_mesh()
         else:
             self._to_file = self._file_order()
         self._rewrite(None, "the XDMF file")

@@ -53,6 +53,7 @@ exception. What is read has passed these checks:
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import re
@@ -84,10 +85,11 @@ def probe_columns(fields: tuple[str, ...] = ()) -> tuple[str, ...]:
     return (*PROBE_COLUMNS, *extra)
 
 
-#: Every header a probes.csv may have, and its columns.
+#: Every header a probes.csv may have (any subset of the fields, in their order), and its columns.
 _HEADERS = {
-    ",".join(probe_columns(fields)): probe_columns(fields)
-    for fields in [(), ("quaternion",), ("directors",), ("quaternion", "directors")]
+    ",".join(columns): columns
+    for n in range(len(PROBE_FIELD_COLUMNS) + 1)
+    for columns in map(probe_columns, itertools.combinations(PROBE_FIELD_COLUMNS, n))
 }
 #: Largest files read [bytes]: probes.csv ~150 bytes a row (about 7 million rows), an XDMF
 #: file ~1-2.5 kB a frame (some 60 000 frames), summary.json ~4 kB.

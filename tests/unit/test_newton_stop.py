@@ -6,12 +6,11 @@ test); with a reused Jacobian (lagged, frozen) also, from the second iteration o
 η_k ‖δU_k‖ ≤ stol ‖U‖ + xatol, η = ρ/(1 − ρ), ρ the larger of ‖δU_k‖/‖δU_{k−1}‖ and
 ‖F_k‖/‖F_{k−1}‖ (ρ < 1 only).
 
-``_converged(snes, it, norms)`` reads only the solver's settings and its own running norms
-(‖F_0‖, ‖F_{k−1}‖, ‖δU_{k−1}‖), never the SNES it is given, so the constructed sequences are fed
-to it directly, on a real NewtonSolver (the smallest one: two DG0 unknowns on one cell, F =
-U∘U − g) with snes=None. Two real SNES solves then check that PETSc hands it the norms in the
-documented order and that a frozen-Jacobian solve stops where the documented rule, written out
-independently here, says it must.
+``_converged(it, norms)`` reads only the solver's settings and its own running norms (‖F_0‖,
+‖F_{k−1}‖, ‖δU_{k−1}‖), so the constructed sequences are fed to it directly, on a real
+NewtonSolver (the smallest one: two DG0 unknowns on one cell, F = U∘U − g). Two real solves
+then check that the Newton loop hands it the norms in the documented order and that a frozen-
+Jacobian solve stops where the documented rule, written out independently here, says it must.
 """
 
 from __future__ import annotations
@@ -69,7 +68,7 @@ def feed(solver: NewtonSolver, settings: NewtonSettings, norms) -> tuple[int, in
     ‖F‖), iteration 0 first; (len, ITERATING) if it never stops."""
     solver.settings = settings
     for it, triple in enumerate(norms):
-        reason = solver._converged(None, it, triple)
+        reason = solver._converged(it, triple)
         if reason != ITERATING:
             return it, reason
     return len(norms), ITERATING
@@ -200,7 +199,7 @@ def test_nan_and_iteration_limit(problem):
     assert feed(problem.solver, full(max_iterations=6), slow) == (6, ITERATING)
 
 
-# ---------------------------------------------------------------------- real SNES solves
+# --------------------------------------------------------------------------- real solves
 def documented_rule(norms, st: NewtonSettings) -> int:
     """The iteration at which the module docstring's rule stops, written out from it."""
     f0 = norms[0][2]
@@ -236,12 +235,13 @@ def recorded_solve(problem: Squares, start) -> list[tuple[int, tuple, np.ndarray
     return calls
 
 
-def test_snes_hands_the_norms_in_the_documented_order():
+def test_newton_hands_the_norms_in_the_documented_order():
     """Full Newton on U² = (4, 9) from (1, 1): at iteration k ≥ 1 the norms are (‖U_k‖,
     ‖U_k − U_{k−1}‖, ‖U_k² − g‖) to round-off (1e-12 relative: norms of 2-vectors of O(1)
-    entries, the update read as a difference of iterates); at iteration 0 PETSc passes
-    (0, 0, ‖F_0‖). Measured: updates 4.3, 1.7, 0.38, 2.3e-2, 9.2e-5, 1.4e-9 (quadratic); the
-    last iterate is the root (2, 3) to ε, with ‖F‖ = 0 (so atol, tested first, ends it)."""
+    entries, the update read as a difference of iterates); at iteration 0 the loop passes
+    (0, 0, ‖F_0‖), as SNES did. Measured: updates 4.3, 1.7, 0.38, 2.3e-2, 9.2e-5, 1.4e-9
+    (quadratic); the last iterate is the root (2, 3) to ε, with ‖F‖ = 0 (so atol, tested
+    first, ends it)."""
     problem = Squares(NewtonSettings())
     try:
         calls = recorded_solve(problem, [1.0, 1.0])
