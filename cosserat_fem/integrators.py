@@ -42,7 +42,7 @@ import ufl
 from dolfinx import fem
 from petsc4py import PETSc
 
-from .adaptive import lagrange_weights
+from .adaptive import lagrange_weight_list
 
 ResidualFactory = Callable[[object, object, object], ufl.Form]
 #: A change of variables (:meth:`Integrator.change_variables`): state array -> state array.
@@ -53,6 +53,12 @@ RateMap = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 def _constant(U: fem.Function, value: float = 0.0) -> fem.Constant:
     return fem.Constant(U.function_space.mesh, PETSc.ScalarType(value))
+
+
+def time_view(constant: fem.Constant) -> np.ndarray:
+    """The 0-d array that is a scalar Constant's own storage: ``view[()] = x`` sets it at a
+    tenth of the cost of ``constant.value = x``, which wraps the storage anew each call."""
+    return constant._cpp_object.value
 
 
 class Integrator:
@@ -344,10 +350,13 @@ class SDIRK(Integrator):
     """A-stable SDIRK of order 3 or 4 (module docstring).
 
     Predictor: each stage starts from U = Z_i + γ h K̃_i, where K̃_i extrapolates the last
-    s + 1 stage rates (this step's and those of the accepted steps before it, at their own
-    times) by a polynomial of degree s to the stage time τ_n + c_i h; its error is
-    O(h^(s+1)), so a frozen Jacobian needs about two iterations a stage. Only accepted steps
-    enter the stored rates, so a rejected step leaves nothing to undo but U.
+    s stage rates (this step's and those of the accepted steps before it, at their own
+    times) by a polynomial of degree s − 1 to the stage time τ_n + c_i h; its error is
+    O(h^s), so a frozen Jacobian needs two to three iterations a stage. One degree lower
+    than the rates allow: the stage rates of the stiff (axial, shear) components are not
+    smooth, and a higher degree amplifies them (measured: docs/decisions.md, "The stage
+    predictor"). Only accepted steps enter the stored rates, so a rejected step leaves
+    nothing to undo but U.
     """
 
     def __init__(self, U, residual, time=0.0, order: int = 3):
@@ -363,22 +372,31 @@ class SDIRK(Integrator):
         stages = len(self.b)
         self.K = np.zeros((stages, U.x.array.size))  # stage rates K_i of this step
         self._taus = np.zeros(stages)  # their times
-        # The last s + 1 stage rates of accepted steps, a ring buffer in the order computed
-        # (slot = count mod s + 1), and their times.
-        self._rates = np.zeros((stages + 1, U.x.array.size))
-        self._times = np.zeros(stages + 1)
+        # The last s stage rates of accepted steps, a ring buffer in the order computed
+        # (slot = count mod s), and their times.
+        self._rates = np.zeros((stages, U.x.array.size))
+        self._times = np.zeros(stages)
         self._stored = 0
         self._guess = np.zeros(U.x.array.size)  # the predictor's result and a scratch term
         self._term = np.zeros(U.x.array.size)
+        # Kept views and plain floats for the step, whose arrays are small: each NumPy call or
+        # Function.x costs about a microsecond, as much as the arithmetic of a rod of a few
+        # hundred unknowns (docs/decisions.md, "The lean Newton loop").
+        self._u, self._z = U.x.array, self.Z.x.array
+        self._rate_rows, self._K_rows = list(self._rates), list(self.K)
+        self._A_rows = [[float(a) for a in row] for row in self.A]
+        self._b_list, self._c_list = [float(b) for b in self.b], [float(c) for c in self.c]
+        self._time_value = time_view(self.time_eval)
+        self._inv_gh_value = time_view(self.inv_gh)
 
     def residual_form(self) -> ufl.Form:
         return self._factory(self.U, self.inv_gh * (self.U - self.Z), self.time_eval)
 
     def prepare(self, h: float) -> None:
-        self.inv_gh.value = 1.0 / (self.gamma * h)
+        self._inv_gh_value[()] = 1.0 / (self.gamma * h)
 
     def _rate_guess(self, stage: int, tau: float) -> np.ndarray | float:
-        """Lagrange extrapolation to time τ of the newest s + 1 stage rates known before
+        """Lagrange extrapolation to time τ of the newest s stage rates known before
         stage ``stage`` of this step (0 with none), in a kept buffer that the next call
         overwrites. A stored rate whose time coincides with
         that of a newer one is left out (SDIRK4's first stage lies beyond its step, so after
@@ -389,13 +407,12 @@ class SDIRK(Integrator):
         slots = [(self._stored - old + j) % size for j in range(old)]
         later = [*(times[j] for j in slots), *taus]
         slots = [j for i, j in enumerate(slots) if times[j] not in later[i + 1 :]]
-        old = len(slots)
-        if old + stage == 0:
+        if not slots and not stage:
             return 0.0
-        w = lagrange_weights([*(times[j] for j in slots), *taus], tau).tolist()
+        w = lagrange_weight_list([*(times[j] for j in slots), *taus], tau)
         # Σ w_j rate_j into a kept buffer, one term at a time: for the small arrays of a rod a
         # fancy-indexed matrix product cost several times more (its copies and dispatch).
-        rows = [*(self._rates[j] for j in slots), *self.K[:stage]]
+        rows = [*(self._rate_rows[j] for j in slots), *self._K_rows[:stage]]
         out, term = self._guess, self._term
         np.multiply(rows[0], w[0], out=out)
         for wj, row in zip(w[1:], rows[1:], strict=True):
@@ -406,21 +423,25 @@ class SDIRK(Integrator):
         """The stages one after the other (module docstring), each from the predictor of the
         class docstring, then U = U_n + h Σ b_i K_i; returns the Newton iterations of all stages."""
         self.prepare(h)
-        u, iterations, gh = self.U.x.array, 0, self.gamma * h
-        z = self.Z.x.array
-        for i in range(len(self.b)):
-            np.add(self.U_n, h * (self.A[i, :i] @ self.K[:i]), out=z)
-            tau = self.time + self.c[i] * h
-            self.time_eval.value = tau
+        u, z, u_n, term, K = self._u, self._z, self.U_n, self._term, self._K_rows
+        gh = self.gamma * h
+        iterations = 0
+        for i, a_i in enumerate(self._A_rows):
+            np.copyto(z, u_n)  # Z_i = U_n + h Σ_{j<i} a_ij K_j
+            for j in range(i):
+                z += np.multiply(K[j], h * a_i[j], out=term)
+            tau = self.time + self._c_list[i] * h
+            self._time_value[()] = tau
             self.unknown_time = tau
-            guess = self._rate_guess(i, tau)
-            np.multiply(guess, gh, out=u)
+            np.multiply(self._rate_guess(i, tau), gh, out=u)
             u += z
             iterations += solve()
-            np.subtract(u, z, out=self.K[i])
-            self.K[i] *= 1.0 / gh
+            np.subtract(u, z, out=K[i])
+            K[i] *= 1.0 / gh
             self._taus[i] = tau
-        u[:] = self.U_n + h * (self.b @ self.K)
+        np.copyto(u, u_n)
+        for b_i, K_i in zip(self._b_list, K, strict=True):
+            u += np.multiply(K_i, h * b_i, out=term)
         return iterations
 
     def accept(self, h: float) -> None:
@@ -458,9 +479,15 @@ class SDIRK(Integrator):
         """The inverse of :meth:`state_dict`."""
         super().load_state_dict(state)
         self.U_n[:] = state["U_n"]
-        self._rates[:] = state["rates"]
-        self._times[:] = state["rate_times"]
-        self._stored = int(state["stored"])
+        rates, times, stored = state["rates"], state["rate_times"], int(state["stored"])
+        size = len(self._times)
+        if len(times) > size:  # a checkpoint of the predictor of degree s: its newest s rates
+            newest = [(stored - size + j) % len(times) for j in range(size)]
+            slots = [(stored - size + j) % size for j in range(size)]
+            rates, times = rates[newest][np.argsort(slots)], times[newest][np.argsort(slots)]
+        self._rates[:] = rates
+        self._times[:] = times
+        self._stored = stored
 
 
 INTEGRATORS = ("bdf2", "generalized-alpha", "sdirk3", "sdirk4", "static")

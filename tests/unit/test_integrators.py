@@ -617,3 +617,43 @@ def test_sdirk4_step_whose_stage_time_repeats_a_stored_one(linear_system):
         run.close()
     expected = sdirk_R(-1.0, 4) * sdirk_R(-h2, 4)
     np.testing.assert_allclose(states[-1], expected, rtol=32 * EPS)
+
+
+@pytest.mark.parametrize("order", [3, 4])
+@pytest.mark.parametrize("steps", [1, 2, 5])
+def test_sdirk_loads_a_checkpoint_of_the_degree_s_predictor(linear_system, order, steps):
+    """A checkpoint written when the predictor kept s + 1 stage rates in a ring (slot = count
+    mod s + 1) continues bit for bit as one of today's ring of s: its newest s rates are
+    taken, in their order. The older ring is rebuilt here from the run's own rates (the oldest
+    slot filled with NaN, which must not reach the state) after 1, 2 and 5 steps, i.e. before,
+    at and after the rings wrap."""
+    M = diagonal_plus_oscillator(DIAG_Z, OMEGA_H, H)
+    linear_system.M.value = M
+    y0 = np.linspace(1.0, 2.0, N)
+    name = f"sdirk{order}"
+    plan = [H, 0.5 * H, 0.75 * H, H, 0.6 * H][:steps]
+    results = []
+    for old_format in (False, True):
+        run = Run(linear_system, linear_system.linear, name, y0)
+        try:
+            run.advance(plan)
+            state = run.integrator.state_dict()
+            if old_format:
+                size, stored = len(state["rate_times"]), int(state["stored"])
+                rates = np.full((size + 1, N), np.nan)
+                times = np.full(size + 1, np.nan)
+                for count in range(max(stored - size, 0), stored):
+                    rates[count % (size + 1)] = state["rates"][count % size]
+                    times[count % (size + 1)] = state["rate_times"][count % size]
+                state = {**state, "rates": rates, "rate_times": times}
+            fresh = Run(linear_system, linear_system.linear, name, y0)
+            try:
+                fresh.U.x.array[:] = run.U.x.array
+                fresh.integrator.load_state_dict(state)
+                results.append(fresh.advance([0.8 * H, H, H]))
+            finally:
+                fresh.close()
+        finally:
+            run.close()
+    assert np.isfinite(results[1]).all()
+    np.testing.assert_array_equal(results[0], results[1])
