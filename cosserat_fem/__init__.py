@@ -6,6 +6,7 @@ the Newton solver, outputs and the command line. The Python API, ``cosserat_fem.
 ``run``, ``resume``, ``static`` and ``modes``, is :mod:`cosserat_fem.api`.
 """
 
+from . import pkg_resources_shim
 from .mpi_start import start_mpi
 
 __version__ = "0.1.0"
@@ -13,6 +14,8 @@ __version__ = "0.1.0"
 # Before anything else imports mpi4py: a process started without mpirun starts MPI in 0.08 s
 # instead of 0.45 s (cosserat_fem/mpi_start.py).
 QUICK_MPI_START = start_mpi()
+# UFL and FFCx ask pkg_resources for their versions only: a stand-in saves importing it.
+pkg_resources_shim.install()
 
 #: The Python API (cosserat_fem/api.py), imported on first use: ``import cosserat_fem`` stays
 #: light (the command line's plot and validate need no DOLFINx).
