@@ -72,6 +72,7 @@ def director_residual_terms(
     viscous_damping: tuple[float, float] | None = None,
     retardation_time: float | None = None,
     chart_quaternion=None,
+    reference=None,
 ) -> dict[str, ufl.Form]:
     """Residual of (6) in director form, split like :class:`.general_form.ResidualTerms`.
 
@@ -82,7 +83,13 @@ def director_residual_terms(
     n_v = Σ K_ii τ_d ∂t(∂s r · d_i) d_i, m_v = Σ J_ii τ_d ∂t(u · d_i) d_i, term
     ``kelvin_voigt``, with ∂t(u · d_i) = ∂t u · d_i + u · ∂t d_i and
     ∂t u = ½ Σ (∂t d_i × ∂s d_i + d_i × ∂s ∂t d_i) from (3). chart_quaternion: a UFL
-    4-vector Q(σ), the angles measured from its frame (module docstring).
+    4-vector Q(σ), the angles measured from its frame (module docstring). reference: a
+    forms.reference.Reference (t0, D0) of a rod curved at rest, for smooth t0 and D0: the
+    directors are the rows of D0 times the rotation above (λ_j its rows), ∂s r = t0 +
+    (p1', p2', p3'), and the strains are measured from those of the reference by (9)-(13):
+    n = Σ K_ii (∂s r · d_i − t0 · d0_i) d_i, m = Σ J_ii (u · d_i − u0 · d0_i) d_i with
+    u0 = ½ Σ d0_i × ∂s d0_i (3) (UFL's derivative of D0); the virtual rotation is
+    δϑ = Σ_j v_{9+j} λ_j / Î_j (general_form.py, "A reference configuration").
     """
     sec = rod.section
     ell, rho, w0 = rod.length, rod.density, rod.omega0
@@ -107,6 +114,9 @@ def director_residual_terms(
     D = _elementary_rotations(ang[0], ang[1], ang[2])
     if chart_quaternion is not None:
         D = D * _euler_rodrigues_frame(chart_quaternion)
+    frame = _rows(D)  # λ_j, the frame of the virtual rotation
+    if reference is not None:
+        D = reference.frame * D
     i, j, k = ufl.indices(3)
     D_t = ufl.as_tensor(ufl.diff(D, ang)[i, j, k] * qa[k], (i, j))
     D_tt = ufl.as_tensor(ufl.diff(D, ang)[i, j, k] * qa_dot[k], (i, j)) + ufl.as_tensor(
@@ -119,10 +129,19 @@ def director_residual_terms(
     w = _axial(d, d_t)
     w_t = _axial(d, d_tt)
     r_s = ufl.as_vector([p[0].dx(0), p[1].dx(0), 1.0 + p[2].dx(0)])
-    e3 = [0.0, 0.0, 1.0]
+    v0, u0 = [0.0, 0.0, 1.0], [0.0, 0.0, 0.0]
+    if reference is not None:
+        t0 = reference.tangent
+        r_s = t0 + ufl.as_vector([p[0].dx(0), p[1].dx(0), p[2].dx(0)])
+        d0 = _rows(reference.frame)
+        # grad of the whole matrix: a constant entry alone has no domain to differentiate in.
+        a, b = ufl.indices(2)
+        u_ref = _axial(d0, _rows(ufl.as_tensor(ufl.grad(reference.frame)[a, b, 0], (a, b))))
+        v0 = [ufl.dot(t0, d0[a]) for a in range(3)]
+        u0 = [ufl.dot(u_ref, d0[a]) for a in range(3)]
 
-    n = sum((K[a] * (ufl.dot(r_s, d[a]) - e3[a]) * d[a] for a in range(3)), ufl.zero(3))
-    m = sum((J[a] * ufl.dot(u, d[a]) * d[a] for a in range(3)), ufl.zero(3))
+    n = sum((K[a] * (ufl.dot(r_s, d[a]) - v0[a]) * d[a] for a in range(3)), ufl.zero(3))
+    m = sum((J[a] * (ufl.dot(u, d[a]) - u0[a]) * d[a] for a in range(3)), ufl.zero(3))
     h_t = sum(
         (
             inertia[a]
@@ -133,7 +152,7 @@ def director_residual_terms(
     )
 
     dr = ufl.as_vector([vq[0], vq[1], vq[2]])
-    dth = sum((vq[3 + a] / inertia[a] * d[a] for a in range(3)), ufl.zero(3))
+    dth = sum((vq[3 + a] / inertia[a] * frame[a] for a in range(3)), ufl.zero(3))
     dr_s = ufl.as_vector([dr[a].dx(0) for a in range(3)])
     dth_s = ufl.as_vector([dth[a].dx(0) for a in range(3)])
     r_tt = ufl.as_vector([qdot[0], qdot[1], qdot[2]])

@@ -23,6 +23,22 @@ the force balance (49)-(51) by ρ A ω0² ℓ, rows 4-6 the moment balance about
 The source g (67) is split by origin so that tests can compare term by term:
 ``inertial`` (the velocity products of (64) and the gyroscopic terms), ``elastic`` (contact
 force and torque terms), ``load`` (distributed force and torque).
+
+**A reference configuration** (forms/reference.py: tangent t0, frame D0; a rod curved or
+twisted at rest). The unknowns are the displacement (r − r0)/ℓ and the angles of the rotation
+R = D A (chart A, forms/kinematics.py) that carries the reference directors, whose matrix is
+D0 R. Rows 4-6 are then the moment balance (6) in the components of the rows λ_j of R (a frame
+that turns with the rod and does not jump where D0 does), each divided by the rotary inertia
+of the rows (Î_j), i.e. the virtual work of (6) with δϑ = Σ_j v_{9+j} λ_j/Î_j: with
+ŵ = Mm (θ̇, ψ̇, φ̇) and κ_R the angular velocity and curvature of R in those components, the
+contact force and torque N̂, M̂ of the strains D0 (R r' − t0) and D0 κ_R (director
+components, dimensionless as in :func:`kelvin_voigt_terms`) and N = D0ᵀ N̂, M = D0ᵀ M̂,
+
+    Ma = diag(I₃, Î⁻¹ I_λ Mm),   I_λ = D0ᵀ diag(Î) D0,
+    b = −(Rᵀ N, M_j/Î_j),   g = (0, Î⁻¹ (κ_R × M + v_R × N − I_λ Ṁm q_a − ŵ × I_λ ŵ)) + loads,
+
+with v_R = R r', loads and damping as without a reference with R for the directors. With
+t0 = e3, D0 = I this is (65) itself (tests/test_forms.py: the same residual to round-off).
 """
 
 from __future__ import annotations
@@ -47,6 +63,7 @@ from .kinematics import (
     stretch_shear_strain,
     translations,
 )
+from .reference import Reference
 
 
 @dataclass(frozen=True)
@@ -265,20 +282,74 @@ def kelvin_voigt_terms(
     ν31 Î3 û̇3), η = ω0 τ_d, and enter the free-end condition a_m b = −g_b with the elastic
     flux: n(ℓ) = f^b holds for the whole contact force."""
     eta = damping.omega0 * damping.retardation_time
-    D = directors(p, chart)
-    v = stretch_shear_strain(p, dp, chart)
-    u = curvature(p, dp, chart)
     v_dot, u_dot = strain_rates(p, dp, q, dq, chart)
-    inertia = [groups.g0 / (groups.length * g) for g in (groups.g1, groups.g2, groups.g3)]
+    n_v, m_v = scaled_resultants(v_dot, u_dot, groups)
+    return contact_terms(p, dp, groups, eta * n_v, eta * m_v, chart)
+
+
+def row_inertias(groups: Groups) -> tuple[float, float, float]:
+    """Î_i = g0/(ℓ g_i) = I_ii/(ρ A ℓ²), the dimensionless rotary inertias that divide rows 4-6."""
+    return tuple(groups.g0 / (groups.length * g) for g in (groups.g1, groups.g2, groups.g3))
+
+
+def scaled_resultants(v_strain, u_strain, groups: Groups):
+    """(N̂, M̂) of strains (director components) of stretch-shear and curvature, in the scaling of
+    :func:`kelvin_voigt_terms`: N̂ = (ν01 e1, ν01 e2, ν02 e3), M̂_i = ν_i1 Î_i k_i."""
+    inertia = row_inertias(groups)
     axial = (groups.nu01, groups.nu01, groups.nu02)
-    n_v = eta * ufl.as_vector([axial[i] * v_dot[i] for i in range(3)])
     stiff = (groups.nu11, groups.nu21, groups.nu31)
-    m_v = eta * ufl.as_vector([stiff[i] * inertia[i] * u_dot[i] for i in range(3)])
-    force = D.T * n_v
-    moment = ufl.cross(u, m_v) + ufl.cross(v, n_v)
-    flux_v = ufl.as_vector([-force[i] for i in range(3)] + [-m_v[i] / inertia[i] for i in range(3)])
-    source_v = ufl.as_vector([0.0, 0.0, 0.0] + [moment[i] / inertia[i] for i in range(3)])
-    return flux_v, source_v
+    n = ufl.as_vector([axial[i] * v_strain[i] for i in range(3)])
+    m = ufl.as_vector([stiff[i] * inertia[i] * u_strain[i] for i in range(3)])
+    return n, m
+
+
+def contact_terms(p, dp, groups: Groups, n, m, chart: Chart | None = None, reference_tangent=None):
+    """The flux and source of a contact force N̂ = ``n`` and torque M̂ = ``m`` (components along
+    the rows of D A; scaling of :func:`kelvin_voigt_terms`): b = −(Dᵀ N̂, M̂_i/Î_i) and
+    g = (0, ((û × M̂) + (v × N̂))_i/Î_i), the moment balance (6) m' + u × m + v × n."""
+    inertia = row_inertias(groups)
+    D = directors(p, chart)
+    v = stretch_shear_strain(p, dp, chart, reference_tangent)
+    u = curvature(p, dp, chart)
+    force = D.T * n
+    moment = ufl.cross(u, m) + ufl.cross(v, n)
+    flux_c = ufl.as_vector([-force[i] for i in range(3)] + [-m[i] / inertia[i] for i in range(3)])
+    source_c = ufl.as_vector([0.0, 0.0, 0.0] + [moment[i] / inertia[i] for i in range(3)])
+    return flux_c, source_c
+
+
+def reference_strains(p, dp, reference: Reference, chart: Chart | None = None):
+    """(v − v0, û − û0) = (D0 (R r' − t0), D0 κ_R), director components (module docstring)."""
+    v_rel = stretch_shear_strain(p, dp, chart, reference.tangent) - reference.tangent
+    return reference.frame * v_rel, reference.frame * curvature(p, dp, chart)
+
+
+def reference_inertia(groups: Groups, reference: Reference) -> ufl.core.expr.Expr:
+    """I_λ = D0ᵀ diag(Î) D0: the rotary inertia in the components of the rows of R."""
+    return reference.frame.T * ufl.diag(ufl.as_vector(row_inertias(groups))) * reference.frame
+
+
+def reference_inertial_terms(p, q, groups: Groups, reference: Reference):
+    """(Ma, g_inertial) of the module docstring: Ma = diag(I₃, Î⁻¹ I_λ Mm) and
+    g = (0, −Î⁻¹ (I_λ Ṁm q_a + ŵ × I_λ ŵ))."""
+    inertia = row_inertias(groups)
+    I_l = reference_inertia(groups, reference)
+    mm = I_l * angular_map(p[3], p[5])
+    rows = [[1.0 if i == j else 0.0 for j in range(6)] for i in range(3)]
+    rows += [[0.0, 0.0, 0.0, *(mm[i, j] / inertia[i] for j in range(3))] for i in range(3)]
+    w = angular_velocity(p, q)
+    rate = I_l * (angular_map_rate(p[3], p[5], q[3], q[5]) * angles(q)) + ufl.cross(w, I_l * w)
+    source_i = ufl.as_vector([0.0, 0.0, 0.0] + [-rate[i] / inertia[i] for i in range(3)])
+    return ufl.as_matrix(rows), source_i
+
+
+def reference_contact_terms(p, dp, groups: Groups, reference: Reference, v_strain, u_strain,
+                            chart: Chart | None = None):  # fmt: skip
+    """Flux and source of the contact force and torque of director-component strains (or strain
+    rates) with a reference: N = D0ᵀ N̂, M = D0ᵀ M̂ in the rows of R (module docstring)."""
+    n, m = scaled_resultants(v_strain, u_strain, groups)
+    D0 = reference.frame
+    return contact_terms(p, dp, groups, D0.T * n, D0.T * m, chart, reference.tangent)
 
 
 def end_data(
@@ -312,12 +383,14 @@ def residual_terms(
     damping: ViscousDamping | None = None,
     kelvin_voigt: KelvinVoigtDamping | None = None,
     chart: Chart | None = None,
+    reference: Reference | None = None,
 ) -> ResidualTerms:
     """The weak residual of (65) (module docstring), term by term.
 
     U, Udot: the 12-component state (p, q) and its τ-derivative, as UFL expressions (the
     time integrator decides what they are); V: the test function; ``chart``: the frame the
-    angles are measured from (forms/kinematics.py; None: the fixed basis, as in the paper).
+    angles are measured from (forms/kinematics.py; None: the fixed basis, as in the paper);
+    ``reference``: the rest configuration (module docstring; None: the straight rod of (65)).
     """
     p, q = split(U)
     pdot, qdot = split(Udot)
@@ -327,8 +400,15 @@ def residual_terms(
 
     g = source(p, dp, q, groups, loads, chart)
     kinematic = ufl.inner(pdot - q, vp) * dx
-    inertia = ufl.inner(mass_matrix(p) * qdot - g.inertial, vq) * dx
-    elastic = (-ufl.inner(flux(p, dp, groups, chart), dvq) - ufl.inner(g.elastic, vq)) * dx
+    if reference is None:
+        inertia = ufl.inner(mass_matrix(p) * qdot - g.inertial, vq) * dx
+        elastic = (-ufl.inner(flux(p, dp, groups, chart), dvq) - ufl.inner(g.elastic, vq)) * dx
+    else:
+        Ma, g_inertial = reference_inertial_terms(p, q, groups, reference)
+        inertia = ufl.inner(Ma * qdot - g_inertial, vq) * dx
+        strains = reference_strains(p, dp, reference, chart)
+        b_e, g_e = reference_contact_terms(p, dp, groups, reference, *strains, chart)
+        elastic = (-ufl.inner(b_e, dvq) - ufl.inner(g_e, vq)) * dx
     distributed = -ufl.inner(g.load, vq) * dx if g.load is not None else None
     end_form = None
     for end in end_loads:
@@ -339,8 +419,16 @@ def residual_terms(
     extra = {}
     if damping is not None:
         extra["damping"] = -ufl.inner(damping_source(p, q, groups, damping), vq) * dx
-    if kelvin_voigt is not None:
+    if kelvin_voigt is not None and reference is None:
         b_v, g_v = kelvin_voigt_terms(p, dp, q, dq, groups, kelvin_voigt, chart)
+        extra["kelvin_voigt"] = (-ufl.inner(b_v, dvq) - ufl.inner(g_v, vq)) * dx
+    elif kelvin_voigt is not None:
+        eta = kelvin_voigt.omega0 * kelvin_voigt.retardation_time
+        v_dot, u_dot = strain_rates(p, dp, q, dq, chart, reference.tangent)
+        D0 = reference.frame
+        n_v, m_v = scaled_resultants(D0 * v_dot, D0 * u_dot, groups)
+        b_v, g_v = contact_terms(p, dp, groups, eta * (D0.T * n_v), eta * (D0.T * m_v), chart,
+                                 reference.tangent)  # fmt: skip
         extra["kelvin_voigt"] = (-ufl.inner(b_v, dvq) - ufl.inner(g_v, vq)) * dx
     return ResidualTerms(
         kinematic=kinematic,
@@ -354,6 +442,7 @@ def residual_terms(
 
 __all__ = [
     "DistributedLoads",
+    "Reference",
     "EndLoadConvention",
     "EndLoads",
     "KelvinVoigtDamping",

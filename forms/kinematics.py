@@ -136,10 +136,18 @@ def directors(p, chart: Chart | None = None) -> ufl.core.expr.Expr:
     return D if chart is None else D * chart.frame
 
 
-def stretch_shear_strain(p, dp, chart: Chart | None = None) -> ufl.core.expr.Expr:
-    """v_i = d_i · ∂r/∂s, eq. (29), dimensionless: r' = (p1', p2', 1 + p3') by (14), (27)."""
-    r_prime = ufl.as_vector([dp[0], dp[1], 1.0 + dp[2]])
-    return directors(p, chart) * r_prime
+def tangent(dp, reference_tangent=None) -> ufl.core.expr.Expr:
+    """r' = ∂r/∂s: (p1', p2', 1 + p3') by (14), (27), or t0 + (p1', p2', p3') from a reference
+    curve of tangent t0 (forms/reference.py)."""
+    if reference_tangent is None:
+        return ufl.as_vector([dp[0], dp[1], 1.0 + dp[2]])
+    return reference_tangent + ufl.as_vector([dp[0], dp[1], dp[2]])
+
+
+def stretch_shear_strain(p, dp, chart: Chart | None = None, reference_tangent=None):
+    """v_i = d_i · ∂r/∂s, eq. (29), dimensionless, r' of :func:`tangent`; with a reference
+    tangent, the components along the rows of D A (forms/reference.py)."""
+    return directors(p, chart) * tangent(dp, reference_tangent)
 
 
 def frame_curvature(p, chart: Chart | None) -> ufl.core.expr.Expr | None:
@@ -160,7 +168,7 @@ def angular_velocity(p, q) -> ufl.core.expr.Expr:
 
 
 def strain_rates(
-    p, dp, q, dq, chart: Chart | None = None
+    p, dp, q, dq, chart: Chart | None = None, reference_tangent=None
 ) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
     """τ-derivatives of the director components of v (29) and û (25), the objective strain
     rates of a Kelvin–Voigt law.
@@ -168,9 +176,10 @@ def strain_rates(
     v_i = d_i · r' with ḋ_i = w × d_i (4) gives v̇ = D (q1', q2', q3') + v × ŵ (the second
     term vanishes for a rigid rotation, where r' turns with the directors); û = Mm (θ', ψ', φ')
     gives û̇ = (dMm/dτ) (θ', ψ', φ') + Mm (θ̇', ψ̇', φ̇'), with q' = dq/dσ, plus (D κ̂) × ŵ in
-    a chart (module docstring)."""
+    a chart (module docstring); with a reference tangent (forms/reference.py), the same rates
+    of v along the rows of D A."""
     D = directors(p, chart)
-    v = stretch_shear_strain(p, dp, chart)
+    v = stretch_shear_strain(p, dp, chart, reference_tangent)
     w = angular_velocity(p, q)
     v_dot = D * translations(dq) + ufl.cross(v, w)
     mdot = angular_map_rate(p[3], p[5], q[3], q[5])

@@ -307,3 +307,101 @@ def test_rotary_inertias_given_apart_from_the_section(rod):
     section = _general(rod, U, Udot, V, dx, loads, chart=quaternion_chart(Q))
     inertia = _assemble(general["inertia"])
     assert np.abs(inertia - _assemble(section["inertia"])).max() > 1e-2 * np.abs(inertia).max()
+
+
+def _references(msh, length: float):
+    """A circular arc and a helix (forms/reference.py), turned off the coordinate planes so that
+    no component is trivially zero."""
+    from cosserat_fem.forms.reference import circular_arc, helix, placed
+
+    sigma = ufl.SpatialCoordinate(msh)[0]
+    c, s = np.cos(0.7), np.sin(0.7)
+    turn = [[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]]
+    turn = np.array(turn) @ np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+    return {
+        "arc": placed(circular_arc(sigma, length, 0.9), turn.tolist()),
+        "helix": helix(sigma, length, 0.35, 0.4),
+    }
+
+
+@pytest.mark.parametrize("shape", ["arc", "helix"])
+@pytest.mark.parametrize("degree", [1, 3])
+def test_general_form_with_a_reference_equals_the_director_form(rod, degree, shape):
+    """A rod curved at rest (forms/general_form.py, "A reference configuration"): the general
+    form, with strains D0 (R r' − t0) and D0 κ_R and rows 4-6 in the frame of R, against the
+    director form built the other way, with directors D0 D A by UFL's chain rule and strains
+    measured from the reference's own u0 = ½ Σ d0_i × d0_i' (derivative of D0 by UFL): every
+    term, damping and a chart included, to the round-off bound of the module docstring. The
+    elastic and inertia terms must differ from the straight rod's by O(1)."""
+    msh, V, U, Udot, dx, loads = _setup(degree, seed=60 + degree)
+    Q = _chart_quaternion(msh, degree, seed=70 + degree)
+    reference = _references(msh, rod.length)[shape]
+    viscous, tau = (3.0e2, 0.7), 2.5e-4
+    extra = dict(damping=ViscousDamping(*viscous, rod.omega0),
+                 kelvin_voigt=KelvinVoigtDamping(tau, rod.omega0), chart=quaternion_chart(Q))
+    general = _general(rod, U, Udot, V, dx, loads, reference=reference, **extra)
+    director = director_residual_terms(
+        U, Udot, ufl.TestFunction(V), rod, dx, loads["f"], loads["l"], tuple(loads["ends"]),
+        viscous_damping=viscous, retardation_time=tau, chart_quaternion=Q, reference=reference,
+    )  # fmt: skip
+    straight = _general(rod, U, Udot, V, dx, loads, **extra)
+    assert set(general) == set(director) == {*TERMS, "damping", "kelvin_voigt"}
+    for name in general:
+        a, b = _assemble(general[name]), _assemble(director[name])
+        scale = np.abs(a).max()
+        assert scale > 0, name
+        assert np.abs(a - b).max() <= 1e-12 * scale, name
+        if name in ("inertia", "elastic", "kelvin_voigt"):
+            assert np.abs(a - _assemble(straight[name])).max() > 1e-2 * scale, name
+
+
+def test_straight_reference_equals_the_paper_form(rod):
+    """t0 = e3, D0 = I through the reference path (rows in the frame of R, I_λ = diag(Î),
+    contact terms from N̂, M̂) equals (65) as the paper writes it, term by term to round-off,
+    with a chart and damping: the reference path is the general form, not a variant of it."""
+    from cosserat_fem.forms.reference import straight
+
+    msh, V, U, Udot, dx, loads = _setup(3, seed=81)
+    Q = _chart_quaternion(msh, 3, seed=82)
+    extra = dict(damping=ViscousDamping(3.0e2, 0.7, rod.omega0),
+                 kelvin_voigt=KelvinVoigtDamping(2.5e-4, rod.omega0), chart=quaternion_chart(Q))
+    through = _general(rod, U, Udot, V, dx, loads, reference=straight(), **extra)
+    paper = _general(rod, U, Udot, V, dx, loads, **extra)
+    for name in paper:
+        a, b = _assemble(through[name]), _assemble(paper[name])
+        assert np.abs(a - b).max() <= 1e-13 * np.abs(b).max(), name
+
+
+@pytest.mark.parametrize("shape", ["arc", "helix", "corner"])
+def test_a_rod_at_rest_in_its_reference_has_zero_residual(rod, shape):
+    """U = 0 (the reference itself, at rest) with no load: every term of the residual vanishes
+    to round-off for an arc, a helix and a polyline whose frame jumps by 50° at the node
+    σ = 0.4 (the strains D0 (R r' − t0) and D0 κ_R vanish there identically; no D0' is
+    formed). Held against the elastic term of a small deflection, 1e-3 rad, whose size is
+    about 1e-3 of the stiffness: the rest residual is below 1e-13 of it."""
+    msh, V, U, Udot, dx, _ = _setup(3, seed=91)
+    if shape == "corner":
+        from cosserat_fem.forms.reference import Reference
+
+        sigma = ufl.SpatialCoordinate(msh)[0]
+        c, s = np.cos(np.radians(50.0)), np.sin(np.radians(50.0))
+        before, after = np.eye(3), np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
+        frame = ufl.conditional(ufl.lt(sigma, 0.4), ufl.as_matrix(before.tolist()),
+                                ufl.as_matrix(after.tolist()))  # fmt: skip
+        reference = Reference(frame[2, :], frame)
+    else:
+        reference = _references(msh, rod.length)[shape]
+    U.x.array[:] = 0.0
+    Udot.x.array[:] = 0.0
+    Q = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 3), dim=4))
+    Q.x.array.reshape(-1, 4)[:, 0] = 1.0
+    terms = residual_terms(U, Udot, ufl.TestFunction(V), dimensionless_groups(rod), dx,
+                           chart=quaternion_chart(Q), reference=reference).as_dict()  # fmt: skip
+    rest = {name: np.abs(_assemble(form)).max() for name, form in terms.items()}
+    U.x.array.reshape(-1, 12)[:, 4] = 1e-3 * V.tabulate_dof_coordinates()[:, 0]  # ψ = 1e-3 σ
+    bent = np.abs(_assemble(residual_terms(
+        U, Udot, ufl.TestFunction(V), dimensionless_groups(rod), dx, chart=quaternion_chart(Q),
+        reference=reference).elastic)).max()  # fmt: skip
+    assert bent > 0
+    for name, value in rest.items():
+        assert value <= 1e-13 * bent, (name, value, bent)
