@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
+
+import numpy as np
 
 from .forms.kinematics import P_NAMES
 from .scene import PLANAR, Scene
@@ -67,6 +70,19 @@ def describe_scene(scene: Scene) -> str:
         f"  time: {scene.time.n_steps} steps of {scene.time.step:.6g} s"
         + (" (adaptive: first step and output interval)" if scene.time.adaptive else ""),
         f"  unknowns: {unknowns}; {nodes * (6 if plane else 12)} dofs",
+        _reference_line(scene),
         f"  not in the form (zero): {', '.join(absent) or 'nothing'}",
     ]
     return "\n".join(lines)
+
+
+def _reference_line(scene: Scene) -> str:
+    """The rod at rest: its shape, length, end points and the total turning of its tangent."""
+    ref, ell = scene.reference, scene.rod.length
+    ends = ref.positions(np.array([0.0, ell]))
+    turning = ref.turning(ell)
+    start, end = (", ".join(f"{x:.6g}" for x in point) for point in ends)
+    return (
+        f"  reference: {ref.shape}, length {ell:.6g} m, from ({start}) to ({end}) m, "
+        f"total turning {turning:.6g} rad ({math.degrees(turning):.6g} deg)"
+    )

@@ -37,8 +37,9 @@ class EnergyMonitor:
         self._charted = model.chart_moved
         chart = model.chart_form() if model.chart_moved else None
         U, rod, dx = model.layout.full(model.U), model.rod, model.dx
-        self._T = fem.form(kinetic_energy_density(U, rod) * dx)
-        self._V = fem.form(strain_energy_density(U, rod, chart) * dx)
+        reference = model.reference_form()
+        self._T = fem.form(kinetic_energy_density(U, rod, reference) * dx)
+        self._V = fem.form(strain_energy_density(U, rod, chart, reference) * dx)
         distributed, ends = model.load_vectors(self.tau)
         power = None
         if distributed.force is not None or distributed.torque is not None:
@@ -51,7 +52,7 @@ class EnergyMonitor:
         d = model.scene.damping
         if d.active:
             density = damping_power(
-                U, rod, d.translational, d.rotational, d.retardation_time, chart
+                U, rod, d.translational, d.rotational, d.retardation_time, chart, reference
             )
             term = rod.length * density * dx
             power = term if power is None else power + term

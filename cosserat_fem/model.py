@@ -26,6 +26,7 @@ from . import charts, jit
 from .charts import change_chart, change_chart_rate, chart_of
 from .errors import SceneError
 from .expressions import Expression, derivative
+from .forms import reference as reference_shapes
 from .forms.general_form import (
     DistributedLoads,
     EndLoadConvention,
@@ -36,6 +37,7 @@ from .forms.general_form import (
 )
 from .forms.groups import Groups, RodConstants, dimensionless_groups
 from .forms.kinematics import P_NAMES, quaternion_chart
+from .forms.reference import Reference
 from .forms.section import Section
 from .layout import FULL, Layout
 from .parallel import agree
@@ -151,6 +153,17 @@ class RodModel:
     def chart_form(self):
         """The UFL chart of :attr:`chart` (None without one)."""
         return None if self.chart is None else quaternion_chart(self.chart)
+
+    def reference_form(self) -> Reference | None:
+        """The rest configuration of the scene's [reference] in UFL (forms/reference.py), or
+        None for the straight rod, whose forms are the paper's (65) as written."""
+        shape = self.scene.reference
+        if not shape.curved:
+            return None
+        sigma = ufl.SpatialCoordinate(self.msh)[0]
+        if shape.shape == "arc":
+            return reference_shapes.circular_arc(sigma, self.length, shape.radius)
+        return reference_shapes.helix(sigma, self.length, shape.radius, shape.pitch_angle)
 
     def chart_maps(self, Q_new: np.ndarray):
         """(state_map, rate_map) of :meth:`Integrator.change_variables` from the current chart to
@@ -425,6 +438,7 @@ class RodModel:
             viscous,
             kelvin_voigt,
             self.chart_form() if charted else None,
+            self.reference_form(),
         )
 
     def initial_state(self) -> np.ndarray:

@@ -69,16 +69,22 @@ class FixedBasisAngles:
         self.last: np.ndarray | None = None  # the angles of the previous call
         self.frame: np.ndarray | None = None  # its directors D A (in a moved chart)
 
-    def __call__(self, angles: np.ndarray, chart_values) -> np.ndarray:
+    def __call__(self, angles: np.ndarray, chart_values, sigma=None) -> np.ndarray:
         """Fixed-basis angles (points, 3) of the chart angles ``angles`` at points whose
         chart quaternions ``chart_values()`` gives (points, 4), called only once the chart
-        has moved."""
+        has moved; for a rod curved at rest, those of its directors D0 D A, with D0 the
+        reference frame at the points σ = ``sigma()`` (cosserat_fem/resolved.py)."""
         model = self.model
-        if model.chart is None or not model.chart_moved:
+        reference = model.scene.reference
+        if (model.chart is None or not model.chart_moved) and not reference.curved:
             if model.chart is not None:
                 self.last = angles.copy()
             return angles
-        D = euler_matrix(*angles.T) @ quaternion_frame(chart_values())
+        D = euler_matrix(*angles.T)
+        if model.chart is not None and model.chart_moved:
+            D = D @ quaternion_frame(chart_values())
+        if reference.curved:
+            D = reference.frames(model.length * np.asarray(sigma(), dtype=float)) @ D
         self.last = euler_angles(D, angles if self.last is None else self.last)
         self.frame = D
         return self.last
@@ -88,7 +94,7 @@ class FixedBasisAngles:
         ``angles``: D A as computed in a moved chart (not rebuilt from the angles, which lose
         digits near θ = ±π/2), else D(θ, ψ, φ) of (18)."""
         model = self.model
-        if model.chart is not None and model.chart_moved:
+        if (model.chart is not None and model.chart_moved) or model.scene.reference.curved:
             return self.frame
         return euler_matrix(*angles.T)
 
@@ -172,7 +178,7 @@ class PointProbe:
             block = self.U.eval(self.point, np.array([self.cell], dtype=np.int32))
         out = np.zeros(len(self.columns) - 1)
         out[self._p] = block[self._slots] * self._scale
-        out[3:6] = self.angles(out[None, 3:6], self._chart_value)[0]
+        out[3:6] = self.angles(out[None, 3:6], self._chart_value, lambda: [self.sigma])[0]
         if self._quaternion or self._directors:
             D = self.angles.directors(out[None, 3:6])[0]
             at = 6
@@ -352,32 +358,46 @@ def _field_expressions(U, model: RodModel, fields: tuple[str, ...]) -> list[tupl
     U = model.layout.full(U)  # a planar model's unknowns in the 12 components (zeros elsewhere)
     tau = model.scene.damping.retardation_time  # n, m with their Kelvin–Voigt parts
     chart = model.chart_form() if model.chart_moved else None
-    res = resultants(U, model.rod, tau, chart) if {"strains", "forces"} & set(fields) else None
+    reference = model.reference_form()
+    res = None
+    if {"strains", "forces"} & set(fields):
+        res = resultants(U, model.rod, tau, chart, reference)
     ell = model.length
     exprs = {
         "displacement": lambda: ufl.as_vector([ell * U[0], ell * U[1], ell * U[2]]),
-        "angles": lambda: _fixed_basis_angles(U, chart),
+        "angles": lambda: _fixed_basis_angles(U, chart, reference),
         "strain_v": lambda: res.v,
         "curvature_u": lambda: res.u,
         "force_n": lambda: res.n,
         "torque_m": lambda: res.m,
-        **{f"director_d{i + 1}": (lambda i=i: _director(U, chart, i)) for i in range(3)},
+        **{
+            f"director_d{i + 1}": (lambda i=i: _director(U, chart, i, reference))
+            for i in range(3)
+        },
     }
     return [(name, exprs[name]()) for field in fields for name in FIELD_ARRAYS[field]]
 
 
-def _director(U, chart, i: int) -> ufl.core.expr.Expr:
-    """The director d_(i+1) of U in the fixed basis (row i of D, or of D A in a chart)."""
+def _directors(U, chart, reference) -> ufl.core.expr.Expr:
+    """The directors' matrix of U: D of (18), D A in a chart, D0 D A for a rod curved at rest
+    (forms/reference.py)."""
     D = directors(ufl.as_vector([U[k] for k in range(6)]), chart)
+    return D if reference is None else reference.frame * D
+
+
+def _director(U, chart, i: int, reference=None) -> ufl.core.expr.Expr:
+    """The director d_(i+1) of U in the fixed basis (row i of :func:`_directors`)."""
+    D = _directors(U, chart, reference)
     return ufl.as_vector([D[i, j] for j in range(3)])
 
 
-def _fixed_basis_angles(U, chart) -> ufl.core.expr.Expr:
-    """(θ, ψ, φ) of U, or in a chart (one that has moved) those of (18) for the directors D A,
-    with |θ| ≤ π/2 and ψ, φ in (−π, π] (cosserat_fem/charts.py euler_angles, not continued)."""
-    if chart is None:
+def _fixed_basis_angles(U, chart, reference=None) -> ufl.core.expr.Expr:
+    """(θ, ψ, φ) of U, or in a chart (one that has moved) or for a rod curved at rest those
+    of (18) for its directors (:func:`_directors`), with |θ| ≤ π/2 and ψ, φ in (−π, π]
+    (cosserat_fem/charts.py euler_angles, not continued)."""
+    if chart is None and reference is None:
         return ufl.as_vector([U[3], U[4], U[5]])
-    D = directors(ufl.as_vector([U[i] for i in range(6)]), chart)
+    D = _directors(U, chart, reference)
     return ufl.as_vector(
         [ufl.asin(-D[2, 1]), ufl.atan_2(D[2, 0], D[2, 2]), ufl.atan_2(D[0, 1], D[1, 1])]
     )
@@ -409,8 +429,9 @@ class CentrelineOutput:
     solver's owned cells: each solver cell split into ``k`` equal segments (one point per
     Lagrange node of degree k), the points numbered along the rod (in the order of σ).
 
-    Rank 0 holds ``geometry``, the points on the reference centreline (0, 0, ℓ σ) [m]
-    (n_points, 3), and ``topology``, the segments as pairs of point numbers (sorted); both are
+    Rank 0 holds ``geometry``, the points on the reference centreline [m] (n_points, 3),
+    (0, 0, ℓ σ) for the straight rod, and ``topology``, the segments as pairs of point
+    numbers (sorted); both are
     None on the other ranks. A point's value is the mean of its cells' values (a vertex inside
     the rod has two cells, the other points one; the mean of one value is that value, bitwise,
     and of two the same in either order). Rank 0 gathers the values of all cells and averages
@@ -418,7 +439,9 @@ class CentrelineOutput:
     partition: under MPI the points, segments and values (of the same state) are a serial
     run's, bit for bit."""
 
-    def __init__(self, msh: mesh.Mesh, length: float, k: int):
+    def __init__(self, msh: mesh.Mesh, length: float, k: int, positions=None):
+        """``positions(s)``: the reference centreline r0 [m] at arc lengths s (n, 3); default
+        the straight rod's (0, 0, s)."""
         comm = self.comm = msh.comm
         self.k = k
         self.cells = np.arange(msh.topology.index_map(msh.topology.dim).size_local,
@@ -445,8 +468,11 @@ class CentrelineOutput:
             number = np.empty(n, dtype=np.int64)
             number[order] = np.arange(n)
             rows = number[flat]  # the point of each gathered row
-            self.geometry = np.zeros((n, 3))
-            self.geometry[:, 2] = length * at[order]
+            if positions is None:
+                self.geometry = np.zeros((n, 3))
+                self.geometry[:, 2] = length * at[order]
+            else:
+                self.geometry = np.asarray(positions(length * at[order]), dtype=float)
             per_cell = rows.reshape(-1, k + 1)
             pairs = np.column_stack([per_cell[:, :k].ravel(), per_cell[:, 1:].ravel()])
             pairs.sort(axis=1)
@@ -759,8 +785,11 @@ class XdmfWriter:
 
     The mesh is the reference centreline in physical coordinates: the straight rod along e3,
     points (0, 0, s) [m], s = ℓ σ (the reference axis of forms/kinematics.py, r' = (p1', p2',
-    1 + p3')), cells the solver's. So ParaView's "Warp By Vector" with ``displacement`` draws
-    the deformed rod r(s) = (x, y, s + z). Point arrays (3-vectors), chosen by ``fields``
+    1 + p3')), or the curve r0(s) of the scene's [reference] (cosserat_fem/resolved.py), cells
+    the solver's. So ParaView's "Warp By Vector" with ``displacement`` draws the deformed rod
+    r(s) = r0(s) + (x, y, z). For a rod curved at rest the angles are those of its directors
+    D0 D A, and the strains and forces are measured from the reference (forms/resultants.py).
+    Point arrays (3-vectors), chosen by ``fields``
     (the scene's ``output.fields``; a field not asked for is neither computed nor written):
 
     ================  ==============  ============================================  =======
@@ -840,7 +869,7 @@ class XdmfWriter:
         # A cell of degree k is drawn as k segments: the output points are the Lagrange
         # nodes for equispaced ones.
         k = max(1, self.U.function_space.ufl_element().degree())
-        self.line = CentrelineOutput(msh, model.length, k)
+        self.line = CentrelineOutput(msh, model.length, k, model.scene.reference.positions)
         self.arrays = [name for field in self.fields for name in FIELD_ARRAYS[field]]
         self.model, self._jit_params, self._k = model, jit_params or {}, k
         self._expr = None
@@ -1263,6 +1292,7 @@ class LineSampler:
             local[self._mine, 3:6] = self.angles(
                 local[self._mine, 3:6],
                 lambda: self.angles.model.chart.eval(self._points, self._cells),
+                lambda: self._points[:, 0],
             )
         total = np.zeros_like(local) if self.comm.rank == 0 else None
         self.comm.Reduce(local, total, op=MPI.SUM, root=0)

@@ -5,8 +5,11 @@ the schema (cosserat_fem/schema.py) has checked; :meth:`Scene.to_dict` gives the
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
+
+import numpy as np
 
 from cosserat_fem.expressions import Expression
 from cosserat_fem.forms.groups import RodConstants, euler_bernoulli_omega0
@@ -55,6 +58,70 @@ class SectionSpec:
         return {k: v for k, v in vars(self).items() if v is not None}
 
 
+
+
+@dataclass(frozen=True)
+class ReferenceShape:
+    """The rod at rest ([reference]; forms/reference.py holds the same shapes in UFL):
+
+    * ``straight``: r0 = (0, 0, s), d0_i = e_i (the paper's);
+    * ``arc`` of ``radius`` R [m]: r0 = (R (1 − cos(s/R)), 0, R sin(s/R)), d0_3 = r0',
+      d0_2 = e2 (bent about d0_2, towards +e1);
+    * ``helix`` of coil ``radius`` R [m] and ``pitch_angle`` α [rad]: r0 = (R (cos ks − 1),
+      R sin ks, s sin α), k = cos α / R (axis x = −R, y = 0 along e3), in its Frenet frame
+      (d0_1 the principal normal, d0_2 the binormal, d0_3 = r0').
+
+    s is the arc length [m]; :meth:`positions` and :meth:`frames` evaluate them in NumPy."""
+
+    shape: str = "straight"
+    radius: float | None = None
+    pitch_angle: float | None = None
+
+    @property
+    def curved(self) -> bool:
+        """Whether the rod is not the paper's straight one."""
+        return self.shape != "straight"
+
+    def positions(self, s: np.ndarray) -> np.ndarray:
+        """r0(s) [m], (len(s), 3)."""
+        s = np.asarray(s, dtype=float)
+        if self.shape == "arc":
+            a = s / self.radius
+            return np.column_stack([self.radius * (1 - np.cos(a)), 0 * s, self.radius * np.sin(a)])
+        if self.shape == "helix":
+            k, R = math.cos(self.pitch_angle) / self.radius, self.radius
+            return np.column_stack([R * (np.cos(k * s) - 1), R * np.sin(k * s),
+                                    s * math.sin(self.pitch_angle)])  # fmt: skip
+        return np.column_stack([0 * s, 0 * s, s])
+
+    def frames(self, s: np.ndarray) -> np.ndarray:
+        """D0(s), (len(s), 3, 3), row i the reference director d0_i in the fixed basis."""
+        s = np.asarray(s, dtype=float)
+        D0 = np.zeros((s.size, 3, 3))
+        if self.shape == "arc":
+            c, n = np.cos(s / self.radius), np.sin(s / self.radius)
+            D0[:, 0, 0], D0[:, 0, 2], D0[:, 1, 1], D0[:, 2, 0], D0[:, 2, 2] = c, -n, 1, n, c
+        elif self.shape == "helix":
+            ca, sa = math.cos(self.pitch_angle), math.sin(self.pitch_angle)
+            c, n = np.cos(ca / self.radius * s), np.sin(ca / self.radius * s)
+            D0[:, 0] = np.column_stack([-c, -n, 0 * s])
+            D0[:, 1] = np.column_stack([n * sa, -c * sa, ca + 0 * s])
+            D0[:, 2] = np.column_stack([-n * ca, c * ca, sa + 0 * s])
+        else:
+            D0[:] = np.eye(3)
+        return D0
+
+    def turning(self, length: float) -> float:
+        """The total turning of the tangent over [0, ``length``] [rad]: ∫ |r0''| ds."""
+        if self.shape == "arc":
+            return length / self.radius
+        if self.shape == "helix":
+            return length * math.cos(self.pitch_angle) ** 2 / self.radius
+        return 0.0
+
+    def given(self) -> dict[str, Any]:
+        """The keys of this shape (for to_dict)."""
+        return {k: v for k, v in vars(self).items() if v is not None}
 
 
 @dataclass(frozen=True)
@@ -321,6 +388,7 @@ class Scene:
     damping: Damping
     limits: Limits
     initial: Initial = field(default_factory=Initial)  # built last, from the resolved rest
+    reference: ReferenceShape = field(default_factory=ReferenceShape)
     source: str = field(default="<dict>", compare=False)
 
     @property
@@ -333,7 +401,7 @@ class Scene:
         """The plane the motion stays in, "x-z" or "y-z" (checked in that order: a scene in
         both moves along the axis only, and x-z keeps clear of the chart limit |θ| < π/2),
         or None: asked for (discretisation.planar = "auto") and nothing leaves the plane."""
-        if self.discretisation.planar != "auto":
+        if self.discretisation.planar != "auto" or self.reference.curved:
             return None
         return next((name for name in PLANES if self._stays_in(name)), None)
 
@@ -460,6 +528,7 @@ def _scene_to_dict(scene: Scene) -> dict[str, Any]:
                 else {}
             ),
         },
+        "reference": scene.reference.given(),
         "model": model,
         "supports": {
             "start": scene.supports.start,

@@ -35,6 +35,7 @@ from cosserat_fem.resolved import (  # noqa: F401 - the resolved scene, importab
     Material,
     ModelChoices,
     Output,
+    ReferenceShape,
     Rod,
     Scene,
     SectionSpec,
@@ -45,6 +46,7 @@ from cosserat_fem.resolved import (  # noqa: F401 - the resolved scene, importab
     auto_reference_frequency,
 )
 from cosserat_fem.schema import (  # noqa: F401 - read_toml and the overrides, from here too
+    REFERENCE_KEYS,
     SCENE_CONSTANTS,
     SECTION_KEYS,
     STEP_TOLERANCE,
@@ -91,6 +93,21 @@ def _build_section(raw: dict[str, Any], poisson_ratio: float) -> SectionSpec:
             5.0 / 6.0 if shape == "rectangle" else cowper_circle(poisson_ratio, ratio)
         )
     return SectionSpec(**values)
+
+
+def _build_reference(raw: dict[str, Any]) -> ReferenceShape:
+    """[reference] resolved: only and all the keys of its shape (REFERENCE_KEYS). SceneError
+    naming the key."""
+    shape = raw["shape"]
+    keys = REFERENCE_KEYS[shape]
+    for name, value in raw.items():
+        if value is not None and name not in (*keys, "shape"):
+            takes = f"takes {', '.join(keys)}" if keys else "takes no other key"
+            raise SceneError(f"reference.{name}: not a key of shape {shape!r}, which {takes}")
+    for name in keys:
+        if raw[name] is None:
+            raise SceneError(f"reference.{name}: required for shape {shape!r}")
+    return ReferenceShape(**{k: v for k, v in raw.items() if v is not None})
 
 
 def _build_rod(raw: dict[str, Any]) -> Rod:
@@ -502,8 +519,30 @@ def scene_from_dict(
         source=source,
     )
     _check_derived(scene)
+    reference = _build_reference(raw["reference"])
+    _check_reference(scene, reference)
     initial = _build_initial(raw["initial"], supports, scene.expression_names(), time.start)
-    return replace(scene, initial=initial)
+    return replace(scene, initial=initial, reference=reference)
+
+
+def _check_reference(scene: Scene, reference: ReferenceShape) -> None:
+    """What a rod curved at rest does not support yet, refused by name: pinned and spherical
+    supports (their held components are those of the straight rod's angles) and the printed
+    torsion inertia (which divides a row that a curved rod's rows mix, forms/general_form.py)."""
+    if not reference.curved:
+        return
+    for end in ("start", "end"):
+        kind = getattr(scene.supports, end)
+        if kind in ("pinned", "spherical"):
+            raise SceneError(
+                f"supports.{end}: {kind!r} is not supported with reference.shape = "
+                f"{reference.shape!r} yet; use 'clamped' or 'free'"
+            )
+    if scene.model.torsion_inertia != "polar":
+        raise SceneError(
+            f"model.torsion_inertia: {scene.model.torsion_inertia!r} (the paper's printed "
+            f"erratum) is not defined for reference.shape = {reference.shape!r}; use 'polar'"
+        )
 
 
 def load_scene(path: str | Path, overrides: Overrides = ()) -> Scene:

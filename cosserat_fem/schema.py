@@ -59,6 +59,14 @@ SECTION_KEYS = {
     "constants": ("area", "c11", "c22", "c33"),
 }
 
+#: The shapes of a rod at rest ([reference]) and the keys each takes besides ``shape``
+#: (forms/reference.py; cosserat_fem/resolved.py ReferenceShape).
+REFERENCE_KEYS = {
+    "straight": (),
+    "arc": ("radius",),
+    "helix": ("radius", "pitch_angle"),
+}
+
 
 # ================================================================================ primitives
 def fmt(x: float) -> str:
@@ -299,6 +307,18 @@ SCHEMA = Table(
                         ),
                         "shear_modulus": Number(interval=POSITIVE, unit="Pa"),
                     }
+                ),
+            }
+        ),
+        # The rod at rest (forms/reference.py): straight along e3 (the paper's), a circular
+        # arc in the e1-e3 plane bending towards +e1, or a helix about an axis along e3.
+        "reference": Table(
+            {
+                "shape": Choice(choices=tuple(REFERENCE_KEYS), default="straight"),
+                "radius": Number(interval=POSITIVE, unit="m"),
+                "pitch_angle": Number(
+                    interval=Interval(-math.pi / 2, math.pi / 2, lo_open=True, hi_open=True),
+                    unit="rad",
                 ),
             }
         ),

@@ -34,35 +34,46 @@ from .kinematics import (
     split,
     stretch_shear_strain,
 )
-from .resultants import kelvin_voigt_parts
+from .reference import Reference
+from .resultants import kelvin_voigt_parts, relative_strains
 
 
-def _rates(U, rod: RodConstants):
+def _rates(U, rod: RodConstants, reference: Reference | None = None):
     p, q = split(U)
     ell, w0 = rod.length, rod.omega0
     r_dot = ell * w0 * ufl.as_vector([q[0], q[1], q[2]])
-    w = w0 * angular_velocity(p, q)  # director components
+    w = w0 * angular_velocity(p, q)  # director components (of R's rows with a reference)
+    if reference is not None:
+        w = reference.frame * w
     return p, r_dot, w
 
 
-def kinetic_energy_density(U, rod: RodConstants):
-    """ℓ × the kinetic energy per unit length [J per unit σ]."""
-    _, r_dot, w = _rates(U, rod)
+def kinetic_energy_density(U, rod: RodConstants, reference: Reference | None = None):
+    """ℓ × the kinetic energy per unit length [J per unit σ]; the rotary inertias along the
+    directors, D0 R with a ``reference`` (forms/reference.py)."""
+    _, r_dot, w = _rates(U, rod, reference)
     s = rod.section
     inertia = rod.rotary_inertias
     rot = sum(inertia[i] * w[i] ** 2 for i in range(3))
     return 0.5 * rod.length * rod.density * (s.area * ufl.dot(r_dot, r_dot) + rot)
 
 
-def strain_energy_density(U, rod: RodConstants, chart: Chart | None = None):
-    """ℓ × the strain energy per unit length [J per unit σ] (angles measured in ``chart``)."""
+def strain_energy_density(
+    U, rod: RodConstants, chart: Chart | None = None, reference: Reference | None = None
+):
+    """ℓ × the strain energy per unit length [J per unit σ] (angles measured in ``chart``;
+    strains measured from a ``reference``, forms/resultants.py :func:`relative_strains`)."""
     p, _ = split(U)
     dp, _ = sigma_derivatives(U)
-    v = stretch_shear_strain(p, dp, chart)
-    u = curvature(p, dp, chart) / rod.length
     s, E, G = rod.section, rod.young_modulus, rod.shear_modulus
     kGA = s.shear_coefficient * G * s.area
-    stretch = kGA * (v[0] ** 2 + v[1] ** 2) + E * s.area * (v[2] - 1.0) ** 2
+    if reference is None:
+        v = stretch_shear_strain(p, dp, chart)
+        u = curvature(p, dp, chart) / rod.length
+        stretch = kGA * (v[0] ** 2 + v[1] ** 2) + E * s.area * (v[2] - 1.0) ** 2
+    else:
+        v, u = relative_strains(p, dp, rod.length, chart, reference)
+        stretch = kGA * (v[0] ** 2 + v[1] ** 2) + E * s.area * v[2] ** 2
     bend = E * s.c11 * u[0] ** 2 + E * s.c22 * u[1] ** 2 + G * s.c33 * u[2] ** 2
     return 0.5 * rod.length * (stretch + bend)
 
@@ -74,6 +85,7 @@ def load_power(U, rod: RodConstants, force=None, torque=None, chart: Chart | Non
     ℓ and integrated with ``dx``; for end loads (f^b [N], l^b [N m]) the power at that end,
     to be integrated with the end's ``ds``.
     """
+    # With a reference, ŵ and R l are both along the rows of R: l · w is the same.
     p, r_dot, w = _rates(U, rod)
     power = 0
     if force is not None:
@@ -90,12 +102,13 @@ def damping_power(
     rotational=0.0,
     retardation_time=0.0,
     chart: Chart | None = None,
+    reference: Reference | None = None,
 ) -> ufl.core.expr.Expr:
     """P_d per unit length [W/m] (module docstring), to be multiplied by ℓ and integrated with
     ``dx``: c_t [N s/m²], c_r [N s], τ_d [s]."""
     _, r_dot, w = _rates(U, rod)
     power = -translational * ufl.dot(r_dot, r_dot) - rotational * ufl.dot(w, w)
     if retardation_time > 0.0:  # −(n_v · ∂t v + m_v · ∂t u)
-        kv = kelvin_voigt_parts(U, rod, retardation_time, chart)
+        kv = kelvin_voigt_parts(U, rod, retardation_time, chart, reference)
         power = power - ufl.dot(kv.n, kv.v_rate) - ufl.dot(kv.m, kv.u_rate)
     return power

@@ -36,15 +36,18 @@ import ufl
 @dataclass(frozen=True)
 class Reference:
     """The rest configuration (module docstring): ``tangent`` t0(σ) = dr0/ds (UFL 3-vector,
-    fixed basis, dimensionless) and ``frame`` D0(σ) (UFL 3×3, row i = d0_i)."""
+    fixed basis, dimensionless) and ``frame`` D0(σ) (UFL 3×3, row i = d0_i); ``curvature``:
+    its curvature u0 [1/m] in the reference directors' components where known in closed form
+    (for outputs of the total curvature u = u0 + D0 κ_R/ℓ; the equations never need it)."""
 
     tangent: ufl.core.expr.Expr
     frame: ufl.core.expr.Expr
+    curvature: ufl.core.expr.Expr | None = None
 
 
 def straight() -> Reference:
-    """The paper's rod: t0 = e3, D0 = I."""
-    return Reference(ufl.as_vector([0.0, 0.0, 1.0]), ufl.Identity(3))
+    """The paper's rod: t0 = e3, D0 = I, u0 = 0."""
+    return Reference(ufl.as_vector([0.0, 0.0, 1.0]), ufl.Identity(3), ufl.zero(3))
 
 
 def circular_arc(sigma, length: float, radius: float) -> Reference:
@@ -55,7 +58,7 @@ def circular_arc(sigma, length: float, radius: float) -> Reference:
     c, s = ufl.cos(a), ufl.sin(a)
     tangent = ufl.as_vector([s, 0.0, c])
     frame = ufl.as_matrix([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
-    return Reference(tangent, frame)
+    return Reference(tangent, frame, ufl.as_vector([0.0, 1.0 / radius, 0.0]))
 
 
 def helix(sigma, length: float, radius: float, pitch_angle: float) -> Reference:
@@ -73,11 +76,12 @@ def helix(sigma, length: float, radius: float, pitch_angle: float) -> Reference:
     binormal = ufl.as_vector([s * sa, -c * sa, ca])
     frame = ufl.as_matrix([[normal[j] for j in range(3)], [binormal[j] for j in range(3)],
                            [tangent[j] for j in range(3)]])  # fmt: skip
-    return Reference(tangent, frame)
+    curvature = ufl.as_vector([0.0, ca * ca / radius, sa * ca / radius])
+    return Reference(tangent, frame, curvature)
 
 
 def placed(reference: Reference, rotation) -> Reference:
     """The reference turned by the fixed rotation ``rotation`` (3×3 nested sequence or UFL
     matrix, R x in column form): t0 → R t0, d0_i → R d0_i (D0 → D0 Rᵀ)."""
     R = ufl.as_matrix(rotation) if not isinstance(rotation, ufl.core.expr.Expr) else rotation
-    return Reference(R * reference.tangent, reference.frame * R.T)
+    return Reference(R * reference.tangent, reference.frame * R.T, reference.curvature)

@@ -40,6 +40,7 @@ from .kinematics import (
     strain_rates,
     stretch_shear_strain,
 )
+from .reference import Reference
 
 
 def section_stiffnesses(rod: RodConstants) -> tuple[tuple[float, ...], tuple[float, ...]]:
@@ -51,21 +52,44 @@ def section_stiffnesses(rod: RodConstants) -> tuple[tuple[float, ...], tuple[flo
 
 
 def strains(
-    p, dp, length: float, chart: Chart | None = None
+    p, dp, length: float, chart: Chart | None = None, reference: Reference | None = None
 ) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
     """(v, u): the stretch-shear strain (29) [-] and the curvature (25) [1/m], director basis
-    (angles measured in ``chart``, forms/kinematics.py)."""
-    return stretch_shear_strain(p, dp, chart), curvature(p, dp, chart) / length
+    (angles measured in ``chart``, forms/kinematics.py); with a ``reference`` (forms/reference.py)
+    v = D0 R r' and u = u0 + D0 κ_R/ℓ (its closed-form curvature u0 needed)."""
+    if reference is None:
+        return stretch_shear_strain(p, dp, chart), curvature(p, dp, chart) / length
+    D0 = reference.frame
+    v = D0 * stretch_shear_strain(p, dp, chart, reference.tangent)
+    return v, reference.curvature + D0 * curvature(p, dp, chart) / length
 
 
-def contact_force(v, rod: RodConstants) -> ufl.core.expr.Expr:
-    """n_i = K_ii (v_i − δ_i3) [N], director components, from the strain v of (29)."""
+def relative_strains(
+    p, dp, length: float, chart: Chart | None = None, reference: Reference | None = None
+) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
+    """(v − v0 [-], u − u0 [1/m]), director basis: the strains the laws (10)-(13) act on,
+    v0 = (0, 0, 1) and u0 = 0 for the straight rod, D0 t0 and the reference's for a
+    ``reference`` (forms/general_form.py :func:`reference_strains`)."""
+    if reference is None:
+        v, u = strains(p, dp, length, chart)
+        return v - ufl.as_vector([0.0, 0.0, 1.0]), u
+    from .general_form import reference_strains
+
+    v_rel, u_rel = reference_strains(p, dp, reference, chart)
+    return v_rel, u_rel / length
+
+
+def contact_force(v, rod: RodConstants, relative: bool = False) -> ufl.core.expr.Expr:
+    """n_i = K_ii (v_i − δ_i3) [N], director components, from the strain v of (29); or
+    K_ii v_i from ``relative`` strains v − v0."""
     K, _ = section_stiffnesses(rod)
+    if relative:
+        return ufl.as_vector([K[i] * v[i] for i in range(3)])
     return ufl.as_vector([K[0] * v[0], K[1] * v[1], K[2] * (v[2] - 1.0)])
 
 
 def contact_torque(u, rod: RodConstants) -> ufl.core.expr.Expr:
-    """m_i = J_ii u_i [N m], director components, from the curvature u [1/m]."""
+    """m_i = J_ii u_i [N m], director components, from the curvature u [1/m] (or u − u0)."""
     _, J = section_stiffnesses(rod)
     return ufl.as_vector([J[i] * u[i] for i in range(3)])
 
@@ -93,13 +117,22 @@ class KelvinVoigtParts:
 
 
 def kelvin_voigt_parts(
-    U, rod: RodConstants, retardation_time: float, chart: Chart | None = None
+    U,
+    rod: RodConstants,
+    retardation_time: float,
+    chart: Chart | None = None,
+    reference: Reference | None = None,
 ) -> KelvinVoigtParts:
     """The Kelvin–Voigt parts of the 12-component state U = (p, q), retardation time τ_d [s];
-    the rates of :func:`.kinematics.strain_rates` are per unit τ = ω0 t, hence the ω0."""
+    the rates of :func:`.kinematics.strain_rates` are per unit τ = ω0 t, hence the ω0 (with a
+    ``reference``, turned into the directors' components by D0)."""
     p, q = split(U)
     dp, dq = sigma_derivatives(U)
-    v_dot, u_dot = strain_rates(p, dp, q, dq, chart)
+    if reference is None:
+        v_dot, u_dot = strain_rates(p, dp, q, dq, chart)
+    else:
+        v_dot, u_dot = strain_rates(p, dp, q, dq, chart, reference.tangent)
+        v_dot, u_dot = reference.frame * v_dot, reference.frame * u_dot
     v_rate = rod.omega0 * v_dot
     u_rate = rod.omega0 / rod.length * u_dot
     K, J = section_stiffnesses(rod)
@@ -109,17 +142,26 @@ def kelvin_voigt_parts(
 
 
 def resultants(
-    U, rod: RodConstants, retardation_time: float = 0.0, chart: Chart | None = None
+    U,
+    rod: RodConstants,
+    retardation_time: float = 0.0,
+    chart: Chart | None = None,
+    reference: Reference | None = None,
 ) -> Resultants:
     """v, u, n, m of the state U = (p, q) (12 components, or p alone with 6) on σ ∈ [0, 1];
     a ``retardation_time`` τ_d > 0 adds the Kelvin–Voigt parts to n and m (needs q); angles
-    measured in ``chart`` (forms/kinematics.py)."""
+    measured in ``chart`` (forms/kinematics.py), the rod at rest a ``reference``'s
+    (forms/reference.py; v and u total, n and m from the strains relative to it)."""
     p = split(U)[0] if U.ufl_shape == (12,) else U
     dU = U.dx(0)
     dp = ufl.as_vector([dU[i] for i in range(6)])
-    v, u = strains(p, dp, rod.length, chart)
-    n, m = contact_force(v, rod), contact_torque(u, rod)
+    v, u = strains(p, dp, rod.length, chart, reference)
+    if reference is None:
+        n, m = contact_force(v, rod), contact_torque(u, rod)
+    else:
+        v_rel, u_rel = relative_strains(p, dp, rod.length, chart, reference)
+        n, m = contact_force(v_rel, rod, relative=True), contact_torque(u_rel, rod)
     if retardation_time > 0.0:
-        viscous = kelvin_voigt_parts(U, rod, retardation_time, chart)
+        viscous = kelvin_voigt_parts(U, rod, retardation_time, chart, reference)
         n, m = n + viscous.n, m + viscous.m
     return Resultants(v=v, u=u, n=n, m=m)
