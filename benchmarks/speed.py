@@ -10,6 +10,10 @@ What issue 15 asks to compare, measured side by side on this machine (whose spee
 * ``loop``: the solve loop without output of a run with ``output.xdmf=false``, as its
   summary.json reports it (``wall_time_s.solve_loop_without_output``), and the Newton
   iterations of the run;
+* ``precise``: the current tree's solve loop in :data:`PRECISE`, the cheapest configuration
+  found with error ≤ 1e-4, against the baseline's default loop (goal 3 of issue 15), with its
+  error against the benchmark's reference (benchmarks/work_precision.py) if results/reference.npz
+  is there;
 * ``elastica``: PyElastica 1.0.0 on the same rod at N = 400 elements (benchmarks/pyelastica),
   the whole process, at 0.9 of its largest stable step (results/stable_dt.json; made by its
   stable_dt.py when missing).
@@ -34,6 +38,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"
 ELASTICA = ROOT / "benchmarks" / "pyelastica"
@@ -42,6 +48,10 @@ ELASTICA_N = 400
 SCENE = "scenes/cao_tucker_2008.toml"
 #: The main of the day issue 15 was filed (its 5.1 s and 2.6 s were measured on it).
 DEFAULT_BASELINE = "0c7f4d2"
+#: Issue 15's goal 3, error ≤ 1e-4 at the baseline's cost of its 1e-3 (the default scene):
+#: quartic elements, five of them, SDIRK3 at 15 μs (the cheapest such configuration of a study
+#: of 63, docs/decisions.md "Accuracy per cost").
+PRECISE = ("discretisation.degree=4", "discretisation.elements=5", "time.step=1.5e-5")
 
 
 def _env(tree: Path) -> dict[str, str]:
@@ -73,11 +83,26 @@ class Tree:
     def whole(self) -> float:
         return self._run(self.work / f"{self.name}-whole", [])
 
-    def loop(self) -> tuple[float, int]:
-        out = self.work / f"{self.name}-loop"
-        self._run(out, ["output.xdmf=false"])
+    def loop(self, extra: tuple[str, ...] = (), tag: str = "loop") -> tuple[float, int]:
+        out = self.work / f"{self.name}-{tag}"
+        self._run(out, ["output.xdmf=false", *extra])
         summary = json.loads((out / "summary.json").read_text())
         return summary["wall_time_s"]["solve_loop_without_output"], summary["newton"]["iterations"]
+
+    def error(self, tag: str) -> float | None:
+        """The benchmark error (benchmarks/work_precision.py) of the run ``tag``'s probes, if
+        the reference (results/reference.npz, made by ``make bench``) is there."""
+        stored = RESULTS / "reference.npz"
+        if not stored.exists():
+            return None
+        sys.path.insert(0, str(ROOT / "benchmarks"))
+        from work_precision import errors
+
+        data = np.load(stored)
+        ref = {c: data[c] for c in ("t", "x", "y")}
+        probes = np.loadtxt(self.work / f"{self.name}-{tag}" / "probes.csv", delimiter=",",
+                            skiprows=1)  # fmt: skip
+        return errors({"t": probes[:, 0], "x": probes[:, 1], "y": probes[:, 2]}, ref)["error"]
 
 
 def elastica_dt() -> float:
@@ -130,10 +155,13 @@ def main() -> None:
                 loop, its = tree.loop()
                 samples.setdefault(f"{tree.name} loop", []).append(loop)
                 iterations[tree.name] = its
+            precise, iterations["precise"] = trees[1].loop(PRECISE, "precise")
+            samples.setdefault("current precise", []).append(precise)
             if dt is not None:
                 samples.setdefault("elastica whole", []).append(elastica(dt, work))
             print(f"round {round_ + 1}: " + ", ".join(
                 f"{k} {v[-1]:.3f} s" for k, v in samples.items()), flush=True)  # fmt: skip
+        precise_error = trees[1].error("precise")
     finally:
         subprocess.run(["git", "worktree", "remove", "--force", str(base_path)], cwd=ROOT,
                        check=False, capture_output=True)  # fmt: skip
@@ -150,9 +178,18 @@ def main() -> None:
         e = med.get("elastica whole") if case == "whole" else None
         tail = f"{e:.3g} | {e / c:.1f}" if e is not None else "– | –"
         lines.append(f"| {case} | {b:.3g} | {c:.3g} | {b / c:.2f} | {tail} |")
+    b, p = med["baseline loop"], med["current precise"]
+    error = precise_error
+    lines.append(
+        f"| loop, {' '.join(PRECISE)} (error {error:.2e}) | – | {p:.3g} | {b / p:.2f} "
+        "(baseline's default/this) | – | – |"
+        if error is not None
+        else f"| loop, {' '.join(PRECISE)} | – | {p:.3g} | {b / p:.2f} | – | – |"
+    )
     lines.append("")
     lines.append(
-        f"Newton iterations: baseline {iterations['baseline']}, current {iterations['current']}."
+        f"Newton iterations: baseline {iterations['baseline']}, current {iterations['current']}, "
+        f"precise {iterations['precise']}."
     )
     text = "\n".join(lines) + "\n"
     RESULTS.mkdir(parents=True, exist_ok=True)
