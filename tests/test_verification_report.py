@@ -133,3 +133,18 @@ def test_energy_section_lists_the_generators_steps(verify, sections):
     assert f"generalized-α with ρ∞ = 1, {verify.ENERGY_END * 1e3:g} ms." in body
     steps = [float(r[0]) * 1e-6 for r in table(body, "| Δt [μs] |")]
     assert steps == pytest.approx(list(verify.ENERGY_STEPS), rel=1e-12)
+
+
+def test_curved_section_lists_the_generators_meshes(verify, sections):
+    body = section(sections, 6)
+    rows = table(body, "| elements | Δn |")
+    names = [r[0] for r in rows if r[0].split(" ")[0].isdigit()]
+    expected = [
+        verify.elements_phrase(n, degree)
+        for degree, counts in verify.BEND_MESHES.items()
+        for n in counts
+    ]
+    assert names == expected
+    degree, elements = verify.BEND_PATH_MESH
+    phrase = verify.elements_phrase(elements, degree)
+    assert f"The path of the tip against the load ({phrase};" in body
