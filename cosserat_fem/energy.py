@@ -47,7 +47,8 @@ class EnergyMonitor:
             power = rod.length * density * dx
         for end in ends:
             if end.force is not None or end.torque is not None:
-                term = load_power(U, rod, end.force, end.torque, chart) * end.ds
+                power_at = load_power(U, rod, end.force, end.torque, chart)
+                term = (power_at("+") if end.interior else power_at) * end.ds
                 power = term if power is None else power + term
         d = model.scene.damping
         if d.active:

@@ -43,7 +43,7 @@ from .layout import FULL, Layout
 from .parallel import agree
 from .scene import PLANAR, Scene
 
-START_TAG, END_TAG = 1, 2
+START_TAG, END_TAG, POINT_TAG = 1, 2, 3
 #: The components of U = (p, q) a pinned end holds: x, y, z, φ and their rates.
 PINNED_COMPONENTS = (0, 1, 2, 5, 6, 7, 8, 11)
 #: The components a spherical end holds: x, y, z and their rates.
@@ -163,6 +163,9 @@ class RodModel:
         sigma = ufl.SpatialCoordinate(self.msh)[0]
         if shape.shape == "arc":
             return reference_shapes.circular_arc(sigma, self.length, shape.radius)
+        if shape.shape == "polyline":
+            starts = (shape.corners()[1:-1] / self.length).tolist()
+            return reference_shapes.piecewise(sigma, starts, shape.segment_frames().tolist())
         return reference_shapes.helix(sigma, self.length, shape.radius, shape.pitch_angle)
 
     def chart_maps(self, Q_new: np.ndarray):
@@ -311,7 +314,7 @@ class RodModel:
         loads, supports = self.scene.loads, self.scene.supports
         entries = [("loads.force_density", loads.force_density)]
         entries.append(("loads.torque_density", loads.torque_density))
-        for end in ("start", "end"):
+        for end in ("start", "end", "point"):
             load = getattr(loads, end)
             if load is not None:
                 entries += [(f"loads.{end}.force", load.force)]
@@ -411,6 +414,16 @@ class RodModel:
                     ds=self.ds(tag),
                     force=self._vector(end.force, sym),
                     torque=self._vector(end.torque, sym),
+                )
+            )
+        if loads.point is not None:  # at the node s (checked), on an interior facet
+            dS = ufl.Measure("dS", domain=self.msh, subdomain_data=self.ds.subdomain_data())
+            ends.append(
+                EndLoads(
+                    ds=dS(POINT_TAG),
+                    force=self._vector(loads.point.force, sym),
+                    torque=self._vector(loads.point.torque, sym),
+                    interior=True,
                 )
             )
         return distributed, tuple(ends)
@@ -519,8 +532,13 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     msh.topology.create_connectivity(tdim - 1, tdim)
     start = mesh.locate_entities_boundary(msh, 0, lambda x: np.isclose(x[0], 0.0))
     end = mesh.locate_entities_boundary(msh, 0, lambda x: np.isclose(x[0], 1.0))
-    facets = np.concatenate([start, end]).astype(np.int32)
-    values = np.concatenate([np.full(len(start), START_TAG), np.full(len(end), END_TAG)])
+    point = np.zeros(0, dtype=np.int32)
+    if scene.loads.point is not None:
+        sigma = scene.loads.point.s / scene.rod.length
+        point = mesh.locate_entities(msh, 0, lambda x: np.isclose(x[0], sigma))
+    facets = np.concatenate([start, end, point]).astype(np.int32)
+    values = np.concatenate([np.full(len(start), START_TAG), np.full(len(end), END_TAG),
+                             np.full(len(point), POINT_TAG)])  # fmt: skip
     order = np.argsort(facets)
     tags = mesh.meshtags(msh, 0, facets[order], values[order].astype(np.int32))
 

@@ -69,13 +69,33 @@ class ReferenceShape:
       d0_2 = e2 (bent about d0_2, towards +e1);
     * ``helix`` of coil ``radius`` R [m] and ``pitch_angle`` α [rad]: r0 = (R (cos ks − 1),
       R sin ks, s sin α), k = cos α / R (axis x = −R, y = 0 along e3), in its Frenet frame
-      (d0_1 the principal normal, d0_2 the binormal, d0_3 = r0').
+      (d0_1 the principal normal, d0_2 the binormal, d0_3 = r0');
+    * ``polyline`` through ``points`` [m] (the first is the rod's start), straight segments
+      whose frame jumps at the corners: d0_3 along the segment, d0_2 the unit ``binormal``
+      (normal to every segment), d0_1 = d0_2 × d0_3.
 
-    s is the arc length [m]; :meth:`positions` and :meth:`frames` evaluate them in NumPy."""
+    s is the arc length [m]; :meth:`positions` and :meth:`frames` evaluate them in NumPy (at a
+    corner, the frame of the segment after it)."""
 
     shape: str = "straight"
     radius: float | None = None
     pitch_angle: float | None = None
+    points: tuple[tuple[float, float, float], ...] | None = None
+    binormal: tuple[float, float, float] | None = None
+
+    def corners(self) -> np.ndarray:
+        """The arc lengths [m] at which a polyline's segments start, and its length: (k + 1,)."""
+        steps = np.linalg.norm(np.diff(np.asarray(self.points, dtype=float), axis=0), axis=1)
+        return np.concatenate([[0.0], np.cumsum(steps)])
+
+    def segment_frames(self) -> np.ndarray:
+        """A polyline's frame on each segment, (segments, 3, 3), rows d0_1, d0_2, d0_3."""
+        pts = np.asarray(self.points, dtype=float)
+        t = np.diff(pts, axis=0)
+        t /= np.linalg.norm(t, axis=1)[:, None]
+        b = np.asarray(self.binormal, dtype=float)
+        b = np.broadcast_to(b / np.linalg.norm(b), t.shape)
+        return np.stack([np.cross(b, t), b, t], axis=1)
 
     @property
     def curved(self) -> bool:
@@ -92,6 +112,9 @@ class ReferenceShape:
             k, R = math.cos(self.pitch_angle) / self.radius, self.radius
             return np.column_stack([R * (np.cos(k * s) - 1), R * np.sin(k * s),
                                     s * math.sin(self.pitch_angle)])  # fmt: skip
+        if self.shape == "polyline":
+            pts = np.asarray(self.points, dtype=float)
+            return np.column_stack([np.interp(s, self.corners(), pts[:, i]) for i in range(3)])
         return np.column_stack([0 * s, 0 * s, s])
 
     def frames(self, s: np.ndarray) -> np.ndarray:
@@ -107,6 +130,9 @@ class ReferenceShape:
             D0[:, 0] = np.column_stack([-c, -n, 0 * s])
             D0[:, 1] = np.column_stack([n * sa, -c * sa, ca + 0 * s])
             D0[:, 2] = np.column_stack([-n * ca, c * ca, sa + 0 * s])
+        elif self.shape == "polyline":
+            starts = self.corners()[1:-1]
+            D0[:] = self.segment_frames()[np.searchsorted(starts, s, side="right")]
         else:
             D0[:] = np.eye(3)
         return D0
@@ -117,11 +143,18 @@ class ReferenceShape:
             return length / self.radius
         if self.shape == "helix":
             return length * math.cos(self.pitch_angle) ** 2 / self.radius
+        if self.shape == "polyline":
+            t = self.segment_frames()[:, 2]
+            return float(np.arccos(np.clip((t[1:] * t[:-1]).sum(axis=1), -1.0, 1.0)).sum())
         return 0.0
 
     def given(self) -> dict[str, Any]:
         """The keys of this shape (for to_dict)."""
-        return {k: v for k, v in vars(self).items() if v is not None}
+        values = {k: v for k, v in vars(self).items() if v is not None}
+        if self.points is not None:
+            values["points"] = [list(p) for p in self.points]
+            values["binormal"] = list(self.binormal)
+        return values
 
 
 @dataclass(frozen=True)
@@ -203,14 +236,26 @@ class EndLoad:
 
 
 @dataclass(frozen=True)
+class PointLoad:
+    """Force [N] and torque [N m] at the node at arc length ``s`` [m] inside the rod, fixed
+    directions e1, e2, e3; functions of t."""
+
+    s: float
+    force: tuple[Expression, ...]
+    torque: tuple[Expression, ...]
+
+
+@dataclass(frozen=True)
 class Loads:
-    """Distributed force [N/m] and torque [N m/m] (functions of s, t) and end loads."""
+    """Distributed force [N/m] and torque [N m/m] (functions of s, t), end loads and a point
+    load."""
 
     force_density: tuple[Expression, ...]
     torque_density: tuple[Expression, ...]
     start: EndLoad | None
     end: EndLoad | None
     gravity: tuple[float, float, float]  # m/s², adds ρ A g to the force
+    point: PointLoad | None = None
 
     @property
     def has_gravity(self) -> bool:
@@ -429,7 +474,7 @@ class Scene:
         normal, torques, angles = PLANES[plane]
         loads, init = self.loads, self.initial
         vectors = [(loads.force_density, normal), (loads.torque_density, torques)]
-        for end in (loads.start, loads.end):
+        for end in (loads.start, loads.end, loads.point):
             if end is not None:
                 vectors += [(end.force, normal), (end.torque, torques)]
         vectors += [(m, normal) for m in (self.supports.start_motion, self.supports.end_motion)]
@@ -501,6 +546,8 @@ def _loads_dict(loads: Loads) -> dict[str, Any]:
         load = getattr(loads, end)
         if load is not None:
             out[end] = _end_load_dict(load)
+    if loads.point is not None:
+        out["point"] = {"s": loads.point.s, **_end_load_dict(loads.point)}
     out["gravity"] = list(loads.gravity)
     return out
 

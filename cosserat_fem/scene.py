@@ -19,6 +19,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from cosserat_fem.errors import SceneError, show_value
 from cosserat_fem.expressions import Expression, derivative, parse_vector
 from cosserat_fem.forms.groups import Groups, dimensionless_groups
@@ -35,6 +37,7 @@ from cosserat_fem.resolved import (  # noqa: F401 - the resolved scene, importab
     Material,
     ModelChoices,
     Output,
+    PointLoad,
     ReferenceShape,
     Rod,
     Scene,
@@ -104,10 +107,27 @@ def _build_reference(raw: dict[str, Any]) -> ReferenceShape:
         if value is not None and name not in (*keys, "shape"):
             takes = f"takes {', '.join(keys)}" if keys else "takes no other key"
             raise SceneError(f"reference.{name}: not a key of shape {shape!r}, which {takes}")
+    values = {k: v for k, v in raw.items() if v is not None}
+    if shape == "polyline":
+        values["binormal"] = _binormal(values.get("binormal", [0, 1, 0]))
+        values["points"] = tuple(values.get("points") or ())
     for name in keys:
-        if raw[name] is None:
+        if values.get(name) is None or values.get(name) == ():
             raise SceneError(f"reference.{name}: required for shape {shape!r}")
-    return ReferenceShape(**{k: v for k, v in raw.items() if v is not None})
+    return ReferenceShape(**values)
+
+
+def _binormal(raw: list) -> tuple[float, float, float]:
+    """reference.binormal as three finite numbers, not all zero."""
+    values = []
+    for i, x in enumerate(raw):
+        if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
+            raise SceneError(f"reference.binormal[{i}]: must be a finite number, got "
+                             f"{show_value(x)}")  # fmt: skip
+        values.append(float(x))
+    if not any(values):
+        raise SceneError("reference.binormal: must not be zero, got [0, 0, 0]")
+    return tuple(values)
 
 
 def _build_rod(raw: dict[str, Any]) -> Rod:
@@ -195,7 +215,19 @@ def _build_loads(raw: dict[str, Any], supports: Supports, constants: set[str]) -
     for end in ("start", "end"):
         ends[end] = _build_end_load(raw[end], end, getattr(supports, end), names)
     gravity = _constant_vector(raw["gravity"], constants, "loads.gravity")
-    return Loads(force, torque, ends["start"], ends["end"], gravity)
+    point = None
+    if raw["point"] is not None:
+        vectors = {}
+        for name in ("force", "torque"):
+            vectors[name] = parse_vector(raw["point"][name], names, f"loads.point.{name}")
+            for i, component in enumerate(vectors[name]):
+                if component.depends_on("s"):
+                    raise SceneError(
+                        f"loads.point.{name}[{i}]: a point load may depend on t and constants "
+                        f"only, not on the arc length s, got {show_value(component.source)}"
+                    )
+        point = PointLoad(raw["point"]["s"], vectors["force"], vectors["torque"])
+    return Loads(force, torque, ends["start"], ends["end"], gravity, point)
 
 
 def _constant_vector(raw: list, constants: set[str], key: str) -> tuple[float, float, float]:
@@ -521,8 +553,62 @@ def scene_from_dict(
     _check_derived(scene)
     reference = _build_reference(raw["reference"])
     _check_reference(scene, reference)
+    _check_point_load(scene)
     initial = _build_initial(raw["initial"], supports, scene.expression_names(), time.start)
     return replace(scene, initial=initial, reference=reference)
+
+
+def _check_polyline(scene: Scene, reference: ReferenceShape) -> None:
+    """A polyline's segments are not empty, normal to the binormal (d0_2 ⊥ d0_3), as long as
+    the rod together, and its corners lie at nodes of the mesh (where its frame may jump);
+    SceneError naming the key."""
+    pts = np.asarray(reference.points, dtype=float)
+    steps = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    ell = scene.rod.length
+    for i, step in enumerate(steps):
+        if not step > 1e-12 * ell:
+            raise SceneError(f"reference.points[{i + 1}]: the same point as the one before; a "
+                             "segment must have a length")  # fmt: skip
+    b = np.asarray(reference.binormal) / np.linalg.norm(reference.binormal)
+    cosines = np.abs(np.diff(pts, axis=0) @ b) / steps
+    if cosines.max() > 1e-9:
+        i = int(np.argmax(cosines))
+        raise SceneError(
+            f"reference.binormal: must be normal to every segment (d0_2 ⊥ d0_3), but its "
+            f"cosine with segment {i + 1} (points[{i}] to points[{i + 1}]) is {cosines[i]:.3g}"
+        )
+    total = float(steps.sum())
+    if abs(total - ell) > 1e-9 * ell:
+        raise SceneError(f"reference.points: the polyline is {total:.10g} m long, rod.length "
+                         f"= {fmt(ell)} m")  # fmt: skip
+    elements = scene.discretisation.elements
+    at = np.cumsum(steps)[:-1] / ell * elements
+    for i, node in enumerate(at):
+        if abs(node - round(node)) > 1e-9 * max(1.0, node):
+            raise SceneError(
+                f"reference.points[{i + 1}]: the corner at s = {node * ell / elements:.6g} m is "
+                f"not at a node of the mesh ({elements} elements of {ell / elements:.6g} m); "
+                "choose discretisation.elements so that every corner is at a node"
+            )
+
+
+def _check_point_load(scene: Scene) -> None:
+    """loads.point.s lies inside the rod at a node of the mesh; SceneError naming it."""
+    point, ell = scene.loads.point, scene.rod.length
+    if point is None:
+        return
+    if not point.s < ell:
+        raise SceneError(
+            f"loads.point.s: must lie inside the rod, 0 < s < rod.length = {fmt(ell)} m (an end "
+            f"load is [loads.end]), got {fmt(point.s)}"
+        )
+    elements = scene.discretisation.elements
+    node = point.s / ell * elements
+    if abs(node - round(node)) > 1e-9 * max(1.0, node):
+        raise SceneError(
+            f"loads.point.s: must be at a node of the mesh ({elements} elements of "
+            f"{ell / elements:.6g} m), got {fmt(point.s)}"
+        )
 
 
 def _check_reference(scene: Scene, reference: ReferenceShape) -> None:
@@ -531,6 +617,8 @@ def _check_reference(scene: Scene, reference: ReferenceShape) -> None:
     torsion inertia (which divides a row that a curved rod's rows mix, forms/general_form.py)."""
     if not reference.curved:
         return
+    if reference.shape == "polyline":
+        _check_polyline(scene, reference)
     for end in ("start", "end"):
         kind = getattr(scene.supports, end)
         if kind in ("pinned", "spherical"):

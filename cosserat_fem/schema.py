@@ -65,6 +65,7 @@ REFERENCE_KEYS = {
     "straight": (),
     "arc": ("radius",),
     "helix": ("radius", "pitch_angle"),
+    "polyline": ("points", "binormal"),
 }
 
 
@@ -229,6 +230,28 @@ class Vector(Field):
 
 
 @dataclass(frozen=True, kw_only=True)
+class Points(Field):
+    """A list of at least two points, each a list of 3 finite numbers."""
+
+    unit: str = ""
+
+    def describe(self) -> str:
+        return f"a list of at least 2 points, each a list of 3 numbers [{self.unit}]"
+
+    def check(self, key: str, value: Any) -> Any:
+        if not isinstance(value, list) or len(value) < 2:
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        points = []
+        for i, point in enumerate(value):
+            if not isinstance(point, list) or len(point) != 3:
+                raise SceneError(f"{key}[{i}]: must be a list of 3 numbers [{self.unit}], got "
+                                 f"{show_value(point)}")  # fmt: skip
+            points.append(tuple(Number(unit=self.unit).check(f"{key}[{i}][{j}]", x)
+                                for j, x in enumerate(point)))  # fmt: skip
+        return points
+
+
+@dataclass(frozen=True, kw_only=True)
 class ChoiceList(Field):
     """A list of distinct strings, each one of ``choices`` (kept in the given order)."""
 
@@ -263,6 +286,15 @@ class Parameters:
 _ZERO3 = [0, 0, 0]
 _END_LOAD = Table(
     {
+        "force": Vector(default=_ZERO3, unit="N"),
+        "torque": Vector(default=_ZERO3, unit="N m"),
+    },
+    optional=True,
+)
+
+_POINT_LOAD = Table(
+    {
+        "s": Number(required=True, interval=POSITIVE, unit="m"),
         "force": Vector(default=_ZERO3, unit="N"),
         "torque": Vector(default=_ZERO3, unit="N m"),
     },
@@ -311,7 +343,8 @@ SCHEMA = Table(
             }
         ),
         # The rod at rest (forms/reference.py): straight along e3 (the paper's), a circular
-        # arc in the e1-e3 plane bending towards +e1, or a helix about an axis along e3.
+        # arc in the e1-e3 plane bending towards +e1, a helix about an axis along e3, or a
+        # polyline whose frame jumps at its corners.
         "reference": Table(
             {
                 "shape": Choice(choices=tuple(REFERENCE_KEYS), default="straight"),
@@ -320,6 +353,9 @@ SCHEMA = Table(
                     interval=Interval(-math.pi / 2, math.pi / 2, lo_open=True, hi_open=True),
                     unit="rad",
                 ),
+                # polyline: its corners (the first the start), and d0_2 on every segment
+                "points": Points(unit="m"),
+                "binormal": Vector(unit="-"),
             }
         ),
         "model": Table(
@@ -346,6 +382,8 @@ SCHEMA = Table(
                 "torque_density": Vector(default=_ZERO3, unit="N m/m"),
                 "start": _END_LOAD,
                 "end": _END_LOAD,
+                # a force [N] and torque [N m] at the node s [m] inside the rod
+                "point": _POINT_LOAD,
                 "gravity": Vector(default=_ZERO3, unit="m/s^2"),
             }
         ),

@@ -96,12 +96,15 @@ class DistributedLoads:
 class EndLoads:
     """End force f^b [N] and torque l^b [N m] in fixed directions (42) on one free end.
 
-    ``ds`` is the boundary measure restricted to that end.
-    """
+    ``ds`` is the boundary measure restricted to that end. With ``interior`` the load acts at
+    a node inside the rod (a point load): ``ds`` is then the interior-facet measure dS of that
+    node, the term the same as an end's, −g_b · v_q there, with the balance sign (the fields
+    are continuous: it is evaluated on one side of the node)."""
 
     ds: ufl.Measure
     force: ufl.core.expr.Expr | None = None
     torque: ufl.core.expr.Expr | None = None
+    interior: bool = False
 
 
 @dataclass(frozen=True)
@@ -414,7 +417,11 @@ def residual_terms(
     for end in end_loads:
         if end.force is None and end.torque is None:
             continue
-        term = -ufl.inner(end_data(p, groups, end, convention, chart), vq) * end.ds
+        if end.interior:
+            data = end_data(p, groups, end, EndLoadConvention(scaling=convention.scaling), chart)
+            term = (-ufl.inner(data, vq))("+") * end.ds
+        else:
+            term = -ufl.inner(end_data(p, groups, end, convention, chart), vq) * end.ds
         end_form = term if end_form is None else end_form + term
     extra = {}
     if damping is not None:

@@ -9,6 +9,8 @@ import numpy as np
 import pytest
 from conftest import ROOT, parse_qoi, run_command
 
+from cosserat_fem.reference.curved import BATHE_BOLOURCHI_SHOOTING
+
 DEMO = str(ROOT / "demos" / "cao_tucker_2008.py")
 FULL = 0.06  # s: the scene's whole run, 2000 steps (serial: ~1.3 s of solving)
 END = 0.012  # s: the run under mpirun -n 2, 400 steps, compared with the first 400 serial ones
@@ -94,3 +96,27 @@ def test_demo_serial_equals_mpi(demo_runs):
     }
     for name, value in extremes.items():
         assert q2[name] == pytest.approx(value, rel=1e-10), name
+
+
+BEND_DEMO = str(ROOT / "demos" / "bathe_bolourchi_bend.py")
+
+
+def test_bend_demo_serial_and_mpi_against_the_shooting_solution(tmp_path):
+    """demos/bathe_bolourchi_bend.py on one and two ranks: the tip displacement [in] at 600 lbf
+    within 2e-5 in of the shooting solution (the scene's discretisation error, as
+    tests/test_curved.py argues), the two runs equal to 1e-9 of it (PETSc's LU against
+    MUMPS's, round-off over 11 nonlinear load steps; measured ~1e-12), and the picture
+    written."""
+    names = ("tip_dn_in", "tip_dz_in", "tip_dt_in")
+    shooting = dict(zip(names, BATHE_BOLOURCHI_SHOOTING[600], strict=True))
+    runs = []
+    for ranks in (1, 2):
+        out = tmp_path / f"bend{ranks}"
+        proc = run_command([BEND_DEMO, "--out", str(out)], ranks)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        runs.append(parse_qoi(proc.stdout))
+        assert (out / "bathe_bolourchi_bend.png").stat().st_size > 10_000
+    for name, value in shooting.items():
+        assert runs[0][name] == pytest.approx(value, abs=2e-5), name
+        assert runs[1][name] == pytest.approx(runs[0][name], rel=1e-9), name
+    assert runs[1]["load_steps"] == runs[0]["load_steps"]
