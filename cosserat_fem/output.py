@@ -46,6 +46,12 @@ if TYPE_CHECKING:
     from .model import RodModel
 
 
+def probe_position(scene, s: float) -> list[float]:
+    """r0(s) [m], the probe's point on the rod at rest (the scene's [reference]): the point
+    whose displacement probes.csv's x, y, z are (summary.json ``probe_reference_position_m``)."""
+    return [float(x) for x in scene.reference.positions([s])[0]]
+
+
 def probe_sigma(scene) -> float:
     """The probe point σ of a scene: the free end at s = ℓ, else the free end at s = 0, else
     mid-span."""

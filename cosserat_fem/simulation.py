@@ -49,7 +49,7 @@ from .observers import (
     ProgressObserver,
     XdmfObserver,
 )
-from .output import PointProbe, probe_sigma
+from .output import PointProbe, probe_position, probe_sigma
 from .parallel import ranks_on_node
 from .run_folder import PROBES, XDMF, new_run_id, prepare_output_dir, status_of
 from .scene import Scene
@@ -320,6 +320,8 @@ def _summary_start(scene, model, integrator, solver, probe, comm, restart) -> di
         "integrator": integrator.name,
         "omega0_rad_s": model.omega0,
         "probe_s_m": probe.sigma * model.length,
+        # probes.csv's x, y, z are displacements from this point of the rod at rest
+        "probe_reference_position_m": probe_position(scene, probe.sigma * model.length),
         "lu_package": solver.lu_package,
         "restarted_from_s": restart.time if restart is not None else None,
         "restarts": restart.restart_number if restart is not None else 0,

@@ -36,7 +36,7 @@ from .integrators import make_integrator
 from .model import RodModel, build_model
 from .newton import NewtonFailure, NewtonSettings, NewtonSolver
 from .observers import FolderStart, FolderSummary, ProbeObserver, ProbeRecorder, XdmfObserver
-from .output import PointProbe, probe_sigma
+from .output import PointProbe, probe_position, probe_sigma
 from .parallel import ranks_on_node
 from .progress import LOGGER
 from .run_folder import PROBES, XDMF, new_run_id, prepare_output_dir, status_of
@@ -226,6 +226,7 @@ def static_path(
         "mpi_ranks": comm.size,
         "dofs": model.global_dofs(),
         "probe_s_m": probe_sigma(scene) * model.length,
+        "probe_reference_position_m": probe_position(scene, probe_sigma(scene) * model.length),
         "newton": "full",
         "scene": scene.to_dict(),
     }

@@ -10,6 +10,7 @@ displacements (Δn, Δz, Δt) [in] at 300 and 600 lb are held here to 7 digits.
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -56,7 +57,8 @@ def test_arc_at_rest_stays_at_rest_and_is_written_as_the_reference(tmp_path):
     forms/general_form.py vanish identically), so every Newton solve converges at its guess
     and U stays exactly 0 over 70 steps. The XDMF mesh is the reference curve r0(s) at the
     output points and the probes' angles and directors at the tip those of D0(ℓ): for the arc
-    ψ = ℓ/R about e2."""
+    ψ = ℓ/R about e2; summary.json names the point of the rod at rest whose displacement
+    probes.csv's x, y, z are."""
     shapes = {"arc": ["reference.radius=0.8"],
               "helix": ["reference.radius=0.1", "reference.pitch_angle=0.2"]}  # fmt: skip
     for shape, extra in shapes.items():
@@ -77,6 +79,9 @@ def test_arc_at_rest_stays_at_rest_and_is_written_as_the_reference(tmp_path):
                         .split(","), dtype=float)  # fmt: skip
         directors = last[header.index("d1_x"):header.index("d3_z") + 1].reshape(3, 3)
         np.testing.assert_allclose(directors, tip, rtol=0, atol=1e-14)
+        summary = json.loads((tmp_path / shape / "summary.json").read_text())
+        at_rest = scene.reference.positions([ell])[0]
+        assert np.abs(np.array(summary["probe_reference_position_m"]) - at_rest).max() < 1e-15
         if shape == "arc":
             np.testing.assert_allclose(last[4:7], [0.0, ell / 0.8, 0.0], rtol=0, atol=1e-14)
 
