@@ -71,4 +71,8 @@ if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ] || [ ! -x "$VENV/bin/co
     -c "$CONSTRAINTS" -e "$ROOT[$EXTRAS]"
   echo "$WANT" > "$STAMP"
 fi
+# Bytecode for the project's modules: with PYTHONDONTWRITEBYTECODE set (as on the development
+# machines) Python would compile them anew in every process, 0.08 s of each start-up (docs/
+# decisions.md, "Start-up"). Only changed files are compiled again.
+"$VENV/bin/python" -m compileall -q "$ROOT/cosserat_fem" "$ROOT/forms" > /dev/null
 "$VENV/bin/python" -c "import dolfinx, cosserat_fem; print('setup: dolfinx', dolfinx.__version__, '| cosserat-fem', cosserat_fem.__version__)"
