@@ -105,7 +105,8 @@ def test_arc_equals_the_straight_rod_rolled_up_into_it(load):
     by 5.8e-6, 7.3e-8 and 3.4e-10 in with 4, 8 and 16 elements (each tip's own discretisation
     error with 8 is 2e-4 in: the two discretisations err alike), so 8 elements and 1e-6 in, the
     4-element difference's sixth. The same with a distributed in-plane weight ρ A g (fixed
-    directions along the rod, g = (−400, 0, 200) m/s², moving the tip by 50 in; measured 9.2e-8 in)."""
+    directions along the rod, g = (−400, 0, 200) m/s², moving the tip by 50 in; measured
+    9.2e-8 in)."""
     EI = 1e7 * 6894.757293168361 * INCH**4 / 12  # N m^2
     rolling = f"[0, {EI / (100 * INCH)!r}, 0]"  # EI/R about e2 [N m]
     straight = read_toml(BEND)
