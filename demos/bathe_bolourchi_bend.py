@@ -53,6 +53,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+# cosserat_fem first: a process that mpirun did not start then starts MPI in 0.08 s instead of
+# 0.45 s (cosserat_fem/mpi_start.py).
+import cosserat_fem  # noqa: F401
+
+# isort: split
 import numpy as np
 from mpi4py import MPI
 
