@@ -129,6 +129,8 @@ class RodModel:
     #: paper's chart, so the chart never moves there (a fork's θ = ±π/2 is the gimbal lock
     #: of the joint itself).
     fork_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int32))
+    #: A polyline's reference frame D0, cellwise constant (made by :meth:`reference_form`).
+    reference_frame: fem.Function | None = None
 
     @property
     def needs_chart(self) -> bool:
@@ -164,9 +166,26 @@ class RodModel:
         if shape.shape == "arc":
             return reference_shapes.circular_arc(sigma, self.length, shape.radius)
         if shape.shape == "polyline":
-            starts = (shape.corners()[1:-1] / self.length).tolist()
-            return reference_shapes.piecewise(sigma, starts, shape.segment_frames().tolist())
+            frame = self._polyline_frame()
+            return Reference(ufl.as_vector([frame[2, j] for j in range(3)]), frame, ufl.zero(3))
         return reference_shapes.helix(sigma, self.length, shape.radius, shape.pitch_angle)
+
+    def _polyline_frame(self) -> fem.Function:
+        """A polyline's frame D0 as a cellwise-constant 3×3 field (made once): each cell holds
+        the frame of the segment its midpoint lies on (corners are at nodes, checked), so
+        any number of corners costs one coefficient, not a chain of conditionals."""
+        if self.reference_frame is None:
+            space = fem.TensorFunctionSpace(self.msh, ("DG", 0), shape=(3, 3))
+            cells = self.msh.topology.index_map(1)
+            count = cells.size_local + cells.num_ghosts
+            vertices = self.msh.geometry.dofmap.array.reshape(-1, 2)[:count]
+            middle = self.msh.geometry.x[vertices, 0].mean(axis=1) * self.length
+            frames = self.scene.reference.frames(middle)  # (cells, 3, 3)
+            dofs = space.dofmap.list.array.reshape(-1)[:count]
+            frame = fem.Function(space, name="D0")
+            frame.x.array.reshape(-1, 9)[dofs] = frames.reshape(-1, 9)
+            self.reference_frame = frame
+        return self.reference_frame
 
     def chart_maps(self, Q_new: np.ndarray):
         """(state_map, rate_map) of :meth:`Integrator.change_variables` from the current chart to

@@ -619,6 +619,16 @@ def _check_reference(scene: Scene, reference: ReferenceShape) -> None:
         return
     if reference.shape == "polyline":
         _check_polyline(scene, reference)
+    else:
+        spec = scene.rod.section
+        extents = [spec.a, spec.b, spec.diameter, spec.outer_diameter]
+        size = max([x for x in extents if x is not None] or [math.sqrt(spec.constants().area)])
+        half = 0.5 * size
+        if not reference.radius > half:
+            raise SceneError(
+                f"reference.radius: must exceed half the section's size, {half:.4g} m (a rod "
+                f"bent tighter than its own thickness is no rod), got {fmt(reference.radius)}"
+            )
     for end in ("start", "end"):
         kind = getattr(scene.supports, end)
         if kind in ("pinned", "spherical"):

@@ -86,13 +86,3 @@ def placed(reference: Reference, rotation) -> Reference:
     R = ufl.as_matrix(rotation) if not isinstance(rotation, ufl.core.expr.Expr) else rotation
     return Reference(R * reference.tangent, reference.frame * R.T, reference.curvature)
 
-
-def piecewise(sigma, starts, frames) -> Reference:
-    """A polyline: the frame ``frames[i]`` (3×3 nested sequences, rows d0_1, d0_2, d0_3) on
-    σ ∈ [starts[i], starts[i + 1]) (``starts``: the σ where segments 2, 3, ... begin), the
-    tangent its d0_3, no curvature. The frame jumps at the corners; a quadrature point never
-    lies on one when they are at mesh nodes."""
-    frame = ufl.as_matrix(frames[-1])
-    for start, rows in zip(reversed(starts), reversed(frames[:-1]), strict=True):
-        frame = ufl.conditional(ufl.lt(sigma, start), ufl.as_matrix(rows), frame)
-    return Reference(ufl.as_vector([frame[2, j] for j in range(3)]), frame, ufl.zero(3))
