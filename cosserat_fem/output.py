@@ -74,6 +74,7 @@ class FixedBasisAngles:
         self.model = model
         self.last: np.ndarray | None = None  # the angles of the previous call
         self.frame: np.ndarray | None = None  # its directors D A (in a moved chart)
+        self.reference_frames: np.ndarray | None = None  # D0 at the points, rod curved at rest
 
     def __call__(self, angles: np.ndarray, chart_values, sigma=None) -> np.ndarray:
         """Fixed-basis angles (points, 3) of the chart angles ``angles`` at points whose
@@ -90,7 +91,9 @@ class FixedBasisAngles:
         if model.chart is not None and model.chart_moved:
             D = D @ quaternion_frame(chart_values())
         if reference.curved:
-            D = reference.frames(model.length * np.asarray(sigma(), dtype=float)) @ D
+            if self.reference_frames is None:  # the sampler's points do not move
+                self.reference_frames = reference.frames(model.length * np.asarray(sigma()))
+            D = self.reference_frames @ D
         self.last = euler_angles(D, angles if self.last is None else self.last)
         self.frame = D
         return self.last

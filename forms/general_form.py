@@ -429,13 +429,13 @@ def residual_terms(
     if kelvin_voigt is not None and reference is None:
         b_v, g_v = kelvin_voigt_terms(p, dp, q, dq, groups, kelvin_voigt, chart)
         extra["kelvin_voigt"] = (-ufl.inner(b_v, dvq) - ufl.inner(g_v, vq)) * dx
-    elif kelvin_voigt is not None:
+    elif kelvin_voigt is not None:  # the rates of D0 (R r' − t0) and D0 κ_R, times η
         eta = kelvin_voigt.omega0 * kelvin_voigt.retardation_time
         v_dot, u_dot = strain_rates(p, dp, q, dq, chart, reference.tangent)
         D0 = reference.frame
-        n_v, m_v = scaled_resultants(D0 * v_dot, D0 * u_dot, groups)
-        b_v, g_v = contact_terms(p, dp, groups, eta * (D0.T * n_v), eta * (D0.T * m_v), chart,
-                                 reference.tangent)  # fmt: skip
+        b_v, g_v = reference_contact_terms(
+            p, dp, groups, reference, eta * (D0 * v_dot), eta * (D0 * u_dot), chart
+        )
         extra["kelvin_voigt"] = (-ufl.inner(b_v, dvq) - ufl.inner(g_v, vq)) * dx
     return ResidualTerms(
         kinematic=kinematic,
@@ -449,10 +449,10 @@ def residual_terms(
 
 __all__ = [
     "DistributedLoads",
-    "Reference",
     "EndLoadConvention",
     "EndLoads",
     "KelvinVoigtDamping",
+    "Reference",
     "ResidualTerms",
     "Source",
     "ViscousDamping",

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import ufl
 
+from .general_form import reference_strains
 from .groups import RodConstants
 from .kinematics import (
     Chart,
@@ -73,8 +74,6 @@ def relative_strains(
     if reference is None:
         v, u = strains(p, dp, length, chart)
         return v - ufl.as_vector([0.0, 0.0, 1.0]), u
-    from .general_form import reference_strains
-
     v_rel, u_rel = reference_strains(p, dp, reference, chart)
     return v_rel, u_rel / length
 
