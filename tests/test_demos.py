@@ -105,7 +105,8 @@ def test_bend_demo_serial_and_mpi_against_the_shooting_solution(tmp_path):
     """demos/bathe_bolourchi_bend.py on one and two ranks: the tip displacement [in] at 600 lbf
     within 2e-5 in of the shooting solution (the scene's discretisation error, as
     tests/test_curved.py argues), the two runs equal to 1e-9 of it (PETSc's LU against
-    MUMPS's, round-off over 11 nonlinear load steps; measured ~1e-12), and the picture
+    MUMPS's, round-off over 11 nonlinear load steps; measured: equal to the 13 printed
+    digits), and the picture
     written."""
     names = ("tip_dn_in", "tip_dz_in", "tip_dt_in")
     shooting = dict(zip(names, BATHE_BOLOURCHI_SHOOTING[600], strict=True))
