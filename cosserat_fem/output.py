@@ -240,7 +240,10 @@ class ProbeWriter:
     reaches the last frame of the XDMF file. Measured per row, default scene: the same ~12 us a
     row (full run) as flushing every 200 rows only; flushing every row cost ~23 us a row more on
     a busy ext4 file system (a write() can wait ~3 ms for a journal commit of another process),
-    3-5 % of a ~0.5 ms step.
+    3-5 % of a ~0.5 ms step. A SIGKILL inside the write() of a block can leave the block cut
+    where a page of the file ends (Linux copies a write a page at a time and stops between
+    pages for a fatal signal): the file then ends with part of a row, which
+    :func:`cosserat_fem.results.read_probes` and a restart drop (docs/stability.md).
 
     The SHA-256 of the bytes written (:meth:`digest`) goes into each checkpoint, so that a
     restart can prove that probes.csv is the checkpointed run's (cosserat_fem/checkpoint.py).
