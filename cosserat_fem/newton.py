@@ -30,11 +30,16 @@ a zero pivot (``DIVERGED_LINEAR_SOLVE``), after the iterations completed before.
 are PETSc's SNES reasons (``PETSc.SNES.ConvergedReason``; :class:`NewtonFailure` carries
 the name). Why each of these, with the measurements: docs/decisions.md, "The Newton stop
 rule" and "No line search".
+
+In a serial run each iteration is one call into C where the form allows it
+(cosserat_fem/native_newton.py: the same operations, the same iterates bit for bit;
+``NewtonSettings.loop``, docs/decisions.md "The compiled inner loop").
 """
 
 from __future__ import annotations
 
 import itertools
+import logging
 import math
 import time
 from dataclasses import dataclass, fields
@@ -66,6 +71,7 @@ class NewtonSettings:
     xatol: float = 1e-13
     max_iterations: int = 25
     linear_solver: str = "auto"  # auto | petsc | mumps | superlu
+    loop: str = "auto"  # auto (the C inner loop where it applies: native_newton.py) | python
 
     @classmethod
     def of(cls, solver) -> NewtonSettings:
@@ -172,6 +178,9 @@ class NewtonSolver:
             self.ksp.getPC().setFactorOrdering("natural")
         self.ksp.setOperators(self.A)
         self.ksp.setFromOptions()
+        self._native = None
+        self.loop = "python"  # what runs the iterations: "python" or "c" (_make_native)
+        self._make_native()
 
     def _compile(self, F: ufl.Form) -> None:
         """The residual and Jacobian forms of F; what the Jacobian is assembled from, and (for
@@ -191,7 +200,32 @@ class NewtonSolver:
         chart, cosserat_fem/charts.py); the next solve assembles a new Jacobian. The matrix
         keeps its sparsity (same space), the statistics go on."""
         self._compile(F)
+        self._make_native()
         self.request_jacobian()
+
+    def _make_native(self) -> None:
+        """The C inner loop for the current form (cosserat_fem/native_newton.py) when the
+        settings allow it and it applies: its residual must equal DOLFINx's bit for bit."""
+        self._native = None
+        self.loop = "python"
+        if self.settings.loop != "auto" or self._parallel:
+            return
+        from .native_newton import NativeLoop, NotApplicable
+
+        try:
+            native = NativeLoop(self.F_form, self.U, self.bcs, self._u, self.b, self.dx,
+                                self.ksp)  # fmt: skip
+            native.refresh()
+            native.residual()
+            via_c = self.b.array.copy()
+            self._assemble(self.b.array_w, dirichlet=True)
+            if not np.array_equal(via_c, self.b.array, equal_nan=True):
+                raise NotApplicable("its residual differs from DOLFINx's")
+        except NotApplicable as exc:
+            logging.getLogger(__name__).info("Newton's inner loop in Python: %s", exc)
+            return
+        self._native = native
+        self.loop = "c"
 
     @staticmethod
     def _lu_package(comm, choice: str) -> str:
@@ -330,13 +364,32 @@ class NewtonSolver:
             self._need_jacobian = True
         return iterations
 
+    def _iteration(self) -> tuple[int, tuple[float, float, float] | None]:
+        """One Newton iteration from U with F(U) in b: the linear solve, U ← U − δU, F(U) and
+        the norms; (the KSP's reason, the norms (‖U‖, ‖δU‖, ‖F‖) or None if it failed).
+        The C loop does the same in one call (cosserat_fem/newton_loop.c)."""
+        ksp = self.ksp
+        ksp.solve(self.b, self.dx)
+        reason = ksp.getConvergedReason()
+        if reason < 0:
+            return reason, None
+        self._u.axpy(-1.0, self.dx)
+        self._residual()
+        return reason, self._norms()
+
     def _run(self) -> tuple[int, int]:
         """Newton's iterations from U, which then holds the last iterate: (iterations, SNES
         reason). The steps, norms and exits of SNES newtonls with the basic line search."""
         t0 = time.perf_counter()
         reasons = PETSc.SNES.ConvergedReason
-        u, dx, ksp = self._u, self.dx, self.ksp
-        self._residual()
+        native = self._native
+        if native is not None:
+            native.refresh()  # this solve's constants and Dirichlet values
+            counted = native.counters
+            residual, iteration = native.residual, native.iterate
+        else:
+            residual, iteration = self._residual, self._iteration
+        residual()
         fnorm = self.b.norm()
         it = 0
         if not math.isfinite(fnorm):
@@ -345,13 +398,10 @@ class NewtonSolver:
             reason = self._converged(0, (0.0, 0.0, fnorm))
         while reason == reasons.ITERATING and it < self.settings.max_iterations:
             self._jacobian()
-            ksp.solve(self.b, dx)
-            if ksp.getConvergedReason() < 0:
+            ksp_reason, norms = iteration()
+            if ksp_reason < 0:
                 reason = reasons.DIVERGED_LINEAR_SOLVE
                 break
-            u.axpy(-1.0, dx)
-            self._residual()
-            norms = self._norms()
             if not math.isfinite(norms[2]):
                 reason = reasons.DIVERGED_FNORM_NAN
                 break
@@ -359,6 +409,10 @@ class NewtonSolver:
             reason = self._converged(it, norms)
         if reason == reasons.ITERATING:
             reason = reasons.DIVERGED_MAX_IT
+        if native is not None:
+            assemblies, seconds = native.counters
+            self.stats.residual_assemblies += assemblies - counted[0]
+            self.stats.time_residual += seconds - counted[1]
         self.stats.time_solve += time.perf_counter() - t0
         self.stats.iterations += it
         return it, reason

@@ -378,6 +378,7 @@ class Solver:
     stol: float
     max_iterations: int
     linear_solver: str
+    loop: str  # "auto": the C inner loop where it applies (native_newton.py); "python"
 
 
 @dataclass(frozen=True)

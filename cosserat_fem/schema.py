@@ -454,6 +454,8 @@ SCHEMA = Table(
                 "linear_solver": Choice(
                     choices=("auto", "petsc", "mumps", "superlu"), default="auto"
                 ),
+                # "auto": Newton's inner loop in C where it applies (cosserat_fem/native_newton.py)
+                "loop": Choice(choices=("auto", "python"), default="auto"),
             }
         ),
         "output": Table(

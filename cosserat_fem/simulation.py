@@ -291,7 +291,7 @@ class _RunParts:
                 "message": str(failure) if failure else "",
                 **loop.state.counts(),
                 "checkpoints_written": self.checkpoints.written if self.checkpoints else 0,
-                "newton": self.solver.stats.as_dict(),
+                "newton": {**self.solver.stats.as_dict(), "loop": self.solver.loop},
                 "wall_time_s": {
                     "setup": since - self.t_start,
                     "jit_compile": self.solver.compile_time,

@@ -1,0 +1,302 @@
+"""The Newton solver's inner loop in C (cosserat_fem/newton_loop.c), for serial runs.
+
+:class:`NewtonSolver` (cosserat_fem/newton.py) calls, per iteration, the linear solve, the
+update, the residual assembly and the norms: from Python that is a dozen calls through
+petsc4py and DOLFINx's bindings, each of a few microseconds, around kernels that take about
+as long (docs/decisions.md, "The compiled inner loop"). :class:`NativeLoop` makes each of
+:meth:`residual` and :meth:`iterate` one call into C that does the same operations in the same
+order, so that the iterates are bitwise those of the Python loop (tests/test_native_newton.py).
+
+It applies when the run is serial and the residual has cell and exterior facet integrals only
+(an interior facet integral, a point load's, keeps the Python loop), and only after it has
+proved itself on the form: the coefficient tables are read off DOLFINx's ``pack_coefficients``
+and the first residual must equal DOLFINx's assembly bit for bit, else the Python loop is used
+(the reason logged at INFO). The C source is compiled once per machine with cffi into the JIT
+cache directory (``$XDG_CACHE_HOME/fenics``, as FFCx's forms), against PETSc's headers and
+FFCx's ufcx.h; a failed compile also keeps the Python loop.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.machinery
+import importlib.util
+import logging
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from dolfinx import cpp
+
+log = logging.getLogger(__name__)
+
+SOURCE = Path(__file__).with_name("newton_loop.c")
+
+CDEF = """
+typedef struct {
+  void* kernel; int32_t entities; const int32_t* cells; const int32_t* local_facets;
+  int32_t wsize; const int32_t* source; const int32_t* index;
+} cf_integral;
+typedef struct {
+  int32_t n_integrals; const cf_integral* integrals; double* const* coefficients;
+  const double* constants; const double* coordinates; int32_t coordinates_per_cell;
+  const int32_t* dofs; int32_t dofs_per_cell; int32_t n_bc; const int32_t* bc_dofs;
+  const double* bc_values; const double* u_values; double* w; double* be;
+  void *u, *b, *dx, *ksp; double time_residual; int64_t residuals;
+} cf_problem;
+int cf_residual(cf_problem* p);
+int cf_iterate(cf_problem* p, int* reason, double* norms);
+void* cf_kernel(uintptr_t form, int type, int i);
+"""
+
+
+class NotApplicable(Exception):
+    """Why a solver keeps the Python loop."""
+
+
+# --- the compiled module ------------------------------------------------------------------
+
+
+def _petsc_build() -> tuple[list[str], str]:
+    """(include directories, library directory) of the PETSc petsc4py was built against, and
+    of its MPI."""
+    import petsc4py
+
+    petsc_dir = Path(petsc4py.get_config()["PETSC_DIR"])
+    arch = petsc4py.get_config().get("PETSC_ARCH") or ""
+    includes = [str(petsc_dir / "include"), str(petsc_dir / arch / "include")]
+    variables = petsc_dir / arch / "lib" / "petsc" / "conf" / "petscvariables"
+    if variables.exists():
+        text = variables.read_text(errors="replace")
+        found = re.search(r"^PETSC_CC_INCLUDES\s*=(.*)$", text, re.MULTILINE)
+        if found:
+            includes += [f[2:] for f in found.group(1).split() if f.startswith("-I")]
+    mpicc = shutil.which("mpicc")
+    if mpicc is not None:
+        shown = subprocess.run([mpicc, "--showme:incdirs"], capture_output=True, text=True,
+                               check=False)  # fmt: skip
+        if shown.returncode == 0:
+            includes += shown.stdout.split()
+    return [i for i in dict.fromkeys(includes) if Path(i).is_dir()], str(petsc_dir / arch / "lib")
+
+
+def _ufcx_include() -> str:
+    import ffcx.codegeneration
+
+    return str(Path(ffcx.codegeneration.__file__).parent)
+
+
+def _cache_dir() -> Path:
+    from dolfinx import jit
+
+    return Path(jit.get_parameters()["cache_dir"]).expanduser()
+
+
+_MODULE = None
+
+
+def compiled():
+    """The compiled module (``ffi``, ``lib``), made on first use and cached on disk; raises
+    :class:`NotApplicable` if it cannot be built."""
+    global _MODULE
+    if _MODULE is not None:
+        return _MODULE
+    import cffi
+    import ffcx
+    import petsc4py
+
+    source = SOURCE.read_text()
+    build = [source, CDEF, str(petsc4py.get_config()), ffcx.__version__, cffi.__version__]
+    key = hashlib.sha1("\n".join(build).encode()).hexdigest()[:16]
+    name = f"cosserat_newton_loop_{key}"
+    cache = _cache_dir()
+    suffix = importlib.machinery.EXTENSION_SUFFIXES[0]
+    target = cache / f"{name}{suffix}"
+    if not target.exists():
+        includes, libdir = _petsc_build()
+        includes.append(_ufcx_include())
+        ffi = cffi.FFI()
+        ffi.cdef(CDEF)
+        ffi.set_source(
+            name,
+            source,
+            include_dirs=includes,
+            libraries=["petsc_real"],
+            library_dirs=[libdir],
+            extra_link_args=[f"-Wl,-rpath,{libdir}"],
+            extra_compile_args=["-O2", "-g0"],
+        )
+        cache.mkdir(parents=True, exist_ok=True)
+        from .jit import capture_stderr
+
+        with tempfile.TemporaryDirectory(dir=cache) as work, capture_stderr() as captured:
+            try:
+                built = ffi.compile(tmpdir=work)
+            except Exception as exc:  # a compiler or a missing header: keep the Python loop
+                raise NotApplicable(f"the C loop did not compile ({exc})") from None
+            os.replace(built, target)  # atomic: a concurrent process finds it whole or not
+        if captured.text.strip():
+            log.info("compiling %s:\n%s", SOURCE.name, captured.text)
+    spec = importlib.util.spec_from_file_location(name, target)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    _MODULE = module
+    return module
+
+
+# --- one solver's loop ----------------------------------------------------------------------
+
+
+def _gather_tables(form) -> dict:
+    """{(integral type, id): (source (wsize,), index (entities, wsize))}: where DOLFINx's
+    ``pack_coefficients`` takes each packed value from, read off by packing the coefficients'
+    own positions (one coefficient at a time, the others NaN)."""
+    coefficients = form.coefficients
+    kept = [c.x.array.copy() for c in coefficients]
+    source: dict = {}
+    index: dict = {}
+    try:
+        for k, c in enumerate(coefficients):
+            for other in coefficients:
+                other.x.array[:] = np.nan
+            c.x.array[:] = np.arange(c.x.array.size, dtype=float)
+            for key, packed in cpp.fem.pack_coefficients(form).items():
+                mine = ~np.isnan(packed)
+                columns = mine.all(axis=0)
+                if not np.array_equal(columns, mine.any(axis=0)):
+                    raise NotApplicable("a packed coefficient mixes entities")
+                values = packed[:, columns]
+                if not np.array_equal(values, np.rint(values)):
+                    raise NotApplicable("packed coefficients are transformed (not a gather)")
+                src = source.setdefault(key, np.full(packed.shape[1], -1, dtype=np.int32))
+                idx = index.setdefault(key, np.zeros(packed.shape, dtype=np.int32))
+                src[columns] = k
+                idx[:, columns] = values.astype(np.int32)
+    finally:
+        for c, values in zip(coefficients, kept, strict=True):
+            c.x.array[:] = values
+    for key, src in source.items():
+        if (src < 0).any():
+            raise NotApplicable(f"packed values of no coefficient in integral {key}")
+    return {key: (source[key], index[key]) for key in source}
+
+
+class NativeLoop:
+    """:meth:`residual` and :meth:`iterate` of a serial NewtonSolver in C (module docstring).
+    ``refresh`` before each solve: the constants and the Dirichlet values of that solve."""
+
+    def __init__(self, form, U, bcs, u, b, dx, ksp):
+        """``u``: U's PETSc vector (the iterate); ``b``, ``dx``, ``ksp``: the solver's."""
+        mesh = U.function_space.mesh
+        if mesh.comm.size > 1:
+            raise NotApplicable("a parallel run")
+        types = list(form.integral_types)
+        if cpp.fem.IntegralType.interior_facet in types:
+            raise NotApplicable("an interior facet integral (a point load)")
+        if form.needs_facet_permutations:
+            raise NotApplicable("facet permutations")
+        module = compiled()
+        self.ffi, self.lib = module.ffi, module.lib
+        ffi = self.ffi
+        self._keep: list = []  # every array the C side points into
+
+        def pointer(array: np.ndarray, kind: str):
+            self._keep.append(array)
+            return ffi.cast(kind, array.ctypes.data)
+
+        V = U.function_space
+        bs = V.dofmap.bs
+        nodes = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)
+        dofs = (bs * nodes[:, :, None] + np.arange(bs)).reshape(nodes.shape[0], -1)
+        dofs = np.ascontiguousarray(dofs, dtype=np.int32)
+        geometry = mesh.geometry
+        x_nodes = geometry.dofmap.array.reshape(nodes.shape[0], -1)
+        coordinates = np.ascontiguousarray(geometry.x[x_nodes].reshape(nodes.shape[0], -1))
+
+        tables = _gather_tables(form)
+        address = int(ffi.cast("uintptr_t", ffi.addressof(form.ufcx_form)))
+        integrals = []
+        for kind in (cpp.fem.IntegralType.cell, cpp.fem.IntegralType.exterior_facet):
+            if kind not in types:
+                continue
+            for i, ident in enumerate(form.integral_ids(kind)):
+                domain = np.asarray(form.domains(kind, ident), dtype=np.int32)
+                if kind == cpp.fem.IntegralType.cell:
+                    cells, facets = np.ascontiguousarray(domain), None
+                else:
+                    pairs = domain.reshape(-1, 2)
+                    cells = np.ascontiguousarray(pairs[:, 0])
+                    facets = np.ascontiguousarray(pairs[:, 1])
+                source, index = tables[(kind, ident)]
+                if index.shape[0] != cells.size:
+                    raise NotApplicable(f"packed entities of integral {(kind, ident)}")
+                integrals.append({
+                    "kernel": self.lib.cf_kernel(address, int(kind), i),
+                    "entities": cells.size,
+                    "cells": pointer(cells, "int32_t*"),
+                    "local_facets": ffi.NULL if facets is None else pointer(facets, "int32_t*"),
+                    "wsize": index.shape[1],
+                    "source": pointer(np.ascontiguousarray(source), "int32_t*"),
+                    "index": pointer(np.ascontiguousarray(index), "int32_t*"),
+                })  # fmt: skip
+        self._integrals = ffi.new("cf_integral[]", integrals)
+        arrays = [c.x.array for c in form.coefficients]
+        self._coefficients = ffi.new("double*[]", [pointer(a, "double*") for a in arrays])
+        self.constants = np.zeros_like(cpp.fem.pack_constants(form))
+        self.bc_values = np.zeros_like(U.x.array)
+        self._zeros = np.zeros_like(U.x.array)
+        bc_dofs = [bc.dof_indices()[0][: bc.dof_indices()[1]] for bc in bcs]
+        bc_dofs = np.ascontiguousarray(np.concatenate([np.zeros(0, np.int32), *bc_dofs]),
+                                       dtype=np.int32)  # fmt: skip
+        wsize = max((d["wsize"] for d in integrals), default=0)
+        self.norms = np.zeros(3)
+        self._reason = ffi.new("int*")
+        p = ffi.new("cf_problem*")
+        p.n_integrals = len(integrals)
+        p.integrals = self._integrals
+        p.coefficients = self._coefficients
+        p.constants = pointer(self.constants, "double*")
+        p.coordinates = pointer(coordinates, "double*")
+        p.coordinates_per_cell = coordinates.shape[1]
+        p.dofs = pointer(dofs, "int32_t*")
+        p.dofs_per_cell = dofs.shape[1]
+        p.n_bc = bc_dofs.size
+        p.bc_dofs = pointer(bc_dofs, "int32_t*")
+        p.bc_values = pointer(self.bc_values, "double*")
+        p.u_values = pointer(U.x.array, "double*")
+        p.w = pointer(np.zeros(max(wsize, 1)), "double*")
+        p.be = pointer(np.zeros(dofs.shape[1]), "double*")
+        p.u, p.b = ffi.cast("void*", u.handle), ffi.cast("void*", b.handle)
+        p.dx, p.ksp = ffi.cast("void*", dx.handle), ffi.cast("void*", ksp.handle)
+        self._p = p
+        self._norms_c = pointer(self.norms, "double*")
+        self._form, self._bcs = form, bcs
+
+    def refresh(self) -> None:
+        """The constants and the Dirichlet values g as they are now (before a solve)."""
+        self.constants[:] = cpp.fem.pack_constants(self._form)
+        self.bc_values.fill(0.0)
+        cpp.fem.set_bc(self.bc_values, self._bcs, self._zeros, 1.0)
+
+    def residual(self) -> None:
+        """b = F(U) with the Dirichlet rows x − g (NewtonSolver._residual)."""
+        status = self.lib.cf_residual(self._p)
+        if status:
+            raise RuntimeError(f"PETSc error {status} in the residual")
+
+    def iterate(self) -> tuple[int, list[float]]:
+        """One Newton iteration (NewtonSolver._iteration): (the KSP's reason, the norms
+        (‖U‖, ‖δU‖, ‖F‖) after it; not meaningful for a negative reason)."""
+        status = self.lib.cf_iterate(self._p, self._reason, self._norms_c)
+        if status:
+            raise RuntimeError(f"PETSc error {status} in a Newton iteration")
+        return self._reason[0], self.norms.tolist()
+
+    @property
+    def counters(self) -> tuple[int, float]:
+        """(residual assemblies, their time [s]) since the loop was made."""
+        return int(self._p.residuals), float(self._p.time_residual)

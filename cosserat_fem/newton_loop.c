@@ -1,0 +1,138 @@
+/* The inner loop of cosserat_fem/newton.py in C: the residual assembly of a DOLFINx form and
+ * one modified-Newton iteration, for a serial run (cosserat_fem/native_newton.py builds it).
+ *
+ * cf_residual does what NewtonSolver._assemble does with DOLFINx 0.5.2's assemble_vector and
+ * set_bc, in the same order of operations, so that b comes out bitwise the same: b = 0; for
+ * each cell integral (in the form's order), for each cell of its domain (in order): w = the
+ * packed coefficients, be = 0, the FFCx kernel, b[dofs] += be; then the exterior facet
+ * integrals likewise with the cell's local facet index; then the Dirichlet rows
+ * b[d] = -1 (g[d] - u[d]) (set_bc with scale -1). The coefficients are gathered through
+ * index tables that native_newton.py reads off DOLFINx's own pack_coefficients, so any
+ * coefficient the form has is packed as DOLFINx packs it.
+ *
+ * cf_iterate is one pass of NewtonSolver._run's loop body: KSPSolve(b, dx), the KSP's
+ * reason, U -= dx, b = F(U), and the norms (||U||, ||dx||, ||b||) in one split-phase
+ * reduction, as _norms takes them. The convergence test stays in Python.
+ */
+#include <petscksp.h>
+#include <stdint.h>
+#include <string.h>
+#include <time.h>
+
+#include "ufcx.h"
+
+typedef struct {
+  void* kernel;                /* ufcx_tabulate_tensor_float64* */
+  int32_t entities;            /* cells (or facets) of the integral's domain */
+  const int32_t* cells;        /* (entities,) */
+  const int32_t* local_facets; /* (entities,), NULL for a cell integral */
+  int32_t wsize;               /* packed coefficient values per entity */
+  const int32_t* source;       /* (wsize,) which coefficient each packed value comes from */
+  const int32_t* index;        /* (entities, wsize) its index in that coefficient's array */
+} cf_integral;
+
+typedef struct {
+  int32_t n_integrals;
+  const cf_integral* integrals;
+  double* const* coefficients; /* each coefficient's value array (DOLFINx Function.x.array) */
+  const double* constants;     /* packed constants (pack_constants), refreshed by the caller */
+  const double* coordinates;   /* (cells, coordinates_per_cell) */
+  int32_t coordinates_per_cell;
+  const int32_t* dofs;         /* (cells, dofs_per_cell): b's entries of a cell, block-unrolled */
+  int32_t dofs_per_cell;
+  int32_t n_bc;
+  const int32_t* bc_dofs;      /* the Dirichlet dofs */
+  const double* bc_values;     /* g at every dof (zero elsewhere), refreshed by the caller */
+  const double* u_values;      /* U's values (the array the Vec u wraps) */
+  double* w;                   /* scratch: the largest wsize */
+  double* be;                  /* scratch: dofs_per_cell */
+  void *u, *b, *dx, *ksp;      /* PETSc Vec and KSP */
+  double time_residual;        /* s, accumulated */
+  int64_t residuals;           /* assemblies, accumulated */
+} cf_problem;
+
+static double now(void)
+{
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void assemble(const cf_problem* p, double* b)
+{
+  const int32_t nd = p->dofs_per_cell, nc = p->coordinates_per_cell;
+  for (int32_t k = 0; k < p->n_integrals; ++k) {
+    const cf_integral* in = &p->integrals[k];
+    for (int32_t e = 0; e < in->entities; ++e) {
+      const int32_t c = in->cells[e];
+      const int32_t* index = in->index + (int64_t)e * in->wsize;
+      for (int32_t j = 0; j < in->wsize; ++j)
+        p->w[j] = p->coefficients[in->source[j]][index[j]];
+      memset(p->be, 0, sizeof(double) * (size_t)nd);
+      ((ufcx_tabulate_tensor_float64*)in->kernel)(p->be, p->w, p->constants, p->coordinates + (int64_t)c * nc,
+                 in->local_facets ? &in->local_facets[e] : NULL, NULL);
+      const int32_t* dofs = p->dofs + (int64_t)c * nd;
+      for (int32_t i = 0; i < nd; ++i)
+        b[dofs[i]] += p->be[i];
+    }
+  }
+}
+
+/* b = F(U) with the Dirichlet rows x - g; 0 or a PETSc error code. */
+int cf_residual(cf_problem* p)
+{
+  const double t0 = now();
+  PetscScalar* b;
+  PetscInt n;
+  PetscErrorCode ierr = VecGetLocalSize((Vec)p->b, &n);
+  if (ierr) return (int)ierr;
+  ierr = VecGetArray((Vec)p->b, &b);
+  if (ierr) return (int)ierr;
+  memset(b, 0, sizeof(double) * (size_t)n);
+  assemble(p, b);
+  for (int32_t i = 0; i < p->n_bc; ++i) {
+    const int32_t d = p->bc_dofs[i];
+    b[d] = -1.0 * (p->bc_values[d] - p->u_values[d]);
+  }
+  ierr = VecRestoreArray((Vec)p->b, &b);
+  if (ierr) return (int)ierr;
+  p->time_residual += now() - t0;
+  p->residuals += 1;
+  return 0;
+}
+
+/* One iteration from U with F(U) in b: *reason = the KSP's converged reason; when it is not
+ * negative, U -= dx, b = F(U), norms = (||U||, ||dx||, ||b||). 0 or a PETSc error code. */
+int cf_iterate(cf_problem* p, int* reason, double* norms)
+{
+  KSPConvergedReason r;
+  PetscErrorCode ierr = KSPSolve((KSP)p->ksp, (Vec)p->b, (Vec)p->dx);
+  if (ierr) return (int)ierr;
+  ierr = KSPGetConvergedReason((KSP)p->ksp, &r);
+  if (ierr) return (int)ierr;
+  *reason = (int)r;
+  if (r < 0) return 0;
+  ierr = VecAXPY((Vec)p->u, -1.0, (Vec)p->dx);
+  if (ierr) return (int)ierr;
+  ierr = cf_residual(p);
+  if (ierr) return ierr;
+  PetscReal fnorm, ynorm, xnorm;
+  if ((ierr = VecNormBegin((Vec)p->b, NORM_2, &fnorm))) return (int)ierr;
+  if ((ierr = VecNormBegin((Vec)p->dx, NORM_2, &ynorm))) return (int)ierr;
+  if ((ierr = VecNormBegin((Vec)p->u, NORM_2, &xnorm))) return (int)ierr;
+  if ((ierr = VecNormEnd((Vec)p->b, NORM_2, &fnorm))) return (int)ierr;
+  if ((ierr = VecNormEnd((Vec)p->dx, NORM_2, &ynorm))) return (int)ierr;
+  if ((ierr = VecNormEnd((Vec)p->u, NORM_2, &xnorm))) return (int)ierr;
+  norms[0] = xnorm;
+  norms[1] = ynorm;
+  norms[2] = fnorm;
+  return 0;
+}
+
+/* The float64 kernel of the i-th integral of a type (0 cell, 1 exterior facet) of a ufcx_form
+ * (its address, as DOLFINx's Form holds it), in the order of Form.integral_ids. */
+void* cf_kernel(uintptr_t form, int type, int i)
+{
+  ufcx_integral** integrals = ((ufcx_form*)form)->integrals((ufcx_integral_type)type);
+  return (void*)integrals[i]->tabulate_tensor_float64;
+}

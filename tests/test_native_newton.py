@@ -1,0 +1,80 @@
+"""Newton's inner loop in C (cosserat_fem/native_newton.py, newton_loop.c) against the Python loop.
+
+The C loop does the Python loop's operations in the same order: the FFCx kernels over the
+same cells with the same packed coefficients, DOLFINx's summation order, set_bc's arithmetic
+for the Dirichlet rows, and the same PETSc calls for the solve, the update and the norms. So
+equality is the test, bit for bit, of every probe row and every Newton counter, not agreement
+to a tolerance: a difference in the last bit would show that an operation differs, and grow
+through the run. The scenes cover what the C loop must carry: cell integrals alone (the
+paper's scene), end loads (exterior facet integrals: the whip, the roll-up, the flying
+spaghetti's free ends), Dirichlet values that move (base excitation), a fork support, a form
+that changes in the run (the whip in 3D moves its chart: a new form, a new C loop), adaptive
+steps, and the three other integrators. A point load's interior facet integral keeps the
+Python loop, as does a parallel run (tests/test_scene_features.py runs those under MPI).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import ROOT
+
+from cosserat_fem import api, native_newton
+
+IN_3D = "discretisation.planar=off"
+
+CASES = {
+    "paper": ("cao_tucker_2008", 60, []),
+    "paper-bdf2": ("cao_tucker_2008", 60, ["time.integrator=bdf2", "time.step=1e-5"]),
+    "paper-sdirk4-full": ("cao_tucker_2008", 30, ["time.integrator=sdirk4",
+                                                  "solver.jacobian=full"]),
+    "paper-adaptive": ("cao_tucker_2008", 60, ["time.adaptive=true"]),
+    "whip-3d-chart": ("whip", 200, [IN_3D]),
+    "rollup-alpha": ("rollup", 60, []),
+    "base-excitation": ("base_excitation", 40, []),
+    "pendulum-fork": ("pendulum", 20, []),
+    "flying-spaghetti": ("flying_spaghetti", 20, []),
+}  # fmt: skip
+
+
+def _run(name: str, steps: int, extra: list[str], loop: str):
+    path = ROOT / "scenes" / f"{name}.toml"
+    scene = api.load(path)
+    end = scene.time.start + steps * scene.time.step
+    overrides = [f"time.end={end!r}", "output.xdmf=false", f"solver.loop={loop}", *extra]
+    return api.run(api.load(path, overrides), record=True)
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_the_c_loop_gives_the_python_loops_iterates_bit_for_bit(case):
+    name, steps, extra = CASES[case]
+    python = _run(name, steps, extra, "python")
+    native = _run(name, steps, extra, "auto")
+    assert python.summary["newton"]["loop"] == "python"
+    assert native.summary["newton"]["loop"] == "c"
+    assert python.summary["status"] == native.summary["status"] == "completed"
+    assert np.array_equal(python.probes, native.probes)
+    for key in ("solves", "iterations", "residual_assemblies", "jacobian_assemblies", "retries"):
+        assert python.summary["newton"][key] == native.summary["newton"][key], key
+    if case == "whip-3d-chart":
+        assert native.summary["chart_resets"] >= 1  # the form changed in the run
+
+
+def test_a_point_load_keeps_the_python_loop():
+    """An interior facet integral (``[loads.point]``) is not in the C loop: the run says so."""
+    result = _run("simo_vuquoc_right_angle", 4, [], "auto")
+    assert result.summary["newton"]["loop"] == "python"
+
+
+def test_a_failed_compile_keeps_the_python_loop(tmp_path, monkeypatch):
+    """A C source that does not compile (here: a syntax error; on a machine, missing PETSc
+    headers) is reported as NotApplicable, and the run uses the Python loop."""
+    broken = tmp_path / "newton_loop.c"
+    broken.write_text(native_newton.SOURCE.read_text() + "\nthis is not C;\n")
+    monkeypatch.setattr(native_newton, "SOURCE", broken)
+    monkeypatch.setattr(native_newton, "_MODULE", None)
+    monkeypatch.setattr(native_newton, "_cache_dir", lambda: tmp_path / "cache")
+    with pytest.raises(native_newton.NotApplicable, match="did not compile"):
+        native_newton.compiled()
+    result = _run("cao_tucker_2008", 2, [], "auto")
+    assert result.summary["newton"]["loop"] == "python"
