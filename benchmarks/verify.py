@@ -27,12 +27,13 @@ import numpy as np  # noqa: E402
 
 from cosserat_fem.energy import EnergyMonitor, EnergyRecorder  # noqa: E402
 from cosserat_fem.mms import run_mms  # noqa: E402
-from cosserat_fem.modal import compute_modes  # noqa: E402
+from cosserat_fem.modal import compute_modes, in_plane_share  # noqa: E402
 from cosserat_fem.model import rod_constants  # noqa: E402
 from cosserat_fem.output import PointProbe  # noqa: E402
 from cosserat_fem.reference.curved import (  # noqa: E402
     SIMO_VU_QUOC_RIGHT_ANGLE,
     right_angle_extrema,
+    thin_ring_frequency,
 )
 from cosserat_fem.reference.elastica import (  # noqa: E402
     MATTIASSON_1981,
@@ -635,6 +636,9 @@ def mechanisms_lines() -> list[str]:
 BEND = SCENES / "bathe_bolourchi_bend.toml"
 BEND_MESHES = {3: (4, 8, 16), 4: (4, 8, 16)}
 BEND_PATH_MESH = (4, 16)  # degree, elements of the load path's table
+RING = SCENES / "free_ring.toml"
+RING_DIAMETERS = (0.1, 0.05, 0.025)  # m; R = 1 m
+RING_ELEMENTS = 48  # quartic (tests/test_ring.py: converged to 1e-6 against 64)
 INCH, LBF = 0.0254, 4.4482216152605  # m, N
 
 
@@ -714,8 +718,71 @@ def curved_section() -> str:
         "these figures: issue 16.",
         "",
         *right_angle_lines(),
+        "",
+        *ring_lines(),
     ]
     return "\n".join(lines)
+
+
+def ring_lines() -> list[str]:
+    """The free ring's frequencies against the thin-ring closed forms, and how the gap closes
+    with the section (tests/test_ring.py holds the order)."""
+    waves = (2, 3, 4)
+    rows: dict[float, dict[str, np.ndarray]] = {}
+    for d in RING_DIAMETERS:
+        scene = load_scene(RING, [f"rod.section.diameter={d}",
+                                  f"discretisation.elements={RING_ELEMENTS}"])  # fmt: skip
+        _, modes = compute_modes(scene, 6 + 4 * len(waves))
+        planes: dict[str, list[float]] = {"in": [], "out": []}
+        for m in modes[6:]:
+            planes["in" if in_plane_share(m) > 0.5 else "out"].append(m.omega)
+        rows[d] = {p: np.array(w[::2]) for p, w in planes.items()}
+    E, nu, rho, R = 2.0e11, 0.3, 8000.0, 1.0
+    kappa = load_scene(RING).rod.section.shear_coefficient
+
+    def closed(d: float, plane: str) -> np.ndarray:
+        area, inertia = math.pi * d**2 / 4, math.pi * d**4 / 64
+        EI, GJ = E * inertia, E / (2 * (1 + nu)) * 2 * inertia
+        return np.array([thin_ring_frequency(n, plane, EI, GJ, rho * area, R) for n in waves])
+
+    d0 = RING_DIAMETERS[0]
+    lines = [
+        "**A free ring** (`scenes/free_ring.toml`, `reference.closed = true`: the ends joined, "
+        "p(ℓ) = p(0), cosserat_fem/modal.py `join_ends`): steel, R = 1 m, a solid circular "
+        f"section of d = {d0:g} m (NAFEMS's free thin ring), {RING_ELEMENTS} quartic elements. "
+        "Six rigid-body modes, then pairs of equal frequency (cos nθ, sin nθ); against the "
+        "thin-ring closed forms (inextensible, no shear, no rotary inertia; "
+        "`cosserat_fem/reference/curved.py`):",
+        "",
+        "| n | in plane [Hz] | closed form | δ | out of plane [Hz] | closed form | δ | "
+        "−½ (1 + E/κG)(n r_g/R)² |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for i, n in enumerate(waves):
+        cells = []
+        for plane in ("in", "out"):
+            fe, cf = rows[d0][plane][i] / (2 * math.pi), closed(d0, plane)[i] / (2 * math.pi)
+            cells += [f"{fe:.3f}", f"{cf:.2f}", f"{fe / cf - 1:+.2%}"]
+        timoshenko = -0.5 * (1 + 2 * (1 + nu) / kappa) * (n * d0 / 4 / R) ** 2
+        lines.append(f"| {n} | {' | '.join(cells)} | {timoshenko:+.2%} |")
+    lines += [
+        "",
+        "The gap δ is this rod's extension, shear and section inertia, which the closed forms "
+        "leave out: to leading order the Timoshenko correction of a bending wave of wavenumber "
+        "n/R (last column). It closes as (d/R)²; the order of δ between successive diameters:",
+        "",
+        "| d [m] | " + " | ".join(f"in, n = {n}" for n in waves) + " | "
+        + " | ".join(f"out, n = {n}" for n in waves) + " |",
+        "|---|" + "---|" * (2 * len(waves)),
+    ]
+    for coarse, fine in zip(RING_DIAMETERS, RING_DIAMETERS[1:], strict=False):
+        orders = [
+            math.log2((rows[coarse][p][i] / closed(coarse, p)[i] - 1)
+                      / (rows[fine][p][i] / closed(fine, p)[i] - 1))
+            for p in ("in", "out") for i in range(len(waves))
+        ]  # fmt: skip
+        lines.append(f"| {coarse:g} → {fine:g} | " + " | ".join(f"{o:.3f}" for o in orders) + " |")
+    return lines
 
 
 def right_angle_lines() -> list[str]:

@@ -82,7 +82,8 @@ def _reference_line(scene: Scene) -> str:
     ends = ref.positions(np.array([0.0, ell]))
     turning = ref.turning(ell)
     start, end = (", ".join(f"{x:.6g}" for x in point) for point in ends)
+    closed = ", closed: its ends joined (modes only)" if ref.closed else ""
     return (
         f"  reference: {ref.shape}, length {ell:.6g} m, from ({start}) to ({end}) m, "
-        f"total turning {turning:.6g} rad ({math.degrees(turning):.6g} deg)"
+        f"total turning {turning:.6g} rad ({math.degrees(turning):.6g} deg){closed}"
     )

@@ -74,6 +74,13 @@ class Mode:
         return self.omega / (2.0 * np.pi)
 
 
+def in_plane_share(mode: Mode) -> float:
+    """The share of a mode's kinetic energy in motions of the e1-e3 plane (x, z and ψ:
+    bending-x and axial): 1 for a mode in that plane, 0 for one out of it (y, θ, φ). The plane
+    of an arc (reference.shape = "arc") and of a ring."""
+    return mode.fractions["bending-x"] + mode.fractions["axial"]
+
+
 def angular_frequency(lam: complex, omega0: float, scale: float) -> tuple[float, str]:
     """(ω [rad/s], note) of the eigenvalue λ (see :class:`Mode`); ``scale``: the largest |λ|
     found, for what counts as round-off."""
@@ -87,13 +94,15 @@ def angular_frequency(lam: complex, omega0: float, scale: float) -> tuple[float,
 
 @dataclass
 class ModalProblem:
-    """Assembled K, M on the 6-component space of a model, and its base state p0."""
+    """Assembled K, M on the 6-component space of a model, and its base state p0; for a
+    closed rod, ``joint``: the map S of :func:`join_ends` (a mode's shape is S φ)."""
 
     model: RodModel
     P: fem.FunctionSpace
     p0: fem.Function
     K: PETSc.Mat
     M: PETSc.Mat
+    joint: PETSc.Mat | None = None
 
 
 def modal_supports(model: RodModel, P: fem.FunctionSpace) -> list:
@@ -132,7 +141,49 @@ def assemble_modal_problem(model: RodModel, base: np.ndarray | None = None) -> M
     K.assemble()
     M = assemble_matrix(fem.form(ufl.derivative(F, acc, dp)), bcs=bcs, diagonal=0.0)
     M.assemble()
+    if model.scene.reference.closed:
+        return join_ends(ModalProblem(model=model, P=P, p0=p0, K=K, M=M))
     return ModalProblem(model=model, P=P, p0=p0, K=K, M=M)
+
+
+def _end_dofs(P: fem.FunctionSpace, sigma: float) -> np.ndarray:
+    """The global indices of the six dofs of p at the node at σ (on every rank)."""
+    blocks = fem.locate_dofs_geometrical(P, lambda x: np.isclose(x[0], sigma))
+    index_map = P.dofmap.index_map
+    owned = blocks[blocks < index_map.size_local]
+    mine = index_map.local_to_global(owned.astype(np.int32)) if owned.size else []
+    found = [b for part in P.mesh.comm.allgather(list(mine)) for b in part]
+    if len(found) != 1:
+        raise RuntimeError(f"not one node at σ = {sigma}: {found}")
+    return 6 * int(found[0]) + np.arange(6)
+
+
+def join_ends(problem: ModalProblem) -> ModalProblem:
+    """The eigenproblem of a closed rod (reference.closed): its unknowns p(ℓ) = p(0).
+
+    S maps p onto the p whose end node (σ = 1) takes the values of the start node (σ = 0):
+    S = I but for the end node's columns, which move to the start node's. The weak form of
+    the ring has test functions continuous across the joint too, so its rows are Sᵀ applied
+    to the open rod's: K̃ = Sᵀ K S + D, M̃ = Sᵀ M S, where the end node's rows and columns
+    are zero and D puts 1 on K̃'s diagonal there (their eigenvalues are infinite, as a
+    clamped dof's: away from the wanted ones); a mode φ of (K̃, M̃) has the shape S φ. The
+    reference must close in position and frame (scene validation), so p = (displacement,
+    Euler angles of R that carries D0) means the same at both ends."""
+    P, K, M = problem.P, problem.K, problem.M
+    start, end = _end_dofs(P, 0.0), _end_dofs(P, 1.0)
+    rows = K.getOwnershipRange()
+    S = PETSc.Mat().createAIJ((K.getSizes()[0], K.getSizes()[0]), nnz=(1, 1), comm=K.comm)
+    for row in range(*rows):
+        at = np.flatnonzero(end == row)
+        S.setValue(row, int(start[at[0]]) if at.size else row, 1.0)
+    S.assemble()
+    K_joined, M_joined = K.PtAP(S), M.PtAP(S)
+    K_joined.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    for row in end:
+        if rows[0] <= row < rows[1]:
+            K_joined.setValue(int(row), int(row), 1.0, addv=PETSc.InsertMode.ADD_VALUES)
+    K_joined.assemble()
+    return ModalProblem(problem.model, P, problem.p0, K_joined, M_joined, joint=S)
 
 
 def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
@@ -167,11 +218,16 @@ def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
             suggestion="ask for fewer (--count) or refine the mesh (discretisation.elements)",
         )
     vr, vi = problem.K.createVecs()
+    joined = vr.duplicate()
     pairs = []
     for i in range(found):
         lam = eps.getEigenpair(i, vr, vi)
         shape = fem.Function(problem.P, name="mode")
-        shape.vector.array[:] = vr.array
+        if problem.joint is not None:
+            problem.joint.mult(vr, joined)
+            shape.vector.array[:] = joined.array
+        else:
+            shape.vector.array[:] = vr.array
         shape.x.scatter_forward()
         pairs.append((complex(lam), shape))
     pairs.sort(key=lambda pair: (pair[0].real, pair[0].imag))
@@ -243,7 +299,7 @@ def max_modes(scene: Scene) -> int:
     those a support holds (six at a clamped end, four at a pinned one: x, y, z, φ, three at a
     spherical one)."""
     disc = scene.discretisation
-    nodes = disc.elements * disc.degree + 1
+    nodes = disc.elements * disc.degree + 1 - scene.reference.closed  # a ring: ends joined
     held = {"clamped": 6, "pinned": 4, "spherical": 3, "free": 0}
     return 6 * nodes - held[scene.supports.start] - held[scene.supports.end]
 

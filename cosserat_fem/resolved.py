@@ -75,13 +75,16 @@ class ReferenceShape:
       (normal to every segment), d0_1 = d0_2 × d0_3.
 
     s is the arc length [m]; :meth:`positions` and :meth:`frames` evaluate them in NumPy (at a
-    corner, the frame of the segment after it)."""
+    corner, the frame of the segment after it). ``closed``: the rod's two ends are joined, a
+    ring (r0 and D0 the same at s = 0 and s = ℓ; its unknowns p(0) = p(ℓ): cosserat_fem/modal.py).
+    """
 
     shape: str = "straight"
     radius: float | None = None
     pitch_angle: float | None = None
     points: tuple[tuple[float, float, float], ...] | None = None
     binormal: tuple[float, float, float] | None = None
+    closed: bool = False
 
     def corners(self) -> np.ndarray:
         """The arc lengths [m] at which a polyline's segments start, and its length: (k + 1,)."""

@@ -104,7 +104,7 @@ def _build_reference(raw: dict[str, Any]) -> ReferenceShape:
     shape = raw["shape"]
     keys = REFERENCE_KEYS[shape]
     for name, value in raw.items():
-        if value is not None and name not in (*keys, "shape"):
+        if value is not None and name not in (*keys, "shape", "closed"):
             takes = f"takes {', '.join(keys)}" if keys else "takes no other key"
             raise SceneError(f"reference.{name}: not a key of shape {shape!r}, which {takes}")
     values = {k: v for k, v in raw.items() if v is not None}
@@ -615,6 +615,8 @@ def _check_reference(scene: Scene, reference: ReferenceShape) -> None:
     """What a rod curved at rest does not support yet, refused by name: pinned and spherical
     supports (their held components are those of the straight rod's angles) and the printed
     torsion inertia (which divides a row that a curved rod's rows mix, forms/general_form.py)."""
+    if reference.closed:
+        _check_closed(scene, reference)
     if not reference.curved:
         return
     if reference.shape == "polyline":
@@ -640,6 +642,51 @@ def _check_reference(scene: Scene, reference: ReferenceShape) -> None:
         raise SceneError(
             f"model.torsion_inertia: {scene.model.torsion_inertia!r} (the paper's printed "
             f"erratum) is not defined for reference.shape = {reference.shape!r}; use 'polar'"
+        )
+
+
+def refuse_closed(scene: Scene, command: str) -> None:
+    """SceneError for a closed rod (reference.closed) in a command other than ``modes``."""
+    if scene.reference.closed:
+        raise SceneError(
+            f"reference.closed: a closed rod has modes only ({command} needs its unknowns "
+            "joined at s = 0 and s = ℓ, which its solver does not have yet); use "
+            "cosserat-fem modes"
+        )
+
+
+#: How far apart a closed rod's two ends may be at rest: [m] per m of rod, and in the frame.
+CLOSURE_TOLERANCE = 1e-9
+
+
+def _check_closed(scene: Scene, reference: ReferenceShape) -> None:
+    """A closed rod (reference.closed) has no ends: both supports free, no end loads, and its
+    reference curve must close, position and frame (a ring: an arc of length 2π R)."""
+    for end in ("start", "end"):
+        if getattr(scene.supports, end) != "free":
+            raise SceneError(
+                f"supports.{end}: a closed rod (reference.closed = true) has no ends to hold; "
+                f"use 'free', got {getattr(scene.supports, end)!r}"
+            )
+        load = getattr(scene.loads, end)
+        if load is not None and not all(e.is_zero for e in (*load.force, *load.torque)):
+            raise SceneError(
+                f"loads.{end}: a closed rod (reference.closed = true) has no end to load"
+            )
+    ell = scene.rod.length
+    ends = np.array([0.0, ell])
+    r0, D0 = reference.positions(ends), reference.frames(ends)
+    gap, turn = float(np.linalg.norm(r0[1] - r0[0])), float(np.abs(D0[1] - D0[0]).max())
+    if gap > CLOSURE_TOLERANCE * ell or turn > CLOSURE_TOLERANCE:
+        hint = (
+            f" (an arc closes when rod.length = 2π reference.radius = "
+            f"{2 * math.pi * reference.radius!r} m)"
+            if reference.shape == "arc"
+            else ""
+        )
+        raise SceneError(
+            f"reference.closed: the rod's reference does not close: its ends are {gap:.3g} m "
+            f"apart and their frames differ by {turn:.3g}{hint}"
         )
 
 

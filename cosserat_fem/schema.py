@@ -356,6 +356,8 @@ SCHEMA = Table(
                 # polyline: its corners (the first the start), and d0_2 on every segment
                 "points": Points(unit="m"),
                 "binormal": Vector(unit="-"),
+                # the two ends joined (a ring): the curve must close; modes only, for now
+                "closed": Flag(default=False),
             }
         ),
         "model": Table(

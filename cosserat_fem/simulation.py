@@ -52,7 +52,7 @@ from .observers import (
 from .output import PointProbe, probe_position, probe_sigma
 from .parallel import ranks_on_node
 from .run_folder import PROBES, XDMF, new_run_id, prepare_output_dir, status_of
-from .scene import Scene
+from .scene import Scene, refuse_closed
 
 
 @dataclass
@@ -139,6 +139,7 @@ def run(
     ``fields``: stations σ ∈ [0, 1] at which to keep p every ``field_every`` output times.
     """
     t_start = time.perf_counter()
+    refuse_closed(scene, "run")
     fields = _stations(fields, field_every)
     if restart is not None:
         out_dir, write_outputs = restart.run_dir, True

@@ -40,7 +40,7 @@ from .output import PointProbe, probe_position, probe_sigma
 from .parallel import ranks_on_node
 from .progress import LOGGER
 from .run_folder import PROBES, XDMF, new_run_id, prepare_output_dir, status_of
-from .scene import Scene
+from .scene import Scene, refuse_closed
 
 
 @dataclass
@@ -187,6 +187,7 @@ def static_path(
     t_start = clock.perf_counter()
     out = Path(out_dir if out_dir is not None else scene.output.directory)
     budget.check(scene, "static", out if write_outputs else None, ranks_on_node(comm), comm.size)
+    refuse_closed(scene, "static")
     if scene.supports.mechanism:
         raise SceneError(
             f'supports: a static equilibrium needs the rod held (start = "{scene.supports.start}"'
