@@ -168,6 +168,19 @@ class RodModel:
         if shape.shape == "polyline":
             frame = self._polyline_frame()
             return Reference(ufl.as_vector([frame[2, j] for j in range(3)]), frame, ufl.zero(3))
+        if shape.shape == "curve":
+            symbols = {"s": self.length * sigma, **shape.constants}
+
+            def vector(expressions, order: int):
+                """A curve's expressions, or their order-th derivative in s, in UFL."""
+                for _ in range(order):
+                    expressions = [derivative(e, "s") for e in expressions]
+                return ufl.as_vector([e.to_ufl(symbols) for e in expressions])
+
+            return reference_shapes.curve(
+                vector(shape.position, 1), vector(shape.position, 2),
+                vector(shape.director, 0), vector(shape.director, 1),
+            )  # fmt: skip
         return reference_shapes.helix(sigma, self.length, shape.radius, shape.pitch_angle)
 
     def _polyline_frame(self) -> fem.Function:

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from cosserat_fem.expressions import Expression
+from cosserat_fem.expressions import Expression, derivative
 from cosserat_fem.forms.groups import RodConstants, euler_bernoulli_omega0
 from cosserat_fem.forms.section import Section, rectangle, tube
 
@@ -72,7 +72,10 @@ class ReferenceShape:
       (d0_1 the principal normal, d0_2 the binormal, d0_3 = r0');
     * ``polyline`` through ``points`` [m] (the first is the rod's start), straight segments
       whose frame jumps at the corners: d0_3 along the segment, d0_2 the unit ``binormal``
-      (normal to every segment), d0_1 = d0_2 × d0_3.
+      (normal to every segment), d0_1 = d0_2 × d0_3;
+    * ``curve``: r0 = ``position`` and d0_1 = ``director``, expressions of the arc length s [m]
+      (and ``constants``: L and the scene's parameters): d0_3 = r0' (|r0'| = 1, s is the arc
+      length), d0_1 ⊥ d0_3 a unit vector, d0_2 = d0_3 × d0_1 (checked by the scene).
 
     s is the arc length [m]; :meth:`positions` and :meth:`frames` evaluate them in NumPy (at a
     corner, the frame of the segment after it). ``closed``: the rod's two ends are joined, a
@@ -84,7 +87,21 @@ class ReferenceShape:
     pitch_angle: float | None = None
     points: tuple[tuple[float, float, float], ...] | None = None
     binormal: tuple[float, float, float] | None = None
+    position: tuple[Expression, Expression, Expression] | None = None
+    director: tuple[Expression, Expression, Expression] | None = None
     closed: bool = False
+    #: The values of the names a curve's expressions may use besides s (L, parameters).
+    constants: dict[str, float] | None = field(default=None, compare=False)
+
+    def curve_values(self, vector, s: np.ndarray, order: int = 0) -> np.ndarray:
+        """A curve's expressions (or their ``order``-th derivative in s) at s, (len(s), 3)."""
+        values = []
+        for e in vector:
+            for _ in range(order):
+                e = derivative(e, "s")
+            value = e.evaluate(s=s, **(self.constants or {}))
+            values.append(np.broadcast_to(np.asarray(value, dtype=float), s.shape))
+        return np.column_stack(values)
 
     def corners(self) -> np.ndarray:
         """The arc lengths [m] at which a polyline's segments start, and its length: (k + 1,)."""
@@ -118,6 +135,8 @@ class ReferenceShape:
         if self.shape == "polyline":
             pts = np.asarray(self.points, dtype=float)
             return np.column_stack([np.interp(s, self.corners(), pts[:, i]) for i in range(3)])
+        if self.shape == "curve":
+            return self.curve_values(self.position, s)
         return np.column_stack([0 * s, 0 * s, s])
 
     def frames(self, s: np.ndarray) -> np.ndarray:
@@ -136,6 +155,9 @@ class ReferenceShape:
         elif self.shape == "polyline":
             starts = self.corners()[1:-1]
             D0[:] = self.segment_frames()[np.searchsorted(starts, s, side="right")]
+        elif self.shape == "curve":
+            t, d1 = self.curve_values(self.position, s, 1), self.curve_values(self.director, s)
+            D0[:, 0], D0[:, 1], D0[:, 2] = d1, np.cross(t, d1), t
         else:
             D0[:] = np.eye(3)
         return D0
@@ -149,14 +171,21 @@ class ReferenceShape:
         if self.shape == "polyline":
             t = self.segment_frames()[:, 2]
             return float(np.arccos(np.clip((t[1:] * t[:-1]).sum(axis=1), -1.0, 1.0)).sum())
+        if self.shape == "curve":  # the trapezoidal rule on 4096 intervals
+            s = np.linspace(0.0, length, 4097)
+            bending = np.linalg.norm(self.curve_values(self.position, s, 2), axis=1)
+            return float(np.sum(0.5 * (bending[1:] + bending[:-1]) * np.diff(s)))
         return 0.0
 
     def given(self) -> dict[str, Any]:
         """The keys of this shape (for to_dict)."""
-        values = {k: v for k, v in vars(self).items() if v is not None}
+        values = {k: v for k, v in vars(self).items() if v is not None and k != "constants"}
         if self.points is not None:
             values["points"] = [list(p) for p in self.points]
             values["binormal"] = list(self.binormal)
+        for name in ("position", "director"):
+            if name in values:
+                values[name] = [e.source for e in values[name]]
         return values
 
 

@@ -98,9 +98,9 @@ def _build_section(raw: dict[str, Any], poisson_ratio: float) -> SectionSpec:
     return SectionSpec(**values)
 
 
-def _build_reference(raw: dict[str, Any]) -> ReferenceShape:
-    """[reference] resolved: only and all the keys of its shape (REFERENCE_KEYS). SceneError
-    naming the key."""
+def _build_reference(raw: dict[str, Any], constants: dict[str, float]) -> ReferenceShape:
+    """[reference] resolved: only and all the keys of its shape (REFERENCE_KEYS); a curve's
+    expressions of s and ``constants`` (L, the parameters). SceneError naming the key."""
     shape = raw["shape"]
     keys = REFERENCE_KEYS[shape]
     for name, value in raw.items():
@@ -111,6 +111,11 @@ def _build_reference(raw: dict[str, Any]) -> ReferenceShape:
     if shape == "polyline":
         values["binormal"] = _binormal(values.get("binormal", [0, 1, 0]))
         values["points"] = tuple(values.get("points") or ())
+    if shape == "curve":
+        for name in ("position", "director"):
+            if values.get(name) is not None:
+                values[name] = parse_vector(values[name], {"s", *constants}, f"reference.{name}")
+        values["constants"] = dict(constants)
     for name in keys:
         if values.get(name) is None or values.get(name) == ():
             raise SceneError(f"reference.{name}: required for shape {shape!r}")
@@ -551,7 +556,7 @@ def scene_from_dict(
         source=source,
     )
     _check_derived(scene)
-    reference = _build_reference(raw["reference"])
+    reference = _build_reference(raw["reference"], scene.expression_names())
     _check_reference(scene, reference)
     _check_point_load(scene)
     initial = _build_initial(raw["initial"], supports, scene.expression_names(), time.start)
@@ -592,6 +597,55 @@ def _check_polyline(scene: Scene, reference: ReferenceShape) -> None:
             )
 
 
+def _half_size(scene: Scene) -> float:
+    """Half the section's largest extent [m]: a rod may not be bent tighter."""
+    spec = scene.rod.section
+    extents = [spec.a, spec.b, spec.diameter, spec.outer_diameter]
+    return 0.5 * max([x for x in extents if x is not None] or [math.sqrt(spec.constants().area)])
+
+
+#: How closely a curve's expressions must give an arc-length parametrisation and an
+#: orthonormal frame (|r0'| = 1, |d0_1| = 1, d0_1 · r0' = 0), at 64 points an element.
+CURVE_TOLERANCE = 1e-6
+
+
+def _check_curve(scene: Scene, reference: ReferenceShape) -> None:
+    """A curve's r0(s) and d0_1(s) are finite, s is their arc length (|r0'| = 1), d0_1 is a
+    unit vector normal to the tangent d0_3 = r0', and the curve is no tighter than the section
+    (|r0''| < 1/half size), at 64 points an element; SceneError naming the key and the place."""
+    ell = scene.rod.length
+    s = np.linspace(0.0, ell, 64 * scene.discretisation.elements + 1)
+    with np.errstate(all="ignore"):
+        r0, d1 = reference.positions(s), reference.curve_values(reference.director, s)
+        t, bend = (reference.curve_values(reference.position, s, k) for k in (1, 2))
+    for name, values in (("position", np.hstack([r0, t, bend])), ("director", d1)):
+        bad = ~np.isfinite(values).all(axis=1)
+        if bad.any():
+            raise SceneError(f"reference.{name}: not a finite number at s = "
+                             f"{s[np.argmax(bad)]:.6g} m")  # fmt: skip
+    speed, size, cosine = np.linalg.norm(t, axis=1), np.linalg.norm(d1, axis=1), (d1 * t).sum(1)
+    checks = (
+        ("position", speed - 1.0, "s must be its arc length, |dr0/ds| = 1", "|dr0/ds|", speed),
+        ("director", size - 1.0, "d0_1 must be a unit vector", "|d0_1|", size),
+        ("director", cosine, "d0_1 must be normal to the tangent d0_3 = dr0/ds",
+         "their cosine", cosine),
+    )  # fmt: skip
+    for name, error, rule, quantity, shown in checks:
+        i = int(np.argmax(np.abs(error)))
+        if abs(error[i]) > CURVE_TOLERANCE:
+            raise SceneError(
+                f"reference.{name}: {rule} (within {CURVE_TOLERANCE:g}); {quantity} is "
+                f"{shown[i]:.6g} at s = {s[i]:.6g} m"
+            )
+    curvature, half = np.linalg.norm(bend, axis=1), _half_size(scene)
+    i = int(np.argmax(curvature))
+    if not curvature[i] * half < 1.0:
+        raise SceneError(
+            f"reference.position: its radius of curvature at s = {s[i]:.6g} m, "
+            f"{1.0 / curvature[i]:.4g} m, must exceed half the section's size, {half:.4g} m"
+        )
+
+
 def _check_point_load(scene: Scene) -> None:
     """loads.point.s lies inside the rod at a node of the mesh; SceneError naming it."""
     point, ell = scene.loads.point, scene.rod.length
@@ -621,11 +675,10 @@ def _check_reference(scene: Scene, reference: ReferenceShape) -> None:
         return
     if reference.shape == "polyline":
         _check_polyline(scene, reference)
+    elif reference.shape == "curve":
+        _check_curve(scene, reference)
     else:
-        spec = scene.rod.section
-        extents = [spec.a, spec.b, spec.diameter, spec.outer_diameter]
-        size = max([x for x in extents if x is not None] or [math.sqrt(spec.constants().area)])
-        half = 0.5 * size
+        half = _half_size(scene)
         if not reference.radius > half:
             raise SceneError(
                 f"reference.radius: must exceed half the section's size, {half:.4g} m (a rod "

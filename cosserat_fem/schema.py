@@ -66,6 +66,7 @@ REFERENCE_KEYS = {
     "arc": ("radius",),
     "helix": ("radius", "pitch_angle"),
     "polyline": ("points", "binormal"),
+    "curve": ("position", "director"),
 }
 
 
@@ -343,8 +344,8 @@ SCHEMA = Table(
             }
         ),
         # The rod at rest (forms/reference.py): straight along e3 (the paper's), a circular
-        # arc in the e1-e3 plane bending towards +e1, a helix about an axis along e3, or a
-        # polyline whose frame jumps at its corners.
+        # arc in the e1-e3 plane bending towards +e1, a helix about an axis along e3, a
+        # polyline whose frame jumps at its corners, or a curve of expressions of s.
         "reference": Table(
             {
                 "shape": Choice(choices=tuple(REFERENCE_KEYS), default="straight"),
@@ -356,6 +357,9 @@ SCHEMA = Table(
                 # polyline: its corners (the first the start), and d0_2 on every segment
                 "points": Points(unit="m"),
                 "binormal": Vector(unit="-"),
+                # curve: r0(s) and d0_1(s), expressions of the arc length s [m]
+                "position": Vector(unit="m"),
+                "director": Vector(unit="-"),
                 # the two ends joined (a ring): the curve must close; modes only, for now
                 "closed": Flag(default=False),
             }

@@ -80,6 +80,21 @@ def helix(sigma, length: float, radius: float, pitch_angle: float) -> Reference:
     return Reference(tangent, frame, curvature)
 
 
+def curve(tangent, tangent_rate, director, director_rate) -> Reference:
+    """A curve given by its unit tangent t0 = d0_3 and a unit director d0_1 ⊥ t0 (UFL
+    3-vectors, fixed basis) and their derivatives in s [1/m]: D0 has the rows d0_1,
+    d0_2 = d0_3 × d0_1, d0_3, and the curvature in the reference directors' components is
+    u0_1 = d0_2'·d0_3, u0_2 = d0_3'·d0_1, u0_3 = d0_1'·d0_2 (from d0_i' = u0 × d0_i)."""
+    d1, d3 = director, tangent
+    d2 = ufl.cross(d3, d1)
+    d2_rate = ufl.cross(tangent_rate, d1) + ufl.cross(d3, director_rate)
+    frame = ufl.as_matrix([[d[j] for j in range(3)] for d in (d1, d2, d3)])
+    curvature = ufl.as_vector(
+        [ufl.dot(d2_rate, d3), ufl.dot(tangent_rate, d1), ufl.dot(director_rate, d2)]
+    )
+    return Reference(tangent, frame, curvature)
+
+
 def placed(reference: Reference, rotation) -> Reference:
     """The reference turned by the fixed rotation ``rotation`` (3×3 nested sequence or UFL
     matrix, R x in column form): t0 → R t0, d0_i → R d0_i (D0 → D0 Rᵀ)."""
