@@ -405,3 +405,29 @@ def test_a_rod_at_rest_in_its_reference_has_zero_residual(rod, shape):
     assert bent > 0
     for name, value in rest.items():
         assert value <= 1e-13 * bent, (name, value, bent)
+
+
+def test_a_curve_from_its_tangent_and_director_is_the_helix():
+    """forms/reference.py ``curve`` (D0 from t0 and d0_1, u0 from their derivatives) given the
+    helix's tangent, principal normal and their derivatives in s equals ``helix``'s closed-form
+    frame and curvature, u0 = (0, cos²α/R, sin α cos α/R): ∫ |ΔD0|² + |Δu0|² R² dσ is zero to
+    round-off (1e-28 of the frame's O(1) entries squared)."""
+    from cosserat_fem.forms.reference import curve, helix
+
+    msh = mesh.create_unit_interval(MPI.COMM_WORLD, 5)
+    sigma = ufl.SpatialCoordinate(msh)[0]
+    length, R, alpha = 1.3, 0.35, 0.4
+    k, ca, sa = np.cos(alpha) / R, np.cos(alpha), np.sin(alpha)
+    a = k * length * sigma
+    c, s = ufl.cos(a), ufl.sin(a)
+    written = curve(
+        ufl.as_vector([-s * ca, c * ca, sa]), ufl.as_vector([-k * c * ca, -k * s * ca, 0.0]),
+        ufl.as_vector([-c, -s, 0.0]), ufl.as_vector([k * s, -k * c, 0.0]),
+    )  # fmt: skip
+    named = helix(sigma, length, R, alpha)
+    gap = (ufl.inner(written.frame - named.frame, written.frame - named.frame)
+           + R**2 * ufl.inner(written.curvature - named.curvature,
+                              written.curvature - named.curvature)) * ufl.dx(msh)  # fmt: skip
+    assert abs(fem.assemble_scalar(fem.form(gap))) <= 1e-28
+    size = R**2 * ufl.inner(named.curvature, named.curvature) * ufl.dx(msh)
+    assert fem.assemble_scalar(fem.form(size)) > 0.5  # |u0| R = cos α: a real comparison
