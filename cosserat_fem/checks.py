@@ -52,6 +52,47 @@ def cos_theta(model: RodModel, state: np.ndarray) -> np.ndarray:
     return np.cos(state.reshape(-1, model.layout.size)[:n, theta])
 
 
+class StateCheck:
+    """:func:`check_state` and :func:`cos_theta` of one model's U, with its views and sizes
+    kept: a time step's check is then a few NumPy calls instead of a dozen lookups of DOLFINx
+    properties (docs/decisions.md, "The compiled inner loop"). The same numbers, bit for bit;
+    a failed check is reported by :func:`check_state` itself."""
+
+    def __init__(self, model: RodModel):
+        self.model = model
+        n = model.V.dofmap.index_map.size_local
+        size = model.layout.size
+        u = model.U.x.array
+        self._owned = u[: n * size]
+        theta = model.layout.index(3)
+        planar = theta is None or model.layout.index(4) is None
+        self._theta = None if planar else u.reshape(-1, size)[:n, theta]
+        self._ones = np.ones(n)
+        self._comm = model.msh.comm if model.msh.comm.size > 1 else None
+
+    def cos_theta(self) -> np.ndarray:
+        """cos θ at the owned nodes of U (:func:`cos_theta`)."""
+        return self._ones if self._theta is None else np.cos(self._theta)
+
+    def __call__(
+        self, t: float | None, where_prefix: str = "", before: np.ndarray | None = None
+    ) -> np.ndarray:
+        """:func:`check_state` of U."""
+        cos_now = self.cos_theta()
+        value = 1.0
+        if cos_now.size:
+            value = float(np.abs(cos_now).min())
+            if before is not None and float((before * cos_now).min()) <= 0.0:
+                value = -0.5
+            if not math.isfinite(value + float(self._owned.sum())):
+                value = -1.0
+        if self._comm is not None:
+            value = self._comm.allreduce(value, op=MPI.MIN)
+        if value >= CHART_COS_MIN:
+            return cos_now
+        return check_state(self.model, t, where_prefix, before)
+
+
 def check_state(
     model: RodModel, t: float | None, where_prefix: str = "", before: np.ndarray | None = None
 ) -> np.ndarray:

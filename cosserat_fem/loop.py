@@ -25,7 +25,7 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from .adaptive import SHRINK, StateHistory, StepController
-from .checks import check_state, cos_theta, worst_place
+from .checks import StateCheck, cos_theta, worst_place
 from .errors import SceneError, SolverError
 from .events import Events
 from .model import RodModel
@@ -157,7 +157,8 @@ class TimeLoop:
             self._adaptive_parts()
         if restart is not None:
             self.load_state_dict(restart)
-        self._cos_accepted = cos_theta(model, model.U.x.array)  # the chart-crossing check
+        self._check = StateCheck(model)
+        self._cos_accepted = self._check.cos_theta()  # the chart-crossing check
         self._cos_candidate = self._cos_accepted
         if events.listens("newton_iteration"):
             solver.iteration_hook = lambda it, norms, reason: events.newton_iteration(
@@ -237,7 +238,7 @@ class TimeLoop:
         largest = watch_chart(model, self.integrator, self.solver, self.history, self._cos_accepted)
         if largest is None:
             return
-        self._cos_accepted = self._cos_candidate = cos_theta(model, model.U.x.array)
+        self._cos_accepted = self._cos_candidate = self._check.cos_theta()
         self.state.chart_resets += 1
         LOGGER.info("t = %.6g s: chart moved onto the rod (|θ| reached %.3f rad)", t, largest)
 
@@ -261,7 +262,7 @@ class TimeLoop:
             # A method whose new state is not its last stage (SDIRK3/4) meets a moving
             # support's values only to its order: put them in exactly.
             self.model.support_dofs_to(self.model.U.x.array, t_new * self.omega0)
-            self._cos_candidate = check_state(self.model, t_new, before=self._cos_accepted)
+            self._cos_candidate = self._check(t_new, before=self._cos_accepted)
         except NewtonFailure as exc:
             self._blame_loads(t_new)
             blocks = self.model.layout.size

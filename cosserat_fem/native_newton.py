@@ -48,8 +48,16 @@ typedef struct {
   const double* bc_values; const double* u_values; double* w; double* be;
   void *u, *b, *dx, *ksp; double time_residual; int64_t residuals;
 } cf_problem;
+typedef struct {
+  double rtol, atol, stol, xatol; int max_iterations; int linear_test;
+} cf_settings;
+typedef struct {
+  int phase; int need_jacobian; int iterations; int reason;
+  double f0, f_prev, update_prev; double norms[3];
+} cf_newton_state;
 int cf_residual(cf_problem* p);
 int cf_iterate(cf_problem* p, int* reason, double* norms);
+int cf_newton(cf_problem* p, const cf_settings* s, cf_newton_state* st);
 void* cf_kernel(uintptr_t form, int type, int i);
 """
 
@@ -128,7 +136,7 @@ def compiled():
             libraries=["petsc_real"],
             library_dirs=[libdir],
             extra_link_args=[f"-Wl,-rpath,{libdir}"],
-            extra_compile_args=["-O2", "-g0"],
+            extra_compile_args=["-O2", "-g0", "-ffp-contract=off"],
         )
         cache.mkdir(parents=True, exist_ok=True)
         from .jit import capture_stderr
@@ -295,6 +303,31 @@ class NativeLoop:
         if status:
             raise RuntimeError(f"PETSc error {status} in a Newton iteration")
         return self._reason[0], self.norms.tolist()
+
+    def settings(self, settings) -> None:
+        """The stop rule's settings (a NewtonSettings) for :meth:`newton`."""
+        s = self.ffi.new("cf_settings*")
+        s.rtol, s.atol, s.stol, s.xatol = (settings.rtol, settings.atol, settings.stol,
+                                           settings.xatol)  # fmt: skip
+        s.max_iterations = settings.max_iterations
+        s.linear_test = settings.jacobian != "full"
+        self._settings = s
+        self._state = self.ffi.new("cf_newton_state*")
+
+    def newton(self, need_jacobian: bool, assemble_jacobian, update_prev: float):
+        """NewtonSolver._run in C (newton_loop.c cf_newton), from U; with ``need_jacobian``,
+        ``assemble_jacobian()`` is called before the first iteration (if there is one), as the
+        Python loop calls it. The state after it: ``iterations``, ``reason``, ``f0``,
+        ``f_prev``, ``update_prev``, ``norms``."""
+        st = self._state
+        st.phase, st.update_prev, st.need_jacobian = 0, update_prev, need_jacobian
+        status = self.lib.cf_newton(self._p, self._settings, st)
+        if not status and st.phase == 1:
+            assemble_jacobian()
+            status = self.lib.cf_newton(self._p, self._settings, st)
+        if status:
+            raise RuntimeError(f"PETSc error {status} in a Newton solve")
+        return st
 
     @property
     def counters(self) -> tuple[int, float]:

@@ -224,6 +224,7 @@ class NewtonSolver:
         except NotApplicable as exc:
             logging.getLogger(__name__).info("Newton's inner loop in Python: %s", exc)
             return
+        native.settings(self.settings)
         self._native = native
         self.loop = "c"
 
@@ -383,6 +384,8 @@ class NewtonSolver:
         t0 = time.perf_counter()
         reasons = PETSc.SNES.ConvergedReason
         native = self._native
+        if native is not None and self.iteration_hook is None and self.settings.jacobian != "full":
+            return self._run_native(t0)
         if native is not None:
             native.refresh()  # this solve's constants and Dirichlet values
             counted = native.counters
@@ -416,6 +419,21 @@ class NewtonSolver:
         self.stats.time_solve += time.perf_counter() - t0
         self.stats.iterations += it
         return it, reason
+
+    def _run_native(self, t0: float) -> tuple[int, int]:
+        """:meth:`_run` in one call into C (cosserat_fem/newton_loop.c ``cf_newton``, for a
+        reused Jacobian and no iteration hook): the same iterates, norms, counts and reasons."""
+        native = self._native
+        native.refresh()  # this solve's constants and Dirichlet values
+        counted = native.counters
+        st = native.newton(self._need_jacobian, self._jacobian, self._update_prev)
+        self._f0, self._f_prev, self._update_prev = st.f0, st.f_prev, st.update_prev
+        assemblies, seconds = native.counters
+        self.stats.residual_assemblies += assemblies - counted[0]
+        self.stats.time_residual += seconds - counted[1]
+        self.stats.time_solve += time.perf_counter() - t0
+        self.stats.iterations += st.iterations
+        return st.iterations, st.reason
 
     # -- checkpoint/restart ---------------------------------------------------------------
     def state_dict(self) -> dict:

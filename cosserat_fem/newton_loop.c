@@ -12,9 +12,17 @@
  *
  * cf_iterate is one pass of NewtonSolver._run's loop body: KSPSolve(b, dx), the KSP's
  * reason, U -= dx, b = F(U), and the norms (||U||, ||dx||, ||b||) in one split-phase
- * reduction, as _norms takes them. The convergence test stays in Python.
+ * reduction, as _norms takes them.
+ *
+ * cf_newton is the whole of NewtonSolver._run for a reused Jacobian and no per-iteration
+ * observer: the first residual and its norm, the test at k = 0, then cf_iterate and the stop
+ * rule of NewtonSolver._test, in the same order and the same IEEE operations (compiled with
+ * -ffp-contract=off: no fused multiply-adds). It returns to Python once, before the first
+ * iteration, when the caller says a Jacobian is due (phase 1), and goes on when called again.
  */
+#include <math.h>
 #include <petscksp.h>
+#include <petscsnes.h>
 #include <stdint.h>
 #include <string.h>
 #include <time.h>
@@ -135,4 +143,80 @@ void* cf_kernel(uintptr_t form, int type, int i)
 {
   ufcx_integral** integrals = ((ufcx_form*)form)->integrals((ufcx_integral_type)type);
   return (void*)integrals[i]->tabulate_tensor_float64;
+}
+
+typedef struct {
+  double rtol, atol, stol, xatol;
+  int max_iterations;
+  int linear_test;   /* a reused Jacobian: the contraction estimate of _test */
+} cf_settings;
+
+typedef struct {
+  int phase;         /* 0: start a solve; 1: before the first iteration (a Jacobian is due) */
+  int need_jacobian; /* in: the caller will assemble one before the first iteration */
+  int iterations;
+  int reason;        /* SNESConvergedReason */
+  double f0, f_prev, update_prev;
+  double norms[3];   /* the last (||U||, ||dx||, ||F||) */
+} cf_newton_state;
+
+/* NewtonSolver._test after iteration it >= 1 with norms (x, y, f). */
+static int stop_rule(const cf_settings* s, cf_newton_state* st, int it, const double* n)
+{
+  const double xnorm = n[0], ynorm = n[1], fnorm = n[2];
+  if (fnorm != fnorm || ynorm != ynorm) return SNES_DIVERGED_FNORM_NAN;
+  const int linear = it >= 2 && s->linear_test && st->update_prev > 0.0;
+  double rho = 0.0;
+  if (linear) {
+    const double a = ynorm / st->update_prev, b = fnorm / st->f_prev;
+    rho = b > a ? b : a; /* Python's max(a, b) */
+  }
+  st->update_prev = ynorm;
+  st->f_prev = fnorm;
+  if (fnorm <= s->atol) return SNES_CONVERGED_FNORM_ABS;
+  if (fnorm <= s->rtol * st->f0) return SNES_CONVERGED_FNORM_RELATIVE;
+  const double tolerance = s->stol * xnorm + s->xatol;
+  if (ynorm <= tolerance || (linear && rho < 1.0 && ynorm * rho / (1.0 - rho) <= tolerance))
+    return SNES_CONVERGED_SNORM_RELATIVE;
+  if (it >= s->max_iterations) return SNES_DIVERGED_MAX_IT;
+  return SNES_CONVERGED_ITERATING;
+}
+
+/* NewtonSolver._run (see the top of the file); 0 or a PETSc error code. */
+int cf_newton(cf_problem* p, const cf_settings* s, cf_newton_state* st)
+{
+  int ierr;
+  if (st->phase == 0) {
+    PetscReal fnorm;
+    st->iterations = 0;
+    if ((ierr = cf_residual(p))) return ierr;
+    if ((ierr = (int)VecNorm((Vec)p->b, NORM_2, &fnorm))) return ierr;
+    if (!isfinite(fnorm)) {
+      st->reason = SNES_DIVERGED_FNORM_NAN;
+      return 0;
+    }
+    st->f0 = st->f_prev = fnorm;
+    st->reason = fnorm <= s->atol ? SNES_CONVERGED_FNORM_ABS : SNES_CONVERGED_ITERATING;
+    if (st->reason == SNES_CONVERGED_ITERATING && s->max_iterations > 0 && st->need_jacobian) {
+      st->phase = 1; /* the caller assembles the Jacobian and calls again */
+      return 0;
+    }
+  }
+  st->phase = 0;
+  while (st->reason == SNES_CONVERGED_ITERATING && st->iterations < s->max_iterations) {
+    int ksp_reason;
+    if ((ierr = cf_iterate(p, &ksp_reason, st->norms))) return ierr;
+    if (ksp_reason < 0) {
+      st->reason = SNES_DIVERGED_LINEAR_SOLVE;
+      break;
+    }
+    if (!isfinite(st->norms[2])) {
+      st->reason = SNES_DIVERGED_FNORM_NAN;
+      break;
+    }
+    st->iterations += 1;
+    st->reason = stop_rule(s, st, st->iterations, st->norms);
+  }
+  if (st->reason == SNES_CONVERGED_ITERATING) st->reason = SNES_DIVERGED_MAX_IT;
+  return 0;
 }

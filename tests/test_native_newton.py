@@ -5,7 +5,10 @@ same cells with the same packed coefficients, DOLFINx's summation order, set_bc'
 for the Dirichlet rows, and the same PETSc calls for the solve, the update and the norms. So
 equality is the test, bit for bit, of every probe row and every Newton counter, not agreement
 to a tolerance: a difference in the last bit would show that an operation differs, and grow
-through the run. The scenes cover what the C loop must carry: cell integrals alone (the
+through the run. Newton's whole solve runs in C (``cf_newton``, the stop rule included) for a
+reused Jacobian; with full Newton (a Jacobian each iteration) each iteration is one call. The
+scenes cover what the C loop must carry: solves that converge at their guess (an arc at rest:
+no Jacobian is ever assembled), cell integrals alone (the
 paper's scene), end loads (exterior facet integrals: the whip, the roll-up, the flying
 spaghetti's free ends), Dirichlet values that move (base excitation), a fork support, a form
 that changes in the run (the whip in 3D moves its chart: a new form, a new C loop), adaptive
@@ -34,6 +37,7 @@ CASES = {
     "base-excitation": ("base_excitation", 40, []),
     "pendulum-fork": ("pendulum", 20, []),
     "flying-spaghetti": ("flying_spaghetti", 20, []),
+    "arc-at-rest": ("bathe_bolourchi_bend", 10, ["loads.end.force=[0,0,0]"]),
 }  # fmt: skip
 
 

@@ -1,0 +1,45 @@
+"""The paper's scene's free-end error and Newton iterations against the Newton tolerance.
+
+    .venv/bin/python benchmarks/newton_tolerance.py [--stol 1e-8 3e-8 1e-7 3e-7 1e-6]
+
+Runs scenes/cao_tucker_2008.toml (no XDMF) with each ``solver.stol`` and prints the Newton
+iterations, the solve loop's time and the benchmark's error against results/reference.npz
+(made by ``make bench``; benchmarks/work_precision.py ``errors``). docs/decisions.md, "The
+paper's scene's Newton tolerance", quotes one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--stol", nargs="+", default=["1e-8", "3e-8", "1e-7", "3e-7", "1e-6"])
+    args = parser.parse_args()
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from work_precision import errors
+
+    from cosserat_fem import api
+
+    data = np.load(ROOT / "benchmarks" / "results" / "reference.npz")
+    reference = {c: data[c] for c in ("t", "x", "y")}
+    print("stol, Newton iterations, solve loop [s], free-end error")
+    for stol in args.stol:
+        scene = api.load(ROOT / "scenes" / "cao_tucker_2008.toml",
+                         ["output.xdmf=false", f"solver.stol={stol}"])  # fmt: skip
+        result = api.run(scene, record=True)
+        p = result.probes
+        error = errors({"t": p[:, 0], "x": p[:, 1], "y": p[:, 2]}, reference)["error"]
+        loop = result.summary["wall_time_s"]["solve_loop_without_output"]
+        print(f"{stol}, {result.summary['newton']['iterations']}, {loop:.3f}, {error:.4e}")
+
+
+if __name__ == "__main__":
+    main()
