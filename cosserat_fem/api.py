@@ -72,6 +72,22 @@ def run(
     )
 
 
+def load_sweep(source: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()):
+    """A sweep file read and every member's scene validated (cosserat_fem/sweep_spec.py);
+    ``overrides``: dotted scene keys for the base scene."""
+    from .sweep_spec import load_sweep as load
+
+    return load(source, overrides)
+
+
+def sweep(spec, out: str | Path):
+    """Run a sweep's members not finished in ``out`` (cosserat_fem/sweep.py; under mpirun,
+    groups of ``group_size`` ranks): a SweepResult with the table's path and rows."""
+    from .sweep import run_sweep
+
+    return run_sweep(spec, out)
+
+
 def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()):
     """The scene and the checkpoint to continue the run in ``folder`` (``run(scene,
     restart=checkpoint)``), with the overrides a restart allows (cosserat_fem/checkpoint.py:

@@ -1,4 +1,5 @@
 """Command line: ``cosserat-fem run|static|modes SCENE [--out DIR] [--set KEY=VALUE ...]``,
+``cosserat-fem sweep SWEEP [--out DIR]`` for the members of a sweep file (cosserat_fem/sweep.py),
 and ``cosserat-fem run --restart DIR [--set time.end=...]`` to continue a stopped run;
 ``cosserat-fem plot|render RUN_DIR [--out DIR]`` draw a run's outputs (no DOLFINx needed).
 
@@ -94,6 +95,10 @@ def _parser() -> argparse.ArgumentParser:
         default="undeformed",
         help="linearise about the straight rod or the static state under the scene's loads",
     )
+    sweep = sub.add_parser(
+        "sweep", help="run the members of a sweep file (under mpirun: groups of ranks)"
+    )
+    _common(sweep)
     plot = sub.add_parser(
         "plot", help="PNG figures of a run: free-end histories, x(s,t) and y(s,t) surfaces"
     )
@@ -215,6 +220,25 @@ def _modes(args) -> int:
     return 0
 
 
+def _sweep(args) -> int:
+    """``sweep``: the members of a sweep file (cosserat_fem/sweep.py) into --out (default
+    results/<the sweep file's name>); a summary line and the table's path."""
+    from mpi4py import MPI
+
+    from . import api
+
+    spec = api.load_sweep(args.scene, args.overrides)
+    out = args.out or str(Path("results") / Path(args.scene).stem)
+    result = api.sweep(spec, out)
+    if MPI.COMM_WORLD.rank == 0 and not args.quiet:
+        statuses = [row["status"] for row in result.rows]
+        counts = ", ".join(f"{s} {statuses.count(s)}" for s in dict.fromkeys(statuses))
+        print(f"cosserat-fem: sweep of {len(spec.members)} members: ran {result.ran}, skipped "
+              f"{result.skipped} finished before; {counts}")  # fmt: skip
+        print(f"-> {result.table}")
+    return 0
+
+
 def _validate(args) -> int:
     """The scene resolved, and what ``run`` and ``static`` of it cost at least
     (cosserat_fem/budget.py), refused if that exceeds its limits (exit 2), as they would
@@ -280,6 +304,8 @@ def _main(args) -> int:
             return _modes(args)
         if args.command == "static":
             return _static(args)
+        if args.command == "sweep":
+            return _sweep(args)
     except SceneError as exc:
         _report(exc, args)
         return 2

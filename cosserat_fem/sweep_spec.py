@@ -1,0 +1,228 @@
+"""A sweep file: a base scene and the members that vary it (``cosserat-fem sweep``).
+
+A sweep file is TOML with one table, ``[sweep]``::
+
+    [sweep]
+    scene = "../scenes/cao_tucker_2008.toml"   # the base scene, relative to this file
+    combine = "product"        # how the [sweep.vary] lists combine: "product" or "zip"
+    max_members = 1000         # a sweep with more members is refused
+    group_size = 1             # MPI ranks that run each member (mpirun -n: a multiple of it)
+    keep = "run"               # each member's folder: "run" (all its outputs) or "probes"
+
+    [sweep.set]                # the same for every member: dotted scene keys
+    "time.end" = 0.006
+
+    [sweep.vary]               # the varied keys: a list of values, or a range
+    "time.step" = [1e-5, 2e-5, 3e-5]
+    "rod.material.young_modulus" = { start = 6.9e10, stop = 7.3e10, num = 5 }
+
+or, instead of ``[sweep.vary]``, a table of cases, each a set of dotted keys::
+
+    [[sweep.case]]
+    "time.step" = 1e-5
+    [[sweep.case]]
+    "time.step" = 2e-5
+    "solver.stol" = 1e-8
+
+A range ``{start, stop, num}`` is ``num`` values from ``start`` to ``stop``, both included
+(``num = 1``: ``start``). Members are numbered from 0 in the order of the product (the last
+key varying fastest), the zip or the cases. Every member's scene is built and validated
+before any member runs: a malformed sweep (an unknown key of its own or of the scene, an
+empty list or range, a value the scene's schema refuses, more members than ``max_members``) is
+a one-line SceneError naming the key and the value, or the member and its values.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .errors import SceneError, show_value
+from .scene import Scene, scene_from_dict
+from .schema import apply_overrides, read_toml
+
+KEYS = {"scene", "combine", "max_members", "group_size", "keep", "set", "vary", "case"}
+COMBINE = ("product", "zip")
+KEEP = ("run", "probes")
+RANGE_KEYS = {"start", "stop", "num"}
+
+
+@dataclass(frozen=True)
+class Member:
+    """One member: its number and its values of the varied keys (dotted key → value)."""
+
+    index: int
+    values: dict[str, Any]
+
+    @property
+    def name(self) -> str:
+        """Its folder's name under the sweep's ``members/``."""
+        return f"m{self.index:05d}"
+
+    def describe(self) -> str:
+        return ", ".join(f"{k} = {json.dumps(v)}" for k, v in self.values.items())
+
+
+@dataclass(frozen=True)
+class SweepSpec:
+    """A validated sweep: the base scene's data (with ``[sweep.set]`` and the command line's
+    overrides applied), the members, and how to run them."""
+
+    base: dict[str, Any]
+    source: str
+    members: tuple[Member, ...]
+    varied: tuple[str, ...]
+    group_size: int = 1
+    keep: str = "run"
+    max_members: int = 1000
+    scenes: tuple[Scene, ...] = field(default=(), compare=False, repr=False)
+
+    def scene(self, member: Member) -> Scene:
+        """The member's resolved scene."""
+        return self.scenes[member.index]
+
+    def fingerprint(self) -> str:
+        """What identifies the sweep's work: the base scene and every member's values (a
+        restarted sweep must be the same sweep)."""
+        return json.dumps({"base": self.base, "members": [m.values for m in self.members]},
+                          sort_keys=True, default=str)  # fmt: skip
+
+
+def _positive_int(table: dict, key: str, default: int) -> int:
+    value = table.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+        raise SceneError(f"sweep.{key}: must be a positive integer, got {show_value(value)}")
+    return value
+
+
+def _choice(table: dict, key: str, choices: tuple[str, ...]) -> str:
+    value = table.get(key, choices[0])
+    if value not in choices:
+        raise SceneError(
+            f"sweep.{key}: must be one of {', '.join(repr(c) for c in choices)}, got "
+            f"{show_value(value)}"
+        )
+    return value
+
+
+def _values(key: str, raw: Any) -> list[Any]:
+    """The values of a varied key: a non-empty list, or a range {start, stop, num}."""
+    where = f"sweep.vary.{json.dumps(key)}"
+    if isinstance(raw, dict):
+        if set(raw) != RANGE_KEYS:
+            raise SceneError(f"{where}: a range has the keys start, stop and num, got "
+                             f"{show_value(sorted(raw))}")  # fmt: skip
+        start, stop, num = raw["start"], raw["stop"], raw["num"]
+        for name, value in (("start", start), ("stop", stop)):
+            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
+                value
+            ):
+                raise SceneError(f"{where}.{name}: must be a finite number, got "
+                                 f"{show_value(value)}")  # fmt: skip
+        if isinstance(num, bool) or not isinstance(num, int) or num < 1:
+            raise SceneError(f"{where}.num: an empty range: num must be a positive integer, "
+                             f"got {show_value(num)}")  # fmt: skip
+        if num == 1:
+            return [start]
+        return [start + (stop - start) * i / (num - 1) for i in range(num)]
+    if not isinstance(raw, list) or not raw:
+        raise SceneError(f"{where}: must be a non-empty list of values or a range "
+                         f"{{start, stop, num}}, got {show_value(raw)}")  # fmt: skip
+    return list(raw)
+
+
+def _members(table: dict, combine: str) -> tuple[list[dict[str, Any]], tuple[str, ...]]:
+    """Each member's values, and the varied keys in order."""
+    vary, cases = table.get("vary"), table.get("case")
+    if (vary is None) == (cases is None):
+        raise SceneError("sweep: give either [sweep.vary] or [[sweep.case]] (one of them)")
+    if cases is not None:
+        if not isinstance(cases, list) or not cases or not all(isinstance(c, dict) for c in cases):
+            raise SceneError("sweep.case: must be a non-empty array of tables [[sweep.case]]")
+        keys = tuple(dict.fromkeys(k for case in cases for k in case))
+        for i, case in enumerate(cases):
+            if not case:
+                raise SceneError(f"sweep.case[{i}]: an empty case (give at least one key)")
+        return [dict(case) for case in cases], keys
+    if not isinstance(vary, dict) or not vary:
+        raise SceneError("sweep.vary: must be a table of at least one dotted key")
+    keys = tuple(vary)
+    lists = [_values(key, vary[key]) for key in keys]
+    if combine == "zip":
+        lengths = {len(v) for v in lists}
+        if len(lengths) > 1:
+            sizes = ", ".join(
+                f"{json.dumps(k)}: {len(v)}" for k, v in zip(keys, lists, strict=True)
+            )
+            raise SceneError(
+                f"sweep.vary: combine = 'zip' needs lists of one length, got {sizes}"
+            )
+        rows = zip(*lists, strict=True)
+    else:
+        rows = itertools.product(*lists)
+    return [dict(zip(keys, row, strict=True)) for row in rows], keys
+
+
+def _count(table: dict, combine: str) -> int:
+    """The number of members, before they are made (a product can be huge)."""
+    if table.get("case") is not None and isinstance(table["case"], list):
+        return len(table["case"])
+    vary = table.get("vary")
+    if not isinstance(vary, dict):
+        return 0
+    sizes = [len(_values(key, raw)) if not isinstance(raw, dict) else
+             (raw.get("num") if isinstance(raw.get("num"), int) else 0)
+             for key, raw in vary.items()]  # fmt: skip
+    return max(sizes, default=0) if combine == "zip" else math.prod(sizes)
+
+
+def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
+    """Read and validate a sweep file (module docstring); ``overrides``: dotted scene keys
+    applied to the base scene before ``[sweep.set]`` (the command line's ``--set``)."""
+    path = Path(path)
+    data = read_toml(path)
+    table = data.get("sweep")
+    unknown = sorted(set(data) - {"sweep"})
+    if unknown:
+        raise SceneError(f"{unknown[0]}: not a table of a sweep file (only [sweep])")
+    if not isinstance(table, dict):
+        raise SceneError(f"{path}: a sweep file needs a [sweep] table")
+    unknown = sorted(set(table) - KEYS)
+    if unknown:
+        raise SceneError(f"sweep.{unknown[0]}: unknown key (known: {', '.join(sorted(KEYS))})")
+    if "scene" not in table or not isinstance(table["scene"], str) or not table["scene"]:
+        raise SceneError("sweep.scene: required, the base scene file (relative to the sweep "
+                         f"file), got {show_value(table.get('scene'))}")  # fmt: skip
+    combine = _choice(table, "combine", COMBINE)
+    keep = _choice(table, "keep", KEEP)
+    group_size = _positive_int(table, "group_size", 1)
+    max_members = _positive_int(table, "max_members", 1000)
+    fixed = table.get("set", {})
+    if not isinstance(fixed, dict):
+        raise SceneError(f"sweep.set: must be a table of dotted keys, got {show_value(fixed)}")
+    count = _count(table, combine)
+    if count > max_members:
+        raise SceneError(f"sweep.max_members: the sweep has {count} members, more than "
+                         f"max_members = {max_members}")  # fmt: skip
+    scene_path = (path.parent / table["scene"]).resolve()
+    base_data = read_toml(scene_path)
+    try:
+        base_data = apply_overrides(base_data, overrides)
+        base_data = apply_overrides(base_data, fixed)
+    except SceneError as exc:
+        raise SceneError(f"sweep.set: {exc}") from None
+    values, varied = _members(table, combine)
+    members, scenes = [], []
+    for index, member_values in enumerate(values):
+        member = Member(index, member_values)
+        try:
+            scenes.append(scene_from_dict(base_data, str(scene_path), member_values))
+        except SceneError as exc:
+            raise SceneError(f"sweep member {index} ({member.describe()}): {exc}") from None
+        members.append(member)
+    return SweepSpec(base_data, str(scene_path), tuple(members), varied, group_size, keep,
+                     max_members, tuple(scenes))  # fmt: skip

@@ -1,0 +1,200 @@
+"""Sweeps (cosserat_fem/sweep_spec.py, sweep.py): members run as the same scene alone would,
+failures recorded, a restarted sweep skips finished members, malformed sweeps refused before
+any member runs, and under mpirun -n 2 (two groups dealt by a one-sided counter) the same
+table as in serial.
+
+Equality is the test for the members' results: a member is its scene run by
+cosserat_fem.simulation.run on its group's communicator, exactly as ``cosserat-fem run`` of
+that scene alone, so its probes.csv is the same file byte for byte, and its table row (the
+probe's final and largest values, printed with repr) the same text in serial and under MPI.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import pytest
+from conftest import ROOT, run_command
+
+from cosserat_fem import api
+from cosserat_fem.errors import SceneError
+from cosserat_fem.sweep import columns
+
+PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
+SHORT = {"time.end": 0.0006, "output.xdmf": False}
+
+
+def sweep_file(folder: Path, body: str, **sweep) -> Path:
+    """A sweep file of the paper's scene, 0.6 ms without XDMF, ``sweep`` keys and ``body``."""
+    head = [f'scene = "{PAPER}"', *(f"{k} = {json.dumps(v)}" for k, v in sweep.items())]
+    fixed = [f'"{k}" = {json.dumps(v)}' for k, v in SHORT.items()]
+    text = "[sweep]\n" + "\n".join(head) + "\n[sweep.set]\n" + "\n".join(fixed) + "\n" + body
+    path = folder / "sweep.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+STEPS = '[sweep.vary]\n"time.step" = [1e-5, 2e-5, 3e-5]\n'
+
+
+def read_table(path: Path) -> list[dict]:
+    with open(path, newline="", encoding="utf-8") as stream:
+        return list(csv.DictReader(stream))
+
+
+def test_members_are_their_scenes_run_alone(tmp_path):
+    spec = api.load_sweep(sweep_file(tmp_path, STEPS))
+    result = api.sweep(spec, tmp_path / "out")
+    assert result.ran == 3 and result.skipped == 0
+    rows = read_table(tmp_path / "out" / "sweep.csv")
+    assert [r["member"] for r in rows] == ["0", "1", "2"]
+    assert [r["status"] for r in rows] == ["completed"] * 3
+    assert [json.loads(r["time.step"]) for r in rows] == [1e-5, 2e-5, 3e-5]
+    assert list(rows[0]) == columns(spec)
+    for member, step in enumerate((1e-5, 2e-5, 3e-5)):
+        alone = tmp_path / f"alone{member}"
+        scene = api.load(PAPER, {**SHORT, "time.step": step})
+        api.run(scene, alone)
+        got = (tmp_path / "out" / "members" / f"m{member:05d}" / "probes.csv").read_bytes()
+        assert got == (alone / "probes.csv").read_bytes()
+        assert int(rows[member]["steps"]) == round(0.0006 / step)
+
+
+def test_a_failed_member_is_recorded_and_the_sweep_goes_on(tmp_path):
+    """A distributed load of 1e10 N/m with no halving allowed: Newton fails in the first step
+    (status "failed", the one-line reason); the members before and after complete."""
+    cases = ('[[sweep.case]]\n"time.step" = 3e-5\n'
+             '[[sweep.case]]\n"loads.force_density" = ["1e10", 0, 0]\n"time.max_halvings" = 0\n'
+             '[[sweep.case]]\n"time.step" = 2e-5\n')  # fmt: skip
+    result = api.sweep(api.load_sweep(sweep_file(tmp_path, cases)), tmp_path / "out")
+    rows = read_table(result.table)
+    assert [r["status"] for r in rows] == ["completed", "failed", "completed"]
+    assert rows[1]["message"].startswith("SolverError: ") and "\n" not in rows[1]["message"]
+    assert rows[0]["message"] == rows[2]["message"] == ""
+
+
+def test_a_restarted_sweep_skips_the_finished_members(tmp_path):
+    """A sweep killed after two members (its table part: their rows and a third cut by the
+    kill) runs only the third again, into the same table."""
+    spec = api.load_sweep(sweep_file(tmp_path, STEPS))
+    out = tmp_path / "out"
+    api.sweep(spec, out)
+    part = out / "table" / "group-0.csv"
+    lines = part.read_text(encoding="utf-8").splitlines(keepends=True)
+    full = read_table(out / "sweep.csv")
+    part.write_text("".join(lines[:3]) + lines[3][:40], encoding="utf-8")  # member 2 cut
+    (out / "sweep.csv").unlink()
+    result = api.sweep(spec, out)
+    assert (result.ran, result.skipped) == (1, 2)
+    again = read_table(out / "sweep.csv")
+    assert [r["member"] for r in again] == ["0", "1", "2"]
+    for old, new in zip(full, again, strict=True):
+        assert {k: v for k, v in old.items() if k != "wall_s"} == {
+            k: v for k, v in new.items() if k != "wall_s"
+        }
+    other = api.load_sweep(sweep_file(tmp_path, '[sweep.vary]\n"time.step" = [1e-5]\n'))
+    with pytest.raises(SceneError, match="holds another sweep"):
+        api.sweep(other, out)
+
+
+@pytest.mark.parametrize(
+    ("body", "sweep", "message"),
+    [
+        ('[sweep.vary]\n"tim.step" = [1e-5]\n', {}, "sweep member 0 (tim.step = 1e-05): tim: "
+         "unknown key"),
+        ('[sweep.vary]\n"time.step" = [-1e-5]\n', {}, "sweep member 0 (time.step = -1e-05): "
+         "time.step: must be > 0 [s], got -1e-05"),
+        ('[sweep.vary]\n"time.step" = []\n', {}, 'sweep.vary."time.step": must be a non-empty '
+         "list"),
+        ('[sweep.vary]\n"time.step" = {start = 1e-5, stop = 2e-5, num = 0}\n', {},
+         'sweep.vary."time.step".num: an empty range'),
+        ('[sweep.vary]\n"time.step" = {start = 1e-5, stop = 2e-5, num = 50}\n'
+         '"solver.stol" = {start = 1e-8, stop = 1e-7, num = 50}\n', {"max_members": 1000},
+         "sweep.max_members: the sweep has 2500 members, more than max_members = 1000"),
+        ('[sweep.vary]\n"time.step" = [1e-5, 2e-5]\n"solver.stol" = [1e-8]\n',
+         {"combine": "zip"}, "sweep.vary: combine = 'zip' needs lists of one length"),
+        (STEPS, {"keep": "all"}, "sweep.keep: must be one of 'run', 'probes', got \"all\""),
+        (STEPS, {"group_size": 0}, "sweep.group_size: must be a positive integer, got 0"),
+        (STEPS, {"colour": 1}, "sweep.colour: unknown key"),
+        (STEPS + '[[sweep.case]]\n"time.step" = 1e-5\n', {},
+         "sweep: give either [sweep.vary] or [[sweep.case]]"),
+    ],
+)  # fmt: skip
+def test_a_malformed_sweep_is_refused_before_any_member_runs(tmp_path, body, sweep, message):
+    path = sweep_file(tmp_path, body, **sweep)
+    proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out",
+                        str(tmp_path / "out")])  # fmt: skip
+    assert proc.returncode == 2
+    assert proc.stderr.startswith(f"cosserat-fem: error: {message}"), proc.stderr
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.mpi
+def test_a_sweep_under_mpi_equals_the_serial_sweep(tmp_path):
+    """mpirun -n 2: two groups of one rank take members from the counter; every member is
+    run serially on its group, so the table is the serial table to the last digit (all but
+    the wall times), and each group wrote its own part."""
+    path = sweep_file(tmp_path, STEPS, keep="probes")
+    tables = {}
+    for ranks in (1, 2):
+        out = tmp_path / f"n{ranks}"
+        proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)],
+                           ranks)  # fmt: skip
+        assert proc.returncode == 0, proc.stderr
+        tables[ranks] = [{k: v for k, v in r.items() if k != "wall_s"}
+                         for r in read_table(out / "sweep.csv")]  # fmt: skip
+    assert tables[1] == tables[2]
+    assert sorted(p.name for p in (tmp_path / "n2" / "table").iterdir()) == [
+        "group-0.csv", "group-1.csv"
+    ]
+    kept = sorted(p.name for p in (tmp_path / "n2" / "members" / "m00000").iterdir())
+    assert kept == ["probes.csv", "summary.json"]
+
+
+def test_the_example_sweep_is_valid():
+    """scenes/sweeps/paper_forcing.toml: five members, the forcing 6 ... 10 ω0 (a range)."""
+    spec = api.load_sweep(ROOT / "scenes" / "sweeps" / "paper_forcing.toml")
+    assert [m.values for m in spec.members] == [
+        {"parameters.forcing": f} for f in (6.0, 7.0, 8.0, 9.0, 10.0)
+    ]
+    assert spec.keep == "probes" and spec.group_size == 1
+
+
+@pytest.mark.long
+def test_a_sweep_killed_with_sigkill_and_started_again_skips_what_finished(tmp_path):
+    """The process killed (SIGKILL) once the first row is in the table; the sweep started
+    again with the same --out runs only the members without a row, and its table equals an
+    uninterrupted sweep's (all but the wall times). ~10 s."""
+    import os
+    import signal
+    import subprocess
+    import time
+
+    from conftest import PYTHON, subprocess_env
+
+    path = sweep_file(tmp_path, '[sweep.vary]\n"time.step" = [1e-5, 2e-5, 3e-5, 1.5e-5]\n')
+    out = tmp_path / "killed"
+    cmd = [PYTHON, "-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)]
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=subprocess_env(), stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)  # fmt: skip
+    part, deadline = out / "table" / "group-0.csv", time.monotonic() + 120
+    while not (part.exists() and part.read_bytes().count(b"\n") >= 2):
+        assert proc.poll() is None, "the sweep ended before it was killed"
+        assert time.monotonic() < deadline, "no row in 120 s"
+        time.sleep(0.005)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait(timeout=30)
+    rows_before = part.read_bytes().count(b"\n") - 1
+    assert 1 <= rows_before < 4
+    again = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)])
+    assert again.returncode == 0, again.stderr
+    assert f"ran {4 - rows_before}, skipped {rows_before} finished before" in again.stdout
+    whole = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out",
+                         str(tmp_path / "whole")])  # fmt: skip
+    assert whole.returncode == 0, whole.stderr
+    strip = [{k: v for k, v in r.items() if k != "wall_s"} for r in read_table(out / "sweep.csv")]
+    assert strip == [{k: v for k, v in r.items() if k != "wall_s"}
+                     for r in read_table(tmp_path / "whole" / "sweep.csv")]  # fmt: skip
