@@ -131,6 +131,8 @@ class RodModel:
     fork_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int32))
     #: A polyline's reference frame D0, cellwise constant (made by :meth:`reference_form`).
     reference_frame: fem.Function | None = None
+    #: The scene's [parameters] as Constants in the forms (made by :meth:`_symbols`).
+    _parameters: dict | None = None
 
     @property
     def needs_chart(self) -> bool:
@@ -401,10 +403,18 @@ class RodModel:
         return imap.size_global * self.V.dofmap.index_map_bs
 
     def _symbols(self, time_eval) -> dict:
-        """The values of the scene's expression names in UFL: constants and [parameters], s = ℓ σ
-        [m] and t = τ/ω0 [s] with τ = ``time_eval`` (47)."""
+        """The values of the scene's expression names in UFL: L and ω0 as numbers, each of the
+        [parameters] a DOLFINx Constant (so that scenes that differ in their parameters only,
+        a sweep's members, share their compiled forms), s = ℓ σ [m] and t = τ/ω0 [s] with
+        τ = ``time_eval`` (47)."""
         sigma = ufl.SpatialCoordinate(self.msh)[0]
         names = dict(self.scene.expression_names())
+        if self._parameters is None:
+            self._parameters = {
+                name: fem.Constant(self.msh, PETSc.ScalarType(value))
+                for name, value in self.scene.parameters.items()
+            }
+        names.update(self._parameters)
         names["s"] = self.length * sigma
         names["t"] = time_eval / self.omega0
         return names

@@ -198,3 +198,27 @@ def test_a_sweep_killed_with_sigkill_and_started_again_skips_what_finished(tmp_p
     strip = [{k: v for k, v in r.items() if k != "wall_s"} for r in read_table(out / "sweep.csv")]
     assert strip == [{k: v for k, v in r.items() if k != "wall_s"}
                      for r in read_table(tmp_path / "whole" / "sweep.csv")]  # fmt: skip
+
+
+def test_members_that_differ_in_parameters_share_their_compiled_forms():
+    """The [parameters] are Constants in the forms (RodModel._symbols): the residuals of two
+    members of the example sweep (forcing 6 and 7 ω0) have one UFL signature, so FFCx
+    compiles them once (the example's five members: 10 s → 3 s here); a load written with
+    the number itself has another."""
+    from dolfinx import fem
+    from mpi4py import MPI
+
+    from cosserat_fem.model import build_model
+
+    spec = api.load_sweep(ROOT / "scenes" / "sweeps" / "paper_forcing.toml")
+
+    def signature(scene) -> str:
+        model = build_model(scene, MPI.COMM_WORLD)
+        time = fem.Constant(model.msh, 0.0)  # τ symbolic: a number 0 would fold the load away
+        return model.residual(model.U, model.U, time).signature()
+
+    first, second = (signature(spec.scene(m)) for m in spec.members[:2])
+    assert first == second
+    load = "2e3*sin(pi*s/L)*sin(7*omega0*t)"  # the second member's, with the number written
+    written = api.load(PAPER, {**SHORT, "loads.force_density": [load, load, 0]})
+    assert signature(written) != first
