@@ -1,7 +1,8 @@
 """Command line: ``cosserat-fem run|static|modes SCENE [--out DIR] [--set KEY=VALUE ...]``,
 ``cosserat-fem sweep SWEEP [--out DIR]`` for the members of a sweep file (cosserat_fem/sweep.py),
 and ``cosserat-fem run --restart DIR [--set time.end=...]`` to continue a stopped run;
-``cosserat-fem plot|render RUN_DIR [--out DIR]`` draw a run's outputs (no DOLFINx needed).
+``cosserat-fem plot|render RUN_DIR [--out DIR]`` draw a run's outputs (plot: a sweep's table
+too; no DOLFINx needed).
 
 Exit status: 0 success, 2 bad input (scene, options, output folder, a run that would
 exceed its limits), 3 numerical trouble, 4 a run stopped by an output it could not write
@@ -100,7 +101,8 @@ def _parser() -> argparse.ArgumentParser:
     )
     _common(sweep)
     plot = sub.add_parser(
-        "plot", help="PNG figures of a run: free-end histories, x(s,t) and y(s,t) surfaces"
+        "plot", help="PNG figures of a run (free-end histories, x(s,t) and y(s,t) surfaces) "
+        "or of a sweep (its members' largest free-end values against the varied key)"
     )
     _run_dir(plot)
     render = sub.add_parser(

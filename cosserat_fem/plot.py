@@ -1,5 +1,8 @@
 """``cosserat-fem plot RUN_DIR``: PNG figures of any run, with matplotlib (Agg, no screen).
 
+A sweep's folder (cosserat_fem/sweep.py) gets ``sweep.png``: each member's largest free-end
+displacements and angles against the varied key (:func:`plot_sweep`). A run's folder gets:
+
 * ``free_end.png``: the free-end histories of probes.csv, x, y, z [m] and θ, ψ, φ [rad]
   against t [s] (the load factor for a static run), laid out as the paper's Fig. 4;
 * ``x_surface.png``, ``y_surface.png``: the surfaces x(s,t) and y(s,t) [m] over the rod and
@@ -16,6 +19,7 @@ matplotlib comes from Debian (python3-matplotlib, see .ci/setup.sh).
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -130,10 +134,96 @@ def plot_surfaces(run: Run, out: Path, series: RodSeries | None = None) -> list[
     return paths
 
 
+#: What sweep.png draws against the varied key: the free end's largest |x|, |y|, |z| [m] and
+#: |θ|, |ψ|, |φ| [rad] over each member's run (cosserat_fem/sweep.py's table).
+SWEEP_PANELS = (("max_abs_x", "max |x| [m]"), ("max_abs_theta", "max |θ| [rad]"),
+                ("max_abs_y", "max |y| [m]"), ("max_abs_psi", "max |ψ| [rad]"),
+                ("max_abs_z", "max |z| [m]"), ("max_abs_phi", "max |φ| [rad]"))  # fmt: skip
+
+
+def read_sweep_table(directory: Path) -> tuple[list[str], list[dict]]:
+    """(columns, rows) of a sweep's sweep.csv, or of its table parts while it has none (a
+    sweep killed or still running), rows sorted by member; a cut last line is dropped, a
+    table without the sweep's columns is bad input. No MPI, no DOLFINx."""
+    import csv
+
+    table = directory / "sweep.csv"
+    sources = [table] if table.is_file() else sorted((directory / "table").glob("group-*.csv"))
+    columns: list[str] = []
+    rows: list[dict] = []
+    for source in sources:
+        try:
+            text = source.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise SceneError(f"plot: cannot read {str(source)!r} ({exc})") from None
+        lines = text[: text.rfind("\n") + 1].splitlines()  # a cut last row dropped
+        reader = csv.DictReader(lines)
+        columns = list(reader.fieldnames or [])
+        missing = {"member", "status", *(c for c, _ in SWEEP_PANELS)} - set(columns)
+        if missing:
+            raise SceneError(f"plot: {str(source)!r} is not a sweep's table (no column "
+                             f"{sorted(missing)[0]!r})")  # fmt: skip
+        rows += list(reader)
+    try:
+        rows.sort(key=lambda row: int(row["member"]))
+    except (TypeError, ValueError):
+        raise SceneError(f"plot: a member number in {str(directory)!r} is not an integer") from None
+    return columns, rows
+
+
+def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Path]:
+    """sweep.png: the free end's largest displacements and angles of each member against the
+    sweep's varied key (the member number when more than one key varies, or none is a
+    number); members that did not complete are marked with a cross at zero."""
+    directory = Path(directory)
+    columns, rows = read_sweep_table(directory)
+    if not rows:
+        raise SceneError(f"plot: the sweep in {str(directory)!r} has no finished member yet")
+    varied = columns[columns.index("wall_s") + 1 : columns.index("steps")]
+
+    def number(text: str) -> float:
+        try:
+            value = json.loads(text) if text != "" else float("nan")
+            return float(value) if not isinstance(value, bool) else float("nan")
+        except (ValueError, TypeError):
+            return float("nan")
+
+    key = varied[0] if len(varied) == 1 else None
+    x = [number(row[key]) for row in rows] if key else []
+    if key is None or not np.isfinite(x).all():
+        key, x = "member", [float(row["member"]) for row in rows]
+    done = np.array([row["status"] == "completed" for row in rows])
+    plt = _pyplot()
+    fig, axes = plt.subplots(3, 2, figsize=HISTORY_SIZE, sharex=True)
+    for ax, (column, label) in zip(axes.flat, SWEEP_PANELS, strict=True):
+        y = np.array([number(row[column]) for row in rows])
+        ax.plot(np.array(x)[done], y[done], "o-", lw=0.8, ms=3)
+        if (~done).any():
+            ax.plot(np.array(x)[~done], np.zeros((~done).sum()), "x", color="C3",
+                    label="not completed")  # fmt: skip
+            ax.legend(fontsize=7)
+        ax.set_ylabel(label)
+        ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
+        ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel(_label(key))
+    fig.suptitle(_label(f"Sweep of {len(rows)} members: {directory.name}"), fontsize=10)
+    fig.tight_layout()
+    target = Path(out) if out is not None else directory
+    try:
+        target.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SceneError(f"plot --out: cannot write to {str(target)!r} ({exc})") from None
+    return [_save(fig, target / "sweep.png")]
+
+
 def plot_run(directory: str | Path, out: str | Path | None = None) -> list[Path]:
-    """The figures of the run in ``directory``, written to ``out`` (default: that folder).
-    Everything is read (and checked) first; a run with neither probe rows nor XDMF frames
-    (killed at its start) is bad input, as nothing can be drawn."""
+    """The figures of the run in ``directory``, written to ``out`` (default: that folder); a
+    sweep's folder (sweep.json) gets :func:`plot_sweep`. Everything is read (and checked)
+    first; a run with neither probe rows nor XDMF frames (killed at its start) is bad input,
+    as nothing can be drawn."""
+    if (Path(directory) / "sweep.json").is_file():
+        return plot_sweep(directory, out)
     run = open_run(directory, "plot")
     rows = run.probes is not None and len(run.probes) > 0
     series = None

@@ -222,3 +222,27 @@ def test_members_that_differ_in_parameters_share_their_compiled_forms():
     load = "2e3*sin(pi*s/L)*sin(7*omega0*t)"  # the second member's, with the number written
     written = api.load(PAPER, {**SHORT, "loads.force_density": [load, load, 0]})
     assert signature(written) != first
+
+
+def test_plot_draws_a_sweep_from_its_table_or_its_parts(tmp_path):
+    """``cosserat-fem plot DIR`` of a sweep's folder: sweep.png (1300 × 1040 px) against the
+    varied key, from sweep.csv, or from the table parts while there is none (a killed sweep:
+    its cut row dropped); a table without the sweep's columns is refused in one line."""
+    import struct
+
+    out = tmp_path / "out"
+    api.sweep(api.load_sweep(sweep_file(tmp_path, STEPS)), out)
+    (out / "sweep.csv").unlink()
+    part = out / "table" / "group-0.csv"
+    part.write_text(part.read_text(encoding="utf-8") + "3,compl", encoding="utf-8")
+    proc = run_command(["-m", "cosserat_fem.cli", "plot", str(out)])
+    assert proc.returncode == 0, proc.stderr
+    png = (out / "sweep.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and struct.unpack(">II", png[16:24]) == (1300, 1040)
+    part.write_text("member,status\n0,completed\n", encoding="utf-8")
+    proc = run_command(["-m", "cosserat_fem.cli", "plot", str(out)])
+    assert proc.returncode == 2
+    assert proc.stderr.startswith("cosserat-fem: error: plot: ") and "not a sweep's table" in (
+        proc.stderr
+    )
+    assert proc.stderr.count("\n") == 1
