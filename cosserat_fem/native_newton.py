@@ -3,9 +3,11 @@
 :class:`NewtonSolver` (cosserat_fem/newton.py) calls, per iteration, the linear solve, the
 update, the residual assembly and the norms: from Python that is a dozen calls through
 petsc4py and DOLFINx's bindings, each of a few microseconds, around kernels that take about
-as long (docs/decisions.md, "The compiled inner loop"). :class:`NativeLoop` makes each of
-:meth:`residual` and :meth:`iterate` one call into C that does the same operations in the same
-order, so that the iterates are bitwise those of the Python loop (tests/test_native_newton.py).
+as long (docs/decisions.md, "The compiled inner loop"). :class:`NativeLoop` makes a whole
+solve with a reused Jacobian one call into C (:meth:`newton`: the stop rule included), and
+each of :meth:`residual` and :meth:`iterate` one call for the Python loop's other uses (full
+Newton, an observer of every iteration); C does the same operations in the same order, so the
+iterates are bitwise those of the Python loop (tests/test_native_newton.py).
 
 It applies when the run is serial and the residual has cell and exterior facet integrals only
 (an interior facet integral, a point load's, keeps the Python loop), and only after it has

@@ -246,3 +246,22 @@ def test_plot_draws_a_sweep_from_its_table_or_its_parts(tmp_path):
         proc.stderr
     )
     assert proc.stderr.count("\n") == 1
+
+
+@pytest.mark.mpi
+def test_a_group_of_two_ranks_runs_a_member_as_mpirun_runs_it_alone(tmp_path):
+    """group_size = 2 under mpirun -n 2: one group, each member on both ranks; its probes.csv
+    is that of ``mpirun -n 2 cosserat-fem run`` of the member's scene, byte for byte (MUMPS
+    there, as in the group; a serial run rounds otherwise)."""
+    path = sweep_file(tmp_path, '[sweep.vary]\n"time.step" = [1e-5, 2e-5]\n', group_size=2)
+    out = tmp_path / "out"
+    proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)], 2)
+    assert proc.returncode == 0, proc.stderr
+    assert [p.name for p in (out / "table").iterdir()] == ["group-0.csv"]
+    sets = [f"--set={k}={json.dumps(v)}" for k, v in {**SHORT, "time.step": 2e-5}.items()]
+    alone = tmp_path / "alone"
+    proc = run_command(["-m", "cosserat_fem.cli", "run", str(PAPER), "--out", str(alone),
+                        *sets], 2)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    member = out / "members" / "m00001" / "probes.csv"
+    assert member.read_bytes() == (alone / "probes.csv").read_bytes()
