@@ -92,17 +92,12 @@ class Tree:
     def error(self, tag: str) -> float | None:
         """The benchmark error (benchmarks/work_precision.py) of the run ``tag``'s probes, if
         the reference (results/reference.npz, made by ``make bench``) is there."""
-        stored = RESULTS / "reference.npz"
-        if not stored.exists():
-            return None
         sys.path.insert(0, str(ROOT / "benchmarks"))
-        from work_precision import errors
+        from work_precision import probe_error
 
-        data = np.load(stored)
-        ref = {c: data[c] for c in ("t", "x", "y")}
         probes = np.loadtxt(self.work / f"{self.name}-{tag}" / "probes.csv", delimiter=",",
                             skiprows=1)  # fmt: skip
-        return errors({"t": probes[:, 0], "x": probes[:, 1], "y": probes[:, 2]}, ref)["error"]
+        return probe_error(probes)
 
 
 def elastica_dt() -> float:

@@ -126,6 +126,17 @@ def errors(run_: dict, ref: dict) -> dict:
     return out
 
 
+def probe_error(probes: np.ndarray) -> float | None:
+    """The benchmark error of probe rows (t, x, y, ...) of the paper's scene against the stored
+    reference (results/reference.npz, made by ``make bench``); None without it."""
+    stored = RESULTS / "reference.npz"
+    if not stored.exists():
+        return None
+    data = np.load(stored)
+    ref = {c: data[c] for c in ("t", "x", "y")}
+    return errors({"t": probes[:, 0], "x": probes[:, 1], "y": probes[:, 2]}, ref)["error"]
+
+
 def reference(quick: bool, resume: bool) -> tuple[dict, dict]:
     """The fine solution and a measured bound on its error (module docstring); kept in
     reference.npz/.json, reused with ``--resume``."""

@@ -55,8 +55,7 @@ def cos_theta(model: RodModel, state: np.ndarray) -> np.ndarray:
 class StateCheck:
     """:func:`check_state` and :func:`cos_theta` of one model's U, with its views and sizes
     kept: a time step's check is then a few NumPy calls instead of a dozen lookups of DOLFINx
-    properties (docs/decisions.md, "The compiled inner loop"). The same numbers, bit for bit;
-    a failed check is reported by :func:`check_state` itself."""
+    properties (docs/decisions.md, "The compiled inner loop")."""
 
     def __init__(self, model: RodModel):
         self.model = model
@@ -71,7 +70,7 @@ class StateCheck:
         self._comm = model.msh.comm if model.msh.comm.size > 1 else None
 
     def cos_theta(self) -> np.ndarray:
-        """cos θ at the owned nodes of U (:func:`cos_theta`)."""
+        """cos θ at the owned nodes of U (:func:`cos_theta`; not to be changed in place)."""
         return self._ones if self._theta is None else np.cos(self._theta)
 
     def __call__(
@@ -79,6 +78,8 @@ class StateCheck:
     ) -> np.ndarray:
         """:func:`check_state` of U."""
         cos_now = self.cos_theta()
+        # One number and (in parallel) one reduction per step: the smallest |cos θ|; −0.5 if
+        # θ crossed ±π/2, −1 if any owned value is not finite (a NaN or inf makes the sum so).
         value = 1.0
         if cos_now.size:
             value = float(np.abs(cos_now).min())
@@ -90,7 +91,7 @@ class StateCheck:
             value = self._comm.allreduce(value, op=MPI.MIN)
         if value >= CHART_COS_MIN:
             return cos_now
-        return check_state(self.model, t, where_prefix, before)
+        _report(self.model, t, where_prefix, before, cos_now, value)
 
 
 def check_state(
@@ -100,26 +101,17 @@ def check_state(
     singular, |cos θ| < ``CHART_COS_MIN``, or, given cos θ of the previous accepted state
     (``before``, from :func:`cos_theta` or an earlier call), if θ crossed ±π/2 at some node
     since then (cos θ changed sign: a step jumped over the singularity, through which no
-    continuous motion passes, det Ma = cos θ (66)). Returns cos θ of U at the owned nodes."""
-    blocks = model.U.x.array.reshape(-1, model.layout.size)
-    n = model.V.dofmap.index_map.size_local
-    cos_now = cos_theta(model, model.U.x.array)
-    # One number and (in parallel) one reduction per step: the smallest |cos θ|; −0.5 if θ
-    # crossed ±π/2, −1 if any owned value is not finite (a NaN or inf makes the sum so).
-    value = 1.0
-    if n:
-        value = float(np.abs(cos_now).min())
-        if before is not None and float((before * cos_now).min()) <= 0.0:
-            value = -0.5
-        if not math.isfinite(value + float(blocks[:n].sum())):
-            value = -1.0
-    comm = model.msh.comm
-    if comm.size > 1:
-        value = comm.allreduce(value, op=MPI.MIN)
-    if value >= CHART_COS_MIN:
-        return cos_now
+    continuous motion passes, det Ma = cos θ (66)). Returns cos θ of U at the owned nodes.
+    A loop that checks every step keeps a :class:`StateCheck` instead."""
+    return StateCheck(model)(t, where_prefix, before)
+
+
+def _report(model, t, where_prefix: str, before, cos_now: np.ndarray, value: float):
+    """Raise the SolverError of a failed check (``value``: −1 not finite, −0.5 a crossing of
+    ±π/2, else the smallest |cos θ|), with the place along the rod (collective)."""
     prefix = f"{where_prefix}{', ' if where_prefix else ''}"
     if value == -1.0:
+        blocks = model.U.x.array.reshape(-1, model.layout.size)
         bad = np.where(np.isfinite(blocks).all(axis=1), 0.0, 1.0)
         s, _ = worst_place(model, bad)
         raise SolverError(
@@ -150,5 +142,3 @@ def check_state(
         ),
         suggestion=CHART_SUGGESTION,
     )
-
-

@@ -172,10 +172,12 @@ def join_ends(problem: ModalProblem) -> ModalProblem:
     P, K, M = problem.P, problem.K, problem.M
     start, end = _end_dofs(P, 0.0), _end_dofs(P, 1.0)
     rows = K.getOwnershipRange()
+    columns = np.arange(*rows, dtype=PETSc.IntType)  # S's one entry a row: 1 in this column
+    mine = (end >= rows[0]) & (end < rows[1])
+    columns[end[mine] - rows[0]] = start[mine]
     S = PETSc.Mat().createAIJ((K.getSizes()[0], K.getSizes()[0]), nnz=(1, 1), comm=K.comm)
-    for row in range(*rows):
-        at = np.flatnonzero(end == row)
-        S.setValue(row, int(start[at[0]]) if at.size else row, 1.0)
+    pointers = np.arange(columns.size + 1, dtype=PETSc.IntType)
+    S.setValuesCSR(pointers, columns, np.ones(columns.size))
     S.assemble()
     K_joined, M_joined = K.PtAP(S), M.PtAP(S)
     K_joined.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)

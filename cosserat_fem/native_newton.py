@@ -60,6 +60,7 @@ typedef struct {
 int cf_residual(cf_problem* p);
 int cf_iterate(cf_problem* p, int* reason, double* norms);
 int cf_newton(cf_problem* p, const cf_settings* s, cf_newton_state* st);
+int cf_test(const cf_settings* s, cf_newton_state* st, int it, const double* n);
 void* cf_kernel(uintptr_t form, int type, int i);
 """
 
@@ -107,20 +108,27 @@ def _cache_dir() -> Path:
 
 
 _MODULE = None
+#: Why the module could not be built, once that is known: the process does not try again.
+_FAILED: str | None = None
+COMPILE_ARGS = ["-O2", "-g0", "-ffp-contract=off"]  # no fused multiply-adds: Python's IEEE
 
 
 def compiled():
     """The compiled module (``ffi``, ``lib``), made on first use and cached on disk; raises
-    :class:`NotApplicable` if it cannot be built."""
-    global _MODULE
+    :class:`NotApplicable` if it cannot be built (remembered for the process: every solver
+    built after a failed compile keeps the Python loop at once)."""
+    global _MODULE, _FAILED
     if _MODULE is not None:
         return _MODULE
+    if _FAILED is not None:
+        raise NotApplicable(_FAILED)
     import cffi
     import ffcx
     import petsc4py
 
     source = SOURCE.read_text()
-    build = [source, CDEF, str(petsc4py.get_config()), ffcx.__version__, cffi.__version__]
+    build = [source, CDEF, *COMPILE_ARGS, str(petsc4py.get_config()), ffcx.__version__,
+             cffi.__version__]  # fmt: skip
     key = hashlib.sha1("\n".join(build).encode()).hexdigest()[:16]
     name = f"cosserat_newton_loop_{key}"
     cache = _cache_dir()
@@ -138,7 +146,7 @@ def compiled():
             libraries=["petsc_real"],
             library_dirs=[libdir],
             extra_link_args=[f"-Wl,-rpath,{libdir}"],
-            extra_compile_args=["-O2", "-g0", "-ffp-contract=off"],
+            extra_compile_args=COMPILE_ARGS,
         )
         cache.mkdir(parents=True, exist_ok=True)
         from .jit import capture_stderr
@@ -147,7 +155,8 @@ def compiled():
             try:
                 built = ffi.compile(tmpdir=work)
             except Exception as exc:  # a compiler or a missing header: keep the Python loop
-                raise NotApplicable(f"the C loop did not compile ({exc})") from None
+                _FAILED = f"the C loop did not compile ({exc})"
+                raise NotApplicable(_FAILED) from None
             os.replace(built, target)  # atomic: a concurrent process finds it whole or not
         if captured.text.strip():
             log.info("compiling %s:\n%s", SOURCE.name, captured.text)
@@ -196,11 +205,13 @@ def _gather_tables(form) -> dict:
 
 
 class NativeLoop:
-    """:meth:`residual` and :meth:`iterate` of a serial NewtonSolver in C (module docstring).
-    ``refresh`` before each solve: the constants and the Dirichlet values of that solve."""
+    """:meth:`newton`, :meth:`residual` and :meth:`iterate` of a serial NewtonSolver in C
+    (module docstring). ``refresh`` before each solve: the constants and the Dirichlet values
+    of that solve."""
 
-    def __init__(self, form, U, bcs, u, b, dx, ksp):
-        """``u``: U's PETSc vector (the iterate); ``b``, ``dx``, ``ksp``: the solver's."""
+    def __init__(self, form, U, bcs, u, b, dx, ksp, settings):
+        """``u``: U's PETSc vector (the iterate); ``b``, ``dx``, ``ksp``: the solver's;
+        ``settings``: its NewtonSettings (the stop rule's)."""
         mesh = U.function_space.mesh
         if mesh.comm.size > 1:
             raise NotApplicable("a parallel run")
@@ -285,6 +296,9 @@ class NativeLoop:
         self._p = p
         self._norms_c = pointer(self.norms, "double*")
         self._form, self._bcs = form, bcs
+        self._settings = ffi.new("cf_settings*")
+        self._state = ffi.new("cf_newton_state*")  # the stop rule's running norms
+        self.configure(settings)
 
     def refresh(self) -> None:
         """The constants and the Dirichlet values g as they are now (before a solve)."""
@@ -306,15 +320,19 @@ class NativeLoop:
             raise RuntimeError(f"PETSc error {status} in a Newton iteration")
         return self._reason[0], self.norms.tolist()
 
-    def settings(self, settings) -> None:
-        """The stop rule's settings (a NewtonSettings) for :meth:`newton`."""
-        s = self.ffi.new("cf_settings*")
+    def configure(self, settings) -> None:
+        """The stop rule's settings (a NewtonSettings) from now on."""
+        s = self._settings
         s.rtol, s.atol, s.stol, s.xatol = (settings.rtol, settings.atol, settings.stol,
                                            settings.xatol)  # fmt: skip
         s.max_iterations = settings.max_iterations
         s.linear_test = settings.jacobian != "full"
-        self._settings = s
-        self._state = self.ffi.new("cf_newton_state*")
+
+    def test(self, it: int, norms) -> int:
+        """The C stop rule (``cf_test``) after iteration ``it`` with ``norms`` (‖U‖, ‖δU‖,
+        ‖F‖): NewtonSolver._test's reason, its running norms kept in the same way."""
+        values = self.ffi.new("double[3]", [float(x) for x in norms])
+        return int(self.lib.cf_test(self._settings, self._state, it, values))
 
     def newton(self, need_jacobian: bool, assemble_jacobian, update_prev: float):
         """NewtonSolver._run in C (newton_loop.c cf_newton), from U; with ``need_jacobian``,

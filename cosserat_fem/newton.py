@@ -139,6 +139,7 @@ class NewtonSolver:
             raise ValueError(f"unknown Jacobian policy {settings.jacobian!r}")
         self.U = U
         self.bcs = bcs
+        self._native = None
         self.settings = settings
         self.stats = NewtonStatistics()
         self.iteration_hook = None  # f(it, norms, reason) after each convergence test
@@ -178,9 +179,19 @@ class NewtonSolver:
             self.ksp.getPC().setFactorOrdering("natural")
         self.ksp.setOperators(self.A)
         self.ksp.setFromOptions()
-        self._native = None
         self.loop = "python"  # what runs the iterations: "python" or "c" (_make_native)
         self._make_native()
+
+    @property
+    def settings(self) -> NewtonSettings:
+        return self._settings
+
+    @settings.setter
+    def settings(self, settings: NewtonSettings) -> None:
+        """New settings, for the C loop's stop rule too."""
+        self._settings = settings
+        if self._native is not None:
+            self._native.configure(settings)
 
     def _compile(self, F: ufl.Form) -> None:
         """The residual and Jacobian forms of F; what the Jacobian is assembled from, and (for
@@ -214,7 +225,7 @@ class NewtonSolver:
 
         try:
             native = NativeLoop(self.F_form, self.U, self.bcs, self._u, self.b, self.dx,
-                                self.ksp)  # fmt: skip
+                                self.ksp, self.settings)  # fmt: skip
             native.refresh()
             native.residual()
             via_c = self.b.array.copy()
@@ -224,7 +235,6 @@ class NewtonSolver:
         except NotApplicable as exc:
             logging.getLogger(__name__).info("Newton's inner loop in Python: %s", exc)
             return
-        native.settings(self.settings)
         self._native = native
         self.loop = "c"
 
@@ -387,8 +397,7 @@ class NewtonSolver:
         if native is not None and self.iteration_hook is None and self.settings.jacobian != "full":
             return self._run_native(t0)
         if native is not None:
-            native.refresh()  # this solve's constants and Dirichlet values
-            counted = native.counters
+            counted = self._refresh_native()
             residual, iteration = native.residual, native.iterate
         else:
             residual, iteration = self._residual, self._iteration
@@ -413,24 +422,29 @@ class NewtonSolver:
         if reason == reasons.ITERATING:
             reason = reasons.DIVERGED_MAX_IT
         if native is not None:
-            assemblies, seconds = native.counters
-            self.stats.residual_assemblies += assemblies - counted[0]
-            self.stats.time_residual += seconds - counted[1]
+            self._count_native(counted)
         self.stats.time_solve += time.perf_counter() - t0
         self.stats.iterations += it
         return it, reason
 
+    def _refresh_native(self) -> tuple[int, float]:
+        """The C loop's constants and Dirichlet values for this solve; its counters before it."""
+        self._native.refresh()
+        return self._native.counters
+
+    def _count_native(self, counted: tuple[int, float]) -> None:
+        """The C loop's residual assemblies and their time since ``counted``, into the stats."""
+        assemblies, seconds = self._native.counters
+        self.stats.residual_assemblies += assemblies - counted[0]
+        self.stats.time_residual += seconds - counted[1]
+
     def _run_native(self, t0: float) -> tuple[int, int]:
         """:meth:`_run` in one call into C (cosserat_fem/newton_loop.c ``cf_newton``, for a
         reused Jacobian and no iteration hook): the same iterates, norms, counts and reasons."""
-        native = self._native
-        native.refresh()  # this solve's constants and Dirichlet values
-        counted = native.counters
-        st = native.newton(self._need_jacobian, self._jacobian, self._update_prev)
+        counted = self._refresh_native()
+        st = self._native.newton(self._need_jacobian, self._jacobian, self._update_prev)
         self._f0, self._f_prev, self._update_prev = st.f0, st.f_prev, st.update_prev
-        assemblies, seconds = native.counters
-        self.stats.residual_assemblies += assemblies - counted[0]
-        self.stats.time_residual += seconds - counted[1]
+        self._count_native(counted)
         self.stats.time_solve += time.perf_counter() - t0
         self.stats.iterations += st.iterations
         return st.iterations, st.reason

@@ -16,7 +16,8 @@
  *
  * cf_newton is the whole of NewtonSolver._run for a reused Jacobian and no per-iteration
  * observer: the first residual and its norm, the test at k = 0, then cf_iterate and the stop
- * rule of NewtonSolver._test, in the same order and the same IEEE operations (compiled with
+ * rule of NewtonSolver._test (cf_test, which tests/unit/test_newton_stop.py feeds the same
+ * sequences as the Python rule), in the same order and the same IEEE operations (compiled with
  * -ffp-contract=off: no fused multiply-adds). It returns to Python once, before the first
  * iteration, when the caller says a Jacobian is due (phase 1), and goes on when called again.
  */
@@ -77,8 +78,9 @@ static void assemble(const cf_problem* p, double* b)
       for (int32_t j = 0; j < in->wsize; ++j)
         p->w[j] = p->coefficients[in->source[j]][index[j]];
       memset(p->be, 0, sizeof(double) * (size_t)nd);
-      ((ufcx_tabulate_tensor_float64*)in->kernel)(p->be, p->w, p->constants, p->coordinates + (int64_t)c * nc,
-                 in->local_facets ? &in->local_facets[e] : NULL, NULL);
+      ufcx_tabulate_tensor_float64* kernel = (ufcx_tabulate_tensor_float64*)in->kernel;
+      kernel(p->be, p->w, p->constants, p->coordinates + (int64_t)c * nc,
+             in->local_facets ? &in->local_facets[e] : NULL, NULL);
       const int32_t* dofs = p->dofs + (int64_t)c * nd;
       for (int32_t i = 0; i < nd; ++i)
         b[dofs[i]] += p->be[i];
@@ -160,11 +162,16 @@ typedef struct {
   double norms[3];   /* the last (||U||, ||dx||, ||F||) */
 } cf_newton_state;
 
-/* NewtonSolver._test after iteration it >= 1 with norms (x, y, f). */
-static int stop_rule(const cf_settings* s, cf_newton_state* st, int it, const double* n)
+/* NewtonSolver._test: the reason after iteration it with norms (||U||, ||dU||, ||F||), at
+ * it = 0 (0, 0, ||F0||); keeps ||F0|| and the last ||dU||, ||F|| in st for the estimate. */
+int cf_test(const cf_settings* s, cf_newton_state* st, int it, const double* n)
 {
   const double xnorm = n[0], ynorm = n[1], fnorm = n[2];
   if (fnorm != fnorm || ynorm != ynorm) return SNES_DIVERGED_FNORM_NAN;
+  if (it == 0) {
+    st->f0 = st->f_prev = fnorm;
+    return fnorm <= s->atol ? SNES_CONVERGED_FNORM_ABS : SNES_CONVERGED_ITERATING;
+  }
   const int linear = it >= 2 && s->linear_test && st->update_prev > 0.0;
   double rho = 0.0;
   if (linear) {
@@ -195,8 +202,8 @@ int cf_newton(cf_problem* p, const cf_settings* s, cf_newton_state* st)
       st->reason = SNES_DIVERGED_FNORM_NAN;
       return 0;
     }
-    st->f0 = st->f_prev = fnorm;
-    st->reason = fnorm <= s->atol ? SNES_CONVERGED_FNORM_ABS : SNES_CONVERGED_ITERATING;
+    const double first[3] = {0.0, 0.0, fnorm};
+    st->reason = cf_test(s, st, 0, first);
     if (st->reason == SNES_CONVERGED_ITERATING && s->max_iterations > 0 && st->need_jacobian) {
       st->phase = 1; /* the caller assembles the Jacobian and calls again */
       return 0;
@@ -215,7 +222,7 @@ int cf_newton(cf_problem* p, const cf_settings* s, cf_newton_state* st)
       break;
     }
     st->iterations += 1;
-    st->reason = stop_rule(s, st, st->iterations, st->norms);
+    st->reason = cf_test(s, st, st->iterations, st->norms);
   }
   if (st->reason == SNES_CONVERGED_ITERATING) st->reason = SNES_DIVERGED_MAX_IT;
   return 0;

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CosseratError, SceneError
-from .results import NoFramesError, RodSeries, Run, open_run
+from .results import NoFramesError, RodSeries, Run, open_run, read_sweep_rows
 
 DPI = 130
 HISTORY_SIZE = (10.0, 8.0)  # inches
@@ -46,10 +46,10 @@ def _pyplot():
     return plt
 
 
-def output_folder(out: str | Path | None, run: Run, command: str) -> Path:
-    """``out`` (made if missing) or the run's folder; a folder that cannot be made is bad
-    input."""
-    target = Path(out) if out is not None else run.directory
+def output_folder(out: str | Path | None, directory: Path, command: str) -> Path:
+    """``out`` (made if missing) or ``directory`` (the run's folder); a folder that cannot be
+    made is bad input."""
+    target = Path(out) if out is not None else directory
     try:
         target.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -141,42 +141,17 @@ SWEEP_PANELS = (("max_abs_x", "max |x| [m]"), ("max_abs_theta", "max |θ| [rad]"
                 ("max_abs_z", "max |z| [m]"), ("max_abs_phi", "max |φ| [rad]"))  # fmt: skip
 
 
-def read_sweep_table(directory: Path) -> tuple[list[str], list[dict]]:
-    """(columns, rows) of a sweep's sweep.csv, or of its table parts while it has none (a
-    sweep killed or still running), rows sorted by member; a cut last line is dropped, a
-    table without the sweep's columns is bad input. No MPI, no DOLFINx."""
-    import csv
-
-    table = directory / "sweep.csv"
-    sources = [table] if table.is_file() else sorted((directory / "table").glob("group-*.csv"))
-    columns: list[str] = []
-    rows: list[dict] = []
-    for source in sources:
-        try:
-            text = source.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as exc:
-            raise SceneError(f"plot: cannot read {str(source)!r} ({exc})") from None
-        lines = text[: text.rfind("\n") + 1].splitlines()  # a cut last row dropped
-        reader = csv.DictReader(lines)
-        columns = list(reader.fieldnames or [])
-        missing = {"member", "status", *(c for c, _ in SWEEP_PANELS)} - set(columns)
-        if missing:
-            raise SceneError(f"plot: {str(source)!r} is not a sweep's table (no column "
-                             f"{sorted(missing)[0]!r})")  # fmt: skip
-        rows += list(reader)
-    try:
-        rows.sort(key=lambda row: int(row["member"]))
-    except (TypeError, ValueError):
-        raise SceneError(f"plot: a member number in {str(directory)!r} is not an integer") from None
-    return columns, rows
-
-
 def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Path]:
     """sweep.png: the free end's largest displacements and angles of each member against the
     sweep's varied key (the member number when more than one key varies, or none is a
     number); members that did not complete are marked with a cross at zero."""
     directory = Path(directory)
-    columns, rows = read_sweep_table(directory)
+    columns, rows = read_sweep_rows(directory)
+    missing = {"member", "status", "wall_s", "steps", *(c for c, _ in SWEEP_PANELS)}
+    missing -= set(columns)
+    if missing:
+        raise SceneError(f"plot: {str(directory)!r} holds no sweep's table (no column "
+                         f"{sorted(missing)[0]!r})")  # fmt: skip
     if not rows:
         raise SceneError(f"plot: the sweep in {str(directory)!r} has no finished member yet")
     varied = columns[columns.index("wall_s") + 1 : columns.index("steps")]
@@ -193,6 +168,7 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
     if key is None or not np.isfinite(x).all():
         key, x = "member", [float(row["member"]) for row in rows]
     done = np.array([row["status"] == "completed" for row in rows])
+    target = output_folder(out, directory, "plot")
     plt = _pyplot()
     fig, axes = plt.subplots(3, 2, figsize=HISTORY_SIZE, sharex=True)
     for ax, (column, label) in zip(axes.flat, SWEEP_PANELS, strict=True):
@@ -209,11 +185,6 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
         ax.set_xlabel(_label(key))
     fig.suptitle(_label(f"Sweep of {len(rows)} members: {directory.name}"), fontsize=10)
     fig.tight_layout()
-    target = Path(out) if out is not None else directory
-    try:
-        target.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise SceneError(f"plot --out: cannot write to {str(target)!r} ({exc})") from None
     return [_save(fig, target / "sweep.png")]
 
 
@@ -238,7 +209,7 @@ def plot_run(directory: str | Path, out: str | Path | None = None) -> list[Path]
         probes = str(run.directory / "probes.csv")
         xdmf = f"{str(run.xdmf)!r} no frames" if run.xdmf else "there is no solution.xdmf"
         raise SceneError(f"plot: nothing to plot yet: {probes!r} holds no rows and {xdmf}")
-    target = output_folder(out, run, "plot")
+    target = output_folder(out, run.directory, "plot")
     paths = []
     if rows:
         paths.append(plot_free_end(run, target))

@@ -214,7 +214,7 @@ def render_run(
             f"render: {str(run.xdmf)!r}: at time {series.times[single[0]]:.6g} every point of "
             f"the rod (displaced x {k:g}) is at one place; nothing to draw"
         )
-    target = output_folder(out, run, "render")
+    target = output_folder(out, run.directory, "render")
     scene = _Scene(series, k, run.title, run.time_label)
     paths = []
     try:

@@ -730,3 +730,39 @@ def read_xdmf(path: str | Path, length: float | None = None) -> RodSeries:
         times=times,
         arrays={n: a[:, order, :] for n, a in arrays.items()},
     )
+
+
+# --- a sweep's table (cosserat_fem/sweep.py) ----------------------------------------------
+#: A sweep's table, and the folder of its parts (one a group of ranks: table/group-<k>.csv).
+SWEEP_TABLE, SWEEP_PARTS = "sweep.csv", "table"
+
+
+def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[list[str], list]:
+    """(columns, rows) of the sweep in ``directory``: its sweep.csv, or its table parts (with
+    ``parts_only``, or while there is no sweep.csv: a sweep killed or still running). A cut
+    last line of a file (a kill) is left out, not changed on disk; the rows (dicts of text)
+    come sorted by member. An unreadable file or a member that is not a number is bad input."""
+    import csv
+
+    directory = Path(directory)
+    table = directory / SWEEP_TABLE
+    if table.is_file() and not parts_only:
+        sources = [table]
+    else:
+        sources = sorted((directory / SWEEP_PARTS).glob("group-*.csv"))
+    columns: list[str] = []
+    rows: list[dict] = []
+    for source in sources:
+        try:
+            text = source.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise SceneError(f"{_where(source)}: cannot read it ({exc})") from None
+        reader = csv.DictReader(text[: text.rfind("\n") + 1].splitlines())
+        columns = list(reader.fieldnames or columns)
+        rows += list(reader)
+    try:
+        rows.sort(key=lambda row: int(row["member"]))
+    except (KeyError, TypeError, ValueError):
+        raise SceneError(f"{_where(directory)}: not a sweep's table (a member that is not a "
+                         "number)") from None  # fmt: skip
+    return columns, rows

@@ -605,7 +605,11 @@ def _half_size(scene: Scene) -> float:
 
 
 #: How closely a curve's expressions must give an arc-length parametrisation and an
-#: orthonormal frame (|r0'| = 1, |d0_1| = 1, d0_1 · r0' = 0), at 64 points an element.
+#: orthonormal frame (|r0'| = 1, |d0_1| = 1, d0_1 · r0' = 0), at 64 points an element. A speed
+#: |r0'| = 1 + ε makes the rod's mass and stiffnesses per unit of s off by a relative ε, and
+#: a frame ε from orthonormal its sections' axes by ε rad: 1e-6 is below the discretisation
+#: errors the verification holds (2e-5 in of 63 in, 3e-7, for the bend) and still admits
+#: constants written with 7 digits (cos(α) as 0.9800666).
 CURVE_TOLERANCE = 1e-6
 
 

@@ -38,11 +38,10 @@ import numpy as np
 from mpi4py import MPI
 
 from .errors import CosseratError, SceneError, SolverError, StopError
+from .results import SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
 from .sweep_spec import Member, SweepSpec
 
 PROBE_NAMES = ("x", "y", "z", "theta", "psi", "phi")
-TABLE = "sweep.csv"
-PARTS = "table"
 RECORD = "sweep.json"
 
 
@@ -84,31 +83,27 @@ def _csv_line(fields: list[str], row: dict) -> str:
     return buffer.getvalue()
 
 
-def _whole_lines(path: Path) -> list[str]:
-    """The whole lines of a table part; a line cut by a kill is cut off the file too."""
-    raw = path.read_bytes()
-    whole = raw[: raw.rfind(b"\n") + 1]
-    if len(whole) != len(raw):
-        with open(path, "r+b") as stream:
-            stream.truncate(len(whole))
-    return whole.decode("utf-8").splitlines()
+def _cut_rows_off(out: Path) -> None:
+    """A row cut by a kill is cut off its table part too, so that the next row starts a line
+    (world rank 0, before anything is appended)."""
+    for part in (out / SWEEP_PARTS).glob("group-*.csv"):
+        raw = part.read_bytes()
+        whole = raw.rfind(b"\n") + 1
+        if whole != len(raw):
+            with open(part, "r+b") as stream:
+                stream.truncate(whole)
 
 
-def _finished(out: Path, fields: list[str]) -> dict[int, dict]:
-    """{member: row} of the rows already in the table's parts (world rank 0)."""
-    rows: dict[int, dict] = {}
-    for part in sorted((out / PARTS).glob("group-*.csv")):
-        lines = _whole_lines(part)
-        for row in csv.DictReader(lines[1:], fieldnames=fields) if lines else []:
-            rows[int(row["member"])] = row
-    return rows
+def _finished(out: Path) -> dict[int, dict]:
+    """{member: row} of the rows already in the table's parts."""
+    return {int(row["member"]): row for row in read_sweep_rows(out, parts_only=True)[1]}
 
 
-def _prepare(spec: SweepSpec, out: Path, fields: list[str]) -> dict[int, dict]:
+def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
     """The output folder (world rank 0): made, the sweep recorded or checked against the one
     it holds; the rows of members already finished."""
     out.mkdir(parents=True, exist_ok=True)
-    (out / PARTS).mkdir(exist_ok=True)
+    (out / SWEEP_PARTS).mkdir(exist_ok=True)
     record = out / RECORD
     fingerprint = spec.fingerprint()
     if record.exists():
@@ -120,7 +115,8 @@ def _prepare(spec: SweepSpec, out: Path, fields: list[str]) -> dict[int, dict]:
         document = {"fingerprint": fingerprint, "members": len(spec.members),
                     "varied": list(spec.varied), "source": spec.source}  # fmt: skip
         record.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
-    return _finished(out, fields)
+    _cut_rows_off(out)
+    return _finished(out)
 
 
 def _run_member(spec: SweepSpec, member: Member, folder: Path, comm) -> dict:
@@ -187,7 +183,7 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD) -> SweepRe
     error, finished = None, {}
     if world.rank == 0:
         try:
-            finished = _prepare(spec, out, fields)
+            finished = _prepare(spec, out)
         except (SceneError, OSError) as exc:
             error = str(exc) if isinstance(exc, SceneError) else f"sweep: {exc}"
     error = world.bcast(error, root=0)
@@ -197,44 +193,40 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD) -> SweepRe
     todo = [m for m in spec.members if m.index not in done]
     color = world.rank // spec.group_size
     group = world.Split(color, world.rank)
+    leader = group.rank == 0  # writes the group's table part
     counter = _Counter(world)
-    part = out / PARTS / f"group-{color}.csv"
+    part = out / SWEEP_PARTS / f"group-{color}.csv"
     ran = 0
     try:
-        if group.rank == 0:
+        if leader:
             new = not part.exists() or part.stat().st_size == 0
             stream = open(part, "a", encoding="utf-8", newline="")  # noqa: SIM115
             if new:
                 stream.write(",".join(fields) + "\n")
                 stream.flush()
         while True:
-            k = counter.next() if group.rank == 0 else None
+            k = counter.next() if leader else None
             k = group.bcast(k, root=0)
             if k >= len(todo):
                 break
             member = todo[k]
             row = _run_member(spec, member, out / "members" / member.name, group)
             ran += 1
-            if group.rank == 0:
+            if leader:
                 stream.write(_csv_line(fields, row))
                 stream.flush()
-        if group.rank == 0:
+        if leader:
             stream.close()
     finally:
         world.Barrier()
         counter.free()
         group.Free()
+    ran = world.allreduce(ran if leader else 0, op=MPI.SUM)  # before rank 0 works alone
     rows = []
     if world.rank == 0:
-        rows = sorted(_finished(out, fields).values(), key=lambda r: int(r["member"]))
+        rows = list(_finished(out).values())  # sorted by member
         text = ",".join(fields) + "\n" + "".join(_csv_line(fields, r) for r in rows)
-        temporary = out / f".{TABLE}.tmp"
+        temporary = out / f".{SWEEP_TABLE}.tmp"
         temporary.write_text(text, encoding="utf-8")
-        temporary.replace(out / TABLE)
-    ran = world.allreduce(ran if group_leader(world, spec) else 0, op=MPI.SUM)
-    return SweepResult(out / TABLE, ran, len(done), rows)
-
-
-def group_leader(world, spec: SweepSpec) -> bool:
-    """Whether this rank is the first of its group."""
-    return world.rank % spec.group_size == 0
+        temporary.replace(out / SWEEP_TABLE)
+    return SweepResult(out / SWEEP_TABLE, ran, len(done), rows)

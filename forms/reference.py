@@ -84,7 +84,8 @@ def curve(tangent, tangent_rate, director, director_rate) -> Reference:
     """A curve given by its unit tangent t0 = d0_3 and a unit director d0_1 ⊥ t0 (UFL
     3-vectors, fixed basis) and their derivatives in s [1/m]: D0 has the rows d0_1,
     d0_2 = d0_3 × d0_1, d0_3, and the curvature in the reference directors' components is
-    u0_1 = d0_2'·d0_3, u0_2 = d0_3'·d0_1, u0_3 = d0_1'·d0_2 (from d0_i' = u0 × d0_i)."""
+    u0_1 = d0_2'·d0_3, u0_2 = d0_3'·d0_1, u0_3 = d0_1'·d0_2: the components (5) of u0 in the
+    frame's own derivative, d0_i' = u0 × d0_i (2)."""
     d1, d3 = director, tangent
     d2 = ufl.cross(d3, d1)
     d2_rate = ufl.cross(tangent_rate, d1) + ufl.cross(d3, director_rate)

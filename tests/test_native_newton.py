@@ -72,12 +72,17 @@ def test_a_point_load_keeps_the_python_loop():
 
 def test_a_failed_compile_keeps_the_python_loop(tmp_path, monkeypatch):
     """A C source that does not compile (here: a syntax error; on a machine, missing PETSc
-    headers) is reported as NotApplicable, and the run uses the Python loop."""
+    headers) is reported as NotApplicable, and the run uses the Python loop; the process does
+    not try to compile again (a second call fails at once, with the same reason)."""
     broken = tmp_path / "newton_loop.c"
     broken.write_text(native_newton.SOURCE.read_text() + "\nthis is not C;\n")
     monkeypatch.setattr(native_newton, "SOURCE", broken)
     monkeypatch.setattr(native_newton, "_MODULE", None)
+    monkeypatch.setattr(native_newton, "_FAILED", None)  # restored after: later tests build
     monkeypatch.setattr(native_newton, "_cache_dir", lambda: tmp_path / "cache")
+    with pytest.raises(native_newton.NotApplicable, match="did not compile"):
+        native_newton.compiled()
+    broken.unlink()  # a second attempt would now fail otherwise (no source): it must not try
     with pytest.raises(native_newton.NotApplicable, match="did not compile"):
         native_newton.compiled()
     result = _run("cao_tucker_2008", 2, [], "auto")

@@ -115,6 +115,8 @@ def test_a_restarted_sweep_skips_the_finished_members(tmp_path):
          "sweep.max_members: the sweep has 2500 members, more than max_members = 1000"),
         ('[sweep.vary]\n"time.step" = [1e-5, 2e-5]\n"solver.stol" = [1e-8]\n',
          {"combine": "zip"}, "sweep.vary: combine = 'zip' needs lists of one length"),
+        (STEPS, {"max_members": 200000}, "sweep.max_members: at most 100000 (every rank "
+         "validates every member first), got 200000"),
         (STEPS, {"keep": "all"}, "sweep.keep: must be one of 'run', 'probes', got \"all\""),
         (STEPS, {"group_size": 0}, "sweep.group_size: must be a positive integer, got 0"),
         (STEPS, {"colour": 1}, "sweep.colour: unknown key"),
@@ -242,7 +244,7 @@ def test_plot_draws_a_sweep_from_its_table_or_its_parts(tmp_path):
     part.write_text("member,status\n0,completed\n", encoding="utf-8")
     proc = run_command(["-m", "cosserat_fem.cli", "plot", str(out)])
     assert proc.returncode == 2
-    assert proc.stderr.startswith("cosserat-fem: error: plot: ") and "not a sweep's table" in (
+    assert proc.stderr.startswith("cosserat-fem: error: plot: ") and "no sweep's table" in (
         proc.stderr
     )
     assert proc.stderr.count("\n") == 1
@@ -265,3 +267,13 @@ def test_a_group_of_two_ranks_runs_a_member_as_mpirun_runs_it_alone(tmp_path):
     assert proc.returncode == 0, proc.stderr
     member = out / "members" / "m00001" / "probes.csv"
     assert member.read_bytes() == (alone / "probes.csv").read_bytes()
+
+
+def test_a_range_ends_at_its_stop_exactly(tmp_path):
+    """{start = 1e-5, stop = 3e-5, num = 3}: 1e-5 + (2e-5 · 2)/2 would be 2.9999999999999997e-5
+    in floating point; the last member's value is the stop as written."""
+    spec = api.load_sweep(sweep_file(
+        tmp_path, '[sweep.vary]\n"time.step" = {start = 1e-5, stop = 3e-5, num = 3}\n'))
+    values = [m.values["time.step"] for m in spec.members]
+    assert values[0] == 1e-5 and values[-1] == 3e-5
+    assert values[1] == pytest.approx(2e-5, rel=1e-15)  # an inner value: to rounding

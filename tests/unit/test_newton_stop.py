@@ -56,19 +56,26 @@ class Squares:
         self.solver = NewtonSolver(F, self.U, [], settings)
 
 
-@pytest.fixture(scope="module")
-def problem():
+@pytest.fixture(scope="module", params=["python", "c"])
+def problem(request):
+    """The solver whose rule the sequences are fed to: Python's ``_converged``, or the C loop's
+    ``cf_test`` (cosserat_fem/newton_loop.c, which runs the rule inside Newton's C solves: the
+    same rule written twice, held to the same sequences)."""
     squares = Squares(NewtonSettings())
+    assert squares.solver.loop == "c"  # a serial cell integral: the C loop applies
+    squares.rule = request.param
     yield squares
     squares.solver.destroy()
 
 
-def feed(solver: NewtonSolver, settings: NewtonSettings, norms) -> tuple[int, int]:
-    """(iteration, reason) at which the rule stops on the sequence ``norms`` of (‖U‖, ‖δU‖,
-    ‖F‖), iteration 0 first; (len, ITERATING) if it never stops."""
+def feed(problem: Squares, settings: NewtonSettings, norms) -> tuple[int, int]:
+    """(iteration, reason) at which ``problem``'s rule stops on the sequence ``norms`` of
+    (‖U‖, ‖δU‖, ‖F‖), iteration 0 first; (len, ITERATING) if it never stops."""
+    solver = problem.solver
+    test = solver._native.test if problem.rule == "c" else solver._converged
     solver.settings = settings
     for it, triple in enumerate(norms):
-        reason = solver._converged(it, triple)
+        reason = test(it, triple)
         if reason != ITERATING:
             return it, reason
     return len(norms), ITERATING
@@ -90,9 +97,9 @@ def test_quadratic_sequence_stops_by_the_update_test(problem):
     with the last update 1.1e-8 does not stop."""
     norms = [(1.0, 0.0, 1e3), (1.0, 1e-1, 1e-2), (1.0, 1e-2, 1e-4), (1.0, 1e-4, 1e-6),
              (1.0, 1e-8, 1e-6)]
-    assert feed(problem.solver, full(), norms) == (4, STEP)
+    assert feed(problem, full(), norms) == (4, STEP)
     norms[-1] = (1.0, 1.1e-8, 1e-6)
-    assert feed(problem.solver, full(), norms) == (5, ITERATING)
+    assert feed(problem, full(), norms) == (5, ITERATING)
 
 
 def test_update_test_boundary(problem):
@@ -102,9 +109,9 @@ def test_update_test_boundary(problem):
     for x in (1.0, 3.0):
         tol = st.stol * x + st.xatol
         start = (x, 0.0, 1.0)
-        assert feed(problem.solver, st, [start, (x, tol, 0.5)]) == (1, STEP)
+        assert feed(problem, st, [start, (x, tol, 0.5)]) == (1, STEP)
         above = np.nextafter(tol, np.inf)
-        assert feed(problem.solver, st, [start, (x, above, 0.5)]) == (2, ITERATING)
+        assert feed(problem, st, [start, (x, above, 0.5)]) == (2, ITERATING)
 
 
 def test_linear_sequence_stops_by_the_error_estimate(problem):
@@ -115,10 +122,10 @@ def test_linear_sequence_stops_by_the_error_estimate(problem):
     updates = [5e-4 * 0.1**k for k in range(6)]
     residuals = [1e2 * 0.1**k for k in range(6)]
     norms = [(1.0, 0.0, 1e3)] + [(1.0, y, f) for y, f in zip(updates, residuals, strict=True)]
-    assert feed(problem.solver, frozen(), norms) == (5, STEP)
+    assert feed(problem, frozen(), norms) == (5, STEP)
     lagged = dataclasses.replace(DEFAULT, jacobian="lagged")
-    assert feed(problem.solver, lagged, norms) == (5, STEP)
-    assert feed(problem.solver, full(), norms) == (6, STEP)
+    assert feed(problem, lagged, norms) == (5, STEP)
+    assert feed(problem, full(), norms) == (6, STEP)
 
 
 def test_estimate_needs_a_second_iteration(problem):
@@ -126,9 +133,9 @@ def test_estimate_needs_a_second_iteration(problem):
     Jacobian and even right after a solve whose last updates were tiny (the running norms of
     the previous solve must not stand in for ρ_1). ‖δU_1‖ = 2 tol: not stopped."""
     previous = [(1.0, 0.0, 1.0), (1.0, 1e-3, 1e-2), (1.0, 1e-9, 1e-8)]
-    assert feed(problem.solver, frozen(), previous) == (2, STEP)
+    assert feed(problem, frozen(), previous) == (2, STEP)
     norms = [(1.0, 0.0, 1.0), (1.0, 2 * TOL, 1e-3)]
-    assert feed(problem.solver, frozen(), norms) == (2, ITERATING)
+    assert feed(problem, frozen(), norms) == (2, ITERATING)
 
 
 @pytest.mark.parametrize(
@@ -148,30 +155,30 @@ def test_contraction_is_the_larger_ratio(problem, updates, residuals, stop):
     """ρ is the larger of the update and residual ratios (module docstring: the update ratio
     alone read 1.5e-4 where the residual fell by 0.2 an iteration, and let the energy drift)."""
     norms = [(1.0, 0.0, 1e3)] + [(1.0, y, f) for y, f in zip(updates, residuals, strict=True)]
-    assert feed(problem.solver, frozen(), norms) == (stop, STEP)
+    assert feed(problem, frozen(), norms) == (stop, STEP)
     # Not earlier: the sequence cut after iteration 2 keeps iterating.
-    assert feed(problem.solver, frozen(), norms[:3]) == (3, ITERATING)
+    assert feed(problem, frozen(), norms[:3]) == (3, ITERATING)
 
 
 def test_no_estimate_when_not_contracting(problem):
     """ρ ≥ 1 (the updates grow by 1.5): η = ρ/(1 − ρ) would be negative and "stop" any
     sequence; the rule requires ρ < 1, so only the update test can end it."""
     norms = [(1.0, 0.0, 1.0), (1.0, 2 * TOL, 0.5), (1.0, 3 * TOL, 0.4), (1.0, 4.5 * TOL, 0.3)]
-    assert feed(problem.solver, frozen(), norms) == (4, ITERATING)
+    assert feed(problem, frozen(), norms) == (4, ITERATING)
 
 
 def test_absolute_and_relative_residual_tests(problem):
     """atol at iteration 0 (the initial guess solves it: no iteration at all) and later
     (whatever the update); rtol relative to ‖F_0‖ of this solve; just above either: not."""
     st = full()
-    assert feed(problem.solver, st, [(1.0, 0.0, st.atol)]) == (0, ABS)
-    assert feed(problem.solver, st, [(1.0, 0.0, 2 * st.atol)]) == (1, ITERATING)
-    assert feed(problem.solver, st, [(1.0, 0.0, 1.0), (1.0, 0.5, st.atol)]) == (1, ABS)
+    assert feed(problem, st, [(1.0, 0.0, st.atol)]) == (0, ABS)
+    assert feed(problem, st, [(1.0, 0.0, 2 * st.atol)]) == (1, ITERATING)
+    assert feed(problem, st, [(1.0, 0.0, 1.0), (1.0, 0.5, st.atol)]) == (1, ABS)
     f0 = 1e3  # rtol ‖F_0‖ = 1e-7
-    assert feed(problem.solver, st, [(1.0, 0.0, f0), (1.0, 0.5, 1e-7)]) == (1, REL)
-    assert feed(problem.solver, st, [(1.0, 0.0, f0), (1.0, 0.5, 1.01e-7)]) == (2, ITERATING)
+    assert feed(problem, st, [(1.0, 0.0, f0), (1.0, 0.5, 1e-7)]) == (1, REL)
+    assert feed(problem, st, [(1.0, 0.0, f0), (1.0, 0.5, 1.01e-7)]) == (2, ITERATING)
     # A new solve starts from its own ‖F_0‖ (1e-3 now): 1e-7 is no longer small enough.
-    assert feed(problem.solver, st, [(1.0, 0.0, 1e-3), (1.0, 0.5, 1e-7)]) == (2, ITERATING)
+    assert feed(problem, st, [(1.0, 0.0, 1e-3), (1.0, 0.5, 1e-7)]) == (2, ITERATING)
 
 
 def test_absolute_update_part_for_tiny_states(problem):
@@ -179,24 +186,24 @@ def test_absolute_update_part_for_tiny_states(problem):
     module docstring's thin rod) an update at the round-off floor, 3e-16, is 2e-8 of ‖U‖ and
     would never meet stol ‖U‖ = 1.6e-16: with xatol = 0 the solve runs to max_iterations."""
     st = full()
-    assert feed(problem.solver, st, [(0.0, 0.0, 1.0), (0.0, st.xatol, 0.5)]) == (1, STEP)
-    assert feed(problem.solver, st, [(0.0, 0.0, 1.0), (0.0, 2 * st.xatol, 0.5)]) == (
+    assert feed(problem, st, [(0.0, 0.0, 1.0), (0.0, st.xatol, 0.5)]) == (1, STEP)
+    assert feed(problem, st, [(0.0, 0.0, 1.0), (0.0, 2 * st.xatol, 0.5)]) == (
         2, ITERATING)
     stall = [(1.6e-8, 0.0, 1.0)] + [(1.6e-8, 3e-16, 1e-9)] * st.max_iterations
-    assert feed(problem.solver, st, stall) == (1, STEP)
-    assert feed(problem.solver, full(xatol=0.0), stall) == (st.max_iterations, MAX_IT)
+    assert feed(problem, st, stall) == (1, STEP)
+    assert feed(problem, full(xatol=0.0), stall) == (st.max_iterations, MAX_IT)
 
 
 def test_nan_and_iteration_limit(problem):
     """A NaN norm (‖F‖ or ‖δU‖) is DIVERGED_FNORM_NAN at once, at iteration 0 too; at
     max_iterations the solve is DIVERGED_MAX_IT, one before it still iterates."""
     nan = math.nan
-    assert feed(problem.solver, full(), [(1.0, 0.0, nan)]) == (0, NAN)
-    assert feed(problem.solver, full(), [(1.0, 0.0, 1.0), (1.0, nan, 0.5)]) == (1, NAN)
-    assert feed(problem.solver, frozen(), [(1.0, 0.0, 1.0), (1.0, 0.1, nan)]) == (1, NAN)
+    assert feed(problem, full(), [(1.0, 0.0, nan)]) == (0, NAN)
+    assert feed(problem, full(), [(1.0, 0.0, 1.0), (1.0, nan, 0.5)]) == (1, NAN)
+    assert feed(problem, frozen(), [(1.0, 0.0, 1.0), (1.0, 0.1, nan)]) == (1, NAN)
     slow = [(1.0, 0.0, 1.0)] + [(1.0, 0.5, 0.9)] * 5
-    assert feed(problem.solver, full(max_iterations=5), slow) == (5, MAX_IT)
-    assert feed(problem.solver, full(max_iterations=6), slow) == (6, ITERATING)
+    assert feed(problem, full(max_iterations=5), slow) == (5, MAX_IT)
+    assert feed(problem, full(max_iterations=6), slow) == (6, ITERATING)
 
 
 # --------------------------------------------------------------------------- real solves
