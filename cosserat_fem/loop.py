@@ -149,6 +149,7 @@ class TimeLoop:
         self.state = LoopState(t=integrator.time / self.omega0)
         self.restarted = restart is not None
         self.pending = False  # a step was attempted and neither accepted nor rejected
+        self.end_reason: str | None = None  # set by request_end: the run ends early
         self.stepping_since: float | None = None
         self.stepping_until: float | None = None
         self.history: StateHistory | None = None
@@ -224,7 +225,14 @@ class TimeLoop:
 
     @property
     def completed(self) -> bool:
-        return self.state.outputs == self.tspan.n_steps
+        """The span is done: its last output time reached, or an observer ended it early."""
+        return self.state.outputs == self.tspan.n_steps or self.end_reason is not None
+
+    def request_end(self, reason: str) -> None:
+        """End the run after the current nominal step, as if its span ended there (an
+        observer's call, e.g. once a forced response has settled: cosserat_fem/response.py);
+        ``reason`` goes to summary.json. Every rank must call it alike."""
+        self.end_reason = reason
 
     # -- the chart of the angles ------------------------------------------------------------
     def _activate_chart(self) -> None:
@@ -370,7 +378,7 @@ class TimeLoop:
                 f"which steps of 2^-{halvings} cannot reach; use at least the first run's value"
             )
         done = int(done)
-        while st.outputs < tspan.n_steps:
+        while st.outputs < tspan.n_steps and self.end_reason is None:
             st.level, st.done = level, done / whole
             units = whole >> level
             t_new = tspan.start + (st.outputs + (done + units) / whole) * tspan.step
@@ -417,7 +425,7 @@ class TimeLoop:
             history.push(st.t, model.U.x.array)
             h = min(tspan.step, h_max)
         consecutive = 0
-        while st.t < tspan.end - 1e-12 * span:
+        while st.t < tspan.end - 1e-12 * span and self.end_reason is None:
             st.h = h
             h = min(h, tspan.end - st.t)
             t_new = st.t + h

@@ -291,6 +291,7 @@ class _RunParts:
                 "status": status_of(failure),
                 "message": str(failure) if failure else "",
                 **loop.state.counts(),
+                **({"ended_early": loop.end_reason} if loop.end_reason else {}),
                 "checkpoints_written": self.checkpoints.written if self.checkpoints else 0,
                 "newton": {**self.solver.stats.as_dict(), "loop": self.solver.loop},
                 "wall_time_s": {

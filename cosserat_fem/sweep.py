@@ -18,10 +18,20 @@ dropped and its member run again); ``sweep.json`` records the sweep, and a diffe
 the same folder is refused. Members run one after another in each group, and a member's rows
 of probes are only held until its row is written: memory per rank does not grow with the sweep.
 
+A frequency response (``[sweep.response]``) deals chains rather than members: a group runs
+a chain's members in order, each from the final state its predecessor saved in
+``final_state.npz`` (kept with ``keep = "probes"`` too) and at the start time that carries the
+forcing's phase over (response.continued_start); a restarted chain continues from the last
+finished member's saved state; after a failed member its chain goes on from rest.
+
 The row: ``member``, ``status`` ("completed", or the run's failure: "failed", "stopped",
 "error"), ``wall_s`` (the member's run), each varied key's value, the run's ``steps`` and
 ``newton_iterations``, and for each probe column c (x, y, z [m], theta, psi, phi [rad]):
-``final_c`` and ``max_abs_c`` over the run; ``message`` for a failure.
+``final_c`` and ``max_abs_c`` over the run; for a frequency response, the chain's
+``direction``, the ``previous`` member it continued (empty: from rest), its ``start_s`` and
+``end_s``, the ``periods`` it ran, whether it ``settled`` and the last period's ``change``,
+and per column c its ``amp_c``, ``mean_c``, ``h1_c`` and ``phase_c`` (cosserat_fem/response.py);
+``message`` for a failure.
 """
 
 from __future__ import annotations
@@ -38,11 +48,14 @@ import numpy as np
 from mpi4py import MPI
 
 from .errors import CosseratError, SceneError, SolverError, StopError
+from .response import COLUMNS as RESPONSE_NAMES
+from .response import MEASURES, PeriodicResponse, continued_start
 from .results import SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
 from .sweep_spec import Member, SweepSpec
 
 PROBE_NAMES = ("x", "y", "z", "theta", "psi", "phi")
 RECORD = "sweep.json"
+FINAL_STATE = "final_state.npz"
 
 
 @dataclass
@@ -56,17 +69,32 @@ class SweepResult:
     rows: list[dict]
 
 
+#: A forced member's columns besides a sweep's (cosserat_fem/response.py).
+RESPONSE_COLUMNS = ("direction", "previous", "start_s", "end_s", "periods", "settled", "change")
+
+
 def columns(spec: SweepSpec) -> list[str]:
     """The table's columns (module docstring)."""
     qoi = [f"{kind}_{name}" for name in PROBE_NAMES for kind in ("final", "max_abs")]
+    response = []
+    if spec.response is not None:
+        response = [*RESPONSE_COLUMNS,
+                    *(f"{m}_{c}" for c in RESPONSE_NAMES for m in MEASURES)]  # fmt: skip
     return ["member", "status", "wall_s", *spec.varied, "steps", "newton_iterations", *qoi,
-            "message"]  # fmt: skip
+            *response, "message"]  # fmt: skip
 
 
 def _row(spec: SweepSpec, member: Member, status: str, wall: float, summary: dict | None,
-         probes: np.ndarray | None, message: str) -> dict:  # fmt: skip
+         probes: np.ndarray | None, message: str,
+         response: dict | None = None) -> dict:  # fmt: skip
     row = {"member": member.index, "status": status, "wall_s": f"{wall:.6g}"}
     row.update({key: json.dumps(member.values.get(key)) for key in spec.varied})
+    if spec.response is not None:
+        response = response or {}
+        row["direction"] = member.direction
+        for key, value in response.items():
+            row[key] = (repr(value) if isinstance(value, float) else
+                        "" if value is None else json.dumps(value))  # fmt: skip
     row["steps"] = summary.get("steps", "") if summary else ""
     row["newton_iterations"] = summary.get("newton", {}).get("iterations", "") if summary else ""
     for i, name in enumerate(PROBE_NAMES):
@@ -119,8 +147,62 @@ def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
     return _finished(out)
 
 
-def _run_member(spec: SweepSpec, member: Member, folder: Path, comm) -> dict:
-    """Run one member on ``comm`` into ``folder``; its row (every rank of ``comm``)."""
+@dataclass
+class _Final:
+    """A member's final state, to continue from: its index, time [s] and forcing period [s],
+    and this rank's part of the state (the 12-component U = (p, q) of simulation.run's
+    ``initial_state``)."""
+
+    index: int
+    t: float
+    period: float
+    state: np.ndarray
+
+
+def _save_final(folder: Path, final: _Final, comm) -> None:
+    """``final_state.npz`` in the member's folder: t, period and each rank's part (U0, U1,
+    ...; a chain runs on one group, so the parts fit the next member's partition)."""
+    parts = comm.gather(final.state, root=0)
+    if comm.rank == 0:
+        arrays = {f"U{r}": part for r, part in enumerate(parts)}
+        temporary = folder / ".final_state.npz"
+        with open(temporary, "wb") as stream:
+            np.savez(stream, t=final.t, period=final.period, **arrays)
+        temporary.replace(folder / FINAL_STATE)
+
+
+def _load_final(folder: Path, index: int, comm) -> _Final | None:
+    """The final state a member saved (None if it has none: it failed); SceneError if it was
+    saved by groups of another size."""
+    path = folder / FINAL_STATE
+    if not path.exists():
+        return None
+    with np.load(path) as data:
+        ranks = sum(1 for k in data.files if k.startswith("U"))
+        if ranks != comm.size:
+            raise SceneError(f"sweep.group_size: {path} holds the state of a group of {ranks} "
+                             f"ranks, this sweep's groups have {comm.size}")  # fmt: skip
+        return _Final(index, float(data["t"]), float(data["period"]), data[f"U{comm.rank}"])
+
+
+def _forced(spec: SweepSpec, member: Member, before: _Final | None):
+    """A forced member's scene, its response observer and its start (module docstring of
+    cosserat_fem/response.py): from the scene's time.start at rest, or continuing ``before``
+    with the forcing's phase carried over."""
+    from .output import probe_sigma
+
+    period = spec.period(member)
+    start = spec.scene(member).time.start
+    if before is not None:
+        start = continued_start(before.t, before.period, period)
+    scene = spec.scene(member, spec.span(member, start))
+    return scene, PeriodicResponse(spec.response, period, probe_sigma(scene)), period
+
+
+def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
+                before: _Final | None = None) -> tuple[dict, _Final | None]:  # fmt: skip
+    """Run one member on ``comm`` into ``folder`` (a forced one continuing ``before`` if
+    given); its row and, for a chain, its final state (every rank of ``comm``)."""
     from .simulation import run
 
     if comm.rank == 0 and folder.exists():
@@ -128,9 +210,22 @@ def _run_member(spec: SweepSpec, member: Member, folder: Path, comm) -> dict:
     comm.Barrier()
     t0 = time.perf_counter()
     summary, probes, status, message = None, None, "completed", ""
+    response, final, period = None, None, None
     try:
-        result = run(spec.scene(member), folder, comm=comm, record=True)
+        observers, initial = [], None
+        if spec.response is not None:
+            scene, response, period = _forced(spec, member, before)
+            observers = [response]
+            initial = before.state if before is not None else None
+        else:
+            scene = spec.scene(member)
+        result = run(scene, folder, comm=comm, record=True, observers=observers,
+                     initial_state=initial)  # fmt: skip
         summary, probes = result.summary, result.probes
+        if spec.chains_continue:
+            state = result.model.layout.full_array(result.model.U.x.array).ravel()
+            final = _Final(member.index, result.time_reached, period, state.copy())
+            _save_final(folder, final, comm)
     except Exception as exc:  # recorded, and the sweep goes on (a bug's too: "error")
         status = "error"
         if isinstance(exc, SolverError):
@@ -145,9 +240,34 @@ def _run_member(spec: SweepSpec, member: Member, folder: Path, comm) -> dict:
         summary = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
     if comm.rank == 0 and spec.keep == "probes" and folder.exists():
         for entry in folder.iterdir():
-            if entry.name not in ("probes.csv", "summary.json"):
+            if entry.name not in ("probes.csv", "summary.json", FINAL_STATE):
                 shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
-    return _row(spec, member, status, wall, summary, probes, message)
+    measured = None
+    if spec.response is not None:
+        measured = {"previous": before.index if before is not None else None,
+                    **(response.result if response is not None and response.result else {})}
+    return _row(spec, member, status, wall, summary, probes, message, measured), final
+
+
+def _run_chain(spec: SweepSpec, chain: tuple[int, ...], done: set[int], out: Path, comm,
+               write) -> int:  # fmt: skip
+    """Run a chain's members not done, in order, each continuing the one before it when the
+    sweep continues (from its saved state if it was done before a restart); ``write(row)``
+    each row. The number run."""
+    ran, before = 0, None
+    for position, index in enumerate(chain):
+        member = spec.members[index]
+        folder = out / "members" / member.name
+        if index in done:
+            continue
+        if spec.chains_continue and position and (before is None or before.index != chain[
+                position - 1]):  # fmt: skip
+            previous = spec.members[chain[position - 1]]
+            before = _load_final(out / "members" / previous.name, previous.index, comm)
+        row, before = _run_member(spec, member, folder, comm, before)
+        write(row)
+        ran += 1
+    return ran
 
 
 class _Counter:
@@ -190,7 +310,7 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD) -> SweepRe
     if error:
         raise SceneError(error)
     done = set(world.bcast(sorted(finished), root=0))
-    todo = [m for m in spec.members if m.index not in done]
+    todo = [chain for chain in spec.chains if not done.issuperset(chain)]
     color = world.rank // spec.group_size
     group = world.Split(color, world.rank)
     leader = group.rank == 0  # writes the group's table part
@@ -198,24 +318,26 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD) -> SweepRe
     part = out / SWEEP_PARTS / f"group-{color}.csv"
     ran = 0
     try:
+        stream = None
         if leader:
             new = not part.exists() or part.stat().st_size == 0
             stream = open(part, "a", encoding="utf-8", newline="")  # noqa: SIM115
             if new:
                 stream.write(",".join(fields) + "\n")
                 stream.flush()
+
+        def write(row: dict) -> None:
+            if stream is not None:
+                stream.write(_csv_line(fields, row))
+                stream.flush()
+
         while True:
             k = counter.next() if leader else None
             k = group.bcast(k, root=0)
             if k >= len(todo):
                 break
-            member = todo[k]
-            row = _run_member(spec, member, out / "members" / member.name, group)
-            ran += 1
-            if leader:
-                stream.write(_csv_line(fields, row))
-                stream.flush()
-        if leader:
+            ran += _run_chain(spec, todo[k], done, out, group, write)
+        if stream is not None:
             stream.close()
     finally:
         world.Barrier()

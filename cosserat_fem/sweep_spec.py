@@ -24,6 +24,23 @@ or, instead of ``[sweep.vary]``, a table of cases, each a set of dotted keys::
     "time.step" = 2e-5
     "solver.stol" = 1e-8
 
+A frequency response adds ``[sweep.response]`` (cosserat_fem/response.py)::
+
+    [sweep.response]
+    period = "2*pi/(r*omega0)"   # s: the forcing's period, of L, omega0 and the parameters
+    continuation = "parameters.r"  # a varied key: each member starts from the final state
+                                 #   of the one before it in its chain (optional)
+    direction = "up"             # chains by increasing ("up"), decreasing ("down") values of
+                                 #   that key, or "both" (each member twice)
+    tolerance = 1e-3             # settled: a relative change per period below this ...
+    settled_periods = 3          # ... for so many periods in a row
+    measure_periods = 2          # amplitudes over the last periods (<= settled_periods + 1)
+    max_periods = 200            # a member runs at most so many periods (time.end ignored)
+
+A chain is the members that share the values of every other varied key, ordered by the
+continuation key; without a continuation each member is a chain of its own, from the
+scene's initial state.
+
 A range ``{start, stop, num}`` is ``num`` values from ``start`` to ``stop``, both included and
 written exactly (``num = 1``: ``start``). Members are numbered from 0 in the order of the
 product (the last key varying fastest), the zip or the cases. Every member's scene is built
@@ -43,10 +60,13 @@ from pathlib import Path
 from typing import Any
 
 from .errors import SceneError, show_value
+from .response import DIRECTIONS, ResponseSettings, check_sampling, period_of
 from .scene import Scene, scene_from_dict
 from .schema import apply_overrides, read_toml
 
-KEYS = {"scene", "combine", "max_members", "group_size", "keep", "set", "vary", "case"}
+KEYS = {"scene", "combine", "max_members", "group_size", "keep", "set", "vary", "case", "response"}
+RESPONSE_KEYS = {"period", "continuation", "direction", "tolerance", "settled_periods",
+                 "measure_periods", "max_periods"}  # fmt: skip
 #: The most members a sweep may have: each rank validates every member before any runs
 #: (~1 ms a member here: 100 s) and keeps its values.
 MAX_MEMBERS = 100_000
@@ -61,6 +81,7 @@ class Member:
 
     index: int
     values: dict[str, Any]
+    direction: str = ""  # a frequency response's chain: "up" or "down" ("" without one)
 
     @property
     def name(self) -> str:
@@ -68,7 +89,8 @@ class Member:
         return f"m{self.index:05d}"
 
     def describe(self) -> str:
-        return ", ".join(f"{k} = {json.dumps(v)}" for k, v in self.values.items())
+        text = ", ".join(f"{k} = {json.dumps(v)}" for k, v in self.values.items())
+        return f"{text}, {self.direction}" if self.direction else text
 
 
 @dataclass(frozen=True)
@@ -83,23 +105,49 @@ class SweepSpec:
     group_size: int = 1
     keep: str = "run"
     max_members: int = 1000
+    response: ResponseSettings | None = None
+    #: Members run one after another, each from the previous one's final state (a frequency
+    #: response's continuation); without one, every member is a chain of its own.
+    chains: tuple[tuple[int, ...], ...] = ()
 
-    def scene(self, member: Member) -> Scene:
+    def scene(self, member: Member, extra: dict[str, Any] | None = None) -> Scene:
         """The member's resolved scene (validated with the sweep; built again here, ~1 ms,
-        rather than kept: ~14 kB a member would grow with the sweep on every rank)."""
-        return scene_from_dict(self.base, self.source, member.values)
+        rather than kept: ~14 kB a member would grow with the sweep on every rank);
+        ``extra``: dotted keys set besides its values (a forced member's time span)."""
+        return scene_from_dict(self.base, self.source, {**member.values, **(extra or {})})
 
     def fingerprint(self) -> str:
-        """What identifies the sweep's work: the base scene and every member's values (a
-        restarted sweep must be the same sweep)."""
-        return json.dumps({"base": self.base, "members": [m.values for m in self.members]},
+        """What identifies the sweep's work: the base scene, every member's values and the
+        response's settings (a restarted sweep must be the same sweep)."""
+        members = [[m.values, m.direction] for m in self.members]
+        response = None if self.response is None else self.response.__dict__
+        return json.dumps({"base": self.base, "members": members, "response": response},
                           sort_keys=True, default=str)  # fmt: skip
 
+    @property
+    def chains_continue(self) -> bool:
+        """Whether each member of a chain starts from the previous one's final state."""
+        return self.response is not None and self.response.continuation is not None
 
-def _positive_int(table: dict, key: str, default: int) -> int:
+    def period(self, member: Member) -> float:
+        """A forced member's forcing period [s] (sweep.response.period at its constants)."""
+        assert self.response is not None
+        scene = self.scene(member)
+        return period_of(self.response, scene.expression_names(), f"member {member.index}")
+
+    def span(self, member: Member, start: float) -> dict[str, float]:
+        """A forced member's time span from ``start`` [s]: max_periods periods, rounded up to
+        whole steps of its time.step (time.start, time.end as dotted keys)."""
+        assert self.response is not None
+        step = self.scene(member).time.step
+        steps = math.ceil(self.response.max_periods * self.period(member) / step)
+        return {"time.start": start, "time.end": start + steps * step}
+
+
+def _positive_int(table: dict, key: str, default: int, where: str = "sweep") -> int:
     value = table.get(key, default)
     if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-        raise SceneError(f"sweep.{key}: must be a positive integer, got {show_value(value)}")
+        raise SceneError(f"{where}.{key}: must be a positive integer, got {show_value(value)}")
     return value
 
 
@@ -171,6 +219,85 @@ def _members(table: dict, combine: str) -> tuple[list[dict[str, Any]], tuple[str
     return [dict(zip(keys, row, strict=True)) for row in rows], keys
 
 
+def _positive_number(table: dict, key: str, default: float) -> float:
+    value = table.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int | float) or not (
+        math.isfinite(value) and value > 0
+    ):
+        raise SceneError(f"sweep.response.{key}: must be a positive number, got "
+                         f"{show_value(value)}")  # fmt: skip
+    return float(value)
+
+
+def _response(table: Any, varied: tuple[str, ...]) -> ResponseSettings | None:
+    """The [sweep.response] table checked (module docstring), or None."""
+    if table is None:
+        return None
+    if not isinstance(table, dict):
+        raise SceneError(f"sweep.response: must be a table, got {show_value(table)}")
+    unknown = sorted(set(table) - RESPONSE_KEYS)
+    if unknown:
+        raise SceneError(f"sweep.response.{unknown[0]}: unknown key (known: "
+                         f"{', '.join(sorted(RESPONSE_KEYS))})")  # fmt: skip
+    period = table.get("period")
+    if isinstance(period, bool) or not isinstance(period, str | int | float):
+        raise SceneError("sweep.response.period: required, the forcing's period in s (an "
+                         f"expression of L, omega0 and the parameters), got {show_value(period)}")
+    continuation = table.get("continuation")
+    if continuation is not None and continuation not in varied:
+        raise SceneError(f"sweep.response.continuation: must be one of the varied keys "
+                         f"({', '.join(varied)}), got {show_value(continuation)}")  # fmt: skip
+    direction = table.get("direction", "up")
+    if direction not in DIRECTIONS:
+        raise SceneError(f"sweep.response.direction: must be one of "
+                         f"{', '.join(repr(d) for d in DIRECTIONS)}, got {show_value(direction)}")
+    if "direction" in table and continuation is None:
+        raise SceneError("sweep.response.direction: needs sweep.response.continuation (the "
+                         "varied key the members step along)")  # fmt: skip
+    settled = _positive_int(table, "settled_periods", 3, "sweep.response")
+    measure = _positive_int(table, "measure_periods", 2, "sweep.response")
+    most = _positive_int(table, "max_periods", 200, "sweep.response")
+    if measure > settled + 1:
+        raise SceneError(f"sweep.response.measure_periods: at most settled_periods + 1 = "
+                         f"{settled + 1} (the periods measured must be settled), got {measure}")
+    if most < settled + 1:
+        raise SceneError(f"sweep.response.max_periods: at least settled_periods + 1 = "
+                         f"{settled + 1}, got {most}")  # fmt: skip
+    tolerance = _positive_number(table, "tolerance", 1e-3)
+    if tolerance >= 1.0:
+        raise SceneError(f"sweep.response.tolerance: must be < 1 (a relative change), got "
+                         f"{show_value(tolerance)}")  # fmt: skip
+    return ResponseSettings(str(period), continuation, direction, tolerance, settled, measure,
+                            most)  # fmt: skip
+
+
+def _chains(
+    values: list[dict[str, Any]], varied: tuple[str, ...], response: ResponseSettings | None
+) -> tuple[list[Member], list[tuple[int, ...]]]:
+    """The members and the chains they run in (module docstring)."""
+    if response is None or response.continuation is None:
+        return [Member(i, v) for i, v in enumerate(values)], [(i,) for i in range(len(values))]
+    key = response.continuation
+    for i, v in enumerate(values):
+        if isinstance(v[key], bool) or not isinstance(v[key], int | float):
+            raise SceneError(f"sweep.response.continuation: {key!r} must take numbers, got "
+                             f"{show_value(v[key])} in member {i}")  # fmt: skip
+    lines: dict[str, list[int]] = {}
+    for i, v in enumerate(values):
+        rest = json.dumps([[k, v[k]] for k in varied if k != key], default=str)
+        lines.setdefault(rest, []).append(i)
+    directions = ("up", "down") if response.direction == "both" else (response.direction,)
+    members: list[Member] = []
+    chains: list[tuple[int, ...]] = []
+    for direction in directions:
+        offset = len(members)
+        members += [Member(offset + i, v, direction) for i, v in enumerate(values)]
+        for line in lines.values():
+            ordered = sorted(line, key=lambda i: values[i][key], reverse=direction == "down")
+            chains.append(tuple(offset + i for i in ordered))
+    return members, chains
+
+
 def _count(table: dict, combine: str) -> int:
     """The number of members, before they are made (a product can be huge)."""
     if table.get("case") is not None and isinstance(table["case"], list):
@@ -223,13 +350,20 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
     except SceneError as exc:
         raise SceneError(f"sweep.set: {exc}") from None
     values, varied = _members(table, combine)
-    members = []
-    for index, member_values in enumerate(values):
-        member = Member(index, member_values)
+    response = _response(table.get("response"), varied)
+    members, chains = _chains(values, varied, response)
+    if len(members) > max_members:
+        raise SceneError(f"sweep.max_members: the sweep has {len(members)} members (both "
+                         f"directions), more than max_members = {max_members}")  # fmt: skip
+    for member in members[: len(values)]:
         try:
-            scene_from_dict(base_data, str(scene_path), member_values)
+            scene = scene_from_dict(base_data, str(scene_path), member.values)
+            if response is not None:
+                where = f"member {member.index}"
+                period = period_of(response, scene.expression_names(), where)
+                check_sampling(response, period, scene.time.step, where)
         except SceneError as exc:
-            raise SceneError(f"sweep member {index} ({member.describe()}): {exc}") from None
-        members.append(member)
+            raise SceneError(f"sweep member {member.index} ({member.describe()}): {exc}"
+                             ) from None  # fmt: skip
     return SweepSpec(base_data, str(scene_path), tuple(members), varied, group_size, keep,
-                     max_members)  # fmt: skip
+                     max_members, response, tuple(chains))  # fmt: skip
