@@ -9,6 +9,8 @@ results as NumPy arrays in memory. The command line is a thin layer over the sam
     t, x_tip = result.probes[:, 0], result.probes[:, 1]       # [s], [m]
     x_rod = result.field_values[-1, :, 0]                     # x(s) at the end [m]
     modes = cf.modes(scene, count=4)                          # [m.frequency_hz for m in modes]
+    stations = np.linspace(0.0, 1.0, 49)
+    pod = cf.pod(cf.run(scene, fields=stations), stations)    # pod.energies, pod.shapes
 
 Everything is SI: lengths in m, angles in rad, times in s. Under ``mpirun`` every rank
 calls the same functions and gets the same arrays.
@@ -135,3 +137,58 @@ def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | P
     if folder is not None:
         write_modes(folder, model, found, about)
     return found
+
+
+def pod(
+    source,
+    stations: Sequence[float] | np.ndarray | None = None,
+    *,
+    modes: int | None = None,
+    weighting: str = "displacement",
+    remove_mean: bool = True,
+    out: str | Path | None = None,
+):
+    """Karhunen–Loève (POD) modes of a run's response (cosserat_fem/karhunen_loeve.py): a
+    :class:`~cosserat_fem.karhunen_loeve.PodResult` with ``energies``, ``fractions``,
+    ``cumulative``, ``shapes`` (K, stations, 3 or 6) and ``coefficients`` (T, K).
+
+    ``source``: a run's folder (its XDMF frames are the snapshots; stations: its output
+    points), or a :class:`~cosserat_fem.simulation.RunResult` of ``run(scene,
+    fields=stations)`` with the same ``stations`` (σ = s/ℓ). ``modes``: how many (default
+    min(10, snapshots)); ``weighting``: "displacement" (x, y, z; energies in m³) or "kinetic"
+    (x, y, z and θ, ψ, φ weighted by ρA and ρ I: the mass inner product; kg m²);
+    ``remove_mean``: subtract the time mean first (the Karhunen–Loève convention). With
+    ``out``: pod.csv, pod.xdmf (+ pod.frames/) and pod.png there (rank 0 writes), their paths
+    in ``result.files``. Bad input raises a SceneError naming the argument."""
+    from mpi4py import MPI
+
+    from .errors import SceneError
+    from .karhunen_loeve import pod as decompose
+    from .karhunen_loeve import read_run, snapshots_of_result, write_pod
+    from .parallel import agree
+
+    if isinstance(source, str | Path):
+        if stations is not None:
+            raise SceneError("stations: a run folder's are its output points; give none")
+        snapshots = read_run(source)
+    else:
+        if stations is None:
+            raise SceneError("stations: give the fields σ the run was given (run(scene, "
+                             "fields=stations))")  # fmt: skip
+        snapshots = snapshots_of_result(source, stations)
+    result = decompose(snapshots, modes, weighting, remove_mean)
+    if out is not None:
+        comm = MPI.COMM_WORLD
+        problem = None
+        if comm.rank == 0:
+            try:
+                folder = Path(out)
+                folder.mkdir(parents=True, exist_ok=True)
+                result.files = write_pod(result, folder)
+            except OSError as exc:
+                problem = SceneError(f"out (--out): cannot write to {str(out)!r} ({exc})")
+            except SceneError as exc:
+                problem = exc
+        agree(comm, problem)
+        result.files = comm.bcast(result.files, root=0)
+    return result

@@ -2,7 +2,9 @@
 ``cosserat-fem sweep SWEEP [--out DIR]`` for the members of a sweep file (cosserat_fem/sweep.py),
 and ``cosserat-fem run --restart DIR [--set time.end=...]`` to continue a stopped run;
 ``cosserat-fem plot|render RUN_DIR [--out DIR]`` draw a run's outputs (plot: a sweep's table
-too; no DOLFINx needed).
+too; no DOLFINx needed), and ``cosserat-fem pod RUN_DIR [--modes K] [--out DIR]`` gives the
+Karhunen–Loève (POD) modes of a run's XDMF frames (cosserat_fem/karhunen_loeve.py; no DOLFINx
+either).
 
 Exit status: 0 success, 2 bad input (scene, options, output folder, a run that would
 exceed its limits), 3 numerical trouble, 4 a run stopped by an output it could not write
@@ -63,8 +65,8 @@ class _Parser(argparse.ArgumentParser):
 
 
 def _parser() -> argparse.ArgumentParser:
-    """The parser of the commands run, static, validate, modes, plot and render and their
-    options."""
+    """The parser of the commands run, static, validate, modes, sweep, plot, render and pod
+    and their options."""
     parser = _Parser(
         prog="cosserat-fem",
         description="Nonlinear dynamics of Cosserat rods (Cao & Tucker 2008) with FEniCSx.",
@@ -121,11 +123,25 @@ def _parser() -> argparse.ArgumentParser:
     render.add_argument(
         "--frames", type=int, default=120, help="most frames in the animation (default 120)"
     )
+    pod = sub.add_parser(
+        "pod", help="Karhunen-Loeve (POD) modes of a run's XDMF frames: pod.csv, pod.xdmf, "
+        "pod.png"
+    )
+    _run_dir(pod)
+    pod.add_argument("--modes", type=int, default=None, metavar="K",
+                     help="number of modes (default: 10, or the number of frames if fewer)")
+    pod.add_argument(
+        "--weighting", choices=("displacement", "kinetic"), default="displacement",
+        help="inner product: displacement x, y, z (default), or kinetic: x, y, z and the angles "
+        "weighted by rho A and rho I (the mass inner product; needs the angles in the XDMF)",
+    )
+    pod.add_argument("--keep-mean", action="store_true",
+                     help="do not subtract the time mean of the frames first")
     return parser
 
 
 def _run_dir(sub: argparse.ArgumentParser) -> None:
-    """The arguments of the commands that read a run's outputs (plot, render)."""
+    """The arguments of the commands that read a run's outputs (plot, render, pod)."""
     sub.add_argument("run_dir", metavar="RUN_DIR", help="the folder of a run (its --out)")
     sub.add_argument("--out", metavar="DIR", help="where the files go (default: RUN_DIR)")
     sub.add_argument("--quiet", action="store_true", help="print nothing on success")
@@ -146,6 +162,28 @@ def _draw(args) -> int:
         paths = render_run(args.run_dir, args.out, args.scale, args.format, args.frames)
     if not args.quiet:
         print("-> " + ", ".join(str(p) for p in paths))
+    return 0
+
+
+def _pod(args) -> int:
+    """``pod``: the POD of a run's XDMF frames (cosserat_fem/karhunen_loeve.py, no DOLFINx) into
+    --out (default the run's folder); the energies as a table and the files' paths."""
+    from mpi4py import MPI
+
+    from . import api
+
+    result = api.pod(args.run_dir, modes=args.modes, weighting=args.weighting,
+                     remove_mean=not args.keep_mean, out=args.out or args.run_dir)  # fmt: skip
+    if MPI.COMM_WORLD.rank == 0 and not args.quiet:
+        print(f"cosserat-fem: POD of {len(result.times)} frames at {len(result.s)} points "
+              f"({result.weighting} weighting, mean {'removed' if result.remove_mean else 'kept'}"
+              f"), total energy {result.total:.6g} {result.unit}")  # fmt: skip
+        print(f"{'mode':>4} {'energy [' + result.unit + ']':>20} {'fraction':>12} "
+              f"{'cumulative':>12}")  # fmt: skip
+        for k, (e, f, c) in enumerate(zip(result.energies, result.fractions, result.cumulative,
+                                          strict=True), start=1):  # fmt: skip
+            print(f"{k:4d} {e:20.10e} {f:12.6e} {c:12.6f}")
+        print("-> " + ", ".join(str(p) for p in result.files))
     return 0
 
 
@@ -308,6 +346,8 @@ def _main(args) -> int:
             return _static(args)
         if args.command == "sweep":
             return _sweep(args)
+        if args.command == "pod":
+            return _pod(args)
     except SceneError as exc:
         _report(exc, args)
         return 2
