@@ -23,6 +23,7 @@ from .errors import SolverError
 from .model import RodModel
 
 CHART_COS_MIN = 1e-2
+_min, _sum = np.minimum.reduce, np.add.reduce
 
 
 def worst_place(model: RodModel, values: np.ndarray) -> tuple[float, float]:
@@ -80,12 +81,13 @@ class StateCheck:
         cos_now = self.cos_theta()
         # One number and (in parallel) one reduction per step: the smallest |cos θ|; −0.5 if
         # θ crossed ±π/2, −1 if any owned value is not finite (a NaN or inf makes the sum so).
+        # The ufuncs' reduce: what ndarray.min and .sum call, without their Python layer.
         value = 1.0
         if cos_now.size:
-            value = float(np.abs(cos_now).min())
-            if before is not None and float((before * cos_now).min()) <= 0.0:
+            value = float(_min(np.abs(cos_now)))
+            if before is not None and float(_min(before * cos_now)) <= 0.0:
                 value = -0.5
-            if not math.isfinite(value + float(self._owned.sum())):
+            if not math.isfinite(value + float(_sum(self._owned))):
                 value = -1.0
         if self._comm is not None:
             value = self._comm.allreduce(value, op=MPI.MIN)

@@ -29,6 +29,7 @@ from .checks import StateCheck, cos_theta, worst_place
 from .errors import SceneError, SolverError
 from .events import Events
 from .model import RodModel
+from .native_sdirk import stepper
 from .newton import NewtonFailure, NewtonSolver
 from .progress import LOGGER
 
@@ -165,6 +166,8 @@ class TimeLoop:
             solver.iteration_hook = lambda it, norms, reason: events.newton_iteration(
                 self, it, norms, reason
             )
+        # The integrator's step and accept, in C where they apply (cosserat_fem/native_sdirk.py).
+        self.stepper = stepper(integrator, solver, model, events)
 
     # -- state ----------------------------------------------------------------------------
     def _adaptive_parts(self) -> None:
@@ -266,10 +269,11 @@ class TimeLoop:
         self.events.step_attempted(self, t_new)
         self.pending = True
         try:
-            self.integrator.step((t_new - self.state.t) * self.omega0, self._solve)
+            self.stepper.step((t_new - self.state.t) * self.omega0, self._solve)
             # A method whose new state is not its last stage (SDIRK3/4) meets a moving
             # support's values only to its order: put them in exactly.
-            self.model.support_dofs_to(self.model.U.x.array, t_new * self.omega0)
+            if self.model.motions:
+                self.model.support_dofs_to(self.model.U.x.array, t_new * self.omega0)
             self._cos_candidate = self._check(t_new, before=self._cos_accepted)
         except NewtonFailure as exc:
             self._blame_loads(t_new)
@@ -310,7 +314,7 @@ class TimeLoop:
         and largest step [s]; then the step_accepted event."""
         st = self.state
         h = t_new - st.t
-        self.integrator.accept(h * self.omega0)
+        self.stepper.accept(h * self.omega0)
         self.pending = False
         self._cos_accepted = self._cos_candidate
         st.t = t_new

@@ -11,6 +11,7 @@ zero are left out of the form.
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from dataclasses import dataclass, field
@@ -277,7 +278,14 @@ class RodModel:
         if self.fork_nodes.size:
             values = values.copy()
             values[self.fork_nodes[self.fork_nodes < values.size]] = 1.0
-        return float(values.min()) if values.size else 1.0
+        return float(np.minimum.reduce(values)) if values.size else 1.0
+
+    @functools.cached_property
+    def _parallel_comm(self):
+        """The mesh's communicator if it has several ranks, else None (Mesh.comm costs a few
+        μs a call, and the chart's test runs every step)."""
+        comm = self.msh.comm
+        return comm if comm.size > 1 else None
 
     def chart_move_due(self, cos: np.ndarray) -> float | None:
         """The angle |θ| of the node nearest the chart's singularity if a move is due there,
@@ -286,8 +294,8 @@ class RodModel:
         if self.chart is None:
             return None
         smallest = self.chart_margin(cos)
-        if self.msh.comm.size > 1:
-            smallest = self.msh.comm.allreduce(smallest, op=MPI.MIN)
+        if self._parallel_comm is not None:
+            smallest = self._parallel_comm.allreduce(smallest, op=MPI.MIN)
         if smallest >= math.cos(charts.RESET_THETA):
             return None
         return math.acos(min(smallest, 1.0))

@@ -62,7 +62,22 @@ int cf_iterate(cf_problem* p, int* reason, double* norms);
 int cf_newton(cf_problem* p, const cf_settings* s, cf_newton_state* st);
 int cf_test(const cf_settings* s, cf_newton_state* st, int it, const double* n);
 void* cf_kernel(uintptr_t form, int type, int i);
+typedef struct {
+  int32_t stages, n; double gamma; const double *A, *b, *c;
+  double *u, *z, *u_n, *K, *taus, *rates, *times, *guess, *term;
+  double* time_value; double* constants; int32_t time_slot; void* initial;
+  int lagged, lag, frozen, refresh_iterations;
+  double h, time; int64_t stored; int need_jacobian, since;
+  int stage, phase, fresh, stage_iterations;
+  double unknown_time; int iterations, reason;
+  int64_t solves, newton_iterations, retries; int last_iterations, max_in_a_solve;
+  double time_solve;
+} cf_sdirk;
+int cf_sdirk_step(cf_problem* p, const cf_settings* s, cf_newton_state* st, cf_sdirk* sd);
+void cf_sdirk_accept(cf_sdirk* sd);
 """
+#: cf_sdirk_step's answer when a Jacobian is due (newton_loop.c).
+NEED_JACOBIAN = -1
 
 
 class NotApplicable(Exception):
@@ -298,13 +313,17 @@ class NativeLoop:
         self._form, self._bcs = form, bcs
         self._settings = ffi.new("cf_settings*")
         self._state = ffi.new("cf_newton_state*")  # the stop rule's running norms
+        self.state = self._state
         self.configure(settings)
 
-    def refresh(self) -> None:
-        """The constants and the Dirichlet values g as they are now (before a solve)."""
+    def refresh(self, dirichlet: bool = True) -> None:
+        """The constants and (with ``dirichlet``) the Dirichlet values g as they are now
+        (before a solve); g is set once at construction and needs no refresh while no
+        support moves."""
         self.constants[:] = cpp.fem.pack_constants(self._form)
-        self.bc_values.fill(0.0)
-        cpp.fem.set_bc(self.bc_values, self._bcs, self._zeros, 1.0)
+        if dirichlet:
+            self.bc_values.fill(0.0)
+            cpp.fem.set_bc(self.bc_values, self._bcs, self._zeros, 1.0)
 
     def residual(self) -> None:
         """b = F(U) with the Dirichlet rows x − g (NewtonSolver._residual)."""

@@ -51,6 +51,8 @@ from dolfinx.fem.petsc import assemble_matrix, create_matrix, create_vector
 from petsc4py import PETSc
 from ufl.algorithms.analysis import extract_coefficients, extract_constants
 
+from .native_newton import NEED_JACOBIAN
+
 JACOBIAN_POLICIES = ("full", "lagged", "frozen")
 _prefix_counter = itertools.count()
 
@@ -448,6 +450,44 @@ class NewtonSolver:
         self.stats.time_solve += time.perf_counter() - t0
         self.stats.iterations += st.iterations
         return st.iterations, st.reason
+
+    def solve_stages(self, sd, call) -> None:
+        """The Newton solves of a time step taken in C (cosserat_fem/native_sdirk.py): ``call()``
+        runs ``cf_sdirk_step`` on ``sd`` (its ``cf_sdirk``) with this solver's C loop, which
+        applies :meth:`solve`'s policy per stage. The policy's state goes in, the counters come
+        out as :meth:`solve` keeps them, a Jacobian is assembled whenever the C asks for one,
+        and a stage that fails raises the NewtonFailure :meth:`solve` raises."""
+        native = self._native
+        counted = native.counters
+        stats = self.stats
+        sd.need_jacobian, sd.since = self._need_jacobian, self._solves_since_jacobian
+        sd.solves = sd.newton_iterations = sd.retries = 0
+        sd.time_solve = 0.0
+        sd.max_in_a_solve = stats.max_iterations_in_a_solve
+        st = native.state
+        st.update_prev = self._update_prev
+        status = call()
+        while status == NEED_JACOBIAN:
+            t0 = time.perf_counter()
+            self._need_jacobian = True
+            self._jacobian()
+            sd.need_jacobian = sd.since = 0
+            sd.time_solve += time.perf_counter() - t0
+            status = call()
+        if status:
+            raise RuntimeError(f"PETSc error {status} in a time step")
+        self._f0, self._f_prev, self._update_prev = st.f0, st.f_prev, st.update_prev
+        self._need_jacobian, self._solves_since_jacobian = bool(sd.need_jacobian), sd.since
+        stats.solves += sd.solves
+        stats.iterations += sd.newton_iterations
+        stats.retries += sd.retries
+        stats.time_solve += sd.time_solve
+        if sd.solves:
+            stats.last_iterations = sd.last_iterations
+        stats.max_iterations_in_a_solve = sd.max_in_a_solve
+        self._count_native(counted)
+        if sd.reason <= 0:
+            raise NewtonFailure(_REASONS.get(sd.reason, str(sd.reason)), sd.stage_iterations)
 
     # -- checkpoint/restart ---------------------------------------------------------------
     def state_dict(self) -> dict:

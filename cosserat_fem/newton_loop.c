@@ -227,3 +227,198 @@ int cf_newton(cf_problem* p, const cf_settings* s, cf_newton_state* st)
   if (st->reason == SNES_CONVERGED_ITERATING) st->reason = SNES_DIVERGED_MAX_IT;
   return 0;
 }
+
+/* ---- A whole SDIRK step (cosserat_fem/integrators.py SDIRK.step with NewtonSolver.solve per
+ * stage) and its accept, for a reused Jacobian: the stage values, the predictor, the solve
+ * policy of NewtonSolver.solve (the lagged count, a retry with a fresh Jacobian, the frozen
+ * refresh) and cf_newton per stage, with the same IEEE operations, element by element, as
+ * the NumPy calls of the Python step. It returns to Python (CF_NEED_JACOBIAN) when a Jacobian
+ * is due, and goes on from where it stopped when called again. */
+
+#define CF_NEED_JACOBIAN (-1)
+#define CF_MAX_STAGES 8
+
+typedef struct {
+  int32_t stages, n;
+  double gamma;
+  const double *A, *b, *c;      /* the tableau: (stages, stages), (stages,), (stages,) */
+  double *u, *z, *u_n;          /* U, Z (Functions' arrays) and U_n, each (n,) */
+  double *K, *taus;             /* this step's stage rates (stages, n) and their times */
+  double *rates, *times;        /* the ring buffer of accepted stage rates (stages, n), times */
+  double *guess, *term;         /* scratch (n,) */
+  double* time_value;           /* the time Constant's own storage */
+  double* constants;            /* the packed constants the residual reads */
+  int32_t time_slot;            /* τ's index in them, -1 if the form has no τ */
+  void* initial;                /* Vec: the stage's guess, kept for a retry */
+  int lagged, lag, frozen, refresh_iterations; /* the Jacobian policy */
+  /* in, per step */
+  double h, time;
+  int64_t stored;               /* stage rates stored so far (the ring's count) */
+  /* the Newton policy's state, in and out */
+  int need_jacobian, since;
+  /* running: the stage and where in its solve (0 begin, 1 first run, 2 retry run) */
+  int stage, phase, fresh, stage_iterations;
+  /* out */
+  double unknown_time;
+  int iterations, reason;
+  int64_t solves, newton_iterations, retries;
+  int last_iterations, max_in_a_solve;
+  double time_solve;
+} cf_sdirk;
+
+/* SDIRK._rate_guess: the Lagrange extrapolation to tau of the newest stored rates known before
+ * stage `stage` into sd->guess; 0 when there are none (the guess is then the number 0.0). */
+static int rate_guess(cf_sdirk* sd, int stage, double tau)
+{
+  const int s = sd->stages, n = sd->n;
+  const int64_t old = sd->stored < s - stage ? sd->stored : s - stage;
+  int slots[CF_MAX_STAGES], m = 0;
+  double later[2 * CF_MAX_STAGES], nodes[2 * CF_MAX_STAGES], w[2 * CF_MAX_STAGES];
+  const double* rows[2 * CF_MAX_STAGES];
+  int total = 0;
+  for (int64_t j = 0; j < old; ++j) later[total++] = sd->times[(sd->stored - old + j) % s];
+  for (int j = 0; j < stage; ++j) later[total++] = sd->taus[j];
+  for (int64_t j = 0; j < old; ++j) {
+    const int slot = (int)((sd->stored - old + j) % s);
+    int repeated = 0;
+    for (int k = (int)j + 1; k < total; ++k)
+      if (sd->times[slot] == later[k]) repeated = 1;
+    if (!repeated) slots[m++] = slot;
+  }
+  if (!m && !stage) return 0;
+  int count = 0;
+  for (int j = 0; j < m; ++j) {
+    nodes[count] = sd->times[slots[j]];
+    rows[count++] = sd->rates + (int64_t)slots[j] * n;
+  }
+  for (int j = 0; j < stage; ++j) {
+    nodes[count] = sd->taus[j];
+    rows[count++] = sd->K + (int64_t)j * n;
+  }
+  for (int j = 0; j < count; ++j) { /* adaptive.lagrange_weight_list */
+    double wj = 1.0;
+    for (int k = 0; k < count; ++k)
+      if (k != j) wj *= (tau - nodes[k]) / (nodes[j] - nodes[k]);
+    w[j] = wj;
+  }
+  double* out = sd->guess;
+  for (int32_t k = 0; k < n; ++k) out[k] = rows[0][k] * w[0];
+  for (int j = 1; j < count; ++j)
+    for (int32_t k = 0; k < n; ++k) out[k] += rows[j][k] * w[j];
+  return 1;
+}
+
+/* The start of stage i: Z_i, the time τ_i (the Constant and the packed constants) and the
+ * predicted U = guess γh + Z_i. */
+static void stage_begin(cf_sdirk* sd, int i)
+{
+  const int n = sd->n;
+  const double h = sd->h, gh = sd->gamma * h;
+  for (int32_t k = 0; k < n; ++k) sd->z[k] = sd->u_n[k];
+  for (int j = 0; j < i; ++j) {
+    const double f = h * sd->A[i * sd->stages + j];
+    const double* Kj = sd->K + (int64_t)j * n;
+    for (int32_t k = 0; k < n; ++k) sd->z[k] += Kj[k] * f;
+  }
+  const double tau = sd->time + sd->c[i] * h;
+  *sd->time_value = tau;
+  if (sd->time_slot >= 0) sd->constants[sd->time_slot] = tau;
+  sd->unknown_time = tau;
+  if (rate_guess(sd, i, tau)) {
+    for (int32_t k = 0; k < n; ++k) sd->u[k] = sd->guess[k] * gh;
+  } else {
+    const double zero = 0.0 * gh;
+    for (int32_t k = 0; k < n; ++k) sd->u[k] = zero;
+  }
+  for (int32_t k = 0; k < n; ++k) sd->u[k] += sd->z[k];
+}
+
+/* cf_newton from its phase, timed into sd->time_solve; its iterations counted. */
+static int run_newton(cf_problem* p, const cf_settings* s, cf_newton_state* st, cf_sdirk* sd)
+{
+  const double t0 = now();
+  const int ierr = cf_newton(p, s, st);
+  sd->time_solve += now() - t0;
+  if (!ierr && st->phase == 0) {
+    sd->newton_iterations += st->iterations;
+    sd->stage_iterations += st->iterations;
+  }
+  return ierr;
+}
+
+/* The SDIRK step of h from sd->time (sd->stage = 0, sd->phase = 0 to begin): 0 when done, with
+ * sd->reason > 0 (U = U_n + h Σ b_i K_i) or <= 0 (the solve of stage sd->stage failed after
+ * sd->stage_iterations iterations); CF_NEED_JACOBIAN when a Jacobian is due (the caller
+ * assembles it, clears need_jacobian and since, and calls again); or a PETSc error code. */
+int cf_sdirk_step(cf_problem* p, const cf_settings* s, cf_newton_state* st, cf_sdirk* sd)
+{
+  const int n = sd->n;
+  const double h = sd->h, gh = sd->gamma * h;
+  int ierr;
+  while (sd->stage < sd->stages) {
+    const int i = sd->stage;
+    if (sd->phase == 0) { /* NewtonSolver.solve up to its first _run */
+      stage_begin(sd, i);
+      if (sd->lagged && sd->since >= sd->lag) sd->need_jacobian = 1;
+      if ((ierr = (int)VecCopy((Vec)p->u, (Vec)sd->initial))) return ierr;
+      sd->fresh = sd->need_jacobian;
+      sd->stage_iterations = 0;
+      sd->phase = 1;
+      st->phase = 0;
+      st->need_jacobian = sd->need_jacobian;
+    } else {
+      st->need_jacobian = sd->need_jacobian; /* 0: the caller assembled it */
+    }
+    if ((ierr = run_newton(p, s, st, sd))) return ierr;
+    if (st->phase == 1) return CF_NEED_JACOBIAN;
+    if (st->reason <= 0 && sd->phase == 1 && !sd->fresh) { /* retry with a new Jacobian */
+      sd->retries += 1;
+      if ((ierr = (int)VecCopy((Vec)sd->initial, (Vec)p->u))) return ierr;
+      sd->need_jacobian = 1;
+      sd->phase = 2;
+      st->phase = 0;
+      st->need_jacobian = 1;
+      if ((ierr = run_newton(p, s, st, sd))) return ierr;
+      if (st->phase == 1) return CF_NEED_JACOBIAN;
+    }
+    /* the rest of NewtonSolver.solve */
+    sd->since += 1;
+    sd->solves += 1;
+    sd->last_iterations = sd->stage_iterations;
+    if (sd->stage_iterations > sd->max_in_a_solve) sd->max_in_a_solve = sd->stage_iterations;
+    sd->phase = 0;
+    if (st->reason <= 0) {
+      sd->reason = st->reason;
+      return 0;
+    }
+    if (sd->frozen && sd->stage_iterations > sd->refresh_iterations) sd->need_jacobian = 1;
+    sd->iterations += sd->stage_iterations;
+    double* Ki = sd->K + (int64_t)i * n;
+    const double inv = 1.0 / gh;
+    for (int32_t k = 0; k < n; ++k) Ki[k] = sd->u[k] - sd->z[k];
+    for (int32_t k = 0; k < n; ++k) Ki[k] *= inv;
+    sd->taus[i] = sd->unknown_time;
+    sd->stage += 1;
+  }
+  for (int32_t k = 0; k < n; ++k) sd->u[k] = sd->u_n[k];
+  for (int i = 0; i < sd->stages; ++i) {
+    const double f = h * sd->b[i];
+    const double* Ki = sd->K + (int64_t)i * n;
+    for (int32_t k = 0; k < n; ++k) sd->u[k] += Ki[k] * f;
+  }
+  sd->reason = st->reason;
+  return 0;
+}
+
+/* SDIRK.accept's arrays: U_n = U, this step's stage rates and times into the ring buffer. */
+void cf_sdirk_accept(cf_sdirk* sd)
+{
+  const int n = sd->n, s = sd->stages;
+  memcpy(sd->u_n, sd->u, sizeof(double) * (size_t)n);
+  for (int i = 0; i < s; ++i) {
+    const int slot = (int)(sd->stored % s);
+    memcpy(sd->rates + (int64_t)slot * n, sd->K + (int64_t)i * n, sizeof(double) * (size_t)n);
+    sd->times[slot] = sd->taus[i];
+    sd->stored += 1;
+  }
+}

@@ -14,6 +14,12 @@ spaghetti's free ends), Dirichlet values that move (base excitation), a fork sup
 that changes in the run (the whip in 3D moves its chart: a new form, a new C loop), adaptive
 steps, and the three other integrators. A point load's interior facet integral keeps the
 Python loop, as does a parallel run (tests/test_scene_features.py runs those under MPI).
+
+An SDIRK step with a reused Jacobian and no moving support is one C call too
+(cosserat_fem/native_sdirk.py, ``cf_sdirk_step``: stage values, predictor, Newton's policy and
+solves); the cases in :data:`STEPS_IN_C` take every step that way (counted), among them SDIRK4,
+a lagged Jacobian, adaptive steps, a form that changes, and solves that fail: retried with a
+fresh Jacobian, then steps rejected and halved.
 """
 
 from __future__ import annotations
@@ -23,6 +29,7 @@ import pytest
 from conftest import ROOT
 
 from cosserat_fem import api, native_newton
+from cosserat_fem.events import Observer
 
 IN_3D = "discretisation.planar=off"
 
@@ -32,6 +39,10 @@ CASES = {
     "paper-sdirk4-full": ("cao_tucker_2008", 30, ["time.integrator=sdirk4",
                                                   "solver.jacobian=full"]),
     "paper-adaptive": ("cao_tucker_2008", 60, ["time.adaptive=true"]),
+    "paper-sdirk4": ("cao_tucker_2008", 60, ["time.integrator=sdirk4"]),
+    "paper-lagged": ("cao_tucker_2008", 60, ["solver.jacobian=lagged", "solver.lag=3"]),
+    # Solves that fail: retried with a fresh Jacobian, then steps rejected and halved.
+    "paper-rejections": ("cao_tucker_2008", 10, ["solver.max_iterations=1", "time.step=1e-4"]),
     "whip-3d-chart": ("whip", 200, [IN_3D]),
     "rollup-alpha": ("rollup", 60, []),
     "base-excitation": ("base_excitation", 40, []),
@@ -39,21 +50,35 @@ CASES = {
     "flying-spaghetti": ("flying_spaghetti", 20, []),
     "arc-at-rest": ("bathe_bolourchi_bend", 10, ["loads.end.force=[0,0,0]"]),
 }  # fmt: skip
+#: The cases whose SDIRK steps run in C (native_sdirk.py); the others' integrator, full Newton
+#: or moving support keep the Python step.
+STEPS_IN_C = {"paper", "paper-adaptive", "paper-sdirk4", "paper-lagged", "paper-rejections",
+              "whip-3d-chart"}  # fmt: skip
 
 
-def _run(name: str, steps: int, extra: list[str], loop: str):
+class _Steps(Observer):
+    """The steps a run's time loop took in C (native_sdirk.NativeSDIRK), at its end."""
+
+    steps = 0
+
+    def ended(self, loop, failure) -> None:
+        self.steps = getattr(loop.stepper, "steps", 0)
+
+
+def _run(name: str, steps: int, extra: list[str], loop: str, observers=()):
     path = ROOT / "scenes" / f"{name}.toml"
     scene = api.load(path)
     end = scene.time.start + steps * scene.time.step
     overrides = [f"time.end={end!r}", "output.xdmf=false", f"solver.loop={loop}", *extra]
-    return api.run(api.load(path, overrides), record=True)
+    return api.run(api.load(path, overrides), record=True, observers=observers)
 
 
 @pytest.mark.parametrize("case", list(CASES))
 def test_the_c_loop_gives_the_python_loops_iterates_bit_for_bit(case):
     name, steps, extra = CASES[case]
     python = _run(name, steps, extra, "python")
-    native = _run(name, steps, extra, "auto")
+    counted = _Steps()
+    native = _run(name, steps, extra, "auto", [counted])
     assert python.summary["newton"]["loop"] == "python"
     assert native.summary["newton"]["loop"] == "c"
     assert python.summary["status"] == native.summary["status"] == "completed"
@@ -62,6 +87,12 @@ def test_the_c_loop_gives_the_python_loops_iterates_bit_for_bit(case):
         assert python.summary["newton"][key] == native.summary["newton"][key], key
     if case == "whip-3d-chart":
         assert native.summary["chart_resets"] >= 1  # the form changed in the run
+    if case == "paper-rejections":
+        assert native.summary["rejected_steps"] > 0 and native.summary["newton"]["retries"] > 0
+    # A whole SDIRK step in one call (cf_sdirk_step) for a reused Jacobian and no moving
+    # support; every attempt counts, rejected ones too.
+    attempts = native.summary["accepted_steps"] + native.summary["rejected_steps"]
+    assert counted.steps == (attempts if case in STEPS_IN_C else 0)
 
 
 def test_a_point_load_keeps_the_python_loop():
