@@ -58,6 +58,7 @@ from xml.sax.saxutils import escape
 import numpy as np
 
 from .errors import SceneError
+from .results import xdmf_mesh_xml
 
 WEIGHTINGS = ("displacement", "kinetic")
 #: Components of the snapshots: displacement (x, y, z) [m], angles (θ, ψ, φ) [rad].
@@ -410,7 +411,7 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
                 for name, _ in arrays
             )
             grids.append(
-                f'      <Grid Name="pod" GridType="Uniform">\n{_mesh_xml(mesh, n, n - 1)}'
+                f'      <Grid Name="pod" GridType="Uniform">\n{xdmf_mesh_xml(mesh, n, n - 1)}'
                 f'        <Time Value="{k}" />\n{attributes}      </Grid>\n'
             )
         text = (
@@ -428,21 +429,6 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
     return path
 
 
-def _mesh_xml(file: str, points: int, cells: int) -> str:
-    """The Topology and Geometry of a frame (as cosserat_fem/output.py's, which needs
-    DOLFINx to import)."""
-    name = escape(file)
-    return (
-        f'        <Topology TopologyType="PolyLine" NumberOfElements="{cells}" '
-        'NodesPerElement="2">\n'
-        f'          <DataItem Dimensions="{cells} 2" NumberType="Int" Format="HDF">{name}:'
-        "/Mesh/mesh/topology</DataItem>\n"
-        "        </Topology>\n"
-        '        <Geometry GeometryType="XYZ">\n'
-        f'          <DataItem Dimensions="{points} 3" Format="HDF" Precision="8">{name}:'
-        "/Mesh/mesh/geometry</DataItem>\n"
-        "        </Geometry>\n"
-    )
 
 
 #: Modes drawn in pod.png's shape panels.

@@ -40,7 +40,7 @@ from .errors import OutputError
 from .forms.kinematics import directors
 from .forms.resultants import resultants
 from .parallel import agree
-from .results import PROBE_FIELD_COLUMNS, probe_columns
+from .results import PROBE_FIELD_COLUMNS, probe_columns, xdmf_mesh_xml
 
 if TYPE_CHECKING:
     from .model import RodModel
@@ -941,7 +941,7 @@ class XdmfWriter:
         )[0]
         self._check_room(len(image), 0, "the XDMF mesh", self.folder / MESH_FILE)
         _write_file(self.folder / MESH_FILE, image)
-        return _mesh_xml(self.folder.name + "/" + MESH_FILE, len(line.geometry),
+        return xdmf_mesh_xml(self.folder.name + "/" + MESH_FILE, len(line.geometry),
                          len(line.topology))  # fmt: skip
 
     def _resume(self) -> None:
@@ -1081,21 +1081,6 @@ class XdmfWriter:
             self._doc.close()
 
 
-def _mesh_xml(file: str, points: int, cells: int) -> str:
-    """The Topology and Geometry of a frame: the mesh in the HDF5 file ``file`` (relative to
-    the XML), as DOLFINx's XDMFFile wrote them."""
-    name = escape(file)
-    return (
-        f'        <Topology TopologyType="PolyLine" NumberOfElements="{cells}" '
-        'NodesPerElement="2">\n'
-        f'          <DataItem Dimensions="{cells} 2" NumberType="Int" Format="HDF">{name}:'
-        "/Mesh/mesh/topology</DataItem>\n"
-        "        </Topology>\n"
-        '        <Geometry GeometryType="XYZ">\n'
-        f'          <DataItem Dimensions="{points} 3" Format="HDF" Precision="8">{name}:'
-        "/Mesh/mesh/geometry</DataItem>\n"
-        "        </Geometry>\n"
-    )
 
 
 _XDMF_HEAD = (

@@ -61,6 +61,7 @@ import xml.etree.ElementTree as ET
 import xml.parsers.expat
 from dataclasses import dataclass
 from pathlib import Path
+from xml.sax.saxutils import escape
 
 import numpy as np
 
@@ -766,3 +767,21 @@ def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[li
         raise SceneError(f"{_where(directory)}: not a sweep's table (a member that is not a "
                          "number)") from None  # fmt: skip
     return columns, rows
+
+
+def xdmf_mesh_xml(file: str, points: int, cells: int) -> str:
+    """The Topology and Geometry of a frame: the mesh in the HDF5 file ``file`` (relative to
+    the XML), as DOLFINx's XDMFFile wrote them (cosserat_fem/output.py's frames and
+    karhunen_loeve.py's pod.xdmf)."""
+    name = escape(file)
+    return (
+        f'        <Topology TopologyType="PolyLine" NumberOfElements="{cells}" '
+        'NodesPerElement="2">\n'
+        f'          <DataItem Dimensions="{cells} 2" NumberType="Int" Format="HDF">{name}:'
+        "/Mesh/mesh/topology</DataItem>\n"
+        "        </Topology>\n"
+        '        <Geometry GeometryType="XYZ">\n'
+        f'          <DataItem Dimensions="{points} 3" Format="HDF" Precision="8">{name}:'
+        "/Mesh/mesh/geometry</DataItem>\n"
+        "        </Geometry>\n"
+    )
