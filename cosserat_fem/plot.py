@@ -1,7 +1,9 @@
 """``cosserat-fem plot RUN_DIR``: PNG figures of any run, with matplotlib (Agg, no screen).
 
 A sweep's folder (cosserat_fem/sweep.py) gets ``sweep.png``: each member's largest free-end
-displacements and angles against the varied key (:func:`plot_sweep`). A run's folder gets:
+displacements and angles against the varied key (:func:`plot_sweep`), and a frequency
+response's also ``response.png``: amplitudes and phases against the forcing's key, a curve per
+chain (:func:`plot_response`). A run's folder gets:
 
 * ``free_end.png``: the free-end histories of probes.csv, x, y, z [m] and θ, ψ, φ [rad]
   against t [s] (the load factor for a static run), laid out as the paper's Fig. 4;
@@ -141,6 +143,14 @@ SWEEP_PANELS = (("max_abs_x", "max |x| [m]"), ("max_abs_theta", "max |θ| [rad]"
                 ("max_abs_z", "max |z| [m]"), ("max_abs_phi", "max |φ| [rad]"))  # fmt: skip
 
 
+def _number(text: str) -> float:
+    try:
+        value = json.loads(text) if text != "" else float("nan")
+        return float(value) if not isinstance(value, bool) else float("nan")
+    except (ValueError, TypeError):
+        return float("nan")
+
+
 def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Path]:
     """sweep.png: the free end's largest displacements and angles of each member against the
     sweep's varied key (the member number when more than one key varies, or none is a
@@ -156,15 +166,8 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
         raise SceneError(f"plot: the sweep in {str(directory)!r} has no finished member yet")
     varied = columns[columns.index("wall_s") + 1 : columns.index("steps")]
 
-    def number(text: str) -> float:
-        try:
-            value = json.loads(text) if text != "" else float("nan")
-            return float(value) if not isinstance(value, bool) else float("nan")
-        except (ValueError, TypeError):
-            return float("nan")
-
     key = varied[0] if len(varied) == 1 else None
-    x = [number(row[key]) for row in rows] if key else []
+    x = [_number(row[key]) for row in rows] if key else []
     if key is None or not np.isfinite(x).all():
         key, x = "member", [float(row["member"]) for row in rows]
     done = np.array([row["status"] == "completed" for row in rows])
@@ -172,7 +175,7 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
     plt = _pyplot()
     fig, axes = plt.subplots(3, 2, figsize=HISTORY_SIZE, sharex=True)
     for ax, (column, label) in zip(axes.flat, SWEEP_PANELS, strict=True):
-        y = np.array([number(row[column]) for row in rows])
+        y = np.array([_number(row[column]) for row in rows])
         ax.plot(np.array(x)[done], y[done], "o-", lw=0.8, ms=3)
         if (~done).any():
             ax.plot(np.array(x)[~done], np.zeros((~done).sum()), "x", color="C3",
@@ -185,7 +188,79 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
         ax.set_xlabel(_label(key))
     fig.suptitle(_label(f"Sweep of {len(rows)} members: {directory.name}"), fontsize=10)
     fig.tight_layout()
-    return [_save(fig, target / "sweep.png")]
+    paths = [_save(fig, target / "sweep.png")]
+    if "h1_x" in columns:
+        paths.append(plot_response(directory, columns, rows, varied, target))
+    return paths
+
+
+#: The probe's columns (cosserat_fem/response.py) and their units.
+RESPONSE_UNITS = {"x": "m", "y": "m", "z": "m", "theta": "rad", "psi": "rad", "phi": "rad"}
+RESPONSE_SYMBOLS = {"x": "x", "y": "y", "z": "z", "theta": "θ", "psi": "ψ", "phi": "φ"}
+
+
+def plot_response(directory: Path, columns: list[str], rows: list[dict], varied: list[str],
+                  target: Path) -> Path:  # fmt: skip
+    """response.png of a frequency response (a sweep with [sweep.response]): the probe
+    point's amplitude (half range, ``amp_c``) and the phase of its first harmonic against the
+    load's (``phase_c``, unwrapped along a chain) for each column that moves (its largest
+    amplitude at least 1e-3 of its group's: displacements, angles), against the continuation
+    key (sweep.json) or the varied key; a line per chain, upward ▲ solid, downward ▼ dashed;
+    a member that did not settle drawn hollow, one that failed as a cross at zero."""
+    record = json.loads((directory / "sweep.json").read_text(encoding="utf-8"))
+    key = record.get("continuation") or next(
+        (k for k in varied if np.isfinite(_number(rows[0][k]))), "member"
+    )
+    others = [k for k in varied if k != key]
+    amps = {c: np.array([_number(r[f"amp_{c}"]) for r in rows]) for c in RESPONSE_UNITS}
+    largest = {c: np.nanmax(np.abs(a), initial=0.0) for c, a in amps.items()}
+    group = {c: max(largest[d] for d in RESPONSE_UNITS if RESPONSE_UNITS[d] == u)
+             for c, u in RESPONSE_UNITS.items()}  # fmt: skip
+    moving = [c for c in RESPONSE_UNITS if largest[c] > 0 and largest[c] >= 1e-3 * group[c]]
+    moving = moving or ["x"]
+    lines: dict[tuple, list[dict]] = {}
+    for row in rows:
+        lines.setdefault((*(row[k] for k in others), row.get("direction", "")), []).append(row)
+    plt = _pyplot()
+    fig, axes = plt.subplots(len(moving), 2, figsize=HISTORY_SIZE, sharex=True, squeeze=False)
+    for i, (label, chain) in enumerate(sorted(lines.items())):
+        chain.sort(key=lambda r: _number(r[key]) if key != "member" else int(r["member"]))
+        x = np.array([_number(r[key]) if key != "member" else float(r["member"])
+                      for r in chain])  # fmt: skip
+        done = np.array([r["status"] == "completed" for r in chain])
+        settled = np.array([r["settled"] == "true" for r in chain]) & done
+        direction = label[-1]
+        style = {"up": ("^", "-"), "down": ("v", "--")}.get(direction, ("o", "-"))
+        name = ", ".join([f"{k} = {v}" for k, v in zip(others, label, strict=False)]
+                         + ([direction] if direction else []))  # fmt: skip
+        for row_axes, column in zip(axes, moving, strict=True):
+            for ax, measure in zip(row_axes, ("amp", "phase"), strict=True):
+                y = np.array([_number(r[f"{measure}_{column}"]) for r in chain])
+                if measure == "phase" and done.any():  # continuous along the chain
+                    y[done] = np.unwrap(y[done])
+                ax.plot(x[done], y[done], ls=style[1], lw=0.9, color=f"C{i}",
+                        label=_label(name) if name else None)  # fmt: skip
+                ax.plot(x[settled], y[settled], style[0], ms=4, color=f"C{i}")
+                loose = done & ~settled
+                ax.plot(x[loose], y[loose], style[0], ms=5, mfc="none", color="C3")
+                ax.plot(x[~done], np.zeros((~done).sum()), "x", color="C3")
+    for row_axes, column in zip(axes, moving, strict=True):
+        symbol, unit = RESPONSE_SYMBOLS[column], RESPONSE_UNITS[column]
+        row_axes[0].set_ylabel(f"amplitude of {symbol} [{unit}]")
+        row_axes[1].set_ylabel(f"phase of {symbol} [rad]")
+        row_axes[0].ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
+        for ax in row_axes:
+            ax.grid(alpha=0.3)
+    for ax in axes[-1]:
+        ax.set_xlabel(_label(key))
+    if len(lines) > 1 or any(label[-1] for label in lines):
+        axes[0][0].legend(fontsize=7)
+    unsettled = sum(r["status"] == "completed" and r["settled"] != "true" for r in rows)
+    note = f"; {unsettled} not settled (hollow)" if unsettled else ""
+    fig.suptitle(_label(f"Frequency response at the probe point: {directory.name}{note}"),
+                 fontsize=10)  # fmt: skip
+    fig.tight_layout()
+    return _save(fig, target / "response.png")
 
 
 def plot_run(directory: str | Path, out: str | Path | None = None) -> list[Path]:

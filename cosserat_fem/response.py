@@ -15,8 +15,11 @@ interpolant of the probe's values at the output times:
 
     δ_j = max_c max(|A_j − A_{j−1}|, |m_j − m_{j−1}|, |H_j − H_{j−1}|) / S_g(c),
 
-S_g the largest half range of period j in c's group (the three displacements; the three
-angles), must stay ≤ ``tolerance`` for ``settled_periods`` periods in a row. Then the run ends
+S_g the size of the motion in c's unit, S = max(max_{x,y,z} A_j / ℓ, max_{θ,ψ,φ} A_j): the
+largest half range of period j, lengths in units of the rod's length ℓ (S_g = ℓ S for the
+displacements, S for the angles; so that a column that hardly moves, ψ at the mid-span of a
+symmetric mode, is not measured against its own round-off), must stay ≤ ``tolerance`` for
+``settled_periods`` periods in a row. Then the run ends
 (:meth:`~cosserat_fem.loop.TimeLoop.request_end`). What the criterion leaves: a transient
 e^{−ζωt} (ζ the damping ratio of the mode it rings in, ω its frequency) that changes by δ
 over one period is still δ / (1 − e^{−ζωT}) of the motion (H's change catches a transient
@@ -30,7 +33,11 @@ from H over W: h1 = |H|, phase = arg H, t the run's own (absolute) time, so that
 ∝ sin Ωt ``phase`` is the response's phase against the load's. The integrals are the
 trapezoidal rule over the output times (exact for the interpolant's mean, O((Ω Δt)²) for
 the harmonic); the half range of samples every Δt misses a peak by at most 1 − cos(πΔt/T)
-of the amplitude, which :func:`check_sampling` holds below a tenth of the tolerance. A run
+of the amplitude, which :func:`check_sampling` holds below a tenth of the tolerance: it
+varies from period to period with the phase of the samples, unless ``steps_per_period``
+makes T a whole number of steps, when every period is sampled alike and the change δ is
+the response's own down to round-off (a bias of the half range remains, the same in every
+period). A run
 that has not settled by its end is measured over its last whole periods, and flagged
 (``settled`` false).
 
@@ -61,7 +68,10 @@ class ResponseSettings:
     expression of the scene's constants (L, omega0, the parameters); ``continuation``, the
     varied key stepped along a chain of members, each starting from the previous one's final
     state (None: every member from the scene's initial state); ``direction``: the order of a
-    chain, by increasing ("up") or decreasing ("down") values of that key, or both chains."""
+    chain, by increasing ("up") or decreasing ("down") values of that key, or both chains;
+    ``steps_per_period``: each member's time.step is T divided by it, so that every period
+    is sampled at the same phases (None: the scene's time.step, checked by
+    :func:`check_sampling`)."""
 
     period: str
     continuation: str | None = None
@@ -70,6 +80,7 @@ class ResponseSettings:
     settled_periods: int = 3
     measure_periods: int = 2
     max_periods: int = 200
+    steps_per_period: int | None = None  # time.step = T / this: every period sampled alike
 
 
 def period_of(settings: ResponseSettings, constants: dict[str, float], where: str) -> float:
@@ -153,12 +164,12 @@ class PeriodicResponse(Observer):
         from .output import PointProbe
 
         comm = loop.model.U.function_space.mesh.comm
-        self.attach(PointProbe(loop.model, self.sigma), comm, loop.state.t)
+        self.attach(PointProbe(loop.model, self.sigma), comm, loop.state.t, loop.model.length)
 
-    def attach(self, probe, comm, t0: float) -> None:
+    def attach(self, probe, comm, t0: float, length: float) -> None:
         """Measure ``probe`` (an output.PointProbe: ``values()``, ``is_owner``, ``owner``) on
-        ``comm`` from the start time ``t0`` [s] (its first sample)."""
-        self.probe, self.comm, self.t0 = probe, comm, t0
+        ``comm`` from the start time ``t0`` [s] (its first sample); ``length`` [m]: ℓ."""
+        self.probe, self.comm, self.t0, self.length = probe, comm, t0, length
         self.closed = 0  # periods closed
         self._sample(t0)
 
@@ -210,8 +221,8 @@ class PeriodicResponse(Observer):
         (half0, mean0, harmonic0), (_, _, harmonic) = self._stats
         change = np.maximum.reduce([np.abs(half - half0), np.abs(mean - mean0),
                                     np.abs(harmonic - harmonic0)])  # fmt: skip
-        tiny = np.finfo(float).tiny
-        scale = np.repeat([max(half[:3].max(), tiny), max(half[3:].max(), tiny)], 3)
+        size = max(half[:3].max() / self.length, half[3:].max(), np.finfo(float).tiny)
+        scale = np.repeat([self.length * size, size], 3)
         delta = float((change / scale).max())
         in_a_row = self._in_a_row + 1 if delta <= self.settings.tolerance else 0
         return delta, in_a_row
@@ -235,3 +246,27 @@ class PeriodicResponse(Observer):
             out[f"h1_{name}"] = float(abs(harmonic[i]))
             out[f"phase_{name}"] = float(np.angle(harmonic[i]))
         return out
+
+
+def free_vibration_frequency(scene, shape, amplitude: float) -> float:
+    """ω [rad/s] of the rod's free vibration from rest in ``shape(amplitude, ℓ, s)`` (the
+    displacements x(s), z(s) − s [m] and the angle ψ(s) [rad] at s [m], e.g. those of
+    cosserat_fem/reference/backbone.py): π over the mean spacing of the probe's x zero
+    crossings (a least-squares line through them, each found by linear interpolation; a
+    response symmetric in ± has its odd harmonics vanish there too). ``scene`` gives the
+    span: at least four crossings are needed."""
+    from .api import run
+    from .model import build_model
+
+    model = build_model(scene, planar=False)
+    s = model.V.tabulate_dof_coordinates()[:, 0] * model.length
+    x, z, psi = shape(amplitude, model.length, s)
+    state = np.zeros((len(s), 12))
+    state[:, 0], state[:, 2], state[:, 4] = x / model.length, z / model.length, psi
+    probes = run(scene, initial_state=state.ravel()).probes
+    t, tip = probes[:, 0], probes[:, 1]
+    k = np.flatnonzero(np.sign(tip[1:]) != np.sign(tip[:-1]))
+    if len(k) < 4:
+        raise ValueError(f"free_vibration_frequency: {len(k)} zero crossings; run longer")
+    crossings = t[k] - tip[k] * (t[k + 1] - t[k]) / (tip[k + 1] - tip[k])
+    return math.pi / np.polyfit(np.arange(len(crossings)), crossings, 1)[0]

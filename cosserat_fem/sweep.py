@@ -140,8 +140,10 @@ def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
             raise SceneError(f"sweep: {str(out)!r} holds another sweep (other scene or members); "
                              "use another --out, or remove it")  # fmt: skip
     else:
+        continuation = spec.response.continuation if spec.response else None
         document = {"fingerprint": fingerprint, "members": len(spec.members),
-                    "varied": list(spec.varied), "source": spec.source}  # fmt: skip
+                    "varied": list(spec.varied), "source": spec.source,
+                    "continuation": continuation}  # fmt: skip
         record.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
     _cut_rows_off(out)
     return _finished(out)

@@ -36,6 +36,8 @@ A frequency response adds ``[sweep.response]`` (cosserat_fem/response.py)::
     settled_periods = 3          # ... for so many periods in a row
     measure_periods = 2          # amplitudes over the last periods (<= settled_periods + 1)
     max_periods = 200            # a member runs at most so many periods (time.end ignored)
+    steps_per_period = 600       # optional: time.step = period / this (every period sampled
+                                 #   at the same phases: the change per period is exact)
 
 A chain is the members that share the values of every other varied key, ordered by the
 continuation key; without a continuation each member is a chain of its own, from the
@@ -66,7 +68,7 @@ from .schema import apply_overrides, read_toml
 
 KEYS = {"scene", "combine", "max_members", "group_size", "keep", "set", "vary", "case", "response"}
 RESPONSE_KEYS = {"period", "continuation", "direction", "tolerance", "settled_periods",
-                 "measure_periods", "max_periods"}  # fmt: skip
+                 "measure_periods", "max_periods", "steps_per_period"}  # fmt: skip
 #: The most members a sweep may have: each rank validates every member before any runs
 #: (~1 ms a member here: 100 s) and keeps its values.
 MAX_MEMBERS = 100_000
@@ -137,11 +139,13 @@ class SweepSpec:
 
     def span(self, member: Member, start: float) -> dict[str, float]:
         """A forced member's time span from ``start`` [s]: max_periods periods, rounded up to
-        whole steps of its time.step (time.start, time.end as dotted keys)."""
+        whole steps of its time.step, or of T / steps_per_period (time.start, time.end and
+        time.step as dotted keys)."""
         assert self.response is not None
-        step = self.scene(member).time.step
-        steps = math.ceil(self.response.max_periods * self.period(member) / step)
-        return {"time.start": start, "time.end": start + steps * step}
+        period, per = self.period(member), self.response.steps_per_period
+        step = period / per if per else self.scene(member).time.step
+        steps = math.ceil(self.response.max_periods * period / step - 1e-9)
+        return {"time.start": start, "time.end": start + steps * step, "time.step": step}
 
 
 def _positive_int(table: dict, key: str, default: int, where: str = "sweep") -> int:
@@ -263,12 +267,18 @@ def _response(table: Any, varied: tuple[str, ...]) -> ResponseSettings | None:
     if most < settled + 1:
         raise SceneError(f"sweep.response.max_periods: at least settled_periods + 1 = "
                          f"{settled + 1}, got {most}")  # fmt: skip
+    per = table.get("steps_per_period")
+    if per is not None:
+        per = _positive_int(table, "steps_per_period", 1, "sweep.response")
+        if per < 16:
+            raise SceneError(f"sweep.response.steps_per_period: at least 16 (a period's half "
+                             f"range and harmonic need samples), got {per}")  # fmt: skip
     tolerance = _positive_number(table, "tolerance", 1e-3)
     if tolerance >= 1.0:
         raise SceneError(f"sweep.response.tolerance: must be < 1 (a relative change), got "
                          f"{show_value(tolerance)}")  # fmt: skip
     return ResponseSettings(str(period), continuation, direction, tolerance, settled, measure,
-                            most)  # fmt: skip
+                            most, per)  # fmt: skip
 
 
 def _chains(
@@ -361,7 +371,12 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
             if response is not None:
                 where = f"member {member.index}"
                 period = period_of(response, scene.expression_names(), where)
-                check_sampling(response, period, scene.time.step, where)
+                if response.steps_per_period is None:
+                    check_sampling(response, period, scene.time.step, where)
+                else:  # its own time.step: checked against the rest of the scene
+                    step = period / response.steps_per_period
+                    scene_from_dict(base_data, str(scene_path), {**member.values,
+                                    "time.step": step, "time.end": scene.time.start + step})
         except SceneError as exc:
             raise SceneError(f"sweep member {member.index} ({member.describe()}): {exc}"
                              ) from None  # fmt: skip

@@ -100,3 +100,25 @@ def jit_installed():
     finally:
         if not before:
             jit.uninstall()
+
+
+def read_table(path: Path) -> list[dict]:
+    """The rows of a CSV table (a sweep's sweep.csv) as dicts of strings."""
+    import csv
+
+    with open(path, newline="", encoding="utf-8") as stream:
+        return list(csv.DictReader(stream))
+
+
+def sweep_serial_and_mpi(path: Path, folder: Path) -> dict[int, list[dict]]:
+    """``cosserat-fem sweep path`` on one rank and under mpirun -n 2 (into folder/n1, n2): each
+    table's rows without the wall times, which differ run to run."""
+    tables = {}
+    for ranks in (1, 2):
+        out = folder / f"n{ranks}"
+        proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)],
+                           ranks)  # fmt: skip
+        assert proc.returncode == 0, proc.stderr
+        tables[ranks] = [{k: v for k, v in r.items() if k != "wall_s"}
+                         for r in read_table(out / "sweep.csv")]  # fmt: skip
+    return tables

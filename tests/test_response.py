@@ -11,13 +11,12 @@ the time loop, the nonlinear residual or the settling criterion that it checks.
 
 from __future__ import annotations
 
-import csv
 import math
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT, run_command
+from conftest import ROOT, read_table, run_command, sweep_serial_and_mpi
 
 from cosserat_fem import api
 from cosserat_fem.errors import SceneError
@@ -56,11 +55,6 @@ def sweep_file(folder: Path, values: list[float], response: dict, **sweep) -> Pa
 
 
 PERIOD = {"period": "2*pi/(r*omega0)"}
-
-
-def read_table(path: Path) -> list[dict]:
-    with open(path, newline="", encoding="utf-8") as stream:
-        return list(csv.DictReader(stream))
 
 
 @pytest.fixture(scope="module")
@@ -149,6 +143,19 @@ def test_a_restarted_chain_continues_from_the_saved_state(linear_sweep, tmp_path
         }
 
 
+def test_plot_draws_the_response_of_each_chain(linear_sweep, tmp_path):
+    """``cosserat-fem plot DIR`` of a frequency response: sweep.png and response.png (1300 ×
+    1040 px), the latter with a row of panels per moving column (here x and ψ)."""
+    import struct
+
+    _, out, _ = linear_sweep
+    proc = run_command(["-m", "cosserat_fem.cli", "plot", str(out), "--out", str(tmp_path)])
+    assert proc.returncode == 0, proc.stderr
+    png = (tmp_path / "response.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and struct.unpack(">II", png[16:24]) == (1300, 1040)
+    assert (tmp_path / "sweep.png").is_file()
+
+
 class _Probe:
     """A probe of a synthetic signal: x(t) given, the other columns 0."""
 
@@ -176,7 +183,7 @@ def _feed(signal, settings, period, step, until):
 
     probe, loop = _Probe(signal), _Loop()
     observer = PeriodicResponse(settings, period, 1.0)
-    observer.attach(probe, MPI.COMM_SELF, 0.0)
+    observer.attach(probe, MPI.COMM_SELF, 0.0, 1.0)
     k = 0
     while loop.reason is None and k * step < until:
         k += 1
@@ -258,6 +265,7 @@ def test_a_continued_start_carries_the_forcing_phase():
         ({**PERIOD, "max_periods": 2}, "sweep.response.max_periods: at least"),
         ({**PERIOD, "tolerance": 0}, "sweep.response.tolerance: must be a positive number"),
         ({**PERIOD, "tolerance": 1.5}, "sweep.response.tolerance: must be < 1"),
+        ({**PERIOD, "steps_per_period": 8}, "sweep.response.steps_per_period: at least 16"),
     ],
 )  # fmt: skip
 def test_a_malformed_response_is_refused_before_any_member_runs(tmp_path, response, message):
@@ -275,14 +283,7 @@ def test_up_and_down_chains_under_mpi_equal_the_serial_sweep(tmp_path):
     wall times). A loose tolerance keeps it short: this checks the dealing, not the physics."""
     path = sweep_file(tmp_path, [0.95, 1.05], {**PERIOD, "continuation": "parameters.r",
                       "direction": "both", "tolerance": 1e-2})  # fmt: skip
-    tables = {}
-    for ranks in (1, 2):
-        out = tmp_path / f"n{ranks}"
-        proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)],
-                           ranks)  # fmt: skip
-        assert proc.returncode == 0, proc.stderr
-        tables[ranks] = [{k: v for k, v in r.items() if k != "wall_s"}
-                         for r in read_table(out / "sweep.csv")]  # fmt: skip
+    tables = sweep_serial_and_mpi(path, tmp_path)
     assert tables[1] == tables[2]
     rows = tables[1]
     assert [(r["direction"], r["parameters.r"], r["previous"]) for r in rows] == [

@@ -11,12 +11,11 @@ probe's final and largest values, printed with repr) the same text in serial and
 
 from __future__ import annotations
 
-import csv
 import json
 from pathlib import Path
 
 import pytest
-from conftest import ROOT, run_command
+from conftest import ROOT, read_table, run_command, sweep_serial_and_mpi
 
 from cosserat_fem import api
 from cosserat_fem.errors import SceneError
@@ -37,11 +36,6 @@ def sweep_file(folder: Path, body: str, **sweep) -> Path:
 
 
 STEPS = '[sweep.vary]\n"time.step" = [1e-5, 2e-5, 3e-5]\n'
-
-
-def read_table(path: Path) -> list[dict]:
-    with open(path, newline="", encoding="utf-8") as stream:
-        return list(csv.DictReader(stream))
 
 
 def test_members_are_their_scenes_run_alone(tmp_path):
@@ -140,14 +134,7 @@ def test_a_sweep_under_mpi_equals_the_serial_sweep(tmp_path):
     run serially on its group, so the table is the serial table to the last digit (all but
     the wall times), and each group wrote its own part."""
     path = sweep_file(tmp_path, STEPS, keep="probes")
-    tables = {}
-    for ranks in (1, 2):
-        out = tmp_path / f"n{ranks}"
-        proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)],
-                           ranks)  # fmt: skip
-        assert proc.returncode == 0, proc.stderr
-        tables[ranks] = [{k: v for k, v in r.items() if k != "wall_s"}
-                         for r in read_table(out / "sweep.csv")]  # fmt: skip
+    tables = sweep_serial_and_mpi(path, tmp_path)
     assert tables[1] == tables[2]
     assert sorted(p.name for p in (tmp_path / "n2" / "table").iterdir()) == [
         "group-0.csv", "group-1.csv"
