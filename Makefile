@@ -8,7 +8,7 @@ export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
 
-.PHONY: setup demo test test-long unit lint verify bench clean container-test
+.PHONY: setup demo demo-response test test-long unit lint verify bench clean container-test
 
 setup:
 	@VENV=$(VENV) bash .ci/setup.sh
@@ -16,6 +16,10 @@ setup:
 ## The main job: the paper's cantilever (Figs. 4-6), outputs in demos/output/.
 demo: setup
 	$(PY) demos/cao_tucker_2008.py
+
+## The second demo: a frequency response with jumps (a sweep; two chains on two ranks).
+demo-response: setup
+	OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -n 2 $(PY) demos/frequency_response.py
 
 ## Lint, then the test suite (serial and mpirun -n 2 cases) without the long set, its files
 ## dealt to one pytest worker per core (pytest-xdist; a file's tests share its fixtures).

@@ -148,3 +148,22 @@ def test_curved_section_lists_the_generators_meshes(verify, sections):
     degree, elements = verify.BEND_PATH_MESH
     phrase = verify.elements_phrase(elements, degree)
     assert f"The path of the tip against the load ({phrase};" in body
+
+
+def test_response_section_lists_the_generators_frequencies_and_sections(verify, sections):
+    """Section 7: the linear table's r are LINEAR_R, at its steps a period and tolerance; the
+    backbone table's sections are BACKBONE_THICKNESS at BACKBONE_ELEMENTS; the hysteresis
+    table covers the sweep file's range, each r once."""
+    body = section(sections, 7)
+    rows = table(body, "| r | periods | h1 of x")
+    assert [float(r[0]) for r in rows] == verify.LINEAR_R
+    assert f"{verify.LINEAR_STEPS_PER_PERIOD} steps a period" in body
+    assert f"tolerance {verify.LINEAR_TOLERANCE:g}" in body
+    rows = table(body, "| section a × 1.5a [m]")
+    assert [float(r[0].split(" × ")[0]) for r in rows] == verify.BACKBONE_THICKNESS
+    assert f"{verify.BACKBONE_ELEMENTS} cubic elements" in body
+    rows = table(body, "| r | up: amplitude")
+    from cosserat_fem.sweep_spec import load_sweep
+
+    values = sorted({m.values["parameters.r"] for m in load_sweep(verify.HYSTERESIS).members})
+    assert [float(r[0]) for r in rows] == pytest.approx(values, abs=5e-3)
