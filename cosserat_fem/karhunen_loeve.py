@@ -58,11 +58,11 @@ from xml.sax.saxutils import escape
 import numpy as np
 
 from .errors import SceneError
-from .results import xdmf_mesh_xml
+from .results import PROBE_COLUMNS, xdmf_mesh_xml
 
 WEIGHTINGS = ("displacement", "kinetic")
 #: Components of the snapshots: displacement (x, y, z) [m], angles (θ, ψ, φ) [rad].
-COMPONENTS = ("x", "y", "z", "theta", "psi", "phi")
+COMPONENTS = PROBE_COLUMNS[1:]
 #: Default number of modes reported (fewer if there are fewer snapshots).
 DEFAULT_MODES = 10
 #: The files :func:`write_pod` writes in its folder.
@@ -427,8 +427,6 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
         raise SceneError(f"pod: cannot write {str(path)!r} "
                          f"({getattr(exc, 'strerror', None) or exc})") from None  # fmt: skip
     return path
-
-
 
 
 #: Modes drawn in pod.png's shape panels.

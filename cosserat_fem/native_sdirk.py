@@ -15,7 +15,11 @@ It applies when the Newton solver runs its C loop (serial, no point load, ``solv
 "auto"``) with a reused Jacobian, no observer watches Newton's iterations or solves and no
 support moves (a moving support's values go into each stage's guess from Python); each step
 checks what can change during a run (a new form after a chart move: a new C loop) and
-otherwise takes the Python step.
+otherwise takes the Python step. Fixed supports' values are not written into each stage's
+guess as the Python step writes them (``support_dofs_to``): the same bits whenever the state
+holds them already, as every state the loop accepts does; an ``initial_state`` given through
+the API that breaks a support is mended by the first Newton update instead, which converges
+to the same solution in other bits.
 """
 
 from __future__ import annotations

@@ -475,7 +475,8 @@ class NewtonSolver:
             sd.time_solve += time.perf_counter() - t0
             status = call()
         if status:
-            raise RuntimeError(f"PETSc error {status} in a time step")
+            raise RuntimeError(f"PETSc error {status} in the C time step, stage {sd.stage + 1}, "
+                               f"its unknown at τ = ω0 t = {sd.unknown_time:.10g}")
         self._f0, self._f_prev, self._update_prev = st.f0, st.f_prev, st.update_prev
         self._need_jacobian, self._solves_since_jacobian = bool(sd.need_jacobian), sd.since
         stats.solves += sd.solves

@@ -1081,8 +1081,6 @@ class XdmfWriter:
             self._doc.close()
 
 
-
-
 _XDMF_HEAD = (
     '<?xml version="1.0"?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
     '<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n'

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CosseratError, SceneError
-from .results import NoFramesError, RodSeries, Run, open_run, read_sweep_rows
+from .results import PROBE_COLUMNS, NoFramesError, RodSeries, Run, open_run, read_sweep_rows
 
 DPI = 130
 HISTORY_SIZE = (10.0, 8.0)  # inches
@@ -195,8 +195,8 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
 
 
 #: The probe's columns (cosserat_fem/response.py) and their units.
-RESPONSE_UNITS = {"x": "m", "y": "m", "z": "m", "theta": "rad", "psi": "rad", "phi": "rad"}
-RESPONSE_SYMBOLS = {"x": "x", "y": "y", "z": "z", "theta": "θ", "psi": "ψ", "phi": "φ"}
+RESPONSE_UNITS = dict(zip(PROBE_COLUMNS[1:], ("m",) * 3 + ("rad",) * 3, strict=True))
+RESPONSE_SYMBOLS = dict(zip(PROBE_COLUMNS[1:], ("x", "y", "z", "θ", "ψ", "φ"), strict=True))
 
 
 def plot_response(directory: Path, columns: list[str], rows: list[dict], varied: list[str],

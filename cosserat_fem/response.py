@@ -54,9 +54,10 @@ import numpy as np
 
 from .errors import SceneError
 from .events import Observer
+from .results import PROBE_COLUMNS
 
 #: The columns the response is measured on: the probe's (x, y, z [m], θ, ψ, φ [rad]).
-COLUMNS = ("x", "y", "z", "theta", "psi", "phi")
+COLUMNS = PROBE_COLUMNS[1:]
 #: The quantities measured per column (module docstring), in the table's order.
 MEASURES = ("amp", "mean", "h1", "phase")
 DIRECTIONS = ("up", "down", "both")
@@ -152,6 +153,7 @@ class PeriodicResponse(Observer):
     def __init__(self, settings: ResponseSettings, period: float, sigma: float):
         self.settings, self.period, self.sigma = settings, period, sigma
         self.result: dict | None = None
+        self.probe = None  # attached when the run starts
         self._times: list[float] = []
         self._values: list[np.ndarray] = []
         self._stats: list[tuple[np.ndarray, np.ndarray]] = []  # (half range, mean) per period
@@ -190,6 +192,8 @@ class PeriodicResponse(Observer):
                              f"{self._in_a_row} periods in a row)")  # fmt: skip
 
     def ended(self, loop, failure) -> None:
+        if self.probe is None:  # the run failed before it started: nothing measured
+            return
         measured = self._measure() if self.probe.is_owner else None
         if self.comm.size > 1:
             measured = self.comm.bcast(measured, root=self.probe.owner)

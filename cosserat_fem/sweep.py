@@ -41,19 +41,22 @@ import io
 import json
 import shutil
 import time
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from mpi4py import MPI
 
-from .errors import CosseratError, SceneError, SolverError, StopError
+from .charts import change_chart
+from .errors import CosseratError, OutputError, SceneError, SolverError, StopError
+from .parallel import agree
 from .response import COLUMNS as RESPONSE_NAMES
 from .response import MEASURES, PeriodicResponse, continued_start
-from .results import SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
+from .results import PROBE_COLUMNS, SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
 from .sweep_spec import Member, SweepSpec
 
-PROBE_NAMES = ("x", "y", "z", "theta", "psi", "phi")
+PROBE_NAMES = PROBE_COLUMNS[1:]  # x, y, z [m], θ, ψ, φ [rad]
 RECORD = "sweep.json"
 FINAL_STATE = "final_state.npz"
 
@@ -161,30 +164,49 @@ class _Final:
     state: np.ndarray
 
 
+def _final_state(model) -> np.ndarray:
+    """This rank's part of the model's state as all twelve components, its angles measured
+    from the fixed basis (a chart moved during the run, cosserat_fem/charts.py, is undone:
+    the next member starts without one)."""
+    full = model.layout.full_array(model.U.x.array)
+    if model.chart is not None:
+        Q = model.chart.x.array.reshape(-1, 4)
+        identity = np.zeros_like(Q)
+        identity[:, 0] = 1.0
+        if not np.array_equal(Q, identity):
+            full = change_chart(full, Q, identity)
+    return full.ravel().copy()
+
+
 def _save_final(folder: Path, final: _Final, comm) -> None:
     """``final_state.npz`` in the member's folder: t, period and each rank's part (U0, U1,
-    ...; a chain runs on one group, so the parts fit the next member's partition)."""
+    ...; a chain runs on one group, so the parts fit the next member's partition). Every rank
+    raises alike if rank 0 cannot write it."""
     parts = comm.gather(final.state, root=0)
+    problem = None
     if comm.rank == 0:
         arrays = {f"U{r}": part for r, part in enumerate(parts)}
         temporary = folder / ".final_state.npz"
-        with open(temporary, "wb") as stream:
-            np.savez(stream, t=final.t, period=final.period, **arrays)
-        temporary.replace(folder / FINAL_STATE)
+        try:
+            with open(temporary, "wb") as stream:
+                np.savez(stream, t=final.t, period=final.period, **arrays)
+            temporary.replace(folder / FINAL_STATE)
+        except OSError as exc:
+            problem = OutputError(f"sweep: cannot write {str(folder / FINAL_STATE)!r} ({exc})")
+    agree(comm, problem)
 
 
 def _load_final(folder: Path, index: int, comm) -> _Final | None:
-    """The final state a member saved (None if it has none: it failed); SceneError if it was
-    saved by groups of another size."""
+    """The final state a member saved, or None if it has none (it failed) or it cannot be
+    read (the chain then goes on from rest; every rank reads the same file alike). A group of
+    another size is refused before (the sweep's fingerprint holds group_size)."""
     path = folder / FINAL_STATE
-    if not path.exists():
+    try:
+        with np.load(path) as data:
+            return _Final(index, float(data["t"]), float(data["period"]),
+                          np.array(data[f"U{comm.rank}"]))  # fmt: skip
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
         return None
-    with np.load(path) as data:
-        ranks = sum(1 for k in data.files if k.startswith("U"))
-        if ranks != comm.size:
-            raise SceneError(f"sweep.group_size: {path} holds the state of a group of {ranks} "
-                             f"ranks, this sweep's groups have {comm.size}")  # fmt: skip
-        return _Final(index, float(data["t"]), float(data["period"]), data[f"U{comm.rank}"])
 
 
 def _forced(spec: SweepSpec, member: Member, before: _Final | None):
@@ -225,8 +247,8 @@ def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
                      initial_state=initial)  # fmt: skip
         summary, probes = result.summary, result.probes
         if spec.chains_continue:
-            state = result.model.layout.full_array(result.model.U.x.array).ravel()
-            final = _Final(member.index, result.time_reached, period, state.copy())
+            state = _final_state(result.model)
+            final = _Final(member.index, result.time_reached, period, state)
             _save_final(folder, final, comm)
     except Exception as exc:  # recorded, and the sweep goes on (a bug's too: "error")
         status = "error"

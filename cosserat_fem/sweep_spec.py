@@ -121,10 +121,13 @@ class SweepSpec:
     def fingerprint(self) -> str:
         """What identifies the sweep's work: the base scene, every member's values and the
         response's settings (a restarted sweep must be the same sweep)."""
-        members = [[m.values, m.direction] for m in self.members]
-        response = None if self.response is None else self.response.__dict__
-        return json.dumps({"base": self.base, "members": members, "response": response},
-                          sort_keys=True, default=str)  # fmt: skip
+        members = [[m.values, m.direction] if m.direction else m.values for m in self.members]
+        document = {"base": self.base, "members": members}
+        if self.response is not None:
+            document["response"] = self.response.__dict__
+        if self.chains_continue:  # the saved states are parts of a group's partition
+            document["group_size"] = self.group_size
+        return json.dumps(document, sort_keys=True, default=str)
 
     @property
     def chains_continue(self) -> bool:
@@ -289,6 +292,9 @@ def _chains(
         return [Member(i, v) for i, v in enumerate(values)], [(i,) for i in range(len(values))]
     key = response.continuation
     for i, v in enumerate(values):
+        if key not in v:
+            raise SceneError(f"sweep.response.continuation: {key!r} is not set in member {i} "
+                             "(every case must give it)")  # fmt: skip
         if isinstance(v[key], bool) or not isinstance(v[key], int | float):
             raise SceneError(f"sweep.response.continuation: {key!r} must take numbers, got "
                              f"{show_value(v[key])} in member {i}")  # fmt: skip

@@ -108,11 +108,12 @@ except CosseratError as exc:
 # axis), with the rod's own linear frequency ω1 and the modal force of the load.
 
 # %%
-E, rho, a, b, length = 7.1e10, 2730.0, 0.04, 0.06, 1.0
-w1, F, zeta = 1302.92, 5915.8, 0.01  # rad/s, N/m, the sweep file's
-duffing = Duffing.clamped(length, E * a * b, E * b * a**3 / 12, rho * a * b, zeta, omega=w1)
+base = spec.scene(spec.members[0])  # the rod, its damping and the load's parameters
+w1, F, length = base.parameters["w1"], base.parameters["F"], base.rod.length  # rad/s, N/m, m
+duffing = Duffing.of_clamped_scene(base, omega=w1)
+rho_A = base.rod.material.density * base.rod.section.a * base.rod.section.b  # kg/m
 s = np.linspace(0.0, length, 20001)
-f = clamped_modal_force(F * np.sin(np.pi * s / length), s, length, rho * a * b)
+f = clamped_modal_force(F * np.sin(np.pi * s / length), s, length, rho_A)  # m/s²
 
 # %% [markdown]
 # ## The picture and the quantities of interest
@@ -143,7 +144,7 @@ if comm.rank == 0:
                 label=f"cosserat-fem, sweep {direction}")  # fmt: skip
     ax.set_xlabel("r = Ω / ω1")
     ax.set_ylabel("amplitude of x at mid-span [mm]")
-    ax.set_title("Clamped–clamped rod: hardening, jumps and hysteresis (ζ1 = 0.01)")
+    ax.set_title(f"Clamped–clamped rod: hardening, jumps and hysteresis (ζ1 = {duffing.zeta:.2g})")
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
@@ -153,6 +154,6 @@ if comm.rank == 0:
         x = float(row["parameters.r"])
         key = f"{row['direction']}_{x:.2f}".replace(".", "p")
         print(f"QOI amp_{key}_m = {float(row['amp_x']):.12e}")
-        roots = duffing.amplitudes(f, x * w1)
+        roots = duffing.amplitudes(f, x * w1) or [np.nan]
         print(f"QOI duffing_low_{key}_m = {roots[0]:.12e}")
         print(f"QOI duffing_high_{key}_m = {roots[-1]:.12e}")

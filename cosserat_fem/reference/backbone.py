@@ -31,8 +31,10 @@ gives the amplitudes a of q ≈ a sin(Ωt + phase) as the positive roots of
     a² [(ω² + ¾ α a² − Ω²)² + (2ζωΩ)²] = f²,
 
 three of them (two stable, one not) where the response is multivalued: between the
-frequencies where an upward sweep jumps down and a downward one jumps up (the curve bends
-over once κ a² exceeds about √3 ζ).
+frequencies where an upward sweep jumps down and a downward one jumps up. Near resonance, with
+σ = Ω/ω − 1, it reads u [(σ − κu)² + ζ²] = (f/2ω²)², u = a²: a cubic in u with three real
+roots only where σ > √3 ζ, so the curve bends over once the peak amplitude a_p = f/(2ζω²)
+has κ a_p² > 8/(3√3) ζ ≈ 1.54 ζ.
 """
 
 from __future__ import annotations
@@ -95,6 +97,14 @@ def cantilever_hardening(length: float) -> float:
     return -beta / (4.0 * phi[-1] ** 2)
 
 
+def hardening_fit(shifts: dict[float, float]) -> float:
+    """κ [1/m²] of ω/ω1 − 1 = κ a² + μ a⁴ through the relative frequency shifts measured at
+    two amplitudes a [m] (``{a1: shift1, a2: shift2}``): the first order, the next removed."""
+    (a1, s1), (a2, s2) = sorted(shifts.items())
+    mu = (s2 / a2**2 - s1 / a1**2) / (a2**2 - a1**2)
+    return s1 / a1**2 - mu * a1**2
+
+
 def cantilever_shape(amplitude: float, length: float, s: np.ndarray):
     """The inextensible, unshearable shape ψ = q φ'(s) whose free end is displaced by
     ``amplitude`` [m] in x: the displacements x(s), z(s) − s [m] and ψ(s) [rad] at s."""
@@ -133,6 +143,17 @@ class Duffing:
         if omega is None:
             omega = CLAMPED_BETA**2 / length**2 * math.sqrt(EI / rho_A)
         return cls(omega, alpha, zeta)
+
+    @classmethod
+    def of_clamped_scene(cls, scene, omega: float) -> Duffing:
+        """The Duffing model of a scene's rectangular rod clamped at both ends, bending in x
+        (about d2: EI = E b a³/12), its first frequency ``omega`` [rad/s] (the rod's own, e.g.
+        from cosserat-fem modes) and ζ = c_t / (2ρAω) of its viscous damping.translational."""
+        rod = scene.rod
+        a, b, E = rod.section.a, rod.section.b, rod.material.young_modulus
+        rho_A = rod.material.density * a * b
+        zeta = scene.damping.translational / (2.0 * rho_A * omega)
+        return cls.clamped(rod.length, E * a * b, E * b * a**3 / 12, rho_A, zeta, omega=omega)
 
     @property
     def hardening(self) -> float:
