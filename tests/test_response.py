@@ -350,3 +350,32 @@ def test_up_and_down_chains_under_mpi_equal_the_serial_sweep(tmp_path):
         assert float(grouped_row["h1_x"]) == pytest.approx(float(serial["h1_x"]), rel=1e-6)
     with np.load(out / "members" / "m00000" / "final_state.npz") as data:
         assert sorted(k for k in data.files if k.startswith("U")) == ["U0", "U1"]
+
+
+def test_a_final_state_after_a_chart_move_is_saved_in_the_fixed_basis():
+    """A chain's saved state (sweep._final_state) has its angles measured from the fixed basis
+    when the rod's chart moved during the member: at the free end those the probe reports (its
+    own fixed-basis angles, cosserat_fem/output.py), positions untouched, and the rates giving
+    the same ŵ = Mm (θ̇, ψ̇, φ̇) (26) as the chart's; without a move, the state bit for bit."""
+    from cosserat_fem.charts import angular_map, euler_matrix, quaternion_of_frame
+    from cosserat_fem.model import build_model
+    from cosserat_fem.output import PointProbe
+    from cosserat_fem.sweep import _final_state
+
+    model = build_model(api.load(PAPER, {"time.end": 3e-5}))
+    model.use_chart(active=False)
+    s = model.V.tabulate_dof_coordinates()[:, 0]
+    full = np.zeros((len(s), 12))
+    full[:, 0], full[:, 1] = 0.01 * s, -0.02 * s**2
+    full[:, 3], full[:, 4], full[:, 5] = 0.3 * s, 0.2 * s, -0.1 * s
+    full[:, 9], full[:, 10], full[:, 11] = 0.05, -0.02 * s, 0.01
+    model.U.x.array[:] = model.layout.from_full(full, len(s))
+    assert np.array_equal(_final_state(model), full.ravel())  # the chart at the fixed basis
+    model.set_chart(quaternion_of_frame(euler_matrix(1.2 * s, 0.4 * s, 0.0 * s)))
+    saved = _final_state(model).reshape(-1, 12)
+    tip = int(np.argmax(s))
+    assert saved[tip, 3:6] == pytest.approx(PointProbe(model, 1.0).values()[3:6], abs=1e-12)
+    assert np.array_equal(saved[:, :3], full[:, :3]) and np.array_equal(saved[:, 6:9], full[:, 6:9])
+    w_chart = np.einsum("nij,nj->ni", angular_map(full[:, 3], full[:, 5]), full[:, 9:12])
+    w_saved = np.einsum("nij,nj->ni", angular_map(saved[:, 3], saved[:, 5]), saved[:, 9:12])
+    assert w_saved == pytest.approx(w_chart, abs=1e-12)
