@@ -12,10 +12,11 @@ discretisation's error in the linear frequency (0.1 % here: shear and rotary ine
 perturbation theory leaves out, and the mesh).
 
 The rods are slender (a 10 mm × 15 mm section, ℓ/r_g = 346): the finite section's effect on
-the nonlinear coefficient, −2.6 % at the paper's 40 mm (ℓ/r_g = 87) and −0.3 % at 20 mm
-(measured), falls to 0.2 % at 10 mm, where the mesh is converged (16 and 32 cubic elements
-agree to 5e-4 of κ). The cantilever needs 16 elements: at 8 the slender rod's nonlinear
-coefficient is 3.7 % high (its extension and shear lock the large rotations).
+the cantilever's nonlinear coefficient, −2.8 % at the paper's 40 mm (ℓ/r_g = 87) and −0.3 %
+at 20 mm (measured, docs/verification.md section 7), is +0.3 % at 10 mm, where the mesh is
+converged (16 and 32 cubic elements agree to 5e-4 of κ). The cantilever needs 16 elements:
+at 8 the slender rod's nonlinear coefficient is 3.7 % high (its extension and shear lock the
+large rotations).
 """
 
 from __future__ import annotations
