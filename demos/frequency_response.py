@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -93,7 +94,12 @@ try:
         if comm.rank == 0:
             source.write_text(text, encoding="utf-8")
         comm.Barrier()
-    spec = api.load_sweep(source)
+    try:
+        spec = api.load_sweep(source)  # read whole: the file is not needed after this
+    finally:
+        comm.Barrier()
+        if source != SWEEP and comm.rank == 0:
+            shutil.rmtree(source.parent, ignore_errors=True)
     out = Path(args.out)
     result = api.sweep(spec, out)
 except CosseratError as exc:
