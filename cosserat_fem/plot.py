@@ -207,7 +207,13 @@ def plot_response(directory: Path, columns: list[str], rows: list[dict], varied:
     amplitude at least 1e-3 of its group's: displacements, angles), against the continuation
     key (sweep.json) or the varied key; a line per chain, upward ▲ solid, downward ▼ dashed;
     a member that did not settle drawn hollow, one that failed as a cross at zero."""
-    record = json.loads((directory / "sweep.json").read_text(encoding="utf-8"))
+    try:
+        record = json.loads((directory / "sweep.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise SceneError(f"plot: {str(directory / 'sweep.json')!r} cannot be read ({exc})"
+                         ) from None  # fmt: skip
+    if not isinstance(record, dict):
+        raise SceneError(f"plot: {str(directory / 'sweep.json')!r} is not a sweep's record")
     key = record.get("continuation") or next(
         (k for k in varied if np.isfinite(_number(rows[0][k]))), "member"
     )

@@ -36,10 +36,10 @@ the harmonic); the half range of samples every Δt misses a peak by at most 1 �
 of the amplitude, which :func:`check_sampling` holds below a tenth of the tolerance: it
 varies from period to period with the phase of the samples, unless ``steps_per_period``
 makes T a whole number of steps, when every period is sampled alike and the change δ is
-the response's own down to round-off (a bias of the half range remains, the same in every
-period). A run
-that has not settled by its end is measured over its last whole periods, and flagged
-(``settled`` false).
+the response's own down to round-off; the half range ``amp`` then stays biased low by up to
+1 − cos(π/N), N = steps_per_period (5.5e-5 at N = 300), the same in every period, while
+``h1`` is exact for the interpolant. A run that has not settled by its end is measured over
+its last whole periods, and flagged (``settled`` false).
 
 The decision is taken on the rank that owns the probe point and broadcast, once a period, so
 that every rank ends the run at the same step.
@@ -88,22 +88,23 @@ def period_of(settings: ResponseSettings, constants: dict[str, float], where: st
     """The forcing period [s] at the scene's ``constants``; SceneError naming
     sweep.response.period unless it is finite and positive."""
     from .expressions import Expression
+    from .scene import _finite_value
 
-    expression = Expression.parse(settings.period, set(constants), key="sweep.response.period")
-    try:
-        value = float(expression.evaluate(**constants))
-    except ValueError:
-        value = math.nan
-    if not (math.isfinite(value) and value > 0.0):
-        raise SceneError(f"sweep.response.period: {settings.period!r} = {value!r} s at {where}; "
-                         "must be a positive finite time")  # fmt: skip
+    key = "sweep.response.period"
+    expression = Expression.parse(settings.period, set(constants), key=key)
+    value = _finite_value(expression, key, where, **constants)
+    if not value > 0.0:
+        raise SceneError(f"{key}: {settings.period!r} = {value!r} s at {where}; must be a "
+                         "positive time")  # fmt: skip
     return value
 
 
 def check_sampling(settings: ResponseSettings, period: float, step: float, where: str) -> None:
     """Refuse output times too coarse for the period: a half range of samples every ``step``
-    misses a peak by up to 1 − cos(π step / T) of it, which must stay below a tenth of the
-    tolerance (SceneError naming time.step)."""
+    misses a peak by up to 1 − cos(π step / T) of it, and by a different amount in each period
+    (the samples' phase moves): that jitter enters the change δ, so it must stay below a tenth
+    of the tolerance, for δ to measure the response and not the sampling, to 10 %
+    (SceneError naming time.step)."""
     miss = 1.0 - math.cos(math.pi * min(step / period, 1.0))
     if miss > 0.1 * settings.tolerance:
         most = period * math.acos(1.0 - 0.1 * settings.tolerance) / math.pi
@@ -154,12 +155,16 @@ class PeriodicResponse(Observer):
         self.settings, self.period, self.sigma = settings, period, sigma
         self.result: dict | None = None
         self.probe = None  # attached when the run starts
+        self.closed = 0  # periods closed
         self._times: list[float] = []
         self._values: list[np.ndarray] = []
-        self._stats: list[tuple[np.ndarray, np.ndarray]] = []  # (half range, mean) per period
+        self._previous = None  # the last period's (half range, mean, harmonic)
         self._in_a_row = 0
         self._change = math.nan
-        self._settled = False
+
+    @property
+    def settled(self) -> bool:
+        return self._in_a_row >= self.settings.settled_periods
 
     # -- hooks ----------------------------------------------------------------------------
     def started(self, loop) -> None:
@@ -172,21 +177,18 @@ class PeriodicResponse(Observer):
         """Measure ``probe`` (an output.PointProbe: ``values()``, ``is_owner``, ``owner``) on
         ``comm`` from the start time ``t0`` [s] (its first sample); ``length`` [m]: ℓ."""
         self.probe, self.comm, self.t0, self.length = probe, comm, t0, length
-        self.closed = 0  # periods closed
         self._sample(t0)
 
     def output(self, loop, k: int, t: float) -> None:
         self._sample(t)
         boundary = self.t0 + (self.closed + 1) * self.period
+        # The boundary reached to round-off: t and the boundary are sums of up to ~1e6 steps
+        # or periods, exact to ~1e6 ε ≈ 2e-10 of them.
         if t < boundary - 1e-9 * self.period:
             return
         self.closed += 1
-        decision = self._close(boundary) if self.probe.is_owner else None
-        if self.comm.size > 1:
-            decision = self.comm.bcast(decision, root=self.probe.owner)
-        self._change, self._in_a_row = decision
-        if self._in_a_row >= self.settings.settled_periods:
-            self._settled = True
+        self._change, self._in_a_row = self._from_owner(lambda: self._close(boundary))
+        if self.settled:
             loop.request_end(f"the response settled after {self.closed} periods (change "
                              f"{self._change:.3g} <= {self.settings.tolerance:g} for "
                              f"{self._in_a_row} periods in a row)")  # fmt: skip
@@ -194,14 +196,27 @@ class PeriodicResponse(Observer):
     def ended(self, loop, failure) -> None:
         if self.probe is None:  # the run failed before it started: nothing measured
             return
-        measured = self._measure() if self.probe.is_owner else None
-        if self.comm.size > 1:
-            measured = self.comm.bcast(measured, root=self.probe.owner)
-        self.result = {"periods": self.closed, "settled": self._settled,
+        measured = self._from_owner(self._measure)
+        self.result = {"periods": self.closed, "settled": self.settled,
                        "change": self._change, "start_s": self.t0, "end_s": loop.state.t,
                        **measured}  # fmt: skip
 
     # -- the owner's work -------------------------------------------------------------------
+    def _from_owner(self, compute):
+        """``compute()`` on the probe's rank, its value on every rank; a failure there raised
+        on every rank alike (the others would wait in the broadcast otherwise)."""
+        value, problem = None, None
+        if self.probe.is_owner:
+            try:
+                value = compute()
+            except Exception as exc:  # noqa: BLE001 - carried to every rank, then raised
+                problem = f"{type(exc).__name__}: {exc}"
+        if self.comm.size > 1:
+            value, problem = self.comm.bcast((value, problem), root=self.probe.owner)
+        if problem:
+            raise RuntimeError(f"the forced response's measurement failed: {problem}")
+        return value
+
     def _sample(self, t: float) -> None:
         values = self.probe.values()
         if values is not None:
@@ -214,15 +229,15 @@ class PeriodicResponse(Observer):
         tt, vv = _window(times, values, b - self.period, b)
         half = 0.5 * (vv.max(axis=0) - vv.min(axis=0))
         mean = _integral(tt, vv) / self.period
-        self._stats.append((half, mean, _harmonic(tt, vv, self.period)))
+        harmonic = _harmonic(tt, vv, self.period)
+        previous, self._previous = self._previous, (half, mean, harmonic)
         keep = self.settings.measure_periods + 1  # periods of samples the measurement needs
-        self._stats = self._stats[-2:]
         first = np.searchsorted(times, b - keep * self.period) - 1
         if first > 0:
             del self._times[:first], self._values[:first]
-        if len(self._stats) < 2:
+        if previous is None:
             return math.nan, 0
-        (half0, mean0, harmonic0), (_, _, harmonic) = self._stats
+        half0, mean0, harmonic0 = previous
         change = np.maximum.reduce([np.abs(half - half0), np.abs(mean - mean0),
                                     np.abs(harmonic - harmonic0)])  # fmt: skip
         size = max(half[:3].max() / self.length, half[3:].max(), np.finfo(float).tiny)

@@ -54,7 +54,7 @@ from .parallel import agree
 from .response import COLUMNS as RESPONSE_NAMES
 from .response import MEASURES, PeriodicResponse, continued_start
 from .results import PROBE_COLUMNS, SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
-from .sweep_spec import Member, SweepSpec
+from .sweep_spec import Member, SweepSpec, forced_span
 
 PROBE_NAMES = PROBE_COLUMNS[1:]  # x, y, z [m], θ, ψ, φ [rad]
 RECORD = "sweep.json"
@@ -203,10 +203,12 @@ def _load_final(folder: Path, index: int, comm) -> _Final | None:
     path = folder / FINAL_STATE
     try:
         with np.load(path) as data:
-            return _Final(index, float(data["t"]), float(data["period"]),
-                          np.array(data[f"U{comm.rank}"]))  # fmt: skip
+            final = _Final(index, float(data["t"]), float(data["period"]),
+                           np.array(data[f"U{comm.rank}"]))  # fmt: skip
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
-        return None
+        final = None
+    read = final is not None if comm.size == 1 else comm.allreduce(final is not None, MPI.LAND)
+    return final if read else None  # every rank alike: one rank from rest would hang the rest
 
 
 def _forced(spec: SweepSpec, member: Member, before: _Final | None):
@@ -215,11 +217,13 @@ def _forced(spec: SweepSpec, member: Member, before: _Final | None):
     with the forcing's phase carried over."""
     from .output import probe_sigma
 
-    period = spec.period(member)
-    start = spec.scene(member).time.start
+    own = spec.scene(member)
+    where = f"member {member.index}"
+    period, span = forced_span(spec.response, own, own.time.start, where)
     if before is not None:
         start = continued_start(before.t, before.period, period)
-    scene = spec.scene(member, spec.span(member, start))
+        span = forced_span(spec.response, own, start, where)[1]
+    scene = spec.scene(member, span)
     return scene, PeriodicResponse(spec.response, period, probe_sigma(scene)), period
 
 
@@ -229,9 +233,14 @@ def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
     given); its row and, for a chain, its final state (every rank of ``comm``)."""
     from .simulation import run
 
+    problem = None
     if comm.rank == 0 and folder.exists():
-        shutil.rmtree(folder)  # a member cut short by a kill runs again from the start
-    comm.Barrier()
+        try:
+            shutil.rmtree(folder)  # a member cut short by a kill runs again from the start
+        except OSError as exc:
+            problem = OutputError(f"sweep: cannot remove {str(folder)!r} to run its member "
+                                  f"again ({exc})")  # fmt: skip
+    agree(comm, problem)
     t0 = time.perf_counter()
     summary, probes, status, message = None, None, "completed", ""
     response, final, period = None, None, None
@@ -342,18 +351,29 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD) -> SweepRe
     part = out / SWEEP_PARTS / f"group-{color}.csv"
     ran = 0
     try:
-        stream = None
+        stream, problem = None, None
         if leader:
-            new = not part.exists() or part.stat().st_size == 0
-            stream = open(part, "a", encoding="utf-8", newline="")  # noqa: SIM115
-            if new:
-                stream.write(",".join(fields) + "\n")
-                stream.flush()
+            try:
+                new = not part.exists() or part.stat().st_size == 0
+                stream = open(part, "a", encoding="utf-8", newline="")  # noqa: SIM115
+                if new:
+                    stream.write(",".join(fields) + "\n")
+                    stream.flush()
+            except OSError as exc:
+                problem = OutputError(f"sweep: cannot write {str(part)!r} ({exc})")
+        agree(group, problem)
 
         def write(row: dict) -> None:
+            """The row appended to the group's part; every rank of the group raises alike if
+            the leader cannot write it."""
+            problem = None
             if stream is not None:
-                stream.write(_csv_line(fields, row))
-                stream.flush()
+                try:
+                    stream.write(_csv_line(fields, row))
+                    stream.flush()
+                except OSError as exc:
+                    problem = OutputError(f"sweep: cannot write {str(part)!r} ({exc})")
+            agree(group, problem)
 
         while True:
             k = counter.next() if leader else None

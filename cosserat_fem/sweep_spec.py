@@ -61,6 +61,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from . import budget
 from .errors import SceneError, show_value
 from .response import DIRECTIONS, ResponseSettings, check_sampling, period_of
 from .scene import Scene, scene_from_dict
@@ -70,7 +71,7 @@ KEYS = {"scene", "combine", "max_members", "group_size", "keep", "set", "vary", 
 RESPONSE_KEYS = {"period", "continuation", "direction", "tolerance", "settled_periods",
                  "measure_periods", "max_periods", "steps_per_period"}  # fmt: skip
 #: The most members a sweep may have: each rank validates every member before any runs
-#: (~1 ms a member here: 100 s) and keeps its values.
+#: (1.1 ms a member here, one-off, docs/sweeps.md: 110 s) and keeps its values.
 MAX_MEMBERS = 100_000
 COMBINE = ("product", "zip")
 KEEP = ("run", "probes")
@@ -106,7 +107,6 @@ class SweepSpec:
     varied: tuple[str, ...]
     group_size: int = 1
     keep: str = "run"
-    max_members: int = 1000
     response: ResponseSettings | None = None
     #: Members run one after another, each from the previous one's final state (a frequency
     #: response's continuation); without one, every member is a chain of its own.
@@ -141,14 +141,26 @@ class SweepSpec:
         return period_of(self.response, scene.expression_names(), f"member {member.index}")
 
     def span(self, member: Member, start: float) -> dict[str, float]:
-        """A forced member's time span from ``start`` [s]: max_periods periods, rounded up to
-        whole steps of its time.step, or of T / steps_per_period (time.start, time.end and
-        time.step as dotted keys)."""
+        """A forced member's time span from ``start`` [s] (:func:`forced_span`)."""
         assert self.response is not None
-        period, per = self.period(member), self.response.steps_per_period
-        step = period / per if per else self.scene(member).time.step
-        steps = math.ceil(self.response.max_periods * period / step - 1e-9)
-        return {"time.start": start, "time.end": start + steps * step, "time.step": step}
+        return forced_span(self.response, self.scene(member), start, f"member {member.index}")[1]
+
+
+def forced_span(response: ResponseSettings, scene: Scene, start: float, where: str):
+    """(T [s], the time span from ``start`` [s] as dotted keys time.start, time.end,
+    time.step): max_periods periods of the forcing's T, rounded up to whole steps of the
+    scene's time.step or of T / steps_per_period. SceneError naming sweep.response.max_periods
+    if that many steps are not a finite number."""
+    period = period_of(response, scene.expression_names(), where)
+    per = response.steps_per_period
+    step = period / per if per else scene.time.step
+    steps = response.max_periods * period / step
+    if not math.isfinite(steps) or not math.isfinite(start + steps * step):
+        raise SceneError(f"sweep.response.max_periods: {response.max_periods} periods of "
+                         f"{period:.6g} s are not a finite number of steps of {step:.6g} s at "
+                         f"{where}")  # fmt: skip
+    steps = math.ceil(steps - 1e-9)
+    return period, {"time.start": start, "time.end": start + steps * step, "time.step": step}
 
 
 def _positive_int(table: dict, key: str, default: int, where: str = "sweep") -> int:
@@ -274,8 +286,10 @@ def _response(table: Any, varied: tuple[str, ...]) -> ResponseSettings | None:
     if per is not None:
         per = _positive_int(table, "steps_per_period", 1, "sweep.response")
         if per < 16:
-            raise SceneError(f"sweep.response.steps_per_period: at least 16 (a period's half "
-                             f"range and harmonic need samples), got {per}")  # fmt: skip
+            # Fewer samples miss a peak by more than 1 − cos(π/16) = 1.9 % of the amplitude
+            # and cannot resolve a nonlinear response's harmonics up to the 7th (Nyquist).
+            raise SceneError(f"sweep.response.steps_per_period: at least 16 (the half range "
+                             f"would miss a peak by more than 2 %), got {per}")  # fmt: skip
     tolerance = _positive_number(table, "tolerance", 1e-3)
     if tolerance >= 1.0:
         raise SceneError(f"sweep.response.tolerance: must be < 1 (a relative change), got "
@@ -374,17 +388,19 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
     for member in members[: len(values)]:
         try:
             scene = scene_from_dict(base_data, str(scene_path), member.values)
-            if response is not None:
+            if response is not None:  # its longest run, checked as a run is (budget.py)
                 where = f"member {member.index}"
-                period = period_of(response, scene.expression_names(), where)
+                period, span = forced_span(response, scene, scene.time.start, where)
                 if response.steps_per_period is None:
                     check_sampling(response, period, scene.time.step, where)
-                else:  # its own time.step: checked against the rest of the scene
-                    step = period / response.steps_per_period
-                    scene_from_dict(base_data, str(scene_path), {**member.values,
-                                    "time.step": step, "time.end": scene.time.start + step})
+                longest = scene_from_dict(base_data, str(scene_path), {**member.values, **span})
+                try:
+                    budget.check(longest, "run", ranks=group_size)
+                except SceneError as exc:
+                    raise SceneError(f"sweep.response.max_periods: {response.max_periods} "
+                                     f"periods of {period:.6g} s: {exc}") from None
         except SceneError as exc:
             raise SceneError(f"sweep member {member.index} ({member.describe()}): {exc}"
                              ) from None  # fmt: skip
     return SweepSpec(base_data, str(scene_path), tuple(members), varied, group_size, keep,
-                     max_members, response, tuple(chains))  # fmt: skip
+                     response, tuple(chains))  # fmt: skip

@@ -273,6 +273,10 @@ def test_a_continued_start_carries_the_forcing_phase():
         ({**PERIOD, "tolerance": 0}, "sweep.response.tolerance: must be a positive number"),
         ({**PERIOD, "tolerance": 1.5}, "sweep.response.tolerance: must be < 1"),
         ({**PERIOD, "steps_per_period": 8}, "sweep.response.steps_per_period: at least 16"),
+        ({**PERIOD, "max_periods": 10**9, "steps_per_period": 1000}, "sweep member 0 "
+         "(parameters.r = 0.9): sweep.response.max_periods: 1000000000 periods of 0.0337223 s: "),
+        ({"period": "1e306"}, "sweep member 0 (parameters.r = 0.9): sweep.response.max_periods: "
+         "200 periods of 1e+306 s are not a finite number of steps"),
     ],
 )  # fmt: skip
 def test_a_malformed_response_is_refused_before_any_member_runs(tmp_path, response, message):
