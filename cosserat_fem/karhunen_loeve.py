@@ -172,9 +172,11 @@ def pod(
     if len(s) < 2 or not (np.isfinite(s).all() and (np.diff(s) > 0).all()):
         raise SceneError("stations: need at least two, finite and strictly increasing along "
                          "the rod")  # fmt: skip
+    if not np.isfinite(times).all():
+        raise SceneError("snapshots: times that are not finite")
     bad = ~np.isfinite(values)
-    if bad.any() or not np.isfinite(times).all():
-        i = int(np.argwhere(bad)[0][0]) if bad.any() else 0
+    if bad.any():
+        i = int(np.argwhere(bad)[0][0])
         raise SceneError(f"snapshots: values that are not finite (at t = {times[i]:.6g} s)")
     if weighting == "kinetic":
         if values.shape[2] != 6:
@@ -194,6 +196,9 @@ def pod(
     U, sigma, Vt = np.linalg.svd(A, full_matrices=False)
     energies_all = sigma**2
     total = float(energies_all.sum())
+    if not total > 0.0:
+        raise SceneError("snapshots: the fields do not vary over the snapshots (mean removed): "
+                         "no modes to find")  # fmt: skip
     k = min(modes, len(sigma))
     shapes = Vt[:k].reshape(k, *values.shape[1:]) / scale
     coefficients = math.sqrt(count) * U[:, :k] * sigma[:k]
@@ -238,9 +243,10 @@ def snapshots_of_result(result, stations, rod=None) -> Snapshots:
                          "fields=...)) and give the same stations")  # fmt: skip
     sigma = np.asarray(stations, dtype=float).reshape(-1)
     values = np.asarray(result.field_values, dtype=float)
-    if len(sigma) != values.shape[1]:
-        raise SceneError(f"stations: {len(sigma)} given, the result holds {values.shape[1]} "
-                         "(give the fields the run was given)")  # fmt: skip
+    held = getattr(result, "field_stations", None)
+    if len(sigma) != values.shape[1] or (held is not None and not np.array_equal(sigma, held)):
+        raise SceneError(f"stations: not those the result was sampled at ({len(sigma)} given, "
+                         f"it holds {values.shape[1]}; give the fields the run was given)")
     scene = result.model.scene
     rod = scene.rod_constants() if rod is None else rod
     order = np.argsort(sigma, kind="stable")
@@ -318,12 +324,15 @@ def _read_series(xdmf: Path, length: float | None):
             [str(Path(__file__).resolve().parents[1]), env.get("PYTHONPATH", "")]
         )
         arguments = [str(xdmf), "-" if length is None else repr(length), str(target)]
-        proc = subprocess.run([sys.executable, "-c", code, *arguments], env=env,
-                              capture_output=True, text=True, timeout=600)  # fmt: skip
+        try:
+            proc = subprocess.run([sys.executable, "-c", code, *arguments], env=env,
+                                  capture_output=True, text=True, timeout=600)  # fmt: skip
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            raise SceneError(f"pod: cannot read {str(xdmf)!r} ({exc})") from None
         if proc.returncode in (2, 3):
             from .results import NoFramesError
 
-            message = proc.stderr.strip().splitlines()[-1]
+            message = (proc.stderr.strip().splitlines() or [f"cannot read {str(xdmf)!r}"])[-1]
             raise (NoFramesError if proc.returncode == 3 else SceneError)(message)
         if proc.returncode != 0:
             raise SceneError(f"pod: cannot read {str(xdmf)!r}: "

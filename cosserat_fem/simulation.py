@@ -60,8 +60,9 @@ class RunResult:
     """What a run produced, on every rank: the folder (if it wrote one), the output steps
     taken and the time reached [s], the summary (as summary.json), the model (its U holds
     the last state); with ``record=True`` the probe's rows (t, x, y, z, θ, ψ, φ) [s, m, rad]
-    at every output time, and with ``fields`` the fields p at those stations: ``times``
-    (T,) [s] and ``values`` (T, stations, 6) [m, rad]."""
+    at every output time, and with ``fields`` the fields p at those stations
+    (``field_stations``, σ as given): ``times`` (T,) [s] and ``values`` (T, stations, 6)
+    [m, rad]."""
 
     out_dir: Path | None
     steps: int
@@ -71,6 +72,7 @@ class RunResult:
     probes: np.ndarray | None = field(default=None, repr=False)
     field_times: np.ndarray | None = field(default=None, repr=False)
     field_values: np.ndarray | None = field(default=None, repr=False)
+    field_stations: np.ndarray | None = field(default=None, repr=False)
 
 
 def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: str) -> None:
@@ -185,6 +187,7 @@ def run(
         probes=parts.recorder.rows() if parts.recorder is not None else None,
         field_times=times,
         field_values=values,
+        field_stations=fields,
     )
 
 

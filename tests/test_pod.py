@@ -168,8 +168,9 @@ def test_modes_do_not_depend_on_the_spacing_of_the_stations():
 
 
 def test_bad_snapshots_are_refused_naming_the_argument():
-    """modes outside [1, T], a non-finite value, stations out of order, an unknown weighting,
-    the kinetic weighting without angles: SceneError naming what is wrong."""
+    """modes outside [1, T], a non-finite value or time, stations out of order, an unknown
+    weighting, the kinetic weighting without angles, snapshots that do not vary: SceneError
+    naming what is wrong."""
     s, times = np.linspace(0, 1, 5), np.arange(4.0)
     values = np.ones((4, 5, 3))
     for modes in (0, 5, 1.5):
@@ -185,6 +186,10 @@ def test_bad_snapshots_are_refused_naming_the_argument():
         pod(Snapshots(s, times, values), weighting="mass")
     with pytest.raises(SceneError, match="^weighting: 'kinetic' needs the angles"):
         pod(Snapshots(s, times, values), weighting="kinetic")
+    with pytest.raises(SceneError, match="^snapshots: times that are not finite$"):
+        pod(Snapshots(s, np.array([0.0, np.nan, 2.0, 3.0]), values))
+    with pytest.raises(SceneError, match="^snapshots: the fields do not vary"):
+        pod(Snapshots(s, times, values))  # constant: nothing left once the mean is removed
 
 
 # --- the linear free vibration -------------------------------------------------------------
@@ -212,7 +217,7 @@ def test_leading_pod_modes_of_a_free_vibration_are_its_linear_modes(vibration, w
     from the linear modes: 1 − MAC1 ≤ θ² and 1 − MAC2 ≤ (|c| + θ)² (φ2 is itself |c| off the
     complement). c ≠ 0 because the linear modes are orthogonal in the mass product, not in
     the displacement product (Feeny & Kappagantu 1998): measured c = −7.6e-4 there (the rotary
-    inertia ρ c22 of the angles is left out), 1e-5..1e-4 in the kinetic product (its lumped
+    inertia ρ c22 of the angles is left out), 2.2e-4 in the kinetic product (its lumped
     quadrature against the finite elements' consistent mass). The time discretisation does
     not enter: the midpoint rule advances each linear mode on its own (with its own discrete
     frequency), so the snapshots stay in span{φ1, φ2}. Allowed twice the bound, for the
@@ -293,6 +298,9 @@ def test_pod_energies_of_a_free_vibration_are_the_modal_amplitudes(vibration):
     values = np.einsum("kt,knc->tnc", c, np.array(phi))
     predicted = pod(Snapshots(found.s, t, values), modes=2)
     np.testing.assert_allclose(found.energies, predicted.energies, rtol=1e-4)
+    # Other stations of the same number are not the ones the run sampled: refused.
+    with pytest.raises(SceneError, match="^stations: not those the result was sampled at"):
+        cf.pod(result, STATIONS**2, modes=2)
 
 
 #: A free vibration from an initial velocity (no modes needed), 100 steps: for mpirun.
