@@ -355,6 +355,7 @@ int cf_sdirk_step(cf_problem* p, const cf_settings* s, cf_newton_state* st, cf_s
   const int n = sd->n;
   const double h = sd->h, gh = sd->gamma * h;
   int ierr;
+  if (sd->stages < 1 || sd->stages > CF_MAX_STAGES) return PETSC_ERR_ARG_OUTOFRANGE;
   while (sd->stage < sd->stages) {
     const int i = sd->stage;
     if (sd->phase == 0) { /* NewtonSolver.solve up to its first _run */
