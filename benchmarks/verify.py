@@ -869,6 +869,7 @@ def response_section() -> str:
     from cosserat_fem import api
     from cosserat_fem.modal import linear_steady_state
     from cosserat_fem.reference.backbone import (
+        CANTILEVER_BETA,
         Duffing,
         cantilever_hardening,
         cantilever_shape,
@@ -951,7 +952,7 @@ def response_section() -> str:
             return _load_scene(PAPER, {**sets, "time.step": step, "time.end": 1200 * step,
                                        **more})  # fmt: skip
 
-        omega1 = 1.875104068711961**2 * math.sqrt(E * a**2 / 12 / rho)
+        omega1 = CANTILEVER_BETA**2 * math.sqrt(E * a**2 / 12 / rho)
         cant = scene(2 * math.pi / omega1)
         linear = free_vibration_frequency(cant, cantilever_shape, 1e-3)
         shift = {x: free_vibration_frequency(cant, cantilever_shape, x) / linear - 1

@@ -58,32 +58,30 @@ def _integral(f: np.ndarray, s: np.ndarray) -> float:
     return float(np.sum(0.5 * np.diff(s) * (f[1:] + f[:-1])))
 
 
-def cantilever_mode(s: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray]:
-    """φ and φ' [1/m] of the cantilever's first mode at s [m], φ(ℓ) = 2 (the usual scaling:
-    ∫ φ² ds = ℓ)."""
-    b = CANTILEVER_BETA / length
-    sigma = (math.cosh(CANTILEVER_BETA) + math.cos(CANTILEVER_BETA)) / (
-        math.sinh(CANTILEVER_BETA) + math.sin(CANTILEVER_BETA)
-    )
+def _beam_mode(beta: float, sigma: float, s: np.ndarray, length: float):
+    """φ = cosh βs − cos βs − σ (sinh βs − sin βs) and φ' [1/m] at s [m], β = ``beta``/ℓ: the
+    first mode of a beam clamped at s = 0 (both end conditions there hold for any σ)."""
+    b = beta / length
     x = b * np.asarray(s, dtype=float)
     phi = np.cosh(x) - np.cos(x) - sigma * (np.sinh(x) - np.sin(x))
-    dphi = b * (np.sinh(x) + np.sin(x) - sigma * (np.cosh(x) - np.cos(x)))
-    return phi, dphi
+    return phi, b * (np.sinh(x) + np.sin(x) - sigma * (np.cosh(x) - np.cos(x)))
+
+
+def cantilever_mode(s: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray]:
+    """φ and φ' [1/m] of the cantilever's first mode at s [m], φ(ℓ) = 2 (the usual scaling:
+    ∫ φ² ds = ℓ; σ from φ''(ℓ) = 0)."""
+    b = CANTILEVER_BETA
+    sigma = (math.cosh(b) + math.cos(b)) / (math.sinh(b) + math.sin(b))
+    return _beam_mode(b, sigma, s, length)
 
 
 def clamped_mode(s: np.ndarray, length: float) -> tuple[np.ndarray, np.ndarray]:
-    """φ and φ' [1/m] of the clamped–clamped beam's first mode at s [m], φ(ℓ/2) = 1."""
-    b = CLAMPED_BETA / length
-    sigma = (math.cosh(CLAMPED_BETA) - math.cos(CLAMPED_BETA)) / (
-        math.sinh(CLAMPED_BETA) - math.sin(CLAMPED_BETA)
-    )
-
-    def shape(x):
-        phi = np.cosh(x) - np.cos(x) - sigma * (np.sinh(x) - np.sin(x))
-        return phi, b * (np.sinh(x) + np.sin(x) - sigma * (np.cosh(x) - np.cos(x)))
-
-    middle = shape(np.array(0.5 * CLAMPED_BETA))[0]
-    phi, dphi = shape(b * np.asarray(s, dtype=float))
+    """φ and φ' [1/m] of the clamped–clamped beam's first mode at s [m], φ(ℓ/2) = 1 (σ from
+    φ(ℓ) = 0)."""
+    b = CLAMPED_BETA
+    sigma = (math.cosh(b) - math.cos(b)) / (math.sinh(b) - math.sin(b))
+    middle = _beam_mode(b, sigma, np.array([0.5 * length]), length)[0][0]
+    phi, dphi = _beam_mode(b, sigma, s, length)
     return phi / middle, dphi / middle
 
 
