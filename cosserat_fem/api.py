@@ -83,9 +83,9 @@ def load_sweep(source: str | Path, overrides: Mapping[str, Any] | Sequence[str] 
 
 
 def sweep(spec, out: str | Path):
-    """Run a sweep's members not finished in ``out`` (cosserat_fem/sweep.py; under mpirun,
+    """Run a sweep's members not finished in ``out`` (cosserat_fem/sweep_run.py; under mpirun,
     groups of ``group_size`` ranks): a SweepResult with the table's path and rows."""
-    from .sweep import run_sweep
+    from .sweep_run import run_sweep
 
     return run_sweep(spec, out)
 

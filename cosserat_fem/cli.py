@@ -1,6 +1,7 @@
 """Command line: ``cosserat-fem run|static|modes SCENE [--out DIR] [--set KEY=VALUE ...]``,
-``cosserat-fem sweep SWEEP [--out DIR]`` for the members of a sweep file (cosserat_fem/sweep.py),
-and ``cosserat-fem run --restart DIR [--set time.end=...]`` to continue a stopped run;
+``cosserat-fem sweep SWEEP [--out DIR]`` for the members of a sweep file
+(cosserat_fem/sweep_run.py), and ``cosserat-fem run --restart DIR [--set time.end=...]`` to
+continue a stopped run;
 ``cosserat-fem plot|render RUN_DIR [--out DIR]`` draw a run's outputs (plot: a sweep's table
 too; no DOLFINx needed), and ``cosserat-fem pod RUN_DIR [--modes K] [--out DIR]`` gives the
 Karhunen–Loève (POD) modes of a run's XDMF frames (cosserat_fem/karhunen_loeve.py; no DOLFINx
@@ -261,7 +262,7 @@ def _modes(args) -> int:
 
 
 def _sweep(args) -> int:
-    """``sweep``: the members of a sweep file (cosserat_fem/sweep.py) into --out (default
+    """``sweep``: the members of a sweep file (cosserat_fem/sweep_run.py) into --out (default
     results/<the sweep file's name>); a summary line and the table's path."""
     from mpi4py import MPI
 

@@ -1,6 +1,6 @@
 """``cosserat-fem plot RUN_DIR``: PNG figures of any run, with matplotlib (Agg, no screen).
 
-A sweep's folder (cosserat_fem/sweep.py) gets ``sweep.png``: each member's largest free-end
+A sweep's folder (cosserat_fem/sweep_run.py) gets ``sweep.png``: each member's largest free-end
 displacements and angles against the varied key (:func:`plot_sweep`), and a frequency
 response's also ``response.png``: amplitudes and phases against the forcing's key, a curve per
 chain (:func:`plot_response`). A run's folder gets:
@@ -137,7 +137,7 @@ def plot_surfaces(run: Run, out: Path, series: RodSeries | None = None) -> list[
 
 
 #: What sweep.png draws against the varied key: the free end's largest |x|, |y|, |z| [m] and
-#: |θ|, |ψ|, |φ| [rad] over each member's run (cosserat_fem/sweep.py's table).
+#: |θ|, |ψ|, |φ| [rad] over each member's run (cosserat_fem/sweep_run.py's table).
 SWEEP_PANELS = (("max_abs_x", "max |x| [m]"), ("max_abs_theta", "max |θ| [rad]"),
                 ("max_abs_y", "max |y| [m]"), ("max_abs_psi", "max |ψ| [rad]"),
                 ("max_abs_z", "max |z| [m]"), ("max_abs_phi", "max |φ| [rad]"))  # fmt: skip

@@ -733,7 +733,7 @@ def read_xdmf(path: str | Path, length: float | None = None) -> RodSeries:
     )
 
 
-# --- a sweep's table (cosserat_fem/sweep.py) ----------------------------------------------
+# --- a sweep's table (cosserat_fem/sweep_run.py) ----------------------------------------------
 #: A sweep's table, and the folder of its parts (one a group of ranks: table/group-<k>.csv).
 SWEEP_TABLE, SWEEP_PARTS = "sweep.csv", "table"
 

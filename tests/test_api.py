@@ -99,3 +99,19 @@ def test_bad_sampling_arguments_are_refused_before_any_work(kwargs, key):
     would fail only after the set-up: both refused at once, naming the argument."""
     with pytest.raises(SceneError, match=f"^{key}: "):
         cf.run(cf.load(SCENE, {"time.end": 0.0003}), **kwargs)
+
+
+def test_every_api_name_stays_a_function_once_the_machinery_is_imported():
+    """The package's API names (cosserat_fem.__init__._API) are the functions of api.py even
+    after every module of the package has been imported: a submodule named like an API
+    function (the sweep runner was ``cosserat_fem.sweep``) replaces the name on the package
+    at its import, so a notebook's second ``cf.sweep(...)`` met a module."""
+    import importlib
+    import pkgutil
+
+    from cosserat_fem import api
+
+    for info in pkgutil.iter_modules(cf.__path__):
+        importlib.import_module(f"cosserat_fem.{info.name}")
+    for name in cf._API:
+        assert getattr(cf, name) is getattr(api, name), name

@@ -175,7 +175,7 @@ def test_arc_equals_the_straight_rod_rolled_up_into_it(load):
           "reference.director=[1,0,0]"], "reference.position: not a finite number at s = 0 m"),
         (["reference.shape=curve", "reference.position=['0.01*(1-cos(s/0.01))',0,"
           "'0.01*sin(s/0.01)']", "reference.director=['cos(s/0.01)',0,'-sin(s/0.01)']"],
-         "reference.position: its radius of curvature at s = 0.09375 m, 0.01 m, must exceed "
+         "reference.position: its radius of curvature at s = 0 m, 0.01 m, must exceed "
          "half the section's size, 0.03 m"),
         (["loads.point.s=0.3"], "loads.point.s: must be at a node of the mesh (8 elements of "
          "0.125 m), got 0.3"),

@@ -323,7 +323,7 @@ def test_after_a_failed_member_its_chain_goes_on_from_rest(tmp_path, monkeypatch
     """The middle member of a chain fails (its response observer raises at the start): it is
     recorded, and the next member starts from rest (``previous`` empty) at its scene's start,
     as the first did; a loose tolerance keeps it short."""
-    from cosserat_fem import sweep
+    from cosserat_fem import sweep_run as sweep
 
     path = sweep_file(tmp_path, [0.95, 1.0, 1.05], {**PERIOD, "continuation": "parameters.r",
                       "tolerance": 1e-2})  # fmt: skip
@@ -387,7 +387,7 @@ def test_a_final_state_after_a_chart_move_is_saved_in_the_fixed_basis():
     from cosserat_fem.charts import angular_map, euler_matrix, quaternion_of_frame
     from cosserat_fem.model import build_model
     from cosserat_fem.output import PointProbe
-    from cosserat_fem.sweep import _final_state
+    from cosserat_fem.sweep_run import _final_state
 
     model = build_model(api.load(PAPER, {"time.end": 3e-5}))
     model.use_chart(active=False)

@@ -19,7 +19,7 @@ from conftest import ROOT, read_table, run_command, sweep_serial_and_mpi
 
 from cosserat_fem import api
 from cosserat_fem.errors import SceneError
-from cosserat_fem.sweep import columns
+from cosserat_fem.sweep_run import columns
 
 PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
 SHORT = {"time.end": 0.0006, "output.xdmf": False}
