@@ -228,8 +228,8 @@ def statics_section() -> str:
         "by default, the solved block of Ma is 1 and the rod rolls up about e1 as about e2 "
         "(the section turned, E c11 = EI: gap/ℓ ≤ 1e-8 for one and two turns, "
         '`tests/test_large_deflection.py`). Solved in 3D (`discretisation.planar = "off"`) '
-        "the chart (18) is singular at θ = ±π/2 (det Ma = cos θ), and the static path stops "
-        "just before a quarter turn of the tip with that reason.",
+        "the chart (18) is singular at θ = ±π/2 (det Ma = cos θ); the angles' chart moves "
+        "onto the rod before θ gets there, and the rod closes the circle as well (section 5).",
         "",
         loglog("rollup_gap", series, "elements", "tip gap / ℓ"),
         "",
