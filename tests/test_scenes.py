@@ -79,8 +79,31 @@ def bend(scene, tip: np.ndarray) -> None:
 STATIC_ANSWERS = {"rollup": rollup, "tip_load_elastica": elastica, "bathe_bolourchi_bend": bend}
 
 
-def test_every_static_scene_has_its_answer_checked():
+def ring(scene, modes) -> None:
+    """scenes/free_ring.toml (its own 32 quartic elements): six rigid-body modes, then the
+    lowest pair, n = 2 out of the plane, of equal frequencies (1e-9), below the thin-ring
+    closed form (51.85 Hz, its comment) by the leading Timoshenko correction
+    −½ (1 + E/κG)(n r_g/R)² = −0.49 % within 10 % of it (the ring's own 1/n² terms:
+    tests/test_ring.py's bound). Measured 51.608 Hz, −0.47 %."""
+    from test_ring import KAPPA, NU, R, closed_form
+
+    assert [m.omega for m in modes[:6]] == [0.0] * 6
+    pair = np.array([m.omega for m in modes[6:8]])
+    np.testing.assert_allclose(pair[0], pair[1], rtol=1e-9, atol=0)
+    diameter = scene.rod.section.diameter
+    estimate = -0.5 * (1 + 2 * (1 + NU) / KAPPA) * (2 * diameter / 4 / R) ** 2
+    deviation = pair[0] / closed_form(diameter, "out")[0] - 1.0
+    assert deviation == pytest.approx(estimate, rel=0.1), (deviation, estimate)
+
+
+#: The answer each modal scene's comment states.
+MODAL_ANSWERS = {"free_ring": ring}
+
+
+def test_every_static_and_modal_scene_has_its_answer_checked():
     assert sorted(p.stem for p in STATIC) == sorted(STATIC_ANSWERS)
+    modal = [p.stem for p in SCENES if f"cosserat-fem modes scenes/{p.name}" in p.read_text()]
+    assert sorted(modal) == sorted(MODAL_ANSWERS)
 
 
 def test_the_rollup_scene_rolls_two_turns_as_its_comment_says(tmp_path):
@@ -99,6 +122,7 @@ def test_scene_runs(tmp_path, path):
     if f"cosserat-fem modes scenes/{path.name}" in path.read_text():
         modes = api.modes(scene, count=8)
         assert all(np.isfinite(m.omega) for m in modes) and modes[-1].omega > 0.0
+        MODAL_ANSWERS[path.stem](scene, modes)
         return
     if f"cosserat-fem static scenes/{path.name}" in path.read_text():
         result = static_path(scene, tmp_path)
