@@ -77,6 +77,22 @@ def _save(fig, path: Path) -> Path:
     return path
 
 
+def drawn_lines(fig) -> dict[str, np.ndarray]:
+    """The lines a matplotlib figure draws, read back from its artists (for a test of what a
+    figure shows, or to draw it again): for the i-th axes of ``fig`` and its j-th line,
+    ``"axes{i}/line{j}"`` → (2, n) float array of x and y as drawn (data coordinates), and the
+    0-d string arrays ``"axes{i}/ylabel"`` and ``"axes{i}/line{j}/label"`` (matplotlib names
+    an unlabelled line "_child<n>"). ``np.savez(path, **drawn_lines(fig))`` keeps them."""
+    data: dict[str, np.ndarray] = {}
+    for i, ax in enumerate(fig.get_axes()):
+        data[f"axes{i}/ylabel"] = np.array(ax.get_ylabel())
+        for j, line in enumerate(ax.get_lines()):
+            xy = np.array([line.get_xdata(), line.get_ydata()], dtype=float)
+            data[f"axes{i}/line{j}"] = xy
+            data[f"axes{i}/line{j}/label"] = np.array(line.get_label())
+    return data
+
+
 def plot_free_end(run: Run, out: Path) -> Path:
     """free_end.png: the probe's x, y, z [m] and θ, ψ, φ [rad] against t [s] (the load factor for
     a static run), laid out as the paper's Fig. 4."""

@@ -193,8 +193,9 @@ def _build_model(raw: dict[str, Any]) -> ModelChoices:
 
 
 def _build_supports(raw: dict[str, Any], constants: set[str]) -> Supports:
-    """[supports]: any pair of supports (a mechanism, e.g. pinned–free or free–free, is for
-    runs: static paths and modes refuse it); motions [m] as expressions of t and
+    """[supports]: any pair of supports (a mechanism, e.g. pinned–free or free–free, runs and
+    has modes about the straight rod, its rigid-body modes first; static paths and modes about
+    a static state refuse it); motions [m] as expressions of t and
     ``constants``, None if zero, refused at a free end."""
     kinds = (raw["start"], raw["end"])
     motions = {}

@@ -65,6 +65,7 @@ from cosserat_fem import api
 from cosserat_fem.errors import CosseratError
 from cosserat_fem.events import Observer
 from cosserat_fem.output import LineSampler
+from cosserat_fem.plot import drawn_lines
 
 ROOT = Path(__file__).resolve().parents[1]
 INCH = 0.0254  # m
@@ -131,7 +132,8 @@ if comm.rank == 0:
 # ## The picture
 #
 # The rod at rest (grey) and after each load step, seen from above the arc's plane and from
-# along the clamp's tangent.
+# along the clamp's tangent; `bathe_bolourchi_bend.npz` beside it holds the lines as drawn
+# (`cosserat_fem.plot.drawn_lines`).
 
 # %%
 if comm.rank == 0:
@@ -155,4 +157,5 @@ if comm.rank == 0:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     fig.savefig(out / "bathe_bolourchi_bend.png", dpi=120)
+    np.savez(out / "bathe_bolourchi_bend.npz", **drawn_lines(fig))
     print(f"wrote {out / 'bathe_bolourchi_bend.png'}")

@@ -69,6 +69,7 @@ from mpi4py import MPI
 
 from cosserat_fem.errors import CosseratError
 from cosserat_fem.output import LineSampler
+from cosserat_fem.plot import drawn_lines
 from cosserat_fem.reference.rod_planes import sine_load_tip_response
 from cosserat_fem.reference.second_order import RodData, second_order_tip_response
 from cosserat_fem.scene import load_scene
@@ -186,6 +187,11 @@ if comm.rank == 0:
 
 # %% [markdown]
 # ## Figures 4, 5 and 6 of the paper
+#
+# Each PNG has the data it draws beside it, for a test or another plot: `fig4_free_end.npz`
+# holds the lines of Fig. 4 as read back from the figure (`cosserat_fem.plot.drawn_lines`),
+# `fig5_x_surface.npz` and `fig6_y_surface.npz` the surfaces' stations `s` [m], times `t` [s]
+# and values [m] (times × stations).
 
 # %%
 if comm.rank == 0:
@@ -219,6 +225,7 @@ if comm.rank == 0:
     fig.suptitle("Free-end response (Cao & Tucker 2008, Fig. 4)")
     fig.tight_layout()
     fig.savefig(out / "fig4_free_end.png", dpi=130)
+    np.savez(out / "fig4_free_end.npz", **drawn_lines(fig))
     plt.close(fig)
 
     T, S = np.meshgrid(np.array(frames_t), stations * scene.rod.length)
@@ -244,4 +251,5 @@ if comm.rank == 0:
         fig.tight_layout()
         fig.savefig(out / f"fig{number}_{name}_surface.png", dpi=130)
         plt.close(fig)
+        np.savez(out / f"fig{number}_{name}_surface.npz", s=S[:, 0], t=T[0], value=F[:, :, column])
     print(f"figures, probes.csv, solution.xdmf and summary.json written to {out}")

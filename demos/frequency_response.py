@@ -58,6 +58,7 @@ from mpi4py import MPI
 
 from cosserat_fem import api
 from cosserat_fem.errors import CosseratError
+from cosserat_fem.plot import drawn_lines
 from cosserat_fem.reference.backbone import Duffing, clamped_modal_force
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -155,6 +156,7 @@ if comm.rank == 0:
     ax.legend()
     fig.tight_layout()
     fig.savefig(out / "response.png", dpi=130)
+    np.savez(out / "response.npz", **drawn_lines(fig))  # the lines as drawn, for a test
     print(f"-> {out / 'response.png'}")
     for row in rows:
         x = float(row["parameters.r"])

@@ -75,6 +75,80 @@ def test_demo_against_linear_timoshenko(demo_runs):
         assert (out / name).stat().st_size > 0, name
 
 
+#: Fig. 4's panels by their y label: (probes.csv column, the reference's label, the relative
+#: L2 bound of test_demo_against_linear_timoshenko and its docstring; None: no reference).
+FIG4 = {
+    "x(ℓ,t) [m]": (1, "linear Timoshenko", 1e-3),
+    "y(ℓ,t) [m]": (2, "linear Timoshenko", 1e-3),
+    "z(ℓ,t) [m]": (3, "second-order theory", 1.5e-3),
+    "θ(ℓ,t) [rad]": (4, None, None),
+    "ψ(ℓ,t) [rad]": (5, None, None),
+    "φ(ℓ,t) [rad]": (6, "second-order theory", 3e-3),
+}
+
+
+def rel_l2(u: np.ndarray, ref: np.ndarray) -> float:
+    return float(np.sqrt(np.mean((u - ref) ** 2) / np.mean(ref**2)))
+
+
+def test_the_demos_figures_draw_the_run_and_the_analysis(demo_runs):
+    """What the paper demo's figures draw, read back from them (fig4_free_end.npz: the lines
+    of the figure object; fig5/fig6_*_surface.npz: the surfaces' data), not their pixels.
+
+    * Fig. 4: each panel (found by its label) draws its probes.csv column against t exactly,
+      and x, y, z, φ also their reference: the closed-form linear Timoshenko response, the
+      second-order theory (cosserat_fem/reference), equal to a fresh evaluation to 1e-12 of
+      its largest value, and within the run's bound of it (test_demo_against_linear_timoshenko).
+    * Figs. 5 and 6: x(s, t) and y(s, t) at the 41 stations σ = j/40 and the sampled times
+      (t = 0, then every 50 steps for --frames 40), against the closed-form linear Timoshenko
+      field (the same modal superposition at every s) within 1e-3 relative L2 (the free end's
+      bound, whose argument, the discretisation's phase error and the neglected nonlinearity,
+      holds for every station; measured 2.1e-4 and 4.4e-4); the clamp's row 0 (to 1e-12 of the
+      largest value: the cell's Lagrange basis at a node, tests/test_api.py) and the free end's
+      row the probe's values at those times, to the same 1e-12."""
+    from cosserat_fem.reference.rod_planes import sine_load_response, sine_load_tip_response
+    from cosserat_fem.reference.second_order import RodData, second_order_tip_response
+    from cosserat_fem.scene import load_scene
+
+    _, out = demo_runs[1]
+    scene = load_scene(ROOT / "scenes" / "cao_tucker_2008.toml")
+    q0, omega = 2e3, 8.0 * scene.omega0
+    probes = np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1)
+    t = probes[:, 0]
+    x_ref, y_ref = sine_load_tip_response(scene, t, q0=q0, omega=omega)
+    z_ref, phi_ref = second_order_tip_response(
+        RodData.from_scene(scene), q0, omega, t, torsion_inertia=scene.model.torsion_inertia
+    )
+    references = {1: x_ref, 2: y_ref, 3: z_ref, 6: phi_ref}
+    fig4 = np.load(out / "fig4_free_end.npz")
+    labels = {str(fig4[k]): k.split("/")[0] for k in fig4.files if k.endswith("/ylabel")}
+    assert sorted(labels) == sorted(FIG4)
+    for label, (column, reference, bound) in FIG4.items():
+        axes = labels[label]
+        np.testing.assert_array_equal(fig4[f"{axes}/line0"], [t, probes[:, column]])
+        lines = [k for k in fig4.files if k.startswith(f"{axes}/line") and k.count("/") == 1]
+        assert len(lines) == (1 if reference is None else 2), label
+        if reference is not None:
+            assert str(fig4[f"{axes}/line1/label"]) == reference
+            drawn = fig4[f"{axes}/line1"]
+            expected = references[column]
+            np.testing.assert_array_equal(drawn[0], t)
+            assert np.abs(drawn[1] - expected).max() <= 1e-12 * np.abs(expected).max(), label
+            assert rel_l2(probes[:, column], drawn[1]) < bound, label
+    every = 2000 // 40
+    for name, column, plane in (("fig5_x_surface", 1, 0), ("fig6_y_surface", 2, 1)):
+        surface = np.load(out / f"{name}.npz")
+        s, times, value = surface["s"], surface["t"], surface["value"]
+        np.testing.assert_allclose(s, np.linspace(0.0, scene.rod.length, 41), rtol=0, atol=1e-15)
+        np.testing.assert_allclose(times, t[::every], rtol=0, atol=1e-15)  # t: 11 digits
+        assert value.shape == (times.size, s.size)
+        scale = np.abs(value).max()
+        assert np.abs(value[:, 0]).max() <= 1e-12 * scale
+        assert np.abs(value[:, -1] - probes[::every, column]).max() <= 1e-12 * scale
+        field = sine_load_response(scene, times, q0=q0, omega=omega, s=s)[plane]
+        assert rel_l2(value, field) < 1e-3, name
+
+
 def test_demo_serial_equals_mpi(demo_runs):
     """Identical free-end histories on 1 and 2 ranks (LU and MUMPS differ only by round-off):
     the two-rank run's 0.012 s against the first 400 steps of the serial one (a run's steps do
@@ -106,8 +180,11 @@ def test_bend_demo_serial_and_mpi_against_the_shooting_solution(tmp_path):
     within 2e-5 in of the shooting solution (the scene's discretisation error, as
     tests/test_curved.py argues), the two runs equal to 1e-9 of it (PETSc's LU against
     MUMPS's, round-off over 11 nonlinear load steps; measured: equal to the 13 printed
-    digits), and the picture
-    written."""
+    digits), and the picture written, drawing (its lines read back, bathe_bolourchi_bend.npz)
+    in both views a curve at rest and one a load step, each from the clamp at the origin:
+    the first the arc at rest, R = 100 in about (R, 0, 0) in the e1-e3 plane (to 1e-9 in),
+    the last ending at the arc's end moved by the printed tip displacement (to 1e-9 in, the
+    printed digits)."""
     names = ("tip_dn_in", "tip_dz_in", "tip_dt_in")
     shooting = dict(zip(names, BATHE_BOLOURCHI_SHOOTING[600], strict=True))
     runs = []
@@ -117,10 +194,34 @@ def test_bend_demo_serial_and_mpi_against_the_shooting_solution(tmp_path):
         assert proc.returncode == 0, proc.stdout + proc.stderr
         runs.append(parse_qoi(proc.stdout))
         assert (out / "bathe_bolourchi_bend.png").stat().st_size > 10_000
+        bend_figure_draws_the_path(np.load(out / "bathe_bolourchi_bend.npz"), runs[-1])
     for name, value in shooting.items():
         assert runs[0][name] == pytest.approx(value, abs=2e-5), name
         assert runs[1][name] == pytest.approx(runs[0][name], rel=1e-9), name
     assert runs[1]["load_steps"] == runs[0]["load_steps"]
+
+
+def bend_figure_draws_the_path(figure, qoi: dict[str, float]) -> None:
+    """The bend demo's figure (test_bend_demo_serial_and_mpi_against_the_shooting_solution):
+    axes 0 seen from e2 (e3, e1), axes 1 from e3 (e1, e2), in inches."""
+    radius = 100.0  # in
+    steps = int(qoi["load_steps"])
+    end = radius * np.array([1 - np.cos(np.pi / 4), 0.0, np.sin(np.pi / 4)])  # the arc's end
+    tip = end + [qoi["tip_dn_in"], qoi["tip_dz_in"], qoi["tip_dt_in"]]
+    views = ((0, (2, 0)), (1, (0, 1)))  # (axes, the components drawn as x and y)
+    for axes, (horizontal, vertical) in views:
+        lines = [figure[f"axes{axes}/line{j}"] for j in range(steps + 1)]
+        assert f"axes{axes}/line{steps + 1}" not in figure.files
+        for line in lines:
+            assert line.shape == (2, 41) and np.abs(line[:, 0]).max() <= 1e-12
+        rest = np.zeros((3, 41))
+        rest[horizontal], rest[vertical] = lines[0]
+        if axes == 0:  # the arc: (x − R)² + z² = R²
+            assert np.abs(np.hypot(rest[0] - radius, rest[2]) - radius).max() <= 1e-9
+        else:
+            assert np.abs(rest[1]).max() <= 1e-12  # in its plane
+        last = lines[-1][:, -1]
+        np.testing.assert_allclose(last, [tip[horizontal], tip[vertical]], rtol=0, atol=1e-9)
 
 
 FREQUENCY_RESPONSE = str(ROOT / "demos" / "frequency_response.py")
@@ -138,7 +239,11 @@ def test_the_frequency_response_demo_jumps_where_the_harmonic_balance_says(tmp_p
     the upper branch measured 1.3-1.6 % above the harmonic balance here (the 40 mm section
     lowers the hardening coefficient by 2 %, tests/test_backbone.py, which raises a ∝ 1/√α by
     1 %; the next order in a² adds up to ~1.4 %): within 3 %; the lower branch 0.3-0.9 % below
-    (most at 1.05, where it begins and is steepest): within 2 %."""
+    (most at 1.05, where it begins and is steepest): within 2 %.
+
+    The figure (its lines read back, response.npz) draws those: the two chains' amplitudes
+    [mm] at their r, and the harmonic balance's lowest and highest roots (the QOI lines'
+    values, to their 12 printed digits) at those r on its curves."""
     values = ["1.04", "1.05", "1.06", "1.07"]
     qoi = {}
     for ranks in (1, 2):
@@ -147,6 +252,7 @@ def test_the_frequency_response_demo_jumps_where_the_harmonic_balance_says(tmp_p
         assert proc.returncode == 0, proc.stdout + proc.stderr
         qoi[ranks] = parse_qoi(proc.stdout)
         assert (out / "response.png").is_file()
+        response_figure_draws_the_sweep(np.load(out / "response.npz"), qoi[ranks], values)
     assert qoi[1] == qoi[2]
     q = qoi[1]
     assert q["amp_up_1p04_m"] == pytest.approx(q["amp_down_1p04_m"], rel=1e-4)
@@ -156,3 +262,25 @@ def test_the_frequency_response_demo_jumps_where_the_harmonic_balance_says(tmp_p
         assert up == pytest.approx(q[f"duffing_high_up_{r}_m"], rel=0.03)
         assert down == pytest.approx(q[f"duffing_low_down_{r}_m"], rel=0.02)
         assert up > 2.5 * down
+
+
+def response_figure_draws_the_sweep(figure, qoi: dict[str, float], values: list[str]) -> None:
+    """response.png's lines (one axes): the harmonic balance's three branches (lines 0-2, on
+    a grid of r), then the upward and the downward chain (lines 3 and 4), amplitudes in mm."""
+    labels = [str(figure[f"axes0/line{j}/label"]) for j in range(5)]
+    assert labels[0] == "harmonic balance (one mode)"
+    assert labels[3:] == ["cosserat-fem, sweep up", "cosserat-fem, sweep down"]
+    r = [float(v) for v in values]
+    keys = [v.replace(".", "p") for v in values]
+    for j, direction in ((3, "up"), (4, "down")):
+        chain = figure[f"axes0/line{j}"]
+        np.testing.assert_allclose(chain[0], r, rtol=1e-15)
+        amplitudes = [1e3 * qoi[f"amp_{direction}_{k}_m"] for k in keys]
+        np.testing.assert_allclose(chain[1], amplitudes, rtol=1e-11)
+        for x, k in zip(r, keys, strict=True):
+            for branch, root in ((0, "low"), (2, "high")):
+                curve = figure[f"axes0/line{branch}"]
+                i = int(np.argmin(np.abs(curve[0] - x)))
+                assert abs(curve[0, i] - x) < 1e-12
+                expected = 1e3 * qoi[f"duffing_{root}_{direction}_{k}_m"]
+                assert curve[1, i] == pytest.approx(expected, rel=1e-6), (direction, x, root)

@@ -647,6 +647,34 @@ def hand_written(genuine: Path) -> list[Case]:
     huge = _dataset(DISP0, lambda a: np.full(a.shape, 1e99))
     read("h5", "displacements of 1e99 m", huge, plot=True)
     read("h5", "the earlier layout (DOLFINx's)", _earlier_layout, plot=True)
+
+    # The readers' size limits as docs/reliability.md states them (1 GiB of probes.csv, 128 MiB
+    # of XDMF, 16 MiB of summary.json, lines of 4096 bytes, 1e8 values from the .h5 files):
+    # one byte (or value) over is refused for its size; at the limit the file is read, and
+    # refused for what it holds (zeros) or read (a long line of digits).
+    for name, limit in ((P, 1 << 30), (X, 128 << 20), (S, 16 << 20)):
+        refuse("limits", f"{name}: {limit} bytes", _sparse(name, limit), (name,))
+        refuse("limits", f"{name}: {limit + 1} bytes", _sparse(name, limit + 1), (name,))
+    padded = "1.0e-3".rjust(4096 - len(lines[2]) + len(lines[2].split(",")[3]), "0")
+    read("limits", "a probes.csv line of 4096 bytes", _write(P, row_with(padded)), rows_=rows)
+    refuse("limits", "a probes.csv line of 4097 bytes", _write(P, row_with("0" + padded)), (P,))
+    over = 10**8 // 3 + 1  # points: 3 (10^8 // 3 + 1) = 10^8 + 2 values, one dataset
+    refuse(
+        "limits",
+        f"a geometry of {3 * over} values (unallocated)",
+        _both(
+            _dataset(
+                GEOMETRY, lambda a, f, n: f.create_dataset(n, (over, 3), "f8", chunks=(1000, 3))
+            ),
+            _replace(
+                X,
+                f'Dimensions="25 3" Format="HDF" Precision="8">{M}:/Mesh',
+                f'Dimensions="{over} 3" Format="HDF" Precision="8">{M}:/Mesh',
+                11,
+            ),
+        ),
+        (M, X),
+    )
     read("h5", "the single-file layout (before one file a frame)", _single_file_layout, plot=True)
 
     # every point displaced onto the fixed end: numbers a run never writes, but plausible
@@ -1033,6 +1061,8 @@ CATEGORIES = {
     "flip": "random byte flips in every file",
     "lines": "random line deletions, duplications and swaps in the text files",
     "swap": "every file replaced by another of the run",
+    "limits": "files at and one byte over the readers' size limits, a line at and over its "
+    "limit, a dataset over the values read",
 }
 
 
@@ -1081,6 +1111,27 @@ def test_entity_bombs_are_refused_quickly(report):
     for r in bombs.values():
         assert r["read"] == "refused" and "declares the XML entity" in r["message"], r
         assert r["seconds"] < BOMB_SECONDS, r
+
+
+def test_the_readers_size_limits_are_where_the_docs_say(report):
+    """docs/reliability.md: plot and render read at most 1 GiB of probes.csv, 128 MiB of XDMF
+    XML and 1e8 values from the .h5 files (and 16 MiB of summary.json, lines of 4096 bytes:
+    cosserat_fem/results.py), and refuse larger files with that reason. A file one byte over
+    its limit is refused naming its size, one at the limit is read (and refused for its
+    zeros, which is another reason); likewise a probes.csv line and a dataset's values."""
+    results, _ = report
+    cases = {r["name"]: r for r in results if r["category"] == "limits"}
+    for name, limit in (("probes.csv", 1 << 30), ("solution.xdmf", 128 << 20),
+                        ("summary.json", 16 << 20)):  # fmt: skip
+        at, over = cases[f"{name}: {limit} bytes"], cases[f"{name}: {limit + 1} bytes"]
+        assert over["read"] == "refused", over
+        assert f"{limit + 1} bytes, more than the {limit >> 20} MiB" in over["message"], over
+        assert at["read"] == "refused" and "MiB" not in at["message"], at
+    long = cases["a probes.csv line of 4097 bytes"]
+    assert long["read"] == "refused" and "longer than 4096 bytes" in long["message"], long
+    assert cases["a probes.csv line of 4096 bytes"]["read"] == "ok"
+    (values,) = [r for name, r in cases.items() if name.startswith("a geometry of")]
+    assert values["read"] == "refused" and "more than 100000000 values" in values["message"]
 
 
 def test_some_generated_cases_are_read_and_plotted(report):

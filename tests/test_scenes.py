@@ -1,24 +1,119 @@
 """Every scene under scenes/ is valid and runs (scikit-fem's test_examples, for scenes).
 
 Static scenes (those whose header comment says ``cosserat-fem static``) are solved with their
-own settings, modal ones (``cosserat-fem modes``) give their first modes; dynamic ones run
-their first 50 steps. Each must complete with finite probes that moved (or finite, positive
-frequencies), so a scene broken by a change of the schema or the solver fails here.
+own settings, and their answer is the one their comment states, against its closed form or
+published value (:data:`STATIC_ANSWERS`); modal ones (``cosserat-fem modes``) give their first
+modes; dynamic ones run their first 50 steps. Each must complete with finite probes that moved
+(or finite, positive frequencies), so a scene broken by a change of the schema or the solver
+fails here, and so does one whose settings no longer give what it says.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 import pytest
 from conftest import ROOT
 
 from cosserat_fem import api
+from cosserat_fem.reference.curved import BATHE_BOLOURCHI_SHOOTING
+from cosserat_fem.reference.elastica import MATTIASSON_1981
 from cosserat_fem.results import probe_columns
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 from cosserat_fem.statics import static_path
 
 SCENES = sorted((ROOT / "scenes").glob("*.toml"))
+STATIC = [p for p in SCENES if f"cosserat-fem static scenes/{p.name}" in p.read_text()]
+
+
+def static_tip(out) -> np.ndarray:
+    """The last row of a static path's probes.csv: (λ = 1, x, y, z, θ, ψ, φ) of the free end."""
+    rows = np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1, ndmin=2)
+    assert rows[-1, 0] == 1.0  # the whole load
+    return rows[-1]
+
+
+def rollup_gap(scene, tip: np.ndarray) -> float:
+    """|r(ℓ) − r(0)| / ℓ: the tip's distance from the clamp it must return to."""
+    ell = scene.rod.length
+    return math.hypot(tip[1], tip[2], ell + tip[3]) / ell
+
+
+def rollup(scene, tip: np.ndarray) -> None:
+    """scenes/rollup.toml: the end moment M = turns · 2π E c22/ℓ closes the rod into a circle
+    (its comment): the tip back at the clamp within 1e-8 ℓ and ψ(ℓ) = turns · 2π. The bending
+    angle is linear in s, which quartic elements hold; what is left is their error in x and z
+    (sin and cos of that angle), falling as h^8 at the tip (docs/verification.md, section 2):
+    measured 1.1e-11 ℓ (ψ: 6.9e-11 rad) with the scene's 40 elements, 1.6e-8 ℓ with 16. ψ(ℓ)
+    within 1e-8 relative, as the gap."""
+    turns = scene.parameters["turns"]
+    assert rollup_gap(scene, tip) < 1e-8, rollup_gap(scene, tip)
+    assert tip[5] == pytest.approx(turns * 2 * math.pi, rel=1e-8)
+
+
+def elastica(scene, tip: np.ndarray) -> None:
+    """scenes/tip_load_elastica.toml (α = P ℓ²/EI = 10): the tip deflection w/ℓ and shortening
+    u/ℓ of its comment's table (Mattiasson 1981, five digits). The rod is not the inextensible
+    elastica: its stretch and shear move the tip by α a²/(12 ℓ²) = 3.3e-6 here; the table's
+    rounding is 5e-6; the scene's discretisation error (16 quartic elements) is 1.1e-7 (the
+    difference to 32 elements, whose own error is 6.5e-10: tests/test_large_deflection.py).
+    Required within 1e-5 (their sum, 8.4e-6, rounded up); measured 3.7e-6 and 3.6e-6."""
+    alpha, ell = scene.parameters["alpha"], scene.rod.length
+    table = MATTIASSON_1981[alpha]
+    assert tip[1] / ell == pytest.approx(table.w, abs=1e-5)
+    assert -tip[3] / ell == pytest.approx(table.u, abs=1e-5)
+
+
+def bend(scene, tip: np.ndarray) -> None:
+    """scenes/bathe_bolourchi_bend.toml: the tip at 600 lbf within 2e-5 in of the shooting
+    solution of the same rod, the scene's discretisation error with a margin of 2 (the
+    argument of tests/test_curved.py::test_bathe_bolourchi_45_degree_bend, which holds the
+    path at 60 and 120 lbf too)."""
+    inch = 0.0254
+    np.testing.assert_allclose(tip[1:4] / inch, BATHE_BOLOURCHI_SHOOTING[600], rtol=0, atol=2e-5)
+
+
+#: The answer each static scene's comment states, checked on its own settings' result.
+STATIC_ANSWERS = {"rollup": rollup, "tip_load_elastica": elastica, "bathe_bolourchi_bend": bend}
+
+
+def ring(scene, modes) -> None:
+    """scenes/free_ring.toml (its own 32 quartic elements): six rigid-body modes, then the
+    lowest pair, n = 2 out of the plane, of equal frequencies (1e-9), below the thin-ring
+    closed form (51.85 Hz, its comment) by the leading Timoshenko correction
+    −½ (1 + E/κG)(n r_g/R)² = −0.49 % within 10 % of it (the ring's own 1/n² terms:
+    tests/test_ring.py's bound). Measured 51.608 Hz, −0.47 %."""
+    from test_ring import KAPPA, NU, R, closed_form
+
+    assert [m.omega for m in modes[:6]] == [0.0] * 6
+    pair = np.array([m.omega for m in modes[6:8]])
+    np.testing.assert_allclose(pair[0], pair[1], rtol=1e-9, atol=0)
+    diameter = scene.rod.section.diameter
+    estimate = -0.5 * (1 + 2 * (1 + NU) / KAPPA) * (2 * diameter / 4 / R) ** 2
+    deviation = pair[0] / closed_form(diameter, "out")[0] - 1.0
+    assert deviation == pytest.approx(estimate, rel=0.1), (deviation, estimate)
+
+
+#: The answer each modal scene's comment states.
+MODAL_ANSWERS = {"free_ring": ring}
+
+
+def test_every_static_and_modal_scene_has_its_answer_checked():
+    assert sorted(p.stem for p in STATIC) == sorted(STATIC_ANSWERS)
+    modal = [p.stem for p in SCENES if f"cosserat-fem modes scenes/{p.name}" in p.read_text()]
+    assert sorted(modal) == sorted(MODAL_ANSWERS)
+
+
+def test_the_rollup_scene_rolls_two_turns_as_its_comment_says(tmp_path):
+    """``--set parameters.turns=2`` (its comment): two loops, the tip back at the clamp within
+    1e-8 ℓ with the scene's mesh and load steps (measured 7.0e-10 ℓ; 16 elements left 9.6e-7:
+    the elements' error grows with the angle each spans, as (κ h)^8)."""
+    path = ROOT / "scenes" / "rollup.toml"
+    scene = load_scene(path, ["parameters.turns=2"])
+    assert static_path(scene, tmp_path).summary["status"] == "completed"
+    rollup(scene, static_tip(tmp_path))
 
 
 @pytest.mark.parametrize("path", SCENES, ids=[p.stem for p in SCENES])
@@ -27,10 +122,12 @@ def test_scene_runs(tmp_path, path):
     if f"cosserat-fem modes scenes/{path.name}" in path.read_text():
         modes = api.modes(scene, count=8)
         assert all(np.isfinite(m.omega) for m in modes) and modes[-1].omega > 0.0
+        MODAL_ANSWERS[path.stem](scene, modes)
         return
     if f"cosserat-fem static scenes/{path.name}" in path.read_text():
         result = static_path(scene, tmp_path)
         assert result.summary["status"] == "completed"
+        STATIC_ANSWERS[path.stem](scene, static_tip(tmp_path))
         return
     end = scene.time.start + 50 * scene.time.step
     short = load_scene(path, [f"time.end={end!r}", "output.xdmf=false"])

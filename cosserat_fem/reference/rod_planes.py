@@ -21,18 +21,28 @@ def bending_planes(scene) -> tuple[TimoshenkoBeam, TimoshenkoBeam]:
     return rod.beam_x, rod.beam_y
 
 
-def sine_load_tip_response(
-    scene, times: np.ndarray, q0: float, omega: float
+def sine_load_response(
+    scene, times: np.ndarray, q0: float, omega: float, s: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Linear x(ℓ,t), y(ℓ,t) from rest for f_x = f_y = q0 sin(πs/ℓ) sin(Ωt) (the paper's load).
+    """Linear x(s,t), y(s,t) [m] from rest for f_x = f_y = q0 sin(πs/ℓ) sin(Ωt) (the paper's
+    load; q0 [N/m], Ω [rad/s]) at the stations ``s`` [m] (default the free end, s = ℓ), each
+    of shape ``times.shape + s.shape``.
 
     Exact modal superposition with static correction: 25 modes in x and 20 in y (all well
     below the cut-off frequencies; truncation error < 1e-8 of the tip deflection).
     """
     x_plane, y_plane = bending_planes(scene)
-    x, _ = forced_response(x_plane, q0, omega, times, modes=25, static_correction=True)
-    y, _ = forced_response(y_plane, q0, omega, times, modes=20, static_correction=True)
+    x, _ = forced_response(x_plane, q0, omega, times, s=s, modes=25, static_correction=True)
+    y, _ = forced_response(y_plane, q0, omega, times, s=s, modes=20, static_correction=True)
     return x, y
+
+
+def sine_load_tip_response(
+    scene, times: np.ndarray, q0: float, omega: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Linear x(ℓ,t), y(ℓ,t) from rest for the paper's load: :func:`sine_load_response` at
+    the free end."""
+    return sine_load_response(scene, times, q0, omega)
 
 
 def linear_spectrum(scene, count: int) -> list[tuple[float, str]]:
