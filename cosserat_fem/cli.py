@@ -295,7 +295,7 @@ def _validate(args) -> int:
     scene = load_scene(args.scene, args.overrides)
     out = args.out or scene.output.directory
     node = ranks_on_node(comm)
-    costs = {c: budget.check(scene, c, out, node, comm.size) for c in ("run", "static")}
+    costs = {c: budget.check(scene, c, out, node, comm.size, comm=comm) for c in ("run", "static")}
     if comm.rank == 0 and not args.quiet:
         print(describe_scene(scene))
         for command, estimate in costs.items():
