@@ -162,10 +162,11 @@ def pod(
     in ``result.files``. Bad input raises a SceneError naming the argument."""
     from mpi4py import MPI
 
-    from .errors import SceneError
+    from .errors import CosseratError, SceneError
     from .karhunen_loeve import pod as decompose
     from .karhunen_loeve import read_run, snapshots_of_result, write_pod
     from .parallel import agree
+    from .plot import output_folder
 
     if isinstance(source, str | Path):
         if stations is not None:
@@ -182,12 +183,8 @@ def pod(
         problem = None
         if comm.rank == 0:
             try:
-                folder = Path(out)
-                folder.mkdir(parents=True, exist_ok=True)
-                result.files = write_pod(result, folder)
-            except OSError as exc:
-                problem = SceneError(f"out (--out): cannot write to {str(out)!r} ({exc})")
-            except SceneError as exc:
+                result.files = write_pod(result, output_folder(out, Path(out), "pod"))
+            except CosseratError as exc:  # bad input, or a write that failed (OutputError)
                 problem = exc
         agree(comm, problem)
         result.files = comm.bcast(result.files, root=0)

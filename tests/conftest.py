@@ -150,3 +150,16 @@ def damage_library(library: Path, how: str) -> None:
     damaged = library.with_name("damaged")
     damaged.write_bytes(bytes(data))
     damaged.replace(library)
+
+
+def file_size_limit(limit: int):
+    """A child's RLIMIT_FSIZE (``ulimit -f``): a write past ``limit`` bytes fails with EFBIG,
+    as on a full disk (SIGXFSZ ignored, as the command line does)."""
+    import resource
+    import signal
+
+    def preexec() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+
+    return preexec
