@@ -82,12 +82,13 @@ def load_sweep(source: str | Path, overrides: Mapping[str, Any] | Sequence[str] 
     return load(source, overrides)
 
 
-def sweep(spec, out: str | Path):
+def sweep(spec, out: str | Path, *, progress: bool = False):
     """Run a sweep's members not finished in ``out`` (cosserat_fem/sweep_run.py; under mpirun,
-    groups of ``group_size`` ranks): a SweepResult with the table's path and rows."""
+    groups of ``group_size`` ranks): a SweepResult with the table's path and rows. With
+    ``progress``: a line on stderr as each member finishes, with the time left."""
     from .sweep_run import run_sweep
 
-    return run_sweep(spec, out)
+    return run_sweep(spec, out, progress=progress)
 
 
 def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()):

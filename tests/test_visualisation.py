@@ -311,6 +311,23 @@ def test_render_on_a_full_disk_stops_with_exit_4(dynamic_run, tmp_path):
         assert not (out / failing).exists()
 
 
+@pytest.mark.long
+def test_render_tells_its_progress(dynamic_run, tmp_path):
+    """Item 22: render (27-40 s) printed nothing until it ended. render_run calls
+    ``progress(done, total, what)`` after each of its 3 pictures and each animation frame
+    (the command line draws it as a status line on a terminal): here 3 + 3 frames, done
+    counting 1 to 6 of 6, each naming what was made."""
+    script = ("import sys\nfrom cosserat_fem.render import render_run\n"
+              "render_run(sys.argv[1], sys.argv[2], max_frames=3,\n"
+              "           progress=lambda d, t, w: print(f'{d}|{t}|{w}', flush=True))\n")
+    proc = run_command(["-c", script, str(dynamic_run), str(tmp_path / "render")])
+    assert proc.returncode == 0, proc.stderr
+    calls = [line.split("|") for line in proc.stdout.splitlines()]
+    assert [(int(d), int(t)) for d, t, _ in calls] == [(d, 6) for d in range(1, 7)]
+    assert [w for _, _, w in calls] == ["rod_peak.png", "rod_last.png", "rod_frames.png",
+                                        *(f"rod.gif, frame {i} of 3" for i in (1, 2, 3))]
+
+
 @pytest.mark.parametrize("command", ["plot", "render"])
 def test_a_folder_without_outputs_is_bad_input(tmp_path, command):
     proc = cli(command, str(tmp_path))
