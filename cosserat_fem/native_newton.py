@@ -15,7 +15,8 @@ proved itself on the form: the coefficient tables are read off DOLFINx's ``pack_
 and the first residual must equal DOLFINx's assembly bit for bit, else the Python loop is used
 (the reason logged at INFO). The C source is compiled once per machine with cffi into the JIT
 cache directory (``$XDG_CACHE_HOME/fenics``, as FFCx's forms), against PETSc's headers and
-FFCx's ufcx.h; a failed compile also keeps the Python loop.
+FFCx's ufcx.h; a failed compile also keeps the Python loop. A cached library is checked before
+it is loaded (cosserat_fem/jit.py ``load_checked``): a damaged one is compiled again.
 """
 
 from __future__ import annotations
