@@ -83,32 +83,13 @@ def test_a_process_address_space_limit_refuses_what_cannot_fit(tmp_path):
     assert not (tmp_path / "big").exists()  # refused before anything was written
 
 
-def write_tree(root: Path, files: dict[str, str]) -> Path:
-    for name, text in files.items():
-        path = root / name
-        path.parent.mkdir(parents=True, exist_ok=True)
-        path.write_text(text)
-    return root
-
-
 MOUNT_V2 = "41 31 0:38 / /sys/fs/cgroup rw,relatime - cgroup2 cgroup2 rw\n"
 MOUNT_V1 = ("31 23 0:28 / /sys/fs/cgroup rw - tmpfs tmpfs rw\n"
             "35 31 0:32 / /sys/fs/cgroup/memory rw,relatime - cgroup cgroup rw,memory\n")
-
-
-def test_the_control_group_limit_is_read(tmp_path):
-    """Item 16: the room under a control group's memory limit is the limit less the memory in
-    use that the kernel cannot reclaim (the page cache is not counted), the tightest of the
-    group's and its ancestors' limits. Fake /proc and /sys trees, each number chosen so that
-    another reading gives another room:
-
-    * v2, a job's step inside a job: the step has "max", the job 1e9 with 3e8 in use of which
-      1e8 page cache: room 1e9 − 2e8 = 8e8, named by the job's memory.max;
-    * v1 (this machine's layout): the leaf unlimited (2^63 less a page), its parent 5e8 with
-      2e8 in use, 5e7 of it cache: room 3.5e8;
-    * a cgroup namespace (the path is outside the mount's root): the mount point's own files;
-    * no limit anywhere: None."""
-    v2 = write_tree(tmp_path / "v2", {
+V1 = "sys/fs/cgroup/memory/"
+#: name: (the files of a fake root, the room expected, the limit file named).
+CGROUPS = {
+    "v2, a job's step": ({
         "proc/self/cgroup": "0::/job/step\n",
         "proc/self/mountinfo": MOUNT_V2,
         "sys/fs/cgroup/job/memory.max": "1000000000\n",
@@ -117,39 +98,56 @@ def test_the_control_group_limit_is_read(tmp_path):
         "sys/fs/cgroup/job/step/memory.max": "max\n",
         "sys/fs/cgroup/job/step/memory.current": "250000000\n",
         "sys/fs/cgroup/job/step/memory.stat": "anon 200000000\nfile 50000000\n",
-    })  # fmt: skip
-    limit = budget.cgroup_limit(v2)
-    assert limit.room == 8e8 and not limit.per_process
-    assert "/sys/fs/cgroup/job/memory.max" in limit.text and "1 GB" in limit.text
-
-    v1 = write_tree(tmp_path / "v1", {
+    }, 8e8, "/sys/fs/cgroup/job/memory.max"),
+    "v1, its parent's limit": ({
         "proc/self/cgroup": "9:name=systemd:/\n4:memory:/process_api/abc\n0::/\n",
         "proc/self/mountinfo": MOUNT_V1,
-        "sys/fs/cgroup/memory/memory.limit_in_bytes": "9223372036854771712\n",
-        "sys/fs/cgroup/memory/memory.usage_in_bytes": "900000000\n",
-        "sys/fs/cgroup/memory/process_api/memory.limit_in_bytes": "500000000\n",
-        "sys/fs/cgroup/memory/process_api/memory.usage_in_bytes": "200000000\n",
-        "sys/fs/cgroup/memory/process_api/memory.stat": "cache 40000000\ntotal_cache 50000000\n",
-        "sys/fs/cgroup/memory/process_api/abc/memory.limit_in_bytes": "9223372036854771712\n",
-        "sys/fs/cgroup/memory/process_api/abc/memory.usage_in_bytes": "100000000\n",
-    })  # fmt: skip
-    assert budget.cgroup_limit(v1).room == 3.5e8
-
-    namespaced = write_tree(tmp_path / "ns", {
+        V1 + "memory.limit_in_bytes": "9223372036854771712\n",
+        V1 + "memory.usage_in_bytes": "900000000\n",
+        V1 + "process_api/memory.limit_in_bytes": "500000000\n",
+        V1 + "process_api/memory.usage_in_bytes": "200000000\n",
+        V1 + "process_api/memory.stat": "cache 40000000\ntotal_cache 50000000\n",
+        V1 + "process_api/abc/memory.limit_in_bytes": "9223372036854771712\n",
+        V1 + "process_api/abc/memory.usage_in_bytes": "100000000\n",
+    }, 3.5e8, V1 + "process_api/memory.limit_in_bytes"),
+    "v2, a namespace": ({
         "proc/self/cgroup": "0::/../elsewhere\n",
         "proc/self/mountinfo": MOUNT_V2.replace(" / /sys", " /container /sys"),
         "sys/fs/cgroup/memory.max": "400000000\n",
         "sys/fs/cgroup/memory.current": "100000000\n",
-    })  # fmt: skip
-    assert budget.cgroup_limit(namespaced).room == 3e8
-
-    free = write_tree(tmp_path / "free", {
+    }, 3e8, "/sys/fs/cgroup/memory.max"),
+    "v2, no limit": ({
         "proc/self/cgroup": "0::/a\n",
         "proc/self/mountinfo": MOUNT_V2,
         "sys/fs/cgroup/a/memory.max": "max\n",
         "sys/fs/cgroup/a/memory.current": "1\n",
-    })  # fmt: skip
-    assert budget.cgroup_limit(free) is None
+    }, None, None),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", CGROUPS)
+def test_the_control_group_limit_is_read(tmp_path, case):
+    """Item 16: the room under a control group's memory limit is the limit less the memory in
+    use that the kernel cannot reclaim (the page cache is not counted), the tightest of the
+    group's and its ancestors' limits. Fake /proc and /sys trees, each number chosen so that
+    another reading gives another room:
+
+    * v2, a job's step inside a job: the step has "max", the job 1e9 with 3e8 in use of which
+      1e8 page cache: room 1e9 - 2e8 = 8e8, named by the job's memory.max;
+    * v1 (this machine's layout): the leaf unlimited (2^63 less a page), its parent 5e8 with
+      2e8 in use, 5e7 of it cache: room 3.5e8;
+    * a cgroup namespace (the path is outside the mount's root): the mount point's own files;
+    * no limit anywhere: None."""
+    files, room, named = CGROUPS[case]
+    for name, text in files.items():
+        path = tmp_path / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+    limit = budget.cgroup_limit(tmp_path)
+    if room is None:
+        assert limit is None
+    else:
+        assert limit.room == room and not limit.per_process and named.lstrip("/") in limit.text
 
 
 def test_a_control_group_limit_refuses_what_cannot_fit(monkeypatch):
