@@ -61,11 +61,10 @@ import cosserat_fem  # noqa: F401
 import numpy as np
 from mpi4py import MPI
 
-from cosserat_fem import api
+from cosserat_fem import api, progress
 from cosserat_fem.errors import CosseratError
 from cosserat_fem.events import Observer
 from cosserat_fem.output import LineSampler
-from cosserat_fem.progress import StatusLine
 
 ROOT = Path(__file__).resolve().parents[1]
 INCH = 0.0254  # m
@@ -103,7 +102,7 @@ class Shapes(Observer):
 
 
 # The load factor reached, on a terminal (rank 0), as the load steps go.
-bar = StatusLine(enabled=None if comm.rank == 0 else False)
+bar = progress.StatusLine(enabled=None if comm.rank == 0 else False)
 try:
     scene = api.load(ROOT / "scenes" / "bathe_bolourchi_bend.toml", args.overrides)
     shapes = Shapes()

@@ -67,9 +67,9 @@ import cosserat_fem  # noqa: F401
 import numpy as np
 from mpi4py import MPI
 
+from cosserat_fem import progress
 from cosserat_fem.errors import CosseratError
 from cosserat_fem.output import LineSampler
-from cosserat_fem.progress import ProgressBar
 from cosserat_fem.reference.rod_planes import sine_load_tip_response
 from cosserat_fem.reference.second_order import RodData, second_order_tip_response
 from cosserat_fem.scene import load_scene
@@ -127,7 +127,7 @@ def sample_fields(step: int, t: float, model) -> None:
 
 
 # The progress bar (on a terminal, rank 0): time reached, steps and the time left.
-bar = ProgressBar(scene.time.start, scene.time.end, enabled=None if comm.rank == 0 else False)
+bar = progress.ProgressBar(scene.time.start, scene.time.end, enabled=None if comm.rank == 0 else False)
 try:
     result = run(scene, out, observers=(sample_fields,), progress=bar)
 except CosseratError as exc:
