@@ -127,7 +127,8 @@ def sample_fields(step: int, t: float, model) -> None:
 
 
 # The progress bar (on a terminal, rank 0): time reached, steps and the time left.
-bar = progress.ProgressBar(scene.time.start, scene.time.end, enabled=None if comm.rank == 0 else False)
+bar = progress.ProgressBar(scene.time.start, scene.time.end,
+                           enabled=None if comm.rank == 0 else False)  # fmt: skip
 try:
     result = run(scene, out, observers=(sample_fields,), progress=bar)
 except CosseratError as exc:
