@@ -82,12 +82,13 @@ def load_sweep(source: str | Path, overrides: Mapping[str, Any] | Sequence[str] 
     return load(source, overrides)
 
 
-def sweep(spec, out: str | Path):
+def sweep(spec, out: str | Path, *, progress: bool = False):
     """Run a sweep's members not finished in ``out`` (cosserat_fem/sweep_run.py; under mpirun,
-    groups of ``group_size`` ranks): a SweepResult with the table's path and rows."""
+    groups of ``group_size`` ranks): a SweepResult with the table's path and rows. With
+    ``progress``: a line on stderr as each member finishes, with the time left."""
     from .sweep_run import run_sweep
 
-    return run_sweep(spec, out)
+    return run_sweep(spec, out, progress=progress)
 
 
 def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()):
@@ -162,10 +163,11 @@ def pod(
     in ``result.files``. Bad input raises a SceneError naming the argument."""
     from mpi4py import MPI
 
-    from .errors import SceneError
+    from .errors import CosseratError, SceneError
     from .karhunen_loeve import pod as decompose
     from .karhunen_loeve import read_run, snapshots_of_result, write_pod
     from .parallel import agree
+    from .plot import output_folder
 
     if isinstance(source, str | Path):
         if stations is not None:
@@ -182,12 +184,8 @@ def pod(
         problem = None
         if comm.rank == 0:
             try:
-                folder = Path(out)
-                folder.mkdir(parents=True, exist_ok=True)
-                result.files = write_pod(result, folder)
-            except OSError as exc:
-                problem = SceneError(f"out (--out): cannot write to {str(out)!r} ({exc})")
-            except SceneError as exc:
+                result.files = write_pod(result, output_folder(out, Path(out), "pod"))
+            except CosseratError as exc:  # bad input, or a write that failed (OutputError)
                 problem = exc
         agree(comm, problem)
         result.files = comm.bcast(result.files, root=0)

@@ -2,16 +2,21 @@
 
 Each estimate is a *lower bound* built from costs measured on the 2-core machine of
 docs/reliability.md (a run costs at least this much), so that a scene is refused only when it
-certainly cannot run within its limits: ``limits.memory`` (default: the memory available on
-this machine, shared by the ranks on it), ``limits.wall_time`` (default a day) and the free
-space of the output folder. A refusal is a :class:`SceneError` naming the key that makes the
+certainly cannot run within its limits: ``limits.memory`` (default "auto": every limit that
+applies here, :func:`memory_limits`: the machine's available memory, the control group's
+limit, the process's ``ulimit -v`` and ``-d``), ``limits.wall_time`` (default a day) and the
+free space of the output folder. A refusal is a :class:`SceneError` naming the key that makes the
 cost (``discretisation.elements``, ``time.step``, ``static.load_steps``, ...); raising
 ``limits.*`` runs a very large case on purpose. The estimate is printed by ``validate``.
 
 Costs (lower bounds, each below what was measured; docs/reliability.md):
 
 * memory: 80 MB for the loaded stack (Python, DOLFINx, PETSc: 100 MB measured at 300 dofs),
-  plus 600 bytes a dof (1.2 kB measured at 3.6e5 and 3.6e6 dofs: matrix, LU factors, vectors);
+  plus 500 bytes a dof: the matrix, its LU factors and the vectors. The slope of the peak
+  resident memory between 7.2e4 and 2.9e5 dofs (sdirk3, a few steps; 2026-12-03) is 620
+  bytes a dof for a planar scene of degree 1 (18 nonzeros a row in the Jacobian and in its
+  factors: the least per dof), 880 in 3D of degree 1, 980 planar of degree 3, 1650 in 3D of
+  degree 3 (60 and 108 nonzeros a row); tests/test_budget.py measures it;
 * time: a solve of a reused Jacobian costs at least 30 µs + 0.1 µs a dof (one residual
   assembly, 25 ns a dof measured, and two triangular solves), a full Newton iteration at
   least 100 µs + 1 µs a dof (Jacobian assembly and LU factorisation: 0.68 ms measured at 300
@@ -27,6 +32,7 @@ from __future__ import annotations
 
 import math
 import os
+import resource
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,7 +41,7 @@ from .results import PROBE_COLUMNS, probe_columns
 from .scene import PLANAR, Scene
 
 MEMORY_BASE = 80e6  # bytes
-MEMORY_PER_DOF = 600.0  # bytes
+MEMORY_PER_DOF = 500.0  # bytes
 REUSED_SOLVE_S = 30e-6  # s
 REUSED_SOLVE_PER_DOF_S = 0.1e-6  # s
 FULL_ITERATION_S = 100e-6  # s
@@ -159,6 +165,183 @@ def available_memory() -> float:
         return math.inf
 
 
+@dataclass(frozen=True)
+class MemoryLimit:
+    """Room left under one limit on memory: ``room`` bytes may still be allocated, by each
+    process (``per_process``) or by all the ranks on this node together (``whole``: the
+    room is for the whole estimate, not only for what the command adds to the memory in use
+    now); ``text``, the room and the limit for a message ("the 2 GB left under ...")."""
+
+    room: float
+    per_process: bool
+    text: str
+    whole: bool = False
+
+
+def _status_bytes(field: str, root: Path) -> float | None:
+    """A ``Vm...`` field of /proc/self/status in bytes (None if unknown)."""
+    try:
+        for line in (root / "proc/self/status").read_text(encoding="ascii").splitlines():
+            if line.startswith(field + ":"):
+                return float(line.split()[1]) * 1024.0
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+#: The process limits that bound memory: (resource, the /proc/self/status field it counts,
+#: the shell's name for it).
+_PROCESS_LIMITS = (
+    ("RLIMIT_AS", "VmSize", "address-space limit (ulimit -v)"),
+    ("RLIMIT_DATA", "VmData", "data limit (ulimit -d)"),
+)
+
+
+def process_limits(root: Path = Path("/")) -> list[MemoryLimit]:
+    """The room under this process's soft resource limits on memory: RLIMIT_AS (all its
+    mappings, VmSize: ``ulimit -v``, as batch systems set) and RLIMIT_DATA (its private
+    writable mappings, VmData: ``ulimit -d``), each the limit minus what is in use now."""
+    found = []
+    for name, field, shell in _PROCESS_LIMITS:
+        limit = resource.getrlimit(getattr(resource, name))[0]
+        used = _status_bytes(field, root)
+        if limit == resource.RLIM_INFINITY or used is None:
+            continue
+        room = limit - used
+        found.append(MemoryLimit(room, True, f"the {_bytes(max(room, 0.0))} left under this "
+                                 f"process's {shell} of {_bytes(limit)}, {_bytes(used)} in "
+                                 "use"))  # fmt: skip
+    return found
+
+
+def _cgroup_paths(root: Path) -> dict[int, str]:
+    """{cgroup version: this process's cgroup path} from /proc/self/cgroup (v1: the memory
+    controller's hierarchy)."""
+    try:
+        lines = (root / "proc/self/cgroup").read_text(encoding="utf-8").splitlines()
+    except OSError:
+        return {}
+    paths = {}
+    for line in lines:
+        parts = line.split(":", 2)
+        if len(parts) != 3:
+            continue
+        if parts[0] == "0" and parts[1] == "":
+            paths[2] = parts[2]
+        elif "memory" in parts[1].split(","):
+            paths[1] = parts[2]
+    return paths
+
+
+#: The files of a cgroup's limit and usage, by version.
+_CGROUP_FILES = {2: ("memory.max", "memory.current"),
+                 1: ("memory.limit_in_bytes", "memory.usage_in_bytes")}  # fmt: skip
+
+
+def _cgroup_folders(root: Path) -> list[tuple[Path, int]]:
+    """(folder, version) of this process's memory cgroup and of each ancestor up to its
+    hierarchy's mount point, innermost first (v2 if its memory controller is on, else v1; []
+    if neither is mounted). A cgroup path outside the mount's root (a cgroup namespace, a
+    container) is taken as the mount point itself."""
+    paths = _cgroup_paths(root)
+    try:
+        mounts = (root / "proc/self/mountinfo").read_text(encoding="utf-8").splitlines()
+    except OSError:
+        return []
+    for version in (2, 1):
+        for mount in mounts if version in paths else ():
+            fields, _, tail = mount.partition(" - ")
+            fields, tail = fields.split(), tail.split()
+            if len(fields) < 5 or len(tail) < 3:
+                continue
+            wanted = tail[0] == "cgroup2" if version == 2 else (
+                tail[0] == "cgroup" and "memory" in tail[2].split(","))  # fmt: skip
+            if not wanted:
+                continue
+            mount_root, point = fields[3], root / fields[4].lstrip("/")
+            inner = paths[version]
+            relative = inner[len(mount_root):] if inner.startswith(mount_root) else ""
+            folder = point / relative.strip("/")
+            limit_file = _CGROUP_FILES[version][0]
+            if not (folder / limit_file).exists():
+                folder = point
+            chain = [folder]
+            while chain[-1] != point and point in chain[-1].parents:
+                chain.append(chain[-1].parent)
+            chain = [f for f in chain if (f / limit_file).exists()]
+            if chain:
+                return [(f, version) for f in chain]
+    return []
+
+
+def _cgroup_value(folder: Path, name: str) -> float | None:
+    """A number of a cgroup file ("max": inf), None if unreadable."""
+    try:
+        text = (folder / name).read_text(encoding="ascii").strip()
+    except OSError:
+        return None
+    if text == "max":
+        return math.inf
+    try:
+        return float(text)
+    except ValueError:
+        return None
+
+
+def _cgroup_cache(folder: Path, version: int) -> float:
+    """The page cache charged to the cgroup (``file`` in v2's memory.stat, ``total_cache``
+    in v1's): the kernel reclaims it before it refuses memory, so it is not counted as used."""
+    key = "file" if version == 2 else "total_cache"
+    try:
+        for line in (folder / "memory.stat").read_text(encoding="ascii").splitlines():
+            name, _, value = line.partition(" ")
+            if name == key:
+                return float(value)
+    except (OSError, ValueError):
+        pass
+    return 0.0
+
+
+#: cgroup v1 writes "no limit" as the largest multiple of the page size below 2^63.
+_CGROUP_UNLIMITED = 2.0**62
+
+
+def cgroup_limit(root: Path = Path("/")) -> MemoryLimit | None:
+    """The room under the memory limit of this process's control group: v2 ``memory.max``
+    minus ``memory.current``, v1 ``memory.limit_in_bytes`` minus ``memory.usage_in_bytes``,
+    the page cache not counted as used; the tightest of its own and its ancestors' (their
+    limits hold too). Shared by every process in it, as the ranks of a batch job on one node
+    are. None without a limit."""
+    tightest = None
+    for folder, version in _cgroup_folders(root):
+        limit_name, usage_name = _CGROUP_FILES[version]
+        limit, usage = _cgroup_value(folder, limit_name), _cgroup_value(folder, usage_name)
+        if limit is None or usage is None or limit >= _CGROUP_UNLIMITED:
+            continue
+        used = max(0.0, usage - _cgroup_cache(folder, version))
+        if tightest is None or limit - used < tightest.room:
+            where = "/" + str(folder.relative_to(root)) if folder.is_relative_to(root) else folder
+            room = limit - used
+            tightest = MemoryLimit(room, False, f"the {_bytes(max(room, 0.0))} left under the "
+                                   f"memory limit of this process's control group ({where}/"
+                                   f"{limit_name}) of {_bytes(limit)}, {_bytes(used)} in use")
+    return tightest
+
+
+def memory_limits(root: Path = Path("/")) -> list[MemoryLimit]:
+    """Every limit on the memory a run may take here (``limits.memory = "auto"``), each as the
+    room left under it: the memory available on the machine (for the whole estimate of the
+    ranks on it), the control group's limit (shared by the ranks on the node) and this
+    process's resource limits."""
+    available = available_memory()
+    found = [MemoryLimit(available, False, f"the {_bytes(available)} available on this machine",
+                         whole=True)]  # fmt: skip
+    group = cgroup_limit(root)
+    if group is not None:
+        found.append(group)
+    return found + process_limits(root)
+
+
 def free_disk(path: str | Path) -> float:
     """Bytes free for this user in the file system of ``path`` (its nearest existing
     parent), inf if unknown."""
@@ -180,22 +363,40 @@ def check(
     ranks: int = 1,
     start: float | None = None,
     modes: int = 0,
+    comm=None,
 ) -> Estimate:
     """SceneError if the estimate exceeds the scene's limits or this machine; else the
-    estimate. Memory is compared per node: the ranks on this node share what is available."""
+    estimate. Memory is compared per node: the ranks on this node share what is available.
+    With ``comm`` (collective): every rank raises the first rank's refusal, since what each
+    rank sees (its process limits, the memory available when it looks) may differ."""
+    if comm is None:
+        return _check(scene, command, out_dir, ranks_on_node, ranks, start, modes)
+    from .parallel import agree
+
+    problem = None
+    try:
+        e = _check(scene, command, out_dir, ranks_on_node, ranks, start, modes)
+    except SceneError as exc:
+        problem = exc
+    agree(comm, problem)
+    return e
+
+
+def _check(scene: Scene, command: str, out_dir, ranks_on_node: int, ranks: int,
+           start: float | None, modes: int) -> Estimate:  # fmt: skip
+    """:func:`check` on this rank alone."""
     e = estimate(scene, command, start, modes)
     limits = scene.limits
     per_node = e.memory / ranks * ranks_on_node
     if limits.memory is not None:
-        allowed, source = limits.memory, f"limits.memory = {limits.memory:g} bytes"
+        if per_node > limits.memory:
+            raise SceneError(
+                f"{e.memory_driver}: the {command} needs {_bytes(per_node)} of memory at least "
+                f"(estimated), more than limits.memory = {limits.memory:g} bytes; set "
+                "limits.memory to run it on purpose"
+            )
     else:
-        allowed = available_memory()
-        source = f"the {_bytes(allowed)} available on this machine (limits.memory: auto)"
-    if per_node > allowed:
-        raise SceneError(
-            f"{e.memory_driver}: the {command} needs {_bytes(per_node)} of memory at least "
-            f"(estimated), more than {source}; set limits.memory to run it on purpose"
-        )
+        _check_memory(e, command, ranks_on_node, ranks)
     wall = limits.wall_time
     if e.seconds > wall:
         raise SceneError(
@@ -211,3 +412,28 @@ def check(
                 f"more than the {_bytes(free)} free in {str(out_dir)!r}"
             )
     return e
+
+
+def _check_memory(e: Estimate, command: str, ranks_on_node: int, ranks: int) -> None:
+    """SceneError if the estimate exceeds a limit of :func:`memory_limits`. The machine's
+    available memory is compared with the whole estimate of the node's ranks (as before any
+    work); the room under a limit that counts what is in use now (the control group's, the
+    process's) with what the command adds to it: the per-dof part of the estimate, and the
+    part of MEMORY_BASE this process has not loaded yet (its resident memory short of it)."""
+    per_node = e.memory / ranks * ranks_on_node
+    resident = _status_bytes("VmRSS", Path("/")) or 0.0
+    added = (e.memory - MEMORY_BASE) / ranks + max(0.0, MEMORY_BASE - resident)
+    for limit in memory_limits():
+        if limit.whole:
+            need, what = per_node, f"{_bytes(per_node)} of memory"
+        elif limit.per_process:
+            need, what = added, f"{_bytes(added)} more memory in each process"
+        else:
+            need = added * ranks_on_node
+            what = f"{_bytes(need)} more memory on this node"
+        if need > limit.room:
+            raise SceneError(
+                f"{e.memory_driver}: the {command} needs {what} at least (estimated), more "
+                f"than {limit.text} (limits.memory: auto); set limits.memory to run it on "
+                "purpose"
+            )

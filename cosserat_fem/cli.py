@@ -158,9 +158,15 @@ def _draw(args) -> int:
 
         paths = plot_run(args.run_dir, args.out)
     else:
+        from .progress import StatusLine
         from .render import render_run
 
-        paths = render_run(args.run_dir, args.out, args.scale, args.format, args.frames)
+        bar = StatusLine(enabled=False if args.quiet else None)  # on a terminal only
+        try:
+            paths = render_run(args.run_dir, args.out, args.scale, args.format, args.frames,
+                               progress=bar.count)  # fmt: skip
+        finally:
+            bar.close()
     if not args.quiet:
         print("-> " + ", ".join(str(p) for p in paths))
     return 0
@@ -270,7 +276,7 @@ def _sweep(args) -> int:
 
     spec = api.load_sweep(args.scene, args.overrides)
     out = args.out or str(Path("results") / Path(args.scene).stem)
-    result = api.sweep(spec, out)
+    result = api.sweep(spec, out, progress=not args.quiet)
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         statuses = [row["status"] for row in result.rows]
         counts = ", ".join(f"{s} {statuses.count(s)}" for s in dict.fromkeys(statuses))
@@ -295,7 +301,7 @@ def _validate(args) -> int:
     scene = load_scene(args.scene, args.overrides)
     out = args.out or scene.output.directory
     node = ranks_on_node(comm)
-    costs = {c: budget.check(scene, c, out, node, comm.size) for c in ("run", "static")}
+    costs = {c: budget.check(scene, c, out, node, comm.size, comm=comm) for c in ("run", "static")}
     if comm.rank == 0 and not args.quiet:
         print(describe_scene(scene))
         for command, estimate in costs.items():

@@ -26,6 +26,16 @@ FFCx and ``dolfinx.jit`` look up at call time) so that
   of the full log, ``<cache>/<module>.log``.
 * an interrupted compile (KeyboardInterrupt, SystemExit) renames ``.c`` to ``.c.failed`` as
   FFCx does for errors, so that even processes without :func:`install` are not blocked.
+* a damaged library in the cache (a partial copy of the cache, a disk error) is found before it
+  is loaded and compiled again, with a warning naming it: FFCx trusts ``.c.cached``, and a
+  library cut short is mapped by ``dlopen`` past its end, so the first call into it dies of
+  SIGBUS (under PETSc's handler: "Caught signal number 7 BUS" and exit 59); a missing one was
+  "ModuleNotFoundError: Unable to find JIT module". :func:`library_damage` checks the file
+  against the SHA-256 recorded beside it (``<library>.sha256``, written after each compile
+  and, for libraries compiled without it, after their first good load) or, without a record,
+  its ELF structure (every table and loaded segment inside the file); a load that still fails
+  (ImportError, OSError) counts as damage too. The same check guards the project's own
+  compiled C (cosserat_fem/native_newton.py).
 
 Processes that share a cache directory should all use :func:`install`: a plain FFCx process
 compiling a module holds no lock, so a patched one that needs the same module at the same time
@@ -37,11 +47,13 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import functools
+import hashlib
 import importlib.machinery
 import logging
 import os
 import re
 import socket
+import struct
 import sys
 import tempfile
 import threading
@@ -60,6 +72,9 @@ __all__ = [
     "capture_stderr",
     "install",
     "installed",
+    "library_damage",
+    "load_checked",
+    "record_digest",
     "uninstall",
 ]
 
@@ -176,6 +191,134 @@ def first_error_line(text: str, limit: int = 300) -> str | None:
 
 
 # --------------------------------------------------------------------------------------------
+# Damaged libraries
+# --------------------------------------------------------------------------------------------
+
+#: The suffix of the file beside a compiled library that holds its SHA-256 (hex, one line).
+DIGEST_SUFFIX = ".sha256"
+
+
+def _digest_path(library: Path) -> Path:
+    return library.with_name(library.name + DIGEST_SUFFIX)
+
+
+def record_digest(library: Path) -> None:
+    """Write ``library``'s SHA-256 beside it (atomically; nothing if the cache is read-only)."""
+    try:
+        digest = hashlib.sha256(library.read_bytes()).hexdigest()
+        fd, name = tempfile.mkstemp(prefix=library.name + ".", suffix=".tmp", dir=library.parent)
+        try:
+            os.fchmod(fd, 0o644)  # readable by the others who share the cache, as the library
+            with os.fdopen(fd, "w") as stream:
+                stream.write(digest + "\n")
+            os.replace(name, _digest_path(library))
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.unlink(name)
+            raise
+    except OSError as exc:
+        LOGGER.debug("no digest recorded for %s (%s)", library, exc)
+
+
+def library_damage(library: Path) -> str | None:
+    """Why the compiled library ``library`` must not be loaded, or None if it looks whole.
+
+    With a recorded digest (:func:`record_digest`), whether the bytes are still those; without
+    one, :func:`elf_damage`: a library cut short (the usual damage of a partial copy or a
+    full disk) has tables or segments past its end, which ``dlopen`` maps and the first use
+    of which raises SIGBUS, a signal no Python code can catch."""
+    try:
+        data = library.read_bytes()
+    except FileNotFoundError:
+        return "it is missing"
+    except OSError as exc:
+        return f"it cannot be read ({exc.strerror or exc})"
+    try:
+        recorded = _digest_path(library).read_text(encoding="ascii", errors="replace").strip()
+    except OSError:
+        recorded = None
+    if recorded is not None:
+        if hashlib.sha256(data).hexdigest() != recorded:
+            return f"its bytes are not those compiled (SHA-256 in {_digest_path(library).name})"
+        return None
+    return elf_damage(data)
+
+
+_PT_LOAD, _SHT_NOBITS, _SHT_STRTAB = 1, 8, 3
+
+
+def elf_damage(data: bytes) -> str | None:
+    """What is wrong with the ELF shared object ``data`` (64-bit; 32-bit objects are not
+    checked), or None: the file must hold its program header table, every loaded segment
+    (p_offset + p_filesz), its section header table and every section with contents, and the
+    section of section names must be a string table (a tail of zeros, as a crash can leave
+    in a file whose size was set but whose last blocks were not written, fails that)."""
+    size = len(data)
+    if size == 0:
+        return "it is empty"
+    if size < 64 or data[:4] != b"\x7fELF":
+        return "it is not an ELF shared object"
+    if data[4] != 2 or data[5] not in (1, 2):
+        return None  # not a 64-bit object: no structural check
+    order = "<" if data[5] == 1 else ">"
+    phoff, shoff = struct.unpack_from(order + "QQ", data, 32)
+    phentsize, phnum, shentsize, shnum, shstrndx = struct.unpack_from(order + "5H", data, 54)
+    cut = f"it is cut short ({size} bytes)"
+    if phoff + phnum * phentsize > size or (shnum and shoff + shnum * shentsize > size):
+        return cut
+    for i in range(phnum):
+        kind, offset, length = _fields(data, order, phoff + i * phentsize, (0, "I"), (8, "Q"),
+                                       (32, "Q"))  # fmt: skip
+        if kind == _PT_LOAD and offset + length > size:
+            return cut
+    for i in range(shnum):
+        kind, offset, length = _fields(data, order, shoff + i * shentsize, (4, "I"), (24, "Q"),
+                                       (32, "Q"))  # fmt: skip
+        if kind != _SHT_NOBITS and offset + length > size:
+            return cut
+    if shnum and shstrndx < shnum:
+        if _fields(data, order, shoff + shstrndx * shentsize, (4, "I"))[0] != _SHT_STRTAB:
+            return "its section headers are damaged"
+    return None
+
+
+def _fields(data: bytes, order: str, base: int, *fields: tuple[int, str]) -> list[int]:
+    return [struct.unpack_from(order + kind, data, base + at)[0] for at, kind in fields]
+
+
+def _library(cache_dir: Path, module_name: str) -> Path:
+    """The file FFCx loads for ``module_name`` (its first extension suffix found, as
+    importlib's FileFinder looks them up), or where the compile puts it."""
+    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+        path = cache_dir / (module_name + suffix)
+        if path.exists():
+            return path
+    return cache_dir / (module_name + importlib.machinery.EXTENSION_SUFFIXES[0])
+
+
+def load_checked(library: Path, load: Callable[[], Any]) -> tuple[Any, str | None]:
+    """(``load()``, None), or (None, why ``library`` must be compiled again): the library is
+    checked (:func:`library_damage`) before ``load`` maps it, and a load that fails
+    (ImportError, OSError: not a library, a missing symbol; AttributeError: an object
+    missing from it) is damage too. A library that loads and had no digest gets one."""
+    damage = library_damage(library)
+    if damage is not None:
+        return None, damage
+    try:
+        loaded = load()
+    except (ImportError, OSError, AttributeError) as exc:
+        return None, f"it does not load: {type(exc).__name__}: {exc}"
+    if not _digest_path(library).exists():
+        record_digest(library)
+    return loaded, None
+
+
+def warn_damaged(library: Path, damage: str) -> None:
+    """The one line that says a cached library is compiled again, and why."""
+    LOGGER.warning("the JIT cache holds a damaged %s (%s): compiling it again", library, damage)
+
+
+# --------------------------------------------------------------------------------------------
 # The per-module lock
 # --------------------------------------------------------------------------------------------
 
@@ -271,9 +414,11 @@ def _mark_interrupted(c_file: Path) -> None:
 
 
 def _remove_leftovers(cache_dir: Path, module_name: str) -> None:
-    """Files of a compile that died: source, object, possibly a half-linked library."""
-    names = [module_name + ".c", module_name + ".o"]
-    names += [module_name + suffix for suffix in importlib.machinery.EXTENSION_SUFFIXES]
+    """Files of a compile that died, or of a damaged module: source, object, library, its
+    digest and the ``.c.cached`` marker (removed first: a reader then takes the lock)."""
+    names = [module_name + ".c.cached", module_name + ".c", module_name + ".o"]
+    for suffix in importlib.machinery.EXTENSION_SUFFIXES:
+        names += [module_name + suffix, module_name + suffix + DIGEST_SUFFIX]
     for name in names:
         with contextlib.suppress(FileNotFoundError):
             (cache_dir / name).unlink()
@@ -285,9 +430,14 @@ def _remove_leftovers(cache_dir: Path, module_name: str) -> None:
 
 
 def _load(cache_dir: Path, module_name: str, object_names):
+    """(objects, module) of a compiled FFCx module, or (None, why it must be compiled again)
+    (:func:`load_checked`)."""
     import ffcx.codegeneration.jit as ffcx_jit
 
-    return ffcx_jit._load_objects(cache_dir, module_name, object_names)
+    def load():
+        return ffcx_jit._load_objects(cache_dir, module_name, object_names)
+
+    return load_checked(_library(cache_dir, module_name), load)
 
 
 def _get_cached_module(module_name, object_names, cache_dir, timeout):
@@ -297,7 +447,9 @@ def _get_cached_module(module_name, object_names, cache_dir, timeout):
     c_file = cache_dir / (module_name + ".c")
     ready = cache_dir / (module_name + ".c.cached")
     if ready.exists():  # written last, after the library: a warm cache needs no lock
-        return _load(cache_dir, module_name, object_names)
+        loaded, damage = _load(cache_dir, module_name, object_names)
+        if damage is None:
+            return loaded
 
     cache_dir.mkdir(exist_ok=True, parents=True)
     lock_path = cache_dir / (module_name + ".lock")
@@ -313,10 +465,14 @@ def _get_cached_module(module_name, object_names, cache_dir, timeout):
         return _originals["get_cached_module"](module_name, object_names, cache_dir, timeout)
     held = _Held(fd, c_file)
     try:
-        if ready.exists():  # compiled by the process we waited for
-            _release(held)
-            return _load(cache_dir, module_name, object_names)
-        if c_file.exists():
+        if ready.exists():  # compiled by the process we waited for, or damaged
+            loaded, damage = _load(cache_dir, module_name, object_names)
+            if damage is None:
+                _release(held)
+                return loaded
+            warn_damaged(_library(cache_dir, module_name), damage)
+            _remove_leftovers(cache_dir, module_name)
+        elif c_file.exists():
             LOGGER.info("removing the leftovers of an interrupted JIT compile: %s", c_file)
             _remove_leftovers(cache_dir, module_name)
         open(c_file, "x").close()  # FFCx's in-progress marker
@@ -361,6 +517,7 @@ def _compile_objects(
             raise
         if captured.text.strip():  # warnings of a compile that succeeded: shown at --verbose
             LOGGER.info("C compiler output for %s:\n%s", module_name, captured.text.rstrip())
+        record_digest(_library(cache_dir, module_name))
         return result
     except BaseException as exc:
         if not isinstance(exc, Exception):  # FFCx's own clean-up runs on Exception only

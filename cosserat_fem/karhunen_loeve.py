@@ -46,18 +46,18 @@ with DOLFINx: in a process that has loaded DOLFINx the folder is read by a child
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 import subprocess
 import sys
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.sax.saxutils import escape
 
 import numpy as np
 
-from .errors import SceneError
+from .errors import CosseratError, SceneError
 from .results import PROBE_COLUMNS, xdmf_mesh_xml
 
 WEIGHTINGS = ("displacement", "kinetic")
@@ -304,42 +304,44 @@ def _read_series(xdmf: Path, length: float | None):
 
         series = read_xdmf(xdmf, length=length)
         return series.s, series.times, series.arrays
-    with tempfile.TemporaryDirectory(prefix="cosserat-fem-pod-") as folder:
-        target = Path(folder) / "series.npz"
-        code = (
-            "import sys, numpy as np\n"
-            "from cosserat_fem.results import read_xdmf, NoFramesError\n"
-            "from cosserat_fem.errors import SceneError\n"
-            "try:\n"
-            "    r = read_xdmf(sys.argv[1], None if sys.argv[2] == '-' else float(sys.argv[2]))\n"
-            "except NoFramesError as e:\n"
-            "    print(e, file=sys.stderr); sys.exit(3)\n"
-            "except SceneError as e:\n"
-            "    print(e, file=sys.stderr); sys.exit(2)\n"
-            "np.savez(sys.argv[3], s=r.s, times=r.times, names=np.array(sorted(r.arrays)),"
-            " **{'a_' + k: v for k, v in r.arrays.items()})\n"
-        )
-        env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_"))}
-        env["PYTHONPATH"] = os.pathsep.join(
-            [str(Path(__file__).resolve().parents[1]), env.get("PYTHONPATH", "")]
-        )
-        arguments = [str(xdmf), "-" if length is None else repr(length), str(target)]
-        try:
-            proc = subprocess.run([sys.executable, "-c", code, *arguments], env=env,
-                                  capture_output=True, text=True, timeout=600)  # fmt: skip
-        except (OSError, subprocess.TimeoutExpired) as exc:
-            raise SceneError(f"pod: cannot read {str(xdmf)!r} ({exc})") from None
-        if proc.returncode in (2, 3):
-            from .results import NoFramesError
+    # The child sends the arrays through a pipe, not a temporary file: a full disk (or /tmp)
+    # must not turn into "cannot read" the run.
+    code = (
+        "import io, sys, numpy as np\n"
+        "from cosserat_fem.results import read_xdmf, NoFramesError\n"
+        "from cosserat_fem.errors import SceneError\n"
+        "try:\n"
+        "    r = read_xdmf(sys.argv[1], None if sys.argv[2] == '-' else float(sys.argv[2]))\n"
+        "except NoFramesError as e:\n"
+        "    print(e, file=sys.stderr); sys.exit(3)\n"
+        "except SceneError as e:\n"
+        "    print(e, file=sys.stderr); sys.exit(2)\n"
+        "data = io.BytesIO()\n"
+        "np.savez(data, s=r.s, times=r.times, names=np.array(sorted(r.arrays)),"
+        " **{'a_' + k: v for k, v in r.arrays.items()})\n"
+        "sys.stdout.buffer.write(data.getbuffer())\n"
+    )
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_"))}
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(Path(__file__).resolve().parents[1]), env.get("PYTHONPATH", "")]
+    )
+    arguments = [str(xdmf), "-" if length is None else repr(length)]
+    try:
+        proc = subprocess.run([sys.executable, "-c", code, *arguments], env=env,
+                              capture_output=True, timeout=600)  # fmt: skip
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        raise SceneError(f"pod: cannot read {str(xdmf)!r} ({exc})") from None
+    errors = proc.stderr.decode(errors="replace").strip().splitlines()
+    if proc.returncode in (2, 3):
+        from .results import NoFramesError
 
-            message = (proc.stderr.strip().splitlines() or [f"cannot read {str(xdmf)!r}"])[-1]
-            raise (NoFramesError if proc.returncode == 3 else SceneError)(message)
-        if proc.returncode != 0:
-            raise SceneError(f"pod: cannot read {str(xdmf)!r}: "
-                             f"{(proc.stderr.strip().splitlines() or ['?'])[-1]}")  # fmt: skip
-        with np.load(target) as data:
-            arrays = {str(n): data["a_" + str(n)] for n in data["names"]}
-            return data["s"], data["times"], arrays
+        message = (errors or [f"cannot read {str(xdmf)!r}"])[-1]
+        raise (NoFramesError if proc.returncode == 3 else SceneError)(message)
+    if proc.returncode != 0:
+        raise SceneError(f"pod: cannot read {str(xdmf)!r}: {(errors or ['?'])[-1]}")
+    with np.load(io.BytesIO(proc.stdout)) as data:
+        arrays = {str(n): data["a_" + str(n)] for n in data["names"]}
+        return data["s"], data["times"], arrays
 
 
 # --- files ---------------------------------------------------------------------------------
@@ -352,8 +354,9 @@ def write_pod(result: PodResult, folder: str | Path) -> list[Path]:
 
     The XDMF arrays are the shapes scaled by √λ_k, the root-mean-square field of mode k:
     ``displacement`` [m] and, with the kinetic weighting, ``angles`` [rad]; so ParaView's
-    Warp By Vector draws each mode at its size in the run. SceneError if a file cannot be
-    written."""
+    Warp By Vector draws each mode at its size in the run. Each file is made in memory and
+    written whole (cosserat_fem/plot.py ``write_output``): OutputError (exit 4) naming a file
+    that cannot be written."""
     folder = Path(folder)
     paths = [_write_csv(result, folder / POD_CSV), _write_xdmf(result, folder / POD_XDMF),
              _plot(result, folder / POD_PNG)]  # fmt: skip
@@ -361,39 +364,46 @@ def write_pod(result: PodResult, folder: str | Path) -> list[Path]:
 
 
 def _write_csv(result: PodResult, path: Path) -> Path:
-    try:
-        with open(path, "w", newline="", encoding="utf-8") as stream:
-            writer = csv.writer(stream)
-            writer.writerow(["mode", f"energy_{result.unit.replace(' ', '_')}", "fraction",
-                             "cumulative"])  # fmt: skip
-            for k, (e, f, c) in enumerate(
-                zip(result.energies, result.fractions, result.cumulative, strict=True), start=1
-            ):
-                writer.writerow([k, f"{e:.12e}", f"{f:.12e}", f"{c:.12e}"])
-    except OSError as exc:
-        raise SceneError(f"pod: cannot write {str(path)!r} ({exc.strerror or exc})") from None
-    return path
+    from .plot import write_output
+
+    stream = io.StringIO(newline="")
+    writer = csv.writer(stream)
+    writer.writerow(["mode", f"energy_{result.unit.replace(' ', '_')}", "fraction",
+                     "cumulative"])  # fmt: skip
+    for k, (e, f, c) in enumerate(
+        zip(result.energies, result.fractions, result.cumulative, strict=True), start=1
+    ):
+        writer.writerow([k, f"{e:.12e}", f"{f:.12e}", f"{c:.12e}"])
+    return write_output(path, stream.getvalue().encode("utf-8"), "pod")
 
 
 def _write_h5(path: Path, datasets: list[tuple[str, np.ndarray]]) -> None:
-    """An HDF5 file of float64/int64 datasets: with h5py, or, in a process that has loaded
-    DOLFINx, with its HDF5 library (cosserat_fem/output.py)."""
+    """An HDF5 file of float64/int64 datasets, made in memory (with h5py, or, in a process
+    that has loaded DOLFINx, with its HDF5 library: cosserat_fem/output.py) and written whole:
+    HDF5 never writes to the disk itself. (h5py writing to a full disk left HDF5 in a state
+    whose clean-up at exit was a segmentation fault.)"""
+    from .plot import write_output
+
     datasets = [(name, np.ascontiguousarray(v)) for name, v in datasets]
     if "dolfinx" in sys.modules:
-        from .output import _Hdf5, _write_file
+        from .output import _Hdf5
 
-        _write_file(path, _Hdf5().image(datasets)[0])
+        write_output(path, _Hdf5().image(datasets)[0], "pod")
         return
     from .results import _h5py
 
-    with _h5py().File(path, "w") as h5:
+    image = io.BytesIO()
+    with _h5py().File(image, "w") as h5:
         for name, values in datasets:
             h5.create_dataset(name, data=values)
+    write_output(path, image.getbuffer(), "pod")
 
 
 def _write_xdmf(result: PodResult, path: Path) -> Path:
     """pod.xdmf and pod.frames/ (see :func:`write_pod`), in the layout of
-    cosserat_fem/output.py's XdmfWriter (mesh.h5, one file a frame, a temporal collection)."""
+    cosserat_fem/output.py's XdmfWriter (mesh.h5, one file a frame, a temporal collection);
+    the XML last, so that it never names a frame file that was not written."""
+    from .plot import output_folder, write_output
     frames = path.with_name(path.stem + ".frames")
     n = len(result.s)
     geometry = np.zeros((n, 3))
@@ -404,8 +414,8 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
         arrays.append(("angles", slice(3, 6)))
     mesh = f"{frames.name}/mesh.h5"
     grids = []
+    output_folder(frames, frames, "pod")
     try:
-        frames.mkdir(exist_ok=True)
         _write_h5(frames / "mesh.h5", [("/Mesh/mesh/geometry", geometry),
                                        ("/Mesh/mesh/topology", topology)])  # fmt: skip
         for k, (energy, shape) in enumerate(zip(result.energies, result.shapes, strict=True), 1):
@@ -423,19 +433,15 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
                 f'      <Grid Name="pod" GridType="Uniform">\n{xdmf_mesh_xml(mesh, n, n - 1)}'
                 f'        <Time Value="{k}" />\n{attributes}      </Grid>\n'
             )
-        text = (
-            '<?xml version="1.0"?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
-            '<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n  <Domain>\n'
-            '    <Grid Name="pod" GridType="Collection" CollectionType="Temporal">\n'
-            + "".join(grids) + "    </Grid>\n  </Domain>\n</Xdmf>\n"
-        )
-        work = path.with_name(path.name + "-partial")
-        work.write_text(text, encoding="utf-8")
-        work.replace(path)
-    except (OSError, RuntimeError) as exc:
-        raise SceneError(f"pod: cannot write {str(path)!r} "
-                         f"({getattr(exc, 'strerror', None) or exc})") from None  # fmt: skip
-    return path
+    except RuntimeError as exc:  # HDF5 (or h5py) could not make a file in memory
+        raise CosseratError(f"pod: cannot make {str(frames)!r} ({exc})") from None
+    text = (
+        '<?xml version="1.0"?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
+        '<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n  <Domain>\n'
+        '    <Grid Name="pod" GridType="Collection" CollectionType="Temporal">\n'
+        + "".join(grids) + "    </Grid>\n  </Domain>\n</Xdmf>\n"
+    )
+    return write_output(path, text.encode("utf-8"), "pod")
 
 
 #: Modes drawn in pod.png's shape panels.
@@ -476,4 +482,4 @@ def _plot(result: PodResult, path: Path) -> Path:
     axes[1].set_title("leading shapes (rms size in the run)")
     axes[1].grid(True, alpha=0.3)
     axes[1].legend(fontsize=8)
-    return _save(fig, path)
+    return _save(fig, path, "pod")

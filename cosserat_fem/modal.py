@@ -389,7 +389,7 @@ def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WO
             "rigid-body motions leave it undetermined; use --about undeformed"
         )
     check_count(scene, count)
-    budget.check(scene, "modes", None, ranks_on_node(comm), comm.size, modes=count)
+    budget.check(scene, "modes", None, ranks_on_node(comm), comm.size, modes=count, comm=comm)
     if about == "static":
         from .statics import solve_static
 

@@ -15,7 +15,8 @@ proved itself on the form: the coefficient tables are read off DOLFINx's ``pack_
 and the first residual must equal DOLFINx's assembly bit for bit, else the Python loop is used
 (the reason logged at INFO). The C source is compiled once per machine with cffi into the JIT
 cache directory (``$XDG_CACHE_HOME/fenics``, as FFCx's forms), against PETSc's headers and
-FFCx's ufcx.h; a failed compile also keeps the Python loop.
+FFCx's ufcx.h; a failed compile also keeps the Python loop. A cached library is checked before
+it is loaded (cosserat_fem/jit.py ``load_checked``): a damaged one is compiled again.
 """
 
 from __future__ import annotations
@@ -131,55 +132,89 @@ COMPILE_ARGS = ["-O2", "-g0", "-ffp-contract=off"]  # no fused multiply-adds: Py
 def compiled():
     """The compiled module (``ffi``, ``lib``), made on first use and cached on disk; raises
     :class:`NotApplicable` if it cannot be built (remembered for the process: every solver
-    built after a failed compile keeps the Python loop at once)."""
-    global _MODULE, _FAILED
+    built after a failed compile keeps the Python loop at once).
+
+    A cached library is checked before it is loaded (cosserat_fem/jit.py
+    :func:`~cosserat_fem.jit.library_damage`: its recorded SHA-256, or its ELF structure):
+    a damaged one, or one that does not load, is compiled again with a warning."""
+    global _MODULE
     if _MODULE is not None:
         return _MODULE
     if _FAILED is not None:
         raise NotApplicable(_FAILED)
+    from .jit import load_checked, record_digest, warn_damaged
+
+    source = SOURCE.read_text()
+    target = library_path(source)
+    name = target.name.split(".")[0]
+    module, damage = None, None
+    if target.exists():
+        module, damage = load_checked(target, lambda: _load(name, target))
+    if module is None:
+        if damage is not None:
+            warn_damaged(target, damage)
+            target.unlink(missing_ok=True)
+        _build(name, source, target)
+        record_digest(target)
+        module = _load(name, target)
+    _MODULE = module
+    return module
+
+
+def library_path(source: str | None = None) -> Path:
+    """Where the compiled C loop of ``source`` (default: newton_loop.c as it is) is cached:
+    its name holds a hash of the source, the declarations, the compiler's flags and the
+    versions of PETSc, FFCx and cffi."""
     import cffi
     import ffcx
     import petsc4py
 
-    source = SOURCE.read_text()
+    source = SOURCE.read_text() if source is None else source
     build = [source, CDEF, *COMPILE_ARGS, str(petsc4py.get_config()), ffcx.__version__,
              cffi.__version__]  # fmt: skip
     key = hashlib.sha1("\n".join(build).encode()).hexdigest()[:16]
-    name = f"cosserat_newton_loop_{key}"
-    cache = _cache_dir()
     suffix = importlib.machinery.EXTENSION_SUFFIXES[0]
-    target = cache / f"{name}{suffix}"
-    if not target.exists():
-        includes, libdir = _petsc_build()
-        includes.append(_ufcx_include())
-        ffi = cffi.FFI()
-        ffi.cdef(CDEF)
-        ffi.set_source(
-            name,
-            source,
-            include_dirs=includes,
-            libraries=["petsc_real"],
-            library_dirs=[libdir],
-            extra_link_args=[f"-Wl,-rpath,{libdir}"],
-            extra_compile_args=COMPILE_ARGS,
-        )
-        cache.mkdir(parents=True, exist_ok=True)
-        from .jit import capture_stderr
+    return _cache_dir() / f"cosserat_newton_loop_{key}{suffix}"
 
-        with tempfile.TemporaryDirectory(dir=cache) as work, capture_stderr() as captured:
-            try:
-                built = ffi.compile(tmpdir=work)
-            except Exception as exc:  # a compiler or a missing header: keep the Python loop
-                _FAILED = f"the C loop did not compile ({exc})"
-                raise NotApplicable(_FAILED) from None
-            os.replace(built, target)  # atomic: a concurrent process finds it whole or not
-        if captured.text.strip():
-            log.info("compiling %s:\n%s", SOURCE.name, captured.text)
+
+def _load(name: str, target: Path):
     spec = importlib.util.spec_from_file_location(name, target)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    _MODULE = module
     return module
+
+
+def _build(name: str, source: str, target: Path) -> None:
+    """Compile ``source`` into the library ``target`` (moved there whole, atomically: a
+    concurrent process finds it whole or not at all); NotApplicable if it does not compile."""
+    global _FAILED
+    import cffi
+
+    includes, libdir = _petsc_build()
+    includes.append(_ufcx_include())
+    ffi = cffi.FFI()
+    ffi.cdef(CDEF)
+    ffi.set_source(
+        name,
+        source,
+        include_dirs=includes,
+        libraries=["petsc_real"],
+        library_dirs=[libdir],
+        extra_link_args=[f"-Wl,-rpath,{libdir}"],
+        extra_compile_args=COMPILE_ARGS,
+    )
+    target.parent.mkdir(parents=True, exist_ok=True)
+    from .jit import capture_stderr
+
+    with tempfile.TemporaryDirectory(dir=target.parent) as work, capture_stderr() as captured:
+        try:
+            built = ffi.compile(tmpdir=work)
+        except Exception as exc:  # a compiler or a missing header: keep the Python loop
+            _FAILED = f"the C loop did not compile ({exc})"
+            raise NotApplicable(_FAILED) from None
+        os.replace(built, target)
+    if captured.text.strip():
+        log.info("compiling %s:\n%s", SOURCE.name, captured.text)
 
 
 # --- one solver's loop ----------------------------------------------------------------------

@@ -17,16 +17,24 @@ file is bad input (one line naming it, exit 2) and leaves no figure behind. Non-
 are refused there, not plotted. A run killed at any moment plots what it has: a cut last probe
 row is dropped, and an XDMF file without frames yet gives the free-end figure alone.
 matplotlib comes from Debian (python3-matplotlib, see .ci/setup.sh).
+
+Every file of ``plot``, ``render`` and ``pod`` is made in memory and written by
+:func:`write_output`, whole or not at all: a write that fails (disk full, ``ulimit -f``, an
+I/O error) is an :class:`~cosserat_fem.errors.OutputError` naming the file (exit 4, as a run's
+outputs), and leaves no cut file (nor a library's traceback) behind.
 """
 
 from __future__ import annotations
 
+import errno
+import io
 import json
+import os
 from pathlib import Path
 
 import numpy as np
 
-from .errors import CosseratError, SceneError
+from .errors import CosseratError, OutputError, SceneError
 from .results import PROBE_COLUMNS, NoFramesError, RodSeries, Run, open_run, read_sweep_rows
 
 DPI = 130
@@ -48,15 +56,38 @@ def _pyplot():
     return plt
 
 
+#: The errors of a write that the place itself does not explain (a full disk, a quota, the
+#: file size limit, the device): a stopped output (exit 4) rather than bad input.
+_WRITE_FAILURES = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO}
+
+
 def output_folder(out: str | Path | None, directory: Path, command: str) -> Path:
     """``out`` (made if missing) or ``directory`` (the run's folder); a folder that cannot be
-    made is bad input."""
+    made is bad input, or an OutputError when the disk is full or failing."""
     target = Path(out) if out is not None else directory
     try:
         target.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise SceneError(f"{command} --out: cannot write to {str(target)!r} ({exc})") from None
+        kind = OutputError if exc.errno in _WRITE_FAILURES else SceneError
+        raise kind(f"{command} --out: cannot write to {str(target)!r} ({exc})") from None
     return target
+
+
+def write_output(path: Path, data, command: str) -> Path:
+    """``data`` (bytes-like) as the file ``path``, whole or not at all: written to a hidden
+    file beside it and renamed over it (so a link at ``path`` is replaced, never written
+    through). OutputError naming ``path`` if it cannot be written; the hidden file is removed
+    and a file that was at ``path`` before is kept."""
+    work = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    try:
+        with open(work, "wb") as stream:
+            stream.write(data)
+        os.replace(work, path)
+    except OSError as exc:
+        work.unlink(missing_ok=True)
+        raise OutputError(f"{command}: cannot write {str(path)!r} "
+                          f"({exc.strerror or exc})") from None  # fmt: skip
+    return path
 
 
 def _label(text: str) -> str:
@@ -65,16 +96,15 @@ def _label(text: str) -> str:
     return text.replace("$", r"\$")
 
 
-def _save(fig, path: Path) -> Path:
-    """``fig`` as PNG at DPI to ``path``, then closed; SceneError if it cannot be written."""
+def _save(fig, path: Path, command: str = "plot") -> Path:
+    """``fig`` as PNG at DPI to ``path`` (:func:`write_output`), then closed."""
     plt = _pyplot()
+    image = io.BytesIO()
     try:
-        fig.savefig(path, dpi=DPI)
-    except OSError as exc:
-        raise SceneError(f"plot: cannot write {str(path)!r} ({exc})") from None
+        fig.savefig(image, format="png", dpi=DPI)
     finally:
         plt.close(fig)
-    return path
+    return write_output(path, image.getbuffer(), command)
 
 
 def drawn_lines(fig) -> dict[str, np.ndarray]:

@@ -1,9 +1,17 @@
-"""What a run tells its user while it runs and when it ends (command line only).
+"""What a command tells its user while it works and when it ends (command line only).
 
-* :class:`ProgressBar`: one status line on a terminal, rewritten at most every 0.25 s: time
-  reached, percentage, steps, Newton iterations per step, elapsed and estimated remaining wall
-  time. It stays silent when stderr is not a terminal (CI logs, pipes), under ``--quiet``, and
-  on every MPI rank but 0; costs nothing measurable (one clock read a step).
+* :class:`StatusLine`: one status line on a terminal, rewritten at most every 0.25 s: a bar,
+  the percentage, what is being done, the elapsed and the estimated remaining wall time. The
+  estimate is the rate measured from the first update on, so that what comes before it (the
+  set-up, a JIT compile that falls in a run's first step) does not count as work done at
+  that rate: a run whose compile took 100 s of a first step of 1 % showed 2:45:00 where
+  99 steps of 1 s are left. It stays silent when stderr is not a terminal (CI logs, pipes),
+  under ``--quiet``, and on every MPI rank but 0; costs nothing measurable (one clock read an
+  update).
+* :class:`ProgressBar`: the status line of a run (time reached, steps, Newton iterations a
+  step); ``render`` shows its pictures and frames on a :class:`StatusLine`.
+* :class:`SweepProgress`: a sweep's line per member finished (in logs and pipes too: a
+  sweep is long and its lines are few), with the members done and the estimated time left.
 * :func:`summary_screen`: the end-of-run summary, a dozen lines from ``summary.json``.
 * :func:`configure_logging`: ``--quiet`` (errors only), default (warnings), ``--verbose``
   (what the solver decides: step rejections, Jacobian refreshes, checkpoints) on rank 0.
@@ -43,45 +51,100 @@ def _clock(seconds: float) -> str:
     return f"{hours}:{minutes:02d}:{seconds:02d}" if hours else f"{minutes}:{seconds:02d}"
 
 
-class ProgressBar:
-    """Call with (t, steps, newton_iterations) after each output step (see module docstring)."""
+def remaining(since: float, done_then: float, now: float, done: float, total: float) -> str:
+    """The time left at the rate measured since ``since`` (when ``done_then`` of ``total``
+    was done): "?" until some work has been measured."""
+    if done <= done_then:
+        return "?"
+    return _clock((now - since) * (total - done) / (done - done_then))
+
+
+class StatusLine:
+    """One status line on a terminal (module docstring): :meth:`show` with the fraction done
+    and a text; :meth:`close` clears it."""
 
     INTERVAL = 0.25  # s between redraws
 
-    def __init__(self, start: float, end: float, stream: TextIO | None = None, enabled=None):
-        self.start, self.end = start, end
+    def __init__(self, stream: TextIO | None = None, enabled=None):
         self.stream = stream if stream is not None else sys.stderr
         if enabled is None:
             enabled = self.stream.isatty()
         self.enabled = bool(enabled)
         self._t0 = time.monotonic()
         self._next = self._t0
+        self._first: tuple[float, float] | None = None  # (clock, fraction) at the first update
         self._width = 0
 
-    def __call__(self, t: float, steps: int, iterations: int) -> None:
+    def show(self, fraction: float, text: str) -> None:
         if not self.enabled:
             return
         now = time.monotonic()
-        if now < self._next and t < self.end:
+        fraction = min(1.0, max(0.0, fraction))
+        if self._first is None:
+            self._first = (now, fraction)
+        if now < self._next and fraction < 1.0:
             return
         self._next = now + self.INTERVAL
-        fraction = min(1.0, (t - self.start) / (self.end - self.start))
-        elapsed = now - self._t0
-        eta = elapsed * (1.0 - fraction) / fraction if fraction > 0 else float("nan")
         filled = int(20 * fraction)
+        eta = remaining(*self._first, now, fraction, 1.0)
         line = (
-            f"[{'#' * filled}{'.' * (20 - filled)}] {100 * fraction:5.1f}%  t = {t:.6g} s  "
-            f"{steps} steps  {iterations / max(steps, 1):.2f} it/step  "
-            f"elapsed {_clock(elapsed)}  ETA {_clock(eta) if fraction > 0 else '?'}"
+            f"[{'#' * filled}{'.' * (20 - filled)}] {100 * fraction:5.1f}%  {text}  "
+            f"elapsed {_clock(now - self._t0)}  ETA {eta}"
         )
         self._width = max(self._width, len(line))
         self.stream.write("\r" + line.ljust(self._width))
         self.stream.flush()
 
+    def count(self, done: int, total: int, what: str) -> None:
+        """:meth:`show` of ``done`` items of ``total``, the last being ``what``."""
+        self.show(done / total if total else 1.0, what)
+
     def close(self) -> None:
         if self.enabled and self._width:
             self.stream.write("\r" + " " * self._width + "\r")
             self.stream.flush()
+
+
+class ProgressBar(StatusLine):
+    """Call with (t, steps, newton_iterations) after each output step: a run's status line
+    (time reached, steps, Newton iterations a step)."""
+
+    def __init__(self, start: float, end: float, stream: TextIO | None = None, enabled=None):
+        super().__init__(stream, enabled)
+        self.start, self.end = start, end
+
+    def __call__(self, t: float, steps: int, iterations: int) -> None:
+        self.show((t - self.start) / (self.end - self.start),
+                  f"t = {t:.6g} s  {steps} steps  {iterations / max(steps, 1):.2f} it/step")
+
+
+class SweepProgress:
+    """A sweep's progress: call with a member's row when it is written; one line on
+    ``stream`` (stderr): the member, its status and wall time, how many of the sweep's
+    members to run are done, and the time left at the rate since the sweep began.
+
+    ``counter`` (shared by the groups of an MPI sweep: cosserat_fem/sweep_run.py's one-sided
+    ``_Counter``, its ``next()`` the count before this member) numbers the members in the
+    order they finish whichever group ran them; each group's first rank, which writes the
+    row, prints the line (world rank 0 when the sweep runs as one group)."""
+
+    def __init__(self, total: int, counter=None, stream: TextIO | None = None):
+        self.total, self.counter = total, counter
+        self.stream = stream if stream is not None else sys.stderr
+        self._t0 = time.monotonic()
+        self._done = 0
+
+    def __call__(self, row: dict) -> None:
+        done = self.counter.next() + 1 if self.counter is not None else self._done + 1
+        self._done = done
+        now = time.monotonic()
+        self.stream.write(
+            f"cosserat-fem: sweep member {row['member']} {row['status']} in "
+            f"{float(row['wall_s']):.3g} s; {done} of {self.total} done, elapsed "
+            f"{_clock(now - self._t0).strip()}, ETA "
+            f"{remaining(self._t0, 0, now, done, self.total).strip()}\n"
+        )
+        self.stream.flush()
 
 
 def summary_screen(summary: dict, out_dir) -> str:

@@ -18,19 +18,25 @@ large deflections). pyvista and vtk come from PyPI (the ``render`` extra). With 
 renders through EGL; under ``xvfb-run`` through X.
 
 The run is read and checked by :mod:`cosserat_fem.results` before anything is drawn: a damaged
-file is bad input (one line naming it, exit 2), and so is an XDMF file without frames.
+file is bad input (one line naming it, exit 2), and so is an XDMF file without frames. Every
+picture and the GIF are encoded in memory and written whole (cosserat_fem/plot.py
+``write_output``; an MP4, which ffmpeg writes, goes to a hidden file renamed when complete): a
+write that fails is an OutputError naming the file (exit 4), with no cut file left.
+``progress`` (a :class:`~cosserat_fem.progress.StatusLine`, on a terminal) shows the pictures
+and the animation's frames as they are made.
 """
 
 from __future__ import annotations
 
+import io
 import math
 import os
 from pathlib import Path
 
 import numpy as np
 
-from .errors import CosseratError, SceneError
-from .plot import output_folder
+from .errors import CosseratError, OutputError, SceneError
+from .plot import output_folder, write_output
 from .results import RodSeries, open_run
 
 WINDOW = (1024, 768)  # pixels of every picture and animation frame
@@ -171,9 +177,14 @@ class _Scene:
         self.plotter.render()  # screenshot() alone returned the previous picture
 
     def picture(self, frames: list[int], text: str, path: Path) -> Path:
+        """The picture of ``frames`` as the PNG file ``path`` (the bytes pyvista's screenshot
+        writes: PIL's PNG of the rendered image)."""
+        from PIL import Image
+
         self.show(frames, text)
-        self.plotter.screenshot(str(path))
-        return path
+        image = io.BytesIO()
+        Image.fromarray(self.plotter.screenshot(return_img=True)).save(image, format="PNG")
+        return write_output(path, image.getbuffer(), "render")
 
     def image(self, frame: int) -> np.ndarray:
         self.show([frame], self._caption(frame))
@@ -190,8 +201,10 @@ def render_run(
     fmt: str = "gif",
     max_frames: int = 120,
     fps: int = 15,
+    progress=None,
 ) -> list[Path]:
-    """The pictures and the animation of the run in ``directory`` (see the module docstring)."""
+    """The pictures and the animation of the run in ``directory`` (see the module docstring);
+    ``progress(done, total, what)`` after each picture and animation frame, if given."""
     if fmt not in ("gif", "mp4"):
         raise SceneError(f"render --format: must be gif or mp4, got {fmt!r}")
     if max_frames < 1:
@@ -216,41 +229,63 @@ def render_run(
         )
     target = output_folder(out, run.directory, "render")
     scene = _Scene(series, k, run.title, run.time_label)
+    count = len(series.times)
+    frames = sorted(set(np.linspace(0, count - 1, min(max_frames, count)).round().astype(int)))
+    total = 3 + len(frames)
+
+    def made(done: int, what: str) -> None:
+        if progress is not None:
+            progress(done, total, what)
+
     paths = []
     try:
         # The frame where the rod is displaced most (anywhere along it: an end may be held).
         largest = np.linalg.norm(series.arrays["displacement"], axis=2).max(axis=1)
         peak, last = int(np.argmax(largest)), len(series.times) - 1
         paths.append(scene.picture([peak], scene._caption(peak), target / "rod_peak.png"))
+        made(1, "rod_peak.png")
         paths.append(scene.picture([last], scene._caption(last), target / "rod_last.png"))
+        made(2, "rod_last.png")
         some = sorted(set(np.linspace(0, last, min(8, last + 1)).round().astype(int).tolist()))
         text = (
             f"{run.title}\n{len(some)} frames, {run.time_label} = "
             f"{series.times[some[0]]:.4g} ... {series.times[some[-1]]:.4g}   displacement x {k:g}"
         )
         paths.append(scene.picture(some, text, target / "rod_frames.png"))
-        paths.append(_animate(scene, target / f"rod.{fmt}", max_frames, fps))
+        made(3, "rod_frames.png")
+        name = f"rod.{fmt}"
+        paths.append(_animate(scene, target / name, frames, fps,
+                              lambda i: made(3 + i, f"{name}, frame {i} of {len(frames)}")))
     finally:
         scene.close()
     return paths
 
 
-def _animate(scene: _Scene, path: Path, max_frames: int, fps: int) -> Path:
-    """The animation (GIF or MP4 by ``path``'s suffix) of at most ``max_frames`` evenly spaced
-    frames at ``fps`` frames a second; CosseratError if imageio is missing or fails."""
+def _animate(scene: _Scene, path: Path, frames: list[int], fps: int, made) -> Path:
+    """The animation (GIF or MP4 by ``path``'s suffix) of ``frames`` at ``fps`` frames a
+    second, ``made(i)`` after the i-th; a GIF made in memory and written whole, an MP4 written
+    by ffmpeg to a hidden file that is renamed when complete (removed if not). OutputError if
+    it cannot be written, CosseratError if imageio is missing or fails."""
     try:
         import imageio.v2 as imageio
     except ImportError as exc:
         raise CosseratError(f"render needs imageio for the animation ({exc})") from None
-    count = len(scene.series.times)
-    frames = sorted(set(np.linspace(0, count - 1, min(max_frames, count)).round().astype(int)))
-    options = {"duration": 1000.0 / fps, "loop": 0} if path.suffix == ".gif" else {"fps": fps}
+    gif = path.suffix == ".gif"
+    options = {"duration": 1000.0 / fps, "loop": 0} if gif else {"fps": fps}
+    work = path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")
+    image = io.BytesIO()
     try:
-        with imageio.get_writer(path, **options) as writer:
-            for frame in frames:
+        with imageio.get_writer(image, format="GIF", **options) if gif else imageio.get_writer(
+                work, **options) as writer:  # fmt: skip
+            for i, frame in enumerate(frames, start=1):
                 writer.append_data(scene.image(int(frame)))
+                made(i)
+        if not gif:
+            os.replace(work, path)
     except OSError as exc:
-        raise SceneError(f"render: cannot write {str(path)!r} ({exc.strerror or exc})") from None
+        raise OutputError(f"render: cannot write {str(path)!r} ({exc.strerror or exc})") from None
     except (ImportError, ValueError, RuntimeError) as exc:
         raise CosseratError(f"render: cannot write {str(path)!r} ({exc})") from None
-    return path
+    finally:
+        work.unlink(missing_ok=True)
+    return write_output(path, image.getbuffer(), "render") if gif else path

@@ -149,7 +149,7 @@ def run(
     if write_outputs:
         out = Path(out_dir if out_dir is not None else scene.output.directory)
     start = restart.time if restart is not None else None
-    budget.check(scene, "run", out, ranks_on_node(comm), comm.size, start=start)
+    budget.check(scene, "run", out, ranks_on_node(comm), comm.size, start=start, comm=comm)
     plan = None
     if out is not None:
         prepare_output_dir(out, comm)

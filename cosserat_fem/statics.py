@@ -186,7 +186,8 @@ def static_path(
     ``record``: keep the probe's rows in memory (``StaticResult.probes``)."""
     t_start = clock.perf_counter()
     out = Path(out_dir if out_dir is not None else scene.output.directory)
-    budget.check(scene, "static", out if write_outputs else None, ranks_on_node(comm), comm.size)
+    budget.check(scene, "static", out if write_outputs else None, ranks_on_node(comm), comm.size,
+                 comm=comm)  # fmt: skip
     refuse_closed(scene, "static")
     if scene.supports.mechanism:
         raise SceneError(

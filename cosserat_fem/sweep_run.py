@@ -51,6 +51,7 @@ from mpi4py import MPI
 from .charts import change_chart
 from .errors import CosseratError, OutputError, SceneError, SolverError, StopError
 from .parallel import agree
+from .progress import SweepProgress
 from .response import COLUMNS as RESPONSE_NAMES
 from .response import MEASURES, PeriodicResponse, continued_start
 from .results import PROBE_COLUMNS, SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
@@ -325,9 +326,11 @@ class _Counter:
         self.window.Free()
 
 
-def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD) -> SweepResult:
+def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
+              progress: bool = False) -> SweepResult:  # fmt: skip
     """Run the members of ``spec`` not yet finished in ``out`` (module docstring);
-    collective over ``world``."""
+    collective over ``world``. ``progress`` (the same on every rank): a line on stderr per
+    member finished (cosserat_fem/progress.py SweepProgress)."""
     out = Path(out)
     if world.size % spec.group_size:
         raise SceneError(f"sweep.group_size: {spec.group_size} does not divide the {world.size} "
@@ -348,6 +351,8 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD) -> SweepRe
     group = world.Split(color, world.rank)
     leader = group.rank == 0  # writes the group's table part
     counter = _Counter(world)
+    members = sum(index not in done for chain in todo for index in chain)
+    report = SweepProgress(members, _Counter(world)) if progress else None
     part = out / SWEEP_PARTS / f"group-{color}.csv"
     ran = 0
     try:
@@ -374,6 +379,8 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD) -> SweepRe
                 except OSError as exc:
                     problem = OutputError(f"sweep: cannot write {str(part)!r} ({exc})")
             agree(group, problem)
+            if report is not None and leader:
+                report(row)
 
         while True:
             k = counter.next() if leader else None
@@ -386,6 +393,8 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD) -> SweepRe
     finally:
         world.Barrier()
         counter.free()
+        if report is not None:
+            report.counter.free()
         group.Free()
     ran = world.allreduce(ran if leader else 0, op=MPI.SUM)  # before rank 0 works alone
     rows = []

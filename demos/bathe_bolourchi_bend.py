@@ -61,7 +61,7 @@ import cosserat_fem  # noqa: F401
 import numpy as np
 from mpi4py import MPI
 
-from cosserat_fem import api
+from cosserat_fem import api, progress
 from cosserat_fem.errors import CosseratError
 from cosserat_fem.events import Observer
 from cosserat_fem.output import LineSampler
@@ -102,12 +102,17 @@ class Shapes(Observer):
             self.shapes.append(loop.model.scene.reference.positions(s) + values[:, :3])
 
 
+# The load factor reached, on a terminal (rank 0), as the load steps go.
+bar = progress.StatusLine(enabled=None if comm.rank == 0 else False)
 try:
     scene = api.load(ROOT / "scenes" / "bathe_bolourchi_bend.toml", args.overrides)
     shapes = Shapes()
-    result = api.static(scene, observers=[shapes])
+    result = api.static(scene, observers=[shapes, lambda k, load_factor, model: bar.show(
+        load_factor, f"load factor {load_factor:.3g}")])  # fmt: skip
 except CosseratError as exc:
     raise SystemExit(f"cosserat-fem: {exc}") from None
+finally:
+    bar.close()
 
 # %% [markdown]
 # ## The tip

@@ -67,6 +67,7 @@ import cosserat_fem  # noqa: F401
 import numpy as np
 from mpi4py import MPI
 
+from cosserat_fem import progress
 from cosserat_fem.errors import CosseratError
 from cosserat_fem.output import LineSampler
 from cosserat_fem.plot import drawn_lines
@@ -126,10 +127,15 @@ def sample_fields(step: int, t: float, model) -> None:
             frames.append(values)
 
 
+# The progress bar (on a terminal, rank 0): time reached, steps and the time left.
+bar = progress.ProgressBar(scene.time.start, scene.time.end,
+                           enabled=None if comm.rank == 0 else False)  # fmt: skip
 try:
-    result = run(scene, out, observers=(sample_fields,))
+    result = run(scene, out, observers=(sample_fields,), progress=bar)
 except CosseratError as exc:
     sys.exit(f"cao_tucker_2008: {exc}")
+finally:
+    bar.close()
 
 # %% [markdown]
 # ## Quantities of interest and an independent check

@@ -102,7 +102,7 @@ try:
         if source != SWEEP and comm.rank == 0:
             shutil.rmtree(source.parent, ignore_errors=True)
     out = Path(args.out)
-    result = api.sweep(spec, out)
+    result = api.sweep(spec, out, progress=True)  # a line on stderr as each member ends
 except CosseratError as exc:
     if comm.rank == 0:
         print(f"frequency_response: {exc}", file=sys.stderr)

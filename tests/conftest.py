@@ -122,3 +122,44 @@ def sweep_serial_and_mpi(path: Path, folder: Path) -> dict[int, list[dict]]:
         tables[ranks] = [{k: v for k, v in r.items() if k != "wall_s"}
                          for r in read_table(out / "sweep.csv")]  # fmt: skip
     return tables
+
+
+def damage_library(library: Path, how: str) -> None:
+    """Damage a compiled library as a partial copy of the cache or a disk error would.
+
+    "cut": the first half only (a copy interrupted; loaded, SIGBUS at its first call);
+    "cut, no record": the same in a cache written before digests were recorded;
+    "missing": the library gone, .c.cached still there (ModuleNotFoundError);
+    "altered": 64 bytes in the middle changed (a disk error: found by the digest alone);
+    "zeroed tail, no record": its last 4 KiB zeros (the section headers), no digest.
+    The damaged bytes go to a new file put in the library's place: this process may have the
+    library mapped, and a file cut in place would cut its mapping too (SIGBUS here)."""
+    data = bytearray(library.read_bytes())
+    if how.endswith("no record"):
+        library.with_name(library.name + ".sha256").unlink(missing_ok=True)
+    if how == "missing":
+        library.unlink()
+        return
+    if how.startswith("cut"):
+        data = data[: len(data) // 2]
+    elif how == "altered":
+        middle = len(data) // 2
+        data[middle : middle + 64] = bytes(b ^ 0x5A for b in data[middle : middle + 64])
+    elif how.startswith("zeroed tail"):
+        data[-4096:] = bytes(4096)
+    damaged = library.with_name("damaged")
+    damaged.write_bytes(bytes(data))
+    damaged.replace(library)
+
+
+def file_size_limit(limit: int):
+    """A child's RLIMIT_FSIZE (``ulimit -f``): a write past ``limit`` bytes fails with EFBIG,
+    as on a full disk (SIGXFSZ ignored, as the command line does)."""
+    import resource
+    import signal
+
+    def preexec() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+
+    return preexec

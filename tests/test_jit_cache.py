@@ -20,7 +20,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import jit_installed
+from conftest import damage_library, jit_installed
 
 from cosserat_fem import jit
 from cosserat_fem.errors import CosseratError
@@ -305,3 +305,84 @@ def test_interrupted_compile_leaves_nothing_that_blocks(tmp_path, monkeypatch, s
     finally:
         jit.install()
     assert len(files(cache, ".c.cached")) == 1
+
+
+# --- a damaged library in the cache (issue 25 item 15) --------------------------------------
+
+
+DAMAGES = ["cut", "cut, no record", "missing", "altered", "zeroed tail, no record"]
+
+
+@pytest.mark.parametrize("how", DAMAGES)
+def test_a_damaged_library_is_compiled_again(tmp_path, caplog, space, installed, how):
+    """Item 15: FFCx trusts <module>.c.cached and loads whatever library lies beside it. A
+    library cut short is mapped past its end: the first call into it dies of SIGBUS (PETSc's
+    handler: exit 59; tests/test_jit_cache.py::test_a_damaged_cache_costs_a_compile_not_a_run
+    shows it in a run); a missing one raised ModuleNotFoundError. With install() the library
+    is checked before it is loaded, compiled again, and one warning names it and says so;
+    afterwards it is whole (its recorded SHA-256 matches) and the next load is silent."""
+    import ufl
+    from dolfinx import fem
+
+    cache = tmp_path / "cache"
+    a = constant() * ufl.TrialFunction(space) * ufl.TestFunction(space) * ufl.dx
+    params = {"cache_dir": str(cache)}
+    fem.form(a, jit_params=params)  # one UFL form: one module name for every compile
+    (library,) = files(cache, sysconfig.get_config_var("EXT_SUFFIX"))
+    digest = library.with_name(library.name + jit.DIGEST_SUFFIX)
+    assert jit.library_damage(library) is None and digest.exists()
+    damage_library(library, how)
+    assert jit.library_damage(library) is not None
+    with caplog.at_level("WARNING", logger="cosserat_fem.jit"):
+        fem.form(a, jit_params=params)
+    warned = [r.getMessage() for r in caplog.records if r.name == "cosserat_fem.jit"]
+    assert len(warned) == 1 and str(library) in warned[0], warned
+    assert "damaged" in warned[0] and "compiling it again" in warned[0]
+    assert jit.library_damage(library) is None and digest.exists()
+    assert files(cache, sysconfig.get_config_var("EXT_SUFFIX")) == [library]
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="cosserat_fem.jit"):
+        fem.form(a, jit_params=params)
+    assert not [r for r in caplog.records if r.name == "cosserat_fem.jit"]
+
+
+def test_every_cut_of_a_library_is_found(tmp_path, space, installed):
+    """:func:`cosserat_fem.jit.elf_damage` without a digest: the linker (GNU ld, as every
+    linker that cffi calls here) writes the section header table last, so a library cut
+    anywhere lacks part of it (or of its headers); a cut at each 1/32 of the file, and one
+    byte short, are each found. The whole library passes."""
+    mass_form(space, tmp_path, constant())
+    (library,) = files(tmp_path, sysconfig.get_config_var("EXT_SUFFIX"))
+    data = library.read_bytes()
+    assert jit.elf_damage(data) is None
+    for size in sorted({len(data) * k // 32 for k in range(32)} | {len(data) - 1}):
+        assert jit.elf_damage(data[:size]) is not None, size
+
+
+@pytest.mark.long
+def test_a_damaged_cache_costs_a_compile_not_a_run(tmp_path):
+    """Item 15, as a user met it: a run, then every library in its cache cut in half and the
+    digests gone (a partial copy of a cache from before digests were recorded): the next run
+    died of SIGBUS in the first form it called (PETSc's "Caught signal number 7 BUS", exit 59)
+    and said nothing of the cache. Now it completes (exit 0), with one warning per library
+    naming it, FFCx's forms and the project's C Newton loop (native_newton.py) alike."""
+    from conftest import ROOT, run_command
+
+    env = {"XDG_CACHE_HOME": str(tmp_path / "xdg")}  # a private cache: never the shared one
+    scene = str(ROOT / "scenes" / "cao_tucker_2008.toml")
+    args = ["-m", "cosserat_fem.cli", "run", scene, "--set", "time.end=0.0003",
+            "--set", "discretisation.elements=4", "--set", "output.xdmf=false"]  # fmt: skip
+    first = run_command([*args, "--out", str(tmp_path / "a")], env=env, timeout=300)
+    assert first.returncode == 0, first.stderr
+    cache = tmp_path / "xdg" / "fenics"
+    libraries = sorted(cache.glob("*" + sysconfig.get_config_var("EXT_SUFFIX")))
+    assert any(p.name.startswith("cosserat_newton_loop_") for p in libraries)
+    for library in libraries:
+        damage_library(library, "cut, no record")
+    second = run_command([*args, "--out", str(tmp_path / "b")], env=env, timeout=300)
+    assert second.returncode == 0, second.stderr
+    warned = [line for line in second.stderr.splitlines() if "damaged" in line]
+    assert sorted(w.split("damaged ")[1].split(" (")[0] for w in warned) == [
+        str(p) for p in libraries
+    ]
+    assert all(jit.library_damage(p) is None for p in libraries)

@@ -119,3 +119,34 @@ def test_a_failed_compile_keeps_the_python_loop(tmp_path, monkeypatch):
         native_newton.compiled()
     result = _run("cao_tucker_2008", 2, [], "auto")
     assert result.summary["newton"]["loop"] == "python"
+
+
+def test_a_damaged_library_is_compiled_again(tmp_path, monkeypatch, caplog):
+    """Item 15: the C loop's library, cached as FFCx's forms are, was loaded whenever it
+    existed: cut short (a partial copy of the cache), the run died of SIGBUS at its first
+    residual. Now it is checked first (cosserat_fem/jit.py ``load_checked``; here a cache
+    from before digests were recorded, so by its ELF structure), compiled again with one
+    warning naming it, and whole afterwards (its digest recorded)."""
+    import shutil
+
+    from conftest import damage_library
+
+    from cosserat_fem import jit
+
+    shared = native_newton.library_path()  # read (when whole), never written
+    monkeypatch.setattr(native_newton, "_MODULE", None)
+    monkeypatch.setattr(native_newton, "_cache_dir", lambda: tmp_path)
+    library = native_newton.library_path()
+    if shared.exists() and jit.library_damage(shared) is None:
+        shutil.copyfile(shared, library)  # saves a compile
+    else:
+        native_newton.compiled()
+    damage_library(library, "cut, no record")
+    monkeypatch.setattr(native_newton, "_MODULE", None)  # a new process, as far as the cache goes
+    with caplog.at_level("WARNING", logger="cosserat_fem.jit"):
+        module = native_newton.compiled()
+    warned = [r.getMessage() for r in caplog.records if r.name == "cosserat_fem.jit"]
+    assert len(warned) == 1 and str(library) in warned[0] and "compiling it again" in warned[0]
+    assert jit.library_damage(library) is None
+    assert library.with_name(library.name + jit.DIGEST_SUFFIX).exists()
+    assert module.lib.cf_residual is not None

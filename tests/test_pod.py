@@ -16,10 +16,11 @@ import json
 import math
 import re
 import shutil
+import subprocess
 
 import numpy as np
 import pytest
-from conftest import ROOT, run_command
+from conftest import PYTHON, ROOT, file_size_limit, run_command, subprocess_env
 from xdmf_files import read_arrays
 
 import cosserat_fem as cf
@@ -434,3 +435,50 @@ def test_pod_command_refuses_bad_input_in_one_line(run_folder, tmp_path, capsys)
                  str(tmp_path / "k")]) == 0  # fmt: skip
     with pytest.raises(SceneError, match="^stations: a run folder"):
         cf.pod(folder, STATIONS)
+
+
+#: ``cosserat-fem ARGS`` in a child, with DOLFINx loaded first (its HDF5 library then makes
+#: the .h5 files) or not (h5py makes them).
+POD_CHILD = ("import sys\nif sys.argv[1] == 'dolfinx':\n    import dolfinx\n"
+             "from cosserat_fem.cli import main\nsys.exit(main(sys.argv[2:]))\n")  # fmt: skip
+
+
+def pod_child(library: str, folder, out, limit: int | None = None) -> subprocess.CompletedProcess:
+    # Open MPI's start-up writes files of over 3 MB (shared memory, PMIx's data store): one
+    # process needs neither (btl=self, gds=hash), as in tests/test_reliability.py's D2.
+    env = subprocess_env() | {"OMPI_MCA_btl": "self", "PMIX_MCA_gds": "hash"}
+    return subprocess.run(
+        [PYTHON, "-c", POD_CHILD, library, "pod", str(folder), "--out", str(out), "--quiet"],
+        env=env, capture_output=True, text=True, timeout=300,
+        preexec_fn=None if limit is None else file_size_limit(limit),
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("library", ["h5py", pytest.param("dolfinx", marks=pytest.mark.long)])
+def test_pod_on_a_full_disk_stops_with_exit_4_and_no_cut_file(run_folder, tmp_path, library):
+    """Item 17: ``pod`` on a full disk (here a file size limit: the write fails with EFBIG
+    as with ENOSPC). h5py writing its file to the disk met the failure inside HDF5, whose
+    clean-up at exit was a segmentation fault (exit 139), or exit 2 ("bad input") with
+    HDF5's error stack as the message; a failed pod.png or pod.csv was exit 2. Now every file
+    is made in memory and written whole: one line naming the file, exit 4 (an output that
+    cannot be written, as for a run), and every file left is whole (the bytes of pod's files
+    without the limit: the outputs are deterministic) and nothing half-written or hidden.
+
+    Limits: 1 kB lets pod.csv (~0.6 kB) through and stops at pod.frames/mesh.h5 (~2 kB);
+    32 kB lets the frames and pod.xdmf (< 10 kB) through and stops at pod.png (~130 kB)."""
+    folder = run_folder[0]
+    whole = tmp_path / "whole"
+    proc = pod_child(library, folder, whole)
+    assert proc.returncode == 0, proc.stderr
+    for limit, failing in ((2**10, "pod.frames/mesh.h5"), (32 * 2**10, "pod.png")):
+        out = tmp_path / f"limit{limit}"
+        proc = pod_child(library, folder, out, limit)
+        assert proc.returncode == 4, proc.stderr
+        ours = [line for line in proc.stderr.splitlines() if line.startswith("cosserat-fem")]
+        assert ours == [  # besides, under a 1 kB limit, Open MPI's "Forwarding signal 25"
+            f"cosserat-fem: error: pod: cannot write {str(out / failing)!r} (File too large)"
+        ] and "Traceback" not in proc.stderr, proc.stderr
+        left = [p for p in out.rglob("*") if p.is_file()]
+        assert left and not (out / failing).exists()
+        for path in left:
+            assert path.read_bytes() == (whole / path.relative_to(out)).read_bytes(), path

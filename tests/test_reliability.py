@@ -16,16 +16,14 @@ from __future__ import annotations
 
 import hashlib
 import json
-import resource
 import shutil
-import signal
 import subprocess
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import PYTHON, ROOT, run_command, subprocess_env
+from conftest import PYTHON, ROOT, file_size_limit, run_command, subprocess_env
 from xdmf_files import read_xdmf
 
 from cosserat_fem.checkpoint import load_checkpoint
@@ -111,14 +109,6 @@ def test_d1_probes_that_differ_from_the_checkpoint_are_refused(base, tmp_path, c
     assert digests(run_dir) == before
 
 
-def _limited(fsize: int):
-    def preexec():
-        resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # as `trap '' XFSZ` in the issue
-
-    return preexec
-
-
 def test_d2_a_full_disk_stops_the_run_cleanly(tmp_path):
     """D2: under a file size limit of 256 kB (``ulimit -f``), an XDMF frame of all four fields
     every step: each frame has its own small HDF5 file, and the XML, which grows by ~1.9 kB a
@@ -143,7 +133,7 @@ def test_d2_a_full_disk_stops_the_run_cleanly(tmp_path):
         capture_output=True,
         text=True,
         timeout=300,
-        preexec_fn=_limited(limit),
+        preexec_fn=file_size_limit(limit),
     )
     assert proc.returncode == 4, proc.stderr
     assert "file size limit" in one_line(proc.stderr)

@@ -264,3 +264,33 @@ def test_a_range_ends_at_its_stop_exactly(tmp_path):
     values = [m.values["time.step"] for m in spec.members]
     assert values[0] == 1e-5 and values[-1] == 3e-5
     assert values[1] == pytest.approx(2e-5, rel=1e-15)  # an inner value: to rounding
+
+
+@pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=pytest.mark.mpi)])
+def test_a_sweep_tells_each_member_as_it_finishes(tmp_path, ranks):
+    """Item 22: a sweep printed nothing until its last member ended. Now one line on stderr
+    per member finished (in a pipe too: a sweep's lines are few), numbered in the order they
+    finish across the groups (under mpirun -n 2, two groups share a one-sided counter, and
+    each group's first rank prints its members' lines): the member, its status and wall time,
+    k of the 3 done, the elapsed time and the time left at the rate so far (0 after the
+    last). ``--quiet`` prints nothing; a sweep started again over finished members runs none
+    and tells none."""
+    import re
+
+    path = sweep_file(tmp_path, STEPS, keep="probes")
+    out = tmp_path / "out"
+    sweep = ["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)]
+    proc = run_command(sweep, ranks)
+    assert proc.returncode == 0, proc.stderr
+    pattern = re.compile(r"cosserat-fem: sweep member (\d) completed in [0-9.e+-]+ s; (\d) of 3 "
+                         r"done, elapsed [0-9.:]+( s)?, ETA ([0-9.:]+)( s)?$")  # fmt: skip
+    lines = [line for line in proc.stderr.splitlines() if line.startswith("cosserat-fem")]
+    found = [pattern.match(line) for line in lines]
+    assert len(lines) == 3 and all(found), proc.stderr
+    assert sorted(int(m[1]) for m in found) == [0, 1, 2]
+    assert sorted(int(m[2]) for m in found) == [1, 2, 3]
+    assert next(m[4] for m in found if m[2] == "3") == "0.0"
+    again = run_command(sweep, ranks)
+    assert again.returncode == 0 and "sweep member" not in again.stderr, again.stderr
+    quiet = run_command([*sweep[:-1], str(tmp_path / "quiet"), "--quiet"], ranks)
+    assert quiet.returncode == 0 and quiet.stderr == "" and quiet.stdout == "", quiet.stderr

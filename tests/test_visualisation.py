@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import ufl
-from conftest import ROOT, run_command, subprocess_env
+from conftest import PYTHON, ROOT, file_size_limit, run_command, subprocess_env
 from cosserat_fem.forms.general_form import flux
 from cosserat_fem.forms.kinematics import rotation_matrix, split
 from cosserat_fem.forms.resultants import resultants
@@ -269,6 +269,78 @@ def test_fields_not_asked_for_are_not_written(tmp_path):
     assert set(arrays) == {"displacement"} and len(times) == 3
     proc = cli("render", str(out), "--frames", "2", "--quiet")  # colours by |displacement|
     assert proc.returncode == 0, proc.stderr
+
+
+def limited(limit: int, *args: str) -> subprocess.CompletedProcess:
+    """``cosserat-fem ARGS`` in a child under a file size limit of ``limit`` bytes."""
+    return subprocess.run([PYTHON, "-m", "cosserat_fem.cli", *args], env=subprocess_env(),
+                          capture_output=True, text=True, timeout=600,
+                          preexec_fn=file_size_limit(limit))  # fmt: skip
+
+
+def full_disk_outcome(proc, out: Path, failing: str, whole: Path, command: str) -> None:
+    """Exit 4, one line naming ``failing``, and every file left in ``out`` whole (the bytes
+    of the same command without the limit)."""
+    assert proc.returncode == 4, proc.stderr
+    assert proc.stderr.splitlines() == [
+        f"cosserat-fem: error: {command}: cannot write {str(out / failing)!r} (File too large)"
+    ]
+    for path in out.iterdir():
+        assert path.read_bytes() == (whole / path.name).read_bytes(), path
+
+
+def test_plot_on_a_full_disk_stops_with_exit_4(tmp_path):
+    """Item 17's sibling: ``plot`` on a full disk (a file size limit: EFBIG as ENOSPC) was
+    "bad input" (exit 2) with matplotlib's cut PNG left behind. Now each figure is made in
+    memory and written whole: exit 4 and one line naming the figure, no cut file. A limit of
+    16 kB stops at the first figure, free_end.png (1300 x 1040 pixels: ~100 kB)."""
+    run = tmp_path / "run"
+    sets = [*DYNAMIC, "time.end=0.00048"]
+    proc = cli("run", SCENE, "--out", str(run), "--quiet", *sum((["--set", s] for s in sets), []))
+    assert proc.returncode == 0, proc.stderr
+    out = tmp_path / "plots"
+    full_disk_outcome(limited(16 * 2**10, "plot", str(run), "--out", str(out)), out,
+                      "free_end.png", tmp_path, "plot")  # fmt: skip
+    assert not list(out.iterdir())
+
+
+@pytest.mark.long
+def test_render_on_a_full_disk_stops_with_exit_4(dynamic_run, tmp_path):
+    """Item 17: ``render`` on a full disk gave an internal OSError (a picture) or imageio's
+    traceback and exit 2 (the animation), leaving cut files. Now each picture and the GIF are
+    made in memory and written whole: exit 4 and one line naming the file. Limits from the
+    sizes of an unlimited render: one byte short of the smallest picture stops at the first
+    one, rod_peak.png; the largest picture plus one byte stops at the larger GIF."""
+    whole = tmp_path / "whole"
+    args = ["--frames", "6", "--quiet"]
+    proc = cli("render", str(dynamic_run), "--out", str(whole), *args)
+    assert proc.returncode == 0, proc.stderr
+    sizes = {p.name: p.stat().st_size for p in whole.iterdir()}
+    pictures = [size for name, size in sizes.items() if name.endswith(".png")]
+    assert sizes["rod.gif"] > max(pictures)
+    for limit, failing in ((sizes["rod_peak.png"] - 1, "rod_peak.png"),
+                           (max(pictures) + 1, "rod.gif")):  # fmt: skip
+        out = tmp_path / failing
+        proc = limited(limit, "render", str(dynamic_run), "--out", str(out), *args)
+        full_disk_outcome(proc, out, failing, whole, "render")
+        assert not (out / failing).exists()
+
+
+@pytest.mark.long
+def test_render_tells_its_progress(dynamic_run, tmp_path):
+    """Item 22: render (27-40 s) printed nothing until it ended. render_run calls
+    ``progress(done, total, what)`` after each of its 3 pictures and each animation frame
+    (the command line draws it as a status line on a terminal): here 3 + 3 frames, done
+    counting 1 to 6 of 6, each naming what was made."""
+    script = ("import sys\nfrom cosserat_fem.render import render_run\n"
+              "render_run(sys.argv[1], sys.argv[2], max_frames=3,\n"
+              "           progress=lambda d, t, w: print(f'{d}|{t}|{w}', flush=True))\n")
+    proc = run_command(["-c", script, str(dynamic_run), str(tmp_path / "render")])
+    assert proc.returncode == 0, proc.stderr
+    calls = [line.split("|") for line in proc.stdout.splitlines()]
+    assert [(int(d), int(t)) for d, t, _ in calls] == [(d, 6) for d in range(1, 7)]
+    assert [w for _, _, w in calls] == ["rod_peak.png", "rod_last.png", "rod_frames.png",
+                                        *(f"rod.gif, frame {i} of 3" for i in (1, 2, 3))]
 
 
 @pytest.mark.parametrize("command", ["plot", "render"])
