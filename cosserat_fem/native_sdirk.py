@@ -12,8 +12,10 @@ the frozen refresh) and ``cf_newton``; it returns to Python only to assemble a J
 a run's states and counters are bitwise those of the Python step (tests/test_native_newton.py).
 
 It applies when the Newton solver runs its C loop (serial, no point load, ``solver.loop =
-"auto"``) with a reused Jacobian, no observer watches Newton's iterations or solves and no
-support moves (a moving support's values go into each stage's guess from Python); each step
+"auto"``) with a reused Jacobian, no observer watches Newton's iterations or solves, no
+support moves (a moving support's values go into each stage's guess from Python) and no load
+is given by data (a table's or a callable's value at each stage is set from Python:
+cosserat_fem/load_coefficients.py); each step
 checks what can change during a run (a new form after a chart move: a new C loop) and
 otherwise takes the Python step. Fixed supports' values are not written into each stage's
 guess as the Python step writes them (``support_dofs_to``): the same bits whenever the state
@@ -122,12 +124,13 @@ class NativeSDIRK:
 
 def stepper(integrator: Integrator, solver, model, events):
     """What a time loop steps with: a :class:`NativeSDIRK` for an SDIRK integrator whose
-    solver runs Newton's C loop, with no moving support and no observer of Newton's solves or
-    iterations; else the integrator itself."""
+    solver runs Newton's C loop, with no moving support, no load given by data and no
+    observer of Newton's solves or iterations; else the integrator itself."""
     if (
         not isinstance(integrator, SDIRK)
         or solver.loop != "c"
         or model.motions
+        or model.data.active
         or events.listens("solve_done")
         or events.listens("newton_iteration")
         or len(integrator.b) > 8

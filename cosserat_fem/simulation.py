@@ -85,6 +85,7 @@ def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: 
     a, L, W = integrator.initial_rate_problem()
     a_form, L_form = fem.form(a), fem.form(L)
     model.move_supports(integrator.time, rates=True)  # moving supports: U̇ = their rates
+    model.sync_loads(integrator.time_eval)  # loads given by data, at τ0
     A = assemble_matrix(a_form, bcs=model.bcs)
     A.assemble()
     b = assemble_vector(L_form)
