@@ -37,11 +37,11 @@ from .parallel import agree
 
 @dataclass
 class _Bound:
-    """The coefficients of one time Constant: (component, Constant or Function) pairs and
-    the τ they were last set for."""
+    """The coefficients of one time Constant: (component, Constant or Function, t ↦ its
+    values) triples and the τ they were last set for."""
 
     time: fem.Constant
-    pairs: list = field(default_factory=list)
+    entries: list = field(default_factory=list)
     tau: float | None = None
 
 
@@ -68,16 +68,18 @@ class DataLoads:
         if not isinstance(time, fem.Constant):
             raise TypeError("a data load needs a form whose time is a DOLFINx Constant")
         bound = self._bound.setdefault(id(time), _Bound(time))
-        for known, coefficient in bound.pairs:
+        for known, coefficient, _ in bound.entries:
             if known is component:
                 return coefficient
         if component.depends_on("s"):
             # FFCx makes the name a C identifier: loads.force_density[0] → loads_force_density_0
             name = re.sub(r"\W+", "_", component.key).strip("_")
             coefficient = fem.Function(self._quadrature_space(), name=name)
+            values = component.sampler(self._s)  # t ↦ its values at the points
         else:
             coefficient = fem.Constant(self.msh, PETSc.ScalarType(0.0))
-        bound.pairs.append((component, coefficient))
+            values = component.value
+        bound.entries.append((component, coefficient, values))
         bound.tau = None
         return coefficient
 
@@ -111,18 +113,18 @@ class DataLoads:
             return
         t = tau / self.omega0
         problem, shared = None, []
-        for component, coefficient in bound.pairs:
+        for component, coefficient, values in bound.entries:
             try:
                 if isinstance(coefficient, fem.Constant):
-                    coefficient.value = component.value(t)
+                    coefficient.value = values(t)
                     if isinstance(component, LoadCallable):
                         shared.append((component.key, float(coefficient.value)))
                 else:
-                    coefficient.x.array[:] = component.at(t, self._s)
+                    coefficient.x.array[:] = values(t)
             except SceneError as exc:
                 problem = problem or exc
         comm = self.msh.comm
-        if comm.size > 1 and any(isinstance(c, LoadCallable) for c, _ in bound.pairs):
+        if comm.size > 1 and any(isinstance(c, LoadCallable) for c, _, _ in bound.entries):
             agree(comm, problem)
             _same_on_every_rank(comm, shared, t)
         elif problem is not None:

@@ -103,6 +103,9 @@ MIN_ROWS = {"linear": 2, "cubic": 4, "pchip": 2, "previous": 1}
 #: The largest table file read [bytes]: 16 MiB, about a million numbers; a longer history is
 #: a run of its own to prepare (resample it).
 MAX_TABLE_BYTES = 16 * 2**20
+#: The most numbers a sampler's weights in s may take (:meth:`LoadTable.sampler`): 4 million,
+#: 32 MB.
+MAX_WEIGHTS = 4_000_000
 #: A table component's choices (the keys of its inline table besides table, column, sha256).
 _OPTIONS = ("interpolation", "s_interpolation", "outside")
 
@@ -491,12 +494,15 @@ class LoadTable:
         return out
 
     def _in_s(self, profile: np.ndarray, s: np.ndarray) -> np.ndarray:
-        """A grid's values at one time (``profile``, at its s) interpolated at ``s`` [m]."""
+        """A grid's values at one time (``profile``, at its s; or columns of such) interpolated
+        at ``s`` [m]: (len(s),) (or (len(s), columns))."""
         grid = self._s
         if self.s_interpolation == "cubic":
             out = np.asarray(_ppoly(grid, profile, "cubic")(s), dtype=float)
-        else:
+        elif profile.ndim == 1:
             out = np.interp(s, grid, profile)  # beyond the ends: their values
+        else:
+            out = np.column_stack([np.interp(s, grid, column) for column in profile.T])
         if self.outside == "hold":
             out[s < grid[0]], out[s > grid[-1]] = profile[0], profile[-1]
         elif self.outside == "zero":
@@ -506,6 +512,20 @@ class LoadTable:
     def value(self, t: float) -> float:
         """A table of t only at time ``t`` [s]."""
         return float(self._in_time(np.array([float(t)]))[0])
+
+    def sampler(self, s: np.ndarray) -> Callable[[float], np.ndarray]:
+        """t ↦ the values at the fixed arc lengths ``s`` [m] (the quadrature points of a
+        model, sampled at every stage): :meth:`at`, with a cubic grid's weights in s
+        computed once (the spline is linear in the values; a spline built at every stage
+        cost ~1.7 ms) unless they would take more than :data:`MAX_WEIGHTS` numbers."""
+        s = np.asarray(s, dtype=float)
+        width = self._width
+        if not self.grid or self.s_interpolation != "cubic" or width**2 + s.size * width > (
+            MAX_WEIGHTS
+        ):
+            return lambda t: self.at(t, s)
+        weights = self._in_s(np.eye(width), s.ravel())  # (points, width)
+        return lambda t: (weights @ self._in_time(np.array([float(t)]))[0]).reshape(s.shape)
 
     def at(self, t: float, s: np.ndarray) -> np.ndarray:
         """The values at time ``t`` [s] and the arc lengths ``s`` [m] (any table)."""
@@ -633,6 +653,11 @@ class LoadCallable:
             raise self._fail(f"returned {values.ravel()[bad[0]]!r} at s = "
                              f"{s.ravel()[bad[0]]:.6g} m", t)  # fmt: skip
         return np.array(values)
+
+    def sampler(self, s: np.ndarray) -> Callable[[float], np.ndarray]:
+        """t ↦ :meth:`at` (t, ``s``)."""
+        s = np.asarray(s, dtype=float)
+        return lambda t: self.at(t, s)
 
     def evaluate(self, **values: Any) -> Any:
         """As :meth:`LoadTable.evaluate`; a failure gives NaN (for the search of a load that

@@ -104,9 +104,10 @@ def test_interpolants_converge_at_their_orders(kind, order):
 
 
 def test_interpolants_reproduce_their_polynomials():
-    """Exactly (to round-off): a linear table a line, a cubic spline (not-a-knot) and PCHIP
-    a cubic... PCHIP only its linear part (its slopes are estimates); previous a step. A grid
-    (t, s) interpolated linearly in t and cubically in s reproduces (1 + 2t)(s³ − s)."""
+    """Exactly (to round-off): a linear table a line, a cubic spline (not-a-knot) a cubic,
+    PCHIP a line (its slopes are estimates: exact for a line only), previous a step. A grid
+    (t, s) interpolated linearly in t and cubically in s reproduces (1 + 2t)(s³ − s), also
+    through a sampler's weights in s computed once."""
     t = np.linspace(0.0, 2.0, 9)
     tt = np.linspace(0.0, 2.0, 101)
     line = table(sampled(lambda a: 3 * a - 1, t))
@@ -122,6 +123,7 @@ def test_interpolants_reproduce_their_polynomials():
     grid = table("\n".join(rows), {"s_interpolation": "cubic"})
     s = np.linspace(0.0, 1.0, 37)
     assert np.abs(grid.at(0.3, s) - 1.6 * (s**3 - s)).max() < 1e-14
+    assert np.abs(grid.sampler(s)(0.3) - 1.6 * (s**3 - s)).max() < 1e-14  # weights once
 
 
 def test_outside_the_table():
