@@ -11,9 +11,15 @@ stage of every step: cosserat_fem/loop.py), the static solve, the consistent ini
 the energy monitor and the modal problems. A time Constant's loads are evaluated once per
 value of τ (a Newton retry at the same stage evaluates nothing again).
 
-The loads do not depend on the state U, so the Jacobian is unchanged (their derivative is
-zero). A whole SDIRK step in C (cosserat_fem/native_sdirk.py) sets τ itself between stages,
-so a model with data loads takes the Python step, whose solves go through the time loop.
+The loads' values do not depend on the state U (no follower loads), so the Jacobian is the
+expression's with the value in place of the expression: UFL differentiates the same form, a
+force's term vanishing and a torque's keeping its dependence on the angles through the
+rotation's kinematics; whoever assembles a Jacobian needs the coefficients set too. A whole
+SDIRK step in C (cosserat_fem/native_sdirk.py) sets τ itself between stages: there the data
+loads' values at the step's stage times are computed before the step, the same numbers
+:meth:`sync` would set, and the C code puts them in at each stage (into the Constants' own
+storage too, which a Jacobian assembled between stages reads).
+
 Under MPI every rank evaluates the same tables alike (the same bytes, read on rank 0); a
 callable is called on every rank with the same t, its failures agreed on every rank, and a
 load of t only must give every rank the same value (compared, one collective per τ).
@@ -56,11 +62,6 @@ class DataLoads:
         self._space: fem.FunctionSpace | None = None
         self._s: np.ndarray | None = None
 
-    @property
-    def active(self) -> bool:
-        """Whether any form holds a data load."""
-        return bool(self._bound)
-
     def coefficient(self, component, time: fem.Constant):
         """The Constant (a load of t) or quadrature Function (of t and s) that stands for
         ``component`` in forms whose time Constant is ``time`` (one per pair: a form built
@@ -100,6 +101,19 @@ class DataLoads:
             s[dofs] = self.length * (a[:, None] + xi[None, :] * (b - a)[:, None])
             self._space, self._s = space, s
         return self._space
+
+    def entries(self, time: fem.Constant) -> list[tuple]:
+        """(Constant or Function, t ↦ its values) of the data loads of the forms of ``time``
+        (a whole SDIRK step in C sets them itself at each stage: cosserat_fem/native_sdirk.py;
+        :meth:`forget` then)."""
+        bound = self._bound.get(id(time))
+        return [] if bound is None else [(c, values) for _, c, values in bound.entries]
+
+    def forget(self, time: fem.Constant) -> None:
+        """The coefficients of ``time`` no longer hold the values of a τ (set in C)."""
+        bound = self._bound.get(id(time))
+        if bound is not None:
+            bound.tau = None
 
     def sync(self, time: fem.Constant) -> None:
         """Set the data loads of the forms of ``time`` to their values at t = τ/ω0, τ the
