@@ -756,3 +756,13 @@ def check_span(component, start: float, end: float, static_time: float, length: 
             raise SceneError(f"{component.key}: {component.source} covers s in [{s0:.10g}, "
                              f"{s1:.10g}] m, the rod is [0, {length:.10g}] m; extend it, or set "
                              "outside = \"hold\" or \"zero\"")  # fmt: skip
+
+
+def refuse_callable_restart(scene) -> None:
+    """SceneError naming the first load of ``scene`` given by a callable: a checkpoint cannot
+    hold a callable, so it cannot say that one given again is the run's (a restart through
+    ``cf.run(scene, restart=...)``; ``cf.resume`` refuses the saved scene itself)."""
+    for key, component in scene.load_components():
+        if isinstance(component, LoadCallable):
+            raise SceneError(f"{key}: a run with a callable load ({component.source}) cannot be "
+                             "restarted (a checkpoint cannot hold a callable); run it again")

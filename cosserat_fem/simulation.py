@@ -35,6 +35,7 @@ from .checkpoint import Checkpoint, check_outputs
 from .errors import SceneError
 from .events import Events, Observer, drive
 from .integrators import GeneralizedAlpha, make_integrator
+from .load_data import refuse_callable_restart
 from .loop import TimeLoop
 from .model import RodModel, build_model
 from .newton import NewtonSettings, NewtonSolver
@@ -145,6 +146,7 @@ def run(
     refuse_closed(scene, "run")
     fields = _stations(fields, field_every)
     if restart is not None:
+        refuse_callable_restart(scene)
         out_dir, write_outputs = restart.run_dir, True
     out = None
     if write_outputs:

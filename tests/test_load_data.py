@@ -345,15 +345,24 @@ def test_a_restart_with_another_table_content_is_refused(tmp_path):
 
 
 def test_a_run_with_a_callable_load_cannot_be_restarted(tmp_path):
-    """summary.json and the checkpoint name the callable; a restart is refused in one line."""
+    """summary.json and the checkpoint name the callable; a restart is refused in one line,
+    through cf.resume (the saved scene) and through cf.run with the callable given again
+    (a checkpoint cannot say that it is the run's), before anything is touched."""
+    from cosserat_fem.checkpoint import load_checkpoint
+
     scene = cf.load(SCENE, {**QUICK, "time.end": 6e-4, "output.checkpoint": True,
                             "loads.end.force": [0, lambda t: 10.0, 0]})  # fmt: skip
     cf.run(scene, tmp_path / "run")
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["scene"]["loads"]["end"]["force"][1]["callable"].endswith("<lambda>")
+    probes = (tmp_path / "run" / "probes.csv").read_bytes()
     with pytest.raises(SceneError, match=r"^loads\.end\.force\[1\]: the load was the Python "
                                          r"callable .* cannot be restarted"):  # fmt: skip
         cf.resume(tmp_path / "run", {"time.end": 1.2e-3})
+    with pytest.raises(SceneError, match=r"^loads\.end\.force\[1\]: a run with a callable "
+                                         r"load .* cannot be restarted"):  # fmt: skip
+        cf.run(scene, restart=load_checkpoint(tmp_path / "run"))
+    assert (tmp_path / "run" / "probes.csv").read_bytes() == probes
 
 
 def test_a_resumed_sweep_with_another_table_is_refused(tmp_path):
