@@ -304,8 +304,36 @@ def _ppoly(x: np.ndarray, y: np.ndarray, kind: str):
     return None
 
 
+class _Data:
+    """What a load given by data shares with an Expression's interface (the names it
+    depends on, never zero or constant) and its sampling at fixed points."""
+
+    is_zero = False
+    is_constant = False
+
+    @property
+    def with_s(self) -> bool:
+        """Whether it is a function of s as well as t."""
+        raise NotImplementedError
+
+    @property
+    def names(self) -> frozenset[str]:
+        return frozenset({"t", "s"} if self.with_s else {"t"})
+
+    def depends_on(self, name: str) -> bool:
+        return name in self.names
+
+    def at(self, t: float, s: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def sampler(self, s: np.ndarray) -> Callable[[float], np.ndarray]:
+        """t ↦ :meth:`at` (t, ``s``)."""
+        s = np.asarray(s, dtype=float)
+        return lambda t: self.at(t, s)
+
+
 @dataclass(frozen=True)
-class LoadTable:
+class LoadTable(_Data):
     """A load component given by a table (module docstring): the component's ``key``, the
     file, the value ``column`` and the choices; ``order``: the derivative in t it gives (a
     prescribed motion's rate and acceleration). Compared by the file's path and content and
@@ -395,14 +423,8 @@ class LoadTable:
         return "s" in self.file.columns
 
     @property
-    def names(self) -> frozenset[str]:
-        return frozenset({"t", "s"} if self.grid else {"t"})
-
-    is_zero = False
-    is_constant = False
-
-    def depends_on(self, name: str) -> bool:
-        return name in self.names
+    def with_s(self) -> bool:
+        return self.grid
 
     @property
     def source(self) -> str:
@@ -537,7 +559,7 @@ class LoadTable:
         if not self.grid or self.s_interpolation != "cubic" or width**2 + s.size * width > (
             MAX_WEIGHTS
         ):
-            return lambda t: self.at(t, s)
+            return super().sampler(s)
         weights = self._in_s(np.eye(width), s.ravel())  # (points, width)
         return lambda t: (weights @ self._at_time(float(t))).reshape(s.shape)
 
@@ -595,7 +617,7 @@ def _required_positional(function: Callable) -> int | None:
 
 
 @dataclass(frozen=True, eq=False)
-class LoadCallable:
+class LoadCallable(_Data):
     """A load component given by a Python callable (module docstring): ``f(t)`` or, with
     ``with_s``, ``f(t, s)``. Equal only to itself."""
 
@@ -609,16 +631,6 @@ class LoadCallable:
         name = getattr(f, "__qualname__", None) or getattr(f, "__name__", None) or repr(f)
         module = getattr(f, "__module__", None)
         return f"{module}.{name}" if module else name
-
-    @property
-    def names(self) -> frozenset[str]:
-        return frozenset({"t", "s"} if self.with_s else {"t"})
-
-    is_zero = False
-    is_constant = False
-
-    def depends_on(self, name: str) -> bool:
-        return name in self.names
 
     @property
     def source(self) -> str:
@@ -667,11 +679,6 @@ class LoadCallable:
             raise self._fail(f"returned {values.ravel()[bad[0]]!r} at s = "
                              f"{s.ravel()[bad[0]]:.6g} m", t)  # fmt: skip
         return np.array(values)
-
-    def sampler(self, s: np.ndarray) -> Callable[[float], np.ndarray]:
-        """t ↦ :meth:`at` (t, ``s``)."""
-        s = np.asarray(s, dtype=float)
-        return lambda t: self.at(t, s)
 
     def evaluate(self, **values: Any) -> Any:
         """As :meth:`LoadTable.evaluate`; a failure gives NaN (for the search of a load that

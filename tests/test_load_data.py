@@ -204,18 +204,29 @@ def test_a_cubic_table_of_the_paper_load_converges_at_least_at_order_four(
     assert errors[-1] < 1e-3 * (OMEGA * PERIOD / 32) ** 2 / 12 * np.abs(reference).max()
 
 
-def test_a_callable_gives_the_expression_run(expression_run):
-    """f(t, s) for the force density and f(t) for an end force equal to the expressions:
-    the same probes to round-off (both evaluate the same libm functions at the same points;
-    held at 1e-12 of the largest value)."""
-    expressions = {**QUICK, "loads.end.force": [0, "50*sin(3000*t)", 0]}
-    reference = cf.run(cf.load(SCENE, expressions)).probes
-    callables = {**QUICK, "loads.force_density": [paper_load, paper_load, 0],
-                 "loads.end.force": [0, lambda t: 50 * math.sin(3000 * t), 0]}  # fmt: skip
-    probes = cf.run(cf.load(SCENE, callables)).probes
-    scale = np.abs(reference[:, 1:]).max()
-    assert np.abs(probes - reference).max() <= 1e-12 * scale
-    assert np.abs(reference - expression_run).max() > 1e-9  # the end force took part
+@pytest.mark.parametrize("integrator", ["sdirk3", "generalized-alpha", "bdf2"])
+def test_a_callable_gives_the_expression_run(integrator):
+    """f(t, s) for the force density and f(t) for an end torque equal to the expressions:
+    the same probes, and the same power of the loads (the energy monitor's own time
+    Constant), to round-off (both evaluate the same libm functions at the same points and
+    times: held at 1e-12 of the largest value). Each integrator evaluates its loads at other
+    times (SDIRK's stages, generalized-α's τ_n + α_f h and its consistent initial rate,
+    BDF2's midpoint start); the end torque's term depends on the angles, so it is in the
+    Jacobian too."""
+    from cosserat_fem.energy import EnergyMonitor
+
+    sets = {**QUICK, "time.integrator": integrator}
+    runs = []
+    for loads in ({"loads.end.torque": [0, 0, "5*sin(3000*t)"]},
+                  {"loads.force_density": [paper_load, paper_load, 0],
+                   "loads.end.torque": [0, 0, lambda t: 5 * math.sin(3000 * t)]}):  # fmt: skip
+        result = cf.run(cf.load(SCENE, {**sets, **loads}))
+        monitor = EnergyMonitor(result.model)  # at the last state, the loads at other times
+        runs.append((result.probes, np.array([monitor.power(t) for t in (0.0, 1e-3, END)])))
+    (reference, power), (probes, callable_power) = runs
+    assert np.abs(probes - reference).max() <= 1e-12 * np.abs(reference[:, 1:]).max()
+    assert np.abs(callable_power - power).max() <= 1e-12 * np.abs(power).max()
+    assert np.abs(reference[:, 6]).max() > 1e-9  # the end torque twisted the rod
 
 
 @pytest.mark.parametrize("function, what", [
