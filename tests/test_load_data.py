@@ -426,3 +426,35 @@ if MPI.COMM_WORLD.rank == 0:
         results.append(np.load(target))
     scale = np.abs(results[0][:, 1:]).max()
     assert np.abs(results[0] - results[1]).max() <= 1e-10 * scale
+
+
+@pytest.mark.long
+def test_callables_that_differ_between_ranks_are_refused_on_every_rank(tmp_path):
+    """Under mpirun -n 2: a load of t whose callable gives each rank another value, and one
+    that raises on rank 1 only, are refused with the same one line on both ranks (agreed, no
+    hang: the job ends within its time limit)."""
+    script = tmp_path / "ranks.py"
+    script.write_text(f"""
+import cosserat_fem as cf
+from cosserat_fem.errors import SceneError
+from mpi4py import MPI
+rank = MPI.COMM_WORLD.rank
+def raising(t):
+    if rank == 1:
+        raise ValueError("rank 1's data")
+    return 1.0
+for f in (lambda t: float(rank), raising):
+    scene = cf.load("{SCENE}", {{**{QUICK!r}, "loads.end.force": [0, f, 0]}})
+    try:
+        cf.run(scene)
+    except SceneError as exc:
+        print(f"rank {{rank}}: {{exc}}", flush=True)
+""")
+    done = run_command([str(script)], ranks=2, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    lines = sorted(line for line in done.stdout.splitlines() if line.startswith("rank "))
+    differ = "loads.end.force[1]: the callable gave 0.0 on rank 0 and 1.0 on rank 1"
+    assert [line.split(": ", 1)[1].startswith(differ) for line in lines].count(True) == 2, lines
+    assert len(lines) == 4, lines
+    raised = "loads.end.force[1]: the callable __main__.raising(t) raised ValueError: rank 1's"
+    assert [line.split(": ", 1)[1].startswith(raised) for line in lines].count(True) == 2, lines

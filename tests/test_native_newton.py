@@ -19,7 +19,8 @@ An SDIRK step with a reused Jacobian and no moving support is one C call too
 (cosserat_fem/native_sdirk.py, ``cf_sdirk_step``: stage values, predictor, Newton's policy and
 solves); the cases in :data:`STEPS_IN_C` take every step that way (counted), among them SDIRK4,
 a lagged Jacobian, adaptive steps, a form that changes, and solves that fail: retried with a
-fresh Jacobian, then steps rejected and halved.
+fresh Jacobian, then steps rejected and halved; and loads given by data (a grid table, a table
+of t, a callable torque whose term the Jacobian holds), whose stage values the C step puts in.
 """
 
 from __future__ import annotations
