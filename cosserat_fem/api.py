@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from .events import Observer
+from .load_data import TableStore
 from .scene import Scene, load_scene, scene_from_dict
 
 
@@ -32,10 +33,15 @@ def load(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | 
          ) -> Scene:  # fmt: skip
     """A validated scene from a TOML file or a dict of tables (as TOML reads), with
     ``overrides``: a mapping of dotted keys to values (``{"time.end": 0.01}``) or
-    ``"dotted.key=value"`` strings as the command line's ``--set``. Bad input raises a
-    :class:`~cosserat_fem.errors.SceneError` naming the key."""
+    ``"dotted.key=value"`` strings as the command line's ``--set``. A load component may be a
+    table (``{"table": "file.csv", "column": "F"}``, relative to the scene file, or to the
+    working directory for a dict) or a Python callable, f(t) or f(t, s) for a distributed
+    load (``{"loads.end.force": [0, 0, f]}``; cosserat_fem/load_data.py). Bad input raises a
+    :class:`~cosserat_fem.errors.SceneError` naming the key. Under mpirun every rank calls it
+    (rank 0 reads the tables)."""
     if isinstance(source, Mapping):
-        return scene_from_dict(dict(source), overrides=overrides)
+        tables = TableStore.collective()
+        return scene_from_dict(dict(source), overrides=overrides, tables=tables)
     return load_scene(source, overrides)
 
 
@@ -95,7 +101,9 @@ def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()
     """The scene and the checkpoint to continue the run in ``folder`` (``run(scene,
     restart=checkpoint)``), with the overrides a restart allows (cosserat_fem/checkpoint.py:
     time.end, solver.*, limits.*, ...); SceneError if there is no usable checkpoint, or
-    time.end is not later than it."""
+    time.end is not later than it, or a table's content is not the one the run used (its
+    SHA-256 is in the checkpoint's scene), or a load was a Python callable (not data: a run
+    with one cannot be restarted)."""
     from .checkpoint import FIXED_KEYS, load_checkpoint, restart_overrides
     from .errors import SceneError
 
@@ -103,7 +111,8 @@ def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()
     restart_overrides(texts)
     checkpoint = load_checkpoint(folder)
     scene = scene_from_dict(checkpoint.meta["scene"], source=f"{folder}/checkpoint",
-                            overrides=overrides, fixed=FIXED_KEYS)  # fmt: skip
+                            overrides=overrides, fixed=FIXED_KEYS,
+                            tables=TableStore.collective(folder))  # fmt: skip
     if not scene.time.end > checkpoint.time:
         raise SceneError(
             f"time.end: the checkpoint is at t = {checkpoint.time:.10g} s; give a later end "

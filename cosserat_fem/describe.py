@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from .forms.kinematics import P_NAMES
+from .load_data import is_data
 from .scene import PLANAR, Scene
 from .schema import SCHEMA, Parameters, Table
 
@@ -22,6 +23,8 @@ def _show(value: Any) -> str:
     digits, lists in brackets."""
     if isinstance(value, list | tuple):
         return "[" + ", ".join(_show(v) for v in value) + "]"
+    if isinstance(value, dict):  # a load component given by a table: its inline table
+        return "{" + ", ".join(f"{k} = {_show(v)}" for k, v in value.items()) + "}"
     if isinstance(value, str):
         return f'"{value}"'
     if isinstance(value, bool):
@@ -72,8 +75,22 @@ def describe_scene(scene: Scene) -> str:
         f"  unknowns: {unknowns}; {nodes * (6 if plane else 12)} dofs",
         _reference_line(scene),
         f"  not in the form (zero): {', '.join(absent) or 'nothing'}",
+        *_data_lines(scene),
     ]
     return "\n".join(lines)
+
+
+def _data_lines(scene: Scene) -> list[str]:
+    """A line for each load component given by data (cosserat_fem/load_data.py): what it is,
+    with the unit of its load."""
+    lines = []
+    for key, component in scene.load_components():
+        if is_data(component):
+            spec: Any = SCHEMA
+            for name in key.partition("[")[0].split("."):
+                spec = spec.fields[name]
+            lines.append(f"  {key}{_unit(spec)}: {component.describe()}")
+    return ["load data:", *lines] if lines else []
 
 
 def _reference_line(scene: Scene) -> str:

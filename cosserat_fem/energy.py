@@ -77,6 +77,7 @@ class EnergyMonitor:
         if self._P is None:
             return 0.0
         self.tau.value = t * self.model.omega0
+        self.model.sync_loads(self.tau)
         return self._sum(self._P)
 
 

@@ -46,7 +46,10 @@ True nesting (parentheses around an operation, calls, signs, powers) is limited 
   linearly. So 2000 nodes cost 1-2 s of compile more than a one-term load, while 20000 would
   cost half a minute. The limit also keeps a flat chain well inside what Python's own parser
   can build: it constructs the left-deep AST recursively and fails near 3000 levels (fewer
-  when called from deep in a stack).
+  when called from deep in a stack). A load known as data (a measured history, a long
+  piecewise definition) needs no expression: a table (cosserat_fem/load_data.py) of any
+  length costs one DOLFINx Constant or Function in the form, whatever its rows, so the
+  message of this limit names that alternative.
 * :data:`MAX_LENGTH` (20000) characters: ten per node, room for long names and literals; it
   bounds the work done before the node count (and the length of number literals).
 
@@ -610,7 +613,9 @@ def _parse_tree(
     if count > MAX_NODES:
         raise SceneError(
             f"{key}: expression of {count} numbers, names and operators, more than the limit of "
-            f"{MAX_NODES} (a bigger one takes long to compile), in {shown}"
+            f"{MAX_NODES} (a bigger one takes long to compile; a load given by data, e.g. a "
+            f'measured history, is a table: {{table = "file.csv", column = "..."}}, '
+            f"docs/loads.md), in {shown}"
         )
     try:
         with warnings.catch_warnings():  # "invalid decimal literal" etc.: not for our stderr
@@ -855,7 +860,10 @@ def _derivative(node: Node, name: str) -> Node:
 
 
 def derivative(expr: Expression, name: str) -> Expression:
-    """d expr / d name, an Expression of the same names (its source reads "d/dt(...)")."""
+    """d expr / d name, an Expression of the same names (its source reads "d/dt(...)"); a
+    load given by a table, its interpolant's derivative (cosserat_fem/load_data.py)."""
+    if not isinstance(expr, Expression):
+        return expr.derivative(name)
     return Expression(f"d/d{name}({expr.source})", expr.names, _derivative(expr.tree, name))
 
 

@@ -259,6 +259,7 @@ class TimeLoop:
         are put into the initial guess too (the Jacobian's rows and columns of held dofs are
         those of the identity; docs/decisions.md, "Dirichlet values in the guess")."""
         self.model.support_dofs_to(self.model.U.x.array, self.integrator.unknown_time)
+        self.model.sync_loads(self.integrator.time_eval)  # loads given by data, at the stage
         iterations = self.solver.solve()
         self.events.solve_done(self, iterations)
         return iterations

@@ -136,6 +136,7 @@ def assemble_modal_problem(model: RodModel, base: np.ndarray | None = None) -> M
     V = ufl.as_vector(zeros + [v[i] for i in range(6)])
     time = fem.Constant(model.msh, PETSc.ScalarType(model.scene.time.start * model.omega0))
     F = model.residual_terms(U, Udot, time, test=V).total()
+    model.sync_loads(time)
     bcs = modal_supports(model, P)
     K = assemble_matrix(fem.form(ufl.derivative(F, p0, dp)), bcs=bcs, diagonal=1.0)
     K.assemble()
@@ -188,6 +189,7 @@ def linear_steady_state(scene: Scene, omega: float, sigma: float = 1.0) -> np.nd
 
     def load(t: float) -> np.ndarray:
         tau.value = t * model.omega0
+        model.sync_loads(tau)
         f = -assemble_vector(residual).array.copy()
         f[fixed] = 0.0
         return f

@@ -5,7 +5,9 @@ The rod is the interval σ ∈ [0, 1] (σ = s/ℓ, eq. (47)) with ``elements`` c
 dofs, see docs/developers.md). A clamped end gets the Dirichlet condition p = q = 0 (55); a
 free end gets the natural condition through the boundary form of
 :func:`cosserat_fem.forms.general_form.residual_terms`. Loads are the scene's expressions
-of s [m] and t [s], turned into UFL with s = ℓ σ and t = τ/ω0; loads that are identically
+of s [m] and t [s], turned into UFL with s = ℓ σ and t = τ/ω0; loads given by data (tables,
+callables) are Constants and quadrature Functions set from τ before each assembly
+(cosserat_fem/load_coefficients.py, :meth:`RodModel.sync_loads`); loads that are identically
 zero are left out of the form.
 """
 
@@ -41,6 +43,8 @@ from .forms.kinematics import P_NAMES, quaternion_chart
 from .forms.reference import Reference
 from .forms.section import Section
 from .layout import FULL, Layout
+from .load_coefficients import DataLoads
+from .load_data import is_data
 from .parallel import agree
 from .scene import PLANAR, Scene
 
@@ -134,6 +138,8 @@ class RodModel:
     reference_frame: fem.Function | None = None
     #: The scene's [parameters] as Constants in the forms (made by :meth:`_symbols`).
     _parameters: dict | None = None
+    #: The loads given by data in the forms (made by build_model).
+    data: DataLoads | None = None
 
     @property
     def needs_chart(self) -> bool:
@@ -352,24 +358,17 @@ class RodModel:
                     m.values[j].value = value
 
     def load_entries(self) -> list[tuple[str, Expression]]:
-        """(dotted key, expression) of every load and support motion of the scene."""
-        loads, supports = self.scene.loads, self.scene.supports
-        entries = [("loads.force_density", loads.force_density)]
-        entries.append(("loads.torque_density", loads.torque_density))
-        for end in ("start", "end", "point"):
-            load = getattr(loads, end)
-            if load is not None:
-                entries += [(f"loads.{end}.force", load.force)]
-                entries += [(f"loads.{end}.torque", load.torque)]
-            if supports.motion(end) is not None:
-                entries += [(f"supports.{end}_motion", supports.motion(end))]
-        return [
-            (f"{key}[{i}]", e)
-            for key, vector in entries
-            if vector is not None
-            for i, e in enumerate(vector)
-            if not e.is_constant
-        ]
+        """(dotted key, component) of every load and support motion of the scene that is not
+        a constant: an expression, or data (cosserat_fem/load_data.py)."""
+        return [(key, e) for key, e in self.scene.load_components() if not e.is_constant]
+
+    def sync_loads(self, time_eval) -> None:
+        """Set the data loads of the forms of the time Constant ``time_eval`` to their values
+        at its τ (call it after setting τ, before assembling; collective if a callable is
+        among them: cosserat_fem/load_coefficients.py)."""
+        if self.data is not None:
+            self.data.sync(time_eval)
+
 
     def nonfinite_load(self, times: list[float]) -> str | None:
         """What is not finite among the loads and support motions at ``times`` [s], at the
@@ -427,11 +426,16 @@ class RodModel:
         names["t"] = time_eval / self.omega0
         return names
 
-    def _vector(self, exprs, symbols):
-        """A load vector times the load factor λ (1 in dynamics; stepped in statics)."""
+    def _vector(self, exprs, symbols, time_eval):
+        """A load vector times the load factor λ (1 in dynamics; stepped in statics); its
+        data components are coefficients of the time Constant ``time_eval``."""
         if exprs is None or all(e.is_zero for e in exprs):
             return None
-        return self.load_factor * ufl.as_vector([e.to_ufl(symbols) for e in exprs])
+        components = [
+            self.data.coefficient(e, time_eval) if is_data(e) else e.to_ufl(symbols)
+            for e in exprs
+        ]
+        return self.load_factor * ufl.as_vector(components)
 
     def residual(self, U_eval, Udot_eval, time_eval, charted: bool | None = None) -> ufl.Form:
         """The weak residual (65) at (U_eval, Udot_eval) of U's layout, loads at τ = time_eval
@@ -446,14 +450,14 @@ class RodModel:
         """The scene's loads at τ = time_eval as UFL vectors (absent ones are None)."""
         sym = self._symbols(time_eval)
         loads = self.scene.loads
-        force = self._vector(loads.force_density, sym)
+        force = self._vector(loads.force_density, sym, time_eval)
         if loads.has_gravity:  # the weight ρ A g [N/m], a force density f of (36), fixed basis
             weight = self.rod.density * self.rod.section.area
             gravity = self.load_factor * ufl.as_vector([weight * g for g in loads.gravity])
             force = gravity if force is None else force + gravity
         distributed = DistributedLoads(
             force=force,
-            torque=self._vector(loads.torque_density, sym),
+            torque=self._vector(loads.torque_density, sym, time_eval),
         )
         ends = []
         for tag, end in ((START_TAG, loads.start), (END_TAG, loads.end)):
@@ -462,8 +466,8 @@ class RodModel:
             ends.append(
                 EndLoads(
                     ds=self.ds(tag),
-                    force=self._vector(end.force, sym),
-                    torque=self._vector(end.torque, sym),
+                    force=self._vector(end.force, sym, time_eval),
+                    torque=self._vector(end.torque, sym, time_eval),
                 )
             )
         if loads.point is not None:  # at the node s (checked), on an interior facet
@@ -471,8 +475,8 @@ class RodModel:
             ends.append(
                 EndLoads(
                     ds=dS(POINT_TAG),
-                    force=self._vector(loads.point.force, sym),
-                    torque=self._vector(loads.point.torque, sym),
+                    force=self._vector(loads.point.force, sym, time_eval),
+                    torque=self._vector(loads.point.torque, sym, time_eval),
                     interior=True,
                 )
             )
@@ -633,4 +637,5 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
         motions=motions,
         layout=Layout(components),
         fork_nodes=fork_nodes,
+        data=DataLoads(msh, q, scene.rod.length, scene.omega0),
     )

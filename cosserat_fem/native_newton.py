@@ -73,6 +73,8 @@ typedef struct {
   double unknown_time; int iterations, reason;
   int64_t solves, newton_iterations, retries; int last_iterations, max_in_a_solve;
   double time_solve;
+  int32_t n_data; double* const* data_targets; const int32_t* data_sizes;
+  const double* data_values; int64_t data_stride;
 } cf_sdirk;
 int cf_sdirk_step(cf_problem* p, const cf_settings* s, cf_newton_state* st, cf_sdirk* sd);
 void cf_sdirk_accept(cf_sdirk* sd);

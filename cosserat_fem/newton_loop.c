@@ -264,6 +264,14 @@ typedef struct {
   int64_t solves, newton_iterations, retries;
   int last_iterations, max_in_a_solve;
   double time_solve;
+  /* loads given by data (cosserat_fem/load_coefficients.py), in: where each one's values go
+   * (a slot of the packed constants, or a quadrature Function's array), how many, and their
+   * values at every stage time of the step, (stages, data_stride), computed before it */
+  int32_t n_data;
+  double* const* data_targets;
+  const int32_t* data_sizes;
+  const double* data_values;
+  int64_t data_stride;
 } cf_sdirk;
 
 /* SDIRK._rate_guess: the Lagrange extrapolation to tau of the newest stored rates known before
@@ -308,8 +316,8 @@ static int rate_guess(cf_sdirk* sd, int stage, double tau)
   return 1;
 }
 
-/* The start of stage i: Z_i, the time τ_i (the Constant and the packed constants) and the
- * predicted U = guess γh + Z_i. */
+/* The start of stage i: Z_i, the time τ_i (the Constant and the packed constants), the loads
+ * given by data at τ_i, and the predicted U = guess γh + Z_i. */
 static void stage_begin(cf_sdirk* sd, int i)
 {
   const int n = sd->n;
@@ -324,6 +332,11 @@ static void stage_begin(cf_sdirk* sd, int i)
   *sd->time_value = tau;
   if (sd->time_slot >= 0) sd->constants[sd->time_slot] = tau;
   sd->unknown_time = tau;
+  if (sd->n_data > 0) { /* the loads given by data, at τ */
+    const double* values = sd->data_values + (int64_t)i * sd->data_stride;
+    for (int32_t k = 0; k < sd->n_data; ++k)
+      for (int32_t j = 0; j < sd->data_sizes[k]; ++j) sd->data_targets[k][j] = *values++;
+  }
   if (rate_guess(sd, i, tau)) {
     for (int32_t k = 0; k < n; ++k) sd->u[k] = sd->guess[k] * gh;
   } else {

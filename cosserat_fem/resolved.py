@@ -14,6 +14,7 @@ import numpy as np
 from cosserat_fem.expressions import Expression, derivative
 from cosserat_fem.forms.groups import RodConstants, euler_bernoulli_omega0
 from cosserat_fem.forms.section import Section, rectangle, tube
+from cosserat_fem.load_data import component_dict
 
 
 @dataclass(frozen=True)
@@ -531,6 +532,27 @@ class Scene:
             inertia=self.rod.rotary_inertia,
         )
 
+    def load_components(self) -> list[tuple[str, Any]]:
+        """(dotted key ``loads.end.force[2]``, component) of every component of the loads
+        (densities, end and point loads) and support motions: an Expression, or data
+        (cosserat_fem/load_data.py)."""
+        loads, supports = self.loads, self.supports
+        entries = [("loads.force_density", loads.force_density)]
+        entries.append(("loads.torque_density", loads.torque_density))
+        for end in ("start", "end", "point"):
+            load = getattr(loads, end)
+            if load is not None:
+                entries += [(f"loads.{end}.force", load.force)]
+                entries += [(f"loads.{end}.torque", load.torque)]
+            if end != "point" and supports.motion(end) is not None:
+                entries += [(f"supports.{end}_motion", supports.motion(end))]
+        return [
+            (f"{key}[{i}]", component)
+            for key, vector in entries
+            if vector is not None
+            for i, component in enumerate(vector)
+        ]
+
     def expression_names(self) -> dict[str, float]:
         """Constant values for load expressions: ``L``, ``omega0`` and the parameters."""
         return {"L": self.rod.length, "omega0": self.omega0, **self.parameters}
@@ -550,8 +572,9 @@ def auto_reference_frequency(rod: Rod) -> float:
 
 
 # =================================================================================== to_dict
-def _vector(values: tuple[Expression, ...]) -> list[str]:
-    return [e.source for e in values]
+def _vector(values: tuple[Expression, ...]) -> list[Any]:
+    """Expressions as their sources; data (tables, callables) as their dicts."""
+    return [component_dict(e) for e in values]
 
 
 def _end_load_dict(load: EndLoad) -> dict[str, Any]:

@@ -25,6 +25,7 @@ from cosserat_fem.errors import SceneError, show_value
 from cosserat_fem.expressions import Expression, derivative, parse_vector
 from cosserat_fem.forms.groups import Groups, dimensionless_groups
 from cosserat_fem.forms.section import cowper_circle
+from cosserat_fem.load_data import TableStore, check_span, is_data, parse_load_vector
 from cosserat_fem.resolved import (  # noqa: F401 - the resolved scene, importable from here
     PLANAR,
     PLANES,
@@ -192,16 +193,16 @@ def _build_model(raw: dict[str, Any]) -> ModelChoices:
     )
 
 
-def _build_supports(raw: dict[str, Any], constants: set[str]) -> Supports:
+def _build_supports(raw: dict[str, Any], constants: set[str], tables: TableStore) -> Supports:
     """[supports]: any pair of supports (a mechanism, e.g. pinned–free or free–free, runs and
     has modes about the straight rod, its rigid-body modes first; static paths and modes about
-    a static state refuse it); motions [m] as expressions of t and
-    ``constants``, None if zero, refused at a free end."""
+    a static state refuse it); motions [m] as expressions of t and ``constants`` or tables of t
+    (read from ``tables``), None if zero, refused at a free end."""
     kinds = (raw["start"], raw["end"])
     motions = {}
     for end, kind in zip(("start", "end"), kinds, strict=True):
         key = f"supports.{end}_motion"
-        vector = parse_vector(raw[f"{end}_motion"], {"t", *constants}, key)
+        vector = parse_load_vector(raw[f"{end}_motion"], {"t", *constants}, key, tables, True)
         motions[end] = None if all(e.is_zero for e in vector) else vector
         if motions[end] is not None and kind == "free":
             raise SceneError(
@@ -211,21 +212,25 @@ def _build_supports(raw: dict[str, Any], constants: set[str]) -> Supports:
     return Supports(raw["start"], raw["end"], motions["start"], motions["end"])
 
 
-def _build_loads(raw: dict[str, Any], supports: Supports, constants: set[str]) -> Loads:
-    """[loads]: force [N/m] and torque [N m/m] densities of s, t and ``constants``, end loads
+def _build_loads(
+    raw: dict[str, Any], supports: Supports, constants: set[str], tables: TableStore
+) -> Loads:
+    """[loads]: force [N/m] and torque [N m/m] densities of s, t and ``constants`` (or data:
+    tables read from ``tables``, callables; cosserat_fem/load_data.py), end loads
     (:func:`_build_end_load`), gravity [m/s²] of the constants only."""
     names = {"s", "t", *constants}
-    force = parse_vector(raw["force_density"], names, "loads.force_density")
-    torque = parse_vector(raw["torque_density"], names, "loads.torque_density")
+    force = parse_load_vector(raw["force_density"], names, "loads.force_density", tables)
+    torque = parse_load_vector(raw["torque_density"], names, "loads.torque_density", tables)
     ends = {}
     for end in ("start", "end"):
-        ends[end] = _build_end_load(raw[end], end, getattr(supports, end), names)
+        ends[end] = _build_end_load(raw[end], end, getattr(supports, end), names, tables)
     gravity = _constant_vector(raw["gravity"], constants, "loads.gravity")
     point = None
     if raw["point"] is not None:
         vectors = {}
         for name in ("force", "torque"):
-            vectors[name] = parse_vector(raw["point"][name], names, f"loads.point.{name}")
+            key = f"loads.point.{name}"
+            vectors[name] = parse_load_vector(raw["point"][name], names, key, tables)
             for i, component in enumerate(vectors[name]):
                 if component.depends_on("s"):
                     raise SceneError(
@@ -280,6 +285,9 @@ def _build_initial(
                 if abs(got - want) > 1e-12 * max(abs(want), scale[name]):
                     source = show_value(fields[name][i].source) if fields[name] else "0"
                     what = "its prescribed motion" if motion is not None else "0"
+                    if motion is not None and is_data(motion[i]):  # a value to copy
+                        what = (f"the {'rate' if name == 'velocity' else 'value'} at t = "
+                                f"{fmt(t0)} s of its prescribed {motion[i].source}, {want!r}")
                     raise SceneError(
                         f"initial.{name}[{i}]: must equal {what} ({want:.6g}) at the {kind} "
                         f"{end} (s = {fmt(s_end)} m), got {got:.6g} from {source}"
@@ -299,7 +307,7 @@ def _finite_value(e: Expression, key: str, where: str, **values: float) -> float
 
 
 def _build_end_load(
-    raw: dict[str, Any] | None, end: str, support: str, names: set[str]
+    raw: dict[str, Any] | None, end: str, support: str, names: set[str], tables: TableStore
 ) -> EndLoad | None:
     """[loads.<end>] (force [N], torque [N m], expressions of t and constants), None if absent;
     SceneError at a clamped end, for a dependence on s, or for a force at a pinned or
@@ -314,7 +322,7 @@ def _build_end_load(
         )
     vectors = {}
     for name in ("force", "torque"):
-        vector = parse_vector(raw[name], names, f"{key}.{name}")
+        vector = parse_load_vector(raw[name], names, f"{key}.{name}", tables)
         for i, component in enumerate(vector):
             if component.depends_on("s"):
                 raise SceneError(
@@ -526,19 +534,23 @@ def scene_from_dict(
     source: str = "<dict>",
     overrides: Overrides = (),
     fixed: Sequence[str] = (),
+    tables: TableStore | None = None,
 ) -> Scene:
     """Validate a scene given as nested dicts (as from TOML) and resolve it.
 
     ``overrides`` (``dotted.key=value``) are applied first; ``fixed``: keys the caller may
-    not change (a restart's), which messages then do not suggest. Raises :class:`SceneError`.
+    not change (a restart's), which messages then do not suggest; ``tables``: where the
+    tables of loads given by data are read (default: by this process, relative paths from
+    the working directory). Raises :class:`SceneError`.
     """
     if not isinstance(data, dict):
         raise SceneError(f"{source}: a scene must be a table of keys, got {show_value(data)}")
     raw = check_scene(apply_overrides(data, overrides))
     parameters = raw["parameters"]
     rod = _build_rod(raw["rod"])
-    supports = _build_supports(raw["supports"], {*SCENE_CONSTANTS, *parameters})
-    loads = _build_loads(raw["loads"], supports, {*SCENE_CONSTANTS, *parameters})
+    tables = tables if tables is not None else TableStore()
+    supports = _build_supports(raw["supports"], {*SCENE_CONSTANTS, *parameters}, tables)
+    loads = _build_loads(raw["loads"], supports, {*SCENE_CONSTANTS, *parameters}, tables)
     time = _build_time(raw["time"], frozenset(fixed))
     scene = Scene(
         title=raw["title"],
@@ -560,6 +572,8 @@ def scene_from_dict(
     reference = _build_reference(raw["reference"], scene.expression_names())
     _check_reference(scene, reference)
     _check_point_load(scene)
+    for _, component in scene.load_components():
+        check_span(component, time.start, time.end, scene.static.time, rod.length)
     initial = _build_initial(raw["initial"], supports, scene.expression_names(), time.start)
     return replace(scene, initial=initial, reference=reference)
 
@@ -754,7 +768,9 @@ def _check_closed(scene: Scene, reference: ReferenceShape) -> None:
 
 
 def load_scene(path: str | Path, overrides: Overrides = ()) -> Scene:
-    """Read, override and validate a TOML scene file."""
-    return scene_from_dict(read_toml(path), source=str(path), overrides=overrides)
+    """Read, override and validate a TOML scene file; its tables (loads given by data) are
+    read relative to its folder, by rank 0 under MPI (collective)."""
+    tables = TableStore.collective(Path(path).parent)
+    return scene_from_dict(read_toml(path), source=str(path), overrides=overrides, tables=tables)
 
 

@@ -28,6 +28,7 @@ from cosserat_fem.errors import SceneError, show_value
 from cosserat_fem.expressions import RESERVED_NAMES, check_name
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.section import TORSION_CONSTANT_RULES
+from cosserat_fem.load_data import INTERPOLATIONS, OUTSIDE, S_INTERPOLATIONS
 from cosserat_fem.results import PROBE_FIELD_COLUMNS
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
@@ -231,6 +232,33 @@ class Vector(Field):
 
 
 @dataclass(frozen=True, kw_only=True)
+class LoadVector(Vector):
+    """A load's list of 3 components: numbers, expression strings, tables (an inline table
+    checked against :data:`LOAD_TABLE`, defaults filled in) or, through the API, Python
+    callables (cosserat_fem/load_data.py); parsed later, when the names are known."""
+
+    def describe(self) -> str:
+        return (f"a list of 3 numbers, expression strings or tables {{table = ..., column = "
+                f"...}} [{self.unit}]")  # fmt: skip
+
+    def check(self, key: str, value: Any) -> Any:
+        """The list, each inline table checked (SceneError naming ``key[i]``); a saved
+        callable's name (``{callable = ...}``, from summary.json or a checkpoint) refused."""
+        components = super().check(key, value)
+        for i, item in enumerate(components):
+            if isinstance(item, dict) and "callable" in item:
+                raise SceneError(
+                    f"{key}[{i}]: the load was the Python callable {show_value(item['callable'])}"
+                    ", which a saved scene (a checkpoint, summary.json) cannot hold: a run with "
+                    "a callable load cannot be restarted or rebuilt; run it again, giving the "
+                    "callable through the API"
+                )
+            if isinstance(item, dict):
+                components[i] = _check_table(f"{key}[{i}]", item, LOAD_TABLE)
+        return components
+
+
+@dataclass(frozen=True, kw_only=True)
 class Points(Field):
     """A list of at least two points, each a list of 3 finite numbers."""
 
@@ -284,11 +312,27 @@ class Parameters:
     """The free-form [parameters] table: identifier = finite number."""
 
 
+#: A load component given by a table file (cosserat_fem/load_data.py, docs/loads.md): the
+#: keys of its inline table, e.g. ``{table = "tip.csv", column = "F"}``.
+LOAD_TABLE = Table(
+    {
+        # the CSV file, relative to the scene file: columns t [s], optionally s [m], values
+        "table": Text(required=True, non_empty=True),
+        # the value column, in the unit of the load it gives
+        "column": Text(required=True, non_empty=True),
+        "interpolation": Choice(choices=tuple(INTERPOLATIONS), default="linear"),  # in t
+        "s_interpolation": Choice(choices=S_INTERPOLATIONS, default="linear"),  # a grid's
+        "outside": Choice(choices=OUTSIDE, default="refuse"),
+        # the SHA-256 the file's content must have (optional; summary.json records it)
+        "sha256": Text(non_empty=True),
+    }
+)
+
 _ZERO3 = [0, 0, 0]
 _END_LOAD = Table(
     {
-        "force": Vector(default=_ZERO3, unit="N"),
-        "torque": Vector(default=_ZERO3, unit="N m"),
+        "force": LoadVector(default=_ZERO3, unit="N"),
+        "torque": LoadVector(default=_ZERO3, unit="N m"),
     },
     optional=True,
 )
@@ -296,8 +340,8 @@ _END_LOAD = Table(
 _POINT_LOAD = Table(
     {
         "s": Number(required=True, interval=POSITIVE, unit="m"),
-        "force": Vector(default=_ZERO3, unit="N"),
-        "torque": Vector(default=_ZERO3, unit="N m"),
+        "force": LoadVector(default=_ZERO3, unit="N"),
+        "torque": LoadVector(default=_ZERO3, unit="N m"),
     },
     optional=True,
 )
@@ -378,14 +422,14 @@ SCHEMA = Table(
             {
                 "start": Choice(choices=SUPPORTS, default="clamped"),
                 "end": Choice(choices=SUPPORTS, default="free"),
-                "start_motion": Vector(default=_ZERO3, unit="m"),
-                "end_motion": Vector(default=_ZERO3, unit="m"),
+                "start_motion": LoadVector(default=_ZERO3, unit="m"),
+                "end_motion": LoadVector(default=_ZERO3, unit="m"),
             }
         ),
         "loads": Table(
             {
-                "force_density": Vector(default=_ZERO3, unit="N/m"),
-                "torque_density": Vector(default=_ZERO3, unit="N m/m"),
+                "force_density": LoadVector(default=_ZERO3, unit="N/m"),
+                "torque_density": LoadVector(default=_ZERO3, unit="N m/m"),
                 "start": _END_LOAD,
                 "end": _END_LOAD,
                 # a force [N] and torque [N m] at the node s [m] inside the rod

@@ -35,6 +35,7 @@ from .checkpoint import Checkpoint, check_outputs
 from .errors import SceneError
 from .events import Events, Observer, drive
 from .integrators import GeneralizedAlpha, make_integrator
+from .load_data import refuse_callable_restart
 from .loop import TimeLoop
 from .model import RodModel, build_model
 from .newton import NewtonSettings, NewtonSolver
@@ -85,6 +86,7 @@ def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: 
     a, L, W = integrator.initial_rate_problem()
     a_form, L_form = fem.form(a), fem.form(L)
     model.move_supports(integrator.time, rates=True)  # moving supports: U̇ = their rates
+    model.sync_loads(integrator.time_eval)  # loads given by data, at τ0
     A = assemble_matrix(a_form, bcs=model.bcs)
     A.assemble()
     b = assemble_vector(L_form)
@@ -144,6 +146,7 @@ def run(
     refuse_closed(scene, "run")
     fields = _stations(fields, field_every)
     if restart is not None:
+        refuse_callable_restart(scene)
         out_dir, write_outputs = restart.run_dir, True
     out = None
     if write_outputs:

@@ -217,6 +217,7 @@ def static_path(
     settings.jacobian = "full"
     solver = NewtonSolver(integrator.residual_form(), model.U, model.bcs, settings)
     integrator.prepare(scene.static.time * model.omega0)
+    model.sync_loads(integrator.time_eval)  # loads given by data, at static.time
 
     summary = {
         "status": "running",

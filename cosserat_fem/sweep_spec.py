@@ -57,12 +57,13 @@ from __future__ import annotations
 import itertools
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from . import budget
 from .errors import SceneError, show_value
+from .load_data import TableStore
 from .response import DIRECTIONS, ResponseSettings, check_sampling, period_of
 from .scene import Scene, scene_from_dict
 from .schema import apply_overrides, read_toml
@@ -111,18 +112,25 @@ class SweepSpec:
     #: Members run one after another, each from the previous one's final state (a frequency
     #: response's continuation); without one, every member is a chain of its own.
     chains: tuple[tuple[int, ...], ...] = ()
+    #: The tables of loads given by data, read once when the sweep was validated (every
+    #: member's scene is built from them: no rank reads a file again, cosserat_fem/load_data.py).
+    tables: TableStore = field(default_factory=TableStore, compare=False, repr=False)
 
     def scene(self, member: Member, extra: dict[str, Any] | None = None) -> Scene:
         """The member's resolved scene (validated with the sweep; built again here, ~1 ms,
         rather than kept: ~14 kB a member would grow with the sweep on every rank);
         ``extra``: dotted keys set besides its values (a forced member's time span)."""
-        return scene_from_dict(self.base, self.source, {**member.values, **(extra or {})})
+        return scene_from_dict(self.base, self.source, {**member.values, **(extra or {})},
+                               tables=self.tables)  # fmt: skip
 
     def fingerprint(self) -> str:
-        """What identifies the sweep's work: the base scene, every member's values and the
-        response's settings (a restarted sweep must be the same sweep)."""
+        """What identifies the sweep's work: the base scene, every member's values, the
+        response's settings and the content (SHA-256) of every table (a restarted sweep must
+        be the same sweep)."""
         members = [[m.values, m.direction] if m.direction else m.values for m in self.members]
         document = {"base": self.base, "members": members}
+        if self.tables.files:
+            document["tables"] = self.tables.digests()
         if self.response is not None:
             document["response"] = self.response.__dict__
         if self.chains_continue:  # the saved states are parts of a group's partition
@@ -380,6 +388,7 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
     except SceneError as exc:
         raise SceneError(f"sweep.set: {exc}") from None
     values, varied = _members(table, combine)
+    tables = TableStore.collective(scene_path.parent)
     response = _response(table.get("response"), varied)
     members, chains = _chains(values, varied, response)
     if len(members) > max_members:
@@ -387,13 +396,14 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
                          f"directions), more than max_members = {max_members}")  # fmt: skip
     for member in members[: len(values)]:
         try:
-            scene = scene_from_dict(base_data, str(scene_path), member.values)
+            scene = scene_from_dict(base_data, str(scene_path), member.values, tables=tables)
             if response is not None:  # its longest run, checked as a run is (budget.py)
                 where = f"member {member.index}"
                 period, span = forced_span(response, scene, scene.time.start, where)
                 if response.steps_per_period is None:
                     check_sampling(response, period, scene.time.step, where)
-                longest = scene_from_dict(base_data, str(scene_path), {**member.values, **span})
+                longest = scene_from_dict(base_data, str(scene_path), {**member.values, **span},
+                                          tables=tables)  # fmt: skip
                 try:
                     budget.check(longest, "run", ranks=group_size)
                 except SceneError as exc:
@@ -402,5 +412,6 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
         except SceneError as exc:
             raise SceneError(f"sweep member {member.index} ({member.describe()}): {exc}"
                              ) from None  # fmt: skip
+    tables.seal()  # every member's tables are read: none is read again in a group
     return SweepSpec(base_data, str(scene_path), tuple(members), varied, group_size, keep,
-                     response, tuple(chains))  # fmt: skip
+                     response, tuple(chains), tables)  # fmt: skip

@@ -548,12 +548,14 @@ def _sized(shape: str, n: int) -> str:
 @pytest.mark.parametrize("shape", ["sum", "product", "calls"])
 def test_node_limit(shape: str) -> None:
     """D14: the size limit is exact (the nodes of the tree: numbers, names, operators, calls)
-    and its message says the limit and what was found."""
+    and its message says the limit and what was found, and names the alternative for a load
+    given by data (a measured history), a table (issue 25 E24)."""
     for n in (MAX_NODES - 1, MAX_NODES):
         assert node_count(accepted(_sized(shape, n)).tree) == n
     for n in (MAX_NODES + 1, MAX_NODES + 2, 2 * MAX_NODES):
         message = refused(_sized(shape, n), f"more than the limit of {MAX_NODES}")
         assert f"expression of {n} numbers, names and operators" in message
+        assert '{table = "file.csv", column = "..."}' in message  # the alternative for data
 
 
 def test_length_limit() -> None:

@@ -322,3 +322,132 @@ def test_damaged_run_folders_restart_exactly_or_not_at_all(runs, tmp_path, capsy
         shutil.rmtree(folder)
     print(outcomes)
     assert outcomes["refused"] >= 10 and outcomes["continued"] >= 1, outcomes
+
+
+# ---------------------------------------------------------------- tables of loads (data)
+#: Malformed table files, each a component of loads.end.force (key loads.end.force[1]) with
+#: the words its one-line refusal must hold.
+BAD_TABLES = [
+    (b"", {}, "holds no header line"),
+    (b"# only a comment\n\n", {}, "holds no header line"),
+    (b"t, F\n", {}, "a header but no rows"),
+    (b"x, F\n0, 1\n1, 2\n", {}, "needs a column t"),
+    (b"t, F, F\n0, 1, 2\n", {}, "names column 'F' twice"),
+    (b"t, , F\n0, 1, 2\n", {}, "column 2 of the header has no name"),
+    (b"0, 1\n1, 2\n", {}, "must name the columns"),
+    (b"t, F\n0, 1\n1\n", {}, "line 3: 1 values, the header names 2"),
+    (b"t, F\n0, 1\n1, abc\n", {}, "line 3: column F: not a number"),
+    (b"t, F\n0, nan\n1, 2\n", {}, "line 2: column F: not a finite number"),
+    (b"t, F\n0, 1\n1, -inf\n", {}, "line 3: column F: not a finite number"),
+    (b"t, F\n0, 1\n1e999, 2\n", {}, "line 3: column t: not a finite number"),
+    (b"t, F\n0, 1\n2, 2\n1, 3\n", {}, "line 4: t = 1.0 does not increase"),
+    (b"t, F\n0, 1\n0, 2\n1, 3\n", {}, "line 3: t = 0.0 does not increase"),
+    (b"t, F\n0, 1\n1, 2\n2, 3\n", {"interpolation": "cubic"}, "3 rows; interpolation"),
+    (b"t, F\n0, 1\n", {}, "1 rows; interpolation \"linear\" needs at least 2"),
+    (b"t, F\n0, \xff\n", {}, "is not UTF-8 text"),
+    (b"t, F\n0, 1\n1, 2\n", {"column": "G"}, ".column: "),
+    (b"t, F\n0, 1\n1, 2\n", {"column": "t"}, "has no value column \"t\""),
+    (b"t, s, F\n0, 0, 1\n0, 1, 1\n1, 0, 1\n", {}, "not a full grid"),
+    (b"t, s, F\n0, 1, 1\n0, 0, 1\n1, 1, 1\n1, 0, 1\n", {}, "line 3: s = 0.0 does not increase"),
+    (b"t, s, F\n0, 0, 1\n0, 1, 1\n1, 0, 1\n1, 2, 1\n", {}, "line 5: not a full grid"),
+    (b"t, s, F\n1, 0, 1\n1, 1, 1\n0, 0, 1\n0, 1, 1\n", {}, "line 4: t = 0.0 is before"),
+    (b"t, s, F\n0, 0, 1\n0, 1, 1\n1, 0, 1\n1, 1, 1\n", {}, "not on the arc length s"),
+    (b"t, F\n0, 1\n1e-3, 2\n", {}, "covers t in [0, 0.001] s, the scene needs [0, 0.06] s"),
+    (b"t, F\n0, 1\n1, 2\n", {"sha256": "0" * 64}, ".sha256: "),
+    (b"t, F\n0, 1\n1, 2\n", {"colum": "F"}, "colum: unknown key (did you mean"),
+    (b"t, F\n0, 1\n1, 2\n", {"interpolation": "cubik"}, "(did you mean \"cubic\"?)"),
+    (b"t, F\n0, 1\n1, 2\n", {"outside": "never"}, "outside: must be one of"),
+    (b"t, F\n0, 1\n1, 2\n", {"column": ""}, "column: must be a non-empty string"),
+    (b"t, F\n0, 1\n1, 2\n", {"table": 1}, "table: must be a non-empty string"),
+]
+
+
+def _table_scene(tmp_path: Path, content: bytes | None, spec: dict, key: str = "loads.end.force",
+                 index: int = 1) -> list[str]:  # fmt: skip
+    """validate's argv for the paper's scene (in tmp_path) with a table component at
+    ``key[index]``: ``content`` written to t.csv (None: the spec's own table)."""
+    scene = tmp_path / "scene.toml"
+    if not scene.exists():
+        shutil.copy(SCENE, scene)
+    if content is not None:
+        (tmp_path / "t.csv").write_bytes(content)
+    entries = {"table": "t.csv", "column": "F", **spec}
+    inline = "{" + ", ".join(f"{k} = {json.dumps(v)}" for k, v in entries.items()) + "}"
+    vector = ["0", "0", "0"]
+    vector[index] = inline
+    return ["validate", str(scene), "--set", f"{key}=[{', '.join(vector)}]"]
+
+
+def _refused(argv: list[str], capsys) -> str:
+    """The one stderr line of a refusal with exit status 2."""
+    capsys.readouterr()
+    status = main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1, (argv, status, err)
+    assert "internal error" not in err[0] and "Traceback" not in err[0], err
+    return err[0].removeprefix("cosserat-fem: error: ")
+
+
+@pytest.mark.parametrize("content, spec, words", BAD_TABLES)
+def test_malformed_tables_are_refused_in_one_line(tmp_path, capsys, content, spec, words):
+    """Each malformed table (cosserat_fem/load_data.py: header, rows, numbers, monotone t, a
+    full grid, rows enough for the interpolation, the span the scene needs, the content the
+    scene pins, the inline table's keys) is refused by validate with exit 2 and one line that
+    names the component's key and says what is wrong (and where: the line of the file)."""
+    line = _refused(_table_scene(tmp_path, content, spec), capsys)
+    assert line.startswith("loads.end.force[1]"), line
+    assert words in line, line
+
+
+def test_tables_that_are_not_regular_files_or_too_large_are_refused(tmp_path, capsys):
+    """A missing file, a directory, a FIFO (which would block a reader waiting for a writer:
+    opened without blocking, and refused), a link to one, /dev/zero (endless) and a file
+    beyond the 16 MiB limit (sparse: refused from its size, unread): one line each."""
+    import os
+
+    from cosserat_fem.load_data import MAX_TABLE_BYTES
+
+    (tmp_path / "dir").mkdir()
+    os.mkfifo(tmp_path / "fifo")
+    (tmp_path / "link").symlink_to(tmp_path / "fifo")
+    with open(tmp_path / "big.csv", "wb") as stream:
+        stream.truncate(MAX_TABLE_BYTES + 1)
+    special = "is not a regular file"
+    cases = [("missing.csv", "not found"), ("dir", special), ("fifo", special),
+             ("link", special), ("/dev/zero", special), ("big.csv", "more than the limit")]
+    for name, words in cases:
+        line = _refused(_table_scene(tmp_path, None, {"table": name}), capsys)
+        assert line.startswith("loads.end.force[1].table: ") and words in line, line
+
+
+def test_tables_where_they_do_not_belong_are_refused(tmp_path, capsys):
+    """A table as gravity or an initial field (numbers, expressions of s), a step table or a
+    grid as a support's motion, a table whose grid does not cover the rod: one line each,
+    naming the key."""
+    good = b"t, F\n0, 0\n1, 1\n"
+    grid = b"t, s, F\n0, 0, 1\n0, 0.5, 1\n1, 0, 1\n1, 0.5, 1\n"
+    cases = [
+        (good, {}, "loads.gravity", 0, "loads.gravity[0]: must be a number or an expression"),
+        (good, {}, "initial.velocity", 0, "initial.velocity[0]: must be a number or an"),
+        (good, {"interpolation": "previous"}, "supports.start_motion", 0,
+         'supports.start_motion[0].interpolation: "previous" is not allowed'),
+        (grid, {}, "supports.start_motion", 0, "supports.start_motion[0]: table"),
+        (grid, {}, "loads.force_density", 0,
+         "loads.force_density[0]: table 't.csv' column 'F' (linear) covers s in [0, 0.5] m"),
+    ]  # fmt: skip
+    for content, spec, key, index, words in cases:
+        line = _refused(_table_scene(tmp_path, content, spec, key, index), capsys)
+        assert line.startswith(words), line
+
+
+def test_a_good_table_is_shown_by_validate(tmp_path, capsys):
+    """A table (with a byte-order mark and comments, as spreadsheets and loggers write) is
+    accepted; validate shows its keys with the load's unit and what it holds."""
+    content = "\ufeff# logged\nt, F\n0, 0\n# a pause\n0.1, 5\n".encode()
+    argv = _table_scene(tmp_path, content, {"interpolation": "pchip"})
+    capsys.readouterr()
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    assert 'loads.end.force = ["0", {table = "' in out and '"}, "0"] [N]' in out
+    assert "interpolation = \"pchip\", outside = \"refuse\", sha256 = \"" in out
+    assert "loads.end.force[1] [N]: table " in out and "2 rows, t in [0, 0.1] s" in out

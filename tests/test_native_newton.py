@@ -19,7 +19,8 @@ An SDIRK step with a reused Jacobian and no moving support is one C call too
 (cosserat_fem/native_sdirk.py, ``cf_sdirk_step``: stage values, predictor, Newton's policy and
 solves); the cases in :data:`STEPS_IN_C` take every step that way (counted), among them SDIRK4,
 a lagged Jacobian, adaptive steps, a form that changes, and solves that fail: retried with a
-fresh Jacobian, then steps rejected and halved.
+fresh Jacobian, then steps rejected and halved; and loads given by data (a grid table, a table
+of t, a callable torque whose term the Jacobian holds), whose stage values the C step puts in.
 """
 
 from __future__ import annotations
@@ -94,6 +95,48 @@ def test_the_c_loop_gives_the_python_loops_iterates_bit_for_bit(case):
     # support; every attempt counts, rejected ones too.
     attempts = native.summary["accepted_steps"] + native.summary["rejected_steps"]
     assert counted.steps == (attempts if case in STEPS_IN_C else 0)
+
+
+def _data_loads(folder) -> dict:
+    """Loads given by data (cosserat_fem/load_data.py) for the paper's scene: its force
+    density as a grid table (linear in t, cubic in s), an end force as a cubic table of t and
+    an end torque as a callable."""
+    import math
+
+    omega = 8 * 207.0236
+    rows = ["t, s, q"] + [
+        f"{i * 1e-4!r}, {s!r}, {2e3 * math.sin(math.pi * s) * math.sin(omega * i * 1e-4)!r}"
+        for i in range(40) for s in np.linspace(0.0, 1.0, 9)
+    ]  # fmt: skip
+    (folder / "grid.csv").write_text("\n".join(rows) + "\n")
+    tip = ["t, F"] + [f"{i * 1e-4!r}, {20 * math.sin(3000 * i * 1e-4)!r}" for i in range(40)]
+    (folder / "tip.csv").write_text("\n".join(tip) + "\n")
+    grid = {"table": str(folder / "grid.csv"), "column": "q", "s_interpolation": "cubic"}
+    force = {"table": str(folder / "tip.csv"), "column": "F", "interpolation": "cubic"}
+    return {"loads.force_density": [grid, grid, 0], "loads.end.force": [0, force, 0],
+            "loads.end.torque": [0, 0, lambda t: 5.0 * math.sin(2000.0 * t)]}  # fmt: skip
+
+
+@pytest.mark.parametrize("extra", [[], ["time.integrator=sdirk4"], ["time.adaptive=true"]])
+def test_loads_from_data_in_the_c_step_bit_for_bit(tmp_path, extra):
+    """A grid table, a table of t and a callable (issue 25 E24): the whole SDIRK step in C
+    puts their values at each stage time, computed before the step, where the Python step's
+    solves set them; the same bits and counters (SDIRK4's stages outside the step included),
+    and every step taken in C."""
+    sets = {"time.end": 60 * 3e-5, "output.xdmf": False, **_data_loads(tmp_path)}
+    path = ROOT / "scenes" / "cao_tucker_2008.toml"
+    for word in extra:
+        key, _, value = word.partition("=")
+        sets[key] = value if value != "true" else True
+    python = api.run(api.load(path, {**sets, "solver.loop": "python"}))
+    counted = _Steps()
+    native = api.run(api.load(path, {**sets, "solver.loop": "auto"}), observers=[counted])
+    assert native.summary["newton"]["loop"] == "c" and python.summary["status"] == "completed"
+    assert np.array_equal(python.probes, native.probes)
+    for key in ("solves", "iterations", "residual_assemblies", "jacobian_assemblies"):
+        assert python.summary["newton"][key] == native.summary["newton"][key], key
+    assert counted.steps == native.summary["accepted_steps"] + native.summary["rejected_steps"]
+    assert counted.steps > 0
 
 
 def test_a_point_load_keeps_the_python_loop():
