@@ -56,7 +56,9 @@ def run(
     ``record`` is false) and, with ``fields`` (stations σ = s/ℓ in [0, 1]), ``field_times``
     (T,) and ``field_values`` (T, stations, 6) every ``field_every`` output times. Files
     (probes.csv, XDMF, checkpoints, summary.json) only with ``out``, or in the checkpoint's
-    folder with ``restart`` (from :func:`resume`). ``observers``: cosserat_fem/events.py;
+    folder with ``restart`` (from :func:`resume`; ``scene`` must then be the checkpoint's,
+    changed at most in the keys a restart may change, ``out`` none or that folder, and
+    ``initial_state`` none: a SceneError otherwise). ``observers``: cosserat_fem/events.py;
     ``progress(t [s], steps, Newton iterations)`` at every output time."""
     from .simulation import run as run_scene
 
@@ -96,18 +98,13 @@ def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()
     time.end, solver.*, limits.*, ...); SceneError if there is no usable checkpoint, or
     time.end is not later than it."""
     from .checkpoint import FIXED_KEYS, load_checkpoint, restart_overrides
-    from .errors import SceneError
 
     texts = [f"{k}=" for k in overrides] if isinstance(overrides, Mapping) else overrides
     restart_overrides(texts)
     checkpoint = load_checkpoint(folder)
     scene = scene_from_dict(checkpoint.meta["scene"], source=f"{folder}/checkpoint",
-                            overrides=overrides, fixed=FIXED_KEYS)  # fmt: skip
-    if not scene.time.end > checkpoint.time:
-        raise SceneError(
-            f"time.end: the checkpoint is at t = {checkpoint.time:.10g} s; give a later end "
-            f"to continue (--set time.end=...), got {scene.time.end:.10g}"
-        )
+                            overrides=overrides, fixed=FIXED_KEYS,
+                            after=checkpoint.time)  # fmt: skip
     return scene, checkpoint
 
 

@@ -31,7 +31,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import __version__, budget
-from .checkpoint import Checkpoint, check_outputs
+from .checkpoint import Checkpoint, check_outputs, check_restart_scene
 from .errors import SceneError
 from .events import Events, Observer, drive
 from .integrators import GeneralizedAlpha, make_integrator
@@ -132,8 +132,9 @@ def run(
     The rod starts from rest in its straight state, or from the scene's [initial] fields, or
     from ``initial_state`` (the array of a 12-component state U = (p, q) on the same
     discretisation, e.g. a static solution), or continues the run of the checkpoint
-    ``restart`` in its folder (cosserat_fem/checkpoint.py; ``scene`` is then the
-    checkpoint's, with the overrides a restart allows). Outputs go to ``out_dir`` (default
+    ``restart`` in its folder (cosserat_fem/checkpoint.py; ``scene`` must then be the
+    checkpoint's, with the overrides a restart allows, ``out_dir`` none or that folder,
+    ``initial_state`` none: :func:`_check_restart`). Outputs go to ``out_dir`` (default
     the scene's output.directory) unless ``write_outputs`` is false. ``observers``: objects
     with the hooks of cosserat_fem/events.py, or functions f(k, t [s], model) called at every
     output time. ``progress(t [s], steps taken, Newton iterations)`` is called at every
@@ -144,6 +145,7 @@ def run(
     refuse_closed(scene, "run")
     fields = _stations(fields, field_every)
     if restart is not None:
+        _check_restart(scene, restart, out_dir, initial_state)
         out_dir, write_outputs = restart.run_dir, True
     out = None
     if write_outputs:
@@ -189,6 +191,30 @@ def run(
         field_values=values,
         field_stations=fields,
     )
+
+
+def _check_restart(scene: Scene, restart, out_dir, initial_state) -> None:
+    """A restart continues the checkpoint's run, in its folder, from its state, with its
+    scene (changed at most where cosserat_fem/checkpoint.py allows): a SceneError naming the
+    argument otherwise, before anything is touched (the same on every rank)."""
+    if not isinstance(restart, Checkpoint):
+        raise SceneError(f"restart: must be the checkpoint of cf.resume(folder), got "
+                         f"{type(restart).__name__}")  # fmt: skip
+    if initial_state is not None:
+        raise SceneError("initial_state: cannot be given with restart (the run continues from "
+                         "the checkpoint's state)")  # fmt: skip
+    if out_dir is not None and not _same_folder(Path(out_dir), restart.run_dir):
+        raise SceneError(f"out: the run continues in its checkpoint's folder "
+                         f"{str(restart.run_dir)!r}; give no out (or that folder), got "
+                         f"{str(out_dir)!r}")  # fmt: skip
+    check_restart_scene(restart, scene)
+
+
+def _same_folder(a: Path, b: Path) -> bool:
+    try:
+        return a.samefile(b)
+    except OSError:
+        return False
 
 
 def _stations(fields, field_every) -> np.ndarray | None:

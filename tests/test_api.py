@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import os
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -115,3 +116,95 @@ def test_every_api_name_stays_a_function_once_the_machinery_is_imported():
         importlib.import_module(f"cosserat_fem.{info.name}")
     for name in cf._API:
         assert getattr(cf, name) is getattr(api, name), name
+
+
+# ------------------------------------------------------------------------------ restarts
+RESTART_SETTINGS = {"time.end": 0.0015, "output.xdmf_interval": 3e-4}
+TRIPLE = "6e3*sin(pi*s/L)*sin(8*omega0*t)"  # three times the paper's load
+
+
+@pytest.fixture(scope="module")
+def completed(tmp_path_factory):
+    """A completed run of 50 steps (t = 1.5 ms) whose checkpoint is at its end."""
+    folder = tmp_path_factory.mktemp("restart") / "run"
+    cf.run(cf.load(SCENE, RESTART_SETTINGS), folder)
+    return folder
+
+
+def _copy(folder, tmp_path):
+    import shutil
+
+    return Path(shutil.copytree(folder, tmp_path / "copy"))
+
+
+def _digests(folder) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file()}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("overrides", "key"),
+    [
+        ({"rod.material.young_modulus": 3.55e10, "loads.force_density": [TRIPLE, TRIPLE, 0]},
+         "rod.material.young_modulus"),  # the issue's splice: E halved, 3x the load
+        ({"loads.force_density": [TRIPLE, 0, 0]}, "loads.force_density"),
+        ({"discretisation.elements": 9}, "discretisation.elements"),
+        ({"time.step": 1.5e-5}, "time.step"),
+        ({"title": "another"}, "title"),
+        ({"loads.end.force": [0, 0, 1]}, "loads.end"),
+        ({"output.xdmf": False}, "output.xdmf"),
+    ],
+)
+def test_a_restart_refuses_a_scene_that_is_not_the_checkpoints(completed, tmp_path, overrides,
+                                                                 key):  # fmt: skip
+    """cf.run(scene, restart=checkpoint) continued the checkpoint's state with any scene: E
+    halved and three times the load gave a splice of two problems and a normal exit. Now a
+    scene that differs from the checkpoint's run in a key a restart may not change is a
+    SceneError naming that key, and the folder is as it was."""
+    folder = _copy(completed, tmp_path)
+    before = _digests(folder)
+    scene, checkpoint = cf.resume(folder, {"time.end": 0.0018})
+    other = cf.load(SCENE, {**RESTART_SETTINGS, "time.end": 0.0018, **overrides})
+    with pytest.raises(SceneError, match=f"^{re.escape(key)}[.:]"):
+        cf.run(other, restart=checkpoint)
+    assert _digests(folder) == before
+
+
+def test_a_restart_refuses_another_folder_and_an_initial_state(completed, tmp_path):
+    """out= was silently ignored on a restart (the run went on in the checkpoint's folder) and
+    so was initial_state: both are refused by name, and so are a restart that is not a
+    checkpoint and a scene whose time.end does not pass the checkpoint; out= naming the
+    checkpoint's folder is that folder, and the run goes on there (to 1.8 ms: 60 steps)."""
+    folder = _copy(completed, tmp_path)
+    before = _digests(folder)
+    scene, checkpoint = cf.resume(folder, {"time.end": 0.0018})
+    with pytest.raises(SceneError, match="^out: the run continues in its checkpoint's folder"):
+        cf.run(scene, tmp_path / "elsewhere", restart=checkpoint)
+    assert not (tmp_path / "elsewhere").exists()
+    with pytest.raises(SceneError, match="^initial_state: cannot be given with restart"):
+        cf.run(scene, restart=checkpoint, initial_state=np.zeros(1))
+    with pytest.raises(SceneError, match="^restart: must be the checkpoint of cf.resume"):
+        cf.run(scene, restart=str(folder))
+    for end in (0.0012, 0.0015):  # at or before the checkpoint: nothing to continue
+        earlier = cf.load(SCENE, {**RESTART_SETTINGS, "time.end": end})
+        with pytest.raises(SceneError, match="^time.end: the checkpoint is at t = 0.0015 s"):
+            cf.run(earlier, restart=checkpoint)
+    assert _digests(folder) == before
+    result = cf.run(scene, folder / ".", restart=checkpoint)
+    assert result.summary["status"] == "completed" and result.steps == 60
+
+
+@pytest.mark.parametrize("end", [0.001, 0.00101, 0.0015, 0.00151, 0.00155])
+def test_a_restart_end_before_or_at_the_checkpoint_suggests_later_ends(completed, end):
+    """time.end at or before the checkpoint (1.5 ms) was answered with "e.g. time.end =
+    0.00099 or 0.00102", two ends before it; an end just after it that is not a whole
+    number of steps (30 μs) with 0.0015, the checkpoint itself. Every end a refusal names
+    is now later than the checkpoint: before it, the checkpoint's own message; after it, the
+    whole numbers of steps around it that pass it."""
+    with pytest.raises(SceneError, match="^time.end: ") as caught:
+        cf.resume(completed, {"time.end": end})
+    text = str(caught.value)
+    if end <= 0.0015:
+        assert "the checkpoint is at t = 0.0015 s; give a later end" in text
+    suggested = [float(v) for v in re.findall(r"time\.end = ([0-9.e-]+)", text)]
+    assert all(v > 0.0015 for v in suggested), text
