@@ -50,7 +50,7 @@ from .observers import (
     XdmfObserver,
 )
 from .output import PointProbe, probe_position, probe_sigma
-from .parallel import ranks_on_node
+from .parallel import agree, ranks_on_node
 from .run_folder import PROBES, XDMF, new_run_id, prepare_output_dir, status_of
 from .scene import Scene, refuse_closed
 
@@ -147,6 +147,7 @@ def run(
     if restart is not None:
         _check_restart(scene, restart, out_dir, initial_state)
         out_dir, write_outputs = restart.run_dir, True
+    initial_state = _initial_array(initial_state, comm)
     out = None
     if write_outputs:
         out = Path(out_dir if out_dir is not None else scene.output.directory)
@@ -210,6 +211,27 @@ def _check_restart(scene: Scene, restart, out_dir, initial_state) -> None:
     check_restart_scene(restart, scene)
 
 
+def _initial_array(initial_state, comm) -> np.ndarray | None:
+    """``initial_state`` as a flat array of finite numbers (this rank's part), checked before
+    any work: a SceneError naming it on every rank otherwise (collective). A NaN went into
+    the first step and was reported as a residual that is not finite, blamed on the loads."""
+    if initial_state is None:
+        agree(comm, None)
+        return None
+    state, problem = None, None
+    try:
+        state = np.asarray(initial_state, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        problem = SceneError(f"initial_state: must be an array of numbers (12 per node), got "
+                             f"{type(initial_state).__name__}")  # fmt: skip
+    if state is not None and not np.isfinite(state).all():
+        i = int(np.flatnonzero(~np.isfinite(state))[0])
+        problem = SceneError(f"initial_state: value {i} (node {i // 12}, component {i % 12} of "
+                             f"12) is not finite ({state[i]!r})")  # fmt: skip
+    agree(comm, problem)
+    return state
+
+
 def _same_folder(a: Path, b: Path) -> bool:
     try:
         return a.samefile(b)
@@ -237,6 +259,12 @@ def _stations(fields, field_every) -> np.ndarray | None:
 def _discretise(scene: Scene, comm, initial_state, restart):
     """The model (in its initial state), the integrator and the Newton solver of a run."""
     model = build_model(scene, comm)
+    if initial_state is not None:
+        wrong = np.size(initial_state) != 12 * model.nodes
+        agree(comm, SceneError(
+            f"initial_state: {np.size(initial_state)} values, expected 12 a node of this rank's "
+            f"mesh ({12 * model.nodes}; a reduced state: embed it with Layout.full_array)"
+        ) if wrong else None)  # fmt: skip
     if initial_state is not None and _leaves_plane(model, initial_state):
         model = build_model(scene, comm, planar=False)  # it keeps all twelve unknowns
     if model.needs_chart:

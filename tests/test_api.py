@@ -102,6 +102,26 @@ def test_bad_sampling_arguments_are_refused_before_any_work(kwargs, key):
         cf.run(cf.load(SCENE, {"time.end": 0.0003}), **kwargs)
 
 
+def test_a_bad_initial_state_is_refused_by_name(tmp_path):
+    """A NaN in cf.run(initial_state=...) went into the first step and came back as "the
+    residual is not finite ... check the magnitude of the loads" after six halvings; an
+    array of the wrong size or not of numbers as an internal ValueError. Each is now a
+    SceneError naming initial_state (the NaN's node and component), before the run starts.
+    A state of the right size and finite values runs (the straight rod at rest: zeros)."""
+    scene = cf.load(SCENE, {"time.end": 0.0003})
+    nodes = cf.run(scene).model.nodes
+    nan = np.zeros(12 * nodes)
+    nan[12 * 3 + 4] = np.nan
+    cases = [(nan, r"value 40 \(node 3, component 4 of 12\) is not finite"),
+             (np.full(12 * nodes, np.inf), "value 0 .* is not finite"),
+             ("x", "must be an array of numbers"), ([[1, 2], [3]], "must be an array"),
+             (np.zeros(7), "7 values, expected 12 a node"), (np.zeros(12), "12 values")]
+    for state, reason in cases:
+        with pytest.raises(SceneError, match=f"^initial_state: {reason}"):
+            cf.run(scene, tmp_path / "out", initial_state=state)
+    assert cf.run(scene, initial_state=np.zeros(12 * nodes)).summary["status"] == "completed"
+
+
 def test_every_api_name_stays_a_function_once_the_machinery_is_imported():
     """The package's API names (cosserat_fem.__init__._API) are the functions of api.py even
     after every module of the package has been imported: a submodule named like an API
