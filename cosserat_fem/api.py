@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from .errors import SceneError, out_folder
 from .events import Observer
 from .scene import Scene, load_scene, scene_from_dict
 
@@ -62,6 +63,7 @@ def run(
     ``progress(t [s], steps, Newton iterations)`` at every output time."""
     from .simulation import run as run_scene
 
+    out = out_folder(out)
     return run_scene(
         scene,
         out,
@@ -89,7 +91,9 @@ def sweep(spec, out: str | Path):
     groups of ``group_size`` ranks): a SweepResult with the table's path and rows."""
     from .sweep_run import run_sweep
 
-    return run_sweep(spec, out)
+    if out is None:
+        raise SceneError("out (--out): a sweep needs its folder")
+    return run_sweep(spec, out_folder(out))
 
 
 def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()):
@@ -114,6 +118,7 @@ def static(scene: Scene, out: str | Path | None = None, *, observers=()):
     (λ, x, y, z, θ, ψ, φ) at every accepted load factor λ. Files only with ``out``."""
     from .statics import static_path
 
+    out = out_folder(out)
     return static_path(scene, out, write_outputs=out is not None, observers=observers,
                        record=True)  # fmt: skip
 
@@ -129,7 +134,8 @@ def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | P
     from .run_folder import prepare_output_dir
 
     check_count(scene, count)
-    folder = None if out is None else prepare_output_dir(Path(out), MPI.COMM_WORLD)
+    out = out_folder(out)
+    folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD)
     model, found = compute_modes(scene, count, about=about)
     if folder is not None:
         write_modes(folder, model, found, about)
@@ -159,11 +165,11 @@ def pod(
     in ``result.files``. Bad input raises a SceneError naming the argument."""
     from mpi4py import MPI
 
-    from .errors import SceneError
     from .karhunen_loeve import pod as decompose
     from .karhunen_loeve import read_run, snapshots_of_result, write_pod
     from .parallel import agree
 
+    out = out_folder(out)
     if isinstance(source, str | Path):
         if stations is not None:
             raise SceneError("stations: a run folder's are its output points; give none")

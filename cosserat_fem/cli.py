@@ -26,7 +26,7 @@ import warnings
 from pathlib import Path
 
 from . import __version__
-from .errors import CosseratError, SceneError, SolverError, StopError
+from .errors import CosseratError, SceneError, SolverError, StopError, out_folder
 
 
 def _common(sub: argparse.ArgumentParser, scene_optional: bool = False) -> None:
@@ -36,7 +36,8 @@ def _common(sub: argparse.ArgumentParser, scene_optional: bool = False) -> None:
         nargs="?" if scene_optional else None,
         help="scene file (TOML), e.g. scenes/cao_tucker_2008.toml",
     )
-    sub.add_argument("--out", metavar="DIR", help="output folder (default: output.directory)")
+    sub.add_argument("--out", metavar="DIR", help="output folder (default: output.directory; "
+                     "static and modes: its static/ and modes/)")
     sub.add_argument(
         "--set",
         metavar="KEY=VALUE",
@@ -173,8 +174,9 @@ def _pod(args) -> int:
 
     from . import api
 
+    out = args.run_dir if args.out is None else args.out
     result = api.pod(args.run_dir, modes=args.modes, weighting=args.weighting,
-                     remove_mean=not args.keep_mean, out=args.out or args.run_dir)  # fmt: skip
+                     remove_mean=not args.keep_mean, out=out)  # fmt: skip
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         print(f"cosserat-fem: POD of {len(result.times)} frames at {len(result.s)} points "
               f"({result.weighting} weighting, mean {'removed' if result.remove_mean else 'kept'}"
@@ -186,6 +188,21 @@ def _pod(args) -> int:
             print(f"{k:4d} {e:20.10e} {f:12.6e} {c:12.6f}")
         print("-> " + ", ".join(str(p) for p in result.files))
     return 0
+
+
+#: Where a command writes without --out: ``run`` into the scene's output.directory, ``static``
+#: and ``modes`` into folders of their own beneath it (a static solve would replace a run's
+#: probes.csv, summary.json and checkpoint; modes would mix its files into the run's folder).
+OWN_FOLDER = {"static": "static", "modes": "modes"}
+
+
+def _out(args, scene, command: str | None = None) -> str:
+    """--out (checked by the API: an empty name is refused, not the current folder), or the
+    default folder of ``command`` (default: the command run): :data:`OWN_FOLDER`."""
+    if args.out is not None:
+        return args.out
+    own = OWN_FOLDER.get(command or args.command)
+    return str(Path(scene.output.directory) / own) if own else scene.output.directory
 
 
 def _run(args) -> int:
@@ -210,7 +227,7 @@ def _run(args) -> int:
         raise SceneError("run: give a SCENE file, or --restart DIR to continue a run")
     else:
         scene = api.load(args.scene, args.overrides)
-        start, out = scene.time.start, args.out or scene.output.directory
+        start, out = scene.time.start, _out(args, scene)
     # The bar on a terminal (it decides), never under --quiet or off rank 0.
     enabled = None if rank == 0 and not args.quiet else False
     bar = ProgressBar(start, scene.time.end, enabled=enabled)
@@ -231,7 +248,7 @@ def _static(args) -> int:
     from .forms.kinematics import P_NAMES
 
     scene = api.load(args.scene, args.overrides)
-    result = api.static(scene, args.out or scene.output.directory)
+    result = api.static(scene, _out(args, scene))
     tip = result.probes[-1, 1:]
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         print(
@@ -249,7 +266,7 @@ def _modes(args) -> int:
     from . import api
 
     scene = api.load(args.scene, args.overrides)
-    out = args.out or scene.output.directory
+    out = _out(args, scene)
     modes = api.modes(scene, args.count, args.about, out)
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         print(f"{'mode':>4} {'omega [rad/s]':>16} {'f [Hz]':>12}  kind")
@@ -269,7 +286,7 @@ def _sweep(args) -> int:
     from . import api
 
     spec = api.load_sweep(args.scene, args.overrides)
-    out = args.out or str(Path("results") / Path(args.scene).stem)
+    out = str(Path("results") / Path(args.scene).stem) if args.out is None else args.out
     result = api.sweep(spec, out)
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         statuses = [row["status"] for row in result.rows]
@@ -293,9 +310,9 @@ def _validate(args) -> int:
 
     comm = MPI.COMM_WORLD
     scene = load_scene(args.scene, args.overrides)
-    out = args.out or scene.output.directory
     node = ranks_on_node(comm)
-    costs = {c: budget.check(scene, c, out, node, comm.size) for c in ("run", "static")}
+    costs = {c: budget.check(scene, c, out_folder(_out(args, scene, c)), node, comm.size)
+             for c in ("run", "static")}  # fmt: skip
     if comm.rank == 0 and not args.quiet:
         print(describe_scene(scene))
         for command, estimate in costs.items():

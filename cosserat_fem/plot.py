@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import CosseratError, SceneError
+from .errors import CosseratError, SceneError, out_folder
 from .results import PROBE_COLUMNS, NoFramesError, RodSeries, Run, open_run, read_sweep_rows
 
 DPI = 130
@@ -51,7 +51,7 @@ def _pyplot():
 def output_folder(out: str | Path | None, directory: Path, command: str) -> Path:
     """``out`` (made if missing) or ``directory`` (the run's folder); a folder that cannot be
     made is bad input."""
-    target = Path(out) if out is not None else directory
+    target = out_folder(out, f"{command} --out") or directory
     try:
         target.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -274,6 +274,7 @@ def plot_run(directory: str | Path, out: str | Path | None = None) -> list[Path]
     sweep's folder (sweep.json) gets :func:`plot_sweep`. Everything is read (and checked)
     first; a run with neither probe rows nor XDMF frames (killed at its start) is bad input,
     as nothing can be drawn."""
+    out_folder(out, "plot --out")  # before anything is read
     if (Path(directory) / "sweep.json").is_file():
         return plot_sweep(directory, out)
     run = open_run(directory, "plot")

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import CosseratError, SceneError
+from .errors import CosseratError, SceneError, out_folder
 from .plot import output_folder
 from .results import RodSeries, open_run
 
@@ -198,6 +198,7 @@ def render_run(
         raise SceneError(f"render --frames: must be at least 1, got {max_frames}")
     if scale is not None and not (math.isfinite(scale) and scale > 0):
         raise SceneError(f"render --scale: must be a positive number, got {scale!r}")
+    out_folder(out, "render --out")
     run = open_run(directory, "render")
     series = run.series()
     if "displacement" not in series.arrays:

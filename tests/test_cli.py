@@ -133,3 +133,57 @@ def test_errors_under_mpi_are_reported_once(tmp_path):
     proc = run_scene(tmp_path / "x", "rod.length=0", ranks=2)
     assert proc.returncode == 2
     assert proc.stderr.count("cosserat-fem: error: rod.length:") == 1, proc.stderr
+
+
+SWEEP = str(ROOT / "scenes" / "sweeps" / "paper_forcing.toml")
+#: Every command that writes, with the arguments that make it write (a RUN_DIR's command's
+#: --out is checked before the folder is read: the folder given need hold nothing).
+WRITERS = {
+    "run": [SCENE, "--set", "time.end=0.0003"],
+    "static": [SCENE],
+    "modes": [SCENE, "--count", "2"],
+    "validate": [SCENE],
+    "sweep": [SWEEP],
+    "plot": ["."],
+    "render": ["."],
+    "pod": ["."],
+}
+
+
+@pytest.mark.parametrize("command", list(WRITERS))
+@pytest.mark.parametrize("out", ["", SCENE])
+def test_an_empty_or_file_out_is_refused_by_name(tmp_path, monkeypatch, capsys, command, out):
+    """``--out ''`` was taken as no --out: run, static and modes wrote into the scene's
+    output.directory, sweep into results/<name>, plot and render into the current folder, pod
+    into the run's. Given as an existing file, the error named output.directory. Each
+    command now refuses both in one line naming --out (exit 2), and nothing is written (the
+    current folder, where every default lies here, stays empty)."""
+    from cosserat_fem.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    status = main([command, *WRITERS[command], "--out", out, "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1, err
+    assert "--out" in err[0] and ("must name a folder" in err[0] or "is not a folder" in err[0])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_static_and_modes_without_out_leave_a_runs_folder_alone(tmp_path, monkeypatch, capsys):
+    """Without --out a run, a static solve and the modes of one scene all went into its
+    output.directory: the static solve claimed the folder (the run's checkpoint removed, its
+    probes.csv and summary.json replaced) and the modes' files lay among the run's. Now
+    static and modes write into static/ and modes/ beneath it: the run's files are as it
+    left them and it continues from its checkpoint."""
+    from cosserat_fem.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    folder = tmp_path / "results" / "cao_tucker_2008"  # the scene's output.directory
+    assert main(["run", SCENE, "--set", "time.end=0.0003", "--quiet"]) == 0
+    before = {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}
+    assert main(["modes", SCENE, "--count", "2", "--quiet"]) == 0
+    assert main(["static", SCENE, "--quiet"]) == 0
+    assert {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()} == before
+    assert (folder / "modes" / "modes.csv").is_file()
+    assert (folder / "static" / "probes.csv").is_file()
+    capsys.readouterr()
+    assert main(["run", "--restart", str(folder), "--set", "time.end=0.0006", "--quiet"]) == 0
