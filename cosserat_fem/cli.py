@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import signal
 import sys
 import traceback
@@ -151,6 +152,46 @@ def _run_dir(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("--debug", action="store_true", help="show tracebacks on errors")
 
 
+class _StdoutClosed(Exception):
+    """The reader of stdout has gone (``cosserat-fem modes ... | head -2``)."""
+
+
+def _say(*values, **options) -> None:
+    """print() to stdout, flushed at once, so that a reader that has gone is met here:
+    :class:`_StdoutClosed` (the command then ends quietly: :func:`_stdout_closed`)."""
+    try:
+        print(*values, **options, flush=True)
+    except BrokenPipeError:
+        raise _StdoutClosed from None
+
+
+def _stdout_closed() -> int:
+    """The end of a command whose stdout's reader has gone (``| head``): what is left to print
+    goes to /dev/null, nothing is said, and the status is 0. The work (files written) is
+    done by the time anything is printed, and only the report on it was cut, by the
+    reader's choice; a shell pipeline with ``pipefail`` then does not fail for it
+    (docs/decisions.md)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # a stdout without a file descriptor (in a test)
+        pass
+    return 0
+
+
+def _ignore_sigpipe(command: str) -> None:
+    """A write to a closed pipe raises BrokenPipeError (Python ignores SIGPIPE) rather than
+    SIGPIPE ending the process. PETSc installs its own handler for it when it starts
+    (``Caught signal number 13 Broken Pipe`` and MPI_ABORT, exit 59, for a progress line or a
+    log record written into a closed pipe): the commands that solve start it first, and
+    SIGPIPE is ignored again after it."""
+    if command in ("run", "static", "modes", "sweep"):
+        from petsc4py import PETSc  # noqa: F401 - initialises PETSc, with its signal handlers
+    with contextlib.suppress(ValueError):  # only the main thread may set handlers
+        signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+
+
 def _draw(args) -> int:
     """Figures (cosserat_fem/plot.py) or pictures and an animation (cosserat_fem/render.py) of
     the run in args.run_dir; no DOLFINx."""
@@ -163,7 +204,7 @@ def _draw(args) -> int:
 
         paths = render_run(args.run_dir, args.out, args.scale, args.format, args.frames)
     if not args.quiet:
-        print("-> " + ", ".join(str(p) for p in paths))
+        _say("-> " + ", ".join(str(p) for p in paths))
     return 0
 
 
@@ -178,15 +219,15 @@ def _pod(args) -> int:
     result = api.pod(args.run_dir, modes=args.modes, weighting=args.weighting,
                      remove_mean=not args.keep_mean, out=out)  # fmt: skip
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
-        print(f"cosserat-fem: POD of {len(result.times)} frames at {len(result.s)} points "
+        _say(f"cosserat-fem: POD of {len(result.times)} frames at {len(result.s)} points "
               f"({result.weighting} weighting, mean {'removed' if result.remove_mean else 'kept'}"
               f"), total energy {result.total:.6g} {result.unit}")  # fmt: skip
-        print(f"{'mode':>4} {'energy [' + result.unit + ']':>20} {'fraction':>12} "
+        _say(f"{'mode':>4} {'energy [' + result.unit + ']':>20} {'fraction':>12} "
               f"{'cumulative':>12}")  # fmt: skip
         for k, (e, f, c) in enumerate(zip(result.energies, result.fractions, result.cumulative,
                                           strict=True), start=1):  # fmt: skip
-            print(f"{k:4d} {e:20.10e} {f:12.6e} {c:12.6f}")
-        print("-> " + ", ".join(str(p) for p in result.files))
+            _say(f"{k:4d} {e:20.10e} {f:12.6e} {c:12.6f}")
+        _say("-> " + ", ".join(str(p) for p in result.files))
     return 0
 
 
@@ -236,7 +277,7 @@ def _run(args) -> int:
     finally:
         bar.close()
     if rank == 0 and not args.quiet:
-        print(summary_screen(result.summary, result.out_dir))
+        _say(summary_screen(result.summary, result.out_dir))
     return 0
 
 
@@ -251,11 +292,11 @@ def _static(args) -> int:
     result = api.static(scene, _out(args, scene))
     tip = result.probes[-1, 1:]
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
-        print(
+        _say(
             f"cosserat-fem: static, {len(result.load_factors) - 1} load steps "
             f"({result.bisections} halvings), {sum(result.iterations)} Newton iterations"
         )
-        print("  probe: " + ", ".join(f"{n} = {v:.10g}" for n, v in zip(P_NAMES, tip, strict=True)))
+        _say("  probe: " + ", ".join(f"{n} = {v:.10g}" for n, v in zip(P_NAMES, tip, strict=True)))
     return 0
 
 
@@ -269,12 +310,12 @@ def _modes(args) -> int:
     out = _out(args, scene)
     modes = api.modes(scene, args.count, args.about, out)
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
-        print(f"{'mode':>4} {'omega [rad/s]':>16} {'f [Hz]':>12}  kind")
+        _say(f"{'mode':>4} {'omega [rad/s]':>16} {'f [Hz]':>12}  kind")
         for i, mode in enumerate(modes, start=1):
             note = f"  ({mode.note})" if mode.note else ""
-            print(f"{i:4d} {mode.omega:16.6f} {mode.frequency_hz:12.4f}  {mode.kind}{note}")
+            _say(f"{i:4d} {mode.omega:16.6f} {mode.frequency_hz:12.4f}  {mode.kind}{note}")
         names = ("modes.csv", "modes.xdmf", "modes.json")
-        print("-> " + ", ".join(str(Path(out) / name) for name in names))
+        _say("-> " + ", ".join(str(Path(out) / name) for name in names))
     return 0
 
 
@@ -291,9 +332,9 @@ def _sweep(args) -> int:
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         statuses = [row["status"] for row in result.rows]
         counts = ", ".join(f"{s} {statuses.count(s)}" for s in dict.fromkeys(statuses))
-        print(f"cosserat-fem: sweep of {len(spec.members)} members: ran {result.ran}, skipped "
+        _say(f"cosserat-fem: sweep of {len(spec.members)} members: ran {result.ran}, skipped "
               f"{result.skipped} finished before; {counts}")  # fmt: skip
-        print(f"-> {result.table}")
+        _say(f"-> {result.table}")
     return 0
 
 
@@ -314,15 +355,21 @@ def _validate(args) -> int:
     costs = {c: budget.check(scene, c, out_folder(_out(args, scene, c)), node, comm.size)
              for c in ("run", "static")}  # fmt: skip
     if comm.rank == 0 and not args.quiet:
-        print(describe_scene(scene))
+        _say(describe_scene(scene))
         for command, estimate in costs.items():
-            print(f"  {command}: {estimate.describe()} (estimated lower bounds)")
+            _say(f"  {command}: {estimate.describe()} (estimated lower bounds)")
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     """The command line; returns the exit status (module docstring)."""
-    args = _parser().parse_args(argv)
+    try:
+        try:
+            args = _parser().parse_args(argv)
+        finally:
+            sys.stdout.flush()  # --help and --version, perhaps into a closed pipe
+    except BrokenPipeError:
+        return _stdout_closed()
     status = _main(args)
     if status not in (0, 130):
         from .parallel import agree_or_abort
@@ -352,6 +399,7 @@ def _main(args) -> int:
     if not args.debug:
         warnings.simplefilter("ignore" if not args.verbose else "default")
     try:
+        _ignore_sigpipe(args.command)
         if args.command == "validate":
             return _validate(args)
         if args.command == "run":
@@ -378,6 +426,8 @@ def _main(args) -> int:
     except CosseratError as exc:
         _report(exc, args)
         return 1
+    except _StdoutClosed:
+        return _stdout_closed()
     except KeyboardInterrupt:
         print("cosserat-fem: interrupted", file=sys.stderr)
         return 130
