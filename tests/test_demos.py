@@ -146,7 +146,14 @@ def test_the_frequency_response_demo_jumps_where_the_harmonic_balance_says(tmp_p
         proc = run_command([FREQUENCY_RESPONSE, "--values", *values, "--out", str(out)], ranks)
         assert proc.returncode == 0, proc.stdout + proc.stderr
         qoi[ranks] = parse_qoi(proc.stdout)
-        assert (out / "response.png").is_file()
+        assert (out / "harmonic_balance.png").is_file()
+    # plot of the demo's folder draws its response.png beside the demo's figure, which it
+    # overwrote when both were response.png (issue 25 E23)
+    figure = (out / "harmonic_balance.png").read_bytes()
+    proc = run_command(["-m", "cosserat_fem.cli", "plot", str(out)])
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "harmonic_balance.png").read_bytes() == figure
+    assert (out / "response.png").is_file()
     assert qoi[1] == qoi[2]
     q = qoi[1]
     assert q["amp_up_1p04_m"] == pytest.approx(q["amp_down_1p04_m"], rel=1e-4)
