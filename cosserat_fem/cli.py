@@ -237,12 +237,16 @@ def _pod(args) -> int:
 OWN_FOLDER = {"static": "static", "modes": "modes"}
 
 
-def _out(args, scene, command: str | None = None) -> str:
+def _out(args, scene=None, command: str | None = None) -> str:
     """--out (checked by the API: an empty name is refused, not the current folder), or the
-    default folder of ``command`` (default: the command run): :data:`OWN_FOLDER`."""
+    default folder of ``command`` (default: the command run): :data:`OWN_FOLDER`, and a
+    sweep's results/<the sweep file's name>."""
     if args.out is not None:
         return args.out
-    own = OWN_FOLDER.get(command or args.command)
+    command = command or args.command
+    if command == "sweep":
+        return str(Path("results") / Path(args.scene).stem)
+    own = OWN_FOLDER.get(command)
     return str(Path(scene.output.directory) / own) if own else scene.output.directory
 
 
@@ -327,7 +331,7 @@ def _sweep(args) -> int:
     from . import api
 
     spec = api.load_sweep(args.scene, args.overrides)
-    out = str(Path("results") / Path(args.scene).stem) if args.out is None else args.out
+    out = _out(args)
     result = api.sweep(spec, out)
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         statuses = [row["status"] for row in result.rows]
