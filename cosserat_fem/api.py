@@ -27,12 +27,14 @@ import numpy as np
 from .errors import SceneError, out_folder
 from .events import Observer
 from .scene import Scene, load_scene, scene_from_dict
+from .schema import UNSET  # noqa: F401 - cf.UNSET: an override that removes its key
 
 
 def load(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | Sequence[str] = ()
          ) -> Scene:  # fmt: skip
     """A validated scene from a TOML file or a dict of tables (as TOML reads), with
-    ``overrides``: a mapping of dotted keys to values (``{"time.end": 0.01}``) or
+    ``overrides``: a mapping of dotted keys to values (``{"time.end": 0.01}``; the value
+    :data:`UNSET` removes the key or table, ``{"rod.section.a": cf.UNSET}``) or
     ``"dotted.key=value"`` strings as the command line's ``--set``. Bad input raises a
     :class:`~cosserat_fem.errors.SceneError` naming the key."""
     if isinstance(source, Mapping):
@@ -102,8 +104,11 @@ def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()
     time.end, solver.*, limits.*, ...); SceneError if there is no usable checkpoint, or
     time.end is not later than it."""
     from .checkpoint import FIXED_KEYS, load_checkpoint, restart_overrides
+    from .schema import Removal
 
-    texts = [f"{k}=" for k in overrides] if isinstance(overrides, Mapping) else overrides
+    texts = overrides
+    if isinstance(overrides, Mapping):
+        texts = [Removal(k) if v is UNSET else f"{k}=" for k, v in overrides.items()]
     restart_overrides(texts)
     checkpoint = load_checkpoint(folder)
     scene = scene_from_dict(checkpoint.meta["scene"], source=f"{folder}/checkpoint",

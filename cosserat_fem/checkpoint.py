@@ -344,13 +344,17 @@ def _allowed() -> str:
 
 
 def restart_overrides(overrides: list[str] | tuple[str, ...]) -> None:
-    """SceneError unless every ``--set`` key of a restart is one of :data:`RESTART_KEYS`."""
+    """SceneError unless every ``--set`` (and ``--unset``) key of a restart is one of
+    :data:`RESTART_KEYS`."""
+    from .schema import Removal
+
     for text in overrides:
         key = text.split("=", 1)[0].strip()
         if not _may_change(key):
+            option = "--unset" if isinstance(text, Removal) else "--set"
             raise SceneError(
-                f"--set {key}: cannot change on --restart (the checkpoint's discrete problem "
-                f"is fixed); allowed: {_allowed()}"
+                f"{option} {key}: cannot change on --restart (the checkpoint's discrete "
+                f"problem is fixed); allowed: {_allowed()}"
             )
 
 

@@ -28,6 +28,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import CosseratError, SceneError, SolverError, StopError, out_folder
+from .schema import Removal
 
 
 def _common(sub: argparse.ArgumentParser, scene_optional: bool = False) -> None:
@@ -46,6 +47,15 @@ def _common(sub: argparse.ArgumentParser, scene_optional: bool = False) -> None:
         default=[],
         dest="overrides",
         help="override a scene value by its dotted key, e.g. --set time.step=1e-5 (repeatable)",
+    )
+    sub.add_argument(
+        "--unset",
+        metavar="KEY",
+        action="append",
+        dest="overrides",
+        type=Removal,
+        help="remove a key or a table of the scene, e.g. --unset rod.section.a; in order with "
+        "--set (repeatable)",
     )
     sub.add_argument("--quiet", action="store_true", help="print nothing on success")
     sub.add_argument(

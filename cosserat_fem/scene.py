@@ -73,7 +73,8 @@ def _build_section(raw: dict[str, Any], poisson_ratio: float) -> SectionSpec:
         if value is not None and name not in (*keys, "shape", "shear_coefficient"):
             raise SceneError(
                 f"rod.section.{name}: not a key of shape {shape!r}, which takes "
-                f"{', '.join(keys)} (and shear_coefficient)"
+                f"{', '.join(keys)} (and shear_coefficient; --unset rod.section.{name} removes "
+                "it)"
             )
     values = dict(raw)
     if shape == "rectangle" and values["torsion_constant"] is None:
@@ -106,7 +107,8 @@ def _build_reference(raw: dict[str, Any], constants: dict[str, float]) -> Refere
     for name, value in raw.items():
         if value is not None and name not in (*keys, "shape", "closed"):
             takes = f"takes {', '.join(keys)}" if keys else "takes no other key"
-            raise SceneError(f"reference.{name}: not a key of shape {shape!r}, which {takes}")
+            raise SceneError(f"reference.{name}: not a key of shape {shape!r}, which {takes} "
+                             f"(--unset reference.{name} removes it)")  # fmt: skip
     values = {k: v for k, v in raw.items() if v is not None}
     if shape == "polyline":
         values["binormal"] = _binormal(values.get("binormal", [0, 1, 0]))

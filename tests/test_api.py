@@ -214,6 +214,20 @@ def test_a_restart_refuses_another_folder_and_an_initial_state(completed, tmp_pa
     assert result.summary["status"] == "completed" and result.steps == 60
 
 
+def test_a_restart_may_unset_what_it_may_set(completed):
+    """--unset on a restart (the command line's Removal, the API's UNSET): a key a restart may
+    change returns to its default (limits.wall_time: a day); any other is refused as --set's
+    are, naming --unset."""
+    from cosserat_fem.schema import Removal
+
+    scene, _ = cf.resume(completed, [Removal("limits.wall_time"), "time.end=0.0018"])
+    assert scene.limits.wall_time == 86400.0
+    with pytest.raises(SceneError, match="^--unset rod.length: cannot change on --restart"):
+        cf.resume(completed, [Removal("rod.length")])
+    with pytest.raises(SceneError, match="^--unset rod.length: cannot change on --restart"):
+        cf.resume(completed, {"rod.length": cf.UNSET})
+
+
 @pytest.mark.parametrize("end", [0.001, 0.00101, 0.0015, 0.00151, 0.00155])
 def test_a_restart_end_before_or_at_the_checkpoint_suggests_later_ends(completed, end):
     """time.end at or before the checkpoint (1.5 ms) was answered with "e.g. time.end =
