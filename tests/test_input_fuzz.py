@@ -292,6 +292,33 @@ def _damage(rng: random.Random, folder: Path) -> str:
     return f"{name} {what}"
 
 
+def _restart_damaged_copies(runs, tmp_path: Path, seed: int, count: int, restart) -> dict:
+    """``count`` copies of the base run, each with one file damaged (:func:`_damage`), each
+    continued by ``restart(folder)``: None if it continued, else its one-line refusal. A
+    refusal names no internal error and leaves every file as it was; a continuation gives the
+    uninterrupted run's probes byte for byte. The outcomes, counted."""
+    base, whole = runs
+    expected = (whole / "probes.csv").read_bytes()
+    rng = random.Random(seed)
+    outcomes = {"refused": 0, "continued": 0}
+    for i in range(count):
+        folder = Path(shutil.copytree(base, tmp_path / f"case{i}"))
+        what = _damage(rng, folder)
+        before = _files(folder)
+        refusal = restart(folder)
+        if refusal is None:
+            outcomes["continued"] += 1
+            assert (folder / "probes.csv").read_bytes() == expected, what
+        else:
+            outcomes["refused"] += 1
+            assert "\n" not in refusal, (what, refusal)
+            assert "internal error" not in refusal and "Traceback" not in refusal, (what, refusal)
+            assert _files(folder) == before, what
+        shutil.rmtree(folder)
+    print(outcomes)
+    return outcomes
+
+
 def test_damaged_run_folders_restart_exactly_or_not_at_all(runs, tmp_path, capsys):
     """40 run folders, each with one file damaged at random (truncation, a flipped bit,
     random bytes, deletion, an inserted character: the index, either state slot, probes.csv,
@@ -300,27 +327,17 @@ def test_damaged_run_folders_restart_exactly_or_not_at_all(runs, tmp_path, capsy
     run byte for byte (a damaged newest state slot falls back to the previous checkpoint,
     which the bit-exact restart also brings to the same bytes). The HDF5 files are not
     damaged here: frames already written are the reader's business (test_output_fuzz)."""
-    base, whole = runs
-    expected = (whole / "probes.csv").read_bytes()
-    rng = random.Random(2024)
-    outcomes = {"refused": 0, "continued": 0}
-    for i in range(40):
-        folder = Path(shutil.copytree(base, tmp_path / f"case{i}"))
-        what = _damage(rng, folder)
-        before = _files(folder)
+
+    def restart(folder: Path) -> str | None:
         capsys.readouterr()
         status = main(["run", "--restart", str(folder), "--quiet", *RESTART])
         err = capsys.readouterr().err.strip().splitlines()
         if status == 0:
-            outcomes["continued"] += 1
-            assert (folder / "probes.csv").read_bytes() == expected, what
-        else:
-            outcomes["refused"] += 1
-            assert status == 2 and len(err) == 1, (what, err)
-            assert "internal error" not in err[0] and "Traceback" not in err[0], (what, err)
-            assert _files(folder) == before, what
-        shutil.rmtree(folder)
-    print(outcomes)
+            return None
+        assert status == 2 and len(err) == 1, err
+        return err[0]
+
+    outcomes = _restart_damaged_copies(runs, tmp_path, 2024, 40, restart)
     assert outcomes["refused"] >= 10 and outcomes["continued"] >= 1, outcomes
 
 
@@ -460,24 +477,13 @@ def test_damaged_run_folders_through_the_api(runs, tmp_path):
     the uninterrupted run's probes byte for byte."""
     import cosserat_fem as cf
 
-    base, whole = runs
-    expected = (whole / "probes.csv").read_bytes()
-    rng = random.Random(2025)
-    outcomes = {"refused": 0, "continued": 0}
-    for i in range(20):
-        folder = Path(shutil.copytree(base, tmp_path / f"case{i}"))
-        what = _damage(rng, folder)
-        before = _files(folder)
+    def restart(folder: Path) -> str | None:
         try:
             scene, checkpoint = cf.resume(folder, {"time.end": 0.0045})
             cf.run(scene, restart=checkpoint)
         except SceneError as exc:
-            outcomes["refused"] += 1
-            assert "\n" not in str(exc) and "internal" not in str(exc), (what, str(exc))
-            assert _files(folder) == before, what
-        else:
-            outcomes["continued"] += 1
-            assert (folder / "probes.csv").read_bytes() == expected, what
-        shutil.rmtree(folder)
-    print(outcomes)
+            return str(exc)
+        return None
+
+    outcomes = _restart_damaged_copies(runs, tmp_path, 2025, 20, restart)
     assert outcomes["refused"] >= 5 and outcomes["continued"] >= 1, outcomes
