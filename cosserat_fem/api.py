@@ -39,6 +39,9 @@ def load(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | 
     :class:`~cosserat_fem.errors.SceneError` naming the key."""
     if isinstance(source, Mapping):
         return scene_from_dict(dict(source), overrides=overrides)
+    if not isinstance(source, str | Path):
+        raise SceneError(f"source: a scene file's path or a dict of tables, got "
+                         f"{type(source).__name__}")  # fmt: skip
     return load_scene(source, overrides)
 
 
@@ -63,9 +66,14 @@ def run(
     changed at most in the keys a restart may change, ``out`` none or that folder, and
     ``initial_state`` none: a SceneError otherwise). ``observers``: cosserat_fem/events.py;
     ``progress(t [s], steps, Newton iterations)`` at every output time."""
+    from .events import as_observer
     from .simulation import run as run_scene
 
     out = out_folder(out)
+    observers = [as_observer(o) for o in observers]  # checked before any work
+    if progress is not None and not callable(progress):
+        raise SceneError(f"progress: must be a function progress(t, steps, iterations), got "
+                         f"{type(progress).__name__}")  # fmt: skip
     return run_scene(
         scene,
         out,
@@ -92,7 +100,10 @@ def sweep(spec, out: str | Path):
     """Run a sweep's members not finished in ``out`` (cosserat_fem/sweep_run.py; under mpirun,
     groups of ``group_size`` ranks): a SweepResult with the table's path and rows."""
     from .sweep_run import run_sweep
+    from .sweep_spec import SweepSpec
 
+    if not isinstance(spec, SweepSpec):
+        raise SceneError(f"spec: must be a sweep of cf.load_sweep(path), got {type(spec).__name__}")
     if out is None:
         raise SceneError("out (--out): a sweep needs its folder")
     return run_sweep(spec, out_folder(out))
@@ -121,9 +132,11 @@ def static(scene: Scene, out: str | Path | None = None, *, observers=()):
     """Static equilibrium under the scene's loads by load stepping; a
     :class:`~cosserat_fem.statics.StaticResult` whose ``probes`` are the probe's rows
     (λ, x, y, z, θ, ψ, φ) at every accepted load factor λ. Files only with ``out``."""
+    from .events import as_observer
     from .statics import static_path
 
     out = out_folder(out)
+    observers = [as_observer(o) for o in observers]  # checked before any work
     return static_path(scene, out, write_outputs=out is not None, observers=observers,
                        record=True)  # fmt: skip
 
@@ -138,6 +151,10 @@ def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | P
     from .modal import check_count, compute_modes, write_modes
     from .run_folder import prepare_output_dir
 
+    if isinstance(count, bool) or not isinstance(count, int | np.integer):
+        raise SceneError(f"count (--count): must be a whole number, got {count!r}")
+    if about not in ("undeformed", "static"):
+        raise SceneError(f"about (--about): must be 'undeformed' or 'static', got {about!r}")
     check_count(scene, count)
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD)

@@ -100,6 +100,32 @@ def test_bad_sampling_arguments_are_refused_before_any_work(kwargs, key):
         cf.run(cf.load(SCENE, {"time.end": 0.0003}), **kwargs)
 
 
+@pytest.mark.parametrize(
+    ("call", "key"),
+    [
+        (lambda s, out: cf.modes(s, about="sideways"), "about"),
+        (lambda s, out: cf.modes(s, count="3"), "count"),
+        (lambda s, out: cf.modes(s, count=2.5), "count"),
+        (lambda s, out: cf.run(s, out, progress=3), "progress"),
+        (lambda s, out: cf.run(s, out, observers=[3]), "observers"),
+        (lambda s, out: cf.static(s, out, observers=["x"]), "observers"),
+        (lambda s, out: cf.sweep(None, out), "spec"),
+        (lambda s, out: cf.load(3), "source"),
+        (lambda s, out: cf.run(s, ""), "out"),
+        (lambda s, out: cf.modes(s, 2, out=SCENE), "out"),
+    ],
+)
+def test_bad_api_arguments_are_refused_by_name(tmp_path, call, key):
+    """The API's arguments are refused as the command line's are, by name and before any
+    work: a ValueError (about), TypeErrors (count, a load's source, a sweep that is not one)
+    and failures at the first output time, after the run's folder was claimed (progress and
+    observers that are not functions) were not; out="" wrote into the current folder."""
+    scene = cf.load(SCENE, {"time.end": 0.0003})
+    with pytest.raises(SceneError, match=f"^{key}[ :]"):
+        call(scene, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
 def test_a_bad_initial_state_is_refused_by_name(tmp_path):
     """A NaN in cf.run(initial_state=...) went into the first step and came back as "the
     residual is not finite ... check the magnitude of the loads" after six halvings; an
