@@ -20,7 +20,7 @@ pkg_resources_shim.install()
 
 #: The Python API (cosserat_fem/api.py), imported on first use: ``import cosserat_fem`` stays
 #: light (the command line's plot and validate need no DOLFINx).
-_API = ("load", "run", "resume", "static", "modes", "load_sweep", "sweep", "pod")
+_API = ("load", "run", "resume", "static", "modes", "load_sweep", "sweep", "pod", "UNSET")
 
 
 def __getattr__(name: str):

@@ -24,15 +24,18 @@ from typing import Any
 
 import numpy as np
 
+from .errors import SceneError, out_folder
 from .events import Observer
 from .load_data import TableStore
 from .scene import Scene, load_scene, scene_from_dict
+from .schema import UNSET  # noqa: F401 - cf.UNSET: an override that removes its key
 
 
 def load(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | Sequence[str] = ()
          ) -> Scene:  # fmt: skip
     """A validated scene from a TOML file or a dict of tables (as TOML reads), with
-    ``overrides``: a mapping of dotted keys to values (``{"time.end": 0.01}``) or
+    ``overrides``: a mapping of dotted keys to values (``{"time.end": 0.01}``; the value
+    :data:`UNSET` removes the key or table, ``{"rod.section.a": cf.UNSET}``) or
     ``"dotted.key=value"`` strings as the command line's ``--set``. A load component may be a
     table (``{"table": "file.csv", "column": "F"}``, relative to the scene file, or to the
     working directory for a dict) or a Python callable, f(t) or f(t, s) for a distributed
@@ -42,6 +45,9 @@ def load(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | 
     if isinstance(source, Mapping):
         tables = TableStore.collective()
         return scene_from_dict(dict(source), overrides=overrides, tables=tables)
+    if not isinstance(source, str | Path):
+        raise SceneError(f"source: a scene file's path or a dict of tables, got "
+                         f"{type(source).__name__}")  # fmt: skip
     return load_scene(source, overrides)
 
 
@@ -62,10 +68,18 @@ def run(
     ``record`` is false) and, with ``fields`` (stations σ = s/ℓ in [0, 1]), ``field_times``
     (T,) and ``field_values`` (T, stations, 6) every ``field_every`` output times. Files
     (probes.csv, XDMF, checkpoints, summary.json) only with ``out``, or in the checkpoint's
-    folder with ``restart`` (from :func:`resume`). ``observers``: cosserat_fem/events.py;
+    folder with ``restart`` (from :func:`resume`; ``scene`` must then be the checkpoint's,
+    changed at most in the keys a restart may change, ``out`` none or that folder, and
+    ``initial_state`` none: a SceneError otherwise). ``observers``: cosserat_fem/events.py;
     ``progress(t [s], steps, Newton iterations)`` at every output time."""
+    from .events import as_observer
     from .simulation import run as run_scene
 
+    out = out_folder(out)
+    observers = [as_observer(o) for o in observers]  # checked before any work
+    if progress is not None and not callable(progress):
+        raise SceneError(f"progress: must be a function progress(t, steps, iterations), got "
+                         f"{type(progress).__name__}")  # fmt: skip
     return run_scene(
         scene,
         out,
@@ -93,8 +107,13 @@ def sweep(spec, out: str | Path, *, progress: bool = False):
     groups of ``group_size`` ranks): a SweepResult with the table's path and rows. With
     ``progress``: a line on stderr as each member finishes, with the time left."""
     from .sweep_run import run_sweep
+    from .sweep_spec import SweepSpec
 
-    return run_sweep(spec, out, progress=progress)
+    if not isinstance(spec, SweepSpec):
+        raise SceneError(f"spec: must be a sweep of cf.load_sweep(path), got {type(spec).__name__}")
+    if out is None:
+        raise SceneError("out (--out): a sweep needs its folder")
+    return run_sweep(spec, out_folder(out), progress=progress)
 
 
 def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()):
@@ -105,19 +124,16 @@ def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()
     SHA-256 is in the checkpoint's scene), or a load was a Python callable (not data: a run
     with one cannot be restarted)."""
     from .checkpoint import FIXED_KEYS, load_checkpoint, restart_overrides
-    from .errors import SceneError
+    from .schema import Removal
 
-    texts = [f"{k}=" for k in overrides] if isinstance(overrides, Mapping) else overrides
+    texts = overrides
+    if isinstance(overrides, Mapping):
+        texts = [Removal(k) if v is UNSET else f"{k}=" for k, v in overrides.items()]
     restart_overrides(texts)
     checkpoint = load_checkpoint(folder)
     scene = scene_from_dict(checkpoint.meta["scene"], source=f"{folder}/checkpoint",
-                            overrides=overrides, fixed=FIXED_KEYS,
+                            overrides=overrides, fixed=FIXED_KEYS, after=checkpoint.time,
                             tables=TableStore.collective(folder))  # fmt: skip
-    if not scene.time.end > checkpoint.time:
-        raise SceneError(
-            f"time.end: the checkpoint is at t = {checkpoint.time:.10g} s; give a later end "
-            f"to continue (--set time.end=...), got {scene.time.end:.10g}"
-        )
     return scene, checkpoint
 
 
@@ -125,8 +141,11 @@ def static(scene: Scene, out: str | Path | None = None, *, observers=()):
     """Static equilibrium under the scene's loads by load stepping; a
     :class:`~cosserat_fem.statics.StaticResult` whose ``probes`` are the probe's rows
     (λ, x, y, z, θ, ψ, φ) at every accepted load factor λ. Files only with ``out``."""
+    from .events import as_observer
     from .statics import static_path
 
+    out = out_folder(out)
+    observers = [as_observer(o) for o in observers]  # checked before any work
     return static_path(scene, out, write_outputs=out is not None, observers=observers,
                        record=True)  # fmt: skip
 
@@ -141,8 +160,13 @@ def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | P
     from .modal import check_count, compute_modes, write_modes
     from .run_folder import prepare_output_dir
 
+    if isinstance(count, bool) or not isinstance(count, int | np.integer):
+        raise SceneError(f"count (--count): must be a whole number, got {count!r}")
+    if about not in ("undeformed", "static"):
+        raise SceneError(f"about (--about): must be 'undeformed' or 'static', got {about!r}")
     check_count(scene, count)
-    folder = None if out is None else prepare_output_dir(Path(out), MPI.COMM_WORLD)
+    out = out_folder(out)
+    folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD)
     model, found = compute_modes(scene, count, about=about)
     if folder is not None:
         write_modes(folder, model, found, about)
@@ -172,12 +196,13 @@ def pod(
     in ``result.files``. Bad input raises a SceneError naming the argument."""
     from mpi4py import MPI
 
-    from .errors import CosseratError, SceneError
+    from .errors import CosseratError
     from .karhunen_loeve import pod as decompose
     from .karhunen_loeve import read_run, snapshots_of_result, write_pod
     from .parallel import agree
     from .plot import output_folder
 
+    out = out_folder(out)
     if isinstance(source, str | Path):
         if stations is not None:
             raise SceneError("stations: a run folder's are its output points; give none")

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import signal
 import sys
 import traceback
@@ -26,7 +27,8 @@ import warnings
 from pathlib import Path
 
 from . import __version__
-from .errors import CosseratError, SceneError, SolverError, StopError
+from .errors import CosseratError, SceneError, SolverError, StopError, out_folder
+from .schema import Removal
 
 
 def _common(sub: argparse.ArgumentParser, scene_optional: bool = False) -> None:
@@ -36,7 +38,8 @@ def _common(sub: argparse.ArgumentParser, scene_optional: bool = False) -> None:
         nargs="?" if scene_optional else None,
         help="scene file (TOML), e.g. scenes/cao_tucker_2008.toml",
     )
-    sub.add_argument("--out", metavar="DIR", help="output folder (default: output.directory)")
+    sub.add_argument("--out", metavar="DIR", help="output folder (default: output.directory; "
+                     "static and modes: its static/ and modes/)")
     sub.add_argument(
         "--set",
         metavar="KEY=VALUE",
@@ -44,6 +47,15 @@ def _common(sub: argparse.ArgumentParser, scene_optional: bool = False) -> None:
         default=[],
         dest="overrides",
         help="override a scene value by its dotted key, e.g. --set time.step=1e-5 (repeatable)",
+    )
+    sub.add_argument(
+        "--unset",
+        metavar="KEY",
+        action="append",
+        dest="overrides",
+        type=Removal,
+        help="remove a key or a table of the scene, e.g. --unset rod.section.a; in order with "
+        "--set (repeatable)",
     )
     sub.add_argument("--quiet", action="store_true", help="print nothing on success")
     sub.add_argument(
@@ -150,6 +162,46 @@ def _run_dir(sub: argparse.ArgumentParser) -> None:
     sub.add_argument("--debug", action="store_true", help="show tracebacks on errors")
 
 
+class _StdoutClosed(Exception):
+    """The reader of stdout has gone (``cosserat-fem modes ... | head -2``)."""
+
+
+def _say(*values, **options) -> None:
+    """print() to stdout, flushed at once, so that a reader that has gone is met here:
+    :class:`_StdoutClosed` (the command then ends quietly: :func:`_stdout_closed`)."""
+    try:
+        print(*values, **options, flush=True)
+    except BrokenPipeError:
+        raise _StdoutClosed from None
+
+
+def _stdout_closed() -> int:
+    """The end of a command whose stdout's reader has gone (``| head``): what is left to print
+    goes to /dev/null, nothing is said, and the status is 0. The work (files written) is
+    done by the time anything is printed, and only the report on it was cut, by the
+    reader's choice; a shell pipeline with ``pipefail`` then does not fail for it
+    (docs/decisions.md)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # a stdout without a file descriptor (in a test)
+        pass
+    return 0
+
+
+def _ignore_sigpipe(command: str) -> None:
+    """A write to a closed pipe raises BrokenPipeError (Python ignores SIGPIPE) rather than
+    SIGPIPE ending the process. PETSc installs its own handler for it when it starts
+    (``Caught signal number 13 Broken Pipe`` and MPI_ABORT, exit 59, for a progress line or a
+    log record written into a closed pipe): the commands that solve start it first, and
+    SIGPIPE is ignored again after it."""
+    if command in ("run", "static", "modes", "sweep"):
+        from petsc4py import PETSc  # noqa: F401 - initialises PETSc, with its signal handlers
+    with contextlib.suppress(ValueError):  # only the main thread may set handlers
+        signal.signal(signal.SIGPIPE, signal.SIG_IGN)
+
+
 def _draw(args) -> int:
     """Figures (cosserat_fem/plot.py) or pictures and an animation (cosserat_fem/render.py) of
     the run in args.run_dir; no DOLFINx."""
@@ -168,7 +220,7 @@ def _draw(args) -> int:
         finally:
             bar.close()
     if not args.quiet:
-        print("-> " + ", ".join(str(p) for p in paths))
+        _say("-> " + ", ".join(str(p) for p in paths))
     return 0
 
 
@@ -179,19 +231,39 @@ def _pod(args) -> int:
 
     from . import api
 
+    out = args.run_dir if args.out is None else args.out
     result = api.pod(args.run_dir, modes=args.modes, weighting=args.weighting,
-                     remove_mean=not args.keep_mean, out=args.out or args.run_dir)  # fmt: skip
+                     remove_mean=not args.keep_mean, out=out)  # fmt: skip
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
-        print(f"cosserat-fem: POD of {len(result.times)} frames at {len(result.s)} points "
+        _say(f"cosserat-fem: POD of {len(result.times)} frames at {len(result.s)} points "
               f"({result.weighting} weighting, mean {'removed' if result.remove_mean else 'kept'}"
               f"), total energy {result.total:.6g} {result.unit}")  # fmt: skip
-        print(f"{'mode':>4} {'energy [' + result.unit + ']':>20} {'fraction':>12} "
+        _say(f"{'mode':>4} {'energy [' + result.unit + ']':>20} {'fraction':>12} "
               f"{'cumulative':>12}")  # fmt: skip
         for k, (e, f, c) in enumerate(zip(result.energies, result.fractions, result.cumulative,
                                           strict=True), start=1):  # fmt: skip
-            print(f"{k:4d} {e:20.10e} {f:12.6e} {c:12.6f}")
-        print("-> " + ", ".join(str(p) for p in result.files))
+            _say(f"{k:4d} {e:20.10e} {f:12.6e} {c:12.6f}")
+        _say("-> " + ", ".join(str(p) for p in result.files))
     return 0
+
+
+#: Where a command writes without --out: ``run`` into the scene's output.directory, ``static``
+#: and ``modes`` into folders of their own beneath it (a static solve would replace a run's
+#: probes.csv, summary.json and checkpoint; modes would mix its files into the run's folder).
+OWN_FOLDER = {"static": "static", "modes": "modes"}
+
+
+def _out(args, scene=None, command: str | None = None) -> str:
+    """--out (checked by the API: an empty name is refused, not the current folder), or the
+    default folder of ``command`` (default: the command run): :data:`OWN_FOLDER`, and a
+    sweep's results/<the sweep file's name>."""
+    if args.out is not None:
+        return args.out
+    command = command or args.command
+    if command == "sweep":
+        return str(Path("results") / Path(args.scene).stem)
+    own = OWN_FOLDER.get(command)
+    return str(Path(scene.output.directory) / own) if own else scene.output.directory
 
 
 def _run(args) -> int:
@@ -216,7 +288,7 @@ def _run(args) -> int:
         raise SceneError("run: give a SCENE file, or --restart DIR to continue a run")
     else:
         scene = api.load(args.scene, args.overrides)
-        start, out = scene.time.start, args.out or scene.output.directory
+        start, out = scene.time.start, _out(args, scene)
     # The bar on a terminal (it decides), never under --quiet or off rank 0.
     enabled = None if rank == 0 and not args.quiet else False
     bar = ProgressBar(start, scene.time.end, enabled=enabled)
@@ -225,7 +297,7 @@ def _run(args) -> int:
     finally:
         bar.close()
     if rank == 0 and not args.quiet:
-        print(summary_screen(result.summary, result.out_dir))
+        _say(summary_screen(result.summary, result.out_dir))
     return 0
 
 
@@ -237,14 +309,14 @@ def _static(args) -> int:
     from .forms.kinematics import P_NAMES
 
     scene = api.load(args.scene, args.overrides)
-    result = api.static(scene, args.out or scene.output.directory)
+    result = api.static(scene, _out(args, scene))
     tip = result.probes[-1, 1:]
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
-        print(
+        _say(
             f"cosserat-fem: static, {len(result.load_factors) - 1} load steps "
             f"({result.bisections} halvings), {sum(result.iterations)} Newton iterations"
         )
-        print("  probe: " + ", ".join(f"{n} = {v:.10g}" for n, v in zip(P_NAMES, tip, strict=True)))
+        _say("  probe: " + ", ".join(f"{n} = {v:.10g}" for n, v in zip(P_NAMES, tip, strict=True)))
     return 0
 
 
@@ -255,15 +327,15 @@ def _modes(args) -> int:
     from . import api
 
     scene = api.load(args.scene, args.overrides)
-    out = args.out or scene.output.directory
+    out = _out(args, scene)
     modes = api.modes(scene, args.count, args.about, out)
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
-        print(f"{'mode':>4} {'omega [rad/s]':>16} {'f [Hz]':>12}  kind")
+        _say(f"{'mode':>4} {'omega [rad/s]':>16} {'f [Hz]':>12}  kind")
         for i, mode in enumerate(modes, start=1):
             note = f"  ({mode.note})" if mode.note else ""
-            print(f"{i:4d} {mode.omega:16.6f} {mode.frequency_hz:12.4f}  {mode.kind}{note}")
+            _say(f"{i:4d} {mode.omega:16.6f} {mode.frequency_hz:12.4f}  {mode.kind}{note}")
         names = ("modes.csv", "modes.xdmf", "modes.json")
-        print("-> " + ", ".join(str(Path(out) / name) for name in names))
+        _say("-> " + ", ".join(str(Path(out) / name) for name in names))
     return 0
 
 
@@ -275,14 +347,14 @@ def _sweep(args) -> int:
     from . import api
 
     spec = api.load_sweep(args.scene, args.overrides)
-    out = args.out or str(Path("results") / Path(args.scene).stem)
+    out = _out(args)
     result = api.sweep(spec, out, progress=not args.quiet)
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         statuses = [row["status"] for row in result.rows]
         counts = ", ".join(f"{s} {statuses.count(s)}" for s in dict.fromkeys(statuses))
-        print(f"cosserat-fem: sweep of {len(spec.members)} members: ran {result.ran}, skipped "
+        _say(f"cosserat-fem: sweep of {len(spec.members)} members: ran {result.ran}, skipped "
               f"{result.skipped} finished before; {counts}")  # fmt: skip
-        print(f"-> {result.table}")
+        _say(f"-> {result.table}")
     return 0
 
 
@@ -299,19 +371,25 @@ def _validate(args) -> int:
 
     comm = MPI.COMM_WORLD
     scene = load_scene(args.scene, args.overrides)
-    out = args.out or scene.output.directory
     node = ranks_on_node(comm)
-    costs = {c: budget.check(scene, c, out, node, comm.size, comm=comm) for c in ("run", "static")}
+    costs = {c: budget.check(scene, c, out_folder(_out(args, scene, c)), node, comm.size,
+                             comm=comm) for c in ("run", "static")}  # fmt: skip
     if comm.rank == 0 and not args.quiet:
-        print(describe_scene(scene))
+        _say(describe_scene(scene))
         for command, estimate in costs.items():
-            print(f"  {command}: {estimate.describe()} (estimated lower bounds)")
+            _say(f"  {command}: {estimate.describe()} (estimated lower bounds)")
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     """The command line; returns the exit status (module docstring)."""
-    args = _parser().parse_args(argv)
+    try:
+        try:
+            args = _parser().parse_args(argv)
+        finally:
+            sys.stdout.flush()  # --help and --version, perhaps into a closed pipe
+    except BrokenPipeError:
+        return _stdout_closed()
     status = _main(args)
     if status not in (0, 130):
         from .parallel import agree_or_abort
@@ -341,6 +419,7 @@ def _main(args) -> int:
     if not args.debug:
         warnings.simplefilter("ignore" if not args.verbose else "default")
     try:
+        _ignore_sigpipe(args.command)
         if args.command == "validate":
             return _validate(args)
         if args.command == "run":
@@ -367,6 +446,8 @@ def _main(args) -> int:
     except CosseratError as exc:
         _report(exc, args)
         return 1
+    except _StdoutClosed:
+        return _stdout_closed()
     except KeyboardInterrupt:
         print("cosserat-fem: interrupted", file=sys.stderr)
         return 130

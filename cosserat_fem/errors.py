@@ -111,3 +111,20 @@ def show_value(value: object) -> str:
         text = repr(value)
     text = _one_line(text)
     return text if len(text) <= 120 else text[:117] + "..."
+
+
+def out_folder(out, option: str = "out (--out)"):
+    """The folder that an ``out`` argument (the command line's ``--out``) names, as a Path, or
+    None if none was given; a SceneError naming ``option`` for an empty name (``--out ''``
+    was the current folder, or the scene's output.directory) or a path that exists and is not
+    a folder."""
+    from pathlib import Path
+
+    if out is None:
+        return None
+    if not isinstance(out, str | Path) or str(out) == "":
+        raise SceneError(f"{option}: must name a folder, got {out!r}")
+    folder = Path(out)
+    if folder.exists() and not folder.is_dir():
+        raise SceneError(f"{option}: {str(out)!r} is not a folder")
+    return folder

@@ -91,8 +91,16 @@ class OutputCallback(Observer):
 
 
 def as_observer(item: Observer | Callable) -> Observer:
-    """An Observer as given, or a function f(k, t, model) wrapped as one."""
-    return item if isinstance(item, Observer) else OutputCallback(item)
+    """An Observer as given, or a function f(k, t, model) wrapped as one; SceneError naming
+    ``observers`` for anything else (before the run: it failed at the first output time)."""
+    if isinstance(item, Observer):
+        return item
+    if not callable(item):
+        from .errors import SceneError
+
+        raise SceneError(f"observers: each must be an Observer (cosserat_fem/events.py) or a "
+                         f"function f(k, t, model), got {type(item).__name__}")  # fmt: skip
+    return OutputCallback(item)
 
 
 class Events:

@@ -1282,11 +1282,13 @@ class LineSampler:
         """Array (len(sigmas), 6) on rank 0, None elsewhere."""
         local = np.zeros((len(self.sigmas), 6))
         if len(self._mine):
-            values = self.U.eval(self._points, self._cells)
+            # (points, values): Function.eval returns a flat array for a single point
+            values = self.U.eval(self._points, self._cells).reshape(len(self._mine), -1)
             local[np.ix_(self._mine, self._p)] = values[:, : len(self._p)] * self._scale
             local[self._mine, 3:6] = self.angles(
                 local[self._mine, 3:6],
-                lambda: self.angles.model.chart.eval(self._points, self._cells),
+                lambda: self.angles.model.chart.eval(self._points, self._cells).reshape(
+                    len(self._mine), 4),
                 lambda: self._points[:, 0],
             )
         total = np.zeros_like(local) if self.comm.rank == 0 else None

@@ -34,8 +34,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import CosseratError, OutputError, SceneError
-from .results import PROBE_COLUMNS, NoFramesError, RodSeries, Run, open_run, read_sweep_rows
+from .errors import CosseratError, OutputError, SceneError, out_folder
+from .results import (
+    PROBE_COLUMNS,
+    NoFramesError,
+    RodSeries,
+    Run,
+    check_sweep_rows,
+    open_run,
+    read_sweep_rows,
+)
 
 DPI = 130
 HISTORY_SIZE = (10.0, 8.0)  # inches
@@ -64,7 +72,7 @@ _WRITE_FAILURES = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO}
 def output_folder(out: str | Path | None, directory: Path, command: str) -> Path:
     """``out`` (made if missing) or ``directory`` (the run's folder); a folder that cannot be
     made is bad input, or an OutputError when the disk is full or failing."""
-    target = Path(out) if out is not None else directory
+    target = out_folder(out, f"{command} --out") or directory
     try:
         target.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -210,7 +218,10 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
                          f"{sorted(missing)[0]!r})")  # fmt: skip
     if not rows:
         raise SceneError(f"plot: the sweep in {str(directory)!r} has no finished member yet")
-    varied = columns[columns.index("wall_s") + 1 : columns.index("steps")]
+    record = _sweep_record(directory)
+    varied = list(check_sweep_rows(directory, columns, rows, record))
+    if "h1_x" in columns:  # a frequency response: its columns checked before anything is drawn
+        _check_response(directory, columns, varied, record)
 
     key = varied[0] if len(varied) == 1 else None
     x = [_number(row[key]) for row in rows] if key else []
@@ -236,8 +247,82 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
     fig.tight_layout()
     paths = [_save(fig, target / "sweep.png")]
     if "h1_x" in columns:
-        paths.append(plot_response(directory, columns, rows, varied, target))
+        paths.append(plot_response(directory, rows, varied, target, record))
     return paths
+
+
+def _sweep_record(directory: Path) -> dict:
+    """The sweep's sweep.json (cosserat_fem/sweep_run.py) as a dict; SceneError naming it if it
+    cannot be read or is not an object."""
+    path = directory / "sweep.json"
+    try:
+        record = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError) as exc:
+        raise SceneError(f"plot: {str(path)!r} cannot be read ({exc})") from None
+    if not isinstance(record, dict):
+        raise SceneError(f"plot: {str(path)!r} is not a sweep's record")
+    return record
+
+
+#: The columns response.png reads (cosserat_fem/sweep_run.py, RESPONSE_COLUMNS and MEASURES).
+RESPONSE_NEEDS = ("direction", "settled",
+                  *(f"{m}_{c}" for m in ("amp", "phase") for c in PROBE_COLUMNS[1:]))  # fmt: skip
+#: A column moves when its largest amplitude is at least this fraction of the motion's size.
+MOVING = 1e-3
+
+
+def _check_response(directory: Path, columns: list[str], varied: list[str], record: dict):
+    """SceneError naming the file unless the table has the columns of a frequency response
+    and sweep.json's continuation key is one of its varied keys (or none)."""
+    absent = [c for c in RESPONSE_NEEDS if c not in columns]
+    if absent:
+        raise SceneError(f"plot: {str(directory / 'sweep.csv')!r} has no column {absent[0]!r} "
+                         "of a frequency response")  # fmt: skip
+    key = record.get("continuation")
+    if key is not None and key not in varied:
+        raise SceneError(f"plot: {str(directory / 'sweep.json')!r}: its continuation "
+                         f"{str(key)[:60]!r} is not a varied key of the sweep")  # fmt: skip
+
+
+def _member_lengths(directory: Path, rows: list[dict]) -> np.ndarray:
+    """ℓ [m] of each row's member, from its summary.json's scene (NaN where there is none or
+    it cannot be read: a member that failed)."""
+    from .results import read_summary
+    from .sweep_spec import Member
+
+    lengths = np.full(len(rows), np.nan)
+    for i, row in enumerate(rows):
+        path = directory / "members" / Member(int(row["member"]), {}).name / "summary.json"
+        try:
+            summary = read_summary(path) if path.is_file() else {}
+        except SceneError:
+            continue
+        length = ((summary.get("scene") or {}).get("rod") or {}).get("length")
+        lengths[i] = np.nan if length is None else float(length)
+    return lengths
+
+
+def moving_columns(amps: dict[str, np.ndarray], lengths: np.ndarray) -> list[str]:
+    """The probe's columns that move over a frequency response, from their amplitudes (half
+    ranges) per member ``amps`` [m, rad] and the members' rod lengths ℓ [m]: those whose
+    largest amplitude is at least :data:`MOVING` of the motion's size S in its unit, S the
+    largest of x/ℓ, y/ℓ, z/ℓ and θ, ψ, φ over the members (cosserat_fem/response.py measures
+    its settling in the same unit). A column that the motion leaves alone holds round-off (ψ
+    at the mid-span of a symmetric mode: 1e-16 rad with a random phase), not a response.
+    Without any ℓ, each group (lengths, angles) is measured against its own largest. At
+    least x."""
+    unit = {c: lengths if RESPONSE_UNITS[c] == "m" else np.ones_like(lengths) for c in amps}
+    with np.errstate(invalid="ignore"):
+        scaled = {c: np.nanmax(np.abs(a) / unit[c], initial=0.0) for c, a in amps.items()}
+    largest = {c: np.nanmax(np.abs(a), initial=0.0) for c, a in amps.items()}
+    if np.isfinite(lengths).any():
+        size = max(scaled.values())
+        moving = [c for c in amps if scaled[c] > 0 and scaled[c] >= MOVING * size]
+    else:
+        group = {c: max(largest[d] for d in amps if RESPONSE_UNITS[d] == RESPONSE_UNITS[c])
+                 for c in amps}  # fmt: skip
+        moving = [c for c in amps if largest[c] > 0 and largest[c] >= MOVING * group[c]]
+    return moving or ["x"]
 
 
 #: The probe's columns (cosserat_fem/response.py) and their units.
@@ -245,31 +330,21 @@ RESPONSE_UNITS = dict(zip(PROBE_COLUMNS[1:], ("m",) * 3 + ("rad",) * 3, strict=T
 RESPONSE_SYMBOLS = dict(zip(PROBE_COLUMNS[1:], ("x", "y", "z", "θ", "ψ", "φ"), strict=True))
 
 
-def plot_response(directory: Path, columns: list[str], rows: list[dict], varied: list[str],
-                  target: Path) -> Path:  # fmt: skip
-    """response.png of a frequency response (a sweep with [sweep.response]): the probe
-    point's amplitude (half range, ``amp_c``) and the phase of its first harmonic against the
-    load's (``phase_c``, unwrapped along a chain) for each column that moves (its largest
-    amplitude at least 1e-3 of its group's: displacements, angles), against the continuation
-    key (sweep.json) or the varied key; a line per chain, upward ▲ solid, downward ▼ dashed;
-    a member that did not settle drawn hollow, one that failed as a cross at zero."""
-    try:
-        record = json.loads((directory / "sweep.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise SceneError(f"plot: {str(directory / 'sweep.json')!r} cannot be read ({exc})"
-                         ) from None  # fmt: skip
-    if not isinstance(record, dict):
-        raise SceneError(f"plot: {str(directory / 'sweep.json')!r} is not a sweep's record")
+def plot_response(directory: Path, rows: list[dict], varied: list[str], target: Path,
+                  record: dict) -> Path:  # fmt: skip
+    """response.png of a frequency response (a sweep with [sweep.response]; ``record`` its
+    sweep.json, its table checked by :func:`_check_response`): the probe point's amplitude
+    (half range, ``amp_c``) and the phase of its first harmonic against the load's
+    (``phase_c``, unwrapped along a chain) for each column that moves
+    (:func:`moving_columns`), against the continuation key (sweep.json) or the varied key;
+    a line per chain, upward ▲ solid, downward ▼ dashed; a member that did not settle drawn
+    hollow, one that failed as a cross at zero."""
     key = record.get("continuation") or next(
         (k for k in varied if np.isfinite(_number(rows[0][k]))), "member"
     )
     others = [k for k in varied if k != key]
     amps = {c: np.array([_number(r[f"amp_{c}"]) for r in rows]) for c in RESPONSE_UNITS}
-    largest = {c: np.nanmax(np.abs(a), initial=0.0) for c, a in amps.items()}
-    group = {c: max(largest[d] for d in RESPONSE_UNITS if RESPONSE_UNITS[d] == u)
-             for c, u in RESPONSE_UNITS.items()}  # fmt: skip
-    moving = [c for c in RESPONSE_UNITS if largest[c] > 0 and largest[c] >= 1e-3 * group[c]]
-    moving = moving or ["x"]
+    moving = moving_columns(amps, _member_lengths(directory, rows))
     lines: dict[tuple, list[dict]] = {}
     for row in rows:
         lines.setdefault((*(row[k] for k in others), row.get("direction", "")), []).append(row)
@@ -320,6 +395,7 @@ def plot_run(directory: str | Path, out: str | Path | None = None) -> list[Path]
     sweep's folder (sweep.json) gets :func:`plot_sweep`. Everything is read (and checked)
     first; a run with neither probe rows nor XDMF frames (killed at its start) is bad input,
     as nothing can be drawn."""
+    out_folder(out, "plot --out")  # before anything is read
     if (Path(directory) / "sweep.json").is_file():
         return plot_sweep(directory, out)
     run = open_run(directory, "plot")

@@ -13,9 +13,9 @@ coloured by the magnitude of the contact torque |m| [N m] when the file has it (
 displacement), with the undeformed rod as a thin grey line and the axes labelled in metres.
 Deflections of a stiff rod are a small fraction of its length: the magnification k (written
 in every picture) is chosen so that the largest displacement is about a fifth of the length,
-rounded down to 1, 2 or 5 times a power of ten, at most 1e12 (``--scale`` sets it; 1 for
-large deflections). pyvista and vtk come from PyPI (the ``render`` extra). With no X display VTK
-renders through EGL; under ``xvfb-run`` through X.
+rounded down to 1, 2 or 5 times a power of ten, at most 1e12 (``--scale`` sets it, within
+the same bound; 1 for large deflections). pyvista and vtk come from PyPI (the ``render``
+extra). With no X display VTK renders through EGL; under ``xvfb-run`` through X.
 
 The run is read and checked by :mod:`cosserat_fem.results` before anything is drawn: a damaged
 file is bad input (one line naming it, exit 2), and so is an XDMF file without frames. Every
@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import CosseratError, OutputError, SceneError
+from .errors import CosseratError, OutputError, SceneError, out_folder
 from .plot import output_folder, write_output
 from .results import RodSeries, open_run
 
@@ -209,8 +209,10 @@ def render_run(
         raise SceneError(f"render --format: must be gif or mp4, got {fmt!r}")
     if max_frames < 1:
         raise SceneError(f"render --frames: must be at least 1, got {max_frames}")
-    if scale is not None and not (math.isfinite(scale) and scale > 0):
-        raise SceneError(f"render --scale: must be a positive number, got {scale!r}")
+    if scale is not None and not (math.isfinite(scale) and 0 < scale <= MAX_SCALE):
+        raise SceneError(f"render --scale: must be a number in (0, {MAX_SCALE:g}] (beyond, the "
+                         f"picture shows round-off of the length), got {scale!r}")  # fmt: skip
+    out_folder(out, "render --out")
     run = open_run(directory, "render")
     series = run.series()
     if "displacement" not in series.arrays:

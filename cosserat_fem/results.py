@@ -759,14 +759,84 @@ def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[li
         except (OSError, UnicodeDecodeError) as exc:
             raise SceneError(f"{_where(source)}: cannot read it ({exc})") from None
         reader = csv.DictReader(text[: text.rfind("\n") + 1].splitlines())
+        rows += _whole_rows(source, reader, columns)
         columns = list(reader.fieldnames or columns)
-        rows += list(reader)
     try:
         rows.sort(key=lambda row: int(row["member"]))
     except (KeyError, TypeError, ValueError):
         raise SceneError(f"{_where(directory)}: not a sweep's table (a member that is not a "
                          "number)") from None  # fmt: skip
     return columns, rows
+
+
+def _whole_rows(source: Path, reader, columns: list[str]) -> list[dict]:
+    """The rows of one file of a sweep's table, each with a field for every column of its
+    header, the header the same as the other files' (``columns``, if read); SceneError naming
+    the file and line otherwise: rows of another table, or damaged, are not merged."""
+    header = reader.fieldnames
+    if header is None:  # an empty part: its group was killed before it wrote its header
+        return []
+    if columns and list(header) != columns:
+        raise SceneError(f"{_where(source)}: its columns are not those of the sweep's other "
+                         "table parts: not the same sweep's table")  # fmt: skip
+    if len(set(header)) != len(header) or "" in header:
+        raise SceneError(f"{_where(source)}: a header with an empty or repeated column; not a "
+                         "sweep's table")  # fmt: skip
+    rows = []
+    for row in reader:
+        extra = row.pop(None, None) or []  # fields beyond the header's
+        missing = sum(row[k] is None for k in header)  # fields short of it
+        if extra or missing:
+            raise SceneError(f"{_where(source)}: line {reader.line_num} has "
+                             f"{len(header) + len(extra) - missing} fields, not the header's "
+                             f"{len(header)}")  # fmt: skip
+        rows.append(row)
+    return rows
+
+
+def check_sweep_rows(directory: str | Path, columns: list[str], rows: list[dict],
+                     record: dict) -> tuple[str, ...]:  # fmt: skip
+    """The varied keys of the sweep recorded in ``record`` (its sweep.json, from
+    cosserat_fem/sweep_run.py) after checking that ``rows`` are its rows: one a member, each
+    of a member it has (0 ... members − 1), with the member's values of the varied keys as
+    the sweep's table writes them (JSON), and the table's varied columns the record's.
+    SceneError naming the table otherwise: a row of another sweep is not merged."""
+    where = _where(Path(directory) / SWEEP_TABLE)
+    varied, members = record.get("varied"), record.get("members")
+    if not (isinstance(varied, list) and all(isinstance(k, str) for k in varied)
+            and isinstance(members, int) and not isinstance(members, bool)):  # fmt: skip
+        raise SceneError(f"{_where(Path(directory) / 'sweep.json')}: not a sweep's record "
+                         "(varied, members)")  # fmt: skip
+    if "wall_s" not in columns or "steps" not in columns or columns[
+            columns.index("wall_s") + 1 : columns.index("steps")] != varied:  # fmt: skip
+        raise SceneError(f"{where}: its varied columns are not the sweep's {varied}")
+    values = _member_values(record, members)
+    seen: set[int] = set()
+    for row in rows:
+        index = int(row["member"])
+        if not 0 <= index < members or index in seen:
+            reason = "twice" if index in seen else f"but the sweep has {members} members"
+            raise SceneError(f"{where}: a row of member {index}, {reason}: not this sweep's "
+                             "rows")  # fmt: skip
+        seen.add(index)
+        if values is not None and any(row[k] != json.dumps(values[index].get(k))
+                                      for k in varied):  # fmt: skip
+            raise SceneError(f"{where}: the row of member {index} holds other values of "
+                             f"{', '.join(varied)} than the sweep's member: not this sweep's row")
+    return tuple(varied)
+
+
+def _member_values(record: dict, members: int) -> list[dict] | None:
+    """Each member's values of the varied keys, from the record's fingerprint (the sweep's
+    JSON document, cosserat_fem/sweep_spec.py), or None where it does not hold them."""
+    try:
+        listed = json.loads(record.get("fingerprint"))["members"]
+    except (TypeError, ValueError, KeyError, RecursionError):
+        return None
+    if not isinstance(listed, list) or len(listed) != members:
+        return None
+    values = [m[0] if isinstance(m, list) and len(m) == 2 else m for m in listed]
+    return values if all(isinstance(v, dict) for v in values) else None
 
 
 def xdmf_mesh_xml(file: str, points: int, cells: int) -> str:

@@ -74,7 +74,8 @@ def _build_section(raw: dict[str, Any], poisson_ratio: float) -> SectionSpec:
         if value is not None and name not in (*keys, "shape", "shear_coefficient"):
             raise SceneError(
                 f"rod.section.{name}: not a key of shape {shape!r}, which takes "
-                f"{', '.join(keys)} (and shear_coefficient)"
+                f"{', '.join(keys)} (and shear_coefficient; --unset rod.section.{name} removes "
+                "it)"
             )
     values = dict(raw)
     if shape == "rectangle" and values["torsion_constant"] is None:
@@ -107,7 +108,8 @@ def _build_reference(raw: dict[str, Any], constants: dict[str, float]) -> Refere
     for name, value in raw.items():
         if value is not None and name not in (*keys, "shape", "closed"):
             takes = f"takes {', '.join(keys)}" if keys else "takes no other key"
-            raise SceneError(f"reference.{name}: not a key of shape {shape!r}, which {takes}")
+            raise SceneError(f"reference.{name}: not a key of shape {shape!r}, which {takes} "
+                             f"(--unset reference.{name} removes it)")  # fmt: skip
     values = {k: v for k, v in raw.items() if v is not None}
     if shape == "polyline":
         values["binormal"] = _binormal(values.get("binormal", [0, 1, 0]))
@@ -351,10 +353,25 @@ def _integral_ratio(span: float, step: float) -> bool:
     return math.isfinite(ratio) and abs(ratio - round(ratio)) <= STEP_TOLERANCE * ratio
 
 
-def _build_time(raw: dict[str, Any], fixed: frozenset[str] = frozenset()) -> Time:
+def check_later_end(end: Any, after: float) -> None:
+    """SceneError unless time.end = ``end`` is later than ``after`` [s], the time of the
+    checkpoint a restart continues from (cosserat_fem/checkpoint.py)."""
+    if not (_is_number(end) and end > after):
+        raise SceneError(
+            f"time.end: the checkpoint is at t = {after:.10g} s; give a later end to continue "
+            f"(--set time.end=...), got {show_value(end)}"
+        )
+
+
+def _build_time(
+    raw: dict[str, Any], fixed: frozenset[str] = frozenset(), after: float | None = None
+) -> Time:
     """The time span; ``fixed``: keys the caller may not change (a restart keeps time.step and
-    time.start), so that a message does not suggest them."""
+    time.start), so that a message does not suggest them; ``after`` [s]: a restart's
+    checkpoint, which time.end must pass (the ends a message suggests do too)."""
     start, end, step = raw["start"], raw["end"], raw["step"]
+    if after is not None:
+        check_later_end(end, after)
     if not end > start:
         raise SceneError(
             f"time.end: must be > time.start = {fmt(start)} [s], got {show_value(end)}"
@@ -371,9 +388,7 @@ def _build_time(raw: dict[str, Any], fixed: frozenset[str] = frozenset()) -> Tim
             f"time.step: must be <= time.end - time.start = {span!r} [s], got {show_value(step)}"
         )
     if not _integral_ratio(span, step):
-        below = start + max(1, math.floor(span / step)) * step
-        above = start + math.ceil(span / step) * step
-        ends = f"time.end = {below:.10g} or {above:.10g}"
+        ends = _nearest_ends(start, span, step, after)
         if "time.step" in fixed:
             raise SceneError(
                 f"time.end: time.end - time.start must be a whole number of steps of "
@@ -397,6 +412,19 @@ def _build_time(raw: dict[str, Any], fixed: frozenset[str] = frozenset()) -> Tim
         raw["atol"],
         raw["max_step"],
     )
+
+
+def _nearest_ends(start: float, span: float, step: float, after: float | None) -> str:
+    """"time.end = A or B": the whole numbers of steps nearest to ``span`` (below and above,
+    at least one step, and later than ``after`` when a restart gives it)."""
+    first = 1
+    if after is not None:  # the first end on the step grid later than the checkpoint
+        first = max(first, math.floor((after - start) / step) + 1)
+        while not start + first * step > after:
+            first += 1
+    below = start + max(first, math.floor(span / step)) * step
+    above = start + max(first, math.ceil(span / step)) * step
+    return f"time.end = {below:.10g}" + (f" or {above:.10g}" if above != below else "")
 
 
 def _build_discretisation(raw: dict[str, Any]) -> Discretisation:
@@ -535,13 +563,15 @@ def scene_from_dict(
     overrides: Overrides = (),
     fixed: Sequence[str] = (),
     tables: TableStore | None = None,
+    after: float | None = None,
 ) -> Scene:
     """Validate a scene given as nested dicts (as from TOML) and resolve it.
 
     ``overrides`` (``dotted.key=value``) are applied first; ``fixed``: keys the caller may
     not change (a restart's), which messages then do not suggest; ``tables``: where the
     tables of loads given by data are read (default: by this process, relative paths from
-    the working directory). Raises :class:`SceneError`.
+    the working directory); ``after`` [s]: the time of a restart's checkpoint, which time.end
+    must pass. Raises :class:`SceneError`.
     """
     if not isinstance(data, dict):
         raise SceneError(f"{source}: a scene must be a table of keys, got {show_value(data)}")
@@ -551,7 +581,7 @@ def scene_from_dict(
     tables = tables if tables is not None else TableStore()
     supports = _build_supports(raw["supports"], {*SCENE_CONSTANTS, *parameters}, tables)
     loads = _build_loads(raw["loads"], supports, {*SCENE_CONSTANTS, *parameters}, tables)
-    time = _build_time(raw["time"], frozenset(fixed))
+    time = _build_time(raw["time"], frozenset(fixed), after)
     scene = Scene(
         title=raw["title"],
         parameters=parameters,

@@ -8,7 +8,8 @@ message starts with the dotted key at fault, states what is allowed and shows th
 value. The resolved scene is cosserat_fem/resolved.py, building it cosserat_fem/scene.py.
 
 Overrides: the value is read as a TOML value if possible (``1e-5``, ``true``, ``"bdf2"``,
-``[0, 0, "1e3*t"]``), else taken as a bare string (``time.integrator=bdf2``). Overriding one of
+``[0, 0, "1e3*t"]``), else taken as a bare string (``time.integrator=bdf2``); ``--unset KEY``
+(:class:`Removal`, :data:`UNSET` in a mapping) removes a key or a table. Overriding one of
 ``rod.material.poisson_ratio`` / ``rod.material.shear_modulus`` removes the other, so that
 either can be set from the command line whichever the file gives.
 """
@@ -642,14 +643,49 @@ def _override_value(text: str) -> Any:
 Overrides = Sequence[str] | Mapping[str, Any]
 
 
+class Removal(str):
+    """An override that removes its key, the command line's ``--unset KEY``: the key itself, a
+    ``str``, so that a list of overrides stays a list of strings, in the order given."""
+
+
+class _Unset:
+    def __repr__(self) -> str:
+        return "UNSET"
+
+
+#: The value that removes a key in a mapping of overrides (``{"rod.section.a": UNSET}``, the
+#: Python API's ``cf.UNSET``), as a :class:`Removal` does in a list.
+UNSET = _Unset()
+
+
+def remove_key(data: dict[str, Any], key: str) -> None:
+    """Remove the dotted ``key``, a value or a whole table, from ``data`` (the overrides'
+    ``--unset KEY`` and :data:`UNSET`): so that a table can change its shape from the command
+    line (``--unset rod.section.a --unset rod.section.b --set rod.section.shape=circle``) and a
+    default or an absent table be had again. SceneError for a key the schema does not have
+    (with a did-you-mean) or the scene does not hold: nothing is removed silently."""
+    path = [part.strip() for part in key.split(".")]
+    _lookup_spec(path)
+    table: Any = data
+    for name in path[:-1]:
+        table = table.get(name) if isinstance(table, dict) else None
+    if not isinstance(table, dict) or path[-1] not in table:
+        raise SceneError(f"{key}: not in the scene, nothing to remove (--unset)")
+    del table[path[-1]]
+
+
 def apply_overrides(data: dict[str, Any], overrides: Overrides) -> dict[str, Any]:
     """Return a copy of ``data`` with the overrides applied in order: ``dotted.key=value``
-    strings (the command line's ``--set``; the value read as TOML), or a mapping of dotted
-    keys to values (the Python API)."""
+    strings (the command line's ``--set``; the value read as TOML) and :class:`Removal` overrides
+    (``--unset``), or a mapping of dotted keys to values (the Python API; :data:`UNSET`
+    removes a key)."""
     result = _copy_tables(data)
     items = overrides.items() if isinstance(overrides, Mapping) else map(_split, overrides)
     for key, value in items:
         key = str(key).strip()
+        if value is UNSET:
+            remove_key(result, key)
+            continue
         path = [part.strip() for part in key.split(".")]
         spec = _lookup_spec(path)
         if isinstance(spec, Table | Parameters):
@@ -662,7 +698,9 @@ def apply_overrides(data: dict[str, Any], overrides: Overrides) -> dict[str, Any
 
 
 def _split(text: str) -> tuple[str, Any]:
-    """(key, value) of a ``dotted.key=value`` override."""
+    """(key, value) of a ``dotted.key=value`` override, (key, UNSET) of a :class:`Removal`."""
+    if isinstance(text, Removal):
+        return str(text), UNSET
     raw_key, sep, raw_value = text.partition("=")
     if not sep or not raw_key.strip():
         raise SceneError(f"--set {text!r}: expected dotted.key=value")

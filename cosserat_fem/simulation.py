@@ -31,7 +31,7 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import __version__, budget
-from .checkpoint import Checkpoint, check_outputs
+from .checkpoint import Checkpoint, check_outputs, check_restart_scene
 from .errors import SceneError
 from .events import Events, Observer, drive
 from .integrators import GeneralizedAlpha, make_integrator
@@ -51,7 +51,7 @@ from .observers import (
     XdmfObserver,
 )
 from .output import PointProbe, probe_position, probe_sigma
-from .parallel import ranks_on_node
+from .parallel import agree, ranks_on_node
 from .run_folder import PROBES, XDMF, new_run_id, prepare_output_dir, status_of
 from .scene import Scene, refuse_closed
 
@@ -134,8 +134,9 @@ def run(
     The rod starts from rest in its straight state, or from the scene's [initial] fields, or
     from ``initial_state`` (the array of a 12-component state U = (p, q) on the same
     discretisation, e.g. a static solution), or continues the run of the checkpoint
-    ``restart`` in its folder (cosserat_fem/checkpoint.py; ``scene`` is then the
-    checkpoint's, with the overrides a restart allows). Outputs go to ``out_dir`` (default
+    ``restart`` in its folder (cosserat_fem/checkpoint.py; ``scene`` must then be the
+    checkpoint's, with the overrides a restart allows, ``out_dir`` none or that folder,
+    ``initial_state`` none: :func:`_check_restart`). Outputs go to ``out_dir`` (default
     the scene's output.directory) unless ``write_outputs`` is false. ``observers``: objects
     with the hooks of cosserat_fem/events.py, or functions f(k, t [s], model) called at every
     output time. ``progress(t [s], steps taken, Newton iterations)`` is called at every
@@ -147,7 +148,9 @@ def run(
     fields = _stations(fields, field_every)
     if restart is not None:
         refuse_callable_restart(scene)
+        _check_restart(scene, restart, out_dir, initial_state)
         out_dir, write_outputs = restart.run_dir, True
+    initial_state = _initial_array(initial_state, comm)
     out = None
     if write_outputs:
         out = Path(out_dir if out_dir is not None else scene.output.directory)
@@ -194,6 +197,51 @@ def run(
     )
 
 
+def _check_restart(scene: Scene, restart, out_dir, initial_state) -> None:
+    """A restart continues the checkpoint's run, in its folder, from its state, with its
+    scene (changed at most where cosserat_fem/checkpoint.py allows): a SceneError naming the
+    argument otherwise, before anything is touched (the same on every rank)."""
+    if not isinstance(restart, Checkpoint):
+        raise SceneError(f"restart: must be the checkpoint of cf.resume(folder), got "
+                         f"{type(restart).__name__}")  # fmt: skip
+    if initial_state is not None:
+        raise SceneError("initial_state: cannot be given with restart (the run continues from "
+                         "the checkpoint's state)")  # fmt: skip
+    if out_dir is not None and not _same_folder(Path(out_dir), restart.run_dir):
+        raise SceneError(f"out: the run continues in its checkpoint's folder "
+                         f"{str(restart.run_dir)!r}; give no out (or that folder), got "
+                         f"{str(out_dir)!r}")  # fmt: skip
+    check_restart_scene(restart, scene)
+
+
+def _initial_array(initial_state, comm) -> np.ndarray | None:
+    """``initial_state`` as a flat array of finite numbers (this rank's part), checked before
+    any work: a SceneError naming it on every rank otherwise (collective). A NaN went into
+    the first step and was reported as a residual that is not finite, blamed on the loads."""
+    if initial_state is None:
+        agree(comm, None)
+        return None
+    state, problem = None, None
+    try:
+        state = np.asarray(initial_state, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        problem = SceneError(f"initial_state: must be an array of numbers (12 per node), got "
+                             f"{type(initial_state).__name__}")  # fmt: skip
+    if state is not None and not np.isfinite(state).all():
+        i = int(np.flatnonzero(~np.isfinite(state))[0])
+        problem = SceneError(f"initial_state: value {i} (node {i // 12}, component {i % 12} of "
+                             f"12) is not finite ({state[i]!r})")  # fmt: skip
+    agree(comm, problem)
+    return state
+
+
+def _same_folder(a: Path, b: Path) -> bool:
+    try:
+        return a.samefile(b)
+    except OSError:
+        return False
+
+
 def _stations(fields, field_every) -> np.ndarray | None:
     """The sampling stations σ as an array, checked before any work: finite, in [0, 1], at
     least one; ``field_every`` a whole number ≥ 1 (SceneError naming the argument)."""
@@ -214,6 +262,12 @@ def _stations(fields, field_every) -> np.ndarray | None:
 def _discretise(scene: Scene, comm, initial_state, restart):
     """The model (in its initial state), the integrator and the Newton solver of a run."""
     model = build_model(scene, comm)
+    if initial_state is not None:
+        wrong = np.size(initial_state) != 12 * model.nodes
+        agree(comm, SceneError(
+            f"initial_state: {np.size(initial_state)} values, expected 12 a node of this rank's "
+            f"mesh ({12 * model.nodes}; a reduced state: embed it with Layout.full_array)"
+        ) if wrong else None)  # fmt: skip
     if initial_state is not None and _leaves_plane(model, initial_state):
         model = build_model(scene, comm, planar=False)  # it keeps all twelve unknowns
     if model.needs_chart:

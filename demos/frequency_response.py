@@ -30,7 +30,8 @@
 # The demo runs the sweep `scenes/sweeps/clamped_hysteresis.toml` (two chains of members, one
 # upward and one downward; each member runs until its response is periodic and starts from
 # the state its predecessor ended in, cosserat_fem/response.py), draws both against the
-# harmonic balance (`demos/output/frequency_response/response.png`) and prints the amplitudes
+# harmonic balance (`demos/output/frequency_response/harmonic_balance.png`; `cosserat-fem plot`
+# of the folder draws its own `response.png` beside it) and prints the amplitudes
 # as QOI lines, which the test suite checks against the harmonic balance and between a serial
 # and an `mpirun -n 2` run (where each rank runs one chain).
 #
@@ -155,9 +156,9 @@ if comm.rank == 0:
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(out / "response.png", dpi=130)
-    np.savez(out / "response.npz", **drawn_lines(fig))  # the lines as drawn, for a test
-    print(f"-> {out / 'response.png'}")
+    fig.savefig(out / "harmonic_balance.png", dpi=130)  # response.png is `plot`'s
+    np.savez(out / "harmonic_balance.npz", **drawn_lines(fig))  # the lines as drawn, for a test
+    print(f"-> {out / 'harmonic_balance.png'}")
     for row in rows:
         x = float(row["parameters.r"])
         key = f"{row['direction']}_{x:.2f}".replace(".", "p")

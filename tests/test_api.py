@@ -9,8 +9,8 @@ so 1e-15 s).
 
 from __future__ import annotations
 
-import os
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -31,20 +31,19 @@ def readme_example() -> str:
     return found.group(1)
 
 
-def test_the_readme_example_runs(capsys):
-    """At most 15 lines, run as written from the repository's folder (its paths are
-    relative to it); it prints the free end, the field along the rod, the frequencies and
-    the rolled-up tip."""
+def test_the_readme_example_runs(capsys, tmp_path, monkeypatch):
+    """At most 15 lines, run as written from another folder than the repository's (its
+    scene paths were relative to the repository's folder, and failed anywhere else); it
+    prints the free end, the field along the rod, the frequencies and the rolled-up tip, and
+    no negative zero (the rolled-up tip's x printed "-0." where round-off leaves -1e-17)."""
     code = readme_example()
     assert len(code.strip().splitlines()) <= 15
-    cwd = os.getcwd()
-    os.chdir(ROOT)
-    try:
-        exec(compile(code, "README.md", "exec"), {})
-    finally:
-        os.chdir(cwd)
+    monkeypatch.chdir(tmp_path)
+    exec(compile(code, "README.md", "exec"), {})
     out = capsys.readouterr().out
     assert "free end at t = 0.0030 s" in out and "frequencies [Hz]" in out
+    numbers = re.findall(r"-?\d+\.?\d*(?:e[+-]?\d+)?", out)
+    assert not [n for n in numbers if n.startswith("-") and float(n) == 0.0], out
     the_readme_numbers_hold(out)
 
 
@@ -143,6 +142,52 @@ def test_bad_sampling_arguments_are_refused_before_any_work(kwargs, key):
         cf.run(cf.load(SCENE, {"time.end": 0.0003}), **kwargs)
 
 
+@pytest.mark.parametrize(
+    ("call", "key"),
+    [
+        (lambda s, out: cf.modes(s, about="sideways"), "about"),
+        (lambda s, out: cf.modes(s, count="3"), "count"),
+        (lambda s, out: cf.modes(s, count=2.5), "count"),
+        (lambda s, out: cf.run(s, out, progress=3), "progress"),
+        (lambda s, out: cf.run(s, out, observers=[3]), "observers"),
+        (lambda s, out: cf.static(s, out, observers=["x"]), "observers"),
+        (lambda s, out: cf.sweep(None, out), "spec"),
+        (lambda s, out: cf.load(3), "source"),
+        (lambda s, out: cf.run(s, ""), "out"),
+        (lambda s, out: cf.modes(s, 2, out=SCENE), "out"),
+    ],
+)
+def test_bad_api_arguments_are_refused_by_name(tmp_path, call, key):
+    """The API's arguments are refused as the command line's are, by name and before any
+    work: a ValueError (about), TypeErrors (count, a load's source, a sweep that is not one)
+    and failures at the first output time, after the run's folder was claimed (progress and
+    observers that are not functions) were not; out="" wrote into the current folder."""
+    scene = cf.load(SCENE, {"time.end": 0.0003})
+    with pytest.raises(SceneError, match=f"^{key}[ :]"):
+        call(scene, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_bad_initial_state_is_refused_by_name(tmp_path):
+    """A NaN in cf.run(initial_state=...) went into the first step and came back as "the
+    residual is not finite ... check the magnitude of the loads" after six halvings; an
+    array of the wrong size or not of numbers as an internal ValueError. Each is now a
+    SceneError naming initial_state (the NaN's node and component), before the run starts.
+    A state of the right size and finite values runs (the straight rod at rest: zeros)."""
+    scene = cf.load(SCENE, {"time.end": 0.0003})
+    nodes = cf.run(scene).model.nodes
+    nan = np.zeros(12 * nodes)
+    nan[12 * 3 + 4] = np.nan
+    cases = [(nan, r"value 40 \(node 3, component 4 of 12\) is not finite"),
+             (np.full(12 * nodes, np.inf), "value 0 .* is not finite"),
+             ("x", "must be an array of numbers"), ([[1, 2], [3]], "must be an array"),
+             (np.zeros(7), "7 values, expected 12 a node"), (np.zeros(12), "12 values")]
+    for state, reason in cases:
+        with pytest.raises(SceneError, match=f"^initial_state: {reason}"):
+            cf.run(scene, tmp_path / "out", initial_state=state)
+    assert cf.run(scene, initial_state=np.zeros(12 * nodes)).summary["status"] == "completed"
+
+
 def test_every_api_name_stays_a_function_once_the_machinery_is_imported():
     """The package's API names (cosserat_fem.__init__._API) are the functions of api.py even
     after every module of the package has been imported: a submodule named like an API
@@ -214,3 +259,107 @@ def test_the_arrays_are_the_same_on_every_rank_and_the_serial_runs(tmp_path):
         else:
             scale = np.abs(expected).max()
             assert np.abs(got - expected).max() <= 1e-10 * scale, name
+# ------------------------------------------------------------------------------ restarts
+RESTART_SETTINGS = {"time.end": 0.0015, "output.xdmf_interval": 3e-4}
+TRIPLE = "6e3*sin(pi*s/L)*sin(8*omega0*t)"  # three times the paper's load
+
+
+@pytest.fixture(scope="module")
+def completed(tmp_path_factory):
+    """A completed run of 50 steps (t = 1.5 ms) whose checkpoint is at its end."""
+    folder = tmp_path_factory.mktemp("restart") / "run"
+    cf.run(cf.load(SCENE, RESTART_SETTINGS), folder)
+    return folder
+
+
+def _copy(folder, tmp_path):
+    import shutil
+
+    return Path(shutil.copytree(folder, tmp_path / "copy"))
+
+
+def _digests(folder) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
+            if p.is_file()}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("overrides", "key"),
+    [
+        ({"rod.material.young_modulus": 3.55e10, "loads.force_density": [TRIPLE, TRIPLE, 0]},
+         "rod.material.young_modulus"),  # the issue's splice: E halved, 3x the load
+        ({"loads.force_density": [TRIPLE, 0, 0]}, "loads.force_density"),
+        ({"discretisation.elements": 9}, "discretisation.elements"),
+        ({"time.step": 1.5e-5}, "time.step"),
+        ({"title": "another"}, "title"),
+        ({"loads.end.force": [0, 0, 1]}, "loads.end"),
+        ({"output.xdmf": False}, "output.xdmf"),
+    ],
+)
+def test_a_restart_refuses_a_scene_that_is_not_the_checkpoints(completed, tmp_path, overrides,
+                                                                 key):  # fmt: skip
+    """cf.run(scene, restart=checkpoint) continued the checkpoint's state with any scene: E
+    halved and three times the load gave a splice of two problems and a normal exit. Now a
+    scene that differs from the checkpoint's run in a key a restart may not change is a
+    SceneError naming that key, and the folder is as it was."""
+    folder = _copy(completed, tmp_path)
+    before = _digests(folder)
+    scene, checkpoint = cf.resume(folder, {"time.end": 0.0018})
+    other = cf.load(SCENE, {**RESTART_SETTINGS, "time.end": 0.0018, **overrides})
+    with pytest.raises(SceneError, match=f"^{re.escape(key)}[.:]"):
+        cf.run(other, restart=checkpoint)
+    assert _digests(folder) == before
+
+
+def test_a_restart_refuses_another_folder_and_an_initial_state(completed, tmp_path):
+    """out= was silently ignored on a restart (the run went on in the checkpoint's folder) and
+    so was initial_state: both are refused by name, and so are a restart that is not a
+    checkpoint and a scene whose time.end does not pass the checkpoint; out= naming the
+    checkpoint's folder is that folder, and the run goes on there (to 1.8 ms: 60 steps)."""
+    folder = _copy(completed, tmp_path)
+    before = _digests(folder)
+    scene, checkpoint = cf.resume(folder, {"time.end": 0.0018})
+    with pytest.raises(SceneError, match="^out: the run continues in its checkpoint's folder"):
+        cf.run(scene, tmp_path / "elsewhere", restart=checkpoint)
+    assert not (tmp_path / "elsewhere").exists()
+    with pytest.raises(SceneError, match="^initial_state: cannot be given with restart"):
+        cf.run(scene, restart=checkpoint, initial_state=np.zeros(1))
+    with pytest.raises(SceneError, match="^restart: must be the checkpoint of cf.resume"):
+        cf.run(scene, restart=str(folder))
+    for end in (0.0012, 0.0015):  # at or before the checkpoint: nothing to continue
+        earlier = cf.load(SCENE, {**RESTART_SETTINGS, "time.end": end})
+        with pytest.raises(SceneError, match="^time.end: the checkpoint is at t = 0.0015 s"):
+            cf.run(earlier, restart=checkpoint)
+    assert _digests(folder) == before
+    result = cf.run(scene, folder / ".", restart=checkpoint)
+    assert result.summary["status"] == "completed" and result.steps == 60
+
+
+def test_a_restart_may_unset_what_it_may_set(completed):
+    """--unset on a restart (the command line's Removal, the API's UNSET): a key a restart may
+    change returns to its default (limits.wall_time: a day); any other is refused as --set's
+    are, naming --unset."""
+    from cosserat_fem.schema import Removal
+
+    scene, _ = cf.resume(completed, [Removal("limits.wall_time"), "time.end=0.0018"])
+    assert scene.limits.wall_time == 86400.0
+    with pytest.raises(SceneError, match="^--unset rod.length: cannot change on --restart"):
+        cf.resume(completed, [Removal("rod.length")])
+    with pytest.raises(SceneError, match="^--unset rod.length: cannot change on --restart"):
+        cf.resume(completed, {"rod.length": cf.UNSET})
+
+
+@pytest.mark.parametrize("end", [0.001, 0.00101, 0.0015, 0.00151, 0.00155])
+def test_a_restart_end_before_or_at_the_checkpoint_suggests_later_ends(completed, end):
+    """time.end at or before the checkpoint (1.5 ms) was answered with "e.g. time.end =
+    0.00099 or 0.00102", two ends before it; an end just after it that is not a whole
+    number of steps (30 μs) with 0.0015, the checkpoint itself. Every end a refusal names
+    is now later than the checkpoint: before it, the checkpoint's own message; after it, the
+    whole numbers of steps around it that pass it."""
+    with pytest.raises(SceneError, match="^time.end: ") as caught:
+        cf.resume(completed, {"time.end": end})
+    text = str(caught.value)
+    if end <= 0.0015:
+        assert "the checkpoint is at t = 0.0015 s; give a later end" in text
+    suggested = [float(v) for v in re.findall(r"time\.end = ([0-9.e-]+)", text)]
+    assert all(v > 0.0015 for v in suggested), text

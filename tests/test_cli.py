@@ -133,3 +133,122 @@ def test_errors_under_mpi_are_reported_once(tmp_path):
     proc = run_scene(tmp_path / "x", "rod.length=0", ranks=2)
     assert proc.returncode == 2
     assert proc.stderr.count("cosserat-fem: error: rod.length:") == 1, proc.stderr
+
+
+SWEEP = str(ROOT / "scenes" / "sweeps" / "paper_forcing.toml")
+#: Every command that writes, with the arguments that make it write (a RUN_DIR's command's
+#: --out is checked before the folder is read: the folder given need hold nothing).
+WRITERS = {
+    "run": [SCENE, "--set", "time.end=0.0003"],
+    "static": [SCENE],
+    "modes": [SCENE, "--count", "2"],
+    "validate": [SCENE],
+    "sweep": [SWEEP],
+    "plot": ["."],
+    "render": ["."],
+    "pod": ["."],
+}
+
+
+@pytest.mark.parametrize("command", list(WRITERS))
+@pytest.mark.parametrize("out", ["", SCENE])
+def test_an_empty_or_file_out_is_refused_by_name(tmp_path, monkeypatch, capsys, command, out):
+    """``--out ''`` was taken as no --out: run, static and modes wrote into the scene's
+    output.directory, sweep into results/<name>, plot and render into the current folder, pod
+    into the run's. Given as an existing file, the error named output.directory. Each
+    command now refuses both in one line naming --out (exit 2), and nothing is written (the
+    current folder, where every default lies here, stays empty)."""
+    from cosserat_fem.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    status = main([command, *WRITERS[command], "--out", out, "--quiet"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1, err
+    assert "--out" in err[0] and ("must name a folder" in err[0] or "is not a folder" in err[0])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_static_and_modes_without_out_leave_a_runs_folder_alone(tmp_path, monkeypatch, capsys):
+    """Without --out a run, a static solve and the modes of one scene all went into its
+    output.directory: the static solve claimed the folder (the run's checkpoint removed, its
+    probes.csv and summary.json replaced) and the modes' files lay among the run's. Now
+    static and modes write into static/ and modes/ beneath it: the run's files are as it
+    left them and it continues from its checkpoint."""
+    from cosserat_fem.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    folder = tmp_path / "results" / "cao_tucker_2008"  # the scene's output.directory
+    assert main(["run", SCENE, "--set", "time.end=0.0003", "--quiet"]) == 0
+    before = {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()}
+    assert main(["modes", SCENE, "--count", "2", "--quiet"]) == 0
+    assert main(["static", SCENE, "--quiet"]) == 0
+    assert {p.name: p.read_bytes() for p in folder.iterdir() if p.is_file()} == before
+    assert (folder / "modes" / "modes.csv").is_file()
+    assert (folder / "static" / "probes.csv").is_file()
+    capsys.readouterr()
+    assert main(["run", "--restart", str(folder), "--set", "time.end=0.0006", "--quiet"]) == 0
+
+
+def _sweep_file(folder) -> str:
+    """A sweep of two members of 10 steps of the paper's scene."""
+    path = folder / "tiny.toml"
+    path.write_text(f'[sweep]\nscene = "{SCENE}"\n[sweep.set]\n"time.end" = 0.0003\n'
+                    '"output.xdmf" = false\n[sweep.vary]\n"time.max_halvings" = [5, 6]\n',
+                    encoding="utf-8")  # fmt: skip
+    return str(path)
+
+
+#: The commands that print on stdout (``--quiet`` aside), as run with the test's folder.
+PRINTERS = {
+    "help": lambda tmp: ["--help"],
+    "validate": lambda tmp: ["validate", SCENE],
+    "modes": lambda tmp: ["modes", SCENE, "--count", "2", "--out", str(tmp / "modes")],
+    "run": lambda tmp: ["run", SCENE, "--set", "time.end=0.0003", "--set",
+                        "output.xdmf_interval=6e-5", "--out", str(tmp / "run")],
+    "run --verbose": lambda tmp: ["run", SCENE, "--set", "time.end=0.0003", "--verbose",
+                                  "--out", str(tmp / "verbose")],
+    "static": lambda tmp: ["static", SCENE, "--out", str(tmp / "static")],
+    "sweep": lambda tmp: ["sweep", _sweep_file(tmp), "--out", str(tmp / "sweep")],
+    "pod": lambda tmp: ["pod", str(tmp / "run"), "--out", str(tmp / "pod")],
+    "plot": lambda tmp: ["plot", str(tmp / "run"), "--out", str(tmp / "plot")],
+}
+#: Run in the normal set: a command of Python alone and one that starts PETSc (its own
+#: SIGPIPE handler dumped "Caught signal number 13 Broken Pipe" and exited 59).
+QUICK = ("help", "validate", "modes")
+
+
+def _closed_early(args: list[str], stream: str = "stdout") -> tuple[int, str]:
+    """Run the command line with a ``stream`` (stdout or stderr) whose reader is gone before
+    the command starts; its status and what it wrote on the other stream."""
+    import subprocess
+
+    from conftest import PYTHON, subprocess_env
+
+    proc = subprocess.Popen([PYTHON, *CLI, *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, cwd=ROOT, env=subprocess_env())  # fmt: skip
+    closed, other = (proc.stdout, proc.stderr) if stream == "stdout" else (proc.stderr,
+                                                                           proc.stdout)
+    closed.close()  # the reader has gone (as `| head -0` would)
+    text = other.read().decode()
+    return proc.wait(timeout=600), text
+
+
+@pytest.mark.parametrize(
+    "command",
+    [c if c in QUICK else pytest.param(c, marks=pytest.mark.long) for c in PRINTERS],
+)
+def test_a_closed_stdout_ends_the_command_quietly(tmp_path, command):
+    """``cosserat-fem modes ... | head -2`` gave PETSc's "Broken Pipe" dump and exit 59;
+    validate (no PETSc) "internal error: BrokenPipeError", exit 1. Every command that prints
+    now ends quietly with status 0 when its stdout's reader has gone (the files are written
+    by then: only the report is cut), nothing on stderr; a verbose run whose stderr's reader
+    has gone (its checkpoint lines; PETSc's dump and exit 59 too) ends 0 as well. A real
+    pipe, closed before the command prints; the limit of 600 s means hung (each takes a few
+    seconds)."""
+    if command in ("pod", "plot"):  # a run to read
+        assert _closed_early(PRINTERS["run"](tmp_path))[0] == 0
+    stream = "stderr" if command == "run --verbose" else "stdout"
+    status, text = _closed_early(PRINTERS[command](tmp_path), stream)
+    assert status == 0 and (stream == "stderr" or text == ""), text
+    if command == "run":
+        assert json.loads((tmp_path / "run" / "summary.json").read_text())["status"] == "completed"

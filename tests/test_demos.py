@@ -241,7 +241,7 @@ def test_the_frequency_response_demo_jumps_where_the_harmonic_balance_says(tmp_p
     1 %; the next order in a² adds up to ~1.4 %): within 3 %; the lower branch 0.3-0.9 % below
     (most at 1.05, where it begins and is steepest): within 2 %.
 
-    The figure (its lines read back, response.npz) draws those: the two chains' amplitudes
+    The figure (its lines read back, harmonic_balance.npz) draws those: the two chains' amplitudes
     [mm] at their r, and the harmonic balance's lowest and highest roots (the QOI lines'
     values, to their 12 printed digits) at those r on its curves."""
     values = ["1.04", "1.05", "1.06", "1.07"]
@@ -251,8 +251,15 @@ def test_the_frequency_response_demo_jumps_where_the_harmonic_balance_says(tmp_p
         proc = run_command([FREQUENCY_RESPONSE, "--values", *values, "--out", str(out)], ranks)
         assert proc.returncode == 0, proc.stdout + proc.stderr
         qoi[ranks] = parse_qoi(proc.stdout)
-        assert (out / "response.png").is_file()
-        response_figure_draws_the_sweep(np.load(out / "response.npz"), qoi[ranks], values)
+        assert (out / "harmonic_balance.png").is_file()
+        response_figure_draws_the_sweep(np.load(out / "harmonic_balance.npz"), qoi[ranks], values)
+    # plot of the demo's folder draws its response.png beside the demo's figure, which it
+    # overwrote when both were response.png (issue 25 E23)
+    figure = (out / "harmonic_balance.png").read_bytes()
+    proc = run_command(["-m", "cosserat_fem.cli", "plot", str(out)])
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "harmonic_balance.png").read_bytes() == figure
+    assert (out / "response.png").is_file()
     assert qoi[1] == qoi[2]
     q = qoi[1]
     assert q["amp_up_1p04_m"] == pytest.approx(q["amp_down_1p04_m"], rel=1e-4)
@@ -265,8 +272,9 @@ def test_the_frequency_response_demo_jumps_where_the_harmonic_balance_says(tmp_p
 
 
 def response_figure_draws_the_sweep(figure, qoi: dict[str, float], values: list[str]) -> None:
-    """response.png's lines (one axes): the harmonic balance's three branches (lines 0-2, on
-    a grid of r), then the upward and the downward chain (lines 3 and 4), amplitudes in mm."""
+    """harmonic_balance.png's lines (one axes): the harmonic balance's three branches (lines
+    0-2, on a grid of r), then the upward and the downward chain (lines 3 and 4), amplitudes in
+    mm."""
     labels = [str(figure[f"axes0/line{j}/label"]) for j in range(5)]
     assert labels[0] == "harmonic balance (one mode)"
     assert labels[3:] == ["cosserat-fem, sweep up", "cosserat-fem, sweep down"]

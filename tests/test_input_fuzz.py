@@ -292,6 +292,33 @@ def _damage(rng: random.Random, folder: Path) -> str:
     return f"{name} {what}"
 
 
+def _restart_damaged_copies(runs, tmp_path: Path, seed: int, count: int, restart) -> dict:
+    """``count`` copies of the base run, each with one file damaged (:func:`_damage`), each
+    continued by ``restart(folder)``: None if it continued, else its one-line refusal. A
+    refusal names no internal error and leaves every file as it was; a continuation gives the
+    uninterrupted run's probes byte for byte. The outcomes, counted."""
+    base, whole = runs
+    expected = (whole / "probes.csv").read_bytes()
+    rng = random.Random(seed)
+    outcomes = {"refused": 0, "continued": 0}
+    for i in range(count):
+        folder = Path(shutil.copytree(base, tmp_path / f"case{i}"))
+        what = _damage(rng, folder)
+        before = _files(folder)
+        refusal = restart(folder)
+        if refusal is None:
+            outcomes["continued"] += 1
+            assert (folder / "probes.csv").read_bytes() == expected, what
+        else:
+            outcomes["refused"] += 1
+            assert "\n" not in refusal, (what, refusal)
+            assert "internal error" not in refusal and "Traceback" not in refusal, (what, refusal)
+            assert _files(folder) == before, what
+        shutil.rmtree(folder)
+    print(outcomes)
+    return outcomes
+
+
 def test_damaged_run_folders_restart_exactly_or_not_at_all(runs, tmp_path, capsys):
     """40 run folders, each with one file damaged at random (truncation, a flipped bit,
     random bytes, deletion, an inserted character: the index, either state slot, probes.csv,
@@ -300,27 +327,17 @@ def test_damaged_run_folders_restart_exactly_or_not_at_all(runs, tmp_path, capsy
     run byte for byte (a damaged newest state slot falls back to the previous checkpoint,
     which the bit-exact restart also brings to the same bytes). The HDF5 files are not
     damaged here: frames already written are the reader's business (test_output_fuzz)."""
-    base, whole = runs
-    expected = (whole / "probes.csv").read_bytes()
-    rng = random.Random(2024)
-    outcomes = {"refused": 0, "continued": 0}
-    for i in range(40):
-        folder = Path(shutil.copytree(base, tmp_path / f"case{i}"))
-        what = _damage(rng, folder)
-        before = _files(folder)
+
+    def restart(folder: Path) -> str | None:
         capsys.readouterr()
         status = main(["run", "--restart", str(folder), "--quiet", *RESTART])
         err = capsys.readouterr().err.strip().splitlines()
         if status == 0:
-            outcomes["continued"] += 1
-            assert (folder / "probes.csv").read_bytes() == expected, what
-        else:
-            outcomes["refused"] += 1
-            assert status == 2 and len(err) == 1, (what, err)
-            assert "internal error" not in err[0] and "Traceback" not in err[0], (what, err)
-            assert _files(folder) == before, what
-        shutil.rmtree(folder)
-    print(outcomes)
+            return None
+        assert status == 2 and len(err) == 1, err
+        return err[0]
+
+    outcomes = _restart_damaged_copies(runs, tmp_path, 2024, 40, restart)
     assert outcomes["refused"] >= 10 and outcomes["continued"] >= 1, outcomes
 
 
@@ -451,3 +468,149 @@ def test_a_good_table_is_shown_by_validate(tmp_path, capsys):
     assert 'loads.end.force = ["0", {table = "' in out and '"}, "0"] [N]' in out
     assert "interpolation = \"pchip\", outside = \"refuse\", sha256 = \"" in out
     assert "loads.end.force[1] [N]: table " in out and "2 rows, t in [0, 0.1] s" in out
+# --------------------------------------------------------------- the Python API's restart
+def _differing(a: dict, b: dict, prefix: str = "") -> set[str]:
+    """The dotted leaf keys in which two scenes' dicts differ (a key on one side only too)."""
+    keys = set()
+    for name in {*a, *b}:
+        key = f"{prefix}.{name}" if prefix else name
+        x, y = a.get(name, KeyError), b.get(name, KeyError)
+        if isinstance(x, dict) and isinstance(y, dict) and x and y:
+            keys |= _differing(x, y, key)
+        elif x != y or isinstance(x, bool) != isinstance(y, bool):
+            keys.add(key)
+    return keys
+
+
+def _neighbours(key: str, value) -> list:
+    """Valid-looking values near ``value`` (the checkpoint's at ``key``): a number scaled and
+    shifted, a flag flipped, the other choices of a choice, a text or expression extended
+    (the same function in other words is another scene's text: refused too), a list with
+    one element changed."""
+    from cosserat_fem.schema import _lookup_spec
+
+    spec = _lookup_spec(key.split("."))
+    if isinstance(value, bool):
+        return [not value]
+    if isinstance(value, int | float):
+        return [value * 1.5, value + 1, value / 2] if value else [1, 0.5]
+    if isinstance(value, str):
+        others = [c for c in getattr(spec, "choices", ()) if c != value]
+        return others or [value + "x", f"({value})*1", 1.0]
+    if isinstance(value, list) and value:
+        head = value[0]
+        changed = head + 1 if isinstance(head, int | float) and not isinstance(head, bool) else (
+            f"({head})*2" if isinstance(head, str) else head)  # fmt: skip
+        return [[changed, *value[1:]], value[:-1]]
+    return []
+
+
+#: Values that a key takes only with others (a shape and its keys; an initial field that
+#: meets the clamped end): (key, value), and the overrides that go with them.
+SHAPED = [("initial.velocity", ["1e-3*s/L", 0, 0]),
+          ("initial.displacement", ["1e-4*(s/L)**2", 0, 0]), ("reference.shape", "arc")]
+SHAPED_WITH = {("reference.shape", "arc"): {"reference.radius": 10.0}}
+
+
+def test_an_api_restart_refuses_every_scene_but_the_checkpoints(runs, tmp_path):
+    """cf.run(scene, restart=checkpoint) with the checkpoint's scene changed in every leaf key
+    of the schema to each of the HOSTILE values and to values near its own (_neighbours;
+    those that make a valid scene at all): a scene that differs from the checkpoint's run in
+    a key a restart may not change (cosserat_fem/checkpoint.py: RESTART_KEYS) is refused
+    with a SceneError naming one of those keys; one that differs only in keys it may change
+    but whose time.end does not pass the checkpoint (t = 3 ms) names time.end; none touches
+    the folder. Those left would continue the run (what they give: the next test)."""
+    import cosserat_fem as cf
+    from cosserat_fem.checkpoint import _may_change, load_checkpoint
+
+    base = Path(shutil.copytree(runs[0], tmp_path / "copy"))  # a failure may run into it
+    before = _files(base)
+    checkpoint = load_checkpoint(base)
+    held = checkpoint.meta["scene"]
+    later = with_value(held, "time.end", 0.0045)  # a change of one key alone then continues
+    outcomes = {"invalid": 0, "refused": 0, "would continue": 0}
+    tables: set[str] = set()  # the top-level tables of the keys refused
+    for key in KEYS:
+        table = later
+        for name in key.split(".")[:-1]:
+            table = table.get(name, {}) if isinstance(table, dict) else {}
+        own = table.get(key.rpartition(".")[2]) if isinstance(table, dict) else None
+        extra = [0.003] if key == "time.end" else []  # at the checkpoint
+        extra += [v for k, v in SHAPED if k == key]
+        for value in [*HOSTILE, *_neighbours(key, own), *extra]:
+            try:
+                scene = scene_from_dict(with_value(later, key, value),
+                                        overrides=SHAPED_WITH.get((key, str(value)), ()))
+            except SceneError:
+                outcomes["invalid"] += 1
+                continue
+            fixed = {k for k in _differing(json.loads(json.dumps(scene.to_dict())), held)
+                     if not _may_change(k)}  # fmt: skip
+            if not fixed and scene.time.end > checkpoint.time:
+                outcomes["would continue"] += 1
+                continue
+            with pytest.raises(SceneError) as caught:
+                cf.run(scene, restart=checkpoint)
+            named = str(caught.value).split(":", 1)[0]  # a key, or a key of a table named
+            assert any(named == k or named.startswith(k + ".") or k.startswith(named + ".")
+                       for k in fixed or {"time.end"}), (key, value, str(caught.value), fixed)
+            outcomes["refused"] += 1
+            tables.add(key.split(".")[0])
+    assert _files(base) == before
+    print(outcomes)
+    assert outcomes["refused"] >= 150 and outcomes["would continue"] >= 50, outcomes
+    assert tables == set(SCHEMA.fields) - {"solver", "limits"}  # every kind of key
+
+
+@pytest.mark.parametrize(
+    ("overrides", "out"),
+    [
+        ({"time.end": 0.0045}, None),
+        ({"time.end": 0.0045, "limits.wall_time": 1e5, "output.checkpoint_interval": 0}, None),
+        ({"time.end": 0.0045, "time.max_halvings": 2}, "same"),
+        ({"time.end": 0.0045}, "other"),
+        ({"time.end": 0.003}, None),  # at the checkpoint
+        ({"time.end": 0.0015}, None),  # before it
+    ],
+)
+def test_an_api_restart_continues_exactly_or_refuses(runs, tmp_path, overrides, out):
+    """The API's restart of the 100-step run with its own scene and the keys a restart may
+    change (time.end after the checkpoint, limits, the checkpoints' interval, max_halvings),
+    out= none or the checkpoint's folder: the probes of the uninterrupted 150-step run, byte
+    for byte. out= another folder (it was silently ignored), time.end at or before the
+    checkpoint: refused by name, and the folder is as it was."""
+    import cosserat_fem as cf
+    from cosserat_fem.checkpoint import load_checkpoint
+
+    base, whole = runs
+    folder = Path(shutil.copytree(base, tmp_path / "copy"))
+    checkpoint = load_checkpoint(folder)
+    scene = scene_from_dict(checkpoint.meta["scene"], overrides=overrides)
+    target = {None: None, "same": folder, "other": tmp_path / "other"}[out]
+    if out == "other" or overrides["time.end"] <= checkpoint.time:
+        before = _files(folder)
+        with pytest.raises(SceneError, match="^out: " if out == "other" else "^time.end: "):
+            cf.run(scene, target, restart=checkpoint)
+        assert _files(folder) == before and not (tmp_path / "other").exists()
+        return
+    cf.run(scene, target, restart=checkpoint)
+    assert (folder / "probes.csv").read_bytes() == (whole / "probes.csv").read_bytes()
+
+
+def test_damaged_run_folders_through_the_api(runs, tmp_path):
+    """20 run folders each with one file damaged at random (as for the command line above),
+    continued through the Python API (cf.resume, then cf.run(scene, restart=checkpoint)):
+    each either refuses with a one-line SceneError and every file as it was, or continues to
+    the uninterrupted run's probes byte for byte."""
+    import cosserat_fem as cf
+
+    def restart(folder: Path) -> str | None:
+        try:
+            scene, checkpoint = cf.resume(folder, {"time.end": 0.0045})
+            cf.run(scene, restart=checkpoint)
+        except SceneError as exc:
+            return str(exc)
+        return None
+
+    outcomes = _restart_damaged_copies(runs, tmp_path, 2025, 20, restart)
+    assert outcomes["refused"] >= 5 and outcomes["continued"] >= 1, outcomes

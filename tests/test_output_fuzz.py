@@ -1201,6 +1201,21 @@ def test_render_refuses_a_damaged_folder(report):
     assert not out.exists() or not list(out.iterdir())
 
 
+@pytest.mark.parametrize("scale", ["1e308", "1e13", "0", "-1", "nan", "inf"])
+def test_render_refuses_a_scale_beyond_its_bound(genuine, tmp_path, scale):
+    """``render --scale 1e308`` ended in "internal error: ValueError: Empty meshes cannot be
+    plotted" (VTK's tube filter squares coordinates of 1e305 m). --scale is held to the
+    automatic magnification's bound, 1e12 (a displacement below ~1e-13 of the length is
+    round-off of it): a larger one, like a scale that is not a positive number, is refused
+    in one line naming --scale before the run is read (exit 2, no picture)."""
+    out = tmp_path / "pictures"
+    proc = cli("render", str(genuine), "--scale", scale, "--frames", "2", "--out", str(out))
+    assert proc.returncode == 2, proc.stderr
+    err = proc.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("cosserat-fem: error: render --scale: "), err
+    assert not out.exists()
+
+
 def test_plot_a_run_killed_before_its_first_frame(report):
     """A run killed after XdmfWriter published its frameless file and one probe row was
     flushed (t = 0) plots what it has: free_end.png, no surfaces, exit 0 (the old reader

@@ -162,6 +162,217 @@ def test_plot_draws_the_response_of_each_chain(linear_sweep, tmp_path):
     assert (tmp_path / "sweep.png").is_file()
 
 
+def _copy(out: Path, folder: Path) -> Path:
+    """A copy of a sweep's folder without its members' folders but their summary.json."""
+    import shutil
+
+    shutil.copytree(out, folder, ignore=shutil.ignore_patterns("*.npz", "probes.csv"))
+    return folder
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    """plot's figures drawn but not rasterised (savefig is most of a figure's time): the
+    number of axes of each figure, by file name."""
+    from cosserat_fem import plot
+
+    drawn: dict[str, int] = {}
+
+    def save(fig, path):
+        drawn[path.name] = len(fig.axes)
+        plot._pyplot().close(fig)
+        return path
+
+    monkeypatch.setattr(plot, "_save", save)
+    return drawn
+
+
+def _mutate(rng, folder: Path) -> str:
+    """One random damage to a sweep's table (sweep.csv, or its part with sweep.csv gone) or
+    to its sweep.json: a column or a field removed, a field replaced, characters cut or
+    inserted, a line repeated. What was done."""
+    name = rng.choice(["sweep.csv", "sweep.json", "table/group-0.csv"])
+    if name.startswith("table"):
+        (folder / "sweep.csv").unlink()
+    path = folder / name
+    text = path.read_text(encoding="utf-8")
+    lines = [line.split(",") for line in text.splitlines()]
+    kind = rng.randrange(6)
+    row = rng.randrange(len(lines))
+    column = rng.randrange(len(lines[row]))
+    if kind == 0:
+        lines = [line[:column] + line[column + 1 :] for line in lines]
+    elif kind == 1:
+        del lines[row][column]
+    elif kind == 2:
+        lines[row][column] = rng.choice(["", "x", "nan", "1e999", "true", "[1]", '"a,b"', "-1",
+                                         "99", "parameters.r", "{}", "null"])  # fmt: skip
+    if kind <= 2:
+        text = "".join(",".join(line) + "\n" for line in lines)
+    elif kind == 3:
+        i = rng.randrange(len(text))
+        text = text[:i] + text[i + rng.randint(1, 30) :]
+    elif kind == 4:
+        i = rng.randrange(len(text))
+        text = text[:i] + rng.choice(',"\n{}[]:x1') + text[i:]
+    else:
+        repeated = text.splitlines(keepends=True)
+        repeated.insert(rng.randrange(len(repeated) + 1), rng.choice(repeated))
+        text = "".join(repeated)
+    path.write_text(text, encoding="utf-8")
+    return f"{name}: damage {kind}"
+
+
+def _edit_table(folder: Path, edit) -> None:
+    """sweep.csv's lines as lists of fields, changed in place by ``edit``."""
+    table = folder / "sweep.csv"
+    lines = [line.split(",") for line in table.read_text(encoding="utf-8").splitlines()]
+    edit(lines)
+    table.write_text("".join(",".join(line) + "\n" for line in lines), encoding="utf-8")
+
+
+def _drop_column(name: str):
+    def edit(lines):
+        at = lines[0].index(name)
+        lines[:] = [line[:at] + line[at + 1 :] for line in lines]
+
+    return edit
+
+
+DAMAGES = {
+    "no amp_x": lambda folder: _edit_table(folder, _drop_column("amp_x")),
+    "no phase_x": lambda folder: _edit_table(folder, _drop_column("phase_x")),
+    "no varied column": lambda folder: _edit_table(folder, _drop_column("parameters.r")),
+    "a short row": lambda folder: _edit_table(folder, lambda lines: lines[2].pop(5)),
+    "a long row": lambda folder: _edit_table(folder, lambda lines: lines[2].append("1")),
+    "continuation elsewhere": lambda folder: (folder / "sweep.json").write_text(
+        '{"members": 3, "varied": ["parameters.r"], "continuation": "amp_x"}'),
+    "continuation not text": lambda folder: (folder / "sweep.json").write_text(
+        '{"members": 3, "varied": ["parameters.r"], "continuation": [1]}'),
+    "varied not a list": lambda folder: (folder / "sweep.json").write_text(
+        '{"members": 3, "varied": "parameters.r"}'),
+    "a record of another sweep": lambda folder: (folder / "sweep.json").write_text(
+        '{"members": 3, "varied": ["time.step"]}'),
+}
+
+
+@pytest.mark.parametrize("damage", list(DAMAGES))
+def test_plot_refuses_damaged_response_tables_in_one_line(linear_sweep, tmp_path, figures,
+                                                          damage):  # fmt: skip
+    """``plot`` of a frequency response whose table or sweep.json is damaged ended in
+    internal errors: KeyError 'amp_x', 'phase_x', 'parameters.r' (a column cut off), or a
+    continuation key that is no column; TypeError (a row short of fields: its missing ones
+    None, sorted against strings). Each is refused in one line naming the file, before
+    anything is drawn."""
+    from cosserat_fem.plot import plot_run
+
+    _, out, _ = linear_sweep
+    folder = _copy(out, tmp_path / "copy")
+    DAMAGES[damage](folder)
+    with pytest.raises(SceneError) as caught:
+        plot_run(folder)
+    assert "\n" not in str(caught.value) and str(folder) in str(caught.value)
+    assert figures == {}
+
+
+@pytest.mark.long
+def test_plot_of_randomly_damaged_response_tables(linear_sweep, tmp_path, figures):
+    """120 seeded damages (:func:`_mutate`) of a frequency response's table, its part or
+    sweep.json: each is drawn or refused with one line naming a file (a SceneError), never
+    another exception. (~1 min: a drawn case draws two figures.)"""
+    import random
+
+    from cosserat_fem.plot import plot_run
+
+    _, out, _ = linear_sweep
+    rng = random.Random(25)
+    outcomes = {"drawn": 0, "refused": 0}
+    for i in range(120):
+        folder = _copy(out, tmp_path / f"case{i}")
+        what = _mutate(rng, folder)
+        try:
+            plot_run(folder)
+            outcomes["drawn"] += 1
+        except SceneError as exc:
+            text = str(exc)
+            assert "\n" not in text and str(folder) in text, (what, text)
+            outcomes["refused"] += 1
+    assert outcomes["drawn"] >= 5 and outcomes["refused"] >= 30, outcomes
+
+
+@pytest.mark.parametrize("case", ["beyond", "twice", "other values", "other part"])
+def test_plot_refuses_rows_that_are_not_the_sweeps(linear_sweep, tmp_path, figures, case):
+    """Rows that are not the sweep's were merged into its figures silently: a row of a member
+    the sweep does not have, a member's second row, a row whose varied values are not the
+    member's (a table of another sweep of the same key), a table part of another sweep beside
+    the sweep's own. Each is refused in one line naming the table, and nothing is drawn."""
+    from cosserat_fem.plot import plot_run
+
+    _, out, _ = linear_sweep
+    folder = _copy(out, tmp_path / "copy")
+    table = folder / "sweep.csv"
+    header, *lines = table.read_text(encoding="utf-8").splitlines(keepends=True)
+    if case == "beyond":
+        lines.append(lines[-1].replace("2,", "7,", 1))
+    elif case == "twice":
+        lines.append(lines[0])
+    elif case == "other values":
+        lines[1] = lines[1].replace(",1.0,", ",1.05,", 1)
+    else:  # a part of a sweep without a response: other columns
+        table.unlink()
+        part = folder / "table" / "group-1.csv"
+        columns = header.rstrip("\n").split(",")
+        short = columns[: columns.index("direction")] + ["message"]
+        part.write_text(",".join(short) + "\n" + ",".join(["3"] + ["0"] * (len(short) - 1))
+                        + "\n", encoding="utf-8")  # fmt: skip
+    if case != "other part":
+        table.write_text(header + "".join(lines), encoding="utf-8")
+    with pytest.raises(SceneError) as caught:
+        plot_run(folder)
+    assert "\n" not in str(caught.value) and str(folder) in str(caught.value)
+    assert figures == {}
+
+
+def test_plot_draws_no_round_off_as_a_response(linear_sweep, tmp_path, figures):
+    """ψ at the mid-span of the clamped rod's symmetric mode is round-off, 1e-16 rad with a
+    random phase; response.png drew it as a response (a column counted as moving when its
+    largest amplitude was 1e-3 of its group's, here the angles' own largest: itself). A
+    column now moves when it is 1e-3 of the motion's size S in its unit (S the largest of
+    x/ℓ and the angles over the members, ℓ from the members' summary.json, as
+    cosserat_fem/response.py measures settling): the linear sweep's x and ψ (1.7e-5 and
+    2.3e-5: both drawn, two rows of panels), and with ψ replaced by round-off x alone (one
+    row). Its z, 8e-11 m (second order), is not drawn in either."""
+    import random
+
+    from cosserat_fem.plot import plot_run
+
+    _, out, _ = linear_sweep
+    plot_run(_copy(out, tmp_path / "linear"))
+    assert figures["response.png"] == 4  # x and ψ: amplitude and phase each
+    folder = _copy(out, tmp_path / "round-off")
+    table = folder / "sweep.csv"
+    header, *lines = table.read_text(encoding="utf-8").splitlines(keepends=True)
+    columns = header.rstrip("\n").split(",")
+    rng = random.Random(16)
+    rows = []
+    for line in lines:
+        fields = line.rstrip("\n").split(",")
+        fields[columns.index("amp_psi")] = repr(1e-16 * rng.random())
+        fields[columns.index("phase_psi")] = repr(rng.uniform(-math.pi, math.pi))
+        rows.append(",".join(fields) + "\n")
+    table.write_text(header + "".join(rows), encoding="utf-8")
+    plot_run(folder)
+    assert figures["response.png"] == 2  # x alone
+    from cosserat_fem.plot import moving_columns
+
+    one = np.ones(3)
+    amps = {"x": 1e-3 * one, "y": 0 * one, "z": 1e-9 * one, "theta": 0 * one,
+            "psi": 1e-16 * one, "phi": 2e-6 * one}  # fmt: skip
+    assert moving_columns(amps, one) == ["x", "phi"]  # φ: 2e-3 of S = 1e-3
+    assert moving_columns(amps, 10 * one) == ["x", "phi"]  # S = 1e-4: φ 2e-2 of it
+    assert moving_columns(amps, 1e-3 * one) == ["x"]  # S = 1: φ 2e-6 of it
+
+
 class _Probe:
     """A probe of a synthetic signal: x(t) given, the other columns 0."""
 

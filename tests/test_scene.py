@@ -173,6 +173,65 @@ def test_overrides_do_not_touch_the_input() -> None:
     assert json.dumps(data, sort_keys=True) == before
 
 
+def test_unset_removes_a_key_or_a_table_in_order_with_set(capsys) -> None:
+    """--set could not remove a key, so changing a section's shape meant editing the file
+    (the rectangle's a, b and torsion_constant are not a circle's). ``--unset KEY``
+    (cosserat_fem/schema.py: Removal; UNSET in a mapping, the API's cf.UNSET) removes a key
+    or a table, in order with --set; a key the schema does not have is refused with a
+    did-you-mean, one the scene does not hold by name (nothing is removed silently)."""
+    from cosserat_fem.cli import main
+    from cosserat_fem.schema import UNSET, Removal
+
+    circle = [Removal("rod.section.a"), Removal("rod.section.b"),
+              Removal("rod.section.torsion_constant"), "rod.section.shape=circle",
+              "rod.section.diameter=0.05"]  # fmt: skip
+    scene = load_scene(PAPER, circle)
+    assert scene.rod.section.shape == "circle" and scene.rod.section.diameter == 0.05
+    as_map = {"rod.section.a": UNSET, "rod.section.b": UNSET,
+              "rod.section.torsion_constant": UNSET, "rod.section.shape": "circle",
+              "rod.section.diameter": 0.05}  # fmt: skip
+    assert load_scene(PAPER, as_map) == scene
+    argv = ["validate", str(PAPER), "--unset", "rod.section.a", "--unset", "rod.section.b",
+            "--unset", "rod.section.torsion_constant", "--set", "rod.section.shape=circle",
+            "--set", "rod.section.diameter=0.05"]  # fmt: skip
+    capsys.readouterr()
+    assert main(argv) == 0
+    assert 'rod.section.shape = "circle"' in capsys.readouterr().out
+    # In order: removed then set again is set; set then removed is removed (a default back).
+    assert load_scene(PAPER, [Removal("rod.section.a"), "rod.section.a=0.05"]).rod.section.a == 0.05
+    with pytest.raises(SceneError, match="^rod.section.a: required for shape 'rectangle'"):
+        load_scene(PAPER, ["rod.section.a=0.05", Removal("rod.section.a")])
+    assert load_scene(PAPER, [Removal("time.max_halvings")]).time.max_halvings == 6
+    # A whole table.
+    loaded = load_scene(PAPER, ["loads.end.force=[0, 0, 1]"])
+    assert loaded.loads.end is not None
+    assert load_scene(PAPER, ["loads.end.force=[0, 0, 1]", Removal("loads.end")]) == load_scene(
+        PAPER)
+    with pytest.raises(SceneError, match="^rod.section.diameter: not in the scene"):
+        load_scene(PAPER, [Removal("rod.section.diameter")])
+    with pytest.raises(SceneError, match="^rod.sectio: unknown key .*did you mean 'rod.section'"):
+        load_scene(PAPER, {"rod.sectio": UNSET})
+    with pytest.raises(SceneError, match="--unset rod.section.a removes it"):
+        load_scene(PAPER, ["rod.section.shape=circle", "rod.section.diameter=0.05"])
+
+
+def test_unset_works_in_a_sweeps_overrides(tmp_path) -> None:
+    """``sweep FILE --unset KEY``: the command line's overrides of a sweep's base scene take
+    removals too (every member's scene is a circle here)."""
+    from cosserat_fem.schema import Removal
+    from cosserat_fem.sweep_spec import load_sweep
+
+    path = tmp_path / "sweep.toml"
+    path.write_text(f'[sweep]\nscene = "{PAPER}"\n[sweep.vary]\n"rod.section.diameter" = '
+                    '[0.04, 0.05]\n', encoding="utf-8")  # fmt: skip
+    overrides = [Removal("rod.section.a"), Removal("rod.section.b"),
+                 Removal("rod.section.torsion_constant"), "rod.section.shape=circle"]  # fmt: skip
+    spec = load_sweep(path, overrides)
+    diameters = [spec.scene(m).rod.section.diameter for m in spec.members]
+    assert diameters == [0.04, 0.05]
+    assert {spec.scene(m).rod.section.shape for m in spec.members} == {"circle"}
+
+
 # ------------------------------------------------------------------------- malformed scenes
 END_LOAD = '\n[loads.end]\nforce = [0, 0, "s*t"]\n'
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import io
+from pathlib import Path
 
 import pytest
 from conftest import ROOT, run_command
@@ -84,3 +85,41 @@ def test_help_lists_the_commands():
     assert proc.returncode == 0
     for command in ("run", "static", "modes", "validate"):
         assert command in proc.stdout
+
+
+@pytest.mark.parametrize("document", ["README.md", "docs", "scenes"])
+def test_the_documented_commands_write_into_folders_of_their_own(document):
+    """The README's serial and ``mpirun`` sweeps shared one --out, so the second skipped every
+    member ("ran 0"), and so did the two in scenes/sweeps/paper_forcing.toml's comment; the
+    README's run without --out and its modes of the same scene shared the scene's
+    output.directory. Every command of a document (the README, each of docs/*.md, each
+    scene file's comments) that writes (run, static, modes, sweep; the same command twice is
+    one) now has a folder of its own, as the command line resolves it (cosserat_fem/cli.py:
+    --out, or the command's default)."""
+    import re
+    import shlex
+
+    from cosserat_fem import api
+    from cosserat_fem.cli import _out, _parser
+
+    root = ROOT / document
+    paths = [root] if root.is_file() else sorted([*root.rglob("*.md"), *root.rglob("*.toml")])
+    found = 0
+    for path in paths:
+        text = path.read_text(encoding="utf-8")
+        lines = re.findall(r"^#? {4,}(.*cosserat-fem (?:run|static|modes|sweep) .*)$", text,
+                           re.M)  # fmt: skip
+        folders: dict[str, str] = {}
+        for line in sorted(set(lines)):
+            words = shlex.split(re.sub(r"\[(--[^]]*)\]", r"\1", line), comments=True)
+            start = next(i for i, w in enumerate(words) if w.endswith("cosserat-fem")) + 1
+            args = _parser().parse_args(words[start:])
+            if getattr(args, "restart", None):
+                continue  # continues the folder of its run
+            scene = None if args.command == "sweep" else api.load(ROOT / args.scene,
+                                                                   args.overrides)  # fmt: skip
+            folder = str(Path(_out(args, scene)))
+            assert folder not in folders, (str(path), line, folders.get(folder))
+            folders[folder] = line
+        found += len(folders)
+    assert found >= {"README.md": 10, "docs": 1, "scenes": 2}[document]
