@@ -57,6 +57,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from . import safe_files
 from .errors import SceneError
 from .results import PROBE_COLUMNS, xdmf_mesh_xml
 
@@ -362,7 +363,8 @@ def write_pod(result: PodResult, folder: str | Path) -> list[Path]:
 
 def _write_csv(result: PodResult, path: Path) -> Path:
     try:
-        with open(path, "w", newline="", encoding="utf-8") as stream:
+        fd = safe_files.create(path)  # never written through a link, nor a FIFO opened
+        with os.fdopen(fd, "w", newline="", encoding="utf-8") as stream:
             writer = csv.writer(stream)
             writer.writerow(["mode", f"energy_{result.unit.replace(' ', '_')}", "fraction",
                              "cumulative"])  # fmt: skip
@@ -379,6 +381,7 @@ def _write_h5(path: Path, datasets: list[tuple[str, np.ndarray]]) -> None:
     """An HDF5 file of float64/int64 datasets: with h5py, or, in a process that has loaded
     DOLFINx, with its HDF5 library (cosserat_fem/output.py)."""
     datasets = [(name, np.ascontiguousarray(v)) for name, v in datasets]
+    safe_files.remove_name(path)  # a new file, never written through a link
     if "dolfinx" in sys.modules:
         from .output import _Hdf5, _write_file
 
@@ -405,6 +408,9 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
     mesh = f"{frames.name}/mesh.h5"
     grids = []
     try:
+        from .results import FRAME_NAME
+
+        safe_files.remove_own_files(frames, FRAME_NAME)  # an earlier pod's frames, a link
         frames.mkdir(exist_ok=True)
         _write_h5(frames / "mesh.h5", [("/Mesh/mesh/geometry", geometry),
                                        ("/Mesh/mesh/topology", topology)])  # fmt: skip
@@ -429,9 +435,7 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
             '    <Grid Name="pod" GridType="Collection" CollectionType="Temporal">\n'
             + "".join(grids) + "    </Grid>\n  </Domain>\n</Xdmf>\n"
         )
-        work = path.with_name(path.name + "-partial")
-        work.write_text(text, encoding="utf-8")
-        work.replace(path)
+        safe_files.replace(path, text, path.with_name(path.name + "-partial"))
     except (OSError, RuntimeError) as exc:
         raise SceneError(f"pod: cannot write {str(path)!r} "
                          f"({getattr(exc, 'strerror', None) or exc})") from None  # fmt: skip

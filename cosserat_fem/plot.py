@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import safe_files
 from .errors import CosseratError, SceneError
 from .results import PROBE_COLUMNS, NoFramesError, RodSeries, Run, open_run, read_sweep_rows
 
@@ -69,6 +70,7 @@ def _save(fig, path: Path) -> Path:
     """``fig`` as PNG at DPI to ``path``, then closed; SceneError if it cannot be written."""
     plt = _pyplot()
     try:
+        safe_files.remove_name(path)  # a new file: never written through a link
         fig.savefig(path, dpi=DPI)
     except OSError as exc:
         raise SceneError(f"plot: cannot write {str(path)!r} ({exc})") from None
