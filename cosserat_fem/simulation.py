@@ -51,14 +51,7 @@ from .observers import (
 )
 from .output import PointProbe, probe_position, probe_sigma
 from .parallel import ranks_on_node
-from .run_folder import (
-    PROBES,
-    XDMF,
-    holding_folders,
-    new_run_id,
-    prepare_output_dir,
-    status_of,
-)
+from .run_folder import PROBES, XDMF, holding_folders, new_run_id, prepare_output_dir, status_of
 from .scene import Scene, refuse_closed
 
 

@@ -39,14 +39,7 @@ from .observers import FolderStart, FolderSummary, ProbeObserver, ProbeRecorder,
 from .output import PointProbe, probe_position, probe_sigma
 from .parallel import ranks_on_node
 from .progress import LOGGER
-from .run_folder import (
-    PROBES,
-    XDMF,
-    holding_folders,
-    new_run_id,
-    prepare_output_dir,
-    status_of,
-)
+from .run_folder import PROBES, XDMF, holding_folders, new_run_id, prepare_output_dir, status_of
 from .scene import Scene, refuse_closed
 
 
