@@ -44,7 +44,16 @@ half-way leaves no XML naming a deleted file) the frame files after them,
 frame files, ``<name>.frames/<frames>.h5`` on, referenced by the one ``<name>.xdmf``
 (cosserat_fem/output.py). Outputs of the earlier single-file layout are continued the same
 way (their ``<name>-restart<m>.h5`` files of later restarts deleted).
-A new run into a folder removes the checkpoint of an earlier one (cosserat_fem/run_folder.py).
+A new run into a folder removes the checkpoint of an earlier one (cosserat_fem/run_folder.py):
+the files of :data:`OWN_FILES` in ``checkpoint/``, nothing else there.
+
+No file is written through a link, and no special file is read (cosserat_fem/safe_files.py):
+the index and the state files are replaced by an atomic rename, probes.csv is cut as the
+folder's own copy when it is a link (a restart of a copy made with ``cp -as``, ``cp -al`` or
+``rsync --link-dest`` leaves the original as it was), and a restart whose ``checkpoint/`` or
+frames folder is a link to a folder elsewhere is refused (it would write there). A restart
+also holds the folder's lock (cosserat_fem/run_folder.py); a run in progress there is named
+before the checkpoint is read.
 """
 
 from __future__ import annotations
@@ -54,6 +63,7 @@ import io
 import json
 import math
 import os
+import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -62,12 +72,16 @@ from typing import Any
 import numpy as np
 from mpi4py import MPI
 
+from . import safe_files
 from .errors import OutputError, SceneError, show_value
 from .parallel import agree
 
 FORMAT = 3  # 3: the time loop's state in one part, "loop" (cosserat_fem/loop.py)
 DIRECTORY = "checkpoint"
 INDEX = "checkpoint.json"
+#: The names of the files the project writes in ``checkpoint/`` (and their scratch names): what
+#: a new run removes there.
+OWN_FILES = re.compile(r"(?:checkpoint\.json|state[01]\.rank[0-9]+\.npz)(?:\.tmp)?")
 #: Scene keys a restart may override (prefixes end with "."): none changes the discretisation,
 #: the model or the output grid.
 RESTART_KEYS = (
@@ -218,16 +232,9 @@ def _entry(meta: dict) -> dict:
 def _write_atomically(path: Path, data: bytes) -> OutputError | None:
     """Write ``data`` to ``path`` through a temporary file and a rename; the error, if any
     (the temporary file is removed, ``path`` is untouched)."""
-    tmp = path.with_name(path.name + ".tmp")
     try:
-        with open(tmp, "wb") as stream:
-            stream.write(data)
-        os.replace(tmp, path)
+        safe_files.replace(path, data)
     except OSError as exc:
-        try:
-            tmp.unlink(missing_ok=True)
-        except OSError:
-            pass
         return OutputError(f"checkpoint: cannot write {str(path)!r} ({exc.strerror or exc})")
     return None
 
@@ -277,7 +284,7 @@ def _read_state(path: Path, entry: dict, rank: int) -> tuple[dict | None, str | 
     """This rank's arrays of ``entry`` from ``path``, checked against the index's digest and
     generation; (None, what is wrong) if it cannot be used."""
     try:
-        data = path.read_bytes()
+        data = safe_files.read_regular(path)
         digests = entry["digests"]
         if len(digests) <= rank or hashlib.sha256(data).hexdigest() != digests[rank]:
             return None, f"{path.name} does not match its checksum (damaged or replaced)"
@@ -295,17 +302,21 @@ def load_checkpoint(run_dir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Che
     one if the newest is damaged); SceneError if there is none or it does not fit this run
     (another number of ranks, another format). Collective: every rank agrees on what it
     found before any goes on."""
+    from .run_folder import refuse_if_held
+
     run_dir = Path(run_dir)
+    refuse_if_held(run_dir, comm, "restart")
     index_path = run_dir / DIRECTORY / INDEX
     meta, error = None, None
     if comm.rank == 0:
         try:
-            meta = json.loads(index_path.read_text(encoding="utf-8"))
+            meta = json.loads(safe_files.read_text(index_path))
             error = _index_problem(meta, index_path)
         except FileNotFoundError:
             error = f"no checkpoint in {str(run_dir)!r} (no {DIRECTORY}/{INDEX})"
         except (OSError, ValueError) as exc:
-            error = f"cannot read {str(index_path)!r} ({exc})"
+            reason = exc.strerror if isinstance(exc, OSError) and exc.strerror else exc
+            error = f"cannot read {str(index_path)!r} ({reason})"
     meta, error = comm.bcast((meta, error), root=0)
     if error:
         raise SceneError(f"--restart: {error}")
@@ -418,7 +429,7 @@ def _probe_prefix(path: Path, rows: int) -> tuple[int, Any]:
     """(bytes, sha256) of the header and the first ``rows`` rows of probes.csv."""
     digest = hashlib.sha256()
     end = 0
-    with open(path, "rb") as stream:
+    with os.fdopen(safe_files.open_regular(path), "rb") as stream:
         for _ in range(rows + 1):
             line = stream.readline()
             if not line.endswith(b"\n"):
@@ -434,7 +445,7 @@ def _xdmf_problem(path: Path, frames: int, run_id: str) -> str | None:
     """Why the XDMF file cannot be continued from ``frames`` frames of run ``run_id``."""
     from .output import XDMF_GRID, xdmf_run_id
 
-    root = ET.parse(path).getroot()
+    root = ET.fromstring(safe_files.read_regular(path))
     if xdmf_run_id(root) != run_id:
         return f"{str(path)!r} was written by another run than the checkpoint's"
     domain = root.find("Domain")
@@ -445,8 +456,12 @@ def _xdmf_problem(path: Path, frames: int, run_id: str) -> str | None:
     for step in steps[:frames]:
         for item in step.iter("DataItem"):
             name = (item.text or "").strip().split(":", 1)[0]
-            if not (path.parent / name).is_file():
-                return f"{str(path)!r} refers to {name}, which is missing"
+            target = path.parent / name
+            if not target.is_file():
+                what = "is missing"
+                if target.exists():
+                    what = f"is {safe_files.kind(target.stat().st_mode)}, not a regular file"
+                return f"{str(path)!r} refers to {name}, which {what}"
     return None
 
 
@@ -462,6 +477,7 @@ def check_outputs(
     if comm.rank == 0:
         try:
             problem = _summary_problem(run_dir / "summary.json", checkpoint.run_id)
+            problem = problem or _linked_folder(run_dir, xdmf)
             if problem is None and xdmf is not None:
                 if outputs.get("xdmf_frames") is None:
                     problem = "the checkpointed run wrote no XDMF file"
@@ -483,10 +499,25 @@ def check_outputs(
     return RestartPlan(probes, offset, xdmf, frames, checkpoint.restart_number)
 
 
+def _linked_folder(run_dir: Path, xdmf: Path | None) -> str | None:
+    """Why the restart would write into a folder outside ``run_dir``: its checkpoint folder or
+    the XDMF file's frames folder is a link to one (a file that is a link is replaced, never
+    written through; a folder's files cannot be)."""
+    from .output import frames_folder
+
+    for folder in [run_dir / DIRECTORY] + ([frames_folder(xdmf)] if xdmf is not None else []):
+        if folder.is_symlink():
+            return (
+                f"{str(folder)!r} is a link to a folder elsewhere, which the restart would "
+                "write into; copy the run's folder with its files (cp -a), then restart the copy"
+            )
+    return None
+
+
 def _summary_problem(path: Path, run_id: str) -> str | None:
     """Why summary.json does not show the checkpoint's run (written when the run started)."""
     try:
-        summary = json.loads(path.read_text(encoding="utf-8"))
+        summary = json.loads(safe_files.read_text(path))
     except FileNotFoundError:
         summary = None
     if not isinstance(summary, dict) or summary.get("run_id") != run_id:
@@ -499,16 +530,16 @@ def _summary_problem(path: Path, run_id: str) -> str | None:
 
 def cut_xdmf(path: Path, frames: int) -> None:
     """Keep the first ``frames`` time steps of every temporal collection of the XDMF file
-    (written by rank 0 only; replaced atomically)."""
-    tree = ET.parse(path)
+    (written by rank 0 only; replaced atomically, a link replaced, not followed)."""
+    tree = ET.ElementTree(ET.fromstring(safe_files.read_regular(path)))
     for collection in tree.getroot().iter("Grid"):
         if collection.get("GridType") != "Collection":
             continue
         for step in collection.findall("Grid")[frames:]:
             collection.remove(step)
-    tmp = path.with_name(path.name + ".tmp")
-    tree.write(tmp, encoding="utf-8", xml_declaration=True)
-    os.replace(tmp, path)
+    text = io.BytesIO()
+    tree.write(text, encoding="utf-8", xml_declaration=True)
+    safe_files.replace(path, text.getvalue())
 
 
 def cut_outputs(plan: RestartPlan, comm: MPI.Comm) -> None:
@@ -523,9 +554,8 @@ def cut_outputs(plan: RestartPlan, comm: MPI.Comm) -> None:
     problem = None
     if comm.rank == 0:
         try:
-            if plan.probes is not None:
-                with open(plan.probes, "r+b") as stream:
-                    stream.truncate(plan.probe_bytes)
+            if plan.probes is not None:  # a link: cut as the folder's own copy
+                safe_files.own_copy(plan.probes, plan.probe_bytes)
             if plan.xdmf is not None:
                 cut_xdmf(plan.xdmf, plan.frames)
                 folder = frames_folder(plan.xdmf)

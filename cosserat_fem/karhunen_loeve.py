@@ -57,6 +57,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from . import safe_files
 from .errors import CosseratError, SceneError
 from .results import PROBE_COLUMNS, xdmf_mesh_xml
 
@@ -416,6 +417,10 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
     grids = []
     output_folder(frames, frames, "pod")
     try:
+        from .results import FRAME_NAME
+
+        safe_files.remove_own_files(frames, FRAME_NAME)  # an earlier pod's frames, a link
+        frames.mkdir(exist_ok=True)
         _write_h5(frames / "mesh.h5", [("/Mesh/mesh/geometry", geometry),
                                        ("/Mesh/mesh/topology", topology)])  # fmt: skip
         for k, (energy, shape) in enumerate(zip(result.energies, result.shapes, strict=True), 1):

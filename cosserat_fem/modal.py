@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -38,7 +39,7 @@ from dolfinx.fem.petsc import assemble_matrix
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import __version__, budget
+from . import __version__, budget, safe_files
 from .errors import OutputError, SceneError, SolverError
 from .model import FULL, RodModel, build_model, support_conditions
 from .output import XdmfWriter
@@ -414,7 +415,8 @@ def write_modes(out: Path, model: RodModel, modes: list[Mode], about: str = "und
     problem = None
     if comm.rank == 0:
         try:
-            with open(out / "modes.csv", "w", newline="", encoding="utf-8") as stream:
+            fd = safe_files.create(out / "modes.csv")  # never written through a link
+            with os.fdopen(fd, "w", newline="", encoding="utf-8") as stream:
                 writer = csv.writer(stream)
                 writer.writerow(
                     ["mode", "omega_rad_s", "frequency_hz", "kind"]

@@ -40,17 +40,21 @@ from .run_folder import SUMMARY, claim, write_summary
 
 class FolderStart(Observer):
     """Claims the folder of a new run, or cuts a restart's outputs back to its checkpoint
-    (``plan``, from checkpoint.check_outputs); then summary.json says "running"."""
+    (``plan``, from checkpoint.check_outputs); then summary.json says "running".
+    ``writes_checkpoint``: the run writes checkpoints (a file of the user's named
+    ``checkpoint`` is then in its way, run_folder.claim)."""
 
-    def __init__(self, folder: Path, comm, writes_xdmf: bool, summary: dict, plan=None):
+    def __init__(self, folder: Path, comm, writes_xdmf: bool, summary: dict, plan=None,
+                 writes_checkpoint: bool = False):  # fmt: skip
         self.folder, self.comm, self.writes_xdmf = folder, comm, writes_xdmf
         self.summary, self.plan = summary, plan
+        self.writes_checkpoint = writes_checkpoint
         self.claimed = False
 
     def started(self, loop) -> None:
         """Collective: the folder claimed or cut back to the checkpoint, then summary.json."""
         if self.plan is None:
-            claim(self.folder, self.comm, self.writes_xdmf, self.summary)
+            claim(self.folder, self.comm, self.writes_xdmf, self.summary, self.writes_checkpoint)
         else:
             cut_outputs(self.plan, self.comm)
             write_summary(self.folder / SUMMARY, self.summary, self.comm)

@@ -10,6 +10,12 @@ last step written (tests/test_kill.py): the XDMF/HDF5 pair is consistent between
 always covers the last frame on disk and loses at most the rows computed since
 (:class:`ProbeWriter`). ``fsync`` only at the end: what reached the page cache survives a
 killed process, though not a power cut.
+
+No output is written through a link (a symbolic link or a file with other names, as ``cp -as``,
+``cp -al`` or ``rsync --link-dest`` make) into a file outside the folder
+(cosserat_fem/safe_files.py): probes.csv is made as a new file, or, on a restart, continued as
+the folder's own copy; every XDMF, HDF5 and checkpoint file is a new file or renamed over the
+old name. No special file (a FIFO, a device) is opened.
 """
 
 from __future__ import annotations
@@ -23,7 +29,6 @@ import mmap
 import os
 import re
 import resource
-import shutil
 import time
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -35,12 +40,13 @@ import ufl
 from dolfinx import fem, geometry, mesh
 from mpi4py import MPI
 
+from . import safe_files
 from .charts import euler_angles, euler_matrix, quaternion_frame, quaternion_of_frame
 from .errors import OutputError
 from .forms.kinematics import directors
 from .forms.resultants import resultants
 from .parallel import agree
-from .results import PROBE_FIELD_COLUMNS, probe_columns, xdmf_mesh_xml
+from .results import FRAME_NAME, PROBE_FIELD_COLUMNS, probe_columns, xdmf_mesh_xml
 
 if TYPE_CHECKING:
     from .model import RodModel
@@ -220,7 +226,7 @@ class PointProbe:
 def last_probe_row(path: Path) -> np.ndarray:
     """The last whole row of probes.csv (a restart's, already cut back to its checkpoint),
     as numbers."""
-    with open(path, "rb") as stream:
+    with os.fdopen(safe_files.open_regular(path), "rb") as stream:
         stream.seek(0, os.SEEK_END)
         size = stream.tell()
         stream.seek(max(0, size - 4096))
@@ -259,7 +265,9 @@ class ProbeWriter:
         max_delay: float = 0.05,
         resume: bool = False,
     ):
-        """``resume``: continue the existing file (a restart, which has cut it back)."""
+        """``resume``: continue the existing file (a restart, which has cut it back; a link
+        is continued as the folder's own copy), else make a new file (never written through a
+        link, module docstring)."""
         self.path = Path(path)
         self.probe = probe
         self.comm = probe.U.function_space.mesh.comm
@@ -275,8 +283,11 @@ class ProbeWriter:
         if probe.is_owner:
             try:
                 if resume:
-                    self._sha.update(self.path.read_bytes())
-                self._file = open(path, "a" if resume else "w", encoding="utf-8")  # noqa: SIM115
+                    fd = safe_files.open_append(path)
+                    self._file = os.fdopen(fd, "a", encoding="utf-8")
+                    self._sha.update(safe_files.read_fd(fd))
+                else:
+                    self._file = os.fdopen(safe_files.create(path), "w", encoding="utf-8")
             except OSError as exc:
                 self._fail(exc)
             if not resume:
@@ -775,21 +786,9 @@ def _blocks(size: int) -> int:
     return -(-size // 4096) * 4096
 
 
-def _write_file(path: Path, data) -> None:
-    """``data`` (bytes-like) into a new file ``path`` (a file of that name, which nothing
-    names, is replaced)."""
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
-    try:
-        _pwrite_all(fd, data, 0)
-    finally:
-        os.close(fd)
-
-
-def _pwrite_all(fd: int, data, offset: int) -> None:
-    view = memoryview(data).cast("B")
-    while view:
-        written = os.pwrite(fd, view, offset)
-        view, offset = view[written:], offset + written
+#: ``data`` (bytes-like) into a new file ``path`` (whatever had the name is replaced: never
+#: written through a link; cosserat_fem/safe_files.py).
+_write_file = safe_files.write_new
 
 
 class XdmfWriter:
@@ -921,14 +920,12 @@ class XdmfWriter:
         return self.folder / frame_file(self.writes)
 
     def _start(self, run_id: str | None) -> None:
-        """A new series (rank 0): the XML and frames folder of an earlier one removed (the XML
-        first), ``mesh.h5`` written, the XML without frames published."""
-        self.path.unlink(missing_ok=True)
-        if self.folder.is_dir() and not self.folder.is_symlink():
-            shutil.rmtree(self.folder)
-        else:
-            self.folder.unlink(missing_ok=True)
-        self.folder.mkdir()
+        """A new series (rank 0): the XML and the frames of an earlier one removed (the XML
+        first; in the frames folder only the files it writes, :data:`FRAME_NAME`: a user's
+        files or folders there stay), ``mesh.h5`` written, the XML without frames published."""
+        safe_files.remove_name(self.path)
+        safe_files.remove_own_files(self.folder, FRAME_NAME)
+        self.folder.mkdir(exist_ok=True)
         self._doc = _XdmfDocument(self.path, self._work, self._write_mesh(), run_id)
         self._rewrite(None, "the XDMF file")
 
@@ -948,7 +945,7 @@ class XdmfWriter:
         """Continue the published XML (rank 0): its frames and mesh kept, the values of the
         new frames put in the order of that mesh's points; the XML published anew (the same
         document, with spare room)."""
-        text = self.path.read_text(encoding="utf-8")
+        text = safe_files.read_text(self.path)
         self._doc = _XdmfDocument.parse(self.path, self._work, text)
         self.folder.mkdir(exist_ok=True)  # outputs of the single-file layout
         if self._doc.mesh is None:  # no frame yet: the mesh as a new series writes it
@@ -963,6 +960,7 @@ class XdmfWriter:
         output mesh did (under MPI not in the order of σ)."""
         item = ET.fromstring(f"<m>{self._doc.mesh}</m>").find("Geometry/DataItem")
         name, _, dataset = (item.text or "").strip().partition(":")
+        os.close(safe_files.open_regular(self.path.parent / name))  # HDF5 would wait on a FIFO
         x = self._h5.read(self.path.parent / name, dataset)
         mine = self.line.geometry
         if x.shape == mine.shape:
@@ -1195,9 +1193,9 @@ class _XdmfDocument:
         text += b" " * _pad(len(text))
         data = b"".join([text, _XDMF_TAIL, _SPARE_OPEN, b" " * spare, _SPARE_CLOSE])
         self.work.unlink(missing_ok=True)  # a new file (truncating one costs a discard)
-        fd = os.open(self.work, os.O_RDWR | os.O_CREAT | os.O_EXCL, 0o644)
+        fd = safe_files.create(self.work)
         try:
-            _pwrite_all(fd, data, 0)
+            safe_files.write_all(fd, data, 0)
             os.replace(self.work, self.path)
         except BaseException:
             os.close(fd)
@@ -1228,8 +1226,8 @@ class _XdmfDocument:
         staged = b"".join(
             [b" ", frame, b" " * (tail - start - 1 - len(frame)), _XDMF_TAIL, _SPARE_OPEN]
         )
-        _pwrite_all(self._fd, staged, start)
-        _pwrite_all(self._fd, b" " * _SWITCH, self._tail)
+        safe_files.write_all(self._fd, staged, start)
+        safe_files.write_all(self._fd, b" " * _SWITCH, self._tail)
         self._tail = tail
         self.frames.append(frame)
         self._frame_bytes += len(frame)

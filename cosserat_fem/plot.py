@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from . import safe_files
 from .errors import CosseratError, OutputError, SceneError, out_folder
 from .results import (
     PROBE_COLUMNS,
@@ -82,17 +83,14 @@ def output_folder(out: str | Path | None, directory: Path, command: str) -> Path
 
 
 def write_output(path: Path, data, command: str) -> Path:
-    """``data`` (bytes-like) as the file ``path``, whole or not at all: written to a hidden
-    file beside it and renamed over it (so a link at ``path`` is replaced, never written
-    through). OutputError naming ``path`` if it cannot be written; the hidden file is removed
-    and a file that was at ``path`` before is kept."""
-    work = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    """``data`` (bytes-like) as the file ``path``, whole or not at all
+    (:func:`cosserat_fem.safe_files.replace`: a hidden scratch file beside it renamed over it,
+    so a link at ``path`` is replaced, never written through). OutputError naming ``path`` if
+    it cannot be written; the scratch file is removed and a file that was at ``path`` before is
+    kept."""
     try:
-        with open(work, "wb") as stream:
-            stream.write(data)
-        os.replace(work, path)
+        safe_files.replace(path, data, path.with_name(f".{path.name}.{os.getpid()}.partial"))
     except OSError as exc:
-        work.unlink(missing_ok=True)
         raise OutputError(f"{command}: cannot write {str(path)!r} "
                           f"({exc.strerror or exc})") from None  # fmt: skip
     return path

@@ -17,7 +17,8 @@ whose one-line message names the file at fault, most often first (text taken fro
 quoted with ``repr``, so no control character reaches the terminal), never another
 exception. What is read has passed these checks:
 
-* Every file is a regular file (not a folder, device, FIFO or dangling link) of at most
+* Every file is a regular file (not a folder, device, FIFO or dangling link: looked at before
+  it is opened, and opened without blocking, cosserat_fem/safe_files.py) of at most
   :data:`MAX_PROBES_BYTES`, :data:`MAX_SUMMARY_BYTES` or :data:`MAX_XDMF_BYTES`; text is
   UTF-8.
 * Numbers: finite and at most :data:`MAX_MAGNITUDE` in magnitude. NaN and inf are refused,
@@ -56,6 +57,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
+import os
 import re
 import xml.etree.ElementTree as ET
 import xml.parsers.expat
@@ -65,6 +67,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from . import safe_files
 from .errors import CosseratError, SceneError
 
 PROBE_COLUMNS = ("t", "x", "y", "z", "theta", "psi", "phi")
@@ -175,10 +178,9 @@ def _read_bytes(path: Path, limit: int) -> bytes:
     """The content of the regular file ``path``, refused if larger than ``limit`` bytes."""
     _check_size(path, limit)
     try:
-        with open(path, "rb") as stream:
-            data = stream.read(limit + 1)
+        data = safe_files.read_regular(path, limit)
     except OSError as exc:
-        raise SceneError(f"{_where(path)}: cannot read it ({exc})") from None
+        raise SceneError(f"{_where(path)}: cannot read it ({exc.strerror or exc})") from None
     if len(data) > limit:
         raise SceneError(f"{_where(path)}: more than {limit >> 20} MiB; not a run's output")
     return data
@@ -361,7 +363,7 @@ def read_probe_table(path: str | Path) -> tuple[tuple[str, ...], np.ndarray]:
     blocks: list[np.ndarray] = []
     rows: list[list[float]] = []
     try:
-        with open(path, "rb") as stream:
+        with os.fdopen(safe_files.open_regular(path), "rb") as stream:
             first = stream.readline(MAX_LINE_BYTES)
             if not first.endswith(b"\n"):
                 # No whole line: a run killed as it made the file left an empty file or a
@@ -395,7 +397,7 @@ def read_probe_table(path: str | Path) -> tuple[tuple[str, ...], np.ndarray]:
                     blocks.append(np.array(rows))
                     rows = []
     except OSError as exc:
-        raise SceneError(f"{_where(path)}: cannot read it ({exc})") from None
+        raise SceneError(f"{_where(path)}: cannot read it ({exc.strerror or exc})") from None
     blocks.append(np.array(rows, dtype=float).reshape(-1, len(columns)))
     return columns, np.concatenate(blocks)
 
@@ -445,9 +447,12 @@ def _h5py():
 _H5_ERRORS = (OSError, RuntimeError, ValueError, TypeError, KeyError, IndexError)
 
 
-#: The one reference that is not a plain name: a file of the frames folder beside the XDMF file
-#: (cosserat_fem/output.py, ``frames_folder``): one folder level, no ".." or absolute path.
-_FRAME_FILE = re.compile(r"[^/\\]+\.frames/(?:mesh|[0-9]{6,})\.h5")
+#: The names of the files in an XDMF file's frames folder (cosserat_fem/output.py,
+#: ``frames_folder``): the mesh's and one a frame; what a new series removes there.
+FRAME_NAME = re.compile(r"(?:mesh|[0-9]{6,})\.h5")
+#: The one reference that is not a plain name: a file of the frames folder beside the XDMF file:
+#: one folder level, no ".." or absolute path.
+_FRAME_FILE = re.compile(r"[^/\\]+\.frames/" + FRAME_NAME.pattern)
 
 
 class _Datasets:
@@ -742,12 +747,13 @@ def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[li
     """(columns, rows) of the sweep in ``directory``: its sweep.csv, or its table parts (with
     ``parts_only``, or while there is no sweep.csv: a sweep killed or still running). A cut
     last line of a file (a kill) is left out, not changed on disk; the rows (dicts of text)
-    come sorted by member. An unreadable file or a member that is not a number is bad input."""
+    come sorted by member. An unreadable file (a special file: refused, never opened) or a
+    member that is not a number is bad input."""
     import csv
 
     directory = Path(directory)
     table = directory / SWEEP_TABLE
-    if table.is_file() and not parts_only:
+    if not parts_only and _is_file(table):
         sources = [table]
     else:
         sources = sorted((directory / SWEEP_PARTS).glob("group-*.csv"))
@@ -755,9 +761,10 @@ def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[li
     rows: list[dict] = []
     for source in sources:
         try:
-            text = source.read_text(encoding="utf-8")
+            text = safe_files.read_text(source)
         except (OSError, UnicodeDecodeError) as exc:
-            raise SceneError(f"{_where(source)}: cannot read it ({exc})") from None
+            reason = exc.strerror if isinstance(exc, OSError) else exc
+            raise SceneError(f"{_where(source)}: cannot read it ({reason})") from None
         reader = csv.DictReader(text[: text.rfind("\n") + 1].splitlines())
         rows += _whole_rows(source, reader, columns)
         columns = list(reader.fieldnames or columns)

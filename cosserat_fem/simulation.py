@@ -52,7 +52,7 @@ from .observers import (
 )
 from .output import PointProbe, probe_position, probe_sigma
 from .parallel import agree, ranks_on_node
-from .run_folder import PROBES, XDMF, new_run_id, prepare_output_dir, status_of
+from .run_folder import PROBES, XDMF, holding_folders, new_run_id, prepare_output_dir, status_of
 from .scene import Scene, refuse_closed
 
 
@@ -116,6 +116,7 @@ def _leaves_plane(model: RodModel, state: np.ndarray) -> bool:
     return model.msh.comm.allreduce(local, op=MPI.LOR)
 
 
+@holding_folders
 def run(
     scene: Scene,
     out_dir: str | Path | None = None,
@@ -142,6 +143,8 @@ def run(
     output time. ``progress(t [s], steps taken, Newton iterations)`` is called at every
     output time. ``record``: keep the probe's rows in memory (``RunResult.probes``);
     ``fields``: stations σ ∈ [0, 1] at which to keep p every ``field_every`` output times.
+    The output folder is locked for the run (a second writer there is refused,
+    cosserat_fem/run_folder.py).
     """
     t_start = time.perf_counter()
     refuse_closed(scene, "run")
@@ -158,7 +161,8 @@ def run(
     budget.check(scene, "run", out, ranks_on_node(comm), comm.size, start=start, comm=comm)
     plan = None
     if out is not None:
-        prepare_output_dir(out, comm)
+        kind, run_id = ("restart", restart.run_id) if restart is not None else ("run", None)
+        prepare_output_dir(out, comm, lock=kind, run_id=run_id)
         if restart is not None:  # checked before anything is built or touched
             xdmf = out / XDMF if scene.output.xdmf else None
             plan = check_outputs(restart, out / PROBES, xdmf, comm)
@@ -303,7 +307,8 @@ class _RunParts:
     def files(self, out: Path, restart: Checkpoint | None, plan) -> None:
         """The folder claimed (or cut back), probes.csv and the XDMF pair."""
         scene = self.scene
-        begin = FolderStart(out, self.comm, scene.output.xdmf, self.summary, plan)
+        begin = FolderStart(out, self.comm, scene.output.xdmf, self.summary, plan,
+                            writes_checkpoint=scene.output.checkpoint)  # fmt: skip
         probes = ProbeObserver(out / PROBES, self.probe, resume=restart is not None)
         xdmf = None
         if scene.output.xdmf:

@@ -39,7 +39,7 @@ from .observers import FolderStart, FolderSummary, ProbeObserver, ProbeRecorder,
 from .output import PointProbe, probe_position, probe_sigma
 from .parallel import ranks_on_node
 from .progress import LOGGER
-from .run_folder import PROBES, XDMF, new_run_id, prepare_output_dir, status_of
+from .run_folder import PROBES, XDMF, holding_folders, new_run_id, prepare_output_dir, status_of
 from .scene import Scene, refuse_closed
 
 
@@ -173,6 +173,7 @@ class StaticLoop:
             model.U.x.array[:] = U_n  # the last accepted state
 
 
+@holding_folders
 def static_path(
     scene: Scene,
     out_dir: str | Path | None = None,
@@ -201,7 +202,7 @@ def static_path(
             "not for static solves"
         )
     if write_outputs:
-        prepare_output_dir(out, comm)
+        prepare_output_dir(out, comm, lock="static")
     model = build_model(scene, comm)
     if model.needs_chart:
         model.use_chart()  # rotations of any size (cosserat_fem/charts.py)

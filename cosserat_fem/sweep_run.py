@@ -14,8 +14,12 @@ summary.json only.
 A member that fails (a SceneError at run time, Newton that gives up, a limit) is recorded with
 its status and one-line reason and the sweep goes on. A sweep that is killed and started
 again with the same ``--out`` skips the members that have a row (a row cut by the kill is
-dropped and its member run again); ``sweep.json`` records the sweep, and a different sweep in
-the same folder is refused. Members run one after another in each group, and a member's rows
+dropped and its member run again); ``sweep.json`` records the sweep (written atomically: a
+damaged one is refused in one line naming it), and a different sweep in the same folder is
+refused. The sweep holds its folder's lock while it runs (a second sweep or run there is
+refused, naming it; cosserat_fem/run_folder.py); the members' folders inside are its own. Its
+files are never written through a link, nor is a special file opened
+(cosserat_fem/safe_files.py). Members run one after another in each group, and a member's rows
 of probes are only held until its row is written: memory per rank does not grow with the sweep.
 
 A frequency response (``[sweep.response]``) deals chains rather than members: a group runs
@@ -39,6 +43,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 import shutil
 import time
 import zipfile
@@ -48,6 +53,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
+from . import safe_files
 from .charts import change_chart
 from .errors import CosseratError, OutputError, SceneError, SolverError, StopError
 from .parallel import agree
@@ -55,6 +61,7 @@ from .progress import SweepProgress
 from .response import COLUMNS as RESPONSE_NAMES
 from .response import MEASURES, PeriodicResponse, continued_start
 from .results import PROBE_COLUMNS, SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
+from .run_folder import holding_folders, prepare_output_dir
 from .sweep_spec import Member, SweepSpec, forced_span
 
 PROBE_NAMES = PROBE_COLUMNS[1:]  # x, y, z [m], θ, ψ, φ [rad]
@@ -119,11 +126,10 @@ def _cut_rows_off(out: Path) -> None:
     """A row cut by a kill is cut off its table part too, so that the next row starts a line
     (world rank 0, before anything is appended)."""
     for part in (out / SWEEP_PARTS).glob("group-*.csv"):
-        raw = part.read_bytes()
+        raw = safe_files.read_regular(part)
         whole = raw.rfind(b"\n") + 1
         if whole != len(raw):
-            with open(part, "r+b") as stream:
-                stream.truncate(whole)
+            safe_files.own_copy(part, whole)
 
 
 def _finished(out: Path) -> dict[int, dict]:
@@ -135,11 +141,22 @@ def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
     """The output folder (world rank 0): made, the sweep recorded or checked against the one
     it holds; the rows of members already finished."""
     out.mkdir(parents=True, exist_ok=True)
+    for name in (SWEEP_PARTS, "members"):
+        if (out / name).is_symlink():
+            raise SceneError(f"sweep: {str(out / name)!r} is a link to a folder elsewhere, "
+                             "which the sweep would write into; use another --out")  # fmt: skip
     (out / SWEEP_PARTS).mkdir(exist_ok=True)
     record = out / RECORD
     fingerprint = spec.fingerprint()
-    if record.exists():
-        held = json.loads(record.read_text(encoding="utf-8"))
+    if record.exists() or record.is_symlink():
+        try:
+            held = json.loads(safe_files.read_text(record))
+            reason = None if isinstance(held, dict) else "not a JSON object"
+        except (OSError, ValueError, RecursionError) as exc:
+            reason = exc.strerror if isinstance(exc, OSError) else "not JSON"
+        if reason:
+            raise SceneError(f"sweep: {str(record)!r} is not the record of a sweep ({reason}); "
+                             "remove it to start the sweep there anew, or use another --out")
         if held.get("fingerprint") != fingerprint:
             raise SceneError(f"sweep: {str(out)!r} holds another sweep (other scene or members); "
                              "use another --out, or remove it")  # fmt: skip
@@ -148,7 +165,7 @@ def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
         document = {"fingerprint": fingerprint, "members": len(spec.members),
                     "varied": list(spec.varied), "source": spec.source,
                     "continuation": continuation}  # fmt: skip
-        record.write_text(json.dumps(document, indent=1) + "\n", encoding="utf-8")
+        safe_files.replace(record, json.dumps(document, indent=1) + "\n")
     _cut_rows_off(out)
     return _finished(out)
 
@@ -187,11 +204,10 @@ def _save_final(folder: Path, final: _Final, comm) -> None:
     problem = None
     if comm.rank == 0:
         arrays = {f"U{r}": part for r, part in enumerate(parts)}
-        temporary = folder / ".final_state.npz"
+        data = io.BytesIO()
+        np.savez(data, t=final.t, period=final.period, **arrays)
         try:
-            with open(temporary, "wb") as stream:
-                np.savez(stream, t=final.t, period=final.period, **arrays)
-            temporary.replace(folder / FINAL_STATE)
+            safe_files.replace(folder / FINAL_STATE, data.getvalue(), folder / ".final_state.npz")
         except OSError as exc:
             problem = OutputError(f"sweep: cannot write {str(folder / FINAL_STATE)!r} ({exc})")
     agree(comm, problem)
@@ -203,7 +219,7 @@ def _load_final(folder: Path, index: int, comm) -> _Final | None:
     another size is refused before (the sweep's fingerprint holds group_size)."""
     path = folder / FINAL_STATE
     try:
-        with np.load(path) as data:
+        with np.load(io.BytesIO(safe_files.read_regular(path))) as data:
             final = _Final(index, float(data["t"]), float(data["period"]),
                            np.array(data[f"U{comm.rank}"]))  # fmt: skip
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
@@ -271,7 +287,7 @@ def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
         message = f"{type(exc).__name__}: {exc}"
     wall = time.perf_counter() - t0
     if summary is None and (folder / "summary.json").exists():
-        summary = json.loads((folder / "summary.json").read_text(encoding="utf-8"))
+        summary = json.loads(safe_files.read_text(folder / "summary.json"))
     if comm.rank == 0 and spec.keep == "probes" and folder.exists():
         for entry in folder.iterdir():
             if entry.name not in ("probes.csv", "summary.json", FINAL_STATE):
@@ -326,16 +342,18 @@ class _Counter:
         self.window.Free()
 
 
+@holding_folders
 def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
               progress: bool = False) -> SweepResult:  # fmt: skip
-    """Run the members of ``spec`` not yet finished in ``out`` (module docstring);
-    collective over ``world``. ``progress`` (the same on every rank): a line on stderr per
-    member finished (cosserat_fem/progress.py SweepProgress)."""
+    """Run the members of ``spec`` not yet finished in ``out`` (module docstring), holding the
+    folder's lock; collective over ``world``. ``progress`` (the same on every rank): a line on
+    stderr per member finished (cosserat_fem/progress.py SweepProgress)."""
     out = Path(out)
     if world.size % spec.group_size:
         raise SceneError(f"sweep.group_size: {spec.group_size} does not divide the {world.size} "
                          "ranks (mpirun -n must be a multiple of it)")  # fmt: skip
     fields = columns(spec)
+    prepare_output_dir(out, world, lock="sweep")
     error, finished = None, {}
     if world.rank == 0:
         try:
@@ -359,8 +377,9 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
         stream, problem = None, None
         if leader:
             try:
-                new = not part.exists() or part.stat().st_size == 0
-                stream = open(part, "a", encoding="utf-8", newline="")  # noqa: SIM115
+                new = not (part.exists() or part.is_symlink()) or part.stat().st_size == 0
+                fd = safe_files.create(part) if new else safe_files.open_append(part)
+                stream = os.fdopen(fd, "a", encoding="utf-8", newline="")
                 if new:
                     stream.write(",".join(fields) + "\n")
                     stream.flush()
@@ -397,11 +416,14 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
             report.counter.free()
         group.Free()
     ran = world.allreduce(ran if leader else 0, op=MPI.SUM)  # before rank 0 works alone
-    rows = []
+    rows, problem = [], None
     if world.rank == 0:
         rows = list(_finished(out).values())  # sorted by member
         text = ",".join(fields) + "\n" + "".join(_csv_line(fields, r) for r in rows)
-        temporary = out / f".{SWEEP_TABLE}.tmp"
-        temporary.write_text(text, encoding="utf-8")
-        temporary.replace(out / SWEEP_TABLE)
+        try:
+            safe_files.replace(out / SWEEP_TABLE, text, out / f".{SWEEP_TABLE}.tmp")
+        except OSError as exc:
+            problem = OutputError(f"sweep: cannot write {str(out / SWEEP_TABLE)!r} "
+                                  f"({exc.strerror or exc}); its rows are kept in {SWEEP_PARTS}/")
+    agree(world, problem)
     return SweepResult(out / SWEEP_TABLE, ran, len(done), rows)

@@ -163,3 +163,47 @@ def file_size_limit(limit: int):
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 
     return preexec
+def folder_tree(folder: Path, skip: tuple[str, ...] = ()) -> dict[str, str]:
+    """Every name under ``folder`` (links not followed, names in ``skip`` left out): a file's
+    SHA-256, a link's target, else "folder" or "special" (a FIFO, a socket, a device)."""
+    import hashlib
+
+    found = {}
+    for path in sorted(folder.rglob("*")):
+        if path.name in skip:
+            continue
+        name = str(path.relative_to(folder))
+        if path.is_symlink():
+            found[name] = "link -> " + os.readlink(path)
+        elif path.is_dir():
+            found[name] = "folder"
+        elif path.is_file():
+            found[name] = hashlib.sha256(path.read_bytes()).hexdigest()
+        else:
+            found[name] = "special"
+    return found
+
+
+class Hung(BaseException):
+    """Raised by :func:`fails_if_hung`'s alarm: a BaseException, which no ``except
+    Exception`` or ``except OSError`` of the code under test takes for a failed read."""
+
+
+@contextlib.contextmanager
+def fails_if_hung(seconds: float, what: str = ""):
+    """Fail the test if the block takes more than ``seconds`` (a blocking open of a FIFO, a
+    read that never ends, are interrupted by SIGALRM)."""
+    import signal
+
+    def alarm(signum, frame):
+        raise Hung
+
+    previous = signal.signal(signal.SIGALRM, alarm)
+    signal.alarm(max(1, int(seconds)))
+    try:
+        yield
+    except Hung:
+        pytest.fail(f"hung for {seconds} s {what}".strip())
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)

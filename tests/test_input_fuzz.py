@@ -13,13 +13,14 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import random
 import shutil
 import string
 from pathlib import Path
 
 import pytest
-from conftest import ROOT
+from conftest import ROOT, fails_if_hung, folder_tree
 
 from cosserat_fem import budget
 from cosserat_fem.cli import main
@@ -614,3 +615,97 @@ def test_damaged_run_folders_through_the_api(runs, tmp_path):
 
     outcomes = _restart_damaged_copies(runs, tmp_path, 2025, 20, restart)
     assert outcomes["refused"] >= 5 and outcomes["continued"] >= 1, outcomes
+# ----------------------------------------------------- run folders with links and special files
+#: Names in a run folder (files, folders, scratch names) that a case replaces.
+FOLDER_NAMES = [
+    "checkpoint/checkpoint.json",
+    "checkpoint/state0.rank0.npz",
+    "checkpoint/state1.rank0.npz",
+    "checkpoint/checkpoint.json.tmp",
+    "probes.csv",
+    "summary.json",
+    "summary.json.tmp",
+    "solution.xdmf",
+    "solution.xdmf-partial",
+    "solution.frames/mesh.h5",
+    "solution.frames/000003.h5",
+    "solution.frames/000099.h5",
+    ".cosserat-fem.lock",
+    "checkpoint",
+    "solution.frames",
+]
+#: What a case puts at a name: a FIFO, a symbolic or hard link to the same name in a copy
+#: outside the folder (the copy must stay as it was), a link to /dev/zero, a dangling link.
+LINK_KINDS = ("fifo", "symlink", "hardlink", "dev-zero", "dangling")
+
+
+def _plant(rng: random.Random, folder: Path, outside: Path) -> str:
+    """Replace one name of ``folder`` at random by a special file or a link; what was done."""
+    name, kind = rng.choice(FOLDER_NAMES), rng.choice(LINK_KINDS)
+    path, there = folder / name, outside / name
+    if path.parent.is_symlink() or not path.parent.is_dir():  # replaced by an earlier damage
+        return f"{name} left (its folder was replaced)"
+    if kind == "hardlink" and not there.is_file():
+        kind = "symlink"
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    else:
+        path.unlink(missing_ok=True)
+    if kind == "fifo":
+        os.mkfifo(path)
+    elif kind == "symlink":
+        path.symlink_to(there)
+    elif kind == "hardlink":
+        os.link(there, path)
+    elif kind == "dev-zero":
+        path.symlink_to("/dev/zero")
+    else:
+        path.symlink_to(folder / "nothing-here")
+    return f"{name} as {kind}"
+
+
+def _tree(folder: Path) -> dict[str, str]:
+    """conftest.folder_tree but the lock file, which any writer, even one refused, takes over
+    (a link or FIFO there is replaced, cosserat_fem/run_folder.py)."""
+    return folder_tree(folder, skip=(".cosserat-fem.lock",))
+
+
+def test_run_folders_with_links_and_special_files(runs, tmp_path, capsys):
+    """30 copies of a run's folder, each with one to three names (files, scratch names, the
+    checkpoint and frames folders, the lock file) replaced at random by a FIFO, a symbolic or
+    hard link to the same name in a copy outside the folder, a link to /dev/zero or one to
+    nothing; then ``run --restart`` (20 cases) or a new ``run`` (10). Nothing may hang (60 s,
+    against ~1 s), the copy outside must stay byte for byte as it was, and each command either
+    refuses with exit 2, one line and the folder as it was, or goes on: a restart to the
+    uninterrupted run's probes byte for byte, a new run to exit 0."""
+    base, whole = runs
+    expected = (whole / "probes.csv").read_bytes()
+    outside = Path(shutil.copytree(base, tmp_path / "outside", symlinks=True))
+    there = _tree(outside)
+    rng = random.Random(2512)
+    outcomes: dict[str, int] = {}
+    for i in range(30):
+        folder = Path(shutil.copytree(base, tmp_path / f"case{i}", symlinks=True))
+        what = "; ".join(_plant(rng, folder, outside) for _ in range(rng.randint(1, 3)))
+        before = _tree(folder)
+        restart = i < 20
+        args = (["run", "--restart", str(folder), *RESTART] if restart else
+                ["run", str(SCENE), "--out", str(folder), "--set", "time.end=0.0003"])
+        capsys.readouterr()
+        with fails_if_hung(60, what):
+            status = main([*args, "--quiet"])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert _tree(outside) == there, what
+        key = f"{'restart' if restart else 'new run'} {'refused' if status else 'went on'}"
+        outcomes[key] = outcomes.get(key, 0) + 1
+        if status == 0:
+            if restart:
+                assert (folder / "probes.csv").read_bytes() == expected, what
+        else:
+            assert status == 2 and len(err) == 1, (what, err)
+            assert "internal error" not in err[0] and "Traceback" not in err[0], (what, err)
+            assert _tree(folder) == before, what
+        shutil.rmtree(folder)
+    print(outcomes)
+    assert outcomes.get("restart refused", 0) >= 3 and outcomes.get("restart went on", 0) >= 3
+    assert outcomes.get("new run went on", 0) >= 3, outcomes
