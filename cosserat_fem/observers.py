@@ -13,6 +13,8 @@ statics.py), in this order:
 * user observers, :class:`ProbeRecorder`, :class:`FieldRecorder` (the Python API's arrays);
 * :class:`CheckpointObserver`: checkpoints when due and at the end (cosserat_fem/checkpoint.py);
 * :class:`DeadlineObserver`: stops the run at ``limits.wall_time``, with a checkpoint;
+* :class:`InterruptObserver`: stops every rank at the same step after an interrupt (SIGINT)
+  reached any of them under mpirun (cosserat_fem/parallel.py);
 * :class:`FolderSummary`: summary.json at the end.
 """
 
@@ -33,7 +35,7 @@ from .output import (
     XdmfWriter,
     last_probe_row,
 )
-from .parallel import from_root
+from .parallel import check_interrupt, from_root
 from .progress import LOGGER
 from .run_folder import SUMMARY, claim, write_summary
 
@@ -224,6 +226,18 @@ class DeadlineObserver(Observer):
                 f"of {self.wall_time:g} s of wall time; continue it with run --restart DIR "
                 "(--set limits.wall_time=... to allow more)"
             )
+
+
+class InterruptObserver(Observer):
+    """KeyboardInterrupt on every rank at the end of a step once any rank of ``comm`` was
+    interrupted under mpirun (parallel.check_interrupt: one allreduce a step, a few μs),
+    where the loop's state is whole: the ranks stop alike, none waits for the others."""
+
+    def __init__(self, comm):
+        self.comm = comm
+
+    def step_finished(self, loop) -> None:
+        check_interrupt(self.comm)
 
 
 class ProbeRecorder(Observer):
