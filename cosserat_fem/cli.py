@@ -8,9 +8,11 @@ Karhunen–Loève (POD) modes of a run's XDMF frames (cosserat_fem/karhunen_loev
 either).
 
 Exit status: 0 success, 2 bad input (scene, options, output folder, a run that would
-exceed its limits), 3 numerical trouble, 4 a run stopped by an output it could not write
-(disk full, file size limit) or by a limit (limits.wall_time); 1 an internal error. A run
-that stops keeps the outputs written so far and its checkpoint. Errors are one line on
+exceed its limits, MPI ranks given different command lines), 3 numerical trouble, 4 a run
+stopped by an output it could not write (disk full, file size limit) or by a limit
+(limits.wall_time), or a sweep with members so stopped; 130 interrupted (SIGINT; under mpirun
+every rank stops at the same step); 1 an internal error. A run that stops keeps the outputs
+written so far and its checkpoint. Errors are one line on
 stderr; ``--debug`` shows the traceback as well, and Python's warnings (which go to the log
 at ``--verbose`` otherwise).
 """
@@ -442,6 +444,8 @@ def _same_command_line(args, comm) -> None:
                               if (k, v) != o)  # fmt: skip
             theirs = dict(other).get(name)
             option = _NAMES.get(name, "--" + name.replace("_", "-"))
+            if option == "SCENE" and args.command == "sweep":
+                option = "SWEEP"
             raise SceneError(f"{option}: the MPI ranks were given different command lines "
                              f"(rank 0: {mine!r}, rank {rank}: {theirs!r}); give every rank "
                              "the same")  # fmt: skip

@@ -109,11 +109,20 @@ def interrupt() -> bool:
     return True
 
 
-def check_interrupt(comm: MPI.Comm) -> None:
-    """KeyboardInterrupt on every rank of ``comm`` if any was interrupted (:func:`interrupt`;
-    collective: one allreduce, the ranks of a run stop at the same step)."""
-    if comm.allreduce(_INTERRUPTED, op=MPI.LOR) if comm.size > 1 else _INTERRUPTED:
+def check_interrupt(comm: MPI.Comm, every: int = 1) -> int:
+    """KeyboardInterrupt on every rank of ``comm`` if any was interrupted (:func:`interrupt`);
+    else rank 0's ``every`` (when to look next, the same on every rank). Collective: one
+    allreduce, so the ranks of a run stop at the same step."""
+    if comm.size == 1:
+        if _INTERRUPTED:
+            raise KeyboardInterrupt
+        return every
+    # max of (interrupted, every): an interrupt anywhere wins, else rank 0's every (others 0)
+    interrupted, every = comm.allreduce((_INTERRUPTED, every if comm.rank == 0 else 0),
+                                        op=MPI.MAX)  # fmt: skip
+    if interrupted:
         raise KeyboardInterrupt
+    return every
 
 
 def abort_later(code: int, timeout: float = ABORT_AFTER) -> None:

@@ -658,18 +658,20 @@ def _set_path(data: dict[str, Any], path: list[str], value: Any) -> None:
     _table_at(data, path[:-1])[path[-1]] = value
 
 
-def read_input(path: str | Path, what: str = "scene file", comm=None) -> bytes:
+def read_input(path: str | Path, what: str = "scene file", comm=None,
+               same_name: bool = True) -> bytes:  # fmt: skip
     """The bytes of the input file ``path`` (a scene or a sweep file), read once: rank 0 of
     ``comm`` (default MPI's world) reads it and every rank gets its bytes, so that every rank
     parses the same input (a file edited while the job starts, or a copy per node, cannot
     give the ranks different scenes). Collective. SceneError on every rank if the ranks name
-    different files, or if the file is not a regular file of at most :data:`MAX_INPUT_BYTES`
-    (a FIFO, ``/dev/zero``: cosserat_fem/regular_file.py)."""
+    different files (unless not ``same_name``: a name made from rank 0's input, which may
+    resolve otherwise on another rank), or if the file is not a regular file of at most
+    :data:`MAX_INPUT_BYTES` (a FIFO, ``/dev/zero``: cosserat_fem/regular_file.py)."""
     from mpi4py import MPI
 
     comm = MPI.COMM_WORLD if comm is None else comm
     name = str(path)
-    if comm.size > 1:
+    if comm.size > 1 and same_name:
         names = comm.allgather(name)
         other = next((r for r, n in enumerate(names) if n != names[0]), None)
         if other is not None:

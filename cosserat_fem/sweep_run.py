@@ -11,12 +11,18 @@ world rank 0 merges the parts into ``sweep.csv``, sorted by member. Each member'
 ``members/m<index>``: all of a run's outputs, or with ``keep = "probes"`` its probes.csv and
 summary.json only.
 
-A member that fails (a SceneError at run time, Newton that gives up, a limit) is recorded with
-its status and one-line reason and the sweep goes on. A sweep that is killed and started
-again with the same ``--out`` skips the members that have a row (a row cut by the kill is
-dropped and its member run again); ``sweep.json`` records the sweep, and a different sweep in
-the same folder is refused. Members run one after another in each group, and a member's rows
-of probes are only held until its row is written: memory per rank does not grow with the sweep.
+A member that fails (Newton that gives up: "failed"; a SceneError at run time or a bug:
+"error") is recorded with its status and one-line reason and the sweep goes on. A member
+that stops for a passing reason ("stopped": a StopError such as a full disk or
+limits.wall_time, a folder it cannot make, memory or disk the machine lacks now) is recorded
+but not finished: it keeps its checkpoint, the chain it continues stops there, and the sweep
+raises StopError (exit 4) once its table is written. A sweep that is killed or stopped and
+started again with the same ``--out`` skips the members that finished, runs those without a
+row from their start (a row cut by the kill is dropped) and continues each stopped member
+from its checkpoint (else from its start); ``sweep.json`` records the sweep, and a different
+sweep in the same folder is refused (limits.* may differ: SweepSpec.fingerprint). Members
+run one after another in each group, and a member's rows of probes are only held until its
+row is written: memory per rank does not grow with the sweep.
 
 A frequency response (``[sweep.response]``) deals chains rather than members: a group runs
 a chain's members in order, each from the final state its predecessor saved in
@@ -24,8 +30,8 @@ a chain's members in order, each from the final state its predecessor saved in
 forcing's phase over (response.continued_start); a restarted chain continues from the last
 finished member's saved state; after a failed member its chain goes on from rest.
 
-The row: ``member``, ``status`` ("completed", or the run's failure: "failed", "stopped",
-"error"), ``wall_s`` (the member's run), each varied key's value, the run's ``steps`` and
+The row: ``member``, ``status`` ("completed", or "failed", "error", "stopped" as above),
+``wall_s`` (the member's run), each varied key's value, the run's ``steps`` and
 ``newton_iterations``, and for each probe column c (x, y, z [m], theta, psi, phi [rad]):
 ``final_c`` and ``max_abs_c`` over the run; for a frequency response, the chain's
 ``direction``, the ``previous`` member it continued (empty: from rest), its ``start_s`` and

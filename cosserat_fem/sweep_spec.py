@@ -48,8 +48,10 @@ written exactly (``num = 1``: ``start``). Members are numbered from 0 in the ord
 product (the last key varying fastest), the zip or the cases. Every member's scene is built
 and validated before any member runs: a malformed sweep (an unknown key of its own or of the
 scene, an empty list or range, a value the scene's schema refuses, more members than
-``max_members``) is a one-line SceneError naming the key and the value, or the member and its
-values.
+``max_members``, a member its run would refuse: a closed rod, a cost over its limits) is a
+one-line SceneError naming the key and the value, or the member and its values. The command
+line's ``--set`` changes the base scene after ``[sweep.set]``; a key that every member sets
+is refused there (it would never be used).
 """
 
 from __future__ import annotations
@@ -395,7 +397,7 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
                          f"max_members = {max_members}")  # fmt: skip
     values, varied = _members(table, combine)
     scene_path = (path.parent / table["scene"]).resolve()
-    raw = read_input(scene_path, "scene file (sweep.scene)")
+    raw = read_input(scene_path, "scene file (sweep.scene)", same_name=False)  # rank 0's
     base_data = _base(parse_toml(raw, scene_path), fixed, overrides, values)
     response = _response(table.get("response"), varied)
     members, chains = _chains(values, varied, response)
@@ -419,16 +421,16 @@ def _dotted(key: str) -> str:
 
 def _base(data: dict, fixed: dict, overrides, values: list[dict[str, Any]]) -> dict:
     """The base scene's data with ``[sweep.set]`` and then the command line's ``--set``
-    applied, each error named by where the key came from. A key that every member sets is
-    refused in either: the members' values would silently replace it."""
+    applied, each error named by where the key came from. A ``--set`` key that every member
+    sets is refused: the members' values would silently replace it (``[sweep.set]`` may give
+    one, e.g. a parameter's value at rest: the file says what its members vary)."""
     always = set.intersection(*({_dotted(k) for k in v} for v in values)) if values else set()
     given = [str(k) if isinstance(overrides, Mapping) else str(k).partition("=")[0]
              for k in overrides]  # fmt: skip
-    for where, keys in (("sweep.set", list(fixed)), ("--set", given)):
-        taken = next((k for k in keys if _dotted(k) in always), None)
-        if taken is not None:
-            raise SceneError(f"{where} {_dotted(taken)}: every member of the sweep sets it "
-                             "(sweep.vary or sweep.case), so this value would never be used")
+    taken = next((k for k in given if _dotted(k) in always), None)
+    if taken is not None:
+        raise SceneError(f"--set {_dotted(taken)}: every member of the sweep sets it "
+                         "(sweep.vary or sweep.case), so this value would never be used")
     try:
         data = apply_overrides(data, fixed)
     except SceneError as exc:
