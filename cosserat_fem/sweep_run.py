@@ -42,6 +42,7 @@ and per column c its ``amp_c``, ``mean_c``, ``h1_c`` and ``phase_c`` (cosserat_f
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -440,9 +441,9 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD) -> SweepRe
     leader = group.rank == 0  # writes the group's table part
     counter = _Counter(world)
     part = out / SWEEP_PARTS / f"group-{color}.csv"
-    ran = 0
+    ran, stream, failure = 0, None, None
     try:
-        stream, problem = None, None
+        problem = None
         if leader:
             try:
                 new = not part.exists() or part.stat().st_size == 0
@@ -472,12 +473,16 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD) -> SweepRe
             if k >= len(todo):
                 break
             ran += _run_chain(spec, todo[k], done, stopped, out, group, write)
-        if stream is not None:
-            stream.close()
+    except CosseratError as exc:  # a group's part it cannot write: raised by every rank below
+        failure = exc
     finally:
+        if stream is not None:
+            with contextlib.suppress(OSError):  # what it could not write was reported
+                stream.close()
         world.Barrier()
         counter.free()
         group.Free()
+    agree(world, failure)  # the other groups would wait for this one's ranks for ever
     ran = world.allreduce(ran if leader else 0, op=MPI.SUM)  # before rank 0 works alone
     rows = []
     if world.rank == 0:

@@ -53,19 +53,23 @@ HUNG = 120
 #: number (as a shell wrapper would take a file per rank from an environment variable); the
 #: first argument, if not "-", is a folder each rank works in (its own, by "{rank}").
 LAUNCH = (
-    "import os, sys\n"
+    "import os, resource, signal, sys\n"
     "from cosserat_fem.cli import main\n"
     "rank = os.environ['OMPI_COMM_WORLD_RANK']\n"
     "folder, *argv = [a.replace('{rank}', rank) for a in sys.argv[1:]]\n"
     "if folder != '-':\n"
     "    os.chdir(folder)\n"
+    "if os.environ.get('FSIZE_RANK') == rank:  # ulimit -f 0 on this rank, MPI started\n"
+    "    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)\n"
+    "    resource.setrlimit(resource.RLIMIT_FSIZE, (0, 0))\n"
     "sys.exit(main(argv))\n"
 )
 
 
-def launch(argv: list[str], folder: str = "-", timeout: float = HUNG):
-    """``cosserat-fem argv`` under mpirun -n 2, "{rank}" in ``folder`` and ``argv`` per rank."""
-    return run_command(["-c", LAUNCH, folder, *argv], ranks=2, timeout=timeout)
+def launch(argv: list[str], folder: str = "-", timeout: float = HUNG, env: dict | None = None):
+    """``cosserat-fem argv`` under mpirun -n 2, "{rank}" in ``folder`` and ``argv`` per rank;
+    ``env``: variables added (FSIZE_RANK: the rank whose files cannot grow)."""
+    return run_command(["-c", LAUNCH, folder, *argv], ranks=2, timeout=timeout, env=env)
 
 
 def scene_text(**changes: str) -> str:
@@ -267,6 +271,24 @@ def test_a_frequency_response_of_one_chain_on_two_groups(tmp_path):
     (out / "sweep.csv").unlink()
     assert "ran 1, skipped 1" in sweep_under_mpi(path, out).stdout
     assert strip(out / "sweep.csv") == strip(tmp_path / "n1" / "sweep.csv")
+
+
+@pytest.mark.long
+def test_a_group_that_cannot_write_its_table_part_ends_the_sweep_on_every_rank(tmp_path):
+    """Rank 1 (group 1) cannot write a byte (``ulimit -f 0`` on its node): its group stops at
+    its table part with OutputError; the other group runs every member, then every rank
+    raises that error: exit 4, its one line, no abort (before: group 1's rank left, the
+    other waited in a collective call until the abort safeguard took the job down 10 s
+    later, and the error was never printed: only rank 0 prints, and rank 0 had none)."""
+    path = sweep_file(tmp_path, "1e-5, 2e-5, 3e-5")
+    out = tmp_path / "out"
+    proc = launch(["sweep", str(path), "--out", str(out)], env={"FSIZE_RANK": "1"})
+    assert proc.returncode == 4, proc.stderr
+    assert ours(proc.stderr) == [f"cosserat-fem: error: sweep: cannot write "
+                                 f"{str(out / 'table' / 'group-1.csv')!r} ([Errno 27] File too "
+                                 "large)"]  # fmt: skip
+    rows = read_table(out / "table" / "group-0.csv")
+    assert sorted(r["member"] for r in rows) == ["0", "1", "2"]
 
 
 # ------------------------------------------------------------------ an interrupt on one rank

@@ -434,3 +434,35 @@ def test_a_member_whose_folder_cannot_be_made_stops_and_runs_later(tmp_path):
     result = api.sweep(api.load_sweep(path), out)
     assert (result.ran, result.skipped) == (2, 0)
     assert [r["status"] for r in read_table(out / "sweep.csv")] == ["completed", "completed"]
+
+
+def test_a_chain_stops_at_its_stopped_member_and_continues_from_it(tmp_path):
+    """A continued frequency response whose first member stops (limits.wall_time: 0.01 s,
+    above the estimated 7 ms of its longest run of 128 steps, below what building it
+    takes): the chain stops there, its second member is not run from rest (StopError:
+    "1 member stopped ... and 1 not run after them"). Started again with the limit raised,
+    the first runs from its start (a forced member's measurement is not in a checkpoint) and
+    the second continues its final state: the table is the uninterrupted sweep's (all but
+    the wall times)."""
+    from cosserat_fem.errors import StopError
+
+    text = (f'[sweep]\nscene = "{PAPER}"\nkeep = "probes"\n[sweep.set]\n"output.xdmf" = false\n'
+            '[sweep.vary]\n"parameters.r" = [1.0, 1.1]\n[sweep.response]\n'
+            'period = "2*pi/(8*r*omega0)"\ncontinuation = "parameters.r"\n'
+            "steps_per_period = 16\nmax_periods = 8\n")  # fmt: skip
+    path = tmp_path / "chain.toml"
+    path.write_text(text, encoding="utf-8")
+    out = tmp_path / "out"
+    with pytest.raises(StopError, match=r"^sweep: 1 member stopped \(member 0: LimitReached: .*"
+                                        r"\) and 1 not run after them; start the sweep again"):
+        api.sweep(api.load_sweep(path, ["limits.wall_time=0.01"]), out)
+    assert [r["status"] for r in read_table(out / "sweep.csv")] == ["stopped"]
+    result = api.sweep(api.load_sweep(path, ["limits.wall_time=1000"]), out)
+    assert (result.ran, result.skipped) == (2, 0)
+    api.sweep(api.load_sweep(path), tmp_path / "whole")
+
+    def strip(table):
+        return [{k: v for k, v in r.items() if k != "wall_s"} for r in read_table(table)]
+
+    assert strip(out / "sweep.csv") == strip(tmp_path / "whole" / "sweep.csv")
+    assert [r["previous"] for r in read_table(out / "sweep.csv")] == ["", "0"]
