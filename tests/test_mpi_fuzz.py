@@ -38,6 +38,7 @@ from pathlib import Path
 
 import pytest
 from conftest import PYTHON, ROOT, read_table, run_command, subprocess_env
+from test_sweep import chain_sweep
 
 from cosserat_fem import api
 from cosserat_fem.parallel import ABORT_AFTER
@@ -255,12 +256,7 @@ def test_a_frequency_response_of_one_chain_on_two_groups(tmp_path):
     """A forced response of one chain of two members (continuation) on two groups, run
     again with its second member left: one chain for two groups both times, and the table
     is the serial sweep's (before: a hang)."""
-    text = (f'[sweep]\nscene = "{PAPER}"\nkeep = "probes"\n[sweep.set]\n"output.xdmf" = false\n'
-            '"output.checkpoint" = false\n[sweep.vary]\n"parameters.r" = [1.0, 1.1]\n'
-            '[sweep.response]\nperiod = "2*pi/(8*r*omega0)"\ncontinuation = "parameters.r"\n'
-            "steps_per_period = 16\nmax_periods = 4\n")  # fmt: skip
-    path = tmp_path / "chain.toml"
-    path.write_text(text, encoding="utf-8")
+    path = chain_sweep(tmp_path, max_periods=4)
     api.sweep(api.load_sweep(path), tmp_path / "n1")
     out = tmp_path / "n2"
     sweep_under_mpi(path, out)

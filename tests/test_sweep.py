@@ -436,6 +436,18 @@ def test_a_member_whose_folder_cannot_be_made_stops_and_runs_later(tmp_path):
     assert [r["status"] for r in read_table(out / "sweep.csv")] == ["completed", "completed"]
 
 
+def chain_sweep(folder: Path, max_periods: int) -> Path:
+    """A frequency response of the paper's scene (no XDMF), one chain of two members (r = 1,
+    1.1, continued), 16 steps a period, at most ``max_periods`` periods."""
+    path = folder / "chain.toml"
+    path.write_text(f'[sweep]\nscene = "{PAPER}"\nkeep = "probes"\n[sweep.set]\n'
+                    '"output.xdmf" = false\n[sweep.vary]\n"parameters.r" = [1.0, 1.1]\n'
+                    '[sweep.response]\nperiod = "2*pi/(8*r*omega0)"\n'
+                    'continuation = "parameters.r"\nsteps_per_period = 16\n'
+                    f"max_periods = {max_periods}\n", encoding="utf-8")  # fmt: skip
+    return path
+
+
 def test_a_chain_stops_at_its_stopped_member_and_continues_from_it(tmp_path):
     """A continued frequency response whose first member stops (limits.wall_time: 0.01 s,
     above the estimated 7 ms of its longest run of 128 steps, below what building it
@@ -446,12 +458,7 @@ def test_a_chain_stops_at_its_stopped_member_and_continues_from_it(tmp_path):
     the wall times)."""
     from cosserat_fem.errors import StopError
 
-    text = (f'[sweep]\nscene = "{PAPER}"\nkeep = "probes"\n[sweep.set]\n"output.xdmf" = false\n'
-            '[sweep.vary]\n"parameters.r" = [1.0, 1.1]\n[sweep.response]\n'
-            'period = "2*pi/(8*r*omega0)"\ncontinuation = "parameters.r"\n'
-            "steps_per_period = 16\nmax_periods = 8\n")  # fmt: skip
-    path = tmp_path / "chain.toml"
-    path.write_text(text, encoding="utf-8")
+    path = chain_sweep(tmp_path, max_periods=8)
     out = tmp_path / "out"
     with pytest.raises(StopError, match=r"^sweep: 1 member stopped \(member 0: LimitReached: .*"
                                         r"\) and 1 not run after them; start the sweep again"):
