@@ -22,8 +22,8 @@ and no MPI job hangs.
   without the abort safeguard while the other waited in a collective call for ever.
 
 A job that hangs is what these tests must catch: each mpirun gets ``HUNG`` seconds, 10x the
-longest measured here under load (a sweep resumed under mpirun -n 2: 12 s, two CPU-bound
-processes beside it on two cores); a test whose job ends later fails.
+longest measured here under load (a run of 20 steps under mpirun -n 2: 11 s, at a load of 9
+on two cores; 1.5 s unloaded; one-off, 2026-12-03); a test whose job ends later fails.
 """
 
 from __future__ import annotations
@@ -353,7 +353,7 @@ def test_an_interrupt_on_one_rank_ends_the_run_on_every_rank(tmp_path, ranks):
     assert took < ABORT_AFTER, err
     summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
     assert summary["status"] == "interrupted"
-    assert len(read_probe_table(out / "probes.csv")[1]) > 20
+    assert len(read_probe_table(out / "probes.csv")[1]) >= 20  # the rows seen before the signal
 
 
 @pytest.mark.long
