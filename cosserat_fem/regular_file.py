@@ -4,7 +4,9 @@
 never ends; a file that grows while it is read has no size to trust. :func:`read_regular`
 opens without blocking (``O_NONBLOCK``: a FIFO opens at once), looks at what it opened
 (``fstat`` of the open file, not of the name, which another process may change in between),
-refuses anything but a regular file, and reads at most ``limit`` bytes. No DOLFINx, no MPI.
+refuses anything but a regular file, and reads at most ``limit`` bytes. No DOLFINx, and no
+MPI but the communicator a caller passes: :func:`read_on_root` reads on its rank 0 and gives
+every rank the same bytes (or the same refusal).
 """
 
 from __future__ import annotations
@@ -74,3 +76,22 @@ def _size(n: int) -> str:
         if n >= 1 << shift and n % (1 << shift) == 0:
             return f"{n >> shift} {unit}"
     return f"{n} bytes"
+
+
+def read_on_root(path: str | Path, limit: int, comm=None) -> bytes:
+    """:func:`read_regular` on rank 0 of ``comm`` and its bytes on every rank, or
+    :class:`Unreadable` with rank 0's reason on every rank (collective; a plain read without
+    ``comm`` or on one rank): the ranks of a job parse one input, whatever each would have
+    read (a copy per node, a file edited meanwhile), and a FIFO is opened once."""
+    if comm is None or comm.size == 1:
+        return read_regular(path, limit)
+    found: tuple[bytes | None, str | None] = (None, None)
+    if comm.rank == 0:
+        try:
+            found = (read_regular(path, limit), None)
+        except Unreadable as exc:
+            found = (None, str(exc))
+    data, reason = comm.bcast(found, root=0)
+    if reason is not None:
+        raise Unreadable(reason)
+    return data

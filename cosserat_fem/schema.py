@@ -28,7 +28,7 @@ from cosserat_fem.errors import SceneError, show_value
 from cosserat_fem.expressions import RESERVED_NAMES, check_name
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.section import TORSION_CONSTANT_RULES
-from cosserat_fem.regular_file import Unreadable, read_regular
+from cosserat_fem.regular_file import Unreadable, read_on_root
 from cosserat_fem.results import PROBE_FIELD_COLUMNS
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
@@ -677,17 +677,10 @@ def read_input(path: str | Path, what: str = "scene file", comm=None,
         if other is not None:
             raise SceneError(f"{names[0]}: the MPI ranks name different {what}s (rank "
                              f"{other}: {names[other]!r}); give every rank the same file")
-    raw, problem = None, None
-    if comm.rank == 0:
-        try:
-            raw = read_regular(path, MAX_INPUT_BYTES)
-        except Unreadable as exc:
-            problem = f"{name}: {what} {exc}"
-    if comm.size > 1:
-        raw, problem = comm.bcast((raw, problem), root=0)
-    if problem is not None:
-        raise SceneError(problem)
-    return raw
+    try:
+        return read_on_root(path, MAX_INPUT_BYTES, comm)
+    except Unreadable as exc:
+        raise SceneError(f"{name}: {what} {exc}") from None
 
 
 def parse_toml(raw: bytes, path: str | Path) -> dict[str, Any]:
