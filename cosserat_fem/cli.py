@@ -8,9 +8,11 @@ Karhunen–Loève (POD) modes of a run's XDMF frames (cosserat_fem/karhunen_loev
 either).
 
 Exit status: 0 success, 2 bad input (scene, options, output folder, a run that would
-exceed its limits), 3 numerical trouble, 4 a run stopped by an output it could not write
-(disk full, file size limit) or by a limit (limits.wall_time); 1 an internal error. A run
-that stops keeps the outputs written so far and its checkpoint. Errors are one line on
+exceed its limits, MPI ranks given different command lines), 3 numerical trouble, 4 a run
+stopped by an output it could not write (disk full, file size limit) or by a limit
+(limits.wall_time), or a sweep with members so stopped; 130 interrupted (SIGINT; under mpirun
+every rank stops at the same step); 1 an internal error. A run that stops keeps the outputs
+written so far and its checkpoint. Errors are one line on
 stderr; ``--debug`` shows the traceback as well, and Python's warnings (which go to the log
 at ``--verbose`` otherwise).
 """
@@ -31,22 +33,28 @@ from .errors import CosseratError, SceneError, SolverError, StopError, out_folde
 from .schema import Removal
 
 
-def _common(sub: argparse.ArgumentParser, scene_optional: bool = False) -> None:
-    """The arguments every command takes."""
+def _common(sub: argparse.ArgumentParser, scene_optional: bool = False,
+            texts: dict[str, str] | None = None) -> None:  # fmt: skip
+    """The arguments every command takes; ``texts``: another help for "scene", "out" and
+    "set" (a sweep's), and "metavar" for the scene."""
+    texts = texts or {}
     sub.add_argument(
         "scene",
         nargs="?" if scene_optional else None,
-        help="scene file (TOML), e.g. scenes/cao_tucker_2008.toml",
+        metavar=texts.get("metavar"),
+        help=texts.get("scene", "scene file (TOML), e.g. scenes/cao_tucker_2008.toml"),
     )
-    sub.add_argument("--out", metavar="DIR", help="output folder (default: output.directory; "
-                     "static and modes: its static/ and modes/)")
+    sub.add_argument("--out", metavar="DIR",
+                     help=texts.get("out", "output folder (default: output.directory; static and "
+                                    "modes: its static/ and modes/)"))
     sub.add_argument(
         "--set",
         metavar="KEY=VALUE",
         action="append",
         default=[],
         dest="overrides",
-        help="override a scene value by its dotted key, e.g. --set time.step=1e-5 (repeatable)",
+        help=texts.get("set", "override a scene value by its dotted key, e.g. --set "
+                              "time.step=1e-5 (repeatable)"),
     )
     sub.add_argument(
         "--unset",
@@ -112,9 +120,12 @@ def _parser() -> argparse.ArgumentParser:
         help="linearise about the straight rod or the static state under the scene's loads",
     )
     sweep = sub.add_parser(
-        "sweep", help="run the members of a sweep file (under mpirun: groups of ranks)"
+        "sweep", help="run the members of a sweep file (under mpirun: groups of ranks)",
+        description="Run the members of a sweep file not finished in --out (under mpirun: "
+        "groups of sweep.group_size ranks); started again with the same --out, a sweep "
+        "continues where it stopped (docs/sweeps.md).",
     )
-    _common(sweep)
+    _common(sweep, texts=_SWEEP_TEXTS)
     plot = sub.add_parser(
         "plot", help="PNG figures of a run (free-end histories, x(s,t) and y(s,t) surfaces) "
         "or of a sweep (its members' largest free-end values against the varied key)"
@@ -151,6 +162,17 @@ def _parser() -> argparse.ArgumentParser:
     pod.add_argument("--keep-mean", action="store_true",
                      help="do not subtract the time mean of the frames first")
     return parser
+
+
+#: The help of sweep's arguments (its SCENE is a sweep file).
+_SWEEP_TEXTS = {
+    "metavar": "SWEEP",
+    "scene": "sweep file (TOML), e.g. scenes/sweeps/paper_forcing.toml",
+    "out": "output folder (default: results/<the sweep file's name>); the same folder "
+    "continues a sweep that stopped",
+    "set": "override a value of the base scene by its dotted key, after the sweep file's "
+    "[sweep.set], e.g. --set time.end=0.01 (repeatable; not a key every member sets)",
+}
 
 
 def _run_dir(sub: argparse.ArgumentParser) -> None:
@@ -384,18 +406,46 @@ def _validate(args) -> int:
 def main(argv: list[str] | None = None) -> int:
     """The command line; returns the exit status (module docstring)."""
     try:
+        before = signal.signal(signal.SIGINT, _interrupted)
+    except ValueError:  # only the main thread may set handlers
+        before = None
+    try:
         try:
-            args = _parser().parse_args(argv)
-        finally:
-            sys.stdout.flush()  # --help and --version, perhaps into a closed pipe
-    except BrokenPipeError:
-        return _stdout_closed()
-    status = _main(args)
-    if status not in (0, 130):
-        from .parallel import agree_or_abort
+            try:
+                args = _parser().parse_args(argv)
+            finally:
+                sys.stdout.flush()  # --help and --version, perhaps into a closed pipe
+        except BrokenPipeError:
+            return _stdout_closed()
+        status = _main(args)
+        if status != 0:
+            from .parallel import agree_or_abort, cancel_abort
 
-        agree_or_abort(status)  # an error the other ranks did not meet must not hang them
-    return status
+            # An error or an interrupt that the other ranks did not meet must not hang them;
+            # a second Ctrl-C does not cut this wait short (it ends within ABORT_AFTER s).
+            if before is not None:
+                signal.signal(signal.SIGINT, signal.SIG_IGN)
+            agree_or_abort(status)
+            cancel_abort()  # every rank is on its way out
+        return status
+    finally:
+        if before is not None:
+            signal.signal(signal.SIGINT, before)
+
+
+def _interrupted(signum, frame) -> None:
+    """SIGINT: KeyboardInterrupt (the run records "interrupted", exit status 130). Under
+    mpirun the signal may reach this rank alone (``kill -INT``; Open MPI's mpirun itself
+    sends SIGTERM to every rank), and a rank that stopped at once would leave the others
+    waiting for it: it is remembered instead, and every rank of the run stops at its next
+    step (parallel.interrupt); the job is aborted if it has not ended within
+    parallel.ABORT_AFTER s (what was computed is kept, as after a kill)."""
+    if "mpi4py.MPI" in sys.modules:  # not before: MPI is not initialised, no job to hang
+        from .parallel import interrupt
+
+        if interrupt():
+            return
+    raise KeyboardInterrupt
 
 
 def _main(args) -> int:
@@ -419,6 +469,7 @@ def _main(args) -> int:
     if not args.debug:
         warnings.simplefilter("ignore" if not args.verbose else "default")
     try:
+        _same_command_line(args, MPI.COMM_WORLD)  # first: the ranks must agree on it
         _ignore_sigpipe(args.command)
         if args.command == "validate":
             return _validate(args)
@@ -461,6 +512,30 @@ def _main(args) -> int:
         _report_internal(exc, args)
         return 1
     return 1
+
+
+#: The command line's names of the arguments whose name is not --<dest>.
+_NAMES = {"scene": "SCENE", "run_dir": "RUN_DIR", "overrides": "--set", "command": "COMMAND"}
+
+
+def _same_command_line(args, comm) -> None:
+    """SceneError on every rank unless every MPI rank was given the same command line
+    (``mpirun sh -c '... $SCENE_$OMPI_COMM_WORLD_RANK'``, a --set taken from the
+    environment): ranks given different scenes would compute a blend, or hang. Collective."""
+    if comm.size == 1:
+        return
+    given = comm.allgather(sorted(vars(args).items()))
+    for rank, other in enumerate(given[1:], start=1):
+        if other != given[0]:
+            name, mine = next((k, v) for (k, v), o in zip(given[0], other, strict=False)
+                              if (k, v) != o)  # fmt: skip
+            theirs = dict(other).get(name)
+            option = _NAMES.get(name, "--" + name.replace("_", "-"))
+            if option == "SCENE" and args.command == "sweep":
+                option = "SWEEP"
+            raise SceneError(f"{option}: the MPI ranks were given different command lines "
+                             f"(rank 0: {mine!r}, rank {rank}: {theirs!r}); give every rank "
+                             "the same")  # fmt: skip
 
 
 #: How dolfinx.jit.mpi_jit_decorator wraps a compile error of rank 0 under MPI.

@@ -17,6 +17,8 @@ Exit status of the command line: 2 SceneError, 3 SolverError, 4 StopError, 1 any
 
 from __future__ import annotations
 
+import datetime
+
 
 def _one_line(text: str) -> str:
     """Collapse ``text`` to a single line (newlines and runs of blanks become one space)."""
@@ -95,7 +97,8 @@ def show_value(value: object) -> str:
     """Render a user-supplied value the way it would be written in TOML, for error messages.
 
     ``True`` → ``true``, strings in double quotes, floats via ``repr`` (``nan``, ``inf``),
-    lists element-wise; anything else via ``repr``. Long renderings are shortened.
+    lists element-wise, dates and times as ISO 8601 (as TOML writes them); anything else
+    via ``repr``. Long renderings are shortened.
     """
     if isinstance(value, bool):
         text = "true" if value else "false"
@@ -107,6 +110,8 @@ def show_value(value: object) -> str:
         text = "[" + ", ".join(show_value(v) for v in value) + "]"
     elif isinstance(value, dict):
         text = "{" + ", ".join(f"{k} = {show_value(v)}" for k, v in value.items()) + "}"
+    elif isinstance(value, datetime.date | datetime.time):  # a TOML date or time
+        text = value.isoformat()
     else:
         text = repr(value)
     text = _one_line(text)

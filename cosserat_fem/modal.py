@@ -450,6 +450,7 @@ def write_modes(out: Path, model: RodModel, modes: list[Mode], about: str = "und
         "about": about,
         "cosserat_fem": __version__,
         "scene_file": scene.source,
+        "scene_file_sha256": scene.source_sha256,
         "mpi_ranks": comm.size,
         "modes": [
             {"omega_rad_s": m.omega, "kind": m.kind, "eigenvalue": [m.eigenvalue.real,

@@ -13,6 +13,8 @@ statics.py), in this order:
 * user observers, :class:`ProbeRecorder`, :class:`FieldRecorder` (the Python API's arrays);
 * :class:`CheckpointObserver`: checkpoints when due and at the end (cosserat_fem/checkpoint.py);
 * :class:`DeadlineObserver`: stops the run at ``limits.wall_time``, with a checkpoint;
+* :class:`InterruptObserver`: stops every rank at the same step after an interrupt (SIGINT)
+  reached any of them under mpirun (cosserat_fem/parallel.py);
 * :class:`FolderSummary`: summary.json at the end.
 """
 
@@ -33,7 +35,7 @@ from .output import (
     XdmfWriter,
     last_probe_row,
 )
-from .parallel import from_root
+from .parallel import check_interrupt, from_root
 from .progress import LOGGER
 from .run_folder import SUMMARY, claim, write_summary
 
@@ -228,6 +230,30 @@ class DeadlineObserver(Observer):
                 f"of {self.wall_time:g} s of wall time; continue it with run --restart DIR "
                 "(--set limits.wall_time=... to allow more)"
             )
+
+
+class InterruptObserver(Observer):
+    """KeyboardInterrupt on every rank at the end of a step once any rank of ``comm`` was
+    interrupted under mpirun (parallel.check_interrupt), where the loop's state is whole:
+    the ranks stop alike, none waits for the others. Looked at about every ``interval``
+    seconds (the steps in between chosen by rank 0 from the pace of the last ones, at most
+    ``most``: a step slowed down 64 times by halvings still looks within a few seconds, well
+    inside parallel.ABORT_AFTER): an allreduce every step made a sweep on a group of two
+    ranks a quarter slower on a busy machine (docs/decisions.md, "Interrupts under MPI")."""
+
+    def __init__(self, comm, interval: float = 0.1, most: int = 100):
+        self.comm, self.interval, self.most = comm, interval, most
+        self.every, self._ticks, self._since = 1, 0, time.perf_counter()
+
+    def step_finished(self, loop) -> None:
+        self._ticks += 1
+        if self._ticks < self.every:
+            return
+        now = time.perf_counter()
+        pace = max(now - self._since, 1e-9) / self._ticks  # s a step
+        wanted = max(1, min(self.most, int(self.interval / pace)))
+        self.every = check_interrupt(self.comm, wanted)
+        self._ticks, self._since = 0, now
 
 
 class ProbeRecorder(Observer):

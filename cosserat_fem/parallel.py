@@ -8,11 +8,18 @@ hang the others in their next collective call.
   agreed on: a rank that leaves with an error waits a few seconds for the others to leave
   too; if they do not (they are blocked in a collective call), it aborts the MPI job instead
   of hanging it.
+* :func:`interrupt` and :func:`check_interrupt` stop every rank at one point for an
+  interrupt (SIGINT) that may reach one rank and not the others: the signal is remembered,
+  and a run's ranks find out together at their next step, where they stop alike (exit
+  status 130). An interrupt that no run checks (a compile, a factorisation, a rank waiting
+  for another) aborts the job after a few seconds (:func:`abort_later`), unless every rank
+  left by then (:func:`cancel_abort`).
 """
 
 from __future__ import annotations
 
 import sys
+import threading
 import time
 
 from mpi4py import MPI
@@ -81,3 +88,68 @@ def agree_or_abort(code: int, timeout: float = ABORT_AFTER) -> None:
             )
             MPI.COMM_WORLD.Abort(code)
         time.sleep(0.01)
+
+
+_WATCHDOG: threading.Timer | None = None
+#: Whether this process was interrupted (SIGINT) under mpirun (:func:`interrupt`).
+_INTERRUPTED = False
+
+
+def interrupt() -> bool:
+    """A SIGINT handler's part under mpirun: remember the interrupt, for every rank to stop
+    at the same point of its run (:func:`check_interrupt`), and abort the job if it has not
+    ended within :data:`ABORT_AFTER` s (work that does not check, a rank that waits for
+    another: :func:`abort_later`). False (nothing done) outside an MPI job of several
+    ranks, where the handler raises KeyboardInterrupt at once."""
+    global _INTERRUPTED
+    if not MPI.Is_initialized() or MPI.Is_finalized() or MPI.COMM_WORLD.size == 1:
+        return False
+    _INTERRUPTED = True
+    abort_later(130)
+    return True
+
+
+def check_interrupt(comm: MPI.Comm, every: int = 1) -> int:
+    """KeyboardInterrupt on every rank of ``comm`` if any was interrupted (:func:`interrupt`);
+    else rank 0's ``every`` (when to look next, the same on every rank). Collective: one
+    allreduce, so the ranks of a run stop at the same step."""
+    if comm.size == 1:
+        if _INTERRUPTED:
+            raise KeyboardInterrupt
+        return every
+    # max of (interrupted, every): an interrupt anywhere wins, else rank 0's every (others 0)
+    interrupted, every = comm.allreduce((_INTERRUPTED, every if comm.rank == 0 else 0),
+                                        op=MPI.MAX)  # fmt: skip
+    if interrupted:
+        raise KeyboardInterrupt
+    return every
+
+
+def abort_later(code: int, timeout: float = ABORT_AFTER) -> None:
+    """Abort the MPI job with ``code`` in ``timeout`` seconds, from a thread of its own (so
+    that it also fires while this rank is blocked in a collective call), unless
+    :func:`cancel_abort` comes first; once per process, nothing in serial or before MPI is
+    initialised. Safe in a signal handler."""
+    global _WATCHDOG
+    if _WATCHDOG is not None or not MPI.Is_initialized() or MPI.Is_finalized():
+        return
+    if MPI.COMM_WORLD.size == 1:
+        return
+
+    def abort() -> None:
+        print(f"cosserat-fem: rank {MPI.COMM_WORLD.rank} was interrupted and the ranks did not "
+              f"all stop within {timeout:g} s; aborting the MPI job", file=sys.stderr,
+              flush=True)  # fmt: skip
+        MPI.COMM_WORLD.Abort(code)
+
+    _WATCHDOG = threading.Timer(timeout, abort)
+    _WATCHDOG.daemon = True
+    _WATCHDOG.start()
+
+
+def cancel_abort() -> None:
+    """The abort :func:`abort_later` scheduled, cancelled (every rank has stopped)."""
+    global _WATCHDOG
+    if _WATCHDOG is not None:
+        _WATCHDOG.cancel()
+        _WATCHDOG = None

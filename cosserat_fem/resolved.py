@@ -451,7 +451,8 @@ class Limits:
 
 @dataclass(frozen=True)
 class Scene:
-    """A validated scene; ``source`` (file name or "<dict>") does not take part in equality."""
+    """A validated scene; ``source`` (file name or "<dict>") and its digest do not take part
+    in equality."""
 
     title: str
     parameters: dict[str, float]
@@ -469,6 +470,9 @@ class Scene:
     initial: Initial = field(default_factory=Initial)  # built last, from the resolved rest
     reference: ReferenceShape = field(default_factory=ReferenceShape)
     source: str = field(default="<dict>", compare=False)
+    #: SHA-256 of the file's bytes the scene was read from ("" for a dict): what every MPI
+    #: rank parsed (schema.read_input), written to summary.json as ``scene_file_sha256``
+    source_sha256: str = field(default="", compare=False)
 
     @property
     def omega0(self) -> float:

@@ -13,6 +13,7 @@ Every problem is a single :class:`~cosserat_fem.errors.SceneError` naming the do
 
 from __future__ import annotations
 
+import hashlib
 import math
 from collections.abc import Sequence
 from dataclasses import replace
@@ -56,8 +57,11 @@ from cosserat_fem.schema import (  # noqa: F401 - read_toml and the overrides, f
     STEP_TOLERANCE,
     Overrides,
     apply_overrides,
+    check_depth,
     check_scene,
     fmt,
+    parse_toml,
+    read_input,
     read_toml,
 )
 
@@ -575,6 +579,7 @@ def scene_from_dict(
     """
     if not isinstance(data, dict):
         raise SceneError(f"{source}: a scene must be a table of keys, got {show_value(data)}")
+    check_depth(data, source)
     raw = check_scene(apply_overrides(data, overrides))
     parameters = raw["parameters"]
     rod = _build_rod(raw["rod"])
@@ -798,9 +803,13 @@ def _check_closed(scene: Scene, reference: ReferenceShape) -> None:
 
 
 def load_scene(path: str | Path, overrides: Overrides = ()) -> Scene:
-    """Read, override and validate a TOML scene file; its tables (loads given by data) are
-    read relative to its folder, by rank 0 under MPI (collective)."""
+    """Read, override and validate a TOML scene file; collective under MPI: rank 0 reads
+    it, every rank parses its bytes (schema.read_input), whose SHA-256 the scene keeps; its
+    tables (loads given by data) are read relative to its folder, by rank 0 too."""
+    raw = read_input(path, "scene file")
     tables = TableStore.collective(Path(path).parent)
-    return scene_from_dict(read_toml(path), source=str(path), overrides=overrides, tables=tables)
+    scene = scene_from_dict(parse_toml(raw, path), source=str(path), overrides=overrides,
+                            tables=tables)  # fmt: skip
+    return replace(scene, source_sha256=hashlib.sha256(raw).hexdigest())
 
 

@@ -30,6 +30,7 @@ from cosserat_fem.expressions import RESERVED_NAMES, check_name
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.section import TORSION_CONSTANT_RULES
 from cosserat_fem.load_data import INTERPOLATIONS, OUTSIDE, S_INTERPOLATIONS
+from cosserat_fem.regular_file import Unreadable, read_on_root
 from cosserat_fem.results import PROBE_FIELD_COLUMNS
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
@@ -50,6 +51,13 @@ MAX_QUADRATURE = 100
 MAX_NEWTON_ITERATIONS = 1000
 #: limits.wall_time by default [s]: a day.
 DEFAULT_WALL_TIME = 86400.0
+#: The largest scene or sweep file read [bytes]: 16 MiB holds a sweep of the most members
+#: (sweep_spec.MAX_MEMBERS, 100 000) as [[sweep.case]] tables of 160 bytes each; a scene
+#: is a few kB (an expression stops at 20 000 characters).
+MAX_INPUT_BYTES = 16 << 20
+#: The deepest nesting of tables and lists read: a scene needs 3 (reference.points: a table,
+#: the list, a point), a sweep 5 (sweep.vary, a key, its list of values, a vector, ...).
+MAX_DEPTH = 32
 
 _EXCLUSIVE = ("rod.material.poisson_ratio", "rod.material.shear_modulus")
 
@@ -631,12 +639,16 @@ def _lookup_spec(path: list[str]) -> Any:
     return spec
 
 
-def _override_value(text: str) -> Any:
-    """A TOML value if ``text`` parses as one, else the bare string."""
+def _override_value(key: str, text: str) -> Any:
+    """A TOML value if ``text`` parses as one, else the bare string; SceneError naming
+    ``key`` if it nests too deep for the TOML reader."""
     try:
         document = tomllib.loads(f"v = {text}")
     except tomllib.TOMLDecodeError:
         return text
+    except RecursionError:
+        raise SceneError(f"{key}: nested deeper than {MAX_DEPTH} levels of tables and "
+                         "lists") from None  # fmt: skip
     return document["v"] if list(document) == ["v"] else text
 
 
@@ -688,6 +700,7 @@ def apply_overrides(data: dict[str, Any], overrides: Overrides) -> dict[str, Any
             continue
         path = [part.strip() for part in key.split(".")]
         spec = _lookup_spec(path)
+        check_depth(value, key, len(path) + 1)
         if isinstance(spec, Table | Parameters):
             raise SceneError(f"{key}: is a table; set one of its keys instead (--set {key}.X=...)")
         _set_path(result, path, value)
@@ -704,7 +717,7 @@ def _split(text: str) -> tuple[str, Any]:
     raw_key, sep, raw_value = text.partition("=")
     if not sep or not raw_key.strip():
         raise SceneError(f"--set {text!r}: expected dotted.key=value")
-    return raw_key.strip(), _override_value(raw_value.strip())
+    return raw_key.strip(), _override_value(raw_key.strip(), raw_value.strip())
 
 
 def _copy_tables(data: Any) -> Any:
@@ -727,20 +740,73 @@ def _set_path(data: dict[str, Any], path: list[str], value: Any) -> None:
     _table_at(data, path[:-1])[path[-1]] = value
 
 
-def read_toml(path: str | Path) -> dict[str, Any]:
-    """Read a TOML file; every failure (missing, unreadable, malformed) is a SceneError."""
+def read_input(path: str | Path, what: str = "scene file", comm=None,
+               same_name: bool = True) -> bytes:  # fmt: skip
+    """The bytes of the input file ``path`` (a scene or a sweep file), read once: rank 0 of
+    ``comm`` (default MPI's world) reads it and every rank gets its bytes, so that every rank
+    parses the same input (a file edited while the job starts, or a copy per node, cannot
+    give the ranks different scenes). Collective. SceneError on every rank if the ranks name
+    different files (unless not ``same_name``: a name made from rank 0's input, which may
+    resolve otherwise on another rank), or if the file is not a regular file of at most
+    :data:`MAX_INPUT_BYTES` (a FIFO, ``/dev/zero``: cosserat_fem/regular_file.py)."""
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD if comm is None else comm
+    name = str(path)
+    if comm.size > 1 and same_name:
+        names = comm.allgather(name)
+        other = next((r for r, n in enumerate(names) if n != names[0]), None)
+        if other is not None:
+            raise SceneError(f"{names[0]}: the MPI ranks name different {what}s (rank "
+                             f"{other}: {names[other]!r}); give every rank the same file")
     try:
-        with open(path, "rb") as stream:
-            return tomllib.load(stream)
-    except FileNotFoundError:
-        raise SceneError(f"{path}: scene file not found") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: malformed TOML: {exc}") from None
+        return read_on_root(path, MAX_INPUT_BYTES, comm)
+    except Unreadable as exc:
+        raise SceneError(f"{name}: {what} {exc}") from None
+
+
+def parse_toml(raw: bytes, path: str | Path) -> dict[str, Any]:
+    """The TOML document ``raw`` (the content of ``path``); every failure (not UTF-8,
+    malformed, nested deeper than :data:`MAX_DEPTH`) is a SceneError naming ``path``."""
+    try:
+        text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise SceneError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start})") from None
-    except OSError as exc:
-        raise SceneError(f"{path}: cannot read scene file ({exc.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: malformed TOML: {exc}") from None
+    except RecursionError:
+        raise SceneError(f"{path}: nested deeper than {MAX_DEPTH} levels of tables and "
+                         "lists") from None  # fmt: skip
+    check_depth(data, str(path))
+    return data
 
+
+def read_toml(path: str | Path, what: str = "scene file", comm=None) -> dict[str, Any]:
+    """Read a TOML file once for every rank (:func:`read_input`) and parse it
+    (:func:`parse_toml`); every failure is a SceneError naming the file. Collective."""
+    return parse_toml(read_input(path, what, comm), path)
+
+
+def check_depth(data: Any, where: str, depth: int = 1) -> None:
+    """SceneError if tables and lists nest deeper than :data:`MAX_DEPTH` in ``data`` (itself
+    at level ``depth``), naming ``where`` and the keys of the tables on the way (checked
+    without recursion: a document nested thousands deep, which TOML's dotted keys allow,
+    must not exhaust Python's stack)."""
+    stack: list[tuple[Any, int, str]] = [(data, depth, "")]
+    while stack:
+        value, level, key = stack.pop()
+        if level > MAX_DEPTH:
+            raise SceneError(f"{where}: {key + ': ' if key else ''}nested deeper than "
+                             f"{MAX_DEPTH} levels of tables and lists")  # fmt: skip
+        if isinstance(value, dict):
+            items = [(_join(key, str(name)) if len(key) < 60 else key, item)
+                     for name, item in value.items()]  # fmt: skip
+        else:
+            items = [(key, item) for item in value] if isinstance(value, list | tuple) else []
+        stack += [(item, level + 1, inner) for inner, item in items
+                  if isinstance(item, dict | list | tuple)]  # fmt: skip
 
 
 def check_scene(data: dict[str, Any]) -> dict[str, Any]:

@@ -45,6 +45,7 @@ from .observers import (
     FieldRecorder,
     FolderStart,
     FolderSummary,
+    InterruptObserver,
     ProbeObserver,
     ProbeRecorder,
     ProgressObserver,
@@ -338,6 +339,7 @@ class _RunParts:
             self.chain.append(self.checkpoints)
         wall = scene.limits.wall_time
         self.chain.append(DeadlineObserver(self.t_start + wall, wall, comm))
+        self.chain.append(InterruptObserver(comm))
         if self._files is not None:
             self.chain.append(FolderSummary(out, comm, self._files[0], self.summary_at_end))
         self._events = Events(self.chain)
@@ -379,6 +381,7 @@ def _summary_start(scene, model, integrator, solver, probe, comm, restart) -> di
         "run_id": restart.run_id if restart is not None else new_run_id(comm),
         "cosserat_fem": __version__,
         "scene_file": scene.source,
+        "scene_file_sha256": scene.source_sha256,
         "mpi_ranks": comm.size,
         "dofs": model.global_dofs(),
         "elements": scene.discretisation.elements,

@@ -35,7 +35,14 @@ from .events import Events, Observer, drive
 from .integrators import make_integrator
 from .model import RodModel, build_model
 from .newton import NewtonFailure, NewtonSettings, NewtonSolver
-from .observers import FolderStart, FolderSummary, ProbeObserver, ProbeRecorder, XdmfObserver
+from .observers import (
+    FolderStart,
+    FolderSummary,
+    InterruptObserver,
+    ProbeObserver,
+    ProbeRecorder,
+    XdmfObserver,
+)
 from .output import PointProbe, probe_position, probe_sigma
 from .parallel import ranks_on_node
 from .progress import LOGGER
@@ -227,6 +234,7 @@ def static_path(
         "probe_t_column": "load factor",
         "cosserat_fem": __version__,
         "scene_file": scene.source,
+        "scene_file_sha256": scene.source_sha256,
         "mpi_ranks": comm.size,
         "dofs": model.global_dofs(),
         "probe_s_m": probe_sigma(scene) * model.length,
@@ -260,7 +268,7 @@ def static_path(
         if scene.output.xdmf:
             chain.append(XdmfObserver(out / XDMF, model, 1, probes, summary["run_id"]))
     recorder = ProbeRecorder(probe) if record else None
-    chain += [*observers, *([recorder] if recorder is not None else [])]
+    chain += [*observers, *([recorder] if recorder is not None else []), InterruptObserver(comm)]
     if write_outputs:
         chain.append(FolderSummary(out, comm, begin, finish))
     loop = StaticLoop(model, solver, scene, Events(chain))

@@ -11,16 +11,22 @@ world rank 0 merges the parts into ``sweep.csv``, sorted by member. Each member'
 ``members/m<index>``: all of a run's outputs, or with ``keep = "probes"`` its probes.csv and
 summary.json only.
 
-A member that fails (a SceneError at run time, Newton that gives up, a limit) is recorded with
-its status and one-line reason and the sweep goes on. A sweep that is killed and started
-again with the same ``--out`` skips the members that have a row (a row cut by the kill is
-dropped and its member run again); ``sweep.json`` records the sweep (written atomically: a
-damaged one is refused in one line naming it), and a different sweep in the same folder is
-refused. The sweep holds its folder's lock while it runs (a second sweep or run there is
-refused, naming it; cosserat_fem/run_folder.py); the members' folders inside are its own. Its
-files are never written through a link, nor is a special file opened
-(cosserat_fem/safe_files.py). Members run one after another in each group, and a member's rows
-of probes are only held until its row is written: memory per rank does not grow with the sweep.
+A member that fails (Newton that gives up: "failed"; a SceneError at run time or a bug:
+"error") is recorded with its status and one-line reason and the sweep goes on. A member
+that stops for a passing reason ("stopped": a StopError such as a full disk or
+limits.wall_time, a folder it cannot make, memory or disk the machine lacks now) is recorded
+but not finished: it keeps its checkpoint, the chain it continues stops there, and the sweep
+raises StopError (exit 4) once its table is written. A sweep that is killed or stopped and
+started again with the same ``--out`` skips the members that finished, runs those without a
+row from their start (a row cut by the kill is dropped) and continues each stopped member
+from its checkpoint (else from its start); ``sweep.json`` records the sweep (written
+atomically: a damaged one is refused in one line naming it), and a different sweep in the
+same folder is refused (limits.* may differ: SweepSpec.fingerprint). The sweep holds its
+folder's lock while it runs (a second sweep or run there is refused, naming it;
+cosserat_fem/run_folder.py); the members' folders inside are its own. Its files are never
+written through a link, nor is a special file opened (cosserat_fem/safe_files.py). Members
+run one after another in each group, and a member's rows of probes are only held until its
+row is written: memory per rank does not grow with the sweep.
 
 A frequency response (``[sweep.response]``) deals chains rather than members: a group runs
 a chain's members in order, each from the final state its predecessor saved in
@@ -28,8 +34,8 @@ a chain's members in order, each from the final state its predecessor saved in
 forcing's phase over (response.continued_start); a restarted chain continues from the last
 finished member's saved state; after a failed member its chain goes on from rest.
 
-The row: ``member``, ``status`` ("completed", or the run's failure: "failed", "stopped",
-"error"), ``wall_s`` (the member's run), each varied key's value, the run's ``steps`` and
+The row: ``member``, ``status`` ("completed", or "failed", "error", "stopped" as above),
+``wall_s`` (the member's run), each varied key's value, the run's ``steps`` and
 ``newton_iterations``, and for each probe column c (x, y, z [m], theta, psi, phi [rad]):
 ``final_c`` and ``max_abs_c`` over the run; for a frequency response, the chain's
 ``direction``, the ``previous`` member it continued (empty: from rest), its ``start_s`` and
@@ -40,6 +46,7 @@ and per column c its ``amp_c``, ``mean_c``, ``h1_c`` and ``phase_c`` (cosserat_f
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 import json
@@ -53,9 +60,9 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from . import safe_files
+from . import budget, safe_files
 from .charts import change_chart
-from .errors import CosseratError, OutputError, SceneError, SolverError, StopError
+from .errors import CosseratError, OutputError, SceneError, StopError
 from .parallel import agree
 from .progress import SweepProgress
 from .response import COLUMNS as RESPONSE_NAMES
@@ -67,6 +74,10 @@ from .sweep_spec import Member, SweepSpec, forced_span
 PROBE_NAMES = PROBE_COLUMNS[1:]  # x, y, z [m], θ, ψ, φ [rad]
 RECORD = "sweep.json"
 FINAL_STATE = "final_state.npz"
+#: A member's status when it stopped for a passing reason: not finished (module docstring).
+STOPPED = "stopped"
+#: How a stopped run's message (observers.DeadlineObserver) starts its advice.
+RUN_ADVICE = "; continue it with run --restart"
 
 
 @dataclass
@@ -133,8 +144,83 @@ def _cut_rows_off(out: Path) -> None:
 
 
 def _finished(out: Path) -> dict[int, dict]:
-    """{member: row} of the rows already in the table's parts."""
-    return {int(row["member"]): row for row in read_sweep_rows(out, parts_only=True)[1]}
+    """{member: row} of the rows already in the table's parts; a member's "stopped" row
+    gives way to a row of its run again (the parts are read in the order of their groups,
+    not of time)."""
+    rows: dict[int, dict] = {}
+    for row in read_sweep_rows(out, parts_only=True)[1]:
+        member = int(row["member"])
+        if member not in rows or rows[member]["status"] == STOPPED:
+            rows[member] = row
+    return rows
+
+
+def _status(exc: Exception) -> str:
+    """A member's status after ``exc`` (module docstring): "stopped" for a passing reason (a
+    StopError: an output it could not write, limits.wall_time; the memory or disk it lacked;
+    an OSError or MemoryError that escaped), "failed" for numerical trouble or another of
+    the project's errors, "error" for bad input found during the run or a bug."""
+    if isinstance(exc, StopError | OSError | MemoryError):
+        return STOPPED
+    if isinstance(exc, CosseratError) and not isinstance(exc, SceneError):
+        return "failed"
+    return "error"
+
+
+def _fresh_folder(folder: Path, comm) -> None:
+    """``folder`` emptied (a member cut short by a kill or stopped without a checkpoint runs
+    again from the start) and made; OutputError on every rank of ``comm`` if it cannot be
+    (a passing reason: the member stops)."""
+    problem = None
+    if comm.rank == 0:
+        try:
+            if folder.exists():
+                shutil.rmtree(folder)
+            folder.mkdir(parents=True)
+        except OSError as exc:
+            problem = OutputError(f"sweep: cannot make {str(folder)!r} afresh for its member "
+                                  f"({exc.strerror or exc})")  # fmt: skip
+    agree(comm, problem)
+
+
+def _checkpoint(folder: Path, scene, comm):
+    """The checkpoint a stopped member continues from: its folder's, if it is intact, before
+    the member's end and its outputs are the checkpoint's run's (checkpoint.py's checks, as
+    ``run --restart`` makes them); else None (the member runs from the start). Collective
+    over ``comm``: every rank finds the same."""
+    from .checkpoint import check_outputs, load_checkpoint
+    from .run_folder import PROBES, XDMF
+
+    try:
+        checkpoint = load_checkpoint(folder, comm)
+        if not checkpoint.time < scene.time.end:
+            return None
+        check_outputs(checkpoint, folder / PROBES, folder / XDMF if scene.output.xdmf else None,
+                      comm)  # fmt: skip
+    except SceneError:
+        return None
+    return checkpoint
+
+
+def _whole_probes(folder: Path, comm) -> np.ndarray | None:
+    """The rows of a continued member's probes.csv, from its start (a restart's result holds
+    the rows after the checkpoint only): read on rank 0, for the row it writes."""
+    from .results import read_probe_table
+    from .run_folder import PROBES
+
+    return read_probe_table(folder / PROBES)[1] if comm.rank == 0 else None
+
+
+def _affordable(scene, folder: Path, comm, start: float | None) -> None:
+    """StopError if the member's run would be refused for what this machine has now (free
+    disk, memory available): its cost was checked against its limits when the sweep was
+    loaded, so what refuses it now passes (budget.py, as simulation.run checks it)."""
+    from .parallel import ranks_on_node
+
+    try:
+        budget.check(scene, "run", folder, ranks_on_node(comm), comm.size, start=start)
+    except SceneError as exc:
+        raise StopError(f"{exc} (now: the sweep runs it when started again)") from None
 
 
 def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
@@ -245,51 +331,46 @@ def _forced(spec: SweepSpec, member: Member, before: _Final | None):
 
 
 def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
-                before: _Final | None = None) -> tuple[dict, _Final | None]:  # fmt: skip
+                before: _Final | None = None,
+                resume: bool = False) -> tuple[dict, _Final | None]:  # fmt: skip
     """Run one member on ``comm`` into ``folder`` (a forced one continuing ``before`` if
-    given); its row and, for a chain, its final state (every rank of ``comm``)."""
+    given; with ``resume``, a member that stopped before, from its checkpoint if it has a
+    usable one: not a forced member, whose measurement is not in the checkpoint); its row
+    and, for a chain, its final state (every rank of ``comm``)."""
     from .simulation import run
 
-    problem = None
-    if comm.rank == 0 and folder.exists():
-        try:
-            shutil.rmtree(folder)  # a member cut short by a kill runs again from the start
-        except OSError as exc:
-            problem = OutputError(f"sweep: cannot remove {str(folder)!r} to run its member "
-                                  f"again ({exc})")  # fmt: skip
-    agree(comm, problem)
     t0 = time.perf_counter()
     summary, probes, status, message = None, None, "completed", ""
     response, final, period = None, None, None
     try:
-        observers, initial = [], None
+        observers, initial, checkpoint = [], None, None
         if spec.response is not None:
             scene, response, period = _forced(spec, member, before)
             observers = [response]
             initial = before.state if before is not None else None
         else:
             scene = spec.scene(member)
+            checkpoint = _checkpoint(folder, scene, comm) if resume else None
+        if checkpoint is None:
+            _fresh_folder(folder, comm)
+        _affordable(scene, folder, comm, checkpoint.time if checkpoint is not None else None)
         result = run(scene, folder, comm=comm, record=True, observers=observers,
-                     initial_state=initial)  # fmt: skip
-        summary, probes = result.summary, result.probes
+                     initial_state=initial, restart=checkpoint)  # fmt: skip
+        summary = result.summary
+        probes = result.probes if checkpoint is None else _whole_probes(folder, comm)
         if spec.chains_continue:
             state = _final_state(result.model)
             final = _Final(member.index, result.time_reached, period, state)
             _save_final(folder, final, comm)
     except Exception as exc:  # recorded, and the sweep goes on (a bug's too: "error")
-        status = "error"
-        if isinstance(exc, SolverError):
-            status = "failed"
-        elif isinstance(exc, StopError):
-            status = "stopped"
-        elif isinstance(exc, CosseratError) and not isinstance(exc, SceneError):
-            status = "failed"
-        message = f"{type(exc).__name__}: {exc}"
+        status = _status(exc)
+        # a run's advice to restart it is the sweep's to follow when started again
+        message = f"{type(exc).__name__}: {str(exc).split(RUN_ADVICE)[0]}"
     wall = time.perf_counter() - t0
     if summary is None and (folder / "summary.json").exists():
         summary = json.loads(safe_files.read_text(folder / "summary.json"))
-    if comm.rank == 0 and spec.keep == "probes" and folder.exists():
-        for entry in folder.iterdir():
+    if comm.rank == 0 and spec.keep == "probes" and status != STOPPED and folder.exists():
+        for entry in folder.iterdir():  # a stopped member keeps all, to continue from
             if entry.name not in ("probes.csv", "summary.json", FINAL_STATE):
                 shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
     measured = None
@@ -299,11 +380,13 @@ def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
     return _row(spec, member, status, wall, summary, probes, message, measured), final
 
 
-def _run_chain(spec: SweepSpec, chain: tuple[int, ...], done: set[int], out: Path, comm,
-               write) -> int:  # fmt: skip
+def _run_chain(spec: SweepSpec, chain: tuple[int, ...], done: set[int], stopped: set[int],
+               out: Path, comm, write) -> int:  # fmt: skip
     """Run a chain's members not done, in order, each continuing the one before it when the
-    sweep continues (from its saved state if it was done before a restart); ``write(row)``
-    each row. The number run."""
+    sweep continues (from its saved state if it was done before a restart); those in
+    ``stopped`` continue their stopped run (:func:`_run_member`). ``write(row)`` each row.
+    A member that stops ends its chain when the next would continue it (the chain goes on
+    when the sweep is started again). The number run."""
     ran, before = 0, None
     for position, index in enumerate(chain):
         member = spec.members[index]
@@ -314,9 +397,11 @@ def _run_chain(spec: SweepSpec, chain: tuple[int, ...], done: set[int], out: Pat
                 position - 1]):  # fmt: skip
             previous = spec.members[chain[position - 1]]
             before = _load_final(out / "members" / previous.name, previous.index, comm)
-        row, before = _run_member(spec, member, folder, comm, before)
+        row, before = _run_member(spec, member, folder, comm, before, index in stopped)
         write(row)
         ran += 1
+        if row["status"] == STOPPED and spec.chains_continue:
+            break
     return ran
 
 
@@ -363,8 +448,14 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
     error = world.bcast(error, root=0)
     if error:
         raise SceneError(error)
-    done = set(world.bcast(sorted(finished), root=0))
+    status = world.bcast({k: row["status"] for k, row in finished.items()}, root=0)
+    done = {k for k, v in status.items() if v != STOPPED}
+    stopped = set(status) - done
     todo = [chain for chain in spec.chains if not done.issuperset(chain)]
+    # PETSc initialises collectively over the world communicator when DOLFINx is first
+    # imported: every rank does it now, before the groups go their own ways (a group with
+    # no member would never import it, and the others' import would wait for it for ever).
+    from . import simulation  # noqa: F401
     color = world.rank // spec.group_size
     group = world.Split(color, world.rank)
     leader = group.rank == 0  # writes the group's table part
@@ -372,9 +463,9 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
     members = sum(index not in done for chain in todo for index in chain)
     report = SweepProgress(members, _Counter(world)) if progress else None
     part = out / SWEEP_PARTS / f"group-{color}.csv"
-    ran = 0
+    ran, stream, failure = 0, None, None
     try:
-        stream, problem = None, None
+        problem = None
         if leader:
             try:
                 new = not (part.exists() or part.is_symlink()) or part.stat().st_size == 0
@@ -406,15 +497,19 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
             k = group.bcast(k, root=0)
             if k >= len(todo):
                 break
-            ran += _run_chain(spec, todo[k], done, out, group, write)
-        if stream is not None:
-            stream.close()
+            ran += _run_chain(spec, todo[k], done, stopped, out, group, write)
+    except CosseratError as exc:  # a group's part it cannot write: raised by every rank below
+        failure = exc
     finally:
+        if stream is not None:
+            with contextlib.suppress(OSError):  # what it could not write was reported
+                stream.close()
         world.Barrier()
         counter.free()
         if report is not None:
             report.counter.free()
         group.Free()
+    agree(world, failure)  # the other groups would wait for this one's ranks for ever
     ran = world.allreduce(ran if leader else 0, op=MPI.SUM)  # before rank 0 works alone
     rows, problem = [], None
     if world.rank == 0:
@@ -426,4 +521,24 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
             problem = OutputError(f"sweep: cannot write {str(out / SWEEP_TABLE)!r} "
                                   f"({exc.strerror or exc}); its rows are kept in {SWEEP_PARTS}/")
     agree(world, problem)
+    _stop_if_unfinished(spec, rows, world)
     return SweepResult(out / SWEEP_TABLE, ran, len(done), rows)
+
+
+def _stop_if_unfinished(spec: SweepSpec, rows: list[dict], world) -> None:
+    """StopError on every rank if members stopped, or were not run because a member they
+    continue stopped (rows on world rank 0): the sweep is not finished, and started again
+    with the same --out it continues them."""
+    problem = None
+    if world.rank == 0:
+        have = {int(row["member"]) for row in rows}
+        halted = [row for row in rows if row["status"] == STOPPED]
+        left = len(spec.members) - len(have)
+        if halted or left:
+            first = f" (member {halted[0]['member']}: {halted[0]['message']})" if halted else ""
+            problem = StopError(
+                f"sweep: {len(halted)} member{'s' if len(halted) != 1 else ''} stopped{first}"
+                f"{f' and {left} not run after them' if left else ''}; start the sweep again "
+                "with the same --out to continue (limits.* may change)"
+            )
+    agree(world, problem)

@@ -48,16 +48,20 @@ written exactly (``num = 1``: ``start``). Members are numbered from 0 in the ord
 product (the last key varying fastest), the zip or the cases. Every member's scene is built
 and validated before any member runs: a malformed sweep (an unknown key of its own or of the
 scene, an empty list or range, a value the scene's schema refuses, more members than
-``max_members``) is a one-line SceneError naming the key and the value, or the member and its
-values.
+``max_members``, a member its run would refuse: a closed rod, a cost over its limits) is a
+one-line SceneError naming the key and the value, or the member and its values. The command
+line's ``--set`` changes the base scene after ``[sweep.set]``; a key that every member sets
+is refused there (it would never be used).
 """
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import json
 import math
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -65,8 +69,8 @@ from . import budget
 from .errors import SceneError, show_value
 from .load_data import TableStore
 from .response import DIRECTIONS, ResponseSettings, check_sampling, period_of
-from .scene import Scene, scene_from_dict
-from .schema import apply_overrides, read_toml
+from .scene import Scene, refuse_closed, scene_from_dict
+from .schema import apply_overrides, parse_toml, read_input, read_toml
 
 KEYS = {"scene", "combine", "max_members", "group_size", "keep", "set", "vary", "case", "response"}
 RESPONSE_KEYS = {"period", "continuation", "direction", "tolerance", "settled_periods",
@@ -93,7 +97,7 @@ class Member:
         return f"m{self.index:05d}"
 
     def describe(self) -> str:
-        text = ", ".join(f"{k} = {json.dumps(v)}" for k, v in self.values.items())
+        text = ", ".join(f"{k} = {show_value(v)}" for k, v in self.values.items())
         return f"{text}, {self.direction}" if self.direction else text
 
 
@@ -115,20 +119,26 @@ class SweepSpec:
     #: The tables of loads given by data, read once when the sweep was validated (every
     #: member's scene is built from them: no rank reads a file again, cosserat_fem/load_data.py).
     tables: TableStore = field(default_factory=TableStore, compare=False, repr=False)
+    #: SHA-256 of the base scene file's bytes (the members' scene_file_sha256)
+    source_sha256: str = ""
 
     def scene(self, member: Member, extra: dict[str, Any] | None = None) -> Scene:
         """The member's resolved scene (validated with the sweep; built again here, ~1 ms,
         rather than kept: ~14 kB a member would grow with the sweep on every rank);
         ``extra``: dotted keys set besides its values (a forced member's time span)."""
-        return scene_from_dict(self.base, self.source, {**member.values, **(extra or {})},
-                               tables=self.tables)  # fmt: skip
+        scene = scene_from_dict(self.base, self.source, {**member.values, **(extra or {})},
+                                tables=self.tables)  # fmt: skip
+        return replace(scene, source_sha256=self.source_sha256)
 
     def fingerprint(self) -> str:
         """What identifies the sweep's work: the base scene, every member's values, the
         response's settings and the content (SHA-256) of every table (a restarted sweep must
-        be the same sweep)."""
-        members = [[m.values, m.direction] if m.direction else m.values for m in self.members]
-        document = {"base": self.base, "members": members}
+        be the same sweep), all but the limits (``limits.*``: they decide whether a member runs
+        to its end, not what it computes, so a sweep stopped by limits.wall_time continues with
+        a larger one)."""
+        members = [[_no_limits(m.values), m.direction] if m.direction else _no_limits(m.values)
+                   for m in self.members]  # fmt: skip
+        document = {"base": _no_limits(self.base), "members": members}
         if self.tables.files:
             document["tables"] = self.tables.digests()
         if self.response is not None:
@@ -152,6 +162,12 @@ class SweepSpec:
         """A forced member's time span from ``start`` [s] (:func:`forced_span`)."""
         assert self.response is not None
         return forced_span(self.response, self.scene(member), start, f"member {member.index}")[1]
+
+
+def _no_limits(values: dict[str, Any]) -> dict[str, Any]:
+    """``values`` (a scene's tables, or a member's dotted keys) without the limits."""
+    return {k: v for k, v in values.items() if k != "limits" and not _dotted(k).startswith(
+        "limits.")}  # fmt: skip
 
 
 def forced_span(response: ResponseSettings, scene: Scene, start: float, where: str):
@@ -207,7 +223,12 @@ def _values(key: str, raw: Any) -> list[Any]:
                              f"got {show_value(num)}")  # fmt: skip
         if num == 1:
             return [start]
-        return [start + (stop - start) * i / (num - 1) for i in range(num - 1)] + [stop]
+        if math.isfinite(stop - start):
+            return [start + (stop - start) * i / (num - 1) for i in range(num - 1)] + [stop]
+        # stop − start beyond the largest double (e.g. -1e308 ... 1e308): the same points as
+        # weights of the ends, each term finite
+        return [start * (1 - i / (num - 1)) + stop * (i / (num - 1))
+                for i in range(num - 1)] + [stop]  # fmt: skip
     if not isinstance(raw, list) or not raw:
         raise SceneError(f"{where}: must be a non-empty list of values or a range "
                          f"{{start, stop, num}}, got {show_value(raw)}")  # fmt: skip
@@ -351,9 +372,11 @@ def _count(table: dict, combine: str) -> int:
 
 def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
     """Read and validate a sweep file (module docstring); ``overrides``: dotted scene keys
-    applied to the base scene before ``[sweep.set]`` (the command line's ``--set``)."""
+    applied to the base scene after ``[sweep.set]`` (the command line's ``--set``: it wins).
+    Collective under MPI: rank 0 reads the sweep file and the base scene, every rank parses
+    their bytes (schema.read_input)."""
     path = Path(path)
-    data = read_toml(path)
+    data = read_toml(path, "sweep file")
     table = data.get("sweep")
     unknown = sorted(set(data) - {"sweep"})
     if unknown:
@@ -380,14 +403,10 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
     if count > max_members:
         raise SceneError(f"sweep.max_members: the sweep has {count} members, more than "
                          f"max_members = {max_members}")  # fmt: skip
-    scene_path = (path.parent / table["scene"]).resolve()
-    base_data = read_toml(scene_path)
-    try:
-        base_data = apply_overrides(base_data, overrides)
-        base_data = apply_overrides(base_data, fixed)
-    except SceneError as exc:
-        raise SceneError(f"sweep.set: {exc}") from None
     values, varied = _members(table, combine)
+    scene_path = (path.parent / table["scene"]).resolve()
+    raw = read_input(scene_path, "scene file (sweep.scene)", same_name=False)  # rank 0's
+    base_data = _base(parse_toml(raw, scene_path), fixed, overrides, values)
     tables = TableStore.collective(scene_path.parent)
     response = _response(table.get("response"), varied)
     members, chains = _chains(values, varied, response)
@@ -396,22 +415,56 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
                          f"directions), more than max_members = {max_members}")  # fmt: skip
     for member in members[: len(values)]:
         try:
-            scene = scene_from_dict(base_data, str(scene_path), member.values, tables=tables)
-            if response is not None:  # its longest run, checked as a run is (budget.py)
-                where = f"member {member.index}"
-                period, span = forced_span(response, scene, scene.time.start, where)
-                if response.steps_per_period is None:
-                    check_sampling(response, period, scene.time.step, where)
-                longest = scene_from_dict(base_data, str(scene_path), {**member.values, **span},
-                                          tables=tables)  # fmt: skip
-                try:
-                    budget.check(longest, "run", ranks=group_size)
-                except SceneError as exc:
-                    raise SceneError(f"sweep.response.max_periods: {response.max_periods} "
-                                     f"periods of {period:.6g} s: {exc}") from None
+            _check_member(base_data, str(scene_path), member, response, group_size, tables)
         except SceneError as exc:
             raise SceneError(f"sweep member {member.index} ({member.describe()}): {exc}"
                              ) from None  # fmt: skip
     tables.seal()  # every member's tables are read: none is read again in a group
     return SweepSpec(base_data, str(scene_path), tuple(members), varied, group_size, keep,
-                     response, tuple(chains), tables)  # fmt: skip
+                     response, tuple(chains), tables, hashlib.sha256(raw).hexdigest())  # fmt: skip
+
+
+def _dotted(key: str) -> str:
+    """A dotted key as overrides read it (blanks around its parts removed)."""
+    return ".".join(part.strip() for part in str(key).split("."))
+
+
+def _base(data: dict, fixed: dict, overrides, values: list[dict[str, Any]]) -> dict:
+    """The base scene's data with ``[sweep.set]`` and then the command line's ``--set``
+    applied, each error named by where the key came from. A ``--set`` key that every member
+    sets is refused: the members' values would silently replace it (``[sweep.set]`` may give
+    one, e.g. a parameter's value at rest: the file says what its members vary)."""
+    always = set.intersection(*({_dotted(k) for k in v} for v in values)) if values else set()
+    given = [str(k) if isinstance(overrides, Mapping) else str(k).partition("=")[0]
+             for k in overrides]  # fmt: skip
+    taken = next((k for k in given if _dotted(k) in always), None)
+    if taken is not None:
+        raise SceneError(f"--set {_dotted(taken)}: every member of the sweep sets it "
+                         "(sweep.vary or sweep.case), so this value would never be used")
+    try:
+        data = apply_overrides(data, fixed)
+    except SceneError as exc:
+        raise SceneError(f"sweep.set: {exc}") from None
+    return apply_overrides(data, overrides)
+
+
+def _check_member(data: dict, source: str, member: Member, response: ResponseSettings | None,
+                  group_size: int, tables: TableStore) -> None:  # fmt: skip
+    """A member's scene validated, and refused as its run would refuse it (a closed rod; the
+    cost of its run, or of a forced member's longest run, over its limits: budget.py, the
+    memory of a group's rank counted as a share of one node's, a certain lower bound)."""
+    scene = scene_from_dict(data, source, member.values, tables=tables)
+    refuse_closed(scene, "run")
+    if response is None:
+        budget.check(scene, "run", ranks=group_size)
+        return
+    where = f"member {member.index}"
+    period, span = forced_span(response, scene, scene.time.start, where)
+    if response.steps_per_period is None:
+        check_sampling(response, period, scene.time.step, where)
+    longest = scene_from_dict(data, source, {**member.values, **span}, tables=tables)
+    try:
+        budget.check(longest, "run", ranks=group_size)
+    except SceneError as exc:
+        raise SceneError(f"sweep.response.max_periods: {response.max_periods} periods of "
+                         f"{period:.6g} s: {exc}") from None  # fmt: skip

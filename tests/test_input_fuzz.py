@@ -17,10 +17,11 @@ import os
 import random
 import shutil
 import string
+import subprocess
 from pathlib import Path
 
 import pytest
-from conftest import ROOT, fails_if_hung, folder_tree
+from conftest import PYTHON, ROOT, fails_if_hung, folder_tree, subprocess_env
 
 from cosserat_fem import budget
 from cosserat_fem.cli import main
@@ -232,6 +233,137 @@ def test_bad_command_lines(argv, capsys):
         status = exit_.code
     err = capsys.readouterr().err.strip().splitlines()
     assert status == 2 and len(err) == 1 and err[0].startswith("cosserat-fem: error: "), err
+
+
+# ------------------------------------------------------- special files and deep nesting
+class Reader:
+    """A writer that lets go, after ``after`` seconds, a reader blocked on the FIFO ``path``
+    (the defect: open() of a FIFO waits for a writer for ever), so that a test of it fails
+    instead of hanging; a no-op when nothing reads (a writer's non-blocking open then fails
+    with ENXIO)."""
+
+    def __init__(self, path: Path, after: float = 5.0):
+        import threading
+
+        self.path, self.after, self.stop = path, after, threading.Event()
+        self.thread = threading.Thread(target=self._release, daemon=True)
+        self.thread.start()
+
+    def _release(self) -> None:
+        import contextlib
+        import os
+
+        if self.stop.wait(self.after):
+            return
+        with contextlib.suppress(OSError):
+            fd = os.open(self.path, os.O_WRONLY | os.O_NONBLOCK)
+            os.write(fd, b'title = "from the FIFO"\n')
+            os.close(fd)
+
+    def close(self) -> None:
+        self.stop.set()
+        self.thread.join()
+
+
+def sweep_of(folder: Path, scene: str | Path) -> Path:
+    """A sweep file of one member whose base scene is ``scene``."""
+    path = folder / "sweep.toml"
+    path.write_text(f'[sweep]\nscene = "{scene}"\n[sweep.vary]\n"time.step" = [1e-5]\n',
+                    encoding="utf-8")  # fmt: skip
+    return path
+
+
+@pytest.mark.parametrize("case", ["scene", "run", "sweep", "sweep.scene"])
+def test_a_fifo_given_as_input_is_refused_at_once(tmp_path, capsys, case):
+    """A FIFO as the scene (validate, run), the sweep file or the sweep's base scene: refused
+    in one line naming the file and what it is, at once (before: open() waited for a writer
+    for ever; here a writer lets it go after 5 s, which fails the test instead)."""
+    import os
+    import time
+
+    fifo = tmp_path / "input.toml"
+    os.mkfifo(fifo)
+    command = {"scene": "validate", "run": "run", "sweep": "sweep", "sweep.scene": "sweep"}[case]
+    given = sweep_of(tmp_path, fifo) if case == "sweep.scene" else fifo
+    reader, start = Reader(fifo), time.monotonic()
+    try:
+        status = main([command, str(given), "--out", str(tmp_path / "out")])
+    finally:
+        reader.close()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert time.monotonic() - start < 5.0
+    assert status == 2 and len(err) == 1, err
+    assert err[0].startswith(f"cosserat-fem: error: {fifo}: ") and "is a FIFO, not a regular " \
+        "file" in err[0], err  # fmt: skip
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("command", ["validate", "sweep"])
+def test_dev_zero_given_as_input_is_refused_unread(command):
+    """/dev/zero as the scene or the sweep file: refused as a character device, unread
+    (before: read without bound, a MemoryError after 3 GB and ~30 s here). The process's
+    address space is limited to 2 GiB so that the defect fails the test, not the machine."""
+    import resource
+
+    def limit() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
+
+    proc = subprocess.run([PYTHON, "-m", "cosserat_fem.cli", command, "/dev/zero"], cwd=ROOT,
+                          env=subprocess_env(), capture_output=True, text=True, timeout=120,
+                          preexec_fn=limit)  # fmt: skip
+    kind = "scene" if command == "validate" else "sweep"
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr == f"cosserat-fem: error: /dev/zero: {kind} file is a character device, " \
+        "not a regular file\n"  # fmt: skip
+
+
+def nested(depth: int, inner: str = "1") -> str:
+    """A TOML value nested ``depth`` lists deep."""
+    return "[" * depth + inner + "]" * depth
+
+
+@pytest.mark.parametrize(
+    ("text", "where"),
+    [
+        (f"a = {nested(2000)}\n", ""),  # the TOML reader's recursion
+        ("[" + ".".join(["a"] * 5000) + "]\n", "a.a.a"),  # 5000 tables, no recursion in it
+        (f"a = {nested(40)}\n", ""),  # within Python's stack, deeper than any scene
+        ("x = " + "{y = " * 40 + "1" + "}" * 40 + "\n", "x.y.y"),  # inline tables
+    ],
+    ids=["2000 lists", "5000 tables", "40 lists", "40 inline tables"],
+)
+def test_deep_nesting_is_refused_in_one_line(tmp_path, capsys, text, where):
+    """Tables and lists nested deeper than schema.MAX_DEPTH (32; a scene needs 3, a sweep
+    5) in a scene file, a sweep file and a base scene: one line naming the file (and the
+    tables on the way), exit 2 (before: RecursionError, an internal error, or a scene
+    error from a RecursionError deep inside)."""
+    path = tmp_path / "deep.toml"
+    path.write_text(text, encoding="utf-8")
+    for argv in (["validate", str(path)], ["sweep", str(path)],
+                 ["sweep", str(sweep_of(tmp_path, path))]):  # fmt: skip
+        assert main([*argv, "--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(f"cosserat-fem: error: {path}: {where}"), err
+        assert err[0].endswith("nested deeper than 32 levels of tables and lists"), err
+
+
+@pytest.mark.parametrize("depth", [40, 2000])
+def test_deep_nesting_in_overrides_and_dicts_is_refused(capsys, depth):
+    """The same through ``--set`` (a TOML value) and the Python API (cf.load of a dict, an
+    override given as a mapping): a SceneError naming the key, or the scene's source."""
+    from cosserat_fem import api
+
+    assert main(["validate", str(SCENE), "--set", f"time.end={nested(depth)}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["cosserat-fem: error: time.end: nested deeper than 32 levels of tables and "
+                   "lists"]  # fmt: skip
+    value: list = []
+    for _ in range(depth):
+        value = [value]
+    with pytest.raises(SceneError, match=r"^time\.end: nested deeper than 32 levels"):
+        api.load(SCENE, {"time.end": value})
+    with pytest.raises(SceneError, match=r"^<dict>: title: nested deeper than 32 levels"):
+        api.load({**BASE, "title": value})
 
 
 # ------------------------------------------------------------------------ damaged restarts

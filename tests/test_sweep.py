@@ -12,6 +12,7 @@ probe's final and largest values, printed with repr) the same text in serial and
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -25,9 +26,10 @@ PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
 SHORT = {"time.end": 0.0006, "output.xdmf": False}
 
 
-def sweep_file(folder: Path, body: str, **sweep) -> Path:
-    """A sweep file of the paper's scene, 0.6 ms without XDMF, ``sweep`` keys and ``body``."""
-    head = [f'scene = "{PAPER}"', *(f"{k} = {json.dumps(v)}" for k, v in sweep.items())]
+def sweep_file(folder: Path, body: str, scene: Path = PAPER, **sweep) -> Path:
+    """A sweep file of the paper's scene (or ``scene``), 0.6 ms without XDMF, ``sweep`` keys
+    and ``body``."""
+    head = [f'scene = "{scene}"', *(f"{k} = {json.dumps(v)}" for k, v in sweep.items())]
     fixed = [f'"{k}" = {json.dumps(v)}' for k, v in SHORT.items()]
     text = "[sweep]\n" + "\n".join(head) + "\n[sweep.set]\n" + "\n".join(fixed) + "\n" + body
     path = folder / "sweep.toml"
@@ -294,3 +296,208 @@ def test_a_sweep_tells_each_member_as_it_finishes(tmp_path, ranks):
     assert again.returncode == 0 and "sweep member" not in again.stderr, again.stderr
     quiet = run_command([*sweep[:-1], str(tmp_path / "quiet"), "--quiet"], ranks)
     assert quiet.returncode == 0 and quiet.stderr == "" and quiet.stdout == "", quiet.stderr
+# ------------------------------------------------------------------ issue 25 (items 9, 13, 19, 21)
+def test_the_command_line_set_wins_over_the_sweep_set(tmp_path, capsys):
+    """``sweep --set KEY=V`` is applied after ``[sweep.set]`` (before: first, so that a key the
+    file also sets was silently ignored): time.end 0.0003 on the command line beats the
+    file's 0.0006, and a member then takes 0.0003 / step steps. A bad key from the command
+    line is named as such, not as ``sweep.set``."""
+    path = sweep_file(tmp_path, STEPS)
+    spec = api.load_sweep(path, ["time.end=0.0003"])
+    assert [spec.scene(m).time.end for m in spec.members] == [0.0003] * 3
+    spec = api.load_sweep(path, {"time.end": 0.0003})  # the API's mapping alike
+    assert spec.scene(spec.members[0]).time.end == 0.0003
+    with pytest.raises(SceneError, match=r"^tim: unknown key"):
+        api.load_sweep(path, ["tim.end=1"])
+
+
+@pytest.mark.parametrize(
+    ("body", "sets", "message"),
+    [
+        (STEPS, ["time.step=1e-5"], "--set time.step: every member of the sweep sets it"),
+        (STEPS + '"time.step" = 1e-5\n', [], None),  # appended to [sweep.vary]: a duplicate
+        ('[[sweep.case]]\n"time.step" = 1e-5\n[[sweep.case]]\n"time.step" = 2e-5\n',
+         [" time . step =1e-5"], "--set time.step: every member of the sweep sets it"),
+        ('[[sweep.case]]\n"time.step" = 1e-5\n[[sweep.case]]\n"solver.stol" = 1e-9\n',
+         ["time.step=2e-5"], ""),  # the second case takes it: allowed
+    ],
+)  # fmt: skip
+def test_a_set_key_that_every_member_replaces_is_refused(tmp_path, body, sets, message):
+    """A key given by ``--set`` that every member sets itself would never be used: refused
+    naming it (a key some cases leave out is their value; ``[sweep.set]`` may give one, as
+    scenes/sweeps/clamped_hysteresis.toml does)."""
+    path = sweep_file(tmp_path, body)
+    if message is None:  # TOML itself refuses a key given twice in one table
+        with pytest.raises(SceneError, match="malformed TOML"):
+            api.load_sweep(path, sets)
+    elif message:
+        with pytest.raises(SceneError, match=f"^{message}"):
+            api.load_sweep(path, sets)
+    else:
+        spec = api.load_sweep(path, sets)
+        assert [spec.scene(m).time.step for m in spec.members] == [1e-5, 2e-5]
+
+
+def test_sweep_help_is_the_sweeps(capsys):
+    """``sweep --help`` describes a sweep file and its --out and --set (before: run's text,
+    "scene file (TOML)", "default: output.directory")."""
+    from cosserat_fem.cli import main
+
+    with pytest.raises(SystemExit):
+        main(["sweep", "--help"])
+    out = " ".join(capsys.readouterr().out.split())  # as argparse wraps it for any width
+    assert "SWEEP sweep file (TOML)" in out and "scene file" not in out
+    assert "results/<the sweep file's name>" in out and "after the sweep file's [sweep.set]" in out
+
+
+def test_a_toml_date_among_a_sweep_values_is_refused_in_one_line(tmp_path):
+    """A TOML date among a varied key's values: the member is refused naming the date as TOML
+    writes it (before: TypeError, "Object of type date is not JSON serializable")."""
+    path = sweep_file(tmp_path, '[sweep.vary]\n"time.step" = [1e-5, 1979-05-27]\n')
+    with pytest.raises(SceneError, match=r"^sweep member 1 \(time\.step = 1979-05-27\): time\."
+                                         r"step: must be a number"):  # fmt: skip
+        api.load_sweep(path)
+
+
+def test_a_range_whose_span_overflows_has_finite_values(tmp_path):
+    """{start = -1e308, stop = 1e308, num = 3}: stop − start overflows to inf, and start + inf·0
+    was NaN; the values are the ends' weighted sums, exact here: -1e308, 0.5·(-1e308) +
+    0.5·1e308 = 0 (halving is exact in binary), 1e308."""
+    spec = api.load_sweep(sweep_file(
+        tmp_path, '[sweep.vary]\n"parameters.a" = {start = -1e308, stop = 1e308, num = 3}\n'))
+    assert [m.values["parameters.a"] for m in spec.members] == [-1e308, 0.0, 1e308]
+
+
+@pytest.mark.parametrize(
+    ("body", "sweep", "message"),
+    [
+        ('[sweep.vary]\n"limits.wall_time" = [100.0, 1e-6]\n', {},
+         r"sweep member 1 \(limits\.wall_time = 1e-06\): time\.step: the run needs .* more "
+         r"than limits\.wall_time = 1e-06 s"),
+        ('[sweep.vary]\n"limits.memory" = [1e12, 1000.0]\n', {},
+         r"sweep member 1 \(limits\.memory = 1000\.0\): discretisation\.elements: the run needs "
+         r".* of memory .* more than limits\.memory = 1000 bytes"),
+        ('[sweep.vary]\n"time.step" = [1e-5]\n', {"scene": ROOT / "scenes" / "free_ring.toml"},
+         r"sweep member 0 \(time\.step = 1e-05\): reference\.closed: a closed rod has modes "
+         r"only"),
+    ],
+)  # fmt: skip
+def test_members_that_their_run_would_refuse_are_refused_with_the_sweep(tmp_path, body, sweep,
+                                                                        message):  # fmt: skip
+    """A member over its limits (wall time, memory: budget.py's lower bounds) or of a closed
+    rod is refused when the sweep is loaded, exit 2, no output folder (before: run one by one
+    into "error" rows, and the sweep exited 0)."""
+    path = sweep_file(tmp_path, body, **sweep)
+    out = tmp_path / "out"
+    proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)])
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1
+    assert re.match(f"cosserat-fem: error: {message}", proc.stderr), proc.stderr
+    assert not out.exists()
+
+
+#: A member of 130 steps whose limits.wall_time, 0.01 s, is above its estimated lower bound
+#: (130 steps of at least 55 μs: 7 ms, budget.py) but below what building its model alone
+#: takes: it stops when the wall-time limit is first looked at, after 64 steps (t = 0.00064 s
+#: and 0.00128 s), with a checkpoint.
+WALL = {"time.end": 0.0013, "limits.wall_time": 0.01}
+
+
+def test_members_that_stop_are_not_finished_and_continue(tmp_path):
+    """Members stopped by limits.wall_time (a passing reason) leave the sweep unfinished: it
+    raises StopError (exit 4) after writing their "stopped" rows, and keeps their
+    checkpoints even with keep = "probes" (before: recorded as finished, exit 0, and their
+    checkpoints deleted). Started again with limits.wall_time raised (not "another sweep":
+    limits.* are not part of its identity), it continues each from its checkpoint (a
+    restart, summary.json's restarts = 1) and its table equals an uninterrupted sweep's
+    (checkpoint.py: a restart continues bit for bit), all but the wall times."""
+    from cosserat_fem.errors import StopError
+
+    vary = '[sweep.vary]\n"time.step" = [1e-5, 2e-5]\n'
+    path = sweep_file(tmp_path, vary, keep="probes")
+    out = tmp_path / "out"
+    with pytest.raises(StopError, match=r"^sweep: 2 members stopped \(member 0: LimitReached: "
+                                        r"limits\.wall_time: the run stopped at t = 0\.00064 s"):
+        api.sweep(api.load_sweep(path, WALL), out)
+    rows = read_table(out / "sweep.csv")
+    assert [r["status"] for r in rows] == ["stopped", "stopped"]
+    assert "run --restart" not in rows[0]["message"]  # the sweep's own advice instead
+    for member in ("m00000", "m00001"):
+        assert (out / "members" / member / "checkpoint" / "checkpoint.json").is_file()
+    raised = {**WALL, "limits.wall_time": 1000.0}
+    result = api.sweep(api.load_sweep(path, raised), out)
+    assert (result.ran, result.skipped) == (2, 0)
+    for member in ("m00000", "m00001"):
+        summary = json.loads((out / "members" / member / "summary.json").read_text())
+        assert summary["restarts"] == 1 and summary["status"] == "completed"
+        assert sorted(p.name for p in (out / "members" / member).iterdir()) == [
+            "probes.csv", "summary.json"]
+    whole = api.sweep(api.load_sweep(path, raised), tmp_path / "whole")
+    assert whole.ran == 2
+
+    def strip(table):
+        return [{k: v for k, v in r.items() if k != "wall_s"} for r in read_table(table)]
+
+    assert strip(out / "sweep.csv") == strip(tmp_path / "whole" / "sweep.csv")
+    assert api.sweep(api.load_sweep(path, raised), out).ran == 0  # finished now
+
+
+def test_a_member_whose_folder_cannot_be_made_stops_and_runs_later(tmp_path):
+    """members/ taken by a file: no member's folder can be made, a passing reason (a full
+    disk, a permission): each member "stopped", the sweep StopError (exit 4; before:
+    "error" rows recorded as finished, exit 0, and "ran 0" once the cause was gone). With
+    the file gone, the sweep runs them all."""
+    from cosserat_fem.errors import StopError
+
+    path = sweep_file(tmp_path, '[sweep.vary]\n"time.step" = [1e-5, 2e-5]\n')
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "members").write_text("in the way", encoding="utf-8")
+    with pytest.raises(StopError, match="^sweep: 2 members stopped"):
+        api.sweep(api.load_sweep(path), out)
+    rows = read_table(out / "sweep.csv")
+    assert [r["status"] for r in rows] == ["stopped", "stopped"]
+    assert rows[0]["message"].startswith("OutputError: sweep: cannot make ")
+    (out / "members").unlink()
+    result = api.sweep(api.load_sweep(path), out)
+    assert (result.ran, result.skipped) == (2, 0)
+    assert [r["status"] for r in read_table(out / "sweep.csv")] == ["completed", "completed"]
+
+
+def chain_sweep(folder: Path, max_periods: int) -> Path:
+    """A frequency response of the paper's scene (no XDMF), one chain of two members (r = 1,
+    1.1, continued), 16 steps a period, at most ``max_periods`` periods."""
+    path = folder / "chain.toml"
+    path.write_text(f'[sweep]\nscene = "{PAPER}"\nkeep = "probes"\n[sweep.set]\n'
+                    '"output.xdmf" = false\n[sweep.vary]\n"parameters.r" = [1.0, 1.1]\n'
+                    '[sweep.response]\nperiod = "2*pi/(8*r*omega0)"\n'
+                    'continuation = "parameters.r"\nsteps_per_period = 16\n'
+                    f"max_periods = {max_periods}\n", encoding="utf-8")  # fmt: skip
+    return path
+
+
+def test_a_chain_stops_at_its_stopped_member_and_continues_from_it(tmp_path):
+    """A continued frequency response whose first member stops (limits.wall_time: 0.01 s,
+    above the estimated 7 ms of its longest run of 128 steps, below what building it
+    takes): the chain stops there, its second member is not run from rest (StopError:
+    "1 member stopped ... and 1 not run after them"). Started again with the limit raised,
+    the first runs from its start (a forced member's measurement is not in a checkpoint) and
+    the second continues its final state: the table is the uninterrupted sweep's (all but
+    the wall times)."""
+    from cosserat_fem.errors import StopError
+
+    path = chain_sweep(tmp_path, max_periods=8)
+    out = tmp_path / "out"
+    with pytest.raises(StopError, match=r"^sweep: 1 member stopped \(member 0: LimitReached: .*"
+                                        r"\) and 1 not run after them; start the sweep again"):
+        api.sweep(api.load_sweep(path, ["limits.wall_time=0.01"]), out)
+    assert [r["status"] for r in read_table(out / "sweep.csv")] == ["stopped"]
+    result = api.sweep(api.load_sweep(path, ["limits.wall_time=1000"]), out)
+    assert (result.ran, result.skipped) == (2, 0)
+    api.sweep(api.load_sweep(path), tmp_path / "whole")
+
+    def strip(table):
+        return [{k: v for k, v in r.items() if k != "wall_s"} for r in read_table(table)]
+
+    assert strip(out / "sweep.csv") == strip(tmp_path / "whole" / "sweep.csv")
+    assert [r["previous"] for r in read_table(out / "sweep.csv")] == ["", "0"]
