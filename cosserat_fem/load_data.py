@@ -76,7 +76,6 @@ import hashlib
 import inspect
 import math
 import os
-import stat
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -85,6 +84,7 @@ from typing import Any
 
 import numpy as np
 
+from . import safe_files
 from .errors import SceneError, show_value
 
 #: The interpolations in t, and what each is (validate prints it).
@@ -126,38 +126,14 @@ class TableFile:
         return self.values[:, self.columns.index(name)]
 
 
-def read_bytes(path: str, key: str) -> bytes:
-    """The bytes of the regular file ``path``, at most MAX_TABLE_BYTES; SceneError naming
-    ``key`` otherwise. Opened without blocking (a FIFO would wait for a writer) and checked
-    on the open file (no race between a check and the open)."""
+def read_bytes(path: str, key: str, comm=None) -> bytes:
+    """The bytes of the table file ``path``, a regular file of at most MAX_TABLE_BYTES, read
+    on rank 0 of ``comm`` for every rank (cosserat_fem/safe_files.py: opened without blocking,
+    checked on the open file); SceneError naming ``key`` otherwise, on every rank."""
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
-    except FileNotFoundError:
-        raise SceneError(f"{key}: table file {path!r} not found") from None
-    except OSError as exc:
-        raise SceneError(f"{key}: cannot open table file {path!r} ({exc.strerror})") from None
-    try:
-        info = os.fstat(fd)
-        if not stat.S_ISREG(info.st_mode):
-            raise SceneError(f"{key}: {path!r} is not a regular file (a table must be a file, "
-                             "not a directory, FIFO or device)")  # fmt: skip
-        if info.st_size > MAX_TABLE_BYTES:
-            raise SceneError(f"{key}: table file {path!r} has {info.st_size} bytes, more than "
-                             f"the limit of {MAX_TABLE_BYTES} (16 MiB): resample it")  # fmt: skip
-        chunks, size = [], 0
-        while size <= MAX_TABLE_BYTES:
-            chunk = os.read(fd, min(1 << 20, MAX_TABLE_BYTES + 1 - size))
-            if not chunk:
-                break
-            chunks.append(chunk)
-            size += len(chunk)
-    except OSError as exc:
-        raise SceneError(f"{key}: cannot read table file {path!r} ({exc.strerror})") from None
-    finally:
-        os.close(fd)
-    if size > MAX_TABLE_BYTES:  # it grew while read
-        raise SceneError(f"{key}: table file {path!r} has more than {MAX_TABLE_BYTES} bytes")
-    return b"".join(chunks)
+        return safe_files.read_on_root(path, MAX_TABLE_BYTES, comm)
+    except safe_files.Unreadable as exc:
+        raise SceneError(f"{key}: table file {path!r} {exc}") from None
 
 
 def parse_table(data: bytes, path: str, key: str) -> TableFile:
@@ -280,19 +256,7 @@ class TableStore:
             return self.files[path]
         if self.sealed:
             raise RuntimeError(f"{key}: table {path!r} was not read when the scenes were checked")
-        comm = self.comm
-        if comm is None or comm.size == 1:
-            data = read_bytes(path, key)
-        else:
-            found: tuple[bytes | None, str | None] = (None, None)
-            if comm.rank == 0:
-                try:
-                    found = (read_bytes(path, key), None)
-                except SceneError as exc:
-                    found = (None, str(exc))
-            data, message = comm.bcast(found, root=0)
-            if message is not None:
-                raise SceneError(message)
+        data = read_bytes(path, key, self.comm)
         table = parse_table(data, path, key)
         self.files[path] = table
         return table

@@ -24,9 +24,14 @@ folders that users copy, link and edit. Two rules, for every file the project op
 
 Removing a name (:func:`remove_name`) never follows it either: the link goes, its target
 stays; a folder at a file's name is refused (an ``IsADirectoryError`` naming it), never
-emptied. Every function here is a plain POSIX call on this process's files: no MPI (the
-callers run them on one rank and agree on the outcome, cosserat_fem/parallel.py) and no
-DOLFINx (results.py uses them without the solver stack).
+emptied. Every function here is a plain POSIX call on this process's files: no MPI of its own
+(the callers run them on one rank and agree on the outcome, cosserat_fem/parallel.py, or pass
+the communicator :func:`read_on_root` reads for) and no DOLFINx (results.py uses them without
+the solver stack).
+
+The files a user names (a scene, a sweep file, a table of loads) are read by
+:func:`read_input_file`, with a bound: :class:`Unreadable` says in words why one cannot be
+read, and :func:`read_on_root` reads it once for every MPI rank.
 """
 
 from __future__ import annotations
@@ -112,6 +117,66 @@ def read_regular(path: str | Path, limit: int | None = None) -> bytes:
         return _read_fd(fd, limit)
     finally:
         os.close(fd)
+
+
+class Unreadable(Exception):
+    """Why a file the user named could not be read, as words that follow its name ("is a
+    FIFO, not a regular file", "was not found", ...); the caller makes the message its own
+    error (a SceneError naming the key)."""
+
+
+def _size(n: int) -> str:
+    """``n`` bytes in words: "16 MiB", "4 kiB" or "100 bytes"."""
+    for unit, shift in (("MiB", 20), ("kiB", 10)):
+        if n >= 1 << shift and n % (1 << shift) == 0:
+            return f"{n >> shift} {unit}"
+    return f"{n} bytes"
+
+
+def read_input_file(path: str | Path, limit: int) -> bytes:
+    """The bytes of the regular file ``path`` (links followed, :func:`open_regular`), at most
+    ``limit`` of them; :class:`Unreadable` for anything else: missing, a folder, a FIFO, a
+    device, a socket, larger than ``limit`` (also if it grows past it while read), or an I/O
+    error. Never blocks on a FIFO."""
+    try:
+        fd = open_regular(path)
+    except FileNotFoundError:
+        raise Unreadable("was not found") from None
+    except NotRegularFile as exc:
+        raise Unreadable(exc.strerror) from None
+    except (OSError, ValueError) as exc:  # ValueError: a NUL in the name
+        raise Unreadable(f"cannot be opened ({getattr(exc, 'strerror', None) or exc})") from None
+    try:
+        size = os.fstat(fd).st_size
+        if size > limit:
+            raise Unreadable(f"holds {size} bytes, more than the {_size(limit)} allowed")
+        data = _read_fd(fd, limit)
+    except OSError as exc:
+        raise Unreadable(f"cannot be read ({exc.strerror or exc})") from None
+    finally:
+        os.close(fd)
+    if len(data) > limit:
+        raise Unreadable(f"grew past the {_size(limit)} allowed while it was read")
+    return data
+
+
+def read_on_root(path: str | Path, limit: int, comm=None) -> bytes:
+    """:func:`read_input_file` on rank 0 of ``comm`` and its bytes on every rank, or
+    :class:`Unreadable` with rank 0's reason on every rank (collective; a plain read without
+    ``comm`` or on one rank): the ranks of a job parse one input, whatever each would have
+    read (a copy per node, a file edited meanwhile), and a FIFO is opened once."""
+    if comm is None or comm.size == 1:
+        return read_input_file(path, limit)
+    found: tuple[bytes | None, str | None] = (None, None)
+    if comm.rank == 0:
+        try:
+            found = (read_input_file(path, limit), None)
+        except Unreadable as exc:
+            found = (None, str(exc))
+    data, reason = comm.bcast(found, root=0)
+    if reason is not None:
+        raise Unreadable(reason)
+    return data
 
 
 def read_text(path: str | Path, limit: int | None = None) -> str:

@@ -30,8 +30,8 @@ from cosserat_fem.expressions import RESERVED_NAMES, check_name
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.section import TORSION_CONSTANT_RULES
 from cosserat_fem.load_data import INTERPOLATIONS, OUTSIDE, S_INTERPOLATIONS
-from cosserat_fem.regular_file import Unreadable, read_on_root
 from cosserat_fem.results import PROBE_FIELD_COLUMNS
+from cosserat_fem.safe_files import Unreadable, read_on_root
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
 SCENE_CONSTANTS = ("L", "omega0")
@@ -748,7 +748,7 @@ def read_input(path: str | Path, what: str = "scene file", comm=None,
     give the ranks different scenes). Collective. SceneError on every rank if the ranks name
     different files (unless not ``same_name``: a name made from rank 0's input, which may
     resolve otherwise on another rank), or if the file is not a regular file of at most
-    :data:`MAX_INPUT_BYTES` (a FIFO, ``/dev/zero``: cosserat_fem/regular_file.py)."""
+    :data:`MAX_INPUT_BYTES` (a FIFO, ``/dev/zero``: cosserat_fem/safe_files.py)."""
     from mpi4py import MPI
 
     comm = MPI.COMM_WORLD if comm is None else comm

@@ -562,9 +562,10 @@ def test_tables_that_are_not_regular_files_or_too_large_are_refused(tmp_path, ca
     (tmp_path / "link").symlink_to(tmp_path / "fifo")
     with open(tmp_path / "big.csv", "wb") as stream:
         stream.truncate(MAX_TABLE_BYTES + 1)
-    special = "is not a regular file"
-    cases = [("missing.csv", "not found"), ("dir", special), ("fifo", special),
-             ("link", special), ("/dev/zero", special), ("big.csv", "more than the limit")]
+    cases = [("missing.csv", "was not found"), ("dir", "is a folder, not a regular file"),
+             ("fifo", "is a FIFO, not a regular file"), ("link", "is a FIFO, not a regular file"),
+             ("/dev/zero", "is a character device, not a regular file"),
+             ("big.csv", "holds 16777217 bytes, more than the 16 MiB allowed")]
     for name, words in cases:
         line = _refused(_table_scene(tmp_path, None, {"table": name}), capsys)
         assert line.startswith("loads.end.force[1].table: ") and words in line, line

@@ -152,7 +152,8 @@ def test_a_store_reads_each_file_once(tmp_path, monkeypatch):
     path.write_text("t, A, B\n0, 1, 2\n1, 3, 4\n")
     reads = []
     real = load_data.read_bytes
-    monkeypatch.setattr(load_data, "read_bytes", lambda p, k: reads.append(p) or real(p, k))
+    monkeypatch.setattr(load_data, "read_bytes",
+                        lambda p, k, c=None: reads.append(p) or real(p, k, c))
     store = TableStore(tmp_path)
     assert store.read("f.csv", "a") is store.read(str(path), "b")
     TableStore(tmp_path).read("f.csv", "a")
