@@ -218,7 +218,8 @@ def _affordable(scene, folder: Path, comm, start: float | None) -> None:
     from .parallel import ranks_on_node
 
     try:
-        budget.check(scene, "run", folder, ranks_on_node(comm), comm.size, start=start)
+        budget.check(scene, "run", folder, ranks_on_node(comm), comm.size, start=start,
+                     comm=comm)  # every rank of the group stops alike
     except SceneError as exc:
         raise StopError(f"{exc} (now: the sweep runs it when started again)") from None
 

@@ -448,6 +448,14 @@ def _base(data: dict, fixed: dict, overrides, values: list[dict[str, Any]]) -> d
     return apply_overrides(data, overrides)
 
 
+def _world():
+    """MPI's world: every rank validates every member alike, and a refusal that rests on what
+    one rank sees (its process's memory limits) must be every rank's (budget.check)."""
+    from mpi4py import MPI
+
+    return MPI.COMM_WORLD
+
+
 def _check_member(data: dict, source: str, member: Member, response: ResponseSettings | None,
                   group_size: int, tables: TableStore) -> None:  # fmt: skip
     """A member's scene validated, and refused as its run would refuse it (a closed rod; the
@@ -456,7 +464,7 @@ def _check_member(data: dict, source: str, member: Member, response: ResponseSet
     scene = scene_from_dict(data, source, member.values, tables=tables)
     refuse_closed(scene, "run")
     if response is None:
-        budget.check(scene, "run", ranks=group_size)
+        budget.check(scene, "run", ranks=group_size, comm=_world())
         return
     where = f"member {member.index}"
     period, span = forced_span(response, scene, scene.time.start, where)
@@ -464,7 +472,7 @@ def _check_member(data: dict, source: str, member: Member, response: ResponseSet
         check_sampling(response, period, scene.time.step, where)
     longest = scene_from_dict(data, source, {**member.values, **span}, tables=tables)
     try:
-        budget.check(longest, "run", ranks=group_size)
+        budget.check(longest, "run", ranks=group_size, comm=_world())
     except SceneError as exc:
         raise SceneError(f"sweep.response.max_periods: {response.max_periods} periods of "
                          f"{period:.6g} s: {exc}") from None  # fmt: skip

@@ -226,14 +226,17 @@ def test_the_memory_per_dof_bounds_the_cheapest_scene(tmp_path):
 
 
 @pytest.mark.mpi
-def test_a_limit_on_one_rank_refuses_on_every_rank(tmp_path):
+@pytest.mark.parametrize("command", ["run", "sweep"])
+def test_a_limit_on_one_rank_refuses_on_every_rank(tmp_path, command):
     """Item 16's sibling: each rank sees its own process limits (and reads the available
     memory at its own moment), so one rank could refuse while the others began the run and
     waited for it in a collective call: 10 s, then MPI_ABORT. The refusal is now agreed
     (budget.check(comm=...)): under mpirun -n 2 with rank 1 alone under an address-space
     limit (its VmSize with the stack loaded + 300 MB), 40000 cubic elements in 3D (at least
     720 MB, 360 MB a rank) are refused on both ranks at once: exit 2, one line, from rank 0,
-    naming rank 1's limit, and no folder made."""
+    naming rank 1's limit, and no folder made. A sweep of one such member (two groups of one
+    rank: each checks the member against its own limits when the sweep is loaded) alike,
+    naming the member."""
     import shutil
     import time
 
@@ -251,12 +254,20 @@ def test_a_limit_on_one_rank_refuses_on_every_rank(tmp_path):
     out = tmp_path / "big"
     args = ["run", SCENE, "--out", str(out), "--set", "discretisation.elements=40000",
             "--set", "time.end=0.00006"]  # fmt: skip
+    if command == "sweep":
+        sweep = tmp_path / "sweep.toml"
+        sweep.write_text(f'[sweep]\nscene = {json.dumps(SCENE)}\n[sweep.set]\n'
+                         '"discretisation.elements" = 40000\n"time.end" = 0.00006\n'
+                         '[sweep.vary]\n"parameters.forcing" = [8.0]\n')  # fmt: skip
+        args = ["sweep", str(sweep), "--out", str(out)]
     start = time.monotonic()
     proc = subprocess.run([shutil.which("mpirun"), "-n", "2", PYTHON, "-c", script, *args],
                           env=subprocess_env(), capture_output=True, text=True,
                           timeout=600)  # fmt: skip
     ours = [line for line in proc.stderr.splitlines() if line.startswith("cosserat-fem")]
     assert proc.returncode == 2 and len(ours) == 1, proc.stderr  # and mpirun's notice
-    assert ours[0].startswith("cosserat-fem: error: discretisation.elements: the run needs ")
+    member = "sweep member 0 (parameters.forcing = 8.0): " if command == "sweep" else ""
+    assert ours[0].startswith(f"cosserat-fem: error: {member}discretisation.elements: the run "
+                              "needs "), ours[0]
     assert "address-space limit (ulimit -v)" in ours[0] and "MPI_ABORT" not in proc.stderr
     assert time.monotonic() - start < 120 and not out.exists()
