@@ -741,6 +741,9 @@ def read_xdmf(path: str | Path, length: float | None = None) -> RodSeries:
 # --- a sweep's table (cosserat_fem/sweep_run.py) ----------------------------------------------
 #: A sweep's table, and the folder of its parts (one a group of ranks: table/group-<k>.csv).
 SWEEP_TABLE, SWEEP_PARTS = "sweep.csv", "table"
+#: A member's status when it stopped for a passing reason (a full disk, limits.wall_time): not
+#: finished; a sweep started again runs it, and its later row takes the stopped one's place.
+STOPPED = "stopped"
 
 
 def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[list[str], list]:
@@ -768,12 +771,26 @@ def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[li
         reader = csv.DictReader(text[: text.rfind("\n") + 1].splitlines())
         rows += _whole_rows(source, reader, columns)
         columns = list(reader.fieldnames or columns)
+    if sources != [table]:
+        rows = _latest_rows(rows)
     try:
         rows.sort(key=lambda row: int(row["member"]))
     except (KeyError, TypeError, ValueError):
         raise SceneError(f"{_where(directory)}: not a sweep's table (a member that is not a "
                          "number)") from None  # fmt: skip
     return columns, rows
+
+
+def _latest_rows(rows: list[dict]) -> list[dict]:
+    """The rows of a sweep's table parts without those a later run replaced: a member's
+    "stopped" row gives way to a row of its run again, or to its last stopped row (the parts
+    are read in the order of their groups, not of time). Two rows of a member that did not
+    stop are both kept (not the rows of one sweep: check_sweep_rows refuses them)."""
+    ran = {row.get("member") for row in rows if row.get("status") != STOPPED}
+    last_stop = {row.get("member"): row for row in rows
+                 if row.get("status") == STOPPED and row.get("member") not in ran}  # fmt: skip
+    return [row for row in rows
+            if row.get("status") != STOPPED or last_stop.get(row.get("member")) is row]  # fmt: skip
 
 
 def _whole_rows(source: Path, reader, columns: list[str]) -> list[dict]:

@@ -67,15 +67,13 @@ from .parallel import agree
 from .progress import SweepProgress
 from .response import COLUMNS as RESPONSE_NAMES
 from .response import MEASURES, PeriodicResponse, continued_start
-from .results import PROBE_COLUMNS, SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
+from .results import PROBE_COLUMNS, STOPPED, SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
 from .run_folder import holding_folders, prepare_output_dir
 from .sweep_spec import Member, SweepSpec, forced_span
 
 PROBE_NAMES = PROBE_COLUMNS[1:]  # x, y, z [m], θ, ψ, φ [rad]
 RECORD = "sweep.json"
 FINAL_STATE = "final_state.npz"
-#: A member's status when it stopped for a passing reason: not finished (module docstring).
-STOPPED = "stopped"
 #: How a stopped run's message (observers.DeadlineObserver) starts its advice.
 RUN_ADVICE = "; continue it with run --restart"
 
@@ -144,15 +142,9 @@ def _cut_rows_off(out: Path) -> None:
 
 
 def _finished(out: Path) -> dict[int, dict]:
-    """{member: row} of the rows already in the table's parts; a member's "stopped" row
-    gives way to a row of its run again (the parts are read in the order of their groups,
-    not of time)."""
-    rows: dict[int, dict] = {}
-    for row in read_sweep_rows(out, parts_only=True)[1]:
-        member = int(row["member"])
-        if member not in rows or rows[member]["status"] == STOPPED:
-            rows[member] = row
-    return rows
+    """{member: row} of the rows already in the table's parts, a member's "stopped" row
+    given way to a row of its run again (results.read_sweep_rows)."""
+    return {int(row["member"]): row for row in read_sweep_rows(out, parts_only=True)[1]}
 
 
 def _status(exc: Exception) -> str:

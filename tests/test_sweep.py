@@ -19,6 +19,7 @@ import pytest
 from conftest import ROOT, read_table, run_command, sweep_serial_and_mpi
 
 from cosserat_fem import api
+from cosserat_fem.cli import main
 from cosserat_fem.errors import SceneError
 from cosserat_fem.sweep_run import columns
 
@@ -440,6 +441,17 @@ def test_members_that_stop_are_not_finished_and_continue(tmp_path):
 
     assert strip(out / "sweep.csv") == strip(tmp_path / "whole" / "sweep.csv")
     assert api.sweep(api.load_sweep(path, raised), out).ran == 0  # finished now
+    # The table's parts hold each member's stopped row and its row run again; read without
+    # sweep.csv (a sweep killed while it continued them), the later row replaces the stopped
+    # one: plot gave "a row of member 0, twice" before the readers shared the rule.
+    from cosserat_fem.results import read_sweep_rows
+
+    (out / "sweep.csv").unlink()
+    parts = [row for part in sorted((out / "table").glob("group-*.csv"))
+             for row in read_table(part)]  # fmt: skip
+    assert sorted(r["status"] for r in parts) == ["completed"] * 2 + ["stopped"] * 2
+    assert [r["status"] for r in read_sweep_rows(out)[1]] == ["completed", "completed"]
+    assert main(["plot", str(out), "--quiet"]) == 0
 
 
 def test_a_member_whose_folder_cannot_be_made_stops_and_runs_later(tmp_path):
