@@ -505,14 +505,16 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
     agree(world, failure)  # the other groups would wait for this one's ranks for ever
     ran = world.allreduce(ran if leader else 0, op=MPI.SUM)  # before rank 0 works alone
     rows, problem = [], None
-    if world.rank == 0:
-        rows = list(_finished(out).values())  # sorted by member
-        text = ",".join(fields) + "\n" + "".join(_csv_line(fields, r) for r in rows)
+    if world.rank == 0:  # alone: what it meets is every rank's (agree), never a hang
         try:
+            rows = list(_finished(out).values())  # sorted by member
+            text = ",".join(fields) + "\n" + "".join(_csv_line(fields, r) for r in rows)
             safe_files.replace(out / SWEEP_TABLE, text, out / f".{SWEEP_TABLE}.tmp")
         except OSError as exc:
             problem = OutputError(f"sweep: cannot write {str(out / SWEEP_TABLE)!r} "
                                   f"({exc.strerror or exc}); its rows are kept in {SWEEP_PARTS}/")
+        except CosseratError as exc:  # a table part damaged while the sweep ran
+            problem = exc
     agree(world, problem)
     _stop_if_unfinished(spec, rows, world)
     return SweepResult(out / SWEEP_TABLE, ran, len(done), rows)

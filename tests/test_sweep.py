@@ -513,3 +513,37 @@ def test_a_chain_stops_at_its_stopped_member_and_continues_from_it(tmp_path):
 
     assert strip(out / "sweep.csv") == strip(tmp_path / "whole" / "sweep.csv")
     assert [r["previous"] for r in read_table(out / "sweep.csv")] == ["", "0"]
+
+
+#: A sweep whose table parts are found damaged at its end, on world rank 0 alone (which reads
+#: them to write sweep.csv): its first reading (the sweep's start) is the real one.
+DAMAGED_AT_THE_END = """
+import sys
+from cosserat_fem import sweep_run
+from cosserat_fem.cli import main
+from cosserat_fem.errors import SceneError
+real, calls = sweep_run._finished, []
+def finished(out):
+    calls.append(out)
+    if len(calls) > 1:
+        raise SceneError("table/group-1.csv: line 3: damaged while the sweep ran (a test)")
+    return real(out)
+sweep_run._finished = finished
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.mpi
+def test_a_table_damaged_at_the_sweeps_end_is_every_ranks_error(tmp_path):
+    """World rank 0 reads the table parts alone at the sweep's end to write sweep.csv; a part
+    it could not read (damaged meanwhile) raised there alone, and the other rank waited in its
+    next collective call until the 10 s abort (MPI_ABORT, no one-line error). Now rank 0's
+    finding is agreed: exit 2 on both ranks, one line naming the part."""
+    path = sweep_file(tmp_path, '[sweep.vary]\n"time.step" = [1e-5, 2e-5]\n')
+    proc = run_command(["-c", DAMAGED_AT_THE_END, "sweep", str(path), "--out",
+                        str(tmp_path / "out")], 2)  # fmt: skip
+    ours = [line for line in proc.stderr.splitlines() if line.startswith("cosserat-fem: error")]
+    assert proc.returncode == 2, proc.stderr
+    assert ours == ["cosserat-fem: error: table/group-1.csv: line 3: damaged while the sweep ran "
+                    "(a test)"], proc.stderr  # fmt: skip
+    assert "aborting the MPI job" not in proc.stderr and "MPI_ABORT" not in proc.stderr
