@@ -26,6 +26,17 @@ def subprocess_env() -> dict[str, str]:
     return env
 
 
+def said(stderr: str) -> list[str]:
+    """The project's lines of ``stderr`` other than a sweep's progress (one line per member as
+    it finishes, cosserat_fem/progress.py's SweepProgress): what a command reports, without
+    the lines Open MPI adds when a rank exits non-zero."""
+    return [
+        line
+        for line in stderr.splitlines()
+        if line.startswith("cosserat-fem:") and not line.startswith("cosserat-fem: sweep member ")
+    ]
+
+
 def run_command(
     args: list[str], ranks: int = 1, timeout: float = 600, cwd: Path = ROOT, env: dict | None = None
 ):

@@ -13,7 +13,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from conftest import PYTHON, ROOT, subprocess_env
+from conftest import PYTHON, ROOT, said, subprocess_env
 
 from cosserat_fem import budget
 from cosserat_fem.errors import SceneError
@@ -264,7 +264,7 @@ def test_a_limit_on_one_rank_refuses_on_every_rank(tmp_path, command):
     proc = subprocess.run([shutil.which("mpirun"), "-n", "2", PYTHON, "-c", script, *args],
                           env=subprocess_env(), capture_output=True, text=True,
                           timeout=600)  # fmt: skip
-    ours = [line for line in proc.stderr.splitlines() if line.startswith("cosserat-fem")]
+    ours = said(proc.stderr)
     assert proc.returncode == 2 and len(ours) == 1, proc.stderr  # and mpirun's notice
     member = "sweep member 0 (parameters.forcing = 8.0): " if command == "sweep" else ""
     assert ours[0].startswith(f"cosserat-fem: error: {member}discretisation.elements: the run "

@@ -37,7 +37,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import PYTHON, ROOT, read_table, run_command, subprocess_env
+from conftest import PYTHON, ROOT, read_table, run_command, said, subprocess_env
 from test_sweep import chain_sweep
 
 from cosserat_fem import api
@@ -88,11 +88,6 @@ def scene_text(**changes: str) -> str:
 SHORT = {"end = 0.06": "end = 0.0006", "xdmf = true": "xdmf = false"}
 
 
-def ours(stderr: str) -> list[str]:
-    """The project's lines of stderr (Open MPI adds its own when a rank exits non-zero)."""
-    return [line for line in stderr.splitlines() if line.startswith("cosserat-fem:")]
-
-
 def sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
@@ -130,7 +125,7 @@ def test_ranks_given_different_command_lines_are_refused(tmp_path, variant):
     argv, name = VARIANTS[variant]
     proc = launch([a.replace("{tmp}", str(tmp_path)) for a in argv])
     assert proc.returncode == 2, proc.stderr
-    lines = ours(proc.stderr)
+    lines = said(proc.stderr)
     assert len(lines) == 1 and lines[0].startswith(f"cosserat-fem: error: {name}: the MPI ranks "
                                                    "were given different command lines (rank 0: ")
     assert "rank 1: " in lines[0]
@@ -280,7 +275,7 @@ def test_a_group_that_cannot_write_its_table_part_ends_the_sweep_on_every_rank(t
     out = tmp_path / "out"
     proc = launch(["sweep", str(path), "--out", str(out)], env={"FSIZE_RANK": "1"})
     assert proc.returncode == 4, proc.stderr
-    assert ours(proc.stderr) == [f"cosserat-fem: error: sweep: cannot write "
+    assert said(proc.stderr) == [f"cosserat-fem: error: sweep: cannot write "
                                  f"{str(out / 'table' / 'group-1.csv')!r} ([Errno 27] File too "
                                  "large)"]  # fmt: skip
     rows = read_table(out / "table" / "group-0.csv")

@@ -20,7 +20,7 @@ import subprocess
 
 import numpy as np
 import pytest
-from conftest import PYTHON, ROOT, file_size_limit, run_command, subprocess_env
+from conftest import PYTHON, ROOT, file_size_limit, run_command, said, subprocess_env
 from xdmf_files import read_arrays
 
 import cosserat_fem as cf
@@ -517,7 +517,7 @@ def test_pod_on_a_full_disk_stops_with_exit_4_and_no_cut_file(run_folder, tmp_pa
         out = tmp_path / f"limit{limit}"
         proc = pod_child(library, folder, out, limit)
         assert proc.returncode == 4, proc.stderr
-        ours = [line for line in proc.stderr.splitlines() if line.startswith("cosserat-fem")]
+        ours = said(proc.stderr)
         assert ours == [  # besides, under a 1 kB limit, Open MPI's "Forwarding signal 25"
             f"cosserat-fem: error: pod: cannot write {str(out / failing)!r} (File too large)"
         ] and "Traceback" not in proc.stderr, proc.stderr

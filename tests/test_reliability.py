@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import PYTHON, ROOT, file_size_limit, run_command, subprocess_env
+from conftest import PYTHON, ROOT, file_size_limit, run_command, said, subprocess_env
 from xdmf_files import read_xdmf
 
 from cosserat_fem.checkpoint import load_checkpoint
@@ -201,7 +201,7 @@ def test_d5_a_damaged_rank_file_does_not_hang_mpi(base, tmp_path):
     proc = run_command([*CLI, "run", "--restart", str(run_dir), *sets("time.end=0.006")], 2,
                        timeout=120)  # fmt: skip
     assert proc.returncode == 2 and time.monotonic() - start < 60
-    ours = [line for line in proc.stderr.splitlines() if line.startswith("cosserat-fem:")]
+    ours = said(proc.stderr)
     assert len(ours) == 1 and "state0.rank1.npz does not match its checksum" in ours[0]
 
 

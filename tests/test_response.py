@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import ROOT, read_table, run_command, sweep_serial_and_mpi
+from conftest import ROOT, read_table, run_command, said, sweep_serial_and_mpi
 
 from cosserat_fem import api
 from cosserat_fem.errors import SceneError
@@ -572,7 +572,7 @@ def test_up_and_down_chains_under_mpi_equal_the_serial_sweep(tmp_path):
                          "direction": "both", "tolerance": 1e-2}, group_size=2)  # fmt: skip
     proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(grouped), "--out",
                         str(tmp_path / "n2")], 2)  # fmt: skip
-    errors = [line for line in proc.stderr.splitlines() if line.startswith("cosserat-fem:")]
+    errors = said(proc.stderr)
     assert proc.returncode == 2 and len(errors) == 1 and "holds another sweep" in errors[0]
     assert "Traceback" not in proc.stderr
     # In a folder of its own it runs each chain on both ranks (MUMPS, each rank's part of the
