@@ -346,9 +346,16 @@ def test_after_a_failed_member_its_chain_goes_on_from_rest(tmp_path, monkeypatch
 def test_up_and_down_chains_under_mpi_equal_the_serial_sweep(tmp_path):
     """direction = "both": each r twice, an upward and a downward chain (4 members); under
     mpirun -n 2 the two chains go to the two groups and the table is the serial one (all but
-    wall times). A loose tolerance keeps it short: this checks the dealing, not the physics."""
-    path = sweep_file(tmp_path, [0.95, 1.05], {**PERIOD, "continuation": "parameters.r",
-                      "direction": "both", "tolerance": 1e-2})  # fmt: skip
+    wall times: each chain runs on one rank, the serial operations). This checks the dealing
+    and the continuation, not the physics, so it is short: 40 steps a period, settled at a
+    change below 5e-2 for one period (5-6 periods a member; the changes were 0.029-0.049, so
+    the LU's and MUMPS's rounding, ~1e-13 relative, cannot move a member's settling period).
+    With 300 steps a period and 1e-2 the members on a group of two ranks took 38 s on a quiet
+    machine and over 600 s on a busy one: each step of a 4-element rod is a few MPI messages."""
+    response = {**PERIOD, "continuation": "parameters.r", "direction": "both",
+                "tolerance": 5e-2, "steps_per_period": 40, "settled_periods": 1,
+                "measure_periods": 1}  # fmt: skip
+    path = sweep_file(tmp_path, [0.95, 1.05], response)
     tables = sweep_serial_and_mpi(path, tmp_path)
     assert tables[1] == tables[2]
     rows = tables[1]
@@ -357,8 +364,7 @@ def test_up_and_down_chains_under_mpi_equal_the_serial_sweep(tmp_path):
     ]  # fmt: skip
     # The same sweep on groups of two ranks is another sweep for the folder (its saved states
     # are parts of a two-rank partition): refused in one line, before anything runs.
-    grouped = sweep_file(tmp_path, [0.95, 1.05], {**PERIOD, "continuation": "parameters.r",
-                         "direction": "both", "tolerance": 1e-2}, group_size=2)  # fmt: skip
+    grouped = sweep_file(tmp_path, [0.95, 1.05], response, group_size=2)
     proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(grouped), "--out",
                         str(tmp_path / "n2")], 2)  # fmt: skip
     errors = [line for line in proc.stderr.splitlines() if line.startswith("cosserat-fem:")]
