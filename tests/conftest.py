@@ -55,6 +55,13 @@ def subprocess_env() -> dict[str, str]:
     return env
 
 
+def cpu_seconds() -> float:
+    """CPU seconds used so far by this process and its waited-for children (a compiler run by
+    cffi), user and system: a measure of work that other processes on the machine do not
+    change, unlike wall time (a limit on it is "too much work", never "a busy machine")."""
+    return sum(os.times()[:4])
+
+
 def descendants(pid: int) -> list[int]:
     """The processes started by ``pid``, their children and so on (mpirun's ranks: Open MPI
     puts them in process groups of their own, so a signal to mpirun's group misses them)."""
@@ -74,6 +81,15 @@ def descendants(pid: int) -> list[int]:
     return found
 
 
+def running(pid: int) -> bool:
+    """The process exists and is not a zombie (a zombie holds no files and runs nothing)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+
+
 def stop_tree(proc: subprocess.Popen, grace: float = 10.0) -> None:
     """End ``proc`` and every process it started: SIGTERM (mpirun passes it on to its ranks),
     then SIGKILL to whatever is left after ``grace`` seconds."""
@@ -84,7 +100,7 @@ def stop_tree(proc: subprocess.Popen, grace: float = 10.0) -> None:
                 os.kill(pid, sig)
         with contextlib.suppress(subprocess.TimeoutExpired):
             proc.wait(timeout=grace)
-        victims = [pid for pid in victims if Path(f"/proc/{pid}").exists()]
+        victims = [pid for pid in victims if running(pid)]
 
 
 def run_command(

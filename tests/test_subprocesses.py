@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import run_command
+from conftest import run_command, running
 
 pytestmark = pytest.mark.mpi
 
@@ -60,15 +60,7 @@ def test_a_hung_mpi_job_fails_its_test_and_leaves_no_rank_running(tmp_path: Path
         run_command([str(script), str(tmp_path)], ranks=2, timeout=3)
     pids = [int((tmp_path / f"{rank}.pid").read_text()) for rank in (0, 1)]
     deadline = time.monotonic() + 10
-    while any(_running(pid) for pid in pids) and time.monotonic() < deadline:
+    while any(running(pid) for pid in pids) and time.monotonic() < deadline:
         time.sleep(0.05)
-    assert not any(_running(pid) for pid in pids), pids
+    assert not any(running(pid) for pid in pids), pids
 
-
-def _running(pid: int) -> bool:
-    """The process exists and is not a zombie."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    return stat.rsplit(")", 1)[1].split()[0] not in ("Z", "X")
