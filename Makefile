@@ -7,6 +7,11 @@ PY := $(VENV)/bin/python
 export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
+# A rank that waits for another yields its core instead of spinning on it, and no rank is bound
+# to one core: on a machine busy with other work (or two mpirun jobs at once) the ranks share
+# the cores with it (docs/developers.md, "Tests on a busy machine").
+export OMPI_MCA_mpi_yield_when_idle := 1
+export OMPI_MCA_hwloc_base_binding_policy := none
 
 .PHONY: setup demo demo-response test test-long unit lint verify bench clean container-test
 
