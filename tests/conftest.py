@@ -16,8 +16,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PYTHON = sys.executable  # the venv's interpreter (make test runs pytest from .venv)
 ROUNDOFF = Path(__file__).resolve().parent / "roundoff"
 
-# ROUNDOFF_NOISE=1: another machine's round-off in numpy's and math's transcendentals, here and
-# in every subprocess (tests/roundoff/roundoff_noise.py).
+# ROUNDOFF_NOISE=N: another CPU's round-off (N ulps) in numpy's transcendentals, here and in
+# every subprocess (tests/roundoff/roundoff_noise.py).
 if os.environ.get("ROUNDOFF_NOISE", "") not in ("", "0"):
     sys.path.insert(0, str(ROUNDOFF))
     import roundoff_noise

@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
-from conftest import PYTHON, ROOT, run_command, subprocess_env
+from conftest import HUNG_AFTER, PYTHON, ROOT, run_command, subprocess_env
 
 SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
 SETTINGS = ("time.end=0.0006", "output.xdmf_interval=6e-5")
@@ -973,7 +973,7 @@ def report(genuine, tmp_path_factory) -> tuple[list[dict], Path]:
         env=env,
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=HUNG_AFTER,  # the cases took 25 s at load 5 on two cores
     )
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     return json.loads(path.read_text()), work

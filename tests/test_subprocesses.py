@@ -11,6 +11,7 @@ seconds until Open MPI's run-time noticed).
 
 from __future__ import annotations
 
+import json
 import os
 import time
 from pathlib import Path
@@ -21,10 +22,12 @@ from conftest import run_command, running
 pytestmark = pytest.mark.mpi
 
 RANK_REPORT = """
-import json, os
+import json, os, sys
 from mpi4py import MPI
-print(json.dumps([MPI.COMM_WORLD.rank, sorted(os.sched_getaffinity(0)),
-                  os.environ.get("OMPI_MCA_mpi_yield_when_idle")]))
+rank = MPI.COMM_WORLD.rank
+with open(os.path.join(sys.argv[1], f"{rank}.json"), "w") as out:
+    json.dump([rank, sorted(os.sched_getaffinity(0)),
+               os.environ.get("OMPI_MCA_mpi_yield_when_idle")], out)
 """
 
 HANGS = """
@@ -38,14 +41,13 @@ comm.Barrier()
 """
 
 
-def test_mpirun_ranks_are_not_bound_to_a_core_and_yield_when_they_wait():
+def test_mpirun_ranks_are_not_bound_to_a_core_and_yield_when_they_wait(tmp_path: Path):
     """Under the tests' mpirun each rank may run on every CPU this process may use, and has
-    Open MPI's yield-when-idle set."""
-    proc = run_command(["-c", RANK_REPORT], ranks=2)
+    Open MPI's yield-when-idle set (each rank writes a file: two ranks' lines on mpirun's
+    stdout can come joined)."""
+    proc = run_command(["-c", RANK_REPORT, str(tmp_path)], ranks=2)
     assert proc.returncode == 0, proc.stderr
-    import json
-
-    reports = sorted(json.loads(line) for line in proc.stdout.splitlines() if line.startswith("["))
+    reports = [json.loads((tmp_path / f"{rank}.json").read_text()) for rank in (0, 1)]
     cpus = sorted(os.sched_getaffinity(0))
     assert reports == [[0, cpus, "1"], [1, cpus, "1"]]
 
