@@ -6,9 +6,10 @@ rotations of any size, rods curved at rest, frequency responses and backbones.
 Every number in the report comes from this script (251 s of wall time, 156 of them section
 7's sweeps, on the two-core development machine, 2026-12-02, `time make verify`, its load not
 recorded; 620 s for a newcomer on a busy machine, issue 25; the report's last line now says
-how long it took, in wall and CPU seconds, and at what load); the test suite asserts the same quantities with tolerances (tests/test_modes.py,
-test_large_deflection.py, test_mms.py, test_energy.py, test_rotations.py, test_curved.py,
-test_ring.py, test_response.py, test_backbone.py).
+how long it took, in wall and CPU seconds, and at what load); the test suite asserts the
+same quantities with tolerances (tests/test_modes.py, test_large_deflection.py, test_mms.py,
+test_energy.py, test_rotations.py, test_curved.py, test_ring.py, test_response.py,
+test_backbone.py).
 Log-log plots go to docs/figures/ (generated, not committed).
 The settings of every study are the constants below, and the report states them (meshes,
 steps, the default discretisation read from the scene): tests/test_verification_report.py
