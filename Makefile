@@ -36,15 +36,18 @@ test: setup lint
 test-long: setup
 	$(PY) -m pytest -q -m long tests
 
-## The unit tests alone (integrators, Newton stop rule, step controller, interpolation): seconds.
+## The unit tests alone (integrators, Newton stop rule, step controller, interpolation): about
+## 5 CPU seconds. How long each target takes, and on what machine: README, "How long it takes".
 unit: setup
 	$(PY) -m pytest -q tests/unit
 
-## Regenerate docs/verification.md (modes, large deflections, orders, energy, rotations; ~40 s).
+## Regenerate docs/verification.md (modes, large deflections, orders, energy, rotations, curved
+## rods, responses; 251 s of wall time on the 2-core development machine, 2026-12-02).
 verify: setup
 	$(PY) benchmarks/verify.py
 
-## Work-precision benchmark against PyElastica (benchmarks/results/; about 25 minutes).
+## Work-precision benchmark against PyElastica (benchmarks/results/; about 25 minutes of wall
+## time on the 2-core development machine, 2026-12-01).
 bench: setup
 	$(PY) benchmarks/work_precision.py
 
