@@ -7,6 +7,11 @@ PY := $(VENV)/bin/python
 export OMPI_ALLOW_RUN_AS_ROOT := 1
 export OMPI_ALLOW_RUN_AS_ROOT_CONFIRM := 1
 export OMPI_MCA_rmaps_base_oversubscribe := 1
+# A rank that waits for another yields its core instead of spinning on it, and no rank is bound
+# to one core: on a machine busy with other work (or two mpirun jobs at once) the ranks share
+# the cores with it (docs/developers.md, "Tests on a busy machine").
+export OMPI_MCA_mpi_yield_when_idle := 1
+export OMPI_MCA_hwloc_base_binding_policy := none
 
 .PHONY: setup demo demo-response test test-long unit lint verify bench clean container-test
 
@@ -31,15 +36,18 @@ test: setup lint
 test-long: setup
 	$(PY) -m pytest -q -m long tests
 
-## The unit tests alone (integrators, Newton stop rule, step controller, interpolation): seconds.
+## The unit tests alone (integrators, Newton stop rule, step controller, interpolation): about
+## 5 CPU seconds. How long each target takes, and on what machine: README, "How long it takes".
 unit: setup
 	$(PY) -m pytest -q tests/unit
 
-## Regenerate docs/verification.md (modes, large deflections, orders, energy, rotations; ~40 s).
+## Regenerate docs/verification.md (modes, large deflections, orders, energy, rotations, curved
+## rods, responses; 251 s of wall time on the 2-core development machine, 2026-12-02).
 verify: setup
 	$(PY) benchmarks/verify.py
 
-## Work-precision benchmark against PyElastica (benchmarks/results/; about 25 minutes).
+## Work-precision benchmark against PyElastica (benchmarks/results/; about 25 minutes of wall
+## time on the 2-core development machine, 2026-12-01).
 bench: setup
 	$(PY) benchmarks/work_precision.py
 

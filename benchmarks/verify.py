@@ -3,11 +3,13 @@ rotations of any size, rods curved at rest, frequency responses and backbones.
 
     make verify        (or: .venv/bin/python benchmarks/verify.py)
 
-Every number in the report comes from this script (about 4 minutes on the two-core
-development machine, 2026-12-02: 251 s, 156 of them section 7's sweeps, `time make
-verify`); the test suite asserts the same quantities with tolerances (tests/test_modes.py,
-test_large_deflection.py, test_mms.py, test_energy.py, test_rotations.py, test_curved.py,
-test_ring.py, test_response.py, test_backbone.py).
+Every number in the report comes from this script (251 s of wall time, 156 of them section
+7's sweeps, on the two-core development machine, 2026-12-02, `time make verify`, its load not
+recorded; 620 s for a newcomer on a busy machine, issue 25; the report's last line now says
+how long it took, in wall and CPU seconds, and at what load); the test suite asserts the
+same quantities with tolerances (tests/test_modes.py, test_large_deflection.py, test_mms.py,
+test_energy.py, test_rotations.py, test_curved.py, test_ring.py, test_response.py,
+test_backbone.py).
 Log-log plots go to docs/figures/ (generated, not committed).
 The settings of every study are the constants below, and the report states them (meshes,
 steps, the default discretisation read from the scene): tests/test_verification_report.py
@@ -17,6 +19,7 @@ checks the committed report against them without re-running anything.
 from __future__ import annotations
 
 import math
+import os
 import time
 from pathlib import Path
 
@@ -1028,9 +1031,18 @@ def response_section() -> str:
     return "\n".join(lines)
 
 
+def _generated_in(wall: float, cpu: float) -> str:
+    """The report's last line: how long it took [s], and the conditions that decide it (wall
+    time grows with the machine's load; CPU seconds, this process's and its children's, user
+    and system, much less)."""
+    return (f"_Generated in {wall:.0f} s of wall time, {cpu:.0f} CPU seconds, on "
+            f"{os.cpu_count()} cores at a load of {os.getloadavg()[0]:.1f}, "
+            f"{time.strftime('%Y-%m-%d')}._\n")  # fmt: skip
+
+
 def main() -> None:
     WORK.mkdir(parents=True, exist_ok=True)
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), sum(os.times()[:4])
     parts = [
         "# Verification",
         "",
@@ -1056,7 +1068,7 @@ def main() -> None:
         start = time.perf_counter()
         parts.append(section())
         print(f"{section.__name__}: {time.perf_counter() - start:.0f} s", flush=True)
-    parts.append(f"_Generated in {time.perf_counter() - t0:.0f} s._\n")
+    parts.append(_generated_in(time.perf_counter() - t0, sum(os.times()[:4]) - cpu0))
     DOC.write_text("\n".join(parts), encoding="utf-8")
     print(f"wrote {DOC}")
 

@@ -37,6 +37,18 @@ def worst_place(model: RodModel, values: np.ndarray) -> tuple[float, float]:
     return max(model.msh.comm.allgather(mine))[::-1]
 
 
+def first_place(model: RodModel, broken: np.ndarray) -> float:
+    """s [m] of the first node along the rod (smallest s) where ``broken`` (local per-block
+    booleans) is true, inf if none is (collective). A failed check names this place, not that
+    of the largest value: where the checked quantity is constant along the rod (θ of a rigid
+    rotation) round-off decides the largest, differently on another CPU or partition."""
+    n = model.V.dofmap.index_map.size_local
+    coords = model.V.tabulate_dof_coordinates()[:n, 0]
+    hits = coords[np.asarray(broken[:n], dtype=bool)]
+    mine = float(hits.min()) * model.length if hits.size else math.inf
+    return model.msh.comm.allreduce(mine, op=MPI.MIN)
+
+
 CHART_SUGGESTION = (
     "d3 is nearly parallel to e2, which the Euler angles (18) cannot represent; orient the rod "
     "so that large bending is about e2 (carried by ψ, which the chart allows without bound)"
@@ -114,8 +126,7 @@ def _report(model, t, where_prefix: str, before, cos_now: np.ndarray, value: flo
     prefix = f"{where_prefix}{', ' if where_prefix else ''}"
     if value == -1.0:
         blocks = model.U.x.array.reshape(-1, model.layout.size)
-        bad = np.where(np.isfinite(blocks).all(axis=1), 0.0, 1.0)
-        s, _ = worst_place(model, bad)
+        s = first_place(model, ~np.isfinite(blocks).all(axis=1))
         raise SolverError(
             time=t,
             where=f"{prefix}s = {s:.4g} m",
@@ -124,7 +135,7 @@ def _report(model, t, where_prefix: str, before, cos_now: np.ndarray, value: flo
             retry=True,
         )
     if value == -0.5:
-        s, _ = worst_place(model, np.where(before * cos_now <= 0.0, 1.0, 0.0))
+        s = first_place(model, before * cos_now <= 0.0)
         raise SolverError(
             time=t,
             where=f"{prefix}s = {s:.4g} m",
@@ -134,7 +145,7 @@ def _report(model, t, where_prefix: str, before, cos_now: np.ndarray, value: flo
             retry=True,
         )
     cos_all = np.cos(model.layout.full_array(model.U.x.array)[:, 3])
-    s, _ = worst_place(model, 1.0 / np.maximum(np.abs(cos_all), 1e-300))
+    s = first_place(model, np.abs(cos_all) < CHART_COS_MIN)
     raise SolverError(
         time=t,
         where=f"{prefix}s = {s:.4g} m",

@@ -627,7 +627,7 @@ def _check_polyline(scene: Scene, reference: ReferenceShape) -> None:
     b = np.asarray(reference.binormal) / np.linalg.norm(reference.binormal)
     cosines = np.abs(np.diff(pts, axis=0) @ b) / steps
     if cosines.max() > 1e-9:
-        i = int(np.argmax(cosines))
+        i = int(np.argmax(cosines > 1e-9))  # the first segment, not round-off's largest
         raise SceneError(
             f"reference.binormal: must be normal to every segment (d0_2 ⊥ d0_3), but its "
             f"cosine with segment {i + 1} (points[{i}] to points[{i + 1}]) is {cosines[i]:.3g}"

@@ -36,7 +36,8 @@
 # and an `mpirun -n 2` run (where each rank runs one chain).
 #
 # Run it with `python demos/frequency_response.py` (about 2 minutes serially, 1 on two ranks)
-# or `mpirun -n 2 python demos/frequency_response.py`; `--values 1.04 1.07 1.10` runs fewer
+# or `mpirun -n 2 python demos/frequency_response.py` (on a busy machine with Open MPI's
+# settings of the README's "Running a scene"); `--values 1.04 1.07 1.10` runs fewer
 # frequencies.
 
 # %%

@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import os
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -13,15 +14,43 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PYTHON = sys.executable  # the venv's interpreter (make test runs pytest from .venv)
+ROUNDOFF = Path(__file__).resolve().parent / "roundoff"
+
+# ROUNDOFF_NOISE=N: another CPU's round-off (N ulps) in numpy's transcendentals, here and in
+# every subprocess (tests/roundoff/roundoff_noise.py).
+if os.environ.get("ROUNDOFF_NOISE", "") not in ("", "0"):
+    sys.path.insert(0, str(ROUNDOFF))
+    import roundoff_noise
+
+    roundoff_noise.install()
+    os.environ["PYTHONPATH"] = os.pathsep.join(
+        [str(ROUNDOFF), *filter(None, [os.environ.get("PYTHONPATH")])]
+    )
+
+
+#: A subprocess limit that means "hung", not "slow" [s]: make test's subprocesses take at most
+#: ~10 s on two idle cores, and ~400 s took the slowest (the paper's demo, 400 steps on two
+#: ranks: a step is many MPI messages) at load 9 on two cores; an MPI job that waits for ever
+#: in a collective never ends. Callers with a known longer run give their own limit.
+HUNG_AFTER = 900.0
 
 
 def subprocess_env() -> dict[str, str]:
+    """The environment of the tests' subprocesses: os.environ and Open MPI's settings for a
+    machine shared with other work (docs/developers.md, "MPI on a busy machine")."""
     env = dict(os.environ)
-    # Open MPI refuses to run as root (containers, CI) unless told; 2 ranks on 2 cores.
     env.update(
+        # Open MPI refuses to run as root (containers, CI) unless told; 2 ranks on 2 cores.
         OMPI_ALLOW_RUN_AS_ROOT="1",
         OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
         OMPI_MCA_rmaps_base_oversubscribe="1",
+        # A rank that waits for another yields its core instead of spinning on it, and no rank
+        # is bound to a core (Open MPI binds each of two ranks to a core of its own): on a busy
+        # machine (pytest's other worker, another mpirun, other users) a spinning rank took
+        # the core its partner needed, and a bound rank could not move off a busy core (a
+        # 400-step run on two ranks: 38-68 s wall against 7-20 s with both settings).
+        OMPI_MCA_mpi_yield_when_idle="1",
+        OMPI_MCA_hwloc_base_binding_policy="none",
     )
     return env
 
@@ -35,27 +64,90 @@ def said(stderr: str) -> list[str]:
         for line in stderr.splitlines()
         if line.startswith("cosserat-fem:") and not line.startswith("cosserat-fem: sweep member ")
     ]
+def cpu_seconds() -> float:
+    """CPU seconds used so far by this process and its waited-for children (a compiler run by
+    cffi), user and system: a measure of work that other processes on the machine do not
+    change, unlike wall time (a limit on it is "too much work", never "a busy machine")."""
+    return sum(os.times()[:4])
+
+
+def descendants(pid: int) -> list[int]:
+    """The processes started by ``pid``, their children and so on (mpirun's ranks: Open MPI
+    puts them in process groups of their own, so a signal to mpirun's group misses them)."""
+    parents: dict[int, list[int]] = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / "stat").read_text()
+            except OSError:
+                continue
+            parents.setdefault(int(stat.rsplit(")", 1)[1].split()[1]), []).append(int(entry.name))
+    found, todo = [], [pid]
+    while todo:
+        kids = parents.get(todo.pop(), [])
+        found += kids
+        todo += kids
+    return found
+
+
+def running(pid: int) -> bool:
+    """The process exists and is not a zombie (a zombie holds no files and runs nothing)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] not in ("Z", "X")
+
+
+def stop_tree(proc: subprocess.Popen, grace: float = 10.0) -> None:
+    """End ``proc`` and every process it started: SIGTERM (mpirun passes it on to its ranks),
+    then SIGKILL to whatever is left after ``grace`` seconds."""
+    victims = [*descendants(proc.pid), proc.pid]
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        for pid in victims:
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(pid, sig)
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            proc.wait(timeout=grace)
+        victims = [pid for pid in victims if running(pid)]
 
 
 def run_command(
-    args: list[str], ranks: int = 1, timeout: float = 600, cwd: Path = ROOT, env: dict | None = None
-):
+    args: list[str],
+    ranks: int = 1,
+    timeout: float = HUNG_AFTER,
+    cwd: Path = ROOT,
+    env: dict | None = None,
+) -> subprocess.CompletedProcess:
     """Run ``args`` (a Python script and its arguments) serially or under mpirun; ``env``:
-    variables added to the environment."""
+    variables added to the environment. ``timeout`` [s] is a hang limit (:data:`HUNG_AFTER`):
+    past it the command and every process it started are ended and the test fails, saying
+    so."""
     cmd = [PYTHON, *args]
     if ranks > 1:
         mpirun = shutil.which("mpirun")
         if mpirun is None:
             pytest.fail("mpirun not found: install openmpi-bin (make setup does)")
         cmd = [mpirun, "-n", str(ranks), *cmd]
-    return subprocess.run(
+    proc = subprocess.Popen(
         cmd,
         cwd=cwd,
         env={**subprocess_env(), **(env or {})},
-        capture_output=True,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
         text=True,
-        timeout=timeout,
     )
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        stop_tree(proc)
+        out, err = proc.communicate()
+        pytest.fail(f"hung: {' '.join(cmd)} had not ended after {timeout:g} s (a hang limit; "
+                    f"its stderr ends: {err[-2000:]!r})")  # fmt: skip
+    except BaseException:  # Ctrl-C, a test's own failure: leave no rank running
+        stop_tree(proc)
+        raise
+    return subprocess.CompletedProcess(cmd, proc.returncode, out, err)
 
 
 def parse_qoi(stdout: str) -> dict[str, float]:

@@ -70,12 +70,13 @@ def test_serial_equals_mpi(tmp_path):
     """The same steps on 1 and 2 ranks (the error norm and the field peaks are reduced over
     the ranks), and the same free-end history to the Newton tolerance (stol = 1e-8 of ‖U‖:
     PETSc's LU and MUMPS round differently, and modified Newton stops at different iterates;
-    measured 1e-11 for x, y and 7e-10 for the small second-order z and φ)."""
+    measured 1e-11 for x, y and 7e-10 for the small second-order z and φ over 6 ms). The
+    first 2 ms: a step on two ranks is many MPI messages (6 ms took 166 s at load 9)."""
     runs = []
     for ranks in (1, 2):
         out = tmp_path / f"r{ranks}"
         args = ["-m", "cosserat_fem.cli", "run", str(SCENE), "--out", str(out)]
-        for item in ("time.adaptive=true", "time.end=0.006", "time.step=1e-5"):
+        for item in ("time.adaptive=true", "time.end=0.002", "time.step=1e-5"):
             args += ["--set", item]
         proc = run_command(args, ranks)
         assert proc.returncode == 0, proc.stderr
@@ -85,6 +86,6 @@ def test_serial_equals_mpi(tmp_path):
     (s1, d1), (s2, d2) = runs
     for key in ("accepted_steps", "rejected_steps"):
         assert s1[key] == s2[key], key
-    assert d1.shape == d2.shape == (601, 7)
+    assert d1.shape == d2.shape == (201, 7)
     for j in range(1, 7):
         assert np.abs(d1[:, j] - d2[:, j]).max() <= 1e-8 * np.abs(d1[:, j]).max(), j

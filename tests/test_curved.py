@@ -148,6 +148,12 @@ def test_arc_equals_the_straight_rod_rolled_up_into_it(load):
         (["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,0.5],[0,0.5,0.5]]"],
          "reference.binormal: must be normal to every segment (d0_2 ⊥ d0_3), but its cosine "
          "with segment 2"),
+        # Two segments at the same cosine 0.6 with the binormal e2, the second larger by
+        # round-off (its y is 0.6 + 1 ulp): the first is named, not the round-off's largest.
+        (["reference.shape=polyline",
+          "reference.points=[[0,0,0],[0,0.3,0.4],[0.4,0.6000000000000001,0.4]]"],
+         "reference.binormal: must be normal to every segment (d0_2 ⊥ d0_3), but its cosine "
+         "with segment 1 (points[0] to points[1]) is 0.6"),
         (["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,0.5],[0.6,0,0.5]]"],
          "reference.points: the polyline is 1.1 m long, rod.length = 1 m"),
         (["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,1]]",

@@ -175,9 +175,10 @@ def test_killed_compile_does_not_block_the_next_run(tmp_path, killed):
     plain = run({**args, "install": False, "timeout": 1})
     assert "JIT compilation timed out" in plain.get("error", ""), plain
 
-    fixed = run({**args, "install": True})
+    # With FFCx's wait cut to 1 s, as for plain above: a wait for the dead compile would end
+    # in "timed out"; whatever the machine's load, the module is compiled at once instead.
+    fixed = run({**args, "install": True, "timeout": 1})
     assert fixed.get("compiled") is True, fixed
-    assert fixed["seconds"] < 8, fixed  # a compile takes ~0.5 s; no 10 s wait
     assert len(files(cache, ".c.cached")) == 1 and not files(cache, ".c.failed")
     assert run({**args, "install": True})["compiled"] is False  # now a warm cache
 

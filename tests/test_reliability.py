@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import PYTHON, ROOT, file_size_limit, run_command, said, subprocess_env
+from conftest import PYTHON, ROOT, cpu_seconds, file_size_limit, run_command, said, subprocess_env
 from xdmf_files import read_xdmf
 
 from cosserat_fem.checkpoint import load_checkpoint
@@ -189,18 +189,17 @@ def test_d4_look_alike_parameter_names_are_refused(capsys):
 # ----------------------------------------------------------------- hangs, runs without end
 def test_d5_a_damaged_rank_file_does_not_hang_mpi(base, tmp_path):
     """D5: a 2-rank restart whose rank-1 files are both damaged used to hang both ranks at
-    98 % CPU; every rank now agrees on what it found: exit 2 within seconds, one line naming
-    the file, under mpirun -n 2."""
+    98 % CPU; every rank now agrees on what it found: exit 2, one line naming the file, under
+    mpirun -n 2 (a hang fails at run_command's hang limit, a wall time that says "hung", not
+    "slow": this took 10 s at load 9 on two cores)."""
     run_dir = tmp_path / "mpi"
     proc = run_command([*CLI, "run", SCENE, "--out", str(run_dir), "--quiet", *sets(*SHORT)], 2)
     assert proc.returncode == 0, proc.stderr
     for slot in (0, 1):
         path = run_dir / "checkpoint" / f"state{slot}.rank1.npz"
         path.write_bytes(path.read_bytes()[:100])
-    start = time.monotonic()
-    proc = run_command([*CLI, "run", "--restart", str(run_dir), *sets("time.end=0.006")], 2,
-                       timeout=120)  # fmt: skip
-    assert proc.returncode == 2 and time.monotonic() - start < 60
+    proc = run_command([*CLI, "run", "--restart", str(run_dir), *sets("time.end=0.006")], 2)
+    assert proc.returncode == 2, proc.stderr
     ours = said(proc.stderr)
     assert len(ours) == 1 and "state0.rank1.npz does not match its checksum" in ours[0]
 
@@ -255,9 +254,9 @@ def test_d8_what_cannot_run_here_is_refused_at_once(capsys, overrides, key, reas
     cosserat_fem/budget.py)."""
     command = "static" if key.startswith("static.") else "run"
     for args in (["validate", SCENE], [command, SCENE, "--out", "/nonexistent/x"]):
-        start = time.monotonic()
+        start = cpu_seconds()
         status, err = cli(capsys, *args, *sets(*overrides))
-        assert status == 2 and time.monotonic() - start < 2.0
+        assert status == 2 and cpu_seconds() - start < 2.0  # CPU s: the load does not count
         line = one_line(err)
         assert line.startswith(f"cosserat-fem: error: {key}") and reason in line
 

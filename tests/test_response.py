@@ -55,6 +55,11 @@ def sweep_file(folder: Path, values: list[float], response: dict, **sweep) -> Pa
 
 
 PERIOD = {"period": "2*pi/(r*omega0)"}
+#: Up and down chains that check the dealing, not the physics: 40 steps a period, settled at
+#: a change below 5e-2 for one period (5-6 periods a member).
+SHORT_CHAINS = {**PERIOD, "continuation": "parameters.r", "direction": "both",
+                "tolerance": 5e-2, "steps_per_period": 40, "settled_periods": 1,
+                "measure_periods": 1}  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -557,9 +562,11 @@ def test_after_a_failed_member_its_chain_goes_on_from_rest(tmp_path, monkeypatch
 def test_up_and_down_chains_under_mpi_equal_the_serial_sweep(tmp_path):
     """direction = "both": each r twice, an upward and a downward chain (4 members); under
     mpirun -n 2 the two chains go to the two groups and the table is the serial one (all but
-    wall times). A loose tolerance keeps it short: this checks the dealing, not the physics."""
-    path = sweep_file(tmp_path, [0.95, 1.05], {**PERIOD, "continuation": "parameters.r",
-                      "direction": "both", "tolerance": 1e-2})  # fmt: skip
+    wall times: each chain runs on one rank, the serial operations). It checks the dealing
+    and the continuation, not the physics: :data:`SHORT_CHAINS`. The same sweep on groups of
+    two ranks is refused in the same folder; run in its own (MUMPS):
+    test_chains_on_a_group_of_two_ranks_continue_each_ranks_part, in the long set."""
+    path = sweep_file(tmp_path, [0.95, 1.05], SHORT_CHAINS)
     tables = sweep_serial_and_mpi(path, tmp_path)
     assert tables[1] == tables[2]
     rows = tables[1]
@@ -568,24 +575,42 @@ def test_up_and_down_chains_under_mpi_equal_the_serial_sweep(tmp_path):
     ]  # fmt: skip
     # The same sweep on groups of two ranks is another sweep for the folder (its saved states
     # are parts of a two-rank partition): refused in one line, before anything runs.
-    grouped = sweep_file(tmp_path, [0.95, 1.05], {**PERIOD, "continuation": "parameters.r",
-                         "direction": "both", "tolerance": 1e-2}, group_size=2)  # fmt: skip
+    grouped = sweep_file(tmp_path, [0.95, 1.05], SHORT_CHAINS, group_size=2)
     proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(grouped), "--out",
                         str(tmp_path / "n2")], 2)  # fmt: skip
     errors = said(proc.stderr)
     assert proc.returncode == 2 and len(errors) == 1 and "holds another sweep" in errors[0]
     assert "Traceback" not in proc.stderr
-    # In a folder of its own it runs each chain on both ranks (MUMPS, each rank's part of the
-    # state saved and continued): the same periods, and the serial amplitudes to the LU's
-    # rounding (a state continued from a wrong part would be off by its whole size).
+
+
+@pytest.mark.long  # four members on a group of two ranks: ~8 s on two idle cores, 25 s busy
+@pytest.mark.mpi
+def test_chains_on_a_group_of_two_ranks_continue_each_ranks_part(tmp_path):
+    """group_size = 2 under mpirun -n 2: each chain runs on both ranks (MUMPS, each rank's part
+    of the state saved and continued): the serial sweep's periods, and its amplitudes to the
+    LU's rounding (a state continued from a wrong part would be off by its whole size). The
+    members' changes in their last period were 0.029-0.049 against the tolerance 5e-2: the
+    LU's and MUMPS's rounding, ~1e-13 relative, cannot move a member's settling period. With
+    300 steps a period and a tolerance of 1e-2 these members took 38 s on a quiet machine and
+    over 600 s on a busy one: a step of a 4-element rod on two ranks is a few MPI messages."""
+    serial = tmp_path / "serial"
+    proc = run_command(["-m", "cosserat_fem.cli", "sweep",
+                        str(sweep_file(tmp_path, [0.95, 1.05], SHORT_CHAINS)),
+                        "--out", str(serial)])  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    rows = read_table(serial / "sweep.csv")
+    grouped = tmp_path / "two"
+    grouped.mkdir()
     out = tmp_path / "grouped"
-    proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(grouped), "--out", str(out)], 2)
+    proc = run_command(["-m", "cosserat_fem.cli", "sweep",
+                        str(sweep_file(grouped, [0.95, 1.05], SHORT_CHAINS, group_size=2)),
+                        "--out", str(out)], 2)  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     two = read_table(out / "sweep.csv")
     assert [r["previous"] for r in two] == [r["previous"] for r in rows]
-    for serial, grouped_row in zip(rows, two, strict=True):
-        assert grouped_row["periods"] == serial["periods"]
-        assert float(grouped_row["h1_x"]) == pytest.approx(float(serial["h1_x"]), rel=1e-6)
+    for serial_row, grouped_row in zip(rows, two, strict=True):
+        assert grouped_row["periods"] == serial_row["periods"]
+        assert float(grouped_row["h1_x"]) == pytest.approx(float(serial_row["h1_x"]), rel=1e-6)
     with np.load(out / "members" / "m00000" / "final_state.npz") as data:
         assert sorted(k for k in data.files if k.startswith("U")) == ["U0", "U1"]
 

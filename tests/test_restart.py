@@ -181,18 +181,21 @@ def test_a_failed_run_continues_from_its_last_accepted_step(tmp_path, monkeypatc
 @pytest.mark.mpi
 def test_restart_under_mpi(tmp_path):
     """mpirun -n 2: the same bytes as an uninterrupted 2-rank run, through the command line;
-    a 1-rank restart of the 2-rank checkpoint is refused with the reason (exit status 2)."""
-    settings = ["time.end=0.006", "output.checkpoint_interval=0.0015"]
+    a 1-rank restart of the 2-rank checkpoint is refused with the reason (exit status 2). 40
+    steps, a checkpoint every 10, a frame every 8: a run on two ranks of this small rod is a
+    few MPI messages a step, slow on a busy machine (200 steps took 19-58 s at load 5-9)."""
+    settings = ["time.end=0.0012", "output.checkpoint_interval=0.0003"]
     sets = [a for s in settings for a in ("--set", s)]
     whole, part = tmp_path / "whole", tmp_path / "part"
     run_command([*CLI, "run", str(SCENE), "--out", str(whole), *sets], ranks=2)
     run_command(
-        [*CLI, "run", str(SCENE), "--out", str(part), *sets, "--set", "time.end=0.003"], ranks=2
+        [*CLI, "run", str(SCENE), "--out", str(part), *sets, "--set", "time.end=0.0006"], ranks=2
     )
-    refused = run_command([*CLI, "run", "--restart", str(part), "--set", "time.end=0.006"], ranks=1)
+    again = ["--set", "time.end=0.0012"]
+    refused = run_command([*CLI, "run", "--restart", str(part), *again], ranks=1)
     assert refused.returncode == 2
     assert "written by 2 MPI ranks" in refused.stderr and "Traceback" not in refused.stderr
-    done = run_command([*CLI, "run", "--restart", str(part), "--set", "time.end=0.006"], ranks=2)
+    done = run_command([*CLI, "run", "--restart", str(part), *again], ranks=2)
     assert done.returncode == 0, done.stderr
     assert (part / "probes.csv").read_bytes() == (whole / "probes.csv").read_bytes()
     assert read_xdmf(part / "solution.xdmf")["angles"][1].tolist() == (

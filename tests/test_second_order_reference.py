@@ -249,6 +249,11 @@ def test_quadratic_scaling():
 
 
 def test_fields_along_s():
+    """z and φ along s: zero at the clamp, zero at rest, and at s = ℓ the tip response of
+    second_order_tip_response. Both sum the same modal terms, in other orders: they agree to
+    the round-off of terms as large as the motion, ~1e-16 of the largest value, where the sum
+    cancels (z(ℓ, 0) = 3e-22 and -2e-22 m on two machines' cosines); allowed 1e-12 relative
+    and 1e-12 of the largest value."""
     t = np.linspace(0.0, 0.01, 41)
     s = np.array([0.0, 0.25, 0.5, 1.0])
     kw = dict(linear_modes=8, axial_modes=8)
@@ -259,8 +264,8 @@ def test_fields_along_s():
     assert np.all(np.abs(r.z[0]) < 1e-12 * np.abs(r.z).max())
     assert np.all(np.abs(r.phi[0]) < 1e-12 * np.abs(r.phi).max())
     z_tip, phi_tip = second_order_tip_response(ROD, PAPER_Q0, PAPER_OMEGA, t, **kw)
-    assert np.allclose(r.z[:, -1], z_tip, rtol=1e-12, atol=1e-22)
-    assert np.allclose(r.phi[:, -1], phi_tip, rtol=1e-12, atol=1e-20)
+    assert np.allclose(r.z[:, -1], z_tip, rtol=1e-12, atol=1e-12 * np.abs(r.z).max())
+    assert np.allclose(r.phi[:, -1], phi_tip, rtol=1e-12, atol=1e-12 * np.abs(r.phi).max())
 
 
 def test_printed_torsion_inertia_changes_phi_only(paper):

@@ -146,3 +146,28 @@ def test_a_state_that_fails_the_checks_is_rejected_and_retried(
     for j in (1, 2):
         scale = np.abs(undisturbed[:, j]).max()
         assert np.abs(data[:, j] - undisturbed[:, j]).max() <= 1e-5 * scale
+
+
+def test_a_failed_check_names_the_first_place_along_the_rod():
+    """A check that fails names the first node along the rod where its rule is broken, the
+    same on every CPU and partition. θ = π/2 − 1e-3 + 1e-12 σ at every node (σ = s/ℓ): |cos θ|
+    ≈ 1e-3 < CHART_COS_MIN everywhere, smallest at the free end by ~1e-12, the size of the
+    round-off that a CPU decides in θ of a rigid rotation: the chart check names s = 0 m (it
+    named the place of the smallest |cos θ|, here s = 1 m). A NaN at σ = 0.5 and σ = 1 names
+    s = 0.5 m."""
+    from cosserat_fem.checks import check_state
+    from cosserat_fem.errors import SolverError
+    from cosserat_fem.model import build_model
+
+    model = build_model(load_scene(SCENE, ["discretisation.planar=off"]), planar=False)
+    sigma = model.V.tabulate_dof_coordinates()[:, 0]
+    blocks = model.U.x.array.reshape(len(sigma), -1)
+    blocks[:, model.layout.index(3)] = 0.5 * np.pi - 1e-3 + 1e-12 * sigma
+    with pytest.raises(SolverError, match="chart singular") as caught:
+        check_state(model, 0.001)
+    assert caught.value.where == "s = 0 m", caught.value.where
+    blocks[:] = 0.0
+    blocks[np.isclose(sigma, 0.5) | np.isclose(sigma, 1.0), 0] = np.nan
+    with pytest.raises(SolverError, match="non-finite") as caught:
+        check_state(model, 0.001)
+    assert caught.value.where == f"s = {0.5 * model.length:.4g} m", caught.value.where
