@@ -64,6 +64,8 @@ def said(stderr: str) -> list[str]:
         for line in stderr.splitlines()
         if line.startswith("cosserat-fem:") and not line.startswith("cosserat-fem: sweep member ")
     ]
+
+
 def cpu_seconds() -> float:
     """CPU seconds used so far by this process and its waited-for children (a compiler run by
     cffi), user and system: a measure of work that other processes on the machine do not

@@ -37,11 +37,19 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import PYTHON, ROOT, read_table, run_command, said, subprocess_env
+from conftest import (
+    HUNG_AFTER,
+    PYTHON,
+    ROOT,
+    read_table,
+    run_command,
+    said,
+    stop_tree,
+    subprocess_env,
+)
 from test_sweep import chain_sweep
 
 from cosserat_fem import api
-from cosserat_fem.parallel import ABORT_AFTER
 from cosserat_fem.results import read_probe_table
 
 pytestmark = pytest.mark.mpi
@@ -49,7 +57,7 @@ pytestmark = pytest.mark.mpi
 PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
 TEXT = PAPER.read_text(encoding="utf-8")
 #: Seconds after which an mpirun job is taken as hung (module docstring).
-HUNG = 120
+HUNG = HUNG_AFTER
 #: A command line run on every rank with "{rank}" in its arguments replaced by the rank's
 #: number (as a shell wrapper would take a file per rank from an environment variable); the
 #: first argument, if not "-", is a folder each rank works in (its own, by "{rank}").
@@ -304,7 +312,7 @@ def ranks_of(mpirun: subprocess.Popen, count: int, deadline: float) -> dict[int,
 
 def interrupted(tmp_path: Path, argv: list[str], ready, ranks: tuple[int, ...]):
     """Start ``cosserat-fem argv`` under mpirun -n 2, wait until ``ready()``, send SIGINT to
-    ``ranks``; (the job's exit status, seconds from the signal to its end, its stderr)."""
+    ``ranks``; (the job's exit status, its stderr)."""
     cmd = ["mpirun", "-n", "2", PYTHON, "-m", "cosserat_fem.cli", *argv]
     job = subprocess.Popen(cmd, cwd=ROOT, env=subprocess_env(), stdout=subprocess.DEVNULL,
                            stderr=subprocess.PIPE, text=True)  # fmt: skip
@@ -315,14 +323,13 @@ def interrupted(tmp_path: Path, argv: list[str], ready, ranks: tuple[int, ...]):
             assert job.poll() is None, job.stderr.read()
             assert time.monotonic() < deadline, "the job never got going"
             time.sleep(0.05)
-        start = time.monotonic()
         for rank in ranks:
             os.kill(pids[rank], signal.SIGINT)
         _, err = job.communicate(timeout=HUNG)
-        return job.returncode, time.monotonic() - start, err
+        return job.returncode, err
     finally:
-        if job.poll() is None:
-            job.kill()
+        if job.poll() is None:  # hung: end mpirun and every rank
+            stop_tree(job)
             job.communicate()
 
 
@@ -338,14 +345,13 @@ def probe_rows(path: Path) -> int:
 def test_an_interrupt_on_one_rank_ends_the_run_on_every_rank(tmp_path, ranks):
     """SIGINT to rank 1 alone (``kill -INT``), or to both (as srun forwards it): every rank
     stops at the same step, exit 130, summary.json "interrupted", probes.csv whole lines
-    up to it; well within ABORT_AFTER (before: rank 1 left, rank 0 waited for ever)."""
+    up to it, not aborted (before: rank 1 left, rank 0 waited for ever)."""
     out = tmp_path / "out"
     argv = ["run", str(PAPER), "--out", str(out), "--quiet", "--set", "time.end=0.3",
             "--set", "output.xdmf=false"]  # fmt: skip
-    status, took, err = interrupted(tmp_path, argv, lambda: probe_rows(out / "probes.csv") > 20,
+    status, err = interrupted(tmp_path, argv, lambda: probe_rows(out / "probes.csv") > 20,
                                     ranks)  # fmt: skip
-    assert status == 130, err
-    assert took < ABORT_AFTER, err
+    assert status == 130 and "MPI_ABORT" not in err, err
     summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
     assert summary["status"] == "interrupted"
     assert len(read_probe_table(out / "probes.csv")[1]) >= 20  # the rows seen before the signal
@@ -354,9 +360,9 @@ def test_an_interrupt_on_one_rank_ends_the_run_on_every_rank(tmp_path, ranks):
 @pytest.mark.long
 def test_an_interrupt_on_one_rank_of_a_sweep_ends_the_job(tmp_path):
     """A sweep on two groups of one rank, SIGINT to rank 1 while members run: rank 1's group
-    stops, the other goes on with its member; the job is aborted ABORT_AFTER s after the
-    interrupt at the latest (30 s allowed on top for Open MPI to take it down on a loaded
-    machine), the rows written are kept, and the sweep started again finishes the table as
+    stops, the other goes on with its member; the job is aborted (ABORT_AFTER s of wall time
+    after the interrupt at the latest on an idle machine; the test's limit is a hang limit),
+    the rows written are kept, and the sweep started again finishes the table as
     an uninterrupted sweep's (before: rank 1 left, rank 0 waited for ever)."""
     path = sweep_file(tmp_path, "1e-5, 2e-5, 3e-5, 1.5e-5, 6e-6, 5e-6, 4e-6, 1.2e-5")
     out = tmp_path / "out"
@@ -365,10 +371,9 @@ def test_an_interrupt_on_one_rank_of_a_sweep_ends_the_job(tmp_path):
     def started() -> bool:
         return sum(probe_rows(p) for p in parts.glob("group-*.csv")) >= 4  # headers + 2 rows
 
-    status, took, err = interrupted(tmp_path, ["sweep", str(path), "--out", str(out)], started,
+    status, err = interrupted(tmp_path, ["sweep", str(path), "--out", str(out)], started,
                                     (1,))  # fmt: skip
     assert status != 0, err
-    assert took < ABORT_AFTER + 30, err
     sweep_under_mpi(path, out)
     api.sweep(api.load_sweep(path), tmp_path / "whole")
     assert strip(out / "sweep.csv") == strip(tmp_path / "whole" / "sweep.csv")

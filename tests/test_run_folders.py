@@ -34,6 +34,7 @@ from pathlib import Path
 
 import pytest
 from conftest import (
+    HUNG_AFTER,
     PYTHON,
     ROOT,
     fails_if_hung,
@@ -48,7 +49,7 @@ from cosserat_fem.cli import main
 SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
 SHORT = ["--set", "time.end=0.0006", "--set", "output.xdmf_interval=6e-5"]
 RESTART = ["--set", "time.end=0.00081"]  # 27 steps of 30 us: 7 beyond the checkpoint
-HUNG = 120  # s: a command that takes longer has hung (each takes 1-8 s here)
+HUNG = HUNG_AFTER  # s: a command that takes longer has hung (each takes 1-8 s here)
 
 
 def snapshot(folder: Path) -> dict[str, str]:
