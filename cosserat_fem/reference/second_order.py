@@ -483,19 +483,41 @@ def _direct(terms: Sequence[_Term], planes: dict[str, _Plane], t: FloatArray) ->
 # --------------------------------------------------------------------------------------------
 # Modal oscillators from rest
 # --------------------------------------------------------------------------------------------
-def _response_cos(nu: FloatArray, omega: float, t: FloatArray) -> FloatArray:
-    """x'' + ω² x = cos νt from rest: (cos νt − cos ωt)/(ω² − ν²), resonance-safe; (T, M)."""
-    tt = t[:, None]
-    half = 0.5 * (omega - nu) * tt
-    return tt * np.sin(0.5 * (omega + nu) * tt) * np.sinc(half / math.pi) / (omega + nu)
+def _sinc(x: FloatArray) -> FloatArray:
+    """sin x / x, 1 at x = 0."""
+    zero = x == 0.0
+    return np.where(zero, 1.0, np.sin(x) / np.where(zero, 1.0, x))
 
 
-def _response_sin(nu: FloatArray, omega: float, t: FloatArray) -> FloatArray:
-    """x'' + ω² x = sin νt from rest: (sin νt − (ν/ω) sin ωt)/(ω² − ν²), resonance-safe."""
-    tt = t[:, None]
-    half = 0.5 * (nu - omega) * tt
+class _HalfAngles:
+    """cos(νt/2), sin(νt/2) of every line ν at every time t, shape (T, M): computed once for
+    all the modal oscillators, whose phases (ω ± ν)t/2 follow by the addition theorems."""
+
+    def __init__(self, nu: FloatArray, t: FloatArray):
+        self.nu, self.t = nu, t[:, None]
+        self.cos, self.sin = np.cos(0.5 * nu * self.t), np.sin(0.5 * nu * self.t)
+
+    def full(self) -> tuple[FloatArray, FloatArray]:
+        """cos νt, sin νt (the double angles)."""
+        return self.cos**2 - self.sin**2, 2.0 * self.cos * self.sin
+
+
+def _response_cos(lines: _HalfAngles, omega: float) -> FloatArray:
+    """x'' + ω² x = cos νt from rest: (cos νt − cos ωt)/(ω² − ν²)
+    = t sin((ω+ν)t/2) sinc((ω−ν)t/2)/(ω+ν), resonance-safe; (T, M)."""
+    tt, nu = lines.t, lines.nu
+    sw, cw = np.sin(0.5 * omega * tt), np.cos(0.5 * omega * tt)
+    return tt * (sw * lines.cos + cw * lines.sin) * _sinc(0.5 * (omega - nu) * tt) / (omega + nu)
+
+
+def _response_sin(lines: _HalfAngles, omega: float) -> FloatArray:
+    """x'' + ω² x = sin νt from rest: (sin νt − (ν/ω) sin ωt)/(ω² − ν²)
+    = (sin ωt/ω − t cos((ω+ν)t/2) sinc((ν−ω)t/2))/(ω+ν), resonance-safe; (T, M)."""
+    tt, nu = lines.t, lines.nu
+    sw, cw = np.sin(0.5 * omega * tt), np.cos(0.5 * omega * tt)
     return (
-        np.sin(omega * tt) / omega - tt * np.cos(0.5 * (omega + nu) * tt) * np.sinc(half / math.pi)
+        np.sin(omega * tt) / omega
+        - tt * (cw * lines.cos - sw * lines.sin) * _sinc(0.5 * (nu - omega) * tt)
     ) / (omega + nu)
 
 
@@ -527,14 +549,15 @@ def _solve_closed_form(
     """Modal coordinates a_k(t) (or a_k − F_k/k_k if ``correct``), shape (T, K)."""
     spec = _spectrum(prob.galerkin, planes)
     m = prob.mass * 0.5 * length
+    cos_lines, sin_lines = _HalfAngles(spec.cos_nu, t), _HalfAngles(spec.sin_nu, t)
     out = np.empty((t.size, prob.lam.size))
     for k, om in enumerate(prob.omega):
-        rc = _response_cos(spec.cos_nu, om, t)
-        rs = _response_sin(spec.sin_nu, om, t)
-        if correct:
-            rc = rc - np.cos(np.outer(t, spec.cos_nu)) / om**2
-            rs = rs - np.sin(np.outer(t, spec.sin_nu)) / om**2
+        rc = _response_cos(cos_lines, om)
+        rs = _response_sin(sin_lines, om)
         out[:, k] = (rc @ spec.cos_amp[:, k] + rs @ spec.sin_amp[:, k]) / m
+    if correct:  # the quasi-static part F_k(t)/(m ω_k²), the same lines for every mode
+        forcing = cos_lines.full()[0] @ spec.cos_amp + sin_lines.full()[1] @ spec.sin_amp
+        out -= forcing / (m * prob.omega**2)
     return out
 
 
