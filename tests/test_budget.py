@@ -226,7 +226,7 @@ def test_the_memory_per_dof_bounds_the_cheapest_scene(tmp_path):
 
 
 @pytest.mark.mpi
-@pytest.mark.parametrize("command", ["run", "sweep"])
+@pytest.mark.parametrize("command", ["run", pytest.param("sweep", marks=pytest.mark.long)])
 def test_a_limit_on_one_rank_refuses_on_every_rank(tmp_path, command):
     """Item 16's sibling: each rank sees its own process limits (and reads the available
     memory at its own moment), so one rank could refuse while the others began the run and

@@ -301,6 +301,7 @@ def test_helical_spring_axial_stiffness(pitch_angle):
     assert stretch / (P * flexibility) == pytest.approx(1.0, abs=2e-6)
 
 
+@pytest.mark.long
 def test_right_angle_cantilever_against_simo_and_vu_quoc():
     """scenes/simo_vuquoc_right_angle.toml (two legs of 10, a corner at the node s = 10, the
     elbow struck by a triangular pulse of 50 out of plane, 30 time units): the out-of-plane

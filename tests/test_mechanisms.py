@@ -281,6 +281,7 @@ class _CentreOfMass(Observer):
         self.rows.append((t, mean[0], mean[1], ell / 2 + mean[2]))
 
 
+@pytest.mark.long
 def test_the_flying_spaghetti():
     """scenes/flying_spaghetti.toml (Simo & Vu-Quoc 1988, in space): a free rod pushed and
     twisted at one end by a triangle pulse of 5 s, then flying and tumbling (the chart moves

@@ -1066,6 +1066,7 @@ CATEGORIES = {
 }
 
 
+@pytest.mark.long
 @pytest.mark.parametrize("category", list(CATEGORIES))
 def test_damaged_outputs_are_read_or_refused_cleanly(report, category):
     """Each case of ``category`` (see CATEGORIES) either reads, with finite arrays of
@@ -1081,6 +1082,7 @@ def test_damaged_outputs_are_read_or_refused_cleanly(report, category):
     assert not bad, f"{len(bad)} of {len(mine)} cases:\n" + "\n".join(bad)
 
 
+@pytest.mark.long
 def test_the_earlier_layout_is_read(report):
     """An XDMF file of DOLFINx's own layout (grid "mesh" with σ along the first axis, XY, one
     collection per array), made from the genuine data, reads as the same series: 11 frames,
@@ -1092,6 +1094,7 @@ def test_the_earlier_layout_is_read(report):
     assert abs(r["length"] - 2.0) < 1e-12, r
 
 
+@pytest.mark.long
 def test_the_single_file_layout_is_read(report):
     """Outputs of the single-file layout (every frame in solution.h5, named by the XML as
     ``solution.h5:/...``), made from the genuine data, still read: 11 frames of 25 points."""
@@ -1101,6 +1104,7 @@ def test_the_single_file_layout_is_read(report):
     assert abs(r["length"] - 1.0) < 1e-12, r
 
 
+@pytest.mark.long
 def test_entity_bombs_are_refused_quickly(report):
     """Entity-expansion bombs (billion laughs, quadratic blowup) are refused because the file
     declares entities, before expat expands anything (expat >= 2.4 has its own limit, older
@@ -1113,6 +1117,7 @@ def test_entity_bombs_are_refused_quickly(report):
         assert r["seconds"] < BOMB_SECONDS, r
 
 
+@pytest.mark.long
 def test_the_readers_size_limits_are_where_the_docs_say(report):
     """docs/reliability.md: plot and render read at most 1 GiB of probes.csv, 128 MiB of XDMF
     XML and 1e8 values from the .h5 files (and 16 MiB of summary.json, lines of 4096 bytes:
@@ -1134,6 +1139,7 @@ def test_the_readers_size_limits_are_where_the_docs_say(report):
     assert values["read"] == "refused" and "more than 100000000 values" in values["message"]
 
 
+@pytest.mark.long
 def test_some_generated_cases_are_read_and_plotted(report):
     """The generated damage is not all refused: some copies (a digit flipped in a value, a
     probe row deleted) are still runs, and read and plot; the fuzzing reaches the readers'
@@ -1165,6 +1171,7 @@ def test_d12_binary_probes_csv(tmp_path):
     assert not list(tmp_path.glob("*.png"))
 
 
+@pytest.mark.long
 @pytest.mark.parametrize(
     "case, name",
     [
@@ -1187,6 +1194,7 @@ def test_plot_refuses_damaged_folders(report, case, name):
     assert not out.exists() or not list(out.iterdir())
 
 
+@pytest.mark.long
 def test_render_refuses_a_damaged_folder(report):
     """``cosserat-fem render --frames 2`` on a copy whose first frame displaces every point
     onto the fixed end (readable numbers, but the rod is a single point; the old render:
@@ -1216,6 +1224,7 @@ def test_render_refuses_a_scale_beyond_its_bound(genuine, tmp_path, scale):
     assert not out.exists()
 
 
+@pytest.mark.long
 def test_plot_a_run_killed_before_its_first_frame(report):
     """A run killed after XdmfWriter published its frameless file and one probe row was
     flushed (t = 0) plots what it has: free_end.png, no surfaces, exit 0 (the old reader

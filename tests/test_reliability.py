@@ -186,6 +186,7 @@ def test_d4_look_alike_parameter_names_are_refused(capsys):
     assert "parameters.ｔ: the name 'ｔ' is read by Python as 't'" in one_line(err)
 
 
+@pytest.mark.long
 # ----------------------------------------------------------------- hangs, runs without end
 def test_d5_a_damaged_rank_file_does_not_hang_mpi(base, tmp_path):
     """D5: a 2-rank restart whose rank-1 files are both damaged used to hang both ranks at
@@ -369,6 +370,7 @@ def test_d15_restart_advice_names_time_end(base, tmp_path, capsys):
     )[1]
 
 
+@pytest.mark.long
 def test_d16_errors_are_one_line_without_compiler_or_numpy_chatter(tmp_path):
     """D16: gcc warnings and numpy RuntimeWarnings surrounded the one-line messages. A new
     load expression (a new compile) that is finite but overflows the residual (a Newton

@@ -80,6 +80,7 @@ def test_a_free_ring_tends_to_the_thin_ring_frequencies_at_order_two():
         np.testing.assert_allclose(found[0.025][plane], finer[plane], rtol=1e-6, atol=0)
 
 
+@pytest.mark.long
 @pytest.mark.mpi
 def test_the_ring_under_mpi_equals_the_serial_run(tmp_path):
     """The joint's map S spans the two ranks (the two ends of the rod are on different

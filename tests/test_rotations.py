@@ -101,6 +101,7 @@ def test_restart_across_moves_of_the_chart_gives_the_uninterrupted_run(tmp_path,
         assert result.summary["newton"][key] == whole["newton"][key], key
 
 
+@pytest.mark.long
 @pytest.mark.mpi
 def test_the_whip_under_mpi_equals_the_serial_run(tmp_path):
     """mpirun -n 2 against the serial run: the chart moves at the same steps (the decision is

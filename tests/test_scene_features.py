@@ -139,6 +139,7 @@ def simply_supported_timoshenko(n: int, A: float, I: float, kappa: float) -> flo
     return math.sqrt((b - math.sqrt(b * b - 4 * a * c)) / (2 * a))
 
 
+@pytest.mark.long
 def test_pinned_pinned_spectrum():
     """A simply supported (fork-supported) circular rod: bending pairs n = 1, 2, the first
     axial and torsion modes, against the closed forms (module docstring). The first pair's

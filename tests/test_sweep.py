@@ -269,7 +269,7 @@ def test_a_range_ends_at_its_stop_exactly(tmp_path):
     assert values[1] == pytest.approx(2e-5, rel=1e-15)  # an inner value: to rounding
 
 
-@pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=pytest.mark.mpi)])
+@pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=[pytest.mark.mpi, pytest.mark.long])])
 def test_a_sweep_tells_each_member_as_it_finishes(tmp_path, ranks):
     """Item 22: a sweep printed nothing until its last member ended. Now one line on stderr
     per member finished (in a pipe too: a sweep's lines are few), numbered in the order they
