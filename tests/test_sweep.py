@@ -240,6 +240,7 @@ def test_plot_draws_a_sweep_from_its_table_or_its_parts(tmp_path):
     assert proc.stderr.count("\n") == 1
 
 
+@pytest.mark.long
 @pytest.mark.mpi
 def test_a_group_of_two_ranks_runs_a_member_as_mpirun_runs_it_alone(tmp_path):
     """group_size = 2 under mpirun -n 2: one group, each member on both ranks; its probes.csv

@@ -46,7 +46,7 @@ def test_progress_bar_on_a_terminal_only(monkeypatch):
     assert pipe.getvalue() == ""
 
 
-@pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=pytest.mark.mpi)])
+@pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=[pytest.mark.mpi, pytest.mark.long])])
 def test_run_prints_one_summary(tmp_path, ranks):
     proc = run_command([*CLI, "run", SCENE, "--out", str(tmp_path), *SHORT], ranks)
     assert proc.returncode == 0, proc.stderr

@@ -361,6 +361,7 @@ def test_a_folder_without_outputs_is_bad_input(tmp_path, command):
     assert proc.returncode == 2 and "is not a folder" in proc.stderr, proc.stderr
 
 
+@pytest.mark.long
 @pytest.mark.mpi
 def test_mpirun_writes_the_serial_arrays(dynamic_run, tmp_path):
     out = tmp_path / "mpi"
