@@ -37,7 +37,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import SceneError
-from .results import PROBE_COLUMNS, probe_columns
+from .io.probes import PROBE_COLUMNS, probe_columns
 from .scene import PLANAR, Scene
 
 MEMORY_BASE = 80e6  # bytes

@@ -62,7 +62,6 @@ import hashlib
 import io
 import json
 import math
-import os
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -74,6 +73,7 @@ from mpi4py import MPI
 
 from . import safe_files
 from .errors import OutputError, SceneError, show_value
+from .io.probes import probe_prefix
 from .parallel import agree
 
 FORMAT = 3  # 3: the time loop's state in one part, "loop" (cosserat_fem/loop.py)
@@ -425,22 +425,6 @@ class RestartPlan:
     restart_number: int
 
 
-def _probe_prefix(path: Path, rows: int) -> tuple[int, Any]:
-    """(bytes, sha256) of the header and the first ``rows`` rows of probes.csv."""
-    digest = hashlib.sha256()
-    end = 0
-    with os.fdopen(safe_files.open_regular(path), "rb") as stream:
-        for _ in range(rows + 1):
-            line = stream.readline()
-            if not line.endswith(b"\n"):
-                raise SceneError(
-                    f"--restart: {str(path)!r} holds fewer than the checkpoint's {rows} rows"
-                )
-            digest.update(line)
-            end += len(line)
-    return end, digest
-
-
 def _xdmf_problem(path: Path, frames: int, run_id: str) -> str | None:
     """Why the XDMF file cannot be continued from ``frames`` frames of run ``run_id``."""
     from .output import XDMF_GRID, xdmf_run_id
@@ -484,7 +468,7 @@ def check_outputs(
                 else:
                     problem = _xdmf_problem(xdmf, int(outputs["xdmf_frames"]), checkpoint.run_id)
             if problem is None and probes is not None:
-                offset, digest = _probe_prefix(probes, int(outputs["probe_rows"]))
+                offset, digest = probe_prefix(probes, int(outputs["probe_rows"]))
                 if digest.hexdigest() != outputs.get("probes_sha256"):
                     problem = (
                         f"{str(probes)!r} differs from the checkpointed run's rows (written by "

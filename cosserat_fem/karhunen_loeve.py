@@ -59,7 +59,8 @@ import numpy as np
 
 from . import safe_files
 from .errors import CosseratError, SceneError
-from .results import PROBE_COLUMNS, xdmf_mesh_xml
+from .io.probes import PROBE_COLUMNS
+from .results import xdmf_mesh_xml
 
 WEIGHTINGS = ("displacement", "kinetic")
 #: Components of the snapshots: displacement (x, y, z) [m], angles (θ, ψ, φ) [rad].

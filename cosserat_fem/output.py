@@ -23,7 +23,6 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import ctypes.util
-import hashlib
 import math
 import mmap
 import os
@@ -45,8 +44,9 @@ from .charts import euler_angles, euler_matrix, quaternion_frame, quaternion_of_
 from .errors import OutputError
 from .forms.kinematics import directors
 from .forms.resultants import resultants
+from .io.probes import PROBE_FIELD_COLUMNS, probe_columns
 from .parallel import agree
-from .results import FRAME_NAME, PROBE_FIELD_COLUMNS, probe_columns, xdmf_mesh_xml
+from .results import FRAME_NAME, xdmf_mesh_xml
 
 if TYPE_CHECKING:
     from .model import RodModel
@@ -117,7 +117,7 @@ class FixedBasisAngles:
 class PointProbe:
     """Evaluates (x, y, z, θ, ψ, φ) in SI units [m, rad] at σ = ``sigma`` of a model's rod, on
     its owning rank (the components of p the model does not solve are 0), followed by the
-    ``fields`` of ``output.probe_fields`` (:data:`~cosserat_fem.results.PROBE_FIELD_COLUMNS`):
+    ``fields`` of ``output.probe_fields`` (:data:`~cosserat_fem.io.probes.PROBE_FIELD_COLUMNS`):
     the quaternion of the directors (q0, q1, q2, q3), signed as the previous call's so that it
     is continuous in time, and the directors d1, d2, d3 in the fixed basis.
 
@@ -221,148 +221,6 @@ class PointProbe:
         if self._node is not None:
             return chart.x.array[None, 4 * self._node : 4 * self._node + 4]
         return chart.eval(self.point, np.array([self.cell], dtype=np.int32))
-
-
-def last_probe_row(path: Path) -> np.ndarray:
-    """The last whole row of probes.csv (a restart's, already cut back to its checkpoint),
-    as numbers."""
-    with os.fdopen(safe_files.open_regular(path), "rb") as stream:
-        stream.seek(0, os.SEEK_END)
-        size = stream.tell()
-        stream.seek(max(0, size - 4096))
-        lines = stream.read().decode("utf-8").splitlines()
-    return np.array([float(v) for v in lines[-1].split(",")])
-
-
-class ProbeWriter:
-    """``probes.csv`` with the header t,x,y,z,theta,psi,phi (and the columns of the probe's
-    ``output.probe_fields``), written by the probe's owner.
-
-    Rows are buffered and handed to the operating system when ``flush_every`` rows are pending,
-    when ``max_delay`` seconds (wall time) have passed since the last flush, and before every
-    XDMF frame (the run flushes its probes before it writes a frame, cosserat_fem/simulation.py
-    and statics.py). So a killed run loses at most the rows since the last XDMF frame (7 rows at
-    the default scene's 8 steps a frame) or of the last ``max_delay`` s, and probes.csv always
-    reaches the last frame of the XDMF file. Measured per row, default scene: the same ~12 us a
-    row (full run) as flushing every 200 rows only; flushing every row cost ~23 us a row more on
-    a busy ext4 file system (a write() can wait ~3 ms for a journal commit of another process),
-    3-5 % of a ~0.5 ms step. A SIGKILL inside the write() of a block can leave the block cut
-    where a page of the file ends (Linux copies a write a page at a time and stops between
-    pages for a fatal signal): the file then ends with part of a row, which
-    :func:`cosserat_fem.results.read_probes` and a restart drop (docs/stability.md).
-
-    The SHA-256 of the bytes written (:meth:`digest`) goes into each checkpoint, so that a
-    restart can prove that probes.csv is the checkpointed run's (cosserat_fem/checkpoint.py).
-    A write that fails (disk full, file size limit) raises :class:`OutputError` at once in
-    serial; under MPI the owner keeps it and every rank raises it at :meth:`check`.
-    """
-
-    def __init__(
-        self,
-        path: Path,
-        probe: PointProbe,
-        flush_every: int = 200,
-        max_delay: float = 0.05,
-        resume: bool = False,
-    ):
-        """``resume``: continue the existing file (a restart, which has cut it back; a link
-        is continued as the folder's own copy), else make a new file (never written through a
-        link, module docstring)."""
-        self.path = Path(path)
-        self.probe = probe
-        self.comm = probe.U.function_space.mesh.comm
-        self.flush_every = flush_every
-        self.max_delay = max_delay
-        self.error: OutputError | None = None
-        self._pending = 0
-        self._rows = np.empty((flush_every, len(probe.columns)))
-        self._format = "%.10e," + ",".join(["%.16e"] * (len(probe.columns) - 1)) + "\n"
-        self._file = None
-        self._deadline = 0.0
-        self._sha = hashlib.sha256()
-        if probe.is_owner:
-            try:
-                if resume:
-                    fd = safe_files.open_append(path)
-                    self._file = os.fdopen(fd, "a", encoding="utf-8")
-                    self._sha.update(safe_files.read_fd(fd))
-                else:
-                    self._file = os.fdopen(safe_files.create(path), "w", encoding="utf-8")
-            except OSError as exc:
-                self._fail(exc)
-            if not resume:
-                self._write(",".join(probe.columns) + "\n")
-            self.flush()
-        self.check()
-
-    def _fail(self, exc: OSError) -> None:
-        """Keep the OutputError of a failed write and write no more; raised at once in serial, at
-        :meth:`check` under MPI."""
-        self.error = OutputError(
-            f"output: cannot write {str(self.path)!r} ({exc.strerror or exc}); the rows "
-            "before are kept"
-        )
-        self._file = None
-        if self.comm.size == 1:
-            raise self.error
-
-    def _write(self, text: str) -> None:
-        """``text`` to the file (flushed) and into the SHA-256; a failure goes to :meth:`_fail`."""
-        if self._file is None:
-            return
-        try:
-            self._file.write(text)
-            self._file.flush()
-        except OSError as exc:
-            self._fail(exc)
-            return
-        self._sha.update(text.encode("utf-8"))
-
-    def check(self) -> None:
-        """Raise, on every rank, an error the owner met (collective under MPI)."""
-        agree(self.comm, self.error)
-
-    def write(self, t: float) -> None:
-        """Buffer the row of time t; see the class docstring for when rows go to the file."""
-        if self._file is None:
-            return
-        row = self._rows[self._pending]
-        row[0] = t
-        row[1:] = self.probe.values()
-        self._pending += 1
-        if self._pending >= self.flush_every or time.monotonic() >= self._deadline:
-            self.flush()
-
-    def flush(self, sync: bool = False) -> None:
-        """Hand the pending rows to the operating system; ``sync``: fsync too (at the end)."""
-        if self._file is not None:
-            if self._pending:
-                # One formatting call for the whole block (about 10x cheaper than per value).
-                block = tuple(self._rows[: self._pending].ravel())
-                self._pending = 0
-                self._write((self._format * (len(block) // len(self.probe.columns))) % block)
-            if sync and self._file is not None:
-                try:
-                    os.fsync(self._file.fileno())
-                except OSError as exc:
-                    self._fail(exc)
-            self._deadline = time.monotonic() + self.max_delay
-
-    def digest(self) -> str | None:
-        """SHA-256 of what probes.csv holds (rows pending are written first); None off the
-        owner."""
-        if not self.probe.is_owner:
-            return None
-        self.flush()
-        return self._sha.hexdigest()
-
-    def close(self) -> None:
-        """Flush, fsync and close the owner's file; a failure is handled as by :meth:`_fail`."""
-        if self._file is not None:
-            self.flush(sync=True)
-            if self._file is not None:
-                self._file.close()
-            self._file = None
 
 
 #: The point arrays of each ``output.fields`` entry, in the order they are written.

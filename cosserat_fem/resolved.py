@@ -428,7 +428,7 @@ class Output:
     fields: tuple[str, ...]
     checkpoint: bool
     checkpoint_interval: float
-    #: What probes.csv holds besides t, x, y, z, θ, ψ, φ (cosserat_fem/results.PROBE_FIELD_COLUMNS).
+    #: What probes.csv holds besides t, x, y, z, θ, ψ, φ (cosserat_fem/io/probes.py).
     probe_fields: tuple[str, ...] = ()
 
     def xdmf_every(self, step: float) -> int:

@@ -54,7 +54,7 @@ import numpy as np
 
 from .errors import SceneError
 from .events import Observer
-from .results import PROBE_COLUMNS
+from .io.probes import PROBE_COLUMNS
 
 #: The columns the response is measured on: the probe's (x, y, z [m], θ, ψ, φ [rad]).
 COLUMNS = PROBE_COLUMNS[1:]

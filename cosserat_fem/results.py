@@ -54,10 +54,8 @@ exception. What is read has passed these checks:
 
 from __future__ import annotations
 
-import itertools
 import json
 import math
-import os
 import re
 import xml.etree.ElementTree as ET
 import xml.parsers.expat
@@ -69,144 +67,32 @@ import numpy as np
 
 from . import safe_files
 from .errors import CosseratError, SceneError
+from .io.probes import PROBE_COLUMNS, read_probe_table
+from .io.reading import (
+    MAX_MAGNITUDE,
+    decode,
+    excerpt,
+    finite_number,
+    is_file,
+    json_kind,
+    quoted,
+    read_bytes,
+    short_reason,
+)
 
-PROBE_COLUMNS = ("t", "x", "y", "z", "theta", "psi", "phi")
-PROBE_HEADER = ",".join(PROBE_COLUMNS)
-#: The columns that each choice of ``output.probe_fields`` appends to probes.csv, in this order
-#: (the schema's choices): the unit quaternion (q0 the scalar part) of the rotation that takes
-#: e_j to the directors d_j, continued in sign from row to row; the directors' components in
-#: the fixed basis (d1_x = d1 · e1, ...).
-PROBE_FIELD_COLUMNS = {
-    "quaternion": ("q0", "q1", "q2", "q3"),
-    "directors": tuple(f"d{j}_{c}" for j in (1, 2, 3) for c in "xyz"),
-}
-
-
-def probe_columns(fields: tuple[str, ...] = ()) -> tuple[str, ...]:
-    """probes.csv's columns with the ``output.probe_fields`` ``fields``: t, x, ..., φ, then each
-    field's columns in the order of :data:`PROBE_FIELD_COLUMNS`."""
-    extra = [c for name, cols in PROBE_FIELD_COLUMNS.items() if name in fields for c in cols]
-    return (*PROBE_COLUMNS, *extra)
-
-
-#: Every header a probes.csv may have (any subset of the fields, in their order), and its columns.
-_HEADERS = {
-    ",".join(columns): columns
-    for n in range(len(PROBE_FIELD_COLUMNS) + 1)
-    for columns in map(probe_columns, itertools.combinations(PROBE_FIELD_COLUMNS, n))
-}
-#: Largest files read [bytes]: probes.csv ~150 bytes a row (about 7 million rows), an XDMF
-#: file ~1-2.5 kB a frame (some 60 000 frames), summary.json ~4 kB.
-MAX_PROBES_BYTES = 1 << 30
+#: Largest files read [bytes]: an XDMF file ~1-2.5 kB a frame (some 60 000 frames),
+#: summary.json ~4 kB.
 MAX_XDMF_BYTES = 128 << 20
 MAX_SUMMARY_BYTES = 16 << 20
-#: Longest line of probes.csv [bytes] (a row is ~150).
-MAX_LINE_BYTES = 4096
 #: Most numbers read from the .h5 files of one XDMF file (800 MB as float64; the default
 #: run holds ~1e5, a run of 10 000 frames of all six arrays on 300 points ~5e7).
 MAX_VALUES = 10**8
-#: Largest magnitude of a value read; beyond it matplotlib and VTK overflow (their ranges
-#: and squares of values near 1e308 are inf) and no rod's output has it.
-MAX_MAGNITUDE = 1e100
 #: Longest title shown in a figure [characters].
 MAX_TITLE = 120
 
 
 class NoFramesError(SceneError):
     """An XDMF file that holds no frame (yet): a run killed before it wrote its first."""
-
-
-def _where(path: str | Path) -> str:
-    return repr(str(path))
-
-
-def _show(text: str, size: int = 40) -> str:
-    """``text`` from a file, for a message: quoted with ``repr`` (no control characters reach
-    the terminal), shortened."""
-    return repr(text if len(text) <= size else text[:size] + "...")
-
-
-def _reason(exc: BaseException, size: int = 160) -> str:
-    """A library's exception, shortened for a message (HDF5's can run to 400 characters)."""
-    text = " ".join(str(exc).split()) or type(exc).__name__
-    return text if len(text) <= size else text[: size - 3] + "..."
-
-
-def _json_type(value: object) -> str:
-    """What a JSON value is, in words, for a message ("an object", "a number", ...)."""
-    if isinstance(value, bool):
-        return "a boolean"
-    if value is None:
-        return "null"
-    names = {dict: "an object", list: "an array", str: "a string", int: "a number"}
-    return names.get(type(value), "a number")
-
-
-def _is_file(path: Path) -> bool:
-    """Whether there is a regular file at ``path`` (links followed); anything else there (a
-    folder, a device, a FIFO, a dangling or looping link) is bad input."""
-    try:
-        if path.is_file():
-            return True
-        if not path.exists() and not path.is_symlink():
-            return False
-        if path.is_dir():
-            problem = "is a folder, not a file"
-        elif path.exists():
-            problem = "is not a regular file (a device, FIFO or socket)"
-        else:
-            problem = "is a link to nothing (or a loop of links)"
-    except (OSError, ValueError) as exc:  # ValueError: a NUL in the name
-        raise SceneError(f"{_where(path)}: cannot look at it ({exc})") from None
-    raise SceneError(f"{_where(path)}: {problem}")
-
-
-def _check_size(path: Path, limit: int) -> None:
-    """SceneError if ``path`` cannot be looked at or holds more than ``limit`` bytes."""
-    try:
-        size = path.stat().st_size
-    except OSError as exc:
-        raise SceneError(f"{_where(path)}: cannot read it ({exc})") from None
-    if size > limit:
-        raise SceneError(
-            f"{_where(path)}: {size} bytes, more than the {limit >> 20} MiB a run's file "
-            "can have; not a run's output"
-        )
-
-
-def _read_bytes(path: Path, limit: int) -> bytes:
-    """The content of the regular file ``path``, refused if larger than ``limit`` bytes."""
-    _check_size(path, limit)
-    try:
-        data = safe_files.read_regular(path, limit)
-    except OSError as exc:
-        raise SceneError(f"{_where(path)}: cannot read it ({exc.strerror or exc})") from None
-    if len(data) > limit:
-        raise SceneError(f"{_where(path)}: more than {limit >> 20} MiB; not a run's output")
-    return data
-
-
-def _decode(path: Path, data: bytes, where: str = "") -> str:
-    """``data`` as UTF-8 text; SceneError naming the first bad byte and its offset (``where``: a
-    prefix such as "line 3: ")."""
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise SceneError(
-            f"{_where(path)}: {where}not UTF-8 text (byte 0x{data[exc.start]:02x} at offset "
-            f"{exc.start}); not a run's output"
-        ) from None
-
-
-def _number(value: object) -> float | None:
-    """``value`` as a float if it is a finite JSON number within MAX_MAGNITUDE, else None."""
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return None
-    try:
-        number = float(value)
-    except OverflowError:
-        return None
-    return number if math.isfinite(number) and abs(number) <= MAX_MAGNITUDE else None
 
 
 @dataclass
@@ -290,10 +176,10 @@ def open_run(directory: str | Path, command: str) -> Run:
     if not path.is_dir():
         raise SceneError(f"{command}: {str(path)!r} is not a folder")
     summary_path, probes_path = path / "summary.json", path / "probes.csv"
-    summary = read_summary(summary_path) if _is_file(summary_path) else None
-    columns, probes = read_probe_table(probes_path) if _is_file(probes_path) else (None, None)
+    summary = read_summary(summary_path) if is_file(summary_path) else None
+    columns, probes = read_probe_table(probes_path) if is_file(probes_path) else (None, None)
     xdmf = path / "solution.xdmf"
-    run = Run(path, summary, probes, xdmf if _is_file(xdmf) else None, columns or PROBE_COLUMNS)
+    run = Run(path, summary, probes, xdmf if is_file(xdmf) else None, columns or PROBE_COLUMNS)
     if run.probes is None and run.xdmf is None:
         raise SceneError(
             f"{command}: {str(path)!r} holds no run outputs (probes.csv, solution.xdmf); "
@@ -306,19 +192,19 @@ def read_summary(path: str | Path) -> dict:
     """summary.json as a dict, with the fields that plot and render use checked: ``kind`` and
     ``scene.title`` strings, ``scene.rod.length`` a positive number, where present."""
     path = Path(path)
-    text = _decode(path, _read_bytes(path, MAX_SUMMARY_BYTES))
+    text = decode(path, read_bytes(path, MAX_SUMMARY_BYTES))
     try:
         summary = json.loads(text)
     except (ValueError, RecursionError) as exc:  # RecursionError: [[[[... nested too deep
         message = str(exc) if isinstance(exc, ValueError) else "nested too deep"
-        raise SceneError(f"{_where(path)}: not JSON ({message})") from None
+        raise SceneError(f"{quoted(path)}: not JSON ({message})") from None
     if not isinstance(summary, dict):
         raise SceneError(
-            f"{_where(path)}: not a run's summary (a JSON object) but {_json_type(summary)}"
+            f"{quoted(path)}: not a run's summary (a JSON object) but {json_kind(summary)}"
         )
 
     def bad(key: str, expected: str, value: object) -> SceneError:
-        return SceneError(f"{_where(path)}: {key} must be {expected}, got {_json_type(value)}")
+        return SceneError(f"{quoted(path)}: {key} must be {expected}, got {json_kind(value)}")
 
     kind = summary.get("kind")
     if kind is not None and not isinstance(kind, str):
@@ -336,98 +222,15 @@ def read_summary(path: str | Path) -> dict:
         raise bad("scene.rod", "an object", rod)
     length = (rod or {}).get("length")
     if length is not None:
-        number = _number(length)
+        number = finite_number(length)
         if number is None or number <= 0:
-            shown = _json_type(length)
+            shown = json_kind(length)
             if not isinstance(length, bool) and isinstance(length, int | float):
                 shown = repr(length) if len(repr(length)) <= 20 else repr(length)[:17] + "..."
             raise SceneError(
-                f"{_where(path)}: scene.rod.length must be a positive number, got {shown}"
+                f"{quoted(path)}: scene.rod.length must be a positive number, got {shown}"
             )
     return summary
-
-
-def read_probes(path: str | Path) -> np.ndarray:
-    """Rows (t, x, y, z, θ, ψ, φ, ...) of probes.csv, (n, columns): the columns that its header
-    names (:func:`read_probe_table`)."""
-    return read_probe_table(path)[1]
-
-
-def read_probe_table(path: str | Path) -> tuple[tuple[str, ...], np.ndarray]:
-    """(columns, rows) of probes.csv: the header's names and the rows (n, len(columns)); a cut
-    last line (a killed run) is dropped, an empty file or a cut header is no rows (of the base
-    columns); anything else that is not a known header and as many finite numbers on each
-    whole line is bad input (see the module docstring)."""
-    path = Path(path)
-    _check_size(path, MAX_PROBES_BYTES)
-    blocks: list[np.ndarray] = []
-    rows: list[list[float]] = []
-    try:
-        with os.fdopen(safe_files.open_regular(path), "rb") as stream:
-            first = stream.readline(MAX_LINE_BYTES)
-            if not first.endswith(b"\n"):
-                # No whole line: a run killed as it made the file left an empty file or a
-                # cut header.
-                if not stream.read(1) and any(h.encode().startswith(first) for h in _HEADERS):
-                    return PROBE_COLUMNS, np.empty((0, len(PROBE_COLUMNS)))
-                raise SceneError(
-                    f"{_where(path)}: not a probes.csv (no header line {PROBE_HEADER!r})"
-                )
-            header = _decode(path, first, "line 1: ").rstrip("\n").rstrip("\r")
-            columns = _HEADERS.get(header)
-            if columns is None:
-                raise SceneError(
-                    f"{_where(path)}: not a probes.csv (header {_show(header)}, expected "
-                    f"{PROBE_HEADER!r} and the columns of output.probe_fields)"
-                )
-            number = 1
-            while raw := stream.readline(MAX_LINE_BYTES):
-                number += 1
-                if not raw.endswith(b"\n"):
-                    if stream.read(1):
-                        raise SceneError(
-                            f"{_where(path)}: line {number} is longer than {MAX_LINE_BYTES} "
-                            "bytes; not a probes.csv"
-                        )
-                    break  # the row being written when the run was killed
-                row = _probe_row(path, number, raw, columns)
-                if row is not None:
-                    rows.append(row)
-                if len(rows) == 65536:
-                    blocks.append(np.array(rows))
-                    rows = []
-    except OSError as exc:
-        raise SceneError(f"{_where(path)}: cannot read it ({exc.strerror or exc})") from None
-    blocks.append(np.array(rows, dtype=float).reshape(-1, len(columns)))
-    return columns, np.concatenate(blocks)
-
-
-def _probe_row(path: Path, number: int, raw: bytes, columns: tuple[str, ...]) -> list[float] | None:
-    """The numbers of line ``number`` of probes.csv (None for a blank line)."""
-    text = _decode(path, raw, f"line {number}: ").rstrip("\n").rstrip("\r")
-    if not text.strip():
-        return None
-    values = text.split(",")
-    if len(values) != len(columns):
-        raise SceneError(
-            f"{_where(path)}: line {number} has {len(values)} values, expected "
-            f"{len(columns)} ({_show(','.join(columns), 200)})"
-        )
-    row = []
-    for name, value in zip(columns, values, strict=True):
-        try:
-            v = float(value)
-        except ValueError:
-            raise SceneError(
-                f"{_where(path)}: line {number}, column {name}: {_show(value)} is not a number"
-            ) from None
-        if not (math.isfinite(v) and abs(v) <= MAX_MAGNITUDE):
-            raise SceneError(
-                f"{_where(path)}: line {number}, column {name}: {v!r} is not a finite "
-                f"number within ±{MAX_MAGNITUDE:g} (a run writes none)"
-            )
-        row.append(v)
-    return row
 
 
 def _h5py():
@@ -471,22 +274,22 @@ class _Datasets:
         self.close()
 
     def _bad(self, what: str, problem: str) -> SceneError:
-        return SceneError(f"{_where(self.xdmf)}: {what}: {problem}")
+        return SceneError(f"{quoted(self.xdmf)}: {what}: {problem}")
 
     def _open(self, name: str, what: str):
         """The h5py File ``name`` of the XDMF file's folder, opened once; SceneError if it is
         missing or not HDF5."""
         if name not in self.files:
             path = self.folder / name
-            if not _is_file(path):
+            if not is_file(path):
                 raise self._bad(what, f"refers to {str(path)!r}, which does not exist")
             h5py = _h5py()
             try:
                 self.files[name] = h5py.File(path, "r")
             except _H5_ERRORS as exc:
                 raise SceneError(
-                    f"{_where(path)}: not a readable HDF5 file ({_reason(exc)}); referred to by "
-                    f"{self.xdmf.name}"
+                    f"{quoted(path)}: not a readable HDF5 file ({short_reason(exc)}); referred "
+                    f"to by {self.xdmf.name}"
                 ) from None
         return self.files[name]
 
@@ -495,23 +298,23 @@ class _Datasets:
         then the XDMF file."""
         name, _, dataset = (item.text or "").strip().partition(":")
         in_xml = f"({what} in {self.xdmf.name})"
-        return f"{_where(self.folder / name)}: dataset {_show(dataset)} {in_xml}"
+        return f"{quoted(self.folder / name)}: dataset {excerpt(dataset)} {in_xml}"
 
     def read(self, item: ET.Element, what: str, shape: tuple[int, ...] | None = None):
         """The dataset that DataItem ``item`` (of ``what``) refers to, as float64, after the
         checks of the module docstring; ``shape`` the one it must have, if known."""
         if item.get("Format", "XML") != "HDF":
-            problem = f"DataItem Format {_show(item.get('Format', 'XML'))} is not supported"
+            problem = f"DataItem Format {excerpt(item.get('Format', 'XML'))} is not supported"
             raise self._bad(what, problem + " (HDF only)")
         text = (item.text or "").strip()
         name, colon, dataset = text.partition(":")
         if not (colon and name and dataset):
-            raise self._bad(what, f"DataItem {_show(text)} is not 'file.h5:/dataset'")
+            raise self._bad(what, f"DataItem {excerpt(text)} is not 'file.h5:/dataset'")
         plain = not ("/" in name or "\\" in name or name in (".", ".."))
         if not (plain or _FRAME_FILE.fullmatch(name)):
             raise self._bad(
                 what,
-                f"{_show(name)} is not a file name in the XDMF file's folder, nor a frame file "
+                f"{excerpt(name)} is not a file name in the XDMF file's folder, nor a frame file "
                 "'<name>.frames/<digits>.h5' or '<name>.frames/mesh.h5'",
             )
         dims = item.get("Dimensions")
@@ -520,7 +323,7 @@ class _Datasets:
             try:
                 expected = tuple(int(n) for n in dims.split())
             except ValueError:
-                raise self._bad(what, f"Dimensions {_show(dims)} are not integers") from None
+                raise self._bad(what, f"Dimensions {excerpt(dims)} are not integers") from None
         h5 = self._open(name, what)
         h5_where = self.where(item, what)
         h5py = _h5py()
@@ -543,7 +346,7 @@ class _Datasets:
             self.budget -= obj.size
             values = np.asarray(obj[()], dtype=float)
         except _H5_ERRORS as exc:
-            raise SceneError(f"{h5_where}: cannot read it ({_reason(exc)})") from None
+            raise SceneError(f"{h5_where}: cannot read it ({short_reason(exc)})") from None
         if values.size and not (
             np.isfinite(values).all() and np.abs(values).max() <= MAX_MAGNITUDE
         ):
@@ -573,9 +376,9 @@ class _RootReached(Exception):
 def _parse_xml(path: Path) -> ET.Element:
     """The root of the XML file ``path``; a file declaring entities is refused before any is
     expanded (billion laughs: expat >= 2.4 stops a bomb too, but not every Python has it)."""
-    data = _read_bytes(path, MAX_XDMF_BYTES)
+    data = read_bytes(path, MAX_XDMF_BYTES)
     if not data.strip():
-        raise SceneError(f"{_where(path)}: empty file, not an XDMF file")
+        raise SceneError(f"{quoted(path)}: empty file, not an XDMF file")
     scan = xml.parsers.expat.ParserCreate()
 
     def entity(name, *args):
@@ -592,22 +395,22 @@ def _parse_xml(path: Path) -> ET.Element:
         pass
     except _EntityDeclared as exc:
         raise SceneError(
-            f"{_where(path)}: declares the XML entity {_show(str(exc))}; an XDMF file of a run "
+            f"{quoted(path)}: declares the XML entity {excerpt(str(exc))}; an XDMF file of a run "
             "declares none (refused: entity expansion)"
         ) from None
     except (xml.parsers.expat.ExpatError, ValueError, LookupError) as exc:
-        raise SceneError(f"{_where(path)}: not a readable XDMF file (XML: {exc})") from None
+        raise SceneError(f"{quoted(path)}: not a readable XDMF file (XML: {exc})") from None
     try:
         return ET.fromstring(data)
     except (ET.ParseError, ValueError, LookupError) as exc:
-        raise SceneError(f"{_where(path)}: not a readable XDMF file (XML: {exc})") from None
+        raise SceneError(f"{quoted(path)}: not a readable XDMF file (XML: {exc})") from None
 
 
 def _item(path: Path, grid: ET.Element, part: str, where: str) -> ET.Element:
     """The DataItem of ``grid``'s ``part`` (Geometry or Topology)."""
     item = grid.find(f"{part}/DataItem")
     if item is None:
-        raise SceneError(f"{_where(path)}: {where} has no {part} with a DataItem")
+        raise SceneError(f"{quoted(path)}: {where} has no {part} with a DataItem")
     return item
 
 
@@ -617,14 +420,14 @@ def _time(path: Path, grid: ET.Element, index: int) -> float:
     time = grid.find("Time")
     value = None if time is None else time.get("Value")
     if value is None:
-        raise SceneError(f"{_where(path)}: frame {index + 1} has no Time Value")
+        raise SceneError(f"{quoted(path)}: frame {index + 1} has no Time Value")
     try:
         t = float(value)
     except ValueError:
         t = math.nan
     if not (math.isfinite(t) and abs(t) <= MAX_MAGNITUDE):
         raise SceneError(
-            f"{_where(path)}: frame {index + 1}: Time Value {_show(value)} is not a finite number"
+            f"{quoted(path)}: frame {index + 1}: Time Value {excerpt(value)} is not a finite number"
         )
     return t
 
@@ -637,14 +440,14 @@ def read_xdmf(path: str | Path, length: float | None = None) -> RodSeries:
     """The time series of ``path`` (see the module docstring). ``length`` [m] is used only
     for files of the earlier layout, whose mesh coordinate is σ = s/ℓ (default 1)."""
     path = Path(path)
-    if not _is_file(path):
-        raise SceneError(f"{_where(path)}: no such file")
+    if not is_file(path):
+        raise SceneError(f"{quoted(path)}: no such file")
     root = _parse_xml(path)
     if root.tag != "Xdmf":
-        raise SceneError(f"{_where(path)}: not an XDMF file (root element {_show(root.tag)})")
+        raise SceneError(f"{quoted(path)}: not an XDMF file (root element {excerpt(root.tag)})")
     domain = root.find("Domain")
     if domain is None:
-        raise SceneError(f"{_where(path)}: not an XDMF file of a run (no Domain)")
+        raise SceneError(f"{quoted(path)}: not an XDMF file of a run (no Domain)")
     frames: dict[float, dict[str, ET.Element]] = {}
     mesh: ET.Element | None = None  # the grid holding Geometry and Topology
     index = 0
@@ -656,12 +459,12 @@ def read_xdmf(path: str | Path, length: float | None = None) -> RodSeries:
                 name = attribute.get("Name")
                 if not name:
                     raise SceneError(
-                        f"{_where(path)}: frame {index + 1} has an Attribute without a Name"
+                        f"{quoted(path)}: frame {index + 1} has an Attribute without a Name"
                     )
                 item = attribute.find("DataItem")
                 if item is None:
                     raise SceneError(
-                        f"{_where(path)}: frame {index + 1}: Attribute {_show(name)} has no "
+                        f"{quoted(path)}: frame {index + 1}: Attribute {excerpt(name)} has no "
                         "DataItem"
                     )
                 frame[name] = item
@@ -669,20 +472,20 @@ def read_xdmf(path: str | Path, length: float | None = None) -> RodSeries:
                 mesh = grid
             index += 1
     if not frames:
-        raise NoFramesError(f"{_where(path)}: the XDMF file holds no time steps (yet)")
+        raise NoFramesError(f"{quoted(path)}: the XDMF file holds no time steps (yet)")
     where = "the first frame's mesh"
     if mesh is None:
         mesh, where = domain.find("Grid[@Name='mesh']"), "the grid 'mesh'"
         if mesh is None:
-            raise SceneError(f"{_where(path)}: no mesh in the XDMF file (no Geometry)")
+            raise SceneError(f"{quoted(path)}: no mesh in the XDMF file (no Geometry)")
     geometry = mesh.find("Geometry")
     if geometry is None:
-        raise SceneError(f"{_where(path)}: {where} has no Geometry")
+        raise SceneError(f"{quoted(path)}: {where} has no Geometry")
     geometry_type = geometry.get("GeometryType", "XYZ")
     columns = _GEOMETRY_COLUMNS.get(geometry_type)
     if columns is None:
         raise SceneError(
-            f"{_where(path)}: GeometryType {_show(geometry_type)} is not supported (XYZ, XY)"
+            f"{quoted(path)}: GeometryType {excerpt(geometry_type)} is not supported (XYZ, XY)"
         )
     geometry_item = _item(path, mesh, "Geometry", where)
     topology_item = _item(path, mesh, "Topology", where)
@@ -709,14 +512,14 @@ def read_xdmf(path: str | Path, length: float | None = None) -> RodSeries:
         count = len(times) * len(names) * len(x) * 3
         if count > data.budget:
             raise SceneError(
-                f"{_where(path)}: {len(times)} frames of {len(names)} arrays on {len(x)} "
+                f"{quoted(path)}: {len(times)} frames of {len(names)} arrays on {len(x)} "
                 f"points: more than {MAX_VALUES} values; too large"
             )
         arrays = {}
         for n in names:
             values = np.empty((len(times), len(x), 3))
             for i, t in enumerate(times):
-                what = f"{_show(n)} at time {t:.6g}"
+                what = f"{excerpt(n)} at time {t:.6g}"
                 values[i] = data.read(frames[t][n], what, shape=(len(x), 3))
             arrays[n] = values
     if columns == 3 and not x[:, :2].any():
@@ -724,7 +527,7 @@ def read_xdmf(path: str | Path, length: float | None = None) -> RodSeries:
     else:  # earlier layout: σ = s/ℓ along the first axis
         s = x[:, 0] * (1.0 if length is None else length)
     if not s.max() > s.min():
-        where = f"{_where(path)} (geometry {(geometry_item.text or '').strip()!r})"
+        where = f"{quoted(path)} (geometry {(geometry_item.text or '').strip()!r})"
         raise SceneError(f"{where}: the mesh has no length (all its points at one s)")
     order = np.argsort(s, kind="stable")
     s = s[order]
@@ -756,7 +559,7 @@ def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[li
 
     directory = Path(directory)
     table = directory / SWEEP_TABLE
-    if not parts_only and _is_file(table):
+    if not parts_only and is_file(table):
         sources = [table]
     else:
         sources = sorted((directory / SWEEP_PARTS).glob("group-*.csv"))
@@ -767,7 +570,7 @@ def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[li
             text = safe_files.read_text(source)
         except (OSError, UnicodeDecodeError) as exc:
             reason = exc.strerror if isinstance(exc, OSError) else exc
-            raise SceneError(f"{_where(source)}: cannot read it ({reason})") from None
+            raise SceneError(f"{quoted(source)}: cannot read it ({reason})") from None
         reader = csv.DictReader(text[: text.rfind("\n") + 1].splitlines())
         rows += _whole_rows(source, reader, columns)
         columns = list(reader.fieldnames or columns)
@@ -776,7 +579,7 @@ def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[li
     try:
         rows.sort(key=lambda row: int(row["member"]))
     except (KeyError, TypeError, ValueError):
-        raise SceneError(f"{_where(directory)}: not a sweep's table (a member that is not a "
+        raise SceneError(f"{quoted(directory)}: not a sweep's table (a member that is not a "
                          "number)") from None  # fmt: skip
     return columns, rows
 
@@ -801,17 +604,17 @@ def _whole_rows(source: Path, reader, columns: list[str]) -> list[dict]:
     if header is None:  # an empty part: its group was killed before it wrote its header
         return []
     if columns and list(header) != columns:
-        raise SceneError(f"{_where(source)}: its columns are not those of the sweep's other "
+        raise SceneError(f"{quoted(source)}: its columns are not those of the sweep's other "
                          "table parts: not the same sweep's table")  # fmt: skip
     if len(set(header)) != len(header) or "" in header:
-        raise SceneError(f"{_where(source)}: a header with an empty or repeated column; not a "
+        raise SceneError(f"{quoted(source)}: a header with an empty or repeated column; not a "
                          "sweep's table")  # fmt: skip
     rows = []
     for row in reader:
         extra = row.pop(None, None) or []  # fields beyond the header's
         missing = sum(row[k] is None for k in header)  # fields short of it
         if extra or missing:
-            raise SceneError(f"{_where(source)}: line {reader.line_num} has "
+            raise SceneError(f"{quoted(source)}: line {reader.line_num} has "
                              f"{len(header) + len(extra) - missing} fields, not the header's "
                              f"{len(header)}")  # fmt: skip
         rows.append(row)
@@ -825,11 +628,11 @@ def check_sweep_rows(directory: str | Path, columns: list[str], rows: list[dict]
     of a member it has (0 ... members − 1), with the member's values of the varied keys as
     the sweep's table writes them (JSON), and the table's varied columns the record's.
     SceneError naming the table otherwise: a row of another sweep is not merged."""
-    where = _where(Path(directory) / SWEEP_TABLE)
+    where = quoted(Path(directory) / SWEEP_TABLE)
     varied, members = record.get("varied"), record.get("members")
     if not (isinstance(varied, list) and all(isinstance(k, str) for k in varied)
             and isinstance(members, int) and not isinstance(members, bool)):  # fmt: skip
-        raise SceneError(f"{_where(Path(directory) / 'sweep.json')}: not a sweep's record "
+        raise SceneError(f"{quoted(Path(directory) / 'sweep.json')}: not a sweep's record "
                          "(varied, members)")  # fmt: skip
     if "wall_s" not in columns or "steps" not in columns or columns[
             columns.index("wall_s") + 1 : columns.index("steps")] != varied:  # fmt: skip

@@ -29,8 +29,8 @@ from cosserat_fem.errors import SceneError, show_value
 from cosserat_fem.expressions import RESERVED_NAMES, check_name
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.section import TORSION_CONSTANT_RULES
+from cosserat_fem.io.probes import PROBE_FIELD_COLUMNS
 from cosserat_fem.load_data import INTERPOLATIONS, OUTSIDE, S_INTERPOLATIONS
-from cosserat_fem.results import PROBE_FIELD_COLUMNS
 from cosserat_fem.safe_files import Unreadable, read_on_root
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).

@@ -63,11 +63,12 @@ from mpi4py import MPI
 from . import budget, safe_files
 from .charts import change_chart
 from .errors import CosseratError, OutputError, SceneError, StopError
+from .io.probes import PROBE_COLUMNS
 from .parallel import agree
 from .progress import SweepProgress
 from .response import COLUMNS as RESPONSE_NAMES
 from .response import MEASURES, PeriodicResponse, continued_start
-from .results import PROBE_COLUMNS, STOPPED, SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
+from .results import STOPPED, SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
 from .run_folder import holding_folders, prepare_output_dir
 from .sweep_spec import Member, SweepSpec, forced_span
 
@@ -197,7 +198,7 @@ def _checkpoint(folder: Path, scene, comm):
 def _whole_probes(folder: Path, comm) -> np.ndarray | None:
     """The rows of a continued member's probes.csv, from its start (a restart's result holds
     the rows after the checkpoint only): read on rank 0, for the row it writes."""
-    from .results import read_probe_table
+    from .io.probes import read_probe_table
     from .run_folder import PROBES
 
     return read_probe_table(folder / PROBES)[1] if comm.rank == 0 else None

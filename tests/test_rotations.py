@@ -226,7 +226,8 @@ def test_outputs_need_no_decoding_of_charts(tmp_path):
     from xdmf_files import read_arrays
 
     from cosserat_fem.charts import euler_matrix, quaternion_frame
-    from cosserat_fem.results import PROBE_FIELD_COLUMNS, open_run
+    from cosserat_fem.io.probes import PROBE_FIELD_COLUMNS
+    from cosserat_fem.results import open_run
 
     out = tmp_path / "whip"
     fields = "output.fields=['displacement', 'angles', 'directors']"

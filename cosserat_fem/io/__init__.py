@@ -1,0 +1,17 @@
+"""The files of a run, one module a format, each format's writer beside its reader.
+
+==================  =====================================================================
+module              files
+==================  =====================================================================
+``probes``          probes.csv: the probe's row a step (:class:`~.probes.ProbeWriter`,
+                    :func:`~.probes.read_probe_table`)
+``reading``         the checks every reader makes (regular file, size, UTF-8, finite numbers)
+==================  =====================================================================
+
+The names, columns and constants of a format are defined in its module only; the writers, the
+schema, the budget and the readers import them from there. No module here imports DOLFINx: what
+is sampled or computed on the mesh (probe values, the output fields' UFL) is
+cosserat_fem/fields.py's. The readers need numpy, the standard library and h5py only, so that
+``cosserat-fem plot``/``render`` work without the solver stack (and h5py cannot share a process
+with DOLFINx's HDF5: cosserat_fem/io/xdmf.py).
+"""
