@@ -35,6 +35,7 @@ import numpy as np
 
 from .. import safe_files
 from ..errors import OutputError, SceneError
+from ..parallel import agree
 from .reading import MAX_MAGNITUDE, check_size, decode, excerpt, quoted
 
 if TYPE_CHECKING:
@@ -270,8 +271,6 @@ class ProbeWriter:
 
     def check(self) -> None:
         """Raise, on every rank, an error the owner met (collective under MPI)."""
-        from ..parallel import agree  # mpi4py: not at import (the reader runs without it)
-
         agree(self.comm, self.error)
 
     def write(self, t: float) -> None:
