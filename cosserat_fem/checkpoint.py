@@ -42,7 +42,7 @@ to its rows, the XDMF file to its frames, and then (the XML cut first, so that a
 half-way leaves no XML naming a deleted file) the frame files after them,
 ``<name>.frames/<i>.h5`` for i >= the checkpoint's frames, deleted; new frames go into new
 frame files, ``<name>.frames/<frames>.h5`` on, referenced by the one ``<name>.xdmf``
-(cosserat_fem/output.py). Outputs of the earlier single-file layout are continued the same
+(cosserat_fem/io/xdmf.py). Outputs of the earlier single-file layout are continued the same
 way (their ``<name>-restart<m>.h5`` files of later restarts deleted).
 A new run into a folder removes the checkpoint of an earlier one (cosserat_fem/run_folder.py):
 the files of :data:`OWN_FILES` in ``checkpoint/``, nothing else there.
@@ -74,6 +74,7 @@ from mpi4py import MPI
 from . import safe_files
 from .errors import OutputError, SceneError, show_value
 from .io.probes import probe_prefix
+from .io.xdmf import cut_xdmf, frames_folder, xdmf_problem
 from .parallel import agree
 
 FORMAT = 3  # 3: the time loop's state in one part, "loop" (cosserat_fem/loop.py)
@@ -410,7 +411,6 @@ def check_restart_scene(checkpoint: Checkpoint, scene) -> None:
 
 
 # --------------------------------------------------------------------------------- outputs
-ET.register_namespace("xi", "http://www.w3.org/2001/XInclude")
 
 
 @dataclass
@@ -423,30 +423,6 @@ class RestartPlan:
     xdmf: Path | None
     frames: int | None
     restart_number: int
-
-
-def _xdmf_problem(path: Path, frames: int, run_id: str) -> str | None:
-    """Why the XDMF file cannot be continued from ``frames`` frames of run ``run_id``."""
-    from .output import XDMF_GRID, xdmf_run_id
-
-    root = ET.fromstring(safe_files.read_regular(path))
-    if xdmf_run_id(root) != run_id:
-        return f"{str(path)!r} was written by another run than the checkpoint's"
-    domain = root.find("Domain")
-    collection = None if domain is None else domain.find(f"Grid[@Name='{XDMF_GRID}']")
-    steps = [] if collection is None else collection.findall("Grid")
-    if len(steps) < frames:
-        return f"{str(path)!r} holds {len(steps)} frames, fewer than the checkpoint's {frames}"
-    for step in steps[:frames]:
-        for item in step.iter("DataItem"):
-            name = (item.text or "").strip().split(":", 1)[0]
-            target = path.parent / name
-            if not target.is_file():
-                what = "is missing"
-                if target.exists():
-                    what = f"is {safe_files.kind(target.stat().st_mode)}, not a regular file"
-                return f"{str(path)!r} refers to {name}, which {what}"
-    return None
 
 
 def check_outputs(
@@ -466,7 +442,7 @@ def check_outputs(
                 if outputs.get("xdmf_frames") is None:
                     problem = "the checkpointed run wrote no XDMF file"
                 else:
-                    problem = _xdmf_problem(xdmf, int(outputs["xdmf_frames"]), checkpoint.run_id)
+                    problem = xdmf_problem(xdmf, int(outputs["xdmf_frames"]), checkpoint.run_id)
             if problem is None and probes is not None:
                 offset, digest = probe_prefix(probes, int(outputs["probe_rows"]))
                 if digest.hexdigest() != outputs.get("probes_sha256"):
@@ -487,8 +463,6 @@ def _linked_folder(run_dir: Path, xdmf: Path | None) -> str | None:
     """Why the restart would write into a folder outside ``run_dir``: its checkpoint folder or
     the XDMF file's frames folder is a link to one (a file that is a link is replaced, never
     written through; a folder's files cannot be)."""
-    from .output import frames_folder
-
     for folder in [run_dir / DIRECTORY] + ([frames_folder(xdmf)] if xdmf is not None else []):
         if folder.is_symlink():
             return (
@@ -512,20 +486,6 @@ def _summary_problem(path: Path, run_id: str) -> str | None:
     return None
 
 
-def cut_xdmf(path: Path, frames: int) -> None:
-    """Keep the first ``frames`` time steps of every temporal collection of the XDMF file
-    (written by rank 0 only; replaced atomically, a link replaced, not followed)."""
-    tree = ET.ElementTree(ET.fromstring(safe_files.read_regular(path)))
-    for collection in tree.getroot().iter("Grid"):
-        if collection.get("GridType") != "Collection":
-            continue
-        for step in collection.findall("Grid")[frames:]:
-            collection.remove(step)
-    text = io.BytesIO()
-    tree.write(text, encoding="utf-8", xml_declaration=True)
-    safe_files.replace(path, text.getvalue())
-
-
 def cut_outputs(plan: RestartPlan, comm: MPI.Comm) -> None:
     """Cut the outputs back to the checkpoint as ``plan`` (from :func:`check_outputs`) says,
     on rank 0: probes.csv, the XDMF file, then (once the XML no longer names them) the frame
@@ -533,8 +493,6 @@ def cut_outputs(plan: RestartPlan, comm: MPI.Comm) -> None:
     folder, and the HDF5 files of later restarts of the earlier single-file layout (which
     hold frames after the checkpoint only: a restart killed before its first checkpoint left
     them). An OutputError on every rank if a file cannot be changed (collective)."""
-    from .output import frames_folder
-
     problem = None
     if comm.rank == 0:
         try:

@@ -41,8 +41,8 @@ from petsc4py import PETSc
 
 from . import __version__, budget, safe_files
 from .errors import OutputError, SceneError, SolverError
+from .fields import XdmfWriter
 from .model import FULL, RodModel, build_model, support_conditions
-from .output import XdmfWriter
 from .parallel import agree, ranks_on_node
 from .run_folder import write_summary
 from .scene import Scene

@@ -28,8 +28,8 @@ import numpy as np
 from .checkpoint import Checkpoint, CheckpointWriter, cut_outputs
 from .errors import LimitReached, SceneError, SolverError
 from .events import Observer
+from .fields import LineSampler, PointProbe, XdmfWriter
 from .io.probes import ProbeWriter, last_probe_row
-from .output import LineSampler, PointProbe, XdmfWriter
 from .parallel import check_interrupt, from_root
 from .progress import LOGGER
 from .run_folder import SUMMARY, claim, write_summary

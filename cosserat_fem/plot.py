@@ -36,15 +36,9 @@ import numpy as np
 
 from . import safe_files
 from .errors import CosseratError, OutputError, SceneError, out_folder
-from .results import (
-    PROBE_COLUMNS,
-    NoFramesError,
-    RodSeries,
-    Run,
-    check_sweep_rows,
-    open_run,
-    read_sweep_rows,
-)
+from .io.probes import PROBE_COLUMNS
+from .io.xdmf import NoFramesError, RodSeries
+from .results import Run, check_sweep_rows, open_run, read_sweep_rows
 
 DPI = 130
 HISTORY_SIZE = (10.0, 8.0)  # inches

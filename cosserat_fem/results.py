@@ -55,67 +55,29 @@ exception. What is read has passed these checks:
 from __future__ import annotations
 
 import json
-import math
-import re
-import xml.etree.ElementTree as ET
-import xml.parsers.expat
 from dataclasses import dataclass
 from pathlib import Path
-from xml.sax.saxutils import escape
 
 import numpy as np
 
 from . import safe_files
-from .errors import CosseratError, SceneError
+from .errors import SceneError
 from .io.probes import PROBE_COLUMNS, read_probe_table
 from .io.reading import (
-    MAX_MAGNITUDE,
     decode,
-    excerpt,
     finite_number,
     is_file,
     json_kind,
     quoted,
     read_bytes,
-    short_reason,
 )
+from .io.xdmf import RodSeries, read_xdmf
 
 #: Largest files read [bytes]: an XDMF file ~1-2.5 kB a frame (some 60 000 frames),
 #: summary.json ~4 kB.
-MAX_XDMF_BYTES = 128 << 20
 MAX_SUMMARY_BYTES = 16 << 20
-#: Most numbers read from the .h5 files of one XDMF file (800 MB as float64; the default
-#: run holds ~1e5, a run of 10 000 frames of all six arrays on 300 points ~5e7).
-MAX_VALUES = 10**8
 #: Longest title shown in a figure [characters].
 MAX_TITLE = 120
-
-
-class NoFramesError(SceneError):
-    """An XDMF file that holds no frame (yet): a run killed before it wrote its first."""
-
-
-@dataclass
-class RodSeries:
-    """The XDMF time series, points ordered along the rod.
-
-    ``s`` [m] arc length of each point, ``reference`` (N, 3) the reference centreline
-    (0, 0, s), ``times`` (T,) [s] (the load factor for a static run, the mode number for
-    modes.xdmf), ``arrays`` name -> (T, N, 3) (see cosserat_fem/output.py for names, units
-    and bases). N >= 2, T >= 1, every value finite (see the module docstring)."""
-
-    s: np.ndarray
-    reference: np.ndarray
-    times: np.ndarray
-    arrays: dict[str, np.ndarray]
-
-    @property
-    def length(self) -> float:
-        return float(self.s[-1] - self.s[0])
-
-    def positions(self, scale: float = 1.0) -> np.ndarray:
-        """(T, N, 3) points of the deformed centreline r = (0, 0, s) + scale × displacement."""
-        return self.reference[None, :, :] + scale * self.arrays["displacement"]
 
 
 @dataclass
@@ -231,314 +193,6 @@ def read_summary(path: str | Path) -> dict:
                 f"{quoted(path)}: scene.rod.length must be a positive number, got {shown}"
             )
     return summary
-
-
-def _h5py():
-    """h5py; CosseratError if it is missing (the plot extra)."""
-    try:
-        import h5py
-    except ImportError as exc:
-        raise CosseratError(
-            f"reading the XDMF file needs h5py ({exc}); install the plot extra: "
-            "pip install -e .[plot]"
-        ) from None
-    return h5py
-
-
-#: What h5py raises on a damaged file or dataset (HDF5 errors are OSError, KeyError,
-#: ValueError or RuntimeError; TypeError and IndexError for odd types and shapes).
-_H5_ERRORS = (OSError, RuntimeError, ValueError, TypeError, KeyError, IndexError)
-
-
-#: The names of the files in an XDMF file's frames folder (cosserat_fem/output.py,
-#: ``frames_folder``): the mesh's and one a frame; what a new series removes there.
-FRAME_NAME = re.compile(r"(?:mesh|[0-9]{6,})\.h5")
-#: The one reference that is not a plain name: a file of the frames folder beside the XDMF file:
-#: one folder level, no ".." or absolute path.
-_FRAME_FILE = re.compile(r"[^/\\]+\.frames/" + FRAME_NAME.pattern)
-
-
-class _Datasets:
-    """Open .h5 files of one XDMF file, by the ``file.h5:/path`` references of its XML."""
-
-    def __init__(self, xdmf: Path):
-        self.xdmf = xdmf
-        self.folder = xdmf.parent
-        self.files: dict[str, object] = {}
-        self.budget = MAX_VALUES
-
-    def __enter__(self) -> _Datasets:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
-    def _bad(self, what: str, problem: str) -> SceneError:
-        return SceneError(f"{quoted(self.xdmf)}: {what}: {problem}")
-
-    def _open(self, name: str, what: str):
-        """The h5py File ``name`` of the XDMF file's folder, opened once; SceneError if it is
-        missing or not HDF5."""
-        if name not in self.files:
-            path = self.folder / name
-            if not is_file(path):
-                raise self._bad(what, f"refers to {str(path)!r}, which does not exist")
-            h5py = _h5py()
-            try:
-                self.files[name] = h5py.File(path, "r")
-            except _H5_ERRORS as exc:
-                raise SceneError(
-                    f"{quoted(path)}: not a readable HDF5 file ({short_reason(exc)}); referred "
-                    f"to by {self.xdmf.name}"
-                ) from None
-        return self.files[name]
-
-    def where(self, item: ET.Element, what: str) -> str:
-        """The dataset of DataItem ``item`` (of ``what``) for a message: the .h5 file first,
-        then the XDMF file."""
-        name, _, dataset = (item.text or "").strip().partition(":")
-        in_xml = f"({what} in {self.xdmf.name})"
-        return f"{quoted(self.folder / name)}: dataset {excerpt(dataset)} {in_xml}"
-
-    def read(self, item: ET.Element, what: str, shape: tuple[int, ...] | None = None):
-        """The dataset that DataItem ``item`` (of ``what``) refers to, as float64, after the
-        checks of the module docstring; ``shape`` the one it must have, if known."""
-        if item.get("Format", "XML") != "HDF":
-            problem = f"DataItem Format {excerpt(item.get('Format', 'XML'))} is not supported"
-            raise self._bad(what, problem + " (HDF only)")
-        text = (item.text or "").strip()
-        name, colon, dataset = text.partition(":")
-        if not (colon and name and dataset):
-            raise self._bad(what, f"DataItem {excerpt(text)} is not 'file.h5:/dataset'")
-        plain = not ("/" in name or "\\" in name or name in (".", ".."))
-        if not (plain or _FRAME_FILE.fullmatch(name)):
-            raise self._bad(
-                what,
-                f"{excerpt(name)} is not a file name in the XDMF file's folder, nor a frame file "
-                "'<name>.frames/<digits>.h5' or '<name>.frames/mesh.h5'",
-            )
-        dims = item.get("Dimensions")
-        expected = None
-        if dims is not None:
-            try:
-                expected = tuple(int(n) for n in dims.split())
-            except ValueError:
-                raise self._bad(what, f"Dimensions {excerpt(dims)} are not integers") from None
-        h5 = self._open(name, what)
-        h5_where = self.where(item, what)
-        h5py = _h5py()
-        try:
-            obj = h5.get(dataset)
-            if obj is None:
-                raise SceneError(f"{h5_where}: not there")
-            if not isinstance(obj, h5py.Dataset):
-                raise SceneError(f"{h5_where}: not a dataset")
-            if obj.shape is None:
-                raise SceneError(f"{h5_where}: holds nothing (an empty dataspace)")
-            if obj.dtype.kind not in "iuf":
-                raise SceneError(f"{h5_where}: holds {obj.dtype} values, not numbers")
-            if expected is not None and obj.shape != expected:
-                raise SceneError(f"{h5_where}: shape {obj.shape}, the XML says {expected}")
-            if shape is not None and obj.shape != shape:
-                raise SceneError(f"{h5_where}: shape {obj.shape}, expected {shape}")
-            if obj.size > self.budget:
-                raise SceneError(f"{h5_where}: more than {MAX_VALUES} values in all; too large")
-            self.budget -= obj.size
-            values = np.asarray(obj[()], dtype=float)
-        except _H5_ERRORS as exc:
-            raise SceneError(f"{h5_where}: cannot read it ({short_reason(exc)})") from None
-        if values.size and not (
-            np.isfinite(values).all() and np.abs(values).max() <= MAX_MAGNITUDE
-        ):
-            raise SceneError(
-                f"{h5_where}: holds values that are not finite or beyond ±{MAX_MAGNITUDE:g} "
-                "(a run writes none)"
-            )
-        return values
-
-    def close(self) -> None:
-        """Close the open .h5 files (errors ignored)."""
-        for f in self.files.values():
-            try:
-                f.close()
-            except _H5_ERRORS:
-                pass
-
-
-class _EntityDeclared(Exception):
-    pass
-
-
-class _RootReached(Exception):
-    pass
-
-
-def _parse_xml(path: Path) -> ET.Element:
-    """The root of the XML file ``path``; a file declaring entities is refused before any is
-    expanded (billion laughs: expat >= 2.4 stops a bomb too, but not every Python has it)."""
-    data = read_bytes(path, MAX_XDMF_BYTES)
-    if not data.strip():
-        raise SceneError(f"{quoted(path)}: empty file, not an XDMF file")
-    scan = xml.parsers.expat.ParserCreate()
-
-    def entity(name, *args):
-        raise _EntityDeclared(name)
-
-    def root(name, attributes):
-        raise _RootReached  # the DTD, where entities are declared, lies before the root
-
-    scan.EntityDeclHandler = entity
-    scan.StartElementHandler = root
-    try:
-        scan.Parse(data, True)
-    except _RootReached:
-        pass
-    except _EntityDeclared as exc:
-        raise SceneError(
-            f"{quoted(path)}: declares the XML entity {excerpt(str(exc))}; an XDMF file of a run "
-            "declares none (refused: entity expansion)"
-        ) from None
-    except (xml.parsers.expat.ExpatError, ValueError, LookupError) as exc:
-        raise SceneError(f"{quoted(path)}: not a readable XDMF file (XML: {exc})") from None
-    try:
-        return ET.fromstring(data)
-    except (ET.ParseError, ValueError, LookupError) as exc:
-        raise SceneError(f"{quoted(path)}: not a readable XDMF file (XML: {exc})") from None
-
-
-def _item(path: Path, grid: ET.Element, part: str, where: str) -> ET.Element:
-    """The DataItem of ``grid``'s ``part`` (Geometry or Topology)."""
-    item = grid.find(f"{part}/DataItem")
-    if item is None:
-        raise SceneError(f"{quoted(path)}: {where} has no {part} with a DataItem")
-    return item
-
-
-def _time(path: Path, grid: ET.Element, index: int) -> float:
-    """The Time Value of frame ``index`` (from 0): t [s], a load factor or a mode number;
-    SceneError if it is missing or not a finite number within MAX_MAGNITUDE."""
-    time = grid.find("Time")
-    value = None if time is None else time.get("Value")
-    if value is None:
-        raise SceneError(f"{quoted(path)}: frame {index + 1} has no Time Value")
-    try:
-        t = float(value)
-    except ValueError:
-        t = math.nan
-    if not (math.isfinite(t) and abs(t) <= MAX_MAGNITUDE):
-        raise SceneError(
-            f"{quoted(path)}: frame {index + 1}: Time Value {excerpt(value)} is not a finite number"
-        )
-    return t
-
-
-#: Columns of the geometry by its GeometryType (XDMF's default is XYZ).
-_GEOMETRY_COLUMNS = {"XYZ": 3, "XY": 2}
-
-
-def read_xdmf(path: str | Path, length: float | None = None) -> RodSeries:
-    """The time series of ``path`` (see the module docstring). ``length`` [m] is used only
-    for files of the earlier layout, whose mesh coordinate is σ = s/ℓ (default 1)."""
-    path = Path(path)
-    if not is_file(path):
-        raise SceneError(f"{quoted(path)}: no such file")
-    root = _parse_xml(path)
-    if root.tag != "Xdmf":
-        raise SceneError(f"{quoted(path)}: not an XDMF file (root element {excerpt(root.tag)})")
-    domain = root.find("Domain")
-    if domain is None:
-        raise SceneError(f"{quoted(path)}: not an XDMF file of a run (no Domain)")
-    frames: dict[float, dict[str, ET.Element]] = {}
-    mesh: ET.Element | None = None  # the grid holding Geometry and Topology
-    index = 0
-    for collection in domain.findall("Grid[@GridType='Collection']"):
-        for grid in collection.findall("Grid"):
-            t = _time(path, grid, index)
-            frame = frames.setdefault(t, {})
-            for attribute in grid.findall("Attribute"):
-                name = attribute.get("Name")
-                if not name:
-                    raise SceneError(
-                        f"{quoted(path)}: frame {index + 1} has an Attribute without a Name"
-                    )
-                item = attribute.find("DataItem")
-                if item is None:
-                    raise SceneError(
-                        f"{quoted(path)}: frame {index + 1}: Attribute {excerpt(name)} has no "
-                        "DataItem"
-                    )
-                frame[name] = item
-            if mesh is None and grid.find("Geometry") is not None:
-                mesh = grid
-            index += 1
-    if not frames:
-        raise NoFramesError(f"{quoted(path)}: the XDMF file holds no time steps (yet)")
-    where = "the first frame's mesh"
-    if mesh is None:
-        mesh, where = domain.find("Grid[@Name='mesh']"), "the grid 'mesh'"
-        if mesh is None:
-            raise SceneError(f"{quoted(path)}: no mesh in the XDMF file (no Geometry)")
-    geometry = mesh.find("Geometry")
-    if geometry is None:
-        raise SceneError(f"{quoted(path)}: {where} has no Geometry")
-    geometry_type = geometry.get("GeometryType", "XYZ")
-    columns = _GEOMETRY_COLUMNS.get(geometry_type)
-    if columns is None:
-        raise SceneError(
-            f"{quoted(path)}: GeometryType {excerpt(geometry_type)} is not supported (XYZ, XY)"
-        )
-    geometry_item = _item(path, mesh, "Geometry", where)
-    topology_item = _item(path, mesh, "Topology", where)
-    with _Datasets(path) as data:
-        x = data.read(geometry_item, "geometry")
-        if x.ndim != 2 or x.shape[1] != columns or len(x) < 2:
-            raise SceneError(
-                f"{data.where(geometry_item, 'geometry')}: shape {x.shape}; expected "
-                f"(N, {columns}) for GeometryType {geometry_type}, N >= 2 points"
-            )
-        cells = data.read(topology_item, "topology")
-        if cells.ndim != 2 or cells.shape[1] < 2 or len(cells) < 1:
-            raise SceneError(
-                f"{data.where(topology_item, 'topology')}: shape {cells.shape}; expected "
-                "(cells, points per cell >= 2)"
-            )
-        if (cells != np.round(cells)).any() or cells.min() < 0 or cells.max() >= len(x):
-            raise SceneError(
-                f"{data.where(topology_item, 'topology')}: refers to points that are not "
-                f"there (indices must be integers in [0, {len(x) - 1}])"
-            )
-        times = np.array(sorted(frames))
-        names = sorted(set.intersection(*(set(frames[t]) for t in times)))
-        count = len(times) * len(names) * len(x) * 3
-        if count > data.budget:
-            raise SceneError(
-                f"{quoted(path)}: {len(times)} frames of {len(names)} arrays on {len(x)} "
-                f"points: more than {MAX_VALUES} values; too large"
-            )
-        arrays = {}
-        for n in names:
-            values = np.empty((len(times), len(x), 3))
-            for i, t in enumerate(times):
-                what = f"{excerpt(n)} at time {t:.6g}"
-                values[i] = data.read(frames[t][n], what, shape=(len(x), 3))
-            arrays[n] = values
-    if columns == 3 and not x[:, :2].any():
-        s = x[:, 2]
-    else:  # earlier layout: σ = s/ℓ along the first axis
-        s = x[:, 0] * (1.0 if length is None else length)
-    if not s.max() > s.min():
-        where = f"{quoted(path)} (geometry {(geometry_item.text or '').strip()!r})"
-        raise SceneError(f"{where}: the mesh has no length (all its points at one s)")
-    order = np.argsort(s, kind="stable")
-    s = s[order]
-    reference = np.zeros((len(s), 3))
-    reference[:, 2] = s
-    return RodSeries(
-        s=s,
-        reference=reference,
-        times=times,
-        arrays={n: a[:, order, :] for n, a in arrays.items()},
-    )
 
 
 # --- a sweep's table (cosserat_fem/sweep_run.py) ----------------------------------------------
@@ -666,19 +320,3 @@ def _member_values(record: dict, members: int) -> list[dict] | None:
     return values if all(isinstance(v, dict) for v in values) else None
 
 
-def xdmf_mesh_xml(file: str, points: int, cells: int) -> str:
-    """The Topology and Geometry of a frame: the mesh in the HDF5 file ``file`` (relative to
-    the XML), as DOLFINx's XDMFFile wrote them (cosserat_fem/output.py's frames and
-    karhunen_loeve.py's pod.xdmf)."""
-    name = escape(file)
-    return (
-        f'        <Topology TopologyType="PolyLine" NumberOfElements="{cells}" '
-        'NodesPerElement="2">\n'
-        f'          <DataItem Dimensions="{cells} 2" NumberType="Int" Format="HDF">{name}:'
-        "/Mesh/mesh/topology</DataItem>\n"
-        "        </Topology>\n"
-        '        <Geometry GeometryType="XYZ">\n'
-        f'          <DataItem Dimensions="{points} 3" Format="HDF" Precision="8">{name}:'
-        "/Mesh/mesh/geometry</DataItem>\n"
-        "        </Geometry>\n"
-    )

@@ -273,8 +273,7 @@ def stale_outputs(folder: Path) -> list[tuple[Path, object | None]]:
     checkpoint (its index first), the XDMF file (so that no XML names a removed file; a new
     series publishes its own), its frames, the files of the earlier single-file layout."""
     from .checkpoint import DIRECTORY, OWN_FILES
-    from .output import frames_folder
-    from .results import FRAME_NAME
+    from .io.xdmf import FRAME_NAME, frames_folder
 
     stale: list[tuple[Path, object | None]] = [(folder / DIRECTORY, OWN_FILES)]
     if (folder / XDMF).is_symlink() or (folder / XDMF).exists():
@@ -288,8 +287,7 @@ def conflict(folder: Path, writes_xdmf: bool, writes_checkpoint: bool) -> str | 
     write (a folder at a file's name, a file at a folder's, a folder among the checkpoint's
     or the frames' files), the first such, in words; else None."""
     from .checkpoint import DIRECTORY, INDEX, OWN_FILES
-    from .output import frames_folder
-    from .results import FRAME_NAME
+    from .io.xdmf import FRAME_NAME, frames_folder
 
     files = [PROBES, SUMMARY, f"{SUMMARY}.tmp"]
     folders = []

@@ -34,6 +34,7 @@ from . import __version__, budget
 from .checkpoint import Checkpoint, check_outputs, check_restart_scene
 from .errors import SceneError
 from .events import Events, Observer, drive
+from .fields import PointProbe, probe_position, probe_sigma
 from .integrators import GeneralizedAlpha, make_integrator
 from .load_data import refuse_callable_restart
 from .loop import TimeLoop
@@ -51,7 +52,6 @@ from .observers import (
     ProgressObserver,
     XdmfObserver,
 )
-from .output import PointProbe, probe_position, probe_sigma
 from .parallel import agree, ranks_on_node
 from .run_folder import PROBES, XDMF, holding_folders, new_run_id, prepare_output_dir, status_of
 from .scene import Scene, refuse_closed

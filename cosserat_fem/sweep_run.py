@@ -312,7 +312,7 @@ def _forced(spec: SweepSpec, member: Member, before: _Final | None):
     """A forced member's scene, its response observer and its start (module docstring of
     cosserat_fem/response.py): from the scene's time.start at rest, or continuing ``before``
     with the forcing's phase carried over."""
-    from .output import probe_sigma
+    from .fields import probe_sigma
 
     own = spec.scene(member)
     where = f"member {member.index}"

@@ -35,9 +35,9 @@ from conftest import ROOT, run_command
 
 import cosserat_fem as cf
 from cosserat_fem.errors import SceneError
+from cosserat_fem.fields import PointProbe
 from cosserat_fem.load_data import LoadTable, TableStore, parse_table
 from cosserat_fem.model import rod_constants
-from cosserat_fem.output import PointProbe
 from cosserat_fem.reference import timoshenko as tb
 from cosserat_fem.reference.rod_planes import bending_planes
 from cosserat_fem.scene import load_scene

@@ -124,7 +124,7 @@ def test_restart_after_a_crash_gives_the_uninterrupted_run(tmp_path, name):
         assert summary_r[key] == summary[key], key
     for key in ("solves", "iterations", "jacobian_assemblies", "retries"):
         assert summary_r["newton"][key] == summary["newton"][key], key
-    # One file a frame (cosserat_fem/output.py): the restarted run's frames in new files.
+    # One file a frame (cosserat_fem/io/xdmf.py): the restarted run's frames in new files.
     frames_dir = out / "solution.frames"
     expected = {"mesh.h5", *(f"{i:06d}.h5" for i in range(len(frames["displacement"][0])))}
     assert {p.name for p in frames_dir.iterdir()} == expected

@@ -292,8 +292,8 @@ def test_a_restart_continues_the_sign_of_the_probe_quaternion():
     quaternion is ±(cos 1.5, −sin 1.5, 0, 0); a fresh probe gives q0 ≥ 0, one seeded with the
     other sign (and its angles) keeps that sign, and both give the rod's directors (18)."""
     from cosserat_fem.charts import euler_matrix, quaternion_frame
+    from cosserat_fem.fields import PointProbe
     from cosserat_fem.model import build_model
-    from cosserat_fem.output import PointProbe
 
     model = build_model(load_scene(SCENE, [IN_3D]))
     sigma = model.V.tabulate_dof_coordinates()[:, 0]

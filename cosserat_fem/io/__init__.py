@@ -5,6 +5,11 @@ module              files
 ==================  =====================================================================
 ``probes``          probes.csv: the probe's row a step (:class:`~.probes.ProbeWriter`,
                     :func:`~.probes.read_probe_table`)
+``xdmf``            solution.xdmf and its frames folder of HDF5 files: the array names
+                    (:data:`~.xdmf.FIELD_ARRAYS`), the files' writer
+                    (:class:`~.xdmf.XdmfSeries`), a restart's check and cut, the reader
+                    (:func:`~.xdmf.read_xdmf`, h5py)
+``hdf5``            HDF5 files made in memory by the process's HDF5 library (ctypes)
 ``reading``         the checks every reader makes (regular file, size, UTF-8, finite numbers)
 ==================  =====================================================================
 
