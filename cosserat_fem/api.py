@@ -118,12 +118,12 @@ def sweep(spec, out: str | Path, *, progress: bool = False):
 
 def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()):
     """The scene and the checkpoint to continue the run in ``folder`` (``run(scene,
-    restart=checkpoint)``), with the overrides a restart allows (cosserat_fem/checkpoint.py:
+    restart=checkpoint)``), with the overrides a restart allows (cosserat_fem/io/checkpoint.py:
     time.end, solver.*, limits.*, ...); SceneError if there is no usable checkpoint, or
     time.end is not later than it, or a table's content is not the one the run used (its
     SHA-256 is in the checkpoint's scene), or a load was a Python callable (not data: a run
     with one cannot be restarted)."""
-    from .checkpoint import FIXED_KEYS, load_checkpoint, restart_overrides
+    from .io.checkpoint import FIXED_KEYS, load_checkpoint, restart_overrides
     from .schema import Removal
 
     texts = overrides

@@ -409,9 +409,9 @@ class XdmfWriter:
         written (default ``model.U``), holding (p, q); ``write`` may be given another Function
         of the same space (e.g. one mode shape after another). ``resume = (n, frames)``:
         continue, as restart n, the existing XML, which holds ``frames`` frames (cut back to
-        them, later frame files deleted: cosserat_fem/checkpoint.py), in its mesh's order of
+        them, later frame files deleted: cosserat_fem/io/checkpoint.py), in its mesh's order of
         the points (:class:`~cosserat_fem.io.xdmf.XdmfSeries`). ``run_id``: the identity of
-        the run, written into the XML (checked by a restart, cosserat_fem/checkpoint.py)."""
+        the run, written into the XML (checked by a restart, cosserat_fem/io/checkpoint.py)."""
         msh = model.msh
         self.U = model.U if U is None else U
         self.fields = tuple(model.scene.output.fields if fields is None else fields)

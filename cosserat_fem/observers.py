@@ -11,7 +11,7 @@ statics.py), in this order:
   first, so that it reaches every frame on disk);
 * :class:`ProgressObserver`: the progress bar (or any callback of (t, steps, iterations));
 * user observers, :class:`ProbeRecorder`, :class:`FieldRecorder` (the Python API's arrays);
-* :class:`CheckpointObserver`: checkpoints when due and at the end (cosserat_fem/checkpoint.py);
+* :class:`CheckpointObserver`: checkpoints when due and at the end (cosserat_fem/io/checkpoint.py);
 * :class:`DeadlineObserver`: stops the run at ``limits.wall_time``, with a checkpoint;
 * :class:`InterruptObserver`: stops every rank at the same step after an interrupt (SIGINT)
   reached any of them under mpirun (cosserat_fem/parallel.py);
@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .checkpoint import Checkpoint, CheckpointWriter, cut_outputs
 from .errors import LimitReached, SceneError, SolverError
 from .events import Observer
 from .fields import LineSampler, PointProbe, XdmfWriter
+from .io.checkpoint import Checkpoint, CheckpointWriter, cut_outputs
 from .io.probes import ProbeWriter, last_probe_row
 from .parallel import check_interrupt, from_root
 from .progress import LOGGER

@@ -419,7 +419,7 @@ class Output:
     """Output directory (stored as written), XDMF and checkpoint settings.
 
     ``checkpoint_interval`` [s] is resolved: a positive multiple of the step, or 0 for a
-    checkpoint at the end of the run only (cosserat_fem/checkpoint.py).
+    checkpoint at the end of the run only (cosserat_fem/io/checkpoint.py).
     """
 
     directory: str

@@ -20,14 +20,14 @@ A folder holds the outputs of one run at a time, and has one writer at a time:
   file and frames, and the HDF5 files and scratch XML of the earlier single-file layout
   (``solution.h5``, ``solution-restart<n>.h5``, ``solution.xdmf-partial``). Only the
   project's own files go (:func:`stale_outputs`): in ``checkpoint/`` and ``solution.frames/``
-  the names the project writes there (:data:`cosserat_fem.checkpoint.OWN_FILES`,
+  the names the project writes there (:data:`cosserat_fem.io.checkpoint.OWN_FILES`,
   :data:`cosserat_fem.results.FRAME_NAME`), never a subfolder or a file of another name (a
   user's notes, another run nested inside); a folder left empty goes too. A link at one of
   these names is removed, never followed. Where something of the user's stands where the run
   must write (a file named ``checkpoint``, a folder named ``probes.csv``), the run is refused
   in one line before anything is removed (:func:`conflict`). Then it writes summary.json with
   the status "running" and a new run identity (:func:`new_run_id`) before any other output,
-  which the checkpoint and the XDMF file carry too (cosserat_fem/checkpoint.py).
+  which the checkpoint and the XDMF file carry too (cosserat_fem/io/checkpoint.py).
 
 Every file of the folder is written as a new file or by an atomic rename, never through a
 link, and no special file is opened (cosserat_fem/safe_files.py).
@@ -272,7 +272,7 @@ def stale_outputs(folder: Path) -> list[tuple[Path, object | None]]:
     names the pattern matches (:func:`cosserat_fem.safe_files.remove_own_files`): the
     checkpoint (its index first), the XDMF file (so that no XML names a removed file; a new
     series publishes its own), its frames, the files of the earlier single-file layout."""
-    from .checkpoint import DIRECTORY, OWN_FILES
+    from .io.checkpoint import DIRECTORY, OWN_FILES
     from .io.xdmf import FRAME_NAME, frames_folder
 
     stale: list[tuple[Path, object | None]] = [(folder / DIRECTORY, OWN_FILES)]
@@ -286,7 +286,7 @@ def conflict(folder: Path, writes_xdmf: bool, writes_checkpoint: bool) -> str | 
     """Where something that is not the project's stands where a new run in ``folder`` must
     write (a folder at a file's name, a file at a folder's, a folder among the checkpoint's
     or the frames' files), the first such, in words; else None."""
-    from .checkpoint import DIRECTORY, INDEX, OWN_FILES
+    from .io.checkpoint import DIRECTORY, INDEX, OWN_FILES
     from .io.xdmf import FRAME_NAME, frames_folder
 
     files = [PROBES, SUMMARY, f"{SUMMARY}.tmp"]
@@ -320,7 +320,7 @@ def claim(folder: Path, comm: MPI.Comm, writes_xdmf: bool, summary: dict,
     stale outputs of an earlier run (:func:`stale_outputs`; the checkpoint's index first, so
     that a kill half-way leaves nothing to restart from), then write ``summary`` (status
     "running", the run id) before any other output. Collective."""
-    from .checkpoint import INDEX
+    from .io.checkpoint import INDEX
 
     problem = None
     if comm.rank == 0:

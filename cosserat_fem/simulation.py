@@ -31,11 +31,11 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import __version__, budget
-from .checkpoint import Checkpoint, check_outputs, check_restart_scene
 from .errors import SceneError
 from .events import Events, Observer, drive
 from .fields import PointProbe, probe_position, probe_sigma
 from .integrators import GeneralizedAlpha, make_integrator
+from .io.checkpoint import Checkpoint, check_outputs, check_restart_scene
 from .load_data import refuse_callable_restart
 from .loop import TimeLoop
 from .model import RodModel, build_model
@@ -136,7 +136,7 @@ def run(
     The rod starts from rest in its straight state, or from the scene's [initial] fields, or
     from ``initial_state`` (the array of a 12-component state U = (p, q) on the same
     discretisation, e.g. a static solution), or continues the run of the checkpoint
-    ``restart`` in its folder (cosserat_fem/checkpoint.py; ``scene`` must then be the
+    ``restart`` in its folder (cosserat_fem/io/checkpoint.py; ``scene`` must then be the
     checkpoint's, with the overrides a restart allows, ``out_dir`` none or that folder,
     ``initial_state`` none: :func:`_check_restart`). Outputs go to ``out_dir`` (default
     the scene's output.directory) unless ``write_outputs`` is false. ``observers``: objects
@@ -204,7 +204,7 @@ def run(
 
 def _check_restart(scene: Scene, restart, out_dir, initial_state) -> None:
     """A restart continues the checkpoint's run, in its folder, from its state, with its
-    scene (changed at most where cosserat_fem/checkpoint.py allows): a SceneError naming the
+    scene (changed at most where cosserat_fem/io/checkpoint.py allows): a SceneError naming the
     argument otherwise, before anything is touched (the same on every rank)."""
     if not isinstance(restart, Checkpoint):
         raise SceneError(f"restart: must be the checkpoint of cf.resume(folder), got "

@@ -181,7 +181,7 @@ def _checkpoint(folder: Path, scene, comm):
     the member's end and its outputs are the checkpoint's run's (checkpoint.py's checks, as
     ``run --restart`` makes them); else None (the member runs from the start). Collective
     over ``comm``: every rank finds the same."""
-    from .checkpoint import check_outputs, load_checkpoint
+    from .io.checkpoint import check_outputs, load_checkpoint
     from .run_folder import PROBES, XDMF
 
     try:

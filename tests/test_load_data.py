@@ -360,7 +360,7 @@ def test_a_run_with_a_callable_load_cannot_be_restarted(tmp_path):
     """summary.json and the checkpoint name the callable; a restart is refused in one line,
     through cf.resume (the saved scene) and through cf.run with the callable given again
     (a checkpoint cannot say that it is the run's), before anything is touched."""
-    from cosserat_fem.checkpoint import load_checkpoint
+    from cosserat_fem.io.checkpoint import load_checkpoint
 
     scene = cf.load(SCENE, {**QUICK, "time.end": 6e-4, "output.checkpoint": True,
                             "loads.end.force": [0, lambda t: 10.0, 0]})  # fmt: skip

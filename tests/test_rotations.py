@@ -21,7 +21,7 @@ import pytest
 from conftest import ROOT, run_command
 from test_restart import Crash, crash_at
 
-from cosserat_fem.checkpoint import load_checkpoint
+from cosserat_fem.io.checkpoint import load_checkpoint
 from cosserat_fem.scene import load_scene, scene_from_dict
 from cosserat_fem.schema import read_toml
 from cosserat_fem.simulation import run

@@ -203,7 +203,7 @@ class ProbeWriter:
     :func:`cosserat_fem.results.read_probes` and a restart drop (docs/stability.md).
 
     The SHA-256 of the bytes written (:meth:`digest`) goes into each checkpoint, so that a
-    restart can prove that probes.csv is the checkpointed run's (cosserat_fem/checkpoint.py).
+    restart can prove that probes.csv is the checkpointed run's (cosserat_fem/io/checkpoint.py).
     A write that fails (disk full, file size limit) raises :class:`OutputError` at once in
     serial; under MPI the owner keeps it and every rank raises it at :meth:`check`.
     """

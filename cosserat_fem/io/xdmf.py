@@ -247,7 +247,7 @@ class XdmfSeries:
         each (points, 3); ``geometry`` (points, 3) [m] and ``topology`` (segments, 2): the
         mesh, its points in the order :meth:`write` gets the values. ``resume = frames``:
         continue the existing XML, which holds ``frames`` frames (cut back to them, later frame
-        files deleted: cosserat_fem/checkpoint.py), in its mesh's order of the points; the new
+        files deleted: cosserat_fem/io/checkpoint.py), in its mesh's order of the points; the new
         frames go into new frame files from index ``frames`` on. Otherwise the XML and the
         frames folder of an earlier series are removed first. ``run_id``: the identity of the
         run, written into the XML (checked by a restart). OutputError if the files cannot be

@@ -71,11 +71,11 @@ from typing import Any
 import numpy as np
 from mpi4py import MPI
 
-from . import safe_files
-from .errors import OutputError, SceneError, show_value
-from .io.probes import probe_prefix
-from .io.xdmf import cut_xdmf, frames_folder, xdmf_problem
-from .parallel import agree
+from .. import safe_files
+from ..errors import OutputError, SceneError, show_value
+from ..parallel import agree
+from .probes import probe_prefix
+from .xdmf import cut_xdmf, frames_folder, xdmf_problem
 
 FORMAT = 3  # 3: the time loop's state in one part, "loop" (cosserat_fem/loop.py)
 DIRECTORY = "checkpoint"
@@ -303,7 +303,7 @@ def load_checkpoint(run_dir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Che
     one if the newest is damaged); SceneError if there is none or it does not fit this run
     (another number of ranks, another format). Collective: every rank agrees on what it
     found before any goes on."""
-    from .run_folder import refuse_if_held
+    from ..run_folder import refuse_if_held
 
     run_dir = Path(run_dir)
     refuse_if_held(run_dir, comm, "restart")
@@ -334,7 +334,7 @@ def load_checkpoint(run_dir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Che
         if not problems:
             common = {k: v for k, v in meta.items() if k not in ("checkpoints", "checksum")}
             if found:
-                from .progress import LOGGER
+                from ..progress import LOGGER
 
                 LOGGER.warning(
                     "checkpoint: %s; continuing from the previous checkpoint at t = %.6g s",
@@ -358,7 +358,7 @@ def _allowed() -> str:
 def restart_overrides(overrides: list[str] | tuple[str, ...]) -> None:
     """SceneError unless every ``--set`` (and ``--unset``) key of a restart is one of
     :data:`RESTART_KEYS`."""
-    from .schema import Removal
+    from ..schema import Removal
 
     for text in overrides:
         key = text.split("=", 1)[0].strip()
@@ -394,7 +394,7 @@ def check_restart_scene(checkpoint: Checkpoint, scene) -> None:
     ``cf.run(scene, restart=checkpoint)`` (any scene) pass through, before anything is
     touched: a scene of other constants, loads or discretisation would continue the
     checkpoint's state as another problem, a splice of two runs."""
-    from .scene import check_later_end
+    from ..scene import check_later_end
 
     held = _leaves(checkpoint.meta["scene"])
     given = _leaves(json.loads(json.dumps(scene.to_dict())))  # as the index holds it
