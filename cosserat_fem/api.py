@@ -157,8 +157,8 @@ def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | P
     ``shape``); modes.csv, modes.xdmf and modes.json only with ``out``."""
     from mpi4py import MPI
 
+    from .io.run_folder import prepare_output_dir
     from .modal import check_count, compute_modes, write_modes
-    from .run_folder import prepare_output_dir
 
     if isinstance(count, bool) or not isinstance(count, int | np.integer):
         raise SceneError(f"count (--count): must be a whole number, got {count!r}")

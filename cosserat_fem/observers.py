@@ -4,7 +4,7 @@ Each observer has one job; a run is composed of the ones it needs (cosserat_fem/
 statics.py), in this order:
 
 * :class:`FolderStart`: a new run claims its folder (an earlier run's stale files removed,
-  summary.json "running" with the run's identity, cosserat_fem/run_folder.py); a restart cuts
+  summary.json "running" with the run's identity, cosserat_fem/io/run_folder.py); a restart cuts
   the outputs back to its checkpoint (checked before anything was built);
 * :class:`ProbeObserver`: probes.csv, a row per output time;
 * :class:`XdmfObserver`: an XDMF frame every ``output.xdmf_interval`` (probes.csv flushed
@@ -30,9 +30,9 @@ from .events import Observer
 from .fields import LineSampler, PointProbe, XdmfWriter
 from .io.checkpoint import Checkpoint, CheckpointWriter, cut_outputs
 from .io.probes import ProbeWriter, last_probe_row
+from .io.run_folder import SUMMARY, claim, write_summary
 from .parallel import check_interrupt, from_root
 from .progress import LOGGER
-from .run_folder import SUMMARY, claim, write_summary
 
 
 class FolderStart(Observer):

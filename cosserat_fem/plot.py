@@ -279,7 +279,7 @@ def _check_response(directory: Path, columns: list[str], varied: list[str], reco
 def _member_lengths(directory: Path, rows: list[dict]) -> np.ndarray:
     """ℓ [m] of each row's member, from its summary.json's scene (NaN where there is none or
     it cannot be read: a member that failed)."""
-    from .results import read_summary
+    from .io.run_folder import read_summary
     from .sweep_spec import Member
 
     lengths = np.full(len(rows), np.nan)

@@ -1,55 +1,26 @@
-"""Reading a run's outputs without DOLFINx: probes.csv, summary.json and the XDMF time series.
+"""Reading a run's outputs without DOLFINx: a run folder (:func:`open_run`: summary.json,
+probes.csv and solution.xdmf) and a sweep's table (sweep.csv and its parts).
 
 For ``cosserat-fem plot`` and ``cosserat-fem render`` (cosserat_fem/plot.py, render.py), which
 must also work on a machine without the solver stack: numpy, the standard library's XML
-parser and h5py (the ``plot``/``render`` extras) only. The XDMF file is the one of
-:class:`cosserat_fem.output.XdmfWriter`: one temporal collection whose frames each carry the
-mesh (the reference centreline (0, 0, s) [m]), the time and the point arrays. Files of the
-earlier layout (DOLFINx's: a "mesh" grid with σ = s/ℓ along the first axis and one
-collection per array) are read too.
-
-h5py cannot be used in a process that has loaded DOLFINx (the two HDF5 libraries clash:
-"Not a datatype"), so this module never imports DOLFINx and should not be imported next to
-it; tests read the files through ``cosserat-fem plot``/``render`` in a subprocess.
+parser and h5py (the ``plot``/``render`` extras) only. Each file is read by its format's module
+(cosserat_fem/io/: probes.py, xdmf.py, run_folder.py), which says what it checks; h5py cannot
+be used in a process that has loaded DOLFINx (the two HDF5 libraries clash: "Not a datatype"),
+so this module never imports DOLFINx and should not be imported next to it; tests read the
+files through ``cosserat-fem plot``/``render`` in a subprocess.
 
 Damaged, truncated, foreign or hostile files are bad input: a :class:`SceneError` (exit 2)
 whose one-line message names the file at fault, most often first (text taken from a file is
 quoted with ``repr``, so no control character reaches the terminal), never another
-exception. What is read has passed these checks:
-
-* Every file is a regular file (not a folder, device, FIFO or dangling link: looked at before
-  it is opened, and opened without blocking, cosserat_fem/safe_files.py) of at most
-  :data:`MAX_PROBES_BYTES`, :data:`MAX_SUMMARY_BYTES` or :data:`MAX_XDMF_BYTES`; text is
-  UTF-8.
-* Numbers: finite and at most :data:`MAX_MAGNITUDE` in magnitude. NaN and inf are refused,
-  not plotted: a run never writes them (it stops with a SolverError before a non-finite
-  state reaches its outputs), so they mean damage; and matplotlib and VTK fail on values
-  near the float range anyway.
-* probes.csv: the header ``t,x,y,z,theta,psi,phi``, optionally followed by the columns of
-  ``output.probe_fields`` (:data:`PROBE_FIELD_COLUMNS`, in that order), then every whole line
-  as many numbers as the header names (blank lines are skipped). The text after the last
-  newline is a row cut by a killed run and is dropped, whatever it holds; an empty file or a
-  cut header (a run killed as it made the file) reads as no rows.
-* summary.json: a JSON object; ``kind`` and ``scene.title`` strings, ``scene`` and
-  ``scene.rod`` objects, ``scene.rod.length`` a positive number, where present.
-* solution.xdmf: XML without entity declarations (an entity-expansion bomb is refused before
-  anything is expanded), root ``Xdmf`` with a ``Domain`` (after the root, the writer's
-  processing instruction of spare blanks, ``<?cosserat-fem-spare ...?>``, or any other, is
-  skipped; frames may be separated by runs of blanks); each frame a ``Time`` whose value
-  is a number, each ``Attribute`` a name and an HDF ``DataItem`` ``file.h5:/dataset`` whose
-  file is a plain name in the XDMF file's folder (the single-file layout of earlier versions:
-  ``solution.h5``, ``solution-restart<n>.h5``) or a file of the frames folder beside it,
-  ``<name>.frames/mesh.h5`` or ``<name>.frames/<digits>.h5`` (one file a frame, written by
-  :class:`cosserat_fem.output.XdmfWriter`; one folder level, no ``..``, no absolute path,
-  nothing else); each dataset there, numeric, of the XML's ``Dimensions``; the geometry
-  (N, 2 or 3) as its ``GeometryType`` says, N >= 2 points spanning a positive length; the
-  topology integers in [0, N) (a message about the geometry or topology names its .h5 file
-  first); every array (N, 3). At most :data:`MAX_VALUES` numbers are
-  read from the .h5 files of one XDMF file. An XDMF file without any frame (a run killed
-  before its first) raises :class:`NoFramesError`, which ``plot`` takes as "no surfaces"
-  when probes.csv has rows.
-* A scratch ``solution.xdmf-partial`` or ``summary.json.tmp`` left by a killed run is never
-  read.
+exception (cosserat_fem/io/reading.py). Every file is a regular file (not a folder, device,
+FIFO or dangling link: looked at before it is opened, and opened without blocking,
+cosserat_fem/safe_files.py) of bounded size; numbers are finite and at most
+:data:`~cosserat_fem.io.reading.MAX_MAGNITUDE` in magnitude (NaN and inf are refused, not
+plotted: a run never writes them, so they mean damage; and matplotlib and VTK fail on values
+near the float range anyway). summary.json: a JSON object; ``kind`` and ``scene.title``
+strings, ``scene`` and ``scene.rod`` objects, ``scene.rod.length`` a positive number, where
+present. A scratch ``solution.xdmf-partial`` or ``summary.json.tmp`` left by a killed run is
+never read.
 """
 
 from __future__ import annotations
@@ -62,20 +33,16 @@ import numpy as np
 
 from . import safe_files
 from .errors import SceneError
-from .io.probes import PROBE_COLUMNS, read_probe_table
+from .io.probes import PROBE_COLUMNS, PROBES, read_probe_table
 from .io.reading import (
-    decode,
-    finite_number,
     is_file,
-    json_kind,
     quoted,
-    read_bytes,
 )
-from .io.xdmf import RodSeries, read_xdmf
+from .io.run_folder import SUMMARY, read_summary
+from .io.xdmf import XDMF, RodSeries, read_xdmf
 
 #: Largest files read [bytes]: an XDMF file ~1-2.5 kB a frame (some 60 000 frames),
 #: summary.json ~4 kB.
-MAX_SUMMARY_BYTES = 16 << 20
 #: Longest title shown in a figure [characters].
 MAX_TITLE = 120
 
@@ -137,10 +104,10 @@ def open_run(directory: str | Path, command: str) -> Run:
     path = Path(directory)
     if not path.is_dir():
         raise SceneError(f"{command}: {str(path)!r} is not a folder")
-    summary_path, probes_path = path / "summary.json", path / "probes.csv"
+    summary_path, probes_path = path / SUMMARY, path / PROBES
     summary = read_summary(summary_path) if is_file(summary_path) else None
     columns, probes = read_probe_table(probes_path) if is_file(probes_path) else (None, None)
-    xdmf = path / "solution.xdmf"
+    xdmf = path / XDMF
     run = Run(path, summary, probes, xdmf if is_file(xdmf) else None, columns or PROBE_COLUMNS)
     if run.probes is None and run.xdmf is None:
         raise SceneError(
@@ -148,51 +115,6 @@ def open_run(directory: str | Path, command: str) -> Run:
             "give the folder of a run (cosserat-fem run/static --out DIR)"
         )
     return run
-
-
-def read_summary(path: str | Path) -> dict:
-    """summary.json as a dict, with the fields that plot and render use checked: ``kind`` and
-    ``scene.title`` strings, ``scene.rod.length`` a positive number, where present."""
-    path = Path(path)
-    text = decode(path, read_bytes(path, MAX_SUMMARY_BYTES))
-    try:
-        summary = json.loads(text)
-    except (ValueError, RecursionError) as exc:  # RecursionError: [[[[... nested too deep
-        message = str(exc) if isinstance(exc, ValueError) else "nested too deep"
-        raise SceneError(f"{quoted(path)}: not JSON ({message})") from None
-    if not isinstance(summary, dict):
-        raise SceneError(
-            f"{quoted(path)}: not a run's summary (a JSON object) but {json_kind(summary)}"
-        )
-
-    def bad(key: str, expected: str, value: object) -> SceneError:
-        return SceneError(f"{quoted(path)}: {key} must be {expected}, got {json_kind(value)}")
-
-    kind = summary.get("kind")
-    if kind is not None and not isinstance(kind, str):
-        raise bad("kind", "a string", kind)
-    scene = summary.get("scene")
-    if scene is None:
-        return summary
-    if not isinstance(scene, dict):
-        raise bad("scene", "an object", scene)
-    title = scene.get("title")
-    if title is not None and not isinstance(title, str):
-        raise bad("scene.title", "a string", title)
-    rod = scene.get("rod")
-    if rod is not None and not isinstance(rod, dict):
-        raise bad("scene.rod", "an object", rod)
-    length = (rod or {}).get("length")
-    if length is not None:
-        number = finite_number(length)
-        if number is None or number <= 0:
-            shown = json_kind(length)
-            if not isinstance(length, bool) and isinstance(length, int | float):
-                shown = repr(length) if len(repr(length)) <= 20 else repr(length)[:17] + "..."
-            raise SceneError(
-                f"{quoted(path)}: scene.rod.length must be a positive number, got {shown}"
-            )
-    return summary
 
 
 # --- a sweep's table (cosserat_fem/sweep_run.py) ----------------------------------------------

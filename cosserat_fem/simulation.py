@@ -36,6 +36,9 @@ from .events import Events, Observer, drive
 from .fields import PointProbe, probe_position, probe_sigma
 from .integrators import GeneralizedAlpha, make_integrator
 from .io.checkpoint import Checkpoint, check_outputs, check_restart_scene
+from .io.probes import PROBES
+from .io.run_folder import holding_folders, new_run_id, prepare_output_dir, status_of
+from .io.xdmf import XDMF
 from .load_data import refuse_callable_restart
 from .loop import TimeLoop
 from .model import RodModel, build_model
@@ -53,7 +56,6 @@ from .observers import (
     XdmfObserver,
 )
 from .parallel import agree, ranks_on_node
-from .run_folder import PROBES, XDMF, holding_folders, new_run_id, prepare_output_dir, status_of
 from .scene import Scene, refuse_closed
 
 
@@ -145,7 +147,7 @@ def run(
     output time. ``record``: keep the probe's rows in memory (``RunResult.probes``);
     ``fields``: stations σ ∈ [0, 1] at which to keep p every ``field_every`` output times.
     The output folder is locked for the run (a second writer there is refused,
-    cosserat_fem/run_folder.py).
+    cosserat_fem/io/run_folder.py).
     """
     t_start = time.perf_counter()
     refuse_closed(scene, "run")

@@ -801,7 +801,7 @@ def _plant(rng: random.Random, folder: Path, outside: Path) -> str:
 
 def _tree(folder: Path) -> dict[str, str]:
     """conftest.folder_tree but the lock file, which any writer, even one refused, takes over
-    (a link or FIFO there is replaced, cosserat_fem/run_folder.py)."""
+    (a link or FIFO there is replaced, cosserat_fem/io/run_folder.py)."""
     return folder_tree(folder, skip=(".cosserat-fem.lock",))
 
 

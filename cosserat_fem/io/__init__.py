@@ -9,6 +9,11 @@ module              files
                     (:data:`~.xdmf.FIELD_ARRAYS`), the files' writer
                     (:class:`~.xdmf.XdmfSeries`), a restart's check and cut, the reader
                     (:func:`~.xdmf.read_xdmf`, h5py)
+``checkpoint``      checkpoint/: the index and each rank's state (writer, loader), a restart's
+                    checks of the outputs and their cut back to the checkpoint
+``run_folder``      a run's folder (lock, claim of an earlier run's outputs, run id) and
+                    summary.json (:func:`~.run_folder.write_summary`,
+                    :func:`~.run_folder.read_summary`)
 ``hdf5``            HDF5 files made in memory by the process's HDF5 library (ctypes)
 ``reading``         the checks every reader makes (regular file, size, UTF-8, finite numbers)
 ==================  =====================================================================

@@ -44,7 +44,7 @@ half-way leaves no XML naming a deleted file) the frame files after them,
 frame files, ``<name>.frames/<frames>.h5`` on, referenced by the one ``<name>.xdmf``
 (cosserat_fem/io/xdmf.py). Outputs of the earlier single-file layout are continued the same
 way (their ``<name>-restart<m>.h5`` files of later restarts deleted).
-A new run into a folder removes the checkpoint of an earlier one (cosserat_fem/run_folder.py):
+A new run into a folder removes the checkpoint of an earlier one (cosserat_fem/io/run_folder.py):
 the files of :data:`OWN_FILES` in ``checkpoint/``, nothing else there.
 
 No file is written through a link, and no special file is read (cosserat_fem/safe_files.py):
@@ -52,7 +52,7 @@ the index and the state files are replaced by an atomic rename, probes.csv is cu
 folder's own copy when it is a link (a restart of a copy made with ``cp -as``, ``cp -al`` or
 ``rsync --link-dest`` leaves the original as it was), and a restart whose ``checkpoint/`` or
 frames folder is a link to a folder elsewhere is refused (it would write there). A restart
-also holds the folder's lock (cosserat_fem/run_folder.py); a run in progress there is named
+also holds the folder's lock (cosserat_fem/io/run_folder.py); a run in progress there is named
 before the checkpoint is read.
 """
 
@@ -75,6 +75,7 @@ from .. import safe_files
 from ..errors import OutputError, SceneError, show_value
 from ..parallel import agree
 from .probes import probe_prefix
+from .run_folder import SUMMARY
 from .xdmf import cut_xdmf, frames_folder, xdmf_problem
 
 FORMAT = 3  # 3: the time loop's state in one part, "loop" (cosserat_fem/loop.py)
@@ -303,7 +304,7 @@ def load_checkpoint(run_dir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Che
     one if the newest is damaged); SceneError if there is none or it does not fit this run
     (another number of ranks, another format). Collective: every rank agrees on what it
     found before any goes on."""
-    from ..run_folder import refuse_if_held
+    from .run_folder import refuse_if_held
 
     run_dir = Path(run_dir)
     refuse_if_held(run_dir, comm, "restart")
@@ -436,7 +437,7 @@ def check_outputs(
     problem, offset = None, None
     if comm.rank == 0:
         try:
-            problem = _summary_problem(run_dir / "summary.json", checkpoint.run_id)
+            problem = _summary_problem(run_dir / SUMMARY, checkpoint.run_id)
             problem = problem or _linked_folder(run_dir, xdmf)
             if problem is None and xdmf is not None:
                 if outputs.get("xdmf_frames") is None:
