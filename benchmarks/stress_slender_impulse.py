@@ -51,9 +51,9 @@ from dolfinx.fem.petsc import assemble_matrix
 
 from cosserat_fem import adaptive
 from cosserat_fem.events import Observer
+from cosserat_fem.fields import PointProbe
 from cosserat_fem.integrators import make_integrator
 from cosserat_fem.model import build_model, rod_constants
-from cosserat_fem.output import PointProbe
 from cosserat_fem.reference.elastica import reissner_tip_load
 from cosserat_fem.reference.timoshenko import (
     TimoshenkoBeam,

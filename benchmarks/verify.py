@@ -30,10 +30,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from cosserat_fem.energy import EnergyMonitor, EnergyRecorder  # noqa: E402
+from cosserat_fem.fields import PointProbe  # noqa: E402
 from cosserat_fem.mms import run_mms  # noqa: E402
 from cosserat_fem.modal import compute_modes, in_plane_share  # noqa: E402
 from cosserat_fem.model import rod_constants  # noqa: E402
-from cosserat_fem.output import PointProbe  # noqa: E402
 from cosserat_fem.reference.curved import (  # noqa: E402
     SIMO_VU_QUOC_RIGHT_ANGLE,
     right_angle_extrema,

@@ -118,12 +118,12 @@ def sweep(spec, out: str | Path, *, progress: bool = False):
 
 def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()):
     """The scene and the checkpoint to continue the run in ``folder`` (``run(scene,
-    restart=checkpoint)``), with the overrides a restart allows (cosserat_fem/checkpoint.py:
+    restart=checkpoint)``), with the overrides a restart allows (cosserat_fem/io/checkpoint.py:
     time.end, solver.*, limits.*, ...); SceneError if there is no usable checkpoint, or
     time.end is not later than it, or a table's content is not the one the run used (its
     SHA-256 is in the checkpoint's scene), or a load was a Python callable (not data: a run
     with one cannot be restarted)."""
-    from .checkpoint import FIXED_KEYS, load_checkpoint, restart_overrides
+    from .io.checkpoint import FIXED_KEYS, load_checkpoint, restart_overrides
     from .schema import Removal
 
     texts = overrides
@@ -157,8 +157,8 @@ def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | P
     ``shape``); modes.csv, modes.xdmf and modes.json only with ``out``."""
     from mpi4py import MPI
 
+    from .io.run_folder import prepare_output_dir
     from .modal import check_count, compute_modes, write_modes
-    from .run_folder import prepare_output_dir
 
     if isinstance(count, bool) or not isinstance(count, int | np.integer):
         raise SceneError(f"count (--count): must be a whole number, got {count!r}")

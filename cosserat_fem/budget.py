@@ -37,7 +37,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import SceneError
-from .results import PROBE_COLUMNS, probe_columns
+from .io.probes import PROBE_COLUMNS, probe_columns
+from .io.xdmf import FIELD_ARRAYS
 from .scene import PLANAR, Scene
 
 MEMORY_BASE = 80e6  # bytes
@@ -51,8 +52,6 @@ PROBE_COLUMN_BYTES = 24
 H5_ARRAY_METADATA_BYTES = 1400
 XML_BYTES_PER_FRAME_ARRAY = 100
 WRITE_BYTES_PER_S = 2e9
-#: Arrays written per output.fields entry (cosserat_fem/output.py FIELD_ARRAYS).
-_ARRAYS_PER_FIELD = {"displacement": 1, "angles": 1, "strains": 2, "forces": 2, "directors": 3}
 
 
 @dataclass(frozen=True)
@@ -127,7 +126,7 @@ def estimate(scene: Scene, command: str, start: float | None = None, modes: int 
         disk_driver = "time.step"
         if scene.output.xdmf:
             frames = math.floor(steps / float(scene.output.xdmf_every(t.step))) + 1.0
-            arrays = sum(_ARRAYS_PER_FIELD[f] for f in scene.output.fields)
+            arrays = sum(len(FIELD_ARRAYS[f]) for f in scene.output.fields)
             points = float(scene.discretisation.elements) * scene.discretisation.degree + 1
             frame = arrays * (24 * points + H5_ARRAY_METADATA_BYTES)
             xml = XML_BYTES_PER_FRAME_ARRAY * arrays * frames**2 / 2.0

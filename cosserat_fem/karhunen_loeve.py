@@ -59,7 +59,8 @@ import numpy as np
 
 from . import safe_files
 from .errors import CosseratError, SceneError
-from .results import PROBE_COLUMNS, xdmf_mesh_xml
+from .io.probes import PROBE_COLUMNS
+from .io.xdmf import xdmf_mesh_xml
 
 WEIGHTINGS = ("displacement", "kinetic")
 #: Components of the snapshots: displacement (x, y, z) [m], angles (θ, ψ, φ) [rad].
@@ -260,7 +261,8 @@ def read_run(directory: str | Path) -> Snapshots:
     solution.xdmf (its points along the rod; displacement, and the angles if written) and
     the rod's constants from summary.json's scene. SceneError (one line naming the folder or
     file) for a folder without a run, a run without XDMF frames, a damaged file."""
-    from .results import NoFramesError, open_run
+    from .io.xdmf import NoFramesError
+    from .results import open_run
 
     path = Path(directory)
     run = open_run(path, "pod")
@@ -301,7 +303,7 @@ def _read_series(xdmf: Path, length: float | None):
     """(s, times, arrays) of :func:`cosserat_fem.results.read_xdmf`, in this process, or in a
     child process if this one has loaded DOLFINx (whose HDF5 library h5py cannot share)."""
     if "dolfinx" not in sys.modules:
-        from .results import read_xdmf
+        from .io.xdmf import read_xdmf
 
         series = read_xdmf(xdmf, length=length)
         return series.s, series.times, series.arrays
@@ -309,7 +311,7 @@ def _read_series(xdmf: Path, length: float | None):
     # must not turn into "cannot read" the run.
     code = (
         "import io, sys, numpy as np\n"
-        "from cosserat_fem.results import read_xdmf, NoFramesError\n"
+        "from cosserat_fem.io.xdmf import read_xdmf, NoFramesError\n"
         "from cosserat_fem.errors import SceneError\n"
         "try:\n"
         "    r = read_xdmf(sys.argv[1], None if sys.argv[2] == '-' else float(sys.argv[2]))\n"
@@ -334,7 +336,7 @@ def _read_series(xdmf: Path, length: float | None):
         raise SceneError(f"pod: cannot read {str(xdmf)!r} ({exc})") from None
     errors = proc.stderr.decode(errors="replace").strip().splitlines()
     if proc.returncode in (2, 3):
-        from .results import NoFramesError
+        from .io.xdmf import NoFramesError
 
         message = (errors or [f"cannot read {str(xdmf)!r}"])[-1]
         raise (NoFramesError if proc.returncode == 3 else SceneError)(message)
@@ -380,21 +382,21 @@ def _write_csv(result: PodResult, path: Path) -> Path:
 
 def _write_h5(path: Path, datasets: list[tuple[str, np.ndarray]]) -> None:
     """An HDF5 file of float64/int64 datasets, made in memory (with h5py, or, in a process
-    that has loaded DOLFINx, with its HDF5 library: cosserat_fem/output.py) and written whole:
+    that has loaded DOLFINx, with its HDF5 library: cosserat_fem/io/hdf5.py) and written whole:
     HDF5 never writes to the disk itself. (h5py writing to a full disk left HDF5 in a state
     whose clean-up at exit was a segmentation fault.)"""
     from .plot import write_output
 
     datasets = [(name, np.ascontiguousarray(v)) for name, v in datasets]
     if "dolfinx" in sys.modules:
-        from .output import _Hdf5
+        from .io.hdf5 import Hdf5
 
-        write_output(path, _Hdf5().image(datasets)[0], "pod")
+        write_output(path, Hdf5().image(datasets)[0], "pod")
         return
-    from .results import _h5py
+    from .io.xdmf import import_h5py
 
     image = io.BytesIO()
-    with _h5py().File(image, "w") as h5:
+    with import_h5py().File(image, "w") as h5:
         for name, values in datasets:
             h5.create_dataset(name, data=values)
     write_output(path, image.getbuffer(), "pod")
@@ -402,7 +404,7 @@ def _write_h5(path: Path, datasets: list[tuple[str, np.ndarray]]) -> None:
 
 def _write_xdmf(result: PodResult, path: Path) -> Path:
     """pod.xdmf and pod.frames/ (see :func:`write_pod`), in the layout of
-    cosserat_fem/output.py's XdmfWriter (mesh.h5, one file a frame, a temporal collection);
+    cosserat_fem/io/xdmf.py's XdmfSeries (mesh.h5, one file a frame, a temporal collection);
     the XML last, so that it never names a frame file that was not written."""
     from .plot import output_folder, write_output
     frames = path.with_name(path.stem + ".frames")
@@ -417,7 +419,7 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
     grids = []
     output_folder(frames, frames, "pod")
     try:
-        from .results import FRAME_NAME
+        from .io.xdmf import FRAME_NAME
 
         safe_files.remove_own_files(frames, FRAME_NAME)  # an earlier pod's frames, a link
         frames.mkdir(exist_ok=True)

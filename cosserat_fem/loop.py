@@ -131,7 +131,7 @@ class TimeLoop:
     """Integrates ``model`` over the span ``tspan`` (the scene's ``time``) with ``integrator``
     and ``solver``, announcing each step to ``events``.
 
-    ``restart``: a checkpoint's parts (cosserat_fem/checkpoint.py) to continue from; the
+    ``restart``: a checkpoint's parts (cosserat_fem/io/checkpoint.py) to continue from; the
     loop's own are :meth:`state_dict`. After :meth:`run` returns or raises, the model holds
     the last accepted state."""
 
@@ -190,7 +190,7 @@ class TimeLoop:
         self.history = StateHistory(capacity=order + 2)
 
     def state_dict(self) -> dict[str, dict]:
-        """Everything the remaining steps depend on, by part (cosserat_fem/checkpoint.py)."""
+        """Everything the remaining steps depend on, by part (cosserat_fem/io/checkpoint.py)."""
         model = self.model
         parts = {
             "state": {"U": model.U.x.array.copy()},

@@ -41,10 +41,10 @@ from petsc4py import PETSc
 
 from . import __version__, budget, safe_files
 from .errors import OutputError, SceneError, SolverError
+from .fields import XdmfWriter
+from .io.run_folder import write_summary
 from .model import FULL, RodModel, build_model, support_conditions
-from .output import XdmfWriter
 from .parallel import agree, ranks_on_node
-from .run_folder import write_summary
 from .scene import Scene
 
 KINDS = ("bending-x", "bending-y", "axial", "torsion")
@@ -409,7 +409,7 @@ def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WO
 
 def write_modes(out: Path, model: RodModel, modes: list[Mode], about: str = "undeformed") -> None:
     """``modes.csv`` (rank 0), ``modes.xdmf`` (shapes as a series indexed by mode number) and
-    ``modes.json``, the summary of the modal analysis (cosserat_fem/run_folder.py; not
+    ``modes.json``, the summary of the modal analysis (cosserat_fem/io/run_folder.py; not
     summary.json, which belongs to the run or static solve of the folder, if any)."""
     comm = model.msh.comm
     problem = None

@@ -4,14 +4,14 @@ Each observer has one job; a run is composed of the ones it needs (cosserat_fem/
 statics.py), in this order:
 
 * :class:`FolderStart`: a new run claims its folder (an earlier run's stale files removed,
-  summary.json "running" with the run's identity, cosserat_fem/run_folder.py); a restart cuts
+  summary.json "running" with the run's identity, cosserat_fem/io/run_folder.py); a restart cuts
   the outputs back to its checkpoint (checked before anything was built);
 * :class:`ProbeObserver`: probes.csv, a row per output time;
 * :class:`XdmfObserver`: an XDMF frame every ``output.xdmf_interval`` (probes.csv flushed
   first, so that it reaches every frame on disk);
 * :class:`ProgressObserver`: the progress bar (or any callback of (t, steps, iterations));
 * user observers, :class:`ProbeRecorder`, :class:`FieldRecorder` (the Python API's arrays);
-* :class:`CheckpointObserver`: checkpoints when due and at the end (cosserat_fem/checkpoint.py);
+* :class:`CheckpointObserver`: checkpoints when due and at the end (cosserat_fem/io/checkpoint.py);
 * :class:`DeadlineObserver`: stops the run at ``limits.wall_time``, with a checkpoint;
 * :class:`InterruptObserver`: stops every rank at the same step after an interrupt (SIGINT)
   reached any of them under mpirun (cosserat_fem/parallel.py);
@@ -25,19 +25,14 @@ from pathlib import Path
 
 import numpy as np
 
-from .checkpoint import Checkpoint, CheckpointWriter, cut_outputs
 from .errors import LimitReached, SceneError, SolverError
 from .events import Observer
-from .output import (
-    LineSampler,
-    PointProbe,
-    ProbeWriter,
-    XdmfWriter,
-    last_probe_row,
-)
+from .fields import LineSampler, PointProbe, XdmfWriter
+from .io.checkpoint import Checkpoint, CheckpointWriter, cut_outputs
+from .io.probes import ProbeWriter, last_probe_row
+from .io.run_folder import SUMMARY, claim, write_summary
 from .parallel import check_interrupt, from_root
 from .progress import LOGGER
-from .run_folder import SUMMARY, claim, write_summary
 
 
 class FolderStart(Observer):

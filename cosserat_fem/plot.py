@@ -36,15 +36,9 @@ import numpy as np
 
 from . import safe_files
 from .errors import CosseratError, OutputError, SceneError, out_folder
-from .results import (
-    PROBE_COLUMNS,
-    NoFramesError,
-    RodSeries,
-    Run,
-    check_sweep_rows,
-    open_run,
-    read_sweep_rows,
-)
+from .io.probes import PROBE_COLUMNS
+from .io.xdmf import NoFramesError, RodSeries
+from .results import Run, check_sweep_rows, open_run, read_sweep_rows
 
 DPI = 130
 HISTORY_SIZE = (10.0, 8.0)  # inches
@@ -285,7 +279,7 @@ def _check_response(directory: Path, columns: list[str], varied: list[str], reco
 def _member_lengths(directory: Path, rows: list[dict]) -> np.ndarray:
     """ℓ [m] of each row's member, from its summary.json's scene (NaN where there is none or
     it cannot be read: a member that failed)."""
-    from .results import read_summary
+    from .io.run_folder import read_summary
     from .sweep_spec import Member
 
     lengths = np.full(len(rows), np.nan)

@@ -36,8 +36,9 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CosseratError, OutputError, SceneError, out_folder
+from .io.xdmf import RodSeries
 from .plot import output_folder, write_output
-from .results import RodSeries, open_run
+from .results import open_run
 
 WINDOW = (1024, 768)  # pixels of every picture and animation frame
 #: Largest automatic magnification (a displacement below ~1e-13 of the length is round-off;

@@ -419,7 +419,7 @@ class Output:
     """Output directory (stored as written), XDMF and checkpoint settings.
 
     ``checkpoint_interval`` [s] is resolved: a positive multiple of the step, or 0 for a
-    checkpoint at the end of the run only (cosserat_fem/checkpoint.py).
+    checkpoint at the end of the run only (cosserat_fem/io/checkpoint.py).
     """
 
     directory: str
@@ -428,7 +428,7 @@ class Output:
     fields: tuple[str, ...]
     checkpoint: bool
     checkpoint_interval: float
-    #: What probes.csv holds besides t, x, y, z, θ, ψ, φ (cosserat_fem/results.PROBE_FIELD_COLUMNS).
+    #: What probes.csv holds besides t, x, y, z, θ, ψ, φ (cosserat_fem/io/probes.py).
     probe_fields: tuple[str, ...] = ()
 
     def xdmf_every(self, step: float) -> int:

@@ -54,7 +54,7 @@ import numpy as np
 
 from .errors import SceneError
 from .events import Observer
-from .results import PROBE_COLUMNS
+from .io.probes import PROBE_COLUMNS
 
 #: The columns the response is measured on: the probe's (x, y, z [m], θ, ψ, φ [rad]).
 COLUMNS = PROBE_COLUMNS[1:]
@@ -168,13 +168,13 @@ class PeriodicResponse(Observer):
 
     # -- hooks ----------------------------------------------------------------------------
     def started(self, loop) -> None:
-        from .output import PointProbe
+        from .fields import PointProbe
 
         comm = loop.model.U.function_space.mesh.comm
         self.attach(PointProbe(loop.model, self.sigma), comm, loop.state.t, loop.model.length)
 
     def attach(self, probe, comm, t0: float, length: float) -> None:
-        """Measure ``probe`` (an output.PointProbe: ``values()``, ``is_owner``, ``owner``) on
+        """Measure ``probe`` (a fields.PointProbe: ``values()``, ``is_owner``, ``owner``) on
         ``comm`` from the start time ``t0`` [s] (its first sample); ``length`` [m]: ℓ."""
         self.probe, self.comm, self.t0, self.length = probe, comm, t0, length
         self._sample(t0)

@@ -359,7 +359,7 @@ def _integral_ratio(span: float, step: float) -> bool:
 
 def check_later_end(end: Any, after: float) -> None:
     """SceneError unless time.end = ``end`` is later than ``after`` [s], the time of the
-    checkpoint a restart continues from (cosserat_fem/checkpoint.py)."""
+    checkpoint a restart continues from (cosserat_fem/io/checkpoint.py)."""
     if not (_is_number(end) and end > after):
         raise SceneError(
             f"time.end: the checkpoint is at t = {after:.10g} s; give a later end to continue "

@@ -29,19 +29,20 @@ from cosserat_fem.errors import SceneError, show_value
 from cosserat_fem.expressions import RESERVED_NAMES, check_name
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.section import TORSION_CONSTANT_RULES
+from cosserat_fem.io.probes import PROBE_FIELD_COLUMNS
+from cosserat_fem.io.xdmf import FIELD_ARRAYS
 from cosserat_fem.load_data import INTERPOLATIONS, OUTSIDE, S_INTERPOLATIONS
-from cosserat_fem.results import PROBE_FIELD_COLUMNS
 from cosserat_fem.safe_files import Unreadable, read_on_root
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
 SCENE_CONSTANTS = ("L", "omega0")
 #: Relative tolerance for "is an integer number of time steps".
 STEP_TOLERANCE = 1e-9
-#: What output.fields may ask the XDMF file to hold (cosserat_fem/output.py). The names of
-#: heavier modules' choices (this one, the integrators, the Jacobian policies) are spelled out
+#: What output.fields may ask the XDMF file to hold (the format's, cosserat_fem/io/xdmf.py). The
+#: names of heavier modules' choices (the integrators, the Jacobian policies) are spelled out
 #: here, so that reading a scene needs no UFL or DOLFINx; tests/unit/test_one_source.py holds
 #: them equal to the implementers' registries.
-XDMF_FIELDS = ("displacement", "angles", "strains", "forces", "directors")
+XDMF_FIELDS = tuple(FIELD_ARRAYS)
 #: What output.fields holds when a scene does not say: all but the directors.
 XDMF_DEFAULT_FIELDS = XDMF_FIELDS[:4]
 SUPPORTS = ("clamped", "free", "pinned", "spherical")

@@ -31,10 +31,14 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from . import __version__, budget
-from .checkpoint import Checkpoint, check_outputs, check_restart_scene
 from .errors import SceneError
 from .events import Events, Observer, drive
+from .fields import PointProbe, probe_position, probe_sigma
 from .integrators import GeneralizedAlpha, make_integrator
+from .io.checkpoint import Checkpoint, check_outputs, check_restart_scene
+from .io.probes import PROBES
+from .io.run_folder import holding_folders, new_run_id, prepare_output_dir, status_of
+from .io.xdmf import XDMF
 from .load_data import refuse_callable_restart
 from .loop import TimeLoop
 from .model import RodModel, build_model
@@ -51,9 +55,7 @@ from .observers import (
     ProgressObserver,
     XdmfObserver,
 )
-from .output import PointProbe, probe_position, probe_sigma
 from .parallel import agree, ranks_on_node
-from .run_folder import PROBES, XDMF, holding_folders, new_run_id, prepare_output_dir, status_of
 from .scene import Scene, refuse_closed
 
 
@@ -136,7 +138,7 @@ def run(
     The rod starts from rest in its straight state, or from the scene's [initial] fields, or
     from ``initial_state`` (the array of a 12-component state U = (p, q) on the same
     discretisation, e.g. a static solution), or continues the run of the checkpoint
-    ``restart`` in its folder (cosserat_fem/checkpoint.py; ``scene`` must then be the
+    ``restart`` in its folder (cosserat_fem/io/checkpoint.py; ``scene`` must then be the
     checkpoint's, with the overrides a restart allows, ``out_dir`` none or that folder,
     ``initial_state`` none: :func:`_check_restart`). Outputs go to ``out_dir`` (default
     the scene's output.directory) unless ``write_outputs`` is false. ``observers``: objects
@@ -145,7 +147,7 @@ def run(
     output time. ``record``: keep the probe's rows in memory (``RunResult.probes``);
     ``fields``: stations σ ∈ [0, 1] at which to keep p every ``field_every`` output times.
     The output folder is locked for the run (a second writer there is refused,
-    cosserat_fem/run_folder.py).
+    cosserat_fem/io/run_folder.py).
     """
     t_start = time.perf_counter()
     refuse_closed(scene, "run")
@@ -204,7 +206,7 @@ def run(
 
 def _check_restart(scene: Scene, restart, out_dir, initial_state) -> None:
     """A restart continues the checkpoint's run, in its folder, from its state, with its
-    scene (changed at most where cosserat_fem/checkpoint.py allows): a SceneError naming the
+    scene (changed at most where cosserat_fem/io/checkpoint.py allows): a SceneError naming the
     argument otherwise, before anything is touched (the same on every rank)."""
     if not isinstance(restart, Checkpoint):
         raise SceneError(f"restart: must be the checkpoint of cf.resume(folder), got "

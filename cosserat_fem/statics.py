@@ -32,7 +32,11 @@ from . import __version__, budget
 from .checks import check_state, cos_theta
 from .errors import SceneError, SolverError
 from .events import Events, Observer, drive
+from .fields import PointProbe, probe_position, probe_sigma
 from .integrators import make_integrator
+from .io.probes import PROBES
+from .io.run_folder import holding_folders, new_run_id, prepare_output_dir, status_of
+from .io.xdmf import XDMF
 from .model import RodModel, build_model
 from .newton import NewtonFailure, NewtonSettings, NewtonSolver
 from .observers import (
@@ -43,10 +47,8 @@ from .observers import (
     ProbeRecorder,
     XdmfObserver,
 )
-from .output import PointProbe, probe_position, probe_sigma
 from .parallel import ranks_on_node
 from .progress import LOGGER
-from .run_folder import PROBES, XDMF, holding_folders, new_run_id, prepare_output_dir, status_of
 from .scene import Scene, refuse_closed
 
 

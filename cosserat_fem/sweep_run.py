@@ -23,7 +23,7 @@ from its checkpoint (else from its start); ``sweep.json`` records the sweep (wri
 atomically: a damaged one is refused in one line naming it), and a different sweep in the
 same folder is refused (limits.* may differ: SweepSpec.fingerprint). The sweep holds its
 folder's lock while it runs (a second sweep or run there is refused, naming it;
-cosserat_fem/run_folder.py); the members' folders inside are its own. Its files are never
+cosserat_fem/io/run_folder.py); the members' folders inside are its own. Its files are never
 written through a link, nor is a special file opened (cosserat_fem/safe_files.py). Members
 run one after another in each group, and a member's rows of probes are only held until its
 row is written: memory per rank does not grow with the sweep.
@@ -63,12 +63,13 @@ from mpi4py import MPI
 from . import budget, safe_files
 from .charts import change_chart
 from .errors import CosseratError, OutputError, SceneError, StopError
+from .io.probes import PROBE_COLUMNS
+from .io.run_folder import holding_folders, prepare_output_dir
 from .parallel import agree
 from .progress import SweepProgress
 from .response import COLUMNS as RESPONSE_NAMES
 from .response import MEASURES, PeriodicResponse, continued_start
-from .results import PROBE_COLUMNS, STOPPED, SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
-from .run_folder import holding_folders, prepare_output_dir
+from .results import STOPPED, SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
 from .sweep_spec import Member, SweepSpec, forced_span
 
 PROBE_NAMES = PROBE_COLUMNS[1:]  # x, y, z [m], θ, ψ, φ [rad]
@@ -180,8 +181,9 @@ def _checkpoint(folder: Path, scene, comm):
     the member's end and its outputs are the checkpoint's run's (checkpoint.py's checks, as
     ``run --restart`` makes them); else None (the member runs from the start). Collective
     over ``comm``: every rank finds the same."""
-    from .checkpoint import check_outputs, load_checkpoint
-    from .run_folder import PROBES, XDMF
+    from .io.checkpoint import check_outputs, load_checkpoint
+    from .io.probes import PROBES
+    from .io.xdmf import XDMF
 
     try:
         checkpoint = load_checkpoint(folder, comm)
@@ -197,8 +199,7 @@ def _checkpoint(folder: Path, scene, comm):
 def _whole_probes(folder: Path, comm) -> np.ndarray | None:
     """The rows of a continued member's probes.csv, from its start (a restart's result holds
     the rows after the checkpoint only): read on rank 0, for the row it writes."""
-    from .results import read_probe_table
-    from .run_folder import PROBES
+    from .io.probes import PROBES, read_probe_table
 
     return read_probe_table(folder / PROBES)[1] if comm.rank == 0 else None
 
@@ -311,7 +312,7 @@ def _forced(spec: SweepSpec, member: Member, before: _Final | None):
     """A forced member's scene, its response observer and its start (module docstring of
     cosserat_fem/response.py): from the scene's time.start at rest, or continuing ``before``
     with the forcing's phase carried over."""
-    from .output import probe_sigma
+    from .fields import probe_sigma
 
     own = spec.scene(member)
     where = f"member {member.index}"

@@ -64,7 +64,7 @@ from mpi4py import MPI
 from cosserat_fem import api, progress
 from cosserat_fem.errors import CosseratError
 from cosserat_fem.events import Observer
-from cosserat_fem.output import LineSampler
+from cosserat_fem.fields import LineSampler
 from cosserat_fem.plot import drawn_lines
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -6,7 +6,7 @@ halfway), and ``AFTER_ROWS_DELAY`` later (so that the kill does not follow a flu
 probes.csv), every process of the run gets SIGKILL (under mpirun the ranks too: Open MPI puts
 them in process groups of their own and does not take them down with a killed mpirun). Then:
 
-* probes.csv's whole lines parse with numpy and equal what cosserat_fem.results reads; the
+* probes.csv's whole lines parse with numpy and equal what cosserat_fem.io.probes reads; the
   rows are t = k Δt for k = 0, 1, 2, ... without a gap (t is printed with 11 significant
   digits, k Δt has at most 6, so the parsed value is k Δt to rounding: tolerance 1e-15 s).
   The file ends with a whole line, or with the start of the row being written, cut where a
@@ -15,7 +15,7 @@ them in process groups of their own and does not take them down with a killed mp
   that lands inside the write of a block of rows leaves the pages copied so far (seen once in
   the container's CI, where writes are slower; tests/test_kill_window.py kills at such
   boundaries on purpose). Nothing computed is lost but that row, and the readers here
-  (results.read_probes, plot, run --restart) drop it;
+  (io.probes.read_probes, plot, run --restart) drop it;
 * solution.xdmf is well-formed XML, every HDF5 dataset it references exists in solution.h5
   with the XML's dimensions and finite values (what ParaView needs to open the series), both
   series list the same frames t = i 2.4e-4 s (17 significant digits in the XML: 1e-15 s), and
@@ -63,7 +63,7 @@ from conftest import (
 )
 from xdmf_files import read_xdmf
 
-from cosserat_fem import results
+from cosserat_fem.io import probes as probes_csv
 
 SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
 DT = 1e-5  # s, time.step
@@ -166,7 +166,7 @@ def read_probes(path: Path) -> np.ndarray:
     text = whole.decode()
     assert text.splitlines()[0] == "t,x,y,z,theta,psi,phi"
     data = np.loadtxt(io.StringIO(text), delimiter=",", skiprows=1, ndmin=2)
-    assert np.array_equal(results.read_probes(path), data)
+    assert np.array_equal(probes_csv.read_probes(path), data)
     assert data.shape[1] == 7 and np.isfinite(data).all()
     k = np.rint(data[:, 0] / DT)
     assert np.array_equal(k, np.arange(len(data))), "probe times not k Δt, k = 0, 1, ..."

@@ -1,7 +1,7 @@
 """SIGKILL at every write of one XDMF frame damages no frame the published XML names.
 
-A frame is written by rank 0 with plain system calls (cosserat_fem/output.py,
-``XdmfWriter``): the frame's HDF5 file, made in memory, in one write to a new file; then the
+A frame is written by rank 0 with plain system calls (cosserat_fem/io/xdmf.py,
+``XdmfSeries``): the frame's HDF5 file, made in memory, in one write to a new file; then the
 XML, in place: the frame and new closing tags written into the spare room at its end (inside
 a processing instruction, so the document does not change), then one write of blanks, within
 one memory page, over the old closing tags. When the spare room is used up the XML is
@@ -126,13 +126,14 @@ shim.shim_kind.restype = ctypes.c_char_p
 shim.shim_offset.restype = shim.shim_size.restype = ctypes.c_longlong
 for f in (shim.shim_kind, shim.shim_offset, shim.shim_size):
     f.argtypes = [ctypes.c_long]
-from cosserat_fem import output
+from cosserat_fem import fields
+from cosserat_fem.io import xdmf
 from cosserat_fem.cli import main
 
 out, how, target, n, split = sys.argv[1], sys.argv[2], *map(int, sys.argv[3:6])
 if how == "rewrite":
-    output.XdmfWriter.SPARE = (0, 0)  # no spare room: every frame rewrites the XML
-write = output.XdmfWriter.write
+    xdmf.XdmfSeries.SPARE = (0, 0)  # no spare room: every frame rewrites the XML
+write = fields.XdmfWriter.write
 
 def killing(self, t, U=None):
     frame = self.writes
@@ -146,7 +147,7 @@ def killing(self, t, U=None):
                  for i in range(count)]
         print("calls", json.dumps({"frame": frame, "calls": calls}), flush=True)
 
-output.XdmfWriter.write = killing
+fields.XdmfWriter.write = killing
 sys.exit(main(["run", SCENE, "--out", out, "--quiet", "--set", "time.end=0.0006",
                "--set", "output.xdmf_interval=0"]))
 """

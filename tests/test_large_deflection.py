@@ -22,8 +22,8 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
+from cosserat_fem.fields import PointProbe
 from cosserat_fem.model import rod_constants
-from cosserat_fem.output import PointProbe
 from cosserat_fem.reference.elastica import MATTIASSON_1981, elastica_tip_load, reissner_tip_load
 from cosserat_fem.scene import load_scene
 from cosserat_fem.statics import static_path

@@ -35,9 +35,9 @@ from conftest import ROOT, run_command
 
 import cosserat_fem as cf
 from cosserat_fem.errors import SceneError
+from cosserat_fem.fields import PointProbe
 from cosserat_fem.load_data import LoadTable, TableStore, parse_table
 from cosserat_fem.model import rod_constants
-from cosserat_fem.output import PointProbe
 from cosserat_fem.reference import timoshenko as tb
 from cosserat_fem.reference.rod_planes import bending_planes
 from cosserat_fem.scene import load_scene
@@ -360,7 +360,7 @@ def test_a_run_with_a_callable_load_cannot_be_restarted(tmp_path):
     """summary.json and the checkpoint name the callable; a restart is refused in one line,
     through cf.resume (the saved scene) and through cf.run with the callable given again
     (a checkpoint cannot say that it is the run's), before anything is touched."""
-    from cosserat_fem.checkpoint import load_checkpoint
+    from cosserat_fem.io.checkpoint import load_checkpoint
 
     scene = cf.load(SCENE, {**QUICK, "time.end": 6e-4, "output.checkpoint": True,
                             "loads.end.force": [0, lambda t: 10.0, 0]})  # fmt: skip

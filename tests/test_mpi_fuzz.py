@@ -50,7 +50,7 @@ from conftest import (
 from test_sweep import chain_sweep
 
 from cosserat_fem import api
-from cosserat_fem.results import read_probe_table
+from cosserat_fem.io.probes import read_probe_table
 
 pytestmark = pytest.mark.mpi
 

@@ -53,7 +53,7 @@ SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
 SETTINGS = ("time.end=0.0006", "output.xdmf_interval=6e-5")
 SEED = 20240612
 #: The files a case damages: the text files, frame 0's HDF5 file and the mesh's (one file a
-#: frame in the frames folder, cosserat_fem/output.py; the other frames are copied as they are).
+#: frame in the frames folder, cosserat_fem/io/xdmf.py; the other frames are copied as they are).
 FILES = (
     "probes.csv",
     "summary.json",
@@ -309,7 +309,7 @@ MESH_ONLY = (
     '<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n  <Domain>\n'
     '    <Grid Name="rod" GridType="Collection" CollectionType="Temporal">\n'
     "    </Grid>\n  </Domain>\n</Xdmf>\n"
-)  # what XdmfWriter publishes before its first frame (cosserat_fem/output.py)
+)  # what XdmfSeries publishes before its first frame (cosserat_fem/io/xdmf.py)
 
 
 def hand_written(genuine: Path) -> list[Case]:

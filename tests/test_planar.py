@@ -26,8 +26,8 @@ from conftest import ROOT
 from cosserat_fem.forms.resultants import section_stiffnesses
 from xdmf_files import read_arrays
 
+from cosserat_fem.fields import PointProbe
 from cosserat_fem.model import rod_constants
-from cosserat_fem.output import PointProbe
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 from cosserat_fem.statics import static_path

@@ -436,7 +436,7 @@ def test_pod_command_refuses_bad_input_in_one_line(run_folder, tmp_path, capsys)
     holding a non-finite value: exit 2 and one line naming the argument or the file, no
     traceback. The kinetic weighting of the run (its angles and summary.json's rod) works."""
     from cosserat_fem.cli import main
-    from cosserat_fem.output import _Hdf5
+    from cosserat_fem.io.hdf5 import Hdf5
 
     folder = run_folder[0]
     empty = tmp_path / "probes-only"
@@ -445,7 +445,7 @@ def test_pod_command_refuses_bad_input_in_one_line(run_folder, tmp_path, capsys)
     damaged = tmp_path / "damaged"
     shutil.copytree(folder, damaged)
     frame = damaged / "solution.frames" / "000003.h5"
-    h5 = _Hdf5()
+    h5 = Hdf5()
     names = ["displacement", "angles"]
     xml = (damaged / "solution.xdmf").read_text()
     key = re.search(r"solution\.frames/000003\.h5:/Function/displacement/([^<]+)<", xml)[1]

@@ -26,8 +26,8 @@ import pytest
 from conftest import PYTHON, ROOT, cpu_seconds, file_size_limit, run_command, said, subprocess_env
 from xdmf_files import read_xdmf
 
-from cosserat_fem.checkpoint import load_checkpoint
 from cosserat_fem.cli import main
+from cosserat_fem.io.checkpoint import load_checkpoint
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 

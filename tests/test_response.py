@@ -618,11 +618,11 @@ def test_chains_on_a_group_of_two_ranks_continue_each_ranks_part(tmp_path):
 def test_a_final_state_after_a_chart_move_is_saved_in_the_fixed_basis():
     """A chain's saved state (sweep._final_state) has its angles measured from the fixed basis
     when the rod's chart moved during the member: at the free end those the probe reports (its
-    own fixed-basis angles, cosserat_fem/output.py), positions untouched, and the rates giving
+    own fixed-basis angles, cosserat_fem/fields.py), positions untouched, and the rates giving
     the same ŵ = Mm (θ̇, ψ̇, φ̇) (26) as the chart's; without a move, the state bit for bit."""
     from cosserat_fem.charts import angular_map, euler_matrix, quaternion_of_frame
+    from cosserat_fem.fields import PointProbe
     from cosserat_fem.model import build_model
-    from cosserat_fem.output import PointProbe
     from cosserat_fem.sweep_run import _final_state
 
     model = build_model(api.load(PAPER, {"time.end": 3e-5}))

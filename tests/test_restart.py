@@ -1,7 +1,7 @@
 """Checkpoint/restart: a stopped run continues from its last checkpoint and gives the outputs
 of an uninterrupted run, identically.
 
-Every input of the remaining steps is restored (cosserat_fem/checkpoint.py): U, the
+Every input of the remaining steps is restored (cosserat_fem/io/checkpoint.py): U, the
 integrator's history, the Newton policy's state and the coefficients a reused Jacobian was
 assembled from, the loop's position and, for adaptive steps, the step size, the error
 estimate's past states and the field peaks. The same operations on the same numbers give the
@@ -28,8 +28,8 @@ import pytest
 from conftest import ROOT, inject_newton_failures, run_command
 from xdmf_files import read_xdmf
 
-from cosserat_fem.checkpoint import load_checkpoint, restart_overrides
 from cosserat_fem.errors import SceneError
+from cosserat_fem.io.checkpoint import load_checkpoint, restart_overrides
 from cosserat_fem.scene import load_scene, scene_from_dict
 from cosserat_fem.simulation import run
 
@@ -124,7 +124,7 @@ def test_restart_after_a_crash_gives_the_uninterrupted_run(tmp_path, name):
         assert summary_r[key] == summary[key], key
     for key in ("solves", "iterations", "jacobian_assemblies", "retries"):
         assert summary_r["newton"][key] == summary["newton"][key], key
-    # One file a frame (cosserat_fem/output.py): the restarted run's frames in new files.
+    # One file a frame (cosserat_fem/io/xdmf.py): the restarted run's frames in new files.
     frames_dir = out / "solution.frames"
     expected = {"mesh.h5", *(f"{i:06d}.h5" for i in range(len(frames["displacement"][0])))}
     assert {p.name for p in frames_dir.iterdir()} == expected

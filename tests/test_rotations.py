@@ -21,7 +21,7 @@ import pytest
 from conftest import ROOT, run_command
 from test_restart import Crash, crash_at
 
-from cosserat_fem.checkpoint import load_checkpoint
+from cosserat_fem.io.checkpoint import load_checkpoint
 from cosserat_fem.scene import load_scene, scene_from_dict
 from cosserat_fem.schema import read_toml
 from cosserat_fem.simulation import run
@@ -226,7 +226,8 @@ def test_outputs_need_no_decoding_of_charts(tmp_path):
     from xdmf_files import read_arrays
 
     from cosserat_fem.charts import euler_matrix, quaternion_frame
-    from cosserat_fem.results import PROBE_FIELD_COLUMNS, open_run
+    from cosserat_fem.io.probes import PROBE_FIELD_COLUMNS
+    from cosserat_fem.results import open_run
 
     out = tmp_path / "whip"
     fields = "output.fields=['displacement', 'angles', 'directors']"
@@ -291,8 +292,8 @@ def test_a_restart_continues_the_sign_of_the_probe_quaternion():
     quaternion is ±(cos 1.5, −sin 1.5, 0, 0); a fresh probe gives q0 ≥ 0, one seeded with the
     other sign (and its angles) keeps that sign, and both give the rod's directors (18)."""
     from cosserat_fem.charts import euler_matrix, quaternion_frame
+    from cosserat_fem.fields import PointProbe
     from cosserat_fem.model import build_model
-    from cosserat_fem.output import PointProbe
 
     model = build_model(load_scene(SCENE, [IN_3D]))
     sigma = model.V.tabulate_dof_coordinates()[:, 0]

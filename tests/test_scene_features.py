@@ -33,8 +33,8 @@ from cosserat_fem.forms.section import Section, cowper_circle, tube
 from cosserat_fem import api
 from cosserat_fem.errors import SceneError
 from cosserat_fem.expressions import Expression, derivative
+from cosserat_fem.fields import PointProbe
 from cosserat_fem.modal import compute_modes
-from cosserat_fem.output import PointProbe
 from cosserat_fem.reference.timoshenko import TimoshenkoBeam, natural_frequencies
 from cosserat_fem.scene import read_toml, scene_from_dict
 from cosserat_fem.simulation import run

@@ -17,9 +17,9 @@ import pytest
 from conftest import ROOT
 
 from cosserat_fem import api
+from cosserat_fem.io.probes import probe_columns
 from cosserat_fem.reference.curved import BATHE_BOLOURCHI_SHOOTING
 from cosserat_fem.reference.elastica import MATTIASSON_1981
-from cosserat_fem.results import probe_columns
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 from cosserat_fem.statics import static_path

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cosserat_fem.fields import PointProbe
 from cosserat_fem.model import rod_constants
-from cosserat_fem.output import PointProbe
 from cosserat_fem.reference import timoshenko as tb
 from cosserat_fem.reference.rod_planes import bending_planes
 from cosserat_fem.scene import load_scene

@@ -56,8 +56,8 @@ import math
 import numpy as np
 import pytest
 
+from cosserat_fem.fields import PointProbe
 from cosserat_fem.model import rod_constants
-from cosserat_fem.output import PointProbe
 from cosserat_fem.reference.elastica import elastica_tip_load, reissner_tip_load
 from cosserat_fem.reference.timoshenko import TimoshenkoBeam, tip_deflection_end_force
 from cosserat_fem.scene import scene_from_dict

@@ -1,4 +1,5 @@
-"""The XDMF writer's parts (cosserat_fem/output.py, ``XdmfWriter``), in this process.
+"""The XDMF writer's parts (cosserat_fem/io/xdmf.py, ``XdmfSeries``, and its DOLFINx side,
+cosserat_fem/fields.py, ``XdmfWriter``), in this process.
 
 * Frame files: the image copied from a template (``_FrameImages``) is, byte for byte, the file
   HDF5 itself makes for the same names and values, for times whose keys have many lengths.
@@ -26,7 +27,9 @@ import pytest
 from conftest import ROOT, run_command
 from xdmf_files import H5File, read_arrays
 
-from cosserat_fem import output
+from cosserat_fem import fields
+from cosserat_fem.io import xdmf
+from cosserat_fem.io.hdf5 import Hdf5
 from cosserat_fem.model import build_model
 from cosserat_fem.scene import load_scene
 
@@ -46,12 +49,12 @@ def frames_named(path) -> list[str]:
 
 
 def test_copied_frame_images_are_hdf5s_own():
-    h5 = output._Hdf5()
+    h5 = Hdf5()
     arrays = ["displacement", "angles", "strain_v"]
-    images = output._FrameImages(h5, arrays)
+    images = xdmf._FrameImages(h5, arrays)
     rng = np.random.default_rng(1)
     for t in TIMES * 2:  # the second time round, every length has its template
-        key = output._time_text(t).replace(".", "_")
+        key = xdmf._time_text(t).replace(".", "_")
         values = rng.standard_normal((13, 9))
         made = bytes(images(key, values))
         datasets = [
@@ -59,17 +62,17 @@ def test_copied_frame_images_are_hdf5s_own():
             for i, name in enumerate(arrays)
         ]
         assert made == bytes(h5.image(datasets)[0]), t
-    lengths = {len(output._time_text(t)) for t in TIMES}
+    lengths = {len(xdmf._time_text(t)) for t in TIMES}
     assert all(images._templates[n] is not None for n in lengths)  # all copied, none made
 
 
 def test_frame_files_read_back(tmp_path):
-    h5 = output._Hdf5()
-    images = output._FrameImages(h5, ["displacement", "angles"])
+    h5 = Hdf5()
+    images = xdmf._FrameImages(h5, ["displacement", "angles"])
     values = np.arange(30.0).reshape(5, 6)
     images("0_5", values)  # the template of this length
     path = tmp_path / "frame.h5"
-    output._write_file(path, images("0_7", values))
+    xdmf._write_file(path, images("0_7", values))
     f = H5File(path)  # the HDF5 C library, as ParaView reads it
     try:
         np.testing.assert_array_equal(f.read("/Function/displacement/0_7"), values[:, :3])
@@ -80,19 +83,19 @@ def test_frame_files_read_back(tmp_path):
 
 @pytest.mark.parametrize("spare", [(16 << 10, 4 << 20), (1500, 1500), (0, 0)])
 def test_the_xml_is_well_formed_at_every_step_of_an_append(model, tmp_path, monkeypatch, spare):
-    monkeypatch.setattr(output.XdmfWriter, "SPARE", spare)
+    monkeypatch.setattr(xdmf.XdmfSeries, "SPARE", spare)
     path = tmp_path / "s.xdmf"
-    writer = output.XdmfWriter(path, model, ("displacement",), run_id="id")
-    doc = writer._doc
+    writer = fields.XdmfWriter(path, model, ("displacement",), run_id="id")
+    doc = writer.files._doc
     steps = {"in place": 0, "rewritten": 0}
     real_append = doc.append
 
     def append(frame):
         """Every state the two writes of an append can leave, checked before it is made."""
         before = frames_named(path)
-        start, tail = doc._tail + output._SWITCH, doc._new_tail(frame)
+        start, tail = doc._tail + xdmf._SWITCH, doc._new_tail(frame)
         staged = b"".join([b" ", frame, b" " * (tail - start - 1 - len(frame)),
-                           output._XDMF_TAIL, output._SPARE_OPEN])  # fmt: skip
+                           xdmf._XDMF_TAIL, xdmf._SPARE_OPEN])  # fmt: skip
         fd = os.open(path, os.O_RDWR)
         try:
             original = os.pread(fd, len(staged), start)
@@ -103,7 +106,7 @@ def test_the_xml_is_well_formed_at_every_step_of_an_append(model, tmp_path, monk
         finally:
             os.close(fd)
         switch = doc._tail
-        assert switch // output._PAGE == (switch + output._SWITCH - 1) // output._PAGE
+        assert switch // xdmf._PAGE == (switch + xdmf._SWITCH - 1) // xdmf._PAGE
         real_append(frame)
         steps["in place"] += 1
 
@@ -117,7 +120,7 @@ def test_the_xml_is_well_formed_at_every_step_of_an_append(model, tmp_path, monk
     monkeypatch.setattr(doc, "rewrite", rewrite)
     for i, t in enumerate(TIMES[:8]):
         writer.write(t)
-        assert frames_named(path) == [output._time_text(s) for s in TIMES[: i + 1]]
+        assert frames_named(path) == [xdmf._time_text(s) for s in TIMES[: i + 1]]
         assert path.read_bytes().endswith(b"?>\n")
     writer.close()
     if spare[1] == 0:
@@ -129,7 +132,7 @@ def test_the_xml_is_well_formed_at_every_step_of_an_append(model, tmp_path, monk
     text = path.read_bytes()
     document = text[: text.index(b"</Xdmf>\n") + 8]
     squeezed = b" ".join(document.split())  # the blanks left by appends aside
-    expected = b"".join([doc._head(), *doc.frames, output._XDMF_TAIL])
+    expected = b"".join([doc._head(), *doc.frames, xdmf._XDMF_TAIL])
     assert squeezed == b" ".join(expected.split())
 
 
@@ -140,36 +143,36 @@ def test_a_resumed_series_keeps_its_meshs_order_of_the_points(model, tmp_path):
     whole, resumed = tmp_path / "whole.xdmf", tmp_path / "resumed.xdmf"
     U = model.U
     states = [np.sin(np.arange(U.x.array.size) * (k + 1.0)) * 1e-3 for k in range(4)]
-    writer = output.XdmfWriter(whole, model, ("displacement", "angles"), run_id="a")
+    writer = fields.XdmfWriter(whole, model, ("displacement", "angles"), run_id="a")
     for k, state in enumerate(states):
         U.x.array[:] = state
         writer.write(float(k))
     writer.close()
-    writer = output.XdmfWriter(resumed, model, ("displacement", "angles"), run_id="b")
+    writer = fields.XdmfWriter(resumed, model, ("displacement", "angles"), run_id="b")
     for k, state in enumerate(states[:2]):
         U.x.array[:] = state
         writer.write(float(k))
     writer.close()
     # Shuffle the points in the mesh file and in the frames written so far: point j of the
     # file is the output point shuffle[j].
-    folder = output.frames_folder(resumed)
-    line, h5 = writer.line, writer._h5
+    folder = xdmf.frames_folder(resumed)
+    line, h5 = writer.line, writer.files._h5
     shuffle = np.random.default_rng(2).permutation(len(line.geometry))
     at = np.argsort(shuffle)  # where each output point is in the file
     segments = np.sort(at[line.topology], axis=1)
-    output._write_file(folder / output.MESH_FILE, h5.image(
+    xdmf._write_file(folder / xdmf.MESH_FILE, h5.image(
         [("/Mesh/mesh/geometry", line.geometry[shuffle]), ("/Mesh/mesh/topology", segments)]
     )[0])  # fmt: skip
     for k in range(2):
-        name = folder / output.frame_file(k)
+        name = folder / xdmf.frame_file(k)
         f = H5File(name)
-        key = output._time_text(float(k))
+        key = xdmf._time_text(float(k))
         datasets = [(f"/Function/{a}/{key}", f.read(f"/Function/{a}/{key}")[shuffle])
                     for a in ("displacement", "angles")]  # fmt: skip
         f.close()
-        output._write_file(name, h5.image(datasets)[0])
-    writer = output.XdmfWriter(resumed, model, ("displacement", "angles"), resume=(1, 2))
-    assert writer._to_file is not None
+        xdmf._write_file(name, h5.image(datasets)[0])
+    writer = fields.XdmfWriter(resumed, model, ("displacement", "angles"), resume=(1, 2))
+    assert writer.files._to_file is not None
     for k, state in enumerate(states[2:], start=2):
         U.x.array[:] = state
         writer.write(float(k))
@@ -187,7 +190,7 @@ import sys
 from pathlib import Path
 import numpy as np
 from cosserat_fem.model import build_model
-from cosserat_fem.output import XdmfWriter
+from cosserat_fem.fields import XdmfWriter
 from cosserat_fem.scene import load_scene
 
 scene = load_scene(sys.argv[1], ["discretisation.elements=7"])

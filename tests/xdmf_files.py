@@ -86,7 +86,7 @@ def read_xdmf(path: Path, names: bool = True) -> dict[str, tuple[np.ndarray, np.
     """{name: (times, free-end values of each frame)} of ``displacement`` and ``angles``, after
     checking every HDF5 reference of the XML: to ``<stem>.frames/mesh.h5`` and one file a
     frame, ``<stem>.frames/<i, 6 digits>.h5``, i = 0, 1, ... in order (restarts included;
-    cosserat_fem/output.py), with the XML's dimensions, finite values. ``names=False``: any
+    cosserat_fem/io/xdmf.py), with the XML's dimensions, finite values. ``names=False``: any
     file names (e.g. those of the earlier single-file layout, ``<stem>.h5``), the rest checked
     all the same."""
     root = ET.parse(path).getroot()  # raises on a cut or empty file
@@ -110,7 +110,7 @@ def read_xdmf(path: Path, names: bool = True) -> dict[str, tuple[np.ndarray, np.
             assert values.shape == dims, (dataset, values.shape, dims)
             assert np.isfinite(values).all(), dataset
             data[item.text.strip()] = values
-        # One temporal collection (cosserat_fem/output.py): each frame holds the mesh, the
+        # One temporal collection (cosserat_fem/io/xdmf.py): each frame holds the mesh, the
         # reference centreline (0, 0, s) [m] whose free end has the largest s, and the arrays.
         grids = root.findall("Domain/Grid[@GridType='Collection']/Grid")
         times = np.array([float(g.find("Time").get("Value")) for g in grids])

@@ -14,8 +14,8 @@ from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TO
 from cosserat_fem.forms.section import TORSION_CONSTANT_RULES
 
 from cosserat_fem.integrators import INTEGRATORS
+from cosserat_fem.io.xdmf import FIELD_ARRAYS
 from cosserat_fem.newton import JACOBIAN_POLICIES
-from cosserat_fem.output import FIELD_ARRAYS
 from cosserat_fem.schema import SCHEMA, XDMF_DEFAULT_FIELDS, XDMF_FIELDS
 
 pytestmark = pytest.mark.unit
@@ -45,5 +45,4 @@ def test_the_schema_offers_what_is_implemented(key, names):
 
 
 def test_the_xdmf_fields_default_to_all():
-    assert XDMF_FIELDS == tuple(FIELD_ARRAYS)
     assert spec("output.fields").default == XDMF_DEFAULT_FIELDS == XDMF_FIELDS[:4]

@@ -20,14 +20,14 @@ A folder holds the outputs of one run at a time, and has one writer at a time:
   file and frames, and the HDF5 files and scratch XML of the earlier single-file layout
   (``solution.h5``, ``solution-restart<n>.h5``, ``solution.xdmf-partial``). Only the
   project's own files go (:func:`stale_outputs`): in ``checkpoint/`` and ``solution.frames/``
-  the names the project writes there (:data:`cosserat_fem.checkpoint.OWN_FILES`,
+  the names the project writes there (:data:`cosserat_fem.io.checkpoint.OWN_FILES`,
   :data:`cosserat_fem.results.FRAME_NAME`), never a subfolder or a file of another name (a
   user's notes, another run nested inside); a folder left empty goes too. A link at one of
   these names is removed, never followed. Where something of the user's stands where the run
   must write (a file named ``checkpoint``, a folder named ``probes.csv``), the run is refused
   in one line before anything is removed (:func:`conflict`). Then it writes summary.json with
   the status "running" and a new run identity (:func:`new_run_id`) before any other output,
-  which the checkpoint and the XDMF file carry too (cosserat_fem/checkpoint.py).
+  which the checkpoint and the XDMF file carry too (cosserat_fem/io/checkpoint.py).
 
 Every file of the folder is written as a new file or by an atomic rename, never through a
 link, and no special file is opened (cosserat_fem/safe_files.py).
@@ -51,11 +51,17 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from . import safe_files
-from .errors import OutputError, SceneError
-from .parallel import agree, from_root
+from .. import safe_files
+from ..errors import OutputError, SceneError
+from ..parallel import agree, from_root
+from .probes import PROBES
+from .reading import decode, finite_number, json_kind, quoted, read_bytes
+from .xdmf import XDMF
 
-PROBES, XDMF, SUMMARY = "probes.csv", "solution.xdmf", "summary.json"
+#: The run's summary: written when it starts (status "running"), replaced at its end.
+SUMMARY = "summary.json"
+#: Largest summary.json read [bytes] (a run's is ~4 kB).
+MAX_SUMMARY_BYTES = 16 << 20
 #: The lock file of a folder (:class:`FolderLock`).
 LOCK = ".cosserat-fem.lock"
 #: The key a refusal names, by the kind of writer that asks for the folder.
@@ -97,7 +103,7 @@ class FolderLock:
                 os.close(fd)
                 if exc.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS):
                     raise
-                from .progress import LOGGER
+                from ..progress import LOGGER
 
                 LOGGER.warning("%s: the file system cannot lock %s (%s); a second writer into "
                                "the folder would not be refused", what, path, exc.strerror)
@@ -273,8 +279,7 @@ def stale_outputs(folder: Path) -> list[tuple[Path, object | None]]:
     checkpoint (its index first), the XDMF file (so that no XML names a removed file; a new
     series publishes its own), its frames, the files of the earlier single-file layout."""
     from .checkpoint import DIRECTORY, OWN_FILES
-    from .output import frames_folder
-    from .results import FRAME_NAME
+    from .xdmf import FRAME_NAME, frames_folder
 
     stale: list[tuple[Path, object | None]] = [(folder / DIRECTORY, OWN_FILES)]
     if (folder / XDMF).is_symlink() or (folder / XDMF).exists():
@@ -288,8 +293,7 @@ def conflict(folder: Path, writes_xdmf: bool, writes_checkpoint: bool) -> str | 
     write (a folder at a file's name, a file at a folder's, a folder among the checkpoint's
     or the frames' files), the first such, in words; else None."""
     from .checkpoint import DIRECTORY, INDEX, OWN_FILES
-    from .output import frames_folder
-    from .results import FRAME_NAME
+    from .xdmf import FRAME_NAME, frames_folder
 
     files = [PROBES, SUMMARY, f"{SUMMARY}.tmp"]
     folders = []
@@ -355,7 +359,7 @@ def status_of(failure: BaseException | None) -> str:
     """summary.json's status of a run that ended with ``failure``: "completed" (none),
     "interrupted" (Ctrl-C), "stopped" (a StopError: an output, a limit; resumable) or
     "failed"."""
-    from .errors import StopError
+    from ..errors import StopError
 
     if failure is None:
         return "completed"
@@ -376,3 +380,48 @@ def write_summary(path: Path, data: dict, comm: MPI.Comm, strict: bool = True) -
             problem = OutputError(f"output: cannot write {str(path)!r} ({exc.strerror or exc})")
     if strict:
         agree(comm, problem)
+
+
+def read_summary(path: str | Path) -> dict:
+    """summary.json as a dict, with the fields that plot and render use checked: ``kind`` and
+    ``scene.title`` strings, ``scene.rod.length`` a positive number, where present."""
+    path = Path(path)
+    text = decode(path, read_bytes(path, MAX_SUMMARY_BYTES))
+    try:
+        summary = json.loads(text)
+    except (ValueError, RecursionError) as exc:  # RecursionError: [[[[... nested too deep
+        message = str(exc) if isinstance(exc, ValueError) else "nested too deep"
+        raise SceneError(f"{quoted(path)}: not JSON ({message})") from None
+    if not isinstance(summary, dict):
+        raise SceneError(
+            f"{quoted(path)}: not a run's summary (a JSON object) but {json_kind(summary)}"
+        )
+
+    def bad(key: str, expected: str, value: object) -> SceneError:
+        return SceneError(f"{quoted(path)}: {key} must be {expected}, got {json_kind(value)}")
+
+    kind = summary.get("kind")
+    if kind is not None and not isinstance(kind, str):
+        raise bad("kind", "a string", kind)
+    scene = summary.get("scene")
+    if scene is None:
+        return summary
+    if not isinstance(scene, dict):
+        raise bad("scene", "an object", scene)
+    title = scene.get("title")
+    if title is not None and not isinstance(title, str):
+        raise bad("scene.title", "a string", title)
+    rod = scene.get("rod")
+    if rod is not None and not isinstance(rod, dict):
+        raise bad("scene.rod", "an object", rod)
+    length = (rod or {}).get("length")
+    if length is not None:
+        number = finite_number(length)
+        if number is None or number <= 0:
+            shown = json_kind(length)
+            if not isinstance(length, bool) and isinstance(length, int | float):
+                shown = repr(length) if len(repr(length)) <= 20 else repr(length)[:17] + "..."
+            raise SceneError(
+                f"{quoted(path)}: scene.rod.length must be a positive number, got {shown}"
+            )
+    return summary

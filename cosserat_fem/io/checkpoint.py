@@ -42,9 +42,9 @@ to its rows, the XDMF file to its frames, and then (the XML cut first, so that a
 half-way leaves no XML naming a deleted file) the frame files after them,
 ``<name>.frames/<i>.h5`` for i >= the checkpoint's frames, deleted; new frames go into new
 frame files, ``<name>.frames/<frames>.h5`` on, referenced by the one ``<name>.xdmf``
-(cosserat_fem/output.py). Outputs of the earlier single-file layout are continued the same
+(cosserat_fem/io/xdmf.py). Outputs of the earlier single-file layout are continued the same
 way (their ``<name>-restart<m>.h5`` files of later restarts deleted).
-A new run into a folder removes the checkpoint of an earlier one (cosserat_fem/run_folder.py):
+A new run into a folder removes the checkpoint of an earlier one (cosserat_fem/io/run_folder.py):
 the files of :data:`OWN_FILES` in ``checkpoint/``, nothing else there.
 
 No file is written through a link, and no special file is read (cosserat_fem/safe_files.py):
@@ -52,7 +52,7 @@ the index and the state files are replaced by an atomic rename, probes.csv is cu
 folder's own copy when it is a link (a restart of a copy made with ``cp -as``, ``cp -al`` or
 ``rsync --link-dest`` leaves the original as it was), and a restart whose ``checkpoint/`` or
 frames folder is a link to a folder elsewhere is refused (it would write there). A restart
-also holds the folder's lock (cosserat_fem/run_folder.py); a run in progress there is named
+also holds the folder's lock (cosserat_fem/io/run_folder.py); a run in progress there is named
 before the checkpoint is read.
 """
 
@@ -62,7 +62,6 @@ import hashlib
 import io
 import json
 import math
-import os
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
@@ -72,9 +71,12 @@ from typing import Any
 import numpy as np
 from mpi4py import MPI
 
-from . import safe_files
-from .errors import OutputError, SceneError, show_value
-from .parallel import agree
+from .. import safe_files
+from ..errors import OutputError, SceneError, show_value
+from ..parallel import agree
+from .probes import probe_prefix
+from .run_folder import SUMMARY
+from .xdmf import cut_xdmf, frames_folder, xdmf_problem
 
 FORMAT = 3  # 3: the time loop's state in one part, "loop" (cosserat_fem/loop.py)
 DIRECTORY = "checkpoint"
@@ -333,7 +335,7 @@ def load_checkpoint(run_dir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Che
         if not problems:
             common = {k: v for k, v in meta.items() if k not in ("checkpoints", "checksum")}
             if found:
-                from .progress import LOGGER
+                from ..progress import LOGGER
 
                 LOGGER.warning(
                     "checkpoint: %s; continuing from the previous checkpoint at t = %.6g s",
@@ -357,7 +359,7 @@ def _allowed() -> str:
 def restart_overrides(overrides: list[str] | tuple[str, ...]) -> None:
     """SceneError unless every ``--set`` (and ``--unset``) key of a restart is one of
     :data:`RESTART_KEYS`."""
-    from .schema import Removal
+    from ..schema import Removal
 
     for text in overrides:
         key = text.split("=", 1)[0].strip()
@@ -393,7 +395,7 @@ def check_restart_scene(checkpoint: Checkpoint, scene) -> None:
     ``cf.run(scene, restart=checkpoint)`` (any scene) pass through, before anything is
     touched: a scene of other constants, loads or discretisation would continue the
     checkpoint's state as another problem, a splice of two runs."""
-    from .scene import check_later_end
+    from ..scene import check_later_end
 
     held = _leaves(checkpoint.meta["scene"])
     given = _leaves(json.loads(json.dumps(scene.to_dict())))  # as the index holds it
@@ -410,7 +412,6 @@ def check_restart_scene(checkpoint: Checkpoint, scene) -> None:
 
 
 # --------------------------------------------------------------------------------- outputs
-ET.register_namespace("xi", "http://www.w3.org/2001/XInclude")
 
 
 @dataclass
@@ -425,46 +426,6 @@ class RestartPlan:
     restart_number: int
 
 
-def _probe_prefix(path: Path, rows: int) -> tuple[int, Any]:
-    """(bytes, sha256) of the header and the first ``rows`` rows of probes.csv."""
-    digest = hashlib.sha256()
-    end = 0
-    with os.fdopen(safe_files.open_regular(path), "rb") as stream:
-        for _ in range(rows + 1):
-            line = stream.readline()
-            if not line.endswith(b"\n"):
-                raise SceneError(
-                    f"--restart: {str(path)!r} holds fewer than the checkpoint's {rows} rows"
-                )
-            digest.update(line)
-            end += len(line)
-    return end, digest
-
-
-def _xdmf_problem(path: Path, frames: int, run_id: str) -> str | None:
-    """Why the XDMF file cannot be continued from ``frames`` frames of run ``run_id``."""
-    from .output import XDMF_GRID, xdmf_run_id
-
-    root = ET.fromstring(safe_files.read_regular(path))
-    if xdmf_run_id(root) != run_id:
-        return f"{str(path)!r} was written by another run than the checkpoint's"
-    domain = root.find("Domain")
-    collection = None if domain is None else domain.find(f"Grid[@Name='{XDMF_GRID}']")
-    steps = [] if collection is None else collection.findall("Grid")
-    if len(steps) < frames:
-        return f"{str(path)!r} holds {len(steps)} frames, fewer than the checkpoint's {frames}"
-    for step in steps[:frames]:
-        for item in step.iter("DataItem"):
-            name = (item.text or "").strip().split(":", 1)[0]
-            target = path.parent / name
-            if not target.is_file():
-                what = "is missing"
-                if target.exists():
-                    what = f"is {safe_files.kind(target.stat().st_mode)}, not a regular file"
-                return f"{str(path)!r} refers to {name}, which {what}"
-    return None
-
-
 def check_outputs(
     checkpoint: Checkpoint, probes: Path | None, xdmf: Path | None, comm: MPI.Comm
 ) -> RestartPlan:
@@ -476,15 +437,15 @@ def check_outputs(
     problem, offset = None, None
     if comm.rank == 0:
         try:
-            problem = _summary_problem(run_dir / "summary.json", checkpoint.run_id)
+            problem = _summary_problem(run_dir / SUMMARY, checkpoint.run_id)
             problem = problem or _linked_folder(run_dir, xdmf)
             if problem is None and xdmf is not None:
                 if outputs.get("xdmf_frames") is None:
                     problem = "the checkpointed run wrote no XDMF file"
                 else:
-                    problem = _xdmf_problem(xdmf, int(outputs["xdmf_frames"]), checkpoint.run_id)
+                    problem = xdmf_problem(xdmf, int(outputs["xdmf_frames"]), checkpoint.run_id)
             if problem is None and probes is not None:
-                offset, digest = _probe_prefix(probes, int(outputs["probe_rows"]))
+                offset, digest = probe_prefix(probes, int(outputs["probe_rows"]))
                 if digest.hexdigest() != outputs.get("probes_sha256"):
                     problem = (
                         f"{str(probes)!r} differs from the checkpointed run's rows (written by "
@@ -503,8 +464,6 @@ def _linked_folder(run_dir: Path, xdmf: Path | None) -> str | None:
     """Why the restart would write into a folder outside ``run_dir``: its checkpoint folder or
     the XDMF file's frames folder is a link to one (a file that is a link is replaced, never
     written through; a folder's files cannot be)."""
-    from .output import frames_folder
-
     for folder in [run_dir / DIRECTORY] + ([frames_folder(xdmf)] if xdmf is not None else []):
         if folder.is_symlink():
             return (
@@ -528,20 +487,6 @@ def _summary_problem(path: Path, run_id: str) -> str | None:
     return None
 
 
-def cut_xdmf(path: Path, frames: int) -> None:
-    """Keep the first ``frames`` time steps of every temporal collection of the XDMF file
-    (written by rank 0 only; replaced atomically, a link replaced, not followed)."""
-    tree = ET.ElementTree(ET.fromstring(safe_files.read_regular(path)))
-    for collection in tree.getroot().iter("Grid"):
-        if collection.get("GridType") != "Collection":
-            continue
-        for step in collection.findall("Grid")[frames:]:
-            collection.remove(step)
-    text = io.BytesIO()
-    tree.write(text, encoding="utf-8", xml_declaration=True)
-    safe_files.replace(path, text.getvalue())
-
-
 def cut_outputs(plan: RestartPlan, comm: MPI.Comm) -> None:
     """Cut the outputs back to the checkpoint as ``plan`` (from :func:`check_outputs`) says,
     on rank 0: probes.csv, the XDMF file, then (once the XML no longer names them) the frame
@@ -549,8 +494,6 @@ def cut_outputs(plan: RestartPlan, comm: MPI.Comm) -> None:
     folder, and the HDF5 files of later restarts of the earlier single-file layout (which
     hold frames after the checkpoint only: a restart killed before its first checkpoint left
     them). An OutputError on every rank if a file cannot be changed (collective)."""
-    from .output import frames_folder
-
     problem = None
     if comm.rank == 0:
         try:
