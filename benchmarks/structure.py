@@ -63,7 +63,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
                "reference.")),  # fmt: skip
     ("solve", ("newton", "native_newton", "native_sdirk", "integrators", "adaptive", "events",
                "loop")),  # fmt: skip
-    ("files", ("io.", "output", "results", "checkpoint", "run_folder")),
+    ("files", ("io.", "fields", "results")),
     ("run", ("simulation", "statics", "modal", "observers", "progress", "budget")),
     ("studies", ("sweep_spec", "sweep_run", "response", "karhunen_loeve")),
     ("interface", ("api", "cli", "plot", "render")),
