@@ -39,13 +39,11 @@ from collections.abc import Iterator
 from dataclasses import replace
 from pathlib import Path
 
-import ufl
-from dolfinx import fem
 from dolfinx.fem.petsc import create_vector
 from petsc4py import PETSc
 
 from .errors import SceneError
-from .newton import NewtonSettings, NewtonSolver
+from .newton import NewtonSolver
 from .parallel import agree
 from .schema import PETSC_PREFIX
 
@@ -117,19 +115,12 @@ class SNESSolver(NewtonSolver):
     points); U is set to the point before each residual or Jacobian assembly and holds the
     last iterate after a solve. ``loop`` is "snes"."""
 
-    def __init__(
-        self,
-        F: ufl.Form,
-        U: fem.Function,
-        bcs: list,
-        settings: NewtonSettings,
-        form_compiler_params: dict | None = None,
-        jit_params: dict | None = None,
-    ):
-        super().__init__(F, U, bcs, settings, form_compiler_params, jit_params)
-        self.comm = U.function_space.mesh.comm
+    def __init__(self, *args, **kwargs):
+        """NewtonSolver's arguments: F, U, bcs, settings (its ``petsc`` options), ..."""
+        super().__init__(*args, **kwargs)
+        self.comm = self.U.function_space.mesh.comm
         self._x = create_vector(self.F_form)  # SNES's iterate
-        self.options = dict(settings.petsc)
+        self.options = dict(self.settings.petsc)
         #: The options PETSc has read so far; None once they have been checked (first solve).
         self._used: set[str] | None = set()
         self.snes = self._create(self.comm, self.ksp)
