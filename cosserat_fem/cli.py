@@ -65,11 +65,31 @@ def _common(sub: argparse.ArgumentParser, scene_optional: bool = False,
         help="remove a key or a table of the scene, e.g. --unset rod.section.a; in order with "
         "--set (repeatable)",
     )
+    sub.add_argument(
+        "--petsc",
+        metavar="NAME[=VALUE]",
+        action="append",
+        dest="overrides",
+        type=_petsc_override,
+        help="a PETSc option of the SNES solver, without its prefix cosserat_, e.g. --petsc "
+        "snes_type=newtontr --petsc snes_monitor: --set solver.petsc.NAME=VALUE, which "
+        "chooses SNES (solver.nonlinear = \"auto\"; README, \"The solver\") (repeatable)",
+    )
     sub.add_argument("--quiet", action="store_true", help="print nothing on success")
     sub.add_argument(
         "--verbose", action="store_true", help="also log step rejections, checkpoints, ..."
     )
     sub.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+
+
+def _petsc_override(text: str) -> str:
+    """``--petsc NAME[=VALUE]`` as the override ``solver.petsc.NAME=VALUE`` (a leading "-" of
+    NAME dropped, as PETSc's command line writes it; no VALUE: an option without one)."""
+    name, _, value = text.partition("=")
+    name = name.strip().removeprefix("-")
+    if not name:
+        raise argparse.ArgumentTypeError(f"expected NAME[=VALUE], got {text!r}")
+    return f"solver.petsc.{name}={value}"
 
 
 class _Parser(argparse.ArgumentParser):

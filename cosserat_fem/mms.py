@@ -46,7 +46,7 @@ from .forms.kinematics import directors, translations
 from .integrators import GeneralizedAlpha, make_integrator
 from .loop import watch_chart
 from .model import RodModel, build_model
-from .newton import NewtonSettings, NewtonSolver
+from .newton import NewtonSettings, make_solver
 from .scene import Scene
 
 # Amplitudes: x/ℓ, y/ℓ, z/ℓ of a few per cent, angles of a few tenths of a radian.
@@ -156,7 +156,7 @@ def run_mms(
         integrator.set_initial_rate(_interpolate(model.V, exact0.Udot))
     settings = NewtonSettings.of(scene.solver)
     settings.jacobian = "full"  # the order measured is the integrator's, not the stop rule's
-    solver = NewtonSolver(integrator.residual_form(), model.U, model.bcs, settings)
+    solver = make_solver(integrator.residual_form(), model.U, model.bcs, settings)
     h = tau_end / steps
     resets = int(watch_chart(model, integrator, solver) is not None)  # θ(ℓ, 0) may be large
     for _ in range(steps):

@@ -42,7 +42,7 @@ import itertools
 import logging
 import math
 import time
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 import ufl
@@ -74,6 +74,11 @@ class NewtonSettings:
     max_iterations: int = 25
     linear_solver: str = "auto"  # auto | petsc | mumps | superlu
     loop: str = "auto"  # auto (the C inner loop where it applies: native_newton.py) | python
+    #: newton (this module's loop) | snes (PETSc's, cosserat_fem/snes.py) | auto (snes if
+    #: ``petsc`` gives options): :func:`make_solver` chooses by it.
+    nonlinear: str = "newton"
+    #: SNES's PETSc options: name (without "-" and the prefix cosserat_) = value as text.
+    petsc: dict = field(default_factory=dict)
 
     @classmethod
     def of(cls, solver) -> NewtonSettings:
@@ -81,6 +86,20 @@ class NewtonSettings:
         it lacks keep their defaults."""
         names = [f.name for f in fields(cls) if hasattr(solver, f.name)]
         return cls(**{name: getattr(solver, name) for name in names})
+
+
+def make_solver(
+    F: ufl.Form, U: fem.Function, bcs: list, settings: NewtonSettings
+) -> NewtonSolver:
+    """The nonlinear solver of F(U) = 0 that ``settings`` choose: PETSc's SNES configured by
+    ``settings.petsc`` (cosserat_fem/snes.py :class:`~cosserat_fem.snes.SNESSolver`) for
+    nonlinear = "snes", or "auto" with options; else :class:`NewtonSolver`. Both have the
+    same interface, stop rule and Jacobian policies."""
+    if settings.nonlinear == "snes" or (settings.nonlinear == "auto" and settings.petsc):
+        from .snes import SNESSolver
+
+        return SNESSolver(F, U, bcs, settings)
+    return NewtonSolver(F, U, bcs, settings)
 
 
 @dataclass
@@ -251,11 +270,12 @@ class NewtonSolver:
         return choice
 
     # -- residual, Jacobian, convergence test ----------------------------------------------
-    def _residual(self) -> None:
-        """b = F(U), with x − g in the rows of the Dirichlet dofs (class docstring). Under MPI
-        U's ghosts are updated first and b's ghost contributions added."""
+    def _residual(self, b: PETSc.Vec | None = None) -> None:
+        """b = F(U), with x − g in the rows of the Dirichlet dofs (class docstring); ``b`` is
+        the solver's own vector unless given (one of SNES's). Under MPI U's ghosts are updated
+        first and b's ghost contributions added."""
         t0 = time.perf_counter()
-        b = self.b
+        b = self.b if b is None else b
         if self._parallel:
             self._u.ghostUpdate(addv=_INSERT, mode=_FORWARD)
             with b.localForm() as local:

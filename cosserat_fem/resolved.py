@@ -412,6 +412,11 @@ class Solver:
     max_iterations: int
     linear_solver: str
     loop: str  # "auto": the C inner loop where it applies (native_newton.py); "python"
+    #: "newton" (the project's loop), "snes" (PETSc's SNES, cosserat_fem/snes.py) or "auto"
+    #: (SNES if ``petsc`` gives options: newton.make_solver).
+    nonlinear: str = "auto"
+    #: PETSc options for SNES, name (without "-" and the prefix cosserat_) = value as text.
+    petsc: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -431,6 +431,17 @@ def _nearest_ends(start: float, span: float, step: float, after: float | None) -
     return f"time.end = {below:.10g}" + (f" or {above:.10g}" if above != below else "")
 
 
+def _build_solver(raw: dict) -> Solver:
+    """[solver]; SceneError if PETSc options are given to the project's Newton loop, which
+    reads none (they configure SNES: solver.nonlinear = "snes" or "auto")."""
+    if raw["nonlinear"] == "newton" and raw["petsc"]:
+        name = next(iter(raw["petsc"]))
+        raise SceneError(f'solver.petsc.{name}: PETSc options configure SNES, but solver.nonlinear '
+                         '= "newton" (the project\'s loop) reads none; set solver.nonlinear = '
+                         '"snes" or "auto"')  # fmt: skip
+    return Solver(**raw)
+
+
 def _build_discretisation(raw: dict[str, Any]) -> Discretisation:
     quadrature = raw["quadrature_degree"]
     if quadrature == "auto":
@@ -596,7 +607,7 @@ def scene_from_dict(
         loads=loads,
         time=time,
         discretisation=_build_discretisation(raw["discretisation"]),
-        solver=Solver(**raw["solver"]),
+        solver=_build_solver(raw["solver"]),
         output=_build_output(raw["output"], time),
         static=StaticSettings(**raw["static"]),
         damping=Damping(**raw["damping"]),

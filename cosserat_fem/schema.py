@@ -19,6 +19,7 @@ from __future__ import annotations
 import difflib
 import keyword
 import math
+import re
 import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -309,6 +310,61 @@ class ChoiceList(Field):
         return tuple(value)
 
 
+#: A PETSc option's name as [solver.petsc] gives it: without the leading "-" and the prefix.
+PETSC_OPTION_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
+
+
+def petsc_value(key: str, value: Any) -> str:
+    """The text PETSc's options database takes for an option's ``value`` from a scene: a
+    string as it is ("" for an option without a value, e.g. ``snes_monitor = ""``), an integer
+    or a finite number in Python's shortest repr, a boolean as ``true``/``false``; SceneError
+    naming ``key`` for anything else (a list, a table, NaN, a string with a control character).
+    """
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, float) and math.isfinite(value):
+        return repr(value)
+    if isinstance(value, str) and value.isprintable():
+        return value
+    raise SceneError(f"{key}: a PETSc option's value must be a string, a finite number or true/"
+                     f"false (\"\" for an option without a value), got {show_value(value)}")
+
+
+@dataclass(frozen=True, kw_only=True)
+class PetscOptions(Field):
+    """The free-form [solver.petsc] table: PETSc option name (without "-" and the prefix
+    ``cosserat_``) = value, for solver.nonlinear = "snes" (cosserat_fem/snes.py). Checked here
+    for form only (names, values: :func:`petsc_value`); whether PETSc knows an option is only
+    known once it has set the solver up (an unused option is then a SceneError)."""
+
+    def describe(self) -> str:
+        return "a table of PETSc option name = value"
+
+    def check(self, key: str, value: Any) -> Any:
+        """{name: value as PETSc's database takes it}; SceneError naming ``key.name``."""
+        if not isinstance(value, dict):
+            raise SceneError(f"{key}: must be {self.describe()}, e.g. {{snes_linesearch_type = "
+                             f'"bt"}}, got {show_value(value)}')  # fmt: skip
+        options = {}
+        for name, item in value.items():
+            item_key = _join(key, str(name))
+            if not PETSC_OPTION_NAME.fullmatch(str(name)):
+                raise SceneError(f"{item_key}: a PETSc option's name is letters, digits and _, "
+                                 'without the leading "-" (e.g. snes_type)')  # fmt: skip
+            if str(name).startswith(PETSC_PREFIX):
+                raise SceneError(f"{item_key}: give the option without its prefix "
+                                 f"{PETSC_PREFIX!r} (it is added)")  # fmt: skip
+            options[str(name)] = petsc_value(item_key, item)
+        return options
+
+
+#: The options prefix of the SNES solver (cosserat_fem/snes.py): ``-cosserat_snes_type`` in
+#: PETSc's terms is ``snes_type`` in [solver.petsc].
+PETSC_PREFIX = "cosserat_"
+
+
 @dataclass(frozen=True)
 class Table:
     """A table of fields; an ``optional`` table resolves to None when absent."""
@@ -516,6 +572,10 @@ SCHEMA = Table(
                 ),
                 # "auto": Newton's inner loop in C where it applies (cosserat_fem/native_newton.py)
                 "loop": Choice(choices=("auto", "python"), default="auto"),
+                # The nonlinear solver: the project's Newton loop (newton.py), or PETSc's SNES
+                # configured by solver.petsc (snes.py); "auto": SNES if solver.petsc gives options
+                "nonlinear": Choice(choices=("auto", "newton", "snes"), default="auto"),
+                "petsc": PetscOptions(default={}),
             }
         ),
         "output": Table(
@@ -632,6 +692,10 @@ def _lookup_spec(path: list[str]) -> Any:
             if depth != len(path) - 1:
                 raise SceneError(f"{key}: parameters are numbers, not tables")
             return Number()
+        if isinstance(spec, PetscOptions):
+            if depth != len(path) - 1:
+                raise SceneError(f"{key}: a PETSc option's value is not a table")
+            return Text()
         if not isinstance(spec, Table):
             raise SceneError(f"{key}: unknown key; {'.'.join(path[:depth])} is not a table")
         if name not in spec.fields:

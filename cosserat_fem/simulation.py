@@ -42,7 +42,7 @@ from .io.xdmf import XDMF
 from .load_data import refuse_callable_restart
 from .loop import TimeLoop
 from .model import RodModel, build_model
-from .newton import NewtonSettings, NewtonSolver
+from .newton import NewtonSettings, make_solver
 from .observers import (
     CheckpointObserver,
     DeadlineObserver,
@@ -290,7 +290,7 @@ def _discretise(scene: Scene, comm, initial_state, restart):
         tspan.integrator, model.U, model.residual, tspan.start * model.omega0, rho_inf=tspan.rho_inf
     )
     settings = NewtonSettings.of(scene.solver)
-    solver = NewtonSolver(integrator.residual_form(), model.U, model.bcs, settings)
+    solver = make_solver(integrator.residual_form(), model.U, model.bcs, settings)
     if restart is None and isinstance(integrator, GeneralizedAlpha):
         _consistent_rate(integrator, model, solver.lu_package)
     return model, integrator, solver

@@ -38,7 +38,7 @@ from .io.probes import PROBES
 from .io.run_folder import holding_folders, new_run_id, prepare_output_dir, status_of
 from .io.xdmf import XDMF
 from .model import RodModel, build_model
-from .newton import NewtonFailure, NewtonSettings, NewtonSolver
+from .newton import NewtonFailure, NewtonSettings, NewtonSolver, make_solver
 from .observers import (
     FolderStart,
     FolderSummary,
@@ -225,7 +225,7 @@ def static_path(
         # full Newton's quadratic end (a reused matrix left roll-up gaps of 7e-8).
         LOGGER.info("static: full Newton (solver.jacobian = %r is for runs)", settings.jacobian)
     settings.jacobian = "full"
-    solver = NewtonSolver(integrator.residual_form(), model.U, model.bcs, settings)
+    solver = make_solver(integrator.residual_form(), model.U, model.bcs, settings)
     integrator.prepare(scene.static.time * model.omega0)
     model.sync_loads(integrator.time_eval)  # loads given by data, at static.time
 
