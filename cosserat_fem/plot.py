@@ -36,9 +36,18 @@ import numpy as np
 
 from . import safe_files
 from .errors import CosseratError, OutputError, SceneError, out_folder
-from .io.probes import PROBE_COLUMNS
-from .io.xdmf import NoFramesError, RodSeries
-from .results import Run, check_sweep_rows, open_run, read_sweep_rows
+from .io.probes import PROBE_COLUMNS, PROBES
+from .io.run_folder import SUMMARY, read_summary
+from .io.sweep_table import (
+    MEMBERS,
+    RECORD,
+    SWEEP_TABLE,
+    check_sweep_rows,
+    read_record,
+    read_sweep_rows,
+)
+from .io.xdmf import XDMF, NoFramesError, RodSeries
+from .results import Run, open_run
 
 DPI = 130
 HISTORY_SIZE = (10.0, 8.0)  # inches
@@ -246,13 +255,10 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
 def _sweep_record(directory: Path) -> dict:
     """The sweep's sweep.json (cosserat_fem/sweep_run.py) as a dict; SceneError naming it if it
     cannot be read or is not an object."""
-    path = directory / "sweep.json"
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError) as exc:
-        raise SceneError(f"plot: {str(path)!r} cannot be read ({exc})") from None
-    if not isinstance(record, dict):
-        raise SceneError(f"plot: {str(path)!r} is not a sweep's record")
+    path = directory / RECORD
+    record, reason = read_record(path)
+    if reason:
+        raise SceneError(f"plot: {str(path)!r} is not a sweep's record ({reason})")
     return record
 
 
@@ -268,23 +274,22 @@ def _check_response(directory: Path, columns: list[str], varied: list[str], reco
     and sweep.json's continuation key is one of its varied keys (or none)."""
     absent = [c for c in RESPONSE_NEEDS if c not in columns]
     if absent:
-        raise SceneError(f"plot: {str(directory / 'sweep.csv')!r} has no column {absent[0]!r} "
+        raise SceneError(f"plot: {str(directory / SWEEP_TABLE)!r} has no column {absent[0]!r} "
                          "of a frequency response")  # fmt: skip
     key = record.get("continuation")
     if key is not None and key not in varied:
-        raise SceneError(f"plot: {str(directory / 'sweep.json')!r}: its continuation "
+        raise SceneError(f"plot: {str(directory / RECORD)!r}: its continuation "
                          f"{str(key)[:60]!r} is not a varied key of the sweep")  # fmt: skip
 
 
 def _member_lengths(directory: Path, rows: list[dict]) -> np.ndarray:
     """ℓ [m] of each row's member, from its summary.json's scene (NaN where there is none or
     it cannot be read: a member that failed)."""
-    from .io.run_folder import read_summary
     from .sweep_spec import Member
 
     lengths = np.full(len(rows), np.nan)
     for i, row in enumerate(rows):
-        path = directory / "members" / Member(int(row["member"]), {}).name / "summary.json"
+        path = directory / MEMBERS / Member(int(row["member"]), {}).name / SUMMARY
         try:
             summary = read_summary(path) if path.is_file() else {}
         except SceneError:
@@ -388,7 +393,7 @@ def plot_run(directory: str | Path, out: str | Path | None = None) -> list[Path]
     first; a run with neither probe rows nor XDMF frames (killed at its start) is bad input,
     as nothing can be drawn."""
     out_folder(out, "plot --out")  # before anything is read
-    if (Path(directory) / "sweep.json").is_file():
+    if (Path(directory) / RECORD).is_file():
         return plot_sweep(directory, out)
     run = open_run(directory, "plot")
     rows = run.probes is not None and len(run.probes) > 0
@@ -401,8 +406,8 @@ def plot_run(directory: str | Path, out: str | Path | None = None) -> list[Path]
         if series is not None and "displacement" not in series.arrays:
             raise SceneError(f"{str(run.xdmf)!r}: no displacement array (output.fields)")
     if not rows and series is None:
-        probes = str(run.directory / "probes.csv")
-        xdmf = f"{str(run.xdmf)!r} no frames" if run.xdmf else "there is no solution.xdmf"
+        probes = str(run.directory / PROBES)
+        xdmf = f"{str(run.xdmf)!r} no frames" if run.xdmf else f"there is no {XDMF}"
         raise SceneError(f"plot: nothing to plot yet: {probes!r} holds no rows and {xdmf}")
     target = output_folder(out, run.directory, "plot")
     paths = []

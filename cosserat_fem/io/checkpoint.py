@@ -83,7 +83,13 @@ DIRECTORY = "checkpoint"
 INDEX = "checkpoint.json"
 #: The names of the files the project writes in ``checkpoint/`` (and their scratch names): what
 #: a new run removes there.
-OWN_FILES = re.compile(r"(?:checkpoint\.json|state[01]\.rank[0-9]+\.npz)(?:\.tmp)?")
+OWN_FILES = re.compile(rf"(?:{re.escape(INDEX)}|state[01]\.rank[0-9]+\.npz)(?:\.tmp)?")
+
+
+def state_file(slot: int, rank: int) -> str:
+    """The name, in :data:`DIRECTORY`, of rank ``rank``'s state file of slot ``slot`` (0, 1);
+    :data:`OWN_FILES` matches it."""
+    return f"state{slot}.rank{rank}.npz"
 #: Scene keys a restart may override (prefixes end with "."): none changes the discretisation,
 #: the model or the output grid.
 RESTART_KEYS = (
@@ -183,7 +189,7 @@ class CheckpointWriter:
         last complete checkpoint."""
         generation = self.generation + 1
         slot = generation % 2
-        path = self.directory / f"state{slot}.rank{self.comm.rank}.npz"
+        path = self.directory / state_file(slot, self.comm.rank)
         buffer = io.BytesIO()
         arrays = _flatten(parts)
         arrays["meta.generation"] = np.asarray(generation)
@@ -329,7 +335,7 @@ def load_checkpoint(run_dir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Che
         )
     found = []
     for entry in meta["checkpoints"][:2]:
-        path = run_dir / DIRECTORY / f"state{entry['slot']}.rank{comm.rank}.npz"
+        path = run_dir / DIRECTORY / state_file(entry["slot"], comm.rank)
         arrays, problem = _read_state(path, entry, comm.rank)
         problems = [p for p in comm.allgather(problem) if p]
         if not problems:
@@ -482,7 +488,7 @@ def _summary_problem(path: Path, run_id: str) -> str | None:
     if not isinstance(summary, dict) or summary.get("run_id") != run_id:
         return (
             f"the outputs in {str(path.parent)!r} are not the checkpoint's run's (the run id "
-            "of summary.json differs): another run was written into the folder after it"
+            f"of {path.name} differs): another run was written into the folder after it"
         )
     return None
 

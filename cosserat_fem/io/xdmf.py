@@ -94,16 +94,27 @@ def frame_file(index: int) -> str:
 
 #: The names of the files in an XDMF file's frames folder
 #: (:func:`frames_folder`): the mesh's and one a frame; what a new series removes there.
-FRAME_NAME = re.compile(r"(?:mesh|[0-9]{6,})\.h5")
+FRAME_NAME = re.compile(
+    rf"(?:{re.escape(Path(MESH_FILE).stem)}|[0-9]{{{FRAME_DIGITS},}}){re.escape(Path(MESH_FILE).suffix)}"
+)
 #: The one reference that is not a plain name: a file of the frames folder beside the XDMF file:
 #: one folder level, no ".." or absolute path.
-_FRAME_FILE = re.compile(r"[^/\\]+\.frames/" + FRAME_NAME.pattern)
+_FRAME_FILE = re.compile(rf"[^/\\]+{re.escape(FRAMES_SUFFIX)}/" + FRAME_NAME.pattern)
 
 #: Largest XDMF file read [bytes]: ~1-2.5 kB a frame (some 60 000 frames).
 MAX_XDMF_BYTES = 128 << 20
 #: Most numbers read from the .h5 files of one XDMF file (800 MB as float64; the default
 #: run holds ~1e5, a run of 10 000 frames of all six arrays on 300 points ~5e7).
 MAX_VALUES = 10**8
+
+
+#: The datasets of the mesh in :data:`MESH_FILE` (as DOLFINx's XDMFFile named them).
+MESH_GEOMETRY, MESH_TOPOLOGY = "/Mesh/mesh/geometry", "/Mesh/mesh/topology"
+
+
+def function_dataset(array: str, key: str) -> str:
+    """The dataset of the point array ``array`` of the frame ``key`` in its frame file."""
+    return f"/Function/{array}/{key}"
 
 
 def xdmf_mesh_xml(file: str, points: int, cells: int) -> str:
