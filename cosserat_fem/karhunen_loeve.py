@@ -53,7 +53,6 @@ import subprocess
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from xml.sax.saxutils import escape
 
 import numpy as np
 
@@ -403,11 +402,25 @@ def _write_h5(path: Path, datasets: list[tuple[str, np.ndarray]]) -> None:
 
 
 def _write_xdmf(result: PodResult, path: Path) -> Path:
-    """pod.xdmf and pod.frames/ (see :func:`write_pod`), in the layout of
-    cosserat_fem/io/xdmf.py's XdmfSeries (mesh.h5, one file a frame, a temporal collection);
-    the XML last, so that it never names a frame file that was not written."""
+    """pod.xdmf and pod.frames/ (see :func:`write_pod`), in the layout and XML of
+    cosserat_fem/io/xdmf.py (its mesh file, a frame file a mode, one temporal collection,
+    here named "pod" and without a run's identity or spare room: written whole, not
+    appended); the XML last, so that it never names a frame file that was not written."""
+    from .io.xdmf import (
+        FRAME_NAME,
+        MESH_FILE,
+        MESH_GEOMETRY,
+        MESH_TOPOLOGY,
+        XDMF_TAIL,
+        frame_file,
+        frames_folder,
+        function_dataset,
+        xdmf_frame_xml,
+        xdmf_head,
+    )
     from .plot import output_folder, write_output
-    frames = path.with_name(path.stem + ".frames")
+
+    frames = frames_folder(path)
     n = len(result.s)
     geometry = np.zeros((n, 3))
     geometry[:, 2] = result.s
@@ -415,39 +428,23 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
     arrays = [("displacement", slice(0, 3))]
     if len(result.components) == 6:
         arrays.append(("angles", slice(3, 6)))
-    mesh = f"{frames.name}/mesh.h5"
+    names = [name for name, _ in arrays]
+    mesh = xdmf_mesh_xml(f"{frames.name}/{MESH_FILE}", n, n - 1)
     grids = []
     output_folder(frames, frames, "pod")
     try:
-        from .io.xdmf import FRAME_NAME
-
         safe_files.remove_own_files(frames, FRAME_NAME)  # an earlier pod's frames, a link
         frames.mkdir(exist_ok=True)
-        _write_h5(frames / "mesh.h5", [("/Mesh/mesh/geometry", geometry),
-                                       ("/Mesh/mesh/topology", topology)])  # fmt: skip
+        _write_h5(frames / MESH_FILE, [(MESH_GEOMETRY, geometry), (MESH_TOPOLOGY, topology)])
         for k, (energy, shape) in enumerate(zip(result.energies, result.shapes, strict=True), 1):
-            file = f"{frames.name}/{k - 1:06d}.h5"
             rms = math.sqrt(max(energy, 0.0)) * shape
-            _write_h5(frames / f"{k - 1:06d}.h5",
-                      [(f"/Function/{name}/{k}", rms[:, part]) for name, part in arrays])
-            attributes = "".join(
-                f'        <Attribute Name="{name}" AttributeType="Vector" Center="Node">\n'
-                f'          <DataItem Dimensions="{n} 3" Format="HDF" Precision="8">'
-                f"{escape(file)}:/Function/{name}/{k}</DataItem>\n        </Attribute>\n"
-                for name, _ in arrays
-            )
-            grids.append(
-                f'      <Grid Name="pod" GridType="Uniform">\n{xdmf_mesh_xml(mesh, n, n - 1)}'
-                f'        <Time Value="{k}" />\n{attributes}      </Grid>\n'
-            )
+            _write_h5(frames / frame_file(k - 1),
+                      [(function_dataset(name, str(k)), rms[:, part]) for name, part in arrays])
+            grids.append(xdmf_frame_xml("pod", mesh, str(k), f"{frames.name}/{frame_file(k - 1)}",
+                                        str(k), names, n))  # fmt: skip
     except RuntimeError as exc:  # HDF5 (or h5py) could not make a file in memory
         raise CosseratError(f"pod: cannot make {str(frames)!r} ({exc})") from None
-    text = (
-        '<?xml version="1.0"?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
-        '<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n  <Domain>\n'
-        '    <Grid Name="pod" GridType="Collection" CollectionType="Temporal">\n'
-        + "".join(grids) + "    </Grid>\n  </Domain>\n</Xdmf>\n"
-    )
+    text = xdmf_head("pod") + "".join(grids) + XDMF_TAIL
     return write_output(path, text.encode("utf-8"), "pod")
 
 
