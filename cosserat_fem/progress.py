@@ -27,8 +27,7 @@ from typing import TextIO
 from .io.probes import PROBES
 from .io.run_folder import SUMMARY
 from .io.xdmf import XDMF
-
-LOGGER = logging.getLogger("cosserat_fem")
+from .log import LOGGER
 
 
 def configure_logging(level: str, rank: int) -> None:

@@ -61,8 +61,9 @@ from mpi4py import MPI
 from . import budget, safe_files
 from .charts import change_chart
 from .errors import CosseratError, OutputError, SceneError, StopError
+from .io.folder_lock import holding_folders
 from .io.probes import PROBE_COLUMNS, PROBES
-from .io.run_folder import SUMMARY, holding_folders, prepare_output_dir
+from .io.run_folder import SUMMARY, prepare_output_dir
 from .io.sweep_table import (
     MEMBERS,
     RECORD,
@@ -176,7 +177,8 @@ def _checkpoint(folder: Path, scene, comm):
     the member's end and its outputs are the checkpoint's run's (checkpoint.py's checks, as
     ``run --restart`` makes them); else None (the member runs from the start). Collective
     over ``comm``: every rank finds the same."""
-    from .io.checkpoint import check_outputs, load_checkpoint
+    from .io.checkpoint import load_checkpoint
+    from .io.run_folder import check_outputs
     from .io.xdmf import XDMF
 
     try:
