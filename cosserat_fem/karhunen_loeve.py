@@ -350,23 +350,22 @@ def _read_series(xdmf: Path, length: float | None):
 
 
 def write_pod(result: PodResult, folder: str | Path) -> list[Path]:
-    """pod.csv (mode, energy, fraction, cumulative), pod.xdmf with its folder pod.frames/ (the
-    shapes as fields on the reference centreline (0, 0, s) [m], one frame a mode, Time =
-    the mode number, as modes.xdmf) and pod.png in ``folder`` (which must exist); the paths.
+    """pod.csv (mode, energy, fraction, cumulative) and pod.xdmf with its folder pod.frames/
+    (the shapes as fields on the reference centreline (0, 0, s) [m], one frame a mode, Time =
+    the mode number, as modes.xdmf) in ``folder`` (which must exist); the paths.
 
     The XDMF arrays are the shapes scaled by √λ_k, the root-mean-square field of mode k:
     ``displacement`` [m] and, with the kinetic weighting, ``angles`` [rad]; so ParaView's
     Warp By Vector draws each mode at its size in the run. Each file is made in memory and
-    written whole (cosserat_fem/plot.py ``write_output``): OutputError (exit 4) naming a file
-    that cannot be written."""
+    written whole (cosserat_fem/io/output_files.py ``write_output``): OutputError (exit 4)
+    naming a file that cannot be written. pod.png is cosserat_fem/plot.py's ``plot_pod``,
+    drawn after these two."""
     folder = Path(folder)
-    paths = [_write_csv(result, folder / POD_CSV), _write_xdmf(result, folder / POD_XDMF),
-             _plot(result, folder / POD_PNG)]  # fmt: skip
-    return paths
+    return [_write_csv(result, folder / POD_CSV), _write_xdmf(result, folder / POD_XDMF)]
 
 
 def _write_csv(result: PodResult, path: Path) -> Path:
-    from .plot import write_output
+    from .io.output_files import write_output
 
     stream = io.StringIO(newline="")
     writer = csv.writer(stream)
@@ -384,7 +383,7 @@ def _write_h5(path: Path, datasets: list[tuple[str, np.ndarray]]) -> None:
     that has loaded DOLFINx, with its HDF5 library: cosserat_fem/io/hdf5.py) and written whole:
     HDF5 never writes to the disk itself. (h5py writing to a full disk left HDF5 in a state
     whose clean-up at exit was a segmentation fault.)"""
-    from .plot import write_output
+    from .io.output_files import write_output
 
     datasets = [(name, np.ascontiguousarray(v)) for name, v in datasets]
     if "dolfinx" in sys.modules:
@@ -406,6 +405,7 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
     cosserat_fem/io/xdmf.py (its mesh file, a frame file a mode, one temporal collection,
     here named "pod" and without a run's identity or spare room: written whole, not
     appended); the XML last, so that it never names a frame file that was not written."""
+    from .io.output_files import output_folder, write_output
     from .io.xdmf import (
         FRAME_NAME,
         MESH_FILE,
@@ -418,7 +418,6 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
         xdmf_frame_xml,
         xdmf_head,
     )
-    from .plot import output_folder, write_output
 
     frames = frames_folder(path)
     n = len(result.s)
@@ -446,44 +445,3 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
         raise CosseratError(f"pod: cannot make {str(frames)!r} ({exc})") from None
     text = xdmf_head("pod") + "".join(grids) + XDMF_TAIL
     return write_output(path, text.encode("utf-8"), "pod")
-
-
-#: Modes drawn in pod.png's shape panels.
-DRAWN = 4
-
-
-def _plot(result: PodResult, path: Path) -> Path:
-    """pod.png: the energies λ_k on a log scale (with the cumulative fraction), and the
-    leading shapes' displacement components against s (scaled by √λ_k: their rms size)."""
-    from .plot import _pyplot, _save
-
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), constrained_layout=True)
-    k = np.arange(1, len(result.energies) + 1)
-    positive = result.energies > 0
-    axes[0].semilogy(k[positive], result.energies[positive], "o-")
-    axes[0].set_xlabel("POD mode k")
-    axes[0].xaxis.get_major_locator().set_params(integer=True)
-    axes[0].set_ylabel(f"energy λ_k [{result.unit}]")
-    axes[0].set_title(f"POD energies ({result.weighting} weighting)")
-    axes[0].grid(True, which="both", alpha=0.3)
-    twin = axes[0].twinx()
-    twin.plot(k, result.cumulative, "s--", color="tab:gray", markersize=3)
-    twin.set_ylabel("cumulative fraction")
-    twin.set_ylim(0.0, 1.05)
-    styles = {"x": "-", "y": "--", "z": ":"}
-    for i in range(min(DRAWN, len(result.energies))):
-        if not result.energies[i] > 0:
-            continue
-        rms = math.sqrt(result.energies[i]) * result.shapes[i]
-        main = int(np.argmax(np.abs(rms[:, :3]).max(axis=0)))
-        for c in range(3):
-            if np.abs(rms[:, c]).max() >= 1e-2 * np.abs(rms[:, main]).max():  # drawn apart
-                axes[1].plot(result.s, rms[:, c], styles["xyz"[c]], color=f"C{i}",
-                             label=f"mode {i + 1}: {'xyz'[c]} ({100 * result.fractions[i]:.3g} %)")
-    axes[1].set_xlabel("s [m]")
-    axes[1].set_ylabel("√λ_k φ_k, displacement [m]")
-    axes[1].set_title("leading shapes (rms size in the run)")
-    axes[1].grid(True, alpha=0.3)
-    axes[1].legend(fontsize=8)
-    return _save(fig, path, "pod")
