@@ -54,17 +54,23 @@ SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 
 #: The layers, bottom first; a module is placed by the first pattern that names it (its
 #: dotted name below the package, or a prefix ending in "." for a subpackage). Issue 26 names
-#: scene, model, solve, run, files and studies; "base" holds what every layer may use, and
-#: "interface" the command line and the API.
+#: scene, model, solve, run, files and studies; "base" holds what every layer may use,
+#: "formats" the files' formats (io/: names, writers, readers, no DOLFINx), "files" what is
+#: sampled on the mesh for them and read back (fields, results), and "interface" the command
+#: line and the API.
 LAYERS: list[tuple[str, tuple[str, ...]]] = [
-    ("base", ("errors", "parallel", "safe_files", "pkg_resources_shim", "mpi_start", "jit")),
+    ("base", ("errors", "parallel", "safe_files", "pkg_resources_shim", "mpi_start", "jit",
+              "log")),  # fmt: skip
+    # The file formats (io/) depend on base only, and the scene's validation names their
+    # columns and arrays (schema -> io.probes, io.xdmf): they sit below the scene.
+    ("formats", ("io.",)),
     ("scene", ("schema", "resolved", "scene", "expressions", "load_data", "describe", "layout")),
-    ("model", ("forms.", "model", "charts", "checks", "energy", "load_coefficients", "mms",
+    ("model", ("forms.", "model", "charts", "checks", "energy", "load_coefficients",
                "reference.")),  # fmt: skip
     ("solve", ("newton", "native_newton", "native_sdirk", "integrators", "adaptive", "events",
                "loop")),  # fmt: skip
-    ("files", ("io.", "fields", "results")),
-    ("run", ("simulation", "statics", "modal", "observers", "progress", "budget")),
+    ("files", ("fields", "results")),
+    ("run", ("simulation", "statics", "modal", "observers", "progress", "budget", "restart")),
     ("studies", ("sweep_spec", "sweep_run", "response", "karhunen_loeve")),
     ("interface", ("api", "cli", "plot", "render")),
 ]

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 import time
 from pathlib import Path
 
@@ -29,11 +30,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from cosserat_fem.energy import EnergyMonitor, EnergyRecorder  # noqa: E402
+from cosserat_fem.energy import EnergyMonitor  # noqa: E402
 from cosserat_fem.fields import PointProbe  # noqa: E402
-from cosserat_fem.mms import run_mms  # noqa: E402
 from cosserat_fem.modal import compute_modes, in_plane_share  # noqa: E402
 from cosserat_fem.model import rod_constants  # noqa: E402
+from cosserat_fem.observers import EnergyRecorder  # noqa: E402
 from cosserat_fem.reference.curved import (  # noqa: E402
     SIMO_VU_QUOC_RIGHT_ANGLE,
     right_angle_extrema,
@@ -56,6 +57,11 @@ SCENES = ROOT / "scenes"
 DOC = ROOT / "docs" / "verification.md"
 FIGURES = ROOT / "docs" / "figures"
 WORK = ROOT / "benchmarks" / "results" / "verify"
+
+# The verification helpers beside this script (mms.py, free_vibration.py), also when it is
+# loaded from a file (tests/test_verification_report.py).
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from mms import run_mms  # noqa: E402
 
 # The studies' settings (tests/test_verification_report.py reads them).
 PAPER = SCENES / "cao_tucker_2008.toml"
@@ -300,7 +306,7 @@ def mms_section() -> str:
         "## 3. Orders of convergence (manufactured solutions)",
         "",
         "Full nonlinear dynamic system, every unknown moving with angles of 0.2-0.3 rad, "
-        "stocky rod (0.3 m × 0.4 m, ℓ = 1 m); `cosserat_fem/mms.py`. Relative L2 error of "
+        "stocky rod (0.3 m × 0.4 m, ℓ = 1 m); `benchmarks/mms.py`. Relative L2 error of "
         "p at the final time.",
         "",
         f"### Space (p linear in τ, reproduced exactly by the integrators; BDF2, τ ∈ [0, "
@@ -869,6 +875,8 @@ def response_section() -> str:
     """Frequency responses (sweeps with [sweep.response]) against the linear modal steady state
     and the one-mode Duffing harmonic balance; backbones of free vibration against
     perturbation theory; POD (docs/pod.md)."""
+    from free_vibration import free_vibration_frequency
+
     from cosserat_fem import api
     from cosserat_fem.modal import linear_steady_state
     from cosserat_fem.reference.backbone import (
@@ -880,7 +888,6 @@ def response_section() -> str:
         clamped_shape,
         hardening_fit,
     )
-    from cosserat_fem.response import free_vibration_frequency
 
     omega0 = 207.0236
     tau = 2 * LINEAR_ZETA / omega0

@@ -123,7 +123,8 @@ def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()
     time.end is not later than it, or a table's content is not the one the run used (its
     SHA-256 is in the checkpoint's scene), or a load was a Python callable (not data: a run
     with one cannot be restarted)."""
-    from .io.checkpoint import FIXED_KEYS, load_checkpoint, restart_overrides
+    from .io.checkpoint import load_checkpoint
+    from .restart import FIXED_KEYS, restart_overrides
     from .schema import Removal
 
     texts = overrides
@@ -197,10 +198,11 @@ def pod(
     from mpi4py import MPI
 
     from .errors import CosseratError
+    from .io.output_files import output_folder
+    from .karhunen_loeve import POD_PNG, read_run, snapshots_of_result, write_pod
     from .karhunen_loeve import pod as decompose
-    from .karhunen_loeve import read_run, snapshots_of_result, write_pod
     from .parallel import agree
-    from .plot import output_folder
+    from .plot import plot_pod
 
     out = out_folder(out)
     if isinstance(source, str | Path):
@@ -218,7 +220,8 @@ def pod(
         problem = None
         if comm.rank == 0:
             try:
-                result.files = write_pod(result, output_folder(out, Path(out), "pod"))
+                folder = output_folder(out, Path(out), "pod")
+                result.files = [*write_pod(result, folder), plot_pod(result, folder / POD_PNG)]
             except CosseratError as exc:  # bad input, or a write that failed (OutputError)
                 problem = exc
         agree(comm, problem)

@@ -12,7 +12,6 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .events import Observer
 from .forms.energy import (
     damping_power,
     kinetic_energy_density,
@@ -79,22 +78,3 @@ class EnergyMonitor:
         self.tau.value = t * self.model.omega0
         self.model.sync_loads(self.tau)
         return self._sum(self._P)
-
-
-class EnergyRecorder(Observer):
-    """Observer (cosserat_fem/events.py): at every output time t [s], the rod's energy
-    E = T + V [J] and the power P [W] of its loads and damping: lists ``t``, ``E``, ``P``."""
-
-    def __init__(self):
-        self.monitor: EnergyMonitor | None = None
-        self.t: list[float] = []
-        self.E: list[float] = []
-        self.P: list[float] = []
-
-    def output(self, loop, k: int, t: float) -> None:
-        """Appends t [s], E = T + V [J] and P [W]; the monitor is built at the first output."""
-        if self.monitor is None:
-            self.monitor = EnergyMonitor(loop.model)
-        self.t.append(t)
-        self.E.append(sum(self.monitor.energies()))
-        self.P.append(self.monitor.power(t))

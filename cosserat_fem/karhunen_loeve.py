@@ -53,7 +53,6 @@ import subprocess
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from xml.sax.saxutils import escape
 
 import numpy as np
 
@@ -351,23 +350,22 @@ def _read_series(xdmf: Path, length: float | None):
 
 
 def write_pod(result: PodResult, folder: str | Path) -> list[Path]:
-    """pod.csv (mode, energy, fraction, cumulative), pod.xdmf with its folder pod.frames/ (the
-    shapes as fields on the reference centreline (0, 0, s) [m], one frame a mode, Time =
-    the mode number, as modes.xdmf) and pod.png in ``folder`` (which must exist); the paths.
+    """pod.csv (mode, energy, fraction, cumulative) and pod.xdmf with its folder pod.frames/
+    (the shapes as fields on the reference centreline (0, 0, s) [m], one frame a mode, Time =
+    the mode number, as modes.xdmf) in ``folder`` (which must exist); the paths.
 
     The XDMF arrays are the shapes scaled by √λ_k, the root-mean-square field of mode k:
     ``displacement`` [m] and, with the kinetic weighting, ``angles`` [rad]; so ParaView's
     Warp By Vector draws each mode at its size in the run. Each file is made in memory and
-    written whole (cosserat_fem/plot.py ``write_output``): OutputError (exit 4) naming a file
-    that cannot be written."""
+    written whole (cosserat_fem/io/output_files.py ``write_output``): OutputError (exit 4)
+    naming a file that cannot be written. pod.png is cosserat_fem/plot.py's ``plot_pod``,
+    drawn after these two."""
     folder = Path(folder)
-    paths = [_write_csv(result, folder / POD_CSV), _write_xdmf(result, folder / POD_XDMF),
-             _plot(result, folder / POD_PNG)]  # fmt: skip
-    return paths
+    return [_write_csv(result, folder / POD_CSV), _write_xdmf(result, folder / POD_XDMF)]
 
 
 def _write_csv(result: PodResult, path: Path) -> Path:
-    from .plot import write_output
+    from .io.output_files import write_output
 
     stream = io.StringIO(newline="")
     writer = csv.writer(stream)
@@ -385,7 +383,7 @@ def _write_h5(path: Path, datasets: list[tuple[str, np.ndarray]]) -> None:
     that has loaded DOLFINx, with its HDF5 library: cosserat_fem/io/hdf5.py) and written whole:
     HDF5 never writes to the disk itself. (h5py writing to a full disk left HDF5 in a state
     whose clean-up at exit was a segmentation fault.)"""
-    from .plot import write_output
+    from .io.output_files import write_output
 
     datasets = [(name, np.ascontiguousarray(v)) for name, v in datasets]
     if "dolfinx" in sys.modules:
@@ -403,11 +401,25 @@ def _write_h5(path: Path, datasets: list[tuple[str, np.ndarray]]) -> None:
 
 
 def _write_xdmf(result: PodResult, path: Path) -> Path:
-    """pod.xdmf and pod.frames/ (see :func:`write_pod`), in the layout of
-    cosserat_fem/io/xdmf.py's XdmfSeries (mesh.h5, one file a frame, a temporal collection);
-    the XML last, so that it never names a frame file that was not written."""
-    from .plot import output_folder, write_output
-    frames = path.with_name(path.stem + ".frames")
+    """pod.xdmf and pod.frames/ (see :func:`write_pod`), in the layout and XML of
+    cosserat_fem/io/xdmf.py (its mesh file, a frame file a mode, one temporal collection,
+    here named "pod" and without a run's identity or spare room: written whole, not
+    appended); the XML last, so that it never names a frame file that was not written."""
+    from .io.output_files import output_folder, write_output
+    from .io.xdmf import (
+        FRAME_NAME,
+        MESH_FILE,
+        MESH_GEOMETRY,
+        MESH_TOPOLOGY,
+        XDMF_TAIL,
+        frame_file,
+        frames_folder,
+        function_dataset,
+        xdmf_frame_xml,
+        xdmf_head,
+    )
+
+    frames = frames_folder(path)
     n = len(result.s)
     geometry = np.zeros((n, 3))
     geometry[:, 2] = result.s
@@ -415,78 +427,21 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
     arrays = [("displacement", slice(0, 3))]
     if len(result.components) == 6:
         arrays.append(("angles", slice(3, 6)))
-    mesh = f"{frames.name}/mesh.h5"
+    names = [name for name, _ in arrays]
+    mesh = xdmf_mesh_xml(f"{frames.name}/{MESH_FILE}", n, n - 1)
     grids = []
     output_folder(frames, frames, "pod")
     try:
-        from .io.xdmf import FRAME_NAME
-
         safe_files.remove_own_files(frames, FRAME_NAME)  # an earlier pod's frames, a link
         frames.mkdir(exist_ok=True)
-        _write_h5(frames / "mesh.h5", [("/Mesh/mesh/geometry", geometry),
-                                       ("/Mesh/mesh/topology", topology)])  # fmt: skip
+        _write_h5(frames / MESH_FILE, [(MESH_GEOMETRY, geometry), (MESH_TOPOLOGY, topology)])
         for k, (energy, shape) in enumerate(zip(result.energies, result.shapes, strict=True), 1):
-            file = f"{frames.name}/{k - 1:06d}.h5"
             rms = math.sqrt(max(energy, 0.0)) * shape
-            _write_h5(frames / f"{k - 1:06d}.h5",
-                      [(f"/Function/{name}/{k}", rms[:, part]) for name, part in arrays])
-            attributes = "".join(
-                f'        <Attribute Name="{name}" AttributeType="Vector" Center="Node">\n'
-                f'          <DataItem Dimensions="{n} 3" Format="HDF" Precision="8">'
-                f"{escape(file)}:/Function/{name}/{k}</DataItem>\n        </Attribute>\n"
-                for name, _ in arrays
-            )
-            grids.append(
-                f'      <Grid Name="pod" GridType="Uniform">\n{xdmf_mesh_xml(mesh, n, n - 1)}'
-                f'        <Time Value="{k}" />\n{attributes}      </Grid>\n'
-            )
+            _write_h5(frames / frame_file(k - 1),
+                      [(function_dataset(name, str(k)), rms[:, part]) for name, part in arrays])
+            grids.append(xdmf_frame_xml("pod", mesh, str(k), f"{frames.name}/{frame_file(k - 1)}",
+                                        str(k), names, n))  # fmt: skip
     except RuntimeError as exc:  # HDF5 (or h5py) could not make a file in memory
         raise CosseratError(f"pod: cannot make {str(frames)!r} ({exc})") from None
-    text = (
-        '<?xml version="1.0"?>\n<!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>\n'
-        '<Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude">\n  <Domain>\n'
-        '    <Grid Name="pod" GridType="Collection" CollectionType="Temporal">\n'
-        + "".join(grids) + "    </Grid>\n  </Domain>\n</Xdmf>\n"
-    )
+    text = xdmf_head("pod") + "".join(grids) + XDMF_TAIL
     return write_output(path, text.encode("utf-8"), "pod")
-
-
-#: Modes drawn in pod.png's shape panels.
-DRAWN = 4
-
-
-def _plot(result: PodResult, path: Path) -> Path:
-    """pod.png: the energies λ_k on a log scale (with the cumulative fraction), and the
-    leading shapes' displacement components against s (scaled by √λ_k: their rms size)."""
-    from .plot import _pyplot, _save
-
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), constrained_layout=True)
-    k = np.arange(1, len(result.energies) + 1)
-    positive = result.energies > 0
-    axes[0].semilogy(k[positive], result.energies[positive], "o-")
-    axes[0].set_xlabel("POD mode k")
-    axes[0].xaxis.get_major_locator().set_params(integer=True)
-    axes[0].set_ylabel(f"energy λ_k [{result.unit}]")
-    axes[0].set_title(f"POD energies ({result.weighting} weighting)")
-    axes[0].grid(True, which="both", alpha=0.3)
-    twin = axes[0].twinx()
-    twin.plot(k, result.cumulative, "s--", color="tab:gray", markersize=3)
-    twin.set_ylabel("cumulative fraction")
-    twin.set_ylim(0.0, 1.05)
-    styles = {"x": "-", "y": "--", "z": ":"}
-    for i in range(min(DRAWN, len(result.energies))):
-        if not result.energies[i] > 0:
-            continue
-        rms = math.sqrt(result.energies[i]) * result.shapes[i]
-        main = int(np.argmax(np.abs(rms[:, :3]).max(axis=0)))
-        for c in range(3):
-            if np.abs(rms[:, c]).max() >= 1e-2 * np.abs(rms[:, main]).max():  # drawn apart
-                axes[1].plot(result.s, rms[:, c], styles["xyz"[c]], color=f"C{i}",
-                             label=f"mode {i + 1}: {'xyz'[c]} ({100 * result.fractions[i]:.3g} %)")
-    axes[1].set_xlabel("s [m]")
-    axes[1].set_ylabel("√λ_k φ_k, displacement [m]")
-    axes[1].set_title("leading shapes (rms size in the run)")
-    axes[1].grid(True, alpha=0.3)
-    axes[1].legend(fontsize=8)
-    return _save(fig, path, "pod")

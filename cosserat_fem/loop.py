@@ -28,10 +28,10 @@ from .adaptive import SHRINK, StateHistory, StepController
 from .checks import StateCheck, cos_theta, worst_place
 from .errors import SceneError, SolverError
 from .events import Events
+from .log import LOGGER
 from .model import RodModel
 from .native_sdirk import stepper
 from .newton import NewtonFailure, NewtonSolver
-from .progress import LOGGER
 
 #: Rejections in a row after which an adaptive run stops.
 MAX_CONSECUTIVE_REJECTIONS = 12

@@ -15,7 +15,9 @@ statics.py), in this order:
 * :class:`DeadlineObserver`: stops the run at ``limits.wall_time``, with a checkpoint;
 * :class:`InterruptObserver`: stops every rank at the same step after an interrupt (SIGINT)
   reached any of them under mpirun (cosserat_fem/parallel.py);
-* :class:`FolderSummary`: summary.json at the end.
+* :class:`FolderSummary`: summary.json at the end;
+* :class:`EnergyRecorder`: the rod's energy and its loads' power at every output time
+  (cosserat_fem/energy.py), for studies and tests.
 """
 
 from __future__ import annotations
@@ -25,19 +27,20 @@ from pathlib import Path
 
 import numpy as np
 
+from .energy import EnergyMonitor
 from .errors import LimitReached, SceneError, SolverError
 from .events import Observer
 from .fields import LineSampler, PointProbe, XdmfWriter
-from .io.checkpoint import Checkpoint, CheckpointWriter, cut_outputs
+from .io.checkpoint import Checkpoint, CheckpointWriter
 from .io.probes import ProbeWriter, last_probe_row
-from .io.run_folder import SUMMARY, claim, write_summary
+from .io.run_folder import SUMMARY, claim, cut_outputs, write_summary
+from .log import LOGGER
 from .parallel import check_interrupt, from_root
-from .progress import LOGGER
 
 
 class FolderStart(Observer):
     """Claims the folder of a new run, or cuts a restart's outputs back to its checkpoint
-    (``plan``, from checkpoint.check_outputs); then summary.json says "running".
+    (``plan``, from io/run_folder.py's check_outputs); then summary.json says "running".
     ``writes_checkpoint``: the run writes checkpoints (a file of the user's named
     ``checkpoint`` is then in its way, run_folder.claim)."""
 
@@ -305,3 +308,22 @@ class FieldRecorder(Observer):
         if comm.size > 1:
             values = comm.bcast(values, root=0)
         return np.array(self._times), values
+
+
+class EnergyRecorder(Observer):
+    """Observer (cosserat_fem/events.py): at every output time t [s], the rod's energy
+    E = T + V [J] and the power P [W] of its loads and damping: lists ``t``, ``E``, ``P``."""
+
+    def __init__(self):
+        self.monitor: EnergyMonitor | None = None
+        self.t: list[float] = []
+        self.E: list[float] = []
+        self.P: list[float] = []
+
+    def output(self, loop, k: int, t: float) -> None:
+        """Appends t [s], E = T + V [J] and P [W]; the monitor is built at the first output."""
+        if self.monitor is None:
+            self.monitor = EnergyMonitor(loop.model)
+        self.t.append(t)
+        self.E.append(sum(self.monitor.energies()))
+        self.P.append(self.monitor.power(t))

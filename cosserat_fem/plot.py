@@ -26,19 +26,27 @@ outputs), and leaves no cut file (nor a library's traceback) behind.
 
 from __future__ import annotations
 
-import errno
 import io
 import json
-import os
+import math
 from pathlib import Path
 
 import numpy as np
 
-from . import safe_files
-from .errors import CosseratError, OutputError, SceneError, out_folder
-from .io.probes import PROBE_COLUMNS
-from .io.xdmf import NoFramesError, RodSeries
-from .results import Run, check_sweep_rows, open_run, read_sweep_rows
+from .errors import CosseratError, SceneError, out_folder
+from .io.output_files import output_folder, write_output
+from .io.probes import PROBE_COLUMNS, PROBES
+from .io.run_folder import SUMMARY, read_summary
+from .io.sweep_table import (
+    MEMBERS,
+    RECORD,
+    SWEEP_TABLE,
+    check_sweep_rows,
+    read_record,
+    read_sweep_rows,
+)
+from .io.xdmf import XDMF, NoFramesError, RodSeries
+from .results import Run, open_run
 
 DPI = 130
 HISTORY_SIZE = (10.0, 8.0)  # inches
@@ -57,37 +65,6 @@ def _pyplot():
     import matplotlib.pyplot as plt
 
     return plt
-
-
-#: The errors of a write that the place itself does not explain (a full disk, a quota, the
-#: file size limit, the device): a stopped output (exit 4) rather than bad input.
-_WRITE_FAILURES = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG, errno.EIO}
-
-
-def output_folder(out: str | Path | None, directory: Path, command: str) -> Path:
-    """``out`` (made if missing) or ``directory`` (the run's folder); a folder that cannot be
-    made is bad input, or an OutputError when the disk is full or failing."""
-    target = out_folder(out, f"{command} --out") or directory
-    try:
-        target.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        kind = OutputError if exc.errno in _WRITE_FAILURES else SceneError
-        raise kind(f"{command} --out: cannot write to {str(target)!r} ({exc})") from None
-    return target
-
-
-def write_output(path: Path, data, command: str) -> Path:
-    """``data`` (bytes-like) as the file ``path``, whole or not at all
-    (:func:`cosserat_fem.safe_files.replace`: a hidden scratch file beside it renamed over it,
-    so a link at ``path`` is replaced, never written through). OutputError naming ``path`` if
-    it cannot be written; the scratch file is removed and a file that was at ``path`` before is
-    kept."""
-    try:
-        safe_files.replace(path, data, path.with_name(f".{path.name}.{os.getpid()}.partial"))
-    except OSError as exc:
-        raise OutputError(f"{command}: cannot write {str(path)!r} "
-                          f"({exc.strerror or exc})") from None  # fmt: skip
-    return path
 
 
 def _label(text: str) -> str:
@@ -246,13 +223,10 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
 def _sweep_record(directory: Path) -> dict:
     """The sweep's sweep.json (cosserat_fem/sweep_run.py) as a dict; SceneError naming it if it
     cannot be read or is not an object."""
-    path = directory / "sweep.json"
-    try:
-        record = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError) as exc:
-        raise SceneError(f"plot: {str(path)!r} cannot be read ({exc})") from None
-    if not isinstance(record, dict):
-        raise SceneError(f"plot: {str(path)!r} is not a sweep's record")
+    path = directory / RECORD
+    record, reason = read_record(path)
+    if reason:
+        raise SceneError(f"plot: {str(path)!r} is not a sweep's record ({reason})")
     return record
 
 
@@ -268,23 +242,22 @@ def _check_response(directory: Path, columns: list[str], varied: list[str], reco
     and sweep.json's continuation key is one of its varied keys (or none)."""
     absent = [c for c in RESPONSE_NEEDS if c not in columns]
     if absent:
-        raise SceneError(f"plot: {str(directory / 'sweep.csv')!r} has no column {absent[0]!r} "
+        raise SceneError(f"plot: {str(directory / SWEEP_TABLE)!r} has no column {absent[0]!r} "
                          "of a frequency response")  # fmt: skip
     key = record.get("continuation")
     if key is not None and key not in varied:
-        raise SceneError(f"plot: {str(directory / 'sweep.json')!r}: its continuation "
+        raise SceneError(f"plot: {str(directory / RECORD)!r}: its continuation "
                          f"{str(key)[:60]!r} is not a varied key of the sweep")  # fmt: skip
 
 
 def _member_lengths(directory: Path, rows: list[dict]) -> np.ndarray:
     """ℓ [m] of each row's member, from its summary.json's scene (NaN where there is none or
     it cannot be read: a member that failed)."""
-    from .io.run_folder import read_summary
     from .sweep_spec import Member
 
     lengths = np.full(len(rows), np.nan)
     for i, row in enumerate(rows):
-        path = directory / "members" / Member(int(row["member"]), {}).name / "summary.json"
+        path = directory / MEMBERS / Member(int(row["member"]), {}).name / SUMMARY
         try:
             summary = read_summary(path) if path.is_file() else {}
         except SceneError:
@@ -388,7 +361,7 @@ def plot_run(directory: str | Path, out: str | Path | None = None) -> list[Path]
     first; a run with neither probe rows nor XDMF frames (killed at its start) is bad input,
     as nothing can be drawn."""
     out_folder(out, "plot --out")  # before anything is read
-    if (Path(directory) / "sweep.json").is_file():
+    if (Path(directory) / RECORD).is_file():
         return plot_sweep(directory, out)
     run = open_run(directory, "plot")
     rows = run.probes is not None and len(run.probes) > 0
@@ -401,8 +374,8 @@ def plot_run(directory: str | Path, out: str | Path | None = None) -> list[Path]
         if series is not None and "displacement" not in series.arrays:
             raise SceneError(f"{str(run.xdmf)!r}: no displacement array (output.fields)")
     if not rows and series is None:
-        probes = str(run.directory / "probes.csv")
-        xdmf = f"{str(run.xdmf)!r} no frames" if run.xdmf else "there is no solution.xdmf"
+        probes = str(run.directory / PROBES)
+        xdmf = f"{str(run.xdmf)!r} no frames" if run.xdmf else f"there is no {XDMF}"
         raise SceneError(f"plot: nothing to plot yet: {probes!r} holds no rows and {xdmf}")
     target = output_folder(out, run.directory, "plot")
     paths = []
@@ -411,3 +384,42 @@ def plot_run(directory: str | Path, out: str | Path | None = None) -> list[Path]
     if series is not None:
         paths += plot_surfaces(run, target, series)
     return paths
+
+
+#: Modes drawn in pod.png's shape panels.
+DRAWN = 4
+
+
+def plot_pod(result, path: Path) -> Path:
+    """pod.png: the energies λ_k on a log scale (with the cumulative fraction), and the
+    leading shapes' displacement components against s (scaled by √λ_k: their rms size)."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), constrained_layout=True)
+    k = np.arange(1, len(result.energies) + 1)
+    positive = result.energies > 0
+    axes[0].semilogy(k[positive], result.energies[positive], "o-")
+    axes[0].set_xlabel("POD mode k")
+    axes[0].xaxis.get_major_locator().set_params(integer=True)
+    axes[0].set_ylabel(f"energy λ_k [{result.unit}]")
+    axes[0].set_title(f"POD energies ({result.weighting} weighting)")
+    axes[0].grid(True, which="both", alpha=0.3)
+    twin = axes[0].twinx()
+    twin.plot(k, result.cumulative, "s--", color="tab:gray", markersize=3)
+    twin.set_ylabel("cumulative fraction")
+    twin.set_ylim(0.0, 1.05)
+    styles = {"x": "-", "y": "--", "z": ":"}
+    for i in range(min(DRAWN, len(result.energies))):
+        if not result.energies[i] > 0:
+            continue
+        rms = math.sqrt(result.energies[i]) * result.shapes[i]
+        main = int(np.argmax(np.abs(rms[:, :3]).max(axis=0)))
+        for c in range(3):
+            if np.abs(rms[:, c]).max() >= 1e-2 * np.abs(rms[:, main]).max():  # drawn apart
+                axes[1].plot(result.s, rms[:, c], styles["xyz"[c]], color=f"C{i}",
+                             label=f"mode {i + 1}: {'xyz'[c]} ({100 * result.fractions[i]:.3g} %)")
+    axes[1].set_xlabel("s [m]")
+    axes[1].set_ylabel("√λ_k φ_k, displacement [m]")
+    axes[1].set_title("leading shapes (rms size in the run)")
+    axes[1].grid(True, alpha=0.3)
+    axes[1].legend(fontsize=8)
+    return _save(fig, path, "pod")

@@ -24,7 +24,10 @@ import sys
 import time
 from typing import TextIO
 
-LOGGER = logging.getLogger("cosserat_fem")
+from .io.probes import PROBES
+from .io.run_folder import SUMMARY
+from .io.xdmf import XDMF
+from .log import LOGGER
 
 
 def configure_logging(level: str, rank: int) -> None:
@@ -175,8 +178,8 @@ def summary_screen(summary: dict, out_dir) -> str:
         f"  wall:    {wall['total']:.2f} s = set-up {wall['setup']:.2f} (JIT "
         f"{wall['jit_compile']:.2f}) + solve loop {wall['solve_loop']:.2f} (output "
         f"{wall['output']:.2f})",
-        f"  output:  {out_dir} (probes.csv, summary.json"
-        + (", solution.xdmf" if summary["scene"]["output"]["xdmf"] else "")
+        f"  output:  {out_dir} ({PROBES}, {SUMMARY}"
+        + (f", {XDMF}" if summary["scene"]["output"]["xdmf"] else "")
         + (
             f", {summary['checkpoints_written']} checkpoints"
             if summary["checkpoints_written"]

@@ -36,8 +36,8 @@ from pathlib import Path
 import numpy as np
 
 from .errors import CosseratError, OutputError, SceneError, out_folder
+from .io.output_files import output_folder, write_output
 from .io.xdmf import RodSeries
-from .plot import output_folder, write_output
 from .results import open_run
 
 WINDOW = (1024, 768)  # pixels of every picture and animation frame

@@ -265,27 +265,3 @@ class PeriodicResponse(Observer):
             out[f"h1_{name}"] = float(abs(harmonic[i]))
             out[f"phase_{name}"] = float(np.angle(harmonic[i]))
         return out
-
-
-def free_vibration_frequency(scene, shape, amplitude: float) -> float:
-    """ω [rad/s] of the rod's free vibration from rest in ``shape(amplitude, ℓ, s)`` (the
-    displacements x(s), z(s) − s [m] and the angle ψ(s) [rad] at s [m], e.g. those of
-    cosserat_fem/reference/backbone.py): π over the mean spacing of the probe's x zero
-    crossings (a least-squares line through them, each found by linear interpolation; a
-    response symmetric in ± has its odd harmonics vanish there too). ``scene`` gives the
-    span: at least four crossings are needed."""
-    from .api import run
-    from .model import build_model
-
-    model = build_model(scene, planar=False)
-    s = model.V.tabulate_dof_coordinates()[:, 0] * model.length
-    x, z, psi = shape(amplitude, model.length, s)
-    state = np.zeros((len(s), 12))
-    state[:, 0], state[:, 2], state[:, 4] = x / model.length, z / model.length, psi
-    probes = run(scene, initial_state=state.ravel()).probes
-    t, tip = probes[:, 0], probes[:, 1]
-    k = np.flatnonzero(np.sign(tip[1:]) != np.sign(tip[:-1]))
-    if len(k) < 4:
-        raise ValueError(f"free_vibration_frequency: {len(k)} zero crossings; run longer")
-    crossings = t[k] - tip[k] * (t[k + 1] - t[k]) / (tip[k + 1] - tip[k])
-    return math.pi / np.polyfit(np.arange(len(crossings)), crossings, 1)[0]

@@ -35,9 +35,10 @@ from .errors import SceneError
 from .events import Events, Observer, drive
 from .fields import PointProbe, probe_position, probe_sigma
 from .integrators import GeneralizedAlpha, make_integrator
-from .io.checkpoint import Checkpoint, check_outputs, check_restart_scene
+from .io.checkpoint import Checkpoint
+from .io.folder_lock import holding_folders
 from .io.probes import PROBES
-from .io.run_folder import holding_folders, new_run_id, prepare_output_dir, status_of
+from .io.run_folder import check_outputs, new_run_id, prepare_output_dir, status_of
 from .io.xdmf import XDMF
 from .load_data import refuse_callable_restart
 from .loop import TimeLoop
@@ -56,6 +57,7 @@ from .observers import (
     XdmfObserver,
 )
 from .parallel import agree, ranks_on_node
+from .restart import check_restart_scene
 from .scene import Scene, refuse_closed
 
 

@@ -34,9 +34,11 @@ from .errors import SceneError, SolverError
 from .events import Events, Observer, drive
 from .fields import PointProbe, probe_position, probe_sigma
 from .integrators import make_integrator
+from .io.folder_lock import holding_folders
 from .io.probes import PROBES
-from .io.run_folder import holding_folders, new_run_id, prepare_output_dir, status_of
+from .io.run_folder import new_run_id, prepare_output_dir, status_of
 from .io.xdmf import XDMF
+from .log import LOGGER
 from .model import RodModel, build_model
 from .newton import NewtonFailure, NewtonSettings, NewtonSolver, make_solver
 from .observers import (
@@ -48,7 +50,6 @@ from .observers import (
     XdmfObserver,
 )
 from .parallel import ranks_on_node
-from .progress import LOGGER
 from .scene import Scene, refuse_closed
 
 

@@ -47,10 +47,8 @@ and per column c its ``amp_c``, ``mean_c``, ``h1_c`` and ``phase_c`` (cosserat_f
 from __future__ import annotations
 
 import contextlib
-import csv
 import io
 import json
-import os
 import shutil
 import time
 import zipfile
@@ -63,17 +61,31 @@ from mpi4py import MPI
 from . import budget, safe_files
 from .charts import change_chart
 from .errors import CosseratError, OutputError, SceneError, StopError
-from .io.probes import PROBE_COLUMNS
-from .io.run_folder import holding_folders, prepare_output_dir
+from .io.folder_lock import holding_folders
+from .io.probes import PROBE_COLUMNS, PROBES
+from .io.run_folder import SUMMARY, prepare_output_dir
+from .io.sweep_table import (
+    MEMBERS,
+    RECORD,
+    STOPPED,
+    SWEEP_PARTS,
+    SWEEP_TABLE,
+    cut_rows_off,
+    open_part,
+    part_path,
+    read_record,
+    read_sweep_rows,
+    table_line,
+    write_record,
+    write_table,
+)
 from .parallel import agree
 from .progress import SweepProgress
 from .response import COLUMNS as RESPONSE_NAMES
 from .response import MEASURES, PeriodicResponse, continued_start
-from .results import STOPPED, SWEEP_PARTS, SWEEP_TABLE, read_sweep_rows
 from .sweep_spec import Member, SweepSpec, forced_span
 
 PROBE_NAMES = PROBE_COLUMNS[1:]  # x, y, z [m], θ, ψ, φ [rad]
-RECORD = "sweep.json"
 FINAL_STATE = "final_state.npz"
 #: How a stopped run's message (observers.DeadlineObserver) starts its advice.
 RUN_ADVICE = "; continue it with run --restart"
@@ -126,25 +138,9 @@ def _row(spec: SweepSpec, member: Member, status: str, wall: float, summary: dic
     return row
 
 
-def _csv_line(fields: list[str], row: dict) -> str:
-    buffer = io.StringIO()
-    csv.DictWriter(buffer, fields, lineterminator="\n").writerow(row)
-    return buffer.getvalue()
-
-
-def _cut_rows_off(out: Path) -> None:
-    """A row cut by a kill is cut off its table part too, so that the next row starts a line
-    (world rank 0, before anything is appended)."""
-    for part in (out / SWEEP_PARTS).glob("group-*.csv"):
-        raw = safe_files.read_regular(part)
-        whole = raw.rfind(b"\n") + 1
-        if whole != len(raw):
-            safe_files.own_copy(part, whole)
-
-
 def _finished(out: Path) -> dict[int, dict]:
     """{member: row} of the rows already in the table's parts, a member's "stopped" row
-    given way to a row of its run again (results.read_sweep_rows)."""
+    given way to a row of its run again (io/sweep_table.py's read_sweep_rows)."""
     return {int(row["member"]): row for row in read_sweep_rows(out, parts_only=True)[1]}
 
 
@@ -181,8 +177,8 @@ def _checkpoint(folder: Path, scene, comm):
     the member's end and its outputs are the checkpoint's run's (checkpoint.py's checks, as
     ``run --restart`` makes them); else None (the member runs from the start). Collective
     over ``comm``: every rank finds the same."""
-    from .io.checkpoint import check_outputs, load_checkpoint
-    from .io.probes import PROBES
+    from .io.checkpoint import load_checkpoint
+    from .io.run_folder import check_outputs
     from .io.xdmf import XDMF
 
     try:
@@ -199,7 +195,7 @@ def _checkpoint(folder: Path, scene, comm):
 def _whole_probes(folder: Path, comm) -> np.ndarray | None:
     """The rows of a continued member's probes.csv, from its start (a restart's result holds
     the rows after the checkpoint only): read on rank 0, for the row it writes."""
-    from .io.probes import PROBES, read_probe_table
+    from .io.probes import read_probe_table
 
     return read_probe_table(folder / PROBES)[1] if comm.rank == 0 else None
 
@@ -221,7 +217,7 @@ def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
     """The output folder (world rank 0): made, the sweep recorded or checked against the one
     it holds; the rows of members already finished."""
     out.mkdir(parents=True, exist_ok=True)
-    for name in (SWEEP_PARTS, "members"):
+    for name in (SWEEP_PARTS, MEMBERS):
         if (out / name).is_symlink():
             raise SceneError(f"sweep: {str(out / name)!r} is a link to a folder elsewhere, "
                              "which the sweep would write into; use another --out")  # fmt: skip
@@ -229,11 +225,7 @@ def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
     record = out / RECORD
     fingerprint = spec.fingerprint()
     if record.exists() or record.is_symlink():
-        try:
-            held = json.loads(safe_files.read_text(record))
-            reason = None if isinstance(held, dict) else "not a JSON object"
-        except (OSError, ValueError, RecursionError) as exc:
-            reason = exc.strerror if isinstance(exc, OSError) else "not JSON"
+        held, reason = read_record(record)
         if reason:
             raise SceneError(f"sweep: {str(record)!r} is not the record of a sweep ({reason}); "
                              "remove it to start the sweep there anew, or use another --out")
@@ -245,8 +237,8 @@ def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
         document = {"fingerprint": fingerprint, "members": len(spec.members),
                     "varied": list(spec.varied), "source": spec.source,
                     "continuation": continuation}  # fmt: skip
-        safe_files.replace(record, json.dumps(document, indent=1) + "\n")
-    _cut_rows_off(out)
+        write_record(out, document)
+    cut_rows_off(out)
     return _finished(out)
 
 
@@ -361,11 +353,11 @@ def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
         # a run's advice to restart it is the sweep's to follow when started again
         message = f"{type(exc).__name__}: {str(exc).split(RUN_ADVICE)[0]}"
     wall = time.perf_counter() - t0
-    if summary is None and (folder / "summary.json").exists():
-        summary = json.loads(safe_files.read_text(folder / "summary.json"))
+    if summary is None and (folder / SUMMARY).exists():
+        summary = json.loads(safe_files.read_text(folder / SUMMARY))
     if comm.rank == 0 and spec.keep == "probes" and status != STOPPED and folder.exists():
         for entry in folder.iterdir():  # a stopped member keeps all, to continue from
-            if entry.name not in ("probes.csv", "summary.json", FINAL_STATE):
+            if entry.name not in (PROBES, SUMMARY, FINAL_STATE):
                 shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
     measured = None
     if spec.response is not None:
@@ -384,13 +376,13 @@ def _run_chain(spec: SweepSpec, chain: tuple[int, ...], done: set[int], stopped:
     ran, before = 0, None
     for position, index in enumerate(chain):
         member = spec.members[index]
-        folder = out / "members" / member.name
+        folder = out / MEMBERS / member.name
         if index in done:
             continue
         if spec.chains_continue and position and (before is None or before.index != chain[
                 position - 1]):  # fmt: skip
             previous = spec.members[chain[position - 1]]
-            before = _load_final(out / "members" / previous.name, previous.index, comm)
+            before = _load_final(out / MEMBERS / previous.name, previous.index, comm)
         row, before = _run_member(spec, member, folder, comm, before, index in stopped)
         write(row)
         ran += 1
@@ -456,18 +448,13 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
     counter = _Counter(world)
     members = sum(index not in done for chain in todo for index in chain)
     report = SweepProgress(members, _Counter(world)) if progress else None
-    part = out / SWEEP_PARTS / f"group-{color}.csv"
+    part = part_path(out, color)
     ran, stream, failure = 0, None, None
     try:
         problem = None
         if leader:
             try:
-                new = not (part.exists() or part.is_symlink()) or part.stat().st_size == 0
-                fd = safe_files.create(part) if new else safe_files.open_append(part)
-                stream = os.fdopen(fd, "a", encoding="utf-8", newline="")
-                if new:
-                    stream.write(",".join(fields) + "\n")
-                    stream.flush()
+                stream = open_part(part, fields)
             except OSError as exc:
                 problem = OutputError(f"sweep: cannot write {str(part)!r} ({exc})")
         agree(group, problem)
@@ -478,7 +465,7 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
             problem = None
             if stream is not None:
                 try:
-                    stream.write(_csv_line(fields, row))
+                    stream.write(table_line(fields, row))
                     stream.flush()
                 except OSError as exc:
                     problem = OutputError(f"sweep: cannot write {str(part)!r} ({exc})")
@@ -509,8 +496,7 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
     if world.rank == 0:  # alone: what it meets is every rank's (agree), never a hang
         try:
             rows = list(_finished(out).values())  # sorted by member
-            text = ",".join(fields) + "\n" + "".join(_csv_line(fields, r) for r in rows)
-            safe_files.replace(out / SWEEP_TABLE, text, out / f".{SWEEP_TABLE}.tmp")
+            write_table(out, fields, rows)
         except OSError as exc:
             problem = OutputError(f"sweep: cannot write {str(out / SWEEP_TABLE)!r} "
                                   f"({exc.strerror or exc}); its rows are kept in {SWEEP_PARTS}/")

@@ -19,7 +19,8 @@ import math
 import numpy as np
 from conftest import ROOT
 
-from cosserat_fem.energy import EnergyMonitor, EnergyRecorder
+from cosserat_fem.energy import EnergyMonitor
+from cosserat_fem.observers import EnergyRecorder
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run
 from cosserat_fem.statics import solve_static

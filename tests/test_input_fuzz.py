@@ -652,12 +652,13 @@ def test_an_api_restart_refuses_every_scene_but_the_checkpoints(runs, tmp_path):
     """cf.run(scene, restart=checkpoint) with the checkpoint's scene changed in every leaf key
     of the schema to each of the HOSTILE values and to values near its own (_neighbours;
     those that make a valid scene at all): a scene that differs from the checkpoint's run in
-    a key a restart may not change (cosserat_fem/io/checkpoint.py: RESTART_KEYS) is refused
+    a key a restart may not change (cosserat_fem/restart.py: RESTART_KEYS) is refused
     with a SceneError naming one of those keys; one that differs only in keys it may change
     but whose time.end does not pass the checkpoint (t = 3 ms) names time.end; none touches
     the folder. Those left would continue the run (what they give: the next test)."""
     import cosserat_fem as cf
-    from cosserat_fem.io.checkpoint import _may_change, load_checkpoint
+    from cosserat_fem.io.checkpoint import load_checkpoint
+    from cosserat_fem.restart import _may_change
 
     base = Path(shutil.copytree(runs[0], tmp_path / "copy"))  # a failure may run into it
     before = _files(base)

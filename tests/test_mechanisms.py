@@ -30,11 +30,11 @@ import numpy as np
 import pytest
 from conftest import ROOT, run_command
 
-from cosserat_fem.energy import EnergyRecorder
 from cosserat_fem.errors import SceneError
 from cosserat_fem.events import Observer
 from cosserat_fem.modal import compute_modes
 from cosserat_fem.model import rod_constants
+from cosserat_fem.observers import EnergyRecorder
 from cosserat_fem.scene import load_scene, scene_from_dict
 from cosserat_fem.schema import read_toml
 from cosserat_fem.simulation import run

@@ -29,7 +29,8 @@ from conftest import ROOT, inject_newton_failures, run_command
 from xdmf_files import read_xdmf
 
 from cosserat_fem.errors import SceneError
-from cosserat_fem.io.checkpoint import load_checkpoint, restart_overrides
+from cosserat_fem.io.checkpoint import load_checkpoint
+from cosserat_fem.restart import restart_overrides
 from cosserat_fem.scene import load_scene, scene_from_dict
 from cosserat_fem.simulation import run
 

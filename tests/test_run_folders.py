@@ -139,7 +139,7 @@ def test_a_users_file_where_the_run_writes_is_refused_touching_nothing(tmp_path,
 HOLD = """
 import sys
 from pathlib import Path
-from cosserat_fem.io.run_folder import FolderLock
+from cosserat_fem.io.folder_lock import FolderLock
 lock = FolderLock.take(Path(sys.argv[1]), "run", "feedc0de")
 print("held", flush=True)
 sys.stdin.read()

@@ -445,7 +445,7 @@ def test_members_that_stop_are_not_finished_and_continue(tmp_path):
     # The table's parts hold each member's stopped row and its row run again; read without
     # sweep.csv (a sweep killed while it continued them), the later row replaces the stopped
     # one: plot gave "a row of member 0, twice" before the readers shared the rule.
-    from cosserat_fem.results import read_sweep_rows
+    from cosserat_fem.io.sweep_table import read_sweep_rows
 
     (out / "sweep.csv").unlink()
     parts = [row for part in sorted((out / "table").glob("group-*.csv"))

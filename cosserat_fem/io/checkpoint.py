@@ -32,20 +32,20 @@ time; "auto" = a tenth of the run) and at the end of the run, completed or stopp
 solver failure (the last accepted state), unless ``output.checkpoint = false``.
 
 On restart (``cosserat-fem run --restart DIR``) the scene is the checkpoint's own; only keys
-that do not change the discrete problem may be overridden (:data:`RESTART_KEYS`), e.g.
-``--set time.end=0.12`` to continue a completed run. Everything is checked before anything
-is touched (:func:`check_outputs`): the outputs must be the checkpoint's run's (the run id of
-summary.json and solution.xdmf, written when the run started, and the digest of probes.csv up
-to the checkpoint's rows), and must reach the checkpoint. Only then are the outputs written
-after the checkpoint (by a run killed later) cut back to it (:func:`cut_outputs`): probes.csv
-to its rows, the XDMF file to its frames, and then (the XML cut first, so that a kill
-half-way leaves no XML naming a deleted file) the frame files after them,
-``<name>.frames/<i>.h5`` for i >= the checkpoint's frames, deleted; new frames go into new
-frame files, ``<name>.frames/<frames>.h5`` on, referenced by the one ``<name>.xdmf``
-(cosserat_fem/io/xdmf.py). Outputs of the earlier single-file layout are continued the same
-way (their ``<name>-restart<m>.h5`` files of later restarts deleted).
-A new run into a folder removes the checkpoint of an earlier one (cosserat_fem/io/run_folder.py):
-the files of :data:`OWN_FILES` in ``checkpoint/``, nothing else there.
+that do not change the discrete problem may be overridden (cosserat_fem/restart.py), e.g.
+``--set time.end=0.12`` to continue a completed run. Everything is checked before anything is
+touched (cosserat_fem/io/run_folder.py, ``check_outputs``): the outputs must be the checkpoint's
+run's (the run id of summary.json and solution.xdmf, written when the run started, and the
+digest of probes.csv up to the checkpoint's rows), and must reach the checkpoint. Only then are
+the outputs written after the checkpoint (by a run killed later) cut back to it
+(``cut_outputs``): probes.csv to its rows, the XDMF file to its frames, and then (the XML cut
+first, so that a kill half-way leaves no XML naming a deleted file) the frame files after them,
+``<name>.frames/<i>.h5`` for i >= the checkpoint's frames, deleted; new frames go into new frame
+files, ``<name>.frames/<frames>.h5`` on, referenced by the one ``<name>.xdmf``
+(cosserat_fem/io/xdmf.py). Outputs of the earlier single-file layout are continued the same way
+(their ``<name>-restart<m>.h5`` files of later restarts deleted). A new run into a folder
+removes the checkpoint of an earlier one (cosserat_fem/io/run_folder.py): the files of
+:data:`OWN_FILES` in ``checkpoint/``, nothing else there.
 
 No file is written through a link, and no special file is read (cosserat_fem/safe_files.py):
 the index and the state files are replaced by an atomic rename, probes.csv is cut as the
@@ -63,7 +63,6 @@ import io
 import json
 import math
 import re
-import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -72,30 +71,23 @@ import numpy as np
 from mpi4py import MPI
 
 from .. import safe_files
-from ..errors import OutputError, SceneError, show_value
+from ..errors import OutputError, SceneError
+from ..log import LOGGER
 from ..parallel import agree
-from .probes import probe_prefix
-from .run_folder import SUMMARY
-from .xdmf import cut_xdmf, frames_folder, xdmf_problem
+from .folder_lock import refuse_if_held
 
 FORMAT = 3  # 3: the time loop's state in one part, "loop" (cosserat_fem/loop.py)
 DIRECTORY = "checkpoint"
 INDEX = "checkpoint.json"
 #: The names of the files the project writes in ``checkpoint/`` (and their scratch names): what
 #: a new run removes there.
-OWN_FILES = re.compile(r"(?:checkpoint\.json|state[01]\.rank[0-9]+\.npz)(?:\.tmp)?")
-#: Scene keys a restart may override (prefixes end with "."): none changes the discretisation,
-#: the model or the output grid.
-RESTART_KEYS = (
-    "time.end",
-    "time.max_halvings",
-    "solver.",
-    "output.checkpoint",
-    "output.checkpoint_interval",
-    "limits.",
-)
-#: Keys a restart keeps, whatever the overrides (messages do not suggest them).
-FIXED_KEYS = ("time.start", "time.step")
+OWN_FILES = re.compile(rf"(?:{re.escape(INDEX)}|state[01]\.rank[0-9]+\.npz)(?:\.tmp)?")
+
+
+def state_file(slot: int, rank: int) -> str:
+    """The name, in :data:`DIRECTORY`, of rank ``rank``'s state file of slot ``slot`` (0, 1);
+    :data:`OWN_FILES` matches it."""
+    return f"state{slot}.rank{rank}.npz"
 
 
 def _flatten(parts: dict[str, dict]) -> dict[str, np.ndarray]:
@@ -183,7 +175,7 @@ class CheckpointWriter:
         last complete checkpoint."""
         generation = self.generation + 1
         slot = generation % 2
-        path = self.directory / f"state{slot}.rank{self.comm.rank}.npz"
+        path = self.directory / state_file(slot, self.comm.rank)
         buffer = io.BytesIO()
         arrays = _flatten(parts)
         arrays["meta.generation"] = np.asarray(generation)
@@ -304,8 +296,6 @@ def load_checkpoint(run_dir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Che
     one if the newest is damaged); SceneError if there is none or it does not fit this run
     (another number of ranks, another format). Collective: every rank agrees on what it
     found before any goes on."""
-    from .run_folder import refuse_if_held
-
     run_dir = Path(run_dir)
     refuse_if_held(run_dir, comm, "restart")
     index_path = run_dir / DIRECTORY / INDEX
@@ -329,14 +319,12 @@ def load_checkpoint(run_dir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Che
         )
     found = []
     for entry in meta["checkpoints"][:2]:
-        path = run_dir / DIRECTORY / f"state{entry['slot']}.rank{comm.rank}.npz"
+        path = run_dir / DIRECTORY / state_file(entry["slot"], comm.rank)
         arrays, problem = _read_state(path, entry, comm.rank)
         problems = [p for p in comm.allgather(problem) if p]
         if not problems:
             common = {k: v for k, v in meta.items() if k not in ("checkpoints", "checksum")}
             if found:
-                from ..progress import LOGGER
-
                 LOGGER.warning(
                     "checkpoint: %s; continuing from the previous checkpoint at t = %.6g s",
                     found[0],
@@ -345,177 +333,3 @@ def load_checkpoint(run_dir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Che
             return Checkpoint(run_dir, {**common, **entry}, _unflatten(arrays))
         found.append(problems[0])
     raise SceneError(f"--restart: damaged checkpoint in {str(run_dir)!r}: {found[0]}")
-
-
-def _may_change(key: str) -> bool:
-    """Whether a restart may change the dotted scene key ``key`` (:data:`RESTART_KEYS`)."""
-    return any(key == k or (k.endswith(".") and key.startswith(k)) for k in RESTART_KEYS)
-
-
-def _allowed() -> str:
-    return ", ".join(k + "*" if k.endswith(".") else k for k in RESTART_KEYS)
-
-
-def restart_overrides(overrides: list[str] | tuple[str, ...]) -> None:
-    """SceneError unless every ``--set`` (and ``--unset``) key of a restart is one of
-    :data:`RESTART_KEYS`."""
-    from ..schema import Removal
-
-    for text in overrides:
-        key = text.split("=", 1)[0].strip()
-        if not _may_change(key):
-            option = "--unset" if isinstance(text, Removal) else "--set"
-            raise SceneError(
-                f"{option} {key}: cannot change on --restart (the checkpoint's discrete "
-                f"problem is fixed); allowed: {_allowed()}"
-            )
-
-
-def _leaves(table: dict, prefix: str = "") -> dict[str, Any]:
-    """{dotted key: value} of the nested tables of a scene's dict (lists are values)."""
-    out: dict[str, Any] = {}
-    for name, value in table.items():
-        key = f"{prefix}.{name}" if prefix else str(name)
-        out.update(_leaves(value, key) if isinstance(value, dict) and value else {key: value})
-    return out
-
-
-_ABSENT = object()
-
-
-def _shown(value: Any) -> str:
-    return "no value" if value is _ABSENT else show_value(value)
-
-
-def check_restart_scene(checkpoint: Checkpoint, scene) -> None:
-    """SceneError naming the first key (in the scene file's order) in which ``scene`` differs
-    from the scene the checkpoint's run was run with, unless a restart may change it
-    (:data:`RESTART_KEYS`), or if its time.end is not later than the checkpoint. What both
-    ``run --restart`` (its scene is the checkpoint's with ``--set``) and the Python API's
-    ``cf.run(scene, restart=checkpoint)`` (any scene) pass through, before anything is
-    touched: a scene of other constants, loads or discretisation would continue the
-    checkpoint's state as another problem, a splice of two runs."""
-    from ..scene import check_later_end
-
-    held = _leaves(checkpoint.meta["scene"])
-    given = _leaves(json.loads(json.dumps(scene.to_dict())))  # as the index holds it
-    for key in dict.fromkeys([*given, *held]):
-        new, old = given.get(key, _ABSENT), held.get(key, _ABSENT)
-        same = new == old and isinstance(new, bool) == isinstance(old, bool)
-        if not same and not _may_change(key):
-            raise SceneError(
-                f"{key}: {_shown(new)} where the checkpoint's run has {_shown(old)}; a restart "
-                f"continues the checkpoint's problem and may change only {_allowed()} "
-                "(cf.resume(folder, overrides) gives its scene)"
-            )
-    check_later_end(scene.time.end, checkpoint.time)
-
-
-# --------------------------------------------------------------------------------- outputs
-
-
-@dataclass
-class RestartPlan:
-    """What :func:`check_outputs` found (on rank 0): where probes.csv is cut (bytes) and how
-    many XDMF frames are kept."""
-
-    probes: Path | None
-    probe_bytes: int | None
-    xdmf: Path | None
-    frames: int | None
-    restart_number: int
-
-
-def check_outputs(
-    checkpoint: Checkpoint, probes: Path | None, xdmf: Path | None, comm: MPI.Comm
-) -> RestartPlan:
-    """Check, touching nothing, that the outputs in the checkpoint's folder are its run's and
-    reach it (module docstring), on rank 0; SceneError on every rank otherwise (collective).
-    The folder is shared by the ranks, as the XDMF file already requires."""
-    outputs = checkpoint.meta["outputs"]
-    run_dir = checkpoint.run_dir
-    problem, offset = None, None
-    if comm.rank == 0:
-        try:
-            problem = _summary_problem(run_dir / SUMMARY, checkpoint.run_id)
-            problem = problem or _linked_folder(run_dir, xdmf)
-            if problem is None and xdmf is not None:
-                if outputs.get("xdmf_frames") is None:
-                    problem = "the checkpointed run wrote no XDMF file"
-                else:
-                    problem = xdmf_problem(xdmf, int(outputs["xdmf_frames"]), checkpoint.run_id)
-            if problem is None and probes is not None:
-                offset, digest = probe_prefix(probes, int(outputs["probe_rows"]))
-                if digest.hexdigest() != outputs.get("probes_sha256"):
-                    problem = (
-                        f"{str(probes)!r} differs from the checkpointed run's rows (written by "
-                        "another run, or edited)"
-                    )
-        except SceneError as exc:
-            problem = str(exc).removeprefix("--restart: ")
-        except (OSError, ValueError, ET.ParseError) as exc:
-            problem = f"cannot read the outputs in {str(run_dir)!r} ({exc})"
-    agree(comm, SceneError(f"--restart: {problem}") if problem else None)
-    frames = outputs.get("xdmf_frames") if xdmf is not None else None
-    return RestartPlan(probes, offset, xdmf, frames, checkpoint.restart_number)
-
-
-def _linked_folder(run_dir: Path, xdmf: Path | None) -> str | None:
-    """Why the restart would write into a folder outside ``run_dir``: its checkpoint folder or
-    the XDMF file's frames folder is a link to one (a file that is a link is replaced, never
-    written through; a folder's files cannot be)."""
-    for folder in [run_dir / DIRECTORY] + ([frames_folder(xdmf)] if xdmf is not None else []):
-        if folder.is_symlink():
-            return (
-                f"{str(folder)!r} is a link to a folder elsewhere, which the restart would "
-                "write into; copy the run's folder with its files (cp -a), then restart the copy"
-            )
-    return None
-
-
-def _summary_problem(path: Path, run_id: str) -> str | None:
-    """Why summary.json does not show the checkpoint's run (written when the run started)."""
-    try:
-        summary = json.loads(safe_files.read_text(path))
-    except FileNotFoundError:
-        summary = None
-    if not isinstance(summary, dict) or summary.get("run_id") != run_id:
-        return (
-            f"the outputs in {str(path.parent)!r} are not the checkpoint's run's (the run id "
-            "of summary.json differs): another run was written into the folder after it"
-        )
-    return None
-
-
-def cut_outputs(plan: RestartPlan, comm: MPI.Comm) -> None:
-    """Cut the outputs back to the checkpoint as ``plan`` (from :func:`check_outputs`) says,
-    on rank 0: probes.csv, the XDMF file, then (once the XML no longer names them) the frame
-    files after the checkpoint's frames and the scratch XML of a killed frame in its frames
-    folder, and the HDF5 files of later restarts of the earlier single-file layout (which
-    hold frames after the checkpoint only: a restart killed before its first checkpoint left
-    them). An OutputError on every rank if a file cannot be changed (collective)."""
-    problem = None
-    if comm.rank == 0:
-        try:
-            if plan.probes is not None:  # a link: cut as the folder's own copy
-                safe_files.own_copy(plan.probes, plan.probe_bytes)
-            if plan.xdmf is not None:
-                cut_xdmf(plan.xdmf, plan.frames)
-                folder = frames_folder(plan.xdmf)
-                if folder.is_dir():
-                    for old in folder.iterdir():
-                        later = old.suffix == ".h5" and old.stem.isdigit()
-                        if (later and int(old.stem) >= plan.frames) or (
-                            old.suffix == ".xdmf-partial"
-                        ):
-                            old.unlink()
-                stem = plan.xdmf.stem
-                for old in plan.xdmf.parent.glob(f"{stem}-restart*.h5"):
-                    number = old.stem.removeprefix(f"{stem}-restart")
-                    if number.isdigit() and int(number) >= plan.restart_number:
-                        old.unlink()
-        except (OSError, ET.ParseError) as exc:
-            problem = OutputError(
-                f"--restart: cannot cut the outputs back to the checkpoint ({exc})"
-            )
-    agree(comm, problem)

@@ -3,17 +3,8 @@ summary.json.
 
 A folder holds the outputs of one run at a time, and has one writer at a time:
 
-* **The lock.** A ``run``, ``static``, ``run --restart`` or ``sweep`` holds an exclusive lock on
-  its folder from before it reads or touches anything there to its end
-  (:func:`prepare_output_dir` with ``lock``, released when the enclosing
-  :func:`holding_folders` call returns or raises). A second writer is refused at once, in one
-  line naming the holder: its kind, run id, process, host, start time and command line
-  (written into the lock file by the holder). The lock is ``flock(2)`` on the file
-  ``.cosserat-fem.lock`` in the folder, taken by rank 0 (under MPI every rank agrees on the
-  outcome): the kernel releases it when the holder dies, SIGKILL included, so a killed run
-  leaves no stale lock (the file it leaves is taken over by the next run); the holder removes
-  the file when it ends. Why ``flock`` and what it does not cover (file systems without
-  locks): docs/decisions.md, "One writer a folder".
+* **The lock** (cosserat_fem/io/folder_lock.py): one writer a folder, taken by
+  :func:`prepare_output_dir` with ``lock``.
 * **The claim.** A new ``run`` or ``static`` first removes what an earlier run left there that
   it will not overwrite itself, so that no stale file can be mistaken for its own: the earlier
   run's checkpoint (a restart would otherwise continue it after the new outputs), its XDMF
@@ -21,13 +12,16 @@ A folder holds the outputs of one run at a time, and has one writer at a time:
   (``solution.h5``, ``solution-restart<n>.h5``, ``solution.xdmf-partial``). Only the
   project's own files go (:func:`stale_outputs`): in ``checkpoint/`` and ``solution.frames/``
   the names the project writes there (:data:`cosserat_fem.io.checkpoint.OWN_FILES`,
-  :data:`cosserat_fem.results.FRAME_NAME`), never a subfolder or a file of another name (a
+  :data:`cosserat_fem.io.xdmf.FRAME_NAME`), never a subfolder or a file of another name (a
   user's notes, another run nested inside); a folder left empty goes too. A link at one of
   these names is removed, never followed. Where something of the user's stands where the run
   must write (a file named ``checkpoint``, a folder named ``probes.csv``), the run is refused
   in one line before anything is removed (:func:`conflict`). Then it writes summary.json with
   the status "running" and a new run identity (:func:`new_run_id`) before any other output,
   which the checkpoint and the XDMF file carry too (cosserat_fem/io/checkpoint.py).
+* **A restart** continues the outputs of the folder only if they are the checkpoint's run's
+  and reach its checkpoint (:func:`check_outputs`, touching nothing), then cuts them back to
+  it (:func:`cut_outputs`): cosserat_fem/io/checkpoint.py's docstring.
 
 Every file of the folder is written as a new file or by an atomic rename, never through a
 link, and no special file is opened (cosserat_fem/safe_files.py).
@@ -35,18 +29,11 @@ link, and no special file is opened (cosserat_fem/safe_files.py).
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
-import errno
-import fcntl
-import functools
 import json
 import os
-import socket
-import stat
-import sys
-import time
 import uuid
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
 from pathlib import Path
 
 from mpi4py import MPI
@@ -54,165 +41,16 @@ from mpi4py import MPI
 from .. import safe_files
 from ..errors import OutputError, SceneError
 from ..parallel import agree, from_root
-from .probes import PROBES
+from .checkpoint import DIRECTORY, INDEX, OWN_FILES, Checkpoint
+from .folder_lock import _HELD, LOCK_KEYS, FolderLock, held_lock
+from .probes import PROBES, probe_prefix
 from .reading import decode, finite_number, json_kind, quoted, read_bytes
-from .xdmf import XDMF
+from .xdmf import FRAME_NAME, XDMF, cut_xdmf, frames_folder, xdmf_problem
 
 #: The run's summary: written when it starts (status "running"), replaced at its end.
 SUMMARY = "summary.json"
 #: Largest summary.json read [bytes] (a run's is ~4 kB).
 MAX_SUMMARY_BYTES = 16 << 20
-#: The lock file of a folder (:class:`FolderLock`).
-LOCK = ".cosserat-fem.lock"
-#: The key a refusal names, by the kind of writer that asks for the folder.
-LOCK_KEYS = {"run": "output.directory", "static": "output.directory", "restart": "--restart",
-             "sweep": "sweep --out"}  # fmt: skip
-#: Bytes of the holder's record in the lock file (padded with blanks: rewritten in place).
-_RECORD = 1024
-
-
-class FolderLock:
-    """The exclusive lock of one folder, held by this process (module docstring): taken by
-    :meth:`take`, ended by :meth:`release`. The lock file holds the holder's record, a JSON
-    object (what, run_id, pid, host, started, command) padded to :data:`_RECORD` bytes."""
-
-    def __init__(self, folder: Path, fd: int | None, record: dict):
-        self.folder, self.fd, self.record = folder, fd, record
-
-    @classmethod
-    def take(cls, folder: Path, what: str, run_id: str | None = None) -> FolderLock:
-        """The lock of ``folder`` (which exists) for a writer of kind ``what``; SceneError
-        naming the holder if another holds it. On a file system that cannot lock (ENOLCK,
-        EOPNOTSUPP) the writer goes on unprotected, with a warning."""
-        path = folder / LOCK
-        record = {"what": what, "run_id": run_id, "pid": os.getpid(),
-                  "host": socket.gethostname(), "started": time.strftime("%Y-%m-%d %H:%M:%S %z"),
-                  "command": " ".join(sys.argv)[:400]}  # fmt: skip
-        for _ in range(100):  # a lock file renamed or removed under us: open it again
-            fd = cls._open(path)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
-                holder = _holder(fd)
-                os.close(fd)
-                raise SceneError(
-                    f"{LOCK_KEYS.get(what, 'output.directory')}: {str(folder)!r} is in use by "
-                    f"{holder}; one writer a folder: wait for it to end, or write elsewhere"
-                ) from None
-            except OSError as exc:
-                os.close(fd)
-                if exc.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS):
-                    raise
-                from ..progress import LOGGER
-
-                LOGGER.warning("%s: the file system cannot lock %s (%s); a second writer into "
-                               "the folder would not be refused", what, path, exc.strerror)
-                return cls(folder, None, record)
-            try:
-                here = os.lstat(path)
-            except FileNotFoundError:
-                here = None
-            opened = os.fstat(fd)
-            if here is not None and (here.st_dev, here.st_ino) == (opened.st_dev, opened.st_ino):
-                lock = cls(folder, fd, record)
-                with contextlib.suppress(OSError):
-                    os.ftruncate(fd, _RECORD)
-                    lock._write()
-                return lock
-            os.close(fd)
-        raise OSError(errno.EAGAIN, "the lock file keeps changing", str(path))
-
-    @staticmethod
-    def _open(path: Path) -> int:
-        """A descriptor of the lock file, made if missing; a link, a special file or a file
-        with other names at its name is removed first (never followed or written through)."""
-        for _ in range(100):
-            try:
-                fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK
-                             | os.O_CLOEXEC, 0o644)  # fmt: skip
-            except OSError as exc:
-                if exc.errno not in (errno.ELOOP, errno.ENXIO, errno.EISDIR):
-                    raise
-                if exc.errno == errno.EISDIR:
-                    raise IsADirectoryError(errno.EISDIR, "is a folder, not the lock file",
-                                            str(path)) from None  # fmt: skip
-                safe_files.remove_name(path)  # a link (ELOOP) or a FIFO without reader (ENXIO)
-                continue
-            info = os.fstat(fd)
-            if stat.S_ISREG(info.st_mode) and info.st_nlink == 1:
-                return fd
-            os.close(fd)
-            safe_files.remove_name(path)
-        raise OSError(errno.EAGAIN, "the lock file keeps changing", str(path))
-
-    def _write(self) -> None:
-        text = json.dumps(self.record).encode("utf-8")[: _RECORD - 1]
-        safe_files.write_all(self.fd, text.ljust(_RECORD - 1) + b"\n", 0)
-
-    def note(self, run_id: str) -> None:
-        """The run id in the holder's record (known once the run claims the folder)."""
-        self.record["run_id"] = run_id
-        if self.fd is not None:
-            with contextlib.suppress(OSError):
-                self._write()
-
-    def release(self) -> None:
-        """The lock file removed (if it is still ours) and the lock released."""
-        if self.fd is None:
-            return
-        fd, self.fd = self.fd, None
-        with contextlib.suppress(OSError):
-            here, opened = os.lstat(self.folder / LOCK), os.fstat(fd)
-            if (here.st_dev, here.st_ino) == (opened.st_dev, opened.st_ino):
-                os.unlink(self.folder / LOCK)
-        os.close(fd)
-
-
-def _holder(fd: int) -> str:
-    """Who holds the lock of the open lock file ``fd``, from the record the holder wrote."""
-    try:
-        record = json.loads(os.pread(fd, 4 * _RECORD, 0).decode("utf-8"))
-    except (OSError, ValueError):
-        record = None
-    if not isinstance(record, dict):
-        return "another process (it has not said which yet)"
-    parts = [f"run id {record['run_id']}"] if record.get("run_id") else []
-    parts.append(f"process {record.get('pid')} on {record.get('host')!r}")
-    parts.append(f"started {record.get('started')}")
-    parts.append(f"command {record.get('command')!r}")
-    return f"another cosserat-fem {record.get('what', 'writer')} ({', '.join(parts)})"
-
-
-#: The folder locks taken in the innermost :func:`holding_folders` call (None outside one).
-_HELD: contextvars.ContextVar[list[FolderLock] | None] = contextvars.ContextVar(
-    "cosserat_fem_folder_locks", default=None
-)
-
-
-def holding_folders(function):
-    """Decorator: the folder locks taken during a call of ``function`` (by
-    :func:`prepare_output_dir` with ``lock``) are released when it returns or raises."""
-
-    @functools.wraps(function)
-    def call(*args, **kwargs):
-        held: list[FolderLock] = []
-        token = _HELD.set(held)
-        try:
-            return function(*args, **kwargs)
-        finally:
-            _HELD.reset(token)
-            for lock in reversed(held):
-                lock.release()
-
-    return call
-
-
-def held_lock(folder: Path) -> FolderLock | None:
-    """The lock of ``folder`` held by the current :func:`holding_folders` call, if any."""
-    for lock in _HELD.get() or []:
-        if lock.folder == folder:
-            return lock
-    return None
 
 
 def prepare_output_dir(path: Path, comm: MPI.Comm, lock: str | None = None,
@@ -243,21 +81,6 @@ def prepare_output_dir(path: Path, comm: MPI.Comm, lock: str | None = None,
     return path
 
 
-def refuse_if_held(folder: Path, comm: MPI.Comm, what: str) -> None:
-    """SceneError on every rank, naming the holder, if another process holds the lock of
-    ``folder`` (tried and let go at once, before a writer of kind ``what`` reads what it will
-    continue; the writer takes it for good with :func:`prepare_output_dir`). Collective."""
-    problem = None
-    if comm.rank == 0 and folder.is_dir():
-        try:
-            FolderLock.take(folder, what).release()
-        except SceneError as exc:
-            problem = exc
-        except OSError:
-            pass  # a folder that cannot be written is refused when the writer takes it
-    agree(comm, problem)
-
-
 def new_run_id(comm: MPI.Comm) -> str:
     """A new identity, the same on every rank."""
     return from_root(comm, uuid.uuid4().hex if comm.rank == 0 else None)
@@ -278,9 +101,6 @@ def stale_outputs(folder: Path) -> list[tuple[Path, object | None]]:
     names the pattern matches (:func:`cosserat_fem.safe_files.remove_own_files`): the
     checkpoint (its index first), the XDMF file (so that no XML names a removed file; a new
     series publishes its own), its frames, the files of the earlier single-file layout."""
-    from .checkpoint import DIRECTORY, OWN_FILES
-    from .xdmf import FRAME_NAME, frames_folder
-
     stale: list[tuple[Path, object | None]] = [(folder / DIRECTORY, OWN_FILES)]
     if (folder / XDMF).is_symlink() or (folder / XDMF).exists():
         stale.append((folder / XDMF, None))
@@ -292,9 +112,6 @@ def conflict(folder: Path, writes_xdmf: bool, writes_checkpoint: bool) -> str | 
     """Where something that is not the project's stands where a new run in ``folder`` must
     write (a folder at a file's name, a file at a folder's, a folder among the checkpoint's
     or the frames' files), the first such, in words; else None."""
-    from .checkpoint import DIRECTORY, INDEX, OWN_FILES
-    from .xdmf import FRAME_NAME, frames_folder
-
     files = [PROBES, SUMMARY, f"{SUMMARY}.tmp"]
     folders = []
     if writes_xdmf:
@@ -326,8 +143,6 @@ def claim(folder: Path, comm: MPI.Comm, writes_xdmf: bool, summary: dict,
     stale outputs of an earlier run (:func:`stale_outputs`; the checkpoint's index first, so
     that a kill half-way leaves nothing to restart from), then write ``summary`` (status
     "running", the run id) before any other output. Collective."""
-    from .checkpoint import INDEX
-
     problem = None
     if comm.rank == 0:
         lock = held_lock(folder)
@@ -425,3 +240,113 @@ def read_summary(path: str | Path) -> dict:
                 f"{quoted(path)}: scene.rod.length must be a positive number, got {shown}"
             )
     return summary
+
+
+# --- a restart: the outputs it continues ---------------------------------------------------
+
+
+@dataclass
+class RestartPlan:
+    """What :func:`check_outputs` found (on rank 0): where probes.csv is cut (bytes) and how
+    many XDMF frames are kept."""
+
+    probes: Path | None
+    probe_bytes: int | None
+    xdmf: Path | None
+    frames: int | None
+    restart_number: int
+
+
+def check_outputs(
+    checkpoint: Checkpoint, probes: Path | None, xdmf: Path | None, comm: MPI.Comm
+) -> RestartPlan:
+    """Check, touching nothing, that the outputs in the checkpoint's folder are its run's and
+    reach it (module docstring), on rank 0; SceneError on every rank otherwise (collective).
+    The folder is shared by the ranks, as the XDMF file already requires."""
+    outputs = checkpoint.meta["outputs"]
+    run_dir = checkpoint.run_dir
+    problem, offset = None, None
+    if comm.rank == 0:
+        try:
+            problem = _summary_problem(run_dir / SUMMARY, checkpoint.run_id)
+            problem = problem or _linked_folder(run_dir, xdmf)
+            if problem is None and xdmf is not None:
+                if outputs.get("xdmf_frames") is None:
+                    problem = "the checkpointed run wrote no XDMF file"
+                else:
+                    problem = xdmf_problem(xdmf, int(outputs["xdmf_frames"]), checkpoint.run_id)
+            if problem is None and probes is not None:
+                offset, digest = probe_prefix(probes, int(outputs["probe_rows"]))
+                if digest.hexdigest() != outputs.get("probes_sha256"):
+                    problem = (
+                        f"{str(probes)!r} differs from the checkpointed run's rows (written by "
+                        "another run, or edited)"
+                    )
+        except SceneError as exc:
+            problem = str(exc).removeprefix("--restart: ")
+        except (OSError, ValueError, ET.ParseError) as exc:
+            problem = f"cannot read the outputs in {str(run_dir)!r} ({exc})"
+    agree(comm, SceneError(f"--restart: {problem}") if problem else None)
+    frames = outputs.get("xdmf_frames") if xdmf is not None else None
+    return RestartPlan(probes, offset, xdmf, frames, checkpoint.restart_number)
+
+
+def _linked_folder(run_dir: Path, xdmf: Path | None) -> str | None:
+    """Why the restart would write into a folder outside ``run_dir``: its checkpoint folder or
+    the XDMF file's frames folder is a link to one (a file that is a link is replaced, never
+    written through; a folder's files cannot be)."""
+    for folder in [run_dir / DIRECTORY] + ([frames_folder(xdmf)] if xdmf is not None else []):
+        if folder.is_symlink():
+            return (
+                f"{str(folder)!r} is a link to a folder elsewhere, which the restart would "
+                "write into; copy the run's folder with its files (cp -a), then restart the copy"
+            )
+    return None
+
+
+def _summary_problem(path: Path, run_id: str) -> str | None:
+    """Why summary.json does not show the checkpoint's run (written when the run started)."""
+    try:
+        summary = json.loads(safe_files.read_text(path))
+    except FileNotFoundError:
+        summary = None
+    if not isinstance(summary, dict) or summary.get("run_id") != run_id:
+        return (
+            f"the outputs in {str(path.parent)!r} are not the checkpoint's run's (the run id "
+            f"of {path.name} differs): another run was written into the folder after it"
+        )
+    return None
+
+
+def cut_outputs(plan: RestartPlan, comm: MPI.Comm) -> None:
+    """Cut the outputs back to the checkpoint as ``plan`` (from :func:`check_outputs`) says,
+    on rank 0: probes.csv, the XDMF file, then (once the XML no longer names them) the frame
+    files after the checkpoint's frames and the scratch XML of a killed frame in its frames
+    folder, and the HDF5 files of later restarts of the earlier single-file layout (which
+    hold frames after the checkpoint only: a restart killed before its first checkpoint left
+    them). An OutputError on every rank if a file cannot be changed (collective)."""
+    problem = None
+    if comm.rank == 0:
+        try:
+            if plan.probes is not None:  # a link: cut as the folder's own copy
+                safe_files.own_copy(plan.probes, plan.probe_bytes)
+            if plan.xdmf is not None:
+                cut_xdmf(plan.xdmf, plan.frames)
+                folder = frames_folder(plan.xdmf)
+                if folder.is_dir():
+                    for old in folder.iterdir():
+                        later = old.suffix == ".h5" and old.stem.isdigit()
+                        if (later and int(old.stem) >= plan.frames) or (
+                            old.suffix == ".xdmf-partial"
+                        ):
+                            old.unlink()
+                stem = plan.xdmf.stem
+                for old in plan.xdmf.parent.glob(f"{stem}-restart*.h5"):
+                    number = old.stem.removeprefix(f"{stem}-restart")
+                    if number.isdigit() and int(number) >= plan.restart_number:
+                        old.unlink()
+        except (OSError, ET.ParseError) as exc:
+            problem = OutputError(
+                f"--restart: cannot cut the outputs back to the checkpoint ({exc})"
+            )
+    agree(comm, problem)

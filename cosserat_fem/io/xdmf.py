@@ -94,16 +94,27 @@ def frame_file(index: int) -> str:
 
 #: The names of the files in an XDMF file's frames folder
 #: (:func:`frames_folder`): the mesh's and one a frame; what a new series removes there.
-FRAME_NAME = re.compile(r"(?:mesh|[0-9]{6,})\.h5")
+FRAME_NAME = re.compile(
+    rf"(?:{re.escape(Path(MESH_FILE).stem)}|[0-9]{{{FRAME_DIGITS},}}){re.escape(Path(MESH_FILE).suffix)}"
+)
 #: The one reference that is not a plain name: a file of the frames folder beside the XDMF file:
 #: one folder level, no ".." or absolute path.
-_FRAME_FILE = re.compile(r"[^/\\]+\.frames/" + FRAME_NAME.pattern)
+_FRAME_FILE = re.compile(rf"[^/\\]+{re.escape(FRAMES_SUFFIX)}/" + FRAME_NAME.pattern)
 
 #: Largest XDMF file read [bytes]: ~1-2.5 kB a frame (some 60 000 frames).
 MAX_XDMF_BYTES = 128 << 20
 #: Most numbers read from the .h5 files of one XDMF file (800 MB as float64; the default
 #: run holds ~1e5, a run of 10 000 frames of all six arrays on 300 points ~5e7).
 MAX_VALUES = 10**8
+
+
+#: The datasets of the mesh in :data:`MESH_FILE` (as DOLFINx's XDMFFile named them).
+MESH_GEOMETRY, MESH_TOPOLOGY = "/Mesh/mesh/geometry", "/Mesh/mesh/topology"
+
+
+def function_dataset(array: str, key: str) -> str:
+    """The dataset of the point array ``array`` of the frame ``key`` in its frame file."""
+    return f"/Function/{array}/{key}"
 
 
 def xdmf_mesh_xml(file: str, points: int, cells: int) -> str:
@@ -115,11 +126,11 @@ def xdmf_mesh_xml(file: str, points: int, cells: int) -> str:
         f'        <Topology TopologyType="PolyLine" NumberOfElements="{cells}" '
         'NodesPerElement="2">\n'
         f'          <DataItem Dimensions="{cells} 2" NumberType="Int" Format="HDF">{name}:'
-        "/Mesh/mesh/topology</DataItem>\n"
+        f"{MESH_TOPOLOGY}</DataItem>\n"
         "        </Topology>\n"
         '        <Geometry GeometryType="XYZ">\n'
         f'          <DataItem Dimensions="{points} 3" Format="HDF" Precision="8">{name}:'
-        "/Mesh/mesh/geometry</DataItem>\n"
+        f"{MESH_GEOMETRY}</DataItem>\n"
         "        </Geometry>\n"
     )
 
@@ -140,7 +151,7 @@ class _FrameImages:
 
     def _datasets(self, key: str, values: np.ndarray) -> list[tuple[str, np.ndarray]]:
         return [
-            (f"/Function/{name}/{key}", np.ascontiguousarray(values[:, 3 * i : 3 * i + 3]))
+            (function_dataset(name, key), np.ascontiguousarray(values[:, 3 * i : 3 * i + 3]))
             for i, name in enumerate(self.arrays)
         ]
 
@@ -297,7 +308,7 @@ class XdmfSeries:
         """``mesh.h5`` written (rank 0; OutputError if it may not fit); the Topology and
         Geometry that name it."""
         image = self._h5.image(
-            [("/Mesh/mesh/geometry", self.geometry), ("/Mesh/mesh/topology", self.topology)]
+            [(MESH_GEOMETRY, self.geometry), (MESH_TOPOLOGY, self.topology)]
         )[0]
         self._check_room(len(image), 0, "the XDMF mesh", self.folder / MESH_FILE)
         _write_file(self.folder / MESH_FILE, image)
@@ -429,7 +440,9 @@ XDMF_GRID = "rod"
 RUN_ID = "run_id"
 #: The end of the document, and the opening of the processing instruction of spare room after
 #: it (closed by ``?>`` at the end of the file): the blanks a frame is added with replace them.
-_XDMF_TAIL = b"    </Grid>\n  </Domain>\n</Xdmf>\n"
+#: (the XML after the last frame).
+XDMF_TAIL = "    </Grid>\n  </Domain>\n</Xdmf>\n"
+_XDMF_TAIL = XDMF_TAIL.encode()
 _SPARE_OPEN = b"<?cosserat-fem-spare"
 _SPARE_CLOSE = b"?>\n"
 _SWITCH = len(_XDMF_TAIL) + len(_SPARE_OPEN)
@@ -447,6 +460,38 @@ def xdmf_run_id(root: ET.Element) -> str | None:
     domain = root.find("Domain")
     item = None if domain is None else domain.find(f"Information[@Name='{RUN_ID}']")
     return None if item is None else item.get("Value")
+
+
+def xdmf_head(grid: str, run_id: str | None = None) -> str:
+    """The XML up to the first frame: the document, its Domain (with the run's identity, if
+    any) and the temporal collection ``grid``; :data:`XDMF_TAIL` closes them."""
+    identity = ""
+    if run_id is not None:
+        identity = f"    <Information Name={quoteattr(RUN_ID)} Value={quoteattr(run_id)} />\n"
+    return (
+        f"{_XDMF_HEAD}  <Domain>\n{identity}"
+        f'    <Grid Name="{grid}" GridType="Collection" CollectionType="Temporal">\n'
+    )
+
+
+def xdmf_frame_xml(grid: str, mesh: str, value: str, file: str, key: str, arrays: list[str],
+                   points: int) -> str:  # fmt: skip
+    """The text of a frame of the collection ``grid`` at the time ``value``: ``mesh`` (its
+    Topology and Geometry, :func:`xdmf_mesh_xml`), and its ``arrays`` (each ``points`` x 3),
+    the datasets :func:`function_dataset` (array, ``key``) of the HDF5 file ``file``
+    (relative to the XML)."""
+    parts = [f'      <Grid Name="{grid}" GridType="Uniform">\n', mesh,
+             f"        <Time Value={quoteattr(value)} />\n"]  # fmt: skip
+    where = escape(file)
+    for name in arrays:
+        parts.append(
+            f'        <Attribute Name="{name}" AttributeType="Vector" Center="Node">\n'
+            f'          <DataItem Dimensions="{points} 3" Format="HDF" Precision="8">'
+            f"{where}:{escape(function_dataset(name, key))}</DataItem>\n"
+            "        </Attribute>\n"
+        )
+    parts.append("      </Grid>\n")
+    return "".join(parts)
 
 
 def _element_text(element: ET.Element, level: int) -> str:
@@ -494,30 +539,11 @@ class _XdmfDocument:
         return cls(path, work, text, xdmf_run_id(root), frames)
 
     def frame(self, value: str, file: str, key: str, arrays: list[str], points: int) -> bytes:
-        """The text of a frame at the time ``value`` whose ``arrays`` are the datasets
-        ``/Function/<array>/<key>`` of the HDF5 file ``file`` (relative to the XML)."""
-        parts = [f'      <Grid Name="{XDMF_GRID}" GridType="Uniform">\n', self.mesh,
-                 f"        <Time Value={quoteattr(value)} />\n"]  # fmt: skip
-        where = escape(file)
-        for name in arrays:
-            parts.append(
-                f'        <Attribute Name="{name}" AttributeType="Vector" Center="Node">\n'
-                f'          <DataItem Dimensions="{points} 3" Format="HDF" Precision="8">'
-                f"{where}:/Function/{name}/{escape(key)}</DataItem>\n"
-                "        </Attribute>\n"
-            )
-        parts.append("      </Grid>\n")
-        return "".join(parts).encode()
+        """The text of a frame (:func:`xdmf_frame_xml`) of the collection ``rod``."""
+        return xdmf_frame_xml(XDMF_GRID, self.mesh, value, file, key, arrays, points).encode()
 
     def _head(self) -> bytes:
-        identity = ""
-        if self.run_id is not None:
-            value = quoteattr(self.run_id)
-            identity = f"    <Information Name={quoteattr(RUN_ID)} Value={value} />\n"
-        return (
-            f"{_XDMF_HEAD}  <Domain>\n{identity}"
-            f'    <Grid Name="{XDMF_GRID}" GridType="Collection" CollectionType="Temporal">\n'
-        ).encode()
+        return xdmf_head(XDMF_GRID, self.run_id).encode()
 
     def rewrite_size(self, frame: bytes | None) -> int:
         """The bytes of a rewrite with ``frame`` added, without spare room (at most)."""
@@ -720,7 +746,7 @@ class _Datasets:
             raise self._bad(
                 what,
                 f"{excerpt(name)} is not a file name in the XDMF file's folder, nor a frame file "
-                "'<name>.frames/<digits>.h5' or '<name>.frames/mesh.h5'",
+                f"'<name>{FRAMES_SUFFIX}/<digits>.h5' or '<name>{FRAMES_SUFFIX}/{MESH_FILE}'",
             )
         dims = item.get("Dimensions")
         expected = None

@@ -38,16 +38,16 @@ from dataclasses import dataclass
 
 import numpy as np
 import ufl
+from cosserat_fem.forms.kinematics import directors, translations
 from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from .forms.kinematics import directors, translations
-from .integrators import GeneralizedAlpha, make_integrator
-from .loop import watch_chart
-from .model import RodModel, build_model
-from .newton import NewtonSettings, make_solver
-from .scene import Scene
+from cosserat_fem.integrators import GeneralizedAlpha, make_integrator
+from cosserat_fem.loop import watch_chart
+from cosserat_fem.model import RodModel, build_model
+from cosserat_fem.newton import NewtonSettings, make_solver
+from cosserat_fem.scene import Scene
 
 # Amplitudes: x/ℓ, y/ℓ, z/ℓ of a few per cent, angles of a few tenths of a radian.
 AMPLITUDES = (0.04, -0.03, 0.01, 0.25, -0.3, 0.2)
