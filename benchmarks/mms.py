@@ -46,8 +46,9 @@ from petsc4py import PETSc
 from cosserat_fem.integrators import GeneralizedAlpha, make_integrator
 from cosserat_fem.loop import watch_chart
 from cosserat_fem.model import RodModel, build_model
-from cosserat_fem.newton import NewtonSettings, make_solver
+from cosserat_fem.newton import NewtonSettings
 from cosserat_fem.scene import Scene
+from cosserat_fem.solvers import make_solver
 
 # Amplitudes: x/ℓ, y/ℓ, z/ℓ of a few per cent, angles of a few tenths of a radian.
 AMPLITUDES = (0.04, -0.03, 0.01, 0.25, -0.3, 0.2)

@@ -67,8 +67,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("scene", ("schema", "resolved", "scene", "expressions", "load_data", "describe", "layout")),
     ("model", ("forms.", "model", "charts", "checks", "energy", "load_coefficients",
                "reference.")),  # fmt: skip
-    ("solve", ("newton", "native_newton", "native_sdirk", "integrators", "adaptive", "events",
-               "loop")),  # fmt: skip
+    ("solve", ("newton", "snes", "solvers", "native_newton", "native_sdirk", "integrators",
+               "adaptive", "events", "loop")),  # fmt: skip
     ("files", ("fields", "results")),
     ("run", ("simulation", "statics", "modal", "observers", "progress", "budget", "restart")),
     ("studies", ("sweep_spec", "sweep_run", "response", "karhunen_loeve")),

@@ -75,7 +75,7 @@ class NewtonSettings:
     linear_solver: str = "auto"  # auto | petsc | mumps | superlu
     loop: str = "auto"  # auto (the C inner loop where it applies: native_newton.py) | python
     #: newton (this module's loop) | snes (PETSc's, cosserat_fem/snes.py) | auto (snes if
-    #: ``petsc`` gives options): :func:`make_solver` chooses by it.
+    #: ``petsc`` gives options): :func:`cosserat_fem.solvers.make_solver` chooses by it.
     nonlinear: str = "newton"
     #: SNES's PETSc options: name (without "-" and the prefix cosserat_) = value as text.
     petsc: dict = field(default_factory=dict)
@@ -86,20 +86,6 @@ class NewtonSettings:
         it lacks keep their defaults."""
         names = [f.name for f in fields(cls) if hasattr(solver, f.name)]
         return cls(**{name: getattr(solver, name) for name in names})
-
-
-def make_solver(
-    F: ufl.Form, U: fem.Function, bcs: list, settings: NewtonSettings
-) -> NewtonSolver:
-    """The nonlinear solver of F(U) = 0 that ``settings`` choose: PETSc's SNES configured by
-    ``settings.petsc`` (cosserat_fem/snes.py :class:`~cosserat_fem.snes.SNESSolver`) for
-    nonlinear = "snes", or "auto" with options; else :class:`NewtonSolver`. Both have the
-    same interface, stop rule and Jacobian policies."""
-    if settings.nonlinear == "snes" or (settings.nonlinear == "auto" and settings.petsc):
-        from .snes import SNESSolver
-
-        return SNESSolver(F, U, bcs, settings)
-    return NewtonSolver(F, U, bcs, settings)
 
 
 @dataclass

@@ -413,7 +413,7 @@ class Solver:
     linear_solver: str
     loop: str  # "auto": the C inner loop where it applies (native_newton.py); "python"
     #: "newton" (the project's loop), "snes" (PETSc's SNES, cosserat_fem/snes.py) or "auto"
-    #: (SNES if ``petsc`` gives options: newton.make_solver).
+    #: (SNES if ``petsc`` gives options: solvers.make_solver).
     nonlinear: str = "auto"
     #: PETSc options for SNES, name (without "-" and the prefix cosserat_) = value as text.
     petsc: dict[str, str] = field(default_factory=dict)

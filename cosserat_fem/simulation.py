@@ -43,7 +43,7 @@ from .io.xdmf import XDMF
 from .load_data import refuse_callable_restart
 from .loop import TimeLoop
 from .model import RodModel, build_model
-from .newton import NewtonSettings, make_solver
+from .newton import NewtonSettings
 from .observers import (
     CheckpointObserver,
     DeadlineObserver,
@@ -59,6 +59,7 @@ from .observers import (
 from .parallel import agree, ranks_on_node
 from .restart import check_restart_scene
 from .scene import Scene, refuse_closed
+from .solvers import make_solver
 
 
 @dataclass

@@ -40,7 +40,7 @@ from .io.run_folder import new_run_id, prepare_output_dir, status_of
 from .io.xdmf import XDMF
 from .log import LOGGER
 from .model import RodModel, build_model
-from .newton import NewtonFailure, NewtonSettings, NewtonSolver, make_solver
+from .newton import NewtonFailure, NewtonSettings, NewtonSolver
 from .observers import (
     FolderStart,
     FolderSummary,
@@ -51,6 +51,7 @@ from .observers import (
 )
 from .parallel import ranks_on_node
 from .scene import Scene, refuse_closed
+from .solvers import make_solver
 
 
 @dataclass

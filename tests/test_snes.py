@@ -192,8 +192,9 @@ def test_petsc_options_reach_snes_and_leave_petsc_after():
 
     from cosserat_fem.integrators import make_integrator
     from cosserat_fem.model import build_model
-    from cosserat_fem.newton import NewtonSettings, make_solver
+    from cosserat_fem.newton import NewtonSettings
     from cosserat_fem.schema import PETSC_PREFIX
+    from cosserat_fem.solvers import make_solver
 
     scene = api.load(PAPER, ["solver.petsc.snes_rtol=1e-3", "solver.petsc.snes_type=newtontr"])
     model = build_model(scene)
