@@ -1,5 +1,5 @@
 """Observed orders of convergence for the full nonlinear dynamic system (65), by manufactured
-solutions (cosserat_fem/mms.py): a stocky rod (0.3 m x 0.4 m, ℓ = 1 m), every unknown moving,
+solutions (benchmarks/mms.py): a stocky rod (0.3 m x 0.4 m, ℓ = 1 m), every unknown moving,
 angles of 0.2-0.3 rad.
 
 * Space: p linear in τ (every integrator is exact for it), τ ∈ [0, 0.5], 5 steps: the L2 error
