@@ -39,7 +39,7 @@ from ..parallel import agree
 from .reading import MAX_MAGNITUDE, check_size, decode, excerpt, quoted
 
 if TYPE_CHECKING:
-    from ..output import PointProbe
+    from ..fields import PointProbe
 
 #: The file's name in a run's folder.
 PROBES = "probes.csv"
