@@ -252,12 +252,13 @@ def test_d8_what_cannot_run_here_is_refused_at_once(capsys, overrides, key, reas
     """D8: a billion elements (8 GB allocated in 16 s before), 1e15 steps, 1e9 load steps, a
     quadrature of degree 1e6 (over 120 s in the compiler): refused by validate, run and
     static in well under a second, naming the key (the estimate is a lower bound,
-    cosserat_fem/budget.py)."""
+    cosserat_fem/budget.py). Held at 10 CPU seconds: the cases it tells apart took 16 s and
+    over 120 s, and a slow runner's CPU second is not this machine's."""
     command = "static" if key.startswith("static.") else "run"
     for args in (["validate", SCENE], [command, SCENE, "--out", "/nonexistent/x"]):
         start = cpu_seconds()
         status, err = cli(capsys, *args, *sets(*overrides))
-        assert status == 2 and cpu_seconds() - start < 2.0  # CPU s: the load does not count
+        assert status == 2 and cpu_seconds() - start < 10.0  # CPU s: the load does not count
         line = one_line(err)
         assert line.startswith(f"cosserat-fem: error: {key}") and reason in line
 
