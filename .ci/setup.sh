@@ -18,7 +18,7 @@ APT_PACKAGES=(
   python3-scipy python3-matplotlib python3-venv python3-dev openmpi-bin g++ make git
   ca-certificates
   # ParaView's own Python (pvpython) and a virtual screen for it: tests/test_visualisation.py
-  # opens the XDMF output as ParaView does (`xvfb-run -a pvpython ...`).
+  # opens the XDMF output as ParaView does (pvpython on an Xvfb display, tests/virtual_display.py).
   paraview python3-paraview xvfb xauth
 )
 

@@ -13,10 +13,11 @@
   Lagrange node (elements × degree + 1).
 * The resultants of forms/resultants.py are the flux of the general form (63) unscaled:
   b = −((g0/ℓ) Dᵀ n, (g_i/ℓ) m_i) at a random large-rotation state, to round-off.
-* A short dynamic run of the paper's scene, opened by ParaView's own reader (``xvfb-run -a
-  pvpython tests/paraview_check.py``): the six point arrays and the time steps, the free-end
-  values equal to probes.csv (1e-12: double precision, the XML marks Precision="8"),
-  "Warp By Vector" = points + displacement, and a rendered PNG that is not blank.
+* A short dynamic run of the paper's scene, opened by ParaView's own reader (``pvpython
+  tests/paraview_check.py`` on an Xvfb display of its own, tests/virtual_display.py): the six
+  point arrays and the time steps, the free-end values equal to probes.csv (1e-12: double
+  precision, the XML marks Precision="8"), "Warp By Vector" = points + displacement, and a
+  rendered PNG that is not blank.
 * ``cosserat-fem plot`` and ``render`` on that run (and plot on the static one): the files, their
   pixel sizes, not blank; ``output.fields`` restricted to the displacement writes only it;
   a folder without outputs is bad input (exit 2, one line, no traceback).
@@ -31,7 +32,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import shutil
 import subprocess
 from pathlib import Path
@@ -45,6 +45,7 @@ from cosserat_fem.forms.kinematics import rotation_matrix, split
 from cosserat_fem.forms.resultants import resultants
 from dolfinx import fem
 from PIL import Image, ImageSequence
+from virtual_display import virtual_display
 from xdmf_files import read_arrays
 
 from cosserat_fem.model import build_model, rod_constants
@@ -192,17 +193,20 @@ def test_resultants_are_the_flux_of_the_general_form():
 
 
 @pytest.mark.long
-@pytest.mark.skipif(shutil.which("pvpython") is None, reason="ParaView (pvpython) not installed")
+@pytest.mark.skipif(
+    shutil.which("pvpython") is None or shutil.which("Xvfb") is None,
+    reason="ParaView (pvpython) or Xvfb not installed",
+)
 def test_paraview_reads_the_rod(dynamic_run, tmp_path):
     png, report = tmp_path / "paraview.png", tmp_path / "paraview.json"
     script = str(ROOT / "tests" / "paraview_check.py")
-    proc = subprocess.run(
-        # -n: where -a starts looking for a free display; two xvfb-run -a started at once
-        # (other jobs on the machine) can pick the same one and lose the X connection.
-        ["xvfb-run", "-a", "-n", str(100 + os.getpid() % 800), "pvpython", script,
-         str(dynamic_run / "solution.xdmf"), str(png), str(report), "100"],
-        capture_output=True, text=True, timeout=300, env=subprocess_env(),
-    )  # fmt: skip
+    with virtual_display() as display:  # not xvfb-run: see tests/virtual_display.py
+        proc = subprocess.run(
+            ["pvpython", script, str(dynamic_run / "solution.xdmf"), str(png), str(report),
+             "100"],
+            capture_output=True, text=True, timeout=300,
+            env={**subprocess_env(), "DISPLAY": display},
+        )  # fmt: skip
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     seen = json.loads(report.read_text())
     assert set(seen["point_arrays"]) == ARRAYS
