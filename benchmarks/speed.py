@@ -130,7 +130,14 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--no-elastica", action="store_true")
     args = parser.parse_args()
-    with_elastica = not args.no_elastica and (ELASTICA_VENV / "bin" / "python").exists()
+    with_elastica = not args.no_elastica
+    if with_elastica and not (ELASTICA_VENV / "bin" / "python").exists():
+        # Asked for, so not left out in silence: a table without it reads as "not measured".
+        sys.exit(
+            f"speed: no PyElastica venv at {ELASTICA_VENV}: make it with "
+            "bash benchmarks/pyelastica/setup.sh (PYELASTICA_VENV to put it elsewhere), "
+            "or pass --no-elastica"
+        )
     work = Path(tempfile.mkdtemp(prefix="speed-"))
     base_path = work / "baseline"
     subprocess.run(
