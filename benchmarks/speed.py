@@ -16,7 +16,8 @@ What issue 15 asks to compare, measured side by side on this machine (whose spee
   is there;
 * ``elastica``: PyElastica 1.0.0 on the same rod at N = 400 elements (benchmarks/pyelastica),
   the whole process, at 0.9 of its largest stable step (results/stable_dt.json; made by its
-  stable_dt.py when missing).
+  stable_dt.py when missing). Without PyElastica's venv (benchmarks/pyelastica/setup.sh) the
+  script stops with one line, unless ``--no-elastica`` is given.
 
 Each of the current tree and the baseline (a git revision checked out into a temporary
 worktree, run with its own scene file) is run once to warm the JIT cache, then the cases are
