@@ -55,8 +55,10 @@ bench: setup
 container-test:
 	bash .ci/container-test.sh
 
+## ruff, then the type checker over the modules listed in pyproject.toml ([tool.mypy]).
 lint: setup
 	$(VENV)/bin/ruff check .
+	$(VENV)/bin/mypy
 
 clean:
-	rm -rf demos/output results .pytest_cache .ruff_cache
+	rm -rf demos/output results .pytest_cache .ruff_cache .mypy_cache

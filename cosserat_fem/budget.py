@@ -249,8 +249,8 @@ def _cgroup_folders(root: Path) -> list[tuple[Path, int]]:
         return []
     for version in (2, 1):
         for mount in mounts if version in paths else ():
-            fields, _, tail = mount.partition(" - ")
-            fields, tail = fields.split(), tail.split()
+            head, _, rest = mount.partition(" - ")
+            fields, tail = head.split(), rest.split()
             if len(fields) < 5 or len(tail) < 3:
                 continue
             wanted = tail[0] == "cgroup2" if version == 2 else (

@@ -118,17 +118,9 @@ def euler_angles(D: np.ndarray, near: np.ndarray | None = None) -> np.ndarray:
     if near is None:
         return first
     second = np.stack([np.pi - theta, psi + np.pi, phi + np.pi], -1)
-    best, err = None, None
-    for cand in (first, second):
-        cand = cand + 2.0 * np.pi * np.round((near - cand) / (2.0 * np.pi))
-        e = np.sum((cand - near) ** 2, axis=-1)
-        if best is None:
-            best, err = cand, e
-        else:
-            take = (e < err)[..., None]
-            best = np.where(take, cand, best)
-            err = np.minimum(e, err)
-    return best
+    one, two = (c + 2.0 * np.pi * np.round((near - c) / (2.0 * np.pi)) for c in (first, second))
+    take = np.sum((two - near) ** 2, axis=-1) < np.sum((one - near) ** 2, axis=-1)
+    return np.where(take[..., None], two, one)
 
 
 def angular_map_rate(theta, phi, theta_dot, phi_dot) -> np.ndarray:

@@ -15,6 +15,7 @@ plane (tests/test_large_deflection.py, the roll-up about e1 and e2).
 from __future__ import annotations
 
 import math
+from typing import NoReturn
 
 import numpy as np
 from mpi4py import MPI
@@ -120,7 +121,7 @@ def check_state(
     return StateCheck(model)(t, where_prefix, before)
 
 
-def _report(model, t, where_prefix: str, before, cos_now: np.ndarray, value: float):
+def _report(model, t, where_prefix: str, before, cos_now: np.ndarray, value: float) -> NoReturn:
     """Raise the SolverError of a failed check (``value``: −1 not finite, −0.5 a crossing of
     ±π/2, else the smallest |cos θ|), with the place along the rod (collective)."""
     prefix = f"{where_prefix}{', ' if where_prefix else ''}"

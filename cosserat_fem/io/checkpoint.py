@@ -267,8 +267,11 @@ def _index_problem(meta: Any, path: Path) -> str | None:
             value = table.get(name)
             ok = isinstance(value, kind) and not isinstance(value, bool)
             if kind is float:
-                ok = isinstance(value, int | float) and not isinstance(value, bool)
-                ok = ok and math.isfinite(value)
+                ok = (
+                    isinstance(value, int | float)
+                    and not isinstance(value, bool)
+                    and math.isfinite(value)
+                )
             if not ok:
                 return f"{where}: {name} is missing or not a {kind.__name__}"
     return None
@@ -317,12 +320,13 @@ def load_checkpoint(run_dir: str | Path, comm: MPI.Comm = MPI.COMM_WORLD) -> Che
             f"--restart: the checkpoint was written by {meta['ranks']} MPI ranks; restart "
             f"with the same number (mpirun -n {meta['ranks']}), not {comm.size}"
         )
-    found = []
+    found: list[str] = []
     for entry in meta["checkpoints"][:2]:
         path = run_dir / DIRECTORY / state_file(entry["slot"], comm.rank)
         arrays, problem = _read_state(path, entry, comm.rank)
         problems = [p for p in comm.allgather(problem) if p]
         if not problems:
+            assert arrays is not None  # no problem on this rank: its arrays were read
             common = {k: v for k, v in meta.items() if k not in ("checkpoints", "checksum")}
             if found:
                 LOGGER.warning(

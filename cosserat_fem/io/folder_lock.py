@@ -119,6 +119,9 @@ class FolderLock:
         raise OSError(errno.EAGAIN, "the lock file keeps changing", str(path))
 
     def _write(self) -> None:
+        """The record into the held lock file (nothing once released)."""
+        if self.fd is None:
+            return
         text = json.dumps(self.record).encode("utf-8")[: _RECORD - 1]
         safe_files.write_all(self.fd, text.ljust(_RECORD - 1) + b"\n", 0)
 

@@ -68,6 +68,7 @@ def prepare_output_dir(path: Path, comm: MPI.Comm, lock: str | None = None,
         try:
             path.mkdir(parents=True, exist_ok=True)
             if lock is not None:
+                assert held is not None  # refused above
                 held.append(FolderLock.take(path, lock, run_id))
             else:
                 probe = path / f".write-test-{uuid.uuid4().hex}"  # a new name: nothing followed
@@ -331,6 +332,7 @@ def cut_outputs(plan: RestartPlan, comm: MPI.Comm) -> None:
             if plan.probes is not None:  # a link: cut as the folder's own copy
                 safe_files.own_copy(plan.probes, plan.probe_bytes)
             if plan.xdmf is not None:
+                assert plan.frames is not None  # check_outputs sets both or neither
                 cut_xdmf(plan.xdmf, plan.frames)
                 folder = frames_folder(plan.xdmf)
                 if folder.is_dir():

@@ -210,7 +210,7 @@ def _member_values(record: dict, members: int) -> list[dict] | None:
     """Each member's values of the varied keys, from the record's fingerprint (the sweep's
     JSON document, cosserat_fem/sweep_spec.py), or None where it does not hold them."""
     try:
-        listed = json.loads(record.get("fingerprint"))["members"]
+        listed = json.loads(record.get("fingerprint") or "")["members"]
     except (TypeError, ValueError, KeyError, RecursionError):
         return None
     if not isinstance(listed, list) or len(listed) != members:

@@ -53,6 +53,7 @@ import xml.etree.ElementTree as ET
 import xml.parsers.expat
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
@@ -183,9 +184,9 @@ class _FrameImages:
         of the keys "aa..." and "bb..." (the key: the bytes where they differ); None unless
         the copy for ``key`` and ``values`` is ``made``, HDF5's image of them."""
         length, zero = len(key), np.zeros_like(values)
-        a, data = self.h5.image(self._datasets("a" * length, zero))
+        image_a, data = self.h5.image(self._datasets("a" * length, zero))
         b = bytes(self.h5.image(self._datasets("b" * length, zero))[0])
-        a = bytes(a)
+        a = bytes(image_a)
         if not len(a) == len(b) == len(made):
             return None
         differ = np.flatnonzero(np.frombuffer(a, np.uint8) != np.frombuffer(b, np.uint8))
@@ -290,6 +291,13 @@ class XdmfSeries:
             ) from None
 
     @property
+    def _document(self) -> _XdmfDocument:
+        """The XML of the series, set by ``_start`` or ``_resume`` in the constructor."""
+        if self._doc is None:
+            raise RuntimeError("XdmfSeries: the XML was not started")
+        return self._doc
+
+    @property
     def h5(self) -> Path:
         """The HDF5 file the next frame goes into."""
         return self.folder / frame_file(self.writes)
@@ -322,8 +330,8 @@ class XdmfSeries:
         text = safe_files.read_text(self.path)
         self._doc = _XdmfDocument.parse(self.path, self._work, text)
         self.folder.mkdir(exist_ok=True)  # outputs of the single-file layout
-        if self._doc.mesh is None:  # no frame yet: the mesh as a new series writes it
-            self._doc.mesh = self._write_mesh()
+        if self._document.mesh is None:  # no frame yet: the mesh as a new series writes it
+            self._document.mesh = self._write_mesh()
         else:
             self._to_file = self._file_order()
         self._rewrite(None, "the XDMF file")
@@ -332,8 +340,9 @@ class XdmfSeries:
         """The output point (numbered in the order of σ) at each point of the resumed file's
         mesh (None if they are the same): earlier writers numbered the points as DOLFINx's
         output mesh did (under MPI not in the order of σ)."""
-        item = ET.fromstring(f"<m>{self._doc.mesh}</m>").find("Geometry/DataItem")
-        name, _, dataset = (item.text or "").strip().partition(":")
+        item = ET.fromstring(f"<m>{self._document.mesh}</m>").find("Geometry/DataItem")
+        text = item.text if item is not None else None  # no item: no file (OSError below)
+        name, _, dataset = (text or "").strip().partition(":")
         os.close(safe_files.open_regular(self.path.parent / name))  # HDF5 would wait on a FIFO
         x = self._h5.read(self.path.parent / name, dataset)
         mine = self.geometry
@@ -354,8 +363,8 @@ class XdmfSeries:
         """OutputError unless a new file of ``file_bytes`` and an XML of ``xml_bytes`` (0: not
         rewritten) fit under ``ulimit -f`` and in the file system (the limits are kept for
         :meth:`_rewrite`)."""
-        limit = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
-        limit = math.inf if limit == resource.RLIM_INFINITY else limit
+        soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
+        limit: float = math.inf if soft == resource.RLIM_INFINITY else soft
         need = _blocks(file_bytes) + _blocks(xml_bytes) + (64 << 10)
         now = time.monotonic()
         # The free space is asked for again after a second, or when less than 1 GiB more than
@@ -380,14 +389,14 @@ class XdmfSeries:
         """The XML published anew with ``frame`` added (rank 0), with spare room (class
         docstring) as far as the limits allow; ``written``: bytes written since the limits
         were taken."""
-        size = self._doc.rewrite_size(frame)
+        size = self._document.rewrite_size(frame)
         if frame is None:
             self._check_room(0, size, what, self.path)
         limit, free = self._limits
         free -= _blocks(written) + _blocks(size) + (64 << 10)
         low, high = self.SPARE
         spare = min(max(size, low), high, limit - size, free)
-        self._doc.rewrite(frame, int(max(spare, 0)))
+        self._document.rewrite(frame, int(max(spare, 0)))
 
     def write(self, t: float, values: np.ndarray) -> None:
         """A frame at t [s] (a load factor, a mode number) of ``values`` (points, 3 per array,
@@ -413,16 +422,17 @@ class XdmfSeries:
         key = value.replace(".", "_")
         image = self._images(key, values)
         h5 = self.h5
-        frame = self._doc.frame(value, f"{self.folder.name}/{h5.name}", key, self.arrays,
+        frame = self._document.frame(value, f"{self.folder.name}/{h5.name}", key, self.arrays,
                                 len(values))  # fmt: skip
-        rewrite = not self._doc.fits(frame)
+        rewrite = not self._document.fits(frame)
         what = f"the XDMF frame at t = {t:.6g}"
-        self._check_room(len(image), self._doc.rewrite_size(frame) if rewrite else 0, what, h5)
+        xml_bytes = self._document.rewrite_size(frame) if rewrite else 0
+        self._check_room(len(image), xml_bytes, what, h5)
         _write_file(h5, image)
         if rewrite:
             self._rewrite(frame, what, len(image))
         else:
-            self._doc.append(frame)
+            self._document.append(frame)
 
     def close(self) -> None:
         """Close the XML (rank 0); the files are complete after every frame."""
@@ -530,6 +540,8 @@ class _XdmfDocument:
         frames, and the mesh of the first (else of the grid "mesh", else none)."""
         root = ET.fromstring(xml)
         domain = root.find("Domain")
+        if domain is None:
+            raise ValueError("no Domain element")
         collection = domain.find(f"Grid[@Name='{XDMF_GRID}']")
         grids = [] if collection is None else collection.findall("Grid")
         mesh = grids[0] if grids else domain.find("Grid[@Name='mesh']")
@@ -540,6 +552,8 @@ class _XdmfDocument:
 
     def frame(self, value: str, file: str, key: str, arrays: list[str], points: int) -> bytes:
         """The text of a frame (:func:`xdmf_frame_xml`) of the collection ``rod``."""
+        if self.mesh is None:
+            raise RuntimeError("XDMF: a frame without a mesh")
         return xdmf_frame_xml(XDMF_GRID, self.mesh, value, file, key, arrays, points).encode()
 
     def _head(self) -> bytes:
@@ -587,6 +601,8 @@ class _XdmfDocument:
         and the opening of the spare's processing instruction written into the spare, which
         lies inside that instruction (the document is unchanged, whatever part of this is
         written); (2) the old closing tags and opening, in one page, made blanks."""
+        if self._fd is None:
+            raise RuntimeError("XDMF: an append to a file that is not open (see fits)")
         start = self._tail + _SWITCH
         tail = self._new_tail(frame)
         staged = b"".join(
@@ -633,8 +649,9 @@ def xdmf_problem(path: Path, frames: int, run_id: str) -> str | None:
 def cut_xdmf(path: Path, frames: int) -> None:
     """Keep the first ``frames`` time steps of every temporal collection of the XDMF file
     (written by rank 0 only; replaced atomically, a link replaced, not followed)."""
-    tree = ET.ElementTree(ET.fromstring(safe_files.read_regular(path)))
-    for collection in tree.getroot().iter("Grid"):
+    root = ET.fromstring(safe_files.read_regular(path))
+    tree = ET.ElementTree(root)
+    for collection in root.iter("Grid"):
         if collection.get("GridType") != "Collection":
             continue
         for step in collection.findall("Grid")[frames:]:
@@ -695,7 +712,7 @@ class _Datasets:
     def __init__(self, xdmf: Path):
         self.xdmf = xdmf
         self.folder = xdmf.parent
-        self.files: dict[str, object] = {}
+        self.files: dict[str, Any] = {}  # h5py.File objects
         self.budget = MAX_VALUES
 
     def __enter__(self) -> _Datasets:
