@@ -38,7 +38,7 @@ from petsc4py import PETSc
 
 from .errors import SceneError
 from .load_data import LoadCallable
-from .parallel import agree
+from .parallel import agree_and_gather
 
 
 @dataclass
@@ -139,16 +139,15 @@ class DataLoads:
                 problem = problem or exc
         comm = self.msh.comm
         if comm.size > 1 and any(isinstance(c, LoadCallable) for c, _, _ in bound.entries):
-            agree(comm, problem)
-            _same_on_every_rank(comm, shared, t)
+            _same_on_every_rank(agree_and_gather(comm, problem, shared), t)
         elif problem is not None:
             raise problem
         bound.tau = tau
 
 
-def _same_on_every_rank(comm, values: list[tuple[str, float]], t: float) -> None:
-    """SceneError on every rank if a callable load of t only gave the ranks different values."""
-    gathered = comm.allgather(values)
+def _same_on_every_rank(gathered: list[list[tuple[str, float]]], t: float) -> None:
+    """SceneError on every rank if a callable load of t gave the ranks (``gathered``: each
+    rank's (key, value) list) different values."""
     for rank, theirs in enumerate(gathered[1:], 1):
         for (key, mine), (_, other) in zip(gathered[0], theirs, strict=True):
             if mine != other:

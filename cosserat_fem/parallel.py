@@ -21,10 +21,13 @@ from __future__ import annotations
 import sys
 import threading
 import time
+from typing import TypeVar
 
 from mpi4py import MPI
 
 from .errors import CosseratError
+
+T = TypeVar("T")
 
 #: Seconds a failing rank waits for the others before it aborts the job.
 ABORT_AFTER = 10.0
@@ -33,14 +36,22 @@ ABORT_AFTER = 10.0
 def agree(comm: MPI.Comm, problem: CosseratError | None) -> None:
     """Raise on every rank the first rank's ``problem`` (collective; in serial, just raise
     it). The problem's class must take its message as its one argument."""
+    agree_and_gather(comm, problem, None)
+
+
+def agree_and_gather(comm: MPI.Comm, problem: CosseratError | None, value: T) -> list[T]:
+    """:func:`agree` on ``problem``, then every rank's ``value`` in the order of the ranks, in
+    one collective (one ``allgather``)."""
     if comm.size == 1:
         if problem is not None:
             raise problem
-        return
-    found = [p for p in comm.allgather(problem and (type(problem), str(problem))) if p]
+        return [value]
+    gathered = comm.allgather((problem and (type(problem), str(problem)), value))
+    found = [p for p, _ in gathered if p]
     if found:
         kind, message = found[0]
         raise kind(message)
+    return [v for _, v in gathered]
 
 
 def from_root(comm: MPI.Comm, value):
