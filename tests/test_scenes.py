@@ -87,7 +87,14 @@ def ring(scene, modes) -> None:
     tests/test_ring.py's bound). Measured 51.608 Hz, −0.47 %."""
     from test_ring import KAPPA, NU, R, closed_form
 
-    assert [m.omega for m in modes[:6]] == [0.0] * 6
+    # The six rigid-body motions are in the discrete space (the reference curve is its own
+    # interpolant), so their λ are zero up to the round-off of the shift-invert solve (eps times
+    # K's condition): measured |λ| ≤ 1.3e-8 against λ7 = 848.6, 1.5e-11 of it; 1e-6 leaves the
+    # round-off room and fails on a seventh mode of λ ≈ 0 or a missing sixth.
+    flexible = modes[6].eigenvalue.real
+    assert flexible > 0.0
+    assert all(abs(m.eigenvalue) < 1e-6 * flexible for m in modes[:6]), modes[:7]
+    assert modes[5].note.startswith("rigid-body") and not modes[6].note
     pair = np.array([m.omega for m in modes[6:8]])
     np.testing.assert_allclose(pair[0], pair[1], rtol=1e-9, atol=0)
     diameter = scene.rod.section.diameter
