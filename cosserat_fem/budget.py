@@ -1,7 +1,7 @@
 """What a command will cost, estimated from the scene before any work: memory, wall time, disk.
 
-Each estimate is a *lower bound* built from costs measured on the 2-core machine of
-docs/reliability.md (a run costs at least this much), so that a scene is refused only when it
+Each estimate is a *lower bound* built from costs measured on the 2-core development machine
+(a run costs at least this much), so that a scene is refused only when it
 certainly cannot run within its limits: ``limits.memory`` (default "auto": every limit that
 applies here, :func:`memory_limits`: the machine's available memory, the control group's
 limit, the process's ``ulimit -v`` and ``-d``), ``limits.wall_time`` (default a day) and the
@@ -9,18 +9,16 @@ free space of the output folder. A refusal is a :class:`SceneError` naming the k
 cost (``discretisation.elements``, ``time.step``, ``static.load_steps``, ...); raising
 ``limits.*`` runs a very large case on purpose. The estimate is printed by ``validate``.
 
-Costs (lower bounds, each below what was measured; docs/reliability.md):
+Costs (lower bounds, each below what was measured; why: docs/decisions.md, "The budget's
+lower bounds"; docs/reliability.md, D8 and 28):
 
-* memory: 80 MB for the loaded stack (Python, DOLFINx, PETSc: 100 MB measured at 300 dofs),
-  plus 500 bytes a dof: the matrix, its LU factors and the vectors. The slope of the peak
-  resident memory between 7.2e4 and 2.9e5 dofs (sdirk3, a few steps; 2026-12-03) is 620
-  bytes a dof for a planar scene of degree 1 (18 nonzeros a row in the Jacobian and in its
-  factors: the least per dof), 880 in 3D of degree 1, 980 planar of degree 3, 1650 in 3D of
-  degree 3 (60 and 108 nonzeros a row); tests/test_budget.py measures it;
+* memory: 80 MB for the loaded stack (Python, DOLFINx, PETSc), plus 500 bytes a dof: the
+  matrix, its LU factors and the vectors. tests/test_budget.py::test_the_memory_per_dof_is_measured
+  holds the slope of the peak resident memory between 500 and 5000 bytes a dof (3D, degree 3)
+  and ::test_the_memory_per_dof_bounds_the_cheapest_scene (long) at least 500 (planar, degree 1);
 * time: a solve of a reused Jacobian costs at least 30 µs + 0.1 µs a dof (one residual
-  assembly, 25 ns a dof measured, and two triangular solves), a full Newton iteration at
-  least 100 µs + 1 µs a dof (Jacobian assembly and LU factorisation: 0.68 ms measured at 300
-  dofs, 6 µs a dof at 3.6e6); at least one solve per step or load step;
+  assembly and two triangular solves), a full Newton iteration at least 100 µs + 1 µs a dof
+  (Jacobian assembly and LU factorisation); at least one solve per step or load step;
 * disk: a probe row is 170 bytes, 24 more for each column of output.probe_fields; an XDMF
   frame holds 8 bytes per value and point and at least 1.4 kB of HDF5 metadata per array,
   and the XML listing every frame is rewritten at each frame (so the frames cost time

@@ -35,20 +35,14 @@ True nesting (parentheses around an operation, calls, signs, powers) is limited 
   adds one level; a chain of n operands adds n - 1 levels up to 16 operands and ceil(log2 n)
   above. It guards the recursive walkers (2-3 Python frames a level; a derivative is a few
   levels deeper than its expression; Python allows 1000 frames).
-* :data:`MAX_NODES` (2000) numbers, names, operators and calls, counted on the text before it
-  is parsed. Measured with ``cosserat-fem run scenes/cao_tucker_2008.toml --set
-  time.end=0.0006 --quiet`` and an end torque of n terms ``c*sin(k*t)`` (7 nodes a term, new
-  coefficients each time so that FFCx compiles anew; 2 shared cores): the whole run took 2.2 s
-  for n = 1, 2.5 s for n = 100 (700 nodes), 6.6 s for n = 1000 (7000 nodes) and 28 s for
-  n = 3000 (21000 nodes); n = 285 (1995 nodes) took 4.1-5.0 s against 2.8-3.2 s for n = 1 in
-  the same session. Nearly all of it is the ``fem.form`` compile (under cProfile: 2.1 s for
-  n = 1, 3.4 s for n = 300, 9.5 s for n = 1000, 21 s for n = 2000), growing faster than
-  linearly. So 2000 nodes cost 1-2 s of compile more than a one-term load, while 20000 would
-  cost half a minute. The limit also keeps a flat chain well inside what Python's own parser
-  can build: it constructs the left-deep AST recursively and fails near 3000 levels (fewer
-  when called from deep in a stack). A load known as data (a measured history, a long
-  piecewise definition) needs no expression: a table (cosserat_fem/load_data.py) of any
-  length costs one DOLFINx Constant or Function in the form, whatever its rows, so the
+* :data:`MAX_NODES` (2000) numbers, names, operators and calls, counted on the text before it is
+  parsed. It bounds the ``fem.form`` compile, whose time grows faster than linearly in the nodes
+  (why 2000: docs/decisions.md, "Expressions: at most 2000 nodes"; held by
+  tests/test_expression_fuzz.py::test_node_limit). The limit also keeps a flat chain well inside
+  what Python's own parser can build: it constructs the left-deep AST recursively and fails near
+  3000 levels (fewer when called from deep in a stack). A load known as data (a measured
+  history, a long piecewise definition) needs no expression: a table (cosserat_fem/load_data.py)
+  of any length costs one DOLFINx Constant or Function in the form, whatever its rows, so the
   message of this limit names that alternative.
 * :data:`MAX_LENGTH` (20000) characters: ten per node, room for long names and literals; it
   bounds the work done before the node count (and the length of number literals).

@@ -139,7 +139,7 @@ def read_bytes(path: str, key: str, comm=None) -> bytes:
 def parse_table(data: bytes, path: str, key: str) -> TableFile:
     """The table in ``data`` (the file format of the module docstring); SceneError naming
     ``key``, the file and the line at the first thing wrong. The rows are converted by NumPy
-    all at once (4x faster than line by line: docs/decisions.md, "Loads from data") and, if
+    all at once (why: docs/decisions.md, "Loads from data", reading cost) and, if
     that finds anything wrong, again line by line, which names the first line at fault."""
     digest = hashlib.sha256(data).hexdigest()
     try:
@@ -515,7 +515,8 @@ class LoadTable(_Data):
     def _at_time(self, t: float) -> Any:
         """:meth:`_in_time` at one time t inside the table (a number, or a grid's row) by
         Horner's rule on the piece's coefficients: each stage of a run asks for one t, and
-        scipy's evaluation costs ~30 μs a call in its checks."""
+        scipy's evaluation spends far more in its checks (why: docs/decisions.md, "Loads from
+        data", the C step)."""
         times = self._times
         if self.order or self.interpolation == "previous" or not times[0] <= t <= times[-1]:
             return self._in_time(np.array([t]))[0]
@@ -533,8 +534,8 @@ class LoadTable(_Data):
     def sampler(self, s: np.ndarray) -> Callable[[float], np.ndarray]:
         """t ↦ the values at the fixed arc lengths ``s`` [m] (the quadrature points of a
         model, sampled at every stage): :meth:`at`, with a cubic grid's weights in s
-        computed once (the spline is linear in the values; a spline built at every stage
-        cost ~1.7 ms) unless they would take more than :data:`MAX_WEIGHTS` numbers."""
+        computed once (the spline is linear in the values; why: docs/decisions.md, "Loads
+        from data", the C step) unless they would take more than :data:`MAX_WEIGHTS` numbers."""
         s = np.asarray(s, dtype=float)
         width = self._width
         if not self.grid or self.s_interpolation != "cubic" or width**2 + s.size * width > (

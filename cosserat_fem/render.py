@@ -77,7 +77,8 @@ def magnification(series: RodSeries) -> float:
 class _Scene:
     """One pyvista plotter for every picture: the undeformed rod, the frame of the axes, the
     colour bar and the camera are set up once; a picture replaces the tube(s) and the
-    caption and renders once (software OpenGL here: ~0.05 s a render at 1024 × 768)."""
+    caption and renders once (its cost: docs/decisions.md, "render: one plotter for every
+    picture"; tests/test_visualisation.py::test_plot_and_render_a_run)."""
 
     def __init__(self, series: RodSeries, scale: float, title: str, time_label: str):
         pv = _pyvista()

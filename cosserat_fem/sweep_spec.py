@@ -75,8 +75,10 @@ from .schema import apply_overrides, parse_toml, read_input, read_toml
 KEYS = {"scene", "combine", "max_members", "group_size", "keep", "set", "vary", "case", "response"}
 RESPONSE_KEYS = {"period", "continuation", "direction", "tolerance", "settled_periods",
                  "measure_periods", "max_periods", "steps_per_period"}  # fmt: skip
-#: The most members a sweep may have: each rank validates every member before any runs
-#: (1.1 ms a member here, one-off, docs/sweeps.md: 110 s) and keeps its values.
+#: The most members a sweep may have: each rank validates every member before any runs and keeps
+#: its values (why: docs/decisions.md, "Sweeps: every member validated first, its scene built
+#: again when it runs";
+#: tests/test_sweep.py::test_a_malformed_sweep_is_refused_before_any_member_runs).
 MAX_MEMBERS = 100_000
 COMBINE = ("product", "zip")
 KEEP = ("run", "probes")
@@ -123,8 +125,9 @@ class SweepSpec:
     source_sha256: str = ""
 
     def scene(self, member: Member, extra: dict[str, Any] | None = None) -> Scene:
-        """The member's resolved scene (validated with the sweep; built again here, ~1 ms,
-        rather than kept: ~14 kB a member would grow with the sweep on every rank);
+        """The member's resolved scene (validated with the sweep; built again here rather
+        than kept, so that memory does not grow with the sweep on every rank; why:
+        docs/decisions.md, "Sweeps: every member validated first, ...");
         ``extra``: dotted keys set besides its values (a forced member's time span)."""
         scene = scene_from_dict(self.base, self.source, {**member.values, **(extra or {})},
                                 tables=self.tables)  # fmt: skip

@@ -194,13 +194,12 @@ class ProbeWriter:
     XDMF frame (the run flushes its probes before it writes a frame, cosserat_fem/simulation.py
     and statics.py). So a killed run loses at most the rows since the last XDMF frame (7 rows at
     the default scene's 8 steps a frame) or of the last ``max_delay`` s, and probes.csv always
-    reaches the last frame of the XDMF file. Measured per row, default scene: the same ~12 us a
-    row (full run) as flushing every 200 rows only; flushing every row cost ~23 us a row more on
-    a busy ext4 file system (a write() can wait ~3 ms for a journal commit of another process),
-    3-5 % of a ~0.5 ms step. A SIGKILL inside the write() of a block can leave the block cut
-    where a page of the file ends (Linux copies a write a page at a time and stops between
-    pages for a fatal signal): the file then ends with part of a row, which
-    :func:`cosserat_fem.results.read_probes` and a restart drop (docs/stability.md).
+    reaches the last frame of the XDMF file (tests/test_kill.py; why not a flush every row:
+    docs/decisions.md, "Probe rows: flushed in blocks, formatted in one call"). A SIGKILL inside
+    the write() of a block can leave the block cut where a page of the file ends (Linux copies a
+    write a page at a time and stops between pages for a fatal signal): the file then ends with
+    part of a row, which :func:`cosserat_fem.results.read_probes` and a restart drop
+    (docs/stability.md).
 
     The SHA-256 of the bytes written (:meth:`digest`) goes into each checkpoint, so that a
     restart can prove that probes.csv is the checkpointed run's (cosserat_fem/io/checkpoint.py).
@@ -288,7 +287,7 @@ class ProbeWriter:
         """Hand the pending rows to the operating system; ``sync``: fsync too (at the end)."""
         if self._file is not None:
             if self._pending:
-                # One formatting call for the whole block (about 10x cheaper than per value).
+                # One formatting call for the whole block (docs/decisions.md, "Probe rows").
                 block = tuple(self._rows[: self._pending].ravel())
                 self._pending = 0
                 self._write((self._format * (len(block) // len(self.probe.columns))) % block)

@@ -140,11 +140,11 @@ def xdmf_mesh_xml(file: str, points: int, cells: int) -> str:
 class _FrameImages:
     """The bytes of the frame files of a series: the datasets ``/Function/<array>/<key>``,
     each (points, 3), made by HDF5 (:class:`Hdf5`) for the first key of each length and then
-    by copying an image of that length with the key and the values put in their places (about
-    0.01 instead of 0.2 ms). The copy is used only if, for that first frame, it gives the very
-    bytes HDF5 made (superblock 0 and the object formats of HDF5 1.8 carry no checksums, and
-    time stamps are off, so the bytes depend on the names and values alone); otherwise HDF5
-    makes every frame's file."""
+    by copying an image of that length with the key and the values put in their places (the cost
+    of each: docs/decisions.md, "XDMF frames"). The copy is used only if, for that first frame,
+    it gives the very bytes HDF5 made (superblock 0 and the object formats of HDF5 1.8 carry no
+    checksums, and time stamps are off, so the bytes depend on the names and values alone);
+    otherwise HDF5 makes every frame's file."""
 
     def __init__(self, h5: Hdf5, arrays: list[str]):
         self.h5, self.arrays = h5, arrays
@@ -368,7 +368,8 @@ class XdmfSeries:
         need = _blocks(file_bytes) + _blocks(xml_bytes) + (64 << 10)
         now = time.monotonic()
         # The free space is asked for again after a second, or when less than 1 GiB more than
-        # needed is left; in between it is counted down (statvfs cost ~10-30 us a frame).
+        # needed is left; in between it is counted down (statvfs's cost: docs/decisions.md,
+        # "XDMF frames", room before a frame).
         if now > self._free[1] or self._free[0] < need + (1 << 30):
             self._free = (_free_bytes(self.folder), now + 1.0)
         free = self._free[0]

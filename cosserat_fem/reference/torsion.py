@@ -24,7 +24,9 @@ which :func:`torsion_constant_bound` returns as a bound on the relative error of
 is at least its first term, a²b²/(a² + b²)). With the default 2000 odd indices per direction
 (M = 3999) it is 1.3e-11 for the square, 1.5e-11 for the paper's 2:3 section and 3.3e-10 for
 a 1:10 strip (the sums fall short of forms/section.py's series by 0.9 of it: the bound is
-nearly sharp). Pure numpy; no DOLFINx, no UFL.
+nearly sharp). Pure numpy; no DOLFINx, no UFL. Tests: tests/test_second_order_reference.py
+::test_torsion_constant_against_published_values_and_the_solvers_series,
+::test_torsion_constant_of_the_paper_and_thin_strips.
 """
 
 from __future__ import annotations
@@ -40,7 +42,8 @@ __all__ = ["TORSION_TERMS", "rectangle_torsion_constant", "torsion_constant_boun
 TORSION_TERMS = 2000
 
 
-@lru_cache(maxsize=64)  # 30 ms a call; RodData.c33 is a property
+# RodData.c33 is a property: cached (why: docs/decisions.md, "The references' torsion constant").
+@lru_cache(maxsize=64)
 def rectangle_torsion_constant(a: float, b: float, terms: int = TORSION_TERMS) -> float:
     """J [m⁴] of the a × b rectangle by the double Fourier series of Prandtl's stress
     function (module docstring), m, n = 1, 3, ..., 2 terms − 1."""
