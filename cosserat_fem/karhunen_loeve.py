@@ -41,6 +41,7 @@ Snapshots come from the Python API's run result (``cf.run(scene, fields=stations
 a run folder's XDMF output (:func:`read_run`; read with h5py, which cannot share a process
 with DOLFINx: in a process that has loaded DOLFINx the folder is read by a child process).
 :func:`write_pod` writes pod.csv, pod.xdmf (+ pod.frames/) and pod.png. No DOLFINx here.
+Tests: tests/test_pod.py.
 """
 
 from __future__ import annotations

@@ -68,6 +68,8 @@ Reading. :class:`TableStore` reads each file once (per store): with a communicat
 reads it and broadcasts the bytes, which every rank parses alike; its SHA-256 becomes part of
 the resolved scene (``Scene.to_dict``: what summary.json and a checkpoint hold) and of a
 sweep's fingerprint, so a restart or a resumed sweep with another table's content is refused.
+Tests: tests/test_load_data.py; the C step's copy of the loads,
+tests/test_native_newton.py::test_loads_from_data_in_the_c_step_bit_for_bit.
 """
 
 from __future__ import annotations

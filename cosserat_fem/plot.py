@@ -22,6 +22,8 @@ Every file of ``plot``, ``render`` and ``pod`` is made in memory and written by
 :func:`write_output`, whole or not at all: a write that fails (disk full, ``ulimit -f``, an
 I/O error) is an :class:`~cosserat_fem.errors.OutputError` naming the file (exit 4, as a run's
 outputs), and leaves no cut file (nor a library's traceback) behind.
+Tests: tests/test_visualisation.py, tests/test_output_fuzz.py,
+tests/test_sweep.py::test_plot_draws_a_sweep_from_its_table_or_its_parts.
 """
 
 from __future__ import annotations

@@ -15,6 +15,8 @@
 * :func:`summary_screen`: the end-of-run summary, a dozen lines from ``summary.json``.
 * :func:`configure_logging`: ``--quiet`` (errors only), default (warnings), ``--verbose``
   (what the solver decides: step rejections, Jacobian refreshes, checkpoints) on rank 0.
+
+Tests: tests/test_ux.py.
 """
 
 from __future__ import annotations

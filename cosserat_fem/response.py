@@ -43,6 +43,7 @@ its last whole periods, and flagged (``settled`` false).
 
 The decision is taken on the rank that owns the probe point and broadcast, once a period, so
 that every rank ends the run at the same step.
+Tests: tests/test_response.py.
 """
 
 from __future__ import annotations

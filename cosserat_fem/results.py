@@ -22,6 +22,7 @@ near the float range anyway). summary.json: a JSON object; ``kind`` and ``scene.
 strings, ``scene`` and ``scene.rod`` objects, ``scene.rod.length`` a positive number, where
 present. A scratch ``solution.xdmf-partial`` or ``summary.json.tmp`` left by a killed run is
 never read.
+Tests: tests/test_output_fuzz.py.
 """
 
 from __future__ import annotations

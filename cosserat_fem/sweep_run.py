@@ -42,6 +42,7 @@ The row: ``member``, ``status`` ("completed", or "failed", "error", "stopped" as
 ``end_s``, the ``periods`` it ran, whether it ``settled`` and the last period's ``change``,
 and per column c its ``amp_c``, ``mean_c``, ``h1_c`` and ``phase_c`` (cosserat_fem/response.py);
 ``message`` for a failure.
+Tests: tests/test_sweep.py, tests/test_response.py.
 """
 
 from __future__ import annotations

@@ -13,6 +13,7 @@ kernel releases it when the holder dies, SIGKILL included, so a killed run leave
 (the file it leaves is taken over by the next run); the holder removes the file when it ends.
 Why ``flock`` and what it does not cover (file systems without locks): docs/decisions.md, "One
 writer a folder".
+Tests: tests/test_run_folders.py.
 """
 
 from __future__ import annotations

@@ -3,6 +3,7 @@ the frame files of cosserat_fem/io/xdmf.py and karhunen_loeve.py's pod.xdmf. h5p
 HDF5 library of its own, which cannot share a process with DOLFINx's (the readers use h5py, in
 a process without DOLFINx). Imports no DOLFINx: the library is found among those the process
 has loaded, else by name.
+Tests: tests/test_xdmf_writer.py, tests/test_pod.py.
 """
 
 from __future__ import annotations

@@ -3,6 +3,9 @@ the folder they go to (:func:`output_folder`) and the write, whole or not at all
 (:func:`write_output`). A write that fails for a passing reason (a full disk, a quota, the file
 size limit, the device) is an OutputError (exit 4); a place that cannot be written, bad input
 (a SceneError, exit 2); either names the file in one line.
+Tests: tests/test_visualisation.py::test_plot_on_a_full_disk_stops_with_exit_4,
+::test_render_on_a_full_disk_stops_with_exit_4;
+tests/test_pod.py::test_pod_on_a_full_disk_stops_with_exit_4_and_no_cut_file.
 """
 
 from __future__ import annotations

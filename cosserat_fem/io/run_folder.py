@@ -25,6 +25,7 @@ A folder holds the outputs of one run at a time, and has one writer at a time:
 
 Every file of the folder is written as a new file or by an atomic rename, never through a
 link, and no special file is opened (cosserat_fem/safe_files.py).
+Tests: tests/test_run_folders.py, tests/test_claims.py.
 """
 
 from __future__ import annotations

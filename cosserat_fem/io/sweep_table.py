@@ -17,6 +17,7 @@ reader, and its record.
 No DOLFINx: ``cosserat-fem plot`` reads these files without the solver stack. A file is never
 written through a link nor a special file opened (cosserat_fem/safe_files.py); damaged or
 foreign files are bad input, one line naming the file (a SceneError).
+Tests: tests/test_sweep.py.
 """
 
 from __future__ import annotations

@@ -38,6 +38,8 @@ has rows. A scratch ``solution.xdmf-partial`` left by a killed run is never read
 
 No file is written through a link, and no special file is opened (cosserat_fem/safe_files.py):
 every XDMF and HDF5 file is a new file or renamed over the old name.
+Tests: tests/test_xdmf_writer.py, tests/test_kill.py, tests/test_kill_window.py,
+tests/test_restart.py, tests/test_output_fuzz.py.
 """
 
 from __future__ import annotations

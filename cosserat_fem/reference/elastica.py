@@ -127,6 +127,7 @@ role). The equation is autonomous, with the first integral
 (dN/dψ = V), and global equilibrium gives EI ψ'(0) = M + P_x z(ℓ) − P_z x(ℓ).
 Solved by ``solve_bvp`` in the scaled variable s/ℓ, with continuation in the load factor.
 Compressive P_z beyond the buckling load may converge to any equilibrium branch.
+Tests: tests/test_elastica_reference.py.
 """
 
 from __future__ import annotations

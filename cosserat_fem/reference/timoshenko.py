@@ -29,6 +29,8 @@ Contents
 * :func:`static_modal_sum`: :math:`\sum_k W_k Q_k/\omega_k^2`, which converges to the static
   solution (a strong self-check of the modes);
 * :func:`euler_bernoulli_frequencies`: the classical slender-beam limit.
+
+Tests: tests/test_timoshenko_reference.py.
 """
 
 from __future__ import annotations
