@@ -145,10 +145,14 @@ def test_a_point_load_keeps_the_python_loop():
     assert result.summary["newton"]["loop"] == "python"
 
 
-def test_a_failed_compile_keeps_the_python_loop(tmp_path, monkeypatch):
+def test_a_failed_compile_is_one_clear_error(tmp_path, monkeypatch):
     """A C source that does not compile (here: a syntax error; on a machine, missing PETSc
-    headers) is reported as NotApplicable, and the run uses the Python loop; the process does
-    not try to compile again (a second call fails at once, with the same reason)."""
+    headers) is reported as NotApplicable, and the process does not try to compile again (a
+    second call fails at once, with the same reason); a run, whose Newton solves are C's
+    (cf_solve), then stops with a CosseratError that says so (one line, no traceback at the
+    command line), as FFCx's forms need a compiler too."""
+    from cosserat_fem.errors import CosseratError
+
     broken = tmp_path / "newton_loop.c"
     broken.write_text(native_newton.SOURCE.read_text() + "\nthis is not C;\n")
     monkeypatch.setattr(native_newton, "SOURCE", broken)
@@ -160,8 +164,8 @@ def test_a_failed_compile_keeps_the_python_loop(tmp_path, monkeypatch):
     broken.unlink()  # a second attempt would now fail otherwise (no source): it must not try
     with pytest.raises(native_newton.NotApplicable, match="did not compile"):
         native_newton.compiled()
-    result = _run("cao_tucker_2008", 2, [], "auto")
-    assert result.summary["newton"]["loop"] == "python"
+    with pytest.raises(CosseratError, match="newton_loop.c.*did not compile"):
+        _run("cao_tucker_2008", 2, [], "auto")
 
 
 def test_a_damaged_library_is_compiled_again(tmp_path, monkeypatch, caplog):

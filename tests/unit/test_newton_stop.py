@@ -1,4 +1,6 @@
-"""Unit tests of Newton's stop rule, cosserat_fem.newton.NewtonSolver._converged.
+"""Unit tests of Newton's stop rule, ``cf_test`` (cosserat_fem/newton_loop.c), the one rule every
+solve runs (cf_solve's, and SNES's convergence test), reached from Python through
+cosserat_fem.newton.NewtonSolver._converged.
 
 The rule (module docstring of cosserat_fem/newton.py), with norms = (‖U‖, ‖δU_k‖, ‖F(U_k)‖):
 stop when ‖F‖ ≤ atol, or ‖F‖ ≤ rtol ‖F(U_0)‖, or ‖δU_k‖ ≤ stol ‖U‖ + xatol (the update
@@ -56,16 +58,10 @@ class Squares:
         self.solver = NewtonSolver(F, self.U, [], settings)
 
 
-@pytest.fixture(scope="module", params=["python", "c"])
-def problem(request):
-    """The solver whose rule the sequences are fed to: Python's ``_converged``, or the C loop's
-    ``cf_test`` (cosserat_fem/newton_loop.c, which runs the rule inside Newton's C solves: the
-    same rule written twice, held to the same sequences)."""
+@pytest.fixture(scope="module")
+def problem():
+    """The solver whose rule (``cf_test``, through ``_converged``) the sequences are fed to."""
     squares = Squares(NewtonSettings())
-    if request.param == "c" and squares.solver.loop != "c":  # no compiler: nothing to hold
-        squares.solver.destroy()
-        pytest.skip("the C loop is not available here (its compile failed)")
-    squares.rule = request.param
     yield squares
     squares.solver.destroy()
 
@@ -74,7 +70,7 @@ def feed(problem: Squares, settings: NewtonSettings, norms) -> tuple[int, int]:
     """(iteration, reason) at which ``problem``'s rule stops on the sequence ``norms`` of
     (‖U‖, ‖δU‖, ‖F‖), iteration 0 first; (len, ITERATING) if it never stops."""
     solver = problem.solver
-    test = solver._native.test if problem.rule == "c" else solver._converged
+    test = solver._converged
     solver.settings = settings
     for it, triple in enumerate(norms):
         reason = test(it, triple)
