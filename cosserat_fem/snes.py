@@ -29,8 +29,8 @@ and each solve: ``*_view`` and ``*_converged_reason`` options are read at every 
 option given, only the :data:`DEFAULTS`, read at the set-up, the solves leave the database
 alone), and taken out after, so that solvers built one after another (a sweep, a test
 session) do not see each other's options; options given to PETSc otherwise
-(``PETSC_OPTIONS="-cosserat_..."``) apply too. A value PETSc refuses, or an option PETSc has not used by the end of the first
-solve (a misspelling, an option of a type not chosen), is a SceneError naming the key.
+(``PETSC_OPTIONS="-cosserat_..."``) apply too. A value PETSc refuses, or an option PETSc has
+not used by the end of the first solve (a misspelling, an option of a type not chosen), is a SceneError naming the key.
 """
 
 from __future__ import annotations
