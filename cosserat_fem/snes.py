@@ -30,7 +30,8 @@ option given, only the :data:`DEFAULTS`, read at the set-up, the solves leave th
 alone), and taken out after, so that solvers built one after another (a sweep, a test
 session) do not see each other's options; options given to PETSc otherwise
 (``PETSC_OPTIONS="-cosserat_..."``) apply too. A value PETSc refuses, or an option PETSc has
-not used by the end of the first solve (a misspelling, an option of a type not chosen), is a SceneError naming the key.
+not used by the end of the first solve (a misspelling, an option of a type not chosen), is a
+SceneError naming the key.
 """
 
 from __future__ import annotations
