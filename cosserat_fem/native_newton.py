@@ -1,22 +1,22 @@
-"""The Newton solver's inner loop in C (cosserat_fem/newton_loop.c), for serial runs.
+"""Newton's method in C (cosserat_fem/newton_loop.c): its build, its callbacks, its assembler.
 
-:class:`NewtonSolver` (cosserat_fem/newton.py) calls, per iteration, the linear solve, the
-update, the residual assembly and the norms: from Python that is a dozen calls through
-petsc4py and DOLFINx's bindings, each of a few microseconds, around kernels that take about
-as long (docs/decisions.md, "The compiled inner loop"). :class:`NativeLoop` makes a whole
-solve with a reused Jacobian one call into C (:meth:`newton`: the stop rule included), and
-each of :meth:`residual` and :meth:`iterate` one call for the Python loop's other uses (full
-Newton, an observer of every iteration); C does the same operations in the same order, so the
-iterates are bitwise those of the Python loop (tests/test_native_newton.py).
+Every Newton solve runs ``cf_solve`` (:class:`~cosserat_fem.newton.NewtonSolver`: the policy,
+the iterations and the stop rule, written once; docs/decisions.md "One core"), which calls
+Python back through the cffi callbacks bound here (:func:`_bind_callbacks`): DOLFINx's residual
+assembly where the C one does not apply, the Jacobian's assembly, an observer of the
+iterations, SNES's iterations (cosserat_fem/snes.py). :class:`NativeLoop` is the C residual
+assembler (``cf_residual``), which saves DOLFINx's coefficient and constant packing on each
+call. It applies when the run is serial and the residual has cell and exterior facet integrals
+only (an interior facet integral, a point load's, keeps DOLFINx's assembly), and only after it
+has proved itself on the form: the coefficient tables are read off DOLFINx's
+``pack_coefficients`` and the first residual must equal DOLFINx's assembly bit for bit, else
+DOLFINx's is used (the reason logged at INFO; tests/test_native_newton.py).
 
-It applies when the run is serial and the residual has cell and exterior facet integrals only
-(an interior facet integral, a point load's, keeps the Python loop), and only after it has
-proved itself on the form: the coefficient tables are read off DOLFINx's ``pack_coefficients``
-and the first residual must equal DOLFINx's assembly bit for bit, else the Python loop is used
-(the reason logged at INFO). The C source is compiled once per machine with cffi into the JIT
-cache directory (``$XDG_CACHE_HOME/fenics``, as FFCx's forms), against PETSc's headers and
-FFCx's ufcx.h; a failed compile also keeps the Python loop. A cached library is checked before
-it is loaded (cosserat_fem/jit.py ``load_checked``): a damaged one is compiled again.
+The C source is compiled once per machine with cffi into the JIT cache directory
+(``$XDG_CACHE_HOME/fenics``, as FFCx's forms), against PETSc's headers and FFCx's ufcx.h; a
+failed compile is a CosseratError when a solver is built (FFCx's forms need the compiler too).
+A cached library is checked before it is loaded (cosserat_fem/jit.py ``load_checked``): a
+damaged one is compiled again.
 """
 
 from __future__ import annotations
@@ -90,7 +90,7 @@ CALLBACK_ERROR = -2
 
 
 class NotApplicable(Exception):
-    """Why a solver keeps the Python loop."""
+    """Why a solver assembles its residual with DOLFINx (or why the C core is not built)."""
 
 
 # --- the compiled module ------------------------------------------------------------------
@@ -139,8 +139,8 @@ COMPILE_ARGS = ["-O2", "-g0", "-ffp-contract=off"]  # no fused multiply-adds: Py
 
 def compiled():
     """The compiled module (``ffi``, ``lib``), made on first use and cached on disk; raises
-    :class:`NotApplicable` if it cannot be built (remembered for the process: every solver
-    built after a failed compile keeps the Python loop at once).
+    :class:`NotApplicable` if it cannot be built (remembered for the process: it is not tried
+    again).
 
     A cached library is checked before it is loaded (cosserat_fem/jit.py
     :func:`~cosserat_fem.jit.library_damage`: its recorded SHA-256, or its ELF structure):
