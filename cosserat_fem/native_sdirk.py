@@ -2,7 +2,7 @@
 
 :class:`~cosserat_fem.integrators.SDIRK` takes a step as a dozen NumPy calls per stage (the
 stage value Z_i, the predictor's extrapolation, U, the stage rate K_i) around a Newton solve
-(:meth:`NewtonSolver.solve`: its Jacobian policy and counters, then ``cf_newton``), and its
+(:meth:`NewtonSolver.solve`: one call of ``cf_solve``), and its
 accept as a few copies: on the paper's scene those cost about as much as the solves' C work
 (docs/decisions.md, "The compiled inner loop"). :class:`NativeSDIRK` does the same in C: per
 stage the same IEEE operations, element by element and in the same order, as the NumPy calls
