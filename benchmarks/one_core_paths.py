@@ -1,5 +1,8 @@
 """The paper's scene's solve loop on each of today's code paths, for docs/design-one-core.md.
 
+(Written before step 1 of its plan: since then every Newton solve is ``cf_solve``, and the
+third path below is ``cf_solve`` with an observer callback per iteration, not a Python loop.)
+
     PYTHONPATH=. .venv/bin/python benchmarks/one_core_paths.py [--rounds 5] [--set key=value]
 
 Serial, no outputs. Four paths, one run each per round, interleaved (the machine's load
@@ -7,7 +10,7 @@ drifts), after one warm-up run of each:
 
 * ``c-step``: today's default, the whole SDIRK step in C (native_sdirk.py, ``cf_sdirk_step``);
 * ``py-step+c-newton``: the Python SDIRK step (integrators.SDIRK.step) around Newton's whole
-  solve in C (``cf_newton``): the time loop's stepper replaced by the integrator;
+  solve in C (``cf_solve``): the time loop's stepper replaced by the integrator;
 * ``py-step+py-newton+c-kernels``: the Python step and the Python Newton loop (its stop rule
   and policy) calling the C residual and the C iteration body (``cf_residual``,
   ``cf_iterate``): the shape of a "Python composes, C computes" core; made by a no-op

@@ -1,22 +1,22 @@
-"""The Newton solver's inner loop in C (cosserat_fem/newton_loop.c), for serial runs.
+"""Newton's method in C (cosserat_fem/newton_loop.c): its build, its callbacks, its assembler.
 
-:class:`NewtonSolver` (cosserat_fem/newton.py) calls, per iteration, the linear solve, the
-update, the residual assembly and the norms: from Python that is a dozen calls through
-petsc4py and DOLFINx's bindings, each of a few microseconds, around kernels that take about
-as long (docs/decisions.md, "The compiled inner loop"). :class:`NativeLoop` makes a whole
-solve with a reused Jacobian one call into C (:meth:`newton`: the stop rule included), and
-each of :meth:`residual` and :meth:`iterate` one call for the Python loop's other uses (full
-Newton, an observer of every iteration); C does the same operations in the same order, so the
-iterates are bitwise those of the Python loop (tests/test_native_newton.py).
+Every Newton solve runs ``cf_solve`` (:class:`~cosserat_fem.newton.NewtonSolver`: the policy,
+the iterations and the stop rule, written once; docs/decisions.md "One core"), which calls
+Python back through the cffi callbacks bound here (:func:`_bind_callbacks`): DOLFINx's residual
+assembly where the C one does not apply, the Jacobian's assembly, an observer of the
+iterations, SNES's iterations (cosserat_fem/snes.py). :class:`NativeLoop` is the C residual
+assembler (``cf_residual``), which saves DOLFINx's coefficient and constant packing on each
+call. It applies when the run is serial and the residual has cell and exterior facet integrals
+only (an interior facet integral, a point load's, keeps DOLFINx's assembly), and only after it
+has proved itself on the form: the coefficient tables are read off DOLFINx's
+``pack_coefficients`` and the first residual must equal DOLFINx's assembly bit for bit, else
+DOLFINx's is used (the reason logged at INFO; tests/test_native_newton.py).
 
-It applies when the run is serial and the residual has cell and exterior facet integrals only
-(an interior facet integral, a point load's, keeps the Python loop), and only after it has
-proved itself on the form: the coefficient tables are read off DOLFINx's ``pack_coefficients``
-and the first residual must equal DOLFINx's assembly bit for bit, else the Python loop is used
-(the reason logged at INFO). The C source is compiled once per machine with cffi into the JIT
-cache directory (``$XDG_CACHE_HOME/fenics``, as FFCx's forms), against PETSc's headers and
-FFCx's ufcx.h; a failed compile also keeps the Python loop. A cached library is checked before
-it is loaded (cosserat_fem/jit.py ``load_checked``): a damaged one is compiled again.
+The C source is compiled once per machine with cffi into the JIT cache directory
+(``$XDG_CACHE_HOME/fenics``, as FFCx's forms), against PETSc's headers and FFCx's ufcx.h; a
+failed compile is a CosseratError when a solver is built (FFCx's forms need the compiler too).
+A cached library is checked before it is loaded (cosserat_fem/jit.py ``load_checked``): a
+damaged one is compiled again.
 """
 
 from __future__ import annotations
@@ -48,43 +48,49 @@ typedef struct {
   int32_t n_integrals; const cf_integral* integrals; double* const* coefficients;
   const double* constants; const double* coordinates; int32_t coordinates_per_cell;
   const int32_t* dofs; int32_t dofs_per_cell; int32_t n_bc; const int32_t* bc_dofs;
-  const double* bc_values; const double* u_values; double* w; double* be;
-  void *u, *b, *dx, *ksp; double time_residual; int64_t residuals;
+  const double* bc_values; const double* u_values; double* w; double* be; void* b;
 } cf_problem;
+typedef int (*cf_call)(void* ctx);
+typedef int (*cf_observe)(void* ctx, int it, const double* norms, int reason);
+typedef int (*cf_run)(void* ctx, int* iterations, int* reason);
 typedef struct {
   double rtol, atol, stol, xatol; int max_iterations; int linear_test;
+  int full, lagged, lag, frozen, refresh_iterations;
 } cf_settings;
 typedef struct {
-  int phase; int need_jacobian; int iterations; int reason;
-  double f0, f_prev, update_prev; double norms[3];
+  cf_problem* problem; cf_call residual, jacobian; cf_observe on_iteration; cf_run run;
+  void* ctx; void *u, *b, *dx, *ksp, *initial;
+} cf_solver;
+typedef struct {
+  double f0, f_prev, update_prev; double norms[3]; int need_jacobian, since;
+  int iterations, reason; int64_t solves, newton_iterations, retries, residuals;
+  int last_iterations, max_in_a_solve; double time_solve, time_residual;
 } cf_newton_state;
 int cf_residual(cf_problem* p);
-int cf_iterate(cf_problem* p, int* reason, double* norms);
-int cf_newton(cf_problem* p, const cf_settings* s, cf_newton_state* st);
 int cf_test(const cf_settings* s, cf_newton_state* st, int it, const double* n);
+int cf_solve(const cf_solver* sv, const cf_settings* s, cf_newton_state* st);
 void* cf_kernel(uintptr_t form, int type, int i);
 typedef struct {
   int32_t stages, n; double gamma; const double *A, *b, *c;
   double *u, *z, *u_n, *K, *taus, *rates, *times, *guess, *term;
-  double* time_value; double* constants; int32_t time_slot; void* initial;
-  int lagged, lag, frozen, refresh_iterations;
-  double h, time; int64_t stored; int need_jacobian, since;
-  int stage, phase, fresh, stage_iterations;
-  double unknown_time; int iterations, reason;
-  int64_t solves, newton_iterations, retries; int last_iterations, max_in_a_solve;
-  double time_solve;
+  double* time_value; double* constants; int32_t time_slot;
+  double h, time; int64_t stored; int stage; double unknown_time; int iterations, reason;
   int32_t n_data; double* const* data_targets; const int32_t* data_sizes;
   const double* data_values; int64_t data_stride;
 } cf_sdirk;
-int cf_sdirk_step(cf_problem* p, const cf_settings* s, cf_newton_state* st, cf_sdirk* sd);
+int cf_sdirk_step(const cf_solver* sv, const cf_settings* s, cf_newton_state* st, cf_sdirk* sd);
 void cf_sdirk_accept(cf_sdirk* sd);
+extern "Python" int cf_py_residual(void* ctx);
+extern "Python" int cf_py_jacobian(void* ctx);
+extern "Python" int cf_py_iteration(void* ctx, int it, const double* norms, int reason);
+extern "Python" int cf_py_run(void* ctx, int* iterations, int* reason);
 """
-#: cf_sdirk_step's answer when a Jacobian is due (newton_loop.c).
-NEED_JACOBIAN = -1
+#: A callback's status when Python stored an exception (newton_loop.c CF_CALLBACK_ERROR).
+CALLBACK_ERROR = -2
 
 
 class NotApplicable(Exception):
-    """Why a solver keeps the Python loop."""
+    """Why a solver assembles its residual with DOLFINx (or why the C core is not built)."""
 
 
 # --- the compiled module ------------------------------------------------------------------
@@ -133,8 +139,8 @@ COMPILE_ARGS = ["-O2", "-g0", "-ffp-contract=off"]  # no fused multiply-adds: Py
 
 def compiled():
     """The compiled module (``ffi``, ``lib``), made on first use and cached on disk; raises
-    :class:`NotApplicable` if it cannot be built (remembered for the process: every solver
-    built after a failed compile keeps the Python loop at once).
+    :class:`NotApplicable` if it cannot be built (remembered for the process: it is not tried
+    again).
 
     A cached library is checked before it is loaded (cosserat_fem/jit.py
     :func:`~cosserat_fem.jit.library_damage`: its recorded SHA-256, or its ELF structure):
@@ -159,8 +165,60 @@ def compiled():
         _build(name, source, target)
         record_digest(target)
         module = _load(name, target)
+    _bind_callbacks(module)
     _MODULE = module
     return module
+
+
+def _bind_callbacks(module) -> None:
+    """The Python ends of cf_solve's callbacks (newton_loop.c): each calls a method of the
+    solver whose handle is ``ctx`` (``_residual``, ``_jacobian``, ``_observe``, ``_iterate``);
+    an exception, which cannot cross C, is stored in the solver's ``callback_error`` and
+    answered with :data:`CALLBACK_ERROR`, and the solver raises it when cf_solve returns
+    (under MPI a residual's exception is answered with a NaN residual instead, so that every
+    rank leaves the solve alike)."""
+    ffi = module.ffi
+    from_handle = ffi.from_handle
+
+    def guarded(name: str):
+        def call(ctx, *args):
+            solver = from_handle(ctx)
+            try:
+                return getattr(solver, name)(*args) or 0
+            except BaseException as exc:  # re-raised by the solver after cf_solve
+                solver.callback_error = exc
+                return CALLBACK_ERROR
+
+        return call
+
+    def residual(ctx):
+        solver = from_handle(ctx)
+        try:
+            solver._residual()
+            return 0
+        except BaseException as exc:
+            solver.callback_error = exc
+            if not solver._parallel:
+                return CALLBACK_ERROR
+            # Under MPI the other ranks go on into the norm's reduction: a NaN residual ends
+            # the solve on every rank alike (DIVERGED_FNORM_NAN), and the solver then agrees
+            # on the exception (cosserat_fem.parallel.agree).
+            solver.b.set(float("nan"))
+            return 0
+
+    ffi.def_extern(name="cf_py_residual")(residual)
+    ffi.def_extern(name="cf_py_jacobian")(guarded("_jacobian"))
+    observe, run = guarded("_observe"), guarded("_iterate")
+    ffi.def_extern(name="cf_py_iteration")(
+        lambda ctx, it, norms, reason: observe(ctx, it, (norms[0], norms[1], norms[2]), reason))
+
+    def iterate(ctx, iterations, reason):
+        answer = [0, 0]
+        status = run(ctx, answer)
+        iterations[0], reason[0] = answer
+        return status
+
+    ffi.def_extern(name="cf_py_run")(iterate)
 
 
 def library_path(source: str | None = None) -> Path:
@@ -257,13 +315,12 @@ def _gather_tables(form) -> dict:
 
 
 class NativeLoop:
-    """:meth:`newton`, :meth:`residual` and :meth:`iterate` of a serial NewtonSolver in C
-    (module docstring). ``refresh`` before each solve: the constants and the Dirichlet values
-    of that solve."""
+    """The C residual assembler (``cf_residual``) of a serial NewtonSolver's form (module
+    docstring): ``problem`` is what cf_solve's ``problem`` points to. ``refresh`` before each
+    solve: the constants and the Dirichlet values of that solve."""
 
-    def __init__(self, form, U, bcs, u, b, dx, ksp, settings):
-        """``u``: U's PETSc vector (the iterate); ``b``, ``dx``, ``ksp``: the solver's;
-        ``settings``: its NewtonSettings (the stop rule's)."""
+    def __init__(self, form, U, bcs, b):
+        """``b``: the solver's residual vector."""
         mesh = U.function_space.mesh
         if mesh.comm.size > 1:
             raise NotApplicable("a parallel run")
@@ -326,8 +383,6 @@ class NativeLoop:
         bc_dofs = np.ascontiguousarray(np.concatenate([np.zeros(0, np.int32), *bc_dofs]),
                                        dtype=np.int32)  # fmt: skip
         wsize = max((d["wsize"] for d in integrals), default=0)
-        self.norms = np.zeros(3)
-        self._reason = ffi.new("int*")
         p = ffi.new("cf_problem*")
         p.n_integrals = len(integrals)
         p.integrals = self._integrals
@@ -343,15 +398,9 @@ class NativeLoop:
         p.u_values = pointer(U.x.array, "double*")
         p.w = pointer(np.zeros(max(wsize, 1)), "double*")
         p.be = pointer(np.zeros(dofs.shape[1]), "double*")
-        p.u, p.b = ffi.cast("void*", u.handle), ffi.cast("void*", b.handle)
-        p.dx, p.ksp = ffi.cast("void*", dx.handle), ffi.cast("void*", ksp.handle)
-        self._p = p
-        self._norms_c = pointer(self.norms, "double*")
+        p.b = ffi.cast("void*", b.handle)
+        self.problem = p
         self._form, self._bcs = form, bcs
-        self._settings = ffi.new("cf_settings*")
-        self._state = ffi.new("cf_newton_state*")  # the stop rule's running norms
-        self.state = self._state
-        self.configure(settings)
 
     def refresh(self, dirichlet: bool = True) -> None:
         """The constants and (with ``dirichlet``) the Dirichlet values g as they are now
@@ -364,48 +413,6 @@ class NativeLoop:
 
     def residual(self) -> None:
         """b = F(U) with the Dirichlet rows x − g (NewtonSolver._residual)."""
-        status = self.lib.cf_residual(self._p)
+        status = self.lib.cf_residual(self.problem)
         if status:
             raise RuntimeError(f"PETSc error {status} in the residual")
-
-    def iterate(self) -> tuple[int, list[float]]:
-        """One Newton iteration (NewtonSolver._iteration): (the KSP's reason, the norms
-        (‖U‖, ‖δU‖, ‖F‖) after it; not meaningful for a negative reason)."""
-        status = self.lib.cf_iterate(self._p, self._reason, self._norms_c)
-        if status:
-            raise RuntimeError(f"PETSc error {status} in a Newton iteration")
-        return self._reason[0], self.norms.tolist()
-
-    def configure(self, settings) -> None:
-        """The stop rule's settings (a NewtonSettings) from now on."""
-        s = self._settings
-        s.rtol, s.atol, s.stol, s.xatol = (settings.rtol, settings.atol, settings.stol,
-                                           settings.xatol)  # fmt: skip
-        s.max_iterations = settings.max_iterations
-        s.linear_test = settings.jacobian != "full"
-
-    def test(self, it: int, norms) -> int:
-        """The C stop rule (``cf_test``) after iteration ``it`` with ``norms`` (‖U‖, ‖δU‖,
-        ‖F‖): NewtonSolver._test's reason, its running norms kept in the same way."""
-        values = self.ffi.new("double[3]", [float(x) for x in norms])
-        return int(self.lib.cf_test(self._settings, self._state, it, values))
-
-    def newton(self, need_jacobian: bool, assemble_jacobian, update_prev: float):
-        """NewtonSolver._run in C (newton_loop.c cf_newton), from U; with ``need_jacobian``,
-        ``assemble_jacobian()`` is called before the first iteration (if there is one), as the
-        Python loop calls it. The state after it: ``iterations``, ``reason``, ``f0``,
-        ``f_prev``, ``update_prev``, ``norms``."""
-        st = self._state
-        st.phase, st.update_prev, st.need_jacobian = 0, update_prev, need_jacobian
-        status = self.lib.cf_newton(self._p, self._settings, st)
-        if not status and st.phase == 1:
-            assemble_jacobian()
-            status = self.lib.cf_newton(self._p, self._settings, st)
-        if status:
-            raise RuntimeError(f"PETSc error {status} in a Newton solve")
-        return st
-
-    @property
-    def counters(self) -> tuple[int, float]:
-        """(residual assemblies, their time [s]) since the loop was made."""
-        return int(self._p.residuals), float(self._p.time_residual)

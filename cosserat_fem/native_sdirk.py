@@ -2,14 +2,14 @@
 
 :class:`~cosserat_fem.integrators.SDIRK` takes a step as a dozen NumPy calls per stage (the
 stage value Z_i, the predictor's extrapolation, U, the stage rate K_i) around a Newton solve
-(:meth:`NewtonSolver.solve`: its Jacobian policy and counters, then ``cf_newton``), and its
+(:meth:`NewtonSolver.solve`: one call of ``cf_solve``), and its
 accept as a few copies: on the paper's scene those cost about as much as the solves' C work
 (docs/decisions.md, "The compiled inner loop"). :class:`NativeSDIRK` does the same in C: per
 stage the same IEEE operations, element by element and in the same order, as the NumPy calls
-of ``SDIRK.step``, ``SDIRK._rate_guess`` and ``SDIRK.accept``, the policy of
-``NewtonSolver.solve`` (the lagged count, a retry from the same guess with a fresh Jacobian,
-the frozen refresh) and ``cf_newton``; it returns to Python only to assemble a Jacobian. So
-a run's states and counters are bitwise those of the Python step (tests/test_native_newton.py).
+of ``SDIRK.step``, ``SDIRK._rate_guess`` and ``SDIRK.accept``, and per stage the solve that
+``NewtonSolver.solve`` makes (``cf_solve``: the policy, the iterations, the retry), calling
+Python back only to assemble a Jacobian. So a run's states and counters are bitwise those of
+the Python step (tests/test_native_newton.py).
 
 It applies when the Newton solver runs its C loop (serial, no point load, ``solver.loop =
 "auto"``) with a reused Jacobian, no observer watches Newton's iterations or solves and no
@@ -34,6 +34,7 @@ import numpy as np
 from dolfinx import cpp, fem
 
 from .integrators import SDIRK, Integrator, time_view
+from .newton import _REASONS, NewtonFailure
 
 
 class NativeSDIRK:
@@ -64,7 +65,6 @@ class NativeSDIRK:
         sd.rates, sd.times = pointer(it._rates), pointer(it._times)
         sd.guess, sd.term = pointer(it._guess), pointer(it._term)
         sd.time_value = pointer(time_view(it.time_eval))
-        sd.initial = ffi.cast("void*", solver._initial.handle)
         self.sd = sd
         self._native = None  # the solver's C loop that sd's constants belong to
         self.steps = 0  # steps attempted in C
@@ -90,10 +90,6 @@ class NativeSDIRK:
         sd = self.sd
         sd.constants = self.ffi.cast("double*", native.constants.ctypes.data)
         sd.time_slot = int(slots[0]) if slots.size else -1
-        settings = self.solver.settings
-        sd.lagged, sd.lag = settings.jacobian == "lagged", settings.lag
-        sd.frozen = settings.jacobian == "frozen"
-        sd.refresh_iterations = settings.refresh_iterations
         self._native = native
         return True
 
@@ -166,14 +162,13 @@ class NativeSDIRK:
             self._stage_data(h)
         native.refresh(dirichlet=False)  # fixed Dirichlet values (no moving support)
         sd.h, sd.time, sd.stored = h, it.time, it._stored
-        sd.stage = sd.phase = sd.iterations = 0
-        p, settings, state = native._p, native._settings, native.state
-        step = self.lib.cf_sdirk_step
         self.steps += 1
-        try:
-            solver.solve_stages(sd, lambda: step(p, settings, state, sd))
-        finally:
-            it.unknown_time = sd.unknown_time
+        status = self.lib.cf_sdirk_step(solver._sv, solver._cs, solver._state, sd)
+        it.unknown_time = sd.unknown_time
+        solver._finish(status, f"the C time step, stage {sd.stage + 1}, its unknown at "
+                               f"τ = ω0 t = {sd.unknown_time:.10g}")  # fmt: skip
+        if sd.reason <= 0:
+            raise NewtonFailure(_REASONS.get(sd.reason, str(sd.reason)), solver._state.iterations)
         return sd.iterations
 
     def accept(self, h: float) -> None:

@@ -31,16 +31,18 @@ are PETSc's SNES reasons (``PETSc.SNES.ConvergedReason``; :class:`NewtonFailure`
 the name). Why each of these, with the measurements: docs/decisions.md, "The Newton stop
 rule" and "No line search".
 
-In a serial run each iteration is one call into C where the form allows it
-(cosserat_fem/native_newton.py: the same operations, the same iterates bit for bit;
-``NewtonSettings.loop``, docs/decisions.md "The compiled inner loop").
+The policy, the loop and the stop rule are written once, in C (cosserat_fem/newton_loop.c
+``cf_solve``, ``cf_test``; built by cosserat_fem/native_newton.py); Python gives it callbacks
+for DOLFINx's residual assembly (MPI, ``solver.loop = "python"``, a form the C assembler does
+not carry), the Jacobian and an observer of the iterations. In a serial run the residual is
+assembled in C where the form allows it (the same operations as DOLFINx's, the same iterates
+bit for bit; ``NewtonSettings.loop``, docs/decisions.md "The compiled inner loop").
 """
 
 from __future__ import annotations
 
 import itertools
 import logging
-import math
 import time
 from dataclasses import dataclass, field, fields
 
@@ -51,7 +53,8 @@ from dolfinx.fem.petsc import assemble_matrix, create_matrix, create_vector
 from petsc4py import PETSc
 from ufl.algorithms.analysis import extract_coefficients, extract_constants
 
-from .native_newton import NEED_JACOBIAN
+from .errors import CosseratError
+from .native_newton import NotApplicable, compiled
 
 JACOBIAN_POLICIES = ("full", "lagged", "frozen")
 _prefix_counter = itertools.count()
@@ -147,14 +150,23 @@ class NewtonSolver:
         self.U = U
         self.bcs = bcs
         self._native = None
+        try:
+            module = compiled()
+        except NotApplicable as exc:  # no compiler or no PETSc headers: no Newton at all
+            raise CosseratError(f"Newton's C core (cosserat_fem/newton_loop.c): {exc}") from None
+        self._ffi, self._lib = module.ffi, module.lib
+        self._cs = self._ffi.new("cf_settings*")  # the stop rule's and the policy's settings
+        self._state = self._ffi.new("cf_newton_state*")  # the policy's state, the counters
+        self._state.need_jacobian = 1
+        self._sv = self._ffi.new("cf_solver*")  # the C solve's vectors and callbacks
+        self._handle = self._ffi.new_handle(self)
+        #: An exception a callback raised inside cf_solve, raised again after it.
+        self.callback_error: BaseException | None = None
         self.settings = settings
         self.stats = NewtonStatistics()
-        self.iteration_hook = None  # f(it, norms, reason) after each convergence test
+        self._hook = None
         comm = U.function_space.mesh.comm
         self._parallel = comm.size > 1
-        self._update_prev = 0.0  # ‖δU_{k−1}‖ of the current solve
-        self._f_prev = 0.0  # ‖F(U_{k−1})‖ of the current solve
-        self._f0 = 0.0
         self._compile_params = (form_compiler_params or {}, jit_params or {})
         self.compile_time = 0.0
         self._compile(F)
@@ -167,8 +179,6 @@ class NewtonSolver:
         self.dx = create_vector(self.F_form)  # the Newton update δU
         self._initial = create_vector(self.F_form)  # the initial guess, kept for a retry
         self.A = create_matrix(self.J_form, mat_type="baij")
-        self._need_jacobian = True
-        self._solves_since_jacobian = 0
 
         self.lu_package = self._lu_package(comm, settings.linear_solver)
         self.ksp = PETSc.KSP().create(comm)
@@ -186,7 +196,12 @@ class NewtonSolver:
             self.ksp.getPC().setFactorOrdering("natural")
         self.ksp.setOperators(self.A)
         self.ksp.setFromOptions()
-        self.loop = "python"  # what runs the iterations: "python" or "c" (_make_native)
+        sv, ffi, lib = self._sv, self._ffi, self._lib
+        sv.residual, sv.jacobian, sv.ctx = lib.cf_py_residual, lib.cf_py_jacobian, self._handle
+        sv.u, sv.b = ffi.cast("void*", self._u.handle), ffi.cast("void*", self.b.handle)
+        sv.dx, sv.ksp = ffi.cast("void*", self.dx.handle), ffi.cast("void*", self.ksp.handle)
+        sv.initial = ffi.cast("void*", self._initial.handle)
+        self.loop = "python"  # the residual's assembler: "python" (DOLFINx's) or "c"
         self._make_native()
 
     @property
@@ -195,10 +210,35 @@ class NewtonSolver:
 
     @settings.setter
     def settings(self, settings: NewtonSettings) -> None:
-        """New settings, for the C loop's stop rule too."""
+        """New settings, for the C solve's stop rule and policy too."""
         self._settings = settings
-        if self._native is not None:
-            self._native.configure(settings)
+        s = self._cs
+        s.rtol, s.atol, s.stol, s.xatol = (settings.rtol, settings.atol, settings.stol,
+                                           settings.xatol)  # fmt: skip
+        s.max_iterations = settings.max_iterations
+        s.linear_test = settings.jacobian != "full"
+        s.full = settings.jacobian == "full"
+        s.lagged, s.lag = settings.jacobian == "lagged", settings.lag
+        s.frozen, s.refresh_iterations = settings.jacobian == "frozen", settings.refresh_iterations
+
+    @property
+    def iteration_hook(self):
+        """f(it, norms, reason) after each convergence test (an observer's), or None."""
+        return self._hook
+
+    @iteration_hook.setter
+    def iteration_hook(self, hook) -> None:
+        self._hook = hook
+        self._sv.on_iteration = self._ffi.NULL if hook is None else self._lib.cf_py_iteration
+
+    @property
+    def _need_jacobian(self) -> bool:
+        """The policy: a Jacobian is assembled before the next iteration."""
+        return bool(self._state.need_jacobian)
+
+    @_need_jacobian.setter
+    def _need_jacobian(self, value: bool) -> None:
+        self._state.need_jacobian = int(value)
 
     def _compile(self, F: ufl.Form) -> None:
         """The residual and Jacobian forms of F; what the Jacobian is assembled from, and (for
@@ -222,17 +262,18 @@ class NewtonSolver:
         self.request_jacobian()
 
     def _make_native(self) -> None:
-        """The C inner loop for the current form (cosserat_fem/native_newton.py) when the
-        settings allow it and it applies: its residual must equal DOLFINx's bit for bit."""
+        """The C residual assembler for the current form (cosserat_fem/native_newton.py) when
+        the settings allow it and it applies: its residual must equal DOLFINx's bit for bit;
+        else cf_solve calls DOLFINx's assembly back."""
         self._native = None
+        self._sv.problem = self._ffi.NULL
         self.loop = "python"
         if self.settings.loop != "auto" or self._parallel:
             return
         from .native_newton import NativeLoop, NotApplicable
 
         try:
-            native = NativeLoop(self.F_form, self.U, self.bcs, self._u, self.b, self.dx,
-                                self.ksp, self.settings)  # fmt: skip
+            native = NativeLoop(self.F_form, self.U, self.bcs, self.b)
             native.refresh()
             native.residual()
             via_c = self.b.array.copy()
@@ -243,6 +284,7 @@ class NewtonSolver:
             logging.getLogger(__name__).info("Newton's inner loop in Python: %s", exc)
             return
         self._native = native
+        self._sv.problem = native.problem
         self.loop = "c"
 
     @staticmethod
@@ -259,8 +301,7 @@ class NewtonSolver:
     def _residual(self, b: PETSc.Vec | None = None) -> None:
         """b = F(U), with x − g in the rows of the Dirichlet dofs (class docstring); ``b`` is
         the solver's own vector unless given (one of SNES's). Under MPI U's ghosts are updated
-        first and b's ghost contributions added."""
-        t0 = time.perf_counter()
+        first and b's ghost contributions added. cf_solve counts and times it."""
         b = self.b if b is None else b
         if self._parallel:
             self._u.ghostUpdate(addv=_INSERT, mode=_FORWARD)
@@ -272,18 +313,6 @@ class NewtonSolver:
             self._assemble(b.array_w, dirichlet=True)
         # b's arrays are released (VecRestoreArray): its state has moved on, so PETSc does
         # not answer with a norm it cached before.
-        self.stats.residual_assemblies += 1
-        self.stats.time_residual += time.perf_counter() - t0
-
-    def _norms(self) -> tuple[float, float, float]:
-        """(‖U‖, ‖δU‖, ‖F‖) after an iteration, in one reduction as SNES's line search takes
-        them (which rounds differently from three norms under MPI)."""
-        u, dx, b = self._u, self.dx, self.b
-        b.normBegin()
-        dx.normBegin()
-        u.normBegin()
-        fnorm, ynorm = b.normEnd(), dx.normEnd()
-        return u.normEnd(), ynorm, fnorm
 
     def _assemble(self, array: np.ndarray, dirichlet: bool) -> None:
         """F(U) into ``array`` (zeroed first): DOLFINx's assemble_vector without its Python
@@ -297,10 +326,8 @@ class NewtonSolver:
             cpp.fem.set_bc(array, self.bcs, self._u_owned, -1.0)
 
     def _jacobian(self) -> None:
-        """J(U) into A when the policy asks for it (identity rows and columns at the Dirichlet
-        dofs); for a reused Jacobian its inputs are kept for a checkpoint."""
-        if not (self._need_jacobian or self.settings.jacobian == "full"):
-            return
+        """J(U) into A (identity rows and columns at the Dirichlet dofs), when cf_solve's
+        policy asks for it; for a reused Jacobian its inputs are kept for a checkpoint."""
         t0 = time.perf_counter()
         A = self.A
         A.zeroEntries()
@@ -312,43 +339,23 @@ class NewtonSolver:
                 **{f"coefficient{i}": c.x.array.copy() for i, c in enumerate(coefficients)},
                 **{f"constant{i}": np.array(c.value) for i, c in enumerate(constants)},
             }
-        self._need_jacobian = False
-        self._solves_since_jacobian = 0
         self.stats.jacobian_assemblies += 1
         self.stats.time_jacobian += time.perf_counter() - t0
 
     def _converged(self, it: int, norms) -> int:
-        """Convergence test of the module docstring; norms = (‖U‖, ‖δU‖, ‖F‖). Each result
-        goes to ``iteration_hook(it, norms, reason)`` if one is set (an observer's)."""
-        reason = self._test(it, norms)
-        if self.iteration_hook is not None:
-            self.iteration_hook(it, norms, reason)
+        """The stop rule of the module docstring (``cf_test``, the one cf_solve runs) after
+        iteration ``it``, norms = (‖U‖, ‖δU‖, ‖F‖): the SNES reason; the solve's running
+        norms are kept for the next contraction estimate. Each result goes to
+        ``iteration_hook(it, norms, reason)`` if one is set (an observer's)."""
+        values = self._ffi.new("double[3]", [float(x) for x in norms])
+        reason = int(self._lib.cf_test(self._cs, self._state, it, values))
+        if self._hook is not None:
+            self._hook(it, norms, reason)
         return reason
 
-    def _test(self, it: int, norms) -> int:
-        """The SNES reason after iteration ``it``, norms = (‖U‖, ‖δU‖, ‖F‖), by the tests of the
-        module docstring; keeps ‖δU‖ and ‖F‖ for the next contraction estimate."""
-        xnorm, ynorm, fnorm = norms
-        reasons, st = PETSc.SNES.ConvergedReason, self.settings
-        if fnorm != fnorm or ynorm != ynorm:
-            return reasons.DIVERGED_FNORM_NAN
-        if it == 0:
-            self._f0 = self._f_prev = fnorm
-            return reasons.CONVERGED_FNORM_ABS if fnorm <= st.atol else reasons.ITERATING
-        linear = it >= 2 and st.jacobian != "full" and self._update_prev > 0.0
-        # The contraction as both the updates and the residuals see it (module docstring).
-        rho = max(ynorm / self._update_prev, fnorm / self._f_prev) if linear else 0.0
-        self._update_prev, self._f_prev = ynorm, fnorm
-        if fnorm <= st.atol:
-            return reasons.CONVERGED_FNORM_ABS
-        if fnorm <= st.rtol * self._f0:
-            return reasons.CONVERGED_FNORM_RELATIVE
-        tolerance = st.stol * xnorm + st.xatol
-        if ynorm <= tolerance or (linear and rho < 1.0 and ynorm * rho / (1.0 - rho) <= tolerance):
-            return reasons.CONVERGED_SNORM_RELATIVE
-        if it >= st.max_iterations:
-            return reasons.DIVERGED_MAX_IT
-        return reasons.ITERATING
+    def _observe(self, it: int, norms, reason: int) -> None:
+        """cf_solve's on_iteration: the observer's hook."""
+        self._hook(it, norms, reason)
 
     # -- solving --------------------------------------------------------------------------
     def request_jacobian(self) -> None:
@@ -356,145 +363,39 @@ class NewtonSolver:
         self._need_jacobian = True
 
     def solve(self) -> int:
-        """Solve from the current U (the initial guess). Returns the number of iterations."""
-        policy = self.settings.jacobian
-        if policy == "lagged" and self._solves_since_jacobian >= self.settings.lag:
-            self._need_jacobian = True
-        initial = self._initial
-        self._u.copy(initial)
-        fresh = self._need_jacobian or policy == "full"
-        iterations, reason = self._run()
-        if reason <= 0 and not fresh:
-            # An old Jacobian may be the cause: retry once from the same guess with a new one.
-            self.stats.retries += 1
-            initial.copy(self._u)
-            self._need_jacobian = True
-            more, reason = self._run()
-            iterations += more
-        self._solves_since_jacobian += 1
-        self.stats.solves += 1
-        self.stats.last_iterations = iterations
-        self.stats.max_iterations_in_a_solve = max(
-            self.stats.max_iterations_in_a_solve, iterations
-        )
-        if reason <= 0:
-            raise NewtonFailure(_REASONS.get(reason, str(reason)), iterations)
-        if policy == "frozen" and iterations > self.settings.refresh_iterations:
-            self._need_jacobian = True
-        return iterations
+        """Solve from the current U (the initial guess), in C (``cf_solve``: the policy, the
+        iterations, a retry; module docstring). Returns the number of iterations; raises
+        NewtonFailure if it did not converge, or what a callback raised."""
+        if self._native is not None:
+            self._native.refresh()
+        self._finish(self._lib.cf_solve(self._sv, self._cs, self._state))
+        st = self._state
+        if st.reason <= 0:
+            raise NewtonFailure(_REASONS.get(st.reason, str(st.reason)), st.iterations)
+        return st.iterations
 
-    def _iteration(self) -> tuple[int, tuple[float, float, float] | None]:
-        """One Newton iteration from U with F(U) in b: the linear solve, U ← U − δU, F(U) and
-        the norms; (the KSP's reason, the norms (‖U‖, ‖δU‖, ‖F‖) or None if it failed).
-        The C loop does the same in one call (cosserat_fem/newton_loop.c)."""
-        ksp = self.ksp
-        ksp.solve(self.b, self.dx)
-        reason = ksp.getConvergedReason()
-        if reason < 0:
-            return reason, None
-        self._u.axpy(-1.0, self.dx)
-        self._residual()
-        return reason, self._norms()
+    def _finish(self, status: int, where: str = "a Newton solve") -> None:
+        """After a C solve: the counters into :attr:`stats`; a callback's exception raised again
+        (under MPI on every rank that met one; a CosseratError agreed across ranks), or a
+        RuntimeError for a PETSc error code."""
+        st, stats = self._state, self.stats
+        if self._parallel and not status and st.reason <= 0:  # every rank's (global norms)
+            from .parallel import agree
 
-    def _run(self) -> tuple[int, int]:
-        """Newton's iterations from U, which then holds the last iterate: (iterations, SNES
-        reason). The steps, norms and exits of SNES newtonls with the basic line search."""
-        t0 = time.perf_counter()
-        reasons = PETSc.SNES.ConvergedReason
-        native = self._native
-        if native is not None and self.iteration_hook is None and self.settings.jacobian != "full":
-            return self._run_native(t0)
-        if native is not None:
-            counted = self._refresh_native()
-            residual, iteration = native.residual, native.iterate
-        else:
-            residual, iteration = self._residual, self._iteration
-        residual()
-        fnorm = self.b.norm()
-        it = 0
-        if not math.isfinite(fnorm):
-            reason = reasons.DIVERGED_FNORM_NAN
-        else:
-            reason = self._converged(0, (0.0, 0.0, fnorm))
-        while reason == reasons.ITERATING and it < self.settings.max_iterations:
-            self._jacobian()
-            ksp_reason, norms = iteration()
-            if ksp_reason < 0:
-                reason = reasons.DIVERGED_LINEAR_SOLVE
-                break
-            if not math.isfinite(norms[2]):
-                reason = reasons.DIVERGED_FNORM_NAN
-                break
-            it += 1
-            reason = self._converged(it, norms)
-        if reason == reasons.ITERATING:
-            reason = reasons.DIVERGED_MAX_IT
-        if native is not None:
-            self._count_native(counted)
-        self.stats.time_solve += time.perf_counter() - t0
-        self.stats.iterations += it
-        return it, reason
-
-    def _refresh_native(self) -> tuple[int, float]:
-        """The C loop's constants and Dirichlet values for this solve; its counters before it."""
-        self._native.refresh()
-        return self._native.counters
-
-    def _count_native(self, counted: tuple[int, float]) -> None:
-        """The C loop's residual assemblies and their time since ``counted``, into the stats."""
-        assemblies, seconds = self._native.counters
-        self.stats.residual_assemblies += assemblies - counted[0]
-        self.stats.time_residual += seconds - counted[1]
-
-    def _run_native(self, t0: float) -> tuple[int, int]:
-        """:meth:`_run` in one call into C (cosserat_fem/newton_loop.c ``cf_newton``, for a
-        reused Jacobian and no iteration hook): the same iterates, norms, counts and reasons."""
-        counted = self._refresh_native()
-        st = self._native.newton(self._need_jacobian, self._jacobian, self._update_prev)
-        self._f0, self._f_prev, self._update_prev = st.f0, st.f_prev, st.update_prev
-        self._count_native(counted)
-        self.stats.time_solve += time.perf_counter() - t0
-        self.stats.iterations += st.iterations
-        return st.iterations, st.reason
-
-    def solve_stages(self, sd, call) -> None:
-        """The Newton solves of a time step taken in C (cosserat_fem/native_sdirk.py): ``call()``
-        runs ``cf_sdirk_step`` on ``sd`` (its ``cf_sdirk``) with this solver's C loop, which
-        applies :meth:`solve`'s policy per stage. The policy's state goes in, the counters come
-        out as :meth:`solve` keeps them, a Jacobian is assembled whenever the C asks for one,
-        and a stage that fails raises the NewtonFailure :meth:`solve` raises."""
-        native = self._native
-        counted = native.counters
-        stats = self.stats
-        sd.need_jacobian, sd.since = self._need_jacobian, self._solves_since_jacobian
-        sd.solves = sd.newton_iterations = sd.retries = 0
-        sd.time_solve = 0.0
-        sd.max_in_a_solve = stats.max_iterations_in_a_solve
-        st = native.state
-        st.update_prev = self._update_prev
-        status = call()
-        while status == NEED_JACOBIAN:
-            t0 = time.perf_counter()
-            self._need_jacobian = True
-            self._jacobian()
-            sd.need_jacobian = sd.since = 0
-            sd.time_solve += time.perf_counter() - t0
-            status = call()
+            error, self.callback_error = self.callback_error, None
+            if error is not None and not isinstance(error, CosseratError):
+                error = RuntimeError(f"{type(error).__name__}: {error}")
+            agree(self.U.function_space.mesh.comm, error)
+        stats.solves, stats.iterations = st.solves, st.newton_iterations
+        stats.residual_assemblies, stats.retries = st.residuals, st.retries
+        stats.time_residual, stats.time_solve = st.time_residual, st.time_solve
+        stats.last_iterations, stats.max_iterations_in_a_solve = (st.last_iterations,
+                                                                  st.max_in_a_solve)
         if status:
-            raise RuntimeError(f"PETSc error {status} in the C time step, stage {sd.stage + 1}, "
-                               f"its unknown at τ = ω0 t = {sd.unknown_time:.10g}")
-        self._f0, self._f_prev, self._update_prev = st.f0, st.f_prev, st.update_prev
-        self._need_jacobian, self._solves_since_jacobian = bool(sd.need_jacobian), sd.since
-        stats.solves += sd.solves
-        stats.iterations += sd.newton_iterations
-        stats.retries += sd.retries
-        stats.time_solve += sd.time_solve
-        if sd.solves:
-            stats.last_iterations = sd.last_iterations
-        stats.max_iterations_in_a_solve = sd.max_in_a_solve
-        self._count_native(counted)
-        if sd.reason <= 0:
-            raise NewtonFailure(_REASONS.get(sd.reason, str(sd.reason)), sd.stage_iterations)
+            error, self.callback_error = self.callback_error, None
+            if error is None:
+                error = RuntimeError(f"PETSc error {status} in {where}")
+            raise error
 
     # -- checkpoint/restart ---------------------------------------------------------------
     def state_dict(self) -> dict:
@@ -502,7 +403,7 @@ class NewtonSolver:
         counters = {f"stats.{f.name}": getattr(self.stats, f.name) for f in fields(self.stats)}
         state = {
             "need_jacobian": self._need_jacobian,
-            "solves_since_jacobian": self._solves_since_jacobian,
+            "solves_since_jacobian": int(self._state.since),
             **counters,
         }
         if self._J_snapshot is not None:
@@ -518,7 +419,13 @@ class NewtonSolver:
         for f in fields(self.stats):
             kind = type(getattr(self.stats, f.name))
             setattr(self.stats, f.name, kind(state[f"stats.{f.name}"]))
-        self._solves_since_jacobian = int(state["solves_since_jacobian"])
+        st, stats = self._state, self.stats
+        st.solves, st.newton_iterations = stats.solves, stats.iterations
+        st.residuals, st.retries = stats.residual_assemblies, stats.retries
+        st.time_residual, st.time_solve = stats.time_residual, stats.time_solve
+        st.last_iterations, st.max_in_a_solve = (stats.last_iterations,
+                                                 stats.max_iterations_in_a_solve)
+        st.since = int(state["solves_since_jacobian"])
         self._need_jacobian = bool(state["need_jacobian"])
         if self.settings.jacobian == "full" or "jacobian.coefficient0" not in state:
             self._need_jacobian = True

@@ -1,5 +1,8 @@
-/* The inner loop of cosserat_fem/newton.py in C: the residual assembly of a DOLFINx form and
- * one modified-Newton iteration, for a serial run (cosserat_fem/native_newton.py builds it).
+/* Newton's method of cosserat_fem/newton.py, written once, in C (cosserat_fem/native_newton.py
+ * builds it): the solve's Jacobian policy, the loop and the stop rule (cf_solve, cf_test), with
+ * callbacks for what Python keeps (DOLFINx's residual assembly under MPI, the Jacobian, an
+ * observer of the iterations, SNES's iterations); the residual assembly of a DOLFINx form for a
+ * serial run (cf_residual); and a whole SDIRK step over cf_solve (cf_sdirk_step).
  *
  * cf_residual does what NewtonSolver._assemble does with DOLFINx 0.5.2's assemble_vector and
  * set_bc, in the same order of operations, so that b comes out bitwise the same: b = 0; for
@@ -10,16 +13,15 @@
  * index tables that native_newton.py reads off DOLFINx's own pack_coefficients, so any
  * coefficient the form has is packed as DOLFINx packs it.
  *
- * cf_iterate is one pass of NewtonSolver._run's loop body: KSPSolve(b, dx), the KSP's
- * reason, U -= dx, b = F(U), and the norms (||U||, ||dx||, ||b||) in one split-phase
- * reduction, as _norms takes them.
- *
- * cf_newton is the whole of NewtonSolver._run for a reused Jacobian and no per-iteration
- * observer: the first residual and its norm, the test at k = 0, then cf_iterate and the stop
- * rule of NewtonSolver._test (cf_test, which tests/unit/test_newton_stop.py feeds the same
- * sequences as the Python rule), in the same order and the same IEEE operations (compiled with
- * -ffp-contract=off: no fused multiply-adds). It returns to Python once, before the first
- * iteration, when the caller says a Jacobian is due (phase 1), and goes on when called again.
+ * cf_solve is NewtonSolver.solve: the policy (a lagged Jacobian's count, one retry from the same
+ * guess with a fresh Jacobian after a failure with an old one, the frozen refresh), then the
+ * iterations of SNES newtonls with the basic line search: the first residual and its norm, the
+ * test at k = 0, then per iteration the Jacobian if due, KSPSolve(b, dx), the KSP's reason,
+ * U -= dx, b = F(U), the norms (||U||, ||dx||, ||b||) in one split-phase reduction, and the
+ * stop rule cf_test (tests/unit/test_newton_stop.py), compiled with -ffp-contract=off (no fused
+ * multiply-adds). Each callback returns 0 or a nonzero status (a PETSc error code, or
+ * CF_CALLBACK_ERROR when Python stored an exception), which ends the solve at once and is
+ * cf_solve's answer.
  */
 #include <math.h>
 #include <petscksp.h>
@@ -55,9 +57,7 @@ typedef struct {
   const double* u_values;      /* U's values (the array the Vec u wraps) */
   double* w;                   /* scratch: the largest wsize */
   double* be;                  /* scratch: dofs_per_cell */
-  void *u, *b, *dx, *ksp;      /* PETSc Vec and KSP */
-  double time_residual;        /* s, accumulated */
-  int64_t residuals;           /* assemblies, accumulated */
+  void* b;                     /* the PETSc Vec F(U) goes into */
 } cf_problem;
 
 static double now(void)
@@ -91,7 +91,6 @@ static void assemble(const cf_problem* p, double* b)
 /* b = F(U) with the Dirichlet rows x - g; 0 or a PETSc error code. */
 int cf_residual(cf_problem* p)
 {
-  const double t0 = now();
   PetscScalar* b;
   PetscInt n;
   PetscErrorCode ierr = VecGetLocalSize((Vec)p->b, &n);
@@ -105,38 +104,7 @@ int cf_residual(cf_problem* p)
     b[d] = -1.0 * (p->bc_values[d] - p->u_values[d]);
   }
   ierr = VecRestoreArray((Vec)p->b, &b);
-  if (ierr) return (int)ierr;
-  p->time_residual += now() - t0;
-  p->residuals += 1;
-  return 0;
-}
-
-/* One iteration from U with F(U) in b: *reason = the KSP's converged reason; when it is not
- * negative, U -= dx, b = F(U), norms = (||U||, ||dx||, ||b||). 0 or a PETSc error code. */
-int cf_iterate(cf_problem* p, int* reason, double* norms)
-{
-  KSPConvergedReason r;
-  PetscErrorCode ierr = KSPSolve((KSP)p->ksp, (Vec)p->b, (Vec)p->dx);
-  if (ierr) return (int)ierr;
-  ierr = KSPGetConvergedReason((KSP)p->ksp, &r);
-  if (ierr) return (int)ierr;
-  *reason = (int)r;
-  if (r < 0) return 0;
-  ierr = VecAXPY((Vec)p->u, -1.0, (Vec)p->dx);
-  if (ierr) return (int)ierr;
-  ierr = cf_residual(p);
-  if (ierr) return ierr;
-  PetscReal fnorm, ynorm, xnorm;
-  if ((ierr = VecNormBegin((Vec)p->b, NORM_2, &fnorm))) return (int)ierr;
-  if ((ierr = VecNormBegin((Vec)p->dx, NORM_2, &ynorm))) return (int)ierr;
-  if ((ierr = VecNormBegin((Vec)p->u, NORM_2, &xnorm))) return (int)ierr;
-  if ((ierr = VecNormEnd((Vec)p->b, NORM_2, &fnorm))) return (int)ierr;
-  if ((ierr = VecNormEnd((Vec)p->dx, NORM_2, &ynorm))) return (int)ierr;
-  if ((ierr = VecNormEnd((Vec)p->u, NORM_2, &xnorm))) return (int)ierr;
-  norms[0] = xnorm;
-  norms[1] = ynorm;
-  norms[2] = fnorm;
-  return 0;
+  return (int)ierr;
 }
 
 /* The float64 kernel of the i-th integral of a type (0 cell, 1 exterior facet) of a ufcx_form
@@ -147,23 +115,42 @@ void* cf_kernel(uintptr_t form, int type, int i)
   return (void*)integrals[i]->tabulate_tensor_float64;
 }
 
+
+#define CF_CALLBACK_ERROR (-2)
+
+typedef int (*cf_call)(void* ctx);                 /* b = F(U), or A = J(U) */
+typedef int (*cf_observe)(void* ctx, int it, const double* norms, int reason);
+typedef int (*cf_run)(void* ctx, int* iterations, int* reason); /* SNES's iterations */
+
 typedef struct {
   double rtol, atol, stol, xatol;
   int max_iterations;
-  int linear_test;   /* a reused Jacobian: the contraction estimate of _test */
+  int linear_test;   /* a reused Jacobian: the contraction estimate of the stop rule */
+  int full, lagged, lag, frozen, refresh_iterations; /* the Jacobian policy */
 } cf_settings;
 
 typedef struct {
-  int phase;         /* 0: start a solve; 1: before the first iteration (a Jacobian is due) */
-  int need_jacobian; /* in: the caller will assemble one before the first iteration */
-  int iterations;
-  int reason;        /* SNESConvergedReason */
-  double f0, f_prev, update_prev;
-  double norms[3];   /* the last (||U||, ||dx||, ||F||) */
+  cf_problem* problem;    /* the C assembler, or NULL: the residual callback */
+  cf_call residual, jacobian;
+  cf_observe on_iteration; /* NULL unless an observer listens */
+  cf_run run;             /* NULL: Newton's loop here; else the iterations of SNES */
+  void* ctx;              /* the callbacks' argument */
+  void *u, *b, *dx, *ksp, *initial; /* PETSc Vec and KSP; initial: the guess, for a retry */
+} cf_solver;
+
+typedef struct {
+  double f0, f_prev, update_prev; /* the stop rule's running norms */
+  double norms[3];     /* the last (||U||, ||dx||, ||F||) */
+  int need_jacobian, since; /* the policy: a Jacobian is due; solves since the last one */
+  int iterations, reason;   /* of the last solve (retry included); SNESConvergedReason */
+  /* counters, accumulated */
+  int64_t solves, newton_iterations, retries, residuals;
+  int last_iterations, max_in_a_solve;
+  double time_solve, time_residual; /* s */
 } cf_newton_state;
 
-/* NewtonSolver._test: the reason after iteration it with norms (||U||, ||dU||, ||F||), at
- * it = 0 (0, 0, ||F0||); keeps ||F0|| and the last ||dU||, ||F|| in st for the estimate. */
+/* The stop rule: the reason after iteration it with norms (||U||, ||dU||, ||F||), at it = 0
+ * (0, 0, ||F0||); keeps ||F0|| and the last ||dU||, ||F|| in st for the estimate. */
 int cf_test(const cf_settings* s, cf_newton_state* st, int it, const double* n)
 {
   const double xnorm = n[0], ynorm = n[1], fnorm = n[2];
@@ -176,7 +163,7 @@ int cf_test(const cf_settings* s, cf_newton_state* st, int it, const double* n)
   double rho = 0.0;
   if (linear) {
     const double a = ynorm / st->update_prev, b = fnorm / st->f_prev;
-    rho = b > a ? b : a; /* Python's max(a, b) */
+    rho = b > a ? b : a; /* the larger ratio */
   }
   st->update_prev = ynorm;
   st->f_prev = fnorm;
@@ -189,53 +176,122 @@ int cf_test(const cf_settings* s, cf_newton_state* st, int it, const double* n)
   return SNES_CONVERGED_ITERATING;
 }
 
-/* NewtonSolver._run (see the top of the file); 0 or a PETSc error code. */
-int cf_newton(cf_problem* p, const cf_settings* s, cf_newton_state* st)
+/* b = F(U): the C assembler or the callback, counted and timed. */
+static int residual(const cf_solver* sv, cf_newton_state* st)
 {
-  int ierr;
-  if (st->phase == 0) {
-    PetscReal fnorm;
-    st->iterations = 0;
-    if ((ierr = cf_residual(p))) return ierr;
-    if ((ierr = (int)VecNorm((Vec)p->b, NORM_2, &fnorm))) return ierr;
-    if (!isfinite(fnorm)) {
-      st->reason = SNES_DIVERGED_FNORM_NAN;
-      return 0;
-    }
-    const double first[3] = {0.0, 0.0, fnorm};
-    st->reason = cf_test(s, st, 0, first);
-    if (st->reason == SNES_CONVERGED_ITERATING && s->max_iterations > 0 && st->need_jacobian) {
-      st->phase = 1; /* the caller assembles the Jacobian and calls again */
-      return 0;
-    }
+  const double t0 = now();
+  const int ierr = sv->problem ? cf_residual(sv->problem) : sv->residual(sv->ctx);
+  st->time_residual += now() - t0;
+  st->residuals += 1;
+  return ierr;
+}
+
+/* The stop rule, and the observer if there is one: 0 or the observer's status. */
+static int test(const cf_solver* sv, const cf_settings* s, cf_newton_state* st, int it,
+                const double* norms, int* reason)
+{
+  *reason = cf_test(s, st, it, norms);
+  return sv->on_iteration ? sv->on_iteration(sv->ctx, it, norms, *reason) : 0;
+}
+
+/* Newton's iterations from U (SNES newtonls with the basic line search): *iterations and the
+ * *reason; 0 or a PETSc error code or a callback's status. */
+static int newton(const cf_solver* sv, const cf_settings* s, cf_newton_state* st,
+                  int* iterations, int* reason)
+{
+  int ierr, it = 0;
+  PetscReal fnorm;
+  *iterations = 0;
+  if ((ierr = residual(sv, st))) return ierr;
+  if ((ierr = (int)VecNorm((Vec)sv->b, NORM_2, &fnorm))) return ierr;
+  if (!isfinite(fnorm)) {
+    *reason = SNES_DIVERGED_FNORM_NAN;
+    return 0;
   }
-  st->phase = 0;
-  while (st->reason == SNES_CONVERGED_ITERATING && st->iterations < s->max_iterations) {
-    int ksp_reason;
-    if ((ierr = cf_iterate(p, &ksp_reason, st->norms))) return ierr;
-    if (ksp_reason < 0) {
-      st->reason = SNES_DIVERGED_LINEAR_SOLVE;
+  const double first[3] = {0.0, 0.0, fnorm};
+  if ((ierr = test(sv, s, st, 0, first, reason))) return ierr;
+  while (*reason == SNES_CONVERGED_ITERATING && it < s->max_iterations) {
+    if (st->need_jacobian || s->full) {
+      if ((ierr = sv->jacobian(sv->ctx))) return ierr;
+      st->need_jacobian = 0;
+      st->since = 0;
+    }
+    KSPConvergedReason r;
+    if ((ierr = (int)KSPSolve((KSP)sv->ksp, (Vec)sv->b, (Vec)sv->dx))) return ierr;
+    if ((ierr = (int)KSPGetConvergedReason((KSP)sv->ksp, &r))) return ierr;
+    if (r < 0) {
+      *reason = SNES_DIVERGED_LINEAR_SOLVE;
       break;
     }
-    if (!isfinite(st->norms[2])) {
-      st->reason = SNES_DIVERGED_FNORM_NAN;
+    if ((ierr = (int)VecAXPY((Vec)sv->u, -1.0, (Vec)sv->dx))) return ierr;
+    if ((ierr = residual(sv, st))) return ierr;
+    PetscReal f, y, x;
+    if ((ierr = (int)VecNormBegin((Vec)sv->b, NORM_2, &f))) return ierr;
+    if ((ierr = (int)VecNormBegin((Vec)sv->dx, NORM_2, &y))) return ierr;
+    if ((ierr = (int)VecNormBegin((Vec)sv->u, NORM_2, &x))) return ierr;
+    if ((ierr = (int)VecNormEnd((Vec)sv->b, NORM_2, &f))) return ierr;
+    if ((ierr = (int)VecNormEnd((Vec)sv->dx, NORM_2, &y))) return ierr;
+    if ((ierr = (int)VecNormEnd((Vec)sv->u, NORM_2, &x))) return ierr;
+    st->norms[0] = x;
+    st->norms[1] = y;
+    st->norms[2] = f;
+    if (!isfinite(f)) {
+      *reason = SNES_DIVERGED_FNORM_NAN;
       break;
     }
-    st->iterations += 1;
-    st->reason = cf_test(s, st, st->iterations, st->norms);
+    it += 1;
+    *iterations = it;
+    if ((ierr = test(sv, s, st, it, st->norms, reason))) return ierr;
   }
-  if (st->reason == SNES_CONVERGED_ITERATING) st->reason = SNES_DIVERGED_MAX_IT;
+  if (*reason == SNES_CONVERGED_ITERATING) *reason = SNES_DIVERGED_MAX_IT;
   return 0;
 }
 
-/* ---- A whole SDIRK step (cosserat_fem/integrators.py SDIRK.step with NewtonSolver.solve per
- * stage) and its accept, for a reused Jacobian: the stage values, the predictor, the solve
- * policy of NewtonSolver.solve (the lagged count, a retry with a fresh Jacobian, the frozen
- * refresh) and cf_newton per stage, with the same IEEE operations, element by element, as
- * the NumPy calls of the Python step. It returns to Python (CF_NEED_JACOBIAN) when a Jacobian
- * is due, and goes on from where it stopped when called again. */
+/* One run of iterations (Newton's here, or SNES's through sv->run), counted. */
+static int iterate(const cf_solver* sv, const cf_settings* s, cf_newton_state* st, int* it,
+                   int* reason)
+{
+  const int ierr = sv->run ? sv->run(sv->ctx, it, reason) : newton(sv, s, st, it, reason);
+  st->newton_iterations += *it;
+  return ierr;
+}
 
-#define CF_NEED_JACOBIAN (-1)
+/* NewtonSolver.solve from U (the guess): the Jacobian policy, the iterations, one retry from
+ * the same guess with a fresh Jacobian if the solve failed with an old one, the counters. The
+ * outcome is st->reason (> 0 converged) after st->iterations; the answer is 0, or a PETSc
+ * error code or a callback's status (the solve then ended where it was). */
+int cf_solve(const cf_solver* sv, const cf_settings* s, cf_newton_state* st)
+{
+  const double t0 = now();
+  int ierr, iterations = 0, reason = SNES_CONVERGED_ITERATING;
+  if (s->lagged && st->since >= s->lag) st->need_jacobian = 1;
+  if ((ierr = (int)VecCopy((Vec)sv->u, (Vec)sv->initial))) return ierr;
+  const int fresh = st->need_jacobian || s->full;
+  ierr = iterate(sv, s, st, &iterations, &reason);
+  if (!ierr && reason <= 0 && !fresh) { /* an old Jacobian may be the cause */
+    int more = 0;
+    st->retries += 1;
+    if ((ierr = (int)VecCopy((Vec)sv->initial, (Vec)sv->u))) return ierr;
+    st->need_jacobian = 1;
+    ierr = iterate(sv, s, st, &more, &reason);
+    iterations += more;
+  }
+  st->time_solve += now() - t0;
+  if (ierr) return ierr;
+  st->since += 1;
+  st->solves += 1;
+  st->iterations = iterations;
+  st->reason = reason;
+  st->last_iterations = iterations;
+  if (iterations > st->max_in_a_solve) st->max_in_a_solve = iterations;
+  if (reason > 0 && s->frozen && iterations > s->refresh_iterations) st->need_jacobian = 1;
+  return 0;
+}
+
+/* ---- A whole SDIRK step (cosserat_fem/integrators.py SDIRK.step with cf_solve per stage) and
+ * its accept: the stage values and the predictor, with the same IEEE operations, element by
+ * element, as the NumPy calls of the Python step. */
+
 #define CF_MAX_STAGES 8
 
 typedef struct {
@@ -249,21 +305,13 @@ typedef struct {
   double* time_value;           /* the time Constant's own storage */
   double* constants;            /* the packed constants the residual reads */
   int32_t time_slot;            /* τ's index in them, -1 if the form has no τ */
-  void* initial;                /* Vec: the stage's guess, kept for a retry */
-  int lagged, lag, frozen, refresh_iterations; /* the Jacobian policy */
   /* in, per step */
   double h, time;
   int64_t stored;               /* stage rates stored so far (the ring's count) */
-  /* the Newton policy's state, in and out */
-  int need_jacobian, since;
-  /* running: the stage and where in its solve (0 begin, 1 first run, 2 retry run) */
-  int stage, phase, fresh, stage_iterations;
-  /* out */
+  /* out: the stage reached (the failed one), its unknown's time, the iterations, the reason */
+  int stage;
   double unknown_time;
   int iterations, reason;
-  int64_t solves, newton_iterations, retries;
-  int last_iterations, max_in_a_solve;
-  double time_solve;
   /* loads given by data (cosserat_fem/load_coefficients.py), in: where each one's values go
    * (a slot of the packed constants, or a quadrature Function's array), how many, and their
    * values at every stage time of the step, (stages, data_stride), computed before it */
@@ -346,73 +394,30 @@ static void stage_begin(cf_sdirk* sd, int i)
   for (int32_t k = 0; k < n; ++k) sd->u[k] += sd->z[k];
 }
 
-/* cf_newton from its phase, timed into sd->time_solve; its iterations counted. */
-static int run_newton(cf_problem* p, const cf_settings* s, cf_newton_state* st, cf_sdirk* sd)
-{
-  const double t0 = now();
-  const int ierr = cf_newton(p, s, st);
-  sd->time_solve += now() - t0;
-  if (!ierr && st->phase == 0) {
-    sd->newton_iterations += st->iterations;
-    sd->stage_iterations += st->iterations;
-  }
-  return ierr;
-}
-
-/* The SDIRK step of h from sd->time (sd->stage = 0, sd->phase = 0 to begin): 0 when done, with
- * sd->reason > 0 (U = U_n + h Σ b_i K_i) or <= 0 (the solve of stage sd->stage failed after
- * sd->stage_iterations iterations); CF_NEED_JACOBIAN when a Jacobian is due (the caller
- * assembles it, clears need_jacobian and since, and calls again); or a PETSc error code. */
-int cf_sdirk_step(cf_problem* p, const cf_settings* s, cf_newton_state* st, cf_sdirk* sd)
+/* The SDIRK step of h from sd->time: 0 when done, with sd->reason > 0 (U = U_n + h Σ b_i K_i)
+ * or <= 0 (the solve of stage sd->stage failed after st->iterations iterations); or cf_solve's
+ * error (a PETSc error code or a callback's status). */
+int cf_sdirk_step(const cf_solver* sv, const cf_settings* s, cf_newton_state* st, cf_sdirk* sd)
 {
   const int n = sd->n;
   const double h = sd->h, gh = sd->gamma * h;
   int ierr;
   if (sd->stages < 1 || sd->stages > CF_MAX_STAGES) return PETSC_ERR_ARG_OUTOFRANGE;
-  while (sd->stage < sd->stages) {
-    const int i = sd->stage;
-    if (sd->phase == 0) { /* NewtonSolver.solve up to its first _run */
-      stage_begin(sd, i);
-      if (sd->lagged && sd->since >= sd->lag) sd->need_jacobian = 1;
-      if ((ierr = (int)VecCopy((Vec)p->u, (Vec)sd->initial))) return ierr;
-      sd->fresh = sd->need_jacobian;
-      sd->stage_iterations = 0;
-      sd->phase = 1;
-      st->phase = 0;
-      st->need_jacobian = sd->need_jacobian;
-    } else {
-      st->need_jacobian = sd->need_jacobian; /* 0: the caller assembled it */
-    }
-    if ((ierr = run_newton(p, s, st, sd))) return ierr;
-    if (st->phase == 1) return CF_NEED_JACOBIAN;
-    if (st->reason <= 0 && sd->phase == 1 && !sd->fresh) { /* retry with a new Jacobian */
-      sd->retries += 1;
-      if ((ierr = (int)VecCopy((Vec)sd->initial, (Vec)p->u))) return ierr;
-      sd->need_jacobian = 1;
-      sd->phase = 2;
-      st->phase = 0;
-      st->need_jacobian = 1;
-      if ((ierr = run_newton(p, s, st, sd))) return ierr;
-      if (st->phase == 1) return CF_NEED_JACOBIAN;
-    }
-    /* the rest of NewtonSolver.solve */
-    sd->since += 1;
-    sd->solves += 1;
-    sd->last_iterations = sd->stage_iterations;
-    if (sd->stage_iterations > sd->max_in_a_solve) sd->max_in_a_solve = sd->stage_iterations;
-    sd->phase = 0;
+  sd->iterations = 0;
+  for (int i = 0; i < sd->stages; ++i) {
+    sd->stage = i;
+    stage_begin(sd, i);
+    if ((ierr = cf_solve(sv, s, st))) return ierr;
     if (st->reason <= 0) {
       sd->reason = st->reason;
       return 0;
     }
-    if (sd->frozen && sd->stage_iterations > sd->refresh_iterations) sd->need_jacobian = 1;
-    sd->iterations += sd->stage_iterations;
+    sd->iterations += st->iterations;
     double* Ki = sd->K + (int64_t)i * n;
     const double inv = 1.0 / gh;
     for (int32_t k = 0; k < n; ++k) Ki[k] = sd->u[k] - sd->z[k];
     for (int32_t k = 0; k < n; ++k) Ki[k] *= inv;
     sd->taus[i] = sd->unknown_time;
-    sd->stage += 1;
   }
   for (int32_t k = 0; k < n; ++k) sd->u[k] = sd->u_n[k];
   for (int i = 0; i < sd->stages; ++i) {

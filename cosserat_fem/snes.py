@@ -5,8 +5,10 @@ SNES runs: the same interface (``solve``, ``request_jacobian``, ``set_form``, ``
 statistics, ``state_dict``), the same residual and Jacobian assembly, the same Jacobian
 policies (full, lagged, frozen: SNES asks for the Jacobian at every iteration and the policy
 decides whether it is assembled; an unchanged matrix keeps its LU factors), the same retry with
-a fresh Jacobian, and the same stop rule: :meth:`NewtonSolver._converged` is SNES's convergence
-test, called by SNES with (‖U_k‖, ‖δU_k‖, ‖F(U_k)‖) as the project's loop calls it. Its
+a fresh Jacobian, and the same stop rule: the policy and the retry are cf_solve's
+(cosserat_fem/newton_loop.c), which calls SNESSolve back instead of its own iterations, and
+the stop rule ``cf_test`` (:meth:`NewtonSolver._converged`) is SNES's convergence test, called
+by SNES with (‖U_k‖, ‖δU_k‖, ‖F(U_k)‖) as the project's loop calls it. Its
 tolerances are SNES's own: solver.rtol, atol, stol and max_iterations set them, and the options
 ``snes_rtol``, ``snes_atol``, ``snes_stol`` and ``snes_max_it`` override them.
 
@@ -23,11 +25,13 @@ command line) holds PETSc options without the leading "-" and the prefix
 :data:`~cosserat_fem.schema.PETSC_PREFIX` (``cosserat_``), e.g. ``snes_type = "newtontr"``,
 ``snes_linesearch_type = "bt"``, ``ksp_type = "gmres"``, ``pc_type = "bjacobi"``,
 ``snes_monitor = ""``. They are in PETSc's options database while SNES reads them (its set-up
-and each solve: ``*_view`` and ``*_converged_reason`` options are read at every solve), and
-taken out after, so that solvers built one after another (a sweep, a test session) do not see
-each other's options; options given to PETSc otherwise (``PETSC_OPTIONS="-cosserat_..."``)
-apply too. A value PETSc refuses, or an option PETSc has not used by the end of the first
-solve (a misspelling, an option of a type not chosen), is a SceneError naming the key.
+and each solve: ``*_view`` and ``*_converged_reason`` options are read at every solve; with no
+option given, only the :data:`DEFAULTS`, read at the set-up, the solves leave the database
+alone), and taken out after, so that solvers built one after another (a sweep, a test
+session) do not see each other's options; options given to PETSc otherwise
+(``PETSC_OPTIONS="-cosserat_..."``) apply too. A value PETSc refuses, or an option PETSc has
+not used by the end of the first solve (a misspelling, an option of a type not chosen), is a
+SceneError naming the key.
 """
 
 from __future__ import annotations
@@ -171,8 +175,10 @@ class SNESSolver(NewtonSolver):
         return SceneError(f"solver.petsc: PETSc refused these options together: {reason}")
 
     def _make_native(self) -> None:
-        """No C loop: SNES runs the iterations."""
+        """No C assembler: cf_solve runs SNES (:meth:`_iterate`) for its iterations."""
         self._native = None
+        self._sv.problem = self._ffi.NULL
+        self._sv.run = self._lib.cf_py_run
         self.loop = "snes"
 
     # -- SNES's callbacks ---------------------------------------------------------------------
@@ -181,35 +187,44 @@ class SNESSolver(NewtonSolver):
         x.copy(self._u)
 
     def _snes_residual(self, snes, x: PETSc.Vec, f: PETSc.Vec) -> None:
+        """F(x) into f, counted and timed in the C solve's counters."""
+        t0 = time.perf_counter()
         self._to_U(x)
         self._residual(f)
+        st = self._state
+        st.residuals += 1
+        st.time_residual += time.perf_counter() - t0
 
     def _snes_jacobian(self, snes, x: PETSc.Vec, J: PETSc.Mat, P: PETSc.Mat) -> None:
-        """J(x) into A when the Jacobian policy asks for it (NewtonSolver._jacobian)."""
-        self._to_U(x)
-        self._jacobian()
+        """J(x) into A when cf_solve's Jacobian policy asks for it (SNES asks at every
+        iteration); U is set to x only then."""
+        st = self._state
+        if st.need_jacobian or self._cs.full:
+            self._to_U(x)
+            self._jacobian()
+            st.need_jacobian, st.since = 0, 0
 
     def _snes_test(self, snes, it: int, norms: tuple[float, float, float]) -> int:
         return self._converged(it, norms)
 
     # -- a solve ------------------------------------------------------------------------------
-    def _run(self) -> tuple[int, int]:
-        """SNES's iterations from U, which then holds the last iterate: (iterations, SNES
-        reason). After the first solve, an option PETSc has not read is a SceneError."""
-        t0 = time.perf_counter()
+    def _iterate(self, answer: list) -> None:
+        """cf_solve's ``run``: SNES's iterations from U, which then holds the last iterate;
+        ``answer`` = [iterations, SNES reason]. After the first solve, an option PETSc has not
+        read is a SceneError."""
         snes = self.snes
         self._u.copy(self._x)
-        with petsc_options(self.options, self._used):
+        if self.options or self._used is not None:
+            with petsc_options(self.options, self._used):
+                snes.solve(None, self._x)
+        else:
             snes.solve(None, self._x)
         self._x.copy(self._u)
         if self._parallel:
             self._u.ghostUpdate(addv=_INSERT, mode=_FORWARD)
-        it, reason = snes.getIterationNumber(), snes.getConvergedReason()
-        self.stats.time_solve += time.perf_counter() - t0
-        self.stats.iterations += it
+        answer[:] = snes.getIterationNumber(), snes.getConvergedReason()
         if self._used is not None:
             self._check_used()
-        return it, reason
 
     def _check_used(self) -> None:
         """SceneError (on every rank) naming the first option PETSc has not read by now."""

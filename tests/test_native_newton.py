@@ -1,23 +1,24 @@
-"""Newton's inner loop in C (cosserat_fem/native_newton.py, newton_loop.c) against the Python loop.
+"""The C residual assembler (cosserat_fem/native_newton.py, newton_loop.c ``cf_residual``) against
+DOLFINx's, under the same Newton loop.
 
-The C loop does the Python loop's operations in the same order: the FFCx kernels over the
-same cells with the same packed coefficients, DOLFINx's summation order, set_bc's arithmetic
-for the Dirichlet rows, and the same PETSc calls for the solve, the update and the norms. So
-equality is the test, bit for bit, of every probe row and every Newton counter, not agreement
-to a tolerance: a difference in the last bit would show that an operation differs, and grow
-through the run. Newton's whole solve runs in C (``cf_newton``, the stop rule included) for a
-reused Jacobian; with full Newton (a Jacobian each iteration) each iteration is one call. The
-scenes cover what the C loop must carry: solves that converge at their guess (an arc at rest:
-no Jacobian is ever assembled), cell integrals alone (the
-paper's scene), end loads (exterior facet integrals: the whip, the roll-up, the flying
-spaghetti's free ends), Dirichlet values that move (base excitation), a fork support, a form
-that changes in the run (the whip in 3D moves its chart: a new form, a new C loop), adaptive
-steps, and the three other integrators. A point load's interior facet integral keeps the
-Python loop, as does a parallel run (tests/test_scene_features.py runs those under MPI).
+Every solve runs the one loop (newton_loop.c ``cf_solve``: the policy, the iterations, the stop
+rule); ``solver.loop = "python"`` gives it DOLFINx's assembly as its residual callback, the
+default the C assembler. The C assembler does DOLFINx's operations in the same order: the FFCx
+kernels over the same cells with the same packed coefficients, DOLFINx's summation order and
+set_bc's arithmetic for the Dirichlet rows. So equality is the test, bit for bit, of every probe
+row and every Newton counter, not agreement to a tolerance: a difference in the last bit would
+show that an operation differs, and grow through the run. The scenes cover what the C assembler
+must carry: solves that converge at their guess (an arc at rest: no Jacobian is ever
+assembled), cell integrals alone (the paper's scene), end loads (exterior facet integrals: the
+whip, the roll-up, the flying spaghetti's free ends), Dirichlet values that move (base
+excitation), a fork support, a form that changes in the run (the whip in 3D moves its chart: a
+new form, a new assembler), adaptive steps, full Newton (the Jacobian callback each iteration)
+and the three other integrators. A point load's interior facet integral keeps DOLFINx's
+assembly, as does a parallel run (tests/test_scene_features.py runs those under MPI).
 
-An SDIRK step with a reused Jacobian and no moving support is one C call too
-(cosserat_fem/native_sdirk.py, ``cf_sdirk_step``: stage values, predictor, Newton's policy and
-solves); the cases in :data:`STEPS_IN_C` take every step that way (counted), among them SDIRK4,
+An SDIRK step with a reused Jacobian and no moving support is one C call
+(cosserat_fem/native_sdirk.py, ``cf_sdirk_step``: stage values, predictor, and ``cf_solve`` per
+stage); the cases in :data:`STEPS_IN_C` take every step that way (counted), among them SDIRK4,
 a lagged Jacobian, adaptive steps, a form that changes, and solves that fail: retried with a
 fresh Jacobian, then steps rejected and halved; and loads given by data (a grid table, a table
 of t, a callable torque whose term the Jacobian holds), whose stage values the C step puts in.
@@ -145,10 +146,14 @@ def test_a_point_load_keeps_the_python_loop():
     assert result.summary["newton"]["loop"] == "python"
 
 
-def test_a_failed_compile_keeps_the_python_loop(tmp_path, monkeypatch):
+def test_a_failed_compile_is_one_clear_error(tmp_path, monkeypatch):
     """A C source that does not compile (here: a syntax error; on a machine, missing PETSc
-    headers) is reported as NotApplicable, and the run uses the Python loop; the process does
-    not try to compile again (a second call fails at once, with the same reason)."""
+    headers) is reported as NotApplicable, and the process does not try to compile again (a
+    second call fails at once, with the same reason); a run, whose Newton solves are C's
+    (cf_solve), then stops with a CosseratError that says so (one line, no traceback at the
+    command line), as FFCx's forms need a compiler too."""
+    from cosserat_fem.errors import CosseratError
+
     broken = tmp_path / "newton_loop.c"
     broken.write_text(native_newton.SOURCE.read_text() + "\nthis is not C;\n")
     monkeypatch.setattr(native_newton, "SOURCE", broken)
@@ -160,8 +165,8 @@ def test_a_failed_compile_keeps_the_python_loop(tmp_path, monkeypatch):
     broken.unlink()  # a second attempt would now fail otherwise (no source): it must not try
     with pytest.raises(native_newton.NotApplicable, match="did not compile"):
         native_newton.compiled()
-    result = _run("cao_tucker_2008", 2, [], "auto")
-    assert result.summary["newton"]["loop"] == "python"
+    with pytest.raises(CosseratError, match="newton_loop.c.*did not compile"):
+        _run("cao_tucker_2008", 2, [], "auto")
 
 
 def test_a_damaged_library_is_compiled_again(tmp_path, monkeypatch, caplog):
