@@ -364,6 +364,8 @@ class Table:
 
     fields: Mapping[str, Field | Table | Parameters]
     optional: bool = False
+    #: The resolved dataclass that declares the table (:meth:`of`), or None.
+    resolved: type | None = dataclasses.field(default=None, compare=False)
 
     @classmethod
     def of(cls, resolved: type, optional: bool = False) -> Table:
@@ -376,7 +378,7 @@ class Table:
             spec = f.metadata.get(_DECLARATION)
             if spec is not None:
                 fields[f.metadata.get(_KEY_NAME) or f.name] = spec
-        return cls(fields, optional)
+        return cls(fields, optional, resolved)
 
 
 #: The metadata entries of a resolved field that a key declares: its spec, its scene name.

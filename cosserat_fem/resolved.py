@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -37,8 +37,10 @@ from cosserat_fem.keys import (
     Parameters,
     PetscOptions,
     Points,
+    Table,
     Text,
     Vector,
+    declared_names,
     key,
     table,
 )
@@ -328,6 +330,52 @@ class PointLoad:
     torque: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m"))
 
 
+class FormLoad:
+    """A load declared with its physics, so that a new kind of load is its declaration here, its
+    form in forms/ and its test. A subclass is a frozen, kw_only dataclass whose fields declare
+    its keys (:func:`~cosserat_fem.keys.key`; its load vectors as
+    :class:`~cosserat_fem.keys.LoadVector`), made a field of :class:`Loads` with
+    :func:`~cosserat_fem.keys.table`; ``physics`` names its module in forms/, whose
+    ``residual(load, context)`` gives its term of the weak form (the scene's
+    ``model.RodModel.residual_terms`` adds it, under the load's key; the Jacobian is UFL's
+    derivative of the form). The scene reader parses its load vectors (functions of t and the
+    constants), calls :meth:`check`, and the scene's other parts (``load_components``, the
+    plane, ``to_dict``) read it through :meth:`vectors` and :meth:`in_plane`."""
+
+    physics: ClassVar[str]
+
+    def vectors(self) -> dict[str, tuple[Expression, ...]]:
+        """Its load vectors, by key."""
+        return {
+            name: getattr(self, f)
+            for name, f in declared_names(type(self)).items()
+            if isinstance(_spec(type(self), f), LoadVector)
+        }
+
+    def check(self, key: str, supports: Supports) -> None:
+        """SceneError naming ``key`` (its dotted table) if the scene cannot carry it."""
+
+    def in_plane(self, normal: tuple[int, ...], torques: tuple[int, ...]) -> bool:
+        """Whether it keeps a motion in a plane (:data:`PLANES`: the force has no component
+        along ``normal``, the torque none about ``torques``); by default it does not."""
+        return False
+
+    def given(self) -> dict[str, Any]:
+        """Its keys as a scene file gives them (for to_dict)."""
+        vectors = self.vectors()
+        return {
+            name: [component_dict(e) for e in vectors[name]]
+            if name in vectors
+            else getattr(self, f)
+            for name, f in declared_names(type(self)).items()
+        }
+
+
+def _spec(cls: type, name: str) -> Any:
+    """The key spec the field ``name`` of ``cls`` declares."""
+    return Table.of(cls).fields[{f: k for k, f in declared_names(cls).items()}[name]]
+
+
 @dataclass(frozen=True, kw_only=True)
 class Loads:
     """Distributed force [N/m] and torque [N m/m] (functions of s, t), end loads and a point
@@ -345,6 +393,14 @@ class Loads:
     @property
     def has_gravity(self) -> bool:
         return any(g != 0.0 for g in self.gravity)
+
+    def form_loads(self) -> list[tuple[str, FormLoad]]:
+        """(key, load) of the loads declared with their physics (:class:`FormLoad`) given."""
+        return [
+            (name, getattr(self, f))
+            for name, f in declared_names(Loads).items()
+            if isinstance(getattr(self, f), FormLoad)
+        ]
 
 
 #: Planes of motion (Scene.plane): the normal e_k, the axes of torques that leave the plane
@@ -599,6 +655,8 @@ class Scene:
             if end is not None:
                 vectors += [(end.force, normal), (end.torque, torques)]
         vectors += [(m, normal) for m in (self.supports.start_motion, self.supports.end_motion)]
+        if not all(load.in_plane(normal, torques) for _, load in loads.form_loads()):
+            return False
         vectors += [(init.displacement, normal), (init.velocity, normal)]
         vectors += [(init.angles, angles), (init.angle_rates, angles)]
         if any(loads.gravity[i] != 0.0 for i in normal):
@@ -633,6 +691,8 @@ class Scene:
                 entries += [(f"loads.{end}.torque", load.torque)]
             if end != "point" and supports.motion(end) is not None:
                 entries += [(f"supports.{end}_motion", supports.motion(end))]
+        for name, load in loads.form_loads():
+            entries += [(f"loads.{name}.{k}", v) for k, v in load.vectors().items()]
         return [
             (f"{key}[{i}]", component)
             for key, vector in entries
@@ -692,6 +752,8 @@ def _loads_dict(loads: Loads) -> dict[str, Any]:
     if loads.point is not None:
         out["point"] = {"s": loads.point.s, **_end_load_dict(loads.point)}
     out["gravity"] = list(loads.gravity)
+    for name, load in loads.form_loads():
+        out[name] = load.given()
     return out
 
 

@@ -26,7 +26,7 @@ from cosserat_fem.errors import SceneError, show_value
 from cosserat_fem.expressions import Expression, derivative, parse_vector
 from cosserat_fem.forms.groups import Groups, dimensionless_groups
 from cosserat_fem.forms.section import cowper_circle
-from cosserat_fem.keys import build
+from cosserat_fem.keys import LoadVector, Table, build, declared_names
 from cosserat_fem.load_data import TableStore, check_span, is_data, parse_load_vector
 from cosserat_fem.resolved import (  # noqa: F401 - the resolved scene, importable from here
     PLANAR,
@@ -34,6 +34,7 @@ from cosserat_fem.resolved import (  # noqa: F401 - the resolved scene, importab
     Damping,
     Discretisation,
     EndLoad,
+    FormLoad,
     Initial,
     Limits,
     Loads,
@@ -233,16 +234,42 @@ def _build_loads(
         vectors = {}
         for name in ("force", "torque"):
             key = f"loads.point.{name}"
-            vectors[name] = parse_load_vector(raw["point"][name], names, key, tables)
-            for i, component in enumerate(vectors[name]):
-                if component.depends_on("s"):
-                    raise SceneError(
-                        f"loads.point.{name}[{i}]: a point load may depend on t and constants "
-                        f"only, not on the arc length s, got {show_value(component.source)}"
-                    )
+            vectors[name] = _point_vector(raw["point"][name], names, key, tables, "a point load")
         point = build(PointLoad, raw["point"], **vectors)
+    declared = {}
+    for name, spec in Table.of(Loads).fields.items():
+        if isinstance(spec, Table) and issubclass(spec.resolved, FormLoad) and raw[name]:
+            field = declared_names(Loads)[name]
+            declared[field] = _build_form_load(spec, raw[name], f"loads.{name}", supports,
+                                               names, tables)  # fmt: skip
     return build(Loads, raw, force_density=force, torque_density=torque, gravity=gravity,
-                 point=point, **ends)  # fmt: skip
+                 point=point, **ends, **declared)  # fmt: skip
+
+
+def _point_vector(raw: list, names: set[str], key: str, tables: TableStore,
+                  what: str) -> tuple[Expression, ...]:  # fmt: skip
+    """The load vector ``raw`` of a load at a point (an end, a node): functions of t and the
+    constants; SceneError naming ``key[i]`` for a dependence on the arc length s."""
+    vector = parse_load_vector(raw, names, key, tables)
+    for i, component in enumerate(vector):
+        if component.depends_on("s"):
+            raise SceneError(f"{key}[{i}]: {what} may depend on t and constants only, not on "
+                             f"the arc length s, got {show_value(component.source)}")  # fmt: skip
+    return vector
+
+
+def _build_form_load(spec: Table, raw: dict[str, Any], key: str, supports: Supports,
+                     names: set[str], tables: TableStore) -> FormLoad:  # fmt: skip
+    """A load declared with its physics (resolved.FormLoad): its load vectors parsed as
+    functions of t and the constants (not of s: it acts at a point), then its own check."""
+    vectors = {}
+    for name, item in spec.fields.items():
+        if isinstance(item, LoadVector):
+            vector = _point_vector(raw[name], names, f"{key}.{name}", tables, "it")
+            vectors[declared_names(spec.resolved)[name]] = vector
+    load = build(spec.resolved, raw, **vectors)
+    load.check(key, supports)
+    return load
 
 
 def _constant_vector(raw: list, constants: set[str], key: str) -> tuple[float, float, float]:
@@ -326,14 +353,7 @@ def _build_end_load(
         )
     vectors = {}
     for name in ("force", "torque"):
-        vector = parse_load_vector(raw[name], names, f"{key}.{name}", tables)
-        for i, component in enumerate(vector):
-            if component.depends_on("s"):
-                raise SceneError(
-                    f"{key}.{name}[{i}]: end loads may depend on t and constants only, "
-                    f"not on the arc length s, got {show_value(component.source)}"
-                )
-        vectors[name] = vector
+        vectors[name] = _point_vector(raw[name], names, f"{key}.{name}", tables, "end loads")
     if support in ("pinned", "spherical") and not all(e.is_zero for e in vectors["force"]):
         held = "about e1, e2; the twist is held too" if support == "pinned" else "any axis"
         raise SceneError(
