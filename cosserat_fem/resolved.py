@@ -11,6 +11,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from cosserat_fem.errors import SceneError
 from cosserat_fem.expressions import Expression, derivative
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.groups import RodConstants, euler_bernoulli_omega0
@@ -377,6 +378,32 @@ def _spec(cls: type, name: str) -> Any:
 
 
 @dataclass(frozen=True, kw_only=True)
+class FollowerEndLoad(FormLoad):
+    """[loads.follower]: a force [N] and torque [N m] on the free ``end`` ("start" or "end")
+    that turn with its directors: components along d1, d2, d3 of that end, functions of t
+    (forms/follower.py)."""
+
+    physics: ClassVar[str] = "follower"
+
+    end: str = key(Choice(choices=("start", "end"), default="end"))
+    force: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N"))
+    torque: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m"))
+
+    def check(self, key: str, supports: Supports) -> None:
+        """Only a free end carries it (a held end's support takes what it turns with)."""
+        if getattr(supports, self.end) != "free":
+            raise SceneError(f'{key}.end: a follower load needs a free end, but supports.'
+                             f'{self.end} = "{getattr(supports, self.end)}"')  # fmt: skip
+
+    def in_plane(self, normal: tuple[int, ...], torques: tuple[int, ...]) -> bool:
+        """In a plane of motion of the straight rod d2 = e2 (x-z) or d1 = e1 (y-z) and the other
+        two directors stay in it: the director components leave it as the fixed ones do."""
+        return all(self.force[i].is_zero for i in normal) and all(
+            self.torque[i].is_zero for i in torques
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
 class Loads:
     """Distributed force [N/m] and torque [N m/m] (functions of s, t), end loads and a point
     load."""
@@ -389,6 +416,8 @@ class Loads:
     point: PointLoad | None = table(PointLoad, optional=True, default=None)
     #: [m/s²], adds ρ A g to the force
     gravity: tuple[float, float, float] = key(Vector(default=ZERO3, unit="m/s^2"))
+    #: a force and torque that turn with an end's directors (forms/follower.py)
+    follower: FollowerEndLoad | None = table(FollowerEndLoad, optional=True, default=None)
 
     @property
     def has_gravity(self) -> bool:
