@@ -26,7 +26,17 @@ from cosserat_fem.errors import SceneError, show_value
 from cosserat_fem.expressions import Expression, derivative, parse_vector
 from cosserat_fem.forms.groups import Groups, dimensionless_groups
 from cosserat_fem.forms.section import cowper_circle
-from cosserat_fem.keys import LoadVector, Table, build, declared_names
+from cosserat_fem.keys import (
+    REFERENCE_KEYS,
+    SCENE_CONSTANTS,
+    SECTION_KEYS,
+    STEP_TOLERANCE,
+    LoadVector,
+    Table,
+    build,
+    declared_names,
+    fmt,
+)
 from cosserat_fem.load_data import TableStore, check_span, is_data, parse_load_vector
 from cosserat_fem.resolved import (  # noqa: F401 - the resolved scene, importable from here
     PLANAR,
@@ -53,15 +63,10 @@ from cosserat_fem.resolved import (  # noqa: F401 - the resolved scene, importab
     auto_reference_frequency,
 )
 from cosserat_fem.schema import (  # noqa: F401 - read_toml and the overrides, from here too
-    REFERENCE_KEYS,
-    SCENE_CONSTANTS,
-    SECTION_KEYS,
-    STEP_TOLERANCE,
     Overrides,
     apply_overrides,
     check_depth,
     check_scene,
-    fmt,
     parse_toml,
     read_input,
     read_toml,
