@@ -64,7 +64,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     # The file formats (io/) depend on base only, and the scene's validation names their
     # columns and arrays (schema -> io.probes, io.xdmf): they sit below the scene.
     ("formats", ("io.",)),
-    ("scene", ("schema", "resolved", "scene", "expressions", "load_data", "describe", "layout")),
+    ("scene", ("keys", "schema", "resolved", "scene", "expressions", "load_data", "describe",
+               "layout")),  # fmt: skip
     ("model", ("forms.", "model", "charts", "checks", "energy", "load_coefficients",
                "reference.")),  # fmt: skip
     ("solve", ("newton", "snes", "solvers", "native_newton", "native_sdirk", "integrators",

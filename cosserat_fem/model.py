@@ -14,6 +14,7 @@ zero are left out of the form.
 from __future__ import annotations
 
 import functools
+import importlib
 import logging
 import math
 from dataclasses import dataclass, field
@@ -25,7 +26,7 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import charts, jit
+from . import charts, forms, jit
 from .charts import change_chart, change_chart_rate, chart_of
 from .errors import SceneError
 from .expressions import Expression, derivative
@@ -35,6 +36,7 @@ from .forms.general_form import (
     EndLoadConvention,
     EndLoads,
     KelvinVoigtDamping,
+    LoadContext,
     ViscousDamping,
     residual_terms,
 )
@@ -493,7 +495,8 @@ class RodModel:
         kelvin_voigt = (
             KelvinVoigtDamping(d.retardation_time, self.omega0) if d.kelvin_voigt else None
         )
-        return residual_terms(
+        chart = self.chart_form() if charted else None
+        terms = residual_terms(
             U_eval,
             Udot_eval,
             V,
@@ -504,9 +507,25 @@ class RodModel:
             self.convention,
             viscous,
             kelvin_voigt,
-            self.chart_form() if charted else None,
+            chart,
             self.reference_form(),
         )
+        form_loads = self.scene.loads.form_loads()
+        if form_loads:  # the loads declared with their physics (resolved.FormLoad)
+            sym = self._symbols(time_eval)
+            context = LoadContext(
+                U=U_eval,
+                V=V,
+                groups=self.groups,
+                convention=self.convention,
+                chart=chart,
+                ds={"start": self.ds(START_TAG), "end": self.ds(END_TAG)},
+                vector=lambda exprs: self._vector(exprs, sym, time_eval),
+            )
+            for name, load in form_loads:
+                physics = importlib.import_module(f"{forms.__name__}.{load.physics}")
+                terms.extra[name] = physics.residual(load, context)
+        return terms
 
     def initial_state(self) -> np.ndarray:
         """U at time.start from the scene's [initial] fields (zero where none is given):

@@ -7,17 +7,48 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
+from cosserat_fem.errors import SceneError
 from cosserat_fem.expressions import Expression, derivative
+from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.groups import RodConstants, euler_bernoulli_omega0
-from cosserat_fem.forms.section import Section, rectangle, tube
+from cosserat_fem.forms.section import TORSION_CONSTANT_RULES, Section, rectangle, tube
+from cosserat_fem.io.probes import PROBE_FIELD_COLUMNS
+from cosserat_fem.keys import (
+    DEFAULT_WALL_TIME,
+    MAX_NEWTON_ITERATIONS,
+    MAX_QUADRATURE,
+    NON_NEGATIVE,
+    POSITIVE,
+    REFERENCE_KEYS,
+    SECTION_KEYS,
+    SUPPORTS,
+    XDMF_DEFAULT_FIELDS,
+    XDMF_FIELDS,
+    ZERO3,
+    Choice,
+    ChoiceList,
+    Flag,
+    Interval,
+    LoadVector,
+    Number,
+    Parameters,
+    PetscOptions,
+    Points,
+    Table,
+    Text,
+    Vector,
+    declared_names,
+    key,
+    table,
+)
 from cosserat_fem.load_data import component_dict
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SectionSpec:
     """Cross-section, SI units, by ``shape`` (the keys of :data:`SECTION_KEYS`):
 
@@ -30,18 +61,21 @@ class SectionSpec:
     (circle, tube); "constants" needs it given.
     """
 
-    shape: str
-    shear_coefficient: float
-    a: float | None = None
-    b: float | None = None
-    torsion_constant: str | None = None
-    diameter: float | None = None
-    outer_diameter: float | None = None
-    inner_diameter: float | None = None
-    area: float | None = None
-    c11: float | None = None
-    c22: float | None = None
-    c33: float | None = None
+    shape: str = key(Choice(choices=tuple(SECTION_KEYS), default="rectangle"))
+    a: float | None = key(Number(interval=POSITIVE, unit="m"), default=None)
+    b: float | None = key(Number(interval=POSITIVE, unit="m"), default=None)
+    torsion_constant: str | None = key(Choice(choices=TORSION_CONSTANT_RULES), default=None)
+    diameter: float | None = key(Number(interval=POSITIVE, unit="m"), default=None)
+    outer_diameter: float | None = key(Number(interval=POSITIVE, unit="m"), default=None)
+    inner_diameter: float | None = key(Number(interval=NON_NEGATIVE, unit="m"), default=None)
+    area: float | None = key(Number(interval=POSITIVE, unit="m^2"), default=None)
+    c11: float | None = key(Number(interval=POSITIVE, unit="m^4"), default=None)
+    c22: float | None = key(Number(interval=POSITIVE, unit="m^4"), default=None)
+    c33: float | None = key(Number(interval=POSITIVE, unit="m^4"), default=None)
+    #: κ: given, or "auto" resolved by the shape (class docstring).
+    shear_coefficient: float = key(
+        Number(default="auto", interval=Interval(0.0, 1.0, lo_open=True), auto=True)
+    )
 
     def constants(self) -> Section:
         """A, c11, c22, c33, κ (cosserat_fem.forms.section)."""
@@ -61,7 +95,7 @@ class SectionSpec:
 
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class ReferenceShape:
     """The rod at rest ([reference]; forms/reference.py holds the same shapes in UFL):
 
@@ -83,14 +117,24 @@ class ReferenceShape:
     ring (r0 and D0 the same at s = 0 and s = ℓ; its unknowns p(0) = p(ℓ): cosserat_fem/modal.py).
     """
 
-    shape: str = "straight"
-    radius: float | None = None
-    pitch_angle: float | None = None
-    points: tuple[tuple[float, float, float], ...] | None = None
-    binormal: tuple[float, float, float] | None = None
-    position: tuple[Expression, Expression, Expression] | None = None
-    director: tuple[Expression, Expression, Expression] | None = None
-    closed: bool = False
+    shape: str = key(Choice(choices=tuple(REFERENCE_KEYS), default="straight"),
+                     default="straight")  # fmt: skip
+    radius: float | None = key(Number(interval=POSITIVE, unit="m"), default=None)
+    pitch_angle: float | None = key(
+        Number(interval=Interval(-math.pi / 2, math.pi / 2, lo_open=True, hi_open=True),
+               unit="rad"),
+        default=None,
+    )  # fmt: skip
+    #: polyline: its corners (the first the start), and d0_2 on every segment
+    points: tuple[tuple[float, float, float], ...] | None = key(Points(unit="m"), default=None)
+    binormal: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
+    #: curve: r0(s) and d0_1(s), expressions of the arc length s [m]
+    position: tuple[Expression, Expression, Expression] | None = key(Vector(unit="m"),
+                                                                     default=None)  # fmt: skip
+    director: tuple[Expression, Expression, Expression] | None = key(Vector(unit="-"),
+                                                                     default=None)  # fmt: skip
+    #: the two ends joined (a ring): the curve must close; modes only, for now
+    closed: bool = key(Flag(default=False), default=False)
     #: The values of the names a curve's expressions may use besides s (L, parameters).
     constants: dict[str, float] | None = field(default=None, compare=False)
 
@@ -190,14 +234,17 @@ class ReferenceShape:
         return values
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Material:
     """Linear elastic material; exactly one of ``poisson_ratio`` / ``shear_modulus_value``."""
 
-    density: float
-    young_modulus: float
-    poisson_ratio: float | None
-    shear_modulus_value: float | None
+    density: float = key(Number(required=True, interval=POSITIVE, unit="kg/m^3"))
+    young_modulus: float = key(Number(required=True, interval=POSITIVE, unit="Pa"))
+    poisson_ratio: float | None = key(
+        Number(interval=Interval(-1.0, 0.5, lo_open=True, hi_open=True))
+    )
+    shear_modulus_value: float | None = key(Number(interval=POSITIVE, unit="Pa"),
+                                            name="shear_modulus")  # fmt: skip
 
     @property
     def shear_modulus(self) -> float:
@@ -209,28 +256,32 @@ class Material:
         return self.young_modulus / (2.0 * (1.0 + self.poisson_ratio))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Rod:
     """Straight rod of length ``length`` [m]; ``rotary_inertia`` (I11, I22, I33) [kg m] per
     unit length, or None: those of the section, (46)."""
 
-    length: float
-    section: SectionSpec
-    material: Material
-    rotary_inertia: tuple[float, float, float] | None = None
+    length: float = key(Number(required=True, interval=POSITIVE, unit="m"))
+    section: SectionSpec = table(SectionSpec)
+    #: [I11, I22, I33] per unit length [kg m], the rotary inertias of (46) given apart from
+    #: the section (absent: ρ c11, ρ c22, ρ (c11 + c22))
+    rotary_inertia: tuple[float, float, float] | None = key(Vector(unit="kg m"), default=None)
+    material: Material = table(Material)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class ModelChoices:
     """Modelling choices; ``reference_frequency`` [rad/s] is None for "auto"."""
 
-    reference_frequency: float | None
-    torsion_inertia: str
-    end_load_sign: str
-    end_load_scaling: str
+    reference_frequency: float | None = key(
+        Number(default="auto", interval=POSITIVE, unit="rad/s", auto=True)
+    )
+    torsion_inertia: str = key(Choice(choices=TORSION_INERTIAS, default="polar"))
+    end_load_sign: str = key(Choice(choices=tuple(END_LOAD_SIGNS), default="balance"))
+    end_load_scaling: str = key(Choice(choices=END_LOAD_SCALINGS, default="balance"))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Supports:
     """Support of each end: "clamped" (p = q = 0), "free" (natural conditions), "pinned": a
     fork bearing, the position and the twist φ held, the bending angles θ, ψ free (the end
@@ -241,10 +292,12 @@ class Supports:
     (base excitation; None: at rest).
     """
 
-    start: str
-    end: str
-    start_motion: tuple[Expression, ...] | None = None
-    end_motion: tuple[Expression, ...] | None = None
+    start: str = key(Choice(choices=SUPPORTS, default="clamped"))
+    end: str = key(Choice(choices=SUPPORTS, default="free"))
+    start_motion: tuple[Expression, ...] | None = key(LoadVector(default=ZERO3, unit="m"),
+                                                      default=None)  # fmt: skip
+    end_motion: tuple[Expression, ...] | None = key(LoadVector(default=ZERO3, unit="m"),
+                                                    default=None)  # fmt: skip
 
     @property
     def mechanism(self) -> bool:
@@ -260,39 +313,123 @@ class Supports:
         return self.start_motion if end == "start" else self.end_motion
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class EndLoad:
     """Force [N] and torque [N m] on a free end, fixed directions e1, e2, e3; functions of t."""
 
-    force: tuple[Expression, ...]
-    torque: tuple[Expression, ...]
+    force: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N"))
+    torque: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m"))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class PointLoad:
     """Force [N] and torque [N m] at the node at arc length ``s`` [m] inside the rod, fixed
     directions e1, e2, e3; functions of t."""
 
-    s: float
-    force: tuple[Expression, ...]
-    torque: tuple[Expression, ...]
+    s: float = key(Number(required=True, interval=POSITIVE, unit="m"))
+    force: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N"))
+    torque: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m"))
 
 
-@dataclass(frozen=True)
+class FormLoad:
+    """A load declared with its physics, so that a new kind of load is its declaration here, its
+    form in forms/ and its test. A subclass is a frozen, kw_only dataclass whose fields declare
+    its keys (:func:`~cosserat_fem.keys.key`; its load vectors as
+    :class:`~cosserat_fem.keys.LoadVector`), made a field of :class:`Loads` with
+    :func:`~cosserat_fem.keys.table`; ``physics`` names its module in forms/, whose
+    ``residual(load, context)`` gives its term of the weak form (the scene's
+    ``model.RodModel.residual_terms`` adds it, under the load's key; the Jacobian is UFL's
+    derivative of the form). The scene reader parses its load vectors (functions of t and the
+    constants), calls :meth:`check`, and the scene's other parts (``load_components``, the
+    plane, ``to_dict``) read it through :meth:`vectors` and :meth:`in_plane`."""
+
+    physics: ClassVar[str]
+
+    def vectors(self) -> dict[str, tuple[Expression, ...]]:
+        """Its load vectors, by key."""
+        return {
+            name: getattr(self, f)
+            for name, f in declared_names(type(self)).items()
+            if isinstance(_spec(type(self), f), LoadVector)
+        }
+
+    def check(self, key: str, supports: Supports) -> None:
+        """SceneError naming ``key`` (its dotted table) if the scene cannot carry it."""
+
+    def in_plane(self, normal: tuple[int, ...], torques: tuple[int, ...]) -> bool:
+        """Whether it keeps a motion in a plane (:data:`PLANES`: the force has no component
+        along ``normal``, the torque none about ``torques``); by default it does not."""
+        return False
+
+    def given(self) -> dict[str, Any]:
+        """Its keys as a scene file gives them (for to_dict)."""
+        vectors = self.vectors()
+        return {
+            name: [component_dict(e) for e in vectors[name]]
+            if name in vectors
+            else getattr(self, f)
+            for name, f in declared_names(type(self)).items()
+        }
+
+
+def _spec(cls: type, name: str) -> Any:
+    """The key spec the field ``name`` of ``cls`` declares."""
+    return Table.of(cls).fields[{f: k for k, f in declared_names(cls).items()}[name]]
+
+
+@dataclass(frozen=True, kw_only=True)
+class FollowerEndLoad(FormLoad):
+    """[loads.follower]: a force [N] and torque [N m] on the free ``end`` ("start" or "end")
+    that turn with its directors: components along d1, d2, d3 of that end, functions of t
+    (forms/follower.py)."""
+
+    physics: ClassVar[str] = "follower"
+
+    end: str = key(Choice(choices=("start", "end"), default="end"))
+    force: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N"))
+    torque: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m"))
+
+    def check(self, key: str, supports: Supports) -> None:
+        """Only a free end carries it (a held end's support takes what it turns with)."""
+        if getattr(supports, self.end) != "free":
+            raise SceneError(f'{key}.end: a follower load needs a free end, but supports.'
+                             f'{self.end} = "{getattr(supports, self.end)}"')  # fmt: skip
+
+    def in_plane(self, normal: tuple[int, ...], torques: tuple[int, ...]) -> bool:
+        """In a plane of motion of the straight rod d2 = e2 (x-z) or d1 = e1 (y-z) and the other
+        two directors stay in it: the director components leave it as the fixed ones do."""
+        return all(self.force[i].is_zero for i in normal) and all(
+            self.torque[i].is_zero for i in torques
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
 class Loads:
     """Distributed force [N/m] and torque [N m/m] (functions of s, t), end loads and a point
     load."""
 
-    force_density: tuple[Expression, ...]
-    torque_density: tuple[Expression, ...]
-    start: EndLoad | None
-    end: EndLoad | None
-    gravity: tuple[float, float, float]  # m/s², adds ρ A g to the force
-    point: PointLoad | None = None
+    force_density: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N/m"))
+    torque_density: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m/m"))
+    start: EndLoad | None = table(EndLoad, optional=True)
+    end: EndLoad | None = table(EndLoad, optional=True)
+    #: a force [N] and torque [N m] at the node s [m] inside the rod
+    point: PointLoad | None = table(PointLoad, optional=True, default=None)
+    #: [m/s²], adds ρ A g to the force
+    gravity: tuple[float, float, float] = key(Vector(default=ZERO3, unit="m/s^2"))
+    #: a force and torque that turn with an end's directors (forms/follower.py)
+    follower: FollowerEndLoad | None = table(FollowerEndLoad, optional=True, default=None)
 
     @property
     def has_gravity(self) -> bool:
         return any(g != 0.0 for g in self.gravity)
+
+    def form_loads(self) -> list[tuple[str, FormLoad]]:
+        """(key, load) of the loads declared with their physics (:class:`FormLoad`) given."""
+        return [
+            (name, getattr(self, f))
+            for name, f in declared_names(Loads).items()
+            if isinstance(getattr(self, f), FormLoad)
+        ]
 
 
 #: Planes of motion (Scene.plane): the normal e_k, the axes of torques that leave the plane
@@ -311,7 +448,7 @@ def _in_plane(normal: tuple[int, ...], angles: tuple[int, ...]) -> tuple[int, ..
 PLANAR = {name: _in_plane(normal, angles) for name, (normal, _, angles) in PLANES.items()}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Damping:
     """Viscous damping densities: force −c_t ṙ [N/m] with ``translational`` c_t [N s/m²], and
     torque −c_r ω [N m/m] with ``rotational`` c_r [N s] (ω the angular velocity). For a
@@ -321,9 +458,9 @@ class Damping:
     (1 + τ_d ∂t) of the strains, n = K (v − e3 + τ_d v̇), m = J (u + τ_d u̇); it damps each
     mode in proportion to its frequency, ζ_n = τ_d ω_n / 2 (forms/general_form.py)."""
 
-    translational: float
-    rotational: float
-    retardation_time: float
+    translational: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="N s/m^2"))
+    rotational: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="N s"))
+    retardation_time: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="s"))
 
     @property
     def viscous(self) -> bool:
@@ -338,15 +475,18 @@ class Damping:
         return self.viscous or self.kelvin_voigt
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Initial:
     """The state at time.start as functions of s [m] (None: at rest, straight): position
     displacement [m], angles (θ, ψ, φ) [rad], velocity [m/s], angle rates [rad/s]."""
 
-    displacement: tuple[Expression, ...] | None = None
-    angles: tuple[Expression, ...] | None = None
-    velocity: tuple[Expression, ...] | None = None
-    angle_rates: tuple[Expression, ...] | None = None
+    displacement: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="m"),
+                                                      default=None)  # fmt: skip
+    angles: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="rad"), default=None)
+    velocity: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="m/s"),
+                                                  default=None)  # fmt: skip
+    angle_rates: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="rad/s"),
+                                                     default=None)  # fmt: skip
 
     def fields(self) -> dict[str, tuple[Expression, ...]]:
         """The fields given, non-zero, by name."""
@@ -357,20 +497,24 @@ class Initial:
         }
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Time:
     """Time span [s] and integrator."""
 
-    start: float
-    end: float
-    step: float
-    integrator: str
-    rho_inf: float
-    max_halvings: int
-    adaptive: bool
-    rtol: float
-    atol: float
-    max_step: float  # 0: no limit
+    start: float = key(Number(default=0.0, unit="s"))
+    end: float = key(Number(required=True, unit="s"))
+    step: float = key(Number(required=True, interval=POSITIVE, unit="s"))
+    #: SDIRK3 and a frozen Jacobian: the fastest to an error of 1e-3 on the paper's scene
+    #: (benchmarks/README.md), the defaults the README states.
+    integrator: str = key(
+        Choice(choices=("bdf2", "generalized-alpha", "sdirk3", "sdirk4"), default="sdirk3")
+    )
+    rho_inf: float = key(Number(default=0.5, interval=Interval(0.0, 1.0)))
+    max_halvings: int = key(Number(default=6, integer=True, interval=Interval(0, 30)))
+    adaptive: bool = key(Flag(default=False))
+    rtol: float = key(Number(default=1e-4, interval=Interval(0.0, 1.0, True, True)))
+    atol: float = key(Number(default=1e-10, interval=POSITIVE))
+    max_step: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="s"))  # 0: no limit
 
     @property
     def n_steps(self) -> int:
@@ -378,48 +522,58 @@ class Time:
         return round((self.end - self.start) / self.step)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class StaticSettings:
     """Static solves (``cosserat-fem static``): the loads at ``time`` [s], applied in
     ``load_steps`` equal increments of the load factor; a failed increment is halved, down to
     2^-``max_bisections`` of the nominal increment."""
 
-    load_steps: int
-    max_bisections: int
-    time: float
+    load_steps: int = key(Number(default=1, integer=True, interval=Interval(lo=1)))
+    #: 2^-30 of a load increment: below that no increment is worth trying.
+    max_bisections: int = key(Number(default=10, integer=True, interval=Interval(0, 30)))
+    time: float = key(Number(default=0.0, unit="s"))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Discretisation:
     """Mesh and element: ``elements`` cells of Lagrange ``degree``; quadrature resolved."""
 
-    elements: int
-    degree: int
-    quadrature_degree: int
-    planar: str  # "auto": solve the in-plane unknowns of a scene in x-z or y-z
+    elements: int = key(Number(default=20, integer=True, interval=Interval(lo=1)))
+    degree: int = key(Number(default=2, integer=True, interval=Interval(1, 5)))
+    #: Exact for polynomials of degree 100 (51 Gauss points a cell), ten times the default
+    #: 2 * degree of degree 5; FFCx itself warns beyond 100 points. "auto": 2 * degree.
+    quadrature_degree: int = key(
+        Number(default="auto", integer=True, interval=Interval(1, MAX_QUADRATURE), auto=True)
+    )
+    #: "auto": solve the in-plane unknowns of a scene in x-z or y-z
+    planar: str = key(Choice(choices=("auto", "off"), default="auto"))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Solver:
     """Newton solver settings."""
 
-    jacobian: str
-    lag: int
-    refresh_iterations: int
-    rtol: float
-    atol: float
-    stol: float
-    max_iterations: int
-    linear_solver: str
-    loop: str  # "auto": the C inner loop where it applies (native_newton.py); "python"
+    jacobian: str = key(Choice(choices=("full", "lagged", "frozen"), default="frozen"))
+    lag: int = key(Number(default=10, integer=True, interval=Interval(lo=1)))
+    refresh_iterations: int = key(Number(default=4, integer=True, interval=Interval(lo=1)))
+    rtol: float = key(Number(default=1e-10, interval=Interval(0.0, 1.0, True, True)))
+    atol: float = key(Number(default=1e-12, interval=POSITIVE))
+    stol: float = key(Number(default=1e-8, interval=Interval(0.0, 1.0, True, True)))
+    max_iterations: int = key(
+        Number(default=25, integer=True, interval=Interval(1, MAX_NEWTON_ITERATIONS))
+    )
+    linear_solver: str = key(Choice(choices=("auto", "petsc", "mumps", "superlu"), default="auto"))
+    #: "auto": the C inner loop where it applies (native_newton.py); "python"
+    loop: str = key(Choice(choices=("auto", "python"), default="auto"))
     #: "newton" (the project's loop), "snes" (PETSc's SNES, cosserat_fem/snes.py) or "auto"
     #: (SNES if ``petsc`` gives options: solvers.make_solver).
-    nonlinear: str = "auto"
+    nonlinear: str = key(Choice(choices=("auto", "newton", "snes"), default="auto"),
+                         default="auto")  # fmt: skip
     #: PETSc options for SNES, name (without "-" and the prefix cosserat_) = value as text.
-    petsc: dict[str, str] = field(default_factory=dict)
+    petsc: dict[str, str] = key(PetscOptions(default={}), default_factory=dict)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Output:
     """Output directory (stored as written), XDMF and checkpoint settings.
 
@@ -427,14 +581,18 @@ class Output:
     checkpoint at the end of the run only (cosserat_fem/io/checkpoint.py).
     """
 
-    directory: str
-    xdmf: bool
-    xdmf_interval: float
-    fields: tuple[str, ...]
-    checkpoint: bool
-    checkpoint_interval: float
+    directory: str = key(Text(default="results", non_empty=True))
+    xdmf: bool = key(Flag(default=True))
+    xdmf_interval: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="s"))
+    fields: tuple[str, ...] = key(ChoiceList(choices=XDMF_FIELDS, default=XDMF_DEFAULT_FIELDS))
     #: What probes.csv holds besides t, x, y, z, θ, ψ, φ (cosserat_fem/io/probes.py).
-    probe_fields: tuple[str, ...] = ()
+    probe_fields: tuple[str, ...] = key(
+        ChoiceList(choices=tuple(PROBE_FIELD_COLUMNS), default=()), default=()
+    )
+    checkpoint: bool = key(Flag(default=True))
+    checkpoint_interval: float = key(
+        Number(default="auto", interval=NON_NEGATIVE, unit="s", auto=True)
+    )
 
     def xdmf_every(self, step: float) -> int:
         """Steps between XDMF writes (1 if the interval is 0)."""
@@ -443,37 +601,42 @@ class Output:
         return max(1, round(self.xdmf_interval / step))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Limits:
     """What a run may cost before it is refused (cosserat_fem/budget.py): ``wall_time`` [s],
     the estimated wall time of the run and the most it may run before it stops with a
     checkpoint; ``memory`` [bytes], the estimated memory (None: "auto", the memory available
     on this machine). Raise them to run a very large case on purpose."""
 
-    wall_time: float
-    memory: float | None
+    wall_time: float = key(Number(default=DEFAULT_WALL_TIME, interval=POSITIVE, unit="s"))
+    memory: float | None = key(
+        Number(default="auto", interval=POSITIVE, unit="bytes", auto=True)
+    )
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Scene:
     """A validated scene; ``source`` (file name or "<dict>") and its digest do not take part
     in equality."""
 
-    title: str
-    parameters: dict[str, float]
-    rod: Rod
-    model: ModelChoices
-    supports: Supports
-    loads: Loads
-    time: Time
-    discretisation: Discretisation
-    solver: Solver
-    output: Output
-    static: StaticSettings
-    damping: Damping
-    limits: Limits
-    initial: Initial = field(default_factory=Initial)  # built last, from the resolved rest
-    reference: ReferenceShape = field(default_factory=ReferenceShape)
+    title: str = key(Text(default=""))
+    parameters: dict[str, float] = key(Parameters())
+    rod: Rod = table(Rod)
+    #: The rod at rest (forms/reference.py): straight along e3 (the paper's), a circular arc
+    #: in the e1-e3 plane bending towards +e1, a helix about an axis along e3, a polyline
+    #: whose frame jumps at its corners, or a curve of expressions of s.
+    reference: ReferenceShape = table(ReferenceShape, default_factory=ReferenceShape)
+    model: ModelChoices = table(ModelChoices)
+    supports: Supports = table(Supports)
+    loads: Loads = table(Loads)
+    damping: Damping = table(Damping)
+    initial: Initial = table(Initial, default_factory=Initial)  # built last, from the rest
+    time: Time = table(Time)
+    static: StaticSettings = table(StaticSettings)
+    discretisation: Discretisation = table(Discretisation)
+    solver: Solver = table(Solver)
+    output: Output = table(Output)
+    limits: Limits = table(Limits)
     source: str = field(default="<dict>", compare=False)
     #: SHA-256 of the file's bytes the scene was read from ("" for a dict): what every MPI
     #: rank parsed (schema.read_input), written to summary.json as ``scene_file_sha256``
@@ -521,6 +684,8 @@ class Scene:
             if end is not None:
                 vectors += [(end.force, normal), (end.torque, torques)]
         vectors += [(m, normal) for m in (self.supports.start_motion, self.supports.end_motion)]
+        if not all(load.in_plane(normal, torques) for _, load in loads.form_loads()):
+            return False
         vectors += [(init.displacement, normal), (init.velocity, normal)]
         vectors += [(init.angles, angles), (init.angle_rates, angles)]
         if any(loads.gravity[i] != 0.0 for i in normal):
@@ -555,6 +720,8 @@ class Scene:
                 entries += [(f"loads.{end}.torque", load.torque)]
             if end != "point" and supports.motion(end) is not None:
                 entries += [(f"supports.{end}_motion", supports.motion(end))]
+        for name, load in loads.form_loads():
+            entries += [(f"loads.{name}.{k}", v) for k, v in load.vectors().items()]
         return [
             (f"{key}[{i}]", component)
             for key, vector in entries
@@ -614,6 +781,8 @@ def _loads_dict(loads: Loads) -> dict[str, Any]:
     if loads.point is not None:
         out["point"] = {"s": loads.point.s, **_end_load_dict(loads.point)}
     out["gravity"] = list(loads.gravity)
+    for name, load in loads.form_loads():
+        out[name] = load.given()
     return out
 
 

@@ -26,6 +26,17 @@ from cosserat_fem.errors import SceneError, show_value
 from cosserat_fem.expressions import Expression, derivative, parse_vector
 from cosserat_fem.forms.groups import Groups, dimensionless_groups
 from cosserat_fem.forms.section import cowper_circle
+from cosserat_fem.keys import (
+    REFERENCE_KEYS,
+    SCENE_CONSTANTS,
+    SECTION_KEYS,
+    STEP_TOLERANCE,
+    LoadVector,
+    Table,
+    build,
+    declared_names,
+    fmt,
+)
 from cosserat_fem.load_data import TableStore, check_span, is_data, parse_load_vector
 from cosserat_fem.resolved import (  # noqa: F401 - the resolved scene, importable from here
     PLANAR,
@@ -33,6 +44,7 @@ from cosserat_fem.resolved import (  # noqa: F401 - the resolved scene, importab
     Damping,
     Discretisation,
     EndLoad,
+    FormLoad,
     Initial,
     Limits,
     Loads,
@@ -51,15 +63,10 @@ from cosserat_fem.resolved import (  # noqa: F401 - the resolved scene, importab
     auto_reference_frequency,
 )
 from cosserat_fem.schema import (  # noqa: F401 - read_toml and the overrides, from here too
-    REFERENCE_KEYS,
-    SCENE_CONSTANTS,
-    SECTION_KEYS,
-    STEP_TOLERANCE,
     Overrides,
     apply_overrides,
     check_depth,
     check_scene,
-    fmt,
     parse_toml,
     read_input,
     read_toml,
@@ -101,7 +108,7 @@ def _build_section(raw: dict[str, Any], poisson_ratio: float) -> SectionSpec:
         values["shear_coefficient"] = (
             5.0 / 6.0 if shape == "rectangle" else cowper_circle(poisson_ratio, ratio)
         )
-    return SectionSpec(**values)
+    return build(SectionSpec, values)
 
 
 def _build_reference(raw: dict[str, Any], constants: dict[str, float]) -> ReferenceShape:
@@ -158,7 +165,7 @@ def _build_rod(raw: dict[str, Any]) -> Rod:
             f"rod.material: exactly one of poisson_ratio (in (-1, 0.5)) and shear_modulus "
             f"(> 0, Pa) must be given, but {state}"
         )
-    material = Material(mat["density"], mat["young_modulus"], nu, g)
+    material = build(Material, mat)
     if not (math.isfinite(material.shear_modulus) and material.shear_modulus > 0.0):
         raise SceneError(
             f"rod.material: the shear modulus E/(2 (1 + nu)) = {material.shear_modulus:.3g} Pa "
@@ -184,19 +191,15 @@ def _build_rod(raw: dict[str, Any]) -> Rod:
                     f"of inertia per unit length), got {show_value(value)}"
                 )
         inertia = tuple(float(v) for v in inertia)
-    return Rod(raw["length"], _build_section(raw["section"], poisson), material, inertia)
+    section = _build_section(raw["section"], poisson)
+    return build(Rod, raw, section=section, material=material, rotary_inertia=inertia)
 
 
 def _build_model(raw: dict[str, Any]) -> ModelChoices:
     """[model]; reference_frequency "auto" as None (ω0 [rad/s] from the rod,
     :func:`auto_reference_frequency`)."""
     frequency = raw["reference_frequency"]
-    return ModelChoices(
-        reference_frequency=None if frequency == "auto" else frequency,
-        torsion_inertia=raw["torsion_inertia"],
-        end_load_sign=raw["end_load_sign"],
-        end_load_scaling=raw["end_load_scaling"],
-    )
+    return build(ModelChoices, raw, reference_frequency=None if frequency == "auto" else frequency)
 
 
 def _build_supports(raw: dict[str, Any], constants: set[str], tables: TableStore) -> Supports:
@@ -215,7 +218,7 @@ def _build_supports(raw: dict[str, Any], constants: set[str], tables: TableStore
                 f"{key}: a prescribed motion needs a held end (clamped, pinned or spherical), but "
                 f'supports.{end} = "free"'
             )
-    return Supports(raw["start"], raw["end"], motions["start"], motions["end"])
+    return build(Supports, raw, start_motion=motions["start"], end_motion=motions["end"])
 
 
 def _build_loads(
@@ -236,15 +239,42 @@ def _build_loads(
         vectors = {}
         for name in ("force", "torque"):
             key = f"loads.point.{name}"
-            vectors[name] = parse_load_vector(raw["point"][name], names, key, tables)
-            for i, component in enumerate(vectors[name]):
-                if component.depends_on("s"):
-                    raise SceneError(
-                        f"loads.point.{name}[{i}]: a point load may depend on t and constants "
-                        f"only, not on the arc length s, got {show_value(component.source)}"
-                    )
-        point = PointLoad(raw["point"]["s"], vectors["force"], vectors["torque"])
-    return Loads(force, torque, ends["start"], ends["end"], gravity, point)
+            vectors[name] = _point_vector(raw["point"][name], names, key, tables, "a point load")
+        point = build(PointLoad, raw["point"], **vectors)
+    declared = {}
+    for name, spec in Table.of(Loads).fields.items():
+        if isinstance(spec, Table) and issubclass(spec.resolved, FormLoad) and raw[name]:
+            field = declared_names(Loads)[name]
+            declared[field] = _build_form_load(spec, raw[name], f"loads.{name}", supports,
+                                               names, tables)  # fmt: skip
+    return build(Loads, raw, force_density=force, torque_density=torque, gravity=gravity,
+                 point=point, **ends, **declared)  # fmt: skip
+
+
+def _point_vector(raw: list, names: set[str], key: str, tables: TableStore,
+                  what: str) -> tuple[Expression, ...]:  # fmt: skip
+    """The load vector ``raw`` of a load at a point (an end, a node): functions of t and the
+    constants; SceneError naming ``key[i]`` for a dependence on the arc length s."""
+    vector = parse_load_vector(raw, names, key, tables)
+    for i, component in enumerate(vector):
+        if component.depends_on("s"):
+            raise SceneError(f"{key}[{i}]: {what} may depend on t and constants only, not on "
+                             f"the arc length s, got {show_value(component.source)}")  # fmt: skip
+    return vector
+
+
+def _build_form_load(spec: Table, raw: dict[str, Any], key: str, supports: Supports,
+                     names: set[str], tables: TableStore) -> FormLoad:  # fmt: skip
+    """A load declared with its physics (resolved.FormLoad): its load vectors parsed as
+    functions of t and the constants (not of s: it acts at a point), then its own check."""
+    vectors = {}
+    for name, item in spec.fields.items():
+        if isinstance(item, LoadVector):
+            vector = _point_vector(raw[name], names, f"{key}.{name}", tables, "it")
+            vectors[declared_names(spec.resolved)[name]] = vector
+    load = build(spec.resolved, raw, **vectors)
+    load.check(key, supports)
+    return load
 
 
 def _constant_vector(raw: list, constants: set[str], key: str) -> tuple[float, float, float]:
@@ -328,14 +358,7 @@ def _build_end_load(
         )
     vectors = {}
     for name in ("force", "torque"):
-        vector = parse_load_vector(raw[name], names, f"{key}.{name}", tables)
-        for i, component in enumerate(vector):
-            if component.depends_on("s"):
-                raise SceneError(
-                    f"{key}.{name}[{i}]: end loads may depend on t and constants only, "
-                    f"not on the arc length s, got {show_value(component.source)}"
-                )
-        vectors[name] = vector
+        vectors[name] = _point_vector(raw[name], names, f"{key}.{name}", tables, "end loads")
     if support in ("pinned", "spherical") and not all(e.is_zero for e in vectors["force"]):
         held = "about e1, e2; the twist is held too" if support == "pinned" else "any axis"
         raise SceneError(
@@ -348,7 +371,7 @@ def _build_end_load(
             f"taken by the support; give the torque about e1, e2 only, got "
             f"{show_value(vectors['torque'][2].source)}"
         )
-    return EndLoad(vectors["force"], vectors["torque"])
+    return build(EndLoad, raw, **vectors)
 
 
 def _integral_ratio(span: float, step: float) -> bool:
@@ -404,18 +427,7 @@ def _build_time(
             f"{STEP_TOLERANCE:g} relative), got {span!r} / {step!r} = {span / step!r} "
             f"(e.g. time.step = {span / math.ceil(span / step):.10g}, or {ends})"
         )
-    return Time(
-        start,
-        end,
-        step,
-        raw["integrator"],
-        raw["rho_inf"],
-        raw["max_halvings"],
-        raw["adaptive"],
-        raw["rtol"],
-        raw["atol"],
-        raw["max_step"],
-    )
+    return build(Time, raw)
 
 
 def _nearest_ends(start: float, span: float, step: float, after: float | None) -> str:
@@ -439,14 +451,14 @@ def _build_solver(raw: dict) -> Solver:
         raise SceneError(f'solver.petsc.{name}: PETSc options configure SNES, but solver.nonlinear '
                          '= "newton" (the project\'s loop) reads none; set solver.nonlinear = '
                          '"snes" or "auto"')  # fmt: skip
-    return Solver(**raw)
+    return build(Solver, raw)
 
 
 def _build_discretisation(raw: dict[str, Any]) -> Discretisation:
     quadrature = raw["quadrature_degree"]
     if quadrature == "auto":
         quadrature = 2 * raw["degree"]
-    return Discretisation(raw["elements"], raw["degree"], quadrature, raw["planar"])
+    return build(Discretisation, raw, quadrature_degree=quadrature)
 
 
 def _build_output(raw: dict[str, Any], time: Time) -> Output:
@@ -481,20 +493,12 @@ def _build_output(raw: dict[str, Any], time: Time) -> Output:
             f"output.checkpoint_interval: must be 0 (at the end only), 'auto' or an integer "
             f"multiple of time.step = {time.step!r} [s], got {show_value(checkpoint_interval)}"
         )
-    return Output(
-        raw["directory"],
-        raw["xdmf"],
-        interval,
-        raw["fields"],
-        raw["checkpoint"],
-        float(checkpoint_interval),
-        raw["probe_fields"],
-    )
+    return build(Output, raw, checkpoint_interval=float(checkpoint_interval))
 
 
 def _build_limits(raw: dict[str, Any]) -> Limits:
     memory = raw["memory"]
-    return Limits(raw["wall_time"], None if memory == "auto" else float(memory))
+    return build(Limits, raw, memory=None if memory == "auto" else float(memory))
 
 
 #: The groups of (48) that are positive for every valid rod (the others may be any sign).
@@ -609,8 +613,8 @@ def scene_from_dict(
         discretisation=_build_discretisation(raw["discretisation"]),
         solver=_build_solver(raw["solver"]),
         output=_build_output(raw["output"], time),
-        static=StaticSettings(**raw["static"]),
-        damping=Damping(**raw["damping"]),
+        static=build(StaticSettings, raw["static"]),
+        damping=build(Damping, raw["damping"]),
         limits=_build_limits(raw["limits"]),
         source=source,
     )

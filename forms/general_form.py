@@ -43,6 +43,7 @@ t0 = e3, D0 = I this is (65) itself (tests/test_forms.py: the same residual to r
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import ufl
@@ -105,6 +106,24 @@ class EndLoads:
     force: ufl.core.expr.Expr | None = None
     torque: ufl.core.expr.Expr | None = None
     interior: bool = False
+
+
+@dataclass(frozen=True)
+class LoadContext:
+    """What the form of a load declared with its physics is given (``residual(load, context)``
+    of its module in forms/; cosserat_fem/resolved.py FormLoad): the state ``U`` = (p, q) and
+    the test function ``V`` (12 components each), the ``groups``, the end-load ``convention``,
+    the ``chart`` (None: the fixed basis), the boundary measure of each end by name ("start",
+    "end"), and ``vector``, which makes a load vector of the scene (expressions of t, data)
+    a UFL 3-vector times the load factor, or None when it is zero."""
+
+    U: ufl.core.expr.Expr
+    V: ufl.core.expr.Expr
+    groups: Groups
+    convention: EndLoadConvention
+    chart: Chart | None
+    ds: dict[str, ufl.Measure]
+    vector: Callable[[tuple], ufl.core.expr.Expr | None]
 
 
 @dataclass(frozen=True)
@@ -452,6 +471,7 @@ __all__ = [
     "EndLoadConvention",
     "EndLoads",
     "KelvinVoigtDamping",
+    "LoadContext",
     "Reference",
     "ResidualTerms",
     "Source",

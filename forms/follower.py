@@ -1,0 +1,48 @@
+"""A follower end force and torque: loads that turn with the end's directors ([loads.follower],
+declared by cosserat_fem/resolved.py FollowerEndLoad).
+
+Given by their components along the directors d_k of the loaded end, F = (F1, F2, F3) [N] and
+M = (M1, M2, M3) [N m], they are, in the fixed basis,
+
+    f^b = Σ_k F_k d_k = Dᵀ F,        l^b = Σ_k M_k d_k = Dᵀ M,
+
+with D the directors' matrix (rows d_k, forms/kinematics.py :func:`directors`, in the
+chart), evaluated at the end. They then enter the free-end data g_b of the general form exactly
+as the fixed end loads of (42) do (forms/general_form.py :func:`end_data`, with its sign and
+scaling convention): the force rows take f^b = Dᵀ F, which turns with the end, and the moment
+rows take l^b_i = d_i · l^b = M_i, the torque's director components, which are constant. The
+term depends on the state through D only; its Jacobian is UFL's derivative of this form, exact
+(not symmetric: a follower force is not conservative).
+
+On a rod curved at rest (forms/reference.py) D holds the rows λ_j of the rotation R (those the
+moment rows are written in), which are the end's directors where its rest frame D0 is the
+identity.
+
+Tests: tests/test_follower.py (a follower torque rolls a cantilever into the circle of radius
+E c22 / M; a tangential follower force against a fixed one, the beam-column closed forms).
+"""
+
+from __future__ import annotations
+
+import ufl
+
+from .general_form import EndLoads, LoadContext, end_data
+from .kinematics import directors, split
+
+
+def residual(load, context: LoadContext) -> ufl.Form | None:
+    """The follower load's term of the weak residual, −g_b · v_q at its end (None if zero);
+    ``load`` has ``end`` ("start" or "end") and ``force``, ``torque`` (director components,
+    expressions of t)."""
+    force, torque = context.vector(load.force), context.vector(load.torque)
+    if force is None and torque is None:
+        return None
+    p, vq = split(context.U)[0], split(context.V)[1]
+    D = directors(p, context.chart)
+    fixed = EndLoads(
+        ds=context.ds[load.end],
+        force=D.T * force if force is not None else None,
+        torque=D.T * torque if torque is not None else None,
+    )
+    data = end_data(p, context.groups, fixed, context.convention, context.chart)
+    return -ufl.inner(data, vq) * fixed.ds

@@ -1,0 +1,129 @@
+"""The follower end force and torque ([loads.follower], forms/follower.py): loads that turn with
+the end's directors, checked against closed forms in statics (``solve_static``, Newton to
+solver.rtol = 1e-10 of the residual).
+
+**Roll-up.** A follower torque M about d2 at the free end of a straight cantilever: in the x-z
+plane d2 = e2 throughout, so it is the fixed torque of scenes/rollup.toml, and the rod bends
+into a circle of radius R = E c22 / M with no contact force (n = 0: no stretch, no shear), tip
+at x = R (1 − cos(ℓ/R)), z = R sin(ℓ/R), ψ = ℓ/R. The only error is the discretisation's: the
+angle ψ = M s/(E c22) is linear and exact in P2, the position its integral of (sin ψ, cos ψ),
+the Lagrange interpolation of a smooth function, whose error falls as h^(degree+1) or faster.
+
+**Beam-column.** A cantilever under a compressive force F along its axis and a small fixed
+transverse force P at the tip. Linear theory (w(s) the deflection along e1, EI = E c22,
+k² = F/EI): equilibrium of the part beyond s gives EI w'' + F w = F w_L + Q (ℓ − s), with Q the
+tip's transverse force, w(0) = w'(0) = 0. A fixed force along −e3 has Q = P:
+
+    w_L = (P/F) (tan(kℓ)/k − ℓ),                        (Timoshenko & Gere, beam-column)
+
+which diverges at the Euler load kℓ = π/2. A follower force along −d3 turns with the tip's
+tangent, so Q = P − F w'(ℓ); solving the same equation with this Q gives Q = P cos(kℓ) and
+
+    w_L = (P/F) (sin(kℓ)/k − ℓ cos(kℓ)),
+
+finite beyond the Euler load (the tangential follower force does not buckle the rod statically;
+it loses stability by flutter only, Beck's load kℓ = 4.49). Both tend to P ℓ³/(3 EI) as F → 0.
+The rod is slender (a = 4 mm, ℓ = 1 m) and P small (w_L ~ 1e-4 ℓ), so the neglected effects
+are: the rod's shear and axial strain, relative E a²/(12 κ G ℓ²) ~ 4e-6 and F/(E A) ~ 5e-6;
+the nonlinearity, relative (w_L/ℓ)² ~ 1e-8; the discretisation (P3, 10 elements, a solution
+of wavenumber k ≤ 2/ℓ). Measured: 1.3e-5, 1.5e-5 and 0.9e-5 relative (follower and fixed at
+kℓ = 1, follower at kℓ = 2), the size of the first two. The tolerance, 1e-4 relative, is 7x
+above that and 10^4 below the difference between the follower and the fixed cases (a factor
+1.85 at kℓ = 1).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosserat_fem.errors import SceneError
+from cosserat_fem.fields import PointProbe
+from cosserat_fem.scene import load_scene
+from cosserat_fem.schema import UNSET
+from cosserat_fem.statics import solve_static
+
+ROLLUP = Path(__file__).resolve().parents[1] / "scenes" / "rollup.toml"
+
+
+def tip(overrides: dict) -> tuple[np.ndarray, float]:
+    """(x, y, z, θ, ψ, φ) at s = ℓ [m, rad] of the static solution, and E c22 [N m²]."""
+    scene = load_scene(ROLLUP, {"loads.end": UNSET, **overrides})
+    rod = scene.rod_constants()
+    model, _ = solve_static(scene)
+    return PointProbe(model, 1.0).values(), rod.young_modulus * rod.section.c22
+
+
+@pytest.mark.parametrize(("elements", "tolerance"), [(8, 5e-7), (16, 3e-9)])
+def test_follower_torque_rolls_a_cantilever_into_a_circle(elements, tolerance):
+    """Half a turn (ℓ/R = π): tip at x = 2R, z = ℓ + (R sin π − ℓ) = 0, ψ = π, in P4. The
+    discrete positions cannot be the circle exactly, so the discrete contact force is not
+    zero and ψ carries its error too; the errors fall faster than h^5 (measured, of ℓ and rad:
+    x 8.4e-8 and 3.4e-10, ψ 2.0e-7 and 8.2e-10 at 8 and 16 elements, the fixed torque's to the
+    last digit): each tolerance is about 2.5x its measured error, and the second 170x below
+    the first, so a rate below h^7 fails (the convergence check)."""
+    ell = 1.0
+    u, _ = tip({"parameters.turns": 0.5, "loads.follower.torque": [0, "turns*2*pi*EI/L", 0],
+                "discretisation.elements": elements, "discretisation.degree": 4,
+                "static.load_steps": 8})  # fmt: skip
+    R = ell / math.pi
+    assert abs(u[4] - math.pi) < 2.5 * tolerance
+    assert abs(u[0] - R * (1 - math.cos(ell / R))) < tolerance * ell
+    assert abs(u[2] - (R * math.sin(ell / R) - ell)) < tolerance * ell
+    assert abs(u[1]) < 1e-12 and abs(u[3]) < 1e-12 and abs(u[5]) < 1e-12
+
+
+SLENDER = {"rod.section.a": 0.004, "rod.section.b": 0.006, "discretisation.elements": 10,
+           "discretisation.degree": 3, "static.load_steps": 4}  # fmt: skip
+
+
+def beam_column(k_ell: float, follower: bool) -> tuple[float, float]:
+    """(w_L computed, w_L closed form) [m] at F = (kℓ)² EI/ℓ², P = 1e-4 F."""
+    scene = load_scene(ROLLUP, {"loads.end": UNSET, **SLENDER})
+    rod = scene.rod_constants()
+    EI, ell = rod.young_modulus * rod.section.c22, rod.length
+    F = k_ell**2 * EI / ell**2
+    P, k = 1e-4 * F, k_ell / ell
+    if follower:
+        loads = {"loads.end.force": [P, 0, 0], "loads.follower.force": [0, 0, -F]}
+        exact = P / F * (math.sin(k_ell) / k - ell * math.cos(k_ell))
+    else:
+        loads = {"loads.end.force": [P, 0, -F]}
+        exact = P / F * (math.tan(k_ell) / k - ell)
+    u, _ = tip({**SLENDER, **loads})
+    return u[0], exact
+
+
+@pytest.mark.parametrize("follower", [True, False], ids=["follower", "fixed"])
+def test_follower_and_fixed_compression_below_euler(follower):
+    """kℓ = 1: each case its closed form (module docstring); they differ by a factor 1.85."""
+    got, exact = beam_column(1.0, follower)
+    assert got == pytest.approx(exact, rel=1e-4)
+
+
+def test_follower_compression_beyond_euler_stays_near_straight():
+    """kℓ = 2, beyond the Euler load (π/2) where a fixed force has no stable state near the
+    straight one: the follower case is the finite closed form 0.8708 P ℓ / F."""
+    got, exact = beam_column(2.0, True)
+    assert exact > 0
+    assert got == pytest.approx(exact, rel=1e-4)
+
+
+def test_follower_load_scene_checks():
+    """Only a free end carries it (the message names the key); its plane is found as for a
+    fixed load; the scene's dict holds it and reads back the same."""
+    with pytest.raises(SceneError, match=r"^loads\.follower\.end: a follower load needs a free"):
+        load_scene(ROLLUP, {"loads.follower.end": "start", "loads.follower.force": [1, 0, 0]})
+    scene = load_scene(ROLLUP, {"loads.end": UNSET, "loads.follower.torque": [0, 2, 0]})
+    assert scene.plane() == "x-z"
+    assert load_scene(ROLLUP, {"loads.end": UNSET, "loads.follower.torque": [2, 0, 0]}).plane() \
+        == "y-z"
+    assert load_scene(ROLLUP, {"loads.end": UNSET, "loads.follower.torque": [0, 0, 2]}).plane() \
+        is None
+    from cosserat_fem.scene import scene_from_dict
+
+    assert scene_from_dict(scene.to_dict()) == scene
+    assert ("loads.follower.torque[1]", scene.loads.follower.torque[1]) in scene.load_components()

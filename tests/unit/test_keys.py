@@ -1,0 +1,145 @@
+"""A scene key is declared once, on the resolved field it becomes (cosserat_fem/keys.py), and
+everything is built from it by name (issue 26 item 6).
+
+* Every number key that a scene gives is found, by its own name, in the resolved field it
+  declares: each is given a value of its own (distinct from every other key's and from its
+  default), so that two keys swapped anywhere between the file and the resolved scene
+  (``time.rtol`` and ``time.atol``, say) would fail. Exact equality: the value is copied.
+* :func:`~cosserat_fem.keys.build` fills a dataclass by name: the same table built into a
+  dataclass with its fields in reverse order gives every field the same value.
+* Every shipped scene (scenes/*.toml) resolves to the scene that main 72e1e44 resolved, before
+  the keys were declared on the resolved fields: tests/data/resolved_scenes.json is that
+  resolution (``Scene.to_dict`` and the derived ω0, section constants, plane, absent terms and
+  step count, written by 72e1e44's code); the comparison is of those plain values, exact (the
+  same operations on the same inputs).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import pytest
+
+from cosserat_fem.keys import Number, Table, build, declared_names
+from cosserat_fem.resolved import Scene, Time
+from cosserat_fem.scene import load_scene, scene_from_dict
+from cosserat_fem.schema import SCHEMA, parse_toml
+
+pytestmark = pytest.mark.unit
+
+ROOT = Path(__file__).resolve().parents[2]
+BASE = ROOT / "tests" / "data" / "base_scene.toml"
+
+
+def _numbers(table: Table, prefix: str = "") -> list[tuple[str, Number]]:
+    """(dotted key, spec) of each plain number key: not "auto" (resolved by a rule), not
+    required (the base scene's geometry and material, whose values couple), and not in
+    tables the base scene leaves out or whose keys depend on a shape."""
+    found = []
+    for name, spec in table.fields.items():
+        key = f"{prefix}.{name}" if prefix else name
+        if isinstance(spec, Table):
+            if not spec.optional and key not in ("rod", "rod.section", "reference"):
+                found += _numbers(spec, key)
+        elif isinstance(spec, Number) and not spec.auto and not spec.required:
+            found.append((key, spec))
+    return found
+
+
+def _distinct_values(numbers: list[tuple[str, Number]]) -> dict[str, float]:
+    """A value for each key in its range, different from its default and from every other
+    key's: integers 2, 3, 4, ... in turn (the base scene's keys admit them: degree <= 5 is the
+    fourth), reals 0.1 + index/1000 (scaled into a bounded range)."""
+    values, integer = {}, 2
+    for index, (key, spec) in enumerate(numbers):
+        if spec.integer:
+            integer += integer == spec.default
+            values[key], integer = integer, integer + 1
+            assert spec.interval.contains(values[key]), key
+            continue
+        lo = spec.interval.lo if spec.interval.lo is not None else 0.0
+        value = 0.1 + index / 1000.0
+        if spec.interval.hi is not None:
+            value = lo + (spec.interval.hi - lo) * value
+        values[key] = value
+    assert len(set(values.values())) == len(values)
+    return values
+
+
+def _resolved(scene: Scene, key: str):
+    """The resolved value of the dotted ``key``, walked by the declared names alone."""
+    obj = scene
+    for name in key.split("."):
+        obj = getattr(obj, declared_names(type(obj))[name])
+    return obj
+
+
+def test_every_number_key_lands_in_its_own_field():
+    """Each plain number key, given a value of its own, is that value in its resolved field."""
+    data = parse_toml(BASE.read_bytes(), BASE)
+    numbers = [(k, s) for k, s in _numbers(SCHEMA) if not k.startswith("time.")]
+    assert len(numbers) >= 15  # solver, damping, static, discretisation, output, ...
+    overrides = _distinct_values(numbers)
+    overrides["output.xdmf_interval"] = 0.0  # a multiple of the step: its default, kept
+    scene = scene_from_dict(data, overrides=overrides)
+    for key, value in overrides.items():
+        assert _resolved(scene, key) == value, key
+
+
+def test_time_keys_land_in_their_own_fields():
+    """time.* (rtol and atol, the swap the issue names), with values of their own."""
+    data = parse_toml(BASE.read_bytes(), BASE)
+    given = {"time.start": 0.0, "time.end": 0.002, "time.step": 1e-4, "time.rho_inf": 0.3,
+             "time.max_halvings": 3, "time.rtol": 3e-5, "time.atol": 7e-11,
+             "time.max_step": 2e-4, "time.integrator": "bdf2", "time.adaptive": True}  # fmt: skip
+    scene = scene_from_dict(data, overrides=given)
+    for key, value in given.items():
+        assert _resolved(scene, key) == value, key
+
+
+def test_build_fills_by_name_whatever_the_order():
+    """A dataclass with Time's fields in reverse order, built from the same table, holds the
+    same value in every field."""
+    raw = {"start": 0.0, "end": 1.0, "step": 0.1, "integrator": "bdf2", "rho_inf": 0.5,
+           "max_halvings": 4, "adaptive": False, "rtol": 1e-4, "atol": 1e-10,
+           "max_step": 0.0}  # fmt: skip
+    fields = dataclasses.fields(Time)
+    reverse = dataclasses.make_dataclass(
+        "ReversedTime",
+        [(f.name, f.type, dataclasses.field(metadata=f.metadata)) for f in reversed(fields)],
+        frozen=True,
+        kw_only=True,
+    )
+    straight, reversed_ = build(Time, raw), build(reverse, raw)
+    assert [f.name for f in dataclasses.fields(reverse)][-2:] == ["end", "start"]
+    for f in fields:
+        assert getattr(straight, f.name) == getattr(reversed_, f.name) == raw[f.name]
+
+
+def test_schema_is_declared_by_the_resolved_scene():
+    """SCHEMA is the table the resolved Scene declares; every table's keys map to fields."""
+    assert Table.of(Scene) == SCHEMA
+    assert declared_names(type(load_scene(BASE).rod.material))["shear_modulus"] == (
+        "shear_modulus_value"
+    )
+
+
+SCENES = sorted((ROOT / "scenes").glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", SCENES, ids=lambda p: p.name)
+def test_shipped_scenes_resolve_as_before(path):
+    """Each shipped scene resolves to what 72e1e44 resolved (module docstring)."""
+    before = json.loads((ROOT / "tests" / "data" / "resolved_scenes.json").read_text())
+    scene = load_scene(path)
+    now = scene.to_dict()
+    now["_derived"] = {
+        "omega0": scene.omega0,
+        "rod_constants": repr(scene.rod_constants()),
+        "plane": scene.plane(),
+        "absent": scene.absent_terms(),
+        "n_steps": scene.time.n_steps,
+    }
+    assert json.loads(json.dumps(now, sort_keys=True, default=repr)) == before[path.name]
