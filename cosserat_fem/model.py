@@ -519,6 +519,7 @@ class RodModel:
                 groups=self.groups,
                 convention=self.convention,
                 chart=chart,
+                reference=self.reference_form(),
                 ds={"start": self.ds(START_TAG), "end": self.ds(END_TAG)},
                 vector=lambda exprs: self._vector(exprs, sym, time_eval),
             )

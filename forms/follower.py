@@ -14,9 +14,10 @@ rows take l^b_i = d_i · l^b = M_i, the torque's director components, which are 
 term depends on the state through D only; its Jacobian is UFL's derivative of this form, exact
 (not symmetric: a follower force is not conservative).
 
-On a rod curved at rest (forms/reference.py) D holds the rows λ_j of the rotation R (those the
-moment rows are written in), which are the end's directors where its rest frame D0 is the
-identity.
+On a rod curved at rest (forms/reference.py) the directors' matrix is D0 D: d_i = Σ_j D0_ij λ_j,
+λ_j the rows of D (those the moment rows are written in) and D0 the rest frame at the end. So
+f^b = Dᵀ (D0ᵀ F) and l^b = Dᵀ (D0ᵀ M): the given components are turned by D0ᵀ first, and the
+moment rows take (D0ᵀ M)_j = λ_j · l^b.
 
 Tests: tests/test_follower.py (a follower torque rolls a cantilever into the circle of radius
 E c22 / M; a tangential follower force against a fixed one, the beam-column closed forms).
@@ -37,6 +38,10 @@ def residual(load, context: LoadContext) -> ufl.Form | None:
     force, torque = context.vector(load.force), context.vector(load.torque)
     if force is None and torque is None:
         return None
+    if context.reference is not None:  # components along D0 D's rows: along D's, D0ᵀ F
+        frame = context.reference.frame
+        force = frame.T * force if force is not None else None
+        torque = frame.T * torque if torque is not None else None
     p, vq = split(context.U)[0], split(context.V)[1]
     D = directors(p, context.chart)
     fixed = EndLoads(

@@ -113,7 +113,8 @@ class LoadContext:
     """What the form of a load declared with its physics is given (``residual(load, context)``
     of its module in forms/; cosserat_fem/resolved.py FormLoad): the state ``U`` = (p, q) and
     the test function ``V`` (12 components each), the ``groups``, the end-load ``convention``,
-    the ``chart`` (None: the fixed basis), the boundary measure of each end by name ("start",
+    the ``chart`` (None: the fixed basis), the rest configuration ``reference`` (None: the
+    straight rod, forms/reference.py), the boundary measure of each end by name ("start",
     "end"), and ``vector``, which makes a load vector of the scene (expressions of t, data)
     a UFL 3-vector times the load factor, or None when it is zero."""
 
@@ -122,6 +123,7 @@ class LoadContext:
     groups: Groups
     convention: EndLoadConvention
     chart: Chart | None
+    reference: Reference | None
     ds: dict[str, ufl.Measure]
     vector: Callable[[tuple], ufl.core.expr.Expr | None]
 

@@ -127,3 +127,22 @@ def test_follower_load_scene_checks():
 
     assert scene_from_dict(scene.to_dict()) == scene
     assert ("loads.follower.torque[1]", scene.loads.follower.torque[1]) in scene.load_components()
+
+
+def test_a_follower_force_turns_with_a_rest_frame_that_is_not_the_identity():
+    """A rod curved at rest has the directors D0 D (forms/follower.py): the straight rod of
+    rollup.toml written as a curve r0 = (0, 0, s) with d0_1 = e2 (so d0_2 = −e1) is the same
+    rod turned by 90° about its axis. A square section makes the turn invisible to the
+    stiffness, so a follower force P along its d1 is the straight rod's follower force along
+    d2 = e2: the same tip position, to the solver's tolerance (Newton to 1e-10 of the
+    residual; 1e-8 of the deflection). Taking D's rows for the directors, as if D0 = I, puts
+    the force along e1 instead: a tip moved along x, not y."""
+    square = {"loads.end": UNSET, "rod.section.a": 0.005, "rod.section.b": 0.005,
+              "discretisation.elements": 6, "static.load_steps": 2}  # fmt: skip
+    P = 0.05
+    straight, _ = tip({**square, "loads.follower.force": [0, P, 0]})
+    turned, _ = tip({**square, "loads.follower.force": [P, 0, 0],
+                     "reference.shape": "curve", "reference.position": [0, 0, "s"],
+                     "reference.director": [0, 1, 0]})  # fmt: skip
+    assert straight[1] > 1e-3  # the tip moved along e2, a large deflection
+    np.testing.assert_allclose(turned[:3], straight[:3], rtol=0, atol=1e-8 * straight[1])
