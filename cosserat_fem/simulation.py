@@ -25,16 +25,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from dolfinx import fem
-from dolfinx.fem.petsc import apply_lifting, assemble_matrix, assemble_vector, set_bc
 from mpi4py import MPI
-from petsc4py import PETSc
 
 from . import __version__, budget
 from .errors import SceneError
 from .events import Events, Observer, drive
 from .fields import PointProbe, probe_position, probe_sigma
-from .integrators import GeneralizedAlpha, make_integrator
+from .integrators import make_integrator
 from .io.checkpoint import Checkpoint
 from .io.folder_lock import holding_folders
 from .io.probes import PROBES
@@ -80,36 +77,6 @@ class RunResult:
     field_times: np.ndarray | None = field(default=None, repr=False)
     field_values: np.ndarray | None = field(default=None, repr=False)
     field_stations: np.ndarray | None = field(default=None, repr=False)
-
-
-def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: str) -> None:
-    """U̇_0 from F(U_0, U̇_0, τ_0) = 0, affine in U̇_0 (one linear solve).
-
-    Assembled and solved through the API, not dolfinx's ``LinearProblem``: that sets three
-    PETSc options per instance and never removes them, and PETSc 3.18 holds 512, so a process
-    that runs ~170 scenes (the work-precision benchmark) would fail with error 55.
-    """
-    a, L, W = integrator.initial_rate_problem()
-    a_form, L_form = fem.form(a), fem.form(L)
-    model.move_supports(integrator.time, rates=True)  # moving supports: U̇ = their rates
-    model.sync_loads(integrator.time_eval)  # loads given by data, at τ0
-    A = assemble_matrix(a_form, bcs=model.bcs)
-    A.assemble()
-    b = assemble_vector(L_form)
-    apply_lifting(b, [a_form], bcs=[model.bcs])
-    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    set_bc(b, model.bcs)
-    ksp = PETSc.KSP().create(model.msh.comm)
-    ksp.setOperators(A)
-    ksp.setType("preonly")
-    ksp.getPC().setType("lu")
-    ksp.getPC().setFactorSolverType(lu_package)
-    ksp.solve(b, W.vector)
-    W.x.scatter_forward()
-    model.move_supports(integrator.time)
-    integrator.set_initial_rate(W.x.array)
-    for obj in (ksp, A, b):
-        obj.destroy()
 
 
 def _leaves_plane(model: RodModel, state: np.ndarray) -> bool:
@@ -294,8 +261,8 @@ def _discretise(scene: Scene, comm, initial_state, restart):
     )
     settings = NewtonSettings.of(scene.solver)
     solver = make_solver(integrator.residual_form(), model.U, model.bcs, settings)
-    if restart is None and isinstance(integrator, GeneralizedAlpha):
-        _consistent_rate(integrator, model, solver.lu_package)
+    if restart is None:
+        integrator.start(model, solver.lu_package)
     return model, integrator, solver
 
 
