@@ -49,7 +49,7 @@ from cosserat_fem.reference.rod_planes import linear_spectrum  # noqa: E402
 from cosserat_fem.scene import load_scene as _load_scene  # noqa: E402
 from cosserat_fem.scene import scene_from_dict  # noqa: E402
 from cosserat_fem.schema import read_toml  # noqa: E402
-from cosserat_fem.simulation import run  # noqa: E402
+from cosserat_fem.simulation import run_scene  # noqa: E402
 from cosserat_fem.statics import solve_static, static_path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -394,7 +394,7 @@ def energy_section() -> str:
     drifts, mismatch = [], []
     for dt in ENERGY_STEPS:
         rec = EnergyRecorder()
-        run(
+        run_scene(
             load_scene(paper, unloaded + common + [f"time.step={dt}"]),
             WORK,
             observers=(rec,),
@@ -402,7 +402,7 @@ def energy_section() -> str:
         )
         drifts.append(np.abs(np.array(rec.E) - E0).max() / E0)
         rec = EnergyRecorder()
-        run(load_scene(paper, common + [f"time.step={dt}"]), WORK, observers=(rec,))
+        run_scene(load_scene(paper, common + [f"time.step={dt}"]), WORK, observers=(rec,))
         E, P = np.array([0.0, *rec.E]), np.array([0.0, *rec.P])
         W = np.concatenate([[0.0], np.cumsum(0.5 * (P[1:] + P[:-1]) * dt)])
         mismatch.append(np.abs(E - W).max() / E.max())
@@ -491,7 +491,7 @@ def rotations_section() -> str:
         for planar in ("auto", "off"):
             scene = load_scene(WHIP, ["output.xdmf=false", f"discretisation.elements={elements}",
                                       f"discretisation.planar='{planar}'"])  # fmt: skip
-            runs[planar] = run(scene, write_outputs=False, record=True)
+            runs[planar] = run_scene(scene, write_outputs=False, record=True)
         gap = float(np.abs(runs["off"].probes[:, 2:5] - runs["auto"].probes[:, 2:5]).max())
         rate = "" if not gaps else f"{order(gaps[-1], gap):.2f}"
         gaps.append(gap)
@@ -581,7 +581,7 @@ def mechanisms_lines() -> list[str]:
     ]
     for name, (extra, axis) in PENDULUM_CASES.items():
         scene = load_scene(SCENES / "pendulum.toml", ["output.xdmf=false", *extra])
-        result = run(scene, write_outputs=False, record=True)
+        result = run_scene(scene, write_outputs=False, record=True)
         rows = result.probes
         t, h = rows[:, 0], scene.rod.length + rows[:, 3]
         i = np.flatnonzero(np.sign(h[:-1]) != np.sign(h[1:]))[:2]
@@ -601,7 +601,7 @@ def mechanisms_lines() -> list[str]:
     # The flying spaghetti: centre of mass and energy.
     scene = load_scene(SCENES / "flying_spaghetti.toml", ["time.end=7", "output.xdmf=false"])
     energy = EnergyRecorder()
-    result = run(scene, write_outputs=False, observers=[energy], record=True)
+    result = run_scene(scene, write_outputs=False, observers=[energy], record=True)
     t, E = np.array(energy.t), np.array(energy.E)
     free = t >= 5.0 - 1e-9
     lines += [
@@ -799,7 +799,7 @@ def right_angle_lines() -> list[str]:
     """Simo & Vu-Quoc's right-angle cantilever (scenes/simo_vuquoc_right_angle.toml): the
     extrema of the out-of-plane displacement of the elbow and the tip, and a plot."""
     scene = load_scene(SCENES / "simo_vuquoc_right_angle.toml", ["output.xdmf=false"])
-    result = run(scene, write_outputs=False, fields=np.array([0.5, 1.0]))
+    result = run_scene(scene, write_outputs=False, fields=np.array([0.5, 1.0]))
     t = result.field_times
     lines = [
         "**Simo & Vu-Quoc's right-angle cantilever** (`scenes/simo_vuquoc_right_angle.toml`: "

@@ -39,11 +39,12 @@ from dolfinx.fem.petsc import assemble_matrix
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from . import __version__, budget, safe_files
+from . import budget, safe_files
 from .errors import OutputError, SceneError, SolverError
 from .fields import XdmfWriter
 from .io.run_folder import write_summary
 from .model import FULL, RodModel, build_model, support_conditions
+from .observers import summary_start
 from .parallel import agree, ranks_on_node
 from .scene import Scene
 
@@ -443,20 +444,11 @@ def write_modes(out: Path, model: RodModel, modes: list[Mode], about: str = "und
         for i, mode in enumerate(modes, start=1):
             writer.write(float(i), mode.shape)
         writer.close()
-    scene = model.scene
-    summary = {
-        "status": "completed",
-        "kind": "modes",
-        "about": about,
-        "cosserat_fem": __version__,
-        "scene_file": scene.source,
-        "scene_file_sha256": scene.source_sha256,
-        "mpi_ranks": comm.size,
-        "modes": [
-            {"omega_rad_s": m.omega, "kind": m.kind, "eigenvalue": [m.eigenvalue.real,
-             m.eigenvalue.imag], "note": m.note}
-            for m in modes
-        ],
-        "scene": scene.to_dict(),
-    }
+    modes_found = [
+        {"omega_rad_s": m.omega, "kind": m.kind, "eigenvalue": [m.eigenvalue.real,
+         m.eigenvalue.imag], "note": m.note}
+        for m in modes
+    ]  # fmt: skip
+    summary = summary_start("modes", model.scene, comm, about=about, modes=modes_found)
+    summary["status"] = "completed"
     write_summary(out / "modes.json", summary, comm)

@@ -323,7 +323,7 @@ def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
     given; with ``resume``, a member that stopped before, from its checkpoint if it has a
     usable one: not a forced member, whose measurement is not in the checkpoint); its row
     and, for a chain, its final state (every rank of ``comm``)."""
-    from .simulation import run
+    from .simulation import run_scene
 
     t0 = time.perf_counter()
     summary, probes, status, message = None, None, "completed", ""
@@ -340,7 +340,7 @@ def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
         if checkpoint is None:
             _fresh_folder(folder, comm)
         _affordable(scene, folder, comm, checkpoint.time if checkpoint is not None else None)
-        result = run(scene, folder, comm=comm, record=True, observers=observers,
+        result = run_scene(scene, folder, comm=comm, record=True, observers=observers,
                      initial_state=initial, restart=checkpoint)  # fmt: skip
         summary = result.summary
         probes = result.probes if checkpoint is None else _whole_probes(folder, comm)

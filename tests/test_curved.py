@@ -334,7 +334,7 @@ def test_a_helix_released_from_a_large_deflection_conserves_energy_at_order_two(
     missed the reference would not be conserved by the dynamics at all."""
     from cosserat_fem.energy import EnergyMonitor
     from cosserat_fem.observers import EnergyRecorder
-    from cosserat_fem.simulation import run
+    from cosserat_fem.simulation import run_scene
     from cosserat_fem.statics import solve_static
 
     scene = ROOT / "scenes" / "cao_tucker_2008.toml"
@@ -348,7 +348,7 @@ def test_a_helix_released_from_a_large_deflection_conserves_energy_at_order_two(
     drifts = []
     for dt in (4e-5, 2e-5, 1e-5):
         recorder = EnergyRecorder()
-        run(api.load(scene, [*curved, *common, f"time.step={dt}"]), tmp_path,
+        run_scene(api.load(scene, [*curved, *common, f"time.step={dt}"]), tmp_path,
             observers=(recorder,), initial_state=bent.U.x.array.copy())  # fmt: skip
         drifts.append(np.abs(np.array(recorder.E) - E0).max() / E0)
     assert drifts[-1] < 1e-6

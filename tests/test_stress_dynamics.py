@@ -47,7 +47,7 @@ from cosserat_fem.reference.timoshenko import (
     static_deflection_sine_load,
 )
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 from cosserat_fem.statics import solve_static
 
 pytestmark = [pytest.mark.stress, pytest.mark.long]
@@ -177,7 +177,7 @@ def energy_of(overrides: list[str], full: np.ndarray) -> float:
 def free_vibration(tmp_path, overrides: list[str], full: np.ndarray, E0: float):
     """(t, E(t)/E0) after every step of a run released from the (nodes, 12) state ``full``."""
     recorder = EnergyRecorder()
-    run(
+    run_scene(
         scene_of(overrides),
         tmp_path,
         observers=(recorder,),
@@ -189,7 +189,7 @@ def free_vibration(tmp_path, overrides: list[str], full: np.ndarray, E0: float):
 
 def tip_history(tmp_path, overrides: list[str]) -> tuple[np.ndarray, np.ndarray]:
     """(t, x(ℓ, t)) from probes.csv, t = 0 included."""
-    run(scene_of(["output.xdmf=false", *overrides]), tmp_path)
+    run_scene(scene_of(["output.xdmf=false", *overrides]), tmp_path)
     data = np.loadtxt(tmp_path / "probes.csv", delimiter=",", skiprows=1)
     return data[:, 0], data[:, 1]
 
