@@ -65,7 +65,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     # columns and arrays (schema -> io.probes, io.xdmf): they sit below the scene.
     ("formats", ("io.",)),
     ("scene", ("schema", "resolved", "scene", "expressions", "load_data", "describe", "layout")),
-    ("model", ("forms.", "model", "charts", "checks", "energy", "load_coefficients",
+    ("model", ("forms.", "model", "charts", "checks", "load_coefficients",
                "reference.")),  # fmt: skip
     ("solve", ("newton", "snes", "solvers", "native_newton", "native_sdirk", "integrators",
                "adaptive", "events", "loop")),  # fmt: skip

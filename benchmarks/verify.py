@@ -30,11 +30,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from cosserat_fem.energy import EnergyMonitor  # noqa: E402
 from cosserat_fem.fields import PointProbe  # noqa: E402
-from cosserat_fem.modal import compute_modes, in_plane_share  # noqa: E402
+from cosserat_fem.modal import compute_modes  # noqa: E402
 from cosserat_fem.model import rod_constants  # noqa: E402
-from cosserat_fem.observers import EnergyRecorder  # noqa: E402
 from cosserat_fem.reference.curved import (  # noqa: E402
     SIMO_VU_QUOC_RIGHT_ANGLE,
     right_angle_extrema,
@@ -59,9 +57,13 @@ FIGURES = ROOT / "docs" / "figures"
 WORK = ROOT / "benchmarks" / "results" / "verify"
 
 # The verification helpers beside this script (mms.py, free_vibration.py), also when it is
-# loaded from a file (tests/test_verification_report.py).
+# loaded from a file (tests/test_verification_report.py), and those the tests share with it
+# (tests/rod_energy.py, tests/modal_checks.py).
 sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(1, str(ROOT / "tests"))
 from mms import run_mms  # noqa: E402
+from modal_checks import in_plane_share  # noqa: E402
+from rod_energy import EnergyMonitor, EnergyRecorder  # noqa: E402
 
 # The studies' settings (tests/test_verification_report.py reads them).
 PAPER = SCENES / "cao_tucker_2008.toml"
@@ -876,9 +878,9 @@ def response_section() -> str:
     and the one-mode Duffing harmonic balance; backbones of free vibration against
     perturbation theory; POD (docs/pod.md)."""
     from free_vibration import free_vibration_frequency
+    from modal_checks import linear_steady_state  # tests/modal_checks.py
 
     from cosserat_fem import api
-    from cosserat_fem.modal import linear_steady_state
     from cosserat_fem.reference.backbone import (
         CANTILEVER_BETA,
         Duffing,
@@ -911,8 +913,8 @@ def response_section() -> str:
         "one sweep up r continuing each member from the last "
         f"(`[sweep.response]`, {LINEAR_STEPS_PER_PERIOD} steps a period, tolerance "
         f"{LINEAR_TOLERANCE:g}). The free end's first harmonic against the linear steady state "
-        "of the same discretisation, (K + iΩC − Ω²M) P = f̂ (`modal.linear_steady_state`: the "
-        "modal steady state over every mode):",
+        "of the same discretisation, (K + iΩC − Ω²M) P = f̂ (`linear_steady_state` of "
+        "tests/modal_checks.py: the modal steady state over every mode):",
         "",
         "| r | periods | h1 of x [m] | linear | δ | phase err. [rad] | h1 of y [m] | linear | δ "
         "| phase err. [rad] |",

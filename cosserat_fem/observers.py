@@ -17,9 +17,9 @@ order:
 * :class:`InterruptObserver`: stops every rank at the same step after an interrupt (SIGINT)
   reached any of them under mpirun (cosserat_fem/parallel.py);
 * :class:`RunSummary`: the summary completed at the end (:func:`summary_start` begins it, the
-  same for run, static and modes), and summary.json written;
-* :class:`EnergyRecorder`: the rod's energy and its loads' power at every output time
-  (cosserat_fem/energy.py), for studies and tests.
+  same for run, static and modes), and summary.json written.
+
+(The rod's energy at every output time, for tests: tests/rod_energy.py's EnergyRecorder.)
 """
 
 from __future__ import annotations
@@ -32,7 +32,6 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .energy import EnergyMonitor
 from .errors import LimitReached, SceneError, SolverError
 from .events import Events, Observer
 from .fields import LineSampler, PointProbe, XdmfWriter, probe_position
@@ -383,25 +382,6 @@ class FieldRecorder(Observer):
         if comm.size > 1:
             values = comm.bcast(values, root=0)
         return np.array(self._times), values
-
-
-class EnergyRecorder(Observer):
-    """Observer (cosserat_fem/events.py): at every output time t [s], the rod's energy
-    E = T + V [J] and the power P [W] of its loads and damping: lists ``t``, ``E``, ``P``."""
-
-    def __init__(self):
-        self.monitor: EnergyMonitor | None = None
-        self.t: list[float] = []
-        self.E: list[float] = []
-        self.P: list[float] = []
-
-    def output(self, loop, k: int, t: float) -> None:
-        """Appends t [s], E = T + V [J] and P [W]; the monitor is built at the first output."""
-        if self.monitor is None:
-            self.monitor = EnergyMonitor(loop.model)
-        self.t.append(t)
-        self.E.append(sum(self.monitor.energies()))
-        self.P.append(self.monitor.power(t))
 
 
 class StandardObservers:

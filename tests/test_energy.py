@@ -18,9 +18,8 @@ import math
 
 import numpy as np
 from conftest import ROOT
+from rod_energy import EnergyMonitor, EnergyRecorder
 
-from cosserat_fem.energy import EnergyMonitor
-from cosserat_fem.observers import EnergyRecorder
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run_scene
 from cosserat_fem.statics import solve_static

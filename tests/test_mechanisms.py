@@ -29,12 +29,12 @@ import math
 import numpy as np
 import pytest
 from conftest import ROOT, run_command
+from rod_energy import EnergyRecorder
 
 from cosserat_fem.errors import SceneError
 from cosserat_fem.events import Observer
 from cosserat_fem.modal import compute_modes
 from cosserat_fem.model import rod_constants
-from cosserat_fem.observers import EnergyRecorder
 from cosserat_fem.scene import load_scene, scene_from_dict
 from cosserat_fem.schema import read_toml
 from cosserat_fem.simulation import run_scene

@@ -266,7 +266,8 @@ def test_a_move_keeps_the_frame_continuous_past_half_a_turn():
     quaternions of neighbouring nodes must have positive products, and the strain energy of
     the state must be the same after the move as before, to the frame's interpolation error
     (measured ~1e-9 of it; a frame turned over between two nodes changes it by O(1))."""
-    from cosserat_fem.energy import EnergyMonitor
+    from rod_energy import EnergyMonitor
+
     from cosserat_fem.model import build_model
 
     scene = load_scene(SCENE, [IN_3D, "loads.force_density=[0,0,0]"])

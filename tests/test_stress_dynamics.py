@@ -34,12 +34,11 @@ from conftest import ROOT
 from dolfinx import fem
 from dolfinx.fem.petsc import assemble_vector, set_bc
 from petsc4py import PETSc
+from rod_energy import EnergyMonitor, EnergyRecorder
 from scipy.optimize import minimize_scalar
 
-from cosserat_fem.energy import EnergyMonitor
 from cosserat_fem.modal import assemble_modal_problem, compute_modes, modal_supports
 from cosserat_fem.model import build_model
-from cosserat_fem.observers import EnergyRecorder
 from cosserat_fem.reference.rod_planes import bending_planes
 from cosserat_fem.reference.timoshenko import (
     modal_loads,
