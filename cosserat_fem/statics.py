@@ -201,7 +201,7 @@ def static_path(
     record: bool = False,
 ) -> StaticResult:
     """Follow the static equilibrium path from the straight rod to the full loads (module
-    docstring); ``observers`` as for cosserat_fem.simulation.run, with λ in place of t;
+    docstring); ``observers`` as for cosserat_fem.simulation.run_scene, with λ in place of t;
     ``record``: keep the probe's rows in memory (``StaticResult.probes``)."""
     t_start = clock.perf_counter()
     out = Path(out_dir if out_dir is not None else scene.output.directory)

@@ -203,7 +203,7 @@ def _whole_probes(folder: Path, comm) -> np.ndarray | None:
 def _affordable(scene, folder: Path, comm, start: float | None) -> None:
     """StopError if the member's run would be refused for what this machine has now (free
     disk, memory available): its cost was checked against its limits when the sweep was
-    loaded, so what refuses it now passes (budget.py, as simulation.run checks it)."""
+    loaded, so what refuses it now passes (budget.py, as simulation.run_scene checks it)."""
     from .parallel import ranks_on_node
 
     try:
@@ -245,7 +245,7 @@ def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
 @dataclass
 class _Final:
     """A member's final state, to continue from: its index, time [s] and forcing period [s],
-    and this rank's part of the state (the 12-component U = (p, q) of simulation.run's
+    and this rank's part of the state (the 12-component U = (p, q) of simulation.run_scene's
     ``initial_state``)."""
 
     index: int
