@@ -28,7 +28,7 @@ import numpy as np
 
 from cosserat_fem.reference.rod_planes import sine_load_tip_response
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
@@ -41,7 +41,7 @@ def rel_l2(u: np.ndarray, ref: np.ndarray) -> float:
 
 def run_config(overrides: list[str], out: Path) -> tuple[np.ndarray, dict]:
     scene = load_scene(SCENE, overrides)
-    result = run(scene, out)
+    result = run_scene(scene, out)
     probes = np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1)
     return probes, result.summary
 

@@ -71,12 +71,12 @@ def child(elements: int, steps: int, extra: list[str]) -> None:
 
     from mpi4py import MPI
 
-    from cosserat_fem.simulation import run
+    from cosserat_fem.simulation import run_scene
 
     scene = riser(elements, steps, extra)
     stamps: list[float] = []
     stamp = lambda k, t, model: stamps.append(time.perf_counter())  # noqa: E731
-    result = run(scene, write_outputs=False, observers=[stamp])
+    result = run_scene(scene, write_outputs=False, observers=[stamp])
     comm = MPI.COMM_WORLD
     peak_kb = comm.allreduce(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, op=MPI.MAX)
     if comm.rank == 0:

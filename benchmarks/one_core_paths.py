@@ -35,7 +35,7 @@ import sys
 
 from cosserat_fem.events import Observer
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 SCENE = "scenes/cao_tucker_2008.toml"
 PATHS = ("c-step", "py-step+c-newton", "py-step+py-newton+c-kernels", "all-python")
@@ -85,9 +85,9 @@ class Profiled(Path):
 def profile(name: str, extra: list[str]) -> None:
     """The own time and calls a step of the 20 costliest functions of ``name``'s path."""
     scene = _scene(name, ["time.end=0.006", *extra])
-    run(scene, write_outputs=False, observers=[Path(name)])  # warm-up
+    run_scene(scene, write_outputs=False, observers=[Path(name)])  # warm-up
     observer = Profiled(name)
-    steps = run(scene, write_outputs=False, observers=[observer]).summary["steps"]
+    steps = run_scene(scene, write_outputs=False, observers=[observer]).summary["steps"]
     stats = pstats.Stats(observer.profile).stats
     total = sum(v[2] for v in stats.values())
     calls = sum(v[1] for v in stats.values())
@@ -124,14 +124,14 @@ def main() -> None:
     for name in PATHS:  # warm-up, and the call count
         counter = Path(name, count=True)
         try:
-            run(scenes[name], write_outputs=False, record=True, observers=[counter])
+            run_scene(scenes[name], write_outputs=False, record=True, observers=[counter])
         finally:
             sys.setprofile(None)
         calls[name] = counter.calls / 100
     steps = 0
     for _ in range(args.rounds):
         for name in PATHS:
-            summary = run(
+            summary = run_scene(
                 scenes[name], write_outputs=False, record=True, observers=[Path(name)]
             ).summary
             steps = summary["steps"]

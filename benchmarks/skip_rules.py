@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
@@ -43,7 +43,7 @@ def timed(sets: list[str], repeats: int) -> tuple[float, np.ndarray, dict]:
     times = []
     for _ in range(repeats):
         with tempfile.TemporaryDirectory() as out:
-            result = run(load_scene(PAPER, sets), out)
+            result = run_scene(load_scene(PAPER, sets), out)
             times.append(result.summary["wall_time_s"]["solve_loop"])
             probes = np.loadtxt(Path(out) / "probes.csv", delimiter=",", skiprows=1)
     return statistics.median(times), probes, result.summary

@@ -42,7 +42,7 @@ from petsc4py import PETSc
 
 from cosserat_fem.events import Observer
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 SCENE = "scenes/cao_tucker_2008.toml"
 EVENTS = ("KSPSolve", "MatSolve", "SNESSolve", "SNESFunctionEval")
@@ -217,13 +217,13 @@ def main() -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     args = parser.parse_args()
     scene = load_scene(args.scene, ["output.xdmf=false", *args.set])
-    run(scene, write_outputs=False, record=True)  # warm-up: JIT cache, first touch
+    run_scene(scene, write_outputs=False, record=True)  # warm-up: JIT cache, first touch
 
     floor = Floor()
-    summary = run(scene, write_outputs=False, record=True, observers=[floor]).summary
+    summary = run_scene(scene, write_outputs=False, record=True, observers=[floor]).summary
     PETSc.Log.begin()
     profiling = Profiling()
-    profiled = run(scene, write_outputs=False, record=True, observers=[profiling]).summary
+    profiled = run_scene(scene, write_outputs=False, record=True, observers=[profiling]).summary
     totals = by_category(pstats.Stats(profiling.profile))
     ksp_time = profiling.events["KSPSolve"] if totals.get(SNES) else totals.get(KSP, 0.0)
     if totals.get(SNES):  # SNES's tottime holds the KSP solves: the event log splits them out

@@ -62,7 +62,7 @@ from cosserat_fem.reference.timoshenko import (
     tip_deflection_end_force,
 )
 from cosserat_fem.scene import load_scene, scene_from_dict
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 from cosserat_fem.statics import static_path
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -376,7 +376,7 @@ def part_slender(report: Report, quick: bool) -> None:
                 "output": {"xdmf": False},
             }
         )
-        summary = run(scene, RESULTS / "slender_dynamic").summary
+        summary = run_scene(scene, RESULTS / "slender_dynamic").summary
         stats = summary["newton"]
         rows.append(
             [
@@ -445,7 +445,7 @@ def part_slender(report: Report, quick: bool) -> None:
 
 # ============================================================================= part B
 def probes(scene, out: Path) -> tuple[np.ndarray, dict]:
-    summary = run(scene, out).summary
+    summary = run_scene(scene, out).summary
     return np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1), summary
 
 
@@ -477,7 +477,7 @@ def timed(scene, out: Path, repeats: int) -> tuple[np.ndarray, dict, float, floa
 def step_profile(scene) -> np.ndarray:
     """Accepted step end times of an adaptive run (the step_accepted event)."""
     accepted = AcceptedTimes()
-    run(scene, write_outputs=False, observers=(accepted,))
+    run_scene(scene, write_outputs=False, observers=(accepted,))
     return np.array(accepted.times)
 
 

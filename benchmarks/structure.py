@@ -66,7 +66,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("formats", ("io.",)),
     ("scene", ("keys", "schema", "resolved", "scene", "expressions", "load_data", "describe",
                "layout")),  # fmt: skip
-    ("model", ("forms.", "model", "charts", "checks", "energy", "load_coefficients",
+    ("model", ("forms.", "model", "charts", "checks", "load_coefficients",
                "reference.")),  # fmt: skip
     ("solve", ("newton", "snes", "solvers", "native_newton", "native_sdirk", "integrators",
                "adaptive", "events", "loop")),  # fmt: skip

@@ -30,11 +30,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from cosserat_fem.energy import EnergyMonitor  # noqa: E402
 from cosserat_fem.fields import PointProbe  # noqa: E402
-from cosserat_fem.modal import compute_modes, in_plane_share  # noqa: E402
+from cosserat_fem.modal import compute_modes  # noqa: E402
 from cosserat_fem.model import rod_constants  # noqa: E402
-from cosserat_fem.observers import EnergyRecorder  # noqa: E402
 from cosserat_fem.reference.curved import (  # noqa: E402
     SIMO_VU_QUOC_RIGHT_ANGLE,
     right_angle_extrema,
@@ -49,7 +47,7 @@ from cosserat_fem.reference.rod_planes import linear_spectrum  # noqa: E402
 from cosserat_fem.scene import load_scene as _load_scene  # noqa: E402
 from cosserat_fem.scene import scene_from_dict  # noqa: E402
 from cosserat_fem.schema import read_toml  # noqa: E402
-from cosserat_fem.simulation import run  # noqa: E402
+from cosserat_fem.simulation import run_scene  # noqa: E402
 from cosserat_fem.statics import solve_static, static_path  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -59,9 +57,13 @@ FIGURES = ROOT / "docs" / "figures"
 WORK = ROOT / "benchmarks" / "results" / "verify"
 
 # The verification helpers beside this script (mms.py, free_vibration.py), also when it is
-# loaded from a file (tests/test_verification_report.py).
+# loaded from a file (tests/test_verification_report.py), and those the tests share with it
+# (tests/rod_energy.py, tests/modal_checks.py).
 sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(1, str(ROOT / "tests"))
 from mms import run_mms  # noqa: E402
+from modal_checks import in_plane_share  # noqa: E402
+from rod_energy import EnergyMonitor, EnergyRecorder  # noqa: E402
 
 # The studies' settings (tests/test_verification_report.py reads them).
 PAPER = SCENES / "cao_tucker_2008.toml"
@@ -394,7 +396,7 @@ def energy_section() -> str:
     drifts, mismatch = [], []
     for dt in ENERGY_STEPS:
         rec = EnergyRecorder()
-        run(
+        run_scene(
             load_scene(paper, unloaded + common + [f"time.step={dt}"]),
             WORK,
             observers=(rec,),
@@ -402,7 +404,7 @@ def energy_section() -> str:
         )
         drifts.append(np.abs(np.array(rec.E) - E0).max() / E0)
         rec = EnergyRecorder()
-        run(load_scene(paper, common + [f"time.step={dt}"]), WORK, observers=(rec,))
+        run_scene(load_scene(paper, common + [f"time.step={dt}"]), WORK, observers=(rec,))
         E, P = np.array([0.0, *rec.E]), np.array([0.0, *rec.P])
         W = np.concatenate([[0.0], np.cumsum(0.5 * (P[1:] + P[:-1]) * dt)])
         mismatch.append(np.abs(E - W).max() / E.max())
@@ -491,7 +493,7 @@ def rotations_section() -> str:
         for planar in ("auto", "off"):
             scene = load_scene(WHIP, ["output.xdmf=false", f"discretisation.elements={elements}",
                                       f"discretisation.planar='{planar}'"])  # fmt: skip
-            runs[planar] = run(scene, write_outputs=False, record=True)
+            runs[planar] = run_scene(scene, write_outputs=False, record=True)
         gap = float(np.abs(runs["off"].probes[:, 2:5] - runs["auto"].probes[:, 2:5]).max())
         rate = "" if not gaps else f"{order(gaps[-1], gap):.2f}"
         gaps.append(gap)
@@ -581,7 +583,7 @@ def mechanisms_lines() -> list[str]:
     ]
     for name, (extra, axis) in PENDULUM_CASES.items():
         scene = load_scene(SCENES / "pendulum.toml", ["output.xdmf=false", *extra])
-        result = run(scene, write_outputs=False, record=True)
+        result = run_scene(scene, write_outputs=False, record=True)
         rows = result.probes
         t, h = rows[:, 0], scene.rod.length + rows[:, 3]
         i = np.flatnonzero(np.sign(h[:-1]) != np.sign(h[1:]))[:2]
@@ -601,7 +603,7 @@ def mechanisms_lines() -> list[str]:
     # The flying spaghetti: centre of mass and energy.
     scene = load_scene(SCENES / "flying_spaghetti.toml", ["time.end=7", "output.xdmf=false"])
     energy = EnergyRecorder()
-    result = run(scene, write_outputs=False, observers=[energy], record=True)
+    result = run_scene(scene, write_outputs=False, observers=[energy], record=True)
     t, E = np.array(energy.t), np.array(energy.E)
     free = t >= 5.0 - 1e-9
     lines += [
@@ -799,7 +801,7 @@ def right_angle_lines() -> list[str]:
     """Simo & Vu-Quoc's right-angle cantilever (scenes/simo_vuquoc_right_angle.toml): the
     extrema of the out-of-plane displacement of the elbow and the tip, and a plot."""
     scene = load_scene(SCENES / "simo_vuquoc_right_angle.toml", ["output.xdmf=false"])
-    result = run(scene, write_outputs=False, fields=np.array([0.5, 1.0]))
+    result = run_scene(scene, write_outputs=False, fields=np.array([0.5, 1.0]))
     t = result.field_times
     lines = [
         "**Simo & Vu-Quoc's right-angle cantilever** (`scenes/simo_vuquoc_right_angle.toml`: "
@@ -876,9 +878,9 @@ def response_section() -> str:
     and the one-mode Duffing harmonic balance; backbones of free vibration against
     perturbation theory; POD (docs/pod.md)."""
     from free_vibration import free_vibration_frequency
+    from modal_checks import linear_steady_state  # tests/modal_checks.py
 
     from cosserat_fem import api
-    from cosserat_fem.modal import linear_steady_state
     from cosserat_fem.reference.backbone import (
         CANTILEVER_BETA,
         Duffing,
@@ -911,8 +913,8 @@ def response_section() -> str:
         "one sweep up r continuing each member from the last "
         f"(`[sweep.response]`, {LINEAR_STEPS_PER_PERIOD} steps a period, tolerance "
         f"{LINEAR_TOLERANCE:g}). The free end's first harmonic against the linear steady state "
-        "of the same discretisation, (K + iΩC − Ω²M) P = f̂ (`modal.linear_steady_state`: the "
-        "modal steady state over every mode):",
+        "of the same discretisation, (K + iΩC − Ω²M) P = f̂ (`linear_steady_state` of "
+        "tests/modal_checks.py: the modal steady state over every mode):",
         "",
         "| r | periods | h1 of x [m] | linear | δ | phase err. [rad] | h1 of y [m] | linear | δ "
         "| phase err. [rad] |",

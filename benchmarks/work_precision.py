@@ -48,7 +48,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
@@ -92,7 +92,7 @@ def run_ours(overrides: list[str], repeats: int = REPEATS) -> dict:
     out = RESULTS / "runs" / "current"
     loops, summary = [], None
     for _ in range(repeats):
-        summary = run(scene, out).summary
+        summary = run_scene(scene, out).summary
         loops.append(summary["wall_time_s"]["solve_loop"])
     probes = np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1)
     return {
@@ -403,11 +403,11 @@ def step_breakdown(overrides: list[str] | None = None) -> dict:
     """
     PETSc.Log.begin()
     scene = load_scene(SCENE, NO_FIELDS + (overrides or []))
-    run(scene, RESULTS / "runs" / "breakdown")  # warm-up (JIT cache, first-touch)
+    run_scene(scene, RESULTS / "runs" / "breakdown")  # warm-up (JIT cache, first-touch)
     loops, parts, summaries = [], [], []
     for _ in range(DEFAULT_REPEATS):
         before = _event_times()
-        summaries.append(run(scene, RESULTS / "runs" / "breakdown").summary)
+        summaries.append(run_scene(scene, RESULTS / "runs" / "breakdown").summary)
         after = _event_times()
         loops.append(summaries[-1]["wall_time_s"]["solve_loop"])
         parts.append({k: after[k] - before[k] for k in before})

@@ -73,7 +73,7 @@ def run(
     ``initial_state`` none: a SceneError otherwise). ``observers``: cosserat_fem/events.py;
     ``progress(t [s], steps, Newton iterations)`` at every output time."""
     from .events import as_observer
-    from .simulation import run as run_scene
+    from .simulation import run_scene
 
     out = out_folder(out)
     observers = [as_observer(o) for o in observers]  # checked before any work

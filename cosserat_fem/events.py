@@ -170,24 +170,3 @@ class Events:
             except CosseratError as exc:
                 failure = failure or exc
         return failure
-
-
-def drive(loop) -> BaseException | None:
-    """Run a source of events (``loop.run()``; a time loop or load stepping) and always end
-    it: the state back to the last accepted one, then every observer's ``ended``. Returns the
-    failure, if the run stopped with a CosseratError (the observers have then written what a
-    stopped run keeps); anything else (Ctrl-C, an observer's own exception) is raised again
-    after the observers closed their files, as after a kill."""
-    from .errors import CosseratError
-
-    failure: BaseException | None = None
-    try:
-        loop.run()
-    except CosseratError as exc:
-        failure = exc
-    except BaseException as exc:
-        loop.back_to_accepted()
-        loop.events.ended(loop, exc)
-        raise
-    loop.back_to_accepted()
-    return loop.events.ended(loop, failure)

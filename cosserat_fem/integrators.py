@@ -40,6 +40,7 @@ from collections.abc import Callable
 import numpy as np
 import ufl
 from dolfinx import fem
+from dolfinx.fem.petsc import apply_lifting, assemble_matrix, assemble_vector, set_bc
 from petsc4py import PETSc
 
 from .adaptive import lagrange_weight_list
@@ -77,6 +78,15 @@ class Integrator:
 
     def residual_form(self) -> ufl.Form:
         raise NotImplementedError
+
+    def start(self, problem, lu_package: str) -> None:
+        """The integrator's own set-up before the first step of a run that starts from the
+        state in U (not a restart, whose history comes from :meth:`load_state_dict`). Most
+        integrators need none; :class:`GeneralizedAlpha` solves for a consistent rate.
+        ``problem`` gives what such a solve needs of the system: ``bcs`` (the Dirichlet
+        conditions), ``move_supports(τ, rates=False)`` (prescribed values, or their rates,
+        at τ), ``sync_loads(time_eval)`` (data loads at the Constant's τ); ``lu_package`` the
+        LU factorisation's PETSc package."""
 
     def prepare(self, h: float) -> None:
         """Set the Constants for a step of size h from ``self.time`` and predict U."""
@@ -266,6 +276,37 @@ class GeneralizedAlpha(Integrator):
 
     def set_initial_rate(self, rate: np.ndarray) -> None:
         self.Udot_n.x.array[:] = rate
+
+    def start(self, problem, lu_package: str) -> None:
+        """U̇_0 consistent with U_0: F(U_0, U̇_0, τ_0) = 0, affine in U̇_0, is one linear solve
+        (:meth:`initial_rate_problem`), with the supports' rates as U̇_0's prescribed values
+        (``problem`` and ``lu_package``: :meth:`Integrator.start`).
+
+        Assembled and solved through the API, not dolfinx's ``LinearProblem``: that sets three
+        PETSc options per instance and never removes them, and PETSc 3.18 holds 512, so a
+        process that runs ~170 scenes (the work-precision benchmark) would fail with error 55.
+        """
+        a, L, W = self.initial_rate_problem()
+        a_form, L_form = fem.form(a), fem.form(L)
+        problem.move_supports(self.time, rates=True)  # moving supports: U̇ = their rates
+        problem.sync_loads(self.time_eval)  # loads given by data, at τ0
+        A = assemble_matrix(a_form, bcs=problem.bcs)
+        A.assemble()
+        b = assemble_vector(L_form)
+        apply_lifting(b, [a_form], bcs=[problem.bcs])
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        set_bc(b, problem.bcs)
+        ksp = PETSc.KSP().create(self.U.function_space.mesh.comm)
+        ksp.setOperators(A)
+        ksp.setType("preonly")
+        ksp.getPC().setType("lu")
+        ksp.getPC().setFactorSolverType(lu_package)
+        ksp.solve(b, W.vector)
+        W.x.scatter_forward()
+        problem.move_supports(self.time)
+        self.set_initial_rate(W.x.array)
+        for obj in (ksp, A, b):
+            obj.destroy()
 
     def prepare(self, h: float) -> None:
         """The Constants for a step of h from τ_n (evaluation at τ_n + αf h) and the second-order

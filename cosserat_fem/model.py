@@ -43,7 +43,6 @@ from .forms.general_form import (
 from .forms.groups import Groups, RodConstants, dimensionless_groups
 from .forms.kinematics import P_NAMES, quaternion_chart
 from .forms.reference import Reference
-from .forms.section import Section
 from .layout import FULL, Layout
 from .load_coefficients import DataLoads
 from .load_data import is_data
@@ -78,10 +77,6 @@ def quiet_jit_logging() -> None:
     for handler in logging.getLogger().handlers:
         if _drop_build_chatter not in handler.filters:
             handler.addFilter(_drop_build_chatter)
-
-
-def section_of(scene: Scene) -> Section:
-    return scene.rod.section.constants()
 
 
 def rod_constants(scene: Scene) -> RodConstants:

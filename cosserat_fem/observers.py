@@ -1,7 +1,8 @@
 """Observers of a run's events (cosserat_fem/events.py): what a run writes and records.
 
-Each observer has one job; a run is composed of the ones it needs (cosserat_fem/simulation.py,
-statics.py), in this order:
+Each observer has one job. A run and a static solve (cosserat_fem/simulation.py, statics.py)
+take the same chain from :class:`StandardObservers`, its differences as arguments, in this
+order:
 
 * :class:`FolderStart`: a new run claims its folder (an earlier run's stale files removed,
   summary.json "running" with the run's identity, cosserat_fem/io/run_folder.py); a restart cuts
@@ -15,25 +16,29 @@ statics.py), in this order:
 * :class:`DeadlineObserver`: stops the run at ``limits.wall_time``, with a checkpoint;
 * :class:`InterruptObserver`: stops every rank at the same step after an interrupt (SIGINT)
   reached any of them under mpirun (cosserat_fem/parallel.py);
-* :class:`FolderSummary`: summary.json at the end;
-* :class:`EnergyRecorder`: the rod's energy and its loads' power at every output time
-  (cosserat_fem/energy.py), for studies and tests.
+* :class:`RunSummary`: the summary completed at the end (:func:`summary_start` begins it, the
+  same for run, static and modes), and summary.json written.
+
+(The rod's energy at every output time, for tests: tests/rod_energy.py's EnergyRecorder.)
 """
 
 from __future__ import annotations
 
+import platform
 import time
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
-from .energy import EnergyMonitor
+from . import __version__
 from .errors import LimitReached, SceneError, SolverError
-from .events import Observer
-from .fields import LineSampler, PointProbe, XdmfWriter
+from .events import Events, Observer
+from .fields import LineSampler, PointProbe, XdmfWriter, probe_position
 from .io.checkpoint import Checkpoint, CheckpointWriter
-from .io.probes import ProbeWriter, last_probe_row
-from .io.run_folder import SUMMARY, claim, cut_outputs, write_summary
+from .io.probes import PROBES, ProbeWriter, last_probe_row
+from .io.run_folder import SUMMARY, claim, cut_outputs, status_of, write_summary
+from .io.xdmf import XDMF
 from .log import LOGGER
 from .parallel import check_interrupt, from_root
 
@@ -61,19 +66,88 @@ class FolderStart(Observer):
         self.claimed = True
 
 
-class FolderSummary(Observer):
-    """summary.json at the end: ``finish(loop, failure)`` gives its content. A summary that
+def summary_start(kind: str, scene, comm, model=None, probe: PointProbe | None = None,
+                  solver=None, run_id: str | None = None, **extra) -> dict:
+    """The summary (summary.json of a run or a static solve, modes.json of modes) as it
+    starts, status "running": ``kind`` ("run", "static", "modes"), ``run_id`` if given, the
+    version, the scene file and its SHA-256, the MPI ranks; with ``model`` its discretisation
+    (dofs, elements, degree, quadrature degree, ω0 [rad/s], skipped terms, solved unknowns,
+    groups); with ``probe`` its arc length [m] and the point of the rod at rest from which
+    probes.csv's x, y, z are displacements [m]; with ``solver`` its LU package; then
+    ``extra``, the Python version and the scene (as validated). :class:`RunSummary` completes
+    it at the end."""
+    summary: dict = {"status": "running", "kind": kind}
+    if run_id is not None:
+        summary["run_id"] = run_id
+    summary.update({"cosserat_fem": __version__, "scene_file": scene.source,
+                    "scene_file_sha256": scene.source_sha256, "mpi_ranks": comm.size})  # fmt: skip
+    if model is not None:
+        disc = scene.discretisation
+        summary.update(
+            {
+                "dofs": model.global_dofs(),
+                "elements": disc.elements,
+                "degree": disc.degree,
+                "quadrature_degree": disc.quadrature_degree,
+                "omega0_rad_s": model.omega0,
+                "skipped_terms": model.skipped,
+                "solved_unknowns": list(model.layout.names),
+                "groups": model.groups.as_dict(),
+            }
+        )
+    if probe is not None:
+        at = probe.sigma * scene.rod.length
+        summary.update({"probe_s_m": at, "probe_reference_position_m": probe_position(scene, at)})
+    if solver is not None:
+        summary["lu_package"] = solver.lu_package
+    summary.update(extra)
+    summary.update({"python": platform.python_version(), "scene": scene.to_dict()})
+    return summary
+
+
+class RunSummary(Observer):
+    """The summary of :func:`summary_start` completed at the end of a run or a static solve
+    (``summary``, updated in place), and written as summary.json if the folder was claimed
+    (``start``): the status and message (cosserat_fem/io/run_folder.py's status_of), the
+    loop's counters (``loop.state.counts()``; ``ended_early`` with the reason if the loop
+    ended early), the checkpoints written, Newton's counts and its loop, and wall times [s]
+    from ``t_start`` (a time.perf_counter() value): the solve loop from its first step to its
+    last (the folder claimed and the first frame written belong to the set-up, as the first
+    row of probes.csv does), its output part, JIT compilation, the total. A summary that
     cannot be written is an OutputError unless the run already failed (the earlier one
     stays)."""
 
-    def __init__(self, folder: Path, comm, start: FolderStart, finish):
-        self.folder, self.comm, self.start, self.finish = folder, comm, start, finish
+    def __init__(self, summary: dict, solver, t_start: float, comm, folder: Path | None = None,
+                 start: FolderStart | None = None,
+                 checkpoints: CheckpointObserver | None = None):  # fmt: skip
+        self.summary, self.solver, self.t_start, self.comm = summary, solver, t_start, comm
+        self.folder, self.start, self.checkpoints = folder, start, checkpoints
 
     def ended(self, loop, failure) -> None:
-        if self.start.claimed:
-            write_summary(
-                self.folder / SUMMARY, self.finish(loop, failure), self.comm, failure is None
-            )
+        now = time.perf_counter()
+        since = loop.stepping_since or now
+        loop_time = (loop.stepping_until or now) - since
+        output = loop.events.output_time
+        self.summary.update(
+            {
+                "status": status_of(failure),
+                "message": str(failure) if failure else "",
+                **loop.state.counts(),
+                **({"ended_early": loop.end_reason} if loop.end_reason else {}),
+                "checkpoints_written": self.checkpoints.written if self.checkpoints else 0,
+                "newton": {**self.solver.stats.as_dict(), "loop": self.solver.loop},
+                "wall_time_s": {
+                    "setup": since - self.t_start,
+                    "jit_compile": self.solver.compile_time,
+                    "solve_loop": loop_time,
+                    "solve_loop_without_output": loop_time - output,
+                    "output": output,
+                    "total": now - self.t_start,
+                },
+            }
+        )
+        if self.start is not None and self.start.claimed:
+            write_summary(self.folder / SUMMARY, self.summary, self.comm, failure is None)
 
 
 class ProbeObserver(Observer):
@@ -310,20 +384,63 @@ class FieldRecorder(Observer):
         return np.array(self._times), values
 
 
-class EnergyRecorder(Observer):
-    """Observer (cosserat_fem/events.py): at every output time t [s], the rod's energy
-    E = T + V [J] and the power P [W] of its loads and damping: lists ``t``, ``E``, ``P``."""
+class StandardObservers:
+    """The observers of a run or a static solve, in the order of the module docstring, and
+    its :class:`Events` (``events``). ``summary`` from :func:`summary_start`; ``out`` the
+    folder (None: no files); ``xdmf_every`` output steps between XDMF frames; ``restart`` and
+    ``plan`` (io/run_folder.py's check_outputs) continue a checkpoint's outputs;
+    ``checkpoints`` writes them (the scene's output.checkpoint); ``wall_time`` [s] the limit
+    after ``t_start`` (None: none); ``progress(t, steps, iterations)``; ``observers`` the
+    caller's; ``record`` keeps the probe's rows (``recorder``), ``fields`` the stations σ
+    sampled every ``field_every`` output times (``sampled``)."""
 
-    def __init__(self):
-        self.monitor: EnergyMonitor | None = None
-        self.t: list[float] = []
-        self.E: list[float] = []
-        self.P: list[float] = []
-
-    def output(self, loop, k: int, t: float) -> None:
-        """Appends t [s], E = T + V [J] and P [W]; the monitor is built at the first output."""
-        if self.monitor is None:
-            self.monitor = EnergyMonitor(loop.model)
-        self.t.append(t)
-        self.E.append(sum(self.monitor.energies()))
-        self.P.append(self.monitor.power(t))
+    def __init__(
+        self,
+        scene,
+        model,
+        solver,
+        probe: PointProbe,
+        summary: dict,
+        comm,
+        t_start: float,
+        out: Path | None,
+        *,
+        xdmf_every: int,
+        restart: Checkpoint | None = None,
+        plan=None,
+        checkpoints: bool = False,
+        wall_time: float | None = None,
+        progress: Callable | None = None,
+        observers: Sequence[Observer] = (),
+        record: bool = False,
+        fields: np.ndarray | None = None,
+        field_every: int = 1,
+    ):
+        chain: list[Observer] = []
+        begin = probes = xdmf = None
+        if out is not None:
+            begin = FolderStart(out, comm, scene.output.xdmf, summary, plan,
+                                writes_checkpoint=checkpoints)  # fmt: skip
+            probes = ProbeObserver(out / PROBES, probe, resume=restart is not None)
+            chain += [begin, probes]
+            if scene.output.xdmf:
+                resume = (restart.restart_number, plan.frames) if restart is not None else None
+                xdmf = XdmfObserver(out / XDMF, model, xdmf_every, probes, summary["run_id"],
+                                    resume)  # fmt: skip
+                chain.append(xdmf)
+        if progress is not None:
+            chain.append(ProgressObserver(progress))
+        chain += list(observers)
+        self.recorder = ProbeRecorder(probe) if record else None
+        self.sampled = FieldRecorder(model, fields, field_every) if fields is not None else None
+        chain += [o for o in (self.recorder, self.sampled) if o is not None]
+        self.checkpoints = None
+        if out is not None and checkpoints:
+            self.checkpoints = CheckpointObserver(out, comm, scene, summary["run_id"], probes,
+                                                  xdmf, previous=restart)  # fmt: skip
+            chain.append(self.checkpoints)
+        if wall_time is not None:
+            chain.append(DeadlineObserver(t_start + wall_time, wall_time, comm))
+        chain.append(InterruptObserver(comm))
+        chain.append(RunSummary(summary, solver, t_start, comm, out, begin, self.checkpoints))
+        self.events = Events(chain)

@@ -184,13 +184,6 @@ def read_text(path: str | Path, limit: int | None = None) -> str:
     return read_regular(path, limit).decode("utf-8")
 
 
-def is_linked(path: str | Path) -> bool:
-    """Whether the name ``path`` is a symbolic link or a file with other names (hard links):
-    a write in place there would change a file outside the folder."""
-    info = os.lstat(path)
-    return stat.S_ISLNK(info.st_mode) or (not stat.S_ISDIR(info.st_mode) and info.st_nlink > 1)
-
-
 def remove_name(path: str | Path) -> None:
     """Remove the name ``path`` if there is one: a file, a link (not its target) or a special
     file; a folder there is an ``IsADirectoryError`` naming it (never emptied)."""

@@ -18,44 +18,29 @@ of the last accepted state is kept where a restart can continue, and summary.jso
 
 from __future__ import annotations
 
-import platform
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from dolfinx import fem
-from dolfinx.fem.petsc import apply_lifting, assemble_matrix, assemble_vector, set_bc
 from mpi4py import MPI
-from petsc4py import PETSc
 
-from . import __version__, budget
-from .errors import SceneError
-from .events import Events, Observer, drive
-from .fields import PointProbe, probe_position, probe_sigma
-from .integrators import GeneralizedAlpha, make_integrator
+from . import budget
+from .errors import CosseratError, SceneError
+from .events import Observer
+from .fields import PointProbe, probe_sigma
+from .integrators import make_integrator
 from .io.checkpoint import Checkpoint
-from .io.folder_lock import holding_folders
+from .io.folder_lock import folders_held
 from .io.probes import PROBES
-from .io.run_folder import check_outputs, new_run_id, prepare_output_dir, status_of
+from .io.run_folder import check_outputs, new_run_id, prepare_output_dir
 from .io.xdmf import XDMF
 from .load_data import refuse_callable_restart
 from .loop import TimeLoop
 from .model import RodModel, build_model
 from .newton import NewtonSettings
-from .observers import (
-    CheckpointObserver,
-    DeadlineObserver,
-    FieldRecorder,
-    FolderStart,
-    FolderSummary,
-    InterruptObserver,
-    ProbeObserver,
-    ProbeRecorder,
-    ProgressObserver,
-    XdmfObserver,
-)
+from .observers import StandardObservers, summary_start
 from .parallel import agree, ranks_on_node
 from .restart import check_restart_scene
 from .scene import Scene, refuse_closed
@@ -82,36 +67,6 @@ class RunResult:
     field_stations: np.ndarray | None = field(default=None, repr=False)
 
 
-def _consistent_rate(integrator: GeneralizedAlpha, model: RodModel, lu_package: str) -> None:
-    """U̇_0 from F(U_0, U̇_0, τ_0) = 0, affine in U̇_0 (one linear solve).
-
-    Assembled and solved through the API, not dolfinx's ``LinearProblem``: that sets three
-    PETSc options per instance and never removes them, and PETSc 3.18 holds 512, so a process
-    that runs ~170 scenes (the work-precision benchmark) would fail with error 55.
-    """
-    a, L, W = integrator.initial_rate_problem()
-    a_form, L_form = fem.form(a), fem.form(L)
-    model.move_supports(integrator.time, rates=True)  # moving supports: U̇ = their rates
-    model.sync_loads(integrator.time_eval)  # loads given by data, at τ0
-    A = assemble_matrix(a_form, bcs=model.bcs)
-    A.assemble()
-    b = assemble_vector(L_form)
-    apply_lifting(b, [a_form], bcs=[model.bcs])
-    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    set_bc(b, model.bcs)
-    ksp = PETSc.KSP().create(model.msh.comm)
-    ksp.setOperators(A)
-    ksp.setType("preonly")
-    ksp.getPC().setType("lu")
-    ksp.getPC().setFactorSolverType(lu_package)
-    ksp.solve(b, W.vector)
-    W.x.scatter_forward()
-    model.move_supports(integrator.time)
-    integrator.set_initial_rate(W.x.array)
-    for obj in (ksp, A, b):
-        obj.destroy()
-
-
 def _leaves_plane(model: RodModel, state: np.ndarray) -> bool:
     """Whether a planar model was given a 12-component state with an out-of-plane component
     (y, θ, φ for x-z; x, ψ, φ for y-z) or a rate of one non-zero (collective)."""
@@ -122,8 +77,7 @@ def _leaves_plane(model: RodModel, state: np.ndarray) -> bool:
     return model.msh.comm.allreduce(local, op=MPI.LOR)
 
 
-@holding_folders
-def run(
+def run_scene(
     scene: Scene,
     out_dir: str | Path | None = None,
     comm: MPI.Comm = MPI.COMM_WORLD,
@@ -136,7 +90,10 @@ def run(
     fields: np.ndarray | None = None,
     field_every: int = 1,
 ) -> RunResult:
-    """Integrate the scene over its time span (module docstring).
+    """Integrate the scene over its time span (module docstring): the run behind the one
+    public ``run``, cosserat_fem/api.py's (``cf.run``, which the command line calls), with
+    what a program inside the package needs besides: a communicator ``comm`` (a sweep's
+    group of ranks) and the scene's output.directory as the default folder.
 
     The rod starts from rest in its straight state, or from the scene's [initial] fields, or
     from ``initial_state`` (the array of a 12-component state U = (p, q) on the same
@@ -153,58 +110,83 @@ def run(
     cosserat_fem/io/run_folder.py).
     """
     t_start = time.perf_counter()
-    refuse_closed(scene, "run")
-    fields = _stations(fields, field_every)
-    if restart is not None:
-        refuse_callable_restart(scene)
-        _check_restart(scene, restart, out_dir, initial_state)
-        out_dir, write_outputs = restart.run_dir, True
-    initial_state = _initial_array(initial_state, comm)
-    out = None
-    if write_outputs:
-        out = Path(out_dir if out_dir is not None else scene.output.directory)
-    start = restart.time if restart is not None else None
-    budget.check(scene, "run", out, ranks_on_node(comm), comm.size, start=start, comm=comm)
-    plan = None
-    if out is not None:
-        kind, run_id = ("restart", restart.run_id) if restart is not None else ("run", None)
-        prepare_output_dir(out, comm, lock=kind, run_id=run_id)
-        if restart is not None:  # checked before anything is built or touched
-            xdmf = out / XDMF if scene.output.xdmf else None
-            plan = check_outputs(restart, out / PROBES, xdmf, comm)
-    model, integrator, solver = _discretise(scene, comm, initial_state, restart)
-    probe = PointProbe(model, probe_sigma(scene), fields=scene.output.probe_fields)
-    summary = _summary_start(scene, model, integrator, solver, probe, comm, restart)
-    parts = _RunParts(scene, model, solver, probe, summary, comm, t_start)
-    if out is not None:
-        parts.files(out, restart, plan)
-    if progress is not None:
-        parts.chain.append(ProgressObserver(progress))
-    parts.chain += list(observers)
-    parts.records(record, fields, field_every)
-    events = parts.events(out, restart)
-    loop = TimeLoop(model, integrator, solver, scene.time, events,
-                    restart.parts if restart is not None else None)  # fmt: skip
-    try:
+    with folders_held():  # the output folder is locked for the run
+        refuse_closed(scene, "run")
+        fields = _stations(fields, field_every)
+        if restart is not None:
+            refuse_callable_restart(scene)
+            _check_restart(scene, restart, out_dir, initial_state)
+            out_dir, write_outputs = restart.run_dir, True
+        initial_state = _initial_array(initial_state, comm)
+        out = None
+        if write_outputs:
+            out = Path(out_dir if out_dir is not None else scene.output.directory)
+        start = restart.time if restart is not None else None
+        budget.check(scene, "run", out, ranks_on_node(comm), comm.size, start=start, comm=comm)
+        plan = None
+        if out is not None:
+            kind, run_id = ("restart", restart.run_id) if restart is not None else ("run", None)
+            prepare_output_dir(out, comm, lock=kind, run_id=run_id)
+            if restart is not None:  # checked before anything is built or touched
+                xdmf = out / XDMF if scene.output.xdmf else None
+                plan = check_outputs(restart, out / PROBES, xdmf, comm)
+        model, integrator, solver = _discretise(scene, comm, initial_state, restart)
+        probe = PointProbe(model, probe_sigma(scene), fields=scene.output.probe_fields)
+        run_id = restart.run_id if restart is not None else new_run_id(comm)
+        summary = summary_start(
+            "run", scene, comm, model, probe, solver, run_id,
+            integrator=integrator.name,
+            restarted_from_s=restart.time if restart is not None else None,
+            restarts=restart.restart_number if restart is not None else 0,
+        )  # fmt: skip
+        chain = StandardObservers(
+            scene, model, solver, probe, summary, comm, t_start, out,
+            xdmf_every=scene.output.xdmf_every(scene.time.step), restart=restart, plan=plan,
+            checkpoints=scene.output.checkpoint, wall_time=scene.limits.wall_time,
+            progress=progress, observers=observers, record=record, fields=fields,
+            field_every=field_every,
+        )  # fmt: skip
+        loop = TimeLoop(model, integrator, solver, scene.time, chain.events,
+                        restart.parts if restart is not None else None)  # fmt: skip
         failure = drive(loop)
+        comm.barrier()  # every file is closed on every rank before anyone reads them
+        if failure:
+            raise failure
+        times, values = chain.sampled.arrays() if chain.sampled is not None else (None, None)
+        return RunResult(
+            out_dir=out,
+            steps=summary["steps"],
+            time_reached=summary["time_reached_s"],
+            summary=summary,
+            model=model,
+            probes=chain.recorder.rows() if chain.recorder is not None else None,
+            field_times=times,
+            field_values=values,
+            field_stations=fields,
+        )
+
+
+def drive(loop) -> BaseException | None:
+    """Run a source of events (``loop.run()``: a time loop, or load stepping of
+    cosserat_fem/statics.py) and always end it: the state back to the last accepted one,
+    then every observer's ``ended``, then the solver's PETSc objects destroyed. Returns the
+    failure if the run stopped with a CosseratError (the observers have then written what a
+    stopped run keeps); anything else (Ctrl-C, an observer's own exception) is raised again
+    after the observers closed their files, as after a kill."""
+    failure: BaseException | None = None
+    try:
+        try:
+            loop.run()
+        except CosseratError as exc:
+            failure = exc
+        except BaseException as exc:
+            loop.back_to_accepted()
+            loop.events.ended(loop, exc)
+            raise
+        loop.back_to_accepted()
+        return loop.events.ended(loop, failure)
     finally:
-        solver.destroy()
-    parts.summary_at_end(loop, failure)
-    comm.barrier()  # every file is closed on every rank before anyone reads them
-    if failure:
-        raise failure
-    times, values = parts.sampled.arrays() if parts.sampled is not None else (None, None)
-    return RunResult(
-        out_dir=out,
-        steps=summary["steps"],
-        time_reached=summary["time_reached_s"],
-        summary=summary,
-        model=model,
-        probes=parts.recorder.rows() if parts.recorder is not None else None,
-        field_times=times,
-        field_values=values,
-        field_stations=fields,
-    )
+        loop.solver.destroy()
 
 
 def _check_restart(scene: Scene, restart, out_dir, initial_state) -> None:
@@ -294,115 +276,6 @@ def _discretise(scene: Scene, comm, initial_state, restart):
     )
     settings = NewtonSettings.of(scene.solver)
     solver = make_solver(integrator.residual_form(), model.U, model.bcs, settings)
-    if restart is None and isinstance(integrator, GeneralizedAlpha):
-        _consistent_rate(integrator, model, solver.lu_package)
+    if restart is None:
+        integrator.start(model, solver.lu_package)
     return model, integrator, solver
-
-
-class _RunParts:
-    """The observers of a run, in the order of cosserat_fem/observers.py, and its summary."""
-
-    def __init__(self, scene, model, solver, probe, summary: dict, comm, t_start: float):
-        self.scene, self.model, self.solver, self.probe = scene, model, solver, probe
-        self.summary, self.comm, self.t_start = summary, comm, t_start
-        self.chain: list = []
-        self.recorder = self.sampled = self.checkpoints = None
-        self._files = None
-        self._events: Events | None = None
-
-    def files(self, out: Path, restart: Checkpoint | None, plan) -> None:
-        """The folder claimed (or cut back), probes.csv and the XDMF pair."""
-        scene = self.scene
-        begin = FolderStart(out, self.comm, scene.output.xdmf, self.summary, plan,
-                            writes_checkpoint=scene.output.checkpoint)  # fmt: skip
-        probes = ProbeObserver(out / PROBES, self.probe, resume=restart is not None)
-        xdmf = None
-        if scene.output.xdmf:
-            every = scene.output.xdmf_every(scene.time.step)
-            resume = (restart.restart_number, plan.frames) if restart is not None else None
-            xdmf = XdmfObserver(out / XDMF, self.model, every, probes, self.summary["run_id"],
-                                resume)  # fmt: skip
-        self.chain += [begin, probes, *([xdmf] if xdmf else [])]
-        self._files = (begin, probes, xdmf)
-
-    def records(self, record: bool, fields, field_every: int) -> None:
-        """The probe's rows and sampled fields in memory, for the Python API."""
-        if record:
-            self.recorder = ProbeRecorder(self.probe)
-            self.chain.append(self.recorder)
-        if fields is not None:
-            self.sampled = FieldRecorder(self.model, fields, field_every)
-            self.chain.append(self.sampled)
-
-    def events(self, out: Path | None, restart: Checkpoint | None) -> Events:
-        """The chain closed by the checkpoints, the wall-time limit and the summary."""
-        scene, comm = self.scene, self.comm
-        if self._files is not None and scene.output.checkpoint:
-            _, probes, xdmf = self._files
-            self.checkpoints = CheckpointObserver(out, comm, scene, self.summary["run_id"],
-                                                  probes, xdmf, previous=restart)  # fmt: skip
-            self.chain.append(self.checkpoints)
-        wall = scene.limits.wall_time
-        self.chain.append(DeadlineObserver(self.t_start + wall, wall, comm))
-        self.chain.append(InterruptObserver(comm))
-        if self._files is not None:
-            self.chain.append(FolderSummary(out, comm, self._files[0], self.summary_at_end))
-        self._events = Events(self.chain)
-        return self._events
-
-    def summary_at_end(self, loop: TimeLoop, failure: BaseException | None) -> dict:
-        """summary.json at the end: the status, the loop's counters, Newton's, wall times
-        (the solve loop from its first step: the folder claimed and the first frame written
-        belong to the set-up, as the first row of probes.csv does)."""
-        now = time.perf_counter()
-        since = loop.stepping_since or now
-        loop_time = (loop.stepping_until or now) - since
-        output = self._events.output_time
-        self.summary.update(
-            {
-                "status": status_of(failure),
-                "message": str(failure) if failure else "",
-                **loop.state.counts(),
-                **({"ended_early": loop.end_reason} if loop.end_reason else {}),
-                "checkpoints_written": self.checkpoints.written if self.checkpoints else 0,
-                "newton": {**self.solver.stats.as_dict(), "loop": self.solver.loop},
-                "wall_time_s": {
-                    "setup": since - self.t_start,
-                    "jit_compile": self.solver.compile_time,
-                    "solve_loop": loop_time,
-                    "solve_loop_without_output": loop_time - output,
-                    "output": output,
-                    "total": now - self.t_start,
-                },
-            }
-        )
-        return self.summary
-
-
-def _summary_start(scene, model, integrator, solver, probe, comm, restart) -> dict:
-    """summary.json as a run starts (status "running"; completed by the run's end)."""
-    return {
-        "status": "running",
-        "run_id": restart.run_id if restart is not None else new_run_id(comm),
-        "cosserat_fem": __version__,
-        "scene_file": scene.source,
-        "scene_file_sha256": scene.source_sha256,
-        "mpi_ranks": comm.size,
-        "dofs": model.global_dofs(),
-        "elements": scene.discretisation.elements,
-        "degree": scene.discretisation.degree,
-        "quadrature_degree": scene.discretisation.quadrature_degree,
-        "integrator": integrator.name,
-        "omega0_rad_s": model.omega0,
-        "probe_s_m": probe.sigma * model.length,
-        # probes.csv's x, y, z are displacements from this point of the rod at rest
-        "probe_reference_position_m": probe_position(scene, probe.sigma * model.length),
-        "lu_package": solver.lu_package,
-        "restarted_from_s": restart.time if restart is not None else None,
-        "restarts": restart.restart_number if restart is not None else 0,
-        "skipped_terms": model.skipped,
-        "solved_unknowns": list(model.layout.names),
-        "groups": model.groups.as_dict(),
-        "python": platform.python_version(),
-        "scene": scene.to_dict(),
-    }

@@ -28,29 +28,21 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from . import __version__, budget
+from . import budget
 from .checks import check_state, cos_theta
 from .errors import SceneError, SolverError
-from .events import Events, Observer, drive
-from .fields import PointProbe, probe_position, probe_sigma
+from .events import Events, Observer
+from .fields import PointProbe, probe_sigma
 from .integrators import make_integrator
 from .io.folder_lock import holding_folders
-from .io.probes import PROBES
-from .io.run_folder import new_run_id, prepare_output_dir, status_of
-from .io.xdmf import XDMF
+from .io.run_folder import new_run_id, prepare_output_dir
 from .log import LOGGER
 from .model import RodModel, build_model
 from .newton import NewtonFailure, NewtonSettings, NewtonSolver
-from .observers import (
-    FolderStart,
-    FolderSummary,
-    InterruptObserver,
-    ProbeObserver,
-    ProbeRecorder,
-    XdmfObserver,
-)
+from .observers import StandardObservers, summary_start
 from .parallel import ranks_on_node
 from .scene import Scene, refuse_closed
+from .simulation import drive
 from .solvers import make_solver
 
 
@@ -72,25 +64,38 @@ class StaticResult:
 class StaticState:
     """Where load stepping is: ``t`` the load factor λ of the last accepted state (in the
     place of time, for the observers), accepted load steps, bisections (``rejected``),
-    output steps."""
+    output steps, the load factors reached (0 first) and the Newton iterations of each
+    accepted step, the chart's moves."""
 
     t: float = 0.0
     accepted: int = 0
     rejected: int = 0
     outputs: int = 0
+    factors: list[float] = field(default_factory=lambda: [0.0])
+    iterations: list[int] = field(default_factory=list)
+    chart_resets: int = 0
+
+    def counts(self) -> dict:
+        """The counters as summary.json reports them."""
+        return {
+            "load_factors": self.factors,
+            "newton_iterations": self.iterations,
+            "bisections": self.rejected,
+            "chart_resets": self.chart_resets,
+        }
 
 
 class StaticLoop:
     """Load stepping of the module docstring, announcing each step to ``events``."""
 
     restarted = False
+    end_reason = None  # it never ends early
 
     def __init__(self, model: RodModel, solver: NewtonSolver, scene: Scene, events: Events):
         self.model, self.solver, self.scene, self.events = model, solver, scene, events
         self.state = StaticState()
-        self.factors: list[float] = [0.0]
-        self.iterations: list[int] = []
-        self.chart_resets = 0
+        self.stepping_since: float | None = None  # time.perf_counter() at the first step
+        self.stepping_until: float | None = None  # and after the last
         if events.listens("newton_iteration"):
             solver.iteration_hook = lambda it, norms, reason: events.newton_iteration(
                 self, it, norms, reason
@@ -108,7 +113,7 @@ class StaticLoop:
         if model.chart is None or model.chart_move_due(cos_theta(model, U_n)) is None:
             return False
         model.reset_chart(U_n)
-        self.chart_resets += 1
+        self.state.chart_resets += 1
         return True
 
     def back_to_accepted(self) -> None:
@@ -126,6 +131,7 @@ class StaticLoop:
         step, prev_step = nominal, None
         U_n = model.U.x.array.copy()
         U_nm1 = None
+        self.stepping_since = clock.perf_counter()
         try:
             while not self.completed:
                 if self._move_chart(U_n):
@@ -175,12 +181,13 @@ class StaticLoop:
                 step = min(2.0 * step, nominal)
                 st.accepted += 1
                 st.outputs += 1
-                self.factors.append(trial)
-                self.iterations.append(its)
+                st.factors.append(trial)
+                st.iterations.append(its)
                 events.step_accepted(self)
                 events.output(self, st.outputs, trial)
                 events.step_finished(self)
         finally:
+            self.stepping_until = clock.perf_counter()
             model.U.x.array[:] = U_n  # the last accepted state
 
 
@@ -194,7 +201,7 @@ def static_path(
     record: bool = False,
 ) -> StaticResult:
     """Follow the static equilibrium path from the straight rod to the full loads (module
-    docstring); ``observers`` as for cosserat_fem.simulation.run, with λ in place of t;
+    docstring); ``observers`` as for cosserat_fem.simulation.run_scene, with λ in place of t;
     ``record``: keep the probe's rows in memory (``StaticResult.probes``)."""
     t_start = clock.perf_counter()
     out = Path(out_dir if out_dir is not None else scene.output.directory)
@@ -231,61 +238,20 @@ def static_path(
     integrator.prepare(scene.static.time * model.omega0)
     model.sync_loads(integrator.time_eval)  # loads given by data, at static.time
 
-    summary = {
-        "status": "running",
-        "run_id": new_run_id(comm),
-        "kind": "static",
-        "probe_t_column": "load factor",
-        "cosserat_fem": __version__,
-        "scene_file": scene.source,
-        "scene_file_sha256": scene.source_sha256,
-        "mpi_ranks": comm.size,
-        "dofs": model.global_dofs(),
-        "probe_s_m": probe_sigma(scene) * model.length,
-        "probe_reference_position_m": probe_position(scene, probe_sigma(scene) * model.length),
-        "newton": "full",
-        "scene": scene.to_dict(),
-    }
-
-    def finish(loop: StaticLoop, failure: BaseException | None) -> dict:
-        """summary.json at the end: status, message, the load factors and Newton iterations of
-        the accepted steps, bisections and the wall time [s]."""
-        summary.update(
-            {
-                "status": status_of(failure),
-                "message": str(failure) if failure else "",
-                "load_factors": loop.factors,
-                "newton_iterations": loop.iterations,
-                "bisections": loop.state.rejected,
-                "chart_resets": loop.chart_resets,
-                "wall_time_s": {"total": clock.perf_counter() - t_start},
-            }
-        )
-        return summary
-
-    chain: list = []
     probe = PointProbe(model, probe_sigma(scene), fields=scene.output.probe_fields)
-    if write_outputs:
-        begin = FolderStart(out, comm, scene.output.xdmf, summary)
-        probes = ProbeObserver(out / PROBES, probe)
-        chain += [begin, probes]
-        if scene.output.xdmf:
-            chain.append(XdmfObserver(out / XDMF, model, 1, probes, summary["run_id"]))
-    recorder = ProbeRecorder(probe) if record else None
-    chain += [*observers, *([recorder] if recorder is not None else []), InterruptObserver(comm)]
-    if write_outputs:
-        chain.append(FolderSummary(out, comm, begin, finish))
-    loop = StaticLoop(model, solver, scene, Events(chain))
-    try:
-        failure = drive(loop)
-    finally:
-        solver.destroy()
-    finish(loop, failure)
+    summary = summary_start("static", scene, comm, model, probe, solver, new_run_id(comm),
+                            probe_t_column="load factor")  # fmt: skip
+    chain = StandardObservers(scene, model, solver, probe, summary, comm, t_start,
+                              out if write_outputs else None, xdmf_every=1,
+                              observers=observers, record=record)  # fmt: skip
+    loop = StaticLoop(model, solver, scene, chain.events)
+    failure = drive(loop)
     comm.barrier()
     if failure:
         raise failure
-    rows = recorder.rows() if recorder is not None else None
-    return StaticResult(model, loop.factors, loop.iterations, loop.state.rejected, summary, rows)
+    st = loop.state
+    rows = chain.recorder.rows() if chain.recorder is not None else None
+    return StaticResult(model, st.factors, st.iterations, st.rejected, summary, rows)
 
 
 def solve_static(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD) -> tuple[RodModel, int]:

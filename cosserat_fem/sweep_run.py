@@ -204,7 +204,7 @@ def _whole_probes(folder: Path, comm) -> np.ndarray | None:
 def _affordable(scene, folder: Path, comm, start: float | None) -> None:
     """StopError if the member's run would be refused for what this machine has now (free
     disk, memory available): its cost was checked against its limits when the sweep was
-    loaded, so what refuses it now passes (budget.py, as simulation.run checks it)."""
+    loaded, so what refuses it now passes (budget.py, as simulation.run_scene checks it)."""
     from .parallel import ranks_on_node
 
     try:
@@ -246,7 +246,7 @@ def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
 @dataclass
 class _Final:
     """A member's final state, to continue from: its index, time [s] and forcing period [s],
-    and this rank's part of the state (the 12-component U = (p, q) of simulation.run's
+    and this rank's part of the state (the 12-component U = (p, q) of simulation.run_scene's
     ``initial_state``)."""
 
     index: int
@@ -324,7 +324,7 @@ def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
     given; with ``resume``, a member that stopped before, from its checkpoint if it has a
     usable one: not a forced member, whose measurement is not in the checkpoint); its row
     and, for a chain, its final state (every rank of ``comm``)."""
-    from .simulation import run
+    from .simulation import run_scene
 
     t0 = time.perf_counter()
     summary, probes, status, message = None, None, "completed", ""
@@ -341,7 +341,7 @@ def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
         if checkpoint is None:
             _fresh_folder(folder, comm)
         _affordable(scene, folder, comm, checkpoint.time if checkpoint is not None else None)
-        result = run(scene, folder, comm=comm, record=True, observers=observers,
+        result = run_scene(scene, folder, comm=comm, record=True, observers=observers,
                      initial_state=initial, restart=checkpoint)  # fmt: skip
         summary = result.summary
         probes = result.probes if checkpoint is None else _whole_probes(folder, comm)

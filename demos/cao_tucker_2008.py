@@ -68,13 +68,13 @@ import numpy as np
 from mpi4py import MPI
 
 from cosserat_fem import progress
+from cosserat_fem.api import run
 from cosserat_fem.errors import CosseratError
 from cosserat_fem.fields import LineSampler
 from cosserat_fem.plot import drawn_lines
 from cosserat_fem.reference.rod_planes import sine_load_tip_response
 from cosserat_fem.reference.second_order import RodData, second_order_tip_response
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
 
 ROOT = Path(__file__).resolve().parents[1]
 comm = MPI.COMM_WORLD

@@ -24,7 +24,7 @@ import pytest
 from conftest import ROOT, run_command
 
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 BASE = ["output.xdmf=false", "time.end=0.012", "solver.stol=1e-8"]  # stol: argued below
@@ -34,7 +34,7 @@ BASE = ["output.xdmf=false", "time.end=0.012", "solver.stol=1e-8"]  # stol: argu
 def reference(tmp_path_factory):
     out = tmp_path_factory.mktemp("reference")
     fine = ["time.integrator=sdirk3", "time.step=1.25e-6", "solver.stol=1e-12"]
-    run(load_scene(SCENE, BASE + fine), out)
+    run_scene(load_scene(SCENE, BASE + fine), out)
     return np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1)[::8]  # every 10 μs
 
 
@@ -52,7 +52,7 @@ def test_error_follows_the_tolerance(tmp_path, reference, integrator, order, rej
             "time.atol=1e-12",
             "time.step=1e-5",
         ]
-        summary = run(load_scene(SCENE, BASE + over), tmp_path).summary
+        summary = run_scene(load_scene(SCENE, BASE + over), tmp_path).summary
         data = np.loadtxt(tmp_path / "probes.csv", delimiter=",", skiprows=1)
         # Outputs on the requested grid (every time.step), whatever steps were taken.
         np.testing.assert_allclose(data[:, 0], reference[:, 0], rtol=0, atol=1e-15)

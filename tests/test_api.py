@@ -9,6 +9,7 @@ so 1e-15 s).
 
 from __future__ import annotations
 
+import json
 import re
 from pathlib import Path
 
@@ -111,6 +112,62 @@ def test_arrays_equal_the_command_lines_files(tmp_path):
     assert (tmp_path / "api" / "probes.csv").read_bytes() == (
         tmp_path / "cli" / "probes.csv"
     ).read_bytes()
+
+
+def test_the_public_run_has_the_command_lines_defaults(tmp_path):
+    """cf.run (the one public run; cosserat_fem/simulation.py's run_scene is internal) with
+    only a scene and a folder runs what `cosserat-fem run` runs: every key of summary.json is
+    the same but the run's identity, its wall times and the Newton solver's timers (the
+    scene, integrator, solver loop, LU package, steps and every Newton count: the same
+    operations in the same order), and probes.csv is the same bytes."""
+    assert main(["run", str(SCENE), "--out", str(tmp_path / "cli"), "--quiet",
+                 "--set", "time.end=0.0006"]) == 0  # fmt: skip
+    result = cf.run(cf.load(SCENE, {"time.end": 0.0006}), tmp_path / "api")
+    cli = json.loads((tmp_path / "cli" / "summary.json").read_text())
+    api = json.loads((tmp_path / "api" / "summary.json").read_text())
+    assert api == result.summary and api["kind"] == "run" and api["status"] == "completed"
+    timers = {k for k in api["newton"] if k.startswith("time")}
+    for summary in (cli, api):
+        for key in ("run_id", "wall_time_s"):
+            summary.pop(key)
+        for key in timers:
+            summary["newton"].pop(key)
+    assert api == cli
+    assert (tmp_path / "api" / "probes.csv").read_bytes() == (
+        tmp_path / "cli" / "probes.csv"
+    ).read_bytes()
+
+
+def test_run_static_and_modes_write_one_summary(tmp_path):
+    """One summary (cosserat_fem/observers.py: summary_start, RunSummary): summary.json of a
+    run and of a static solve and modes.json carry the same identity (version, scene file
+    and its SHA-256, ranks, Python, the scene) with the same values, and each its kind; run
+    and static the same discretisation keys and values, the same Newton counters and the
+    same wall-time parts; static writes no checkpoint, the run does. Static's Newton
+    iterations in all are the sum of its load steps' (the same solves counted twice), and its
+    wall times add up: setup + solve loop ≤ total (three differences of one clock's readings,
+    taken in that order; 1e-9 s of rounding)."""
+    scene = cf.load(SCENE, {"time.end": 0.0003, "static.time": 0.002, "static.load_steps": 2})
+    cf.run(scene, tmp_path / "run")
+    cf.static(scene, tmp_path / "static")
+    cf.modes(scene, 2, out=tmp_path / "modes")
+    names = ("run/summary.json", "static/summary.json", "modes/modes.json")
+    run, static, modes = (json.loads((tmp_path / name).read_text()) for name in names)
+    assert (run["kind"], static["kind"], modes["kind"]) == ("run", "static", "modes")
+    same = ("status", "cosserat_fem", "scene_file", "scene_file_sha256", "mpi_ranks", "python",
+            "scene")  # fmt: skip
+    for key in same:
+        assert run[key] == static[key] == modes[key], key
+    for key in ("dofs", "elements", "degree", "quadrature_degree", "omega0_rad_s",
+                "skipped_terms", "solved_unknowns", "groups", "probe_s_m",
+                "probe_reference_position_m", "lu_package"):  # fmt: skip
+        assert run[key] == static[key], key
+    assert static["checkpoints_written"] == 0 < run["checkpoints_written"]
+    assert run["newton"].keys() == static["newton"].keys()
+    assert run["wall_time_s"].keys() == static["wall_time_s"].keys()
+    assert static["newton"]["iterations"] == sum(static["newton_iterations"]) > 0
+    wall = static["wall_time_s"]
+    assert wall["setup"] + wall["solve_loop"] <= wall["total"] + 1e-9
 
 
 def test_overrides_as_a_mapping_or_as_strings():

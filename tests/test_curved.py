@@ -332,9 +332,9 @@ def test_a_helix_released_from_a_large_deflection_conserves_energy_at_order_two(
     1.31e-5, 3.29e-6, 8.29e-7 at 40, 20, 10 μs (orders 2.00, 1.99); within 0.1 of 2 and below
     1e-6, as for the straight rod (tests/test_energy.py). A kinetic or strain energy that
     missed the reference would not be conserved by the dynamics at all."""
-    from cosserat_fem.energy import EnergyMonitor
-    from cosserat_fem.observers import EnergyRecorder
-    from cosserat_fem.simulation import run
+    from rod_energy import EnergyMonitor, EnergyRecorder
+
+    from cosserat_fem.simulation import run_scene
     from cosserat_fem.statics import solve_static
 
     scene = ROOT / "scenes" / "cao_tucker_2008.toml"
@@ -348,7 +348,7 @@ def test_a_helix_released_from_a_large_deflection_conserves_energy_at_order_two(
     drifts = []
     for dt in (4e-5, 2e-5, 1e-5):
         recorder = EnergyRecorder()
-        run(api.load(scene, [*curved, *common, f"time.step={dt}"]), tmp_path,
+        run_scene(api.load(scene, [*curved, *common, f"time.step={dt}"]), tmp_path,
             observers=(recorder,), initial_state=bent.U.x.array.copy())  # fmt: skip
         drifts.append(np.abs(np.array(recorder.E) - E0).max() / E0)
     assert drifts[-1] < 1e-6

@@ -18,11 +18,10 @@ import math
 
 import numpy as np
 from conftest import ROOT
+from rod_energy import EnergyMonitor, EnergyRecorder
 
-from cosserat_fem.energy import EnergyMonitor
-from cosserat_fem.observers import EnergyRecorder
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 from cosserat_fem.statics import solve_static
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
@@ -45,7 +44,7 @@ def test_free_vibration_conserves_energy_at_order_two(tmp_path):
     drifts = []
     for dt in (4e-5, 2e-5, 1e-5):
         rec = EnergyRecorder()
-        run(
+        run_scene(
             load_scene(SCENE, unloaded + COMMON + [f"time.step={dt}"]),
             tmp_path,
             observers=(rec,),
@@ -61,7 +60,7 @@ def test_energy_change_equals_work_of_the_loads(tmp_path):
     mismatches = []
     for dt in (2e-5, 1e-5):
         rec = EnergyRecorder()
-        run(load_scene(SCENE, COMMON + [f"time.step={dt}"]), tmp_path, observers=(rec,))
+        run_scene(load_scene(SCENE, COMMON + [f"time.step={dt}"]), tmp_path, observers=(rec,))
         E = np.array([0.0, *rec.E])  # at rest at t = 0
         P = np.array([0.0, *rec.P])  # the load vanishes at t = 0
         W = np.concatenate([[0.0], np.cumsum(0.5 * (P[1:] + P[:-1]) * dt)])
@@ -95,7 +94,7 @@ def test_damped_energy_loss_equals_the_dissipated_power(tmp_path):
     mismatches, lost = [], None
     for dt in (2e-5, 1e-5):
         rec = EnergyRecorder()
-        run(
+        run_scene(
             load_scene(SCENE, unloaded + damping + COMMON + [f"time.step={dt}"]),
             tmp_path,
             observers=(rec,),

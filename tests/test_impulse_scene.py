@@ -34,7 +34,7 @@ import pytest
 from conftest import ROOT
 
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 pytestmark = [pytest.mark.stress, pytest.mark.long]
 
@@ -46,7 +46,7 @@ GAUSS = ((3.0 - math.sqrt(3.0)) / 6.0, (3.0 + math.sqrt(3.0)) / 6.0)  # SDIRK3's
 
 
 def probes(out, overrides):
-    summary = run(load_scene(SCENE, BASE + overrides), out).summary
+    summary = run_scene(load_scene(SCENE, BASE + overrides), out).summary
     return np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1), summary
 
 

@@ -16,7 +16,7 @@ import pytest
 from conftest import ROOT
 
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 COMMON = ["time.end=0.003", "time.step=1e-5", "output.xdmf=false", "solver.stol=1e-8"]
@@ -29,7 +29,7 @@ def runs(tmp_path_factory, request):
         out = tmp_path_factory.mktemp(policy)
         over = [f"solver.jacobian={policy}", "solver.lag=25", f"time.integrator={request.param}"]
         scene = load_scene(SCENE, COMMON + over)
-        summary = run(scene, out).summary
+        summary = run_scene(scene, out).summary
         results[policy] = (np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1), summary)
     return results
 
@@ -68,6 +68,6 @@ def test_frozen_jacobian_is_refreshed_when_convergence_slows(tmp_path):
             "solver.refresh_iterations=4",
         ],
     )
-    newton = run(scene, tmp_path).summary["newton"]
+    newton = run_scene(scene, tmp_path).summary["newton"]
     assert newton["jacobian_assemblies"] > 1
     assert newton["jacobian_assemblies"] < newton["solves"] / 4

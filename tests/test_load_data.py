@@ -214,7 +214,7 @@ def test_a_callable_gives_the_expression_run(integrator):
     times (SDIRK's stages, generalized-α's τ_n + α_f h and its consistent initial rate,
     BDF2's midpoint start); the end torque's term depends on the angles, so it is in the
     Jacobian too."""
-    from cosserat_fem.energy import EnergyMonitor
+    from rod_energy import EnergyMonitor
 
     sets = {**QUICK, "time.integrator": integrator}
     runs = []

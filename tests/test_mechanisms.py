@@ -29,15 +29,15 @@ import math
 import numpy as np
 import pytest
 from conftest import ROOT, run_command
+from rod_energy import EnergyRecorder
 
 from cosserat_fem.errors import SceneError
 from cosserat_fem.events import Observer
 from cosserat_fem.modal import compute_modes
 from cosserat_fem.model import rod_constants
-from cosserat_fem.observers import EnergyRecorder
 from cosserat_fem.scene import load_scene, scene_from_dict
 from cosserat_fem.schema import read_toml
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 from cosserat_fem.statics import static_path
 
 PENDULUM = ROOT / "scenes" / "pendulum.toml"
@@ -81,7 +81,7 @@ def swings():
     for name, (extra, axis, plane, moves) in CASES.items():
         scene = load_scene(PENDULUM, ["output.xdmf=false", *extra])
         assert scene.plane() == plane
-        result = run(scene, write_outputs=False, record=True)
+        result = run_scene(scene, write_outputs=False, record=True)
         assert result.summary["chart_resets"] == moves
         out[name] = (period(result.probes, scene.rod.length), rigid_period(scene, axis))
     return out
@@ -105,7 +105,7 @@ def test_the_period_error_falls_as_the_step_squared(swings):
     next-order term by (ω Δt) ~ 7e-3 of it (ω = 2π/T)."""
     T2, rigid = swings["x-z"]
     scene = load_scene(PENDULUM, ["output.xdmf=false", "time.step=1e-3"])
-    T1 = period(run(scene, write_outputs=False, record=True).probes, scene.rod.length)
+    T1 = period(run_scene(scene, write_outputs=False, record=True).probes, scene.rod.length)
     ratio = (T2 - rigid) / (T1 - rigid)
     assert ratio == pytest.approx(4.0, abs=0.15), (T2, T1, rigid)
 
@@ -185,7 +185,7 @@ def test_a_free_flying_rod_takes_the_impulse_of_its_load():
         ],
     )
     assert scene.supports.mechanism and scene.plane() is None
-    result = run(scene, write_outputs=False, record=True, observers=[recorder])
+    result = run_scene(scene, write_outputs=False, record=True, observers=[recorder])
     values = np.array(recorder.values)
     after = values[values[:, 0] >= 0.002 - 1e-12][:, 1:]
     assert np.abs(after - [20.0, 40.0, 0.0]).max() <= 1e-9 * 40.0
@@ -306,7 +306,7 @@ def test_the_flying_spaghetti():
             ROOT / "scenes" / "flying_spaghetti.toml",
             ["time.end=7", f"time.step={dt}", "output.xdmf=false"],
         )
-        result = run(scene, write_outputs=False, observers=[energy, centre])
+        result = run_scene(scene, write_outputs=False, observers=[energy, centre])
         assert result.summary["chart_resets"] == 5
         C = np.array(centre.rows)
         pulse, free = C[:, 0] <= 2.5 + 1e-9, C[:, 0] >= 5.0 - 1e-9

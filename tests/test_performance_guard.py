@@ -22,7 +22,7 @@ from conftest import ROOT
 from petsc4py import PETSc
 
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 
@@ -30,7 +30,7 @@ SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 @pytest.mark.parametrize(("stol", "per_step"), [("scene", 4.5), ("1e-8", 5.5)])
 def test_default_scene_cost(tmp_path, stol, per_step):
     extra = [] if stol == "scene" else [f"solver.stol={stol}"]
-    summary = run(load_scene(SCENE, ["output.xdmf=false", *extra]), tmp_path).summary
+    summary = run_scene(load_scene(SCENE, ["output.xdmf=false", *extra]), tmp_path).summary
     newton = summary["newton"]
     assert summary["integrator"] == "sdirk3"
     assert summary["steps"] == 2000
@@ -48,7 +48,7 @@ def test_runs_leave_no_petsc_options(tmp_path):
     before = len(options.getAll())
     for integrator in ("generalized-alpha", "sdirk3", "bdf2"):
         over = ["output.xdmf=false", "time.end=1e-4", "time.step=1e-5"]
-        run(load_scene(SCENE, over + [f"time.integrator={integrator}"]), tmp_path)
+        run_scene(load_scene(SCENE, over + [f"time.integrator={integrator}"]), tmp_path)
     assert len(options.getAll()) == before
 
 
@@ -79,11 +79,11 @@ def test_a_step_allocates_little(tmp_path):
             self.start = tracemalloc.get_traced_memory()[0]
 
     scene = load_scene(SCENE, ["output.xdmf=false", "time.end=0.006"])
-    run(scene, write_outputs=False)  # compiled forms in memory
+    run_scene(scene, write_outputs=False)  # compiled forms in memory
     memory = StepMemory()
     tracemalloc.start()
     try:
-        result = run(scene, write_outputs=False, observers=[memory])
+        result = run_scene(scene, write_outputs=False, observers=[memory])
     finally:
         tracemalloc.stop()
     state_bytes = result.model.U.x.array.nbytes
@@ -124,7 +124,7 @@ def test_a_step_makes_few_python_calls():
     scene = load_scene(SCENE, ["output.xdmf=false", "time.end=0.006"])
     calls = Calls()
     try:
-        run(scene, write_outputs=False, observers=[calls])
+        run_scene(scene, write_outputs=False, observers=[calls])
     finally:
         sys.setprofile(None)
     assert calls.finished == 200

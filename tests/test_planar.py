@@ -29,7 +29,7 @@ from xdmf_files import read_arrays
 from cosserat_fem.fields import PointProbe
 from cosserat_fem.model import rod_constants
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 from cosserat_fem.statics import static_path
 
 PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
@@ -73,7 +73,7 @@ def test_planar_dynamics_equal_the_full_run(tmp_path, plane, adaptive):
         ]
         scene = load_scene(PAPER, sets)
         assert scene.plane() == (plane if planar == "auto" else None)
-        result = run(scene, tmp_path / planar)
+        result = run_scene(scene, tmp_path / planar)
         runs[planar] = (result.summary, probes(tmp_path / planar))
     reduced, full = runs["auto"], runs["off"]
     assert reduced[0]["solved_unknowns"] == unknowns
@@ -126,7 +126,7 @@ def test_out_of_plane_scenes_are_not_reduced(tmp_path):
     assert static.scene.plane() == "y-z"  # solved in y-z, handed over in all 12 components
     state = static.layout.full_array(static.U.x.array).ravel().copy()
     sets = ["loads.force_density=[0, 0, 0]", "output.xdmf=false", "time.end=3e-4"]
-    summary = run(load_scene(PAPER, sets), tmp_path, initial_state=state).summary
+    summary = run_scene(load_scene(PAPER, sets), tmp_path, initial_state=state).summary
     assert len(summary["solved_unknowns"]) == 12
     assert abs(probes(tmp_path)[0, 2]) > 1e-6  # it started from the out-of-plane state
 

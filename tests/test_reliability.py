@@ -29,7 +29,7 @@ from xdmf_files import read_xdmf
 from cosserat_fem.cli import main
 from cosserat_fem.io.checkpoint import load_checkpoint
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
 CLI = ["-m", "cosserat_fem.cli"]
@@ -220,13 +220,13 @@ def test_d6_a_restart_killed_before_its_first_checkpoint(base, tmp_path):
     checkpoint = load_checkpoint(run_dir)
     longer = load_scene(SCENE, [*SHORT, "time.end=0.006", "output.checkpoint_interval=0"])
     with pytest.raises(KeyboardInterrupt):
-        run(longer, restart=checkpoint, observers=(crash,))
+        run_scene(longer, restart=checkpoint, observers=(crash,))
     frame_files = sorted((run_dir / "solution.frames").glob("[0-9]*.h5"))
     assert len(frame_files) > checkpoint.meta["outputs"]["xdmf_frames"]  # frames to cut
     assert load_checkpoint(run_dir).time == checkpoint.time  # no checkpoint was written
-    run(longer, restart=load_checkpoint(run_dir))
+    run_scene(longer, restart=load_checkpoint(run_dir))
     whole = tmp_path / "whole"
-    run(load_scene(SCENE, ["time.end=0.006"]), whole)
+    run_scene(load_scene(SCENE, ["time.end=0.006"]), whole)
     assert (run_dir / "probes.csv").read_bytes() == (whole / "probes.csv").read_bytes()
     assert np.array_equal(
         read_xdmf(run_dir / "solution.xdmf")["displacement"][1],

@@ -2,7 +2,7 @@
 periods, amplitudes and phases, continuation along a chain of members, and the linear
 response against the closed-form modal steady state.
 
-The reference of the linear test is :func:`cosserat_fem.modal.linear_steady_state`: the
+The reference of the linear test is tests/modal_checks.py's ``linear_steady_state``: the
 linearised equations solved in the frequency domain, (K + iΩC − Ω²M) P = f̂, which for
 Kelvin–Voigt damping (C = τ_d ω0 K) is the modal steady state Σ_n φ_n ψ_nᵀ f̂ /
 (λ_n (1 + iΩ τ_d ω0) − Ω²) over every mode of the same discretisation: it shares nothing with
@@ -87,7 +87,7 @@ def test_the_linear_response_is_the_modal_steady_state(linear_sweep):
     amount in radians. Measured (r = 0.9, 1, 1.1): amplitude 4.2e-5, 1.4e-4, 3.1e-4 and phase
     2.2e-4, 4.1e-4, 2.1e-4 of x, against bounds 6.3e-4, 8.8e-4, 1.1e-3 (ψ: 4.9e-4, 6.7e-4,
     8.0e-4)."""
-    from cosserat_fem.modal import linear_steady_state
+    from modal_checks import linear_steady_state
 
     spec, _, rows = linear_sweep
     for member, row in zip(spec.members, rows, strict=True):

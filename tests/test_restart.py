@@ -32,7 +32,7 @@ from cosserat_fem.errors import SceneError
 from cosserat_fem.io.checkpoint import load_checkpoint
 from cosserat_fem.restart import restart_overrides
 from cosserat_fem.scene import load_scene, scene_from_dict
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 CLI = ["-m", "cosserat_fem.cli"]
@@ -87,12 +87,12 @@ def outputs(out):
 @pytest.mark.parametrize("name", list(CONFIGS))
 def test_restart_after_a_crash_gives_the_uninterrupted_run(tmp_path, name):
     scene = scene_of(name)
-    run(scene, tmp_path / "whole")
+    run_scene(scene, tmp_path / "whole")
     probes, frames, summary = outputs(tmp_path / "whole")
 
     out = tmp_path / "crashed"
     with pytest.raises(Crash):
-        run(scene, out, observers=(crash_at(CRASH_STEP),))
+        run_scene(scene, out, observers=(crash_at(CRASH_STEP),))
     rows_on_disk = (out / "probes.csv").read_bytes().count(b"\n") - 1
     assert rows_on_disk == CRASH_STEP + 1  # the rows after the checkpoint are there to cut
 
@@ -108,7 +108,7 @@ def test_restart_after_a_crash_gives_the_uninterrupted_run(tmp_path, name):
     assert checkpoint.meta["outputs"]["xdmf_frames"] == steps_done // 8 + 1
     again = scene_from_dict(checkpoint.meta["scene"])
     assert again == scene
-    result = run(again, restart=checkpoint)
+    result = run_scene(again, restart=checkpoint)
     assert result.summary["restarted_from_s"] == checkpoint.time
     assert result.summary["restarts"] == 1
 
@@ -136,12 +136,12 @@ def test_extending_a_completed_run(tmp_path):
     had been planned that long (fixed steps: the same steps)."""
     scene = scene_of("sdirk3-frozen")
     longer = scene_of("sdirk3-frozen", steps=300)
-    run(longer, tmp_path / "whole")
-    run(scene, tmp_path / "short")
+    run_scene(longer, tmp_path / "whole")
+    run_scene(scene, tmp_path / "short")
     checkpoint = load_checkpoint(tmp_path / "short")
     assert checkpoint.time == pytest.approx(scene.time.end, rel=1e-12)
     more = scene_from_dict(checkpoint.meta["scene"], overrides=[f"time.end={longer.time.end!r}"])
-    run(more, restart=checkpoint)
+    run_scene(more, restart=checkpoint)
     assert (tmp_path / "short/probes.csv").read_bytes() == (
         tmp_path / "whole/probes.csv"
     ).read_bytes()
@@ -156,18 +156,18 @@ def test_a_failed_run_continues_from_its_last_accepted_step(tmp_path, monkeypatc
     scene = load_scene(
         SCENE, ["time.end=0.006", "time.max_halvings=3", "output.checkpoint_interval=0"]
     )
-    run(scene, tmp_path / "whole")
+    run_scene(scene, tmp_path / "whole")
     inject_newton_failures(monkeypatch, lambda n: n > 2 * 49)
     out = tmp_path / "failed"
     with pytest.raises(Exception, match="Newton did not converge"):
-        run(scene, out)
+        run_scene(scene, out)
     monkeypatch.undo()
     checkpoint = load_checkpoint(out)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["status"] == "failed"
     assert checkpoint.time == summary["time_reached_s"] == pytest.approx(49 * 3e-5, rel=1e-12)
     assert checkpoint.parts["loop"]["level"] == 3
-    result = run(scene_from_dict(checkpoint.meta["scene"]), restart=checkpoint)
+    result = run_scene(scene_from_dict(checkpoint.meta["scene"]), restart=checkpoint)
     assert result.summary["status"] == "completed"
     assert result.summary["smallest_step_s"] == pytest.approx(3e-5 / 8)
     whole = np.loadtxt(tmp_path / "whole/probes.csv", delimiter=",", skiprows=1)
@@ -223,7 +223,7 @@ def test_restart_bad_input(tmp_path, args, message):
 
 
 def test_restart_of_a_completed_run_needs_a_later_end(tmp_path):
-    run(scene_of("sdirk3-frozen", steps=20), tmp_path)
+    run_scene(scene_of("sdirk3-frozen", steps=20), tmp_path)
     proc = run_command([*CLI, "run", "--restart", str(tmp_path)])
     assert proc.returncode == 2 and "time.end: the checkpoint is at t = 0.0006 s" in proc.stderr
 

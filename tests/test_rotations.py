@@ -24,7 +24,7 @@ from test_restart import Crash, crash_at
 from cosserat_fem.io.checkpoint import load_checkpoint
 from cosserat_fem.scene import load_scene, scene_from_dict
 from cosserat_fem.schema import read_toml
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 CLI = ["-m", "cosserat_fem.cli"]
@@ -45,7 +45,7 @@ def whip_runs():
         for planar in ("auto", IN_3D):
             extra = [f"discretisation.elements={elements}"]
             extra += [] if planar == "auto" else [planar]
-            result = run(whip(extra), write_outputs=False, record=True)
+            result = run_scene(whip(extra), write_outputs=False, record=True)
             runs[elements, "3d" if planar == IN_3D else "y-z"] = (result.probes, result.summary)
     return runs
 
@@ -85,15 +85,15 @@ def test_restart_across_moves_of_the_chart_gives_the_uninterrupted_run(tmp_path,
     quaternion too, whose sign a restart continues from the last row as it does the angles."""
     extra = ["output.checkpoint_interval=1e-3", "output.probe_fields=['quaternion']"]
     scene = whip([IN_3D, *RESTART_CONFIGS[name], *extra])
-    run(scene, tmp_path / "whole")
+    run_scene(scene, tmp_path / "whole")
     out = tmp_path / "crashed"
     with pytest.raises(Crash):
-        run(scene, out, observers=(crash_at(180),))
+        run_scene(scene, out, observers=(crash_at(180),))
     checkpoint = load_checkpoint(out)
     assert 1e-3 * (1 - 1e-9) <= checkpoint.time < 1.8e-3
     assert checkpoint.parts["chart"]["moved"] == 1.0
     assert checkpoint.parts["loop"]["chart_resets"] == 2
-    result = run(scene_from_dict(checkpoint.meta["scene"]), restart=checkpoint)
+    result = run_scene(scene_from_dict(checkpoint.meta["scene"]), restart=checkpoint)
     whole = json.loads((tmp_path / "whole/summary.json").read_text())
     assert whole["chart_resets"] == result.summary["chart_resets"] == 3
     assert (out / "probes.csv").read_bytes() == (tmp_path / "whole/probes.csv").read_bytes()
@@ -137,7 +137,7 @@ def test_adaptive_steps_through_the_singularity():
     smooth = ['loads.end.torque=["4e5*sin(pi*t/0.004)**2",0,0]']
     adaptive = ["time.adaptive=true", "time.rtol=1e-6"]
     results = {
-        name: run(whip([*smooth, *extra]), write_outputs=False, record=True)
+        name: run_scene(whip([*smooth, *extra]), write_outputs=False, record=True)
         for name, extra in {
             "adaptive": [IN_3D, *adaptive],
             "adaptive y-z": adaptive,
@@ -173,7 +173,7 @@ def test_the_same_motion_in_the_two_planes():
     }.items():
         scene = scene_from_dict(raw, overrides=[*common, *extra])
         assert scene.plane() == (None if name == "3d" else name)
-        rows[name] = run(scene, write_outputs=False, record=True).probes
+        rows[name] = run_scene(scene, write_outputs=False, record=True).probes
     xz, yz, full = rows["x-z"], rows["y-z"], rows["3d"]
     assert 3.0 < np.abs(xz[:, 5]).max() < 3.1
     mirrored = np.stack([-yz[:, 2], yz[:, 3], yz[:, 4]], axis=1)
@@ -233,7 +233,7 @@ def test_outputs_need_no_decoding_of_charts(tmp_path):
     fields = "output.fields=['displacement', 'angles', 'directors']"
     probe_fields = "output.probe_fields=['directors', 'quaternion']"  # either order
     scene = whip([IN_3D, "output.xdmf=true", "output.xdmf_interval=1e-4", fields, probe_fields])
-    result = run(scene, out, record=True)
+    result = run_scene(scene, out, record=True)
     assert result.summary["chart_resets"] == 3
     _, times, arrays = read_arrays(out / "solution.xdmf")
     assert len(times) == 21
@@ -266,7 +266,8 @@ def test_a_move_keeps_the_frame_continuous_past_half_a_turn():
     quaternions of neighbouring nodes must have positive products, and the strain energy of
     the state must be the same after the move as before, to the frame's interpolation error
     (measured ~1e-9 of it; a frame turned over between two nodes changes it by O(1))."""
-    from cosserat_fem.energy import EnergyMonitor
+    from rod_energy import EnergyMonitor
+
     from cosserat_fem.model import build_model
 
     scene = load_scene(SCENE, [IN_3D, "loads.force_density=[0,0,0]"])

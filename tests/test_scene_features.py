@@ -37,7 +37,7 @@ from cosserat_fem.fields import PointProbe
 from cosserat_fem.modal import compute_modes
 from cosserat_fem.reference.timoshenko import TimoshenkoBeam, natural_frequencies
 from cosserat_fem.scene import read_toml, scene_from_dict
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 from cosserat_fem.statics import solve_static
 
 PAPER = read_toml(ROOT / "scenes" / "cao_tucker_2008.toml")
@@ -231,7 +231,7 @@ def released(tmp_path, initial: dict, damping: dict, end: float, step: float):
     """(probes.csv rows, summary) of the paper's rod, unloaded, released from the
     ``initial`` fields with ``damping``."""
     sets = (*NO_LOADS, f"time.end={end!r}", f"time.step={step!r}", "output.xdmf=false")
-    result = run(scene({"initial": initial, "damping": damping}, sets), tmp_path)
+    result = run_scene(scene({"initial": initial, "damping": damping}, sets), tmp_path)
     return np.loadtxt(result.out_dir / "probes.csv", delimiter=",", skiprows=1), result.summary
 
 
@@ -363,7 +363,7 @@ def test_axial_base_excitation(tmp_path, integrator):
             "model.reference_frequency=207.0236",
         ),
     )
-    run(sc, tmp_path)
+    run_scene(sc, tmp_path)
     data = np.loadtxt(tmp_path / "probes.csv", delimiter=",", skiprows=1)
     t, z = data[:, 0], data[:, 3]
     exact = Z * np.sin(Om * t) / math.cos(k * L)

@@ -21,7 +21,7 @@ from cosserat_fem.io.probes import probe_columns
 from cosserat_fem.reference.curved import BATHE_BOLOURCHI_SHOOTING
 from cosserat_fem.reference.elastica import MATTIASSON_1981
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 from cosserat_fem.statics import static_path
 
 SCENES = sorted((ROOT / "scenes").glob("*.toml"))
@@ -138,7 +138,7 @@ def test_scene_runs(tmp_path, path):
         return
     end = scene.time.start + 50 * scene.time.step
     short = load_scene(path, [f"time.end={end!r}", "output.xdmf=false"])
-    result = run(short, tmp_path)
+    result = run_scene(short, tmp_path)
     assert result.summary["status"] == "completed" and result.summary["steps"] == 50
     probes = np.loadtxt(tmp_path / "probes.csv", delimiter=",", skiprows=1)
     columns = probe_columns(short.output.probe_fields)

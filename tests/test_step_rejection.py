@@ -20,7 +20,7 @@ import pytest
 from conftest import ROOT, inject_newton_failures, python_steps
 
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 OVERRIDES = ["output.xdmf=false"]
@@ -33,7 +33,7 @@ def probes(out):
 @pytest.fixture(scope="module")
 def undisturbed(tmp_path_factory):
     out = tmp_path_factory.mktemp("undisturbed")
-    run(load_scene(SCENE, OVERRIDES), out)
+    run_scene(load_scene(SCENE, OVERRIDES), out)
     return probes(out)
 
 
@@ -53,7 +53,7 @@ def test_injected_newton_failures_are_recovered(tmp_path, monkeypatch, undisturb
     # of its first half.
     fail_at = {2 * 99 + 1, 2 * 599 + 2, 2 * 599 + 3}
     inject_newton_failures(monkeypatch, fail_at.__contains__)
-    summary = run(load_scene(SCENE, OVERRIDES), tmp_path).summary
+    summary = run_scene(load_scene(SCENE, OVERRIDES), tmp_path).summary
     # A fresh Jacobian after each change of the step that reaches Newton: 1 + 2 (step 100:
     # half, then nominal) + 2 (step 599: the injected failure of the half step comes before
     # any assembly, then a quarter, then nominal).
@@ -70,7 +70,7 @@ def test_failure_after_max_halvings_keeps_the_outputs(tmp_path, monkeypatch, und
     run stops with the reason and the time, and probes.csv holds the 49 good steps."""
     inject_newton_failures(monkeypatch, lambda n: n > 2 * 49)
     with pytest.raises(Exception) as info:
-        run(load_scene(SCENE, OVERRIDES + ["time.max_halvings=3"]), tmp_path)
+        run_scene(load_scene(SCENE, OVERRIDES + ["time.max_halvings=3"]), tmp_path)
     message = str(info.value)
     assert "injected" in message and "rejected 3 times" in message and "3.75e-06 s" in message
     assert "at t = 0.00147375 s" in message  # the first sub-step of step 50: 49 Δt + Δt/8
@@ -134,7 +134,7 @@ def test_a_state_that_fails_the_checks_is_rejected_and_retried(
     cases, as the retry does not depend on the reason); required within 1e-5."""
     corrupt_after_step(monkeypatch, 100, corrupt)
     with caplog.at_level(logging.INFO, logger="cosserat_fem"):
-        summary = run(load_scene(SCENE, OVERRIDES), tmp_path).summary
+        summary = run_scene(load_scene(SCENE, OVERRIDES), tmp_path).summary
     rejections = [r.getMessage() for r in caplog.records if "rejected" in r.getMessage()]
     assert len(rejections) == 1 and reason in rejections[0], rejections
     assert "t = 0.003 s" in rejections[0], rejections  # step 100 of 30 μs

@@ -20,7 +20,7 @@ from cosserat_fem.errors import SolverError
 from cosserat_fem.reference.rod_planes import sine_load_tip_response
 from cosserat_fem.reference.second_order import RodData, second_order_tip_response
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 pytestmark = [pytest.mark.stress, pytest.mark.long]
 
@@ -47,7 +47,7 @@ def scaled_runs(tmp_path_factory):
     runs = {}
     for factor in FACTORS:
         out = tmp_path_factory.mktemp(f"load{factor:g}")
-        summary = run(load_scene(SCENE, paper_load(factor)), out).summary
+        summary = run_scene(load_scene(SCENE, paper_load(factor)), out).summary
         runs[factor] = (summary, probes(out))
     return runs
 
@@ -93,7 +93,7 @@ def test_hundred_times_the_load_completes(tmp_path):
     chart never moves: the paper's forms throughout). Its motion is resolved in time only
     for the first ~20 ms: past ~25 ms runs at 30 μs, 15 μs and adaptive steps part
     (docs/stability.md, case 1), so no later value is asserted. ~3 s."""
-    summary = run(load_scene(SCENE, paper_load(100.0)), tmp_path).summary
+    summary = run_scene(load_scene(SCENE, paper_load(100.0)), tmp_path).summary
     assert summary["status"] == "completed"
     assert summary["steps"] == 2000
     theta = np.abs(probes(tmp_path)[:, 4])
@@ -115,7 +115,7 @@ def test_thousand_times_the_load_passes_the_chart_singularity(tmp_path, adaptive
     every output step before the stop."""
     extra = ["time.adaptive=true", "time.rtol=1e-4"] if adaptive else []
     try:
-        run(load_scene(SCENE, paper_load(1000.0) + extra), tmp_path)
+        run_scene(load_scene(SCENE, paper_load(1000.0) + extra), tmp_path)
         stopped_at = None
     except SolverError as error:
         assert "chart" not in str(error), str(error)
@@ -165,7 +165,8 @@ def test_steps_as_long_as_the_forcing_period(tmp_path, linearised_paper_rod, nam
     frozen runs is 1.6e-2 ℓ, of the full-Newton ones 1.4e-2 ℓ, midpoint at 10 ms)."""
     K, M, f, tip, omega0 = linearised_paper_rod
     common = paper_load(1.0) + INTEGRATORS[name] + [f"time.step={h}"]
-    summary = run(load_scene(SCENE, common + ["solver.jacobian=full"]), tmp_path / "full").summary
+    full = load_scene(SCENE, common + ["solver.jacobian=full"])
+    summary = run_scene(full, tmp_path / "full").summary
     assert summary["status"] == "completed" and summary["rejected_steps"] == 0
     data = probes(tmp_path / "full")
     steps = round(0.06 / h)
@@ -176,7 +177,7 @@ def test_steps_as_long_as_the_forcing_period(tmp_path, linearised_paper_rod, nam
         linear = length * y[:, index]
         scale = np.abs(linear).max()
         assert np.abs(data[:, column] - linear).max() <= 1e-3 * scale, (column, name, h)
-    summary = run(load_scene(SCENE, common), tmp_path / "frozen").summary
+    summary = run_scene(load_scene(SCENE, common), tmp_path / "frozen").summary
     assert summary["status"] == "completed"
     frozen = probes(tmp_path / "frozen")
     assert len(frozen) == steps + 1 and np.isfinite(frozen).all()

@@ -34,12 +34,11 @@ from conftest import ROOT
 from dolfinx import fem
 from dolfinx.fem.petsc import assemble_vector, set_bc
 from petsc4py import PETSc
+from rod_energy import EnergyMonitor, EnergyRecorder
 from scipy.optimize import minimize_scalar
 
-from cosserat_fem.energy import EnergyMonitor
 from cosserat_fem.modal import assemble_modal_problem, compute_modes, modal_supports
 from cosserat_fem.model import build_model
-from cosserat_fem.observers import EnergyRecorder
 from cosserat_fem.reference.rod_planes import bending_planes
 from cosserat_fem.reference.timoshenko import (
     modal_loads,
@@ -47,7 +46,7 @@ from cosserat_fem.reference.timoshenko import (
     static_deflection_sine_load,
 )
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 from cosserat_fem.statics import solve_static
 
 pytestmark = [pytest.mark.stress, pytest.mark.long]
@@ -177,7 +176,7 @@ def energy_of(overrides: list[str], full: np.ndarray) -> float:
 def free_vibration(tmp_path, overrides: list[str], full: np.ndarray, E0: float):
     """(t, E(t)/E0) after every step of a run released from the (nodes, 12) state ``full``."""
     recorder = EnergyRecorder()
-    run(
+    run_scene(
         scene_of(overrides),
         tmp_path,
         observers=(recorder,),
@@ -189,7 +188,7 @@ def free_vibration(tmp_path, overrides: list[str], full: np.ndarray, E0: float):
 
 def tip_history(tmp_path, overrides: list[str]) -> tuple[np.ndarray, np.ndarray]:
     """(t, x(ℓ, t)) from probes.csv, t = 0 included."""
-    run(scene_of(["output.xdmf=false", *overrides]), tmp_path)
+    run_scene(scene_of(["output.xdmf=false", *overrides]), tmp_path)
     data = np.loadtxt(tmp_path / "probes.csv", delimiter=",", skiprows=1)
     return data[:, 0], data[:, 1]
 

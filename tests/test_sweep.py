@@ -4,7 +4,7 @@ any member runs, and under mpirun -n 2 (two groups dealt by a one-sided counter)
 table as in serial.
 
 Equality is the test for the members' results: a member is its scene run by
-cosserat_fem.simulation.run on its group's communicator, exactly as ``cosserat-fem run`` of
+cosserat_fem.simulation.run_scene on its group's communicator, exactly as ``cosserat-fem run`` of
 that scene alone, so its probes.csv is the same file byte for byte, and its table row (the
 probe's final and largest values, printed with repr) the same text in serial and under MPI.
 """

@@ -32,7 +32,7 @@ from conftest import ROOT
 
 from cosserat_fem.reference.rod_planes import sine_load_tip_response
 from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run
+from cosserat_fem.simulation import run_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 LOAD = "2e2*sin(pi*s/L)*sin(8*omega0*t)"
@@ -47,7 +47,7 @@ COMMON = [
 def tip_error(tmp_path, overrides: list[str]) -> float:
     scene = load_scene(SCENE, COMMON + overrides)
     out = tmp_path / "_".join(o.split("=")[-1] for o in overrides)
-    run(scene, out)
+    run_scene(scene, out)
     data = np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1)
     t, x = data[:, 0], data[:, 1]
     x_ref, _ = sine_load_tip_response(scene, t, q0=2e2, omega=8 * scene.omega0)

@@ -2,17 +2,17 @@
 or ``sweep``; cosserat_fem/io/run_folder.py makes and claims the folder, the restart's
 checkpoint reader refuses a held one).
 
-A ``run``, ``static``, ``run --restart`` or ``sweep`` holds an exclusive lock on its folder from
-before it reads or touches anything there to its end
+A ``run``, ``static``, ``run --restart`` or ``sweep`` holds an exclusive lock on its folder
+from before it reads or touches anything there to its end
 (:func:`cosserat_fem.io.run_folder.prepare_output_dir` with ``lock``, released when the
-enclosing :func:`holding_folders` call returns or raises). A second writer is refused at once,
-in one line naming the holder: its kind, run id, process, host, start time and command line
-(written into the lock file by the holder). The lock is ``flock(2)`` on the file ``.cosserat-
-fem.lock`` in the folder, taken by rank 0 (under MPI every rank agrees on the outcome): the
-kernel releases it when the holder dies, SIGKILL included, so a killed run leaves no stale lock
-(the file it leaves is taken over by the next run); the holder removes the file when it ends.
-Why ``flock`` and what it does not cover (file systems without locks): docs/decisions.md, "One
-writer a folder".
+enclosing :func:`holding_folders` call or :func:`folders_held` block returns or raises). A
+second writer is refused at once, in one line naming the holder: its kind, run id, process,
+host, start time and command line (written into the lock file by the holder). The lock is
+``flock(2)`` on the file ``.cosserat-fem.lock`` in the folder, taken by rank 0 (under MPI every
+rank agrees on the outcome): the kernel releases it when the holder dies, SIGKILL included, so
+a killed run leaves no stale lock (the file it leaves is taken over by the next run); the
+holder removes the file when it ends. Why ``flock`` and what it does not cover (file systems
+without locks): docs/decisions.md, "One writer a folder".
 Tests: tests/test_run_folders.py.
 """
 
@@ -166,20 +166,28 @@ _HELD: contextvars.ContextVar[list[FolderLock] | None] = contextvars.ContextVar(
 )
 
 
+@contextlib.contextmanager
+def folders_held():
+    """The folder locks taken inside the ``with`` block (by :func:`prepare_output_dir` with
+    ``lock``) are released when it ends or raises."""
+    held: list[FolderLock] = []
+    token = _HELD.set(held)
+    try:
+        yield
+    finally:
+        _HELD.reset(token)
+        for lock in reversed(held):
+            lock.release()
+
+
 def holding_folders(function):
-    """Decorator: the folder locks taken during a call of ``function`` (by
-    :func:`prepare_output_dir` with ``lock``) are released when it returns or raises."""
+    """Decorator: the folder locks taken during a call of ``function`` (:func:`folders_held`)
+    are released when it returns or raises."""
 
     @functools.wraps(function)
     def call(*args, **kwargs):
-        held: list[FolderLock] = []
-        token = _HELD.set(held)
-        try:
+        with folders_held():
             return function(*args, **kwargs)
-        finally:
-            _HELD.reset(token)
-            for lock in reversed(held):
-                lock.release()
 
     return call
 

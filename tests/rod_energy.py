@@ -1,5 +1,6 @@
-"""Energy bookkeeping of a run: E = T + V of the rod and the power P of its loads and its
-damping [SI].
+"""Energy bookkeeping of a run, for tests and benchmarks/verify.py: E = T + V of the rod and
+the power P of its loads and its damping [SI] (:class:`EnergyMonitor`), and an observer that
+records them at every output time (:class:`EnergyRecorder`).
 
 The integrands are those of :mod:`cosserat_fem.forms.energy`; the forms are compiled once and
 evaluated on the current state (collectively under MPI). The load power is evaluated at a given
@@ -8,17 +9,18 @@ time τ, so that the work of the loads can be integrated in time alongside the r
 
 from __future__ import annotations
 
-from dolfinx import fem
-from mpi4py import MPI
-from petsc4py import PETSc
-
-from .forms.energy import (
+from cosserat_fem.forms.energy import (
     damping_power,
     kinetic_energy_density,
     load_power,
     strain_energy_density,
 )
-from .model import RodModel
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from cosserat_fem.events import Observer
+from cosserat_fem.model import RodModel
 
 
 class EnergyMonitor:
@@ -78,3 +80,22 @@ class EnergyMonitor:
         self.tau.value = t * self.model.omega0
         self.model.sync_loads(self.tau)
         return self._sum(self._P)
+
+
+class EnergyRecorder(Observer):
+    """Observer (cosserat_fem/events.py): at every output time t [s], the rod's energy
+    E = T + V [J] and the power P [W] of its loads and damping: lists ``t``, ``E``, ``P``."""
+
+    def __init__(self):
+        self.monitor: EnergyMonitor | None = None
+        self.t: list[float] = []
+        self.E: list[float] = []
+        self.P: list[float] = []
+
+    def output(self, loop, k: int, t: float) -> None:
+        """Appends t [s], E = T + V [J] and P [W]; the monitor is built at the first output."""
+        if self.monitor is None:
+            self.monitor = EnergyMonitor(loop.model)
+        self.t.append(t)
+        self.E.append(sum(self.monitor.energies()))
+        self.P.append(self.monitor.power(t))
