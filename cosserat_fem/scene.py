@@ -800,6 +800,11 @@ def _check_closed(scene: Scene, reference: ReferenceShape) -> None:
             raise SceneError(
                 f"loads.{end}: a closed rod (reference.closed = true) has no end to load"
             )
+    for name, form_load in scene.loads.form_loads():  # a load declared with its physics
+        if getattr(form_load, "end", None) is not None:
+            raise SceneError(
+                f"loads.{name}.end: a closed rod (reference.closed = true) has no end to load"
+            )
     ell = scene.rod.length
     ends = np.array([0.0, ell])
     r0, D0 = reference.positions(ends), reference.frames(ends)

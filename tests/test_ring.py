@@ -111,6 +111,8 @@ def test_the_ring_under_mpi_equals_the_serial_run(tmp_path):
         (["reference.shape=straight"], "reference.radius: not a key of shape 'straight'"),
         (["loads.end.force=[0,1,0]"], "loads.end: a closed rod (reference.closed = true) has no "
          "end to load"),
+        (["loads.follower.force=[1,0,0]"], "loads.follower.end: a closed rod (reference.closed = "
+         "true) has no end to load"),
     ],
 )
 def test_a_closed_rod_that_cannot_close_is_refused_by_its_key(overrides, message):
