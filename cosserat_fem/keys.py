@@ -3,8 +3,9 @@
 declaration to the field of the resolved scene the key becomes (cosserat_fem/resolved.py). A
 key is thus written once, on its resolved field: the schema (cosserat_fem/schema.py,
 ``SCHEMA = Table.of(Scene)``), the resolved dataclasses and the scene reader
-(cosserat_fem/scene.py, which builds every dataclass by keyword with :func:`build`) all derive
-from that one line.
+(cosserat_fem/scene.py, which builds every dataclass by keyword with :func:`build`) and the
+scene writer (:func:`to_table`, ``Scene.to_dict``: each key's value as its spec's ``to_value``
+writes it) all derive from that one line.
 
 :func:`check_table` validates a table's raw data against its declaration, every problem one
 :class:`~cosserat_fem.errors.SceneError` whose message starts with the dotted key at fault.
@@ -24,7 +25,7 @@ from typing import Any
 from cosserat_fem.errors import SceneError, show_value
 from cosserat_fem.expressions import RESERVED_NAMES, check_name
 from cosserat_fem.io.xdmf import FIELD_ARRAYS
-from cosserat_fem.load_data import INTERPOLATIONS, OUTSIDE, S_INTERPOLATIONS
+from cosserat_fem.load_data import INTERPOLATIONS, OUTSIDE, S_INTERPOLATIONS, component_dict
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
 SCENE_CONSTANTS = ("L", "omega0")
@@ -125,6 +126,12 @@ class Field:
     def check(self, key: str, value: Any) -> Any:
         raise NotImplementedError
 
+    def to_value(self, value: Any) -> Any:
+        """The key's value as a scene file gives it, from the resolved field's ``value`` (the
+        inverse of :meth:`check` and the reader's resolution): as it is by default; None
+        leaves the key out (:func:`to_table`)."""
+        return value
+
 
 @dataclass(frozen=True, kw_only=True)
 class Number(Field):
@@ -160,6 +167,11 @@ class Number(Field):
         if not self.interval.contains(number):
             raise SceneError(self._range_message(key, value))
         return number
+
+    def to_value(self, value: Any) -> Any:
+        """"auto" for None if the key may be "auto" (the reader resolves "auto" to None where
+        the choice is made later: model.reference_frequency, limits.memory), else ``value``."""
+        return "auto" if value is None and self.auto else value
 
     def _range_message(self, key: str, value: Any) -> str:
         """The message for a number outside the interval, with the unit."""
@@ -234,6 +246,13 @@ class Vector(Field):
             raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
         return list(value)
 
+    def to_value(self, value: Any) -> Any:
+        """The list of the components: numbers as they are, an expression as its source, data
+        (a table, a callable) as its dict (:func:`~cosserat_fem.load_data.component_dict`)."""
+        if value is None:
+            return None
+        return [x if isinstance(x, int | float) else component_dict(x) for x in value]
+
 
 @dataclass(frozen=True, kw_only=True)
 class LoadVector(Vector):
@@ -283,6 +302,10 @@ class Points(Field):
                                 for j, x in enumerate(point)))  # fmt: skip
         return points
 
+    def to_value(self, value: Any) -> Any:
+        """The points as lists."""
+        return None if value is None else [list(point) for point in value]
+
 
 @dataclass(frozen=True, kw_only=True)
 class ChoiceList(Field):
@@ -301,6 +324,9 @@ class ChoiceList(Field):
         for i, item in enumerate(value):
             Choice(choices=self.choices).check(f"{key}[{i}]", item)
         return tuple(value)
+
+    def to_value(self, value: Any) -> Any:
+        return list(value)
 
 
 #: A PETSc option's name as [solver.petsc] gives it: without the leading "-" and the prefix.
@@ -352,6 +378,9 @@ class PetscOptions(Field):
             options[str(name)] = petsc_value(item_key, item)
         return options
 
+    def to_value(self, value: Any) -> Any:
+        return dict(value)
+
 
 #: The options prefix of the SNES solver (cosserat_fem/snes.py): ``-cosserat_snes_type`` in
 #: PETSc's terms is ``snes_type`` in [solver.petsc].
@@ -373,12 +402,13 @@ class Table:
         :func:`table`, in the order of the fields, under its scene key (the field's name
         unless the declaration names another); fields without a declaration (derived
         values) are not keys."""
-        fields = {}
-        for f in dataclasses.fields(resolved):
-            spec = f.metadata.get(_DECLARATION)
-            if spec is not None:
-                fields[f.metadata.get(_KEY_NAME) or f.name] = spec
+        fields = {name: spec for name, _, spec in declarations(resolved)}
         return cls(fields, optional, resolved)
+
+    def to_value(self, value: Any) -> dict[str, Any] | None:
+        """The sub-table of the resolved ``value`` (:func:`to_table`); None (left out) for an
+        optional table that is absent."""
+        return None if value is None else to_table(value)
 
 
 #: The metadata entries of a resolved field that a key declares: its spec, its scene name.
@@ -400,13 +430,35 @@ def table(resolved: type, *, optional: bool = False, **options: Any) -> Any:
     return key(Table.of(resolved, optional), **options)
 
 
-def declared_names(resolved: type) -> dict[str, str]:
-    """{scene key name: field name} of the fields of ``resolved`` that declare a key."""
-    return {
-        f.metadata.get(_KEY_NAME) or f.name: f.name
+def declarations(resolved: type) -> list[tuple[str, str, Any]]:
+    """(scene key name, field name, spec) of each field of the dataclass ``resolved`` that
+    declares a key (:func:`key`, :func:`table`), in the order of the fields."""
+    return [
+        (f.metadata.get(_KEY_NAME) or f.name, f.name, f.metadata[_DECLARATION])
         for f in dataclasses.fields(resolved)
         if _DECLARATION in f.metadata
+    ]
+
+
+def declared_names(resolved: type) -> dict[str, str]:
+    """{scene key name: field name} of the fields of ``resolved`` that declare a key."""
+    return {name: field for name, field, _ in declarations(resolved)}
+
+
+def to_table(resolved: Any) -> dict[str, Any]:
+    """The table of a scene file that gives the resolved dataclass instance ``resolved`` (what
+    :func:`build` built it from, every key given): each declared field under its key's name,
+    its value as the key's spec writes it (``to_value``: a sub-table by recursion, an
+    expression as its source, "auto" where so chosen), a key whose value is None (an absent
+    optional table or vector, a shape's unused key, the one of two exclusive keys not given)
+    left out. Plain, JSON-serialisable values (lists, dicts, numbers, strings); a field that
+    declares no key (a derived value) is not written. ``Scene.to_dict`` is this of the scene.
+    """
+    values = {
+        name: spec.to_value(getattr(resolved, field))
+        for name, field, spec in declarations(type(resolved))
     }
+    return {name: value for name, value in values.items() if value is not None}
 
 
 def build(resolved: type, raw: Mapping[str, Any], **resolved_values: Any) -> Any:
@@ -422,6 +474,9 @@ def build(resolved: type, raw: Mapping[str, Any], **resolved_values: Any) -> Any
 @dataclass(frozen=True)
 class Parameters:
     """The free-form [parameters] table: identifier = finite number."""
+
+    def to_value(self, value: Any) -> dict[str, float]:
+        return dict(value)
 
 
 #: A load component given by a table file (cosserat_fem/load_data.py, docs/loads.md): the

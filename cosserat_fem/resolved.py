@@ -44,8 +44,8 @@ from cosserat_fem.keys import (
     declared_names,
     key,
     table,
+    to_table,
 )
-from cosserat_fem.load_data import component_dict
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -87,10 +87,6 @@ class SectionSpec:
         if self.shape == "tube":
             return tube(self.outer_diameter, self.inner_diameter, k)
         return Section(self.area, self.c11, self.c22, self.c33, k)
-
-    def given(self) -> dict[str, Any]:
-        """The keys of this shape (for to_dict)."""
-        return {k: v for k, v in vars(self).items() if v is not None}
 
 
 
@@ -222,17 +218,6 @@ class ReferenceShape:
             return float(np.sum(0.5 * (bending[1:] + bending[:-1]) * np.diff(s)))
         return 0.0
 
-    def given(self) -> dict[str, Any]:
-        """The keys of this shape (for to_dict)."""
-        values = {k: v for k, v in vars(self).items() if v is not None and k != "constants"}
-        if self.points is not None:
-            values["points"] = [list(p) for p in self.points]
-            values["binormal"] = list(self.binormal)
-        for name in ("position", "director"):
-            if name in values:
-                values[name] = [e.source for e in values[name]]
-        return values
-
 
 @dataclass(frozen=True, kw_only=True)
 class Material:
@@ -341,7 +326,8 @@ class FormLoad:
     ``model.RodModel.residual_terms`` adds it, under the load's key; the Jacobian is UFL's
     derivative of the form). The scene reader parses its load vectors (functions of t and the
     constants), calls :meth:`check`, and the scene's other parts (``load_components``, the
-    plane, ``to_dict``) read it through :meth:`vectors` and :meth:`in_plane`."""
+    plane) read it through :meth:`vectors` and :meth:`in_plane`; ``to_dict`` writes its
+    declared keys as it writes any table's (:func:`~cosserat_fem.keys.to_table`)."""
 
     physics: ClassVar[str]
 
@@ -360,16 +346,6 @@ class FormLoad:
         """Whether it keeps a motion in a plane (:data:`PLANES`: the force has no component
         along ``normal``, the torque none about ``torques``); by default it does not."""
         return False
-
-    def given(self) -> dict[str, Any]:
-        """Its keys as a scene file gives them (for to_dict)."""
-        vectors = self.vectors()
-        return {
-            name: [component_dict(e) for e in vectors[name]]
-            if name in vectors
-            else getattr(self, f)
-            for name, f in declared_names(type(self)).items()
-        }
 
 
 def _spec(cls: type, name: str) -> Any:
@@ -734,8 +710,12 @@ class Scene:
         return {"L": self.rod.length, "omega0": self.omega0, **self.parameters}
 
     def to_dict(self) -> dict[str, Any]:
-        """Plain, JSON-serialisable dict with resolved defaults; ``scene_from_dict`` inverts it."""
-        return _scene_to_dict(self)
+        """The scene as the tables of a scene file, every key given, as its declaration writes
+        it (:func:`~cosserat_fem.keys.to_table`: expressions as their sources, tables and
+        callables as their dicts, reference_frequency and limits.memory "auto" where so
+        chosen, absent optional tables left out): plain, JSON-serialisable;
+        ``scene_from_dict`` inverts it."""
+        return to_table(self)
 
 
 def auto_reference_frequency(rod: Rod) -> float:
@@ -744,97 +724,3 @@ def auto_reference_frequency(rod: Rod) -> float:
     mat = rod.material
     section = rod.section.constants()
     return euler_bernoulli_omega0(rod.length, section, mat.density, mat.young_modulus)
-
-
-
-# =================================================================================== to_dict
-def _vector(values: tuple[Expression, ...]) -> list[Any]:
-    """Expressions as their sources; data (tables, callables) as their dicts."""
-    return [component_dict(e) for e in values]
-
-
-def _end_load_dict(load: EndLoad) -> dict[str, Any]:
-    return {"force": _vector(load.force), "torque": _vector(load.torque)}
-
-
-def _material_dict(material: Material) -> dict[str, Any]:
-    """[rod.material]: density [kg/m³], young_modulus [Pa] and the one of poisson_ratio and
-    shear_modulus [Pa] that was given."""
-    out: dict[str, Any] = {"density": material.density, "young_modulus": material.young_modulus}
-    if material.poisson_ratio is not None:
-        out["poisson_ratio"] = material.poisson_ratio
-    else:
-        out["shear_modulus"] = material.shear_modulus_value
-    return out
-
-
-def _loads_dict(loads: Loads) -> dict[str, Any]:
-    """[loads]: expressions as their sources, end loads where given, gravity [m/s²]."""
-    out: dict[str, Any] = {
-        "force_density": _vector(loads.force_density),
-        "torque_density": _vector(loads.torque_density),
-    }
-    for end in ("start", "end"):
-        load = getattr(loads, end)
-        if load is not None:
-            out[end] = _end_load_dict(load)
-    if loads.point is not None:
-        out["point"] = {"s": loads.point.s, **_end_load_dict(loads.point)}
-    out["gravity"] = list(loads.gravity)
-    for name, load in loads.form_loads():
-        out[name] = load.given()
-    return out
-
-
-def _fields(obj: Any) -> dict[str, Any]:
-    return dict(vars(obj))
-
-
-def _scene_to_dict(scene: Scene) -> dict[str, Any]:
-    """The scene as the tables of a scene file, every key given (expressions as their sources;
-    reference_frequency and limits.memory "auto" where so chosen): :meth:`Scene.to_dict`."""
-    model = _fields(scene.model)
-    if model["reference_frequency"] is None:
-        model["reference_frequency"] = "auto"
-    return {
-        "title": scene.title,
-        "parameters": dict(scene.parameters),
-        "rod": {
-            "length": scene.rod.length,
-            "section": scene.rod.section.given(),
-            "material": _material_dict(scene.rod.material),
-            **(
-                {"rotary_inertia": list(scene.rod.rotary_inertia)}
-                if scene.rod.rotary_inertia is not None
-                else {}
-            ),
-        },
-        "reference": scene.reference.given(),
-        "model": model,
-        "supports": {
-            "start": scene.supports.start,
-            "end": scene.supports.end,
-            **{
-                f"{end}_motion": _vector(scene.supports.motion(end))
-                for end in ("start", "end")
-                if scene.supports.motion(end) is not None
-            },
-        },
-        "loads": _loads_dict(scene.loads),
-        "time": _fields(scene.time),
-        "discretisation": _fields(scene.discretisation),
-        "solver": _fields(scene.solver),
-        "output": {
-            **_fields(scene.output),
-            "fields": list(scene.output.fields),
-            "probe_fields": list(scene.output.probe_fields),
-        },
-        "static": _fields(scene.static),
-        "damping": _fields(scene.damping),
-        "initial": {k: _vector(v) for k, v in vars(scene.initial).items() if v is not None},
-        "limits": {
-            "wall_time": scene.limits.wall_time,
-            "memory": "auto" if scene.limits.memory is None else scene.limits.memory,
-        },
-    }
-

@@ -36,6 +36,7 @@ from cosserat_fem.keys import (
     build,
     declared_names,
     fmt,
+    to_table,
 )
 from cosserat_fem.load_data import TableStore, check_span, is_data, parse_load_vector
 from cosserat_fem.resolved import (  # noqa: F401 - the resolved scene, importable from here
@@ -513,7 +514,7 @@ def _check_derived(scene: Scene) -> None:
     and the groups (48) combine every input. SceneError naming the keys they come from."""
     spec = scene.rod.section
     given = ", ".join(
-        f"rod.section.{k} = {fmt(v)}" for k, v in spec.given().items() if _is_number(v)
+        f"rod.section.{k} = {fmt(v)}" for k, v in to_table(spec).items() if _is_number(v)
     )
     try:
         section = spec.constants()
