@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import functools
 import keyword
 import math
 import re
@@ -430,14 +431,16 @@ def table(resolved: type, *, optional: bool = False, **options: Any) -> Any:
     return key(Table.of(resolved, optional), **options)
 
 
-def declarations(resolved: type) -> list[tuple[str, str, Any]]:
+@functools.cache
+def declarations(resolved: type) -> tuple[tuple[str, str, Any], ...]:
     """(scene key name, field name, spec) of each field of the dataclass ``resolved`` that
-    declares a key (:func:`key`, :func:`table`), in the order of the fields."""
-    return [
+    declares a key (:func:`key`, :func:`table`), in the order of the fields (once a class:
+    a class's fields do not change)."""
+    return tuple(
         (f.metadata.get(_KEY_NAME) or f.name, f.name, f.metadata[_DECLARATION])
         for f in dataclasses.fields(resolved)
         if _DECLARATION in f.metadata
-    ]
+    )
 
 
 def declared_names(resolved: type) -> dict[str, str]:
