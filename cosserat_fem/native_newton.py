@@ -72,13 +72,12 @@ int cf_solve(const cf_solver* sv, const cf_settings* s, cf_newton_state* st);
 void* cf_kernel(uintptr_t form, int type, int i);
 typedef struct {
   int32_t stages, n; double gamma; const double *A, *b, *c;
-  double *u, *z, *u_n, *K, *taus, *rates, *times, *guess, *term;
-  double* time_value; double* constants; int32_t time_slot;
-  double h, time; int64_t stored; int stage; double unknown_time; int iterations, reason;
-  int32_t n_data; double* const* data_targets; const int32_t* data_sizes;
-  const double* data_values; int64_t data_stride;
+  double *u, *z, *u_n, *K, *taus, *rates, *times, *guess; double* time_value;
+  double h, time; int64_t stored; double unknown_time;
 } cf_sdirk;
-int cf_sdirk_step(const cf_solver* sv, const cf_settings* s, cf_newton_state* st, cf_sdirk* sd);
+void cf_sdirk_begin(cf_sdirk* sd, int i);
+void cf_sdirk_predict(cf_sdirk* sd, int i);
+void cf_sdirk_end(cf_sdirk* sd, int i);
 void cf_sdirk_accept(cf_sdirk* sd);
 extern "Python" int cf_py_residual(void* ctx);
 extern "Python" int cf_py_jacobian(void* ctx);
@@ -168,6 +167,17 @@ def compiled():
     _bind_callbacks(module)
     _MODULE = module
     return module
+
+
+def core():
+    """:func:`compiled` for a solver or an integrator being built: a CosseratError naming the
+    C core if it cannot be built (no compiler or no PETSc headers: there is no other core)."""
+    from .errors import CosseratError
+
+    try:
+        return compiled()
+    except NotApplicable as exc:
+        raise CosseratError(f"Newton's C core (cosserat_fem/newton_loop.c): {exc}") from None
 
 
 def _bind_callbacks(module) -> None:
