@@ -463,25 +463,29 @@ class SDIRK(Integrator):
         K̃_i = 0 with none). A stored rate whose time coincides with that of a newer one is left
         out (SDIRK4's first stage lies beyond its step, so after a step ratio of (γ − 1)/γ a
         stage time repeats exactly: the weights would divide by zero). The C kernel
-        ``cf_sdirk_predict``; a subclass may override it."""
+        ``cf_sdirk_predict``, which :meth:`step` runs inside ``cf_sdirk_stage`` unless this
+        method is overridden (in a subclass, on the class or on the instance): then
+        :meth:`step` calls the override instead, at every stage."""
         self._lib.cf_sdirk_predict(self._sd, stage)
 
     def step(self, h: float, solve: Callable[[], int]) -> int:
-        """The stages one after the other (module docstring): per stage Z_i and τ_i
-        (``cf_sdirk_begin``), the guess (:meth:`predict`), ``solve()``, K_i = (U − Z_i)/(γ h)
-        (``cf_sdirk_end``, which after the last stage makes U = U_n + h Σ b_i K_i); returns
-        the Newton iterations of all stages. The same code serial and MPI: the kernels work
-        elementwise on the local arrays, ghosts included."""
+        """The stages one after the other (module docstring): per stage ``cf_sdirk_stage``
+        (K_{i−1} = (U − Z_{i−1})/(γ h) of the stage before; Z_i; τ_i; the guess of
+        :meth:`predict`), then ``solve()``; after the last, ``cf_sdirk_stage`` makes its K
+        and U = U_n + h Σ b_i K_i. Returns the Newton iterations of all stages. The same code
+        serial and MPI: the kernels work elementwise on the local arrays, ghosts included."""
         self.prepare(h)
         lib, sd = self._lib, self._sd
-        sd.h, sd.time, sd.stored = h, self.time, self._stored
+        own_guess = type(self).predict is not _PREDICT or "predict" in self.__dict__
+        sd.h, sd.time, sd.stored, sd.predict = h, self.time, self._stored, not own_guess
         iterations = 0
         for i in range(sd.stages):
-            lib.cf_sdirk_begin(sd, i)
+            lib.cf_sdirk_stage(sd, i)
             self.unknown_time = sd.unknown_time
-            self.predict(i)
+            if own_guess:
+                self.predict(i)
             iterations += solve()
-            lib.cf_sdirk_end(sd, i)
+        lib.cf_sdirk_stage(sd, sd.stages)
         return iterations
 
     def accept(self, h: float) -> None:
@@ -527,6 +531,9 @@ class SDIRK(Integrator):
         self._times[:] = times
         self._stored = stored
 
+
+#: SDIRK's own predictor (the C kernel): a step compares an integrator's ``predict`` with it.
+_PREDICT = SDIRK.predict
 
 INTEGRATORS = ("bdf2", "generalized-alpha", "sdirk3", "sdirk4", "static")
 

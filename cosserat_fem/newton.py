@@ -260,6 +260,7 @@ class NewtonSolver:
         fcp, jp = self._compile_params
         t0 = time.perf_counter()
         self.F_form = fem.form(F, form_compiler_params=fcp, jit_params=jp)
+        self._F_constants = F.constants()  # in the order DOLFINx packs them
         J = ufl.derivative(F, self.U, ufl.TrialFunction(self.U.function_space))
         self.J_form = fem.form(J, form_compiler_params=fcp, jit_params=jp)
         self.compile_time += time.perf_counter() - t0
@@ -286,7 +287,7 @@ class NewtonSolver:
         from .native_newton import NativeLoop, NotApplicable
 
         try:
-            native = NativeLoop(self.F_form, self.U, self.bcs, self.b)
+            native = NativeLoop(self.F_form, self.U, self.bcs, self.b, self._F_constants)
             native.refresh()
             native.residual()
             via_c = self.b.array.copy()
@@ -379,8 +380,8 @@ class NewtonSolver:
         """Solve from the current U (the initial guess), in C (``cf_solve``: the policy, the
         iterations, a retry; module docstring). Returns the number of iterations; raises
         NewtonFailure if it did not converge, or what a callback raised."""
-        if self._native is not None:
-            self._native.refresh(dirichlet=self.supports_move)
+        if self.supports_move and self._native is not None:
+            self._native.refresh()
         status = self._lib.cf_solve(self._sv, self._cs, self._state)
         st = self._state
         if status or st.reason <= 0:

@@ -46,7 +46,10 @@ typedef struct {
   int32_t n_integrals;
   const cf_integral* integrals;
   double* const* coefficients; /* each coefficient's value array (DOLFINx Function.x.array) */
-  const double* constants;     /* packed constants (pack_constants), refreshed by the caller */
+  int32_t n_constants;
+  double* const* constant_values; /* each Constant's own storage, in the form's order */
+  const int32_t* constant_sizes;  /* and its size */
+  double* constants;           /* the packed constants: gathered from them at each residual */
   const double* coordinates;   /* (cells, coordinates_per_cell) */
   int32_t coordinates_per_cell;
   const int32_t* dofs;         /* (cells, dofs_per_cell): b's entries of a cell, block-unrolled */
@@ -98,6 +101,9 @@ int cf_residual(cf_problem* p)
   ierr = VecGetArray((Vec)p->b, &b);
   if (ierr) return (int)ierr;
   memset(b, 0, sizeof(double) * (size_t)n);
+  double* packed = p->constants; /* pack_constants: the values one Constant after the other */
+  for (int32_t k = 0; k < p->n_constants; ++k)
+    for (int32_t j = 0; j < p->constant_sizes[k]; ++j) *packed++ = p->constant_values[k][j];
   assemble(p, b);
   for (int32_t i = 0; i < p->n_bc; ++i) {
     const int32_t d = p->bc_dofs[i];
@@ -303,6 +309,7 @@ typedef struct {
   double *rates, *times;        /* the ring buffer of accepted stage rates (stages, n), times */
   double* guess;                /* scratch (n,) */
   double* time_value;           /* the time Constant's own storage */
+  int32_t predict;              /* cf_sdirk_stage makes the predictor's guess (else Python) */
   /* in, per step */
   double h, time;
   int64_t stored;               /* stage rates stored so far (the ring's count) */
@@ -353,25 +360,7 @@ static int rate_guess(cf_sdirk* sd, int stage, double tau)
   return 1;
 }
 
-/* The start of stage i: Z_i = U_n + h sum_{j<i} a_ij K_j and the time tau_i = tau_n + c_i h
- * (into the time Constant and sd->unknown_time). At most CF_MAX_STAGES stages (SDIRK's
- * constructor checks). */
-void cf_sdirk_begin(cf_sdirk* sd, int i)
-{
-  const int n = sd->n;
-  const double h = sd->h;
-  for (int32_t k = 0; k < n; ++k) sd->z[k] = sd->u_n[k];
-  for (int j = 0; j < i; ++j) {
-    const double f = h * sd->A[i * sd->stages + j];
-    const double* Kj = sd->K + (int64_t)j * n;
-    for (int32_t k = 0; k < n; ++k) sd->z[k] += Kj[k] * f;
-  }
-  const double tau = sd->time + sd->c[i] * h;
-  *sd->time_value = tau;
-  sd->unknown_time = tau;
-}
-
-/* The predictor of stage i (after cf_sdirk_begin): U = gamma h K~_i + Z_i, K~_i the rates'
+/* The predictor of stage i (after its Z_i and tau_i are set): U = gamma h K~_i + Z_i, K~_i the rates'
  * extrapolation to tau_i (0 with none). */
 void cf_sdirk_predict(cf_sdirk* sd, int i)
 {
@@ -386,23 +375,42 @@ void cf_sdirk_predict(cf_sdirk* sd, int i)
   for (int32_t k = 0; k < n; ++k) sd->u[k] += sd->z[k];
 }
 
-/* The end of stage i (its solve converged): K_i = (U - Z_i) (1/(gamma h)), its time tau_i; after
- * the last stage, U = U_n + h sum_i b_i K_i. */
-void cf_sdirk_end(cf_sdirk* sd, int i)
+/* Between the stages of a step: with 0 < i, the end of stage i - 1 (its solve converged):
+ * K_{i-1} = (U - Z_{i-1}) (1/(gamma h)) and its time; then, with i < stages, the start of stage i:
+ * Z_i = U_n + h sum_{j<i} a_ij K_j, the time tau_i = tau_n + c_i h (into the time Constant and
+ * sd->unknown_time) and, if sd->predict, the predictor's guess U = gamma h K~_i + Z_i (K~_i the
+ * stored rates' extrapolation to tau_i, 0 with none); with i == stages, U = U_n + h sum_i b_i K_i.
+ * At most CF_MAX_STAGES stages (SDIRK's constructor checks). */
+void cf_sdirk_stage(cf_sdirk* sd, int i)
 {
   const int n = sd->n;
-  const double h = sd->h, inv = 1.0 / (sd->gamma * h);
-  double* Ki = sd->K + (int64_t)i * n;
-  for (int32_t k = 0; k < n; ++k) Ki[k] = sd->u[k] - sd->z[k];
-  for (int32_t k = 0; k < n; ++k) Ki[k] *= inv;
-  sd->taus[i] = sd->unknown_time;
-  if (i + 1 < sd->stages) return;
-  for (int32_t k = 0; k < n; ++k) sd->u[k] = sd->u_n[k];
-  for (int j = 0; j < sd->stages; ++j) {
-    const double f = h * sd->b[j];
-    const double* Kj = sd->K + (int64_t)j * n;
-    for (int32_t k = 0; k < n; ++k) sd->u[k] += Kj[k] * f;
+  const double h = sd->h, gh = sd->gamma * h;
+  if (i > 0) {
+    const double inv = 1.0 / gh;
+    double* K = sd->K + (int64_t)(i - 1) * n;
+    for (int32_t k = 0; k < n; ++k) K[k] = sd->u[k] - sd->z[k];
+    for (int32_t k = 0; k < n; ++k) K[k] *= inv;
+    sd->taus[i - 1] = sd->unknown_time;
   }
+  if (i == sd->stages) {
+    for (int32_t k = 0; k < n; ++k) sd->u[k] = sd->u_n[k];
+    for (int j = 0; j < sd->stages; ++j) {
+      const double f = h * sd->b[j];
+      const double* Kj = sd->K + (int64_t)j * n;
+      for (int32_t k = 0; k < n; ++k) sd->u[k] += Kj[k] * f;
+    }
+    return;
+  }
+  for (int32_t k = 0; k < n; ++k) sd->z[k] = sd->u_n[k];
+  for (int j = 0; j < i; ++j) {
+    const double f = h * sd->A[i * sd->stages + j];
+    const double* Kj = sd->K + (int64_t)j * n;
+    for (int32_t k = 0; k < n; ++k) sd->z[k] += Kj[k] * f;
+  }
+  const double tau = sd->time + sd->c[i] * h;
+  *sd->time_value = tau;
+  sd->unknown_time = tau;
+  if (sd->predict) cf_sdirk_predict(sd, i);
 }
 
 /* SDIRK.accept's arrays: U_n = U, this step's stage rates and times into the ring buffer. */
