@@ -55,10 +55,9 @@ WRAPPERS = "residual: DOLFINx's Python assembly wrappers (fem.petsc, fem.assembl
 NEWTON = "Newton: newton.py Python (callbacks or loop) and its PETSc calls"
 SNES = "Newton: SNES's own C work (solve minus KSPSolve)"
 KSP = "Newton: KSP solve (triangular solves)"
-INTEGRATOR = "integrator (stage predictor, updates; numpy)"
-STEP_C = "a whole SDIRK step in C, cf_sdirk_step (stages, predictor, Newton)"
+INTEGRATOR = "integrator (its step: Python and the C kernels cf_sdirk_*)"
 LOOP = "loop, state checks, observers"
-ROWS = (KERNEL, PACK, BC, WRAPPERS, NEWTON, SNES, KSP, INTEGRATOR, STEP_C, LOOP)
+ROWS = (KERNEL, PACK, BC, WRAPPERS, NEWTON, SNES, KSP, INTEGRATOR, LOOP)
 _BUILTINS = {
     "dolfinx.cpp.fem.assemble_vector": KERNEL,
     "dolfinx.cpp.fem.pack_coefficients": PACK,
@@ -66,7 +65,7 @@ _BUILTINS = {
     "dolfinx.cpp.fem.set_bc": BC,
     "'solve' of 'petsc4py.PETSc.SNES'": SNES,
     "'solve' of 'petsc4py.PETSc.KSP'": KSP,
-    "cf_sdirk_step": STEP_C,
+    "cf_sdirk_": INTEGRATOR,
 }
 _WRAPPER_FILES = ("/dolfinx/fem/petsc.py", "/dolfinx/fem/assemble.py", "functools.py")
 _TRANSPARENT = ("numpy", "weakref.py", "<__array_function__", "abc.py", "/dolfinx/")
@@ -84,7 +83,7 @@ def category(func: tuple) -> str | None:
         return None
     if filename.endswith("newton.py"):
         return NEWTON
-    if filename.endswith(("integrators.py", "adaptive.py", "native_sdirk.py")):
+    if filename.endswith(("integrators.py", "adaptive.py")):
         return INTEGRATOR
     return LOOP
 

@@ -68,7 +68,7 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
                "layout")),  # fmt: skip
     ("model", ("forms.", "model", "charts", "checks", "load_coefficients",
                "reference.")),  # fmt: skip
-    ("solve", ("newton", "snes", "solvers", "native_newton", "native_sdirk", "integrators",
+    ("solve", ("newton", "snes", "solvers", "native_newton", "integrators",
                "adaptive", "events", "loop")),  # fmt: skip
     ("files", ("fields", "results")),
     ("run", ("simulation", "statics", "modal", "observers", "progress", "budget", "restart")),

@@ -43,8 +43,6 @@ from dolfinx import fem
 from dolfinx.fem.petsc import apply_lifting, assemble_matrix, assemble_vector, set_bc
 from petsc4py import PETSc
 
-from .adaptive import lagrange_weight_list
-
 ResidualFactory = Callable[[object, object, object], ufl.Form]
 #: A change of variables (:meth:`Integrator.change_variables`): state array -> state array.
 StateMap = Callable[[np.ndarray], np.ndarray]
@@ -374,6 +372,10 @@ class GeneralizedAlpha(Integrator):
         self._h_prev = float(state["h_prev"])
 
 
+#: The most stages an SDIRK tableau may have (newton_loop.c CF_MAX_STAGES).
+MAX_STAGES = 8
+
+
 def _sdirk_tableau(order: int) -> tuple[float, np.ndarray, np.ndarray]:
     """(γ, A, b) of the A-stable SDIRK methods of the module docstring."""
     if order == 3:
@@ -411,6 +413,8 @@ class SDIRK(Integrator):
         self.Z = fem.Function(V, name="Z")  # U_n + h Σ_{j<i} a_ij K_j of the current stage
         self.inv_gh = _constant(U, 1.0)
         stages = len(self.b)
+        if stages > MAX_STAGES:
+            raise ValueError(f"an SDIRK tableau of {stages} stages; at most {MAX_STAGES}")
         self.K = np.zeros((stages, U.x.array.size))  # stage rates K_i of this step
         self._taus = np.zeros(stages)  # their times
         # The last s stage rates of accepted steps, a ring buffer in the order computed
@@ -418,17 +422,33 @@ class SDIRK(Integrator):
         self._rates = np.zeros((stages, U.x.array.size))
         self._times = np.zeros(stages)
         self._stored = 0
-        self._guess = np.zeros(U.x.array.size)  # the predictor's result and a scratch term
-        self._term = np.zeros(U.x.array.size)
-        # Kept views and plain floats for the step, whose arrays are small: each NumPy call or
-        # Function.x costs about a microsecond, as much as the arithmetic of a rod of a few
-        # hundred unknowns (docs/decisions.md, "The lean Newton loop").
-        self._u, self._z = U.x.array, self.Z.x.array
-        self._rate_rows, self._K_rows = list(self._rates), list(self.K)
-        self._A_rows = [[float(a) for a in row] for row in self.A]
-        self._b_list, self._c_list = [float(b) for b in self.b], [float(c) for c in self.c]
-        self._time_value = time_view(self.time_eval)
+        self._kernels()
+
+    def _kernels(self) -> None:
+        """The C kernels of the step's arithmetic (newton_loop.c ``cf_sdirk_*``) and the
+        struct they share, which points into this integrator's arrays (kept in place: they are
+        only ever assigned into)."""
+        from .native_newton import core
+
+        module = core()
+        ffi, self._lib = module.ffi, module.lib
+        self._tableau = [np.ascontiguousarray(x, dtype=np.float64) for x in (self.A, self.b,
+                                                                             self.c)]  # fmt: skip
+        self._guess = np.zeros(self.U_n.size)  # the predictor's scratch
         self._inv_gh_value = time_view(self.inv_gh)
+
+        def pointer(array: np.ndarray):
+            assert array.dtype == np.float64 and array.flags.c_contiguous
+            return ffi.cast("double*", array.ctypes.data)
+
+        sd = ffi.new("cf_sdirk*")
+        sd.stages, sd.n, sd.gamma = len(self.b), self.U_n.size, float(self.gamma)
+        sd.A, sd.b, sd.c = (pointer(x) for x in self._tableau)
+        sd.u, sd.z, sd.u_n = pointer(self.U.x.array), pointer(self.Z.x.array), pointer(self.U_n)
+        sd.K, sd.taus = pointer(self.K), pointer(self._taus)
+        sd.rates, sd.times = pointer(self._rates), pointer(self._times)
+        sd.guess, sd.time_value = pointer(self._guess), pointer(time_view(self.time_eval))
+        self._sd = sd
 
     def residual_form(self) -> ufl.Form:
         return self._factory(self.U, self.inv_gh * (self.U - self.Z), self.time_eval)
@@ -436,64 +456,45 @@ class SDIRK(Integrator):
     def prepare(self, h: float) -> None:
         self._inv_gh_value[()] = 1.0 / (self.gamma * h)
 
-    def _rate_guess(self, stage: int, tau: float) -> np.ndarray | float:
-        """Lagrange extrapolation to time τ of the newest s stage rates known before
-        stage ``stage`` of this step (0 with none), in a kept buffer that the next call
-        overwrites. A stored rate whose time coincides with
-        that of a newer one is left out (SDIRK4's first stage lies beyond its step, so after
-        a step ratio of (γ − 1)/γ a stage time repeats exactly: the weights divided by zero)."""
-        times, taus = self._times.tolist(), self._taus[:stage].tolist()
-        size = len(times)
-        old = min(self._stored, size - stage)
-        slots = [(self._stored - old + j) % size for j in range(old)]
-        later = [*(times[j] for j in slots), *taus]
-        slots = [j for i, j in enumerate(slots) if times[j] not in later[i + 1 :]]
-        if not slots and not stage:
-            return 0.0
-        w = lagrange_weight_list([*(times[j] for j in slots), *taus], tau)
-        # Σ w_j rate_j into a kept buffer, one term at a time: for the small arrays of a rod a
-        # fancy-indexed matrix product cost several times more (its copies and dispatch).
-        rows = [*(self._rate_rows[j] for j in slots), *self._K_rows[:stage]]
-        out, term = self._guess, self._term
-        np.multiply(rows[0], w[0], out=out)
-        for wj, row in zip(w[1:], rows[1:], strict=True):
-            out += np.multiply(row, wj, out=term)
-        return out
+    def predict(self, stage: int) -> None:
+        """The initial guess of stage ``stage`` into U (after its Z_i and τ_i are set, before
+        its solve): U = Z_i + γ h K̃_i, K̃_i the Lagrange extrapolation to τ_i of the newest s
+        stage rates known before it (this step's and the accepted steps', at their own times;
+        K̃_i = 0 with none). A stored rate whose time coincides with that of a newer one is left
+        out (SDIRK4's first stage lies beyond its step, so after a step ratio of (γ − 1)/γ a
+        stage time repeats exactly: the weights would divide by zero). The C kernel
+        ``cf_sdirk_predict``, which :meth:`step` runs inside ``cf_sdirk_stage`` unless this
+        method is overridden (in a subclass, on the class or on the instance): then
+        :meth:`step` calls the override instead, at every stage."""
+        self._lib.cf_sdirk_predict(self._sd, stage)
 
     def step(self, h: float, solve: Callable[[], int]) -> int:
-        """The stages one after the other (module docstring), each from the predictor of the
-        class docstring, then U = U_n + h Σ b_i K_i; returns the Newton iterations of all stages."""
+        """The stages one after the other (module docstring): per stage ``cf_sdirk_stage``
+        (K_{i−1} = (U − Z_{i−1})/(γ h) of the stage before; Z_i; τ_i; the guess of
+        :meth:`predict`), then ``solve()``; after the last, ``cf_sdirk_stage`` makes its K
+        and U = U_n + h Σ b_i K_i. Returns the Newton iterations of all stages. The same code
+        serial and MPI: the kernels work elementwise on the local arrays, ghosts included."""
         self.prepare(h)
-        u, z, u_n, term, K = self._u, self._z, self.U_n, self._term, self._K_rows
-        gh = self.gamma * h
+        lib, sd = self._lib, self._sd
+        own_guess = type(self).predict is not _PREDICT or "predict" in self.__dict__
+        sd.h, sd.time, sd.stored, sd.predict = h, self.time, self._stored, not own_guess
         iterations = 0
-        for i, a_i in enumerate(self._A_rows):
-            np.copyto(z, u_n)  # Z_i = U_n + h Σ_{j<i} a_ij K_j
-            for j in range(i):
-                z += np.multiply(K[j], h * a_i[j], out=term)
-            tau = self.time + self._c_list[i] * h
-            self._time_value[()] = tau
-            self.unknown_time = tau
-            np.multiply(self._rate_guess(i, tau), gh, out=u)
-            u += z
+        for i in range(sd.stages):
+            lib.cf_sdirk_stage(sd, i)
+            self.unknown_time = sd.unknown_time
+            if own_guess:
+                self.predict(i)
             iterations += solve()
-            np.subtract(u, z, out=K[i])
-            K[i] *= 1.0 / gh
-            self._taus[i] = tau
-        np.copyto(u, u_n)
-        for b_i, K_i in zip(self._b_list, K, strict=True):
-            u += np.multiply(K_i, h * b_i, out=term)
+        lib.cf_sdirk_stage(sd, sd.stages)
         return iterations
 
     def accept(self, h: float) -> None:
         """U_n = U; this step's stage rates and their times go into the ring buffer of the
-        predictor."""
-        self.U_n[:] = self.U.x.array
-        for i in range(len(self.b)):
-            slot = self._stored % len(self._times)
-            self._rates[slot] = self.K[i]
-            self._times[slot] = self._taus[i]
-            self._stored += 1
+        predictor (``cf_sdirk_accept``)."""
+        sd = self._sd
+        sd.stored = self._stored
+        self._lib.cf_sdirk_accept(sd)
+        self._stored = sd.stored
         super().accept(h)
 
     def last_accepted(self) -> np.ndarray:
@@ -530,6 +531,9 @@ class SDIRK(Integrator):
         self._times[:] = times
         self._stored = stored
 
+
+#: SDIRK's own predictor (the C kernel): a step compares an integrator's ``predict`` with it.
+_PREDICT = SDIRK.predict
 
 INTEGRATORS = ("bdf2", "generalized-alpha", "sdirk3", "sdirk4", "static")
 

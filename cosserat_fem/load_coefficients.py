@@ -14,11 +14,7 @@ value of τ (a Newton retry at the same stage evaluates nothing again).
 The loads' values do not depend on the state U (no follower loads), so the Jacobian is the
 expression's with the value in place of the expression: UFL differentiates the same form, a
 force's term vanishing and a torque's keeping its dependence on the angles through the
-rotation's kinematics; whoever assembles a Jacobian needs the coefficients set too. A whole
-SDIRK step in C (cosserat_fem/native_sdirk.py) sets τ itself between stages: there the data
-loads' values at the step's stage times are computed before the step, the same numbers
-:meth:`sync` would set, and the C code puts them in at each stage (into the Constants' own
-storage too, which a Jacobian assembled between stages reads).
+rotation's kinematics; whoever assembles a Jacobian needs the coefficients set too.
 
 Under MPI every rank evaluates the same tables alike (the same bytes, read on rank 0); a
 callable is called on every rank with the same t, its failures agreed on every rank, and a
@@ -58,7 +54,8 @@ class DataLoads:
 
     def __init__(self, msh, degree: int, length: float, omega0: float):
         self.msh, self.degree, self.length, self.omega0 = msh, degree, length, omega0
-        self._bound: dict[int, _Bound] = {}
+        #: The data loads of each time Constant's forms, by the Constant's id (empty: none).
+        self.bound: dict[int, _Bound] = {}
         self._space: fem.FunctionSpace | None = None
         self._s: np.ndarray | None = None
 
@@ -68,7 +65,7 @@ class DataLoads:
         again, e.g. after a chart move, holds the same one)."""
         if not isinstance(time, fem.Constant):
             raise TypeError("a data load needs a form whose time is a DOLFINx Constant")
-        bound = self._bound.setdefault(id(time), _Bound(time))
+        bound = self.bound.setdefault(id(time), _Bound(time))
         for known, coefficient, _ in bound.entries:
             if known is component:
                 return coefficient
@@ -102,24 +99,11 @@ class DataLoads:
             self._space, self._s = space, s
         return self._space
 
-    def entries(self, time: fem.Constant) -> list[tuple]:
-        """(Constant or Function, t ↦ its values) of the data loads of the forms of ``time``
-        (a whole SDIRK step in C sets them itself at each stage: cosserat_fem/native_sdirk.py;
-        :meth:`forget` then)."""
-        bound = self._bound.get(id(time))
-        return [] if bound is None else [(c, values) for _, c, values in bound.entries]
-
-    def forget(self, time: fem.Constant) -> None:
-        """The coefficients of ``time`` no longer hold the values of a τ (set in C)."""
-        bound = self._bound.get(id(time))
-        if bound is not None:
-            bound.tau = None
-
     def sync(self, time: fem.Constant) -> None:
         """Set the data loads of the forms of ``time`` to their values at t = τ/ω0, τ the
         Constant's value now (collective when a callable is among them: its failures are
         agreed and a load of t only compared between ranks). SceneError naming the load."""
-        bound = self._bound.get(id(time))
+        bound = self.bound.get(id(time))
         if bound is None:
             return
         tau = float(time.value)

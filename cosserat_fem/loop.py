@@ -30,7 +30,6 @@ from .errors import SceneError, SolverError
 from .events import Events
 from .log import LOGGER
 from .model import RodModel
-from .native_sdirk import stepper
 from .newton import NewtonFailure, NewtonSolver
 
 #: Rejections in a row after which an adaptive run stops.
@@ -162,12 +161,13 @@ class TimeLoop:
         self._check = StateCheck(model)
         self._cos_accepted = self._check.cos_theta()  # the chart-crossing check
         self._cos_candidate = self._cos_accepted
+        # Fixed supports: their Dirichlet values are not read again before each solve.
+        solver.supports_move = bool(model.motions)
+        self._watch_solves = events.listens("solve_done")
         if events.listens("newton_iteration"):
             solver.iteration_hook = lambda it, norms, reason: events.newton_iteration(
                 self, it, norms, reason
             )
-        # The integrator's step and accept, in C where they apply (cosserat_fem/native_sdirk.py).
-        self.stepper = stepper(integrator, solver, model, events)
 
     # -- state ----------------------------------------------------------------------------
     def _adaptive_parts(self) -> None:
@@ -258,10 +258,14 @@ class TimeLoop:
         """One Newton solve, with moving supports at the time of the unknown: their values
         are put into the initial guess too (the Jacobian's rows and columns of held dofs are
         those of the identity; docs/decisions.md, "Dirichlet values in the guess")."""
-        self.model.support_dofs_to(self.model.U.x.array, self.integrator.unknown_time)
-        self.model.sync_loads(self.integrator.time_eval)  # loads given by data, at the stage
+        model = self.model
+        if model.motions:
+            model.support_dofs_to(model.U.x.array, self.integrator.unknown_time)
+        if model.data is not None and model.data.bound:  # loads given by data, at the stage
+            model.data.sync(self.integrator.time_eval)
         iterations = self.solver.solve()
-        self.events.solve_done(self, iterations)
+        if self._watch_solves:
+            self.events.solve_done(self, iterations)
         return iterations
 
     def attempt(self, t_new: float) -> SolverError | None:
@@ -270,7 +274,7 @@ class TimeLoop:
         self.events.step_attempted(self, t_new)
         self.pending = True
         try:
-            self.stepper.step((t_new - self.state.t) * self.omega0, self._solve)
+            self.integrator.step((t_new - self.state.t) * self.omega0, self._solve)
             # A method whose new state is not its last stage (SDIRK3/4) meets a moving
             # support's values only to its order: put them in exactly.
             if self.model.motions:
@@ -315,7 +319,7 @@ class TimeLoop:
         and largest step [s]; then the step_accepted event."""
         st = self.state
         h = t_new - st.t
-        self.stepper.accept(h * self.omega0)
+        self.integrator.accept(h * self.omega0)
         self.pending = False
         self._cos_accepted = self._cos_candidate
         st.t = t_new

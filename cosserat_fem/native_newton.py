@@ -46,7 +46,8 @@ typedef struct {
 } cf_integral;
 typedef struct {
   int32_t n_integrals; const cf_integral* integrals; double* const* coefficients;
-  const double* constants; const double* coordinates; int32_t coordinates_per_cell;
+  int32_t n_constants; double* const* constant_values; const int32_t* constant_sizes;
+  double* constants; const double* coordinates; int32_t coordinates_per_cell;
   const int32_t* dofs; int32_t dofs_per_cell; int32_t n_bc; const int32_t* bc_dofs;
   const double* bc_values; const double* u_values; double* w; double* be; void* b;
 } cf_problem;
@@ -72,13 +73,11 @@ int cf_solve(const cf_solver* sv, const cf_settings* s, cf_newton_state* st);
 void* cf_kernel(uintptr_t form, int type, int i);
 typedef struct {
   int32_t stages, n; double gamma; const double *A, *b, *c;
-  double *u, *z, *u_n, *K, *taus, *rates, *times, *guess, *term;
-  double* time_value; double* constants; int32_t time_slot;
-  double h, time; int64_t stored; int stage; double unknown_time; int iterations, reason;
-  int32_t n_data; double* const* data_targets; const int32_t* data_sizes;
-  const double* data_values; int64_t data_stride;
+  double *u, *z, *u_n, *K, *taus, *rates, *times, *guess; double* time_value;
+  int32_t predict; double h, time; int64_t stored; double unknown_time;
 } cf_sdirk;
-int cf_sdirk_step(const cf_solver* sv, const cf_settings* s, cf_newton_state* st, cf_sdirk* sd);
+void cf_sdirk_stage(cf_sdirk* sd, int i);
+void cf_sdirk_predict(cf_sdirk* sd, int i);
 void cf_sdirk_accept(cf_sdirk* sd);
 extern "Python" int cf_py_residual(void* ctx);
 extern "Python" int cf_py_jacobian(void* ctx);
@@ -168,6 +167,17 @@ def compiled():
     _bind_callbacks(module)
     _MODULE = module
     return module
+
+
+def core():
+    """:func:`compiled` for a solver or an integrator being built: a CosseratError naming the
+    C core if it cannot be built (no compiler or no PETSc headers: there is no other core)."""
+    from .errors import CosseratError
+
+    try:
+        return compiled()
+    except NotApplicable as exc:
+        raise CosseratError(f"Newton's C core (cosserat_fem/newton_loop.c): {exc}") from None
 
 
 def _bind_callbacks(module) -> None:
@@ -316,11 +326,12 @@ def _gather_tables(form) -> dict:
 
 class NativeLoop:
     """The C residual assembler (``cf_residual``) of a serial NewtonSolver's form (module
-    docstring): ``problem`` is what cf_solve's ``problem`` points to. ``refresh`` before each
-    solve: the constants and the Dirichlet values of that solve."""
+    docstring): ``problem`` is what cf_solve's ``problem`` points to. ``refresh`` before a
+    solve whose Dirichlet values moved."""
 
-    def __init__(self, form, U, bcs, b):
-        """``b``: the solver's residual vector."""
+    def __init__(self, form, U, bcs, b, constants):
+        """``b``: the solver's residual vector; ``constants``: the form's DOLFINx Constants
+        in its order (the UFL form's ``constants()``), whose own storage cf_residual reads."""
         mesh = U.function_space.mesh
         if mesh.comm.size > 1:
             raise NotApplicable("a parallel run")
@@ -376,7 +387,14 @@ class NativeLoop:
         self._integrals = ffi.new("cf_integral[]", integrals)
         arrays = [c.x.array for c in form.coefficients]
         self._coefficients = ffi.new("double*[]", [pointer(a, "double*") for a in arrays])
+        storages = [c._cpp_object.value for c in constants]  # each Constant's own storage
         self.constants = np.zeros_like(cpp.fem.pack_constants(form))
+        if sum(v.size for v in storages) != self.constants.size or not all(
+            v.dtype == np.float64 and v.flags.c_contiguous for v in storages
+        ):
+            raise NotApplicable("the packed constants are not the Constants' values")
+        self._constant_values = ffi.new("double*[]", [pointer(v, "double*") for v in storages])
+        self._constant_sizes = np.array([v.size for v in storages] or [0], dtype=np.int32)
         self.bc_values = np.zeros_like(U.x.array)
         self._zeros = np.zeros_like(U.x.array)
         bc_dofs = [bc.dof_indices()[0][: bc.dof_indices()[1]] for bc in bcs]
@@ -387,6 +405,9 @@ class NativeLoop:
         p.n_integrals = len(integrals)
         p.integrals = self._integrals
         p.coefficients = self._coefficients
+        p.n_constants = len(storages)
+        p.constant_values = self._constant_values
+        p.constant_sizes = pointer(self._constant_sizes, "int32_t*")
         p.constants = pointer(self.constants, "double*")
         p.coordinates = pointer(coordinates, "double*")
         p.coordinates_per_cell = coordinates.shape[1]
@@ -402,14 +423,12 @@ class NativeLoop:
         self.problem = p
         self._form, self._bcs = form, bcs
 
-    def refresh(self, dirichlet: bool = True) -> None:
-        """The constants and (with ``dirichlet``) the Dirichlet values g as they are now
-        (before a solve); g is set once at construction and needs no refresh while no
-        support moves."""
-        self.constants[:] = cpp.fem.pack_constants(self._form)
-        if dirichlet:
-            self.bc_values.fill(0.0)
-            cpp.fem.set_bc(self.bc_values, self._bcs, self._zeros, 1.0)
+    def refresh(self) -> None:
+        """The Dirichlet values g as they are now (before a solve, while a support moves); set
+        at construction. The constants need none: cf_residual reads the Constants' own
+        storage at each residual."""
+        self.bc_values.fill(0.0)
+        cpp.fem.set_bc(self.bc_values, self._bcs, self._zeros, 1.0)
 
     def residual(self) -> None:
         """b = F(U) with the Dirichlet rows x − g (NewtonSolver._residual)."""

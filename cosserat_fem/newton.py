@@ -54,7 +54,7 @@ from petsc4py import PETSc
 from ufl.algorithms.analysis import extract_coefficients, extract_constants
 
 from .errors import CosseratError
-from .native_newton import NotApplicable, compiled
+from .native_newton import core
 
 JACOBIAN_POLICIES = ("full", "lagged", "frozen")
 _prefix_counter = itertools.count()
@@ -150,10 +150,7 @@ class NewtonSolver:
         self.U = U
         self.bcs = bcs
         self._native = None
-        try:
-            module = compiled()
-        except NotApplicable as exc:  # no compiler or no PETSc headers: no Newton at all
-            raise CosseratError(f"Newton's C core (cosserat_fem/newton_loop.c): {exc}") from None
+        module = core()
         self._ffi, self._lib = module.ffi, module.lib
         self._cs = self._ffi.new("cf_settings*")  # the stop rule's and the policy's settings
         self._state = self._ffi.new("cf_newton_state*")  # the policy's state, the counters
@@ -163,7 +160,11 @@ class NewtonSolver:
         #: An exception a callback raised inside cf_solve, raised again after it.
         self.callback_error: BaseException | None = None
         self.settings = settings
-        self.stats = NewtonStatistics()
+        self._stats = NewtonStatistics()  # C's counters are copied in when it is read
+        #: The Dirichlet values g are read again before each solve (a support may move); a
+        #: time loop whose supports stay put sets it False (cosserat_fem/loop.py), and the
+        #: values read when the assembler was made stand.
+        self.supports_move = True
         self._hook = None
         comm = U.function_space.mesh.comm
         self._parallel = comm.size > 1
@@ -222,6 +223,18 @@ class NewtonSolver:
         s.frozen, s.refresh_iterations = settings.jacobian == "frozen", settings.refresh_iterations
 
     @property
+    def stats(self) -> NewtonStatistics:
+        """The counters: those the C solve keeps (``cf_newton_state``), copied in at each read
+        (not after each solve: a time step reads none), and the Jacobian's."""
+        st, stats = self._state, self._stats
+        stats.solves, stats.iterations = st.solves, st.newton_iterations
+        stats.residual_assemblies, stats.retries = st.residuals, st.retries
+        stats.time_residual, stats.time_solve = st.time_residual, st.time_solve
+        stats.last_iterations, stats.max_iterations_in_a_solve = (st.last_iterations,
+                                                                  st.max_in_a_solve)
+        return stats
+
+    @property
     def iteration_hook(self):
         """f(it, norms, reason) after each convergence test (an observer's), or None."""
         return self._hook
@@ -247,6 +260,7 @@ class NewtonSolver:
         fcp, jp = self._compile_params
         t0 = time.perf_counter()
         self.F_form = fem.form(F, form_compiler_params=fcp, jit_params=jp)
+        self._F_constants = F.constants()  # in the order DOLFINx packs them
         J = ufl.derivative(F, self.U, ufl.TrialFunction(self.U.function_space))
         self.J_form = fem.form(J, form_compiler_params=fcp, jit_params=jp)
         self.compile_time += time.perf_counter() - t0
@@ -273,7 +287,7 @@ class NewtonSolver:
         from .native_newton import NativeLoop, NotApplicable
 
         try:
-            native = NativeLoop(self.F_form, self.U, self.bcs, self.b)
+            native = NativeLoop(self.F_form, self.U, self.bcs, self.b, self._F_constants)
             native.refresh()
             native.residual()
             via_c = self.b.array.copy()
@@ -339,8 +353,8 @@ class NewtonSolver:
                 **{f"coefficient{i}": c.x.array.copy() for i, c in enumerate(coefficients)},
                 **{f"constant{i}": np.array(c.value) for i, c in enumerate(constants)},
             }
-        self.stats.jacobian_assemblies += 1
-        self.stats.time_jacobian += time.perf_counter() - t0
+        self._stats.jacobian_assemblies += 1
+        self._stats.time_jacobian += time.perf_counter() - t0
 
     def _converged(self, it: int, norms) -> int:
         """The stop rule of the module docstring (``cf_test``, the one cf_solve runs) after
@@ -366,19 +380,20 @@ class NewtonSolver:
         """Solve from the current U (the initial guess), in C (``cf_solve``: the policy, the
         iterations, a retry; module docstring). Returns the number of iterations; raises
         NewtonFailure if it did not converge, or what a callback raised."""
-        if self._native is not None:
+        if self.supports_move and self._native is not None:
             self._native.refresh()
-        self._finish(self._lib.cf_solve(self._sv, self._cs, self._state))
+        status = self._lib.cf_solve(self._sv, self._cs, self._state)
         st = self._state
-        if st.reason <= 0:
+        if status or st.reason <= 0:
+            self._finish(status)
             raise NewtonFailure(_REASONS.get(st.reason, str(st.reason)), st.iterations)
         return st.iterations
 
-    def _finish(self, status: int, where: str = "a Newton solve") -> None:
-        """After a C solve: the counters into :attr:`stats`; a callback's exception raised again
+    def _finish(self, status: int) -> None:
+        """After a C solve: a callback's exception raised again
         (under MPI on every rank that met one; a CosseratError agreed across ranks), or a
         RuntimeError for a PETSc error code."""
-        st, stats = self._state, self.stats
+        st = self._state
         if self._parallel and not status and st.reason <= 0:  # every rank's (global norms)
             from .parallel import agree
 
@@ -386,15 +401,10 @@ class NewtonSolver:
             if error is not None and not isinstance(error, CosseratError):
                 error = RuntimeError(f"{type(error).__name__}: {error}")
             agree(self.U.function_space.mesh.comm, error)
-        stats.solves, stats.iterations = st.solves, st.newton_iterations
-        stats.residual_assemblies, stats.retries = st.residuals, st.retries
-        stats.time_residual, stats.time_solve = st.time_residual, st.time_solve
-        stats.last_iterations, stats.max_iterations_in_a_solve = (st.last_iterations,
-                                                                  st.max_in_a_solve)
         if status:
             error, self.callback_error = self.callback_error, None
             if error is None:
-                error = RuntimeError(f"PETSc error {status} in {where}")
+                error = RuntimeError(f"PETSc error {status} in a Newton solve")
             raise error
 
     # -- checkpoint/restart ---------------------------------------------------------------
@@ -416,10 +426,11 @@ class NewtonSolver:
         if "stats.history" in state:  # a checkpoint of before the running maximum
             history = np.asarray(state["stats.history"])
             state = {**state, "stats.max_iterations_in_a_solve": int(history.max(initial=0))}
-        for f in fields(self.stats):
-            kind = type(getattr(self.stats, f.name))
-            setattr(self.stats, f.name, kind(state[f"stats.{f.name}"]))
-        st, stats = self._state, self.stats
+        stats = self._stats
+        for f in fields(stats):
+            kind = type(getattr(stats, f.name))
+            setattr(stats, f.name, kind(state[f"stats.{f.name}"]))
+        st = self._state
         st.solves, st.newton_iterations = stats.solves, stats.iterations
         st.residuals, st.retries = stats.residual_assemblies, stats.retries
         st.time_residual, st.time_solve = stats.time_residual, stats.time_solve

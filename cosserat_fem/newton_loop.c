@@ -2,7 +2,7 @@
  * builds it): the solve's Jacobian policy, the loop and the stop rule (cf_solve, cf_test), with
  * callbacks for what Python keeps (DOLFINx's residual assembly under MPI, the Jacobian, an
  * observer of the iterations, SNES's iterations); the residual assembly of a DOLFINx form for a
- * serial run (cf_residual); and a whole SDIRK step over cf_solve (cf_sdirk_step).
+ * serial run (cf_residual); and the arithmetic kernels of an SDIRK step (cf_sdirk_*).
  *
  * cf_residual does what NewtonSolver._assemble does with DOLFINx 0.5.2's assemble_vector and
  * set_bc, in the same order of operations, so that b comes out bitwise the same: b = 0; for
@@ -46,7 +46,10 @@ typedef struct {
   int32_t n_integrals;
   const cf_integral* integrals;
   double* const* coefficients; /* each coefficient's value array (DOLFINx Function.x.array) */
-  const double* constants;     /* packed constants (pack_constants), refreshed by the caller */
+  int32_t n_constants;
+  double* const* constant_values; /* each Constant's own storage, in the form's order */
+  const int32_t* constant_sizes;  /* and its size */
+  double* constants;           /* the packed constants: gathered from them at each residual */
   const double* coordinates;   /* (cells, coordinates_per_cell) */
   int32_t coordinates_per_cell;
   const int32_t* dofs;         /* (cells, dofs_per_cell): b's entries of a cell, block-unrolled */
@@ -98,6 +101,9 @@ int cf_residual(cf_problem* p)
   ierr = VecGetArray((Vec)p->b, &b);
   if (ierr) return (int)ierr;
   memset(b, 0, sizeof(double) * (size_t)n);
+  double* packed = p->constants; /* pack_constants: the values one Constant after the other */
+  for (int32_t k = 0; k < p->n_constants; ++k)
+    for (int32_t j = 0; j < p->constant_sizes[k]; ++j) *packed++ = p->constant_values[k][j];
   assemble(p, b);
   for (int32_t i = 0; i < p->n_bc; ++i) {
     const int32_t d = p->bc_dofs[i];
@@ -288,9 +294,9 @@ int cf_solve(const cf_solver* sv, const cf_settings* s, cf_newton_state* st)
   return 0;
 }
 
-/* ---- A whole SDIRK step (cosserat_fem/integrators.py SDIRK.step with cf_solve per stage) and
- * its accept: the stage values and the predictor, with the same IEEE operations, element by
- * element, as the NumPy calls of the Python step. */
+/* ---- The arithmetic of an SDIRK step (cosserat_fem/integrators.py SDIRK.step, which calls
+ * these kernels around each stage's Newton solve, and SDIRK.accept): elementwise on the local
+ * arrays (ghosts included), so they need no communication under MPI. */
 
 #define CF_MAX_STAGES 8
 
@@ -301,29 +307,19 @@ typedef struct {
   double *u, *z, *u_n;          /* U, Z (Functions' arrays) and U_n, each (n,) */
   double *K, *taus;             /* this step's stage rates (stages, n) and their times */
   double *rates, *times;        /* the ring buffer of accepted stage rates (stages, n), times */
-  double *guess, *term;         /* scratch (n,) */
+  double* guess;                /* scratch (n,) */
   double* time_value;           /* the time Constant's own storage */
-  double* constants;            /* the packed constants the residual reads */
-  int32_t time_slot;            /* τ's index in them, -1 if the form has no τ */
+  int32_t predict;              /* cf_sdirk_stage makes the predictor's guess (else Python) */
   /* in, per step */
   double h, time;
   int64_t stored;               /* stage rates stored so far (the ring's count) */
-  /* out: the stage reached (the failed one), its unknown's time, the iterations, the reason */
-  int stage;
+  /* out: the time of the current stage's unknown */
   double unknown_time;
-  int iterations, reason;
-  /* loads given by data (cosserat_fem/load_coefficients.py), in: where each one's values go
-   * (a slot of the packed constants, or a quadrature Function's array), how many, and their
-   * values at every stage time of the step, (stages, data_stride), computed before it */
-  int32_t n_data;
-  double* const* data_targets;
-  const int32_t* data_sizes;
-  const double* data_values;
-  int64_t data_stride;
 } cf_sdirk;
 
-/* SDIRK._rate_guess: the Lagrange extrapolation to tau of the newest stored rates known before
- * stage `stage` into sd->guess; 0 when there are none (the guess is then the number 0.0). */
+/* The Lagrange extrapolation to tau of the newest stored rates known before stage `stage`
+ * into sd->guess (a stored rate whose time repeats a newer one's is left out); 0 when there
+ * are none (the guess is then the number 0.0). */
 static int rate_guess(cf_sdirk* sd, int stage, double tau)
 {
   const int s = sd->stages, n = sd->n;
@@ -351,7 +347,7 @@ static int rate_guess(cf_sdirk* sd, int stage, double tau)
     nodes[count] = sd->taus[j];
     rows[count++] = sd->K + (int64_t)j * n;
   }
-  for (int j = 0; j < count; ++j) { /* adaptive.lagrange_weight_list */
+  for (int j = 0; j < count; ++j) { /* the Lagrange weights of the nodes at tau */
     double wj = 1.0;
     for (int k = 0; k < count; ++k)
       if (k != j) wj *= (tau - nodes[k]) / (nodes[j] - nodes[k]);
@@ -364,28 +360,13 @@ static int rate_guess(cf_sdirk* sd, int stage, double tau)
   return 1;
 }
 
-/* The start of stage i: Z_i, the time τ_i (the Constant and the packed constants), the loads
- * given by data at τ_i, and the predicted U = guess γh + Z_i. */
-static void stage_begin(cf_sdirk* sd, int i)
+/* The predictor of stage i (after its Z_i and tau_i are set): U = gamma h K~_i + Z_i, K~_i the rates'
+ * extrapolation to tau_i (0 with none). */
+void cf_sdirk_predict(cf_sdirk* sd, int i)
 {
   const int n = sd->n;
-  const double h = sd->h, gh = sd->gamma * h;
-  for (int32_t k = 0; k < n; ++k) sd->z[k] = sd->u_n[k];
-  for (int j = 0; j < i; ++j) {
-    const double f = h * sd->A[i * sd->stages + j];
-    const double* Kj = sd->K + (int64_t)j * n;
-    for (int32_t k = 0; k < n; ++k) sd->z[k] += Kj[k] * f;
-  }
-  const double tau = sd->time + sd->c[i] * h;
-  *sd->time_value = tau;
-  if (sd->time_slot >= 0) sd->constants[sd->time_slot] = tau;
-  sd->unknown_time = tau;
-  if (sd->n_data > 0) { /* the loads given by data, at τ */
-    const double* values = sd->data_values + (int64_t)i * sd->data_stride;
-    for (int32_t k = 0; k < sd->n_data; ++k)
-      for (int32_t j = 0; j < sd->data_sizes[k]; ++j) sd->data_targets[k][j] = *values++;
-  }
-  if (rate_guess(sd, i, tau)) {
+  const double gh = sd->gamma * sd->h;
+  if (rate_guess(sd, i, sd->unknown_time)) {
     for (int32_t k = 0; k < n; ++k) sd->u[k] = sd->guess[k] * gh;
   } else {
     const double zero = 0.0 * gh;
@@ -394,39 +375,42 @@ static void stage_begin(cf_sdirk* sd, int i)
   for (int32_t k = 0; k < n; ++k) sd->u[k] += sd->z[k];
 }
 
-/* The SDIRK step of h from sd->time: 0 when done, with sd->reason > 0 (U = U_n + h Σ b_i K_i)
- * or <= 0 (the solve of stage sd->stage failed after st->iterations iterations); or cf_solve's
- * error (a PETSc error code or a callback's status). */
-int cf_sdirk_step(const cf_solver* sv, const cf_settings* s, cf_newton_state* st, cf_sdirk* sd)
+/* Between the stages of a step: with 0 < i, the end of stage i - 1 (its solve converged):
+ * K_{i-1} = (U - Z_{i-1}) (1/(gamma h)) and its time; then, with i < stages, the start of stage i:
+ * Z_i = U_n + h sum_{j<i} a_ij K_j, the time tau_i = tau_n + c_i h (into the time Constant and
+ * sd->unknown_time) and, if sd->predict, the predictor's guess U = gamma h K~_i + Z_i (K~_i the
+ * stored rates' extrapolation to tau_i, 0 with none); with i == stages, U = U_n + h sum_i b_i K_i.
+ * At most CF_MAX_STAGES stages (SDIRK's constructor checks). */
+void cf_sdirk_stage(cf_sdirk* sd, int i)
 {
   const int n = sd->n;
   const double h = sd->h, gh = sd->gamma * h;
-  int ierr;
-  if (sd->stages < 1 || sd->stages > CF_MAX_STAGES) return PETSC_ERR_ARG_OUTOFRANGE;
-  sd->iterations = 0;
-  for (int i = 0; i < sd->stages; ++i) {
-    sd->stage = i;
-    stage_begin(sd, i);
-    if ((ierr = cf_solve(sv, s, st))) return ierr;
-    if (st->reason <= 0) {
-      sd->reason = st->reason;
-      return 0;
-    }
-    sd->iterations += st->iterations;
-    double* Ki = sd->K + (int64_t)i * n;
+  if (i > 0) {
     const double inv = 1.0 / gh;
-    for (int32_t k = 0; k < n; ++k) Ki[k] = sd->u[k] - sd->z[k];
-    for (int32_t k = 0; k < n; ++k) Ki[k] *= inv;
-    sd->taus[i] = sd->unknown_time;
+    double* K = sd->K + (int64_t)(i - 1) * n;
+    for (int32_t k = 0; k < n; ++k) K[k] = sd->u[k] - sd->z[k];
+    for (int32_t k = 0; k < n; ++k) K[k] *= inv;
+    sd->taus[i - 1] = sd->unknown_time;
   }
-  for (int32_t k = 0; k < n; ++k) sd->u[k] = sd->u_n[k];
-  for (int i = 0; i < sd->stages; ++i) {
-    const double f = h * sd->b[i];
-    const double* Ki = sd->K + (int64_t)i * n;
-    for (int32_t k = 0; k < n; ++k) sd->u[k] += Ki[k] * f;
+  if (i == sd->stages) {
+    for (int32_t k = 0; k < n; ++k) sd->u[k] = sd->u_n[k];
+    for (int j = 0; j < sd->stages; ++j) {
+      const double f = h * sd->b[j];
+      const double* Kj = sd->K + (int64_t)j * n;
+      for (int32_t k = 0; k < n; ++k) sd->u[k] += Kj[k] * f;
+    }
+    return;
   }
-  sd->reason = st->reason;
-  return 0;
+  for (int32_t k = 0; k < n; ++k) sd->z[k] = sd->u_n[k];
+  for (int j = 0; j < i; ++j) {
+    const double f = h * sd->A[i * sd->stages + j];
+    const double* Kj = sd->K + (int64_t)j * n;
+    for (int32_t k = 0; k < n; ++k) sd->z[k] += Kj[k] * f;
+  }
+  const double tau = sd->time + sd->c[i] * h;
+  *sd->time_value = tau;
+  sd->unknown_time = tau;
+  if (sd->predict) cf_sdirk_predict(sd, i);
 }
 
 /* SDIRK.accept's arrays: U_n = U, this step's stage rates and times into the ring buffer. */

@@ -162,23 +162,11 @@ def parse_qoi(stdout: str) -> dict[str, float]:
     return values
 
 
-def python_steps(monkeypatch) -> None:
-    """Time loops step with their integrator's Python step, whose solves are Python calls that
-    a test can replace: not with cosserat_fem/native_sdirk.py, whose stages and solves are one
-    C call (its failures, retries and rejections are those of the Python step, bit for bit:
-    tests/test_native_newton.py)."""
-    from cosserat_fem import loop
-
-    monkeypatch.setattr(loop, "stepper", lambda integrator, *args: integrator)
-
-
 def inject_newton_failures(monkeypatch, fails) -> None:
     """Make Newton solve number n (counting from 1 over all solvers) raise NewtonFailure when
-    ``fails(n)`` is true (time loops take Python steps: :func:`python_steps`); undone by
-    monkeypatch.undo() or at the end of the test."""
+    ``fails(n)`` is true (every stage of every integrator calls NewtonSolver.solve: the
+    users' path); undone by monkeypatch.undo() or at the end of the test."""
     from cosserat_fem.newton import NewtonFailure, NewtonSolver
-
-    python_steps(monkeypatch)
 
     real_solve = NewtonSolver.solve
     calls = {"n": 0}

@@ -30,7 +30,7 @@ QUIET = ["output.xdmf=false", "output.checkpoint=false"]
 EPS = np.finfo(float).eps
 
 CASES = {
-    # SDIRK3, a frozen Jacobian: the fast path's whole step in C (native_sdirk.py)
+    # SDIRK3, a frozen Jacobian: the default path (SDIRK.step, cf_solve per stage)
     "paper": 60 * 3e-5,
     # full Newton (a Jacobian each iteration), BDF2
     "full-bdf2": ("6e-4", "solver.jacobian=full", "time.integrator=bdf2", "time.step=1e-5"),

@@ -17,7 +17,7 @@ import logging
 
 import numpy as np
 import pytest
-from conftest import ROOT, inject_newton_failures, python_steps
+from conftest import ROOT, inject_newton_failures
 
 from cosserat_fem.scene import load_scene
 from cosserat_fem.simulation import run_scene
@@ -82,11 +82,9 @@ def test_failure_after_max_halvings_keeps_the_outputs(tmp_path, monkeypatch, und
 def corrupt_after_step(monkeypatch, attempt: int, corrupt) -> None:
     """Apply ``corrupt`` to the state array U that step attempt number ``attempt`` (counting
     from 1, retries included) of the integrator (SDIRK3, the scene's) leaves, before the
-    run's state checks see it: as if the step itself had produced that state (the Python
-    step: conftest.python_steps)."""
+    run's state checks see it: as if the step itself had produced that state (SDIRK.step,
+    the one step every run takes)."""
     from cosserat_fem.integrators import SDIRK
-
-    python_steps(monkeypatch)
 
     real_step = SDIRK.step
     calls = {"n": 0}

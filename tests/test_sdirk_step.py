@@ -1,0 +1,147 @@
+"""The one SDIRK step (cosserat_fem/integrators.py ``SDIRK.step`` over the C kernels
+``cf_sdirk_*`` of newton_loop.c), serial and under ``mpirun -n 2``.
+
+Every run takes the step through Python's own dispatch, so a subclass's override runs on every
+step attempt, serial and MPI alike (before issue 26 a serial run took a whole step in C and
+silently ignored an override of ``step`` or of the predictor). The counts are exact: one
+``step`` call per attempt, one ``predict`` call per stage of each attempt (SDIRK3: two stages).
+A predictor that guesses U = Z_i (no extrapolation of the stage rates) starts each stage
+from another point than the default's, so Newton's iterates, and the state it stops at (within
+its tolerance), differ from the default run's: the override reaches the solves.
+
+A state that breaks a support (``initial_state`` through the API: y = 1e-3 m everywhere, where
+the rod's start is clamped, g = 0) is held by each stage's solve, not by the step: the Dirichlet
+row of the residual is U_d − g and the Jacobian's row and column there are the identity's, so
+the first update is δU_d = U_d and every stage value is U_d = 0 exactly (x − x = 0). Then
+K_i,d = (0 − Z_i,d)/(γh) and U_{n+1,d} = U_n,d + h Σ b_i K_i,d = R(∞) U_n,d with SDIRK3's
+R(∞) = 1 − bᵀA⁻¹1 = 1 − √3 (γ = (3 + √3)/6; |R(∞)| = 0.73): the clamp's y decays as
+R(∞)^n, the same few elementwise operations of the C kernels on every rank, so the same bits
+serial and on two ranks (where only the stage solve's δU_d = U_d could differ, and does not: an
+identity row and column) and, to the rounding of 20 steps of those operations (a few units in
+the last place each: 1e-13 relative), (1e-3/ℓ) (1 − √3)^20. The other clamped unknowns start
+at 0 and stay 0. Serial, the C assembler and DOLFINx's give the same bits (the same step, the
+same guesses); serial and two ranks agree to the Newton tolerance elsewhere (PETSc's LU and
+MUMPS round differently: tests/test_adaptive.py's bound).
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+from conftest import ROOT, run_command
+
+PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
+
+#: Run in-process (serial) and under mpirun (two ranks); prints one JSON line on rank 0.
+_SCRIPT = """
+import json, sys
+import numpy as np
+from mpi4py import MPI
+from cosserat_fem import api, simulation
+from cosserat_fem.integrators import SDIRK
+
+calls = {"step": 0, "predict": 0}
+
+
+class Stepped(SDIRK):
+    def step(self, h, solve):
+        calls["step"] += 1
+        return super().step(h, solve)
+
+
+class Predicted(SDIRK):
+    def predict(self, stage):
+        calls["predict"] += 1
+        self.U.x.array[:] = self.Z.x.array  # U = Z_i: no extrapolation of the rates
+
+
+def run(kind, overrides, initial_state=None):
+    real = simulation.make_integrator
+    if kind is not None:
+        simulation.make_integrator = lambda name, U, residual, time, rho_inf=0.5: kind(
+            U, residual, time, order=int(name[-1]))
+    try:
+        return api.run(api.load(sys.argv[1], overrides), initial_state=initial_state)
+    finally:
+        simulation.make_integrator = real
+
+
+def attempts(result):
+    return result.summary["accepted_steps"] + result.summary["rejected_steps"]
+
+
+world = MPI.COMM_WORLD
+base = {"time.end": 20 * 3e-5, "output.xdmf": False}
+answer = {}
+default = run(None, base)
+stepped = run(Stepped, base)
+predicted = run(Predicted, base)
+answer["attempts"] = [attempts(r) for r in (stepped, predicted)]
+answer["calls"] = dict(calls)
+answer["predicted_differs"] = bool(world.allreduce(
+    int(not np.array_equal(predicted.model.U.x.array, default.model.U.x.array)), op=MPI.MAX))
+answer["stepped_equals_default"] = bool(world.allreduce(
+    int(np.array_equal(stepped.model.U.x.array, default.model.U.x.array)), op=MPI.MIN))
+# A state that breaks the clamp at s = 0: a displacement y = 1e-3 m everywhere.
+model = default.model
+full = np.zeros((model.nodes, 12))
+full[:, 1] = 1e-3 / model.length
+broken = {}
+for loop in (["solver.loop=auto"], ["solver.loop=python"]):
+    result = run(None, {**base, "solver.loop": loop[0].split("=")[1]}, initial_state=full)
+    U = result.model.U.x.array.reshape(-1, result.model.layout.size)
+    s = result.model.V.tabulate_dof_coordinates()[:, 0]
+    here = np.isclose(s, 0.0)
+    row = U[here][0].copy() if here.any() else np.full(U.shape[1], -np.inf)
+    clamped = np.empty_like(row)
+    world.Allreduce(row, clamped, op=MPI.MAX)  # the values of a rank that holds s = 0
+    broken[loop[0]] = {
+        "status": result.summary["status"],
+        "clamped": clamped.tolist(),
+        "length": model.length,
+        "probes": result.probes.tolist(),
+    }
+answer["broken"] = broken
+if world.rank == 0:
+    print(json.dumps(answer))
+"""
+
+
+def _answer(ranks: int) -> dict:
+    proc = run_command(["-c", _SCRIPT, str(PAPER)], ranks=ranks)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def _check_overrides(answer: dict) -> None:
+    stepped, predicted = answer["attempts"]
+    assert stepped == predicted == 20  # fixed steps, none rejected
+    assert answer["calls"] == {"step": stepped, "predict": 2 * predicted}
+    assert answer["predicted_differs"]  # another guess, other iterates
+    assert answer["stepped_equals_default"]  # the override adds nothing to the arithmetic
+
+
+def test_sdirk_overrides_are_called_on_every_step_serial_and_mpi():
+    """The module docstring: a subclass's ``step`` once per attempt and its ``predict`` once
+    per stage, serial and on two ranks; the clamp broken by the initial state decays as
+    R(∞)^n, the same bits serial (both assemblers) and MPI; the probes serial = MPI to the
+    Newton tolerance (stol = 1e-7 of ‖U‖: tests/test_adaptive.py's 1e-8 of the peak)."""
+    serial, mpi = _answer(1), _answer(2)
+    rows = []
+    for answer in (serial, mpi):
+        _check_overrides(answer)
+        for run in answer["broken"].values():
+            assert run["status"] == "completed"
+            rows.append(run["clamped"])
+    assert all(row == rows[0] for row in rows)  # bitwise: serial (C, DOLFINx), MPI (both)
+    expected = 1e-3 / serial["broken"]["solver.loop=auto"]["length"] * (1.0 - 3.0**0.5) ** 20
+    assert abs(rows[0][1] - expected) <= 1e-13 * abs(expected)
+    assert rows[0][:1] + rows[0][2:] == [0.0] * 11
+    c, dolfinx = (np.array(serial["broken"][k]["probes"]) for k in ("solver.loop=auto",
+                                                                    "solver.loop=python"))
+    assert np.array_equal(c, dolfinx)
+    two = np.array(mpi["broken"]["solver.loop=auto"]["probes"])
+    assert two.shape == c.shape
+    for j in range(1, c.shape[1]):
+        assert np.abs(two[:, j] - c[:, j]).max() <= 1e-8 * np.abs(c[:, j]).max(), j
