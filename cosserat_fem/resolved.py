@@ -539,7 +539,8 @@ class Solver:
         Number(default=25, integer=True, interval=Interval(1, MAX_NEWTON_ITERATIONS))
     )
     linear_solver: str = key(Choice(choices=("auto", "petsc", "mumps", "superlu"), default="auto"))
-    #: "auto": the C inner loop where it applies (native_newton.py); "python"
+    #: the residual's assembler under the one Newton loop: "auto", the C assembler where it
+    #: applies (native_newton.py); "python", DOLFINx's
     loop: str = key(Choice(choices=("auto", "python"), default="auto"))
     #: "newton" (the project's loop), "snes" (PETSc's SNES, cosserat_fem/snes.py) or "auto"
     #: (SNES if ``petsc`` gives options: solvers.make_solver).
