@@ -175,8 +175,11 @@ def test_demo_serial_equals_mpi(demo_runs):
 BEND_DEMO = str(ROOT / "demos" / "bathe_bolourchi_bend.py")
 
 
+@pytest.mark.long
 def test_bend_demo_serial_and_mpi_against_the_shooting_solution(tmp_path):
-    """demos/bathe_bolourchi_bend.py on one and two ranks: the tip displacement [in] at 600 lbf
+    """In the long set (7 s; make test keeps the paper's demo serial and under mpirun, and
+    tests/test_curved.py the bend's tip against the shooting solution).
+    demos/bathe_bolourchi_bend.py on one and two ranks: the tip displacement [in] at 600 lbf
     within 2e-5 in of the shooting solution (the scene's discretisation error, as
     tests/test_curved.py argues), the two runs equal to 1e-9 of it (PETSc's LU against
     MUMPS's, round-off over 11 nonlinear load steps; measured: equal to the 13 printed
