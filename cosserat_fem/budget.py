@@ -101,13 +101,15 @@ def xml_bytes_written(frames: float, arrays: int) -> float:
     """A lower bound of the bytes of XML that an XDMF series of ``frames`` frames of ``arrays``
     arrays writes (cosserat_fem/io/xdmf.py, :class:`~cosserat_fem.io.xdmf.XdmfSeries`): each
     frame once, S = ``XML_BYTES_PER_FRAME_ARRAY`` × arrays × frames in all, and the rewrites.
-    A rewrite leaves at most R = ``XdmfSeries.SPARE[1]`` bytes of room for the frames after it,
-    so past R there is a rewrite at least every R bytes of frames, the k-th writing the k R
-    bytes the XML then holds at least: R K (K + 1) / 2 more, K = ⌊S / R⌋ − 1. (Linear in the
-    frames up to S = 2R, then quadratic with the small coefficient 1 / 2R.) Held by
+    A rewrite leaves at most ``XdmfSeries.SPARE[1]`` bytes of room for the frames after it, and
+    a frame takes at least b = ``XML_BYTES_PER_FRAME_ARRAY`` × arrays of it, so past R = the
+    larger of the two there is a rewrite at least every R bytes of frames, the k-th writing
+    the k R bytes the XML then holds at least: R K (K + 1) / 2 more, K = ⌊S / R⌋ − 1. (Linear
+    in the frames up to S = 2R, then quadratic with the small coefficient 1 / 2R; with no room
+    at all, a rewrite at every frame: b F (F − 1) / 2 more.) Held by
     tests/test_budget.py::test_the_xml_bound_is_below_what_a_series_writes."""
     size = XML_BYTES_PER_FRAME_ARRAY * arrays * frames
-    room = float(XdmfSeries.SPARE[1])
+    room = max(float(XdmfSeries.SPARE[1]), XML_BYTES_PER_FRAME_ARRAY * arrays)
     k = max(math.floor(size / room) - 1.0, 0.0)
     return size + room * k * (k + 1.0) / 2.0
 

@@ -319,6 +319,10 @@ def test_the_xml_bound_is_below_what_a_series_writes(tmp_path, monkeypatch):
     s = 100.0 * 6 * 300
     k = s // room - 1
     assert budget.xml_bytes_written(300, 6) == s + room * k * (k + 1) / 2
+    # No room at all (tests/test_kill_window.py's "rewrite" case): a rewrite at every frame.
+    monkeypatch.setattr(XdmfSeries, "SPARE", (0, 0))
+    assert budget.xml_bytes_written(300, 6) == s + 600.0 * 300 * 299 / 2  # b F (F - 1) / 2
+    monkeypatch.setattr(XdmfSeries, "SPARE", (1 << 10, room))
     (tmp_path / "small").mkdir()
     written = _xml_bytes_of_a_series(tmp_path / "small", 300, names, monkeypatch)
     assert written >= budget.xml_bytes_written(300, 6), written
