@@ -382,6 +382,9 @@ class NewtonSolver:
         NewtonFailure if it did not converge, or what a callback raised."""
         if self.supports_move and self._native is not None:
             self._native.refresh()
+        # An exception an earlier solve's retry recovered from (under MPI a residual callback's
+        # exception becomes a NaN residual) is not this solve's to report.
+        self.callback_error = None
         status = self._lib.cf_solve(self._sv, self._cs, self._state)
         st = self._state
         if status or st.reason <= 0:
