@@ -11,7 +11,8 @@ stage of every step: cosserat_fem/loop.py), the static solve, the consistent ini
 the energy monitor and the modal problems. A time Constant's loads are evaluated once per
 value of τ (a Newton retry at the same stage evaluates nothing again).
 
-The loads' values do not depend on the state U (no follower loads), so the Jacobian is the
+The values set here do not depend on the state U (a follower load's turn with the end's
+directors is its form's, forms/follower.py, and UFL differentiates it), so the Jacobian is the
 expression's with the value in place of the expression: UFL differentiates the same form, a
 force's term vanishing and a torque's keeping its dependence on the angles through the
 rotation's kinematics; whoever assembles a Jacobian needs the coefficients set too.

@@ -9,7 +9,8 @@ and the gyroscopic terms) are quadratic in ṗ and vanish at rest, so the linear
 
 with F the weak residual of the second block on a 6-component space (same mesh and degree as
 the dynamics). K includes the load stiffness of state-dependent loads (torques in fixed
-directions, (38) and (43)). Modes e^{iωt} φ solve the generalized eigenproblem
+directions, (38) and (43); follower end loads, forms/follower.py, whose K is not
+symmetric). Modes e^{iωt} φ solve the generalized eigenproblem
 
     K φ = λ M φ,   ω = ω0 √λ  [rad/s]   (λ in units of the time scale τ = ω0 t, (47)).
 

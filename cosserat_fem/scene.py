@@ -271,7 +271,8 @@ def _build_form_load(spec: Table, raw: dict[str, Any], key: str, supports: Suppo
     vectors = {}
     for name, item in spec.fields.items():
         if isinstance(item, LoadVector):
-            vector = _point_vector(raw[name], names, f"{key}.{name}", tables, "it")
+            vector = _point_vector(raw[name], names, f"{key}.{name}", tables,
+                                    "a load at an end")
             vectors[declared_names(spec.resolved)[name]] = vector
     load = build(spec.resolved, raw, **vectors)
     load.check(key, supports)
