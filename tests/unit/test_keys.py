@@ -25,8 +25,10 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from cosserat_fem.keys import (
@@ -161,7 +163,22 @@ def test_shipped_scenes_resolve_as_before(path):
         "absent": scene.absent_terms(),
         "n_steps": scene.time.n_steps,
     }
-    assert json.loads(json.dumps(now, sort_keys=True, default=repr)) == before[path.name]
+    now = json.loads(json.dumps(now, sort_keys=True, default=repr))
+    expected = before[path.name]
+    # The derived constants (ω0 through a square root, c33 through a tanh series,
+    # forms/section.py) may differ in their last bits on another libm: numbers within 1e-14
+    # relative, the rest of their text exactly. The scene's own values are compared exactly.
+    derived, derived_before = now.pop("_derived"), expected.pop("_derived")
+    assert now == expected
+    number = re.compile(r"-?\d+\.\d*(?:e[-+]?\d+)?|-?\d+e[-+]?\d+")
+    for name, value in derived_before.items():
+        mine, theirs = str(derived[name]), str(value)
+        assert number.sub("#", mine) == number.sub("#", theirs), name
+        np.testing.assert_allclose(
+            [float(x) for x in number.findall(mine)],
+            [float(x) for x in number.findall(theirs)],
+            rtol=1e-14, atol=0, err_msg=name,
+        )  # fmt: skip
 
 
 @pytest.mark.parametrize("path", SCENES, ids=lambda p: p.name)
