@@ -149,7 +149,7 @@ class StabilityResult:
     loads: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
-        return {"critical_factor": self.critical, "kind": self.kind,
+        return {"critical_factor": self.critical, "instability": self.kind,
                 "bracket": list(self.bracket) if self.bracket else None,
                 "tolerance": self.tolerance, "root_evaluations": self.evaluations,
                 "reason": self.reason, "loads_at_factor_1": self.loads,
