@@ -178,8 +178,8 @@ def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | P
 def stability(scene: Scene, low: float = 0.0, high: float = 1.0, *, samples: int = 5,
               tolerance: float = 1e-8, count: int = 6, out: str | Path | None = None):  # fmt: skip
     """Stability of the scene's static states for load factors f in [low, high] (every load
-    × f; cosserat_fem/stability.py) and the critical factor where it is lost: a
-    :class:`~cosserat_fem.stability.StabilityResult` with ``critical`` (None if stability is
+    × f; cosserat_fem/equilibria.py) and the critical factor where it is lost: a
+    :class:`~cosserat_fem.equilibria.StabilityResult` with ``critical`` (None if stability is
     not lost in the range), ``kind`` ("divergence": buckling; "flutter"), ``bracket`` and
     ``points`` (each state's ``status`` and ``eigenvalues`` of K φ = λ M φ, units of ω0²).
     ``samples``: equally spaced factors visited first; ``tolerance``: the root finder's,
@@ -187,10 +187,10 @@ def stability(scene: Scene, low: float = 0.0, high: float = 1.0, *, samples: int
     stability.json only with ``out``."""
     from mpi4py import MPI
 
+    from .equilibria import check_factors
+    from .equilibria import stability as analyse
     from .io.run_folder import prepare_output_dir
     from .modal import check_count
-    from .stability import check_factors
-    from .stability import stability as analyse
 
     if isinstance(count, bool) or not isinstance(count, int | np.integer):
         raise SceneError(f"count (--count): must be a whole number, got {count!r}")
@@ -203,9 +203,9 @@ def stability(scene: Scene, low: float = 0.0, high: float = 1.0, *, samples: int
 
 def stability_at(scene: Scene, factor: float = 1.0, *, count: int = 6):
     """The static state at load factor ``factor`` (1: the scene's loads) and whether it is
-    stable: a :class:`~cosserat_fem.stability.StabilityPoint` (``status``: "stable",
+    stable: a :class:`~cosserat_fem.equilibria.StabilityPoint` (``status``: "stable",
     "divergence" or "flutter"; ``eigenvalues``, ``kinds``)."""
-    from .stability import stability_at as at
+    from .equilibria import stability_at as at
 
     return at(scene, factor, count)
 
