@@ -71,7 +71,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("solve", ("newton", "snes", "solvers", "native_newton", "integrators",
                "adaptive", "events", "loop")),  # fmt: skip
     ("files", ("fields", "results")),
-    ("run", ("simulation", "statics", "modal", "observers", "progress", "budget", "restart")),
+    ("run", ("simulation", "statics", "modal", "equilibria", "observers", "progress", "budget",
+             "restart")),
     ("studies", ("sweep_spec", "sweep_run", "response", "karhunen_loeve")),
     ("interface", ("api", "cli", "plot", "render")),
 ]

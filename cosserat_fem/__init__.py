@@ -3,7 +3,8 @@
 The physics (pure UFL) lives in :mod:`cosserat_fem.forms` (the top-level ``forms/`` folder);
 this package is the machinery: scenes, spaces and boundary conditions, time integrators,
 the Newton solver, outputs and the command line. The Python API, ``cosserat_fem.load``,
-``run``, ``resume``, ``static``, ``modes``, ``load_sweep``, ``sweep`` and ``pod``, is
+``run``, ``resume``, ``static``, ``modes``, ``stability``, ``stability_at``,
+``load_sweep``, ``sweep`` and ``pod``, is
 :mod:`cosserat_fem.api`.
 """
 
@@ -20,7 +21,8 @@ pkg_resources_shim.install()
 
 #: The Python API (cosserat_fem/api.py), imported on first use: ``import cosserat_fem`` stays
 #: light (the command line's plot and validate need no DOLFINx).
-_API = ("load", "run", "resume", "static", "modes", "load_sweep", "sweep", "pod", "UNSET")
+_API = ("load", "run", "resume", "static", "modes", "stability", "stability_at", "load_sweep",
+        "sweep", "pod", "UNSET")
 
 
 def __getattr__(name: str):

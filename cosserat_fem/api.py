@@ -9,6 +9,7 @@ results as NumPy arrays in memory. The command line is a thin layer over the sam
     t, x_tip = result.probes[:, 0], result.probes[:, 1]       # [s], [m]
     x_rod = result.field_values[-1, :, 0]                     # x(s) at the end [m]
     modes = cf.modes(scene, count=4)                          # [m.frequency_hz for m in modes]
+    found = cf.stability(scene, 0.0, 2.0)                     # found.critical, found.kind
     stations = np.linspace(0.0, 1.0, 49)
     pod = cf.pod(cf.run(scene, fields=stations), stations)    # pod.energies, pod.shapes
 
@@ -172,6 +173,41 @@ def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | P
     if folder is not None:
         write_modes(folder, model, found, about)
     return found
+
+
+def stability(scene: Scene, low: float = 0.0, high: float = 1.0, *, samples: int = 5,
+              tolerance: float = 1e-8, count: int = 6, out: str | Path | None = None):  # fmt: skip
+    """Stability of the scene's static states for load factors f in [low, high] (every load
+    × f; cosserat_fem/equilibria.py) and the critical factor where it is lost: a
+    :class:`~cosserat_fem.equilibria.StabilityResult` with ``critical`` (None if stability is
+    not lost in the range), ``kind`` ("divergence": buckling; "flutter"), ``bracket`` and
+    ``points`` (each state's ``status`` and ``eigenvalues`` of K φ = λ M φ, units of ω0²).
+    ``samples``: equally spaced factors visited first; ``tolerance``: the root finder's,
+    |Δf| ≤ tolerance (1 + |f|); ``count``: eigenvalues nearest 0 computed at each state.
+    stability.json only with ``out``."""
+    from mpi4py import MPI
+
+    from .equilibria import check_factors
+    from .equilibria import stability as analyse
+    from .io.run_folder import prepare_output_dir
+    from .modal import check_count
+
+    if isinstance(count, bool) or not isinstance(count, int | np.integer):
+        raise SceneError(f"count (--count): must be a whole number, got {count!r}")
+    check_count(scene, count)
+    check_factors(low, high, samples, tolerance)
+    out = out_folder(out)
+    folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD)
+    return analyse(scene, low, high, samples, tolerance, count, folder)
+
+
+def stability_at(scene: Scene, factor: float = 1.0, *, count: int = 6):
+    """The static state at load factor ``factor`` (1: the scene's loads) and whether it is
+    stable: a :class:`~cosserat_fem.equilibria.StabilityPoint` (``status``: "stable",
+    "divergence" or "flutter"; ``eigenvalues``, ``kinds``)."""
+    from .equilibria import stability_at as at
+
+    return at(scene, factor, count)
 
 
 def pod(

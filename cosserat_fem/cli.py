@@ -1,4 +1,5 @@
-"""Command line: ``cosserat-fem run|static|modes SCENE [--out DIR] [--set KEY=VALUE ...]``,
+"""Command line: ``cosserat-fem run|static|modes|stability SCENE [--out DIR] [--set KEY=VALUE
+...]``,
 ``cosserat-fem sweep SWEEP [--out DIR]`` for the members of a sweep file
 (cosserat_fem/sweep_run.py), and ``cosserat-fem run --restart DIR [--set time.end=...]`` to
 continue a stopped run;
@@ -139,6 +140,19 @@ def _parser() -> argparse.ArgumentParser:
         default="undeformed",
         help="linearise about the straight rod or the static state under the scene's loads",
     )
+    stab = sub.add_parser("stability", help="stability of the static states under a load "
+                          "factor, and the critical factor (buckling or flutter)")  # fmt: skip
+    _common(stab)
+    stab.add_argument("--range", nargs=2, type=float, default=(0.0, 1.0), metavar=("LOW", "HIGH"),
+                      help="load factors f to search (every load of the scene × f; default "
+                      "0 1)")  # fmt: skip
+    stab.add_argument("--samples", type=int, default=5,
+                      help="equally spaced factors visited first (default 5)")  # fmt: skip
+    stab.add_argument("--tolerance", type=float, default=1e-8,
+                      help="of the critical factor's root finder, |Δf| <= tol (1 + |f|) "
+                      "(default 1e-8)")  # fmt: skip
+    stab.add_argument("--count", type=int, default=6,
+                      help="eigenvalues nearest 0 at each state (default 6)")  # fmt: skip
     sweep = sub.add_parser(
         "sweep", help="run the members of a sweep file (under mpirun: groups of ranks)",
         description="Run the members of a sweep file not finished in --out (under mpirun: "
@@ -292,7 +306,7 @@ def _pod(args) -> int:
 #: Where a command writes without --out: ``run`` into the scene's output.directory, ``static``
 #: and ``modes`` into folders of their own beneath it (a static solve would replace a run's
 #: probes.csv, summary.json and checkpoint; modes would mix its files into the run's folder).
-OWN_FOLDER = {"static": "static", "modes": "modes"}
+OWN_FOLDER = {"static": "static", "modes": "modes", "stability": "stability"}
 
 
 def _out(args, scene=None, command: str | None = None) -> str:
@@ -378,6 +392,34 @@ def _modes(args) -> int:
             _say(f"{i:4d} {mode.omega:16.6f} {mode.frequency_hz:12.4f}  {mode.kind}{note}")
         names = ("modes.csv", "modes.xdmf", "modes.json")
         _say("-> " + ", ".join(str(Path(out) / name) for name in names))
+    return 0
+
+
+def _stability(args) -> int:
+    """``stability``: the states over --range and the critical factor, through the Python
+    API; a line per state visited, then the critical factor and stability.json's path."""
+    from mpi4py import MPI
+
+    from . import api
+
+    scene = api.load(args.scene, args.overrides)
+    out = _out(args, scene)
+    low, high = args.range
+    result = api.stability(scene, low, high, samples=args.samples, tolerance=args.tolerance,
+                           count=args.count, out=out)  # fmt: skip
+    if MPI.COMM_WORLD.rank == 0 and not args.quiet:
+        _say(f"{'factor':>16}  {'state':<10}  lowest eigenvalues (units of omega0^2)")
+        for point in result.points:
+            lams = ", ".join(f"{lam.real:.6g}{lam.imag:+.3g}i" if lam.imag else f"{lam.real:.6g}"
+                             for lam in point.eigenvalues[:3])  # fmt: skip
+            _say(f"{point.factor:16.10g}  {point.status:<10}  {lams}")
+        if result.critical is None:
+            _say(f"cosserat-fem: stability: no critical factor ({result.reason})")
+        else:
+            _say(f"cosserat-fem: stability: {result.kind} at load factor {result.critical:.10g} "
+                 f"(in [{result.bracket[0]:.6g}, {result.bracket[1]:.6g}], tolerance "
+                 f"{result.tolerance:g})")  # fmt: skip
+        _say(f"-> {Path(out) / 'stability.json'}")
     return 0
 
 
@@ -501,6 +543,8 @@ def _main(args) -> int:
             return _modes(args)
         if args.command == "static":
             return _static(args)
+        if args.command == "stability":
+            return _stability(args)
         if args.command == "sweep":
             return _sweep(args)
         if args.command == "pod":

@@ -77,12 +77,22 @@ class Mode:
         return self.omega / (2.0 * np.pi)
 
 
+def eigenvalue_kind(lam: complex, scale: float) -> str:
+    """"flutter" for a complex λ (|Im λ| > 1e-8 |λ|), "divergence" for a negative one
+    (Re λ < −1e-12 ``scale``, the largest |λ| found), "" otherwise (a mode that oscillates):
+    the round-off of the non-symmetric K, M is not taken for either (:class:`Mode`)."""
+    if abs(lam.imag) > 1e-8 * abs(lam):
+        return "flutter"
+    return "divergence" if lam.real < -1e-12 * scale else ""
+
+
 def angular_frequency(lam: complex, omega0: float, scale: float) -> tuple[float, str]:
     """(ω [rad/s], note) of the eigenvalue λ (see :class:`Mode`); ``scale``: the largest |λ|
     found, for what counts as round-off."""
-    if abs(lam.imag) > 1e-8 * abs(lam):
+    kind = eigenvalue_kind(lam, scale)
+    if kind == "flutter":
         return math.nan, f"complex eigenvalue {lam.real:.6g}{lam.imag:+.6g}i (flutter)"
-    if lam.real < -1e-12 * scale:
+    if kind == "divergence":
         rate = omega0 * math.sqrt(-lam.real)
         return math.nan, f"negative eigenvalue {lam.real:.6g}: unstable, grows at {rate:.6g} 1/s"
     return omega0 * math.sqrt(max(lam.real, 0.0)), ""

@@ -91,9 +91,14 @@ class StaticLoop:
     restarted = False
     end_reason = None  # it never ends early
 
-    def __init__(self, model: RodModel, solver: NewtonSolver, scene: Scene, events: Events):
+    def __init__(self, model: RodModel, solver: NewtonSolver, scene: Scene, events: Events,
+                 start: float = 0.0, target: float = 1.0, steps: int | None = None):  # fmt: skip
+        """From the state in ``model.U`` at load factor ``start`` to ``target`` (either side
+        of it) in ``steps`` nominal increments (default static.load_steps)."""
         self.model, self.solver, self.scene, self.events = model, solver, scene, events
-        self.state = StaticState()
+        self.state = StaticState(t=start, factors=[start])
+        self.target = target
+        self.steps = steps or scene.static.load_steps
         self.stepping_since: float | None = None  # time.perf_counter() at the first step
         self.stepping_until: float | None = None  # and after the last
         if events.listens("newton_iteration"):
@@ -103,7 +108,7 @@ class StaticLoop:
 
     @property
     def completed(self) -> bool:
-        return self.state.t >= 1.0 - 1e-14
+        return abs(self.target - self.state.t) <= 1e-14 * max(1.0, abs(self.target))
 
     def _move_chart(self, U_n: np.ndarray) -> bool:
         """Before a load step: move the chart onto the rod's rotation (changing U_n in place)
@@ -120,14 +125,14 @@ class StaticLoop:
         """Nothing to do: a load step that fails restores the last accepted state itself."""
 
     def run(self) -> None:
-        """The load steps from λ = 0 to 1, the increment halved on failure and doubled back after
-        a success (module docstring); SolverError once one below 2^−max_bisections of the nominal
-        increment fails. U ends at the last accepted state."""
+        """The load steps from λ = start to target (0 to 1 by default), the increment halved on
+        failure and doubled back after a success (module docstring); SolverError once one below
+        2^−max_bisections of the nominal increment fails. U ends at the last accepted state."""
         model, solver, st, events = self.model, self.solver, self.state, self.events
         static = self.scene.static
         events.started(self)
-        nominal = 1.0 / static.load_steps
-        smallest = nominal / 2**static.max_bisections
+        nominal = (self.target - st.t) / self.steps  # signed: the path may go down
+        smallest = abs(nominal) / 2**static.max_bisections
         step, prev_step = nominal, None
         U_n = model.U.x.array.copy()
         U_nm1 = None
@@ -137,7 +142,9 @@ class StaticLoop:
                 if self._move_chart(U_n):
                     U_nm1 = None  # the secant predictor's old state is in the old chart
                 lam = st.t
-                trial = min(lam + step, 1.0)
+                trial = lam + step
+                if (trial - self.target) * nominal > 0.0:  # past the target
+                    trial = self.target
                 events.step_attempted(self, trial)
                 model.load_factor.value = trial
                 if U_nm1 is not None and prev_step:
@@ -166,7 +173,7 @@ class StaticLoop:
                         )
                     )
                     events.step_rejected(self, cause)
-                    if step < smallest * (1.0 - 1e-12):
+                    if abs(step) < smallest * (1.0 - 1e-12):
                         raise SolverError(
                             time=None,
                             where=f"load factor {trial:.6g} (last converged {lam:.6g})",
@@ -178,7 +185,7 @@ class StaticLoop:
                     continue
                 U_nm1, U_n = U_n, model.U.x.array.copy()
                 prev_step, st.t = trial - lam, trial
-                step = min(2.0 * step, nominal)
+                step = 2.0 * step if abs(2.0 * step) < abs(nominal) else nominal
                 st.accepted += 1
                 st.outputs += 1
                 st.factors.append(trial)
@@ -189,6 +196,42 @@ class StaticLoop:
         finally:
             self.stepping_until = clock.perf_counter()
             model.U.x.array[:] = U_n  # the last accepted state
+
+
+def check_static_scene(scene: Scene, command: str) -> None:
+    """SceneError naming the key unless the scene has static states: an open rod (not
+    reference.closed), held (not a mechanism), with no prescribed support motion."""
+    refuse_closed(scene, command)
+    if scene.supports.mechanism:
+        raise SceneError(
+            f'supports: a static equilibrium needs the rod held (start = "{scene.supports.start}"'
+            f', end = "{scene.supports.end}" leave it a mechanism, whose rigid-body motion no '
+            "load stops); clamp one end or pin both, or follow its motion with run"
+        )
+    if scene.supports.start_motion or scene.supports.end_motion:
+        raise SceneError(
+            "supports.*_motion: prescribed support motion is for time integration (run), "
+            "not for static solves"
+        )
+
+
+def static_solver(scene: Scene, model: RodModel) -> NewtonSolver:
+    """Full Newton on the static residual F(U, 0, τ; λ) of ``model`` (λ: model.load_factor),
+    the loads evaluated at static.time; SceneError if a load is not finite there."""
+    problem = model.nonfinite_load([scene.static.time])
+    if problem:
+        raise SceneError(f"{problem}: the load is not finite there (static.time)")
+    integrator = make_integrator("static", model.U, model.residual, 0.0)
+    settings = NewtonSettings.of(scene.solver)
+    if settings.jacobian != "full":
+        # The matrix changes with every load increment, and the large-deflection tests rely on
+        # full Newton's quadratic end (a reused matrix left roll-up gaps of 7e-8).
+        LOGGER.info("static: full Newton (solver.jacobian = %r is for runs)", settings.jacobian)
+    settings.jacobian = "full"
+    solver = make_solver(integrator.residual_form(), model.U, model.bcs, settings)
+    integrator.prepare(scene.static.time * model.omega0)
+    model.sync_loads(integrator.time_eval)  # loads given by data, at static.time
+    return solver
 
 
 @holding_folders
@@ -207,37 +250,13 @@ def static_path(
     out = Path(out_dir if out_dir is not None else scene.output.directory)
     budget.check(scene, "static", out if write_outputs else None, ranks_on_node(comm), comm.size,
                  comm=comm)  # fmt: skip
-    refuse_closed(scene, "static")
-    if scene.supports.mechanism:
-        raise SceneError(
-            f'supports: a static equilibrium needs the rod held (start = "{scene.supports.start}"'
-            f', end = "{scene.supports.end}" leave it a mechanism, whose rigid-body motion no '
-            "load stops); clamp one end or pin both, or follow its motion with run"
-        )
-    if scene.supports.start_motion or scene.supports.end_motion:
-        raise SceneError(
-            "supports.*_motion: prescribed support motion is for time integration (run), "
-            "not for static solves"
-        )
+    check_static_scene(scene, "static")
     if write_outputs:
         prepare_output_dir(out, comm, lock="static")
     model = build_model(scene, comm)
     if model.needs_chart:
         model.use_chart()  # rotations of any size (cosserat_fem/charts.py)
-    problem = model.nonfinite_load([scene.static.time])
-    if problem:
-        raise SceneError(f"{problem}: the load is not finite there (static.time)")
-    integrator = make_integrator("static", model.U, model.residual, 0.0)
-    settings = NewtonSettings.of(scene.solver)
-    if settings.jacobian != "full":
-        # The matrix changes with every load increment, and the large-deflection tests rely on
-        # full Newton's quadratic end (a reused matrix left roll-up gaps of 7e-8).
-        LOGGER.info("static: full Newton (solver.jacobian = %r is for runs)", settings.jacobian)
-    settings.jacobian = "full"
-    solver = make_solver(integrator.residual_form(), model.U, model.bcs, settings)
-    integrator.prepare(scene.static.time * model.omega0)
-    model.sync_loads(integrator.time_eval)  # loads given by data, at static.time
-
+    solver = static_solver(scene, model)
     probe = PointProbe(model, probe_sigma(scene), fields=scene.output.probe_fields)
     summary = summary_start("static", scene, comm, model, probe, solver, new_run_id(comm),
                             probe_t_column="load factor")  # fmt: skip
