@@ -60,12 +60,18 @@ JACOBIAN_POLICIES = ("full", "lagged", "frozen")
 _prefix_counter = itertools.count()
 
 
-@dataclass
+@dataclass(frozen=True)
 class NewtonSettings:
     """The solver's settings (module docstring). The defaults are those of the solver used
     on its own (full Newton, as the unit tests and the manufactured solutions use it); a
     scene's [solver] table has its own, the schema's (cosserat_fem/schema.py), and
-    :meth:`of` copies every one of them: a run never meets these defaults but ``xatol``."""
+    :meth:`of` copies every one of them: a run never meets these defaults but ``xatol``.
+
+    Frozen: the C solve holds its own copy of the stop rule's and the policy's numbers
+    (``cf_settings``, written when a solver's ``settings`` is set), so a field changed in place
+    would reach Python and not C. Derive other settings with ``dataclasses.replace`` and give
+    them to the solver (``solver.settings = ...``); assignment raises FrozenInstanceError
+    (tests/unit/test_newton_stop.py)."""
 
     jacobian: str = "full"
     lag: int = 10
