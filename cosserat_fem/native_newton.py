@@ -186,7 +186,8 @@ def _bind_callbacks(module) -> None:
     an exception, which cannot cross C, is stored in the solver's ``callback_error`` and
     answered with :data:`CALLBACK_ERROR`, and the solver raises it when cf_solve returns
     (under MPI a residual's exception is answered with a NaN residual instead, so that every
-    rank leaves the solve alike)."""
+    rank leaves the solve alike: the local assembly's own, in ``_residual``, which still runs
+    the ghost scatters every rank waits in; anything else, here)."""
     ffi = module.ffi
     from_handle = ffi.from_handle
 
@@ -212,7 +213,8 @@ def _bind_callbacks(module) -> None:
                 return CALLBACK_ERROR
             # Under MPI the other ranks go on into the norm's reduction: a NaN residual ends
             # the solve on every rank alike (DIVERGED_FNORM_NAN), and the solver then agrees
-            # on the exception (cosserat_fem.parallel.agree).
+            # on the exception (cosserat_fem.parallel.agree). The local assembly's exception
+            # does not come here: _residual keeps it and still runs the ghost scatters.
             solver.b.set(float("nan"))
             return 0
 

@@ -321,12 +321,23 @@ class NewtonSolver:
     def _residual(self, b: PETSc.Vec | None = None) -> None:
         """b = F(U), with x − g in the rows of the Dirichlet dofs (class docstring); ``b`` is
         the solver's own vector unless given (one of SNES's). Under MPI U's ghosts are updated
-        first and b's ghost contributions added. cf_solve counts and times it."""
+        first and b's ghost contributions added. cf_solve counts and times it.
+
+        Under MPI an exception of the local assembly (which may meet one rank only: a load's
+        callable, a form's NaN check) does not leave this rank out of the collective steps
+        that follow: it is kept in ``callback_error``, the local values are NaN, and the
+        ghost scatters and the Dirichlet rows run as on every other rank. ‖F‖ is then NaN on
+        every rank (DIVERGED_FNORM_NAN, or a retry), and :meth:`_finish` agrees on the
+        exception (tests/test_newton_mpi.py)."""
         b = self.b if b is None else b
         if self._parallel:
             self._u.ghostUpdate(addv=_INSERT, mode=_FORWARD)
             with b.localForm() as local:
-                self._assemble(local.array_w, dirichlet=False)
+                try:
+                    self._assemble(local.array_w, dirichlet=False)
+                except Exception as exc:  # agreed after the solve (_finish)
+                    self.callback_error = exc
+                    local.array_w.fill(np.nan)
             b.ghostUpdate(addv=_ADD, mode=_REVERSE)
             cpp.fem.set_bc(b.array_w, self.bcs, self._u_owned, -1.0)
         else:
