@@ -119,3 +119,16 @@ def test_an_assembly_exception_on_one_rank_ends_like_one_on_both(answers, persis
     keys = ("first", "second", "retries")
     for mine, theirs in zip(one, both, strict=True):
         assert {k: mine[k] for k in keys} == {k: theirs[k] for k in keys}
+
+
+def test_a_recovered_exception_is_not_raised_for_a_later_failure(answers):
+    """After the transient case (solve 2's exception recovered by the retry, so it was never
+    raised), solve 3 fails in the ordinary way: one iteration allowed (max_iterations = 1)
+    from U = 50, far from the root 2. That is a NewtonFailure (DIVERGED_MAX_IT), which a run
+    answers with a halved step (cosserat_fem/loop.py), on every rank, whichever ranks met the
+    earlier exception. Before, the recovered exception stayed in ``callback_error`` and was
+    raised (agreed) in place of it: ``RuntimeError: ValueError: injected``, which ends a run
+    instead of halving its step."""
+    for failing in ("1", "01"):
+        for rank in answers:
+            assert rank[f"{failing} False"]["third"] == "NewtonFailure DIVERGED_MAX_IT"
