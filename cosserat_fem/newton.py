@@ -156,7 +156,8 @@ class NewtonSolver:
         self.U = U
         self.bcs = bcs
         self._native = None
-        module = core()
+        comm = U.function_space.mesh.comm
+        module = core(comm)  # collective: rank 0 compiles on a cold cache
         self._ffi, self._lib = module.ffi, module.lib
         self._cs = self._ffi.new("cf_settings*")  # the stop rule's and the policy's settings
         self._state = self._ffi.new("cf_newton_state*")  # the policy's state, the counters
@@ -172,7 +173,6 @@ class NewtonSolver:
         #: values read when the assembler was made stand.
         self.supports_move = True
         self._hook = None
-        comm = U.function_space.mesh.comm
         self._parallel = comm.size > 1
         self._compile_params = (form_compiler_params or {}, jit_params or {})
         self.compile_time = 0.0

@@ -1,4 +1,6 @@
-"""Newton's failure paths under ``mpirun -n 2`` on the path every MPI run takes: the C loop
+"""Newton's failure paths under ``mpirun -n 2`` on the path every MPI run takes: the C core's
+build on a cold cache (one compile, on rank 0, and a failure of it agreed: the last two
+tests), and the C loop
 (``cf_solve``, cosserat_fem/newton_loop.c) with DOLFINx's residual assembly called back
 (cosserat_fem/newton.py ``_residual``), for an exception of the local assembly on one rank
 only, against the same exception on both ranks.
@@ -25,7 +27,7 @@ from __future__ import annotations
 import json
 
 import pytest
-from conftest import run_command
+from conftest import ROOT, run_command, said
 
 #: Run under mpirun -n 2 (argv: an output prefix): every case in one job, each with a solver of
 #: its own: which ranks fail ("1" or "01") x (transient, persistent). Each rank writes
@@ -132,3 +134,77 @@ def test_a_recovered_exception_is_not_raised_for_a_later_failure(answers):
     for failing in ("1", "01"):
         for rank in answers:
             assert rank[f"{failing} False"]["third"] == "NewtonFailure DIVERGED_MAX_IT"
+
+
+#: Run under mpirun -n 2 (argv: the C core's cache directory, "1" to break rank 0's source, an
+#: output prefix, then the command line's arguments): the command line, with the C core's
+#: cache directory given and its compiles recorded; each rank writes {"built": the libraries
+#: it compiled, "loaded": the one it loaded, "code": the exit status} to <prefix><rank>.json.
+_BUILD_SCRIPT = """
+import json, sys
+from pathlib import Path
+from mpi4py import MPI
+from cosserat_fem import cli, native_newton
+
+cache, broken, prefix, argv = Path(sys.argv[1]), sys.argv[2] == "1", sys.argv[3], sys.argv[4:]
+rank = MPI.COMM_WORLD.rank
+native_newton._cache_dir = lambda: cache
+built, real_build = [], native_newton._build
+
+
+def build(name, source, target):
+    built.append(str(target))
+    real_build(name, source, target)
+
+
+native_newton._build = build
+if broken and rank == 0:  # a compile that fails (on a machine: missing PETSc headers)
+    source = cache.parent / f"broken_{rank}.c"
+    source.write_text(native_newton.SOURCE.read_text() + "\\nthis is not C;\\n")
+    native_newton.SOURCE = source
+code = cli.main(argv)
+loaded = native_newton._MODULE and native_newton._MODULE.__file__
+with open(f"{prefix}{rank}.json", "w") as out:
+    json.dump({"built": built, "loaded": loaded, "code": code}, out)
+"""
+
+
+def _build_run(tmp_path, broken: bool) -> tuple[list[dict], list[str]]:
+    """Each rank's record of :data:`_BUILD_SCRIPT` and the command line's lines, for a run of
+    the paper's scene (4 elements, 10 steps) with a cold C-core cache."""
+    script = tmp_path / "build.py"
+    script.write_text(_BUILD_SCRIPT)
+    cache, prefix = tmp_path / "cache", tmp_path / "rank"
+    run = ["run", str(ROOT / "scenes" / "cao_tucker_2008.toml"), "--out", str(tmp_path / "out"),
+           "--set", "discretisation.elements=4", "--set", "time.end=0.0003",
+           "--set", "output.xdmf=false"]  # fmt: skip
+    done = run_command([str(script), str(cache), str(int(broken)), str(prefix), *run], ranks=2,
+                       timeout=300)  # fmt: skip
+    assert done.returncode == 0, done.stderr[-2000:]
+    records = [json.loads((tmp_path / f"rank{rank}.json").read_text()) for rank in (0, 1)]
+    return records, said(done.stderr)
+
+
+def test_a_cold_cache_compiles_the_c_core_once_under_mpi(tmp_path):
+    """A run under mpirun -n 2 with the C core's cache empty: rank 0 compiles newton_loop.c
+    once while rank 1 waits, then both load that one library, and the run completes (exit 0
+    on both ranks). Before, every rank found the cache empty and compiled it at once (both
+    ranks' compiles recorded: the second of ~2 s is long enough that the other rank never
+    finds the first one's library)."""
+    (zero, one), lines = _build_run(tmp_path, broken=False)
+    assert zero["code"] == one["code"] == 0, lines
+    assert len(zero["built"]) == 1 and one["built"] == []
+    assert zero["loaded"] == one["loaded"] == zero["built"][0]
+
+
+def test_a_failed_compile_on_rank_0_ends_every_rank_with_one_line(tmp_path):
+    """rank 0's compile fails (its source broken; rank 1's is whole): every rank stops with the
+    agreed CosseratError (exit 1 on both ranks; the command line prints it once, from rank 0:
+    one line naming the C core and the compile), and rank 1 never compiled (it waited for
+    rank 0's outcome). Before, rank 1 compiled its own and went on alone into the run's
+    collective calls while rank 0 left with the error (the job hung or was aborted)."""
+    (zero, one), lines = _build_run(tmp_path, broken=True)
+    assert zero["code"] == one["code"] == 1
+    assert one["built"] == [] and zero["loaded"] is None and one["loaded"] is None
+    assert len(lines) == 1, lines
+    assert "newton_loop.c" in lines[0] and "did not compile" in lines[0], lines
