@@ -430,7 +430,7 @@ class SDIRK(Integrator):
         only ever assigned into)."""
         from .native_newton import core
 
-        module = core()
+        module = core(self.U.function_space.mesh.comm)  # collective
         ffi, self._lib = module.ffi, module.lib
         self._tableau = [np.ascontiguousarray(x, dtype=np.float64) for x in (self.A, self.b,
                                                                              self.c)]  # fmt: skip

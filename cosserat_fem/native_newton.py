@@ -14,7 +14,8 @@ DOLFINx's is used (the reason logged at INFO; tests/test_native_newton.py).
 
 The C source is compiled once per machine with cffi into the JIT cache directory
 (``$XDG_CACHE_HOME/fenics``, as FFCx's forms), against PETSc's headers and FFCx's ufcx.h; a
-failed compile is a CosseratError when a solver is built (FFCx's forms need the compiler too).
+failed compile is a CosseratError when a solver is built (FFCx's forms need the compiler too);
+under MPI rank 0 compiles while the others wait, and a failure is agreed (:func:`core`).
 A cached library is checked before it is loaded (cosserat_fem/jit.py ``load_checked``): a
 damaged one is compiled again.
 """
@@ -169,15 +170,34 @@ def compiled():
     return module
 
 
-def core():
+def core(comm=None):
     """:func:`compiled` for a solver or an integrator being built: a CosseratError naming the
-    C core if it cannot be built (no compiler or no PETSc headers: there is no other core)."""
-    from .errors import CosseratError
+    C core if it cannot be built (no compiler or no PETSc headers: there is no other core).
 
-    try:
-        return compiled()
-    except NotApplicable as exc:
-        raise CosseratError(f"Newton's C core (cosserat_fem/newton_loop.c): {exc}") from None
+    Under MPI (``comm`` of several ranks; collective) rank 0 loads or compiles it first, the
+    others wait (one compiler on a cold cache, not one per rank, as DOLFINx's JIT does for
+    FFCx's forms) and then load rank 0's library from the cache, or compile it themselves if
+    they do not see it (a cache local to their node). A failure on any rank is raised on every
+    rank as the same one line (cosserat_fem.parallel.agree): no rank is left waiting for
+    another (tests/test_newton_mpi.py)."""
+    from .errors import CosseratError
+    from .parallel import agree
+
+    def attempt() -> CosseratError | None:
+        try:
+            compiled()
+        except NotApplicable as exc:
+            return CosseratError(f"Newton's C core (cosserat_fem/newton_loop.c): {exc}")
+        return None
+
+    if comm is None or comm.size == 1:
+        problem = attempt()
+        if problem is not None:
+            raise problem
+        return _MODULE
+    agree(comm, attempt() if comm.rank == 0 else None)  # the others wait for rank 0's compile
+    agree(comm, attempt() if comm.rank != 0 else None)
+    return _MODULE
 
 
 def _bind_callbacks(module) -> None:
@@ -186,7 +206,8 @@ def _bind_callbacks(module) -> None:
     an exception, which cannot cross C, is stored in the solver's ``callback_error`` and
     answered with :data:`CALLBACK_ERROR`, and the solver raises it when cf_solve returns
     (under MPI a residual's exception is answered with a NaN residual instead, so that every
-    rank leaves the solve alike)."""
+    rank leaves the solve alike: the local assembly's own, in ``_residual``, which still runs
+    the ghost scatters every rank waits in; anything else, here)."""
     ffi = module.ffi
     from_handle = ffi.from_handle
 
@@ -212,7 +233,8 @@ def _bind_callbacks(module) -> None:
                 return CALLBACK_ERROR
             # Under MPI the other ranks go on into the norm's reduction: a NaN residual ends
             # the solve on every rank alike (DIVERGED_FNORM_NAN), and the solver then agrees
-            # on the exception (cosserat_fem.parallel.agree).
+            # on the exception (cosserat_fem.parallel.agree). The local assembly's exception
+            # does not come here: _residual keeps it and still runs the ghost scatters.
             solver.b.set(float("nan"))
             return 0
 

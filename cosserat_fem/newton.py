@@ -60,12 +60,18 @@ JACOBIAN_POLICIES = ("full", "lagged", "frozen")
 _prefix_counter = itertools.count()
 
 
-@dataclass
+@dataclass(frozen=True)
 class NewtonSettings:
     """The solver's settings (module docstring). The defaults are those of the solver used
     on its own (full Newton, as the unit tests and the manufactured solutions use it); a
     scene's [solver] table has its own, the schema's (cosserat_fem/schema.py), and
-    :meth:`of` copies every one of them: a run never meets these defaults but ``xatol``."""
+    :meth:`of` copies every one of them: a run never meets these defaults but ``xatol``.
+
+    Frozen: the C solve holds its own copy of the stop rule's and the policy's numbers
+    (``cf_settings``, written when a solver's ``settings`` is set), so a field changed in place
+    would reach Python and not C. Derive other settings with ``dataclasses.replace`` and give
+    them to the solver (``solver.settings = ...``); assignment raises FrozenInstanceError
+    (tests/unit/test_newton_stop.py)."""
 
     jacobian: str = "full"
     lag: int = 10
@@ -150,7 +156,8 @@ class NewtonSolver:
         self.U = U
         self.bcs = bcs
         self._native = None
-        module = core()
+        comm = U.function_space.mesh.comm
+        module = core(comm)  # collective: rank 0 compiles on a cold cache
         self._ffi, self._lib = module.ffi, module.lib
         self._cs = self._ffi.new("cf_settings*")  # the stop rule's and the policy's settings
         self._state = self._ffi.new("cf_newton_state*")  # the policy's state, the counters
@@ -166,7 +173,6 @@ class NewtonSolver:
         #: values read when the assembler was made stand.
         self.supports_move = True
         self._hook = None
-        comm = U.function_space.mesh.comm
         self._parallel = comm.size > 1
         self._compile_params = (form_compiler_params or {}, jit_params or {})
         self.compile_time = 0.0
@@ -315,12 +321,23 @@ class NewtonSolver:
     def _residual(self, b: PETSc.Vec | None = None) -> None:
         """b = F(U), with x − g in the rows of the Dirichlet dofs (class docstring); ``b`` is
         the solver's own vector unless given (one of SNES's). Under MPI U's ghosts are updated
-        first and b's ghost contributions added. cf_solve counts and times it."""
+        first and b's ghost contributions added. cf_solve counts and times it.
+
+        Under MPI an exception of the local assembly (which may meet one rank only: a load's
+        callable, a form's NaN check) does not leave this rank out of the collective steps
+        that follow: it is kept in ``callback_error``, the local values are NaN, and the
+        ghost scatters and the Dirichlet rows run as on every other rank. ‖F‖ is then NaN on
+        every rank (DIVERGED_FNORM_NAN, or a retry), and :meth:`_finish` agrees on the
+        exception (tests/test_newton_mpi.py)."""
         b = self.b if b is None else b
         if self._parallel:
             self._u.ghostUpdate(addv=_INSERT, mode=_FORWARD)
             with b.localForm() as local:
-                self._assemble(local.array_w, dirichlet=False)
+                try:
+                    self._assemble(local.array_w, dirichlet=False)
+                except Exception as exc:  # agreed after the solve (_finish)
+                    self.callback_error = exc
+                    local.array_w.fill(np.nan)
             b.ghostUpdate(addv=_ADD, mode=_REVERSE)
             cpp.fem.set_bc(b.array_w, self.bcs, self._u_owned, -1.0)
         else:

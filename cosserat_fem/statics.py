@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import time as clock
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -227,7 +227,7 @@ def static_solver(scene: Scene, model: RodModel) -> NewtonSolver:
         # The matrix changes with every load increment, and the large-deflection tests rely on
         # full Newton's quadratic end (a reused matrix left roll-up gaps of 7e-8).
         LOGGER.info("static: full Newton (solver.jacobian = %r is for runs)", settings.jacobian)
-    settings.jacobian = "full"
+    settings = replace(settings, jacobian="full")
     solver = make_solver(integrator.residual_form(), model.U, model.bcs, settings)
     integrator.prepare(scene.static.time * model.omega0)
     model.sync_loads(integrator.time_eval)  # loads given by data, at static.time

@@ -20,7 +20,9 @@ f^b = Dᵀ (D0ᵀ F) and l^b = Dᵀ (D0ᵀ M): the given components are turned b
 moment rows take (D0ᵀ M)_j = λ_j · l^b.
 
 Tests: tests/test_follower.py (a follower torque rolls a cantilever into the circle of radius
-E c22 / M; a tangential follower force against a fixed one, the beam-column closed forms).
+E c22 / M; a tangential follower force against a fixed one, the beam-column closed forms; on a
+rod curved at rest, a follower torque against the fixed torque of the tip's directors, which
+fails without D0ᵀ).
 """
 
 from __future__ import annotations

@@ -49,12 +49,13 @@ from cosserat_fem.statics import solve_static
 ROLLUP = Path(__file__).resolve().parents[1] / "scenes" / "rollup.toml"
 
 
-def tip(overrides: dict) -> tuple[np.ndarray, float]:
-    """(x, y, z, θ, ψ, φ) at s = ℓ [m, rad] of the static solution, and E c22 [N m²]."""
+def tip(overrides: dict, fields: tuple[str, ...] = ()) -> tuple[np.ndarray, float]:
+    """(x, y, z, θ, ψ, φ, then the probe ``fields``) at s = ℓ [m, rad] of the static solution,
+    and E c22 [N m²]."""
     scene = load_scene(ROLLUP, {"loads.end": UNSET, **overrides})
     rod = scene.rod_constants()
     model, _ = solve_static(scene)
-    return PointProbe(model, 1.0).values(), rod.young_modulus * rod.section.c22
+    return PointProbe(model, 1.0, fields=fields).values(), rod.young_modulus * rod.section.c22
 
 
 @pytest.mark.parametrize(("elements", "tolerance"), [(8, 5e-7), (16, 3e-9)])
@@ -174,4 +175,31 @@ def test_a_follower_force_and_torque_in_3d_are_the_fixed_loads_of_the_end_they_r
                     "loads.end.torque": torque.tolist()})  # fmt: skip
     scale = np.abs(follower[:3]).max()
     assert scale > 0.1 * ell  # a large deflection
+    np.testing.assert_allclose(fixed[:3], follower[:3], rtol=0, atol=1e-7 * scale)
+
+
+@pytest.mark.long
+def test_a_follower_torque_on_a_rod_curved_at_rest_is_the_fixed_torque_of_its_tip():
+    """In the long set (1.3 s with its forms compiled, 9 s with two 3D forms of a curved rod
+    to compile; make test is at its 3 minutes). A rod
+    curved at rest, a quarter circle (reference.shape = "arc", R = 2ℓ/π: the tip's rest
+    tangent d0_3 = e1, D0(ℓ) far from I), under a follower end torque with components M =
+    (0.1, 0.2, 0.3) E c22/ℓ along the tip's directors d_k, the rows of D0 D (forms/follower.py:
+    l^b = Dᵀ (D0ᵀ M)). Its equilibrium is the one the fixed torque l^b = Σ M_k d_k gives, with
+    the directors d_k of the tip it reaches (the probe's, output.probe_fields = directors:
+    D0 D at σ = ℓ): the two are the same discrete load at the discrete solution, since both
+    read D at the end from the tip node's values, so the discretisation's error cancels and
+    what is left is the Newton tolerance (1e-10 of the residual; measured 2e-16 of the tip's
+    displacement; allowed 1e-7 of it, as the straight rod's 3D test). Dropping D0ᵀ (the
+    components taken along D's rows, as if D0 = I) moves the tip by 1.4 times its
+    displacement: checked, 2026-12-04, by removing it from forms/follower.py."""
+    common = {"loads.end": UNSET, "reference.shape": "arc", "reference.radius": 2 / math.pi,
+              "discretisation.elements": 4, "static.load_steps": 2}  # fmt: skip
+    M = np.array([0.1, 0.2, 0.3])
+    follower, EI = tip({**common, "loads.follower.torque": [f"{m!r}*EI/L" for m in M]},
+                       fields=("directors",))  # fmt: skip
+    D = follower[6:15].reshape(3, 3)  # rows d1, d2, d3 at the tip, fixed basis
+    fixed, _ = tip({**common, "loads.end.torque": (D.T @ (M * EI)).tolist()})
+    scale = np.abs(follower[:3]).max()
+    assert scale > 0.05  # a large deflection [m]: the tip turns far from its rest frame
     np.testing.assert_allclose(fixed[:3], follower[:3], rtol=0, atol=1e-7 * scale)

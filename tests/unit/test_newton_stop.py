@@ -332,3 +332,21 @@ def test_a_callbacks_exception_comes_out_of_the_solve(where):
         np.testing.assert_allclose(problem.U.x.array, [2.0, 3.0], rtol=0, atol=tolerance)
     finally:
         solver.destroy()
+
+
+def test_settings_are_frozen_and_a_replacement_reaches_c():
+    """NewtonSettings is frozen: the C solve keeps its own copy (``cf_settings``), written when
+    a solver's ``settings`` is set, so a field assigned in place would reach Python and not C
+    (before: ``settings.max_iterations = 1`` changed what Python read and left C at 25).
+    Assignment raises; settings derived with ``dataclasses.replace`` and given to the solver
+    reach C's copy (its max_iterations, its policy flags)."""
+    settings = NewtonSettings()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        settings.max_iterations = 1  # type: ignore[misc]
+    problem = Squares(settings)
+    try:
+        solver = problem.solver
+        solver.settings = dataclasses.replace(settings, max_iterations=3, jacobian="lagged")
+        assert (solver._cs.max_iterations, solver._cs.lagged, solver._cs.full) == (3, 1, 0)
+    finally:
+        problem.solver.destroy()
