@@ -26,9 +26,9 @@ from pathlib import Path
 
 import numpy as np
 
+from cosserat_fem.analysis.simulation import run_scene
 from cosserat_fem.reference.rod_planes import sine_load_tip_response
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
+from cosserat_fem.scene.build import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"

@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from cosserat_fem.api import run
-from cosserat_fem.model import build_model
+from cosserat_fem.rod.model import build_model
 
 
 def free_vibration_frequency(scene, shape, amplitude: float) -> float:

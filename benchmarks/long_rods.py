@@ -80,7 +80,7 @@ RISER = [
 def riser(elements: int, steps: int, extra: list[str] = ()):
     """The riser's scene (module docstring) with ``elements`` cubic elements, ``steps`` steps,
     and the overrides ``extra``."""
-    from cosserat_fem.scene import read_toml, scene_from_dict
+    from cosserat_fem.scene.build import read_toml, scene_from_dict
 
     data = read_toml(SCENE)
     data.update(RISER_TABLES)
@@ -94,7 +94,7 @@ def child(elements: int, steps: int, extra: list[str]) -> None:
 
     from mpi4py import MPI
 
-    from cosserat_fem.simulation import run_scene
+    from cosserat_fem.analysis.simulation import run_scene
 
     scene = riser(elements, steps, extra)
     stamps: list[float] = []

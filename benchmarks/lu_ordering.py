@@ -18,7 +18,7 @@ import timeit
 from petsc4py import PETSc
 
 from cosserat_fem import api
-from cosserat_fem.events import Observer
+from cosserat_fem.timestepping.events import Observer
 
 
 class Measure(Observer):

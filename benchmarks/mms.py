@@ -21,7 +21,7 @@ Every component moves, with angles of a few tenths of a radian, so the nonlinear
 and the free-end flux take part. ``tumbling`` is ``harmonic`` plus a rod rolled up about e1
 and unrolled again, unstretched (:func:`_rolling`), so that θ passes π/2 along the free
 part of the rod and reaches 3.3 rad at its end, where the paper's chart is singular:
-the solver's chart moves onto the rod (cosserat_fem/charts.py), and the error is measured
+the solver's chart moves onto the rod (cosserat_fem/rod/charts.py), and the error is measured
 in the chart-free motion, positions and directors (:attr:`MmsResult.error_motion`). The
 source F(U_ex, U̇_ex) is that of the paper's chart: its rows are the force and moment
 balances, in the fixed basis and the director basis, which do not depend on the chart the
@@ -43,12 +43,12 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from cosserat_fem.integrators import GeneralizedAlpha, make_integrator
-from cosserat_fem.loop import watch_chart
-from cosserat_fem.model import RodModel, build_model
-from cosserat_fem.newton import NewtonSettings
-from cosserat_fem.scene import Scene
-from cosserat_fem.solvers import make_solver
+from cosserat_fem.nls.newton import NewtonSettings
+from cosserat_fem.nls.solvers import make_solver
+from cosserat_fem.rod.model import RodModel, build_model
+from cosserat_fem.scene.build import Scene
+from cosserat_fem.timestepping.integrators import GeneralizedAlpha, make_integrator
+from cosserat_fem.timestepping.loop import watch_chart
 
 # Amplitudes: x/ℓ, y/ℓ, z/ℓ of a few per cent, angles of a few tenths of a radian.
 AMPLITUDES = (0.04, -0.03, 0.01, 0.25, -0.3, 0.2)

@@ -20,7 +20,7 @@ import test_pod as tp  # noqa: E402
 from conftest import run_command  # noqa: E402
 
 import cosserat_fem as cf  # noqa: E402
-from cosserat_fem.karhunen_loeve import Snapshots, pod  # noqa: E402
+from cosserat_fem.studies.karhunen_loeve import Snapshots, pod  # noqa: E402
 
 
 def main() -> None:

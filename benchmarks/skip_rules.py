@@ -29,8 +29,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.scene.build import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"

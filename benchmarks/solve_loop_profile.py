@@ -40,9 +40,9 @@ from dolfinx import cpp
 from dolfinx.fem.petsc import assemble_vector, set_bc
 from petsc4py import PETSc
 
-from cosserat_fem.events import Observer
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.scene.build import load_scene
+from cosserat_fem.timestepping.events import Observer
 
 SCENE = "scenes/cao_tucker_2008.toml"
 EVENTS = ("KSPSolve", "MatSolve", "SNESSolve", "SNESFunctionEval")

@@ -49,11 +49,9 @@ import ufl
 from dolfinx import fem
 from dolfinx.fem.petsc import assemble_matrix
 
-from cosserat_fem import adaptive
-from cosserat_fem.events import Observer
-from cosserat_fem.fields import PointProbe
-from cosserat_fem.integrators import make_integrator
-from cosserat_fem.model import build_model, rod_constants
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.analysis.statics import static_path
+from cosserat_fem.output.fields import PointProbe
 from cosserat_fem.reference.elastica import reissner_tip_load
 from cosserat_fem.reference.timoshenko import (
     TimoshenkoBeam,
@@ -61,9 +59,11 @@ from cosserat_fem.reference.timoshenko import (
     static_deflection_sine_load,
     tip_deflection_end_force,
 )
-from cosserat_fem.scene import load_scene, scene_from_dict
-from cosserat_fem.simulation import run_scene
-from cosserat_fem.statics import static_path
+from cosserat_fem.rod.model import build_model, rod_constants
+from cosserat_fem.scene.build import load_scene, scene_from_dict
+from cosserat_fem.timestepping import adaptive
+from cosserat_fem.timestepping.events import Observer
+from cosserat_fem.timestepping.integrators import make_integrator
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results"

@@ -30,9 +30,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from cosserat_fem.fields import PointProbe  # noqa: E402
-from cosserat_fem.modal import compute_modes  # noqa: E402
-from cosserat_fem.model import rod_constants  # noqa: E402
+from cosserat_fem.analysis.modal import compute_modes  # noqa: E402
+from cosserat_fem.analysis.simulation import run_scene  # noqa: E402
+from cosserat_fem.analysis.statics import solve_static, static_path  # noqa: E402
+from cosserat_fem.output.fields import PointProbe  # noqa: E402
 from cosserat_fem.reference.curved import (  # noqa: E402
     SIMO_VU_QUOC_RIGHT_ANGLE,
     right_angle_extrema,
@@ -44,11 +45,10 @@ from cosserat_fem.reference.elastica import (  # noqa: E402
     reissner_tip_load,
 )
 from cosserat_fem.reference.rod_planes import linear_spectrum  # noqa: E402
-from cosserat_fem.scene import load_scene as _load_scene  # noqa: E402
-from cosserat_fem.scene import scene_from_dict  # noqa: E402
-from cosserat_fem.schema import read_toml  # noqa: E402
-from cosserat_fem.simulation import run_scene  # noqa: E402
-from cosserat_fem.statics import solve_static, static_path  # noqa: E402
+from cosserat_fem.rod.model import rod_constants  # noqa: E402
+from cosserat_fem.scene.build import load_scene as _load_scene  # noqa: E402
+from cosserat_fem.scene.build import scene_from_dict  # noqa: E402
+from cosserat_fem.scene.schema import read_toml  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "scenes"
@@ -75,7 +75,7 @@ MODES_COUNT = 12
 
 
 def load_scene(path, overrides=()):
-    """cosserat_fem.scene.load_scene; the paper's scene at :data:`PAPER_NEWTON` (an override
+    """cosserat_fem.scene.build.load_scene; the paper's scene at :data:`PAPER_NEWTON` (an override
     given here wins)."""
     first = [PAPER_NEWTON] if Path(path) == PAPER else []
     return _load_scene(path, [*first, *overrides])
@@ -445,12 +445,12 @@ TUMBLING_STEPS = {
 
 
 def rotations_section() -> str:
-    """The chart of the angles moving onto the rod (cosserat_fem/charts.py)."""
+    """The chart of the angles moving onto the rod (cosserat_fem/rod/charts.py)."""
     lines = [
         "## 5. Rotations of any size (charts)",
         "",
         "In 3D the angles are measured from a frame of quaternions that moves onto the rod "
-        "when |cos θ| falls below cos 0.9 at a node (`cosserat_fem/charts.py`, "
+        "when |cos θ| falls below cos 0.9 at a node (`cosserat_fem/rod/charts.py`, "
         'docs/decisions.md "Charts"). '
         "Rolled about e1 (θ), solved in 3D, the rod closes the circle as rolled about e2 "
         f"({elements_phrase(24, 4)} and {TWO_TURNS_LOAD_STEPS // 2} load steps a turn):",
@@ -760,8 +760,9 @@ def ring_lines() -> list[str]:
     d0 = RING_DIAMETERS[0]
     lines = [
         "**A free ring** (`scenes/free_ring.toml`, `reference.closed = true`: the ends joined, "
-        "p(ℓ) = p(0), cosserat_fem/modal.py `join_ends`): steel, R = 1 m, a solid circular "
-        f"section of d = {d0:g} m (NAFEMS's free thin ring), {RING_ELEMENTS} quartic elements. "
+        "p(ℓ) = p(0), cosserat_fem/analysis/modal.py `join_ends`): steel, R = 1 m, a solid "
+        f"circular section of d = {d0:g} m (NAFEMS's free thin ring), {RING_ELEMENTS} quartic "
+        "elements. "
         "Six rigid-body modes, then pairs of equal frequency (cos nθ, sin nθ); against the "
         "thin-ring closed forms (inextensible, no shear, no rotary inertia; "
         "`cosserat_fem/reference/curved.py`):",

@@ -47,8 +47,8 @@ from pathlib import Path
 import numpy as np
 from petsc4py import PETSc
 
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.scene.build import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
@@ -394,7 +394,7 @@ def _event_times() -> dict[str, float]:
 def step_breakdown(overrides: list[str] | None = None) -> dict:
     """Where the time of one step of the default scene goes (serial, warm cache).
 
-    The Newton solver's timers (cosserat_fem/newton.py: residual and Jacobian assemblies, the
+    The Newton solver's timers (cosserat_fem/nls/newton.py: residual and Jacobian assemblies, the
     whole solves) and PETSc's event log (LU factorisation, symbolic + numeric, and triangular
     solves, MatSolve, inside KSPSolve); what is left of the solves is the Newton loop's own
     work (norms, vector updates, convergence tests). Outside the solves: the integrator's

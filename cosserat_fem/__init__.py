@@ -8,13 +8,13 @@ the Newton solver, outputs and the command line. The Python API, ``cosserat_fem.
 :mod:`cosserat_fem.api`.
 """
 
-from . import pkg_resources_shim
-from .mpi_start import start_mpi
+from cosserat_fem.common import pkg_resources_shim
+from cosserat_fem.common.mpi_start import start_mpi
 
 __version__ = "0.1.0"
 
 # Before anything else imports mpi4py: a process started without mpirun starts MPI in 0.08 s
-# instead of 0.45 s (cosserat_fem/mpi_start.py).
+# instead of 0.45 s (cosserat_fem/common/mpi_start.py).
 QUICK_MPI_START = start_mpi()
 # UFL and FFCx ask pkg_resources for their versions only: a stand-in saves importing it.
 pkg_resources_shim.install()
@@ -27,7 +27,7 @@ _API = ("load", "run", "resume", "static", "modes", "stability", "stability_at",
 
 def __getattr__(name: str):
     if name in _API:
-        from . import api
+        from cosserat_fem import api
 
         return getattr(api, name)
     raise AttributeError(f"module 'cosserat_fem' has no attribute {name!r}")

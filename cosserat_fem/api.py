@@ -25,11 +25,11 @@ from typing import Any
 
 import numpy as np
 
-from .errors import SceneError, out_folder
-from .events import Observer
-from .load_data import TableStore
-from .scene import Scene, load_scene, scene_from_dict
-from .schema import UNSET  # noqa: F401 - cf.UNSET: an override that removes its key
+from cosserat_fem.common.errors import SceneError, out_folder
+from cosserat_fem.scene.build import Scene, load_scene, scene_from_dict
+from cosserat_fem.scene.load_data import TableStore
+from cosserat_fem.scene.schema import UNSET  # noqa: F401 - cf.UNSET: an override that removes its key
+from cosserat_fem.timestepping.events import Observer
 
 
 def load(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | Sequence[str] = ()
@@ -40,8 +40,8 @@ def load(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | 
     ``"dotted.key=value"`` strings as the command line's ``--set``. A load component may be a
     table (``{"table": "file.csv", "column": "F"}``, relative to the scene file, or to the
     working directory for a dict) or a Python callable, f(t) or f(t, s) for a distributed
-    load (``{"loads.end.force": [0, 0, f]}``; cosserat_fem/load_data.py). Bad input raises a
-    :class:`~cosserat_fem.errors.SceneError` naming the key. Under mpirun every rank calls it
+    load (``{"loads.end.force": [0, 0, f]}``; cosserat_fem/scene/load_data.py). Bad input raises a
+    :class:`~cosserat_fem.common.errors.SceneError` naming the key. Under mpirun every rank calls it
     (rank 0 reads the tables)."""
     if isinstance(source, Mapping):
         tables = TableStore.collective()
@@ -64,17 +64,18 @@ def run(
     progress: Callable[[float, int, int], None] | None = None,
     record: bool = True,
 ):
-    """Integrate the scene in time; a :class:`~cosserat_fem.simulation.RunResult` whose
+    """Integrate the scene in time; a :class:`~cosserat_fem.analysis.simulation.RunResult` whose
     ``probes`` are the probe's rows (t, x, y, z, θ, ψ, φ) at every output time (unless
     ``record`` is false) and, with ``fields`` (stations σ = s/ℓ in [0, 1]), ``field_times``
     (T,) and ``field_values`` (T, stations, 6) every ``field_every`` output times. Files
     (probes.csv, XDMF, checkpoints, summary.json) only with ``out``, or in the checkpoint's
     folder with ``restart`` (from :func:`resume`; ``scene`` must then be the checkpoint's,
     changed at most in the keys a restart may change, ``out`` none or that folder, and
-    ``initial_state`` none: a SceneError otherwise). ``observers``: cosserat_fem/events.py;
+    ``initial_state`` none: a SceneError otherwise). ``observers``:
+    cosserat_fem/timestepping/events.py;
     ``progress(t [s], steps, Newton iterations)`` at every output time."""
-    from .events import as_observer
-    from .simulation import run_scene
+    from cosserat_fem.analysis.simulation import run_scene
+    from cosserat_fem.timestepping.events import as_observer
 
     out = out_folder(out)
     observers = [as_observer(o) for o in observers]  # checked before any work
@@ -96,19 +97,19 @@ def run(
 
 
 def load_sweep(source: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()):
-    """A sweep file read and every member's scene validated (cosserat_fem/sweep_spec.py);
+    """A sweep file read and every member's scene validated (cosserat_fem/studies/sweep_spec.py);
     ``overrides``: dotted scene keys for the base scene."""
-    from .sweep_spec import load_sweep as load
+    from cosserat_fem.studies.sweep_spec import load_sweep as load
 
     return load(source, overrides)
 
 
 def sweep(spec, out: str | Path, *, progress: bool = False):
-    """Run a sweep's members not finished in ``out`` (cosserat_fem/sweep_run.py; under mpirun,
-    groups of ``group_size`` ranks): a SweepResult with the table's path and rows. With
+    """Run a sweep's members not finished in ``out`` (cosserat_fem/studies/sweep_run.py; under
+    mpirun, groups of ``group_size`` ranks): a SweepResult with the table's path and rows. With
     ``progress``: a line on stderr as each member finishes, with the time left."""
-    from .sweep_run import run_sweep
-    from .sweep_spec import SweepSpec
+    from cosserat_fem.studies.sweep_run import run_sweep
+    from cosserat_fem.studies.sweep_spec import SweepSpec
 
     if not isinstance(spec, SweepSpec):
         raise SceneError(f"spec: must be a sweep of cf.load_sweep(path), got {type(spec).__name__}")
@@ -124,9 +125,9 @@ def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()
     time.end is not later than it, or a table's content is not the one the run used (its
     SHA-256 is in the checkpoint's scene), or a load was a Python callable (not data: a run
     with one cannot be restarted)."""
-    from .io.checkpoint import load_checkpoint
-    from .restart import FIXED_KEYS, restart_overrides
-    from .schema import Removal
+    from cosserat_fem.analysis.restart import FIXED_KEYS, restart_overrides
+    from cosserat_fem.io.checkpoint import load_checkpoint
+    from cosserat_fem.scene.schema import Removal
 
     texts = overrides
     if isinstance(overrides, Mapping):
@@ -141,10 +142,10 @@ def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()
 
 def static(scene: Scene, out: str | Path | None = None, *, observers=()):
     """Static equilibrium under the scene's loads by load stepping; a
-    :class:`~cosserat_fem.statics.StaticResult` whose ``probes`` are the probe's rows
+    :class:`~cosserat_fem.analysis.statics.StaticResult` whose ``probes`` are the probe's rows
     (λ, x, y, z, θ, ψ, φ) at every accepted load factor λ. Files only with ``out``."""
-    from .events import as_observer
-    from .statics import static_path
+    from cosserat_fem.analysis.statics import static_path
+    from cosserat_fem.timestepping.events import as_observer
 
     out = out_folder(out)
     observers = [as_observer(o) for o in observers]  # checked before any work
@@ -153,14 +154,14 @@ def static(scene: Scene, out: str | Path | None = None, *, observers=()):
 
 
 def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | Path | None = None):
-    """The ``count`` lowest natural modes (cosserat_fem/modal.py) about the straight rod or,
-    with ``about="static"``, the static state under the scene's loads: a list of
-    :class:`~cosserat_fem.modal.Mode` (``omega`` [rad/s], ``frequency_hz``, ``kind``,
+    """The ``count`` lowest natural modes (cosserat_fem/analysis/modal.py) about the straight rod
+    or, with ``about="static"``, the static state under the scene's loads: a list of
+    :class:`~cosserat_fem.analysis.modal.Mode` (``omega`` [rad/s], ``frequency_hz``, ``kind``,
     ``shape``); modes.csv, modes.xdmf and modes.json only with ``out``."""
     from mpi4py import MPI
 
-    from .io.run_folder import prepare_output_dir
-    from .modal import check_count, compute_modes, write_modes
+    from cosserat_fem.analysis.modal import check_count, compute_modes, write_modes
+    from cosserat_fem.io.run_folder import prepare_output_dir
 
     if isinstance(count, bool) or not isinstance(count, int | np.integer):
         raise SceneError(f"count (--count): must be a whole number, got {count!r}")
@@ -178,19 +179,19 @@ def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | P
 def stability(scene: Scene, low: float = 0.0, high: float = 1.0, *, samples: int = 5,
               tolerance: float = 1e-8, count: int = 6, out: str | Path | None = None):  # fmt: skip
     """Stability of the scene's static states for load factors f in [low, high] (every load
-    × f; cosserat_fem/equilibria.py) and the critical factor where it is lost: a
-    :class:`~cosserat_fem.equilibria.StabilityResult` with ``critical`` (None if stability is
-    not lost in the range), ``kind`` ("divergence": buckling; "flutter"), ``bracket`` and
+    × f; cosserat_fem/analysis/equilibria.py) and the critical factor where it is lost: a
+    :class:`~cosserat_fem.analysis.equilibria.StabilityResult` with ``critical`` (None if stability
+    is not lost in the range), ``kind`` ("divergence": buckling; "flutter"), ``bracket`` and
     ``points`` (each state's ``status`` and ``eigenvalues`` of K φ = λ M φ, units of ω0²).
     ``samples``: equally spaced factors visited first; ``tolerance``: the root finder's,
     |Δf| ≤ tolerance (1 + |f|); ``count``: eigenvalues nearest 0 computed at each state.
     stability.json only with ``out``."""
     from mpi4py import MPI
 
-    from .equilibria import check_factors
-    from .equilibria import stability as analyse
-    from .io.run_folder import prepare_output_dir
-    from .modal import check_count
+    from cosserat_fem.analysis.equilibria import check_factors
+    from cosserat_fem.analysis.equilibria import stability as analyse
+    from cosserat_fem.analysis.modal import check_count
+    from cosserat_fem.io.run_folder import prepare_output_dir
 
     if isinstance(count, bool) or not isinstance(count, int | np.integer):
         raise SceneError(f"count (--count): must be a whole number, got {count!r}")
@@ -203,9 +204,9 @@ def stability(scene: Scene, low: float = 0.0, high: float = 1.0, *, samples: int
 
 def stability_at(scene: Scene, factor: float = 1.0, *, count: int = 6):
     """The static state at load factor ``factor`` (1: the scene's loads) and whether it is
-    stable: a :class:`~cosserat_fem.equilibria.StabilityPoint` (``status``: "stable",
+    stable: a :class:`~cosserat_fem.analysis.equilibria.StabilityPoint` (``status``: "stable",
     "divergence" or "flutter"; ``eigenvalues``, ``kinds``)."""
-    from .equilibria import stability_at as at
+    from cosserat_fem.analysis.equilibria import stability_at as at
 
     return at(scene, factor, count)
 
@@ -219,12 +220,12 @@ def pod(
     remove_mean: bool = True,
     out: str | Path | None = None,
 ):
-    """Karhunen–Loève (POD) modes of a run's response (cosserat_fem/karhunen_loeve.py): a
-    :class:`~cosserat_fem.karhunen_loeve.PodResult` with ``energies``, ``fractions``,
+    """Karhunen–Loève (POD) modes of a run's response (cosserat_fem/studies/karhunen_loeve.py): a
+    :class:`~cosserat_fem.studies.karhunen_loeve.PodResult` with ``energies``, ``fractions``,
     ``cumulative``, ``shapes`` (K, stations, 3 or 6) and ``coefficients`` (T, K).
 
     ``source``: a run's folder (its XDMF frames are the snapshots; stations: its output
-    points), or a :class:`~cosserat_fem.simulation.RunResult` of ``run(scene,
+    points), or a :class:`~cosserat_fem.analysis.simulation.RunResult` of ``run(scene,
     fields=stations)`` with the same ``stations`` (σ = s/ℓ). ``modes``: how many (default
     min(10, snapshots)); ``weighting``: "displacement" (x, y, z; energies in m³) or "kinetic"
     (x, y, z and θ, ψ, φ weighted by ρA and ρ I: the mass inner product; kg m²);
@@ -233,12 +234,17 @@ def pod(
     in ``result.files``. Bad input raises a SceneError naming the argument."""
     from mpi4py import MPI
 
-    from .errors import CosseratError
-    from .io.output_files import output_folder
-    from .karhunen_loeve import POD_PNG, read_run, snapshots_of_result, write_pod
-    from .karhunen_loeve import pod as decompose
-    from .parallel import agree
-    from .plot import plot_pod
+    from cosserat_fem.common.errors import CosseratError
+    from cosserat_fem.common.parallel import agree
+    from cosserat_fem.io.output_files import output_folder
+    from cosserat_fem.plot import plot_pod
+    from cosserat_fem.studies.karhunen_loeve import (
+        POD_PNG,
+        read_run,
+        snapshots_of_result,
+        write_pod,
+    )
+    from cosserat_fem.studies.karhunen_loeve import pod as decompose
 
     out = out_folder(out)
     if isinstance(source, str | Path):

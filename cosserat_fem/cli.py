@@ -1,12 +1,12 @@
 """Command line: ``cosserat-fem run|static|modes|stability SCENE [--out DIR] [--set KEY=VALUE
 ...]``,
 ``cosserat-fem sweep SWEEP [--out DIR]`` for the members of a sweep file
-(cosserat_fem/sweep_run.py), and ``cosserat-fem run --restart DIR [--set time.end=...]`` to
+(cosserat_fem/studies/sweep_run.py), and ``cosserat-fem run --restart DIR [--set time.end=...]`` to
 continue a stopped run;
 ``cosserat-fem plot|render RUN_DIR [--out DIR]`` draw a run's outputs (plot: a sweep's table
 too; no DOLFINx needed), and ``cosserat-fem pod RUN_DIR [--modes K] [--out DIR]`` gives the
-Karhunen–Loève (POD) modes of a run's XDMF frames (cosserat_fem/karhunen_loeve.py; no DOLFINx
-either).
+Karhunen–Loève (POD) modes of a run's XDMF frames (cosserat_fem/studies/karhunen_loeve.py; no
+DOLFINx either).
 
 Exit status: 0 success, 2 bad input (scene, options, output folder, a run that would
 exceed its limits, MPI ranks given different command lines), 3 numerical trouble, 4 a run
@@ -29,9 +29,9 @@ import traceback
 import warnings
 from pathlib import Path
 
-from . import __version__
-from .errors import CosseratError, SceneError, SolverError, StopError, out_folder
-from .schema import Removal
+from cosserat_fem import __version__
+from cosserat_fem.common.errors import CosseratError, SceneError, SolverError, StopError, out_folder
+from cosserat_fem.scene.schema import Removal
 
 
 def _common(sub: argparse.ArgumentParser, scene_optional: bool = False,
@@ -262,12 +262,12 @@ def _draw(args) -> int:
     """Figures (cosserat_fem/plot.py) or pictures and an animation (cosserat_fem/render.py) of
     the run in args.run_dir; no DOLFINx."""
     if args.command == "plot":
-        from .plot import plot_run
+        from cosserat_fem.plot import plot_run
 
         paths = plot_run(args.run_dir, args.out)
     else:
-        from .progress import StatusLine
-        from .render import render_run
+        from cosserat_fem.analysis.progress import StatusLine
+        from cosserat_fem.render import render_run
 
         bar = StatusLine(enabled=False if args.quiet else None)  # on a terminal only
         try:
@@ -281,11 +281,12 @@ def _draw(args) -> int:
 
 
 def _pod(args) -> int:
-    """``pod``: the POD of a run's XDMF frames (cosserat_fem/karhunen_loeve.py, no DOLFINx) into
+    """``pod``: the POD of a run's XDMF frames (cosserat_fem/studies/karhunen_loeve.py, no DOLFINx)
+    into
     --out (default the run's folder); the energies as a table and the files' paths."""
     from mpi4py import MPI
 
-    from . import api
+    from cosserat_fem import api
 
     out = args.run_dir if args.out is None else args.out
     result = api.pod(args.run_dir, modes=args.modes, weighting=args.weighting,
@@ -326,8 +327,8 @@ def _run(args) -> int:
     """``run``: a scene, or ``--restart DIR``, through the Python API (cosserat_fem/api.py)."""
     from mpi4py import MPI
 
-    from . import api
-    from .progress import ProgressBar, summary_screen
+    from cosserat_fem import api
+    from cosserat_fem.analysis.progress import ProgressBar, summary_screen
 
     rank = MPI.COMM_WORLD.rank
     checkpoint = None
@@ -361,8 +362,8 @@ def _static(args) -> int:
     """``static``: load stepping through the Python API; the probe's final values."""
     from mpi4py import MPI
 
-    from . import api
-    from .forms.kinematics import P_NAMES
+    from cosserat_fem import api
+    from cosserat_fem.forms.kinematics import P_NAMES
 
     scene = api.load(args.scene, args.overrides)
     result = api.static(scene, _out(args, scene))
@@ -380,7 +381,7 @@ def _modes(args) -> int:
     """``modes``: about the straight rod or the static state, through the Python API."""
     from mpi4py import MPI
 
-    from . import api
+    from cosserat_fem import api
 
     scene = api.load(args.scene, args.overrides)
     out = _out(args, scene)
@@ -400,7 +401,7 @@ def _stability(args) -> int:
     API; a line per state visited, then the critical factor and stability.json's path."""
     from mpi4py import MPI
 
-    from . import api
+    from cosserat_fem import api
 
     scene = api.load(args.scene, args.overrides)
     out = _out(args, scene)
@@ -424,11 +425,12 @@ def _stability(args) -> int:
 
 
 def _sweep(args) -> int:
-    """``sweep``: the members of a sweep file (cosserat_fem/sweep_run.py) into --out (default
+    """``sweep``: the members of a sweep file (cosserat_fem/studies/sweep_run.py) into --out
+    (default
     results/<the sweep file's name>); a summary line and the table's path."""
     from mpi4py import MPI
 
-    from . import api
+    from cosserat_fem import api
 
     spec = api.load_sweep(args.scene, args.overrides)
     out = _out(args)
@@ -444,14 +446,14 @@ def _sweep(args) -> int:
 
 def _validate(args) -> int:
     """The scene resolved, and what ``run`` and ``static`` of it cost at least
-    (cosserat_fem/budget.py), refused if that exceeds its limits (exit 2), as they would
+    (cosserat_fem/analysis/budget.py), refused if that exceeds its limits (exit 2), as they would
     refuse it."""
     from mpi4py import MPI
 
-    from . import budget
-    from .describe import describe_scene
-    from .parallel import ranks_on_node
-    from .scene import load_scene
+    from cosserat_fem.analysis import budget
+    from cosserat_fem.common.parallel import ranks_on_node
+    from cosserat_fem.scene.build import load_scene
+    from cosserat_fem.scene.describe import describe_scene
 
     comm = MPI.COMM_WORLD
     scene = load_scene(args.scene, args.overrides)
@@ -481,7 +483,7 @@ def main(argv: list[str] | None = None) -> int:
             return _stdout_closed()
         status = _main(args)
         if status != 0:
-            from .parallel import agree_or_abort, cancel_abort
+            from cosserat_fem.common.parallel import agree_or_abort, cancel_abort
 
             # An error or an interrupt that the other ranks did not meet must not hang them;
             # a second Ctrl-C does not cut this wait short (it ends within ABORT_AFTER s).
@@ -503,7 +505,7 @@ def _interrupted(signum, frame) -> None:
     step (parallel.interrupt); the job is aborted if it has not ended within
     parallel.ABORT_AFTER s (what was computed is kept, as after a kill)."""
     if "mpi4py.MPI" in sys.modules:  # not before: MPI is not initialised, no job to hang
-        from .parallel import interrupt
+        from cosserat_fem.common.parallel import interrupt
 
         if interrupt():
             return
@@ -516,8 +518,8 @@ def _main(args) -> int:
     reported as one line (:func:`_report`)."""
     from mpi4py import MPI
 
-    from .parallel import prepare_agreement
-    from .progress import configure_logging
+    from cosserat_fem.analysis.progress import configure_logging
+    from cosserat_fem.common.parallel import prepare_agreement
 
     level = "quiet" if args.quiet else "verbose" if args.verbose else "normal"
     configure_logging(level, MPI.COMM_WORLD.rank)

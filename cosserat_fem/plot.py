@@ -1,7 +1,7 @@
 """``cosserat-fem plot RUN_DIR``: PNG figures of any run, with matplotlib (Agg, no screen).
 
-A sweep's folder (cosserat_fem/sweep_run.py) gets ``sweep.png``: each member's largest free-end
-displacements and angles against the varied key (:func:`plot_sweep`), and a frequency
+A sweep's folder (cosserat_fem/studies/sweep_run.py) gets ``sweep.png``: each member's largest
+free-end displacements and angles against the varied key (:func:`plot_sweep`), and a frequency
 response's also ``response.png``: amplitudes and phases against the forcing's key, a curve per
 chain (:func:`plot_response`). A run's folder gets:
 
@@ -12,16 +12,16 @@ chain (:func:`plot_response`). A run's folder gets:
   x(s), y(s) instead.
 
 Figures are 10 × 8 and 7 × 5 inches at 130 dpi: 1300 × 1040 and 910 × 650 pixels. Reads the
-run with :mod:`cosserat_fem.results` (no DOLFINx), all of it before drawing anything: a damaged
-file is bad input (one line naming it, exit 2) and leaves no figure behind. Non-finite values
-are refused there, not plotted. A run killed at any moment plots what it has: a cut last probe
-row is dropped, and an XDMF file without frames yet gives the free-end figure alone.
+run with :mod:`cosserat_fem.output.results` (no DOLFINx), all of it before drawing anything: a
+damaged file is bad input (one line naming it, exit 2) and leaves no figure behind. Non-finite
+values are refused there, not plotted. A run killed at any moment plots what it has: a cut last
+probe row is dropped, and an XDMF file without frames yet gives the free-end figure alone.
 matplotlib comes from Debian (python3-matplotlib, see .ci/setup.sh).
 
 Every file of ``plot``, ``render`` and ``pod`` is made in memory and written by
 :func:`write_output`, whole or not at all: a write that fails (disk full, ``ulimit -f``, an
-I/O error) is an :class:`~cosserat_fem.errors.OutputError` naming the file (exit 4, as a run's
-outputs), and leaves no cut file (nor a library's traceback) behind.
+I/O error) is an :class:`~cosserat_fem.common.errors.OutputError` naming the file (exit 4, as a
+run's outputs), and leaves no cut file (nor a library's traceback) behind.
 Tests: tests/test_visualisation.py, tests/test_output_fuzz.py,
 tests/test_sweep.py::test_plot_draws_a_sweep_from_its_table_or_its_parts.
 """
@@ -35,11 +35,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import CosseratError, SceneError, out_folder
-from .io.output_files import output_folder, write_output
-from .io.probes import PROBE_COLUMNS, PROBES
-from .io.run_folder import SUMMARY, read_summary
-from .io.sweep_table import (
+from cosserat_fem.common.errors import CosseratError, SceneError, out_folder
+from cosserat_fem.io.output_files import output_folder, write_output
+from cosserat_fem.io.probes import PROBE_COLUMNS, PROBES
+from cosserat_fem.io.run_folder import SUMMARY, read_summary
+from cosserat_fem.io.sweep_table import (
     MEMBERS,
     RECORD,
     SWEEP_TABLE,
@@ -47,8 +47,8 @@ from .io.sweep_table import (
     read_record,
     read_sweep_rows,
 )
-from .io.xdmf import XDMF, NoFramesError, RodSeries
-from .results import Run, open_run
+from cosserat_fem.io.xdmf import XDMF, NoFramesError, RodSeries
+from cosserat_fem.output.results import Run, open_run
 
 DPI = 130
 HISTORY_SIZE = (10.0, 8.0)  # inches
@@ -162,7 +162,7 @@ def plot_surfaces(run: Run, out: Path, series: RodSeries | None = None) -> list[
 
 
 #: What sweep.png draws against the varied key: the free end's largest |x|, |y|, |z| [m] and
-#: |θ|, |ψ|, |φ| [rad] over each member's run (cosserat_fem/sweep_run.py's table).
+#: |θ|, |ψ|, |φ| [rad] over each member's run (cosserat_fem/studies/sweep_run.py's table).
 SWEEP_PANELS = (("max_abs_x", "max |x| [m]"), ("max_abs_theta", "max |θ| [rad]"),
                 ("max_abs_y", "max |y| [m]"), ("max_abs_psi", "max |ψ| [rad]"),
                 ("max_abs_z", "max |z| [m]"), ("max_abs_phi", "max |φ| [rad]"))  # fmt: skip
@@ -223,7 +223,8 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
 
 
 def _sweep_record(directory: Path) -> dict:
-    """The sweep's sweep.json (cosserat_fem/sweep_run.py) as a dict; SceneError naming it if it
+    """The sweep's sweep.json (cosserat_fem/studies/sweep_run.py) as a dict; SceneError naming it if
+    it
     cannot be read or is not an object."""
     path = directory / RECORD
     record, reason = read_record(path)
@@ -232,7 +233,8 @@ def _sweep_record(directory: Path) -> dict:
     return record
 
 
-#: The columns response.png reads (cosserat_fem/sweep_run.py, RESPONSE_COLUMNS and MEASURES).
+#: The columns response.png reads (cosserat_fem/studies/sweep_run.py, RESPONSE_COLUMNS and
+#: MEASURES).
 RESPONSE_NEEDS = ("direction", "settled",
                   *(f"{m}_{c}" for m in ("amp", "phase") for c in PROBE_COLUMNS[1:]))  # fmt: skip
 #: A column moves when its largest amplitude is at least this fraction of the motion's size.
@@ -255,7 +257,7 @@ def _check_response(directory: Path, columns: list[str], varied: list[str], reco
 def _member_lengths(directory: Path, rows: list[dict]) -> np.ndarray:
     """ℓ [m] of each row's member, from its summary.json's scene (NaN where there is none or
     it cannot be read: a member that failed)."""
-    from .sweep_spec import Member
+    from cosserat_fem.studies.sweep_spec import Member
 
     lengths = np.full(len(rows), np.nan)
     for i, row in enumerate(rows):
@@ -273,7 +275,7 @@ def moving_columns(amps: dict[str, np.ndarray], lengths: np.ndarray) -> list[str
     """The probe's columns that move over a frequency response, from their amplitudes (half
     ranges) per member ``amps`` [m, rad] and the members' rod lengths ℓ [m]: those whose
     largest amplitude is at least :data:`MOVING` of the motion's size S in its unit, S the
-    largest of x/ℓ, y/ℓ, z/ℓ and θ, ψ, φ over the members (cosserat_fem/response.py measures
+    largest of x/ℓ, y/ℓ, z/ℓ and θ, ψ, φ over the members (cosserat_fem/studies/response.py measures
     its settling in the same unit). A column that the motion leaves alone holds round-off (ψ
     at the mid-span of a symmetric mode: 1e-16 rad with a random phase), not a response.
     Without any ℓ, each group (lengths, angles) is measured against its own largest. At
@@ -292,7 +294,7 @@ def moving_columns(amps: dict[str, np.ndarray], lengths: np.ndarray) -> list[str
     return moving or ["x"]
 
 
-#: The probe's columns (cosserat_fem/response.py) and their units.
+#: The probe's columns (cosserat_fem/studies/response.py) and their units.
 RESPONSE_UNITS = dict(zip(PROBE_COLUMNS[1:], ("m",) * 3 + ("rad",) * 3, strict=True))
 RESPONSE_SYMBOLS = dict(zip(PROBE_COLUMNS[1:], ("x", "y", "z", "θ", "ψ", "φ"), strict=True))
 

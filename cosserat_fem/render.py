@@ -1,6 +1,6 @@
 """``cosserat-fem render RUN_DIR``: the rod drawn in 3D, off-screen, with pyvista (VTK).
 
-From the run's XDMF (read by :mod:`cosserat_fem.results`, no DOLFINx) it writes
+From the run's XDMF (read by :mod:`cosserat_fem.output.results`, no DOLFINx) it writes
 
 * ``rod_peak.png``: the deformed rod at the frame of largest displacement (anywhere),
 * ``rod_last.png``: at the last frame,
@@ -17,13 +17,13 @@ rounded down to 1, 2 or 5 times a power of ten, at most 1e12 (``--scale`` sets i
 the same bound; 1 for large deflections). pyvista and vtk come from PyPI (the ``render``
 extra). With no X display VTK renders through EGL; under ``xvfb-run`` through X.
 
-The run is read and checked by :mod:`cosserat_fem.results` before anything is drawn: a damaged
-file is bad input (one line naming it, exit 2), and so is an XDMF file without frames. Every
+The run is read and checked by :mod:`cosserat_fem.output.results` before anything is drawn: a
+damaged file is bad input (one line naming it, exit 2), and so is an XDMF file without frames. Every
 picture and the GIF are encoded in memory and written whole (cosserat_fem/plot.py
 ``write_output``; an MP4, which ffmpeg writes, goes to a hidden file renamed when complete): a
 write that fails is an OutputError naming the file (exit 4), with no cut file left.
-``progress`` (a :class:`~cosserat_fem.progress.StatusLine`, on a terminal) shows the pictures
-and the animation's frames as they are made.
+``progress`` (a :class:`~cosserat_fem.analysis.progress.StatusLine`, on a terminal) shows the
+pictures and the animation's frames as they are made.
 """
 
 from __future__ import annotations
@@ -35,10 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import CosseratError, OutputError, SceneError, out_folder
-from .io.output_files import output_folder, write_output
-from .io.xdmf import RodSeries
-from .results import open_run
+from cosserat_fem.common.errors import CosseratError, OutputError, SceneError, out_folder
+from cosserat_fem.io.output_files import output_folder, write_output
+from cosserat_fem.io.xdmf import RodSeries
+from cosserat_fem.output.results import open_run
 
 WINDOW = (1024, 768)  # pixels of every picture and animation frame
 #: Largest automatic magnification (a displacement below ~1e-13 of the length is round-off;

@@ -54,18 +54,19 @@ import argparse
 from pathlib import Path
 
 # cosserat_fem first: a process that mpirun did not start then starts MPI in 0.08 s instead of
-# 0.45 s (cosserat_fem/mpi_start.py).
+# 0.45 s (cosserat_fem/common/mpi_start.py).
 import cosserat_fem  # noqa: F401
 
 # isort: split
 import numpy as np
 from mpi4py import MPI
 
-from cosserat_fem import api, progress
-from cosserat_fem.errors import CosseratError
-from cosserat_fem.events import Observer
-from cosserat_fem.fields import LineSampler
+from cosserat_fem import api
+from cosserat_fem.analysis import progress
+from cosserat_fem.common.errors import CosseratError
+from cosserat_fem.output.fields import LineSampler
 from cosserat_fem.plot import drawn_lines
+from cosserat_fem.timestepping.events import Observer
 
 ROOT = Path(__file__).resolve().parents[1]
 INCH = 0.0254  # m

@@ -60,21 +60,21 @@ import sys
 from pathlib import Path
 
 # cosserat_fem first: a process that mpirun did not start then starts MPI in 0.08 s instead of
-# 0.45 s (cosserat_fem/mpi_start.py).
+# 0.45 s (cosserat_fem/common/mpi_start.py).
 import cosserat_fem  # noqa: F401
 
 # isort: split
 import numpy as np
 from mpi4py import MPI
 
-from cosserat_fem import progress
+from cosserat_fem.analysis import progress
 from cosserat_fem.api import run
-from cosserat_fem.errors import CosseratError
-from cosserat_fem.fields import LineSampler
+from cosserat_fem.common.errors import CosseratError
+from cosserat_fem.output.fields import LineSampler
 from cosserat_fem.plot import drawn_lines
 from cosserat_fem.reference.rod_planes import sine_load_tip_response
 from cosserat_fem.reference.second_order import RodData, second_order_tip_response
-from cosserat_fem.scene import load_scene
+from cosserat_fem.scene.build import load_scene
 
 ROOT = Path(__file__).resolve().parents[1]
 comm = MPI.COMM_WORLD

@@ -29,7 +29,7 @@
 #
 # The demo runs the sweep `scenes/sweeps/clamped_hysteresis.toml` (two chains of members, one
 # upward and one downward; each member runs until its response is periodic and starts from
-# the state its predecessor ended in, cosserat_fem/response.py), draws both against the
+# the state its predecessor ended in, cosserat_fem/studies/response.py), draws both against the
 # harmonic balance (`demos/output/frequency_response/harmonic_balance.png`; `cosserat-fem plot`
 # of the folder draws its own `response.png` beside it) and prints the amplitudes
 # as QOI lines, which the test suite checks against the harmonic balance and between a serial
@@ -51,7 +51,7 @@ import tempfile
 from pathlib import Path
 
 # cosserat_fem first: a process that mpirun did not start then starts MPI in 0.08 s instead of
-# 0.45 s (cosserat_fem/mpi_start.py).
+# 0.45 s (cosserat_fem/common/mpi_start.py).
 import cosserat_fem  # noqa: F401
 
 # isort: split
@@ -59,7 +59,7 @@ import numpy as np
 from mpi4py import MPI
 
 from cosserat_fem import api
-from cosserat_fem.errors import CosseratError
+from cosserat_fem.common.errors import CosseratError
 from cosserat_fem.plot import drawn_lines
 from cosserat_fem.reference.backbone import Duffing, clamped_modal_force
 

@@ -1,6 +1,6 @@
 """The conventions where the paper's equations are inconsistent (docs/errata.md), by name:
 the one list of each, for the equations (forms/general_form.py, forms/groups.py) and the
-scene's schema (cosserat_fem/schema.py). Pure Python, so that reading a scene needs no UFL.
+scene's schema (cosserat_fem/scene/schema.py). Pure Python, so that reading a scene needs no UFL.
 
 * ``TORSION_INERTIAS``: the rotary inertia of the torsion row (erratum 1, forms/groups.py):
   "polar", I3 = c11 + c22 (46), or "printed", I3 = c33 as in (54);

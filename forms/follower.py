@@ -1,5 +1,5 @@
 """A follower end force and torque: loads that turn with the end's directors ([loads.follower],
-declared by cosserat_fem/resolved.py FollowerEndLoad).
+declared by cosserat_fem/scene/resolved.py FollowerEndLoad).
 
 Given by their components along the directors d_k of the loaded end, F = (F1, F2, F3) [N] and
 M = (M1, M2, M3) [N m], they are, in the fixed basis,

@@ -111,7 +111,7 @@ class EndLoads:
 @dataclass(frozen=True)
 class LoadContext:
     """What the form of a load declared with its physics is given (``residual(load, context)``
-    of its module in forms/; cosserat_fem/resolved.py FormLoad): the state ``U`` = (p, q) and
+    of its module in forms/; cosserat_fem/scene/resolved.py FormLoad): the state ``U`` = (p, q) and
     the test function ``V`` (12 components each), the ``groups``, the end-load ``convention``,
     the ``chart`` (None: the fixed basis), the rest configuration ``reference`` (None: the
     straight rod, forms/reference.py), the boundary measure of each end by name ("start",

@@ -18,7 +18,7 @@ with the frame's own curvature κ, a_j' = κ × a_j (components κ_j = κ · a_j
 With A = I (κ = 0) these are the paper's. The balance laws (6) and everything built on v, û,
 ŵ and the directors are unchanged, so the general form (65) keeps Ma = diag(I₃, Mm) (66) and
 its singularity, det Mm = cos θ, now at θ = ±π/2 *relative to the frame*: the time loop moves
-the frame to the rod's rotation before θ gets there (cosserat_fem/charts.py).
+the frame to the rod's rotation before θ gets there (cosserat_fem/rod/charts.py).
 """
 
 from __future__ import annotations

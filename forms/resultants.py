@@ -1,6 +1,6 @@
 """Strains and contact force and torque of the rod in SI units, as UFL expressions.
 
-For the output (cosserat_fem/fields.py): the quantities that the general form (65) carries,
+For the output (cosserat_fem/output/fields.py): the quantities that the general form (65) carries,
 unscaled. With p = (x/ℓ, y/ℓ, z/ℓ, θ, ψ, φ) and a prime d/dσ (σ = s/ℓ), all components in the
 director basis (d1, d2, d3) of (18) (``X_i = d_i · X``):
 

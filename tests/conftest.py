@@ -57,7 +57,7 @@ def subprocess_env() -> dict[str, str]:
 
 def said(stderr: str) -> list[str]:
     """The project's lines of ``stderr`` other than a sweep's progress (one line per member as
-    it finishes, cosserat_fem/progress.py's SweepProgress): what a command reports, without
+    it finishes, cosserat_fem/analysis/progress.py's SweepProgress): what a command reports, without
     the lines Open MPI adds when a rank exits non-zero."""
     return [
         line
@@ -166,7 +166,7 @@ def inject_newton_failures(monkeypatch, fails) -> None:
     """Make Newton solve number n (counting from 1 over all solvers) raise NewtonFailure when
     ``fails(n)`` is true (every stage of every integrator calls NewtonSolver.solve: the
     users' path); undone by monkeypatch.undo() or at the end of the test."""
-    from cosserat_fem.newton import NewtonFailure, NewtonSolver
+    from cosserat_fem.nls.newton import NewtonFailure, NewtonSolver
 
     real_solve = NewtonSolver.solve
     calls = {"n": 0}
@@ -182,9 +182,9 @@ def inject_newton_failures(monkeypatch, fails) -> None:
 
 @contextlib.contextmanager
 def jit_installed():
-    """cosserat_fem.jit.install() for a block (crash-safe, quiet compiles: other processes
+    """cosserat_fem.common.jit.install() for a block (crash-safe, quiet compiles: other processes
     share the FFCx cache); the state before it is restored afterwards."""
-    from cosserat_fem import jit
+    from cosserat_fem.common import jit
 
     before = jit.installed()
     jit.install()

@@ -11,9 +11,9 @@ from dolfinx.fem.petsc import assemble_matrix, assemble_vector
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from cosserat_fem.modal import Mode, modal_supports
-from cosserat_fem.model import build_model
-from cosserat_fem.scene import Scene
+from cosserat_fem.analysis.modal import Mode, modal_supports
+from cosserat_fem.rod.model import build_model
+from cosserat_fem.scene.build import Scene
 
 
 def in_plane_share(mode: Mode) -> float:

@@ -19,13 +19,13 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from cosserat_fem.events import Observer
-from cosserat_fem.model import RodModel
+from cosserat_fem.rod.model import RodModel
+from cosserat_fem.timestepping.events import Observer
 
 
 class EnergyMonitor:
     """T, V [J] of ``model.U`` and the power P [W] of the scene's loads and damping; once the
-    model's chart has moved (cosserat_fem/charts.py) the forms measure the angles in it
+    model's chart has moved (cosserat_fem/rod/charts.py) the forms measure the angles in it
     (recompiled then)."""
 
     def __init__(self, model: RodModel):
@@ -83,7 +83,7 @@ class EnergyMonitor:
 
 
 class EnergyRecorder(Observer):
-    """Observer (cosserat_fem/events.py): at every output time t [s], the rod's energy
+    """Observer (cosserat_fem/timestepping/events.py): at every output time t [s], the rod's energy
     E = T + V [J] and the power P [W] of its loads and damping: lists ``t``, ``E``, ``P``."""
 
     def __init__(self):

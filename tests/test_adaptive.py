@@ -1,5 +1,5 @@
-"""Adaptive time stepping (time.adaptive = true; cosserat_fem/adaptive.py): the error follows
-the tolerance, outputs stay on the requested grid, few steps are rejected.
+"""Adaptive time stepping (time.adaptive = true; cosserat_fem/timestepping/adaptive.py): the error
+follows the tolerance, outputs stay on the requested grid, few steps are rejected.
 
 The paper's scene over 0 ≤ t ≤ 12 ms (8 cubic elements; the reference is the same mesh with
 SDIRK3 at Δt = 1.25 μs, so that only the time error is measured; its own time error is
@@ -23,8 +23,8 @@ import numpy as np
 import pytest
 from conftest import ROOT, run_command
 
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.scene.build import load_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 BASE = ["output.xdmf=false", "time.end=0.012", "solver.stol=1e-8"]  # stol: argued below

@@ -19,7 +19,7 @@ from conftest import ROOT, run_command
 
 import cosserat_fem as cf
 from cosserat_fem.cli import main
-from cosserat_fem.errors import SceneError
+from cosserat_fem.common.errors import SceneError
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 
@@ -115,7 +115,7 @@ def test_arrays_equal_the_command_lines_files(tmp_path):
 
 
 def test_the_public_run_has_the_command_lines_defaults(tmp_path):
-    """cf.run (the one public run; cosserat_fem/simulation.py's run_scene is internal) with
+    """cf.run (the one public run; cosserat_fem/analysis/simulation.py's run_scene is internal) with
     only a scene and a folder runs what `cosserat-fem run` runs: every key of summary.json is
     the same but the run's identity, its wall times and the Newton solver's timers (the
     scene, integrator, solver loop, LU package, steps and every Newton count: the same
@@ -139,8 +139,8 @@ def test_the_public_run_has_the_command_lines_defaults(tmp_path):
 
 
 def test_run_static_and_modes_write_one_summary(tmp_path):
-    """One summary (cosserat_fem/observers.py: summary_start, RunSummary): summary.json of a
-    run and of a static solve and modes.json carry the same identity (version, scene file
+    """One summary (cosserat_fem/analysis/observers.py: summary_start, RunSummary): summary.json of
+    a run and of a static solve and modes.json carry the same identity (version, scene file
     and its SHA-256, ranks, Python, the scene) with the same values, and each its kind; run
     and static the same discretisation keys and values, the same Newton counters and the
     same wall-time parts; static writes no checkpoint, the run does. Static's Newton
@@ -396,7 +396,7 @@ def test_a_restart_may_unset_what_it_may_set(completed):
     """--unset on a restart (the command line's Removal, the API's UNSET): a key a restart may
     change returns to its default (limits.wall_time: a day); any other is refused as --set's
     are, naming --unset."""
-    from cosserat_fem.schema import Removal
+    from cosserat_fem.scene.schema import Removal
 
     scene, _ = cf.resume(completed, [Removal("limits.wall_time"), "time.end=0.0018"])
     assert scene.limits.wall_time == 86400.0

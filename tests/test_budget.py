@@ -1,5 +1,5 @@
-"""The cost estimate before a run (cosserat_fem/budget.py): the limits on memory it sees, and
-its memory per dof measured against the peak memory of real runs (issue 25 items 16, 28).
+"""The cost estimate before a run (cosserat_fem/analysis/budget.py): the limits on memory it sees,
+and its memory per dof measured against the peak memory of real runs (issue 25 items 16, 28).
 
 The estimate is a lower bound, so that only what certainly cannot run is refused: a bound
 that is too high refuses runs that fit, one ten times too low refuses nothing. The measured
@@ -15,9 +15,9 @@ from pathlib import Path
 import pytest
 from conftest import PYTHON, ROOT, run_command, said, subprocess_env
 
-from cosserat_fem import budget
-from cosserat_fem.errors import SceneError
-from cosserat_fem.scene import load_scene
+from cosserat_fem.analysis import budget
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.scene.build import load_scene
 
 SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
 PLANAR = 'loads.force_density=["2e3*sin(pi*s/L)*sin(8*omega0*t)", 0, 0]'  # x-z: 6 a node
@@ -241,7 +241,7 @@ def test_a_limit_on_one_rank_refuses_on_every_rank(tmp_path, command):
     script = (
         "import resource, sys\n"
         "from mpi4py import MPI\n"
-        "import cosserat_fem.simulation\n"
+        "import cosserat_fem.analysis.simulation\n"
         "from cosserat_fem.cli import main\n"
         "if MPI.COMM_WORLD.rank == 1:\n"
         "    vm = [int(l.split()[1]) * 1024 for l in open('/proc/self/status')\n"
@@ -275,7 +275,7 @@ def _xml_bytes_of_a_series(folder: Path, frames: int, names: list[str], monkeypa
 
     import numpy as np
 
-    from cosserat_fem import safe_files
+    from cosserat_fem.common import safe_files
     from cosserat_fem.io.xdmf import XdmfSeries
 
     written = 0

@@ -1,7 +1,7 @@
 """What README.md and docs/*.md state about the code's own vocabulary, read from the code: a
 list in the docs that the code has outgrown fails here, naming what is missing.
 
-* summary.json's statuses: "running" (written as a run starts, cosserat_fem/simulation.py)
+* summary.json's statuses: "running" (written as a run starts, cosserat_fem/analysis/simulation.py)
   and every status cosserat_fem.io.run_folder.status_of gives a run's end, one for each kind of
   ending (none, Ctrl-C, a StopError, any other error).
 """
@@ -12,7 +12,7 @@ import re
 
 from conftest import ROOT
 
-from cosserat_fem.errors import SolverError, StopError
+from cosserat_fem.common.errors import SolverError, StopError
 from cosserat_fem.io.run_folder import status_of
 
 README = (ROOT / "README.md").read_text(encoding="utf-8")

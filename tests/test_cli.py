@@ -111,7 +111,7 @@ def test_newton_failure_is_reported_with_time_and_place(tmp_path):
 def test_a_whip_in_3d_turns_through_the_euler_angle_singularity(tmp_path):
     """A tip torque 2e5 N m about e1 spins the free end through θ = π/2, where det Ma = cos θ
     vanishes, when the rod is solved in 3D: the chart moves onto the rod (3 times in 2 ms,
-    cosserat_fem/charts.py) and the run completes; probes.csv's angles, measured from the
+    cosserat_fem/rod/charts.py) and the run completes; probes.csv's angles, measured from the
     fixed basis and continued, pass π/2 and reach 3.2 rad (tests/test_rotations.py holds
     the motion against the y-z plane's)."""
     out = tmp_path / "chart"

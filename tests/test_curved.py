@@ -19,14 +19,14 @@ from conftest import ROOT, run_command
 from xdmf_files import read_arrays
 
 from cosserat_fem import api
-from cosserat_fem.errors import SceneError
+from cosserat_fem.common.errors import SceneError
 from cosserat_fem.reference.curved import (
     BATHE_BOLOURCHI_SHOOTING,
     SIMO_VU_QUOC_RIGHT_ANGLE,
     right_angle_extrema,
 )
-from cosserat_fem.scene import scene_from_dict
-from cosserat_fem.schema import read_toml
+from cosserat_fem.scene.build import scene_from_dict
+from cosserat_fem.scene.schema import read_toml
 
 SHOOTING = BATHE_BOLOURCHI_SHOOTING
 
@@ -334,8 +334,8 @@ def test_a_helix_released_from_a_large_deflection_conserves_energy_at_order_two(
     missed the reference would not be conserved by the dynamics at all."""
     from rod_energy import EnergyMonitor, EnergyRecorder
 
-    from cosserat_fem.simulation import run_scene
-    from cosserat_fem.statics import solve_static
+    from cosserat_fem.analysis.simulation import run_scene
+    from cosserat_fem.analysis.statics import solve_static
 
     scene = ROOT / "scenes" / "cao_tucker_2008.toml"
     curved = ["reference.shape=helix", "reference.radius=0.3", "reference.pitch_angle=0.3",

@@ -108,7 +108,7 @@ def test_the_demos_figures_draw_the_run_and_the_analysis(demo_runs):
       row the probe's values at those times, to the same 1e-12."""
     from cosserat_fem.reference.rod_planes import sine_load_response, sine_load_tip_response
     from cosserat_fem.reference.second_order import RodData, second_order_tip_response
-    from cosserat_fem.scene import load_scene
+    from cosserat_fem.scene.build import load_scene
 
     _, out = demo_runs[1]
     scene = load_scene(ROOT / "scenes" / "cao_tucker_2008.toml")

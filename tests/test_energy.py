@@ -20,9 +20,9 @@ import numpy as np
 from conftest import ROOT
 from rod_energy import EnergyMonitor, EnergyRecorder
 
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
-from cosserat_fem.statics import solve_static
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.analysis.statics import solve_static
+from cosserat_fem.scene.build import load_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 COMMON = [

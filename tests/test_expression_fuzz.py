@@ -1,4 +1,4 @@
-"""Fuzz-style tests of the safe expression parser (cosserat_fem/expressions.py).
+"""Fuzz-style tests of the safe expression parser (cosserat_fem/scene/expressions.py).
 
 Bad and borderline inputs, most of them generated (seeded, so every run sees the same cases):
 token soups, every character that Python's NFKC folding changes, chains of every operator
@@ -27,9 +27,9 @@ from pathlib import Path
 
 import pytest
 
-from cosserat_fem import expressions
-from cosserat_fem.errors import SceneError
-from cosserat_fem.expressions import Expression, derivative
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.scene import expressions
+from cosserat_fem.scene.expressions import Expression, derivative
 
 ROOT = Path(__file__).resolve().parents[1]
 KEY = "loads.end.torque[2]"

@@ -40,11 +40,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosserat_fem.errors import SceneError
-from cosserat_fem.fields import PointProbe
-from cosserat_fem.scene import load_scene
-from cosserat_fem.schema import UNSET
-from cosserat_fem.statics import solve_static
+from cosserat_fem.analysis.statics import solve_static
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.output.fields import PointProbe
+from cosserat_fem.scene.build import load_scene
+from cosserat_fem.scene.schema import UNSET
 
 ROLLUP = Path(__file__).resolve().parents[1] / "scenes" / "rollup.toml"
 
@@ -124,7 +124,7 @@ def test_follower_load_scene_checks():
         == "y-z"
     assert load_scene(ROLLUP, {"loads.end": UNSET, "loads.follower.torque": [0, 0, 2]}).plane() \
         is None
-    from cosserat_fem.scene import scene_from_dict
+    from cosserat_fem.scene.build import scene_from_dict
 
     assert scene_from_dict(scene.to_dict()) == scene
     assert ("loads.follower.torque[1]", scene.loads.follower.torque[1]) in scene.load_components()
@@ -160,7 +160,7 @@ def test_a_follower_force_and_torque_in_3d_are_the_fixed_loads_of_the_end_they_r
     taken from the first solve's angles). A torque that does not turn (M in place of Dᵀ M in
     forms/follower.py) fails it, while the other tests of this file pass (checked,
     2026-12-03)."""
-    from cosserat_fem.charts import euler_matrix
+    from cosserat_fem.rod.charts import euler_matrix
 
     common = {"loads.end": UNSET, "discretisation.planar": "off",
               "discretisation.elements": 4, "static.load_steps": 3}  # fmt: skip

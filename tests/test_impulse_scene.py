@@ -33,8 +33,8 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.scene.build import load_scene
 
 pytestmark = [pytest.mark.stress, pytest.mark.long]
 

@@ -23,12 +23,12 @@ from pathlib import Path
 import pytest
 from conftest import PYTHON, ROOT, fails_if_hung, folder_tree, subprocess_env
 
-from cosserat_fem import budget
+from cosserat_fem.analysis import budget
 from cosserat_fem.cli import main
-from cosserat_fem.describe import describe_scene
-from cosserat_fem.errors import SceneError
-from cosserat_fem.scene import read_toml, scene_from_dict
-from cosserat_fem.schema import SCHEMA
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.scene.build import read_toml, scene_from_dict
+from cosserat_fem.scene.describe import describe_scene
+from cosserat_fem.scene.schema import SCHEMA
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 BASE = read_toml(SCENE)
@@ -542,7 +542,7 @@ def _refused(argv: list[str], capsys) -> str:
 
 @pytest.mark.parametrize("content, spec, words", BAD_TABLES)
 def test_malformed_tables_are_refused_in_one_line(tmp_path, capsys, content, spec, words):
-    """Each malformed table (cosserat_fem/load_data.py: header, rows, numbers, monotone t, a
+    """Each malformed table (cosserat_fem/scene/load_data.py: header, rows, numbers, monotone t, a
     full grid, rows enough for the interpolation, the span the scene needs, the content the
     scene pins, the inline table's keys) is refused by validate with exit 2 and one line that
     names the component's key and says what is wrong (and where: the line of the file)."""
@@ -557,7 +557,7 @@ def test_tables_that_are_not_regular_files_or_too_large_are_refused(tmp_path, ca
     beyond the 16 MiB limit (sparse: refused from its size, unread): one line each."""
     import os
 
-    from cosserat_fem.load_data import MAX_TABLE_BYTES
+    from cosserat_fem.scene.load_data import MAX_TABLE_BYTES
 
     (tmp_path / "dir").mkdir()
     os.mkfifo(tmp_path / "fifo")
@@ -623,7 +623,7 @@ def _neighbours(key: str, value) -> list:
     shifted, a flag flipped, the other choices of a choice, a text or expression extended
     (the same function in other words is another scene's text: refused too), a list with
     one element changed."""
-    from cosserat_fem.schema import _lookup_spec
+    from cosserat_fem.scene.schema import _lookup_spec
 
     spec = _lookup_spec(key.split("."))
     if isinstance(value, bool):
@@ -652,13 +652,13 @@ def test_an_api_restart_refuses_every_scene_but_the_checkpoints(runs, tmp_path):
     """cf.run(scene, restart=checkpoint) with the checkpoint's scene changed in every leaf key
     of the schema to each of the HOSTILE values and to values near its own (_neighbours;
     those that make a valid scene at all): a scene that differs from the checkpoint's run in
-    a key a restart may not change (cosserat_fem/restart.py: RESTART_KEYS) is refused
+    a key a restart may not change (cosserat_fem/analysis/restart.py: RESTART_KEYS) is refused
     with a SceneError naming one of those keys; one that differs only in keys it may change
     but whose time.end does not pass the checkpoint (t = 3 ms) names time.end; none touches
     the folder. Those left would continue the run (what they give: the next test)."""
     import cosserat_fem as cf
+    from cosserat_fem.analysis.restart import _may_change
     from cosserat_fem.io.checkpoint import load_checkpoint
-    from cosserat_fem.restart import _may_change
 
     base = Path(shutil.copytree(runs[0], tmp_path / "copy"))  # a failure may run into it
     before = _files(base)

@@ -1,9 +1,9 @@
 """The JIT cache survives killed and failed compiles, and keeps the compiler quiet.
 
-:mod:`cosserat_fem.jit` (defects D7 and D16). Every test compiles a tiny P1 form whose constant
-is random, into a private cache directory, so the module is new. Each test that covers a defect
-also checks that plain FFCx behaves as the defect report says (so the test would fail without
-:func:`cosserat_fem.jit.install`).
+:mod:`cosserat_fem.common.jit` (defects D7 and D16). Every test compiles a tiny P1 form whose
+constant is random, into a private cache directory, so the module is new. Each test that covers a
+defect also checks that plain FFCx behaves as the defect report says (so the test would fail without
+:func:`cosserat_fem.common.jit.install`).
 """
 
 from __future__ import annotations
@@ -22,8 +22,8 @@ from pathlib import Path
 import pytest
 from conftest import damage_library, jit_installed
 
-from cosserat_fem import jit
-from cosserat_fem.errors import CosseratError
+from cosserat_fem.common import jit
+from cosserat_fem.common.errors import CosseratError
 
 PYTHON = sys.executable
 
@@ -38,7 +38,7 @@ import ufl
 from dolfinx import fem, mesh
 from dolfinx.jit import ffcx_jit
 from mpi4py import MPI
-from cosserat_fem import jit
+from cosserat_fem.common import jit
 if args["install"]:
     jit.install()
 msh = mesh.create_unit_interval(MPI.COMM_SELF, 2)
@@ -334,21 +334,21 @@ def test_a_damaged_library_is_compiled_again(tmp_path, caplog, space, installed,
     assert jit.library_damage(library) is None and digest.exists()
     damage_library(library, how)
     assert jit.library_damage(library) is not None
-    with caplog.at_level("WARNING", logger="cosserat_fem.jit"):
+    with caplog.at_level("WARNING", logger="cosserat_fem.common.jit"):
         fem.form(a, jit_params=params)
-    warned = [r.getMessage() for r in caplog.records if r.name == "cosserat_fem.jit"]
+    warned = [r.getMessage() for r in caplog.records if r.name == "cosserat_fem.common.jit"]
     assert len(warned) == 1 and str(library) in warned[0], warned
     assert "damaged" in warned[0] and "compiling it again" in warned[0]
     assert jit.library_damage(library) is None and digest.exists()
     assert files(cache, sysconfig.get_config_var("EXT_SUFFIX")) == [library]
     caplog.clear()
-    with caplog.at_level("WARNING", logger="cosserat_fem.jit"):
+    with caplog.at_level("WARNING", logger="cosserat_fem.common.jit"):
         fem.form(a, jit_params=params)
-    assert not [r for r in caplog.records if r.name == "cosserat_fem.jit"]
+    assert not [r for r in caplog.records if r.name == "cosserat_fem.common.jit"]
 
 
 def test_every_cut_of_a_library_is_found(tmp_path, space, installed):
-    """:func:`cosserat_fem.jit.elf_damage` without a digest: the linker (GNU ld, as every
+    """:func:`cosserat_fem.common.jit.elf_damage` without a digest: the linker (GNU ld, as every
     linker that cffi calls here) writes the section header table last, so a library cut
     anywhere lacks part of it (or of its headers); a cut at each 1/32 of the file, and one
     byte short, are each found. The whole library passes."""

@@ -126,7 +126,7 @@ shim.shim_kind.restype = ctypes.c_char_p
 shim.shim_offset.restype = shim.shim_size.restype = ctypes.c_longlong
 for f in (shim.shim_kind, shim.shim_offset, shim.shim_size):
     f.argtypes = [ctypes.c_long]
-from cosserat_fem import fields
+from cosserat_fem.output import fields
 from cosserat_fem.io import xdmf
 from cosserat_fem.cli import main
 

@@ -22,11 +22,11 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
-from cosserat_fem.fields import PointProbe
-from cosserat_fem.model import rod_constants
+from cosserat_fem.analysis.statics import static_path
+from cosserat_fem.output.fields import PointProbe
 from cosserat_fem.reference.elastica import MATTIASSON_1981, elastica_tip_load, reissner_tip_load
-from cosserat_fem.scene import load_scene
-from cosserat_fem.statics import static_path
+from cosserat_fem.rod.model import rod_constants
+from cosserat_fem.scene.build import load_scene
 
 ROLLUP = ROOT / "scenes" / "rollup.toml"
 ELASTICA = ROOT / "scenes" / "tip_load_elastica.toml"
@@ -60,7 +60,7 @@ ABOUT_E1 = [
 def test_rollup_closes_the_circle(turns, elements, axis):
     """Goal: tip gap / ℓ ≤ 1e-8 at degree ≥ 3 (here 4); the tip angle = turns · 2π, about e2
     (ψ, the x-z plane) or about e1 (θ, the y-z plane: the solved block of Ma is 1 there, so θ
-    passes ±π/2, cosserat_fem/checks.py). The bending angle is linear in s, which the
+    passes ±π/2, cosserat_fem/rod/checks.py). The bending angle is linear in s, which the
     elements represent exactly; x and z (its sine and cosine) are not: the gap is their error,
     falling as h^8 at the tip (6.6e-11 at 32 elements, one turn), measured 6.5e-10 (one turn,
     24 elements) and 7.0e-10 (two, 40), about either axis; the angle within 1e-8 relative
@@ -91,7 +91,7 @@ def test_rollup_convergence_with_cubic_elements():
 def test_rollup_about_e1_in_3d_closes_the_circle(turns, elements):
     """Solved in 3D (discretisation.planar = "off"), bending about e1 is carried by θ in a
     block of Ma whose determinant is cos θ (66): the static path moves the chart onto the
-    rod's rotation whenever |θ| > charts.RESET_THETA (cosserat_fem/charts.py), and closes the
+    rod's rotation whenever |θ| > charts.RESET_THETA (cosserat_fem/rod/charts.py), and closes the
     circle as the planar solve does, gap / ℓ ≤ 1e-8 (measured 6.5e-10 and 7.0e-10, as in the
     y-z plane: the elements' error in x and z; the interpolated frame adds less than that).
     The probe's angles, continued through the resets, end at θ(ℓ) = turns · 2π."""

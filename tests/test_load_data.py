@@ -1,4 +1,4 @@
-"""Loads from data (cosserat_fem/load_data.py, load_coefficients.py; docs/loads.md): tables of
+"""Loads from data (cosserat_fem/scene/load_data.py, load_coefficients.py; docs/loads.md): tables of
 t (and s) against values and Python callables in place of load expressions.
 
 What is held, each against analysis:
@@ -34,14 +34,14 @@ import pytest
 from conftest import ROOT, run_command
 
 import cosserat_fem as cf
-from cosserat_fem.errors import SceneError
-from cosserat_fem.fields import PointProbe
-from cosserat_fem.load_data import LoadTable, TableStore, parse_table
-from cosserat_fem.model import rod_constants
+from cosserat_fem.analysis.statics import solve_static
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.output.fields import PointProbe
 from cosserat_fem.reference import timoshenko as tb
 from cosserat_fem.reference.rod_planes import bending_planes
-from cosserat_fem.scene import load_scene
-from cosserat_fem.statics import solve_static
+from cosserat_fem.rod.model import rod_constants
+from cosserat_fem.scene.build import load_scene
+from cosserat_fem.scene.load_data import LoadTable, TableStore, parse_table
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 OMEGA = 8 * 207.0236  # rad/s, the paper's forcing frequency 8 ω0
@@ -146,7 +146,7 @@ def test_outside_the_table():
 def test_a_store_reads_each_file_once(tmp_path, monkeypatch):
     """Two components of one file cost one read; a second store reads it again (a new
     cf.load sees an edited file)."""
-    import cosserat_fem.load_data as load_data
+    import cosserat_fem.scene.load_data as load_data
 
     path = tmp_path / "f.csv"
     path.write_text("t, A, B\n0, 1, 2\n1, 3, 4\n")
@@ -438,7 +438,7 @@ def test_callables_that_differ_between_ranks_are_refused_on_every_rank(tmp_path)
     script = tmp_path / "ranks.py"
     script.write_text(f"""
 import cosserat_fem as cf
-from cosserat_fem.errors import SceneError
+from cosserat_fem.common.errors import SceneError
 from mpi4py import MPI
 rank = MPI.COMM_WORLD.rank
 report = open(f"{tmp_path}/rank{{rank}}.txt", "w")

@@ -1,7 +1,7 @@
 """Rods that are not held still: a pendulum (pinned–free) and mechanisms in general.
 
 A support holds what its kind says: a clamped end p and q, a pinned end (a fork) x, y, z and
-φ, a spherical end (a ball joint) x, y, z (cosserat_fem/model.py). Supports that leave the
+φ, a spherical end (a ball joint) x, y, z (cosserat_fem/rod/model.py). Supports that leave the
 rod a rigid-body motion (neither end clamped, and not a fork at one end with the position
 held at the other) make a mechanism: its dynamics are well posed (the mass matrix is
 regular), its statics are not (the stiffness is singular), and refuse it with one line; its
@@ -31,14 +31,14 @@ import pytest
 from conftest import ROOT, run_command
 from rod_energy import EnergyRecorder
 
-from cosserat_fem.errors import SceneError
-from cosserat_fem.events import Observer
-from cosserat_fem.modal import compute_modes
-from cosserat_fem.model import rod_constants
-from cosserat_fem.scene import load_scene, scene_from_dict
-from cosserat_fem.schema import read_toml
-from cosserat_fem.simulation import run_scene
-from cosserat_fem.statics import static_path
+from cosserat_fem.analysis.modal import compute_modes
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.analysis.statics import static_path
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.rod.model import rod_constants
+from cosserat_fem.scene.build import load_scene, scene_from_dict
+from cosserat_fem.scene.schema import read_toml
+from cosserat_fem.timestepping.events import Observer
 
 PENDULUM = ROOT / "scenes" / "pendulum.toml"
 ABOUT_E1 = ["loads.gravity=[0,-9.81,0]"]

@@ -20,8 +20,8 @@ import sys
 import pytest
 from conftest import ROOT
 
-from cosserat_fem import charts
-from cosserat_fem.scene import load_scene
+from cosserat_fem.rod import charts
+from cosserat_fem.scene.build import load_scene
 
 sys.path.insert(0, str(ROOT / "benchmarks"))  # the verification helpers
 from mms import run_mms  # noqa: E402
@@ -73,7 +73,7 @@ def test_temporal_order(integrator, order, steps):
 def test_temporal_order_through_the_chart_singularity(integrator, order, steps):
     """The ``tumbling`` family: the rod rolled up about e1 to θ(ℓ) = 3.3 rad and back, which
     passes θ = π/2 where the paper's chart is singular; the chart moves three times
-    (cosserat_fem/charts.py), each time mapping the integrator's history, and the orders
+    (cosserat_fem/rod/charts.py), each time mapping the integrator's history, and the orders
     stay: measured 1.993 (BDF2, 160 → 320 steps; 1.71, 1.88, 1.96 from 20 on, its
     implicit-midpoint restart at each move pre-asymptotic), 1.990 (generalized-α, 80 → 160),
     3.03 (SDIRK3, 160 → 320; 3.02, 2.45, 3.14, 3.24 from 10 on, the same with the chart

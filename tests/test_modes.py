@@ -23,11 +23,11 @@ import numpy as np
 import pytest
 from conftest import ROOT, run_command
 
-from cosserat_fem.modal import compute_modes
-from cosserat_fem.model import rod_constants
+from cosserat_fem.analysis.modal import compute_modes
 from cosserat_fem.reference.rod_planes import bending_planes, linear_spectrum
 from cosserat_fem.reference.timoshenko import mode_shapes
-from cosserat_fem.scene import load_scene
+from cosserat_fem.rod.model import rod_constants
+from cosserat_fem.scene.build import load_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 COUNT = 12

@@ -1,5 +1,5 @@
 """A process that no launcher started starts Open MPI without its daemon and network
-transports (cosserat_fem/mpi_start.py), and hands none of those settings to the processes it
+transports (cosserat_fem/common/mpi_start.py), and hands none of those settings to the processes it
 starts; under mpirun nothing is changed."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
-"""The C residual assembler (cosserat_fem/native_newton.py, newton_loop.c ``cf_residual``) against
-DOLFINx's, under the same Newton loop.
+"""The C residual assembler (cosserat_fem/nls/native_newton.py, newton_loop.c ``cf_residual``)
+against DOLFINx's, under the same Newton loop.
 
 Every solve runs the one loop (newton_loop.c ``cf_solve``: the policy, the iterations, the stop
 rule); ``solver.loop = "python"`` gives it DOLFINx's assembly as its residual callback, the
@@ -16,7 +16,7 @@ new form, a new assembler), adaptive steps, full Newton (the Jacobian callback e
 and the three other integrators. A point load's interior facet integral keeps DOLFINx's
 assembly, as does a parallel run (tests/test_scene_features.py runs those under MPI).
 
-Every run takes the one SDIRK step (cosserat_fem/integrators.py ``SDIRK.step``: its C
+Every run takes the one SDIRK step (cosserat_fem/timestepping/integrators.py ``SDIRK.step``: its C
 kernels around a ``NewtonSolver.solve`` per stage), so the cases differ in the assembler only,
 among them SDIRK4, a lagged Jacobian, adaptive steps, a form that changes, solves that fail
 (retried with a fresh Jacobian, then steps rejected and halved), and loads given by data (a grid
@@ -30,7 +30,8 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
-from cosserat_fem import api, native_newton
+from cosserat_fem import api
+from cosserat_fem.nls import native_newton
 
 IN_3D = "discretisation.planar=off"
 
@@ -78,7 +79,7 @@ def test_the_c_loop_gives_the_python_loops_iterates_bit_for_bit(case):
 
 
 def _data_loads(folder) -> dict:
-    """Loads given by data (cosserat_fem/load_data.py) for the paper's scene: its force
+    """Loads given by data (cosserat_fem/scene/load_data.py) for the paper's scene: its force
     density as a grid table (linear in t, cubic in s), an end force as a cubic table of t and
     an end torque as a callable."""
     import math
@@ -127,7 +128,7 @@ def test_a_failed_compile_is_one_clear_error(tmp_path, monkeypatch):
     second call fails at once, with the same reason); a run, whose Newton solves are C's
     (cf_solve), then stops with a CosseratError that says so (one line, no traceback at the
     command line), as FFCx's forms need a compiler too."""
-    from cosserat_fem.errors import CosseratError
+    from cosserat_fem.common.errors import CosseratError
 
     broken = tmp_path / "newton_loop.c"
     broken.write_text(native_newton.SOURCE.read_text() + "\nthis is not C;\n")
@@ -147,14 +148,14 @@ def test_a_failed_compile_is_one_clear_error(tmp_path, monkeypatch):
 def test_a_damaged_library_is_compiled_again(tmp_path, monkeypatch, caplog):
     """Item 15: the C loop's library, cached as FFCx's forms are, was loaded whenever it
     existed: cut short (a partial copy of the cache), the run died of SIGBUS at its first
-    residual. Now it is checked first (cosserat_fem/jit.py ``load_checked``; here a cache
+    residual. Now it is checked first (cosserat_fem/common/jit.py ``load_checked``; here a cache
     from before digests were recorded, so by its ELF structure), compiled again with one
     warning naming it, and whole afterwards (its digest recorded)."""
     import shutil
 
     from conftest import damage_library
 
-    from cosserat_fem import jit
+    from cosserat_fem.common import jit
 
     shared = native_newton.library_path()  # read (when whole), never written
     monkeypatch.setattr(native_newton, "_MODULE", None)
@@ -166,9 +167,9 @@ def test_a_damaged_library_is_compiled_again(tmp_path, monkeypatch, caplog):
         native_newton.compiled()
     damage_library(library, "cut, no record")
     monkeypatch.setattr(native_newton, "_MODULE", None)  # a new process, as far as the cache goes
-    with caplog.at_level("WARNING", logger="cosserat_fem.jit"):
+    with caplog.at_level("WARNING", logger="cosserat_fem.common.jit"):
         module = native_newton.compiled()
-    warned = [r.getMessage() for r in caplog.records if r.name == "cosserat_fem.jit"]
+    warned = [r.getMessage() for r in caplog.records if r.name == "cosserat_fem.common.jit"]
     assert len(warned) == 1 and str(library) in warned[0] and "compiling it again" in warned[0]
     assert jit.library_damage(library) is None
     assert library.with_name(library.name + jit.DIGEST_SUFFIX).exists()

@@ -1,8 +1,8 @@
 """Newton's failure paths under ``mpirun -n 2`` on the path every MPI run takes: the C core's
 build on a cold cache (one compile, on rank 0, and a failure of it agreed: the last two
 tests), and the C loop
-(``cf_solve``, cosserat_fem/newton_loop.c) with DOLFINx's residual assembly called back
-(cosserat_fem/newton.py ``_residual``), for an exception of the local assembly on one rank
+(``cf_solve``, cosserat_fem/nls/newton_loop.c) with DOLFINx's residual assembly called back
+(cosserat_fem/nls/newton.py ``_residual``), for an exception of the local assembly on one rank
 only, against the same exception on both ranks.
 
 The problem: F(U; v) = ∫ (U² − 4) v dx on 8 P1 elements of [0, 1] split over two ranks (a
@@ -16,7 +16,7 @@ solve 2 on, once (transient) or at every call (persistent).
   scatters still run), the solve fails at iteration 0, the retry with a fresh Jacobian
   converges: solve 2 returns, one retry counted, U = 2 to the update test's tolerance.
 * Persistent: the retry fails alike, and every rank raises the agreed exception's one line
-  (``RuntimeError: Boom: injected``, cosserat_fem.parallel.agree).
+  (``RuntimeError: Boom: injected``, cosserat_fem.common.parallel.agree).
 
 Before issue 26 item 1 the failing rank skipped the reverse ghost scatter that the other rank
 waited in: the job hung (the time limit below is a hang limit: the script takes ~2 s).
@@ -38,7 +38,7 @@ import ufl
 from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
-from cosserat_fem.newton import NewtonFailure, NewtonSettings, NewtonSolver
+from cosserat_fem.nls.newton import NewtonFailure, NewtonSettings, NewtonSolver
 
 comm = MPI.COMM_WORLD
 msh = mesh.create_unit_interval(comm, 8)
@@ -127,8 +127,8 @@ def test_a_recovered_exception_is_not_raised_for_a_later_failure(answers):
     """After the transient case (solve 2's exception recovered by the retry, so it was never
     raised), solve 3 fails in the ordinary way: one iteration allowed (max_iterations = 1)
     from U = 50, far from the root 2. That is a NewtonFailure (DIVERGED_MAX_IT), which a run
-    answers with a halved step (cosserat_fem/loop.py), on every rank, whichever ranks met the
-    earlier exception. Before, the recovered exception stayed in ``callback_error`` and was
+    answers with a halved step (cosserat_fem/timestepping/loop.py), on every rank, whichever ranks
+    met the earlier exception. Before, the recovered exception stayed in ``callback_error`` and was
     raised (agreed) in place of it: ``RuntimeError: ValueError: injected``, which ends a run
     instead of halving its step."""
     for failing in ("1", "01"):
@@ -144,7 +144,8 @@ _BUILD_SCRIPT = """
 import json, sys
 from pathlib import Path
 from mpi4py import MPI
-from cosserat_fem import cli, native_newton
+from cosserat_fem import cli
+from cosserat_fem.nls import native_newton
 
 cache, broken, prefix, argv = Path(sys.argv[1]), sys.argv[2] == "1", sys.argv[3], sys.argv[4:]
 rank = MPI.COMM_WORLD.rank

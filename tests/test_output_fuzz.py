@@ -1,18 +1,18 @@
 """Damaged, truncated, foreign or hostile run outputs: ``plot`` and ``render`` refuse them cleanly.
 
 Defect D12: ``cosserat-fem plot DIR`` on a folder whose probes.csv is binary ended in
-``internal error: UnicodeDecodeError`` (exit 1). The contract (cosserat_fem/results.py, module
-docstring): bad input gets one line that names the file and what is wrong, exit status 2,
+``internal error: UnicodeDecodeError`` (exit 1). The contract (cosserat_fem/output/results.py,
+module docstring): bad input gets one line that names the file and what is wrong, exit status 2,
 never a traceback and never "internal error"; a run killed at any moment still plots what it
 has (a cut last probe row, a scratch ``solution.xdmf-partial``, an XDMF file without frames).
 
 How: a genuine small run (the paper's scene to t = 0.6 ms, 21 probe rows, 11 XDMF frames of 25
 points) is made once per module; a helper (this file run as a script, with the venv's Python)
 copies it once per case, damages the copy and reads it in-process with
-``cosserat_fem.results.open_run`` / ``Run.series`` (and, for some, ``plot.plot_run`` at a low
+``cosserat_fem.output.results.open_run`` / ``Run.series`` (and, for some, ``plot.plot_run`` at a low
 resolution and ``render.magnification``), and writes a JSON report that the tests below judge.
 One subprocess, because h5py (the reader's) and DOLFINx (which other test files import into
-pytest's process) cannot share one (see cosserat_fem/results.py). The cases:
+pytest's process) cannot share one (see cosserat_fem/output/results.py). The cases:
 
 * generated from ``random.Random(SEED)``: truncations of each file at random offsets, random
   byte flips, random line deletions/duplications/swaps of the text files, every pair of files
@@ -862,7 +862,7 @@ def _alarm(signum, frame):
 
 def _attempt(fn):
     """("ok", value) / ("refused", message) for a SceneError / ("crash", type: message)."""
-    from cosserat_fem.errors import SceneError
+    from cosserat_fem.common.errors import SceneError
 
     signal.alarm(CASE_SECONDS)
     try:
@@ -878,7 +878,7 @@ def _attempt(fn):
 def run_case(case: Case, folder: Path, out: Path) -> dict:
     """Read (and maybe plot) the damaged copy ``folder``."""
     from cosserat_fem import plot, render
-    from cosserat_fem.results import open_run
+    from cosserat_fem.output.results import open_run
 
     result = {
         "category": case.category,
@@ -1121,7 +1121,7 @@ def test_entity_bombs_are_refused_quickly(report):
 def test_the_readers_size_limits_are_where_the_docs_say(report):
     """docs/reliability.md: plot and render read at most 1 GiB of probes.csv, 128 MiB of XDMF
     XML and 1e8 values from the .h5 files (and 16 MiB of summary.json, lines of 4096 bytes:
-    cosserat_fem/results.py), and refuse larger files with that reason. A file one byte over
+    cosserat_fem/output/results.py), and refuse larger files with that reason. A file one byte over
     its limit is refused naming its size, one at the limit is read (and refused for its
     zeros, which is another reason); likewise a probes.csv line and a dataset's values."""
     results, _ = report

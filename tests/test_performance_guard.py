@@ -6,7 +6,7 @@ refreshes only when a solve needs more than 4 iterations, which this small-ampli
 never does), no retried solves, and, at the scene's stol = 1e-7, at most 4.5 Newton iterations
 a step over its two stages (measured 4.11; 4 is the least: two a solve). At stol = 1e-8, at
 most 5.5: measured 5.28 with the stage predictor that extrapolates the last two stage rates
-linearly and the error-estimate stop of cosserat_fem.newton, whose contraction is the larger of
+linearly and the error-estimate stop of cosserat_fem.nls.newton, whose contraction is the larger of
 the update and residual ratios; with a predictor of another degree 7.32 (0: the last stage
 rate), 5.74 (2: the predictor it replaced), 6.22 (3), 6.53 (4), so each fails this test
 (docs/decisions.md, "The stage predictor"); with the update test alone 7.35 (the quadratic
@@ -22,8 +22,8 @@ import pytest
 from conftest import ROOT
 from petsc4py import PETSc
 
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.scene.build import load_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 
@@ -66,7 +66,7 @@ def test_a_step_allocates_little(tmp_path):
 
     import numpy as np
 
-    from cosserat_fem.events import Observer
+    from cosserat_fem.timestepping.events import Observer
 
     class StepMemory(Observer):
         def __init__(self):
@@ -102,7 +102,7 @@ def _package_calls_per_step(overrides: list[str]) -> dict[int, float]:
     import numpy as np
 
     import cosserat_fem
-    from cosserat_fem.events import Observer
+    from cosserat_fem.timestepping.events import Observer
 
     package = str(Path(cosserat_fem.__file__).parent)
 

@@ -1,4 +1,4 @@
-"""The stand-in for pkg_resources (cosserat_fem/pkg_resources_shim.py): UFL and FFCx import
+"""The stand-in for pkg_resources (cosserat_fem/common/pkg_resources_shim.py): UFL and FFCx import
 with it and read the versions that importlib.metadata and the real pkg_resources give; any
 other use of pkg_resources gets the real module. Each case runs in its own process, as the
 stand-in is installed at ``import cosserat_fem``."""

@@ -26,11 +26,11 @@ from conftest import ROOT
 from cosserat_fem.forms.resultants import section_stiffnesses
 from xdmf_files import read_arrays
 
-from cosserat_fem.fields import PointProbe
-from cosserat_fem.model import rod_constants
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
-from cosserat_fem.statics import static_path
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.analysis.statics import static_path
+from cosserat_fem.output.fields import PointProbe
+from cosserat_fem.rod.model import rod_constants
+from cosserat_fem.scene.build import load_scene
 
 PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
 

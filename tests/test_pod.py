@@ -1,6 +1,6 @@
-"""POD (Karhunen–Loève modes, cosserat_fem/karhunen_loeve.py): exact on constructed snapshots,
-independent of the stations' spacing, and, for a linear free vibration, its leading modes are
-the linear mode shapes with the energies the modal amplitudes give (issue 17, item 4).
+"""POD (Karhunen–Loève modes, cosserat_fem/studies/karhunen_loeve.py): exact on constructed
+snapshots, independent of the stations' spacing, and, for a linear free vibration, its leading modes
+are the linear mode shapes with the energies the modal amplitudes give (issue 17, item 4).
 
 The free vibration: the paper's cantilever (scenes/cao_tucker_2008.toml, loads off), started
 at rest from p(s, 0) = ε (a1 φ1 + a2 φ2), φ1, φ2 its first two bending modes in the x-z plane
@@ -24,8 +24,8 @@ from conftest import PYTHON, ROOT, file_size_limit, run_command, said, subproces
 from xdmf_files import read_arrays
 
 import cosserat_fem as cf
-from cosserat_fem.errors import SceneError
-from cosserat_fem.karhunen_loeve import Snapshots, pod, trapezoid_weights
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.studies.karhunen_loeve import Snapshots, pod, trapezoid_weights
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 #: Free vibration: no loads; the midpoint rule (energy-conserving: no numerical damping).

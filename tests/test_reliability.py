@@ -26,10 +26,10 @@ import pytest
 from conftest import PYTHON, ROOT, cpu_seconds, file_size_limit, run_command, said, subprocess_env
 from xdmf_files import read_xdmf
 
+from cosserat_fem.analysis.simulation import run_scene
 from cosserat_fem.cli import main
 from cosserat_fem.io.checkpoint import load_checkpoint
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
+from cosserat_fem.scene.build import load_scene
 
 SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
 CLI = ["-m", "cosserat_fem.cli"]
@@ -252,7 +252,7 @@ def test_d8_what_cannot_run_here_is_refused_at_once(capsys, overrides, key, reas
     """D8: a billion elements (8 GB allocated in 16 s before), 1e15 steps, 1e9 load steps, a
     quadrature of degree 1e6 (over 120 s in the compiler): refused by validate, run and
     static in well under a second, naming the key (the estimate is a lower bound,
-    cosserat_fem/budget.py). Held at 10 CPU seconds: the cases it tells apart took 16 s and
+    cosserat_fem/analysis/budget.py). Held at 10 CPU seconds: the cases it tells apart took 16 s and
     over 120 s, and a slow runner's CPU second is not this machine's."""
     command = "static" if key.startswith("static.") else "run"
     for args in (["validate", SCENE], [command, SCENE, "--out", "/nonexistent/x"]):
@@ -377,7 +377,7 @@ def test_d16_errors_are_one_line_without_compiler_or_numpy_chatter(tmp_path):
     load expression (a new compile) that is finite but overflows the residual (a Newton
     failure at the first iterate, every halving), and one that is NaN from the start,
     through a process of its own: stderr is the one line (compiler output goes to the JIT
-    log, cosserat_fem/jit.py; warnings to the log at --verbose)."""
+    log, cosserat_fem/common/jit.py; warnings to the log at --verbose)."""
     salt = int(time.time() * 1e6) % 100000  # forms never compiled before
     for load, status, fragment in (
         (f"1e300*(1 + t*{salt})", 3, "the residual is not finite at the start of the step"),

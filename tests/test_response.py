@@ -1,4 +1,4 @@
-"""Frequency responses (cosserat_fem/response.py, the [sweep.response] of a sweep): settled
+"""Frequency responses (cosserat_fem/studies/response.py, the [sweep.response] of a sweep): settled
 periods, amplitudes and phases, continuation along a chain of members, and the linear
 response against the closed-form modal steady state.
 
@@ -19,8 +19,8 @@ import pytest
 from conftest import ROOT, read_table, run_command, said, sweep_serial_and_mpi
 
 from cosserat_fem import api
-from cosserat_fem.errors import SceneError
-from cosserat_fem.response import PeriodicResponse, ResponseSettings, continued_start
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.studies.response import PeriodicResponse, ResponseSettings, continued_start
 
 PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
 OMEGA1 = 207.0236  # rad/s, the paper's first bending frequency (about d2: x), its omega0
@@ -344,7 +344,7 @@ def test_plot_draws_no_round_off_as_a_response(linear_sweep, tmp_path, figures):
     largest amplitude was 1e-3 of its group's, here the angles' own largest: itself). A
     column now moves when it is 1e-3 of the motion's size S in its unit (S the largest of
     x/ℓ and the angles over the members, ℓ from the members' summary.json, as
-    cosserat_fem/response.py measures settling): the linear sweep's x and ψ (1.7e-5 and
+    cosserat_fem/studies/response.py measures settling): the linear sweep's x and ψ (1.7e-5 and
     2.3e-5: both drawn, two rows of panels), and with ψ replaced by round-off x alone (one
     row). Its z, 8e-11 m (second order), is not drawn in either."""
     import random
@@ -539,7 +539,7 @@ def test_after_a_failed_member_its_chain_goes_on_from_rest(tmp_path, monkeypatch
     """The middle member of a chain fails (its response observer raises at the start): it is
     recorded, and the next member starts from rest (``previous`` empty) at its scene's start,
     as the first did; a loose tolerance keeps it short."""
-    from cosserat_fem import sweep_run as sweep
+    from cosserat_fem.studies import sweep_run as sweep
 
     path = sweep_file(tmp_path, [0.95, 1.0, 1.05], {**PERIOD, "continuation": "parameters.r",
                       "tolerance": 1e-2})  # fmt: skip
@@ -618,12 +618,13 @@ def test_chains_on_a_group_of_two_ranks_continue_each_ranks_part(tmp_path):
 def test_a_final_state_after_a_chart_move_is_saved_in_the_fixed_basis():
     """A chain's saved state (sweep._final_state) has its angles measured from the fixed basis
     when the rod's chart moved during the member: at the free end those the probe reports (its
-    own fixed-basis angles, cosserat_fem/fields.py), positions untouched, and the rates giving
+    own fixed-basis angles, cosserat_fem/output/fields.py), positions untouched, and the rates
+    giving
     the same ŵ = Mm (θ̇, ψ̇, φ̇) (26) as the chart's; without a move, the state bit for bit."""
-    from cosserat_fem.charts import angular_map, euler_matrix, quaternion_of_frame
-    from cosserat_fem.fields import PointProbe
-    from cosserat_fem.model import build_model
-    from cosserat_fem.sweep_run import _final_state
+    from cosserat_fem.output.fields import PointProbe
+    from cosserat_fem.rod.charts import angular_map, euler_matrix, quaternion_of_frame
+    from cosserat_fem.rod.model import build_model
+    from cosserat_fem.studies.sweep_run import _final_state
 
     model = build_model(api.load(PAPER, {"time.end": 3e-5}))
     model.use_chart(active=False)

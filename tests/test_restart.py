@@ -28,11 +28,11 @@ import pytest
 from conftest import ROOT, inject_newton_failures, run_command
 from xdmf_files import read_xdmf
 
-from cosserat_fem.errors import SceneError
+from cosserat_fem.analysis.restart import restart_overrides
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.common.errors import SceneError
 from cosserat_fem.io.checkpoint import load_checkpoint
-from cosserat_fem.restart import restart_overrides
-from cosserat_fem.scene import load_scene, scene_from_dict
-from cosserat_fem.simulation import run_scene
+from cosserat_fem.scene.build import load_scene, scene_from_dict
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 CLI = ["-m", "cosserat_fem.cli"]

@@ -27,7 +27,7 @@ from conftest import ROOT, run_command
 from modal_checks import in_plane_share
 
 from cosserat_fem import api
-from cosserat_fem.errors import SceneError
+from cosserat_fem.common.errors import SceneError
 from cosserat_fem.reference.curved import thin_ring_frequency
 
 RING = ROOT / "scenes" / "free_ring.toml"

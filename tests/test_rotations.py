@@ -1,10 +1,10 @@
 """Rotations of any size in dynamics: the chart of the angles moves onto the rod when θ nears
-the singularity (cosserat_fem/charts.py, docs/decisions.md "Charts"), and nothing else notices.
+the singularity (cosserat_fem/rod/charts.py, docs/decisions.md "Charts"), and nothing else notices.
 
 The motion: the paper's cantilever whipped by a sudden tip torque of 2e5 N m about e1, Δt =
 10 μs, 2 ms. The free end turns through θ = π/2 at ~0.4 ms and reaches 3.2 rad; in 3D the chart
 moves three times. About e1 the motion stays in the y-z plane, where the solved block of Ma is
-1 and no chart is needed (cosserat_fem/checks.py): the planar solve is the reference of the
+1 and no chart is needed (cosserat_fem/rod/checks.py): the planar solve is the reference of the
 3D one. They differ only by the frame's interpolation between the nodes, which a move of the
 chart changes (O(h^(k+1)) of the rotation field's derivatives, cubic elements here), so the
 difference must converge under refinement, and fast: measured 2.3e-5 rad (8 elements) and
@@ -21,10 +21,10 @@ import pytest
 from conftest import ROOT, run_command
 from test_restart import Crash, crash_at
 
+from cosserat_fem.analysis.simulation import run_scene
 from cosserat_fem.io.checkpoint import load_checkpoint
-from cosserat_fem.scene import load_scene, scene_from_dict
-from cosserat_fem.schema import read_toml
-from cosserat_fem.simulation import run_scene
+from cosserat_fem.scene.build import load_scene, scene_from_dict
+from cosserat_fem.scene.schema import read_toml
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 CLI = ["-m", "cosserat_fem.cli"]
@@ -187,8 +187,8 @@ def test_the_chart_stays_at_a_fork():
     d1 ⊥ a2 instead, another joint. So a move leaves the chart, and the state, of the pinned
     ends' nodes as they were, bit for bit, and moves every other node; and a fork's own θ
     does not call for a move (it is the joint's gimbal lock, not the chart's)."""
-    from cosserat_fem.checks import cos_theta
-    from cosserat_fem.model import build_model
+    from cosserat_fem.rod.checks import cos_theta
+    from cosserat_fem.rod.model import build_model
 
     scene = load_scene(
         ROOT / "scenes" / "simply_supported_tube.toml", ["discretisation.planar='off'"]
@@ -225,9 +225,9 @@ def test_outputs_need_no_decoding_of_charts(tmp_path):
     end all agree to round-off (1e-12)."""
     from xdmf_files import read_arrays
 
-    from cosserat_fem.charts import euler_matrix, quaternion_frame
     from cosserat_fem.io.probes import PROBE_FIELD_COLUMNS
-    from cosserat_fem.results import open_run
+    from cosserat_fem.output.results import open_run
+    from cosserat_fem.rod.charts import euler_matrix, quaternion_frame
 
     out = tmp_path / "whip"
     fields = "output.fields=['displacement', 'angles', 'directors']"
@@ -268,7 +268,7 @@ def test_a_move_keeps_the_frame_continuous_past_half_a_turn():
     (measured ~1e-9 of it; a frame turned over between two nodes changes it by O(1))."""
     from rod_energy import EnergyMonitor
 
-    from cosserat_fem.model import build_model
+    from cosserat_fem.rod.model import build_model
 
     scene = load_scene(SCENE, [IN_3D, "loads.force_density=[0,0,0]"])
     model = build_model(scene)
@@ -292,9 +292,9 @@ def test_a_restart_continues_the_sign_of_the_probe_quaternion():
     uninterrupted run would continue it. A rod turned by θ = 3 rad about e1 at its end: the
     quaternion is ±(cos 1.5, −sin 1.5, 0, 0); a fresh probe gives q0 ≥ 0, one seeded with the
     other sign (and its angles) keeps that sign, and both give the rod's directors (18)."""
-    from cosserat_fem.charts import euler_matrix, quaternion_frame
-    from cosserat_fem.fields import PointProbe
-    from cosserat_fem.model import build_model
+    from cosserat_fem.output.fields import PointProbe
+    from cosserat_fem.rod.charts import euler_matrix, quaternion_frame
+    from cosserat_fem.rod.model import build_model
 
     model = build_model(load_scene(SCENE, [IN_3D]))
     sigma = model.V.tabulate_dof_coordinates()[:, 0]

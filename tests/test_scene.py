@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 import ufl
 
-from cosserat_fem.errors import CosseratError, SceneError, SolverError
-from cosserat_fem.expressions import Expression, parse_vector
-from cosserat_fem.scene import (
+from cosserat_fem.common.errors import CosseratError, SceneError, SolverError
+from cosserat_fem.scene.build import (
     auto_reference_frequency,
     load_scene,
     read_toml,
     scene_from_dict,
 )
+from cosserat_fem.scene.expressions import Expression, parse_vector
 
 PAPER = Path(__file__).resolve().parents[1] / "scenes" / "cao_tucker_2008.toml"
 PAPER_OMEGA0 = 207.0236
@@ -176,11 +176,11 @@ def test_overrides_do_not_touch_the_input() -> None:
 def test_unset_removes_a_key_or_a_table_in_order_with_set(capsys) -> None:
     """--set could not remove a key, so changing a section's shape meant editing the file
     (the rectangle's a, b and torsion_constant are not a circle's). ``--unset KEY``
-    (cosserat_fem/schema.py: Removal; UNSET in a mapping, the API's cf.UNSET) removes a key
+    (cosserat_fem/scene/schema.py: Removal; UNSET in a mapping, the API's cf.UNSET) removes a key
     or a table, in order with --set; a key the schema does not have is refused with a
     did-you-mean, one the scene does not hold by name (nothing is removed silently)."""
     from cosserat_fem.cli import main
-    from cosserat_fem.schema import UNSET, Removal
+    from cosserat_fem.scene.schema import UNSET, Removal
 
     circle = [Removal("rod.section.a"), Removal("rod.section.b"),
               Removal("rod.section.torsion_constant"), "rod.section.shape=circle",
@@ -218,8 +218,8 @@ def test_unset_removes_a_key_or_a_table_in_order_with_set(capsys) -> None:
 def test_unset_works_in_a_sweeps_overrides(tmp_path) -> None:
     """``sweep FILE --unset KEY``: the command line's overrides of a sweep's base scene take
     removals too (every member's scene is a circle here)."""
-    from cosserat_fem.schema import Removal
-    from cosserat_fem.sweep_spec import load_sweep
+    from cosserat_fem.scene.schema import Removal
+    from cosserat_fem.studies.sweep_spec import load_sweep
 
     path = tmp_path / "sweep.toml"
     path.write_text(f'[sweep]\nscene = "{PAPER}"\n[sweep.vary]\n"rod.section.diameter" = '

@@ -31,14 +31,14 @@ from conftest import ROOT, run_command
 from cosserat_fem.forms.section import Section, cowper_circle, tube
 
 from cosserat_fem import api
-from cosserat_fem.errors import SceneError
-from cosserat_fem.expressions import Expression, derivative
-from cosserat_fem.fields import PointProbe
-from cosserat_fem.modal import compute_modes
+from cosserat_fem.analysis.modal import compute_modes
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.analysis.statics import solve_static
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.output.fields import PointProbe
 from cosserat_fem.reference.timoshenko import TimoshenkoBeam, natural_frequencies
-from cosserat_fem.scene import read_toml, scene_from_dict
-from cosserat_fem.simulation import run_scene
-from cosserat_fem.statics import solve_static
+from cosserat_fem.scene.build import read_toml, scene_from_dict
+from cosserat_fem.scene.expressions import Expression, derivative
 
 PAPER = read_toml(ROOT / "scenes" / "cao_tucker_2008.toml")
 E, RHO, NU = 7.1e10, 2730.0, 0.32

@@ -17,12 +17,12 @@ import pytest
 from conftest import ROOT
 
 from cosserat_fem import api
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.analysis.statics import static_path
 from cosserat_fem.io.probes import probe_columns
 from cosserat_fem.reference.curved import BATHE_BOLOURCHI_SHOOTING
 from cosserat_fem.reference.elastica import MATTIASSON_1981
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
-from cosserat_fem.statics import static_path
+from cosserat_fem.scene.build import load_scene
 
 SCENES = sorted((ROOT / "scenes").glob("*.toml"))
 STATIC = [p for p in SCENES if f"cosserat-fem static scenes/{p.name}" in p.read_text()]

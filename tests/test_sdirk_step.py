@@ -1,4 +1,4 @@
-"""The one SDIRK step (cosserat_fem/integrators.py ``SDIRK.step`` over the C kernels
+"""The one SDIRK step (cosserat_fem/timestepping/integrators.py ``SDIRK.step`` over the C kernels
 ``cf_sdirk_*`` of newton_loop.c), serial and under ``mpirun -n 2``.
 
 Every run takes the step through Python's own dispatch, so a subclass's override runs on every
@@ -47,8 +47,9 @@ _SCRIPT = """
 import json, sys
 import numpy as np
 from mpi4py import MPI
-from cosserat_fem import api, simulation
-from cosserat_fem.integrators import SDIRK
+from cosserat_fem import api
+from cosserat_fem.analysis import simulation
+from cosserat_fem.timestepping.integrators import SDIRK
 
 calls = {"step": 0, "predict": 0}
 

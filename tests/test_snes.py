@@ -1,4 +1,5 @@
-"""PETSc's SNES as the nonlinear solver (cosserat_fem/snes.py) against the project's Newton loop.
+"""PETSc's SNES as the nonlinear solver (cosserat_fem/nls/snes.py) against the project's Newton
+loop.
 
 With its default options (``newtonls``, the ``basic`` line search, ``preonly`` + LU) SNES does
 the loop's operations: the same residual and Jacobian assembly, the same KSP, the update
@@ -23,7 +24,7 @@ import pytest
 from conftest import ROOT, run_command
 
 from cosserat_fem import api
-from cosserat_fem.errors import SceneError
+from cosserat_fem.common.errors import SceneError
 
 PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
 QUIET = ["output.xdmf=false", "output.checkpoint=false"]
@@ -190,11 +191,11 @@ def test_petsc_options_reach_snes_and_leave_petsc_after():
     them (another solver built later must not see them)."""
     from petsc4py import PETSc
 
-    from cosserat_fem.integrators import make_integrator
-    from cosserat_fem.model import build_model
-    from cosserat_fem.newton import NewtonSettings
-    from cosserat_fem.schema import PETSC_PREFIX
-    from cosserat_fem.solvers import make_solver
+    from cosserat_fem.nls.newton import NewtonSettings
+    from cosserat_fem.nls.solvers import make_solver
+    from cosserat_fem.rod.model import build_model
+    from cosserat_fem.scene.schema import PETSC_PREFIX
+    from cosserat_fem.timestepping.integrators import make_integrator
 
     scene = api.load(PAPER, ["solver.petsc.snes_rtol=1e-3", "solver.petsc.snes_type=newtontr"])
     model = build_model(scene)

@@ -1,4 +1,5 @@
-"""Stability of static states and critical loads (cosserat_fem/equilibria.py) against closed forms.
+"""Stability of static states and critical loads (cosserat_fem/analysis/equilibria.py) against
+closed forms.
 
 **Euler column with shear and extension (Reissner's rod).** A cantilever (clamped at s = 0)
 under a dead compressive end force P along −e3. Its straight state is compressed uniformly:
@@ -54,10 +55,10 @@ import math
 import pytest
 from conftest import ROOT, run_command
 
-from cosserat_fem.equilibria import critical_factor, stability, stability_at
-from cosserat_fem.errors import SceneError
-from cosserat_fem.scene import load_scene
-from cosserat_fem.schema import UNSET
+from cosserat_fem.analysis.equilibria import critical_factor, stability, stability_at
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.scene.build import load_scene
+from cosserat_fem.scene.schema import UNSET
 
 ROLLUP = ROOT / "scenes" / "rollup.toml"
 BECK = 20.0509536  # P ℓ²/EI of Beck's column, Euler–Bernoulli (module docstring)

@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosserat_fem.fields import PointProbe
-from cosserat_fem.model import rod_constants
+from cosserat_fem.analysis.statics import solve_static
+from cosserat_fem.output.fields import PointProbe
 from cosserat_fem.reference import timoshenko as tb
 from cosserat_fem.reference.rod_planes import bending_planes
-from cosserat_fem.scene import load_scene
-from cosserat_fem.statics import solve_static
+from cosserat_fem.rod.model import rod_constants
+from cosserat_fem.scene.build import load_scene
 
 SCENE = Path(__file__).resolve().parents[1] / "scenes" / "cao_tucker_2008.toml"
 BASE = [

@@ -19,8 +19,8 @@ import numpy as np
 import pytest
 from conftest import ROOT, inject_newton_failures
 
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.scene.build import load_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 OVERRIDES = ["output.xdmf=false"]
@@ -84,7 +84,7 @@ def corrupt_after_step(monkeypatch, attempt: int, corrupt) -> None:
     from 1, retries included) of the integrator (SDIRK3, the scene's) leaves, before the
     run's state checks see it: as if the step itself had produced that state (SDIRK.step,
     the one step every run takes)."""
-    from cosserat_fem.integrators import SDIRK
+    from cosserat_fem.timestepping.integrators import SDIRK
 
     real_step = SDIRK.step
     calls = {"n": 0}
@@ -153,9 +153,9 @@ def test_a_failed_check_names_the_first_place_along_the_rod():
     round-off that a CPU decides in θ of a rigid rotation: the chart check names s = 0 m (it
     named the place of the smallest |cos θ|, here s = 1 m). A NaN at σ = 0.5 and σ = 1 names
     s = 0.5 m."""
-    from cosserat_fem.checks import check_state
-    from cosserat_fem.errors import SolverError
-    from cosserat_fem.model import build_model
+    from cosserat_fem.common.errors import SolverError
+    from cosserat_fem.rod.checks import check_state
+    from cosserat_fem.rod.model import build_model
 
     model = build_model(load_scene(SCENE, ["discretisation.planar=off"]), planar=False)
     sigma = model.V.tabulate_dof_coordinates()[:, 0]

@@ -16,11 +16,11 @@ import pytest
 from conftest import ROOT
 from test_stress_dynamics import INTEGRATORS, linear_system, scheme_response
 
-from cosserat_fem.errors import SolverError
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.common.errors import SolverError
 from cosserat_fem.reference.rod_planes import sine_load_tip_response
 from cosserat_fem.reference.second_order import RodData, second_order_tip_response
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
+from cosserat_fem.scene.build import load_scene
 
 pytestmark = [pytest.mark.stress, pytest.mark.long]
 
@@ -103,7 +103,7 @@ def test_hundred_times_the_load_completes(tmp_path):
 @pytest.mark.parametrize("adaptive", [False, True], ids=["fixed", "adaptive"])
 def test_thousand_times_the_load_passes_the_chart_singularity(tmp_path, adaptive):
     """1000x the paper's load drives θ(s = 0.25 m) to π/2 at 8.40 ms, where the Euler-angle
-    chart is singular (det Ma = cos θ). Until the charts of cosserat_fem/charts.py, both step
+    chart is singular (det Ma = cos θ). Until the charts of cosserat_fem/rod/charts.py, both step
     sequences stopped there with that reason (measured 8.4047 ms fixed, 8.3991 ms adaptive).
     Now the chart moves onto the rod before θ gets there, and the run goes on through ever
     larger rotations: with fixed steps it completed (70 moves of the chart; 75 and 3 rejected
@@ -139,7 +139,7 @@ SCHEMES = ("midpoint", "galpha-0.8", "bdf2", "sdirk3", "sdirk4")
 @pytest.fixture(scope="module")
 def linearised_paper_rod():
     """K, M, f of the rod linearised about the straight state, f the paper's load shape in
-    both planes (cosserat_fem.modal, via test_stress_dynamics.linear_system); the index of
+    both planes (cosserat_fem.analysis.modal, via test_stress_dynamics.linear_system); the index of
     x(ℓ)/ℓ (y(ℓ)/ℓ follows it: the dofs are blocked by node), ω0."""
     K, M, f, tip, omega0 = linear_system([PAPER_SHAPE])
     return K, M, f, tip, omega0

@@ -4,13 +4,13 @@ above the highest resolved frequency (the full-length studies: benchmarks/stress
 The paper's rod and mesh (8 cubic elements). Every expectation comes from the analysis of the
 time-stepping scheme on the linearised rod: a scheme applied to y' = λy multiplies each
 resolved mode by its amplification factor R(λΔt) a step, so a free vibration in mode 1
-(ω1 = 206.780 rad/s, bending about d2, from cosserat_fem.modal) keeps E_n = E_0 |R(iω1Δt)|^2n
-for a one-step method; generalized-α and BDF2 carry a second root, which
+(ω1 = 206.780 rad/s, bending about d2, from cosserat_fem.analysis.modal) keeps E_n = E_0
+|R(iω1Δt)|^2n for a one-step method; generalized-α and BDF2 carry a second root, which
 :func:`scheme_response` follows by applying the very same formulas to the one-mode system, or
-to the whole rod linearised by cosserat_fem.modal.
+to the whole rod linearised by cosserat_fem.analysis.modal.
 
 Newton: the energy tests use the full Jacobian. With the scene's frozen Jacobian a solve may
-be ended by the error estimate of cosserat_fem.newton, ρ/(1 − ρ) ‖δU_k‖. With ρ the update
+be ended by the error estimate of cosserat_fem.nls.newton, ρ/(1 − ρ) ‖δU_k‖. With ρ the update
 ratio ‖δU_2‖/‖δU_1‖ alone, the matrix assembled at the first step, which no longer contracts
 in part of the space, fooled it: in the free vibration below (x(ℓ) = 1e-3 ℓ, Δt = 0.8 ms) ρ
 read 4e-6 while the residual left by the stop grew from step to step (8e-11 at step 1,
@@ -37,17 +37,17 @@ from petsc4py import PETSc
 from rod_energy import EnergyMonitor, EnergyRecorder
 from scipy.optimize import minimize_scalar
 
-from cosserat_fem.modal import assemble_modal_problem, compute_modes, modal_supports
-from cosserat_fem.model import build_model
+from cosserat_fem.analysis.modal import assemble_modal_problem, compute_modes, modal_supports
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.analysis.statics import solve_static
 from cosserat_fem.reference.rod_planes import bending_planes
 from cosserat_fem.reference.timoshenko import (
     modal_loads,
     mode_shapes,
     static_deflection_sine_load,
 )
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
-from cosserat_fem.statics import solve_static
+from cosserat_fem.rod.model import build_model
+from cosserat_fem.scene.build import load_scene
 
 pytestmark = [pytest.mark.stress, pytest.mark.long]
 
@@ -114,7 +114,8 @@ def damping_ratio(name: str, omega_h: float) -> float:
 
 def scheme_response(K, M, f, g, h, steps, name, y0=None) -> np.ndarray:
     """y_k = (p_k, ṗ_k), k = 0..steps, of M p̈ + K p + f g(t) = 0 (any consistent time unit),
-    from y0 (default rest), by the scheme ``name`` exactly as cosserat_fem.integrators applies
+    from y0 (default rest), by the scheme ``name`` exactly as cosserat_fem.timestepping.integrators
+    applies
     it to B ẏ = A y + c g(t): the same unknowns, stage and load-evaluation times and start."""
     m = len(f)
     Z, eye = np.zeros((m, m)), np.eye(m)
@@ -195,7 +196,8 @@ def tip_history(tmp_path, overrides: list[str]) -> tuple[np.ndarray, np.ndarray]
 
 def linear_system(overrides: list[str]):
     """The semi-discrete rod linearised about the straight state, M p̈ + K p + f = 0 in
-    τ = ω0 t on the free dofs (cosserat_fem.modal), f the scene's loads at t = 0; the index of
+    τ = ω0 t on the free dofs (cosserat_fem.analysis.modal), f the scene's loads at t = 0; the index
+    of
     x(ℓ)/ℓ in p, and ω0."""
     model = build_model(scene_of(overrides), **_full_model())
     problem = assemble_modal_problem(model)
@@ -227,8 +229,8 @@ def _full_model() -> dict:
 
 
 def mode_one_state(tip: float) -> tuple[np.ndarray, float]:
-    """Mode 1 (bending about d2, cosserat_fem.modal) at x(ℓ) = tip ℓ, at rest, with the axial
-    displacement that keeps the centre line unstretched: the linear mode stretches it by
+    """Mode 1 (bending about d2, cosserat_fem.analysis.modal) at x(ℓ) = tip ℓ, at rest, with the
+    axial displacement that keeps the centre line unstretched: the linear mode stretches it by
     ψ²/2, which would store the non-quadratic energy (1.08e-5 of E at 1e-4 ℓ) in the stiff
     axial modes. z′ solves v3 = x′ sin ψ + (1 + z′) cos ψ = 1, with x′ and ψ of the
     Timoshenko mode (the same as the discrete one to 1e-6). Returns the state (nodes, 12), ω1."""
@@ -498,7 +500,7 @@ def test_forcing_above_the_highest_resolved_frequency_is_bounded(tmp_path, linea
     A scheme sees the load only at its stage times t_n + c Δt, where sin Ωt takes the values
     of a sinusoid at the alias Ω_a = Ω − 2πk/Δt (ΩΔt − 10π = −1.42 rad a step, |Ω_a| =
     4.7e4 rad/s): the response is that of the linearised rod to these samples, which the same
-    scheme applied to M p̈ + K p + f g(t) = 0 (the rod linearised by cosserat_fem.modal)
+    scheme applied to M p̈ + K p + f g(t) = 0 (the rod linearised by cosserat_fem.analysis.modal)
     reproduces. What may differ: Newton's stop, here solver.stol = 1e-12 (1e-8
     would allow each step an error of 1e-8 of the state, 4e-5 over the 4000 steps, which the
     A-stable schemes do not amplify but may add up: at most 4e-9 with 1e-12), round-off

@@ -56,12 +56,12 @@ import math
 import numpy as np
 import pytest
 
-from cosserat_fem.fields import PointProbe
-from cosserat_fem.model import rod_constants
+from cosserat_fem.analysis.statics import static_path
+from cosserat_fem.output.fields import PointProbe
 from cosserat_fem.reference.elastica import elastica_tip_load, reissner_tip_load
 from cosserat_fem.reference.timoshenko import TimoshenkoBeam, tip_deflection_end_force
-from cosserat_fem.scene import scene_from_dict
-from cosserat_fem.statics import static_path
+from cosserat_fem.rod.model import rod_constants
+from cosserat_fem.scene.build import scene_from_dict
 
 pytestmark = [pytest.mark.stress, pytest.mark.long]
 

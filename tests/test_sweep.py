@@ -1,11 +1,11 @@
-"""Sweeps (cosserat_fem/sweep_spec.py, sweep.py): members run as the same scene alone would,
+"""Sweeps (cosserat_fem/studies/sweep_spec.py, sweep.py): members run as the same scene alone would,
 failures recorded, a restarted sweep skips finished members, malformed sweeps refused before
 any member runs, and under mpirun -n 2 (two groups dealt by a one-sided counter) the same
 table as in serial.
 
 Equality is the test for the members' results: a member is its scene run by
-cosserat_fem.simulation.run_scene on its group's communicator, exactly as ``cosserat-fem run`` of
-that scene alone, so its probes.csv is the same file byte for byte, and its table row (the
+cosserat_fem.analysis.simulation.run_scene on its group's communicator, exactly as ``cosserat-fem
+run`` of that scene alone, so its probes.csv is the same file byte for byte, and its table row (the
 probe's final and largest values, printed with repr) the same text in serial and under MPI.
 """
 
@@ -20,8 +20,8 @@ from conftest import ROOT, read_table, run_command, sweep_serial_and_mpi
 
 from cosserat_fem import api
 from cosserat_fem.cli import main
-from cosserat_fem.errors import SceneError
-from cosserat_fem.sweep_run import columns
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.studies.sweep_run import columns
 
 PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
 SHORT = {"time.end": 0.0006, "output.xdmf": False}
@@ -200,7 +200,7 @@ def test_members_that_differ_in_parameters_share_their_compiled_forms():
     from dolfinx import fem
     from mpi4py import MPI
 
-    from cosserat_fem.model import build_model
+    from cosserat_fem.rod.model import build_model
 
     spec = api.load_sweep(ROOT / "scenes" / "sweeps" / "paper_forcing.toml")
 
@@ -414,7 +414,7 @@ def test_members_that_stop_are_not_finished_and_continue(tmp_path):
     limits.* are not part of its identity), it continues each from its checkpoint (a
     restart, summary.json's restarts = 1) and its table equals an uninterrupted sweep's
     (checkpoint.py: a restart continues bit for bit), all but the wall times."""
-    from cosserat_fem.errors import StopError
+    from cosserat_fem.common.errors import StopError
 
     vary = '[sweep.vary]\n"time.step" = [1e-5, 2e-5]\n'
     path = sweep_file(tmp_path, vary, keep="probes")
@@ -461,7 +461,7 @@ def test_a_member_whose_folder_cannot_be_made_stops_and_runs_later(tmp_path):
     disk, a permission): each member "stopped", the sweep StopError (exit 4; before:
     "error" rows recorded as finished, exit 0, and "ran 0" once the cause was gone). With
     the file gone, the sweep runs them all."""
-    from cosserat_fem.errors import StopError
+    from cosserat_fem.common.errors import StopError
 
     path = sweep_file(tmp_path, '[sweep.vary]\n"time.step" = [1e-5, 2e-5]\n')
     out = tmp_path / "out"
@@ -498,7 +498,7 @@ def test_a_chain_stops_at_its_stopped_member_and_continues_from_it(tmp_path):
     the first runs from its start (a forced member's measurement is not in a checkpoint) and
     the second continues its final state: the table is the uninterrupted sweep's (all but
     the wall times)."""
-    from cosserat_fem.errors import StopError
+    from cosserat_fem.common.errors import StopError
 
     path = chain_sweep(tmp_path, max_periods=8)
     out = tmp_path / "out"
@@ -521,9 +521,9 @@ def test_a_chain_stops_at_its_stopped_member_and_continues_from_it(tmp_path):
 #: them to write sweep.csv): its first reading (the sweep's start) is the real one.
 DAMAGED_AT_THE_END = """
 import sys
-from cosserat_fem import sweep_run
+from cosserat_fem.studies import sweep_run
 from cosserat_fem.cli import main
-from cosserat_fem.errors import SceneError
+from cosserat_fem.common.errors import SceneError
 real, calls = sweep_run._finished, []
 def finished(out):
     calls.append(out)

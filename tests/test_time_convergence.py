@@ -30,9 +30,9 @@ import numpy as np
 import pytest
 from conftest import ROOT
 
+from cosserat_fem.analysis.simulation import run_scene
 from cosserat_fem.reference.rod_planes import sine_load_tip_response
-from cosserat_fem.scene import load_scene
-from cosserat_fem.simulation import run_scene
+from cosserat_fem.scene.build import load_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 LOAD = "2e2*sin(pi*s/L)*sin(8*omega0*t)"

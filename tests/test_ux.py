@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from conftest import ROOT, run_command
 
-from cosserat_fem.progress import ProgressBar
+from cosserat_fem.analysis.progress import ProgressBar
 
 CLI = ["-m", "cosserat_fem.cli"]
 SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
@@ -26,7 +26,7 @@ def test_progress_bar_on_a_terminal_only(monkeypatch):
     100 s of a 1 s-a-percent run showed, after 2 %, 101 s x 98/2 = 1:22:29 left; the rate
     since the first update gives 1 s a percent, 98 s. The first update has no rate yet: "?"."""
     now = [0.0]
-    monkeypatch.setattr("cosserat_fem.progress.time.monotonic", lambda: now[0])
+    monkeypatch.setattr("cosserat_fem.analysis.progress.time.monotonic", lambda: now[0])
     term = FakeTerminal()
     bar = ProgressBar(0.0, 2.0, stream=term)
     for clock, t, steps in ((100.0, 0.02, 10), (101.0, 0.04, 20), (102.0, 2.0, 1000)):

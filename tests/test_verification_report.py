@@ -27,7 +27,7 @@ from conftest import ROOT
 
 from cosserat_fem.reference.elastica import MATTIASSON_1981
 from cosserat_fem.reference.rod_planes import linear_spectrum
-from cosserat_fem.scene import load_scene
+from cosserat_fem.scene.build import load_scene
 
 REPORT = ROOT / "docs" / "verification.md"
 
@@ -163,7 +163,7 @@ def test_response_section_lists_the_generators_frequencies_and_sections(verify, 
     assert [float(r[0].split(" × ")[0]) for r in rows] == verify.BACKBONE_THICKNESS
     assert f"{verify.BACKBONE_ELEMENTS} cubic elements" in body
     rows = table(body, "| r | up: amplitude")
-    from cosserat_fem.sweep_spec import load_sweep
+    from cosserat_fem.studies.sweep_spec import load_sweep
 
     values = sorted({m.values["parameters.r"] for m in load_sweep(verify.HYSTERESIS).members})
     assert [float(r[0]) for r in rows] == pytest.approx(values, abs=5e-3)

@@ -48,9 +48,9 @@ from PIL import Image, ImageSequence
 from virtual_display import virtual_display
 from xdmf_files import read_arrays
 
-from cosserat_fem.model import build_model, rod_constants
-from cosserat_fem.scene import load_scene
-from cosserat_fem.statics import static_path
+from cosserat_fem.analysis.statics import static_path
+from cosserat_fem.rod.model import build_model, rod_constants
+from cosserat_fem.scene.build import load_scene
 
 SCENE = str(ROOT / "scenes" / "cao_tucker_2008.toml")
 ARRAYS = {"displacement", "angles", "strain_v", "curvature_u", "force_n", "torque_m"}

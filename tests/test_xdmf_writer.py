@@ -1,5 +1,5 @@
 """The XDMF writer's parts (cosserat_fem/io/xdmf.py, ``XdmfSeries``, and its DOLFINx side,
-cosserat_fem/fields.py, ``XdmfWriter``), in this process.
+cosserat_fem/output/fields.py, ``XdmfWriter``), in this process.
 
 * Frame files: the image copied from a template (``_FrameImages``) is, byte for byte, the file
   HDF5 itself makes for the same names and values, for times whose keys have many lengths.
@@ -27,11 +27,11 @@ import pytest
 from conftest import ROOT, run_command
 from xdmf_files import H5File, read_arrays
 
-from cosserat_fem import fields
 from cosserat_fem.io import xdmf
 from cosserat_fem.io.hdf5 import Hdf5
-from cosserat_fem.model import build_model
-from cosserat_fem.scene import load_scene
+from cosserat_fem.output import fields
+from cosserat_fem.rod.model import build_model
+from cosserat_fem.scene.build import load_scene
 
 SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 TIMES = [0.0, 2.4e-4, 4.8e-4, 1e-5, 0.06, 1.5, 3.0, 123.25, 1e-300, -7.5e-3, 2.0 / 3.0]
@@ -189,9 +189,9 @@ SAME_STATES = """
 import sys
 from pathlib import Path
 import numpy as np
-from cosserat_fem.model import build_model
-from cosserat_fem.fields import XdmfWriter
-from cosserat_fem.scene import load_scene
+from cosserat_fem.rod.model import build_model
+from cosserat_fem.output.fields import XdmfWriter
+from cosserat_fem.scene.build import load_scene
 
 scene = load_scene(sys.argv[1], ["discretisation.elements=7"])
 model = build_model(scene, planar=False)

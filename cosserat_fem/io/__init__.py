@@ -21,7 +21,7 @@ module              files
 The names, columns and constants of a format are defined in its module only; the writers, the
 schema, the budget and the readers import them from there. No module here imports DOLFINx: what
 is sampled or computed on the mesh (probe values, the output fields' UFL) is
-cosserat_fem/fields.py's. The readers need numpy, the standard library and h5py only, so that
+cosserat_fem/output/fields.py's. The readers need numpy, the standard library and h5py only, so that
 ``cosserat-fem plot``/``render`` work without the solver stack (and h5py cannot share a process
 with DOLFINx's HDF5: cosserat_fem/io/xdmf.py).
 """

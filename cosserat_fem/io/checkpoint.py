@@ -26,13 +26,13 @@ naming a complete checkpoint. The index holds the SHA-256 of every rank's state 
 truncated or bit-flipped file is found, named, and the previous checkpoint (the other slot)
 used instead when it is intact. Arrays are per rank: a restart needs the same number of ranks
 (the same mesh partition). A write that fails (disk full, file size limit) leaves the index
-naming the last complete checkpoint (:class:`~cosserat_fem.errors.OutputError`).
+naming the last complete checkpoint (:class:`~cosserat_fem.common.errors.OutputError`).
 When to write them: ``output.checkpoint_interval`` (simulated
 time; "auto" = a tenth of the run) and at the end of the run, completed or stopped by a
 solver failure (the last accepted state), unless ``output.checkpoint = false``.
 
 On restart (``cosserat-fem run --restart DIR``) the scene is the checkpoint's own; only keys
-that do not change the discrete problem may be overridden (cosserat_fem/restart.py), e.g.
+that do not change the discrete problem may be overridden (cosserat_fem/analysis/restart.py), e.g.
 ``--set time.end=0.12`` to continue a completed run. Everything is checked before anything is
 touched (cosserat_fem/io/run_folder.py, ``check_outputs``): the outputs must be the checkpoint's
 run's (the run id of summary.json and solution.xdmf, written when the run started, and the
@@ -47,7 +47,7 @@ files, ``<name>.frames/<frames>.h5`` on, referenced by the one ``<name>.xdmf``
 removes the checkpoint of an earlier one (cosserat_fem/io/run_folder.py): the files of
 :data:`OWN_FILES` in ``checkpoint/``, nothing else there.
 
-No file is written through a link, and no special file is read (cosserat_fem/safe_files.py):
+No file is written through a link, and no special file is read (cosserat_fem/common/safe_files.py):
 the index and the state files are replaced by an atomic rename, probes.csv is cut as the
 folder's own copy when it is a link (a restart of a copy made with ``cp -as``, ``cp -al`` or
 ``rsync --link-dest`` leaves the original as it was), and a restart whose ``checkpoint/`` or
@@ -70,13 +70,13 @@ from typing import Any
 import numpy as np
 from mpi4py import MPI
 
-from .. import safe_files
-from ..errors import OutputError, SceneError
-from ..log import LOGGER
-from ..parallel import agree
-from .folder_lock import refuse_if_held
+from cosserat_fem.common import safe_files
+from cosserat_fem.common.errors import OutputError, SceneError
+from cosserat_fem.common.log import LOGGER
+from cosserat_fem.common.parallel import agree
+from cosserat_fem.io.folder_lock import refuse_if_held
 
-FORMAT = 3  # 3: the time loop's state in one part, "loop" (cosserat_fem/loop.py)
+FORMAT = 3  # 3: the time loop's state in one part, "loop" (cosserat_fem/timestepping/loop.py)
 DIRECTORY = "checkpoint"
 INDEX = "checkpoint.json"
 #: The names of the files the project writes in ``checkpoint/`` (and their scratch names): what

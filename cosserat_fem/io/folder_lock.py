@@ -33,10 +33,10 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from .. import safe_files
-from ..errors import SceneError
-from ..log import LOGGER
-from ..parallel import agree
+from cosserat_fem.common import safe_files
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.common.log import LOGGER
+from cosserat_fem.common.parallel import agree
 
 #: The lock file of a folder (:class:`FolderLock`).
 LOCK = ".cosserat-fem.lock"

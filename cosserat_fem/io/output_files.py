@@ -14,8 +14,8 @@ import errno
 import os
 from pathlib import Path
 
-from .. import safe_files
-from ..errors import OutputError, SceneError, out_folder
+from cosserat_fem.common import safe_files
+from cosserat_fem.common.errors import OutputError, SceneError, out_folder
 
 #: The errors of a write that the place itself does not explain (a full disk, a quota, the
 #: file size limit, the device): a stopped output (exit 4) rather than bad input.
@@ -36,8 +36,8 @@ def output_folder(out: str | Path | None, directory: Path, command: str) -> Path
 
 def write_output(path: Path, data, command: str) -> Path:
     """``data`` (bytes-like) as the file ``path``, whole or not at all
-    (:func:`cosserat_fem.safe_files.replace`: a hidden scratch file beside it renamed over it,
-    so a link at ``path`` is replaced, never written through). OutputError naming ``path`` if
+    (:func:`cosserat_fem.common.safe_files.replace`: a hidden scratch file beside it renamed over
+    it, so a link at ``path`` is replaced, never written through). OutputError naming ``path`` if
     it cannot be written; the scratch file is removed and a file that was at ``path`` before is
     kept."""
     try:

@@ -6,13 +6,13 @@ The format, and its names, are kept here and nowhere else: the header ``t,x,y,z,
 (:data:`PROBE_FIELD_COLUMNS`, in that order), then one row a step: t with 11 significant
 digits, every other value with 17 (``%.16e``), separated by commas, each row ending in a
 newline. Quantities in SI units: positions in m (x = ℓ p1, ...), angles in rad, time in s (the
-load factor for a static run). The values are sampled by cosserat_fem/fields.py
-(:class:`~cosserat_fem.fields.PointProbe`).
+load factor for a static run). The values are sampled by cosserat_fem/output/fields.py
+(:class:`~cosserat_fem.output.fields.PointProbe`).
 
 A run killed at any moment leaves whole rows and at most one cut last line, which the reader
 and a restart drop (:class:`ProbeWriter`; docs/stability.md). probes.csv is made as a new
 file, or, on a restart, continued as the folder's own copy: never written through a link
-(cosserat_fem/safe_files.py).
+(cosserat_fem/common/safe_files.py).
 
 What the reader checks (bad input otherwise: a :class:`SceneError` naming the file and line):
 a regular file of at most :data:`MAX_PROBES_BYTES`, UTF-8; a known header (an empty file or a
@@ -33,13 +33,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .. import safe_files
-from ..errors import OutputError, SceneError
-from ..parallel import agree
-from .reading import MAX_MAGNITUDE, check_size, decode, excerpt, quoted
+from cosserat_fem.common import safe_files
+from cosserat_fem.common.errors import OutputError, SceneError
+from cosserat_fem.common.parallel import agree
+from cosserat_fem.io.reading import MAX_MAGNITUDE, check_size, decode, excerpt, quoted
 
 if TYPE_CHECKING:
-    from ..fields import PointProbe
+    from cosserat_fem.output.fields import PointProbe
 
 #: The file's name in a run's folder.
 PROBES = "probes.csv"
@@ -191,15 +191,15 @@ class ProbeWriter:
 
     Rows are buffered and handed to the operating system when ``flush_every`` rows are pending,
     when ``max_delay`` seconds (wall time) have passed since the last flush, and before every
-    XDMF frame (the run flushes its probes before it writes a frame, cosserat_fem/simulation.py
-    and statics.py). So a killed run loses at most the rows since the last XDMF frame (7 rows at
-    the default scene's 8 steps a frame) or of the last ``max_delay`` s, and probes.csv always
-    reaches the last frame of the XDMF file (tests/test_kill.py; why not a flush every row:
-    docs/decisions.md, "Probe rows: flushed in blocks, formatted in one call"). A SIGKILL inside
-    the write() of a block can leave the block cut where a page of the file ends (Linux copies a
-    write a page at a time and stops between pages for a fatal signal): the file then ends with
-    part of a row, which :func:`cosserat_fem.results.read_probes` and a restart drop
-    (docs/stability.md).
+    XDMF frame (the run flushes its probes before it writes a frame,
+    cosserat_fem/analysis/simulation.py and statics.py). So a killed run loses at most the rows
+    since the last XDMF frame (7 rows at the default scene's 8 steps a frame) or of the last
+    ``max_delay`` s, and probes.csv always reaches the last frame of the XDMF file
+    (tests/test_kill.py; why not a flush every row: docs/decisions.md, "Probe rows: flushed in
+    blocks, formatted in one call"). A SIGKILL inside the write() of a block can leave the block cut
+    where a page of the file ends (Linux copies a write a page at a time and stops between pages for
+    a fatal signal): the file then ends with part of a row, which
+    :func:`cosserat_fem.output.results.read_probes` and a restart drop (docs/stability.md).
 
     The SHA-256 of the bytes written (:meth:`digest`) goes into each checkpoint, so that a
     restart can prove that probes.csv is the checkpointed run's (cosserat_fem/io/checkpoint.py).

@@ -1,5 +1,5 @@
 """What every reader of a run's files checks: the file is a regular file of bounded size,
-its text UTF-8, its numbers finite (cosserat_fem/results.py's module docstring, and the
+its text UTF-8, its numbers finite (cosserat_fem/output/results.py's module docstring, and the
 readers of cosserat_fem/io/). Damaged, truncated, foreign or hostile files are bad input: a
 :class:`SceneError` (exit 2) whose one-line message names the file at fault, most often first
 (text taken from a file is quoted with ``repr``, so no control character reaches the terminal).
@@ -13,8 +13,8 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from .. import safe_files
-from ..errors import SceneError
+from cosserat_fem.common import safe_files
+from cosserat_fem.common.errors import SceneError
 
 #: Largest magnitude of a value read; beyond it matplotlib and VTK overflow (their ranges
 #: and squares of values near 1e308 are inf) and no rod's output has it.

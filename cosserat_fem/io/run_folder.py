@@ -24,7 +24,7 @@ A folder holds the outputs of one run at a time, and has one writer at a time:
   it (:func:`cut_outputs`): cosserat_fem/io/checkpoint.py's docstring.
 
 Every file of the folder is written as a new file or by an atomic rename, never through a
-link, and no special file is opened (cosserat_fem/safe_files.py).
+link, and no special file is opened (cosserat_fem/common/safe_files.py).
 Tests: tests/test_run_folders.py, tests/test_claims.py.
 """
 
@@ -39,14 +39,14 @@ from pathlib import Path
 
 from mpi4py import MPI
 
-from .. import safe_files
-from ..errors import OutputError, SceneError
-from ..parallel import agree, from_root
-from .checkpoint import DIRECTORY, INDEX, OWN_FILES, Checkpoint
-from .folder_lock import _HELD, LOCK_KEYS, FolderLock, held_lock
-from .probes import PROBES, probe_prefix
-from .reading import decode, finite_number, json_kind, quoted, read_bytes
-from .xdmf import FRAME_NAME, XDMF, cut_xdmf, frames_folder, xdmf_problem
+from cosserat_fem.common import safe_files
+from cosserat_fem.common.errors import OutputError, SceneError
+from cosserat_fem.common.parallel import agree, from_root
+from cosserat_fem.io.checkpoint import DIRECTORY, INDEX, OWN_FILES, Checkpoint
+from cosserat_fem.io.folder_lock import _HELD, LOCK_KEYS, FolderLock, held_lock
+from cosserat_fem.io.probes import PROBES, probe_prefix
+from cosserat_fem.io.reading import decode, finite_number, json_kind, quoted, read_bytes
+from cosserat_fem.io.xdmf import FRAME_NAME, XDMF, cut_xdmf, frames_folder, xdmf_problem
 
 #: The run's summary: written when it starts (status "running"), replaced at its end.
 SUMMARY = "summary.json"
@@ -100,7 +100,7 @@ def _earlier_layout(folder: Path) -> list[Path]:
 def stale_outputs(folder: Path) -> list[tuple[Path, object | None]]:
     """What a new run removes of an earlier run's outputs in ``folder``, in this order (module
     docstring): (path, None) for a file, (folder, pattern) for the files of a folder whose
-    names the pattern matches (:func:`cosserat_fem.safe_files.remove_own_files`): the
+    names the pattern matches (:func:`cosserat_fem.common.safe_files.remove_own_files`): the
     checkpoint (its index first), the XDMF file (so that no XML names a removed file; a new
     series publishes its own), its frames, the files of the earlier single-file layout."""
     stale: list[tuple[Path, object | None]] = [(folder / DIRECTORY, OWN_FILES)]
@@ -176,7 +176,7 @@ def status_of(failure: BaseException | None) -> str:
     """summary.json's status of a run that ended with ``failure``: "completed" (none),
     "interrupted" (Ctrl-C), "stopped" (a StopError: an output, a limit; resumable) or
     "failed"."""
-    from ..errors import StopError
+    from cosserat_fem.common.errors import StopError
 
     if failure is None:
         return "completed"

@@ -1,5 +1,5 @@
-"""A sweep's files (cosserat_fem/sweep_run.py runs the sweep): its table, each writer beside its
-reader, and its record.
+"""A sweep's files (cosserat_fem/studies/sweep_run.py runs the sweep): its table, each writer beside
+its reader, and its record.
 
 * ``sweep.csv`` (:data:`SWEEP_TABLE`): one row a member, sorted by member, the columns of
   ``sweep_run.columns``; merged by world rank 0 when every member is done
@@ -15,7 +15,7 @@ reader, and its record.
   :func:`read_record`.
 
 No DOLFINx: ``cosserat-fem plot`` reads these files without the solver stack. A file is never
-written through a link nor a special file opened (cosserat_fem/safe_files.py); damaged or
+written through a link nor a special file opened (cosserat_fem/common/safe_files.py); damaged or
 foreign files are bad input, one line naming the file (a SceneError).
 Tests: tests/test_sweep.py.
 """
@@ -28,9 +28,9 @@ import json
 import os
 from pathlib import Path
 
-from .. import safe_files
-from ..errors import SceneError
-from .reading import is_file, quoted
+from cosserat_fem.common import safe_files
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.io.reading import is_file, quoted
 
 #: A sweep's table, and the folder of its parts (one a group of ranks: table/group-<k>.csv).
 SWEEP_TABLE, SWEEP_PARTS = "sweep.csv", "table"
@@ -178,7 +178,7 @@ def _whole_rows(source: Path, reader, columns: list[str]) -> list[dict]:
 def check_sweep_rows(directory: str | Path, columns: list[str], rows: list[dict],
                      record: dict) -> tuple[str, ...]:  # fmt: skip
     """The varied keys of the sweep recorded in ``record`` (its sweep.json, from
-    cosserat_fem/sweep_run.py) after checking that ``rows`` are its rows: one a member, each
+    cosserat_fem/studies/sweep_run.py) after checking that ``rows`` are its rows: one a member, each
     of a member it has (0 ... members − 1), with the member's values of the varied keys as
     the sweep's table writes them (JSON), and the table's varied columns the record's.
     SceneError naming the table otherwise: a row of another sweep is not merged."""
@@ -209,7 +209,7 @@ def check_sweep_rows(directory: str | Path, columns: list[str], rows: list[dict]
 
 def _member_values(record: dict, members: int) -> list[dict] | None:
     """Each member's values of the varied keys, from the record's fingerprint (the sweep's
-    JSON document, cosserat_fem/sweep_spec.py), or None where it does not hold them."""
+    JSON document, cosserat_fem/studies/sweep_spec.py), or None where it does not hold them."""
     try:
         listed = json.loads(record.get("fingerprint") or "")["members"]
     except (TypeError, ValueError, KeyError, RecursionError):

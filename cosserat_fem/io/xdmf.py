@@ -1,8 +1,8 @@
 """solution.xdmf (and modes.xdmf, pod.xdmf): a time series of point arrays on the rod's
 centreline for ParaView, the XML beside a folder of HDF5 files, one a frame. The writer of the
-files (:class:`XdmfSeries`, given the values by cosserat_fem/fields.py's
-:class:`~cosserat_fem.fields.XdmfWriter`), their reader without DOLFINx (:func:`read_xdmf`), and
-a restart's check and cut of them (:func:`xdmf_problem`, :func:`cut_xdmf`). The format's names
+files (:class:`XdmfSeries`, given the values by cosserat_fem/output/fields.py's
+:class:`~cosserat_fem.output.fields.XdmfWriter`), their reader without DOLFINx (:func:`read_xdmf`),
+and a restart's check and cut of them (:func:`xdmf_problem`, :func:`cut_xdmf`). The format's names
 are kept here and nowhere else.
 
 Files: the XML ``<name>.xdmf`` and the folder ``<name>.frames/`` (:func:`frames_folder`) of HDF5
@@ -36,9 +36,9 @@ read from the .h5 files of one XDMF file. An XDMF file without any frame (a run 
 its first) raises :class:`NoFramesError`, which ``plot`` takes as "no surfaces" when probes.csv
 has rows. A scratch ``solution.xdmf-partial`` left by a killed run is never read.
 
-No file is written through a link, and no special file is opened (cosserat_fem/safe_files.py):
-every XDMF and HDF5 file is a new file or renamed over the old name.
-Tests: tests/test_xdmf_writer.py, tests/test_kill.py, tests/test_kill_window.py,
+No file is written through a link, and no special file is opened
+(cosserat_fem/common/safe_files.py): every XDMF and HDF5 file is a new file or renamed over the old
+name. Tests: tests/test_xdmf_writer.py, tests/test_kill.py, tests/test_kill_window.py,
 tests/test_restart.py, tests/test_output_fuzz.py.
 """
 
@@ -60,10 +60,17 @@ from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
 
-from .. import safe_files
-from ..errors import CosseratError, OutputError, SceneError
-from .hdf5 import Hdf5
-from .reading import MAX_MAGNITUDE, excerpt, is_file, quoted, read_bytes, short_reason
+from cosserat_fem.common import safe_files
+from cosserat_fem.common.errors import CosseratError, OutputError, SceneError
+from cosserat_fem.io.hdf5 import Hdf5
+from cosserat_fem.io.reading import (
+    MAX_MAGNITUDE,
+    excerpt,
+    is_file,
+    quoted,
+    read_bytes,
+    short_reason,
+)
 
 #: The file's name in a run's folder.
 XDMF = "solution.xdmf"
@@ -219,14 +226,15 @@ def _blocks(size: int) -> int:
 
 
 #: ``data`` (bytes-like) into a new file ``path`` (whatever had the name is replaced: never
-#: written through a link; cosserat_fem/safe_files.py).
+#: written through a link; cosserat_fem/common/safe_files.py).
 _write_file = safe_files.write_new
 
 
 class XdmfSeries:
     """The files of an XDMF time series of point arrays on a polyline, written by one process
-    (rank 0 of a run; cosserat_fem/fields.py's :class:`~cosserat_fem.fields.XdmfWriter` gives
-    it the values): the format of the module docstring, kill-safe.
+    (rank 0 of a run; cosserat_fem/output/fields.py's
+    :class:`~cosserat_fem.output.fields.XdmfWriter` gives it the values): the format of the module
+    docstring, kill-safe.
 
     Kill-safe: after a kill at any moment (SIGKILL included), ``<name>.xdmf`` is well-formed
     and names exactly the frames written before, each in a complete HDF5 file that is never
@@ -675,7 +683,7 @@ class RodSeries:
 
     ``s`` [m] arc length of each point, ``reference`` (N, 3) the reference centreline
     (0, 0, s), ``times`` (T,) [s] (the load factor for a static run, the mode number for
-    modes.xdmf), ``arrays`` name -> (T, N, 3) (see cosserat_fem/fields.py's XdmfWriter for
+    modes.xdmf), ``arrays`` name -> (T, N, 3) (see cosserat_fem/output/fields.py's XdmfWriter for
     names, units and bases). N >= 2, T >= 1, every value finite (see the module docstring)."""
 
     s: np.ndarray

@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 
-from .second_order import RodData
-from .timoshenko import TimoshenkoBeam, forced_response, natural_frequencies
+from cosserat_fem.reference.second_order import RodData
+from cosserat_fem.reference.timoshenko import TimoshenkoBeam, forced_response, natural_frequencies
 
 
 def bending_planes(scene) -> tuple[TimoshenkoBeam, TimoshenkoBeam]:

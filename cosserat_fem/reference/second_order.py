@@ -97,8 +97,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.integrate import solve_ivp
 
-from .timoshenko import TimoshenkoBeam, TimoshenkoMode, modal_loads, mode_shapes
-from .torsion import rectangle_torsion_constant
+from cosserat_fem.reference.timoshenko import (
+    TimoshenkoBeam,
+    TimoshenkoMode,
+    modal_loads,
+    mode_shapes,
+)
+from cosserat_fem.reference.torsion import rectangle_torsion_constant
 
 __all__ = [
     "PAPER_ROD",

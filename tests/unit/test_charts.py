@@ -1,4 +1,4 @@
-"""Unit tests of the charts' nodal algebra, cosserat_fem/charts.py.
+"""Unit tests of the charts' nodal algebra, cosserat_fem/rod/charts.py.
 
 Each function is checked against an independent construction: D of (18) against the product
 Dφ Dθ Dψ of the elementary rotations (15)-(17); Mm (66) against the angular velocity of a
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosserat_fem.charts import (
+from cosserat_fem.rod.charts import (
     angular_map,
     change_chart,
     change_chart_rate,

@@ -1,11 +1,12 @@
-"""Unit tests of the time integrators (cosserat_fem/integrators.py) on small ODE systems.
+"""Unit tests of the time integrators (cosserat_fem/timestepping/integrators.py) on small ODE
+systems.
 
 The problem: n scalar unknowns, one DG0 component each on a one-cell mesh of [0, 1]. The cell
 has measure 1 and the DG0 basis function is 1 on it, so the assembled residual row i is
 exactly U̇_i − f_i(U, τ): the integrators see a DOLFINx problem and the test sees an ODE
 system y' = f(y, τ). Each integrator is driven through its own ``step``/``accept`` API with
 the project's NewtonSolver (full Jacobian, default NewtonSettings, no boundary conditions), as
-cosserat_fem/simulation.py drives it.
+cosserat_fem/analysis/simulation.py drives it.
 
 Amplification (linear y' = M y, M = diag(z_i/h) ⊕ an oscillator block): every solve is linear,
 so one Newton iteration with an exact LU (M is block diagonal, the matrix is that of a direct
@@ -51,7 +52,8 @@ from dolfinx.fem.petsc import assemble_matrix, assemble_vector
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from cosserat_fem.integrators import (
+from cosserat_fem.nls.newton import NewtonSettings, NewtonSolver
+from cosserat_fem.timestepping.integrators import (
     BDF2,
     SDIRK,
     GeneralizedAlpha,
@@ -60,7 +62,6 @@ from cosserat_fem.integrators import (
     alpha_parameters,
     make_integrator,
 )
-from cosserat_fem.newton import NewtonSettings, NewtonSolver
 
 pytestmark = pytest.mark.unit
 

@@ -1,13 +1,13 @@
-"""A scene key is declared once, on the resolved field it becomes (cosserat_fem/keys.py), and
+"""A scene key is declared once, on the resolved field it becomes (cosserat_fem/scene/keys.py), and
 everything is built from it by name (issue 26 item 6).
 
 * Every number key that a scene gives is found, by its own name, in the resolved field it
   declares: each is given a value of its own (distinct from every other key's and from its
   default), so that two keys swapped anywhere between the file and the resolved scene
   (``time.rtol`` and ``time.atol``, say) would fail. Exact equality: the value is copied.
-* :func:`~cosserat_fem.keys.build` fills a dataclass by name: the same table built into a
+* :func:`~cosserat_fem.scene.keys.build` fills a dataclass by name: the same table built into a
   dataclass with its fields in reverse order gives every field the same value.
-* :func:`~cosserat_fem.keys.to_table` (``Scene.to_dict``) writes every declared field from its
+* :func:`~cosserat_fem.scene.keys.to_table` (``Scene.to_dict``) writes every declared field from its
   declaration alone: a dataclass given new keyword fields (a number, a renamed key, an "auto"
   number left to be chosen, a sub-table, an absent optional table, a list of choices) has
   them in its table, and in the scene's ``to_dict`` where it is the scene's table, with no
@@ -31,7 +31,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosserat_fem.keys import (
+from cosserat_fem.scene.build import load_scene, scene_from_dict
+from cosserat_fem.scene.keys import (
     POSITIVE,
     Choice,
     ChoiceList,
@@ -43,10 +44,9 @@ from cosserat_fem.keys import (
     table,
     to_table,
 )
-from cosserat_fem.keys import key as declare
-from cosserat_fem.resolved import Damping, Scene, Time
-from cosserat_fem.scene import load_scene, scene_from_dict
-from cosserat_fem.schema import SCHEMA, parse_toml
+from cosserat_fem.scene.keys import key as declare
+from cosserat_fem.scene.resolved import Damping, Scene, Time
+from cosserat_fem.scene.schema import SCHEMA, parse_toml
 
 pytestmark = pytest.mark.unit
 

@@ -1,4 +1,4 @@
-"""Unit tests of Lagrange interpolation in cosserat_fem.adaptive: lagrange_weights and
+"""Unit tests of Lagrange interpolation in cosserat_fem.timestepping.adaptive: lagrange_weights and
 StateHistory.polynomial (the local error estimate's predictor, the dense output, SDIRK's
 stage-rate predictor).
 
@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosserat_fem.adaptive import StateHistory, lagrange_weights
+from cosserat_fem.timestepping.adaptive import StateHistory, lagrange_weights
 
 pytestmark = pytest.mark.unit
 

@@ -1,12 +1,12 @@
-"""The layout of the unknowns (cosserat_fem/layout.py): exact bookkeeping, no tolerance."""
+"""The layout of the unknowns (cosserat_fem/scene/layout.py): exact bookkeeping, no tolerance."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from cosserat_fem.layout import FULL, NAMES, Layout
-from cosserat_fem.scene import PLANAR
+from cosserat_fem.scene.build import PLANAR
+from cosserat_fem.scene.layout import FULL, NAMES, Layout
 
 pytestmark = pytest.mark.unit
 

@@ -1,8 +1,8 @@
-"""Unit tests of Newton's stop rule, ``cf_test`` (cosserat_fem/newton_loop.c), the one rule every
-solve runs (cf_solve's, and SNES's convergence test), reached from Python through
-cosserat_fem.newton.NewtonSolver._converged.
+"""Unit tests of Newton's stop rule, ``cf_test`` (cosserat_fem/nls/newton_loop.c), the one rule
+every solve runs (cf_solve's, and SNES's convergence test), reached from Python through
+cosserat_fem.nls.newton.NewtonSolver._converged.
 
-The rule (module docstring of cosserat_fem/newton.py), with norms = (‖U‖, ‖δU_k‖, ‖F(U_k)‖):
+The rule (module docstring of cosserat_fem/nls/newton.py), with norms = (‖U‖, ‖δU_k‖, ‖F(U_k)‖):
 stop when ‖F‖ ≤ atol, or ‖F‖ ≤ rtol ‖F(U_0)‖, or ‖δU_k‖ ≤ stol ‖U‖ + xatol (the update
 test); with a reused Jacobian (lagged, frozen) also, from the second iteration on, when
 η_k ‖δU_k‖ ≤ stol ‖U‖ + xatol, η = ρ/(1 − ρ), ρ the larger of ‖δU_k‖/‖δU_{k−1}‖ and
@@ -28,7 +28,7 @@ from dolfinx import fem, mesh
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from cosserat_fem.newton import NewtonSettings, NewtonSolver
+from cosserat_fem.nls.newton import NewtonSettings, NewtonSolver
 
 pytestmark = pytest.mark.unit
 

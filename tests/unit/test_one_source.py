@@ -1,6 +1,6 @@
 """The names a scene may choose and the modules that implement them agree.
 
-The schema (cosserat_fem/schema.py) must stay light (``validate`` imports neither UFL nor
+The schema (cosserat_fem/scene/schema.py) must stay light (``validate`` imports neither UFL nor
 DOLFINx), so where the implementing module is heavy (the integrators, the Newton policies,
 the XDMF fields) the schema spells the names out, and this test holds them equal to the
 implementers' own registries; where it is light (forms/conventions.py, forms/section.py) the
@@ -13,10 +13,10 @@ import pytest
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.section import TORSION_CONSTANT_RULES
 
-from cosserat_fem.integrators import INTEGRATORS
 from cosserat_fem.io.xdmf import FIELD_ARRAYS
-from cosserat_fem.newton import JACOBIAN_POLICIES
-from cosserat_fem.schema import SCHEMA, XDMF_DEFAULT_FIELDS, XDMF_FIELDS
+from cosserat_fem.nls.newton import JACOBIAN_POLICIES
+from cosserat_fem.scene.schema import SCHEMA, XDMF_DEFAULT_FIELDS, XDMF_FIELDS
+from cosserat_fem.timestepping.integrators import INTEGRATORS
 
 pytestmark = pytest.mark.unit
 

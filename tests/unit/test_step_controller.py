@@ -1,6 +1,6 @@
-"""Unit tests of the step-size controller, cosserat_fem.adaptive.StepController.
+"""Unit tests of the step-size controller, cosserat_fem.timestepping.adaptive.StepController.
 
-The rules (module docstring of cosserat_fem/adaptive.py): ‖est‖ = sqrt(mean((est_i /
+The rules (module docstring of cosserat_fem/timestepping/adaptive.py): ‖est‖ = sqrt(mean((est_i /
 (atol + rtol P_c(i)))²)) over the controlled entries, P_c the largest |value| field c has
 reached so far (its peak, updated by accepted states only); the next step is h times
 min(GROWTH, max(SHRINK, SAFETY ‖est‖^(−1/(p+1)))) with SAFETY = 0.8, GROWTH = 1.5,
@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from mpi4py import MPI
 
-from cosserat_fem import adaptive
-from cosserat_fem.adaptive import StepController
+from cosserat_fem.timestepping import adaptive
+from cosserat_fem.timestepping.adaptive import StepController
 
 pytestmark = pytest.mark.unit
 

@@ -1,0 +1,323 @@
+"""Stability of a static equilibrium, and the critical load factor where it is lost.
+
+A load factor f multiplies every load of the scene (the load stepping's λ of
+cosserat_fem/analysis/statics.py: ``model.load_factor``). At each f the static state U(f) is found
+by load stepping from the nearest state already found, and the rod's motions about it are those
+of cosserat_fem/analysis/modal.py: M p̈ + K(f) p = 0, with K the tangent of the static residual, load
+stiffness included (the stress stiffening, torques in fixed directions, the non-symmetric
+part of a follower end load, forms/follower.py). Modes e^{iωt} φ solve K φ = λ M φ (λ in units
+of ω0², ω = ω0 √λ), and the state is
+
+* **stable** when every λ found is real and positive (every mode oscillates);
+* **divergence** (static instability, buckling) when a λ is real and negative: the mode grows
+  like e^{ω0 √−λ t};
+* **flutter** when a pair of λ is complex: two frequencies met and left the real axis, and the
+  mode grows like e^{ω0 Im √λ t} while it oscillates
+
+(:func:`cosserat_fem.analysis.modal.eigenvalue_kind` separates these from round-off). Only the
+``count`` eigenvalues nearest to 0 are computed (shift-and-invert about 0): the ones that cross
+0, or collide, first.
+
+**Critical factor.** The factors of a grid are visited in increasing order; the first interval
+[a, b] with a stable state at a and an unstable one at b brackets the loss of stability. In it
+a continuous function of f that changes sign there is driven to 0 by Brent's method (bisection
+safeguarding inverse quadratic interpolation; scipy.optimize.brentq) to |Δf| ≤ ``tolerance``
+(1 + |f|):
+
+* divergence: λ_min(f), the lowest real eigenvalue, which crosses 0 linearly (a simple root);
+* flutter: the discriminant of the colliding pair, d(f) = (λ2 − λ1)² as a real number: two
+  real eigenvalues of the same kind of motion (bending-x, ...) next to each other, or the
+  complex pair λr ± i λi, for which d = −4 λi². Near the collision λ1,2 = a ± √(c (f* − f)),
+  so d = 4 c (f* − f) is smooth and changes sign at f*, where the square root of λ1 − λ2 would
+  not (its derivative is infinite there). The pair is the one whose real part is nearest the
+  complex pair found at b; the same kind is asked so that a second plane of bending with the
+  same frequencies (a square section) is not taken for a collision.
+
+When both functions change sign over [a, b], the smaller root is the critical factor. The
+tolerance is that of the root finder: the critical factor's error is the discretisation's
+(eigenvalues of degree-k elements converge as h^(2k)), which the checks bound
+(tests/test_stability.py, docs/equilibrium-stability.md).
+
+The static states are solved in 3D (the modes leave a plane of loading), without the moving
+chart of large rotations (cosserat_fem/rod/charts.py): the rod's angle θ must stay away from π/2
+along the path, which load stepping checks (a SolverError otherwise). A factor beyond a limit
+point (a fold, where the static path turns back) has no state to step to: load stepping
+fails there with its reason; follow such paths with the continuation of issue 27 item 2.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from cosserat_fem.analysis import budget
+from cosserat_fem.analysis.modal import (
+    Mode,
+    assemble_modal_problem,
+    check_count,
+    eigenvalue_kind,
+    solve_eigenproblem,
+)
+from cosserat_fem.analysis.observers import summary_start
+from cosserat_fem.analysis.statics import StaticLoop, check_static_scene, static_solver
+from cosserat_fem.common.errors import SceneError, SolverError
+from cosserat_fem.common.parallel import ranks_on_node
+from cosserat_fem.io.run_folder import write_summary
+from cosserat_fem.rod.model import build_model
+from cosserat_fem.scene.build import Scene
+from cosserat_fem.timestepping.events import Events
+
+#: The kinds of state, in the order a state with both instabilities reports them.
+STATUSES = ("stable", "flutter", "divergence")
+
+
+@dataclass
+class StabilityPoint:
+    """The state at load factor ``factor``: the eigenvalues λ of K φ = λ M φ nearest 0
+    (dimensionless, units of ω0², sorted by real part), the kind of motion of each mode
+    (cosserat_fem/analysis/modal.py KINDS), and ``status``: "stable", "divergence" or "flutter" (the
+    module docstring; flutter first when a state has both)."""
+
+    factor: float
+    eigenvalues: np.ndarray
+    kinds: list[str]
+    status: str
+
+    @classmethod
+    def of(cls, factor: float, modes: Sequence[Mode]) -> StabilityPoint:
+        lams = np.array([m.eigenvalue for m in modes], dtype=complex)
+        scale = float(np.abs(lams).max()) if lams.size else 1.0
+        found = {eigenvalue_kind(complex(lam), scale) for lam in lams}
+        status = next((s for s in STATUSES[1:] if s in found), "stable")
+        return cls(factor, lams, [m.kind for m in modes], status)
+
+    @property
+    def stable(self) -> bool:
+        return self.status == "stable"
+
+    def lowest_real(self) -> float:
+        """λ_min: the lowest real part among the real eigenvalues (divergence's function)."""
+        scale = float(np.abs(self.eigenvalues).max())
+        real = [lam.real for lam in self.eigenvalues if eigenvalue_kind(lam, scale) != "flutter"]
+        return min(real) if real else math.inf
+
+    def complex_pair(self) -> tuple[float, str] | None:
+        """(real part, kind) of the complex pair nearest 0, None if there is none."""
+        scale = float(np.abs(self.eigenvalues).max())
+        pairs = [(abs(lam), lam.real, kind) for lam, kind in zip(self.eigenvalues, self.kinds,
+                 strict=True) if eigenvalue_kind(lam, scale) == "flutter"]  # fmt: skip
+        return min(pairs)[1:] if pairs else None
+
+    def discriminant(self, near: float, kind: str) -> float | None:
+        """d = (λ2 − λ1)² of the pair whose real part is nearest ``near`` (flutter's function,
+        module docstring): a complex pair's −4 λi², or two neighbouring real eigenvalues of
+        the kind of motion ``kind``; None if there is no such pair."""
+        scale = float(np.abs(self.eigenvalues).max())
+        candidates = []  # (distance of the pair's middle to near, d)
+        real = []
+        for lam, k in zip(self.eigenvalues, self.kinds, strict=True):
+            if eigenvalue_kind(lam, scale) == "flutter":
+                candidates.append((abs(lam.real - near), -4.0 * lam.imag**2))
+            elif k == kind:
+                real.append(lam.real)
+        real.sort()
+        for low, high in zip(real, real[1:], strict=False):
+            candidates.append((abs(0.5 * (low + high) - near), (high - low) ** 2))
+        return min(candidates)[1] if candidates else None
+
+    def as_dict(self) -> dict:
+        return {"factor": self.factor, "status": self.status,
+                "eigenvalues": [[lam.real, lam.imag] for lam in self.eigenvalues],
+                "kinds": self.kinds}  # fmt: skip
+
+
+@dataclass
+class StabilityResult:
+    """The states visited (``points``, by factor: the grid's and the root finder's), and the
+    critical load factor ``critical`` where stability is lost (None if it is not lost in the
+    range, or already lost at its start: ``reason`` says which), its ``kind`` ("divergence" or
+    "flutter"), the ``bracket`` [a, b] it was found in, the root finder's ``tolerance`` and
+    ``evaluations`` (its function evaluations), and the scene's loads at factor 1
+    (``loads``: the critical loads are critical × these)."""
+
+    points: list[StabilityPoint]
+    critical: float | None = None
+    kind: str | None = None
+    bracket: tuple[float, float] | None = None
+    tolerance: float = 0.0
+    evaluations: int = 0
+    reason: str = ""
+    loads: dict = field(default_factory=dict)
+
+    def as_dict(self) -> dict:
+        return {"critical_factor": self.critical, "instability": self.kind,
+                "bracket": list(self.bracket) if self.bracket else None,
+                "tolerance": self.tolerance, "root_evaluations": self.evaluations,
+                "reason": self.reason, "loads_at_factor_1": self.loads,
+                "points": [p.as_dict() for p in sorted(self.points, key=lambda p: p.factor)]}
+
+
+class Equilibria:
+    """Static states of one scene at load factors, and the eigenvalues about each.
+
+    One 3D model and one Newton solver serve every factor (the load factor is a Constant of
+    the forms: nothing is compiled again); each state is stepped to from the nearest one found
+    so far (the straight rod at f = 0), in increments of 1/static.load_steps of the factor."""
+
+    def __init__(self, scene: Scene, count: int = 6, comm: MPI.Comm = MPI.COMM_WORLD):
+        check_static_scene(scene, "stability")
+        check_count(scene, count)
+        budget.check(scene, "modes", None, ranks_on_node(comm), comm.size, modes=count, comm=comm)
+        self.scene, self.count = scene, count
+        self.model = build_model(scene, comm, planar=False)  # the modes leave the plane too
+        self.solver = static_solver(scene, self.model)
+        self.states: dict[float, np.ndarray] = {0.0: self.model.U.x.array.copy()}
+        self.points: dict[float, StabilityPoint] = {}
+
+    def state(self, factor: float) -> np.ndarray:
+        """U at ``factor`` (a copy), by load stepping from the nearest state found."""
+        if factor in self.states:
+            return self.states[factor].copy()
+        start = min(self.states, key=lambda f: (abs(f - factor), f))
+        steps = max(1, math.ceil(abs(factor - start) * self.scene.static.load_steps - 1e-9))
+        self.model.U.x.array[:] = self.states[start]
+        self.model.load_factor.value = start
+        loop = StaticLoop(self.model, self.solver, self.scene, Events(), start, factor, steps)
+        try:
+            loop.run()
+        finally:
+            loop.back_to_accepted()
+        self.states[factor] = self.model.U.x.array.copy()
+        return self.states[factor].copy()
+
+    def at(self, factor: float) -> StabilityPoint:
+        """The state at ``factor`` and the ``count`` eigenvalues nearest 0 about it."""
+        if factor not in self.points:
+            base = self.state(factor)
+            self.model.load_factor.value = factor
+            problem = assemble_modal_problem(self.model, base)
+            try:
+                modes = solve_eigenproblem(problem, self.count)
+            finally:
+                problem.K.destroy()
+                problem.M.destroy()
+            self.points[factor] = StabilityPoint.of(factor, modes)
+        return self.points[factor]
+
+    def close(self) -> None:
+        self.solver.destroy()
+
+
+def _root(function, a: float, b: float, tolerance: float) -> tuple[float, int]:
+    """Brent's root of ``function`` in [a, b] (opposite signs at the ends) to |Δf| ≤
+    tolerance (1 + max |a|, |b|); (root, function evaluations)."""
+    from scipy.optimize import brentq
+
+    xtol = tolerance * (1.0 + max(abs(a), abs(b)))
+    root, info = brentq(function, a, b, xtol=xtol, rtol=4 * np.finfo(float).eps,
+                        full_output=True)  # fmt: skip
+    return float(root), int(info.function_calls)
+
+
+def critical_factor(equilibria: Equilibria, factors: Sequence[float],
+                    tolerance: float = 1e-8) -> StabilityResult:  # fmt: skip
+    """Visit ``factors`` (increasing) and locate the loss of stability in the first interval
+    where it is lost (module docstring)."""
+    grid = [equilibria.at(f) for f in factors]
+    result = StabilityResult(points=[], tolerance=tolerance)
+    if not grid[0].stable:
+        result.reason = f"unstable ({grid[0].status}) already at the first factor {grid[0].factor}"
+    lost = next((i for i in range(len(grid) - 1) if grid[i].stable and not grid[i + 1].stable),
+                None)  # fmt: skip
+    if grid[0].stable and lost is None:
+        result.reason = f"stable over [{factors[0]}, {factors[-1]}]"
+    if lost is not None and grid[0].stable:
+        a, b = grid[lost], grid[lost + 1]
+        roots = []
+        if b.lowest_real() < 0.0 <= a.lowest_real():
+            roots.append((*_root(lambda f: equilibria.at(f).lowest_real(), a.factor, b.factor,
+                                 tolerance), "divergence"))  # fmt: skip
+        pair = b.complex_pair()
+        if pair is not None:
+            near, kind = pair
+            d_a = a.discriminant(near, kind)
+            if d_a is None:
+                raise SolverError(
+                    f"flutter between load factors {a.factor} and {b.factor}: the two "
+                    f"{kind} eigenvalues that collide are not both among the {equilibria.count} "
+                    "nearest 0 at the stable end",
+                    where="stability",
+                    suggestion="ask for more eigenvalues (--count)",
+                )
+
+            def discriminant(f: float) -> float:
+                d = equilibria.at(f).discriminant(near, kind)
+                if d is None:
+                    raise SolverError(f"flutter: no {kind} pair at load factor {f}",
+                                      where="stability", suggestion="raise --count")  # fmt: skip
+                return d
+
+            roots.append((*_root(discriminant, a.factor, b.factor, tolerance), "flutter"))
+        root, evaluations, kind = min(roots)
+        result.critical, result.kind, result.evaluations = root, kind, evaluations
+        result.bracket = (a.factor, b.factor)
+    result.points = sorted(equilibria.points.values(), key=lambda p: p.factor)
+    return result
+
+
+def scene_loads(scene: Scene) -> dict:
+    """The scene's load components at factor 1 that are not zero, by dotted key (their
+    expressions as given: the critical loads are the critical factor times these)."""
+    return {key: str(value) for key, value in scene.load_components()
+            if not getattr(value, "is_zero", False)}  # fmt: skip
+
+
+def check_factors(low: float, high: float, samples: int, tolerance: float) -> list[float]:
+    """The grid of load factors, or a SceneError naming the option."""
+    if not all(math.isfinite(v) for v in (low, high)) or low < 0.0 or high <= low:
+        raise SceneError(f"--range: must be two finite load factors 0 <= LOW < HIGH, got "
+                         f"{low!r} {high!r}")  # fmt: skip
+    if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 2:
+        raise SceneError(f"--samples: must be a whole number >= 2, got {samples!r}")
+    if not (isinstance(tolerance, float | int) and 0.0 < tolerance < 0.1):
+        raise SceneError(f"--tolerance: must lie in (0, 0.1), got {tolerance!r}")
+    return [float(f) for f in np.linspace(low, high, samples)]
+
+
+def stability(scene: Scene, low: float = 0.0, high: float = 1.0, samples: int = 5,
+              tolerance: float = 1e-8, count: int = 6, out: Path | None = None,
+              comm: MPI.Comm = MPI.COMM_WORLD) -> StabilityResult:  # fmt: skip
+    """Stability of the scene's static states for load factors in [low, high] (``samples``
+    equally spaced, then the root finder's) and the critical factor (:func:`critical_factor`);
+    with ``out``: stability.json there."""
+    factors = check_factors(low, high, samples, tolerance)
+    equilibria = Equilibria(scene, count, comm)
+    try:
+        result = critical_factor(equilibria, factors, tolerance)
+    finally:
+        equilibria.close()
+    result.loads = scene_loads(scene)
+    if out is not None:
+        summary = summary_start("stability", scene, comm, equilibria.model, **result.as_dict())
+        summary["status"] = "completed"
+        write_summary(Path(out) / "stability.json", summary, comm)
+    return result
+
+
+def stability_at(scene: Scene, factor: float = 1.0, count: int = 6,
+                 comm: MPI.Comm = MPI.COMM_WORLD) -> StabilityPoint:  # fmt: skip
+    """Whether the static state at load factor ``factor`` (1: the scene's loads) is stable,
+    with the ``count`` eigenvalues nearest 0 about it."""
+    if not (isinstance(factor, float | int) and math.isfinite(factor)):
+        raise SceneError(f"factor: must be a finite number, got {factor!r}")
+    equilibria = Equilibria(scene, count, comm)
+    try:
+        return equilibria.at(float(factor))
+    finally:
+        equilibria.close()
+

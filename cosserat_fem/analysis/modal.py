@@ -1,0 +1,398 @@
+"""Natural frequencies and mode shapes of a rod about a static state, by SLEPc.
+
+The general form (65) is linearised about a state p0 at rest (the straight rod, or the static
+equilibrium under the scene's loads at the start time). With U = (p, q), q = ṗ, the second block
+of (65) reads Ma(p) p̈ + b(p, p')' − g(p, p', ṗ) = 0; its velocity terms (the products of (64)
+and the gyroscopic terms) are quadratic in ṗ and vanish at rest, so the linearisation is
+
+    M p̈ + K p = 0,   M = ∂F/∂p̈ |p0,   K = ∂F/∂p |p0,
+
+with F the weak residual of the second block on a 6-component space (same mesh and degree as
+the dynamics). K includes the load stiffness of state-dependent loads (torques in fixed
+directions, (38) and (43); follower end loads, forms/follower.py, whose K is not
+symmetric). Modes e^{iωt} φ solve the generalized eigenproblem
+
+    K φ = λ M φ,   ω = ω0 √λ  [rad/s]   (λ in units of the time scale τ = ω0 t, (47)).
+
+K and M are not symmetric in general (each row is a balance law divided by its own inertia,
+(48)), so the problem is solved as a generalized non-Hermitian one with shift-and-invert about 0
+(LU: PETSc in serial, MUMPS in parallel). Clamped dofs get 1 on K's diagonal and 0 on M's, which
+sends their eigenvalues to infinity, away from the wanted ones.
+
+Each mode is classified by where its kinetic energy lies: bending-x (x and ψ), bending-y
+(y and θ), axial (z) or torsion (φ), with the physical weights ρ A ℓ² for the translations
+p1..p3 and ρ c11, ρ c22, ρ I3 for θ, ψ, φ (I3 = c11 + c22, or c33 with torsion_inertia =
+"printed": forms/groups.py).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import ufl
+from dolfinx import fem, mesh
+from dolfinx.fem.petsc import assemble_matrix
+from mpi4py import MPI
+from petsc4py import PETSc
+
+from cosserat_fem.analysis import budget
+from cosserat_fem.analysis.observers import summary_start
+from cosserat_fem.common import safe_files
+from cosserat_fem.common.errors import OutputError, SceneError, SolverError
+from cosserat_fem.common.parallel import agree, ranks_on_node
+from cosserat_fem.io.run_folder import write_summary
+from cosserat_fem.output.fields import XdmfWriter
+from cosserat_fem.rod.model import FULL, RodModel, build_model, support_conditions
+from cosserat_fem.scene.build import Scene
+
+KINDS = ("bending-x", "bending-y", "axial", "torsion")
+# Which of p1..p6 = (x/ℓ, y/ℓ, z/ℓ, θ, ψ, φ) belongs to which kind of motion.
+_GROUPS = {"bending-x": (0, 4), "bending-y": (1, 3), "axial": (2,), "torsion": (5,)}
+
+
+@dataclass
+class Mode:
+    """One natural mode: ω [rad/s], its kind, kinetic-energy fractions, shape (6 components),
+    and the eigenvalue λ of K φ = λ M φ it comes from (dimensionless, ω = ω0 √λ).
+
+    A λ that is negative (a state beyond a stability limit: the mode grows like e^{ω0 √−λ t})
+    or complex (flutter, e.g. under follower-like loads) has no ω: ``omega`` is NaN and
+    ``note`` says which, with the growth rate; round-off of the non-symmetric K, M (an
+    imaginary part below 1e-8 |λ|, a negative λ below 1e-12 of the largest |λ| found) is not
+    taken for either."""
+
+    omega: float
+    kind: str
+    fractions: dict[str, float]
+    shape: fem.Function
+    eigenvalue: complex = 0j
+    note: str = ""
+
+    @property
+    def frequency_hz(self) -> float:
+        return self.omega / (2.0 * np.pi)
+
+
+def eigenvalue_kind(lam: complex, scale: float) -> str:
+    """"flutter" for a complex λ (|Im λ| > 1e-8 |λ|), "divergence" for a negative one
+    (Re λ < −1e-12 ``scale``, the largest |λ| found), "" otherwise (a mode that oscillates):
+    the round-off of the non-symmetric K, M is not taken for either (:class:`Mode`)."""
+    if abs(lam.imag) > 1e-8 * abs(lam):
+        return "flutter"
+    return "divergence" if lam.real < -1e-12 * scale else ""
+
+
+def angular_frequency(lam: complex, omega0: float, scale: float) -> tuple[float, str]:
+    """(ω [rad/s], note) of the eigenvalue λ (see :class:`Mode`); ``scale``: the largest |λ|
+    found, for what counts as round-off."""
+    kind = eigenvalue_kind(lam, scale)
+    if kind == "flutter":
+        return math.nan, f"complex eigenvalue {lam.real:.6g}{lam.imag:+.6g}i (flutter)"
+    if kind == "divergence":
+        rate = omega0 * math.sqrt(-lam.real)
+        return math.nan, f"negative eigenvalue {lam.real:.6g}: unstable, grows at {rate:.6g} 1/s"
+    return omega0 * math.sqrt(max(lam.real, 0.0)), ""
+
+
+@dataclass
+class ModalProblem:
+    """Assembled K, M on the 6-component space of a model, and its base state p0; for a
+    closed rod, ``joint``: the map S of :func:`join_ends` (a mode's shape is S φ)."""
+
+    model: RodModel
+    P: fem.FunctionSpace
+    p0: fem.Function
+    K: PETSc.Mat
+    M: PETSc.Mat
+    joint: PETSc.Mat | None = None
+
+
+def modal_supports(model: RodModel, P: fem.FunctionSpace) -> list:
+    """The supports on the 6-component space P of p (model.support_conditions: p = 0 at a
+    clamped end; x, y, z, φ = 0 at a pinned one)."""
+    ends = {
+        name: mesh.locate_entities_boundary(model.msh, 0, lambda x, c=coord: np.isclose(x[0], c))
+        for name, coord in (("start", 0.0), ("end", 1.0))
+    }
+    return support_conditions(P, model.scene, ends, FULL[:6])[0]
+
+
+def assemble_modal_problem(model: RodModel, base: np.ndarray | None = None) -> ModalProblem:
+    """K and M about p0 (``base``: a 12-component state array of ``model.V``; None = straight).
+
+    The 12- and 6-component spaces share their node numbering (same mesh and scalar element,
+    blocked dofs), so p0 is the first six entries of each 12-block.
+    """
+    element = ufl.VectorElement(
+        "Lagrange", model.msh.ufl_cell(), model.scene.discretisation.degree, dim=6
+    )
+    P = fem.FunctionSpace(model.msh, element)
+    p0 = fem.Function(P, name="p0")
+    if base is not None:
+        p0.x.array[:] = base.reshape(-1, 12)[:, :6].ravel()
+    acc = fem.Function(P, name="p_ddot")
+    v, dp = ufl.TestFunction(P), ufl.TrialFunction(P)
+    zeros = [0.0] * 6
+    U = ufl.as_vector([p0[i] for i in range(6)] + zeros)
+    Udot = ufl.as_vector(zeros + [acc[i] for i in range(6)])
+    V = ufl.as_vector(zeros + [v[i] for i in range(6)])
+    time = fem.Constant(model.msh, PETSc.ScalarType(model.scene.time.start * model.omega0))
+    F = model.residual_terms(U, Udot, time, test=V).total()
+    model.sync_loads(time)
+    bcs = modal_supports(model, P)
+    K = assemble_matrix(fem.form(ufl.derivative(F, p0, dp)), bcs=bcs, diagonal=1.0)
+    K.assemble()
+    M = assemble_matrix(fem.form(ufl.derivative(F, acc, dp)), bcs=bcs, diagonal=0.0)
+    M.assemble()
+    if model.scene.reference.closed:
+        return join_ends(ModalProblem(model=model, P=P, p0=p0, K=K, M=M))
+    return ModalProblem(model=model, P=P, p0=p0, K=K, M=M)
+
+
+def _end_dofs(P: fem.FunctionSpace, sigma: float) -> np.ndarray:
+    """The global indices of the six dofs of p at the node at σ (on every rank)."""
+    blocks = fem.locate_dofs_geometrical(P, lambda x: np.isclose(x[0], sigma))
+    index_map = P.dofmap.index_map
+    owned = blocks[blocks < index_map.size_local]
+    mine = index_map.local_to_global(owned.astype(np.int32)) if owned.size else []
+    found = [b for part in P.mesh.comm.allgather(list(mine)) for b in part]
+    if len(found) != 1:
+        raise RuntimeError(f"not one node at σ = {sigma}: {found}")
+    return 6 * int(found[0]) + np.arange(6)
+
+
+def join_ends(problem: ModalProblem) -> ModalProblem:
+    """The eigenproblem of a closed rod (reference.closed): its unknowns p(ℓ) = p(0).
+
+    S maps p onto the p whose end node (σ = 1) takes the values of the start node (σ = 0):
+    S = I but for the end node's columns, which move to the start node's. The weak form of
+    the ring has test functions continuous across the joint too, so its rows are Sᵀ applied
+    to the open rod's: K̃ = Sᵀ K S + D, M̃ = Sᵀ M S, where the end node's rows and columns
+    are zero and D puts 1 on K̃'s diagonal there (their eigenvalues are infinite, as a
+    clamped dof's: away from the wanted ones); a mode φ of (K̃, M̃) has the shape S φ. The
+    reference must close in position and frame (scene validation), so p = (displacement,
+    Euler angles of R that carries D0) means the same at both ends."""
+    P, K, M = problem.P, problem.K, problem.M
+    start, end = _end_dofs(P, 0.0), _end_dofs(P, 1.0)
+    rows = K.getOwnershipRange()
+    columns = np.arange(*rows, dtype=PETSc.IntType)  # S's one entry a row: 1 in this column
+    mine = (end >= rows[0]) & (end < rows[1])
+    columns[end[mine] - rows[0]] = start[mine]
+    S = PETSc.Mat().createAIJ((K.getSizes()[0], K.getSizes()[0]), nnz=(1, 1), comm=K.comm)
+    pointers = np.arange(columns.size + 1, dtype=PETSc.IntType)
+    S.setValuesCSR(pointers, columns, np.ones(columns.size))
+    S.assemble()
+    K_joined, M_joined = K.PtAP(S), M.PtAP(S)
+    K_joined.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+    for row in end:
+        if rows[0] <= row < rows[1]:
+            K_joined.setValue(int(row), int(row), 1.0, addv=PETSc.InsertMode.ADD_VALUES)
+    K_joined.assemble()
+    return ModalProblem(problem.model, P, problem.p0, K_joined, M_joined, joint=S)
+
+
+def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
+    """The ``count`` lowest modes, sorted by frequency."""
+    from slepc4py import SLEPc
+
+    comm = problem.model.msh.comm
+    eps = SLEPc.EPS().create(comm)
+    eps.setOperators(problem.K, problem.M)
+    eps.setProblemType(SLEPc.EPS.ProblemType.GNHEP)
+    eps.setDimensions(nev=count, ncv=max(2 * count + 10, 30))
+    eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
+    # A mechanism's K is singular (its rigid-body modes, λ = 0): shift-invert about λ = −1
+    # (ω = i ω0: K + M is positive definite), which finds the same lowest modes.
+    shift = -1.0 if problem.model.scene.supports.mechanism else 0.0
+    eps.setTarget(shift)
+    eps.setTolerances(tol=1e-13, max_it=500)
+    st = eps.getST()
+    st.setType(SLEPc.ST.Type.SINVERT)
+    st.setShift(shift)
+    ksp = st.getKSP()
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("petsc" if comm.size == 1 else "mumps")
+    eps.solve()
+    found = eps.getConverged()
+    if found < count:
+        eps.destroy()
+        raise SolverError(
+            f"SLEPc converged {found} of the {count} modes asked for",
+            where="modes",
+            suggestion="ask for fewer (--count) or refine the mesh (discretisation.elements)",
+        )
+    vr, vi = problem.K.createVecs()
+    joined = vr.duplicate()
+    pairs = []
+    for i in range(found):
+        lam = eps.getEigenpair(i, vr, vi)
+        shape = fem.Function(problem.P, name="mode")
+        if problem.joint is not None:
+            problem.joint.mult(vr, joined)
+            shape.vector.array[:] = joined.array
+        else:
+            shape.vector.array[:] = vr.array
+        shape.x.scatter_forward()
+        pairs.append((complex(lam), shape))
+    pairs.sort(key=lambda pair: (pair[0].real, pair[0].imag))
+    weights = _kinetic_weights(problem.model)
+    scale = max((abs(lam) for lam, _ in pairs), default=1.0)
+    rigid = rigid_body_modes(problem.model.scene.supports)
+    modes = []
+    for i, (lam, shape) in enumerate(pairs[:count]):
+        omega, note = angular_frequency(lam, problem.model.omega0, scale)
+        if i < rigid:  # λ = 0 to the round-off of K's largest eigenvalues, of either sign
+            omega, note = 0.0, f"rigid-body mode (λ = {lam.real:.2g}, round-off)"
+        fractions = _energy_fractions(shape, weights)
+        kind = max(fractions, key=fractions.get)
+        modes.append(Mode(omega, kind, fractions, _normalised(shape), lam, note))
+    eps.destroy()
+    return modes
+
+
+def _kinetic_weights(model: RodModel) -> np.ndarray:
+    """ρ A ℓ² for p1..p3 (p = x/ℓ) and ρ c11, ρ c22, ρ I3 for θ, ψ, φ, per unit σ (I3: the
+    torsion row's, forms/groups.py)."""
+    rod = model.rod
+    trans = rod.density * rod.section.area * rod.length**2
+    return np.array([trans] * 3 + [rod.density * c for c in rod.rotary_inertias])
+
+
+def _energy_fractions(shape: fem.Function, weights: np.ndarray) -> dict[str, float]:
+    """The part of the kinetic energy Σ_i ∫ w_i φ_i² dσ of mode ``shape`` in each kind of motion
+    (KINDS), ``weights`` w from :func:`_kinetic_weights` (collective)."""
+    comm = shape.function_space.mesh.comm
+    per_component = []
+    for i in range(6):
+        form = fem.form(weights[i] * shape[i] ** 2 * ufl.dx)
+        per_component.append(comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))
+    total = sum(per_component)
+    return {kind: sum(per_component[i] for i in idx) / total for kind, idx in _GROUPS.items()}
+
+
+def _normalised(shape: fem.Function) -> fem.Function:
+    """Scale so that the largest |component| is 1 with a positive sign."""
+    comm = shape.function_space.mesh.comm
+    local = shape.x.array
+    i = int(np.argmax(np.abs(local))) if local.size else 0
+    mine = (abs(local[i]), local[i]) if local.size else (0.0, 1.0)
+    _, value = max(comm.allgather(mine))
+    shape.x.array[:] /= value
+    return shape
+
+
+#: The rigid-body modes each mechanism has (scene.Supports.mechanism), by its two supports:
+#: a free rod three translations and three rotations; a fork at one end the two rotations
+#: about it (it holds the twist), a ball joint three; two ball joints the twist about the
+#: line through them.
+RIGID_BODY_MODES = {
+    ("free", "free"): 6,
+    ("free", "pinned"): 2,
+    ("free", "spherical"): 3,
+    ("spherical", "spherical"): 1,
+}
+
+
+def rigid_body_modes(supports) -> int:
+    """How many rigid-body modes (ω = 0) the supports leave (:data:`RIGID_BODY_MODES`)."""
+    return RIGID_BODY_MODES.get(tuple(sorted((supports.start, supports.end))), 0)
+
+
+def max_modes(scene: Scene) -> int:
+    """How many modes the discretisation has: the free dofs of p, six per Lagrange node less
+    those a support holds (six at a clamped end, four at a pinned one: x, y, z, φ, three at a
+    spherical one)."""
+    disc = scene.discretisation
+    nodes = disc.elements * disc.degree + 1 - scene.reference.closed  # a ring: ends joined
+    held = {"clamped": 6, "pinned": 4, "spherical": 3, "free": 0}
+    return 6 * nodes - held[scene.supports.start] - held[scene.supports.end]
+
+
+def check_count(scene: Scene, count: int) -> None:
+    """SceneError unless 1 <= count <= :func:`max_modes`."""
+    most = max_modes(scene)
+    if not 1 <= count <= most:
+        raise SceneError(
+            f"--count: must lie in [1, {most}] (the modes of {scene.discretisation.elements} "
+            f"elements of degree {scene.discretisation.degree}: six unknowns a node less the "
+            f"held ones; more elements give more), got {count}"
+        )
+
+
+def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WORLD):
+    """The scene's ``count`` lowest modes about the straight rod or its static state. A
+    mechanism (scene.Supports.mechanism) has rigid-body modes, ω = 0 (six for a free rod),
+    before its flexible ones; it has modes about the straight rod only (its static state
+    is not determined: a SceneError)."""
+    if scene.supports.mechanism and about == "static":
+        raise SceneError(
+            f'supports: modes about the static state of a mechanism (start = '
+            f'"{scene.supports.start}", end = "{scene.supports.end}"): it has none, its '
+            "rigid-body motions leave it undetermined; use --about undeformed"
+        )
+    check_count(scene, count)
+    budget.check(scene, "modes", None, ranks_on_node(comm), comm.size, modes=count, comm=comm)
+    if about == "static":
+        from cosserat_fem.analysis.statics import solve_static
+
+        static, _ = solve_static(scene, comm)
+        base = static.layout.full_array(static.U.x.array).ravel()  # a planar solve, embedded
+        model = build_model(scene, comm, planar=False)  # the modes leave the plane too
+    elif about == "undeformed":
+        model, base = build_model(scene, comm, planar=False), None
+    else:
+        raise ValueError(f"about must be 'undeformed' or 'static', got {about!r}")
+    problem = assemble_modal_problem(model, base)
+    return model, solve_eigenproblem(problem, count)
+
+
+def write_modes(out: Path, model: RodModel, modes: list[Mode], about: str = "undeformed") -> None:
+    """``modes.csv`` (rank 0), ``modes.xdmf`` (shapes as a series indexed by mode number) and
+    ``modes.json``, the summary of the modal analysis (cosserat_fem/io/run_folder.py; not
+    summary.json, which belongs to the run or static solve of the folder, if any)."""
+    comm = model.msh.comm
+    problem = None
+    if comm.rank == 0:
+        try:
+            fd = safe_files.create(out / "modes.csv")  # never written through a link
+            with os.fdopen(fd, "w", newline="", encoding="utf-8") as stream:
+                writer = csv.writer(stream)
+                writer.writerow(
+                    ["mode", "omega_rad_s", "frequency_hz", "kind"]
+                    + [f"fraction_{k.replace('-', '_')}" for k in KINDS]
+                    + ["eigenvalue_re", "eigenvalue_im", "note"]
+                )
+                for i, mode in enumerate(modes, start=1):
+                    lam = mode.eigenvalue
+                    writer.writerow(
+                        [i, f"{mode.omega:.12e}", f"{mode.frequency_hz:.12e}", mode.kind]
+                        + [f"{mode.fractions[k]:.6f}" for k in KINDS]
+                        + [f"{lam.real:.12e}", f"{lam.imag:.12e}", mode.note]
+                    )
+        except OSError as exc:
+            problem = OutputError(
+                f"output: cannot write {str(out / 'modes.csv')!r} ({exc.strerror or exc})"
+            )
+    agree(comm, problem)
+    if modes:
+        scratch = fem.Function(modes[0].shape.function_space, name="mode")
+        # Displacement and angles only: strains and resultants of an eigenvector of
+        # arbitrary amplitude would be nonlinear functions of that amplitude.
+        writer = XdmfWriter(out / "modes.xdmf", model, ("displacement", "angles"), U=scratch)
+        for i, mode in enumerate(modes, start=1):
+            writer.write(float(i), mode.shape)
+        writer.close()
+    modes_found = [
+        {"omega_rad_s": m.omega, "kind": m.kind, "eigenvalue": [m.eigenvalue.real,
+         m.eigenvalue.imag], "note": m.note}
+        for m in modes
+    ]  # fmt: skip
+    summary = summary_start("modes", model.scene, comm, about=about, modes=modes_found)
+    summary["status"] = "completed"
+    write_summary(out / "modes.json", summary, comm)

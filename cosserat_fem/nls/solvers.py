@@ -1,0 +1,25 @@
+"""The choice of nonlinear solver: the project's Newton loop (cosserat_fem/nls/newton.py) or
+PETSc's SNES (cosserat_fem/nls/snes.py), by the scene's ``solver.nonlinear`` and
+``[solver.petsc]`` (docs/solvers.md). Its own module so that the Newton loop does not import
+SNES, which is a subclass of it, and SNES is imported only when a scene chooses it."""
+
+from __future__ import annotations
+
+import ufl
+from dolfinx import fem
+
+from cosserat_fem.nls.newton import NewtonSettings, NewtonSolver
+
+
+def make_solver(
+    F: ufl.Form, U: fem.Function, bcs: list, settings: NewtonSettings
+) -> NewtonSolver:
+    """The nonlinear solver of F(U) = 0 that ``settings`` choose: PETSc's SNES configured by
+    ``settings.petsc`` (:class:`~cosserat_fem.nls.snes.SNESSolver`) for
+    nonlinear = "snes", or "auto" with options; else :class:`NewtonSolver`. Both have the
+    same interface, stop rule and Jacobian policies."""
+    if settings.nonlinear == "snes" or (settings.nonlinear == "auto" and settings.petsc):
+        from cosserat_fem.nls.snes import SNESSolver
+
+        return SNESSolver(F, U, bcs, settings)
+    return NewtonSolver(F, U, bcs, settings)

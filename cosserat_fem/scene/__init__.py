@@ -1,0 +1,2 @@
+"""The scene: keys declared once (keys), the TOML schema, the resolved scene's dataclasses, building
+and checking a scene (build), expressions, loads from data."""

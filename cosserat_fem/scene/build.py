@@ -1,0 +1,837 @@
+"""TOML scenes: from a scene file (or its data) and ``--set`` overrides to the resolved
+:class:`Scene`.
+
+A scene file describes one run (rod, material, supports, loads, time span, discretisation,
+solver and output). :func:`load_scene` reads it, applies ``dotted.key=value`` overrides and
+validates everything before any work is done (the schema: cosserat_fem/scene/schema.py); the
+building here resolves the rest: section constants, the derived constants and their range,
+expressions parsed with the scene's names, initial fields against the supports, the time grid.
+Every problem is a single :class:`~cosserat_fem.common.errors.SceneError` naming the dotted key.
+``scenes/cao_tucker_2008.toml`` is a commented example. The resolved scene's classes
+(cosserat_fem/scene/resolved.py) are importable from here too.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cosserat_fem.common.errors import SceneError, show_value
+from cosserat_fem.forms.groups import Groups, dimensionless_groups
+from cosserat_fem.forms.section import cowper_circle
+from cosserat_fem.scene.expressions import Expression, derivative, parse_vector
+from cosserat_fem.scene.keys import (
+    REFERENCE_KEYS,
+    SCENE_CONSTANTS,
+    SECTION_KEYS,
+    STEP_TOLERANCE,
+    LoadVector,
+    Table,
+    build,
+    declared_names,
+    fmt,
+    to_table,
+)
+from cosserat_fem.scene.load_data import TableStore, check_span, is_data, parse_load_vector
+from cosserat_fem.scene.resolved import (  # noqa: F401 - the resolved scene, importable from here
+    PLANAR,
+    PLANES,
+    Damping,
+    Discretisation,
+    EndLoad,
+    FormLoad,
+    Initial,
+    Limits,
+    Loads,
+    Material,
+    ModelChoices,
+    Output,
+    PointLoad,
+    ReferenceShape,
+    Rod,
+    Scene,
+    SectionSpec,
+    Solver,
+    StaticSettings,
+    Supports,
+    Time,
+    auto_reference_frequency,
+)
+from cosserat_fem.scene.schema import (  # noqa: F401 - read_toml and the overrides, from here too
+    Overrides,
+    apply_overrides,
+    check_depth,
+    check_scene,
+    parse_toml,
+    read_input,
+    read_toml,
+)
+
+CHECKPOINTS_PER_RUN = 10  # output.checkpoint_interval = "auto"
+
+# ==================================================================================== building
+def _build_section(raw: dict[str, Any], poisson_ratio: float) -> SectionSpec:
+    """[rod.section] resolved: only and all the keys of its shape; a rectangle's torsion_constant
+    "series" by default; shear_coefficient "auto" as 5/6 (rectangle) or Cowper's value for
+    ν = ``poisson_ratio`` (circle, tube). SceneError naming the key."""
+    shape = raw["shape"]
+    keys = SECTION_KEYS[shape]
+    for name, value in raw.items():
+        if value is not None and name not in (*keys, "shape", "shear_coefficient"):
+            raise SceneError(
+                f"rod.section.{name}: not a key of shape {shape!r}, which takes "
+                f"{', '.join(keys)} (and shear_coefficient; --unset rod.section.{name} removes "
+                "it)"
+            )
+    values = dict(raw)
+    if shape == "rectangle" and values["torsion_constant"] is None:
+        values["torsion_constant"] = "series"
+    for name in keys:
+        if values[name] is None:
+            raise SceneError(f"rod.section.{name}: required for shape {shape!r} (a number > 0)")
+    if shape == "tube" and not values["inner_diameter"] < values["outer_diameter"]:
+        raise SceneError(
+            f"rod.section.inner_diameter: must be < outer_diameter = "
+            f"{fmt(values['outer_diameter'])} [m], got {show_value(values['inner_diameter'])}"
+        )
+    if values["shear_coefficient"] == "auto":
+        if shape == "constants":
+            raise SceneError(
+                'rod.section.shear_coefficient: required for shape "constants" (in (0, 1])'
+            )
+        ratio = values["inner_diameter"] / values["outer_diameter"] if shape == "tube" else 0.0
+        values["shear_coefficient"] = (
+            5.0 / 6.0 if shape == "rectangle" else cowper_circle(poisson_ratio, ratio)
+        )
+    return build(SectionSpec, values)
+
+
+def _build_reference(raw: dict[str, Any], constants: dict[str, float]) -> ReferenceShape:
+    """[reference] resolved: only and all the keys of its shape (REFERENCE_KEYS); a curve's
+    expressions of s and ``constants`` (L, the parameters). SceneError naming the key."""
+    shape = raw["shape"]
+    keys = REFERENCE_KEYS[shape]
+    for name, value in raw.items():
+        if value is not None and name not in (*keys, "shape", "closed"):
+            takes = f"takes {', '.join(keys)}" if keys else "takes no other key"
+            raise SceneError(f"reference.{name}: not a key of shape {shape!r}, which {takes} "
+                             f"(--unset reference.{name} removes it)")  # fmt: skip
+    values = {k: v for k, v in raw.items() if v is not None}
+    if shape == "polyline":
+        values["binormal"] = _binormal(values.get("binormal", [0, 1, 0]))
+        values["points"] = tuple(values.get("points") or ())
+    if shape == "curve":
+        for name in ("position", "director"):
+            if values.get(name) is not None:
+                values[name] = parse_vector(values[name], {"s", *constants}, f"reference.{name}")
+        values["constants"] = dict(constants)
+    for name in keys:
+        if values.get(name) is None or values.get(name) == ():
+            raise SceneError(f"reference.{name}: required for shape {shape!r}")
+    return ReferenceShape(**values)
+
+
+def _binormal(raw: list) -> tuple[float, float, float]:
+    """reference.binormal as three finite numbers, not all zero."""
+    values = []
+    for i, x in enumerate(raw):
+        if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
+            raise SceneError(f"reference.binormal[{i}]: must be a finite number, got "
+                             f"{show_value(x)}")  # fmt: skip
+        values.append(float(x))
+    if not any(values):
+        raise SceneError("reference.binormal: must not be zero, got [0, 0, 0]")
+    return tuple(values)
+
+
+def _build_rod(raw: dict[str, Any]) -> Rod:
+    """[rod]: length [m], section, material with exactly one of ν and G [Pa]; G must be positive
+    and finite, E/(2 G) − 1 a Poisson ratio where Cowper's κ needs one. SceneError naming the
+    key."""
+    mat = raw["material"]
+    nu, g = mat["poisson_ratio"], mat["shear_modulus"]
+    if (nu is None) == (g is None):
+        state = (
+            f"both are given (poisson_ratio = {show_value(nu)}, shear_modulus = {show_value(g)})"
+            if nu is not None
+            else "neither is given"
+        )
+        raise SceneError(
+            f"rod.material: exactly one of poisson_ratio (in (-1, 0.5)) and shear_modulus "
+            f"(> 0, Pa) must be given, but {state}"
+        )
+    material = build(Material, mat)
+    if not (math.isfinite(material.shear_modulus) and material.shear_modulus > 0.0):
+        raise SceneError(
+            f"rod.material: the shear modulus E/(2 (1 + nu)) = {material.shear_modulus:.3g} Pa "
+            f"is not a positive finite number in double precision (young_modulus = "
+            f"{show_value(material.young_modulus)})"
+        )
+    poisson = material.young_modulus / (2.0 * material.shear_modulus) - 1.0
+    uses_poisson = raw["section"]["shape"] in ("circle", "tube")
+    if uses_poisson and raw["section"]["shear_coefficient"] == "auto" and not -1.0 < poisson < 0.5:
+        # Cowper's shear coefficient is a formula in nu for an isotropic section.
+        raise SceneError(
+            f"rod.material.shear_modulus: E/(2 G) - 1 = {poisson:.6g} is not a Poisson ratio "
+            "in (-1, 0.5), which Cowper's shear coefficient of a circle or tube needs; give "
+            "rod.section.shear_coefficient"
+        )
+    inertia = raw["rotary_inertia"]
+    if inertia is not None:
+        for i, value in enumerate(inertia):
+            ok = isinstance(value, int | float) and not isinstance(value, bool)
+            if not (ok and math.isfinite(value) and value > 0.0):
+                raise SceneError(
+                    f"rod.rotary_inertia[{i}]: must be a positive number [kg m] (a mass moment "
+                    f"of inertia per unit length), got {show_value(value)}"
+                )
+        inertia = tuple(float(v) for v in inertia)
+    section = _build_section(raw["section"], poisson)
+    return build(Rod, raw, section=section, material=material, rotary_inertia=inertia)
+
+
+def _build_model(raw: dict[str, Any]) -> ModelChoices:
+    """[model]; reference_frequency "auto" as None (ω0 [rad/s] from the rod,
+    :func:`auto_reference_frequency`)."""
+    frequency = raw["reference_frequency"]
+    return build(ModelChoices, raw, reference_frequency=None if frequency == "auto" else frequency)
+
+
+def _build_supports(raw: dict[str, Any], constants: set[str], tables: TableStore) -> Supports:
+    """[supports]: any pair of supports (a mechanism, e.g. pinned–free or free–free, runs and
+    has modes about the straight rod, its rigid-body modes first; static paths and modes about
+    a static state refuse it); motions [m] as expressions of t and ``constants`` or tables of t
+    (read from ``tables``), None if zero, refused at a free end."""
+    kinds = (raw["start"], raw["end"])
+    motions = {}
+    for end, kind in zip(("start", "end"), kinds, strict=True):
+        key = f"supports.{end}_motion"
+        vector = parse_load_vector(raw[f"{end}_motion"], {"t", *constants}, key, tables, True)
+        motions[end] = None if all(e.is_zero for e in vector) else vector
+        if motions[end] is not None and kind == "free":
+            raise SceneError(
+                f"{key}: a prescribed motion needs a held end (clamped, pinned or spherical), but "
+                f'supports.{end} = "free"'
+            )
+    return build(Supports, raw, start_motion=motions["start"], end_motion=motions["end"])
+
+
+def _build_loads(
+    raw: dict[str, Any], supports: Supports, constants: set[str], tables: TableStore
+) -> Loads:
+    """[loads]: force [N/m] and torque [N m/m] densities of s, t and ``constants`` (or data:
+    tables read from ``tables``, callables; cosserat_fem/scene/load_data.py), end loads
+    (:func:`_build_end_load`), gravity [m/s²] of the constants only."""
+    names = {"s", "t", *constants}
+    force = parse_load_vector(raw["force_density"], names, "loads.force_density", tables)
+    torque = parse_load_vector(raw["torque_density"], names, "loads.torque_density", tables)
+    ends = {}
+    for end in ("start", "end"):
+        ends[end] = _build_end_load(raw[end], end, getattr(supports, end), names, tables)
+    gravity = _constant_vector(raw["gravity"], constants, "loads.gravity")
+    point = None
+    if raw["point"] is not None:
+        vectors = {}
+        for name in ("force", "torque"):
+            key = f"loads.point.{name}"
+            vectors[name] = _point_vector(raw["point"][name], names, key, tables, "a point load")
+        point = build(PointLoad, raw["point"], **vectors)
+    declared = {}
+    for name, spec in Table.of(Loads).fields.items():
+        if isinstance(spec, Table) and issubclass(spec.resolved, FormLoad) and raw[name]:
+            field = declared_names(Loads)[name]
+            declared[field] = _build_form_load(spec, raw[name], f"loads.{name}", supports,
+                                               names, tables)  # fmt: skip
+    return build(Loads, raw, force_density=force, torque_density=torque, gravity=gravity,
+                 point=point, **ends, **declared)  # fmt: skip
+
+
+def _point_vector(raw: list, names: set[str], key: str, tables: TableStore,
+                  what: str) -> tuple[Expression, ...]:  # fmt: skip
+    """The load vector ``raw`` of a load at a point (an end, a node): functions of t and the
+    constants; SceneError naming ``key[i]`` for a dependence on the arc length s."""
+    vector = parse_load_vector(raw, names, key, tables)
+    for i, component in enumerate(vector):
+        if component.depends_on("s"):
+            raise SceneError(f"{key}[{i}]: {what} may depend on t and constants only, not on "
+                             f"the arc length s, got {show_value(component.source)}")  # fmt: skip
+    return vector
+
+
+def _build_form_load(spec: Table, raw: dict[str, Any], key: str, supports: Supports,
+                     names: set[str], tables: TableStore) -> FormLoad:  # fmt: skip
+    """A load declared with its physics (resolved.FormLoad): its load vectors parsed as
+    functions of t and the constants (not of s: it acts at a point), then its own check."""
+    vectors = {}
+    for name, item in spec.fields.items():
+        if isinstance(item, LoadVector):
+            vector = _point_vector(raw[name], names, f"{key}.{name}", tables,
+                                    "a load at an end")
+            vectors[declared_names(spec.resolved)[name]] = vector
+    load = build(spec.resolved, raw, **vectors)
+    load.check(key, supports)
+    return load
+
+
+def _constant_vector(raw: list, constants: set[str], key: str) -> tuple[float, float, float]:
+    """Three numbers (expressions of the constants only)."""
+    vector = parse_vector(raw, set(constants), key)
+    return tuple(float(e.evaluate()) for e in vector)
+
+
+def _build_initial(
+    raw: dict[str, Any], supports: Supports, values: dict[str, float], t0: float
+) -> Initial:
+    """Initial fields of s [m]. Where a support holds the rod they must take its values at
+    t0 (else the first step would jump to them): all of p and q at a clamped end, position,
+    velocity, φ and its rate at a pinned one; zero, or the support's prescribed motion and its
+    rate for x, y, z."""
+    fields = {}
+    for name in ("displacement", "angles", "velocity", "angle_rates"):
+        vector = parse_vector(raw[name], {"s", *values}, f"initial.{name}")
+        fields[name] = None if all(e.is_zero for e in vector) else vector
+    length = values["L"]
+    # What "equal" means for each field: 1e-12 of its value or of its scale (m, rad, m/s,
+    # rad/s: the length, a radian, and their rates at omega0).
+    scale = {"displacement": length, "angles": 1.0}
+    scale.update(velocity=length * values["omega0"], angle_rates=values["omega0"])
+    for end, s_end in (("start", 0.0), ("end", length)):
+        kind = getattr(supports, end)
+        if kind == "free":
+            continue
+        motion = supports.motion(end)
+        held = {"displacement": (0, 1, 2), "velocity": (0, 1, 2)}
+        held.update({"angles": (0, 1, 2), "angle_rates": (0, 1, 2)} if kind == "clamped" else {})
+        held.update({"angles": (2,), "angle_rates": (2,)} if kind == "pinned" else {})
+        for name, components in held.items():
+            for i in components:
+                want = 0.0
+                if motion is not None and name in ("displacement", "velocity"):
+                    e = motion[i] if name == "displacement" else derivative(motion[i], "t")
+                    key = f"supports.{end}_motion[{i}]"
+                    want = _finite_value(e, key, f"t = {fmt(t0)} s", t=t0, **values)
+                got = 0.0
+                if fields[name] is not None:
+                    key, where = f"initial.{name}[{i}]", f"s = {fmt(s_end)} m"
+                    got = _finite_value(fields[name][i], key, where, s=s_end, **values)
+                if abs(got - want) > 1e-12 * max(abs(want), scale[name]):
+                    source = show_value(fields[name][i].source) if fields[name] else "0"
+                    what = "its prescribed motion" if motion is not None else "0"
+                    if motion is not None and is_data(motion[i]):  # a value to copy
+                        what = (f"the {'rate' if name == 'velocity' else 'value'} at t = "
+                                f"{fmt(t0)} s of its prescribed {motion[i].source}, {want!r}")
+                    raise SceneError(
+                        f"initial.{name}[{i}]: must equal {what} ({want:.6g}) at the {kind} "
+                        f"{end} (s = {fmt(s_end)} m), got {got:.6g} from {source}"
+                    )
+    return Initial(**fields)
+
+
+def _finite_value(e: Expression, key: str, where: str, **values: float) -> float:
+    """The value of ``e`` at ``values``; SceneError naming ``key`` if it is not finite."""
+    try:
+        value = float(e.evaluate(**values))
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise SceneError(f"{key}: {show_value(e.source)} is not finite at {where}")
+    return value
+
+
+def _build_end_load(
+    raw: dict[str, Any] | None, end: str, support: str, names: set[str], tables: TableStore
+) -> EndLoad | None:
+    """[loads.<end>] (force [N], torque [N m], expressions of t and constants), None if absent;
+    SceneError at a clamped end, for a dependence on s, or for a force at a pinned or
+    spherical end."""
+    if raw is None:
+        return None
+    key = f"loads.{end}"
+    if support == "clamped":
+        raise SceneError(
+            f"{key}: end loads are only allowed on a free, pinned or spherical end, "
+            f'but supports.{end} = "{support}" (remove [{key}] or set supports.{end} = "free")'
+        )
+    vectors = {}
+    for name in ("force", "torque"):
+        vectors[name] = _point_vector(raw[name], names, f"{key}.{name}", tables, "end loads")
+    if support in ("pinned", "spherical") and not all(e.is_zero for e in vectors["force"]):
+        held = "about e1, e2; the twist is held too" if support == "pinned" else "any axis"
+        raise SceneError(
+            f"{key}.force: a {support} end holds its position, so an end force there is taken "
+            f"by the support; give only an end torque ({held})"
+        )
+    if support == "pinned" and not vectors["torque"][2].is_zero:
+        raise SceneError(
+            f"{key}.torque[2]: a pinned end holds its twist φ, so a torque about e3 there is "
+            f"taken by the support; give the torque about e1, e2 only, got "
+            f"{show_value(vectors['torque'][2].source)}"
+        )
+    return build(EndLoad, raw, **vectors)
+
+
+def _integral_ratio(span: float, step: float) -> bool:
+    """Whether span / step is a whole number (within STEP_TOLERANCE), and finite."""
+    ratio = span / step
+    return math.isfinite(ratio) and abs(ratio - round(ratio)) <= STEP_TOLERANCE * ratio
+
+
+def check_later_end(end: Any, after: float) -> None:
+    """SceneError unless time.end = ``end`` is later than ``after`` [s], the time of the
+    checkpoint a restart continues from (cosserat_fem/io/checkpoint.py)."""
+    if not (_is_number(end) and end > after):
+        raise SceneError(
+            f"time.end: the checkpoint is at t = {after:.10g} s; give a later end to continue "
+            f"(--set time.end=...), got {show_value(end)}"
+        )
+
+
+def _build_time(
+    raw: dict[str, Any], fixed: frozenset[str] = frozenset(), after: float | None = None
+) -> Time:
+    """The time span; ``fixed``: keys the caller may not change (a restart keeps time.step and
+    time.start), so that a message does not suggest them; ``after`` [s]: a restart's
+    checkpoint, which time.end must pass (the ends a message suggests do too)."""
+    start, end, step = raw["start"], raw["end"], raw["step"]
+    if after is not None:
+        check_later_end(end, after)
+    if not end > start:
+        raise SceneError(
+            f"time.end: must be > time.start = {fmt(start)} [s], got {show_value(end)}"
+        )
+    span = end - start
+    if not math.isfinite(span / step):
+        raise SceneError(
+            f"time.end: (time.end - time.start) / time.step = {span / step:g} steps is out of "
+            f"the range of double precision (time.start = {show_value(start)}, "
+            f"time.end = {show_value(end)}, time.step = {show_value(step)})"
+        )
+    if step > span * (1.0 + STEP_TOLERANCE) and "time.step" not in fixed:
+        raise SceneError(
+            f"time.step: must be <= time.end - time.start = {span!r} [s], got {show_value(step)}"
+        )
+    if not _integral_ratio(span, step):
+        ends = _nearest_ends(start, span, step, after)
+        if "time.step" in fixed:
+            raise SceneError(
+                f"time.end: time.end - time.start must be a whole number of steps of "
+                f"time.step = {step!r} s (fixed on a restart), got {span!r} s = "
+                f"{span / step:.10g} steps (e.g. {ends})"
+            )
+        raise SceneError(
+            f"time.step: (time.end - time.start) / time.step must be an integer (within "
+            f"{STEP_TOLERANCE:g} relative), got {span!r} / {step!r} = {span / step!r} "
+            f"(e.g. time.step = {span / math.ceil(span / step):.10g}, or {ends})"
+        )
+    return build(Time, raw)
+
+
+def _nearest_ends(start: float, span: float, step: float, after: float | None) -> str:
+    """"time.end = A or B": the whole numbers of steps nearest to ``span`` (below and above,
+    at least one step, and later than ``after`` when a restart gives it)."""
+    first = 1
+    if after is not None:  # the first end on the step grid later than the checkpoint
+        first = max(first, math.floor((after - start) / step) + 1)
+        while not start + first * step > after:
+            first += 1
+    below = start + max(first, math.floor(span / step)) * step
+    above = start + max(first, math.ceil(span / step)) * step
+    return f"time.end = {below:.10g}" + (f" or {above:.10g}" if above != below else "")
+
+
+def _build_solver(raw: dict) -> Solver:
+    """[solver]; SceneError if PETSc options are given to the project's Newton loop, which
+    reads none (they configure SNES: solver.nonlinear = "snes" or "auto")."""
+    if raw["nonlinear"] == "newton" and raw["petsc"]:
+        name = next(iter(raw["petsc"]))
+        raise SceneError(f'solver.petsc.{name}: PETSc options configure SNES, but solver.nonlinear '
+                         '= "newton" (the project\'s loop) reads none; set solver.nonlinear = '
+                         '"snes" or "auto"')  # fmt: skip
+    return build(Solver, raw)
+
+
+def _build_discretisation(raw: dict[str, Any]) -> Discretisation:
+    quadrature = raw["quadrature_degree"]
+    if quadrature == "auto":
+        quadrature = 2 * raw["degree"]
+    return build(Discretisation, raw, quadrature_degree=quadrature)
+
+
+def _build_output(raw: dict[str, Any], time: Time) -> Output:
+    """[output]: xdmf_interval and checkpoint_interval [s] checked as 0 or whole multiples of
+    time.step; checkpoint_interval "auto" as about 1/CHECKPOINTS_PER_RUN of the run, on the step
+    grid."""
+    interval = raw["xdmf_interval"]
+    # Checked only when fields are written: with xdmf = false the interval is unused.
+    if (
+        raw["xdmf"]
+        and interval > 0.0
+        and not (
+            interval >= time.step * (1.0 - STEP_TOLERANCE) and _integral_ratio(interval, time.step)
+        )
+    ):
+        raise SceneError(
+            f"output.xdmf_interval: must be 0 (every step) or an integer multiple of "
+            f"time.step = {time.step!r} [s], got {show_value(interval)}"
+        )
+    checkpoint_interval = raw["checkpoint_interval"]
+    if checkpoint_interval == "auto":  # about ten checkpoints a run, on the step grid
+        checkpoint_interval = max(1, round(time.n_steps / CHECKPOINTS_PER_RUN)) * time.step
+    elif (
+        raw["checkpoint"]
+        and checkpoint_interval > 0.0
+        and not (
+            checkpoint_interval >= time.step * (1.0 - STEP_TOLERANCE)
+            and _integral_ratio(checkpoint_interval, time.step)
+        )
+    ):
+        raise SceneError(
+            f"output.checkpoint_interval: must be 0 (at the end only), 'auto' or an integer "
+            f"multiple of time.step = {time.step!r} [s], got {show_value(checkpoint_interval)}"
+        )
+    return build(Output, raw, checkpoint_interval=float(checkpoint_interval))
+
+
+def _build_limits(raw: dict[str, Any]) -> Limits:
+    memory = raw["memory"]
+    return build(Limits, raw, memory=None if memory == "auto" else float(memory))
+
+
+#: The groups of (48) that are positive for every valid rod (the others may be any sign).
+_POSITIVE_GROUPS = frozenset(
+    "g0 nu01 nu02 g1 g2 g3 nu11 nu13 nu14 nu21 nu23 nu24 nu31".split()
+)
+
+
+def _check_derived(scene: Scene) -> None:
+    """The constants derived from valid inputs must be positive, finite numbers: a section of
+    a = 1e-200 m has c22 = b a³/12 = 0 in double precision, one of 1e200 m an infinite c22,
+    and the groups (48) combine every input. SceneError naming the keys they come from."""
+    spec = scene.rod.section
+    given = ", ".join(
+        f"rod.section.{k} = {fmt(v)}" for k, v in to_table(spec).items() if _is_number(v)
+    )
+    try:
+        section = spec.constants()
+    except (ArithmeticError, ValueError) as exc:
+        raise SceneError(
+            f"rod.section: the section constants cannot be computed from {given} "
+            f"({_arithmetic(exc)})"
+        ) from None
+    constants = {"area": (section.area, "m^2")}
+    constants.update({c: (getattr(section, c), "m^4") for c in ("c11", "c22", "c33")})
+    for name, (value, unit) in constants.items():
+        if not (math.isfinite(value) and value > 0.0):
+            raise SceneError(
+                f"rod.section: the derived {name} = {value:.3g} {unit} is not a positive finite "
+                f"number in double precision (from {given})"
+            )
+    try:
+        omega0 = scene.omega0
+    except (ArithmeticError, ValueError):
+        omega0 = math.nan
+    if not (math.isfinite(omega0) and omega0 > 0.0):
+        raise SceneError(
+            "model.reference_frequency: omega0 = 1.875^2/L^2 sqrt(E c22/(rho A)) from rod.* is "
+            f"not a positive finite number ({omega0:.3g} rad/s); give it explicitly"
+        )
+    try:
+        bad = _bad_groups(dimensionless_groups(scene.rod_constants()))
+    except (ArithmeticError, ValueError) as exc:
+        bad = [_arithmetic(exc)]
+    if bad:
+        inertia = ", rod.rotary_inertia" if scene.rod.rotary_inertia is not None else ""
+        raise SceneError(
+            f"rod: the dimensionless groups of (48) are not finite ({bad[0]}): rod.length, "
+            f"rod.section, rod.material{inertia} and model.reference_frequency are out of the "
+            "range of double precision together"
+        )
+
+
+def _arithmetic(exc: Exception) -> str:
+    """What an arithmetic failure was, in words (OverflowError's text is an errno tuple)."""
+    if isinstance(exc, OverflowError):
+        return "overflow"
+    if isinstance(exc, ZeroDivisionError):
+        return "division by zero"
+    return str(exc) or type(exc).__name__
+
+
+def _bad_groups(groups: Groups) -> list[str]:
+    """``name = value`` of each group of (48) that is not finite, or not positive where it must
+    be (_POSITIVE_GROUPS)."""
+    bad = []
+    for name, value in groups.as_dict().items():
+        positive = name not in _POSITIVE_GROUPS or value > 0.0
+        if not (math.isfinite(value) and positive):
+            bad.append(f"{name} = {value:.3g}")
+    return bad
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def scene_from_dict(
+    data: dict[str, Any],
+    source: str = "<dict>",
+    overrides: Overrides = (),
+    fixed: Sequence[str] = (),
+    tables: TableStore | None = None,
+    after: float | None = None,
+) -> Scene:
+    """Validate a scene given as nested dicts (as from TOML) and resolve it.
+
+    ``overrides`` (``dotted.key=value``) are applied first; ``fixed``: keys the caller may
+    not change (a restart's), which messages then do not suggest; ``tables``: where the
+    tables of loads given by data are read (default: by this process, relative paths from
+    the working directory); ``after`` [s]: the time of a restart's checkpoint, which time.end
+    must pass. Raises :class:`SceneError`.
+    """
+    if not isinstance(data, dict):
+        raise SceneError(f"{source}: a scene must be a table of keys, got {show_value(data)}")
+    check_depth(data, source)
+    raw = check_scene(apply_overrides(data, overrides))
+    parameters = raw["parameters"]
+    rod = _build_rod(raw["rod"])
+    tables = tables if tables is not None else TableStore()
+    supports = _build_supports(raw["supports"], {*SCENE_CONSTANTS, *parameters}, tables)
+    loads = _build_loads(raw["loads"], supports, {*SCENE_CONSTANTS, *parameters}, tables)
+    time = _build_time(raw["time"], frozenset(fixed), after)
+    scene = Scene(
+        title=raw["title"],
+        parameters=parameters,
+        rod=rod,
+        model=_build_model(raw["model"]),
+        supports=supports,
+        loads=loads,
+        time=time,
+        discretisation=_build_discretisation(raw["discretisation"]),
+        solver=_build_solver(raw["solver"]),
+        output=_build_output(raw["output"], time),
+        static=build(StaticSettings, raw["static"]),
+        damping=build(Damping, raw["damping"]),
+        limits=_build_limits(raw["limits"]),
+        source=source,
+    )
+    _check_derived(scene)
+    reference = _build_reference(raw["reference"], scene.expression_names())
+    _check_reference(scene, reference)
+    _check_point_load(scene)
+    for _, component in scene.load_components():
+        check_span(component, time.start, time.end, scene.static.time, rod.length)
+    initial = _build_initial(raw["initial"], supports, scene.expression_names(), time.start)
+    return replace(scene, initial=initial, reference=reference)
+
+
+def _check_polyline(scene: Scene, reference: ReferenceShape) -> None:
+    """A polyline's segments are not empty, normal to the binormal (d0_2 ⊥ d0_3), as long as
+    the rod together, and its corners lie at nodes of the mesh (where its frame may jump);
+    SceneError naming the key."""
+    pts = np.asarray(reference.points, dtype=float)
+    steps = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    ell = scene.rod.length
+    for i, step in enumerate(steps):
+        if not step > 1e-12 * ell:
+            raise SceneError(f"reference.points[{i + 1}]: the same point as the one before; a "
+                             "segment must have a length")  # fmt: skip
+    b = np.asarray(reference.binormal) / np.linalg.norm(reference.binormal)
+    cosines = np.abs(np.diff(pts, axis=0) @ b) / steps
+    if cosines.max() > 1e-9:
+        i = int(np.argmax(cosines > 1e-9))  # the first segment, not round-off's largest
+        raise SceneError(
+            f"reference.binormal: must be normal to every segment (d0_2 ⊥ d0_3), but its "
+            f"cosine with segment {i + 1} (points[{i}] to points[{i + 1}]) is {cosines[i]:.3g}"
+        )
+    total = float(steps.sum())
+    if abs(total - ell) > 1e-9 * ell:
+        raise SceneError(f"reference.points: the polyline is {total:.10g} m long, rod.length "
+                         f"= {fmt(ell)} m")  # fmt: skip
+    elements = scene.discretisation.elements
+    at = np.cumsum(steps)[:-1] / ell * elements
+    for i, node in enumerate(at):
+        if abs(node - round(node)) > 1e-9 * max(1.0, node):
+            raise SceneError(
+                f"reference.points[{i + 1}]: the corner at s = {node * ell / elements:.6g} m is "
+                f"not at a node of the mesh ({elements} elements of {ell / elements:.6g} m); "
+                "choose discretisation.elements so that every corner is at a node"
+            )
+
+
+def _half_size(scene: Scene) -> float:
+    """Half the section's largest extent [m]: a rod may not be bent tighter."""
+    spec = scene.rod.section
+    extents = [spec.a, spec.b, spec.diameter, spec.outer_diameter]
+    return 0.5 * max([x for x in extents if x is not None] or [math.sqrt(spec.constants().area)])
+
+
+#: How closely a curve's expressions must give an arc-length parametrisation and an
+#: orthonormal frame (|r0'| = 1, |d0_1| = 1, d0_1 · r0' = 0), at 64 points an element. A speed
+#: |r0'| = 1 + ε makes the rod's mass and stiffnesses per unit of s off by a relative ε, and
+#: a frame ε from orthonormal its sections' axes by ε rad: 1e-6 is below the discretisation
+#: errors the verification holds (2e-5 in of 63 in, 3e-7, for the bend) and still admits
+#: constants written with 7 digits (cos(α) as 0.9800666).
+CURVE_TOLERANCE = 1e-6
+
+
+def _check_curve(scene: Scene, reference: ReferenceShape) -> None:
+    """A curve's r0(s) and d0_1(s) are finite, s is their arc length (|r0'| = 1), d0_1 is a
+    unit vector normal to the tangent d0_3 = r0', and the curve is no tighter than the section
+    (|r0''| < 1/half size), at 64 points an element; SceneError naming the key and the place."""
+    ell = scene.rod.length
+    s = np.linspace(0.0, ell, 64 * scene.discretisation.elements + 1)
+    with np.errstate(all="ignore"):
+        r0, d1 = reference.positions(s), reference.curve_values(reference.director, s)
+        t, bend = (reference.curve_values(reference.position, s, k) for k in (1, 2))
+    for name, values in (("position", np.hstack([r0, t, bend])), ("director", d1)):
+        bad = ~np.isfinite(values).all(axis=1)
+        if bad.any():
+            raise SceneError(f"reference.{name}: not a finite number at s = "
+                             f"{s[np.argmax(bad)]:.6g} m")  # fmt: skip
+    speed, size, cosine = np.linalg.norm(t, axis=1), np.linalg.norm(d1, axis=1), (d1 * t).sum(1)
+    checks = (
+        ("position", speed - 1.0, "s must be its arc length, |dr0/ds| = 1", "|dr0/ds|", speed),
+        ("director", size - 1.0, "d0_1 must be a unit vector", "|d0_1|", size),
+        ("director", cosine, "d0_1 must be normal to the tangent d0_3 = dr0/ds",
+         "their cosine", cosine),
+    )  # fmt: skip
+    # Each rule names the first place along the rod where it is broken: the place of a
+    # maximum would be decided by round-off where the broken quantity is constant (a circle's
+    # curvature), and differ between CPUs.
+    for name, error, rule, quantity, shown in checks:
+        broken = np.abs(error) > CURVE_TOLERANCE
+        if broken.any():
+            i = int(np.argmax(broken))
+            raise SceneError(
+                f"reference.{name}: {rule} (within {CURVE_TOLERANCE:g}); {quantity} is "
+                f"{shown[i]:.6g} at s = {s[i]:.6g} m"
+            )
+    curvature, half = np.linalg.norm(bend, axis=1), _half_size(scene)
+    broken = ~(curvature * half < 1.0)
+    if broken.any():
+        i = int(np.argmax(broken))
+        raise SceneError(
+            f"reference.position: its radius of curvature at s = {s[i]:.6g} m, "
+            f"{1.0 / curvature[i]:.4g} m, must exceed half the section's size, {half:.4g} m"
+        )
+
+
+def _check_point_load(scene: Scene) -> None:
+    """loads.point.s lies inside the rod at a node of the mesh; SceneError naming it."""
+    point, ell = scene.loads.point, scene.rod.length
+    if point is None:
+        return
+    if not point.s < ell:
+        raise SceneError(
+            f"loads.point.s: must lie inside the rod, 0 < s < rod.length = {fmt(ell)} m (an end "
+            f"load is [loads.end]), got {fmt(point.s)}"
+        )
+    elements = scene.discretisation.elements
+    node = point.s / ell * elements
+    if abs(node - round(node)) > 1e-9 * max(1.0, node):
+        raise SceneError(
+            f"loads.point.s: must be at a node of the mesh ({elements} elements of "
+            f"{ell / elements:.6g} m), got {fmt(point.s)}"
+        )
+
+
+def _check_reference(scene: Scene, reference: ReferenceShape) -> None:
+    """What a rod curved at rest does not support yet, refused by name: pinned and spherical
+    supports (their held components are those of the straight rod's angles) and the printed
+    torsion inertia (which divides a row that a curved rod's rows mix, forms/general_form.py)."""
+    if reference.closed:
+        _check_closed(scene, reference)
+    if not reference.curved:
+        return
+    if reference.shape == "polyline":
+        _check_polyline(scene, reference)
+    elif reference.shape == "curve":
+        _check_curve(scene, reference)
+    else:
+        half = _half_size(scene)
+        if not reference.radius > half:
+            raise SceneError(
+                f"reference.radius: must exceed half the section's size, {half:.4g} m (a rod "
+                f"bent tighter than its own thickness is no rod), got {fmt(reference.radius)}"
+            )
+    for end in ("start", "end"):
+        kind = getattr(scene.supports, end)
+        if kind in ("pinned", "spherical"):
+            raise SceneError(
+                f"supports.{end}: {kind!r} is not supported with reference.shape = "
+                f"{reference.shape!r} yet; use 'clamped' or 'free'"
+            )
+    if scene.model.torsion_inertia != "polar":
+        raise SceneError(
+            f"model.torsion_inertia: {scene.model.torsion_inertia!r} (the paper's printed "
+            f"erratum) is not defined for reference.shape = {reference.shape!r}; use 'polar'"
+        )
+
+
+def refuse_closed(scene: Scene, command: str) -> None:
+    """SceneError for a closed rod (reference.closed) in a command other than ``modes``."""
+    if scene.reference.closed:
+        raise SceneError(
+            f"reference.closed: a closed rod has modes only ({command} needs its unknowns "
+            "joined at s = 0 and s = ℓ, which its solver does not have yet); use "
+            "cosserat-fem modes"
+        )
+
+
+#: How far apart a closed rod's two ends may be at rest: [m] per m of rod, and in the frame.
+CLOSURE_TOLERANCE = 1e-9
+
+
+def _check_closed(scene: Scene, reference: ReferenceShape) -> None:
+    """A closed rod (reference.closed) has no ends: both supports free, no end loads, and its
+    reference curve must close, position and frame (a ring: an arc of length 2π R)."""
+    for end in ("start", "end"):
+        if getattr(scene.supports, end) != "free":
+            raise SceneError(
+                f"supports.{end}: a closed rod (reference.closed = true) has no ends to hold; "
+                f"use 'free', got {getattr(scene.supports, end)!r}"
+            )
+        load = getattr(scene.loads, end)
+        if load is not None and not all(e.is_zero for e in (*load.force, *load.torque)):
+            raise SceneError(
+                f"loads.{end}: a closed rod (reference.closed = true) has no end to load"
+            )
+    for name, form_load in scene.loads.form_loads():  # a load declared with its physics
+        if getattr(form_load, "end", None) is not None:
+            raise SceneError(
+                f"loads.{name}.end: a closed rod (reference.closed = true) has no end to load"
+            )
+    ell = scene.rod.length
+    ends = np.array([0.0, ell])
+    r0, D0 = reference.positions(ends), reference.frames(ends)
+    gap, turn = float(np.linalg.norm(r0[1] - r0[0])), float(np.abs(D0[1] - D0[0]).max())
+    if gap > CLOSURE_TOLERANCE * ell or turn > CLOSURE_TOLERANCE:
+        hint = (
+            f" (an arc closes when rod.length = 2π reference.radius = "
+            f"{2 * math.pi * reference.radius!r} m)"
+            if reference.shape == "arc"
+            else ""
+        )
+        raise SceneError(
+            f"reference.closed: the rod's reference does not close: its ends are {gap:.3g} m "
+            f"apart and their frames differ by {turn:.3g}{hint}"
+        )
+
+
+def load_scene(path: str | Path, overrides: Overrides = ()) -> Scene:
+    """Read, override and validate a TOML scene file; collective under MPI: rank 0 reads
+    it, every rank parses its bytes (schema.read_input), whose SHA-256 the scene keeps; its
+    tables (loads given by data) are read relative to its folder, by rank 0 too."""
+    raw = read_input(path, "scene file")
+    tables = TableStore.collective(Path(path).parent)
+    scene = scene_from_dict(parse_toml(raw, path), source=str(path), overrides=overrides,
+                            tables=tables)  # fmt: skip
+    return replace(scene, source_sha256=hashlib.sha256(raw).hexdigest())
+
+

@@ -1,0 +1,728 @@
+"""The resolved scene: a scene validated, with its defaults filled in, expressions parsed and
+derived choices made ("auto" resolved), in SI units. Built by cosserat_fem/scene/build.py from data
+the schema (cosserat_fem/scene/schema.py) has checked; :meth:`Scene.to_dict` gives the data back.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
+from cosserat_fem.forms.groups import RodConstants, euler_bernoulli_omega0
+from cosserat_fem.forms.section import TORSION_CONSTANT_RULES, Section, rectangle, tube
+from cosserat_fem.io.probes import PROBE_FIELD_COLUMNS
+from cosserat_fem.scene.expressions import Expression, derivative
+from cosserat_fem.scene.keys import (
+    DEFAULT_WALL_TIME,
+    MAX_NEWTON_ITERATIONS,
+    MAX_QUADRATURE,
+    NON_NEGATIVE,
+    POSITIVE,
+    REFERENCE_KEYS,
+    SECTION_KEYS,
+    SUPPORTS,
+    XDMF_DEFAULT_FIELDS,
+    XDMF_FIELDS,
+    ZERO3,
+    Choice,
+    ChoiceList,
+    Flag,
+    Interval,
+    LoadVector,
+    Number,
+    Parameters,
+    PetscOptions,
+    Points,
+    Table,
+    Text,
+    Vector,
+    declared_names,
+    key,
+    table,
+    to_table,
+)
+
+
+@dataclass(frozen=True, kw_only=True)
+class SectionSpec:
+    """Cross-section, SI units, by ``shape`` (the keys of :data:`SECTION_KEYS`):
+
+    * rectangle: ``a`` along d1 (thickness), ``b`` along d2 (width) [m], c33 by the
+      ``torsion_constant`` rule (the Saint-Venant series, or the paper's approximation);
+    * circle: ``diameter`` [m]; tube: ``outer_diameter``, ``inner_diameter`` [m];
+    * constants: ``area`` [m²], ``c11``, ``c22``, ``c33`` [m⁴] given explicitly.
+
+    ``shear_coefficient`` κ is resolved: given, or 5/6 (rectangle) or Cowper's value for ν
+    (circle, tube); "constants" needs it given.
+    """
+
+    shape: str = key(Choice(choices=tuple(SECTION_KEYS), default="rectangle"))
+    a: float | None = key(Number(interval=POSITIVE, unit="m"), default=None)
+    b: float | None = key(Number(interval=POSITIVE, unit="m"), default=None)
+    torsion_constant: str | None = key(Choice(choices=TORSION_CONSTANT_RULES), default=None)
+    diameter: float | None = key(Number(interval=POSITIVE, unit="m"), default=None)
+    outer_diameter: float | None = key(Number(interval=POSITIVE, unit="m"), default=None)
+    inner_diameter: float | None = key(Number(interval=NON_NEGATIVE, unit="m"), default=None)
+    area: float | None = key(Number(interval=POSITIVE, unit="m^2"), default=None)
+    c11: float | None = key(Number(interval=POSITIVE, unit="m^4"), default=None)
+    c22: float | None = key(Number(interval=POSITIVE, unit="m^4"), default=None)
+    c33: float | None = key(Number(interval=POSITIVE, unit="m^4"), default=None)
+    #: κ: given, or "auto" resolved by the shape (class docstring).
+    shear_coefficient: float = key(
+        Number(default="auto", interval=Interval(0.0, 1.0, lo_open=True), auto=True)
+    )
+
+    def constants(self) -> Section:
+        """A, c11, c22, c33, κ (cosserat_fem.forms.section)."""
+        k = self.shear_coefficient
+        if self.shape == "rectangle":
+            return rectangle(self.a, self.b, k, self.torsion_constant)
+        if self.shape == "circle":
+            return tube(self.diameter, 0.0, k)
+        if self.shape == "tube":
+            return tube(self.outer_diameter, self.inner_diameter, k)
+        return Section(self.area, self.c11, self.c22, self.c33, k)
+
+
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReferenceShape:
+    """The rod at rest ([reference]; forms/reference.py holds the same shapes in UFL):
+
+    * ``straight``: r0 = (0, 0, s), d0_i = e_i (the paper's);
+    * ``arc`` of ``radius`` R [m]: r0 = (R (1 − cos(s/R)), 0, R sin(s/R)), d0_3 = r0',
+      d0_2 = e2 (bent about d0_2, towards +e1);
+    * ``helix`` of coil ``radius`` R [m] and ``pitch_angle`` α [rad]: r0 = (R (cos ks − 1),
+      R sin ks, s sin α), k = cos α / R (axis x = −R, y = 0 along e3), in its Frenet frame
+      (d0_1 the principal normal, d0_2 the binormal, d0_3 = r0');
+    * ``polyline`` through ``points`` [m] (the first is the rod's start), straight segments
+      whose frame jumps at the corners: d0_3 along the segment, d0_2 the unit ``binormal``
+      (normal to every segment), d0_1 = d0_2 × d0_3;
+    * ``curve``: r0 = ``position`` and d0_1 = ``director``, expressions of the arc length s [m]
+      (and ``constants``: L and the scene's parameters): d0_3 = r0' (|r0'| = 1, s is the arc
+      length), d0_1 ⊥ d0_3 a unit vector, d0_2 = d0_3 × d0_1 (checked by the scene).
+
+    s is the arc length [m]; :meth:`positions` and :meth:`frames` evaluate them in NumPy (at a
+    corner, the frame of the segment after it). ``closed``: the rod's two ends are joined, a
+    ring (r0 and D0 the same at s = 0 and s = ℓ; its unknowns p(0) = p(ℓ):
+    cosserat_fem/analysis/modal.py).
+    """
+
+    shape: str = key(Choice(choices=tuple(REFERENCE_KEYS), default="straight"),
+                     default="straight")  # fmt: skip
+    radius: float | None = key(Number(interval=POSITIVE, unit="m"), default=None)
+    pitch_angle: float | None = key(
+        Number(interval=Interval(-math.pi / 2, math.pi / 2, lo_open=True, hi_open=True),
+               unit="rad"),
+        default=None,
+    )  # fmt: skip
+    #: polyline: its corners (the first the start), and d0_2 on every segment
+    points: tuple[tuple[float, float, float], ...] | None = key(Points(unit="m"), default=None)
+    binormal: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
+    #: curve: r0(s) and d0_1(s), expressions of the arc length s [m]
+    position: tuple[Expression, Expression, Expression] | None = key(Vector(unit="m"),
+                                                                     default=None)  # fmt: skip
+    director: tuple[Expression, Expression, Expression] | None = key(Vector(unit="-"),
+                                                                     default=None)  # fmt: skip
+    #: the two ends joined (a ring): the curve must close; modes only, for now
+    closed: bool = key(Flag(default=False), default=False)
+    #: The values of the names a curve's expressions may use besides s (L, parameters).
+    constants: dict[str, float] | None = field(default=None, compare=False)
+
+    def curve_values(self, vector, s: np.ndarray, order: int = 0) -> np.ndarray:
+        """A curve's expressions (or their ``order``-th derivative in s) at s, (len(s), 3)."""
+        values = []
+        for e in vector:
+            for _ in range(order):
+                e = derivative(e, "s")
+            value = e.evaluate(s=s, **(self.constants or {}))
+            values.append(np.broadcast_to(np.asarray(value, dtype=float), s.shape))
+        return np.column_stack(values)
+
+    def corners(self) -> np.ndarray:
+        """The arc lengths [m] at which a polyline's segments start, and its length: (k + 1,)."""
+        steps = np.linalg.norm(np.diff(np.asarray(self.points, dtype=float), axis=0), axis=1)
+        return np.concatenate([[0.0], np.cumsum(steps)])
+
+    def segment_frames(self) -> np.ndarray:
+        """A polyline's frame on each segment, (segments, 3, 3), rows d0_1, d0_2, d0_3."""
+        pts = np.asarray(self.points, dtype=float)
+        t = np.diff(pts, axis=0)
+        t /= np.linalg.norm(t, axis=1)[:, None]
+        b = np.asarray(self.binormal, dtype=float)
+        b = np.broadcast_to(b / np.linalg.norm(b), t.shape)
+        return np.stack([np.cross(b, t), b, t], axis=1)
+
+    @property
+    def curved(self) -> bool:
+        """Whether the rod is not the paper's straight one."""
+        return self.shape != "straight"
+
+    def positions(self, s: np.ndarray) -> np.ndarray:
+        """r0(s) [m], (len(s), 3)."""
+        s = np.asarray(s, dtype=float)
+        if self.shape == "arc":
+            a = s / self.radius
+            return np.column_stack([self.radius * (1 - np.cos(a)), 0 * s, self.radius * np.sin(a)])
+        if self.shape == "helix":
+            k, R = math.cos(self.pitch_angle) / self.radius, self.radius
+            return np.column_stack([R * (np.cos(k * s) - 1), R * np.sin(k * s),
+                                    s * math.sin(self.pitch_angle)])  # fmt: skip
+        if self.shape == "polyline":
+            pts = np.asarray(self.points, dtype=float)
+            return np.column_stack([np.interp(s, self.corners(), pts[:, i]) for i in range(3)])
+        if self.shape == "curve":
+            return self.curve_values(self.position, s)
+        return np.column_stack([0 * s, 0 * s, s])
+
+    def frames(self, s: np.ndarray) -> np.ndarray:
+        """D0(s), (len(s), 3, 3), row i the reference director d0_i in the fixed basis."""
+        s = np.asarray(s, dtype=float)
+        D0 = np.zeros((s.size, 3, 3))
+        if self.shape == "arc":
+            c, n = np.cos(s / self.radius), np.sin(s / self.radius)
+            D0[:, 0, 0], D0[:, 0, 2], D0[:, 1, 1], D0[:, 2, 0], D0[:, 2, 2] = c, -n, 1, n, c
+        elif self.shape == "helix":
+            ca, sa = math.cos(self.pitch_angle), math.sin(self.pitch_angle)
+            c, n = np.cos(ca / self.radius * s), np.sin(ca / self.radius * s)
+            D0[:, 0] = np.column_stack([-c, -n, 0 * s])
+            D0[:, 1] = np.column_stack([n * sa, -c * sa, ca + 0 * s])
+            D0[:, 2] = np.column_stack([-n * ca, c * ca, sa + 0 * s])
+        elif self.shape == "polyline":
+            starts = self.corners()[1:-1]
+            D0[:] = self.segment_frames()[np.searchsorted(starts, s, side="right")]
+        elif self.shape == "curve":
+            t, d1 = self.curve_values(self.position, s, 1), self.curve_values(self.director, s)
+            D0[:, 0], D0[:, 1], D0[:, 2] = d1, np.cross(t, d1), t
+        else:
+            D0[:] = np.eye(3)
+        return D0
+
+    def turning(self, length: float) -> float:
+        """The total turning of the tangent over [0, ``length``] [rad]: ∫ |r0''| ds."""
+        if self.shape == "arc":
+            return length / self.radius
+        if self.shape == "helix":
+            return length * math.cos(self.pitch_angle) ** 2 / self.radius
+        if self.shape == "polyline":
+            t = self.segment_frames()[:, 2]
+            return float(np.arccos(np.clip((t[1:] * t[:-1]).sum(axis=1), -1.0, 1.0)).sum())
+        if self.shape == "curve":  # the trapezoidal rule on 4096 intervals
+            s = np.linspace(0.0, length, 4097)
+            bending = np.linalg.norm(self.curve_values(self.position, s, 2), axis=1)
+            return float(np.sum(0.5 * (bending[1:] + bending[:-1]) * np.diff(s)))
+        return 0.0
+
+
+@dataclass(frozen=True, kw_only=True)
+class Material:
+    """Linear elastic material; exactly one of ``poisson_ratio`` / ``shear_modulus_value``."""
+
+    density: float = key(Number(required=True, interval=POSITIVE, unit="kg/m^3"))
+    young_modulus: float = key(Number(required=True, interval=POSITIVE, unit="Pa"))
+    poisson_ratio: float | None = key(
+        Number(interval=Interval(-1.0, 0.5, lo_open=True, hi_open=True))
+    )
+    shear_modulus_value: float | None = key(Number(interval=POSITIVE, unit="Pa"),
+                                            name="shear_modulus")  # fmt: skip
+
+    @property
+    def shear_modulus(self) -> float:
+        """G [Pa]: as given, or E / (2 (1 + ν))."""
+        if self.shear_modulus_value is not None:
+            return self.shear_modulus_value
+        if self.poisson_ratio is None:
+            raise ValueError("Material: give poisson_ratio or shear_modulus_value")
+        return self.young_modulus / (2.0 * (1.0 + self.poisson_ratio))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Rod:
+    """Straight rod of length ``length`` [m]; ``rotary_inertia`` (I11, I22, I33) [kg m] per
+    unit length, or None: those of the section, (46)."""
+
+    length: float = key(Number(required=True, interval=POSITIVE, unit="m"))
+    section: SectionSpec = table(SectionSpec)
+    #: [I11, I22, I33] per unit length [kg m], the rotary inertias of (46) given apart from
+    #: the section (absent: ρ c11, ρ c22, ρ (c11 + c22))
+    rotary_inertia: tuple[float, float, float] | None = key(Vector(unit="kg m"), default=None)
+    material: Material = table(Material)
+
+
+@dataclass(frozen=True, kw_only=True)
+class ModelChoices:
+    """Modelling choices; ``reference_frequency`` [rad/s] is None for "auto"."""
+
+    reference_frequency: float | None = key(
+        Number(default="auto", interval=POSITIVE, unit="rad/s", auto=True)
+    )
+    torsion_inertia: str = key(Choice(choices=TORSION_INERTIAS, default="polar"))
+    end_load_sign: str = key(Choice(choices=tuple(END_LOAD_SIGNS), default="balance"))
+    end_load_scaling: str = key(Choice(choices=END_LOAD_SCALINGS, default="balance"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Supports:
+    """Support of each end: "clamped" (p = q = 0), "free" (natural conditions), "pinned": a
+    fork bearing, the position and the twist φ held, the bending angles θ, ψ free (the end
+    torque about d1, d2 is the given end torque, zero by default), or "spherical": a ball
+    joint, the position held, every rotation free.
+
+    ``start_motion``/``end_motion``: a prescribed translation (x, y, z)(t) [m] of a held end
+    (base excitation; None: at rest).
+    """
+
+    start: str = key(Choice(choices=SUPPORTS, default="clamped"))
+    end: str = key(Choice(choices=SUPPORTS, default="free"))
+    start_motion: tuple[Expression, ...] | None = key(LoadVector(default=ZERO3, unit="m"),
+                                                      default=None)  # fmt: skip
+    end_motion: tuple[Expression, ...] | None = key(LoadVector(default=ZERO3, unit="m"),
+                                                    default=None)  # fmt: skip
+
+    @property
+    def mechanism(self) -> bool:
+        """Whether the supports leave the rod a rigid-body motion (a pendulum, a free or a
+        spinning rod): neither end clamped, and not a fork at one end with the position held
+        at the other (which holds the six: three translations twice over, the twist by φ)."""
+        kinds = {self.start, self.end}
+        if "clamped" in kinds:
+            return False
+        return not ("pinned" in kinds and kinds <= {"pinned", "spherical"})
+
+    def motion(self, end: str) -> tuple[Expression, ...] | None:
+        return self.start_motion if end == "start" else self.end_motion
+
+
+@dataclass(frozen=True, kw_only=True)
+class EndLoad:
+    """Force [N] and torque [N m] on a free end, fixed directions e1, e2, e3; functions of t."""
+
+    force: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N"))
+    torque: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class PointLoad:
+    """Force [N] and torque [N m] at the node at arc length ``s`` [m] inside the rod, fixed
+    directions e1, e2, e3; functions of t."""
+
+    s: float = key(Number(required=True, interval=POSITIVE, unit="m"))
+    force: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N"))
+    torque: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m"))
+
+
+class FormLoad:
+    """A load declared with its physics, so that a new kind of load is its declaration here, its
+    form in forms/ and its test. A subclass is a frozen, kw_only dataclass whose fields declare
+    its keys (:func:`~cosserat_fem.scene.keys.key`; its load vectors as
+    :class:`~cosserat_fem.scene.keys.LoadVector`), made a field of :class:`Loads` with
+    :func:`~cosserat_fem.scene.keys.table`; ``physics`` names its module in forms/, whose
+    ``residual(load, context)`` gives its term of the weak form (the scene's
+    ``model.RodModel.residual_terms`` adds it, under the load's key; the Jacobian is UFL's
+    derivative of the form). The scene reader parses its load vectors (functions of t and the
+    constants), calls :meth:`check`, and the scene's other parts (``load_components``, the
+    plane) read it through :meth:`vectors` and :meth:`in_plane`; ``to_dict`` writes its
+    declared keys as it writes any table's (:func:`~cosserat_fem.scene.keys.to_table`)."""
+
+    physics: ClassVar[str]
+
+    def vectors(self) -> dict[str, tuple[Expression, ...]]:
+        """Its load vectors, by key."""
+        return {
+            name: getattr(self, f)
+            for name, f in declared_names(type(self)).items()
+            if isinstance(_spec(type(self), f), LoadVector)
+        }
+
+    def check(self, key: str, supports: Supports) -> None:
+        """SceneError naming ``key`` (its dotted table) if the scene cannot carry it."""
+
+    def in_plane(self, normal: tuple[int, ...], torques: tuple[int, ...]) -> bool:
+        """Whether it keeps a motion in a plane (:data:`PLANES`: the force has no component
+        along ``normal``, the torque none about ``torques``); by default it does not."""
+        return False
+
+
+def _spec(cls: type, name: str) -> Any:
+    """The key spec the field ``name`` of ``cls`` declares."""
+    return Table.of(cls).fields[{f: k for k, f in declared_names(cls).items()}[name]]
+
+
+@dataclass(frozen=True, kw_only=True)
+class FollowerEndLoad(FormLoad):
+    """[loads.follower]: a force [N] and torque [N m] on the free ``end`` ("start" or "end")
+    that turn with its directors: components along d1, d2, d3 of that end, functions of t
+    (forms/follower.py)."""
+
+    physics: ClassVar[str] = "follower"
+
+    end: str = key(Choice(choices=("start", "end"), default="end"))
+    force: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N"))
+    torque: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m"))
+
+    def check(self, key: str, supports: Supports) -> None:
+        """Only a free end carries it (a held end's support takes what it turns with)."""
+        if getattr(supports, self.end) != "free":
+            raise SceneError(f'{key}.end: a follower load needs a free end, but supports.'
+                             f'{self.end} = "{getattr(supports, self.end)}"')  # fmt: skip
+
+    def in_plane(self, normal: tuple[int, ...], torques: tuple[int, ...]) -> bool:
+        """In a plane of motion of the straight rod d2 = e2 (x-z) or d1 = e1 (y-z) and the other
+        two directors stay in it: the director components leave it as the fixed ones do."""
+        return all(self.force[i].is_zero for i in normal) and all(
+            self.torque[i].is_zero for i in torques
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
+class Loads:
+    """Distributed force [N/m] and torque [N m/m] (functions of s, t), end loads and a point
+    load."""
+
+    force_density: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N/m"))
+    torque_density: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m/m"))
+    start: EndLoad | None = table(EndLoad, optional=True)
+    end: EndLoad | None = table(EndLoad, optional=True)
+    #: a force [N] and torque [N m] at the node s [m] inside the rod
+    point: PointLoad | None = table(PointLoad, optional=True, default=None)
+    #: [m/s²], adds ρ A g to the force
+    gravity: tuple[float, float, float] = key(Vector(default=ZERO3, unit="m/s^2"))
+    #: a force and torque that turn with an end's directors (forms/follower.py)
+    follower: FollowerEndLoad | None = table(FollowerEndLoad, optional=True, default=None)
+
+    @property
+    def has_gravity(self) -> bool:
+        return any(g != 0.0 for g in self.gravity)
+
+    def form_loads(self) -> list[tuple[str, FormLoad]]:
+        """(key, load) of the loads declared with their physics (:class:`FormLoad`) given."""
+        return [
+            (name, getattr(self, f))
+            for name, f in declared_names(Loads).items()
+            if isinstance(getattr(self, f), FormLoad)
+        ]
+
+
+#: Planes of motion (Scene.plane): the normal e_k, the axes of torques that leave the plane
+#: and the angles (θ, ψ, φ) = (0, 1, 2) that stay zero in it.
+PLANES = {"x-z": ((1,), (0, 2), (0, 2)), "y-z": ((0,), (1, 2), (1, 2))}
+
+
+def _in_plane(normal: tuple[int, ...], angles: tuple[int, ...]) -> tuple[int, ...]:
+    """The components of U = (p, q) that a plane keeps: the translations but its normal, the
+    angles it does not hold at zero, and their rates."""
+    p = [i for i in range(3) if i not in normal] + [3 + a for a in range(3) if a not in angles]
+    return (*p, *(6 + i for i in p))
+
+
+#: The components of U = (p, q) solved in each plane (x-z: x, z, ψ; y-z: y, z, θ; + rates).
+PLANAR = {name: _in_plane(normal, angles) for name, (normal, _, angles) in PLANES.items()}
+
+
+@dataclass(frozen=True, kw_only=True)
+class Damping:
+    """Viscous damping densities: force −c_t ṙ [N/m] with ``translational`` c_t [N s/m²], and
+    torque −c_r ω [N m/m] with ``rotational`` c_r [N s] (ω the angular velocity). For a
+    slender rod c_t damps every bending mode alike: ζ_n = c_t / (2 ρ A ω_n).
+
+    Kelvin–Voigt (material) damping with ``retardation_time`` τ_d [s]: E and G act on
+    (1 + τ_d ∂t) of the strains, n = K (v − e3 + τ_d v̇), m = J (u + τ_d u̇); it damps each
+    mode in proportion to its frequency, ζ_n = τ_d ω_n / 2 (forms/general_form.py)."""
+
+    translational: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="N s/m^2"))
+    rotational: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="N s"))
+    retardation_time: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="s"))
+
+    @property
+    def viscous(self) -> bool:
+        return self.translational > 0.0 or self.rotational > 0.0
+
+    @property
+    def kelvin_voigt(self) -> bool:
+        return self.retardation_time > 0.0
+
+    @property
+    def active(self) -> bool:
+        return self.viscous or self.kelvin_voigt
+
+
+@dataclass(frozen=True, kw_only=True)
+class Initial:
+    """The state at time.start as functions of s [m] (None: at rest, straight): position
+    displacement [m], angles (θ, ψ, φ) [rad], velocity [m/s], angle rates [rad/s]."""
+
+    displacement: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="m"),
+                                                      default=None)  # fmt: skip
+    angles: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="rad"), default=None)
+    velocity: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="m/s"),
+                                                  default=None)  # fmt: skip
+    angle_rates: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="rad/s"),
+                                                     default=None)  # fmt: skip
+
+    def fields(self) -> dict[str, tuple[Expression, ...]]:
+        """The fields given, non-zero, by name."""
+        return {
+            name: value
+            for name, value in vars(self).items()
+            if value is not None and not all(e.is_zero for e in value)
+        }
+
+
+@dataclass(frozen=True, kw_only=True)
+class Time:
+    """Time span [s] and integrator."""
+
+    start: float = key(Number(default=0.0, unit="s"))
+    end: float = key(Number(required=True, unit="s"))
+    step: float = key(Number(required=True, interval=POSITIVE, unit="s"))
+    #: SDIRK3 and a frozen Jacobian: the fastest to an error of 1e-3 on the paper's scene
+    #: (benchmarks/README.md), the defaults the README states.
+    integrator: str = key(
+        Choice(choices=("bdf2", "generalized-alpha", "sdirk3", "sdirk4"), default="sdirk3")
+    )
+    rho_inf: float = key(Number(default=0.5, interval=Interval(0.0, 1.0)))
+    max_halvings: int = key(Number(default=6, integer=True, interval=Interval(0, 30)))
+    adaptive: bool = key(Flag(default=False))
+    rtol: float = key(Number(default=1e-4, interval=Interval(0.0, 1.0, True, True)))
+    atol: float = key(Number(default=1e-10, interval=POSITIVE))
+    max_step: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="s"))  # 0: no limit
+
+    @property
+    def n_steps(self) -> int:
+        """Number of time steps, round((end - start) / step)."""
+        return round((self.end - self.start) / self.step)
+
+
+@dataclass(frozen=True, kw_only=True)
+class StaticSettings:
+    """Static solves (``cosserat-fem static``): the loads at ``time`` [s], applied in
+    ``load_steps`` equal increments of the load factor; a failed increment is halved, down to
+    2^-``max_bisections`` of the nominal increment."""
+
+    load_steps: int = key(Number(default=1, integer=True, interval=Interval(lo=1)))
+    #: 2^-30 of a load increment: below that no increment is worth trying.
+    max_bisections: int = key(Number(default=10, integer=True, interval=Interval(0, 30)))
+    time: float = key(Number(default=0.0, unit="s"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Discretisation:
+    """Mesh and element: ``elements`` cells of Lagrange ``degree``; quadrature resolved."""
+
+    elements: int = key(Number(default=20, integer=True, interval=Interval(lo=1)))
+    degree: int = key(Number(default=2, integer=True, interval=Interval(1, 5)))
+    #: Exact for polynomials of degree 100 (51 Gauss points a cell), ten times the default
+    #: 2 * degree of degree 5; FFCx itself warns beyond 100 points. "auto": 2 * degree.
+    quadrature_degree: int = key(
+        Number(default="auto", integer=True, interval=Interval(1, MAX_QUADRATURE), auto=True)
+    )
+    #: "auto": solve the in-plane unknowns of a scene in x-z or y-z
+    planar: str = key(Choice(choices=("auto", "off"), default="auto"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Solver:
+    """Newton solver settings."""
+
+    jacobian: str = key(Choice(choices=("full", "lagged", "frozen"), default="frozen"))
+    lag: int = key(Number(default=10, integer=True, interval=Interval(lo=1)))
+    refresh_iterations: int = key(Number(default=4, integer=True, interval=Interval(lo=1)))
+    rtol: float = key(Number(default=1e-10, interval=Interval(0.0, 1.0, True, True)))
+    atol: float = key(Number(default=1e-12, interval=POSITIVE))
+    stol: float = key(Number(default=1e-8, interval=Interval(0.0, 1.0, True, True)))
+    max_iterations: int = key(
+        Number(default=25, integer=True, interval=Interval(1, MAX_NEWTON_ITERATIONS))
+    )
+    linear_solver: str = key(Choice(choices=("auto", "petsc", "mumps", "superlu"), default="auto"))
+    #: the residual's assembler under the one Newton loop: "auto", the C assembler where it
+    #: applies (native_newton.py); "python", DOLFINx's
+    loop: str = key(Choice(choices=("auto", "python"), default="auto"))
+    #: "newton" (the project's loop), "snes" (PETSc's SNES, cosserat_fem/nls/snes.py) or "auto"
+    #: (SNES if ``petsc`` gives options: solvers.make_solver).
+    nonlinear: str = key(Choice(choices=("auto", "newton", "snes"), default="auto"),
+                         default="auto")  # fmt: skip
+    #: PETSc options for SNES, name (without "-" and the prefix cosserat_) = value as text.
+    petsc: dict[str, str] = key(PetscOptions(default={}), default_factory=dict)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Output:
+    """Output directory (stored as written), XDMF and checkpoint settings.
+
+    ``checkpoint_interval`` [s] is resolved: a positive multiple of the step, or 0 for a
+    checkpoint at the end of the run only (cosserat_fem/io/checkpoint.py).
+    """
+
+    directory: str = key(Text(default="results", non_empty=True))
+    xdmf: bool = key(Flag(default=True))
+    xdmf_interval: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="s"))
+    fields: tuple[str, ...] = key(ChoiceList(choices=XDMF_FIELDS, default=XDMF_DEFAULT_FIELDS))
+    #: What probes.csv holds besides t, x, y, z, θ, ψ, φ (cosserat_fem/io/probes.py).
+    probe_fields: tuple[str, ...] = key(
+        ChoiceList(choices=tuple(PROBE_FIELD_COLUMNS), default=()), default=()
+    )
+    checkpoint: bool = key(Flag(default=True))
+    checkpoint_interval: float = key(
+        Number(default="auto", interval=NON_NEGATIVE, unit="s", auto=True)
+    )
+
+    def xdmf_every(self, step: float) -> int:
+        """Steps between XDMF writes (1 if the interval is 0)."""
+        if self.xdmf_interval == 0.0:
+            return 1
+        return max(1, round(self.xdmf_interval / step))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Limits:
+    """What a run may cost before it is refused (cosserat_fem/analysis/budget.py): ``wall_time``
+    [s], the estimated wall time of the run and the most it may run before it stops with a
+    checkpoint; ``memory`` [bytes], the estimated memory (None: "auto", the memory available
+    on this machine). Raise them to run a very large case on purpose."""
+
+    wall_time: float = key(Number(default=DEFAULT_WALL_TIME, interval=POSITIVE, unit="s"))
+    memory: float | None = key(
+        Number(default="auto", interval=POSITIVE, unit="bytes", auto=True)
+    )
+
+
+@dataclass(frozen=True, kw_only=True)
+class Scene:
+    """A validated scene; ``source`` (file name or "<dict>") and its digest do not take part
+    in equality."""
+
+    title: str = key(Text(default=""))
+    parameters: dict[str, float] = key(Parameters())
+    rod: Rod = table(Rod)
+    #: The rod at rest (forms/reference.py): straight along e3 (the paper's), a circular arc
+    #: in the e1-e3 plane bending towards +e1, a helix about an axis along e3, a polyline
+    #: whose frame jumps at its corners, or a curve of expressions of s.
+    reference: ReferenceShape = table(ReferenceShape, default_factory=ReferenceShape)
+    model: ModelChoices = table(ModelChoices)
+    supports: Supports = table(Supports)
+    loads: Loads = table(Loads)
+    damping: Damping = table(Damping)
+    initial: Initial = table(Initial, default_factory=Initial)  # built last, from the rest
+    time: Time = table(Time)
+    static: StaticSettings = table(StaticSettings)
+    discretisation: Discretisation = table(Discretisation)
+    solver: Solver = table(Solver)
+    output: Output = table(Output)
+    limits: Limits = table(Limits)
+    source: str = field(default="<dict>", compare=False)
+    #: SHA-256 of the file's bytes the scene was read from ("" for a dict): what every MPI
+    #: rank parsed (schema.read_input), written to summary.json as ``scene_file_sha256``
+    source_sha256: str = field(default="", compare=False)
+
+    @property
+    def omega0(self) -> float:
+        """The reference frequency ω0 [rad/s]: as given, or :func:`auto_reference_frequency`."""
+        given = self.model.reference_frequency
+        return given if given is not None else auto_reference_frequency(self.rod)
+
+    def plane(self) -> str | None:
+        """The plane the motion stays in, "x-z" or "y-z" (checked in that order: a scene in
+        both moves along the axis only, and x-z keeps clear of the chart limit |θ| < π/2),
+        or None: asked for (discretisation.planar = "auto") and nothing leaves the plane."""
+        if self.discretisation.planar != "auto" or self.reference.curved:
+            return None
+        return next((name for name in PLANES if self._stays_in(name)), None)
+
+    def absent_terms(self) -> list[str]:
+        """The load and damping terms that are zero, so not in the form (``skipped_terms``
+        of summary.json, ``validate``)."""
+        loads, damping = self.loads, self.damping
+        absent = [
+            name
+            for name, exprs in (
+                ("force_density", loads.force_density),
+                ("torque_density", loads.torque_density),
+            )
+            if exprs is None or all(e.is_zero for e in exprs)
+        ]
+        absent += [] if loads.has_gravity else ["gravity"]
+        absent += [] if damping.viscous else ["damping"]
+        return absent + ([] if damping.kelvin_voigt else ["kelvin_voigt"])
+
+    def _stays_in(self, plane: str) -> bool:
+        """Nothing leaves the plane: no force or support motion along its normal e_k (e2 for
+        x-z, e1 for y-z), no torque about the other two axes (distributed, at the ends), no
+        gravity along e_k, no initial displacement or velocity along e_k, no initial angles
+        or rates other than the in-plane one (ψ for x-z, θ for y-z)."""
+        normal, torques, angles = PLANES[plane]
+        loads, init = self.loads, self.initial
+        vectors = [(loads.force_density, normal), (loads.torque_density, torques)]
+        for end in (loads.start, loads.end, loads.point):
+            if end is not None:
+                vectors += [(end.force, normal), (end.torque, torques)]
+        vectors += [(m, normal) for m in (self.supports.start_motion, self.supports.end_motion)]
+        if not all(load.in_plane(normal, torques) for _, load in loads.form_loads()):
+            return False
+        vectors += [(init.displacement, normal), (init.velocity, normal)]
+        vectors += [(init.angles, angles), (init.angle_rates, angles)]
+        if any(loads.gravity[i] != 0.0 for i in normal):
+            return False
+        return all(v is None or all(v[i].is_zero for i in idx) for v, idx in vectors)
+
+    def rod_constants(self) -> RodConstants:
+        """Physical constants of the rod, with ω0 resolved (section 6 when "auto")."""
+        mat = self.rod.material
+        return RodConstants(
+            length=self.rod.length,
+            section=self.rod.section.constants(),
+            density=mat.density,
+            young_modulus=mat.young_modulus,
+            shear_modulus=mat.shear_modulus,
+            omega0=self.omega0,
+            torsion_inertia=self.model.torsion_inertia,
+            inertia=self.rod.rotary_inertia,
+        )
+
+    def load_components(self) -> list[tuple[str, Any]]:
+        """(dotted key ``loads.end.force[2]``, component) of every component of the loads
+        (densities, end and point loads) and support motions: an Expression, or data
+        (cosserat_fem/scene/load_data.py)."""
+        loads, supports = self.loads, self.supports
+        entries = [("loads.force_density", loads.force_density)]
+        entries.append(("loads.torque_density", loads.torque_density))
+        for end in ("start", "end", "point"):
+            load = getattr(loads, end)
+            if load is not None:
+                entries += [(f"loads.{end}.force", load.force)]
+                entries += [(f"loads.{end}.torque", load.torque)]
+            if end != "point" and supports.motion(end) is not None:
+                entries += [(f"supports.{end}_motion", supports.motion(end))]
+        for name, load in loads.form_loads():
+            entries += [(f"loads.{name}.{k}", v) for k, v in load.vectors().items()]
+        return [
+            (f"{key}[{i}]", component)
+            for key, vector in entries
+            if vector is not None
+            for i, component in enumerate(vector)
+        ]
+
+    def expression_names(self) -> dict[str, float]:
+        """Constant values for load expressions: ``L``, ``omega0`` and the parameters."""
+        return {"L": self.rod.length, "omega0": self.omega0, **self.parameters}
+
+    def to_dict(self) -> dict[str, Any]:
+        """The scene as the tables of a scene file, every key given, as its declaration writes
+        it (:func:`~cosserat_fem.scene.keys.to_table`: expressions as their sources, tables and
+        callables as their dicts, reference_frequency and limits.memory "auto" where so
+        chosen, absent optional tables left out): plain, JSON-serialisable;
+        ``scene_from_dict`` inverts it."""
+        return to_table(self)
+
+
+def auto_reference_frequency(rod: Rod) -> float:
+    """ω0 = 1.875² / L² · sqrt(E c22 / (ρ A)) (paper, §6: c22 = b a³/12, A = a b for its
+    rectangle): the first cantilever bending frequency about d2."""
+    mat = rod.material
+    section = rod.section.constants()
+    return euler_bernoulli_omega0(rod.length, section, mat.density, mat.young_modulus)

@@ -1,0 +1,553 @@
+"""Implicit time integrators for first-order systems  F(U, dU/dτ, τ; V) = 0.
+
+An integrator knows nothing of rods. It is given the unknown Function ``U`` (the state at the
+new time level, which Newton solves for) and a callable ``residual(U_eval, Udot_eval,
+time_eval) -> ufl.Form``; it returns the residual form in which U_eval, Udot_eval and
+time_eval are the scheme's UFL combinations of ``U``, its own history Functions and
+Constants, and it updates the history after each accepted step.
+
+* :class:`Static`: Udot = 0 (equilibrium; used for static loads).
+* :class:`BDF2`: variable-step two-step backward differentiation formula,
+  Udot_{n+1} = [(1+2ω)/(1+ω) U_{n+1} − (1+ω) U_n + ω²/(1+ω) U_{n−1}] / h_n, ω = h_n/h_{n−1};
+  second order and L-stable. "Proper start": its first step is an implicit-midpoint step,
+  F((U_0 + U_1)/2, (U_1 − U_0)/h, τ_0 + h/2) = 0 (one-step, second order, local error O(h³)),
+  so no first-order error enters the history.
+* :class:`GeneralizedAlpha`: Jansen, Whiting & Hulbert (2000), CMAME 190:305-319, for
+  first-order systems, with spectral radius at infinity ρ∞ ∈ [0, 1]:
+  αm = ½ (3 − ρ∞)/(1 + ρ∞), αf = 1/(1 + ρ∞), γ = ½ + αm − αf;
+  U_{n+1} = U_n + h U̇_n + γ h (U̇_{n+1} − U̇_n),
+  F(U_n + αf (U_{n+1} − U_n), U̇_n + αm (U̇_{n+1} − U̇_n), τ_n + αf h) = 0.
+  Second order for every ρ∞; ρ∞ = 1 is the (non-dissipative) midpoint rule. The initial
+  rate U̇_0 is made consistent by one linear solve (``initial_rate``).
+* :class:`SDIRK`: singly diagonally implicit Runge–Kutta methods, A-stable, of order 3
+  (Nørsett/Crouzeix, two stages, γ = (3 + √3)/6) and order 4 (Crouzeix 1975, three stages,
+  γ = 1/2 + cos(π/18)/√3). Stage i solves F(U_i, K_i, τ_n + c_i h) = 0 with
+  K_i = (U_i − Z_i)/(γ h), Z_i = U_n + h Σ_{j<i} a_ij K_j, one after the other; then
+  U_{n+1} = U_n + h Σ b_i K_i. Every stage has the same γ h, so the stage Jacobians are one
+  matrix and a frozen Jacobian (and its LU factors) serves all stages of all steps.
+  |R(∞)| = 0.73 (order 3) and 0.63 (order 4): unresolved modes are damped, resolved ones lose
+  amplitude at order p + 1 per step.
+
+Every integrator advances by :meth:`Integrator.step` (one or several nonlinear solves through
+the ``solve`` callable it is given) and :meth:`Integrator.accept` once the caller has checked
+the new state.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem.petsc import apply_lifting, assemble_matrix, assemble_vector, set_bc
+from petsc4py import PETSc
+
+ResidualFactory = Callable[[object, object, object], ufl.Form]
+#: A change of variables (:meth:`Integrator.change_variables`): state array -> state array.
+StateMap = Callable[[np.ndarray], np.ndarray]
+#: The same change for a rate: (state array, rate array at it) -> rate array.
+RateMap = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+def _constant(U: fem.Function, value: float = 0.0) -> fem.Constant:
+    return fem.Constant(U.function_space.mesh, PETSc.ScalarType(value))
+
+
+def time_view(constant: fem.Constant) -> np.ndarray:
+    """The 0-d array that is a scalar Constant's own storage: ``view[()] = x`` sets it at a
+    tenth of the cost of ``constant.value = x``, which wraps the storage anew each call."""
+    return constant._cpp_object.value
+
+
+class Integrator:
+    """Common interface. Subclasses define the forms and the history update."""
+
+    name = "integrator"
+    order = 0
+
+    def __init__(self, U: fem.Function, residual: ResidualFactory, time: float = 0.0):
+        self.U = U
+        self.time = float(time)
+        self.time_eval = _constant(U, time)
+        self._factory = residual
+        self.steps_taken = 0
+        self.unknown_time = self.time  # τ of the unknown U in the current solve
+
+    def residual_form(self) -> ufl.Form:
+        raise NotImplementedError
+
+    def start(self, problem, lu_package: str) -> None:
+        """The integrator's own set-up before the first step of a run that starts from the
+        state in U (not a restart, whose history comes from :meth:`load_state_dict`). Most
+        integrators need none; :class:`GeneralizedAlpha` solves for a consistent rate.
+        ``problem`` gives what such a solve needs of the system: ``bcs`` (the Dirichlet
+        conditions), ``move_supports(τ, rates=False)`` (prescribed values, or their rates,
+        at τ), ``sync_loads(time_eval)`` (data loads at the Constant's τ); ``lu_package`` the
+        LU factorisation's PETSc package."""
+
+    def prepare(self, h: float) -> None:
+        """Set the Constants for a step of size h from ``self.time`` and predict U."""
+        raise NotImplementedError
+
+    def step(self, h: float, solve: Callable[[], int]) -> int:
+        """Advance U from ``self.time`` to ``self.time + h``; the Newton iterations used.
+
+        ``solve`` solves the residual form for U from the current U (the predictor). One-stage
+        schemes call it once; Runge–Kutta schemes once per stage.
+        """
+        self.prepare(h)
+        return solve()
+
+    def accept(self, h: float) -> None:
+        """Update the history after a converged step of size h."""
+        self.time += h
+        self.steps_taken += 1
+
+    def reject(self) -> None:
+        """Undo a step that is not accepted: U back to the last accepted state (the history
+        is only updated by :meth:`accept`)."""
+        self.U.x.array[:] = self.last_accepted()
+
+    def last_accepted(self) -> np.ndarray:
+        """The state array at ``self.time``."""
+        raise NotImplementedError
+
+    def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
+        """Between steps, the unknowns change to new variables of the same motion (a new
+        chart): ``state_map(U)`` gives a state array in the new variables, ``rate_map(U, U̇)``
+        the rate U̇ at the old state U in them. U and every stored state and rate are mapped;
+        history whose states are not stored is dropped (a predictor then starts afresh), which
+        keeps the method's order (docs/decisions.md, "Charts")."""
+        self.U.x.array[:] = state_map(self.U.x.array)
+
+    def state_dict(self) -> dict:
+        """Everything the next steps depend on besides U (arrays are this rank's, copies):
+        with :meth:`load_state_dict` a restarted run continues bit for bit."""
+        return {"time": self.time, "steps_taken": self.steps_taken}
+
+    def load_state_dict(self, state: dict) -> None:
+        self.time = float(state["time"])
+        self.steps_taken = int(state["steps_taken"])
+
+    def _copy(self, dst: fem.Function, src: fem.Function) -> None:
+        dst.x.array[:] = src.x.array
+
+
+class Static(Integrator):
+    """Equilibrium: F(U, 0, τ) = 0. ``prepare`` only sets the load time."""
+
+    name = "static"
+
+    def residual_form(self) -> ufl.Form:
+        return self._factory(self.U, ufl.zero(self.U.ufl_shape), self.time_eval)
+
+    def prepare(self, h: float) -> None:
+        self.time_eval.value = self.time + h
+        self.unknown_time = self.time + h
+
+
+class BDF2(Integrator):
+    """Variable-step BDF2 started by one implicit-midpoint step (module docstring)."""
+
+    name = "bdf2"
+    order = 2
+
+    def __init__(self, U, residual, time=0.0):
+        super().__init__(U, residual, time)
+        V = U.function_space
+        self.U_n = fem.Function(V, name="U_n")
+        self.U_nm1 = fem.Function(V, name="U_nm1")
+        self._copy(self.U_n, U)
+        self._copy(self.U_nm1, U)
+        self.a0, self.a1, self.a2 = (_constant(U) for _ in range(3))
+        self.mid = _constant(U, 1.0)  # 1 for the midpoint start, 0 for BDF2 steps
+        self.h_prev: float | None = None
+
+    def residual_form(self) -> ufl.Form:
+        U, Un, Unm1 = self.U, self.U_n, self.U_nm1
+        U_eval = U + self.mid * 0.5 * (Un - U)
+        Udot = self.a0 * U + self.a1 * Un + self.a2 * Unm1
+        return self._factory(U_eval, Udot, self.time_eval)
+
+    def prepare(self, h: float) -> None:
+        """First step: the implicit-midpoint start from U = U_n; later steps: the BDF2
+        coefficients for ω = h/h_prev and the linear predictor."""
+        self.unknown_time = self.time + h
+        if self.h_prev is None:  # implicit-midpoint start
+            self.mid.value = 1.0
+            self.a0.value, self.a1.value, self.a2.value = 1.0 / h, -1.0 / h, 0.0
+            self.time_eval.value = self.time + 0.5 * h
+            self._copy(self.U, self.U_n)
+            return
+        w = h / self.h_prev
+        self.mid.value = 0.0
+        self.a0.value = (1.0 + 2.0 * w) / ((1.0 + w) * h)
+        self.a1.value = -(1.0 + w) / h
+        self.a2.value = w * w / ((1.0 + w) * h)
+        self.time_eval.value = self.time + h
+        # Predictor: linear extrapolation through U_{n-1}, U_n.
+        self.U.x.array[:] = (1.0 + w) * self.U_n.x.array - w * self.U_nm1.x.array
+
+    def accept(self, h: float) -> None:
+        self._copy(self.U_nm1, self.U_n)
+        self._copy(self.U_n, self.U)
+        self.h_prev = h
+        super().accept(h)
+
+    def last_accepted(self) -> np.ndarray:
+        return self.U_n.x.array
+
+    def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
+        """U, U_n and U_{n−1} mapped: the next step's BDF2 formula and predictor go on."""
+        super().change_variables(state_map, rate_map)
+        self.U_n.x.array[:] = state_map(self.U_n.x.array)
+        self.U_nm1.x.array[:] = state_map(self.U_nm1.x.array)
+
+    def state_dict(self) -> dict:
+        """Adds U_n, U_{n−1} and h_prev (NaN before the first step, which is the midpoint start)."""
+        return {
+            **super().state_dict(),
+            "U_n": self.U_n.x.array.copy(),
+            "U_nm1": self.U_nm1.x.array.copy(),
+            "h_prev": np.nan if self.h_prev is None else self.h_prev,
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        """The inverse of :meth:`state_dict`."""
+        super().load_state_dict(state)
+        self.U_n.x.array[:] = state["U_n"]
+        self.U_nm1.x.array[:] = state["U_nm1"]
+        h_prev = float(state["h_prev"])
+        self.h_prev = None if np.isnan(h_prev) else h_prev
+
+
+def alpha_parameters(rho_inf: float) -> tuple[float, float, float]:
+    """(αm, αf, γ) of Jansen, Whiting & Hulbert (2000) for spectral radius ρ∞ ∈ [0, 1]."""
+    if not 0.0 <= rho_inf <= 1.0:
+        raise ValueError(f"rho_inf must lie in [0, 1], got {rho_inf}")
+    alpha_m = 0.5 * (3.0 - rho_inf) / (1.0 + rho_inf)
+    alpha_f = 1.0 / (1.0 + rho_inf)
+    return alpha_m, alpha_f, 0.5 + alpha_m - alpha_f
+
+
+class GeneralizedAlpha(Integrator):
+    """Generalized-α for first-order systems (module docstring)."""
+
+    name = "generalized-alpha"
+    order = 2
+
+    def __init__(self, U, residual, time=0.0, rho_inf: float = 0.5):
+        super().__init__(U, residual, time)
+        self.rho_inf = rho_inf
+        self.alpha_m, self.alpha_f, self.gamma = alpha_parameters(rho_inf)
+        V = U.function_space
+        self.U_n = fem.Function(V, name="U_n")
+        self.Udot_n = fem.Function(V, name="Udot_n")
+        self._copy(self.U_n, U)
+        self.inv_gh = _constant(U, 1.0)
+        self.h = _constant(U, 1.0)
+        self._Udot_prev: np.ndarray | None = None
+        self._h_prev = 1.0
+        # Views of U, U_n and U̇_n (the Functions' own memory; Function.x costs 1.2 μs a call).
+        self._arrays = (self.U.x.array, self.U_n.x.array, self.Udot_n.x.array)
+
+    def _rate_new(self):
+        """U̇_{n+1} as a UFL expression of the unknown U = U_{n+1}."""
+        return self.Udot_n + self.inv_gh * (self.U - self.U_n - self.h * self.Udot_n)
+
+    def residual_form(self) -> ufl.Form:
+        am, af = self.alpha_m, self.alpha_f
+        U_eval = self.U_n + af * (self.U - self.U_n)
+        Udot_eval = self.Udot_n + am * (self._rate_new() - self.Udot_n)
+        return self._factory(U_eval, Udot_eval, self.time_eval)
+
+    def initial_rate_problem(self) -> tuple[ufl.Form, ufl.Form, fem.Function]:
+        """Forms (a, L) of the linear problem for a consistent U̇_0 (F is affine in U̇)."""
+        V = self.U.function_space
+        W = fem.Function(V, name="Udot0")
+        F0 = self._factory(self.U_n, W, self.time_eval)
+        dW = ufl.TrialFunction(V)
+        a = ufl.derivative(F0, W, dW)
+        L = -ufl.replace(F0, {W: ufl.zero(self.U.ufl_shape)})
+        return a, L, W
+
+    def set_initial_rate(self, rate: np.ndarray) -> None:
+        self.Udot_n.x.array[:] = rate
+
+    def start(self, problem, lu_package: str) -> None:
+        """U̇_0 consistent with U_0: F(U_0, U̇_0, τ_0) = 0, affine in U̇_0, is one linear solve
+        (:meth:`initial_rate_problem`), with the supports' rates as U̇_0's prescribed values
+        (``problem`` and ``lu_package``: :meth:`Integrator.start`).
+
+        Assembled and solved through the API, not dolfinx's ``LinearProblem``: that sets three
+        PETSc options per instance and never removes them, and PETSc 3.18 holds 512, so a
+        process that runs ~170 scenes (the work-precision benchmark) would fail with error 55.
+        """
+        a, L, W = self.initial_rate_problem()
+        a_form, L_form = fem.form(a), fem.form(L)
+        problem.move_supports(self.time, rates=True)  # moving supports: U̇ = their rates
+        problem.sync_loads(self.time_eval)  # loads given by data, at τ0
+        A = assemble_matrix(a_form, bcs=problem.bcs)
+        A.assemble()
+        b = assemble_vector(L_form)
+        apply_lifting(b, [a_form], bcs=[problem.bcs])
+        b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+        set_bc(b, problem.bcs)
+        ksp = PETSc.KSP().create(self.U.function_space.mesh.comm)
+        ksp.setOperators(A)
+        ksp.setType("preonly")
+        ksp.getPC().setType("lu")
+        ksp.getPC().setFactorSolverType(lu_package)
+        ksp.solve(b, W.vector)
+        W.x.scatter_forward()
+        problem.move_supports(self.time)
+        self.set_initial_rate(W.x.array)
+        for obj in (ksp, A, b):
+            obj.destroy()
+
+    def prepare(self, h: float) -> None:
+        """The Constants for a step of h from τ_n (evaluation at τ_n + αf h) and the second-order
+        predictor of the comment below."""
+        self.unknown_time = self.time + h
+        self.h.value = h
+        self.inv_gh.value = 1.0 / (self.gamma * h)
+        self.time_eval.value = self.time + self.alpha_f * h
+        # Predictor: U_{n+1} = U_n + h U̇_n + ½ h² Ü_n, with Ü_n from the last two rates
+        # (first step: U_n + h U̇_n). Second order, it saves about one Newton iteration a step.
+        u, un, vn = self._arrays
+        np.multiply(vn, h, out=u)
+        u += un
+        if self._Udot_prev is not None:
+            u += (0.5 * h * h / self._h_prev) * (vn - self._Udot_prev)
+
+    def accept(self, h: float) -> None:
+        """U̇_{n+1} = U̇_n + (U_{n+1} − U_n − h U̇_n)/(γ h) and U_n = U_{n+1}; U̇_n and h are
+        kept for the next predictor."""
+        u, un, vn = self._arrays
+        if self._Udot_prev is None:
+            self._Udot_prev = vn.copy()
+        else:
+            self._Udot_prev[:] = vn
+        self._h_prev = h
+        # U̇_{n+1} = U̇_n + (U_{n+1} − U_n − h U̇_n)/(γ h)
+        increment = u - un
+        increment -= h * vn
+        increment *= 1.0 / (self.gamma * h)
+        vn += increment
+        un[:] = u
+        super().accept(h)
+
+    def last_accepted(self) -> np.ndarray:
+        return self.U_n.x.array
+
+    def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
+        """U, U_n and U̇_n (at U_n) mapped; the previous rate, whose state is not kept, is
+        dropped: the next predictor is U_n + h U̇_n."""
+        u_n = self.U_n.x.array.copy()
+        super().change_variables(state_map, rate_map)
+        self.Udot_n.x.array[:] = rate_map(u_n, self.Udot_n.x.array)
+        self.U_n.x.array[:] = state_map(u_n)
+        self._Udot_prev = None
+
+    def state_dict(self) -> dict:
+        """Adds U_n, U̇_n and the previous rate (empty before the first step) with its step
+        h_prev."""
+        previous = self._Udot_prev
+        return {
+            **super().state_dict(),
+            "U_n": self.U_n.x.array.copy(),
+            "Udot_n": self.Udot_n.x.array.copy(),
+            "Udot_prev": np.zeros(0) if previous is None else previous.copy(),
+            "h_prev": self._h_prev,
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        """The inverse of :meth:`state_dict`."""
+        super().load_state_dict(state)
+        self.U_n.x.array[:] = state["U_n"]
+        self.Udot_n.x.array[:] = state["Udot_n"]
+        previous = np.asarray(state["Udot_prev"])
+        self._Udot_prev = previous.copy() if previous.size else None
+        self._h_prev = float(state["h_prev"])
+
+
+#: The most stages an SDIRK tableau may have (newton_loop.c CF_MAX_STAGES).
+MAX_STAGES = 8
+
+
+def _sdirk_tableau(order: int) -> tuple[float, np.ndarray, np.ndarray]:
+    """(γ, A, b) of the A-stable SDIRK methods of the module docstring."""
+    if order == 3:
+        g = (3.0 + np.sqrt(3.0)) / 6.0
+        return g, np.array([[g, 0.0], [1.0 - 2.0 * g, g]]), np.array([0.5, 0.5])
+    if order == 4:
+        g = 0.5 + np.cos(np.pi / 18.0) / np.sqrt(3.0)
+        d = 1.0 / (6.0 * (2.0 * g - 1.0) ** 2)
+        A = np.array([[g, 0.0, 0.0], [0.5 - g, g, 0.0], [2.0 * g, 1.0 - 4.0 * g, g]])
+        return g, A, np.array([d, 1.0 - 2.0 * d, d])
+    raise ValueError(f"no SDIRK method of order {order}")
+
+
+class SDIRK(Integrator):
+    """A-stable SDIRK of order 3 or 4 (module docstring).
+
+    Predictor: each stage starts from U = Z_i + γ h K̃_i, where K̃_i extrapolates the last
+    s stage rates (this step's and those of the accepted steps before it, at their own
+    times) by a polynomial of degree s − 1 to the stage time τ_n + c_i h; its error is
+    O(h^s), so a frozen Jacobian needs two to three iterations a stage. One degree lower
+    than the rates allow: the stage rates of the stiff (axial, shear) components are not
+    smooth, and a higher degree amplifies them (measured: docs/decisions.md, "The stage
+    predictor"). Only accepted steps enter the stored rates, so a rejected step leaves
+    nothing to undo but U.
+    """
+
+    def __init__(self, U, residual, time=0.0, order: int = 3):
+        super().__init__(U, residual, time)
+        self.order = order
+        self.name = f"sdirk{order}"
+        self.gamma, self.A, self.b = _sdirk_tableau(order)
+        self.c = self.A.sum(axis=1)
+        V = U.function_space
+        self.U_n = U.x.array.copy()
+        self.Z = fem.Function(V, name="Z")  # U_n + h Σ_{j<i} a_ij K_j of the current stage
+        self.inv_gh = _constant(U, 1.0)
+        stages = len(self.b)
+        if stages > MAX_STAGES:
+            raise ValueError(f"an SDIRK tableau of {stages} stages; at most {MAX_STAGES}")
+        self.K = np.zeros((stages, U.x.array.size))  # stage rates K_i of this step
+        self._taus = np.zeros(stages)  # their times
+        # The last s stage rates of accepted steps, a ring buffer in the order computed
+        # (slot = count mod s), and their times.
+        self._rates = np.zeros((stages, U.x.array.size))
+        self._times = np.zeros(stages)
+        self._stored = 0
+        self._kernels()
+
+    def _kernels(self) -> None:
+        """The C kernels of the step's arithmetic (newton_loop.c ``cf_sdirk_*``) and the
+        struct they share, which points into this integrator's arrays (kept in place: they are
+        only ever assigned into)."""
+        from cosserat_fem.nls.native_newton import core
+
+        module = core(self.U.function_space.mesh.comm)  # collective
+        ffi, self._lib = module.ffi, module.lib
+        self._tableau = [np.ascontiguousarray(x, dtype=np.float64) for x in (self.A, self.b,
+                                                                             self.c)]  # fmt: skip
+        self._guess = np.zeros(self.U_n.size)  # the predictor's scratch
+        self._inv_gh_value = time_view(self.inv_gh)
+
+        def pointer(array: np.ndarray):
+            assert array.dtype == np.float64 and array.flags.c_contiguous
+            return ffi.cast("double*", array.ctypes.data)
+
+        sd = ffi.new("cf_sdirk*")
+        sd.stages, sd.n, sd.gamma = len(self.b), self.U_n.size, float(self.gamma)
+        sd.A, sd.b, sd.c = (pointer(x) for x in self._tableau)
+        sd.u, sd.z, sd.u_n = pointer(self.U.x.array), pointer(self.Z.x.array), pointer(self.U_n)
+        sd.K, sd.taus = pointer(self.K), pointer(self._taus)
+        sd.rates, sd.times = pointer(self._rates), pointer(self._times)
+        sd.guess, sd.time_value = pointer(self._guess), pointer(time_view(self.time_eval))
+        self._sd = sd
+
+    def residual_form(self) -> ufl.Form:
+        return self._factory(self.U, self.inv_gh * (self.U - self.Z), self.time_eval)
+
+    def prepare(self, h: float) -> None:
+        self._inv_gh_value[()] = 1.0 / (self.gamma * h)
+
+    def predict(self, stage: int) -> None:
+        """The initial guess of stage ``stage`` into U (after its Z_i and τ_i are set, before
+        its solve): U = Z_i + γ h K̃_i, K̃_i the Lagrange extrapolation to τ_i of the newest s
+        stage rates known before it (this step's and the accepted steps', at their own times;
+        K̃_i = 0 with none). A stored rate whose time coincides with that of a newer one is left
+        out (SDIRK4's first stage lies beyond its step, so after a step ratio of (γ − 1)/γ a
+        stage time repeats exactly: the weights would divide by zero). The C kernel
+        ``cf_sdirk_predict``, which :meth:`step` runs inside ``cf_sdirk_stage`` unless this
+        method is overridden (in a subclass, on the class or on the instance): then
+        :meth:`step` calls the override instead, at every stage."""
+        self._lib.cf_sdirk_predict(self._sd, stage)
+
+    def step(self, h: float, solve: Callable[[], int]) -> int:
+        """The stages one after the other (module docstring): per stage ``cf_sdirk_stage``
+        (K_{i−1} = (U − Z_{i−1})/(γ h) of the stage before; Z_i; τ_i; the guess of
+        :meth:`predict`), then ``solve()``; after the last, ``cf_sdirk_stage`` makes its K
+        and U = U_n + h Σ b_i K_i. Returns the Newton iterations of all stages. The same code
+        serial and MPI: the kernels work elementwise on the local arrays, ghosts included."""
+        self.prepare(h)
+        lib, sd = self._lib, self._sd
+        own_guess = type(self).predict is not _PREDICT or "predict" in self.__dict__
+        sd.h, sd.time, sd.stored, sd.predict = h, self.time, self._stored, not own_guess
+        iterations = 0
+        for i in range(sd.stages):
+            lib.cf_sdirk_stage(sd, i)
+            self.unknown_time = sd.unknown_time
+            if own_guess:
+                self.predict(i)
+            iterations += solve()
+        lib.cf_sdirk_stage(sd, sd.stages)
+        return iterations
+
+    def accept(self, h: float) -> None:
+        """U_n = U; this step's stage rates and their times go into the ring buffer of the
+        predictor (``cf_sdirk_accept``)."""
+        sd = self._sd
+        sd.stored = self._stored
+        self._lib.cf_sdirk_accept(sd)
+        self._stored = sd.stored
+        super().accept(h)
+
+    def last_accepted(self) -> np.ndarray:
+        return self.U_n
+
+    def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
+        """U and U_n mapped; the predictor's stage rates, whose states are not kept, are
+        dropped (the next step's first stage starts from U_n)."""
+        super().change_variables(state_map, rate_map)
+        self.U_n[:] = state_map(self.U_n)
+        self._stored = 0
+
+    def state_dict(self) -> dict:
+        """Adds U_n and the predictor's ring buffer: stage rates, their times, the count stored."""
+        return {
+            **super().state_dict(),
+            "U_n": self.U_n.copy(),
+            "rates": self._rates.copy(),
+            "rate_times": self._times.copy(),
+            "stored": self._stored,
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        """The inverse of :meth:`state_dict`."""
+        super().load_state_dict(state)
+        self.U_n[:] = state["U_n"]
+        rates, times, stored = state["rates"], state["rate_times"], int(state["stored"])
+        size = len(self._times)
+        if len(times) > size:  # a checkpoint of the predictor of degree s: its newest s rates
+            newest = [(stored - size + j) % len(times) for j in range(size)]
+            slots = [(stored - size + j) % size for j in range(size)]
+            rates, times = rates[newest][np.argsort(slots)], times[newest][np.argsort(slots)]
+        self._rates[:] = rates
+        self._times[:] = times
+        self._stored = stored
+
+
+#: SDIRK's own predictor (the C kernel): a step compares an integrator's ``predict`` with it.
+_PREDICT = SDIRK.predict
+
+INTEGRATORS = ("bdf2", "generalized-alpha", "sdirk3", "sdirk4", "static")
+
+
+def make_integrator(name: str, U, residual: ResidualFactory, time: float, rho_inf: float = 0.5):
+    """The integrator ``name`` (one of INTEGRATORS) of ``U`` and ``residual``, starting at
+    τ = ``time`` (τ = ω0 t, (47)); ``rho_inf``: generalized-α's ρ∞. ValueError for another
+    name."""
+    if name == "generalized-alpha":
+        return GeneralizedAlpha(U, residual, time, rho_inf=rho_inf)
+    if name in ("sdirk3", "sdirk4"):
+        return SDIRK(U, residual, time, order=int(name[-1]))
+    if name == "bdf2":
+        return BDF2(U, residual, time)
+    if name == "static":
+        return Static(U, residual, time)
+    raise ValueError(f"unknown integrator {name!r}; expected one of {list(INTEGRATORS)}")
