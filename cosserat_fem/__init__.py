@@ -1,10 +1,12 @@
 """cosserat-fem: the Cosserat rod of Cao & Tucker (2008) in FEniCSx/DOLFINx.
 
 The physics (pure UFL) lives in :mod:`cosserat_fem.forms` (the top-level ``forms/`` folder);
-this package is the machinery: scenes, spaces and boundary conditions, time integrators,
-the Newton solver, outputs and the command line. The Python API, ``cosserat_fem.load``,
-``run``, ``resume``, ``static``, ``modes``, ``stability``, ``stability_at``,
-``load_sweep``, ``sweep`` and ``pod``, is
+this package is the machinery, in subpackages by layer, bottom first: ``common`` (errors, MPI
+agreement, safe files, JIT), ``io`` (file formats), ``scene``, ``rod`` (the discrete rod),
+``reference`` (closed forms), ``nls`` (Newton, SNES), ``timestepping``, ``output``,
+``analysis`` (run, static, modes, stability), ``studies`` (sweeps, responses, POD);
+docs/developers.md maps them. The Python API, ``cosserat_fem.load``, ``run``, ``resume``,
+``static``, ``modes``, ``stability``, ``stability_at``, ``load_sweep``, ``sweep`` and ``pod``, is
 :mod:`cosserat_fem.api`.
 """
 
@@ -21,8 +23,7 @@ pkg_resources_shim.install()
 
 #: The Python API (cosserat_fem/api.py), imported on first use: ``import cosserat_fem`` stays
 #: light (the command line's plot and validate need no DOLFINx).
-_API = ("load", "run", "resume", "static", "modes", "stability", "stability_at", "load_sweep",
-        "sweep", "pod", "UNSET")
+_API = ("load", "run", "resume", "static", "modes", "load_sweep", "sweep", "pod", "UNSET")
 
 
 def __getattr__(name: str):

@@ -1,2 +1,2 @@
-"""Analyses put together from the layers below: a time run (simulation), statics, modes, stability;
+"""Analyses put together from the layers below: a time run (simulation), statics, modes, equilibria;
 their observers, progress, budget and restart rules."""
