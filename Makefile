@@ -13,7 +13,7 @@ export OMPI_MCA_rmaps_base_oversubscribe := 1
 export OMPI_MCA_mpi_yield_when_idle := 1
 export OMPI_MCA_hwloc_base_binding_policy := none
 
-.PHONY: setup demo demo-response test test-long unit lint verify bench clean container-test
+.PHONY: setup demo demo-response test test-long unit lint format verify bench clean container-test
 
 setup:
 	@VENV=$(VENV) bash .ci/setup.sh
@@ -55,10 +55,16 @@ bench: setup
 container-test:
 	bash .ci/container-test.sh
 
-## ruff, then the type checker over the modules listed in pyproject.toml ([tool.mypy]).
+## ruff's linter and formatter (check only), then the type checker over the modules listed in
+## pyproject.toml ([tool.mypy]). `make format` formats the tree in place.
 lint: setup
 	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
 	$(VENV)/bin/mypy
+
+format: setup
+	$(VENV)/bin/ruff format .
+	$(VENV)/bin/ruff check --fix .
 
 clean:
 	rm -rf demos/output results .pytest_cache .ruff_cache .mypy_cache

@@ -37,8 +37,12 @@ SCENE = ROOT / "scenes" / "cao_tucker_2008.toml"
 RESULTS = ROOT / "benchmarks" / "results"
 DEFAULT_ELEMENTS = (100, 300, 1000, 3000, 10000, 30000, 100000)
 _SNES = ["solver.nonlinear=snes"]
-_GMRES = [*_SNES, "solver.petsc.ksp_type=gmres", "solver.petsc.ksp_rtol=1e-12",
-          "solver.petsc.sub_pc_type=lu"]  # fmt: skip
+_GMRES = [
+    *_SNES,
+    "solver.petsc.ksp_type=gmres",
+    "solver.petsc.ksp_rtol=1e-12",
+    "solver.petsc.sub_pc_type=lu",
+]
 #: ``--configs``: name -> (ranks, scene overrides). The project's Newton loop with PETSc's LU
 #: (serial) or MUMPS (under MPI), SNES with its defaults (the same solves through PETSc's
 #: SNES), and SNES with GMRES preconditioned by block Jacobi or additive Schwarz (overlap 1),
@@ -53,8 +57,10 @@ CONFIGS: dict[str, tuple[int, list[str]]] = {
     "mpi-gmres-asm": (2, [*_GMRES, "solver.petsc.pc_type=asm", "solver.petsc.pc_asm_overlap=1"]),
     # Inexact Newton: each linear solve to 1e-6 of its residual only (fewer Krylov
     # iterations, perhaps more Newton iterations).
-    "mpi-gmres-bjacobi-loose": (2, [*_GMRES, "solver.petsc.pc_type=bjacobi",
-                                    "solver.petsc.ksp_rtol=1e-6"]),  # fmt: skip
+    "mpi-gmres-bjacobi-loose": (
+        2,
+        [*_GMRES, "solver.petsc.pc_type=bjacobi", "solver.petsc.ksp_rtol=1e-6"],
+    ),
 }
 #: The riser: steel (E = 210 GPa, ρ = 7850 kg/m³, ν = 0.3), 100 m, tube 0.1/0.08 m.
 RISER_TABLES = {
@@ -170,12 +176,26 @@ def main() -> None:
     parser.add_argument("--child", type=int, help=argparse.SUPPRESS)
     parser.add_argument("--elements", type=int, nargs="+", default=list(DEFAULT_ELEMENTS))
     parser.add_argument("--steps", type=int, default=20)
-    parser.add_argument("--configs", nargs="+", default=["serial-lu", "mpi-mumps"],
-                        choices=list(CONFIGS), help="solver configurations (CONFIGS), in turn")
-    parser.add_argument("--repeats", type=int, default=1,
-                        help="rounds of all configurations at each size; the median is kept")
-    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
-                        help="a scene override for every run, e.g. discretisation.degree=1")
+    parser.add_argument(
+        "--configs",
+        nargs="+",
+        default=["serial-lu", "mpi-mumps"],
+        choices=list(CONFIGS),
+        help="solver configurations (CONFIGS), in turn",
+    )
+    parser.add_argument(
+        "--repeats",
+        type=int,
+        default=1,
+        help="rounds of all configurations at each size; the median is kept",
+    )
+    parser.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="KEY=VALUE",
+        help="a scene override for every run, e.g. discretisation.degree=1",
+    )
     args = parser.parse_args()
     if args.child is not None:
         child(args.child, args.steps, args.set)
@@ -186,15 +206,16 @@ def main() -> None:
         for _ in range(args.repeats):  # interleaved: the machine's speed drifts
             for name in args.configs:
                 ranks, extra = CONFIGS[name]
-                runs[name].append({"config": name,
-                                   **measure(elements, args.steps, ranks, [*extra, *args.set])})
+                runs[name].append(
+                    {"config": name, **measure(elements, args.steps, ranks, [*extra, *args.set])}
+                )
                 r = runs[name][-1]
                 print(
                     f"{elements:7d} elements {r['dofs']:8d} dofs {name}: "
                     f"{r['step_ms']:.3g} ms/step, first {r['first_step_s']:.3g} s, "
                     f"{r['iterations_per_step']:.2f} it/step, {r['peak_mb']:.0f} MB",
                     flush=True,
-                )  # fmt: skip
+                )
         for name in args.configs:
             ordered = sorted(runs[name], key=lambda r: r["step_ms"])
             rows.append(ordered[len(ordered) // 2])

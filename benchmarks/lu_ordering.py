@@ -44,12 +44,19 @@ class Measure(Observer):
             ksp.setUp()
             factor = time.perf_counter() - t0
             count = max(5, int(2e5 / A.getSize()[0]))
-            best = min(timeit.repeat(
-                lambda ksp=ksp: ksp.solve(solver.b, solver.dx), number=count, repeat=5
-            )) / count
+            best = (
+                min(
+                    timeit.repeat(
+                        lambda ksp=ksp: ksp.solve(solver.b, solver.dx), number=count, repeat=5
+                    )
+                )
+                / count
+            )
             fill = pc.getFactorMatrix().getInfo()["nz_used"]
-            print(f"  {ordering:8s} factor nonzeros {fill:.0f}, factorisation "
-                  f"{factor * 1e3:.2f} ms, solve {best * 1e6:.1f} us")  # fmt: skip
+            print(
+                f"  {ordering:8s} factor nonzeros {fill:.0f}, factorisation "
+                f"{factor * 1e3:.2f} ms, solve {best * 1e6:.1f} us"
+            )
             ksp.destroy()
 
 
@@ -57,8 +64,10 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--elements", type=int, nargs="+", default=[8, 100, 1000, 10000])
     for elements in parser.parse_args().elements:
-        scene = api.load("scenes/cao_tucker_2008.toml", [
-            "output.xdmf=false", "time.end=3e-4", f"discretisation.elements={elements}"])
+        scene = api.load(
+            "scenes/cao_tucker_2008.toml",
+            ["output.xdmf=false", "time.end=3e-4", f"discretisation.elements={elements}"],
+        )
         api.run(scene, observers=[Measure(elements)], record=False)
 
 

@@ -117,6 +117,8 @@ def _rolling(sigma, tau) -> list[tuple]:
         f_k = ufl.diff(f, kappa)
         out.append((f, f_k * k_t, ufl.diff(f_k, kappa) * k_t**2 + f_k * k_tt))
     return out
+
+
 def _interpolate(V: fem.FunctionSpace, expr) -> np.ndarray:
     f = fem.Function(V)
     f.interpolate(fem.Expression(expr, V.element.interpolation_points()))

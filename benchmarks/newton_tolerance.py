@@ -30,8 +30,9 @@ def main() -> None:
         sys.exit("benchmarks/results/reference.npz is missing: make bench makes it")
     print("stol, Newton iterations, solve loop [s], free-end error")
     for stol in args.stol:
-        scene = api.load(ROOT / "scenes" / "cao_tucker_2008.toml",
-                         ["output.xdmf=false", f"solver.stol={stol}"])  # fmt: skip
+        scene = api.load(
+            ROOT / "scenes" / "cao_tucker_2008.toml", ["output.xdmf=false", f"solver.stol={stol}"]
+        )
         result = api.run(scene, record=True)
         error = probe_error(result.probes)
         loop = result.summary["wall_time_s"]["solve_loop_without_output"]

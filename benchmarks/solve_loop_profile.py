@@ -232,9 +232,11 @@ def main() -> None:
     steps, nt = summary["steps"], summary["newton"]
     wall = summary["wall_time_s"]
     us = 1e6 / steps
-    print(f"{args.scene}: {steps} steps, {nt['solves']} solves, {nt['iterations']} Newton "
-          f"iterations, {nt['residual_assemblies']} residual assemblies, "
-          f"{nt['jacobian_assemblies']} Jacobian assemblies")
+    print(
+        f"{args.scene}: {steps} steps, {nt['solves']} solves, {nt['iterations']} Newton "
+        f"iterations, {nt['residual_assemblies']} residual assemblies, "
+        f"{nt['jacobian_assemblies']} Jacobian assemblies"
+    )
     print("\n1. Unprofiled run (perf_counter), µs per step")
     loop = wall["solve_loop_without_output"]
     rows = [
@@ -242,8 +244,10 @@ def main() -> None:
         ("  Newton solves (time_solve)", nt["time_solve"]),
         ("    residual evaluations (time_residual)", nt["time_residual"]),
         ("    Jacobian assemblies (time_jacobian)", nt["time_jacobian"]),
-        ("    the rest of the solves", nt["time_solve"] - nt["time_residual"]
-         - nt["time_jacobian"]),
+        (
+            "    the rest of the solves",
+            nt["time_solve"] - nt["time_residual"] - nt["time_jacobian"],
+        ),
         ("  outside the solves", loop - nt["time_solve"]),
     ]
     for name, seconds in rows:
@@ -254,20 +258,27 @@ def main() -> None:
     for name in ROWS:
         print(f"  {name:68s} {totals.get(name, 0.0) * us:8.1f}")
     print(f"  {'total profiled':68s} {total * us:8.1f}")
-    print(f"  (its solve loop: {profiled['wall_time_s']['solve_loop_without_output'] * us:.1f}; "
-          f"MatSolve {profiling.events['MatSolve'] * us:.1f} of KSPSolve "
-          f"{profiling.events['KSPSolve'] * us:.1f})")
+    print(
+        f"  (its solve loop: {profiled['wall_time_s']['solve_loop_without_output'] * us:.1f}; "
+        f"MatSolve {profiling.events['MatSolve'] * us:.1f} of KSPSolve "
+        f"{profiling.events['KSPSolve'] * us:.1f})"
+    )
 
     print("\n3. Floor (the run's counts), µs per step")
     fl = floor.floor
-    print(f"  {nt['residual_assemblies']} x C++ assemble_vector, prepacked      "
-          f"{fl['assembly'] * us:8.1f}")
-    print(f"  {nt['iterations']} x KSP.solve                                 "
-          f"{fl['ksp'] * us:8.1f}")
-    print(f"  floor                                              "
-          f"{(fl['assembly'] + fl['ksp']) * us:8.1f}")
-    print(f"  unprofiled solve loop / floor: {loop / (fl['assembly'] + fl['ksp']):.2f}; "
-          f"Newton solves / floor: {nt['time_solve'] / (fl['assembly'] + fl['ksp']):.2f}")
+    print(
+        f"  {nt['residual_assemblies']} x C++ assemble_vector, prepacked      "
+        f"{fl['assembly'] * us:8.1f}"
+    )
+    print(f"  {nt['iterations']} x KSP.solve                                 {fl['ksp'] * us:8.1f}")
+    print(
+        f"  floor                                              "
+        f"{(fl['assembly'] + fl['ksp']) * us:8.1f}"
+    )
+    print(
+        f"  unprofiled solve loop / floor: {loop / (fl['assembly'] + fl['ksp']):.2f}; "
+        f"Newton solves / floor: {nt['time_solve'] / (fl['assembly'] + fl['ksp']):.2f}"
+    )
     print("\n   one call, µs (median of 7 x 4000 calls)")
     for name, seconds in floor.per_call.items():
         print(f"  {name:58s} {seconds * 1e6:8.2f}")

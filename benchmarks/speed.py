@@ -96,8 +96,9 @@ class Tree:
         sys.path.insert(0, str(ROOT / "benchmarks"))
         from work_precision import probe_error
 
-        probes = np.loadtxt(self.work / f"{self.name}-{tag}" / "probes.csv", delimiter=",",
-                            skiprows=1)  # fmt: skip
+        probes = np.loadtxt(
+            self.work / f"{self.name}-{tag}" / "probes.csv", delimiter=",", skiprows=1
+        )
         return probe_error(probes)
 
 
@@ -110,9 +111,7 @@ def elastica_dt() -> float:
         out = ELASTICA / "results" / f"stable_dt_{ELASTICA_N}.json"
         if not out.exists():
             command = [str(ELASTICA_VENV / "bin" / "python"), str(ELASTICA / "stable_dt.py")]
-            subprocess.run(
-                [*command, "--elements", str(ELASTICA_N), "--out", str(out)], check=True
-            )
+            subprocess.run([*command, "--elements", str(ELASTICA_N), "--out", str(out)], check=True)
         found = [r for r in json.loads(out.read_text())["rows"] if r["N"] == ELASTICA_N]
     return 0.9 * found[0]["dt_stable"]
 
@@ -143,14 +142,20 @@ def main() -> None:
     base_path = work / "baseline"
     subprocess.run(
         ["git", "worktree", "add", "--detach", str(base_path), args.baseline],
-        cwd=ROOT, check=True, capture_output=True,
-    )  # fmt: skip
+        cwd=ROOT,
+        check=True,
+        capture_output=True,
+    )
     try:
         trees = [Tree("baseline", base_path, work), Tree("current", ROOT, work)]
         dt = elastica_dt() if with_elastica else None
         for tree in trees:  # bytecode for both (as .ci/setup.sh makes it), and the JIT cache
-            subprocess.run([sys.executable, "-m", "compileall", "-q", "cosserat_fem", "forms"],
-                           cwd=tree.path, check=True, capture_output=True)  # fmt: skip
+            subprocess.run(
+                [sys.executable, "-m", "compileall", "-q", "cosserat_fem", "forms"],
+                cwd=tree.path,
+                check=True,
+                capture_output=True,
+            )
             tree.whole()
         samples: dict[str, list[float]] = {}
         iterations: dict[str, int] = {}
@@ -164,12 +169,19 @@ def main() -> None:
             samples.setdefault("current precise", []).append(precise)
             if dt is not None:
                 samples.setdefault("elastica whole", []).append(elastica(dt, work))
-            print(f"round {round_ + 1}: " + ", ".join(
-                f"{k} {v[-1]:.3f} s" for k, v in samples.items()), flush=True)  # fmt: skip
+            print(
+                f"round {round_ + 1}: "
+                + ", ".join(f"{k} {v[-1]:.3f} s" for k, v in samples.items()),
+                flush=True,
+            )
         precise_error = trees[1].error("precise")
     finally:
-        subprocess.run(["git", "worktree", "remove", "--force", str(base_path)], cwd=ROOT,
-                       check=False, capture_output=True)  # fmt: skip
+        subprocess.run(
+            ["git", "worktree", "remove", "--force", str(base_path)],
+            cwd=ROOT,
+            check=False,
+            capture_output=True,
+        )
         shutil.rmtree(work, ignore_errors=True)
     med = {k: statistics.median(v) for k, v in samples.items()}
     lines = [

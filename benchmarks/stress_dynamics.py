@@ -320,7 +320,8 @@ def envelope_minima(t, x) -> list[float]:
     idx = [
         i
         for i in range(trim, len(env) - trim)
-        if env[i] < env[i - 1] and env[i] <= env[i + 1]
+        if env[i] < env[i - 1]
+        and env[i] <= env[i + 1]
         and env[i] == env[max(0, i - 200) : i + 200].min()
     ]
     return [float(t[i]) for i in idx]
@@ -353,7 +354,12 @@ def above_study(end: float) -> list[dict]:
             )
             wall = time.perf_counter() - t0
             y = sd.scheme_response(
-                K, M, f, lambda tau, W=Omega: math.sin(W * tau / omega0), omega0 * h, len(t) - 1,
+                K,
+                M,
+                f,
+                lambda tau, W=Omega: math.sin(W * tau / omega0),
+                omega0 * h,
+                len(t) - 1,
                 name,
             )
             linear = length * y[:, tip]

@@ -288,9 +288,7 @@ def part_slender(report: Report, quick: bool) -> None:
     for degree, n in ((2, 16), (3, 8)):
         log.clear()
         tip_values(slender_scene(degree, n, "auto", (P, 0, 0)), (newton_log,))
-        report(
-            f"Small load (α = {alpha:g}), P{degree} × {n}, full Newton from the straight rod:"
-        )
+        report(f"Small load (α = {alpha:g}), P{degree} × {n}, full Newton from the straight rod:")
         report()
         report.table(
             ["iteration", "‖U‖", "‖δU‖/‖U‖", "‖F‖", "SNES reason"],
@@ -629,9 +627,15 @@ def part_impulse(report: Report, quick: bool) -> None:
                 }
             )
             rows.append(
-                _impulse_row("fixed", f"Δt = {dt * 1e6:.2f} μs (T/Δt = {duration / dt:.2f})",
-                             s, e, loop, bare)
-            )  # fmt: skip
+                _impulse_row(
+                    "fixed",
+                    f"Δt = {dt * 1e6:.2f} μs (T/Δt = {duration / dt:.2f})",
+                    s,
+                    e,
+                    loop,
+                    bare,
+                )
+            )
         starts = ("1e-5", "1e-6") if integrator == "generalized-alpha" else ("1e-5",)
         rtols = (1e-3, 1e-4) if quick else (3e-3, 1e-3, 3e-4, 1e-4, 3e-5, 1e-5)
         for first in starts:
@@ -653,9 +657,10 @@ def part_impulse(report: Report, quick: bool) -> None:
                     }
                 )
                 rows.append(
-                    _impulse_row("adaptive", f"rtol = {rtol:g}, time.step = {first}",
-                                 s, e, loop, bare)
-                )  # fmt: skip
+                    _impulse_row(
+                        "adaptive", f"rtol = {rtol:g}, time.step = {first}", s, e, loop, bare
+                    )
+                )
         report(f"### {label}")
         report()
         report.table(

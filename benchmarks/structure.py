@@ -126,8 +126,7 @@ def sizes(found: dict[str, Path]) -> dict:
 def _resolve(current: str, is_package: bool, node: ast.ImportFrom | ast.Import) -> list[str]:
     """The package's modules an import statement names (dotted below the package)."""
     if isinstance(node, ast.Import):
-        return [a.name.split(".", 1)[1] for a in node.names
-                if a.name.startswith("cosserat_fem.")]  # fmt: skip
+        return [a.name.split(".", 1)[1] for a in node.names if a.name.startswith("cosserat_fem.")]
     if node.level == 0:
         if node.module is None or not node.module.startswith("cosserat_fem"):
             return []
@@ -238,7 +237,7 @@ def walk(end: float = 9e-5) -> dict:
 
     def ours(frame) -> str | None:
         name = frame.f_globals.get("__name__", "")
-        return name[len(prefix):] if name.startswith(prefix) else None
+        return name[len(prefix) :] if name.startswith(prefix) else None
 
     def profile(frame, event, arg) -> None:
         if event != "call":
@@ -258,8 +257,17 @@ def walk(end: float = 9e-5) -> dict:
             pairs.add((stack[-1], f"{callee}.{frame.f_code.co_name}"))
 
     with tempfile.TemporaryDirectory() as folder:
-        argv = ["run", str(SCENE), "--out", str(Path(folder) / "run"), "--quiet",
-                "--set", f"time.end={end!r}", "--set", "output.xdmf=false"]  # fmt: skip
+        argv = [
+            "run",
+            str(SCENE),
+            "--out",
+            str(Path(folder) / "run"),
+            "--quiet",
+            "--set",
+            f"time.end={end!r}",
+            "--set",
+            "output.xdmf=false",
+        ]
         sys.setprofile(profile)
         try:
             status = main(argv)
@@ -286,8 +294,10 @@ def main(argv: list[str] | None = None) -> int:
     if not args.no_walk:
         report["walk"] = walk()
     s, i = report["sizes"], report["imports"]
-    print(f"modules: {s['modules']} ({s['top_level_modules']} at the package's top level), "
-          f"{s['lines']} lines")  # fmt: skip
+    print(
+        f"modules: {s['modules']} ({s['top_level_modules']} at the package's top level), "
+        f"{s['lines']} lines"
+    )
     print("largest modules: " + ", ".join(f"{n} {k}" for n, k in s["largest_modules"]))
     print("longest functions: " + ", ".join(f"{n} {k}" for n, k in s["longest_functions"]))
     print(f"import cycles at module level: {i['cycles_module_level']}")
@@ -300,8 +310,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"modules in no layer: {i['unplaced_modules']}")
     if "walk" in report:
         w = report["walk"]
-        print(f"the walk: {w['walk']} returns to a module left; by module: "
-              f"{w['reentered_modules']}")  # fmt: skip
+        print(
+            f"the walk: {w['walk']} returns to a module left; by module: {w['reentered_modules']}"
+        )
         for pair in w["pairs"]:
             print(f"  {pair}")
     if args.json:

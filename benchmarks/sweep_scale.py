@@ -42,8 +42,16 @@ keep = "probes"
 
 def sweep(path: Path, out: Path, ranks: int) -> float:
     """Wall time [s] of ``cosserat-fem sweep`` on ``ranks`` ranks."""
-    command = [sys.executable, "-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out),
-               "--quiet"]  # fmt: skip
+    command = [
+        sys.executable,
+        "-m",
+        "cosserat_fem.cli",
+        "sweep",
+        str(path),
+        "--out",
+        str(out),
+        "--quiet",
+    ]
     if ranks > 1:
         command = ["mpirun", "-n", str(ranks), *command]
     env = {**os.environ, "OMPI_ALLOW_RUN_AS_ROOT": "1", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM": "1"}
@@ -73,8 +81,10 @@ def main() -> None:
                 rows = list(csv.DictReader(stream))
             assert len(rows) == args.members and all(r["status"] == "completed" for r in rows)
             own = sum(float(r["wall_s"]) for r in rows)
-            print(f"{ranks}, {len(rows)}, {wall:.1f}, {len(rows) / wall:.2f}, {own:.1f}, "
-                  f"{wall - own / ranks:.1f}")  # fmt: skip
+            print(
+                f"{ranks}, {len(rows)}, {wall:.1f}, {len(rows) / wall:.2f}, {own:.1f}, "
+                f"{wall - own / ranks:.1f}"
+            )
     finally:
         shutil.rmtree(work, ignore_errors=True)
 

@@ -491,8 +491,14 @@ def rotations_section() -> str:
     for elements in WHIP_ELEMENTS:
         runs = {}
         for planar in ("auto", "off"):
-            scene = load_scene(WHIP, ["output.xdmf=false", f"discretisation.elements={elements}",
-                                      f"discretisation.planar='{planar}'"])  # fmt: skip
+            scene = load_scene(
+                WHIP,
+                [
+                    "output.xdmf=false",
+                    f"discretisation.elements={elements}",
+                    f"discretisation.planar='{planar}'",
+                ],
+            )
             runs[planar] = run_scene(scene, write_outputs=False, record=True)
         gap = float(np.abs(runs["off"].probes[:, 2:5] - runs["auto"].probes[:, 2:5]).max())
         rate = "" if not gaps else f"{order(gaps[-1], gap):.2f}"
@@ -675,8 +681,9 @@ def curved_section() -> str:
         return shot[load]
 
     def fe(degree: int, elements: int):
-        scene = load_scene(BEND, [f"discretisation.degree={degree}",
-                                  f"discretisation.elements={elements}"])  # fmt: skip
+        scene = load_scene(
+            BEND, [f"discretisation.degree={degree}", f"discretisation.elements={elements}"]
+        )
         return static_path(scene, write_outputs=False, record=True).probes
 
     lines = [
@@ -742,8 +749,9 @@ def ring_lines() -> list[str]:
     waves = (2, 3, 4)
     rows: dict[float, dict[str, np.ndarray]] = {}
     for d in RING_DIAMETERS:
-        scene = load_scene(RING, [f"rod.section.diameter={d}",
-                                  f"discretisation.elements={RING_ELEMENTS}"])  # fmt: skip
+        scene = load_scene(
+            RING, [f"rod.section.diameter={d}", f"discretisation.elements={RING_ELEMENTS}"]
+        )
         _, modes = compute_modes(scene, 6 + 4 * len(waves))
         planes: dict[str, list[float]] = {"in": [], "out": []}
         for m in modes[6:]:
@@ -784,16 +792,22 @@ def ring_lines() -> list[str]:
         "leave out: to leading order the Timoshenko correction of a bending wave of wavenumber "
         "n/R (last column). It closes as (d/R)²; the order of δ between successive diameters:",
         "",
-        "| d [m] | " + " | ".join(f"in, n = {n}" for n in waves) + " | "
-        + " | ".join(f"out, n = {n}" for n in waves) + " |",
+        "| d [m] | "
+        + " | ".join(f"in, n = {n}" for n in waves)
+        + " | "
+        + " | ".join(f"out, n = {n}" for n in waves)
+        + " |",
         "|---|" + "---|" * (2 * len(waves)),
     ]
     for coarse, fine in zip(RING_DIAMETERS, RING_DIAMETERS[1:], strict=False):
         orders = [
-            math.log2((rows[coarse][p][i] / closed(coarse, p)[i] - 1)
-                      / (rows[fine][p][i] / closed(fine, p)[i] - 1))
-            for p in ("in", "out") for i in range(len(waves))
-        ]  # fmt: skip
+            math.log2(
+                (rows[coarse][p][i] / closed(coarse, p)[i] - 1)
+                / (rows[fine][p][i] / closed(fine, p)[i] - 1)
+            )
+            for p in ("in", "out")
+            for i in range(len(waves))
+        ]
         lines.append(f"| {coarse:g} → {fine:g} | " + " | ".join(f"{o:.3f}" for o in orders) + " |")
     return lines
 
@@ -859,8 +873,12 @@ def _sweep_file(name: str, scene: Path, sets: dict, vary: dict, response: dict) 
     def table(title: str, entries: dict) -> list[str]:
         return [f"[{title}]", *(f"{json.dumps(k)} = {json.dumps(v)}" for k, v in entries.items())]
 
-    lines = [*table("sweep", {"scene": str(scene), "keep": "probes"}), *table("sweep.set", sets),
-             *table("sweep.vary", vary), *table("sweep.response", response)]  # fmt: skip
+    lines = [
+        *table("sweep", {"scene": str(scene), "keep": "probes"}),
+        *table("sweep.set", sets),
+        *table("sweep.vary", vary),
+        *table("sweep.response", response),
+    ]
     path = WORK / f"{name}.toml"
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return path
@@ -895,14 +913,27 @@ def response_section() -> str:
     omega0 = 207.0236
     tau = 2 * LINEAR_ZETA / omega0
     path = _sweep_file(
-        "linear_response", PAPER,
-        {"output.xdmf": False, "output.checkpoint": False, "damping.retardation_time": tau,
-         "loads.force_density": ["sin(pi*s/L)*sin(r*omega0*t)",
-                                 "sin(pi*s/L)*sin(r*omega0*t)", 0], "parameters.r": 1.0},
+        "linear_response",
+        PAPER,
+        {
+            "output.xdmf": False,
+            "output.checkpoint": False,
+            "damping.retardation_time": tau,
+            "loads.force_density": [
+                "sin(pi*s/L)*sin(r*omega0*t)",
+                "sin(pi*s/L)*sin(r*omega0*t)",
+                0,
+            ],
+            "parameters.r": 1.0,
+        },
         {"parameters.r": LINEAR_R},
-        {"period": "2*pi/(r*omega0)", "continuation": "parameters.r",
-         "tolerance": LINEAR_TOLERANCE, "steps_per_period": LINEAR_STEPS_PER_PERIOD},
-    )  # fmt: skip
+        {
+            "period": "2*pi/(r*omega0)",
+            "continuation": "parameters.r",
+            "tolerance": LINEAR_TOLERANCE,
+            "steps_per_period": LINEAR_STEPS_PER_PERIOD,
+        },
+    )
     spec = api.load_sweep(path)
     rows = api.sweep(spec, _fresh("linear_response")).rows
     lines = [
@@ -931,8 +962,9 @@ def response_section() -> str:
             dphase = (ph - np.angle(ref[i]) + math.pi) % (2 * math.pi) - math.pi
             worst = max(worst, abs(err), abs(dphase))
             cells += [f"{h1:.5e}", f"{abs(ref[i]):.5e}", f"{err:+.1e}", f"{dphase:+.1e}"]
-        lines.append(f"| {member.values['parameters.r']:g} | {row['periods']} | "
-                     + " | ".join(cells) + " |")  # fmt: skip
+        lines.append(
+            f"| {member.values['parameters.r']:g} | {row['periods']} | " + " | ".join(cells) + " |"
+        )
     lines += [
         "",
         f"Largest difference {worst:.1e} (this run's measurement): SDIRK3's error in a steady "
@@ -955,21 +987,27 @@ def response_section() -> str:
     ]
     E, rho = 7.1e10, 2730.0
     for a in BACKBONE_THICKNESS:
-        sets = {"loads.force_density": [0, 0, 0], "output.xdmf": False,
-                "output.checkpoint": False, "solver.stol": 1e-10, "rod.section.a": a,
-                "rod.section.b": 1.5 * a, "model.reference_frequency": "auto",
-                "discretisation.elements": BACKBONE_ELEMENTS}  # fmt: skip
+        sets = {
+            "loads.force_density": [0, 0, 0],
+            "output.xdmf": False,
+            "output.checkpoint": False,
+            "solver.stol": 1e-10,
+            "rod.section.a": a,
+            "rod.section.b": 1.5 * a,
+            "model.reference_frequency": "auto",
+            "discretisation.elements": BACKBONE_ELEMENTS,
+        }
 
         def scene(period: float, sets: dict = sets, **more):
             step = period / 300
-            return _load_scene(PAPER, {**sets, "time.step": step, "time.end": 1200 * step,
-                                       **more})  # fmt: skip
+            return _load_scene(PAPER, {**sets, "time.step": step, "time.end": 1200 * step, **more})
 
         omega1 = CANTILEVER_BETA**2 * math.sqrt(E * a**2 / 12 / rho)
         cant = scene(2 * math.pi / omega1)
         linear = free_vibration_frequency(cant, cantilever_shape, 1e-3)
-        shift = {x: free_vibration_frequency(cant, cantilever_shape, x) / linear - 1
-                 for x in (0.1, 0.2)}  # fmt: skip
+        shift = {
+            x: free_vibration_frequency(cant, cantilever_shape, x) / linear - 1 for x in (0.1, 0.2)
+        }
         kappa = hardening_fit(shift)
         area, inertia = 1.5 * a * a, 1.5 * a * a**3 / 12
         duffing = Duffing.clamped(1.0, E * area, E * inertia, rho * area)
@@ -978,9 +1016,12 @@ def response_section() -> str:
         linear = free_vibration_frequency(clamped, clamped_shape, 2.5e-4 * r_g)
         amp = 0.43 * r_g
         ratio = (free_vibration_frequency(clamped, clamped_shape, amp) / linear - 1) / (
-            duffing.hardening * amp**2)
-        lines.append(f"| {a:g} × {1.5 * a:g} | {1 / r_g:.0f} | {kappa:.6f} | "
-                     f"{kappa / cantilever_hardening(1.0):.4f} | {ratio:.4f} |")  # fmt: skip
+            duffing.hardening * amp**2
+        )
+        lines.append(
+            f"| {a:g} × {1.5 * a:g} | {1 / r_g:.0f} | {kappa:.6f} | "
+            f"{kappa / cantilever_hardening(1.0):.4f} | {ratio:.4f} |"
+        )
     lines += [
         "",
         "Both converge to perturbation theory as the rod thins: the finite section (shear, "
@@ -1019,9 +1060,11 @@ def response_section() -> str:
             return v / min(roots, key=lambda x: abs(x - v)) - 1  # noqa: B023
 
         au, ad = float(up["amp_x"]), float(down["amp_x"])
-        lines.append(f"| {r:.2f} | {1e3 * au:.3f} | {up['periods']} | {1e3 * ad:.3f} | "
-                     f"{down['periods']} | {', '.join(f'{1e3 * x:.3f}' for x in roots)} | "
-                     f"{near(au):+.1%} | {near(ad):+.1%} |")  # fmt: skip
+        lines.append(
+            f"| {r:.2f} | {1e3 * au:.3f} | {up['periods']} | {1e3 * ad:.3f} | "
+            f"{down['periods']} | {', '.join(f'{1e3 * x:.3f}' for x in roots)} | "
+            f"{near(au):+.1%} | {near(ad):+.1%} |"
+        )
     lines += [
         "",
         "The upward chain stays on the upper branch until it ends and jumps down; the "
@@ -1045,9 +1088,11 @@ def _generated_in(wall: float, cpu: float) -> str:
     """The report's last line: how long it took [s], and the conditions that decide it (wall
     time grows with the machine's load; CPU seconds, this process's and its children's, user
     and system, much less)."""
-    return (f"_Generated in {wall:.0f} s of wall time, {cpu:.0f} CPU seconds, on "
-            f"{os.cpu_count()} cores at a load of {os.getloadavg()[0]:.1f}, "
-            f"{time.strftime('%Y-%m-%d')}._\n")  # fmt: skip
+    return (
+        f"_Generated in {wall:.0f} s of wall time, {cpu:.0f} CPU seconds, on "
+        f"{os.cpu_count()} cores at a load of {os.getloadavg()[0]:.1f}, "
+        f"{time.strftime('%Y-%m-%d')}._\n"
+    )
 
 
 def main() -> None:

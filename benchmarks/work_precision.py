@@ -744,8 +744,9 @@ def plot(rows: list[dict], peers: dict, scale_rows: list[dict]) -> None:
     ):
         if peers.get(key):
             e, w = zip(*sorted(peers[key], key=lambda p: p[1]), strict=True)
-            ax.loglog(w, e, style, ms=6, lw=1.5, mfc="none" if key == "shifted" else "k",
-                      label=label)
+            ax.loglog(
+                w, e, style, ms=6, lw=1.5, mfc="none" if key == "shifted" else "k", label=label
+            )
     front = pareto_front([(r["error"], r["wall_s"]) for r in rows if r["code"] == "cosserat-fem"])
     e, w = zip(*front, strict=True)
     ax.loglog(w, e, "-", color="red", lw=3, alpha=0.35, label="cosserat-fem, best of all")

@@ -32,8 +32,9 @@ from cosserat_fem.scene.schema import UNSET  # noqa: F401 - cf.UNSET: an overrid
 from cosserat_fem.timestepping.events import Observer
 
 
-def load(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | Sequence[str] = ()
-         ) -> Scene:  # fmt: skip
+def load(
+    source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | Sequence[str] = ()
+) -> Scene:
     """A validated scene from a TOML file or a dict of tables (as TOML reads), with
     ``overrides``: a mapping of dotted keys to values (``{"time.end": 0.01}``; the value
     :data:`UNSET` removes the key or table, ``{"rod.section.a": cf.UNSET}``) or
@@ -47,8 +48,9 @@ def load(source: str | Path | Mapping[str, Any], overrides: Mapping[str, Any] | 
         tables = TableStore.collective()
         return scene_from_dict(dict(source), overrides=overrides, tables=tables)
     if not isinstance(source, str | Path):
-        raise SceneError(f"source: a scene file's path or a dict of tables, got "
-                         f"{type(source).__name__}")  # fmt: skip
+        raise SceneError(
+            f"source: a scene file's path or a dict of tables, got {type(source).__name__}"
+        )
     return load_scene(source, overrides)
 
 
@@ -80,8 +82,10 @@ def run(
     out = out_folder(out)
     observers = [as_observer(o) for o in observers]  # checked before any work
     if progress is not None and not callable(progress):
-        raise SceneError(f"progress: must be a function progress(t, steps, iterations), got "
-                         f"{type(progress).__name__}")  # fmt: skip
+        raise SceneError(
+            f"progress: must be a function progress(t, steps, iterations), got "
+            f"{type(progress).__name__}"
+        )
     return run_scene(
         scene,
         out,
@@ -134,9 +138,14 @@ def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()
         texts = [Removal(k) if v is UNSET else f"{k}=" for k, v in overrides.items()]
     restart_overrides(texts)
     checkpoint = load_checkpoint(folder)
-    scene = scene_from_dict(checkpoint.meta["scene"], source=f"{folder}/checkpoint",
-                            overrides=overrides, fixed=FIXED_KEYS, after=checkpoint.time,
-                            tables=TableStore.collective(folder))  # fmt: skip
+    scene = scene_from_dict(
+        checkpoint.meta["scene"],
+        source=f"{folder}/checkpoint",
+        overrides=overrides,
+        fixed=FIXED_KEYS,
+        after=checkpoint.time,
+        tables=TableStore.collective(folder),
+    )
     return scene, checkpoint
 
 
@@ -149,8 +158,7 @@ def static(scene: Scene, out: str | Path | None = None, *, observers=()):
 
     out = out_folder(out)
     observers = [as_observer(o) for o in observers]  # checked before any work
-    return static_path(scene, out, write_outputs=out is not None, observers=observers,
-                       record=True)  # fmt: skip
+    return static_path(scene, out, write_outputs=out is not None, observers=observers, record=True)
 
 
 def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | Path | None = None):
@@ -176,8 +184,16 @@ def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | P
     return found
 
 
-def stability(scene: Scene, low: float = 0.0, high: float = 1.0, *, samples: int = 5,
-              tolerance: float = 1e-8, count: int = 6, out: str | Path | None = None):  # fmt: skip
+def stability(
+    scene: Scene,
+    low: float = 0.0,
+    high: float = 1.0,
+    *,
+    samples: int = 5,
+    tolerance: float = 1e-8,
+    count: int = 6,
+    out: str | Path | None = None,
+):
     """Stability of the scene's static states for load factors f in [low, high] (every load
     × f; cosserat_fem/analysis/equilibria.py) and the critical factor where it is lost: a
     :class:`~cosserat_fem.analysis.equilibria.StabilityResult` with ``critical`` (None if stability
@@ -253,8 +269,9 @@ def pod(
         snapshots = read_run(source)
     else:
         if stations is None:
-            raise SceneError("stations: give the fields σ the run was given (run(scene, "
-                             "fields=stations))")  # fmt: skip
+            raise SceneError(
+                "stations: give the fields σ the run was given (run(scene, fields=stations))"
+            )
         snapshots = snapshots_of_result(source, stations)
     result = decompose(snapshots, modes, weighting, remove_mean)
     if out is not None:

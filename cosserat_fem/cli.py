@@ -34,8 +34,9 @@ from cosserat_fem.common.errors import CosseratError, SceneError, SolverError, S
 from cosserat_fem.scene.schema import Removal
 
 
-def _common(sub: argparse.ArgumentParser, scene_optional: bool = False,
-            texts: dict[str, str] | None = None) -> None:  # fmt: skip
+def _common(
+    sub: argparse.ArgumentParser, scene_optional: bool = False, texts: dict[str, str] | None = None
+) -> None:
     """The arguments every command takes; ``texts``: another help for "scene", "out" and
     "set" (a sweep's), and "metavar" for the scene."""
     texts = texts or {}
@@ -45,17 +46,24 @@ def _common(sub: argparse.ArgumentParser, scene_optional: bool = False,
         metavar=texts.get("metavar"),
         help=texts.get("scene", "scene file (TOML), e.g. scenes/cao_tucker_2008.toml"),
     )
-    sub.add_argument("--out", metavar="DIR",
-                     help=texts.get("out", "output folder (default: output.directory; static and "
-                                    "modes: its static/ and modes/)"))
+    sub.add_argument(
+        "--out",
+        metavar="DIR",
+        help=texts.get(
+            "out",
+            "output folder (default: output.directory; static and modes: its static/ and modes/)",
+        ),
+    )
     sub.add_argument(
         "--set",
         metavar="KEY=VALUE",
         action="append",
         default=[],
         dest="overrides",
-        help=texts.get("set", "override a scene value by its dotted key, e.g. --set "
-                              "time.step=1e-5 (repeatable)"),
+        help=texts.get(
+            "set",
+            "override a scene value by its dotted key, e.g. --set time.step=1e-5 (repeatable)",
+        ),
     )
     sub.add_argument(
         "--unset",
@@ -74,7 +82,7 @@ def _common(sub: argparse.ArgumentParser, scene_optional: bool = False,
         type=_petsc_override,
         help="a PETSc option of the SNES solver, without its prefix cosserat_, e.g. --petsc "
         "snes_type=newtontr --petsc snes_monitor: --set solver.petsc.NAME=VALUE, which "
-        "chooses SNES (solver.nonlinear = \"auto\"; README, \"The solver\") (repeatable)",
+        'chooses SNES (solver.nonlinear = "auto"; README, "The solver") (repeatable)',
     )
     sub.add_argument("--quiet", action="store_true", help="print nothing on success")
     sub.add_argument(
@@ -140,29 +148,44 @@ def _parser() -> argparse.ArgumentParser:
         default="undeformed",
         help="linearise about the straight rod or the static state under the scene's loads",
     )
-    stab = sub.add_parser("stability", help="stability of the static states under a load "
-                          "factor, and the critical factor (buckling or flutter)")  # fmt: skip
+    stab = sub.add_parser(
+        "stability",
+        help="stability of the static states under a load "
+        "factor, and the critical factor (buckling or flutter)",
+    )
     _common(stab)
-    stab.add_argument("--range", nargs=2, type=float, default=(0.0, 1.0), metavar=("LOW", "HIGH"),
-                      help="load factors f to search (every load of the scene × f; default "
-                      "0 1)")  # fmt: skip
-    stab.add_argument("--samples", type=int, default=5,
-                      help="equally spaced factors visited first (default 5)")  # fmt: skip
-    stab.add_argument("--tolerance", type=float, default=1e-8,
-                      help="of the critical factor's root finder, |Δf| <= tol (1 + |f|) "
-                      "(default 1e-8)")  # fmt: skip
-    stab.add_argument("--count", type=int, default=6,
-                      help="eigenvalues nearest 0 at each state (default 6)")  # fmt: skip
+    stab.add_argument(
+        "--range",
+        nargs=2,
+        type=float,
+        default=(0.0, 1.0),
+        metavar=("LOW", "HIGH"),
+        help="load factors f to search (every load of the scene × f; default 0 1)",
+    )
+    stab.add_argument(
+        "--samples", type=int, default=5, help="equally spaced factors visited first (default 5)"
+    )
+    stab.add_argument(
+        "--tolerance",
+        type=float,
+        default=1e-8,
+        help="of the critical factor's root finder, |Δf| <= tol (1 + |f|) (default 1e-8)",
+    )
+    stab.add_argument(
+        "--count", type=int, default=6, help="eigenvalues nearest 0 at each state (default 6)"
+    )
     sweep = sub.add_parser(
-        "sweep", help="run the members of a sweep file (under mpirun: groups of ranks)",
+        "sweep",
+        help="run the members of a sweep file (under mpirun: groups of ranks)",
         description="Run the members of a sweep file not finished in --out (under mpirun: "
         "groups of sweep.group_size ranks); started again with the same --out, a sweep "
         "continues where it stopped (docs/sweeps.md).",
     )
     _common(sweep, texts=_SWEEP_TEXTS)
     plot = sub.add_parser(
-        "plot", help="PNG figures of a run (free-end histories, x(s,t) and y(s,t) surfaces) "
-        "or of a sweep (its members' largest free-end values against the varied key)"
+        "plot",
+        help="PNG figures of a run (free-end histories, x(s,t) and y(s,t) surfaces) "
+        "or of a sweep (its members' largest free-end values against the varied key)",
     )
     _run_dir(plot)
     render = sub.add_parser(
@@ -182,19 +205,26 @@ def _parser() -> argparse.ArgumentParser:
         "--frames", type=int, default=120, help="most frames in the animation (default 120)"
     )
     pod = sub.add_parser(
-        "pod", help="Karhunen-Loeve (POD) modes of a run's XDMF frames: pod.csv, pod.xdmf, "
-        "pod.png"
+        "pod", help="Karhunen-Loeve (POD) modes of a run's XDMF frames: pod.csv, pod.xdmf, pod.png"
     )
     _run_dir(pod)
-    pod.add_argument("--modes", type=int, default=None, metavar="K",
-                     help="number of modes (default: 10, or the number of frames if fewer)")
     pod.add_argument(
-        "--weighting", choices=("displacement", "kinetic"), default="displacement",
+        "--modes",
+        type=int,
+        default=None,
+        metavar="K",
+        help="number of modes (default: 10, or the number of frames if fewer)",
+    )
+    pod.add_argument(
+        "--weighting",
+        choices=("displacement", "kinetic"),
+        default="displacement",
         help="inner product: displacement x, y, z (default), or kinetic: x, y, z and the angles "
         "weighted by rho A and rho I (the mass inner product; needs the angles in the XDMF)",
     )
-    pod.add_argument("--keep-mean", action="store_true",
-                     help="do not subtract the time mean of the frames first")
+    pod.add_argument(
+        "--keep-mean", action="store_true", help="do not subtract the time mean of the frames first"
+    )
     return parser
 
 
@@ -271,8 +301,9 @@ def _draw(args) -> int:
 
         bar = StatusLine(enabled=False if args.quiet else None)  # on a terminal only
         try:
-            paths = render_run(args.run_dir, args.out, args.scale, args.format, args.frames,
-                               progress=bar.count)  # fmt: skip
+            paths = render_run(
+                args.run_dir, args.out, args.scale, args.format, args.frames, progress=bar.count
+            )
         finally:
             bar.close()
     if not args.quiet:
@@ -289,16 +320,25 @@ def _pod(args) -> int:
     from cosserat_fem import api
 
     out = args.run_dir if args.out is None else args.out
-    result = api.pod(args.run_dir, modes=args.modes, weighting=args.weighting,
-                     remove_mean=not args.keep_mean, out=out)  # fmt: skip
+    result = api.pod(
+        args.run_dir,
+        modes=args.modes,
+        weighting=args.weighting,
+        remove_mean=not args.keep_mean,
+        out=out,
+    )
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
-        _say(f"cosserat-fem: POD of {len(result.times)} frames at {len(result.s)} points "
-              f"({result.weighting} weighting, mean {'removed' if result.remove_mean else 'kept'}"
-              f"), total energy {result.total:.6g} {result.unit}")  # fmt: skip
-        _say(f"{'mode':>4} {'energy [' + result.unit + ']':>20} {'fraction':>12} "
-              f"{'cumulative':>12}")  # fmt: skip
-        for k, (e, f, c) in enumerate(zip(result.energies, result.fractions, result.cumulative,
-                                          strict=True), start=1):  # fmt: skip
+        _say(
+            f"cosserat-fem: POD of {len(result.times)} frames at {len(result.s)} points "
+            f"({result.weighting} weighting, mean {'removed' if result.remove_mean else 'kept'}"
+            f"), total energy {result.total:.6g} {result.unit}"
+        )
+        _say(
+            f"{'mode':>4} {'energy [' + result.unit + ']':>20} {'fraction':>12} {'cumulative':>12}"
+        )
+        for k, (e, f, c) in enumerate(
+            zip(result.energies, result.fractions, result.cumulative, strict=True), start=1
+        ):
             _say(f"{k:4d} {e:20.10e} {f:12.6e} {c:12.6f}")
         _say("-> " + ", ".join(str(p) for p in result.files))
     return 0
@@ -406,20 +446,25 @@ def _stability(args) -> int:
     scene = api.load(args.scene, args.overrides)
     out = _out(args, scene)
     low, high = args.range
-    result = api.stability(scene, low, high, samples=args.samples, tolerance=args.tolerance,
-                           count=args.count, out=out)  # fmt: skip
+    result = api.stability(
+        scene, low, high, samples=args.samples, tolerance=args.tolerance, count=args.count, out=out
+    )
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         _say(f"{'factor':>16}  {'state':<10}  lowest eigenvalues (units of omega0^2)")
         for point in result.points:
-            lams = ", ".join(f"{lam.real:.6g}{lam.imag:+.3g}i" if lam.imag else f"{lam.real:.6g}"
-                             for lam in point.eigenvalues[:3])  # fmt: skip
+            lams = ", ".join(
+                f"{lam.real:.6g}{lam.imag:+.3g}i" if lam.imag else f"{lam.real:.6g}"
+                for lam in point.eigenvalues[:3]
+            )
             _say(f"{point.factor:16.10g}  {point.status:<10}  {lams}")
         if result.critical is None:
             _say(f"cosserat-fem: stability: no critical factor ({result.reason})")
         else:
-            _say(f"cosserat-fem: stability: {result.kind} at load factor {result.critical:.10g} "
-                 f"(in [{result.bracket[0]:.6g}, {result.bracket[1]:.6g}], tolerance "
-                 f"{result.tolerance:g})")  # fmt: skip
+            _say(
+                f"cosserat-fem: stability: {result.kind} at load factor {result.critical:.10g} "
+                f"(in [{result.bracket[0]:.6g}, {result.bracket[1]:.6g}], tolerance "
+                f"{result.tolerance:g})"
+            )
         _say(f"-> {Path(out) / 'stability.json'}")
     return 0
 
@@ -438,8 +483,10 @@ def _sweep(args) -> int:
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         statuses = [row["status"] for row in result.rows]
         counts = ", ".join(f"{s} {statuses.count(s)}" for s in dict.fromkeys(statuses))
-        _say(f"cosserat-fem: sweep of {len(spec.members)} members: ran {result.ran}, skipped "
-              f"{result.skipped} finished before; {counts}")  # fmt: skip
+        _say(
+            f"cosserat-fem: sweep of {len(spec.members)} members: ran {result.ran}, skipped "
+            f"{result.skipped} finished before; {counts}"
+        )
         _say(f"-> {result.table}")
     return 0
 
@@ -458,8 +505,10 @@ def _validate(args) -> int:
     comm = MPI.COMM_WORLD
     scene = load_scene(args.scene, args.overrides)
     node = ranks_on_node(comm)
-    costs = {c: budget.check(scene, c, out_folder(_out(args, scene, c)), node, comm.size,
-                             comm=comm) for c in ("run", "static")}  # fmt: skip
+    costs = {
+        c: budget.check(scene, c, out_folder(_out(args, scene, c)), node, comm.size, comm=comm)
+        for c in ("run", "static")
+    }
     if comm.rank == 0 and not args.quiet:
         _say(describe_scene(scene))
         for command, estimate in costs.items():
@@ -593,15 +642,18 @@ def _same_command_line(args, comm) -> None:
     given = comm.allgather(sorted(vars(args).items()))
     for rank, other in enumerate(given[1:], start=1):
         if other != given[0]:
-            name, mine = next((k, v) for (k, v), o in zip(given[0], other, strict=False)
-                              if (k, v) != o)  # fmt: skip
+            name, mine = next(
+                (k, v) for (k, v), o in zip(given[0], other, strict=False) if (k, v) != o
+            )
             theirs = dict(other).get(name)
             option = _NAMES.get(name, "--" + name.replace("_", "-"))
             if option == "SCENE" and args.command == "sweep":
                 option = "SWEEP"
-            raise SceneError(f"{option}: the MPI ranks were given different command lines "
-                             f"(rank 0: {mine!r}, rank {rank}: {theirs!r}); give every rank "
-                             "the same")  # fmt: skip
+            raise SceneError(
+                f"{option}: the MPI ranks were given different command lines "
+                f"(rank 0: {mine!r}, rank {rank}: {theirs!r}); give every rank "
+                "the same"
+            )
 
 
 #: How dolfinx.jit.mpi_jit_decorator wraps a compile error of rank 0 under MPI.

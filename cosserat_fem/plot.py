@@ -141,9 +141,17 @@ def plot_surfaces(run: Run, out: Path, series: RodSeries | None = None) -> list[
             S, T = np.meshgrid(series.s, series.times)
             # Antialiased and shaded: without, mplot3d's depth sorting of the thin facets
             # (many frames, few points) drew spikes through the surface.
-            ax.plot_surface(S, T, disp[:, :, column], cmap="viridis", linewidth=0,
-                            antialiased=True, shade=True, rcount=min(len(series.times), 300),
-                            ccount=min(len(series.s), 200))  # fmt: skip
+            ax.plot_surface(
+                S,
+                T,
+                disp[:, :, column],
+                cmap="viridis",
+                linewidth=0,
+                antialiased=True,
+                shade=True,
+                rcount=min(len(series.times), 300),
+                ccount=min(len(series.s), 200),
+            )
             ax.view_init(elev=30, azim=-60)
             ax.set_xlabel("s [m]")
             ax.set_ylabel(run.time_label)
@@ -163,9 +171,14 @@ def plot_surfaces(run: Run, out: Path, series: RodSeries | None = None) -> list[
 
 #: What sweep.png draws against the varied key: the free end's largest |x|, |y|, |z| [m] and
 #: |θ|, |ψ|, |φ| [rad] over each member's run (cosserat_fem/studies/sweep_run.py's table).
-SWEEP_PANELS = (("max_abs_x", "max |x| [m]"), ("max_abs_theta", "max |θ| [rad]"),
-                ("max_abs_y", "max |y| [m]"), ("max_abs_psi", "max |ψ| [rad]"),
-                ("max_abs_z", "max |z| [m]"), ("max_abs_phi", "max |φ| [rad]"))  # fmt: skip
+SWEEP_PANELS = (
+    ("max_abs_x", "max |x| [m]"),
+    ("max_abs_theta", "max |θ| [rad]"),
+    ("max_abs_y", "max |y| [m]"),
+    ("max_abs_psi", "max |ψ| [rad]"),
+    ("max_abs_z", "max |z| [m]"),
+    ("max_abs_phi", "max |φ| [rad]"),
+)
 
 
 def _number(text: str) -> float:
@@ -185,8 +198,9 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
     missing = {"member", "status", "wall_s", "steps", *(c for c, _ in SWEEP_PANELS)}
     missing -= set(columns)
     if missing:
-        raise SceneError(f"plot: {str(directory)!r} holds no sweep's table (no column "
-                         f"{sorted(missing)[0]!r})")  # fmt: skip
+        raise SceneError(
+            f"plot: {str(directory)!r} holds no sweep's table (no column {sorted(missing)[0]!r})"
+        )
     if not rows:
         raise SceneError(f"plot: the sweep in {str(directory)!r} has no finished member yet")
     record = _sweep_record(directory)
@@ -206,8 +220,9 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
         y = np.array([_number(row[column]) for row in rows])
         ax.plot(np.array(x)[done], y[done], "o-", lw=0.8, ms=3)
         if (~done).any():
-            ax.plot(np.array(x)[~done], np.zeros((~done).sum()), "x", color="C3",
-                    label="not completed")  # fmt: skip
+            ax.plot(
+                np.array(x)[~done], np.zeros((~done).sum()), "x", color="C3", label="not completed"
+            )
             ax.legend(fontsize=7)
         ax.set_ylabel(label)
         ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
@@ -235,8 +250,11 @@ def _sweep_record(directory: Path) -> dict:
 
 #: The columns response.png reads (cosserat_fem/studies/sweep_run.py, RESPONSE_COLUMNS and
 #: MEASURES).
-RESPONSE_NEEDS = ("direction", "settled",
-                  *(f"{m}_{c}" for m in ("amp", "phase") for c in PROBE_COLUMNS[1:]))  # fmt: skip
+RESPONSE_NEEDS = (
+    "direction",
+    "settled",
+    *(f"{m}_{c}" for m in ("amp", "phase") for c in PROBE_COLUMNS[1:]),
+)
 #: A column moves when its largest amplitude is at least this fraction of the motion's size.
 MOVING = 1e-3
 
@@ -246,12 +264,16 @@ def _check_response(directory: Path, columns: list[str], varied: list[str], reco
     and sweep.json's continuation key is one of its varied keys (or none)."""
     absent = [c for c in RESPONSE_NEEDS if c not in columns]
     if absent:
-        raise SceneError(f"plot: {str(directory / SWEEP_TABLE)!r} has no column {absent[0]!r} "
-                         "of a frequency response")  # fmt: skip
+        raise SceneError(
+            f"plot: {str(directory / SWEEP_TABLE)!r} has no column {absent[0]!r} "
+            "of a frequency response"
+        )
     key = record.get("continuation")
     if key is not None and key not in varied:
-        raise SceneError(f"plot: {str(directory / RECORD)!r}: its continuation "
-                         f"{str(key)[:60]!r} is not a varied key of the sweep")  # fmt: skip
+        raise SceneError(
+            f"plot: {str(directory / RECORD)!r}: its continuation "
+            f"{str(key)[:60]!r} is not a varied key of the sweep"
+        )
 
 
 def _member_lengths(directory: Path, rows: list[dict]) -> np.ndarray:
@@ -288,8 +310,9 @@ def moving_columns(amps: dict[str, np.ndarray], lengths: np.ndarray) -> list[str
         size = max(scaled.values())
         moving = [c for c in amps if scaled[c] > 0 and scaled[c] >= MOVING * size]
     else:
-        group = {c: max(largest[d] for d in amps if RESPONSE_UNITS[d] == RESPONSE_UNITS[c])
-                 for c in amps}  # fmt: skip
+        group = {
+            c: max(largest[d] for d in amps if RESPONSE_UNITS[d] == RESPONSE_UNITS[c]) for c in amps
+        }
         moving = [c for c in amps if largest[c] > 0 and largest[c] >= MOVING * group[c]]
     return moving or ["x"]
 
@@ -299,8 +322,9 @@ RESPONSE_UNITS = dict(zip(PROBE_COLUMNS[1:], ("m",) * 3 + ("rad",) * 3, strict=T
 RESPONSE_SYMBOLS = dict(zip(PROBE_COLUMNS[1:], ("x", "y", "z", "θ", "ψ", "φ"), strict=True))
 
 
-def plot_response(directory: Path, rows: list[dict], varied: list[str], target: Path,
-                  record: dict) -> Path:  # fmt: skip
+def plot_response(
+    directory: Path, rows: list[dict], varied: list[str], target: Path, record: dict
+) -> Path:
     """response.png of a frequency response (a sweep with [sweep.response]; ``record`` its
     sweep.json, its table checked by :func:`_check_response`): the probe point's amplitude
     (half range, ``amp_c``) and the phase of its first harmonic against the load's
@@ -321,21 +345,28 @@ def plot_response(directory: Path, rows: list[dict], varied: list[str], target: 
     fig, axes = plt.subplots(len(moving), 2, figsize=HISTORY_SIZE, sharex=True, squeeze=False)
     for i, (label, chain) in enumerate(sorted(lines.items())):
         chain.sort(key=lambda r: _number(r[key]) if key != "member" else int(r["member"]))
-        x = np.array([_number(r[key]) if key != "member" else float(r["member"])
-                      for r in chain])  # fmt: skip
+        x = np.array([_number(r[key]) if key != "member" else float(r["member"]) for r in chain])
         done = np.array([r["status"] == "completed" for r in chain])
         settled = np.array([r["settled"] == "true" for r in chain]) & done
         direction = label[-1]
         style = {"up": ("^", "-"), "down": ("v", "--")}.get(direction, ("o", "-"))
-        name = ", ".join([f"{k} = {v}" for k, v in zip(others, label, strict=False)]
-                         + ([direction] if direction else []))  # fmt: skip
+        name = ", ".join(
+            [f"{k} = {v}" for k, v in zip(others, label, strict=False)]
+            + ([direction] if direction else [])
+        )
         for row_axes, column in zip(axes, moving, strict=True):
             for ax, measure in zip(row_axes, ("amp", "phase"), strict=True):
                 y = np.array([_number(r[f"{measure}_{column}"]) for r in chain])
                 if measure == "phase" and done.any():  # continuous along the chain
                     y[done] = np.unwrap(y[done])
-                ax.plot(x[done], y[done], ls=style[1], lw=0.9, color=f"C{i}",
-                        label=_label(name) if name else None)  # fmt: skip
+                ax.plot(
+                    x[done],
+                    y[done],
+                    ls=style[1],
+                    lw=0.9,
+                    color=f"C{i}",
+                    label=_label(name) if name else None,
+                )
                 ax.plot(x[settled], y[settled], style[0], ms=4, color=f"C{i}")
                 loose = done & ~settled
                 ax.plot(x[loose], y[loose], style[0], ms=5, mfc="none", color="C3")
@@ -353,8 +384,9 @@ def plot_response(directory: Path, rows: list[dict], varied: list[str], target: 
         axes[0][0].legend(fontsize=7)
     unsettled = sum(r["status"] == "completed" and r["settled"] != "true" for r in rows)
     note = f"; {unsettled} not settled (hollow)" if unsettled else ""
-    fig.suptitle(_label(f"Frequency response at the probe point: {directory.name}{note}"),
-                 fontsize=10)  # fmt: skip
+    fig.suptitle(
+        _label(f"Frequency response at the probe point: {directory.name}{note}"), fontsize=10
+    )
     fig.tight_layout()
     return _save(fig, target / "response.png")
 
@@ -419,8 +451,13 @@ def plot_pod(result, path: Path) -> Path:
         main = int(np.argmax(np.abs(rms[:, :3]).max(axis=0)))
         for c in range(3):
             if np.abs(rms[:, c]).max() >= 1e-2 * np.abs(rms[:, main]).max():  # drawn apart
-                axes[1].plot(result.s, rms[:, c], styles["xyz"[c]], color=f"C{i}",
-                             label=f"mode {i + 1}: {'xyz'[c]} ({100 * result.fractions[i]:.3g} %)")
+                axes[1].plot(
+                    result.s,
+                    rms[:, c],
+                    styles["xyz"[c]],
+                    color=f"C{i}",
+                    label=f"mode {i + 1}: {'xyz'[c]} ({100 * result.fractions[i]:.3g} %)",
+                )
     axes[1].set_xlabel("s [m]")
     axes[1].set_ylabel("√λ_k φ_k, displacement [m]")
     axes[1].set_title("leading shapes (rms size in the run)")

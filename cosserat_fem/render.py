@@ -109,20 +109,37 @@ class _Scene:
         p.set_background("white")
         # No depth peeling: with it, Mesa's off-screen renderer (EGL and xvfb alike) drew
         # translucent tubes not at all, and rod_frames.png showed its last frame alone.
-        p.add_mesh(self._polyline(series.reference), color="darkgrey", line_width=2,
-                   render=False)  # fmt: skip
+        p.add_mesh(self._polyline(series.reference), color="darkgrey", line_width=2, render=False)
         p.add_mesh(pv.Box(bounds=bounds), opacity=0.0, render=False)  # fixes the framing
         # The tick labels give the true x and y of the drawn rod (the lateral coordinates of
         # the picture are magnified by ``scale``; the axial one is s + scale z ≈ s).
-        ranges = [bounds[0] / scale, bounds[1] / scale, bounds[2] / scale, bounds[3] / scale,
-                  bounds[4], bounds[5]]  # fmt: skip
+        ranges = [
+            bounds[0] / scale,
+            bounds[1] / scale,
+            bounds[2] / scale,
+            bounds[3] / scale,
+            bounds[4],
+            bounds[5],
+        ]
         p.show_bounds(
-            bounds=bounds, axes_ranges=ranges, xtitle="x [m]", ytitle="y [m]", ztitle="z [m]",
-            color="black", grid=False, location="outer", font_size=10, fmt="%.2g",
-            n_xlabels=3, n_ylabels=3, n_zlabels=5, render=False,
-        )  # fmt: skip
-        self.caption = p.add_text("", position="upper_left", font_size=11, color="black",
-                                  render=False)  # fmt: skip
+            bounds=bounds,
+            axes_ranges=ranges,
+            xtitle="x [m]",
+            ytitle="y [m]",
+            ztitle="z [m]",
+            color="black",
+            grid=False,
+            location="outer",
+            font_size=10,
+            fmt="%.2g",
+            n_xlabels=3,
+            n_ylabels=3,
+            n_zlabels=5,
+            render=False,
+        )
+        self.caption = p.add_text(
+            "", position="upper_left", font_size=11, color="black", render=False
+        )
         self.tubes: list = []
         self._actors: list = []
         # Camera: from the −y side, a little from +x and above, z (the rod) up.
@@ -159,14 +176,24 @@ class _Scene:
         while len(self.tubes) < len(frames):
             tube = self._tube(frames[len(self.tubes)])
             actor = p.add_mesh(
-                tube, scalars=self.colour_name, clim=self.clim, cmap="viridis",
-                show_scalar_bar=not self.tubes, render=False,
+                tube,
+                scalars=self.colour_name,
+                clim=self.clim,
+                cmap="viridis",
+                show_scalar_bar=not self.tubes,
+                render=False,
                 scalar_bar_args={
-                    "title": f"{self.colour_name}\n(magnitude)", "color": "black",
-                    "vertical": True, "position_x": 0.84, "position_y": 0.1, "width": 0.06,
-                    "title_font_size": 14, "label_font_size": 12, "fmt": "%.3g",
-                },  # fmt: skip
-            )  # fmt: skip
+                    "title": f"{self.colour_name}\n(magnitude)",
+                    "color": "black",
+                    "vertical": True,
+                    "position_x": 0.84,
+                    "position_y": 0.1,
+                    "width": 0.06,
+                    "title_font_size": 14,
+                    "label_font_size": 12,
+                    "fmt": "%.3g",
+                },
+            )
             self.tubes.append(tube)
             self._actors.append(actor)
         for i, (tube, actor) in enumerate(zip(self.tubes, self._actors, strict=True)):
@@ -212,8 +239,10 @@ def render_run(
     if max_frames < 1:
         raise SceneError(f"render --frames: must be at least 1, got {max_frames}")
     if scale is not None and not (math.isfinite(scale) and 0 < scale <= MAX_SCALE):
-        raise SceneError(f"render --scale: must be a number in (0, {MAX_SCALE:g}] (beyond, the "
-                         f"picture shows round-off of the length), got {scale!r}")  # fmt: skip
+        raise SceneError(
+            f"render --scale: must be a number in (0, {MAX_SCALE:g}] (beyond, the "
+            f"picture shows round-off of the length), got {scale!r}"
+        )
     out_folder(out, "render --out")
     run = open_run(directory, "render")
     series = run.series()
@@ -258,8 +287,15 @@ def render_run(
         paths.append(scene.picture(some, text, target / "rod_frames.png"))
         made(3, "rod_frames.png")
         name = f"rod.{fmt}"
-        paths.append(_animate(scene, target / name, frames, fps,
-                              lambda i: made(3 + i, f"{name}, frame {i} of {len(frames)}")))
+        paths.append(
+            _animate(
+                scene,
+                target / name,
+                frames,
+                fps,
+                lambda i: made(3 + i, f"{name}, frame {i} of {len(frames)}"),
+            )
+        )
     finally:
         scene.close()
     return paths
@@ -279,8 +315,11 @@ def _animate(scene: _Scene, path: Path, frames: list[int], fps: int, made) -> Pa
     work = path.with_name(f".{path.stem}.{os.getpid()}.partial{path.suffix}")
     image = io.BytesIO()
     try:
-        with imageio.get_writer(image, format="GIF", **options) if gif else imageio.get_writer(
-                work, **options) as writer:  # fmt: skip
+        with (
+            imageio.get_writer(image, format="GIF", **options)
+            if gif
+            else imageio.get_writer(work, **options) as writer
+        ):
             for i, frame in enumerate(frames, start=1):
                 writer.append_data(scene.image(int(frame)))
                 made(i)

@@ -108,8 +108,13 @@ bar = progress.StatusLine(enabled=None if comm.rank == 0 else False)
 try:
     scene = api.load(ROOT / "scenes" / "bathe_bolourchi_bend.toml", args.overrides)
     shapes = Shapes()
-    result = api.static(scene, observers=[shapes, lambda k, load_factor, model: bar.show(
-        load_factor, f"load factor {load_factor:.3g}")])  # fmt: skip
+    result = api.static(
+        scene,
+        observers=[
+            shapes,
+            lambda k, load_factor, model: bar.show(load_factor, f"load factor {load_factor:.3g}"),
+        ],
+    )
 except CosseratError as exc:
     raise SystemExit(f"cosserat-fem: {exc}") from None
 finally:
@@ -127,8 +132,11 @@ finally:
 if comm.rank == 0:
     for row in result.probes[1:]:
         load = 600.0 * row[0]
-        print(f"P = {load:5.0f} lbf: tip (dn, dz, dt) = "
-              + ", ".join(f"{x / INCH:9.5f}" for x in row[1:4]) + " in")  # fmt: skip
+        print(
+            f"P = {load:5.0f} lbf: tip (dn, dz, dt) = "
+            + ", ".join(f"{x / INCH:9.5f}" for x in row[1:4])
+            + " in"
+        )
     tip = result.probes[-1][1:4] / INCH
     for name, value in zip(("tip_dn_in", "tip_dz_in", "tip_dt_in"), tip, strict=True):
         print(f"QOI {name} = {value:.12e}")
@@ -154,10 +162,13 @@ if comm.rank == 0:
         style = dict(color="0.6", lw=2) if k == 0 else dict(color=colour, lw=1.2)
         top.plot(shape[:, 2] / INCH, shape[:, 0] / INCH, **style)
         front.plot(shape[:, 0] / INCH, shape[:, 1] / INCH, **style)
-    top.set(xlabel="e3 (along the clamp) [in]", ylabel="e1 (towards the centre) [in]",
-            title="seen from e2", aspect="equal")  # fmt: skip
-    front.set(xlabel="e1 [in]", ylabel="e2 (the load) [in]", title="seen from e3",
-              aspect="equal")  # fmt: skip
+    top.set(
+        xlabel="e3 (along the clamp) [in]",
+        ylabel="e1 (towards the centre) [in]",
+        title="seen from e2",
+        aspect="equal",
+    )
+    front.set(xlabel="e1 [in]", ylabel="e2 (the load) [in]", title="seen from e3", aspect="equal")
     fig.suptitle("Bathe & Bolourchi's 45° bend, 0 to 600 lbf in 10 steps")
     fig.tight_layout()
     out = Path(args.out)

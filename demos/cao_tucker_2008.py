@@ -128,8 +128,9 @@ def sample_fields(step: int, t: float, model) -> None:
 
 
 # The progress bar (on a terminal, rank 0): time reached, steps and the time left.
-bar = progress.ProgressBar(scene.time.start, scene.time.end,
-                           enabled=None if comm.rank == 0 else False)  # fmt: skip
+bar = progress.ProgressBar(
+    scene.time.start, scene.time.end, enabled=None if comm.rank == 0 else False
+)
 try:
     result = run(scene, out, observers=(sample_fields,), progress=bar)
 except CosseratError as exc:

@@ -68,10 +68,19 @@ SWEEP = ROOT / "scenes" / "sweeps" / "clamped_hysteresis.toml"
 comm = MPI.COMM_WORLD
 
 parser = argparse.ArgumentParser(description="A frequency response with jumps")
-parser.add_argument("--out", default=str(ROOT / "demos" / "output" / "frequency_response"),
-                    help="output folder (the sweep's)")  # fmt: skip
-parser.add_argument("--values", type=float, nargs="+", default=None, metavar="R",
-                    help="forcing frequencies r = Ω/ω1 (default: the sweep file's 0.98 ... 1.14)")
+parser.add_argument(
+    "--out",
+    default=str(ROOT / "demos" / "output" / "frequency_response"),
+    help="output folder (the sweep's)",
+)
+parser.add_argument(
+    "--values",
+    type=float,
+    nargs="+",
+    default=None,
+    metavar="R",
+    help="forcing frequencies r = Ω/ω1 (default: the sweep file's 0.98 ... 1.14)",
+)
 args = parser.parse_args()
 
 # %% [markdown]
@@ -90,8 +99,10 @@ try:
         start = text.index('"parameters.r" = { start')
         line = text[start : text.index("\n", start)]
         text = text.replace(line, f'"parameters.r" = {json.dumps(args.values)}')
-        text = text.replace('scene = "../cao_tucker_2008.toml"',
-                            f'scene = "{ROOT / "scenes" / "cao_tucker_2008.toml"}"')  # fmt: skip
+        text = text.replace(
+            'scene = "../cao_tucker_2008.toml"',
+            f'scene = "{ROOT / "scenes" / "cao_tucker_2008.toml"}"',
+        )
         folder = Path(tempfile.mkdtemp()) if comm.rank == 0 else None
         source = Path(comm.bcast(str(folder), root=0)) / "sweep.toml"
         if comm.rank == 0:
@@ -142,15 +153,31 @@ if comm.rank == 0:
     r = np.linspace(0.96, 1.16, 401)
     for i in range(3):
         branch = [duffing.amplitudes(f, x * w1) for x in r]
-        y = [v[i] if len(v) == 3 else (v[0] if i in (0, 2) and len(v) == 1 else np.nan)
-             for v in branch]  # fmt: skip
-        ax.plot(r, 1e3 * np.array(y), color="0.6", lw=1, ls="-" if i != 1 else ":",
-                label="harmonic balance (one mode)" if i == 0 else None)  # fmt: skip
+        y = [
+            v[i] if len(v) == 3 else (v[0] if i in (0, 2) and len(v) == 1 else np.nan)
+            for v in branch
+        ]
+        ax.plot(
+            r,
+            1e3 * np.array(y),
+            color="0.6",
+            lw=1,
+            ls="-" if i != 1 else ":",
+            label="harmonic balance (one mode)" if i == 0 else None,
+        )
     for direction, marker in (("up", "^-"), ("down", "v--")):
-        chain = sorted((float(row["parameters.r"]), float(row["amp_x"])) for row in rows
-                       if row["direction"] == direction)  # fmt: skip
-        ax.plot(*np.array(chain).T * [[1], [1e3]], marker, ms=5, lw=1,
-                label=f"cosserat-fem, sweep {direction}")  # fmt: skip
+        chain = sorted(
+            (float(row["parameters.r"]), float(row["amp_x"]))
+            for row in rows
+            if row["direction"] == direction
+        )
+        ax.plot(
+            *np.array(chain).T * [[1], [1e3]],
+            marker,
+            ms=5,
+            lw=1,
+            label=f"cosserat-fem, sweep {direction}",
+        )
     ax.set_xlabel("r = Ω / ω1")
     ax.set_ylabel("amplitude of x at mid-span [mm]")
     ax.set_title(f"Clamped–clamped rod: hardening, jumps and hysteresis (ζ1 = {duffing.zeta:.2g})")

@@ -367,8 +367,9 @@ def reference_inertial_terms(p, q, groups: Groups, reference: Reference):
     return ufl.as_matrix(rows), source_i
 
 
-def reference_contact_terms(p, dp, groups: Groups, reference: Reference, v_strain, u_strain,
-                            chart: Chart | None = None):  # fmt: skip
+def reference_contact_terms(
+    p, dp, groups: Groups, reference: Reference, v_strain, u_strain, chart: Chart | None = None
+):
     """Flux and source of the contact force and torque of director-component strains (or strain
     rates) with a reference: N = D0ᵀ N̂, M = D0ᵀ M̂ in the rows of R (module docstring)."""
     n, m = scaled_resultants(v_strain, u_strain, groups)

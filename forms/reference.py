@@ -74,8 +74,13 @@ def helix(sigma, length: float, radius: float, pitch_angle: float) -> Reference:
     tangent = ufl.as_vector([-s * ca, c * ca, sa])
     normal = ufl.as_vector([-c, -s, 0.0])
     binormal = ufl.as_vector([s * sa, -c * sa, ca])
-    frame = ufl.as_matrix([[normal[j] for j in range(3)], [binormal[j] for j in range(3)],
-                           [tangent[j] for j in range(3)]])  # fmt: skip
+    frame = ufl.as_matrix(
+        [
+            [normal[j] for j in range(3)],
+            [binormal[j] for j in range(3)],
+            [tangent[j] for j in range(3)],
+        ]
+    )
     curvature = ufl.as_vector([0.0, ca * ca / radius, sa * ca / radius])
     return Reference(tangent, frame, curvature)
 
@@ -101,4 +106,3 @@ def placed(reference: Reference, rotation) -> Reference:
     matrix, R x in column form): t0 → R t0, d0_i → R d0_i (D0 → D0 Rᵀ)."""
     R = ufl.as_matrix(rotation) if not isinstance(rotation, ufl.core.expr.Expr) else rotation
     return Reference(R * reference.tangent, reference.frame * R.T, reference.curvature)
-

@@ -144,8 +144,10 @@ def run_command(
     except subprocess.TimeoutExpired:
         stop_tree(proc)
         out, err = proc.communicate()
-        pytest.fail(f"hung: {' '.join(cmd)} had not ended after {timeout:g} s (a hang limit; "
-                    f"its stderr ends: {err[-2000:]!r})")  # fmt: skip
+        pytest.fail(
+            f"hung: {' '.join(cmd)} had not ended after {timeout:g} s (a hang limit; "
+            f"its stderr ends: {err[-2000:]!r})"
+        )
     except BaseException:  # Ctrl-C, a test's own failure: leave no rank running
         stop_tree(proc)
         raise
@@ -209,11 +211,11 @@ def sweep_serial_and_mpi(path: Path, folder: Path) -> dict[int, list[dict]]:
     tables = {}
     for ranks in (1, 2):
         out = folder / f"n{ranks}"
-        proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)],
-                           ranks)  # fmt: skip
+        proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)], ranks)
         assert proc.returncode == 0, proc.stderr
-        tables[ranks] = [{k: v for k, v in r.items() if k != "wall_s"}
-                         for r in read_table(out / "sweep.csv")]  # fmt: skip
+        tables[ranks] = [
+            {k: v for k, v in r.items() if k != "wall_s"} for r in read_table(out / "sweep.csv")
+        ]
     return tables
 
 
@@ -256,6 +258,8 @@ def file_size_limit(limit: int):
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 
     return preexec
+
+
 def folder_tree(folder: Path, skip: tuple[str, ...] = ()) -> dict[str, str]:
     """Every name under ``folder`` (links not followed, names in ``skip`` left out): a file's
     SHA-256, a link's target, else "folder" or "special" (a FIFO, a socket, a device)."""

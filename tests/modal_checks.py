@@ -38,8 +38,9 @@ def linear_steady_state(scene: Scene, omega: float, sigma: float = 1.0) -> np.nd
     tests/test_response.py. ValueError if the loads are not g(s) sin ωt (f̂ at half a period
     later must be −f̂)."""
     model = build_model(scene, MPI.COMM_SELF, planar=False)
-    element = ufl.VectorElement("Lagrange", model.msh.ufl_cell(),
-                                scene.discretisation.degree, dim=6)  # fmt: skip
+    element = ufl.VectorElement(
+        "Lagrange", model.msh.ufl_cell(), scene.discretisation.degree, dim=6
+    )
     P = fem.FunctionSpace(model.msh, element)
     p, q, a = (fem.Function(P) for _ in range(3))
     zeros = [0.0] * 6
@@ -72,8 +73,11 @@ def linear_steady_state(scene: Scene, omega: float, sigma: float = 1.0) -> np.nd
     # The residual at rest is zero to round-off (~1e-7 of f̂ for 1 N/m on the paper's rod);
     # g(s) sin ωt vanishes at t = 0 and is −f̂ half a period after T/4.
     scale = 1e-6 * np.abs(f).max()
-    if not (scale > 0 and np.abs(load(0.75 * big) + f).max() <= scale
-            and np.abs(load(0.0)).max() <= scale):  # fmt: skip
+    if not (
+        scale > 0
+        and np.abs(load(0.75 * big) + f).max() <= scale
+        and np.abs(load(0.0)).max() <= scale
+    ):
         raise ValueError("linear_steady_state: the loads are not of the form g(s) sin(omega t)")
     w = omega / model.omega0
     amplitude = np.linalg.solve(K + 1j * w * C - w**2 * M, f)

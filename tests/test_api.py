@@ -52,7 +52,7 @@ def printed(out: str, label: str) -> np.ndarray:
     """The numbers printed after ``label`` on its line of ``out``."""
     (line,) = [x for x in out.splitlines() if x.startswith(label)]
     number = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-    return np.array([float(v) for v in re.findall(number, line[len(label):])])
+    return np.array([float(v) for v in re.findall(number, line[len(label) :])])
 
 
 def the_readme_numbers_hold(out: str) -> None:
@@ -97,8 +97,22 @@ def test_arrays_equal_the_command_lines_files(tmp_path):
     files as the command line."""
     overrides = {"time.end": 0.0015, "output.xdmf": False}
     result = cf.run(cf.load(SCENE, overrides), fields=[0.0, 0.5, 1.0], field_every=10)
-    assert main(["run", str(SCENE), "--out", str(tmp_path / "cli"), "--quiet",
-                 "--set", "time.end=0.0015", "--set", "output.xdmf=false"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "run",
+                str(SCENE),
+                "--out",
+                str(tmp_path / "cli"),
+                "--quiet",
+                "--set",
+                "time.end=0.0015",
+                "--set",
+                "output.xdmf=false",
+            ]
+        )
+        == 0
+    )
     rows = np.loadtxt(tmp_path / "cli" / "probes.csv", delimiter=",", skiprows=1)
     assert result.probes.shape == rows.shape == (51, 7)
     assert np.array_equal(result.probes[:, 1:], rows[:, 1:])
@@ -120,8 +134,20 @@ def test_the_public_run_has_the_command_lines_defaults(tmp_path):
     the same but the run's identity, its wall times and the Newton solver's timers (the
     scene, integrator, solver loop, LU package, steps and every Newton count: the same
     operations in the same order), and probes.csv is the same bytes."""
-    assert main(["run", str(SCENE), "--out", str(tmp_path / "cli"), "--quiet",
-                 "--set", "time.end=0.0006"]) == 0  # fmt: skip
+    assert (
+        main(
+            [
+                "run",
+                str(SCENE),
+                "--out",
+                str(tmp_path / "cli"),
+                "--quiet",
+                "--set",
+                "time.end=0.0006",
+            ]
+        )
+        == 0
+    )
     result = cf.run(cf.load(SCENE, {"time.end": 0.0006}), tmp_path / "api")
     cli = json.loads((tmp_path / "cli" / "summary.json").read_text())
     api = json.loads((tmp_path / "api" / "summary.json").read_text())
@@ -154,13 +180,30 @@ def test_run_static_and_modes_write_one_summary(tmp_path):
     names = ("run/summary.json", "static/summary.json", "modes/modes.json")
     run, static, modes = (json.loads((tmp_path / name).read_text()) for name in names)
     assert (run["kind"], static["kind"], modes["kind"]) == ("run", "static", "modes")
-    same = ("status", "cosserat_fem", "scene_file", "scene_file_sha256", "mpi_ranks", "python",
-            "scene")  # fmt: skip
+    same = (
+        "status",
+        "cosserat_fem",
+        "scene_file",
+        "scene_file_sha256",
+        "mpi_ranks",
+        "python",
+        "scene",
+    )
     for key in same:
         assert run[key] == static[key] == modes[key], key
-    for key in ("dofs", "elements", "degree", "quadrature_degree", "omega0_rad_s",
-                "skipped_terms", "solved_unknowns", "groups", "probe_s_m",
-                "probe_reference_position_m", "lu_package"):  # fmt: skip
+    for key in (
+        "dofs",
+        "elements",
+        "degree",
+        "quadrature_degree",
+        "omega0_rad_s",
+        "skipped_terms",
+        "solved_unknowns",
+        "groups",
+        "probe_s_m",
+        "probe_reference_position_m",
+        "lu_package",
+    ):
         assert run[key] == static[key], key
     assert static["checkpoints_written"] == 0 < run["checkpoints_written"]
     assert run["newton"].keys() == static["newton"].keys()
@@ -235,10 +278,14 @@ def test_a_bad_initial_state_is_refused_by_name(tmp_path):
     nodes = cf.run(scene).model.nodes
     nan = np.zeros(12 * nodes)
     nan[12 * 3 + 4] = np.nan
-    cases = [(nan, r"value 40 \(node 3, component 4 of 12\) is not finite"),
-             (np.full(12 * nodes, np.inf), "value 0 .* is not finite"),
-             ("x", "must be an array of numbers"), ([[1, 2], [3]], "must be an array"),
-             (np.zeros(7), "7 values, expected 12 a node"), (np.zeros(12), "12 values")]
+    cases = [
+        (nan, r"value 40 \(node 3, component 4 of 12\) is not finite"),
+        (np.full(12 * nodes, np.inf), "value 0 .* is not finite"),
+        ("x", "must be an array of numbers"),
+        ([[1, 2], [3]], "must be an array"),
+        (np.zeros(7), "7 values, expected 12 a node"),
+        (np.zeros(12), "12 values"),
+    ]
     for state, reason in cases:
         with pytest.raises(SceneError, match=f"^initial_state: {reason}"):
             cf.run(scene, tmp_path / "out", initial_state=state)
@@ -316,6 +363,8 @@ def test_the_arrays_are_the_same_on_every_rank_and_the_serial_runs(tmp_path):
         else:
             scale = np.abs(expected).max()
             assert np.abs(got - expected).max() <= 1e-10 * scale, name
+
+
 # ------------------------------------------------------------------------------ restarts
 RESTART_SETTINGS = {"time.end": 0.0015, "output.xdmf_interval": 3e-4}
 TRIPLE = "6e3*sin(pi*s/L)*sin(8*omega0*t)"  # three times the paper's load
@@ -336,15 +385,18 @@ def _copy(folder, tmp_path):
 
 
 def _digests(folder) -> dict[str, bytes]:
-    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*"))
-            if p.is_file()}  # fmt: skip
+    return {
+        str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()
+    }
 
 
 @pytest.mark.parametrize(
     ("overrides", "key"),
     [
-        ({"rod.material.young_modulus": 3.55e10, "loads.force_density": [TRIPLE, TRIPLE, 0]},
-         "rod.material.young_modulus"),  # the issue's splice: E halved, 3x the load
+        (
+            {"rod.material.young_modulus": 3.55e10, "loads.force_density": [TRIPLE, TRIPLE, 0]},
+            "rod.material.young_modulus",
+        ),  # the issue's splice: E halved, 3x the load
         ({"loads.force_density": [TRIPLE, 0, 0]}, "loads.force_density"),
         ({"discretisation.elements": 9}, "discretisation.elements"),
         ({"time.step": 1.5e-5}, "time.step"),
@@ -353,8 +405,7 @@ def _digests(folder) -> dict[str, bytes]:
         ({"output.xdmf": False}, "output.xdmf"),
     ],
 )
-def test_a_restart_refuses_a_scene_that_is_not_the_checkpoints(completed, tmp_path, overrides,
-                                                                 key):  # fmt: skip
+def test_a_restart_refuses_a_scene_that_is_not_the_checkpoints(completed, tmp_path, overrides, key):
     """cf.run(scene, restart=checkpoint) continued the checkpoint's state with any scene: E
     halved and three times the load gave a splice of two problems and a normal exit. Now a
     scene that differs from the checkpoint's run in a key a restart may not change is a

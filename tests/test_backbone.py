@@ -46,11 +46,21 @@ E, RHO = 7.1e10, 2730.0
 
 def _scene(period: float, **sets):
     step = period / 300
-    return api.load(PAPER, {"loads.force_density": [0, 0, 0], "output.xdmf": False,
-                            "output.checkpoint": False, "time.step": step,
-                            "time.end": 1200 * step, "solver.stol": 1e-10,
-                            "rod.section.a": THICKNESS, "rod.section.b": 1.5 * THICKNESS,
-                            "model.reference_frequency": "auto", **sets})  # fmt: skip
+    return api.load(
+        PAPER,
+        {
+            "loads.force_density": [0, 0, 0],
+            "output.xdmf": False,
+            "output.checkpoint": False,
+            "time.step": step,
+            "time.end": 1200 * step,
+            "solver.stol": 1e-10,
+            "rod.section.a": THICKNESS,
+            "rod.section.b": 1.5 * THICKNESS,
+            "model.reference_frequency": "auto",
+            **sets,
+        },
+    )
 
 
 def test_a_cantilever_hardens_as_the_inertia_of_its_foreshortening_says():
@@ -61,8 +71,9 @@ def test_a_cantilever_hardens_as_the_inertia_of_its_foreshortening_says():
     With 8 elements the same measurement gives 3.7 % (locking): the test sees it."""
     scene = _scene(2 * math.pi / 51.76, **{"discretisation.elements": 16})
     linear = free_vibration_frequency(scene, cantilever_shape, 1e-3)
-    shift = {a: free_vibration_frequency(scene, cantilever_shape, a) / linear - 1
-             for a in (0.1, 0.2)}  # fmt: skip
+    shift = {
+        a: free_vibration_frequency(scene, cantilever_shape, a) / linear - 1 for a in (0.1, 0.2)
+    }
     assert all(s > 0 for s in shift.values())  # hardening
     assert hardening_fit(shift) == pytest.approx(cantilever_hardening(1.0), rel=0.01)
 

@@ -43,8 +43,12 @@ def run_in_child(overrides: list[str], limit: int | None = None) -> dict:
 
     proc = subprocess.run(
         [PYTHON, "-c", script, "run", SCENE, "--quiet", *sets],
-        env=subprocess_env(), capture_output=True, text=True, timeout=600, preexec_fn=limited,
-    )  # fmt: skip
+        env=subprocess_env(),
+        capture_output=True,
+        text=True,
+        timeout=600,
+        preexec_fn=limited,
+    )
     lines = proc.stdout.strip().splitlines()
     result = json.loads(lines[-1]) if lines and lines[-1].startswith("{") else {}
     return {"returncode": proc.returncode, "stderr": proc.stderr, **result}
@@ -52,8 +56,7 @@ def run_in_child(overrides: list[str], limit: int | None = None) -> dict:
 
 def short(tmp_path: Path, name: str, *extra: str) -> list[str]:
     """Two output steps of the paper's scene into tmp_path/name, no XDMF."""
-    return [f"output.directory={tmp_path / name}", "time.end=0.00006", "output.xdmf=false",
-            *extra]  # fmt: skip
+    return [f"output.directory={tmp_path / name}", "time.end=0.00006", "output.xdmf=false", *extra]
 
 
 # --- item 16: the limits "auto" sees -------------------------------------------------------
@@ -84,45 +87,63 @@ def test_a_process_address_space_limit_refuses_what_cannot_fit(tmp_path):
 
 
 MOUNT_V2 = "41 31 0:38 / /sys/fs/cgroup rw,relatime - cgroup2 cgroup2 rw\n"
-MOUNT_V1 = ("31 23 0:28 / /sys/fs/cgroup rw - tmpfs tmpfs rw\n"
-            "35 31 0:32 / /sys/fs/cgroup/memory rw,relatime - cgroup cgroup rw,memory\n")
+MOUNT_V1 = (
+    "31 23 0:28 / /sys/fs/cgroup rw - tmpfs tmpfs rw\n"
+    "35 31 0:32 / /sys/fs/cgroup/memory rw,relatime - cgroup cgroup rw,memory\n"
+)
 V1 = "sys/fs/cgroup/memory/"
 #: name: (the files of a fake root, the room expected, the limit file named).
 CGROUPS = {
-    "v2, a job's step": ({
-        "proc/self/cgroup": "0::/job/step\n",
-        "proc/self/mountinfo": MOUNT_V2,
-        "sys/fs/cgroup/job/memory.max": "1000000000\n",
-        "sys/fs/cgroup/job/memory.current": "300000000\n",
-        "sys/fs/cgroup/job/memory.stat": "anon 200000000\nfile 100000000\n",
-        "sys/fs/cgroup/job/step/memory.max": "max\n",
-        "sys/fs/cgroup/job/step/memory.current": "250000000\n",
-        "sys/fs/cgroup/job/step/memory.stat": "anon 200000000\nfile 50000000\n",
-    }, 8e8, "/sys/fs/cgroup/job/memory.max"),
-    "v1, its parent's limit": ({
-        "proc/self/cgroup": "9:name=systemd:/\n4:memory:/process_api/abc\n0::/\n",
-        "proc/self/mountinfo": MOUNT_V1,
-        V1 + "memory.limit_in_bytes": "9223372036854771712\n",
-        V1 + "memory.usage_in_bytes": "900000000\n",
-        V1 + "process_api/memory.limit_in_bytes": "500000000\n",
-        V1 + "process_api/memory.usage_in_bytes": "200000000\n",
-        V1 + "process_api/memory.stat": "cache 40000000\ntotal_cache 50000000\n",
-        V1 + "process_api/abc/memory.limit_in_bytes": "9223372036854771712\n",
-        V1 + "process_api/abc/memory.usage_in_bytes": "100000000\n",
-    }, 3.5e8, V1 + "process_api/memory.limit_in_bytes"),
-    "v2, a namespace": ({
-        "proc/self/cgroup": "0::/../elsewhere\n",
-        "proc/self/mountinfo": MOUNT_V2.replace(" / /sys", " /container /sys"),
-        "sys/fs/cgroup/memory.max": "400000000\n",
-        "sys/fs/cgroup/memory.current": "100000000\n",
-    }, 3e8, "/sys/fs/cgroup/memory.max"),
-    "v2, no limit": ({
-        "proc/self/cgroup": "0::/a\n",
-        "proc/self/mountinfo": MOUNT_V2,
-        "sys/fs/cgroup/a/memory.max": "max\n",
-        "sys/fs/cgroup/a/memory.current": "1\n",
-    }, None, None),
-}  # fmt: skip
+    "v2, a job's step": (
+        {
+            "proc/self/cgroup": "0::/job/step\n",
+            "proc/self/mountinfo": MOUNT_V2,
+            "sys/fs/cgroup/job/memory.max": "1000000000\n",
+            "sys/fs/cgroup/job/memory.current": "300000000\n",
+            "sys/fs/cgroup/job/memory.stat": "anon 200000000\nfile 100000000\n",
+            "sys/fs/cgroup/job/step/memory.max": "max\n",
+            "sys/fs/cgroup/job/step/memory.current": "250000000\n",
+            "sys/fs/cgroup/job/step/memory.stat": "anon 200000000\nfile 50000000\n",
+        },
+        8e8,
+        "/sys/fs/cgroup/job/memory.max",
+    ),
+    "v1, its parent's limit": (
+        {
+            "proc/self/cgroup": "9:name=systemd:/\n4:memory:/process_api/abc\n0::/\n",
+            "proc/self/mountinfo": MOUNT_V1,
+            V1 + "memory.limit_in_bytes": "9223372036854771712\n",
+            V1 + "memory.usage_in_bytes": "900000000\n",
+            V1 + "process_api/memory.limit_in_bytes": "500000000\n",
+            V1 + "process_api/memory.usage_in_bytes": "200000000\n",
+            V1 + "process_api/memory.stat": "cache 40000000\ntotal_cache 50000000\n",
+            V1 + "process_api/abc/memory.limit_in_bytes": "9223372036854771712\n",
+            V1 + "process_api/abc/memory.usage_in_bytes": "100000000\n",
+        },
+        3.5e8,
+        V1 + "process_api/memory.limit_in_bytes",
+    ),
+    "v2, a namespace": (
+        {
+            "proc/self/cgroup": "0::/../elsewhere\n",
+            "proc/self/mountinfo": MOUNT_V2.replace(" / /sys", " /container /sys"),
+            "sys/fs/cgroup/memory.max": "400000000\n",
+            "sys/fs/cgroup/memory.current": "100000000\n",
+        },
+        3e8,
+        "/sys/fs/cgroup/memory.max",
+    ),
+    "v2, no limit": (
+        {
+            "proc/self/cgroup": "0::/a\n",
+            "proc/self/mountinfo": MOUNT_V2,
+            "sys/fs/cgroup/a/memory.max": "max\n",
+            "sys/fs/cgroup/a/memory.current": "1\n",
+        },
+        None,
+        None,
+    ),
+}
 
 
 @pytest.mark.parametrize("case", CGROUPS)
@@ -161,8 +182,9 @@ def test_a_control_group_limit_refuses_what_cannot_fit(monkeypatch):
       refused; on two nodes (one rank here): 140 MB, it fits;
     * ``limits.memory`` set by hand runs it on purpose."""
     text = "the 200 MB left under the memory limit of this process's control group (test)"
-    monkeypatch.setattr(budget, "cgroup_limit", lambda root=None: budget.MemoryLimit(
-        200e6, False, text))  # fmt: skip
+    monkeypatch.setattr(
+        budget, "cgroup_limit", lambda root=None: budget.MemoryLimit(200e6, False, text)
+    )
     resident = {"VmRSS": budget.MEMORY_BASE}
     monkeypatch.setattr(budget, "_status_bytes", lambda field, root: resident.get(field))
     ten, twelve = (load_scene(SCENE, [f"discretisation.elements={n}"]) for n in (10000, 12000))
@@ -170,14 +192,15 @@ def test_a_control_group_limit_refuses_what_cannot_fit(monkeypatch):
     with pytest.raises(SceneError) as info:
         budget.check(twelve, "run")
     message = str(info.value)
-    assert message.startswith("discretisation.elements: the run needs 216 MB more memory on "
-                              "this node at least (estimated), more than " + text)  # fmt: skip
+    assert message.startswith(
+        "discretisation.elements: the run needs 216 MB more memory on "
+        "this node at least (estimated), more than " + text
+    )
     resident["VmRSS"] = 30e6
     with pytest.raises(SceneError, match="needs 280 MB more memory on this node"):
         budget.check(ten, "run", ranks_on_node=2, ranks=2)
     budget.check(ten, "run", ranks_on_node=1, ranks=2)
-    budget.check(load_scene(SCENE, ["discretisation.elements=12000", "limits.memory=1e12"]),
-                 "run")  # fmt: skip
+    budget.check(load_scene(SCENE, ["discretisation.elements=12000", "limits.memory=1e12"]), "run")
 
 
 # --- item 28: the memory per dof, measured -------------------------------------------------
@@ -189,8 +212,7 @@ def memory_slope(tmp_path: Path, sizes: tuple[int, int], *extra: str) -> tuple[f
     vector made), each in a process of its own."""
     points = []
     for elements in sizes:
-        overrides = short(tmp_path, f"e{elements}", f"discretisation.elements={elements}",
-                          *extra)  # fmt: skip
+        overrides = short(tmp_path, f"e{elements}", f"discretisation.elements={elements}", *extra)
         result = run_in_child(overrides)
         assert result.get("status") == 0, result["stderr"]
         summary = json.loads((tmp_path / f"e{elements}" / "summary.json").read_text())
@@ -250,20 +272,31 @@ def test_a_limit_on_one_rank_refuses_on_every_rank(tmp_path, command):
         "sys.exit(main(sys.argv[1:]))\n"
     )
     out = tmp_path / "big"
-    args = ["run", SCENE, "--out", str(out), "--set", "discretisation.elements=40000",
-            "--set", "time.end=0.00006"]  # fmt: skip
+    args = [
+        "run",
+        SCENE,
+        "--out",
+        str(out),
+        "--set",
+        "discretisation.elements=40000",
+        "--set",
+        "time.end=0.00006",
+    ]
     if command == "sweep":
         sweep = tmp_path / "sweep.toml"
-        sweep.write_text(f'[sweep]\nscene = {json.dumps(SCENE)}\n[sweep.set]\n'
-                         '"discretisation.elements" = 40000\n"time.end" = 0.00006\n'
-                         '[sweep.vary]\n"parameters.forcing" = [8.0]\n')  # fmt: skip
+        sweep.write_text(
+            f"[sweep]\nscene = {json.dumps(SCENE)}\n[sweep.set]\n"
+            '"discretisation.elements" = 40000\n"time.end" = 0.00006\n'
+            '[sweep.vary]\n"parameters.forcing" = [8.0]\n'
+        )
         args = ["sweep", str(sweep), "--out", str(out)]
     proc = run_command(["-c", script, *args], ranks=2)
     ours = said(proc.stderr)
     assert proc.returncode == 2 and len(ours) == 1, proc.stderr  # and mpirun's notice
     member = "sweep member 0 (parameters.forcing = 8.0): " if command == "sweep" else ""
-    assert ours[0].startswith(f"cosserat-fem: error: {member}discretisation.elements: the run "
-                              "needs "), ours[0]
+    assert ours[0].startswith(
+        f"cosserat-fem: error: {member}discretisation.elements: the run needs "
+    ), ours[0]
     assert "address-space limit (ulimit -v)" in ours[0] and "MPI_ABORT" not in proc.stderr
     assert not out.exists()
 

@@ -22,6 +22,11 @@ def test_the_readme_names_every_status_of_summary_json():
     found = re.search(r"`summary\.json`: status \((.*?)\)", README, re.S)
     assert found, "README.md no longer lists summary.json's statuses"
     named = set(re.findall(r'"([a-z]+)"', found.group(1)))
-    endings = (None, KeyboardInterrupt(), StopError("a limit"), SolverError("trouble"),
-               RuntimeError("a bug"))  # fmt: skip
+    endings = (
+        None,
+        KeyboardInterrupt(),
+        StopError("a limit"),
+        SolverError("trouble"),
+        RuntimeError("a bug"),
+    )
     assert named == {"running"} | {status_of(failure) for failure in endings}

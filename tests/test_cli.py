@@ -192,9 +192,11 @@ def test_static_and_modes_without_out_leave_a_runs_folder_alone(tmp_path, monkey
 def _sweep_file(folder) -> str:
     """A sweep of two members of 10 steps of the paper's scene."""
     path = folder / "tiny.toml"
-    path.write_text(f'[sweep]\nscene = "{SCENE}"\n[sweep.set]\n"time.end" = 0.0003\n'
-                    '"output.xdmf" = false\n[sweep.vary]\n"time.max_halvings" = [5, 6]\n',
-                    encoding="utf-8")  # fmt: skip
+    path.write_text(
+        f'[sweep]\nscene = "{SCENE}"\n[sweep.set]\n"time.end" = 0.0003\n'
+        '"output.xdmf" = false\n[sweep.vary]\n"time.max_halvings" = [5, 6]\n',
+        encoding="utf-8",
+    )
     return str(path)
 
 
@@ -203,10 +205,25 @@ PRINTERS = {
     "help": lambda tmp: ["--help"],
     "validate": lambda tmp: ["validate", SCENE],
     "modes": lambda tmp: ["modes", SCENE, "--count", "2", "--out", str(tmp / "modes")],
-    "run": lambda tmp: ["run", SCENE, "--set", "time.end=0.0003", "--set",
-                        "output.xdmf_interval=6e-5", "--out", str(tmp / "run")],
-    "run --verbose": lambda tmp: ["run", SCENE, "--set", "time.end=0.0003", "--verbose",
-                                  "--out", str(tmp / "verbose")],
+    "run": lambda tmp: [
+        "run",
+        SCENE,
+        "--set",
+        "time.end=0.0003",
+        "--set",
+        "output.xdmf_interval=6e-5",
+        "--out",
+        str(tmp / "run"),
+    ],
+    "run --verbose": lambda tmp: [
+        "run",
+        SCENE,
+        "--set",
+        "time.end=0.0003",
+        "--verbose",
+        "--out",
+        str(tmp / "verbose"),
+    ],
     "static": lambda tmp: ["static", SCENE, "--out", str(tmp / "static")],
     "sweep": lambda tmp: ["sweep", _sweep_file(tmp), "--out", str(tmp / "sweep")],
     "pod": lambda tmp: ["pod", str(tmp / "run"), "--out", str(tmp / "pod")],
@@ -224,10 +241,14 @@ def _closed_early(args: list[str], stream: str = "stdout") -> tuple[int, str]:
 
     from conftest import PYTHON, subprocess_env
 
-    proc = subprocess.Popen([PYTHON, *CLI, *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, cwd=ROOT, env=subprocess_env())  # fmt: skip
-    closed, other = (proc.stdout, proc.stderr) if stream == "stdout" else (proc.stderr,
-                                                                           proc.stdout)
+    proc = subprocess.Popen(
+        [PYTHON, *CLI, *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        cwd=ROOT,
+        env=subprocess_env(),
+    )
+    closed, other = (proc.stdout, proc.stderr) if stream == "stdout" else (proc.stderr, proc.stdout)
     closed.close()  # the reader has gone (as `| head -0` would)
     text = other.read().decode()
     return proc.wait(timeout=600), text

@@ -60,13 +60,22 @@ def test_arc_at_rest_stays_at_rest_and_is_written_as_the_reference(tmp_path):
     output points and the probes' angles and directors at the tip those of D0(ℓ): for the arc
     ψ = ℓ/R about e2; summary.json names the point of the rod at rest whose displacement
     probes.csv's x, y, z are."""
-    shapes = {"arc": ["reference.radius=0.8"],
-              "helix": ["reference.radius=0.1", "reference.pitch_angle=0.2"]}  # fmt: skip
+    shapes = {
+        "arc": ["reference.radius=0.8"],
+        "helix": ["reference.radius=0.1", "reference.pitch_angle=0.2"],
+    }
     for shape, extra in shapes.items():
-        scene = api.load("scenes/cao_tucker_2008.toml", [
-            f"reference.shape={shape}", *extra, "time.end=0.0021", "loads.end.force=[0,0,0]",
-            "loads.force_density=[0,0,0]", "output.probe_fields=['directors']",
-        ])  # fmt: skip
+        scene = api.load(
+            "scenes/cao_tucker_2008.toml",
+            [
+                f"reference.shape={shape}",
+                *extra,
+                "time.end=0.0021",
+                "loads.end.force=[0,0,0]",
+                "loads.force_density=[0,0,0]",
+                "output.probe_fields=['directors']",
+            ],
+        )
         result = api.run(scene, tmp_path / shape)
         assert np.abs(result.model.U.x.array).max() == 0.0, shape
         points, _, arrays = read_arrays(tmp_path / shape / "solution.xdmf")
@@ -76,9 +85,10 @@ def test_arc_at_rest_stays_at_rest_and_is_written_as_the_reference(tmp_path):
         assert not arrays["displacement"].any()
         tip = scene.reference.frames(np.array([ell]))[0]
         header = (tmp_path / shape / "probes.csv").read_text().splitlines()[0].split(",")
-        last = np.array((tmp_path / shape / "probes.csv").read_text().splitlines()[-1]
-                        .split(","), dtype=float)  # fmt: skip
-        directors = last[header.index("d1_x"):header.index("d3_z") + 1].reshape(3, 3)
+        last = np.array(
+            (tmp_path / shape / "probes.csv").read_text().splitlines()[-1].split(","), dtype=float
+        )
+        directors = last[header.index("d1_x") : header.index("d3_z") + 1].reshape(3, 3)
         np.testing.assert_allclose(directors, tip, rtol=0, atol=1e-14)
         summary = json.loads((tmp_path / shape / "summary.json").read_text())
         at_rest = scene.reference.positions([ell])[0]
@@ -129,65 +139,135 @@ def test_arc_equals_the_straight_rod_rolled_up_into_it(load):
         (["reference.shape=arc"], "reference.radius: required for shape 'arc'"),
         (["reference.radius=1"], "reference.radius: not a key of shape 'straight'"),
         (["reference.shape=helix", "reference.radius=1"], "reference.pitch_angle: required"),
-        (["reference.shape=arc", "reference.radius=1", "reference.pitch_angle=0.1"],
-         "reference.pitch_angle: not a key of shape 'arc', which takes radius"),
+        (
+            ["reference.shape=arc", "reference.radius=1", "reference.pitch_angle=0.1"],
+            "reference.pitch_angle: not a key of shape 'arc', which takes radius",
+        ),
         (["reference.shape=arc", "reference.radius=0"], "reference.radius: must be > 0"),
-        (["reference.shape=helix", "reference.radius=1", "reference.pitch_angle=2"],
-         "reference.pitch_angle: must lie in"),
+        (
+            ["reference.shape=helix", "reference.radius=1", "reference.pitch_angle=2"],
+            "reference.pitch_angle: must lie in",
+        ),
         (["reference.shape=ring"], "reference.shape: must be one of"),
-        (["reference.shape=arc", "reference.radius=1e-300"],
-         "reference.radius: must exceed half the section's size, 0.03 m"),
-        (["reference.shape=helix", "reference.radius=0.02", "reference.pitch_angle=0.1"],
-         "reference.radius: must exceed half the section's size, 0.03 m"),
-        (["reference.shape=arc", "reference.radius=1", "supports.end=pinned"],
-         "supports.end: 'pinned' is not supported with reference.shape = 'arc'"),
-        (["reference.shape=arc", "reference.radius=1", "model.torsion_inertia=printed"],
-         "model.torsion_inertia: 'printed'"),
-        (["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,0.45],[0.55,0,0.45]]"],
-         "reference.points[1]: the corner at s = 0.45 m is not at a node of the mesh"),
-        (["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,0.5],[0,0.5,0.5]]"],
-         "reference.binormal: must be normal to every segment (d0_2 ⊥ d0_3), but its cosine "
-         "with segment 2"),
+        (
+            ["reference.shape=arc", "reference.radius=1e-300"],
+            "reference.radius: must exceed half the section's size, 0.03 m",
+        ),
+        (
+            ["reference.shape=helix", "reference.radius=0.02", "reference.pitch_angle=0.1"],
+            "reference.radius: must exceed half the section's size, 0.03 m",
+        ),
+        (
+            ["reference.shape=arc", "reference.radius=1", "supports.end=pinned"],
+            "supports.end: 'pinned' is not supported with reference.shape = 'arc'",
+        ),
+        (
+            ["reference.shape=arc", "reference.radius=1", "model.torsion_inertia=printed"],
+            "model.torsion_inertia: 'printed'",
+        ),
+        (
+            ["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,0.45],[0.55,0,0.45]]"],
+            "reference.points[1]: the corner at s = 0.45 m is not at a node of the mesh",
+        ),
+        (
+            ["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,0.5],[0,0.5,0.5]]"],
+            "reference.binormal: must be normal to every segment (d0_2 ⊥ d0_3), but its cosine "
+            "with segment 2",
+        ),
         # Two segments at the same cosine 0.6 with the binormal e2, the second larger by
         # round-off (its y is 0.6 + 1 ulp): the first is named, not the round-off's largest.
-        (["reference.shape=polyline",
-          "reference.points=[[0,0,0],[0,0.3,0.4],[0.4,0.6000000000000001,0.4]]"],
-         "reference.binormal: must be normal to every segment (d0_2 ⊥ d0_3), but its cosine "
-         "with segment 1 (points[0] to points[1]) is 0.6"),
-        (["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,0.5],[0.6,0,0.5]]"],
-         "reference.points: the polyline is 1.1 m long, rod.length = 1 m"),
-        (["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,1]]",
-          "reference.binormal=[0,0,0]"], "reference.binormal: must not be zero"),
-        (["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,0],[0,0,1]]"],
-         "reference.points[1]: the same point as the one before"),
-        (["reference.shape=polyline", "reference.points=[[0,0,0]]"],
-         "reference.points: must be a list of at least 2 points"),
-        (["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,'a']]"],
-         "reference.points[1][2]: must be a number"),
-        (["reference.shape=curve", "reference.position=[0,0,'2*s']",
-          "reference.director=[1,0,0]"], "reference.position: s must be its arc length, "
-         "|dr0/ds| = 1 (within 1e-06); |dr0/ds| is 2 at s = 0 m"),
-        (["reference.shape=curve", "reference.position=[0,0,'s']",
-          "reference.director=[2,0,0]"], "reference.director: d0_1 must be a unit vector "
-         "(within 1e-06); |d0_1| is 2 at s = 0 m"),
-        (["reference.shape=curve", "reference.position=[0,0,'s']",
-          "reference.director=[0,0.6,0.8]"], "reference.director: d0_1 must be normal to the "
-         "tangent d0_3 = dr0/ds (within 1e-06); their cosine is 0.8 at s = 0 m"),
-        (["reference.shape=curve", "reference.position=[0,0,'s*t']",
-          "reference.director=[1,0,0]"], "reference.position[2]: unknown name 't'"),
-        (["reference.shape=curve", "reference.position=[0,0,'s']"],
-         "reference.director: required for shape 'curve'"),
-        (["reference.shape=curve", "reference.position=[0,0,'sqrt(s-0.5)+0.5']",
-          "reference.director=[1,0,0]"], "reference.position: not a finite number at s = 0 m"),
-        (["reference.shape=curve", "reference.position=['0.01*(1-cos(s/0.01))',0,"
-          "'0.01*sin(s/0.01)']", "reference.director=['cos(s/0.01)',0,'-sin(s/0.01)']"],
-         "reference.position: its radius of curvature at s = 0 m, 0.01 m, must exceed "
-         "half the section's size, 0.03 m"),
-        (["loads.point.s=0.3"], "loads.point.s: must be at a node of the mesh (8 elements of "
-         "0.125 m), got 0.3"),
+        (
+            [
+                "reference.shape=polyline",
+                "reference.points=[[0,0,0],[0,0.3,0.4],[0.4,0.6000000000000001,0.4]]",
+            ],
+            "reference.binormal: must be normal to every segment (d0_2 ⊥ d0_3), but its cosine "
+            "with segment 1 (points[0] to points[1]) is 0.6",
+        ),
+        (
+            ["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,0.5],[0.6,0,0.5]]"],
+            "reference.points: the polyline is 1.1 m long, rod.length = 1 m",
+        ),
+        (
+            [
+                "reference.shape=polyline",
+                "reference.points=[[0,0,0],[0,0,1]]",
+                "reference.binormal=[0,0,0]",
+            ],
+            "reference.binormal: must not be zero",
+        ),
+        (
+            ["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,0],[0,0,1]]"],
+            "reference.points[1]: the same point as the one before",
+        ),
+        (
+            ["reference.shape=polyline", "reference.points=[[0,0,0]]"],
+            "reference.points: must be a list of at least 2 points",
+        ),
+        (
+            ["reference.shape=polyline", "reference.points=[[0,0,0],[0,0,'a']]"],
+            "reference.points[1][2]: must be a number",
+        ),
+        (
+            [
+                "reference.shape=curve",
+                "reference.position=[0,0,'2*s']",
+                "reference.director=[1,0,0]",
+            ],
+            "reference.position: s must be its arc length, "
+            "|dr0/ds| = 1 (within 1e-06); |dr0/ds| is 2 at s = 0 m",
+        ),
+        (
+            ["reference.shape=curve", "reference.position=[0,0,'s']", "reference.director=[2,0,0]"],
+            "reference.director: d0_1 must be a unit vector (within 1e-06); |d0_1| is 2 at s = 0 m",
+        ),
+        (
+            [
+                "reference.shape=curve",
+                "reference.position=[0,0,'s']",
+                "reference.director=[0,0.6,0.8]",
+            ],
+            "reference.director: d0_1 must be normal to the "
+            "tangent d0_3 = dr0/ds (within 1e-06); their cosine is 0.8 at s = 0 m",
+        ),
+        (
+            [
+                "reference.shape=curve",
+                "reference.position=[0,0,'s*t']",
+                "reference.director=[1,0,0]",
+            ],
+            "reference.position[2]: unknown name 't'",
+        ),
+        (
+            ["reference.shape=curve", "reference.position=[0,0,'s']"],
+            "reference.director: required for shape 'curve'",
+        ),
+        (
+            [
+                "reference.shape=curve",
+                "reference.position=[0,0,'sqrt(s-0.5)+0.5']",
+                "reference.director=[1,0,0]",
+            ],
+            "reference.position: not a finite number at s = 0 m",
+        ),
+        (
+            [
+                "reference.shape=curve",
+                "reference.position=['0.01*(1-cos(s/0.01))',0,'0.01*sin(s/0.01)']",
+                "reference.director=['cos(s/0.01)',0,'-sin(s/0.01)']",
+            ],
+            "reference.position: its radius of curvature at s = 0 m, 0.01 m, must exceed "
+            "half the section's size, 0.03 m",
+        ),
+        (
+            ["loads.point.s=0.3"],
+            "loads.point.s: must be at a node of the mesh (8 elements of 0.125 m), got 0.3",
+        ),
         (["loads.point.s=1"], "loads.point.s: must lie inside the rod"),
-        (["loads.point.s=0.5", "loads.point.force=[0,0,'s']"],
-         "loads.point.force[2]: a point load may depend on t and constants only"),
+        (
+            ["loads.point.s=0.5", "loads.point.force=[0,0,'s']"],
+            "loads.point.force[2]: a point load may depend on t and constants only",
+        ),
     ],
 )
 def test_a_malformed_reference_is_refused_by_its_key(overrides, message):
@@ -201,13 +281,16 @@ def steel_wire(length: float, diameter: float, reference: dict, **tables) -> dic
     """A scene of a steel rod of circular section curved at rest as ``reference``, solved
     statically with full Newton; ``tables``: its loads, discretisation, ..."""
     return {
-        "rod": {"length": length, "section": {"shape": "circle", "diameter": diameter},
-                "material": {"density": 7850.0, "young_modulus": 2e11, "poisson_ratio": 0.3}},
+        "rod": {
+            "length": length,
+            "section": {"shape": "circle", "diameter": diameter},
+            "material": {"density": 7850.0, "young_modulus": 2e11, "poisson_ratio": 0.3},
+        },
         "reference": reference,
         "time": {"end": 1.0, "step": 1.0},
         "solver": {"jacobian": "full"},
         **tables,
-    }  # fmt: skip
+    }
 
 
 def test_a_curve_of_expressions_is_the_named_arc_and_helix():
@@ -217,20 +300,28 @@ def test_a_curve_of_expressions_is_the_named_arc_and_helix():
     bend's 1.4 m; allowed 1e-12 of the motion)."""
     raw = read_toml(BEND)
     raw["parameters"]["R"] = 2.54
-    raw["reference"] = {"shape": "curve", "position": ["R*(1-cos(s/R))", 0, "R*sin(s/R)"],
-                        "director": ["cos(s/R)", 0, "-sin(s/R)"]}  # fmt: skip
+    raw["reference"] = {
+        "shape": "curve",
+        "position": ["R*(1-cos(s/R))", 0, "R*sin(s/R)"],
+        "director": ["cos(s/R)", 0, "-sin(s/R)"],
+    }
     named, written = api.static(api.load(BEND)).probes, api.static(api.load(raw)).probes
     assert np.abs(named - written).max() <= 1e-12 * np.abs(named[:, 1:]).max()
     R, alpha = 0.05, 0.2
     helix = steel_wire(
-        0.6, 0.01, {"shape": "helix", "radius": R, "pitch_angle": alpha},
+        0.6,
+        0.01,
+        {"shape": "helix", "radius": R, "pitch_angle": alpha},
         parameters={"R": R, "k": math.cos(alpha) / R, "sa": math.sin(alpha)},
-        loads={"end": {"force": [3.0, -2.0, 1.0]}}, discretisation={"elements": 12, "degree": 3},
-    )  # fmt: skip
+        loads={"end": {"force": [3.0, -2.0, 1.0]}},
+        discretisation={"elements": 12, "degree": 3},
+    )
     named = api.static(api.load(helix)).probes
-    helix["reference"] = {"shape": "curve",
-                          "position": ["R*(cos(k*s) - 1)", "R*sin(k*s)", "s*sa"],
-                          "director": ["-cos(k*s)", "-sin(k*s)", 0]}  # fmt: skip
+    helix["reference"] = {
+        "shape": "curve",
+        "position": ["R*(cos(k*s) - 1)", "R*sin(k*s)", "s*sa"],
+        "director": ["-cos(k*s)", "-sin(k*s)", 0],
+    }
     written = api.static(api.load(helix)).probes
     assert np.abs(named[-1, 1:4]).max() > 1e-4  # it moved (0.11 mm)
     assert np.abs(named - written).max() <= 1e-12 * np.abs(named[:, 1:]).max()
@@ -245,13 +336,20 @@ def test_a_catenary_converges_at_the_elements_order():
     (measured 7.2 and 7.8, the nodal superconvergence 2p: the expressions are exact in UFL); a
     reference carried at low order (a frame constant per cell, as a polyline's) would give 2."""
     a, ell = 0.5, 1.0
-    catenary = {"shape": "curve",
-                "position": ["a*log(s/a + sqrt(1 + (s/a)**2))", 0, "sqrt(a**2 + s**2) - a"],
-                "director": ["(s/a)/sqrt(1 + (s/a)**2)", 0, "-1/sqrt(1 + (s/a)**2)"]}  # fmt: skip
+    catenary = {
+        "shape": "curve",
+        "position": ["a*log(s/a + sqrt(1 + (s/a)**2))", 0, "sqrt(a**2 + s**2) - a"],
+        "director": ["(s/a)/sqrt(1 + (s/a)**2)", 0, "-1/sqrt(1 + (s/a)**2)"],
+    }
     data = steel_wire(
-        ell, 0.02, catenary, parameters={"a": a}, loads={"end": {"force": [0, 200.0, -300.0]}},
-        discretisation={"elements": 4, "degree": 4}, static={"load_steps": 4},
-    )  # fmt: skip
+        ell,
+        0.02,
+        catenary,
+        parameters={"a": a},
+        loads={"end": {"force": [0, 200.0, -300.0]}},
+        discretisation={"elements": 4, "degree": 4},
+        static={"load_steps": 4},
+    )
     scene = api.load(data)
     assert scene.reference.turning(ell) == pytest.approx(math.atan(ell / a), abs=1e-7)
     assert scene_from_dict(scene.to_dict()) == scene  # what a checkpoint keeps of it
@@ -280,16 +378,23 @@ def test_helical_spring_axial_stiffness(pitch_angle):
     length = 2 * math.pi * R * turns / math.cos(pitch_angle)
     k = math.cos(pitch_angle) / R
     data = {
-        "rod": {"length": length, "section": {"shape": "circle", "diameter": d},
-                "material": {"density": 7850.0, "young_modulus": E, "poisson_ratio": nu}},
+        "rod": {
+            "length": length,
+            "section": {"shape": "circle", "diameter": d},
+            "material": {"density": 7850.0, "young_modulus": E, "poisson_ratio": nu},
+        },
         "reference": {"shape": "helix", "radius": R, "pitch_angle": pitch_angle},
-        "loads": {"end": {"force": [0, 0, P], "torque": [-P * R * math.sin(k * length),
-                                                          P * R * math.cos(k * length), 0]}},
+        "loads": {
+            "end": {
+                "force": [0, 0, P],
+                "torque": [-P * R * math.sin(k * length), P * R * math.cos(k * length), 0],
+            }
+        },
         "discretisation": {"elements": 40, "degree": 4},
         "static": {"load_steps": 1},
         "time": {"end": 1.0, "step": 1.0},
         "solver": {"jacobian": "full"},
-    }  # fmt: skip
+    }
     scene = api.load(data)
     stretch = api.static(scene).probes[-1][3]
     section = scene.rod.section.constants()
@@ -338,18 +443,33 @@ def test_a_helix_released_from_a_large_deflection_conserves_energy_at_order_two(
     from cosserat_fem.analysis.statics import solve_static
 
     scene = ROOT / "scenes" / "cao_tucker_2008.toml"
-    curved = ["reference.shape=helix", "reference.radius=0.3", "reference.pitch_angle=0.3",
-              "loads.force_density=[0,0,0]", "solver.stol=1e-8"]  # fmt: skip
-    bent, _ = solve_static(api.load(scene, [*curved, "loads.end.force=[3e4,2e4,1e4]",
-                                            "static.load_steps=4"]))  # fmt: skip
+    curved = [
+        "reference.shape=helix",
+        "reference.radius=0.3",
+        "reference.pitch_angle=0.3",
+        "loads.force_density=[0,0,0]",
+        "solver.stol=1e-8",
+    ]
+    bent, _ = solve_static(
+        api.load(scene, [*curved, "loads.end.force=[3e4,2e4,1e4]", "static.load_steps=4"])
+    )
     E0 = sum(EnergyMonitor(bent).energies())
-    common = ["output.xdmf=false", "time.integrator=generalized-alpha", "time.rho_inf=1.0",
-              "solver.jacobian=full", "time.end=0.004"]  # fmt: skip
+    common = [
+        "output.xdmf=false",
+        "time.integrator=generalized-alpha",
+        "time.rho_inf=1.0",
+        "solver.jacobian=full",
+        "time.end=0.004",
+    ]
     drifts = []
     for dt in (4e-5, 2e-5, 1e-5):
         recorder = EnergyRecorder()
-        run_scene(api.load(scene, [*curved, *common, f"time.step={dt}"]), tmp_path,
-            observers=(recorder,), initial_state=bent.U.x.array.copy())  # fmt: skip
+        run_scene(
+            api.load(scene, [*curved, *common, f"time.step={dt}"]),
+            tmp_path,
+            observers=(recorder,),
+            initial_state=bent.U.x.array.copy(),
+        )
         drifts.append(np.abs(np.array(recorder.E) - E0).max() / E0)
     assert drifts[-1] < 1e-6
     for coarse, fine in zip(drifts[:-1], drifts[1:], strict=True):
@@ -366,10 +486,17 @@ def test_a_polyline_of_a_thousand_corners_builds_and_stays_at_rest():
     for i in range(n):
         a = 0.3 if i % 2 else -0.3
         points.append([points[-1][0] + math.sin(a) / n, 0.0, points[-1][2] + math.cos(a) / n])
-    scene = api.load(ROOT / "scenes" / "cao_tucker_2008.toml", [
-        "reference.shape=polyline", f"reference.points={points!r}",
-        f"discretisation.elements={n}", "time.end=9e-5", "output.xdmf=false",
-        "loads.force_density=[0,0,0]"])  # fmt: skip
+    scene = api.load(
+        ROOT / "scenes" / "cao_tucker_2008.toml",
+        [
+            "reference.shape=polyline",
+            f"reference.points={points!r}",
+            f"discretisation.elements={n}",
+            "time.end=9e-5",
+            "output.xdmf=false",
+            "loads.force_density=[0,0,0]",
+        ],
+    )
     result = api.run(scene, record=False)
     assert np.abs(result.model.U.x.array).max() == 0.0
     assert scene.reference.turning(1.0) == pytest.approx((n - 1) * 0.6, rel=1e-12)

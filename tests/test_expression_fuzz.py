@@ -188,7 +188,20 @@ HOSTILE_TOKENS = [
     *"q nan inf x __import__ __class__ lambda if else for in not and or".split(),
     *"tan asin acos atan sinh cosh tanh 1e308 1e400 1j 0b2 09".split(),
     *"( ) , . [ ] { } : := % // @ ~ < == ; = ! ' \" # \\ ...".split(),
-    "ｔ", "𝑡", "ﬁ", "ω", "ℓ", "²", "＋", " ", "\n", "\t", "\0", "\ud800", "f'", "b'",
+    "ｔ",
+    "𝑡",
+    "ﬁ",
+    "ω",
+    "ℓ",
+    "²",
+    "＋",
+    " ",
+    "\n",
+    "\t",
+    "\0",
+    "\ud800",
+    "f'",
+    "b'",
 ]
 
 
@@ -483,9 +496,12 @@ def test_short_chains_keep_the_written_association() -> None:
             expected = ast.parse(source, mode="eval").body
             tree = accepted(source).tree
             for _ in operators:  # the left spine, innermost last
-                assert tree[0] == {ast.Add: "add", ast.Sub: "sub", ast.Mult: "mul", ast.Div: "div"}[
-                    type(expected.op)
-                ]
+                assert (
+                    tree[0]
+                    == {ast.Add: "add", ast.Sub: "sub", ast.Mult: "mul", ast.Div: "div"}[
+                        type(expected.op)
+                    ]
+                )
                 assert tree[2] == ("num", expected.right.value)
                 tree, expected = tree[1], expected.left
             assert tree == ("var", "t")

@@ -68,17 +68,28 @@ def test_follower_torque_rolls_a_cantilever_into_a_circle(elements, tolerance):
     convergence slower than h^4.8 between the two meshes fails (P4: h^5 or faster expected).
     The planar x-z model solves no out-of-plane unknowns, so none are asserted."""
     ell = 1.0
-    u, _ = tip({"parameters.turns": 0.5, "loads.follower.torque": [0, "turns*2*pi*EI/L", 0],
-                "discretisation.elements": elements, "discretisation.degree": 4,
-                "static.load_steps": 8})  # fmt: skip
+    u, _ = tip(
+        {
+            "parameters.turns": 0.5,
+            "loads.follower.torque": [0, "turns*2*pi*EI/L", 0],
+            "discretisation.elements": elements,
+            "discretisation.degree": 4,
+            "static.load_steps": 8,
+        }
+    )
     R = ell / math.pi
     assert abs(u[4] - math.pi) < 2.5 * tolerance
     assert abs(u[0] - R * (1 - math.cos(ell / R))) < tolerance * ell
     assert abs(u[2] - (R * math.sin(ell / R) - ell)) < tolerance * ell
 
 
-SLENDER = {"rod.section.a": 0.004, "rod.section.b": 0.006, "discretisation.elements": 10,
-           "discretisation.degree": 3, "static.load_steps": 4}  # fmt: skip
+SLENDER = {
+    "rod.section.a": 0.004,
+    "rod.section.b": 0.006,
+    "discretisation.elements": 10,
+    "discretisation.degree": 3,
+    "static.load_steps": 4,
+}
 
 
 def beam_column(k_ell: float, follower: bool) -> tuple[float, float]:
@@ -120,10 +131,13 @@ def test_follower_load_scene_checks():
         load_scene(ROLLUP, {"loads.follower.end": "start", "loads.follower.force": [1, 0, 0]})
     scene = load_scene(ROLLUP, {"loads.end": UNSET, "loads.follower.torque": [0, 2, 0]})
     assert scene.plane() == "x-z"
-    assert load_scene(ROLLUP, {"loads.end": UNSET, "loads.follower.torque": [2, 0, 0]}).plane() \
+    assert (
+        load_scene(ROLLUP, {"loads.end": UNSET, "loads.follower.torque": [2, 0, 0]}).plane()
         == "y-z"
-    assert load_scene(ROLLUP, {"loads.end": UNSET, "loads.follower.torque": [0, 0, 2]}).plane() \
-        is None
+    )
+    assert (
+        load_scene(ROLLUP, {"loads.end": UNSET, "loads.follower.torque": [0, 0, 2]}).plane() is None
+    )
     from cosserat_fem.scene.build import scene_from_dict
 
     assert scene_from_dict(scene.to_dict()) == scene
@@ -138,13 +152,24 @@ def test_a_follower_force_turns_with_a_rest_frame_that_is_not_the_identity():
     d2 = e2: the same tip position, to the solver's tolerance (Newton to 1e-10 of the
     residual; 1e-8 of the deflection). Taking D's rows for the directors, as if D0 = I, puts
     the force along e1 instead: a tip moved along x, not y."""
-    square = {"loads.end": UNSET, "rod.section.a": 0.005, "rod.section.b": 0.005,
-              "discretisation.elements": 6, "static.load_steps": 2}  # fmt: skip
+    square = {
+        "loads.end": UNSET,
+        "rod.section.a": 0.005,
+        "rod.section.b": 0.005,
+        "discretisation.elements": 6,
+        "static.load_steps": 2,
+    }
     P = 0.05
     straight, _ = tip({**square, "loads.follower.force": [0, P, 0]})
-    turned, _ = tip({**square, "loads.follower.force": [P, 0, 0],
-                     "reference.shape": "curve", "reference.position": [0, 0, "s"],
-                     "reference.director": [0, 1, 0]})  # fmt: skip
+    turned, _ = tip(
+        {
+            **square,
+            "loads.follower.force": [P, 0, 0],
+            "reference.shape": "curve",
+            "reference.position": [0, 0, "s"],
+            "reference.director": [0, 1, 0],
+        }
+    )
     assert straight[1] > 1e-3  # the tip moved along e2, a large deflection
     np.testing.assert_allclose(turned[:3], straight[:3], rtol=0, atol=1e-8 * straight[1])
 
@@ -162,17 +187,26 @@ def test_a_follower_force_and_torque_in_3d_are_the_fixed_loads_of_the_end_they_r
     2026-12-03)."""
     from cosserat_fem.rod.charts import euler_matrix
 
-    common = {"loads.end": UNSET, "discretisation.planar": "off",
-              "discretisation.elements": 4, "static.load_steps": 3}  # fmt: skip
+    common = {
+        "loads.end": UNSET,
+        "discretisation.planar": "off",
+        "discretisation.elements": 4,
+        "static.load_steps": 3,
+    }
     F, M = np.array([0.4, -0.3, -0.2]), np.array([0.3, 0.5, -0.4])
-    follower, EI = tip({**common,
-                        "loads.follower.force": [f"{f!r}*EI/L**2" for f in F],
-                        "loads.follower.torque": [f"{m!r}*EI/L" for m in M]})  # fmt: skip
+    follower, EI = tip(
+        {
+            **common,
+            "loads.follower.force": [f"{f!r}*EI/L**2" for f in F],
+            "loads.follower.torque": [f"{m!r}*EI/L" for m in M],
+        }
+    )
     ell = 1.0
     D = euler_matrix(*follower[3:6])
     force, torque = D.T @ (F * EI / ell**2), D.T @ (M * EI / ell)
-    fixed, _ = tip({**common, "loads.end.force": force.tolist(),
-                    "loads.end.torque": torque.tolist()})  # fmt: skip
+    fixed, _ = tip(
+        {**common, "loads.end.force": force.tolist(), "loads.end.torque": torque.tolist()}
+    )
     scale = np.abs(follower[:3]).max()
     assert scale > 0.1 * ell  # a large deflection
     np.testing.assert_allclose(fixed[:3], follower[:3], rtol=0, atol=1e-7 * scale)
@@ -193,11 +227,17 @@ def test_a_follower_torque_on_a_rod_curved_at_rest_is_the_fixed_torque_of_its_ti
     displacement; allowed 1e-7 of it, as the straight rod's 3D test). Dropping D0ᵀ (the
     components taken along D's rows, as if D0 = I) moves the tip by 1.4 times its
     displacement: checked, 2026-12-04, by removing it from forms/follower.py."""
-    common = {"loads.end": UNSET, "reference.shape": "arc", "reference.radius": 2 / math.pi,
-              "discretisation.elements": 4, "static.load_steps": 2}  # fmt: skip
+    common = {
+        "loads.end": UNSET,
+        "reference.shape": "arc",
+        "reference.radius": 2 / math.pi,
+        "discretisation.elements": 4,
+        "static.load_steps": 2,
+    }
     M = np.array([0.1, 0.2, 0.3])
-    follower, EI = tip({**common, "loads.follower.torque": [f"{m!r}*EI/L" for m in M]},
-                       fields=("directors",))  # fmt: skip
+    follower, EI = tip(
+        {**common, "loads.follower.torque": [f"{m!r}*EI/L" for m in M]}, fields=("directors",)
+    )
     D = follower[6:15].reshape(3, 3)  # rows d1, d2, d3 at the tip, fixed basis
     fixed, _ = tip({**common, "loads.end.torque": (D.T @ (M * EI)).tolist()})
     scale = np.abs(follower[:3]).max()

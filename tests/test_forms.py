@@ -305,9 +305,16 @@ def test_rotary_inertias_given_apart_from_the_section(rod):
     Q = _chart_quaternion(msh, 2, seed=52)
     general = _general(given, U, Udot, V, dx, loads, chart=quaternion_chart(Q))
     director = director_residual_terms(
-        U, Udot, ufl.TestFunction(V), given, dx, loads["f"], loads["l"], tuple(loads["ends"]),
+        U,
+        Udot,
+        ufl.TestFunction(V),
+        given,
+        dx,
+        loads["f"],
+        loads["l"],
+        tuple(loads["ends"]),
         chart_quaternion=Q,
-    )  # fmt: skip
+    )
     for name in TERMS:
         a, b = _assemble(general[name]), _assemble(director[name])
         assert np.abs(a - b).max() <= 1e-12 * np.abs(a).max(), name
@@ -344,13 +351,26 @@ def test_general_form_with_a_reference_equals_the_director_form(rod, degree, sha
     Q = _chart_quaternion(msh, degree, seed=70 + degree)
     reference = _references(msh, rod.length)[shape]
     viscous, tau = (3.0e2, 0.7), 2.5e-4
-    extra = dict(damping=ViscousDamping(*viscous, rod.omega0),
-                 kelvin_voigt=KelvinVoigtDamping(tau, rod.omega0), chart=quaternion_chart(Q))
+    extra = dict(
+        damping=ViscousDamping(*viscous, rod.omega0),
+        kelvin_voigt=KelvinVoigtDamping(tau, rod.omega0),
+        chart=quaternion_chart(Q),
+    )
     general = _general(rod, U, Udot, V, dx, loads, reference=reference, **extra)
     director = director_residual_terms(
-        U, Udot, ufl.TestFunction(V), rod, dx, loads["f"], loads["l"], tuple(loads["ends"]),
-        viscous_damping=viscous, retardation_time=tau, chart_quaternion=Q, reference=reference,
-    )  # fmt: skip
+        U,
+        Udot,
+        ufl.TestFunction(V),
+        rod,
+        dx,
+        loads["f"],
+        loads["l"],
+        tuple(loads["ends"]),
+        viscous_damping=viscous,
+        retardation_time=tau,
+        chart_quaternion=Q,
+        reference=reference,
+    )
     straight = _general(rod, U, Udot, V, dx, loads, **extra)
     _agree_and_differ(general, director, straight, ("inertia", "elastic", "kelvin_voigt"))
 
@@ -363,8 +383,11 @@ def test_straight_reference_equals_the_paper_form(rod):
 
     msh, V, U, Udot, dx, loads = _setup(3, seed=81)
     Q = _chart_quaternion(msh, 3, seed=82)
-    extra = dict(damping=ViscousDamping(3.0e2, 0.7, rod.omega0),
-                 kelvin_voigt=KelvinVoigtDamping(2.5e-4, rod.omega0), chart=quaternion_chart(Q))
+    extra = dict(
+        damping=ViscousDamping(3.0e2, 0.7, rod.omega0),
+        kelvin_voigt=KelvinVoigtDamping(2.5e-4, rod.omega0),
+        chart=quaternion_chart(Q),
+    )
     through = _general(rod, U, Udot, V, dx, loads, reference=straight(), **extra)
     paper = _general(rod, U, Udot, V, dx, loads, **extra)
     for name in paper:
@@ -386,8 +409,9 @@ def test_a_rod_at_rest_in_its_reference_has_zero_residual(rod, shape):
         sigma = ufl.SpatialCoordinate(msh)[0]
         c, s = np.cos(np.radians(50.0)), np.sin(np.radians(50.0))
         before, after = np.eye(3), np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
-        frame = ufl.conditional(ufl.lt(sigma, 0.4), ufl.as_matrix(before.tolist()),
-                                ufl.as_matrix(after.tolist()))  # fmt: skip
+        frame = ufl.conditional(
+            ufl.lt(sigma, 0.4), ufl.as_matrix(before.tolist()), ufl.as_matrix(after.tolist())
+        )
         reference = Reference(frame[2, :], frame)
     else:
         reference = _references(msh, rod.length)[shape]
@@ -395,13 +419,30 @@ def test_a_rod_at_rest_in_its_reference_has_zero_residual(rod, shape):
     Udot.x.array[:] = 0.0
     Q = fem.Function(fem.VectorFunctionSpace(msh, ("Lagrange", 3), dim=4))
     Q.x.array.reshape(-1, 4)[:, 0] = 1.0
-    terms = residual_terms(U, Udot, ufl.TestFunction(V), dimensionless_groups(rod), dx,
-                           chart=quaternion_chart(Q), reference=reference).as_dict()  # fmt: skip
+    terms = residual_terms(
+        U,
+        Udot,
+        ufl.TestFunction(V),
+        dimensionless_groups(rod),
+        dx,
+        chart=quaternion_chart(Q),
+        reference=reference,
+    ).as_dict()
     rest = {name: np.abs(_assemble(form)).max() for name, form in terms.items()}
     U.x.array.reshape(-1, 12)[:, 4] = 1e-3 * V.tabulate_dof_coordinates()[:, 0]  # ψ = 1e-3 σ
-    bent = np.abs(_assemble(residual_terms(
-        U, Udot, ufl.TestFunction(V), dimensionless_groups(rod), dx, chart=quaternion_chart(Q),
-        reference=reference).elastic)).max()  # fmt: skip
+    bent = np.abs(
+        _assemble(
+            residual_terms(
+                U,
+                Udot,
+                ufl.TestFunction(V),
+                dimensionless_groups(rod),
+                dx,
+                chart=quaternion_chart(Q),
+                reference=reference,
+            ).elastic
+        )
+    ).max()
     assert bent > 0
     for name, value in rest.items():
         assert value <= 1e-13 * bent, (name, value, bent)
@@ -421,13 +462,16 @@ def test_a_curve_from_its_tangent_and_director_is_the_helix():
     a = k * length * sigma
     c, s = ufl.cos(a), ufl.sin(a)
     written = curve(
-        ufl.as_vector([-s * ca, c * ca, sa]), ufl.as_vector([-k * c * ca, -k * s * ca, 0.0]),
-        ufl.as_vector([-c, -s, 0.0]), ufl.as_vector([k * s, -k * c, 0.0]),
-    )  # fmt: skip
+        ufl.as_vector([-s * ca, c * ca, sa]),
+        ufl.as_vector([-k * c * ca, -k * s * ca, 0.0]),
+        ufl.as_vector([-c, -s, 0.0]),
+        ufl.as_vector([k * s, -k * c, 0.0]),
+    )
     named = helix(sigma, length, R, alpha)
-    gap = (ufl.inner(written.frame - named.frame, written.frame - named.frame)
-           + R**2 * ufl.inner(written.curvature - named.curvature,
-                              written.curvature - named.curvature)) * ufl.dx(msh)  # fmt: skip
+    gap = (
+        ufl.inner(written.frame - named.frame, written.frame - named.frame)
+        + R**2 * ufl.inner(written.curvature - named.curvature, written.curvature - named.curvature)
+    ) * ufl.dx(msh)
     assert abs(fem.assemble_scalar(fem.form(gap))) <= 1e-28
     size = R**2 * ufl.inner(named.curvature, named.curvature) * ufl.dx(msh)
     assert fem.assemble_scalar(fem.form(size)) > 0.5  # |u0| R = cos α: a real comparison

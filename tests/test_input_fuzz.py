@@ -271,8 +271,9 @@ class Reader:
 def sweep_of(folder: Path, scene: str | Path) -> Path:
     """A sweep file of one member whose base scene is ``scene``."""
     path = folder / "sweep.toml"
-    path.write_text(f'[sweep]\nscene = "{scene}"\n[sweep.vary]\n"time.step" = [1e-5]\n',
-                    encoding="utf-8")  # fmt: skip
+    path.write_text(
+        f'[sweep]\nscene = "{scene}"\n[sweep.vary]\n"time.step" = [1e-5]\n', encoding="utf-8"
+    )
     return path
 
 
@@ -295,8 +296,10 @@ def test_a_fifo_given_as_input_is_refused_at_once(tmp_path, capsys, case):
     err = capsys.readouterr().err.strip().splitlines()
     assert not reader.released
     assert status == 2 and len(err) == 1, err
-    assert err[0].startswith(f"cosserat-fem: error: {fifo}: ") and "is a FIFO, not a regular " \
-        "file" in err[0], err  # fmt: skip
+    assert (
+        err[0].startswith(f"cosserat-fem: error: {fifo}: ")
+        and "is a FIFO, not a regular file" in err[0]
+    ), err
     assert not (tmp_path / "out").exists()
 
 
@@ -310,13 +313,21 @@ def test_dev_zero_given_as_input_is_refused_unread(command):
     def limit() -> None:
         resource.setrlimit(resource.RLIMIT_AS, (2 << 30, 2 << 30))
 
-    proc = subprocess.run([PYTHON, "-m", "cosserat_fem.cli", command, "/dev/zero"], cwd=ROOT,
-                          env=subprocess_env(), capture_output=True, text=True, timeout=120,
-                          preexec_fn=limit)  # fmt: skip
+    proc = subprocess.run(
+        [PYTHON, "-m", "cosserat_fem.cli", command, "/dev/zero"],
+        cwd=ROOT,
+        env=subprocess_env(),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=limit,
+    )
     kind = "scene" if command == "validate" else "sweep"
     assert proc.returncode == 2, proc.stderr
-    assert proc.stderr == f"cosserat-fem: error: /dev/zero: {kind} file is a character device, " \
-        "not a regular file\n"  # fmt: skip
+    assert (
+        proc.stderr == f"cosserat-fem: error: /dev/zero: {kind} file is a character device, "
+        "not a regular file\n"
+    )
 
 
 def nested(depth: int, inner: str = "1") -> str:
@@ -341,8 +352,11 @@ def test_deep_nesting_is_refused_in_one_line(tmp_path, capsys, text, where):
     error from a RecursionError deep inside)."""
     path = tmp_path / "deep.toml"
     path.write_text(text, encoding="utf-8")
-    for argv in (["validate", str(path)], ["sweep", str(path)],
-                 ["sweep", str(sweep_of(tmp_path, path))]):  # fmt: skip
+    for argv in (
+        ["validate", str(path)],
+        ["sweep", str(path)],
+        ["sweep", str(sweep_of(tmp_path, path))],
+    ):
         assert main([*argv, "--out", str(tmp_path / "out")]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith(f"cosserat-fem: error: {path}: {where}"), err
@@ -357,8 +371,9 @@ def test_deep_nesting_in_overrides_and_dicts_is_refused(capsys, depth):
 
     assert main(["validate", str(SCENE), "--set", f"time.end={nested(depth)}"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert err == ["cosserat-fem: error: time.end: nested deeper than 32 levels of tables and "
-                   "lists"]  # fmt: skip
+    assert err == [
+        "cosserat-fem: error: time.end: nested deeper than 32 levels of tables and lists"
+    ]
     value: list = []
     for _ in range(depth):
         value = [value]
@@ -378,8 +393,20 @@ def runs(tmp_path_factory):
     steps that its restart must reproduce byte for byte."""
     root = tmp_path_factory.mktemp("restart-fuzz")
     for name, end in (("base", "0.003"), ("whole", "0.0045")):
-        assert main(["run", str(SCENE), "--out", str(root / name), "--quiet",
-                     "--set", f"time.end={end}"]) == 0  # fmt: skip
+        assert (
+            main(
+                [
+                    "run",
+                    str(SCENE),
+                    "--out",
+                    str(root / name),
+                    "--quiet",
+                    "--set",
+                    f"time.end={end}",
+                ]
+            )
+            == 0
+        )
     return root / "base", root / "whole"
 
 
@@ -495,10 +522,10 @@ BAD_TABLES = [
     (b"t, F\n0, 1\n2, 2\n1, 3\n", {}, "line 4: t = 1.0 does not increase"),
     (b"t, F\n0, 1\n0, 2\n1, 3\n", {}, "line 3: t = 0.0 does not increase"),
     (b"t, F\n0, 1\n1, 2\n2, 3\n", {"interpolation": "cubic"}, "3 rows; interpolation"),
-    (b"t, F\n0, 1\n", {}, "1 rows; interpolation \"linear\" needs at least 2"),
+    (b"t, F\n0, 1\n", {}, '1 rows; interpolation "linear" needs at least 2'),
     (b"t, F\n0, \xff\n", {}, "is not UTF-8 text"),
     (b"t, F\n0, 1\n1, 2\n", {"column": "G"}, ".column: "),
-    (b"t, F\n0, 1\n1, 2\n", {"column": "t"}, "has no value column \"t\""),
+    (b"t, F\n0, 1\n1, 2\n", {"column": "t"}, 'has no value column "t"'),
     (b"t, s, F\n0, 0, 1\n0, 1, 1\n1, 0, 1\n", {}, "not a full grid"),
     (b"t, s, F\n0, 1, 1\n0, 0, 1\n1, 1, 1\n1, 0, 1\n", {}, "line 3: s = 0.0 does not increase"),
     (b"t, s, F\n0, 0, 1\n0, 1, 1\n1, 0, 1\n1, 2, 1\n", {}, "line 5: not a full grid"),
@@ -507,15 +534,16 @@ BAD_TABLES = [
     (b"t, F\n0, 1\n1e-3, 2\n", {}, "covers t in [0, 0.001] s, the scene needs [0, 0.06] s"),
     (b"t, F\n0, 1\n1, 2\n", {"sha256": "0" * 64}, ".sha256: "),
     (b"t, F\n0, 1\n1, 2\n", {"colum": "F"}, "colum: unknown key (did you mean"),
-    (b"t, F\n0, 1\n1, 2\n", {"interpolation": "cubik"}, "(did you mean \"cubic\"?)"),
+    (b"t, F\n0, 1\n1, 2\n", {"interpolation": "cubik"}, '(did you mean "cubic"?)'),
     (b"t, F\n0, 1\n1, 2\n", {"outside": "never"}, "outside: must be one of"),
     (b"t, F\n0, 1\n1, 2\n", {"column": ""}, "column: must be a non-empty string"),
     (b"t, F\n0, 1\n1, 2\n", {"table": 1}, "table: must be a non-empty string"),
 ]
 
 
-def _table_scene(tmp_path: Path, content: bytes | None, spec: dict, key: str = "loads.end.force",
-                 index: int = 1) -> list[str]:  # fmt: skip
+def _table_scene(
+    tmp_path: Path, content: bytes | None, spec: dict, key: str = "loads.end.force", index: int = 1
+) -> list[str]:
     """validate's argv for the paper's scene (in tmp_path) with a table component at
     ``key[index]``: ``content`` written to t.csv (None: the spec's own table)."""
     scene = tmp_path / "scene.toml"
@@ -564,10 +592,14 @@ def test_tables_that_are_not_regular_files_or_too_large_are_refused(tmp_path, ca
     (tmp_path / "link").symlink_to(tmp_path / "fifo")
     with open(tmp_path / "big.csv", "wb") as stream:
         stream.truncate(MAX_TABLE_BYTES + 1)
-    cases = [("missing.csv", "was not found"), ("dir", "is a folder, not a regular file"),
-             ("fifo", "is a FIFO, not a regular file"), ("link", "is a FIFO, not a regular file"),
-             ("/dev/zero", "is a character device, not a regular file"),
-             ("big.csv", "holds 16777217 bytes, more than the 16 MiB allowed")]
+    cases = [
+        ("missing.csv", "was not found"),
+        ("dir", "is a folder, not a regular file"),
+        ("fifo", "is a FIFO, not a regular file"),
+        ("link", "is a FIFO, not a regular file"),
+        ("/dev/zero", "is a character device, not a regular file"),
+        ("big.csv", "holds 16777217 bytes, more than the 16 MiB allowed"),
+    ]
     for name, words in cases:
         line = _refused(_table_scene(tmp_path, None, {"table": name}), capsys)
         assert line.startswith("loads.end.force[1].table: ") and words in line, line
@@ -582,12 +614,22 @@ def test_tables_where_they_do_not_belong_are_refused(tmp_path, capsys):
     cases = [
         (good, {}, "loads.gravity", 0, "loads.gravity[0]: must be a number or an expression"),
         (good, {}, "initial.velocity", 0, "initial.velocity[0]: must be a number or an"),
-        (good, {"interpolation": "previous"}, "supports.start_motion", 0,
-         'supports.start_motion[0].interpolation: "previous" is not allowed'),
+        (
+            good,
+            {"interpolation": "previous"},
+            "supports.start_motion",
+            0,
+            'supports.start_motion[0].interpolation: "previous" is not allowed',
+        ),
         (grid, {}, "supports.start_motion", 0, "supports.start_motion[0]: table"),
-        (grid, {}, "loads.force_density", 0,
-         "loads.force_density[0]: table 't.csv' column 'F' (linear) covers s in [0, 0.5] m"),
-    ]  # fmt: skip
+        (
+            grid,
+            {},
+            "loads.force_density",
+            0,
+            "loads.force_density[0]: table 't.csv' column 'F' (linear) covers s in [0, 0.5] m",
+        ),
+    ]
     for content, spec, key, index, words in cases:
         line = _refused(_table_scene(tmp_path, content, spec, key, index), capsys)
         assert line.startswith(words), line
@@ -602,8 +644,10 @@ def test_a_good_table_is_shown_by_validate(tmp_path, capsys):
     assert main(argv) == 0
     out = capsys.readouterr().out
     assert 'loads.end.force = ["0", {table = "' in out and '"}, "0"] [N]' in out
-    assert "interpolation = \"pchip\", outside = \"refuse\", sha256 = \"" in out
+    assert 'interpolation = "pchip", outside = "refuse", sha256 = "' in out
     assert "loads.end.force[1] [N]: table " in out and "2 rows, t in [0, 0.1] s" in out
+
+
 # --------------------------------------------------------------- the Python API's restart
 def _differing(a: dict, b: dict, prefix: str = "") -> set[str]:
     """The dotted leaf keys in which two scenes' dicts differ (a key on one side only too)."""
@@ -635,16 +679,22 @@ def _neighbours(key: str, value) -> list:
         return others or [value + "x", f"({value})*1", 1.0]
     if isinstance(value, list) and value:
         head = value[0]
-        changed = head + 1 if isinstance(head, int | float) and not isinstance(head, bool) else (
-            f"({head})*2" if isinstance(head, str) else head)  # fmt: skip
+        changed = (
+            head + 1
+            if isinstance(head, int | float) and not isinstance(head, bool)
+            else (f"({head})*2" if isinstance(head, str) else head)
+        )
         return [[changed, *value[1:]], value[:-1]]
     return []
 
 
 #: Values that a key takes only with others (a shape and its keys; an initial field that
 #: meets the clamped end): (key, value), and the overrides that go with them.
-SHAPED = [("initial.velocity", ["1e-3*s/L", 0, 0]),
-          ("initial.displacement", ["1e-4*(s/L)**2", 0, 0]), ("reference.shape", "arc")]
+SHAPED = [
+    ("initial.velocity", ["1e-3*s/L", 0, 0]),
+    ("initial.displacement", ["1e-4*(s/L)**2", 0, 0]),
+    ("reference.shape", "arc"),
+]
 SHAPED_WITH = {("reference.shape", "arc"): {"reference.radius": 10.0}}
 
 
@@ -676,21 +726,27 @@ def test_an_api_restart_refuses_every_scene_but_the_checkpoints(runs, tmp_path):
         extra += [v for k, v in SHAPED if k == key]
         for value in [*HOSTILE, *_neighbours(key, own), *extra]:
             try:
-                scene = scene_from_dict(with_value(later, key, value),
-                                        overrides=SHAPED_WITH.get((key, str(value)), ()))
+                scene = scene_from_dict(
+                    with_value(later, key, value), overrides=SHAPED_WITH.get((key, str(value)), ())
+                )
             except SceneError:
                 outcomes["invalid"] += 1
                 continue
-            fixed = {k for k in _differing(json.loads(json.dumps(scene.to_dict())), held)
-                     if not _may_change(k)}  # fmt: skip
+            fixed = {
+                k
+                for k in _differing(json.loads(json.dumps(scene.to_dict())), held)
+                if not _may_change(k)
+            }
             if not fixed and scene.time.end > checkpoint.time:
                 outcomes["would continue"] += 1
                 continue
             with pytest.raises(SceneError) as caught:
                 cf.run(scene, restart=checkpoint)
             named = str(caught.value).split(":", 1)[0]  # a key, or a key of a table named
-            assert any(named == k or named.startswith(k + ".") or k.startswith(named + ".")
-                       for k in fixed or {"time.end"}), (key, value, str(caught.value), fixed)
+            assert any(
+                named == k or named.startswith(k + ".") or k.startswith(named + ".")
+                for k in fixed or {"time.end"}
+            ), (key, value, str(caught.value), fixed)
             outcomes["refused"] += 1
             tables.add(key.split(".")[0])
     assert _files(base) == before
@@ -751,6 +807,8 @@ def test_damaged_run_folders_through_the_api(runs, tmp_path):
 
     outcomes = _restart_damaged_copies(runs, tmp_path, 2025, 20, restart)
     assert outcomes["refused"] >= 5 and outcomes["continued"] >= 1, outcomes
+
+
 # ----------------------------------------------------- run folders with links and special files
 #: Names in a run folder (files, folders, scratch names) that a case replaces.
 FOLDER_NAMES = [
@@ -825,8 +883,11 @@ def test_run_folders_with_links_and_special_files(runs, tmp_path, capsys):
         what = "; ".join(_plant(rng, folder, outside) for _ in range(rng.randint(1, 3)))
         before = _tree(folder)
         restart = i < 20
-        args = (["run", "--restart", str(folder), *RESTART] if restart else
-                ["run", str(SCENE), "--out", str(folder), "--set", "time.end=0.0003"])
+        args = (
+            ["run", "--restart", str(folder), *RESTART]
+            if restart
+            else ["run", str(SCENE), "--out", str(folder), "--set", "time.end=0.0003"]
+        )
         capsys.readouterr()
         with fails_if_hung(60, what):
             status = main([*args, "--quiet"])

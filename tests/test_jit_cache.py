@@ -371,8 +371,18 @@ def test_a_damaged_cache_costs_a_compile_not_a_run(tmp_path):
 
     env = {"XDG_CACHE_HOME": str(tmp_path / "xdg")}  # a private cache: never the shared one
     scene = str(ROOT / "scenes" / "cao_tucker_2008.toml")
-    args = ["-m", "cosserat_fem.cli", "run", scene, "--set", "time.end=0.0003",
-            "--set", "discretisation.elements=4", "--set", "output.xdmf=false"]  # fmt: skip
+    args = [
+        "-m",
+        "cosserat_fem.cli",
+        "run",
+        scene,
+        "--set",
+        "time.end=0.0003",
+        "--set",
+        "discretisation.elements=4",
+        "--set",
+        "output.xdmf=false",
+    ]
     first = run_command([*args, "--out", str(tmp_path / "a")], env=env, timeout=300)
     assert first.returncode == 0, first.stderr
     cache = tmp_path / "xdg" / "fenics"

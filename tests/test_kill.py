@@ -177,9 +177,7 @@ def read_probes(path: Path) -> np.ndarray:
 # Under mpirun the 1000 steps before the kill are latency-bound (a few MPI messages a step on
 # a 32-element rod): 17-60 s on two busy cores, so that case is in the long set; the serial
 # case holds the promise in make test.
-@pytest.mark.parametrize(
-    "ranks", [1, pytest.param(2, marks=[pytest.mark.mpi, pytest.mark.long])]
-)
+@pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=[pytest.mark.mpi, pytest.mark.long])])
 def test_sigkill_leaves_readable_outputs(tmp_path, ranks):
     out = tmp_path / "run"
     run_and_kill(out, ranks)

@@ -161,8 +161,10 @@ def shim(tmp_path_factory) -> Path:
     folder = tmp_path_factory.mktemp("shim")
     (folder / "shim.c").write_text(SHIM)
     library = folder / "shim.so"
-    subprocess.run([gcc, "-shared", "-fPIC", "-O2", "-o", str(library), str(folder / "shim.c"),
-                    "-ldl"], check=True)  # fmt: skip
+    subprocess.run(
+        [gcc, "-shared", "-fPIC", "-O2", "-o", str(library), str(folder / "shim.c"), "-ldl"],
+        check=True,
+    )
     return library
 
 
@@ -174,8 +176,9 @@ def run_child(shim: Path, out: Path, how: str, frame: int = -1, n: int = -1, spl
     script = f"SCENE = {SCENE!r}\nFIRST, LAST = {FIRST}, {LAST}\n" + CHILD
     args = [PYTHON, "-c", script, str(out), how, str(frame), str(n), str(int(split))]
     # Not cwd=ROOT: python -c puts the working folder first on sys.path, before PYTHONPATH.
-    return subprocess.run(args, cwd=out.parent, env=env, capture_output=True, text=True,
-                          timeout=300)  # fmt: skip
+    return subprocess.run(
+        args, cwd=out.parent, env=env, capture_output=True, text=True, timeout=300
+    )
 
 
 def crosses(call: list) -> bool:
@@ -211,8 +214,11 @@ def check_outputs(out: Path, frames: int) -> None:
 def test_sigkill_at_every_write_of_a_frame(shim, tmp_path, how):
     counted = run_child(shim, tmp_path / "counted", how)
     assert counted.returncode == 0, counted.stderr
-    listed = [json.loads(line[len("calls ") :]) for line in counted.stdout.splitlines()
-              if line.startswith("calls ")]  # fmt: skip
+    listed = [
+        json.loads(line[len("calls ") :])
+        for line in counted.stdout.splitlines()
+        if line.startswith("calls ")
+    ]
     calls = {item["frame"]: item["calls"] for item in listed}
     assert sorted(calls) == list(range(FIRST, LAST)), counted.stdout
     appended = []

@@ -51,8 +51,7 @@ STEP = 3e-5  # s, the scene's
 END = round(0.5 * PERIOD / STEP) * STEP
 #: A quick run of the paper's scene, Newton converged far below the differences measured
 #: (they reach 1e-10 m; the update test at 1e-12 of ‖U‖ leaves ~1e-16 m).
-QUICK = {"time.end": END, "output.xdmf": False, "output.checkpoint": False,
-         "solver.stol": 1e-12}  # fmt: skip
+QUICK = {"time.end": END, "output.xdmf": False, "output.checkpoint": False, "solver.stol": 1e-12}
 
 
 def paper_load(t, s):
@@ -87,8 +86,9 @@ def orders(errors: list[float]) -> np.ndarray:
 
 
 # ================================================================== interpolants (no DOLFINx)
-@pytest.mark.parametrize("kind, order", [("linear", 2), ("cubic", 4), ("pchip", 3),
-                                         ("previous", 1)])  # fmt: skip
+@pytest.mark.parametrize(
+    "kind, order", [("linear", 2), ("cubic", 4), ("pchip", 3), ("previous", 1)]
+)
 def test_interpolants_converge_at_their_orders(kind, order):
     """sup |f − I_h f| for f = exp(2t) on [0, 1] (f' and f'''' never vanish: no extremum,
     where PCHIP drops to order 2), h = 1/64 ... 1/512, on 20001 points: the interpolation
@@ -122,8 +122,11 @@ def test_interpolants_reproduce_their_polynomials():
     assert np.abs(pchip.evaluate(t=tt) - (3 * tt - 1)).max() < 1e-14
     step = table("t, F\n0, 1\n1, 5\n2, 7\n", {"interpolation": "previous"})
     assert [step.value(x) for x in (0.0, 0.5, 1.0, 1.999, 2.0)] == [1, 1, 5, 5, 7]
-    rows = ["t, s, F"] + [f"{a}, {b}, {(1 + 2 * a) * (b**3 - b)!r}"
-                          for a in (0.0, 0.5, 1.0) for b in np.linspace(0, 1, 6)]  # fmt: skip
+    rows = ["t, s, F"] + [
+        f"{a}, {b}, {(1 + 2 * a) * (b**3 - b)!r}"
+        for a in (0.0, 0.5, 1.0)
+        for b in np.linspace(0, 1, 6)
+    ]
     grid = table("\n".join(rows), {"s_interpolation": "cubic"})
     s = np.linspace(0.0, 1.0, 37)
     assert np.abs(grid.at(0.3, s) - 1.6 * (s**3 - s)).max() < 1e-14
@@ -152,8 +155,9 @@ def test_a_store_reads_each_file_once(tmp_path, monkeypatch):
     path.write_text("t, A, B\n0, 1, 2\n1, 3, 4\n")
     reads = []
     real = load_data.read_bytes
-    monkeypatch.setattr(load_data, "read_bytes",
-                        lambda p, k, c=None: reads.append(p) or real(p, k, c))
+    monkeypatch.setattr(
+        load_data, "read_bytes", lambda p, k, c=None: reads.append(p) or real(p, k, c)
+    )
     store = TableStore(tmp_path)
     assert store.read("f.csv", "a") is store.read(str(path), "b")
     TableStore(tmp_path).read("f.csv", "a")
@@ -171,8 +175,12 @@ def grid_run(tmp_path: Path, h: float, kind: str) -> np.ndarray:
     """The paper's scene with its load as a grid table of spacing h (cubic in s on 33 points:
     an s-error of ~1e-6 of the load, 1e-10 m in the response, below the differences held)."""
     path = write_grid(tmp_path / f"grid-{kind}-{h:.6g}.csv", h, END)
-    component = {"table": str(path), "column": "q", "interpolation": kind,
-                 "s_interpolation": "cubic"}  # fmt: skip
+    component = {
+        "table": str(path),
+        "column": "q",
+        "interpolation": kind,
+        "s_interpolation": "cubic",
+    }
     scene = cf.load(SCENE, {**QUICK, "loads.force_density": [component, component, 0]})
     return cf.run(scene).probes
 
@@ -192,15 +200,15 @@ def test_a_linear_table_of_the_paper_load_converges_at_order_two(tmp_path, expre
     assert orders(errors) == pytest.approx(2.0, abs=0.1)
 
 
-def test_a_cubic_table_of_the_paper_load_converges_at_least_at_order_four(
-    tmp_path, expression_run
-):
+def test_a_cubic_table_of_the_paper_load_converges_at_least_at_order_four(tmp_path, expression_run):
     """Module docstring: the spline's order 4 at least (measured 6.3 and 6.7 for the
     response); its difference at T/32 (measured 1.1e-10 m) far below the linear table's at
     the same spacing (5.8e-7 m)."""
     reference = expression_run[:, 1:3]
-    errors = [np.abs(grid_run(tmp_path, h, "cubic")[:, 1:3] - reference).max()
-              for h in (PERIOD / 8, PERIOD / 16, PERIOD / 32)]  # fmt: skip
+    errors = [
+        np.abs(grid_run(tmp_path, h, "cubic")[:, 1:3] - reference).max()
+        for h in (PERIOD / 8, PERIOD / 16, PERIOD / 32)
+    ]
     assert np.all(orders(errors) >= 4.0)
     assert errors[-1] < 1e-3 * (OMEGA * PERIOD / 32) ** 2 / 12 * np.abs(reference).max()
 
@@ -218,9 +226,13 @@ def test_a_callable_gives_the_expression_run(integrator):
 
     sets = {**QUICK, "time.integrator": integrator}
     runs = []
-    for loads in ({"loads.end.torque": [0, 0, "5*sin(3000*t)"]},
-                  {"loads.force_density": [paper_load, paper_load, 0],
-                   "loads.end.torque": [0, 0, lambda t: 5 * math.sin(3000 * t)]}):  # fmt: skip
+    for loads in (
+        {"loads.end.torque": [0, 0, "5*sin(3000*t)"]},
+        {
+            "loads.force_density": [paper_load, paper_load, 0],
+            "loads.end.torque": [0, 0, lambda t: 5 * math.sin(3000 * t)],
+        },
+    ):
         result = cf.run(cf.load(SCENE, {**sets, **loads}))
         monitor = EnergyMonitor(result.model)  # at the last state, the loads at other times
         runs.append((result.probes, np.array([monitor.power(t) for t in (0.0, 1e-3, END)])))
@@ -230,11 +242,14 @@ def test_a_callable_gives_the_expression_run(integrator):
     assert np.abs(reference[:, 6]).max() > 1e-9  # the end torque twisted the rod
 
 
-@pytest.mark.parametrize("function, what", [
-    (lambda t: 1 / (t - t), "raised ZeroDivisionError"),
-    (lambda t: math.nan if t > 2e-4 else 0.0, "returned nan"),
-    (lambda t: "x", "not a number"),
-])  # fmt: skip
+@pytest.mark.parametrize(
+    "function, what",
+    [
+        (lambda t: 1 / (t - t), "raised ZeroDivisionError"),
+        (lambda t: math.nan if t > 2e-4 else 0.0, "returned nan"),
+        (lambda t: "x", "not a number"),
+    ],
+)
 def test_a_callable_that_fails_is_refused_naming_the_key(function, what):
     """One line naming the component and the time; exit 2 (SceneError)."""
     scene = cf.load(SCENE, {**QUICK, "loads.end.force": [0, function, 0]})
@@ -261,8 +276,11 @@ def test_a_motion_from_a_table_follows_the_expression(tmp_path):
     differences = []
     for points in (64, 128):
         path = tmp_path / f"base{points}.csv"
-        path.write_text(sampled(lambda a: X * math.sin(Omega * a),
-                                np.arange(0, 10e-3, 2 * math.pi / Omega / points)))  # fmt: skip
+        path.write_text(
+            sampled(
+                lambda a: X * math.sin(Omega * a), np.arange(0, 10e-3, 2 * math.pi / Omega / points)
+            )
+        )
         motion = [{"table": str(path), "column": "F", "interpolation": "cubic"}, 0, 0]
         sets = {**quick, "supports.start_motion": motion}
         with pytest.raises(SceneError, match=r"^initial\.velocity\[0\]: must equal the rate "):
@@ -281,9 +299,15 @@ def beams():
     return (*bending_planes(scene), rod_constants(scene))
 
 
-STATIC = ["loads.force_density=[0,0,0]", "discretisation.elements=4", "discretisation.degree=3",
-          "solver.stol=1e-8", "time.end=0.002", "time.step=1e-3",
-          "output.xdmf_interval=0"]  # fmt: skip
+STATIC = [
+    "loads.force_density=[0,0,0]",
+    "discretisation.elements=4",
+    "discretisation.degree=3",
+    "solver.stol=1e-8",
+    "time.end=0.002",
+    "time.step=1e-3",
+    "output.xdmf_interval=0",
+]
 
 
 def tip(overrides: list[str], directory: Path) -> np.ndarray:
@@ -342,9 +366,19 @@ def test_a_restart_with_another_table_content_is_refused(tmp_path):
     path.write_text(sampled(lambda a: 100 * math.sin(3000 * a), np.linspace(0, 2e-3, 41)))
     force = '[0, {table = "tip.csv", column = "F", interpolation = "cubic"}, 0]'
     out = tmp_path / "run"
-    status, _ = cli("run", str(tmp_path / "scene.toml"), "--out", str(out), "--quiet",
-                    "--set", f"loads.end.force={force}", "--set", "time.end=6e-4",
-                    "--set", "output.xdmf=false")  # fmt: skip
+    status, _ = cli(
+        "run",
+        str(tmp_path / "scene.toml"),
+        "--out",
+        str(out),
+        "--quiet",
+        "--set",
+        f"loads.end.force={force}",
+        "--set",
+        "time.end=6e-4",
+        "--set",
+        "output.xdmf=false",
+    )
     assert status == 0
     summary = json.loads((out / "summary.json").read_text())
     held = summary["scene"]["loads"]["end"]["force"][1]
@@ -362,17 +396,30 @@ def test_a_run_with_a_callable_load_cannot_be_restarted(tmp_path):
     (a checkpoint cannot say that it is the run's), before anything is touched."""
     from cosserat_fem.io.checkpoint import load_checkpoint
 
-    scene = cf.load(SCENE, {**QUICK, "time.end": 6e-4, "output.checkpoint": True,
-                            "loads.end.force": [0, lambda t: 10.0, 0]})  # fmt: skip
+    scene = cf.load(
+        SCENE,
+        {
+            **QUICK,
+            "time.end": 6e-4,
+            "output.checkpoint": True,
+            "loads.end.force": [0, lambda t: 10.0, 0],
+        },
+    )
     cf.run(scene, tmp_path / "run")
     summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["scene"]["loads"]["end"]["force"][1]["callable"].endswith("<lambda>")
     probes = (tmp_path / "run" / "probes.csv").read_bytes()
-    with pytest.raises(SceneError, match=r"^loads\.end\.force\[1\]: the load was the Python "
-                                         r"callable .* cannot be restarted"):  # fmt: skip
+    with pytest.raises(
+        SceneError,
+        match=r"^loads\.end\.force\[1\]: the load was the Python "
+        r"callable .* cannot be restarted",
+    ):
         cf.resume(tmp_path / "run", {"time.end": 1.2e-3})
-    with pytest.raises(SceneError, match=r"^loads\.end\.force\[1\]: a run with a callable "
-                                         r"load .* cannot be restarted"):  # fmt: skip
+    with pytest.raises(
+        SceneError,
+        match=r"^loads\.end\.force\[1\]: a run with a callable "
+        r"load .* cannot be restarted",
+    ):
         cf.run(scene, restart=load_checkpoint(tmp_path / "run"))
     assert (tmp_path / "run" / "probes.csv").read_bytes() == probes
 
@@ -403,15 +450,16 @@ def test_serial_equals_mpirun_with_table_and_callable_loads(tmp_path):
     distributed LU (MUMPS against PETSc's LU; held at 1e-10 of the largest value, as the
     other serial-against-MPI tests)."""
     write_grid(tmp_path / "grid.csv", PERIOD / 16, END)
-    (tmp_path / "tip.csv").write_text(sampled(lambda a: 50 * math.sin(3000 * a),
-                                              np.linspace(0, 4e-3, 81)))  # fmt: skip
+    (tmp_path / "tip.csv").write_text(
+        sampled(lambda a: 50 * math.sin(3000 * a), np.linspace(0, 4e-3, 81))
+    )
     script = tmp_path / "run.py"
     script.write_text(f"""
 import math, sys, numpy as np
 import cosserat_fem as cf
 from mpi4py import MPI
-grid = {{"table": "{tmp_path / 'grid.csv'}", "column": "q", "interpolation": "cubic"}}
-tip = {{"table": "{tmp_path / 'tip.csv'}", "column": "F", "interpolation": "pchip"}}
+grid = {{"table": "{tmp_path / "grid.csv"}", "column": "q", "interpolation": "cubic"}}
+tip = {{"table": "{tmp_path / "tip.csv"}", "column": "F", "interpolation": "pchip"}}
 scene = cf.load("{SCENE}", {{**{QUICK!r}, "loads.force_density": [grid, grid, 0],
                  "loads.end.force": [0, tip, 0],
                  "loads.end.torque": [0, 0, lambda t: 5 * math.sin(2000 * t)]}})
@@ -455,8 +503,9 @@ for f in (lambda t: float(rank), raising):
 """)
     done = run_command([str(script)], ranks=2, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
-    lines = sorted(line for rank in (0, 1)
-                   for line in (tmp_path / f"rank{rank}.txt").read_text().splitlines())  # fmt: skip
+    lines = sorted(
+        line for rank in (0, 1) for line in (tmp_path / f"rank{rank}.txt").read_text().splitlines()
+    )
     differ = "loads.end.force[1]: the callable gave 0.0 on rank 0 and 1.0 on rank 1"
     assert [line.split(": ", 1)[1].startswith(differ) for line in lines].count(True) == 2, lines
     assert len(lines) == 4, lines

@@ -67,9 +67,12 @@ def test_temporal_order(integrator, order, steps):
 
 @pytest.mark.parametrize(
     ("integrator", "order", "steps"),
-    [("bdf2", 2, 160), ("generalized-alpha", 2, 80),
-     pytest.param("sdirk3", 3, 160, marks=pytest.mark.long)],
-)  # fmt: skip
+    [
+        ("bdf2", 2, 160),
+        ("generalized-alpha", 2, 80),
+        pytest.param("sdirk3", 3, 160, marks=pytest.mark.long),
+    ],
+)
 def test_temporal_order_through_the_chart_singularity(integrator, order, steps):
     """The ``tumbling`` family: the rod rolled up about e1 to θ(ℓ) = 3.3 rad and back, which
     passes θ = π/2 where the paper's chart is singular; the chart moves three times

@@ -112,15 +112,14 @@ VARIANTS = {
     # a scene per rank (SCENE=$SCENE_$RANK): before, validate passed on both
     "scene": (["validate", "{tmp}/r{rank}/scene.toml"], "SCENE"),
     "set": (["validate", str(PAPER), "--set", "time.end=0.00{rank}6"], "--set"),
-    "out": (["run", str(PAPER), "--out", "{tmp}/out{rank}", "--set", "time.end=0.0006"],
-            "--out"),
+    "out": (["run", str(PAPER), "--out", "{tmp}/out{rank}", "--set", "time.end=0.0006"], "--out"),
     "sweep": (["sweep", "{tmp}/r{rank}/sweep.toml", "--out", "{tmp}/out"], "SWEEP"),
-}  # fmt: skip
+}
 
 
 @pytest.mark.parametrize(
-    "variant", ["scene", *(pytest.param(v, marks=pytest.mark.long) for v in VARIANTS if
-                           v != "scene")],  # fmt: skip
+    "variant",
+    ["scene", *(pytest.param(v, marks=pytest.mark.long) for v in VARIANTS if v != "scene")],
 )
 def test_ranks_given_different_command_lines_are_refused(tmp_path, variant):
     """A scene file, a --set, an --out or a sweep file that differs between the ranks: exit 2
@@ -128,14 +127,21 @@ def test_ranks_given_different_command_lines_are_refused(tmp_path, variant):
     rank read its own; with other loads a blend and exit 0, with another time.end a hang)."""
     longer = scene_text(**{**SHORT, "end = 0.06": "end = 0.0012"})
     per_rank_files(tmp_path, "scene.toml", [scene_text(**SHORT), longer])
-    per_rank_files(tmp_path, "sweep.toml", [f'[sweep]\nscene = "{PAPER}"\n[sweep.vary]\n'
-                                            f'"time.step" = [{s}]\n' for s in ("1e-5", "2e-5")])
+    per_rank_files(
+        tmp_path,
+        "sweep.toml",
+        [
+            f'[sweep]\nscene = "{PAPER}"\n[sweep.vary]\n"time.step" = [{s}]\n'
+            for s in ("1e-5", "2e-5")
+        ],
+    )
     argv, name = VARIANTS[variant]
     proc = launch([a.replace("{tmp}", str(tmp_path)) for a in argv])
     assert proc.returncode == 2, proc.stderr
     lines = said(proc.stderr)
-    assert len(lines) == 1 and lines[0].startswith(f"cosserat-fem: error: {name}: the MPI ranks "
-                                                   "were given different command lines (rank 0: ")
+    assert len(lines) == 1 and lines[0].startswith(
+        f"cosserat-fem: error: {name}: the MPI ranks were given different command lines (rank 0: "
+    )
     assert "rank 1: " in lines[0]
     assert not any(p.name.startswith("out") for p in tmp_path.iterdir())
 
@@ -147,7 +153,7 @@ def test_ranks_given_different_command_lines_are_refused(tmp_path, variant):
         ("time.end", {"end = 0.0006": "end = 0.0012"}),  # before: a hang
         ("loads", {'    "2e3*sin': '    "4e3*sin(pi*s/L)*sin(8*omega0*t)",'}),  # x: a blend
     ],
-)  # fmt: skip
+)
 def test_ranks_that_would_read_different_scenes_all_run_rank_0s(tmp_path, what, rank1):
     """One name, other bytes on rank 1 (each rank in a folder of its own, as with a copy of the
     scene per node or a file edited as the job starts): both ranks run rank 0's scene. Its
@@ -162,16 +168,29 @@ def test_ranks_that_would_read_different_scenes_all_run_rank_0s(tmp_path, what, 
     texts[1] = "\n".join(lines) + "\n"
     assert texts[1] != texts[0]
     per_rank_files(tmp_path, "scene.toml", texts)
-    proc = launch(["run", "scene.toml", "--out", str(tmp_path / "out"), "--quiet"],
-                  str(tmp_path / "r{rank}"))  # fmt: skip
+    proc = launch(
+        ["run", "scene.toml", "--out", str(tmp_path / "out"), "--quiet"], str(tmp_path / "r{rank}")
+    )
     assert proc.returncode == 0, proc.stderr
     summary = json.loads((tmp_path / "out" / "summary.json").read_text(encoding="utf-8"))
     assert summary["scene_file_sha256"] == sha256(tmp_path / "r0" / "scene.toml")
-    alone = run_command(["-m", "cosserat_fem.cli", "run", str(tmp_path / "r0" / "scene.toml"),
-                         "--out", str(tmp_path / "alone"), "--quiet"], 2, timeout=HUNG)
+    alone = run_command(
+        [
+            "-m",
+            "cosserat_fem.cli",
+            "run",
+            str(tmp_path / "r0" / "scene.toml"),
+            "--out",
+            str(tmp_path / "alone"),
+            "--quiet",
+        ],
+        2,
+        timeout=HUNG,
+    )
     assert alone.returncode == 0, alone.stderr
     assert (tmp_path / "out" / "probes.csv").read_bytes() == (
-        tmp_path / "alone" / "probes.csv").read_bytes()
+        tmp_path / "alone" / "probes.csv"
+    ).read_bytes()
 
 
 @pytest.mark.long
@@ -180,16 +199,22 @@ def test_ranks_that_would_read_different_sweeps_all_run_rank_0s(tmp_path, which)
     """The sweep file, or its base scene (named relative to it), differs on rank 1 under one
     name: the table holds rank 0's sweep only, its members' values and their runs of rank
     0's base scene (before: rows from two sweeps, members run on scenes that differ by rank)."""
-    steps = {"sweep file": (["1e-5", "2e-5"], ["3e-5", "1.5e-5"]),
-             "base scene": (["1e-5", "2e-5"], ["1e-5", "2e-5"])}[which]  # fmt: skip
-    sweeps = [f'[sweep]\nscene = "scene.toml"\nkeep = "probes"\n[sweep.vary]\n'
-              f'"time.step" = [{", ".join(s)}]\n' for s in steps]  # fmt: skip
+    steps = {
+        "sweep file": (["1e-5", "2e-5"], ["3e-5", "1.5e-5"]),
+        "base scene": (["1e-5", "2e-5"], ["1e-5", "2e-5"]),
+    }[which]
+    sweeps = [
+        f'[sweep]\nscene = "scene.toml"\nkeep = "probes"\n[sweep.vary]\n'
+        f'"time.step" = [{", ".join(s)}]\n'
+        for s in steps
+    ]
     ends = ["end = 0.0006", "end = 0.0012" if which == "base scene" else "end = 0.0006"]
     per_rank_files(tmp_path, "sweep.toml", sweeps)
-    per_rank_files(tmp_path, "scene.toml", [scene_text(**{**SHORT, "end = 0.06": e})
-                                            for e in ends])  # fmt: skip
-    proc = launch(["sweep", "sweep.toml", "--out", str(tmp_path / "out"), "--quiet"],
-                  str(tmp_path / "r{rank}"))  # fmt: skip
+    per_rank_files(tmp_path, "scene.toml", [scene_text(**{**SHORT, "end = 0.06": e}) for e in ends])
+    proc = launch(
+        ["sweep", "sweep.toml", "--out", str(tmp_path / "out"), "--quiet"],
+        str(tmp_path / "r{rank}"),
+    )
     assert proc.returncode == 0, proc.stderr
     rows = read_table(tmp_path / "out" / "sweep.csv")
     assert [json.loads(r["time.step"]) for r in rows] == [1e-5, 2e-5]
@@ -205,15 +230,18 @@ def sweep_file(folder: Path, values: str, **sweep) -> Path:
     """A sweep of the paper's scene (0.6 ms, no XDMF) over time.step ``values``."""
     head = "".join(f"{k} = {json.dumps(v)}\n" for k, v in sweep.items())
     path = folder / "sweep.toml"
-    path.write_text(f'[sweep]\nscene = "{PAPER}"\n{head}[sweep.set]\n"time.end" = 0.0006\n'
-                    f'"output.xdmf" = false\n[sweep.vary]\n"time.step" = [{values}]\n',
-                    encoding="utf-8")  # fmt: skip
+    path.write_text(
+        f'[sweep]\nscene = "{PAPER}"\n{head}[sweep.set]\n"time.end" = 0.0006\n'
+        f'"output.xdmf" = false\n[sweep.vary]\n"time.step" = [{values}]\n',
+        encoding="utf-8",
+    )
     return path
 
 
 def sweep_under_mpi(path: Path, out: Path):
-    proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)], 2,
-                       timeout=HUNG)  # fmt: skip
+    proc = run_command(
+        ["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)], 2, timeout=HUNG
+    )
     assert proc.returncode == 0, proc.stderr
     return proc
 
@@ -265,8 +293,14 @@ def test_a_frequency_response_of_one_chain_on_two_groups(tmp_path):
     sweep_under_mpi(path, out)
     assert strip(out / "sweep.csv") == strip(tmp_path / "n1" / "sweep.csv")
     for part in (out / "table").glob("group-*.csv"):  # the second member's row removed
-        part.write_text("".join(line for line in part.read_text().splitlines(keepends=True)
-                                if not line.startswith("1,")), encoding="utf-8")  # fmt: skip
+        part.write_text(
+            "".join(
+                line
+                for line in part.read_text().splitlines(keepends=True)
+                if not line.startswith("1,")
+            ),
+            encoding="utf-8",
+        )
     (out / "sweep.csv").unlink()
     assert "ran 1, skipped 1" in sweep_under_mpi(path, out).stdout
     assert strip(out / "sweep.csv") == strip(tmp_path / "n1" / "sweep.csv")
@@ -283,9 +317,11 @@ def test_a_group_that_cannot_write_its_table_part_ends_the_sweep_on_every_rank(t
     out = tmp_path / "out"
     proc = launch(["sweep", str(path), "--out", str(out)], env={"FSIZE_RANK": "1"})
     assert proc.returncode == 4, proc.stderr
-    assert said(proc.stderr) == [f"cosserat-fem: error: sweep: cannot write "
-                                 f"{str(out / 'table' / 'group-1.csv')!r} ([Errno 27] File too "
-                                 "large)"]  # fmt: skip
+    assert said(proc.stderr) == [
+        f"cosserat-fem: error: sweep: cannot write "
+        f"{str(out / 'table' / 'group-1.csv')!r} ([Errno 27] File too "
+        "large)"
+    ]
     rows = read_table(out / "table" / "group-0.csv")
     assert sorted(r["member"] for r in rows) == ["0", "1", "2"]
 
@@ -314,8 +350,14 @@ def interrupted(tmp_path: Path, argv: list[str], ready, ranks: tuple[int, ...]):
     """Start ``cosserat-fem argv`` under mpirun -n 2, wait until ``ready()``, send SIGINT to
     ``ranks``; (the job's exit status, its stderr)."""
     cmd = ["mpirun", "-n", "2", PYTHON, "-m", "cosserat_fem.cli", *argv]
-    job = subprocess.Popen(cmd, cwd=ROOT, env=subprocess_env(), stdout=subprocess.DEVNULL,
-                           stderr=subprocess.PIPE, text=True)  # fmt: skip
+    job = subprocess.Popen(
+        cmd,
+        cwd=ROOT,
+        env=subprocess_env(),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         deadline = time.monotonic() + HUNG
         pids = ranks_of(job, 2, deadline)
@@ -347,10 +389,18 @@ def test_an_interrupt_on_one_rank_ends_the_run_on_every_rank(tmp_path, ranks):
     stops at the same step, exit 130, summary.json "interrupted", probes.csv whole lines
     up to it, not aborted (before: rank 1 left, rank 0 waited for ever)."""
     out = tmp_path / "out"
-    argv = ["run", str(PAPER), "--out", str(out), "--quiet", "--set", "time.end=0.3",
-            "--set", "output.xdmf=false"]  # fmt: skip
-    status, err = interrupted(tmp_path, argv, lambda: probe_rows(out / "probes.csv") > 20,
-                                    ranks)  # fmt: skip
+    argv = [
+        "run",
+        str(PAPER),
+        "--out",
+        str(out),
+        "--quiet",
+        "--set",
+        "time.end=0.3",
+        "--set",
+        "output.xdmf=false",
+    ]
+    status, err = interrupted(tmp_path, argv, lambda: probe_rows(out / "probes.csv") > 20, ranks)
     assert status == 130 and "MPI_ABORT" not in err, err
     summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
     assert summary["status"] == "interrupted"
@@ -371,8 +421,7 @@ def test_an_interrupt_on_one_rank_of_a_sweep_ends_the_job(tmp_path):
     def started() -> bool:
         return sum(probe_rows(p) for p in parts.glob("group-*.csv")) >= 4  # headers + 2 rows
 
-    status, err = interrupted(tmp_path, ["sweep", str(path), "--out", str(out)], started,
-                                    (1,))  # fmt: skip
+    status, err = interrupted(tmp_path, ["sweep", str(path), "--out", str(out)], started, (1,))
     assert status != 0, err
     sweep_under_mpi(path, out)
     api.sweep(api.load_sweep(path), tmp_path / "whole")

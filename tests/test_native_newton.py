@@ -38,8 +38,11 @@ IN_3D = "discretisation.planar=off"
 CASES = {
     "paper": ("cao_tucker_2008", 60, []),
     "paper-bdf2": ("cao_tucker_2008", 60, ["time.integrator=bdf2", "time.step=1e-5"]),
-    "paper-sdirk4-full": ("cao_tucker_2008", 30, ["time.integrator=sdirk4",
-                                                  "solver.jacobian=full"]),
+    "paper-sdirk4-full": (
+        "cao_tucker_2008",
+        30,
+        ["time.integrator=sdirk4", "solver.jacobian=full"],
+    ),
     "paper-adaptive": ("cao_tucker_2008", 60, ["time.adaptive=true"]),
     "paper-sdirk4": ("cao_tucker_2008", 60, ["time.integrator=sdirk4"]),
     "paper-lagged": ("cao_tucker_2008", 60, ["solver.jacobian=lagged", "solver.lag=3"]),
@@ -51,7 +54,9 @@ CASES = {
     "pendulum-fork": ("pendulum", 20, []),
     "flying-spaghetti": ("flying_spaghetti", 20, []),
     "arc-at-rest": ("bathe_bolourchi_bend", 10, ["loads.end.force=[0,0,0]"]),
-}  # fmt: skip
+}
+
+
 def _run(name: str, steps: int, extra: list[str], loop: str):
     path = ROOT / "scenes" / f"{name}.toml"
     scene = api.load(path)
@@ -69,8 +74,14 @@ def test_the_c_loop_gives_the_python_loops_iterates_bit_for_bit(case):
     assert native.summary["newton"]["loop"] == "c"
     assert python.summary["status"] == native.summary["status"] == "completed"
     assert np.array_equal(python.probes, native.probes)
-    for key in ("solves", "iterations", "residual_assemblies", "jacobian_assemblies", "retries",
-                "max_iterations_in_a_solve"):  # fmt: skip
+    for key in (
+        "solves",
+        "iterations",
+        "residual_assemblies",
+        "jacobian_assemblies",
+        "retries",
+        "max_iterations_in_a_solve",
+    ):
         assert python.summary["newton"][key] == native.summary["newton"][key], key
     if case == "whip-3d-chart":
         assert native.summary["chart_resets"] >= 1  # the form changed in the run
@@ -87,15 +98,19 @@ def _data_loads(folder) -> dict:
     omega = 8 * 207.0236
     rows = ["t, s, q"] + [
         f"{i * 1e-4!r}, {s!r}, {2e3 * math.sin(math.pi * s) * math.sin(omega * i * 1e-4)!r}"
-        for i in range(40) for s in np.linspace(0.0, 1.0, 9)
-    ]  # fmt: skip
+        for i in range(40)
+        for s in np.linspace(0.0, 1.0, 9)
+    ]
     (folder / "grid.csv").write_text("\n".join(rows) + "\n")
     tip = ["t, F"] + [f"{i * 1e-4!r}, {20 * math.sin(3000 * i * 1e-4)!r}" for i in range(40)]
     (folder / "tip.csv").write_text("\n".join(tip) + "\n")
     grid = {"table": str(folder / "grid.csv"), "column": "q", "s_interpolation": "cubic"}
     force = {"table": str(folder / "tip.csv"), "column": "F", "interpolation": "cubic"}
-    return {"loads.force_density": [grid, grid, 0], "loads.end.force": [0, force, 0],
-            "loads.end.torque": [0, 0, lambda t: 5.0 * math.sin(2000.0 * t)]}  # fmt: skip
+    return {
+        "loads.force_density": [grid, grid, 0],
+        "loads.end.force": [0, force, 0],
+        "loads.end.torque": [0, 0, lambda t: 5.0 * math.sin(2000.0 * t)],
+    }
 
 
 @pytest.mark.parametrize("extra", [[], ["time.integrator=sdirk4"], ["time.adaptive=true"]])

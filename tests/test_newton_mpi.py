@@ -176,11 +176,21 @@ def _build_run(tmp_path, broken: bool) -> tuple[list[dict], list[str]]:
     script = tmp_path / "build.py"
     script.write_text(_BUILD_SCRIPT)
     cache, prefix = tmp_path / "cache", tmp_path / "rank"
-    run = ["run", str(ROOT / "scenes" / "cao_tucker_2008.toml"), "--out", str(tmp_path / "out"),
-           "--set", "discretisation.elements=4", "--set", "time.end=0.0003",
-           "--set", "output.xdmf=false"]  # fmt: skip
-    done = run_command([str(script), str(cache), str(int(broken)), str(prefix), *run], ranks=2,
-                       timeout=300)  # fmt: skip
+    run = [
+        "run",
+        str(ROOT / "scenes" / "cao_tucker_2008.toml"),
+        "--out",
+        str(tmp_path / "out"),
+        "--set",
+        "discretisation.elements=4",
+        "--set",
+        "time.end=0.0003",
+        "--set",
+        "output.xdmf=false",
+    ]
+    done = run_command(
+        [str(script), str(cache), str(int(broken)), str(prefix), *run], ranks=2, timeout=300
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     records = [json.loads((tmp_path / f"rank{rank}.json").read_text()) for rank in (0, 1)]
     return records, said(done.stderr)

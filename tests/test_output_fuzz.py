@@ -822,9 +822,7 @@ def _consistency(run, series) -> list[str]:
     problems = []
     if run.probes is not None:
         p = run.probes
-        if not (
-            isinstance(p, np.ndarray) and p.ndim == 2 and p.shape[1] == len(run.probe_columns)
-        ):
+        if not (isinstance(p, np.ndarray) and p.ndim == 2 and p.shape[1] == len(run.probe_columns)):
             problems.append(f"probes of shape {getattr(p, 'shape', None)}")
         elif not np.isfinite(p).all():
             problems.append("non-finite probes")
@@ -1126,8 +1124,11 @@ def test_the_readers_size_limits_are_where_the_docs_say(report):
     zeros, which is another reason); likewise a probes.csv line and a dataset's values."""
     results, _ = report
     cases = {r["name"]: r for r in results if r["category"] == "limits"}
-    for name, limit in (("probes.csv", 1 << 30), ("solution.xdmf", 128 << 20),
-                        ("summary.json", 16 << 20)):  # fmt: skip
+    for name, limit in (
+        ("probes.csv", 1 << 30),
+        ("solution.xdmf", 128 << 20),
+        ("summary.json", 16 << 20),
+    ):
         at, over = cases[f"{name}: {limit} bytes"], cases[f"{name}: {limit + 1} bytes"]
         assert over["read"] == "refused", over
         assert f"{limit + 1} bytes, more than the {limit >> 20} MiB" in over["message"], over

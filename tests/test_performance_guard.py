@@ -115,8 +115,10 @@ def _package_calls_per_step(overrides: list[str]) -> dict[int, float]:
 
         def count(self, frame, event, arg):
             code = frame.f_code
-            if event == "call" and code.co_filename.startswith(package) and (
-                not code.co_name.startswith("<")
+            if (
+                event == "call"
+                and code.co_filename.startswith(package)
+                and (not code.co_name.startswith("<"))
             ):
                 self.calls += 1
 

@@ -109,9 +109,10 @@ def test_out_of_plane_scenes_are_not_reduced(tmp_path):
     assert load_scene(PAPER).plane() is None  # f1 and f2 ≠ 0
     torque = load_scene(PAPER, ["loads.force_density=[0, 0, 0]", "loads.end.torque=[0, 0, 5]"])
     assert torque.plane() is None  # a twisting end torque
-    assert load_scene(
-        PAPER, ["loads.force_density=[1, 0, 0]", "loads.end.torque=[0, 5, 0]"]
-    ).plane() == "x-z"
+    assert (
+        load_scene(PAPER, ["loads.force_density=[1, 0, 0]", "loads.end.torque=[0, 5, 0]"]).plane()
+        == "x-z"
+    )
     in_yz = ["loads.force_density=[0, 1, 0]", "loads.end.torque=[5, 0, 0]"]
     assert load_scene(PAPER, in_yz).plane() == "y-z"
     assert load_scene(PAPER, [*in_yz, "loads.gravity=[-9.81, 0, 0]"]).plane() is None

@@ -67,10 +67,10 @@ def sample(shape, sigmas: np.ndarray, length: float) -> np.ndarray:
     points = np.zeros((len(sigmas), 3))
     points[:, 0] = sigmas
     tree = geometry.BoundingBoxTree(msh, 1)
-    cells = geometry.compute_colliding_cells(msh, geometry.compute_collisions(tree, points),
-                                             points)  # fmt: skip
-    values = shape.eval(points, np.array([cells.links(i)[0] for i in range(len(points))],
-                                         dtype=np.int32))  # fmt: skip
+    cells = geometry.compute_colliding_cells(msh, geometry.compute_collisions(tree, points), points)
+    values = shape.eval(
+        points, np.array([cells.links(i)[0] for i in range(len(points))], dtype=np.int32)
+    )
     values[:, :3] *= length
     return values
 
@@ -115,12 +115,16 @@ def test_snapshots_of_known_decomposition_are_recovered_to_round_off():
     np.testing.assert_allclose(found.mean, mean, rtol=0, atol=1e-12)
     for k in range(r):
         sign = np.sign(found.inner(found.shapes[k], shapes[k]))
-        np.testing.assert_allclose(found.shapes[k], sign * shapes[k], rtol=0,
-                                   atol=1e-9 * np.abs(shapes[k]).max())  # fmt: skip
-        np.testing.assert_allclose(found.coefficients[:, k], sign * coefficients[:, k], rtol=0,
-                                   atol=1e-10 * np.abs(coefficients[:, k]).max())  # fmt: skip
-        np.testing.assert_allclose(found.inner(found.shapes[k], found.shapes[k]), 1.0,
-                                   rtol=1e-12)  # fmt: skip
+        np.testing.assert_allclose(
+            found.shapes[k], sign * shapes[k], rtol=0, atol=1e-9 * np.abs(shapes[k]).max()
+        )
+        np.testing.assert_allclose(
+            found.coefficients[:, k],
+            sign * coefficients[:, k],
+            rtol=0,
+            atol=1e-10 * np.abs(coefficients[:, k]).max(),
+        )
+        np.testing.assert_allclose(found.inner(found.shapes[k], found.shapes[k]), 1.0, rtol=1e-12)
         flat = found.shapes[k].ravel()
         assert flat[np.argmax(np.abs(flat))] > 0  # the sign convention
     # the coefficients' mean squares are the energies; the displacement weighting of the
@@ -146,8 +150,7 @@ def test_modes_do_not_depend_on_the_spacing_of_the_stations():
 
     def snapshots(sigma):
         s = length * sigma
-        f = np.array([np.sqrt(2 / length) * np.sin((k - 0.5) * np.pi * s / length)
-                      for k in (1, 2)])  # fmt: skip
+        f = np.array([np.sqrt(2 / length) * np.sin((k - 0.5) * np.pi * s / length) for k in (1, 2)])
         c = np.array([np.cos(2 * np.pi * times), np.sin(6 * np.pi * times)])
         values = np.zeros((times.size, s.size, 3))
         values[:, :, 0] = np.einsum("k,kt,kn->tn", amplitudes, c, f)
@@ -298,15 +301,19 @@ def test_linear_modes_are_orthogonal_in_the_mass_product_only(vibration):
         found = cf.pod(result, STATIONS, modes=1, weighting=weighting)
         phi = [shape[:, : len(found.components)] for shape in shapes]
         cosines[weighting] = found.inner(phi[0], phi[1]) / math.sqrt(
-            found.inner(phi[0], phi[0]) * found.inner(phi[1], phi[1]))
+            found.inner(phi[0], phi[0]) * found.inner(phi[1], phi[1])
+        )
     kinetic = found.weights
     h, beta2 = STATIONS[1] - STATIONS[0], 4.694
     allowed = 2 * h**2 * beta2**2 / 12
     assert abs(cosines["kinetic"]) <= allowed
     q = found.quadrature
     x1, x2 = shapes[0][:, 0], shapes[1][:, 0]
-    rotary = -(kinetic[4] / kinetic[0]) * np.sum(q * shapes[0][:, 4] * shapes[1][:, 4]) / (
-        math.sqrt(np.sum(q * x1**2) * np.sum(q * x2**2)))
+    rotary = (
+        -(kinetic[4] / kinetic[0])
+        * np.sum(q * shapes[0][:, 4] * shapes[1][:, 4])
+        / (math.sqrt(np.sum(q * x1**2) * np.sum(q * x2**2)))
+    )
     assert abs(cosines["displacement"] - rotary) <= allowed
 
 
@@ -348,8 +355,12 @@ def test_pod_energies_of_a_free_vibration_are_the_modal_amplitudes(vibration):
 
 
 #: A free vibration from an initial velocity (no modes needed), 100 steps: for mpirun.
-KICKED = {**FREE, "initial.velocity": ["0.3*s*s/(L*L)", "-0.2*s/L", 0], "time.end": 0.003,
-          "time.step": 3e-5}  # fmt: skip
+KICKED = {
+    **FREE,
+    "initial.velocity": ["0.3*s*s/(L*L)", "-0.2*s/L", 0],
+    "time.end": 0.003,
+    "time.step": 3e-5,
+}
 MPI_SCRIPT = """
 import json, sys
 import numpy as np
@@ -404,8 +415,10 @@ def test_pod_of_a_run_folder_writes_csv_xdmf_and_png(run_folder, tmp_path):
     child process, pod.xdmf written with DOLFINx's HDF5) gives the same."""
     folder, result, nodes = run_folder
     out = tmp_path / "pod"
-    code = ("import sys; from cosserat_fem.cli import main; code = main(sys.argv[1:]); "
-            "print('DOLFINX', 'dolfinx' in sys.modules); sys.exit(code)")  # fmt: skip
+    code = (
+        "import sys; from cosserat_fem.cli import main; code = main(sys.argv[1:]); "
+        "print('DOLFINX', 'dolfinx' in sys.modules); sys.exit(code)"
+    )
     proc = run_command(["-c", code, "pod", str(folder), "--modes", "3", "--out", str(out)])
     assert proc.returncode == 0, proc.stderr
     assert "DOLFINX False" in proc.stdout
@@ -427,8 +440,12 @@ def test_pod_of_a_run_folder_writes_csv_xdmf_and_png(run_folder, tmp_path):
     here = cf.pod(folder, modes=3, out=tmp_path / "here")
     np.testing.assert_allclose(here.energies, energies, rtol=1e-12)
     assert [p.name for p in here.files] == ["pod.csv", "pod.xdmf", "pod.png"]
-    np.testing.assert_allclose(read_arrays(tmp_path / "here" / "pod.xdmf")[2]["displacement"],
-                               arrays["displacement"], rtol=0, atol=1e-15)  # fmt: skip
+    np.testing.assert_allclose(
+        read_arrays(tmp_path / "here" / "pod.xdmf")[2]["displacement"],
+        arrays["displacement"],
+        rtol=0,
+        atol=1e-15,
+    )
 
 
 def test_pod_command_refuses_bad_input_in_one_line(run_folder, tmp_path, capsys):
@@ -451,8 +468,11 @@ def test_pod_command_refuses_bad_input_in_one_line(run_folder, tmp_path, capsys)
     key = re.search(r"solution\.frames/000003\.h5:/Function/displacement/([^<]+)<", xml)[1]
     values = [h5.read(frame, f"/Function/{n}/{key}") for n in names]
     values[0][4, 1] = np.inf
-    frame.write_bytes(bytes(h5.image([(f"/Function/{n}/{key}", v)
-                                      for n, v in zip(names, values, strict=True)])[0]))
+    frame.write_bytes(
+        bytes(
+            h5.image([(f"/Function/{n}/{key}", v) for n, v in zip(names, values, strict=True)])[0]
+        )
+    )
     cases = [
         ([str(tmp_path / "none")], "is not a folder"),
         ([str(empty)], "holds no solution.xdmf"),
@@ -466,24 +486,31 @@ def test_pod_command_refuses_bad_input_in_one_line(run_folder, tmp_path, capsys)
             assert main(["pod", *arguments, "--out", str(tmp_path / "out")]) == 2
             stderr = capsys.readouterr().err
         else:
-            proc = run_command(["-m", "cosserat_fem.cli", "pod", *arguments, "--out",
-                                str(tmp_path / "out")])  # fmt: skip
+            proc = run_command(
+                ["-m", "cosserat_fem.cli", "pod", *arguments, "--out", str(tmp_path / "out")]
+            )
             assert proc.returncode == 2, (arguments, proc.stderr)
             stderr = proc.stderr
         lines = stderr.strip().splitlines()
         assert len(lines) == 1 and "Traceback" not in stderr, stderr
         assert lines[0].startswith("cosserat-fem: error: ")
         assert re.search(message, lines[0]), lines[0]
-    assert main(["pod", str(folder), "--weighting", "kinetic", "--quiet", "--out",
-                 str(tmp_path / "k")]) == 0  # fmt: skip
+    assert (
+        main(
+            ["pod", str(folder), "--weighting", "kinetic", "--quiet", "--out", str(tmp_path / "k")]
+        )
+        == 0
+    )
     with pytest.raises(SceneError, match="^stations: a run folder"):
         cf.pod(folder, STATIONS)
 
 
 #: ``cosserat-fem ARGS`` in a child, with DOLFINx loaded first (its HDF5 library then makes
 #: the .h5 files) or not (h5py makes them).
-POD_CHILD = ("import sys\nif sys.argv[1] == 'dolfinx':\n    import dolfinx\n"
-             "from cosserat_fem.cli import main\nsys.exit(main(sys.argv[2:]))\n")  # fmt: skip
+POD_CHILD = (
+    "import sys\nif sys.argv[1] == 'dolfinx':\n    import dolfinx\n"
+    "from cosserat_fem.cli import main\nsys.exit(main(sys.argv[2:]))\n"
+)
 
 
 def pod_child(library: str, folder, out, limit: int | None = None) -> subprocess.CompletedProcess:
@@ -492,9 +519,12 @@ def pod_child(library: str, folder, out, limit: int | None = None) -> subprocess
     env = subprocess_env() | {"OMPI_MCA_btl": "self", "PMIX_MCA_gds": "hash"}
     return subprocess.run(
         [PYTHON, "-c", POD_CHILD, library, "pod", str(folder), "--out", str(out), "--quiet"],
-        env=env, capture_output=True, text=True, timeout=300,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
         preexec_fn=None if limit is None else file_size_limit(limit),
-    )  # fmt: skip
+    )
 
 
 @pytest.mark.parametrize("library", ["h5py", pytest.param("dolfinx", marks=pytest.mark.long)])
@@ -518,9 +548,13 @@ def test_pod_on_a_full_disk_stops_with_exit_4_and_no_cut_file(run_folder, tmp_pa
         proc = pod_child(library, folder, out, limit)
         assert proc.returncode == 4, proc.stderr
         ours = said(proc.stderr)
-        assert ours == [  # besides, under a 1 kB limit, Open MPI's "Forwarding signal 25"
-            f"cosserat-fem: error: pod: cannot write {str(out / failing)!r} (File too large)"
-        ] and "Traceback" not in proc.stderr, proc.stderr
+        assert (
+            ours
+            == [  # besides, under a 1 kB limit, Open MPI's "Forwarding signal 25"
+                f"cosserat-fem: error: pod: cannot write {str(out / failing)!r} (File too large)"
+            ]
+            and "Traceback" not in proc.stderr
+        ), proc.stderr
         left = [p for p in out.rglob("*") if p.is_file()]
         assert left and not (out / failing).exists()
         for path in left:

@@ -83,8 +83,15 @@ def test_d1_a_refused_restart_touches_nothing(base, tmp_path, capsys):
     every output file stays byte for byte as it was."""
     run_dir = copy_of(base, tmp_path)
     other = tmp_path / "other"
-    status, _ = cli(capsys, "run", SCENE, "--out", str(other), "--quiet",
-                    *sets("time.end=0.006", "output.xdmf_interval=3e-5"))  # fmt: skip
+    status, _ = cli(
+        capsys,
+        "run",
+        SCENE,
+        "--out",
+        str(other),
+        "--quiet",
+        *sets("time.end=0.006", "output.xdmf_interval=3e-5"),
+    )
     assert status == 0
     before = digests(run_dir)
     shutil.rmtree(run_dir / "checkpoint")
@@ -158,9 +165,15 @@ def test_d3_a_new_run_leaves_no_stale_checkpoint(base, tmp_path, capsys):
     checkpoint (and A's XDMF pair, which B does not write) when it starts, and the restart
     is refused."""
     run_dir = copy_of(base, tmp_path)
-    status, _ = cli(capsys, "run", SCENE, "--out", str(run_dir), "--quiet",
-                    *sets(*SHORT, "loads.end.force=[10,0,0]", "output.checkpoint=false",
-                          "output.xdmf=false"))  # fmt: skip
+    status, _ = cli(
+        capsys,
+        "run",
+        SCENE,
+        "--out",
+        str(run_dir),
+        "--quiet",
+        *sets(*SHORT, "loads.end.force=[10,0,0]", "output.checkpoint=false", "output.xdmf=false"),
+    )
     assert status == 0
     assert sorted(p.name for p in run_dir.iterdir()) == ["probes.csv", "summary.json"]
     status, err = cli(capsys, "run", "--restart", str(run_dir), *sets("time.end=0.006"))
@@ -172,9 +185,7 @@ def test_d3_identity_is_written_with_the_outputs(base):
     and the checkpoint index alike."""
     run_id = json.loads((base / "summary.json").read_text())["run_id"]
     assert len(run_id) == 32
-    assert f'<Information Name="run_id" Value="{run_id}" />' in (
-        base / "solution.xdmf"
-    ).read_text()
+    assert f'<Information Name="run_id" Value="{run_id}" />' in (base / "solution.xdmf").read_text()
     assert load_checkpoint(base).run_id == run_id
 
 
@@ -281,21 +292,21 @@ def test_d8_a_run_stops_at_its_wall_time_limit_and_continues(tmp_path, capsys):
     raised gives the uninterrupted run's probes byte for byte."""
     out, whole = tmp_path / "stopped", tmp_path / "whole"
     scene = ["time.end=0.06", "output.xdmf=false"]
-    status, err = cli(capsys, "run", SCENE, "--out", str(out), *sets(*scene,
-                      "limits.wall_time=0.3"))  # fmt: skip
+    status, err = cli(
+        capsys, "run", SCENE, "--out", str(out), *sets(*scene, "limits.wall_time=0.3")
+    )
     assert status == 4 and "limits.wall_time: the run stopped at t = " in one_line(err)
     assert json.loads((out / "summary.json").read_text())["status"] == "stopped"
-    status, _ = cli(capsys, "run", "--restart", str(out), "--quiet",
-                    *sets("limits.wall_time=86400"))  # fmt: skip
+    status, _ = cli(
+        capsys, "run", "--restart", str(out), "--quiet", *sets("limits.wall_time=86400")
+    )
     assert status == 0
     assert main(["run", SCENE, "--out", str(whole), "--quiet", *sets(*scene)]) == 0
     assert (out / "probes.csv").read_bytes() == (whole / "probes.csv").read_bytes()
 
 
 # --------------------------------------------------- internal errors instead of exit 2 or 3
-@pytest.mark.parametrize(
-    ("value", "fragment"), [("1e-200", "c22 = 0 m^4"), ("1e200", "overflow")]
-)
+@pytest.mark.parametrize(("value", "fragment"), [("1e-200", "c22 = 0 m^4"), ("1e200", "overflow")])
 def test_d9_sections_out_of_double_precision(capsys, value, fragment):
     """D9: a = 1e-200 m gave ZeroDivisionError (c22 = b a³/12 underflows to 0, which
     validate printed and called valid), a = 1e200 m OverflowError."""
@@ -341,8 +352,7 @@ def test_d11_modes_count_beyond_the_discretisation(capsys):
         (['initial.velocity=["log(s-0.5)*s", 0, 0]'], "initial.velocity[0]"),
     ],
 )
-def test_d13_a_nonfinite_load_is_named_with_time_and_place(tmp_path, capsys, overrides,
-                                                           fragment):  # fmt: skip
+def test_d13_a_nonfinite_load_is_named_with_time_and_place(tmp_path, capsys, overrides, fragment):
     """D13: a load that is NaN or inf was reported as a Newton failure with advice to reduce
     time.step. Now the load (or support motion, or initial field) is named with the time and
     the place where it is not finite, exit 2, and the outputs up to there are kept."""
@@ -354,21 +364,29 @@ def test_d13_a_nonfinite_load_is_named_with_time_and_place(tmp_path, capsys, ove
 
 
 def test_d13_static_nonfinite_load(tmp_path, capsys):
-    status, err = cli(capsys, "static", SCENE, "--out", str(tmp_path),
-                      *sets('loads.end.torque=[0,0,"log(t - 0.001)"]'))  # fmt: skip
+    status, err = cli(
+        capsys,
+        "static",
+        SCENE,
+        "--out",
+        str(tmp_path),
+        *sets('loads.end.torque=[0,0,"log(t - 0.001)"]'),
+    )
     assert status == 2 and "loads.end.torque[2] = 'log(t - 0.001)' is nan" in one_line(err)
 
 
 def test_d15_restart_advice_names_time_end(base, tmp_path, capsys):
     """D15: on restart a time.end that is not on the step grid got advice to change
     time.step, which a restart does not allow; now it gets two valid ends."""
-    status, err = cli(capsys, "run", "--restart", str(copy_of(base, tmp_path)),
-                      *sets("time.end=0.0031"))  # fmt: skip
+    status, err = cli(
+        capsys, "run", "--restart", str(copy_of(base, tmp_path)), *sets("time.end=0.0031")
+    )
     line = one_line(err)
     assert status == 2 and line.startswith("cosserat-fem: error: time.end:")
-    assert "e.g. time.end = 0.00309 or 0.00312" in line and "time.step =" not in line.split(
-        "(fixed on a restart)"
-    )[1]
+    assert (
+        "e.g. time.end = 0.00309 or 0.00312" in line
+        and "time.step =" not in line.split("(fixed on a restart)")[1]
+    )
 
 
 @pytest.mark.long

@@ -57,9 +57,15 @@ def sweep_file(folder: Path, values: list[float], response: dict, **sweep) -> Pa
 PERIOD = {"period": "2*pi/(r*omega0)"}
 #: Up and down chains that check the dealing, not the physics: 40 steps a period, settled at
 #: a change below 5e-2 for one period (5-6 periods a member).
-SHORT_CHAINS = {**PERIOD, "continuation": "parameters.r", "direction": "both",
-                "tolerance": 5e-2, "steps_per_period": 40, "settled_periods": 1,
-                "measure_periods": 1}  # fmt: skip
+SHORT_CHAINS = {
+    **PERIOD,
+    "continuation": "parameters.r",
+    "direction": "both",
+    "tolerance": 5e-2,
+    "steps_per_period": 40,
+    "settled_periods": 1,
+    "measure_periods": 1,
+}
 
 
 @pytest.fixture(scope="module")
@@ -95,8 +101,10 @@ def test_the_linear_response_is_the_modal_steady_state(linear_sweep):
         period = spec.period(member)
         reference = linear_steady_state(spec.scene(member), 2 * math.pi / period)
         left = float(row["change"]) / (1 - math.exp(-ZETA1 * OMEGA1 * period))
-        size = max(*(float(row[f"amp_{c}"]) for c in ("x", "y", "z")),  # ℓ = 1 m
-                   *(float(row[f"amp_{c}"]) for c in ("theta", "psi", "phi")))  # fmt: skip
+        size = max(
+            *(float(row[f"amp_{c}"]) for c in ("x", "y", "z")),  # ℓ = 1 m
+            *(float(row[f"amp_{c}"]) for c in ("theta", "psi", "phi")),
+        )
         for column, index in (("x", 0), ("psi", 4)):
             h1, phase = float(row[f"h1_{column}"]), float(row[f"phase_{column}"])
             bound = left * size / h1 + 1e-4
@@ -210,8 +218,22 @@ def _mutate(rng, folder: Path) -> str:
     elif kind == 1:
         del lines[row][column]
     elif kind == 2:
-        lines[row][column] = rng.choice(["", "x", "nan", "1e999", "true", "[1]", '"a,b"', "-1",
-                                         "99", "parameters.r", "{}", "null"])  # fmt: skip
+        lines[row][column] = rng.choice(
+            [
+                "",
+                "x",
+                "nan",
+                "1e999",
+                "true",
+                "[1]",
+                '"a,b"',
+                "-1",
+                "99",
+                "parameters.r",
+                "{}",
+                "null",
+            ]
+        )
     if kind <= 2:
         text = "".join(",".join(line) + "\n" for line in lines)
     elif kind == 3:
@@ -251,19 +273,22 @@ DAMAGES = {
     "a short row": lambda folder: _edit_table(folder, lambda lines: lines[2].pop(5)),
     "a long row": lambda folder: _edit_table(folder, lambda lines: lines[2].append("1")),
     "continuation elsewhere": lambda folder: (folder / "sweep.json").write_text(
-        '{"members": 3, "varied": ["parameters.r"], "continuation": "amp_x"}'),
+        '{"members": 3, "varied": ["parameters.r"], "continuation": "amp_x"}'
+    ),
     "continuation not text": lambda folder: (folder / "sweep.json").write_text(
-        '{"members": 3, "varied": ["parameters.r"], "continuation": [1]}'),
+        '{"members": 3, "varied": ["parameters.r"], "continuation": [1]}'
+    ),
     "varied not a list": lambda folder: (folder / "sweep.json").write_text(
-        '{"members": 3, "varied": "parameters.r"}'),
+        '{"members": 3, "varied": "parameters.r"}'
+    ),
     "a record of another sweep": lambda folder: (folder / "sweep.json").write_text(
-        '{"members": 3, "varied": ["time.step"]}'),
+        '{"members": 3, "varied": ["time.step"]}'
+    ),
 }
 
 
 @pytest.mark.parametrize("damage", list(DAMAGES))
-def test_plot_refuses_damaged_response_tables_in_one_line(linear_sweep, tmp_path, figures,
-                                                          damage):  # fmt: skip
+def test_plot_refuses_damaged_response_tables_in_one_line(linear_sweep, tmp_path, figures, damage):
     """``plot`` of a frequency response whose table or sweep.json is damaged ended in
     internal errors: KeyError 'amp_x', 'phase_x', 'parameters.r' (a column cut off), or a
     continuation key that is no column; TypeError (a row short of fields: its missing ones
@@ -328,8 +353,10 @@ def test_plot_refuses_rows_that_are_not_the_sweeps(linear_sweep, tmp_path, figur
         part = folder / "table" / "group-1.csv"
         columns = header.rstrip("\n").split(",")
         short = columns[: columns.index("direction")] + ["message"]
-        part.write_text(",".join(short) + "\n" + ",".join(["3"] + ["0"] * (len(short) - 1))
-                        + "\n", encoding="utf-8")  # fmt: skip
+        part.write_text(
+            ",".join(short) + "\n" + ",".join(["3"] + ["0"] * (len(short) - 1)) + "\n",
+            encoding="utf-8",
+        )
     if case != "other part":
         table.write_text(header + "".join(lines), encoding="utf-8")
     with pytest.raises(SceneError) as caught:
@@ -371,8 +398,14 @@ def test_plot_draws_no_round_off_as_a_response(linear_sweep, tmp_path, figures):
     from cosserat_fem.plot import moving_columns
 
     one = np.ones(3)
-    amps = {"x": 1e-3 * one, "y": 0 * one, "z": 1e-9 * one, "theta": 0 * one,
-            "psi": 1e-16 * one, "phi": 2e-6 * one}  # fmt: skip
+    amps = {
+        "x": 1e-3 * one,
+        "y": 0 * one,
+        "z": 1e-9 * one,
+        "theta": 0 * one,
+        "psi": 1e-16 * one,
+        "phi": 2e-6 * one,
+    }
     assert moving_columns(amps, one) == ["x", "phi"]  # φ: 2e-3 of S = 1e-3
     assert moving_columns(amps, 10 * one) == ["x", "phi"]  # S = 1e-4: φ 2e-2 of it
     assert moving_columns(amps, 1e-3 * one) == ["x"]  # S = 1: φ 2e-6 of it
@@ -471,30 +504,51 @@ def test_a_continued_start_carries_the_forcing_phase():
     [
         ({**PERIOD, "colour": 1}, "sweep.response.colour: unknown key"),
         ({"continuation": "parameters.r"}, "sweep.response.period: required"),
-        ({**PERIOD, "direction": "up"}, "sweep.response.direction: needs "
-         "sweep.response.continuation"),
-        ({**PERIOD, "continuation": "time.step"}, "sweep.response.continuation: must be one of "
-         "the varied keys (parameters.r)"),
-        ({**PERIOD, "continuation": "parameters.r", "direction": "sideways"},
-         "sweep.response.direction: must be one of 'up', 'down', 'both'"),
-        ({"period": "-2*pi/(r*omega0)"}, "sweep member 0 (parameters.r = 0.9): "
-         "sweep.response.period: '-2*pi/(r*omega0)' = -0.0337"),
-        ({"period": "2*pi/(q*omega0)"}, "sweep member 0 (parameters.r = 0.9): "
-         "sweep.response.period: "),
-        ({"period": "2*pi/(50*r*omega0)"}, "sweep member 0 (parameters.r = 0.9): time.step: "
-         "0.0001 s samples the forcing period"),
-        ({**PERIOD, "measure_periods": 5}, "sweep.response.measure_periods: at most "
-         "settled_periods + 1 = 4"),
+        (
+            {**PERIOD, "direction": "up"},
+            "sweep.response.direction: needs sweep.response.continuation",
+        ),
+        (
+            {**PERIOD, "continuation": "time.step"},
+            "sweep.response.continuation: must be one of the varied keys (parameters.r)",
+        ),
+        (
+            {**PERIOD, "continuation": "parameters.r", "direction": "sideways"},
+            "sweep.response.direction: must be one of 'up', 'down', 'both'",
+        ),
+        (
+            {"period": "-2*pi/(r*omega0)"},
+            "sweep member 0 (parameters.r = 0.9): "
+            "sweep.response.period: '-2*pi/(r*omega0)' = -0.0337",
+        ),
+        (
+            {"period": "2*pi/(q*omega0)"},
+            "sweep member 0 (parameters.r = 0.9): sweep.response.period: ",
+        ),
+        (
+            {"period": "2*pi/(50*r*omega0)"},
+            "sweep member 0 (parameters.r = 0.9): time.step: 0.0001 s samples the forcing period",
+        ),
+        (
+            {**PERIOD, "measure_periods": 5},
+            "sweep.response.measure_periods: at most settled_periods + 1 = 4",
+        ),
         ({**PERIOD, "max_periods": 2}, "sweep.response.max_periods: at least"),
         ({**PERIOD, "tolerance": 0}, "sweep.response.tolerance: must be a positive number"),
         ({**PERIOD, "tolerance": 1.5}, "sweep.response.tolerance: must be < 1"),
         ({**PERIOD, "steps_per_period": 8}, "sweep.response.steps_per_period: at least 16"),
-        ({**PERIOD, "max_periods": 10**9, "steps_per_period": 1000}, "sweep member 0 "
-         "(parameters.r = 0.9): sweep.response.max_periods: 1000000000 periods of 0.0337223 s: "),
-        ({"period": "1e306"}, "sweep member 0 (parameters.r = 0.9): sweep.response.max_periods: "
-         "200 periods of 1e+306 s are not a finite number of steps"),
+        (
+            {**PERIOD, "max_periods": 10**9, "steps_per_period": 1000},
+            "sweep member 0 "
+            "(parameters.r = 0.9): sweep.response.max_periods: 1000000000 periods of 0.0337223 s: ",
+        ),
+        (
+            {"period": "1e306"},
+            "sweep member 0 (parameters.r = 0.9): sweep.response.max_periods: "
+            "200 periods of 1e+306 s are not a finite number of steps",
+        ),
     ],
-)  # fmt: skip
+)
 def test_a_malformed_response_is_refused_before_any_member_runs(tmp_path, response, message):
     path = sweep_file(tmp_path, [0.9, 1.1], response)
     with pytest.raises(SceneError) as caught:
@@ -513,7 +567,7 @@ def test_several_load_amplitudes_make_a_chain_each(tmp_path):
     text = path.read_text(encoding="utf-8")
     text = text.replace('"1*sin(pi*s/L)*sin(r*omega0*t)"', '"F*sin(pi*s/L)*sin(r*omega0*t)"')
     text = text.replace('"parameters.r" = 1.0\n', '"parameters.r" = 1.0\n"parameters.F" = 1.0\n')
-    text = text.replace('[sweep.vary]\n', '[sweep.vary]\n"parameters.F" = [1.0, 2.0]\n')
+    text = text.replace("[sweep.vary]\n", '[sweep.vary]\n"parameters.F" = [1.0, 2.0]\n')
     path.write_text(text, encoding="utf-8")
     spec = api.load_sweep(path)
     assert sorted(spec.chains) == [(0, 1), (2, 3)]
@@ -527,11 +581,16 @@ def test_several_load_amplitudes_make_a_chain_each(tmp_path):
 
 def test_a_case_without_the_continuation_key_is_refused(tmp_path):
     path = sweep_file(tmp_path, [0.9], {**PERIOD, "continuation": "parameters.r"})
-    text = path.read_text(encoding="utf-8").replace('[sweep.vary]\n"parameters.r" = [0.9]\n',
-        '[[sweep.case]]\n"parameters.r" = 0.9\n[[sweep.case]]\n"time.step" = 5e-5\n')  # fmt: skip
+    text = path.read_text(encoding="utf-8").replace(
+        '[sweep.vary]\n"parameters.r" = [0.9]\n',
+        '[[sweep.case]]\n"parameters.r" = 0.9\n[[sweep.case]]\n"time.step" = 5e-5\n',
+    )
     path.write_text(text, encoding="utf-8")
-    with pytest.raises(SceneError, match=r"^sweep.response.continuation: 'parameters.r' is not "
-                       r"set in member 1 \(every case must give it\)$"):  # fmt: skip
+    with pytest.raises(
+        SceneError,
+        match=r"^sweep.response.continuation: 'parameters.r' is not "
+        r"set in member 1 \(every case must give it\)$",
+    ):
         api.load_sweep(path)
 
 
@@ -541,8 +600,9 @@ def test_after_a_failed_member_its_chain_goes_on_from_rest(tmp_path, monkeypatch
     as the first did; a loose tolerance keeps it short."""
     from cosserat_fem.studies import sweep_run as sweep
 
-    path = sweep_file(tmp_path, [0.95, 1.0, 1.05], {**PERIOD, "continuation": "parameters.r",
-                      "tolerance": 1e-2})  # fmt: skip
+    path = sweep_file(
+        tmp_path, [0.95, 1.0, 1.05], {**PERIOD, "continuation": "parameters.r", "tolerance": 1e-2}
+    )
     forced = sweep._forced
 
     def failing(spec, member, before):
@@ -571,13 +631,17 @@ def test_up_and_down_chains_under_mpi_equal_the_serial_sweep(tmp_path):
     assert tables[1] == tables[2]
     rows = tables[1]
     assert [(r["direction"], r["parameters.r"], r["previous"]) for r in rows] == [
-        ("up", "0.95", ""), ("up", "1.05", "0"), ("down", "0.95", "3"), ("down", "1.05", ""),
-    ]  # fmt: skip
+        ("up", "0.95", ""),
+        ("up", "1.05", "0"),
+        ("down", "0.95", "3"),
+        ("down", "1.05", ""),
+    ]
     # The same sweep on groups of two ranks is another sweep for the folder (its saved states
     # are parts of a two-rank partition): refused in one line, before anything runs.
     grouped = sweep_file(tmp_path, [0.95, 1.05], SHORT_CHAINS, group_size=2)
-    proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(grouped), "--out",
-                        str(tmp_path / "n2")], 2)  # fmt: skip
+    proc = run_command(
+        ["-m", "cosserat_fem.cli", "sweep", str(grouped), "--out", str(tmp_path / "n2")], 2
+    )
     errors = said(proc.stderr)
     assert proc.returncode == 2 and len(errors) == 1 and "holds another sweep" in errors[0]
     assert "Traceback" not in proc.stderr
@@ -594,17 +658,32 @@ def test_chains_on_a_group_of_two_ranks_continue_each_ranks_part(tmp_path):
     300 steps a period and a tolerance of 1e-2 these members took 38 s on a quiet machine and
     over 600 s on a busy one: a step of a 4-element rod on two ranks is a few MPI messages."""
     serial = tmp_path / "serial"
-    proc = run_command(["-m", "cosserat_fem.cli", "sweep",
-                        str(sweep_file(tmp_path, [0.95, 1.05], SHORT_CHAINS)),
-                        "--out", str(serial)])  # fmt: skip
+    proc = run_command(
+        [
+            "-m",
+            "cosserat_fem.cli",
+            "sweep",
+            str(sweep_file(tmp_path, [0.95, 1.05], SHORT_CHAINS)),
+            "--out",
+            str(serial),
+        ]
+    )
     assert proc.returncode == 0, proc.stderr
     rows = read_table(serial / "sweep.csv")
     grouped = tmp_path / "two"
     grouped.mkdir()
     out = tmp_path / "grouped"
-    proc = run_command(["-m", "cosserat_fem.cli", "sweep",
-                        str(sweep_file(grouped, [0.95, 1.05], SHORT_CHAINS, group_size=2)),
-                        "--out", str(out)], 2)  # fmt: skip
+    proc = run_command(
+        [
+            "-m",
+            "cosserat_fem.cli",
+            "sweep",
+            str(sweep_file(grouped, [0.95, 1.05], SHORT_CHAINS, group_size=2)),
+            "--out",
+            str(out),
+        ],
+        2,
+    )
     assert proc.returncode == 0, proc.stderr
     two = read_table(out / "sweep.csv")
     assert [r["previous"] for r in two] == [r["previous"] for r in rows]

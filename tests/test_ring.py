@@ -39,8 +39,9 @@ KAPPA = 0.8863636364  # Cowper's shear coefficient of the circle at ν = 0.3 (va
 def ring_modes(diameter: float, elements: int = 48) -> dict[str, np.ndarray]:
     """{"in", "out"}: ω [rad/s] of each pair of modes n = 2, 3, 4 (both members), of the ring
     of section diameter ``diameter`` [m]."""
-    scene = api.load(RING, [f"rod.section.diameter={diameter}",
-                            f"discretisation.elements={elements}"])  # fmt: skip
+    scene = api.load(
+        RING, [f"rod.section.diameter={diameter}", f"discretisation.elements={elements}"]
+    )
     modes = api.modes(scene, count=6 + 4 * len(WAVES))
     assert all(m.omega == 0.0 for m in modes[:6])  # the free ring's six rigid-body modes
     planes: dict[str, list[float]] = {"in": [], "out": []}
@@ -103,16 +104,26 @@ def test_the_ring_under_mpi_equals_the_serial_run(tmp_path):
 @pytest.mark.parametrize(
     ("overrides", "message"),
     [
-        (["supports.start=clamped"], "supports.start: a closed rod (reference.closed = true) "
-         "has no ends to hold; use 'free', got 'clamped'"),
-        (["rod.length=6"], "reference.closed: the rod's reference does not close: its ends are "
-         "0.282 m apart and their frames differ by 0.279 (an arc closes when rod.length = 2π "
-         "reference.radius = 6.283185307179586 m)"),
+        (
+            ["supports.start=clamped"],
+            "supports.start: a closed rod (reference.closed = true) "
+            "has no ends to hold; use 'free', got 'clamped'",
+        ),
+        (
+            ["rod.length=6"],
+            "reference.closed: the rod's reference does not close: its ends are "
+            "0.282 m apart and their frames differ by 0.279 (an arc closes when rod.length = 2π "
+            "reference.radius = 6.283185307179586 m)",
+        ),
         (["reference.shape=straight"], "reference.radius: not a key of shape 'straight'"),
-        (["loads.end.force=[0,1,0]"], "loads.end: a closed rod (reference.closed = true) has no "
-         "end to load"),
-        (["loads.follower.force=[1,0,0]"], "loads.follower.end: a closed rod (reference.closed = "
-         "true) has no end to load"),
+        (
+            ["loads.end.force=[0,1,0]"],
+            "loads.end: a closed rod (reference.closed = true) has no end to load",
+        ),
+        (
+            ["loads.follower.force=[1,0,0]"],
+            "loads.follower.end: a closed rod (reference.closed = true) has no end to load",
+        ),
     ],
 )
 def test_a_closed_rod_that_cannot_close_is_refused_by_its_key(overrides, message):
@@ -123,10 +134,15 @@ def test_a_closed_rod_that_cannot_close_is_refused_by_its_key(overrides, message
 
 
 def test_a_straight_rod_cannot_close():
-    with pytest.raises(SceneError, match="^reference.closed: the rod's reference does not "
-                       "close: its ends are 1 m apart and their frames differ by 0$"):
-        api.load(ROOT / "scenes" / "cao_tucker_2008.toml",
-                 ["reference.closed=true", "supports.start=free"])  # fmt: skip
+    with pytest.raises(
+        SceneError,
+        match="^reference.closed: the rod's reference does not "
+        "close: its ends are 1 m apart and their frames differ by 0$",
+    ):
+        api.load(
+            ROOT / "scenes" / "cao_tucker_2008.toml",
+            ["reference.closed=true", "supports.start=free"],
+        )
 
 
 @pytest.mark.parametrize("command", ["run", "static"])

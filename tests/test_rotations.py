@@ -114,8 +114,7 @@ def test_the_whip_under_mpi_equals_the_serial_run(tmp_path):
     outs = {}
     for ranks in (1, 2):
         out = tmp_path / f"n{ranks}"
-        proc = run_command([*CLI, "run", str(WHIP_SCENE), "--out", str(out), *sets],
-                           ranks=ranks)  # fmt: skip
+        proc = run_command([*CLI, "run", str(WHIP_SCENE), "--out", str(out), *sets], ranks=ranks)
         assert proc.returncode == 0, proc.stderr
         outs[ranks] = (
             np.loadtxt(out / "probes.csv", delimiter=",", skiprows=1),
@@ -201,9 +200,10 @@ def test_the_chart_stays_at_a_fork():
     state[:] = 0.3 * rng.standard_normal(state.shape)
     state[model.fork_nodes, 3] = 1.2  # |cos θ| = 0.36 at the forks only
     assert model.chart_margin(cos_theta(model, model.U.x.array)) == pytest.approx(
-        np.abs(np.cos(state[:, 3])).min(where=~np.isin(np.arange(len(state)), model.fork_nodes),
-                                        initial=1.0)
-    )  # fmt: skip
+        np.abs(np.cos(state[:, 3])).min(
+            where=~np.isin(np.arange(len(state)), model.fork_nodes), initial=1.0
+        )
+    )
     before = state.copy()
     model.reset_chart()
     Q = model.chart.x.array.reshape(-1, 4)

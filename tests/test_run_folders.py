@@ -97,11 +97,25 @@ def test_a_new_run_removes_only_the_files_it_owns(base, tmp_path, capsys):
     (folder / "solution.frames" / "extra").mkdir()
     nested = folder / "checkpoint" / "nested"
     assert main(["run", SCENE, "--out", str(nested), "--quiet", *SHORT]) == 0
-    theirs = {k: v for k, v in snapshot(folder).items()
-              if k.startswith(("checkpoint/n", "solution.frames/readme", "solution.frames/extra"))}
-    status, err = cli(capsys, "run", SCENE, "--out", str(folder), "--quiet",
-                      "--set", "time.end=0.0006", "--set", "output.xdmf_interval=3e-4",
-                      "--set", "output.checkpoint=false")  # fmt: skip
+    theirs = {
+        k: v
+        for k, v in snapshot(folder).items()
+        if k.startswith(("checkpoint/n", "solution.frames/readme", "solution.frames/extra"))
+    }
+    status, err = cli(
+        capsys,
+        "run",
+        SCENE,
+        "--out",
+        str(folder),
+        "--quiet",
+        "--set",
+        "time.end=0.0006",
+        "--set",
+        "output.xdmf_interval=3e-4",
+        "--set",
+        "output.checkpoint=false",
+    )
     assert status == 0, err
     after = snapshot(folder)
     assert {k: v for k, v in after.items() if k in theirs} == theirs
@@ -118,11 +132,16 @@ def test_a_new_run_removes_only_the_files_it_owns(base, tmp_path, capsys):
         (lambda f: (f / "solution.frames" / "000001.h5").mkdir(), "000001.h5"),
         (lambda f: (f / "checkpoint" / "checkpoint.json").mkdir(), "checkpoint.json"),
     ],
-    ids=["a file named checkpoint", "a folder named probes.csv", "a folder among the frames",
-         "a folder named checkpoint.json"],  # fmt: skip
+    ids=[
+        "a file named checkpoint",
+        "a folder named probes.csv",
+        "a folder among the frames",
+        "a folder named checkpoint.json",
+    ],
 )
-def test_a_users_file_where_the_run_writes_is_refused_touching_nothing(tmp_path, capsys, make,
-                                                                      name):  # fmt: skip
+def test_a_users_file_where_the_run_writes_is_refused_touching_nothing(
+    tmp_path, capsys, make, name
+):
     """Something not the project's where the run must write: refused in one line naming it,
     exit 2, the folder as it was (before: a file named checkpoint was deleted)."""
     folder = tmp_path / "run"
@@ -148,8 +167,14 @@ sys.stdin.read()
 
 def holder(folder: Path) -> subprocess.Popen:
     """A process that holds ``folder``'s lock (run id feedc0de) until its stdin closes."""
-    proc = subprocess.Popen([PYTHON, "-c", HOLD, str(folder)], cwd=ROOT, env=subprocess_env(),
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)  # fmt: skip
+    proc = subprocess.Popen(
+        [PYTHON, "-c", HOLD, str(folder)],
+        cwd=ROOT,
+        env=subprocess_env(),
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     assert proc.stdout.readline() == "held\n"
     return proc
 
@@ -165,13 +190,18 @@ def test_a_held_folder_is_refused_to_every_writer_naming_the_holder(base, tmp_pa
     before = snapshot(folder)
     proc = holder(folder)
     try:
-        for args in (["run", SCENE, "--out", str(folder)], ["static", SCENE, "--out", str(folder)],
-                     ["run", "--restart", str(folder), *RESTART],
-                     ["sweep", str(sweep), "--out", str(folder)]):  # fmt: skip
+        for args in (
+            ["run", SCENE, "--out", str(folder)],
+            ["static", SCENE, "--out", str(folder)],
+            ["run", "--restart", str(folder), *RESTART],
+            ["sweep", str(sweep), "--out", str(folder)],
+        ):
             status, err = cli(capsys, *args, "--quiet")
             one_line(status, err, "feedc0de", f"process {proc.pid}", "in use")
-        assert snapshot(folder) == {**before, ".cosserat-fem.lock": snapshot(folder)[
-            ".cosserat-fem.lock"]}  # fmt: skip
+        assert snapshot(folder) == {
+            **before,
+            ".cosserat-fem.lock": snapshot(folder)[".cosserat-fem.lock"],
+        }
     finally:
         proc.kill()
         proc.wait()
@@ -188,8 +218,21 @@ def test_a_second_run_into_a_running_ones_folder_is_refused(tmp_path):
     (SIGKILL), a new run into the folder goes ahead (no stale lock)."""
     folder = tmp_path / "run"
     first = subprocess.Popen(
-        [PYTHON, "-m", "cosserat_fem.cli", "run", SCENE, "--out", str(folder), "--quiet",
-         "--set", "time.end=0.9"], cwd=ROOT, env=subprocess_env())  # fmt: skip
+        [
+            PYTHON,
+            "-m",
+            "cosserat_fem.cli",
+            "run",
+            SCENE,
+            "--out",
+            str(folder),
+            "--quiet",
+            "--set",
+            "time.end=0.9",
+        ],
+        cwd=ROOT,
+        env=subprocess_env(),
+    )
     try:
         deadline = time.monotonic() + HUNG
         summary = {}
@@ -200,8 +243,20 @@ def test_a_second_run_into_a_running_ones_folder_is_refused(tmp_path):
                 summary = json.loads((folder / "summary.json").read_text())
             except (OSError, ValueError):
                 summary = {}
-        second = run_command(["-m", "cosserat_fem.cli", "run", SCENE, "--out", str(folder),
-                              "--quiet", "--set", "time.end=0.0003"], timeout=HUNG)  # fmt: skip
+        second = run_command(
+            [
+                "-m",
+                "cosserat_fem.cli",
+                "run",
+                SCENE,
+                "--out",
+                str(folder),
+                "--quiet",
+                "--set",
+                "time.end=0.0003",
+            ],
+            timeout=HUNG,
+        )
         assert second.returncode == 2 and second.stderr.count("\n") == 1, second.stderr
         assert f"process {first.pid}" in second.stderr and summary["run_id"] in second.stderr
         assert first.poll() is None, "the first run was stopped"
@@ -210,8 +265,20 @@ def test_a_second_run_into_a_running_ones_folder_is_refused(tmp_path):
     finally:
         first.kill()
         first.wait()
-    third = run_command(["-m", "cosserat_fem.cli", "run", SCENE, "--out", str(folder), "--quiet",
-                         "--set", "time.end=0.0003"], timeout=HUNG)  # fmt: skip
+    third = run_command(
+        [
+            "-m",
+            "cosserat_fem.cli",
+            "run",
+            SCENE,
+            "--out",
+            str(folder),
+            "--quiet",
+            "--set",
+            "time.end=0.0003",
+        ],
+        timeout=HUNG,
+    )
     assert third.returncode == 0, third.stderr
 
 
@@ -224,8 +291,11 @@ def test_a_held_folder_is_refused_under_mpi(tmp_path):
     folder.mkdir()
     proc = holder(folder)
     try:
-        done = run_command(["-m", "cosserat_fem.cli", "run", SCENE, "--out", str(folder),
-                            "--quiet", *SHORT], ranks=2, timeout=HUNG)  # fmt: skip
+        done = run_command(
+            ["-m", "cosserat_fem.cli", "run", SCENE, "--out", str(folder), "--quiet", *SHORT],
+            ranks=2,
+            timeout=HUNG,
+        )
     finally:
         proc.kill()
         proc.wait()
@@ -309,11 +379,21 @@ def within(seconds: float, fn):
         return fn()
 
 
-RUN_NAMES = ["checkpoint/checkpoint.json", "checkpoint/state1.rank0.npz", "summary.json",
-             "probes.csv", "solution.xdmf", "solution.frames/mesh.h5", "solution.frames/000004.h5",
-             "solution.frames/000011.h5", "summary.json.tmp", "solution.xdmf-partial",
-             "checkpoint/checkpoint.json.tmp", "checkpoint/state0.rank0.npz.tmp",
-             ".cosserat-fem.lock"]  # fmt: skip
+RUN_NAMES = [
+    "checkpoint/checkpoint.json",
+    "checkpoint/state1.rank0.npz",
+    "summary.json",
+    "probes.csv",
+    "solution.xdmf",
+    "solution.frames/mesh.h5",
+    "solution.frames/000004.h5",
+    "solution.frames/000011.h5",
+    "summary.json.tmp",
+    "solution.xdmf-partial",
+    "checkpoint/checkpoint.json.tmp",
+    "checkpoint/state0.rank0.npz.tmp",
+    ".cosserat-fem.lock",
+]
 
 
 @pytest.mark.parametrize("name", RUN_NAMES)
@@ -327,8 +407,9 @@ def test_a_fifo_in_a_run_folder_hangs_no_restart(base, tmp_path, capsys, name):
     (folder / name).unlink(missing_ok=True)
     os.mkfifo(folder / name)
     before = snapshot(folder)
-    status, err = within(HUNG, lambda: cli(capsys, "run", "--restart", str(folder), "--quiet",
-                                           *RESTART))  # fmt: skip
+    status, err = within(
+        HUNG, lambda: cli(capsys, "run", "--restart", str(folder), "--quiet", *RESTART)
+    )
     if status == 0:
         assert (folder / "probes.csv").read_bytes() == (clean / "probes.csv").read_bytes()
     else:
@@ -344,8 +425,9 @@ def test_fifos_at_every_output_name_hang_no_new_run(tmp_path, capsys):
     (folder / "solution.frames").mkdir()
     for name in RUN_NAMES:
         os.mkfifo(folder / name)
-    status, err = within(HUNG, lambda: cli(capsys, "run", SCENE, "--out", str(folder), "--quiet",
-                                           *SHORT))  # fmt: skip
+    status, err = within(
+        HUNG, lambda: cli(capsys, "run", SCENE, "--out", str(folder), "--quiet", *SHORT)
+    )
     assert status == 0, err
     assert not [p for p in folder.rglob("*") if not (p.is_file() or p.is_dir())]
 
@@ -363,16 +445,20 @@ def test_fifos_among_pod_outputs_hang_no_pod(base, tmp_path):
     (folder / "pod.png").symlink_to(outside)
     proc = run_command(["-m", "cosserat_fem.cli", "pod", str(folder)], timeout=HUNG)
     assert proc.returncode == 0, proc.stderr
-    assert all((folder / name).is_file() and not (folder / name).is_symlink()
-               for name in ("pod.csv", "pod.xdmf", "pod.png", "pod.frames/000000.h5"))
+    assert all(
+        (folder / name).is_file() and not (folder / name).is_symlink()
+        for name in ("pod.csv", "pod.xdmf", "pod.png", "pod.frames/000000.h5")
+    )
     assert outside.read_text() == "mine\n"
 
 
 def sweep_file(folder: Path) -> Path:
     """A sweep of two members of the paper's scene, 0.6 ms each without XDMF."""
     path = folder / "sweep.toml"
-    path.write_text(f'[sweep]\nscene = "{SCENE}"\n[sweep.set]\n"time.end" = 0.0006\n'
-                    '"output.xdmf" = false\n[sweep.vary]\n"time.step" = [2e-5, 3e-5]\n')
+    path.write_text(
+        f'[sweep]\nscene = "{SCENE}"\n[sweep.set]\n"time.end" = 0.0006\n'
+        '"output.xdmf" = false\n[sweep.vary]\n"time.step" = [2e-5, 3e-5]\n'
+    )
     return path
 
 
@@ -385,8 +471,16 @@ def swept(tmp_path_factory) -> tuple[Path, Path]:
     return out, root / "sweep.toml"
 
 
-@pytest.mark.parametrize("name", ["sweep.json", "table/group-0.csv", ".sweep.csv.tmp",
-                                  "members/m00001/final_state.npz", ".cosserat-fem.lock"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "sweep.json",
+        "table/group-0.csv",
+        ".sweep.csv.tmp",
+        "members/m00001/final_state.npz",
+        ".cosserat-fem.lock",
+    ],
+)
 def test_a_fifo_in_a_sweep_folder_hangs_neither_sweep_nor_plot(swept, tmp_path, capsys, name):
     """A FIFO in a sweep's folder: started again, the sweep ends (before: blocked reading
     sweep.json or a table part), refusing in one line naming it or finishing with every member
@@ -394,8 +488,9 @@ def test_a_fifo_in_a_sweep_folder_hangs_neither_sweep_nor_plot(swept, tmp_path, 
     out = Path(shutil.copytree(swept[0], tmp_path / "out"))
     (out / name).unlink(missing_ok=True)
     os.mkfifo(out / name)
-    status, err = within(HUNG, lambda: cli(capsys, "sweep", str(swept[1]), "--out", str(out),
-                                           "--quiet"))  # fmt: skip
+    status, err = within(
+        HUNG, lambda: cli(capsys, "sweep", str(swept[1]), "--out", str(out), "--quiet")
+    )
     if status != 0:
         one_line(status, err, Path(name).name)
     status, err = within(HUNG, lambda: cli(capsys, "plot", str(out)))  # a sweep: no h5py
@@ -416,12 +511,20 @@ def test_a_sweep_json_cut_by_a_full_disk_does_not_block_the_folder(tmp_path):
         resource.setrlimit(resource.RLIMIT_FSIZE, (100, resource.RLIM_INFINITY))
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 
-    cut = subprocess.run(command, cwd=ROOT, env=subprocess_env(), capture_output=True, text=True,
-                         timeout=HUNG, preexec_fn=limit)  # fmt: skip
+    cut = subprocess.run(
+        command,
+        cwd=ROOT,
+        env=subprocess_env(),
+        capture_output=True,
+        text=True,
+        timeout=HUNG,
+        preexec_fn=limit,
+    )
     assert cut.returncode != 0 and cut.stderr.count("\n") == 1, cut.stderr
     assert "internal error" not in cut.stderr and not (out / "sweep.json").exists()
-    again = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out),
-                         "--quiet"], timeout=HUNG)  # fmt: skip
+    again = run_command(
+        ["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out), "--quiet"], timeout=HUNG
+    )
     assert again.returncode == 0, again.stderr
     assert [row["status"] for row in read_table(out / "sweep.csv")] == ["completed"] * 2
 

@@ -182,18 +182,37 @@ def test_unset_removes_a_key_or_a_table_in_order_with_set(capsys) -> None:
     from cosserat_fem.cli import main
     from cosserat_fem.scene.schema import UNSET, Removal
 
-    circle = [Removal("rod.section.a"), Removal("rod.section.b"),
-              Removal("rod.section.torsion_constant"), "rod.section.shape=circle",
-              "rod.section.diameter=0.05"]  # fmt: skip
+    circle = [
+        Removal("rod.section.a"),
+        Removal("rod.section.b"),
+        Removal("rod.section.torsion_constant"),
+        "rod.section.shape=circle",
+        "rod.section.diameter=0.05",
+    ]
     scene = load_scene(PAPER, circle)
     assert scene.rod.section.shape == "circle" and scene.rod.section.diameter == 0.05
-    as_map = {"rod.section.a": UNSET, "rod.section.b": UNSET,
-              "rod.section.torsion_constant": UNSET, "rod.section.shape": "circle",
-              "rod.section.diameter": 0.05}  # fmt: skip
+    as_map = {
+        "rod.section.a": UNSET,
+        "rod.section.b": UNSET,
+        "rod.section.torsion_constant": UNSET,
+        "rod.section.shape": "circle",
+        "rod.section.diameter": 0.05,
+    }
     assert load_scene(PAPER, as_map) == scene
-    argv = ["validate", str(PAPER), "--unset", "rod.section.a", "--unset", "rod.section.b",
-            "--unset", "rod.section.torsion_constant", "--set", "rod.section.shape=circle",
-            "--set", "rod.section.diameter=0.05"]  # fmt: skip
+    argv = [
+        "validate",
+        str(PAPER),
+        "--unset",
+        "rod.section.a",
+        "--unset",
+        "rod.section.b",
+        "--unset",
+        "rod.section.torsion_constant",
+        "--set",
+        "rod.section.shape=circle",
+        "--set",
+        "rod.section.diameter=0.05",
+    ]
     capsys.readouterr()
     assert main(argv) == 0
     assert 'rod.section.shape = "circle"' in capsys.readouterr().out
@@ -206,7 +225,8 @@ def test_unset_removes_a_key_or_a_table_in_order_with_set(capsys) -> None:
     loaded = load_scene(PAPER, ["loads.end.force=[0, 0, 1]"])
     assert loaded.loads.end is not None
     assert load_scene(PAPER, ["loads.end.force=[0, 0, 1]", Removal("loads.end")]) == load_scene(
-        PAPER)
+        PAPER
+    )
     with pytest.raises(SceneError, match="^rod.section.diameter: not in the scene"):
         load_scene(PAPER, [Removal("rod.section.diameter")])
     with pytest.raises(SceneError, match="^rod.sectio: unknown key .*did you mean 'rod.section'"):
@@ -222,10 +242,16 @@ def test_unset_works_in_a_sweeps_overrides(tmp_path) -> None:
     from cosserat_fem.studies.sweep_spec import load_sweep
 
     path = tmp_path / "sweep.toml"
-    path.write_text(f'[sweep]\nscene = "{PAPER}"\n[sweep.vary]\n"rod.section.diameter" = '
-                    '[0.04, 0.05]\n', encoding="utf-8")  # fmt: skip
-    overrides = [Removal("rod.section.a"), Removal("rod.section.b"),
-                 Removal("rod.section.torsion_constant"), "rod.section.shape=circle"]  # fmt: skip
+    path.write_text(
+        f'[sweep]\nscene = "{PAPER}"\n[sweep.vary]\n"rod.section.diameter" = [0.04, 0.05]\n',
+        encoding="utf-8",
+    )
+    overrides = [
+        Removal("rod.section.a"),
+        Removal("rod.section.b"),
+        Removal("rod.section.torsion_constant"),
+        "rod.section.shape=circle",
+    ]
     spec = load_sweep(path, overrides)
     diameters = [spec.scene(m).rod.section.diameter for m in spec.members]
     assert diameters == [0.04, 0.05]

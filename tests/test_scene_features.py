@@ -416,8 +416,12 @@ def test_point_load_deflects_the_cantilever_as_timoshenko(at):
     PETSc's LU against MUMPS's, round-off of a condition number ~1e8 (measured 3e-14); a load
     taken twice or not at all would be off by 100 %."""
     P = 10.0
-    overrides = ["loads.force_density=[0,0,0]", f"loads.point.s={at}",
-                 f"loads.point.force=[{P}, 0, 0]", "static.load_steps=1"]  # fmt: skip
+    overrides = [
+        "loads.force_density=[0,0,0]",
+        f"loads.point.s={at}",
+        f"loads.point.force=[{P}, 0, 0]",
+        "static.load_steps=1",
+    ]
     scene = api.load(ROOT / "scenes" / "cao_tucker_2008.toml", overrides)
     tip = api.static(scene).probes[-1][1]
     sec, mat, ell = scene.rod.section.constants(), scene.rod.material, scene.rod.length

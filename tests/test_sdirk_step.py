@@ -155,8 +155,9 @@ def test_sdirk_overrides_are_called_on_every_step_serial_and_mpi():
     for row in (serial_rows[0], *mpi_rows):
         assert abs(row[1] - expected) <= 1e-13 * abs(expected) + ulps
         assert np.abs(np.delete(row, 1)).max() <= ulps  # the others stay 0
-    c, dolfinx = (np.array(serial["broken"][k]["probes"]) for k in ("solver.loop=auto",
-                                                                    "solver.loop=python"))
+    c, dolfinx = (
+        np.array(serial["broken"][k]["probes"]) for k in ("solver.loop=auto", "solver.loop=python")
+    )
     assert np.array_equal(c, dolfinx)
     two = np.array(mpi["broken"]["solver.loop=auto"]["probes"])
     assert two.shape == c.shape

@@ -39,9 +39,15 @@ CASES = {
     # Divergences (DIVERGED_MAX_IT): retried with a fresh Jacobian, then steps rejected and
     # halved, as the loop does
     "rejections": ("1e-3", "solver.max_iterations=1", "time.step=1e-4"),
-}  # fmt: skip
-NEWTON_COUNTERS = ("solves", "iterations", "residual_assemblies", "jacobian_assemblies",
-                   "retries", "max_iterations_in_a_solve")  # fmt: skip
+}
+NEWTON_COUNTERS = (
+    "solves",
+    "iterations",
+    "residual_assemblies",
+    "jacobian_assemblies",
+    "retries",
+    "max_iterations_in_a_solve",
+)
 LOOP_COUNTERS = ("steps", "accepted_steps", "rejected_steps", "smallest_step_s")
 
 
@@ -129,11 +135,25 @@ def test_a_snes_divergence_is_a_rejected_step_then_one_line_with_time_and_place(
     every solve with DIVERGED_TR_DELTA: the step is rejected and halved (time.max_halvings =
     1), then the run stops with exit status 3 and one line naming the time (the half step,
     5e-5 s), the place and SNES's reason."""
-    proc = run_command(["-m", "cosserat_fem.cli", "run", str(PAPER), "--out", str(tmp_path),
-                        "--set", "time.step=1e-4", "--set", "time.max_halvings=1",
-                        *[a for o in QUIET for a in ("--set", o)],
-                        "--petsc", "snes_type=newtontr",
-                        "--petsc", "snes_tr_delta0=1e-12"])  # fmt: skip
+    proc = run_command(
+        [
+            "-m",
+            "cosserat_fem.cli",
+            "run",
+            str(PAPER),
+            "--out",
+            str(tmp_path),
+            "--set",
+            "time.step=1e-4",
+            "--set",
+            "time.max_halvings=1",
+            *[a for o in QUIET for a in ("--set", o)],
+            "--petsc",
+            "snes_type=newtontr",
+            "--petsc",
+            "snes_tr_delta0=1e-12",
+        ]
+    )
     assert proc.returncode == 3, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1, lines
@@ -148,20 +168,39 @@ def test_a_snes_divergence_is_a_rejected_step_then_one_line_with_time_and_place(
     [
         ("snes_linesearch_typo=bt", "solver.petsc.snes_linesearch_typo: PETSc did not use"),
         # an option of a type not chosen (the trust region's, for newtonls)
-        pytest.param("snes_tr_delta0=0.1", "solver.petsc.snes_tr_delta0: PETSc did not use",
-                     marks=pytest.mark.long),
-        ("snes_type=newtonlx", "solver.petsc.snes_type: PETSc refused 'newtonlx': Unable to find "
-                               "requested SNES type newtonlx"),
-        pytest.param("snes_rtol=abc", "solver.petsc.snes_rtol: PETSc refused 'abc'",
-                     marks=pytest.mark.long),
+        pytest.param(
+            "snes_tr_delta0=0.1",
+            "solver.petsc.snes_tr_delta0: PETSc did not use",
+            marks=pytest.mark.long,
+        ),
+        (
+            "snes_type=newtonlx",
+            "solver.petsc.snes_type: PETSc refused 'newtonlx': Unable to find "
+            "requested SNES type newtonlx",
+        ),
+        pytest.param(
+            "snes_rtol=abc", "solver.petsc.snes_rtol: PETSc refused 'abc'", marks=pytest.mark.long
+        ),
     ],
     ids=["unknown", "other-type", "bad-type", "bad-number"],
 )
 def test_a_petsc_option_that_is_wrong_is_one_line_naming_the_key(tmp_path, option, expected):
     """Exit status 2 and one line on stderr that starts with the dotted key."""
-    proc = run_command(["-m", "cosserat_fem.cli", "run", str(PAPER), "--out", str(tmp_path),
-                        "--set", "time.end=3e-5", *[a for o in QUIET for a in ("--set", o)],
-                        "--petsc", option])  # fmt: skip
+    proc = run_command(
+        [
+            "-m",
+            "cosserat_fem.cli",
+            "run",
+            str(PAPER),
+            "--out",
+            str(tmp_path),
+            "--set",
+            "time.end=3e-5",
+            *[a for o in QUIET for a in ("--set", o)],
+            "--petsc",
+            option,
+        ]
+    )
     assert proc.returncode == 2, proc.stderr
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and expected in lines[0], lines
@@ -170,12 +209,14 @@ def test_a_petsc_option_that_is_wrong_is_one_line_naming_the_key(tmp_path, optio
 @pytest.mark.parametrize(
     ("overrides", "expected"),
     [
-        (['solver.petsc.snes_rtol=[1]'], "solver.petsc.snes_rtol: a PETSc option's value must be"),
+        (["solver.petsc.snes_rtol=[1]"], "solver.petsc.snes_rtol: a PETSc option's value must be"),
         (["solver.petsc.-snes_monitor="], "solver.petsc.-snes_monitor: a PETSc option's name"),
         (["solver.petsc.cosserat_snes_monitor="], "without its prefix"),
-        (["solver.nonlinear=newton", "solver.petsc.snes_monitor="],
-         'solver.petsc.snes_monitor: PETSc options configure SNES, but solver.nonlinear = '
-         '"newton"'),
+        (
+            ["solver.nonlinear=newton", "solver.petsc.snes_monitor="],
+            "solver.petsc.snes_monitor: PETSc options configure SNES, but solver.nonlinear = "
+            '"newton"',
+        ),
     ],
     ids=["value", "dash", "prefix", "newton"],
 )

@@ -62,16 +62,25 @@ from cosserat_fem.scene.schema import UNSET
 
 ROLLUP = ROOT / "scenes" / "rollup.toml"
 BECK = 20.0509536  # P ℓ²/EI of Beck's column, Euler–Bernoulli (module docstring)
-STOCKY = {"loads.end": UNSET, "rod.length": 0.25, "discretisation.elements": 4,
-          "discretisation.degree": 4, "static.load_steps": 1}  # fmt: skip
+STOCKY = {
+    "loads.end": UNSET,
+    "rod.length": 0.25,
+    "discretisation.elements": 4,
+    "discretisation.degree": 4,
+    "static.load_steps": 1,
+}
 
 
 def rod_stiffnesses(scene) -> tuple[float, float, float, float]:
     """(EI about d2 [N m²], EA, κGA [N], ℓ [m]) of the scene's rod."""
     rod = scene.rod_constants()
     section = rod.section
-    return (rod.young_modulus * section.c22, rod.young_modulus * section.area,
-            section.shear_coefficient * rod.shear_modulus * section.area, rod.length)  # fmt: skip
+    return (
+        rod.young_modulus * section.c22,
+        rod.young_modulus * section.area,
+        section.shear_coefficient * rod.shear_modulus * section.area,
+        rod.length,
+    )
 
 
 def euler_reissner(EI: float, EA: float, kGA: float, ell: float) -> tuple[float, float, float]:
@@ -99,9 +108,14 @@ def test_euler_column_with_shear_and_extension():
 def test_beck_column_flutters_at_its_load():
     """Slender (a = 2 mm, ℓ = 1 m), a tangential follower force: flutter at 20.0509536 EI/ℓ²
     within 1e-4 (module docstring); the colliding pair is bending-x, about d2 (c22 < c11)."""
-    common = {"loads.end": UNSET, "rod.section.a": 0.002, "rod.section.b": 0.003,
-              "discretisation.elements": 8, "discretisation.degree": 4,
-              "static.load_steps": 1}  # fmt: skip
+    common = {
+        "loads.end": UNSET,
+        "rod.section.a": 0.002,
+        "rod.section.b": 0.003,
+        "discretisation.elements": 8,
+        "discretisation.degree": 4,
+        "static.load_steps": 1,
+    }
     EI, _, _, ell = rod_stiffnesses(load_scene(ROLLUP, common))
     scene = load_scene(ROLLUP, {**common, "loads.follower.force": [0, 0, -BECK * EI / ell**2]})
     result = stability(scene, 0.9, 1.1, samples=3, tolerance=1e-10)
@@ -122,8 +136,12 @@ def test_beck_column_of_a_stocky_rod(elements):
     elements, measured 1e-5), and lies below 1 by 1.0e-2 to 1.4e-2 (the measured 1.17e-2,
     with the ±20 % of the coefficient 7.3 (a/ℓ)² measured at a/ℓ = 4e-3 and 2e-3, since the
     effect's coefficient need not be constant up to a/ℓ = 0.04)."""
-    common = {"loads.end": UNSET, "discretisation.elements": elements,
-              "discretisation.degree": 4, "static.load_steps": 1}  # fmt: skip
+    common = {
+        "loads.end": UNSET,
+        "discretisation.elements": elements,
+        "discretisation.degree": 4,
+        "static.load_steps": 1,
+    }
     EI, _, _, ell = rod_stiffnesses(load_scene(ROLLUP, common))
     scene = load_scene(ROLLUP, {**common, "loads.follower.force": [0, 0, -BECK * EI / ell**2]})
     result = stability(scene, 0.95, 1.05, samples=3, tolerance=1e-10)
@@ -159,8 +177,11 @@ def test_no_critical_factor_in_a_stable_range_and_bad_input():
     scene = load_scene(ROLLUP, {**STOCKY, "loads.end.force": [0, 0, -P_E]})
     result = stability(scene, 0.0, 0.5, samples=2)
     assert result.critical is None and result.reason == "stable over [0.0, 0.5]"
-    for args, message in [((1.0, 0.5), "--range"), ((-1.0, 0.5), "--range"),
-                          ((0.0, math.nan), "--range")]:  # fmt: skip
+    for args, message in [
+        ((1.0, 0.5), "--range"),
+        ((-1.0, 0.5), "--range"),
+        ((0.0, math.nan), "--range"),
+    ]:
         with pytest.raises(SceneError, match=f"^{message}"):
             stability(scene, *args)
     with pytest.raises(SceneError, match="^--samples"):
@@ -176,25 +197,61 @@ def test_stability_command_serial_and_mpi(tmp_path):
     ranks agree to the root finder's tolerance (1e-10 (1 + f)) plus the eigensolver's
     (1e-13 relative residual on λ, over dλ/df ≈ 1): within 1e-8. Bad input: exit 2, one
     line naming the option."""
-    common = ["--unset", "loads.end", "--set", "rod.length=0.25",
-              "--set", "discretisation.elements=4", "--set", "static.load_steps=1",
-              "--set", 'loads.end.force=[0,0,"-pi**2*EI/(4*L**2)"]']  # fmt: skip
+    common = [
+        "--unset",
+        "loads.end",
+        "--set",
+        "rod.length=0.25",
+        "--set",
+        "discretisation.elements=4",
+        "--set",
+        "static.load_steps=1",
+        "--set",
+        'loads.end.force=[0,0,"-pi**2*EI/(4*L**2)"]',
+    ]
     found = []
     for ranks in (1, 2):
         out = tmp_path / f"r{ranks}"
-        proc = run_command(["-m", "cosserat_fem.cli", "stability", str(ROLLUP), *common,
-                            "--range", "0.9", "1.1", "--samples", "3", "--tolerance", "1e-10",
-                            "--out", str(out)], ranks)  # fmt: skip
+        proc = run_command(
+            [
+                "-m",
+                "cosserat_fem.cli",
+                "stability",
+                str(ROLLUP),
+                *common,
+                "--range",
+                "0.9",
+                "1.1",
+                "--samples",
+                "3",
+                "--tolerance",
+                "1e-10",
+                "--out",
+                str(out),
+            ],
+            ranks,
+        )
         assert proc.returncode == 0, proc.stderr
         summary = json.loads((out / "stability.json").read_text())
         assert summary["kind"] == "stability" and summary["mpi_ranks"] == ranks
         assert summary["instability"] == "divergence" and summary["bracket"] == [0.9, 1.0]
         found.append(summary["critical_factor"])
     assert abs(found[0] - found[1]) < 1e-8
-    proc = run_command(["-m", "cosserat_fem.cli", "stability", str(ROLLUP), "--range", "1",
-                        "0.5", "--out", str(tmp_path / "bad")], 1)  # fmt: skip
+    proc = run_command(
+        [
+            "-m",
+            "cosserat_fem.cli",
+            "stability",
+            str(ROLLUP),
+            "--range",
+            "1",
+            "0.5",
+            "--out",
+            str(tmp_path / "bad"),
+        ],
+        1,
+    )
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines() == [
-        "cosserat-fem: error: --range: must be two finite load factors 0 <= LOW < HIGH, got "
-        "1.0 0.5"
+        "cosserat-fem: error: --range: must be two finite load factors 0 <= LOW < HIGH, got 1.0 0.5"
     ]

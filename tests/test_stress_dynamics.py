@@ -561,8 +561,10 @@ def test_forcing_sampled_at_a_multiple_of_two_pi_acts_as_a_static_load(tmp_path)
     modes = mode_shapes(beam, 25)
     Q = modal_loads(beam, q0, None, modes)
     static = static_deflection_sine_load(beam, q0, beam.length)[0]
-    cosines = sum(m.W(beam.length) * Qk / m.omega**2 * np.cos(m.omega * t) for m, Qk in zip(
-        modes, Q, strict=True))
+    cosines = sum(
+        m.W(beam.length) * Qk / m.omega**2 * np.cos(m.omega * t)
+        for m, Qk in zip(modes, Q, strict=True)
+    )
     sampled = math.sin(10.0 * math.pi / 1.8)
     step = sampled * (static - cosines)
     assert np.sqrt(np.mean((x - step) ** 2) / np.mean(step**2)) < 1e-3

@@ -65,4 +65,3 @@ def test_a_hung_mpi_job_fails_its_test_and_leaves_no_rank_running(tmp_path: Path
     while any(running(pid) for pid in pids) and time.monotonic() < deadline:
         time.sleep(0.05)
     assert not any(running(pid) for pid in pids), pids
-

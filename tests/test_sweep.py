@@ -62,9 +62,11 @@ def test_members_are_their_scenes_run_alone(tmp_path):
 def test_a_failed_member_is_recorded_and_the_sweep_goes_on(tmp_path):
     """A distributed load of 1e10 N/m with no halving allowed: Newton fails in the first step
     (status "failed", the one-line reason); the members before and after complete."""
-    cases = ('[[sweep.case]]\n"time.step" = 3e-5\n'
-             '[[sweep.case]]\n"loads.force_density" = ["1e10", 0, 0]\n"time.max_halvings" = 0\n'
-             '[[sweep.case]]\n"time.step" = 2e-5\n')  # fmt: skip
+    cases = (
+        '[[sweep.case]]\n"time.step" = 3e-5\n'
+        '[[sweep.case]]\n"loads.force_density" = ["1e10", 0, 0]\n"time.max_halvings" = 0\n'
+        '[[sweep.case]]\n"time.step" = 2e-5\n'
+    )
     result = api.sweep(api.load_sweep(sweep_file(tmp_path, cases)), tmp_path / "out")
     rows = read_table(result.table)
     assert [r["status"] for r in rows] == ["completed", "failed", "completed"]
@@ -99,32 +101,58 @@ def test_a_restarted_sweep_skips_the_finished_members(tmp_path):
 @pytest.mark.parametrize(
     ("body", "sweep", "message"),
     [
-        ('[sweep.vary]\n"tim.step" = [1e-5]\n', {}, "sweep member 0 (tim.step = 1e-05): tim: "
-         "unknown key"),
-        ('[sweep.vary]\n"time.step" = [-1e-5]\n', {}, "sweep member 0 (time.step = -1e-05): "
-         "time.step: must be > 0 [s], got -1e-05"),
-        ('[sweep.vary]\n"time.step" = []\n', {}, 'sweep.vary."time.step": must be a non-empty '
-         "list"),
-        ('[sweep.vary]\n"time.step" = {start = 1e-5, stop = 2e-5, num = 0}\n', {},
-         'sweep.vary."time.step".num: an empty range'),
-        ('[sweep.vary]\n"time.step" = {start = 1e-5, stop = 2e-5, num = 50}\n'
-         '"solver.stol" = {start = 1e-8, stop = 1e-7, num = 50}\n', {"max_members": 1000},
-         "sweep.max_members: the sweep has 2500 members, more than max_members = 1000"),
-        ('[sweep.vary]\n"time.step" = [1e-5, 2e-5]\n"solver.stol" = [1e-8]\n',
-         {"combine": "zip"}, "sweep.vary: combine = 'zip' needs lists of one length"),
-        (STEPS, {"max_members": 200000}, "sweep.max_members: at most 100000 (every rank "
-         "validates every member first), got 200000"),
+        (
+            '[sweep.vary]\n"tim.step" = [1e-5]\n',
+            {},
+            "sweep member 0 (tim.step = 1e-05): tim: unknown key",
+        ),
+        (
+            '[sweep.vary]\n"time.step" = [-1e-5]\n',
+            {},
+            "sweep member 0 (time.step = -1e-05): time.step: must be > 0 [s], got -1e-05",
+        ),
+        (
+            '[sweep.vary]\n"time.step" = []\n',
+            {},
+            'sweep.vary."time.step": must be a non-empty list',
+        ),
+        (
+            '[sweep.vary]\n"time.step" = {start = 1e-5, stop = 2e-5, num = 0}\n',
+            {},
+            'sweep.vary."time.step".num: an empty range',
+        ),
+        (
+            '[sweep.vary]\n"time.step" = {start = 1e-5, stop = 2e-5, num = 50}\n'
+            '"solver.stol" = {start = 1e-8, stop = 1e-7, num = 50}\n',
+            {"max_members": 1000},
+            "sweep.max_members: the sweep has 2500 members, more than max_members = 1000",
+        ),
+        (
+            '[sweep.vary]\n"time.step" = [1e-5, 2e-5]\n"solver.stol" = [1e-8]\n',
+            {"combine": "zip"},
+            "sweep.vary: combine = 'zip' needs lists of one length",
+        ),
+        (
+            STEPS,
+            {"max_members": 200000},
+            "sweep.max_members: at most 100000 (every rank "
+            "validates every member first), got 200000",
+        ),
         (STEPS, {"keep": "all"}, "sweep.keep: must be one of 'run', 'probes', got \"all\""),
         (STEPS, {"group_size": 0}, "sweep.group_size: must be a positive integer, got 0"),
         (STEPS, {"colour": 1}, "sweep.colour: unknown key"),
-        (STEPS + '[[sweep.case]]\n"time.step" = 1e-5\n', {},
-         "sweep: give either [sweep.vary] or [[sweep.case]]"),
+        (
+            STEPS + '[[sweep.case]]\n"time.step" = 1e-5\n',
+            {},
+            "sweep: give either [sweep.vary] or [[sweep.case]]",
+        ),
     ],
-)  # fmt: skip
+)
 def test_a_malformed_sweep_is_refused_before_any_member_runs(tmp_path, body, sweep, message):
     path = sweep_file(tmp_path, body, **sweep)
-    proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out",
-                        str(tmp_path / "out")])  # fmt: skip
+    proc = run_command(
+        ["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(tmp_path / "out")]
+    )
     assert proc.returncode == 2
     assert proc.stderr.startswith(f"cosserat-fem: error: {message}"), proc.stderr
     assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
@@ -140,7 +168,8 @@ def test_a_sweep_under_mpi_equals_the_serial_sweep(tmp_path):
     tables = sweep_serial_and_mpi(path, tmp_path)
     assert tables[1] == tables[2]
     assert sorted(p.name for p in (tmp_path / "n2" / "table").iterdir()) == [
-        "group-0.csv", "group-1.csv"
+        "group-0.csv",
+        "group-1.csv",
     ]
     kept = sorted(p.name for p in (tmp_path / "n2" / "members" / "m00000").iterdir())
     assert kept == ["probes.csv", "summary.json"]
@@ -170,8 +199,9 @@ def test_a_sweep_killed_with_sigkill_and_started_again_skips_what_finished(tmp_p
     path = sweep_file(tmp_path, '[sweep.vary]\n"time.step" = [1e-5, 2e-5, 3e-5, 1.5e-5]\n')
     out = tmp_path / "killed"
     cmd = [PYTHON, "-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)]
-    proc = subprocess.Popen(cmd, cwd=ROOT, env=subprocess_env(), stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL)  # fmt: skip
+    proc = subprocess.Popen(
+        cmd, cwd=ROOT, env=subprocess_env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+    )
     part, deadline = out / "table" / "group-0.csv", time.monotonic() + 120
     while not (part.exists() and part.read_bytes().count(b"\n") >= 2):
         assert proc.poll() is None, "the sweep ended before it was killed"
@@ -184,12 +214,15 @@ def test_a_sweep_killed_with_sigkill_and_started_again_skips_what_finished(tmp_p
     again = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(out)])
     assert again.returncode == 0, again.stderr
     assert f"ran {4 - rows_before}, skipped {rows_before} finished before" in again.stdout
-    whole = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out",
-                         str(tmp_path / "whole")])  # fmt: skip
+    whole = run_command(
+        ["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(tmp_path / "whole")]
+    )
     assert whole.returncode == 0, whole.stderr
     strip = [{k: v for k, v in r.items() if k != "wall_s"} for r in read_table(out / "sweep.csv")]
-    assert strip == [{k: v for k, v in r.items() if k != "wall_s"}
-                     for r in read_table(tmp_path / "whole" / "sweep.csv")]  # fmt: skip
+    assert strip == [
+        {k: v for k, v in r.items() if k != "wall_s"}
+        for r in read_table(tmp_path / "whole" / "sweep.csv")
+    ]
 
 
 def test_members_that_differ_in_parameters_share_their_compiled_forms():
@@ -253,8 +286,7 @@ def test_a_group_of_two_ranks_runs_a_member_as_mpirun_runs_it_alone(tmp_path):
     assert [p.name for p in (out / "table").iterdir()] == ["group-0.csv"]
     sets = [f"--set={k}={json.dumps(v)}" for k, v in {**SHORT, "time.step": 2e-5}.items()]
     alone = tmp_path / "alone"
-    proc = run_command(["-m", "cosserat_fem.cli", "run", str(PAPER), "--out", str(alone),
-                        *sets], 2)  # fmt: skip
+    proc = run_command(["-m", "cosserat_fem.cli", "run", str(PAPER), "--out", str(alone), *sets], 2)
     assert proc.returncode == 0, proc.stderr
     member = out / "members" / "m00001" / "probes.csv"
     assert member.read_bytes() == (alone / "probes.csv").read_bytes()
@@ -263,8 +295,9 @@ def test_a_group_of_two_ranks_runs_a_member_as_mpirun_runs_it_alone(tmp_path):
 def test_a_range_ends_at_its_stop_exactly(tmp_path):
     """{start = 1e-5, stop = 3e-5, num = 3}: 1e-5 + (2e-5 · 2)/2 would be 2.9999999999999997e-5
     in floating point; the last member's value is the stop as written."""
-    spec = api.load_sweep(sweep_file(
-        tmp_path, '[sweep.vary]\n"time.step" = {start = 1e-5, stop = 3e-5, num = 3}\n'))
+    spec = api.load_sweep(
+        sweep_file(tmp_path, '[sweep.vary]\n"time.step" = {start = 1e-5, stop = 3e-5, num = 3}\n')
+    )
     values = [m.values["time.step"] for m in spec.members]
     assert values[0] == 1e-5 and values[-1] == 3e-5
     assert values[1] == pytest.approx(2e-5, rel=1e-15)  # an inner value: to rounding
@@ -288,8 +321,10 @@ def test_a_sweep_tells_each_member_as_it_finishes(tmp_path, ranks):
     assert proc.returncode == 0, proc.stderr
     # Found anywhere in stderr, not line by line: under mpirun two ranks print, and mpirun may
     # put one rank's line inside another's
-    pattern = re.compile(r"cosserat-fem: sweep member (\d) completed in [0-9.e+-]+ s; (\d) of 3 "
-                         r"done, elapsed [0-9.:]+(?: s)?, ETA ([0-9.:]+?)(?: s|\n|$)")  # fmt: skip
+    pattern = re.compile(
+        r"cosserat-fem: sweep member (\d) completed in [0-9.e+-]+ s; (\d) of 3 "
+        r"done, elapsed [0-9.:]+(?: s)?, ETA ([0-9.:]+?)(?: s|\n|$)"
+    )
     found = [(None, m[1], m[2], None, m[3]) for m in pattern.finditer(proc.stderr)]
     assert len(found) == 3 and proc.stderr.count("cosserat-fem:") == 3, proc.stderr
     assert sorted(int(m[1]) for m in found) == [0, 1, 2]
@@ -299,6 +334,8 @@ def test_a_sweep_tells_each_member_as_it_finishes(tmp_path, ranks):
     assert again.returncode == 0 and "sweep member" not in again.stderr, again.stderr
     quiet = run_command([*sweep[:-1], str(tmp_path / "quiet"), "--quiet"], ranks)
     assert quiet.returncode == 0 and quiet.stderr == "" and quiet.stdout == "", quiet.stderr
+
+
 # ------------------------------------------------------------------ issue 25 (items 9, 13, 19, 21)
 def test_the_command_line_set_wins_over_the_sweep_set(tmp_path, capsys):
     """``sweep --set KEY=V`` is applied after ``[sweep.set]`` (before: first, so that a key the
@@ -319,12 +356,18 @@ def test_the_command_line_set_wins_over_the_sweep_set(tmp_path, capsys):
     [
         (STEPS, ["time.step=1e-5"], "--set time.step: every member of the sweep sets it"),
         (STEPS + '"time.step" = 1e-5\n', [], None),  # appended to [sweep.vary]: a duplicate
-        ('[[sweep.case]]\n"time.step" = 1e-5\n[[sweep.case]]\n"time.step" = 2e-5\n',
-         [" time . step =1e-5"], "--set time.step: every member of the sweep sets it"),
-        ('[[sweep.case]]\n"time.step" = 1e-5\n[[sweep.case]]\n"solver.stol" = 1e-9\n',
-         ["time.step=2e-5"], ""),  # the second case takes it: allowed
+        (
+            '[[sweep.case]]\n"time.step" = 1e-5\n[[sweep.case]]\n"time.step" = 2e-5\n',
+            [" time . step =1e-5"],
+            "--set time.step: every member of the sweep sets it",
+        ),
+        (
+            '[[sweep.case]]\n"time.step" = 1e-5\n[[sweep.case]]\n"solver.stol" = 1e-9\n',
+            ["time.step=2e-5"],
+            "",
+        ),  # the second case takes it: allowed
     ],
-)  # fmt: skip
+)
 def test_a_set_key_that_every_member_replaces_is_refused(tmp_path, body, sets, message):
     """A key given by ``--set`` that every member sets itself would never be used: refused
     naming it (a key some cases leave out is their value; ``[sweep.set]`` may give one, as
@@ -357,8 +400,11 @@ def test_a_toml_date_among_a_sweep_values_is_refused_in_one_line(tmp_path):
     """A TOML date among a varied key's values: the member is refused naming the date as TOML
     writes it (before: TypeError, "Object of type date is not JSON serializable")."""
     path = sweep_file(tmp_path, '[sweep.vary]\n"time.step" = [1e-5, 1979-05-27]\n')
-    with pytest.raises(SceneError, match=r"^sweep member 1 \(time\.step = 1979-05-27\): time\."
-                                         r"step: must be a number"):  # fmt: skip
+    with pytest.raises(
+        SceneError,
+        match=r"^sweep member 1 \(time\.step = 1979-05-27\): time\."
+        r"step: must be a number",
+    ):
         api.load_sweep(path)
 
 
@@ -366,27 +412,40 @@ def test_a_range_whose_span_overflows_has_finite_values(tmp_path):
     """{start = -1e308, stop = 1e308, num = 3}: stop − start overflows to inf, and start + inf·0
     was NaN; the values are the ends' weighted sums, exact here: -1e308, 0.5·(-1e308) +
     0.5·1e308 = 0 (halving is exact in binary), 1e308."""
-    spec = api.load_sweep(sweep_file(
-        tmp_path, '[sweep.vary]\n"parameters.a" = {start = -1e308, stop = 1e308, num = 3}\n'))
+    spec = api.load_sweep(
+        sweep_file(
+            tmp_path, '[sweep.vary]\n"parameters.a" = {start = -1e308, stop = 1e308, num = 3}\n'
+        )
+    )
     assert [m.values["parameters.a"] for m in spec.members] == [-1e308, 0.0, 1e308]
 
 
 @pytest.mark.parametrize(
     ("body", "sweep", "message"),
     [
-        ('[sweep.vary]\n"limits.wall_time" = [100.0, 1e-6]\n', {},
-         r"sweep member 1 \(limits\.wall_time = 1e-06\): time\.step: the run needs .* more "
-         r"than limits\.wall_time = 1e-06 s"),
-        ('[sweep.vary]\n"limits.memory" = [1e12, 1000.0]\n', {},
-         r"sweep member 1 \(limits\.memory = 1000\.0\): discretisation\.elements: the run needs "
-         r".* of memory .* more than limits\.memory = 1000 bytes"),
-        ('[sweep.vary]\n"time.step" = [1e-5]\n', {"scene": ROOT / "scenes" / "free_ring.toml"},
-         r"sweep member 0 \(time\.step = 1e-05\): reference\.closed: a closed rod has modes "
-         r"only"),
+        (
+            '[sweep.vary]\n"limits.wall_time" = [100.0, 1e-6]\n',
+            {},
+            r"sweep member 1 \(limits\.wall_time = 1e-06\): time\.step: the run needs .* more "
+            r"than limits\.wall_time = 1e-06 s",
+        ),
+        (
+            '[sweep.vary]\n"limits.memory" = [1e12, 1000.0]\n',
+            {},
+            r"sweep member 1 \(limits\.memory = 1000\.0\): discretisation\.elements: the run needs "
+            r".* of memory .* more than limits\.memory = 1000 bytes",
+        ),
+        (
+            '[sweep.vary]\n"time.step" = [1e-5]\n',
+            {"scene": ROOT / "scenes" / "free_ring.toml"},
+            r"sweep member 0 \(time\.step = 1e-05\): reference\.closed: a closed rod has modes "
+            r"only",
+        ),
     ],
-)  # fmt: skip
-def test_members_that_their_run_would_refuse_are_refused_with_the_sweep(tmp_path, body, sweep,
-                                                                        message):  # fmt: skip
+)
+def test_members_that_their_run_would_refuse_are_refused_with_the_sweep(
+    tmp_path, body, sweep, message
+):
     """A member over its limits (wall time, memory: budget.py's lower bounds) or of a closed
     rod is refused when the sweep is loaded, exit 2, no output folder (before: run one by one
     into "error" rows, and the sweep exited 0)."""
@@ -419,8 +478,11 @@ def test_members_that_stop_are_not_finished_and_continue(tmp_path):
     vary = '[sweep.vary]\n"time.step" = [1e-5, 2e-5]\n'
     path = sweep_file(tmp_path, vary, keep="probes")
     out = tmp_path / "out"
-    with pytest.raises(StopError, match=r"^sweep: 2 members stopped \(member 0: LimitReached: "
-                                        r"limits\.wall_time: the run stopped at t = 0\.00064 s"):
+    with pytest.raises(
+        StopError,
+        match=r"^sweep: 2 members stopped \(member 0: LimitReached: "
+        r"limits\.wall_time: the run stopped at t = 0\.00064 s",
+    ):
         api.sweep(api.load_sweep(path, WALL), out)
     rows = read_table(out / "sweep.csv")
     assert [r["status"] for r in rows] == ["stopped", "stopped"]
@@ -434,7 +496,9 @@ def test_members_that_stop_are_not_finished_and_continue(tmp_path):
         summary = json.loads((out / "members" / member / "summary.json").read_text())
         assert summary["restarts"] == 1 and summary["status"] == "completed"
         assert sorted(p.name for p in (out / "members" / member).iterdir()) == [
-            "probes.csv", "summary.json"]
+            "probes.csv",
+            "summary.json",
+        ]
     whole = api.sweep(api.load_sweep(path, raised), tmp_path / "whole")
     assert whole.ran == 2
 
@@ -449,8 +513,9 @@ def test_members_that_stop_are_not_finished_and_continue(tmp_path):
     from cosserat_fem.io.sweep_table import read_sweep_rows
 
     (out / "sweep.csv").unlink()
-    parts = [row for part in sorted((out / "table").glob("group-*.csv"))
-             for row in read_table(part)]  # fmt: skip
+    parts = [
+        row for part in sorted((out / "table").glob("group-*.csv")) for row in read_table(part)
+    ]
     assert sorted(r["status"] for r in parts) == ["completed"] * 2 + ["stopped"] * 2
     assert [r["status"] for r in read_sweep_rows(out)[1]] == ["completed", "completed"]
     assert main(["plot", str(out), "--quiet"]) == 0
@@ -482,11 +547,14 @@ def chain_sweep(folder: Path, max_periods: int) -> Path:
     """A frequency response of the paper's scene (no XDMF), one chain of two members (r = 1,
     1.1, continued), 16 steps a period, at most ``max_periods`` periods."""
     path = folder / "chain.toml"
-    path.write_text(f'[sweep]\nscene = "{PAPER}"\nkeep = "probes"\n[sweep.set]\n'
-                    '"output.xdmf" = false\n[sweep.vary]\n"parameters.r" = [1.0, 1.1]\n'
-                    '[sweep.response]\nperiod = "2*pi/(8*r*omega0)"\n'
-                    'continuation = "parameters.r"\nsteps_per_period = 16\n'
-                    f"max_periods = {max_periods}\n", encoding="utf-8")  # fmt: skip
+    path.write_text(
+        f'[sweep]\nscene = "{PAPER}"\nkeep = "probes"\n[sweep.set]\n'
+        '"output.xdmf" = false\n[sweep.vary]\n"parameters.r" = [1.0, 1.1]\n'
+        '[sweep.response]\nperiod = "2*pi/(8*r*omega0)"\n'
+        'continuation = "parameters.r"\nsteps_per_period = 16\n'
+        f"max_periods = {max_periods}\n",
+        encoding="utf-8",
+    )
     return path
 
 
@@ -502,8 +570,11 @@ def test_a_chain_stops_at_its_stopped_member_and_continues_from_it(tmp_path):
 
     path = chain_sweep(tmp_path, max_periods=8)
     out = tmp_path / "out"
-    with pytest.raises(StopError, match=r"^sweep: 1 member stopped \(member 0: LimitReached: .*"
-                                        r"\) and 1 not run after them; start the sweep again"):
+    with pytest.raises(
+        StopError,
+        match=r"^sweep: 1 member stopped \(member 0: LimitReached: .*"
+        r"\) and 1 not run after them; start the sweep again",
+    ):
         api.sweep(api.load_sweep(path, ["limits.wall_time=0.01"]), out)
     assert [r["status"] for r in read_table(out / "sweep.csv")] == ["stopped"]
     result = api.sweep(api.load_sweep(path, ["limits.wall_time=1000"]), out)
@@ -542,10 +613,12 @@ def test_a_table_damaged_at_the_sweeps_end_is_every_ranks_error(tmp_path):
     next collective call until the 10 s abort (MPI_ABORT, no one-line error). Now rank 0's
     finding is agreed: exit 2 on both ranks, one line naming the part."""
     path = sweep_file(tmp_path, '[sweep.vary]\n"time.step" = [1e-5, 2e-5]\n')
-    proc = run_command(["-c", DAMAGED_AT_THE_END, "sweep", str(path), "--out",
-                        str(tmp_path / "out")], 2)  # fmt: skip
+    proc = run_command(
+        ["-c", DAMAGED_AT_THE_END, "sweep", str(path), "--out", str(tmp_path / "out")], 2
+    )
     ours = [line for line in proc.stderr.splitlines() if line.startswith("cosserat-fem: error")]
     assert proc.returncode == 2, proc.stderr
-    assert ours == ["cosserat-fem: error: table/group-1.csv: line 3: damaged while the sweep ran "
-                    "(a test)"], proc.stderr  # fmt: skip
+    assert ours == [
+        "cosserat-fem: error: table/group-1.csv: line 3: damaged while the sweep ran (a test)"
+    ], proc.stderr
     assert "aborting the MPI job" not in proc.stderr and "MPI_ABORT" not in proc.stderr

@@ -107,8 +107,7 @@ def test_the_documented_commands_write_into_folders_of_their_own(document):
     found = 0
     for path in paths:
         text = path.read_text(encoding="utf-8")
-        lines = re.findall(r"^#? {4,}(.*cosserat-fem (?:run|static|modes|sweep) .*)$", text,
-                           re.M)  # fmt: skip
+        lines = re.findall(r"^#? {4,}(.*cosserat-fem (?:run|static|modes|sweep) .*)$", text, re.M)
         folders: dict[str, str] = {}
         for line in sorted(set(lines)):
             words = shlex.split(re.sub(r"\[(--[^]]*)\]", r"\1", line), comments=True)
@@ -116,8 +115,7 @@ def test_the_documented_commands_write_into_folders_of_their_own(document):
             args = _parser().parse_args(words[start:])
             if getattr(args, "restart", None):
                 continue  # continues the folder of its run
-            scene = None if args.command == "sweep" else api.load(ROOT / args.scene,
-                                                                   args.overrides)  # fmt: skip
+            scene = None if args.command == "sweep" else api.load(ROOT / args.scene, args.overrides)
             folder = str(Path(_out(args, scene)))
             assert folder not in folders, (str(path), line, folders.get(folder))
             folders[folder] = line

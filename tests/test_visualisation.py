@@ -202,11 +202,12 @@ def test_paraview_reads_the_rod(dynamic_run, tmp_path):
     script = str(ROOT / "tests" / "paraview_check.py")
     with virtual_display() as display:  # not xvfb-run: see tests/virtual_display.py
         proc = subprocess.run(
-            ["pvpython", script, str(dynamic_run / "solution.xdmf"), str(png), str(report),
-             "100"],
-            capture_output=True, text=True, timeout=300,
+            ["pvpython", script, str(dynamic_run / "solution.xdmf"), str(png), str(report), "100"],
+            capture_output=True,
+            text=True,
+            timeout=300,
             env={**subprocess_env(), "DISPLAY": display},
-        )  # fmt: skip
+        )
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     seen = json.loads(report.read_text())
     assert set(seen["point_arrays"]) == ARRAYS
@@ -285,9 +286,14 @@ def test_render_colours_by_the_displacement_when_it_is_the_only_field(tmp_path):
 
 def limited(limit: int, *args: str) -> subprocess.CompletedProcess:
     """``cosserat-fem ARGS`` in a child under a file size limit of ``limit`` bytes."""
-    return subprocess.run([PYTHON, "-m", "cosserat_fem.cli", *args], env=subprocess_env(),
-                          capture_output=True, text=True, timeout=600,
-                          preexec_fn=file_size_limit(limit))  # fmt: skip
+    return subprocess.run(
+        [PYTHON, "-m", "cosserat_fem.cli", *args],
+        env=subprocess_env(),
+        capture_output=True,
+        text=True,
+        timeout=600,
+        preexec_fn=file_size_limit(limit),
+    )
 
 
 def full_disk_outcome(proc, out: Path, failing: str, whole: Path, command: str) -> None:
@@ -311,8 +317,13 @@ def test_plot_on_a_full_disk_stops_with_exit_4(tmp_path):
     proc = cli("run", SCENE, "--out", str(run), "--quiet", *sum((["--set", s] for s in sets), []))
     assert proc.returncode == 0, proc.stderr
     out = tmp_path / "plots"
-    full_disk_outcome(limited(16 * 2**10, "plot", str(run), "--out", str(out)), out,
-                      "free_end.png", tmp_path, "plot")  # fmt: skip
+    full_disk_outcome(
+        limited(16 * 2**10, "plot", str(run), "--out", str(out)),
+        out,
+        "free_end.png",
+        tmp_path,
+        "plot",
+    )
     assert not list(out.iterdir())
 
 
@@ -330,8 +341,10 @@ def test_render_on_a_full_disk_stops_with_exit_4(dynamic_run, tmp_path):
     sizes = {p.name: p.stat().st_size for p in whole.iterdir()}
     pictures = [size for name, size in sizes.items() if name.endswith(".png")]
     assert sizes["rod.gif"] > max(pictures)
-    for limit, failing in ((sizes["rod_peak.png"] - 1, "rod_peak.png"),
-                           (max(pictures) + 1, "rod.gif")):  # fmt: skip
+    for limit, failing in (
+        (sizes["rod_peak.png"] - 1, "rod_peak.png"),
+        (max(pictures) + 1, "rod.gif"),
+    ):
         out = tmp_path / failing
         proc = limited(limit, "render", str(dynamic_run), "--out", str(out), *args)
         full_disk_outcome(proc, out, failing, whole, "render")
@@ -344,15 +357,21 @@ def test_render_tells_its_progress(dynamic_run, tmp_path):
     ``progress(done, total, what)`` after each of its 3 pictures and each animation frame
     (the command line draws it as a status line on a terminal): here 3 + 3 frames, done
     counting 1 to 6 of 6, each naming what was made."""
-    script = ("import sys\nfrom cosserat_fem.render import render_run\n"
-              "render_run(sys.argv[1], sys.argv[2], max_frames=3,\n"
-              "           progress=lambda d, t, w: print(f'{d}|{t}|{w}', flush=True))\n")
+    script = (
+        "import sys\nfrom cosserat_fem.render import render_run\n"
+        "render_run(sys.argv[1], sys.argv[2], max_frames=3,\n"
+        "           progress=lambda d, t, w: print(f'{d}|{t}|{w}', flush=True))\n"
+    )
     proc = run_command(["-c", script, str(dynamic_run), str(tmp_path / "render")])
     assert proc.returncode == 0, proc.stderr
     calls = [line.split("|") for line in proc.stdout.splitlines()]
     assert [(int(d), int(t)) for d, t, _ in calls] == [(d, 6) for d in range(1, 7)]
-    assert [w for _, _, w in calls] == ["rod_peak.png", "rod_last.png", "rod_frames.png",
-                                        *(f"rod.gif, frame {i} of 3" for i in (1, 2, 3))]
+    assert [w for _, _, w in calls] == [
+        "rod_peak.png",
+        "rod_last.png",
+        "rod_frames.png",
+        *(f"rod.gif, frame {i} of 3" for i in (1, 2, 3)),
+    ]
 
 
 @pytest.mark.parametrize("command", ["plot", "render"])

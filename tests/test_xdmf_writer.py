@@ -94,8 +94,9 @@ def test_the_xml_is_well_formed_at_every_step_of_an_append(model, tmp_path, monk
         """Every state the two writes of an append can leave, checked before it is made."""
         before = frames_named(path)
         start, tail = doc._tail + xdmf._SWITCH, doc._new_tail(frame)
-        staged = b"".join([b" ", frame, b" " * (tail - start - 1 - len(frame)),
-                           xdmf._XDMF_TAIL, xdmf._SPARE_OPEN])  # fmt: skip
+        staged = b"".join(
+            [b" ", frame, b" " * (tail - start - 1 - len(frame)), xdmf._XDMF_TAIL, xdmf._SPARE_OPEN]
+        )
         fd = os.open(path, os.O_RDWR)
         try:
             original = os.pread(fd, len(staged), start)
@@ -160,15 +161,20 @@ def test_a_resumed_series_keeps_its_meshs_order_of_the_points(model, tmp_path):
     shuffle = np.random.default_rng(2).permutation(len(line.geometry))
     at = np.argsort(shuffle)  # where each output point is in the file
     segments = np.sort(at[line.topology], axis=1)
-    xdmf._write_file(folder / xdmf.MESH_FILE, h5.image(
-        [("/Mesh/mesh/geometry", line.geometry[shuffle]), ("/Mesh/mesh/topology", segments)]
-    )[0])  # fmt: skip
+    xdmf._write_file(
+        folder / xdmf.MESH_FILE,
+        h5.image(
+            [("/Mesh/mesh/geometry", line.geometry[shuffle]), ("/Mesh/mesh/topology", segments)]
+        )[0],
+    )
     for k in range(2):
         name = folder / xdmf.frame_file(k)
         f = H5File(name)
         key = xdmf._time_text(float(k))
-        datasets = [(f"/Function/{a}/{key}", f.read(f"/Function/{a}/{key}")[shuffle])
-                    for a in ("displacement", "angles")]  # fmt: skip
+        datasets = [
+            (f"/Function/{a}/{key}", f.read(f"/Function/{a}/{key}")[shuffle])
+            for a in ("displacement", "angles")
+        ]
         f.close()
         xdmf._write_file(name, h5.image(datasets)[0])
     writer = fields.XdmfWriter(resumed, model, ("displacement", "angles"), resume=(1, 2))

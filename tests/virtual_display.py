@@ -38,10 +38,22 @@ def virtual_display(timeout: float = 60.0) -> Iterator[str]:
     read, write = os.pipe()
     with tempfile.TemporaryFile() as log:
         server = subprocess.Popen(
-            ["Xvfb", "-displayfd", str(write), "-screen", "0", "1280x1024x24",
-             "-nolisten", "tcp", "-noreset"],
-            pass_fds=(write,), stdin=subprocess.DEVNULL, stdout=log, stderr=log,
-        )  # fmt: skip
+            [
+                "Xvfb",
+                "-displayfd",
+                str(write),
+                "-screen",
+                "0",
+                "1280x1024x24",
+                "-nolisten",
+                "tcp",
+                "-noreset",
+            ],
+            pass_fds=(write,),
+            stdin=subprocess.DEVNULL,
+            stdout=log,
+            stderr=log,
+        )
         os.close(write)
         try:
             number = b""

@@ -49,8 +49,7 @@ def tip(P: float, guess: np.ndarray) -> np.ndarray:
     y0 = np.concatenate([np.zeros(3), np.eye(3).ravel()])
 
     def residual(r_tip):
-        sol = solve_ivp(rhs, (0.0, L), y0, args=(r_tip,), rtol=1e-12, atol=1e-12,
-                        method="DOP853")  # fmt: skip
+        sol = solve_ivp(rhs, (0.0, L), y0, args=(r_tip,), rtol=1e-12, atol=1e-12, method="DOP853")
         return sol.y[:3, -1] - r_tip
 
     return fsolve(residual, guess, xtol=1e-13)

@@ -131,8 +131,10 @@ def estimate(scene: Scene, command: str, start: float | None = None, modes: int 
         steps = (t.end - (t.start if start is None else start)) / t.step  # a float: may be vast
         full = scene.solver.jacobian == "full"
         seconds = steps * _solve_seconds(n, full)
-        time_driver = "time.step" if 2 * _solve_seconds(0, full) > _solve_seconds(n, full) else (
-            "discretisation.elements"
+        time_driver = (
+            "time.step"
+            if 2 * _solve_seconds(0, full) > _solve_seconds(n, full)
+            else ("discretisation.elements")
         )
         extra = len(probe_columns(scene.output.probe_fields)) - len(PROBE_COLUMNS)
         row = PROBE_ROW_BYTES + PROBE_COLUMN_BYTES * extra
@@ -152,8 +154,8 @@ def estimate(scene: Scene, command: str, start: float | None = None, modes: int 
                 time_driver = "output.xdmf_interval"
     elif command == "static":
         seconds = float(scene.static.load_steps) * _solve_seconds(n, full=True)
-        time_driver = "static.load_steps" if scene.static.load_steps > n else (
-            "discretisation.elements"
+        time_driver = (
+            "static.load_steps" if scene.static.load_steps > n else ("discretisation.elements")
         )
     else:
         seconds = _solve_seconds(n, full=True)
@@ -221,9 +223,15 @@ def process_limits(root: Path = Path("/")) -> list[MemoryLimit]:
         if limit == resource.RLIM_INFINITY or used is None:
             continue
         room = limit - used
-        found.append(MemoryLimit(room, True, f"the {_bytes(max(room, 0.0))} left under this "
-                                 f"process's {shell} of {_bytes(limit)}, {_bytes(used)} in "
-                                 "use"))  # fmt: skip
+        found.append(
+            MemoryLimit(
+                room,
+                True,
+                f"the {_bytes(max(room, 0.0))} left under this "
+                f"process's {shell} of {_bytes(limit)}, {_bytes(used)} in "
+                "use",
+            )
+        )
     return found
 
 
@@ -247,8 +255,10 @@ def _cgroup_paths(root: Path) -> dict[int, str]:
 
 
 #: The files of a cgroup's limit and usage, by version.
-_CGROUP_FILES = {2: ("memory.max", "memory.current"),
-                 1: ("memory.limit_in_bytes", "memory.usage_in_bytes")}  # fmt: skip
+_CGROUP_FILES = {
+    2: ("memory.max", "memory.current"),
+    1: ("memory.limit_in_bytes", "memory.usage_in_bytes"),
+}
 
 
 def _cgroup_folders(root: Path) -> list[tuple[Path, int]]:
@@ -267,13 +277,16 @@ def _cgroup_folders(root: Path) -> list[tuple[Path, int]]:
             fields, tail = head.split(), rest.split()
             if len(fields) < 5 or len(tail) < 3:
                 continue
-            wanted = tail[0] == "cgroup2" if version == 2 else (
-                tail[0] == "cgroup" and "memory" in tail[2].split(","))  # fmt: skip
+            wanted = (
+                tail[0] == "cgroup2"
+                if version == 2
+                else (tail[0] == "cgroup" and "memory" in tail[2].split(","))
+            )
             if not wanted:
                 continue
             mount_root, point = fields[3], root / fields[4].lstrip("/")
             inner = paths[version]
-            relative = inner[len(mount_root):] if inner.startswith(mount_root) else ""
+            relative = inner[len(mount_root) :] if inner.startswith(mount_root) else ""
             folder = point / relative.strip("/")
             limit_file = _CGROUP_FILES[version][0]
             if not (folder / limit_file).exists():
@@ -335,9 +348,13 @@ def cgroup_limit(root: Path = Path("/")) -> MemoryLimit | None:
         if tightest is None or limit - used < tightest.room:
             where = "/" + str(folder.relative_to(root)) if folder.is_relative_to(root) else folder
             room = limit - used
-            tightest = MemoryLimit(room, False, f"the {_bytes(max(room, 0.0))} left under the "
-                                   f"memory limit of this process's control group ({where}/"
-                                   f"{limit_name}) of {_bytes(limit)}, {_bytes(used)} in use")
+            tightest = MemoryLimit(
+                room,
+                False,
+                f"the {_bytes(max(room, 0.0))} left under the "
+                f"memory limit of this process's control group ({where}/"
+                f"{limit_name}) of {_bytes(limit)}, {_bytes(used)} in use",
+            )
     return tightest
 
 
@@ -347,8 +364,11 @@ def memory_limits(root: Path = Path("/")) -> list[MemoryLimit]:
     ranks on it), the control group's limit (shared by the ranks on the node) and this
     process's resource limits."""
     available = available_memory()
-    found = [MemoryLimit(available, False, f"the {_bytes(available)} available on this machine",
-                         whole=True)]  # fmt: skip
+    found = [
+        MemoryLimit(
+            available, False, f"the {_bytes(available)} available on this machine", whole=True
+        )
+    ]
     group = cgroup_limit(root)
     if group is not None:
         found.append(group)
@@ -395,8 +415,15 @@ def check(
     return e
 
 
-def _check(scene: Scene, command: str, out_dir, ranks_on_node: int, ranks: int,
-           start: float | None, modes: int) -> Estimate:  # fmt: skip
+def _check(
+    scene: Scene,
+    command: str,
+    out_dir,
+    ranks_on_node: int,
+    ranks: int,
+    start: float | None,
+    modes: int,
+) -> Estimate:
     """:func:`check` on this rank alone."""
     e = estimate(scene, command, start, modes)
     limits = scene.limits

@@ -109,8 +109,11 @@ class StabilityPoint:
     def complex_pair(self) -> tuple[float, str] | None:
         """(real part, kind) of the complex pair nearest 0, None if there is none."""
         scale = float(np.abs(self.eigenvalues).max())
-        pairs = [(abs(lam), lam.real, kind) for lam, kind in zip(self.eigenvalues, self.kinds,
-                 strict=True) if eigenvalue_kind(lam, scale) == "flutter"]  # fmt: skip
+        pairs = [
+            (abs(lam), lam.real, kind)
+            for lam, kind in zip(self.eigenvalues, self.kinds, strict=True)
+            if eigenvalue_kind(lam, scale) == "flutter"
+        ]
         return min(pairs)[1:] if pairs else None
 
     def discriminant(self, near: float, kind: str) -> float | None:
@@ -131,9 +134,12 @@ class StabilityPoint:
         return min(candidates)[1] if candidates else None
 
     def as_dict(self) -> dict:
-        return {"factor": self.factor, "status": self.status,
-                "eigenvalues": [[lam.real, lam.imag] for lam in self.eigenvalues],
-                "kinds": self.kinds}  # fmt: skip
+        return {
+            "factor": self.factor,
+            "status": self.status,
+            "eigenvalues": [[lam.real, lam.imag] for lam in self.eigenvalues],
+            "kinds": self.kinds,
+        }
 
 
 @dataclass
@@ -155,11 +161,16 @@ class StabilityResult:
     loads: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
-        return {"critical_factor": self.critical, "instability": self.kind,
-                "bracket": list(self.bracket) if self.bracket else None,
-                "tolerance": self.tolerance, "root_evaluations": self.evaluations,
-                "reason": self.reason, "loads_at_factor_1": self.loads,
-                "points": [p.as_dict() for p in sorted(self.points, key=lambda p: p.factor)]}
+        return {
+            "critical_factor": self.critical,
+            "instability": self.kind,
+            "bracket": list(self.bracket) if self.bracket else None,
+            "tolerance": self.tolerance,
+            "root_evaluations": self.evaluations,
+            "reason": self.reason,
+            "loads_at_factor_1": self.loads,
+            "points": [p.as_dict() for p in sorted(self.points, key=lambda p: p.factor)],
+        }
 
 
 class Equilibria:
@@ -219,29 +230,34 @@ def _root(function, a: float, b: float, tolerance: float) -> tuple[float, int]:
     from scipy.optimize import brentq
 
     xtol = tolerance * (1.0 + max(abs(a), abs(b)))
-    root, info = brentq(function, a, b, xtol=xtol, rtol=4 * np.finfo(float).eps,
-                        full_output=True)  # fmt: skip
+    root, info = brentq(function, a, b, xtol=xtol, rtol=4 * np.finfo(float).eps, full_output=True)
     return float(root), int(info.function_calls)
 
 
-def critical_factor(equilibria: Equilibria, factors: Sequence[float],
-                    tolerance: float = 1e-8) -> StabilityResult:  # fmt: skip
+def critical_factor(
+    equilibria: Equilibria, factors: Sequence[float], tolerance: float = 1e-8
+) -> StabilityResult:
     """Visit ``factors`` (increasing) and locate the loss of stability in the first interval
     where it is lost (module docstring)."""
     grid = [equilibria.at(f) for f in factors]
     result = StabilityResult(points=[], tolerance=tolerance)
     if not grid[0].stable:
         result.reason = f"unstable ({grid[0].status}) already at the first factor {grid[0].factor}"
-    lost = next((i for i in range(len(grid) - 1) if grid[i].stable and not grid[i + 1].stable),
-                None)  # fmt: skip
+    lost = next(
+        (i for i in range(len(grid) - 1) if grid[i].stable and not grid[i + 1].stable), None
+    )
     if grid[0].stable and lost is None:
         result.reason = f"stable over [{factors[0]}, {factors[-1]}]"
     if lost is not None and grid[0].stable:
         a, b = grid[lost], grid[lost + 1]
         roots = []
         if b.lowest_real() < 0.0 <= a.lowest_real():
-            roots.append((*_root(lambda f: equilibria.at(f).lowest_real(), a.factor, b.factor,
-                                 tolerance), "divergence"))  # fmt: skip
+            roots.append(
+                (
+                    *_root(lambda f: equilibria.at(f).lowest_real(), a.factor, b.factor, tolerance),
+                    "divergence",
+                )
+            )
         pair = b.complex_pair()
         if pair is not None:
             near, kind = pair
@@ -258,8 +274,11 @@ def critical_factor(equilibria: Equilibria, factors: Sequence[float],
             def discriminant(f: float) -> float:
                 d = equilibria.at(f).discriminant(near, kind)
                 if d is None:
-                    raise SolverError(f"flutter: no {kind} pair at load factor {f}",
-                                      where="stability", suggestion="raise --count")  # fmt: skip
+                    raise SolverError(
+                        f"flutter: no {kind} pair at load factor {f}",
+                        where="stability",
+                        suggestion="raise --count",
+                    )
                 return d
 
             roots.append((*_root(discriminant, a.factor, b.factor, tolerance), "flutter"))
@@ -273,15 +292,19 @@ def critical_factor(equilibria: Equilibria, factors: Sequence[float],
 def scene_loads(scene: Scene) -> dict:
     """The scene's load components at factor 1 that are not zero, by dotted key (their
     expressions as given: the critical loads are the critical factor times these)."""
-    return {key: str(value) for key, value in scene.load_components()
-            if not getattr(value, "is_zero", False)}  # fmt: skip
+    return {
+        key: str(value)
+        for key, value in scene.load_components()
+        if not getattr(value, "is_zero", False)
+    }
 
 
 def check_factors(low: float, high: float, samples: int, tolerance: float) -> list[float]:
     """The grid of load factors, or a SceneError naming the option."""
     if not all(math.isfinite(v) for v in (low, high)) or low < 0.0 or high <= low:
-        raise SceneError(f"--range: must be two finite load factors 0 <= LOW < HIGH, got "
-                         f"{low!r} {high!r}")  # fmt: skip
+        raise SceneError(
+            f"--range: must be two finite load factors 0 <= LOW < HIGH, got {low!r} {high!r}"
+        )
     if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 2:
         raise SceneError(f"--samples: must be a whole number >= 2, got {samples!r}")
     if not (isinstance(tolerance, float | int) and 0.0 < tolerance < 0.1):
@@ -289,9 +312,16 @@ def check_factors(low: float, high: float, samples: int, tolerance: float) -> li
     return [float(f) for f in np.linspace(low, high, samples)]
 
 
-def stability(scene: Scene, low: float = 0.0, high: float = 1.0, samples: int = 5,
-              tolerance: float = 1e-8, count: int = 6, out: Path | None = None,
-              comm: MPI.Comm = MPI.COMM_WORLD) -> StabilityResult:  # fmt: skip
+def stability(
+    scene: Scene,
+    low: float = 0.0,
+    high: float = 1.0,
+    samples: int = 5,
+    tolerance: float = 1e-8,
+    count: int = 6,
+    out: Path | None = None,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+) -> StabilityResult:
     """Stability of the scene's static states for load factors in [low, high] (``samples``
     equally spaced, then the root finder's) and the critical factor (:func:`critical_factor`);
     with ``out``: stability.json there."""
@@ -309,8 +339,9 @@ def stability(scene: Scene, low: float = 0.0, high: float = 1.0, samples: int = 
     return result
 
 
-def stability_at(scene: Scene, factor: float = 1.0, count: int = 6,
-                 comm: MPI.Comm = MPI.COMM_WORLD) -> StabilityPoint:  # fmt: skip
+def stability_at(
+    scene: Scene, factor: float = 1.0, count: int = 6, comm: MPI.Comm = MPI.COMM_WORLD
+) -> StabilityPoint:
     """Whether the static state at load factor ``factor`` (1: the scene's loads) is stable,
     with the ``count`` eigenvalues nearest 0 about it."""
     if not (isinstance(factor, float | int) and math.isfinite(factor)):
@@ -320,4 +351,3 @@ def stability_at(scene: Scene, factor: float = 1.0, count: int = 6,
         return equilibria.at(float(factor))
     finally:
         equilibria.close()
-

@@ -79,7 +79,7 @@ class Mode:
 
 
 def eigenvalue_kind(lam: complex, scale: float) -> str:
-    """"flutter" for a complex λ (|Im λ| > 1e-8 |λ|), "divergence" for a negative one
+    """ "flutter" for a complex λ (|Im λ| > 1e-8 |λ|), "divergence" for a negative one
     (Re λ < −1e-12 ``scale``, the largest |λ| found), "" otherwise (a mode that oscillates):
     the round-off of the non-symmetric K, M is not taken for either (:class:`Mode`)."""
     if abs(lam.imag) > 1e-8 * abs(lam):
@@ -332,7 +332,7 @@ def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WO
     is not determined: a SceneError)."""
     if scene.supports.mechanism and about == "static":
         raise SceneError(
-            f'supports: modes about the static state of a mechanism (start = '
+            f"supports: modes about the static state of a mechanism (start = "
             f'"{scene.supports.start}", end = "{scene.supports.end}"): it has none, its '
             "rigid-body motions leave it undetermined; use --about undeformed"
         )
@@ -389,10 +389,14 @@ def write_modes(out: Path, model: RodModel, modes: list[Mode], about: str = "und
             writer.write(float(i), mode.shape)
         writer.close()
     modes_found = [
-        {"omega_rad_s": m.omega, "kind": m.kind, "eigenvalue": [m.eigenvalue.real,
-         m.eigenvalue.imag], "note": m.note}
+        {
+            "omega_rad_s": m.omega,
+            "kind": m.kind,
+            "eigenvalue": [m.eigenvalue.real, m.eigenvalue.imag],
+            "note": m.note,
+        }
         for m in modes
-    ]  # fmt: skip
+    ]
     summary = summary_start("modes", model.scene, comm, about=about, modes=modes_found)
     summary["status"] = "completed"
     write_summary(out / "modes.json", summary, comm)

@@ -49,8 +49,15 @@ class FolderStart(Observer):
     ``writes_checkpoint``: the run writes checkpoints (a file of the user's named
     ``checkpoint`` is then in its way, run_folder.claim)."""
 
-    def __init__(self, folder: Path, comm, writes_xdmf: bool, summary: dict, plan=None,
-                 writes_checkpoint: bool = False):  # fmt: skip
+    def __init__(
+        self,
+        folder: Path,
+        comm,
+        writes_xdmf: bool,
+        summary: dict,
+        plan=None,
+        writes_checkpoint: bool = False,
+    ):
         self.folder, self.comm, self.writes_xdmf = folder, comm, writes_xdmf
         self.summary, self.plan = summary, plan
         self.writes_checkpoint = writes_checkpoint
@@ -66,8 +73,16 @@ class FolderStart(Observer):
         self.claimed = True
 
 
-def summary_start(kind: str, scene, comm, model=None, probe: PointProbe | None = None,
-                  solver=None, run_id: str | None = None, **extra) -> dict:
+def summary_start(
+    kind: str,
+    scene,
+    comm,
+    model=None,
+    probe: PointProbe | None = None,
+    solver=None,
+    run_id: str | None = None,
+    **extra,
+) -> dict:
     """The summary (summary.json of a run or a static solve, modes.json of modes) as it
     starts, status "running": ``kind`` ("run", "static", "modes"), ``run_id`` if given, the
     version, the scene file and its SHA-256, the MPI ranks; with ``model`` its discretisation
@@ -79,8 +94,14 @@ def summary_start(kind: str, scene, comm, model=None, probe: PointProbe | None =
     summary: dict = {"status": "running", "kind": kind}
     if run_id is not None:
         summary["run_id"] = run_id
-    summary.update({"cosserat_fem": __version__, "scene_file": scene.source,
-                    "scene_file_sha256": scene.source_sha256, "mpi_ranks": comm.size})  # fmt: skip
+    summary.update(
+        {
+            "cosserat_fem": __version__,
+            "scene_file": scene.source,
+            "scene_file_sha256": scene.source_sha256,
+            "mpi_ranks": comm.size,
+        }
+    )
     if model is not None:
         disc = scene.discretisation
         summary.update(
@@ -117,9 +138,16 @@ class RunSummary(Observer):
     cannot be written is an OutputError unless the run already failed (the earlier one
     stays)."""
 
-    def __init__(self, summary: dict, solver, t_start: float, comm, folder: Path | None = None,
-                 start: FolderStart | None = None,
-                 checkpoints: CheckpointObserver | None = None):  # fmt: skip
+    def __init__(
+        self,
+        summary: dict,
+        solver,
+        t_start: float,
+        comm,
+        folder: Path | None = None,
+        start: FolderStart | None = None,
+        checkpoints: CheckpointObserver | None = None,
+    ):
         self.summary, self.solver, self.t_start, self.comm = summary, solver, t_start, comm
         self.folder, self.start, self.checkpoints = folder, start, checkpoints
 
@@ -194,8 +222,15 @@ class XdmfObserver(Observer):
     """solution.xdmf + .h5: a frame every ``every`` output steps (and the start), the fields
     of ``output.fields``; ``resume = (n, frames)`` continues a restart's file."""
 
-    def __init__(self, path: Path, model, every: int, probes: ProbeObserver | None,
-                 run_id: str | None = None, resume: tuple[int, int] | None = None):  # fmt: skip
+    def __init__(
+        self,
+        path: Path,
+        model,
+        every: int,
+        probes: ProbeObserver | None,
+        run_id: str | None = None,
+        resume: tuple[int, int] | None = None,
+    ):
         self.path, self.model, self.every, self.probes = path, model, every, probes
         self.run_id, self.resume = run_id, resume
         self.writer: XdmfWriter | None = None
@@ -239,8 +274,16 @@ class CheckpointObserver(Observer):
 
     RESUMABLE = (SolverError, SceneError, LimitReached)
 
-    def __init__(self, folder: Path, comm, scene, run_id: str, probes: ProbeObserver,
-                 xdmf: XdmfObserver | None, previous: Checkpoint | None = None):  # fmt: skip
+    def __init__(
+        self,
+        folder: Path,
+        comm,
+        scene,
+        run_id: str,
+        probes: ProbeObserver,
+        xdmf: XdmfObserver | None,
+        previous: Checkpoint | None = None,
+    ):
         self.folder, self.comm, self.scene, self.run_id = folder, comm, scene, run_id
         self.probes, self.xdmf, self.previous = probes, xdmf, previous
         self.writer: CheckpointWriter | None = None
@@ -252,9 +295,15 @@ class CheckpointObserver(Observer):
 
     def started(self, loop) -> None:
         out = self.scene.output
-        self.writer = CheckpointWriter(self.folder, self.comm, out.checkpoint_interval,
-                                       self.scene.time.start, self.scene.to_dict(), self.run_id,
-                                       previous=self.previous)  # fmt: skip
+        self.writer = CheckpointWriter(
+            self.folder,
+            self.comm,
+            out.checkpoint_interval,
+            self.scene.time.start,
+            self.scene.to_dict(),
+            self.run_id,
+            previous=self.previous,
+        )
 
     def step_finished(self, loop) -> None:
         if self.writer.due(loop.state.t):
@@ -419,14 +468,16 @@ class StandardObservers:
         chain: list[Observer] = []
         begin = probes = xdmf = None
         if out is not None:
-            begin = FolderStart(out, comm, scene.output.xdmf, summary, plan,
-                                writes_checkpoint=checkpoints)  # fmt: skip
+            begin = FolderStart(
+                out, comm, scene.output.xdmf, summary, plan, writes_checkpoint=checkpoints
+            )
             probes = ProbeObserver(out / PROBES, probe, resume=restart is not None)
             chain += [begin, probes]
             if scene.output.xdmf:
                 resume = (restart.restart_number, plan.frames) if restart is not None else None
-                xdmf = XdmfObserver(out / XDMF, model, xdmf_every, probes, summary["run_id"],
-                                    resume)  # fmt: skip
+                xdmf = XdmfObserver(
+                    out / XDMF, model, xdmf_every, probes, summary["run_id"], resume
+                )
                 chain.append(xdmf)
         if progress is not None:
             chain.append(ProgressObserver(progress))
@@ -436,8 +487,9 @@ class StandardObservers:
         chain += [o for o in (self.recorder, self.sampled) if o is not None]
         self.checkpoints = None
         if out is not None and checkpoints:
-            self.checkpoints = CheckpointObserver(out, comm, scene, summary["run_id"], probes,
-                                                  xdmf, previous=restart)  # fmt: skip
+            self.checkpoints = CheckpointObserver(
+                out, comm, scene, summary["run_id"], probes, xdmf, previous=restart
+            )
             chain.append(self.checkpoints)
         if wall_time is not None:
             chain.append(DeadlineObserver(t_start + wall_time, wall_time, comm))

@@ -119,8 +119,10 @@ class ProgressBar(StatusLine):
         self.start, self.end = start, end
 
     def __call__(self, t: float, steps: int, iterations: int) -> None:
-        self.show((t - self.start) / (self.end - self.start),
-                  f"t = {t:.6g} s  {steps} steps  {iterations / max(steps, 1):.2f} it/step")
+        self.show(
+            (t - self.start) / (self.end - self.start),
+            f"t = {t:.6g} s  {steps} steps  {iterations / max(steps, 1):.2f} it/step",
+        )
 
 
 class SweepProgress:

@@ -134,20 +134,45 @@ def run_scene(
         probe = PointProbe(model, probe_sigma(scene), fields=scene.output.probe_fields)
         run_id = restart.run_id if restart is not None else new_run_id(comm)
         summary = summary_start(
-            "run", scene, comm, model, probe, solver, run_id,
+            "run",
+            scene,
+            comm,
+            model,
+            probe,
+            solver,
+            run_id,
             integrator=integrator.name,
             restarted_from_s=restart.time if restart is not None else None,
             restarts=restart.restart_number if restart is not None else 0,
-        )  # fmt: skip
+        )
         chain = StandardObservers(
-            scene, model, solver, probe, summary, comm, t_start, out,
-            xdmf_every=scene.output.xdmf_every(scene.time.step), restart=restart, plan=plan,
-            checkpoints=scene.output.checkpoint, wall_time=scene.limits.wall_time,
-            progress=progress, observers=observers, record=record, fields=fields,
+            scene,
+            model,
+            solver,
+            probe,
+            summary,
+            comm,
+            t_start,
+            out,
+            xdmf_every=scene.output.xdmf_every(scene.time.step),
+            restart=restart,
+            plan=plan,
+            checkpoints=scene.output.checkpoint,
+            wall_time=scene.limits.wall_time,
+            progress=progress,
+            observers=observers,
+            record=record,
+            fields=fields,
             field_every=field_every,
-        )  # fmt: skip
-        loop = TimeLoop(model, integrator, solver, scene.time, chain.events,
-                        restart.parts if restart is not None else None)  # fmt: skip
+        )
+        loop = TimeLoop(
+            model,
+            integrator,
+            solver,
+            scene.time,
+            chain.events,
+            restart.parts if restart is not None else None,
+        )
         failure = drive(loop)
         comm.barrier()  # every file is closed on every rank before anyone reads them
         if failure:
@@ -194,15 +219,20 @@ def _check_restart(scene: Scene, restart, out_dir, initial_state) -> None:
     scene (changed at most where cosserat_fem/io/checkpoint.py allows): a SceneError naming the
     argument otherwise, before anything is touched (the same on every rank)."""
     if not isinstance(restart, Checkpoint):
-        raise SceneError(f"restart: must be the checkpoint of cf.resume(folder), got "
-                         f"{type(restart).__name__}")  # fmt: skip
+        raise SceneError(
+            f"restart: must be the checkpoint of cf.resume(folder), got {type(restart).__name__}"
+        )
     if initial_state is not None:
-        raise SceneError("initial_state: cannot be given with restart (the run continues from "
-                         "the checkpoint's state)")  # fmt: skip
+        raise SceneError(
+            "initial_state: cannot be given with restart (the run continues from "
+            "the checkpoint's state)"
+        )
     if out_dir is not None and not _same_folder(Path(out_dir), restart.run_dir):
-        raise SceneError(f"out: the run continues in its checkpoint's folder "
-                         f"{str(restart.run_dir)!r}; give no out (or that folder), got "
-                         f"{str(out_dir)!r}")  # fmt: skip
+        raise SceneError(
+            f"out: the run continues in its checkpoint's folder "
+            f"{str(restart.run_dir)!r}; give no out (or that folder), got "
+            f"{str(out_dir)!r}"
+        )
     check_restart_scene(restart, scene)
 
 
@@ -217,12 +247,16 @@ def _initial_array(initial_state, comm) -> np.ndarray | None:
     try:
         state = np.asarray(initial_state, dtype=float).reshape(-1)
     except (TypeError, ValueError):
-        problem = SceneError(f"initial_state: must be an array of numbers (12 per node), got "
-                             f"{type(initial_state).__name__}")  # fmt: skip
+        problem = SceneError(
+            f"initial_state: must be an array of numbers (12 per node), got "
+            f"{type(initial_state).__name__}"
+        )
     if state is not None and not np.isfinite(state).all():
         i = int(np.flatnonzero(~np.isfinite(state))[0])
-        problem = SceneError(f"initial_state: value {i} (node {i // 12}, component {i % 12} of "
-                             f"12) is not finite ({state[i]!r})")  # fmt: skip
+        problem = SceneError(
+            f"initial_state: value {i} (node {i // 12}, component {i % 12} of "
+            f"12) is not finite ({state[i]!r})"
+        )
     agree(comm, problem)
     return state
 
@@ -256,10 +290,16 @@ def _discretise(scene: Scene, comm, initial_state, restart):
     model = build_model(scene, comm)
     if initial_state is not None:
         wrong = np.size(initial_state) != 12 * model.nodes
-        agree(comm, SceneError(
-            f"initial_state: {np.size(initial_state)} values, expected 12 a node of this rank's "
-            f"mesh ({12 * model.nodes}; a reduced state: embed it with Layout.full_array)"
-        ) if wrong else None)  # fmt: skip
+        agree(
+            comm,
+            SceneError(
+                f"initial_state: {np.size(initial_state)} values, expected 12 a node of this "
+                f"rank's mesh ({12 * model.nodes}; a reduced state: embed it with "
+                "Layout.full_array)"
+            )
+            if wrong
+            else None,
+        )
     if initial_state is not None and _leaves_plane(model, initial_state):
         model = build_model(scene, comm, planar=False)  # it keeps all twelve unknowns
     if model.needs_chart:

@@ -91,8 +91,16 @@ class StaticLoop:
     restarted = False
     end_reason = None  # it never ends early
 
-    def __init__(self, model: RodModel, solver: NewtonSolver, scene: Scene, events: Events,
-                 start: float = 0.0, target: float = 1.0, steps: int | None = None):  # fmt: skip
+    def __init__(
+        self,
+        model: RodModel,
+        solver: NewtonSolver,
+        scene: Scene,
+        events: Events,
+        start: float = 0.0,
+        target: float = 1.0,
+        steps: int | None = None,
+    ):
         """From the state in ``model.U`` at load factor ``start`` to ``target`` (either side
         of it) in ``steps`` nominal increments (default static.load_steps)."""
         self.model, self.solver, self.scene, self.events = model, solver, scene, events
@@ -249,8 +257,9 @@ def static_path(
     ``record``: keep the probe's rows in memory (``StaticResult.probes``)."""
     t_start = clock.perf_counter()
     out = Path(out_dir if out_dir is not None else scene.output.directory)
-    budget.check(scene, "static", out if write_outputs else None, ranks_on_node(comm), comm.size,
-                 comm=comm)  # fmt: skip
+    budget.check(
+        scene, "static", out if write_outputs else None, ranks_on_node(comm), comm.size, comm=comm
+    )
     check_static_scene(scene, "static")
     if write_outputs:
         prepare_output_dir(out, comm, lock="static")
@@ -259,11 +268,22 @@ def static_path(
         model.use_chart()  # rotations of any size (cosserat_fem/rod/charts.py)
     solver = static_solver(scene, model)
     probe = PointProbe(model, probe_sigma(scene), fields=scene.output.probe_fields)
-    summary = summary_start("static", scene, comm, model, probe, solver, new_run_id(comm),
-                            probe_t_column="load factor")  # fmt: skip
-    chain = StandardObservers(scene, model, solver, probe, summary, comm, t_start,
-                              out if write_outputs else None, xdmf_every=1,
-                              observers=observers, record=record)  # fmt: skip
+    summary = summary_start(
+        "static", scene, comm, model, probe, solver, new_run_id(comm), probe_t_column="load factor"
+    )
+    chain = StandardObservers(
+        scene,
+        model,
+        solver,
+        probe,
+        summary,
+        comm,
+        t_start,
+        out if write_outputs else None,
+        xdmf_every=1,
+        observers=observers,
+        record=record,
+    )
     loop = StaticLoop(model, solver, scene, chain.events)
     failure = drive(loop)
     comm.barrier()

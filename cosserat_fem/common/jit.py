@@ -267,13 +267,15 @@ def elf_damage(data: bytes) -> str | None:
     if phoff + phnum * phentsize > size or (shnum and shoff + shnum * shentsize > size):
         return cut
     for i in range(phnum):
-        kind, offset, length = _fields(data, order, phoff + i * phentsize, (0, "I"), (8, "Q"),
-                                       (32, "Q"))  # fmt: skip
+        kind, offset, length = _fields(
+            data, order, phoff + i * phentsize, (0, "I"), (8, "Q"), (32, "Q")
+        )
         if kind == _PT_LOAD and offset + length > size:
             return cut
     for i in range(shnum):
-        kind, offset, length = _fields(data, order, shoff + i * shentsize, (4, "I"), (24, "Q"),
-                                       (32, "Q"))  # fmt: skip
+        kind, offset, length = _fields(
+            data, order, shoff + i * shentsize, (4, "I"), (24, "Q"), (32, "Q")
+        )
         if kind != _SHT_NOBITS and offset + length > size:
             return cut
     if shnum and shstrndx < shnum:

@@ -129,8 +129,7 @@ def check_interrupt(comm: MPI.Comm, every: int = 1) -> int:
             raise KeyboardInterrupt
         return every
     # max of (interrupted, every): an interrupt anywhere wins, else rank 0's every (others 0)
-    interrupted, every = comm.allreduce((_INTERRUPTED, every if comm.rank == 0 else 0),
-                                        op=MPI.MAX)  # fmt: skip
+    interrupted, every = comm.allreduce((_INTERRUPTED, every if comm.rank == 0 else 0), op=MPI.MAX)
     if interrupted:
         raise KeyboardInterrupt
     return every
@@ -148,9 +147,12 @@ def abort_later(code: int, timeout: float = ABORT_AFTER) -> None:
         return
 
     def abort() -> None:
-        print(f"cosserat-fem: rank {MPI.COMM_WORLD.rank} was interrupted and the ranks did not "
-              f"all stop within {timeout:g} s; aborting the MPI job", file=sys.stderr,
-              flush=True)  # fmt: skip
+        print(
+            f"cosserat-fem: rank {MPI.COMM_WORLD.rank} was interrupted and the ranks did not "
+            f"all stop within {timeout:g} s; aborting the MPI job",
+            file=sys.stderr,
+            flush=True,
+        )
         MPI.COMM_WORLD.Abort(code)
 
     _WATCHDOG = threading.Timer(timeout, abort)

@@ -283,8 +283,9 @@ def _alone(path: str | Path, fd: int) -> None:
     if not stat.S_ISREG(info.st_mode):
         raise _refuse(path, info.st_mode)
     if info.st_nlink != 1:
-        raise NotRegularFile(errno.EMLINK, "has other names (hard links): not written through",
-                             str(path))  # fmt: skip
+        raise NotRegularFile(
+            errno.EMLINK, "has other names (hard links): not written through", str(path)
+        )
 
 
 def open_append(path: str | Path) -> int:

@@ -41,8 +41,12 @@ from cosserat_fem.common.parallel import agree
 #: The lock file of a folder (:class:`FolderLock`).
 LOCK = ".cosserat-fem.lock"
 #: The key a refusal names, by the kind of writer that asks for the folder.
-LOCK_KEYS = {"run": "output.directory", "static": "output.directory", "restart": "--restart",
-             "sweep": "sweep --out"}  # fmt: skip
+LOCK_KEYS = {
+    "run": "output.directory",
+    "static": "output.directory",
+    "restart": "--restart",
+    "sweep": "sweep --out",
+}
 #: Bytes of the holder's record in the lock file (padded with blanks: rewritten in place).
 _RECORD = 1024
 
@@ -61,9 +65,14 @@ class FolderLock:
         naming the holder if another holds it. On a file system that cannot lock (ENOLCK,
         EOPNOTSUPP) the writer goes on unprotected, with a warning."""
         path = folder / LOCK
-        record = {"what": what, "run_id": run_id, "pid": os.getpid(),
-                  "host": socket.gethostname(), "started": time.strftime("%Y-%m-%d %H:%M:%S %z"),
-                  "command": " ".join(sys.argv)[:400]}  # fmt: skip
+        record = {
+            "what": what,
+            "run_id": run_id,
+            "pid": os.getpid(),
+            "host": socket.gethostname(),
+            "started": time.strftime("%Y-%m-%d %H:%M:%S %z"),
+            "command": " ".join(sys.argv)[:400],
+        }
         for _ in range(100):  # a lock file renamed or removed under us: open it again
             fd = cls._open(path)
             try:
@@ -79,8 +88,13 @@ class FolderLock:
                 os.close(fd)
                 if exc.errno not in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS):
                     raise
-                LOGGER.warning("%s: the file system cannot lock %s (%s); a second writer into "
-                               "the folder would not be refused", what, path, exc.strerror)
+                LOGGER.warning(
+                    "%s: the file system cannot lock %s (%s); a second writer into "
+                    "the folder would not be refused",
+                    what,
+                    path,
+                    exc.strerror,
+                )
                 return cls(folder, None, record)
             try:
                 here = os.lstat(path)
@@ -102,14 +116,18 @@ class FolderLock:
         with other names at its name is removed first (never followed or written through)."""
         for _ in range(100):
             try:
-                fd = os.open(path, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK
-                             | os.O_CLOEXEC, 0o644)  # fmt: skip
+                fd = os.open(
+                    path,
+                    os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC,
+                    0o644,
+                )
             except OSError as exc:
                 if exc.errno not in (errno.ELOOP, errno.ENXIO, errno.EISDIR):
                     raise
                 if exc.errno == errno.EISDIR:
-                    raise IsADirectoryError(errno.EISDIR, "is a folder, not the lock file",
-                                            str(path)) from None  # fmt: skip
+                    raise IsADirectoryError(
+                        errno.EISDIR, "is a folder, not the lock file", str(path)
+                    ) from None
                 safe_files.remove_name(path)  # a link (ELOOP) or a FIFO without reader (ENXIO)
                 continue
             info = os.fstat(fd)

@@ -34,10 +34,14 @@ class Hdf5:
         lib = self.library()
         hid = ctypes.c_int64
         self.lib = lib
-        self.float64 = (hid.in_dll(lib, "H5T_IEEE_F64LE_g").value,
-                        hid.in_dll(lib, "H5T_NATIVE_DOUBLE_g").value)  # fmt: skip
-        self.int64 = (hid.in_dll(lib, "H5T_STD_I64LE_g").value,
-                      hid.in_dll(lib, "H5T_NATIVE_INT64_g").value)  # fmt: skip
+        self.float64 = (
+            hid.in_dll(lib, "H5T_IEEE_F64LE_g").value,
+            hid.in_dll(lib, "H5T_NATIVE_DOUBLE_g").value,
+        )
+        self.int64 = (
+            hid.in_dll(lib, "H5T_STD_I64LE_g").value,
+            hid.in_dll(lib, "H5T_NATIVE_INT64_g").value,
+        )
         self.fapl = lib.H5Pcreate(hid.in_dll(lib, "H5P_CLS_FILE_ACCESS_ID_g").value)
         self.lcpl = lib.H5Pcreate(hid.in_dll(lib, "H5P_CLS_LINK_CREATE_ID_g").value)
         self.dcpl = lib.H5Pcreate(hid.in_dll(lib, "H5P_CLS_DATASET_CREATE_ID_g").value)
@@ -172,8 +176,10 @@ class Hdf5:
                     lib.H5Sget_simple_extent_dims(space, dims, None)
                     lib.H5Sclose(space)
                     values = np.empty(tuple(dims[: max(ndims, 0)]), dtype=np.float64)
-                    if ndims < 0 or lib.H5Dread(dataset, self.float64[1], 0, 0, 0,
-                                                values.ctypes.data) < 0:  # fmt: skip
+                    if (
+                        ndims < 0
+                        or lib.H5Dread(dataset, self.float64[1], 0, 0, 0, values.ctypes.data) < 0
+                    ):
                         raise RuntimeError(f"HDF5: cannot read {name} of {str(path)!r}")
                 finally:
                     lib.H5Dclose(dataset)

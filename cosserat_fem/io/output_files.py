@@ -43,6 +43,7 @@ def write_output(path: Path, data, command: str) -> Path:
     try:
         safe_files.replace(path, data, path.with_name(f".{path.name}.{os.getpid()}.partial"))
     except OSError as exc:
-        raise OutputError(f"{command}: cannot write {str(path)!r} "
-                          f"({exc.strerror or exc})") from None  # fmt: skip
+        raise OutputError(
+            f"{command}: cannot write {str(path)!r} ({exc.strerror or exc})"
+        ) from None
     return path

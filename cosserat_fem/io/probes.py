@@ -157,7 +157,6 @@ def _probe_row(path: Path, number: int, raw: bytes, columns: tuple[str, ...]) ->
     return row
 
 
-
 def last_probe_row(path: Path) -> np.ndarray:
     """The last whole row of probes.csv (a restart's, already cut back to its checkpoint),
     as numbers."""

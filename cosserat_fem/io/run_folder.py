@@ -54,8 +54,9 @@ SUMMARY = "summary.json"
 MAX_SUMMARY_BYTES = 16 << 20
 
 
-def prepare_output_dir(path: Path, comm: MPI.Comm, lock: str | None = None,
-                       run_id: str | None = None) -> Path:  # fmt: skip
+def prepare_output_dir(
+    path: Path, comm: MPI.Comm, lock: str | None = None, run_id: str | None = None
+) -> Path:
     """Make ``path`` if needed and check that it can be written (collective); with ``lock``
     (the kind of writer: "run", "static", "restart", "sweep"), also take the folder's lock
     (:class:`FolderLock`, run id ``run_id`` if known) for the enclosing
@@ -138,8 +139,9 @@ def conflict(folder: Path, writes_xdmf: bool, writes_checkpoint: bool) -> str | 
     return None
 
 
-def claim(folder: Path, comm: MPI.Comm, writes_xdmf: bool, summary: dict,
-          writes_checkpoint: bool = False) -> None:  # fmt: skip
+def claim(
+    folder: Path, comm: MPI.Comm, writes_xdmf: bool, summary: dict, writes_checkpoint: bool = False
+) -> None:
     """Make ``folder`` the new run's (module docstring): refuse, touching nothing, if
     something of the user's stands where the run writes (:func:`conflict`); else remove the
     stale outputs of an earlier run (:func:`stale_outputs`; the checkpoint's index first, so

@@ -133,8 +133,9 @@ def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[li
     try:
         rows.sort(key=lambda row: int(row["member"]))
     except (KeyError, TypeError, ValueError):
-        raise SceneError(f"{quoted(directory)}: not a sweep's table (a member that is not a "
-                         "number)") from None  # fmt: skip
+        raise SceneError(
+            f"{quoted(directory)}: not a sweep's table (a member that is not a number)"
+        ) from None
     return columns, rows
 
 
@@ -144,10 +145,16 @@ def _latest_rows(rows: list[dict]) -> list[dict]:
     are read in the order of their groups, not of time). Two rows of a member that did not
     stop are both kept (not the rows of one sweep: check_sweep_rows refuses them)."""
     ran = {row.get("member") for row in rows if row.get("status") != STOPPED}
-    last_stop = {row.get("member"): row for row in rows
-                 if row.get("status") == STOPPED and row.get("member") not in ran}  # fmt: skip
-    return [row for row in rows
-            if row.get("status") != STOPPED or last_stop.get(row.get("member")) is row]  # fmt: skip
+    last_stop = {
+        row.get("member"): row
+        for row in rows
+        if row.get("status") == STOPPED and row.get("member") not in ran
+    }
+    return [
+        row
+        for row in rows
+        if row.get("status") != STOPPED or last_stop.get(row.get("member")) is row
+    ]
 
 
 def _whole_rows(source: Path, reader, columns: list[str]) -> list[dict]:
@@ -158,25 +165,31 @@ def _whole_rows(source: Path, reader, columns: list[str]) -> list[dict]:
     if header is None:  # an empty part: its group was killed before it wrote its header
         return []
     if columns and list(header) != columns:
-        raise SceneError(f"{quoted(source)}: its columns are not those of the sweep's other "
-                         "table parts: not the same sweep's table")  # fmt: skip
+        raise SceneError(
+            f"{quoted(source)}: its columns are not those of the sweep's other "
+            "table parts: not the same sweep's table"
+        )
     if len(set(header)) != len(header) or "" in header:
-        raise SceneError(f"{quoted(source)}: a header with an empty or repeated column; not a "
-                         "sweep's table")  # fmt: skip
+        raise SceneError(
+            f"{quoted(source)}: a header with an empty or repeated column; not a sweep's table"
+        )
     rows = []
     for row in reader:
         extra = row.pop(None, None) or []  # fields beyond the header's
         missing = sum(row[k] is None for k in header)  # fields short of it
         if extra or missing:
-            raise SceneError(f"{quoted(source)}: line {reader.line_num} has "
-                             f"{len(header) + len(extra) - missing} fields, not the header's "
-                             f"{len(header)}")  # fmt: skip
+            raise SceneError(
+                f"{quoted(source)}: line {reader.line_num} has "
+                f"{len(header) + len(extra) - missing} fields, not the header's "
+                f"{len(header)}"
+            )
         rows.append(row)
     return rows
 
 
-def check_sweep_rows(directory: str | Path, columns: list[str], rows: list[dict],
-                     record: dict) -> tuple[str, ...]:  # fmt: skip
+def check_sweep_rows(
+    directory: str | Path, columns: list[str], rows: list[dict], record: dict
+) -> tuple[str, ...]:
     """The varied keys of the sweep recorded in ``record`` (its sweep.json, from
     cosserat_fem/studies/sweep_run.py) after checking that ``rows`` are its rows: one a member, each
     of a member it has (0 ... members − 1), with the member's values of the varied keys as
@@ -184,12 +197,20 @@ def check_sweep_rows(directory: str | Path, columns: list[str], rows: list[dict]
     SceneError naming the table otherwise: a row of another sweep is not merged."""
     where = quoted(Path(directory) / SWEEP_TABLE)
     varied, members = record.get("varied"), record.get("members")
-    if not (isinstance(varied, list) and all(isinstance(k, str) for k in varied)
-            and isinstance(members, int) and not isinstance(members, bool)):  # fmt: skip
-        raise SceneError(f"{quoted(Path(directory) / RECORD)}: not a sweep's record "
-                         "(varied, members)")  # fmt: skip
-    if "wall_s" not in columns or "steps" not in columns or columns[
-            columns.index("wall_s") + 1 : columns.index("steps")] != varied:  # fmt: skip
+    if not (
+        isinstance(varied, list)
+        and all(isinstance(k, str) for k in varied)
+        and isinstance(members, int)
+        and not isinstance(members, bool)
+    ):
+        raise SceneError(
+            f"{quoted(Path(directory) / RECORD)}: not a sweep's record (varied, members)"
+        )
+    if (
+        "wall_s" not in columns
+        or "steps" not in columns
+        or columns[columns.index("wall_s") + 1 : columns.index("steps")] != varied
+    ):
         raise SceneError(f"{where}: its varied columns are not the sweep's {varied}")
     values = _member_values(record, members)
     seen: set[int] = set()
@@ -197,13 +218,13 @@ def check_sweep_rows(directory: str | Path, columns: list[str], rows: list[dict]
         index = int(row["member"])
         if not 0 <= index < members or index in seen:
             reason = "twice" if index in seen else f"but the sweep has {members} members"
-            raise SceneError(f"{where}: a row of member {index}, {reason}: not this sweep's "
-                             "rows")  # fmt: skip
+            raise SceneError(f"{where}: a row of member {index}, {reason}: not this sweep's rows")
         seen.add(index)
-        if values is not None and any(row[k] != json.dumps(values[index].get(k))
-                                      for k in varied):  # fmt: skip
-            raise SceneError(f"{where}: the row of member {index} holds other values of "
-                             f"{', '.join(varied)} than the sweep's member: not this sweep's row")
+        if values is not None and any(row[k] != json.dumps(values[index].get(k)) for k in varied):
+            raise SceneError(
+                f"{where}: the row of member {index} holds other values of "
+                f"{', '.join(varied)} than the sweep's member: not this sweep's row"
+            )
     return tuple(varied)
 
 
@@ -218,5 +239,3 @@ def _member_values(record: dict, members: int) -> list[dict] | None:
         return None
     values = [m[0] if isinstance(m, list) and len(m) == 2 else m for m in listed]
     return values if all(isinstance(v, dict) for v in values) else None
-
-

@@ -255,7 +255,6 @@ class XdmfSeries:
     #: The least and the most spare room [bytes] after ``</Xdmf>`` when the XML is rewritten.
     SPARE = (16 << 10, 4 << 20)
 
-
     def __init__(
         self,
         path: Path,
@@ -325,13 +324,12 @@ class XdmfSeries:
     def _write_mesh(self) -> str:
         """``mesh.h5`` written (rank 0; OutputError if it may not fit); the Topology and
         Geometry that name it."""
-        image = self._h5.image(
-            [(MESH_GEOMETRY, self.geometry), (MESH_TOPOLOGY, self.topology)]
-        )[0]
+        image = self._h5.image([(MESH_GEOMETRY, self.geometry), (MESH_TOPOLOGY, self.topology)])[0]
         self._check_room(len(image), 0, "the XDMF mesh", self.folder / MESH_FILE)
         _write_file(self.folder / MESH_FILE, image)
-        return xdmf_mesh_xml(self.folder.name + "/" + MESH_FILE, len(self.geometry),
-                         len(self.topology))  # fmt: skip
+        return xdmf_mesh_xml(
+            self.folder.name + "/" + MESH_FILE, len(self.geometry), len(self.topology)
+        )
 
     def _resume(self) -> None:
         """Continue the published XML (rank 0): its frames and mesh kept, the values of the
@@ -433,8 +431,9 @@ class XdmfSeries:
         key = value.replace(".", "_")
         image = self._images(key, values)
         h5 = self.h5
-        frame = self._document.frame(value, f"{self.folder.name}/{h5.name}", key, self.arrays,
-                                len(values))  # fmt: skip
+        frame = self._document.frame(
+            value, f"{self.folder.name}/{h5.name}", key, self.arrays, len(values)
+        )
         rewrite = not self._document.fits(frame)
         what = f"the XDMF frame at t = {t:.6g}"
         xml_bytes = self._document.rewrite_size(frame) if rewrite else 0
@@ -495,14 +494,18 @@ def xdmf_head(grid: str, run_id: str | None = None) -> str:
     )
 
 
-def xdmf_frame_xml(grid: str, mesh: str, value: str, file: str, key: str, arrays: list[str],
-                   points: int) -> str:  # fmt: skip
+def xdmf_frame_xml(
+    grid: str, mesh: str, value: str, file: str, key: str, arrays: list[str], points: int
+) -> str:
     """The text of a frame of the collection ``grid`` at the time ``value``: ``mesh`` (its
     Topology and Geometry, :func:`xdmf_mesh_xml`), and its ``arrays`` (each ``points`` x 3),
     the datasets :func:`function_dataset` (array, ``key``) of the HDF5 file ``file``
     (relative to the XML)."""
-    parts = [f'      <Grid Name="{grid}" GridType="Uniform">\n', mesh,
-             f"        <Time Value={quoteattr(value)} />\n"]  # fmt: skip
+    parts = [
+        f'      <Grid Name="{grid}" GridType="Uniform">\n',
+        mesh,
+        f"        <Time Value={quoteattr(value)} />\n",
+    ]
     where = escape(file)
     for name in arrays:
         parts.append(
@@ -534,8 +537,14 @@ class _XdmfDocument:
     ``displacement`` would then move only the displacement block). How a frame is added
     (:meth:`append`, :meth:`rewrite`): :class:`XdmfWriter`."""
 
-    def __init__(self, path: Path, work: Path, mesh: str | None, run_id: str | None,
-                 frames: list[bytes] | None = None):  # fmt: skip
+    def __init__(
+        self,
+        path: Path,
+        work: Path,
+        mesh: str | None,
+        run_id: str | None,
+        frames: list[bytes] | None = None,
+    ):
         """``mesh``: the Topology and Geometry of every frame; ``work``: the working name of a
         rewrite; ``frames``: those of a published file."""
         self.path, self.work = path, work

@@ -112,8 +112,9 @@ def _petsc_build() -> tuple[list[str], str]:
             includes += [f[2:] for f in found.group(1).split() if f.startswith("-I")]
     mpicc = shutil.which("mpicc")
     if mpicc is not None:
-        shown = subprocess.run([mpicc, "--showme:incdirs"], capture_output=True, text=True,
-                               check=False)  # fmt: skip
+        shown = subprocess.run(
+            [mpicc, "--showme:incdirs"], capture_output=True, text=True, check=False
+        )
         if shown.returncode == 0:
             includes += shown.stdout.split()
     return [i for i in dict.fromkeys(includes) if Path(i).is_dir()], str(petsc_dir / arch / "lib")
@@ -242,7 +243,8 @@ def _bind_callbacks(module) -> None:
     ffi.def_extern(name="cf_py_jacobian")(guarded("_jacobian"))
     observe, run = guarded("_observe"), guarded("_iterate")
     ffi.def_extern(name="cf_py_iteration")(
-        lambda ctx, it, norms, reason: observe(ctx, it, (norms[0], norms[1], norms[2]), reason))
+        lambda ctx, it, norms, reason: observe(ctx, it, (norms[0], norms[1], norms[2]), reason)
+    )
 
     def iterate(ctx, iterations, reason):
         answer = [0, 0]
@@ -262,8 +264,14 @@ def library_path(source: str | None = None) -> Path:
     import petsc4py
 
     source = SOURCE.read_text() if source is None else source
-    build = [source, CDEF, *COMPILE_ARGS, str(petsc4py.get_config()), ffcx.__version__,
-             cffi.__version__]  # fmt: skip
+    build = [
+        source,
+        CDEF,
+        *COMPILE_ARGS,
+        str(petsc4py.get_config()),
+        ffcx.__version__,
+        cffi.__version__,
+    ]
     key = hashlib.sha1("\n".join(build).encode()).hexdigest()[:16]
     suffix = importlib.machinery.EXTENSION_SUFFIXES[0]
     return _cache_dir() / f"cosserat_newton_loop_{key}{suffix}"
@@ -397,15 +405,17 @@ class NativeLoop:
                 source, index = tables[(kind, ident)]
                 if index.shape[0] != cells.size:
                     raise NotApplicable(f"packed entities of integral {(kind, ident)}")
-                integrals.append({
-                    "kernel": self.lib.cf_kernel(address, int(kind), i),
-                    "entities": cells.size,
-                    "cells": pointer(cells, "int32_t*"),
-                    "local_facets": ffi.NULL if facets is None else pointer(facets, "int32_t*"),
-                    "wsize": index.shape[1],
-                    "source": pointer(np.ascontiguousarray(source), "int32_t*"),
-                    "index": pointer(np.ascontiguousarray(index), "int32_t*"),
-                })  # fmt: skip
+                integrals.append(
+                    {
+                        "kernel": self.lib.cf_kernel(address, int(kind), i),
+                        "entities": cells.size,
+                        "cells": pointer(cells, "int32_t*"),
+                        "local_facets": ffi.NULL if facets is None else pointer(facets, "int32_t*"),
+                        "wsize": index.shape[1],
+                        "source": pointer(np.ascontiguousarray(source), "int32_t*"),
+                        "index": pointer(np.ascontiguousarray(index), "int32_t*"),
+                    }
+                )
         self._integrals = ffi.new("cf_integral[]", integrals)
         arrays = [c.x.array for c in form.coefficients]
         self._coefficients = ffi.new("double*[]", [pointer(a, "double*") for a in arrays])
@@ -420,8 +430,9 @@ class NativeLoop:
         self.bc_values = np.zeros_like(U.x.array)
         self._zeros = np.zeros_like(U.x.array)
         bc_dofs = [bc.dof_indices()[0][: bc.dof_indices()[1]] for bc in bcs]
-        bc_dofs = np.ascontiguousarray(np.concatenate([np.zeros(0, np.int32), *bc_dofs]),
-                                       dtype=np.int32)  # fmt: skip
+        bc_dofs = np.ascontiguousarray(
+            np.concatenate([np.zeros(0, np.int32), *bc_dofs]), dtype=np.int32
+        )
         wsize = max((d["wsize"] for d in integrals), default=0)
         p = ffi.new("cf_problem*")
         p.n_integrals = len(integrals)

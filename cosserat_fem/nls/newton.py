@@ -220,8 +220,12 @@ class NewtonSolver:
         """New settings, for the C solve's stop rule and policy too."""
         self._settings = settings
         s = self._cs
-        s.rtol, s.atol, s.stol, s.xatol = (settings.rtol, settings.atol, settings.stol,
-                                           settings.xatol)  # fmt: skip
+        s.rtol, s.atol, s.stol, s.xatol = (
+            settings.rtol,
+            settings.atol,
+            settings.stol,
+            settings.xatol,
+        )
         s.max_iterations = settings.max_iterations
         s.linear_test = settings.jacobian != "full"
         s.full = settings.jacobian == "full"
@@ -236,8 +240,10 @@ class NewtonSolver:
         stats.solves, stats.iterations = st.solves, st.newton_iterations
         stats.residual_assemblies, stats.retries = st.residuals, st.retries
         stats.time_residual, stats.time_solve = st.time_residual, st.time_solve
-        stats.last_iterations, stats.max_iterations_in_a_solve = (st.last_iterations,
-                                                                  st.max_in_a_solve)
+        stats.last_iterations, stats.max_iterations_in_a_solve = (
+            st.last_iterations,
+            st.max_in_a_solve,
+        )
         return stats
 
     @property
@@ -454,8 +460,10 @@ class NewtonSolver:
         st.solves, st.newton_iterations = stats.solves, stats.iterations
         st.residuals, st.retries = stats.residual_assemblies, stats.retries
         st.time_residual, st.time_solve = stats.time_residual, stats.time_solve
-        st.last_iterations, st.max_in_a_solve = (stats.last_iterations,
-                                                 stats.max_iterations_in_a_solve)
+        st.last_iterations, st.max_in_a_solve = (
+            stats.last_iterations,
+            stats.max_iterations_in_a_solve,
+        )
         st.since = int(state["solves_since_jacobian"])
         self._need_jacobian = bool(state["need_jacobian"])
         if self.settings.jacobian == "full" or "jacobian.coefficient0" not in state:
@@ -472,7 +480,8 @@ class NewtonSolver:
         assemble_matrix(self.A, self.J_form, bcs=self.bcs)
         self.A.assemble()
         self._J_snapshot = {
-            k.removeprefix("jacobian."): np.array(v) for k, v in state.items()
+            k.removeprefix("jacobian."): np.array(v)
+            for k, v in state.items()
             if k.startswith("jacobian.")
         }
         for c, value in zip(coefficients, kept_c, strict=True):

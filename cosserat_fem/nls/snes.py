@@ -87,8 +87,10 @@ def petsc_options(options: dict[str, str], used: set[str] | None = None) -> Iter
     block; after it each is taken out again (a value given to PETSc before is put back), and
     the names of ``options`` PETSc read are added to ``used`` if given."""
     database = PETSc.Options()
-    given = {**{k: v for k, v in DEFAULTS.items() if not database.hasName(PETSC_PREFIX + k)},
-             **options}  # fmt: skip
+    given = {
+        **{k: v for k, v in DEFAULTS.items() if not database.hasName(PETSC_PREFIX + k)},
+        **options,
+    }
     before = {}
     for name, value in given.items():
         full = PETSC_PREFIX + name
@@ -136,8 +138,9 @@ class SNESSolver(NewtonSolver):
                 problem = self._refused(exc)
         agree(self.comm, problem)
         rtol, atol, stol, max_it = self.snes.getTolerances()
-        self.settings = replace(self.settings, rtol=rtol, atol=atol, stol=stol,
-                                max_iterations=max_it)  # fmt: skip
+        self.settings = replace(
+            self.settings, rtol=rtol, atol=atol, stol=stol, max_iterations=max_it
+        )
 
     def _create(self, comm, ksp: PETSc.KSP) -> PETSc.SNES:
         """A SNES of the defaults of the module docstring over ``ksp``, with this solver's
@@ -233,8 +236,10 @@ class SNESSolver(NewtonSolver):
         problem = None
         if unused:
             ksp = self.snes.getKSP()
-            chosen = (f"snes_type {self.snes.getType()}, ksp_type {ksp.getType()}, pc_type "
-                      f"{ksp.getPC().getType()}")  # fmt: skip
+            chosen = (
+                f"snes_type {self.snes.getType()}, ksp_type {ksp.getType()}, pc_type "
+                f"{ksp.getPC().getType()}"
+            )
             problem = SceneError(
                 f"solver.petsc.{unused[0]}: PETSc did not use this option ({chosen}): misspelt, "
                 "or an option of a type not chosen"

@@ -11,9 +11,7 @@ from dolfinx import fem
 from cosserat_fem.nls.newton import NewtonSettings, NewtonSolver
 
 
-def make_solver(
-    F: ufl.Form, U: fem.Function, bcs: list, settings: NewtonSettings
-) -> NewtonSolver:
+def make_solver(F: ufl.Form, U: fem.Function, bcs: list, settings: NewtonSettings) -> NewtonSolver:
     """The nonlinear solver of F(U) = 0 that ``settings`` choose: PETSc's SNES configured by
     ``settings.petsc`` (:class:`~cosserat_fem.nls.snes.SNESSolver`) for
     nonlinear = "snes", or "auto" with options; else :class:`NewtonSolver`. Both have the

@@ -231,10 +231,7 @@ def _field_expressions(U, model: RodModel, fields: tuple[str, ...]) -> list[tupl
         "curvature_u": lambda: res.u,
         "force_n": lambda: res.n,
         "torque_m": lambda: res.m,
-        **{
-            f"director_d{i + 1}": (lambda i=i: _director(U, chart, i, reference))
-            for i in range(3)
-        },
+        **{f"director_d{i + 1}": (lambda i=i: _director(U, chart, i, reference)) for i in range(3)},
     }
     return [(name, exprs[name]()) for field in fields for name in FIELD_ARRAYS[field]]
 
@@ -305,8 +302,7 @@ class CentrelineOutput:
         the straight rod's (0, 0, s)."""
         comm = self.comm = msh.comm
         self.k = k
-        self.cells = np.arange(msh.topology.index_map(msh.topology.dim).size_local,
-                               dtype=np.int32)  # fmt: skip
+        self.cells = np.arange(msh.topology.index_map(msh.topology.dim).size_local, dtype=np.int32)
         ids, sigma, self.n_points = _output_nodes(msh, k)
         self.counts = [ids.size] if comm.size == 1 else comm.allgather(ids.size)
         if comm.size > 1:
@@ -398,7 +394,6 @@ class XdmfWriter:
     rank-0 :class:`~cosserat_fem.io.xdmf.XdmfSeries` (cosserat_fem/io/xdmf.py).
     """
 
-
     def __init__(
         self,
         path: Path,
@@ -438,9 +433,14 @@ class XdmfWriter:
         problem = None
         if self._comm.rank == 0:
             try:
-                self.files = XdmfSeries(self.path, self.arrays, self.line.geometry,
-                                        self.line.topology, None if resume is None else resume[1],
-                                        run_id)  # fmt: skip
+                self.files = XdmfSeries(
+                    self.path,
+                    self.arrays,
+                    self.line.geometry,
+                    self.line.topology,
+                    None if resume is None else resume[1],
+                    run_id,
+                )
             except OutputError as exc:
                 problem = exc
         agree(self._comm, problem)
@@ -532,7 +532,8 @@ class LineSampler:
             local[self._mine, 3:6] = self.angles(
                 local[self._mine, 3:6],
                 lambda: self.angles.model.chart.eval(self._points, self._cells).reshape(
-                    len(self._mine), 4),
+                    len(self._mine), 4
+                ),
                 lambda: self._points[:, 0],
             )
         total = np.zeros_like(local) if self.comm.rank == 0 else None

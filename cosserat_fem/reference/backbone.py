@@ -132,8 +132,15 @@ class Duffing:
     zeta: float = 0.0
 
     @classmethod
-    def clamped(cls, length: float, EA: float, EI: float, rho_A: float, zeta: float = 0.0,
-                omega: float | None = None) -> Duffing:  # fmt: skip
+    def clamped(
+        cls,
+        length: float,
+        EA: float,
+        EI: float,
+        rho_A: float,
+        zeta: float = 0.0,
+        omega: float | None = None,
+    ) -> Duffing:
         s = np.linspace(0.0, length, _FINE)
         phi, dphi = clamped_mode(s, length)
         mass = _integral(phi**2, s)

@@ -87,8 +87,9 @@ class DataLoads:
         ``basix.make_quadrature``, which FFCx uses too) and s [m] at its dofs, local and
         ghost cells."""
         if self._space is None:
-            element = ufl.FiniteElement("Quadrature", self.msh.ufl_cell(), self.degree,
-                                        quad_scheme="default")  # fmt: skip
+            element = ufl.FiniteElement(
+                "Quadrature", self.msh.ufl_cell(), self.degree, quad_scheme="default"
+            )
             space = fem.FunctionSpace(self.msh, element)
             xi = basix.make_quadrature(basix.CellType.interval, self.degree)[0][:, 0]
             cells = self.msh.geometry.dofmap.array.reshape(-1, 2)
@@ -136,6 +137,8 @@ def _same_on_every_rank(gathered: list[list[tuple[str, float]]], t: float) -> No
     for rank, theirs in enumerate(gathered[1:], 1):
         for (key, mine), (_, other) in zip(gathered[0], theirs, strict=True):
             if mine != other:
-                raise SceneError(f"{key}: the callable gave {mine!r} on rank 0 and {other!r} on "
-                                 f"rank {rank} at t = {t:.10g} s; a load must be the same on "
-                                 "every rank")  # fmt: skip
+                raise SceneError(
+                    f"{key}: the callable gave {mine!r} on rank 0 and {other!r} on "
+                    f"rank {rank} at t = {t:.10g} s; a load must be the same on "
+                    "every rank"
+                )

@@ -186,9 +186,11 @@ class RodModel:
                 return ufl.as_vector([e.to_ufl(symbols) for e in expressions])
 
             return reference_shapes.curve(
-                vector(shape.position, 1), vector(shape.position, 2),
-                vector(shape.director, 0), vector(shape.director, 1),
-            )  # fmt: skip
+                vector(shape.position, 1),
+                vector(shape.position, 2),
+                vector(shape.director, 0),
+                vector(shape.director, 1),
+            )
         return reference_shapes.helix(sigma, self.length, shape.radius, shape.pitch_angle)
 
     def _polyline_frame(self) -> fem.Function:
@@ -368,7 +370,6 @@ class RodModel:
         if self.data is not None:
             self.data.sync(time_eval)
 
-
     def nonfinite_load(self, times: list[float]) -> str | None:
         """What is not finite among the loads and support motions at ``times`` [s], at the
         nodes and quadrature points of the rod: "key = "source" is nan at t = ..., s = ... m",
@@ -431,8 +432,7 @@ class RodModel:
         if exprs is None or all(e.is_zero for e in exprs):
             return None
         components = [
-            self.data.coefficient(e, time_eval) if is_data(e) else e.to_ufl(symbols)
-            for e in exprs
+            self.data.coefficient(e, time_eval) if is_data(e) else e.to_ufl(symbols) for e in exprs
         ]
         return self.load_factor * ufl.as_vector(components)
 
@@ -608,8 +608,9 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
         sigma = scene.loads.point.s / scene.rod.length
         point = mesh.locate_entities(msh, 0, lambda x: np.isclose(x[0], sigma))
     facets = np.concatenate([start, end, point]).astype(np.int32)
-    values = np.concatenate([np.full(len(start), START_TAG), np.full(len(end), END_TAG),
-                             np.full(len(point), POINT_TAG)])  # fmt: skip
+    values = np.concatenate(
+        [np.full(len(start), START_TAG), np.full(len(end), END_TAG), np.full(len(point), POINT_TAG)]
+    )
     order = np.argsort(facets)
     tags = mesh.meshtags(msh, 0, facets[order], values[order].astype(np.int32))
 

@@ -75,6 +75,7 @@ from cosserat_fem.scene.schema import (  # noqa: F401 - read_toml and the overri
 
 CHECKPOINTS_PER_RUN = 10  # output.checkpoint_interval = "auto"
 
+
 # ==================================================================================== building
 def _build_section(raw: dict[str, Any], poisson_ratio: float) -> SectionSpec:
     """[rod.section] resolved: only and all the keys of its shape; a rectangle's torsion_constant
@@ -120,8 +121,10 @@ def _build_reference(raw: dict[str, Any], constants: dict[str, float]) -> Refere
     for name, value in raw.items():
         if value is not None and name not in (*keys, "shape", "closed"):
             takes = f"takes {', '.join(keys)}" if keys else "takes no other key"
-            raise SceneError(f"reference.{name}: not a key of shape {shape!r}, which {takes} "
-                             f"(--unset reference.{name} removes it)")  # fmt: skip
+            raise SceneError(
+                f"reference.{name}: not a key of shape {shape!r}, which {takes} "
+                f"(--unset reference.{name} removes it)"
+            )
     values = {k: v for k, v in raw.items() if v is not None}
     if shape == "polyline":
         values["binormal"] = _binormal(values.get("binormal", [0, 1, 0]))
@@ -142,8 +145,9 @@ def _binormal(raw: list) -> tuple[float, float, float]:
     values = []
     for i, x in enumerate(raw):
         if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
-            raise SceneError(f"reference.binormal[{i}]: must be a finite number, got "
-                             f"{show_value(x)}")  # fmt: skip
+            raise SceneError(
+                f"reference.binormal[{i}]: must be a finite number, got {show_value(x)}"
+            )
         values.append(float(x))
     if not any(values):
         raise SceneError("reference.binormal: must not be zero, got [0, 0, 0]")
@@ -246,33 +250,50 @@ def _build_loads(
     for name, spec in Table.of(Loads).fields.items():
         if isinstance(spec, Table) and issubclass(spec.resolved, FormLoad) and raw[name]:
             field = declared_names(Loads)[name]
-            declared[field] = _build_form_load(spec, raw[name], f"loads.{name}", supports,
-                                               names, tables)  # fmt: skip
-    return build(Loads, raw, force_density=force, torque_density=torque, gravity=gravity,
-                 point=point, **ends, **declared)  # fmt: skip
+            declared[field] = _build_form_load(
+                spec, raw[name], f"loads.{name}", supports, names, tables
+            )
+    return build(
+        Loads,
+        raw,
+        force_density=force,
+        torque_density=torque,
+        gravity=gravity,
+        point=point,
+        **ends,
+        **declared,
+    )
 
 
-def _point_vector(raw: list, names: set[str], key: str, tables: TableStore,
-                  what: str) -> tuple[Expression, ...]:  # fmt: skip
+def _point_vector(
+    raw: list, names: set[str], key: str, tables: TableStore, what: str
+) -> tuple[Expression, ...]:
     """The load vector ``raw`` of a load at a point (an end, a node): functions of t and the
     constants; SceneError naming ``key[i]`` for a dependence on the arc length s."""
     vector = parse_load_vector(raw, names, key, tables)
     for i, component in enumerate(vector):
         if component.depends_on("s"):
-            raise SceneError(f"{key}[{i}]: {what} may depend on t and constants only, not on "
-                             f"the arc length s, got {show_value(component.source)}")  # fmt: skip
+            raise SceneError(
+                f"{key}[{i}]: {what} may depend on t and constants only, not on "
+                f"the arc length s, got {show_value(component.source)}"
+            )
     return vector
 
 
-def _build_form_load(spec: Table, raw: dict[str, Any], key: str, supports: Supports,
-                     names: set[str], tables: TableStore) -> FormLoad:  # fmt: skip
+def _build_form_load(
+    spec: Table,
+    raw: dict[str, Any],
+    key: str,
+    supports: Supports,
+    names: set[str],
+    tables: TableStore,
+) -> FormLoad:
     """A load declared with its physics (resolved.FormLoad): its load vectors parsed as
     functions of t and the constants (not of s: it acts at a point), then its own check."""
     vectors = {}
     for name, item in spec.fields.items():
         if isinstance(item, LoadVector):
-            vector = _point_vector(raw[name], names, f"{key}.{name}", tables,
-                                    "a load at an end")
+            vector = _point_vector(raw[name], names, f"{key}.{name}", tables, "a load at an end")
             vectors[declared_names(spec.resolved)[name]] = vector
     load = build(spec.resolved, raw, **vectors)
     load.check(key, supports)
@@ -324,8 +345,10 @@ def _build_initial(
                     source = show_value(fields[name][i].source) if fields[name] else "0"
                     what = "its prescribed motion" if motion is not None else "0"
                     if motion is not None and is_data(motion[i]):  # a value to copy
-                        what = (f"the {'rate' if name == 'velocity' else 'value'} at t = "
-                                f"{fmt(t0)} s of its prescribed {motion[i].source}, {want!r}")
+                        what = (
+                            f"the {'rate' if name == 'velocity' else 'value'} at t = "
+                            f"{fmt(t0)} s of its prescribed {motion[i].source}, {want!r}"
+                        )
                     raise SceneError(
                         f"initial.{name}[{i}]: must equal {what} ({want:.6g}) at the {kind} "
                         f"{end} (s = {fmt(s_end)} m), got {got:.6g} from {source}"
@@ -433,7 +456,7 @@ def _build_time(
 
 
 def _nearest_ends(start: float, span: float, step: float, after: float | None) -> str:
-    """"time.end = A or B": the whole numbers of steps nearest to ``span`` (below and above,
+    """ "time.end = A or B": the whole numbers of steps nearest to ``span`` (below and above,
     at least one step, and later than ``after`` when a restart gives it)."""
     first = 1
     if after is not None:  # the first end on the step grid later than the checkpoint
@@ -450,9 +473,11 @@ def _build_solver(raw: dict) -> Solver:
     reads none (they configure SNES: solver.nonlinear = "snes" or "auto")."""
     if raw["nonlinear"] == "newton" and raw["petsc"]:
         name = next(iter(raw["petsc"]))
-        raise SceneError(f'solver.petsc.{name}: PETSc options configure SNES, but solver.nonlinear '
-                         '= "newton" (the project\'s loop) reads none; set solver.nonlinear = '
-                         '"snes" or "auto"')  # fmt: skip
+        raise SceneError(
+            f"solver.petsc.{name}: PETSc options configure SNES, but solver.nonlinear "
+            '= "newton" (the project\'s loop) reads none; set solver.nonlinear = '
+            '"snes" or "auto"'
+        )
     return build(Solver, raw)
 
 
@@ -504,9 +529,7 @@ def _build_limits(raw: dict[str, Any]) -> Limits:
 
 
 #: The groups of (48) that are positive for every valid rod (the others may be any sign).
-_POSITIVE_GROUPS = frozenset(
-    "g0 nu01 nu02 g1 g2 g3 nu11 nu13 nu14 nu21 nu23 nu24 nu31".split()
-)
+_POSITIVE_GROUPS = frozenset("g0 nu01 nu02 g1 g2 g3 nu11 nu13 nu14 nu21 nu23 nu24 nu31".split())
 
 
 def _check_derived(scene: Scene) -> None:
@@ -639,8 +662,10 @@ def _check_polyline(scene: Scene, reference: ReferenceShape) -> None:
     ell = scene.rod.length
     for i, step in enumerate(steps):
         if not step > 1e-12 * ell:
-            raise SceneError(f"reference.points[{i + 1}]: the same point as the one before; a "
-                             "segment must have a length")  # fmt: skip
+            raise SceneError(
+                f"reference.points[{i + 1}]: the same point as the one before; a "
+                "segment must have a length"
+            )
     b = np.asarray(reference.binormal) / np.linalg.norm(reference.binormal)
     cosines = np.abs(np.diff(pts, axis=0) @ b) / steps
     if cosines.max() > 1e-9:
@@ -651,8 +676,9 @@ def _check_polyline(scene: Scene, reference: ReferenceShape) -> None:
         )
     total = float(steps.sum())
     if abs(total - ell) > 1e-9 * ell:
-        raise SceneError(f"reference.points: the polyline is {total:.10g} m long, rod.length "
-                         f"= {fmt(ell)} m")  # fmt: skip
+        raise SceneError(
+            f"reference.points: the polyline is {total:.10g} m long, rod.length = {fmt(ell)} m"
+        )
     elements = scene.discretisation.elements
     at = np.cumsum(steps)[:-1] / ell * elements
     for i, node in enumerate(at):
@@ -692,15 +718,21 @@ def _check_curve(scene: Scene, reference: ReferenceShape) -> None:
     for name, values in (("position", np.hstack([r0, t, bend])), ("director", d1)):
         bad = ~np.isfinite(values).all(axis=1)
         if bad.any():
-            raise SceneError(f"reference.{name}: not a finite number at s = "
-                             f"{s[np.argmax(bad)]:.6g} m")  # fmt: skip
+            raise SceneError(
+                f"reference.{name}: not a finite number at s = {s[np.argmax(bad)]:.6g} m"
+            )
     speed, size, cosine = np.linalg.norm(t, axis=1), np.linalg.norm(d1, axis=1), (d1 * t).sum(1)
     checks = (
         ("position", speed - 1.0, "s must be its arc length, |dr0/ds| = 1", "|dr0/ds|", speed),
         ("director", size - 1.0, "d0_1 must be a unit vector", "|d0_1|", size),
-        ("director", cosine, "d0_1 must be normal to the tangent d0_3 = dr0/ds",
-         "their cosine", cosine),
-    )  # fmt: skip
+        (
+            "director",
+            cosine,
+            "d0_1 must be normal to the tangent d0_3 = dr0/ds",
+            "their cosine",
+            cosine,
+        ),
+    )
     # Each rule names the first place along the rod where it is broken: the place of a
     # maximum would be decided by round-off where the broken quantity is constant (a circle's
     # curvature), and differ between CPUs.
@@ -830,8 +862,7 @@ def load_scene(path: str | Path, overrides: Overrides = ()) -> Scene:
     tables (loads given by data) are read relative to its folder, by rank 0 too."""
     raw = read_input(path, "scene file")
     tables = TableStore.collective(Path(path).parent)
-    scene = scene_from_dict(parse_toml(raw, path), source=str(path), overrides=overrides,
-                            tables=tables)  # fmt: skip
+    scene = scene_from_dict(
+        parse_toml(raw, path), source=str(path), overrides=overrides, tables=tables
+    )
     return replace(scene, source_sha256=hashlib.sha256(raw).hexdigest())
-
-

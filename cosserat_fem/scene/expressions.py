@@ -500,9 +500,7 @@ class _Parser:
         assert not result.inverted  # the first operand is never inverted, nor any group of it
         return result.built
 
-    def build(
-        self, op: str, args: tuple[_Built, ...], where: Any, call: bool = False
-    ) -> _Built:
+    def build(self, op: str, args: tuple[_Built, ...], where: Any, call: bool = False) -> _Built:
         """A new node: its height checked, and its value if the arguments are constant
         (so that ``1/0`` or ``log(-1)`` fail at parse time)."""
         trees = tuple(arg.tree for arg in args)

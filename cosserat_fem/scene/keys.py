@@ -77,7 +77,6 @@ REFERENCE_KEYS = {
 }
 
 
-
 # ================================================================================ primitives
 def fmt(x: float) -> str:
     """A bound for messages: integers without ".0", else ``repr``."""
@@ -171,7 +170,7 @@ class Number(Field):
         return number
 
     def to_value(self, value: Any) -> Any:
-        """"auto" for None if the key may be "auto" (the reader resolves "auto" to None where
+        """ "auto" for None if the key may be "auto" (the reader resolves "auto" to None where
         the choice is made later: model.reference_frequency, limits.memory), else ``value``."""
         return "auto" if value is None and self.auto else value
 
@@ -263,8 +262,10 @@ class LoadVector(Vector):
     callables (cosserat_fem/scene/load_data.py); parsed later, when the names are known."""
 
     def describe(self) -> str:
-        return (f"a list of 3 numbers, expression strings or tables {{table = ..., column = "
-                f"...}} [{self.unit}]")  # fmt: skip
+        return (
+            f"a list of 3 numbers, expression strings or tables {{table = ..., column = "
+            f"...}} [{self.unit}]"
+        )
 
     def check(self, key: str, value: Any) -> Any:
         """The list, each inline table checked (SceneError naming ``key[i]``); a saved
@@ -298,10 +299,15 @@ class Points(Field):
         points = []
         for i, point in enumerate(value):
             if not isinstance(point, list) or len(point) != 3:
-                raise SceneError(f"{key}[{i}]: must be a list of 3 numbers [{self.unit}], got "
-                                 f"{show_value(point)}")  # fmt: skip
-            points.append(tuple(Number(unit=self.unit).check(f"{key}[{i}][{j}]", x)
-                                for j, x in enumerate(point)))  # fmt: skip
+                raise SceneError(
+                    f"{key}[{i}]: must be a list of 3 numbers [{self.unit}], got "
+                    f"{show_value(point)}"
+                )
+            points.append(
+                tuple(
+                    Number(unit=self.unit).check(f"{key}[{i}][{j}]", x) for j, x in enumerate(point)
+                )
+            )
         return points
 
     def to_value(self, value: Any) -> Any:
@@ -349,8 +355,10 @@ def petsc_value(key: str, value: Any) -> str:
         return repr(value)
     if isinstance(value, str) and value.isprintable():
         return value
-    raise SceneError(f"{key}: a PETSc option's value must be a string, a finite number or true/"
-                     f"false (\"\" for an option without a value), got {show_value(value)}")
+    raise SceneError(
+        f"{key}: a PETSc option's value must be a string, a finite number or true/"
+        f'false ("" for an option without a value), got {show_value(value)}'
+    )
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -366,17 +374,22 @@ class PetscOptions(Field):
     def check(self, key: str, value: Any) -> Any:
         """{name: value as PETSc's database takes it}; SceneError naming ``key.name``."""
         if not isinstance(value, dict):
-            raise SceneError(f"{key}: must be {self.describe()}, e.g. {{snes_linesearch_type = "
-                             f'"bt"}}, got {show_value(value)}')  # fmt: skip
+            raise SceneError(
+                f"{key}: must be {self.describe()}, e.g. {{snes_linesearch_type = "
+                f'"bt"}}, got {show_value(value)}'
+            )
         options = {}
         for name, item in value.items():
             item_key = join_key(key, str(name))
             if not PETSC_OPTION_NAME.fullmatch(str(name)):
-                raise SceneError(f"{item_key}: a PETSc option's name is letters, digits and _, "
-                                 'without the leading "-" (e.g. snes_type)')  # fmt: skip
+                raise SceneError(
+                    f"{item_key}: a PETSc option's name is letters, digits and _, "
+                    'without the leading "-" (e.g. snes_type)'
+                )
             if str(name).startswith(PETSC_PREFIX):
-                raise SceneError(f"{item_key}: give the option without its prefix "
-                                 f"{PETSC_PREFIX!r} (it is added)")  # fmt: skip
+                raise SceneError(
+                    f"{item_key}: give the option without its prefix {PETSC_PREFIX!r} (it is added)"
+                )
             options[str(name)] = petsc_value(item_key, item)
         return options
 
@@ -583,4 +596,3 @@ def _check_parameters(key: str, data: Any) -> dict[str, float]:
             )
         out[name] = Number().check(item, value)
     return out
-

@@ -148,8 +148,9 @@ def parse_table(data: bytes, path: str, key: str) -> TableFile:
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise SceneError(f"{key}: {path!r} is not UTF-8 text ({exc.reason} at byte "
-                         f"{exc.start})") from None  # fmt: skip
+        raise SceneError(
+            f"{key}: {path!r} is not UTF-8 text ({exc.reason} at byte {exc.start})"
+        ) from None
     lines = text.removeprefix("\ufeff").splitlines()
     numbers = [i for i, line in enumerate(lines) if (body := line.strip()) and body[0] != "#"]
     if not numbers:
@@ -186,8 +187,10 @@ def _row(line: str, number: int, header: list[str], file: str) -> list[float]:
     where = f"{file} line {number}"
     cells = [cell.strip() for cell in line.strip().split(",")]
     if len(cells) != len(header):
-        raise SceneError(f"{where}: {len(cells)} values, the header names {len(header)} "
-                         f"columns ({', '.join(header)})")  # fmt: skip
+        raise SceneError(
+            f"{where}: {len(cells)} values, the header names {len(header)} "
+            f"columns ({', '.join(header)})"
+        )
     return [_number(cell, name, where) for cell, name in zip(cells, header, strict=True)]
 
 
@@ -199,11 +202,12 @@ def _header(cells: list[str], where: str) -> list[str]:
         if name in cells[:i]:
             raise SceneError(f"{where}: the header names column {name!r} twice")
         if _is_number(name):
-            raise SceneError(f"{where}: the first line must name the columns (e.g. t, F), got "
-                             f"the number {name!r}")  # fmt: skip
+            raise SceneError(
+                f"{where}: the first line must name the columns (e.g. t, F), got "
+                f"the number {name!r}"
+            )
     if "t" not in cells:
-        raise SceneError(f"{where}: the header needs a column t (time [s]), got "
-                         f"{', '.join(cells)}")  # fmt: skip
+        raise SceneError(f"{where}: the header needs a column t (time [s]), got {', '.join(cells)}")
     return cells
 
 
@@ -343,14 +347,18 @@ class LoadTable(_Data):
         where = f"{key}.table: {file.path!r}"
         given = spec.get("sha256")
         if given and given.strip().lower() != file.sha256:
-            raise SceneError(f"{key}.sha256: {file.path!r} has the SHA-256 {file.sha256}, "
-                             f"not the {given.strip()} the scene requires (the file changed)")
+            raise SceneError(
+                f"{key}.sha256: {file.path!r} has the SHA-256 {file.sha256}, "
+                f"not the {given.strip()} the scene requires (the file changed)"
+            )
         column = spec["column"]
         if column not in file.columns or column in ("t", "s"):
             others = [c for c in file.columns if c not in ("t", "s")]
-            raise SceneError(f"{key}.column: {file.path!r} has no value column "
-                             f"{show_value(column)} (its value columns: "
-                             f"{', '.join(others) or 'none'})")  # fmt: skip
+            raise SceneError(
+                f"{key}.column: {file.path!r} has no value column "
+                f"{show_value(column)} (its value columns: "
+                f"{', '.join(others) or 'none'})"
+            )
         options = {option: spec[option] for option in _OPTIONS if spec.get(option)}
         table = cls(key, file, column, **options, name=name)
         table._structure(where)
@@ -364,41 +372,55 @@ class LoadTable(_Data):
             bad = np.flatnonzero(np.diff(t) <= 0.0)
             if bad.size:
                 i = bad[0] + 1
-                raise SceneError(f"{where} line {lines[i]}: t = {t[i]!r} does not increase (the "
-                                 f"row before has t = {t[i - 1]!r}); t must increase strictly")
+                raise SceneError(
+                    f"{where} line {lines[i]}: t = {t[i]!r} does not increase (the "
+                    f"row before has t = {t[i - 1]!r}); t must increase strictly"
+                )
             if len(t) < need:
-                raise SceneError(f"{where}: {len(t)} rows; interpolation "
-                                 f"{show_value(self.interpolation)} needs at least {need}")
+                raise SceneError(
+                    f"{where}: {len(t)} rows; interpolation "
+                    f"{show_value(self.interpolation)} needs at least {need}"
+                )
             return
         s = self.file.column("s")
         bad = np.flatnonzero(np.diff(t) < 0.0)
         if bad.size:
             i = bad[0] + 1
-            raise SceneError(f"{where} line {lines[i]}: t = {t[i]!r} is before the row before "
-                             f"({t[i - 1]!r}); a grid's rows go in blocks of increasing t")
+            raise SceneError(
+                f"{where} line {lines[i]}: t = {t[i]!r} is before the row before "
+                f"({t[i - 1]!r}); a grid's rows go in blocks of increasing t"
+            )
         starts = np.concatenate([[0], np.flatnonzero(np.diff(t)) + 1])
         sizes = np.diff(np.append(starts, len(t)))
         first = s[: sizes[0]]
         bad = np.flatnonzero(np.diff(first) <= 0.0)
         if bad.size:
             i = bad[0] + 1
-            raise SceneError(f"{where} line {lines[i]}: s = {s[i]!r} does not increase within "
-                             f"the block of t = {t[0]!r} (the row before has s = {s[i - 1]!r})")
+            raise SceneError(
+                f"{where} line {lines[i]}: s = {s[i]!r} does not increase within "
+                f"the block of t = {t[0]!r} (the row before has s = {s[i - 1]!r})"
+            )
         for start, size in zip(starts, sizes, strict=True):
             block = s[start : start + size]
             if size != sizes[0] or np.any(block != first):
                 i = start + int(np.argmax(np.append(block[: sizes[0]] != first[:size], True)))
-                raise SceneError(f"{where} line {lines[min(i, len(t) - 1)]}: not a full grid: "
-                                 f"every block of equal t must hold the {sizes[0]} values of s "
-                                 f"of the first block ({first[0]!r} to {first[-1]!r}), in that "
-                                 "order")  # fmt: skip
+                raise SceneError(
+                    f"{where} line {lines[min(i, len(t) - 1)]}: not a full grid: "
+                    f"every block of equal t must hold the {sizes[0]} values of s "
+                    f"of the first block ({first[0]!r} to {first[-1]!r}), in that "
+                    "order"
+                )
         if len(starts) < need:
-            raise SceneError(f"{where}: {len(starts)} times in the grid; interpolation "
-                             f"{show_value(self.interpolation)} needs at least {need}")
+            raise SceneError(
+                f"{where}: {len(starts)} times in the grid; interpolation "
+                f"{show_value(self.interpolation)} needs at least {need}"
+            )
         need_s = MIN_ROWS[self.s_interpolation]
         if sizes[0] < need_s:
-            raise SceneError(f"{where}: {sizes[0]} values of s in the grid; s_interpolation "
-                             f"{show_value(self.s_interpolation)} needs at least {need_s}")
+            raise SceneError(
+                f"{where}: {sizes[0]} values of s in the grid; s_interpolation "
+                f"{show_value(self.s_interpolation)} needs at least {need_s}"
+            )
 
     # -- what it is -----------------------------------------------------------------------
     @property
@@ -451,20 +473,25 @@ class LoadTable(_Data):
     def describe(self) -> str:
         """The table in one line for ``validate``: rows, span, interpolation, content."""
         t0, t1 = self.span()
-        text = (f"table {self.file.path}, column {self.column}: {len(self._times)} rows, t in "
-                f"[{t0:.6g}, {t1:.6g}] s")  # fmt: skip
+        text = (
+            f"table {self.file.path}, column {self.column}: {len(self._times)} rows, t in "
+            f"[{t0:.6g}, {t1:.6g}] s"
+        )
         if self.grid:
             s0, s1 = self.s_span()
-            text += (f" x {self._width} values of s in [{s0:.6g}, {s1:.6g}] m "
-                     f"({self.s_interpolation} in s)")  # fmt: skip
-        return (f"{text}; {INTERPOLATIONS[self.interpolation]}; outside "
-                f"{show_value(self.outside)}; sha256 {self.file.sha256}")  # fmt: skip
+            text += (
+                f" x {self._width} values of s in [{s0:.6g}, {s1:.6g}] m "
+                f"({self.s_interpolation} in s)"
+            )
+        return (
+            f"{text}; {INTERPOLATIONS[self.interpolation]}; outside "
+            f"{show_value(self.outside)}; sha256 {self.file.sha256}"
+        )
 
     def to_dict(self) -> dict[str, Any]:
         """The component as a scene writes it, with the absolute path and the content's
         SHA-256 (what a checkpoint and summary.json hold)."""
-        out = {"table": self.file.path, "column": self.column,
-               "interpolation": self.interpolation}  # fmt: skip
+        out = {"table": self.file.path, "column": self.column, "interpolation": self.interpolation}
         if self.grid:
             out["s_interpolation"] = self.s_interpolation
         out.update(outside=self.outside, sha256=self.file.sha256)
@@ -541,8 +568,10 @@ class LoadTable(_Data):
         from data", the C step) unless they would take more than :data:`MAX_WEIGHTS` numbers."""
         s = np.asarray(s, dtype=float)
         width = self._width
-        if not self.grid or self.s_interpolation != "cubic" or width**2 + s.size * width > (
-            MAX_WEIGHTS
+        if (
+            not self.grid
+            or self.s_interpolation != "cubic"
+            or width**2 + s.size * width > (MAX_WEIGHTS)
         ):
             return super().sampler(s)
         weights = self._in_s(np.eye(width), s.ravel())  # (points, width)
@@ -657,12 +686,14 @@ class LoadCallable(_Data):
         try:
             values = np.broadcast_to(np.asarray(result, dtype=float), s.shape)
         except (TypeError, ValueError):
-            raise self._fail(f"returned {show_value(result)}, not numbers of the shape of s "
-                             f"{s.shape}", t) from None  # fmt: skip
+            raise self._fail(
+                f"returned {show_value(result)}, not numbers of the shape of s {s.shape}", t
+            ) from None
         bad = np.flatnonzero(~np.isfinite(values.ravel()))
         if bad.size:
-            raise self._fail(f"returned {values.ravel()[bad[0]]!r} at s = "
-                             f"{s.ravel()[bad[0]]:.6g} m", t)  # fmt: skip
+            raise self._fail(
+                f"returned {values.ravel()[bad[0]]!r} at s = {s.ravel()[bad[0]]:.6g} m", t
+            )
         return np.array(values)
 
     def evaluate(self, **values: Any) -> Any:
@@ -680,8 +711,9 @@ def is_data(component: object) -> bool:
     return isinstance(component, LoadTable | LoadCallable)
 
 
-def parse_component(value: object, names: Iterable[str], key: str, tables: TableStore,
-                    motion: bool = False):  # fmt: skip
+def parse_component(
+    value: object, names: Iterable[str], key: str, tables: TableStore, motion: bool = False
+):
     """One load component: an Expression of ``names`` (a number or a string), a
     :class:`LoadTable` (an inline table the schema checked) or a :class:`LoadCallable`;
     ``motion``: a prescribed motion's (tables only, not "previous"). SceneError naming
@@ -690,37 +722,49 @@ def parse_component(value: object, names: Iterable[str], key: str, tables: Table
 
     allowed = frozenset(names)
     if isinstance(value, dict):
-        table = LoadTable.build(key, tables.read(value["table"], f"{key}.table"), value,
-                                value["table"])  # fmt: skip
+        table = LoadTable.build(
+            key, tables.read(value["table"], f"{key}.table"), value, value["table"]
+        )
         if table.grid and "s" not in allowed:
-            raise SceneError(f"{key}: {table.source} has an s column (a grid), but this load "
-                             "depends on t only")  # fmt: skip
+            raise SceneError(
+                f"{key}: {table.source} has an s column (a grid), but this load depends on t only"
+            )
         if motion and table.interpolation == "previous":
-            raise SceneError(f'{key}.interpolation: "previous" is not allowed for a prescribed '
-                             "motion (its position would jump with zero velocity); use "
-                             '"linear", "cubic" or "pchip"')  # fmt: skip
+            raise SceneError(
+                f'{key}.interpolation: "previous" is not allowed for a prescribed '
+                "motion (its position would jump with zero velocity); use "
+                '"linear", "cubic" or "pchip"'
+            )
         return table
     if callable(value) and not isinstance(value, str):
         if motion:
-            raise SceneError(f"{key}: a prescribed motion cannot be a callable (its rate and "
-                             "acceleration are needed); give a table or an expression")
+            raise SceneError(
+                f"{key}: a prescribed motion cannot be a callable (its rate and "
+                "acceleration are needed); give a table or an expression"
+            )
         with_s = _required_positional(value) == 2
         if with_s and "s" not in allowed:
-            raise SceneError(f"{key}: a callable here is f(t) (this load depends on t only), "
-                             f"got {LoadCallable(key, value, True).source}")  # fmt: skip
+            raise SceneError(
+                f"{key}: a callable here is f(t) (this load depends on t only), "
+                f"got {LoadCallable(key, value, True).source}"
+            )
         return LoadCallable(key, value, with_s)
     return Expression.parse(value, allowed, key)
 
 
-def parse_load_vector(value: object, names: Iterable[str], key: str, tables: TableStore,
-                      motion: bool = False) -> tuple:  # fmt: skip
+def parse_load_vector(
+    value: object, names: Iterable[str], key: str, tables: TableStore, motion: bool = False
+) -> tuple:
     """Three load components (:func:`parse_component`); their keys are ``key[i]``."""
     if not isinstance(value, list | tuple) or len(value) != 3:
-        raise SceneError(f"{key}: must be a list of 3 numbers, expression strings or tables, "
-                         f"got {show_value(value)}")  # fmt: skip
+        raise SceneError(
+            f"{key}: must be a list of 3 numbers, expression strings or tables, "
+            f"got {show_value(value)}"
+        )
     names = frozenset(names)
-    x, y, z = (parse_component(v, names, f"{key}[{i}]", tables, motion)
-               for i, v in enumerate(value))  # fmt: skip
+    x, y, z = (
+        parse_component(v, names, f"{key}[{i}]", tables, motion) for i, v in enumerate(value)
+    )
     return x, y, z
 
 
@@ -738,16 +782,20 @@ def check_span(component, start: float, end: float, static_time: float, length: 
     t0, t1 = component.span()
     lo, hi = min(start, static_time), max(end, static_time)
     if t0 > lo or t1 < hi:
-        raise SceneError(f"{component.key}: {component.source} covers t in [{t0:.10g}, "
-                         f"{t1:.10g}] s, the scene needs [{lo:.10g}, {hi:.10g}] s (time.start "
-                         "to time.end, and static.time); extend it, or set outside = \"hold\" "
-                         "or \"zero\"")  # fmt: skip
+        raise SceneError(
+            f"{component.key}: {component.source} covers t in [{t0:.10g}, "
+            f"{t1:.10g}] s, the scene needs [{lo:.10g}, {hi:.10g}] s (time.start "
+            'to time.end, and static.time); extend it, or set outside = "hold" '
+            'or "zero"'
+        )
     if component.grid:
         s0, s1 = component.s_span()
         if s0 > 0.0 or s1 < length:
-            raise SceneError(f"{component.key}: {component.source} covers s in [{s0:.10g}, "
-                             f"{s1:.10g}] m, the rod is [0, {length:.10g}] m; extend it, or set "
-                             "outside = \"hold\" or \"zero\"")  # fmt: skip
+            raise SceneError(
+                f"{component.key}: {component.source} covers s in [{s0:.10g}, "
+                f"{s1:.10g}] m, the rod is [0, {length:.10g}] m; extend it, or set "
+                'outside = "hold" or "zero"'
+            )
 
 
 def refuse_callable_restart(scene) -> None:
@@ -756,5 +804,7 @@ def refuse_callable_restart(scene) -> None:
     ``cf.run(scene, restart=...)``; ``cf.resume`` refuses the saved scene itself)."""
     for key, component in scene.load_components():
         if isinstance(component, LoadCallable):
-            raise SceneError(f"{key}: a run with a callable load ({component.source}) cannot be "
-                             "restarted (a checkpoint cannot hold a callable); run it again")
+            raise SceneError(
+                f"{key}: a run with a callable load ({component.source}) cannot be "
+                "restarted (a checkpoint cannot hold a callable); run it again"
+            )

@@ -89,8 +89,6 @@ class SectionSpec:
         return Section(self.area, self.c11, self.c22, self.c33, k)
 
 
-
-
 @dataclass(frozen=True, kw_only=True)
 class ReferenceShape:
     """The rod at rest ([reference]; forms/reference.py holds the same shapes in UFL):
@@ -114,22 +112,20 @@ class ReferenceShape:
     cosserat_fem/analysis/modal.py).
     """
 
-    shape: str = key(Choice(choices=tuple(REFERENCE_KEYS), default="straight"),
-                     default="straight")  # fmt: skip
+    shape: str = key(Choice(choices=tuple(REFERENCE_KEYS), default="straight"), default="straight")
     radius: float | None = key(Number(interval=POSITIVE, unit="m"), default=None)
     pitch_angle: float | None = key(
-        Number(interval=Interval(-math.pi / 2, math.pi / 2, lo_open=True, hi_open=True),
-               unit="rad"),
+        Number(
+            interval=Interval(-math.pi / 2, math.pi / 2, lo_open=True, hi_open=True), unit="rad"
+        ),
         default=None,
-    )  # fmt: skip
+    )
     #: polyline: its corners (the first the start), and d0_2 on every segment
     points: tuple[tuple[float, float, float], ...] | None = key(Points(unit="m"), default=None)
     binormal: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
     #: curve: r0(s) and d0_1(s), expressions of the arc length s [m]
-    position: tuple[Expression, Expression, Expression] | None = key(Vector(unit="m"),
-                                                                     default=None)  # fmt: skip
-    director: tuple[Expression, Expression, Expression] | None = key(Vector(unit="-"),
-                                                                     default=None)  # fmt: skip
+    position: tuple[Expression, Expression, Expression] | None = key(Vector(unit="m"), default=None)
+    director: tuple[Expression, Expression, Expression] | None = key(Vector(unit="-"), default=None)
     #: the two ends joined (a ring): the curve must close; modes only, for now
     closed: bool = key(Flag(default=False), default=False)
     #: The values of the names a curve's expressions may use besides s (L, parameters).
@@ -172,8 +168,9 @@ class ReferenceShape:
             return np.column_stack([self.radius * (1 - np.cos(a)), 0 * s, self.radius * np.sin(a)])
         if self.shape == "helix":
             k, R = math.cos(self.pitch_angle) / self.radius, self.radius
-            return np.column_stack([R * (np.cos(k * s) - 1), R * np.sin(k * s),
-                                    s * math.sin(self.pitch_angle)])  # fmt: skip
+            return np.column_stack(
+                [R * (np.cos(k * s) - 1), R * np.sin(k * s), s * math.sin(self.pitch_angle)]
+            )
         if self.shape == "polyline":
             pts = np.asarray(self.points, dtype=float)
             return np.column_stack([np.interp(s, self.corners(), pts[:, i]) for i in range(3)])
@@ -229,8 +226,9 @@ class Material:
     poisson_ratio: float | None = key(
         Number(interval=Interval(-1.0, 0.5, lo_open=True, hi_open=True))
     )
-    shear_modulus_value: float | None = key(Number(interval=POSITIVE, unit="Pa"),
-                                            name="shear_modulus")  # fmt: skip
+    shear_modulus_value: float | None = key(
+        Number(interval=POSITIVE, unit="Pa"), name="shear_modulus"
+    )
 
     @property
     def shear_modulus(self) -> float:
@@ -280,10 +278,12 @@ class Supports:
 
     start: str = key(Choice(choices=SUPPORTS, default="clamped"))
     end: str = key(Choice(choices=SUPPORTS, default="free"))
-    start_motion: tuple[Expression, ...] | None = key(LoadVector(default=ZERO3, unit="m"),
-                                                      default=None)  # fmt: skip
-    end_motion: tuple[Expression, ...] | None = key(LoadVector(default=ZERO3, unit="m"),
-                                                    default=None)  # fmt: skip
+    start_motion: tuple[Expression, ...] | None = key(
+        LoadVector(default=ZERO3, unit="m"), default=None
+    )
+    end_motion: tuple[Expression, ...] | None = key(
+        LoadVector(default=ZERO3, unit="m"), default=None
+    )
 
     @property
     def mechanism(self) -> bool:
@@ -369,8 +369,10 @@ class FollowerEndLoad(FormLoad):
     def check(self, key: str, supports: Supports) -> None:
         """Only a free end carries it (a held end's support takes what it turns with)."""
         if getattr(supports, self.end) != "free":
-            raise SceneError(f'{key}.end: a follower load needs a free end, but supports.'
-                             f'{self.end} = "{getattr(supports, self.end)}"')  # fmt: skip
+            raise SceneError(
+                f"{key}.end: a follower load needs a free end, but supports."
+                f'{self.end} = "{getattr(supports, self.end)}"'
+            )
 
     def in_plane(self, normal: tuple[int, ...], torques: tuple[int, ...]) -> bool:
         """In a plane of motion of the straight rod d2 = e2 (x-z) or d1 = e1 (y-z) and the other
@@ -457,13 +459,12 @@ class Initial:
     """The state at time.start as functions of s [m] (None: at rest, straight): position
     displacement [m], angles (θ, ψ, φ) [rad], velocity [m/s], angle rates [rad/s]."""
 
-    displacement: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="m"),
-                                                      default=None)  # fmt: skip
+    displacement: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="m"), default=None)
     angles: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="rad"), default=None)
-    velocity: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="m/s"),
-                                                  default=None)  # fmt: skip
-    angle_rates: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="rad/s"),
-                                                     default=None)  # fmt: skip
+    velocity: tuple[Expression, ...] | None = key(Vector(default=ZERO3, unit="m/s"), default=None)
+    angle_rates: tuple[Expression, ...] | None = key(
+        Vector(default=ZERO3, unit="rad/s"), default=None
+    )
 
     def fields(self) -> dict[str, tuple[Expression, ...]]:
         """The fields given, non-zero, by name."""
@@ -545,8 +546,7 @@ class Solver:
     loop: str = key(Choice(choices=("auto", "python"), default="auto"))
     #: "newton" (the project's loop), "snes" (PETSc's SNES, cosserat_fem/nls/snes.py) or "auto"
     #: (SNES if ``petsc`` gives options: solvers.make_solver).
-    nonlinear: str = key(Choice(choices=("auto", "newton", "snes"), default="auto"),
-                         default="auto")  # fmt: skip
+    nonlinear: str = key(Choice(choices=("auto", "newton", "snes"), default="auto"), default="auto")
     #: PETSc options for SNES, name (without "-" and the prefix cosserat_) = value as text.
     petsc: dict[str, str] = key(PetscOptions(default={}), default_factory=dict)
 
@@ -587,9 +587,7 @@ class Limits:
     on this machine). Raise them to run a very large case on purpose."""
 
     wall_time: float = key(Number(default=DEFAULT_WALL_TIME, interval=POSITIVE, unit="s"))
-    memory: float | None = key(
-        Number(default="auto", interval=POSITIVE, unit="bytes", auto=True)
-    )
+    memory: float | None = key(Number(default="auto", interval=POSITIVE, unit="bytes", auto=True))
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -17,7 +17,6 @@ Overrides: the value is read as a TOML value if possible (``1e-5``, ``true``, ``
 either can be set from the command line whichever the file gives.
 """
 
-
 from __future__ import annotations
 
 import tomllib
@@ -83,8 +82,9 @@ def _override_value(key: str, text: str) -> Any:
     except tomllib.TOMLDecodeError:
         return text
     except RecursionError:
-        raise SceneError(f"{key}: nested deeper than {MAX_DEPTH} levels of tables and "
-                         "lists") from None  # fmt: skip
+        raise SceneError(
+            f"{key}: nested deeper than {MAX_DEPTH} levels of tables and lists"
+        ) from None
     return document["v"] if list(document) == ["v"] else text
 
 
@@ -176,8 +176,9 @@ def _set_path(data: dict[str, Any], path: list[str], value: Any) -> None:
     _table_at(data, path[:-1])[path[-1]] = value
 
 
-def read_input(path: str | Path, what: str = "scene file", comm=None,
-               same_name: bool = True) -> bytes:  # fmt: skip
+def read_input(
+    path: str | Path, what: str = "scene file", comm=None, same_name: bool = True
+) -> bytes:
     """The bytes of the input file ``path`` (a scene or a sweep file), read once: rank 0 of
     ``comm`` (default MPI's world) reads it and every rank gets its bytes, so that every rank
     parses the same input (a file edited while the job starts, or a copy per node, cannot
@@ -193,8 +194,10 @@ def read_input(path: str | Path, what: str = "scene file", comm=None,
         names = comm.allgather(name)
         other = next((r for r, n in enumerate(names) if n != names[0]), None)
         if other is not None:
-            raise SceneError(f"{names[0]}: the MPI ranks name different {what}s (rank "
-                             f"{other}: {names[other]!r}); give every rank the same file")
+            raise SceneError(
+                f"{names[0]}: the MPI ranks name different {what}s (rank "
+                f"{other}: {names[other]!r}); give every rank the same file"
+            )
     try:
         return read_on_root(path, MAX_INPUT_BYTES, comm)
     except Unreadable as exc:
@@ -213,8 +216,9 @@ def parse_toml(raw: bytes, path: str | Path) -> dict[str, Any]:
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: malformed TOML: {exc}") from None
     except RecursionError:
-        raise SceneError(f"{path}: nested deeper than {MAX_DEPTH} levels of tables and "
-                         "lists") from None  # fmt: skip
+        raise SceneError(
+            f"{path}: nested deeper than {MAX_DEPTH} levels of tables and lists"
+        ) from None
     check_depth(data, str(path))
     return data
 
@@ -234,15 +238,22 @@ def check_depth(data: Any, where: str, depth: int = 1) -> None:
     while stack:
         value, level, key = stack.pop()
         if level > MAX_DEPTH:
-            raise SceneError(f"{where}: {key + ': ' if key else ''}nested deeper than "
-                             f"{MAX_DEPTH} levels of tables and lists")  # fmt: skip
+            raise SceneError(
+                f"{where}: {key + ': ' if key else ''}nested deeper than "
+                f"{MAX_DEPTH} levels of tables and lists"
+            )
         if isinstance(value, dict):
-            items = [(join_key(key, str(name)) if len(key) < 60 else key, item)
-                     for name, item in value.items()]  # fmt: skip
+            items = [
+                (join_key(key, str(name)) if len(key) < 60 else key, item)
+                for name, item in value.items()
+            ]
         else:
             items = [(key, item) for item in value] if isinstance(value, list | tuple) else []
-        stack += [(item, level + 1, inner) for inner, item in items
-                  if isinstance(item, dict | list | tuple)]  # fmt: skip
+        stack += [
+            (item, level + 1, inner)
+            for inner, item in items
+            if isinstance(item, dict | list | tuple)
+        ]
 
 
 def check_scene(data: dict[str, Any]) -> dict[str, Any]:

@@ -157,8 +157,11 @@ def pod(
     values = np.asarray(snapshots.values, dtype=float)
     if weighting not in WEIGHTINGS:
         raise SceneError(f"weighting: must be one of {', '.join(WEIGHTINGS)}, got {weighting!r}")
-    if values.ndim != 3 or values.shape[2] not in (3, 6) or values.shape[:2] != (len(times),
-                                                                                 len(s)):
+    if (
+        values.ndim != 3
+        or values.shape[2] not in (3, 6)
+        or values.shape[:2] != (len(times), len(s))
+    ):
         raise SceneError(
             f"snapshots: values must have the shape (times {len(times)}, stations {len(s)}, "
             f"3 or 6), got {values.shape}"
@@ -166,14 +169,19 @@ def pod(
     count = len(times)
     if modes is None:
         modes = min(DEFAULT_MODES, count)
-    if isinstance(modes, bool) or not isinstance(modes, int | np.integer) or not (
-        1 <= modes <= count
+    if (
+        isinstance(modes, bool)
+        or not isinstance(modes, int | np.integer)
+        or not (1 <= modes <= count)
     ):
-        raise SceneError(f"modes (--modes): must be a whole number in [1, {count}] (the number of "
-                         f"snapshots), got {modes!r}")  # fmt: skip
+        raise SceneError(
+            f"modes (--modes): must be a whole number in [1, {count}] (the number of "
+            f"snapshots), got {modes!r}"
+        )
     if len(s) < 2 or not (np.isfinite(s).all() and (np.diff(s) > 0).all()):
-        raise SceneError("stations: need at least two, finite and strictly increasing along "
-                         "the rod")  # fmt: skip
+        raise SceneError(
+            "stations: need at least two, finite and strictly increasing along the rod"
+        )
     if not np.isfinite(times).all():
         raise SceneError("snapshots: times that are not finite")
     bad = ~np.isfinite(values)
@@ -182,8 +190,10 @@ def pod(
         raise SceneError(f"snapshots: values that are not finite (at t = {times[i]:.6g} s)")
     if weighting == "kinetic":
         if values.shape[2] != 6:
-            raise SceneError("weighting: 'kinetic' needs the angles θ, ψ, φ as well as the "
-                             "displacement (output.fields = [\"displacement\", \"angles\"])")
+            raise SceneError(
+                "weighting: 'kinetic' needs the angles θ, ψ, φ as well as the "
+                'displacement (output.fields = ["displacement", "angles"])'
+            )
         if snapshots.rod is None or not all(w > 0 for w in snapshots.rod):
             raise SceneError("weighting: 'kinetic' needs the rod's ρA, ρI1, ρI2, ρI3 (> 0)")
         rho_a, *rho_i = snapshots.rod
@@ -199,8 +209,9 @@ def pod(
     energies_all = sigma**2
     total = float(energies_all.sum())
     if not total > 0.0:
-        raise SceneError("snapshots: the fields do not vary over the snapshots (mean removed): "
-                         "no modes to find")  # fmt: skip
+        raise SceneError(
+            "snapshots: the fields do not vary over the snapshots (mean removed): no modes to find"
+        )
     k = min(modes, len(sigma))
     shapes = Vt[:k].reshape(k, *values.shape[1:]) / scale
     coefficients = math.sqrt(count) * U[:, :k] * sigma[:k]
@@ -241,19 +252,27 @@ def snapshots_of_result(result, stations, rod=None) -> Snapshots:
     = ``stations`` (σ = s/ℓ in [0, 1]; sorted here along the rod); ``rod``: the rod's
     :class:`~cosserat_fem.forms.groups.RodConstants` (default the run's scene's)."""
     if getattr(result, "field_values", None) is None:
-        raise SceneError("result: holds no fields; run with fields=stations (cf.run(scene, "
-                         "fields=...)) and give the same stations")  # fmt: skip
+        raise SceneError(
+            "result: holds no fields; run with fields=stations (cf.run(scene, "
+            "fields=...)) and give the same stations"
+        )
     sigma = np.asarray(stations, dtype=float).reshape(-1)
     values = np.asarray(result.field_values, dtype=float)
     held = getattr(result, "field_stations", None)
     if len(sigma) != values.shape[1] or (held is not None and not np.array_equal(sigma, held)):
-        raise SceneError(f"stations: not those the result was sampled at ({len(sigma)} given, "
-                         f"it holds {values.shape[1]}; give the fields the run was given)")
+        raise SceneError(
+            f"stations: not those the result was sampled at ({len(sigma)} given, "
+            f"it holds {values.shape[1]}; give the fields the run was given)"
+        )
     scene = result.model.scene
     rod = scene.rod_constants() if rod is None else rod
     order = np.argsort(sigma, kind="stable")
-    return Snapshots(s=sigma[order] * rod.length, times=np.asarray(result.field_times),
-                     values=values[:, order, :], rod=kinetic_weights(rod))  # fmt: skip
+    return Snapshots(
+        s=sigma[order] * rod.length,
+        times=np.asarray(result.field_times),
+        values=values[:, order, :],
+        rod=kinetic_weights(rod),
+    )
 
 
 def read_run(directory: str | Path) -> Snapshots:
@@ -267,8 +286,10 @@ def read_run(directory: str | Path) -> Snapshots:
     path = Path(directory)
     run = open_run(path, "pod")
     if run.xdmf is None:
-        raise SceneError(f"pod: {str(path)!r} holds no solution.xdmf (a run with output.xdmf = "
-                         "false has no snapshots of the fields)")  # fmt: skip
+        raise SceneError(
+            f"pod: {str(path)!r} holds no solution.xdmf (a run with output.xdmf = "
+            "false has no snapshots of the fields)"
+        )
     rod = _rod_of_summary(run.summary, path)
     try:
         s, times, arrays = _read_series(run.xdmf, run.length)
@@ -288,8 +309,10 @@ def _rod_of_summary(summary: dict | None, path: Path):
     scene_dict = summary["scene"]
     reference = scene_dict.get("reference") or {}
     if isinstance(reference, dict) and reference.get("shape", "straight") != "straight":
-        raise SceneError(f"pod: {str(path)!r} is a run of a rod curved at rest; pod reads "
-                         "straight rods only (its stations are taken along e3)")  # fmt: skip
+        raise SceneError(
+            f"pod: {str(path)!r} is a run of a rod curved at rest; pod reads "
+            "straight rods only (its stations are taken along e3)"
+        )
     from cosserat_fem.scene.build import scene_from_dict
 
     try:
@@ -330,8 +353,9 @@ def _read_series(xdmf: Path, length: float | None):
     )
     arguments = [str(xdmf), "-" if length is None else repr(length)]
     try:
-        proc = subprocess.run([sys.executable, "-c", code, *arguments], env=env,
-                              capture_output=True, timeout=600)  # fmt: skip
+        proc = subprocess.run(
+            [sys.executable, "-c", code, *arguments], env=env, capture_output=True, timeout=600
+        )
     except (OSError, subprocess.TimeoutExpired) as exc:
         raise SceneError(f"pod: cannot read {str(xdmf)!r} ({exc})") from None
     errors = proc.stderr.decode(errors="replace").strip().splitlines()
@@ -370,8 +394,7 @@ def _write_csv(result: PodResult, path: Path) -> Path:
 
     stream = io.StringIO(newline="")
     writer = csv.writer(stream)
-    writer.writerow(["mode", f"energy_{result.unit.replace(' ', '_')}", "fraction",
-                     "cumulative"])  # fmt: skip
+    writer.writerow(["mode", f"energy_{result.unit.replace(' ', '_')}", "fraction", "cumulative"])
     for k, (e, f, c) in enumerate(
         zip(result.energies, result.fractions, result.cumulative, strict=True), start=1
     ):
@@ -438,10 +461,15 @@ def _write_xdmf(result: PodResult, path: Path) -> Path:
         _write_h5(frames / MESH_FILE, [(MESH_GEOMETRY, geometry), (MESH_TOPOLOGY, topology)])
         for k, (energy, shape) in enumerate(zip(result.energies, result.shapes, strict=True), 1):
             rms = math.sqrt(max(energy, 0.0)) * shape
-            _write_h5(frames / frame_file(k - 1),
-                      [(function_dataset(name, str(k)), rms[:, part]) for name, part in arrays])
-            grids.append(xdmf_frame_xml("pod", mesh, str(k), f"{frames.name}/{frame_file(k - 1)}",
-                                        str(k), names, n))  # fmt: skip
+            _write_h5(
+                frames / frame_file(k - 1),
+                [(function_dataset(name, str(k)), rms[:, part]) for name, part in arrays],
+            )
+            grids.append(
+                xdmf_frame_xml(
+                    "pod", mesh, str(k), f"{frames.name}/{frame_file(k - 1)}", str(k), names, n
+                )
+            )
     except RuntimeError as exc:  # HDF5 (or h5py) could not make a file in memory
         raise CosseratError(f"pod: cannot make {str(frames)!r} ({exc})") from None
     text = xdmf_head("pod") + "".join(grids) + XDMF_TAIL

@@ -95,8 +95,9 @@ def period_of(settings: ResponseSettings, constants: dict[str, float], where: st
     expression = Expression.parse(settings.period, set(constants), key=key)
     value = _finite_value(expression, key, where, **constants)
     if not value > 0.0:
-        raise SceneError(f"{key}: {settings.period!r} = {value!r} s at {where}; must be a "
-                         "positive time")  # fmt: skip
+        raise SceneError(
+            f"{key}: {settings.period!r} = {value!r} s at {where}; must be a positive time"
+        )
     return value
 
 
@@ -127,10 +128,13 @@ def continued_start(end: float, period_before: float, period: float) -> float:
 def _window(times: np.ndarray, values: np.ndarray, a: float, b: float):
     """The samples in [a, b] with the interpolant's values at a and b added."""
     inside = (times > a) & (times < b)
-    ends = np.array([[np.interp(x, times, values[:, c]) for c in range(values.shape[1])]
-                     for x in (a, b)])  # fmt: skip
-    return (np.concatenate([[a], times[inside], [b]]),
-            np.concatenate([ends[:1], values[inside], ends[1:]]))  # fmt: skip
+    ends = np.array(
+        [[np.interp(x, times, values[:, c]) for c in range(values.shape[1])] for x in (a, b)]
+    )
+    return (
+        np.concatenate([[a], times[inside], [b]]),
+        np.concatenate([ends[:1], values[inside], ends[1:]]),
+    )
 
 
 def _integral(t: np.ndarray, f: np.ndarray) -> np.ndarray:
@@ -190,17 +194,24 @@ class PeriodicResponse(Observer):
         self.closed += 1
         self._change, self._in_a_row = self._from_owner(lambda: self._close(boundary))
         if self.settled:
-            loop.request_end(f"the response settled after {self.closed} periods (change "
-                             f"{self._change:.3g} <= {self.settings.tolerance:g} for "
-                             f"{self._in_a_row} periods in a row)")  # fmt: skip
+            loop.request_end(
+                f"the response settled after {self.closed} periods (change "
+                f"{self._change:.3g} <= {self.settings.tolerance:g} for "
+                f"{self._in_a_row} periods in a row)"
+            )
 
     def ended(self, loop, failure) -> None:
         if self.probe is None:  # the run failed before it started: nothing measured
             return
         measured = self._from_owner(self._measure)
-        self.result = {"periods": self.closed, "settled": self.settled,
-                       "change": self._change, "start_s": self.t0, "end_s": loop.state.t,
-                       **measured}  # fmt: skip
+        self.result = {
+            "periods": self.closed,
+            "settled": self.settled,
+            "change": self._change,
+            "start_s": self.t0,
+            "end_s": loop.state.t,
+            **measured,
+        }
 
     # -- the owner's work -------------------------------------------------------------------
     def _from_owner(self, compute):
@@ -239,8 +250,9 @@ class PeriodicResponse(Observer):
         if previous is None:
             return math.nan, 0
         half0, mean0, harmonic0 = previous
-        change = np.maximum.reduce([np.abs(half - half0), np.abs(mean - mean0),
-                                    np.abs(harmonic - harmonic0)])  # fmt: skip
+        change = np.maximum.reduce(
+            [np.abs(half - half0), np.abs(mean - mean0), np.abs(harmonic - harmonic0)]
+        )
         size = max(half[:3].max() / self.length, half[3:].max(), np.finfo(float).tiny)
         scale = np.repeat([self.length * size, size], 3)
         delta = float((change / scale).max())

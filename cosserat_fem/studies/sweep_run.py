@@ -113,23 +113,43 @@ def columns(spec: SweepSpec) -> list[str]:
     qoi = [f"{kind}_{name}" for name in PROBE_NAMES for kind in ("final", "max_abs")]
     response = []
     if spec.response is not None:
-        response = [*RESPONSE_COLUMNS,
-                    *(f"{m}_{c}" for c in RESPONSE_NAMES for m in MEASURES)]  # fmt: skip
-    return ["member", "status", "wall_s", *spec.varied, "steps", "newton_iterations", *qoi,
-            *response, "message"]  # fmt: skip
+        response = [*RESPONSE_COLUMNS, *(f"{m}_{c}" for c in RESPONSE_NAMES for m in MEASURES)]
+    return [
+        "member",
+        "status",
+        "wall_s",
+        *spec.varied,
+        "steps",
+        "newton_iterations",
+        *qoi,
+        *response,
+        "message",
+    ]
 
 
-def _row(spec: SweepSpec, member: Member, status: str, wall: float, summary: dict | None,
-         probes: np.ndarray | None, message: str,
-         response: dict | None = None) -> dict:  # fmt: skip
+def _row(
+    spec: SweepSpec,
+    member: Member,
+    status: str,
+    wall: float,
+    summary: dict | None,
+    probes: np.ndarray | None,
+    message: str,
+    response: dict | None = None,
+) -> dict:
     row = {"member": member.index, "status": status, "wall_s": f"{wall:.6g}"}
     row.update({key: json.dumps(member.values.get(key)) for key in spec.varied})
     if spec.response is not None:
         response = response or {}
         row["direction"] = member.direction
         for key, value in response.items():
-            row[key] = (repr(value) if isinstance(value, float) else
-                        "" if value is None else json.dumps(value))  # fmt: skip
+            row[key] = (
+                repr(value)
+                if isinstance(value, float)
+                else ""
+                if value is None
+                else json.dumps(value)
+            )
     row["steps"] = summary.get("steps", "") if summary else ""
     row["newton_iterations"] = summary.get("newton", {}).get("iterations", "") if summary else ""
     for i, name in enumerate(PROBE_NAMES):
@@ -169,8 +189,9 @@ def _fresh_folder(folder: Path, comm) -> None:
                 shutil.rmtree(folder)
             folder.mkdir(parents=True)
         except OSError as exc:
-            problem = OutputError(f"sweep: cannot make {str(folder)!r} afresh for its member "
-                                  f"({exc.strerror or exc})")  # fmt: skip
+            problem = OutputError(
+                f"sweep: cannot make {str(folder)!r} afresh for its member ({exc.strerror or exc})"
+            )
     agree(comm, problem)
 
 
@@ -187,8 +208,9 @@ def _checkpoint(folder: Path, scene, comm):
         checkpoint = load_checkpoint(folder, comm)
         if not checkpoint.time < scene.time.end:
             return None
-        check_outputs(checkpoint, folder / PROBES, folder / XDMF if scene.output.xdmf else None,
-                      comm)  # fmt: skip
+        check_outputs(
+            checkpoint, folder / PROBES, folder / XDMF if scene.output.xdmf else None, comm
+        )
     except SceneError:
         return None
     return checkpoint
@@ -209,8 +231,9 @@ def _affordable(scene, folder: Path, comm, start: float | None) -> None:
     from cosserat_fem.common.parallel import ranks_on_node
 
     try:
-        budget.check(scene, "run", folder, ranks_on_node(comm), comm.size, start=start,
-                     comm=comm)  # every rank of the group stops alike
+        budget.check(
+            scene, "run", folder, ranks_on_node(comm), comm.size, start=start, comm=comm
+        )  # every rank of the group stops alike
     except SceneError as exc:
         raise StopError(f"{exc} (now: the sweep runs it when started again)") from None
 
@@ -221,24 +244,34 @@ def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
     out.mkdir(parents=True, exist_ok=True)
     for name in (SWEEP_PARTS, MEMBERS):
         if (out / name).is_symlink():
-            raise SceneError(f"sweep: {str(out / name)!r} is a link to a folder elsewhere, "
-                             "which the sweep would write into; use another --out")  # fmt: skip
+            raise SceneError(
+                f"sweep: {str(out / name)!r} is a link to a folder elsewhere, "
+                "which the sweep would write into; use another --out"
+            )
     (out / SWEEP_PARTS).mkdir(exist_ok=True)
     record = out / RECORD
     fingerprint = spec.fingerprint()
     if record.exists() or record.is_symlink():
         held, reason = read_record(record)
         if reason:
-            raise SceneError(f"sweep: {str(record)!r} is not the record of a sweep ({reason}); "
-                             "remove it to start the sweep there anew, or use another --out")
+            raise SceneError(
+                f"sweep: {str(record)!r} is not the record of a sweep ({reason}); "
+                "remove it to start the sweep there anew, or use another --out"
+            )
         if held.get("fingerprint") != fingerprint:
-            raise SceneError(f"sweep: {str(out)!r} holds another sweep (other scene or members); "
-                             "use another --out, or remove it")  # fmt: skip
+            raise SceneError(
+                f"sweep: {str(out)!r} holds another sweep (other scene or members); "
+                "use another --out, or remove it"
+            )
     else:
         continuation = spec.response.continuation if spec.response else None
-        document = {"fingerprint": fingerprint, "members": len(spec.members),
-                    "varied": list(spec.varied), "source": spec.source,
-                    "continuation": continuation}  # fmt: skip
+        document = {
+            "fingerprint": fingerprint,
+            "members": len(spec.members),
+            "varied": list(spec.varied),
+            "source": spec.source,
+            "continuation": continuation,
+        }
         write_record(out, document)
     cut_rows_off(out)
     return _finished(out)
@@ -294,8 +327,9 @@ def _load_final(folder: Path, index: int, comm) -> _Final | None:
     path = folder / FINAL_STATE
     try:
         with np.load(io.BytesIO(safe_files.read_regular(path))) as data:
-            final = _Final(index, float(data["t"]), float(data["period"]),
-                           np.array(data[f"U{comm.rank}"]))  # fmt: skip
+            final = _Final(
+                index, float(data["t"]), float(data["period"]), np.array(data[f"U{comm.rank}"])
+            )
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
         final = None
     read = final is not None if comm.size == 1 else comm.allreduce(final is not None, MPI.LAND)
@@ -318,9 +352,14 @@ def _forced(spec: SweepSpec, member: Member, before: _Final | None):
     return scene, PeriodicResponse(spec.response, period, probe_sigma(scene)), period
 
 
-def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
-                before: _Final | None = None,
-                resume: bool = False) -> tuple[dict, _Final | None]:  # fmt: skip
+def _run_member(
+    spec: SweepSpec,
+    member: Member,
+    folder: Path,
+    comm,
+    before: _Final | None = None,
+    resume: bool = False,
+) -> tuple[dict, _Final | None]:
     """Run one member on ``comm`` into ``folder`` (a forced one continuing ``before`` if
     given; with ``resume``, a member that stopped before, from its checkpoint if it has a
     usable one: not a forced member, whose measurement is not in the checkpoint); its row
@@ -342,8 +381,15 @@ def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
         if checkpoint is None:
             _fresh_folder(folder, comm)
         _affordable(scene, folder, comm, checkpoint.time if checkpoint is not None else None)
-        result = run_scene(scene, folder, comm=comm, record=True, observers=observers,
-                     initial_state=initial, restart=checkpoint)  # fmt: skip
+        result = run_scene(
+            scene,
+            folder,
+            comm=comm,
+            record=True,
+            observers=observers,
+            initial_state=initial,
+            restart=checkpoint,
+        )
         summary = result.summary
         probes = result.probes if checkpoint is None else _whole_probes(folder, comm)
         if spec.chains_continue:
@@ -363,13 +409,22 @@ def _run_member(spec: SweepSpec, member: Member, folder: Path, comm,
                 shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
     measured = None
     if spec.response is not None:
-        measured = {"previous": before.index if before is not None else None,
-                    **(response.result if response is not None and response.result else {})}
+        measured = {
+            "previous": before.index if before is not None else None,
+            **(response.result if response is not None and response.result else {}),
+        }
     return _row(spec, member, status, wall, summary, probes, message, measured), final
 
 
-def _run_chain(spec: SweepSpec, chain: tuple[int, ...], done: set[int], stopped: set[int],
-               out: Path, comm, write) -> int:  # fmt: skip
+def _run_chain(
+    spec: SweepSpec,
+    chain: tuple[int, ...],
+    done: set[int],
+    stopped: set[int],
+    out: Path,
+    comm,
+    write,
+) -> int:
     """Run a chain's members not done, in order, each continuing the one before it when the
     sweep continues (from its saved state if it was done before a restart); those in
     ``stopped`` continue their stopped run (:func:`_run_member`). ``write(row)`` each row.
@@ -381,8 +436,11 @@ def _run_chain(spec: SweepSpec, chain: tuple[int, ...], done: set[int], stopped:
         folder = out / MEMBERS / member.name
         if index in done:
             continue
-        if spec.chains_continue and position and (before is None or before.index != chain[
-                position - 1]):  # fmt: skip
+        if (
+            spec.chains_continue
+            and position
+            and (before is None or before.index != chain[position - 1])
+        ):
             previous = spec.members[chain[position - 1]]
             before = _load_final(out / MEMBERS / previous.name, previous.index, comm)
         row, before = _run_member(spec, member, folder, comm, before, index in stopped)
@@ -416,15 +474,18 @@ class _Counter:
 
 
 @holding_folders
-def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
-              progress: bool = False) -> SweepResult:  # fmt: skip
+def run_sweep(
+    spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD, progress: bool = False
+) -> SweepResult:
     """Run the members of ``spec`` not yet finished in ``out`` (module docstring), holding the
     folder's lock; collective over ``world``. ``progress`` (the same on every rank): a line on
     stderr per member finished (cosserat_fem/analysis/progress.py SweepProgress)."""
     out = Path(out)
     if world.size % spec.group_size:
-        raise SceneError(f"sweep.group_size: {spec.group_size} does not divide the {world.size} "
-                         "ranks (mpirun -n must be a multiple of it)")  # fmt: skip
+        raise SceneError(
+            f"sweep.group_size: {spec.group_size} does not divide the {world.size} "
+            "ranks (mpirun -n must be a multiple of it)"
+        )
     fields = columns(spec)
     prepare_output_dir(out, world, lock="sweep")
     error, finished = None, {}
@@ -444,6 +505,7 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
     # imported: every rank does it now, before the groups go their own ways (a group with
     # no member would never import it, and the others' import would wait for it for ever).
     from cosserat_fem.analysis import simulation  # noqa: F401
+
     color = world.rank // spec.group_size
     group = world.Split(color, world.rank)
     leader = group.rank == 0  # writes the group's table part
@@ -500,8 +562,10 @@ def run_sweep(spec: SweepSpec, out: str | Path, world=MPI.COMM_WORLD,
             rows = list(_finished(out).values())  # sorted by member
             write_table(out, fields, rows)
         except OSError as exc:
-            problem = OutputError(f"sweep: cannot write {str(out / SWEEP_TABLE)!r} "
-                                  f"({exc.strerror or exc}); its rows are kept in {SWEEP_PARTS}/")
+            problem = OutputError(
+                f"sweep: cannot write {str(out / SWEEP_TABLE)!r} "
+                f"({exc.strerror or exc}); its rows are kept in {SWEEP_PARTS}/"
+            )
         except CosseratError as exc:  # a table part damaged while the sweep ran
             problem = exc
     agree(world, problem)

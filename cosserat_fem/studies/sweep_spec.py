@@ -73,8 +73,16 @@ from cosserat_fem.scene.schema import apply_overrides, parse_toml, read_input, r
 from cosserat_fem.studies.response import DIRECTIONS, ResponseSettings, check_sampling, period_of
 
 KEYS = {"scene", "combine", "max_members", "group_size", "keep", "set", "vary", "case", "response"}
-RESPONSE_KEYS = {"period", "continuation", "direction", "tolerance", "settled_periods",
-                 "measure_periods", "max_periods", "steps_per_period"}  # fmt: skip
+RESPONSE_KEYS = {
+    "period",
+    "continuation",
+    "direction",
+    "tolerance",
+    "settled_periods",
+    "measure_periods",
+    "max_periods",
+    "steps_per_period",
+}
 #: The most members a sweep may have: each rank validates every member before any runs and keeps
 #: its values (why: docs/decisions.md, "Sweeps: every member validated first, its scene built
 #: again when it runs";
@@ -130,8 +138,9 @@ class SweepSpec:
         than kept, so that memory does not grow with the sweep on every rank; why:
         docs/decisions.md, "Sweeps: every member validated first, ...");
         ``extra``: dotted keys set besides its values (a forced member's time span)."""
-        scene = scene_from_dict(self.base, self.source, {**member.values, **(extra or {})},
-                                tables=self.tables)  # fmt: skip
+        scene = scene_from_dict(
+            self.base, self.source, {**member.values, **(extra or {})}, tables=self.tables
+        )
         return replace(scene, source_sha256=self.source_sha256)
 
     def fingerprint(self) -> str:
@@ -140,8 +149,10 @@ class SweepSpec:
         be the same sweep), all but the limits (``limits.*``: they decide whether a member runs
         to its end, not what it computes, so a sweep stopped by limits.wall_time continues with
         a larger one)."""
-        members = [[_no_limits(m.values), m.direction] if m.direction else _no_limits(m.values)
-                   for m in self.members]  # fmt: skip
+        members = [
+            [_no_limits(m.values), m.direction] if m.direction else _no_limits(m.values)
+            for m in self.members
+        ]
         document = {"base": _no_limits(self.base), "members": members}
         if self.tables.files:
             document["tables"] = self.tables.digests()
@@ -170,8 +181,9 @@ class SweepSpec:
 
 def _no_limits(values: dict[str, Any]) -> dict[str, Any]:
     """``values`` (a scene's tables, or a member's dotted keys) without the limits."""
-    return {k: v for k, v in values.items() if k != "limits" and not _dotted(k).startswith(
-        "limits.")}  # fmt: skip
+    return {
+        k: v for k, v in values.items() if k != "limits" and not _dotted(k).startswith("limits.")
+    }
 
 
 def forced_span(response: ResponseSettings, scene: Scene, start: float, where: str):
@@ -184,9 +196,11 @@ def forced_span(response: ResponseSettings, scene: Scene, start: float, where: s
     step = period / per if per else scene.time.step
     steps = response.max_periods * period / step
     if not math.isfinite(steps) or not math.isfinite(start + steps * step):
-        raise SceneError(f"sweep.response.max_periods: {response.max_periods} periods of "
-                         f"{period:.6g} s are not a finite number of steps of {step:.6g} s at "
-                         f"{where}")  # fmt: skip
+        raise SceneError(
+            f"sweep.response.max_periods: {response.max_periods} periods of "
+            f"{period:.6g} s are not a finite number of steps of {step:.6g} s at "
+            f"{where}"
+        )
     steps = math.ceil(steps - 1e-9)
     return period, {"time.start": start, "time.end": start + steps * step, "time.step": step}
 
@@ -213,29 +227,38 @@ def _values(key: str, raw: Any) -> list[Any]:
     where = f"sweep.vary.{json.dumps(key)}"
     if isinstance(raw, dict):
         if set(raw) != RANGE_KEYS:
-            raise SceneError(f"{where}: a range has the keys start, stop and num, got "
-                             f"{show_value(sorted(raw))}")  # fmt: skip
+            raise SceneError(
+                f"{where}: a range has the keys start, stop and num, got {show_value(sorted(raw))}"
+            )
         start, stop, num = raw["start"], raw["stop"], raw["num"]
         for name, value in (("start", start), ("stop", stop)):
-            if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(
-                value
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, int | float)
+                or not math.isfinite(value)
             ):
-                raise SceneError(f"{where}.{name}: must be a finite number, got "
-                                 f"{show_value(value)}")  # fmt: skip
+                raise SceneError(
+                    f"{where}.{name}: must be a finite number, got {show_value(value)}"
+                )
         if isinstance(num, bool) or not isinstance(num, int) or num < 1:
-            raise SceneError(f"{where}.num: an empty range: num must be a positive integer, "
-                             f"got {show_value(num)}")  # fmt: skip
+            raise SceneError(
+                f"{where}.num: an empty range: num must be a positive integer, "
+                f"got {show_value(num)}"
+            )
         if num == 1:
             return [start]
         if math.isfinite(stop - start):
             return [start + (stop - start) * i / (num - 1) for i in range(num - 1)] + [stop]
         # stop − start beyond the largest double (e.g. -1e308 ... 1e308): the same points as
         # weights of the ends, each term finite
-        return [start * (1 - i / (num - 1)) + stop * (i / (num - 1))
-                for i in range(num - 1)] + [stop]  # fmt: skip
+        return [start * (1 - i / (num - 1)) + stop * (i / (num - 1)) for i in range(num - 1)] + [
+            stop
+        ]
     if not isinstance(raw, list) or not raw:
-        raise SceneError(f"{where}: must be a non-empty list of values or a range "
-                         f"{{start, stop, num}}, got {show_value(raw)}")  # fmt: skip
+        raise SceneError(
+            f"{where}: must be a non-empty list of values or a range "
+            f"{{start, stop, num}}, got {show_value(raw)}"
+        )
     return list(raw)
 
 
@@ -262,9 +285,7 @@ def _members(table: dict, combine: str) -> tuple[list[dict[str, Any]], tuple[str
             sizes = ", ".join(
                 f"{json.dumps(k)}: {len(v)}" for k, v in zip(keys, lists, strict=True)
             )
-            raise SceneError(
-                f"sweep.vary: combine = 'zip' needs lists of one length, got {sizes}"
-            )
+            raise SceneError(f"sweep.vary: combine = 'zip' needs lists of one length, got {sizes}")
         rows = zip(*lists, strict=True)
     else:
         rows = itertools.product(*lists)
@@ -273,11 +294,14 @@ def _members(table: dict, combine: str) -> tuple[list[dict[str, Any]], tuple[str
 
 def _positive_number(table: dict, key: str, default: float) -> float:
     value = table.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, int | float) or not (
-        math.isfinite(value) and value > 0
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, int | float)
+        or not (math.isfinite(value) and value > 0)
     ):
-        raise SceneError(f"sweep.response.{key}: must be a positive number, got "
-                         f"{show_value(value)}")  # fmt: skip
+        raise SceneError(
+            f"sweep.response.{key}: must be a positive number, got {show_value(value)}"
+        )
     return float(value)
 
 
@@ -289,46 +313,63 @@ def _response(table: Any, varied: tuple[str, ...]) -> ResponseSettings | None:
         raise SceneError(f"sweep.response: must be a table, got {show_value(table)}")
     unknown = sorted(set(table) - RESPONSE_KEYS)
     if unknown:
-        raise SceneError(f"sweep.response.{unknown[0]}: unknown key (known: "
-                         f"{', '.join(sorted(RESPONSE_KEYS))})")  # fmt: skip
+        raise SceneError(
+            f"sweep.response.{unknown[0]}: unknown key (known: {', '.join(sorted(RESPONSE_KEYS))})"
+        )
     period = table.get("period")
     if isinstance(period, bool) or not isinstance(period, str | int | float):
-        raise SceneError("sweep.response.period: required, the forcing's period in s (an "
-                         f"expression of L, omega0 and the parameters), got {show_value(period)}")
+        raise SceneError(
+            "sweep.response.period: required, the forcing's period in s (an "
+            f"expression of L, omega0 and the parameters), got {show_value(period)}"
+        )
     continuation = table.get("continuation")
     if continuation is not None and continuation not in varied:
-        raise SceneError(f"sweep.response.continuation: must be one of the varied keys "
-                         f"({', '.join(varied)}), got {show_value(continuation)}")  # fmt: skip
+        raise SceneError(
+            f"sweep.response.continuation: must be one of the varied keys "
+            f"({', '.join(varied)}), got {show_value(continuation)}"
+        )
     direction = table.get("direction", "up")
     if direction not in DIRECTIONS:
-        raise SceneError(f"sweep.response.direction: must be one of "
-                         f"{', '.join(repr(d) for d in DIRECTIONS)}, got {show_value(direction)}")
+        raise SceneError(
+            f"sweep.response.direction: must be one of "
+            f"{', '.join(repr(d) for d in DIRECTIONS)}, got {show_value(direction)}"
+        )
     if "direction" in table and continuation is None:
-        raise SceneError("sweep.response.direction: needs sweep.response.continuation (the "
-                         "varied key the members step along)")  # fmt: skip
+        raise SceneError(
+            "sweep.response.direction: needs sweep.response.continuation (the "
+            "varied key the members step along)"
+        )
     settled = _positive_int(table, "settled_periods", 3, "sweep.response")
     measure = _positive_int(table, "measure_periods", 2, "sweep.response")
     most = _positive_int(table, "max_periods", 200, "sweep.response")
     if measure > settled + 1:
-        raise SceneError(f"sweep.response.measure_periods: at most settled_periods + 1 = "
-                         f"{settled + 1} (the periods measured must be settled), got {measure}")
+        raise SceneError(
+            f"sweep.response.measure_periods: at most settled_periods + 1 = "
+            f"{settled + 1} (the periods measured must be settled), got {measure}"
+        )
     if most < settled + 1:
-        raise SceneError(f"sweep.response.max_periods: at least settled_periods + 1 = "
-                         f"{settled + 1}, got {most}")  # fmt: skip
+        raise SceneError(
+            f"sweep.response.max_periods: at least settled_periods + 1 = {settled + 1}, got {most}"
+        )
     per = table.get("steps_per_period")
     if per is not None:
         per = _positive_int(table, "steps_per_period", 1, "sweep.response")
         if per < 16:
             # Fewer samples miss a peak by more than 1 − cos(π/16) = 1.9 % of the amplitude
             # and cannot resolve a nonlinear response's harmonics up to the 7th (Nyquist).
-            raise SceneError(f"sweep.response.steps_per_period: at least 16 (the half range "
-                             f"would miss a peak by more than 2 %), got {per}")  # fmt: skip
+            raise SceneError(
+                f"sweep.response.steps_per_period: at least 16 (the half range "
+                f"would miss a peak by more than 2 %), got {per}"
+            )
     tolerance = _positive_number(table, "tolerance", 1e-3)
     if tolerance >= 1.0:
-        raise SceneError(f"sweep.response.tolerance: must be < 1 (a relative change), got "
-                         f"{show_value(tolerance)}")  # fmt: skip
-    return ResponseSettings(str(period), continuation, direction, tolerance, settled, measure,
-                            most, per)  # fmt: skip
+        raise SceneError(
+            f"sweep.response.tolerance: must be < 1 (a relative change), got "
+            f"{show_value(tolerance)}"
+        )
+    return ResponseSettings(
+        str(period), continuation, direction, tolerance, settled, measure, most, per
+    )
 
 
 def _chains(
@@ -340,11 +381,15 @@ def _chains(
     key = response.continuation
     for i, v in enumerate(values):
         if key not in v:
-            raise SceneError(f"sweep.response.continuation: {key!r} is not set in member {i} "
-                             "(every case must give it)")  # fmt: skip
+            raise SceneError(
+                f"sweep.response.continuation: {key!r} is not set in member {i} "
+                "(every case must give it)"
+            )
         if isinstance(v[key], bool) or not isinstance(v[key], int | float):
-            raise SceneError(f"sweep.response.continuation: {key!r} must take numbers, got "
-                             f"{show_value(v[key])} in member {i}")  # fmt: skip
+            raise SceneError(
+                f"sweep.response.continuation: {key!r} must take numbers, got "
+                f"{show_value(v[key])} in member {i}"
+            )
     lines: dict[str, list[int]] = {}
     for i, v in enumerate(values):
         rest = json.dumps([[k, v[k]] for k in varied if k != key], default=str)
@@ -368,9 +413,12 @@ def _count(table: dict, combine: str) -> int:
     vary = table.get("vary")
     if not isinstance(vary, dict):
         return 0
-    sizes = [len(_values(key, raw)) if not isinstance(raw, dict) else
-             (raw.get("num") if isinstance(raw.get("num"), int) else 0)
-             for key, raw in vary.items()]  # fmt: skip
+    sizes = [
+        len(_values(key, raw))
+        if not isinstance(raw, dict)
+        else (raw.get("num") if isinstance(raw.get("num"), int) else 0)
+        for key, raw in vary.items()
+    ]
     return max(sizes, default=0) if combine == "zip" else math.prod(sizes)
 
 
@@ -391,22 +439,28 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
     if unknown:
         raise SceneError(f"sweep.{unknown[0]}: unknown key (known: {', '.join(sorted(KEYS))})")
     if "scene" not in table or not isinstance(table["scene"], str) or not table["scene"]:
-        raise SceneError("sweep.scene: required, the base scene file (relative to the sweep "
-                         f"file), got {show_value(table.get('scene'))}")  # fmt: skip
+        raise SceneError(
+            "sweep.scene: required, the base scene file (relative to the sweep "
+            f"file), got {show_value(table.get('scene'))}"
+        )
     combine = _choice(table, "combine", COMBINE)
     keep = _choice(table, "keep", KEEP)
     group_size = _positive_int(table, "group_size", 1)
     max_members = _positive_int(table, "max_members", 1000)
     if max_members > MAX_MEMBERS:
-        raise SceneError(f"sweep.max_members: at most {MAX_MEMBERS} (every rank validates every "
-                         f"member first), got {max_members}")  # fmt: skip
+        raise SceneError(
+            f"sweep.max_members: at most {MAX_MEMBERS} (every rank validates every "
+            f"member first), got {max_members}"
+        )
     fixed = table.get("set", {})
     if not isinstance(fixed, dict):
         raise SceneError(f"sweep.set: must be a table of dotted keys, got {show_value(fixed)}")
     count = _count(table, combine)
     if count > max_members:
-        raise SceneError(f"sweep.max_members: the sweep has {count} members, more than "
-                         f"max_members = {max_members}")  # fmt: skip
+        raise SceneError(
+            f"sweep.max_members: the sweep has {count} members, more than "
+            f"max_members = {max_members}"
+        )
     values, varied = _members(table, combine)
     scene_path = (path.parent / table["scene"]).resolve()
     raw = read_input(scene_path, "scene file (sweep.scene)", same_name=False)  # rank 0's
@@ -415,17 +469,28 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
     response = _response(table.get("response"), varied)
     members, chains = _chains(values, varied, response)
     if len(members) > max_members:
-        raise SceneError(f"sweep.max_members: the sweep has {len(members)} members (both "
-                         f"directions), more than max_members = {max_members}")  # fmt: skip
+        raise SceneError(
+            f"sweep.max_members: the sweep has {len(members)} members (both "
+            f"directions), more than max_members = {max_members}"
+        )
     for member in members[: len(values)]:
         try:
             _check_member(base_data, str(scene_path), member, response, group_size, tables)
         except SceneError as exc:
-            raise SceneError(f"sweep member {member.index} ({member.describe()}): {exc}"
-                             ) from None  # fmt: skip
+            raise SceneError(f"sweep member {member.index} ({member.describe()}): {exc}") from None
     tables.seal()  # every member's tables are read: none is read again in a group
-    return SweepSpec(base_data, str(scene_path), tuple(members), varied, group_size, keep,
-                     response, tuple(chains), tables, hashlib.sha256(raw).hexdigest())  # fmt: skip
+    return SweepSpec(
+        base_data,
+        str(scene_path),
+        tuple(members),
+        varied,
+        group_size,
+        keep,
+        response,
+        tuple(chains),
+        tables,
+        hashlib.sha256(raw).hexdigest(),
+    )
 
 
 def _dotted(key: str) -> str:
@@ -439,12 +504,15 @@ def _base(data: dict, fixed: dict, overrides, values: list[dict[str, Any]]) -> d
     sets is refused: the members' values would silently replace it (``[sweep.set]`` may give
     one, e.g. a parameter's value at rest: the file says what its members vary)."""
     always = set.intersection(*({_dotted(k) for k in v} for v in values)) if values else set()
-    given = [str(k) if isinstance(overrides, Mapping) else str(k).partition("=")[0]
-             for k in overrides]  # fmt: skip
+    given = [
+        str(k) if isinstance(overrides, Mapping) else str(k).partition("=")[0] for k in overrides
+    ]
     taken = next((k for k in given if _dotted(k) in always), None)
     if taken is not None:
-        raise SceneError(f"--set {_dotted(taken)}: every member of the sweep sets it "
-                         "(sweep.vary or sweep.case), so this value would never be used")
+        raise SceneError(
+            f"--set {_dotted(taken)}: every member of the sweep sets it "
+            "(sweep.vary or sweep.case), so this value would never be used"
+        )
     try:
         data = apply_overrides(data, fixed)
     except SceneError as exc:
@@ -460,8 +528,14 @@ def _world():
     return MPI.COMM_WORLD
 
 
-def _check_member(data: dict, source: str, member: Member, response: ResponseSettings | None,
-                  group_size: int, tables: TableStore) -> None:  # fmt: skip
+def _check_member(
+    data: dict,
+    source: str,
+    member: Member,
+    response: ResponseSettings | None,
+    group_size: int,
+    tables: TableStore,
+) -> None:
     """A member's scene validated, and refused as its run would refuse it (a closed rod; the
     cost of its run, or of a forced member's longest run, over its limits: budget.py, the
     memory of a group's rank counted as a share of one node's, a certain lower bound)."""
@@ -478,5 +552,6 @@ def _check_member(data: dict, source: str, member: Member, response: ResponseSet
     try:
         budget.check(longest, "run", ranks=group_size, comm=_world())
     except SceneError as exc:
-        raise SceneError(f"sweep.response.max_periods: {response.max_periods} periods of "
-                         f"{period:.6g} s: {exc}") from None  # fmt: skip
+        raise SceneError(
+            f"sweep.response.max_periods: {response.max_periods} periods of {period:.6g} s: {exc}"
+        ) from None

@@ -99,9 +99,11 @@ def as_observer(item: Observer | Callable) -> Observer:
     if not callable(item):
         from cosserat_fem.common.errors import SceneError
 
-        raise SceneError("observers: each must be an Observer "
-                         "(cosserat_fem/timestepping/events.py) or a "
-                         f"function f(k, t, model), got {type(item).__name__}")  # fmt: skip
+        raise SceneError(
+            "observers: each must be an Observer "
+            "(cosserat_fem/timestepping/events.py) or a "
+            f"function f(k, t, model), got {type(item).__name__}"
+        )
     return OutputCallback(item)
 
 
@@ -118,9 +120,7 @@ class Events:
         """The bound ``name`` hooks of the observers that override it, in the observers' order."""
         base = getattr(Observer, name)
         return [
-            getattr(o, name)
-            for o in self.observers
-            if getattr(type(o), name, base) is not base
+            getattr(o, name) for o in self.observers if getattr(type(o), name, base) is not base
         ]
 
     def listens(self, name: str) -> bool:

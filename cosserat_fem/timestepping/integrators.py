@@ -432,8 +432,9 @@ class SDIRK(Integrator):
 
         module = core(self.U.function_space.mesh.comm)  # collective
         ffi, self._lib = module.ffi, module.lib
-        self._tableau = [np.ascontiguousarray(x, dtype=np.float64) for x in (self.A, self.b,
-                                                                             self.c)]  # fmt: skip
+        self._tableau = [
+            np.ascontiguousarray(x, dtype=np.float64) for x in (self.A, self.b, self.c)
+        ]
         self._guess = np.zeros(self.U_n.size)  # the predictor's scratch
         self._inv_gh_value = time_view(self.inv_gh)
 

@@ -394,8 +394,9 @@ class TimeLoop:
             cause = self.attempt(t_new)
             if cause is not None:
                 self.reject(cause)
-                LOGGER.info("step to t = %.6g s rejected (%s), level %d", t_new, cause.reason,
-                            level)  # fmt: skip
+                LOGGER.info(
+                    "step to t = %.6g s rejected (%s), level %d", t_new, cause.reason, level
+                )
                 if level >= halvings:
                     raise SolverError(
                         time=cause.time,

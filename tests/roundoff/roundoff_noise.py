@@ -36,10 +36,29 @@ import numpy as np
 
 #: numpy's float64 functions with a CPU-dispatched or library-dependent implementation.
 NUMPY_FUNCTIONS = (
-    "sin", "cos", "tan", "arcsin", "arccos", "arctan", "arctan2", "sinh", "cosh", "tanh",
-    "arcsinh", "arccosh", "arctanh", "exp", "exp2", "expm1", "log", "log2", "log10", "log1p",
-    "cbrt", "power",
-)  # fmt: skip
+    "sin",
+    "cos",
+    "tan",
+    "arcsin",
+    "arccos",
+    "arctan",
+    "arctan2",
+    "sinh",
+    "cosh",
+    "tanh",
+    "arcsinh",
+    "arccosh",
+    "arctanh",
+    "exp",
+    "exp2",
+    "expm1",
+    "log",
+    "log2",
+    "log10",
+    "log1p",
+    "cbrt",
+    "power",
+)
 _MIX = np.uint64(0x9E3779B97F4A7C15)
 _installed = False
 

@@ -108,8 +108,9 @@ NONLINEAR_Y0 = np.array([0.0, 1.0, 1.0, 1.0])
 
 
 def nonlinear_exact(t: float) -> np.ndarray:
-    return np.array([math.tanh(t), math.exp(math.sin(t)), math.sin(t) + math.exp(-2 * t),
-                     math.exp(-t)])
+    return np.array(
+        [math.tanh(t), math.exp(math.sin(t)), math.sin(t) + math.exp(-2 * t), math.exp(-t)]
+    )
 
 
 @pytest.fixture(scope="module")
@@ -135,8 +136,15 @@ def diagonal_plus_oscillator(zs, omega_h: float, h: float) -> np.ndarray:
 class Run:
     """An integrator and its NewtonSolver on a fresh unknown U = y0."""
 
-    def __init__(self, system: OdeSystem, factory, name: str, y0, rho_inf: float = 0.5,
-                 settings: NewtonSettings | None = None):
+    def __init__(
+        self,
+        system: OdeSystem,
+        factory,
+        name: str,
+        y0,
+        rho_inf: float = 0.5,
+        settings: NewtonSettings | None = None,
+    ):
         self.U = fem.Function(system.V)
         self.U.x.array[:] = y0
         self.integrator = make_integrator(name, self.U, factory, 0.0, rho_inf=rho_inf)
@@ -167,7 +175,7 @@ def window_scale(reference: np.ndarray, blocks=((N - 2, N),)) -> np.ndarray:
     size = np.abs(reference).astype(float)
     for a, b in blocks:
         size[:, a:b] = np.linalg.norm(reference[:, a:b], axis=1, keepdims=True)
-    return np.array([size[max(k - 2, 0): k + 1].max(axis=0) for k in range(len(size))])
+    return np.array([size[max(k - 2, 0) : k + 1].max(axis=0) for k in range(len(size))])
 
 
 def relative_errors(measured: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -241,13 +249,16 @@ def alpha_G(z, rho_inf: float) -> np.ndarray:
     am, af = 0.5 * (3.0 - rho_inf) / (1.0 + rho_inf), 1.0 / (1.0 + rho_inf)
     g = 0.5 + am - af
     det = am - z * af * g
-    return np.array(
-        [
-            [am + g * z * (1.0 - af), am * (1.0 - g) + g * (am - 1.0)],
-            [z, z * af * (1.0 - g) + am - 1.0],
-        ],
-        dtype=complex,
-    ) / det
+    return (
+        np.array(
+            [
+                [am + g * z * (1.0 - af), am * (1.0 - g) + g * (am - 1.0)],
+                [z, z * af * (1.0 - g) + am - 1.0],
+            ],
+            dtype=complex,
+        )
+        / det
+    )
 
 
 def alpha_matrix_step(hM: np.ndarray, rho_inf: float) -> np.ndarray:
@@ -269,13 +280,18 @@ def test_sdirk_tableau_order_conditions_and_stiff_limit(order):
     module docstring states (rounded there to two digits), exactly 1 − √3 for order 3."""
     g, A, b = sdirk_literature(order)
     g_mod, A_mod, b_mod = _sdirk_tableau(order)
-    np.testing.assert_allclose([g_mod, *A_mod.ravel(), *b_mod], [g, *A.ravel(), *b],
-                               rtol=0, atol=4 * EPS)
+    np.testing.assert_allclose(
+        [g_mod, *A_mod.ravel(), *b_mod], [g, *A.ravel(), *b], rtol=0, atol=4 * EPS
+    )
     c = A.sum(axis=1)
     conditions = [(b.sum(), 1.0), (b @ c, 1 / 2), (b @ c**2, 1 / 3), (b @ A @ c, 1 / 6)]
     if order == 4:
-        conditions += [(b @ c**3, 1 / 4), (b @ (c * (A @ c)), 1 / 8),
-                       (b @ A @ c**2, 1 / 12), (b @ A @ A @ c, 1 / 24)]
+        conditions += [
+            (b @ c**3, 1 / 4),
+            (b @ (c * (A @ c)), 1 / 8),
+            (b @ A @ c**2, 1 / 12),
+            (b @ A @ A @ c, 1 / 24),
+        ]
     for value, exact in conditions:
         assert abs(value - exact) <= 20 * EPS
     # The order is not higher: the tall tree of order p + 1, bᵀ A^(p−1) c = 1/(p + 1)!, fails
@@ -350,8 +366,9 @@ def test_sdirk_amplification(linear_system, order):
     assert abs(states[1, 0] - sdirk_R_infinity(order)) < 1e-7
 
 
-@pytest.mark.parametrize("steps", [[H] * 5, [H, 2 * H, 0.5 * H, 1.5 * H, 0.25 * H]],
-                         ids=["constant", "variable"])
+@pytest.mark.parametrize(
+    "steps", [[H] * 5, [H, 2 * H, 0.5 * H, 1.5 * H, 0.25 * H]], ids=["constant", "variable"]
+)
 def test_bdf2_amplification(linear_system, steps):
     """BDF2 after its midpoint start on y' = M y: step 1 is R(z) = (1 + z/2)/(1 − z/2); the
     later steps follow the variable-step BDF2 formula, whose weights are computed here from
@@ -425,8 +442,12 @@ def test_generalized_alpha_amplification(linear_system, rho_inf):
         for pair, z in zip(range(0, 6, 2), zs[::2], strict=True):
             powers = [np.linalg.matrix_power(alpha_G(z, rho_inf), j).real for j in range(k + 1)]
             Gk = powers[k]
-            got = np.array([[measured[k, pair], measured[k, pair + 1]],
-                            [measured[k, N + pair], measured[k, N + pair + 1]]])
+            got = np.array(
+                [
+                    [measured[k, pair], measured[k, pair + 1]],
+                    [measured[k, N + pair], measured[k, N + pair + 1]],
+                ]
+            )
             # Each column is a state (y, hẏ), held to its size over the last three steps: the
             # predictor extrapolates the rates of two steps (window_scale), and G's entry
             # G21 → −(1 + ρ∞)² at z → −∞ carries an error of y into hẏ one step later.
@@ -442,8 +463,9 @@ def test_generalized_alpha_amplification(linear_system, rho_inf):
     assert abs(max(abs(np.linalg.eigvals(G))) - rho_inf) < 1e-3
     if rho_inf == 1.0:
         z = np.array(zs)
-        np.testing.assert_allclose(measured[1, :6], y0[:6] * (1 + z / 2) / (1 - z / 2),
-                                   rtol=0, atol=16 * EPS)
+        np.testing.assert_allclose(
+            measured[1, :6], y0[:6] * (1 + z / 2) / (1 - z / 2), rtol=0, atol=16 * EPS
+        )
 
 
 # ---------------------------------------------------------------------- order
@@ -481,8 +503,12 @@ def global_errors(system, name: str, steps: int) -> np.ndarray:
 
 
 # Step counts to τ = 1 (h = 1/N): the asymptotic range of each method on these ODEs.
-STEPS = {"bdf2": (40, 80, 160), "generalized-alpha": (20, 40, 80), "sdirk3": (40, 80, 160),
-         "sdirk4": (40, 80, 160)}
+STEPS = {
+    "bdf2": (40, 80, 160),
+    "generalized-alpha": (20, 40, 80),
+    "sdirk3": (40, 80, 160),
+    "sdirk4": (40, 80, 160),
+}
 
 
 @pytest.mark.parametrize("name", list(ORDERS))
@@ -514,8 +540,9 @@ def test_static_uses_zero_rate_and_the_end_time(nonlinear_system):
     """Static solves f(U, τ + h) = 0 (U̇ = 0): 1 − U0² = 0 from 0.5 gives 1, cos(τ)U1 = 0
     gives 0, the forced equation U2 = sin τ + cos τ/2 at τ = 0.7, U3 = 0. Newton converges
     quadratically to ~ε (full Jacobian, ‖δU‖ ≤ 1e-8 ‖U‖ stops it with an error ~1e-16)."""
-    run = Run(nonlinear_system, nonlinear_system.nonlinear, "static",
-              np.array([0.5, 1.0, 1.0, 1.0]))
+    run = Run(
+        nonlinear_system, nonlinear_system.nonlinear, "static", np.array([0.5, 1.0, 1.0, 1.0])
+    )
     try:
         integrator = run.integrator
         assert isinstance(integrator, Static)
@@ -525,8 +552,9 @@ def test_static_uses_zero_rate_and_the_end_time(nonlinear_system):
         assert float(integrator.time_eval.value) == pytest.approx(0.7, abs=1e-15)
         integrator.accept(0.4)
         t = 0.7
-        np.testing.assert_allclose(run.U.x.array, [1.0, 0.0, math.sin(t) + math.cos(t) / 2, 0.0],
-                                   rtol=0, atol=1e-14)
+        np.testing.assert_allclose(
+            run.U.x.array, [1.0, 0.0, math.sin(t) + math.cos(t) / 2, 0.0], rtol=0, atol=1e-14
+        )
     finally:
         run.close()
 
@@ -560,8 +588,9 @@ def test_start_sets_up_only_what_the_integrator_needs(nonlinear_system, name):
         system = _Unsupported()
         run.integrator.start(system, "petsc")
         if name == "generalized-alpha":
-            np.testing.assert_allclose(run.integrator.Udot_n.x.array, [1.0, 1.0, -1.0, -1.0],
-                                       rtol=0, atol=4 * EPS)
+            np.testing.assert_allclose(
+                run.integrator.Udot_n.x.array, [1.0, 1.0, -1.0, -1.0], rtol=0, atol=4 * EPS
+            )
             assert system.moves == [(0.0, True), (0.0, False)]
         else:
             assert system.moves == []
@@ -578,8 +607,13 @@ def test_factory_names():
     """make_integrator maps the scene's names to the classes (and rejects others)."""
     system = OdeSystem(1)
     U = fem.Function(system.V)
-    classes = {"bdf2": BDF2, "generalized-alpha": GeneralizedAlpha, "sdirk3": SDIRK,
-               "sdirk4": SDIRK, "static": Static}
+    classes = {
+        "bdf2": BDF2,
+        "generalized-alpha": GeneralizedAlpha,
+        "sdirk3": SDIRK,
+        "sdirk4": SDIRK,
+        "static": Static,
+    }
     for name, cls in classes.items():
         assert isinstance(make_integrator(name, U, system.linear, 0.0), cls)
     with pytest.raises(ValueError):

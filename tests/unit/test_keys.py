@@ -112,9 +112,18 @@ def test_every_number_key_lands_in_its_own_field():
 def test_time_keys_land_in_their_own_fields():
     """time.* (rtol and atol, the swap the issue names), with values of their own."""
     data = parse_toml(BASE.read_bytes(), BASE)
-    given = {"time.start": 0.0, "time.end": 0.002, "time.step": 1e-4, "time.rho_inf": 0.3,
-             "time.max_halvings": 3, "time.rtol": 3e-5, "time.atol": 7e-11,
-             "time.max_step": 2e-4, "time.integrator": "bdf2", "time.adaptive": True}  # fmt: skip
+    given = {
+        "time.start": 0.0,
+        "time.end": 0.002,
+        "time.step": 1e-4,
+        "time.rho_inf": 0.3,
+        "time.max_halvings": 3,
+        "time.rtol": 3e-5,
+        "time.atol": 7e-11,
+        "time.max_step": 2e-4,
+        "time.integrator": "bdf2",
+        "time.adaptive": True,
+    }
     scene = scene_from_dict(data, overrides=given)
     for key, value in given.items():
         assert _resolved(scene, key) == value, key
@@ -123,9 +132,18 @@ def test_time_keys_land_in_their_own_fields():
 def test_build_fills_by_name_whatever_the_order():
     """A dataclass with Time's fields in reverse order, built from the same table, holds the
     same value in every field."""
-    raw = {"start": 0.0, "end": 1.0, "step": 0.1, "integrator": "bdf2", "rho_inf": 0.5,
-           "max_halvings": 4, "adaptive": False, "rtol": 1e-4, "atol": 1e-10,
-           "max_step": 0.0}  # fmt: skip
+    raw = {
+        "start": 0.0,
+        "end": 1.0,
+        "step": 0.1,
+        "integrator": "bdf2",
+        "rho_inf": 0.5,
+        "max_halvings": 4,
+        "adaptive": False,
+        "rtol": 1e-4,
+        "atol": 1e-10,
+        "max_step": 0.0,
+    }
     fields = dataclasses.fields(Time)
     reverse = dataclasses.make_dataclass(
         "ReversedTime",
@@ -177,8 +195,10 @@ def test_shipped_scenes_resolve_as_before(path):
         np.testing.assert_allclose(
             [float(x) for x in number.findall(mine)],
             [float(x) for x in number.findall(theirs)],
-            rtol=1e-14, atol=0, err_msg=name,
-        )  # fmt: skip
+            rtol=1e-14,
+            atol=0,
+            err_msg=name,
+        )
 
 
 @pytest.mark.parametrize("path", SCENES, ids=lambda p: p.name)
@@ -215,18 +235,33 @@ def test_new_keyword_fields_are_written_without_other_edits():
     """Fields declared on a dataclass appear in its table and in the scene's to_dict, each as
     its spec writes it; None leaves a key out ("auto" for an auto number); the table, checked
     and built again (with the reader's resolutions: the sub-table, "auto"), is the instance."""
-    extended = _Extended(translational=1.5, rotational=0.0, retardation_time=0.0,
-                         stiffness=3.0, mode="b", given_as=7.0, inner=_Inner(level=4),
-                         kinds=("y",), derived=9.0)  # fmt: skip
-    written = {"translational": 1.5, "rotational": 0.0, "retardation_time": 0.0,
-               "stiffness": 3.0, "mode": "b", "spelled": 7.0, "frequency": "auto",
-               "inner": {"level": 4}, "kinds": ["y"]}  # fmt: skip
+    extended = _Extended(
+        translational=1.5,
+        rotational=0.0,
+        retardation_time=0.0,
+        stiffness=3.0,
+        mode="b",
+        given_as=7.0,
+        inner=_Inner(level=4),
+        kinds=("y",),
+        derived=9.0,
+    )
+    written = {
+        "translational": 1.5,
+        "rotational": 0.0,
+        "retardation_time": 0.0,
+        "stiffness": 3.0,
+        "mode": "b",
+        "spelled": 7.0,
+        "frequency": "auto",
+        "inner": {"level": 4},
+        "kinds": ["y"],
+    }
     assert to_table(extended) == written
     scene = load_scene(BASE)
     data = dataclasses.replace(scene, damping=extended).to_dict()
     assert data == {**scene.to_dict(), "damping": written}
 
     raw = check_table("damping", written, Table.of(_Extended))
-    rebuilt = build(_Extended, raw, inner=build(_Inner, raw["inner"]), frequency=None,
-                    derived=9.0)  # fmt: skip
+    rebuilt = build(_Extended, raw, inner=build(_Inner, raw["inner"]), frequency=None, derived=9.0)
     assert rebuilt == extended

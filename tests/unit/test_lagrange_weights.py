@@ -102,8 +102,9 @@ def test_state_history_polynomial():
     np.testing.assert_array_equal(history.newest[1], vector_polynomial(1.03))
     for points in (4, 6):
         for t in (0.9, 1.2):
-            np.testing.assert_allclose(history.polynomial(t, points), vector_polynomial(t),
-                                       rtol=0, atol=1e-11)
+            np.testing.assert_allclose(
+                history.polynomial(t, points), vector_polynomial(t), rtol=0, atol=1e-11
+            )
     # The newest 3 points reproduce degree 2 but not the cubic component.
     quadratic = history.polynomial(1.2, 3)
     np.testing.assert_allclose(quadratic[1:], vector_polynomial(1.2)[1:], rtol=0, atol=1e-11)

@@ -33,8 +33,12 @@ from cosserat_fem.nls.newton import NewtonSettings, NewtonSolver
 pytestmark = pytest.mark.unit
 
 R = PETSc.SNES.ConvergedReason
-ITERATING, ABS, REL, STEP = R.ITERATING, R.CONVERGED_FNORM_ABS, R.CONVERGED_FNORM_RELATIVE, \
-    R.CONVERGED_SNORM_RELATIVE
+ITERATING, ABS, REL, STEP = (
+    R.ITERATING,
+    R.CONVERGED_FNORM_ABS,
+    R.CONVERGED_FNORM_RELATIVE,
+    R.CONVERGED_SNORM_RELATIVE,
+)
 NAN, MAX_IT = R.DIVERGED_FNORM_NAN, R.DIVERGED_MAX_IT
 DEFAULT = NewtonSettings()
 TOL = DEFAULT.stol * 1.0 + DEFAULT.xatol  # the step tolerance at ‖U‖ = 1 (1e-8 + 1e-13)
@@ -93,8 +97,13 @@ def test_quadratic_sequence_stops_by_the_update_test(problem):
     a round-off floor of 1e-6 (badly scaled rows: above rtol ‖F_0‖ = 1e-7 and atol): only the
     update test can stop it, at iteration 4 where ‖δU‖ = 1e-8 ≤ 1e-8 + 1e-13. The same sequence
     with the last update 1.1e-8 does not stop."""
-    norms = [(1.0, 0.0, 1e3), (1.0, 1e-1, 1e-2), (1.0, 1e-2, 1e-4), (1.0, 1e-4, 1e-6),
-             (1.0, 1e-8, 1e-6)]
+    norms = [
+        (1.0, 0.0, 1e3),
+        (1.0, 1e-1, 1e-2),
+        (1.0, 1e-2, 1e-4),
+        (1.0, 1e-4, 1e-6),
+        (1.0, 1e-8, 1e-6),
+    ]
     assert feed(problem, full(), norms) == (4, STEP)
     norms[-1] = (1.0, 1.1e-8, 1e-6)
     assert feed(problem, full(), norms) == (5, ITERATING)
@@ -185,8 +194,7 @@ def test_absolute_update_part_for_tiny_states(problem):
     would never meet stol ‖U‖ = 1.6e-16: with xatol = 0 the solve runs to max_iterations."""
     st = full()
     assert feed(problem, st, [(0.0, 0.0, 1.0), (0.0, st.xatol, 0.5)]) == (1, STEP)
-    assert feed(problem, st, [(0.0, 0.0, 1.0), (0.0, 2 * st.xatol, 0.5)]) == (
-        2, ITERATING)
+    assert feed(problem, st, [(0.0, 0.0, 1.0), (0.0, 2 * st.xatol, 0.5)]) == (2, ITERATING)
     stall = [(1.6e-8, 0.0, 1.0)] + [(1.6e-8, 3e-16, 1e-9)] * st.max_iterations
     assert feed(problem, st, stall) == (1, STEP)
     assert feed(problem, full(xatol=0.0), stall) == (st.max_iterations, MAX_IT)

@@ -28,8 +28,16 @@ RTOL, ATOL = 1e-3, 1e-6
 def controller(order: int = 2, counted: int | None = None) -> StepController:
     """Blocks of 3 (fields a, b, c), the first two controlled, 2 blocks owned (6 entries);
     arrays carry 3 ghost entries after them."""
-    return StepController(RTOL, ATOL, order, MPI.COMM_SELF, n_owned=6, block=3,
-                          controlled=slice(0, 2), counted=counted)
+    return StepController(
+        RTOL,
+        ATOL,
+        order,
+        MPI.COMM_SELF,
+        n_owned=6,
+        block=3,
+        controlled=slice(0, 2),
+        counted=counted,
+    )
 
 
 STATE = np.array([1.0, -4.0, 100.0, -3.0, 2.0, -7.0, 50.0, 50.0, 50.0])  # peaks a 3, b 4
@@ -53,7 +61,11 @@ EST_AB = [[3e-3, -2e-3], [1e-3, 4e-3]]
 
 def test_constants_are_the_documented_ones():
     assert (adaptive.SAFETY, adaptive.GROWTH, adaptive.SHRINK, adaptive.KEEP) == (
-        0.8, 1.5, 0.2, 1.2)
+        0.8,
+        1.5,
+        0.2,
+        1.2,
+    )
 
 
 def test_error_norm_by_hand():
@@ -66,8 +78,13 @@ def test_error_norm_by_hand():
     c3 = controller(counted=3)
     assert c3.error_norm(EST, STATE) == pytest.approx(by_hand(EST_AB, [3, 4], 6), rel=8 * EPS)
     # Entry-wise weights would differ: the point of the peaks (block 2's a is 3, b is 2).
-    entrywise = math.sqrt(sum((e / (ATOL + RTOL * abs(u))) ** 2 for e, u in zip(
-        [3e-3, -2e-3, 1e-3, 4e-3], [1.0, -4.0, -3.0, 2.0], strict=True)) / 4)
+    entrywise = math.sqrt(
+        sum(
+            (e / (ATOL + RTOL * abs(u))) ** 2
+            for e, u in zip([3e-3, -2e-3, 1e-3, 4e-3], [1.0, -4.0, -3.0, 2.0], strict=True)
+        )
+        / 4
+    )
     assert abs(c.error_norm(EST, STATE) - entrywise) > 0.1
 
 
