@@ -43,7 +43,6 @@ INTEGRATION_ONLY: dict[str, str] = {
     "io.folder_lock": "tests/test_run_folders.py",
     "io.hdf5": "tests/test_xdmf_writer.py tests/test_pod.py",
     "io.output_files": "tests/test_visualisation.py tests/test_pod.py",
-    "io.probes": "tests/test_scenes.py tests/test_kill.py tests/test_output_fuzz.py",
     "io.run_folder": "tests/test_run_folders.py tests/test_claims.py",
     "io.sweep_table": "tests/test_sweep.py",
     "io.xdmf": "tests/test_xdmf_writer.py tests/test_kill_window.py",
