@@ -36,8 +36,8 @@ test: setup lint
 test-long: setup
 	$(PY) -m pytest -q -m long tests
 
-## The unit tests alone (integrators, Newton stop rule, step controller, interpolation): about
-## 5 CPU seconds. How long each target takes, and on what machine: README, "How long it takes".
+## The unit tests alone, tests/unit/<subpackage>/test_<module>.py a module (integrators, Newton
+## stop rule, step controller, charts, keys, expressions, readers, errors): about 5 CPU seconds. How long each target takes, and on what machine: README, "How long it takes".
 unit: setup
 	$(PY) -m pytest -q tests/unit
 

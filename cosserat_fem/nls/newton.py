@@ -71,7 +71,7 @@ class NewtonSettings:
     (``cf_settings``, written when a solver's ``settings`` is set), so a field changed in place
     would reach Python and not C. Derive other settings with ``dataclasses.replace`` and give
     them to the solver (``solver.settings = ...``); assignment raises FrozenInstanceError
-    (tests/unit/test_newton_stop.py)."""
+    (tests/unit/nls/test_newton.py)."""
 
     jacobian: str = "full"
     lag: int = 10

@@ -13,7 +13,7 @@ discrete state changes by that much at a reset (docs/decisions.md, "Charts").
 
 Why quaternions, not a rotation vector or a new set of Euler angles: docs/decisions.md,
 "Charts". The numpy functions here mirror the UFL ones of forms/kinematics.py at the nodes
-(tests/unit/test_charts.py checks them against each other).
+(tests/unit/rod/test_charts.py checks them against each other).
 """
 
 from __future__ import annotations

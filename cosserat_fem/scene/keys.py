@@ -34,7 +34,7 @@ SCENE_CONSTANTS = ("L", "omega0")
 STEP_TOLERANCE = 1e-9
 #: What output.fields may ask the XDMF file to hold (the format's, cosserat_fem/io/xdmf.py). The
 #: names of heavier modules' choices (the integrators, the Jacobian policies) are spelled out
-#: here, so that reading a scene needs no UFL or DOLFINx; tests/unit/test_one_source.py holds
+#: here, so that reading a scene needs no UFL or DOLFINx; tests/unit/scene/test_schema.py holds
 #: them equal to the implementers' registries.
 XDMF_FIELDS = tuple(FIELD_ARRAYS)
 #: What output.fields holds when a scene does not say: all but the directors.

@@ -14,7 +14,7 @@ import pytest
 
 pytestmark = pytest.mark.unit
 
-_PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "structure.py"
+_PATH = Path(__file__).resolve().parents[3] / "benchmarks" / "structure.py"
 _SPEC = importlib.util.spec_from_file_location("structure", _PATH)
 structure = importlib.util.module_from_spec(_SPEC)
 sys.modules["structure"] = structure

@@ -50,7 +50,7 @@ from cosserat_fem.scene.schema import SCHEMA, parse_toml
 
 pytestmark = pytest.mark.unit
 
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 BASE = ROOT / "tests" / "data" / "base_scene.toml"
 
 

@@ -1,0 +1,1 @@
+"""Unit tests of benchmarks/, one file a module."""

@@ -1,0 +1,1 @@
+"""Unit tests of cosserat_fem/common/, one file a module."""

@@ -1,0 +1,1 @@
+"""Unit tests of cosserat_fem/io/, one file a module."""

@@ -1,0 +1,1 @@
+"""Unit tests of cosserat_fem/nls/, one file a module."""

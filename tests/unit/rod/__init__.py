@@ -1,0 +1,1 @@
+"""Unit tests of cosserat_fem/rod/, one file a module."""

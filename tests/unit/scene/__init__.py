@@ -1,0 +1,1 @@
+"""Unit tests of cosserat_fem/scene/, one file a module."""

@@ -1,0 +1,1 @@
+"""Unit tests of cosserat_fem/timestepping/, one file a module."""
