@@ -55,8 +55,8 @@ bench: setup
 container-test:
 	bash .ci/container-test.sh
 
-## ruff's linter and formatter (check only), then the type checker over the modules listed in
-## pyproject.toml ([tool.mypy]). `make format` formats the tree in place.
+## ruff's linter and formatter (check only), then the type checker over the package and forms/
+## (pyproject.toml's [tool.mypy]). `make format` formats the tree in place.
 lint: setup
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .

@@ -133,9 +133,10 @@ def resume(folder: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()
     from cosserat_fem.io.checkpoint import load_checkpoint
     from cosserat_fem.scene.schema import Removal
 
-    texts = overrides
     if isinstance(overrides, Mapping):
-        texts = [Removal(k) if v is UNSET else f"{k}=" for k, v in overrides.items()]
+        texts: Sequence[str] = [Removal(k) if v is UNSET else f"{k}=" for k, v in overrides.items()]
+    else:
+        texts = overrides
     restart_overrides(texts)
     checkpoint = load_checkpoint(folder)
     scene = scene_from_dict(

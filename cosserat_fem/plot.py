@@ -107,6 +107,8 @@ def plot_free_end(run: Run, out: Path) -> Path:
     a static run), laid out as the paper's Fig. 4."""
     plt = _pyplot()
     rows = run.probes
+    if rows is None:
+        raise SceneError(f"plot: {str(run.directory / PROBES)!r}: no probes to plot")
     t = rows[:, 0]
     fig, axes = plt.subplots(3, 2, figsize=HISTORY_SIZE, sharex=True)
     at = run.probe_place
@@ -243,7 +245,7 @@ def _sweep_record(directory: Path) -> dict:
     cannot be read or is not an object."""
     path = directory / RECORD
     record, reason = read_record(path)
-    if reason:
+    if reason or record is None:
         raise SceneError(f"plot: {str(path)!r} is not a sweep's record ({reason})")
     return record
 

@@ -321,7 +321,9 @@ def _animate(scene: _Scene, path: Path, frames: list[int], fps: int, made) -> Pa
             else imageio.get_writer(work, **options) as writer
         ):
             for i, frame in enumerate(frames, start=1):
-                writer.append_data(scene.image(int(frame)))
+                # imageio's v2 writer has append_data; its stub types the writer as the
+                # base class, which does not declare it
+                writer.append_data(scene.image(int(frame)))  # type: ignore[attr-defined]
                 made(i)
         if not gif:
             os.replace(work, path)

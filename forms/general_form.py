@@ -313,7 +313,8 @@ def kelvin_voigt_terms(
 
 def row_inertias(groups: Groups) -> tuple[float, float, float]:
     """Î_i = g0/(ℓ g_i) = I_ii/(ρ A ℓ²), the dimensionless rotary inertias that divide rows 4-6."""
-    return tuple(groups.g0 / (groups.length * g) for g in (groups.g1, groups.g2, groups.g3))
+    g0, ell = groups.g0, groups.length
+    return g0 / (ell * groups.g1), g0 / (ell * groups.g2), g0 / (ell * groups.g3)
 
 
 def scaled_resultants(v_strain, u_strain, groups: Groups):
@@ -342,7 +343,9 @@ def contact_terms(p, dp, groups: Groups, n, m, chart: Chart | None = None, refer
     return flux_c, source_c
 
 
-def reference_strains(p, dp, reference: Reference, chart: Chart | None = None):
+def reference_strains(
+    p, dp, reference: Reference, chart: Chart | None = None
+) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
     """(v − v0, û − û0) = (D0 (R r' − t0), D0 κ_R), director components (module docstring)."""
     v_rel = stretch_shear_strain(p, dp, chart, reference.tangent) - reference.tangent
     return reference.frame * v_rel, reference.frame * curvature(p, dp, chart)
@@ -452,6 +455,7 @@ def residual_terms(
         b_v, g_v = kelvin_voigt_terms(p, dp, q, dq, groups, kelvin_voigt, chart)
         extra["kelvin_voigt"] = (-ufl.inner(b_v, dvq) - ufl.inner(g_v, vq)) * dx
     elif kelvin_voigt is not None:  # the rates of D0 (R r' − t0) and D0 κ_R, times η
+        assert reference is not None  # the branch above took kelvin_voigt without one
         eta = kelvin_voigt.omega0 * kelvin_voigt.retardation_time
         v_dot, u_dot = strain_rates(p, dp, q, dq, chart, reference.tangent)
         D0 = reference.frame

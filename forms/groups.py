@@ -58,7 +58,8 @@ class RodConstants:
         docstring), or the given ones over ρ: the one source for the equations, the energy and
         the modes."""
         if self.inertia is not None:
-            return tuple(i / self.density for i in self.inertia)
+            i1, i2, i3 = self.inertia
+            return i1 / self.density, i2 / self.density, i3 / self.density
         return self.section.c11, self.section.c22, self.torsion_row_inertia
 
     @property

@@ -250,7 +250,7 @@ def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
         if i < rigid:  # λ = 0 to the round-off of K's largest eigenvalues, of either sign
             omega, note = 0.0, f"rigid-body mode (λ = {lam.real:.2g}, round-off)"
         fractions = _energy_fractions(shape, weights)
-        kind = max(fractions, key=fractions.get)
+        kind = max(fractions, key=fractions.__getitem__)
         modes.append(Mode(omega, kind, fractions, _normalised(shape), lam, note))
     eps.destroy()
     return modes
@@ -384,10 +384,10 @@ def write_modes(out: Path, model: RodModel, modes: list[Mode], about: str = "und
         scratch = fem.Function(modes[0].shape.function_space, name="mode")
         # Displacement and angles only: strains and resultants of an eigenvector of
         # arbitrary amplitude would be nonlinear functions of that amplitude.
-        writer = XdmfWriter(out / "modes.xdmf", model, ("displacement", "angles"), U=scratch)
+        xdmf = XdmfWriter(out / "modes.xdmf", model, ("displacement", "angles"), U=scratch)
         for i, mode in enumerate(modes, start=1):
-            writer.write(float(i), mode.shape)
-        writer.close()
+            xdmf.write(float(i), mode.shape)
+        xdmf.close()
     modes_found = [
         {
             "omega_rad_s": m.omega,

@@ -175,6 +175,7 @@ class RunSummary(Observer):
             }
         )
         if self.start is not None and self.start.claimed:
+            assert self.folder is not None, "a folder start comes with its folder"
             write_summary(self.folder / SUMMARY, self.summary, self.comm, failure is None)
 
 
@@ -195,9 +196,11 @@ class ProbeObserver(Observer):
             self.writer.write(loop.state.t)
 
     def output(self, loop, k: int, t: float) -> None:
-        self.writer.write(t)
-        if self.writer.comm.size > 1:
-            self.writer.check()  # the owner's write error, on every rank
+        writer = self.writer
+        assert writer is not None, "started() made the writer"
+        writer.write(t)
+        if writer.comm.size > 1:
+            writer.check()  # the owner's write error, on every rank
 
     def flush(self) -> None:
         if self.writer is not None:
@@ -205,10 +208,12 @@ class ProbeObserver(Observer):
 
     def digest(self) -> str | None:
         """SHA-256 of probes.csv so far, the same on every rank (collective)."""
-        digest = self.writer.digest()  # on the probe's owner, which may not be rank 0
-        comm = self.writer.comm
+        writer = self.writer
+        assert writer is not None, "started() made the writer"
+        digest = writer.digest()  # on the probe's owner, which may not be rank 0
+        comm = writer.comm
         if comm.size > 1:
-            self.writer.check()
+            writer.check()
             digest = comm.bcast(digest, root=self.probe.owner)
         return digest
 
@@ -244,6 +249,7 @@ class XdmfObserver(Observer):
         if k % self.every == 0:
             if self.probes is not None:
                 self.probes.flush()  # probes.csv reaches every frame on disk (kill-safe)
+            assert self.writer is not None, "started() made the writer"
             self.writer.write(t)
 
     @property
@@ -306,6 +312,7 @@ class CheckpointObserver(Observer):
         )
 
     def step_finished(self, loop) -> None:
+        assert self.writer is not None, "started() made the writer"
         if self.writer.due(loop.state.t):
             self.save(loop)
 
@@ -315,6 +322,7 @@ class CheckpointObserver(Observer):
         t = loop.state.t
         if self._saved_at == t:
             return
+        assert self.writer is not None, "started() made the writer"
         outputs = {
             "probe_rows": loop.state.outputs + 1,
             "probes_sha256": self.probes.digest(),
@@ -409,7 +417,7 @@ class FieldRecorder(Observer):
         self.sampler = LineSampler(model, np.asarray(sigmas, dtype=float))
         self.every = every
         self._times: list[float] = []
-        self._values: list[np.ndarray] = []
+        self._values: list[np.ndarray | None] = []  # None on ranks other than 0
 
     def started(self, loop) -> None:
         if not loop.restarted:
@@ -430,6 +438,7 @@ class FieldRecorder(Observer):
         values = np.array(self._values) if comm.rank == 0 else None
         if comm.size > 1:
             values = comm.bcast(values, root=0)
+        assert values is not None, "rank 0's values, broadcast"
         return np.array(self._times), values
 
 
@@ -460,12 +469,12 @@ class StandardObservers:
         checkpoints: bool = False,
         wall_time: float | None = None,
         progress: Callable | None = None,
-        observers: Sequence[Observer] = (),
+        observers: Sequence[Observer | Callable] = (),
         record: bool = False,
         fields: np.ndarray | None = None,
         field_every: int = 1,
     ):
-        chain: list[Observer] = []
+        chain: list[Observer | Callable] = []
         begin = probes = xdmf = None
         if out is not None:
             begin = FolderStart(
@@ -487,6 +496,7 @@ class StandardObservers:
         chain += [o for o in (self.recorder, self.sampled) if o is not None]
         self.checkpoints = None
         if out is not None and checkpoints:
+            assert probes is not None, "made with the folder"
             self.checkpoints = CheckpointObserver(
                 out, comm, scene, summary["run_id"], probes, xdmf, previous=restart
             )

@@ -9,6 +9,7 @@ back to the checkpoint, cosserat_fem/io/run_folder.py's (``check_outputs``, ``cu
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from typing import Any
 
 from cosserat_fem.common.errors import SceneError, show_value
@@ -37,7 +38,7 @@ def _allowed() -> str:
     return ", ".join(k + "*" if k.endswith(".") else k for k in RESTART_KEYS)
 
 
-def restart_overrides(overrides: list[str] | tuple[str, ...]) -> None:
+def restart_overrides(overrides: Sequence[str]) -> None:
     """SceneError unless every ``--set`` (and ``--unset``) key of a restart is one of
     :data:`RESTART_KEYS`."""
     from cosserat_fem.scene.schema import Removal

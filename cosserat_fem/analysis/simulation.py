@@ -87,7 +87,7 @@ def run_scene(
     restart: Checkpoint | None = None,
     progress: Callable[[float, int, int], None] | None = None,
     record: bool = False,
-    fields: np.ndarray | None = None,
+    fields: Sequence[float] | np.ndarray | None = None,
     field_every: int = 1,
 ) -> RunResult:
     """Integrate the scene over its time span (module docstring): the run behind the one

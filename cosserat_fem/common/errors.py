@@ -18,6 +18,7 @@ Exit status of the command line: 2 SceneError, 3 SolverError, 4 StopError, 1 any
 from __future__ import annotations
 
 import datetime
+from pathlib import Path
 
 
 def _one_line(text: str) -> str:
@@ -118,13 +119,11 @@ def show_value(value: object) -> str:
     return text if len(text) <= 120 else text[:117] + "..."
 
 
-def out_folder(out, option: str = "out (--out)"):
+def out_folder(out: object, option: str = "out (--out)") -> Path | None:
     """The folder that an ``out`` argument (the command line's ``--out``) names, as a Path, or
     None if none was given; a SceneError naming ``option`` for an empty name (``--out ''``
     was the current folder, or the scene's output.directory) or a path that exists and is not
     a folder."""
-    from pathlib import Path
-
     if out is None:
         return None
     if not isinstance(out, str | Path) or str(out) == "":

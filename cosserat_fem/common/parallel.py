@@ -25,21 +25,19 @@ from typing import TypeVar
 
 from mpi4py import MPI
 
-from cosserat_fem.common.errors import CosseratError
-
 T = TypeVar("T")
 
 #: Seconds a failing rank waits for the others before it aborts the job.
 ABORT_AFTER = 10.0
 
 
-def agree(comm: MPI.Comm, problem: CosseratError | None) -> None:
+def agree(comm: MPI.Comm, problem: Exception | None) -> None:
     """Raise on every rank the first rank's ``problem`` (collective; in serial, just raise
     it). The problem's class must take its message as its one argument."""
     agree_and_gather(comm, problem, None)
 
 
-def agree_and_gather(comm: MPI.Comm, problem: CosseratError | None, value: T) -> list[T]:
+def agree_and_gather(comm: MPI.Comm, problem: Exception | None, value: T) -> list[T]:
     """:func:`agree` on ``problem``, then every rank's ``value`` in the order of the ranks, in
     one collective (one ``allgather``)."""
     if comm.size == 1:

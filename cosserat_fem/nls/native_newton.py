@@ -279,6 +279,7 @@ def library_path(source: str | None = None) -> Path:
 
 def _load(name: str, target: Path):
     spec = importlib.util.spec_from_file_location(name, target)
+    assert spec is not None and spec.loader is not None, f"{target} is not a module"
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
@@ -429,9 +430,9 @@ class NativeLoop:
         self._constant_sizes = np.array([v.size for v in storages] or [0], dtype=np.int32)
         self.bc_values = np.zeros_like(U.x.array)
         self._zeros = np.zeros_like(U.x.array)
-        bc_dofs = [bc.dof_indices()[0][: bc.dof_indices()[1]] for bc in bcs]
+        bc_parts = [bc.dof_indices()[0][: bc.dof_indices()[1]] for bc in bcs]
         bc_dofs = np.ascontiguousarray(
-            np.concatenate([np.zeros(0, np.int32), *bc_dofs]), dtype=np.int32
+            np.concatenate([np.zeros(0, np.int32), *bc_parts]), dtype=np.int32
         )
         wsize = max((d["wsize"] for d in integrals), default=0)
         p = ffi.new("cf_problem*")

@@ -44,6 +44,7 @@ from __future__ import annotations
 import itertools
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, fields
 
 import numpy as np
@@ -54,7 +55,7 @@ from petsc4py import PETSc
 from ufl.algorithms.analysis import extract_coefficients, extract_constants
 
 from cosserat_fem.common.errors import CosseratError
-from cosserat_fem.nls.native_newton import core
+from cosserat_fem.nls.native_newton import NativeLoop, core
 
 JACOBIAN_POLICIES = ("full", "lagged", "frozen")
 _prefix_counter = itertools.count()
@@ -155,7 +156,7 @@ class NewtonSolver:
             raise ValueError(f"unknown Jacobian policy {settings.jacobian!r}")
         self.U = U
         self.bcs = bcs
-        self._native = None
+        self._native: NativeLoop | None = None
         comm = U.function_space.mesh.comm
         module = core(comm)  # collective: rank 0 compiles on a cold cache
         self._ffi, self._lib = module.ffi, module.lib
@@ -172,7 +173,7 @@ class NewtonSolver:
         #: time loop whose supports stay put sets it False (cosserat_fem/timestepping/loop.py), and
         #: the values read when the assembler was made stand.
         self.supports_move = True
-        self._hook = None
+        self._hook: Callable[[int, object, int], None] | None = None
         self._parallel = comm.size > 1
         self._compile_params = (form_compiler_params or {}, jit_params or {})
         self.compile_time = 0.0
@@ -368,7 +369,9 @@ class NewtonSolver:
         t0 = time.perf_counter()
         A = self.A
         A.zeroEntries()
-        assemble_matrix(A, self.J_form, bcs=self.bcs)
+        # assemble_matrix is a singledispatch whose overload for a PETSc.Mat first (mat, form,
+        # bcs) DOLFINx's annotations do not show
+        assemble_matrix(A, self.J_form, bcs=self.bcs)  # type: ignore[misc]
         A.assemble()
         if self.settings.jacobian != "full":
             coefficients, constants = self._J_inputs
@@ -391,7 +394,8 @@ class NewtonSolver:
         return reason
 
     def _observe(self, it: int, norms, reason: int) -> None:
-        """cf_solve's on_iteration: the observer's hook."""
+        """cf_solve's on_iteration: the observer's hook (set: cf_solve calls this only then)."""
+        assert self._hook is not None, "on_iteration is set only with a hook"
         self._hook(it, norms, reason)
 
     # -- solving --------------------------------------------------------------------------
@@ -477,7 +481,8 @@ class NewtonSolver:
         for i, c in enumerate(constants):
             c.value = state[f"jacobian.constant{i}"]
         self.A.zeroEntries()
-        assemble_matrix(self.A, self.J_form, bcs=self.bcs)
+        # a singledispatch overload DOLFINx's annotations do not show (as in _jacobian)
+        assemble_matrix(self.A, self.J_form, bcs=self.bcs)  # type: ignore[misc]
         self.A.assemble()
         self._J_snapshot = {
             k.removeprefix("jacobian."): np.array(v)

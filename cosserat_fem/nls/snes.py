@@ -227,11 +227,12 @@ class SNESSolver(NewtonSolver):
             self._u.ghostUpdate(addv=_INSERT, mode=_FORWARD)
         answer[:] = snes.getIterationNumber(), snes.getConvergedReason()
         if self._used is not None:
-            self._check_used()
+            self._check_used(self._used)
 
-    def _check_used(self) -> None:
-        """SceneError (on every rank) naming the first option PETSc has not read by now."""
-        unused = [name for name in self.options if name not in self._used]
+    def _check_used(self, used: set[str]) -> None:
+        """SceneError (on every rank) naming the first option PETSc has not read by now (of
+        those not in ``used``, the options read so far)."""
+        unused = [name for name in self.options if name not in used]
         self._used = None
         problem = None
         if unused:

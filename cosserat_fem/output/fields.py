@@ -17,6 +17,8 @@ always covers the last frame on disk (cosserat_fem/io/probes.py, io/xdmf.py).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -100,6 +102,7 @@ class FixedBasisAngles:
         digits near θ = ±π/2), else D(θ, ψ, φ) of (18)."""
         model = self.model
         if (model.chart is not None and model.chart_moved) or model.scene.reference.curved:
+            assert self.frame is not None, "set by the last call (D A, D0 D A)"
             return self.frame
         return euler_matrix(*angles.T)
 
@@ -208,12 +211,15 @@ class PointProbe:
     def _chart_value(self) -> np.ndarray:
         """The chart's quaternion at the probe point, (1, 4)."""
         chart = self.angles.model.chart
+        assert chart is not None, "called for a model with a chart"
         if self._node is not None:
             return chart.x.array[None, 4 * self._node : 4 * self._node + 4]
         return chart.eval(self.point, np.array([self.cell], dtype=np.int32))
 
 
-def _field_expressions(U, model: RodModel, fields: tuple[str, ...]) -> list[tuple[str, object]]:
+def _field_expressions(
+    U, model: RodModel, fields: tuple[str, ...]
+) -> list[tuple[str, ufl.core.expr.Expr]]:
     """(array name, UFL 3-vector) of the requested fields of ``U`` (in the model's layout);
     see :class:`XdmfWriter`."""
     U = model.layout.full(U)  # a planar model's unknowns in the 12 components (zeros elsewhere)
@@ -224,14 +230,19 @@ def _field_expressions(U, model: RodModel, fields: tuple[str, ...]) -> list[tupl
     if {"strains", "forces"} & set(fields):
         res = resultants(U, model.rod, tau, chart, reference)
     ell = model.length
-    exprs = {
+
+    def resultant(name: str) -> ufl.core.expr.Expr:
+        assert res is not None, "made for the fields strains and forces"
+        return getattr(res, name)
+
+    exprs: dict[str, Callable[[], ufl.core.expr.Expr]] = {
         "displacement": lambda: ufl.as_vector([ell * U[0], ell * U[1], ell * U[2]]),
         "angles": lambda: _fixed_basis_angles(U, chart, reference),
-        "strain_v": lambda: res.v,
-        "curvature_u": lambda: res.u,
-        "force_n": lambda: res.n,
-        "torque_m": lambda: res.m,
-        **{f"director_d{i + 1}": (lambda i=i: _director(U, chart, i, reference)) for i in range(3)},
+        "strain_v": lambda: resultant("v"),
+        "curvature_u": lambda: resultant("u"),
+        "force_n": lambda: resultant("n"),
+        "torque_m": lambda: resultant("m"),
+        **{f"director_d{i + 1}": partial(_director, U, chart, i, reference) for i in range(3)},
     }
     return [(name, exprs[name]()) for field in fields for name in FIELD_ARRAYS[field]]
 
@@ -351,6 +362,8 @@ class CentrelineOutput:
             gathered = np.empty((sum(self.counts), m)) if comm.rank == 0 else None
             sizes = [c * m for c in self.counts]
             comm.Gatherv(np.ascontiguousarray(rows), (gathered, sizes), root=0)
+            if gathered is None:  # not rank 0
+                return None
             rows = gathered
         if comm.rank != 0:
             return None
@@ -425,13 +438,14 @@ class XdmfWriter:
         self.line = CentrelineOutput(msh, model.length, k, model.scene.reference.positions)
         self.arrays = [name for field in self.fields for name in FIELD_ARRAYS[field]]
         self.model, self._jit_params, self._k = model, jit_params or {}, k
-        self._expr = None
+        self._expr: fem.Expression | None = None
         self._compile()
         self.path = Path(path)
         self.files: XdmfSeries | None = None  # rank 0 only
         self.writes = 0 if resume is None else resume[1]
         problem = None
         if self._comm.rank == 0:
+            assert self.line.geometry is not None and self.line.topology is not None  # rank 0's
             try:
                 self.files = XdmfSeries(
                     self.path,
@@ -467,10 +481,12 @@ class XdmfWriter:
         if self.arrays:
             if self._charted != self.model.chart_moved:
                 self._compile()
+            assert self._expr is not None, "made by _compile for the arrays"
             self._expr.eval(self.line.cells, self._values)
             values = self.line.point_values(self._values)
             problem = None
             if self.files is not None:
+                assert values is not None, "rank 0's, which has the files"
                 try:
                     self.files.write(t, values)
                 except OutputError as exc:
@@ -529,12 +545,14 @@ class LineSampler:
             # (points, values): Function.eval returns a flat array for a single point
             values = self.U.eval(self._points, self._cells).reshape(len(self._mine), -1)
             local[np.ix_(self._mine, self._p)] = values[:, : len(self._p)] * self._scale
+
+            def chart_values() -> np.ndarray:
+                chart = self.angles.model.chart
+                assert chart is not None, "called for a model with a chart"
+                return chart.eval(self._points, self._cells).reshape(len(self._mine), 4)
+
             local[self._mine, 3:6] = self.angles(
-                local[self._mine, 3:6],
-                lambda: self.angles.model.chart.eval(self._points, self._cells).reshape(
-                    len(self._mine), 4
-                ),
-                lambda: self._points[:, 0],
+                local[self._mine, 3:6], chart_values, lambda: self._points[:, 0]
             )
         total = np.zeros_like(local) if self.comm.rank == 0 else None
         self.comm.Reduce(local, total, op=MPI.SUM, root=0)

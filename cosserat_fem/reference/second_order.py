@@ -762,7 +762,7 @@ def second_order_response(
         raise ValueError("times must be >= 0 (the motion starts from rest at t = 0)")
     s_arr = np.asarray(rod.length if s is None else s, dtype=float)
     st = s_arr.ravel()
-    qx, qy = (q0, q0) if np.isscalar(q0) else q0
+    qx, qy = q0 if isinstance(q0, tuple | list | np.ndarray) else (q0, q0)
     nx, ny = (linear_modes, linear_modes) if isinstance(linear_modes, int) else linear_modes
     planes = {
         "x": _Plane.build(rod.beam_x, float(qx), Omega, nx),

@@ -23,6 +23,7 @@ import basix
 import numpy as np
 import ufl
 from dolfinx import fem, mesh
+from dolfinx.fem.function import ElementMetaData
 from mpi4py import MPI
 from petsc4py import PETSc
 
@@ -177,6 +178,7 @@ class RodModel:
             frame = self._polyline_frame()
             return Reference(ufl.as_vector([frame[2, j] for j in range(3)]), frame, ufl.zero(3))
         if shape.shape == "curve":
+            assert shape.constants is not None, "a curve's (scene/build.py)"
             symbols = {"s": self.length * sigma, **shape.constants}
 
             def vector(expressions, order: int):
@@ -198,7 +200,7 @@ class RodModel:
         the frame of the segment its midpoint lies on (corners are at nodes, checked), so
         any number of corners costs one coefficient, not a chain of conditionals."""
         if self.reference_frame is None:
-            space = fem.TensorFunctionSpace(self.msh, ("DG", 0), shape=(3, 3))
+            space = fem.TensorFunctionSpace(self.msh, ElementMetaData("DG", 0), shape=(3, 3))
             cells = self.msh.topology.index_map(1)
             count = cells.size_local + cells.num_ghosts
             vertices = self.msh.geometry.dofmap.array.reshape(-1, 2)[:count]
@@ -214,6 +216,7 @@ class RodModel:
         """(state_map, rate_map) of :meth:`Integrator.change_variables` from the current chart to
         the nodal quaternions ``Q_new``, for state arrays of U's layout; the nodes whose
         quaternion does not change keep their values bit for bit."""
+        assert self.chart is not None, "use_chart made it"
         layout, Q_old = self.layout, self.chart.x.array.reshape(-1, 4).copy()
         pick = list(layout.components)
         moved = np.any(Q_new != Q_old, axis=1)
@@ -237,6 +240,7 @@ class RodModel:
         :attr:`fork_nodes`, which keep theirs. Signed for a continuous field along the rod
         (:meth:`_continuous_signs`). Collective."""
         state = self.U.x.array if state is None else state
+        assert self.chart is not None, "use_chart made it"
         Q_old = self.chart.x.array.reshape(-1, 4)
         Q_new = chart_of(self.layout.full_array(state), Q_old)
         self._continuous_signs(Q_new)
@@ -273,6 +277,7 @@ class RodModel:
         mine = comm.scatter(flips, root=0)
         Q[:n][mine] *= -1.0
         if comm.size > 1:  # the ghosts take their owners' signs
+            assert self.chart is not None, "use_chart made it"
             work = fem.Function(self.chart.function_space)
             work.x.array[:] = Q.ravel()
             work.x.scatter_forward()
@@ -309,6 +314,7 @@ class RodModel:
 
     def set_chart(self, Q: np.ndarray) -> None:
         """The chart's nodal quaternions (nodes, 4); marks it moved."""
+        assert self.chart is not None, "use_chart made it"
         self.chart.x.array[:] = np.asarray(Q).ravel()
         self.chart_moved = True
 
@@ -431,9 +437,13 @@ class RodModel:
         data components are coefficients of the time Constant ``time_eval``."""
         if exprs is None or all(e.is_zero for e in exprs):
             return None
-        components = [
-            self.data.coefficient(e, time_eval) if is_data(e) else e.to_ufl(symbols) for e in exprs
-        ]
+        components = []
+        for e in exprs:
+            if is_data(e):
+                assert self.data is not None, "build_model made the data loads"
+                components.append(self.data.coefficient(e, time_eval))
+            else:
+                components.append(e.to_ufl(symbols))
         return self.load_factor * ufl.as_vector(components)
 
     def residual(self, U_eval, Udot_eval, time_eval, charted: bool | None = None) -> ufl.Form:
@@ -566,7 +576,8 @@ def support_conditions(
     theirs) with a Constant value each
     (what a prescribed motion sets). ``ends``: the vertices of each end. Returns the
     conditions and, by end, {full component: its Constant}."""
-    bcs, held = [], {}
+    bcs: list = []
+    held: dict[str, dict[int, fem.Constant]] = {}
     for name, ents in ends.items():
         kind, moving = getattr(scene.supports, name), scene.supports.motion(name) is not None
         held[name] = {}

@@ -151,7 +151,8 @@ def _binormal(raw: list) -> tuple[float, float, float]:
         values.append(float(x))
     if not any(values):
         raise SceneError("reference.binormal: must not be zero, got [0, 0, 0]")
-    return tuple(values)
+    x, y, z = values  # three: the schema's Vector checked the length
+    return x, y, z
 
 
 def _build_rod(raw: dict[str, Any]) -> Rod:
@@ -248,7 +249,12 @@ def _build_loads(
         point = build(PointLoad, raw["point"], **vectors)
     declared = {}
     for name, spec in Table.of(Loads).fields.items():
-        if isinstance(spec, Table) and issubclass(spec.resolved, FormLoad) and raw[name]:
+        if (
+            isinstance(spec, Table)
+            and spec.resolved is not None
+            and issubclass(spec.resolved, FormLoad)
+            and raw[name]
+        ):
             field = declared_names(Loads)[name]
             declared[field] = _build_form_load(
                 spec, raw[name], f"loads.{name}", supports, names, tables
@@ -290,6 +296,7 @@ def _build_form_load(
 ) -> FormLoad:
     """A load declared with its physics (resolved.FormLoad): its load vectors parsed as
     functions of t and the constants (not of s: it acts at a point), then its own check."""
+    assert spec.resolved is not None, "a form load's table is Table.of its dataclass"
     vectors = {}
     for name, item in spec.fields.items():
         if isinstance(item, LoadVector):
@@ -302,8 +309,8 @@ def _build_form_load(
 
 def _constant_vector(raw: list, constants: set[str], key: str) -> tuple[float, float, float]:
     """Three numbers (expressions of the constants only)."""
-    vector = parse_vector(raw, set(constants), key)
-    return tuple(float(e.evaluate()) for e in vector)
+    x, y, z = (float(e.evaluate()) for e in parse_vector(raw, set(constants), key))
+    return x, y, z
 
 
 def _build_initial(
@@ -327,7 +334,7 @@ def _build_initial(
         if kind == "free":
             continue
         motion = supports.motion(end)
-        held = {"displacement": (0, 1, 2), "velocity": (0, 1, 2)}
+        held: dict[str, tuple[int, ...]] = {"displacement": (0, 1, 2), "velocity": (0, 1, 2)}
         held.update({"angles": (0, 1, 2), "angle_rates": (0, 1, 2)} if kind == "clamped" else {})
         held.update({"angles": (2,), "angle_rates": (2,)} if kind == "pinned" else {})
         for name, components in held.items():
@@ -337,12 +344,12 @@ def _build_initial(
                     e = motion[i] if name == "displacement" else derivative(motion[i], "t")
                     key = f"supports.{end}_motion[{i}]"
                     want = _finite_value(e, key, f"t = {fmt(t0)} s", t=t0, **values)
-                got = 0.0
-                if fields[name] is not None:
+                got, given = 0.0, fields[name]
+                if given is not None:
                     key, where = f"initial.{name}[{i}]", f"s = {fmt(s_end)} m"
-                    got = _finite_value(fields[name][i], key, where, s=s_end, **values)
+                    got = _finite_value(given[i], key, where, s=s_end, **values)
                 if abs(got - want) > 1e-12 * max(abs(want), scale[name]):
-                    source = show_value(fields[name][i].source) if fields[name] else "0"
+                    source = show_value(given[i].source) if given else "0"
                     what = "its prescribed motion" if motion is not None else "0"
                     if motion is not None and is_data(motion[i]):  # a value to copy
                         what = (
@@ -657,6 +664,7 @@ def _check_polyline(scene: Scene, reference: ReferenceShape) -> None:
     """A polyline's segments are not empty, normal to the binormal (d0_2 ⊥ d0_3), as long as
     the rod together, and its corners lie at nodes of the mesh (where its frame may jump);
     SceneError naming the key."""
+    assert reference.binormal is not None, "a polyline requires it (scene/keys.py)"
     pts = np.asarray(reference.points, dtype=float)
     steps = np.linalg.norm(np.diff(pts, axis=0), axis=1)
     ell = scene.rod.length
@@ -786,6 +794,7 @@ def _check_reference(scene: Scene, reference: ReferenceShape) -> None:
     elif reference.shape == "curve":
         _check_curve(scene, reference)
     else:
+        assert reference.radius is not None, "an arc and a helix require it (scene/keys.py)"
         half = _half_size(scene)
         if not reference.radius > half:
             raise SceneError(
@@ -844,12 +853,13 @@ def _check_closed(scene: Scene, reference: ReferenceShape) -> None:
     r0, D0 = reference.positions(ends), reference.frames(ends)
     gap, turn = float(np.linalg.norm(r0[1] - r0[0])), float(np.abs(D0[1] - D0[0]).max())
     if gap > CLOSURE_TOLERANCE * ell or turn > CLOSURE_TOLERANCE:
-        hint = (
-            f" (an arc closes when rod.length = 2π reference.radius = "
-            f"{2 * math.pi * reference.radius!r} m)"
-            if reference.shape == "arc"
-            else ""
-        )
+        hint = ""
+        if reference.shape == "arc":
+            assert reference.radius is not None, "an arc requires it (scene/keys.py)"
+            hint = (
+                f" (an arc closes when rod.length = 2π reference.radius = "
+                f"{2 * math.pi * reference.radius!r} m)"
+            )
         raise SceneError(
             f"reference.closed: the rod's reference does not close: its ends are {gap:.3g} m "
             f"apart and their frames differ by {turn:.3g}{hint}"

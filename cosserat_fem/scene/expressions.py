@@ -62,7 +62,7 @@ import unicodedata
 import warnings
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, TypeGuard
 
 import numpy as np
 
@@ -219,7 +219,7 @@ def _walk(node: Node, leaf: Callable[[Node], Any], apply: Callable[[str, list], 
     return apply(kind, [_walk(arg, leaf, apply) for arg in node[1:]])
 
 
-def _is_real(value: object) -> bool:
+def _is_real(value: object) -> TypeGuard[numbers.Real]:
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
@@ -475,6 +475,7 @@ class _Parser:
             else:
                 before, end = spine[a.first - 1], spine[b.last - 2]
                 start, lead = before.right, _OPERATORS[type(before.op)]
+                assert end.end_lineno is not None and end.end_col_offset is not None  # ast.parse's
                 where = _Span(
                     start.lineno, start.col_offset, end.end_lineno, end.end_col_offset, lead
                 )
@@ -575,6 +576,8 @@ def _show_number(value: object) -> str:
     try:
         return show_value(value)
     except ValueError:  # an int too long for str() (Python's 4300-digit limit)
+        if not isinstance(value, int):
+            raise
         return f"an integer of about {int(int(value).bit_length() * math.log10(2)) + 1} digits"
 
 

@@ -431,7 +431,7 @@ _DECLARATION = "cosserat_fem.key"
 _KEY_NAME = "cosserat_fem.key_name"
 
 
-def key(spec: Field | Parameters, *, name: str | None = None, **options: Any) -> Any:
+def key(spec: Field | Parameters | Table, *, name: str | None = None, **options: Any) -> Any:
     """A resolved dataclass's field that is the scene key ``spec`` declares (its type, range,
     unit, default): :meth:`Table.of` reads it, :func:`build` fills it by name. ``name``: the
     key's name in the scene file when it differs from the field's; ``options``: those of
@@ -462,7 +462,7 @@ def declared_names(resolved: type) -> dict[str, str]:
     return {name: field for name, field, _ in declarations(resolved)}
 
 
-def to_table(resolved: Any) -> dict[str, Any]:
+def to_table(resolved: object) -> dict[str, Any]:
     """The table of a scene file that gives the resolved dataclass instance ``resolved`` (what
     :func:`build` built it from, every key given): each declared field under its key's name,
     its value as the key's spec writes it (``to_value``: a sub-table by recursion, an
@@ -471,9 +471,9 @@ def to_table(resolved: Any) -> dict[str, Any]:
     left out. Plain, JSON-serialisable values (lists, dicts, numbers, strings); a field that
     declares no key (a derived value) is not written. ``Scene.to_dict`` is this of the scene.
     """
+    kind: type = type(resolved)  # as declarations takes it (a type[object] is not Hashable)
     values = {
-        name: spec.to_value(getattr(resolved, field))
-        for name, field, spec in declarations(type(resolved))
+        name: spec.to_value(getattr(resolved, field)) for name, field, spec in declarations(kind)
     }
     return {name: value for name, value in values.items() if value is not None}
 

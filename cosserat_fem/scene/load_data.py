@@ -478,7 +478,9 @@ class LoadTable(_Data):
             f"[{t0:.6g}, {t1:.6g}] s"
         )
         if self.grid:
-            s0, s1 = self.s_span()
+            s_span = self.s_span()
+            assert s_span is not None, "a grid has its s"
+            s0, s1 = s_span
             text += (
                 f" x {self._width} values of s in [{s0:.6g}, {s1:.6g}] m "
                 f"({self.s_interpolation} in s)"
@@ -530,6 +532,8 @@ class LoadTable(_Data):
         """A grid's values at one time (``profile``, at its s; or columns of such) interpolated
         at ``s`` [m]: (len(s),) (or (len(s), columns))."""
         grid = self._s
+        assert grid is not None, "called for a grid"
+        out: np.ndarray
         if self.s_interpolation == "cubic":
             out = np.asarray(_ppoly(grid, profile, "cubic")(s), dtype=float)
         elif profile.ndim == 1:
@@ -789,7 +793,9 @@ def check_span(component, start: float, end: float, static_time: float, length: 
             'or "zero"'
         )
     if component.grid:
-        s0, s1 = component.s_span()
+        s_span = component.s_span()
+        assert s_span is not None, "a grid has its s"
+        s0, s1 = s_span
         if s0 > 0.0 or s1 < length:
             raise SceneError(
                 f"{component.key}: {component.source} covers s in [{s0:.10g}, "

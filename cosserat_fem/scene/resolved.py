@@ -164,9 +164,11 @@ class ReferenceShape:
         """r0(s) [m], (len(s), 3)."""
         s = np.asarray(s, dtype=float)
         if self.shape == "arc":
+            assert self.radius is not None, "an arc requires it (scene/keys.py)"
             a = s / self.radius
             return np.column_stack([self.radius * (1 - np.cos(a)), 0 * s, self.radius * np.sin(a)])
         if self.shape == "helix":
+            assert self.radius is not None and self.pitch_angle is not None, "a helix requires them"
             k, R = math.cos(self.pitch_angle) / self.radius, self.radius
             return np.column_stack(
                 [R * (np.cos(k * s) - 1), R * np.sin(k * s), s * math.sin(self.pitch_angle)]
@@ -183,9 +185,11 @@ class ReferenceShape:
         s = np.asarray(s, dtype=float)
         D0 = np.zeros((s.size, 3, 3))
         if self.shape == "arc":
+            assert self.radius is not None, "an arc requires it (scene/keys.py)"
             c, n = np.cos(s / self.radius), np.sin(s / self.radius)
             D0[:, 0, 0], D0[:, 0, 2], D0[:, 1, 1], D0[:, 2, 0], D0[:, 2, 2] = c, -n, 1, n, c
         elif self.shape == "helix":
+            assert self.radius is not None and self.pitch_angle is not None, "a helix requires them"
             ca, sa = math.cos(self.pitch_angle), math.sin(self.pitch_angle)
             c, n = np.cos(ca / self.radius * s), np.sin(ca / self.radius * s)
             D0[:, 0] = np.column_stack([-c, -n, 0 * s])
@@ -204,8 +208,10 @@ class ReferenceShape:
     def turning(self, length: float) -> float:
         """The total turning of the tangent over [0, ``length``] [rad]: ∫ |r0''| ds."""
         if self.shape == "arc":
+            assert self.radius is not None, "an arc requires it (scene/keys.py)"
             return length / self.radius
         if self.shape == "helix":
+            assert self.radius is not None and self.pitch_angle is not None, "a helix requires them"
             return length * math.cos(self.pitch_angle) ** 2 / self.radius
         if self.shape == "polyline":
             t = self.segment_frames()[:, 2]
@@ -655,7 +661,10 @@ class Scene:
         or rates other than the in-plane one (ψ for x-z, θ for y-z)."""
         normal, torques, angles = PLANES[plane]
         loads, init = self.loads, self.initial
-        vectors = [(loads.force_density, normal), (loads.torque_density, torques)]
+        vectors: list[tuple[tuple[Expression, ...] | None, tuple[int, ...]]] = [
+            (loads.force_density, normal),
+            (loads.torque_density, torques),
+        ]
         for end in (loads.start, loads.end, loads.point):
             if end is not None:
                 vectors += [(end.force, normal), (end.torque, torques)]
@@ -687,7 +696,7 @@ class Scene:
         (densities, end and point loads) and support motions: an Expression, or data
         (cosserat_fem/scene/load_data.py)."""
         loads, supports = self.loads, self.supports
-        entries = [("loads.force_density", loads.force_density)]
+        entries: list[tuple[str, Any]] = [("loads.force_density", loads.force_density)]
         entries.append(("loads.torque_density", loads.torque_density))
         for end in ("start", "end", "point"):
             load = getattr(loads, end)

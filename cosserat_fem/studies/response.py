@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -151,6 +152,18 @@ def _harmonic(t: np.ndarray, f: np.ndarray, period: float) -> np.ndarray:
     return 2.0 * _integral(t, f * weight) / (t[-1] - t[0])
 
 
+class Probe(Protocol):
+    """What :class:`PeriodicResponse` measures (fields.PointProbe): the values at the point
+    (a row of probes.csv's columns after t) on the owning rank, None elsewhere."""
+
+    owner: int
+
+    @property
+    def is_owner(self) -> bool: ...
+
+    def values(self) -> np.ndarray | None: ...
+
+
 class PeriodicResponse(Observer):
     """Measures the forced response at the probe point σ = ``sigma`` over periods of
     ``period`` [s] (module docstring) and ends the run once it has settled; ``result`` (on
@@ -159,11 +172,13 @@ class PeriodicResponse(Observer):
     def __init__(self, settings: ResponseSettings, period: float, sigma: float):
         self.settings, self.period, self.sigma = settings, period, sigma
         self.result: dict | None = None
-        self.probe = None  # attached when the run starts
+        self.probe: Probe | None = None  # attached when the run starts
         self.closed = 0  # periods closed
         self._times: list[float] = []
         self._values: list[np.ndarray] = []
-        self._previous = None  # the last period's (half range, mean, harmonic)
+        self._previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = (
+            None  # the last period's (half range, mean, harmonic)
+        )
         self._in_a_row = 0
         self._change = math.nan
 
@@ -178,7 +193,7 @@ class PeriodicResponse(Observer):
         comm = loop.model.U.function_space.mesh.comm
         self.attach(PointProbe(loop.model, self.sigma), comm, loop.state.t, loop.model.length)
 
-    def attach(self, probe, comm, t0: float, length: float) -> None:
+    def attach(self, probe: Probe, comm, t0: float, length: float) -> None:
         """Measure ``probe`` (a fields.PointProbe: ``values()``, ``is_owner``, ``owner``) on
         ``comm`` from the start time ``t0`` [s] (its first sample); ``length`` [m]: ℓ."""
         self.probe, self.comm, self.t0, self.length = probe, comm, t0, length
@@ -218,6 +233,7 @@ class PeriodicResponse(Observer):
         """``compute()`` on the probe's rank, its value on every rank; a failure there raised
         on every rank alike (the others would wait in the broadcast otherwise)."""
         value, problem = None, None
+        assert self.probe is not None, "attached when the run started"
         if self.probe.is_owner:
             try:
                 value = compute()
@@ -230,6 +246,7 @@ class PeriodicResponse(Observer):
         return value
 
     def _sample(self, t: float) -> None:
+        assert self.probe is not None, "attached when the run started"
         values = self.probe.values()
         if values is not None:
             self._times.append(t)

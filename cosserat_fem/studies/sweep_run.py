@@ -153,9 +153,11 @@ def _row(
     row["steps"] = summary.get("steps", "") if summary else ""
     row["newton_iterations"] = summary.get("newton", {}).get("iterations", "") if summary else ""
     for i, name in enumerate(PROBE_NAMES):
-        have = probes is not None and len(probes)
-        row[f"final_{name}"] = repr(float(probes[-1, 1 + i])) if have else ""
-        row[f"max_abs_{name}"] = repr(float(np.abs(probes[:, 1 + i]).max())) if have else ""
+        if probes is not None and len(probes):
+            row[f"final_{name}"] = repr(float(probes[-1, 1 + i]))
+            row[f"max_abs_{name}"] = repr(float(np.abs(probes[:, 1 + i]).max()))
+        else:
+            row[f"final_{name}"] = row[f"max_abs_{name}"] = ""
     row["message"] = " ".join(message.split())
     return row
 
@@ -253,7 +255,7 @@ def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
     fingerprint = spec.fingerprint()
     if record.exists() or record.is_symlink():
         held, reason = read_record(record)
-        if reason:
+        if reason or held is None:
             raise SceneError(
                 f"sweep: {str(record)!r} is not the record of a sweep ({reason}); "
                 "remove it to start the sweep there anew, or use another --out"
@@ -342,14 +344,16 @@ def _forced(spec: SweepSpec, member: Member, before: _Final | None):
     with the forcing's phase carried over."""
     from cosserat_fem.output.fields import probe_sigma
 
+    settings = spec.response
+    assert settings is not None, "a forced member's sweep has its sweep.response"
     own = spec.scene(member)
     where = f"member {member.index}"
-    period, span = forced_span(spec.response, own, own.time.start, where)
+    period, span = forced_span(settings, own, own.time.start, where)
     if before is not None:
         start = continued_start(before.t, before.period, period)
-        span = forced_span(spec.response, own, start, where)[1]
+        span = forced_span(settings, own, start, where)[1]
     scene = spec.scene(member, span)
-    return scene, PeriodicResponse(spec.response, period, probe_sigma(scene)), period
+    return scene, PeriodicResponse(settings, period, probe_sigma(scene)), period
 
 
 def _run_member(
@@ -368,7 +372,8 @@ def _run_member(
 
     t0 = time.perf_counter()
     summary, probes, status, message = None, None, "completed", ""
-    response, final, period = None, None, None
+    response, final = None, None
+    period: float | None = None
     try:
         observers, initial, checkpoint = [], None, None
         if spec.response is not None:
@@ -394,6 +399,7 @@ def _run_member(
         probes = result.probes if checkpoint is None else _whole_probes(folder, comm)
         if spec.chains_continue:
             state = _final_state(result.model)
+            assert period is not None, "continuing chains are forced (their period is set)"
             final = _Final(member.index, result.time_reached, period, state)
             _save_final(folder, final, comm)
     except Exception as exc:  # recorded, and the sweep goes on (a bug's too: "error")
@@ -458,7 +464,8 @@ class _Counter:
     def __init__(self, world):
         self.window = MPI.Win.Allocate(8 if world.rank == 0 else 0, 8, comm=world)
         if world.rank == 0:
-            np.frombuffer(self.window.tomemory(), dtype=np.int64)[0] = 0
+            # mpi4py's memory has the buffer protocol; its stub does not declare it
+            np.frombuffer(self.window.tomemory(), dtype=np.int64)[0] = 0  # type: ignore[call-overload]
         world.Barrier()
         self._one = np.ones(1, dtype=np.int64)
         self._got = np.zeros(1, dtype=np.int64)
@@ -515,7 +522,7 @@ def run_sweep(
     part = part_path(out, color)
     ran, stream, failure = 0, None, None
     try:
-        problem = None
+        problem: CosseratError | None = None
         if leader:
             try:
                 stream = open_part(part, fields)
@@ -556,7 +563,8 @@ def run_sweep(
         group.Free()
     agree(world, failure)  # the other groups would wait for this one's ranks for ever
     ran = world.allreduce(ran if leader else 0, op=MPI.SUM)  # before rank 0 works alone
-    rows, problem = [], None
+    rows: list = []
+    problem = None
     if world.rank == 0:  # alone: what it meets is every rank's (agree), never a hang
         try:
             rows = list(_finished(out).values())  # sorted by member

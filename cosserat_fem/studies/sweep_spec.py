@@ -60,7 +60,7 @@ import hashlib
 import itertools
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -153,7 +153,7 @@ class SweepSpec:
             [_no_limits(m.values), m.direction] if m.direction else _no_limits(m.values)
             for m in self.members
         ]
-        document = {"base": _no_limits(self.base), "members": members}
+        document: dict[str, Any] = {"base": _no_limits(self.base), "members": members}
         if self.tables.files:
             document["tables"] = self.tables.digests()
         if self.response is not None:
@@ -286,7 +286,7 @@ def _members(table: dict, combine: str) -> tuple[list[dict[str, Any]], tuple[str
                 f"{json.dumps(k)}: {len(v)}" for k, v in zip(keys, lists, strict=True)
             )
             raise SceneError(f"sweep.vary: combine = 'zip' needs lists of one length, got {sizes}")
-        rows = zip(*lists, strict=True)
+        rows: Iterator[tuple[Any, ...]] = zip(*lists, strict=True)
     else:
         rows = itertools.product(*lists)
     return [dict(zip(keys, row, strict=True)) for row in rows], keys
@@ -416,7 +416,7 @@ def _count(table: dict, combine: str) -> int:
     sizes = [
         len(_values(key, raw))
         if not isinstance(raw, dict)
-        else (raw.get("num") if isinstance(raw.get("num"), int) else 0)
+        else (num if isinstance(num := raw.get("num"), int) else 0)
         for key, raw in vary.items()
     ]
     return max(sizes, default=0) if combine == "zip" else math.prod(sizes)

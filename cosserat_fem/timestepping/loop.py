@@ -205,6 +205,7 @@ class TimeLoop:
                 "moved": float(model.chart_moved),
             }
         if self.history is not None:
+            assert self.control is not None, "set with the history (_adaptive_parts)"
             parts.update(history=self.history.state_dict(), control=self.control.state_dict())
         return parts
 
@@ -223,6 +224,7 @@ class TimeLoop:
         self.solver.load_state_dict(parts["newton"])
         self.state.load_state_dict(parts["loop"])
         if self.history is not None:
+            assert self.control is not None, "set with the history (_adaptive_parts)"
             self.history.load_state_dict(parts["history"])
             self.control.load_state_dict(parts["control"])
 
@@ -426,6 +428,7 @@ class TimeLoop:
         the grid start + k time.step by interpolation."""
         tspan, st, solver, model = self.tspan, self.state, self.solver, self.model
         history, control = self.history, self.control
+        assert history is not None and control is not None, "set for adaptive steps (__init__)"
         order = self.integrator.order
         span = tspan.end - tspan.start
         h_max = tspan.max_step or span
@@ -454,7 +457,8 @@ class TimeLoop:
                 )
                 control.reject()
                 consecutive += 1
-                h *= control.factor(error, rejected=True) if cause is None else SHRINK
+                # (error is None exactly when a cause rejected the step)
+                h *= control.factor(error, rejected=True) if error is not None else SHRINK
                 if consecutive > MAX_CONSECUTIVE_REJECTIONS or h < h_min:
                     reason = cause.reason if cause else f"local error estimate {error:.3g} > 1"
                     raise SolverError(
