@@ -65,6 +65,9 @@ def test_error_follows_the_tolerance(tmp_path, reference, integrator, order, rej
     assert all(abs(s - expected) <= 0.2 for s in slopes), (errors, slopes)
 
 
+# Long set (make test within 3 minutes): make test keeps serial = mpirun in test_sdirk_step
+# and test_newton_mpi.
+@pytest.mark.long
 @pytest.mark.mpi
 def test_serial_equals_mpi(tmp_path):
     """The same steps on 1 and 2 ranks (the error norm and the field peaks are reduced over

@@ -513,6 +513,8 @@ if MPI.COMM_WORLD.rank == 0:
 """
 
 
+# Long set (make test within 3 minutes): make test keeps the curved rods' serial cases.
+@pytest.mark.long
 def test_the_right_angle_frame_serial_and_under_mpi():
     """The right-angle frame under a static elbow force of 20 (the tip moves by ~5): serial
     and mpirun -n 2 (each rank holds its part of the cellwise frame, the corner on one of

@@ -864,6 +864,8 @@ def _tree(folder: Path) -> dict[str, str]:
     return folder_tree(folder, skip=(".cosserat-fem.lock",))
 
 
+# Long set (make test within 3 minutes): make test keeps test_run_folders' link and FIFO cases.
+@pytest.mark.long
 def test_run_folders_with_links_and_special_files(runs, tmp_path, capsys):
     """30 copies of a run's folder, each with one to three names (files, scratch names, the
     checkpoint and frames folders, the lock file) replaced at random by a FIFO, a symbolic or

@@ -113,6 +113,8 @@ def test_prestress_shifts_bending_frequencies_as_perturbation_theory_predicts():
         assert measured == pytest.approx(predicted, rel=3e-4), k
 
 
+# Long set (make test within 3 minutes): make test keeps the serial modes command.
+@pytest.mark.long
 def test_modes_command_serial_and_mpi(tmp_path):
     """``cosserat-fem modes``: modes.csv with omega_rad_s and kind; 1 and 2 ranks agree to the
     eigensolver tolerance (1e-13 relative residual; measured 2e-11 in ω)."""

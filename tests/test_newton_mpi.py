@@ -196,6 +196,8 @@ def _build_run(tmp_path, broken: bool) -> tuple[list[dict], list[str]]:
     return records, said(done.stderr)
 
 
+# Long set (make test within 3 minutes): make test keeps the failed compile on rank 0.
+@pytest.mark.long
 def test_a_cold_cache_compiles_the_c_core_once_under_mpi(tmp_path):
     """A run under mpirun -n 2 with the C core's cache empty: rank 0 compiles newton_loop.c
     once while rank 1 waits, then both load that one library, and the run completes (exit 0

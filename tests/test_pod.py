@@ -374,6 +374,8 @@ if MPI.COMM_WORLD.rank == 0:
 """
 
 
+# Long set (make test within 3 minutes): make test keeps the serial POD.
+@pytest.mark.long
 @pytest.mark.mpi
 def test_pod_under_mpirun_equals_the_serial_one():
     """A free vibration from an initial velocity in x and y (100 steps), its POD under

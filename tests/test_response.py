@@ -618,6 +618,8 @@ def test_after_a_failed_member_its_chain_goes_on_from_rest(tmp_path, monkeypatch
     assert float(rows[2]["start_s"]) == 0.0
 
 
+# Long set (make test within 3 minutes): the chains' serial sweep stays in make test.
+@pytest.mark.long
 @pytest.mark.mpi
 def test_up_and_down_chains_under_mpi_equal_the_serial_sweep(tmp_path):
     """direction = "both": each r twice, an upward and a downward chain (4 members); under

@@ -179,6 +179,8 @@ def test_a_failed_run_continues_from_its_last_accepted_step(tmp_path, monkeypatc
         assert np.abs(data[:, j] - whole[:, j]).max() <= 1e-5 * scale
 
 
+# Long set (make test within 3 minutes): make test keeps the serial restarts byte for byte.
+@pytest.mark.long
 @pytest.mark.mpi
 def test_restart_under_mpi(tmp_path):
     """mpirun -n 2: the same bytes as an uninterrupted 2-rank run, through the command line;

@@ -114,7 +114,9 @@ if world.rank == 0:
 """
 
 
-@pytest.mark.parametrize("case", ["paper", pytest.param("rejections", marks=pytest.mark.long)])
+# Long set (make test within 3 minutes): make test keeps the serial cases.
+@pytest.mark.long
+@pytest.mark.parametrize("case", ["paper", "rejections"])
 def test_snes_takes_the_newton_loops_iterates_under_mpi(case):
     """The module docstring's test on two ranks (MUMPS; the loop in Python there): the
     paper's scene with a frozen Jacobian; (long set) steps rejected after divergences."""

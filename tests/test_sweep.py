@@ -159,6 +159,8 @@ def test_a_malformed_sweep_is_refused_before_any_member_runs(tmp_path, body, swe
     assert not (tmp_path / "out").exists()
 
 
+# Long set (make test within 3 minutes): make test keeps the MPI fuzz's sweeps on two ranks.
+@pytest.mark.long
 @pytest.mark.mpi
 def test_a_sweep_under_mpi_equals_the_serial_sweep(tmp_path):
     """mpirun -n 2: two groups of one rank take members from the counter; every member is
