@@ -31,6 +31,14 @@ by dλ_min/df ≈ 1.05 (measured): the eigenvalue of P4 elements converges as h^
 of 4 elements is 2^-8 of 2 elements'. Measured: 1.3e-9 (4 elements), the root finder's
 tolerance 1e-10; the bound 1e-7 leaves room for the pre-asymptotic ratio.
 
+**Pinned–pinned column.** Pinned at s = 0 (a fork: x, y, z, φ held) and on a roller at s = ℓ
+(x, y, φ held, z free) under the dead end force P along −e3: the same equation with ψ'(0) =
+ψ'(ℓ) = 0 (no end moments; the lateral displacement vanishes at both ends), so the first mode
+is ψ = cos(πs/ℓ) and P (1 + a P) = π² EI/ℓ² (four times the cantilever's P_E). The stocky
+section makes P_cr/P_E − 1 = −4.19e-2 and Engesser's value 2.1e-2 away. Measured on 4 P4
+elements: 8.6e-8 from the closed form (8 elements: 3.5e-10, the ratio 2^-8 of h^8); asserted
+within 1e-6, 10x the measured error and 1/20000 of Engesser's difference.
+
 **Beck's column.** The cantilever under a tangential follower force P (along −d3 of its free
 end) has no divergence; two bending frequencies meet and leave the real axis at
 P ℓ²/EI = 20.0509536 in the Euler–Bernoulli limit (M. Beck, ZAMP 3 (1952) 225; the value is the
@@ -83,9 +91,12 @@ def rod_stiffnesses(scene) -> tuple[float, float, float, float]:
     )
 
 
-def euler_reissner(EI: float, EA: float, kGA: float, ell: float) -> tuple[float, float, float]:
-    """(P_E, P_cr of the Reissner rod, Engesser's) [N] of the clamped-free column."""
-    P_E = math.pi**2 * EI / (4 * ell**2)
+def euler_reissner(
+    EI: float, EA: float, kGA: float, ell: float, effective: float = 2.0
+) -> tuple[float, float, float]:
+    """(P_E, P_cr of the Reissner rod, Engesser's) [N] of the column of effective length
+    ``effective`` ℓ: 2 clamped-free, 1 pinned-pinned (P_E = π² EI/(effective ℓ)²)."""
+    P_E = math.pi**2 * EI / (effective * ell) ** 2
     a = 1 / kGA - 1 / EA
     return P_E, (math.sqrt(1 + 4 * a * P_E) - 1) / (2 * a), P_E / (1 + P_E / kGA)
 
@@ -103,6 +114,20 @@ def test_euler_column_with_shear_and_extension():
     below = [p for p in result.points if p.factor < result.critical - 1e-9]
     above = [p for p in result.points if p.factor > result.critical + 1e-9]
     assert all(p.stable for p in below) and all(p.status == "divergence" for p in above)
+
+
+def test_pinned_pinned_column_with_shear_and_extension():
+    """Pinned at the start, a roller at the end (z free), stocky: the critical factor of the
+    load P_E = π² EI/ℓ² is P_cr/P_E of P (1 + P/κGA − P/EA) = P_E within 1e-6 (module
+    docstring); kind divergence."""
+    pinned = {**STOCKY, "supports.start": "pinned", "supports.end": "roller"}
+    scene0 = load_scene(ROLLUP, pinned)
+    P_E, P_cr, engesser = euler_reissner(*rod_stiffnesses(scene0), effective=1.0)
+    scene = load_scene(ROLLUP, {**pinned, "loads.end.force": [0, 0, -P_E]})
+    result = stability(scene, 0.9, 1.1, samples=3, tolerance=1e-10)
+    assert result.kind == "divergence" and result.bracket == (0.9, 1.0)
+    assert abs(result.critical - P_cr / P_E) < 1e-6
+    assert abs(P_cr / P_E - 1) > 4e-2 and abs(engesser - P_cr) / P_cr > 2e-2  # they differ
 
 
 # Long set (make test within 3 minutes): make test keeps the Euler column; flutter's root
