@@ -411,7 +411,7 @@ MALFORMED = [
         [('end = "free"', 'end = "free"\nend_motion = ["1e-3*t", 0, 0]')],
         [],
         "supports.end_motion:",
-        "needs a held end",
+        "needs an end held in x, y and z",
     ),
     (
         "xdmf-interval-not-multiple",
