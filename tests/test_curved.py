@@ -162,6 +162,10 @@ def test_arc_equals_the_straight_rod_rolled_up_into_it(load):
             "supports.end: 'pinned' is not supported with reference.shape = 'arc'",
         ),
         (
+            ["reference.shape=arc", "reference.radius=1", "supports.start=roller"],
+            "supports.start: 'roller' is not supported with reference.shape = 'arc'",
+        ),
+        (
             ["reference.shape=arc", "reference.radius=1", "model.torsion_inertia=printed"],
             "model.torsion_inertia: 'printed'",
         ),

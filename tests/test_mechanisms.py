@@ -112,7 +112,15 @@ def test_the_period_error_falls_as_the_step_squared(swings):
 
 @pytest.mark.parametrize(
     "supports",
-    [("pinned", "free"), ("spherical", "spherical"), ("free", "free"), ("spherical", "free")],
+    [
+        ("pinned", "free"),
+        ("spherical", "spherical"),
+        ("free", "free"),
+        ("spherical", "free"),
+        ("roller", "free"),
+        ("roller", "roller"),
+        ("sliding", "sliding"),
+    ],
 )
 def test_statics_of_a_mechanism_are_refused(supports):
     scene = load_scene(
@@ -126,7 +134,16 @@ def test_statics_of_a_mechanism_are_refused(supports):
 
 
 @pytest.mark.parametrize(
-    "supports", [("clamped", "free"), ("pinned", "pinned"), ("pinned", "spherical")]
+    "supports",
+    [
+        ("clamped", "free"),
+        ("pinned", "pinned"),
+        ("pinned", "spherical"),
+        ("pinned", "roller"),
+        ("spherical", "roller"),
+        ("sliding", "pinned"),
+        ("clamped", "roller"),
+    ],
 )
 def test_held_rods_are_not_mechanisms(supports):
     scene = load_scene(
@@ -246,11 +263,19 @@ def test_modes_of_a_free_rod_axial_and_torsional():
 
 @pytest.mark.parametrize(
     ("supports", "rigid"),
-    [(("pinned", "free"), 2), (("spherical", "free"), 3), (("spherical", "spherical"), 1)],
+    [
+        (("pinned", "free"), 2),
+        (("spherical", "free"), 3),
+        (("spherical", "spherical"), 1),
+        (("roller", "free"), 3),
+        (("sliding", "roller"), 1),
+    ],
 )
 def test_rigid_body_modes_of_each_mechanism(supports, rigid):
     """The pendulum's rod: a fork leaves the two rotations about it (it holds the twist), a
-    ball joint three, two ball joints the twist about the line through them. Those modes
+    ball joint three, two ball joints the twist about the line through them, a roller at a
+    free end its fork's two and the slide along e3, a sliding clamp with a roller the slide
+    along e3 (modal.RIGID_BODY_MODES). Those modes
     come first with ω = 0, and the next is a flexible one, ~1e4 rad/s (the round-off of
     the zero ones is |λ| ≲ 1e-9, against λ ~ 20 for it)."""
     scene = load_scene(

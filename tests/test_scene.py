@@ -411,7 +411,7 @@ MALFORMED = [
         [('end = "free"', 'end = "free"\nend_motion = ["1e-3*t", 0, 0]')],
         [],
         "supports.end_motion:",
-        "needs a held end",
+        "needs an end held in x, y and z",
     ),
     (
         "xdmf-interval-not-multiple",
@@ -636,6 +636,30 @@ def test_errors_are_one_line() -> None:
     assert (error.time, error.where, error.suggestion) == (0.0123, "newton", "reduce time.step")
     assert str(SolverError("singular Jacobian")) == "singular Jacobian"
     assert str(SceneError("a.b: bad\nthing")) == "a.b: bad thing"
+
+
+def test_roller_and_sliding_ends_take_only_their_free_loads() -> None:
+    """A roller (x, y, φ held) and a sliding clamp (x, y and the angles held) leave z free:
+    an end force along e3 acts there, one across e3 or a torque about a held axis is
+    refused naming the key; neither may carry a prescribed motion (z is not held)."""
+    roller = ["supports.end=roller", "loads.force_density=[0,0,0]"]
+    scene = load_scene(PAPER, [*roller, "loads.end.force=[0,0,-3]", "loads.end.torque=[1,0,0]"])
+    assert scene.loads.end.force[2].source == "-3" and not scene.supports.mechanism
+    bad = [
+        ([*roller, "loads.end.force=[1,0,0]"], r"loads.end.force: a roller end holds x and y"),
+        ([*roller, "loads.end.torque=[0,0,1]"], r"loads.end.torque\[2\]: a roller end holds"),
+        (
+            ["supports.end=sliding", "loads.force_density=[0,0,0]", "loads.end.torque=[1,0,0]"],
+            r"loads.end.torque: a sliding end holds its three angles",
+        ),
+        (
+            ["supports.end=sliding", "supports.end_motion=[0,0,'sin(t)']"],
+            r"supports.end_motion: a prescribed motion needs an end held in x, y and z",
+        ),
+    ]
+    for overrides, message in bad:
+        with pytest.raises(SceneError, match=message):
+            load_scene(PAPER, overrides)
 
 
 def test_a_pinned_end_takes_no_torque_about_e3() -> None:

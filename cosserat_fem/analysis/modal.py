@@ -296,6 +296,11 @@ RIGID_BODY_MODES = {
     ("free", "pinned"): 2,
     ("free", "spherical"): 3,
     ("spherical", "spherical"): 1,
+    ("free", "roller"): 3,  # the two rotations about the fork and the slide along e3
+    ("free", "sliding"): 1,  # the slide along e3
+    ("roller", "roller"): 1,
+    ("roller", "sliding"): 1,
+    ("sliding", "sliding"): 1,
 }
 
 
@@ -307,10 +312,10 @@ def rigid_body_modes(supports) -> int:
 def max_modes(scene: Scene) -> int:
     """How many modes the discretisation has: the free dofs of p, six per Lagrange node less
     those a support holds (six at a clamped end, four at a pinned one: x, y, z, φ, three at a
-    spherical one)."""
+    spherical one or a roller: x, y, φ, five at a sliding one)."""
     disc = scene.discretisation
     nodes = disc.elements * disc.degree + 1 - scene.reference.closed  # a ring: ends joined
-    held = {"clamped": 6, "pinned": 4, "spherical": 3, "free": 0}
+    held = {"clamped": 6, "pinned": 4, "spherical": 3, "roller": 3, "sliding": 5, "free": 0}
     return 6 * nodes - held[scene.supports.start] - held[scene.supports.end]
 
 

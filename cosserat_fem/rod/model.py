@@ -57,8 +57,18 @@ START_TAG, END_TAG, POINT_TAG = 1, 2, 3
 PINNED_COMPONENTS = (0, 1, 2, 5, 6, 7, 8, 11)
 #: The components a spherical end holds: x, y, z and their rates.
 SPHERICAL_COMPONENTS = (0, 1, 2, 6, 7, 8)
+#: A roller end (a fork whose axial position is free): x, y, φ and their rates.
+ROLLER_COMPONENTS = (0, 1, 5, 6, 7, 11)
+#: A sliding clamp (axial position free): x, y, the three angles and their rates.
+SLIDING_COMPONENTS = (0, 1, 3, 4, 5, 6, 7, 9, 10, 11)
 #: The components each kind of support holds.
-HELD_COMPONENTS = {"clamped": FULL, "pinned": PINNED_COMPONENTS, "spherical": SPHERICAL_COMPONENTS}
+HELD_COMPONENTS = {
+    "clamped": FULL,
+    "pinned": PINNED_COMPONENTS,
+    "spherical": SPHERICAL_COMPONENTS,
+    "roller": ROLLER_COMPONENTS,
+    "sliding": SLIDING_COMPONENTS,
+}
 # The unknowns solved (the model's Layout): all twelve, or those of motion in one plane: x-z,
 # (x, z, ψ) and their rates (y = θ = φ = 0 is an invariant set of (65) when no load, support or
 # initial state leaves the plane: every y, θ, φ row of F vanishes there), or y-z, (y, z, θ) and
@@ -573,7 +583,8 @@ def support_conditions(
     """Dirichlet conditions of the scene's supports (55) on a space whose blocks hold the
     ``components`` of (p, q): all of them zero at a clamped end at rest; else, one by one, the
     held ones (clamped: all; pinned: x, y, z, φ and their rates; spherical: x, y, z and
-    theirs) with a Constant value each
+    theirs; roller: x, y, φ and theirs; sliding: all but z and its rate) with a Constant
+    value each
     (what a prescribed motion sets). ``ends``: the vertices of each end. Returns the
     conditions and, by end, {full component: its Constant}."""
     bcs: list = []
@@ -626,8 +637,8 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     tags = mesh.meshtags(msh, 0, facets[order], values[order].astype(np.int32))
 
     bcs, held = support_conditions(V, scene, {"start": start, "end": end}, components)
-    forks = [start if scene.supports.start == "pinned" else None]
-    forks += [end if scene.supports.end == "pinned" else None]
+    forks = [start if scene.supports.start in ("pinned", "roller") else None]
+    forks += [end if scene.supports.end in ("pinned", "roller") else None]
     fork_nodes = np.concatenate(
         [np.zeros(0, dtype=np.int32)]
         + [fem.locate_dofs_topological(V, 0, ents) for ents in forks if ents is not None]

@@ -219,10 +219,10 @@ def _build_supports(raw: dict[str, Any], constants: set[str], tables: TableStore
         key = f"supports.{end}_motion"
         vector = parse_load_vector(raw[f"{end}_motion"], {"t", *constants}, key, tables, True)
         motions[end] = None if all(e.is_zero for e in vector) else vector
-        if motions[end] is not None and kind == "free":
+        if motions[end] is not None and kind in ("free", "roller", "sliding"):
             raise SceneError(
-                f"{key}: a prescribed motion needs a held end (clamped, pinned or spherical), but "
-                f'supports.{end} = "free"'
+                f"{key}: a prescribed motion needs an end held in x, y and z (clamped, pinned or "
+                f'spherical), but supports.{end} = "{kind}"'
             )
     return build(Supports, raw, start_motion=motions["start"], end_motion=motions["end"])
 
@@ -313,13 +313,23 @@ def _constant_vector(raw: list, constants: set[str], key: str) -> tuple[float, f
     return x, y, z
 
 
+#: The components of (x, y, z) and of the angles (θ, ψ, φ) each support holds.
+HELD_BY_SUPPORT: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {
+    "clamped": ((0, 1, 2), (0, 1, 2)),
+    "pinned": ((0, 1, 2), (2,)),
+    "spherical": ((0, 1, 2), ()),
+    "roller": ((0, 1), (2,)),
+    "sliding": ((0, 1), (0, 1, 2)),
+}
+
+
 def _build_initial(
     raw: dict[str, Any], supports: Supports, values: dict[str, float], t0: float
 ) -> Initial:
     """Initial fields of s [m]. Where a support holds the rod they must take its values at
     t0 (else the first step would jump to them): all of p and q at a clamped end, position,
-    velocity, φ and its rate at a pinned one; zero, or the support's prescribed motion and its
-    rate for x, y, z."""
+    velocity, φ and its rate at a pinned one (each support's: :data:`HELD_BY_SUPPORT`); zero,
+    or the support's prescribed motion and its rate for x, y, z."""
     fields = {}
     for name in ("displacement", "angles", "velocity", "angle_rates"):
         vector = parse_vector(raw[name], {"s", *values}, f"initial.{name}")
@@ -334,9 +344,9 @@ def _build_initial(
         if kind == "free":
             continue
         motion = supports.motion(end)
-        held: dict[str, tuple[int, ...]] = {"displacement": (0, 1, 2), "velocity": (0, 1, 2)}
-        held.update({"angles": (0, 1, 2), "angle_rates": (0, 1, 2)} if kind == "clamped" else {})
-        held.update({"angles": (2,), "angle_rates": (2,)} if kind == "pinned" else {})
+        position, angles = HELD_BY_SUPPORT[kind]
+        held = {"displacement": position, "velocity": position}
+        held.update(angles=angles, angle_rates=angles)
         for name, components in held.items():
             for i in components:
                 want = 0.0
@@ -378,15 +388,16 @@ def _build_end_load(
     raw: dict[str, Any] | None, end: str, support: str, names: set[str], tables: TableStore
 ) -> EndLoad | None:
     """[loads.<end>] (force [N], torque [N m], expressions of t and constants), None if absent;
-    SceneError at a clamped end, for a dependence on s, or for a force at a pinned or
-    spherical end."""
+    SceneError at a clamped end, for a dependence on s, for a force at a pinned or
+    spherical end, for a force across the free axial direction e3 of a roller or sliding end,
+    and for a torque about an axis an end holds (φ: pinned, roller; all: sliding)."""
     if raw is None:
         return None
     key = f"loads.{end}"
     if support == "clamped":
         raise SceneError(
-            f"{key}: end loads are only allowed on a free, pinned or spherical end, "
-            f'but supports.{end} = "{support}" (remove [{key}] or set supports.{end} = "free")'
+            f"{key}: end loads are only allowed on a free, pinned, spherical, roller or sliding "
+            f'end, but supports.{end} = "{support}" (remove [{key}] or set supports.{end} = "free")'
         )
     vectors = {}
     for name in ("force", "torque"):
@@ -397,9 +408,19 @@ def _build_end_load(
             f"{key}.force: a {support} end holds its position, so an end force there is taken "
             f"by the support; give only an end torque ({held})"
         )
-    if support == "pinned" and not vectors["torque"][2].is_zero:
+    if support in ("roller", "sliding") and not all(e.is_zero for e in vectors["force"][:2]):
         raise SceneError(
-            f"{key}.torque[2]: a pinned end holds its twist φ, so a torque about e3 there is "
+            f"{key}.force: a {support} end holds x and y, so only the axial force along e3 (its "
+            f"free direction) may act there; give force = [0, 0, P]"
+        )
+    if support == "sliding" and not all(e.is_zero for e in vectors["torque"]):
+        raise SceneError(
+            f"{key}.torque: a sliding end holds its three angles, so an end torque there is "
+            f"taken by the support; give only an axial force"
+        )
+    if support in ("pinned", "roller") and not vectors["torque"][2].is_zero:
+        raise SceneError(
+            f"{key}.torque[2]: a {support} end holds its twist φ, so a torque about e3 there is "
             f"taken by the support; give the torque about e1, e2 only, got "
             f"{show_value(vectors['torque'][2].source)}"
         )
@@ -782,8 +803,9 @@ def _check_point_load(scene: Scene) -> None:
 
 
 def _check_reference(scene: Scene, reference: ReferenceShape) -> None:
-    """What a rod curved at rest does not support yet, refused by name: pinned and spherical
-    supports (their held components are those of the straight rod's angles) and the printed
+    """What a rod curved at rest does not support yet, refused by name: pinned, spherical,
+    roller and sliding supports (their held components are those of the straight rod's
+    angles, and a roller's or slide's free direction its tangent e3) and the printed
     torsion inertia (which divides a row that a curved rod's rows mix, forms/general_form.py)."""
     if reference.closed:
         _check_closed(scene, reference)
@@ -803,7 +825,7 @@ def _check_reference(scene: Scene, reference: ReferenceShape) -> None:
             )
     for end in ("start", "end"):
         kind = getattr(scene.supports, end)
-        if kind in ("pinned", "spherical"):
+        if kind in ("pinned", "spherical", "roller", "sliding"):
             raise SceneError(
                 f"supports.{end}: {kind!r} is not supported with reference.shape = "
                 f"{reference.shape!r} yet; use 'clamped' or 'free'"

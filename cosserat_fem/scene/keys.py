@@ -39,7 +39,8 @@ STEP_TOLERANCE = 1e-9
 XDMF_FIELDS = tuple(FIELD_ARRAYS)
 #: What output.fields holds when a scene does not say: all but the directors.
 XDMF_DEFAULT_FIELDS = XDMF_FIELDS[:4]
-SUPPORTS = ("clamped", "free", "pinned", "spherical")
+#: Each end's support (scene/resolved.py Supports: "roller" and "sliding" leave z free).
+SUPPORTS = ("clamped", "free", "pinned", "spherical", "roller", "sliding")
 #: Upper bounds of keys whose size alone makes a run impossible here
 #: (cosserat_fem/analysis/budget.py estimates the others): quadrature points per cell, Newton
 #: iterations per solve.

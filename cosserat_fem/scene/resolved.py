@@ -276,7 +276,12 @@ class Supports:
     """Support of each end: "clamped" (p = q = 0), "free" (natural conditions), "pinned": a
     fork bearing, the position and the twist φ held, the bending angles θ, ψ free (the end
     torque about d1, d2 is the given end torque, zero by default), or "spherical": a ball
-    joint, the position held, every rotation free.
+    joint, the position held, every rotation free. Two leave the axial position z free (the
+    straight rod's rest tangent e3 at its ends), to load a column axially with both ends held:
+    "roller", a fork on a roller (x, y and φ held; z, θ, ψ free), and "sliding", a clamp on a
+    slide (x, y and the three angles held; z free). Their end load may act along e3 only (the
+    free direction; a roller also takes a torque about e1, e2). Both need a straight rod (a
+    rod curved at rest, or closed, refuses them by name).
 
     ``start_motion``/``end_motion``: a prescribed translation (x, y, z)(t) [m] of a held end
     (base excitation; None: at rest).
@@ -293,13 +298,16 @@ class Supports:
 
     @property
     def mechanism(self) -> bool:
-        """Whether the supports leave the rod a rigid-body motion (a pendulum, a free or a
-        spinning rod): neither end clamped, and not a fork at one end with the position held
-        at the other (which holds the six: three translations twice over, the twist by φ)."""
+        """Whether the supports leave the rod a rigid-body motion (a pendulum, a free, a
+        spinning or a sliding rod). The six are held when z is held at an end (clamped, pinned,
+        spherical), the lateral motion (x, y and the rotations about e1, e2) by a clamp or a
+        sliding clamp, or by x, y held at both ends, and the twist by an end holding φ
+        (clamped, pinned, roller, sliding)."""
         kinds = {self.start, self.end}
-        if "clamped" in kinds:
-            return False
-        return not ("pinned" in kinds and kinds <= {"pinned", "spherical"})
+        axial = bool(kinds & {"clamped", "pinned", "spherical"})
+        lateral = bool(kinds & {"clamped", "sliding"}) or "free" not in kinds
+        twist = bool(kinds & {"clamped", "pinned", "roller", "sliding"})
+        return not (axial and lateral and twist)
 
     def motion(self, end: str) -> tuple[Expression, ...] | None:
         return self.start_motion if end == "start" else self.end_motion
