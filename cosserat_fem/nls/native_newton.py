@@ -189,6 +189,10 @@ def core(comm=None):
             compiled()
         except NotApplicable as exc:
             return CosseratError(f"Newton's C core (cosserat_fem/nls/newton_loop.c): {exc}")
+        except Exception as exc:  # an OSError of the cache, a load that fails: agreed too
+            return CosseratError(
+                f"Newton's C core (cosserat_fem/nls/newton_loop.c): {type(exc).__name__}: {exc}"
+            )
         return None
 
     if comm is None or comm.size == 1:
@@ -279,7 +283,8 @@ def library_path(source: str | None = None) -> Path:
 
 def _load(name: str, target: Path):
     spec = importlib.util.spec_from_file_location(name, target)
-    assert spec is not None and spec.loader is not None, f"{target} is not a module"
+    if spec is None or spec.loader is None:  # damage, as load_checked takes an ImportError
+        raise ImportError(f"{target} is not a loadable module")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
