@@ -213,7 +213,7 @@ def stability(
     if isinstance(count, bool) or not isinstance(count, int | np.integer):
         raise SceneError(f"count (--count): must be a whole number, got {count!r}")
     check_count(scene, count)
-    check_factors(low, high, samples, tolerance)
+    check_factors(low, high, samples, tolerance, scene.static.load_steps)
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD)
     return analyse(scene, low, high, samples, tolerance, count, folder)

@@ -222,6 +222,11 @@ def test_no_critical_factor_in_a_stable_range_and_bad_input():
             stability(scene, *args)
     with pytest.raises(SceneError, match="^--samples"):
         stability(scene, 0.0, 1.0, samples=1)
+    # Inputs that would run without practical end: refused before any solve.
+    with pytest.raises(SceneError, match="^--samples: at most 1000"):
+        stability(scene, 0.0, 1.0, samples=10**8)
+    with pytest.raises(SceneError, match="^--range: HIGH = 1e\\+12 needs"):
+        stability(scene, 0.0, 1e12)
     with pytest.raises(SceneError, match="^supports"):
         stability(load_scene(ROLLUP, {**STOCKY, "supports.start": "free"}), 0.0, 1.0)
 

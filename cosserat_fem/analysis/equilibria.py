@@ -262,7 +262,7 @@ def critical_factor(
         if pair is not None:
             near, kind = pair
             d_a = a.discriminant(near, kind)
-            if d_a is None:
+            if d_a is None or d_a <= 0.0:  # Brent needs the sign change: two real λ at a
                 raise SolverError(
                     f"flutter between load factors {a.factor} and {b.factor}: the two "
                     f"{kind} eigenvalues that collide are not both among the {equilibria.count} "
@@ -299,16 +299,34 @@ def scene_loads(scene: Scene) -> dict:
     }
 
 
-def check_factors(low: float, high: float, samples: int, tolerance: float) -> list[float]:
-    """The grid of load factors, or a SceneError naming the option."""
+#: Bounds that keep a stability analysis finite: the grid's states, and the load steps from 0
+#: to the range's top (static.load_steps a unit of the factor; each a Newton solve).
+MAX_SAMPLES = 1000
+MAX_LOAD_STEPS = 100_000
+
+
+def check_factors(
+    low: float, high: float, samples: int, tolerance: float, load_steps: int = 1
+) -> list[float]:
+    """The grid of load factors, or a SceneError naming the option: a range whose top needs
+    more than :data:`MAX_LOAD_STEPS` load steps (``load_steps`` a unit of the factor), or more
+    than :data:`MAX_SAMPLES` samples, would run without practical end."""
     if not all(math.isfinite(v) for v in (low, high)) or low < 0.0 or high <= low:
         raise SceneError(
             f"--range: must be two finite load factors 0 <= LOW < HIGH, got {low!r} {high!r}"
         )
     if isinstance(samples, bool) or not isinstance(samples, int | np.integer) or samples < 2:
         raise SceneError(f"--samples: must be a whole number >= 2, got {samples!r}")
+    if samples > MAX_SAMPLES:
+        raise SceneError(f"--samples: at most {MAX_SAMPLES}, got {samples}")
     if not (isinstance(tolerance, float | int) and 0.0 < tolerance < 0.1):
         raise SceneError(f"--tolerance: must lie in (0, 0.1), got {tolerance!r}")
+    if high * load_steps > MAX_LOAD_STEPS:
+        raise SceneError(
+            f"--range: HIGH = {high:g} needs {high * load_steps:.3g} load steps "
+            f"(static.load_steps = {load_steps} a unit of the factor), more than "
+            f"{MAX_LOAD_STEPS}; scale the scene's loads instead"
+        )
     return [float(f) for f in np.linspace(low, high, samples)]
 
 
@@ -325,7 +343,7 @@ def stability(
     """Stability of the scene's static states for load factors in [low, high] (``samples``
     equally spaced, then the root finder's) and the critical factor (:func:`critical_factor`);
     with ``out``: stability.json there."""
-    factors = check_factors(low, high, samples, tolerance)
+    factors = check_factors(low, high, samples, tolerance, scene.static.load_steps)
     equilibria = Equilibria(scene, count, comm)
     try:
         result = critical_factor(equilibria, factors, tolerance)
