@@ -167,22 +167,9 @@ def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | P
     or, with ``about="static"``, the static state under the scene's loads: a list of
     :class:`~cosserat_fem.analysis.modal.Mode` (``omega`` [rad/s], ``frequency_hz``, ``kind``,
     ``shape``); modes.csv, modes.xdmf and modes.json only with ``out``."""
-    from mpi4py import MPI
+    from cosserat_fem.analysis.modal import compute_modes
 
-    from cosserat_fem.analysis.modal import check_count, compute_modes, write_modes
-    from cosserat_fem.io.run_folder import prepare_output_dir
-
-    if isinstance(count, bool) or not isinstance(count, int | np.integer):
-        raise SceneError(f"count (--count): must be a whole number, got {count!r}")
-    if about not in ("undeformed", "static"):
-        raise SceneError(f"about (--about): must be 'undeformed' or 'static', got {about!r}")
-    check_count(scene, count)
-    out = out_folder(out)
-    folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD)
-    model, found = compute_modes(scene, count, about=about)
-    if folder is not None:
-        write_modes(folder, model, found, about)
-    return found
+    return compute_modes(scene, count, about, out=out_folder(out))[1]
 
 
 def stability(
@@ -200,23 +187,12 @@ def stability(
     :class:`~cosserat_fem.analysis.equilibria.StabilityResult` with ``critical`` (None if stability
     is not lost in the range), ``kind`` ("divergence": buckling; "flutter"), ``bracket`` and
     ``points`` (each state's ``status`` and ``eigenvalues`` of K φ = λ M φ, units of ω0²).
-    ``samples``: equally spaced factors visited first; ``tolerance``: the root finder's,
-    |Δf| ≤ tolerance (1 + |f|); ``count``: eigenvalues nearest 0 computed at each state.
-    stability.json only with ``out``."""
-    from mpi4py import MPI
-
-    from cosserat_fem.analysis.equilibria import check_factors
+    ``samples``: equally spaced factors visited first (up to the first unstable one);
+    ``tolerance``: the root finder's, |Δf| ≤ tolerance (1 + |f|); ``count``: eigenvalues
+    nearest 0 computed at each state. stability.json only with ``out``."""
     from cosserat_fem.analysis.equilibria import stability as analyse
-    from cosserat_fem.analysis.modal import check_count
-    from cosserat_fem.io.run_folder import prepare_output_dir
 
-    if isinstance(count, bool) or not isinstance(count, int | np.integer):
-        raise SceneError(f"count (--count): must be a whole number, got {count!r}")
-    check_count(scene, count)
-    check_factors(low, high, samples, tolerance, scene.static.load_steps)
-    out = out_folder(out)
-    folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD)
-    return analyse(scene, low, high, samples, tolerance, count, folder)
+    return analyse(scene, low, high, samples, tolerance, count, out_folder(out))
 
 
 def stability_at(scene: Scene, factor: float = 1.0, *, count: int = 6):

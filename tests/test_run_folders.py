@@ -180,9 +180,9 @@ def holder(folder: Path) -> subprocess.Popen:
 
 
 def test_a_held_folder_is_refused_to_every_writer_naming_the_holder(base, tmp_path, capsys):
-    """While another process holds a run folder, ``run``, ``static``, ``run --restart`` and
-    ``sweep`` into it are refused (exit 2, one line naming the holder's run id and process)
-    and the folder is as it was; once the holder is killed with SIGKILL, the lock is gone
+    """While another process holds a run folder, ``run``, ``static``, ``run --restart``,
+    ``sweep``, ``modes`` (about either state) and ``stability`` into it are refused (exit 2,
+    one line naming the holder's run id and process) and the folder is as it was; once the holder is killed with SIGKILL, the lock is gone
     with it and a restart goes on."""
     folder = copy_of(base, tmp_path / "run")
     sweep = tmp_path / "sweep.toml"
@@ -195,6 +195,9 @@ def test_a_held_folder_is_refused_to_every_writer_naming_the_holder(base, tmp_pa
             ["static", SCENE, "--out", str(folder)],
             ["run", "--restart", str(folder), *RESTART],
             ["sweep", str(sweep), "--out", str(folder)],
+            ["modes", SCENE, "--out", str(folder)],
+            ["modes", SCENE, "--about", "static", "--out", str(folder)],
+            ["stability", SCENE, "--range", "0", "1", "--out", str(folder)],
         ):
             status, err = cli(capsys, *args, "--quiet")
             one_line(status, err, "feedc0de", f"process {proc.pid}", "in use")

@@ -71,6 +71,7 @@ import pytest
 from conftest import ROOT, run_command
 
 from cosserat_fem.analysis.equilibria import stability, stability_at
+from cosserat_fem.analysis.modal import compute_modes
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.scene.build import load_scene
 from cosserat_fem.scene.schema import UNSET
@@ -110,12 +111,14 @@ def euler_reissner(
 
 def test_euler_column_with_shear_and_extension():
     """Clamped-free, stocky: the critical factor of the load P_E is P_cr/P_E (module
-    docstring) within 1e-7; kind divergence; the states below stable, above unstable."""
+    docstring) within 1e-7; kind divergence; the states below stable, above unstable. The
+    grid's factors beyond the first unstable one (1.1 to 1.3) are not solved."""
     scene0 = load_scene(ROLLUP, STOCKY)
     P_E, P_cr, engesser = euler_reissner(*rod_stiffnesses(scene0))
     scene = load_scene(ROLLUP, {**STOCKY, "loads.end.force": [0, 0, -P_E]})
-    result = stability(scene, 0.9, 1.1, samples=3, tolerance=1e-10)
+    result = stability(scene, 0.9, 1.3, samples=5, tolerance=1e-10)
     assert result.kind == "divergence" and result.bracket == (0.9, 1.0)
+    assert max(p.factor for p in result.points) == 1.0
     assert abs(result.critical - P_cr / P_E) < 1e-7
     assert abs(P_cr / P_E - 1) > 1e-2 and abs(engesser - P_cr) / P_cr > 4e-4  # they differ
     below = [p for p in result.points if p.factor < result.critical - 1e-9]
@@ -205,6 +208,26 @@ def test_a_state_is_marked_stable_or_unstable():
     assert sum(lam.real < 0 for lam in high.eigenvalues) == 1
 
 
+def test_the_tangent_takes_the_loads_at_static_time():
+    """A follower end force that grows in time, P(t) = 1.2 P_Beck t/(1 s), with static.time =
+    1 s and the run's start at t = 0: the state and K both take the loads at static.time, so
+    the stocky column at 1.2 times Beck's load flutters (a complex pair, the follower's
+    non-symmetric load stiffness), in ``stability_at`` and in ``modes --about static`` alike.
+    Before, K took the loads at time.start, where P = 0: the compressed state without the
+    follower's stiffness, which diverges instead (three negative λ: its stress stiffening
+    alone, measured)."""
+    EI, _, _, ell = rod_stiffnesses(load_scene(ROLLUP, STOCKY))
+    growing = f"{-1.2 * BECK * EI / ell**2!r}*t"
+    scene = load_scene(
+        ROLLUP, {**STOCKY, "loads.follower.force": [0, 0, growing], "static.time": 1.0}
+    )
+    assert scene.time.start == 0.0
+    assert stability_at(scene, 1.0, count=4).status == "flutter"
+    _, modes = compute_modes(scene, 4, about="static")
+    assert sum(abs(m.eigenvalue.imag) > 1e-8 * abs(m.eigenvalue) for m in modes) == 2
+    assert all(m.eigenvalue.real > 0 for m in modes)
+
+
 def test_no_critical_factor_in_a_stable_range_and_bad_input():
     """Below the first Euler load no factor is critical (reason given); bad ranges are one
     SceneError naming the option."""
@@ -229,6 +252,11 @@ def test_no_critical_factor_in_a_stable_range_and_bad_input():
         stability(scene, 0.0, 1e12)
     with pytest.raises(SceneError, match="^supports"):
         stability(load_scene(ROLLUP, {**STOCKY, "supports.start": "free"}), 0.0, 1.0)
+    for count in (2.0, "3", True):
+        with pytest.raises(SceneError, match="^count \\(--count\\): must be a whole number"):
+            stability_at(scene, 1.0, count=count)
+    with pytest.raises(SceneError, match="^factor"):
+        stability_at(scene, True)
 
 
 @pytest.mark.long

@@ -18,8 +18,9 @@ of ω0², ω = ω0 √λ), and the state is
 ``count`` eigenvalues nearest to 0 are computed (shift-and-invert about 0): the ones that cross
 0, or collide, first.
 
-**Critical factor.** The factors of a grid are visited in increasing order; the first interval
-[a, b] with a stable state at a and an unstable one at b brackets the loss of stability. In it
+**Critical factor.** The factors of a grid are visited in increasing order up to the first
+unstable state (those beyond are not solved); the first interval [a, b] with a stable state
+at a and an unstable one at b brackets the loss of stability. In it
 a continuous function of f that changes sign there is driven to 0 by Brent's method (bisection
 safeguarding inverse quadratic interpolation; scipy.optimize.brentq) to |Δf| ≤ ``tolerance``
 (1 + |f|):
@@ -57,8 +58,8 @@ from mpi4py import MPI
 
 from cosserat_fem.analysis import budget
 from cosserat_fem.analysis.modal import (
+    ModalOperator,
     Mode,
-    assemble_modal_problem,
     check_count,
     eigenvalue_kind,
     solve_eigenproblem,
@@ -67,7 +68,8 @@ from cosserat_fem.analysis.observers import summary_start
 from cosserat_fem.analysis.statics import StaticLoop, check_static_scene, static_solver
 from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.common.parallel import ranks_on_node
-from cosserat_fem.io.run_folder import write_summary
+from cosserat_fem.io.folder_lock import holding_folders
+from cosserat_fem.io.run_folder import prepare_output_dir, write_summary
 from cosserat_fem.rod.model import build_model
 from cosserat_fem.scene.build import Scene
 from cosserat_fem.timestepping.events import Events
@@ -99,6 +101,13 @@ class StabilityPoint:
     @property
     def stable(self) -> bool:
         return self.status == "stable"
+
+    @property
+    def diverges(self) -> bool:
+        """Whether a real eigenvalue is negative beyond round-off
+        (:func:`~cosserat_fem.analysis.modal.eigenvalue_kind`)."""
+        scale = float(np.abs(self.eigenvalues).max())
+        return any(eigenvalue_kind(lam, scale) == "divergence" for lam in self.eigenvalues)
 
     def lowest_real(self) -> float:
         """λ_min: the lowest real part among the real eigenvalues (divergence's function)."""
@@ -174,19 +183,35 @@ class StabilityResult:
 
 
 class Equilibria:
-    """Static states of one scene at load factors, and the eigenvalues about each.
+    """Static states of one scene at load factors, and the modes and eigenvalues about each.
 
-    One 3D model and one Newton solver serve every factor (the load factor is a Constant of
-    the forms: nothing is compiled again); each state is stepped to from the nearest one found
-    so far (the straight rod at f = 0), in increments of 1/static.load_steps of the factor."""
+    One 3D model, one Newton solver and one :class:`~cosserat_fem.analysis.modal.ModalOperator`
+    serve every factor (the load factor is a Constant of the forms: nothing is compiled
+    again); each state is stepped to from the nearest one found so far (the straight rod at
+    f = 0), in increments of 1/static.load_steps of the factor, the loads at static.time.
 
-    def __init__(self, scene: Scene, count: int = 6, comm: MPI.Comm = MPI.COMM_WORLD):
-        check_static_scene(scene, "stability")
+    The request is checked first (a SceneError naming the key: a scene without static
+    states, ``count``, the memory budget); then ``folder``, if given, is made and locked for
+    the writer ``command`` ("stability" or "modes") in the enclosing
+    :func:`~cosserat_fem.io.folder_lock.holding_folders` call; then the model is built."""
+
+    def __init__(
+        self,
+        scene: Scene,
+        count: int = 6,
+        comm: MPI.Comm = MPI.COMM_WORLD,
+        folder: Path | None = None,
+        command: str = "stability",
+    ):
+        check_static_scene(scene, command)
         check_count(scene, count)
         budget.check(scene, "modes", None, ranks_on_node(comm), comm.size, modes=count, comm=comm)
+        if folder is not None:
+            prepare_output_dir(folder, comm, lock=command)
         self.scene, self.count = scene, count
         self.model = build_model(scene, comm, planar=False)  # the modes leave the plane too
         self.solver = static_solver(scene, self.model)
+        self.operator = ModalOperator(self.model, scene.static.time)
         self.states: dict[float, np.ndarray] = {0.0: self.model.U.x.array.copy()}
         self.points: dict[float, StabilityPoint] = {}
 
@@ -206,18 +231,20 @@ class Equilibria:
         self.states[factor] = self.model.U.x.array.copy()
         return self.states[factor].copy()
 
+    def modes(self, factor: float) -> list[Mode]:
+        """The ``count`` modes nearest 0 about the state at ``factor`` (its loads × factor)."""
+        base = self.state(factor)
+        self.model.load_factor.value = factor
+        problem = self.operator.problem(base)
+        try:
+            return solve_eigenproblem(problem, self.count)
+        finally:
+            problem.destroy()
+
     def at(self, factor: float) -> StabilityPoint:
         """The state at ``factor`` and the ``count`` eigenvalues nearest 0 about it."""
         if factor not in self.points:
-            base = self.state(factor)
-            self.model.load_factor.value = factor
-            problem = assemble_modal_problem(self.model, base)
-            try:
-                modes = solve_eigenproblem(problem, self.count)
-            finally:
-                problem.K.destroy()
-                problem.M.destroy()
-            self.points[factor] = StabilityPoint.of(factor, modes)
+            self.points[factor] = StabilityPoint.of(factor, self.modes(factor))
         return self.points[factor]
 
     def close(self) -> None:
@@ -237,56 +264,66 @@ def _root(function, a: float, b: float, tolerance: float) -> tuple[float, int]:
 def critical_factor(
     equilibria: Equilibria, factors: Sequence[float], tolerance: float = 1e-8
 ) -> StabilityResult:
-    """Visit ``factors`` (increasing) and locate the loss of stability in the first interval
-    where it is lost (module docstring)."""
-    grid = [equilibria.at(f) for f in factors]
+    """Visit ``factors`` (increasing) until a state is unstable, and locate the loss of
+    stability in that first interval (module docstring); the factors beyond it are not
+    solved."""
     result = StabilityResult(points=[], tolerance=tolerance)
-    if not grid[0].stable:
-        result.reason = f"unstable ({grid[0].status}) already at the first factor {grid[0].factor}"
-    lost = next(
-        (i for i in range(len(grid) - 1) if grid[i].stable and not grid[i + 1].stable), None
-    )
-    if grid[0].stable and lost is None:
-        result.reason = f"stable over [{factors[0]}, {factors[-1]}]"
-    if lost is not None and grid[0].stable:
-        a, b = grid[lost], grid[lost + 1]
-        roots = []
-        if b.lowest_real() < 0.0 <= a.lowest_real():
-            roots.append(
-                (
-                    *_root(lambda f: equilibria.at(f).lowest_real(), a.factor, b.factor, tolerance),
-                    "divergence",
+    a = equilibria.at(factors[0])
+    if not a.stable:
+        result.reason = f"unstable ({a.status}) already at the first factor {a.factor}"
+    else:
+        for factor in factors[1:]:
+            b = equilibria.at(factor)
+            if not b.stable:
+                result.critical, result.evaluations, result.kind = _locate(
+                    equilibria, a, b, tolerance
                 )
-            )
-        pair = b.complex_pair()
-        if pair is not None:
-            near, kind = pair
-            d_a = a.discriminant(near, kind)
-            if d_a is None or d_a <= 0.0:  # Brent needs the sign change: two real λ at a
-                raise SolverError(
-                    f"flutter between load factors {a.factor} and {b.factor}: the two "
-                    f"{kind} eigenvalues that collide are not both among the {equilibria.count} "
-                    "nearest 0 at the stable end",
-                    where="stability",
-                    suggestion="ask for more eigenvalues (--count)",
-                )
-
-            def discriminant(f: float) -> float:
-                d = equilibria.at(f).discriminant(near, kind)
-                if d is None:
-                    raise SolverError(
-                        f"flutter: no {kind} pair at load factor {f}",
-                        where="stability",
-                        suggestion="raise --count",
-                    )
-                return d
-
-            roots.append((*_root(discriminant, a.factor, b.factor, tolerance), "flutter"))
-        root, evaluations, kind = min(roots)
-        result.critical, result.kind, result.evaluations = root, kind, evaluations
-        result.bracket = (a.factor, b.factor)
+                result.bracket = (a.factor, b.factor)
+                break
+            a = b
+        else:
+            result.reason = f"stable over [{factors[0]}, {factors[-1]}]"
     result.points = sorted(equilibria.points.values(), key=lambda p: p.factor)
     return result
+
+
+def _locate(
+    equilibria: Equilibria, a: StabilityPoint, b: StabilityPoint, tolerance: float
+) -> tuple[float, int, str]:
+    """(critical factor, evaluations, kind) in [a, b], a stable and b not: the smaller root
+    of divergence's and flutter's functions where each changes sign (module docstring)."""
+    roots = []
+    if b.diverges:
+        if a.lowest_real() <= 0.0:  # λ_min at a is 0 to round-off: a is the critical state
+            roots.append((a.factor, 0, "divergence"))
+        else:
+            root = _root(lambda f: equilibria.at(f).lowest_real(), a.factor, b.factor, tolerance)
+            roots.append((*root, "divergence"))
+    pair = b.complex_pair()
+    if pair is not None:
+        near, kind = pair
+        d_a = a.discriminant(near, kind)
+        if d_a is None or d_a <= 0.0:  # Brent needs the sign change: two real λ at a
+            raise SolverError(
+                f"flutter between load factors {a.factor} and {b.factor}: the two "
+                f"{kind} eigenvalues that collide are not both among the {equilibria.count} "
+                "nearest 0 at the stable end",
+                where="stability",
+                suggestion="ask for more eigenvalues (--count)",
+            )
+
+        def discriminant(f: float) -> float:
+            d = equilibria.at(f).discriminant(near, kind)
+            if d is None:
+                raise SolverError(
+                    f"flutter: no {kind} pair at load factor {f}",
+                    where="stability",
+                    suggestion="raise --count",
+                )
+            return d
+
+        roots.append((*_root(discriminant, a.factor, b.factor, tolerance), "flutter"))
+    return min(roots)
 
 
 def scene_loads(scene: Scene) -> dict:
@@ -330,6 +367,7 @@ def check_factors(
     return [float(f) for f in np.linspace(low, high, samples)]
 
 
+@holding_folders
 def stability(
     scene: Scene,
     low: float = 0.0,
@@ -341,10 +379,12 @@ def stability(
     comm: MPI.Comm = MPI.COMM_WORLD,
 ) -> StabilityResult:
     """Stability of the scene's static states for load factors in [low, high] (``samples``
-    equally spaced, then the root finder's) and the critical factor (:func:`critical_factor`);
-    with ``out``: stability.json there."""
+    equally spaced, visited up to the first unstable one, then the root finder's) and the
+    critical factor (:func:`critical_factor`). The request is checked before anything else
+    (one SceneError naming the option); with ``out``: that folder is then made and locked
+    (one writer a folder), and stability.json is written there."""
     factors = check_factors(low, high, samples, tolerance, scene.static.load_steps)
-    equilibria = Equilibria(scene, count, comm)
+    equilibria = Equilibria(scene, count, comm, folder=out)
     try:
         result = critical_factor(equilibria, factors, tolerance)
     finally:
@@ -362,7 +402,7 @@ def stability_at(
 ) -> StabilityPoint:
     """Whether the static state at load factor ``factor`` (1: the scene's loads) is stable,
     with the ``count`` eigenvalues nearest 0 about it."""
-    if not (isinstance(factor, float | int) and math.isfinite(factor)):
+    if isinstance(factor, bool) or not (isinstance(factor, float | int) and math.isfinite(factor)):
         raise SceneError(f"factor: must be a finite number, got {factor!r}")
     equilibria = Equilibria(scene, count, comm)
     try:

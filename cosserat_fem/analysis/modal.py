@@ -45,7 +45,8 @@ from cosserat_fem.analysis.observers import summary_start
 from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import OutputError, SceneError, SolverError
 from cosserat_fem.common.parallel import agree, ranks_on_node
-from cosserat_fem.io.run_folder import write_summary
+from cosserat_fem.io.folder_lock import holding_folders
+from cosserat_fem.io.run_folder import prepare_output_dir, write_summary
 from cosserat_fem.output.fields import XdmfWriter
 from cosserat_fem.rod.model import FULL, RodModel, build_model, support_conditions
 from cosserat_fem.scene.build import Scene
@@ -111,6 +112,11 @@ class ModalProblem:
     M: PETSc.Mat
     joint: PETSc.Mat | None = None
 
+    def destroy(self) -> None:
+        for matrix in (self.K, self.M, self.joint):
+            if matrix is not None:
+                matrix.destroy()
+
 
 def modal_supports(model: RodModel, P: fem.FunctionSpace) -> list:
     """The supports on the 6-component space P of p (model.support_conditions: p = 0 at a
@@ -122,36 +128,51 @@ def modal_supports(model: RodModel, P: fem.FunctionSpace) -> list:
     return support_conditions(P, model.scene, ends, FULL[:6])[0]
 
 
-def assemble_modal_problem(model: RodModel, base: np.ndarray | None = None) -> ModalProblem:
-    """K and M about p0 (``base``: a 12-component state array of ``model.V``; None = straight).
+class ModalOperator:
+    """K and M of ``model`` about states p0, with its loads at the time ``time`` [s] and its
+    load factor (``model.load_factor``) as they are when :meth:`problem` is called. The forms
+    are compiled, and the loads' time Constant registered, once: each :meth:`problem`
+    assembles them anew about another p0 (a static path visits many)."""
 
-    The 12- and 6-component spaces share their node numbering (same mesh and scalar element,
-    blocked dofs), so p0 is the first six entries of each 12-block.
-    """
-    element = ufl.VectorElement(
-        "Lagrange", model.msh.ufl_cell(), model.scene.discretisation.degree, dim=6
-    )
-    P = fem.FunctionSpace(model.msh, element)
-    p0 = fem.Function(P, name="p0")
-    if base is not None:
-        p0.x.array[:] = base.reshape(-1, 12)[:, :6].ravel()
-    acc = fem.Function(P, name="p_ddot")
-    v, dp = ufl.TestFunction(P), ufl.TrialFunction(P)
-    zeros = [0.0] * 6
-    U = ufl.as_vector([p0[i] for i in range(6)] + zeros)
-    Udot = ufl.as_vector(zeros + [acc[i] for i in range(6)])
-    V = ufl.as_vector(zeros + [v[i] for i in range(6)])
-    time = fem.Constant(model.msh, PETSc.ScalarType(model.scene.time.start * model.omega0))
-    F = model.residual_terms(U, Udot, time, test=V).total()
-    model.sync_loads(time)
-    bcs = modal_supports(model, P)
-    K = assemble_matrix(fem.form(ufl.derivative(F, p0, dp)), bcs=bcs, diagonal=1.0)
-    K.assemble()
-    M = assemble_matrix(fem.form(ufl.derivative(F, acc, dp)), bcs=bcs, diagonal=0.0)
-    M.assemble()
-    if model.scene.reference.closed:
-        return join_ends(ModalProblem(model=model, P=P, p0=p0, K=K, M=M))
-    return ModalProblem(model=model, P=P, p0=p0, K=K, M=M)
+    def __init__(self, model: RodModel, time: float):
+        self.model = model
+        element = ufl.VectorElement(
+            "Lagrange", model.msh.ufl_cell(), model.scene.discretisation.degree, dim=6
+        )
+        self.P = P = fem.FunctionSpace(model.msh, element)
+        self.p0 = fem.Function(P, name="p0")
+        acc = fem.Function(P, name="p_ddot")
+        v, dp = ufl.TestFunction(P), ufl.TrialFunction(P)
+        zeros = [0.0] * 6
+        U = ufl.as_vector([self.p0[i] for i in range(6)] + zeros)
+        Udot = ufl.as_vector(zeros + [acc[i] for i in range(6)])
+        V = ufl.as_vector(zeros + [v[i] for i in range(6)])
+        self.time = fem.Constant(model.msh, PETSc.ScalarType(time * model.omega0))
+        F = model.residual_terms(U, Udot, self.time, test=V).total()
+        self.bcs = modal_supports(model, P)
+        self.K_form = fem.form(ufl.derivative(F, self.p0, dp))
+        self.M_form = fem.form(ufl.derivative(F, acc, dp))
+
+    def problem(self, base: np.ndarray | None = None) -> ModalProblem:
+        """K and M about p0 (``base``: a 12-component state array of ``model.V``; None = the
+        straight rod). The 12- and 6-component spaces share their node numbering (same mesh
+        and scalar element, blocked dofs), so p0 is the first six entries of each 12-block.
+        The caller destroys the matrices (:meth:`ModalProblem.destroy`)."""
+        self.p0.x.array[:] = 0.0 if base is None else base.reshape(-1, 12)[:, :6].ravel()
+        self.model.sync_loads(self.time)
+        K = assemble_matrix(self.K_form, bcs=self.bcs, diagonal=1.0)
+        K.assemble()
+        M = assemble_matrix(self.M_form, bcs=self.bcs, diagonal=0.0)
+        M.assemble()
+        problem = ModalProblem(model=self.model, P=self.P, p0=self.p0, K=K, M=M)
+        return join_ends(problem) if self.model.scene.reference.closed else problem
+
+
+def assemble_modal_problem(model: RodModel, base: np.ndarray | None = None) -> ModalProblem:
+    """K and M about p0 (:meth:`ModalOperator.problem`), the loads at time.start: the modes
+    of a run's start. About a static state, :class:`~cosserat_fem.analysis.equilibria.
+    Equilibria` keeps one :class:`ModalOperator` at static.time."""
+    return ModalOperator(model, model.scene.time.start).problem(base)
 
 
 def _end_dofs(P: fem.FunctionSpace, sigma: float) -> np.ndarray:
@@ -188,6 +209,8 @@ def join_ends(problem: ModalProblem) -> ModalProblem:
     S.setValuesCSR(pointers, columns, np.ones(columns.size))
     S.assemble()
     K_joined, M_joined = K.PtAP(S), M.PtAP(S)
+    K.destroy()  # the open rod's: replaced
+    M.destroy()
     K_joined.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
     for row in end:
         if rows[0] <= row < rows[1]:
@@ -319,8 +342,10 @@ def max_modes(scene: Scene) -> int:
     return 6 * nodes - held[scene.supports.start] - held[scene.supports.end]
 
 
-def check_count(scene: Scene, count: int) -> None:
-    """SceneError unless 1 <= count <= :func:`max_modes`."""
+def check_count(scene: Scene, count) -> None:
+    """SceneError naming --count unless it is a whole number in [1, :func:`max_modes`]."""
+    if isinstance(count, bool) or not isinstance(count, int | np.integer):
+        raise SceneError(f"count (--count): must be a whole number, got {count!r}")
     most = max_modes(scene)
     if not 1 <= count <= most:
         raise SceneError(
@@ -330,31 +355,56 @@ def check_count(scene: Scene, count: int) -> None:
         )
 
 
-def compute_modes(scene, count: int, about: str = "undeformed", comm=MPI.COMM_WORLD):
-    """The scene's ``count`` lowest modes about the straight rod or its static state. A
-    mechanism (scene.Supports.mechanism) has rigid-body modes, ω = 0 (six for a free rod),
-    before its flexible ones; it has modes about the straight rod only (its static state
-    is not determined: a SceneError)."""
+#: What the modes are about: the straight rod, or the static state under the scene's loads.
+ABOUT = ("undeformed", "static")
+
+
+@holding_folders
+def compute_modes(
+    scene: Scene,
+    count: int,
+    about: str = "undeformed",
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    out: Path | None = None,
+) -> tuple[RodModel, list[Mode]]:
+    """The scene's ``count`` lowest modes about the straight rod (their loads at time.start)
+    or about its static state under the scene's loads (load factor 1, loads at static.time:
+    :meth:`cosserat_fem.analysis.equilibria.Equilibria.modes`, the one path to modes about a
+    static state). A mechanism (scene.Supports.mechanism) has rigid-body modes, ω = 0 (six
+    for a free rod), before its flexible ones; it has modes about the straight rod only (its
+    static state is not determined: a SceneError). With ``out``: the folder is checked and
+    locked for this writer after the request is checked and before anything is computed,
+    and the modes are written there (:func:`write_modes`)."""
+    if about not in ABOUT:
+        raise SceneError(f"about (--about): must be 'undeformed' or 'static', got {about!r}")
     if scene.supports.mechanism and about == "static":
         raise SceneError(
             f"supports: modes about the static state of a mechanism (start = "
             f'"{scene.supports.start}", end = "{scene.supports.end}"): it has none, its '
             "rigid-body motions leave it undetermined; use --about undeformed"
         )
-    check_count(scene, count)
-    budget.check(scene, "modes", None, ranks_on_node(comm), comm.size, modes=count, comm=comm)
     if about == "static":
-        from cosserat_fem.analysis.statics import solve_static
+        from cosserat_fem.analysis.equilibria import Equilibria
 
-        static, _ = solve_static(scene, comm)
-        base = static.layout.full_array(static.U.x.array).ravel()  # a planar solve, embedded
-        model = build_model(scene, comm, planar=False)  # the modes leave the plane too
-    elif about == "undeformed":
-        model, base = build_model(scene, comm, planar=False), None
+        equilibria = Equilibria(scene, count, comm, folder=out, command="modes")
+        try:
+            model, modes = equilibria.model, equilibria.modes(1.0)
+        finally:
+            equilibria.close()
     else:
-        raise ValueError(f"about must be 'undeformed' or 'static', got {about!r}")
-    problem = assemble_modal_problem(model, base)
-    return model, solve_eigenproblem(problem, count)
+        check_count(scene, count)
+        budget.check(scene, "modes", None, ranks_on_node(comm), comm.size, modes=count, comm=comm)
+        if out is not None:
+            prepare_output_dir(out, comm, lock="modes")
+        model = build_model(scene, comm, planar=False)  # the modes leave the plane too
+        problem = assemble_modal_problem(model)
+        try:
+            modes = solve_eigenproblem(problem, count)
+        finally:
+            problem.destroy()
+    if out is not None:
+        write_modes(out, model, modes, about)
+    return model, modes
 
 
 def write_modes(out: Path, model: RodModel, modes: list[Mode], about: str = "undeformed") -> None:

@@ -1,9 +1,9 @@
-"""The lock of an output folder: one writer at a time (a ``run``, ``static``, ``run --restart``
-or ``sweep``; cosserat_fem/io/run_folder.py makes and claims the folder, the restart's
-checkpoint reader refuses a held one).
+"""The lock of an output folder: one writer at a time (a ``run``, ``static``, ``run --restart``,
+``sweep``, ``modes`` or ``stability``; cosserat_fem/io/run_folder.py makes and claims the folder,
+the restart's checkpoint reader refuses a held one).
 
-A ``run``, ``static``, ``run --restart`` or ``sweep`` holds an exclusive lock on its folder
-from before it reads or touches anything there to its end
+A ``run``, ``static``, ``run --restart``, ``sweep``, ``modes`` or ``stability`` holds an exclusive
+lock on its folder from before it reads or touches anything there to its end
 (:func:`cosserat_fem.io.run_folder.prepare_output_dir` with ``lock``, released when the
 enclosing :func:`holding_folders` call or :func:`folders_held` block returns or raises). A
 second writer is refused at once, in one line naming the holder: its kind, run id, process,
@@ -46,6 +46,8 @@ LOCK_KEYS = {
     "static": "output.directory",
     "restart": "--restart",
     "sweep": "sweep --out",
+    "modes": "output.directory",
+    "stability": "output.directory",
 }
 #: Bytes of the holder's record in the lock file (padded with blanks: rewritten in place).
 _RECORD = 1024

@@ -58,8 +58,8 @@ def prepare_output_dir(
     path: Path, comm: MPI.Comm, lock: str | None = None, run_id: str | None = None
 ) -> Path:
     """Make ``path`` if needed and check that it can be written (collective); with ``lock``
-    (the kind of writer: "run", "static", "restart", "sweep"), also take the folder's lock
-    (:class:`FolderLock`, run id ``run_id`` if known) for the enclosing
+    (the kind of writer: "run", "static", "restart", "sweep", "modes", "stability"), also
+    take the folder's lock (:class:`FolderLock`, run id ``run_id`` if known) for the enclosing
     :func:`holding_folders` call, or refuse in one line naming its holder."""
     held = _HELD.get()
     if lock is not None and held is None:

@@ -93,9 +93,13 @@ class NewtonSettings:
     @classmethod
     def of(cls, solver) -> NewtonSettings:
         """The settings of an object with these attributes (a scene's [solver] table); those
-        it lacks keep their defaults."""
+        it lacks keep their defaults. ``petsc`` is copied: a change to the table's dict
+        afterwards does not reach the settings."""
         names = [f.name for f in fields(cls) if hasattr(solver, f.name)]
-        return cls(**{name: getattr(solver, name) for name in names})
+        values = {name: getattr(solver, name) for name in names}
+        if "petsc" in values:  # its own copy: the frozen settings share no mutable field
+            values["petsc"] = dict(values["petsc"])
+        return cls(**values)
 
 
 @dataclass

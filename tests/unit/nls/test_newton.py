@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import types
 
 import numpy as np
 import pytest
@@ -358,3 +359,13 @@ def test_settings_are_frozen_and_a_replacement_reaches_c():
         assert (solver._cs.max_iterations, solver._cs.lagged, solver._cs.full) == (3, 1, 0)
     finally:
         problem.solver.destroy()
+
+
+def test_settings_of_a_table_own_their_petsc_options():
+    """:meth:`NewtonSettings.of` copies the table's ``petsc`` dict: an option added to the
+    table afterwards does not reach settings already made (before: the one dict was shared,
+    so a frozen settings' options changed under it)."""
+    table = types.SimpleNamespace(rtol=1e-9, petsc={"snes_type": "newtonls"})
+    settings = NewtonSettings.of(table)
+    table.petsc["snes_linesearch_type"] = "bt"
+    assert settings.petsc == {"snes_type": "newtonls"} and settings.rtol == 1e-9
