@@ -182,8 +182,8 @@ def holder(folder: Path) -> subprocess.Popen:
 def test_a_held_folder_is_refused_to_every_writer_naming_the_holder(base, tmp_path, capsys):
     """While another process holds a run folder, ``run``, ``static``, ``run --restart``,
     ``sweep``, ``modes`` (about either state) and ``stability`` into it are refused (exit 2,
-    one line naming the holder's run id and process) and the folder is as it was; once the holder is killed with SIGKILL, the lock is gone
-    with it and a restart goes on."""
+    one line naming the holder's run id and process) and the folder is as it was; once the
+    holder is killed with SIGKILL, the lock is gone with it and a restart goes on."""
     folder = copy_of(base, tmp_path / "run")
     sweep = tmp_path / "sweep.toml"
     sweep.write_text(f'[sweep]\nscene = "{SCENE}"\n[sweep.vary]\n"time.step" = [1e-5, 2e-5]\n')
