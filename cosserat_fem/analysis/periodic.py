@@ -259,12 +259,15 @@ class Shooting:
         dZ = self._X.copy()
         for j in range(i):
             dZ += h * integ.A[i, j] * self._dK[j]
-        self._J.zeroEntries()
-        assemble_matrix(self._J, self._J_form, bcs=self.model.bcs)  # type: ignore[misc]
-        self._J.assemble()
-        self._JZ.zeroEntries()
-        assemble_matrix(self._JZ, self._JZ_form)  # type: ignore[misc]
-        self._JZ.assemble()
+        for A, form, bcs in (
+            (self._J, self._J_form, self.model.bcs),
+            (self._JZ, self._JZ_form, []),
+        ):
+            A.zeroEntries()
+            # the singledispatch's overload for a PETSc.Mat, (mat, form, bcs), is not in
+            # DOLFINx's annotations
+            assemble_matrix(A, form, bcs=bcs)  # type: ignore[misc]
+            A.assemble()
         self._ksp.getPC().setUp()  # refactors: KSPSetUp alone keeps the old factors
         B = self._B.getDenseArray()
         B[:] = dZ
@@ -313,7 +316,7 @@ class Shooting:
             rows = np.arange(self.n_local)
             self._X[rows, self.first + rows] = 1.0
             self._X[self.held_local] = 0.0
-        xs = [self._probe_x()] if probe else None
+        xs = [self._probe_x()] if probe else []
         h = self.period / self.steps
         self._h = h * self.model.omega0  # in τ = ω0 t
         integ = self.integrator
