@@ -135,7 +135,11 @@ def test_three_orbits_inside_the_multivalued_band():
     at the same large amplitude as the upper, within 3 % (measured +2.0 %). The upper and lower
     orbits are stable (every |μ| < 1: the damped modes' |μ| ≈ exp(−cT/(2ρA)) = 0.943); the
     middle one is not, with a real multiplier above 1 (measured 1.14): it lies between the
-    two folds, where a multiplier crosses +1."""
+    two folds, where a multiplier crosses +1.
+
+    The stable two are the states the demo's sweep settles in by time marching
+    (docs/verification.md, section 7, r = 1.07: up 21.972 mm, down 4.179 mm, printed to
+    four digits, each settled to 1.6e-4 of its motion): within 5e-4 (measured 2e-5, 5e-5)."""
     r = 1.07
     scene = clamped(F_DEMO, r)
     shooting = Shooting(scene, PERIOD, steps_per_period=300)
@@ -149,6 +153,8 @@ def test_three_orbits_inside_the_multivalued_band():
     assert low.amplitude == pytest.approx(roots[0], rel=0.02)
     assert middle.amplitude == pytest.approx(roots[1], rel=0.03)
     assert high.amplitude == pytest.approx(roots[2], rel=0.03)
+    assert high.amplitude == pytest.approx(21.972e-3, rel=5e-4)
+    assert low.amplitude == pytest.approx(4.179e-3, rel=5e-4)
     assert low.amplitude < 0.5 * middle.amplitude < middle.amplitude < high.amplitude
     for orbit in (low, high):
         assert orbit.stable and np.abs(orbit.multipliers).max() < 1.0
