@@ -76,6 +76,10 @@ from cosserat_fem.timestepping.events import Events, Observer
 from cosserat_fem.timestepping.integrators import SDIRK
 from cosserat_fem.timestepping.loop import TimeLoop
 
+#: The most memory [bytes] the dense columns of the variational equations (X, the stages' dK,
+#: PETSc's two dense matrices, a copy) may take on a rank.
+MAX_DENSE_BYTES = 2 * 2**30
+
 #: |μ| within this of 1 counts as on the unit circle in :func:`classify`.
 UNIT_CIRCLE = 1e-9
 
@@ -234,6 +238,14 @@ class Shooting:
             held[dofs[dofs < self.n_local]] = True
         self.held_local = held
         self.free = np.flatnonzero(~np.concatenate(self.comm.allgather(held)))
+        stages = len(integrator.b)
+        dense = (4 + stages) * 8 * self.n * max(self.comm.allgather(self.n_local))
+        if dense > MAX_DENSE_BYTES:
+            raise SceneError(
+                f"discretisation.elements: the monodromy matrix of {self.n} dofs needs "
+                f"{dense / 2**30:.1f} GiB of dense columns on a rank (at most "
+                f"{MAX_DENSE_BYTES / 2**30:.0f}); use fewer elements or more ranks"
+            )
         self._ksp = PETSc.KSP().create(self.comm)
         self._ksp.setType("preonly")
         self._ksp.getPC().setType("lu")
@@ -245,7 +257,6 @@ class Shooting:
         self._Y = PETSc.Mat().createDense(sizes, comm=self.comm)
         self._Y.setUp()
         self._X = np.zeros((self.n_local, self.n))
-        stages = len(integrator.b)
         self._dK = np.zeros((stages, self.n_local, self.n))
         self._stage = 0
         self._h = 0.0  # the step in τ of the current period

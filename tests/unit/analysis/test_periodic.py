@@ -99,3 +99,10 @@ def test_the_period_expression_and_a_guess_of_the_wrong_size():
             Shooting(_scene(), "-1.0")
     finally:
         shooting.destroy()
+
+
+def test_a_monodromy_too_large_for_memory_is_refused_naming_the_key():
+    """600 cubic elements, planar: n = 6 × 1801 = 10806 dofs, whose dense columns (X, two
+    stage rates, PETSc's two dense matrices, a copy: 6 n² doubles) need 5.2 GiB > 2 GiB."""
+    with pytest.raises(SceneError, match=r"discretisation.elements: .* 5\.2 GiB"):
+        Shooting(_scene(**{"discretisation.elements": 600}), "2*pi/(r*w1)")
