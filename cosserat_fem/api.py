@@ -204,6 +204,45 @@ def stability_at(scene: Scene, factor: float = 1.0, *, count: int = 6):
     return at(scene, factor, count)
 
 
+def periodic_orbit(
+    scene: Scene,
+    period: float | str,
+    *,
+    guess=None,
+    settle: int = 0,
+    steps_per_period: int = 300,
+    tolerance: float = 1e-9,
+    max_iterations: int = 20,
+):
+    """The periodic orbit of the scene's forced rod near ``guess``, by shooting over one
+    forcing period T = ``period`` [s] (a number or an expression of the scene's constants,
+    ``"2*pi/(r*w1)"``) in ``steps_per_period`` fixed steps of its SDIRK integrator, and its
+    stability from the Floquet multipliers (cosserat_fem/analysis/periodic.py). ``guess``: this
+    rank's array of the model's U (an earlier :class:`~cosserat_fem.analysis.periodic.Orbit`'s
+    ``state``, or the orbit itself), or None for rest; ``settle``: periods time-marched from it
+    first. Newton stops when its update is below ``tolerance`` (1 + ‖U0‖). Returns the
+    :class:`~cosserat_fem.analysis.periodic.Orbit`: ``state`` (U at time.start), ``amplitude``
+    (half the range of the probe's x [m]), ``multipliers``, ``stability`` ("stable", "fold",
+    "period-doubling", "torus"). Under mpirun every rank gets its own part of ``state`` and the
+    same rest."""
+    from cosserat_fem.analysis.periodic import Orbit, Shooting
+
+    for name, value, low in (("settle", settle, 0), ("max_iterations", max_iterations, 1)):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
+            raise SceneError(f"{name}: must be a whole number >= {low}, got {value!r}")
+    if not (isinstance(tolerance, int | float) and 0.0 < tolerance < 1.0):
+        raise SceneError(f"tolerance: must be a number in (0, 1), got {tolerance!r}")
+    shooting = Shooting(scene, period, steps_per_period=steps_per_period)
+    try:
+        if isinstance(guess, Orbit):
+            guess = guess.state
+        u = shooting.rest() if guess is None else shooting.check_state(guess)
+        u = shooting.settle(u, int(settle))
+        return shooting.find(u, tolerance, int(max_iterations))
+    finally:
+        shooting.destroy()
+
+
 def pod(
     source,
     stations: Sequence[float] | np.ndarray | None = None,

@@ -442,6 +442,20 @@ class RodModel:
         names["t"] = time_eval / self.omega0
         return names
 
+    def set_parameter(self, name: str, value: float) -> None:
+        """Give the scene parameter ``name`` the value ``value`` in the forms built (its
+        Constant, :meth:`_symbols`): the same compiled forms, a new forcing (a shooting
+        problem's continuation parameter, cosserat_fem/analysis/periodic.py)."""
+        if self._parameters is None:
+            raise RuntimeError("set_parameter before any form was built (no Constants yet)")
+        self._parameters[name].value = value
+
+    def parameter_value(self, name: str) -> float:
+        """The value of the scene parameter ``name`` in the forms (:meth:`set_parameter`)."""
+        if self._parameters is None:
+            return float(self.scene.parameters[name])
+        return float(self._parameters[name].value)
+
     def _vector(self, exprs, symbols, time_eval):
         """A load vector times the load factor λ (1 in dynamics; stepped in statics); its
         data components are coefficients of the time Constant ``time_eval``."""

@@ -1,0 +1,1 @@
+"""Unit tests of cosserat_fem/analysis/, one file a module."""
