@@ -241,6 +241,8 @@ def _hinge_axis(raw: dict[str, Any], end: str) -> tuple[float, float, float] | N
     for i, x in enumerate(axis):
         if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
             raise SceneError(f"{key}[{i}]: must be a finite number, got {show_value(x)}")
+    if not any(axis):
+        raise SceneError(f"{key}: a hinge axis must not be zero, got {show_value(axis)}")
     if sum(x != 0 for x in axis) != 1:
         raise SceneError(
             f"{key}: a hinge axis must lie along e1, e2 or e3 (the angles θ, ψ, φ turn about "
@@ -715,7 +717,7 @@ def _place_supports(supports: Supports, reference: ReferenceShape, length: float
     ends = np.array([0.0, length])
     r0 = reference.positions(ends)
     x, y, z = (float(c) for c in r0[1] - r0[0])
-    axes = {}
+    axes: dict[str, Any] = {}
     if reference.curved:
         frames = reference.frames(ends)
         for i, end in enumerate(("start", "end")):
@@ -730,7 +732,11 @@ def _place_supports(supports: Supports, reference: ReferenceShape, length: float
                     f"{np.array2string(d2, precision=4)}, is not along e1, e2 or e3 (the "
                     f"default hinge axis); give one of them, e.g. [0, 1, 0]"
                 )
-            axes[f"{end}_axis"] = tuple(float(np.round(c)) for c in d2)
+            axes[f"{end}_axis"] = (
+                float(np.round(d2[0])),
+                float(np.round(d2[1])),
+                float(np.round(d2[2])),
+            )
     return replace(supports, chord=(x, y, z), **axes)
 
 
