@@ -288,7 +288,8 @@ class Supports:
     the rotation free about this axis only), along e1, e2 or e3 (the angles θ, ψ, φ are the
     rotations about these at rest, forms/kinematics.py, and a hinge about e_k holds the other
     two exactly: the rotation is then D_k(angle)ᵀ, about e_k alone; a slanted axis is not one
-    of them and is refused). None: a fork on a straight rod; on a rod curved at rest the scene
+    of them and is refused; about e1 it turns by θ, so less than a quarter turn, the chart's
+    limit, docs/decisions.md). None: a fork on a straight rod; on a rod curved at rest the scene
     sets the end's reference binormal d0_2 (the axis the rod bends about in its plane: e2 for
     an arc, the binormal of a polyline), refused by name if that is not along e1, e2 or e3
     (scene/build.py). ``chord``: r0(ℓ) − r0(0) [m] at rest (set by the scene; the rigid-body
