@@ -158,8 +158,9 @@ def test_arc_equals_the_straight_rod_rolled_up_into_it(load):
             "reference.radius: must exceed half the section's size, 0.03 m",
         ),
         (
-            ["reference.shape=arc", "reference.radius=1", "supports.end=pinned"],
-            "supports.end: 'pinned' is not supported with reference.shape = 'arc'",
+            ["reference.shape=helix", "reference.radius=1", "reference.pitch_angle=0.3"]
+            + ["supports.end=pinned"],
+            "supports.end_axis: required for a pinned end of this reference.shape = 'helix'",
         ),
         (
             ["reference.shape=arc", "reference.radius=1", "supports.start=roller"],

@@ -650,7 +650,7 @@ def test_roller_and_sliding_ends_take_only_their_free_loads() -> None:
         ([*roller, "loads.end.torque=[0,0,1]"], r"loads.end.torque\[2\]: a roller end holds"),
         (
             ["supports.end=sliding", "loads.force_density=[0,0,0]", "loads.end.torque=[1,0,0]"],
-            r"loads.end.torque: a sliding end holds its three angles",
+            r"loads.end.torque\[0\]: a sliding end holds its angle θ \(about e1\)",
         ),
         (
             ["supports.end=sliding", "supports.end_motion=[0,0,'sin(t)']"],
@@ -667,5 +667,5 @@ def test_a_pinned_end_takes_no_torque_about_e3() -> None:
     support silently, so it is refused; torques about e1 and e2 are the end's load."""
     pinned = ["supports.end=pinned", "loads.force_density=[0,0,0]"]
     assert load_scene(PAPER, [*pinned, "loads.end.torque=[1,2,0]"]).loads.end.torque[1].source
-    with pytest.raises(SceneError, match=r"loads.end.torque\[2\]: a pinned end holds its twist"):
+    with pytest.raises(SceneError, match=r"loads.end.torque\[2\]: a pinned end holds its angle φ"):
         load_scene(PAPER, [*pinned, "loads.end.torque=[0,0,5]"])

@@ -75,8 +75,27 @@ def bend(scene, tip: np.ndarray) -> None:
     np.testing.assert_allclose(tip[1:4] / inch, BATHE_BOLOURCHI_SHOOTING[600], rtol=0, atol=2e-5)
 
 
+def lee(scene, tip: np.ndarray) -> None:
+    """scenes/lee_frame.toml at its small reference load P = 1e-6: the probe (mid-span, the
+    corner) moves as the linear frame of its comment, the stiffness method of
+    tests/test_curved_supports.py::lee_linear, within 2e-3 of each of (x, z) (that test's
+    bound: the corner's sway, 2.0e-12, is the smallest and the nonlinearity's 8.5e-4 of it)."""
+    from test_curved_supports import lee_linear
+
+    material, sec = scene.rod.material, scene.rod.section
+    EA, EI = material.young_modulus * sec.area, material.young_modulus * sec.c22
+    GA = sec.shear_coefficient * material.shear_modulus * sec.area
+    corner = lee_linear(scene.parameters["P"], EA, EI, GA)[0]
+    np.testing.assert_allclose(tip[[1, 3]], corner, rtol=2e-3, atol=0)
+
+
 #: The answer each static scene's comment states, checked on its own settings' result.
-STATIC_ANSWERS = {"rollup": rollup, "tip_load_elastica": elastica, "bathe_bolourchi_bend": bend}
+STATIC_ANSWERS = {
+    "rollup": rollup,
+    "tip_load_elastica": elastica,
+    "bathe_bolourchi_bend": bend,
+    "lee_frame": lee,
+}
 
 
 def ring(scene, modes) -> None:

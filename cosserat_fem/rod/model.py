@@ -53,22 +53,6 @@ from cosserat_fem.scene.layout import FULL, Layout
 from cosserat_fem.scene.load_data import is_data
 
 START_TAG, END_TAG, POINT_TAG = 1, 2, 3
-#: The components of U = (p, q) a pinned end holds: x, y, z, φ and their rates.
-PINNED_COMPONENTS = (0, 1, 2, 5, 6, 7, 8, 11)
-#: The components a spherical end holds: x, y, z and their rates.
-SPHERICAL_COMPONENTS = (0, 1, 2, 6, 7, 8)
-#: A roller end (a fork whose axial position is free): x, y, φ and their rates.
-ROLLER_COMPONENTS = (0, 1, 5, 6, 7, 11)
-#: A sliding clamp (axial position free): x, y, the three angles and their rates.
-SLIDING_COMPONENTS = (0, 1, 3, 4, 5, 6, 7, 9, 10, 11)
-#: The components each kind of support holds.
-HELD_COMPONENTS = {
-    "clamped": FULL,
-    "pinned": PINNED_COMPONENTS,
-    "spherical": SPHERICAL_COMPONENTS,
-    "roller": ROLLER_COMPONENTS,
-    "sliding": SLIDING_COMPONENTS,
-}
 # The unknowns solved (the model's Layout): all twelve, or those of motion in one plane: x-z,
 # (x, z, ψ) and their rates (y = θ = φ = 0 is an invariant set of (65) when no load, support or
 # initial state leaves the plane: every y, θ, φ row of F vanishes there), or y-z, (y, z, θ) and
@@ -140,9 +124,9 @@ class RodModel:
     chart_active: bool = False
     #: Whether the chart has left the fixed basis (Q ≢ (1, 0, 0, 0)).
     chart_moved: bool = False
-    #: U's blocks (local) at a pinned end, a fork: its φ = 0 holds d1 ⊥ e2 only in the
-    #: paper's chart, so the chart never moves there (a fork's θ = ±π/2 is the gimbal lock
-    #: of the joint itself).
+    #: U's blocks (local) at a pinned end, a fork or a hinge (:func:`is_fork`): its held
+    #: angles mean rotations about the fixed basis only in the paper's chart, so the chart
+    #: never moves there (a fork's θ = ±π/2 is the gimbal lock of the joint itself).
     fork_nodes: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.int32))
     #: A polyline's reference frame D0, cellwise constant (made by :meth:`reference_form`).
     reference_frame: fem.Function | None = None
@@ -596,11 +580,11 @@ def support_conditions(
 ) -> tuple[list, dict[str, dict[int, fem.Constant]]]:
     """Dirichlet conditions of the scene's supports (55) on a space whose blocks hold the
     ``components`` of (p, q): all of them zero at a clamped end at rest; else, one by one, the
-    held ones (clamped: all; pinned: x, y, z, φ and their rates; spherical: x, y, z and
-    theirs; roller: x, y, φ and theirs; sliding: all but z and its rate) with a Constant
-    value each
-    (what a prescribed motion sets). ``ends``: the vertices of each end. Returns the
-    conditions and, by end, {full component: its Constant}."""
+    held ones (Supports.held_components: clamped all; pinned x, y, z, φ, or a hinge's two
+    angles across its axis, and their rates; spherical x, y, z and theirs; roller x, y, φ and
+    theirs; sliding all but z and its rate) with a Constant value each (what a prescribed
+    motion sets). ``ends``: the vertices of each end. Returns the conditions and, by end,
+    {full component: its Constant}."""
     bcs: list = []
     held: dict[str, dict[int, fem.Constant]] = {}
     for name, ents in ends.items():
@@ -612,13 +596,20 @@ def support_conditions(
             continue
         if kind == "free":
             continue
-        for i in (i for i in HELD_COMPONENTS[kind] if i in components):
+        for i in (i for i in scene.supports.held_components(name) if i in components):
             j = components.index(i)
             value = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
             dofs = fem.locate_dofs_topological(V.sub(j), 0, ents)
             bcs.append(fem.dirichletbc(value, dofs, V.sub(j)))
             held[name][i] = value
     return bcs, held
+
+
+def is_fork(scene: Scene, end: str) -> bool:
+    """Whether the support at ``end`` holds some of the angles but not all (a fork, a hinge,
+    a roller): their values mean a rotation about the fixed basis in the paper's chart only,
+    so the chart never moves there (:attr:`RodModel.fork_nodes`)."""
+    return 0 < len(scene.supports.held(end)[1]) < 3
 
 
 def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = True) -> RodModel:
@@ -651,11 +642,10 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     tags = mesh.meshtags(msh, 0, facets[order], values[order].astype(np.int32))
 
     bcs, held = support_conditions(V, scene, {"start": start, "end": end}, components)
-    forks = [start if scene.supports.start in ("pinned", "roller") else None]
-    forks += [end if scene.supports.end in ("pinned", "roller") else None]
+    # The ends holding some angles but not all (a fork, a hinge, a roller): the chart stays.
+    forks = [ents for name, ents in (("start", start), ("end", end)) if is_fork(scene, name)]
     fork_nodes = np.concatenate(
-        [np.zeros(0, dtype=np.int32)]
-        + [fem.locate_dofs_topological(V, 0, ents) for ents in forks if ents is not None]
+        [np.zeros(0, dtype=np.int32)] + [fem.locate_dofs_topological(V, 0, e) for e in forks]
     ).astype(np.int32)
     motions = []
     for name in ("start", "end"):

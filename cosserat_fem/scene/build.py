@@ -224,7 +224,32 @@ def _build_supports(raw: dict[str, Any], constants: set[str], tables: TableStore
                 f"{key}: a prescribed motion needs an end held in x, y and z (clamped, pinned or "
                 f'spherical), but supports.{end} = "{kind}"'
             )
-    return build(Supports, raw, start_motion=motions["start"], end_motion=motions["end"])
+    axes = {f"{end}_axis": _hinge_axis(raw, end) for end in ("start", "end")}
+    return build(Supports, raw, start_motion=motions["start"], end_motion=motions["end"], **axes)
+
+
+def _hinge_axis(raw: dict[str, Any], end: str) -> tuple[float, float, float] | None:
+    """supports.<end>_axis (Supports): None if absent, else three finite numbers along e1, e2
+    or e3 (either sign), at a pinned end only; SceneError naming the key."""
+    key, axis = f"supports.{end}_axis", raw[f"{end}_axis"]
+    if axis is None:
+        return None
+    if raw[end] != "pinned":
+        raise SceneError(
+            f'{key}: only a pinned end has a hinge axis, but supports.{end} = "{raw[end]}"'
+        )
+    for i, x in enumerate(axis):
+        if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
+            raise SceneError(f"{key}[{i}]: must be a finite number, got {show_value(x)}")
+    if not any(axis):
+        raise SceneError(f"{key}: a hinge axis must not be zero, got {show_value(axis)}")
+    if sum(x != 0 for x in axis) != 1:
+        raise SceneError(
+            f"{key}: a hinge axis must lie along e1, e2 or e3 (the angles θ, ψ, φ turn about "
+            f"these; a slanted hinge is none of them), e.g. [0, 1, 0], got {show_value(axis)}"
+        )
+    x, y, z = (float(c) for c in axis)
+    return x, y, z
 
 
 def _build_loads(
@@ -313,22 +338,12 @@ def _constant_vector(raw: list, constants: set[str], key: str) -> tuple[float, f
     return x, y, z
 
 
-#: The components of (x, y, z) and of the angles (θ, ψ, φ) each support holds.
-HELD_BY_SUPPORT: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {
-    "clamped": ((0, 1, 2), (0, 1, 2)),
-    "pinned": ((0, 1, 2), (2,)),
-    "spherical": ((0, 1, 2), ()),
-    "roller": ((0, 1), (2,)),
-    "sliding": ((0, 1), (0, 1, 2)),
-}
-
-
 def _build_initial(
     raw: dict[str, Any], supports: Supports, values: dict[str, float], t0: float
 ) -> Initial:
     """Initial fields of s [m]. Where a support holds the rod they must take its values at
     t0 (else the first step would jump to them): all of p and q at a clamped end, position,
-    velocity, φ and its rate at a pinned one (each support's: :data:`HELD_BY_SUPPORT`); zero,
+    velocity, φ and its rate at a pinned one (each support's: Supports.held); zero,
     or the support's prescribed motion and its rate for x, y, z."""
     fields = {}
     for name in ("displacement", "angles", "velocity", "angle_rates"):
@@ -344,7 +359,7 @@ def _build_initial(
         if kind == "free":
             continue
         motion = supports.motion(end)
-        position, angles = HELD_BY_SUPPORT[kind]
+        position, angles = supports.held(end)
         held = {"displacement": position, "velocity": position}
         held.update(angles=angles, angle_rates=angles)
         for name, components in held.items():
@@ -389,8 +404,8 @@ def _build_end_load(
 ) -> EndLoad | None:
     """[loads.<end>] (force [N], torque [N m], expressions of t and constants), None if absent;
     SceneError at a clamped end, for a dependence on s, for a force at a pinned or
-    spherical end, for a force across the free axial direction e3 of a roller or sliding end,
-    and for a torque about an axis an end holds (φ: pinned, roller; all: sliding)."""
+    spherical end and for a force across the free axial direction e3 of a roller or sliding
+    end (a torque about an axis an end holds: :func:`_check_end_torques`)."""
     if raw is None:
         return None
     key = f"loads.{end}"
@@ -413,18 +428,29 @@ def _build_end_load(
             f"{key}.force: a {support} end holds x and y, so only the axial force along e3 (its "
             f"free direction) may act there; give force = [0, 0, P]"
         )
-    if support == "sliding" and not all(e.is_zero for e in vectors["torque"]):
-        raise SceneError(
-            f"{key}.torque: a sliding end holds its three angles, so an end torque there is "
-            f"taken by the support; give only an axial force"
-        )
-    if support in ("pinned", "roller") and not vectors["torque"][2].is_zero:
-        raise SceneError(
-            f"{key}.torque[2]: a {support} end holds its twist φ, so a torque about e3 there is "
-            f"taken by the support; give the torque about e1, e2 only, got "
-            f"{show_value(vectors['torque'][2].source)}"
-        )
     return build(EndLoad, raw, **vectors)
+
+
+def _check_end_torques(loads: Loads, supports: Supports) -> None:
+    """SceneError naming loads.<end>.torque[i] for a torque about an axis e_i whose angle the
+    end holds (Supports.held: φ at a fork or roller, all at a sliding end, the two across a
+    hinge's axis): the support takes it."""
+    names = ("θ (about e1)", "ψ (about e2)", "φ (about e3)")
+    for end in ("start", "end"):
+        load = getattr(loads, end)
+        if load is None:
+            continue
+        held = supports.held(end)[1]
+        for i in held:
+            if not load.torque[i].is_zero:
+                free = [f"e{k + 1}" for k in range(3) if k not in held]
+                kind = getattr(supports, end)
+                raise SceneError(
+                    f"loads.{end}.torque[{i}]: a {kind} end holds its angle {names[i]}, so a "
+                    f"torque about e{i + 1} there is taken by the support; give the torque "
+                    f"about {', '.join(free) or 'no axis'} only, got "
+                    f"{show_value(load.torque[i].source)}"
+                )
 
 
 def _integral_ratio(span: float, step: float) -> bool:
@@ -674,11 +700,44 @@ def scene_from_dict(
     _check_derived(scene)
     reference = _build_reference(raw["reference"], scene.expression_names())
     _check_reference(scene, reference)
+    supports = _place_supports(supports, reference, rod.length)
+    _check_end_torques(loads, supports)
+    scene = replace(scene, supports=supports)
     _check_point_load(scene)
     for _, component in scene.load_components():
         check_span(component, time.start, time.end, scene.static.time, rod.length)
     initial = _build_initial(raw["initial"], supports, scene.expression_names(), time.start)
     return replace(scene, initial=initial, reference=reference)
+
+
+def _place_supports(supports: Supports, reference: ReferenceShape, length: float) -> Supports:
+    """The supports on the rod at rest: its ``chord`` r0(ℓ) − r0(0) [m], and on a rod curved
+    at rest a pinned end's hinge axis by default its reference binormal d0_2 there (Supports),
+    SceneError naming supports.<end>_axis if that is not along e1, e2 or e3."""
+    ends = np.array([0.0, length])
+    r0 = reference.positions(ends)
+    x, y, z = (float(c) for c in r0[1] - r0[0])
+    axes: dict[str, Any] = {}
+    if reference.curved:
+        frames = reference.frames(ends)
+        for i, end in enumerate(("start", "end")):
+            if getattr(supports, end) != "pinned" or getattr(supports, f"{end}_axis") is not None:
+                continue
+            d2 = frames[i, 1]
+            k = int(np.argmax(np.abs(d2)))
+            if abs(abs(d2[k]) - 1.0) > 1e-12:
+                raise SceneError(
+                    f"supports.{end}_axis: required for a pinned end of this "
+                    f"reference.shape = {reference.shape!r}: its binormal d0_2 there, "
+                    f"{np.array2string(d2, precision=4)}, is not along e1, e2 or e3 (the "
+                    f"default hinge axis); give one of them, e.g. [0, 1, 0]"
+                )
+            axes[f"{end}_axis"] = (
+                float(np.round(d2[0])),
+                float(np.round(d2[1])),
+                float(np.round(d2[2])),
+            )
+    return replace(supports, chord=(x, y, z), **axes)
 
 
 def _check_polyline(scene: Scene, reference: ReferenceShape) -> None:
@@ -803,10 +862,11 @@ def _check_point_load(scene: Scene) -> None:
 
 
 def _check_reference(scene: Scene, reference: ReferenceShape) -> None:
-    """What a rod curved at rest does not support yet, refused by name: pinned, spherical,
-    roller and sliding supports (their held components are those of the straight rod's
-    angles, and a roller's or slide's free direction its tangent e3) and the printed
-    torsion inertia (which divides a row that a curved rod's rows mix, forms/general_form.py)."""
+    """What a rod curved at rest does not support yet, refused by name: roller and sliding
+    supports (a roller's or slide's free direction is the straight rod's tangent e3) and the
+    printed torsion inertia (which divides a row that a curved rod's rows mix,
+    forms/general_form.py). Pinned (a hinge, :func:`_place_supports`) and spherical ends
+    hold angles that are rotations about e1, e2, e3 whatever the rest frame D0."""
     if reference.closed:
         _check_closed(scene, reference)
     if not reference.curved:
@@ -825,10 +885,11 @@ def _check_reference(scene: Scene, reference: ReferenceShape) -> None:
             )
     for end in ("start", "end"):
         kind = getattr(scene.supports, end)
-        if kind in ("pinned", "spherical", "roller", "sliding"):
+        if kind in ("roller", "sliding"):
             raise SceneError(
                 f"supports.{end}: {kind!r} is not supported with reference.shape = "
-                f"{reference.shape!r} yet; use 'clamped' or 'free'"
+                f"{reference.shape!r} yet (its free direction is the straight rod's e3); use "
+                f"'clamped', 'pinned', 'spherical' or 'free'"
             )
     if scene.model.torsion_inertia != "polar":
         raise SceneError(

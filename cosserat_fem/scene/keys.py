@@ -41,6 +41,20 @@ XDMF_FIELDS = tuple(FIELD_ARRAYS)
 XDMF_DEFAULT_FIELDS = XDMF_FIELDS[:4]
 #: Each end's support (scene/resolved.py Supports: "roller" and "sliding" leave z free).
 SUPPORTS = ("clamped", "free", "pinned", "spherical", "roller", "sliding")
+#: The one table of what each support holds: the components of the position (x, y, z) and of
+#: the angles (θ, ψ, φ), each angle in the paper's chart a rotation about e1, e2, e3 at rest
+#: (forms/kinematics.py). A pinned end given a hinge axis e_k holds the two angles but the
+#: k-th instead (scene/resolved.py Supports.held). Everything else about supports derives
+#: from it: the Dirichlet conditions (rod/model.py), the initial values checked, the end
+#: torques refused (scene/build.py), the rigid-body modes and mechanisms (Supports).
+HELD_BY_SUPPORT: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {
+    "clamped": ((0, 1, 2), (0, 1, 2)),
+    "free": ((), ()),
+    "pinned": ((0, 1, 2), (2,)),
+    "spherical": ((0, 1, 2), ()),
+    "roller": ((0, 1), (2,)),
+    "sliding": ((0, 1), (0, 1, 2)),
+}
 #: Upper bounds of keys whose size alone makes a run impossible here
 #: (cosserat_fem/analysis/budget.py estimates the others): quadrature points per cell, Newton
 #: iterations per solve.

@@ -19,6 +19,7 @@ from cosserat_fem.io.probes import PROBE_FIELD_COLUMNS
 from cosserat_fem.scene.expressions import Expression, derivative
 from cosserat_fem.scene.keys import (
     DEFAULT_WALL_TIME,
+    HELD_BY_SUPPORT,
     MAX_NEWTON_ITERATIONS,
     MAX_QUADRATURE,
     NON_NEGATIVE,
@@ -283,6 +284,17 @@ class Supports:
     free direction; a roller also takes a torque about e1, e2). Both need a straight rod (a
     rod curved at rest, or closed, refuses them by name).
 
+    ``start_axis``/``end_axis``: the axis of a pinned end made a hinge (the position held,
+    the rotation free about this axis only), along e1, e2 or e3 (the angles θ, ψ, φ are the
+    rotations about these at rest, forms/kinematics.py, and a hinge about e_k holds the other
+    two exactly: the rotation is then D_k(angle)ᵀ, about e_k alone; a slanted axis is not one
+    of them and is refused; about e1 it turns by θ, so less than a quarter turn, the chart's
+    limit, docs/decisions.md). None: a fork on a straight rod; on a rod curved at rest the scene
+    sets the end's reference binormal d0_2 (the axis the rod bends about in its plane: e2 for
+    an arc, the binormal of a polyline), refused by name if that is not along e1, e2 or e3
+    (scene/build.py). ``chord``: r0(ℓ) − r0(0) [m] at rest (set by the scene; the rigid-body
+    modes depend on it).
+
     ``start_motion``/``end_motion``: a prescribed translation (x, y, z)(t) [m] of a held end
     (base excitation; None: at rest).
     """
@@ -295,19 +307,51 @@ class Supports:
     end_motion: tuple[Expression, ...] | None = key(
         LoadVector(default=ZERO3, unit="m"), default=None
     )
+    start_axis: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
+    end_axis: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
+    chord: tuple[float, float, float] = field(default=(0.0, 0.0, 1.0), compare=False)
+
+    def held(self, end: str) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """The components of the position (x, y, z) and of the angles (θ, ψ, φ) the support
+        at ``end`` holds: :data:`~cosserat_fem.scene.keys.HELD_BY_SUPPORT`, but a hinge about
+        e_k (``<end>_axis``) holds the two angles other than the k-th."""
+        position, angles = HELD_BY_SUPPORT[getattr(self, end)]
+        axis = getattr(self, f"{end}_axis")
+        if axis is not None:
+            k = int(np.argmax(np.abs(axis)))
+            angles = tuple(i for i in range(3) if i != k)
+        return position, angles
+
+    def held_components(self, end: str) -> tuple[int, ...]:
+        """The components of U = (p, q) the support at ``end`` holds: the held ones of p
+        (x, y, z, θ, ψ, φ) and their rates, 6 later."""
+        position, angles = self.held(end)
+        p = (*position, *(3 + a for a in angles))
+        return (*p, *(6 + i for i in p))
+
+    def rigid_body_modes(self) -> int:
+        """How many rigid-body motions the supports leave: 6 less the rank of the held
+        components of a small rigid motion (translation t, rotation ω about the start) at the
+        ends, at rest: position component i at r is t_i + (ω × r)_i, angle a is ω_a (the
+        angles' linearisation at rest: rotations about e1, e2, e3); the end at ``chord``.
+        A free rod 6, a fork 2 (the rotations about it), a ball joint 3, two ball joints 1
+        (the turn about the chord), a roller 3, a sliding end or two rollers 1 (along e3)."""
+        chord = np.asarray(self.chord, dtype=float)
+        chord = chord / max(float(np.linalg.norm(chord)), 1e-300)  # the rank is scale-free
+        rows = []
+        for end, r in (("start", np.zeros(3)), ("end", chord)):
+            position, angles = self.held(end)
+            for i in position:
+                e = np.eye(3)[i]
+                rows.append(np.concatenate([e, np.cross(r, e)]))  # (ω × r)·e = ω·(r × e)
+            rows += [np.concatenate([np.zeros(3), np.eye(3)[a]]) for a in angles]
+        return 6 - (int(np.linalg.matrix_rank(np.array(rows))) if rows else 0)
 
     @property
     def mechanism(self) -> bool:
         """Whether the supports leave the rod a rigid-body motion (a pendulum, a free, a
-        spinning or a sliding rod). The six are held when z is held at an end (clamped, pinned,
-        spherical), the lateral motion (x, y and the rotations about e1, e2) by a clamp or a
-        sliding clamp, or by x, y held at both ends, and the twist by an end holding φ
-        (clamped, pinned, roller, sliding)."""
-        kinds = {self.start, self.end}
-        axial = bool(kinds & {"clamped", "pinned", "spherical"})
-        lateral = bool(kinds & {"clamped", "sliding"}) or "free" not in kinds
-        twist = bool(kinds & {"clamped", "pinned", "roller", "sliding"})
-        return not (axial and lateral and twist)
+        spinning or a sliding rod): :meth:`rigid_body_modes` > 0."""
+        return self.rigid_body_modes() > 0
 
     def motion(self, end: str) -> tuple[Expression, ...] | None:
         return self.start_motion if end == "start" else self.end_motion
