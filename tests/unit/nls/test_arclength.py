@@ -105,14 +105,14 @@ def test_pitchfork_located_and_switched():
     engine = Continuation(pitchfork(), settings)
     start = engine.start_point(np.array([0.0, 0.0]), 0.0)
     branch = engine.trace(start, 1)
-    assert branch.reason.startswith("p = ")
+    assert branch.reason == "p reached 2"
     assert [q.kind for q in branch.special] == ["bifurcation"]
     bif = branch.special[0]
     assert abs(bif.p - 1.0) < 2e-9 and abs(bif.u[0]) < 1e-12
     up, down = engine.switch(bif)
     signs = []
     for new in (up, down):
-        assert new.points[-1].p > 2.0 and new.special == []
+        assert new.points[-1].p == 2.0 and new.special == []  # ends at the bound
         for q in new.points[1:]:
             assert abs(q.u[0] ** 2 - (q.p - 1)) < 1e-9 and abs(2 * q.u[1] - q.p) < 1e-9
         signs.append(np.sign(new.points[-1].u[0]))
@@ -121,7 +121,7 @@ def test_pitchfork_located_and_switched():
 
 def test_transcritical_switched_both_ways():
     """Trivial branch from p = 0: the crossing at p = 1 located; the other branch u0 = p − 1
-    traced both ways from it reaches p < 0.5 one way and p > 1.5 the other."""
+    traced both ways from it reaches p = 0 one way and p = 2 the other (the bounds)."""
     settings = ContinuationSettings(step=0.1, max_step=0.2, p_min=0.0, p_max=2.0)
     engine = Continuation(transcritical(), settings)
     branch = engine.trace(engine.start_point(np.zeros(2), 0.0), 1)
@@ -132,7 +132,7 @@ def test_transcritical_switched_both_ways():
         for q in new.points[1:]:
             assert abs(q.u[0] - (q.p - 1)) < 1e-9 and abs(q.u[1] - q.p * q.u[0]) < 1e-9
         ends.append(new.points[-1].p)
-    assert min(ends) < 0.5 and max(ends) > 1.5
+    assert sorted(ends) == [0.0, 2.0]
 
 
 def test_step_collapse_keeps_the_branch():
@@ -157,14 +157,15 @@ def test_step_collapse_keeps_the_branch():
 @pytest.mark.parametrize("direction", [1, -1])
 def test_both_directions_from_a_start(direction):
     """From (1, 0) on u0² = 1 − p with its tangent oriented by ``direction``: p decreasing
-    (−1) stays on u0 = +√(1 − p) down to p < −3; p increasing (+1) passes the fold and goes
-    down to p < −3 on u0 = −√(1 − p). both_ways gives the two."""
+    (−1) stays on u0 = +√(1 − p) down to p = −3; p increasing (+1) passes the fold and goes
+    down to p = −3 on u0 = −√(1 − p), where the branch ends (a point at the bound p_min
+    itself). both_ways gives the two."""
     settings = ContinuationSettings(step=0.1, max_step=0.3, p_min=-3.0)
     engine = Continuation(fold(), settings)
     start = engine.start_point(np.array([1.0, 1.0]), 0.0, direction)
     branch = engine.trace(start, 1)
-    assert branch.points[-1].p < -3.0
     end = branch.points[-1]
+    assert end.p == -3.0 and end.kind == "end"
     assert abs(end.u[0] + direction * math.sqrt(1 - end.p)) < 1e-9
     assert len(branch.special) == (1 if direction == 1 else 0)
     ways = engine.both_ways(start)

@@ -1,0 +1,194 @@
+"""Continuation of the rod's equilibria (cosserat_fem/analysis/paths.py on the engine of
+cosserat_fem/nls/arclength.py): the post-buckled elastica and the roll-up.
+
+**The post-buckled column.** scenes/rollup.toml without its moment, under the dead axial end
+load −P_E e3, P_E = π² EI/(4ℓ²) (clamped-free), so λ = P/P_E. The straight rod solves the
+static equations at every λ (the primary branch: axial shortening only); its R_u loses
+definiteness where the first buckling mode appears, at P (1 + aP) = P_E, a = 1/κGA − 1/EA
+(tests/test_stability.py derives it): λ_cr = (√(1 + 4aP_E) − 1)/(2aP_E) = 0.999287356.
+There det R_u changes sign while λ keeps growing along the branch: a (pitchfork) bifurcation.
+On the buckled branch the free end turns by α = ψ(ℓ) and
+
+    EI ψ'' + P sin ψ (1 + aP cos ψ) = 0,   ψ(0) = 0, ψ'(ℓ) = 0
+
+(cosserat_fem/reference/elastica.py, buckled_column_load, which solves it by quadrature to
+1e-14): the rod's exact load at each α. The elastica's closed form P/P_E = (2K(k)/π)²,
+k = sin(α/2), is its a = 0 limit. Between the two: the term aP cos ψ changes the effective
+load by a relative amount between −aP and aP (cos ψ ∈ [−1, 1]), so the two differ by at most
+aP = aP_E λ relative, aP_E = 7.14e-4 for this section (measured: −6.7e-4 at the onset, where
+it is −aP_E exactly, +2.6e-4 at α = 120°).
+
+**Discretisation.** ψ is approximated by quartic elements; the load at a given tip angle is a
+ratio of energies, whose error falls as h^(2k) = h^8: measured 3.9e-7 relative (worst over
+α ≤ 125°) on 8 P4 elements, 1.5e-9 on 16 (ratio 250 ≈ 2^8); the tests assert 1e-6 and 5e-9.
+The bifurcation's λ is an eigenvalue's zero, converging alike (measured 7e-11 from λ_cr on 8
+elements), and located by the engine to 1e-9 in arclength (dλ/ds ≈ 1 on the primary branch):
+2e-9 is asserted.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import ROOT
+from scipy.special import ellipk
+
+import cosserat_fem as cf
+from cosserat_fem.analysis.statics import static_path
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.output.fields import PointProbe
+from cosserat_fem.reference.elastica import buckled_column_load
+
+ROLLUP = ROOT / "scenes" / "rollup.toml"
+
+
+def column(elements: int):
+    """(scene, EI, EA, κGA, ℓ, P_E) of the clamped-free column under −P_E e3."""
+    scene0 = cf.load(ROLLUP, {"loads.end": cf.UNSET})
+    rod = scene0.rod_constants()
+    section = rod.section
+    EI, L = rod.young_modulus * section.c22, rod.length
+    EA = rod.young_modulus * section.area
+    kGA = section.shear_coefficient * rod.shear_modulus * section.area
+    P_E = math.pi**2 * EI / (4 * L**2)
+    overrides = {
+        "loads.end": cf.UNSET,
+        "loads.end.force": [0, 0, -P_E],
+        "discretisation.elements": elements,
+        "discretisation.degree": 4,
+    }
+    return cf.load(ROLLUP, overrides), EI, EA, kGA, L, P_E
+
+
+def buckled(elements: int):
+    scene, EI, EA, kGA, L, P_E = column(elements)
+    result = cf.continuation(
+        scene,
+        -0.5,
+        2.5,
+        step=0.02,
+        max_step=0.25,
+        stop=lambda q: "turned" if abs(q.tip[4]) > math.radians(125) else None,
+    )
+    return result, EI, EA, kGA, L, P_E
+
+
+def worst_error(branch, EI, EA, kGA, L, P_E) -> float:
+    """The largest |λ/λ_rod(α) − 1| over the branch's points beyond the bifurcation."""
+    return max(
+        abs(q.factor * P_E / buckled_column_load(q.tip[4], L, EI, EA, kGA) - 1)
+        for q in branch.points[1:]
+    )
+
+
+def test_reference_is_the_elastica_without_extension():
+    """buckled_column_load with EA = κGA = ∞ is the closed form (2K(k)/π)² P_E to 1e-13
+    (Gauss–Legendre on an analytic integrand, Brent to 1e-15), and with a > 0 its α → 0
+    limit is P(1 + aP) = P_E."""
+    for alpha in (0.3, 1.5, 2.1, 2.6):
+        k = math.sin(alpha / 2)
+        closed = (2 * ellipk(k * k) / math.pi) ** 2 * math.pi**2 / 4
+        assert buckled_column_load(alpha, 1.0, 1.0) == pytest.approx(closed, rel=1e-13)
+    P = buckled_column_load(1e-7, 1.0, 1.0, EA=50.0, GAk=20.0)
+    a = 1 / 20.0 - 1 / 50.0
+    assert P * (1 + a * P) == pytest.approx(math.pi**2 / 4, rel=1e-12)
+
+
+def test_post_buckled_elastica():
+    """8 P4 elements (module docstring): the primary branch has one bifurcation, at λ_cr to
+    2e-9, and no fold; the switched branch, traced both ways, turns the end to α > 120° and
+    α < −120°, mirror images (the same λ at ±α to 1e-9: the two directions solve mirrored
+    problems); λ(α) is the rod's exact load to 1e-6, and the elastica's closed form to
+    aP_E λ + 1e-6."""
+    result, EI, EA, kGA, L, P_E = buckled(8)
+    a = 1 / kGA - 1 / EA
+    critical = (math.sqrt(1 + 4 * a * P_E) - 1) / (2 * a * P_E)
+    up, down, *switched = result.branches
+    assert [q.kind for q in up.special] == ["bifurcation"] and down.special == []
+    assert abs(up.special[0].factor - critical) < 2e-9
+    assert up.points[-1].factor == 2.5 and down.points[-1].factor == -0.5
+    assert len(switched) == 2
+    ends = sorted(b.points[-1].tip[4] for b in switched)
+    assert ends[0] < -math.radians(120) and ends[1] > math.radians(120)
+    for branch in switched:
+        assert branch.reason == "turned" and branch.special == []
+        assert worst_error(branch, EI, EA, kGA, L, P_E) < 1e-6
+        for q in branch.points[1:]:
+            k = math.sin(abs(q.tip[4]) / 2)
+            closed = (2 * ellipk(k * k) / math.pi) ** 2
+            assert abs(q.factor / closed - 1) < a * P_E * q.factor + 1e-6
+    one, other = ([q.factor for q in b.points] for b in switched)
+    assert np.allclose(one, other, rtol=0, atol=1e-9)
+
+
+@pytest.mark.long
+def test_post_buckled_elastica_converges():
+    """16 P4 elements: the branch's worst error against the rod's exact load falls below 5e-9
+    (h^8 from 8 elements' 3.9e-7: 1.5e-9 measured)."""
+    result, *stiffness = buckled(16)
+    for branch in result.branches[2:]:
+        assert worst_error(branch, *stiffness) < 5e-9
+
+
+def rollup_tip(scene, tip) -> tuple[float, float]:
+    """(gap |r(ℓ) − r(0)|/ℓ, ψ(ℓ)/(4π) − 1) of a two-turn roll-up's tip."""
+    ell = scene.rod.length
+    return math.hypot(tip[0], tip[1], ell + tip[2]) / ell, tip[4] / (4 * math.pi) - 1
+
+
+def test_rollup_two_turns_by_continuation():
+    """scenes/rollup.toml rolled into two full circles (40 P4 elements, as
+    tests/test_large_deflection.py): the continuation's last point is at λ = 1 exactly and
+    its tip is load stepping's to 1e-12 (both the same discrete equilibrium, each Newton
+    converged below 1e-13 in the update), the gap 7.0e-10 ℓ < 1e-8 ℓ and the angle 4π to 1e-8.
+    The steps: Newton's basin for this stiff rod (EA ℓ²/EI = 7500) holds about 0.06 of λ
+    (0.75 rad at the tip) whatever the predictor, for load stepping too (its nominal 1/8 is
+    halved to 1/16), so continuation takes about as many steps: asserted no more than the
+    32 load steps of that test; the counts are reported in docs/verification.md."""
+    scene = cf.load(ROLLUP, {"parameters.turns": 2, "discretisation.elements": 40})
+    result = cf.continuation(scene, 0.0, 1.0, step=0.1, max_step=8.0, directions=(1,))
+    (branch,) = result.branches
+    end = branch.points[-1]
+    assert end.factor == 1.0 and branch.reason == "p reached 1"
+    gap, angle = rollup_tip(scene, end.tip)
+    stepping = static_path(
+        cf.load(
+            ROLLUP, {"parameters.turns": 2, "discretisation.elements": 40, "static.load_steps": 32}
+        ),
+        write_outputs=False,
+    )
+    gap_ls, angle_ls = rollup_tip(scene, PointProbe(stepping.model, 1.0).values())
+    assert gap < 1e-8 and abs(angle) < 1e-8
+    assert abs(gap - gap_ls) < 1e-12 and abs(angle - angle_ls) < 1e-12
+    assert branch.steps <= 32
+
+
+def test_bad_input_names_the_option(tmp_path):
+    """One SceneError naming the option; a 3D scene refused naming discretisation.planar."""
+    scene = cf.load(ROLLUP)
+    for kwargs, name in (
+        ({"step": -1.0}, "step"),
+        ({"max_points": 1}, "max_points"),
+        ({"directions": (2,)}, "directions"),
+        ({"switch": -1}, "switch"),
+    ):
+        with pytest.raises(SceneError, match=f"^{name}"):
+            cf.continuation(scene, **kwargs)
+    with pytest.raises(SceneError, match="high"):
+        cf.continuation(scene, 1.0, 0.5)
+    in_3d = cf.load(ROLLUP, {"discretisation.planar": "off"})
+    with pytest.raises(SceneError, match="discretisation.planar"):
+        cf.continuation(in_3d)
+
+
+def test_branch_file(tmp_path):
+    """branches.csv: the header, one row per point of each branch (special points too), the
+    last row of the primary branch at λ = high."""
+    scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 0.25})
+    result = cf.continuation(scene, 0.0, 1.0, step=0.2, directions=(1,), out=tmp_path)
+    lines = (tmp_path / "branches.csv").read_text().splitlines()
+    assert lines[0].split(",")[:3] == ["branch", "load_factor", "x"]
+    assert len(lines) == 1 + len(result.branches[0].points)
+    assert float(lines[-1].split(",")[1]) == 1.0
