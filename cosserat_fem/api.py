@@ -328,21 +328,22 @@ def continuation(
         if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
             raise SceneError(f"{name}: must be a number, got {value!r}")
         if not math.isfinite(value) or (positive and value <= 0.0):
-            raise SceneError(f"{name}: must be a finite{' positive' if positive else ''} number")
+            sign = " positive" if positive else ""
+            raise SceneError(f"{name}: must be a finite{sign} number, got {value!r}")
         return float(value)
 
-    low, high = number("low", low, False), number("high", high, False)
+    low, high = number("low (--range)", low, False), number("high (--range)", high, False)
     if high <= low:
-        raise SceneError(f"high: must exceed low, got low = {low!r}, high = {high!r}")
-    step, max_step = number("step", step), number("max_step", max_step)
+        raise SceneError(f"high (--range): must exceed low, got {low!r} {high!r}")
+    step, max_step = number("step (--step)", step), number("max_step (--max-step)", max_step)
     min_step = number("min_step", min_step)
     if not min_step <= step <= max_step:
-        raise SceneError("step: must lie in [min_step, max_step]")
-    for name, value in (("max_points", max_points), ("switch", switch)):
+        raise SceneError(f"step (--step): must lie in [min_step, max_step], got {step!r}")
+    for name, value in (("max_points (--max-points)", max_points), ("switch (--switch)", switch)):
         if isinstance(value, bool) or not isinstance(value, int) or value < 0:
             raise SceneError(f"{name}: must be a whole number >= 0, got {value!r}")
     if max_points < 2 or max_points > 100_000:
-        raise SceneError(f"max_points: must lie in [2, 100000], got {max_points}")
+        raise SceneError(f"max_points (--max-points): must lie in [2, 100000], got {max_points}")
     if not directions or any(d not in (1, -1) for d in directions):
         raise SceneError(f"directions: +1 and/or -1, got {directions!r}")
     settings = ContinuationSettings(

@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import ROOT, run_command
 from scipy.special import ellipk
 
 import cosserat_fem as cf
@@ -192,3 +192,88 @@ def test_branch_file(tmp_path):
     assert lines[0].split(",")[:3] == ["branch", "load_factor", "x"]
     assert len(lines) == 1 + len(result.branches[0].points)
     assert float(lines[-1].split(",")[1]) == 1.0
+
+
+COLUMN_OPTIONS = [
+    "--unset",
+    "loads.end",
+    "--set",
+    "discretisation.elements=8",
+    "--set",
+    'loads.end.force=[0,0,"-pi**2*EI/(4*L**2)"]',
+]
+
+
+def read_branches(path) -> list[dict]:
+    lines = path.read_text().splitlines()
+    header = lines[0].split(",")
+    return [dict(zip(header, line.split(","), strict=True)) for line in lines[1:]]
+
+
+@pytest.mark.long
+def test_continue_command_serial_and_mpi(tmp_path):
+    """``cosserat-fem continue`` on the column (8 P4) over λ ∈ [0, 1.5], 1 and 2 ranks:
+    branches.csv's bifurcation at λ_cr on both to 2e-9 (the locating tolerance; MUMPS under
+    MPI orders and rounds differently, 1e-13, far below it), and the switched branches'
+    ends at λ = 1.5 turned by the same |ψ| to 1e-9 (one discrete equilibrium, each Newton
+    converged below 1e-10 in the update; the null vector's sign, which picks the branch
+    traced first, may differ). Bad input: exit 2, one line naming the option."""
+    ends, critical = [], []
+    for ranks in (1, 2):
+        out = tmp_path / f"r{ranks}"
+        proc = run_command(
+            [
+                "-m",
+                "cosserat_fem.cli",
+                "continue",
+                str(ROLLUP),
+                *COLUMN_OPTIONS,
+                "--range",
+                "0",
+                "1.5",
+                "--step",
+                "0.02",
+                "--max-step",
+                "0.25",
+                "--out",
+                str(out),
+            ],
+            ranks,
+        )
+        assert proc.returncode == 0, proc.stderr
+        rows = read_branches(out / "branches.csv")
+        (bif,) = [r for r in rows if r["point"] == "bifurcation" and r["branch"] == "0"]
+        critical.append(float(bif["load_factor"]))
+        ends.append(
+            sorted(
+                abs(float(r["psi"]))
+                for r in rows
+                if r["branch"] in ("2", "3") and r["point"] == "end"
+            )
+        )
+        assert "bifurcation point at load factor 0.99928735" in proc.stdout
+    assert abs(critical[0] - 0.999287356) < 2e-9 and abs(critical[0] - critical[1]) < 2e-9
+    assert len(ends[0]) == 2 and np.allclose(ends[0], ends[1], rtol=0, atol=1e-9)
+    proc = run_command(
+        ["-m", "cosserat_fem.cli", "continue", str(ROLLUP), "--step", "-1", "--out", str(tmp_path)]
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "--step" in proc.stderr
+
+
+def test_continue_command_bad_option(tmp_path):
+    """A bad option: exit 2, one line on stderr naming it (no solve is started)."""
+    proc = run_command(
+        [
+            "-m",
+            "cosserat_fem.cli",
+            "continue",
+            str(ROLLUP),
+            "--max-points",
+            "1",
+            "--out",
+            str(tmp_path),
+        ]
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "--max-points" in proc.stderr
