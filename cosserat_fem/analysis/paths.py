@@ -105,7 +105,7 @@ class RodPath:
             pc.setFactorSetUpSolverType()
             pc.getFactorMatrix().setMumpsIcntl(33, 1)  # the determinant
             self._factor_ready = True
-        self.ksp.setUp()
+        self.ksp.getPC().setUp()  # factor now (KSPSetUp would wait for the next solve)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         self._rhs.array[:] = rhs
