@@ -226,8 +226,8 @@ def continue_path(
     directions: tuple[int, ...] = (1, -1),
     comm: MPI.Comm = MPI.COMM_WORLD,
 ) -> PathResult:
-    """The path from the unloaded rod (λ = 0) traced along ``directions`` (+1: λ growing),
-    then, at each of the first ``switch`` bifurcation points located on it, the other branch
+    """The path from the unloaded rod (λ = 0) traced along ``directions`` (+1: λ growing;
+    a direction that leaves [p_min, p_max] at once is not traced), then, at each of the first ``switch`` bifurcation points located on it, the other branch
     both ways; each branch ends at λ outside [settings.p_min, p_max], max_points,
     ``stop(point)`` or a step collapse (its reason kept)."""
     problem = RodPath(scene, comm)
@@ -243,6 +243,8 @@ def continue_path(
         result = PathResult()
         found: list[Point] = []
         for d in directions:
+            if (d > 0 and settings.p_max <= 0.0) or (d < 0 and settings.p_min >= 0.0):
+                continue  # λ would leave the range at once
             branch = engine.trace(start, d)
             found += [q for q in branch.special if q.kind == "bifurcation"]
             result.branches.append(_path_branch(problem, branch, "primary"))
