@@ -227,9 +227,10 @@ def continue_path(
     comm: MPI.Comm = MPI.COMM_WORLD,
 ) -> PathResult:
     """The path from the unloaded rod (λ = 0) traced along ``directions`` (+1: λ growing;
-    a direction that leaves [p_min, p_max] at once is not traced), then, at each of the first ``switch`` bifurcation points located on it, the other branch
-    both ways; each branch ends at λ outside [settings.p_min, p_max], max_points,
-    ``stop(point)`` or a step collapse (its reason kept)."""
+    a direction that leaves [p_min, p_max] at once is not traced), then, at each of the first
+    ``switch`` bifurcation points located on it, the other branch both ways; each branch ends
+    at a bound of [settings.p_min, p_max] (a point there), max_points, ``stop(point)`` or a
+    step collapse (its reason kept)."""
     problem = RodPath(scene, comm)
     try:
         wrapped = None

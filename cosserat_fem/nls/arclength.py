@@ -12,10 +12,11 @@ u-vectors (MPI-summed: it is the metric of the u-part, scaled as the problem cho
 ‖x‖² = dot(u, u) + p², and the arclength s is measured in it.
 
 **A step** from the point x_k with unit tangent t_k and step length Δs: the predictor
-x̂ = x_k + Δs t_k (``predictor = "tangent"``, and for the first two steps of a branch), or
-(``"quadratic"``, the default) the quadratic through x_{k−2}, x_{k−1}, x_k in the chord
-abscissa (chords measured in the metric) at Δs beyond x_k, whose error is O(Δs³) instead of
-O(Δs²) (Seydel, 4.4; on the roll-up it lets the steps grow: tests/test_continuation.py).
+x̂ = x_k + Δs t_k (``predictor = "tangent"``, the default), or (``"quadratic"``, from the
+third point of a branch on) the quadratic through x_{k−2}, x_{k−1}, x_k in the chord abscissa
+(chords measured in the metric) at Δs beyond x_k, whose error is O(Δs³) instead of O(Δs²)
+(Seydel, 4.4). Measured on the rod, the tangent does as well or better: the steps are limited by
+Newton's basin, not by the predictor (docs/continuation.md).
 Then Newton on the bordered system
 
     R(u, p) = 0,   ⟨t_k, x − x̂⟩ = 0,
@@ -103,7 +104,7 @@ class ContinuationSettings:
     p_min: float = -math.inf
     p_max: float = math.inf
     null_iterations: int = 8
-    predictor: str = "quadratic"  # or "tangent"
+    predictor: str = "tangent"  # or "quadratic"
 
 
 @dataclass
