@@ -34,6 +34,18 @@ from cosserat_fem.common.errors import CosseratError, SceneError, SolverError, S
 from cosserat_fem.scene.schema import Removal
 
 
+def _factor_range(sub: argparse.ArgumentParser, what: str) -> None:
+    """--range LOW HIGH: load factors (every load of the scene × f), default 0 1."""
+    sub.add_argument(
+        "--range",
+        nargs=2,
+        type=float,
+        default=(0.0, 1.0),
+        metavar=("LOW", "HIGH"),
+        help=f"{what} (every load of the scene × f; default 0 1)",
+    )
+
+
 def _common(
     sub: argparse.ArgumentParser, scene_optional: bool = False, texts: dict[str, str] | None = None
 ) -> None:
@@ -154,14 +166,7 @@ def _parser() -> argparse.ArgumentParser:
         "factor, and the critical factor (buckling or flutter)",
     )
     _common(stab)
-    stab.add_argument(
-        "--range",
-        nargs=2,
-        type=float,
-        default=(0.0, 1.0),
-        metavar=("LOW", "HIGH"),
-        help="load factors f to search (every load of the scene × f; default 0 1)",
-    )
+    _factor_range(stab, "load factors f to search")
     stab.add_argument(
         "--samples", type=int, default=5, help="equally spaced factors visited first (default 5)"
     )
@@ -180,29 +185,14 @@ def _parser() -> argparse.ArgumentParser:
         "continuation: around folds, bifurcations located and switched onto (branches.csv)",
     )
     _common(cont)
-    cont.add_argument(
-        "--range",
-        nargs=2,
-        type=float,
-        default=(0.0, 1.0),
-        metavar=("LOW", "HIGH"),
-        help="load factors the branches stay in (every load of the scene × f; default 0 1)",
-    )
-    cont.add_argument(
-        "--step", type=float, default=0.05, help="first arclength step (default 0.05)"
-    )
-    cont.add_argument(
-        "--max-step", type=float, default=1.0, help="largest arclength step (default 1)"
-    )
-    cont.add_argument(
-        "--max-points", type=int, default=200, help="points per branch at most (default 200)"
-    )
-    cont.add_argument(
-        "--switch",
-        type=int,
-        default=1,
-        help="bifurcation points of the first branch to switch branch at (default 1)",
-    )
+    _factor_range(cont, "load factors the branches stay in")
+    for option, kind, default, text in (
+        ("--step", float, 0.05, "first arclength step"),
+        ("--max-step", float, 1.0, "largest arclength step"),
+        ("--max-points", int, 200, "points per branch at most"),
+        ("--switch", int, 1, "bifurcation points of the first branch to switch branch at"),
+    ):
+        cont.add_argument(option, type=kind, default=default, help=f"{text} (default {default})")
     sweep = sub.add_parser(
         "sweep",
         help="run the members of a sweep file (under mpirun: groups of ranks)",

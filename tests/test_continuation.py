@@ -22,8 +22,8 @@ it is −aP_E exactly, +2.6e-4 at α = 120°).
 ratio of energies, whose error falls as h^(2k) = h^8: measured 5.0e-7 relative (worst over
 the branch, to its last point at α = 132°) on 8 P4 elements, 2.1e-9 on 16 (ratio 240 ≈ 2^8);
 the tests assert 1e-6 and 5e-9. The bifurcation's λ is an eigenvalue's zero, converging alike
-(measured 3e-11 from λ_cr on 8 elements), and located by the engine to 1e-9 in arclength (dλ/ds ≈ 1 on the primary branch):
-2e-9 is asserted.
+(measured 3e-11 from λ_cr on 8 elements), and located by the engine to 1e-9 in arclength
+(dλ/ds ≈ 1 on the primary branch): 2e-9 is asserted.
 """
 
 from __future__ import annotations
@@ -223,25 +223,9 @@ def test_continue_command_serial_and_mpi(tmp_path):
     ends, critical = [], []
     for ranks in (1, 2):
         out = tmp_path / f"r{ranks}"
-        proc = run_command(
-            [
-                "-m",
-                "cosserat_fem.cli",
-                "continue",
-                str(ROLLUP),
-                *COLUMN_OPTIONS,
-                "--range",
-                "0",
-                "1.5",
-                "--step",
-                "0.02",
-                "--max-step",
-                "0.25",
-                "--out",
-                str(out),
-            ],
-            ranks,
-        )
+        options = "--range 0 1.5 --step 0.02 --max-step 0.25 --out".split()
+        command = ["-m", "cosserat_fem.cli", "continue", str(ROLLUP), *COLUMN_OPTIONS]
+        proc = run_command([*command, *options, str(out)], ranks)
         assert proc.returncode == 0, proc.stderr
         rows = read_branches(out / "branches.csv")
         (bif,) = [r for r in rows if r["point"] == "bifurcation" and r["branch"] == "0"]
