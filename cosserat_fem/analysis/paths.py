@@ -19,6 +19,13 @@ zero in a static state), and ⟨a, b⟩ = Σ a_i b_i / N (N the global number of
 arclength weighs the mean square of the state against λ², so a step of Δs moves the state's
 RMS and λ together by about Δs.
 
+**The predictor's refinement** (:meth:`RodPath.refine_prediction`, which the engine calls on
+each predicted state): the angles as predicted, the positions solved for them from the rows of
+the linear momentum balance, which are linear in the positions when the angles are held (the
+section force n = R(ψ) C (R(ψ)ᵀ r' − e3) is linear in r', the loads dead). It removes the
+positions' error that a predictor makes on a path curved in the state space (the roll-up: x
+and z the sine and cosine of the angle), which otherwise bounds the step by Newton's basin.
+
 **Planar scenes only.** A scene solved in the x-z plane has the single angle ψ, which the
 Euler-angle chart (18) lets grow without bound: no chart, and nothing on the path to move.
 In 3D the chart of large rotations (cosserat_fem/rod/charts.py) moves onto the rod when θ
@@ -75,6 +82,8 @@ class RodPath:
         self.ksp.setOperators(solver.A)
         self._x, self._rhs = solver.A.createVecs()
         self._factor_ready = False
+        self._blocks: tuple[np.ndarray, np.ndarray] | None = None
+        self._aij: PETSc.Mat | None = None
         self.probe = PointProbe(model, probe_sigma(scene))
 
     # -- the state -------------------------------------------------------------------------
@@ -130,6 +139,64 @@ class RodPath:
             return 0.0, -math.inf
         return math.copysign(1.0, mantissa), math.log(abs(mantissa)) + exponent * math.log(2.0)
 
+    def _position_blocks(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """(rows, columns), local owned indices: the rows of the linear momentum balance (the
+        entries of the positions' rates, whose test functions weigh n' + f = 0) and the
+        columns of the positions, both without the Dirichlet dofs (a clamp holds p and q
+        alike, so the two are as many); None if they are not (then no refinement)."""
+        layout = self.model.layout
+        bs = layout.size
+        fixed = np.zeros(self.owned, dtype=bool)
+        for bc in self.model.bcs:
+            dofs, ghost_start = bc.dof_indices()
+            fixed[dofs[dofs < self.owned]] = True
+        slots = np.arange(self.owned) % bs
+        components = np.asarray(layout.components)[slots]
+        rows = np.flatnonzero(np.isin(components, (6, 7, 8)) & ~fixed)
+        cols = np.flatnonzero(np.isin(components, (0, 1, 2)) & ~fixed)
+        if self.comm.allreduce(int(rows.size != cols.size), op=MPI.MAX):
+            return None  # a support holds p and q differently: no square block, no refinement
+        return rows, cols
+
+    def refine_prediction(self, u: np.ndarray, p: float) -> np.ndarray:
+        """The predictor's positions solved for its angles: with the angles ψ held, the linear
+        momentum balance is linear in the positions (the section force
+        n = R(ψ) C (R(ψ)ᵀ r' − e3) is linear in r', and the loads are dead), so one solve of
+        its rows for the positions' columns puts them where the predicted angles and strains
+        put them (on the roll-up, x and z are the sine and cosine of the angle: a tangent's
+        error in them limits the step, docs/continuation.md)."""
+        if self._blocks is None:
+            self._blocks = self._position_blocks() or (np.zeros(0, int), np.zeros(1, int))
+        rows, cols = self._blocks
+        if rows.size != cols.size:
+            return u
+        R = self.residual(u, p)
+        self.solver._jacobian()
+        # into a matrix of its own (petsc4py's convert without ``out`` converts in place)
+        A = self.solver.A.convert("aij", self._aij if self._aij is not None else PETSc.Mat())
+        self._aij = A
+        start = A.getOwnershipRange()[0]
+        row_is = PETSc.IS().createGeneral((rows + start).astype(PETSc.IntType), comm=self.comm)
+        col_is = PETSc.IS().createGeneral((cols + start).astype(PETSc.IntType), comm=self.comm)
+        block = A.createSubMatrix(row_is, col_is)
+        ksp = PETSc.KSP().create(self.comm)
+        try:
+            ksp.setType("preonly")
+            ksp.getPC().setType("lu")
+            ksp.getPC().setFactorSolverType("mumps" if self.comm.size > 1 else "petsc")
+            ksp.setOperators(block)
+            x, b = block.createVecs()
+            b.array[:] = R[rows]
+            ksp.solve(b, x)
+            if ksp.getConvergedReason() < 0:
+                raise ZeroDivisionError("the positions' block is singular")
+            refined = u.copy()
+            refined[cols] -= x.array
+            return refined
+        finally:
+            for obj in (ksp, block, row_is, col_is):
+                obj.destroy()
+
     # -- outputs ---------------------------------------------------------------------------
     def tip(self, u: np.ndarray) -> np.ndarray:
         """(x, y, z, θ, ψ, φ) [m, rad] at the probe point (the free end) of the state u."""
@@ -139,6 +206,8 @@ class RodPath:
         return np.asarray(self.comm.bcast(values, root=self.probe.owner))[:6]
 
     def destroy(self) -> None:
+        if self._aij is not None:
+            self._aij.destroy()
         self.ksp.destroy()
         self._x.destroy()
         self._rhs.destroy()
@@ -193,10 +262,13 @@ class PathBranch:
 class PathResult:
     """The branches traced, in order: the primary branch's two directions first, then two for
     each bifurcation switched at; ``corrector_factorisations``: LU factorisations of R_u by
-    the correctors (the engine's ``corrector_solves``)."""
+    the correctors (the engine's ``corrector_solves``), ``jacobian_assemblies`` all of them."""
 
     branches: list[PathBranch] = field(default_factory=list)
     corrector_factorisations: int = 0
+    #: Jacobian assemblies in all (correctors, tangents and determinants, refinements,
+    #: null vectors), each followed by a factorisation.
+    jacobian_assemblies: int = 0
 
     def rows(self) -> list[dict]:
         return [p.as_row(i) for i, b in enumerate(self.branches) for p in [*b.points, *b.special]]
@@ -254,6 +326,7 @@ def continue_path(
                 origin = f"switched at load factor {point.p:.9g}"
                 result.branches.append(_path_branch(problem, branch, origin))
         result.corrector_factorisations = engine.corrector_solves
+        result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
         return result
     finally:
         problem.destroy()

@@ -8,16 +8,20 @@ assembles and factors R_u there (a singular matrix or non-finite values raise an
 ArithmeticError or a RuntimeError, e.g. PETSc's: the step fails), ``solve(rhs)`` = R_u⁻¹ rhs
 with those factors, ``dparameter(u, p)`` = R_p, ``dot(a, b)`` the inner product of two
 u-vectors (MPI-summed: it is the metric of the u-part, scaled as the problem chooses) and
-``determinant()`` = (sign, ln |det R_u|) of the last factors. The metric of a point x = (u, p) is
+``determinant()`` = (sign, ln |det R_u|) of the last factors. Optional:
+``refine_prediction(u, p)``, a problem's own improvement of a predicted u before the corrector
+(the rod's: its positions solved for the predicted angles, cosserat_fem/analysis/paths.py),
+used while ``refine`` is set. The metric of a point x = (u, p) is
 ‖x‖² = dot(u, u) + p², and the arclength s is measured in it.
 
 **A step** from the point x_k with unit tangent t_k and step length Δs: the predictor
 x̂ = x_k + Δs t_k (``predictor = "tangent"``, the default), or (``"quadratic"``, from the
 third point of a branch on) the quadratic through x_{k−2}, x_{k−1}, x_k in the chord abscissa
 (chords measured in the metric) at Δs beyond x_k, whose error is O(Δs³) instead of O(Δs²)
-(Seydel, 4.4). Measured on the rod, the tangent does as well or better: the steps are limited by
-Newton's basin, not by the predictor (docs/continuation.md).
-Then Newton on the bordered system
+(Seydel, 4.4); then the problem's ``refine_prediction``, if any. Measured on the rod, the
+quadratic does no better than the tangent; the refinement (the positions solved for the
+predicted angles) is what lets the steps grow (docs/continuation.md). Then Newton on the
+bordered system
 
     R(u, p) = 0,   ⟨t_k, x − x̂⟩ = 0,
 
@@ -28,13 +32,13 @@ the error left is then of order ‖δx‖², far below it). The tangent at the c
 solves [R_u R_p; t_kᵀ] t = [0; 1] (b again: t_p = 1/(t_k,p − ⟨t_k,u, b⟩), t_u = −b t_p),
 normalised: it keeps the orientation of t_k through a limit point, where t_p changes sign.
 
-**Step length.** A step that converges in at most ``easy_iterations`` grows the next by
-``grow`` (up to ``max_step``); one that fails (no convergence in ``max_iterations``, a
-non-finite residual, or an exception of the problem: :class:`StepFailure`) is retried with
-half the step, down to ``min_step``; below it the branch ends with ``reason`` and keeps every
-point found. A step that takes p out of [``p_min``, ``p_max``] ends the branch with a last
-point at the bound itself (Newton at fixed p from the interpolation of the two points, kind
-"end").
+**Step length.** A step that converges in k ≤ ``easy_iterations`` iterations grows the next
+by max(``grow``, ``easy_iterations``/k), at most ``max_grow`` (and up to ``max_step``); one
+that fails (no convergence in ``max_iterations``, a non-finite residual, or an exception of
+the problem: :class:`StepFailure`) is retried with half the step, down to ``min_step``; below
+it the branch ends with ``reason`` and keeps every point found. A step that takes p out of
+[``p_min``, ``p_max``] ends the branch with a last point at the bound itself (Newton at fixed
+p from the interpolation of the two points, refined, kind "end").
 
 **Special points** between two consecutive points x_k, x_{k+1} of a branch:
 
@@ -96,6 +100,7 @@ class ContinuationSettings:
     min_step: float = 1e-6
     max_step: float = 0.5
     grow: float = 1.5
+    max_grow: float = 4.0
     easy_iterations: int = 6
     max_iterations: int = 12
     tolerance: float = 1e-10
@@ -105,6 +110,7 @@ class ContinuationSettings:
     p_max: float = math.inf
     null_iterations: int = 8
     predictor: str = "tangent"  # or "quadratic"
+    refine: bool = True  # the problem's refine_prediction, if it has one
 
 
 @dataclass
@@ -216,6 +222,7 @@ class Continuation:
             p0 = base.p + s * base.t_p
         else:
             u0, p0 = self._quadratic(history[0], history[1], base, s)
+        u0 = self._refined(u0, p0)
         value = self._dot(base.t_u, base.t_p, u0, p0)
         u, p, its = self.correct(u0, p0, base.t_u, base.t_p, value)
         try:
@@ -223,6 +230,17 @@ class Continuation:
         except (ArithmeticError, RuntimeError) as exc:
             raise StepFailure(f"{type(exc).__name__}: {exc}") from None
         return Point(u, p, t_u, t_p, sign, log_det, its, kind)
+
+    def _refined(self, u: np.ndarray, p: float) -> np.ndarray:
+        """The problem's ``refine_prediction(u, p)`` of a predicted u, if it has one and
+        ``refine`` is set (StepFailure if it fails)."""
+        refine = getattr(self.problem, "refine_prediction", None)
+        if refine is None or not self.settings.refine:
+            return u
+        try:
+            return refine(u, p)
+        except (ArithmeticError, RuntimeError) as exc:
+            raise StepFailure(f"{type(exc).__name__}: {exc}") from None
 
     def _chord(self, a: Point, b: Point) -> float:
         d_u, d_p = b.u - a.u, b.p - a.p
@@ -245,6 +263,7 @@ class Continuation:
         w = (value - prev.p) / (cur.p - prev.p)
         guess = (1.0 - w) * prev.u + w * cur.u
         try:
+            guess = self._refined(guess, value)
             u, p, its = self.correct(guess, value, np.zeros_like(guess), 1.0, value)
             t_u, t_p, sign, log_det = self._tangent_and_det(u, p, cur.t_u, cur.t_p)
         except (StepFailure, ArithmeticError, RuntimeError):
@@ -349,7 +368,8 @@ class Continuation:
                 self._special(branch, prev, cur, step)
             branch.points.append(cur)
             if cur.iterations <= st.easy_iterations:
-                step = min(step * st.grow, st.max_step)
+                factor = max(st.grow, st.easy_iterations / max(cur.iterations, 1))
+                step = min(step * min(factor, st.max_grow), st.max_step)
             if not st.p_min <= cur.p <= st.p_max:
                 bound = st.p_max if cur.p > st.p_max else st.p_min
                 branch.points.append(self._at_parameter(prev, cur, bound))
