@@ -19,8 +19,8 @@ aP = aP_E λ relative, aP_E = 7.14e-4 for this section (measured: −6.7e-4 at t
 it is −aP_E exactly, +2.6e-4 at α = 120°).
 
 **Discretisation.** ψ is approximated by quartic elements; the load at a given tip angle is a
-ratio of energies, whose error falls as h^(2k) = h^8: measured 5.0e-7 relative (worst over
-the branch, to its last point at α = 132°) on 8 P4 elements, 2.1e-9 on 16 (ratio 240 ≈ 2^8);
+ratio of energies, whose error falls as h^(2k) = h^8: measured 4.1e-7 relative (worst over
+the branch, to its last point at α = 128°) on 8 P4 elements, 1.7e-9 on 16 (ratio 240 ≈ 2^8);
 the tests assert 1e-6 and 5e-9. The bifurcation's λ is an eigenvalue's zero, converging alike
 (measured 3e-11 from λ_cr on 8 elements), and located by the engine to 1e-9 in arclength
 (dλ/ds ≈ 1 on the primary branch): 2e-9 is asserted.
@@ -126,7 +126,7 @@ def test_post_buckled_elastica():
 @pytest.mark.long
 def test_post_buckled_elastica_converges():
     """16 P4 elements: the branch's worst error against the rod's exact load falls below 5e-9
-    (h^8 from 8 elements' 5.0e-7: 2.1e-9 measured)."""
+    (h^8 from 8 elements' 4.1e-7: 1.7e-9 measured)."""
     result, *stiffness = buckled(16)
     for branch in result.branches[2:]:
         assert worst_error(branch, *stiffness) < 5e-9
@@ -150,7 +150,7 @@ def test_rollup_two_turns_by_continuation():
     and each step grows by max_grow = 4. From the first step, 0.1 in arclength, to λ = 1,
     about 3.3 of arclength, that is 3-4 steps and the one back to the bound: at most 6 steps
     are asserted, none rejected, and fewer than a fifth of load stepping's Newton iterations
-    (32 steps, 254 iterations) in Jacobian assemblies (measured: 5 steps, 21).
+    (32 steps, 254 iterations) in Jacobian assemblies (measured: 5 steps, 20).
     Without the refinement, Newton's basin in this stiff rod holds about 0.06 of λ per step
     and continuation takes 17 steps (docs/continuation.md)."""
     overrides = {"parameters.turns": 2, "discretisation.elements": 40}
