@@ -170,3 +170,45 @@ def test_both_directions_from_a_start(direction):
     assert len(branch.special) == (1 if direction == 1 else 0)
     ways = engine.both_ways(start)
     assert [len(w.special) for w in ways] == ([1, 0] if direction == 1 else [0, 1])
+
+
+class Projected(Dense):
+    """u0 = p, u1 = sin(u0) (R = [u0 − p, u1 − sin u0]); refine_prediction sets u1 = sin(u0),
+    the problem's own exact refinement, as the rod's positions for its angles."""
+
+    def __init__(self):
+        super().__init__(
+            lambda u, p: [u[0] - p, u[1] - math.sin(u[0])],
+            lambda u, p: [[1.0, 0.0], [-math.cos(u[0]), 1.0]],
+            lambda u, p: [-1.0, 0.0],
+        )
+        self.refined = 0
+
+    def refine_prediction(self, u, p):
+        self.refined += 1
+        return np.array([u[0], math.sin(u[0])])
+
+
+@pytest.mark.parametrize("refine", [True, False])
+def test_refined_prediction_lets_the_steps_grow(refine):
+    """u0 is linear in p, so the tangent predicts it exactly, and the refinement gives u1
+    exactly: every corrector converges at its first iteration (an update of 0 in exact
+    arithmetic, round-off below the 1e-10 tolerance) and each step grows by max_grow = 4.
+    The arclength to p = 20 is ∫ √(2 + cos²p) dp ≈ 20 · 1.58 = 31.7; steps 0.01 · 4^k sum past
+    it after 7 (0.01 (4^7 − 1)/3 = 54.6 > 31.7 > 13.6), and the last, past p = 20, is followed by
+    the point at the bound: at most 8 points after the start. Without the refinement the
+    corrector needs 2 or more iterations on the curved u1, the steps grow slower: more."""
+    problem = Projected()
+    settings = ContinuationSettings(
+        step=0.01, max_step=100.0, p_min=-1.0, p_max=20.0, refine=refine
+    )
+    engine = Continuation(problem, settings)
+    branch = engine.trace(engine.start_point(np.zeros(2), 0.0), 1)
+    assert branch.points[-1].p == 20.0
+    for q in branch.points:
+        assert abs(q.u[1] - math.sin(q.p)) < 1e-9
+    if refine:
+        assert len(branch.points) - 1 <= 8 and problem.refined >= len(branch.points) - 2
+        assert all(q.iterations == 1 for q in branch.points[1:])
+    else:
+        assert len(branch.points) - 1 > 8 and problem.refined == 0
