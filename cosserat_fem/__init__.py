@@ -6,9 +6,8 @@ agreement, safe files, JIT), ``io`` (file formats), ``scene``, ``rod`` (the disc
 ``reference`` (closed forms), ``nls`` (Newton, SNES), ``timestepping``, ``output``,
 ``analysis`` (run, static, modes, stability), ``studies`` (sweeps, responses, POD);
 docs/developers.md maps them. The Python API, ``cosserat_fem.load``, ``run``, ``resume``,
-``static``, ``modes``, ``stability``, ``stability_at``, ``load_sweep``, ``sweep``, ``pod`` and
-``periodic_orbit``, is
-:mod:`cosserat_fem.api`.
+``static``, ``modes``, ``stability``, ``stability_at``, ``continuation``, ``periodic_orbit``,
+``load_sweep``, ``sweep`` and ``pod``, is :mod:`cosserat_fem.api`.
 """
 
 from cosserat_fem.common import pkg_resources_shim
@@ -30,10 +29,13 @@ _API = (
     "resume",
     "static",
     "modes",
+    "stability",
+    "stability_at",
+    "continuation",
+    "periodic_orbit",
     "load_sweep",
     "sweep",
     "pod",
-    "periodic_orbit",
     "UNSET",
 )
 

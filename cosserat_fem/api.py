@@ -302,3 +302,77 @@ def pod(
         agree(comm, problem)
         result.files = comm.bcast(result.files, root=0)
     return result
+
+
+def continuation(
+    scene: Scene,
+    low: float = 0.0,
+    high: float = 1.0,
+    *,
+    step: float = 0.05,
+    max_step: float = 1.0,
+    min_step: float = 1e-6,
+    max_points: int = 200,
+    switch: int = 1,
+    directions: Sequence[int] = (1, -1),
+    stop: Callable | None = None,
+    out: str | Path | None = None,
+):
+    """The static equilibrium path in the load factor λ (every load × λ) by pseudo-arclength
+    continuation from the unloaded rod (cosserat_fem/analysis/paths.py,
+    cosserat_fem/nls/arclength.py): around limit points (located), with the bifurcation
+    points located by the sign of det R_u and the first ``switch`` of them switched onto,
+    each branch traced both ways (``directions``: +1 with λ growing first) until λ leaves
+    [low, high] (the last point at the bound), ``max_points``, ``stop(point)`` (a reason,
+    or None to go on) or a step collapse below ``min_step`` (the reason kept). Steps are
+    arclength in the metric √(RMS(ΔU)² + Δλ²) (U dimensionless: x/ℓ and rad). A planar
+    scene (the x-z plane) only. Returns a
+    :class:`~cosserat_fem.analysis.paths.PathResult`: ``branches``, each with ``points``
+    (``factor`` λ, ``tip`` (x, y, z, θ, ψ, φ) of the free end [m, rad], ``norm``,
+    ``dfactor`` dλ/ds, ``det_sign``, ``kind``), ``special`` points, ``origin`` and
+    ``reason``. With ``out``: branches.csv there."""
+    import math
+
+    from mpi4py import MPI
+
+    from cosserat_fem.analysis.paths import continue_path, write_branches
+    from cosserat_fem.io.run_folder import prepare_output_dir
+    from cosserat_fem.nls.arclength import ContinuationSettings
+
+    def number(name: str, value, positive: bool = True) -> float:
+        if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
+            raise SceneError(f"{name}: must be a number, got {value!r}")
+        if not math.isfinite(value) or (positive and value <= 0.0):
+            sign = " positive" if positive else ""
+            raise SceneError(f"{name}: must be a finite{sign} number, got {value!r}")
+        return float(value)
+
+    low, high = number("low (--range)", low, False), number("high (--range)", high, False)
+    if high <= low:
+        raise SceneError(f"high (--range): must exceed low, got {low!r} {high!r}")
+    step, max_step = number("step (--step)", step), number("max_step (--max-step)", max_step)
+    min_step = number("min_step", min_step)
+    if not min_step <= step <= max_step:
+        raise SceneError(f"step (--step): must lie in [min_step, max_step], got {step!r}")
+    for name, value in (("max_points (--max-points)", max_points), ("switch (--switch)", switch)):
+        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+            raise SceneError(f"{name}: must be a whole number >= 0, got {value!r}")
+    if max_points < 2 or max_points > 100_000:
+        raise SceneError(f"max_points (--max-points): must lie in [2, 100000], got {max_points}")
+    if not directions or any(d not in (1, -1) for d in directions):
+        raise SceneError(f"directions: +1 and/or -1, got {directions!r}")
+    settings = ContinuationSettings(
+        step=step,
+        min_step=min_step,
+        max_step=max_step,
+        max_points=max_points,
+        max_iterations=scene.solver.max_iterations,
+        p_min=low,
+        p_max=high,
+    )
+    out = out_folder(out)
+    folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD)
+    result = continue_path(scene, settings, switch, stop, tuple(directions))
+    if folder is not None:
+        write_branches(Path(folder) / "branches.csv", result)
+    return result

@@ -1,5 +1,5 @@
-"""Command line: ``cosserat-fem run|static|modes|stability SCENE [--out DIR] [--set KEY=VALUE
-...]``,
+"""Command line: ``cosserat-fem run|static|modes|stability|continue SCENE [--out DIR]
+[--set KEY=VALUE ...]``,
 ``cosserat-fem sweep SWEEP [--out DIR]`` for the members of a sweep file
 (cosserat_fem/studies/sweep_run.py), and ``cosserat-fem run --restart DIR [--set time.end=...]`` to
 continue a stopped run;
@@ -32,6 +32,18 @@ from pathlib import Path
 from cosserat_fem import __version__
 from cosserat_fem.common.errors import CosseratError, SceneError, SolverError, StopError, out_folder
 from cosserat_fem.scene.schema import Removal
+
+
+def _factor_range(sub: argparse.ArgumentParser, what: str) -> None:
+    """--range LOW HIGH: load factors (every load of the scene × f), default 0 1."""
+    sub.add_argument(
+        "--range",
+        nargs=2,
+        type=float,
+        default=(0.0, 1.0),
+        metavar=("LOW", "HIGH"),
+        help=f"{what} (every load of the scene × f; default 0 1)",
+    )
 
 
 def _common(
@@ -154,14 +166,7 @@ def _parser() -> argparse.ArgumentParser:
         "factor, and the critical factor (buckling or flutter)",
     )
     _common(stab)
-    stab.add_argument(
-        "--range",
-        nargs=2,
-        type=float,
-        default=(0.0, 1.0),
-        metavar=("LOW", "HIGH"),
-        help="load factors f to search (every load of the scene × f; default 0 1)",
-    )
+    _factor_range(stab, "load factors f to search")
     stab.add_argument(
         "--samples", type=int, default=5, help="equally spaced factors visited first (default 5)"
     )
@@ -174,6 +179,20 @@ def _parser() -> argparse.ArgumentParser:
     stab.add_argument(
         "--count", type=int, default=6, help="eigenvalues nearest 0 at each state (default 6)"
     )
+    cont = sub.add_parser(
+        "continue",
+        help="the static equilibrium path in the load factor by pseudo-arclength "
+        "continuation: around folds, bifurcations located and switched onto (branches.csv)",
+    )
+    _common(cont)
+    _factor_range(cont, "load factors the branches stay in")
+    for option, kind, default, text in (
+        ("--step", float, 0.05, "first arclength step"),
+        ("--max-step", float, 1.0, "largest arclength step"),
+        ("--max-points", int, 200, "points per branch at most"),
+        ("--switch", int, 1, "bifurcation points of the first branch to switch branch at"),
+    ):
+        cont.add_argument(option, type=kind, default=default, help=f"{text} (default {default})")
     sweep = sub.add_parser(
         "sweep",
         help="run the members of a sweep file (under mpirun: groups of ranks)",
@@ -347,7 +366,12 @@ def _pod(args) -> int:
 #: Where a command writes without --out: ``run`` into the scene's output.directory, ``static``
 #: and ``modes`` into folders of their own beneath it (a static solve would replace a run's
 #: probes.csv, summary.json and checkpoint; modes would mix its files into the run's folder).
-OWN_FOLDER = {"static": "static", "modes": "modes", "stability": "stability"}
+OWN_FOLDER = {
+    "static": "static",
+    "modes": "modes",
+    "stability": "stability",
+    "continue": "continuation",
+}
 
 
 def _out(args, scene=None, command: str | None = None) -> str:
@@ -466,6 +490,40 @@ def _stability(args) -> int:
                 f"{result.tolerance:g})"
             )
         _say(f"-> {Path(out) / 'stability.json'}")
+    return 0
+
+
+def _continue(args) -> int:
+    """``continue``: the branches through the Python API; a line per branch (its origin,
+    points, λ and the free end's angle ψ at its end, why it ended), one per special point,
+    then branches.csv's path."""
+    from mpi4py import MPI
+
+    from cosserat_fem import api
+
+    scene = api.load(args.scene, args.overrides)
+    out = _out(args, scene)
+    low, high = args.range
+    result = api.continuation(
+        scene,
+        low,
+        high,
+        step=args.step,
+        max_step=args.max_step,
+        max_points=args.max_points,
+        switch=args.switch,
+        out=out,
+    )
+    if MPI.COMM_WORLD.rank == 0 and not args.quiet:
+        for i, branch in enumerate(result.branches):
+            end = branch.points[-1]
+            _say(
+                f"branch {i} ({branch.origin}): {branch.steps} steps, to load factor "
+                f"{end.factor:.10g}, psi = {end.tip[4]:.10g} rad: {branch.reason}"
+            )
+            for point in branch.special:
+                _say(f"  {point.kind} point at load factor {point.factor:.10g}")
+        _say(f"-> {Path(out) / 'branches.csv'}")
     return 0
 
 
@@ -596,6 +654,8 @@ def _main(args) -> int:
             return _static(args)
         if args.command == "stability":
             return _stability(args)
+        if args.command == "continue":
+            return _continue(args)
         if args.command == "sweep":
             return _sweep(args)
         if args.command == "pod":

@@ -1,0 +1,415 @@
+"""Pseudo-arclength continuation of the solutions of R(u, p) = 0, with limit and bifurcation
+points located and branches switched (Keller 1977; Seydel, "Practical Bifurcation and
+Stability Analysis", 3rd ed., ch. 4-5). It knows nothing of rods: u is a numpy array of the
+owned entries of a distributed vector, p a float, and everything else comes from the problem.
+
+**The problem** (:class:`ContinuationProblem`): ``residual(u, p)`` = R, ``linearise(u, p)``
+assembles and factors R_u there (a singular matrix or non-finite values raise an
+ArithmeticError or a RuntimeError, e.g. PETSc's: the step fails), ``solve(rhs)`` = R_u⁻¹ rhs
+with those factors, ``dparameter(u, p)`` = R_p, ``dot(a, b)`` the inner product of two
+u-vectors (MPI-summed: it is the metric of the u-part, scaled as the problem chooses) and
+``determinant()`` = (sign, ln |det R_u|) of the last factors. Optional:
+``refine_prediction(u, p)``, a problem's own improvement of a predicted u before the corrector
+(the rod's: its positions solved for the predicted angles, cosserat_fem/analysis/paths.py),
+used while ``refine`` is set. The metric of a point x = (u, p) is
+‖x‖² = dot(u, u) + p², and the arclength s is measured in it.
+
+**A step** from the point x_k with unit tangent t_k and step length Δs: the predictor
+x̂ = x_k + Δs t_k (``predictor = "tangent"``, the default), or (``"quadratic"``, from the
+third point of a branch on) the quadratic through x_{k−2}, x_{k−1}, x_k in the chord abscissa
+(chords measured in the metric) at Δs beyond x_k, whose error is O(Δs³) instead of O(Δs²)
+(Seydel, 4.4); then the problem's ``refine_prediction``, if any. Measured on the rod, the
+quadratic does no better than the tangent; the refinement (the positions solved for the
+predicted angles) is what lets the steps grow (docs/continuation.md). Then Newton on the
+bordered system
+
+    R(u, p) = 0,   ⟨t_k, x − x̂⟩ = 0,
+
+each iteration by Keller's bordering: with R_u factored once, a = R_u⁻¹ R and b = R_u⁻¹ R_p
+(two solves), δp = (⟨c_u, a⟩ − g)/(c_p − ⟨c_u, b⟩) (g the constraint's value, c its normal),
+δu = −a − b δp; x ← x + δx. The corrector converges when ‖δx‖ ≤ ``tolerance`` (full Newton:
+the error left is then of order ‖δx‖², far below it). The tangent at the converged point x
+solves [R_u R_p; t_kᵀ] t = [0; 1] (b again: t_p = 1/(t_k,p − ⟨t_k,u, b⟩), t_u = −b t_p),
+normalised: it keeps the orientation of t_k through a limit point, where t_p changes sign.
+
+**Step length.** A step that converges in k ≤ ``easy_iterations`` iterations grows the next
+by max(``grow``, ``easy_iterations``/k), at most ``max_grow`` (and up to ``max_step``); one
+that fails (no convergence in ``max_iterations``, a non-finite residual, or an exception of
+the problem: :class:`StepFailure`) is retried with half the step, down to ``min_step``; below
+it the branch ends with ``reason`` and keeps every point found. A step that takes p out of
+[``p_min``, ``p_max``] ends the branch with a last point at the bound itself (Newton at fixed
+p from the interpolation of the two points, refined, kind "end").
+
+**Special points** between two consecutive points x_k, x_{k+1} of a branch:
+
+* a **limit point** (fold) where t_p changes sign: located as the root of t_p(s) over the
+  arclength s ∈ (0, Δs) measured from x_k along t_k (each evaluation a corrected point), by
+  the Illinois variant of regula falsi;
+* a **bifurcation point** where the sign of det R_u changes while t_p does not (a simple
+  eigenvalue of R_u crosses 0 and the parameter keeps its direction): located as the root of
+  det R_u(s)/|det R_u(x_k)| (continuous, computed from the logarithms), the same way.
+
+Both are located to |s − s*| ≤ ``locate_tolerance`` (Illinois' bracket), so p* to
+|dp/ds| ``locate_tolerance`` ≤ ``locate_tolerance``. The branch continues from x_{k+1}.
+
+**Branch switching** at a bifurcation point x*: the null vector φ of R_u(x*) by inverse
+iteration with its factors (``null_iterations`` solves from a fixed pseudo-random start), the
+direction d = (φ, 0) − ⟨(φ, 0), t*⟩ t* orthogonal to the old branch's tangent t* (exact for a
+symmetric pitchfork, where the new branch's tangent is (φ, 0); for a transcritical point the
+hyperplane ⟨d, x − x*⟩ = ±Δs still cuts the new branch at a distance O(Δs)), and the new
+branch traced from x* in both directions ±d. The first segment of a branch that starts at a
+special point is not searched for special points (its start is one).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+
+class ContinuationProblem(Protocol):
+    """R(u, p) = 0 for the engine (module docstring). u: the owned entries (numpy)."""
+
+    def residual(self, u: np.ndarray, p: float) -> np.ndarray: ...
+
+    def linearise(self, u: np.ndarray, p: float) -> None: ...
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray: ...
+
+    def dparameter(self, u: np.ndarray, p: float) -> np.ndarray: ...
+
+    def dot(self, a: np.ndarray, b: np.ndarray) -> float: ...
+
+    def determinant(self) -> tuple[float, float]: ...
+
+
+class StepFailure(RuntimeError):
+    """A corrector that did not converge (the step is halved)."""
+
+
+@dataclass(frozen=True)
+class ContinuationSettings:
+    """Step lengths (arclength in the problem's metric), the corrector's stop rule, the
+    locating tolerance and the ends of a branch (module docstring)."""
+
+    step: float = 0.05
+    min_step: float = 1e-6
+    max_step: float = 0.5
+    grow: float = 1.5
+    max_grow: float = 4.0
+    easy_iterations: int = 6
+    max_iterations: int = 12
+    tolerance: float = 1e-10
+    locate_tolerance: float = 1e-9
+    max_points: int = 200
+    p_min: float = -math.inf
+    p_max: float = math.inf
+    null_iterations: int = 8
+    predictor: str = "tangent"  # or "quadratic"
+    refine: bool = True  # the problem's refine_prediction, if it has one
+
+
+@dataclass
+class Point:
+    """A solution x = (u, p) on a branch, its unit tangent (t_u, t_p), the sign and ln of
+    |det R_u| there, the corrector's iterations, and ``kind``: "regular", "start", "end" (at
+    a bound of p), "limit" or "bifurcation" (a located special point)."""
+
+    u: np.ndarray
+    p: float
+    t_u: np.ndarray
+    t_p: float
+    det_sign: float
+    log_det: float
+    iterations: int = 0
+    kind: str = "regular"
+
+
+@dataclass
+class Branch:
+    """The points of one branch in the order traced, the special points located on it (not
+    among ``points``), the direction it was traced in (+1/−1 of its first tangent), and why
+    it ended."""
+
+    points: list[Point] = field(default_factory=list)
+    special: list[Point] = field(default_factory=list)
+    direction: int = 1
+    reason: str = ""
+    steps_rejected: int = 0
+
+
+class Continuation:
+    """The engine on one problem (module docstring)."""
+
+    def __init__(
+        self,
+        problem: ContinuationProblem,
+        settings: ContinuationSettings | None = None,
+        stop: Callable[[Point], str | None] | None = None,
+    ):
+        """``stop(point)``: a reason to end the branch at ``point`` (kept), or None."""
+        self.problem = problem
+        self.settings = settings or ContinuationSettings()
+        self.stop = stop
+        self.corrector_solves = 0  # factorisations of R_u by the correctors
+
+    # -- the metric ------------------------------------------------------------------------
+    def _dot(self, a_u: np.ndarray, a_p: float, b_u: np.ndarray, b_p: float) -> float:
+        return self.problem.dot(a_u, b_u) + a_p * b_p
+
+    # -- one corrected point -------------------------------------------------------------
+    def _tangent_and_det(self, u: np.ndarray, p: float, t_u: np.ndarray, t_p: float):
+        """(t_u, t_p, sign, ln|det|) at (u, p) with R_u factored there; the tangent oriented
+        along (t_u, t_p) (module docstring)."""
+        pb = self.problem
+        pb.linearise(u, p)
+        sign, log_det = pb.determinant()
+        b = pb.solve(pb.dparameter(u, p))
+        n_p = 1.0 / (t_p - pb.dot(t_u, b))
+        n_u = -b * n_p
+        norm = math.sqrt(self._dot(n_u, n_p, n_u, n_p))
+        return n_u / norm, n_p / norm, sign, log_det
+
+    def correct(
+        self,
+        u: np.ndarray,
+        p: float,
+        c_u: np.ndarray,
+        c_p: float,
+        value: float,
+    ) -> tuple[np.ndarray, float, int]:
+        """Newton on R = 0, ⟨c_u, u⟩ + c_p p = ``value`` from the guess (u, p), by Keller's
+        bordering; (u, p, iterations), or StepFailure."""
+        pb, st = self.problem, self.settings
+        u = u.copy()
+        for it in range(1, st.max_iterations + 1):
+            try:
+                R = pb.residual(u, p)
+                g = pb.dot(c_u, u) + c_p * p - value
+                pb.linearise(u, p)
+                self.corrector_solves += 1
+                a = pb.solve(R)
+                b = pb.solve(pb.dparameter(u, p))
+            except (ArithmeticError, RuntimeError) as exc:
+                raise StepFailure(f"{type(exc).__name__}: {exc}") from None
+            d_p = (pb.dot(c_u, a) - g) / (c_p - pb.dot(c_u, b))
+            d_u = -a - b * d_p
+            u = u + d_u
+            p = p + d_p
+            size = math.sqrt(self._dot(d_u, d_p, d_u, d_p))
+            if not math.isfinite(size):
+                raise StepFailure("the corrector's update is not finite")
+            if size <= st.tolerance:
+                return u, p, it
+        raise StepFailure(f"the corrector did not converge in {st.max_iterations} iterations")
+
+    def _point_at(
+        self,
+        base: Point,
+        s: float,
+        kind: str = "regular",
+        history: tuple[Point, Point] | None = None,
+    ) -> Point:
+        """The corrected point at arclength ``s`` from ``base`` along its tangent; with
+        ``history`` (the two points before ``base``) the predictor is the quadratic through
+        the three (module docstring)."""
+        if history is None:
+            u0 = base.u + s * base.t_u
+            p0 = base.p + s * base.t_p
+        else:
+            u0, p0 = self._quadratic(history[0], history[1], base, s)
+        u0 = self._refined(u0, p0)
+        value = self._dot(base.t_u, base.t_p, u0, p0)
+        u, p, its = self.correct(u0, p0, base.t_u, base.t_p, value)
+        try:
+            t_u, t_p, sign, log_det = self._tangent_and_det(u, p, base.t_u, base.t_p)
+        except (ArithmeticError, RuntimeError) as exc:
+            raise StepFailure(f"{type(exc).__name__}: {exc}") from None
+        return Point(u, p, t_u, t_p, sign, log_det, its, kind)
+
+    def _refined(self, u: np.ndarray, p: float) -> np.ndarray:
+        """The problem's ``refine_prediction(u, p)`` of a predicted u, if it has one and
+        ``refine`` is set (StepFailure if it fails)."""
+        refine = getattr(self.problem, "refine_prediction", None)
+        if refine is None or not self.settings.refine:
+            return u
+        try:
+            return refine(u, p)
+        except (ArithmeticError, RuntimeError) as exc:
+            raise StepFailure(f"{type(exc).__name__}: {exc}") from None
+
+    def _chord(self, a: Point, b: Point) -> float:
+        d_u, d_p = b.u - a.u, b.p - a.p
+        return math.sqrt(self._dot(d_u, d_p, d_u, d_p))
+
+    def _quadratic(self, x0: Point, x1: Point, x2: Point, s: float) -> tuple[np.ndarray, float]:
+        """The quadratic through x0, x1, x2 at chord abscissae −h1−h2, −h2, 0 (h the chords
+        in the metric), evaluated at s: Lagrange's weights."""
+        h2 = self._chord(x1, x2)
+        h1 = self._chord(x0, x1)
+        a0, a1, a2 = -h1 - h2, -h2, 0.0
+        w0 = (s - a1) * (s - a2) / ((a0 - a1) * (a0 - a2))
+        w1 = (s - a0) * (s - a2) / ((a1 - a0) * (a1 - a2))
+        w2 = (s - a0) * (s - a1) / ((a2 - a0) * (a2 - a1))
+        return w0 * x0.u + w1 * x1.u + w2 * x2.u, w0 * x0.p + w1 * x1.p + w2 * x2.p
+
+    def _at_parameter(self, prev: Point, cur: Point, value: float) -> Point:
+        """The point at p = ``value`` (between prev.p and cur.p), Newton at fixed p from the
+        linear interpolation of the two; ``cur`` itself if that fails."""
+        w = (value - prev.p) / (cur.p - prev.p)
+        guess = (1.0 - w) * prev.u + w * cur.u
+        try:
+            guess = self._refined(guess, value)
+            u, p, its = self.correct(guess, value, np.zeros_like(guess), 1.0, value)
+            t_u, t_p, sign, log_det = self._tangent_and_det(u, p, cur.t_u, cur.t_p)
+        except (StepFailure, ArithmeticError, RuntimeError):
+            return cur
+        return Point(u, p, t_u, t_p, sign, log_det, its, "end")
+
+    def start_point(self, u: np.ndarray, p: float, direction: int = 1) -> Point:
+        """The solution near (u, p) at fixed p (Newton with the constraint p = p), its
+        tangent oriented so that p grows along it for ``direction`` = +1."""
+        zero = np.zeros_like(u)
+        u, p, its = self.correct(u, p, zero, 1.0, p)
+        t_u, t_p, sign, log_det = self._tangent_and_det(u, p, zero, float(direction))
+        return Point(u, p, t_u, t_p, sign, log_det, its, "start")
+
+    # -- locating ------------------------------------------------------------------------
+    def _locate(self, base: Point, step: float, f0: float, f1: float, function, kind: str):
+        """The point at the root of ``function(point)`` for s in (0, step) from ``base``
+        (f(0) = f0, f(step) = f1 of opposite signs), Illinois' regula falsi."""
+        st = self.settings
+        a, b, fa, fb = 0.0, step, f0, f1
+        side = 0
+        best = None
+        for _ in range(200):
+            s = (a * fb - b * fa) / (fb - fa)
+            if not (a < s < b):
+                s = 0.5 * (a + b)
+            try:
+                point = self._point_at(base, s, kind)
+            except StepFailure:  # R_u exactly singular at s: the root, within the tolerance
+                s = min(s + 0.25 * st.locate_tolerance, 0.5 * (s + b))
+                point = self._point_at(base, s, kind)
+            fs = function(point)
+            best = point
+            if fs == 0.0:
+                break
+            if (fs > 0) == (fb > 0):
+                b, fb = s, fs
+                if side == -1:
+                    fa *= 0.5
+                side = -1
+            else:
+                a, fa = s, fs
+                if side == 1:
+                    fb *= 0.5
+                side = 1
+            if b - a <= st.locate_tolerance:
+                break
+        assert best is not None
+        return best
+
+    def _special(self, branch: Branch, prev: Point, cur: Point, step: float) -> None:
+        """Locate a limit or a bifurcation point between prev and cur (module docstring)."""
+        if (prev.t_p > 0) != (cur.t_p > 0):
+            point = self._locate(prev, step, prev.t_p, cur.t_p, lambda q: q.t_p, "limit")
+            branch.special.append(point)
+        elif prev.det_sign != cur.det_sign:
+            ref = prev.log_det
+
+            def det(q: Point) -> float:
+                return q.det_sign * math.exp(min(q.log_det - ref, 700.0))
+
+            point = self._locate(prev, step, det(prev), det(cur), det, "bifurcation")
+            branch.special.append(point)
+
+    # -- a branch ------------------------------------------------------------------------
+    def trace(self, start: Point, direction: int = 1, search_first: bool = True) -> Branch:
+        """The branch from ``start`` along ``direction`` × its tangent, until p leaves
+        [p_min, p_max], ``max_points``, ``stop`` or a step collapse (module docstring)."""
+        st = self.settings
+        first = Point(
+            start.u,
+            start.p,
+            direction * start.t_u,
+            direction * start.t_p,
+            start.det_sign,
+            start.log_det,
+            start.iterations,
+            start.kind,
+        )
+        branch = Branch(points=[first], direction=direction)
+        step = st.step
+        while True:
+            prev = branch.points[-1]
+            if len(branch.points) >= st.max_points:
+                branch.reason = f"{st.max_points} points (max_points)"
+                return branch
+            try:
+                history = None
+                if st.predictor == "quadratic" and len(branch.points) >= 3:
+                    history = (branch.points[-3], branch.points[-2])
+                cur = self._point_at(prev, step, history=history)
+            except StepFailure as exc:
+                branch.steps_rejected += 1
+                step *= 0.5
+                if step < st.min_step:
+                    branch.reason = (
+                        f"step below min_step {st.min_step:g} at p = {prev.p:.9g}: {exc}"
+                    )
+                    return branch
+                continue
+            if len(branch.points) > 1 or search_first:
+                self._special(branch, prev, cur, step)
+            branch.points.append(cur)
+            if cur.iterations <= st.easy_iterations:
+                factor = max(st.grow, st.easy_iterations / max(cur.iterations, 1))
+                step = min(step * min(factor, st.max_grow), st.max_step)
+            if not st.p_min <= cur.p <= st.p_max:
+                bound = st.p_max if cur.p > st.p_max else st.p_min
+                branch.points.append(self._at_parameter(prev, cur, bound))
+                branch.reason = f"p reached {bound:g}"
+                return branch
+            reason = self.stop(cur) if self.stop is not None else None
+            if reason:
+                branch.reason = reason
+                return branch
+
+    def both_ways(self, start: Point, search_first: bool = True) -> list[Branch]:
+        """The branch through ``start`` traced along its tangent and against it."""
+        return [self.trace(start, d, search_first) for d in (1, -1)]
+
+    # -- branch switching ----------------------------------------------------------------
+    def null_vector(self, point: Point) -> np.ndarray:
+        """φ, ⟨φ, φ⟩ = 1: inverse iteration with the factors of R_u at ``point``."""
+        pb = self.problem
+        pb.linearise(point.u, point.p)
+        v = np.random.default_rng(12345).standard_normal(point.u.shape)
+        for _ in range(self.settings.null_iterations):
+            v = pb.solve(v)
+            v = v / math.sqrt(pb.dot(v, v))
+        return v
+
+    def switch(self, point: Point) -> list[Branch]:
+        """The other branch through the bifurcation point ``point``, both ways (module
+        docstring)."""
+        phi = self.null_vector(point)
+        along = self._dot(phi, 0.0, point.t_u, point.t_p)
+        d_u, d_p = phi - along * point.t_u, -along * point.t_p
+        norm = math.sqrt(self._dot(d_u, d_p, d_u, d_p))
+        start = Point(
+            point.u,
+            point.p,
+            d_u / norm,
+            d_p / norm,
+            point.det_sign,
+            point.log_det,
+            0,
+            "bifurcation",
+        )
+        return self.both_ways(start, search_first=False)

@@ -1,0 +1,269 @@
+"""Continuation of the rod's equilibria (cosserat_fem/analysis/paths.py on the engine of
+cosserat_fem/nls/arclength.py): the post-buckled elastica and the roll-up.
+
+**The post-buckled column.** scenes/rollup.toml without its moment, under the dead axial end
+load −P_E e3, P_E = π² EI/(4ℓ²) (clamped-free), so λ = P/P_E. The straight rod solves the
+static equations at every λ (the primary branch: axial shortening only); its R_u loses
+definiteness where the first buckling mode appears, at P (1 + aP) = P_E, a = 1/κGA − 1/EA
+(tests/test_stability.py derives it): λ_cr = (√(1 + 4aP_E) − 1)/(2aP_E) = 0.999287356.
+There det R_u changes sign while λ keeps growing along the branch: a (pitchfork) bifurcation.
+On the buckled branch the free end turns by α = ψ(ℓ) and
+
+    EI ψ'' + P sin ψ (1 + aP cos ψ) = 0,   ψ(0) = 0, ψ'(ℓ) = 0
+
+(cosserat_fem/reference/elastica.py, buckled_column_load, which solves it by quadrature to
+1e-14): the rod's exact load at each α. The elastica's closed form P/P_E = (2K(k)/π)²,
+k = sin(α/2), is its a = 0 limit. Between the two: the term aP cos ψ changes the effective
+load by a relative amount between −aP and aP (cos ψ ∈ [−1, 1]), so the two differ by at most
+aP = aP_E λ relative, aP_E = 7.14e-4 for this section (measured: −6.7e-4 at the onset, where
+it is −aP_E exactly, +2.6e-4 at α = 120°).
+
+**Discretisation.** ψ is approximated by quartic elements; the load at a given tip angle is a
+ratio of energies, whose error falls as h^(2k) = h^8: measured 4.1e-7 relative (worst over
+the branch, to its last point at α = 128°) on 8 P4 elements, 1.7e-9 on 16 (ratio 240 ≈ 2^8);
+the tests assert 1e-6 and 5e-9. The bifurcation's λ is an eigenvalue's zero, converging alike
+(measured 3e-11 from λ_cr on 8 elements), and located by the engine to 1e-9 in arclength
+(dλ/ds ≈ 1 on the primary branch): 2e-9 is asserted.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from conftest import ROOT, run_command
+from scipy.special import ellipk
+
+import cosserat_fem as cf
+from cosserat_fem.analysis.statics import static_path
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.output.fields import PointProbe
+from cosserat_fem.reference.elastica import buckled_column_load
+
+ROLLUP = ROOT / "scenes" / "rollup.toml"
+
+
+def column(elements: int):
+    """(scene, EI, EA, κGA, ℓ, P_E) of the clamped-free column under −P_E e3."""
+    scene0 = cf.load(ROLLUP, {"loads.end": cf.UNSET})
+    rod = scene0.rod_constants()
+    section = rod.section
+    EI, L = rod.young_modulus * section.c22, rod.length
+    EA = rod.young_modulus * section.area
+    kGA = section.shear_coefficient * rod.shear_modulus * section.area
+    P_E = math.pi**2 * EI / (4 * L**2)
+    overrides = {
+        "loads.end": cf.UNSET,
+        "loads.end.force": [0, 0, -P_E],
+        "discretisation.elements": elements,
+        "discretisation.degree": 4,
+    }
+    return cf.load(ROLLUP, overrides), EI, EA, kGA, L, P_E
+
+
+def buckled(elements: int):
+    scene, EI, EA, kGA, L, P_E = column(elements)
+    result = cf.continuation(
+        scene,
+        -0.5,
+        2.5,
+        step=0.02,
+        max_step=0.25,
+        stop=lambda q: "turned" if abs(q.tip[4]) > math.radians(125) else None,
+    )
+    return result, EI, EA, kGA, L, P_E
+
+
+def worst_error(branch, EI, EA, kGA, L, P_E) -> float:
+    """The largest |λ/λ_rod(α) − 1| over the branch's points beyond the bifurcation."""
+    return max(
+        abs(q.factor * P_E / buckled_column_load(q.tip[4], L, EI, EA, kGA) - 1)
+        for q in branch.points[1:]
+    )
+
+
+def test_reference_is_the_elastica_without_extension():
+    """buckled_column_load with EA = κGA = ∞ is the closed form (2K(k)/π)² P_E to 1e-13
+    (Gauss–Legendre on an analytic integrand, Brent to 1e-15), and with a > 0 its α → 0
+    limit is P(1 + aP) = P_E."""
+    for alpha in (0.3, 1.5, 2.1, 2.6):
+        k = math.sin(alpha / 2)
+        closed = (2 * ellipk(k * k) / math.pi) ** 2 * math.pi**2 / 4
+        assert buckled_column_load(alpha, 1.0, 1.0) == pytest.approx(closed, rel=1e-13)
+    P = buckled_column_load(1e-7, 1.0, 1.0, EA=50.0, GAk=20.0)
+    a = 1 / 20.0 - 1 / 50.0
+    assert P * (1 + a * P) == pytest.approx(math.pi**2 / 4, rel=1e-12)
+
+
+def test_post_buckled_elastica():
+    """8 P4 elements (module docstring): the primary branch has one bifurcation, at λ_cr to
+    2e-9, and no fold; the switched branch, traced both ways, turns the end to α > 120° and
+    α < −120°, mirror images (the same λ at ±α to 1e-9: the two directions solve mirrored
+    problems); λ(α) is the rod's exact load to 1e-6, and the elastica's closed form to
+    aP_E λ + 1e-6."""
+    result, EI, EA, kGA, L, P_E = buckled(8)
+    a = 1 / kGA - 1 / EA
+    critical = (math.sqrt(1 + 4 * a * P_E) - 1) / (2 * a * P_E)
+    up, down, *switched = result.branches
+    assert [q.kind for q in up.special] == ["bifurcation"] and down.special == []
+    assert abs(up.special[0].factor - critical) < 2e-9
+    assert up.points[-1].factor == 2.5 and down.points[-1].factor == -0.5
+    assert len(switched) == 2
+    ends = sorted(b.points[-1].tip[4] for b in switched)
+    assert ends[0] < -math.radians(120) and ends[1] > math.radians(120)
+    for branch in switched:
+        assert branch.reason == "turned" and branch.special == []
+        assert worst_error(branch, EI, EA, kGA, L, P_E) < 1e-6
+        for q in branch.points[1:]:
+            k = math.sin(abs(q.tip[4]) / 2)
+            closed = (2 * ellipk(k * k) / math.pi) ** 2
+            assert abs(q.factor / closed - 1) < a * P_E * q.factor + 1e-6
+    one, other = ([q.factor for q in b.points] for b in switched)
+    assert np.allclose(one, other, rtol=0, atol=1e-9)
+
+
+@pytest.mark.long
+def test_post_buckled_elastica_converges():
+    """16 P4 elements: the branch's worst error against the rod's exact load falls below 5e-9
+    (h^8 from 8 elements' 4.1e-7: 1.7e-9 measured)."""
+    result, *stiffness = buckled(16)
+    for branch in result.branches[2:]:
+        assert worst_error(branch, *stiffness) < 5e-9
+
+
+def rollup_tip(scene, tip) -> tuple[float, float]:
+    """(gap |r(ℓ) − r(0)|/ℓ, ψ(ℓ)/(4π) − 1) of a two-turn roll-up's tip."""
+    ell = scene.rod.length
+    return math.hypot(tip[0], tip[1], ell + tip[2]) / ell, tip[4] / (4 * math.pi) - 1
+
+
+def test_rollup_two_turns_by_continuation():
+    """scenes/rollup.toml rolled into two full circles (40 P4 elements, as
+    tests/test_large_deflection.py): the continuation's last point is at λ = 1 exactly and
+    its tip is load stepping's to 1e-12 (both the same discrete equilibrium, each Newton
+    converged below 1e-13 in the update), the gap 7.0e-10 ℓ < 1e-8 ℓ and the angle 4π to 1e-8.
+
+    The steps: the roll-up's angle ψ = 4πλ s/ℓ is linear in λ, so the tangent predicts it
+    exactly, and the refinement solves the positions for it (paths.RodPath.refine_prediction:
+    the force balance is linear in them): each corrector converges in one or two iterations,
+    and each step grows by max_grow = 4. From the first step, 0.1 in arclength, to λ = 1,
+    about 3.3 of arclength, that is 3-4 steps and the one back to the bound: at most 6 steps
+    are asserted, none rejected, and fewer than a fifth of load stepping's Newton iterations
+    (32 steps, 254 iterations) in Jacobian assemblies (measured: 5 steps, 20).
+    Without the refinement, Newton's basin in this stiff rod holds about 0.06 of λ per step
+    and continuation takes 17 steps (docs/continuation.md)."""
+    overrides = {"parameters.turns": 2, "discretisation.elements": 40}
+    scene = cf.load(ROLLUP, overrides)
+    result = cf.continuation(scene, 0.0, 1.0, step=0.1, max_step=8.0, directions=(1,))
+    (branch,) = result.branches
+    end = branch.points[-1]
+    assert end.factor == 1.0 and branch.reason == "p reached 1"
+    gap, angle = rollup_tip(scene, end.tip)
+    stepping = static_path(
+        cf.load(ROLLUP, {**overrides, "static.load_steps": 32}), write_outputs=False
+    )
+    gap_ls, angle_ls = rollup_tip(scene, PointProbe(stepping.model, 1.0).values())
+    assert gap < 1e-8 and abs(angle) < 1e-8
+    assert abs(gap - gap_ls) < 1e-12 and abs(angle - angle_ls) < 1e-12
+    assert branch.steps <= 6 and branch.rejected == 0
+    assert result.jacobian_assemblies < sum(stepping.iterations) / 5
+
+
+def test_bad_input_names_the_option(tmp_path):
+    """One SceneError naming the option; a 3D scene refused naming discretisation.planar."""
+    scene = cf.load(ROLLUP)
+    for kwargs, name in (
+        ({"step": -1.0}, "step"),
+        ({"max_points": 1}, "max_points"),
+        ({"directions": (2,)}, "directions"),
+        ({"switch": -1}, "switch"),
+    ):
+        with pytest.raises(SceneError, match=f"^{name}"):
+            cf.continuation(scene, **kwargs)
+    with pytest.raises(SceneError, match="high"):
+        cf.continuation(scene, 1.0, 0.5)
+    in_3d = cf.load(ROLLUP, {"discretisation.planar": "off"})
+    with pytest.raises(SceneError, match="discretisation.planar"):
+        cf.continuation(in_3d)
+
+
+def test_branch_file(tmp_path):
+    """branches.csv: the header, one row per point of each branch (special points too), the
+    last row of the primary branch at λ = high."""
+    scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 0.25})
+    result = cf.continuation(scene, 0.0, 1.0, step=0.2, directions=(1,), out=tmp_path)
+    lines = (tmp_path / "branches.csv").read_text().splitlines()
+    assert lines[0].split(",")[:3] == ["branch", "load_factor", "x"]
+    assert len(lines) == 1 + len(result.branches[0].points)
+    assert float(lines[-1].split(",")[1]) == 1.0
+
+
+COLUMN_OPTIONS = [
+    "--unset",
+    "loads.end",
+    "--set",
+    "discretisation.elements=8",
+    "--set",
+    'loads.end.force=[0,0,"-pi**2*EI/(4*L**2)"]',
+]
+
+
+def read_branches(path) -> list[dict]:
+    lines = path.read_text().splitlines()
+    header = lines[0].split(",")
+    return [dict(zip(header, line.split(","), strict=True)) for line in lines[1:]]
+
+
+@pytest.mark.long
+def test_continue_command_serial_and_mpi(tmp_path):
+    """``cosserat-fem continue`` on the column (8 P4) over λ ∈ [0, 1.5], 1 and 2 ranks:
+    branches.csv's bifurcation at λ_cr on both to 2e-9 (the locating tolerance; MUMPS under
+    MPI orders and rounds differently, 1e-13, far below it), and the switched branches'
+    ends at λ = 1.5 (branches 1 and 2: the primary one is traced one way only, λ ≥ 0)
+    turned by the same |ψ| to 1e-9 (one discrete equilibrium, each Newton
+    converged below 1e-10 in the update; the null vector's sign, which picks the branch
+    traced first, may differ). Bad input: exit 2, one line naming the option."""
+    ends, critical = [], []
+    for ranks in (1, 2):
+        out = tmp_path / f"r{ranks}"
+        options = "--range 0 1.5 --step 0.02 --max-step 0.25 --out".split()
+        command = ["-m", "cosserat_fem.cli", "continue", str(ROLLUP), *COLUMN_OPTIONS]
+        proc = run_command([*command, *options, str(out)], ranks)
+        assert proc.returncode == 0, proc.stderr
+        rows = read_branches(out / "branches.csv")
+        (bif,) = [r for r in rows if r["point"] == "bifurcation" and r["branch"] == "0"]
+        critical.append(float(bif["load_factor"]))
+        ends.append(
+            sorted(
+                abs(float(r["psi"]))
+                for r in rows
+                if r["branch"] in ("1", "2") and r["point"] == "end"
+            )
+        )
+        assert "bifurcation point at load factor 0.99928735" in proc.stdout
+    assert abs(critical[0] - 0.999287356) < 2e-9 and abs(critical[0] - critical[1]) < 2e-9
+    assert len(ends[0]) == 2 and np.allclose(ends[0], ends[1], rtol=0, atol=1e-9)
+    proc = run_command(
+        ["-m", "cosserat_fem.cli", "continue", str(ROLLUP), "--step", "-1", "--out", str(tmp_path)]
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "--step" in proc.stderr
+
+
+def test_continue_command_bad_option(tmp_path):
+    """A bad option: exit 2, one line on stderr naming it (no solve is started)."""
+    proc = run_command(
+        [
+            "-m",
+            "cosserat_fem.cli",
+            "continue",
+            str(ROLLUP),
+            "--max-points",
+            "1",
+            "--out",
+            str(tmp_path),
+        ]
+    )
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "--max-points" in proc.stderr

@@ -1,0 +1,214 @@
+"""The continuation engine (cosserat_fem/nls/arclength.py) on algebraic problems with closed
+forms: a fold, a pitchfork and a transcritical bifurcation.
+
+Tolerances: the engine locates a special point to |s − s*| ≤ locate_tolerance = 1e-9 in
+arclength, and |dp/ds| ≤ 1, so p* is found to 1e-9 (a 2e-9 bound leaves room for the
+corrector's own error, ‖δx‖ ≤ 1e-10 at its last iteration, quadratically less after it). Points
+on a branch satisfy its closed form to the corrector's tolerance (1e-10, the update's size,
+the residual then O(1e-20)); 1e-9 is asserted.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cosserat_fem.nls.arclength import Continuation, ContinuationSettings
+
+
+class Dense:
+    """R(u, p) given with its derivatives, dense LU by numpy (slogdet for the sign)."""
+
+    def __init__(self, R, R_u, R_p):
+        self.R, self.R_u, self.R_p = R, R_u, R_p
+        self.J: np.ndarray | None = None
+
+    def residual(self, u, p):
+        return np.asarray(self.R(u, p), dtype=float)
+
+    def linearise(self, u, p):
+        self.J = np.asarray(self.R_u(u, p), dtype=float)
+
+    def solve(self, rhs):
+        assert self.J is not None
+        try:
+            return np.linalg.solve(self.J, rhs)
+        except np.linalg.LinAlgError as exc:  # the engine's contract: an ArithmeticError
+            raise ZeroDivisionError(str(exc)) from None
+
+    def dparameter(self, u, p):
+        return np.asarray(self.R_p(u, p), dtype=float)
+
+    def dot(self, a, b):
+        return float(a @ b)
+
+    def determinant(self):
+        assert self.J is not None
+        sign, log = np.linalg.slogdet(self.J)
+        return float(sign), float(log)
+
+
+SETTINGS = ContinuationSettings(step=0.1, max_step=0.2, locate_tolerance=1e-9, max_points=100)
+
+
+def fold():
+    """u0² + p − 1 = 0, u1 − u0 = 0: a fold at p = 1, u = 0 (dp/ds = 0 there)."""
+    return Dense(
+        lambda u, p: [u[0] ** 2 + p - 1, u[1] - u[0]],
+        lambda u, p: [[2 * u[0], 0], [-1, 1]],
+        lambda u, p: [1, 0],
+    )
+
+
+def pitchfork():
+    """(p − 1) u0 − u0³ = 0, 2 u1 − p = 0: the branch u0 = 0 and u0² = p − 1 meet at p = 1,
+    where det R_u = 2 (p − 1 − 3u0²) changes sign on the trivial branch while dp/ds does not."""
+    return Dense(
+        lambda u, p: [(p - 1) * u[0] - u[0] ** 3, 2 * u[1] - p],
+        lambda u, p: [[p - 1 - 3 * u[0] ** 2, 0], [0, 2]],
+        lambda u, p: [u[0], -1],
+    )
+
+
+def transcritical():
+    """(p − 1) u0 − u0² = 0, u1 − p u0 = 0: u0 = 0 and u0 = p − 1 cross at p = 1."""
+    return Dense(
+        lambda u, p: [(p - 1) * u[0] - u[0] ** 2, u[1] - p * u[0]],
+        lambda u, p: [[p - 1 - 2 * u[0], 0], [-p, 1]],
+        lambda u, p: [u[0], -u[0]],
+    )
+
+
+def test_fold_is_passed_and_located():
+    """From (u0, p) = (1, 0) towards larger p: the path turns at the fold p = 1 and comes back
+    on u0 < 0 (every point on u0² = 1 − p), the fold located at p = 1, u0 = 0."""
+    engine = Continuation(fold(), SETTINGS, stop=lambda q: "back" if q.u[0] < -1.0 else None)
+    start = engine.start_point(np.array([1.0, 1.0]), 0.0)
+    branch = engine.trace(start, 1)
+    assert branch.reason == "back"
+    assert [q.kind for q in branch.special] == ["limit"]
+    limit = branch.special[0]
+    assert abs(limit.p - 1.0) < 2e-9 and abs(limit.u[0]) < 1e-4  # u0 ~ sqrt(1 − p)
+    assert abs(limit.t_p) < 1e-4
+    for q in branch.points:
+        assert abs(q.u[0] ** 2 + q.p - 1) < 1e-9 and abs(q.u[1] - q.u[0]) < 1e-9
+    assert min(q.u[0] for q in branch.points) < -1.0  # went around
+
+
+def test_pitchfork_located_and_switched():
+    """On the trivial branch u0 = 0 from p = 0: the bifurcation at p = 1 (to 2e-9), no fold;
+    the switched branch traced both ways lies on u0² = p − 1, one way u0 > 0 and the other
+    u0 < 0, and p grows both ways (a supercritical pitchfork)."""
+    settings = ContinuationSettings(step=0.1, max_step=0.2, p_max=2.0, max_points=100)
+    engine = Continuation(pitchfork(), settings)
+    start = engine.start_point(np.array([0.0, 0.0]), 0.0)
+    branch = engine.trace(start, 1)
+    assert branch.reason == "p reached 2"
+    assert [q.kind for q in branch.special] == ["bifurcation"]
+    bif = branch.special[0]
+    assert abs(bif.p - 1.0) < 2e-9 and abs(bif.u[0]) < 1e-12
+    up, down = engine.switch(bif)
+    signs = []
+    for new in (up, down):
+        assert new.points[-1].p == 2.0 and new.special == []  # ends at the bound
+        for q in new.points[1:]:
+            assert abs(q.u[0] ** 2 - (q.p - 1)) < 1e-9 and abs(2 * q.u[1] - q.p) < 1e-9
+        signs.append(np.sign(new.points[-1].u[0]))
+    assert sorted(signs) == [-1.0, 1.0]
+
+
+def test_transcritical_switched_both_ways():
+    """Trivial branch from p = 0: the crossing at p = 1 located; the other branch u0 = p − 1
+    traced both ways from it reaches p = 0 one way and p = 2 the other (the bounds)."""
+    settings = ContinuationSettings(step=0.1, max_step=0.2, p_min=0.0, p_max=2.0)
+    engine = Continuation(transcritical(), settings)
+    branch = engine.trace(engine.start_point(np.zeros(2), 0.0), 1)
+    (bif,) = branch.special
+    assert bif.kind == "bifurcation" and abs(bif.p - 1.0) < 2e-9
+    ends = []
+    for new in engine.switch(bif):
+        for q in new.points[1:]:
+            assert abs(q.u[0] - (q.p - 1)) < 1e-9 and abs(q.u[1] - q.p * q.u[0]) < 1e-9
+        ends.append(new.points[-1].p)
+    assert sorted(ends) == [0.0, 2.0]
+
+
+def test_step_collapse_keeps_the_branch():
+    """A problem that fails beyond p = 0.5 (the residual raises): the step halves down to
+    min_step and the branch ends with the reason, its points kept (all p ≤ 0.5)."""
+
+    def R(u, p):
+        if p > 0.5:
+            raise ArithmeticError("no solution here")
+        return [u[0] - p]
+
+    engine = Continuation(
+        Dense(R, lambda u, p: [[1.0]], lambda u, p: [-1.0]),
+        ContinuationSettings(step=0.1, min_step=1e-3),
+    )
+    branch = engine.trace(engine.start_point(np.zeros(1), 0.0), 1)
+    assert "min_step" in branch.reason and "no solution here" in branch.reason
+    assert len(branch.points) > 3 and all(q.p <= 0.5 for q in branch.points)
+    assert branch.points[-1].p > 0.5 - 2e-3 * math.sqrt(2)
+
+
+@pytest.mark.parametrize("direction", [1, -1])
+def test_both_directions_from_a_start(direction):
+    """From (1, 0) on u0² = 1 − p with its tangent oriented by ``direction``: p decreasing
+    (−1) stays on u0 = +√(1 − p) down to p = −3; p increasing (+1) passes the fold and goes
+    down to p = −3 on u0 = −√(1 − p), where the branch ends (a point at the bound p_min
+    itself). both_ways gives the two."""
+    settings = ContinuationSettings(step=0.1, max_step=0.3, p_min=-3.0)
+    engine = Continuation(fold(), settings)
+    start = engine.start_point(np.array([1.0, 1.0]), 0.0, direction)
+    branch = engine.trace(start, 1)
+    end = branch.points[-1]
+    assert end.p == -3.0 and end.kind == "end"
+    assert abs(end.u[0] + direction * math.sqrt(1 - end.p)) < 1e-9
+    assert len(branch.special) == (1 if direction == 1 else 0)
+    ways = engine.both_ways(start)
+    assert [len(w.special) for w in ways] == ([1, 0] if direction == 1 else [0, 1])
+
+
+class Projected(Dense):
+    """u0 = p, u1 = sin(u0) (R = [u0 − p, u1 − sin u0]); refine_prediction sets u1 = sin(u0),
+    the problem's own exact refinement, as the rod's positions for its angles."""
+
+    def __init__(self):
+        super().__init__(
+            lambda u, p: [u[0] - p, u[1] - math.sin(u[0])],
+            lambda u, p: [[1.0, 0.0], [-math.cos(u[0]), 1.0]],
+            lambda u, p: [-1.0, 0.0],
+        )
+        self.refined = 0
+
+    def refine_prediction(self, u, p):
+        self.refined += 1
+        return np.array([u[0], math.sin(u[0])])
+
+
+@pytest.mark.parametrize("refine", [True, False])
+def test_refined_prediction_lets_the_steps_grow(refine):
+    """u0 is linear in p, so the tangent predicts it exactly, and the refinement gives u1
+    exactly: every corrector converges at its first iteration (an update of 0 in exact
+    arithmetic, round-off below the 1e-10 tolerance) and each step grows by max_grow = 4.
+    The arclength to p = 20 is ∫ √(2 + cos²p) dp ≈ 20 · 1.58 = 31.7; steps 0.01 · 4^k sum past
+    it after 7 (0.01 (4^7 − 1)/3 = 54.6 > 31.7 > 13.6), and the last, past p = 20, is followed by
+    the point at the bound: at most 8 points after the start. Without the refinement the
+    corrector needs 2 or more iterations on the curved u1, the steps grow slower: more."""
+    problem = Projected()
+    settings = ContinuationSettings(
+        step=0.01, max_step=100.0, p_min=-1.0, p_max=20.0, refine=refine
+    )
+    engine = Continuation(problem, settings)
+    branch = engine.trace(engine.start_point(np.zeros(2), 0.0), 1)
+    assert branch.points[-1].p == 20.0
+    for q in branch.points:
+        assert abs(q.u[1] - math.sin(q.p)) < 1e-9
+    if refine:
+        assert len(branch.points) - 1 <= 8 and problem.refined >= len(branch.points) - 2
+        assert all(q.iterations == 1 for q in branch.points[1:])
+    else:
+        assert len(branch.points) - 1 > 8 and problem.refined == 0
