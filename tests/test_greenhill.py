@@ -134,9 +134,8 @@ def test_greenhill_cantilever_critical_combination(p, t):
     the factor f* of (f t)² + f p c(f p P_E) = 1 (module docstring) within 1e-7: measured
     −9.5e-9 (pure torque), −3.1e-9 (mixed), −1.1e-9 (pure force), −5.4e-9 (0.5, 1), the
     secant's (Δf)² term and the eigenvalue's h^8 error (8 and 16 elements agree to 5e-11)
-    well below. Where P
-    acts, the shear and extension correction moves f* by 9e-4 to 1.2e-2, more than 5e3
-    times that: dropping it fails."""
+    well below. Where P acts, the shear and extension correction moves f* by 9e-4 to
+    1.2e-2, more than 5e3 times that: dropping it fails."""
     over, expected = loads(p, t)
     found = located(load_scene(ROLLUP, {**SHAFT, **over}), expected)
     assert abs(found - expected) < 1e-7, (found, expected)
