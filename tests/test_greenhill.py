@@ -223,6 +223,7 @@ def test_semitangential_scene_checks():
     assert scene_from_dict(scene.to_dict()) == scene
 
 
+@pytest.mark.long
 def test_a_semitangential_torque_on_a_kinked_rod_is_the_dead_torque_of_a_rotation_in_its_axis():
     """Argyris's frame (scenes/argyris_frame.toml, a polyline whose rest frame at the tip is
     turned by 90° about e2) under an end torque about e1, the free leg's axis: the clamped leg
