@@ -441,6 +441,38 @@ class FollowerEndLoad(FormLoad):
 
 
 @dataclass(frozen=True, kw_only=True)
+class SemitangentialEndTorque(FormLoad):
+    """[loads.semitangential]: a conservative torque [N m] on ``end`` ("start" or "end") that
+    turns by half the end's rotation (Ziegler's semitangential torque, forms/semitangential.py):
+    ``torque`` its components at rest in the fixed basis e1, e2, e3, functions of t."""
+
+    physics: ClassVar[str] = "semitangential"
+
+    end: str = key(Choice(choices=("start", "end"), default="end"))
+    torque: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m"))
+
+    def check(self, key: str, supports: Supports) -> None:
+        """An end whose rotations are free takes it (free, spherical); one that holds φ
+        (pinned, roller) only about e1, e2, as its dead torque; a clamp holds all three."""
+        support = getattr(supports, self.end)
+        if support not in ("free", "spherical", "pinned", "roller"):
+            raise SceneError(
+                f"{key}.end: a semitangential torque needs an end free to turn (free, "
+                f'spherical, pinned or roller), but supports.{self.end} = "{support}"'
+            )
+        if support in ("pinned", "roller") and not self.torque[2].is_zero:
+            raise SceneError(
+                f"{key}.torque[2]: a {support} end holds its twist φ, so a torque about e3 "
+                "there is taken by the support; give the torque about e1, e2 only"
+            )
+
+    def in_plane(self, normal: tuple[int, ...], torques: tuple[int, ...]) -> bool:
+        """In a plane of motion (x-z: about e2 only; y-z: about e1 only) a torque normal to
+        the plane stays normal to it (the rotation is about that normal)."""
+        return all(self.torque[i].is_zero for i in torques)
+
+
+@dataclass(frozen=True, kw_only=True)
 class Loads:
     """Distributed force [N/m] and torque [N m/m] (functions of s, t), end loads and a point
     load."""
@@ -455,6 +487,10 @@ class Loads:
     gravity: tuple[float, float, float] = key(Vector(default=ZERO3, unit="m/s^2"))
     #: a force and torque that turn with an end's directors (forms/follower.py)
     follower: FollowerEndLoad | None = table(FollowerEndLoad, optional=True, default=None)
+    #: a conservative torque that turns by half the end's rotation (forms/semitangential.py)
+    semitangential: SemitangentialEndTorque | None = table(
+        SemitangentialEndTorque, optional=True, default=None
+    )
 
     @property
     def has_gravity(self) -> bool:

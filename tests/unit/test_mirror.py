@@ -56,6 +56,7 @@ INTEGRATION_ONLY: dict[str, str] = {
     "forms.director_form": "tests/test_forms.py",
     "forms.energy": "tests/test_energy.py",
     "forms.follower": "tests/test_follower.py",
+    "forms.semitangential": "tests/test_greenhill.py",
     "forms.general_form": "tests/test_forms.py",
     "forms.groups": "tests/test_forms.py",
     "forms.kinematics": "tests/test_forms.py",
