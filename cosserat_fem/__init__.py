@@ -6,8 +6,8 @@ agreement, safe files, JIT), ``io`` (file formats), ``scene``, ``rod`` (the disc
 ``reference`` (closed forms), ``nls`` (Newton, SNES), ``timestepping``, ``output``,
 ``analysis`` (run, static, modes, stability), ``studies`` (sweeps, responses, POD);
 docs/developers.md maps them. The Python API, ``cosserat_fem.load``, ``run``, ``resume``,
-``static``, ``modes``, ``stability``, ``stability_at``, ``load_sweep``, ``sweep`` and ``pod``, is
-:mod:`cosserat_fem.api`.
+``static``, ``modes``, ``stability``, ``stability_at``, ``load_sweep``, ``sweep``, ``pod`` and
+``lyapunov``, is :mod:`cosserat_fem.api`.
 """
 
 from cosserat_fem.common import pkg_resources_shim
@@ -23,7 +23,18 @@ pkg_resources_shim.install()
 
 #: The Python API (cosserat_fem/api.py), imported on first use: ``import cosserat_fem`` stays
 #: light (the command line's plot and validate need no DOLFINx).
-_API = ("load", "run", "resume", "static", "modes", "load_sweep", "sweep", "pod", "UNSET")
+_API = (
+    "load",
+    "run",
+    "resume",
+    "static",
+    "modes",
+    "load_sweep",
+    "sweep",
+    "pod",
+    "lyapunov",
+    "UNSET",
+)
 
 
 def __getattr__(name: str):

@@ -10,6 +10,7 @@ results as NumPy arrays in memory. The command line is a thin layer over the sam
     x_rod = result.field_values[-1, :, 0]                     # x(s) at the end [m]
     modes = cf.modes(scene, count=4)                          # [m.frequency_hz for m in modes]
     found = cf.stability(scene, 0.0, 2.0)                     # found.critical, found.kind
+    chaos = cf.lyapunov(scene, 2 * np.pi / 1600, periods=40)  # chaos.exponent [1/s], .poincare
     stations = np.linspace(0.0, 1.0, 49)
     pod = cf.pod(cf.run(scene, fields=stations), stations)    # pod.energies, pod.shapes
 
@@ -202,6 +203,44 @@ def stability_at(scene: Scene, factor: float = 1.0, *, count: int = 6):
     from cosserat_fem.analysis.equilibria import stability_at as at
 
     return at(scene, factor, count)
+
+
+def lyapunov(
+    scene: Scene,
+    period: float,
+    *,
+    periods: int,
+    every: int = 1,
+    discard: int = 0,
+    phase: float = 0.0,
+    perturbation: float | None = None,
+    seed: int = 0,
+    observers: Sequence[Observer | Callable] = (),
+    out: str | Path | None = None,
+):
+    """The largest Lyapunov exponent [1/s] of the scene forced with period ``period`` T [s],
+    by Benettin's method over ``periods`` periods from time.start (a reference and a perturbed
+    trajectory, the perturbation rescaled to ``perturbation`` d0 every ``every`` periods; the
+    first ``discard`` intervals left out of the average), and its Poincaré section at the
+    forcing's phase ``phase`` [rad] (cosserat_fem/analysis/lyapunov.py): a
+    :class:`~cosserat_fem.analysis.lyapunov.LyapunovResult` with ``exponent``, its history
+    (``times``, ``stretches``, ``running``) and the section's rows ``poincare``
+    (``columns``); poincare.csv in ``out`` if given. time.step must divide every·T, with fixed
+    steps."""
+    from cosserat_fem.analysis.lyapunov import largest_exponent
+
+    return largest_exponent(
+        scene,
+        period,
+        periods=periods,
+        every=every,
+        discard=discard,
+        phase=phase,
+        perturbation=perturbation,
+        seed=seed,
+        observers=observers,
+        out=out_folder(out),
+    )
 
 
 def pod(
