@@ -245,11 +245,12 @@ def test_the_exponent_converges_in_the_time_step_at_the_integrators_order():
 def test_the_exponent_converges_in_the_mesh():
     """On 2, 4 and 8 cubic elements each estimate meets its own discretisation's target
     ln|R(λ1 h)|/h (ω1 of that mesh) within the averaging's bound, and the estimates converge:
-    the change from 4 to 8 elements is at most that from 2 to 8 (ω1's error falls as h^6 for
-    cubic elements), plus both bounds."""
+    the change from 4 to 8 elements is at most a quarter of that from 2 to 8, plus both bounds
+    (ω1's error falls as h^6 for cubic elements: 64-fold from 2 to 4; measured 7.2e-3 and
+    1.1e-4 1/s against 8 elements)."""
     cases = [Linear(40, elements).run() for elements in (2, 4, 8)]
     for case in cases:
         assert abs(case.result.exponent - case.discrete) <= case.bound
     values = [c.result.exponent for c in cases]
     slack = cases[1].bound + cases[2].bound
-    assert abs(values[1] - values[2]) <= abs(values[0] - values[2]) + slack, values
+    assert abs(values[1] - values[2]) <= abs(values[0] - values[2]) / 4 + slack, values
