@@ -217,6 +217,7 @@ def lyapunov(
     seed: int = 0,
     observers: Sequence[Observer | Callable] = (),
     out: str | Path | None = None,
+    initial_state: np.ndarray | None = None,
 ):
     """The largest Lyapunov exponent [1/s] of the scene forced with period ``period`` T [s],
     by Benettin's method over ``periods`` periods from time.start (a reference and a perturbed
@@ -225,8 +226,8 @@ def lyapunov(
     forcing's phase ``phase`` [rad] (cosserat_fem/analysis/lyapunov.py): a
     :class:`~cosserat_fem.analysis.lyapunov.LyapunovResult` with ``exponent``, its history
     (``times``, ``stretches``, ``running``) and the section's rows ``poincare``
-    (``columns``); poincare.csv in ``out`` if given. time.step must divide every·T, with fixed
-    steps."""
+    (``columns``); poincare.csv in ``out`` if given; ``initial_state`` as :func:`run`'s.
+    time.step must divide every·T, with fixed steps."""
     from cosserat_fem.analysis.lyapunov import largest_exponent
 
     return largest_exponent(
@@ -240,6 +241,7 @@ def lyapunov(
         seed=seed,
         observers=observers,
         out=out_folder(out),
+        initial_state=initial_state,
     )
 
 

@@ -58,7 +58,7 @@ import numpy as np
 from mpi4py import MPI
 
 from cosserat_fem.analysis.observers import PoincareSection
-from cosserat_fem.analysis.simulation import _discretise, drive
+from cosserat_fem.analysis.simulation import _discretise, _initial_array, drive
 from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.common.parallel import agree
 from cosserat_fem.io.poincare import POINCARE
@@ -284,6 +284,7 @@ def largest_exponent(
     seed: int = 0,
     observers=(),
     out: str | Path | None = None,
+    initial_state: np.ndarray | None = None,
     comm: MPI.Comm = MPI.COMM_WORLD,
 ) -> LyapunovResult:
     """The largest Lyapunov exponent of the scene forced with period ``period`` T [s] over
@@ -291,11 +292,13 @@ def largest_exponent(
     ``phase`` [rad] (module docstring): a :class:`LyapunovResult`. ``every``: periods between
     renormalisations; ``discard``: intervals left out of the average; ``perturbation`` d0;
     ``seed``: its direction's; ``observers``: the reference trajectory's; with ``out``,
-    poincare.csv there. Bad input: a SceneError naming the argument or key, before any
-    work."""
+    poincare.csv there; ``initial_state``: the reference's start, as ``cf.run``'s (e.g. a
+    static solution: a buckled beam in one of its wells). Bad input: a SceneError naming the
+    argument or key, before any work."""
     refuse_closed(scene, "lyapunov")
     intervals, steps, d0 = _check(scene, period, periods, every, discard, perturbation)
     observers = [as_observer(o) for o in observers]
+    initial_state = _initial_array(initial_state, comm)
     path = None
     if out is not None:
         folder = Path(out)
@@ -308,7 +311,7 @@ def largest_exponent(
         agree(comm, problem)
         path = folder / POINCARE
     section = PoincareSection(period, phase, path)
-    model, integrator, solver = _discretise(scene, comm, None, None)
+    model, integrator, solver = _discretise(scene, comm, initial_state, None)
     chain: list[Observer] = [section, *observers]
     loop = TimeLoop(model, integrator, solver, scene.time, Events(chain))
     source = _Benettin(loop, intervals, steps, d0, seed)
