@@ -21,11 +21,50 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests"))
-from test_chaos import DISCARD, PERIODS, ZETA1, Linear  # noqa: E402
+import math  # noqa: E402
+
+import numpy as np  # noqa: E402
+from test_chaos import BUCKLED, DISCARD, PERIODS, ZETA1, Linear, buckled_beam  # noqa: E402
+
+import cosserat_fem as cf  # noqa: E402
+from cosserat_fem.reference.buckled_beam import (  # noqa: E402
+    HOLMES_ROUTE,
+    duffing_section,
+    period_doubling,
+)
 
 DOC = ROOT / "docs" / "chaos.md"
 STEPS = (20, 40, 80, 160)
 MESHES = (2, 4, 8)
+#: The buckled beam's forcing γ and the periods run (the first third discarded).
+ROUTE = {0.20: 45, 0.28: 45, 0.29: 90, 0.37: 90, 0.50: 90}
+
+
+def distinct(x: np.ndarray, tolerance: float) -> str:
+    """The section's period (its smallest repeat within ``tolerance``, up to 12) and values."""
+    for n in range(1, 13):
+        if np.abs(x[n:] - x[:-n]).max() <= tolerance:
+            return f"{n} | " + ", ".join(f"{v:.4f}" for v in sorted(x[-n:]))
+    return "none ≤ 12 | " + f"{x.min():.3f} ... {x.max():.3f}"
+
+
+def route_rows() -> list[str]:
+    """Each γ of ROUTE: the rod's section (mid-span x/a_s) and exponent, the reduction's."""
+    beam = buckled_beam()
+    T = 2 * math.pi / beam.frequency(1.2)
+    rows = []
+    for gamma, periods in ROUTE.items():
+        scene = cf.load(BUCKLED, {"time.end": periods * T, "parameters.f0": beam.force(gamma)})
+        result = cf.lyapunov(scene, T, periods=periods, discard=periods // 3)
+        rod = result.poincare[periods // 3 :, 2] / beam.amplitude
+        reduction = duffing_section(gamma, 200)[-40:, 0]
+        tolerance = 1e-3 if HOLMES_ROUTE[gamma] else 1e-2
+        rows.append(
+            f"| {gamma:.2f} | {HOLMES_ROUTE[gamma] or 'chaos'} | {distinct(reduction, 1e-6)} | "
+            f"{distinct(rod, tolerance)} | {result.exponent:.2f} | "
+            f"{result.exponent / math.sqrt(beam.k):.4f} |"
+        )
+    return rows
 
 
 def row(case: Linear, label: str) -> str:
@@ -45,6 +84,8 @@ def main() -> None:
     )
     steps = [row(Linear(n).run(), str(n)) for n in STEPS]
     meshes = [row(Linear(40, e).run(), str(e)) for e in MESHES]
+    route = route_rows()
+    doubling = period_doubling()
     wall = time.perf_counter() - t0
     text = f"""# Chaos: Poincaré sections and the largest Lyapunov exponent
 
@@ -72,6 +113,33 @@ In the mesh (cubic elements, N = 40):
 
 The estimate meets SDIRK3's discrete rate to well within the averaging's bound; what is left
 against −ζ1ω1 is the integrator's error, falling as h³.
+
+**A buckled beam on the Duffing–Holmes route** (`scenes/buckled_beam.toml`;
+cosserat_fem/reference/buckled_beam.py derives the one-mode reduction
+x'' + δx' − x + x³ = γ cos ωτ and maps δ, ω, γ to the beam's damping, frequency and load).
+A pinned–pinned aluminium strip, ℓ = 1 m, 10 × 20 mm, shortened by 2 D_cr (Euler's load as a
+shortening), forced by f0 sin(πs/ℓ) cos Ωt; 8 cubic elements, SDIRK3 at 100 steps a period,
+started from the reduction's buckled shape in the right well. The published route at
+δ = 0.3, ω = 1.2 (Guckenheimer & Holmes 1983, §2.2): γ = 0.20 period 1, 0.28 period 2, 0.29
+period 4, 0.37 period 5, 0.50 chaos. The section is the mid-span deflection x/a_s once a
+period after the first third of the run (the rod's period: repeats within 1e-3, 1e-2 for
+chaos); the reduction's from (1, 0) over 200 periods (scipy DOP853, rtol 1e-10). The
+reduction's first period doubling: γ = {doubling:.5f}.
+
+| γ | published period | reduction: period | points | rod: period | points | rod λ [1/s] | λ/√k |
+|---|---|---|---|---|---|---|---|
+{chr(10).join(route)}
+
+The rod follows the whole published route: its section has the reduction's period at every
+γ, on the reduction's points within 5e-4 a_s at γ = 0.20 and 0.28, 1.2e-3 at 0.29 and 0.37
+(tests/test_chaos.py holds 2e-3 at 0.20 and 0.28: what separates the rod from its reduction, the
+geometrically exact terms (π a_s/ℓ)² = 3.3e-4, shear and rotary inertia, axial inertia and
+the time step, summed, doubled; period 4 lives in a narrow window after the second
+doubling, where the orbits are more sensitive); the periodic attractors' exponent is
+−δ√k/2 = −21.8 1/s (their multipliers a complex pair of product e^{{−δnT}}) within
+the averaging's bias, larger near a doubling; at γ = 0.29 and 0.37 the exponent is closer
+to 0 (a multiplier nearer the unit circle); at
+γ = 0.50 the exponent is positive, 0.106 √k in the reduction over 500 periods.
 
 _Generated in {wall:.0f} s of wall time on {os.cpu_count()} cores at a load of
 {os.getloadavg()[0]:.1f}, {time.strftime("%Y-%m-%d")}._

@@ -206,43 +206,21 @@ def stability_at(scene: Scene, factor: float = 1.0, *, count: int = 6):
 
 
 def lyapunov(
-    scene: Scene,
-    period: float,
-    *,
-    periods: int,
-    every: int = 1,
-    discard: int = 0,
-    phase: float = 0.0,
-    perturbation: float | None = None,
-    seed: int = 0,
-    observers: Sequence[Observer | Callable] = (),
-    out: str | Path | None = None,
-    initial_state: np.ndarray | None = None,
+    scene: Scene, period: float, *, periods: int, out: str | Path | None = None, **options
 ):
     """The largest Lyapunov exponent [1/s] of the scene forced with period ``period`` T [s],
     by Benettin's method over ``periods`` periods from time.start (a reference and a perturbed
-    trajectory, the perturbation rescaled to ``perturbation`` d0 every ``every`` periods; the
-    first ``discard`` intervals left out of the average), and its Poincaré section at the
-    forcing's phase ``phase`` [rad] (cosserat_fem/analysis/lyapunov.py): a
+    trajectory, the perturbation rescaled every period), and its Poincaré section
+    (cosserat_fem/analysis/lyapunov.py): a
     :class:`~cosserat_fem.analysis.lyapunov.LyapunovResult` with ``exponent``, its history
     (``times``, ``stretches``, ``running``) and the section's rows ``poincare``
-    (``columns``); poincare.csv in ``out`` if given; ``initial_state`` as :func:`run`'s.
-    time.step must divide every·T, with fixed steps."""
+    (``columns``); poincare.csv in ``out`` if given. ``options``: ``every``, ``discard``,
+    ``phase``, ``perturbation``, ``seed``, ``observers``, ``initial_state`` (as
+    :func:`run`'s), documented on ``largest_exponent`` there. time.step must divide every·T,
+    with fixed steps."""
     from cosserat_fem.analysis.lyapunov import largest_exponent
 
-    return largest_exponent(
-        scene,
-        period,
-        periods=periods,
-        every=every,
-        discard=discard,
-        phase=phase,
-        perturbation=perturbation,
-        seed=seed,
-        observers=observers,
-        out=out_folder(out),
-        initial_state=initial_state,
-    )
+    return largest_exponent(scene, period, periods=periods, out=out_folder(out), **options)
 
 
 def pod(

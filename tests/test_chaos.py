@@ -39,6 +39,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from conftest import ROOT, run_command
+from test_response import SET
 
 import cosserat_fem as cf
 from cosserat_fem.analysis.observers import PoincareSection
@@ -52,16 +53,8 @@ ZETA1 = 0.05  # the first mode's damping ratio (about), ζ1 = τ_d ω1/2
 TAU_D = 2 * ZETA1 / OMEGA0  # s
 STOL = 1e-10
 PERIODS, DISCARD = 12, 2
-BASE = {
-    "output.xdmf": False,
-    "output.checkpoint": False,
-    "damping.retardation_time": TAU_D,
-    "discretisation.elements": 4,
-    "loads.force_density": ["1*sin(pi*s/L)*sin(r*omega0*t)", 0, 0],
-    "parameters.r": 1.0,
-    "time.step": 1e-4,
-    "solver.stol": STOL,
-}
+#: tests/test_response.py's linear rod with this file's damping and Newton tolerance.
+BASE = {**SET, "damping.retardation_time": TAU_D, "solver.stol": STOL}
 
 
 def sdirk_R(z: complex, order: int = 3) -> complex:
