@@ -7,7 +7,7 @@ agreement, safe files, JIT), ``io`` (file formats), ``scene``, ``rod`` (the disc
 ``analysis`` (run, static, modes, stability), ``studies`` (sweeps, responses, POD);
 docs/developers.md maps them. The Python API, ``cosserat_fem.load``, ``run``, ``resume``,
 ``static``, ``modes``, ``stability``, ``stability_at``, ``continuation``, ``periodic_orbit``,
-``load_sweep``, ``sweep`` and ``pod``, is :mod:`cosserat_fem.api`.
+``lyapunov``, ``load_sweep``, ``sweep`` and ``pod``, is :mod:`cosserat_fem.api`.
 """
 
 from cosserat_fem.common import pkg_resources_shim
@@ -33,6 +33,7 @@ _API = (
     "stability_at",
     "continuation",
     "periodic_orbit",
+    "lyapunov",
     "load_sweep",
     "sweep",
     "pod",

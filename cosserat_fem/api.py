@@ -10,6 +10,7 @@ results as NumPy arrays in memory. The command line is a thin layer over the sam
     x_rod = result.field_values[-1, :, 0]                     # x(s) at the end [m]
     modes = cf.modes(scene, count=4)                          # [m.frequency_hz for m in modes]
     found = cf.stability(scene, 0.0, 2.0)                     # found.critical, found.kind
+    chaos = cf.lyapunov(scene, 2 * np.pi / 1600, periods=40)  # chaos.exponent [1/s], .poincare
     stations = np.linspace(0.0, 1.0, 49)
     pod = cf.pod(cf.run(scene, fields=stations), stations)    # pod.energies, pod.shapes
 
@@ -241,6 +242,24 @@ def periodic_orbit(
         return shooting.find(u, tolerance, int(max_iterations))
     finally:
         shooting.destroy()
+
+
+def lyapunov(
+    scene: Scene, period: float, *, periods: int, out: str | Path | None = None, **options
+):
+    """The largest Lyapunov exponent [1/s] of the scene forced with period ``period`` T [s],
+    by Benettin's method over ``periods`` periods from time.start (a reference and a perturbed
+    trajectory, the perturbation rescaled every period), and its Poincaré section
+    (cosserat_fem/analysis/lyapunov.py): a
+    :class:`~cosserat_fem.analysis.lyapunov.LyapunovResult` with ``exponent``, its history
+    (``times``, ``stretches``, ``running``) and the section's rows ``poincare``
+    (``columns``); poincare.csv in ``out`` if given. ``options``: ``every``, ``discard``,
+    ``phase``, ``perturbation``, ``seed``, ``observers``, ``initial_state`` (as
+    :func:`run`'s), documented on ``largest_exponent`` there. time.step must divide every·T,
+    with fixed steps."""
+    from cosserat_fem.analysis.lyapunov import largest_exponent
+
+    return largest_exponent(scene, period, periods=periods, out=out_folder(out), **options)
 
 
 def pod(

@@ -19,6 +19,9 @@ this order:
 * :class:`RunSummary`: the summary completed at the end (:func:`summary_start` begins it, the
   same for run, static and modes), and summary.json written.
 
+Not in the chain, passed as a user observer: :class:`PoincareSection` (poincare.csv, one state
+a forcing period; cosserat_fem/analysis/lyapunov.py uses it).
+
 (The rod's energy at every output time, for tests: tests/rod_energy.py's EnergyRecorder.)
 """
 
@@ -26,13 +29,14 @@ from __future__ import annotations
 
 import platform
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
 
 from cosserat_fem import __version__
-from cosserat_fem.common.errors import LimitReached, SceneError, SolverError
+from cosserat_fem.common.errors import CosseratError, LimitReached, SceneError, SolverError
 from cosserat_fem.common.log import LOGGER
 from cosserat_fem.common.parallel import check_interrupt, from_root
 from cosserat_fem.io.checkpoint import Checkpoint, CheckpointWriter
@@ -506,3 +510,113 @@ class StandardObservers:
         chain.append(InterruptObserver(comm))
         chain.append(RunSummary(summary, solver, t_start, comm, out, begin, self.checkpoints))
         self.events = Events(chain)
+
+
+class PoincareSection(Observer):
+    """A Poincaré section of a periodically forced run: the state once a forcing period
+    ``period`` T [s], at the section times t_j = (j + ``phase``/2π) T (``phase`` φ0 [rad]: the
+    forcing's phase, its time origin the run's t = 0), for every t_j from the run's start on.
+
+    At each t_j: the probe's values at σ = ``sigma`` (default the scene's probe point) and the
+    root mean square of the state's entries over the rod's degrees of freedom (U in the
+    solver's units, dimensionless: cosserat_fem/io/poincare.py), from the state at t_j: the
+    output state itself when an output time lands on t_j (to 1e-9 T), else the cubic through
+    the four output states around it (Lagrange, the two before and the two after t_j where
+    there are, timestepping/adaptive.py ``lagrange_weights``): interpolation error
+    O(Δt⁴ ‖∂⁴U/∂t⁴‖), Δt = time.step, below the error of the integrators of order ≤ 3 (and
+    SDIRK4's own), so that a section between output times is as good as one on them. ``rows``
+    (on every rank after the run): (j, t_j, probe values, state_rms); with ``path``,
+    poincare.csv written whole there at the run's end (by the probe's rank; a run killed
+    before its end leaves none)."""
+
+    def __init__(
+        self,
+        period: float,
+        phase: float = 0.0,
+        path: Path | None = None,
+        sigma: float | None = None,
+    ):
+        if not (np.isfinite(period) and period > 0.0):
+            raise SceneError(f"period: must be a positive time [s], got {period!r}")
+        if not np.isfinite(phase):
+            raise SceneError(f"phase: must be a finite angle [rad], got {phase!r}")
+        self.period, self.phase, self.path, self.sigma = float(period), float(phase), path, sigma
+        self._buffer: deque[tuple[float, np.ndarray]] = deque(maxlen=4)
+        self._rows: list[np.ndarray] = []
+        self.rows: np.ndarray | None = None
+        self.columns: tuple[str, ...] = ()
+
+    def section_time(self, j: int) -> float:
+        """t_j [s]."""
+        return (j + self.phase / (2.0 * np.pi)) * self.period
+
+    def started(self, loop) -> None:
+        from dolfinx import fem
+
+        from cosserat_fem.io.poincare import poincare_columns
+        from cosserat_fem.output.fields import probe_sigma
+
+        model = loop.model
+        scene = model.scene
+        sigma = probe_sigma(scene) if self.sigma is None else self.sigma
+        self.scratch = fem.Function(model.V)
+        fields = scene.output.probe_fields
+        self.probe = PointProbe(model, sigma, U=self.scratch, fields=fields)
+        self.columns = poincare_columns(fields)
+        self.comm = model.msh.comm
+        self.owned = model.V.dofmap.index_map.size_local * model.V.dofmap.index_map_bs
+        self.entries = self.comm.allreduce(self.owned)
+        t0 = loop.state.t
+        self.next = int(np.ceil((t0 - 1e-9 * self.period) / self.period - self.phase / 2 / np.pi))
+        self._push(t0, model.U.x.array)
+
+    def output(self, loop, k: int, t: float) -> None:
+        self._push(t, loop.model.U.x.array)
+
+    def _push(self, t: float, u: np.ndarray) -> None:
+        """Keep the output state (t, u) and sample every section time it completes."""
+        from cosserat_fem.timestepping.adaptive import lagrange_weights
+
+        self._buffer.append((t, u.copy()))
+        close = 1e-9 * self.period
+        while True:
+            t_j = self.section_time(self.next)
+            times = [ti for ti, _ in self._buffer]
+            if abs(times[-1] - t_j) <= close:
+                self._sample(t_j, self._buffer[-1][1])
+            elif len(times) == 4 and t_j <= times[-2]:
+                weights = lagrange_weights(times, t_j)
+                self._sample(
+                    t_j, sum(w * ui for w, (_, ui) in zip(weights, self._buffer, strict=True))
+                )
+            else:
+                return
+            self.next += 1
+
+    def _sample(self, t: float, state: np.ndarray) -> None:
+        self.scratch.x.array[:] = state
+        owned = state[: self.owned]
+        rms = np.sqrt(self.comm.allreduce(float(owned @ owned)) / self.entries)
+        values = self.probe.values()
+        if values is not None:
+            self._rows.append(np.concatenate([[self.next, t], values, [rms]]))
+
+    def ended(self, loop, failure) -> None:
+        from cosserat_fem.common.parallel import agree
+        from cosserat_fem.io.output_files import write_output
+        from cosserat_fem.io.poincare import poincare_bytes
+
+        if not self.columns:  # the run failed before it started
+            return
+        rows = np.array(self._rows).reshape(-1, len(self.columns))
+        owner = self.probe.owner
+        self.rows = rows if self.comm.size == 1 else self.comm.bcast(rows, root=owner)
+        if self.path is None:
+            return
+        problem = None
+        if self.comm.rank == owner:
+            try:
+                write_output(Path(self.path), poincare_bytes(self.columns, self.rows), "run")
+            except CosseratError as exc:
+                problem = exc
+        agree(self.comm, problem)

@@ -88,6 +88,7 @@ INTEGRATION_ONLY: dict[str, str] = {
     # analysis
     "analysis.budget": "tests/test_budget.py",
     "analysis.equilibria": "tests/test_stability.py",
+    "analysis.lyapunov": "tests/test_chaos.py",
     "analysis.modal": "tests/test_modes.py",
     "analysis.paths": "tests/test_continuation.py",
     "analysis.observers": "tests/test_restart.py tests/test_reliability.py",
