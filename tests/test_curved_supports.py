@@ -365,3 +365,21 @@ def test_lee_frame_scene_loads_with_its_hinges():
     assert scene.supports.held("end") == ((0, 1, 2), (0, 2))
     assert scene.supports.rigid_body_modes() == 0
     assert scene.loads.point is not None and scene.loads.point.s == 144.0
+
+
+def test_a_hinged_frame_with_a_free_end_has_one_rigid_body_mode():
+    """Lee's frame hinged at its start (about e2) and free at its end swings about the hinge:
+    one rigid-body mode (λ = 0), and the next is flexible (λ > 0, not reported as rigid).
+    The count comes from the supports' one table (Supports.rigid_body_modes, from what the
+    hinge holds); before, modal.py's own table counted a "pinned" end as a fork (two
+    rotations free) and reported the first flexible mode as a second rigid one, ω = 0.
+    max_modes: six a node less the five dofs the hinge holds (x, y, z, θ, φ)."""
+    scene = api.load(LEE, {"supports.end": "free", "loads.point": api.UNSET})
+    assert scene.supports.rigid_body_modes() == 1
+    modes = api.modes(scene, 3)
+    assert modes[0].omega == 0.0 and "rigid-body" in modes[0].note
+    assert modes[1].omega > 0.0 and modes[1].note == "" and modes[1].eigenvalue.real > 0
+    from cosserat_fem.analysis.modal import max_modes
+
+    nodes = scene.discretisation.elements * scene.discretisation.degree + 1
+    assert max_modes(scene) == 6 * nodes - 5

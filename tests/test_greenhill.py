@@ -41,13 +41,14 @@ torque), and that shaft is not conservative either (a complex pair again; see
 docs/equilibrium-stability.md). The cantilever is the conservative Greenhill problem the
 scene can pose today.
 
-**Why not `stability()`.** The critical factor is located here from the lowest real part of
+**And by `stability()`.** The critical factor is located here from the lowest real part of
 the eigenvalues at two factors 1e-4 either side of the closed form (the secant through them,
-whose error is (Δf)² λ''/λ' ≈ 1e-8 · O(1)), not by :func:`stability`: the two bending planes
-of a round shaft are a double eigenvalue, and near λ = 0 its round-off imaginary part
-(≈ 6e-10, measured, against λ ~ 1e-5) exceeds modal.eigenvalue_kind's 1e-8 |λ|, so Brent's
-function (the lowest *real* eigenvalue) skips the pair and finds a wrong root (pure torque:
-1.0055 on this shaft, 1.030 on a slender one, instead of 1.000); the strict xfail below holds that.
+whose error is (Δf)² λ''/λ' ≈ 1e-8 · O(1)), and by :func:`stability` (Brent on the lowest
+real eigenvalue) for the pure torque within 1e-6. The two bending planes of a round shaft are
+a double eigenvalue, and near λ = 0 its round-off imaginary part (1.3e-10 to 1.8e-10 at a
+largest |λ| of 24, measured) is above 1e-8 |λ|: modal.eigenvalue_kind bounds round-off by
+1e-10 of the largest |λ| too; with the relative bound alone Brent's function skipped the
+pair and found 1.0055 (1.030 on a slender shaft) instead of 1.000.
 """
 
 from __future__ import annotations
@@ -186,11 +187,6 @@ def test_a_dead_torque_makes_a_complex_pair_from_the_smallest_torque():
 
 
 @pytest.mark.long
-@pytest.mark.xfail(
-    strict=True,
-    reason="modal.eigenvalue_kind takes the round-off imaginary part of the double eigenvalue "
-    "near 0 for flutter (module docstring: Why not stability()); passes once it does not",
-)
 def test_stability_locates_greenhill():
     """:func:`stability` finds the pure torque's critical factor 1 within 1e-6."""
     over, _ = loads(0.0, 1.0)
