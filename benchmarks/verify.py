@@ -53,6 +53,9 @@ from cosserat_fem.scene.schema import read_toml  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "scenes"
 DOC = ROOT / "docs" / "verification.md"
+#: The sections whose figures the tests hold (stability, continuation, ...): kept by hand in this
+#: file, copied into the report verbatim after the generated ones.
+TESTED = ROOT / "benchmarks" / "verification_tested.md"
 FIGURES = ROOT / "docs" / "figures"
 WORK = ROOT / "benchmarks" / "results" / "verify"
 
@@ -1123,6 +1126,7 @@ def main() -> None:
         start = time.perf_counter()
         parts.append(section())
         print(f"{section.__name__}: {time.perf_counter() - start:.0f} s", flush=True)
+    parts.append(TESTED.read_text(encoding="utf-8"))
     parts.append(_generated_in(time.perf_counter() - t0, sum(os.times()[:4]) - cpu0))
     DOC.write_text("\n".join(parts), encoding="utf-8")
     print(f"wrote {DOC}")

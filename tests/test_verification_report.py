@@ -167,3 +167,17 @@ def test_response_section_lists_the_generators_frequencies_and_sections(verify, 
 
     values = sorted({m.values["parameters.r"] for m in load_sweep(verify.HYSTERESIS).members})
     assert [float(r[0]) for r in rows] == pytest.approx(values, abs=5e-3)
+
+
+def test_the_sections_held_by_tests_are_copied_verbatim(verify):
+    """The sections whose figures tests hold (stability, continuation, hinged ends) are kept in
+    one place, benchmarks/verification_tested.md, and the generator copies them into the
+    report after its own sections: the report has that file's text verbatim, just before the
+    closing "Generated in" line (a hand edit of the report, or of the file without
+    regenerating, fails here), and every test file the sections name exists."""
+    tested = verify.TESTED.read_text(encoding="utf-8")
+    text = REPORT.read_text(encoding="utf-8")
+    assert tested in text
+    assert text.index(tested) + len(tested) == text.rindex("_Generated in") - 1
+    named = set(re.findall(r"tests/(test_\w+\.py)", tested))
+    assert named and all((ROOT / "tests" / name).is_file() for name in named), named
