@@ -30,7 +30,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from cosserat_fem.analysis.modal import compute_modes  # noqa: E402
+from cosserat_fem.analysis.equilibria import compute_modes  # noqa: E402
 from cosserat_fem.analysis.simulation import run_scene  # noqa: E402
 from cosserat_fem.analysis.statics import solve_static, static_path  # noqa: E402
 from cosserat_fem.output.fields import PointProbe  # noqa: E402

@@ -168,7 +168,7 @@ def modes(scene: Scene, count: int = 10, about: str = "undeformed", out: str | P
     or, with ``about="static"``, the static state under the scene's loads: a list of
     :class:`~cosserat_fem.analysis.modal.Mode` (``omega`` [rad/s], ``frequency_hz``, ``kind``,
     ``shape``); modes.csv, modes.xdmf and modes.json only with ``out``."""
-    from cosserat_fem.analysis.modal import compute_modes
+    from cosserat_fem.analysis.equilibria import compute_modes
 
     return compute_modes(scene, count, about, out=out_folder(out))[1]
 

@@ -31,7 +31,7 @@ import pytest
 from conftest import ROOT, run_command
 from rod_energy import EnergyRecorder
 
-from cosserat_fem.analysis.modal import compute_modes
+from cosserat_fem.analysis.equilibria import compute_modes
 from cosserat_fem.analysis.simulation import run_scene
 from cosserat_fem.analysis.statics import static_path
 from cosserat_fem.common.errors import SceneError

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 from conftest import ROOT, run_command
 
-from cosserat_fem.analysis.modal import compute_modes
+from cosserat_fem.analysis.equilibria import compute_modes
 from cosserat_fem.reference.rod_planes import bending_planes, linear_spectrum
 from cosserat_fem.reference.timoshenko import mode_shapes
 from cosserat_fem.rod.model import rod_constants

@@ -31,7 +31,7 @@ from conftest import ROOT, run_command
 from cosserat_fem.forms.section import Section, cowper_circle, tube
 
 from cosserat_fem import api
-from cosserat_fem.analysis.modal import compute_modes
+from cosserat_fem.analysis.equilibria import compute_modes
 from cosserat_fem.analysis.simulation import run_scene
 from cosserat_fem.analysis.statics import solve_static
 from cosserat_fem.common.errors import SceneError

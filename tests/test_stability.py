@@ -70,8 +70,7 @@ import math
 import pytest
 from conftest import ROOT, run_command
 
-from cosserat_fem.analysis.equilibria import stability, stability_at
-from cosserat_fem.analysis.modal import compute_modes
+from cosserat_fem.analysis.equilibria import compute_modes, stability, stability_at
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.scene.build import load_scene
 from cosserat_fem.scene.schema import UNSET

@@ -37,7 +37,8 @@ from petsc4py import PETSc
 from rod_energy import EnergyMonitor, EnergyRecorder
 from scipy.optimize import minimize_scalar
 
-from cosserat_fem.analysis.modal import assemble_modal_problem, compute_modes, modal_supports
+from cosserat_fem.analysis.equilibria import compute_modes
+from cosserat_fem.analysis.modal import assemble_modal_problem, modal_supports
 from cosserat_fem.analysis.simulation import run_scene
 from cosserat_fem.analysis.statics import solve_static
 from cosserat_fem.reference.rod_planes import bending_planes

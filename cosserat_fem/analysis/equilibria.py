@@ -1,4 +1,5 @@
-"""Stability of a static equilibrium, and the critical load factor where it is lost.
+"""Stability of a static equilibrium, and the critical load factor where it is lost; the
+modes about the straight rod or a static state (:func:`compute_modes`, ``cf.modes``).
 
 A load factor f multiplies every load of the scene (the load stepping's λ of
 cosserat_fem/analysis/statics.py: ``model.load_factor``). At each f the static state U(f) is found
@@ -60,9 +61,11 @@ from cosserat_fem.analysis import budget
 from cosserat_fem.analysis.modal import (
     ModalOperator,
     Mode,
+    assemble_modal_problem,
     check_count,
     eigenvalue_kind,
     solve_eigenproblem,
+    write_modes,
 )
 from cosserat_fem.analysis.observers import summary_start
 from cosserat_fem.analysis.statics import StaticLoop, check_static_scene, static_solver
@@ -70,7 +73,7 @@ from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.common.parallel import ranks_on_node
 from cosserat_fem.io.folder_lock import holding_folders
 from cosserat_fem.io.run_folder import prepare_output_dir, write_summary
-from cosserat_fem.rod.model import build_model
+from cosserat_fem.rod.model import RodModel, build_model
 from cosserat_fem.scene.build import Scene
 from cosserat_fem.timestepping.events import Events
 
@@ -249,6 +252,56 @@ class Equilibria:
 
     def close(self) -> None:
         self.solver.destroy()
+
+
+#: What the modes are about: the straight rod, or the static state under the scene's loads.
+ABOUT = ("undeformed", "static")
+
+
+@holding_folders
+def compute_modes(
+    scene: Scene,
+    count: int,
+    about: str = "undeformed",
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    out: Path | None = None,
+) -> tuple[RodModel, list[Mode]]:
+    """The scene's ``count`` lowest modes about the straight rod (their loads at time.start)
+    or about its static state under the scene's loads (load factor 1, loads at static.time:
+    :meth:`Equilibria.modes`, the one path to modes about a
+    static state). A mechanism (scene.Supports.mechanism) has rigid-body modes, ω = 0 (six
+    for a free rod), before its flexible ones; it has modes about the straight rod only (its
+    static state is not determined: a SceneError). With ``out``: the folder is checked and
+    locked for this writer after the request is checked and before anything is computed,
+    and the modes are written there (:func:`write_modes`)."""
+    if about not in ABOUT:
+        raise SceneError(f"about (--about): must be 'undeformed' or 'static', got {about!r}")
+    if scene.supports.mechanism and about == "static":
+        raise SceneError(
+            f"supports: modes about the static state of a mechanism (start = "
+            f'"{scene.supports.start}", end = "{scene.supports.end}"): it has none, its '
+            "rigid-body motions leave it undetermined; use --about undeformed"
+        )
+    if about == "static":
+        equilibria = Equilibria(scene, count, comm, folder=out, command="modes")
+        try:
+            model, modes = equilibria.model, equilibria.modes(1.0)
+        finally:
+            equilibria.close()
+    else:
+        check_count(scene, count)
+        budget.check(scene, "modes", None, ranks_on_node(comm), comm.size, modes=count, comm=comm)
+        if out is not None:
+            prepare_output_dir(out, comm, lock="modes")
+        model = build_model(scene, comm, planar=False)  # the modes leave the plane too
+        problem = assemble_modal_problem(model)
+        try:
+            modes = solve_eigenproblem(problem, count)
+        finally:
+            problem.destroy()
+    if out is not None:
+        write_modes(out, model, modes, about)
+    return model, modes
 
 
 def _root(function, a: float, b: float, tolerance: float) -> tuple[float, int]:

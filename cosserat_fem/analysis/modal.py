@@ -40,15 +40,13 @@ from dolfinx.fem.petsc import assemble_matrix
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from cosserat_fem.analysis import budget
 from cosserat_fem.analysis.observers import summary_start
 from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import OutputError, SceneError, SolverError
-from cosserat_fem.common.parallel import agree, ranks_on_node
-from cosserat_fem.io.folder_lock import holding_folders
-from cosserat_fem.io.run_folder import prepare_output_dir, write_summary
+from cosserat_fem.common.parallel import agree
+from cosserat_fem.io.run_folder import write_summary
 from cosserat_fem.output.fields import XdmfWriter
-from cosserat_fem.rod.model import FULL, RodModel, build_model, support_conditions
+from cosserat_fem.rod.model import FULL, RodModel, support_conditions
 from cosserat_fem.scene.build import Scene
 
 KINDS = ("bending-x", "bending-y", "axial", "torsion")
@@ -336,58 +334,6 @@ def check_count(scene: Scene, count) -> None:
             f"elements of degree {scene.discretisation.degree}: six unknowns a node less the "
             f"held ones; more elements give more), got {count}"
         )
-
-
-#: What the modes are about: the straight rod, or the static state under the scene's loads.
-ABOUT = ("undeformed", "static")
-
-
-@holding_folders
-def compute_modes(
-    scene: Scene,
-    count: int,
-    about: str = "undeformed",
-    comm: MPI.Comm = MPI.COMM_WORLD,
-    out: Path | None = None,
-) -> tuple[RodModel, list[Mode]]:
-    """The scene's ``count`` lowest modes about the straight rod (their loads at time.start)
-    or about its static state under the scene's loads (load factor 1, loads at static.time:
-    :meth:`cosserat_fem.analysis.equilibria.Equilibria.modes`, the one path to modes about a
-    static state). A mechanism (scene.Supports.mechanism) has rigid-body modes, ω = 0 (six
-    for a free rod), before its flexible ones; it has modes about the straight rod only (its
-    static state is not determined: a SceneError). With ``out``: the folder is checked and
-    locked for this writer after the request is checked and before anything is computed,
-    and the modes are written there (:func:`write_modes`)."""
-    if about not in ABOUT:
-        raise SceneError(f"about (--about): must be 'undeformed' or 'static', got {about!r}")
-    if scene.supports.mechanism and about == "static":
-        raise SceneError(
-            f"supports: modes about the static state of a mechanism (start = "
-            f'"{scene.supports.start}", end = "{scene.supports.end}"): it has none, its '
-            "rigid-body motions leave it undetermined; use --about undeformed"
-        )
-    if about == "static":
-        from cosserat_fem.analysis.equilibria import Equilibria
-
-        equilibria = Equilibria(scene, count, comm, folder=out, command="modes")
-        try:
-            model, modes = equilibria.model, equilibria.modes(1.0)
-        finally:
-            equilibria.close()
-    else:
-        check_count(scene, count)
-        budget.check(scene, "modes", None, ranks_on_node(comm), comm.size, modes=count, comm=comm)
-        if out is not None:
-            prepare_output_dir(out, comm, lock="modes")
-        model = build_model(scene, comm, planar=False)  # the modes leave the plane too
-        problem = assemble_modal_problem(model)
-        try:
-            modes = solve_eigenproblem(problem, count)
-        finally:
-            problem.destroy()
-    if out is not None:
-        write_modes(out, model, modes, about)
-    return model, modes
 
 
 def write_modes(out: Path, model: RodModel, modes: list[Mode], about: str = "undeformed") -> None:
