@@ -336,6 +336,7 @@ def continuation(
     directions: Sequence[int] = (1, -1),
     stop: Callable | None = None,
     out: str | Path | None = None,
+    progress: Callable[[int, int, float], None] | None = None,
 ):
     """The static equilibrium path in the load factor λ (every load × λ) by pseudo-arclength
     continuation from the unloaded rod (cosserat_fem/analysis/paths.py,
@@ -349,11 +350,15 @@ def continuation(
     :class:`~cosserat_fem.analysis.paths.PathResult`: ``branches``, each with ``points``
     (``factor`` λ, ``tip`` (x, y, z, θ, ψ, φ) of the free end [m, rad], ``norm``,
     ``dfactor`` dλ/ds, ``det_sign``, ``kind``), ``special`` points, ``origin`` and
-    ``reason``. With ``out``: branches.csv there."""
+    ``reason``. With ``out``: branches.csv there, branches.json (each branch's origin and
+    why it ended) and branch_<i>.xdmf (each branch's states, the frame's time the point's
+    index: cosserat_fem/analysis/branch_outputs.py). ``progress(branches finished, points
+    on the branch, λ)`` after each point."""
     import math
 
     from mpi4py import MPI
 
+    from cosserat_fem.analysis.branch_outputs import BranchOutputs, write_branch_reasons
     from cosserat_fem.analysis.paths import continue_path, write_branches
     from cosserat_fem.io.run_folder import prepare_output_dir
     from cosserat_fem.nls.arclength import ContinuationSettings
@@ -389,9 +394,16 @@ def continuation(
         p_min=low,
         p_max=high,
     )
+    if progress is not None and not callable(progress):
+        raise SceneError(
+            f"progress: must be a function progress(branches, points, load_factor), got "
+            f"{type(progress).__name__}"
+        )
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD)
-    result = continue_path(scene, settings, switch, stop, tuple(directions))
+    observer = BranchOutputs(folder, progress)
+    result = continue_path(scene, settings, switch, stop, tuple(directions), observer=observer)
     if folder is not None:
         write_branches(Path(folder) / "branches.csv", result)
+        write_branch_reasons(Path(folder) / "branches.json", result, scene.output.xdmf)
     return result

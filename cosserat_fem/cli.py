@@ -500,10 +500,14 @@ def _continue(args) -> int:
     from mpi4py import MPI
 
     from cosserat_fem import api
+    from cosserat_fem.analysis.progress import ContinuationProgress
 
     scene = api.load(args.scene, args.overrides)
     out = _out(args, scene)
     low, high = args.range
+    # The bar on a terminal (it decides), never under --quiet or off rank 0.
+    enabled = None if MPI.COMM_WORLD.rank == 0 and not args.quiet else False
+    bar = ContinuationProgress(max(args.max_points, 1), enabled=enabled)
     result = api.continuation(
         scene,
         low,
@@ -513,7 +517,9 @@ def _continue(args) -> int:
         max_points=args.max_points,
         switch=args.switch,
         out=out,
+        progress=bar,
     )
+    bar.close()
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         for i, branch in enumerate(result.branches):
             end = branch.points[-1]

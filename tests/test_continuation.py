@@ -28,6 +28,7 @@ the tests assert 1e-6 and 5e-9. The bifurcation's λ is an eigenvalue's zero, co
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -267,3 +268,47 @@ def test_continue_command_bad_option(tmp_path):
     )
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0 and "--max-points" in proc.stderr
+
+
+def test_branch_that_cannot_go_on_is_written(tmp_path):
+    """A continuation that cannot go on ends with its branch written up to its last point and
+    the reason (issue 27 item 5). The roll-up to two turns (4 elements) with the corrector
+    allowed 2 Newton iterations: the quadratic convergence from the predictor's error, which
+    grows with the step and the curvature of the path, needs more as the rod rolls up, so the
+    step halves below min_step = 0.05 and the branch stops there (measured at λ = 0.29). The
+    files then hold exactly the engine's points: branches.csv one row per point (the last
+    one's λ that of the last point, repr round-trips a float), branches.json the reason, and
+    branch_0.xdmf one frame per point, its times the indices 0, 1, ..., its free end's ψ the
+    probe's (the same interpolant at the same node, evaluated two ways: 1e-12 rad of
+    round-off). The progress callback is called once per accepted point (the start is not
+    one) with the branch's count of points and λ."""
+    from xdmf_files import read_xdmf
+
+    scene = cf.load(
+        ROLLUP,
+        {"discretisation.elements": 4, "parameters.turns": 2, "solver.max_iterations": 2},
+    )
+    calls = []
+    result = cf.continuation(
+        scene,
+        0.0,
+        1.0,
+        step=0.2,
+        min_step=0.05,
+        directions=(1,),
+        out=tmp_path,
+        progress=lambda *args: calls.append(args),
+    )
+    (branch,) = result.branches
+    assert branch.reason.startswith("step below min_step 0.05")
+    assert len(branch.points) >= 3 and branch.points[-1].factor < 1.0
+    rows = read_branches(tmp_path / "branches.csv")
+    assert [float(r["load_factor"]) for r in rows] == [q.factor for q in branch.points]
+    (entry,) = json.loads((tmp_path / "branches.json").read_text())
+    assert entry["reason"] == branch.reason and entry["points"] == len(branch.points)
+    times, angles = read_xdmf(tmp_path / "branch_0.xdmf")["angles"]
+    assert list(times) == list(range(len(branch.points)))
+    psi = np.array([q.tip[4] for q in branch.points])
+    assert np.allclose(angles[:, 1], psi, rtol=0, atol=1e-12)
+    assert len(calls) == len(branch.points) - 1
+    assert calls[-1] == (0, len(branch.points), branch.points[-1].factor)
