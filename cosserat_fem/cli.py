@@ -207,6 +207,12 @@ def _parser() -> argparse.ArgumentParser:
         "or of a sweep (its members' largest free-end values against the varied key)",
     )
     _run_dir(plot)
+    plot.add_argument(
+        "--column",
+        default="norm",
+        help="of a continuation's branches.csv: what the load factor is drawn against "
+        "(norm, x, y, z, theta, psi, phi; default norm)",
+    )
     render = sub.add_parser(
         "render", help="3D pictures and an animation of a run's rod (pyvista, off-screen)"
     )
@@ -313,7 +319,7 @@ def _draw(args) -> int:
     if args.command == "plot":
         from cosserat_fem.plot import plot_run
 
-        paths = plot_run(args.run_dir, args.out)
+        paths = plot_run(args.run_dir, args.out, args.column)
     else:
         from cosserat_fem.analysis.progress import StatusLine
         from cosserat_fem.render import render_run

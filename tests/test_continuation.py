@@ -312,3 +312,59 @@ def test_branch_that_cannot_go_on_is_written(tmp_path):
     assert np.allclose(angles[:, 1], psi, rtol=0, atol=1e-12)
     assert len(calls) == len(branch.points) - 1
     assert calls[-1] == (0, len(branch.points), branch.points[-1].factor)
+
+
+def _branches_csv(path, stability: bool) -> None:
+    """A branches.csv of two branches by hand (write_branches' columns), the primary with its
+    det R_u changing sign and a located bifurcation at λ = 1, norm = 0.1."""
+    from cosserat_fem.analysis.paths import BRANCH_COLUMNS
+
+    header = [*BRANCH_COLUMNS, *(["stability"] if stability else [])]
+    table = [
+        (0, 0.0, 0.0, 1, "start", "stable"),
+        (0, 0.5, 0.05, 1, "regular", "stable"),
+        (0, 1.5, 0.15, -1, "end", "unstable"),
+        (0, 1.0, 0.1, 1, "bifurcation", ""),
+        (1, 1.0, 0.1, 1, "start", "stable"),
+        (1, 1.2, 0.4, 1, "end", "stable"),
+    ]
+    lines = [",".join(header)]
+    for b, lam, norm, det, kind, stab in table:
+        row = dict.fromkeys(header, "0.0")
+        row.update(branch=str(b), load_factor=repr(lam), norm=repr(norm), det_sign=repr(det))
+        row.update(point=kind, **({"stability": stab} if stability else {}))
+        lines.append(",".join(row[c] for c in header))
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("stability", [False, True])
+def test_bifurcation_diagram(tmp_path, monkeypatch, stability):
+    """``plot`` on a continuation's folder: bifurcation.png with λ against the column, each
+    branch's points joined in order (segment by segment, each styled by its end point: the
+    primary's last segment, det R_u < 0 or "unstable", dashed, the others solid), the
+    bifurcation point marked at (0.1, 1.0) and not joined into its branch; the legend names
+    the stability when branches.csv has the column, else the sign of det R_u. A column that
+    is not one: one line naming --column, exit 2."""
+    import cosserat_fem.plot as plot
+
+    _branches_csv(tmp_path / "branches.csv", stability)
+    figures = []
+    save = plot._save
+    monkeypatch.setattr(
+        plot,
+        "_save",
+        lambda fig, path, *a: (figures.append(plot.drawn_lines(fig)), save(fig, path))[1],
+    )
+    (path,) = plot.plot_run(tmp_path, column="norm")
+    assert path == tmp_path / "bifurcation.png" and path.stat().st_size > 0
+    (lines,) = figures
+    xy = [lines[f"axes0/line{j}"] for j in range(4)]
+    assert np.array_equal(xy[0], [[0.0, 0.05], [0.0, 0.5]])  # branch 0, first segment
+    assert np.array_equal(xy[2], [[0.1, 0.4], [1.0, 1.2]])  # branch 1
+    assert np.array_equal(xy[3], [[0.1], [1.0]])  # the bifurcation point
+    assert str(lines["axes0/line3/label"]) == "bifurcation point"
+    labels = {str(lines[f"axes0/line{j}/label"]) for j in range(3)}
+    assert labels >= ({"stable", "unstable"} if stability else {"det R_u > 0", "det R_u < 0"})
+    proc = run_command(["-m", "cosserat_fem.cli", "plot", str(tmp_path), "--column", "speed"])
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "--column" in proc.stderr
