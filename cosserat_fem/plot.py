@@ -429,7 +429,7 @@ def read_branch_rows(path: Path, column: str) -> list[dict]:
             )
         row = dict(zip(header, values, strict=True))
         try:
-            parsed = {
+            parsed: dict = {
                 "branch": int(row["branch"]),
                 "load_factor": float(row["load_factor"]),
                 column: float(row[column]),
