@@ -368,3 +368,40 @@ def test_bifurcation_diagram(tmp_path, monkeypatch, stability):
     proc = run_command(["-m", "cosserat_fem.cli", "plot", str(tmp_path), "--column", "speed"])
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0 and "--column" in proc.stderr
+
+
+def test_restart_equals_the_whole_branch(tmp_path):
+    """A continuation cut in two equals the whole one, bit for bit (issue 27 item 5). The
+    roll-up (4 elements, one turn), λ growing, no switch, to λ = 1: once whole, once cut
+    by max_points = 5 and then restarted from its folder with max_points = 40. The restart saves the
+    branch's last three points (u, t_u exactly, as float64 npz; λ, dλ/ds, the determinant by
+    repr in JSON), the next step and the count of points: the resumed trace then performs
+    the same floating-point operations on the same arrays (the predictor, the refinement, the
+    corrector's assemblies and LU factorisations of a fresh problem are functions of (u, λ)
+    alone, serially deterministic), so the points are equal exactly, and so are the files:
+    branches.csv byte for byte (no special point on this path, so the rows are in the same
+    order), branch_0.xdmf's times and free-end values. Also: restart of a folder without a
+    continuation is one SceneError naming --restart."""
+    from xdmf_files import read_xdmf
+
+    scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 1})
+    options = dict(step=0.05, max_step=0.3, switch=0, directions=(1,))
+    whole = cf.continuation(scene, 0.0, 1.0, max_points=40, out=tmp_path / "whole", **options)
+    cut = tmp_path / "cut"
+    first = cf.continuation(scene, 0.0, 1.0, max_points=5, out=cut, **options)
+    assert first.branches[0].reason == "5 points (max_points)"
+    second = cf.continuation(None, max_points=40, restart=cut)
+    (w,) = whole.branches
+    (b,) = second.branches
+    assert w.reason == b.reason == "p reached 1" and not w.special and len(w.points) > 6
+    assert [q.factor for q in w.points[2:]] == [q.factor for q in b.points]
+    assert all(np.array_equal(p.tip, q.tip) for p, q in zip(w.points[2:], b.points, strict=True))
+    assert (cut / "branches.csv").read_text() == (tmp_path / "whole" / "branches.csv").read_text()
+    for array in ("displacement", "angles"):
+        times, values = read_xdmf(cut / "branch_0.xdmf")[array]
+        times_w, values_w = read_xdmf(tmp_path / "whole" / "branch_0.xdmf")[array]
+        assert list(times) == list(times_w) == list(range(len(w.points)))
+        assert np.array_equal(values, values_w)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(SceneError, match="^--restart: .* holds no continuation"):
+        cf.continuation(None, restart=tmp_path / "empty")

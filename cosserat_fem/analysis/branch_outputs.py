@@ -9,6 +9,7 @@ goes, besides branches.csv (issue 27 item 5).
   ``output.fields`` (:class:`~cosserat_fem.output.fields.XdmfWriter`, as a static path's
   solution.xdmf), so ParaView's "Warp By Vector" draws each state of the branch. Not with
   the scene's ``output.xdmf = false``.
+* ``continuation/``: each branch's end, for a restart (cosserat_fem/analysis/path_restart.py).
 * ``branches.json``: per branch its origin, why it ended (a bound of the range, max_points,
   ``stop``'s reason, or a step collapse with the corrector's failure), its steps and
   rejected steps (:func:`write_branch_reasons`). A branch that cannot go on still has every
@@ -25,6 +26,7 @@ from pathlib import Path
 
 from mpi4py import MPI
 
+from cosserat_fem.analysis.path_restart import branch_end, save_branch_state
 from cosserat_fem.nls.arclength import Branch, Point
 
 #: progress(branch index, points so far on it, λ of the last)
@@ -36,12 +38,22 @@ class BranchOutputs:
     each accepted point (the progress), ``branch`` as each branch ends (its XDMF, in
     ``folder`` if given). Collective (every rank calls both)."""
 
-    def __init__(self, folder: Path | None = None, progress: Progress | None = None):
+    def __init__(
+        self,
+        folder: Path | None = None,
+        progress: Progress | None = None,
+        resumed: tuple[int, int, int] | None = None,
+    ):
+        """``resumed = (i, kept, n)``: the one branch told of is branch i resumed from its
+        ``kept`` saved points (path_restart.py), its XDMF continued as restart n."""
         self.folder = None if folder is None else Path(folder)
         self.progress = progress
+        self.resumed = resumed
         self._branch = 0
         self._points = 1  # the branch's first point
         self.files: list[Path] = []
+        #: each branch's saved end (path_restart.branch_end), by branch index
+        self.ends: dict[int, dict] = {}
 
     def point(self, point: Point) -> None:
         self._points += 1
@@ -53,15 +65,22 @@ class BranchOutputs:
         ``problem`` (a :class:`~cosserat_fem.analysis.paths.RodPath`: its model's U)."""
         from cosserat_fem.output.fields import XdmfWriter
 
-        index = self._branch
+        index = self._branch if self.resumed is None else self.resumed[0]
         self._branch += 1
         self._points = 1
-        if self.folder is None or not problem.scene.output.xdmf:
+        if self.folder is None:
             return
+        save_branch_state(self.folder, index, branch, problem.comm)
+        self.ends[index] = branch_end(branch)
+        if not problem.scene.output.xdmf:
+            return
+        skip = 0 if self.resumed is None else self.resumed[1]
+        frames = branch.first_index + skip  # those written before
+        resume = None if self.resumed is None else (self.resumed[2], frames)
         path = self.folder / f"branch_{index}.xdmf"
-        writer = XdmfWriter(path, problem.model)
+        writer = XdmfWriter(path, problem.model, resume=resume)
         try:
-            for i, q in enumerate(branch.points):
+            for i, q in enumerate(branch.points[skip:], start=frames):
                 problem.set_state(q.u, q.p)
                 writer.write(float(i))
         finally:

@@ -295,6 +295,25 @@ def _path_branch(
     )
 
 
+def path_engine(
+    problem: RodPath,
+    settings: ContinuationSettings,
+    stop: Callable[[PathPoint], str | None] | None = None,
+    observer: BranchOutputs | None = None,
+) -> Continuation:
+    """The engine on ``problem``, its ``stop`` told of each point as a :class:`PathPoint` and
+    ``observer`` (branch_outputs.py) of each engine point."""
+    wrapped = None
+    if stop is not None or observer is not None:
+
+        def wrapped(q: Point) -> str | None:
+            if observer is not None:
+                observer.point(q)
+            return None if stop is None else stop(_path_point(problem, q))
+
+    return Continuation(problem, settings, wrapped)
+
+
 def continue_path(
     scene: Scene,
     settings: ContinuationSettings,
@@ -312,15 +331,7 @@ def continue_path(
     ends (cosserat_fem/analysis/branch_outputs.py: the progress, the XDMF)."""
     problem = RodPath(scene, comm)
     try:
-        wrapped = None
-        if stop is not None or observer is not None:
-
-            def wrapped(q: Point) -> str | None:
-                if observer is not None:
-                    observer.point(q)
-                return None if stop is None else stop(_path_point(problem, q))
-
-        engine = Continuation(problem, settings, wrapped)
+        engine = path_engine(problem, settings, stop, observer)
         start = engine.start_point(problem.state(), 0.0)
         result = PathResult()
         found: list[Point] = []
@@ -351,7 +362,10 @@ def write_branches(path: str | Path, result: PathResult, comm: MPI.Comm = MPI.CO
     state's RMS norm, dλ/ds, sign of det R_u, the point's kind), one row per point."""
     from cosserat_fem.analysis.branch_outputs import replace_on_root
 
-    lines = [",".join(BRANCH_COLUMNS)]
-    for row in result.rows():
-        lines.append(",".join(repr(v) if isinstance(v, float) else str(v) for v in row.values()))
+    lines = [",".join(BRANCH_COLUMNS), *csv_lines(result.rows())]
     replace_on_root(path, ("\n".join(lines) + "\n").encode(), comm)
+
+
+def csv_lines(rows: list[dict]) -> list[str]:
+    """branches.csv's lines of ``rows`` (:meth:`PathPoint.as_row`; floats by repr)."""
+    return [",".join(repr(v) if isinstance(v, float) else str(v) for v in r.values()) for r in rows]
