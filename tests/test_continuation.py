@@ -405,3 +405,29 @@ def test_restart_equals_the_whole_branch(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(SceneError, match="^--restart: .* holds no continuation"):
         cf.continuation(None, restart=tmp_path / "empty")
+
+
+def test_continue_command_restart(tmp_path):
+    """``continue --restart DIR``: the branch cut at --max-points 5 goes on to λ = 1 (its last
+    row at the bound, the reason printed), with the folder's scene and settings; with a SCENE
+    or --set beside it, or with neither SCENE nor --restart: exit 2, one line naming the
+    option."""
+    out = tmp_path / "c"
+    base = ["-m", "cosserat_fem.cli", "continue"]
+    small = ["--set", "discretisation.elements=4", "--set", "parameters.turns=1"]
+    first = [*base, str(ROLLUP), *small, "--max-points", "5", "--switch", "0", "--out", str(out)]
+    proc = run_command(first)
+    assert proc.returncode == 0, proc.stderr
+    assert "5 points (max_points)" in proc.stdout
+    proc = run_command([*base, "--restart", str(out), "--max-points", "40"])
+    assert proc.returncode == 0, proc.stderr
+    assert "p reached 1" in proc.stdout
+    assert read_branches(out / "branches.csv")[-1]["load_factor"] == "1.0"
+    for bad, name in (
+        ([*base, str(ROLLUP), "--restart", str(out)], "--restart"),
+        ([*base, "--restart", str(out), "--set", "parameters.turns=2"], "--restart"),
+        (base, "SCENE"),
+    ):
+        proc = run_command(bad)
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr.strip().count("\n") == 0 and name in proc.stderr
