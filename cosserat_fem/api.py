@@ -20,6 +20,7 @@ calls the same functions and gets the same arrays.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -27,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from cosserat_fem.common.errors import SceneError, out_folder
+from cosserat_fem.io.folder_lock import holding_folders
 from cosserat_fem.scene.build import Scene, load_scene, scene_from_dict
 from cosserat_fem.scene.load_data import TableStore
 from cosserat_fem.scene.schema import UNSET  # noqa: F401 - cf.UNSET: an override that removes its key
@@ -323,19 +325,23 @@ def pod(
     return result
 
 
+@holding_folders
 def continuation(
-    scene: Scene,
+    scene: Scene | None,
     low: float = 0.0,
     high: float = 1.0,
     *,
     step: float = 0.05,
     max_step: float = 1.0,
     min_step: float = 1e-6,
-    max_points: int = 200,
+    max_points: int | None = None,
     switch: int = 1,
     directions: Sequence[int] = (1, -1),
     stop: Callable | None = None,
     out: str | Path | None = None,
+    progress: Callable[[int, int, float], None] | None = None,
+    restart: str | Path | None = None,
+    branch: int = -1,
 ):
     """The static equilibrium path in the load factor λ (every load × λ) by pseudo-arclength
     continuation from the unloaded rod (cosserat_fem/analysis/paths.py,
@@ -349,11 +355,22 @@ def continuation(
     :class:`~cosserat_fem.analysis.paths.PathResult`: ``branches``, each with ``points``
     (``factor`` λ, ``tip`` (x, y, z, θ, ψ, φ) of the free end [m, rad], ``norm``,
     ``dfactor`` dλ/ds, ``det_sign``, ``kind``), ``special`` points, ``origin`` and
-    ``reason``. With ``out``: branches.csv there."""
+    ``reason``. With ``out``: branches.csv there, branches.json (each branch's origin and
+    why it ended) and branch_<i>.xdmf (each branch's states, the frame's time the point's
+    index: cosserat_fem/analysis/branch_outputs.py). ``progress(branches finished, points
+    on the branch, λ)`` after each point; ``max_points`` default 200.
+
+    ``restart``: the folder of an earlier continuation (its ``out``): its branch ``branch``
+    (default the last) traced on from its last point with its own scene and settings (give
+    ``scene`` None), but ``max_points`` if given (cosserat_fem/analysis/path_restart.py);
+    returns that one branch, its new points appended to the folder's files."""
+    import dataclasses
     import math
 
     from mpi4py import MPI
 
+    from cosserat_fem.analysis import path_restart
+    from cosserat_fem.analysis.branch_outputs import BranchOutputs, write_branch_reasons
     from cosserat_fem.analysis.paths import continue_path, write_branches
     from cosserat_fem.io.run_folder import prepare_output_dir
     from cosserat_fem.nls.arclength import ContinuationSettings
@@ -366,6 +383,30 @@ def continuation(
             raise SceneError(f"{name}: must be a finite{sign} number, got {value!r}")
         return float(value)
 
+    if progress is not None and not callable(progress):
+        raise SceneError(
+            f"progress: must be a function progress(branches, points, load_factor), got "
+            f"{type(progress).__name__}"
+        )
+    if restart is not None:
+        if scene is not None:
+            raise SceneError("restart: the scene is the restarted continuation's; give None")
+        given = out_folder(restart, "--restart")
+        if given is None or not given.is_dir():
+            raise SceneError(f"--restart: {str(restart)!r} is not a folder")
+        held = prepare_output_dir(given, MPI.COMM_WORLD, "restart")
+        record = path_restart.read_index(held, MPI.COMM_WORLD)
+        saved = ContinuationSettings(**record["settings"])
+        if max_points is not None:
+            check_max_points(max_points)
+            saved = dataclasses.replace(saved, max_points=max_points)
+        if isinstance(branch, bool) or not isinstance(branch, int):
+            raise SceneError(f"branch (--branch): must be a whole number, got {branch!r}")
+        index = branch if branch >= 0 else len(record["branches"]) + branch
+        return path_restart.restart_branch(held, record, index, saved, stop, progress)
+    if not isinstance(scene, Scene):
+        raise SceneError(f"scene: must be a Scene (cf.load), got {type(scene).__name__}")
+    max_points = 200 if max_points is None else max_points
     low, high = number("low (--range)", low, False), number("high (--range)", high, False)
     if high <= low:
         raise SceneError(f"high (--range): must exceed low, got {low!r} {high!r}")
@@ -373,11 +414,9 @@ def continuation(
     min_step = number("min_step", min_step)
     if not min_step <= step <= max_step:
         raise SceneError(f"step (--step): must lie in [min_step, max_step], got {step!r}")
-    for name, value in (("max_points (--max-points)", max_points), ("switch (--switch)", switch)):
-        if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-            raise SceneError(f"{name}: must be a whole number >= 0, got {value!r}")
-    if max_points < 2 or max_points > 100_000:
-        raise SceneError(f"max_points (--max-points): must lie in [2, 100000], got {max_points}")
+    check_max_points(max_points)
+    if isinstance(switch, bool) or not isinstance(switch, int) or switch < 0:
+        raise SceneError(f"switch (--switch): must be a whole number >= 0, got {switch!r}")
     if not directions or any(d not in (1, -1) for d in directions):
         raise SceneError(f"directions: +1 and/or -1, got {directions!r}")
     settings = ContinuationSettings(
@@ -390,8 +429,20 @@ def continuation(
         p_max=high,
     )
     out = out_folder(out)
-    folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD)
-    result = continue_path(scene, settings, switch, stop, tuple(directions))
+    folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "continue")
+    observer = BranchOutputs(folder, progress)
+    result = continue_path(scene, settings, switch, stop, tuple(directions), observer=observer)
     if folder is not None:
         write_branches(Path(folder) / "branches.csv", result)
+        write_branch_reasons(Path(folder) / "branches.json", result, scene.output.xdmf)
+        scene_dict = json.loads(json.dumps(scene.to_dict()))
+        path_restart.write_index(folder, scene_dict, settings, observer.ends, MPI.COMM_WORLD)
     return result
+
+
+def check_max_points(max_points) -> None:
+    """SceneError naming --max-points unless a whole number in [2, 100000]."""
+    if isinstance(max_points, bool) or not isinstance(max_points, int):
+        raise SceneError(f"max_points (--max-points): must be a whole number, got {max_points!r}")
+    if max_points < 2 or max_points > 100_000:
+        raise SceneError(f"max_points (--max-points): must lie in [2, 100000], got {max_points}")

@@ -184,15 +184,24 @@ def _parser() -> argparse.ArgumentParser:
         help="the static equilibrium path in the load factor by pseudo-arclength "
         "continuation: around folds, bifurcations located and switched onto (branches.csv)",
     )
-    _common(cont)
+    _common(cont, scene_optional=True)
     _factor_range(cont, "load factors the branches stay in")
     for option, kind, default, text in (
         ("--step", float, 0.05, "first arclength step"),
         ("--max-step", float, 1.0, "largest arclength step"),
-        ("--max-points", int, 200, "points per branch at most"),
+        ("--max-points", int, None, "points per branch at most (200)"),
         ("--switch", int, 1, "bifurcation points of the first branch to switch branch at"),
     ):
         cont.add_argument(option, type=kind, default=default, help=f"{text} (default {default})")
+    cont.add_argument(
+        "--restart",
+        metavar="DIR",
+        help="trace a branch of the continuation in DIR on from its last point, with its scene "
+        "and settings (no SCENE; --max-points may be raised)",
+    )
+    cont.add_argument(
+        "--branch", type=int, default=-1, help="with --restart: the branch (default the last)"
+    )
     sweep = sub.add_parser(
         "sweep",
         help="run the members of a sweep file (under mpirun: groups of ranks)",
@@ -207,6 +216,12 @@ def _parser() -> argparse.ArgumentParser:
         "or of a sweep (its members' largest free-end values against the varied key)",
     )
     _run_dir(plot)
+    plot.add_argument(
+        "--column",
+        default="norm",
+        help="of a continuation's branches.csv: what the load factor is drawn against "
+        "(norm, x, y, z, theta, psi, phi; default norm)",
+    )
     render = sub.add_parser(
         "render", help="3D pictures and an animation of a run's rod (pyvista, off-screen)"
     )
@@ -313,7 +328,7 @@ def _draw(args) -> int:
     if args.command == "plot":
         from cosserat_fem.plot import plot_run
 
-        paths = plot_run(args.run_dir, args.out)
+        paths = plot_run(args.run_dir, args.out, args.column)
     else:
         from cosserat_fem.analysis.progress import StatusLine
         from cosserat_fem.render import render_run
@@ -500,20 +515,39 @@ def _continue(args) -> int:
     from mpi4py import MPI
 
     from cosserat_fem import api
+    from cosserat_fem.analysis.progress import ContinuationProgress
 
-    scene = api.load(args.scene, args.overrides)
-    out = _out(args, scene)
-    low, high = args.range
-    result = api.continuation(
-        scene,
-        low,
-        high,
-        step=args.step,
-        max_step=args.max_step,
-        max_points=args.max_points,
-        switch=args.switch,
-        out=out,
-    )
+    # The bar on a terminal (it decides), never under --quiet or off rank 0.
+    enabled = None if MPI.COMM_WORLD.rank == 0 and not args.quiet else False
+    bar = ContinuationProgress(args.max_points or 200, enabled=enabled)
+    if args.restart is not None:
+        if args.scene is not None or args.overrides or args.out is not None:
+            raise SceneError(
+                "continue --restart: give no SCENE, --set or --out (the continuation goes on "
+                "in its own folder with its own scene)"
+            )
+        out = args.restart
+        result = api.continuation(
+            None, max_points=args.max_points, restart=out, branch=args.branch, progress=bar
+        )
+    else:
+        if args.scene is None:
+            raise SceneError("continue: give a SCENE file, or --restart DIR")
+        scene = api.load(args.scene, args.overrides)
+        out = _out(args, scene)
+        low, high = args.range
+        result = api.continuation(
+            scene,
+            low,
+            high,
+            step=args.step,
+            max_step=args.max_step,
+            max_points=args.max_points,
+            switch=args.switch,
+            out=out,
+            progress=bar,
+        )
+    bar.close()
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         for i, branch in enumerate(result.branches):
             end = branch.points[-1]

@@ -1,6 +1,8 @@
 """``cosserat-fem plot RUN_DIR``: PNG figures of any run, with matplotlib (Agg, no screen).
 
-A sweep's folder (cosserat_fem/studies/sweep_run.py) gets ``sweep.png``: each member's largest
+A continuation's folder (branches.csv) gets ``bifurcation.png``, the bifurcation diagram
+(:func:`plot_branches`). A sweep's folder (cosserat_fem/studies/sweep_run.py) gets
+``sweep.png``: each member's largest
 free-end displacements and angles against the varied key (:func:`plot_sweep`), and a frequency
 response's also ``response.png``: amplitudes and phases against the forcing's key, a curve per
 chain (:func:`plot_response`). A run's folder gets:
@@ -393,14 +395,140 @@ def plot_response(
     return _save(fig, target / "response.png")
 
 
-def plot_run(directory: str | Path, out: str | Path | None = None) -> list[Path]:
+#: A continuation's folder holds it (cosserat_fem/analysis/paths.py, write_branches).
+BRANCHES = "branches.csv"
+#: The columns of branches.csv a diagram may draw λ against (``plot --column``).
+DIAGRAM_COLUMNS = ("norm", "x", "y", "z", "theta", "psi", "phi")
+_DIAGRAM_UNITS = {"norm": "RMS of U", "x": "m", "y": "m", "z": "m"}
+#: branches.csv's kinds of located special points, marked on the diagram.
+SPECIAL_MARKERS = {"limit": ("s", "k"), "bifurcation": ("D", "k")}
+
+
+def read_branch_rows(path: Path, column: str) -> list[dict]:
+    """branches.csv's rows as {"branch": int, "load_factor", ``column``: float, "point": str,
+    "stability": str or "" (a column a newer file may have), "det_sign": float}; a file
+    without those columns or with a value that is not a finite number is bad input naming
+    the file and the row."""
+    from cosserat_fem.common.safe_files import read_text
+
+    name = str(path)
+    try:
+        lines = read_text(path, 1 << 30).splitlines()
+    except (OSError, ValueError) as exc:
+        raise SceneError(f"plot: cannot read {name!r} ({exc})") from None
+    header = lines[0].split(",") if lines else []
+    for needed in ("branch", "load_factor", column, "point"):
+        if needed not in header:
+            raise SceneError(f"plot: {name!r} has no column {needed!r}")
+    rows = []
+    for number, line in enumerate(lines[1:], start=2):
+        values = line.split(",")
+        if len(values) != len(header):
+            raise SceneError(
+                f"plot: {name!r} line {number}: {len(values)} values, not {len(header)}"
+            )
+        row = dict(zip(header, values, strict=True))
+        try:
+            parsed: dict = {
+                "branch": int(row["branch"]),
+                "load_factor": float(row["load_factor"]),
+                column: float(row[column]),
+                "det_sign": float(row.get("det_sign", "nan")),
+            }
+        except ValueError:
+            raise SceneError(f"plot: {name!r} line {number}: not a number") from None
+        if not (math.isfinite(parsed["load_factor"]) and math.isfinite(parsed[column])):
+            raise SceneError(f"plot: {name!r} line {number}: not a finite number")
+        parsed["point"] = row["point"]
+        parsed["stability"] = row.get("stability", "")
+        rows.append(parsed)
+    if not rows:
+        raise SceneError(f"plot: {name!r} holds no point")
+    return rows
+
+
+def _diagram_style(rows: list[dict]) -> tuple[str, dict]:
+    """How the parts of a branch are told apart: by branches.csv's ``stability`` column
+    ("stable" solid, "unstable" dashed, anything else dotted) when it has one, else by the
+    sign of det R_u (solid > 0, dashed < 0), which is not stability (it counts the negative
+    eigenvalues' parity) and is labelled as such."""
+    if any(r["stability"] for r in rows):
+        return "stability", {"stable": "-", "unstable": "--"}
+    return "det_sign", {"det R_u > 0": "-", "det R_u < 0": "--"}
+
+
+def plot_branches(
+    directory: str | Path, out: str | Path | None = None, column: str = "norm"
+) -> Path:
+    """bifurcation.png of the continuation in ``directory`` (its branches.csv): the load factor
+    λ against ``column`` (:data:`DIAGRAM_COLUMNS`: the state's RMS norm or the free end's
+    x, y, z [m], θ, ψ, φ [rad]), a colour per branch, each branch's points joined in the
+    order traced, the parts told apart by :func:`_diagram_style` (a segment takes its end
+    point's style), and the located limit points (squares) and bifurcation points
+    (diamonds) marked."""
+    if column not in DIAGRAM_COLUMNS:
+        raise SceneError(
+            f"plot --column: must be one of {', '.join(DIAGRAM_COLUMNS)}, got {column!r}"
+        )
+    directory = Path(directory)
+    rows = read_branch_rows(directory / BRANCHES, column)
+    target = output_folder(out, directory, "plot")
+    key, styles = _diagram_style(rows)
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=SURFACE_SIZE)
+    used: set[str] = set()
+    for b in sorted({r["branch"] for r in rows}):
+        points = [r for r in rows if r["branch"] == b and r["point"] not in SPECIAL_MARKERS]
+        x = np.array([r[column] for r in points])
+        y = np.array([r["load_factor"] for r in points])
+        for i in range(1, len(points)):
+            if key == "stability":
+                part = points[i]["stability"]
+            else:
+                part = "det R_u > 0" if points[i]["det_sign"] > 0 else "det R_u < 0"
+            style = styles.get(part, ":")
+            label = part if part not in used and part else "_nolegend_"
+            used.add(part)
+            ax.plot(
+                x[i - 1 : i + 1], y[i - 1 : i + 1], style, color=f"C{b % 10}", lw=1.2, label=label
+            )
+        if len(points) == 1:
+            ax.plot(x, y, "o", color=f"C{b % 10}", ms=3)
+    for kind, (marker, colour) in SPECIAL_MARKERS.items():
+        found = [r for r in rows if r["point"] == kind]
+        if found:
+            ax.plot(
+                [r[column] for r in found],
+                [r["load_factor"] for r in found],
+                marker,
+                color=colour,
+                ms=6,
+                ls="none",
+                label=f"{kind} point",
+            )
+    unit = _DIAGRAM_UNITS.get(column, "rad")
+    ax.set_xlabel(f"{column} [{unit}]" if column != "norm" else f"norm ({unit})")
+    ax.set_ylabel("load factor λ")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title(_label(f"Branches of {directory.name}"), fontsize=10)
+    fig.tight_layout()
+    return _save(fig, target / "bifurcation.png")
+
+
+def plot_run(
+    directory: str | Path, out: str | Path | None = None, column: str = "norm"
+) -> list[Path]:
     """The figures of the run in ``directory``, written to ``out`` (default: that folder); a
-    sweep's folder (sweep.json) gets :func:`plot_sweep`. Everything is read (and checked)
+    sweep's folder (sweep.json) gets :func:`plot_sweep`, a continuation's (branches.csv)
+    :func:`plot_branches` of λ against ``column``. Everything is read (and checked)
     first; a run with neither probe rows nor XDMF frames (killed at its start) is bad input,
     as nothing can be drawn."""
     out_folder(out, "plot --out")  # before anything is read
     if (Path(directory) / RECORD).is_file():
         return plot_sweep(directory, out)
+    if (Path(directory) / BRANCHES).is_file():
+        return [plot_branches(directory, out, column)]
     run = open_run(directory, "plot")
     rows = run.probes is not None and len(run.probes) > 0
     series = None

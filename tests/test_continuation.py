@@ -28,6 +28,7 @@ the tests assert 1e-6 and 5e-9. The bifurcation's λ is an eigenvalue's zero, co
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -267,3 +268,166 @@ def test_continue_command_bad_option(tmp_path):
     )
     assert proc.returncode == 2
     assert proc.stderr.strip().count("\n") == 0 and "--max-points" in proc.stderr
+
+
+def test_branch_that_cannot_go_on_is_written(tmp_path):
+    """A continuation that cannot go on ends with its branch written up to its last point and
+    the reason (issue 27 item 5). The roll-up to two turns (4 elements) with the corrector
+    allowed 2 Newton iterations: the quadratic convergence from the predictor's error, which
+    grows with the step and the curvature of the path, needs more as the rod rolls up, so the
+    step halves below min_step = 0.05 and the branch stops there (measured at λ = 0.29). The
+    files then hold exactly the engine's points: branches.csv one row per point (the last
+    one's λ that of the last point, repr round-trips a float), branches.json the reason, and
+    branch_0.xdmf one frame per point, its times the indices 0, 1, ..., its free end's ψ the
+    probe's (the same interpolant at the same node, evaluated two ways: 1e-12 rad of
+    round-off). The progress callback is called once per accepted point (the start is not
+    one) with the branch's count of points and λ."""
+    from xdmf_files import read_xdmf
+
+    scene = cf.load(
+        ROLLUP,
+        {"discretisation.elements": 4, "parameters.turns": 2, "solver.max_iterations": 2},
+    )
+    calls = []
+    result = cf.continuation(
+        scene,
+        0.0,
+        1.0,
+        step=0.2,
+        min_step=0.05,
+        directions=(1,),
+        out=tmp_path,
+        progress=lambda *args: calls.append(args),
+    )
+    (branch,) = result.branches
+    assert branch.reason.startswith("step below min_step 0.05")
+    assert len(branch.points) >= 3 and branch.points[-1].factor < 1.0
+    rows = read_branches(tmp_path / "branches.csv")
+    assert [float(r["load_factor"]) for r in rows] == [q.factor for q in branch.points]
+    (entry,) = json.loads((tmp_path / "branches.json").read_text())
+    assert entry["reason"] == branch.reason and entry["points"] == len(branch.points)
+    times, angles = read_xdmf(tmp_path / "branch_0.xdmf")["angles"]
+    assert list(times) == list(range(len(branch.points)))
+    psi = np.array([q.tip[4] for q in branch.points])
+    assert np.allclose(angles[:, 1], psi, rtol=0, atol=1e-12)
+    assert len(calls) == len(branch.points) - 1
+    assert calls[-1] == (0, len(branch.points), branch.points[-1].factor)
+
+
+def _branches_csv(path, stability: bool) -> None:
+    """A branches.csv of two branches by hand (write_branches' columns), the primary with its
+    det R_u changing sign and a located bifurcation at λ = 1, norm = 0.1."""
+    from cosserat_fem.analysis.paths import BRANCH_COLUMNS
+
+    header = [*BRANCH_COLUMNS, *(["stability"] if stability else [])]
+    table = [
+        (0, 0.0, 0.0, 1, "start", "stable"),
+        (0, 0.5, 0.05, 1, "regular", "stable"),
+        (0, 1.5, 0.15, -1, "end", "unstable"),
+        (0, 1.0, 0.1, 1, "bifurcation", ""),
+        (1, 1.0, 0.1, 1, "start", "stable"),
+        (1, 1.2, 0.4, 1, "end", "stable"),
+    ]
+    lines = [",".join(header)]
+    for b, lam, norm, det, kind, stab in table:
+        row = dict.fromkeys(header, "0.0")
+        row.update(branch=str(b), load_factor=repr(lam), norm=repr(norm), det_sign=repr(det))
+        row.update(point=kind, **({"stability": stab} if stability else {}))
+        lines.append(",".join(row[c] for c in header))
+    path.write_text("\n".join(lines) + "\n")
+
+
+@pytest.mark.parametrize("stability", [False, True])
+def test_bifurcation_diagram(tmp_path, monkeypatch, stability):
+    """``plot`` on a continuation's folder: bifurcation.png with λ against the column, each
+    branch's points joined in order (segment by segment, each styled by its end point: the
+    primary's last segment, det R_u < 0 or "unstable", dashed, the others solid), the
+    bifurcation point marked at (0.1, 1.0) and not joined into its branch; the legend names
+    the stability when branches.csv has the column, else the sign of det R_u. A column that
+    is not one: one line naming --column, exit 2."""
+    import cosserat_fem.plot as plot
+
+    _branches_csv(tmp_path / "branches.csv", stability)
+    figures = []
+    save = plot._save
+    monkeypatch.setattr(
+        plot,
+        "_save",
+        lambda fig, path, *a: (figures.append(plot.drawn_lines(fig)), save(fig, path))[1],
+    )
+    (path,) = plot.plot_run(tmp_path, column="norm")
+    assert path == tmp_path / "bifurcation.png" and path.stat().st_size > 0
+    (lines,) = figures
+    xy = [lines[f"axes0/line{j}"] for j in range(4)]
+    assert np.array_equal(xy[0], [[0.0, 0.05], [0.0, 0.5]])  # branch 0, first segment
+    assert np.array_equal(xy[2], [[0.1, 0.4], [1.0, 1.2]])  # branch 1
+    assert np.array_equal(xy[3], [[0.1], [1.0]])  # the bifurcation point
+    assert str(lines["axes0/line3/label"]) == "bifurcation point"
+    labels = {str(lines[f"axes0/line{j}/label"]) for j in range(3)}
+    assert labels >= ({"stable", "unstable"} if stability else {"det R_u > 0", "det R_u < 0"})
+    proc = run_command(["-m", "cosserat_fem.cli", "plot", str(tmp_path), "--column", "speed"])
+    assert proc.returncode == 2
+    assert proc.stderr.strip().count("\n") == 0 and "--column" in proc.stderr
+
+
+def test_restart_equals_the_whole_branch(tmp_path):
+    """A continuation cut in two equals the whole one, bit for bit (issue 27 item 5). The
+    roll-up (4 elements, one turn), λ growing, no switch, to λ = 1: once whole, once cut
+    by max_points = 5 and then restarted from its folder with max_points = 40. The restart saves the
+    branch's last three points (u, t_u exactly, as float64 npz; λ, dλ/ds, the determinant by
+    repr in JSON), the next step and the count of points: the resumed trace then performs
+    the same floating-point operations on the same arrays (the predictor, the refinement, the
+    corrector's assemblies and LU factorisations of a fresh problem are functions of (u, λ)
+    alone, serially deterministic), so the points are equal exactly, and so are the files:
+    branches.csv byte for byte (no special point on this path, so the rows are in the same
+    order), branch_0.xdmf's times and free-end values. Also: restart of a folder without a
+    continuation is one SceneError naming --restart."""
+    from xdmf_files import read_xdmf
+
+    scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 1})
+    options = dict(step=0.05, max_step=0.3, switch=0, directions=(1,))
+    whole = cf.continuation(scene, 0.0, 1.0, max_points=40, out=tmp_path / "whole", **options)
+    cut = tmp_path / "cut"
+    first = cf.continuation(scene, 0.0, 1.0, max_points=5, out=cut, **options)
+    assert first.branches[0].reason == "5 points (max_points)"
+    second = cf.continuation(None, max_points=40, restart=cut)
+    (w,) = whole.branches
+    (b,) = second.branches
+    assert w.reason == b.reason == "p reached 1" and not w.special and len(w.points) > 6
+    assert [q.factor for q in w.points[2:]] == [q.factor for q in b.points]
+    assert all(np.array_equal(p.tip, q.tip) for p, q in zip(w.points[2:], b.points, strict=True))
+    assert (cut / "branches.csv").read_text() == (tmp_path / "whole" / "branches.csv").read_text()
+    for array in ("displacement", "angles"):
+        times, values = read_xdmf(cut / "branch_0.xdmf")[array]
+        times_w, values_w = read_xdmf(tmp_path / "whole" / "branch_0.xdmf")[array]
+        assert list(times) == list(times_w) == list(range(len(w.points)))
+        assert np.array_equal(values, values_w)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(SceneError, match="^--restart: .* holds no continuation"):
+        cf.continuation(None, restart=tmp_path / "empty")
+
+
+def test_continue_command_restart(tmp_path):
+    """``continue --restart DIR``: the branch cut at --max-points 5 goes on to λ = 1 (its last
+    row at the bound, the reason printed), with the folder's scene and settings; with a SCENE
+    or --set beside it, or with neither SCENE nor --restart: exit 2, one line naming the
+    option."""
+    out = tmp_path / "c"
+    base = ["-m", "cosserat_fem.cli", "continue"]
+    small = ["--set", "discretisation.elements=4", "--set", "parameters.turns=1"]
+    first = [*base, str(ROLLUP), *small, "--max-points", "5", "--switch", "0", "--out", str(out)]
+    proc = run_command(first)
+    assert proc.returncode == 0, proc.stderr
+    assert "5 points (max_points)" in proc.stdout
+    proc = run_command([*base, "--restart", str(out), "--max-points", "40"])
+    assert proc.returncode == 0, proc.stderr
+    assert "p reached 1" in proc.stdout
+    assert read_branches(out / "branches.csv")[-1]["load_factor"] == "1.0"
+    for bad, name in (
+        ([*base, str(ROLLUP), "--restart", str(out)], "--restart"),
+        ([*base, "--restart", str(out), "--set", "parameters.turns=2"], "--restart"),
+        (base, "SCENE"),
+    ):
+        proc = run_command(bad)
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr.strip().count("\n") == 0 and name in proc.stderr

@@ -46,6 +46,26 @@ def test_progress_bar_on_a_terminal_only(monkeypatch):
     assert pipe.getvalue() == ""
 
 
+def test_continuation_status_line(monkeypatch):
+    """A continuation's line (issue 27 item 5): the points over max_points as the fraction
+    (50 of 200: 25.0 %), the branches done, the point and its load factor; silent off a
+    terminal."""
+    from cosserat_fem.analysis.progress import ContinuationProgress
+
+    now = [0.0]
+    monkeypatch.setattr("cosserat_fem.analysis.progress.time.monotonic", lambda: now[0])
+    term = FakeTerminal()
+    bar = ContinuationProgress(200, stream=term)
+    bar(1, 50, 0.75)
+    bar.close()
+    frames = term.getvalue().split("\r")
+    assert " 25.0%" in frames[1] and "1 branches done, point 50, load factor 0.75" in frames[1]
+    pipe = io.StringIO()
+    quiet = ContinuationProgress(200, stream=pipe)
+    quiet(0, 2, 0.1)
+    assert pipe.getvalue() == ""
+
+
 @pytest.mark.parametrize("ranks", [1, pytest.param(2, marks=[pytest.mark.mpi, pytest.mark.long])])
 def test_run_prints_one_summary(tmp_path, ranks):
     proc = run_command([*CLI, "run", SCENE, "--out", str(tmp_path), *SHORT], ranks)

@@ -46,6 +46,7 @@ import numpy as np
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from cosserat_fem.analysis.branch_outputs import BranchOutputs
 from cosserat_fem.analysis.statics import check_static_scene, static_solver
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.nls.arclength import Branch, Continuation, ContinuationSettings, Point
@@ -279,7 +280,11 @@ def _path_point(problem: RodPath, point: Point) -> PathPoint:
     return PathPoint(point.p, problem.tip(point.u), norm, point.t_p, point.det_sign, point.kind)
 
 
-def _path_branch(problem: RodPath, branch: Branch, origin: str) -> PathBranch:
+def _path_branch(
+    problem: RodPath, branch: Branch, origin: str, observer: BranchOutputs | None = None
+) -> PathBranch:
+    if observer is not None:
+        observer.branch(problem, branch)
     return PathBranch(
         [_path_point(problem, q) for q in branch.points],
         [_path_point(problem, q) for q in branch.special],
@@ -290,6 +295,25 @@ def _path_branch(problem: RodPath, branch: Branch, origin: str) -> PathBranch:
     )
 
 
+def path_engine(
+    problem: RodPath,
+    settings: ContinuationSettings,
+    stop: Callable[[PathPoint], str | None] | None = None,
+    observer: BranchOutputs | None = None,
+) -> Continuation:
+    """The engine on ``problem``, its ``stop`` told of each point as a :class:`PathPoint` and
+    ``observer`` (branch_outputs.py) of each engine point."""
+    wrapped = None
+    if stop is not None or observer is not None:
+
+        def wrapped(q: Point) -> str | None:
+            if observer is not None:
+                observer.point(q)
+            return None if stop is None else stop(_path_point(problem, q))
+
+    return Continuation(problem, settings, wrapped)
+
+
 def continue_path(
     scene: Scene,
     settings: ContinuationSettings,
@@ -297,21 +321,17 @@ def continue_path(
     stop: Callable[[PathPoint], str | None] | None = None,
     directions: tuple[int, ...] = (1, -1),
     comm: MPI.Comm = MPI.COMM_WORLD,
+    observer: BranchOutputs | None = None,
 ) -> PathResult:
     """The path from the unloaded rod (λ = 0) traced along ``directions`` (+1: λ growing;
     a direction that leaves [p_min, p_max] at once is not traced), then, at each of the first
     ``switch`` bifurcation points located on it, the other branch both ways; each branch ends
     at a bound of [settings.p_min, p_max] (a point there), max_points, ``stop(point)`` or a
-    step collapse (its reason kept)."""
+    step collapse (its reason kept). ``observer``: told of each point and each branch as it
+    ends (cosserat_fem/analysis/branch_outputs.py: the progress, the XDMF)."""
     problem = RodPath(scene, comm)
     try:
-        wrapped = None
-        if stop is not None:
-
-            def wrapped(q: Point) -> str | None:
-                return stop(_path_point(problem, q))
-
-        engine = Continuation(problem, settings, wrapped)
+        engine = path_engine(problem, settings, stop, observer)
         start = engine.start_point(problem.state(), 0.0)
         result = PathResult()
         found: list[Point] = []
@@ -320,11 +340,11 @@ def continue_path(
                 continue  # λ would leave the range at once
             branch = engine.trace(start, d)
             found += [q for q in branch.special if q.kind == "bifurcation"]
-            result.branches.append(_path_branch(problem, branch, "primary"))
+            result.branches.append(_path_branch(problem, branch, "primary", observer))
         for point in found[:switch]:
             for branch in engine.switch(point):
                 origin = f"switched at load factor {point.p:.9g}"
-                result.branches.append(_path_branch(problem, branch, origin))
+                result.branches.append(_path_branch(problem, branch, origin, observer))
         result.corrector_factorisations = engine.corrector_solves
         result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
         return result
@@ -340,21 +360,12 @@ def write_branches(path: str | Path, result: PathResult, comm: MPI.Comm = MPI.CO
     """branches.csv at ``path`` (rank 0 writes; the ranks agree on a failure): the header
     :data:`BRANCH_COLUMNS` (branch index, λ, the free end's x, y, z [m], θ, ψ, φ [rad], the
     state's RMS norm, dλ/ds, sign of det R_u, the point's kind), one row per point."""
-    from cosserat_fem.common.errors import CosseratError, OutputError
-    from cosserat_fem.common.parallel import agree
-    from cosserat_fem.common.safe_files import replace
+    from cosserat_fem.analysis.branch_outputs import replace_on_root
 
-    problem = None
-    if comm.rank == 0:
-        lines = [",".join(BRANCH_COLUMNS)]
-        for row in result.rows():
-            lines.append(
-                ",".join(repr(v) if isinstance(v, float) else str(v) for v in row.values())
-            )
-        try:
-            replace(path, ("\n".join(lines) + "\n").encode())
-        except CosseratError as exc:
-            problem = exc
-        except OSError as exc:
-            problem = OutputError(f"{path}: {exc.strerror or exc}")
-    agree(comm, problem)
+    lines = [",".join(BRANCH_COLUMNS), *csv_lines(result.rows())]
+    replace_on_root(path, ("\n".join(lines) + "\n").encode(), comm)
+
+
+def csv_lines(rows: list[dict]) -> list[str]:
+    """branches.csv's lines of ``rows`` (:meth:`PathPoint.as_row`; floats by repr)."""
+    return [",".join(repr(v) if isinstance(v, float) else str(v) for v in r.values()) for r in rows]

@@ -12,6 +12,8 @@
   step); ``render`` shows its pictures and frames on a :class:`StatusLine`.
 * :class:`SweepProgress`: a sweep's line per member finished (in logs and pipes too: a
   sweep is long and its lines are few), with the members done and the estimated time left.
+* :class:`ContinuationProgress`: a continuation's status line (branches done, the point,
+  its load factor).
 * :func:`summary_screen`: the end-of-run summary, a dozen lines from ``summary.json``.
 * :func:`configure_logging`: ``--quiet`` (errors only), default (warnings), ``--verbose``
   (what the solver decides: step rejections, Jacobian refreshes, checkpoints) on rank 0.
@@ -200,3 +202,20 @@ def summary_screen(summary: dict, out_dir) -> str:
     if summary.get("message"):
         lines.append(f"  stopped: {summary['message']}")
     return "\n".join(lines)
+
+
+class ContinuationProgress(StatusLine):
+    """Call with (branches finished, points on the branch being traced, its λ) after each
+    point (cosserat_fem/analysis/branch_outputs.py): a continuation's status line. The
+    fraction is the points over ``max_points``, the most a branch may have (a branch that
+    reaches a bound of the range sooner ends the bar early)."""
+
+    def __init__(self, max_points: int, stream: TextIO | None = None, enabled=None):
+        super().__init__(stream, enabled)
+        self.max_points = max_points
+
+    def __call__(self, branches: int, points: int, load_factor: float) -> None:
+        self.show(
+            points / self.max_points,
+            f"{branches} branches done, point {points}, load factor {load_factor:.6g}",
+        )

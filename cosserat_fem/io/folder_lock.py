@@ -48,6 +48,7 @@ LOCK_KEYS = {
     "sweep": "sweep --out",
     "modes": "output.directory",
     "stability": "output.directory",
+    "continue": "output.directory",
 }
 #: Bytes of the holder's record in the lock file (padded with blanks: rewritten in place).
 _RECORD = 1024

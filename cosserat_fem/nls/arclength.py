@@ -140,6 +140,11 @@ class Branch:
     direction: int = 1
     reason: str = ""
     steps_rejected: int = 0
+    #: the step the next point would have taken (kept by :meth:`Continuation.trace`)
+    step: float = 0.0
+    #: the index along the branch of ``points[0]`` (> 0 for a branch resumed from its last
+    #: points: :meth:`Continuation.resume`)
+    first_index: int = 0
 
 
 class Continuation:
@@ -344,15 +349,28 @@ class Continuation:
             start.kind,
         )
         branch = Branch(points=[first], direction=direction)
-        step = st.step
+        return self._extend(branch, st.step, search_first)
+
+    def resume(self, branch: Branch) -> Branch:
+        """``branch`` (its last points, at least the last three for the quadratic predictor,
+        ``first_index``, ``step`` and ``steps_rejected`` as a trace left them) traced on from
+        its last point: the same operations as the uninterrupted trace, so the same points
+        (path_restart.py)."""
+        return self._extend(branch, branch.step, True)
+
+    def _extend(self, branch: Branch, step: float, search_first: bool) -> Branch:
+        st = self.settings
+        branch.reason = ""
         while True:
+            branch.step = step
             prev = branch.points[-1]
-            if len(branch.points) >= st.max_points:
+            count = branch.first_index + len(branch.points)
+            if count >= st.max_points:
                 branch.reason = f"{st.max_points} points (max_points)"
                 return branch
             try:
                 history = None
-                if st.predictor == "quadratic" and len(branch.points) >= 3:
+                if st.predictor == "quadratic" and count >= 3:
                     history = (branch.points[-3], branch.points[-2])
                 cur = self._point_at(prev, step, history=history)
             except StepFailure as exc:
@@ -364,12 +382,13 @@ class Continuation:
                     )
                     return branch
                 continue
-            if len(branch.points) > 1 or search_first:
+            if count > 1 or search_first:
                 self._special(branch, prev, cur, step)
             branch.points.append(cur)
             if cur.iterations <= st.easy_iterations:
                 factor = max(st.grow, st.easy_iterations / max(cur.iterations, 1))
                 step = min(step * min(factor, st.max_grow), st.max_step)
+            branch.step = step
             if not st.p_min <= cur.p <= st.p_max:
                 bound = st.p_max if cur.p > st.p_max else st.p_min
                 branch.points.append(self._at_parameter(prev, cur, bound))

@@ -1,0 +1,128 @@
+"""What a continuation (cosserat_fem/analysis/paths.py) leaves in its folder and shows as it
+goes, besides branches.csv (issue 27 item 5).
+
+* ``branch_<i>.xdmf`` (+ its HDF5 frames), one file per branch i (i as in branches.csv's
+  ``branch`` column), written by :class:`BranchOutputs` as each branch ends: one frame per
+  point of the branch in its order (the located special points are not frames; they are
+  rows of branches.csv), the frame's "time" the point's index along the branch (0 = its
+  first point), not λ, which turns back at a fold. The arrays are the scene's
+  ``output.fields`` (:class:`~cosserat_fem.output.fields.XdmfWriter`, as a static path's
+  solution.xdmf), so ParaView's "Warp By Vector" draws each state of the branch. Not with
+  the scene's ``output.xdmf = false``.
+* ``continuation/``: each branch's end, for a restart (cosserat_fem/analysis/path_restart.py).
+* ``branches.json``: per branch its origin, why it ended (a bound of the range, max_points,
+  ``stop``'s reason, or a step collapse with the corrector's failure), its steps and
+  rejected steps (:func:`write_branch_reasons`). A branch that cannot go on still has every
+  point found up to its last in branches.csv and its XDMF.
+* the progress: ``progress(branch, points, load_factor)`` after each point (the command's
+  :class:`~cosserat_fem.analysis.progress.ContinuationProgress`).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+from mpi4py import MPI
+
+from cosserat_fem.analysis.path_restart import branch_end, save_branch_state
+from cosserat_fem.nls.arclength import Branch, Point
+
+#: progress(branch index, points so far on it, λ of the last)
+Progress = Callable[[int, int, float], None]
+
+
+class BranchOutputs:
+    """The observer :func:`~cosserat_fem.analysis.paths.continue_path` calls: ``point`` after
+    each accepted point (the progress), ``branch`` as each branch ends (its XDMF, in
+    ``folder`` if given). Collective (every rank calls both)."""
+
+    def __init__(
+        self,
+        folder: Path | None = None,
+        progress: Progress | None = None,
+        resumed: tuple[int, int, int] | None = None,
+    ):
+        """``resumed = (i, kept, n)``: the one branch told of is branch i resumed from its
+        ``kept`` saved points (path_restart.py), its XDMF continued as restart n."""
+        self.folder = None if folder is None else Path(folder)
+        self.progress = progress
+        self.resumed = resumed
+        self._branch = 0
+        self._points = 1  # the branch's first point
+        self.files: list[Path] = []
+        #: each branch's saved end (path_restart.branch_end), by branch index
+        self.ends: dict[int, dict] = {}
+
+    def point(self, point: Point) -> None:
+        self._points += 1
+        if self.progress is not None:
+            self.progress(self._branch, self._points, point.p)
+
+    def branch(self, problem, branch: Branch) -> None:
+        """Write ``branch_<i>.xdmf`` of ``branch`` (engine points, their states u) through
+        ``problem`` (a :class:`~cosserat_fem.analysis.paths.RodPath`: its model's U)."""
+        from cosserat_fem.output.fields import XdmfWriter
+
+        index = self._branch if self.resumed is None else self.resumed[0]
+        self._branch += 1
+        self._points = 1
+        if self.folder is None:
+            return
+        save_branch_state(self.folder, index, branch, problem.comm)
+        self.ends[index] = branch_end(branch)
+        if not problem.scene.output.xdmf:
+            return
+        skip = 0 if self.resumed is None else self.resumed[1]
+        frames = branch.first_index + skip  # those written before
+        resume = None if self.resumed is None else (self.resumed[2], frames)
+        path = self.folder / f"branch_{index}.xdmf"
+        writer = XdmfWriter(path, problem.model, resume=resume)
+        try:
+            for i, q in enumerate(branch.points[skip:], start=frames):
+                problem.set_state(q.u, q.p)
+                writer.write(float(i))
+        finally:
+            writer.close()
+        self.files.append(path)
+
+
+def replace_on_root(path: str | Path, data: bytes, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    """``data`` into the file ``path`` by rank 0 (safe_files.replace: whole or not at all); the
+    ranks agree on a failure (an OutputError naming the path)."""
+    from cosserat_fem.common.errors import CosseratError, OutputError
+    from cosserat_fem.common.parallel import agree
+    from cosserat_fem.common.safe_files import replace
+
+    problem = None
+    if comm.rank == 0:
+        try:
+            replace(path, data)
+        except CosseratError as exc:
+            problem = exc
+        except OSError as exc:
+            problem = OutputError(f"{path}: {exc.strerror or exc}")
+    agree(comm, problem)
+
+
+def write_branch_reasons(
+    path: str | Path, result, xdmf: bool = True, comm: MPI.Comm = MPI.COMM_WORLD
+) -> None:
+    """branches.json at ``path`` (:func:`replace_on_root`): a list, per branch of ``result``
+    (a :class:`~cosserat_fem.analysis.paths.PathResult`), of {"branch", "origin", "reason",
+    "points", "steps", "rejected", "xdmf"} ("xdmf": the branch's file name, null if
+    ``xdmf`` is false)."""
+    rows = [
+        {
+            "branch": i,
+            "origin": b.origin,
+            "reason": b.reason,
+            "points": len(b.points),
+            "steps": b.steps,
+            "rejected": b.rejected,
+            "xdmf": f"branch_{i}.xdmf" if xdmf else None,
+        }
+        for i, b in enumerate(result.branches)
+    ]
+    replace_on_root(path, (json.dumps(rows, indent=1) + "\n").encode(), comm)

@@ -1,0 +1,226 @@
+"""Restarts of a continuation from the last point of a branch (issue 27 item 5).
+
+A continuation with an output folder keeps, as each branch ends, what the rest of that
+branch depends on, following the run's checkpoints (cosserat_fem/io/checkpoint.py):
+
+    continuation/restart.json          the scene (as a dict), the settings, the ranks, and per
+                                       branch its end: first_index, step, rejected, direction
+    continuation/branch<i>.rank<r>.npz  rank r's owned entries of u and t_u of the branch's
+                                       last (at most) three points
+
+with each point's λ, dλ/ds, sign and ln|det R_u|, iterations and kind in the JSON (floats
+written by repr, which round-trips). The three last points are the quadratic predictor's
+history; ``first_index`` counts the points before them (max_points), ``step`` is the step
+the next point would have taken. :func:`resume_branch` rebuilds the scene's path problem and
+calls :meth:`~cosserat_fem.nls.arclength.Continuation.resume`: the same floating-point
+operations on the same arrays as the uninterrupted trace (the problem's assemblies and LU
+factorisations are functions of (u, λ) alone), so a continuation cut in two gives the very
+points of the whole one (tests/test_continuation.py::test_restart_equals_the_whole_branch).
+Arrays are per rank: a restart needs the same number of ranks (the same partition).
+
+Only ``max_points`` may change on restart (a branch that ended at max_points goes on); the
+range, steps and tolerances are the saved ones. The continued points are appended to the
+branch's rows of branches.csv and frames of its branch_<i>.xdmf, and its end saved again.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.nls.arclength import Branch, ContinuationSettings, Point
+
+FOLDER = "continuation"
+INDEX = "restart.json"
+#: The points of a branch's end kept (the quadratic predictor's history).
+KEPT = 3
+
+
+def state_file(branch: int, rank: int) -> str:
+    return f"branch{branch}.rank{rank}.npz"
+
+
+def branch_end(branch: Branch) -> dict:
+    """The JSON part of ``branch``'s end (module docstring)."""
+    kept = branch.points[-KEPT:]
+    return {
+        "first_index": branch.first_index + len(branch.points) - len(kept),
+        "step": branch.step,
+        "rejected": branch.steps_rejected,
+        "direction": branch.direction,
+        "points": [
+            {
+                "p": q.p,
+                "t_p": q.t_p,
+                "det_sign": q.det_sign,
+                "log_det": q.log_det,
+                "iterations": q.iterations,
+                "kind": q.kind,
+            }
+            for q in kept
+        ],
+    }
+
+
+def save_branch_state(folder: Path, index: int, branch: Branch, comm: MPI.Comm) -> None:
+    """Rank r's arrays of ``branch``'s end into continuation/branch<index>.rank<r>.npz (every
+    rank its own file; the ranks agree on a failure)."""
+    from cosserat_fem.common.errors import OutputError
+    from cosserat_fem.common.parallel import agree
+    from cosserat_fem.common.safe_files import replace
+
+    kept = branch.points[-KEPT:]
+    arrays = {f"u{i}": q.u for i, q in enumerate(kept)}
+    arrays |= {f"t{i}": q.t_u for i, q in enumerate(kept)}
+    problem = None
+    try:
+        (folder / FOLDER).mkdir(exist_ok=True)
+        buffer = _npz(arrays)
+        replace(folder / FOLDER / state_file(index, comm.rank), buffer)
+    except OSError as exc:
+        problem = OutputError(f"{folder / FOLDER}: {exc.strerror or exc}")
+    agree(comm, problem)
+
+
+def _npz(arrays: dict[str, np.ndarray]) -> bytes:
+    import io
+
+    out = io.BytesIO()
+    np.savez(out, **arrays)
+    return out.getvalue()
+
+
+def write_index(
+    folder: Path,
+    scene_dict: dict,
+    settings: ContinuationSettings,
+    ends: dict,
+    comm: MPI.Comm,
+    restarts: int = 0,
+) -> None:
+    """continuation/restart.json (rank 0; branch_outputs.replace_on_root); ``restarts``: how
+    many times it was restarted (numbers the XDMF's restarts)."""
+    from cosserat_fem.analysis.branch_outputs import replace_on_root
+
+    record = {
+        "format": 1,
+        "ranks": comm.size,
+        "scene": scene_dict,
+        "settings": dataclasses.asdict(settings),
+        "branches": {str(k): v for k, v in sorted(ends.items())},
+        "restarts": restarts,
+    }
+    if comm.rank == 0:
+        (folder / FOLDER).mkdir(exist_ok=True)
+    replace_on_root(folder / FOLDER / INDEX, (json.dumps(record) + "\n").encode(), comm)
+
+
+def read_index(folder: Path, comm: MPI.Comm) -> dict:
+    """The restart record of ``folder`` (rank 0 reads, all get it); SceneError naming
+    --restart if there is none or it does not fit these ranks."""
+    from cosserat_fem.common.safe_files import Unreadable, read_on_root
+
+    path = folder / FOLDER / INDEX
+    try:
+        record = json.loads(read_on_root(path, 1 << 28, comm).decode())
+    except (OSError, ValueError, Unreadable) as exc:
+        raise SceneError(
+            f"--restart: {str(folder)!r} holds no continuation to restart ({exc})"
+        ) from None
+    if record.get("ranks") != comm.size:
+        raise SceneError(
+            f"--restart: the continuation in {str(folder)!r} ran on {record.get('ranks')} "
+            f"ranks; restart it on as many (its states are per rank)"
+        )
+    return record
+
+
+def load_branch(folder: Path, record: dict, index: int, comm: MPI.Comm) -> Branch:
+    """The engine's :class:`~cosserat_fem.nls.arclength.Branch` of branch ``index``'s saved end
+    (its last points, first_index, step, rejected, direction)."""
+    end = record["branches"].get(str(index))
+    if end is None:
+        raise SceneError(f"--branch: no branch {index} saved in {str(folder)!r}")
+    with np.load(folder / FOLDER / state_file(index, comm.rank)) as arrays:
+        points = [
+            Point(
+                arrays[f"u{i}"],
+                q["p"],
+                arrays[f"t{i}"],
+                q["t_p"],
+                q["det_sign"],
+                q["log_det"],
+                q["iterations"],
+                q["kind"],
+            )
+            for i, q in enumerate(end["points"])
+        ]
+    return Branch(
+        points=points,
+        direction=end["direction"],
+        steps_rejected=end["rejected"],
+        step=end["step"],
+        first_index=end["first_index"],
+    )
+
+
+def restart_branch(
+    folder: Path,
+    record: dict,
+    index: int,
+    settings: ContinuationSettings,
+    stop=None,
+    progress=None,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+):
+    """Branch ``index`` of the continuation in ``folder`` traced on from its saved end with
+    ``settings``: a :class:`~cosserat_fem.analysis.paths.PathResult` of that one branch (its
+    points from the first saved one on), its new rows appended to branches.csv (at the end
+    of the file, the branch's index kept), its frames to branch_<index>.xdmf, its end and
+    reason saved again (restart.json, branches.json's entry)."""
+    from cosserat_fem.analysis.branch_outputs import BranchOutputs, replace_on_root
+    from cosserat_fem.analysis.paths import (
+        PathResult,
+        RodPath,
+        _path_branch,
+        csv_lines,
+        path_engine,
+    )
+    from cosserat_fem.common.safe_files import read_on_root
+    from cosserat_fem.scene.build import scene_from_dict
+
+    scene = scene_from_dict(record["scene"], source=f"{folder}/{FOLDER}/{INDEX}")
+    saved = load_branch(folder, record, index, comm)
+    kept = len(saved.points)
+    restarts = int(record.get("restarts", 0)) + 1
+    observer = BranchOutputs(folder, progress, resumed=(index, kept, restarts))
+    observer._points = saved.first_index + kept
+    problem = RodPath(scene, comm)
+    try:
+        engine = path_engine(problem, settings, stop, observer)
+        branch = engine.resume(saved)
+        path_branch = _path_branch(problem, branch, f"restarted ({restarts})", observer)
+        result = PathResult([path_branch], engine.corrector_solves)
+        result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
+    finally:
+        problem.destroy()
+    new = [p.as_row(index) for p in [*path_branch.points[kept:], *path_branch.special]]
+    old = read_on_root(folder / "branches.csv", 1 << 30, comm).decode()
+    text = old + "".join(line + "\n" for line in csv_lines(new))
+    replace_on_root(folder / "branches.csv", text.encode(), comm)
+    reasons = json.loads(read_on_root(folder / "branches.json", 1 << 28, comm).decode())
+    for entry in reasons:
+        if entry["branch"] == index:
+            entry["reason"] = branch.reason
+            entry["points"] = branch.first_index + len(branch.points)
+            entry["steps"] = entry["points"] - 1
+            entry["rejected"] = branch.steps_rejected
+    replace_on_root(folder / "branches.json", (json.dumps(reasons, indent=1) + "\n").encode(), comm)
+    ends = {int(k): v for k, v in record["branches"].items()} | observer.ends
+    write_index(folder, record["scene"], settings, ends, comm, restarts)
+    return result
