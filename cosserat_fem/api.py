@@ -336,6 +336,7 @@ def continuation(
     directions: Sequence[int] = (1, -1),
     stop: Callable | None = None,
     out: str | Path | None = None,
+    probe: float | None = None,
 ):
     """The static equilibrium path in the load factor λ (every load × λ) by pseudo-arclength
     continuation from the unloaded rod (cosserat_fem/analysis/paths.py,
@@ -349,7 +350,8 @@ def continuation(
     :class:`~cosserat_fem.analysis.paths.PathResult`: ``branches``, each with ``points``
     (``factor`` λ, ``tip`` (x, y, z, θ, ψ, φ) of the free end [m, rad], ``norm``,
     ``dfactor`` dλ/ds, ``det_sign``, ``kind``), ``special`` points, ``origin`` and
-    ``reason``. With ``out``: branches.csv there."""
+    ``reason``. ``probe``: the arclength s [m] of the point reported as ``tip`` instead (the
+    load point of a frame pinned at both ends, say). With ``out``: branches.csv there."""
     import math
 
     from mpi4py import MPI
@@ -391,7 +393,9 @@ def continuation(
     )
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD)
-    result = continue_path(scene, settings, switch, stop, tuple(directions))
+    if probe is not None:
+        probe = number("probe (--probe)", probe, False)
+    result = continue_path(scene, settings, switch, stop, tuple(directions), probe=probe)
     if folder is not None:
         write_branches(Path(folder) / "branches.csv", result)
     return result

@@ -193,6 +193,13 @@ def _parser() -> argparse.ArgumentParser:
         ("--switch", int, 1, "bifurcation points of the first branch to switch branch at"),
     ):
         cont.add_argument(option, type=kind, default=default, help=f"{text} (default {default})")
+    cont.add_argument(
+        "--probe",
+        type=float,
+        metavar="S",
+        help="arclength [m] of the point reported in branches.csv (default the free end, "
+        "else mid-span)",
+    )
     sweep = sub.add_parser(
         "sweep",
         help="run the members of a sweep file (under mpirun: groups of ranks)",
@@ -513,6 +520,7 @@ def _continue(args) -> int:
         max_points=args.max_points,
         switch=args.switch,
         out=out,
+        probe=args.probe,
     )
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         for i, branch in enumerate(result.branches):
