@@ -198,7 +198,7 @@ def shallow_arch_limits(R, beta, EI, EA, modes=41) -> tuple[float, float]:
 
 
 def arch_path(elements: int):
-    scene = cf.load(ARCH, {"discretisation.elements": elements})
+    scene = cf.load(ARCH, {"discretisation.elements": elements, "parameters.Q": 30000.0})
     result = cf.continuation(
         scene,
         -0.01,
