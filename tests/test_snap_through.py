@@ -15,7 +15,7 @@ a minimum P₂ < 0, and rises again; between the two limit points w itself turns
 *Convergence.* The limit loads are extrema of the load along the discrete path, so they
 converge like energies, h^(2k): P₁ on k = 3 elements: 1.8550447 (20), 1.8544634 (40),
 1.8544529 (80), and 1.8544527 on 40 P4; the 40 → 80 P3 change (1.05e-5) against 20 → 40
-(5.8e-4) is pre-asymptotic, 80 P3 and 40 P4 agree to 1.7e-8 relative. P₂: −0.940874 (20 P3),
+(5.8e-4) is pre-asymptotic, 80 P3 and 40 P4 agree to 9e-8 relative. P₂: −0.940874 (20 P3),
 −0.9392803 (40 P3), −0.9392495 (80 P3), −0.9392490 (40 P4): 5e-7 relative. Converged:
 
     P₁ = 1.854453 (P₁ L²/EI = 18.5445),   P₂ = −0.939249 (P₂ L²/EI = −9.3925).
@@ -76,7 +76,7 @@ import cosserat_fem as cf
 
 LEE = ROOT / "scenes" / "lee_frame.toml"
 #: The converged limit loads of Lee's frame (module docstring: 80 P3 and 40 P4).
-P1, P2 = 1.854453, -0.939249
+P1, P2 = 1.8544528, -0.9392493
 #: The reference load: λ = P/10.
 P_REF = 10.0
 
@@ -150,7 +150,7 @@ def test_lee_frame_snap_through_and_back():
 @pytest.mark.long
 def test_lee_frame_limit_loads_converge():
     """Refinement (module docstring): 80 P3 and 40 P4 give P₁ and P₂ within 1e-6 relative of
-    each other and of the converged values (measured 1.7e-8 and 5e-7); the braced frame (c11,
+    each other and of the converged values (measured 9e-8 and 5e-7 apart); the braced frame (c11,
     c33 × 100) has no bifurcation and the same limit loads to 1e-9 (the in-plane equations do
     not see c11, c33; θ = φ = 0 on the path, so only round-off and the corrector's 1e-10 in
     the update differ)."""
