@@ -342,6 +342,7 @@ def continuation(
     progress: Callable[[int, int, float], None] | None = None,
     restart: str | Path | None = None,
     branch: int = -1,
+    probe: float | None = None,
 ):
     """The static equilibrium path in the load factor λ (every load × λ) by pseudo-arclength
     continuation from the unloaded rod (cosserat_fem/analysis/paths.py,
@@ -363,7 +364,9 @@ def continuation(
     ``restart``: the folder of an earlier continuation (its ``out``): its branch ``branch``
     (default the last) traced on from its last point with its own scene and settings (give
     ``scene`` None), but ``max_points`` if given (cosserat_fem/analysis/path_restart.py);
-    returns that one branch, its new points appended to the folder's files."""
+    returns that one branch, its new points appended to the folder's files. ``probe``: the
+    arclength s [m] of the point reported as ``tip`` instead (the load point of a frame
+    pinned at both ends, say); a restart keeps the first run's."""
     import dataclasses
     import math
 
@@ -428,15 +431,21 @@ def continuation(
         p_min=low,
         p_max=high,
     )
+    if probe is not None:
+        probe = number("probe (--probe)", probe, False)
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "continue")
     observer = BranchOutputs(folder, progress)
-    result = continue_path(scene, settings, switch, stop, tuple(directions), observer=observer)
+    result = continue_path(
+        scene, settings, switch, stop, tuple(directions), observer=observer, probe=probe
+    )
     if folder is not None:
         write_branches(Path(folder) / "branches.csv", result)
         write_branch_reasons(Path(folder) / "branches.json", result, scene.output.xdmf)
         scene_dict = json.loads(json.dumps(scene.to_dict()))
-        path_restart.write_index(folder, scene_dict, settings, observer.ends, MPI.COMM_WORLD)
+        path_restart.write_index(
+            folder, scene_dict, settings, observer.ends, MPI.COMM_WORLD, probe=probe
+        )
     return result
 
 

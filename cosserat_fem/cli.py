@@ -202,6 +202,13 @@ def _parser() -> argparse.ArgumentParser:
     cont.add_argument(
         "--branch", type=int, default=-1, help="with --restart: the branch (default the last)"
     )
+    cont.add_argument(
+        "--probe",
+        type=float,
+        metavar="S",
+        help="arclength [m] of the point reported in branches.csv (default the free end, "
+        "else mid-span)",
+    )
     sweep = sub.add_parser(
         "sweep",
         help="run the members of a sweep file (under mpirun: groups of ranks)",
@@ -546,6 +553,7 @@ def _continue(args) -> int:
             switch=args.switch,
             out=out,
             progress=bar,
+            probe=args.probe,
         )
     bar.close()
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:

@@ -172,13 +172,16 @@ def test_rollup_two_turns_by_continuation():
 
 
 def test_bad_input_names_the_option(tmp_path):
-    """One SceneError naming the option; a 3D scene refused naming discretisation.planar."""
+    """One SceneError naming the option (a probe outside [0, ℓ] too); a 3D scene refused
+    naming discretisation.planar."""
     scene = cf.load(ROLLUP)
     for kwargs, name in (
         ({"step": -1.0}, "step"),
         ({"max_points": 1}, "max_points"),
         ({"directions": (2,)}, "directions"),
         ({"switch": -1}, "switch"),
+        ({"probe": "end"}, "probe"),
+        ({"probe": 1.5}, "probe"),  # beyond the rod's length, 1 m
     ):
         with pytest.raises(SceneError, match=f"^{name}"):
             cf.continuation(scene, **kwargs)

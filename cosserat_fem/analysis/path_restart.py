@@ -102,9 +102,11 @@ def write_index(
     ends: dict,
     comm: MPI.Comm,
     restarts: int = 0,
+    probe: float | None = None,
 ) -> None:
     """continuation/restart.json (rank 0; branch_outputs.replace_on_root); ``restarts``: how
-    many times it was restarted (numbers the XDMF's restarts)."""
+    many times it was restarted (numbers the XDMF's restarts); ``probe``: the reported point's
+    arclength, None for the default."""
     from cosserat_fem.analysis.branch_outputs import replace_on_root
 
     record = {
@@ -114,6 +116,7 @@ def write_index(
         "settings": dataclasses.asdict(settings),
         "branches": {str(k): v for k, v in sorted(ends.items())},
         "restarts": restarts,
+        "probe": probe,
     }
     if comm.rank == 0:
         (folder / FOLDER).mkdir(exist_ok=True)
@@ -200,7 +203,7 @@ def restart_branch(
     restarts = int(record.get("restarts", 0)) + 1
     observer = BranchOutputs(folder, progress, resumed=(index, kept, restarts))
     observer._points = saved.first_index + kept
-    problem = RodPath(scene, comm)
+    problem = RodPath(scene, comm, record.get("probe"))
     try:
         engine = path_engine(problem, settings, stop, observer)
         branch = engine.resume(saved)
@@ -222,5 +225,5 @@ def restart_branch(
             entry["rejected"] = branch.steps_rejected
     replace_on_root(folder / "branches.json", (json.dumps(reasons, indent=1) + "\n").encode(), comm)
     ends = {int(k): v for k, v in record["branches"].items()} | observer.ends
-    write_index(folder, record["scene"], settings, ends, comm, restarts)
+    write_index(folder, record["scene"], settings, ends, comm, restarts, record.get("probe"))
     return result

@@ -33,6 +33,14 @@ nears π/2, which changes the unknowns U and so the path's coordinates in the mi
 branch; that is not done on a path yet, so a scene that needs the chart (θ and ψ both solved)
 is refused with the reason (a SceneError naming discretisation.planar). A scene in the y-z
 plane (angle θ) is refused too: θ = ±π/2 is the chart's singular point.
+
+One exception: a rod curved at rest in the x-z plane (bent about e2) under in-plane loads
+(:func:`in_xz_plane`; Lee's frame), which the scene solves in 3D (a curved rod is never
+reduced to a plane). Its primary path stays in the plane, θ = φ = 0 (the out-of-plane
+equations hold with them zero), so the chart is never needed there; its R_u has the
+out-of-plane stiffness too, so a lateral (out-of-plane) bifurcation is located like any
+other. A branch switched onto there leaves the plane: it ends when some node's |θ| reaches
+:data:`THETA_LIMIT` (the reason says so), short of the chart's singularity.
 """
 
 from __future__ import annotations
@@ -54,16 +62,42 @@ from cosserat_fem.output.fields import PointProbe, probe_sigma
 from cosserat_fem.rod.model import build_model
 from cosserat_fem.scene.build import Scene
 
+#: On a rod solved in 3D that starts in the x-z plane (:func:`in_xz_plane`), a branch ends
+#: where some node's |θ| reaches this [rad]: the Euler-angle chart is singular at π/2.
+THETA_LIMIT = 1.2
+
+
+def in_xz_plane(scene: Scene) -> bool:
+    """Whether a scene solved in 3D (a rod curved at rest is never reduced to a plane:
+    Scene.plane) stays in the x-z plane: its reference curve in it (y = 0) and bent about e2
+    (d0_2 = ±e2) at 1001 points, and nothing that leaves the plane (the plane's own test).
+    Then θ = φ = 0 on the path (the out-of-plane equations hold with them zero), far from the
+    chart's singularity θ = ±π/2, so the 3D unknowns need no chart move."""
+    reference = scene.reference
+    if not reference.curved or reference.closed:
+        return False
+    s = np.linspace(0.0, scene.rod.length, 1001)
+    frames = reference.frames(s)
+    return bool(
+        np.all(np.abs(reference.positions(s)[:, 1]) < 1e-12 * scene.rod.length)
+        and np.all(np.abs(np.abs(frames[:, 1, 1]) - 1.0) < 1e-12)
+        and scene._stays_in("x-z")
+    )
+
 
 class RodPath:
     """R(U, λ) = 0 of a planar scene as a :class:`~cosserat_fem.nls.arclength.ContinuationProblem`
     (module docstring)."""
 
-    def __init__(self, scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD):
+    def __init__(self, scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, probe: float | None = None):
+        """``probe``: the arclength s [m] of the point whose (x, y, z, θ, ψ, φ) the path
+        reports (:meth:`tip`), in [0, ℓ]; default the probe point of the other commands
+        (output.fields.probe_sigma: the free end, else mid-span)."""
         check_static_scene(scene, "continue")
         self.scene = scene
         self.model = model = build_model(scene, comm)
-        if model.needs_chart or model.layout.index(3) is not None:
+        self.in_plane_3d = in_xz_plane(scene)
+        if not self.in_plane_3d and (model.needs_chart or model.layout.index(3) is not None):
             raise SceneError(
                 "discretisation.planar: continuation follows rods bent in the x-z plane only "
                 "(a rod in 3D or in the y-z plane meets the Euler-angle chart's singularity "
@@ -85,7 +119,11 @@ class RodPath:
         self._factor_ready = False
         self._blocks: tuple[np.ndarray, np.ndarray] | None = None
         self._aij: PETSc.Mat | None = None
-        self.probe = PointProbe(model, probe_sigma(scene))
+        length = scene.rod.length
+        if probe is not None and not 0.0 <= probe <= length:
+            raise SceneError(f"probe (--probe): must lie in [0, {length!r}] (m), got {probe!r}")
+        sigma = probe_sigma(scene) if probe is None else probe / length
+        self.probe = PointProbe(model, sigma)
 
     # -- the state -------------------------------------------------------------------------
     def set_state(self, u: np.ndarray, p: float) -> None:
@@ -198,9 +236,18 @@ class RodPath:
             for obj in (ksp, block, row_is, col_is):
                 obj.destroy()
 
+    def largest_theta(self, u: np.ndarray) -> float:
+        """max |θ| [rad] over the nodes of the state u (0 if θ is not solved)."""
+        slot = self.model.layout.index(3)
+        if slot is None:
+            return 0.0
+        local = u[slot :: self.model.layout.size]
+        return self.comm.allreduce(float(np.max(np.abs(local), initial=0.0)), op=MPI.MAX)
+
     # -- outputs ---------------------------------------------------------------------------
     def tip(self, u: np.ndarray) -> np.ndarray:
-        """(x, y, z, θ, ψ, φ) [m, rad] at the probe point (the free end) of the state u."""
+        """(x, y, z, θ, ψ, φ) [m, rad] at the probe point (default the free end) of the state
+        u."""
         self.model.U.x.array[: self.owned] = u
         self.model.U.x.scatter_forward()
         values = self.probe.values()
@@ -302,13 +349,16 @@ def path_engine(
     observer: BranchOutputs | None = None,
 ) -> Continuation:
     """The engine on ``problem``, its ``stop`` told of each point as a :class:`PathPoint` and
-    ``observer`` (branch_outputs.py) of each engine point."""
+    ``observer`` (branch_outputs.py) of each engine point; a branch of a curved rod in the
+    x-z plane solved in 3D ends where |θ| reaches :data:`THETA_LIMIT` (the chart)."""
     wrapped = None
-    if stop is not None or observer is not None:
+    if stop is not None or observer is not None or problem.in_plane_3d:
 
         def wrapped(q: Point) -> str | None:
             if observer is not None:
                 observer.point(q)
+            if problem.in_plane_3d and problem.largest_theta(q.u) >= THETA_LIMIT:
+                return f"|θ| reached {THETA_LIMIT} rad out of the x-z plane (the chart)"
             return None if stop is None else stop(_path_point(problem, q))
 
     return Continuation(problem, settings, wrapped)
@@ -322,14 +372,17 @@ def continue_path(
     directions: tuple[int, ...] = (1, -1),
     comm: MPI.Comm = MPI.COMM_WORLD,
     observer: BranchOutputs | None = None,
+    probe: float | None = None,
 ) -> PathResult:
     """The path from the unloaded rod (λ = 0) traced along ``directions`` (+1: λ growing;
     a direction that leaves [p_min, p_max] at once is not traced), then, at each of the first
     ``switch`` bifurcation points located on it, the other branch both ways; each branch ends
     at a bound of [settings.p_min, p_max] (a point there), max_points, ``stop(point)`` or a
     step collapse (its reason kept). ``observer``: told of each point and each branch as it
-    ends (cosserat_fem/analysis/branch_outputs.py: the progress, the XDMF)."""
-    problem = RodPath(scene, comm)
+    ends (cosserat_fem/analysis/branch_outputs.py: the progress, the XDMF). ``probe``: the
+    arclength [m] of the point reported as each point's ``tip`` (:class:`RodPath`; default
+    the free end, else mid-span)."""
+    problem = RodPath(scene, comm, probe)
     try:
         engine = path_engine(problem, settings, stop, observer)
         start = engine.start_point(problem.state(), 0.0)
