@@ -44,8 +44,12 @@ M − I is −I there.
 these on :class:`Shooting`): ``residual(u, p)`` = Φ_T(u) − u with p the forcing parameter
 (a scene parameter, e.g. r of Ω = r ω1; the period follows from the period expression),
 ``linearise(u, p)`` assembles and factors M − I, ``solve(rhs)``, ``dparameter(u, p)`` =
-∂R/∂p (a forward difference: one more period) and ``dot(a, b)`` summed over the ranks.
-Vectors are this rank's owned entries of the model's U.
+∂R/∂p (a forward difference: one more period), ``dot(a, b)`` summed over the ranks and
+``determinant()`` = (sign, ln|det(M − I)|) from the LU (it changes sign where a real μ
+crosses +1: at a fold the engine's limit point). Vectors are this rank's owned entries of the
+model's U. :func:`trace_orbits` (``cf.periodic_branch``) runs the engine on it through the
+folds of a frequency response, each point's multipliers those of the monodromy the engine
+computed there for its tangent.
 
 **MPI.** Parallel in space, not in time: each rank carries its owned rows of X; the matrices
 are PETSc's (MUMPS under mpirun) and M is gathered (n × n, dense) on every rank for its
