@@ -7,6 +7,7 @@ agreement, safe files, JIT), ``io`` (file formats), ``scene``, ``rod`` (the disc
 ``analysis`` (run, static, modes, stability), ``studies`` (sweeps, responses, POD);
 docs/developers.md maps them. The Python API, ``cosserat_fem.load``, ``run``, ``resume``,
 ``static``, ``modes``, ``stability``, ``stability_at``, ``continuation``, ``periodic_orbit``,
+``periodic_branch``,
 ``lyapunov``, ``load_sweep``, ``sweep`` and ``pod``, is :mod:`cosserat_fem.api`.
 """
 
@@ -33,6 +34,7 @@ _API = (
     "stability_at",
     "continuation",
     "periodic_orbit",
+    "periodic_branch",
     "lyapunov",
     "load_sweep",
     "sweep",

@@ -325,6 +325,19 @@ def pod(
     return result
 
 
+def _number(name: str, value, positive: bool = True) -> float:
+    """``value`` as a float, or SceneError naming ``name`` unless it is a finite (positive)
+    number."""
+    import math
+
+    if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
+        raise SceneError(f"{name}: must be a number, got {value!r}")
+    if not math.isfinite(value) or (positive and value <= 0.0):
+        sign = " positive" if positive else ""
+        raise SceneError(f"{name}: must be a finite{sign} number, got {value!r}")
+    return float(value)
+
+
 @holding_folders
 def continuation(
     scene: Scene | None,
@@ -368,7 +381,6 @@ def continuation(
     arclength s [m] of the point reported as ``tip`` instead (the load point of a frame
     pinned at both ends, say); a restart keeps the first run's."""
     import dataclasses
-    import math
 
     from mpi4py import MPI
 
@@ -377,14 +389,6 @@ def continuation(
     from cosserat_fem.analysis.paths import continue_path, write_branches
     from cosserat_fem.io.run_folder import prepare_output_dir
     from cosserat_fem.nls.arclength import ContinuationSettings
-
-    def number(name: str, value, positive: bool = True) -> float:
-        if isinstance(value, bool) or not isinstance(value, int | float | np.floating):
-            raise SceneError(f"{name}: must be a number, got {value!r}")
-        if not math.isfinite(value) or (positive and value <= 0.0):
-            sign = " positive" if positive else ""
-            raise SceneError(f"{name}: must be a finite{sign} number, got {value!r}")
-        return float(value)
 
     if progress is not None and not callable(progress):
         raise SceneError(
@@ -410,11 +414,11 @@ def continuation(
     if not isinstance(scene, Scene):
         raise SceneError(f"scene: must be a Scene (cf.load), got {type(scene).__name__}")
     max_points = 200 if max_points is None else max_points
-    low, high = number("low (--range)", low, False), number("high (--range)", high, False)
+    low, high = _number("low (--range)", low, False), _number("high (--range)", high, False)
     if high <= low:
         raise SceneError(f"high (--range): must exceed low, got {low!r} {high!r}")
-    step, max_step = number("step (--step)", step), number("max_step (--max-step)", max_step)
-    min_step = number("min_step", min_step)
+    step, max_step = _number("step (--step)", step), _number("max_step (--max-step)", max_step)
+    min_step = _number("min_step", min_step)
     if not min_step <= step <= max_step:
         raise SceneError(f"step (--step): must lie in [min_step, max_step], got {step!r}")
     check_max_points(max_points)
@@ -432,7 +436,7 @@ def continuation(
         p_max=high,
     )
     if probe is not None:
-        probe = number("probe (--probe)", probe, False)
+        probe = _number("probe (--probe)", probe, False)
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "continue")
     observer = BranchOutputs(folder, progress)
@@ -455,3 +459,77 @@ def check_max_points(max_points) -> None:
         raise SceneError(f"max_points (--max-points): must be a whole number, got {max_points!r}")
     if max_points < 2 or max_points > 100_000:
         raise SceneError(f"max_points (--max-points): must lie in [2, 100000], got {max_points}")
+
+
+@holding_folders
+def periodic_branch(
+    scene: Scene,
+    period: float | str,
+    parameter: str,
+    start: float,
+    end: float,
+    *,
+    guess=None,
+    settle: int = 0,
+    steps_per_period: int = 300,
+    step: float = 0.005,
+    max_step: float = 0.01,
+    scale: float = 4.0,
+    max_points: int = 300,
+    out: str | Path | None = None,
+):
+    """The branch of forced periodic orbits in the scene parameter ``parameter`` p (e.g. r of
+    Ω = r ω1, with ``period`` an expression of it, ``"2*pi/(r*w1)"``) from p = ``start`` to
+    p = ``end``, by pseudo-arclength continuation of the shooting problem
+    (cosserat_fem/analysis/periodic.py ``trace_orbits``; cosserat_fem/nls/arclength.py):
+    through its folds, unstable parts included, each orbit with its Floquet multipliers and
+    stability, the folds located (dp/ds = 0, where a real multiplier crosses +1). The first
+    orbit is shot from ``guess`` (an Orbit or this rank's U; None: rest) after ``settle``
+    periods. Steps (``step``, up to ``max_step``) are arclength in √(w ‖ΔU‖² + Δp²), w making
+    the first orbit's weighted norm ``scale`` × its amplitude / ℓ. Returns an
+    :class:`~cosserat_fem.analysis.periodic.OrbitBranch`: ``points`` (``parameter``,
+    ``amplitude`` [m], ``multipliers``, ``stability``, ``kind``, ``state``), ``folds``,
+    ``special``, ``reason``, ``steps``, ``monodromies``. With ``out``: orbit_branch.csv there
+    (columns ``ORBIT_COLUMNS``)."""
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from cosserat_fem.analysis.paths import write_branches
+    from cosserat_fem.analysis.periodic import ORBIT_COLUMNS, Orbit, Shooting, trace_orbits
+    from cosserat_fem.io.run_folder import prepare_output_dir
+    from cosserat_fem.nls.arclength import ContinuationSettings
+
+    start, end = _number("start", start, False), _number("end", end, False)
+    if start == end:
+        raise SceneError(f"end: must differ from start, got {end!r}")
+    step, max_step = _number("step", step), _number("max_step", max_step)
+    scale = _number("scale", scale)
+    if step > max_step:
+        raise SceneError(f"step: must not exceed max_step {max_step!r}, got {step!r}")
+    for name, value, low in (("settle", settle, 0), ("max_points", max_points, 2)):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
+            raise SceneError(f"{name}: must be a whole number >= {low}, got {value!r}")
+    settings = replace(
+        ContinuationSettings(),
+        step=step,
+        max_step=max_step,
+        max_points=int(max_points),
+        tolerance=1e-9,
+        locate_tolerance=1e-6,
+    )
+    out = out_folder(out)
+    folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "continue")
+    shooting = Shooting(scene, period, steps_per_period=steps_per_period, parameter=parameter)
+    try:
+        if isinstance(guess, Orbit):
+            guess = guess.state
+        shooting.set_parameter(start)
+        u = shooting.rest() if guess is None else shooting.check_state(guess)
+        u = shooting.settle(u, int(settle))
+        branch = trace_orbits(shooting, u, start, end, settings, scale)
+    finally:
+        shooting.destroy()
+    if folder is not None:
+        write_branches(Path(folder) / "orbit_branch.csv", branch, columns=ORBIT_COLUMNS)
+    return branch

@@ -230,3 +230,164 @@ def test_the_continuation_protocol_gives_the_orbit_s_tangent():
     central = (ends[0] - ends[1]) / (2 * delta)
     assert np.abs(central - tangent).max() <= 2e-5 * np.abs(central).max()
     assert shooting.dot(central, tangent) == pytest.approx(float(central @ tangent))
+
+
+def test_a_linear_branch_follows_the_closed_form(tmp_path):
+    """cf.periodic_branch at a thousandth of the demo's load (linear: the stretching terms are
+    (a/ℓ)² ~ 1e-10 of the linear ones), r from 1.03 to 1.07 on the resonance's flank, N = 50
+    SDIRK3 steps a period. Not across the peak: there a ∝ 1/ζ, and the scheme's numerical
+    damping, O((ωh)⁴) a step (|R^N| − |exp(λT)| = 1e-4 at N = 100, the test above: 0.16 % of
+    the physical ζωT = 0.063), is 16 times that at N = 50, 2.5 % of ζ; on the flank the
+    damping term (2ζr)²/(r² − 1)² ≤ 0.1 of |H|⁻², so it moves |H| by < 0.15 %.
+
+    Asserted: every orbit's amplitude equals the linear one-mode response
+    |H(r)| f = f/√((ω² − Ω²)² + (2ζωΩ)²), f = 1 m/s², ζ = c/(2ρAω) (1 − ε) (the rotary
+    inertia's share ε = 1.64e-3, test above), within 1 % (the other modes' quasi-static share
+    at mid-span, −0.24 % at 1.07 in the test above; the scheme's 1e-4); each is stable and no
+    special point is found (det(M − I) = Π(μ − 1) keeps its sign: every |μ| < 1); the
+    branch reaches r = 1.07 exactly (the engine's last point at the bound); determinant()
+    is the product of (μ − 1) over the free dofs and of −1 over the held ones (the same LU:
+    1e-9 relative, the eigen-solve's round-off on 1e2 factors); and orbit_branch.csv has the
+    header ORBIT_COLUMNS and one row per point."""
+    from cosserat_fem.analysis.periodic import ORBIT_COLUMNS, Shooting
+
+    scene = clamped(F_DEMO / 1000, 1.03)
+    omega = api.modes(scene, count=1)[0].omega
+    branch = api.periodic_branch(
+        scene,
+        PERIOD,
+        "r",
+        1.03,
+        1.07,
+        steps_per_period=50,
+        step=0.01,
+        max_step=0.02,
+        out=tmp_path,
+    )
+    zeta = C / (2 * RHO_A * omega) * (1 - 1.64e-3)
+    rs = [q.parameter for q in branch.points]
+    assert rs[0] == 1.03 and rs[-1] == pytest.approx(1.07, abs=1e-9)
+    inner = rs[:-1]  # the last point is the engine's at the bound, after the step beyond it
+    assert all(b > a for a, b in zip(inner, inner[1:], strict=False)) and len(rs) >= 4
+    assert not branch.special and branch.reason == "p reached 1.07"
+    for q in branch.points:
+        Omega = q.parameter * W1
+        linear = 1.0 / math.hypot(omega**2 - Omega**2, 2 * zeta * omega * Omega)
+        assert q.amplitude == pytest.approx(linear, rel=0.01), q.parameter
+        assert q.stability == "stable"
+    lines = (tmp_path / "orbit_branch.csv").read_text().splitlines()
+    assert lines[0].split(",") == list(ORBIT_COLUMNS) and len(lines) == len(rs) + 1
+    shooting = Shooting(scene, PERIOD, steps_per_period=50, parameter="r")
+    try:
+        shooting.linearise(branch.points[-1].state, 1.07)
+        sign, log_det = shooting.determinant()
+        assert shooting.linearised is not None
+        mu = shooting.multipliers(shooting.linearised)
+        held = shooting.n - mu.size
+    finally:
+        shooting.destroy()
+    product = np.prod(mu - 1.0) * (-1.0) ** held
+    assert abs(product.imag) <= 1e-12 * abs(product)
+    assert sign * math.exp(log_det) == pytest.approx(product.real, rel=1e-9)
+
+
+def harmonic_balance_folds(f: float, duffing: Duffing) -> list[tuple[float, float]]:
+    """The two folds (r, amplitude [m]) of the one-mode harmonic balance under f sin(r ω1 t):
+    where its count of roots changes, by bisection in r (60 halvings of [1.0, 1.07] and
+    [1.07, 1.2]: to 1e-16), the amplitude the double root's."""
+    folds = []
+    for a, b in ((1.0, 1.07), (1.2, 1.07)):
+        count = len(duffing.amplitudes(f, a * W1))
+        for _ in range(60):
+            middle = 0.5 * (a + b)
+            if len(duffing.amplitudes(f, middle * W1)) == count:
+                a = middle
+            else:
+                b = middle
+        roots = duffing.amplitudes(f, b * W1)
+        double = min(zip(roots, roots[1:], strict=False), key=lambda p: p[1] - p[0])
+        folds.append((0.5 * (a + b), 0.5 * sum(double)))
+    return folds
+
+
+@pytest.mark.long
+def test_the_whole_s_curve_with_its_folds():
+    """cf.periodic_branch of the demo's forced orbit (its load, N = 100 SDIRK3 steps a period)
+    from r = 0.98 to 1.14: the lower-frequency single branch rising to the upper branch, the
+    fold where it ends, the unstable middle branch back to the second fold, the lower branch
+    out to 1.14.
+
+    Asserted:
+    - the shape: r grows, falls, grows again, with exactly two folds located (limit points)
+      and no other special point; the points between them (the middle branch) are unstable
+      with one real multiplier > 1 ("fold"), all others stable (every |μ| < 1);
+    - a real multiplier crosses +1 at each fold: the two points that bracket it (where dr/ds
+      changes sign) have det(M − I) = Π(μ − 1) of opposite signs, which a complex pair
+      (|μ − 1|² > 0) cannot give; and at the located fold a real multiplier is at +1 within
+      1e-4: it is located to 1e-6 in arclength (locate_tolerance), and μ moves by at most
+      0.1 a step (asserted, the largest |μ| between consecutive points; measured 0.08) over
+      steps of at least 0.005 (the first step: none rejected, so none shorter), so
+      |dμ/ds| ≲ 20 and |μ − 1| ≲ 2e-5; 1e-4 leaves 5 for μ(s)'s curvature over the step
+      (measured 2e-6 and 0);
+    - the folds against the harmonic balance's (:func:`harmonic_balance_folds`, r = 1.0438
+      and 1.1142): its fold lies at r² − 1 = ¾ α a²/ω² on the backbone (a the fold's
+      amplitude, set by the damping), so the one-mode reduction's 3 % in amplitude
+      (tests/test_demos.py, the upper branch measured +1.6 %) is 6 % in r² − 1: within
+      0.06 (r_hb² − 1) in r² (measured −3.8 % and −1.1 %); the fold amplitudes within 3 %
+      (measured −0.03 %, +0.9 %);
+    - the folds against the demo's sweeps (docs/verification.md, section 7): the upward one
+      holds the upper branch at 1.10 and jumps by 1.11, the downward one holds the lower at
+      1.05 and jumps by 1.04. A sweep can leave a branch only where it ends or before (its
+      basin shrinks to nothing at the fold), so the folds lie at r > 1.10 and r < 1.05;
+      and, the jump being at most one sweep step of 0.01 early, r < 1.12 and r > 1.03
+      (measured 1.1100, 1.0433)."""
+    scene = clamped(F_DEMO, 0.98)
+    branch = api.periodic_branch(
+        scene, PERIOD, "r", 0.98, 1.14, settle=3, steps_per_period=100, step=0.005
+    )
+    assert branch.reason == "p reached 1.14" and branch.rejected == 0
+    assert [q.kind for q in branch.special] == ["limit", "limit"]
+    upper_fold, lower_fold = branch.folds
+    assert upper_fold.parameter > lower_fold.parameter
+    points = branch.points
+    r = np.array([q.parameter for q in points])
+    turns = np.flatnonzero(np.diff(np.sign(np.diff(r[:-1]))))  # the last point: at the bound
+    assert len(turns) == 2
+    for q in points:
+        between = lower_fold.amplitude < q.amplitude < upper_fold.amplitude and (
+            lower_fold.parameter < q.parameter < upper_fold.parameter
+        )
+        on_middle = q.stability == "fold"
+        if on_middle:
+            assert between
+            assert np.sum(np.abs(q.multipliers) > 1.0) == 1
+            assert q.multipliers[0].imag == 0.0 and q.multipliers[0].real > 1.0
+        else:
+            assert q.stability == "stable"
+    kinds = [q.stability for q in points]
+    first, last = kinds.index("fold"), len(kinds) - 1 - kinds[::-1].index("fold")
+    assert set(kinds[first : last + 1]) == {"fold"}  # one unstable stretch, the middle
+    largest = np.array([abs(q.multipliers[0]) for q in points])
+    assert np.abs(np.diff(largest)).max() <= 0.1  # the premise of the bound below
+    for fold in branch.folds:
+        k = min(
+            (k for k in range(1, len(points)) if points[k - 1].det_sign != points[k].det_sign),
+            key=lambda k: abs(points[k].parameter - fold.parameter),
+        )
+        assert (points[k - 1].dparameter > 0) != (points[k].dparameter > 0)
+        assert abs(nearest_real_to_one(fold.multipliers) - 1.0) <= 1e-4
+    duffing = Duffing.of_clamped_scene(scene, omega=W1)
+    s = np.linspace(0.0, 1.0, 20001)
+    f = clamped_modal_force(F_DEMO * np.sin(np.pi * s), s, 1.0, RHO_A)
+    (hb_low, a_low), (hb_up, a_up) = harmonic_balance_folds(f, duffing)
+    for fold, r_hb, a_hb in ((lower_fold, hb_low, a_low), (upper_fold, hb_up, a_up)):
+        assert abs(fold.parameter**2 - r_hb**2) <= 0.06 * (r_hb**2 - 1.0)
+        assert fold.amplitude == pytest.approx(a_hb, rel=0.03)
+    assert 1.10 < upper_fold.parameter < 1.12
+    assert 1.03 < lower_fold.parameter < 1.05
+
+
+def nearest_real_to_one(multipliers: np.ndarray) -> float:
+    """The real multiplier nearest +1."""
+    real = [m.real for m in multipliers if m.imag == 0.0]
+    return min(real, key=lambda m: abs(m - 1.0))

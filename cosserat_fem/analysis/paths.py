@@ -49,6 +49,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 from mpi4py import MPI
@@ -409,13 +410,26 @@ def continue_path(
 BRANCH_COLUMNS = tuple(PathPoint(0.0, np.zeros(6), 0.0, 0.0, 1.0).as_row(0))
 
 
-def write_branches(path: str | Path, result: PathResult, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+class BranchRows(Protocol):
+    """What :func:`write_branches` writes: one dict a point, in the columns' order."""
+
+    def rows(self) -> list[dict]: ...
+
+
+def write_branches(
+    path: str | Path,
+    result: BranchRows,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+    columns: tuple[str, ...] = BRANCH_COLUMNS,
+) -> None:
     """branches.csv at ``path`` (rank 0 writes; the ranks agree on a failure): the header
-    :data:`BRANCH_COLUMNS` (branch index, λ, the free end's x, y, z [m], θ, ψ, φ [rad], the
-    state's RMS norm, dλ/ds, sign of det R_u, the point's kind), one row per point."""
+    ``columns``, by default :data:`BRANCH_COLUMNS` (branch index, λ, the free end's x, y, z
+    [m], θ, ψ, φ [rad], the state's RMS norm, dλ/ds, sign of det R_u, the point's kind), one
+    row per point (``result.rows()``: dicts in the columns' order; periodic orbits' are
+    cosserat_fem/analysis/periodic.py's ORBIT_COLUMNS)."""
     from cosserat_fem.analysis.branch_outputs import replace_on_root
 
-    lines = [",".join(BRANCH_COLUMNS), *csv_lines(result.rows())]
+    lines = [",".join(columns), *csv_lines(result.rows())]
     replace_on_root(path, ("\n".join(lines) + "\n").encode(), comm)
 
 

@@ -44,8 +44,12 @@ M − I is −I there.
 these on :class:`Shooting`): ``residual(u, p)`` = Φ_T(u) − u with p the forcing parameter
 (a scene parameter, e.g. r of Ω = r ω1; the period follows from the period expression),
 ``linearise(u, p)`` assembles and factors M − I, ``solve(rhs)``, ``dparameter(u, p)`` =
-∂R/∂p (a forward difference: one more period) and ``dot(a, b)`` summed over the ranks.
-Vectors are this rank's owned entries of the model's U.
+∂R/∂p (a forward difference: one more period), ``dot(a, b)`` summed over the ranks and
+``determinant()`` = (sign, ln|det(M − I)|) from the LU (it changes sign where a real μ
+crosses +1: at a fold the engine's limit point). Vectors are this rank's owned entries of the
+model's U. :func:`trace_orbits` (``cf.periodic_branch``) runs the engine on it through the
+folds of a frequency response, each point's multipliers those of the monodromy the engine
+computed there for its tangent.
 
 **MPI.** Parallel in space, not in time: each rank carries its owned rows of X; the matrices
 are PETSc's (MUMPS under mpirun) and M is gathered (n × n, dense) on every rank for its
@@ -190,7 +194,11 @@ class Shooting:
         self._tangent = False
         self._setup_tangent()
         self.linearised: np.ndarray | None = None  # M at the last linearise
-        self._lu = None
+        #: when a dict: each linearise stores {(p, u bytes): (amplitude [m], multipliers)}
+        #: (the probe's x sampled at every step of that period), for a branch's points
+        self.monodromies = 0  # periods run with the variational equations
+        self.records: dict[tuple[float, bytes], tuple[float, np.ndarray]] | None = None
+        self._lu: tuple[np.ndarray, np.ndarray] | None = None
 
     # -- the forcing parameter ------------------------------------------------------------
     def _period_at(self, p: float | None) -> float:
@@ -357,6 +365,7 @@ class Shooting:
         finally:
             self._tangent = False
         u_new = self.model.U.x.array[: self.n_local].copy()
+        self.monodromies += bool(tangent)
         M = self._gather(self._X) if tangent else None
         return u_new, M, (np.array(xs) if probe else None)
 
@@ -387,10 +396,31 @@ class Shooting:
         Φ_T(u) − u, which the same period gives."""
         if p is not None:
             self.set_parameter(p)
-        u_new, M, _ = self.advance(u, tangent=True)
+        record = self.records is not None
+        u_new, M, xs = self.advance(u, tangent=True, probe=record)
         self.linearised = M
         self._lu = scipy.linalg.lu_factor(M - np.eye(self.n)) if self.comm.rank == 0 else None
+        if self.records is not None:
+            assert xs is not None
+            at = p if p is not None else self.model.parameter_value(str(self.parameter))
+            key = (float(at), u.tobytes())
+            self.records[key] = (0.5 * float(xs.max() - xs.min()), self.multipliers(M))
         return u_new - u
+
+    def determinant(self) -> tuple[float, float]:
+        """(sign, ln |det(M − I)|) from the LU factors of the last :meth:`linearise` (every
+        rank). det(M − I) = Π(μ_k − 1) over the multipliers (the held dofs' rows give −1
+        each, a constant sign): it changes sign where a real μ crosses +1, at a fold of the
+        orbit branch; a complex pair's factor |μ − 1|² > 0 never does."""
+        result = None
+        if self.comm.rank == 0:
+            assert self._lu is not None, "linearise first"
+            lu, piv = self._lu
+            diag = np.diag(lu)
+            swaps = int(np.count_nonzero(piv != np.arange(piv.size)))
+            sign = float((-1) ** swaps * np.prod(np.sign(diag)))
+            result = (sign, float(np.sum(np.log(np.abs(diag)))))
+        return self.comm.bcast(result, root=0)
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """x (owned entries) with (M − I) x = rhs, M of the last :meth:`linearise`."""
@@ -499,3 +529,173 @@ class Shooting:
         for obj in (self._ksp, self._J, self._JZ, self._B, self._Y):
             obj.destroy()
         self.solver.destroy()
+
+
+# -- branches of periodic orbits ------------------------------------------------------------
+
+#: The columns of an orbit branch's CSV (:func:`~cosserat_fem.analysis.paths.write_branches`):
+#: branch index, the parameter p, the amplitude [m], the largest multiplier's |μ|, Re μ, Im μ,
+#: dp/ds, the sign of det(M − I), the stability (:func:`classify`) and the point's kind.
+ORBIT_COLUMNS = (
+    "branch",
+    "parameter",
+    "amplitude",
+    "mu_abs",
+    "mu_re",
+    "mu_im",
+    "dparameter_ds",
+    "det_sign",
+    "stability",
+    "point",
+)
+
+
+@dataclass
+class OrbitPoint:
+    """An orbit on a branch: ``parameter`` p, ``amplitude`` [m] (as :class:`Orbit`'s),
+    ``multipliers`` (largest modulus first), ``stability``, dp/ds (``dparameter``), the sign of
+    det(M − I), ``kind`` ("start", "regular", "end", "limit": a located fold) and ``state``
+    (this rank's U at t0)."""
+
+    parameter: float
+    amplitude: float
+    multipliers: np.ndarray
+    stability: str
+    dparameter: float
+    det_sign: float
+    kind: str
+    state: np.ndarray
+
+    def as_row(self, branch: int) -> dict:
+        mu = complex(self.multipliers[0])
+        return dict(
+            zip(
+                ORBIT_COLUMNS,
+                (
+                    branch,
+                    self.parameter,
+                    self.amplitude,
+                    abs(mu),
+                    mu.real,
+                    mu.imag,
+                    self.dparameter,
+                    self.det_sign,
+                    self.stability,
+                    self.kind,
+                ),
+                strict=True,
+            )
+        )
+
+
+@dataclass
+class OrbitBranch:
+    """A traced branch of periodic orbits: ``points`` in the order traced, ``special`` the
+    located points (not among ``points``): ``folds``, the limit points, and any
+    "bifurcation" (det(M − I) changing sign at no fold); why it ended (``reason``); its
+    cost: continuation ``steps`` (accepted), ``rejected`` steps and ``monodromies`` (periods
+    with the variational equations, each about 34 periods of time marching,
+    docs/decisions.md)."""
+
+    points: list[OrbitPoint]
+    special: list[OrbitPoint]
+    reason: str
+    steps: int
+    rejected: int
+    monodromies: int
+
+    def rows(self) -> list[dict]:
+        return [q.as_row(0) for q in [*self.points, *self.special]]
+
+    @property
+    def folds(self) -> list[OrbitPoint]:
+        return [q for q in self.special if q.kind == "limit"]
+
+
+def _failing_step(method, u: np.ndarray, p: float) -> np.ndarray:
+    """``method(u, p)``, a failed period (SolverError: a stage that did not converge, e.g. from
+    a prediction too far) raised as the RuntimeError the engine takes for a failed step."""
+    try:
+        return method(u, p)
+    except SolverError as exc:
+        raise RuntimeError(str(exc)) from None
+
+
+class _Weighted:
+    """A :class:`Shooting` whose ``dot`` is weighted by w (the arclength's metric,
+    :func:`trace_orbits`); everything else is the shooting's own."""
+
+    def __init__(self, shooting: Shooting, weight: float):
+        self.shooting, self.weight = shooting, weight
+        self.solve, self.determinant = shooting.solve, shooting.determinant
+
+    def residual(self, u: np.ndarray, p: float) -> np.ndarray:
+        return _failing_step(self.shooting.residual, u, p)
+
+    def linearise(self, u: np.ndarray, p: float) -> None:
+        _failing_step(self.shooting.linearise, u, p)
+
+    def dparameter(self, u: np.ndarray, p: float) -> np.ndarray:
+        return _failing_step(self.shooting.dparameter, u, p)
+
+    def dot(self, a: np.ndarray, b: np.ndarray) -> float:
+        return self.weight * self.shooting.dot(a, b)
+
+
+def trace_orbits(
+    shooting: Shooting,
+    guess: np.ndarray,
+    start: float,
+    end: float,
+    settings=None,
+    scale: float = 4.0,
+) -> OrbitBranch:
+    """The branch of periodic orbits from the one near ``guess`` at p = ``start`` to p =
+    ``end`` (either side), by the pseudo-arclength engine (cosserat_fem/nls/arclength.py) on
+    the shooting problem R(u, p) = Φ_T(u) − u, through its folds, which it locates (limit
+    points: dp/ds = 0, where det(M − I) changes sign and a real multiplier crosses +1).
+
+    The metric: ‖(u, p)‖² = w u·u + p², w chosen so that the start orbit's weighted norm is
+    ``scale`` × its amplitude / ℓ (one mode dominates, so this holds along the branch): with
+    4, a 25 mm amplitude range of a 1 m rod weighs as Δp = 0.1. ``settings``: a
+    :class:`~cosserat_fem.nls.arclength.ContinuationSettings` (p_min, p_max are set from
+    start, end). Each point's multipliers and amplitude are those of the monodromy the engine
+    computed there for its tangent (no extra period)."""
+    from dataclasses import replace
+
+    from cosserat_fem.nls.arclength import Continuation, ContinuationSettings, Point
+
+    settings = replace(
+        settings or ContinuationSettings(),
+        p_min=min(start, end),
+        p_max=max(start, end),
+    )
+    shooting.records = {}
+    shooting.monodromies = 0
+    try:
+        shooting.set_parameter(start)
+        first = shooting.find(guess)
+        size = math.sqrt(shooting.dot(first.state, first.state))
+        weight = (scale * first.amplitude / shooting.model.length / size) ** 2
+        engine = Continuation(_Weighted(shooting, weight), settings)
+        direction = 1 if end > start else -1
+        origin = engine.start_point(first.state, start, direction)
+        branch = engine.trace(origin, 1)
+        records = shooting.records
+
+        def orbit(q: Point) -> OrbitPoint:
+            amplitude, mu = records[(float(q.p), q.u.tobytes())]
+            return OrbitPoint(
+                q.p, amplitude, mu, classify(mu), q.t_p, q.det_sign, q.kind, q.u.copy()
+            )
+
+        return OrbitBranch(
+            [orbit(q) for q in branch.points],
+            [orbit(q) for q in branch.special],
+            branch.reason,
+            len(branch.points) - 1,
+            branch.steps_rejected,
+            shooting.monodromies,
+        )
+    finally:
+        shooting.records = None
