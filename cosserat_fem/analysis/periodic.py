@@ -599,7 +599,9 @@ class Shooting:
 
 #: The columns of an orbit branch's CSV (:func:`~cosserat_fem.analysis.paths.write_branches`):
 #: branch index, the parameter p, the amplitude [m], the largest multiplier's |μ|, Re μ, Im μ,
-#: dp/ds, the sign of det(M − I), the stability (:func:`classify`) and the point's kind.
+#: dp/ds, the sign of det(M − I), the stability (:func:`classify`) and the point's kind
+#: ("period-doubling", "torus" rows since the tori and doublings are located: at such a row,
+#: on a branch stable before it, the largest multiplier is the one on the circle).
 ORBIT_COLUMNS = (
     "branch",
     "parameter",
