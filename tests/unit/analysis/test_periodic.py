@@ -14,6 +14,7 @@ import pytest
 from cosserat_fem import api
 from cosserat_fem.analysis.periodic import Shooting, classify
 from cosserat_fem.common.errors import SceneError
+from unit.nls.test_arclength import Dense
 
 CLAMPED = {
     "supports.end": "clamped",
@@ -147,35 +148,19 @@ def test_the_determinant_is_the_product_of_the_multipliers_less_one():
     assert sign * math.exp(log_det) == pytest.approx(product.real, rel=1e-10)
 
 
-class FixedPoints:
+class FixedPoints(Dense):
     """The fixed points of a map u ↦ F(u, p) of R^n as a ContinuationProblem of the engine
     (cosserat_fem/nls/arclength.py), as a branch of orbits is (R = F − u, R_u = M − I, M =
-    ∂F/∂u the "monodromy"): dense, numpy's LU. ``multipliers(point)`` = eig M there."""
+    ∂F/∂u the "monodromy"; the engine unit tests' dense problem). ``multipliers(point)`` =
+    eig M there."""
 
     def __init__(self, F, M, F_p):
-        self.F, self.M, self.F_p = F, M, F_p
-        self.J: np.ndarray | None = None
-
-    def residual(self, u, p):
-        return np.asarray(self.F(u, p), dtype=float) - u
-
-    def linearise(self, u, p):
-        self.J = np.asarray(self.M(u, p), dtype=float) - np.eye(u.size)
-
-    def solve(self, rhs):
-        assert self.J is not None
-        return np.linalg.solve(self.J, rhs)
-
-    def dparameter(self, u, p):
-        return np.asarray(self.F_p(u, p), dtype=float)
-
-    def dot(self, a, b):
-        return float(a @ b)
-
-    def determinant(self):
-        assert self.J is not None
-        sign, log = np.linalg.slogdet(self.J)
-        return float(sign), float(log)
+        super().__init__(
+            lambda u, p: np.asarray(F(u, p)) - u,
+            lambda u, p: np.asarray(M(u, p)) - np.eye(u.size),
+            F_p,
+        )
+        self.M = M
 
     def multipliers(self, point) -> np.ndarray:
         return np.linalg.eigvals(np.asarray(self.M(point.u, point.p), dtype=float))
@@ -217,6 +202,16 @@ def _trace(problem: FixedPoints, start: float, end: float):
     return branch
 
 
+def _located(problem: FixedPoints, start: float, end: float, kind: str, p_star: float):
+    """The one special point of the branch from start to end: of ``kind``, at p* within 2e-9
+    (module tests' tolerance)."""
+    branch = _trace(problem, start, end)
+    assert [q.kind for q in branch.special] == [kind]
+    (point,) = branch.special
+    assert abs(point.p - p_star) <= 2e-9, point.p
+    return point
+
+
 def _quadratic(v):
     return 0.3 * np.array([v[0] ** 2, v[0] * v[1], 0.0])
 
@@ -244,10 +239,7 @@ def test_a_period_doubling_of_a_map_is_located_where_a_real_multiplier_is_minus_
         return np.array([[0.0, 1.0, 0.0], [-0.25, -p, 0.0], [0.0, 0.0, 0.3]])
 
     problem = _centred(c, A, _quadratic, _dquadratic)
-    branch = _trace(problem, 0.2, 2.0)
-    assert [q.kind for q in branch.special] == ["period-doubling"]
-    (point,) = branch.special
-    assert abs(point.p - 1.25) <= 2e-9
+    point = _located(problem, 0.2, 2.0, "period-doubling", 1.25)
     mu = problem.multipliers(point)
     assert np.isreal(mu).all()
     assert np.min(np.abs(mu + 1.0)) <= 3e-9
@@ -278,10 +270,7 @@ def test_a_torus_bifurcation_of_a_map_is_located_where_a_complex_pair_crosses_th
         return np.block([[block, np.zeros((2, 1))], [np.zeros((1, 2)), np.array([[-0.4]])]])
 
     problem = _centred(c, A, _quadratic, _dquadratic)
-    branch = _trace(problem, 0.0, 2.0)
-    assert [q.kind for q in branch.special] == ["torus"]
-    (point,) = branch.special
-    assert abs(point.p - 1.0) <= 2e-9
+    point = _located(problem, 0.0, 2.0, "torus", 1.0)
     mu = problem.multipliers(point)
     pair = mu[np.abs(mu.imag) > 0]
     assert np.abs(np.abs(pair) - 1.0).max() <= 1e-9
@@ -289,7 +278,4 @@ def test_a_torus_bifurcation_of_a_map_is_located_where_a_complex_pair_crosses_th
     assert is_torus(mu)
 
     saddle = _centred(c, lambda p: np.diag([2.0, p, 0.1]), _quadratic, _dquadratic)
-    branch = _trace(saddle, 0.2, 0.8)
-    assert [q.kind for q in branch.special] == ["torus"]
-    assert abs(branch.special[0].p - 0.5) <= 2e-9
-    assert not is_torus(saddle.multipliers(branch.special[0]))
+    assert not is_torus(saddle.multipliers(_located(saddle, 0.2, 0.8, "torus", 0.5)))
