@@ -483,14 +483,15 @@ def periodic_branch(
     p = ``end``, by pseudo-arclength continuation of the shooting problem
     (cosserat_fem/analysis/periodic.py ``trace_orbits``; cosserat_fem/nls/arclength.py):
     through its folds, unstable parts included, each orbit with its Floquet multipliers and
-    stability, the folds located (dp/ds = 0, where a real multiplier crosses +1). The first
-    orbit is shot from ``guess`` (an Orbit or this rank's U; None: rest) after ``settle``
-    periods. Steps (``step``, up to ``max_step``) are arclength in √(w ‖ΔU‖² + Δp²), w making
-    the first orbit's weighted norm ``scale`` × its amplitude / ℓ. Returns an
-    :class:`~cosserat_fem.analysis.periodic.OrbitBranch`: ``points`` (``parameter``,
-    ``amplitude`` [m], ``multipliers``, ``stability``, ``kind``, ``state``), ``folds``,
-    ``special``, ``reason``, ``steps``, ``monodromies``. With ``out``: orbit_branch.csv there
-    (columns ``ORBIT_COLUMNS``)."""
+    stability, the folds located (dp/ds = 0, where a real multiplier crosses +1), and the
+    period doublings (a real multiplier crossing −1) and tori (a complex pair crossing
+    |μ| = 1), each with its multipliers. The first orbit is shot from ``guess`` (an Orbit or
+    this rank's U; None: rest) after ``settle`` periods. Steps (``step``, up to ``max_step``)
+    are arclength in √(w ‖ΔU‖² + Δp²), w making the first orbit's weighted norm ``scale`` ×
+    its amplitude / ℓ. Returns an :class:`~cosserat_fem.analysis.periodic.OrbitBranch`:
+    ``points`` (``parameter``, ``amplitude`` [m], ``multipliers``, ``stability``, ``kind``,
+    ``state``), ``folds``, ``period_doublings``, ``tori``, ``special``, ``reason``, ``steps``,
+    ``monodromies``. With ``out``: orbit_branch.csv there (columns ``ORBIT_COLUMNS``)."""
     from dataclasses import replace
 
     from mpi4py import MPI

@@ -1,6 +1,7 @@
 """Chaos groundwork (issue 27 item 4): the Poincaré section (cosserat_fem/analysis/observers.py
 ``PoincareSection``, poincare.csv) and the largest Lyapunov exponent by Benettin's method
-(cosserat_fem/analysis/lyapunov.py, ``cf.lyapunov``).
+(cosserat_fem/analysis/lyapunov.py, ``cf.lyapunov``); the buckled beam's route to chaos
+(scenes/buckled_beam.toml), its first period doubling located by continuation.
 
 **The linear case.** The paper's rod (tests/test_response.py's setting: 4 cubic elements,
 planar in x-z, a load 1 sin(πs/ℓ) sin Ωt N/m in x: tip amplitude ~3e-5 m, so the geometric
@@ -404,3 +405,192 @@ def test_the_buckled_beam_is_chaotic_at_the_published_forcing():
     assert x.min() < 0 < x.max()  # both wells
     reduction = 0.106 * math.sqrt(beam.k)
     assert reduction / 2 <= result.exponent <= 2 * reduction, result.exponent
+
+
+def sdirk_duffing_period(y, gamma: float, steps: int, delta: float = 0.3, omega: float = 1.2):
+    """The reduction's state (x, x') one forcing period 2π/ω after y at τ = 0, by the
+    project's SDIRK3 tableau at ``steps`` fixed steps (each stage solved by Newton to 1e-15):
+    the discrete map that the rod's steps make of its first mode (a Runge–Kutta method
+    commutes with the linear change of variables to the mode's amplitude and with the
+    scaling of time, so the reduction under SDIRK3 is the rod's first mode under SDIRK3)."""
+    g, A, b = _sdirk_tableau(3)
+    c = A.sum(axis=1)
+    h = 2 * math.pi / omega / steps
+    y = np.array(y, dtype=float)
+    for n in range(steps):
+        rates: list[np.ndarray] = []
+        for i in range(len(b)):
+            Z = y + h * sum((A[i, j] * rates[j] for j in range(i)), np.zeros(2))
+            force = gamma * math.cos(omega * (n + c[i]) * h)
+            Y = Z.copy()
+            for _ in range(50):
+                x, v = Y
+                F = Y - Z - h * g * np.array([v, -delta * v + x - x**3 + force])
+                J = np.eye(2) - h * g * np.array([[0.0, 1.0], [1.0 - 3 * x * x, -delta]])
+                d = np.linalg.solve(J, F)
+                Y -= d
+                if np.abs(d).max() <= 1e-15:
+                    break
+            rates.append((Y - Z) / (g * h))
+        y = y + h * sum((bi * k for bi, k in zip(b, rates, strict=True)), np.zeros(2))
+    return y
+
+
+def sdirk_period_doubling(steps: int, low: float = 0.25, high: float = 0.28) -> float:
+    """The first period doubling of the reduction under SDIRK3 at ``steps`` a period: γ where
+    the discrete map's period-1 orbit in the right well (Newton, followed from γ = low) has a
+    multiplier −1 (its monodromy by central differences of 1e-6: error 1e-12), by Brent's
+    method to 1e-9 (as ``period_doubling`` for the flow)."""
+    from scipy.optimize import brentq, fsolve
+
+    state = {"y": np.array([0.43, 0.34])}
+
+    def crossing(gamma: float) -> float:
+        y = fsolve(lambda y: sdirk_duffing_period(y, gamma, steps) - y, state["y"], xtol=1e-13)
+        state["y"] = y
+        e = 1e-6
+        M = np.column_stack(
+            [
+                sdirk_duffing_period(y + e * d, gamma, steps)
+                - sdirk_duffing_period(y - e * d, gamma, steps)
+                for d in np.eye(2)
+            ]
+        ) / (2 * e)
+        mu = np.linalg.eigvals(M)
+        return float(np.min(mu.real)) + 1.0 if np.isreal(mu).all() else 1.0
+
+    return brentq(crossing, low, high, xtol=1e-9)
+
+
+@pytest.mark.long
+def test_the_buckled_beam_s_first_period_doubling_by_continuation(tmp_path):
+    """The route to chaos by its first step: cf.periodic_branch continues the period-1 orbit
+    in the right well of scenes/buckled_beam.toml (its 8 cubic elements, SDIRK3 at 100 steps
+    a period) in the forcing amplitude γ (the load g F1 sin(πs/ℓ) cos Ωt, F1 = ρA a_s k the
+    load of γ = 1, p = g) from γ = 0.20 to 0.28, and locates where a real multiplier crosses
+    −1 (cosserat_fem/analysis/periodic.py: det(M + I) changes sign) to 1e-6 in arclength.
+
+    The reference: the one-mode reduction's doubling γ* = 0.2655818 (``period_doubling``,
+    shooting with its monodromy, DOP853 at rtol 1e-12, Brent to 1e-8), and the same
+    reduction under the rod's SDIRK3 steps (:func:`sdirk_period_doubling`), γ*_h = 0.2656452:
+    the time step's share Δ_h = γ*_h − γ* = 6.3e-5 (8.0e-6 at 200 steps: order 3).
+
+    The bound on what else separates the rod from the reduction. In the reduction's
+    coefficients m ä + c ȧ − k a + β a³ = f cos Ωt, δ = c/√(mk), ω = Ω √(m/k) and γ =
+    f √β / k^{3/2}; the rod moves m, k and β by the relative amounts (each a term the reduction
+    drops, docs/chaos.md): the geometrically exact terms (π x_max a_s/ℓ)² = 6.0e-4 (x_max =
+    1.35, the reduction's orbit's largest x at γ*), shear and the section's rotary inertia
+    (π r/ℓ)² (1 + E/(κG)) = 3.4e-4 (r² = a²/12, κ = 5/6), axial inertia (Ω/ω_axial)² =
+    1.2e-4 (ω_axial = π √(E/ρ)/ℓ): ε = 1.06e-3; each coefficient by at most 2ε (a relative
+    change of the critical shortening enters k = ω_b² (D/D_cr − 1) times D/(D − D_cr) = 2).
+    So |d ln δ|, |d ln ω| ≤ 2ε and |d ln γ| ≤ 4ε, and to first order the doubling moves by at
+    most
+
+        B = (2 |∂γ*/∂ln δ| + 2 |∂γ*/∂ln ω| + 4 γ*) ε = (0.33 + 0.98 + 1.06) ε = 2.5e-3,
+
+    the sensitivities by central differences of ``period_doubling`` (relative steps 1e-3,
+    0.163 and 0.490). Asserted: |γ_rod − γ*_h| ≤ B (measured 1.9e-5: the bound is the sum of
+    the worst signs of every term, 130 times the measured) and |γ_rod − γ*| ≤ B + Δ_h
+    (measured 8.2e-5); a real multiplier at −1 within 1e-4 at the located point (it moves by
+    |dμ/dγ| ≤ 50 there, asserted from the next point, times the 1e-6 locate tolerance,
+    doubled; measured 8e-11, the slope 24.6); the mode's other multiplier there is
+    −e^{−δ 2π/ω} = −0.2079 (Liouville: the pair's product is the damping's e^{−δT}) within
+    1e-3 (the rotational dofs' share of the kinetic energy, undamped: (π r/ℓ)² = 8e-5, and
+    Δ_h; measured 8.9e-5); the orbits before the doubling are stable, those after it
+    unstable by a real multiplier < −1 ("period-doubling"); the branch has no other special
+    point (no fold, no torus: the complex pair meets on the negative real axis before
+    splitting, which the bialternate test does not take for a torus); orbit_branch.csv has
+    the point's row.
+    Measured: γ_rod = 0.2656641 (f0 = 17.680 N/m), 6 continuation steps, 54 monodromies,
+    90-100 s serial on 2 shared cores (2026-12-04, load 4-7)."""
+    from scipy.integrate import solve_ivp
+
+    from cosserat_fem.analysis.periodic import Shooting
+    from cosserat_fem.reference.buckled_beam import duffing_orbit, period_doubling
+
+    beam = buckled_beam()
+    scene = cf.load(
+        BUCKLED,
+        {
+            "parameters.g": 0.20,
+            "parameters.F1": beam.force(1.0),
+            "loads.force_density": ["g*F1*sin(pi*s/L)*cos(Om*t)", 0, 0],
+            "output.xdmf": False,
+            "output.checkpoint": False,
+        },
+    )
+    period = 2 * math.pi / beam.frequency(1.2)
+    shooting = Shooting(scene, period, steps_per_period=100, parameter="g")
+    guess = shooting.model.U.x.array[: shooting.n_local].copy()  # the scene's buckled shape
+    shooting.destroy()
+    branch = cf.periodic_branch(
+        scene,
+        period,
+        "g",
+        0.20,
+        0.28,
+        guess=guess,
+        settle=10,
+        steps_per_period=100,
+        step=0.01,
+        max_step=0.02,
+        out=tmp_path,
+    )
+    assert branch.reason == "p reached 0.28" and branch.rejected == 0
+    assert [q.kind for q in branch.special] == ["period-doubling"]
+    (doubling,) = branch.period_doublings
+    rod = doubling.parameter
+
+    exact = period_doubling()
+    discrete = sdirk_period_doubling(100)
+    h_share = discrete - exact
+    assert 0.0 < h_share <= 1e-4  # measured 6.3e-5; (2π/100)³ = 2.5e-4 of γ* is its order
+    sensitivity = [
+        (
+            period_doubling(**{name: value * (1 + 1e-3)})
+            - period_doubling(**{name: value * (1 - 1e-3)})
+        )
+        / 2e-3
+        for name, value in (("delta", 0.3), ("omega", 1.2))
+    ]
+    point, _ = duffing_orbit(exact, (0.43, 0.34))
+    T = 2 * math.pi / 1.2
+    flow = solve_ivp(
+        lambda t, y: [y[1], -0.3 * y[1] + y[0] - y[0] ** 3 + exact * math.cos(1.2 * t)],
+        (0.0, T),
+        point,
+        method="DOP853",
+        rtol=1e-10,
+        atol=1e-12,
+        dense_output=True,
+    )
+    x_max = np.abs(flow.sol(np.linspace(0.0, T, 2001))[0]).max()
+    material = scene.rod.material
+    a, length = scene.rod.section.a, scene.rod.length
+    shear = 2 * (1 + material.poisson_ratio) / (5 / 6)  # E/(κG)
+    axial = math.pi * math.sqrt(material.young_modulus / material.density) / length
+    eps = (
+        (math.pi * x_max * beam.amplitude / length) ** 2
+        + (math.pi / length) ** 2 * a**2 / 12 * (1 + shear)
+        + (beam.frequency(1.2) / axial) ** 2
+    )
+    bound = (2 * abs(sensitivity[0]) + 2 * abs(sensitivity[1]) + 4 * exact) * eps
+    report = dict(rod=rod, exact=exact, discrete=discrete, bound=bound, eps=eps, s=sensitivity)
+    assert abs(rod - discrete) <= bound, report
+    assert abs(rod - exact) <= bound + h_share, report
+
+    mu = doubling.multipliers
+    real = mu[np.abs(mu.imag) <= 1e-12 * np.abs(mu)].real
+    after = next(q for q in branch.points if q.parameter > rod)
+    slope = abs(after.multipliers[0].real + 1.0) / (after.parameter - rod)
+    assert slope <= 50.0, slope
+    assert np.abs(real + 1.0).min() <= 1e-4, mu[:4]
+    assert np.abs(real + math.exp(-0.3 * T)).min() <= 1e-3, mu
+    for q in branch.points:
+        assert q.stability == ("stable" if q.parameter < rod else "period-doubling"), q.parameter
+        if q.parameter > rod:
+            assert q.multipliers[0].imag == 0.0 and q.multipliers[0].real < -1.0
+    lines = (tmp_path / "orbit_branch.csv").read_text().splitlines()
+    rows = [line.split(",") for line in lines[1:]]
+    (row,) = [r for r in rows if r[-1] == "period-doubling"]
+    assert float(row[1]) == rod and abs(float(row[4]) + 1.0) <= 1e-4

@@ -51,6 +51,13 @@ model's U. :func:`trace_orbits` (``cf.periodic_branch``) runs the engine on it t
 folds of a frequency response, each point's multipliers those of the monodromy the engine
 computed there for its tangent.
 
+**Period doubling and tori** are the roots of two test functions of the multipliers, which
+the engine locates like a fold (its ``tests``): det(M + I) = Π(1 + μ), whose sign changes
+where a real μ crosses −1 (:func:`period_doubling_test`), and the bialternate product
+Π_{i<j}(μ_i μ_j − 1), whose sign changes where a complex pair crosses |μ| = 1
+(:func:`torus_test`). Both are continuous along a branch, across a pair's meeting on the
+real axis too, which a product over the complex pairs alone is not.
+
 **MPI.** Parallel in space, not in time: each rank carries its owned rows of X; the matrices
 are PETSc's (MUMPS under mpirun) and M is gathered (n × n, dense) on every rank for its
 eigenvalues and the Newton step, whose solve is rank 0's, broadcast. The period map itself is
@@ -100,6 +107,63 @@ def classify(multipliers: np.ndarray) -> str:
     if abs(worst.imag) > UNIT_CIRCLE * abs(worst):
         return "torus"
     return "fold" if worst.real > 0.0 else "period-doubling"
+
+
+def _signed_product(factors: np.ndarray) -> float:
+    """Π f_k of factors whose product is real (conjugates paired), from logarithms: its sign
+    × exp(Σ ln|f_k|), the exponent clipped to ±700 (no overflow for any n; over multipliers
+    spread around a circle of radius < 1 the mean of ln|1 + μ| is 0 by Jensen's formula, so
+    the sum stays moderate); 0 if a factor is."""
+    f = np.asarray(factors, dtype=complex).reshape(-1)
+    size = np.abs(f)
+    if np.any(size == 0.0):
+        return 0.0
+    phase = np.prod(f / size)
+    log = float(np.sum(np.log(size)))
+    return math.copysign(math.exp(min(max(log, -700.0), 700.0)), phase.real)
+
+
+def period_doubling_test(multipliers: np.ndarray) -> float:
+    """Π (1 + μ_k) = det(M + I) over the multipliers: continuous in the orbit, zero where a
+    μ = −1; it changes sign where a real multiplier crosses −1 (period doubling), never where
+    a complex pair moves (its factor |1 + μ|² > 0) or a real μ > −1 moves."""
+    return _signed_product(1.0 + np.asarray(multipliers, dtype=complex))
+
+
+def torus_test(multipliers: np.ndarray) -> float:
+    """The bialternate product Π_{i<j} (μ_i μ_j − 1) (Govaerts, "Numerical Methods for
+    Bifurcations of Dynamical Equilibria", 2000, ch. 4; Kuznetsov, "Elements of Applied
+    Bifurcation Theory", 10.3): continuous, also where a complex pair meets on the real axis
+    and splits (then μ_i μ_j = |μ|² still); a complex pair's factor is |μ|² − 1, so it changes
+    sign where a pair crosses the unit circle (Neimark–Sacker: a torus), and also where two
+    real multipliers' product crosses 1 (a neutral saddle, no bifurcation: :func:`is_torus`
+    tells them apart)."""
+    mu = np.asarray(multipliers, dtype=complex).reshape(-1)
+    factors = [mu[i] * mu[i + 1 :] - 1.0 for i in range(mu.size - 1)]
+    return _signed_product(np.concatenate(factors)) if factors else 1.0
+
+
+def is_torus(multipliers: np.ndarray) -> bool:
+    """At a root of :func:`torus_test`: whether the product μ_i μ_j nearest 1 is a complex
+    pair's (a torus bifurcation) rather than two real multipliers' (a neutral saddle)."""
+    mu = np.asarray(multipliers, dtype=complex).reshape(-1)
+    if mu.size < 2:
+        return False
+    products = np.abs(np.multiply.outer(mu, mu) - 1.0)
+    products[np.tril_indices(mu.size)] = np.inf
+    i, _ = np.unravel_index(np.argmin(products), products.shape)
+    return bool(abs(mu[i].imag) > UNIT_CIRCLE * abs(mu[i]))
+
+
+def floquet_tests(multipliers_of) -> dict:
+    """The test functions of a branch of orbits for the continuation engine's ``tests``
+    (cosserat_fem/nls/arclength.py): kind → f(point), "period-doubling"
+    (:func:`period_doubling_test`) and "torus" (:func:`torus_test`), of the multipliers
+    ``multipliers_of(point)`` of the engine's point."""
+    return {
+        "period-doubling": lambda q: period_doubling_test(multipliers_of(q)),
+        "torus": lambda q: torus_test(multipliers_of(q)),
+    }
 
 
 @dataclass
@@ -535,7 +599,9 @@ class Shooting:
 
 #: The columns of an orbit branch's CSV (:func:`~cosserat_fem.analysis.paths.write_branches`):
 #: branch index, the parameter p, the amplitude [m], the largest multiplier's |μ|, Re μ, Im μ,
-#: dp/ds, the sign of det(M − I), the stability (:func:`classify`) and the point's kind.
+#: dp/ds, the sign of det(M − I), the stability (:func:`classify`) and the point's kind
+#: ("period-doubling", "torus" rows since the tori and doublings are located: at such a row,
+#: on a branch stable before it, the largest multiplier is the one on the circle).
 ORBIT_COLUMNS = (
     "branch",
     "parameter",
@@ -554,8 +620,8 @@ ORBIT_COLUMNS = (
 class OrbitPoint:
     """An orbit on a branch: ``parameter`` p, ``amplitude`` [m] (as :class:`Orbit`'s),
     ``multipliers`` (largest modulus first), ``stability``, dp/ds (``dparameter``), the sign of
-    det(M − I), ``kind`` ("start", "regular", "end", "limit": a located fold) and ``state``
-    (this rank's U at t0)."""
+    det(M − I), ``kind`` ("start", "regular", "end", or a located point: "limit" a fold,
+    "period-doubling", "torus", "bifurcation") and ``state`` (this rank's U at t0)."""
 
     parameter: float
     amplitude: float
@@ -591,8 +657,10 @@ class OrbitPoint:
 @dataclass
 class OrbitBranch:
     """A traced branch of periodic orbits: ``points`` in the order traced, ``special`` the
-    located points (not among ``points``): ``folds``, the limit points, and any
-    "bifurcation" (det(M − I) changing sign at no fold); why it ended (``reason``); its
+    located points (not among ``points``): ``folds``, the limit points (a real multiplier
+    at +1), ``period_doublings`` (a real multiplier at −1), ``tori`` (a complex pair on the
+    unit circle: Neimark–Sacker), and any "bifurcation" (det(M − I) changing sign at no
+    fold); why it ended (``reason``); its
     cost: continuation ``steps`` (accepted), ``rejected`` steps and ``monodromies`` (periods
     with the variational equations, each about 34 periods of time marching,
     docs/decisions.md)."""
@@ -610,6 +678,14 @@ class OrbitBranch:
     @property
     def folds(self) -> list[OrbitPoint]:
         return [q for q in self.special if q.kind == "limit"]
+
+    @property
+    def period_doublings(self) -> list[OrbitPoint]:
+        return [q for q in self.special if q.kind == "period-doubling"]
+
+    @property
+    def tori(self) -> list[OrbitPoint]:
+        return [q for q in self.special if q.kind == "torus"]
 
 
 def _failing_step(method, u: np.ndarray, p: float) -> np.ndarray:
@@ -653,7 +729,13 @@ def trace_orbits(
     """The branch of periodic orbits from the one near ``guess`` at p = ``start`` to p =
     ``end`` (either side), by the pseudo-arclength engine (cosserat_fem/nls/arclength.py) on
     the shooting problem R(u, p) = Φ_T(u) − u, through its folds, which it locates (limit
-    points: dp/ds = 0, where det(M − I) changes sign and a real multiplier crosses +1).
+    points: dp/ds = 0, where det(M − I) changes sign and a real multiplier crosses +1), and
+    its period doublings and tori, located as the roots of the engine's ``tests``
+    (:func:`floquet_tests`; a root of the bialternate product at which no complex pair is on
+    the circle, a neutral saddle, is dropped). Each is located by the engine's regula falsi
+    in arclength to ``settings.locate_tolerance`` (each evaluation a corrected orbit), so
+    its p to that too (|dp/ds| ≤ 1), and the multiplier at −1 (the pair on the circle) to
+    |dμ/ds| times it.
 
     The metric: ‖(u, p)‖² = w u·u + p², w chosen so that the start orbit's weighted norm is
     ``scale`` × its amplitude / ℓ (one mode dominates, so this holds along the branch): with
@@ -677,11 +759,17 @@ def trace_orbits(
         first = shooting.find(guess)
         size = math.sqrt(shooting.dot(first.state, first.state))
         weight = (scale * first.amplitude / shooting.model.length / size) ** 2
-        engine = Continuation(_Weighted(shooting, weight), settings)
+        records = shooting.records
+
+        def multipliers(q: Point) -> np.ndarray:
+            return records[(float(q.p), q.u.tobytes())][1]
+
+        engine = Continuation(
+            _Weighted(shooting, weight), settings, tests=floquet_tests(multipliers)
+        )
         direction = 1 if end > start else -1
         origin = engine.start_point(first.state, start, direction)
         branch = engine.trace(origin, 1)
-        records = shooting.records
 
         def orbit(q: Point) -> OrbitPoint:
             amplitude, mu = records[(float(q.p), q.u.tobytes())]
@@ -691,7 +779,11 @@ def trace_orbits(
 
         return OrbitBranch(
             [orbit(q) for q in branch.points],
-            [orbit(q) for q in branch.special],
+            [
+                orbit(q)
+                for q in branch.special
+                if q.kind != "torus" or is_torus(multipliers(q))  # not a neutral saddle
+            ],
             branch.reason,
             len(branch.points) - 1,
             branch.steps_rejected,

@@ -49,7 +49,11 @@ p from the interpolation of the two points, refined, kind "end").
   eigenvalue of R_u crosses 0 and the parameter keeps its direction): located as the root of
   det R_u(s)/|det R_u(x_k)| (continuous, computed from the logarithms), the same way.
 
-Both are located to |s − s*| ≤ ``locate_tolerance`` (Illinois' bracket), so p* to
+* a problem's own **test functions** (``tests``, optional: a name → f(point), e.g. the
+  Floquet multipliers' of a periodic orbit, cosserat_fem/analysis/periodic.py): where f
+  changes sign, a special point of that name, located as the root of f(s) the same way.
+
+All are located to |s − s*| ≤ ``locate_tolerance`` (Illinois' bracket), so p* to
 |dp/ds| ``locate_tolerance`` ≤ ``locate_tolerance``. The branch continues from x_{k+1}.
 
 **Branch switching** at a bifurcation point x*: the null vector φ of R_u(x*) by inverse
@@ -64,7 +68,7 @@ special point is not searched for special points (its start is one).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -117,7 +121,8 @@ class ContinuationSettings:
 class Point:
     """A solution x = (u, p) on a branch, its unit tangent (t_u, t_p), the sign and ln of
     |det R_u| there, the corrector's iterations, and ``kind``: "regular", "start", "end" (at
-    a bound of p), "limit" or "bifurcation" (a located special point)."""
+    a bound of p), "limit", "bifurcation" or a test function's name (a located special
+    point)."""
 
     u: np.ndarray
     p: float
@@ -155,11 +160,15 @@ class Continuation:
         problem: ContinuationProblem,
         settings: ContinuationSettings | None = None,
         stop: Callable[[Point], str | None] | None = None,
+        tests: Mapping[str, Callable[[Point], float]] | None = None,
     ):
-        """``stop(point)``: a reason to end the branch at ``point`` (kept), or None."""
+        """``stop(point)``: a reason to end the branch at ``point`` (kept), or None;
+        ``tests``: kind → a continuous test function of a point, whose sign changes are
+        located as special points of that kind (module docstring)."""
         self.problem = problem
         self.settings = settings or ContinuationSettings()
         self.stop = stop
+        self.tests = dict(tests or {})
         self.corrector_solves = 0  # factorisations of R_u by the correctors
 
     # -- the metric ------------------------------------------------------------------------
@@ -320,7 +329,8 @@ class Continuation:
         return best
 
     def _special(self, branch: Branch, prev: Point, cur: Point, step: float) -> None:
-        """Locate a limit or a bifurcation point between prev and cur (module docstring)."""
+        """Locate a limit or a bifurcation point between prev and cur, and the roots of the
+        ``tests`` (module docstring)."""
         if (prev.t_p > 0) != (cur.t_p > 0):
             point = self._locate(prev, step, prev.t_p, cur.t_p, lambda q: q.t_p, "limit")
             branch.special.append(point)
@@ -332,6 +342,10 @@ class Continuation:
 
             point = self._locate(prev, step, det(prev), det(cur), det, "bifurcation")
             branch.special.append(point)
+        for kind, test in self.tests.items():  # the problem's own test functions
+            f0, f1 = test(prev), test(cur)
+            if (f0 > 0) != (f1 > 0):
+                branch.special.append(self._locate(prev, step, f0, f1, test, kind))
 
     # -- a branch ------------------------------------------------------------------------
     def trace(self, start: Point, direction: int = 1, search_first: bool = True) -> Branch:

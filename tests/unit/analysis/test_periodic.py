@@ -1,6 +1,8 @@
 """Unit tests of cosserat_fem/analysis/periodic.py: the classification of multipliers, the
-refusals before any solve, and the period expression. The shooting itself and the monodromy
-matrix: tests/test_periodic.py."""
+refusals before any solve, the period expression, and the location of period doubling and
+torus bifurcations (the test functions :func:`floquet_tests` on the engine's branch of the
+fixed points of maps with closed-form multipliers). The shooting itself and the monodromy
+matrix: tests/test_periodic.py; a rod's period doubling: tests/test_chaos.py."""
 
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ import pytest
 from cosserat_fem import api
 from cosserat_fem.analysis.periodic import Shooting, classify
 from cosserat_fem.common.errors import SceneError
+from unit.nls.test_arclength import Dense
 
 CLAMPED = {
     "supports.end": "clamped",
@@ -143,3 +146,136 @@ def test_the_determinant_is_the_product_of_the_multipliers_less_one():
         shooting.destroy()
     assert abs(product.imag) <= 1e-10 * abs(product)
     assert sign * math.exp(log_det) == pytest.approx(product.real, rel=1e-10)
+
+
+class FixedPoints(Dense):
+    """The fixed points of a map u ↦ F(u, p) of R^n as a ContinuationProblem of the engine
+    (cosserat_fem/nls/arclength.py), as a branch of orbits is (R = F − u, R_u = M − I, M =
+    ∂F/∂u the "monodromy"; the engine unit tests' dense problem). ``multipliers(point)`` =
+    eig M there."""
+
+    def __init__(self, F, M, F_p):
+        super().__init__(
+            lambda u, p: np.asarray(F(u, p)) - u,
+            lambda u, p: np.asarray(M(u, p)) - np.eye(u.size),
+            F_p,
+        )
+        self.M = M
+
+    def multipliers(self, point) -> np.ndarray:
+        return np.linalg.eigvals(np.asarray(self.M(point.u, point.p), dtype=float))
+
+
+def _centred(c, linear, nonlinear, dnonlinear):
+    """F(u, p) = c(p) + A(p) v + g(v), v = u − c(p) (g(0) = 0, g'(0) = 0): the branch of fixed
+    points u = c(p), whose multipliers are A(p)'s eigenvalues."""
+
+    def F(u, p):
+        v = u - c(p)
+        return c(p) + linear(p) @ v + nonlinear(v)
+
+    def M(u, p):
+        return linear(p) + dnonlinear(u - c(p))
+
+    def F_p(u, p):
+        # h = 1e-7: F_p is only the engine's tangent and Newton direction (the corrector
+        # converges on R itself); its error moves no located point
+        h = 1e-7
+        return (F(u, p + h) - F(u, p - h)) / (2 * h)
+
+    return FixedPoints(F, M, F_p)
+
+
+def _trace(problem: FixedPoints, start: float, end: float):
+    """The branch from p = start to end by the engine with :func:`floquet_tests` (locate
+    tolerance 1e-9 in arclength, the corrector's 1e-10)."""
+    from cosserat_fem.analysis.periodic import floquet_tests
+    from cosserat_fem.nls.arclength import Continuation, ContinuationSettings
+
+    settings = ContinuationSettings(
+        step=0.1, max_step=0.2, locate_tolerance=1e-9, p_min=start, p_max=end
+    )
+    engine = Continuation(problem, settings, tests=floquet_tests(problem.multipliers))
+    guess = problem.residual(np.zeros(3), start) * 0.0
+    branch = engine.trace(engine.start_point(guess, start, 1), 1)
+    assert branch.reason == f"p reached {end:g}"
+    return branch
+
+
+def _located(problem: FixedPoints, start: float, end: float, kind: str, p_star: float):
+    """The one special point of the branch from start to end: of ``kind``, at p* within 2e-9
+    (module tests' tolerance)."""
+    branch = _trace(problem, start, end)
+    assert [q.kind for q in branch.special] == [kind]
+    (point,) = branch.special
+    assert abs(point.p - p_star) <= 2e-9, point.p
+    return point
+
+
+def _quadratic(v):
+    return 0.3 * np.array([v[0] ** 2, v[0] * v[1], 0.0])
+
+
+def _dquadratic(v):
+    return 0.3 * np.array([[2 * v[0], 0, 0], [v[1], v[0], 0], [0, 0, 0]])
+
+
+def test_a_period_doubling_of_a_map_is_located_where_a_real_multiplier_is_minus_one():
+    """The closed form: F = c(p) + A(p)(u − c) + quadratic terms, A(p) = [[0, 1, 0], [−¼, −p,
+    0], [0, 0, 0.3]]: multipliers μ² + pμ + ¼ = 0 (product ¼) and 0.3. For p < 1 a complex
+    pair of modulus ½, meeting on the negative real axis at p = 1 and splitting into two reals,
+    one reaching −1 where 1 − p + ¼ = 0: p* = 5/4, the period doubling. On the way from 0.2 to
+    2 the engine finds exactly one special point, "period-doubling": the pair's meeting is no
+    torus (the bialternate factor μ1 μ2 − 1 = −¾ throughout, which a product over the complex
+    pairs alone, switching from |μ|² − 1 < 0 to nothing at p = 1, would not be). Located to
+    |p − p*| ≤ 2e-9 (the locate tolerance 1e-9 in arclength, |dp/ds| ≤ 1, plus the
+    corrector's 1e-10), so a multiplier within 2e-9 |dμ/dp| of −1, |dμ/dp| = |μ/(2μ + p)| =
+    4/3 at p* (μ = −1): 3e-9 asserted; the point on the branch u = c(p*) to 1e-8."""
+
+    def c(p):
+        return np.array([math.sin(p), p**2, 0.5 * p])
+
+    def A(p):
+        return np.array([[0.0, 1.0, 0.0], [-0.25, -p, 0.0], [0.0, 0.0, 0.3]])
+
+    problem = _centred(c, A, _quadratic, _dquadratic)
+    point = _located(problem, 0.2, 2.0, "period-doubling", 1.25)
+    mu = problem.multipliers(point)
+    assert np.isreal(mu).all()
+    assert np.min(np.abs(mu + 1.0)) <= 3e-9
+    assert np.abs(point.u - c(point.p)).max() <= 1e-8
+
+
+def test_a_torus_bifurcation_of_a_map_is_located_where_a_complex_pair_crosses_the_circle():
+    """The closed form: A(p) = ρ(p) R(θ) ⊕ (−0.4), ρ(p) = 0.6 + 0.4 p, θ = 1.1 rad: the pair
+    ρ e^{±iθ} crosses |μ| = 1 at p* = 1 (Neimark–Sacker), the real −0.4 stays inside; the
+    engine on p from 0 to 2 finds one special point, "torus" (det(M + I) = |1 + ρe^{iθ}|² ×
+    0.6 > 0 has no root), at |p − p*| ≤ 2e-9 (as above), where |μ| = ρ is within 0.4 × 2e-9
+    of 1 (1e-9 asserted) and arg μ = ±θ to round-off; :func:`is_torus` holds there. A neutral
+    saddle, A = diag(2, p, 0.1) (two real multipliers of product 2p = 1 at p = ½), is a root
+    of the same test, which :func:`is_torus` rejects: located at ½ to 2e-9, no pair on the
+    circle."""
+    from cosserat_fem.analysis.periodic import is_torus
+
+    theta = 1.1
+
+    def c(p):
+        return np.array([p, math.cos(p), p**3])
+
+    def A(p):
+        r = 0.6 + 0.4 * p
+        block = r * np.array(
+            [[math.cos(theta), -math.sin(theta)], [math.sin(theta), math.cos(theta)]]
+        )
+        return np.block([[block, np.zeros((2, 1))], [np.zeros((1, 2)), np.array([[-0.4]])]])
+
+    problem = _centred(c, A, _quadratic, _dquadratic)
+    point = _located(problem, 0.0, 2.0, "torus", 1.0)
+    mu = problem.multipliers(point)
+    pair = mu[np.abs(mu.imag) > 0]
+    assert np.abs(np.abs(pair) - 1.0).max() <= 1e-9
+    assert np.abs(np.abs(np.angle(pair)) - theta).max() <= 1e-12
+    assert is_torus(mu)
+
+    saddle = _centred(c, lambda p: np.diag([2.0, p, 0.1]), _quadratic, _dquadratic)
+    assert not is_torus(saddle.multipliers(_located(saddle, 0.2, 0.8, "torus", 0.5)))
