@@ -434,3 +434,93 @@ def test_continue_command_restart(tmp_path):
         proc = run_command(bad)
         assert proc.returncode == 2, proc.stderr
         assert proc.stderr.strip().count("\n") == 0 and name in proc.stderr
+
+
+class Killed(Exception):
+    """A continuation stopped from outside in the middle of a branch."""
+
+
+def kill_after(points: int):
+    """A ``stop`` that raises :class:`Killed` at its ``points``-th call (the branch's point
+    of that index: the first is after the start)."""
+    calls = []
+
+    def stop(q):
+        calls.append(q.factor)
+        if len(calls) == points:
+            raise Killed(f"killed at load factor {q.factor!r}")
+        return None
+
+    return stop
+
+
+def test_killed_continuation_restarts_from_its_last_point(tmp_path):
+    """A continuation killed mid-branch (its ``stop`` raises at the branch's 4th point, before
+    the branch ends and any of branches.csv, branches.json, branch_0.xdmf is written)
+    restarts from the last point it reached: the restart data are saved after each point
+    (path_restart.py). The roll-up (4 elements, one turn) to λ = 1, reported at the probe
+    s = ℓ/2 (--probe) instead of the free end: the restarted branch's points are the whole
+    run's from its index 2 on (the three saved, 2-4, then the continued ones), equal exactly
+    (the same floating-point operations on the same arrays: the argument of
+    test_restart_equals_the_whole_branch), their ``tip`` the mid-span point's (the probe
+    survives the restart; the free end's differs by O(ℓ)). The restart writes branches.csv
+    with the branch's rows from its saved points on (those before were lost with the kill),
+    equal to the whole run's rows 2 on, and branch_0.xdmf with their frames, times 2, 3, ...;
+    restart.json's saved end stays one the arrays fit (the slots)."""
+    from xdmf_files import read_xdmf
+
+    scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 1})
+    half = scene.rod.length / 2
+    options = dict(step=0.05, max_step=0.3, switch=0, directions=(1,), probe=half)
+    whole = cf.continuation(scene, 0.0, 1.0, max_points=40, out=tmp_path / "whole", **options)
+    cut = tmp_path / "cut"
+    with pytest.raises(Killed):
+        cf.continuation(scene, 0.0, 1.0, max_points=40, out=cut, stop=kill_after(4), **options)
+    assert not (cut / "branches.csv").exists() and not (cut / "branch_0.xdmf").exists()
+    record = json.loads((cut / "continuation" / "restart.json").read_text())
+    assert record["branches"]["0"]["first_index"] == 2 and record["probe"] == half
+    second = cf.continuation(None, restart=cut)
+    (w,) = whole.branches
+    (b,) = second.branches
+    assert w.reason == b.reason == "p reached 1" and len(w.points) > 6
+    assert [q.factor for q in w.points[2:]] == [q.factor for q in b.points]
+    assert all(np.array_equal(p.tip, q.tip) for p, q in zip(w.points[2:], b.points, strict=True))
+    rows = (cut / "branches.csv").read_text().splitlines()
+    rows_w = (tmp_path / "whole" / "branches.csv").read_text().splitlines()
+    assert rows[0] == rows_w[0] and rows[1:] == rows_w[3:]
+    times, values = read_xdmf(cut / "branch_0.xdmf")["displacement"]
+    times_w, values_w = read_xdmf(tmp_path / "whole" / "branch_0.xdmf")["displacement"]
+    assert list(times) == list(range(2, len(w.points)))
+    assert np.array_equal(values, values_w[2:])
+
+
+MPI_STOP_ERROR = """
+import sys
+from mpi4py import MPI
+import cosserat_fem as cf
+rank = MPI.COMM_WORLD.rank
+scene = cf.load(sys.argv[1], {"discretisation.elements": 4, "parameters.turns": 1})
+
+def stop(q):
+    if rank == 0 and q.factor > 0.2:
+        raise ValueError("the stop callback failed on rank 0")
+    return None
+
+try:
+    cf.continuation(scene, 0.0, 1.0, step=0.05, max_step=0.3, switch=0, directions=(1,), stop=stop)
+except ValueError as exc:
+    print(f"rank {rank}: {exc}", flush=True)
+    sys.exit(3)
+print(f"rank {rank}: no error", flush=True)
+"""
+
+
+def test_one_rank_error_in_stop_ends_every_rank():
+    """Under ``mpirun -n 2``, a ``stop`` that raises on rank 0 only (past λ = 0.2 of the
+    roll-up's path to 1) ends the continuation on both ranks with that error (its class and
+    message: common/parallel.agree after each point), no hang (run_command's limit, 120 s
+    here against ~10 s for the run)."""
+    proc = run_command(["-c", MPI_STOP_ERROR, str(ROLLUP)], ranks=2, timeout=120)
+    assert proc.returncode == 3, proc.stderr
+    for rank in (0, 1):
+        assert f"rank {rank}: the stop callback failed on rank 0" in proc.stdout

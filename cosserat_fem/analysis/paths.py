@@ -58,6 +58,7 @@ from petsc4py import PETSc
 from cosserat_fem.analysis.branch_outputs import BranchOutputs
 from cosserat_fem.analysis.statics import check_static_scene, static_solver
 from cosserat_fem.common.errors import SceneError
+from cosserat_fem.common.parallel import agree_and_gather
 from cosserat_fem.nls.arclength import Branch, Continuation, ContinuationSettings, Point
 from cosserat_fem.output.fields import PointProbe, probe_sigma
 from cosserat_fem.rod.model import build_model
@@ -351,18 +352,37 @@ def path_engine(
 ) -> Continuation:
     """The engine on ``problem``, its ``stop`` told of each point as a :class:`PathPoint` and
     ``observer`` (branch_outputs.py) of each engine point; a branch of a curved rod in the
-    x-z plane solved in 3D ends where |θ| reaches :data:`THETA_LIMIT` (the chart)."""
+    x-z plane solved in 3D ends where |θ| reaches :data:`THETA_LIMIT` (the chart).
+
+    Under MPI the ranks agree after each point: an exception of ``stop`` or of the
+    observer's progress on one rank is raised on every rank (common/parallel.agree: its
+    class and message), and rank 0's reason to stop is every rank's, so no rank goes on into
+    a collective the others have left."""
     wrapped = None
+    comm = problem.comm
     if stop is not None or observer is not None or problem.in_plane_3d:
 
         def wrapped(q: Point) -> str | None:
-            if observer is not None:
-                observer.point(q)
-            if problem.in_plane_3d and problem.largest_theta(q.u) >= THETA_LIMIT:
-                return f"|θ| reached {THETA_LIMIT} rad out of the x-z plane (the chart)"
-            return None if stop is None else stop(_path_point(problem, q))
+            if observer is not None and engine.branch is not None:
+                observer.save(engine.branch, comm)  # collective, before any user code
+            chart = problem.in_plane_3d and problem.largest_theta(q.u) >= THETA_LIMIT
+            point = None if stop is None else _path_point(problem, q)  # collective (the probe)
+            error, reason = None, None
+            try:
+                if observer is not None:
+                    observer.point(q)
+                if chart:
+                    reason = f"|θ| reached {THETA_LIMIT} rad out of the x-z plane (the chart)"
+                elif stop is not None and point is not None:
+                    reason = stop(point)
+            except Exception as exc:
+                if comm.size == 1:
+                    raise
+                error = exc
+            return agree_and_gather(comm, error, reason)[0]
 
-    return Continuation(problem, settings, wrapped)
+    engine = Continuation(problem, settings, wrapped)
+    return engine
 
 
 def continue_path(

@@ -180,6 +180,8 @@ class Continuation:
         self.settings = settings or ContinuationSettings()
         self.stop = stop
         self.corrector_solves = 0  # factorisations of R_u by the correctors
+        #: the branch being traced (``stop`` may save it as it grows: path_restart.py)
+        self.branch: Branch | None = None
 
     # -- the metric ------------------------------------------------------------------------
     def _dot(self, a_u: np.ndarray, a_p: float, b_u: np.ndarray, b_p: float) -> float:
@@ -416,6 +418,7 @@ class Continuation:
     def _extend(self, branch: Branch, step: float, search_first: bool) -> Branch:
         st = self.settings
         branch.reason = ""
+        self.branch = branch
         while True:
             branch.step = step
             prev = branch.points[-1]
