@@ -524,3 +524,50 @@ def test_one_rank_error_in_stop_ends_every_rank():
     assert proc.returncode == 3, proc.stderr
     for rank in (0, 1):
         assert f"rank {rank}: the stop callback failed on rank 0" in proc.stdout
+
+
+MPI_KILLED_RESTART = """
+import json, sys
+from mpi4py import MPI
+import cosserat_fem as cf
+
+class Killed(Exception):
+    pass
+
+scene = cf.load(sys.argv[1], {"discretisation.elements": 4, "parameters.turns": 1})
+options = dict(step=0.05, max_step=0.3, switch=0, directions=(1,), probe=scene.rod.length / 2)
+calls = []
+
+def stop(q):
+    calls.append(q.factor)
+    if len(calls) == 4:
+        raise Killed("killed")
+    return None
+
+try:
+    cf.continuation(scene, 0.0, 1.0, max_points=40, out=sys.argv[2], stop=stop, **options)
+except Killed:
+    pass
+(b,) = cf.continuation(None, restart=sys.argv[2]).branches
+if MPI.COMM_WORLD.rank == 0:
+    print(json.dumps([[q.factor, *map(float, q.tip)] for q in b.points]))
+"""
+
+
+def test_killed_restart_under_mpirun_equals_serial(tmp_path):
+    """test_killed_continuation_restarts_from_its_last_point under ``mpirun -n 2``: killed at
+    the 4th point (every rank's ``stop`` raises there), restarted on 2 ranks; its points equal
+    the serial whole run's from index 2 on, λ and the probe's (x, y, z, θ, ψ, φ) to 1e-8
+    (ℓ = 1 m: the points are the corrector's to ‖δx‖ ≤ 1e-10, full Newton; the partitions'
+    round-off, ~1e-13, is what differs, and the steps taken are the same)."""
+    scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 1})
+    options = dict(step=0.05, max_step=0.3, switch=0, directions=(1,))
+    whole = cf.continuation(scene, 0.0, 1.0, max_points=40, probe=scene.rod.length / 2, **options)
+    proc = run_command(
+        ["-c", MPI_KILLED_RESTART, str(ROLLUP), str(tmp_path / "cut")], ranks=2, timeout=300
+    )
+    assert proc.returncode == 0, proc.stderr
+    restarted = np.array(json.loads(proc.stdout.strip().splitlines()[-1]))
+    expected = np.array([[q.factor, *q.tip] for q in whole.branches[0].points[2:]])
+    assert restarted.shape == expected.shape
+    assert np.max(np.abs(restarted - expected)) < 1e-8

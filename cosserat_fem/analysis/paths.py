@@ -268,7 +268,9 @@ class RodPath:
 class PathPoint:
     """A state on a branch: the load factor λ, the free end's (x, y, z, θ, ψ, φ) [m, rad]
     (``tip``), the RMS of the state's unknowns (``norm``, dimensionless), dλ/ds, the sign of
-    det R_u, and ``kind``: "regular", "start", "limit" or "bifurcation"."""
+    det R_u, and ``kind``: "regular", "start", "end", "limit" or "bifurcation"; ``note``: why
+    a special point is only approximate (the engine's Point.note; not a column of
+    branches.csv), else ""."""
 
     factor: float
     tip: np.ndarray
@@ -276,6 +278,7 @@ class PathPoint:
     dfactor: float
     det_sign: float
     kind: str = "regular"
+    note: str = ""
 
     def as_row(self, branch: int) -> dict:
         x, y, z, theta, psi, phi = (float(v) for v in self.tip)
@@ -326,7 +329,8 @@ class PathResult:
 
 def _path_point(problem: RodPath, point: Point) -> PathPoint:
     norm = math.sqrt(problem.dot(point.u, point.u))
-    return PathPoint(point.p, problem.tip(point.u), norm, point.t_p, point.det_sign, point.kind)
+    tip = problem.tip(point.u)
+    return PathPoint(point.p, tip, norm, point.t_p, point.det_sign, point.kind, point.note)
 
 
 def _path_branch(
