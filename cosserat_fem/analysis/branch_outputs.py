@@ -135,8 +135,9 @@ def write_branch_reasons(
 ) -> None:
     """branches.json at ``path`` (:func:`replace_on_root`): a list, per branch of ``result``
     (a :class:`~cosserat_fem.analysis.paths.PathResult`), of {"branch", "origin", "reason",
-    "points", "steps", "rejected", "xdmf"} ("xdmf": the branch's file name, null if
-    ``xdmf`` is false)."""
+    "points", "steps", "rejected", "xdmf", "approximate"} ("xdmf": the branch's file name,
+    null if ``xdmf`` is false; "approximate": the special points located only approximately,
+    "<kind> at load factor <λ>: <note>", cosserat_fem/nls/arclength.py)."""
     rows = [
         {
             "branch": i,
@@ -146,6 +147,9 @@ def write_branch_reasons(
             "steps": b.steps,
             "rejected": b.rejected,
             "xdmf": f"branch_{i}.xdmf" if xdmf else None,
+            "approximate": [
+                f"{q.kind} at load factor {q.factor!r}: {q.note}" for q in b.special if q.note
+            ],
         }
         for i, b in enumerate(result.branches)
     ]
