@@ -449,6 +449,12 @@ def continuation(
             )
 
         observer.record = save_index
+
+        def finished(so_far) -> None:  # the files of the branches ended (a kill keeps them)
+            write_branches(Path(folder) / "branches.csv", so_far)
+            write_branch_reasons(Path(folder) / "branches.json", so_far, scene.output.xdmf)
+
+        observer.finished = finished
     result = continue_path(
         scene, settings, switch, stop, tuple(directions), observer=observer, probe=probe
     )

@@ -571,3 +571,30 @@ def test_killed_restart_under_mpirun_equals_serial(tmp_path):
     expected = np.array([[q.factor, *q.tip] for q in whole.branches[0].points[2:]])
     assert restarted.shape == expected.shape
     assert np.max(np.abs(restarted - expected)) < 1e-8
+
+
+def test_killed_on_the_second_branch_keeps_the_first(tmp_path):
+    """The roll-up (4 elements, one turn) on [−1, 1], λ growing then falling, killed at the
+    4th point of the second branch: branches.csv and branches.json already hold the first
+    branch (written as it ended), and the restart (default: the last branch saved, 1) adds the
+    second's rows from its saved points on. The file is then the whole run's without the
+    second branch's first two rows (lost with the kill), byte for byte (the argument of
+    test_restart_equals_the_whole_branch), and branches.json has both branches' reasons."""
+    scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 1})
+    options = dict(step=0.05, max_step=0.3, switch=0, directions=(1, -1))
+    whole = cf.continuation(scene, -1.0, 1.0, max_points=40, out=tmp_path / "whole", **options)
+    first, second = whole.branches
+    assert first.reason == "p reached 1" and second.reason == "p reached -1"
+    calls = len(first.points) - 2 + 4  # stop is told of every point but the start and end
+    cut = tmp_path / "cut"
+    with pytest.raises(Killed):
+        cf.continuation(scene, -1.0, 1.0, max_points=40, out=cut, stop=kill_after(calls), **options)
+    rows_w = (tmp_path / "whole" / "branches.csv").read_text().splitlines()
+    one = 1 + len(first.points)  # the header and the first branch's rows
+    assert (cut / "branches.csv").read_text().splitlines() == rows_w[:one]
+    (b,) = cf.continuation(None, restart=cut).branches
+    assert [q.factor for q in b.points] == [q.factor for q in second.points[2:]]
+    rows = (cut / "branches.csv").read_text().splitlines()
+    assert rows == rows_w[:one] + rows_w[one + 2 :]
+    reasons = json.loads((cut / "branches.json").read_text())
+    assert [r["reason"] for r in reasons] == ["p reached 1", "p reached -1"]

@@ -60,6 +60,9 @@ class BranchOutputs:
         #: ``record(ends)`` writes continuation/restart.json with these ends (the caller's:
         #: path_restart.write_index with its scene and settings); None: no restart data
         self.record: Callable[[dict[int, dict]], None] | None = None
+        #: ``finished(result)`` after each branch is added to the result (the caller's:
+        #: branches.csv and branches.json of the branches so far), or None
+        self.finished: Callable[[object], None] | None = None
 
     def save(self, branch: Branch, comm: MPI.Comm, final: bool = False) -> None:
         """The restart data of ``branch`` as it is now (its last points): its arrays into the

@@ -28,10 +28,12 @@ Arrays are per rank: a restart needs the same number of ranks (the same partitio
 Only ``max_points`` may change on restart (a branch that ended at max_points goes on); the
 range, steps and tolerances are the saved ones. The continued points are appended to the
 branch's rows of branches.csv and frames of its branch_<i>.xdmf, and its end saved again.
-A continuation killed mid-branch wrote neither branches.csv, branches.json nor that
-branch's XDMF (they are written as a branch ends): the restart writes them, the branch's rows
-and frames from its saved (last three) points on, and the branches after it are not traced
-(start them anew).
+A continuation killed mid-branch has branches.csv, branches.json and the XDMF of the branches
+that ended before (they are written as each branch ends), not yet the killed branch's: the
+restart adds them, its rows and frames from its saved (last three) points on (the points
+before were lost with the kill), and the branches after it are not traced (start them
+anew). A restart killed in its turn loses the branch's rows between those the file has and
+its last saved points (the file is written as the restart ends).
 """
 
 from __future__ import annotations
@@ -237,19 +239,22 @@ def restart_branch(
     finally:
         problem.destroy()
     try:
+        reasons = json.loads(read_on_root(folder / "branches.json", 1 << 28, comm).decode())
+    except Unreadable:  # killed on the first branch: no file yet (module docstring)
+        reasons = []
+    points = path_branch.points[kept:]
+    if not any(entry["branch"] == index for entry in reasons):  # killed on this branch
+        points = path_branch.points  # its rows from the saved points on
+        xdmf = f"branch_{index}.xdmf" if scene.output.xdmf else None
+        origin = "not recorded (the continuation was killed on this branch)"
+        reasons.append({"branch": index, "origin": origin, "xdmf": xdmf, "approximate": []})
+    try:
         old = read_on_root(folder / "branches.csv", 1 << 30, comm).decode()
-        points = path_branch.points[kept:]
-    except Unreadable:  # killed mid-branch: no file yet (module docstring)
+    except Unreadable:
         old = ",".join(BRANCH_COLUMNS) + "\n"
-        points = path_branch.points
     new = [p.as_row(index) for p in [*points, *path_branch.special]]
     text = old + "".join(line + "\n" for line in csv_lines(new))
     replace_on_root(folder / "branches.csv", text.encode(), comm)
-    try:
-        reasons = json.loads(read_on_root(folder / "branches.json", 1 << 28, comm).decode())
-    except Unreadable:
-        xdmf = f"branch_{index}.xdmf" if scene.output.xdmf else None
-        reasons = [{"branch": index, "origin": "primary", "xdmf": xdmf}]
     for entry in reasons:
         if entry["branch"] == index:
             entry["reason"] = branch.reason

@@ -419,10 +419,14 @@ def continue_path(
             branch = engine.trace(start, d)
             found += [q for q in branch.special if q.kind == "bifurcation"]
             result.branches.append(_path_branch(problem, branch, "primary", observer))
+            if observer is not None and observer.finished is not None:
+                observer.finished(result)
         for point in found[:switch]:
             for branch in engine.switch(point):
                 origin = f"switched at load factor {point.p:.9g}"
                 result.branches.append(_path_branch(problem, branch, origin, observer))
+                if observer is not None and observer.finished is not None:
+                    observer.finished(result)
         result.corrector_factorisations = engine.corrector_solves
         result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
         return result
