@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 
 import numpy as np
 import pytest
@@ -598,3 +599,51 @@ def test_killed_on_the_second_branch_keeps_the_first(tmp_path):
     assert rows == rows_w[:one] + rows_w[one + 2 :]
     reasons = json.loads((cut / "branches.json").read_text())
     assert [r["reason"] for r in reasons] == ["p reached 1", "p reached -1"]
+
+
+@pytest.mark.long
+def test_continue_killed_by_sigterm_restarts_from_its_last_point(tmp_path):
+    """``continue`` killed by SIGTERM (not a Python exception: the process ends wherever it is,
+    between the saved arrays and restart.json perhaps) once its saved end is at point 20 or
+    later of the roll-up's branch (32 elements, two turns, steps of 0.02: 162 points), then
+    ``continue --restart``: its branches.csv is the uninterrupted run's header and rows from
+    the saved first index on, byte for byte (serial: the same operations on the same arrays,
+    test_restart_equals_the_whole_branch), whichever point the kill fell on."""
+    import signal
+    import subprocess
+
+    from conftest import PYTHON, stop_tree, subprocess_env
+
+    base = ["-m", "cosserat_fem.cli", "continue"]
+    case = [str(ROLLUP), "--set", "discretisation.elements=32", "--set", "parameters.turns=2"]
+    case += ["--step", "0.02", "--max-step", "0.02", "--switch", "0", "--max-points", "400"]
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    proc = run_command([*base, *case, "--out", str(whole), "--quiet"])
+    assert proc.returncode == 0, proc.stderr
+    index = cut / "continuation" / "restart.json"
+    killed = subprocess.Popen(
+        [PYTHON, *base, *case, "--out", str(cut), "--quiet"], cwd=ROOT, env=subprocess_env()
+    )
+    try:
+        deadline = time.monotonic() + 300
+        first = -1
+        while first < 20 and killed.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+            try:
+                first = json.loads(index.read_text())["branches"]["0"]["first_index"]
+            except (OSError, ValueError, KeyError):
+                pass
+        assert killed.poll() is None, "the run ended before it could be killed"
+        killed.send_signal(signal.SIGTERM)
+        killed.wait(timeout=60)
+    finally:
+        stop_tree(killed)
+    assert not (cut / "branches.csv").exists()
+    first = json.loads(index.read_text())["branches"]["0"]["first_index"]
+    assert first >= 20
+    proc = run_command([*base, "--restart", str(cut), "--quiet"])
+    assert proc.returncode == 0, proc.stderr
+    rows_w = (whole / "branches.csv").read_text().splitlines()
+    rows = (cut / "branches.csv").read_text().splitlines()
+    assert len(rows_w) == 163
+    assert rows == [rows_w[0], *rows_w[1 + first :]]
