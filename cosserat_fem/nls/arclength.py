@@ -328,8 +328,8 @@ class Continuation:
         """The point at the root of ``function(point)`` for s in (0, step) from ``base``
         (f(0) = f0, f(step) = f1 of opposite signs; ``end`` the point at s = step, if known),
         Illinois' regula falsi. If the corrector fails inside the bracket (also just beside
-        the failing s), the bracket's best estimate is kept: of the points evaluated (``base``
-        and ``end`` included) the one of least |f|, its ``note`` saying so."""
+        the failing s), the bracket's best estimate is kept (:meth:`_estimate`), its ``note``
+        saying so."""
         st = self.settings
         a, b, fa, fb = 0.0, step, f0, f1
         side = 0
