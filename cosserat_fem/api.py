@@ -440,16 +440,28 @@ def continuation(
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "continue")
     observer = BranchOutputs(folder, progress)
+    if folder is not None:  # restart data as each branch grows (path_restart.py)
+        scene_dict = json.loads(json.dumps(scene.to_dict()))
+
+        def save_index(ends: dict) -> None:
+            path_restart.write_index(
+                folder, scene_dict, settings, ends, MPI.COMM_WORLD, probe=probe
+            )
+
+        observer.record = save_index
+
+        def finished(so_far) -> None:  # the files of the branches ended (a kill keeps them)
+            write_branches(Path(folder) / "branches.csv", so_far)
+            write_branch_reasons(Path(folder) / "branches.json", so_far, scene.output.xdmf)
+
+        observer.finished = finished
     result = continue_path(
         scene, settings, switch, stop, tuple(directions), observer=observer, probe=probe
     )
     if folder is not None:
         write_branches(Path(folder) / "branches.csv", result)
         write_branch_reasons(Path(folder) / "branches.json", result, scene.output.xdmf)
-        scene_dict = json.loads(json.dumps(scene.to_dict()))
-        path_restart.write_index(
-            folder, scene_dict, settings, observer.ends, MPI.COMM_WORLD, probe=probe
-        )
+        save_index(observer.ends)
     return result
 
 

@@ -564,7 +564,8 @@ def _continue(args) -> int:
                 f"{end.factor:.10g}, psi = {end.tip[4]:.10g} rad: {branch.reason}"
             )
             for point in branch.special:
-                _say(f"  {point.kind} point at load factor {point.factor:.10g}")
+                note = f" ({point.note})" if point.note else ""
+                _say(f"  {point.kind} point at load factor {point.factor:.10g}{note}")
         _say(f"-> {Path(out) / 'branches.csv'}")
     return 0
 

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import math
+import time
 
 import numpy as np
 import pytest
@@ -434,3 +435,215 @@ def test_continue_command_restart(tmp_path):
         proc = run_command(bad)
         assert proc.returncode == 2, proc.stderr
         assert proc.stderr.strip().count("\n") == 0 and name in proc.stderr
+
+
+class Killed(Exception):
+    """A continuation stopped from outside in the middle of a branch."""
+
+
+def kill_after(points: int):
+    """A ``stop`` that raises :class:`Killed` at its ``points``-th call (the branch's point
+    of that index: the first is after the start)."""
+    calls = []
+
+    def stop(q):
+        calls.append(q.factor)
+        if len(calls) == points:
+            raise Killed(f"killed at load factor {q.factor!r}")
+        return None
+
+    return stop
+
+
+def test_killed_continuation_restarts_from_its_last_point(tmp_path):
+    """A continuation killed mid-branch (its ``stop`` raises at the branch's 4th point, before
+    the branch ends and any of branches.csv, branches.json, branch_0.xdmf is written)
+    restarts from the last point it reached: the restart data are saved after each point
+    (path_restart.py). The roll-up (4 elements, one turn) to λ = 1, reported at the probe
+    s = ℓ/2 (--probe) instead of the free end: the restarted branch's points are the whole
+    run's from its index 2 on (the three saved, 2-4, then the continued ones), equal exactly
+    (the same floating-point operations on the same arrays: the argument of
+    test_restart_equals_the_whole_branch), their ``tip`` the mid-span point's (the probe
+    survives the restart; the free end's differs by O(ℓ)). The restart writes branches.csv
+    with the branch's rows from its saved points on (those before were lost with the kill),
+    equal to the whole run's rows 2 on, and branch_0.xdmf with their frames, times 2, 3, ...;
+    restart.json's saved end stays one the arrays fit (the slots)."""
+    from xdmf_files import read_xdmf
+
+    scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 1})
+    half = scene.rod.length / 2
+    options = dict(step=0.05, max_step=0.3, switch=0, directions=(1,), probe=half)
+    whole = cf.continuation(scene, 0.0, 1.0, max_points=40, out=tmp_path / "whole", **options)
+    cut = tmp_path / "cut"
+    with pytest.raises(Killed):
+        cf.continuation(scene, 0.0, 1.0, max_points=40, out=cut, stop=kill_after(4), **options)
+    assert not (cut / "branches.csv").exists() and not (cut / "branch_0.xdmf").exists()
+    record = json.loads((cut / "continuation" / "restart.json").read_text())
+    assert record["branches"]["0"]["first_index"] == 2 and record["probe"] == half
+    second = cf.continuation(None, restart=cut)
+    (w,) = whole.branches
+    (b,) = second.branches
+    assert w.reason == b.reason == "p reached 1" and len(w.points) > 6
+    assert [q.factor for q in w.points[2:]] == [q.factor for q in b.points]
+    assert all(np.array_equal(p.tip, q.tip) for p, q in zip(w.points[2:], b.points, strict=True))
+    rows = (cut / "branches.csv").read_text().splitlines()
+    rows_w = (tmp_path / "whole" / "branches.csv").read_text().splitlines()
+    assert rows[0] == rows_w[0] and rows[1:] == rows_w[3:]
+    times, values = read_xdmf(cut / "branch_0.xdmf")["displacement"]
+    times_w, values_w = read_xdmf(tmp_path / "whole" / "branch_0.xdmf")["displacement"]
+    assert list(times) == list(range(2, len(w.points)))
+    assert np.array_equal(values, values_w[2:])
+
+
+MPI_STOP_ERROR = """
+import sys
+from mpi4py import MPI
+import cosserat_fem as cf
+rank = MPI.COMM_WORLD.rank
+scene = cf.load(sys.argv[1], {"discretisation.elements": 4, "parameters.turns": 1})
+
+def stop(q):
+    if rank == 0 and q.factor > 0.2:
+        raise ValueError("the stop callback failed on rank 0")
+    return None
+
+try:
+    cf.continuation(scene, 0.0, 1.0, step=0.05, max_step=0.3, switch=0, directions=(1,), stop=stop)
+except ValueError as exc:
+    print(f"rank {rank}: {exc}", flush=True)
+    sys.exit(3)
+print(f"rank {rank}: no error", flush=True)
+"""
+
+
+def test_one_rank_error_in_stop_ends_every_rank():
+    """Under ``mpirun -n 2``, a ``stop`` that raises on rank 0 only (past λ = 0.2 of the
+    roll-up's path to 1) ends the continuation on both ranks with that error (its class and
+    message: common/parallel.agree after each point), no hang (run_command's limit, 120 s
+    here against ~10 s for the run)."""
+    proc = run_command(["-c", MPI_STOP_ERROR, str(ROLLUP)], ranks=2, timeout=120)
+    assert proc.returncode == 3, proc.stderr
+    for rank in (0, 1):
+        assert f"rank {rank}: the stop callback failed on rank 0" in proc.stdout
+
+
+MPI_KILLED_RESTART = """
+import json, sys
+from mpi4py import MPI
+import cosserat_fem as cf
+
+class Killed(Exception):
+    pass
+
+scene = cf.load(sys.argv[1], {"discretisation.elements": 4, "parameters.turns": 1})
+options = dict(step=0.05, max_step=0.3, switch=0, directions=(1,), probe=scene.rod.length / 2)
+calls = []
+
+def stop(q):
+    calls.append(q.factor)
+    if len(calls) == 4:
+        raise Killed("killed")
+    return None
+
+try:
+    cf.continuation(scene, 0.0, 1.0, max_points=40, out=sys.argv[2], stop=stop, **options)
+except Killed:
+    pass
+(b,) = cf.continuation(None, restart=sys.argv[2]).branches
+if MPI.COMM_WORLD.rank == 0:
+    print(json.dumps([[q.factor, *map(float, q.tip)] for q in b.points]))
+"""
+
+
+def test_killed_restart_under_mpirun_equals_serial(tmp_path):
+    """test_killed_continuation_restarts_from_its_last_point under ``mpirun -n 2``: killed at
+    the 4th point (every rank's ``stop`` raises there), restarted on 2 ranks; its points equal
+    the serial whole run's from index 2 on, λ and the probe's (x, y, z, θ, ψ, φ) to 1e-8
+    (ℓ = 1 m: the points are the corrector's to ‖δx‖ ≤ 1e-10, full Newton; the partitions'
+    round-off, ~1e-13, is what differs, and the steps taken are the same)."""
+    scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 1})
+    options = dict(step=0.05, max_step=0.3, switch=0, directions=(1,))
+    whole = cf.continuation(scene, 0.0, 1.0, max_points=40, probe=scene.rod.length / 2, **options)
+    proc = run_command(
+        ["-c", MPI_KILLED_RESTART, str(ROLLUP), str(tmp_path / "cut")], ranks=2, timeout=300
+    )
+    assert proc.returncode == 0, proc.stderr
+    restarted = np.array(json.loads(proc.stdout.strip().splitlines()[-1]))
+    expected = np.array([[q.factor, *q.tip] for q in whole.branches[0].points[2:]])
+    assert restarted.shape == expected.shape
+    assert np.max(np.abs(restarted - expected)) < 1e-8
+
+
+def test_killed_on_the_second_branch_keeps_the_first(tmp_path):
+    """The roll-up (4 elements, one turn) on [−1, 1], λ growing then falling, killed at the
+    4th point of the second branch: branches.csv and branches.json already hold the first
+    branch (written as it ended), and the restart (default: the last branch saved, 1) adds the
+    second's rows from its saved points on. The file is then the whole run's without the
+    second branch's first two rows (lost with the kill), byte for byte (the argument of
+    test_restart_equals_the_whole_branch), and branches.json has both branches' reasons."""
+    scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 1})
+    options = dict(step=0.05, max_step=0.3, switch=0, directions=(1, -1))
+    whole = cf.continuation(scene, -1.0, 1.0, max_points=40, out=tmp_path / "whole", **options)
+    first, second = whole.branches
+    assert first.reason == "p reached 1" and second.reason == "p reached -1"
+    calls = len(first.points) - 2 + 4  # stop is told of every point but the start and end
+    cut = tmp_path / "cut"
+    with pytest.raises(Killed):
+        cf.continuation(scene, -1.0, 1.0, max_points=40, out=cut, stop=kill_after(calls), **options)
+    rows_w = (tmp_path / "whole" / "branches.csv").read_text().splitlines()
+    one = 1 + len(first.points)  # the header and the first branch's rows
+    assert (cut / "branches.csv").read_text().splitlines() == rows_w[:one]
+    (b,) = cf.continuation(None, restart=cut).branches
+    assert [q.factor for q in b.points] == [q.factor for q in second.points[2:]]
+    rows = (cut / "branches.csv").read_text().splitlines()
+    assert rows == rows_w[:one] + rows_w[one + 2 :]
+    reasons = json.loads((cut / "branches.json").read_text())
+    assert [r["reason"] for r in reasons] == ["p reached 1", "p reached -1"]
+
+
+@pytest.mark.long
+def test_continue_killed_by_sigterm_restarts_from_its_last_point(tmp_path):
+    """``continue`` killed by SIGTERM (not a Python exception: the process ends wherever it is,
+    between the saved arrays and restart.json perhaps) once its saved end is at point 20 or
+    later of the roll-up's branch (32 elements, two turns, steps of 0.02: 162 points), then
+    ``continue --restart``: its branches.csv is the uninterrupted run's header and rows from
+    the saved first index on, byte for byte (serial: the same operations on the same arrays,
+    test_restart_equals_the_whole_branch), whichever point the kill fell on."""
+    import signal
+    import subprocess
+
+    from conftest import PYTHON, stop_tree, subprocess_env
+
+    base = ["-m", "cosserat_fem.cli", "continue"]
+    case = [str(ROLLUP), "--set", "discretisation.elements=32", "--set", "parameters.turns=2"]
+    case += ["--step", "0.02", "--max-step", "0.02", "--switch", "0", "--max-points", "400"]
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    proc = run_command([*base, *case, "--out", str(whole), "--quiet"])
+    assert proc.returncode == 0, proc.stderr
+    index = cut / "continuation" / "restart.json"
+    killed = subprocess.Popen(
+        [PYTHON, *base, *case, "--out", str(cut), "--quiet"], cwd=ROOT, env=subprocess_env()
+    )
+    try:
+        deadline = time.monotonic() + 300
+        first = -1
+        while first < 20 and killed.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+            try:
+                first = json.loads(index.read_text())["branches"]["0"]["first_index"]
+            except (OSError, ValueError, KeyError):
+                pass
+        assert killed.poll() is None, "the run ended before it could be killed"
+        killed.send_signal(signal.SIGTERM)
+        killed.wait(timeout=60)
+    finally:
+        stop_tree(killed)
+    assert not (cut / "branches.csv").exists()
+    first = json.loads(index.read_text())["branches"]["0"]["first_index"]
+    assert first >= 20
+    proc = run_command([*base, "--restart", str(cut), "--quiet"])
+    assert proc.returncode == 0, proc.stderr
+    rows_w = (whole / "branches.csv").read_text().splitlines()
+    rows = (cut / "branches.csv").read_text().splitlines()
+    assert len(rows_w) == 163
+    assert rows == [rows_w[0], *rows_w[1 + first :]]

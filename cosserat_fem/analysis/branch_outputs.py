@@ -27,6 +27,7 @@ from pathlib import Path
 from mpi4py import MPI
 
 from cosserat_fem.analysis.path_restart import branch_end, save_branch_state
+from cosserat_fem.common.parallel import from_root
 from cosserat_fem.nls.arclength import Branch, Point
 
 #: progress(branch index, points so far on it, λ of the last)
@@ -54,6 +55,29 @@ class BranchOutputs:
         self.files: list[Path] = []
         #: each branch's saved end (path_restart.branch_end), by branch index
         self.ends: dict[int, dict] = {}
+        #: each branch's slot of its saved arrays (path_restart.py), by branch index
+        self.slots: dict[int, int] = {}
+        #: ``record(ends)`` writes continuation/restart.json with these ends (the caller's:
+        #: path_restart.write_index with its scene and settings); None: no restart data
+        self.record: Callable[[dict[int, dict]], None] | None = None
+        #: ``finished(result)`` after each branch is added to the result (the caller's:
+        #: branches.csv and branches.json of the branches so far), or None
+        self.finished: Callable[[object], None] | None = None
+
+    def save(self, branch: Branch, comm: MPI.Comm, final: bool = False) -> None:
+        """The restart data of ``branch`` as it is now (its last points): its arrays into the
+        slot restart.json does not name, then restart.json naming it (``record``;
+        path_restart.py). Collective; nothing without a folder, nor before the branch ends
+        (``final``) without ``record``."""
+        if self.folder is None or (self.record is None and not final):
+            return
+        index = self._branch if self.resumed is None else self.resumed[0]
+        slot = 1 - self.slots.get(index, 1)
+        save_branch_state(self.folder, index, branch, comm, slot)
+        self.slots[index] = slot
+        self.ends[index] = branch_end(branch, slot)
+        if self.record is not None:
+            self.record(self.ends)
 
     def point(self, point: Point) -> None:
         self._points += 1
@@ -65,19 +89,22 @@ class BranchOutputs:
         ``problem`` (a :class:`~cosserat_fem.analysis.paths.RodPath`: its model's U)."""
         from cosserat_fem.output.fields import XdmfWriter
 
+        if self.folder is None:
+            self._branch += 1
+            self._points = 1
+            return
+        self.save(branch, problem.comm, final=True)
         index = self._branch if self.resumed is None else self.resumed[0]
         self._branch += 1
         self._points = 1
-        if self.folder is None:
-            return
-        save_branch_state(self.folder, index, branch, problem.comm)
-        self.ends[index] = branch_end(branch)
         if not problem.scene.output.xdmf:
             return
-        skip = 0 if self.resumed is None else self.resumed[1]
-        frames = branch.first_index + skip  # those written before
-        resume = None if self.resumed is None else (self.resumed[2], frames)
         path = self.folder / f"branch_{index}.xdmf"
+        skip = 0 if self.resumed is None else self.resumed[1]
+        if self.resumed is not None and not from_root(problem.comm, path.exists()):
+            skip = 0  # killed before the branch's XDMF was written: from the saved points
+        frames = branch.first_index + skip  # those written before
+        resume = None if self.resumed is None or not skip else (self.resumed[2], frames)
         writer = XdmfWriter(path, problem.model, resume=resume)
         try:
             for i, q in enumerate(branch.points[skip:], start=frames):
@@ -111,8 +138,9 @@ def write_branch_reasons(
 ) -> None:
     """branches.json at ``path`` (:func:`replace_on_root`): a list, per branch of ``result``
     (a :class:`~cosserat_fem.analysis.paths.PathResult`), of {"branch", "origin", "reason",
-    "points", "steps", "rejected", "xdmf"} ("xdmf": the branch's file name, null if
-    ``xdmf`` is false)."""
+    "points", "steps", "rejected", "xdmf", "approximate"} ("xdmf": the branch's file name,
+    null if ``xdmf`` is false; "approximate": the special points located only approximately,
+    "<kind> at load factor <λ>: <note>", cosserat_fem/nls/arclength.py)."""
     rows = [
         {
             "branch": i,
@@ -122,6 +150,9 @@ def write_branch_reasons(
             "steps": b.steps,
             "rejected": b.rejected,
             "xdmf": f"branch_{i}.xdmf" if xdmf else None,
+            "approximate": [
+                f"{q.kind} at load factor {q.factor!r}: {q.note}" for q in b.special if q.note
+            ],
         }
         for i, b in enumerate(result.branches)
     ]

@@ -1,12 +1,19 @@
 """Restarts of a continuation from the last point of a branch (issue 27 item 5).
 
-A continuation with an output folder keeps, as each branch ends, what the rest of that
-branch depends on, following the run's checkpoints (cosserat_fem/io/checkpoint.py):
+A continuation with an output folder keeps, after each point of a branch and as it ends,
+what the rest of that branch depends on, following the run's checkpoints
+(cosserat_fem/io/checkpoint.py), so a continuation killed mid-branch restarts from its last
+point:
 
     continuation/restart.json          the scene (as a dict), the settings, the ranks, and per
-                                       branch its end: first_index, step, rejected, direction
+                                       branch its end: first_index, step, rejected, direction,
+                                       slot
     continuation/branch<i>.rank<r>.npz  rank r's owned entries of u and t_u of the branch's
-                                       last (at most) three points
+    (slot 0; slot 1: .rank<r>.b.npz)    last (at most) three points
+
+Each file is replaced whole (common/safe_files.replace). The arrays of a new end go to the
+slot the JSON does not name, then the JSON is replaced to name it: a kill between the two
+leaves the JSON and the arrays it names of the same, earlier, end.
 
 with each point's λ, dλ/ds, sign and ln|det R_u|, iterations and kind in the JSON (floats
 written by repr, which round-trips). The three last points are the quadratic predictor's
@@ -21,6 +28,12 @@ Arrays are per rank: a restart needs the same number of ranks (the same partitio
 Only ``max_points`` may change on restart (a branch that ended at max_points goes on); the
 range, steps and tolerances are the saved ones. The continued points are appended to the
 branch's rows of branches.csv and frames of its branch_<i>.xdmf, and its end saved again.
+A continuation killed mid-branch has branches.csv, branches.json and the XDMF of the branches
+that ended before (they are written as each branch ends), not yet the killed branch's: the
+restart adds them, its rows and frames from its saved (last three) points on (the points
+before were lost with the kill), and the branches after it are not traced (start them
+anew). A restart killed in its turn loses the branch's rows between those the file has and
+its last saved points (the file is written as the restart ends).
 """
 
 from __future__ import annotations
@@ -41,14 +54,16 @@ INDEX = "restart.json"
 KEPT = 3
 
 
-def state_file(branch: int, rank: int) -> str:
-    return f"branch{branch}.rank{rank}.npz"
+def state_file(branch: int, rank: int, slot: int = 0) -> str:
+    """The arrays' file of ``branch`` on ``rank`` in ``slot`` 0 or 1 (module docstring)."""
+    return f"branch{branch}.rank{rank}{'.b' if slot else ''}.npz"
 
 
-def branch_end(branch: Branch) -> dict:
-    """The JSON part of ``branch``'s end (module docstring)."""
+def branch_end(branch: Branch, slot: int = 0) -> dict:
+    """The JSON part of ``branch``'s end (module docstring), its arrays in ``slot``."""
     kept = branch.points[-KEPT:]
     return {
+        "slot": slot,
         "first_index": branch.first_index + len(branch.points) - len(kept),
         "step": branch.step,
         "rejected": branch.steps_rejected,
@@ -67,9 +82,11 @@ def branch_end(branch: Branch) -> dict:
     }
 
 
-def save_branch_state(folder: Path, index: int, branch: Branch, comm: MPI.Comm) -> None:
-    """Rank r's arrays of ``branch``'s end into continuation/branch<index>.rank<r>.npz (every
-    rank its own file; the ranks agree on a failure)."""
+def save_branch_state(
+    folder: Path, index: int, branch: Branch, comm: MPI.Comm, slot: int = 0
+) -> None:
+    """Rank r's arrays of ``branch``'s end into its file of ``slot`` (:func:`state_file`;
+    every rank its own file; the ranks agree on a failure)."""
     from cosserat_fem.common.errors import OutputError
     from cosserat_fem.common.parallel import agree
     from cosserat_fem.common.safe_files import replace
@@ -81,7 +98,7 @@ def save_branch_state(folder: Path, index: int, branch: Branch, comm: MPI.Comm) 
     try:
         (folder / FOLDER).mkdir(exist_ok=True)
         buffer = _npz(arrays)
-        replace(folder / FOLDER / state_file(index, comm.rank), buffer)
+        replace(folder / FOLDER / state_file(index, comm.rank, slot), buffer)
     except OSError as exc:
         problem = OutputError(f"{folder / FOLDER}: {exc.strerror or exc}")
     agree(comm, problem)
@@ -149,7 +166,7 @@ def load_branch(folder: Path, record: dict, index: int, comm: MPI.Comm) -> Branc
     end = record["branches"].get(str(index))
     if end is None:
         raise SceneError(f"--branch: no branch {index} saved in {str(folder)!r}")
-    with np.load(folder / FOLDER / state_file(index, comm.rank)) as arrays:
+    with np.load(folder / FOLDER / state_file(index, comm.rank, end.get("slot", 0))) as arrays:
         points = [
             Point(
                 arrays[f"u{i}"],
@@ -188,13 +205,14 @@ def restart_branch(
     reason saved again (restart.json, branches.json's entry)."""
     from cosserat_fem.analysis.branch_outputs import BranchOutputs, replace_on_root
     from cosserat_fem.analysis.paths import (
+        BRANCH_COLUMNS,
         PathResult,
         RodPath,
         _path_branch,
         csv_lines,
         path_engine,
     )
-    from cosserat_fem.common.safe_files import read_on_root
+    from cosserat_fem.common.safe_files import Unreadable, read_on_root
     from cosserat_fem.scene.build import scene_from_dict
 
     scene = scene_from_dict(record["scene"], source=f"{folder}/{FOLDER}/{INDEX}")
@@ -203,6 +221,14 @@ def restart_branch(
     restarts = int(record.get("restarts", 0)) + 1
     observer = BranchOutputs(folder, progress, resumed=(index, kept, restarts))
     observer._points = saved.first_index + kept
+    observer.slots[index] = record["branches"][str(index)].get("slot", 0)
+    ends = {int(k): v for k, v in record["branches"].items()}
+    probe = record.get("probe")
+
+    def save_index(new: dict) -> None:
+        write_index(folder, record["scene"], settings, ends | new, comm, restarts - 1, probe)
+
+    observer.record = save_index
     problem = RodPath(scene, comm, record.get("probe"))
     try:
         engine = path_engine(problem, settings, stop, observer)
@@ -212,11 +238,23 @@ def restart_branch(
         result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
     finally:
         problem.destroy()
-    new = [p.as_row(index) for p in [*path_branch.points[kept:], *path_branch.special]]
-    old = read_on_root(folder / "branches.csv", 1 << 30, comm).decode()
+    try:
+        reasons = json.loads(read_on_root(folder / "branches.json", 1 << 28, comm).decode())
+    except Unreadable:  # killed on the first branch: no file yet (module docstring)
+        reasons = []
+    points = path_branch.points[kept:]
+    if not any(entry["branch"] == index for entry in reasons):  # killed on this branch
+        points = path_branch.points  # its rows from the saved points on
+        xdmf = f"branch_{index}.xdmf" if scene.output.xdmf else None
+        origin = "not recorded (the continuation was killed on this branch)"
+        reasons.append({"branch": index, "origin": origin, "xdmf": xdmf, "approximate": []})
+    try:
+        old = read_on_root(folder / "branches.csv", 1 << 30, comm).decode()
+    except Unreadable:
+        old = ",".join(BRANCH_COLUMNS) + "\n"
+    new = [p.as_row(index) for p in [*points, *path_branch.special]]
     text = old + "".join(line + "\n" for line in csv_lines(new))
     replace_on_root(folder / "branches.csv", text.encode(), comm)
-    reasons = json.loads(read_on_root(folder / "branches.json", 1 << 28, comm).decode())
     for entry in reasons:
         if entry["branch"] == index:
             entry["reason"] = branch.reason
@@ -224,6 +262,5 @@ def restart_branch(
             entry["steps"] = entry["points"] - 1
             entry["rejected"] = branch.steps_rejected
     replace_on_root(folder / "branches.json", (json.dumps(reasons, indent=1) + "\n").encode(), comm)
-    ends = {int(k): v for k, v in record["branches"].items()} | observer.ends
-    write_index(folder, record["scene"], settings, ends, comm, restarts, record.get("probe"))
+    write_index(folder, record["scene"], settings, ends | observer.ends, comm, restarts, probe)
     return result

@@ -58,6 +58,7 @@ from petsc4py import PETSc
 from cosserat_fem.analysis.branch_outputs import BranchOutputs
 from cosserat_fem.analysis.statics import check_static_scene, static_solver
 from cosserat_fem.common.errors import SceneError
+from cosserat_fem.common.parallel import agree_and_gather
 from cosserat_fem.nls.arclength import Branch, Continuation, ContinuationSettings, Point
 from cosserat_fem.output.fields import PointProbe, probe_sigma
 from cosserat_fem.rod.model import build_model
@@ -267,7 +268,9 @@ class RodPath:
 class PathPoint:
     """A state on a branch: the load factor λ, the free end's (x, y, z, θ, ψ, φ) [m, rad]
     (``tip``), the RMS of the state's unknowns (``norm``, dimensionless), dλ/ds, the sign of
-    det R_u, and ``kind``: "regular", "start", "limit" or "bifurcation"."""
+    det R_u, and ``kind``: "regular", "start", "end", "limit" or "bifurcation"; ``note``: why
+    a special point is only approximate (the engine's Point.note; not a column of
+    branches.csv), else ""."""
 
     factor: float
     tip: np.ndarray
@@ -275,6 +278,7 @@ class PathPoint:
     dfactor: float
     det_sign: float
     kind: str = "regular"
+    note: str = ""
 
     def as_row(self, branch: int) -> dict:
         x, y, z, theta, psi, phi = (float(v) for v in self.tip)
@@ -325,7 +329,8 @@ class PathResult:
 
 def _path_point(problem: RodPath, point: Point) -> PathPoint:
     norm = math.sqrt(problem.dot(point.u, point.u))
-    return PathPoint(point.p, problem.tip(point.u), norm, point.t_p, point.det_sign, point.kind)
+    tip = problem.tip(point.u)
+    return PathPoint(point.p, tip, norm, point.t_p, point.det_sign, point.kind, point.note)
 
 
 def _path_branch(
@@ -351,18 +356,37 @@ def path_engine(
 ) -> Continuation:
     """The engine on ``problem``, its ``stop`` told of each point as a :class:`PathPoint` and
     ``observer`` (branch_outputs.py) of each engine point; a branch of a curved rod in the
-    x-z plane solved in 3D ends where |θ| reaches :data:`THETA_LIMIT` (the chart)."""
+    x-z plane solved in 3D ends where |θ| reaches :data:`THETA_LIMIT` (the chart).
+
+    Under MPI the ranks agree after each point: an exception of ``stop`` or of the
+    observer's progress on one rank is raised on every rank (common/parallel.agree: its
+    class and message), and rank 0's reason to stop is every rank's, so no rank goes on into
+    a collective the others have left."""
     wrapped = None
+    comm = problem.comm
     if stop is not None or observer is not None or problem.in_plane_3d:
 
         def wrapped(q: Point) -> str | None:
-            if observer is not None:
-                observer.point(q)
-            if problem.in_plane_3d and problem.largest_theta(q.u) >= THETA_LIMIT:
-                return f"|θ| reached {THETA_LIMIT} rad out of the x-z plane (the chart)"
-            return None if stop is None else stop(_path_point(problem, q))
+            if observer is not None and engine.branch is not None:
+                observer.save(engine.branch, comm)  # collective, before any user code
+            chart = problem.in_plane_3d and problem.largest_theta(q.u) >= THETA_LIMIT
+            point = None if stop is None else _path_point(problem, q)  # collective (the probe)
+            error, reason = None, None
+            try:
+                if observer is not None:
+                    observer.point(q)
+                if chart:
+                    reason = f"|θ| reached {THETA_LIMIT} rad out of the x-z plane (the chart)"
+                elif stop is not None and point is not None:
+                    reason = stop(point)
+            except Exception as exc:
+                if comm.size == 1:
+                    raise
+                error = exc
+            return agree_and_gather(comm, error, reason)[0]
 
-    return Continuation(problem, settings, wrapped)
+    engine = Continuation(problem, settings, wrapped)
+    return engine
 
 
 def continue_path(
@@ -395,10 +419,14 @@ def continue_path(
             branch = engine.trace(start, d)
             found += [q for q in branch.special if q.kind == "bifurcation"]
             result.branches.append(_path_branch(problem, branch, "primary", observer))
+            if observer is not None and observer.finished is not None:
+                observer.finished(result)
         for point in found[:switch]:
             for branch in engine.switch(point):
                 origin = f"switched at load factor {point.p:.9g}"
                 result.branches.append(_path_branch(problem, branch, origin, observer))
+                if observer is not None and observer.finished is not None:
+                    observer.finished(result)
         result.corrector_factorisations = engine.corrector_solves
         result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
         return result

@@ -36,9 +36,19 @@ normalised: it keeps the orientation of t_k through a limit point, where t_p cha
 by max(``grow``, ``easy_iterations``/k), at most ``max_grow`` (and up to ``max_step``); one
 that fails (no convergence in ``max_iterations``, a non-finite residual, or an exception of
 the problem: :class:`StepFailure`) is retried with half the step, down to ``min_step``; below
-it the branch ends with ``reason`` and keeps every point found. A step that takes p out of
-[``p_min``, ``p_max``] ends the branch with a last point at the bound itself (Newton at fixed
-p from the interpolation of the two points, refined, kind "end").
+it the branch ends with ``reason`` and keeps every point found. A step that turns by more
+than ``max_turn`` (default 60°) fails too: the angle, in the metric, of its new tangent or of
+its chord x_{k+1} − x_k to the tangent t_k. On a smooth path of curvature κ the tangent
+turns by about κΔs and the chord by κΔs/2, so the check bounds the step by the path's own
+curvature; a corrector that converged far off the predictor (onto another branch, or back
+along this one: the chord's angle is arctan(‖x_{k+1} − x̂‖/Δs)) turns by more. The tangent's
+angle is below 90° by its orientation, the chord's is not. A step long enough to land on
+another part of the path as straight as where it left (no turn to see) is not caught. The
+first step of a branch switched onto is not checked (its start's direction is only
+orthogonal to the old branch's). A step that takes p out of [``p_min``, ``p_max``] is not
+kept: the branch ends with a last point at the bound itself (Newton at fixed p from the
+interpolation of the two points, refined, kind "end"; if that fails, the step is halved),
+and the special points between the two beyond the bound are dropped.
 
 **Special points** between two consecutive points x_k, x_{k+1} of a branch:
 
@@ -54,7 +64,9 @@ p from the interpolation of the two points, refined, kind "end").
   changes sign, a special point of that name, located as the root of f(s) the same way.
 
 All are located to |s − s*| ≤ ``locate_tolerance`` (Illinois' bracket), so p* to
-|dp/ds| ``locate_tolerance`` ≤ ``locate_tolerance``. The branch continues from x_{k+1}.
+|dp/ds| ``locate_tolerance`` ≤ ``locate_tolerance``. If the corrector fails inside the
+bracket, the bracket's best estimate is kept instead, its ``note`` "approximate (...)".
+The branch continues from x_{k+1}.
 
 **Branch switching** at a bifurcation point x*: the null vector φ of R_u(x*) by inverse
 iteration with its factors (``null_iterations`` solves from a fixed pseudo-random start), the
@@ -115,6 +127,9 @@ class ContinuationSettings:
     null_iterations: int = 8
     predictor: str = "tangent"  # or "quadratic"
     refine: bool = True  # the problem's refine_prediction, if it has one
+    #: the largest angle [rad] a step may turn by (its new tangent's, or its chord's, to the
+    #: last tangent, in the metric); a step that turns more is rejected and halved
+    max_turn: float = math.pi / 3
 
 
 @dataclass
@@ -132,6 +147,10 @@ class Point:
     log_det: float
     iterations: int = 0
     kind: str = "regular"
+    #: why a located special point is only approximate ("" if located to
+    #: ``locate_tolerance``): the corrector failed inside the bracket, which was then left
+    #: with its best estimate (:meth:`Continuation._locate`)
+    note: str = ""
 
 
 @dataclass
@@ -170,6 +189,8 @@ class Continuation:
         self.stop = stop
         self.tests = dict(tests or {})
         self.corrector_solves = 0  # factorisations of R_u by the correctors
+        #: the branch being traced (``stop`` may save it as it grows: path_restart.py)
+        self.branch: Branch | None = None
 
     # -- the metric ------------------------------------------------------------------------
     def _dot(self, a_u: np.ndarray, a_p: float, b_u: np.ndarray, b_p: float) -> float:
@@ -273,16 +294,26 @@ class Continuation:
 
     def _at_parameter(self, prev: Point, cur: Point, value: float) -> Point:
         """The point at p = ``value`` (between prev.p and cur.p), Newton at fixed p from the
-        linear interpolation of the two; ``cur`` itself if that fails."""
+        linear interpolation of the two; StepFailure if that fails (the step is halved)."""
         w = (value - prev.p) / (cur.p - prev.p)
         guess = (1.0 - w) * prev.u + w * cur.u
+        guess = self._refined(guess, value)
+        u, p, its = self.correct(guess, value, np.zeros_like(guess), 1.0, value)
         try:
-            guess = self._refined(guess, value)
-            u, p, its = self.correct(guess, value, np.zeros_like(guess), 1.0, value)
             t_u, t_p, sign, log_det = self._tangent_and_det(u, p, cur.t_u, cur.t_p)
-        except (StepFailure, ArithmeticError, RuntimeError):
-            return cur
+        except (ArithmeticError, RuntimeError) as exc:
+            raise StepFailure(f"{type(exc).__name__}: {exc}") from None
         return Point(u, p, t_u, t_p, sign, log_det, its, "end")
+
+    def turn(self, prev: Point, cur: Point) -> float:
+        """The angle [rad] a step from ``prev`` to ``cur`` turns by: the larger of the
+        angles, in the metric, of the new tangent and of the chord x_cur − x_prev to the
+        tangent t_prev (module docstring, "Step length")."""
+        cos_t = self._dot(prev.t_u, prev.t_p, cur.t_u, cur.t_p)
+        c_u, c_p = cur.u - prev.u, cur.p - prev.p
+        chord = math.sqrt(self._dot(c_u, c_p, c_u, c_p))
+        cos_c = self._dot(prev.t_u, prev.t_p, c_u, c_p) / chord if chord > 0 else 1.0
+        return max(math.acos(min(1.0, max(-1.0, c))) for c in (cos_t, cos_c))
 
     def start_point(self, u: np.ndarray, p: float, direction: int = 1) -> Point:
         """The solution near (u, p) at fixed p (Newton with the constraint p = p), its
@@ -293,9 +324,21 @@ class Continuation:
         return Point(u, p, t_u, t_p, sign, log_det, its, "start")
 
     # -- locating ------------------------------------------------------------------------
-    def _locate(self, base: Point, step: float, f0: float, f1: float, function, kind: str):
+    def _locate(
+        self,
+        base: Point,
+        step: float,
+        f0: float,
+        f1: float,
+        function,
+        kind: str,
+        end: Point | None = None,
+    ):
         """The point at the root of ``function(point)`` for s in (0, step) from ``base``
-        (f(0) = f0, f(step) = f1 of opposite signs), Illinois' regula falsi."""
+        (f(0) = f0, f(step) = f1 of opposite signs; ``end`` the point at s = step, if known),
+        Illinois' regula falsi. If the corrector fails inside the bracket (also just beside
+        the failing s), the bracket's best estimate is kept (:meth:`_estimate`), its ``note``
+        saying so."""
         st = self.settings
         a, b, fa, fb = 0.0, step, f0, f1
         side = 0
@@ -305,10 +348,13 @@ class Continuation:
             if not (a < s < b):
                 s = 0.5 * (a + b)
             try:
-                point = self._point_at(base, s, kind)
-            except StepFailure:  # R_u exactly singular at s: the root, within the tolerance
-                s = min(s + 0.25 * st.locate_tolerance, 0.5 * (s + b))
-                point = self._point_at(base, s, kind)
+                try:
+                    point = self._point_at(base, s, kind)
+                except StepFailure:  # R_u exactly singular at s: the root, within tolerance
+                    s = min(s + 0.25 * st.locate_tolerance, 0.5 * (s + b))
+                    point = self._point_at(base, s, kind)
+            except StepFailure as exc:
+                return self._estimate(best, base, end, fa, fb, kind, b - a, exc)
             fs = function(point)
             best = point
             if fs == 0.0:
@@ -328,11 +374,22 @@ class Continuation:
         assert best is not None
         return best
 
+    @staticmethod
+    def _estimate(best, base, end, fa, fb, kind, width, exc) -> Point:
+        """The bracket's best estimate when locating failed (:meth:`_locate`): the last
+        point evaluated (an end of the narrowed bracket), else the bracket's end of least |f|
+        (``base`` or ``end``); marked by its ``note``."""
+        if best is None:
+            best = end if end is not None and abs(fb) < abs(fa) else base
+        note = f"approximate (bracket {width:.3g} wide: {exc})"
+        fields = {k: getattr(best, k) for k in ("u", "p", "t_u", "t_p", "det_sign", "log_det")}
+        return Point(**fields, iterations=best.iterations, kind=kind, note=note)
+
     def _special(self, branch: Branch, prev: Point, cur: Point, step: float) -> None:
         """Locate a limit or a bifurcation point between prev and cur, and the roots of the
         ``tests`` (module docstring)."""
         if (prev.t_p > 0) != (cur.t_p > 0):
-            point = self._locate(prev, step, prev.t_p, cur.t_p, lambda q: q.t_p, "limit")
+            point = self._locate(prev, step, prev.t_p, cur.t_p, lambda q: q.t_p, "limit", cur)
             branch.special.append(point)
         elif prev.det_sign != cur.det_sign:
             ref = prev.log_det
@@ -340,12 +397,12 @@ class Continuation:
             def det(q: Point) -> float:
                 return q.det_sign * math.exp(min(q.log_det - ref, 700.0))
 
-            point = self._locate(prev, step, det(prev), det(cur), det, "bifurcation")
+            point = self._locate(prev, step, det(prev), det(cur), det, "bifurcation", cur)
             branch.special.append(point)
         for kind, test in self.tests.items():  # the problem's own test functions
             f0, f1 = test(prev), test(cur)
             if (f0 > 0) != (f1 > 0):
-                branch.special.append(self._locate(prev, step, f0, f1, test, kind))
+                branch.special.append(self._locate(prev, step, f0, f1, test, kind, cur))
 
     # -- a branch ------------------------------------------------------------------------
     def trace(self, start: Point, direction: int = 1, search_first: bool = True) -> Branch:
@@ -375,6 +432,7 @@ class Continuation:
     def _extend(self, branch: Branch, step: float, search_first: bool) -> Branch:
         st = self.settings
         branch.reason = ""
+        self.branch = branch
         while True:
             branch.step = step
             prev = branch.points[-1]
@@ -382,11 +440,22 @@ class Continuation:
             if count >= st.max_points:
                 branch.reason = f"{st.max_points} points (max_points)"
                 return branch
+            checked = count > 1 or search_first
             try:
                 history = None
                 if st.predictor == "quadratic" and count >= 3:
                     history = (branch.points[-3], branch.points[-2])
                 cur = self._point_at(prev, step, history=history)
+                turn = self.turn(prev, cur)
+                if checked and turn > st.max_turn:
+                    raise StepFailure(
+                        f"the step turned by {math.degrees(turn):.3g} degrees "
+                        f"(max_turn {math.degrees(st.max_turn):.3g})"
+                    )
+                outside = not st.p_min <= cur.p <= st.p_max
+                if outside:
+                    bound = st.p_max if cur.p > st.p_max else st.p_min
+                    end = self._at_parameter(prev, cur, bound)
             except StepFailure as exc:
                 branch.steps_rejected += 1
                 step *= 0.5
@@ -396,18 +465,21 @@ class Continuation:
                     )
                     return branch
                 continue
-            if count > 1 or search_first:
+            if checked:
+                found = len(branch.special)
                 self._special(branch, prev, cur, step)
+                if outside:  # those beyond the bound are not on the branch kept
+                    inside = [q for q in branch.special[found:] if st.p_min <= q.p <= st.p_max]
+                    branch.special[found:] = inside
+            if outside:
+                branch.points.append(end)
+                branch.reason = f"p reached {bound:g}"
+                return branch
             branch.points.append(cur)
             if cur.iterations <= st.easy_iterations:
                 factor = max(st.grow, st.easy_iterations / max(cur.iterations, 1))
                 step = min(step * min(factor, st.max_grow), st.max_step)
             branch.step = step
-            if not st.p_min <= cur.p <= st.p_max:
-                bound = st.p_max if cur.p > st.p_max else st.p_min
-                branch.points.append(self._at_parameter(prev, cur, bound))
-                branch.reason = f"p reached {bound:g}"
-                return branch
             reason = self.stop(cur) if self.stop is not None else None
             if reason:
                 branch.reason = reason

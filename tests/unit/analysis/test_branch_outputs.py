@@ -20,8 +20,15 @@ from cosserat_fem.nls.arclength import Branch, Point
 
 
 def _result():
+    limit = SimpleNamespace(kind="limit", factor=0.75, note="approximate (bracket 0.1 wide)")
+    bifurcation = SimpleNamespace(kind="bifurcation", factor=0.5, note="")
     b0 = SimpleNamespace(
-        origin="primary", reason="p reached 1", points=[0] * 5, steps=4, rejected=1
+        origin="primary",
+        reason="p reached 1",
+        points=[0] * 5,
+        steps=4,
+        rejected=1,
+        special=[bifurcation, limit],
     )
     b1 = SimpleNamespace(
         origin="switched at load factor 0.5",
@@ -29,15 +36,19 @@ def _result():
         points=[0] * 2,
         steps=1,
         rejected=7,
+        special=[],
     )
     return SimpleNamespace(branches=[b0, b1])
 
 
 def test_reasons_file(tmp_path):
     """One entry per branch in order, with its origin, reason and counts; "xdmf" the branch's
-    file, or null when the scene writes none."""
+    file, or null when the scene writes none; "approximate" the special points with a note
+    (a locating that failed), the others not."""
     write_branch_reasons(tmp_path / "branches.json", _result())
     rows = json.loads((tmp_path / "branches.json").read_text())
+    assert rows[0]["approximate"] == ["limit at load factor 0.75: approximate (bracket 0.1 wide)"]
+    assert rows[1]["approximate"] == []
     assert [r["branch"] for r in rows] == [0, 1]
     assert rows[1]["reason"] == "step below min_step" and rows[1]["rejected"] == 7
     assert rows[0]["points"] == 5 and rows[0]["xdmf"] == "branch_0.xdmf"

@@ -212,3 +212,117 @@ def test_refined_prediction_lets_the_steps_grow(refine):
         assert all(q.iterations == 1 for q in branch.points[1:])
     else:
         assert len(branch.points) - 1 > 8 and problem.refined == 0
+
+
+def test_overshoot_ends_at_the_bound_on_the_branch():
+    """u0 = p², u1 = p from p = 0 with p_max = 1 and steps of 0.3 (grown by 1.5 each): the
+    step that would pass p = 1 is not kept; the branch's last point is at p = 1 exactly,
+    corrected there (u0 = 1 to the corrector's 1e-10, the linear interpolation of the two
+    points around it is off by O(Δp²) ≈ 0.1), and no point lies outside [p_min, p_max]."""
+    problem = Dense(
+        lambda u, p: [u[0] - p**2, u[1] - p],
+        lambda u, p: [[1.0, 0.0], [0.0, 1.0]],
+        lambda u, p: [-2.0 * p, -1.0],
+    )
+    settings = ContinuationSettings(step=0.3, max_step=0.6, p_min=-1.0, p_max=1.0)
+    engine = Continuation(problem, settings)
+    branch = engine.trace(engine.start_point(np.zeros(2), 0.0), 1)
+    assert branch.reason == "p reached 1"
+    assert all(-1.0 <= q.p <= 1.0 for q in branch.points)
+    last = branch.points[-1]
+    assert last.p == 1.0 and last.kind == "end"
+    assert abs(last.u[0] - 1.0) < 1e-9 and abs(last.u[1] - 1.0) < 1e-9
+    assert branch.points[-2].p < 1.0 and len(branch.points) >= 3
+
+
+def cubic():
+    """u³ − u − p = 0: an S, folds at u = ∓1/√3, p = ±2/(3√3) = ±0.3849."""
+    return Dense(
+        lambda u, p: [u[0] ** 3 - u[0] - p],
+        lambda u, p: [[3 * u[0] ** 2 - 1]],
+        lambda u, p: [-1.0],
+    )
+
+
+@pytest.mark.parametrize("max_turn", [math.pi, math.pi / 3])
+def test_a_step_that_turns_too_far_is_halved(max_turn):
+    """The S u³ − u = p from (u, p) = (−2, −6) upwards in steps of 3 (not grown): on the lower
+    branch the step from u = −1.04 predicts past the first fold, and the corrector there
+    converges onto the upper branch at u = 0.92, skipping both folds and the middle branch;
+    that step's chord is at 67.5° to the tangent. With the turn unchecked (max_turn = π) no
+    fold is found; with the default 60° the step is rejected and halved, and both folds are
+    located, p = +2/(3√3) then −2/(3√3) to 2e-9 (module docstring's tolerance)."""
+    settings = ContinuationSettings(
+        step=3.0, max_step=3.0, max_grow=1.0, p_min=-10.0, p_max=10.0, max_turn=max_turn
+    )
+    assert ContinuationSettings().max_turn == math.pi / 3  # the documented default
+    engine = Continuation(cubic(), settings)
+    branch = engine.trace(engine.start_point(np.array([-2.0]), -6.0), 1)
+    fold = 2 / (3 * math.sqrt(3))
+    if max_turn == math.pi:
+        assert branch.special == []
+        assert (
+            max(
+                engine.turn(a, b)
+                for a, b in zip(branch.points[:-1], branch.points[1:], strict=True)
+            )
+            > 1.1
+        )
+    else:
+        assert [q.kind for q in branch.special] == ["limit", "limit"]
+        assert abs(branch.special[0].p - fold) < 2e-9
+        assert abs(branch.special[1].p + fold) < 2e-9
+        assert all(
+            engine.turn(a, b) <= max_turn
+            for a, b in zip(branch.points[:-1], branch.points[1:], strict=True)
+        )
+        assert branch.steps_rejected >= 1
+
+
+class Failing(Dense):
+    """The fold problem, whose ``linearise`` raises (as a failing factorisation) once armed
+    and ``allowed`` more calls have been made."""
+
+    def __init__(self, allowed: int):
+        problem = fold()
+        super().__init__(problem.R, problem.R_u, problem.R_p)
+        self.allowed = allowed
+        self.armed = False
+
+    def linearise(self, u, p):
+        if self.armed:
+            if self.allowed <= 0:
+                raise ZeroDivisionError("failing on purpose")
+            self.allowed -= 1
+        super().linearise(u, p)
+
+
+@pytest.mark.parametrize("allowed", [0, 12])
+def test_locating_failure_keeps_an_approximate_point(allowed):
+    """The fold of test_fold_is_passed_and_located with the corrector failing while the fold
+    is located (the problem fails once the engine locates; ``allowed`` factorisations first:
+    0, no point in the bracket, or 12, a few of Illinois' points): the branch still goes
+    around (its reason the stop's), and the fold is kept as the bracket's best estimate,
+    kind "limit", its note "approximate". It is a corrected point of the branch (on
+    u0² = 1 − p to 1e-9), within the step's bracket: |p − 1| ≤ (Δs ≤ 0.2)² (p = 1 − u0²,
+    |u0| ≤ Δs) = 0.04; with points evaluated inside it, nearer."""
+    problem = Failing(allowed)
+    engine = Continuation(problem, SETTINGS, stop=lambda q: "back" if q.u[0] < -1.0 else None)
+    special = engine._special
+
+    def armed(*args):
+        problem.armed = True
+        try:
+            special(*args)
+        finally:
+            problem.armed = False
+
+    engine._special = armed  # type: ignore[method-assign]
+    start = engine.start_point(np.array([1.0, 1.0]), 0.0)
+    branch = engine.trace(start, 1)
+    assert branch.reason == "back"
+    (limit,) = branch.special
+    assert limit.kind == "limit" and limit.note.startswith("approximate")
+    assert abs(limit.u[0] ** 2 + limit.p - 1) < 1e-9 and abs(limit.p - 1) <= 0.04
+    if allowed:
+        assert abs(limit.p - 1) < 1e-3
