@@ -117,18 +117,25 @@ def read_record(path: Path) -> tuple[dict | None, str | None]:
 
 
 # --- the reader ---------------------------------------------------------------------------------
+def _whole_lines(path: Path) -> csv.DictReader:
+    """A CSV reader of the file ``path``'s whole lines (a cut last line, of a kill, left
+    out, not changed on disk); SceneError naming it if it cannot be read (a special file:
+    refused, never opened)."""
+    try:
+        text = safe_files.read_text(path)
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) else exc
+        raise SceneError(f"{quoted(path)}: cannot read it ({reason})") from None
+    return csv.DictReader(text[: text.rfind("\n") + 1].splitlines())
+
+
 def read_bifurcation(directory: str | Path, varied: list[str]) -> list[dict]:
     """The rows of the bifurcation.csv in ``directory`` (dicts of text) written for the
     sweep's ``varied`` keys: SceneError naming the file if it cannot be read, or its header
     is not member, the varied keys, direction, point, then a section's columns, or a line
     has another number of fields (a cut last line, of a kill, is left out)."""
     path = Path(directory) / BIFURCATION
-    try:
-        text = safe_files.read_text(path)
-    except (OSError, UnicodeDecodeError) as exc:
-        reason = exc.strerror if isinstance(exc, OSError) else exc
-        raise SceneError(f"{quoted(path)}: cannot read it ({reason})") from None
-    reader = csv.DictReader(text[: text.rfind("\n") + 1].splitlines())
+    reader = _whole_lines(path)
     header = list(reader.fieldnames or [])
     if header[: len(varied) + 3] != ["member", *varied, "direction", "point"]:
         raise SceneError(
@@ -153,12 +160,7 @@ def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[li
     columns: list[str] = []
     rows: list[dict] = []
     for source in sources:
-        try:
-            text = safe_files.read_text(source)
-        except (OSError, UnicodeDecodeError) as exc:
-            reason = exc.strerror if isinstance(exc, OSError) else exc
-            raise SceneError(f"{quoted(source)}: cannot read it ({reason})") from None
-        reader = csv.DictReader(text[: text.rfind("\n") + 1].splitlines())
+        reader = _whole_lines(source)
         rows += _whole_rows(source, reader, columns)
         columns = list(reader.fieldnames or columns)
     if sources != [table]:

@@ -374,40 +374,54 @@ def _positive_number(table: dict, key: str, default: float) -> float:
     return float(value)
 
 
-def _response(table: Any, varied: tuple[str, ...]) -> ResponseSettings | None:
-    """The [sweep.response] table checked (module docstring), or None."""
+def _periodic_table(table: Any, known: set[str], where: str, what: str) -> str | None:
+    """The text of the period of the sweep file's table ``where`` ([sweep.response] or
+    [sweep.poincare]), None without the table; SceneError naming the key if it is not a
+    table, has a key not ``known`` or no period (``what``, in the message)."""
     if table is None:
         return None
     if not isinstance(table, dict):
-        raise SceneError(f"sweep.response: must be a table, got {show_value(table)}")
-    unknown = sorted(set(table) - RESPONSE_KEYS)
+        raise SceneError(f"{where}: must be a table, got {show_value(table)}")
+    unknown = sorted(set(table) - known)
     if unknown:
-        raise SceneError(
-            f"sweep.response.{unknown[0]}: unknown key (known: {', '.join(sorted(RESPONSE_KEYS))})"
-        )
+        raise SceneError(f"{where}.{unknown[0]}: unknown key (known: {', '.join(sorted(known))})")
     period = table.get("period")
     if isinstance(period, bool) or not isinstance(period, str | int | float):
         raise SceneError(
-            "sweep.response.period: required, the forcing's period in s (an "
-            f"expression of L, omega0 and the parameters), got {show_value(period)}"
+            f"{where}.period: required, {what} in s (an expression of L, omega0 and the "
+            f"parameters), got {show_value(period)}"
         )
+    return str(period)
+
+
+def _chain_keys(table: dict, varied: tuple[str, ...], where: str) -> tuple[str | None, str]:
+    """The continuation key (a varied key, or None) and the direction of the chains of the
+    sweep file's table ``where`` ([sweep.response] or [sweep.poincare]), checked."""
     continuation = table.get("continuation")
     if continuation is not None and continuation not in varied:
         raise SceneError(
-            f"sweep.response.continuation: must be one of the varied keys "
+            f"{where}.continuation: must be one of the varied keys "
             f"({', '.join(varied)}), got {show_value(continuation)}"
         )
     direction = table.get("direction", "up")
     if direction not in DIRECTIONS:
         raise SceneError(
-            f"sweep.response.direction: must be one of "
+            f"{where}.direction: must be one of "
             f"{', '.join(repr(d) for d in DIRECTIONS)}, got {show_value(direction)}"
         )
     if "direction" in table and continuation is None:
         raise SceneError(
-            "sweep.response.direction: needs sweep.response.continuation (the "
-            "varied key the members step along)"
+            f"{where}.direction: needs {where}.continuation (the varied key the members step along)"
         )
+    return continuation, direction
+
+
+def _response(table: Any, varied: tuple[str, ...]) -> ResponseSettings | None:
+    """The [sweep.response] table checked (module docstring), or None."""
+    period = _periodic_table(table, RESPONSE_KEYS, "sweep.response", "the forcing's period")
+    if period is None:
+        return None
+    continuation, direction = _chain_keys(table, varied, "sweep.response")
     settled = _positive_int(table, "settled_periods", 3, "sweep.response")
     measure = _positive_int(table, "measure_periods", 2, "sweep.response")
     most = _positive_int(table, "max_periods", 200, "sweep.response")
@@ -436,9 +450,7 @@ def _response(table: Any, varied: tuple[str, ...]) -> ResponseSettings | None:
             f"sweep.response.tolerance: must be < 1 (a relative change), got "
             f"{show_value(tolerance)}"
         )
-    return ResponseSettings(
-        str(period), continuation, direction, tolerance, settled, measure, most, per
-    )
+    return ResponseSettings(period, continuation, direction, tolerance, settled, measure, most, per)
 
 
 #: The dotted key of a section's period, named when it is refused.
@@ -449,21 +461,9 @@ def _poincare(
     table: Any, varied: tuple[str, ...], response: ResponseSettings | None
 ) -> SectionSettings | None:
     """The [sweep.poincare] table checked (module docstring), or None."""
-    if table is None:
+    period = _periodic_table(table, POINCARE_KEYS, "sweep.poincare", "the section's period")
+    if period is None:
         return None
-    if not isinstance(table, dict):
-        raise SceneError(f"sweep.poincare: must be a table, got {show_value(table)}")
-    unknown = sorted(set(table) - POINCARE_KEYS)
-    if unknown:
-        raise SceneError(
-            f"sweep.poincare.{unknown[0]}: unknown key (known: {', '.join(sorted(POINCARE_KEYS))})"
-        )
-    period = table.get("period")
-    if isinstance(period, bool) or not isinstance(period, str | int | float):
-        raise SceneError(
-            f"{POINCARE_PERIOD}: required, the section's period in s (an expression of L, "
-            f"omega0 and the parameters), got {show_value(period)}"
-        )
     phase = table.get("phase", 0.0)
     if isinstance(phase, bool) or not isinstance(phase, int | float) or not math.isfinite(phase):
         raise SceneError(
@@ -475,29 +475,13 @@ def _poincare(
             f"sweep.poincare.discard: must be a whole number of points >= 0, got "
             f"{show_value(discard)}"
         )
-    continuation = table.get("continuation")
-    if continuation is not None and response is not None and response.continuation is not None:
+    if "continuation" in table and response is not None and response.continuation is not None:
         raise SceneError(
             "sweep.poincare.continuation: the chains are sweep.response.continuation's "
             "(give them in one place)"
         )
-    if continuation is not None and continuation not in varied:
-        raise SceneError(
-            f"sweep.poincare.continuation: must be one of the varied keys "
-            f"({', '.join(varied)}), got {show_value(continuation)}"
-        )
-    direction = table.get("direction", "up")
-    if direction not in DIRECTIONS:
-        raise SceneError(
-            f"sweep.poincare.direction: must be one of "
-            f"{', '.join(repr(d) for d in DIRECTIONS)}, got {show_value(direction)}"
-        )
-    if "direction" in table and continuation is None:
-        raise SceneError(
-            "sweep.poincare.direction: needs sweep.poincare.continuation (the "
-            "varied key the members step along)"
-        )
-    return SectionSettings(str(period), float(phase), discard, continuation, direction)
+    continuation, direction = _chain_keys(table, varied, "sweep.poincare")
+    return SectionSettings(period, float(phase), discard, continuation, direction)
 
 
 def _chains(
