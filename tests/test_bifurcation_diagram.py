@@ -293,3 +293,28 @@ def test_the_buckled_beams_diagram_has_the_reductions_periods_and_points(tmp_pat
     a = np.array([[float(r[c]) for c in coordinates] for r in serial])
     b = np.array([[float(r[c]) for c in coordinates] for r in tables[2]])
     assert np.abs(a - b).max() <= 1e-7 * A_S
+
+
+def test_a_failed_member_has_no_points_and_a_restart_gathers_the_same_diagram(tmp_path):
+    """Two members from the scene's initial state (no continuation): γ = 0.20, and f0 =
+    1e10 N/m with no halving allowed, whose Newton fails in its first step ("failed": no
+    section). bifurcation.csv holds member 0's points alone (3 periods: sections j = 0 ... 3,
+    the first left out); the sweep started again with the same --out runs nothing and writes
+    the same bifurcation.csv, byte for byte (gathered from the same poincare.csv files)."""
+    path = section_sweep(tmp_path, (0.20,), 3, 1, poincare="")
+    text = path.read_text(encoding="utf-8")
+    head, rest = text.split("[sweep.vary]\n")
+    cases = (
+        f'[[sweep.case]]\n"parameters.f0" = {0.20 * F_PER_GAMMA!r}\n'
+        '[[sweep.case]]\n"parameters.f0" = 1e10\n"time.max_halvings" = 0\n'
+    )
+    path.write_text(head + cases + "[sweep.poincare]" + rest.split("[sweep.poincare]")[1])
+    out = tmp_path / "out"
+    spec = api.load_sweep(path)
+    first = api.sweep(spec, out)
+    assert [r["status"] for r in read_table(first.table)] == ["completed", "failed"]
+    rows = points_of(out)
+    assert {r["member"] for r in rows} == {"0"} and len(rows) == 3
+    before = (out / BIFURCATION).read_bytes()
+    again = api.sweep(spec, out)
+    assert again.ran == 0 and (out / BIFURCATION).read_bytes() == before
