@@ -5,7 +5,9 @@ A continuation's folder (branches.csv) gets ``bifurcation.png``, the bifurcation
 ``sweep.png``: each member's largest
 free-end displacements and angles against the varied key (:func:`plot_sweep`), and a frequency
 response's also ``response.png``: amplitudes and phases against the forcing's key, a curve per
-chain (:func:`plot_response`). A run's folder gets:
+chain (:func:`plot_response`), and a bifurcation diagram's ([sweep.poincare]: bifurcation.csv)
+also ``bifurcation.png``: a dot per section point against the swept key
+(:func:`plot_bifurcation`). A run's folder gets:
 
 * ``free_end.png``: the free-end histories of probes.csv, x, y, z [m] and θ, ψ, φ [rad]
   against t [s] (the load factor for a static run), laid out as the paper's Fig. 4;
@@ -42,10 +44,12 @@ from cosserat_fem.io.output_files import output_folder, write_output
 from cosserat_fem.io.probes import PROBE_COLUMNS, PROBES
 from cosserat_fem.io.run_folder import SUMMARY, read_summary
 from cosserat_fem.io.sweep_table import (
+    BIFURCATION,
     MEMBERS,
     RECORD,
     SWEEP_TABLE,
     check_sweep_rows,
+    read_bifurcation,
     read_record,
     read_sweep_rows,
 )
@@ -238,7 +242,57 @@ def plot_sweep(directory: str | Path, out: str | Path | None = None) -> list[Pat
     paths = [_save(fig, target / "sweep.png")]
     if "h1_x" in columns:
         paths.append(plot_response(directory, rows, varied, target, record))
+    if (directory / BIFURCATION).is_file():
+        paths.append(plot_bifurcation(directory, varied, target, record))
     return paths
+
+
+#: The section's coordinates a bifurcation diagram may draw: the probe point's x, y, z [m].
+SECTION_COORDINATES = ("x", "y", "z")
+
+
+def plot_bifurcation(directory: Path, varied: list[str], target: Path, record: dict) -> Path:
+    """bifurcation.png of a sweep with [sweep.poincare] (cosserat_fem/studies/sweep_run.py's
+    bifurcation.csv): a dot per section point, the probe point's coordinate that spreads the
+    most over all points (the largest range of x, y, z [m]; x at a tie) against the
+    continuation key (sweep.json) or the first varied key of numbers (else the member's
+    number); the chains up ● and down ▲ in two colours. A value that is not a finite number
+    is bad input naming the file, before anything is drawn."""
+    path = directory / BIFURCATION
+    rows = read_bifurcation(directory, varied)
+    key = record.get("continuation") or next(
+        (k for k in varied if rows and np.isfinite(_number(rows[0][k]))), "member"
+    )
+    names = [key, *SECTION_COORDINATES] if key != "member" else list(SECTION_COORDINATES)
+    values = {c: np.array([_number(r[c]) for r in rows]) for c in names}
+    if key == "member":
+        values[key] = np.array([float(r["member"]) for r in rows])
+    bad = next((c for c in names if not np.isfinite(values[c]).all()), None)
+    if bad is not None:
+        raise SceneError(f"plot: {str(path)!r}: a value of {bad!r} that is not a finite number")
+    spread = [np.ptp(values[c]) if rows else 0.0 for c in SECTION_COORDINATES]
+    column = SECTION_COORDINATES[int(np.argmax(spread))]
+    directions = np.array([r["direction"] for r in rows])
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=SURFACE_SIZE)
+    for i, direction in enumerate(dict.fromkeys(directions)):
+        on = directions == direction
+        marker = "^" if direction == "down" else "o"
+        label = f"chain {direction}" if direction else None
+        ax.plot(values[key][on], values[column][on], marker, ms=2.0, color=f"C{i}", label=label)
+    if len(set(directions)) > 1:
+        ax.legend(fontsize=7)
+    ax.set_xlabel(_label(key))
+    ax.set_ylabel(f"{column} at the probe point [m], once a period")
+    ax.ticklabel_format(axis="y", style="sci", scilimits=(-2, 2))
+    ax.grid(alpha=0.3)
+    members = len({r["member"] for r in rows})
+    ax.set_title(
+        _label(f"Bifurcation diagram: {len(rows)} section points of {members} members"),
+        fontsize=10,
+    )
+    fig.tight_layout()
+    return _save(fig, target / "bifurcation.png")
 
 
 def _sweep_record(directory: Path) -> dict:

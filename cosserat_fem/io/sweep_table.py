@@ -9,6 +9,9 @@ its reader, and its record.
   is cut off before a sweep continues (:func:`cut_rows_off`). Read (checked, merged, sorted)
   by :func:`read_sweep_rows`; a table's rows checked against the sweep's record by
   :func:`check_sweep_rows`.
+* ``bifurcation.csv`` (:data:`BIFURCATION`): a bifurcation diagram ([sweep.poincare]), one row
+  a section point of a member, the columns of ``sweep_run.bifurcation_columns``; written by
+  world rank 0 with sweep.csv (:func:`write_bifurcation`), read by :func:`read_bifurcation`.
 * ``members/`` (:data:`MEMBERS`): a run folder a member, ``members/m<index>``.
 * ``sweep.json`` (:data:`RECORD`): the sweep's record (fingerprint, members, varied keys,
   source, continuation), written atomically (:func:`write_record`), read by
@@ -17,7 +20,7 @@ its reader, and its record.
 No DOLFINx: ``cosserat-fem plot`` reads these files without the solver stack. A file is never
 written through a link nor a special file opened (cosserat_fem/common/safe_files.py); damaged or
 foreign files are bad input, one line naming the file (a SceneError).
-Tests: tests/test_sweep.py.
+Tests: tests/test_sweep.py, tests/test_bifurcation_diagram.py.
 """
 
 from __future__ import annotations
@@ -36,6 +39,8 @@ from cosserat_fem.io.reading import is_file, quoted
 SWEEP_TABLE, SWEEP_PARTS = "sweep.csv", "table"
 #: The sweep's record.
 RECORD = "sweep.json"
+#: A bifurcation diagram's section points ([sweep.poincare]).
+BIFURCATION = "bifurcation.csv"
 #: The folder of the members' run folders (``members/m<index>``, sweep_spec.Member.name).
 MEMBERS = "members"
 #: A member's status when it stopped for a passing reason (a full disk, limits.wall_time): not
@@ -87,6 +92,15 @@ def write_table(out: Path, fields: list[str], rows: list[dict]) -> Path:
     return path
 
 
+def write_bifurcation(out: Path, fields: list[str], rows: list[dict]) -> Path:
+    """bifurcation.csv in ``out``: the header ``fields`` and ``rows``, replaced atomically;
+    OSError if it cannot be written."""
+    path = Path(out) / BIFURCATION
+    text = ",".join(fields) + "\n" + "".join(table_line(fields, r) for r in rows)
+    safe_files.replace(path, text, path.with_name(f".{BIFURCATION}.tmp"))
+    return path
+
+
 def write_record(out: Path, document: dict) -> None:
     """sweep.json in ``out``: ``document`` as indented JSON, replaced atomically."""
     safe_files.replace(Path(out) / RECORD, json.dumps(document, indent=1) + "\n")
@@ -103,6 +117,32 @@ def read_record(path: Path) -> tuple[dict | None, str | None]:
 
 
 # --- the reader ---------------------------------------------------------------------------------
+def _whole_lines(path: Path) -> csv.DictReader:
+    """A CSV reader of the file ``path``'s whole lines (a cut last line, of a kill, left
+    out, not changed on disk); SceneError naming it if it cannot be read (a special file:
+    refused, never opened)."""
+    try:
+        text = safe_files.read_text(path)
+    except (OSError, UnicodeDecodeError) as exc:
+        reason = exc.strerror if isinstance(exc, OSError) else exc
+        raise SceneError(f"{quoted(path)}: cannot read it ({reason})") from None
+    return csv.DictReader(text[: text.rfind("\n") + 1].splitlines())
+
+
+def read_bifurcation(directory: str | Path, varied: list[str]) -> list[dict]:
+    """The rows of the bifurcation.csv in ``directory`` (dicts of text) written for the
+    sweep's ``varied`` keys: SceneError naming the file if it cannot be read, or its header
+    is not member, the varied keys, direction, point, then a section's columns, or a line
+    has another number of fields (a cut last line, of a kill, is left out)."""
+    path = Path(directory) / BIFURCATION
+    reader = _whole_lines(path)
+    header = list(reader.fieldnames or [])
+    if header[: len(varied) + 3] != ["member", *varied, "direction", "point"]:
+        raise SceneError(
+            f"{quoted(path)}: not a bifurcation diagram of the sweep's varied keys {varied} "
+            f"(header {','.join(header)[:80]!r})"
+        )
+    return _whole_rows(path, reader, [])
 
 
 def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[list[str], list]:
@@ -120,12 +160,7 @@ def read_sweep_rows(directory: str | Path, parts_only: bool = False) -> tuple[li
     columns: list[str] = []
     rows: list[dict] = []
     for source in sources:
-        try:
-            text = safe_files.read_text(source)
-        except (OSError, UnicodeDecodeError) as exc:
-            reason = exc.strerror if isinstance(exc, OSError) else exc
-            raise SceneError(f"{quoted(source)}: cannot read it ({reason})") from None
-        reader = csv.DictReader(text[: text.rfind("\n") + 1].splitlines())
+        reader = _whole_lines(source)
         rows += _whole_rows(source, reader, columns)
         columns = list(reader.fieldnames or columns)
     if sources != [table]:

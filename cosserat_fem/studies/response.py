@@ -86,13 +86,15 @@ class ResponseSettings:
     steps_per_period: int | None = None  # time.step = T / this: every period sampled alike
 
 
-def period_of(settings: ResponseSettings, constants: dict[str, float], where: str) -> float:
-    """The forcing period [s] at the scene's ``constants``; SceneError naming
-    sweep.response.period unless it is finite and positive."""
+def period_of(
+    settings, constants: dict[str, float], where: str, key: str = "sweep.response.period"
+) -> float:
+    """The forcing period [s] of ``settings.period`` (a ResponseSettings', or a Poincaré
+    section's: sweep_spec.SectionSettings) at the scene's ``constants``; SceneError naming
+    ``key`` unless it is finite and positive."""
     from cosserat_fem.scene.build import _finite_value
     from cosserat_fem.scene.expressions import Expression
 
-    key = "sweep.response.period"
     expression = Expression.parse(settings.period, set(constants), key=key)
     value = _finite_value(expression, key, where, **constants)
     if not value > 0.0:

@@ -34,6 +34,14 @@ a chain's members in order, each from the final state its predecessor saved in
 forcing's phase over (response.continued_start); a restarted chain continues from the last
 finished member's saved state; after a failed member its chain goes on from rest.
 
+A bifurcation diagram (``[sweep.poincare]``) runs each member with a Poincaré section
+(cosserat_fem/analysis/observers.py ``PoincareSection``: poincare.csv in its folder, kept with
+``keep = "probes"`` too; such a member stopped before runs again from its start, as its
+section is not in a checkpoint); with a continuation its chains run as a response's, each
+member from its predecessor's final state over its scene's time span shifted to the start that
+carries the forcing's phase over. World rank 0 then gathers the points of every completed
+member, but its first ``discard``, into ``bifurcation.csv`` (:func:`gather_sections`).
+
 The row: ``member``, ``status`` ("completed", or "failed", "error", "stopped" as above),
 ``wall_s`` (the member's run), each varied key's value, the run's ``steps`` and
 ``newton_iterations``, and for each probe column c (x, y, z [m], theta, psi, phi [rad]):
@@ -42,7 +50,7 @@ The row: ``member``, ``status`` ("completed", or "failed", "error", "stopped" as
 ``end_s``, the ``periods`` it ran, whether it ``settled`` and the last period's ``change``,
 and per column c its ``amp_c``, ``mean_c``, ``h1_c`` and ``phase_c``
 (cosserat_fem/studies/response.py); ``message`` for a failure.
-Tests: tests/test_sweep.py, tests/test_response.py.
+Tests: tests/test_sweep.py, tests/test_response.py, tests/test_bifurcation_diagram.py.
 """
 
 from __future__ import annotations
@@ -65,6 +73,7 @@ from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import CosseratError, OutputError, SceneError, StopError
 from cosserat_fem.common.parallel import agree
 from cosserat_fem.io.folder_lock import holding_folders
+from cosserat_fem.io.poincare import POINCARE, STATE_RMS, read_poincare
 from cosserat_fem.io.probes import PROBE_COLUMNS, PROBES
 from cosserat_fem.io.run_folder import SUMMARY, prepare_output_dir
 from cosserat_fem.io.sweep_table import (
@@ -79,6 +88,7 @@ from cosserat_fem.io.sweep_table import (
     read_record,
     read_sweep_rows,
     table_line,
+    write_bifurcation,
     write_record,
     write_table,
 )
@@ -266,13 +276,12 @@ def _prepare(spec: SweepSpec, out: Path) -> dict[int, dict]:
                 "use another --out, or remove it"
             )
     else:
-        continuation = spec.response.continuation if spec.response else None
         document = {
             "fingerprint": fingerprint,
             "members": len(spec.members),
             "varied": list(spec.varied),
             "source": spec.source,
-            "continuation": continuation,
+            "continuation": spec.continuation,
         }
         write_record(out, document)
     cut_rows_off(out)
@@ -356,6 +365,20 @@ def _forced(spec: SweepSpec, member: Member, before: _Final | None):
     return scene, PeriodicResponse(settings, period, probe_sigma(scene)), period
 
 
+def _continued(spec: SweepSpec, member: Member, before: _Final | None):
+    """A member of a Poincaré section's chain ([sweep.poincare] with a continuation, no
+    [sweep.response]): its scene and the section's period [s]; continuing ``before``, its
+    scene's time span (time.end − time.start) from the start that carries the forcing's
+    phase over (response.continued_start)."""
+    period = spec.section_period(member)
+    own = spec.scene(member)
+    if before is None:
+        return own, period
+    start = continued_start(before.t, before.period, period)
+    span = {"time.start": start, "time.end": start + (own.time.end - own.time.start)}
+    return spec.scene(member, span), period
+
+
 def _run_member(
     spec: SweepSpec,
     member: Member,
@@ -364,10 +387,11 @@ def _run_member(
     before: _Final | None = None,
     resume: bool = False,
 ) -> tuple[dict, _Final | None]:
-    """Run one member on ``comm`` into ``folder`` (a forced one continuing ``before`` if
-    given; with ``resume``, a member that stopped before, from its checkpoint if it has a
-    usable one: not a forced member, whose measurement is not in the checkpoint); its row
-    and, for a chain, its final state (every rank of ``comm``)."""
+    """Run one member on ``comm`` into ``folder`` (a member of a chain continuing ``before``
+    if given; with ``resume``, a member that stopped before, from its checkpoint if it has a
+    usable one: not a forced member nor one with a Poincaré section, whose measurement or
+    section is not in the checkpoint); its row and, for a chain, its final state (every
+    rank of ``comm``). With [sweep.poincare], the member's poincare.csv in ``folder``."""
     from cosserat_fem.analysis.simulation import run_scene
 
     t0 = time.perf_counter()
@@ -375,14 +399,26 @@ def _run_member(
     response, final = None, None
     period: float | None = None
     try:
-        observers, initial, checkpoint = [], None, None
+        observers: list = []
+        initial, checkpoint = None, None
         if spec.response is not None:
             scene, response, period = _forced(spec, member, before)
             observers = [response]
             initial = before.state if before is not None else None
+        elif spec.chains_continue:
+            scene, period = _continued(spec, member, before)
+            initial = before.state if before is not None else None
         else:
             scene = spec.scene(member)
-            checkpoint = _checkpoint(folder, scene, comm) if resume else None
+            if resume and spec.poincare is None:
+                checkpoint = _checkpoint(folder, scene, comm)
+        if spec.poincare is not None:
+            from cosserat_fem.analysis.observers import PoincareSection
+
+            section_period = spec.section_period(member)
+            observers.append(
+                PoincareSection(section_period, spec.poincare.phase, folder / POINCARE)
+            )
         if checkpoint is None:
             _fresh_folder(folder, comm)
         _affordable(scene, folder, comm, checkpoint.time if checkpoint is not None else None)
@@ -411,7 +447,7 @@ def _run_member(
         summary = json.loads(safe_files.read_text(folder / SUMMARY))
     if comm.rank == 0 and spec.keep == "probes" and status != STOPPED and folder.exists():
         for entry in folder.iterdir():  # a stopped member keeps all, to continue from
-            if entry.name not in (PROBES, SUMMARY, FINAL_STATE):
+            if entry.name not in (PROBES, SUMMARY, FINAL_STATE, POINCARE):
                 shutil.rmtree(entry) if entry.is_dir() else entry.unlink()
     measured = None
     if spec.response is not None:
@@ -569,6 +605,8 @@ def run_sweep(
         try:
             rows = list(_finished(out).values())  # sorted by member
             write_table(out, fields, rows)
+            if spec.poincare is not None:
+                gather_sections(spec, out, rows)
         except OSError as exc:
             problem = OutputError(
                 f"sweep: cannot write {str(out / SWEEP_TABLE)!r} "
@@ -579,6 +617,51 @@ def run_sweep(
     agree(world, problem)
     _stop_if_unfinished(spec, rows, world)
     return SweepResult(out / SWEEP_TABLE, ran, len(done), rows)
+
+
+#: bifurcation.csv's columns of a member's section point (poincare.csv's, without the
+#: columns of output.probe_fields).
+SECTION_NAMES = ("period", "t", *PROBE_NAMES, STATE_RMS)
+
+
+def bifurcation_columns(spec: SweepSpec) -> list[str]:
+    """bifurcation.csv's columns: ``member``, the varied keys, the chain's ``direction``,
+    ``point`` (the point's number in the member's diagram, from 0), then the section's
+    ``period`` j, ``t`` [s], x, y, z [m], θ, ψ, φ [rad] at the probe point and
+    ``state_rms`` (cosserat_fem/io/poincare.py)."""
+    return ["member", *spec.varied, "direction", "point", *SECTION_NAMES]
+
+
+def gather_sections(spec: SweepSpec, out: Path, rows: list[dict]) -> Path:
+    """bifurcation.csv in ``out`` (io/sweep_table.py write_bifurcation): the section points of
+    every completed member of ``rows`` (its poincare.csv), but its first
+    sweep.poincare.discard ones, sorted by member and point; values as poincare.csv holds
+    them (17 digits). SceneError naming a member's poincare.csv that cannot be read,
+    OSError if the table cannot be written (world rank 0)."""
+    assert spec.poincare is not None
+    fields = bifurcation_columns(spec)
+    points: list[dict] = []
+    for row in rows:
+        if row["status"] != "completed":
+            continue
+        member = spec.members[int(row["member"])]
+        columns, section = read_poincare(out / MEMBERS / member.name / POINCARE)
+        take = [columns.index(c) for c in SECTION_NAMES]
+        values = {key: json.dumps(member.values.get(key)) for key in spec.varied}
+        for k, point in enumerate(section[spec.poincare.discard :, take]):
+            points.append(
+                {
+                    "member": member.index,
+                    **values,
+                    "direction": member.direction,
+                    "point": k,
+                    "period": int(point[0]),
+                    **{
+                        c: repr(float(v)) for c, v in zip(SECTION_NAMES[1:], point[1:], strict=True)
+                    },
+                }
+            )
+    return write_bifurcation(out, fields, points)
 
 
 def _stop_if_unfinished(spec: SweepSpec, rows: list[dict], world) -> None:

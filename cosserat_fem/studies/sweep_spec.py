@@ -39,6 +39,28 @@ A frequency response adds ``[sweep.response]`` (cosserat_fem/studies/response.py
     steps_per_period = 600       # optional: time.step = period / this (every period sampled
                                  #   at the same phases: the change per period is exact)
 
+A bifurcation diagram adds ``[sweep.poincare]``: each member records its Poincaré section
+(cosserat_fem/analysis/observers.py ``PoincareSection``: poincare.csv in its folder) and the
+sweep gathers the points of every member into ``bifurcation.csv`` beside sweep.csv
+(cosserat_fem/io/sweep_table.py)::
+
+    [sweep.poincare]
+    period = "2*pi/Om"           # s: the section's period T (the forcing's), an expression
+                                 #   of L, omega0 and the parameters
+    phase = 0.0                  # rad: the section at t_j = (j + phase/2π) T
+    discard = 20                 # the first points of each member left out of
+                                 #   bifurcation.csv (the transient; kept in poincare.csv)
+    continuation = "parameters.f0"  # a varied key: each member starts from the final state
+                                 #   of the one before it in its chain (optional)
+    direction = "up"             # "up", "down" or "both", as for a response
+
+With a continuation, a member runs its scene's time span (time.end − time.start) from the
+start that carries the forcing's phase over from its predecessor's end
+(response.continued_start): the chain follows one attractor as the key steps, where members
+from the scene's initial state would each fall into whichever attractor that state leads
+to. With ``[sweep.response]`` too, its continuation makes the chains (one given here is
+refused) and its settings the span.
+
 A chain is the members that share the values of every other varied key, ordered by the
 continuation key; without a continuation each member is a chain of its own, from the
 scene's initial state.
@@ -72,7 +94,19 @@ from cosserat_fem.scene.load_data import TableStore
 from cosserat_fem.scene.schema import apply_overrides, parse_toml, read_input, read_toml
 from cosserat_fem.studies.response import DIRECTIONS, ResponseSettings, check_sampling, period_of
 
-KEYS = {"scene", "combine", "max_members", "group_size", "keep", "set", "vary", "case", "response"}
+KEYS = {
+    "scene",
+    "combine",
+    "max_members",
+    "group_size",
+    "keep",
+    "set",
+    "vary",
+    "case",
+    "response",
+    "poincare",
+}
+POINCARE_KEYS = {"period", "phase", "discard", "continuation", "direction"}
 RESPONSE_KEYS = {
     "period",
     "continuation",
@@ -91,6 +125,20 @@ MAX_MEMBERS = 100_000
 COMBINE = ("product", "zip")
 KEEP = ("run", "probes")
 RANGE_KEYS = {"start", "stop", "num"}
+
+
+@dataclass(frozen=True)
+class SectionSettings:
+    """A bifurcation diagram's ``[sweep.poincare]`` (module docstring): ``period`` [s], an
+    expression of the scene's constants; ``phase`` [rad]; ``discard``, the points of each
+    member left out of bifurcation.csv; ``continuation`` and ``direction``, the chains as
+    :class:`~cosserat_fem.studies.response.ResponseSettings`'s."""
+
+    period: str
+    phase: float = 0.0
+    discard: int = 0
+    continuation: str | None = None
+    direction: str = "up"
 
 
 @dataclass(frozen=True)
@@ -132,6 +180,8 @@ class SweepSpec:
     tables: TableStore = field(default_factory=TableStore, compare=False, repr=False)
     #: SHA-256 of the base scene file's bytes (the members' scene_file_sha256)
     source_sha256: str = ""
+    #: A bifurcation diagram's Poincaré section of every member ([sweep.poincare]).
+    poincare: SectionSettings | None = None
 
     def scene(self, member: Member, extra: dict[str, Any] | None = None) -> Scene:
         """The member's resolved scene (validated with the sweep; built again here rather
@@ -158,14 +208,33 @@ class SweepSpec:
             document["tables"] = self.tables.digests()
         if self.response is not None:
             document["response"] = self.response.__dict__
+        if self.poincare is not None:
+            document["poincare"] = self.poincare.__dict__
         if self.chains_continue:  # the saved states are parts of a group's partition
             document["group_size"] = self.group_size
         return json.dumps(document, sort_keys=True, default=str)
 
     @property
+    def continuation(self) -> str | None:
+        """The varied key the chains step along ([sweep.response]'s or [sweep.poincare]'s),
+        or None."""
+        for settings in (self.response, self.poincare):
+            if settings is not None and settings.continuation is not None:
+                return settings.continuation
+        return None
+
+    @property
     def chains_continue(self) -> bool:
         """Whether each member of a chain starts from the previous one's final state."""
-        return self.response is not None and self.response.continuation is not None
+        return self.continuation is not None
+
+    def section_period(self, member: Member) -> float:
+        """The Poincaré section's period [s] at the member's constants (sweep.poincare.period)."""
+        assert self.poincare is not None
+        scene = self.scene(member)
+        return period_of(
+            self.poincare, scene.expression_names(), f"member {member.index}", POINCARE_PERIOD
+        )
 
     def period(self, member: Member) -> float:
         """A forced member's forcing period [s] (sweep.response.period at its constants)."""
@@ -305,40 +374,54 @@ def _positive_number(table: dict, key: str, default: float) -> float:
     return float(value)
 
 
-def _response(table: Any, varied: tuple[str, ...]) -> ResponseSettings | None:
-    """The [sweep.response] table checked (module docstring), or None."""
+def _periodic_table(table: Any, known: set[str], where: str, what: str) -> str | None:
+    """The text of the period of the sweep file's table ``where`` ([sweep.response] or
+    [sweep.poincare]), None without the table; SceneError naming the key if it is not a
+    table, has a key not ``known`` or no period (``what``, in the message)."""
     if table is None:
         return None
     if not isinstance(table, dict):
-        raise SceneError(f"sweep.response: must be a table, got {show_value(table)}")
-    unknown = sorted(set(table) - RESPONSE_KEYS)
+        raise SceneError(f"{where}: must be a table, got {show_value(table)}")
+    unknown = sorted(set(table) - known)
     if unknown:
-        raise SceneError(
-            f"sweep.response.{unknown[0]}: unknown key (known: {', '.join(sorted(RESPONSE_KEYS))})"
-        )
+        raise SceneError(f"{where}.{unknown[0]}: unknown key (known: {', '.join(sorted(known))})")
     period = table.get("period")
     if isinstance(period, bool) or not isinstance(period, str | int | float):
         raise SceneError(
-            "sweep.response.period: required, the forcing's period in s (an "
-            f"expression of L, omega0 and the parameters), got {show_value(period)}"
+            f"{where}.period: required, {what} in s (an expression of L, omega0 and the "
+            f"parameters), got {show_value(period)}"
         )
+    return str(period)
+
+
+def _chain_keys(table: dict, varied: tuple[str, ...], where: str) -> tuple[str | None, str]:
+    """The continuation key (a varied key, or None) and the direction of the chains of the
+    sweep file's table ``where`` ([sweep.response] or [sweep.poincare]), checked."""
     continuation = table.get("continuation")
     if continuation is not None and continuation not in varied:
         raise SceneError(
-            f"sweep.response.continuation: must be one of the varied keys "
+            f"{where}.continuation: must be one of the varied keys "
             f"({', '.join(varied)}), got {show_value(continuation)}"
         )
     direction = table.get("direction", "up")
     if direction not in DIRECTIONS:
         raise SceneError(
-            f"sweep.response.direction: must be one of "
+            f"{where}.direction: must be one of "
             f"{', '.join(repr(d) for d in DIRECTIONS)}, got {show_value(direction)}"
         )
     if "direction" in table and continuation is None:
         raise SceneError(
-            "sweep.response.direction: needs sweep.response.continuation (the "
-            "varied key the members step along)"
+            f"{where}.direction: needs {where}.continuation (the varied key the members step along)"
         )
+    return continuation, direction
+
+
+def _response(table: Any, varied: tuple[str, ...]) -> ResponseSettings | None:
+    """The [sweep.response] table checked (module docstring), or None."""
+    period = _periodic_table(table, RESPONSE_KEYS, "sweep.response", "the forcing's period")
+    if period is None:
+        return None
+    continuation, direction = _chain_keys(table, varied, "sweep.response")
     settled = _positive_int(table, "settled_periods", 3, "sweep.response")
     measure = _positive_int(table, "measure_periods", 2, "sweep.response")
     most = _positive_int(table, "max_periods", 200, "sweep.response")
@@ -367,34 +450,66 @@ def _response(table: Any, varied: tuple[str, ...]) -> ResponseSettings | None:
             f"sweep.response.tolerance: must be < 1 (a relative change), got "
             f"{show_value(tolerance)}"
         )
-    return ResponseSettings(
-        str(period), continuation, direction, tolerance, settled, measure, most, per
-    )
+    return ResponseSettings(period, continuation, direction, tolerance, settled, measure, most, per)
+
+
+#: The dotted key of a section's period, named when it is refused.
+POINCARE_PERIOD = "sweep.poincare.period"
+
+
+def _poincare(
+    table: Any, varied: tuple[str, ...], response: ResponseSettings | None
+) -> SectionSettings | None:
+    """The [sweep.poincare] table checked (module docstring), or None."""
+    period = _periodic_table(table, POINCARE_KEYS, "sweep.poincare", "the section's period")
+    if period is None:
+        return None
+    phase = table.get("phase", 0.0)
+    if isinstance(phase, bool) or not isinstance(phase, int | float) or not math.isfinite(phase):
+        raise SceneError(
+            f"sweep.poincare.phase: must be a finite angle in rad, got {show_value(phase)}"
+        )
+    discard = table.get("discard", 0)
+    if isinstance(discard, bool) or not isinstance(discard, int) or discard < 0:
+        raise SceneError(
+            f"sweep.poincare.discard: must be a whole number of points >= 0, got "
+            f"{show_value(discard)}"
+        )
+    if "continuation" in table and response is not None and response.continuation is not None:
+        raise SceneError(
+            "sweep.poincare.continuation: the chains are sweep.response.continuation's "
+            "(give them in one place)"
+        )
+    continuation, direction = _chain_keys(table, varied, "sweep.poincare")
+    return SectionSettings(period, float(phase), discard, continuation, direction)
 
 
 def _chains(
-    values: list[dict[str, Any]], varied: tuple[str, ...], response: ResponseSettings | None
+    values: list[dict[str, Any]],
+    varied: tuple[str, ...],
+    settings: ResponseSettings | SectionSettings | None,
+    table: str = "sweep.response",
 ) -> tuple[list[Member], list[tuple[int, ...]]]:
-    """The members and the chains they run in (module docstring)."""
-    if response is None or response.continuation is None:
+    """The members and the chains they run in (module docstring), by the continuation and
+    direction of ``settings`` (of the sweep file's ``table``)."""
+    if settings is None or settings.continuation is None:
         return [Member(i, v) for i, v in enumerate(values)], [(i,) for i in range(len(values))]
-    key = response.continuation
+    key = settings.continuation
     for i, v in enumerate(values):
         if key not in v:
             raise SceneError(
-                f"sweep.response.continuation: {key!r} is not set in member {i} "
-                "(every case must give it)"
+                f"{table}.continuation: {key!r} is not set in member {i} (every case must give it)"
             )
         if isinstance(v[key], bool) or not isinstance(v[key], int | float):
             raise SceneError(
-                f"sweep.response.continuation: {key!r} must take numbers, got "
+                f"{table}.continuation: {key!r} must take numbers, got "
                 f"{show_value(v[key])} in member {i}"
             )
     lines: dict[str, list[int]] = {}
     for i, v in enumerate(values):
         rest = json.dumps([[k, v[k]] for k in varied if k != key], default=str)
         lines.setdefault(rest, []).append(i)
-    directions = ("up", "down") if response.direction == "both" else (response.direction,)
+    directions = ("up", "down") if settings.direction == "both" else (settings.direction,)
     members: list[Member] = []
     chains: list[tuple[int, ...]] = []
     for direction in directions:
@@ -467,7 +582,11 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
     base_data = _base(parse_toml(raw, scene_path), fixed, overrides, values)
     tables = TableStore.collective(scene_path.parent)
     response = _response(table.get("response"), varied)
-    members, chains = _chains(values, varied, response)
+    poincare = _poincare(table.get("poincare"), varied, response)
+    if response is not None and response.continuation is not None:
+        members, chains = _chains(values, varied, response)
+    else:
+        members, chains = _chains(values, varied, poincare, "sweep.poincare")
     if len(members) > max_members:
         raise SceneError(
             f"sweep.max_members: the sweep has {len(members)} members (both "
@@ -476,6 +595,10 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
     for member in members[: len(values)]:
         try:
             _check_member(base_data, str(scene_path), member, response, group_size, tables)
+            if poincare is not None:
+                scene = scene_from_dict(base_data, str(scene_path), member.values, tables=tables)
+                where = f"member {member.index}"
+                period_of(poincare, scene.expression_names(), where, POINCARE_PERIOD)
         except SceneError as exc:
             raise SceneError(f"sweep member {member.index} ({member.describe()}): {exc}") from None
     tables.seal()  # every member's tables are read: none is read again in a group
@@ -490,6 +613,7 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
         tuple(chains),
         tables,
         hashlib.sha256(raw).hexdigest(),
+        poincare,
     )
 
 
