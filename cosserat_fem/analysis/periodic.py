@@ -649,6 +649,7 @@ def trace_orbits(
     end: float,
     settings=None,
     scale: float = 4.0,
+    observer=None,
 ) -> OrbitBranch:
     """The branch of periodic orbits from the one near ``guess`` at p = ``start`` to p =
     ``end`` (either side), by the pseudo-arclength engine (cosserat_fem/nls/arclength.py) on
@@ -660,7 +661,9 @@ def trace_orbits(
     4, a 25 mm amplitude range of a 1 m rod weighs as Δp = 0.1. ``settings``: a
     :class:`~cosserat_fem.nls.arclength.ContinuationSettings` (p_min, p_max are set from
     start, end). Each point's multipliers and amplitude are those of the monodromy the engine
-    computed there for its tangent (no extra period)."""
+    computed there for its tangent (no extra period). ``observer(point, weight)``, if given,
+    is told of the engine's first point and of each accepted one as the branch grows (the
+    command line's outputs and restart data: cosserat_fem/analysis/orbit_runs.py)."""
     from dataclasses import replace
 
     from cosserat_fem.nls.arclength import Continuation, ContinuationSettings, Point
@@ -677,9 +680,12 @@ def trace_orbits(
         first = shooting.find(guess)
         size = math.sqrt(shooting.dot(first.state, first.state))
         weight = (scale * first.amplitude / shooting.model.length / size) ** 2
-        engine = Continuation(_Weighted(shooting, weight), settings)
+        watch = None if observer is None else (lambda q: observer(q, weight))
+        engine = Continuation(_Weighted(shooting, weight), settings, watch)
         direction = 1 if end > start else -1
         origin = engine.start_point(first.state, start, direction)
+        if observer is not None:
+            observer(origin, weight)
         branch = engine.trace(origin, 1)
         records = shooting.records
 
