@@ -390,18 +390,9 @@ def continuation(
     from cosserat_fem.io.run_folder import prepare_output_dir
     from cosserat_fem.nls.arclength import ContinuationSettings
 
-    if progress is not None and not callable(progress):
-        raise SceneError(
-            f"progress: must be a function progress(branches, points, load_factor), got "
-            f"{type(progress).__name__}"
-        )
+    _check_progress(progress, "progress(branches, points, load_factor)")
     if restart is not None:
-        if scene is not None:
-            raise SceneError("restart: the scene is the restarted continuation's; give None")
-        given = out_folder(restart, "--restart")
-        if given is None or not given.is_dir():
-            raise SceneError(f"--restart: {str(restart)!r} is not a folder")
-        held = prepare_output_dir(given, MPI.COMM_WORLD, "restart")
+        held = _restart_folder(scene, restart, "continuation")
         record = path_restart.read_index(held, MPI.COMM_WORLD)
         saved = ContinuationSettings(**record["settings"])
         if max_points is not None:
@@ -451,6 +442,28 @@ def continuation(
             folder, scene_dict, settings, observer.ends, MPI.COMM_WORLD, probe=probe
         )
     return result
+
+
+def _check_progress(progress, signature: str) -> None:
+    """SceneError naming ``progress`` unless it is None or callable."""
+    if progress is not None and not callable(progress):
+        raise SceneError(f"progress: must be a function {signature}, got {type(progress).__name__}")
+
+
+def _restart_folder(scene, restart, what: str) -> Path:
+    """The folder ``restart`` of an earlier ``what`` (continuation, orbit branch), locked for
+    its restart; SceneError if a ``scene`` is given (the restart's is the folder's) or the
+    folder is not one."""
+    from mpi4py import MPI
+
+    from cosserat_fem.io.run_folder import prepare_output_dir
+
+    if scene is not None:
+        raise SceneError(f"restart: the scene is the restarted {what}'s; give None")
+    given = out_folder(restart, "--restart")
+    if given is None or not given.is_dir():
+        raise SceneError(f"--restart: {str(restart)!r} is not a folder")
+    return prepare_output_dir(given, MPI.COMM_WORLD, "restart")
 
 
 def check_max_points(max_points) -> None:
@@ -579,20 +592,11 @@ def orbits(
     from cosserat_fem.analysis import orbit_runs
     from cosserat_fem.io.run_folder import prepare_output_dir
 
-    if progress is not None and not callable(progress):
-        raise SceneError(
-            f"progress: must be a function progress(points, parameter, amplitude), got "
-            f"{type(progress).__name__}"
-        )
+    _check_progress(progress, "progress(points, parameter, amplitude)")
     if restart is not None:
-        if scene is not None:
-            raise SceneError("restart: the scene is the restarted branch's; give None")
-        given = out_folder(restart, "--restart")
-        if given is None or not given.is_dir():
-            raise SceneError(f"--restart: {str(restart)!r} is not a folder")
         if max_points is not None:
             _orbit_settings(0.0, 1.0, 1.0, 1.0, 1.0, 0, max_points, True)  # checks it
-        held = prepare_output_dir(given, MPI.COMM_WORLD, "restart")
+        held = _restart_folder(scene, restart, "branch")
         return orbit_runs.resume_orbit_branch(held, max_points, progress)
     if not isinstance(scene, Scene):
         raise SceneError(f"scene: must be a Scene (cf.load), got {type(scene).__name__}")

@@ -571,6 +571,17 @@ def _stability(args) -> int:
     return 0
 
 
+def _restart_only(args, what: str) -> str:
+    """--restart DIR of ``continue`` or ``orbits``; SceneError if a SCENE, --set or --out is
+    given too (the ``what`` goes on in its own folder with its own scene)."""
+    if args.scene is not None or args.overrides or args.out is not None:
+        raise SceneError(
+            f"{args.command} --restart: give no SCENE, --set or --out (the {what} goes on "
+            "in its own folder with its own scene)"
+        )
+    return args.restart
+
+
 def _continue(args) -> int:
     """``continue``: the branches through the Python API; a line per branch (its origin,
     points, λ and the free end's angle ψ at its end, why it ended), one per special point,
@@ -584,12 +595,7 @@ def _continue(args) -> int:
     enabled = None if MPI.COMM_WORLD.rank == 0 and not args.quiet else False
     bar = ContinuationProgress(args.max_points or 200, enabled=enabled)
     if args.restart is not None:
-        if args.scene is not None or args.overrides or args.out is not None:
-            raise SceneError(
-                "continue --restart: give no SCENE, --set or --out (the continuation goes on "
-                "in its own folder with its own scene)"
-            )
-        out = args.restart
+        out = _restart_only(args, "continuation")
         result = api.continuation(
             None, max_points=args.max_points, restart=out, branch=args.branch, progress=bar
         )
@@ -642,12 +648,7 @@ def _orbits(args) -> int:
     bar = OrbitProgress(args.max_points or 300, enabled=enabled)
     try:
         if args.restart is not None:
-            if args.scene is not None or args.overrides or args.out is not None:
-                raise SceneError(
-                    "orbits --restart: give no SCENE, --set or --out (the branch goes on in "
-                    "its own folder with its own scene)"
-                )
-            out = args.restart
+            out = _restart_only(args, "branch")
             branch, summary = api.orbits(
                 None, max_points=args.max_points, restart=out, progress=bar
             )

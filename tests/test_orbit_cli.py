@@ -55,6 +55,16 @@ def sets(overrides: dict) -> list[str]:
     return [a for k, v in overrides.items() for a in ("--set", f"{k}={json.dumps(v)}")]
 
 
+def api_branch() -> tuple[tuple, dict]:
+    """The arguments and options of the API's call for :data:`BRANCH` and :data:`STEPS`."""
+    scene = cf.load(PAPER, LINEAR)
+    return (scene, PERIOD, "r", 1.03, 1.07), {
+        "steps_per_period": 20,
+        "step": 0.01,
+        "max_step": 0.02,
+    }
+
+
 def cli(*args: str):
     return run_command(["-m", "cosserat_fem.cli", *args])
 
@@ -79,16 +89,8 @@ def test_the_orbits_command_gives_the_api_s_branch_with_its_files(tmp_path):
     proc = cli("orbits", str(PAPER), *sets(LINEAR), *BRANCH, *STEPS, "--out", str(out))
     assert proc.returncode == 0, proc.stderr
     assert "p reached 1.07" in proc.stdout
-    branch = api.periodic_branch(
-        cf.load(PAPER, LINEAR),
-        PERIOD,
-        "r",
-        1.03,
-        1.07,
-        steps_per_period=20,
-        step=0.01,
-        max_step=0.02,
-    )
+    arguments, options = api_branch()
+    branch = api.periodic_branch(*arguments, **options)
     got = rows(out / "orbit_branch.csv")
     assert len(got) == len(branch.points) + len(branch.special) >= 5
     for row, q in zip(got, branch.points, strict=False):
@@ -116,7 +118,8 @@ def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path):
     module docstring; the kinds the same), orbit_branch.xdmf one frame per row, times 0, 1,
     ..., across the restart, and summary.json the same steps and monodromies in all (the
     restarted part's added to the first's) and restarts = 1. A restart of a branch that
-    reached its range's end is refused in one line (exit 2)."""
+    reached its range's end is refused in one line (exit 2), and so is ``continue
+    --restart`` of the folder (no static continuation's record there)."""
     from xdmf_files import read_arrays
 
     whole, cut = tmp_path / "whole", tmp_path / "cut"
@@ -141,6 +144,8 @@ def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path):
     for key in ("steps", "monodromies", "points", "reason"):
         assert s_cut[key] == s_whole[key], key
     assert s_cut["restarts"] == 1
+    other = cli("continue", "--restart", str(cut))  # not a static continuation's folder
+    assert other.returncode == 2 and "holds no continuation to restart" in other.stderr
     done = cli("orbits", "--restart", str(cut))
     assert done.returncode == 2 and "--restart:" in done.stderr and "already ended" in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
@@ -152,17 +157,9 @@ def test_the_progress_is_told_each_orbit(tmp_path):
     the range and the engine's point at its end, which the engine adds together), with the
     count of points so far and that point's p and amplitude."""
     calls = []
+    arguments, options = api_branch()
     branch, summary = api.orbits(
-        cf.load(PAPER, LINEAR),
-        PERIOD,
-        "r",
-        1.03,
-        1.07,
-        steps_per_period=20,
-        step=0.01,
-        max_step=0.02,
-        out=tmp_path,
-        progress=lambda *a: calls.append(a),
+        *arguments, **options, out=tmp_path, progress=lambda *a: calls.append(a)
     )
     assert [c[0] for c in calls] == list(range(1, len(branch.points) + 1))
     for (_, p, a), q in zip(calls, branch.points, strict=True):

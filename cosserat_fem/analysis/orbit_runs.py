@@ -16,15 +16,15 @@ killed run keeps every point found up to its last:
   (periods with the variational equations), the folds and special points, the restarts.
 * ``continuation/``: the restart data (cosserat_fem/analysis/path_restart.py's per-rank
   arrays of the branch's last three points, ``save_branch_state``/``load_branch``, and
-  ``orbits.json``: the scene, the period, the parameter, the settings, the arclength
-  metric's weight w, each kept point's amplitude and multipliers, the rows and frames
-  written). :func:`orbit_branch` with ``restart`` traces the branch on from its last point
-  by the engine's ``resume`` (the same weight, the last step length estimated by the chord
-  of the last two points in the metric, so the continued points lie on the same branch
-  without being the very points of an uninterrupted run); its new rows and frames are
-  appended. The special points located in a part that was killed are lost (they are
-  written at a part's end); a restarted part locates the folds (limit points) on it, not
-  what ``trace_orbits`` adds after the engine.
+  ``orbits.json``, its "kind" "orbits": the scene, the period, the parameter, the
+  settings, the arclength metric's weight w, each kept point's amplitude and multipliers,
+  the rows and frames written). :func:`resume_orbit_branch` traces the branch on from its
+  last point by the engine's ``resume`` with the same weight and the step the engine would
+  have taken next (rebuilt from the pseudo-arclength constraint: ``_Recorder._step``), so
+  the continued points are an uninterrupted run's to the corrector's tolerance; its new
+  rows and frames are appended. The special points located in a part that was killed are
+  lost (they are written at a part's end); a restarted part locates the folds (limit
+  points) on it, not what ``trace_orbits`` adds after the engine.
 
 **A Lyapunov run's folder** (:func:`lyapunov_run`): ``poincare.csv`` (lyapunov.py),
 ``lyapunov.csv`` (per renormalisation interval: its end time [s], the stretch ln(d/d0), the
@@ -59,7 +59,8 @@ from cosserat_fem.plot import ORBIT_BRANCH as ORBIT_CSV
 
 ORBIT_XDMF = "orbit_branch.xdmf"
 SUMMARY = "summary.json"
-#: The restart record of an orbit branch, in path_restart.FOLDER.
+#: The restart record of an orbit branch, in path_restart.FOLDER (its "kind": "orbits"; not
+#: a continuation's restart.json, which ``continue --restart`` reads).
 RECORD = "orbits.json"
 #: progress(points on the branch, p, amplitude [m]) after each point
 Progress = Callable[[int, float, float], None]
@@ -134,10 +135,7 @@ class _Recorder:
     def orbit(self, q: Point) -> OrbitPoint:
         """The engine's point as an orbit: its amplitude and multipliers from the monodromy
         computed there (periodic.py's records) or kept from before a restart."""
-        found = self.shooting.records.get((float(q.p), q.u.tobytes()))
-        if found is None:
-            found = next((a, m) for k, a, m in self.kept if k is q)
-        amplitude, mu = found
+        amplitude, mu = self.shooting.records[(float(q.p), q.u.tobytes())]
         return OrbitPoint(q.p, amplitude, mu, classify(mu), q.t_p, q.det_sign, q.kind, q.u.copy())
 
     def _frame_and_row(self, orbit: OrbitPoint) -> None:
@@ -281,6 +279,7 @@ def orbit_branch(
     clock = time.perf_counter()
     record = {
         "format": 1,
+        "kind": "orbits",
         "ranks": comm.size,
         "scene": json.loads(json.dumps(scene.to_dict())),
         "period": period,
@@ -307,20 +306,21 @@ def orbit_branch(
 
 
 def read_record(folder: Path, comm: MPI.Comm = MPI.COMM_WORLD) -> dict:
-    """The restart record of the orbit branch in ``folder``; SceneError naming --restart if
-    there is none or it does not fit these ranks."""
+    """The restart record of the orbit branch in ``folder`` (rank 0 reads, all get it; its
+    own file, so that ``continue --restart`` and ``orbits --restart`` each refuse the
+    other's folder); SceneError naming --restart if there is none, it does not fit these
+    ranks, or the branch has ended."""
     from cosserat_fem.common.safe_files import Unreadable, read_on_root
 
+    problem = f"--restart: {str(folder)!r} holds no orbit branch to restart"
     try:
         record = json.loads(read_on_root(folder / FOLDER / RECORD, 1 << 28, comm).decode())
     except (OSError, ValueError, Unreadable) as exc:
+        raise SceneError(f"{problem} ({exc})") from None
+    if record.get("kind") != "orbits" or record.get("ranks") != comm.size:
+        ranks = record.get("ranks")
         raise SceneError(
-            f"--restart: {str(folder)!r} holds no orbit branch to restart ({exc})"
-        ) from None
-    if record.get("ranks") != comm.size:
-        raise SceneError(
-            f"--restart: the orbit branch in {str(folder)!r} ran on {record.get('ranks')} "
-            f"ranks; restart it on as many (its states are per rank)"
+            f"{problem} on {comm.size} ranks (it ran on {ranks}; its states are per rank)"
         )
     if str(record.get("reason", "")).startswith("p reached"):
         raise SceneError(
@@ -369,6 +369,8 @@ def resume_orbit_branch(
             (q, a, np.array([complex(*m) for m in mu]))
             for q, (a, mu) in zip(saved.points, record["kept"], strict=True)
         ]
+        for q, a, mu in recorder.kept:  # as if their monodromies had been computed here
+            shooting.records[(float(q.p), q.u.tobytes())] = (a, mu)
         recorder.told = len(saved.points)
         weight = record["weight"]
         engine = Continuation(_Weighted(shooting, weight), settings, lambda q: recorder(q, weight))
