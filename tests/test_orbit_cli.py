@@ -387,3 +387,32 @@ def test_the_s_curve_by_the_command_line_with_a_restart_past_its_first_fold(tmp_
     got = sorted(f["parameter"] for f in restarted["folds"])
     assert np.allclose(got, folds, rtol=0, atol=1e-6)
     assert cli("plot", str(cut)).returncode == 0
+
+
+@pytest.mark.long
+def test_the_branch_under_mpirun_with_a_restart_is_the_serial_one(tmp_path):
+    """``mpirun -n 2 cosserat-fem orbits`` cut at --max-points 3 and restarted under mpirun:
+    the serial branch's rows (p within DP, the amplitude within DA relative, |μ| within 1e-8:
+    the partition changes the LU's round-off only, far inside the corrector's tolerance)
+    and one XDMF frame per row across the restart. A restart on another number of ranks is
+    refused in one line naming --restart (its states are per rank)."""
+    from xdmf_files import read_arrays
+
+    base = ["-m", "cosserat_fem.cli", "orbits", str(PAPER), *sets(LINEAR), *BRANCH, *STEPS]
+    serial, parallel = tmp_path / "serial", tmp_path / "parallel"
+    assert run_command([*base, "--out", str(serial)]).returncode == 0
+    first = run_command([*base, "--max-points", "3", "--out", str(parallel)], ranks=2)
+    assert first.returncode == 0, first.stderr
+    wrong = cli("orbits", "--restart", str(parallel), "--max-points", "300")
+    assert wrong.returncode == 2 and "on 1 ranks (it ran on 2" in wrong.stderr
+    restart = ["-m", "cosserat_fem.cli", "orbits", "--restart", str(parallel)]
+    again = run_command([*restart, "--max-points", "300"], ranks=2)
+    assert again.returncode == 0, again.stderr
+    expected, got = rows(serial / "orbit_branch.csv"), rows(parallel / "orbit_branch.csv")
+    assert len(got) == len(expected)
+    for a, b in zip(got, expected, strict=True):
+        assert abs(float(a["parameter"]) - float(b["parameter"])) <= DP
+        assert float(a["amplitude"]) == pytest.approx(float(b["amplitude"]), rel=DA)
+        assert abs(float(a["mu_abs"]) - float(b["mu_abs"])) <= 1e-8
+    _, times, _ = read_arrays(parallel / "orbit_branch.xdmf")
+    assert list(times) == list(range(len(got)))
