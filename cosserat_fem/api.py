@@ -585,7 +585,8 @@ def orbits(
     and the restart data in ``out``; ``progress(points, p, amplitude [m])`` after each point
     (``max_points`` default 300). ``restart``: the folder of an earlier branch (give
     ``scene`` None): traced on from its last point with its own scene and settings, but
-    ``max_points`` if given, the new points appended. Returns (the
+    ``max_points`` if given, the new points appended. A ``period`` that the scene's load
+    expressions do not repeat after is refused (orbit_runs.check_periodic). Returns (the
     :class:`~cosserat_fem.analysis.periodic.OrbitBranch`, the summary dict)."""
     from mpi4py import MPI
 
@@ -608,7 +609,7 @@ def orbits(
     end = _number("end (--to)", end, False)
     max_points = 300 if max_points is None else max_points
     settings, scale = _orbit_settings(start, end, step, max_step, scale, settle, max_points, True)
-    orbit_runs.period_value(scene, period)  # a bad period named before any work
+    orbit_runs.check_periodic(scene, orbit_runs.period_value(scene, period, "period (--period)"))
     if parameter not in scene.parameters:
         raise SceneError(
             f"parameter (--parameter): {parameter!r} is not one of the scene's parameters "
@@ -638,7 +639,8 @@ def lyapunov_run(
     """:func:`lyapunov` with the command line's outputs (cosserat_fem/analysis/orbit_runs.py):
     poincare.csv, lyapunov.csv (time [s], stretch, running exponent [1/s]) and summary.json
     (the exponent) in ``out``, the folder locked; ``period`` a time [s] or an expression of
-    the scene's constants; refused before any work if a run of ``periods`` periods would
+    the scene's constants, which its load expressions must repeat after; refused before
+    any work if a run of ``periods`` periods would
     exceed the scene's limits, stopped at limits.wall_time (a StopError). ``options``: as
     :func:`lyapunov`'s."""
     from mpi4py import MPI
@@ -649,6 +651,7 @@ def lyapunov_run(
     if not isinstance(scene, Scene):
         raise SceneError(f"scene: must be a Scene (cf.load), got {type(scene).__name__}")
     value = orbit_runs.period_value(scene, period)
+    orbit_runs.check_periodic(scene, value)
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "lyapunov")
     return orbit_runs.lyapunov_run(scene, value, periods, folder, **options)

@@ -705,7 +705,7 @@ def _one_orbit(args) -> int:
 
     from cosserat_fem import api
     from cosserat_fem.analysis.branch_outputs import replace_on_root
-    from cosserat_fem.analysis.orbit_runs import SUMMARY, period_value
+    from cosserat_fem.analysis.orbit_runs import SUMMARY, check_periodic, period_value
     from cosserat_fem.io.folder_lock import folders_held
     from cosserat_fem.io.run_folder import prepare_output_dir
 
@@ -714,7 +714,7 @@ def _one_orbit(args) -> int:
     scene = api.load(args.scene, args.overrides)
     if args.period is None:
         raise SceneError("orbits --period: give the forcing period [s] or its expression")
-    period_value(scene, args.period)
+    check_periodic(scene, period_value(scene, args.period))
     comm = MPI.COMM_WORLD
     with folders_held():
         folder = prepare_output_dir(Path(_out(args, scene)), comm, "orbits")

@@ -206,10 +206,15 @@ def test_one_orbit_and_its_multipliers(tmp_path):
         (["--period", PERIOD, "--from", "1"], "orbits --parameter: give"),
         (
             ["--period", "-1", "--parameter", "r", "--from", "1", "--to", "1.1"],
-            "--period: '-1' = -1.0 s; must be a positive time",
+            "(--period): '-1' = -1.0 s; must be a positive time",
         ),
         ([*BRANCH, "--set", 'time.integrator="bdf2"'], "time.integrator: periodic orbits"),
         ([*BRANCH, "--step", "0.5"], "step (--step): must not exceed max_step"),
+        (
+            ["--period", "2.02*pi/(r*w1)", "--parameter", "r", "--from", "1", "--to", "1.1"],
+            "loads.force_density: 'F*sin(pi*s/L)*sin(r*w1*t)' is not periodic with --period",
+        ),
+        (["--period", "2.02*pi/(r*w1)"], "is not periodic with --period"),
     ],
 )
 def test_bad_orbit_requests_are_one_line(tmp_path, arguments, message):
@@ -224,10 +229,15 @@ def test_bad_orbit_requests_are_one_line(tmp_path, arguments, message):
 
 
 def test_a_missing_period_and_a_folder_without_a_branch_are_one_line(tmp_path):
-    """lyapunov without --period, and orbits --restart of a folder that holds no branch:
-    exit 2, one line naming the flag."""
+    """lyapunov without --period, or with a period that is not its forcing's (the paper's
+    load sin(8 ω0 t) against 0.01 s), and orbits --restart of a folder that holds no
+    branch: exit 2, one line naming the flag or the load's key."""
     proc = cli("lyapunov", str(PAPER), "--periods", "2", "--out", str(tmp_path / "l"))
     assert proc.returncode == 2 and "lyapunov --period: give" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+    proc = cli("lyapunov", str(PAPER), "--period", "0.01", "--periods", "2")
+    assert proc.returncode == 2 and "loads.force_density: " in proc.stderr
+    assert " not periodic with --period T = 0.01 s" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
     (tmp_path / "empty").mkdir()
     proc = cli("orbits", "--restart", str(tmp_path / "empty"))

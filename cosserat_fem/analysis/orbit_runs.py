@@ -88,6 +88,48 @@ def period_value(scene, text: float | str, key: str = "--period") -> float:
     return value
 
 
+def _time_expressions(value, key: str):
+    """(dotted key, Expression) of every expression in ``value`` (a scene's table, nested
+    dataclasses, tuples) that depends on t."""
+    import dataclasses
+
+    from cosserat_fem.scene.expressions import Expression
+
+    if isinstance(value, Expression):
+        if value.depends_on("t"):
+            yield key, value
+    elif dataclasses.is_dataclass(value) and not isinstance(value, type):
+        for item in dataclasses.fields(value):
+            yield from _time_expressions(getattr(value, item.name), f"{key}.{item.name}")
+    elif isinstance(value, tuple | list):
+        for item in value:
+            yield from _time_expressions(item, key)
+
+
+def check_periodic(scene, period: float, key: str = "--period") -> None:
+    """SceneError naming the load's key and ``key`` unless every load expression of the
+    scene that depends on t repeats itself after ``period`` T [s]: f(s, t + T) = f(s, t) at
+    5 stations s and 7 times t in a period from time.start, to 1e-9 of the largest |f| seen
+    (the round-off of a sine's argument is ~1e-16 of it; a load of another period, or with
+    a trend such as t sin Ωt, differs by O(1)). Loads given as tables or Python functions
+    are not looked at."""
+    constants = dict(scene.expression_names())
+    s = np.linspace(0.0, scene.rod.length, 5)[:, None]
+    t = scene.time.start + period * (np.arange(7) / 7.0 + 0.0123)[None, :]
+    for name, expression in _time_expressions(scene.loads, "loads"):
+        try:
+            now = np.broadcast_to(expression.evaluate(**constants, s=s, t=t), (5, 7))
+            later = np.broadcast_to(expression.evaluate(**constants, s=s, t=t + period), (5, 7))
+        except (ValueError, TypeError, ArithmeticError):
+            continue  # a load of other variables: the run will say
+        size = float(np.nanmax(np.abs(now))) if np.isfinite(now).any() else 0.0
+        if size > 0.0 and not np.nanmax(np.abs(later - now)) <= 1e-9 * size:
+            raise SceneError(
+                f"{name}: {expression.source!r} is not periodic with {key} T = {period:.6g} s "
+                f"(its value at t + T differs from that at t); give the forcing's period"
+            )
+
+
 class OrbitProgress(StatusLine):
     """Call with (points, p, amplitude) after each point of an orbit branch: its status line
     (the fraction: points over ``max_points``, as a continuation's)."""

@@ -61,3 +61,26 @@ def test_the_status_line_shows_the_orbit_and_its_share_of_max_points():
     silent = io.StringIO()
     OrbitProgress(12, stream=silent, enabled=False)(3, 1.0, 0.1)
     assert silent.getvalue() == ""
+
+
+def test_a_load_that_does_not_repeat_after_the_period_is_refused(scene):
+    """The paper's load sin(8 ω0 t) repeats after T = 2π/(8 ω0) and 3T, not after 1.01 T
+    (its value then differs by ~2π × 0.01 of its size, far above the 1e-9 allowed); a
+    trend t sin(8 ω0 t) never repeats. A scene without a load of t passes any period."""
+    from cosserat_fem.analysis.orbit_runs import check_periodic
+
+    period = 2 * math.pi / (8 * scene.omega0)
+    check_periodic(scene, period)
+    check_periodic(scene, 3 * period)
+    with pytest.raises(SceneError, match=r"^loads\.force_density: .* not periodic with --period"):
+        check_periodic(scene, 1.01 * period)
+    from conftest import ROOT
+
+    trend = api.load(
+        ROOT / "scenes" / "cao_tucker_2008.toml",
+        {"loads.force_density": ["t*sin(8*omega0*t)", 0, 0]},
+    )
+    with pytest.raises(SceneError, match="not periodic"):
+        check_periodic(trend, period)
+    still = api.load(ROOT / "scenes" / "cao_tucker_2008.toml", {"loads.force_density": [1, 0, 0]})
+    check_periodic(still, 0.123)
