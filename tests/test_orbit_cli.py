@@ -228,6 +228,28 @@ def test_bad_orbit_requests_are_one_line(tmp_path, arguments, message):
     assert not (out / "orbit_branch.csv").exists()
 
 
+def test_a_branch_whose_first_orbit_is_not_found_says_why(tmp_path):
+    """solver.max_iterations = 1: the stage solves of the first period fail (Newton cannot
+    converge in one iteration from rest), so there is no first orbit: exit 3, one line on
+    stderr, and summary.json with no point and that line's reason; orbit_branch.csv holds
+    its header alone and there is no restart data."""
+    proc = cli(
+        "orbits",
+        str(PAPER),
+        *sets({**LINEAR, "solver.max_iterations": 1}),
+        *BRANCH,
+        *STEPS,
+        "--out",
+        str(tmp_path),
+    )
+    assert proc.returncode == 3, proc.stderr
+    (line,) = proc.stderr.strip().splitlines()
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["points"] == 0 and summary["reason"] in line and "Newton" in line
+    assert rows(tmp_path / "orbit_branch.csv") == []
+    assert not (tmp_path / "continuation" / "orbits.json").exists()
+
+
 def test_a_missing_period_and_a_folder_without_a_branch_are_one_line(tmp_path):
     """lyapunov without --period, or with a period that is not its forcing's (the paper's
     load sin(8 ω0 t) against 0.01 s), and orbits --restart of a folder that holds no
@@ -354,14 +376,27 @@ def case(tmp_path_factory):
 
 
 @pytest.mark.long
-def test_the_s_curve_by_the_command_line_with_a_restart_past_its_first_fold(tmp_path):
+def test_the_s_curve_by_the_command_line_cut_or_killed_and_restarted(tmp_path):
     """The demo's load (F = 5915.8 N/m) on 4 cells at N = 40, r from 0.98 to 1.14 after 3
-    settled periods: the command traces the S-curve through its two folds (r ≈ 1.105 and
-    1.044, amplitudes 25.6 and 9.8 mm on this coarse rod), its middle points unstable
-    ("fold": a real μ > 1) and the folds between stable and unstable parts. Cut at
-    --max-points 20 (past the first fold) and restarted, it reaches the same folds: p within
-    1e-6 (the folds are located to 1e-6 in arclength and |dp/ds| ≤ 1) and the same number
-    of points and the same end. plot marks both folds."""
+    settled periods: the command traces the S-curve through its two folds (r ≈ 1.044 and
+    1.105, amplitudes 9.8 and 25.6 mm on this coarse rod), its middle points unstable
+    ("fold": a real μ > 1).
+
+    Cut at --max-points 20 (past the first fold) and restarted, it reaches the same folds:
+    p within 1e-6 (located to 1e-6 in arclength, |dp/ds| ≤ 1), the same points and end.
+    Killed (SIGKILL) once 5 orbits are written, wherever that falls, and restarted, its
+    points are the whole branch's: p within DP and the amplitude within 1e-9 m (the
+    corrector's 1e-9 in the metric is (ℓ/scale) 1e-9 = 2.5e-10 m of amplitude when one mode
+    dominates: a = (ℓ/scale) √w ‖u‖ by the choice of w; a factor 4 for the others), the
+    special points located after the kill among the whole branch's (those before it are
+    lost: module docstring of orbit_runs.py). plot marks the folds."""
+    import os
+    import signal
+    import subprocess
+    import time
+
+    from conftest import PYTHON, subprocess_env
+
     demo = {**LINEAR, "parameters.F": 5915.8, "parameters.r": 0.98}
     base = [
         "orbits",
@@ -380,7 +415,7 @@ def test_the_s_curve_by_the_command_line_with_a_restart_past_its_first_fold(tmp_
         "--settle",
         "3",
     ]
-    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    whole, cut, killed = tmp_path / "whole", tmp_path / "cut", tmp_path / "killed"
     assert cli(*base, "--out", str(whole)).returncode == 0
     summary = json.loads((whole / "summary.json").read_text())
     folds = sorted(f["parameter"] for f in summary["folds"])
@@ -397,6 +432,39 @@ def test_the_s_curve_by_the_command_line_with_a_restart_past_its_first_fold(tmp_
     got = sorted(f["parameter"] for f in restarted["folds"])
     assert np.allclose(got, folds, rtol=0, atol=1e-6)
     assert cli("plot", str(cut)).returncode == 0
+
+    proc = subprocess.Popen(
+        [PYTHON, "-m", "cosserat_fem.cli", *base, "--out", str(killed)],
+        cwd=ROOT,
+        env=subprocess_env(),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    record = killed / "continuation" / "orbits.json"
+    try:
+        deadline = time.monotonic() + 600
+        while time.monotonic() < deadline and proc.poll() is None:
+            try:
+                if json.loads(record.read_text())["rows"] >= 5:
+                    break
+            except (OSError, ValueError):
+                pass
+            time.sleep(0.05)
+    finally:
+        if proc.poll() is None:
+            os.kill(proc.pid, signal.SIGKILL)
+        proc.wait()
+    again = cli("orbits", "--restart", str(killed), "--max-points", "300")
+    assert again.returncode == 0, again.stderr
+    expected = [r for r in table if r["point"] in ("start", "regular", "end")]
+    after = rows(killed / "orbit_branch.csv")
+    points = [r for r in after if r["point"] in ("start", "regular", "end")]
+    assert len(points) == len(expected)
+    for a, b in zip(points, expected, strict=True):
+        assert abs(float(a["parameter"]) - float(b["parameter"])) <= DP
+        assert abs(float(a["amplitude"]) - float(b["amplitude"])) <= 1e-9
+    for special in (r for r in after if r not in points):
+        assert any(abs(float(special["parameter"]) - f) <= 1e-6 for f in folds)
 
 
 @pytest.mark.long

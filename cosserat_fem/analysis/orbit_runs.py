@@ -13,7 +13,9 @@ killed run keeps every point found up to its last:
   a fold); the arrays are the scene's ``output.fields`` (as a continuation's branch_<i>.xdmf,
   cosserat_fem/analysis/branch_outputs.py). Not with ``output.xdmf = false``.
 * ``summary.json``: the reason the branch ended, its steps, rejected steps, monodromies
-  (periods with the variational equations), the folds and special points, the restarts.
+  (periods with the variational equations), the folds and special points, the restarts;
+  also when the first orbit is not found (a SolverError: no point, its message the
+  reason).
 * ``continuation/``: the restart data (cosserat_fem/analysis/path_restart.py's per-rank
   arrays of the branch's last three points, ``save_branch_state``/``load_branch``, and
   ``orbits.json``, its "kind" "orbits": the scene, the period, the parameter, the
@@ -52,7 +54,7 @@ from cosserat_fem.analysis.branch_outputs import replace_on_root
 from cosserat_fem.analysis.path_restart import FOLDER, KEPT, load_branch, save_branch_state
 from cosserat_fem.analysis.periodic import ORBIT_COLUMNS, OrbitBranch, OrbitPoint, classify
 from cosserat_fem.analysis.progress import StatusLine
-from cosserat_fem.common.errors import SceneError
+from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.nls.arclength import Branch, ContinuationSettings, Point
 from cosserat_fem.plot import LYAPUNOV as LYAPUNOV_CSV
 from cosserat_fem.plot import ORBIT_BRANCH as ORBIT_CSV
@@ -289,9 +291,10 @@ class _Recorder:
         if self.folder is not None:
             comm = self.shooting.comm
             replace_on_root(self.folder / ORBIT_CSV, ("\n".join(self.lines) + "\n").encode(), comm)
-            replace_on_root(
-                self.folder / FOLDER / RECORD, (json.dumps(record) + "\n").encode(), comm
-            )
+            if self.kept:  # a restart's data: there is a point to go on from
+                replace_on_root(
+                    self.folder / FOLDER / RECORD, (json.dumps(record) + "\n").encode(), comm
+                )
             text = json.dumps(summary, indent=1) + "\n"
             replace_on_root(self.folder / SUMMARY, text.encode(), comm)
         return summary
@@ -339,8 +342,12 @@ def orbit_branch(
     try:
         shooting.set_parameter(start)
         recorder = _Recorder(shooting, folder, progress, record, [",".join(ORBIT_COLUMNS)])
-        u = shooting.settle(shooting.rest(), int(settle))
-        branch = trace_orbits(shooting, u, start, end, settings, scale, observer=recorder)
+        try:
+            u = shooting.settle(shooting.rest(), int(settle))
+            branch = trace_orbits(shooting, u, start, end, settings, scale, observer=recorder)
+        except SolverError as exc:  # the first orbit not found: what there is, and why
+            recorder.finish(OrbitBranch([], [], str(exc), 0, 0, shooting.monodromies), [], clock)
+            raise
         summary = recorder.finish(branch, branch.points[recorder.told :], clock)
     finally:
         shooting.destroy()
