@@ -74,6 +74,20 @@ def rows(path) -> list[dict]:
     return [dict(zip(lines[0].split(","), ln.split(","), strict=True)) for ln in lines[1:]]
 
 
+def same_rows(folder, reference) -> list[dict]:
+    """orbit_branch.csv's rows in ``folder``, asserted to be those of ``reference`` to the
+    module docstring's bounds (p within DP, the amplitude within DA relative, |μ| within
+    1e-8: the monodromy of this linear case depends on p alone), the same kinds."""
+    expected, got = rows(reference / "orbit_branch.csv"), rows(folder / "orbit_branch.csv")
+    assert len(got) == len(expected)
+    for a, b in zip(got, expected, strict=True):
+        assert abs(float(a["parameter"]) - float(b["parameter"])) <= DP
+        assert float(a["amplitude"]) == pytest.approx(float(b["amplitude"]), rel=DA)
+        assert abs(float(a["mu_abs"]) - float(b["mu_abs"])) <= 1e-8
+        assert a["point"] == b["point"]
+    return got
+
+
 def test_the_orbits_command_gives_the_api_s_branch_with_its_files(tmp_path):
     """``orbits`` over r in [1.03, 1.07] against ``cf.periodic_branch`` with the same
     settings: as many points, each p within DP and amplitude within DA relative (module
@@ -131,12 +145,7 @@ def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path):
     assert len(rows(cut / "orbit_branch.csv")) == 2
     again = cli("orbits", "--restart", str(cut), "--max-points", "300")
     assert again.returncode == 0, again.stderr
-    expected, got = rows(whole / "orbit_branch.csv"), rows(cut / "orbit_branch.csv")
-    assert len(got) == len(expected)
-    for a, b in zip(got, expected, strict=True):
-        assert abs(float(a["parameter"]) - float(b["parameter"])) <= DP
-        assert float(a["amplitude"]) == pytest.approx(float(b["amplitude"]), rel=DA)
-        assert a["point"] == b["point"]
+    got = same_rows(cut, whole)
     _, times, _ = read_arrays(cut / "orbit_branch.xdmf")
     assert list(times) == list(range(len(got)))
     s_whole = json.loads((whole / "summary.json").read_text())
@@ -486,11 +495,6 @@ def test_the_branch_under_mpirun_with_a_restart_is_the_serial_one(tmp_path):
     restart = ["-m", "cosserat_fem.cli", "orbits", "--restart", str(parallel)]
     again = run_command([*restart, "--max-points", "300"], ranks=2)
     assert again.returncode == 0, again.stderr
-    expected, got = rows(serial / "orbit_branch.csv"), rows(parallel / "orbit_branch.csv")
-    assert len(got) == len(expected)
-    for a, b in zip(got, expected, strict=True):
-        assert abs(float(a["parameter"]) - float(b["parameter"])) <= DP
-        assert float(a["amplitude"]) == pytest.approx(float(b["amplitude"]), rel=DA)
-        assert abs(float(a["mu_abs"]) - float(b["mu_abs"])) <= 1e-8
+    got = same_rows(parallel, serial)
     _, times, _ = read_arrays(parallel / "orbit_branch.xdmf")
     assert list(times) == list(range(len(got)))
