@@ -390,18 +390,9 @@ def continuation(
     from cosserat_fem.io.run_folder import prepare_output_dir
     from cosserat_fem.nls.arclength import ContinuationSettings
 
-    if progress is not None and not callable(progress):
-        raise SceneError(
-            f"progress: must be a function progress(branches, points, load_factor), got "
-            f"{type(progress).__name__}"
-        )
+    _check_progress(progress, "progress(branches, points, load_factor)")
     if restart is not None:
-        if scene is not None:
-            raise SceneError("restart: the scene is the restarted continuation's; give None")
-        given = out_folder(restart, "--restart")
-        if given is None or not given.is_dir():
-            raise SceneError(f"--restart: {str(restart)!r} is not a folder")
-        held = prepare_output_dir(given, MPI.COMM_WORLD, "restart")
+        held = _restart_folder(scene, restart, "continuation")
         record = path_restart.read_index(held, MPI.COMM_WORLD)
         saved = ContinuationSettings(**record["settings"])
         if max_points is not None:
@@ -465,6 +456,28 @@ def continuation(
     return result
 
 
+def _check_progress(progress, signature: str) -> None:
+    """SceneError naming ``progress`` unless it is None or callable."""
+    if progress is not None and not callable(progress):
+        raise SceneError(f"progress: must be a function {signature}, got {type(progress).__name__}")
+
+
+def _restart_folder(scene, restart, what: str) -> Path:
+    """The folder ``restart`` of an earlier ``what`` (continuation, orbit branch), locked for
+    its restart; SceneError if a ``scene`` is given (the restart's is the folder's) or the
+    folder is not one."""
+    from mpi4py import MPI
+
+    from cosserat_fem.io.run_folder import prepare_output_dir
+
+    if scene is not None:
+        raise SceneError(f"restart: the scene is the restarted {what}'s; give None")
+    given = out_folder(restart, "--restart")
+    if given is None or not given.is_dir():
+        raise SceneError(f"--restart: {str(restart)!r} is not a folder")
+    return prepare_output_dir(given, MPI.COMM_WORLD, "restart")
+
+
 def check_max_points(max_points) -> None:
     """SceneError naming --max-points unless a whole number in [2, 100000]."""
     if isinstance(max_points, bool) or not isinstance(max_points, int):
@@ -504,33 +517,14 @@ def periodic_branch(
     ``points`` (``parameter``, ``amplitude`` [m], ``multipliers``, ``stability``, ``kind``,
     ``state``), ``folds``, ``period_doublings``, ``tori``, ``special``, ``reason``, ``steps``,
     ``monodromies``. With ``out``: orbit_branch.csv there (columns ``ORBIT_COLUMNS``)."""
-    from dataclasses import replace
-
     from mpi4py import MPI
 
     from cosserat_fem.analysis.paths import write_branches
     from cosserat_fem.analysis.periodic import ORBIT_COLUMNS, Orbit, Shooting, trace_orbits
     from cosserat_fem.io.run_folder import prepare_output_dir
-    from cosserat_fem.nls.arclength import ContinuationSettings
 
     start, end = _number("start", start, False), _number("end", end, False)
-    if start == end:
-        raise SceneError(f"end: must differ from start, got {end!r}")
-    step, max_step = _number("step", step), _number("max_step", max_step)
-    scale = _number("scale", scale)
-    if step > max_step:
-        raise SceneError(f"step: must not exceed max_step {max_step!r}, got {step!r}")
-    for name, value, low in (("settle", settle, 0), ("max_points", max_points, 2)):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
-            raise SceneError(f"{name}: must be a whole number >= {low}, got {value!r}")
-    settings = replace(
-        ContinuationSettings(),
-        step=step,
-        max_step=max_step,
-        max_points=int(max_points),
-        tolerance=1e-9,
-        locate_tolerance=1e-6,
-    )
+    settings, scale = _orbit_settings(start, end, step, max_step, scale, settle, max_points)
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "continue")
     shooting = Shooting(scene, period, steps_per_period=steps_per_period, parameter=parameter)
@@ -546,3 +540,131 @@ def periodic_branch(
     if folder is not None:
         write_branches(Path(folder) / "orbit_branch.csv", branch, columns=ORBIT_COLUMNS)
     return branch
+
+
+def _orbit_settings(start, end, step, max_step, scale, settle, max_points, flags=False):
+    """The engine's settings of an orbit branch (steps, max_points; the shooting's
+    tolerances 1e-9, folds located to 1e-6 in arclength) and the metric's ``scale``, or a
+    SceneError naming the argument first (with ``flags``, its command line flag too)."""
+    from dataclasses import replace
+
+    from cosserat_fem.nls.arclength import ContinuationSettings
+
+    def name(argument: str) -> str:
+        flag = {"start": "from", "end": "to"}.get(argument, argument.replace("_", "-"))
+        return f"{argument} (--{flag})" if flags and argument != "scale" else argument
+
+    if start == end:
+        raise SceneError(f"{name('end')}: must differ from {name('start')}, got {end!r}")
+    step, max_step = _number(name("step"), step), _number(name("max_step"), max_step)
+    scale = _number("scale", scale)
+    if step > max_step:
+        raise SceneError(f"{name('step')}: must not exceed max_step {max_step!r}, got {step!r}")
+    for argument, value, low in (("settle", settle, 0), ("max_points", max_points, 2)):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
+            raise SceneError(f"{name(argument)}: must be a whole number >= {low}, got {value!r}")
+    settings = replace(
+        ContinuationSettings(),
+        step=step,
+        max_step=max_step,
+        max_points=int(max_points),
+        tolerance=1e-9,
+        locate_tolerance=1e-6,
+    )
+    return settings, scale
+
+
+@holding_folders
+def orbits(
+    scene: Scene | None,
+    period: float | str | None = None,
+    parameter: str | None = None,
+    start: float = 0.0,
+    end: float = 1.0,
+    *,
+    settle: int = 0,
+    steps_per_period: int = 300,
+    step: float = 0.005,
+    max_step: float = 0.01,
+    scale: float = 4.0,
+    max_points: int | None = None,
+    out: str | Path | None = None,
+    progress: Callable[[int, float, float], None] | None = None,
+    restart: str | Path | None = None,
+):
+    """:func:`periodic_branch` with the command line's outputs, written as the branch grows
+    (cosserat_fem/analysis/orbit_runs.py): orbit_branch.csv, orbit_branch.xdmf (the rod at t0
+    of each orbit, a frame a point), summary.json (the reason, steps, monodromies, folds)
+    and the restart data in ``out``; ``progress(points, p, amplitude [m])`` after each point
+    (``max_points`` default 300). ``restart``: the folder of an earlier branch (give
+    ``scene`` None): traced on from its last point with its own scene and settings, but
+    ``max_points`` if given, the new points appended. A ``period`` that the scene's load
+    expressions do not repeat after is refused (orbit_runs.check_periodic). Returns (the
+    :class:`~cosserat_fem.analysis.periodic.OrbitBranch`, the summary dict)."""
+    from mpi4py import MPI
+
+    from cosserat_fem.analysis import orbit_runs
+    from cosserat_fem.io.run_folder import prepare_output_dir
+
+    _check_progress(progress, "progress(points, parameter, amplitude)")
+    if restart is not None:
+        if max_points is not None:
+            _orbit_settings(0.0, 1.0, 1.0, 1.0, 1.0, 0, max_points, True)  # checks it
+        held = _restart_folder(scene, restart, "branch")
+        return orbit_runs.resume_orbit_branch(held, max_points, progress)
+    if not isinstance(scene, Scene):
+        raise SceneError(f"scene: must be a Scene (cf.load), got {type(scene).__name__}")
+    if period is None:
+        raise SceneError("period (--period): give the forcing period [s] or its expression")
+    if not isinstance(parameter, str):
+        raise SceneError(f"parameter (--parameter): a scene parameter's name, got {parameter!r}")
+    start = _number("start (--from)", start, False)
+    end = _number("end (--to)", end, False)
+    max_points = 300 if max_points is None else max_points
+    settings, scale = _orbit_settings(start, end, step, max_step, scale, settle, max_points, True)
+    orbit_runs.check_periodic(scene, orbit_runs.period_value(scene, period, "period (--period)"))
+    if parameter not in scene.parameters:
+        raise SceneError(
+            f"parameter (--parameter): {parameter!r} is not one of the scene's parameters "
+            f"{sorted(scene.parameters)}"
+        )
+    out = out_folder(out)
+    folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "orbits")
+    return orbit_runs.orbit_branch(
+        scene,
+        period,
+        parameter,
+        start,
+        end,
+        settings,
+        steps_per_period=steps_per_period,
+        settle=settle,
+        scale=scale,
+        folder=folder,
+        progress=progress,
+    )
+
+
+@holding_folders
+def lyapunov_run(
+    scene: Scene, period: float | str, *, periods: int, out: str | Path | None = None, **options
+):
+    """:func:`lyapunov` with the command line's outputs (cosserat_fem/analysis/orbit_runs.py):
+    poincare.csv, lyapunov.csv (time [s], stretch, running exponent [1/s]) and summary.json
+    (the exponent) in ``out``, the folder locked; ``period`` a time [s] or an expression of
+    the scene's constants, which its load expressions must repeat after; refused before
+    any work if a run of ``periods`` periods would
+    exceed the scene's limits, stopped at limits.wall_time (a StopError). ``options``: as
+    :func:`lyapunov`'s."""
+    from mpi4py import MPI
+
+    from cosserat_fem.analysis import orbit_runs
+    from cosserat_fem.io.run_folder import prepare_output_dir
+
+    if not isinstance(scene, Scene):
+        raise SceneError(f"scene: must be a Scene (cf.load), got {type(scene).__name__}")
+    value = orbit_runs.period_value(scene, period)
+    orbit_runs.check_periodic(scene, value)
+    out = out_folder(out)
+    folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "lyapunov")
+    return orbit_runs.lyapunov_run(scene, value, periods, folder, **options)

@@ -1,5 +1,7 @@
 """Command line: ``cosserat-fem run|static|modes|stability|continue SCENE [--out DIR]
-[--set KEY=VALUE ...]``,
+[--set KEY=VALUE ...]``, ``cosserat-fem orbits SCENE --period EXPR [--parameter KEY --from A
+--to B]`` (one periodic orbit, or their branch; ``--restart DIR`` continues a branch) and
+``cosserat-fem lyapunov SCENE --period EXPR --periods N`` (cosserat_fem/analysis/orbit_runs.py),
 ``cosserat-fem sweep SWEEP [--out DIR]`` for the members of a sweep file
 (cosserat_fem/studies/sweep_run.py), and ``cosserat-fem run --restart DIR [--set time.end=...]`` to
 continue a stopped run;
@@ -209,6 +211,7 @@ def _parser() -> argparse.ArgumentParser:
         help="arclength [m] of the point reported in branches.csv (default the free end, "
         "else mid-span)",
     )
+    _orbit_parsers(sub)
     sweep = sub.add_parser(
         "sweep",
         help="run the members of a sweep file (under mpirun: groups of ranks)",
@@ -267,6 +270,57 @@ def _parser() -> argparse.ArgumentParser:
         "--keep-mean", action="store_true", help="do not subtract the time mean of the frames first"
     )
     return parser
+
+
+def _orbit_parsers(sub) -> None:
+    """The parsers of ``orbits`` and ``lyapunov``."""
+    orbits = sub.add_parser(
+        "orbits",
+        help="periodic orbits of a forced rod by shooting: one with its Floquet multipliers, "
+        "or with --parameter, --from, --to their branch by continuation (orbit_branch.csv)",
+    )
+    _common(orbits, scene_optional=True)
+    _period(orbits)
+    orbits.add_argument("--parameter", metavar="KEY", help="the scene parameter varied")
+    orbits.add_argument("--from", dest="start", type=float, metavar="A", help="its first value")
+    orbits.add_argument("--to", dest="end", type=float, metavar="B", help="its last value")
+    for option, kind, default, text in (
+        ("--steps-per-period", int, 300, "SDIRK steps a period"),
+        ("--settle", int, 0, "periods time-marched from rest before shooting"),
+        ("--step", float, 0.005, "first arclength step"),
+        ("--max-step", float, 0.01, "largest arclength step"),
+        ("--max-points", int, None, "points of the branch at most (300)"),
+    ):
+        orbits.add_argument(option, type=kind, default=default, help=f"{text} (default {default})")
+    orbits.add_argument(
+        "--restart",
+        metavar="DIR",
+        help="trace the orbit branch in DIR on from its last point, with its scene and "
+        "settings (no SCENE; --max-points may be raised)",
+    )
+    lyap = sub.add_parser(
+        "lyapunov",
+        help="the largest Lyapunov exponent of a forced rod and its Poincare section "
+        "(poincare.csv, lyapunov.csv)",
+    )
+    _common(lyap)
+    _period(lyap)
+    lyap.add_argument("--periods", type=int, required=True, help="forcing periods to run")
+    lyap.add_argument(
+        "--every", type=int, default=1, help="periods between renormalisations (default 1)"
+    )
+    lyap.add_argument(
+        "--discard", type=int, default=0, help="intervals left out of the average (default 0)"
+    )
+
+
+def _period(sub: argparse.ArgumentParser) -> None:
+    sub.add_argument(
+        "--period",
+        metavar="EXPR",
+        help="the forcing period [s], or an expression of the scene's constants, e.g. "
+        "'2*pi/(r*w1)'",
+    )
 
 
 #: The help of sweep's arguments (its SCENE is a sweep file).
@@ -393,6 +447,8 @@ OWN_FOLDER = {
     "modes": "modes",
     "stability": "stability",
     "continue": "continuation",
+    "orbits": "orbits",
+    "lyapunov": "lyapunov",
 }
 
 
@@ -515,6 +571,17 @@ def _stability(args) -> int:
     return 0
 
 
+def _restart_only(args, what: str) -> str:
+    """--restart DIR of ``continue`` or ``orbits``; SceneError if a SCENE, --set or --out is
+    given too (the ``what`` goes on in its own folder with its own scene)."""
+    if args.scene is not None or args.overrides or args.out is not None:
+        raise SceneError(
+            f"{args.command} --restart: give no SCENE, --set or --out (the {what} goes on "
+            "in its own folder with its own scene)"
+        )
+    return args.restart
+
+
 def _continue(args) -> int:
     """``continue``: the branches through the Python API; a line per branch (its origin,
     points, λ and the free end's angle ψ at its end, why it ended), one per special point,
@@ -528,12 +595,7 @@ def _continue(args) -> int:
     enabled = None if MPI.COMM_WORLD.rank == 0 and not args.quiet else False
     bar = ContinuationProgress(args.max_points or 200, enabled=enabled)
     if args.restart is not None:
-        if args.scene is not None or args.overrides or args.out is not None:
-            raise SceneError(
-                "continue --restart: give no SCENE, --set or --out (the continuation goes on "
-                "in its own folder with its own scene)"
-            )
-        out = args.restart
+        out = _restart_only(args, "continuation")
         result = api.continuation(
             None, max_points=args.max_points, restart=out, branch=args.branch, progress=bar
         )
@@ -567,6 +629,141 @@ def _continue(args) -> int:
                 note = f" ({point.note})" if point.note else ""
                 _say(f"  {point.kind} point at load factor {point.factor:.10g}{note}")
         _say(f"-> {Path(out) / 'branches.csv'}")
+    return 0
+
+
+def _orbits(args) -> int:
+    """``orbits``: one orbit and its multipliers, or with a range the branch (or
+    ``--restart DIR``) through the Python API; a line per special point and why the branch
+    ended (on stderr too unless it reached the range's end)."""
+    from mpi4py import MPI
+
+    from cosserat_fem import api
+    from cosserat_fem.analysis.orbit_runs import SUMMARY, OrbitProgress
+
+    root = MPI.COMM_WORLD.rank == 0
+    ranged = (args.parameter, args.start, args.end)
+    if args.restart is None and all(v is None for v in ranged):
+        return _one_orbit(args)
+    enabled = None if root and not args.quiet else False
+    bar = OrbitProgress(args.max_points or 300, enabled=enabled)
+    try:
+        if args.restart is not None:
+            out = _restart_only(args, "branch")
+            branch, summary = api.orbits(
+                None, max_points=args.max_points, restart=out, progress=bar
+            )
+        else:
+            for value, flag in zip(ranged, ("--parameter", "--from", "--to"), strict=True):
+                if value is None:
+                    raise SceneError(f"orbits {flag}: give --parameter, --from and --to")
+            if args.scene is None:
+                raise SceneError("orbits: give a SCENE file, or --restart DIR")
+            scene = api.load(args.scene, args.overrides)
+            out = _out(args, scene)
+            branch, summary = api.orbits(
+                scene,
+                args.period,
+                args.parameter,
+                args.start,
+                args.end,
+                settle=args.settle,
+                steps_per_period=args.steps_per_period,
+                step=args.step,
+                max_step=args.max_step,
+                max_points=args.max_points,
+                out=out,
+                progress=bar,
+            )
+    finally:
+        bar.close()
+    if root:
+        if not summary["reason"].startswith("p reached"):
+            print(f"cosserat-fem: orbits: the branch ended: {summary['reason']}", file=sys.stderr)
+        if not args.quiet:
+            last = branch.points[-1]
+            _say(
+                f"cosserat-fem: orbits: {summary['points']} orbits, {summary['steps']} steps "
+                f"({summary['monodromies']} monodromies), to {summary['parameter']} = "
+                f"{last.parameter:.10g}, amplitude {last.amplitude:.6g} m "
+                f"({last.stability}): {summary['reason']}"
+            )
+            for point in summary["special"]:
+                _say(
+                    f"  {point['kind']} point at {summary['parameter']} = "
+                    f"{point['parameter']:.10g}, amplitude {point['amplitude']:.6g} m"
+                )
+            _say(f"-> {Path(out) / 'orbit_branch.csv'}, {Path(out) / SUMMARY}")
+    return 0
+
+
+def _one_orbit(args) -> int:
+    """``orbits SCENE --period EXPR`` without a range: the orbit near rest (after
+    --settle periods), its amplitude and Floquet multipliers; summary.json in --out."""
+    import json
+
+    from mpi4py import MPI
+
+    from cosserat_fem import api
+    from cosserat_fem.analysis.branch_outputs import replace_on_root
+    from cosserat_fem.analysis.orbit_runs import SUMMARY, check_periodic, period_value
+    from cosserat_fem.io.folder_lock import folders_held
+    from cosserat_fem.io.run_folder import prepare_output_dir
+
+    if args.scene is None:
+        raise SceneError("orbits: give a SCENE file, or --restart DIR")
+    scene = api.load(args.scene, args.overrides)
+    if args.period is None:
+        raise SceneError("orbits --period: give the forcing period [s] or its expression")
+    check_periodic(scene, period_value(scene, args.period))
+    comm = MPI.COMM_WORLD
+    with folders_held():
+        folder = prepare_output_dir(Path(_out(args, scene)), comm, "orbits")
+        orbit = api.periodic_orbit(
+            scene, args.period, settle=args.settle, steps_per_period=args.steps_per_period
+        )
+        mu = [[float(m.real), float(m.imag)] for m in orbit.multipliers]
+        summary = {
+            "command": "orbit",
+            "period": orbit.period,
+            "amplitude": orbit.amplitude,
+            "stability": orbit.stability,
+            "iterations": orbit.iterations,
+            "residual": orbit.residual,
+            "multipliers": mu,
+        }
+        replace_on_root(folder / SUMMARY, (json.dumps(summary, indent=1) + "\n").encode(), comm)
+    if comm.rank == 0 and not args.quiet:
+        _say(
+            f"cosserat-fem: orbit: period {orbit.period:.10g} s, amplitude "
+            f"{orbit.amplitude:.6g} m, {orbit.stability}, {orbit.iterations} Newton iterations"
+        )
+        _say(f"{'|mu|':>14} {'Re mu':>14} {'Im mu':>14}")
+        for m in orbit.multipliers[:6]:
+            _say(f"{abs(m):14.8f} {m.real:14.8f} {m.imag:14.8f}")
+        _say(f"-> {folder / SUMMARY}")
+    return 0
+
+
+def _lyapunov(args) -> int:
+    """``lyapunov``: the exponent through the Python API; its value and the files."""
+    from mpi4py import MPI
+
+    from cosserat_fem import api
+
+    if args.period is None:
+        raise SceneError("lyapunov --period: give the forcing period [s] or its expression")
+    scene = api.load(args.scene, args.overrides)
+    out = _out(args, scene)
+    result = api.lyapunov_run(
+        scene, args.period, periods=args.periods, every=args.every, discard=args.discard, out=out
+    )
+    if MPI.COMM_WORLD.rank == 0 and not args.quiet:
+        _say(
+            f"cosserat-fem: lyapunov: largest exponent {result.exponent:.8g} 1/s over "
+            f"{result.times.size} intervals ({result.discard} discarded)"
+        )
+        _say("-> " + ", ".join(str(p) for p in result.files))
     return 0
 
 
@@ -701,6 +898,10 @@ def _main(args) -> int:
             return _continue(args)
         if args.command == "sweep":
             return _sweep(args)
+        if args.command == "orbits":
+            return _orbits(args)
+        if args.command == "lyapunov":
+            return _lyapunov(args)
         if args.command == "pod":
             return _pod(args)
     except SceneError as exc:

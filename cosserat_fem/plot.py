@@ -1,7 +1,9 @@
 """``cosserat-fem plot RUN_DIR``: PNG figures of any run, with matplotlib (Agg, no screen).
 
 A continuation's folder (branches.csv) gets ``bifurcation.png``, the bifurcation diagram
-(:func:`plot_branches`). A sweep's folder (cosserat_fem/studies/sweep_run.py) gets
+(:func:`plot_branches`); an orbit branch's (orbit_branch.csv) ``orbit_branch.png``
+(:func:`plot_orbit_branch`), a Lyapunov run's (lyapunov.csv) ``lyapunov.png``
+(:func:`plot_lyapunov`). A sweep's folder (cosserat_fem/studies/sweep_run.py) gets
 ``sweep.png``: each member's largest
 free-end displacements and angles against the varied key (:func:`plot_sweep`), and a frequency
 response's also ``response.png``: amplitudes and phases against the forcing's key, a curve per
@@ -570,6 +572,158 @@ def plot_branches(
     return _save(fig, target / "bifurcation.png")
 
 
+#: An orbit branch's folder holds it (cosserat_fem/analysis/orbit_runs.py; its columns
+#: cosserat_fem/analysis/periodic.py's ORBIT_COLUMNS).
+ORBIT_BRANCH = "orbit_branch.csv"
+#: A Lyapunov run's folder holds it (cosserat_fem/analysis/orbit_runs.py): time, stretch,
+#: running exponent.
+LYAPUNOV = "lyapunov.csv"
+#: Markers of an orbit branch's special points by kind; any other kind: "x".
+ORBIT_MARKERS = {"limit": "s", "period-doubling": "^", "torus": "D", "bifurcation": "v"}
+#: The kinds of an orbit branch's points that are points of the branch (not located ones).
+BRANCH_POINTS = ("start", "regular", "end")
+
+
+def _csv_table(path: Path, needed: tuple[str, ...]) -> tuple[list[str], list[list[str]]]:
+    """(header, rows) of a small CSV file of ours; SceneError naming the file if it cannot
+    be read, lacks a ``needed`` column, or a row has not as many values as the header."""
+    from cosserat_fem.common.safe_files import read_text
+
+    name = str(path)
+    try:
+        lines = [ln for ln in read_text(path, 1 << 30).splitlines() if ln.strip()]
+    except (OSError, ValueError) as exc:
+        raise SceneError(f"plot: cannot read {name!r} ({exc})") from None
+    header = lines[0].split(",") if lines else []
+    for column in needed:
+        if column not in header:
+            raise SceneError(f"plot: {name!r} has no column {column!r}")
+    rows = [line.split(",") for line in lines[1:]]
+    for number, row in enumerate(rows, start=2):
+        if len(row) != len(header):
+            raise SceneError(f"plot: {name!r} line {number}: {len(row)} values, not {len(header)}")
+    if not rows:
+        raise SceneError(f"plot: {name!r} holds no point")
+    return header, rows
+
+
+def _finite(text: str, path: Path, number: int, blank_ok: bool = False) -> float:
+    if blank_ok and text == "":
+        return math.nan
+    try:
+        value = float(text)
+    except ValueError:
+        raise SceneError(f"plot: {str(path)!r} line {number}: not a number") from None
+    if not math.isfinite(value):
+        raise SceneError(f"plot: {str(path)!r} line {number}: not a finite number")
+    return value
+
+
+def plot_orbit_branch(directory: str | Path, out: str | Path | None = None) -> Path:
+    """orbit_branch.png of the orbit branch in ``directory`` (its orbit_branch.csv): the
+    amplitude [m] against the parameter p, the points joined in the order traced (the
+    engine's step beyond the range's end left out: :func:`_within_range`), a segment
+    solid where its end orbit is stable and dashed where it is not (whatever way: "fold",
+    "period-doubling", "torus"), and the located special points marked by kind
+    (:data:`ORBIT_MARKERS`; a kind not named there with "x"), labelled by their kind."""
+    directory = Path(directory)
+    path = directory / ORBIT_BRANCH
+    header, rows = _csv_table(path, ("parameter", "amplitude", "stability", "point"))
+    at = {c: header.index(c) for c in ("parameter", "amplitude", "stability", "point")}
+    points = []
+    for number, row in enumerate(rows, start=2):
+        p = _finite(row[at["parameter"]], path, number)
+        a = _finite(row[at["amplitude"]], path, number)
+        points.append((p, a, row[at["stability"]], row[at["point"]]))
+    target = output_folder(out, directory, "plot")
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=SURFACE_SIZE)
+    branch = _within_range([q for q in points if q[3] in BRANCH_POINTS])
+    used: set[str] = set()
+    for q0, q1 in zip(branch, branch[1:], strict=False):
+        stable = q1[2] == "stable"
+        label = "stable" if stable else "unstable"
+        ax.plot(
+            [q0[0], q1[0]],
+            [q0[1], q1[1]],
+            "-" if stable else "--",
+            color="C0",
+            lw=1.2,
+            label=label if label not in used else "_nolegend_",
+        )
+        used.add(label)
+    if len(branch) == 1:
+        ax.plot([branch[0][0]], [branch[0][1]], "o", color="C0", ms=3)
+    for kind in dict.fromkeys(q[3] for q in points if q[3] not in BRANCH_POINTS):
+        found = [q for q in points if q[3] == kind]
+        ax.plot(
+            [q[0] for q in found],
+            [q[1] for q in found],
+            ORBIT_MARKERS.get(kind, "x"),
+            color="k",
+            ms=6,
+            ls="none",
+            label=_label(f"{kind} point"),
+        )
+    name = "p"
+    try:  # the parameter's name, if the folder's summary.json says it
+        name = str(json.loads((directory / SUMMARY).read_text())["parameter"])
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    ax.set_xlabel(_label(f"parameter {name}"))
+    ax.set_ylabel("amplitude [m]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
+    ax.set_title(_label(f"Periodic orbits of {directory.name}"), fontsize=10)
+    fig.tight_layout()
+    return _save(fig, target / "orbit_branch.png")
+
+
+def _within_range(branch: list[tuple]) -> list[tuple]:
+    """An orbit branch's points (p first) without the engine's step beyond the range's end:
+    the point before a last "end" point (the engine's at the bound) when it lies past it."""
+    if len(branch) >= 3 and branch[-1][3] == "end":
+        before, beyond, end = branch[-3][0], branch[-2][0], branch[-1][0]
+        if (beyond - end) * (end - before) > 0:
+            return [*branch[:-2], branch[-1]]
+    return branch
+
+
+def plot_lyapunov(directory: str | Path, out: str | Path | None = None) -> Path:
+    """lyapunov.png of the Lyapunov run in ``directory``: its Poincaré section
+    (poincare.csv) as the return map of the probe's x, x_{j+1} against x_j [m] (one point
+    a period: a period-one orbit is one point, a chaotic one a scattered set), and the
+    running exponent λ_n [1/s] against the time [s] (lyapunov.csv)."""
+    from cosserat_fem.io.poincare import POINCARE, read_poincare
+
+    directory = Path(directory)
+    path = directory / LYAPUNOV
+    header, rows = _csv_table(path, ("time", "running_exponent"))
+    t_at, l_at = header.index("time"), header.index("running_exponent")
+    times, running = [], []
+    for number, row in enumerate(rows, start=2):
+        times.append(_finite(row[t_at], path, number))
+        running.append(_finite(row[l_at], path, number, blank_ok=True))
+    columns, section = read_poincare(directory / POINCARE)
+    x = section[:, columns.index("x")] if len(section) else np.zeros(0)
+    target = output_folder(out, directory, "plot")
+    plt = _pyplot()
+    fig, (left, right) = plt.subplots(1, 2, figsize=(HISTORY_SIZE[0], SURFACE_SIZE[1]))
+    left.plot(x[:-1], x[1:], ".", color="C0", ms=3)
+    left.set_xlabel("x at period j [m]")
+    left.set_ylabel("x at period j + 1 [m]")
+    left.set_title("Poincaré section: return map of x", fontsize=10)
+    left.grid(alpha=0.3)
+    right.plot(times, running, "-", color="C1", lw=1.2)
+    right.axhline(0.0, color="k", lw=0.6)
+    right.set_xlabel("t [s]")
+    right.set_ylabel("running exponent [1/s]")
+    right.set_title("Largest Lyapunov exponent", fontsize=10)
+    right.grid(alpha=0.3)
+    fig.tight_layout()
+    return _save(fig, target / "lyapunov.png")
+
+
 def plot_run(
     directory: str | Path, out: str | Path | None = None, column: str = "norm"
 ) -> list[Path]:
@@ -583,6 +737,10 @@ def plot_run(
         return plot_sweep(directory, out)
     if (Path(directory) / BRANCHES).is_file():
         return [plot_branches(directory, out, column)]
+    if (Path(directory) / ORBIT_BRANCH).is_file():
+        return [plot_orbit_branch(directory, out)]
+    if (Path(directory) / LYAPUNOV).is_file():
+        return [plot_lyapunov(directory, out)]
     run = open_run(directory, "plot")
     rows = run.probes is not None and len(run.probes) > 0
     series = None

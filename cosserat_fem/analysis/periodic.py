@@ -718,6 +718,50 @@ class _Weighted:
         return self.weight * self.shooting.dot(a, b)
 
 
+def orbit_engine(shooting: Shooting, weight: float, settings, watch=None):
+    """The continuation engine (cosserat_fem/nls/arclength.py) on ``shooting``'s problem in
+    the metric of weight w (:func:`trace_orbits`), with the Floquet test functions
+    (:func:`floquet_tests`) of the multipliers in ``shooting.records`` and ``watch`` as its
+    ``stop`` hook: :func:`trace_orbits`'s, and a restarted branch's
+    (cosserat_fem/analysis/orbit_runs.py)."""
+    from cosserat_fem.nls.arclength import Continuation
+
+    records = shooting.records
+    assert records is not None, "the shooting's records are kept while a branch is traced"
+
+    def multipliers(q) -> np.ndarray:
+        return records[(float(q.p), q.u.tobytes())][1]
+
+    return Continuation(
+        _Weighted(shooting, weight), settings, watch, tests=floquet_tests(multipliers)
+    )
+
+
+def orbit_point(records: dict, q) -> OrbitPoint:
+    """The engine's point ``q`` as an orbit: its amplitude and multipliers from the monodromy
+    computed there (``records``: (p, u's bytes) → (amplitude, multipliers))."""
+    amplitude, mu = records[(float(q.p), q.u.tobytes())]
+    return OrbitPoint(q.p, amplitude, mu, classify(mu), q.t_p, q.det_sign, q.kind, q.u.copy())
+
+
+def as_orbit_branch(shooting: Shooting, branch, kept: int = 1, rejected: int = 0) -> OrbitBranch:
+    """The engine's ``branch`` as an :class:`OrbitBranch`: its points and special points as
+    orbits (:func:`orbit_point`), a root of the torus test at which no complex pair is on
+    the circle (a neutral saddle, :func:`is_torus`) dropped; the steps counted beyond the
+    ``kept`` points it started with and the ``rejected`` steps it had."""
+    records = shooting.records
+    assert records is not None, "the shooting's records are kept while a branch is traced"
+    special = [orbit_point(records, q) for q in branch.special]
+    return OrbitBranch(
+        [orbit_point(records, q) for q in branch.points],
+        [q for q in special if q.kind != "torus" or is_torus(q.multipliers)],
+        branch.reason,
+        len(branch.points) - kept,
+        branch.steps_rejected - rejected,
+        shooting.monodromies,
+    )
+
+
 def trace_orbits(
     shooting: Shooting,
     guess: np.ndarray,
@@ -725,6 +769,7 @@ def trace_orbits(
     end: float,
     settings=None,
     scale: float = 4.0,
+    observer=None,
 ) -> OrbitBranch:
     """The branch of periodic orbits from the one near ``guess`` at p = ``start`` to p =
     ``end`` (either side), by the pseudo-arclength engine (cosserat_fem/nls/arclength.py) on
@@ -742,10 +787,12 @@ def trace_orbits(
     4, a 25 mm amplitude range of a 1 m rod weighs as Δp = 0.1. ``settings``: a
     :class:`~cosserat_fem.nls.arclength.ContinuationSettings` (p_min, p_max are set from
     start, end). Each point's multipliers and amplitude are those of the monodromy the engine
-    computed there for its tangent (no extra period)."""
+    computed there for its tangent (no extra period). ``observer(point, weight)``, if given,
+    is told of the engine's first point and of each accepted one as the branch grows (the
+    command line's outputs and restart data: cosserat_fem/analysis/orbit_runs.py)."""
     from dataclasses import replace
 
-    from cosserat_fem.nls.arclength import Continuation, ContinuationSettings, Point
+    from cosserat_fem.nls.arclength import ContinuationSettings
 
     settings = replace(
         settings or ContinuationSettings(),
@@ -759,35 +806,12 @@ def trace_orbits(
         first = shooting.find(guess)
         size = math.sqrt(shooting.dot(first.state, first.state))
         weight = (scale * first.amplitude / shooting.model.length / size) ** 2
-        records = shooting.records
-
-        def multipliers(q: Point) -> np.ndarray:
-            return records[(float(q.p), q.u.tobytes())][1]
-
-        engine = Continuation(
-            _Weighted(shooting, weight), settings, tests=floquet_tests(multipliers)
-        )
+        watch = None if observer is None else (lambda q: observer(q, weight))
+        engine = orbit_engine(shooting, weight, settings, watch)
         direction = 1 if end > start else -1
         origin = engine.start_point(first.state, start, direction)
-        branch = engine.trace(origin, 1)
-
-        def orbit(q: Point) -> OrbitPoint:
-            amplitude, mu = records[(float(q.p), q.u.tobytes())]
-            return OrbitPoint(
-                q.p, amplitude, mu, classify(mu), q.t_p, q.det_sign, q.kind, q.u.copy()
-            )
-
-        return OrbitBranch(
-            [orbit(q) for q in branch.points],
-            [
-                orbit(q)
-                for q in branch.special
-                if q.kind != "torus" or is_torus(multipliers(q))  # not a neutral saddle
-            ],
-            branch.reason,
-            len(branch.points) - 1,
-            branch.steps_rejected,
-            shooting.monodromies,
-        )
+        if observer is not None:
+            observer(origin, weight)
+        return as_orbit_branch(shooting, engine.trace(origin, 1))
     finally:
         shooting.records = None

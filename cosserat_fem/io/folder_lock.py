@@ -49,6 +49,8 @@ LOCK_KEYS = {
     "modes": "output.directory",
     "stability": "output.directory",
     "continue": "output.directory",
+    "orbits": "output.directory",
+    "lyapunov": "output.directory",
 }
 #: Bytes of the holder's record in the lock file (padded with blanks: rewritten in place).
 _RECORD = 1024
