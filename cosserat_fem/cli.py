@@ -222,8 +222,10 @@ def _parser() -> argparse.ArgumentParser:
     _common(sweep, texts=_SWEEP_TEXTS)
     plot = sub.add_parser(
         "plot",
-        help="PNG figures of a run (free-end histories, x(s,t) and y(s,t) surfaces) "
-        "or of a sweep (its members' largest free-end values against the varied key)",
+        help="PNG figures of a run (free-end histories, x(s,t) and y(s,t) surfaces), "
+        "of a sweep (its members' largest free-end values against the varied key; "
+        "bifurcation.png with [sweep.poincare]), of a continuation (bifurcation.png), "
+        "of an orbit branch (orbit_branch.png) or of a Lyapunov run (lyapunov.png)",
     )
     _run_dir(plot)
     plot.add_argument(

@@ -25,8 +25,8 @@ killed run keeps every point found up to its last:
   have taken next (rebuilt from the pseudo-arclength constraint: ``_Recorder._step``), so
   the continued points are an uninterrupted run's to the corrector's tolerance; its new
   rows and frames are appended. The special points located in a part that was killed are
-  lost (they are written at a part's end); a restarted part locates the folds (limit
-  points) on it, not what ``trace_orbits`` adds after the engine.
+  lost (they are written at a part's end); a restarted part locates its own folds, period
+  doublings and tori (the same engine as ``trace_orbits``'s: periodic.py ``orbit_engine``).
 
 **A Lyapunov run's folder** (:func:`lyapunov_run`): ``poincare.csv`` (lyapunov.py),
 ``lyapunov.csv`` (per renormalisation interval: its end time [s], the stretch ln(d/d0), the
