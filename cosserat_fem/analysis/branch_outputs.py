@@ -108,7 +108,7 @@ class BranchOutputs:
         writer = XdmfWriter(path, problem.model, resume=resume)
         try:
             for i, q in enumerate(branch.points[skip:], start=frames):
-                problem.set_state(q.u, q.p)
+                problem.set_state(q.u, q.p, q.chart)
                 writer.write(float(i))
         finally:
             writer.close()
