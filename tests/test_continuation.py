@@ -786,3 +786,35 @@ def test_rolled_about_e1_in_3d_moves_the_chart():
         assert abs(q.tip[3] - k) < 1e-5
     stepping = cf.static(scene)
     assert np.max(np.abs(stepping.probes[-1][1:4] - branch.points[-1].tip[:3])) < 1e-9
+
+
+def test_restart_across_chart_moves_equals_the_whole_branch(tmp_path):
+    """A continuation in 3D cut in two equals the whole one bit for bit, with the chart moved
+    in both parts: the roll-up about e1 of :func:`test_rolled_about_e1_in_3d_moves_the_chart`
+    on 4 P4 elements, cut by max_points = 4 and restarted to λ = 1. The restart data keep each
+    saved point's chart (its nodal quaternions, per rank), so the resumed trace measures the
+    angles from the same frames and performs the same operations: the same λ and the same
+    free-end positions, exactly (the free end's angles are the rod's rotation continued from
+    the branch's first reported point, which for the resumed rows is a later one: they may
+    differ by turns of 2π, so are not compared)."""
+    overrides = {
+        "loads.end.torque": ["turns*2*pi*EI/L", 0, 0],
+        "rod.section.a": 0.06,
+        "rod.section.b": 0.04,
+        "discretisation.planar": "off",
+        "discretisation.elements": 4,
+    }
+    scene = cf.load(ROLLUP, overrides)
+    options = dict(step=0.05, max_step=0.5, switch=0, directions=(1,))
+    whole = cf.continuation(scene, 0.0, 1.0, max_points=40, out=tmp_path / "whole", **options)
+    cut = tmp_path / "cut"
+    first = cf.continuation(scene, 0.0, 1.0, max_points=4, out=cut, **options)
+    second = cf.continuation(None, max_points=40, restart=cut)
+    (w,), (a,), (b,) = whole.branches, first.branches, second.branches
+    assert w.reason == b.reason == "p reached 1"
+    assert a.charts_moved >= 1 and b.charts_moved >= 1
+    assert w.charts_moved >= 3 and not w.special and not b.special
+    assert [q.factor for q in w.points[1:]] == [q.factor for q in b.points]
+    assert all(
+        np.array_equal(p.tip[:3], q.tip[:3]) for p, q in zip(w.points[1:], b.points, strict=True)
+    )
