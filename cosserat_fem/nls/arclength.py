@@ -78,11 +78,13 @@ x_k = (u_k, p_k) with unit tangent t_k. On a move:
 
 * the path x(s) = (u(s), p(s)) becomes (φ(u(s)), p(s)), whose tangent at x_k is
   (J t_u, t_p), J = Dφ(u_k) (computed as the central difference
-  (φ(u_k + ε t_u) − φ(u_k − ε t_u))/2ε, ε = :data:`CHART_EPS`: error O(ε²) = 1e-12). The
+  (φ(u_k + ε t_u) − φ(u_k − ε t_u))/2ε, ε = :data:`CHART_EPS`: error about 1e-10). The
   old predictor x_k + Δs t_k maps to φ(x_k) + Δs (J t_u, t_p) + O(Δs²): so the new unit
   tangent is t' = (J t_u, t_p)/m and the step Δs' = m Δs, m = ‖(J t_u, t_p)‖ in the metric,
   is the same step on the path. The arclength is then measured in the new chart's metric:
-  the step's length on the path does not jump, its number in the two metrics differs by m;
+  the step's length on the path does not jump, its number in the two metrics differs by m
+  (so the step after a move is m Δs even above ``max_step``, which bounds the steps grown
+  in a chart's own metric);
 * the discretised problem in the new chart is not exactly the old one (the rod's frame
   between the nodes is interpolated from the new chart's: charts.py), so φ(u_k) solves it to
   that difference only: the point is corrected at fixed p = p_k (Newton, the constraint
@@ -139,7 +141,8 @@ class ContinuationProblem(Protocol):
 
 
 #: The central difference's step for the chart's Jacobian J t (module docstring, "Charts"):
-#: its error O(ε²) ‖t‖ is 1e-12, below the corrector's tolerance.
+#: its truncation error O(ε²) is 1e-12 and its round-off ε_mach ‖φ(u)‖/ε about 1e-10
+#: relative; J t only orients the new tangent (then computed exactly) and scales the step.
 CHART_EPS = 1e-6
 
 
@@ -530,7 +533,7 @@ class Continuation:
             moved = self._move_chart(branch.points[-1])
             if moved is not None:
                 branch.points[-1], scale = moved
-                step = min(step * scale, st.max_step)
+                step *= scale  # the same step on the path (not capped: module docstring)
                 branch.charts_moved += 1
             branch.step = step
             prev = branch.points[-1]
