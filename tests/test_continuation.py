@@ -818,3 +818,39 @@ def test_restart_across_chart_moves_equals_the_whole_branch(tmp_path):
     assert all(
         np.array_equal(p.tip[:3], q.tip[:3]) for p, q in zip(w.points[1:], b.points, strict=True)
     )
+
+
+@pytest.mark.long
+def test_lee_frame_switches_out_of_its_plane():
+    """Lee's frame (scenes/lee_frame.toml, 20 P3, P = 10 λ, the load point probed) solved in
+    3D buckles out of its plane at P = 1.69299 (tests/test_snap_through.py) and the engine now
+    switches there (before the MUMPS refactorisation fix of RodPath.linearise every step of
+    the switched branch failed: docs/continuation.md). The two directions are mirror images
+    about the frame's plane (y, θ, φ → −y, −θ, −φ at the same λ: the scene's symmetry; to
+    1e-9, the corrector's tolerance with room), they leave the plane (the load point more
+    than 40 sideways, measured 51.7) and the chart moves on them (the members turn out of the
+    plane by more than 0.9 rad: measured |θ| = 0.99 at the load point, one move each)."""
+    scene = cf.load(
+        ROOT / "scenes" / "lee_frame.toml",
+        {"parameters.P": 10.0, "discretisation.elements": 20, "discretisation.degree": 3},
+    )
+    result = cf.continuation(
+        scene,
+        -1.0,
+        1.0,
+        step=0.05,
+        max_step=0.05,
+        max_points=25,
+        switch=1,
+        directions=(1,),
+        probe=144.0,
+    )
+    primary, left, right = result.branches
+    (found,) = [q for q in primary.special if q.kind == "bifurcation"]
+    assert abs(10.0 * found.factor - 1.69299) < 1e-5
+    assert len(left.points) == len(right.points) == 25
+    for a, b in zip(left.points, right.points, strict=True):
+        assert abs(a.factor - b.factor) < 1e-9
+        assert np.max(np.abs(a.tip - np.array([1, -1, 1, -1, 1, -1]) * b.tip)) < 1e-9
+    assert max(abs(q.tip[1]) for q in left.points) > 40.0
+    assert left.charts_moved >= 1 and right.charts_moved >= 1
