@@ -796,7 +796,7 @@ def test_restart_across_chart_moves_equals_the_whole_branch(tmp_path):
     angles from the same frames and performs the same operations: the same λ and the same
     free-end positions, exactly (the free end's angles are the rod's rotation continued from
     the branch's first reported point, which for the resumed rows is a later one: they may
-    differ by turns of 2π, so are not compared)."""
+    differ by turns of 2π, so are not compared). branches.json counts the moves."""
     overrides = {
         "loads.end.torque": ["turns*2*pi*EI/L", 0, 0],
         "rod.section.a": 0.06,
@@ -809,6 +809,8 @@ def test_restart_across_chart_moves_equals_the_whole_branch(tmp_path):
     whole = cf.continuation(scene, 0.0, 1.0, max_points=40, out=tmp_path / "whole", **options)
     cut = tmp_path / "cut"
     first = cf.continuation(scene, 0.0, 1.0, max_points=4, out=cut, **options)
+    (entry,) = json.loads((cut / "branches.json").read_text())
+    assert entry["charts_moved"] == first.branches[0].charts_moved >= 1
     second = cf.continuation(None, max_points=40, restart=cut)
     (w,), (a,), (b,) = whole.branches, first.branches, second.branches
     assert w.reason == b.reason == "p reached 1"

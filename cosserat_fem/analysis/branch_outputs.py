@@ -138,7 +138,8 @@ def write_branch_reasons(
 ) -> None:
     """branches.json at ``path`` (:func:`replace_on_root`): a list, per branch of ``result``
     (a :class:`~cosserat_fem.analysis.paths.PathResult`), of {"branch", "origin", "reason",
-    "points", "steps", "rejected", "xdmf", "approximate"} ("xdmf": the branch's file name,
+    "points", "steps", "rejected", "charts_moved", "xdmf", "approximate"} ("charts_moved":
+    the chart's moves on it, paths.py, 0 without charts; "xdmf": the branch's file name,
     null if ``xdmf`` is false; "approximate": the special points located only approximately,
     "<kind> at load factor <λ>: <note>", cosserat_fem/nls/arclength.py)."""
     rows = [
@@ -149,6 +150,7 @@ def write_branch_reasons(
             "points": len(b.points),
             "steps": b.steps,
             "rejected": b.rejected,
+            "charts_moved": getattr(b, "charts_moved", 0),
             "xdmf": f"branch_{i}.xdmf" if xdmf else None,
             "approximate": [
                 f"{q.kind} at load factor {q.factor!r}: {q.note}" for q in b.special if q.note
