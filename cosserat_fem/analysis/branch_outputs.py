@@ -108,7 +108,10 @@ class BranchOutputs:
         writer = XdmfWriter(path, problem.model, resume=resume)
         try:
             for i, q in enumerate(branch.points[skip:], start=frames):
-                problem.set_state(q.u, q.p, q.chart)
+                if q.chart is None:
+                    problem.set_state(q.u, q.p)
+                else:  # a point of a path with charts (paths.py)
+                    problem.set_state(q.u, q.p, q.chart)
                 writer.write(float(i))
         finally:
             writer.close()
