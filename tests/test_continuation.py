@@ -677,6 +677,16 @@ def strip(ratio: float, elements: int = 8):
     return scene, P, EI_min, EI_max, GJ, L
 
 
+def assert_mirror_images(left, right) -> None:
+    """The two directions of a switched branch are mirror images about the x-z plane: the
+    same λ and (x, −y, z, −θ, ψ, −φ) at each point, to 1e-9 (the corrector's tolerance,
+    1e-10 in the metric, with room)."""
+    assert len(left.points) == len(right.points)
+    for a, b in zip(left.points, right.points, strict=True):
+        assert abs(a.factor - b.factor) < 1e-9
+        assert np.max(np.abs(a.tip - np.array([1, -1, 1, -1, 1, -1]) * b.tip)) < 1e-9
+
+
 def test_lateral_torsional_buckling_of_a_cantilever_strip():
     """A cantilever strip under a tip load in its stiff plane buckles sideways and twists
     (lateral–torsional buckling): on the 3D path (the in-plane bending, θ = φ = 0) det R_u
@@ -728,17 +738,27 @@ def test_lateral_torsional_buckling_of_a_cantilever_strip():
         values[ratio] = 1.0 + excess
         if switch:
             left, right = result.branches[1:]
-            assert len(left.points) == len(right.points) == 7
-            for a, b in zip(left.points, right.points, strict=True):
-                assert abs(a.factor - b.factor) < 1e-9
-                mirror = np.array([1, -1, 1, -1, 1, -1]) * b.tip
-                assert np.max(np.abs(a.tip - mirror)) < 1e-9
+            assert len(left.points) == 7
+            assert_mirror_images(left, right)
             for q in left.points[1:]:
                 assert q.factor > found[0].factor
             assert abs(left.points[-1].tip[1]) > 0.1 * L
     extrapolated = (4.0 * values[40.0] - values[20.0]) / 3.0
     print(f"λ_cr: {values}, extrapolated − 1 = {extrapolated - 1.0:.3g}")
     assert abs(extrapolated - 1.0) < 2e-5, values
+
+
+def rolled_about_e1(elements: int):
+    """scenes/rollup.toml rolled up about e1, its section turned (E c11 = EI), in 3D, on
+    ``elements`` P4 elements."""
+    overrides = {
+        "loads.end.torque": ["turns*2*pi*EI/L", 0, 0],
+        "rod.section.a": 0.06,
+        "rod.section.b": 0.04,
+        "discretisation.planar": "off",
+        "discretisation.elements": elements,
+    }
+    return cf.load(ROLLUP, overrides)
 
 
 def test_rolled_about_e1_in_3d_moves_the_chart():
@@ -760,14 +780,7 @@ def test_rolled_about_e1_in_3d_moves_the_chart():
     * load stepping (``cf.static``, 16 steps, its chart moved at other loads) reaches the
       same state at λ = 1: measured 9e-11 m; asserted 1e-9 (the Newton tolerance, 1e-10,
       and the chart's change of the discretisation above)."""
-    overrides = {
-        "loads.end.torque": ["turns*2*pi*EI/L", 0, 0],
-        "rod.section.a": 0.06,
-        "rod.section.b": 0.04,
-        "discretisation.planar": "off",
-        "discretisation.elements": 10,
-    }
-    scene = cf.load(ROLLUP, overrides)
+    scene = rolled_about_e1(10)
     seen = []
     result = cf.continuation(
         scene, 0.0, 1.0, step=0.05, max_step=0.5, directions=(1,), stop=seen.append
@@ -797,14 +810,7 @@ def test_restart_across_chart_moves_equals_the_whole_branch(tmp_path):
     free-end positions, exactly (the free end's angles are the rod's rotation continued from
     the branch's first reported point, which for the resumed rows is a later one: they may
     differ by turns of 2π, so are not compared). branches.json counts the moves."""
-    overrides = {
-        "loads.end.torque": ["turns*2*pi*EI/L", 0, 0],
-        "rod.section.a": 0.06,
-        "rod.section.b": 0.04,
-        "discretisation.planar": "off",
-        "discretisation.elements": 4,
-    }
-    scene = cf.load(ROLLUP, overrides)
+    scene = rolled_about_e1(4)
     options = dict(step=0.05, max_step=0.5, switch=0, directions=(1,))
     whole = cf.continuation(scene, 0.0, 1.0, max_points=40, out=tmp_path / "whole", **options)
     cut = tmp_path / "cut"
@@ -850,9 +856,7 @@ def test_lee_frame_switches_out_of_its_plane():
     primary, left, right = result.branches
     (found,) = [q for q in primary.special if q.kind == "bifurcation"]
     assert abs(10.0 * found.factor - 1.69299) < 1e-5
-    assert len(left.points) == len(right.points) == 25
-    for a, b in zip(left.points, right.points, strict=True):
-        assert abs(a.factor - b.factor) < 1e-9
-        assert np.max(np.abs(a.tip - np.array([1, -1, 1, -1, 1, -1]) * b.tip)) < 1e-9
+    assert len(left.points) == 25
+    assert_mirror_images(left, right)
     assert max(abs(q.tip[1]) for q in left.points) > 40.0
     assert left.charts_moved >= 1 and right.charts_moved >= 1
