@@ -36,9 +36,14 @@ unchanged at the nodes). The engine re-expresses the branch's last point (nls/ar
 "Charts": corrected at the same λ, its tangent the image J t of the old one, the step scaled
 by ‖J t‖, no sign change of det R_u looked for across the move); each point keeps its
 chart (:attr:`RodPath.chart`, the nodal quaternions), with which its outputs are computed.
-Planar scenes in the x-z plane (the single angle ψ, unbounded in the chart) have no chart
-and nothing moves. The y-z plane (θ alone, singular at ±π/2, and no chart without ψ) is
-refused: solve such a scene in 3D (discretisation.planar = "off").
+A point with some node's θ beyond :data:`CHART_THETA_MAX` in its chart is rejected
+(:meth:`RodPath.inadmissible`; the step halved), so no step crosses θ = ±π/2, where det R_u
+vanishes by the chart alone. So a 3D branch goes on past any rotation, and an out-of-plane
+bifurcation (a strip's lateral–torsional buckling, Lee's frame) is switched onto like any
+other (tests/test_continuation.py). Planar scenes in the x-z plane (the single angle ψ,
+unbounded in the chart) have no chart and nothing moves. The y-z plane (θ alone, singular
+at ±π/2, and no chart without ψ) is refused: solve such a scene in 3D
+(discretisation.planar = "off").
 """
 
 from __future__ import annotations
