@@ -364,8 +364,8 @@ def continuation(
     each branch traced both ways (``directions``: +1 with λ growing first) until λ leaves
     [low, high] (the last point at the bound), ``max_points``, ``stop(point)`` (a reason,
     or None to go on) or a step collapse below ``min_step`` (the reason kept). Steps are
-    arclength in the metric √(RMS(ΔU)² + Δλ²) (U dimensionless: x/ℓ and rad). A planar
-    scene (the x-z plane) only. Returns a
+    arclength in the metric √(RMS(ΔU)² + Δλ²) (U dimensionless: x/ℓ and rad). In 3D the
+    chart of large rotations moves on the path; the y-z plane is refused. Returns a
     :class:`~cosserat_fem.analysis.paths.PathResult`: ``branches``, each with ``points``
     (``factor`` λ, ``tip`` (x, y, z, θ, ψ, φ) of the free end [m, rad], ``norm``,
     ``dfactor`` dλ/ds, ``det_sign``, ``kind``), ``special`` points, ``origin`` and

@@ -108,7 +108,10 @@ class BranchOutputs:
         writer = XdmfWriter(path, problem.model, resume=resume)
         try:
             for i, q in enumerate(branch.points[skip:], start=frames):
-                problem.set_state(q.u, q.p)
+                if q.chart is None:
+                    problem.set_state(q.u, q.p)
+                else:  # a point of a path with charts (paths.py)
+                    problem.set_state(q.u, q.p, q.chart)
                 writer.write(float(i))
         finally:
             writer.close()
@@ -138,7 +141,8 @@ def write_branch_reasons(
 ) -> None:
     """branches.json at ``path`` (:func:`replace_on_root`): a list, per branch of ``result``
     (a :class:`~cosserat_fem.analysis.paths.PathResult`), of {"branch", "origin", "reason",
-    "points", "steps", "rejected", "xdmf", "approximate"} ("xdmf": the branch's file name,
+    "points", "steps", "rejected", "charts_moved", "xdmf", "approximate"} ("charts_moved":
+    the chart's moves on it, paths.py, 0 without charts; "xdmf": the branch's file name,
     null if ``xdmf`` is false; "approximate": the special points located only approximately,
     "<kind> at load factor <λ>: <note>", cosserat_fem/nls/arclength.py)."""
     rows = [
@@ -149,6 +153,7 @@ def write_branch_reasons(
             "points": len(b.points),
             "steps": b.steps,
             "rejected": b.rejected,
+            "charts_moved": getattr(b, "charts_moved", 0),
             "xdmf": f"branch_{i}.xdmf" if xdmf else None,
             "approximate": [
                 f"{q.kind} at load factor {q.factor!r}: {q.note}" for q in b.special if q.note

@@ -9,7 +9,8 @@ point:
                                        branch its end: first_index, step, rejected, direction,
                                        slot
     continuation/branch<i>.rank<r>.npz  rank r's owned entries of u and t_u of the branch's
-    (slot 0; slot 1: .rank<r>.b.npz)    last (at most) three points
+    (slot 0; slot 1: .rank<r>.b.npz)    last (at most) three points, and in 3D their charts
+                                        (the nodal quaternions: paths.py)
 
 Each file is replaced whole (common/safe_files.replace). The arrays of a new end go to the
 slot the JSON does not name, then the JSON is replaced to name it: a kill between the two
@@ -94,6 +95,7 @@ def save_branch_state(
     kept = branch.points[-KEPT:]
     arrays = {f"u{i}": q.u for i, q in enumerate(kept)}
     arrays |= {f"t{i}": q.t_u for i, q in enumerate(kept)}
+    arrays |= {f"q{i}": q.chart for i, q in enumerate(kept) if isinstance(q.chart, np.ndarray)}
     problem = None
     try:
         (folder / FOLDER).mkdir(exist_ok=True)
@@ -167,6 +169,11 @@ def load_branch(folder: Path, record: dict, index: int, comm: MPI.Comm) -> Branc
     if end is None:
         raise SceneError(f"--branch: no branch {index} saved in {str(folder)!r}")
     with np.load(folder / FOLDER / state_file(index, comm.rank, end.get("slot", 0))) as arrays:
+        charts: list = []  # one array per chart (the engine compares them by identity)
+        for i in range(len(end["points"])):
+            chart = arrays[f"q{i}"] if f"q{i}" in arrays else None
+            same = chart is not None and charts and np.array_equal(charts[-1], chart)
+            charts.append(charts[-1] if same else chart)
         points = [
             Point(
                 arrays[f"u{i}"],
@@ -177,6 +184,7 @@ def load_branch(folder: Path, record: dict, index: int, comm: MPI.Comm) -> Branc
                 q["log_det"],
                 q["iterations"],
                 q["kind"],
+                chart=charts[i],
             )
             for i, q in enumerate(end["points"])
         ]

@@ -26,21 +26,24 @@ section force n = R(ψ) C (R(ψ)ᵀ r' − e3) is linear in r', the loads dead).
 positions' error that a predictor makes on a path curved in the state space (the roll-up: x
 and z the sine and cosine of the angle), which otherwise bounds the step by Newton's basin.
 
-**Planar scenes only.** A scene solved in the x-z plane has the single angle ψ, which the
-Euler-angle chart (18) lets grow without bound: no chart, and nothing on the path to move.
-In 3D the chart of large rotations (cosserat_fem/rod/charts.py) moves onto the rod when θ
-nears π/2, which changes the unknowns U and so the path's coordinates in the middle of a
-branch; that is not done on a path yet, so a scene that needs the chart (θ and ψ both solved)
-is refused with the reason (a SceneError naming discretisation.planar). A scene in the y-z
-plane (angle θ) is refused too: θ = ±π/2 is the chart's singular point.
-
-One exception: a rod curved at rest in the x-z plane (bent about e2) under in-plane loads
-(:func:`in_xz_plane`; Lee's frame), which the scene solves in 3D (a curved rod is never
-reduced to a plane). Its primary path stays in the plane, θ = φ = 0 (the out-of-plane
-equations hold with them zero), so the chart is never needed there; its R_u has the
-out-of-plane stiffness too, so a lateral (out-of-plane) bifurcation is located like any
-other. A branch switched onto there leaves the plane: it ends when some node's |θ| reaches
-:data:`THETA_LIMIT` (the reason says so), short of the chart's singularity.
+**Rods in 3D: the chart moves on the path.** A scene solved in 3D (θ and ψ both solved) has
+the chart of large rotations (cosserat_fem/rod/charts.py) from λ = 0 on, as load stepping
+does: the angles are measured from the nodal frames Q, and (:meth:`RodPath.chart_move`)
+before each step, when some node's |θ| exceeds charts.RESET_THETA = 0.9 rad (statics' and
+runs' test, model.chart_move_due), Q moves onto the rod's rotation and the state's angles
+and rates are re-expressed in it (model.reset_chart's maps: directors and positions
+unchanged at the nodes). The engine re-expresses the branch's last point (nls/arclength.py,
+"Charts": corrected at the same λ, its tangent the image J t of the old one, the step scaled
+by ‖J t‖, no sign change of det R_u looked for across the move); each point keeps its
+chart (:attr:`RodPath.chart`, the nodal quaternions), with which its outputs are computed.
+A point with some node's θ beyond :data:`CHART_THETA_MAX` in its chart is rejected
+(:meth:`RodPath.inadmissible`; the step halved), so no step crosses θ = ±π/2, where det R_u
+vanishes by the chart alone. So a 3D branch goes on past any rotation, and an out-of-plane
+bifurcation (a strip's lateral–torsional buckling, Lee's frame) is switched onto like any
+other (tests/test_continuation.py). Planar scenes in the x-z plane (the single angle ψ,
+unbounded in the chart) have no chart and nothing moves. The y-z plane (θ alone, singular
+at ±π/2, and no chart without ψ) is refused: solve such a scene in 3D
+(discretisation.planar = "off").
 """
 
 from __future__ import annotations
@@ -61,35 +64,21 @@ from cosserat_fem.common.errors import SceneError
 from cosserat_fem.common.parallel import agree_and_gather
 from cosserat_fem.nls.arclength import Branch, Continuation, ContinuationSettings, Point
 from cosserat_fem.output.fields import PointProbe, probe_sigma
+from cosserat_fem.rod.checks import cos_theta
 from cosserat_fem.rod.model import build_model
 from cosserat_fem.scene.build import Scene
 
-#: On a rod solved in 3D that starts in the x-z plane (:func:`in_xz_plane`), a branch ends
-#: where some node's |θ| reaches this [rad]: the Euler-angle chart is singular at π/2.
-THETA_LIMIT = 1.2
-
-
-def in_xz_plane(scene: Scene) -> bool:
-    """Whether a scene solved in 3D (a rod curved at rest is never reduced to a plane:
-    Scene.plane) stays in the x-z plane: its reference curve in it (y = 0) and bent about e2
-    (d0_2 = ±e2) at 1001 points, and nothing that leaves the plane (the plane's own test).
-    Then θ = φ = 0 on the path (the out-of-plane equations hold with them zero), far from the
-    chart's singularity θ = ±π/2, so the 3D unknowns need no chart move."""
-    reference = scene.reference
-    if not reference.curved or reference.closed:
-        return False
-    s = np.linspace(0.0, scene.rod.length, 1001)
-    frames = reference.frames(s)
-    return bool(
-        np.all(np.abs(reference.positions(s)[:, 1]) < 1e-12 * scene.rod.length)
-        and np.all(np.abs(np.abs(frames[:, 1, 1]) - 1.0) < 1e-12)
-        and scene._stays_in("x-z")
-    )
+#: A point with some node's θ beyond this [rad] in its chart is not accepted (the engine halves
+#: the step): the chart moves before a step from a point where |θ| > charts.RESET_THETA =
+#: 0.9, so a branch's points keep |cos θ| ≥ cos 1.3 = 0.27, and no step crosses θ = ±π/2,
+#: where det Ma = cos θ (66), and so det R_u, vanishes by the chart alone (measured on the
+#: cantilever rolled about e1 before this check: a spurious "bifurcation" at λ = 0.83).
+CHART_THETA_MAX = 1.3
 
 
 class RodPath:
-    """R(U, λ) = 0 of a planar scene as a :class:`~cosserat_fem.nls.arclength.ContinuationProblem`
-    (module docstring)."""
+    """R(U, λ) = 0 of a scene as a :class:`~cosserat_fem.nls.arclength.ContinuationProblem`
+    with charts (module docstring)."""
 
     def __init__(self, scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, probe: float | None = None):
         """``probe``: the arclength s [m] of the point whose (x, y, z, θ, ψ, φ) the path
@@ -98,27 +87,27 @@ class RodPath:
         check_static_scene(scene, "continue")
         self.scene = scene
         self.model = model = build_model(scene, comm)
-        self.in_plane_3d = in_xz_plane(scene)
-        if not self.in_plane_3d and (model.needs_chart or model.layout.index(3) is not None):
+        if model.layout.index(3) is not None and not model.needs_chart:
             raise SceneError(
-                "discretisation.planar: continuation follows rods bent in the x-z plane only "
-                "(a rod in 3D or in the y-z plane meets the Euler-angle chart's singularity "
-                "θ = ±π/2, whose chart move on a path is not done yet)"
+                "discretisation.planar: continuation does not follow a rod in the y-z plane "
+                "(θ alone meets the Euler-angle chart's singularity θ = ±π/2, and a chart "
+                'needs ψ too): solve it in 3D (discretisation.planar = "off")'
             )
+        #: the current chart: the nodal quaternions (local, with ghosts), one array per chart
+        #: (the engine compares charts by identity), or None (a planar scene)
+        self.chart: np.ndarray | None = None
+        self.charts_moved = 0
+        if model.needs_chart:
+            model.use_chart()  # before the solver's forms: they carry it (statics.py)
+            assert model.chart is not None
+            self.chart = model.chart.x.array.copy()
         self.comm = comm
         self.solver = solver = static_solver(scene, model)
         V = model.U.function_space
         self.owned = V.dofmap.index_map.size_local * V.dofmap.index_map_bs
         self.size = model.global_dofs()
-        self.ksp = PETSc.KSP().create(comm)
-        self.ksp.setOptionsPrefix("cosserat_path_")
-        self.ksp.setType("preonly")
-        pc = self.ksp.getPC()
-        pc.setType("lu")
-        pc.setFactorSolverType("mumps")
-        self.ksp.setOperators(solver.A)
+        self.ksp = self._new_ksp()
         self._x, self._rhs = solver.A.createVecs()
-        self._factor_ready = False
         self._blocks: tuple[np.ndarray, np.ndarray] | None = None
         self._aij: PETSc.Mat | None = None
         length = scene.rod.length
@@ -127,9 +116,66 @@ class RodPath:
         sigma = probe_sigma(scene) if probe is None else probe / length
         self.probe = PointProbe(model, sigma)
 
+    # -- the chart -------------------------------------------------------------------------
+    def use_chart(self, chart: object) -> None:
+        """Measure the angles in ``chart`` (a :attr:`chart` of this path) from now on."""
+        if chart is None or chart is self.chart:
+            return
+        assert isinstance(chart, np.ndarray), "a chart of this path"
+        model = self.model
+        assert model.chart is not None, "a chart was made"
+        model.chart.x.array[:] = chart
+        model.chart_moved = bool(np.any(chart.reshape(-1, 4)[:, 1:] != 0.0)) or model.chart_moved
+        self.chart = chart
+
+    def chart_move(self, u: np.ndarray):
+        """Move the chart onto the rod's rotation in the state u if some node's |θ| exceeds
+        charts.RESET_THETA (model.chart_move_due, the test of statics and runs), and return
+        the map of owned state vectors from the old chart to the new (model.chart_maps:
+        nodewise, so a vector's owned entries map alone); else None. Collective."""
+        model = self.model
+        if model.chart is None:
+            return None
+        U = model.U
+        U.x.array[: self.owned] = u
+        U.x.scatter_forward()
+        if model.chart_move_due(cos_theta(model, U.x.array)) is None:
+            return None
+        Q_new = model.new_chart(U.x.array)
+        state_map = model.chart_maps(Q_new)[0]
+        model.set_chart(Q_new)
+        self.chart = model.chart.x.array.copy()
+        self.charts_moved += 1
+        size, owned = U.x.array.size, self.owned
+
+        def to_new(v: np.ndarray) -> np.ndarray:
+            full = np.zeros(size)
+            full[:owned] = v
+            return state_map(full)[:owned]
+
+        return to_new
+
+    def inadmissible(self, u: np.ndarray) -> str | None:
+        """Why the state u lies too near its chart's singularity θ = ±π/2: some node's
+        cos θ < cos :data:`CHART_THETA_MAX` (model.fork_nodes apart, whose chart does not
+        move), or None. Collective."""
+        model = self.model
+        if model.chart is None:
+            return None
+        cos = cos_theta(model, u).copy()  # u: the owned nodes' entries
+        cos[model.fork_nodes[model.fork_nodes < cos.size]] = 1.0
+        smallest = self.comm.allreduce(float(np.min(cos, initial=1.0)), op=MPI.MIN)
+        if smallest >= math.cos(CHART_THETA_MAX):
+            return None
+        return (
+            f"some node's θ passed {CHART_THETA_MAX} rad in its chart (the chart's "
+            "singularity θ = ±π/2 is near)"
+        )
+
     # -- the state -------------------------------------------------------------------------
-    def set_state(self, u: np.ndarray, p: float) -> None:
-        """U's owned entries = u (ghosts updated), λ = p."""
+    def set_state(self, u: np.ndarray, p: float, chart: object = None) -> None:
+        """U's owned entries = u (ghosts updated), λ = p; in ``chart`` if given."""
+        self.use_chart(chart)
         U = self.model.U
         U.x.array[: self.owned] = u
         U.x.scatter_forward()
@@ -147,7 +193,24 @@ class RodPath:
             raise FloatingPointError("the residual is not finite")
         return values
 
+    def _new_ksp(self) -> PETSc.KSP:
+        """MUMPS' LU of R_u, the determinant asked for (made at the first linearise)."""
+        ksp = PETSc.KSP().create(self.comm)
+        ksp.setOptionsPrefix("cosserat_path_")
+        ksp.setType("preonly")
+        pc = ksp.getPC()
+        pc.setType("lu")
+        pc.setFactorSolverType("mumps")
+        ksp.setOperators(self.solver.A)
+        self._factor_ready = False
+        return ksp
+
     def linearise(self, u: np.ndarray, p: float) -> None:
+        """Assemble and factor R_u at (u, λ = p). A failed factorisation raises a
+        ZeroDivisionError and replaces the solver: PETSc 3.18's MUMPS interface does not
+        factor again after a failure (MatFactorNumeric_MUMPS returns at once while MUMPS's
+        INFOG(1) of the last call is negative), which made every later step of the branch
+        fail."""
         self.set_state(u, p)
         self.solver._jacobian()
         if not self._factor_ready:
@@ -156,6 +219,11 @@ class RodPath:
             pc.getFactorMatrix().setMumpsIcntl(33, 1)  # the determinant
             self._factor_ready = True
         self.ksp.getPC().setUp()  # factor now (KSPSetUp would wait for the next solve)
+        info = self.ksp.getPC().getFactorMatrix().getMumpsInfog(1)
+        if info < 0:
+            self.ksp.destroy()
+            self.ksp = self._new_ksp()
+            raise ZeroDivisionError(f"the LU factorisation failed (MUMPS INFOG(1) = {info})")
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         self._rhs.array[:] = rhs
@@ -238,18 +306,12 @@ class RodPath:
             for obj in (ksp, block, row_is, col_is):
                 obj.destroy()
 
-    def largest_theta(self, u: np.ndarray) -> float:
-        """max |θ| [rad] over the nodes of the state u (0 if θ is not solved)."""
-        slot = self.model.layout.index(3)
-        if slot is None:
-            return 0.0
-        local = u[slot :: self.model.layout.size]
-        return self.comm.allreduce(float(np.max(np.abs(local), initial=0.0)), op=MPI.MAX)
-
     # -- outputs ---------------------------------------------------------------------------
-    def tip(self, u: np.ndarray) -> np.ndarray:
+    def tip(self, u: np.ndarray, chart: object = None) -> np.ndarray:
         """(x, y, z, θ, ψ, φ) [m, rad] at the probe point (default the free end) of the state
-        u."""
+        u (in ``chart`` if given; the angles those of the rod's rotation in the fixed basis,
+        output/fields.py)."""
+        self.use_chart(chart)
         self.model.U.x.array[: self.owned] = u
         self.model.U.x.scatter_forward()
         values = self.probe.values()
@@ -309,6 +371,8 @@ class PathBranch:
     reason: str
     steps: int
     rejected: int
+    #: the chart's moves on it (module docstring)
+    charts_moved: int = 0
 
 
 @dataclass
@@ -329,13 +393,14 @@ class PathResult:
 
 def _path_point(problem: RodPath, point: Point) -> PathPoint:
     norm = math.sqrt(problem.dot(point.u, point.u))
-    tip = problem.tip(point.u)
+    tip = problem.tip(point.u, point.chart)
     return PathPoint(point.p, tip, norm, point.t_p, point.det_sign, point.kind, point.note)
 
 
 def _path_branch(
     problem: RodPath, branch: Branch, origin: str, observer: BranchOutputs | None = None
 ) -> PathBranch:
+    problem.probe.angles.last = None  # the angles continued along this branch from its start
     if observer is not None:
         observer.branch(problem, branch)
     return PathBranch(
@@ -345,6 +410,7 @@ def _path_branch(
         branch.reason,
         len(branch.points) - 1,
         branch.steps_rejected,
+        branch.charts_moved,
     )
 
 
@@ -355,8 +421,7 @@ def path_engine(
     observer: BranchOutputs | None = None,
 ) -> Continuation:
     """The engine on ``problem``, its ``stop`` told of each point as a :class:`PathPoint` and
-    ``observer`` (branch_outputs.py) of each engine point; a branch of a curved rod in the
-    x-z plane solved in 3D ends where |θ| reaches :data:`THETA_LIMIT` (the chart).
+    ``observer`` (branch_outputs.py) of each engine point.
 
     Under MPI the ranks agree after each point: an exception of ``stop`` or of the
     observer's progress on one rank is raised on every rank (common/parallel.agree: its
@@ -364,20 +429,17 @@ def path_engine(
     a collective the others have left."""
     wrapped = None
     comm = problem.comm
-    if stop is not None or observer is not None or problem.in_plane_3d:
+    if stop is not None or observer is not None:
 
         def wrapped(q: Point) -> str | None:
             if observer is not None and engine.branch is not None:
                 observer.save(engine.branch, comm)  # collective, before any user code
-            chart = problem.in_plane_3d and problem.largest_theta(q.u) >= THETA_LIMIT
             point = None if stop is None else _path_point(problem, q)  # collective (the probe)
             error, reason = None, None
             try:
                 if observer is not None:
                     observer.point(q)
-                if chart:
-                    reason = f"|θ| reached {THETA_LIMIT} rad out of the x-z plane (the chart)"
-                elif stop is not None and point is not None:
+                if stop is not None and point is not None:
                     reason = stop(point)
             except Exception as exc:
                 if comm.size == 1:

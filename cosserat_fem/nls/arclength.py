@@ -68,6 +68,43 @@ All are located to |s − s*| ≤ ``locate_tolerance`` (Illinois' bracket), so p
 bracket, the bracket's best estimate is kept instead, its ``note`` "approximate (...)".
 The branch continues from x_{k+1}.
 
+**Charts.** A problem's unknowns may be coordinates in a chart that must move along the path
+(the rod's Euler angles, singular at θ = ±π/2: cosserat_fem/rod/charts.py). Such a problem
+has ``chart`` (its current chart, an object the engine only compares by identity and stores
+in each Point), ``use_chart(chart)`` (go back to a point's chart: a branch traced from a point
+of an earlier one) and ``chart_move(u)``: None, or — having moved its chart — the map φ taking
+a state of the old chart to the new one. Before each step the engine asks it at the last point
+x_k = (u_k, p_k) with unit tangent t_k. On a move:
+
+* the path x(s) = (u(s), p(s)) becomes (φ(u(s)), p(s)), whose tangent at x_k is
+  (J t_u, t_p), J = Dφ(u_k) (computed as the central difference
+  (φ(u_k + ε t_u) − φ(u_k − ε t_u))/2ε, ε = :data:`CHART_EPS`: error about 1e-10). The
+  old predictor x_k + Δs t_k maps to φ(x_k) + Δs (J t_u, t_p) + O(Δs²): so the new unit
+  tangent is t' = (J t_u, t_p)/m and the step Δs' = m Δs, m = ‖(J t_u, t_p)‖ in the metric,
+  is the same step on the path. The arclength is then measured in the new chart's metric:
+  the step's length on the path does not jump, its number in the two metrics differs by m
+  (so the step after a move is m Δs even above ``max_step``, which bounds the steps grown
+  in a chart's own metric);
+* the discretised problem in the new chart is not exactly the old one (the rod's frame
+  between the nodes is interpolated from the new chart's: charts.py), so φ(u_k) solves it to
+  that difference only: the point is corrected at fixed p = p_k (Newton, the constraint
+  p = p_k), its tangent computed there (the bordered system, oriented along t') and its
+  det R_u anew. It replaces x_k as the branch's last point (if the correction fails the move
+  is undone and asked again at the next point);
+* sign changes of det R_u and of t_p, and the tests, are looked for between two points of
+  one chart only: across a move det R'_u' = det(R_u) times the determinants of the chart's
+  Jacobian on the unknowns and on the test functions, whose sign the move alone may change
+  (not a bifurcation). Every segment is searched: [x_{k−1}, x_k] in the old chart before
+  the move, [x'_k, x_{k+1}] in the new one after it;
+* the quadratic predictor's history: only through three points of one chart (else the
+  tangent predictor, for the two steps after a move);
+* a chart is itself singular somewhere (the Euler angles at θ = ±π/2, where det R_u changes
+  sign by the chart alone): a problem's ``inadmissible(u)`` names why a corrected point lies
+  too near it, and the step is then halved (a StepFailure), so that a step does not carry
+  the state across the singularity between two moves.
+
+``Branch.charts_moved`` counts the moves. A problem without ``chart_move`` has none.
+
 **Branch switching** at a bifurcation point x*: the null vector φ of R_u(x*) by inverse
 iteration with its factors (``null_iterations`` solves from a fixed pseudo-random start), the
 direction d = (φ, 0) − ⟨(φ, 0), t*⟩ t* orthogonal to the old branch's tangent t* (exact for a
@@ -101,6 +138,12 @@ class ContinuationProblem(Protocol):
     def dot(self, a: np.ndarray, b: np.ndarray) -> float: ...
 
     def determinant(self) -> tuple[float, float]: ...
+
+
+#: The central difference's step for the chart's Jacobian J t (module docstring, "Charts"):
+#: its truncation error O(ε²) is 1e-12 and its round-off ε_mach ‖φ(u)‖/ε about 1e-10
+#: relative; J t only orients the new tangent (then computed exactly) and scales the step.
+CHART_EPS = 1e-6
 
 
 class StepFailure(RuntimeError):
@@ -151,6 +194,9 @@ class Point:
     #: ``locate_tolerance``): the corrector failed inside the bracket, which was then left
     #: with its best estimate (:meth:`Continuation._locate`)
     note: str = ""
+    #: the chart u is a coordinate of (the problem's ``chart``, opaque to the engine; None
+    #: for a problem without charts: module docstring, "Charts")
+    chart: object = None
 
 
 @dataclass
@@ -169,6 +215,8 @@ class Branch:
     #: the index along the branch of ``points[0]`` (> 0 for a branch resumed from its last
     #: points: :meth:`Continuation.resume`)
     first_index: int = 0
+    #: the chart's moves made on it (module docstring, "Charts")
+    charts_moved: int = 0
 
 
 class Continuation:
@@ -195,6 +243,50 @@ class Continuation:
     # -- the metric ------------------------------------------------------------------------
     def _dot(self, a_u: np.ndarray, a_p: float, b_u: np.ndarray, b_p: float) -> float:
         return self.problem.dot(a_u, b_u) + a_p * b_p
+
+    # -- charts --------------------------------------------------------------------------
+    def _chart(self) -> object:
+        """The problem's current chart (None without charts)."""
+        return getattr(self.problem, "chart", None)
+
+    def _use_chart(self, point: Point) -> None:
+        """Put the problem in the chart of ``point`` (a branch traced from a point of an
+        earlier chart: the other direction, a switch)."""
+        use = getattr(self.problem, "use_chart", None)
+        if use is not None and point.chart is not self._chart():
+            use(point.chart)
+
+    def _move_chart(self, point: Point) -> tuple[Point, float] | None:
+        """The point re-charted and the step's scale |J t| if the problem's ``chart_move``
+        moves its chart at ``point`` (module docstring, "Charts"), else None. A move whose
+        re-correction fails is undone (tried again at the next point)."""
+        move = getattr(self.problem, "chart_move", None)
+        if move is None:
+            return None
+        old = self._chart()
+        to_new = move(point.u)
+        if to_new is None:
+            return None
+        eps = CHART_EPS
+        J_t = (to_new(point.u + eps * point.t_u) - to_new(point.u - eps * point.t_u)) / (2 * eps)
+        scale = math.sqrt(self._dot(J_t, point.t_p, J_t, point.t_p))
+        zero = np.zeros_like(point.u)
+        try:
+            u, p, its = self.correct(to_new(point.u), point.p, zero, 1.0, point.p)
+            t_u, t_p, sign, log_det = self._tangent_and_det(u, p, J_t / scale, point.t_p / scale)
+        except (StepFailure, ArithmeticError, RuntimeError):
+            self._use_chart(Point(point.u, point.p, point.t_u, point.t_p, 1.0, 0.0, chart=old))
+            return None
+        moved = Point(u, p, t_u, t_p, sign, log_det, its, point.kind, chart=self._chart())
+        return moved, scale
+
+    def _admissible(self, u: np.ndarray) -> None:
+        """StepFailure if the problem's ``inadmissible(u)`` gives a reason (a point too near
+        its chart's singularity: module docstring, "Charts")."""
+        check = getattr(self.problem, "inadmissible", None)
+        reason = None if check is None else check(u)
+        if reason:
+            raise StepFailure(reason)
 
     # -- one corrected point -------------------------------------------------------------
     def _tangent_and_det(self, u: np.ndarray, p: float, t_u: np.ndarray, t_p: float):
@@ -260,11 +352,12 @@ class Continuation:
         u0 = self._refined(u0, p0)
         value = self._dot(base.t_u, base.t_p, u0, p0)
         u, p, its = self.correct(u0, p0, base.t_u, base.t_p, value)
+        self._admissible(u)
         try:
             t_u, t_p, sign, log_det = self._tangent_and_det(u, p, base.t_u, base.t_p)
         except (ArithmeticError, RuntimeError) as exc:
             raise StepFailure(f"{type(exc).__name__}: {exc}") from None
-        return Point(u, p, t_u, t_p, sign, log_det, its, kind)
+        return Point(u, p, t_u, t_p, sign, log_det, its, kind, chart=self._chart())
 
     def _refined(self, u: np.ndarray, p: float) -> np.ndarray:
         """The problem's ``refine_prediction(u, p)`` of a predicted u, if it has one and
@@ -303,7 +396,7 @@ class Continuation:
             t_u, t_p, sign, log_det = self._tangent_and_det(u, p, cur.t_u, cur.t_p)
         except (ArithmeticError, RuntimeError) as exc:
             raise StepFailure(f"{type(exc).__name__}: {exc}") from None
-        return Point(u, p, t_u, t_p, sign, log_det, its, "end")
+        return Point(u, p, t_u, t_p, sign, log_det, its, "end", chart=self._chart())
 
     def turn(self, prev: Point, cur: Point) -> float:
         """The angle [rad] a step from ``prev`` to ``cur`` turns by: the larger of the
@@ -321,7 +414,7 @@ class Continuation:
         zero = np.zeros_like(u)
         u, p, its = self.correct(u, p, zero, 1.0, p)
         t_u, t_p, sign, log_det = self._tangent_and_det(u, p, zero, float(direction))
-        return Point(u, p, t_u, t_p, sign, log_det, its, "start")
+        return Point(u, p, t_u, t_p, sign, log_det, its, "start", chart=self._chart())
 
     # -- locating ------------------------------------------------------------------------
     def _locate(
@@ -382,7 +475,8 @@ class Continuation:
         if best is None:
             best = end if end is not None and abs(fb) < abs(fa) else base
         note = f"approximate (bracket {width:.3g} wide: {exc})"
-        fields = {k: getattr(best, k) for k in ("u", "p", "t_u", "t_p", "det_sign", "log_det")}
+        names = ("u", "p", "t_u", "t_p", "det_sign", "log_det", "chart")
+        fields = {k: getattr(best, k) for k in names}
         return Point(**fields, iterations=best.iterations, kind=kind, note=note)
 
     def _special(self, branch: Branch, prev: Point, cur: Point, step: float) -> None:
@@ -418,6 +512,7 @@ class Continuation:
             start.log_det,
             start.iterations,
             start.kind,
+            chart=start.chart,
         )
         branch = Branch(points=[first], direction=direction)
         return self._extend(branch, st.step, search_first)
@@ -433,7 +528,13 @@ class Continuation:
         st = self.settings
         branch.reason = ""
         self.branch = branch
+        self._use_chart(branch.points[-1])
         while True:
+            moved = self._move_chart(branch.points[-1])
+            if moved is not None:
+                branch.points[-1], scale = moved
+                step *= scale  # the same step on the path (not capped: module docstring)
+                branch.charts_moved += 1
             branch.step = step
             prev = branch.points[-1]
             count = branch.first_index + len(branch.points)
@@ -443,8 +544,9 @@ class Continuation:
             checked = count > 1 or search_first
             try:
                 history = None
-                if st.predictor == "quadratic" and count >= 3:
-                    history = (branch.points[-3], branch.points[-2])
+                if st.predictor == "quadratic" and count >= 3 and len(branch.points) >= 3:
+                    if branch.points[-3].chart is prev.chart:  # one chart: module docstring
+                        history = (branch.points[-3], branch.points[-2])
                 cur = self._point_at(prev, step, history=history)
                 turn = self.turn(prev, cur)
                 if checked and turn > st.max_turn:
@@ -493,6 +595,7 @@ class Continuation:
     def null_vector(self, point: Point) -> np.ndarray:
         """φ, ⟨φ, φ⟩ = 1: inverse iteration with the factors of R_u at ``point``."""
         pb = self.problem
+        self._use_chart(point)
         pb.linearise(point.u, point.p)
         v = np.random.default_rng(12345).standard_normal(point.u.shape)
         for _ in range(self.settings.null_iterations):
@@ -516,5 +619,6 @@ class Continuation:
             point.log_det,
             0,
             "bifurcation",
+            chart=point.chart,
         )
         return self.both_ways(start, search_first=False)
