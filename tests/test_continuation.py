@@ -153,7 +153,8 @@ def test_rollup_two_turns_by_continuation():
     and each step grows by max_grow = 4. From the first step, 0.1 in arclength, to λ = 1,
     about 3.3 of arclength, that is 3-4 steps and the one back to the bound: at most 6 steps
     are asserted, none rejected, and fewer than a fifth of load stepping's Newton iterations
-    (32 steps, 254 iterations) in Jacobian assemblies (measured: 4 steps, the last the point at the bound, and 20).
+    (32 steps, 254 iterations) in Jacobian assemblies (measured: 4 steps, the last the point
+    at the bound, and 20).
     Without the refinement, Newton's basin in this stiff rod holds about 0.06 of λ per step
     and continuation takes 17 steps (docs/continuation.md)."""
     overrides = {"parameters.turns": 2, "discretisation.elements": 40}
