@@ -35,6 +35,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
+import scipy.linalg
 from petsc4py import PETSc
 
 from cosserat_fem.common.errors import SceneError, SolverError
@@ -60,6 +61,8 @@ class ReducedSolver(NewtonSolver):
         self.WV = basis.weights[:, None] * self.V  # for q = Vᵀ W (U − U_ref)
         self.q = np.zeros(basis.modes)
         self.Jr = np.zeros((basis.modes, basis.modes))
+        self._Jr_lu: tuple | None = None  # J_r's LU factors (scipy.linalg.lu_factor)
+        self._Vq = np.zeros(n)
         self.reduction_time = 0.0  # seconds spent forming J_r (the k mat-vecs)
         super().__init__(F, U, bcs, settings)
         self.comm = U.function_space.mesh.comm
@@ -89,7 +92,8 @@ class ReducedSolver(NewtonSolver):
         return self.comm.allreduce(local) if self._parallel else local
 
     def _set_state(self) -> None:
-        self._u_owned[:] = self.basis.reference + self.V @ self.q
+        np.dot(self.V, self.q, out=self._Vq)
+        np.add(self.basis.reference, self._Vq, out=self._u_owned)
 
     def _reduced_residual(self) -> np.ndarray:
         """r = Vᵀ F(U) (U = U_ref + V q set), counted and timed as cf_solve counts its own."""
@@ -117,6 +121,11 @@ class ReducedSolver(NewtonSolver):
             self.A.mult(x, y)
             AV[:, j] = y.array
         self.Jr = self._sum(self.DV.T @ AV)
+        self._Jr_lu = None
+        if np.isfinite(self.Jr).all():
+            lu, piv = scipy.linalg.lu_factor(self.Jr, check_finite=False)
+            if np.all(np.abs(np.diag(lu)) > 0):
+                self._Jr_lu = (lu, piv)
         self.reduction_time += time.perf_counter() - t0
 
     def _iterate(self, answer: list) -> None:
@@ -137,11 +146,10 @@ class ReducedSolver(NewtonSolver):
             if st.need_jacobian or s.jacobian == "full":
                 self._reduced_jacobian()
                 st.need_jacobian, st.since = 0, 0
-            try:
-                dq = np.linalg.solve(self.Jr, r)
-            except np.linalg.LinAlgError:
+            if self._Jr_lu is None:  # singular or not finite
                 reason = _REASON.DIVERGED_LINEAR_SOLVE
                 break
+            dq = scipy.linalg.lu_solve(self._Jr_lu, r, check_finite=False)
             self.q = self.q - dq
             self._set_state()
             r = self._reduced_residual()
@@ -150,7 +158,8 @@ class ReducedSolver(NewtonSolver):
                 reason = _REASON.DIVERGED_FNORM_NAN
                 break
             # 2-norms by numpy: U's PETSc vector caches its norm, and U changed under it
-            squares = self._sum(np.array([np.sum((self.V @ dq) ** 2), np.sum(u**2)]))
+            step = self.V @ dq
+            squares = self._sum(np.array([step @ step, u @ u]))
             it += 1
             reason = self._converged(
                 it, (float(np.sqrt(squares[1])), float(np.sqrt(squares[0])), fnorm)
