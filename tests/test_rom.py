@@ -15,10 +15,11 @@ from mpi4py import MPI
 
 import cosserat_fem as cf
 from cosserat_fem.analysis.modal import assemble_modal_problem, solve_eigenproblem
-from cosserat_fem.common.errors import SceneError
+from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.rod.model import build_model
 from cosserat_fem.rom import basis as rb
 from cosserat_fem.rom import galerkin
+from cosserat_fem.timestepping.events import Observer
 from cosserat_fem.timestepping.integrators import _sdirk_tableau
 
 PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
@@ -124,7 +125,9 @@ def test_basis_file_round_trip_and_mismatch(tmp_path):
     bit for bit (npz of float64) and its provenance (tolerance, modes, snapshot count); the
     same file for a scene of 12 elements instead of the paper's is refused in one line naming
     the file and the key that differs; a reduced run on the read basis matches the one on the
-    basis in memory bit for bit (the same arithmetic)."""
+    basis in memory bit for bit (the same arithmetic). The chart's move (what the time loop
+    does when |θ| nears π/2: a new residual form for the solver) stops a reduced run with one
+    line saying why (here forced at the start by an observer)."""
     scene = cf.load(PAPER, SHORT)
     basis, (full,) = rb.train([scene], tolerance=1e-8)
     npz, meta = rb.write_basis(basis, full.model, tmp_path / "paper")
@@ -146,6 +149,14 @@ def test_basis_file_round_trip_and_mismatch(tmp_path):
     assert np.array_equal(from_file.probes, in_memory.probes)
     error = rb.relative_l2(in_memory.probes[:, 1:4], full.probes[:, 1:4])
     assert error <= ERROR_CONSTANT * math.sqrt(basis.energy_left_out())
+
+    class MoveChart(Observer):
+        def started(self, loop):
+            loop.solver.set_form(loop.integrator.residual_form())
+
+    with pytest.raises(SolverError) as stopped:
+        galerkin.run(scene, basis, observers=[MoveChart()])
+    assert "\n" not in str(stopped.value) and "chart" in str(stopped.value)
 
 
 MPI_SCRIPT = """

@@ -80,11 +80,10 @@ class ReducedSolver(NewtonSolver):
     def set_form(self, F) -> None:
         """A new residual form is the chart moving (cosserat_fem/timestepping/loop.py): refused."""
         raise SolverError(
-            time=float("nan"),
-            where="the Euler-angle chart",
-            reason="the rotations reached the chart's limit (|θ| near π/2): the chart change "
-            "maps the state off the reduced basis (large rotations are not reduced yet)",
-            suggestion="run the full model (cf.run), docs/rom.md 'Large rotations'",
+            "the rotations reached the Euler-angle chart's limit (|θ| near π/2): the chart "
+            "change maps the state off the reduced basis (large rotations are not reduced yet)",
+            where="reduced run",
+            suggestion="run the full model (cf.run); docs/rom.md §9",
         )
 
     # -- the reduced iteration ----------------------------------------------------------------
