@@ -69,6 +69,8 @@ LAYERS: list[tuple[str, tuple[str, ...]]] = [
     ("files", ("output.",)),
     ("run", ("analysis.",)),
     ("studies", ("studies.",)),
+    # The reduced model (issue 28) runs the full model (analysis) and the POD (studies).
+    ("rom", ("rom", "rom.")),
     # The package's __init__ gives the API's names (imported from api on first use).
     ("interface", ("__init__", "api", "cli", "plot", "render")),
 ]

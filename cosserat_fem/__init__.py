@@ -8,7 +8,8 @@ agreement, safe files, JIT), ``io`` (file formats), ``scene``, ``rod`` (the disc
 docs/developers.md maps them. The Python API, ``cosserat_fem.load``, ``run``, ``resume``,
 ``static``, ``modes``, ``stability``, ``stability_at``, ``continuation``, ``periodic_orbit``,
 ``periodic_branch``,
-``lyapunov``, ``load_sweep``, ``sweep`` and ``pod``, is :mod:`cosserat_fem.api`.
+``lyapunov``, ``load_sweep``, ``sweep`` and ``pod``, is :mod:`cosserat_fem.api`; the reduced
+model's, ``cosserat_fem.rom.train``, ``run``, ..., is :mod:`cosserat_fem.rom` (docs/rom.md).
 """
 
 from cosserat_fem.common import pkg_resources_shim
@@ -50,6 +51,10 @@ def __getattr__(name: str):
         from cosserat_fem import api
 
         return getattr(api, name)
+    if name == "rom":  # the reduced model's functions (cosserat_fem/rom/, docs/rom.md)
+        import importlib
+
+        return importlib.import_module("cosserat_fem.rom")
     raise AttributeError(f"module 'cosserat_fem' has no attribute {name!r}")
 
 

@@ -89,6 +89,7 @@ def run_scene(
     record: bool = False,
     fields: Sequence[float] | np.ndarray | None = None,
     field_every: int = 1,
+    solver_factory: Callable | None = None,
 ) -> RunResult:
     """Integrate the scene over its time span (module docstring): the run behind the one
     public ``run``, cosserat_fem/api.py's (``cf.run``, which the command line calls), with
@@ -107,7 +108,8 @@ def run_scene(
     output time. ``record``: keep the probe's rows in memory (``RunResult.probes``);
     ``fields``: stations σ ∈ [0, 1] at which to keep p every ``field_every`` output times.
     The output folder is locked for the run (a second writer there is refused,
-    cosserat_fem/io/run_folder.py).
+    cosserat_fem/io/run_folder.py). ``solver_factory(model, F, bcs, settings)``: the
+    nonlinear solver instead of make_solver's (a reduced model's, cosserat_fem/rom/galerkin.py).
     """
     t_start = time.perf_counter()
     with folders_held():  # the output folder is locked for the run
@@ -130,7 +132,7 @@ def run_scene(
             if restart is not None:  # checked before anything is built or touched
                 xdmf = out / XDMF if scene.output.xdmf else None
                 plan = check_outputs(restart, out / PROBES, xdmf, comm)
-        model, integrator, solver = _discretise(scene, comm, initial_state, restart)
+        model, integrator, solver = _discretise(scene, comm, initial_state, restart, solver_factory)
         probe = PointProbe(model, probe_sigma(scene), fields=scene.output.probe_fields)
         run_id = restart.run_id if restart is not None else new_run_id(comm)
         summary = summary_start(
@@ -285,7 +287,7 @@ def _stations(fields, field_every) -> np.ndarray | None:
     return stations
 
 
-def _discretise(scene: Scene, comm, initial_state, restart):
+def _discretise(scene: Scene, comm, initial_state, restart, solver_factory=None):
     """The model (in its initial state), the integrator and the Newton solver of a run."""
     model = build_model(scene, comm)
     if initial_state is not None:
@@ -315,7 +317,10 @@ def _discretise(scene: Scene, comm, initial_state, restart):
         tspan.integrator, model.U, model.residual, tspan.start * model.omega0, rho_inf=tspan.rho_inf
     )
     settings = NewtonSettings.of(scene.solver)
-    solver = make_solver(integrator.residual_form(), model.U, model.bcs, settings)
+    if solver_factory is None:
+        solver = make_solver(integrator.residual_form(), model.U, model.bcs, settings)
+    else:
+        solver = solver_factory(model, integrator.residual_form(), model.bcs, settings)
     if restart is None:
         integrator.start(model, solver.lu_package)
     return model, integrator, solver

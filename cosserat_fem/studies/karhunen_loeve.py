@@ -205,7 +205,8 @@ def pod(
     mean = values.mean(axis=0) if remove_mean else np.zeros(values.shape[1:])
     scale = np.sqrt(quadrature[:, None] * weights[None, :])  # √(q_j w_c)
     A = ((values - mean) * scale).reshape(count, -1) / math.sqrt(count)
-    U, sigma, Vt = np.linalg.svd(A, full_matrices=False)
+    shapes_all, sigma, U = snapshot_svd(A.T)
+    Vt = shapes_all.T
     energies_all = sigma**2
     total = float(energies_all.sum())
     if not total > 0.0:
@@ -242,6 +243,39 @@ def pod(
         weights=weights,
         quadrature=quadrature,
     )
+
+
+def snapshot_svd(A: np.ndarray, comm=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The thin SVD A = Φ Σ Wᵀ of a weighted snapshot matrix A (rows: the weighted unknowns,
+    √(weight) times the value; columns: the snapshots): (Φ, σ, W), σ decreasing, the energies
+    σ². The one SVD of both POD's: :func:`pod` (the stations' fields) and the reduced basis of
+    cosserat_fem/rom/basis.py (the FE unknowns).
+
+    Under MPI (``comm`` of several ranks; collective) each rank holds its rows of A (its owned
+    unknowns) and gets its rows of Φ: a tall-skinny QR (each rank's A_r = Q_r R_r, the R_r
+    gathered and A's singular values and right vectors taken from the stacked R's, whose SVD
+    is A's: Aᵀ A = Σ_r R_rᵀ R_r), so the small energies keep the accuracy of an SVD (not the
+    round-off of the largest one, as the eigenvalues of the Gram matrix Aᵀ A would);
+    Φ_r = A_r W Σ⁻¹ for the non-zero σ (zero columns where σ = 0)."""
+    if comm is None or comm.size == 1:
+        Phi, sigma, Wt = np.linalg.svd(A, full_matrices=False)
+        return Phi, sigma, Wt.T
+    R = np.linalg.qr(A, mode="r") if A.shape[0] else np.zeros((0, A.shape[1]))
+    stacked = np.vstack(comm.allgather(R))
+    _, sigma, Wt = np.linalg.svd(stacked, full_matrices=False)
+    W = Wt.T
+    inverse = np.divide(1.0, sigma, out=np.zeros_like(sigma), where=sigma > sigma[0] * 1e-14)
+    return A @ W * inverse, sigma, W
+
+
+def modes_for_tolerance(energies: np.ndarray, tolerance: float) -> int:
+    """The fewest modes k ≥ 1 whose energy left out, Σ_{i>k} λ_i / Σ_i λ_i, is at most
+    ``tolerance`` (λ the POD energies, decreasing; all of them if none fewer do)."""
+    energies = np.asarray(energies, dtype=float)
+    total = float(energies.sum())
+    left = (total - np.cumsum(energies)) / total if total > 0 else np.zeros(len(energies))
+    within = np.flatnonzero(left <= tolerance)
+    return int(within[0]) + 1 if within.size else len(energies)
 
 
 # --- snapshots from a run ------------------------------------------------------------------

@@ -99,6 +99,8 @@ INTEGRATION_ONLY: dict[str, str] = {
     # studies
     "studies.karhunen_loeve": "tests/test_pod.py",
     "studies.response": "tests/test_response.py",
+    # rom
+    "rom.galerkin": "tests/test_rom.py",
     "studies.sweep_run": "tests/test_sweep.py tests/test_response.py",
     "studies.sweep_spec": "tests/test_sweep.py tests/test_scene.py",
 }

@@ -1,0 +1,373 @@
+"""The reduced basis of a rod's unknown vector, from snapshots of runs (issue 28, offline part).
+
+Snapshots u_i = U(t_i) − U_ref, i = 1..T, of the FE coefficient vector U (the model's
+12-component field (p, q), or the components of one plane, blocked dofs; the vector the time
+loop's Newton solve iterates on) are collected by :class:`SnapshotCollector`, an observer of the
+time loop's outputs (cosserat_fem/timestepping/events.py), from one run or several. The
+reference U_ref is the rest state (the run's initial state, the same for every run), so the
+Dirichlet dofs, zero in every u_i, are zero in every mode and the reduced state
+U_ref + V q holds them exactly.
+
+**Inner product.** ⟨u, v⟩_W = uᵀ W v, W = diag(m_j w_c): m_j = ∫ φ_j dσ the lumped (row-sum)
+L² mass of dof j's node along σ ∈ [0, 1], and w_c the kinetic weight of its component
+(cosserat_fem/analysis/modal.py: ρAℓ² for p1..p3 = x/ℓ, ρc11, ρc22, ρI3 for θ, ψ, φ; the
+same for the rates q = ṗ). It is the mass inner product of the linearised rod, lumped: its
+norm of q is twice the kinetic energy (per ω0²), so that every component enters in the
+units of energy rather than in the mixed units of U (metres over ℓ, radians), and for a free
+vibration the POD modes are the normal modes (Feeny & Kappagantu 1998; docs/pod.md's
+"kinetic" weighting). Lumped so that W is diagonal: √W scales rows and the POD is one SVD.
+
+**POD.** A = √W [u_1 … u_T] = Φ Σ Ξᵀ (:func:`~cosserat_fem.studies.karhunen_loeve.snapshot_svd`,
+the one SVD of both POD's), the modes v_k = W^{-1/2} φ_k, W-orthonormal (Vᵀ W V = I), the
+energies λ_k = σ_k² (no 1/T, no mean removed: the reduced state is U_ref + V q, not a mean
+plus modes), and the number of modes the fewest whose energy left out,
+ε(k) = Σ_{i>k} λ_i / Σ_i λ_i, is at most the tolerance (docs/rom.md eq. (3)).
+
+Under MPI the rows are distributed as U's (each rank its owned dofs); inner products are
+summed over the ranks. The file (:func:`write_basis`, :func:`read_basis`): an .npz of the
+global arrays (V, U_ref, W's diagonal, the energies) and a .json beside it of their
+provenance (the scene's text and hash, the runs, snapshot times, energies, the tolerance) and
+of the discretisation the rows belong to; a basis of another mesh or space is refused in one
+line (SceneError) naming the file and what differs.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.studies.karhunen_loeve import modes_for_tolerance, snapshot_svd
+from cosserat_fem.timestepping.events import Observer
+
+#: The format's name and version in the .json.
+FORMAT = "cosserat-fem reduced basis 1"
+
+
+@dataclass
+class Basis:
+    """A reduced basis: ``V`` (n_owned, 2k) this rank's rows of the W-orthonormal modes
+    (v_j = (φ_j, 0) for p, then v_{k+j} = (0, φ_j) for its rate q: docs/rom.md (4)),
+    ``reference`` (n_owned,) U_ref, ``weights`` (n_owned,) W's diagonal, ``energies`` (T,)
+    every POD energy λ_i (squares of the singular values), ``space``: the discretisation the
+    rows belong to (:func:`space_of`), ``provenance``: what it was trained on (json)."""
+
+    V: np.ndarray
+    reference: np.ndarray
+    weights: np.ndarray
+    energies: np.ndarray
+    space: dict
+    provenance: dict = field(default_factory=dict)
+    #: The residual rows' test weights D (n_owned,): the kinetic weight of each row's component
+    #: (the rows are balance laws divided by their inertia, (48); Vᵀ D F is the Galerkin
+    #: projection of the symmetric weak form: docs/rom.md (5)). None: D = I.
+    tests: np.ndarray | None = None
+
+    @property
+    def modes(self) -> int:
+        """k, the configuration modes: V has 2k columns, (φ_j, 0) then (0, φ_j)."""
+        return self.V.shape[1] // 2
+
+    def energy_left_out(self, k: int | None = None) -> float:
+        """ε(k) = Σ_{i>k} λ_i / Σ_i λ_i (docs/rom.md eq. (3)), k = the basis's modes."""
+        k = self.modes if k is None else k
+        total = float(self.energies.sum())
+        return float(self.energies[k:].sum() / total) if total > 0 else 0.0
+
+    def truncated(self, k: int) -> Basis:
+        """The first k modes (their energy left out in the provenance)."""
+        if not 1 <= k <= self.modes:
+            raise SceneError(f"modes: must be in [1, {self.modes}], got {k!r}")
+        provenance = {**self.provenance, "modes": k, "energy_left_out": self.energy_left_out(k)}
+        K = self.modes
+        V = np.hstack([self.V[:, :k], self.V[:, K : K + k]])
+        return Basis(
+            V, self.reference, self.weights, self.energies, self.space, provenance, self.tests
+        )
+
+
+def space_of(model) -> dict:
+    """What a basis's rows must match: the scene's elements and degree, the components U
+    holds (the layout) and the global number of dofs."""
+    return {
+        "elements": int(model.msh.topology.index_map(1).size_global),
+        "degree": int(model.V.ufl_element().degree()),
+        "components": [int(c) for c in model.layout.components],
+        "dofs": int(model.global_dofs()),
+    }
+
+
+def owned(model) -> int:
+    """How many of U's local values this rank owns (its rows of a basis)."""
+    imap = model.V.dofmap.index_map
+    return imap.size_local * model.V.dofmap.index_map_bs
+
+
+def kinetic_rows(model, n: int) -> np.ndarray:
+    """The kinetic weight w_c of each of n owned rows' component (p's and its rate's alike)."""
+    from cosserat_fem.analysis.modal import _kinetic_weights
+
+    kinetic = _kinetic_weights(model)
+    w = np.array([float(kinetic[c % 6]) for c in model.layout.components])
+    return np.tile(w, n // len(w))
+
+
+def mass_weights(model) -> np.ndarray:
+    """W's diagonal on this rank's owned dofs (module docstring): the row sums of the L² mass
+    along σ times each component's kinetic weight, the same for p and its rate."""
+    import ufl
+    from dolfinx import fem
+
+    from cosserat_fem.analysis.modal import _kinetic_weights
+
+    kinetic = _kinetic_weights(model)
+    w = [float(kinetic[c % 6]) for c in model.layout.components]
+    v = ufl.TestFunction(model.V)
+    form = fem.form(ufl.inner(ufl.as_vector(w), v) * ufl.dx(domain=model.msh))
+    vector = fem.petsc.assemble_vector(form)
+    vector.ghostUpdate(addv=_add(), mode=_reverse())
+    weights = vector.array.copy()
+    vector.destroy()
+    return weights
+
+
+def _add():
+    from petsc4py import PETSc
+
+    return PETSc.InsertMode.ADD
+
+
+def _reverse():
+    from petsc4py import PETSc
+
+    return PETSc.ScatterMode.REVERSE
+
+
+def state_rows(layout, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of p and of its rate q among n owned rows of U (blocks of the layout's size,
+    p's entries first), paired: q's row i is the rate of p's row i (entry c + 6 of c)."""
+    comps, count = layout.components, layout.p_count
+    if [c + 6 for c in comps[:count]] != list(comps[count:]):
+        raise SceneError(f"layout: the rates do not pair with the components of p ({comps})")
+    entry = np.arange(n) % layout.size
+    return np.flatnonzero(entry < count), np.flatnonzero(entry >= count)
+
+
+class SnapshotCollector(Observer):
+    """Collects U − U_ref (this rank's owned values) at the output steps k with k % ``every``
+    == 0 of one run or several (give the same collector to each run: :func:`collect`). U_ref
+    is the state when the first run started (its ``started`` event). ``runs``: a label per run
+    (for the provenance)."""
+
+    def __init__(self, every: int = 1):
+        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+            raise SceneError(f"every: must be a whole number >= 1, got {every!r}")
+        self.every = every
+        self.columns: list[np.ndarray] = []
+        self.times: list[float] = []
+        self.reference: np.ndarray | None = None
+        self.model = None
+        self.runs = 0
+
+    def started(self, loop) -> None:
+        n = owned(loop.model)
+        state = loop.model.U.x.array[:n]
+        if self.reference is None:
+            self.reference, self.model = state.copy(), loop.model
+        elif self.reference.shape != state.shape or not np.array_equal(self.reference, state):
+            raise SceneError(
+                "snapshots: every run of a basis starts from the same rest state (its reference)"
+            )
+        self.runs += 1
+
+    def output(self, loop, k: int, t: float) -> None:
+        if k % self.every == 0:
+            assert self.reference is not None, "started comes first"
+            n = self.reference.size
+            self.columns.append(loop.model.U.x.array[:n] - self.reference)
+            self.times.append(t)
+
+
+def pod_basis(model, collector: SnapshotCollector, tolerance: float, provenance: dict) -> Basis:
+    """The POD basis of the collected snapshots (module docstring), with the fewest modes whose
+    energy left out is at most ``tolerance`` (collective under MPI)."""
+    if not (isinstance(tolerance, float | int) and 0.0 <= tolerance < 1.0):
+        raise SceneError(f"tolerance: must be a number in [0, 1), got {tolerance!r}")
+    if not collector.columns:
+        raise SceneError("snapshots: none collected (no output step of the runs)")
+    comm = model.msh.comm
+    weights = mass_weights(model)
+    p_rows, q_rows = state_rows(model.layout, len(weights))
+    root = np.sqrt(weights[p_rows])
+    A = np.column_stack(collector.columns)[p_rows] * root[:, None]
+    Phi, sigma, _ = snapshot_svd(A, comm)
+    energies = sigma**2
+    if not (energies.size and energies[0] > 0.0):
+        raise SceneError("snapshots: the state never left its reference: no modes to find")
+    k = modes_for_tolerance(energies, tolerance)
+    shapes = np.divide(
+        Phi[:, :k], root[:, None], out=np.zeros((len(root), k)), where=root[:, None] > 0
+    )
+    for j in range(k):  # the sign: each mode's entry of largest magnitude positive
+        column = shapes[:, j]
+        i = int(np.argmax(np.abs(column))) if column.size else 0
+        local = (float(abs(column[i])), float(column[i])) if column.size else (-1.0, 0.0)
+        if max(comm.allgather(local))[1] < 0:
+            shapes[:, j] *= -1.0
+    V = np.zeros((len(weights), 2 * k))
+    V[p_rows, :k] = shapes
+    V[q_rows, k:] = shapes
+    assert collector.reference is not None
+    provenance = {
+        **provenance,
+        "tolerance": float(tolerance),
+        "modes": k,
+        "energy_left_out": float(energies[k:].sum() / energies.sum()),
+        "snapshots": len(collector.columns),
+        "snapshot_times_s": [float(t) for t in collector.times],
+        "inner_product": "lumped L2 mass along s times the kinetic weights (docs/rom.md)",
+    }
+    tests = kinetic_rows(model, len(weights))
+    return Basis(
+        V, collector.reference.copy(), weights, energies, space_of(model), provenance, tests
+    )
+
+
+def inner(basis_or_weights, u: np.ndarray, v: np.ndarray, comm) -> np.ndarray:
+    """uᵀ W v summed over the ranks (u, v: this rank's owned rows; vectors or matrices)."""
+    weights = basis_or_weights.weights if isinstance(basis_or_weights, Basis) else basis_or_weights
+    local = np.asarray(u).T @ (weights[:, None] * np.asarray(v).reshape(len(weights), -1))
+    return comm.allreduce(local) if comm.size > 1 else local
+
+
+# --- the file -------------------------------------------------------------------------------
+
+
+def _paths(path: str | Path) -> tuple[Path, Path]:
+    path = Path(path)
+    stem = path.with_suffix("") if path.suffix in (".npz", ".json") else path
+    return stem.with_suffix(".npz"), stem.with_suffix(".json")
+
+
+def _node_order(model) -> tuple[np.ndarray, np.ndarray]:
+    """For each owned row, its place in a numbering of U that does not depend on the ranks:
+    (node position σ along the rod, entry of the block), so that a basis written from n ranks
+    is read on m (the dof numbering is the partition's)."""
+    bs = model.V.dofmap.index_map_bs
+    imap = model.V.dofmap.index_map
+    sigma = model.V.tabulate_dof_coordinates()[: imap.size_local, 0]
+    return np.repeat(sigma, bs), np.tile(np.arange(bs), imap.size_local)
+
+
+def write_basis(basis: Basis, model, path: str | Path) -> tuple[Path, Path]:
+    """The basis as path.npz (V, reference, weights, energies: global arrays in the order of
+    the nodes' σ and the block's entries, which no partition decides) and path.json (the
+    format, the space, the provenance); written by rank 0 (collective). Returns both paths."""
+    comm = model.msh.comm
+    sigma, entry = _node_order(model)
+    tests = basis.tests if basis.tests is not None else np.ones_like(basis.weights)
+    parts = comm.gather((sigma, entry, basis.V, basis.reference, basis.weights, tests), root=0)
+    npz, meta = _paths(path)
+    if comm.rank == 0:
+        assert parts is not None
+        s = np.concatenate([p[0] for p in parts])
+        e = np.concatenate([p[1] for p in parts])
+        order = np.lexsort((e, s))
+        V = np.vstack([p[2] for p in parts])[order]
+        reference = np.concatenate([p[3] for p in parts])[order]
+        weights = np.concatenate([p[4] for p in parts])[order]
+        tests = np.concatenate([p[5] for p in parts])[order]
+        npz.parent.mkdir(parents=True, exist_ok=True)
+        np.savez(
+            npz, V=V, reference=reference, weights=weights, tests=tests, energies=basis.energies
+        )
+        document = {"format": FORMAT, "space": basis.space, "provenance": basis.provenance}
+        meta.write_text(json.dumps(document, indent=1) + "\n")
+    comm.barrier()
+    return npz, meta
+
+
+def read_basis(path: str | Path, model) -> Basis:
+    """The basis of :func:`write_basis` for ``model``, each rank its owned rows; a SceneError of
+    one line naming the file if it is missing, not a basis, or of another mesh or space
+    (elements, degree, components, dofs) than the model's (collective)."""
+    npz, meta = _paths(path)
+    try:
+        document = json.loads(meta.read_text())
+        arrays = np.load(npz)
+        data = {name: arrays[name] for name in ("V", "reference", "weights", "tests", "energies")}
+    except (OSError, ValueError, KeyError) as exc:
+        raise SceneError(f"basis {str(npz)!r}: cannot be read ({type(exc).__name__})") from None
+    if not isinstance(document, dict) or document.get("format") != FORMAT:
+        raise SceneError(f"basis {str(meta)!r}: not a reduced basis ({FORMAT!r})")
+    expected, found = space_of(model), document.get("space", {})
+    differ = [k for k in expected if found.get(k) != expected[k]]
+    if differ:
+        name = differ[0]
+        raise SceneError(
+            f"basis {str(npz)!r}: made for {name} = {found.get(name)!r}, the scene has "
+            f"{expected[name]!r} (rebuild the basis for this scene)"
+        )
+    sigma, entry = _node_order(model)
+    # rank-independent order → this rank's rows: the place of (σ, entry) in the sorted order
+    everything = np.vstack(model.msh.comm.allgather(np.column_stack([sigma, entry])))
+    order = np.lexsort((everything[:, 1], everything[:, 0]))
+    place = np.empty(len(order), dtype=int)
+    place[order] = np.arange(len(order))
+    start = sum(model.msh.comm.allgather(len(sigma))[: model.msh.comm.rank])
+    rows = place[start : start + len(sigma)]
+    return Basis(
+        V=data["V"][rows],
+        reference=data["reference"][rows],
+        weights=data["weights"][rows],
+        energies=data["energies"],
+        space=expected,
+        provenance=document.get("provenance", {}),
+        tests=data["tests"][rows],
+    )
+
+
+def scene_provenance(scene) -> dict:
+    """The scene's hash and text for a basis's provenance (the file the scene came from)."""
+    text = None
+    source = getattr(scene, "source", None)
+    if source is not None and Path(str(source)).is_file():
+        text = Path(str(source)).read_text()
+    return {"scene_sha256": getattr(scene, "source_sha256", None), "scene_text": text}
+
+
+def relative_l2(reduced: np.ndarray, full: np.ndarray) -> float:
+    """‖a − b‖₂ / ‖b‖₂ over all rows and columns (a free end's trajectory)."""
+    return math.sqrt(float(np.sum((reduced - full) ** 2)) / float(np.sum(full**2)))
+
+
+def train(scenes, tolerance: float, every: int = 1, record: bool = True):
+    """Run each scene in full (no files) with one :class:`SnapshotCollector` and return the POD
+    basis of all their snapshots (:func:`pod_basis`) and the runs' results. The scenes share
+    the discretisation and the rest state (a sweep's members). Collective."""
+    from cosserat_fem.analysis.simulation import run_scene
+
+    scenes = list(scenes)
+    collector = SnapshotCollector(every)
+    results = [
+        run_scene(scene, write_outputs=False, observers=[collector], record=record)
+        for scene in scenes
+    ]
+    provenance = {
+        **scene_provenance(scenes[0]),
+        "runs": [
+            {
+                "scene_sha256": getattr(s, "source_sha256", None),
+                "title": getattr(s, "title", None),
+                "time_s": [s.time.start, s.time.end],
+                "step_s": s.time.step,
+            }
+            for s in scenes
+        ],
+        "every": every,
+    }
+    return pod_basis(results[0].model, collector, tolerance, provenance), results
