@@ -207,6 +207,27 @@ def stability_at(scene: Scene, factor: float = 1.0, *, count: int = 6):
     return at(scene, factor, count)
 
 
+def _whole(name: str, value, low: int) -> int:
+    """``value`` if it is a whole number >= ``low``, else a SceneError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
+        raise SceneError(f"{name}: must be a whole number >= {low}, got {value!r}")
+    return int(value)
+
+
+def _check_shooting(scene: Scene, settle, steps_per_period, flags: bool = False) -> None:
+    """A shooting request checked before any folder is made: ``settle`` >= 0,
+    ``steps_per_period`` >= 1 (with ``flags``, the command line's flags named too), and the
+    scene's integrator and steps (periodic.shooting_problem)."""
+    from cosserat_fem.analysis.periodic import shooting_problem
+
+    for name, value, low in (("settle", settle, 0), ("steps_per_period", steps_per_period, 1)):
+        flag = f" (--{name.replace('_', '-')})" if flags else ""
+        _whole(name + flag, value, low)
+    problem = shooting_problem(scene, steps_per_period, None)
+    if problem is not None:
+        raise problem
+
+
 def periodic_orbit(
     scene: Scene,
     period: float | str,
@@ -230,9 +251,8 @@ def periodic_orbit(
     same rest."""
     from cosserat_fem.analysis.periodic import Orbit, Shooting
 
-    for name, value, low in (("settle", settle, 0), ("max_iterations", max_iterations, 1)):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
-            raise SceneError(f"{name}: must be a whole number >= {low}, got {value!r}")
+    _check_shooting(scene, settle, steps_per_period)
+    _whole("max_iterations", max_iterations, 1)
     if not (isinstance(tolerance, int | float) and 0.0 < tolerance < 1.0):
         raise SceneError(f"tolerance: must be a number in (0, 1), got {tolerance!r}")
     shooting = Shooting(scene, period, steps_per_period=steps_per_period)
@@ -561,8 +581,7 @@ def _orbit_settings(start, end, step, max_step, scale, settle, max_points, flags
     if step > max_step:
         raise SceneError(f"{name('step')}: must not exceed max_step {max_step!r}, got {step!r}")
     for argument, value, low in (("settle", settle, 0), ("max_points", max_points, 2)):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
-            raise SceneError(f"{name(argument)}: must be a whole number >= {low}, got {value!r}")
+        _whole(name(argument), value, low)
     settings = replace(
         ContinuationSettings(),
         step=step,
@@ -622,6 +641,7 @@ def orbits(
     end = _number("end (--to)", end, False)
     max_points = 300 if max_points is None else max_points
     settings, scale = _orbit_settings(start, end, step, max_step, scale, settle, max_points, True)
+    _check_shooting(scene, settle, steps_per_period, True)
     orbit_runs.check_periodic(scene, orbit_runs.period_value(scene, period, "period (--period)"))
     if parameter not in scene.parameters:
         raise SceneError(
@@ -659,12 +679,21 @@ def lyapunov_run(
     from mpi4py import MPI
 
     from cosserat_fem.analysis import orbit_runs
+    from cosserat_fem.analysis.lyapunov import check_request
     from cosserat_fem.io.run_folder import prepare_output_dir
 
     if not isinstance(scene, Scene):
         raise SceneError(f"scene: must be a Scene (cf.load), got {type(scene).__name__}")
     value = orbit_runs.period_value(scene, period)
     orbit_runs.check_periodic(scene, value)
+    check_request(  # before the folder is made (largest_exponent's defaults)
+        scene,
+        value,
+        periods,
+        options.get("every", 1),
+        options.get("discard", 0),
+        options.get("perturbation"),
+    )
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "lyapunov")
     return orbit_runs.lyapunov_run(scene, value, periods, folder, **options)

@@ -718,6 +718,7 @@ def _one_orbit(args) -> int:
     if args.period is None:
         raise SceneError("orbits --period: give the forcing period [s] or its expression")
     check_periodic(scene, period_value(scene, args.period))
+    api._check_shooting(scene, args.settle, args.steps_per_period, True)
     comm = MPI.COMM_WORLD
     with folders_held():
         folder = prepare_output_dir(Path(_out(args, scene)), comm, "orbits")

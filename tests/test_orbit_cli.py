@@ -226,17 +226,85 @@ def test_one_orbit_and_its_multipliers(tmp_path):
             "loads.force_density: 'F*sin(pi*s/L)*sin(r*w1*t)' is not periodic with --period",
         ),
         (["--period", "2.02*pi/(r*w1)"], "is not periodic with --period"),
+        (
+            [*BRANCH, "--steps-per-period", "0"],
+            "steps_per_period (--steps-per-period): must be a whole number >= 1, got 0",
+        ),
+        (["--period", PERIOD, "--settle", "-1"], "settle (--settle): must be a whole number"),
+        (["--period", PERIOD, "--steps-per-period", "0"], "(--steps-per-period): must be"),
     ],
 )
 def test_bad_orbit_requests_are_one_line(tmp_path, arguments, message):
     """Each bad request: exit 2, one line on stderr naming the flag or key, no traceback,
-    and nothing written in --out."""
+    and no --out folder made (the request is checked before it)."""
     out = tmp_path / "out"
     proc = cli("orbits", str(PAPER), *sets(LINEAR), *arguments, "--out", str(out))
     assert proc.returncode == 2, proc.stderr
     (line,) = proc.stderr.strip().splitlines()
     assert message in line and "Traceback" not in proc.stderr
-    assert not (out / "orbit_branch.csv").exists()
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (["--periods", "0"], "periods: must be a whole number >= 1, got 0"),
+        (["--periods", "3", "--discard", "3"], "discard: 3 leaves none of the 3 intervals"),
+        (["--periods", "3", "--every", "0"], "every: must be a whole number >= 1, got 0"),
+        (["--periods", "3", "--every", "2"], "periods: 3 is not a whole number of intervals"),
+    ],
+)
+def test_bad_lyapunov_requests_make_no_folder(tmp_path, arguments, message):
+    """lyapunov's counts are checked before its --out folder is made: exit 2, one line
+    naming the flag's key, and no folder."""
+    out = tmp_path / "out"
+    proc = cli(
+        "lyapunov", str(PAPER), *sets(LINEAR), "--period", PERIOD, *arguments, "--out", str(out)
+    )
+    assert proc.returncode == 2, proc.stderr
+    (line,) = proc.stderr.strip().splitlines()
+    assert message in line and not out.exists()
+
+
+def test_a_damaged_restart_folder_is_refused_in_one_line(tmp_path):
+    """A branch cut at --max-points 2, then in three copies: its restart arrays missing,
+    its restart arrays not a NumPy file, orbit_branch.csv missing, orbit_branch.csv cut to
+    its first row (the record names 2). Each ``orbits --restart``: exit 2, one line naming
+    --restart and the file, and the copy's orbit_branch.csv as it was (no row lost)."""
+    import shutil
+
+    cut = tmp_path / "cut"
+    base = ["orbits", str(PAPER), *sets(LINEAR), *BRANCH, *STEPS, "--max-points", "2"]
+    assert cli(*base, "--out", str(cut)).returncode == 0
+    table = (cut / "orbit_branch.csv").read_text()
+    arrays = "continuation/branch0.rank0.npz"
+    damages = {
+        "no_arrays": (arrays, None, "branch0.rank0.npz' cannot be read"),
+        "bad_arrays": (arrays, "junk\n", "branch0.rank0.npz' cannot be read"),
+        "no_table": ("orbit_branch.csv", None, "orbit_branch.csv' was not found"),
+        "cut_table": (
+            "orbit_branch.csv",
+            table.splitlines()[0] + "\n" + table.splitlines()[1] + "\n",
+            "holds 1 rows, fewer than the 2 of the saved branch",
+        ),
+    }
+    for name, (path, text, message) in damages.items():
+        folder = tmp_path / name
+        shutil.copytree(cut, folder)
+        (folder / path).unlink()
+        if text is not None:
+            (folder / path).write_text(text)
+        before = (
+            (folder / "orbit_branch.csv").read_bytes()
+            if path != "orbit_branch.csv" or text
+            else None
+        )
+        proc = cli("orbits", "--restart", str(folder), "--max-points", "300")
+        assert proc.returncode == 2, (name, proc.stderr)
+        (line,) = proc.stderr.strip().splitlines()
+        assert "--restart: " in line and message in line, (name, line)
+        if before is not None:
+            assert (folder / "orbit_branch.csv").read_bytes() == before, name
 
 
 def test_a_branch_whose_first_orbit_is_not_found_says_why(tmp_path):

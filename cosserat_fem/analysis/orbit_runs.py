@@ -388,7 +388,7 @@ def resume_orbit_branch(
     appended to its files (module docstring); (the branch from its kept points on, the
     summary)."""
     from cosserat_fem.analysis.periodic import Shooting, as_orbit_branch, orbit_engine
-    from cosserat_fem.common.safe_files import read_on_root
+    from cosserat_fem.common.safe_files import Unreadable, read_on_root
     from cosserat_fem.scene.build import scene_from_dict
 
     clock = time.perf_counter()
@@ -398,7 +398,15 @@ def resume_orbit_branch(
         settings = replace(settings, max_points=max_points)
         record["settings"]["max_points"] = max_points
     scene = scene_from_dict(record["scene"], source=f"{folder}/{FOLDER}/{RECORD}")
-    lines = read_on_root(folder / ORBIT_CSV, 1 << 30, comm).decode().splitlines()
+    try:
+        lines = read_on_root(folder / ORBIT_CSV, 1 << 30, comm).decode().splitlines()
+    except Unreadable as exc:
+        raise SceneError(f"--restart: {str(folder / ORBIT_CSV)!r} {exc}") from None
+    if len(lines) < record["rows"] + 1:  # its rows would be lost: the user's to put back
+        raise SceneError(
+            f"--restart: {str(folder / ORBIT_CSV)!r} holds {max(len(lines) - 1, 0)} rows, "
+            f"fewer than the {record['rows']} of the saved branch"
+        )
     lines = lines[: record["rows"] + 1]
     record["restarts"] += 1
     saved = load_branch(folder, record, 0, comm)

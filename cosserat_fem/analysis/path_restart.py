@@ -168,7 +168,20 @@ def load_branch(folder: Path, record: dict, index: int, comm: MPI.Comm) -> Branc
     end = record["branches"].get(str(index))
     if end is None:
         raise SceneError(f"--branch: no branch {index} saved in {str(folder)!r}")
-    with np.load(folder / FOLDER / state_file(index, comm.rank, end.get("slot", 0))) as arrays:
+    from zipfile import BadZipFile
+
+    from cosserat_fem.common.parallel import agree
+
+    path = folder / FOLDER / state_file(index, comm.rank, end.get("slot", 0))
+    try:
+        arrays = np.load(path)
+        problem = None
+    except (OSError, ValueError, BadZipFile) as exc:  # missing or damaged: every rank refuses alike
+        problem = SceneError(
+            f"--restart: {str(path)!r} cannot be read ({getattr(exc, 'strerror', None) or exc})"
+        )
+    agree(comm, problem)
+    with arrays:
         charts: list = []  # one array per chart (the engine compares them by identity)
         for i in range(len(end["points"])):
             chart = arrays[f"q{i}"] if f"q{i}" in arrays else None
