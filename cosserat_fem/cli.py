@@ -604,6 +604,8 @@ def _continue(args) -> int:
     else:
         if args.scene is None:
             raise SceneError("continue: give a SCENE file, or --restart DIR")
+        if args.branch != -1:
+            raise SceneError("continue --branch: only with --restart DIR (the branch traced on)")
         scene = api.load(args.scene, args.overrides)
         out = _out(args, scene)
         low, high = args.range

@@ -236,6 +236,15 @@ def restart_branch(
     from cosserat_fem.common.safe_files import Unreadable, read_on_root
     from cosserat_fem.scene.build import scene_from_dict
 
+    try:  # a branch that reached its range's end has nothing to trace on
+        ended = json.loads(read_on_root(folder / "branches.json", 1 << 28, comm).decode())
+    except Unreadable:
+        ended = []
+    for entry in ended:
+        if entry.get("branch") == index and str(entry.get("reason")).startswith("p reached"):
+            raise SceneError(
+                f"--restart: branch {index} in {str(folder)!r} already ended: {entry['reason']}"
+            )
     scene = scene_from_dict(record["scene"], source=f"{folder}/{FOLDER}/{INDEX}")
     saved = load_branch(folder, record, index, comm)
     kept = len(saved.points)
