@@ -390,7 +390,9 @@ class TestLyapunov:
         (cosserat_fem/analysis/budget.py: 0.009 s for its 240 steps): refused before any work,
         exit 2, one line naming time.step. Of 20 ms, above that bound but far below the
         run's (its set-up alone takes longer): stopped at the first look at the clock (64
-        steps), exit 4, one line naming limits.wall_time, and summary.json saying so."""
+        steps), exit 4, one line naming limits.wall_time (not advising run --restart, which
+        a Lyapunov run does not have), and summary.json saying so; ``plot`` of that folder
+        one line saying lyapunov.csv was not written and why."""
         _, _, _, overrides, T = case
         common = ["--period", repr(T), "--periods", str(self.PERIODS)]
         refused = cli(
@@ -414,8 +416,12 @@ class TestLyapunov:
         )
         assert proc.returncode == 4, proc.stderr
         assert "limits.wall_time" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+        assert "run --restart" not in proc.stderr and "has no restart" in proc.stderr
         summary = json.loads((tmp_path / "stopped" / "summary.json").read_text())
         assert summary["status"] == "stopped" and "limits.wall_time" in summary["reason"]
+        plot = cli("plot", str(tmp_path / "stopped"))  # no lyapunov.csv: says why, not "a run"
+        assert plot.returncode == 2 and len(plot.stderr.strip().splitlines()) == 1
+        assert "lyapunov.csv' was not written: the Lyapunov run stopped (limits" in plot.stderr
 
 
 @pytest.fixture(scope="module")

@@ -466,7 +466,8 @@ def lyapunov_run(
             replace(scene, time=span), "run", folder, ranks_on_node(comm), comm.size, comm=comm
         )
     wall = scene.limits.wall_time
-    deadline = [DeadlineObserver(clock + wall, wall, comm)] if wall else []
+    advice = "poincare.csv keeps its section so far; a Lyapunov run has no restart: run it again"
+    deadline = [DeadlineObserver(clock + wall, wall, comm, advice=advice)] if wall else []
     observers = [*options.pop("observers", ()), *deadline]
     summary: dict = {"command": "lyapunov", "period": period, "periods": periods}
     try:
