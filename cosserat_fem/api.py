@@ -446,8 +446,12 @@ def continuation(
         p_min=low,
         p_max=high,
     )
-    if probe is not None:
+    if probe is not None:  # checked before the folder is made
         probe = _number("probe (--probe)", probe, False)
+        if not 0.0 <= probe <= scene.rod.length:
+            raise SceneError(
+                f"probe (--probe): must lie in [0, {scene.rod.length!r}] (m), got {probe!r}"
+            )
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "continue")
     observer = BranchOutputs(folder, progress)

@@ -281,7 +281,8 @@ def test_a_finished_branch_is_not_restarted(tmp_path):
     1"; ``continue --restart`` of it: exit 2, one line naming --restart and "already ended",
     and branches.csv byte for byte as it was (before: a restart stepped past the bound again
     and appended a second row at λ = 1). ``--branch`` without ``--restart``: exit 2, one line
-    naming --branch (before: ignored)."""
+    naming --branch (before: ignored); --probe beyond the rod (5 m of 1 m): exit 2, and no
+    --out folder made (before: made, then refused)."""
     out = tmp_path / "rollup"
     command = ["-m", "cosserat_fem.cli", "continue"]
     proc = run_command(
@@ -298,6 +299,9 @@ def test_a_finished_branch_is_not_restarted(tmp_path):
     stray = run_command([*command, str(ROLLUP), "--branch", "0", "--out", str(tmp_path / "b")])
     assert stray.returncode == 2 and stray.stderr.strip().count("\n") == 0, stray.stderr
     assert "--branch" in stray.stderr and not (tmp_path / "b").exists()
+    far = run_command([*command, str(ROLLUP), "--probe", "5", "--out", str(tmp_path / "p")])
+    assert far.returncode == 2 and "probe (--probe): must lie in [0, 1.0]" in far.stderr
+    assert not (tmp_path / "p").exists()  # refused before the folder is made
 
 
 def test_branch_that_cannot_go_on_is_written(tmp_path):
