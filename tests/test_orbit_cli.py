@@ -135,7 +135,9 @@ def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path):
     ..., across the restart, and summary.json the same steps and monodromies in all (the
     restarted part's added to the first's) and restarts = 1. A restart of a branch that
     reached its range's end is refused in one line (exit 2), and so is ``continue
-    --restart`` of the folder (no static continuation's record there)."""
+    --restart`` of the folder (no static continuation's record there), and, before, a
+    restart of the cut branch without --max-points or with --max-points 2 (no point to add;
+    before this was checked it ran, changed nothing but summary.json's restarts, exit 0)."""
     from xdmf_files import read_arrays
 
     whole, cut = tmp_path / "whole", tmp_path / "cut"
@@ -145,6 +147,12 @@ def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path):
     assert first.returncode == 0, first.stderr
     assert "the branch ended: 2 points (max_points)" in first.stderr
     assert len(rows(cut / "orbit_branch.csv")) == 2
+    table = (cut / "orbit_branch.csv").read_bytes()
+    for more in ([], ["--max-points", "2"]):  # no point to add: refused, the files kept
+        idle = cli("orbits", "--restart", str(cut), *more)
+        assert idle.returncode == 2 and len(idle.stderr.strip().splitlines()) == 1
+        assert "--max-points: the orbit branch in " in idle.stderr and "has 2 points" in idle.stderr
+        assert (cut / "orbit_branch.csv").read_bytes() == table
     again = cli("orbits", "--restart", str(cut), "--max-points", "300")
     assert again.returncode == 0, again.stderr
     got = same_rows(cut, whole)

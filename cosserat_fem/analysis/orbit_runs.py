@@ -397,6 +397,11 @@ def resume_orbit_branch(
     if max_points is not None:
         settings = replace(settings, max_points=max_points)
         record["settings"]["max_points"] = max_points
+    if settings.max_points <= record["frames"]:  # nothing to add: say so, change nothing
+        raise SceneError(
+            f"--max-points: the orbit branch in {str(folder)!r} has {record['frames']} points "
+            f"already, max_points = {settings.max_points}; give --max-points above that"
+        )
     scene = scene_from_dict(record["scene"], source=f"{folder}/{FOLDER}/{RECORD}")
     try:
         lines = read_on_root(folder / ORBIT_CSV, 1 << 30, comm).decode().splitlines()
