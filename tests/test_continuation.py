@@ -299,6 +299,14 @@ def test_a_finished_branch_is_not_restarted(tmp_path):
     stray = run_command([*command, str(ROLLUP), "--branch", "0", "--out", str(tmp_path / "b")])
     assert stray.returncode == 2 and stray.stderr.strip().count("\n") == 0, stray.stderr
     assert "--branch" in stray.stderr and not (tmp_path / "b").exists()
+    cut = tmp_path / "cut"
+    three = ["--step", "0.1", "--max-step", "8", "--max-points", "3", "--out", str(cut)]
+    assert run_command([*command, str(ROLLUP), *three]).returncode == 0
+    table = (cut / "branches.csv").read_bytes()
+    idle = run_command([*command, "--restart", str(cut)])  # max_points 3 reached: none to add
+    assert idle.returncode == 2 and idle.stderr.strip().count("\n") == 0, idle.stderr
+    assert "--max-points: branch 0 in " in idle.stderr and "has 3 points" in idle.stderr
+    assert (cut / "branches.csv").read_bytes() == table
     far = run_command([*command, str(ROLLUP), "--probe", "5", "--out", str(tmp_path / "p")])
     assert far.returncode == 2 and "probe (--probe): must lie in [0, 1.0]" in far.stderr
     assert not (tmp_path / "p").exists()  # refused before the folder is made

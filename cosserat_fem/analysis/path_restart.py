@@ -248,6 +248,11 @@ def restart_branch(
     scene = scene_from_dict(record["scene"], source=f"{folder}/{FOLDER}/{INDEX}")
     saved = load_branch(folder, record, index, comm)
     kept = len(saved.points)
+    if settings.max_points <= saved.first_index + kept:  # nothing to add: change nothing
+        raise SceneError(
+            f"--max-points: branch {index} in {str(folder)!r} has {saved.first_index + kept} "
+            f"points already, max_points = {settings.max_points}; give --max-points above that"
+        )
     restarts = int(record.get("restarts", 0)) + 1
     observer = BranchOutputs(folder, progress, resumed=(index, kept, restarts))
     observer._points = saved.first_index + kept
