@@ -584,8 +584,8 @@ def _orbit_settings(start, end, step, max_step, scale, settle, max_points, flags
     scale = _number("scale", scale)
     if step > max_step:
         raise SceneError(f"{name('step')}: must not exceed max_step {max_step!r}, got {step!r}")
-    for argument, value, low in (("settle", settle, 0), ("max_points", max_points, 2)):
-        _whole(name(argument), value, low)
+    _whole(name("settle"), settle, 0)
+    check_max_points(max_points)  # [2, 100000], as a continuation's
     settings = replace(
         ContinuationSettings(),
         step=step,

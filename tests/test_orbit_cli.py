@@ -239,6 +239,7 @@ def test_one_orbit_and_its_multipliers(tmp_path):
             "steps_per_period (--steps-per-period): must be a whole number >= 1, got 0",
         ),
         (["--period", PERIOD, "--settle", "-1"], "settle (--settle): must be a whole number"),
+        ([*BRANCH, "--max-points", "1000000"], "max_points (--max-points): must lie in [2, 1"),
         (["--period", PERIOD, "--steps-per-period", "0"], "(--steps-per-period): must be"),
     ],
 )
