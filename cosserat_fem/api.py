@@ -228,6 +228,34 @@ def _check_shooting(scene: Scene, settle, steps_per_period, flags: bool = False)
         raise problem
 
 
+def _shooting_budget(scene: Scene, period: float, settle: int, steps_per_period: int) -> None:
+    """SceneError naming --settle and --steps-per-period if time-marching ``settle`` + 1
+    periods of ``steps_per_period`` steps, the least a shooting does (its Newton iterations
+    and monodromies take more), exceeds the scene's limits (budget.py, as a run)."""
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from cosserat_fem.analysis import budget
+    from cosserat_fem.common.parallel import ranks_on_node
+
+    comm = MPI.COMM_WORLD
+    end = scene.time.start + (settle + 1) * period
+    span = replace(scene.time, step=period / steps_per_period, end=end, adaptive=False)
+    quiet = replace(scene.output, xdmf=False, checkpoint=False)
+    try:
+        budget.check(
+            replace(scene, time=span, output=quiet),
+            "run",
+            None,
+            ranks_on_node(comm),
+            comm.size,
+            comm=comm,
+        )
+    except SceneError as exc:
+        raise SceneError(f"--settle, --steps-per-period: {exc}") from None
+
+
 def periodic_orbit(
     scene: Scene,
     period: float | str,
@@ -646,7 +674,9 @@ def orbits(
     max_points = 300 if max_points is None else max_points
     settings, scale = _orbit_settings(start, end, step, max_step, scale, settle, max_points, True)
     _check_shooting(scene, settle, steps_per_period, True)
-    orbit_runs.check_periodic(scene, orbit_runs.period_value(scene, period, "period (--period)"))
+    value = orbit_runs.period_value(scene, period, "period (--period)")
+    orbit_runs.check_periodic(scene, value)
+    _shooting_budget(scene, value, settle, steps_per_period)
     if parameter not in scene.parameters:
         raise SceneError(
             f"parameter (--parameter): {parameter!r} is not one of the scene's parameters "

@@ -240,12 +240,19 @@ def test_one_orbit_and_its_multipliers(tmp_path):
         ),
         (["--period", PERIOD, "--settle", "-1"], "settle (--settle): must be a whole number"),
         ([*BRANCH, "--max-points", "1000000"], "max_points (--max-points): must lie in [2, 1"),
+        (  # 1e9 steps a period: hours by the budget's lower bound, over limits.wall_time
+            [*BRANCH, "--steps-per-period", "1000000000", "--set", "limits.wall_time=2"],
+            "--settle, --steps-per-period: time.step: the run needs",
+        ),
+        (["--period", PERIOD, "--settle", "1000000000"], "--settle, --steps-per-period: "),
         (["--period", PERIOD, "--steps-per-period", "0"], "(--steps-per-period): must be"),
     ],
 )
 def test_bad_orbit_requests_are_one_line(tmp_path, arguments, message):
     """Each bad request: exit 2, one line on stderr naming the flag or key, no traceback,
-    and no --out folder made (the request is checked before it)."""
+    and no --out folder made (the request is checked before it). A shooting beyond the
+    scene's limits.wall_time by budget.py's lower bound of its settle + 1 periods is one
+    (before, it ran until killed: orbits has no stop at the wall time)."""
     out = tmp_path / "out"
     proc = cli("orbits", str(PAPER), *sets(LINEAR), *arguments, "--out", str(out))
     assert proc.returncode == 2, proc.stderr
