@@ -613,7 +613,8 @@ def _orbit_settings(start, end, step, max_step, scale, settle, max_points, flags
     if step > max_step:
         raise SceneError(f"{name('step')}: must not exceed max_step {max_step!r}, got {step!r}")
     _whole(name("settle"), settle, 0)
-    check_max_points(max_points)  # [2, 100000], as a continuation's
+    if _whole(name("max_points"), max_points, 2) > 100_000:  # as a continuation's bound
+        raise SceneError(f"{name('max_points')}: must lie in [2, 100000], got {max_points}")
     settings = replace(
         ContinuationSettings(),
         step=step,
