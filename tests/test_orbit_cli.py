@@ -439,6 +439,26 @@ class TestLyapunov:
         assert plot.returncode == 2 and len(plot.stderr.strip().splitlines()) == 1
         assert "lyapunov.csv' was not written: the Lyapunov run stopped (limits" in plot.stderr
 
+    def test_a_failed_run_says_why_in_summary_json(self, case, tmp_path):
+        """solver.max_iterations = 1: the first step's Newton fails (exit 3, one line with the
+        time and place); summary.json says "failed" with that line's reason (before: none
+        written), and ``plot`` of the folder says lyapunov.csv was not written and why."""
+        _, _, _, overrides, T = case
+        out = tmp_path / "failed"
+        proc = cli(
+            "lyapunov",
+            str(PAPER),
+            *sets({**overrides, "solver.max_iterations": 1}),
+            *["--period", repr(T), "--periods", str(self.PERIODS), "--out", str(out)],
+        )
+        assert proc.returncode == 3, proc.stderr
+        (line,) = proc.stderr.strip().splitlines()
+        assert "Newton did not converge" in line and " at t = " in line
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["status"] == "failed" and summary["reason"] in line
+        plot = cli("plot", str(out))
+        assert plot.returncode == 2 and "the Lyapunov run failed (" in plot.stderr
+
 
 @pytest.fixture(scope="module")
 def case(tmp_path_factory):

@@ -479,9 +479,10 @@ def lyapunov_run(
         result = largest_exponent(
             scene, period, periods=periods, out=folder, observers=observers, **options
         )
-    except StopError as exc:
+    except (StopError, SolverError) as exc:  # what stopped it, beside poincare.csv so far
         if folder is not None:
-            summary |= {"status": "stopped", "reason": str(exc)}
+            status = "stopped" if isinstance(exc, StopError) else "failed"
+            summary |= {"status": status, "reason": str(exc)}
             summary["wall_s"] = time.perf_counter() - clock
             text = json.dumps(summary, indent=1) + "\n"
             replace_on_root(folder / SUMMARY, text.encode(), comm)
