@@ -727,9 +727,14 @@ def plot_lyapunov(directory: str | Path, out: str | Path | None = None) -> Path:
 def _refuse_stopped_lyapunov(directory: Path) -> None:
     """SceneError naming lyapunov.csv if ``directory`` holds a Lyapunov run that stopped
     before writing it (summary.json's command "lyapunov", its reason quoted)."""
-    if not (directory / SUMMARY).is_file() or (directory / PROBES).is_file():
+    from cosserat_fem.io.poincare import POINCARE
+
+    if (directory / PROBES).is_file() or not (directory / POINCARE).is_file():
         return
-    summary = read_summary(directory / SUMMARY)
+    try:
+        summary = read_summary(directory / SUMMARY)
+    except SceneError:  # none, or not one: the folder is looked at as a run's
+        return
     if summary.get("command") == "lyapunov":
         raise SceneError(
             f"plot: {str(directory / LYAPUNOV)!r} was not written: the Lyapunov run "
