@@ -207,6 +207,55 @@ def stability_at(scene: Scene, factor: float = 1.0, *, count: int = 6):
     return at(scene, factor, count)
 
 
+def _whole(name: str, value, low: int) -> int:
+    """``value`` if it is a whole number >= ``low``, else a SceneError naming ``name``."""
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
+        raise SceneError(f"{name}: must be a whole number >= {low}, got {value!r}")
+    return int(value)
+
+
+def _check_shooting(scene: Scene, settle, steps_per_period, flags: bool = False) -> None:
+    """A shooting request checked before any folder is made: ``settle`` >= 0,
+    ``steps_per_period`` >= 1 (with ``flags``, the command line's flags named too), and the
+    scene's integrator and steps (periodic.shooting_problem)."""
+    from cosserat_fem.analysis.periodic import shooting_problem
+
+    for name, value, low in (("settle", settle, 0), ("steps_per_period", steps_per_period, 1)):
+        flag = f" (--{name.replace('_', '-')})" if flags else ""
+        _whole(name + flag, value, low)
+    problem = shooting_problem(scene, steps_per_period, None)
+    if problem is not None:
+        raise problem
+
+
+def _shooting_budget(scene: Scene, period: float, settle: int, steps_per_period: int) -> None:
+    """SceneError naming --settle and --steps-per-period if time-marching ``settle`` + 1
+    periods of ``steps_per_period`` steps, the least a shooting does (its Newton iterations
+    and monodromies take more), exceeds the scene's limits (budget.py, as a run)."""
+    from dataclasses import replace
+
+    from mpi4py import MPI
+
+    from cosserat_fem.analysis import budget
+    from cosserat_fem.common.parallel import ranks_on_node
+
+    comm = MPI.COMM_WORLD
+    end = scene.time.start + (settle + 1) * period
+    span = replace(scene.time, step=period / steps_per_period, end=end, adaptive=False)
+    quiet = replace(scene.output, xdmf=False, checkpoint=False)
+    try:
+        budget.check(
+            replace(scene, time=span, output=quiet),
+            "run",
+            None,
+            ranks_on_node(comm),
+            comm.size,
+            comm=comm,
+        )
+    except SceneError as exc:
+        raise SceneError(f"--settle, --steps-per-period: {exc}") from None
+
+
 def periodic_orbit(
     scene: Scene,
     period: float | str,
@@ -230,9 +279,8 @@ def periodic_orbit(
     same rest."""
     from cosserat_fem.analysis.periodic import Orbit, Shooting
 
-    for name, value, low in (("settle", settle, 0), ("max_iterations", max_iterations, 1)):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
-            raise SceneError(f"{name}: must be a whole number >= {low}, got {value!r}")
+    _check_shooting(scene, settle, steps_per_period)
+    _whole("max_iterations", max_iterations, 1)
     if not (isinstance(tolerance, int | float) and 0.0 < tolerance < 1.0):
         raise SceneError(f"tolerance: must be a number in (0, 1), got {tolerance!r}")
     shooting = Shooting(scene, period, steps_per_period=steps_per_period)
@@ -426,8 +474,12 @@ def continuation(
         p_min=low,
         p_max=high,
     )
-    if probe is not None:
+    if probe is not None:  # checked before the folder is made
         probe = _number("probe (--probe)", probe, False)
+        if not 0.0 <= probe <= scene.rod.length:
+            raise SceneError(
+                f"probe (--probe): must lie in [0, {scene.rod.length!r}] (m), got {probe!r}"
+            )
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "continue")
     observer = BranchOutputs(folder, progress)
@@ -560,9 +612,9 @@ def _orbit_settings(start, end, step, max_step, scale, settle, max_points, flags
     scale = _number("scale", scale)
     if step > max_step:
         raise SceneError(f"{name('step')}: must not exceed max_step {max_step!r}, got {step!r}")
-    for argument, value, low in (("settle", settle, 0), ("max_points", max_points, 2)):
-        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
-            raise SceneError(f"{name(argument)}: must be a whole number >= {low}, got {value!r}")
+    _whole(name("settle"), settle, 0)
+    if _whole(name("max_points"), max_points, 2) > 100_000:  # as a continuation's bound
+        raise SceneError(f"{name('max_points')}: must lie in [2, 100000], got {max_points}")
     settings = replace(
         ContinuationSettings(),
         step=step,
@@ -622,7 +674,10 @@ def orbits(
     end = _number("end (--to)", end, False)
     max_points = 300 if max_points is None else max_points
     settings, scale = _orbit_settings(start, end, step, max_step, scale, settle, max_points, True)
-    orbit_runs.check_periodic(scene, orbit_runs.period_value(scene, period, "period (--period)"))
+    _check_shooting(scene, settle, steps_per_period, True)
+    value = orbit_runs.period_value(scene, period, "period (--period)")
+    orbit_runs.check_periodic(scene, value)
+    _shooting_budget(scene, value, settle, steps_per_period)
     if parameter not in scene.parameters:
         raise SceneError(
             f"parameter (--parameter): {parameter!r} is not one of the scene's parameters "
@@ -659,12 +714,21 @@ def lyapunov_run(
     from mpi4py import MPI
 
     from cosserat_fem.analysis import orbit_runs
+    from cosserat_fem.analysis.lyapunov import check_request
     from cosserat_fem.io.run_folder import prepare_output_dir
 
     if not isinstance(scene, Scene):
         raise SceneError(f"scene: must be a Scene (cf.load), got {type(scene).__name__}")
     value = orbit_runs.period_value(scene, period)
     orbit_runs.check_periodic(scene, value)
+    check_request(  # before the folder is made (largest_exponent's defaults)
+        scene,
+        value,
+        periods,
+        options.get("every", 1),
+        options.get("discard", 0),
+        options.get("perturbation"),
+    )
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "lyapunov")
     return orbit_runs.lyapunov_run(scene, value, periods, folder, **options)

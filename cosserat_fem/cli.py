@@ -604,6 +604,8 @@ def _continue(args) -> int:
     else:
         if args.scene is None:
             raise SceneError("continue: give a SCENE file, or --restart DIR")
+        if args.branch != -1:
+            raise SceneError("continue --branch: only with --restart DIR (the branch traced on)")
         scene = api.load(args.scene, args.overrides)
         out = _out(args, scene)
         low, high = args.range
@@ -717,7 +719,10 @@ def _one_orbit(args) -> int:
     scene = api.load(args.scene, args.overrides)
     if args.period is None:
         raise SceneError("orbits --period: give the forcing period [s] or its expression")
-    check_periodic(scene, period_value(scene, args.period))
+    value = period_value(scene, args.period)
+    check_periodic(scene, value)
+    api._check_shooting(scene, args.settle, args.steps_per_period, True)
+    api._shooting_budget(scene, value, args.settle, args.steps_per_period)
     comm = MPI.COMM_WORLD
     with folders_held():
         folder = prepare_output_dir(Path(_out(args, scene)), comm, "orbits")

@@ -724,6 +724,24 @@ def plot_lyapunov(directory: str | Path, out: str | Path | None = None) -> Path:
     return _save(fig, target / "lyapunov.png")
 
 
+def _refuse_stopped_lyapunov(directory: Path) -> None:
+    """SceneError naming lyapunov.csv if ``directory`` holds a Lyapunov run that stopped
+    before writing it (summary.json's command "lyapunov", its reason quoted)."""
+    from cosserat_fem.io.poincare import POINCARE
+
+    if (directory / PROBES).is_file() or not (directory / POINCARE).is_file():
+        return
+    try:
+        summary = read_summary(directory / SUMMARY)
+    except SceneError:  # none, or not one: the folder is looked at as a run's
+        return
+    if summary.get("command") == "lyapunov":
+        raise SceneError(
+            f"plot: {str(directory / LYAPUNOV)!r} was not written: the Lyapunov run "
+            f"{summary.get('status', 'ended')} ({summary.get('reason', 'no reason given')})"
+        )
+
+
 def plot_run(
     directory: str | Path, out: str | Path | None = None, column: str = "norm"
 ) -> list[Path]:
@@ -741,6 +759,7 @@ def plot_run(
         return [plot_orbit_branch(directory, out)]
     if (Path(directory) / LYAPUNOV).is_file():
         return [plot_lyapunov(directory, out)]
+    _refuse_stopped_lyapunov(Path(directory))
     run = open_run(directory, "plot")
     rows = run.probes is not None and len(run.probes) > 0
     series = None

@@ -156,6 +156,12 @@ def test_plot_draws_a_dot_per_section_point(tmp_path, monkeypatch):
         ('period = "2*pi/Om"\nphase = "zero"\n', "sweep.poincare.phase: must be a finite"),
         ('period = "2*pi/Om"\ndiscard = -1\n', "sweep.poincare.discard: must be a whole"),
         ('period = "2*pi/Om"\ndiscard = 1.5\n', "sweep.poincare.discard: must be a whole"),
+        ('period = "2*pi/Om"\ndiscard = 2\n', "sweep.poincare.discard: 2 leaves none of the"),
+        (
+            'period = "2.1*pi/Om"\n',
+            "loads.force_density: 'f0*sin(pi*s/L)*cos(Om*t)' is not periodic with "
+            "sweep.poincare.period",
+        ),
         (
             'period = "2*pi/Om"\ncontinuation = "parameters.D"\n',
             "sweep.poincare.continuation: must be one of the varied keys",
@@ -170,7 +176,9 @@ def test_plot_draws_a_dot_per_section_point(tmp_path, monkeypatch):
 def test_a_bad_poincare_key_is_refused_in_one_line_naming_it(tmp_path, poincare, message):
     """Each malformed [sweep.poincare] is a SceneError whose one line names the key, before
     any member runs (the period is evaluated at every member's constants: an unknown name or
-    a negative value is refused with the sweep)."""
+    a negative value is refused with the sweep, and so is a period that the load cos(Ωt)
+    does not repeat after, 2.1π/Ω, and a discard of 2 points when a member's one period
+    holds at most 2, t = 0 and T)."""
     path = section_sweep(tmp_path, (0.20,), 1, 0)
     text = path.read_text(encoding="utf-8").split("[sweep.poincare]")[0]
     path.write_text(text + "[sweep.poincare]\n" + poincare, encoding="utf-8")

@@ -276,6 +276,42 @@ def test_continue_command_bad_option(tmp_path):
     assert proc.stderr.strip().count("\n") == 0 and "--max-points" in proc.stderr
 
 
+def test_a_finished_branch_is_not_restarted(tmp_path):
+    """The roll-up (scenes/rollup.toml, its 40 P4 elements) traced to λ = 1 ends "p reached
+    1"; ``continue --restart`` of it: exit 2, one line naming --restart and "already ended",
+    and branches.csv byte for byte as it was (before: a restart stepped past the bound again
+    and appended a second row at λ = 1). ``--branch`` without ``--restart``: exit 2, one line
+    naming --branch (before: ignored); --probe beyond the rod (5 m of 1 m): exit 2, and no
+    --out folder made (before: made, then refused)."""
+    out = tmp_path / "rollup"
+    command = ["-m", "cosserat_fem.cli", "continue"]
+    proc = run_command(
+        [*command, str(ROLLUP), "--step", "0.1", "--max-step", "8", "--out", str(out)]
+    )
+    assert proc.returncode == 0 and "p reached 1" in proc.stdout, proc.stderr
+    table = (out / "branches.csv").read_bytes()
+    again = run_command([*command, "--restart", str(out)])
+    assert again.returncode == 2 and again.stderr.strip().count("\n") == 0, again.stderr
+    assert (
+        "--restart: branch 0 in " in again.stderr and "already ended: p reached 1" in again.stderr
+    )
+    assert (out / "branches.csv").read_bytes() == table
+    stray = run_command([*command, str(ROLLUP), "--branch", "0", "--out", str(tmp_path / "b")])
+    assert stray.returncode == 2 and stray.stderr.strip().count("\n") == 0, stray.stderr
+    assert "--branch" in stray.stderr and not (tmp_path / "b").exists()
+    cut = tmp_path / "cut"
+    three = ["--step", "0.1", "--max-step", "8", "--max-points", "3", "--out", str(cut)]
+    assert run_command([*command, str(ROLLUP), *three]).returncode == 0
+    table = (cut / "branches.csv").read_bytes()
+    idle = run_command([*command, "--restart", str(cut)])  # max_points 3 reached: none to add
+    assert idle.returncode == 2 and idle.stderr.strip().count("\n") == 0, idle.stderr
+    assert "--max-points: branch 0 in " in idle.stderr and "has 3 points" in idle.stderr
+    assert (cut / "branches.csv").read_bytes() == table
+    far = run_command([*command, str(ROLLUP), "--probe", "5", "--out", str(tmp_path / "p")])
+    assert far.returncode == 2 and "probe (--probe): must lie in [0, 1.0]" in far.stderr
+    assert not (tmp_path / "p").exists()  # refused before the folder is made
+
+
 def test_branch_that_cannot_go_on_is_written(tmp_path):
     """A continuation that cannot go on ends with its branch written up to its last point and
     the reason (issue 27 item 5). The roll-up to two turns (4 elements) with the corrector

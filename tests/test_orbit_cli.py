@@ -135,7 +135,9 @@ def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path):
     ..., across the restart, and summary.json the same steps and monodromies in all (the
     restarted part's added to the first's) and restarts = 1. A restart of a branch that
     reached its range's end is refused in one line (exit 2), and so is ``continue
-    --restart`` of the folder (no static continuation's record there)."""
+    --restart`` of the folder (no static continuation's record there), and, before, a
+    restart of the cut branch without --max-points or with --max-points 2 (no point to add;
+    before this was checked it ran, changed nothing but summary.json's restarts, exit 0)."""
     from xdmf_files import read_arrays
 
     whole, cut = tmp_path / "whole", tmp_path / "cut"
@@ -145,6 +147,12 @@ def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path):
     assert first.returncode == 0, first.stderr
     assert "the branch ended: 2 points (max_points)" in first.stderr
     assert len(rows(cut / "orbit_branch.csv")) == 2
+    table = (cut / "orbit_branch.csv").read_bytes()
+    for more in ([], ["--max-points", "2"]):  # no point to add: refused, the files kept
+        idle = cli("orbits", "--restart", str(cut), *more)
+        assert idle.returncode == 2 and len(idle.stderr.strip().splitlines()) == 1
+        assert "--max-points: the orbit branch in " in idle.stderr and "has 2 points" in idle.stderr
+        assert (cut / "orbit_branch.csv").read_bytes() == table
     again = cli("orbits", "--restart", str(cut), "--max-points", "300")
     assert again.returncode == 0, again.stderr
     got = same_rows(cut, whole)
@@ -226,17 +234,93 @@ def test_one_orbit_and_its_multipliers(tmp_path):
             "loads.force_density: 'F*sin(pi*s/L)*sin(r*w1*t)' is not periodic with --period",
         ),
         (["--period", "2.02*pi/(r*w1)"], "is not periodic with --period"),
+        (
+            [*BRANCH, "--steps-per-period", "0"],
+            "steps_per_period (--steps-per-period): must be a whole number >= 1, got 0",
+        ),
+        (["--period", PERIOD, "--settle", "-1"], "settle (--settle): must be a whole number"),
+        ([*BRANCH, "--max-points", "1000000"], "max_points (--max-points): must lie in [2, 1"),
+        (  # 1e9 steps a period: hours by the budget's lower bound, over limits.wall_time
+            [*BRANCH, "--steps-per-period", "1000000000", "--set", "limits.wall_time=2"],
+            "--settle, --steps-per-period: time.step: the run needs",
+        ),
+        (["--period", PERIOD, "--settle", "1000000000"], "--settle, --steps-per-period: "),
+        (["--period", PERIOD, "--steps-per-period", "0"], "(--steps-per-period): must be"),
     ],
 )
 def test_bad_orbit_requests_are_one_line(tmp_path, arguments, message):
     """Each bad request: exit 2, one line on stderr naming the flag or key, no traceback,
-    and nothing written in --out."""
+    and no --out folder made (the request is checked before it). A shooting beyond the
+    scene's limits.wall_time by budget.py's lower bound of its settle + 1 periods is one
+    (before, it ran until killed: orbits has no stop at the wall time)."""
     out = tmp_path / "out"
     proc = cli("orbits", str(PAPER), *sets(LINEAR), *arguments, "--out", str(out))
     assert proc.returncode == 2, proc.stderr
     (line,) = proc.stderr.strip().splitlines()
     assert message in line and "Traceback" not in proc.stderr
-    assert not (out / "orbit_branch.csv").exists()
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "arguments, message",
+    [
+        (["--periods", "0"], "periods: must be a whole number >= 1, got 0"),
+        (["--periods", "3", "--discard", "3"], "discard: 3 leaves none of the 3 intervals"),
+        (["--periods", "3", "--every", "0"], "every: must be a whole number >= 1, got 0"),
+        (["--periods", "3", "--every", "2"], "periods: 3 is not a whole number of intervals"),
+    ],
+)
+def test_bad_lyapunov_requests_make_no_folder(tmp_path, arguments, message):
+    """lyapunov's counts are checked before its --out folder is made: exit 2, one line
+    naming the flag's key, and no folder."""
+    out = tmp_path / "out"
+    proc = cli(
+        "lyapunov", str(PAPER), *sets(LINEAR), "--period", PERIOD, *arguments, "--out", str(out)
+    )
+    assert proc.returncode == 2, proc.stderr
+    (line,) = proc.stderr.strip().splitlines()
+    assert message in line and not out.exists()
+
+
+def test_a_damaged_restart_folder_is_refused_in_one_line(tmp_path):
+    """A branch cut at --max-points 2, then in three copies: its restart arrays missing,
+    its restart arrays not a NumPy file, orbit_branch.csv missing, orbit_branch.csv cut to
+    its first row (the record names 2). Each ``orbits --restart``: exit 2, one line naming
+    --restart and the file, and the copy's orbit_branch.csv as it was (no row lost)."""
+    import shutil
+
+    cut = tmp_path / "cut"
+    base = ["orbits", str(PAPER), *sets(LINEAR), *BRANCH, *STEPS, "--max-points", "2"]
+    assert cli(*base, "--out", str(cut)).returncode == 0
+    table = (cut / "orbit_branch.csv").read_text()
+    arrays = "continuation/branch0.rank0.npz"
+    damages = {
+        "no_arrays": (arrays, None, "branch0.rank0.npz' cannot be read"),
+        "bad_arrays": (arrays, "junk\n", "branch0.rank0.npz' cannot be read"),
+        "no_table": ("orbit_branch.csv", None, "orbit_branch.csv' was not found"),
+        "cut_table": (
+            "orbit_branch.csv",
+            table.splitlines()[0] + "\n" + table.splitlines()[1] + "\n",
+            "holds 1 rows, fewer than the 2 of the saved branch",
+        ),
+    }
+    for name, (path, text, message) in damages.items():
+        folder = tmp_path / name
+        shutil.copytree(cut, folder)
+        (folder / path).unlink()
+        if text is not None:
+            (folder / path).write_text(text)
+        before = (
+            (folder / "orbit_branch.csv").read_bytes()
+            if path != "orbit_branch.csv" or text
+            else None
+        )
+        proc = cli("orbits", "--restart", str(folder), "--max-points", "300")
+        assert proc.returncode == 2, (name, proc.stderr)
+        (line,) = proc.stderr.strip().splitlines()
+        assert "--restart: " in line and message in line, (name, line)
+        if before is not None:
+            assert (folder / "orbit_branch.csv").read_bytes() == before, name
 
 
 def test_a_branch_whose_first_orbit_is_not_found_says_why(tmp_path):
@@ -322,7 +406,9 @@ class TestLyapunov:
         (cosserat_fem/analysis/budget.py: 0.009 s for its 240 steps): refused before any work,
         exit 2, one line naming time.step. Of 20 ms, above that bound but far below the
         run's (its set-up alone takes longer): stopped at the first look at the clock (64
-        steps), exit 4, one line naming limits.wall_time, and summary.json saying so."""
+        steps), exit 4, one line naming limits.wall_time (not advising run --restart, which
+        a Lyapunov run does not have), and summary.json saying so; ``plot`` of that folder
+        one line saying lyapunov.csv was not written and why."""
         _, _, _, overrides, T = case
         common = ["--period", repr(T), "--periods", str(self.PERIODS)]
         refused = cli(
@@ -346,8 +432,32 @@ class TestLyapunov:
         )
         assert proc.returncode == 4, proc.stderr
         assert "limits.wall_time" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
+        assert "run --restart" not in proc.stderr and "has no restart" in proc.stderr
         summary = json.loads((tmp_path / "stopped" / "summary.json").read_text())
         assert summary["status"] == "stopped" and "limits.wall_time" in summary["reason"]
+        plot = cli("plot", str(tmp_path / "stopped"))  # no lyapunov.csv: says why, not "a run"
+        assert plot.returncode == 2 and len(plot.stderr.strip().splitlines()) == 1
+        assert "lyapunov.csv' was not written: the Lyapunov run stopped (limits" in plot.stderr
+
+    def test_a_failed_run_says_why_in_summary_json(self, case, tmp_path):
+        """solver.max_iterations = 1: the first step's Newton fails (exit 3, one line with the
+        time and place); summary.json says "failed" with that line's reason (before: none
+        written), and ``plot`` of the folder says lyapunov.csv was not written and why."""
+        _, _, _, overrides, T = case
+        out = tmp_path / "failed"
+        proc = cli(
+            "lyapunov",
+            str(PAPER),
+            *sets({**overrides, "solver.max_iterations": 1}),
+            *["--period", repr(T), "--periods", str(self.PERIODS), "--out", str(out)],
+        )
+        assert proc.returncode == 3, proc.stderr
+        (line,) = proc.stderr.strip().splitlines()
+        assert "Newton did not converge" in line and " at t = " in line
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["status"] == "failed" and summary["reason"] in line
+        plot = cli("plot", str(out))
+        assert plot.returncode == 2 and "the Lyapunov run failed (" in plot.stderr
 
 
 @pytest.fixture(scope="module")

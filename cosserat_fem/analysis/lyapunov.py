@@ -109,7 +109,9 @@ def _whole(value, name: str, low: int) -> int:
     return int(value)
 
 
-def _check(scene: Scene, period, periods, every, discard, perturbation) -> tuple[int, int, float]:
+def check_request(
+    scene: Scene, period, periods, every, discard, perturbation
+) -> tuple[int, int, float]:
     """The request checked before any work: (intervals, steps an interval, d0)."""
     if isinstance(period, bool) or not isinstance(period, int | float) or not period > 0.0:
         raise SceneError(f"period: must be the forcing period, a positive time [s], got {period!r}")
@@ -296,7 +298,7 @@ def largest_exponent(
     static solution: a buckled beam in one of its wells). Bad input: a SceneError naming the
     argument or key, before any work."""
     refuse_closed(scene, "lyapunov")
-    intervals, steps, d0 = _check(scene, period, periods, every, discard, perturbation)
+    intervals, steps, d0 = check_request(scene, period, periods, every, discard, perturbation)
     observers = [as_observer(o) for o in observers]
     initial_state = _initial_array(initial_state, comm)
     path = None

@@ -346,10 +346,19 @@ class CheckpointObserver(Observer):
 class DeadlineObserver(Observer):
     """Stops the run (LimitReached, exit 4, with a checkpoint) once ``deadline``, a
     time.perf_counter() value, has passed: limits.wall_time. Looks at the clock every
-    ``every`` steps, where the loop's state is whole, every rank alike (rank 0's clock)."""
+    ``every`` steps, where the loop's state is whole, every rank alike (rank 0's clock).
+    ``advice``: how the stopped run goes on, in its message."""
 
-    def __init__(self, deadline: float, wall_time: float, comm, every: int = 64):
+    def __init__(
+        self,
+        deadline: float,
+        wall_time: float,
+        comm,
+        every: int = 64,
+        advice: str = "continue it with run --restart DIR",
+    ):
         self.deadline, self.wall_time, self.comm, self.every = deadline, wall_time, comm, every
+        self.advice = advice
         self._ticks = 0
 
     def step_finished(self, loop) -> None:
@@ -360,7 +369,7 @@ class DeadlineObserver(Observer):
         if from_root(self.comm, time.perf_counter() > self.deadline):
             raise LimitReached(
                 f"limits.wall_time: the run stopped at t = {loop.state.t:.6g} s after its limit "
-                f"of {self.wall_time:g} s of wall time; continue it with run --restart DIR "
+                f"of {self.wall_time:g} s of wall time; {self.advice} "
                 "(--set limits.wall_time=... to allow more)"
             )
 

@@ -388,7 +388,7 @@ def resume_orbit_branch(
     appended to its files (module docstring); (the branch from its kept points on, the
     summary)."""
     from cosserat_fem.analysis.periodic import Shooting, as_orbit_branch, orbit_engine
-    from cosserat_fem.common.safe_files import read_on_root
+    from cosserat_fem.common.safe_files import Unreadable, read_on_root
     from cosserat_fem.scene.build import scene_from_dict
 
     clock = time.perf_counter()
@@ -397,8 +397,21 @@ def resume_orbit_branch(
     if max_points is not None:
         settings = replace(settings, max_points=max_points)
         record["settings"]["max_points"] = max_points
+    if settings.max_points <= record["frames"]:  # nothing to add: say so, change nothing
+        raise SceneError(
+            f"--max-points: the orbit branch in {str(folder)!r} has {record['frames']} points "
+            f"already, max_points = {settings.max_points}; give --max-points above that"
+        )
     scene = scene_from_dict(record["scene"], source=f"{folder}/{FOLDER}/{RECORD}")
-    lines = read_on_root(folder / ORBIT_CSV, 1 << 30, comm).decode().splitlines()
+    try:
+        lines = read_on_root(folder / ORBIT_CSV, 1 << 30, comm).decode().splitlines()
+    except Unreadable as exc:
+        raise SceneError(f"--restart: {str(folder / ORBIT_CSV)!r} {exc}") from None
+    if len(lines) < record["rows"] + 1:  # its rows would be lost: the user's to put back
+        raise SceneError(
+            f"--restart: {str(folder / ORBIT_CSV)!r} holds {max(len(lines) - 1, 0)} rows, "
+            f"fewer than the {record['rows']} of the saved branch"
+        )
     lines = lines[: record["rows"] + 1]
     record["restarts"] += 1
     saved = load_branch(folder, record, 0, comm)
@@ -458,16 +471,18 @@ def lyapunov_run(
             replace(scene, time=span), "run", folder, ranks_on_node(comm), comm.size, comm=comm
         )
     wall = scene.limits.wall_time
-    deadline = [DeadlineObserver(clock + wall, wall, comm)] if wall else []
+    advice = "poincare.csv keeps its section so far; a Lyapunov run has no restart: run it again"
+    deadline = [DeadlineObserver(clock + wall, wall, comm, advice=advice)] if wall else []
     observers = [*options.pop("observers", ()), *deadline]
     summary: dict = {"command": "lyapunov", "period": period, "periods": periods}
     try:
         result = largest_exponent(
             scene, period, periods=periods, out=folder, observers=observers, **options
         )
-    except StopError as exc:
+    except (StopError, SolverError) as exc:  # what stopped it, beside poincare.csv so far
         if folder is not None:
-            summary |= {"status": "stopped", "reason": str(exc)}
+            status = "stopped" if isinstance(exc, StopError) else "failed"
+            summary |= {"status": status, "reason": str(exc)}
             summary["wall_s"] = time.perf_counter() - clock
             text = json.dumps(summary, indent=1) + "\n"
             replace_on_root(folder / SUMMARY, text.encode(), comm)

@@ -168,7 +168,20 @@ def load_branch(folder: Path, record: dict, index: int, comm: MPI.Comm) -> Branc
     end = record["branches"].get(str(index))
     if end is None:
         raise SceneError(f"--branch: no branch {index} saved in {str(folder)!r}")
-    with np.load(folder / FOLDER / state_file(index, comm.rank, end.get("slot", 0))) as arrays:
+    from zipfile import BadZipFile
+
+    from cosserat_fem.common.parallel import agree
+
+    path = folder / FOLDER / state_file(index, comm.rank, end.get("slot", 0))
+    try:
+        arrays = np.load(path)
+        problem = None
+    except (OSError, ValueError, BadZipFile) as exc:  # missing or damaged: every rank refuses alike
+        problem = SceneError(
+            f"--restart: {str(path)!r} cannot be read ({getattr(exc, 'strerror', None) or exc})"
+        )
+    agree(comm, problem)
+    with arrays:
         charts: list = []  # one array per chart (the engine compares them by identity)
         for i in range(len(end["points"])):
             chart = arrays[f"q{i}"] if f"q{i}" in arrays else None
@@ -223,9 +236,23 @@ def restart_branch(
     from cosserat_fem.common.safe_files import Unreadable, read_on_root
     from cosserat_fem.scene.build import scene_from_dict
 
+    try:  # a branch that reached its range's end has nothing to trace on
+        ended = json.loads(read_on_root(folder / "branches.json", 1 << 28, comm).decode())
+    except Unreadable:
+        ended = []
+    for entry in ended:
+        if entry.get("branch") == index and str(entry.get("reason")).startswith("p reached"):
+            raise SceneError(
+                f"--restart: branch {index} in {str(folder)!r} already ended: {entry['reason']}"
+            )
     scene = scene_from_dict(record["scene"], source=f"{folder}/{FOLDER}/{INDEX}")
     saved = load_branch(folder, record, index, comm)
     kept = len(saved.points)
+    if settings.max_points <= saved.first_index + kept:  # nothing to add: change nothing
+        raise SceneError(
+            f"--max-points: branch {index} in {str(folder)!r} has {saved.first_index + kept} "
+            f"points already, max_points = {settings.max_points}; give --max-points above that"
+        )
     restarts = int(record.get("restarts", 0)) + 1
     observer = BranchOutputs(folder, progress, resumed=(index, kept, restarts))
     observer._points = saved.first_index + kept

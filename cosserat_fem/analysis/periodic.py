@@ -198,6 +198,31 @@ class _StageHook(Observer):
         self.shooting._stage_done()
 
 
+def shooting_problem(scene, steps_per_period, parameter: str | None) -> SceneError | None:
+    """Why :class:`Shooting` cannot shoot over this scene's period (its integrator, fixed
+    steps, ``steps_per_period``, ``parameter``), or None: checked before any work."""
+    problem = None
+    if scene.time.integrator not in ("sdirk3", "sdirk4"):
+        problem = SceneError(
+            f"time.integrator: periodic orbits need a one-step method, sdirk3 or sdirk4 "
+            f"(the state of the period map is then U alone), got {scene.time.integrator!r}"
+        )
+    elif scene.time.adaptive:
+        problem = SceneError("time.adaptive: periodic orbits need fixed steps (false)")
+    elif isinstance(steps_per_period, bool) or not (
+        isinstance(steps_per_period, int) and steps_per_period >= 1
+    ):
+        problem = SceneError(
+            f"steps_per_period: must be a whole number >= 1, got {steps_per_period!r}"
+        )
+    elif parameter is not None and parameter not in scene.parameters:
+        problem = SceneError(
+            f"parameter: {parameter!r} is not one of the scene's parameters "
+            f"{sorted(scene.parameters)}"
+        )
+    return problem
+
+
 class Shooting:
     """The period map of ``scene`` and its monodromy matrix (module docstring).
 
@@ -221,25 +246,7 @@ class Shooting:
 
         from cosserat_fem.analysis.simulation import _discretise
 
-        problem = None
-        if scene.time.integrator not in ("sdirk3", "sdirk4"):
-            problem = SceneError(
-                f"time.integrator: periodic orbits need a one-step method, sdirk3 or sdirk4 "
-                f"(the state of the period map is then U alone), got {scene.time.integrator!r}"
-            )
-        elif scene.time.adaptive:
-            problem = SceneError("time.adaptive: periodic orbits need fixed steps (false)")
-        elif isinstance(steps_per_period, bool) or not (
-            isinstance(steps_per_period, int) and steps_per_period >= 1
-        ):
-            problem = SceneError(
-                f"steps_per_period: must be a whole number >= 1, got {steps_per_period!r}"
-            )
-        elif parameter is not None and parameter not in scene.parameters:
-            problem = SceneError(
-                f"parameter: {parameter!r} is not one of the scene's parameters "
-                f"{sorted(scene.parameters)}"
-            )
+        problem = shooting_problem(scene, steps_per_period, parameter)
         agree(comm, problem)
         self.scene, self.comm, self.steps = scene, comm, steps_per_period
         self.parameter = parameter

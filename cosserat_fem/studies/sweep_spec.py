@@ -484,6 +484,24 @@ def _poincare(
     return SectionSettings(period, float(phase), discard, continuation, direction)
 
 
+def _check_section(poincare: SectionSettings, scene: Scene, where: str) -> None:
+    """A member's section checked against its scene: its period T one that the scene's load
+    expressions repeat after (orbit_runs.check_periodic), and ``discard`` fewer than the
+    section points its time span can hold (at most ⌊span/T⌋ + 1), so that it adds points
+    to bifurcation.csv."""
+    from cosserat_fem.analysis.orbit_runs import check_periodic
+
+    period = period_of(poincare, scene.expression_names(), where, POINCARE_PERIOD)
+    check_periodic(scene, period, POINCARE_PERIOD)
+    span = scene.time.end - scene.time.start
+    most = math.floor(span / period * (1.0 + 1e-9)) + 1
+    if poincare.discard >= most:
+        raise SceneError(
+            f"sweep.poincare.discard: {poincare.discard} leaves none of the at most {most} "
+            f"section points of a member's time span {span:.6g} s (T = {period:.6g} s)"
+        )
+
+
 def _chains(
     values: list[dict[str, Any]],
     varied: tuple[str, ...],
@@ -597,8 +615,7 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
             _check_member(base_data, str(scene_path), member, response, group_size, tables)
             if poincare is not None:
                 scene = scene_from_dict(base_data, str(scene_path), member.values, tables=tables)
-                where = f"member {member.index}"
-                period_of(poincare, scene.expression_names(), where, POINCARE_PERIOD)
+                _check_section(poincare, scene, f"member {member.index}")
         except SceneError as exc:
             raise SceneError(f"sweep member {member.index} ({member.describe()}): {exc}") from None
     tables.seal()  # every member's tables are read: none is read again in a group
