@@ -41,10 +41,17 @@
 # between a serial and an `mpirun -n 2` run (where each rank runs one chain of the sweep,
 # and the shooting is shared in space: each rank its rows).
 #
-# Run it with `python demos/frequency_response.py` (about 3 minutes serially: 2 for the
-# sweep, 70 s for the branch) or `mpirun -n 2 python demos/frequency_response.py` (on a busy
-# machine with Open MPI's settings of the README's "Running a scene"); `--values 1.04 1.07
-# 1.10` runs the sweep over fewer frequencies, `--branch 0.98 1.14` sets the branch's range
+# Run it with `python demos/frequency_response.py` (about 3 minutes serially on an idle core:
+# 2 for the sweep, 70 s for the branch of 42 steps and 230 monodromies) or
+# `mpirun -n 2 python demos/frequency_response.py` (on a busy machine with Open MPI's
+# settings of the README's "Running a scene"). On two ranks the sweep takes half as long (a
+# chain a rank), but the branch longer than serially: this rod's 8 elements give a rank too
+# little work between the MPI messages of each step, and on a busy machine each message
+# waits (`--branch 1.06 1.03`, 71 monodromies, took 90 s serially at load 6 and had not
+# ended after 9 min on two ranks); two ranks here show that shooting runs in parallel, for
+# rods large enough to gain. `--values 1.04 1.07 1.10` runs the sweep over fewer
+# frequencies, `--branch 0.98 1.14` sets the branch's range (`--branch 1.06 1.03`: down the
+# lower branch to its fold and back up the middle one)
 # and `--no-branch` leaves it out.
 
 # %%
@@ -275,11 +282,8 @@ if comm.rank == 0:
     fig, ax = plt.subplots(figsize=(8, 5))
     r = np.linspace(0.96, 1.16, 401)
     for i in range(3):
-        branch = [duffing.amplitudes(f, x * w1) for x in r]
-        y = [
-            v[i] if len(v) == 3 else (v[0] if i in (0, 2) and len(v) == 1 else np.nan)
-            for v in branch
-        ]
+        hb = [duffing.amplitudes(f, x * w1) for x in r]
+        y = [v[i] if len(v) == 3 else (v[0] if i in (0, 2) and len(v) == 1 else np.nan) for v in hb]
         ax.plot(
             r,
             1e3 * np.array(y),
