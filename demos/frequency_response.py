@@ -104,11 +104,22 @@ parser.add_argument(
     help="the branch of periodic orbits from r = FROM to TO (default: 0.98 1.14)",
 )
 parser.add_argument(
+    "--steps-per-period",
+    type=int,
+    default=100,
+    metavar="N",
+    help="the branch's SDIRK steps a forcing period (default: 100)",
+)
+parser.add_argument(
     "--no-branch",
     action="store_true",
     help="the sweep and the harmonic balance only (no branch of periodic orbits)",
 )
 args = parser.parse_args()
+if not args.no_branch and not (np.isfinite(args.branch).all() and args.branch[0] != args.branch[1]):
+    parser.error(f"--branch: FROM and TO must be two different numbers, got {args.branch}")
+if args.steps_per_period < 1:
+    parser.error(f"--steps-per-period: must be at least 1, got {args.steps_per_period}")
 
 # %% [markdown]
 # ## The sweep
@@ -216,7 +227,7 @@ if not args.no_branch:
             r_from,
             r_to,
             settle=3,
-            steps_per_period=100,
+            steps_per_period=args.steps_per_period,
             step=0.005,
             out=out / "orbits",
         )
