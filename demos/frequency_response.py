@@ -47,8 +47,9 @@
 # settings of the README's "Running a scene"). On two ranks the sweep takes half as long (a
 # chain a rank), but the branch longer than serially: this rod's 8 elements give a rank too
 # little work between the MPI messages of each step, and on a busy machine each message
-# waits (`--values 1.06 --branch 1.06 1.03`, a branch of 71 monodromies: 55 s serially; on
-# two ranks 5.5 min at load 3, 13 min at load 6); two ranks here show that shooting runs in
+# waits (the whole demo: 12 min on two ranks at load 2-3, the sweep 1 min 14 s of it;
+# `--values 1.06 --branch 1.06 1.03`, a branch of 71 monodromies: 55 s serially, on two
+# ranks 5.5 min at load 3 and 13 min at load 6); two ranks here show that shooting runs in
 # parallel, for rods large enough to gain. `--values 1.04 1.07 1.10` runs the sweep over
 # fewer frequencies, `--branch 0.98 1.14` sets the branch's range (`--branch 1.06 1.03`:
 # down the lower branch to its fold and back up the middle one), `--steps-per-period N` its
