@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import ROOT, parse_qoi, run_command
+from conftest import HUNG_AFTER, ROOT, parse_qoi, run_command
 
+from cosserat_fem.reference.backbone import Duffing, clamped_modal_force
 from cosserat_fem.reference.curved import BATHE_BOLOURCHI_SHOOTING
 
 DEMO = str(ROOT / "demos" / "cao_tucker_2008.py")
@@ -228,34 +229,73 @@ def bend_figure_draws_the_path(figure, qoi: dict[str, float]) -> None:
 
 
 FREQUENCY_RESPONSE = str(ROOT / "demos" / "frequency_response.py")
+#: The sweep's frequencies in the long tests: from 1.04, below the lower fold (single-valued:
+#: both chains meet), to 1.12, above the upper one, in the sweep file's steps of 0.01, so that
+#: the upward chain jumps down (at 1.11) and the downward one up (at 1.04) as in the full sweep.
+BAND = [f"{1.04 + 0.01 * k:.2f}" for k in range(9)]
+#: The QOI lines of the branch of periodic orbits (the others are the sweep's).
+BRANCH_KEYS = ("branch_", "fold_", "unstable_")
+
+
+#: The branch the runs on one rank and on two compare: from the lower branch at r = 1.06 (the
+#: orbit shot from rest) down through the lower fold and back up the middle branch to 1.06
+#: (7 steps, 71 monodromies: 55 s serially, 5.5 min on two ranks at load 3 and 13 min at
+#: load 6, where the whole branch's 230 had not ended after 17 min).
+SHORT = ["1.06", "1.03"]
+
+
+@pytest.fixture(scope="module")
+def response_runs(tmp_path_factory):
+    """demos/frequency_response.py: (QOI, folder) of three runs. "serial": the sweep over
+    :data:`BAND` (two chains of nine) and the branch of periodic orbits over its default
+    0.98 ... 1.14 (about 1 min for the sweep and 70 s for the branch, 42 steps and 230
+    monodromies, on an idle core); "mpirun": the same sweep (a chain a rank) and the
+    :data:`SHORT` branch on two ranks (the shooting shared in space); "short": one member a
+    chain and the :data:`SHORT` branch, serially. The hang limit is twice the usual: on two
+    ranks a shooting period is many MPI messages, and a busy machine makes each wait long
+    (the SHORT branch on two ranks: 13 min at load 6 on two cores)."""
+    runs = {}
+    for name, ranks, values, branch in (
+        ("serial", 1, BAND, []),
+        ("mpirun", 2, BAND, ["--branch", *SHORT]),
+        ("short", 1, ["1.06"], ["--branch", *SHORT]),
+    ):
+        out = tmp_path_factory.mktemp(name)
+        args = [FREQUENCY_RESPONSE, "--values", *values, *branch, "--out", str(out)]
+        proc = run_command(args, ranks, timeout=2 * HUNG_AFTER)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        runs[name] = (parse_qoi(proc.stdout), out)
+    return runs
 
 
 @pytest.mark.long
-def test_the_frequency_response_demo_jumps_where_the_harmonic_balance_says(tmp_path):
-    """demos/frequency_response.py over r = 1.04 ... 1.07 (two chains of four members), on one
-    rank and on two (a chain each): the same QOI lines to the last digit, and the amplitudes
-    of the harmonic balance of the one-mode Duffing model (cosserat_fem/reference/backbone.py).
+def test_the_frequency_response_demo_jumps_where_the_harmonic_balance_says(response_runs):
+    """The sweep of demos/frequency_response.py over r = 1.04 ... 1.12 (:data:`BAND`), on one
+    rank and on two (a chain each): the same QOI lines of the sweep to the last digit (each
+    chain runs serially on its rank), and the amplitudes of the harmonic balance of the
+    one-mode Duffing model (cosserat_fem/reference/backbone.py).
 
-    At r = 1.04 the response is single-valued and both chains agree; from 1.05 on, the upward
-    chain stays on the upper branch and the downward one on the lower: two states of the same
-    rod under the same load. Tolerances from the full sweep (docs/verification.md, section 7):
-    the upper branch measured 1.3-1.6 % above the harmonic balance here (the 40 mm section
-    lowers the hardening coefficient by 2 %, tests/test_backbone.py, which raises a ∝ 1/√α by
-    1 %; the next order in a² adds up to ~1.4 %): within 3 %; the lower branch 0.3-0.9 % below
-    (most at 1.05, where it begins and is steepest): within 2 %.
+    At r = 1.04 the response is single-valued and both chains agree; from 1.05 to 1.10 the
+    upward chain stays on the upper branch and the downward one on the lower: two states of
+    the same rod under the same load; at 1.11 and 1.12 both are on the lower. Tolerances from
+    the full sweep (docs/verification.md, section 7): the upper branch measured 1.3-1.6 %
+    above the harmonic balance here (the 40 mm section lowers the hardening coefficient by
+    2 %, tests/test_backbone.py, which raises a ∝ 1/√α by 1 %; the next order in a² adds up
+    to ~1.4 %): within 3 %; the lower branch 0.2-0.9 % below (most at 1.05, where it begins
+    and is steepest): within 2 %. Where both chains hold the one state (1.04, 1.11, 1.12) they
+    agree within 4e-4: each member stops with at most 1.6e-4 of its transient left (the sweep
+    file's tolerance 1e-5 / (1 − exp(−2πζ))), from different sides (measured 1.5e-6, 2.5e-5
+    at 1.11, where the upward chain has just jumped, and 3.9e-6).
 
-    The figure (its lines read back, harmonic_balance.npz) draws those: the two chains' amplitudes
-    [mm] at their r, and the harmonic balance's lowest and highest roots (the QOI lines'
-    values, to their 12 printed digits) at those r on its curves."""
-    values = ["1.04", "1.05", "1.06", "1.07"]
+    The figure (its lines read back, harmonic_balance.npz) draws those: the two chains'
+    amplitudes [mm] at their r, and the harmonic balance's lowest and highest roots (the QOI
+    lines' values, to their 12 printed digits) at those r on its curves."""
     qoi = {}
-    for ranks in (1, 2):
-        out = tmp_path / f"n{ranks}"
-        proc = run_command([FREQUENCY_RESPONSE, "--values", *values, "--out", str(out)], ranks)
-        assert proc.returncode == 0, proc.stdout + proc.stderr
-        qoi[ranks] = parse_qoi(proc.stdout)
+    for ranks, name in ((1, "serial"), (2, "mpirun")):
+        values, out = response_runs[name]
+        qoi[ranks] = {k: v for k, v in values.items() if not k.startswith(BRANCH_KEYS)}
         assert (out / "harmonic_balance.png").is_file()
-        response_figure_draws_the_sweep(np.load(out / "harmonic_balance.npz"), qoi[ranks], values)
+        response_figure_draws_the_sweep(np.load(out / "harmonic_balance.npz"), qoi[ranks], BAND)
     # plot of the demo's folder draws its response.png beside the demo's figure, which it
     # overwrote when both were response.png (issue 25 E23)
     figure = (out / "harmonic_balance.png").read_bytes()
@@ -263,15 +303,145 @@ def test_the_frequency_response_demo_jumps_where_the_harmonic_balance_says(tmp_p
     assert proc.returncode == 0, proc.stderr
     assert (out / "harmonic_balance.png").read_bytes() == figure
     assert (out / "response.png").is_file()
-    assert qoi[1] == qoi[2]
+    assert qoi[1] == qoi[2] and len(qoi[1]) == 6 * len(BAND)
     q = qoi[1]
-    assert q["amp_up_1p04_m"] == pytest.approx(q["amp_down_1p04_m"], rel=1e-4)
+    for r in ("1p04", "1p11", "1p12"):
+        assert q[f"amp_up_{r}_m"] == pytest.approx(q[f"amp_down_{r}_m"], rel=4e-4), r
     assert q["amp_up_1p04_m"] == pytest.approx(q["duffing_high_up_1p04_m"], rel=0.03)
-    for r in ("1p05", "1p06", "1p07"):
+    for r in ("1p11", "1p12"):
+        assert q[f"amp_up_{r}_m"] == pytest.approx(q[f"duffing_low_up_{r}_m"], rel=0.02)
+    for r in ("1p05", "1p06", "1p07", "1p08", "1p09", "1p10"):
         up, down = q[f"amp_up_{r}_m"], q[f"amp_down_{r}_m"]
-        assert up == pytest.approx(q[f"duffing_high_up_{r}_m"], rel=0.03)
-        assert down == pytest.approx(q[f"duffing_low_down_{r}_m"], rel=0.02)
+        assert up == pytest.approx(q[f"duffing_high_up_{r}_m"], rel=0.03), r
+        assert down == pytest.approx(q[f"duffing_low_down_{r}_m"], rel=0.02), r
         assert up > 2.5 * down
+
+
+@pytest.mark.long
+def test_the_frequency_response_demo_folds_where_the_sweeps_jump(response_runs):
+    """The demo's branch of periodic orbits (shooting, N = 100 SDIRK3 steps a period, r from
+    0.98 to 1.14), serially, against the harmonic balance and against its own sweep.
+
+    Asserted, with tests/test_periodic.py's reasoning for the whole S-curve (the same branch):
+    - two folds, none rejected; a multiplier at +1 at each: the real multiplier nearest 1
+      within 1e-4 of it (the fold located to 1e-6 in arclength, μ moving at |dμ/ds| ≲ 20:
+      |μ − 1| ≲ 2e-5, and 5 times that for μ(s)'s curvature; measured 2e-6 and 2e-10), and it
+      is the largest: the largest |μ| within 1e-4 of 1 too (the other multipliers, the
+      damped modes', ≈ exp(−2πζ/r) = 0.94);
+    - the folds against the harmonic balance's (test_periodic.harmonic_balance_folds, r =
+      1.04377 and 1.11419): the fold lies at r² − 1 = ¾ α a²/ω² on the backbone, so the
+      one-mode reduction's 3 % in amplitude is 6 % in r² − 1: within 0.06 (r_hb² − 1) in
+      r² (measured: the lower fold 1.04328, −1.1 %; the upper 1.11005, −3.8 %); their
+      amplitudes within 3 % (measured +0.9 %, 9.78 mm, and −0.04 %, 26.40 mm);
+    - the sweep's jumps (the demo's own, :data:`BAND`): the upward chain's last member on the
+      upper branch lies below the upper fold and its first after the jump at most one sweep
+      step (0.01) before it; the downward chain's likewise at the lower fold (a sweep can
+      leave a branch only where it ends or before: its basin shrinks to nothing at the fold;
+      measured: the upper fold 1.11005 between the jump's members 1.10 and 1.11, the lower
+      1.04328 between 1.05 and 1.04);
+    - the middle branch: its orbits lie between the folds in r and in amplitude, each unstable
+      by a real multiplier > 1 (the largest |μ| measured 1.017-1.137)."""
+    from test_periodic import F_DEMO, RHO_A, W1, clamped, harmonic_balance_folds
+
+    q, out = response_runs["serial"]
+    assert q["branch_folds"] == 2 and q["branch_rejected"] == 0
+    assert q["branch_steps"] >= 10 and q["branch_monodromies"] >= q["branch_steps"]
+    for name in ("upper", "lower"):
+        assert abs(q[f"fold_{name}_mu_nearest_one"] - 1.0) <= 1e-4, name
+        assert abs(q[f"fold_{name}_mu_abs_max"] - 1.0) <= 1e-4, name
+    duffing = Duffing.of_clamped_scene(clamped(F_DEMO, 1.0), omega=W1)
+    s = np.linspace(0.0, 1.0, 20001)
+    f = clamped_modal_force(F_DEMO * np.sin(np.pi * s), s, 1.0, RHO_A)
+    (hb_low, a_low), (hb_up, a_up) = harmonic_balance_folds(f, duffing)
+    for name, r_hb, a_hb in (("lower", hb_low, a_low), ("upper", hb_up, a_up)):
+        assert abs(q[f"fold_{name}_r"] ** 2 - r_hb**2) <= 0.06 * (r_hb**2 - 1.0), name
+        assert q[f"fold_{name}_amp_m"] == pytest.approx(a_hb, rel=0.03), name
+    r = [float(v) for v in BAND]
+    up = [q[f"amp_up_{v.replace('.', 'p')}_m"] for v in BAND]
+    down = [q[f"amp_down_{v.replace('.', 'p')}_m"] for v in BAND]
+    (j,) = [k for k in range(1, len(r)) if up[k] < 0.5 * up[k - 1]]  # upward: upper at r[j-1]
+    assert r[j - 1] < q["fold_upper_r"] < r[j] + 0.01
+    (k,) = [
+        k for k in range(len(r) - 1) if down[k] > 2.0 * down[k + 1]
+    ]  # downward: lower at r[k+1]
+    assert r[k] - 0.01 < q["fold_lower_r"] < r[k + 1]
+    assert q["unstable_points"] >= 5
+    assert q["fold_lower_r"] < q["unstable_r_min"] <= q["unstable_r_max"] < q["fold_upper_r"]
+    assert q["fold_lower_amp_m"] < q["unstable_amp_min_m"]
+    assert q["unstable_amp_max_m"] < q["fold_upper_amp_m"]
+    assert q["unstable_mu_abs_min"] > 1.0
+    branch_figure_draws_the_orbits(np.load(out / "harmonic_balance.npz"), q)
+
+
+def branch_figure_draws_the_orbits(figure, q: dict[str, float]) -> None:
+    """harmonic_balance.png's lines after the sweep's: the branch's stretches, stable (solid)
+    and unstable (dashed), and the folds: the folds' line at the QOI lines' folds (to their 12
+    printed digits); one unstable stretch, from the upper fold to the lower (the order traced)
+    with every point between them in r, and two stable stretches."""
+    count = sum(1 for key in figure if key.endswith("/label"))
+    assert count == 9  # the harmonic balance's 3, the sweep's 2, stretches 3, the folds
+    lines = [figure[f"axes0/line{j}"] for j in range(count)]
+    labels = [str(figure[f"axes0/line{j}/label"]) for j in range(count)]
+    folds = lines[labels.index("fold: a multiplier at +1")]
+    expected = [
+        [q["fold_upper_r"], q["fold_lower_r"]],
+        [1e3 * q["fold_upper_amp_m"], 1e3 * q["fold_lower_amp_m"]],
+    ]
+    np.testing.assert_allclose(folds, expected, rtol=1e-11)
+    assert labels[5] == "periodic orbits, stable" and labels[7].startswith("_")  # unlabelled
+    assert labels[6] == "periodic orbits, unstable"
+    middle = lines[6]
+    np.testing.assert_allclose(middle[:, [0, -1]], expected, rtol=1e-11)
+    assert np.all((middle[0, 1:-1] > q["fold_lower_r"]) & (middle[0, 1:-1] < q["fold_upper_r"]))
+
+
+@pytest.mark.long
+def test_the_frequency_response_demo_branch_serial_equals_mpirun(response_runs):
+    """The demo's :data:`SHORT` branch of periodic orbits (r from 1.06 down the lower branch,
+    through the lower fold and up the unstable middle branch to 1.06) on one rank and on two
+    (the shooting parallel in space: PETSc's LU serially, MUMPS under mpirun, other orders of
+    the reductions): the same branch, up to how precisely each run solves it, not the bits.
+
+    - The counts (steps, rejected steps, monodromies, folds, unstable points) equal: the step
+      control decides on Newton's iteration counts, which round-off (1e-13 relative) changes
+      only if an update lands within it of the tolerance.
+    - A fold is located to 1e-6 in arclength s (the engine's locate_tolerance), so the two
+      runs' folds lie within 2e-6 in s of each other: within 2e-6 in r (|dr/ds| ≤ 1); in
+      amplitude within 5e-7 m (the metric weighs the first mode's amplitude a as 4 a/ℓ,
+      ``scale`` 4, ℓ = 1 m: ℓ/4 × 2e-6); its multipliers within 4e-5 (|dμ/ds| ≲ 20,
+      tests/test_periodic.py). The same bound holds the short branch's fold against the
+      whole branch's lower fold (the serial run): the same fold, located from other points.
+    - The middle branch's points are corrected points, converged to 1e-9 in the metric
+      (‖δx‖; the error then of order ‖δx‖²), each from a prediction off the previous point,
+      so the two runs' differences may add up over the steps: r within 2e-9 × steps of each
+      other, the amplitude within ℓ/4 of that [m], the largest |μ| within 20 times it.
+
+    Measured (orbit_branch.csv of both runs, full precision): the points' r within 2.6e-12,
+    amplitudes 5.8e-13 m, largest |μ| 1.4e-11; the fold's r the same to the last bit, its
+    amplitude 1.6e-15 m; the short branch's fold against the whole branch's lower fold: r
+    the same to the 12 printed digits, the amplitude 5.5e-12 m."""
+    one, two = (
+        {k: v for k, v in response_runs[n][0].items() if k.startswith(BRANCH_KEYS)}
+        for n in ("short", "mpirun")
+    )
+    assert one.keys() == two.keys() and len(one) == 5 + 4 + 6
+    assert one["branch_folds"] == 1 and one["unstable_points"] >= 2
+    corrected = 2e-9 * one["branch_steps"]
+    for key, value in one.items():
+        fold = key.startswith("fold_")
+        if key.startswith("branch_") or key == "unstable_points":
+            tolerance = 0.0
+        elif key.endswith("_r") or key.startswith("unstable_r_"):
+            tolerance = 2e-6 if fold else corrected
+        elif key.endswith("_m"):
+            tolerance = 5e-7 if fold else corrected / 4
+        else:  # multipliers
+            tolerance = 4e-5 if fold else 20 * corrected
+        assert abs(two[key] - value) <= tolerance, (key, value, two[key])
+    whole = response_runs["serial"][0]
+    assert abs(one["fold_0_r"] - whole["fold_lower_r"]) <= 2e-6
+    assert abs(one["fold_0_amp_m"] - whole["fold_lower_amp_m"]) <= 5e-7
+    assert abs(one["fold_0_mu_nearest_one"] - whole["fold_lower_mu_nearest_one"]) <= 4e-5
 
 
 def response_figure_draws_the_sweep(figure, qoi: dict[str, float], values: list[str]) -> None:
