@@ -1043,7 +1043,8 @@ def response_section() -> str:
     f = clamped_modal_force(F * np.sin(np.pi * s), s, 1.0, rho_A)
     lines += [
         "**Jumps and hysteresis** (`scenes/sweeps/clamped_hysteresis.toml`; the demo "
-        "`demos/frequency_response.py`, whose test holds four frequencies): the paper's rod "
+        "`demos/frequency_response.py`, whose long test holds nine frequencies, 1.04 to "
+        "1.12, and the branch of periodic orbits through both folds): the paper's rod "
         f"clamped at both ends, ζ1 = {zeta:.3f} (viscous), forced at r ω1 (ω1 = {w1:g} rad/s) "
         f"by {F:g} sin(πs/ℓ) N/m (modal force f = {f:.0f} m/s²), an upward and a downward "
         "chain. The mid-span amplitude (half the peak-to-peak) against the harmonic balance of "
