@@ -309,7 +309,24 @@ def lyapunov(
     with fixed steps."""
     from cosserat_fem.analysis.lyapunov import largest_exponent
 
+    _lyapunov_options(options)
     return largest_exponent(scene, period, periods=periods, out=out_folder(out), **options)
+
+
+def _lyapunov_options(options: Mapping[str, Any]) -> None:
+    """SceneError naming the first of ``options`` that ``largest_exponent`` does not take
+    (a misspelt keyword was a TypeError, not the one line of bad input)."""
+    import inspect
+
+    from cosserat_fem.analysis.lyapunov import largest_exponent
+
+    known = set(inspect.signature(largest_exponent).parameters) - {"scene", "period", "periods"}
+    known -= {"out", "comm"}
+    for name in options:
+        if name not in known:
+            raise SceneError(
+                f"{name}: not an option of lyapunov (it takes {', '.join(sorted(known))})"
+            )
 
 
 def pod(
@@ -719,6 +736,7 @@ def lyapunov_run(
 
     if not isinstance(scene, Scene):
         raise SceneError(f"scene: must be a Scene (cf.load), got {type(scene).__name__}")
+    _lyapunov_options(options)
     value = orbit_runs.period_value(scene, period)
     orbit_runs.check_periodic(scene, value)
     check_request(  # before the folder is made (largest_exponent's defaults)

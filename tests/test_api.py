@@ -255,13 +255,16 @@ def test_bad_sampling_arguments_are_refused_before_any_work(kwargs, key):
         (lambda s, out: cf.load(3), "source"),
         (lambda s, out: cf.run(s, ""), "out"),
         (lambda s, out: cf.modes(s, 2, out=SCENE), "out"),
+        (lambda s, out: cf.lyapunov(s, 1e-4, periods=2, out=out, foo=1), "foo"),
+        (lambda s, out: cf.lyapunov_run(s, 1e-4, periods=2, out=out, evry=2), "evry"),
     ],
 )
 def test_bad_api_arguments_are_refused_by_name(tmp_path, call, key):
     """The API's arguments are refused as the command line's are, by name and before any
     work: a ValueError (about), TypeErrors (count, a load's source, a sweep that is not one)
     and failures at the first output time, after the run's folder was claimed (progress and
-    observers that are not functions) were not; out="" wrote into the current folder."""
+    observers that are not functions) were not; out="" wrote into the current folder; a
+    misspelt option of lyapunov was a TypeError."""
     scene = cf.load(SCENE, {"time.end": 0.0003})
     with pytest.raises(SceneError, match=f"^{key}[ :]"):
         call(scene, tmp_path / "out")
