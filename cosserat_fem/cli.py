@@ -698,7 +698,9 @@ def _orbits(args) -> int:
                     f"{point['parameter']:.10g}, amplitude {point['amplitude']:.6g} m"
                 )
             _say(f"-> {Path(out) / 'orbit_branch.csv'}, {Path(out) / SUMMARY}")
-    return 0
+    from cosserat_fem.analysis.orbit_runs import WALL_TIME_STOP
+
+    return 4 if summary["reason"].startswith(WALL_TIME_STOP) else 0  # a stopped run's code
 
 
 def _one_orbit(args) -> int:

@@ -88,6 +88,37 @@ def same_rows(folder, reference) -> list[dict]:
     return got
 
 
+def test_a_branch_stops_at_its_wall_time_and_restarts_to_the_whole_branch(tmp_path):
+    """About 3 s (a process per part: here 3 parts). limits.wall_time = 2 ms: above the
+    budget's lower bound of the one period the command checks up front (budget.py: 0.76 ms
+    for 20 steps of this 4-element rod), far below what the branch costs by the same bound
+    (its 17 monodromies each time-march a period at least: 13 ms, and the shooting's set-up
+    comes on top), so no machine traces it within the limit. Each part ends at the first
+    point after its limit (exit 4, the reason on stderr and in summary.json beginning with
+    orbit_runs.WALL_TIME_STOP) with its rows written, and ``orbits --restart`` continues it
+    (each part given the limit again) until the branch reaches its range's end (exit 0)
+    with the uninterrupted branch's rows (:func:`same_rows`)."""
+    from cosserat_fem.analysis.orbit_runs import WALL_TIME_STOP
+
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    base = ["orbits", str(PAPER), *BRANCH, *STEPS]
+    assert cli(*base, *sets(LINEAR), "--out", str(whole)).returncode == 0
+    limited = sets({**LINEAR, "limits.wall_time": 2e-3})
+    proc = cli(*base, *limited, "--out", str(cut))
+    parts = 1
+    while proc.returncode == 4:
+        summary = json.loads((cut / "summary.json").read_text())
+        assert summary["reason"].startswith(WALL_TIME_STOP), summary["reason"]
+        assert WALL_TIME_STOP in proc.stderr
+        assert 1 <= len(rows(cut / "orbit_branch.csv")) < len(rows(whole / "orbit_branch.csv"))
+        assert parts <= len(rows(whole / "orbit_branch.csv"))  # a point at least a part
+        proc = cli("orbits", "--restart", str(cut), "--max-points", "300")
+        parts += 1
+    assert proc.returncode == 0, proc.stderr
+    assert parts >= 2  # it did stop
+    same_rows(cut, whole)
+
+
 def test_the_orbits_command_gives_the_api_s_branch_with_its_files(tmp_path):
     """``orbits`` over r in [1.03, 1.07] against ``cf.periodic_branch`` with the same
     settings: as many points, each p within DP and amplitude within DA relative (module

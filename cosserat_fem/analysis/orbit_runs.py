@@ -15,7 +15,8 @@ killed run keeps every point found up to its last:
 * ``summary.json``: the reason the branch ended, its steps, rejected steps, monodromies
   (periods with the variational equations), the folds and special points, the restarts;
   also when the first orbit is not found (a SolverError: no point, its message the
-  reason).
+  reason). A branch ends at its first accepted point after the scene's limits.wall_time
+  since its part began (:data:`WALL_TIME_STOP`; the command's exit 4), restartable.
 * ``continuation/``: the restart data (cosserat_fem/analysis/path_restart.py's per-rank
   arrays of the branch's last three points, ``save_branch_state``/``load_branch``, and
   ``orbits.json``, its "kind" "orbits": the scene, the period, the parameter, the
@@ -157,12 +158,29 @@ def _mu_lists(mu: np.ndarray) -> list[list[float]]:
     return [[float(m.real), float(m.imag)] for m in np.asarray(mu, dtype=complex)]
 
 
+#: How a branch stopped at limits.wall_time begins its reason: it is written up to that point,
+#: and ``orbits --restart DIR`` continues it (each part given limits.wall_time again).
+WALL_TIME_STOP = "limits.wall_time: the branch stopped after its limit"
+
+
 class _Recorder:
     """The observer of ``trace_orbits`` (and of a resumed engine): each point's row, frame,
     restart data and progress, as the branch grows (module docstring). Collective."""
 
-    def __init__(self, shooting, folder: Path | None, progress, record: dict, lines: list[str]):
+    def __init__(
+        self,
+        shooting,
+        folder: Path | None,
+        progress,
+        record: dict,
+        lines: list[str],
+        clock: float | None = None,
+    ):
+        """``clock``: the perf_counter at the part's start; the part ends at the first point
+        after limits.wall_time of the scene has passed since (:data:`WALL_TIME_STOP`)."""
         self.shooting, self.folder, self.progress = shooting, folder, progress
+        wall = shooting.scene.limits.wall_time
+        self.deadline = None if clock is None or not wall else clock + wall
         self.record = record  # orbits.json's content, updated
         self.lines = lines  # orbit_branch.csv's lines (header first)
         self.kept: list[tuple[Point, float, np.ndarray]] = []
@@ -191,9 +209,10 @@ class _Recorder:
         self.record["frames"] = index + 1
         self.lines.append(_csv_line(orbit.as_row(0)))
 
-    def __call__(self, q: Point, weight: float) -> None:
+    def __call__(self, q: Point, weight: float) -> str | None:
         """After the engine's first point (its tangent turned along the traced direction, as
-        the branch's first point) and each accepted one."""
+        the branch's first point) and each accepted one; the engine's stop hook: a reason to
+        end the branch at this point (the wall time), else None."""
         if not self.told and not self.kept and self.record["direction"] < 0:
             q = replace(q, t_u=-q.t_u, t_p=-q.t_p)
         self.record["weight"] = weight
@@ -206,6 +225,13 @@ class _Recorder:
             self._save()
         if self.progress is not None:
             self.progress(self.record["frames"], q.p, orbit.amplitude)
+        if self.deadline is not None:
+            from cosserat_fem.common.parallel import from_root
+
+            if from_root(self.shooting.comm, time.perf_counter() > self.deadline):
+                wall = self.shooting.scene.limits.wall_time
+                return f"{WALL_TIME_STOP} of {wall:g} s of wall time passed"
+        return None
 
     def _step(self) -> float:
         """The step the engine takes next (cosserat_fem/nls/arclength.py, ``_extend``): the
@@ -340,7 +366,7 @@ def orbit_branch(
     shooting = Shooting(scene, period, steps_per_period=steps_per_period, parameter=parameter)
     try:
         shooting.set_parameter(start)
-        recorder = _Recorder(shooting, folder, progress, record, [",".join(ORBIT_COLUMNS)])
+        recorder = _Recorder(shooting, folder, progress, record, [",".join(ORBIT_COLUMNS)], clock)
         try:
             u = shooting.settle(shooting.rest(), int(settle))
             branch = trace_orbits(shooting, u, start, end, settings, scale, observer=recorder)
@@ -424,7 +450,7 @@ def resume_orbit_branch(
     try:
         shooting.records = {}
         shooting.monodromies = 0
-        recorder = _Recorder(shooting, folder, progress, record, lines)
+        recorder = _Recorder(shooting, folder, progress, record, lines, clock)
         recorder.kept = [
             (q, a, np.array([complex(*m) for m in mu]))
             for q, (a, mu) in zip(saved.points, record["kept"], strict=True)
