@@ -84,6 +84,14 @@ def run(
 
     out = out_folder(out)
     observers = [as_observer(o) for o in observers]  # checked before any work
+    if restart is not None and hasattr(restart, "run_dir"):
+        from cosserat_fem.rom.runs import recorded_basis
+
+        if recorded_basis(restart.run_dir) is not None:  # its checkpoint's U is U_ref + V q
+            raise SceneError(
+                f"--restart: {str(restart.run_dir)!r} is a reduced run; continue it with "
+                "cosserat-fem rom run --restart DIR --basis FILE (cf.rom.run)"
+            )
     if progress is not None and not callable(progress):
         raise SceneError(
             f"progress: must be a function progress(t, steps, iterations), got "

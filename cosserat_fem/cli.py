@@ -212,6 +212,7 @@ def _parser() -> argparse.ArgumentParser:
         "else mid-span)",
     )
     _orbit_parsers(sub)
+    _rom_parsers(sub)
     sweep = sub.add_parser(
         "sweep",
         help="run the members of a sweep file (under mpirun: groups of ranks)",
@@ -316,6 +317,54 @@ def _orbit_parsers(sub) -> None:
     )
 
 
+def _rom_parsers(sub) -> None:
+    """The parsers of ``rom build``, ``rom run`` and ``rom validate`` (cosserat_fem/rom/runs.py;
+    docs/rom.md §11)."""
+    rom = sub.add_parser(
+        "rom", help="reduced models from POD modes: build a basis, run on it, validate it"
+    )
+    commands = rom.add_subparsers(
+        dest="rom_command", required=True, metavar="ROM_COMMAND", parser_class=_Parser
+    )
+    build = commands.add_parser(
+        "build", help="a basis from full runs of scenes or of a sweep's members (FILE.npz, .json)"
+    )
+    _common(build, scene_optional=True, texts={"scene": "scene files (TOML) to train on"})
+    build.add_argument("scenes", nargs="*", metavar="SCENE", help=argparse.SUPPRESS)
+    _rom_members(build)
+    build.add_argument(
+        "--tolerance", type=float, help="energy left out, docs/rom.md (3), e.g. 1e-8"
+    )
+    build.add_argument("--modes", type=int, metavar="K", help="the number of modes instead")
+    build.add_argument(
+        "--every", type=int, default=1, metavar="N", help="a snapshot every N outputs (default 1)"
+    )
+    build.add_argument("--keep", metavar="DIR", help="keep the training runs' outputs in DIR/<run>")
+    run = commands.add_parser(
+        "run", help="a reduced run: probes.csv, XDMF and summary.json as a full run's"
+    )
+    _common(run, scene_optional=True)
+    run.add_argument("--basis", metavar="FILE", help="the basis file (.npz) of rom build")
+    run.add_argument(
+        "--restart", metavar="DIR", help="continue the reduced run in DIR (on the same basis)"
+    )
+    check = commands.add_parser(
+        "validate", help="runs in full and reduced: the free-end errors beside the indicator"
+    )
+    _common(check, scene_optional=True)
+    check.add_argument("--basis", metavar="FILE", help="the basis file (.npz) of rom build")
+    _rom_members(check)
+
+
+def _rom_members(sub: argparse.ArgumentParser) -> None:
+    sub.add_argument("--sweep", metavar="FILE", help="a sweep file whose members are run")
+    sub.add_argument(
+        "--members",
+        metavar="LIST",
+        help="of --sweep: '0,10,20' or a range 'start:stop:step' ('::20': every 20th)",
+    )
+
+
 def _period(sub: argparse.ArgumentParser) -> None:
     sub.add_argument(
         "--period",
@@ -379,7 +428,7 @@ def _ignore_sigpipe(command: str) -> None:
     (``Caught signal number 13 Broken Pipe`` and MPI_ABORT, exit 59, for a progress line or a
     log record written into a closed pipe): the commands that solve start it first, and
     SIGPIPE is ignored again after it."""
-    if command in ("run", "static", "modes", "sweep"):
+    if command in ("run", "static", "modes", "sweep", "rom"):
         from petsc4py import PETSc  # noqa: F401 - initialises PETSc, with its signal handlers
     with contextlib.suppress(ValueError):  # only the main thread may set handlers
         signal.signal(signal.SIGPIPE, signal.SIG_IGN)
@@ -798,6 +847,80 @@ def _sweep(args) -> int:
     return 0
 
 
+def _rom(args) -> int:
+    """``rom build|run|validate`` (cosserat_fem/rom/runs.py): the basis's files, a reduced run's
+    summary, or the validation's table."""
+    from mpi4py import MPI
+
+    from cosserat_fem import api
+    from cosserat_fem.analysis.progress import ProgressBar, summary_screen
+    from cosserat_fem.rom import runs
+
+    root = MPI.COMM_WORLD.rank == 0 and not args.quiet
+    sweep = api.load_sweep(args.sweep, args.overrides) if getattr(args, "sweep", None) else None
+    if args.rom_command == "build":
+        if args.out is None:
+            raise SceneError("rom build --out: give the basis file's name (FILE: FILE.npz, .json)")
+        files = [args.scene, *args.scenes] if args.scene is not None else []
+        scenes = [api.load(s, args.overrides) for s in files]
+        if not scenes and sweep is None:
+            raise SceneError("rom build: give SCENE files or --sweep FILE to train on")
+        basis = runs.build(
+            scenes,
+            args.out,
+            sweep=sweep,
+            members=args.members,
+            tolerance=args.tolerance,
+            modes=args.modes,
+            every=args.every,
+            keep=args.keep,
+        )
+        if root:
+            _say(
+                f"cosserat-fem: rom build: {basis.modes} modes of "
+                f"{basis.provenance['snapshots']} snapshots of "
+                f"{len(basis.provenance['runs'])} runs, energy left out "
+                f"{basis.energy_left_out():.3e}"
+            )
+            stem = Path(args.out).with_suffix("") if Path(args.out).suffix == ".npz" else args.out
+            _say(f"-> {stem}.npz, {stem}.json")
+        return 0
+    if args.basis is None:
+        raise SceneError(f"rom {args.rom_command} --basis: give the basis file (rom build --out)")
+    if args.rom_command == "validate":
+        scenes = [api.load(args.scene, args.overrides)] if args.scene else []
+        if args.scene is None and sweep is None:
+            raise SceneError("rom validate: give a SCENE or --sweep FILE")
+        out = args.out or str(Path("results") / "rom_validation")
+        result = runs.validate(args.basis, scenes, out, sweep=sweep, members=args.members)
+        if root:
+            for line in runs.validation_lines(result):
+                _say(line)
+            _say(f"-> {result.table}")
+        return 0
+    checkpoint = None
+    if args.restart is not None:
+        if args.scene is not None or args.out is not None:
+            which = "SCENE" if args.scene is not None else "--out"
+            raise SceneError(f"rom run --restart: {which} cannot be given (its own folder)")
+        scene, checkpoint = api.resume(args.restart, args.overrides)
+        start, out = checkpoint.time, None
+    elif args.scene is None:
+        raise SceneError("rom run: give a SCENE file, or --restart DIR")
+    else:
+        scene = api.load(args.scene, args.overrides)
+        start = scene.time.start
+        out = args.out or str(Path(scene.output.directory) / "reduced")
+    bar = ProgressBar(start, scene.time.end, enabled=None if root else False)
+    try:
+        result = runs.run(scene, args.basis, out, restart=checkpoint, progress=bar, record=False)
+    finally:
+        bar.close()
+    if root:
+        _say(summary_screen(result.summary, result.out_dir))
+    return 0
+
+
 def _validate(args) -> int:
     """The scene resolved, and what ``run`` and ``static`` of it cost at least
     (cosserat_fem/analysis/budget.py), refused if that exceeds its limits (exit 2), as they would
@@ -913,6 +1036,8 @@ def _main(args) -> int:
             return _lyapunov(args)
         if args.command == "pod":
             return _pod(args)
+        if args.command == "rom":
+            return _rom(args)
     except SceneError as exc:
         _report(exc, args)
         return 2

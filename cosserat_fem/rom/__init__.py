@@ -1,8 +1,10 @@
 """Reduced models of the rod from POD modes (issue 28; docs/rom.md): the basis
 (cosserat_fem/rom/basis.py, offline) and the Galerkin-reduced solve in the time loop
-(cosserat_fem/rom/galerkin.py, online). From Python: ``cf.rom.train(scenes, tolerance)``,
-``cf.rom.write_basis``/``read_basis`` and ``cf.rom.run(scene, basis)``, imported on first use
-(no DOLFINx at ``import cosserat_fem``)."""
+(cosserat_fem/rom/galerkin.py, online) and the commands' work (cosserat_fem/rom/runs.py:
+``cosserat-fem rom build|run|validate``). From Python: ``cf.rom.train(scenes, tolerance)``,
+``cf.rom.write_basis``/``read_basis``, ``cf.rom.build(scenes, out, tolerance=...)``,
+``cf.rom.run(scene, basis, out)`` and ``cf.rom.validate(basis, scenes, out)``, imported on
+first use (no DOLFINx at ``import cosserat_fem``)."""
 
 from __future__ import annotations
 
@@ -13,7 +15,9 @@ _API = {
     "read_basis": "basis",
     "Basis": "basis",
     "SnapshotCollector": "basis",
-    "run": "galerkin",
+    "run": "runs",
+    "build": "runs",
+    "validate": "runs",
 }
 
 
