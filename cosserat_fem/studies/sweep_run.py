@@ -44,13 +44,21 @@ member, but its first ``discard``, into ``bifurcation.csv`` (:func:`gather_secti
 
 The row: ``member``, ``status`` ("completed", or "failed", "error", "stopped" as above),
 ``wall_s`` (the member's run), each varied key's value, the run's ``steps`` and
-``newton_iterations``, and for each probe column c (x, y, z [m], theta, psi, phi [rad]):
+``newton_iterations``, with ``[sweep.rom]`` the ``model`` each member used ("reduced",
+"full") and the reduced run's error ``indicator`` (its summary's rom.indicator.max, empty
+where absent), and for each probe column c (x, y, z [m], theta, psi, phi [rad]):
 ``final_c`` and ``max_abs_c`` over the run; for a frequency response, the chain's
 ``direction``, the ``previous`` member it continued (empty: from rest), its ``start_s`` and
 ``end_s``, the ``periods`` it ran, whether it ``settled`` and the last period's ``change``,
 and per column c its ``amp_c``, ``mean_c``, ``h1_c`` and ``phase_c``
 (cosserat_fem/studies/response.py); ``message`` for a failure.
-Tests: tests/test_sweep.py, tests/test_response.py, tests/test_bifurcation_diagram.py.
+A sweep with ``[sweep.rom]`` (docs/rom.md §11) runs its members on a reduced model: the
+basis file given, or one made before any member runs from full runs (from rest, on every
+rank of the world, as ``cosserat-fem rom build`` makes it) of the members it names, written
+to ``rom/basis.npz`` in the sweep's folder with those runs' outputs in ``rom/training/``;
+a sweep started again reuses a basis it can read (:func:`sweep_basis`).
+Tests: tests/test_sweep.py, tests/test_response.py, tests/test_bifurcation_diagram.py,
+tests/test_rom_cli.py.
 """
 
 from __future__ import annotations
@@ -124,13 +132,16 @@ def columns(spec: SweepSpec) -> list[str]:
     response = []
     if spec.response is not None:
         response = [*RESPONSE_COLUMNS, *(f"{m}_{c}" for c in RESPONSE_NAMES for m in MEASURES)]
+    rom = ["model"] if spec.rom is not None else []
     return [
         "member",
         "status",
+        *rom,
         "wall_s",
         *spec.varied,
         "steps",
         "newton_iterations",
+        *(["indicator"] if rom else []),
         *qoi,
         *response,
         "message",
@@ -162,6 +173,12 @@ def _row(
             )
     row["steps"] = summary.get("steps", "") if summary else ""
     row["newton_iterations"] = summary.get("newton", {}).get("iterations", "") if summary else ""
+    if spec.rom is not None:
+        from cosserat_fem.rom.runs import indicator_of
+
+        row["model"] = spec.rom.model
+        indicator = indicator_of(summary)[0] if summary else None
+        row["indicator"] = "" if indicator is None else repr(indicator)
     for i, name in enumerate(PROBE_NAMES):
         if probes is not None and len(probes):
             row[f"final_{name}"] = repr(float(probes[-1, 1 + i]))
@@ -386,12 +403,14 @@ def _run_member(
     comm,
     before: _Final | None = None,
     resume: bool = False,
+    basis: Path | None = None,
 ) -> tuple[dict, _Final | None]:
     """Run one member on ``comm`` into ``folder`` (a member of a chain continuing ``before``
     if given; with ``resume``, a member that stopped before, from its checkpoint if it has a
     usable one: not a forced member nor one with a Poincaré section, whose measurement or
     section is not in the checkpoint); its row and, for a chain, its final state (every
-    rank of ``comm``). With [sweep.poincare], the member's poincare.csv in ``folder``."""
+    rank of ``comm``). With [sweep.poincare], the member's poincare.csv in ``folder``; with
+    ``basis`` (a basis file), a reduced run on it (cosserat_fem/rom/runs.py)."""
     from cosserat_fem.analysis.simulation import run_scene
 
     t0 = time.perf_counter()
@@ -422,15 +441,29 @@ def _run_member(
         if checkpoint is None:
             _fresh_folder(folder, comm)
         _affordable(scene, folder, comm, checkpoint.time if checkpoint is not None else None)
-        result = run_scene(
-            scene,
-            folder,
-            comm=comm,
-            record=True,
-            observers=observers,
-            initial_state=initial,
-            restart=checkpoint,
-        )
+        if basis is None:
+            result = run_scene(
+                scene,
+                folder,
+                comm=comm,
+                record=True,
+                observers=observers,
+                initial_state=initial,
+                restart=checkpoint,
+            )
+        else:
+            from cosserat_fem.rom.runs import run as reduced_run
+
+            result = reduced_run(
+                scene,
+                basis,
+                folder,
+                comm=comm,
+                record=True,
+                observers=observers,
+                initial_state=initial,
+                restart=checkpoint,
+            )
         summary = result.summary
         probes = result.probes if checkpoint is None else _whole_probes(folder, comm)
         if spec.chains_continue:
@@ -466,12 +499,14 @@ def _run_chain(
     out: Path,
     comm,
     write,
+    basis: Path | None = None,
 ) -> int:
     """Run a chain's members not done, in order, each continuing the one before it when the
     sweep continues (from its saved state if it was done before a restart); those in
     ``stopped`` continue their stopped run (:func:`_run_member`). ``write(row)`` each row.
     A member that stops ends its chain when the next would continue it (the chain goes on
-    when the sweep is started again). The number run."""
+    when the sweep is started again). ``basis``: the reduced members' basis file. The
+    number run."""
     ran, before = 0, None
     for position, index in enumerate(chain):
         member = spec.members[index]
@@ -485,7 +520,7 @@ def _run_chain(
         ):
             previous = spec.members[chain[position - 1]]
             before = _load_final(out / MEMBERS / previous.name, previous.index, comm)
-        row, before = _run_member(spec, member, folder, comm, before, index in stopped)
+        row, before = _run_member(spec, member, folder, comm, before, index in stopped, basis)
         write(row)
         ran += 1
         if row["status"] == STOPPED and spec.chains_continue:
@@ -549,6 +584,7 @@ def run_sweep(
     # no member would never import it, and the others' import would wait for it for ever).
     from cosserat_fem.analysis import simulation  # noqa: F401
 
+    basis = sweep_basis(spec, out, world)
     color = world.rank // spec.group_size
     group = world.Split(color, world.rank)
     leader = group.rank == 0  # writes the group's table part
@@ -585,7 +621,7 @@ def run_sweep(
             k = group.bcast(k, root=0)
             if k >= len(todo):
                 break
-            ran += _run_chain(spec, todo[k], done, stopped, out, group, write)
+            ran += _run_chain(spec, todo[k], done, stopped, out, group, write, basis)
     except CosseratError as exc:  # a group's part it cannot write: raised by every rank below
         failure = exc
     finally:
@@ -617,6 +653,48 @@ def run_sweep(
     agree(world, problem)
     _stop_if_unfinished(spec, rows, world)
     return SweepResult(out / SWEEP_TABLE, ran, len(done), rows)
+
+
+#: Where a sweep trains its reduced members' basis ([sweep.rom] train), in its folder.
+ROM_FOLDER = "rom"
+
+
+def sweep_basis(spec: SweepSpec, out: Path, world) -> Path | None:
+    """The basis file of the sweep's reduced members (module docstring), None if they run in
+    full: the file of ``[sweep.rom] basis``, checked against the first member's mesh
+    (basis.read_basis: another mesh or space refused in one line), or ``rom/basis.npz`` in
+    ``out`` trained now from full runs of the members of ``[sweep.rom] train`` (from rest,
+    each on every rank of ``world``; their outputs in rom/training/<member>), or, when the
+    sweep is started again, the one trained before if it can be read. Collective."""
+    from cosserat_fem.rod.model import build_model
+    from cosserat_fem.rom import basis as rb
+    from cosserat_fem.rom.runs import sweep_targets, train_targets
+
+    if not spec.reduced:
+        return None
+    assert spec.rom is not None
+    if spec.rom.basis is not None:
+        model = build_model(spec.scene(spec.members[0]), world)
+        rb.read_basis(spec.rom.basis, model)  # refused here, before any member runs
+        return Path(spec.rom.basis)
+    path = out / ROM_FOLDER / "basis.npz"
+    if path.is_file() and (out / ROM_FOLDER / "basis.json").is_file():
+        try:
+            rb.read_basis(path, build_model(spec.scene(spec.members[0]), world))
+            return path
+        except SceneError:
+            pass  # cut by a kill: trained again
+    targets = sweep_targets(spec, spec.rom.train)
+    trained, model = train_targets(
+        targets,
+        tolerance=spec.rom.tolerance,
+        modes=spec.rom.modes,
+        every=spec.rom.every,
+        keep=out / ROM_FOLDER / "training",
+        comm=world,
+    )
+    rb.write_basis(trained, model, path)
+    return path
 
 
 #: bifurcation.csv's columns of a member's section point (poincare.csv's, without the

@@ -54,6 +54,21 @@ sweep gathers the points of every member into ``bifurcation.csv`` beside sweep.c
                                  #   of the one before it in its chain (optional)
     direction = "up"             # "up", "down" or "both", as for a response
 
+Members run on a reduced model (docs/rom.md §11; cosserat_fem/rom/runs.py) with
+``[sweep.rom]``; the table's ``model`` column says which model each member used, and its
+``indicator`` column the reduced run's error indicator where the solver reports one::
+
+    [sweep.rom]
+    model = "reduced"            # "reduced" (default) or "full": every member in full
+    basis = "paper_basis.npz"    # a basis file of ``cosserat-fem rom build`` (relative to
+                                 #   this file), or instead:
+    train = [0, 10]              # members run in full first (from rest), the basis made of
+                                 #   their snapshots (rom/basis.npz in the sweep's folder,
+                                 #   their outputs in rom/training/; a restarted sweep reuses it)
+    tolerance = 1e-8             # with train: the energy left out (docs/rom.md (3)), or
+    modes = 12                   #   the number of modes
+    every = 1                    # with train: a snapshot every so many outputs
+
 With a continuation, a member runs its scene's time span (time.end − time.start) from the
 start that carries the forcing's phase over from its predecessor's end
 (response.continued_start): the chain follows one attractor as the key steps, where members
@@ -105,7 +120,10 @@ KEYS = {
     "case",
     "response",
     "poincare",
+    "rom",
 }
+ROM_KEYS = {"model", "basis", "train", "tolerance", "modes", "every"}
+ROM_MODELS = ("reduced", "full")
 POINCARE_KEYS = {"period", "phase", "discard", "continuation", "direction"}
 RESPONSE_KEYS = {
     "period",
@@ -139,6 +157,26 @@ class SectionSettings:
     discard: int = 0
     continuation: str | None = None
     direction: str = "up"
+
+
+@dataclass(frozen=True)
+class RomSettings:
+    """A sweep's ``[sweep.rom]`` (module docstring): the members' ``model``, and their basis:
+    ``basis`` the path of a basis file (resolved), or the members ``train`` whose full runs
+    make it, with ``tolerance`` or ``modes`` and ``every``; ``digest`` the basis file's
+    SHA-256 (the sweep's fingerprint: another basis is another sweep)."""
+
+    model: str = "reduced"
+    basis: str | None = None
+    train: tuple[int, ...] = ()
+    tolerance: float | None = None
+    modes: int | None = None
+    every: int = 1
+    digest: str | None = None
+
+    @property
+    def reduced(self) -> bool:
+        return self.model == "reduced"
 
 
 @dataclass(frozen=True)
@@ -182,6 +220,13 @@ class SweepSpec:
     source_sha256: str = ""
     #: A bifurcation diagram's Poincaré section of every member ([sweep.poincare]).
     poincare: SectionSettings | None = None
+    #: The members' reduced model ([sweep.rom]), None: every member in full.
+    rom: RomSettings | None = None
+
+    @property
+    def reduced(self) -> bool:
+        """Whether the members run on a reduced model."""
+        return self.rom is not None and self.rom.reduced
 
     def scene(self, member: Member, extra: dict[str, Any] | None = None) -> Scene:
         """The member's resolved scene (validated with the sweep; built again here rather
@@ -210,6 +255,8 @@ class SweepSpec:
             document["response"] = self.response.__dict__
         if self.poincare is not None:
             document["poincare"] = self.poincare.__dict__
+        if self.rom is not None:
+            document["rom"] = self.rom.__dict__
         if self.chains_continue:  # the saved states are parts of a group's partition
             document["group_size"] = self.group_size
         return json.dumps(document, sort_keys=True, default=str)
@@ -618,6 +665,7 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
                 _check_section(poincare, scene, f"member {member.index}")
         except SceneError as exc:
             raise SceneError(f"sweep member {member.index} ({member.describe()}): {exc}") from None
+    rom = _rom(table.get("rom"), path, len(members))
     tables.seal()  # every member's tables are read: none is read again in a group
     return SweepSpec(
         base_data,
@@ -631,7 +679,93 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
         tables,
         hashlib.sha256(raw).hexdigest(),
         poincare,
+        rom,
     )
+
+
+def _rom(table: Any, path: Path, count: int) -> RomSettings | None:
+    """The [sweep.rom] table checked (module docstring), or None; the basis file must exist
+    (read by rank 0, its SHA-256 every rank's)."""
+    if table is None:
+        return None
+    if not isinstance(table, dict):
+        raise SceneError(f"sweep.rom: must be a table, got {show_value(table)}")
+    unknown = sorted(set(table) - ROM_KEYS)
+    if unknown:
+        raise SceneError(
+            f"sweep.rom.{unknown[0]}: unknown key (known: {', '.join(sorted(ROM_KEYS))})"
+        )
+    model = table.get("model", "reduced")
+    if model not in ROM_MODELS:
+        raise SceneError(
+            f"sweep.rom.model: must be one of {', '.join(repr(m) for m in ROM_MODELS)}, got "
+            f"{show_value(model)}"
+        )
+    basis, train = table.get("basis"), table.get("train")
+    if basis is None and train is None:
+        if model == "full":
+            return RomSettings(model)
+        raise SceneError(
+            "sweep.rom: the reduced members need a basis: give basis = FILE (of cosserat-fem "
+            "rom build) or train = [members]"
+        )
+    if basis is not None and train is not None:
+        raise SceneError("sweep.rom.train: give basis or train, not both")
+    every = _positive_int(table, "every", 1, "sweep.rom")
+    if basis is not None:
+        for key in ("tolerance", "modes", "every"):
+            if key in table:
+                raise SceneError(f"sweep.rom.{key}: only with train (the basis file has its modes)")
+        if not isinstance(basis, str) or not basis:
+            raise SceneError(f"sweep.rom.basis: a basis file's path, got {show_value(basis)}")
+        file = (path.parent / basis).resolve()
+        if file.suffix != ".npz":
+            file = file.with_suffix(".npz")
+        digest = _digest(file)
+        if digest is None:
+            raise SceneError(f"sweep.rom.basis: no basis file {str(file)!r}")
+        return RomSettings(model, str(file), digest=digest)
+    if not isinstance(train, list) or not train:
+        raise SceneError(f"sweep.rom.train: a non-empty list of members, got {show_value(train)}")
+    for m in train:
+        if isinstance(m, bool) or not isinstance(m, int) or not 0 <= m < count:
+            raise SceneError(
+                f"sweep.rom.train: member {show_value(m)} out of range (the sweep has members "
+                f"0 to {count - 1})"
+            )
+    tolerance, modes = table.get("tolerance"), table.get("modes")
+    if (tolerance is None) == (modes is None):
+        raise SceneError("sweep.rom.tolerance: give tolerance (the energy left out) or modes")
+    if modes is not None:
+        modes = _positive_int(table, "modes", 1, "sweep.rom")
+    if tolerance is not None and (
+        isinstance(tolerance, bool)
+        or not isinstance(tolerance, int | float)
+        or not 0.0 <= tolerance < 1.0
+    ):
+        raise SceneError(
+            f"sweep.rom.tolerance: must be a number in [0, 1), got {show_value(tolerance)}"
+        )
+    return RomSettings(
+        model,
+        None,
+        tuple(dict.fromkeys(train)),
+        None if tolerance is None else float(tolerance),
+        modes,
+        every,
+    )
+
+
+def _digest(file: Path) -> str | None:
+    """SHA-256 of ``file`` read by rank 0, every rank's (None if it cannot be read)."""
+    world = _world()
+    digest = None
+    if world.rank == 0:
+        try:
+            digest = hashlib.sha256(file.read_bytes()).hexdigest()
+        except OSError:
+            digest = None
+    return world.bcast(digest, root=0) if world.size > 1 else digest
 
 
 def _dotted(key: str) -> str:
