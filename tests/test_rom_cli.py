@@ -1,0 +1,264 @@
+"""The reduced model's commands (cosserat_fem/rom/runs.py, docs/rom.md §11): ``rom build`` and
+``rom run`` against ``cf.rom.run``, a reduced run's restart, a sweep of reduced members
+trained on two of them against its full sweep, ``rom validate`` against the errors computed
+from the probes.csv files it leaves, ``mpirun -n 2 rom run`` against serial, and the bad
+inputs' one-line refusals."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+
+import numpy as np
+import pytest
+from conftest import ROOT, read_table, run_command
+
+import cosserat_fem as cf
+from cosserat_fem.cli import main
+from cosserat_fem.rom.basis import relative_l2
+
+PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
+#: The paper's scene over a tenth of its span: 200 steps of 30 µs.
+SHORT = ["--set", "time.end=0.006"]
+#: docs/rom.md §7: a reduced run's relative L2 free-end error is at most 10 √ε, ε the
+#: energy left out of its basis (measured 1.4-7.0 √ε on the paper's scene).
+ERROR_CONSTANT = 10.0
+TOLERANCE = 1e-8  # of the bases here: ε ≈ 5e-9, √ε ≈ 7e-5, 10 √ε ≈ 7e-4
+
+
+def cli(*args: str, ranks: int = 1):
+    return run_command(["-m", "cosserat_fem.cli", *args], ranks)
+
+
+def probes(folder) -> np.ndarray:
+    return np.loadtxt(folder / "probes.csv", delimiter=",", skiprows=1)
+
+
+@pytest.fixture(scope="module")
+def basis_file(tmp_path_factory):
+    """``rom build`` of the short paper scene (its own run, tolerance 1e-8), the training
+    run kept."""
+    folder = tmp_path_factory.mktemp("basis")
+    proc = cli(
+        "rom", "build", str(PAPER), *SHORT, "--tolerance", str(TOLERANCE),
+        "--out", str(folder / "paper"), "--keep", str(folder / "training"),
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert "-> " in proc.stdout and "paper.npz" in proc.stdout
+    return folder / "paper.npz"
+
+
+def test_rom_run_is_cf_rom_run_and_restarts(basis_file, tmp_path):
+    """``rom run`` of the short paper scene on the basis of ``rom build`` writes probes.csv,
+    XDMF and summary.json as ``run`` does, and its probes equal ``cf.rom.run``'s on the same
+    file (in this process) to 1e-12 of the largest |x, y, z|: the same code path, the same
+    arithmetic; probes.csv's 17 significant digits give the doubles back. The full model
+    differs from it by the reduction's error (≈ 1e-4 here, > 1e-12 by far), which this test
+    would see. summary.json's rom names the file, its SHA-256 and modes.
+
+    Restart: the run to 3 ms continued by ``rom run --restart`` to 6 ms equals the straight run
+    within 100 steps × stol 1e-7 of the largest |x, y, z| (the continued run's chord Newton
+    starts with a fresh J_r where the straight one keeps its frozen one: each of the 100
+    steps after the restart stops within stol of its solution, and the rod's stable dynamics
+    do not amplify it; measured 1.5e-8 relative); ``run --restart`` (the full model) and a
+    restart on another basis are refused in one line."""
+    out = tmp_path / "reduced"
+    proc = cli("rom", "run", str(PAPER), *SHORT, "--basis", str(basis_file), "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    mine = probes(out)
+    assert mine.shape == (201, 7)
+    assert (out / "solution.xdmf").is_file() and (out / "solution.frames" / "mesh.h5").is_file()
+    summary = json.loads((out / "summary.json").read_text())
+    document = json.loads(basis_file.with_suffix(".json").read_text())
+    assert summary["status"] == "completed" and summary["newton"]["loop"] == "galerkin"
+    rom = summary["rom"]
+    assert rom["model"] == "reduced"
+    assert rom["basis"]["sha256"] == hashlib.sha256(basis_file.read_bytes()).hexdigest()
+    assert rom["basis"]["modes"] == document["provenance"]["modes"]
+    assert rom["basis"]["energy_left_out"] <= TOLERANCE
+    scene = cf.load(PAPER, {"time.end": 0.006})
+    python = cf.rom.run(scene, basis_file)
+    scale = np.abs(python.probes[:, 1:4]).max()
+    assert np.abs(mine[:, 1:] - python.probes[:, 1:]).max() <= 1e-12 * scale
+    full = probes(basis_file.parent / "training" / "scene")
+    error = relative_l2(mine[:, 1:4], full[:, 1:4])
+    assert 1e-12 < error <= ERROR_CONSTANT * math.sqrt(rom["basis"]["energy_left_out"])
+
+    half = tmp_path / "half"
+    args = ["--basis", str(basis_file)]
+    proc = cli("rom", "run", str(PAPER), "--set", "time.end=0.003", *args, "--out", str(half))
+    assert proc.returncode == 0, proc.stderr
+    refused = cli("run", "--restart", str(half), "--set", "time.end=0.006")
+    assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1
+    assert "is a reduced run" in refused.stderr and "Traceback" not in refused.stderr
+    other = tmp_path / "other"
+    (other.with_suffix(".npz")).write_bytes(basis_file.read_bytes() + b"\0")
+    other.with_suffix(".json").write_bytes(basis_file.with_suffix(".json").read_bytes())
+    later = ["--set", "time.end=0.006"]
+    refused = cli("rom", "run", "--restart", str(half), *later, "--basis", f"{other}.npz")
+    assert refused.returncode == 2 and len(refused.stderr.strip().splitlines()) == 1
+    assert "--basis: not the basis the run" in refused.stderr
+    proc = cli("rom", "run", "--restart", str(half), *later, *args)
+    assert proc.returncode == 0, proc.stderr
+    continued = probes(half)
+    assert continued.shape == mine.shape
+    assert np.abs(continued[:, 1:4] - mine[:, 1:4]).max() <= 100 * 1e-7 * scale
+
+
+def test_two_ranks_equal_one(basis_file, tmp_path):
+    """``mpirun -n 2 rom run`` equals the serial run to 1e-9 of the largest |x, y, z|: the two
+    differ by the order of sums (the reduced residual's allreduce, the distributed assembly),
+    each Newton solve to rtol 1e-10, as tests/test_rom.py (d) (measured 2e-16 m, 2e-13
+    relative)."""
+    runs = {}
+    for ranks in (1, 2):
+        out = tmp_path / f"n{ranks}"
+        args = ["--basis", str(basis_file), "--out", str(out), "--quiet"]
+        proc = cli("rom", "run", str(PAPER), *SHORT, *args, ranks=ranks)
+        assert proc.returncode == 0, proc.stderr
+        runs[ranks] = probes(out)
+    scale = np.abs(runs[1][:, 1:4]).max()
+    assert np.abs(runs[1] - runs[2]).max() <= 1e-9 * scale
+
+
+#: A sweep of the short paper scene over the load's amplitude f0 (1 to 3 kN/m, 5 members).
+SWEEP = """[sweep]
+scene = "{scene}"
+keep = "probes"
+[sweep.set]
+"time.end" = 0.006
+"output.xdmf" = false
+"parameters.f0" = 2e3
+"loads.force_density" = ["f0*sin(pi*s/L)*sin(8*omega0*t)", "f0*sin(pi*s/L)*sin(8*omega0*t)", 0]
+[sweep.vary]
+"parameters.f0" = {{ start = 1e3, stop = 3e3, num = 5 }}
+"""
+ROM = f"[sweep.rom]\ntrain = [0, 4]\ntolerance = {TOLERANCE}\n"
+
+
+@pytest.fixture(scope="module")
+def sweeps(tmp_path_factory):
+    """The amplitude sweep run in full and with [sweep.rom] trained on members 0 and 4."""
+    folder = tmp_path_factory.mktemp("sweeps")
+    full, reduced = folder / "full.toml", folder / "reduced.toml"
+    full.write_text(SWEEP.format(scene=PAPER))
+    reduced.write_text(SWEEP.format(scene=PAPER) + ROM)
+    for path in (full, reduced):
+        cf.sweep(cf.load_sweep(path), folder / path.stem)
+    return folder
+
+
+def test_reduced_sweep_members_are_within_the_bound(sweeps):
+    """Every member of the reduced sweep (trained on members 0 and 4 only, f0 = 1 and 3 kN/m)
+    is within 10 √ε of its full member, relative L2 of the free end (docs/rom.md §7, ε the
+    basis's energy left out): the tip deflects 1e-3 ℓ, so the members' responses are, to
+    O(1e-3), multiples of one another and each lies in the training span to the same ε
+    (measured 0.9-2.8 √ε, √ε = 7.6e-5). The table says "reduced" for each member and
+    "full" nowhere; the basis trained in rom/ names its two runs."""
+    rows = read_table(sweeps / "reduced" / "sweep.csv")
+    assert [r["model"] for r in rows] == ["reduced"] * 5
+    assert [r["status"] for r in rows] == ["completed"] * 5
+    assert "model" not in read_table(sweeps / "full" / "sweep.csv")[0]
+    document = json.loads((sweeps / "reduced" / "rom" / "basis.json").read_text())
+    assert [run["name"] for run in document["provenance"]["runs"]] == ["m00000", "m00004"]
+    eps = document["provenance"]["energy_left_out"]
+    assert 0 < eps <= TOLERANCE
+    for m in range(5):
+        full = probes(sweeps / "full" / "members" / f"m{m:05d}")[:, 1:4]
+        reduced = probes(sweeps / "reduced" / "members" / f"m{m:05d}")[:, 1:4]
+        error = relative_l2(reduced, full)
+        assert 0 < error <= ERROR_CONSTANT * math.sqrt(eps), (m, error)
+
+
+def test_validate_reports_the_errors_of_its_probes(sweeps, tmp_path, capsys):
+    """``rom validate --sweep --members 0:5:2`` on the sweep's trained basis: validation.csv
+    has members 0, 2, 4, and each error equals the relative L2 error computed here from the
+    probes.csv of its full and reduced runs to 1e-12 relative (the same doubles, read back
+    from 17 digits: only the order of the sums differs); each reduced run equals the reduced
+    sweep's member (the same run) to 1e-12 of its largest value; the indicator reads "n/a"
+    where the reduced solver reports none."""
+    path = sweeps / "reduced.toml"
+    basis = sweeps / "reduced" / "rom" / "basis.npz"
+    out = tmp_path / "validation"
+    args = ["--sweep", str(path), "--members", "0:5:2", "--basis", str(basis), "--out", str(out)]
+    assert main(["rom", "validate", *args]) == 0
+    printed = capsys.readouterr().out
+    rows = read_table(out / "validation.csv")
+    assert [r["target"] for r in rows] == ["m00000", "m00002", "m00004"]
+    for row in rows:
+        name = row["target"]
+        full = probes(out / "full" / name)[:, 1:4]
+        reduced = probes(out / "reduced" / name)[:, 1:4]
+        assert float(row["error"]) == pytest.approx(relative_l2(reduced, full), rel=1e-12)
+        sweep = probes(sweeps / "reduced" / "members" / name)[:, 1:4]
+        assert np.abs(sweep - reduced).max() <= 1e-12 * np.abs(sweep).max()
+        summary = json.loads((out / "reduced" / name / "summary.json").read_text())
+        indicator = summary["rom"].get("indicator", {}).get("max")
+        assert row["indicator"] == ("n/a" if indicator is None else repr(float(indicator)))
+        assert f"{float(row['error']):.3e}" in printed
+
+
+def _sweep_with(folder, name: str, rom: str) -> str:
+    path = folder / f"{name}.toml"
+    path.write_text(SWEEP.format(scene=PAPER) + rom)
+    return str(path)
+
+
+@pytest.mark.parametrize(
+    ("argv", "fragment"),
+    [
+        (["rom", "run", str(PAPER)], "rom run --basis: give the basis file"),
+        (["rom", "run", str(PAPER), "--basis", "{tmp}/none.npz"], "--basis: no basis file"),
+        (["rom", "build", str(PAPER), "--tolerance", "1e-8"], "rom build --out:"),
+        (
+            ["rom", "build", str(PAPER), "--tolerance", "1e-8", "--modes", "3", "--out", "b"],
+            "--tolerance, --modes: give one",
+        ),
+        (
+            ["rom", "build", "--sweep", "{sweep}", "--members", "0,9", "--modes", "2"]
+            + ["--out", "{tmp}/b"],
+            "--members: member 9 out of range (the sweep has members 0 to 4)",
+        ),
+        (["sweep", "{norom}", "--out", "{tmp}/s"], "sweep.rom: the reduced members need a basis"),
+        (["sweep", "{far}", "--out", "{tmp}/s"], "sweep.rom.train: member 7 out of range"),
+        (["sweep", "{nofile}", "--out", "{tmp}/s"], "sweep.rom.basis: no basis file"),
+    ],
+)
+def test_bad_input_is_one_line(tmp_path, capsys, argv, fragment):
+    """Each bad input: exit status 2, one line on stderr naming the option or key, no
+    traceback, before any run (nothing written in the output folder)."""
+    files = {
+        name: _sweep_with(tmp_path, name, rom)
+        for name, rom in (
+            ("sweep", ""),
+            ("norom", "[sweep.rom]\ntolerance = 1e-8\n"),
+            ("far", "[sweep.rom]\ntrain = [0, 7]\nmodes = 3\n"),
+            ("nofile", '[sweep.rom]\nbasis = "missing.npz"\n'),
+        )
+    }
+    argv = [a.format(tmp=tmp_path, **files) for a in argv]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and fragment in err[0], err
+    assert not (tmp_path / "s").exists() and not (tmp_path / "b.npz").exists()
+
+
+def test_a_basis_of_another_mesh_or_rest_state_is_refused(basis_file, tmp_path, capsys):
+    """A basis of the 8-element scene run on 12 elements, and training on two scenes whose
+    rest states differ (8 and 12 elements: U_ref is not shared), are refused in one line
+    naming the key (exit 2)."""
+    argv = ["rom", "run", str(PAPER), *SHORT, "--set", "discretisation.elements=12"]
+    assert main([*argv, "--basis", str(basis_file), "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "elements" in err[0] and "paper.npz" in err[0], err
+    other = tmp_path / "twelve.toml"
+    text = PAPER.read_text().replace("elements = 8 ", "elements = 12")
+    other.write_text(text.replace("end = 0.06 ", "end = 0.0003"))
+    short = tmp_path / "short.toml"
+    short.write_text(PAPER.read_text().replace("end = 0.06 ", "end = 0.0003"))
+    argv = ["rom", "build", str(short), str(other), "--modes", "2", "--out", str(tmp_path / "b")]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "snapshots: every run of a basis starts from the same" in err[0]
+    assert not (tmp_path / "b.npz").exists()
