@@ -2,6 +2,8 @@
 [--set KEY=VALUE ...]``, ``cosserat-fem orbits SCENE --period EXPR [--parameter KEY --from A
 --to B]`` (one periodic orbit, or their branch; ``--restart DIR`` continues a branch) and
 ``cosserat-fem lyapunov SCENE --period EXPR --periods N`` (cosserat_fem/analysis/orbit_runs.py),
+``cosserat-fem rom build|run|validate`` for reduced models of POD modes
+(cosserat_fem/rom/runs.py; docs/rom.md §11),
 ``cosserat-fem sweep SWEEP [--out DIR]`` for the members of a sweep file
 (cosserat_fem/studies/sweep_run.py), and ``cosserat-fem run --restart DIR [--set time.end=...]`` to
 continue a stopped run;
