@@ -165,7 +165,7 @@ def train_targets(
         raise SceneError("rom build: no run to train on")
     collector = rb.SnapshotCollector(every)
     comm = MPI.COMM_WORLD if comm is None else comm
-    model = None
+    model, reached = None, []
     for target in targets:
         out = None if keep is None else Path(keep) / target.name
         try:
@@ -179,6 +179,7 @@ def train_targets(
         except SceneError as exc:
             raise SceneError(f"rom build: training run {target.name}: {exc}") from None
         model = result.model
+        reached.append(result.time_reached)
     scenes = [t.scene for t in targets]
     provenance = {
         **rb.scene_provenance(scenes[0]),
@@ -188,9 +189,10 @@ def train_targets(
                 "scene_sha256": getattr(t.scene, "source_sha256", None),
                 "title": getattr(t.scene, "title", None),
                 "time_s": [t.scene.time.start, t.scene.time.end],
+                "time_reached_s": end,  # a forced member ends once settled
                 "step_s": t.scene.time.step,
             }
-            for t in targets
+            for t, end in zip(targets, reached, strict=True)
         ],
         "every": every,
     }
