@@ -244,6 +244,14 @@ def _sweep_with(folder, name: str, rom: str) -> str:
         (["rom", "run", str(PAPER), "--basis", "{tmp}/none.npz"], "--basis: no basis file"),
         (["rom", "build", str(PAPER), "--tolerance", "1e-8"], "rom build --out:"),
         (
+            ["rom", "build", str(PAPER), "--tolerance", "2", "--out", "{tmp}/b"],
+            "--tolerance: must be a number in [0, 1), got 2.0",
+        ),
+        (
+            ["rom", "validate", str(PAPER), "--basis", "{tmp}/none.npz", "--out", "{tmp}/s"],
+            "--basis: no basis file",
+        ),
+        (
             ["rom", "build", str(PAPER), "--tolerance", "1e-8", "--modes", "3", "--out", "b"],
             "--tolerance, --modes: give one",
         ),

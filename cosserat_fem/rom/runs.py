@@ -31,7 +31,6 @@ from __future__ import annotations
 import csv
 import hashlib
 import json
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -135,8 +134,10 @@ def _check_choice(tolerance, modes) -> None:
         raise SceneError("--tolerance, --modes: give one (the energy left out, or the modes)")
     if modes is not None and (isinstance(modes, bool) or not isinstance(modes, int) or modes < 1):
         raise SceneError(f"--modes: must be a whole number >= 1, got {modes!r}")
-    if tolerance is not None and not (
-        isinstance(tolerance, int | float) and not isinstance(tolerance, bool)
+    if tolerance is not None and (
+        isinstance(tolerance, bool)
+        or not isinstance(tolerance, int | float)
+        or not 0.0 <= tolerance < 1.0
     ):
         raise SceneError(f"--tolerance: must be a number in [0, 1), got {tolerance!r}")
 
@@ -306,6 +307,19 @@ def recorded_basis(folder: str | Path) -> dict | None:
     return rom if isinstance(rom, dict) and rom.get("model") == "reduced" else None
 
 
+def check_basis_file(basis) -> Path | None:
+    """The .npz of a basis file's path (None for a Basis in memory); SceneError naming
+    --basis if there is no such file."""
+    from cosserat_fem.rom.basis import Basis, _paths
+
+    if isinstance(basis, Basis):
+        return None
+    path = _paths(basis)[0]
+    if not path.is_file():
+        raise SceneError(f"--basis: no basis file {str(path)!r}")
+    return path
+
+
 def run(
     scene,
     basis,
@@ -329,13 +343,8 @@ def run(
     from cosserat_fem.analysis.simulation import run_scene
     from cosserat_fem.common.errors import out_folder
     from cosserat_fem.rom import galerkin
-    from cosserat_fem.rom.basis import Basis, _paths
 
-    path = None
-    if not isinstance(basis, Basis):
-        path = _paths(basis)[0]
-        if not path.is_file():
-            raise SceneError(f"--basis: no basis file {str(path)!r}")
+    path = check_basis_file(basis)
     if restart is not None:
         held = recorded_basis(restart.run_dir)
         if held is None:
@@ -410,9 +419,10 @@ def validate(
 ) -> Validation:
     """Each target (``scenes``; the ``members`` of ``sweep``) run in full and reduced on
     ``basis`` (a basis file), into out/full/<name> and out/reduced/<name> if ``out`` is
-    given: per target the relative L2 error of the free end's (x, y, z) (basis.relative_l2)
-    and the reduced run's indicator and what it found outside its training (module
-    docstring); validation.csv in ``out``. Collective."""
+    given: per target the relative L2 error of the free end's (x, y, z) (basis.relative_l2,
+    over the output times both runs reached: a forced member ends once settled) and the
+    reduced run's indicator and what it found outside its training (module docstring);
+    validation.csv in ``out``. Collective."""
     from mpi4py import MPI
 
     from cosserat_fem.analysis.simulation import run_scene
@@ -430,6 +440,7 @@ def validate(
         raise SceneError("--members: chooses members of a sweep; give --sweep FILE")
     if not targets:
         raise SceneError("rom validate: give a SCENE or --sweep FILE")
+    check_basis_file(basis)
     out = out_folder(out)
     comm = MPI.COMM_WORLD
     rows = []
@@ -449,15 +460,14 @@ def validate(
         )
         assert full.probes is not None and reduced.probes is not None, "recorded"
         indicator, outside = indicator_of(reduced.summary)
+        n = min(len(full.probes), len(reduced.probes))  # a forced run ends once settled
         rom = reduced.summary["rom"]["basis"]
         rows.append(
             {
                 "target": target.name,
                 "modes": rom["modes"],
                 "energy_left_out": rom["energy_left_out"],
-                "error": relative_l2(reduced.probes[:, POSITION], full.probes[:, POSITION])
-                if len(reduced.probes) == len(full.probes)
-                else math.nan,
+                "error": relative_l2(reduced.probes[:n, POSITION], full.probes[:n, POSITION]),
                 "indicator": indicator,
                 "outside_training": outside,
                 "full_steps": full.summary["steps"],
