@@ -248,6 +248,10 @@ def _sweep_with(folder, name: str, rom: str) -> str:
             "--tolerance: must be a number in [0, 1), got 2.0",
         ),
         (
+            ["rom", "build", str(PAPER), "--modes", "3", "--out", "{tmp}/file/b"],
+            "--out: cannot write to",
+        ),
+        (
             ["rom", "validate", str(PAPER), "--basis", "{tmp}/none.npz", "--out", "{tmp}/s"],
             "--basis: no basis file",
         ),
@@ -277,6 +281,7 @@ def test_bad_input_is_one_line(tmp_path, capsys, argv, fragment):
             ("nofile", '[sweep.rom]\nbasis = "missing.npz"\n'),
         )
     }
+    (tmp_path / "file").write_text("")  # a file where a folder is asked for
     argv = [a.format(tmp=tmp_path, **files) for a in argv]
     assert main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()

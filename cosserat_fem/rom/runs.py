@@ -237,6 +237,15 @@ def build(
         targets += sweep_targets(sweep, parse_members(members, len(sweep.members)))
     elif members is not None:
         raise SceneError("--members: chooses members of a sweep; give --sweep FILE")
+    if out is not None:  # before the training runs; rank 0 writes it (basis.write_basis)
+        from mpi4py import MPI
+
+        from cosserat_fem.io.run_folder import prepare_output_dir
+
+        try:
+            prepare_output_dir(Path(out).absolute().parent, MPI.COMM_WORLD)
+        except SceneError as exc:
+            raise SceneError(f"--out: {str(exc).partition(': ')[2]}") from None
     basis, model = train_targets(targets, tolerance=tolerance, modes=modes, every=every, keep=keep)
     if out is not None:
         rb.write_basis(basis, model, out)
@@ -476,14 +485,20 @@ def validate(
         )
     table = None
     if out is not None:
-        table = out / VALIDATION
+        from cosserat_fem.common.errors import OutputError
+        from cosserat_fem.common.parallel import agree
+
+        table, problem = out / VALIDATION, None
         if comm.rank == 0:
-            with table.open("w", newline="", encoding="utf-8") as file:
-                writer = csv.writer(file)
-                writer.writerow(VALIDATION_COLUMNS)
-                for row in rows:
-                    writer.writerow([_cell(row[c]) for c in VALIDATION_COLUMNS])
-        comm.barrier()
+            try:
+                with table.open("w", newline="", encoding="utf-8") as file:
+                    writer = csv.writer(file)
+                    writer.writerow(VALIDATION_COLUMNS)
+                    for row in rows:
+                        writer.writerow([_cell(row[c]) for c in VALIDATION_COLUMNS])
+            except OSError as exc:
+                problem = OutputError(f"rom validate: cannot write {str(table)!r} ({exc})")
+        agree(comm, problem)  # every rank raises alike: none waits for rank 0
     return Validation(rows, table)
 
 
