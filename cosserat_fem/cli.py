@@ -331,11 +331,19 @@ def _rom_parsers(sub) -> None:
     build = commands.add_parser(
         "build", help="a basis from full runs of scenes or of a sweep's members (FILE.npz, .json)"
     )
-    _common(build, scene_optional=True, texts={"scene": "scene files (TOML) to train on"})
+    _common(
+        build,
+        scene_optional=True,
+        texts={
+            "metavar": "SCENE ...",
+            "scene": "scene files (TOML) to train on",
+            "out": "the basis file: FILE.npz and FILE.json (required)",
+        },
+    )
     build.add_argument("scenes", nargs="*", metavar="SCENE", help=argparse.SUPPRESS)
     _rom_members(build)
     build.add_argument(
-        "--tolerance", type=float, help="energy left out, docs/rom.md (3), e.g. 1e-8"
+        "--tolerance", type=float, metavar="EPS", help="energy left out, docs/rom.md (3), e.g. 1e-8"
     )
     build.add_argument("--modes", type=int, metavar="K", help="the number of modes instead")
     build.add_argument(
@@ -345,7 +353,9 @@ def _rom_parsers(sub) -> None:
     run = commands.add_parser(
         "run", help="a reduced run: probes.csv, XDMF and summary.json as a full run's"
     )
-    _common(run, scene_optional=True)
+    _common(
+        run, scene_optional=True, texts={"out": "output folder (default: output.directory/reduced)"}
+    )
     run.add_argument("--basis", metavar="FILE", help="the basis file (.npz) of rom build")
     run.add_argument(
         "--restart", metavar="DIR", help="continue the reduced run in DIR (on the same basis)"
@@ -353,7 +363,14 @@ def _rom_parsers(sub) -> None:
     check = commands.add_parser(
         "validate", help="runs in full and reduced: the free-end errors beside the indicator"
     )
-    _common(check, scene_optional=True)
+    _common(
+        check,
+        scene_optional=True,
+        texts={
+            "out": "output folder: full/, reduced/, validation.csv "
+            "(default: results/rom_validation)"
+        },
+    )
     check.add_argument("--basis", metavar="FILE", help="the basis file (.npz) of rom build")
     _rom_members(check)
 
