@@ -126,6 +126,22 @@ def sweep_targets(spec, members: Sequence[int]) -> list[Target]:
     return targets
 
 
+def chosen_targets(scenes, sweep, members) -> list[Target]:
+    """The runs of ``scenes`` (a Scene or several: "scene", or "scene0", "scene1", ...) and of
+    the ``members`` of ``sweep`` (:func:`parse_members`, :func:`sweep_targets`); --members
+    without a sweep refused."""
+    if not isinstance(scenes, list | tuple):
+        scenes = [scenes]
+    targets = [
+        Target("scene" if len(scenes) == 1 else f"scene{i}", s) for i, s in enumerate(scenes)
+    ]
+    if sweep is not None:
+        targets += sweep_targets(sweep, parse_members(members, len(sweep.members)))
+    elif members is not None:
+        raise SceneError("--members: chooses members of a sweep; give --sweep FILE")
+    return targets
+
+
 # --- build ------------------------------------------------------------------------------------
 
 
@@ -228,15 +244,7 @@ def build(
     from cosserat_fem.rom import basis as rb
 
     _check_choice(tolerance, modes)
-    if not isinstance(scenes, list | tuple):
-        scenes = [scenes]
-    targets = [
-        Target("scene" if len(scenes) == 1 else f"scene{i}", s) for i, s in enumerate(scenes)
-    ]
-    if sweep is not None:
-        targets += sweep_targets(sweep, parse_members(members, len(sweep.members)))
-    elif members is not None:
-        raise SceneError("--members: chooses members of a sweep; give --sweep FILE")
+    targets = chosen_targets(scenes, sweep, members)
     if out is not None:  # before the training runs; rank 0 writes it (basis.write_basis)
         from mpi4py import MPI
 
@@ -438,15 +446,7 @@ def validate(
     from cosserat_fem.common.errors import out_folder
     from cosserat_fem.rom.basis import relative_l2
 
-    if not isinstance(scenes, list | tuple):
-        scenes = [scenes]
-    targets = [
-        Target("scene" if len(scenes) == 1 else f"scene{i}", s) for i, s in enumerate(scenes)
-    ]
-    if sweep is not None:
-        targets += sweep_targets(sweep, parse_members(members, len(sweep.members)))
-    elif members is not None:
-        raise SceneError("--members: chooses members of a sweep; give --sweep FILE")
+    targets = chosen_targets(scenes, sweep, members)
     if not targets:
         raise SceneError("rom validate: give a SCENE or --sweep FILE")
     check_basis_file(basis)

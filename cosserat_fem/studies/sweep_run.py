@@ -441,29 +441,19 @@ def _run_member(
         if checkpoint is None:
             _fresh_folder(folder, comm)
         _affordable(scene, folder, comm, checkpoint.time if checkpoint is not None else None)
+        options = {
+            "comm": comm,
+            "record": True,
+            "observers": observers,
+            "initial_state": initial,
+            "restart": checkpoint,
+        }
         if basis is None:
-            result = run_scene(
-                scene,
-                folder,
-                comm=comm,
-                record=True,
-                observers=observers,
-                initial_state=initial,
-                restart=checkpoint,
-            )
+            result = run_scene(scene, folder, **options)
         else:
             from cosserat_fem.rom.runs import run as reduced_run
 
-            result = reduced_run(
-                scene,
-                basis,
-                folder,
-                comm=comm,
-                record=True,
-                observers=observers,
-                initial_state=initial,
-                restart=checkpoint,
-            )
+            result = reduced_run(scene, basis, folder, **options)
         summary = result.summary
         probes = result.probes if checkpoint is None else _whole_probes(folder, comm)
         if spec.chains_continue:
