@@ -380,7 +380,8 @@ def _rom_members(sub: argparse.ArgumentParser) -> None:
     sub.add_argument(
         "--members",
         metavar="LIST",
-        help="of --sweep: '0,10,20' or a range 'start:stop:step' ('::20': every 20th)",
+        help="of --sweep: '0,10,20', a range 'start:stop:step' ('::20': every 20th) or "
+        "'random:N' (N drawn, the same every time)",
     )
 
 

@@ -62,10 +62,24 @@ POSITION = slice(1, 4)
 
 def parse_members(text: str | Sequence[int] | None, count: int, option: str = "--members"):
     """The members chosen by ``text``: "0,10,20", a range "start:stop[:step]" (Python's slice,
-    stop excluded; "::20" every 20th), or a list of whole numbers; None: every member. A
-    SceneError naming ``option`` if one is not a member of the ``count``."""
+    stop excluded; "::20" every 20th), "random:N" (N members drawn without replacement by
+    Python's random.Random(0): the same on every rank and run, sorted), or a list of whole
+    numbers; None: every member. A SceneError naming ``option`` if one is not a member of
+    the ``count``."""
     if text is None:
         return list(range(count))
+    if isinstance(text, str) and text.strip().startswith("random:"):
+        import random
+
+        try:
+            n = int(text.strip().removeprefix("random:"))
+        except ValueError:
+            n = -1
+        if not 1 <= n <= count:
+            raise SceneError(
+                f"{option}: random:N draws N of the sweep's {count} members, got {text!r}"
+            )
+        return sorted(random.Random(0).sample(range(count), n))
     if isinstance(text, str):
         chosen: list[int] = []
         try:

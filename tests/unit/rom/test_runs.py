@@ -43,6 +43,18 @@ def test_members_refused_in_one_line(text, fragment):
     assert fragment in str(refused.value) and "\n" not in str(refused.value)
 
 
+def test_random_members_are_distinct_sorted_and_repeatable():
+    """random:N: N distinct members in range, sorted, the same at every call (seed 0), and
+    every member when N is the count; N outside [1, count] refused."""
+    drawn = parse_members("random:20", 200)
+    assert len(set(drawn)) == 20 and drawn == sorted(drawn) and 0 <= drawn[0] <= drawn[-1] < 200
+    assert parse_members("random:20", 200) == drawn
+    assert parse_members("random:5", 5) == [0, 1, 2, 3, 4]
+    for text in ("random:0", "random:6", "random:x"):
+        with pytest.raises(SceneError, match="--members: random:N draws N of the sweep's 5"):
+            parse_members(text, 5)
+
+
 def test_indicator_read_where_present():
     """The contract of the reduced run's summary: rom.indicator.max (a float) and
     rom.outside_training (a list); anything else is "not reported" (None)."""
