@@ -231,6 +231,26 @@ def test_frequency_response_with_reduced_members(tmp_path):
         assert abs(float(reduced["amp_x"]) - amp) <= bound * amp, name
 
 
+def test_the_sweep_key_chooses_the_model_and_the_basis_is_the_sweeps(basis_file, tmp_path):
+    """model = "full" needs no basis and keeps the model column; a sweep on a basis file is
+    another sweep (its fingerprint: a folder holding it refuses the other) when the file's
+    bytes change, the same when they do not."""
+    from cosserat_fem.studies.sweep_run import columns
+
+    full = cf.load_sweep(_sweep_with(tmp_path, "full", '[sweep.rom]\nmodel = "full"\n'))
+    assert not full.reduced and "model" in columns(full)
+    copy = tmp_path / "copy.npz"
+    copy.write_bytes(basis_file.read_bytes())
+    copy.with_suffix(".json").write_bytes(basis_file.with_suffix(".json").read_bytes())
+    on = cf.load_sweep(_sweep_with(tmp_path, "on", '[sweep.rom]\nbasis = "copy.npz"\n'))
+    assert on.reduced and on.rom.digest == hashlib.sha256(copy.read_bytes()).hexdigest()
+    again = cf.load_sweep(_sweep_with(tmp_path, "on", '[sweep.rom]\nbasis = "copy.npz"\n'))
+    assert again.fingerprint() == on.fingerprint()
+    copy.write_bytes(basis_file.read_bytes() + b"\0")
+    changed = cf.load_sweep(_sweep_with(tmp_path, "on", '[sweep.rom]\nbasis = "copy.npz"\n'))
+    assert changed.fingerprint() != on.fingerprint()
+
+
 def _sweep_with(folder, name: str, rom: str) -> str:
     path = folder / f"{name}.toml"
     path.write_text(SWEEP.format(scene=PAPER) + rom)
