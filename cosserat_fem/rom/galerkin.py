@@ -41,6 +41,7 @@ from petsc4py import PETSc
 from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.nls.newton import NewtonSettings, NewtonSolver
 from cosserat_fem.rom.basis import Basis, owned, read_basis
+from cosserat_fem.rom.indicator import DEFAULT, ErrorIndicator, IndicatorSettings
 
 _REASON = PETSc.SNES.ConvergedReason
 
@@ -203,17 +204,25 @@ def run(
     observers: Sequence = (),
     record: bool = True,
     initial_state: np.ndarray | None = None,
+    indicator: IndicatorSettings | None = DEFAULT,
 ):
     """A reduced run of ``scene`` on ``basis`` (a Basis or a basis file): cf.run's
     :class:`~cosserat_fem.analysis.simulation.RunResult` (probes, summary with the solver's
     statistics), the time loop, integrator and observers the full run's; ``initial_state``
-    as cf.run's (its part off the basis is dropped at the first solve: U's projection)."""
+    as cf.run's (its part off the basis is dropped at the first solve: U's projection).
+    ``indicator``: the error indicator's settings (cosserat_fem/rom/indicator.py; its
+    estimate and the out-of-training flags in summary["rom"]), None: none."""
     from cosserat_fem.analysis.simulation import run_scene
 
+    if indicator is not None and not isinstance(indicator, IndicatorSettings):
+        raise SceneError(
+            f"indicator: must be IndicatorSettings or None, got {type(indicator).__name__}"
+        )
+    own = [ErrorIndicator(indicator)] if indicator is not None else []
     return run_scene(
         scene,
         out_dir=out,
-        observers=observers,
+        observers=[*observers, *own],
         write_outputs=out is not None,
         record=record,
         initial_state=initial_state,
