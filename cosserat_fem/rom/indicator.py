@@ -326,7 +326,8 @@ class ErrorIndicator(Observer):
             self.static = None
         if isinstance(failure, SolverError) and failure.time is None and self.times:
             failure.time = loop.state.t  # the step it stopped at (the chart's move)
-            failure.args = (failure._compose(),)
+            failure.message = failure._compose()
+            failure.args = (failure.message,)
         if self.largest > s.tolerance:
             start = len(self.values) // 4
             at = self.times[start + int(np.argmax(self.values[start:]))]
