@@ -16,8 +16,8 @@ inertia ((48), (65)), R_q = D⁻¹ r_sym with r_sym the force the reduced state 
 
 **Its size: the static response.** Measured in the norm dual to W, ‖R‖_{W*}² = Σ_j (D_j R_j)²/W_j
 (the lumped rate defect's W-norm), the residual is dominated by the axial rows, whose error is
-quasi-static (stiff) and small; accumulated in time, ∫‖R‖_{W*} dτ overestimates the error 200-2400
-times and by a factor that varies 11-fold over the checks (docs/rom.md §10). The part of the
+quasi-static (stiff) and small; accumulated in time, ∫‖R‖_{W*} dτ overestimates the error
+110-2700 times, a factor that varies 24-fold over the checks (docs/rom.md §10). The part of the
 error a residual makes at once is the rod's response to it: below the missing modes'
 frequencies, the static one,
 
