@@ -77,6 +77,8 @@ def test_rom_run_is_cf_rom_run_and_restarts(basis_file, tmp_path):
     assert rom["basis"]["sha256"] == hashlib.sha256(basis_file.read_bytes()).hexdigest()
     assert rom["basis"]["modes"] == document["provenance"]["modes"]
     assert rom["basis"]["energy_left_out"] <= TOLERANCE
+    # the error indicator's entries beside the basis's record (both observers fill "rom")
+    assert rom["indicator"]["max"] > 0 and rom["outside_training"] == []
     scene = cf.load(PAPER, {"time.end": 0.006})
     python = cf.rom.run(scene, basis_file)
     scale = np.abs(python.probes[:, 1:4]).max()
@@ -194,8 +196,8 @@ def test_validate_reports_the_errors_of_its_probes(sweeps, tmp_path, capsys):
         sweep = probes(sweeps / "reduced" / "members" / name)[:, 1:4]
         assert np.abs(sweep - reduced).max() <= 1e-12 * np.abs(sweep).max()
         summary = json.loads((out / "reduced" / name / "summary.json").read_text())
-        indicator = summary["rom"].get("indicator", {}).get("max")
-        assert row["indicator"] == ("n/a" if indicator is None else repr(float(indicator)))
+        indicator = summary["rom"]["indicator"]["max"]
+        assert row["indicator"] == repr(float(indicator))
         assert f"{float(row['error']):.3e}" in printed
 
 

@@ -138,7 +138,9 @@ class RunSummary(Observer):
     ended early), the checkpoints written, Newton's counts and its loop, and wall times [s]
     from ``t_start`` (a time.perf_counter() value): the solve loop from its first step to its
     last (the folder claimed and the first frame written belong to the set-up, as the first
-    row of probes.csv does), its output part, JIT compilation, the total. A summary that
+    row of probes.csv does), its output part, JIT compilation, the total; then the entries
+    of every observer of the run with a ``summary_entries()`` method (a dict: the reduced
+    run's error indicator, cosserat_fem/rom/indicator.py). A summary that
     cannot be written is an OutputError unless the run already failed (the earlier one
     stays)."""
 
@@ -178,6 +180,15 @@ class RunSummary(Observer):
                 },
             }
         )
+        for observer in loop.events.observers:  # an observer's own entries, if it has any
+            entries = getattr(observer, "summary_entries", None)
+            if callable(entries):  # merged one level deep: two observers may fill "rom"
+                for key, value in entries().items():
+                    held = self.summary.get(key)
+                    if isinstance(held, dict) and isinstance(value, dict):
+                        held.update(value)
+                    else:
+                        self.summary[key] = value
         if self.start is not None and self.start.claimed:
             assert self.folder is not None, "a folder start comes with its folder"
             write_summary(self.folder / SUMMARY, self.summary, self.comm, failure is None)

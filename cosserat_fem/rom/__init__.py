@@ -18,6 +18,7 @@ _API = {
     "run": "runs",
     "build": "runs",
     "validate": "runs",
+    "IndicatorSettings": "indicator",
 }
 
 

@@ -41,6 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from cosserat_fem.common.errors import SceneError
+from cosserat_fem.rom.indicator import coordinate_ranges
 from cosserat_fem.studies.karhunen_loeve import modes_for_tolerance, snapshot_svd
 from cosserat_fem.timestepping.events import Observer
 
@@ -222,6 +223,10 @@ def pod_basis(model, collector: SnapshotCollector, tolerance: float, provenance:
     V[p_rows, :k] = shapes
     V[q_rows, k:] = shapes
     assert collector.reference is not None
+    tests = kinetic_rows(model, len(weights))
+    snapshots = np.column_stack(collector.columns)
+    coordinates = comm.allreduce((weights[:, None] * V).T @ snapshots)
+    norms = np.sqrt(comm.allreduce(np.einsum("ij,i,ij->j", snapshots, weights, snapshots)))
     provenance = {
         **provenance,
         "tolerance": float(tolerance),
@@ -230,8 +235,9 @@ def pod_basis(model, collector: SnapshotCollector, tolerance: float, provenance:
         "snapshots": len(collector.columns),
         "snapshot_times_s": [float(t) for t in collector.times],
         "inner_product": "lumped L2 mass along s times the kinetic weights (docs/rom.md)",
+        # the training's range of c = Vᵀ W u_i (cosserat_fem/rom/indicator.py)
+        "coordinates": coordinate_ranges(coordinates, norms),
     }
-    tests = kinetic_rows(model, len(weights))
     return Basis(
         V, collector.reference.copy(), weights, energies, space_of(model), provenance, tests
     )
@@ -365,6 +371,7 @@ def train(scenes, tolerance: float, every: int = 1, record: bool = True):
                 "title": getattr(s, "title", None),
                 "time_s": [s.time.start, s.time.end],
                 "step_s": s.time.step,
+                "loads": s.to_dict().get("loads"),
             }
             for s in scenes
         ],

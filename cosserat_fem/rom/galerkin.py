@@ -31,7 +31,6 @@ scene whose supports move (the reference holds fixed Dirichlet values), and the 
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -195,27 +194,10 @@ def solver_factory(basis: Basis | str | Path):
     return make
 
 
-def run(
-    scene,
-    basis: Basis | str | Path,
-    out=None,
-    *,
-    observers: Sequence = (),
-    record: bool = True,
-    initial_state: np.ndarray | None = None,
-):
-    """A reduced run of ``scene`` on ``basis`` (a Basis or a basis file): cf.run's
-    :class:`~cosserat_fem.analysis.simulation.RunResult` (probes, summary with the solver's
-    statistics), the time loop, integrator and observers the full run's; ``initial_state``
-    as cf.run's (its part off the basis is dropped at the first solve: U's projection)."""
-    from cosserat_fem.analysis.simulation import run_scene
+def run(scene, basis: Basis | str | Path, out=None, **keywords):
+    """A reduced run of ``scene`` on ``basis``: cosserat_fem/rom/runs.py's :func:`run` (cf.rom.run),
+    the one reduced run, with its keywords (``observers``, ``record``, ``initial_state``,
+    ``indicator``, ``restart``, ``progress``, ``comm``)."""
+    from cosserat_fem.rom.runs import run as reduced_run
 
-    return run_scene(
-        scene,
-        out_dir=out,
-        observers=observers,
-        write_outputs=out is not None,
-        record=record,
-        initial_state=initial_state,
-        solver_factory=solver_factory(basis),
-    )
+    return reduced_run(scene, basis, out, **keywords)

@@ -38,6 +38,8 @@ from pathlib import Path
 import numpy as np
 
 from cosserat_fem.common.errors import SceneError
+from cosserat_fem.rom.indicator import DEFAULT as DEFAULT_INDICATOR
+from cosserat_fem.rom.indicator import ErrorIndicator, IndicatorSettings
 from cosserat_fem.scene.build import Scene
 from cosserat_fem.timestepping.events import Observer
 
@@ -362,19 +364,27 @@ def run(
     restart=None,
     progress=None,
     comm=None,
+    indicator: IndicatorSettings | None = DEFAULT_INDICATOR,
 ):
     """A reduced run of ``scene`` on ``basis`` (a Basis or a basis file): cf.run's
     RunResult, the time loop, integrator, observers and outputs (with ``out``: probes.csv,
     XDMF, checkpoints, summary.json) the full run's, ``summary["rom"]`` the basis's record
     (module docstring). ``restart``: the checkpoint of a reduced run (cf.resume), continued
     on the same basis file (another is refused); ``initial_state`` as cf.run's (its part
-    off the basis is dropped at the first solve). galerkin.run's signature, keywords added."""
+    off the basis is dropped at the first solve). ``indicator``: the error indicator's settings
+    (cosserat_fem/rom/indicator.py; its estimate and the out-of-training flags in
+    summary["rom"]), None: none."""
     from mpi4py import MPI
 
     from cosserat_fem.analysis.simulation import run_scene
     from cosserat_fem.common.errors import out_folder
     from cosserat_fem.rom import galerkin
 
+    if indicator is not None and not isinstance(indicator, IndicatorSettings):
+        raise SceneError(
+            f"indicator: must be IndicatorSettings or None, got {type(indicator).__name__}"
+        )
+    own = [ErrorIndicator(indicator)] if indicator is not None else []
     path = check_basis_file(basis)
     if restart is not None:
         held = recorded_basis(restart.run_dir)
@@ -394,7 +404,7 @@ def run(
         scene,
         out_dir=out,
         comm=MPI.COMM_WORLD if comm is None else comm,
-        observers=[RomSummary(path), *observers],
+        observers=[RomSummary(path), *observers, *own],
         write_outputs=out is not None or restart is not None,
         record=record,
         initial_state=initial_state,

@@ -1,0 +1,69 @@
+"""Unit checks of cosserat_fem/rom/indicator.py's algebra without a rod: the relative estimate
+(10.4) against its definition, the training range of the reduced coordinates and the test of a
+state outside it, and the settings' refusals."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.rom.indicator import (
+    IndicatorSettings,
+    coordinate_ranges,
+    outside_range,
+    relative_estimate,
+)
+
+pytestmark = pytest.mark.unit
+
+
+def test_relative_estimate_is_the_ratio_of_the_l2_sums():
+    """E = C (Σ ξ_j²)^{1/2} / (Σ ‖u_j‖²)^{1/2} (10.4): ξ = (3, 4) and ‖u‖ = (6, 8) give
+    C · 5/10 (a 3-4-5 triangle each); a state still at its reference gives 0, not a division
+    by zero."""
+    assert relative_estimate(3.0**2 + 4.0**2, 6.0**2 + 8.0**2, 1.2) == pytest.approx(0.6)
+    assert relative_estimate(1.0, 0.0, 1.2) == 0.0
+
+
+def test_coordinate_ranges_and_the_state_outside_them():
+    """Two modes (coordinates a1, a2 of p, b1, b2 of its rate) over three snapshots: the range is
+    each row's min and max, the largest norm the largest given. With margin 0.25 of the largest
+    p-amplitude (2.0: slack 0.5) a1 = 2.4 is inside, 2.6 outside; a2 (amplitude 0.1) may go to
+    0.6, since the slack is the largest mode's, not its own (a small mode's relative scatter is
+    not a larger amplitude); the rate coordinates have their own slack (0.25 · 4 = 1). A basis
+    truncated to one mode compares only a1 and b1 (its 2 of the provenance's 4 rows)."""
+    coordinates = np.array(
+        [
+            [-2.0, 0.0, 2.0],  # a1
+            [-0.1, 0.05, 0.1],  # a2
+            [-4.0, 1.0, 4.0],  # b1
+            [0.0, 0.2, 0.3],  # b2
+        ]
+    )
+    ranges = coordinate_ranges(coordinates, np.array([1.0, 3.0, 2.0]))
+    assert ranges["min"] == [-2.0, -0.1, -4.0, 0.0]
+    assert ranges["max"] == [2.0, 0.1, 4.0, 0.3]
+    assert ranges["largest_norm"] == 3.0
+    assert outside_range(np.array([2.4, 0.59, 4.9, -0.9]), ranges, 2, 0.25) == []
+    assert outside_range(np.array([2.6, 0.0, 0.0, 0.0]), ranges, 2, 0.25) == [0]
+    assert outside_range(np.array([0.0, 0.61, 0.0, 1.31]), ranges, 2, 0.25) == [1, 3]
+    assert outside_range(np.array([0.0, -5.1]), ranges, 1, 0.25) == [1]  # b1 of one mode
+
+
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [("every", 0), ("every", 2.5), ("every", True), ("tolerance", 0.0), ("margin", -1.0)],
+)
+def test_settings_refuse_bad_values_in_one_line(key, value):
+    """A bad setting is a SceneError of one line naming it."""
+    with pytest.raises(SceneError) as refused:
+        IndicatorSettings(**{key: value})
+    assert f"indicator.{key}" in str(refused.value) and "\n" not in str(refused.value)
+
+
+def test_settings_refuse_infinity():
+    with pytest.raises(SceneError, match="indicator.tolerance"):
+        IndicatorSettings(tolerance=math.inf)
