@@ -54,8 +54,9 @@ one warning line naming what and when (the first time of each), and an entry in 
 
 :class:`ErrorIndicator` is the observer (cosserat_fem/timestepping/events.py) that a reduced run
 (cosserat_fem/rom/runs.py ``run``, cf.rom.run) adds; its
-:meth:`~ErrorIndicator.summary_entries` go into the run's summary (cosserat_fem/analysis/observers.py, RunSummary). It also puts the time into
-a refusal of the reduced run that has none (the chart's move, galerkin.ReducedSolver.set_form,
+:meth:`~ErrorIndicator.summary_entries` go into the run's summary
+(cosserat_fem/analysis/observers.py, RunSummary). It also puts the time into a refusal of the
+reduced run that has none (the chart's move, galerkin.ReducedSolver.set_form,
 raised where the solver does not know the time).
 """
 
