@@ -520,7 +520,29 @@ OWN_FOLDER = {
     "continue": "continuation",
     "orbits": "orbits",
     "lyapunov": "lyapunov",
+    "rom": "reduced",
 }
+
+
+def _scene_or_restart(args, command: str):
+    """(scene, checkpoint, start time [s], folder) of ``command``'s run: the SCENE file with
+    its overrides into --out or the command's own folder (:func:`_out`), or the run in
+    --restart DIR continued in its own folder (checkpoint given, folder None)."""
+    from cosserat_fem import api
+
+    if args.restart is not None:
+        if args.scene is not None or args.out is not None:
+            which = "SCENE" if args.scene is not None else "--out"
+            raise SceneError(
+                f"{command} --restart: {which} cannot be given (the run continues in its own "
+                "folder with its own scene)"
+            )
+        scene, checkpoint = api.resume(args.restart, args.overrides)
+        return scene, checkpoint, checkpoint.time, None
+    if args.scene is None:
+        raise SceneError(f"{command}: give a SCENE file, or --restart DIR to continue a run")
+    scene = api.load(args.scene, args.overrides)
+    return scene, None, scene.time.start, _out(args, scene)
 
 
 def _out(args, scene=None, command: str | None = None) -> str:
@@ -544,21 +566,7 @@ def _run(args) -> int:
     from cosserat_fem.analysis.progress import ProgressBar, summary_screen
 
     rank = MPI.COMM_WORLD.rank
-    checkpoint = None
-    if args.restart is not None:
-        if args.scene is not None or args.out is not None:
-            which = "SCENE" if args.scene is not None else "--out"
-            raise SceneError(
-                f"run --restart: {which} cannot be given (the run continues in its own folder "
-                "with its own scene)"
-            )
-        scene, checkpoint = api.resume(args.restart, args.overrides)
-        start, out = checkpoint.time, None
-    elif args.scene is None:
-        raise SceneError("run: give a SCENE file, or --restart DIR to continue a run")
-    else:
-        scene = api.load(args.scene, args.overrides)
-        start, out = scene.time.start, _out(args, scene)
+    scene, checkpoint, start, out = _scene_or_restart(args, "run")
     # The bar on a terminal (it decides), never under --quiet or off rank 0.
     enabled = None if rank == 0 and not args.quiet else False
     bar = ProgressBar(start, scene.time.end, enabled=enabled)
@@ -918,19 +926,7 @@ def _rom(args) -> int:
                 _say(line)
             _say(f"-> {result.table}")
         return 0
-    checkpoint = None
-    if args.restart is not None:
-        if args.scene is not None or args.out is not None:
-            which = "SCENE" if args.scene is not None else "--out"
-            raise SceneError(f"rom run --restart: {which} cannot be given (its own folder)")
-        scene, checkpoint = api.resume(args.restart, args.overrides)
-        start, out = checkpoint.time, None
-    elif args.scene is None:
-        raise SceneError("rom run: give a SCENE file, or --restart DIR")
-    else:
-        scene = api.load(args.scene, args.overrides)
-        start = scene.time.start
-        out = args.out or str(Path(scene.output.directory) / "reduced")
+    scene, checkpoint, start, out = _scene_or_restart(args, "rom run")
     bar = ProgressBar(start, scene.time.end, enabled=None if root else False)
     try:
         result = runs.run(scene, args.basis, out, restart=checkpoint, progress=bar, record=False)
