@@ -328,11 +328,13 @@ def _positive_int(table: dict, key: str, default: int, where: str = "sweep") -> 
     return value
 
 
-def _choice(table: dict, key: str, choices: tuple[str, ...]) -> str:
+def _choice(table: dict, key: str, choices: tuple[str, ...], where: str = "sweep") -> str:
+    """``table[key]``, one of ``choices`` (default: the first), checked: the one line names
+    ``where``.key."""
     value = table.get(key, choices[0])
     if value not in choices:
         raise SceneError(
-            f"sweep.{key}: must be one of {', '.join(repr(c) for c in choices)}, got "
+            f"{where}.{key}: must be one of {', '.join(repr(c) for c in choices)}, got "
             f"{show_value(value)}"
         )
     return value
@@ -450,12 +452,7 @@ def _chain_keys(table: dict, varied: tuple[str, ...], where: str) -> tuple[str |
             f"{where}.continuation: must be one of the varied keys "
             f"({', '.join(varied)}), got {show_value(continuation)}"
         )
-    direction = table.get("direction", "up")
-    if direction not in DIRECTIONS:
-        raise SceneError(
-            f"{where}.direction: must be one of "
-            f"{', '.join(repr(d) for d in DIRECTIONS)}, got {show_value(direction)}"
-        )
+    direction = _choice(table, "direction", DIRECTIONS, where)
     if "direction" in table and continuation is None:
         raise SceneError(
             f"{where}.direction: needs {where}.continuation (the varied key the members step along)"
@@ -695,12 +692,7 @@ def _rom(table: Any, path: Path, count: int) -> RomSettings | None:
         raise SceneError(
             f"sweep.rom.{unknown[0]}: unknown key (known: {', '.join(sorted(ROM_KEYS))})"
         )
-    model = table.get("model", "reduced")
-    if model not in ROM_MODELS:
-        raise SceneError(
-            f"sweep.rom.model: must be one of {', '.join(repr(m) for m in ROM_MODELS)}, got "
-            f"{show_value(model)}"
-        )
+    model = _choice(table, "model", ROM_MODELS, "sweep.rom")
     basis, train = table.get("basis"), table.get("train")
     if basis is None and train is None:
         if model == "full":
