@@ -63,7 +63,8 @@ class ReducedSolver(NewtonSolver):
         self.Jr = np.zeros((basis.modes, basis.modes))
         self._Jr_lu: tuple | None = None  # J_r's LU factors (scipy.linalg.lu_factor)
         self._Vq = np.zeros(n)
-        self.reduction_time = 0.0  # seconds spent forming J_r (the k mat-vecs)
+        self.reduction_time = 0.0  # seconds spent forming J_r (J V and its projection)
+        self._Vmat = None  # V as a dense PETSc matrix, for J V
         super().__init__(F, U, bcs, settings)
         self.comm = U.function_space.mesh.comm
         self._x, self._y = self.A.createVecs()
@@ -110,16 +111,17 @@ class ReducedSolver(NewtonSolver):
         return r
 
     def _reduced_jacobian(self) -> None:
-        """J_r = Vᵀ J V: J assembled in full (NewtonSolver._jacobian), then k mat-vecs."""
+        """J_r = (D V)ᵀ J V: J assembled in full (NewtonSolver._jacobian), then one sparse
+        times dense product (PETSc MatMatMult with V as a dense matrix)."""
         self._jacobian()
         t0 = time.perf_counter()
-        x, y, V = self._x, self._y, self.V
-        AV = np.empty_like(V)
-        for j in range(V.shape[1]):
-            x.array[:] = V[:, j]
-            self.A.mult(x, y)
-            AV[:, j] = y.array
-        self.Jr = self._sum(self.DV.T @ AV)
+        if self._Vmat is None:
+            self._Vmat = PETSc.Mat().createDense(
+                (self.A.getSizes()[1], (None, self.V.shape[1])), array=self.V, comm=self.comm
+            )
+        AV = self.A.matMult(self._Vmat)
+        self.Jr = self._sum(self.DV.T @ AV.getDenseArray())
+        AV.destroy()
         self._Jr_lu = None
         if np.isfinite(self.Jr).all():
             lu, piv = scipy.linalg.lu_factor(self.Jr, check_finite=False)
@@ -170,13 +172,16 @@ class ReducedSolver(NewtonSolver):
     def destroy(self) -> None:
         self._x.destroy()
         self._y.destroy()
+        if self._Vmat is not None:
+            self._Vmat.destroy()
         super().destroy()
 
 
-def solver_factory(basis: Basis | str | Path):
+def solver_factory(basis: Basis | str | Path, hyper: bool | None = None):
     """The run's solver maker (cosserat_fem/analysis/simulation.py ``solver_factory``): a
     :class:`ReducedSolver` on ``basis`` (a Basis, or the path of a basis file, read for the
-    run's model and refused if it does not match)."""
+    run's model and refused if it does not match); with ``hyper`` (None: when the basis
+    carries ECSW's sampling) the hyper-reduced solver (cosserat_fem/rom/hyper.py)."""
 
     def make(model, F, bcs, settings: NewtonSettings) -> ReducedSolver:
         if model.motions:
@@ -190,6 +195,12 @@ def solver_factory(basis: Basis | str | Path):
                 "basis: its rows are not this run's (built on another number of ranks); "
                 "write it to a file and read it (cosserat_fem/rom/basis.py)"
             )
+        if hyper and not chosen.sampled:
+            raise SceneError("hyper: the basis has no sampled elements (cf.rom.hyper.ecsw)")
+        if chosen.sampled and hyper is not False:
+            from cosserat_fem.rom.hyper import HyperSolver
+
+            return HyperSolver(F, model.U, bcs, settings, chosen)
         return ReducedSolver(F, model.U, bcs, settings, chosen)
 
     return make
@@ -203,11 +214,14 @@ def run(
     observers: Sequence = (),
     record: bool = True,
     initial_state: np.ndarray | None = None,
+    hyper: bool | None = None,
 ):
     """A reduced run of ``scene`` on ``basis`` (a Basis or a basis file): cf.run's
     :class:`~cosserat_fem.analysis.simulation.RunResult` (probes, summary with the solver's
     statistics), the time loop, integrator and observers the full run's; ``initial_state``
-    as cf.run's (its part off the basis is dropped at the first solve: U's projection)."""
+    as cf.run's (its part off the basis is dropped at the first solve: U's projection);
+    ``hyper``: the hyper-reduced solve on the basis's sampled elements (None: if it has
+    them; False: the Galerkin solve with every element)."""
     from cosserat_fem.analysis.simulation import run_scene
 
     return run_scene(
@@ -217,5 +231,5 @@ def run(
         write_outputs=out is not None,
         record=record,
         initial_state=initial_state,
-        solver_factory=solver_factory(basis),
+        solver_factory=solver_factory(basis, hyper),
     )
