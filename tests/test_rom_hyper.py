@@ -25,7 +25,7 @@ SHORT = {"time.end": 0.006}
 #: needed: docs/rom.md §8), over the short span.
 FINE = {**SHORT, "discretisation.elements": 64}
 #: The measured constant of ECSW's added error: relative L2 free-end error of the
-#: hyper-reduced run against the Galerkin run ≤ ADDED τ (docs/rom.md §7: at most 0.0035 τ on
+#: hyper-reduced run against the Galerkin run ≤ ADDED τ (docs/rom.md §9: at most 0.0035 τ on
 #: FINE and 0.019 τ on the riser of 200 elements, τ ∈ [1e-4, 1e-1]; 5x the larger).
 ADDED = 0.1
 
@@ -37,13 +37,15 @@ def _free_end(result) -> np.ndarray:
 def test_all_elements_at_weight_one_is_the_galerkin_run():
     """(a) E = every element, ξ = 1: the hyper-reduced residual and Jacobian are the
     Galerkin ones, (D V)ᵀ F and (D V)ᵀ J V, summed element by element instead of assembled
-    first (docs/rom.md (10) with ξ = 1 is (9)). The two runs differ by the order of the sums:
-    each reduced residual by δr ≤ n_e d ε Σ|terms| (ε = 2.2e-16; n_e d = 8·48 products per
-    entry; the terms are ≤ 1e2 ‖r‖'s scale at a converged stage: §9), each solve's q by
-    ‖J_r⁻¹‖ δr, and the recursion of 200 stable steps adds at most 200 of those: ≤ 1e-10
-    of the free end's norm (measured 1.4e-12 over the whole span of 2000 steps). The
-    iterations, decided by norms 1e-10 apart from their thresholds only by chance, are the
-    same in number; and the Galerkin run's counters say it assembled in full
+    first (docs/rom.md (10) with ξ = 1 is (9)). The two runs differ by the order of the sums
+    only: each entry of r by at most n_e d ε Σ_e |terms| (n_e d = 8·48 products, ε =
+    2.2e-16, the terms 125 times their sum at a converged stage: ‖d‖ = 0.8% of ‖C‖_F, §9),
+    1e-11 of r's scale (worst case; a random walk gives 5e-13); J_r, whose inertia part
+    I/(γh) dominates at this step, passes it to q with a factor of order one, and 400 stage
+    solves of a stable recursion add at most 400 such: the bound 1e-8 of the free end's norm
+    (measured 4.6e-13; 1.5e-12 over the whole span of 2000 steps). The iterations, decided
+    by norms far from their thresholds but for chance, are the same in number; and the
+    Galerkin run's counters say it assembled in full
     (loop "galerkin"), the other's that it ran in C (loop "hyper")."""
     scene = cf.load(PAPER, SHORT)
     basis, (full,) = rb.train([scene], tolerance=1e-10)
@@ -56,9 +58,10 @@ def test_all_elements_at_weight_one_is_the_galerkin_run():
     assert reference.summary["newton"]["loop"] == "galerkin"
     assert sampled.summary["newton"]["loop"] == "hyper"
     difference = rb.relative_l2(_free_end(sampled), _free_end(reference))
-    assert difference <= 1e-10
+    assert difference <= 1e-8
     assert sampled.summary["newton"]["iterations"] == reference.summary["newton"]["iterations"]
-    # and both are the reduced model: near the full run (docs/rom.md §7's bound 10 √ε)
+    # and both are the reduced model: near the full run (docs/rom.md §7's bound 10 √ε;
+    # measured 6.6e-6 against 4.8e-5)
     error = rb.relative_l2(_free_end(reference), _free_end(full))
     assert error <= 10 * np.sqrt(basis.energy_left_out())
 
@@ -68,7 +71,7 @@ def test_ecsw_fit_and_its_added_error(tmp_path):
     solves the training states): the fit error ‖C ξ − d‖/‖d‖ on the training set ≤ τ (the
     selection's stop rule, (11)), fewer elements than the mesh's (measured 18 of 64), all
     weights > 0; the hyper-reduced run's free-end error against the full run ≤ the Galerkin
-    run's error + ADDED τ (ADDED from the measured constant, docs/rom.md §7: 3.5e-5 measured
+    run's error + ADDED τ (ADDED from the measured constant, docs/rom.md §9: 3.5e-5 measured
     here against 1e-3 allowed). The basis file keeps the sampling (cells by their midpoints'
     σ, weights): read back, the same cells and weights, and a run on it the same as on the
     basis in memory (the same arithmetic); `hyper=False` on it is the Galerkin run."""
@@ -115,9 +118,9 @@ def test_paper_full_span():
     """(d) The paper's scene over its whole span (2000 steps), k = 12 modes, ECSW at τ =
     1e-2: the paper's 8 elements are all kept (docs/rom.md §8: its stage residual's terms
     cancel to 0.8% of their size, and no element's contribution is another's), so the
-    hyper-reduced run is the Galerkin run to the round-off bound of (a) scaled to 2000 steps
-    (1e-9), and its error against the full run ≤ the Galerkin error + ADDED τ (measured
-    5.1e-5, the Galerkin run's)."""
+    hyper-reduced run is the Galerkin run to the round-off bound of (a) scaled to 4000
+    solves (1e-7; measured 1.5e-12), and its error against the full run ≤ the Galerkin
+    error + ADDED τ (measured 5.1e-5, the Galerkin run's)."""
     tau = 1e-2
     scene = cf.load(PAPER)
     basis, (full,) = rb.train([scene], tolerance=1e-14)
@@ -131,7 +134,7 @@ def test_paper_full_span():
     assert e_hyper <= e_galerkin + ADDED * tau
     assert e_hyper <= 1e-3  # the issue's accuracy goal
     if sampled.provenance["ecsw"]["elements"] == 8:
-        assert rb.relative_l2(_free_end(hyper_run), _free_end(galerkin_run)) <= 1e-9
+        assert rb.relative_l2(_free_end(hyper_run), _free_end(galerkin_run)) <= 1e-7
 
 
 MPI_SCRIPT = """
