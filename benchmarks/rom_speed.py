@@ -97,19 +97,25 @@ def report(runs: dict, steps: int, reference) -> None:
         )
 
 
+def trained(scene, args, tolerance: float, modes: int | None = None):
+    """The basis of a full run of ``scene`` (its first ``modes``), its ECSW sampling, the
+    full run; the training's times printed."""
+    t0 = time.perf_counter()
+    basis, (full,) = rb.train([scene], tolerance=tolerance)
+    basis = basis.truncated(modes) if modes else basis
+    t1 = time.perf_counter()
+    sampled = hyper.ecsw([scene], basis, args.tau, every=args.every)
+    print(
+        f"{full.model.global_dofs()} dofs; training: full run + POD {t1 - t0:.2f} s, ECSW "
+        f"{time.perf_counter() - t1:.2f} s; k = {basis.modes}, ECSW {sampled.provenance['ecsw']}"
+    )
+    return basis, sampled, full
+
+
 def paper(args) -> None:
     scene = cf.load(PAPER)
     steps = round((scene.time.end - scene.time.start) / scene.time.step)
-    t0 = time.perf_counter()
-    basis, (full,) = rb.train([scene], tolerance=1e-14)
-    basis = basis.truncated(args.modes)
-    t1 = time.perf_counter()
-    sampled = hyper.ecsw([scene], basis, args.tau, every=args.every)
-    t2 = time.perf_counter()
-    print(
-        f"training: full run + POD {t1 - t0:.2f} s, ECSW {t2 - t1:.2f} s; k = {basis.modes}, "
-        f"ECSW {sampled.provenance['ecsw']}"
-    )
+    basis, sampled, full = trained(scene, args, 1e-14, args.modes)
     bases = {"galerkin": (basis, False), "hyper": (sampled, True)}
     report(interleaved(scene, bases, args.repeats, steps), steps, full.probes[:, 1:4])
 
@@ -119,16 +125,8 @@ def riser(args) -> None:
     from long_rods import riser as riser_scene
 
     scene = riser_scene(args.elements, args.steps)
-    t0 = time.perf_counter()
-    basis, (full,) = rb.train([scene], tolerance=args.pod_tolerance)
-    t1 = time.perf_counter()
-    sampled = hyper.ecsw([scene], basis, args.tau, every=args.every)
-    t2 = time.perf_counter()
-    print(
-        f"riser, {args.elements} elements, {full.model.global_dofs()} dofs, {args.steps} steps: "
-        f"training full run + POD {t1 - t0:.1f} s, ECSW {t2 - t1:.1f} s; k = {basis.modes} "
-        f"(ε ≤ {args.pod_tolerance:g}), ECSW {sampled.provenance['ecsw']}"
-    )
+    print(f"riser, {args.elements} elements, {args.steps} steps, POD ε ≤ {args.pod_tolerance:g}")
+    basis, sampled, full = trained(scene, args, args.pod_tolerance)
     bases = {"hyper": (sampled, True)}
     if args.galerkin:
         bases["galerkin"] = (basis, False)

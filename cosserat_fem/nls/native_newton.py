@@ -83,7 +83,7 @@ void cf_sdirk_accept(cf_sdirk* sd);
 typedef struct {
   int32_t n, m; const double *V, *DV, *WV, *ref; const double *G, *g; double c;
   int32_t n_rows; const int32_t* rows; cf_problem *F, *J; const cf_settings* s;
-  cf_newton_state* st; cf_observe on_iteration; void* observer;
+  cf_newton_state* st; const cf_solver* solver; void* observer;
   double *q, *r, *dq, *Jr, *lu, *work; int32_t* piv; int32_t factored;
   int64_t jacobians; double time_jacobian;
 } cf_reduced;

@@ -453,7 +453,8 @@ typedef struct {
   cf_problem *F, *J;                 /* sampled residual and Jacobian problems (be: nd, nd*nd) */
   const cf_settings* s;
   cf_newton_state* st;
-  cf_observe on_iteration; void* observer; /* NULL, or the Python observer and its ctx */
+  const cf_solver* solver;           /* its on_iteration, if set, is called with observer */
+  void* observer;
   double *q, *r, *dq, *Jr, *lu, *work; /* (m), (m), (m), (m, m), (m, m), (nd, m) */
   int32_t* piv;                      /* (m) */
   int32_t factored;                  /* 1 when lu holds J_r's factors */
@@ -632,7 +633,8 @@ static int reduced_residual(cf_reduced* R, double* fnorm)
 static int reduced_test(cf_reduced* R, int it, const double* norms, int* reason)
 {
   *reason = cf_test(R->s, R->st, it, norms);
-  return R->on_iteration ? R->on_iteration(R->observer, it, norms, *reason) : 0;
+  const cf_observe observe = R->solver->on_iteration;
+  return observe ? observe(R->observer, it, norms, *reason) : 0;
 }
 
 /* A cf_run (ctx: a cf_reduced): the reduced Newton iterations from the guess in U; U then

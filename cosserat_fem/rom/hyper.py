@@ -286,8 +286,7 @@ class HyperSolver(ReducedSolver):
         R.piv = ffi.cast("int32_t*", arrays["piv"].ctypes.data)
         R.F, R.J = Fp, Jp
         R.s, R.st = self._cs, self._state
-        R.observer = self._handle
-        R.on_iteration = ffi.NULL
+        R.solver, R.observer = self._sv, self._handle  # the observer hook, if one is set
         self._R = R
         self.sampled_rows = row_array.size
         self._sv.run = ffi.addressof(lib, "cf_reduced_run")
@@ -310,16 +309,6 @@ class HyperSolver(ReducedSolver):
     @Jr.setter
     def Jr(self, value) -> None:
         self._Jr0 = value
-
-    @property
-    def iteration_hook(self):
-        return self._hook
-
-    @iteration_hook.setter
-    def iteration_hook(self, hook) -> None:
-        self._hook = hook
-        if hasattr(self, "_R"):
-            self._R.on_iteration = self._ffi.NULL if hook is None else self._lib.cf_py_iteration
 
     @property
     def stats(self):
