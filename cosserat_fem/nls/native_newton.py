@@ -82,10 +82,12 @@ void cf_sdirk_predict(cf_sdirk* sd, int i);
 void cf_sdirk_accept(cf_sdirk* sd);
 typedef struct {
   int32_t n, m; const double *V, *DV, *WV, *ref; const double *G, *g; double c;
-  int32_t n_rows; const int32_t* rows; cf_problem *F, *J; const cf_settings* s;
+  int32_t n_rows; const int32_t* rows; int32_t n_rest; const int32_t* rest;
+  int32_t n_fit; const int32_t* fit; const double* P; int32_t project_all;
+  cf_problem *F, *J; const cf_settings* s;
   cf_newton_state* st; const cf_solver* solver; void* observer;
   double *q, *r, *dq, *Jr, *lu, *work; int32_t* piv; int32_t factored;
-  int64_t jacobians; double time_jacobian;
+  int64_t jacobians, full_projections; double time_jacobian;
 } cf_reduced;
 int cf_reduced_residual(cf_problem* p, const double* DV, int32_t m, double* r, double* out);
 int cf_reduced_jacobian(cf_problem* p, const double* DV, const double* V, int32_t m, double* Jr,

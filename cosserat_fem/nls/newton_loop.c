@@ -440,8 +440,9 @@ void cf_sdirk_accept(cf_sdirk* sd)
  * the frozen refresh), this is one run of iterations with the same stop rule cf_test on
  * (||U||, ||V dq||, ||r||), 2-norms of the full vectors computed from the Gram matrix G = V^T V,
  * g = V^T U_ref, c = ||U_ref||^2 (no O(n) work in an iteration). Its only O(n) work is per
- * solve: the guess's projection q0 = (W V)^T (U - U_ref) and U = U_ref + V q at the end (the
- * integrator's state is the full vector). */
+ * solve: U = U_ref + V q at the end on the rows the iterations did not write (the
+ * integrator's state is the full vector), and the W-projection of a guess off the basis
+ * (project). */
 
 typedef struct {
   int32_t n, m;                      /* owned rows of U, reduced unknowns (2k) */
@@ -450,6 +451,12 @@ typedef struct {
   double c;                          /* ||U_ref||^2 */
   int32_t n_rows;
   const int32_t* rows;               /* the entries of U the sampled entities read */
+  int32_t n_rest;
+  const int32_t* rest;               /* the others: written at the end of a run only */
+  int32_t n_fit;                     /* rows S of the guess's cheap projection, or 0 */
+  const int32_t* fit;                /* S (among rows) */
+  const double* P;                   /* (m, n_fit) the pseudo-inverse of V's rows S */
+  int32_t project_all;               /* 1: the next guess is projected with W on every row */
   cf_problem *F, *J;                 /* sampled residual and Jacobian problems (be: nd, nd*nd) */
   const cf_settings* s;
   cf_newton_state* st;
@@ -458,7 +465,7 @@ typedef struct {
   double *q, *r, *dq, *Jr, *lu, *work; /* (m), (m), (m), (m, m), (m, m), (nd, m) */
   int32_t* piv;                      /* (m) */
   int32_t factored;                  /* 1 when lu holds J_r's factors */
-  int64_t jacobians;                 /* counters */
+  int64_t jacobians, full_projections; /* counters */
   double time_jacobian;
 } cf_reduced;
 
@@ -637,6 +644,45 @@ static int reduced_test(cf_reduced* R, int it, const double* norms, int* reason)
   return observe ? observe(R->observer, it, norms, *reason) : 0;
 }
 
+/* q0 of the guess in U. Every state the integrator forms from reduced states (stage values,
+ * rates, predictors: linear combinations) lies in U_ref + span V, so q0 is read off the rows
+ * S alone, q0 = P (U - U_ref)_S, P = V_S^+ (O(|S| m)), and checked there: if V_S q0 misses
+ * (U - U_ref)_S by more than 1e-9 of its largest entry (a state off the basis), and at the
+ * first solve (project_all), it is the W-projection over every row, q0 = (W V)^T (U - U_ref)
+ * (O(n m)). */
+static void project(cf_reduced* R, const double* u)
+{
+  const int32_t m = R->m;
+  if (!R->project_all && R->n_fit) {
+    for (int32_t j = 0; j < m; ++j) {
+      const double* p = R->P + (int64_t)j * R->n_fit;
+      double t = 0.0;
+      for (int32_t k = 0; k < R->n_fit; ++k) t += p[k] * (u[R->fit[k]] - R->ref[R->fit[k]]);
+      R->q[j] = t;
+    }
+    double miss = 0.0, size = 0.0;
+    for (int32_t k = 0; k < R->n_fit; ++k) {
+      const int32_t i = R->fit[k];
+      const double* v = R->V + (int64_t)i * m;
+      double t = 0.0;
+      for (int32_t j = 0; j < m; ++j) t += v[j] * R->q[j];
+      const double d = u[i] - R->ref[i];
+      if (fabs(t - d) > miss) miss = fabs(t - d);
+      if (fabs(d) > size) size = fabs(d);
+    }
+    if (miss <= 1e-9 * size) return;
+  }
+  memset(R->q, 0, sizeof(double) * (size_t)m);
+  for (int32_t i = 0; i < R->n; ++i) {
+    const double d = u[i] - R->ref[i];
+    if (d == 0.0) continue;
+    const double* w = R->WV + (int64_t)i * m;
+    for (int32_t j = 0; j < m; ++j) R->q[j] += w[j] * d;
+  }
+  R->project_all = 0;
+  R->full_projections += 1;
+}
+
 /* A cf_run (ctx: a cf_reduced): the reduced Newton iterations from the guess in U; U then
  * holds U_ref + V q of the last iterate. */
 int cf_reduced_run(void* ctx, int* iterations, int* reason)
@@ -649,14 +695,7 @@ int cf_reduced_run(void* ctx, int* iterations, int* reason)
   int ierr, it = 0;
   double fnorm;
   *iterations = 0;
-  /* q0 = (W V)^T (U - U_ref) */
-  memset(R->q, 0, sizeof(double) * (size_t)m);
-  for (int32_t i = 0; i < n; ++i) {
-    const double d = u[i] - R->ref[i];
-    if (d == 0.0) continue;
-    const double* w = R->WV + (int64_t)i * m;
-    for (int32_t j = 0; j < m; ++j) R->q[j] += w[j] * d;
-  }
+  project(R, u);
   set_rows(R, u);
   reduced_residual(R, &fnorm);
   if (!isfinite(fnorm)) {
@@ -701,12 +740,15 @@ int cf_reduced_run(void* ctx, int* iterations, int* reason)
   }
   if (*reason == SNES_CONVERGED_ITERATING) *reason = SNES_DIVERGED_MAX_IT;
 done:
-  /* the whole state, for the integrator: U = U_ref + V q */
-  for (int32_t i = 0; i < n; ++i) {
+  /* the whole state, for the integrator: U = U_ref + V q (the sampled rows hold it already,
+   * set by the same arithmetic) */
+  for (int32_t k = 0; k < R->n_rest; ++k) {
+    const int32_t i = R->rest[k];
     const double* v = R->V + (int64_t)i * m;
     double t = 0.0;
     for (int32_t j = 0; j < m; ++j) t += v[j] * R->q[j];
     u[i] = R->ref[i] + t;
   }
+  (void)n;
   return 0;
 }

@@ -36,9 +36,11 @@ Online (:class:`HyperSolver`), each Newton iteration of the reduced coordinates 
 m = 2k columns) costs O(m |E| n_e) for r̃ and O(|E| (n_e² m + n_e m²)) for J̃_r (n_e the dofs
 of an element) and O(m³) for its LU, all in C (newton_loop.c ``cf_reduced_run``), with the
 state reconstructed only on the entries of U the sampled elements read. What a solve still
-does in O(n m): the integrator's guess, a full vector, projected (q₀ = (W V)ᵀ (U − U_ref))
-and the whole U = U_ref + V q given back to the integrator at its end; and the integrator's
-own arithmetic on full vectors (cf_sdirk_*) is O(n) a stage.
+does in O(n m): the whole U = U_ref + V q given back to the integrator at its end (on the
+rows the iterations did not write); the integrator's guess is read off the sampled rows,
+q₀ = V_S⁺ (U − U_ref)_S (every state the integrator forms from reduced ones is in the affine
+space; checked there, else and at the first solve the W-projection over every row). The
+integrator's own arithmetic on full vectors (cf_sdirk_*) is O(n) a stage.
 
 Serial only: the C assembler is serial, and the sampled elements would be spread over the
 ranks; a hyper-reduced run under MPI is refused (one line).
@@ -222,6 +224,10 @@ def ecsw(scenes, basis, tolerance: float, every: int = 1, max_elements: int | No
 
 # --- the hyper-reduced solve -------------------------------------------------------------------
 
+#: The largest condition number of V's sampled rows for reading the guess's q₀ off them
+#: (newton_loop.c ``project``: its round-off grows with it; 1e6 keeps q₀ to 1e-10).
+CONDITION_LIMIT = 1e6
+
 
 class HyperSolver(ReducedSolver):
     """ReducedSolver whose iterations are cf_reduced_run on the sampled elements (module
@@ -260,6 +266,17 @@ class HyperSolver(ReducedSolver):
         row_array = np.unique(np.concatenate(rows)).astype(np.int32)
         row_array = np.ascontiguousarray(row_array[row_array < n])
         m = self.V.shape[1]
+        rest = np.setdiff1d(np.arange(n, dtype=np.int32), row_array).astype(np.int32)
+        fit = row_array[np.abs(self.V[row_array]).max(axis=1, initial=0.0) > 0.0]
+        P = np.zeros((m, 0))
+        if m <= fit.size <= n // 2:  # q₀ read off the sampled rows (newton_loop.c project),
+            # where they are fewer than half of U's (else the W-projection costs no more)
+            sigma = np.linalg.svd(self.V[fit], compute_uv=False)
+            if sigma[-1] > 0 and sigma[0] / sigma[-1] <= CONDITION_LIMIT:
+                P = np.linalg.pinv(self.V[fit])
+        if P.shape[1] == 0:
+            fit = fit[:0]
+        self.cheap_projection = bool(fit.size)
         self._arrays = arrays = {
             "V": self.V,
             "DV": np.ascontiguousarray(self.DV),
@@ -268,6 +285,9 @@ class HyperSolver(ReducedSolver):
             "G": np.ascontiguousarray(self.V.T @ self.V),
             "g": self.V.T @ self.basis.reference,
             "rows": row_array,
+            "rest": np.ascontiguousarray(rest),
+            "fit": np.ascontiguousarray(fit, dtype=np.int32),
+            "P": np.ascontiguousarray(P),
             "q": np.zeros(m),
             "r": np.zeros(m),
             "dq": np.zeros(m),
@@ -278,12 +298,15 @@ class HyperSolver(ReducedSolver):
         }
         R = ffi.new("cf_reduced*")
         R.n, R.m = n, m
-        for name in ("V", "DV", "WV", "ref", "G", "g", "q", "r", "dq", "Jr", "lu", "work"):
+        for name in ("V", "DV", "WV", "ref", "G", "g", "P", "q", "r", "dq", "Jr", "lu", "work"):
             setattr(R, name, ffi.cast("double*", arrays[name].ctypes.data))
         R.c = float(self.basis.reference @ self.basis.reference)
         R.n_rows = row_array.size
         R.rows = ffi.cast("int32_t*", row_array.ctypes.data)
         R.piv = ffi.cast("int32_t*", arrays["piv"].ctypes.data)
+        R.n_rest, R.rest = rest.size, ffi.cast("int32_t*", arrays["rest"].ctypes.data)
+        R.n_fit, R.fit = fit.size, ffi.cast("int32_t*", arrays["fit"].ctypes.data)
+        R.project_all = 1  # the first guess: the W-projection (it may be off the basis)
         R.F, R.J = Fp, Jp
         R.s, R.st = self._cs, self._state
         R.solver, R.observer = self._sv, self._handle  # the observer hook, if one is set
