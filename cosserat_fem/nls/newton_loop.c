@@ -612,18 +612,21 @@ static double gram(const double* G, int32_t m, const double* x, const double* y)
   return s;
 }
 
-/* U's entries the sampled entities read: U_ref + V q there. */
-static void set_rows(cf_reduced* R, double* u)
+/* U = U_ref + V q on the entries `rows` of U. */
+static void write_rows(const cf_reduced* R, double* u, const int32_t* rows, int32_t count)
 {
   const int32_t m = R->m;
-  for (int32_t k = 0; k < R->n_rows; ++k) {
-    const int32_t i = R->rows[k];
+  for (int32_t k = 0; k < count; ++k) {
+    const int32_t i = rows[k];
     const double* v = R->V + (int64_t)i * m;
     double s = 0.0;
     for (int32_t j = 0; j < m; ++j) s += v[j] * R->q[j];
     u[i] = R->ref[i] + s;
   }
 }
+
+/* U's entries the sampled entities read: U_ref + V q there. */
+static void set_rows(cf_reduced* R, double* u) { write_rows(R, u, R->rows, R->n_rows); }
 
 static int reduced_residual(cf_reduced* R, double* fnorm)
 {
@@ -690,7 +693,7 @@ int cf_reduced_run(void* ctx, int* iterations, int* reason)
   cf_reduced* R = (cf_reduced*)ctx;
   const cf_settings* s = R->s;
   cf_newton_state* st = R->st;
-  const int32_t n = R->n, m = R->m;
+  const int32_t m = R->m;
   double* u = (double*)R->F->u_values;
   int ierr, it = 0;
   double fnorm;
@@ -742,13 +745,6 @@ int cf_reduced_run(void* ctx, int* iterations, int* reason)
 done:
   /* the whole state, for the integrator: U = U_ref + V q (the sampled rows hold it already,
    * set by the same arithmetic) */
-  for (int32_t k = 0; k < R->n_rest; ++k) {
-    const int32_t i = R->rest[k];
-    const double* v = R->V + (int64_t)i * m;
-    double t = 0.0;
-    for (int32_t j = 0; j < m; ++j) t += v[j] * R->q[j];
-    u[i] = R->ref[i] + t;
-  }
-  (void)n;
+  write_rows(R, u, R->rest, R->n_rest);
   return 0;
 }
