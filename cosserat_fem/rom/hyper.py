@@ -231,7 +231,10 @@ CONDITION_LIMIT = 1e6
 
 class HyperSolver(ReducedSolver):
     """ReducedSolver whose iterations are cf_reduced_run on the sampled elements (module
-    docstring); ``loop`` is "hyper"."""
+    docstring); ``loop`` is "hyper". J̃_r and its LU live in C; a checkpoint keeps the
+    policy's state but not J̃_r, so a restarted run forms a fresh one at its first solve
+    (the same solution to the Newton tolerance, not the same iterates bit for bit as the
+    full model's restart gives)."""
 
     def __init__(self, F, U, bcs, settings, basis):
         super().__init__(F, U, bcs, settings, basis)
