@@ -43,7 +43,7 @@ SOURCE = Path(__file__).with_name("newton_loop.c")
 CDEF = """
 typedef struct {
   void* kernel; int32_t entities; const int32_t* cells; const int32_t* local_facets;
-  int32_t wsize; const int32_t* source; const int32_t* index;
+  int32_t wsize; const int32_t* source; const int32_t* index; const double* weights;
 } cf_integral;
 typedef struct {
   int32_t n_integrals; const cf_integral* integrals; double* const* coefficients;
@@ -80,6 +80,19 @@ typedef struct {
 void cf_sdirk_stage(cf_sdirk* sd, int i);
 void cf_sdirk_predict(cf_sdirk* sd, int i);
 void cf_sdirk_accept(cf_sdirk* sd);
+typedef struct {
+  int32_t n, m; const double *V, *DV, *WV, *ref; const double *G, *g; double c;
+  int32_t n_rows; const int32_t* rows; int32_t n_rest; const int32_t* rest;
+  int32_t n_fit; const int32_t* fit; const double* P; int32_t project_all;
+  cf_problem *F, *J; const cf_settings* s;
+  cf_newton_state* st; const cf_solver* solver; void* observer;
+  double *q, *r, *dq, *Jr, *lu, *work; int32_t* piv; int32_t factored;
+  int64_t jacobians, full_projections; double time_jacobian;
+} cf_reduced;
+int cf_reduced_residual(cf_problem* p, const double* DV, int32_t m, double* r, double* out);
+int cf_reduced_jacobian(cf_problem* p, const double* DV, const double* V, int32_t m, double* Jr,
+                        double* work);
+int cf_reduced_run(void* ctx, int* iterations, int* reason);
 extern "Python" int cf_py_residual(void* ctx);
 extern "Python" int cf_py_jacobian(void* ctx);
 extern "Python" int cf_py_iteration(void* ctx, int it, const double* norms, int reason);
@@ -381,9 +394,7 @@ class NativeLoop:
         ffi = self.ffi
         self._keep: list = []  # every array the C side points into
 
-        def pointer(array: np.ndarray, kind: str):
-            self._keep.append(array)
-            return ffi.cast(kind, array.ctypes.data)
+        pointer = self._pointer
 
         V = U.function_space
         bs = V.dofmap.bs
@@ -395,6 +406,7 @@ class NativeLoop:
         coordinates = np.ascontiguousarray(geometry.x[x_nodes].reshape(nodes.shape[0], -1))
 
         tables = _gather_tables(form)
+        self._parts: list = []  # per integral: (kernel, cells, facets, source, index)
         address = int(ffi.cast("uintptr_t", ffi.addressof(form.ufcx_form)))
         integrals = []
         for kind in (cpp.fem.IntegralType.cell, cpp.fem.IntegralType.exterior_facet):
@@ -411,9 +423,11 @@ class NativeLoop:
                 source, index = tables[(kind, ident)]
                 if index.shape[0] != cells.size:
                     raise NotApplicable(f"packed entities of integral {(kind, ident)}")
+                kernel = self.lib.cf_kernel(address, int(kind), i)
+                self._parts.append((kernel, cells, facets, source, index))
                 integrals.append(
                     {
-                        "kernel": self.lib.cf_kernel(address, int(kind), i),
+                        "kernel": kernel,
                         "entities": cells.size,
                         "cells": pointer(cells, "int32_t*"),
                         "local_facets": ffi.NULL if facets is None else pointer(facets, "int32_t*"),
@@ -440,6 +454,7 @@ class NativeLoop:
             np.concatenate([np.zeros(0, np.int32), *bc_parts]), dtype=np.int32
         )
         wsize = max((d["wsize"] for d in integrals), default=0)
+        self._wsize, self._cells_total = wsize, nodes.shape[0]
         p = ffi.new("cf_problem*")
         p.n_integrals = len(integrals)
         p.integrals = self._integrals
@@ -461,6 +476,54 @@ class NativeLoop:
         p.b = ffi.cast("void*", b.handle)
         self.problem = p
         self._form, self._bcs = form, bcs
+
+    def sampled(self, cells: np.ndarray, weights: np.ndarray, tensor: int):
+        """A cf_problem of this form's integrals over the entities of ``cells`` only (a
+        facet integral: its facets of those cells), each entity weighted by its cell's
+        entry of ``weights`` (indexed by cell), for cf_reduced_residual (``tensor`` = 1:
+        element vectors) or cf_reduced_jacobian (``tensor`` = 2: element matrices); it
+        shares this one's coefficients, constants, geometry and dofmap. Also returns the
+        entries of the coefficient arrays the sampled entities read, per coefficient."""
+        ffi = self.ffi
+        chosen = np.zeros(self._cells_total, dtype=bool)
+        chosen[cells] = True
+        integrals: list = []
+        reads: dict[int, list] = {}
+        for kernel, all_cells, facets, source, index in self._parts:
+            mask = chosen[all_cells]
+            mine = np.ascontiguousarray(all_cells[mask])
+            idx = np.ascontiguousarray(index[mask])
+            xi = np.ascontiguousarray(weights[mine], dtype=float)
+            for k in np.unique(source):
+                reads.setdefault(int(k), []).append(idx[:, source == k].ravel())
+            integrals.append(
+                {
+                    "kernel": kernel,
+                    "entities": mine.size,
+                    "cells": self._pointer(mine, "int32_t*"),
+                    "local_facets": ffi.NULL
+                    if facets is None
+                    else self._pointer(np.ascontiguousarray(facets[mask]), "int32_t*"),
+                    "wsize": idx.shape[1],
+                    "source": self._pointer(np.ascontiguousarray(source), "int32_t*"),
+                    "index": self._pointer(idx, "int32_t*"),
+                    "weights": self._pointer(xi, "double*"),
+                }
+            )
+        table = ffi.new("cf_integral[]", integrals)
+        self._keep.append(table)
+        p = ffi.new("cf_problem*", self.problem[0])
+        p.n_integrals = len(integrals)
+        p.integrals = table
+        p.be = self._pointer(np.zeros(self.problem.dofs_per_cell**tensor), "double*")
+        p.w = self._pointer(np.zeros(max(self._wsize, 1)), "double*")
+        self._keep.append(p)
+        return p, {k: np.unique(np.concatenate(v)) for k, v in reads.items()}
+
+    def _pointer(self, array: np.ndarray, kind: str):
+        """A C pointer into ``array``, kept alive with this object."""
+        self._keep.append(array)
+        return self.ffi.cast(kind, array.ctypes.data)
 
     def refresh(self) -> None:
         """The Dirichlet values g as they are now (before a solve, while a support moves); set

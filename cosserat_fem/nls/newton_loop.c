@@ -40,6 +40,7 @@ typedef struct {
   int32_t wsize;               /* packed coefficient values per entity */
   const int32_t* source;       /* (wsize,) which coefficient each packed value comes from */
   const int32_t* index;        /* (entities, wsize) its index in that coefficient's array */
+  const double* weights;       /* (entities,) ECSW weights xi_e of a sampled integral, or NULL */
 } cf_integral;
 
 typedef struct {
@@ -424,4 +425,326 @@ void cf_sdirk_accept(cf_sdirk* sd)
     sd->times[slot] = sd->taus[i];
     sd->stored += 1;
   }
+}
+
+
+/* ---- The hyper-reduced Newton iteration (cosserat_fem/rom/hyper.py; docs/rom.md (5), (9)-(11)).
+ * The state is U = U_ref + V q, V (n, m) row-major; the reduced residual and Jacobian are sums
+ * over the sampled entities of the integrals (cells E and their facets), each scaled by its
+ * weight xi_e:
+ *   r = sum_e xi_e (D V)_e^T F_e(U_e),   J_r = sum_e xi_e (D V)_e^T J_e(U_e) V_e,
+ * with U_e = U_ref,e + V_e q written only into the entries of U the sampled entities read
+ * (rows). Rows of Dirichlet dofs have V = D V = 0: their element entries add nothing, as the
+ * full residual's rows x - g and the Jacobian's identity rows add nothing to V^T F, V^T J V.
+ * cf_reduced_run is a cf_run: cf_solve keeps the policy (the need for a Jacobian, the retry,
+ * the frozen refresh), this is one run of iterations with the same stop rule cf_test on
+ * (||U||, ||V dq||, ||r||), 2-norms of the full vectors computed from the Gram matrix G = V^T V,
+ * g = V^T U_ref, c = ||U_ref||^2 (no O(n) work in an iteration). Its only O(n) work is per
+ * solve: U = U_ref + V q at the end on the rows the iterations did not write (the
+ * integrator's state is the full vector), and the W-projection of a guess off the basis
+ * (project). */
+
+typedef struct {
+  int32_t n, m;                      /* owned rows of U, reduced unknowns (2k) */
+  const double *V, *DV, *WV, *ref;   /* (n, m), (n, m), (n, m), (n,) */
+  const double *G, *g;               /* (m, m), (m,) */
+  double c;                          /* ||U_ref||^2 */
+  int32_t n_rows;
+  const int32_t* rows;               /* the entries of U the sampled entities read */
+  int32_t n_rest;
+  const int32_t* rest;               /* the others: written at the end of a run only */
+  int32_t n_fit;                     /* rows S of the guess's cheap projection, or 0 */
+  const int32_t* fit;                /* S (among rows) */
+  const double* P;                   /* (m, n_fit) the pseudo-inverse of V's rows S */
+  int32_t project_all;               /* 1: the next guess is projected with W on every row */
+  cf_problem *F, *J;                 /* sampled residual and Jacobian problems (be: nd, nd*nd) */
+  const cf_settings* s;
+  cf_newton_state* st;
+  const cf_solver* solver;           /* its on_iteration, if set, is called with observer */
+  void* observer;
+  double *q, *r, *dq, *Jr, *lu, *work; /* (m), (m), (m), (m, m), (m, m), (nd, m) */
+  int32_t* piv;                      /* (m) */
+  int32_t factored;                  /* 1 when lu holds J_r's factors */
+  int64_t jacobians, full_projections; /* counters */
+  double time_jacobian;
+} cf_reduced;
+
+static void packed_constants(cf_problem* p)
+{
+  double* packed = p->constants;
+  for (int32_t k = 0; k < p->n_constants; ++k)
+    for (int32_t j = 0; j < p->constant_sizes[k]; ++j) *packed++ = p->constant_values[k][j];
+}
+
+/* The element tensor of entity e of integral `in` into p->be (weights not applied). */
+static void element(const cf_problem* p, const cf_integral* in, int32_t e, int32_t size)
+{
+  const int32_t c = in->cells[e];
+  const int32_t* index = in->index + (int64_t)e * in->wsize;
+  for (int32_t j = 0; j < in->wsize; ++j) p->w[j] = p->coefficients[in->source[j]][index[j]];
+  memset(p->be, 0, sizeof(double) * (size_t)size);
+  ufcx_tabulate_tensor_float64* kernel = (ufcx_tabulate_tensor_float64*)in->kernel;
+  kernel(p->be, p->w, p->constants, p->coordinates + (int64_t)c * p->coordinates_per_cell,
+         in->local_facets ? &in->local_facets[e] : NULL, NULL);
+}
+
+/* r = sum_e xi_e (D V)_e^T F_e; with `cells` (entities' cell -> row of out, (cells, m)) each
+ * entity's projected vector is added to its cell's row instead (ECSW's training matrix). */
+int cf_reduced_residual(cf_problem* p, const double* DV, int32_t m, double* r, double* out)
+{
+  const int32_t nd = p->dofs_per_cell;
+  packed_constants(p);
+  if (r) memset(r, 0, sizeof(double) * (size_t)m);
+  for (int32_t k = 0; k < p->n_integrals; ++k) {
+    const cf_integral* in = &p->integrals[k];
+    for (int32_t e = 0; e < in->entities; ++e) {
+      element(p, in, e, nd);
+      const double xi = in->weights ? in->weights[e] : 1.0;
+      const int32_t* dofs = p->dofs + (int64_t)in->cells[e] * nd;
+      double* target = out ? out + (int64_t)in->cells[e] * m : r;
+      for (int32_t i = 0; i < nd; ++i) {
+        const double v = xi * p->be[i];
+        const double* row = DV + (int64_t)dofs[i] * m;
+        for (int32_t j = 0; j < m; ++j) target[j] += row[j] * v;
+      }
+    }
+  }
+  return 0;
+}
+
+/* J_r = sum_e xi_e (D V)_e^T J_e V_e ((m, m) row-major); work: (nd, m). */
+int cf_reduced_jacobian(cf_problem* p, const double* DV, const double* V, int32_t m, double* Jr,
+                        double* work)
+{
+  const int32_t nd = p->dofs_per_cell;
+  packed_constants(p);
+  memset(Jr, 0, sizeof(double) * (size_t)m * (size_t)m);
+  for (int32_t k = 0; k < p->n_integrals; ++k) {
+    const cf_integral* in = &p->integrals[k];
+    for (int32_t e = 0; e < in->entities; ++e) {
+      element(p, in, e, nd * nd);
+      const double xi = in->weights ? in->weights[e] : 1.0;
+      const int32_t* dofs = p->dofs + (int64_t)in->cells[e] * nd;
+      /* work = A_e V_e (A_e row-major: test i, trial l) */
+      memset(work, 0, sizeof(double) * (size_t)nd * (size_t)m);
+      for (int32_t i = 0; i < nd; ++i) {
+        double* wi = work + (int64_t)i * m;
+        for (int32_t l = 0; l < nd; ++l) {
+          const double a = p->be[(int64_t)i * nd + l];
+          if (a == 0.0) continue;
+          const double* vl = V + (int64_t)dofs[l] * m;
+          for (int32_t j = 0; j < m; ++j) wi[j] += a * vl[j];
+        }
+      }
+      for (int32_t i = 0; i < nd; ++i) {
+        const double* di = DV + (int64_t)dofs[i] * m;
+        const double* wi = work + (int64_t)i * m;
+        for (int32_t a = 0; a < m; ++a) {
+          const double d = xi * di[a];
+          if (d == 0.0) continue;
+          double* Ja = Jr + (int64_t)a * m;
+          for (int32_t j = 0; j < m; ++j) Ja[j] += d * wi[j];
+        }
+      }
+    }
+  }
+  return 0;
+}
+
+/* LU with partial pivoting of the (m, m) matrix a in place; 0, or 1 at a zero pivot. */
+static int lu_factor(double* a, int32_t* piv, int32_t m)
+{
+  for (int32_t k = 0; k < m; ++k) {
+    int32_t p = k;
+    double big = fabs(a[(int64_t)k * m + k]);
+    for (int32_t i = k + 1; i < m; ++i)
+      if (fabs(a[(int64_t)i * m + k]) > big) big = fabs(a[(int64_t)i * m + k]), p = i;
+    piv[k] = p;
+    if (!(big > 0.0) || !isfinite(big)) return 1;
+    if (p != k)
+      for (int32_t j = 0; j < m; ++j) {
+        const double t = a[(int64_t)k * m + j];
+        a[(int64_t)k * m + j] = a[(int64_t)p * m + j];
+        a[(int64_t)p * m + j] = t;
+      }
+    const double inv = 1.0 / a[(int64_t)k * m + k];
+    for (int32_t i = k + 1; i < m; ++i) {
+      double* ai = a + (int64_t)i * m;
+      const double f = ai[k] * inv;
+      ai[k] = f;
+      if (f == 0.0) continue;
+      const double* ak = a + (int64_t)k * m;
+      for (int32_t j = k + 1; j < m; ++j) ai[j] -= f * ak[j];
+    }
+  }
+  return 0;
+}
+
+static void lu_solve(const double* a, const int32_t* piv, int32_t m, double* x)
+{
+  for (int32_t k = 0; k < m; ++k)
+    if (piv[k] != k) {
+      const double t = x[k];
+      x[k] = x[piv[k]];
+      x[piv[k]] = t;
+    }
+  for (int32_t i = 1; i < m; ++i) {
+    double s = x[i];
+    for (int32_t j = 0; j < i; ++j) s -= a[(int64_t)i * m + j] * x[j];
+    x[i] = s;
+  }
+  for (int32_t i = m - 1; i >= 0; --i) {
+    double s = x[i];
+    for (int32_t j = i + 1; j < m; ++j) s -= a[(int64_t)i * m + j] * x[j];
+    x[i] = s / a[(int64_t)i * m + i];
+  }
+}
+
+/* x^T G y */
+static double gram(const double* G, int32_t m, const double* x, const double* y)
+{
+  double s = 0.0;
+  for (int32_t i = 0; i < m; ++i) {
+    double t = 0.0;
+    for (int32_t j = 0; j < m; ++j) t += G[(int64_t)i * m + j] * y[j];
+    s += x[i] * t;
+  }
+  return s;
+}
+
+/* U = U_ref + V q on the entries `rows` of U. */
+static void write_rows(const cf_reduced* R, double* u, const int32_t* rows, int32_t count)
+{
+  const int32_t m = R->m;
+  for (int32_t k = 0; k < count; ++k) {
+    const int32_t i = rows[k];
+    const double* v = R->V + (int64_t)i * m;
+    double s = 0.0;
+    for (int32_t j = 0; j < m; ++j) s += v[j] * R->q[j];
+    u[i] = R->ref[i] + s;
+  }
+}
+
+/* U's entries the sampled entities read: U_ref + V q there. */
+static void set_rows(cf_reduced* R, double* u) { write_rows(R, u, R->rows, R->n_rows); }
+
+static int reduced_residual(cf_reduced* R, double* fnorm)
+{
+  const double t0 = now();
+  cf_reduced_residual(R->F, R->DV, R->m, R->r, NULL);
+  R->st->time_residual += now() - t0;
+  R->st->residuals += 1;
+  double s = 0.0;
+  for (int32_t j = 0; j < R->m; ++j) s += R->r[j] * R->r[j];
+  *fnorm = sqrt(s);
+  return 0;
+}
+
+static int reduced_test(cf_reduced* R, int it, const double* norms, int* reason)
+{
+  *reason = cf_test(R->s, R->st, it, norms);
+  const cf_observe observe = R->solver->on_iteration;
+  return observe ? observe(R->observer, it, norms, *reason) : 0;
+}
+
+/* q0 of the guess in U. Every state the integrator forms from reduced states (stage values,
+ * rates, predictors: linear combinations) lies in U_ref + span V, so q0 is read off the rows
+ * S alone, q0 = P (U - U_ref)_S, P = V_S^+ (O(|S| m)), and checked there: if V_S q0 misses
+ * (U - U_ref)_S by more than 1e-9 of its largest entry (a state off the basis), and at the
+ * first solve (project_all), it is the W-projection over every row, q0 = (W V)^T (U - U_ref)
+ * (O(n m)). */
+static void project(cf_reduced* R, const double* u)
+{
+  const int32_t m = R->m;
+  if (!R->project_all && R->n_fit) {
+    for (int32_t j = 0; j < m; ++j) {
+      const double* p = R->P + (int64_t)j * R->n_fit;
+      double t = 0.0;
+      for (int32_t k = 0; k < R->n_fit; ++k) t += p[k] * (u[R->fit[k]] - R->ref[R->fit[k]]);
+      R->q[j] = t;
+    }
+    double miss = 0.0, size = 0.0;
+    for (int32_t k = 0; k < R->n_fit; ++k) {
+      const int32_t i = R->fit[k];
+      const double* v = R->V + (int64_t)i * m;
+      double t = 0.0;
+      for (int32_t j = 0; j < m; ++j) t += v[j] * R->q[j];
+      const double d = u[i] - R->ref[i];
+      if (fabs(t - d) > miss) miss = fabs(t - d);
+      if (fabs(d) > size) size = fabs(d);
+    }
+    if (miss <= 1e-9 * size) return;
+  }
+  memset(R->q, 0, sizeof(double) * (size_t)m);
+  for (int32_t i = 0; i < R->n; ++i) {
+    const double d = u[i] - R->ref[i];
+    if (d == 0.0) continue;
+    const double* w = R->WV + (int64_t)i * m;
+    for (int32_t j = 0; j < m; ++j) R->q[j] += w[j] * d;
+  }
+  R->project_all = 0;
+  R->full_projections += 1;
+}
+
+/* A cf_run (ctx: a cf_reduced): the reduced Newton iterations from the guess in U; U then
+ * holds U_ref + V q of the last iterate. */
+int cf_reduced_run(void* ctx, int* iterations, int* reason)
+{
+  cf_reduced* R = (cf_reduced*)ctx;
+  const cf_settings* s = R->s;
+  cf_newton_state* st = R->st;
+  const int32_t m = R->m;
+  double* u = (double*)R->F->u_values;
+  int ierr, it = 0;
+  double fnorm;
+  *iterations = 0;
+  project(R, u);
+  set_rows(R, u);
+  reduced_residual(R, &fnorm);
+  if (!isfinite(fnorm)) {
+    *reason = SNES_DIVERGED_FNORM_NAN;
+    goto done;
+  }
+  const double first[3] = {0.0, 0.0, fnorm};
+  if ((ierr = reduced_test(R, 0, first, reason))) return ierr;
+  while (*reason == SNES_CONVERGED_ITERATING && it < s->max_iterations) {
+    if (st->need_jacobian || s->full) {
+      const double t0 = now();
+      cf_reduced_jacobian(R->J, R->DV, R->V, m, R->Jr, R->work);
+      memcpy(R->lu, R->Jr, sizeof(double) * (size_t)m * (size_t)m);
+      R->factored = !lu_factor(R->lu, R->piv, m);
+      R->jacobians += 1;
+      R->time_jacobian += now() - t0;
+      st->need_jacobian = 0;
+      st->since = 0;
+    }
+    if (!R->factored) {
+      *reason = SNES_DIVERGED_LINEAR_SOLVE;
+      break;
+    }
+    memcpy(R->dq, R->r, sizeof(double) * (size_t)m);
+    lu_solve(R->lu, R->piv, m, R->dq);
+    for (int32_t j = 0; j < m; ++j) R->q[j] -= R->dq[j];
+    set_rows(R, u);
+    reduced_residual(R, &fnorm);
+    if (!isfinite(fnorm)) {
+      *reason = SNES_DIVERGED_FNORM_NAN;
+      break;
+    }
+    double x2 = R->c, y2 = gram(R->G, m, R->dq, R->dq);
+    for (int32_t j = 0; j < m; ++j) x2 += 2.0 * R->g[j] * R->q[j];
+    x2 += gram(R->G, m, R->q, R->q);
+    st->norms[0] = sqrt(x2 > 0.0 ? x2 : 0.0);
+    st->norms[1] = sqrt(y2 > 0.0 ? y2 : 0.0);
+    st->norms[2] = fnorm;
+    it += 1;
+    *iterations = it;
+    if ((ierr = reduced_test(R, it, st->norms, reason))) return ierr;
+  }
+  if (*reason == SNES_CONVERGED_ITERATING) *reason = SNES_DIVERGED_MAX_IT;
+done:
+  /* the whole state, for the integrator: U = U_ref + V q (the sampled rows hold it already,
+   * set by the same arithmetic) */
+  write_rows(R, u, R->rest, R->n_rest);
+  return 0;
 }

@@ -67,6 +67,17 @@ class Basis:
     #: (the rows are balance laws divided by their inertia, (48); Vᵀ D F is the Galerkin
     #: projection of the symmetric weak form: docs/rom.md (5)). None: D = I.
     tests: np.ndarray | None = None
+    #: ECSW's sampled elements (cosserat_fem/rom/hyper.py): this rank's local cell indices,
+    #: their weights ξ_e > 0 and their midpoints' σ (the cells' names in the file); None: no
+    #: hyper-reduction (a Galerkin run assembles every element).
+    sample_cells: np.ndarray | None = None
+    sample_weights: np.ndarray | None = None
+    sample_sigma: np.ndarray | None = None
+
+    @property
+    def sampled(self) -> bool:
+        """Whether the basis carries ECSW's elements and weights."""
+        return self.sample_cells is not None
 
     @property
     def modes(self) -> int:
@@ -80,10 +91,12 @@ class Basis:
         return float(self.energies[k:].sum() / total) if total > 0 else 0.0
 
     def truncated(self, k: int) -> Basis:
-        """The first k modes (their energy left out in the provenance)."""
+        """The first k modes (their energy left out in the provenance); the sampling of a
+        hyper-reduction, fitted for all the modes, is dropped."""
         if not 1 <= k <= self.modes:
             raise SceneError(f"modes: must be in [1, {self.modes}], got {k!r}")
         provenance = {**self.provenance, "modes": k, "energy_left_out": self.energy_left_out(k)}
+        provenance.pop("ecsw", None)
         K = self.modes
         V = np.hstack([self.V[:, :k], self.V[:, K : K + k]])
         return Basis(
@@ -288,8 +301,17 @@ def write_basis(basis: Basis, model, path: str | Path) -> tuple[Path, Path]:
         weights = np.concatenate([p[4] for p in parts])[order]
         tests = np.concatenate([p[5] for p in parts])[order]
         npz.parent.mkdir(parents=True, exist_ok=True)
+        sampling = {}
+        if basis.sample_sigma is not None and basis.sample_weights is not None:
+            sampling = {"sample_sigma": basis.sample_sigma, "sample_weights": basis.sample_weights}
         np.savez(
-            npz, V=V, reference=reference, weights=weights, tests=tests, energies=basis.energies
+            npz,
+            V=V,
+            reference=reference,
+            weights=weights,
+            tests=tests,
+            energies=basis.energies,
+            **sampling,
         )
         document = {"format": FORMAT, "space": basis.space, "provenance": basis.provenance}
         meta.write_text(json.dumps(document, indent=1) + "\n")
@@ -306,6 +328,8 @@ def read_basis(path: str | Path, model) -> Basis:
         document = json.loads(meta.read_text())
         arrays = np.load(npz)
         data = {name: arrays[name] for name in ("V", "reference", "weights", "tests", "energies")}
+        for name in ("sample_sigma", "sample_weights"):  # a basis without sampling: absent
+            data[name] = arrays[name] if name in arrays.files else None
     except (OSError, ValueError, KeyError) as exc:
         raise SceneError(f"basis {str(npz)!r}: cannot be read ({type(exc).__name__})") from None
     if not isinstance(document, dict) or document.get("format") != FORMAT:
@@ -326,6 +350,9 @@ def read_basis(path: str | Path, model) -> Basis:
     place[order] = np.arange(len(order))
     start = sum(model.msh.comm.allgather(len(sigma))[: model.msh.comm.rank])
     rows = place[start : start + len(sigma)]
+    cells = None
+    if data["sample_sigma"] is not None:
+        cells = _cells_at(model, data["sample_sigma"], npz)
     return Basis(
         V=data["V"][rows],
         reference=data["reference"][rows],
@@ -334,7 +361,32 @@ def read_basis(path: str | Path, model) -> Basis:
         space=expected,
         provenance=document.get("provenance", {}),
         tests=data["tests"][rows],
+        sample_cells=cells,
+        sample_weights=data["sample_weights"],
+        sample_sigma=data["sample_sigma"],
     )
+
+
+def _cells_at(model, sigma: np.ndarray, npz: Path) -> np.ndarray:
+    """The local cells whose midpoints are at ``sigma`` (a sampled basis is read serially:
+    cosserat_fem/rom/hyper.py); a SceneError naming the file if one is not a cell's."""
+    from cosserat_fem.rom.hyper import cell_midpoints
+
+    if model.msh.comm.size > 1:
+        raise SceneError(
+            f"basis {str(npz)!r}: hyper-reduced (sampled elements), which runs serially only"
+        )
+    mids = cell_midpoints(model)
+    order = np.argsort(mids)
+    place = np.clip(np.searchsorted(mids[order], sigma), 0, len(mids) - 1)
+    near = np.clip(place - 1, 0, len(mids) - 1)
+    pick = np.where(
+        np.abs(mids[order][place] - sigma) <= np.abs(mids[order][near] - sigma), place, near
+    )
+    cells = order[pick]
+    if not np.allclose(mids[cells], sigma, rtol=0, atol=1e-12):
+        raise SceneError(f"basis {str(npz)!r}: its sampled elements are not this mesh's cells")
+    return cells.astype(np.int32)
 
 
 def scene_provenance(scene) -> dict:

@@ -62,7 +62,8 @@ class ReducedSolver(NewtonSolver):
         self.Jr = np.zeros((basis.modes, basis.modes))
         self._Jr_lu: tuple | None = None  # J_r's LU factors (scipy.linalg.lu_factor)
         self._Vq = np.zeros(n)
-        self.reduction_time = 0.0  # seconds spent forming J_r (the k mat-vecs)
+        self.reduction_time = 0.0  # seconds spent forming J_r (J V and its projection)
+        self._Vmat = None  # V as a dense PETSc matrix, for J V
         super().__init__(F, U, bcs, settings)
         self.comm = U.function_space.mesh.comm
         self._x, self._y = self.A.createVecs()
@@ -109,16 +110,17 @@ class ReducedSolver(NewtonSolver):
         return r
 
     def _reduced_jacobian(self) -> None:
-        """J_r = Vᵀ J V: J assembled in full (NewtonSolver._jacobian), then k mat-vecs."""
+        """J_r = (D V)ᵀ J V: J assembled in full (NewtonSolver._jacobian), then one sparse
+        times dense product (PETSc MatMatMult with V as a dense matrix)."""
         self._jacobian()
         t0 = time.perf_counter()
-        x, y, V = self._x, self._y, self.V
-        AV = np.empty_like(V)
-        for j in range(V.shape[1]):
-            x.array[:] = V[:, j]
-            self.A.mult(x, y)
-            AV[:, j] = y.array
-        self.Jr = self._sum(self.DV.T @ AV)
+        if self._Vmat is None:
+            self._Vmat = PETSc.Mat().createDense(
+                (self.A.getSizes()[1], (None, self.V.shape[1])), array=self.V, comm=self.comm
+            )
+        AV = self.A.matMult(self._Vmat)
+        self.Jr = self._sum(self.DV.T @ AV.getDenseArray())
+        AV.destroy()
         self._Jr_lu = None
         if np.isfinite(self.Jr).all():
             lu, piv = scipy.linalg.lu_factor(self.Jr, check_finite=False)
@@ -169,13 +171,16 @@ class ReducedSolver(NewtonSolver):
     def destroy(self) -> None:
         self._x.destroy()
         self._y.destroy()
+        if self._Vmat is not None:
+            self._Vmat.destroy()
         super().destroy()
 
 
-def solver_factory(basis: Basis | str | Path):
+def solver_factory(basis: Basis | str | Path, hyper: bool | None = None):
     """The run's solver maker (cosserat_fem/analysis/simulation.py ``solver_factory``): a
     :class:`ReducedSolver` on ``basis`` (a Basis, or the path of a basis file, read for the
-    run's model and refused if it does not match)."""
+    run's model and refused if it does not match); with ``hyper`` (None: when the basis
+    carries ECSW's sampling) the hyper-reduced solver (cosserat_fem/rom/hyper.py)."""
 
     def make(model, F, bcs, settings: NewtonSettings) -> ReducedSolver:
         if model.motions:
@@ -189,6 +194,12 @@ def solver_factory(basis: Basis | str | Path):
                 "basis: its rows are not this run's (built on another number of ranks); "
                 "write it to a file and read it (cosserat_fem/rom/basis.py)"
             )
+        if hyper and not chosen.sampled:
+            raise SceneError("hyper: the basis has no sampled elements (cf.rom.hyper.ecsw)")
+        if chosen.sampled and hyper is not False:
+            from cosserat_fem.rom.hyper import HyperSolver
+
+            return HyperSolver(F, model.U, bcs, settings, chosen)
         return ReducedSolver(F, model.U, bcs, settings, chosen)
 
     return make
@@ -197,7 +208,7 @@ def solver_factory(basis: Basis | str | Path):
 def run(scene, basis: Basis | str | Path, out=None, **keywords):
     """A reduced run of ``scene`` on ``basis``: cosserat_fem/rom/runs.py's :func:`run` (cf.rom.run),
     the one reduced run, with its keywords (``observers``, ``record``, ``initial_state``,
-    ``indicator``, ``restart``, ``progress``, ``comm``)."""
+    ``indicator``, ``restart``, ``progress``, ``comm``, ``hyper``)."""
     from cosserat_fem.rom.runs import run as reduced_run
 
     return reduced_run(scene, basis, out, **keywords)

@@ -365,6 +365,7 @@ def run(
     progress=None,
     comm=None,
     indicator: IndicatorSettings | None = DEFAULT_INDICATOR,
+    hyper: bool | None = None,
 ):
     """A reduced run of ``scene`` on ``basis`` (a Basis or a basis file): cf.run's
     RunResult, the time loop, integrator, observers and outputs (with ``out``: probes.csv,
@@ -373,7 +374,9 @@ def run(
     on the same basis file (another is refused); ``initial_state`` as cf.run's (its part
     off the basis is dropped at the first solve). ``indicator``: the error indicator's settings
     (cosserat_fem/rom/indicator.py; its estimate and the out-of-training flags in
-    summary["rom"]), None: none."""
+    summary["rom"]), None: none. ``hyper``: the hyper-reduced solve on the basis's sampled
+    elements (None: if it has them; False: the Galerkin solve with every element;
+    cosserat_fem/rom/hyper.py)."""
     from mpi4py import MPI
 
     from cosserat_fem.analysis.simulation import run_scene
@@ -410,7 +413,7 @@ def run(
         initial_state=initial_state,
         restart=restart,
         progress=progress,
-        solver_factory=galerkin.solver_factory(basis),
+        solver_factory=galerkin.solver_factory(basis, hyper),
     )
 
 

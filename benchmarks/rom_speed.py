@@ -1,0 +1,155 @@
+"""The reduced model's speed (issue 28's goals; docs/rom.md §8): full, Galerkin-reduced and
+hyper-reduced (ECSW) runs of the same scene, interleaved (full, Galerkin, hyper, full, ...),
+medians of the solve loop without output (summary.json ``wall_time_s``), their ratios, and
+where a reduced step's time goes (the solver's counters): per step, per residual (the sampled
+elements' kernels and projection), per Newton iteration apart from the residual (the k×k LU
+solve, the norms), per solve apart from its iterations (the guess's projection and the
+state's reconstruction, O(n k)), and the time loop's own per step (the integrator's
+arithmetic and Python, everything but the solves).
+
+    .venv/bin/python benchmarks/rom_speed.py paper [--repeats 5] [--modes 12] [--tau 1e-2]
+    .venv/bin/python benchmarks/rom_speed.py riser [--elements 10000] [--steps 20] [--tau 1e-2]
+
+``paper``: scenes/cao_tucker_2008.toml (0.06 s, 2000 SDIRK3 steps), trained on its own full
+run. ``riser``: the riser of benchmarks/long_rods.py, trained on a short full run of
+``--steps`` steps, the reduced runs over the same steps (the cost of a step, not the error).
+The machine is shared: compare within a pair, and read the per-step costs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import cosserat_fem as cf
+from cosserat_fem.analysis.simulation import run_scene
+from cosserat_fem.rom import basis as rb
+from cosserat_fem.rom import galerkin, hyper
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
+
+
+def loop_time(result) -> float:
+    return float(result.summary["wall_time_s"]["solve_loop_without_output"])
+
+
+def breakdown(result, steps: int) -> dict:
+    """µs per step, per residual, per iteration beyond its residual, per solve beyond its
+    iterations, and the loop's own per step (module docstring)."""
+    nt = result.summary["newton"]
+    loop = loop_time(result)
+    solve, res, jac = nt["time_solve"], nt["time_residual"], nt.get("time_jacobian", 0.0)
+    its, solves, residuals = nt["iterations"], nt["solves"], nt["residual_assemblies"]
+    us = 1e6
+    return {
+        "step": loop / steps * us,
+        "residual": res / residuals * us,
+        "iteration_beyond_residual": (solve - res - jac) / max(its, 1) * us
+        if nt.get("loop") == "hyper"
+        else float("nan"),
+        "loop_own_per_step": (loop - solve) / steps * us,
+        "solves_per_step": solves / steps,
+        "iterations_per_solve": its / max(solves, 1),
+    }
+
+
+def interleaved(scene, bases: dict, repeats: int, steps: int) -> dict:
+    """{name: [results]} of full and reduced runs taken in turn."""
+    runs: dict = {"full": [], **{name: [] for name in bases}}
+    for _ in range(repeats):
+        runs["full"].append(run_scene(scene, write_outputs=False, record=True))
+        for name, (basis, use_hyper) in bases.items():
+            runs[name].append(galerkin.run(scene, basis, hyper=use_hyper))
+    return runs
+
+
+def report(runs: dict, steps: int, reference) -> None:
+    full = statistics.median(loop_time(r) for r in runs["full"])
+    print("| run | median solve loop [s] | all [s] | full / this | µs a step | error vs full |")
+    print("|---|---|---|---|---|---|")
+    for name, results in runs.items():
+        times = [loop_time(r) for r in results]
+        median = statistics.median(times)
+        error = rb.relative_l2(results[0].probes[:, 1:4], reference)
+        print(
+            f"| {name} | {median:.4f} | {', '.join(f'{t:.3f}' for t in times)} | "
+            f"{full / median:.2f} | {median / steps * 1e6:.1f} | {error:.2e} |"
+        )
+    print()
+    print(
+        "| run | µs a step | µs a residual | µs an iteration beyond its residual | "
+        "loop's own µs a step | solves a step | iterations a solve |"
+    )
+    print("|---|---|---|---|---|---|---|")
+    for name, results in runs.items():
+        parts = [breakdown(r, steps) for r in results]
+        b = {key: statistics.median(p[key] for p in parts) for key in parts[0]}
+        print(
+            f"| {name} | {b['step']:.1f} | {b['residual']:.2f} | "
+            f"{b['iteration_beyond_residual']:.2f} | {b['loop_own_per_step']:.1f} | "
+            f"{b['solves_per_step']:.2f} | {b['iterations_per_solve']:.2f} |"
+        )
+
+
+def trained(scene, args, tolerance: float, modes: int | None = None):
+    """The basis of a full run of ``scene`` (its first ``modes``), its ECSW sampling, the
+    full run; the training's times printed."""
+    t0 = time.perf_counter()
+    basis, (full,) = rb.train([scene], tolerance=tolerance)
+    basis = basis.truncated(modes) if modes else basis
+    t1 = time.perf_counter()
+    sampled = hyper.ecsw([scene], basis, args.tau, every=args.every)
+    print(
+        f"{full.model.global_dofs()} dofs; training: full run + POD {t1 - t0:.2f} s, ECSW "
+        f"{time.perf_counter() - t1:.2f} s; k = {basis.modes}, ECSW {sampled.provenance['ecsw']}"
+    )
+    return basis, sampled, full
+
+
+def paper(args) -> None:
+    scene = cf.load(PAPER)
+    steps = round((scene.time.end - scene.time.start) / scene.time.step)
+    basis, sampled, full = trained(scene, args, 1e-14, args.modes)
+    bases = {"galerkin": (basis, False), "hyper": (sampled, True)}
+    report(interleaved(scene, bases, args.repeats, steps), steps, full.probes[:, 1:4])
+
+
+def riser(args) -> None:
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from long_rods import riser as riser_scene
+
+    scene = riser_scene(args.elements, args.steps)
+    print(f"riser, {args.elements} elements, {args.steps} steps, POD ε ≤ {args.pod_tolerance:g}")
+    basis, sampled, full = trained(scene, args, args.pod_tolerance)
+    bases = {"hyper": (sampled, True)}
+    if args.galerkin:
+        bases["galerkin"] = (basis, False)
+    report(interleaved(scene, bases, args.repeats, args.steps), args.steps, full.probes[:, 1:4])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("case", choices=["paper", "riser"])
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--modes", type=int, default=12)
+    parser.add_argument("--tau", type=float, default=1e-2, help="ECSW's tolerance")
+    parser.add_argument("--every", type=int, default=1, help="ECSW: every n-th stage solve")
+    parser.add_argument("--elements", type=int, default=10000)
+    parser.add_argument("--steps", type=int, default=20)
+    parser.add_argument("--pod-tolerance", type=float, default=1e-8)
+    parser.add_argument("--galerkin", action="store_true", help="riser: the Galerkin run too")
+    args = parser.parse_args()
+    print(
+        f"{time.strftime('%Y-%m-%d %H:%M')} {platform.node()} load {os.getloadavg()[0]:.1f}, serial"
+    )
+    (paper if args.case == "paper" else riser)(args)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,348 @@
+"""Hyper-reduction of the reduced model: energy-conserving sampling and weighting (ECSW,
+Farhat, Chapman & Avery 2015) and the reduced Newton iteration on the sampled elements, in C
+(issue 28; docs/rom.md §5 and §9).
+
+The Galerkin-reduced residual of a stage (docs/rom.md (5)) is a sum over the elements e (each
+cell with its exterior facets):
+
+    r(q) = Σ_e (D V)ᵀ_e F_e(U_ref,e + V_e q),                                   (docs/rom.md (9))
+
+F_e the element vector of the stage residual, V_e, (D V)_e the rows of the basis at e's dofs.
+ECSW keeps a few elements E with weights ξ_e ≥ 0,
+
+    r̃(q) = Σ_{e∈E} ξ_e (D V)ᵀ_e F_e(U_e),   J̃_r(q) = Σ_{e∈E} ξ_e (D V)ᵀ_e J_e(U_e) V_e,   (10)
+
+chosen on training states u_s (the stage values of a full run, projected onto the basis:
+ũ_s = U_ref + V Vᵀ W (u_s − U_ref)) so that the weighted sum reproduces the full sum:
+
+    min ‖ξ‖₀  subject to  ‖C ξ − d‖₂ ≤ τ ‖d‖₂,  ξ ≥ 0,                         (11)
+
+C's column e the stacked (over s) contributions c_se = (D V)ᵀ_e F_e(ũ_s)/‖C_s‖_F (each
+training state's block scaled by its Frobenius norm, so that a state whose terms are large
+does not outweigh the others), d = C 1 (ξ = 1 is exact): Farhat et al.'s tolerance,
+relative to d. Here F is the whole stage residual (inertia, stiffness and load), whose terms
+cancel at a converged stage: d is the small Galerkin residual of the projected state (on the
+paper's scene ‖d‖ = 0.8% of ‖C‖_F), so the fit must reproduce the terms to τ times that;
+measured on the paper's 8 elements, every one is needed for any τ ≤ 1e-1 (docs/rom.md §8).
+(11) is solved approximately by Lawson & Hanson's non-negative least squares stopped as soon
+as the residual is below τ ‖d‖ (:func:`nnls_select`, the greedy NNLS of Farhat et al.):
+elements enter one at a time, the one whose column correlates best with the
+residual, and the weights are the non-negative least-squares fit on those chosen.
+
+With weights ξ ≥ 0, J̃_r is a sum of the elements' projected Jacobians with positive weights:
+the reduced system keeps the sign structure (the energy) of the Galerkin one.
+
+Online (:class:`HyperSolver`), each Newton iteration of the reduced coordinates q (V has
+m = 2k columns) costs O(m |E| n_e) for r̃ and O(|E| (n_e² m + n_e m²)) for J̃_r (n_e the dofs
+of an element) and O(m³) for its LU, all in C (newton_loop.c ``cf_reduced_run``), with the
+state reconstructed only on the entries of U the sampled elements read. What a solve still
+does in O(n m): the whole U = U_ref + V q given back to the integrator at its end (on the
+rows the iterations did not write); the integrator's guess is read off the sampled rows,
+q₀ = V_S⁺ (U − U_ref)_S (every state the integrator forms from reduced ones is in the affine
+space; checked there, else and at the first solve the W-projection over every row). The
+integrator's own arithmetic on full vectors (cf_sdirk_*) is O(n) a stage.
+
+Serial only: the C assembler is serial, and the sampled elements would be spread over the
+ranks; a hyper-reduced run under MPI is refused (one line).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.rom.galerkin import ReducedSolver
+from cosserat_fem.timestepping.events import Observer
+
+# --- ECSW's selection (pure numpy) ----------------------------------------------------------
+
+
+def nnls_select(
+    C: np.ndarray,
+    d: np.ndarray,
+    tolerance: float,
+    max_elements: int | None = None,
+    scale: float | None = None,
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """ξ ≥ 0 with few nonzeros such that ‖C ξ − d‖₂ ≤ tolerance · scale (docs/rom.md (11);
+    ``scale`` default ‖d‖₂):
+    Lawson & Hanson's active-set NNLS (Solving Least Squares Problems, 1974, ch. 23) stopped
+    as soon as the residual is that small. Returns (the chosen columns, their weights > 0,
+    the relative residual reached). ``max_elements`` (default: all columns) bounds the
+    chosen set; if it is reached first the residual is above ``tolerance`` (the caller says
+    so)."""
+    C = np.asarray(C, dtype=float)
+    d = np.asarray(d, dtype=float)
+    if not (0.0 <= tolerance < 1.0):
+        raise SceneError(f"tolerance: must be in [0, 1), got {tolerance!r}")
+    rows, cols = C.shape
+    limit = cols if max_elements is None else min(max_elements, cols)
+    scale = float(np.linalg.norm(d)) if scale is None else float(scale)
+    x = np.zeros(cols)
+    if scale == 0.0:
+        return np.zeros(0, dtype=int), np.zeros(0), 0.0
+    passive = np.zeros(cols, dtype=bool)
+    residual = d.copy()
+    for _outer in range(3 * cols + 10):
+        error = float(np.linalg.norm(residual)) / scale
+        if error <= tolerance or passive.sum() >= limit:
+            break
+        gradient = C.T @ residual
+        gradient[passive] = -np.inf
+        j = int(np.argmax(gradient))
+        if not gradient[j] > 0.0:
+            break  # the NNLS optimum: no column lowers the residual
+        passive[j] = True
+        while True:  # the inner loop: least squares on the passive set, kept ≥ 0
+            chosen = np.flatnonzero(passive)
+            z = np.zeros(cols)
+            z[chosen] = np.linalg.lstsq(C[:, chosen], d, rcond=None)[0]
+            if (z[chosen] > 0.0).all():
+                x = z
+                break
+            negative = chosen[z[chosen] <= 0.0]
+            alpha = np.min(x[negative] / (x[negative] - z[negative]))
+            x = x + alpha * (z - x)
+            passive &= x > 1e-14 * max(1.0, float(np.max(np.abs(x))))
+            x[~passive] = 0.0
+            if not passive.any():
+                break
+        residual = d - C @ x
+    chosen = np.flatnonzero(x > 0.0)
+    error = float(np.linalg.norm(d - C[:, chosen] @ x[chosen])) / scale
+    return chosen, x[chosen], error
+
+
+def training_system(blocks: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """(C, d) of (11) from each training state's (cells, m) contributions c_se: the blocks
+    stacked as rows (s, component), each scaled by its Frobenius norm (a zero block left
+    out), d = C 1."""
+    rows = []
+    for block in blocks:
+        norm = float(np.linalg.norm(block))
+        if norm > 0.0:
+            rows.append(block.T / norm)
+    if not rows:
+        raise SceneError("ecsw: every training state's residual is zero (nothing to fit)")
+    C = np.vstack(rows)
+    return C, C.sum(axis=1)
+
+
+# --- the training states ---------------------------------------------------------------------
+
+
+class ContributionCollector(Observer):
+    """Each Newton solve's converged stage (every ``every``-th solve_done of a full serial run
+    with the C assembler), its state projected onto ``basis`` and the (cells, m) element
+    contributions (D V)ᵀ_e F_e(ũ_s) of the stage residual evaluated there (U is restored
+    after). ``blocks``: one array per training state."""
+
+    def __init__(self, basis, every: int = 1):
+        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+            raise SceneError(f"every: must be a whole number >= 1, got {every!r}")
+        self.basis, self.every = basis, every
+        self.blocks: list[np.ndarray] = []
+        self._solves = 0
+        self._V = np.ascontiguousarray(basis.V)
+        tests = basis.tests if basis.tests is not None else np.ones(len(basis.weights))
+        self._DV = np.ascontiguousarray(tests[:, None] * basis.V)
+        self._WV = basis.weights[:, None] * basis.V
+
+    def solve_done(self, loop, iterations: int) -> None:
+        self._solves += 1
+        if (self._solves - 1) % self.every:
+            return
+        native = getattr(loop.solver, "_native", None)
+        if native is None:
+            raise SceneError("ecsw: training needs a serial run with the C assembler")
+        u = loop.model.U.x.array
+        n = self._V.shape[0]
+        kept = u.copy()
+        b = self.basis
+        u[:n] = b.reference + self._V @ (self._WV.T @ (kept[:n] - b.reference))
+        out = np.zeros((native._cells_total, self._V.shape[1]))
+        try:
+            native.lib.cf_reduced_residual(
+                native.problem,
+                native.ffi.cast("double*", self._DV.ctypes.data),
+                self._V.shape[1],
+                native.ffi.NULL,
+                native.ffi.cast("double*", out.ctypes.data),
+            )
+        finally:
+            u[:] = kept
+        self.blocks.append(out)
+
+
+def cell_midpoints(model) -> np.ndarray:
+    """σ of each local cell's midpoint (the rank-independent name of a cell in a basis file)."""
+    from dolfinx import mesh as dmesh
+
+    msh = model.msh
+    cells = np.arange(msh.topology.index_map(1).size_local, dtype=np.int32)
+    return dmesh.compute_midpoints(msh, 1, cells)[:, 0]
+
+
+def ecsw(scenes, basis, tolerance: float, every: int = 1, max_elements: int | None = None):
+    """ECSW's elements and weights (module docstring, (11)) for ``basis`` from full runs of
+    ``scenes`` (serial): each stage's state, projected, gives a training block. Returns the
+    basis with ``sample_cells`` and ``sample_weights`` set and the fit in its provenance
+    (tolerance, elements, the fit error ‖C ξ − d‖/‖d‖ reached, the training states)."""
+    from dataclasses import replace
+
+    from cosserat_fem.analysis.simulation import run_scene
+
+    collector = ContributionCollector(basis, every)
+    model = None
+    for scene in scenes:
+        result = run_scene(scene, write_outputs=False, observers=[collector], record=False)
+        model = result.model
+    if model is not None and model.msh.comm.size > 1:
+        raise SceneError("ecsw: hyper-reduction is serial only (docs/rom.md §9)")
+    C, d = training_system(collector.blocks)
+    chosen, weights, error = nnls_select(C, d, tolerance, max_elements)
+    provenance = {
+        **basis.provenance,
+        "ecsw": {
+            "tolerance": float(tolerance),
+            "elements": int(chosen.size),
+            "of": int(C.shape[1]),
+            "fit_error": error,
+            "training_states": len(collector.blocks),
+            "every": every,
+        },
+    }
+    assert model is not None
+    return replace(
+        basis,
+        provenance=provenance,
+        sample_cells=chosen.astype(np.int32),
+        sample_weights=weights,
+        sample_sigma=cell_midpoints(model)[chosen],
+    )
+
+
+# --- the hyper-reduced solve -------------------------------------------------------------------
+
+#: The largest condition number of V's sampled rows for reading the guess's q₀ off them
+#: (newton_loop.c ``project``: its round-off grows with it; 1e6 keeps q₀ to 1e-10).
+CONDITION_LIMIT = 1e6
+
+
+class HyperSolver(ReducedSolver):
+    """ReducedSolver whose iterations are cf_reduced_run on the sampled elements (module
+    docstring); ``loop`` is "hyper". J̃_r and its LU live in C; a checkpoint keeps the
+    policy's state but not J̃_r, so a restarted run forms a fresh one at its first solve
+    (the same solution to the Newton tolerance, not the same iterates bit for bit as the
+    full model's restart gives)."""
+
+    def __init__(self, F, U, bcs, settings, basis):
+        super().__init__(F, U, bcs, settings, basis)
+        if self._parallel:
+            raise SceneError("rom: a hyper-reduced run is serial only (docs/rom.md §9)")
+        if self._assembler is None:
+            raise SceneError(
+                "rom: hyper-reduction needs the C assembler, which this scene's residual "
+                "does not allow (a point load); run without the sampling (hyper = False)"
+            )
+        self._build(basis)
+
+    def _build(self, basis) -> None:
+        from cosserat_fem.nls.native_newton import NativeLoop
+
+        ffi, lib = self._ffi, self._lib
+        assembler = self._assembler
+        assert assembler is not None, "checked in __init__"
+        cells = np.asarray(basis.sample_cells, dtype=np.int32)
+        by_cell = np.zeros(assembler._cells_total)
+        by_cell[cells] = basis.sample_weights
+        self._J_native = NativeLoop(self.J_form, self.U, self.bcs, self.b, list(self._J_inputs[1]))
+        Fp, reads_F = assembler.sampled(cells, by_cell, 1)
+        Jp, reads_J = self._J_native.sampled(cells, by_cell, 2)
+        u = self.U.x.array
+        rows: list[np.ndarray] = [np.zeros(0, dtype=np.int32)]
+        for native, reads in ((assembler, reads_F), (self._J_native, reads_J)):
+            for k, entries in reads.items():
+                if ffi.cast("uintptr_t", native.problem.coefficients[k]) == u.ctypes.data:
+                    rows.append(entries)
+        n = self.V.shape[0]
+        row_array = np.unique(np.concatenate(rows)).astype(np.int32)
+        row_array = np.ascontiguousarray(row_array[row_array < n])
+        m = self.V.shape[1]
+        rest = np.setdiff1d(np.arange(n, dtype=np.int32), row_array).astype(np.int32)
+        fit = row_array[np.abs(self.V[row_array]).max(axis=1, initial=0.0) > 0.0]
+        P = np.zeros((m, 0))
+        if m <= fit.size <= n // 2:  # q₀ read off the sampled rows (newton_loop.c project),
+            # where they are fewer than half of U's (else the W-projection costs no more)
+            sigma = np.linalg.svd(self.V[fit], compute_uv=False)
+            if sigma[-1] > 0 and sigma[0] / sigma[-1] <= CONDITION_LIMIT:
+                P = np.linalg.pinv(self.V[fit])
+        if P.shape[1] == 0:
+            fit = fit[:0]
+        self.cheap_projection = bool(fit.size)
+        self._arrays = arrays = {
+            "V": self.V,
+            "DV": np.ascontiguousarray(self.DV),
+            "WV": np.ascontiguousarray(self.WV),
+            "ref": np.ascontiguousarray(self.basis.reference),
+            "G": np.ascontiguousarray(self.V.T @ self.V),
+            "g": self.V.T @ self.basis.reference,
+            "rows": row_array,
+            "rest": np.ascontiguousarray(rest),
+            "fit": np.ascontiguousarray(fit, dtype=np.int32),
+            "P": np.ascontiguousarray(P),
+            "q": np.zeros(m),
+            "r": np.zeros(m),
+            "dq": np.zeros(m),
+            "Jr": np.zeros((m, m)),
+            "lu": np.zeros((m, m)),
+            "work": np.zeros((Jp.dofs_per_cell, m)),
+            "piv": np.zeros(m, dtype=np.int32),
+        }
+        R = ffi.new("cf_reduced*")
+        R.n, R.m = n, m
+        for name in ("V", "DV", "WV", "ref", "G", "g", "P", "q", "r", "dq", "Jr", "lu", "work"):
+            setattr(R, name, ffi.cast("double*", arrays[name].ctypes.data))
+        R.c = float(self.basis.reference @ self.basis.reference)
+        R.n_rows = row_array.size
+        R.rows = ffi.cast("int32_t*", row_array.ctypes.data)
+        R.piv = ffi.cast("int32_t*", arrays["piv"].ctypes.data)
+        R.n_rest, R.rest = rest.size, ffi.cast("int32_t*", arrays["rest"].ctypes.data)
+        R.n_fit, R.fit = fit.size, ffi.cast("int32_t*", arrays["fit"].ctypes.data)
+        R.project_all = 1  # the first guess: the W-projection (it may be off the basis)
+        R.F, R.J = Fp, Jp
+        R.s, R.st = self._cs, self._state
+        R.solver, R.observer = self._sv, self._handle  # the observer hook, if one is set
+        self._R = R
+        self.sampled_rows = row_array.size
+        self._sv.run = ffi.addressof(lib, "cf_reduced_run")
+        self._sv.ctx = ffi.cast("void*", R)
+        self.loop = "hyper"
+
+    @property
+    def q(self):
+        return self._arrays["q"]
+
+    @q.setter
+    def q(self, value) -> None:  # ReducedSolver's constructor sets it
+        if hasattr(self, "_arrays"):
+            self._arrays["q"][:] = value
+
+    @property
+    def Jr(self):
+        return self._arrays["Jr"] if hasattr(self, "_arrays") else self._Jr0
+
+    @Jr.setter
+    def Jr(self, value) -> None:
+        self._Jr0 = value
+
+    @property
+    def stats(self):
+        stats = ReducedSolver.stats.fget(self)  # type: ignore[attr-defined]
+        if hasattr(self, "_R"):
+            stats.jacobian_assemblies = int(self._R.jacobians)
+            stats.time_jacobian = float(self._R.time_jacobian)
+        return stats
+
+    def request_jacobian(self) -> None:
+        self._need_jacobian = True
