@@ -9,10 +9,11 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 
 import numpy as np
 import pytest
-from conftest import ROOT, read_table, run_command
+from conftest import ROOT, fails_if_hung, read_table, run_command
 
 import cosserat_fem as cf
 from cosserat_fem.cli import main
@@ -329,3 +330,35 @@ def test_a_basis_of_another_mesh_or_rest_state_is_refused(basis_file, tmp_path, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "snapshots: every run of a basis starts from the same" in err[0]
     assert not (tmp_path / "b.npz").exists()
+
+
+def test_fifos_at_the_basis_and_table_names_hang_nothing(basis_file, tmp_path, capsys):
+    """A FIFO where a reduced command reads or writes a file (a basis's .json, the .npz and
+    .json of ``rom build --out``, validation.csv) blocks nothing (each open of a FIFO would
+    wait for a writer for ever): the read is refused in one line naming the file and that it
+    is a FIFO, the writes replace the FIFOs with the files (a fresh name, then a rename)."""
+    copy = tmp_path / "copy"
+    (tmp_path / "copy.npz").write_bytes(basis_file.read_bytes())
+    os.mkfifo(tmp_path / "copy.json")
+    argv = ["rom", "run", str(PAPER), *SHORT, "--basis", str(copy) + ".npz"]
+    with fails_if_hung(120, "reading a FIFO as the basis's .json"):
+        assert main([*argv, "--out", str(tmp_path / "r")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "copy.npz" in err[0] and "FIFO" in err[0], err
+    built = tmp_path / "built"
+    for suffix in (".npz", ".json"):
+        os.mkfifo(built.with_suffix(suffix))
+    argv = ["rom", "build", str(PAPER), "--set", "time.end=0.0003", "--modes", "2"]
+    with fails_if_hung(120, "rom build writing over FIFOs"):
+        assert main([*argv, "--out", str(built)]) == 0
+    assert all(built.with_suffix(s).is_file() for s in (".npz", ".json"))
+    document = json.loads(built.with_suffix(".json").read_text())
+    assert document["provenance"]["modes"] == 2
+    out = tmp_path / "v"
+    out.mkdir()
+    os.mkfifo(out / "validation.csv")
+    argv = ["rom", "validate", str(PAPER), "--set", "time.end=0.0003"]
+    with fails_if_hung(120, "rom validate writing over a FIFO"):
+        assert main([*argv, "--basis", str(built) + ".npz", "--out", str(out)]) == 0
+    rows = read_table(out / "validation.csv")
+    assert (out / "validation.csv").is_file() and len(rows) == 1

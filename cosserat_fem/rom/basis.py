@@ -33,6 +33,7 @@ line (SceneError) naming the file and what differs.
 
 from __future__ import annotations
 
+import io
 import json
 import math
 from dataclasses import dataclass, field
@@ -40,7 +41,9 @@ from pathlib import Path
 
 import numpy as np
 
-from cosserat_fem.common.errors import SceneError
+from cosserat_fem.common import safe_files
+from cosserat_fem.common.errors import OutputError, SceneError
+from cosserat_fem.common.parallel import agree
 from cosserat_fem.rom.indicator import coordinate_ranges
 from cosserat_fem.studies.karhunen_loeve import modes_for_tolerance, snapshot_svd
 from cosserat_fem.timestepping.events import Observer
@@ -291,6 +294,7 @@ def write_basis(basis: Basis, model, path: str | Path) -> tuple[Path, Path]:
     tests = basis.tests if basis.tests is not None else np.ones_like(basis.weights)
     parts = comm.gather((sigma, entry, basis.V, basis.reference, basis.weights, tests), root=0)
     npz, meta = _paths(path)
+    problem = None
     if comm.rank == 0:
         assert parts is not None
         s = np.concatenate([p[0] for p in parts])
@@ -300,12 +304,12 @@ def write_basis(basis: Basis, model, path: str | Path) -> tuple[Path, Path]:
         reference = np.concatenate([p[3] for p in parts])[order]
         weights = np.concatenate([p[4] for p in parts])[order]
         tests = np.concatenate([p[5] for p in parts])[order]
-        npz.parent.mkdir(parents=True, exist_ok=True)
         sampling = {}
         if basis.sample_sigma is not None and basis.sample_weights is not None:
             sampling = {"sample_sigma": basis.sample_sigma, "sample_weights": basis.sample_weights}
+        data = io.BytesIO()
         np.savez(
-            npz,
+            data,
             V=V,
             reference=reference,
             weights=weights,
@@ -314,8 +318,13 @@ def write_basis(basis: Basis, model, path: str | Path) -> tuple[Path, Path]:
             **sampling,
         )
         document = {"format": FORMAT, "space": basis.space, "provenance": basis.provenance}
-        meta.write_text(json.dumps(document, indent=1) + "\n")
-    comm.barrier()
+        try:  # each file replaced whole (never opened in place: a FIFO there blocks no one)
+            npz.parent.mkdir(parents=True, exist_ok=True)
+            safe_files.replace(npz, data.getvalue())
+            safe_files.replace(meta, (json.dumps(document, indent=1) + "\n").encode())
+        except OSError as exc:
+            problem = OutputError(f"basis {str(npz)!r}: cannot be written ({exc})")
+    agree(comm, problem)  # every rank raises alike: none waits for rank 0
     return npz, meta
 
 
@@ -325,13 +334,14 @@ def read_basis(path: str | Path, model) -> Basis:
     (elements, degree, components, dofs) than the model's (collective)."""
     npz, meta = _paths(path)
     try:
-        document = json.loads(meta.read_text())
-        arrays = np.load(npz)
+        document = json.loads(safe_files.read_text(meta))
+        arrays = np.load(io.BytesIO(safe_files.read_regular(npz)))
         data = {name: arrays[name] for name in ("V", "reference", "weights", "tests", "energies")}
         for name in ("sample_sigma", "sample_weights"):  # a basis without sampling: absent
             data[name] = arrays[name] if name in arrays.files else None
     except (OSError, ValueError, KeyError) as exc:
-        raise SceneError(f"basis {str(npz)!r}: cannot be read ({type(exc).__name__})") from None
+        why = exc.strerror if isinstance(exc, OSError) and exc.strerror else type(exc).__name__
+        raise SceneError(f"basis {str(npz)!r}: cannot be read ({why})") from None
     if not isinstance(document, dict) or document.get("format") != FORMAT:
         raise SceneError(f"basis {str(meta)!r}: not a reduced basis ({FORMAT!r})")
     expected, found = space_of(model), document.get("space", {})

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import csv
 import hashlib
+import io
 import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -37,6 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.rom.indicator import DEFAULT as DEFAULT_INDICATOR
 from cosserat_fem.rom.indicator import ErrorIndicator, IndicatorSettings
@@ -284,7 +286,7 @@ def basis_digest(path: str | Path) -> str | None:
     from cosserat_fem.rom.basis import _paths
 
     try:
-        return hashlib.sha256(_paths(path)[0].read_bytes()).hexdigest()
+        return hashlib.sha256(safe_files.read_regular(_paths(path)[0])).hexdigest()
     except OSError:
         return None
 
@@ -333,7 +335,7 @@ def recorded_basis(folder: str | Path) -> dict | None:
     """The ``rom`` of the run in ``folder`` (its summary.json), or None: a full run, or none
     readable."""
     try:
-        summary = json.loads((Path(folder) / "summary.json").read_text())
+        summary = json.loads(safe_files.read_text(Path(folder) / "summary.json"))
     except (OSError, ValueError):
         return None
     rom = summary.get("rom") if isinstance(summary, dict) else None
@@ -517,12 +519,13 @@ def validate(
 
         table, problem = out / VALIDATION, None
         if comm.rank == 0:
-            try:
-                with table.open("w", newline="", encoding="utf-8") as file:
-                    writer = csv.writer(file)
-                    writer.writerow(VALIDATION_COLUMNS)
-                    for row in rows:
-                        writer.writerow([_cell(row[c]) for c in VALIDATION_COLUMNS])
+            text = io.StringIO(newline="")
+            writer = csv.writer(text)
+            writer.writerow(VALIDATION_COLUMNS)
+            for row in rows:
+                writer.writerow([_cell(row[c]) for c in VALIDATION_COLUMNS])
+            try:  # replaced whole, never opened in place (a FIFO there blocks no one)
+                safe_files.replace(table, text.getvalue().encode("utf-8"))
             except OSError as exc:
                 problem = OutputError(f"rom validate: cannot write {str(table)!r} ({exc})")
         agree(comm, problem)  # every rank raises alike: none waits for rank 0
