@@ -276,6 +276,28 @@ def test_continue_command_bad_option(tmp_path):
     assert proc.stderr.strip().count("\n") == 0 and "--max-points" in proc.stderr
 
 
+@pytest.mark.parametrize(
+    "scene, overrides, message",
+    [
+        (ROLLUP, ["loads.end.torque=[1.0, 0, 0]"], "discretisation.planar: continuation does"),
+        (ROOT / "scenes" / "free_ring.toml", [], "reference.closed: a closed rod has modes"),
+        (ROLLUP, ['supports.start="free"'], "supports: a static equilibrium needs the rod"),
+    ],
+)
+def test_a_refused_continuation_leaves_no_folder(tmp_path, scene, overrides, message):
+    """A scene that continuation cannot follow (the roll-up bent about e1, so solved in the
+    y-z plane by discretisation.planar = "auto"; a closed ring; the rod held at neither end)
+    is refused from the scene alone: exit 2, one line naming the key, and the --out folder
+    not made (before: made, locked, then refused when the path's model was built)."""
+    out = tmp_path / "out"
+    sets = [a for o in overrides for a in ("--set", o)]
+    proc = run_command(["-m", "cosserat_fem.cli", "continue", str(scene), *sets, "--out", str(out)])
+    assert proc.returncode == 2, proc.stderr
+    (line,) = proc.stderr.strip().splitlines()
+    assert message in line and "Traceback" not in proc.stderr
+    assert not out.exists()
+
+
 def test_a_finished_branch_is_not_restarted(tmp_path):
     """The roll-up (scenes/rollup.toml, its 40 P4 elements) traced to λ = 1 ends "p reached
     1"; ``continue --restart`` of it: exit 2, one line naming --restart and "already ended",

@@ -277,6 +277,10 @@ def test_one_orbit_and_its_multipliers(tmp_path):
         ),
         (["--period", PERIOD, "--settle", "1000000000"], "--settle, --steps-per-period: "),
         (["--period", PERIOD, "--steps-per-period", "0"], "(--steps-per-period): must be"),
+        (  # 2000 cubic cells: 36006 unknowns, 58 GiB of dense columns (periodic.py's bound 2)
+            [*BRANCH, "--set", "discretisation.elements=2000"],
+            "discretisation.elements: the monodromy matrix of 36006 dofs needs 58.0 GiB",
+        ),
     ],
 )
 def test_bad_orbit_requests_are_one_line(tmp_path, arguments, message):
@@ -311,6 +315,39 @@ def test_bad_lyapunov_requests_make_no_folder(tmp_path, arguments, message):
     assert proc.returncode == 2, proc.stderr
     (line,) = proc.stderr.strip().splitlines()
     assert message in line and not out.exists()
+
+
+@pytest.mark.parametrize(
+    "scene, overrides, message",
+    [
+        (ROOT / "scenes" / "free_ring.toml", {}, "reference.closed: a closed rod has modes"),
+        (  # 20 steps a period, 3 periods: above 1 µs by the budget's lower bound (budget.py)
+            PAPER,
+            {
+                **LINEAR,
+                "time.step": 2 * math.pi / (1.03 * 1302.92) / 20,
+                "time.end": 3 * 2 * math.pi / (1.03 * 1302.92),
+                "output.xdmf_interval": 0,
+                "limits.wall_time": 1e-6,
+            },
+            "time.step: the run needs",
+        ),
+    ],
+)
+def test_a_refused_lyapunov_run_makes_no_folder(tmp_path, scene, overrides, message):
+    """A closed ring, and a run beyond the scene's limits.wall_time by budget.py's lower
+    bound, are refused before the --out folder is made: exit 2, one line naming the key, no
+    folder (before: both were refused after it was made, the budget's with a lock file and
+    an empty folder left behind)."""
+    out = tmp_path / "out"
+    period = ["--period", PERIOD] if scene == PAPER else ["--period", "0.1"]
+    proc = cli(
+        "lyapunov", str(scene), *sets(overrides), *period, "--periods", "3", "--out", str(out)
+    )
+    assert proc.returncode == 2, proc.stderr
+    (line,) = proc.stderr.strip().splitlines()
+    assert message in line and "Traceback" not in proc.stderr
+    assert not out.exists()
 
 
 def test_a_damaged_restart_folder_is_refused_in_one_line(tmp_path):
@@ -452,7 +489,7 @@ class TestLyapunov:
         )
         assert refused.returncode == 2 and "time.step: the run needs" in refused.stderr
         assert len(refused.stderr.strip().splitlines()) == 1
-        assert not (tmp_path / "refused" / "summary.json").exists()
+        assert not (tmp_path / "refused").exists()
         proc = cli(
             "lyapunov",
             str(PAPER),

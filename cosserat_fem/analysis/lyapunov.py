@@ -112,7 +112,9 @@ def _whole(value, name: str, low: int) -> int:
 def check_request(
     scene: Scene, period, periods, every, discard, perturbation
 ) -> tuple[int, int, float]:
-    """The request checked before any work: (intervals, steps an interval, d0)."""
+    """The request checked before any work (a closed rod refused too): (intervals, steps an
+    interval, d0)."""
+    refuse_closed(scene, "lyapunov")
     if isinstance(period, bool) or not isinstance(period, int | float) or not period > 0.0:
         raise SceneError(f"period: must be the forcing period, a positive time [s], got {period!r}")
     if not math.isfinite(period):
@@ -297,7 +299,6 @@ def largest_exponent(
     poincare.csv there; ``initial_state``: the reference's start, as ``cf.run``'s (e.g. a
     static solution: a buckled beam in one of its wells). Bad input: a SceneError naming the
     argument or key, before any work."""
-    refuse_closed(scene, "lyapunov")
     intervals, steps, d0 = check_request(scene, period, periods, every, discard, perturbation)
     observers = [as_observer(o) for o in observers]
     initial_state = _initial_array(initial_state, comm)

@@ -473,6 +473,23 @@ def resume_orbit_branch(
 # -- the largest Lyapunov exponent ------------------------------------------------------------
 
 
+def lyapunov_budget(
+    scene, period: float, periods, out_dir: Path | None, comm: MPI.Comm = MPI.COMM_WORLD
+) -> None:
+    """SceneError (on every rank) if time-marching ``periods`` periods of ``period`` [s] from
+    time.start, as a run (cosserat_fem/analysis/budget.py; its disk in ``out_dir``, made or
+    not), exceeds the scene's limits: checked before the folder is made (a Lyapunov run
+    marches two trajectories, so this is a lower bound of its cost)."""
+    from cosserat_fem.analysis import budget
+    from cosserat_fem.common.parallel import ranks_on_node
+
+    if isinstance(periods, int) and not isinstance(periods, bool) and periods >= 1:
+        span = replace(scene.time, end=scene.time.start + periods * period)
+        budget.check(
+            replace(scene, time=span), "run", out_dir, ranks_on_node(comm), comm.size, comm=comm
+        )
+
+
 def lyapunov_run(
     scene,
     period: float,
@@ -481,21 +498,14 @@ def lyapunov_run(
     comm: MPI.Comm = MPI.COMM_WORLD,
     **options,
 ):
-    """``largest_exponent`` (lyapunov.py) with its folder's files (module docstring): the
-    budget checked first, the run stopped at limits.wall_time; ``folder`` locked by the
-    caller. Returns the LyapunovResult."""
-    from cosserat_fem.analysis import budget
+    """``largest_exponent`` (lyapunov.py) with its folder's files (module docstring), the run
+    stopped at limits.wall_time; ``folder`` locked by the caller (the budget checked before
+    it was made: :func:`lyapunov_budget`). Returns the LyapunovResult."""
     from cosserat_fem.analysis.lyapunov import largest_exponent
     from cosserat_fem.analysis.observers import DeadlineObserver
     from cosserat_fem.common.errors import StopError
-    from cosserat_fem.common.parallel import ranks_on_node
 
     clock = time.perf_counter()
-    if isinstance(periods, int) and not isinstance(periods, bool) and periods >= 1:
-        span = replace(scene.time, end=scene.time.start + periods * period)
-        budget.check(
-            replace(scene, time=span), "run", folder, ranks_on_node(comm), comm.size, comm=comm
-        )
     wall = scene.limits.wall_time
     advice = "poincare.csv keeps its section so far; a Lyapunov run has no restart: run it again"
     deadline = [DeadlineObserver(clock + wall, wall, comm, advice=advice)] if wall else []

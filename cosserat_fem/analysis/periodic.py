@@ -198,9 +198,30 @@ class _StageHook(Observer):
         self.shooting._stage_done()
 
 
-def shooting_problem(scene, steps_per_period, parameter: str | None) -> SceneError | None:
+def dense_problem(n: int, n_local: int, stages: int) -> SceneError | None:
+    """Why the dense columns of the variational equations of ``n`` unknowns, ``n_local`` on
+    the fullest rank, with ``stages`` stages exceed :data:`MAX_DENSE_BYTES`, or None."""
+    dense = (4 + stages) * 8 * n * n_local
+    if dense <= MAX_DENSE_BYTES:
+        return None
+    return SceneError(
+        f"discretisation.elements: the monodromy matrix of {n} dofs needs "
+        f"{dense / 2**30:.1f} GiB of dense columns on a rank (at most "
+        f"{MAX_DENSE_BYTES / 2**30:.0f}); use fewer elements or more ranks"
+    )
+
+
+def shooting_problem(
+    scene, steps_per_period, parameter: str | None, ranks: int | None = None
+) -> SceneError | None:
     """Why :class:`Shooting` cannot shoot over this scene's period (its integrator, fixed
-    steps, ``steps_per_period``, ``parameter``), or None: checked before any work."""
+    steps, ``steps_per_period``, ``parameter``, the dense columns on ``ranks`` ranks, default
+    MPI.COMM_WORLD's, at least: :func:`dense_problem` of the scene's unknowns shared evenly),
+    or None: checked before any work (or folder)."""
+    from cosserat_fem.scene.layout import FULL
+    from cosserat_fem.scene.resolved import PLANAR
+    from cosserat_fem.timestepping.integrators import _sdirk_tableau
+
     problem = None
     if scene.time.integrator not in ("sdirk3", "sdirk4"):
         problem = SceneError(
@@ -220,6 +241,13 @@ def shooting_problem(scene, steps_per_period, parameter: str | None) -> SceneErr
             f"parameter: {parameter!r} is not one of the scene's parameters "
             f"{sorted(scene.parameters)}"
         )
+    else:
+        plane = scene.plane()
+        disc = scene.discretisation
+        n = (disc.elements * disc.degree + 1) * len(PLANAR[plane] if plane else FULL)
+        ranks = MPI.COMM_WORLD.size if ranks is None else ranks
+        stages = _sdirk_tableau(int(scene.time.integrator[-1]))[2].size
+        problem = dense_problem(n, -(-n // ranks), stages)
     return problem
 
 
@@ -246,7 +274,7 @@ class Shooting:
 
         from cosserat_fem.analysis.simulation import _discretise
 
-        problem = shooting_problem(scene, steps_per_period, parameter)
+        problem = shooting_problem(scene, steps_per_period, parameter, comm.size)
         agree(comm, problem)
         self.scene, self.comm, self.steps = scene, comm, steps_per_period
         self.parameter = parameter
@@ -318,13 +346,9 @@ class Shooting:
         self.held_local = held
         self.free = np.flatnonzero(~np.concatenate(self.comm.allgather(held)))
         stages = len(integrator.b)
-        dense = (4 + stages) * 8 * self.n * max(self.comm.allgather(self.n_local))
-        if dense > MAX_DENSE_BYTES:
-            raise SceneError(
-                f"discretisation.elements: the monodromy matrix of {self.n} dofs needs "
-                f"{dense / 2**30:.1f} GiB of dense columns on a rank (at most "
-                f"{MAX_DENSE_BYTES / 2**30:.0f}); use fewer elements or more ranks"
-            )
+        problem = dense_problem(self.n, max(self.comm.allgather(self.n_local)), stages)
+        if problem is not None:  # the partition's fullest rank (shooting_problem: an even one)
+            raise problem
         self._ksp = PETSc.KSP().create(self.comm)
         self._ksp.setType("preonly")
         self._ksp.getPC().setType("lu")
