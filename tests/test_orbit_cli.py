@@ -472,12 +472,18 @@ class TestLyapunov:
     def test_the_scene_s_limits_refuse_or_stop_it(self, case, tmp_path):
         """limits.wall_time of 1 ms, below the budget's lower bound of the run's time
         (cosserat_fem/analysis/budget.py: 0.009 s for its 240 steps): refused before any work,
-        exit 2, one line naming time.step. Of 20 ms, above that bound but far below the
-        run's (its set-up alone takes longer): stopped at the first look at the clock (64
-        steps), exit 4, one line naming limits.wall_time (not advising run --restart, which
-        a Lyapunov run does not have), and summary.json saying so; ``plot`` of that folder
-        one line saying lyapunov.csv was not written and why."""
-        _, _, _, overrides, T = case
+        exit 2, one line naming time.step, no folder. Of 20 ms, above that bound but far below
+        the run's (its set-up alone takes longer): stopped at the first look at the clock (64
+        steps of the reference trajectory), exit 4, one line naming limits.wall_time (not
+        advising run --restart, which a Lyapunov run does not have), and what it computed
+        kept (before: the stretches were lost): the 64 // 40 = 1 interval done in
+        lyapunov.csv, its stretch the uninterrupted run's first (the same trajectories from
+        the same perturbation) within the solver's noise (as in the test above: steps ×
+        stol × RMS(U) / d0), its running exponent s_1 / T (discard 0, lyapunov.py), and
+        summary.json "stopped", the reason, 1 interval and that exponent; ``plot`` draws it."""
+        from test_chaos import STOL
+
+        _, _, result, overrides, T = case
         common = ["--period", repr(T), "--periods", str(self.PERIODS)]
         refused = cli(
             "lyapunov",
@@ -490,22 +496,63 @@ class TestLyapunov:
         assert refused.returncode == 2 and "time.step: the run needs" in refused.stderr
         assert len(refused.stderr.strip().splitlines()) == 1
         assert not (tmp_path / "refused").exists()
+        stopped = tmp_path / "stopped"
         proc = cli(
             "lyapunov",
             str(PAPER),
             *sets({**overrides, "limits.wall_time": 0.02}),
             *common,
             "--out",
-            str(tmp_path / "stopped"),
+            str(stopped),
         )
         assert proc.returncode == 4, proc.stderr
         assert "limits.wall_time" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
         assert "run --restart" not in proc.stderr and "has no restart" in proc.stderr
-        summary = json.loads((tmp_path / "stopped" / "summary.json").read_text())
+        summary = json.loads((stopped / "summary.json").read_text())
         assert summary["status"] == "stopped" and "limits.wall_time" in summary["reason"]
-        plot = cli("plot", str(tmp_path / "stopped"))  # no lyapunov.csv: says why, not "a run"
-        assert plot.returncode == 2 and len(plot.stderr.strip().splitlines()) == 1
-        assert "lyapunov.csv' was not written: the Lyapunov run stopped (limits" in plot.stderr
+        (row,) = rows(stopped / "lyapunov.csv")
+        noise = self.STEPS * STOL * result.poincare[:, -1].max() / result.perturbation
+        assert abs(float(row["stretch"]) - result.stretches[0]) <= noise
+        assert float(row["running_exponent"]) == pytest.approx(float(row["stretch"]) / T, 1e-14)
+        assert summary["intervals"] == 1 and summary["discard"] == 0
+        assert summary["exponent"] == float(row["running_exponent"])
+        plot = cli("plot", str(stopped))
+        assert plot.returncode == 0, plot.stderr
+        assert (stopped / "lyapunov.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    def test_an_interrupted_run_keeps_its_intervals(self, case, tmp_path):
+        """A KeyboardInterrupt (Ctrl-C, or SIGTERM by cli.py) at the reference's 100th step,
+        within the third interval of 40 steps: raised, and the 2 intervals done kept (before:
+        lost): lyapunov.csv's 2 stretches the uninterrupted run's within the solver's noise,
+        summary.json "stopped", "interrupted", 2 intervals, its exponent their mean over T
+        (discard 0) to round-off."""
+        from test_chaos import STOL
+
+        from cosserat_fem.timestepping.events import Observer
+
+        _, _, result, overrides, T = case
+
+        class Interrupt(Observer):
+            steps = 0
+
+            def step_finished(self, loop) -> None:
+                self.steps += 1
+                if self.steps == 100:
+                    raise KeyboardInterrupt
+
+        out = tmp_path / "interrupted"
+        scene = cf.load(PAPER, overrides)
+        with pytest.raises(KeyboardInterrupt):
+            cf.lyapunov_run(scene, T, periods=self.PERIODS, out=out, observers=[Interrupt()])
+        table = rows(out / "lyapunov.csv")
+        assert len(table) == 2
+        noise = self.STEPS * STOL * result.poincare[:, -1].max() / result.perturbation
+        stretches = [float(r["stretch"]) for r in table]
+        assert np.all(np.abs(np.array(stretches) - result.stretches[:2]) <= noise)
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["status"] == "stopped" and "interrupted" in summary["reason"]
+        assert summary["intervals"] == 2
+        assert summary["exponent"] == pytest.approx(sum(stretches) / (2 * T), rel=1e-14)
 
     def test_a_failed_run_says_why_in_summary_json(self, case, tmp_path):
         """solver.max_iterations = 1: the first step's Newton fails (exit 3, one line with the

@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -290,6 +291,7 @@ def largest_exponent(
     out: str | Path | None = None,
     initial_state: np.ndarray | None = None,
     comm: MPI.Comm = MPI.COMM_WORLD,
+    stopped: Callable[[LyapunovResult, BaseException], None] | None = None,
 ) -> LyapunovResult:
     """The largest Lyapunov exponent of the scene forced with period ``period`` T [s] over
     ``periods`` periods from time.start, and the Poincaré section at the forcing's phase
@@ -297,8 +299,11 @@ def largest_exponent(
     renormalisations; ``discard``: intervals left out of the average; ``perturbation`` d0;
     ``seed``: its direction's; ``observers``: the reference trajectory's; with ``out``,
     poincare.csv there; ``initial_state``: the reference's start, as ``cf.run``'s (e.g. a
-    static solution: a buckled beam in one of its wells). Bad input: a SceneError naming the
-    argument or key, before any work."""
+    static solution: a buckled beam in one of its wells); ``stopped(result so far, why)``
+    when the run stops early (a CosseratError: limits.wall_time, a failed solve; or
+    KeyboardInterrupt: Ctrl-C, SIGTERM), before that is raised: the intervals done, their
+    stretches and the running estimate (NaN if none was averaged), so that nothing computed
+    is lost. Bad input: a SceneError naming the argument or key, before any work."""
     intervals, steps, d0 = check_request(scene, period, periods, every, discard, perturbation)
     observers = [as_observer(o) for o in observers]
     initial_state = _initial_array(initial_state, comm)
@@ -318,23 +323,35 @@ def largest_exponent(
     chain: list[Observer] = [section, *observers]
     loop = TimeLoop(model, integrator, solver, scene.time, Events(chain))
     source = _Benettin(loop, intervals, steps, d0, seed)
-    failure = drive(source)
+
+    def result() -> LyapunovResult:
+        """What the intervals run so far give (all of them once the run ended)."""
+        stretches = np.array(source.stretches)
+        running = running_estimate(stretches, every * period, discard)
+        rows = section.rows  # set when the run ended (drive ends it, stopped or not)
+        assert rows is not None, "set when the run ended"
+        return LyapunovResult(
+            exponent=float(running[-1]) if running.size else math.nan,
+            times=np.array(source.times),
+            stretches=stretches,
+            running=running,
+            poincare=rows,
+            columns=section.columns,
+            perturbation=d0,
+            period=float(period),
+            every=every,
+            discard=discard,
+            files=[path] if path is not None else [],
+        )
+
+    try:
+        failure = drive(source)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (cli.py): every rank alike
+        if stopped is not None:
+            stopped(result(), exc)
+        raise
     if failure:
+        if stopped is not None:
+            stopped(result(), failure)
         raise failure
-    stretches = np.array(source.stretches)
-    interval = every * period
-    running = running_estimate(stretches, interval, discard)
-    assert section.rows is not None, "set when the run ended"
-    return LyapunovResult(
-        exponent=float(running[-1]) if running.size else math.nan,
-        times=np.array(source.times),
-        stretches=stretches,
-        running=running,
-        poincare=section.rows,
-        columns=section.columns,
-        perturbation=d0,
-        period=float(period),
-        every=every,
-        discard=discard,
-        files=[path] if path is not None else [],
-    )
+    return result()

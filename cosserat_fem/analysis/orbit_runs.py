@@ -32,9 +32,13 @@ killed run keeps every point found up to its last:
 **A Lyapunov run's folder** (:func:`lyapunov_run`): ``poincare.csv`` (lyapunov.py),
 ``lyapunov.csv`` (per renormalisation interval: its end time [s], the stretch ln(d/d0), the
 running exponent [1/s], empty while discarded) and ``summary.json`` (the exponent). The run
-is refused before any work if its time-marching cost exceeds the scene's limits
-(cosserat_fem/analysis/budget.py, as a run of ``periods`` periods), and stopped at
-``limits.wall_time`` (observers.py ``DeadlineObserver``; summary.json then says so).
+is refused before any work (and before its folder is made) if its time-marching cost exceeds
+the scene's limits (cosserat_fem/analysis/budget.py, as a run of ``periods`` periods), and
+stopped at ``limits.wall_time`` (observers.py ``DeadlineObserver``). A run that stops (the
+wall time, a failed solve, Ctrl-C or SIGTERM) keeps what it computed: poincare.csv so far,
+lyapunov.csv of the intervals done (not written if none was), and summary.json with its
+status ("stopped" or "failed"), the reason, the intervals done and the exponent they give
+(null if none was averaged).
 
 Both lock their folder (io/folder_lock.py). Collective: every rank calls them.
 """
@@ -490,6 +494,28 @@ def lyapunov_budget(
         )
 
 
+def _exponent_files(folder: Path, result, summary: dict, comm: MPI.Comm) -> list[Path]:
+    """lyapunov.csv of ``result``'s intervals (none: not written) and summary.json
+    (``summary`` with the exponent, its settings and the intervals); the files written."""
+    files = []
+    if result.times.size:
+        lines = ["time,stretch,running_exponent"]
+        for t, s, lam in zip(result.times, result.stretches, result.running, strict=True):
+            lines.append(f"{t!r},{s!r}," + (repr(float(lam)) if math.isfinite(lam) else ""))
+        replace_on_root(folder / LYAPUNOV_CSV, ("\n".join(lines) + "\n").encode(), comm)
+        files.append(folder / LYAPUNOV_CSV)
+    summary |= {
+        "exponent": result.exponent if math.isfinite(result.exponent) else None,
+        "every": result.every,
+        "discard": result.discard,
+        "perturbation": result.perturbation,
+        "intervals": int(result.times.size),
+        "files": ["poincare.csv", *(f.name for f in files)],
+    }
+    replace_on_root(folder / SUMMARY, (json.dumps(summary, indent=1) + "\n").encode(), comm)
+    return [*files, folder / SUMMARY]
+
+
 def lyapunov_run(
     scene,
     period: float,
@@ -500,44 +526,44 @@ def lyapunov_run(
 ):
     """``largest_exponent`` (lyapunov.py) with its folder's files (module docstring), the run
     stopped at limits.wall_time; ``folder`` locked by the caller (the budget checked before
-    it was made: :func:`lyapunov_budget`). Returns the LyapunovResult."""
+    it was made: :func:`lyapunov_budget`). A run that stops (limits.wall_time, a failed
+    solve, Ctrl-C or SIGTERM) keeps what it computed: lyapunov.csv of the intervals done and
+    summary.json with the status, the reason and the exponent of those intervals (null if
+    none was averaged). Returns the LyapunovResult."""
     from cosserat_fem.analysis.lyapunov import largest_exponent
     from cosserat_fem.analysis.observers import DeadlineObserver
     from cosserat_fem.common.errors import StopError
 
     clock = time.perf_counter()
     wall = scene.limits.wall_time
-    advice = "poincare.csv keeps its section so far; a Lyapunov run has no restart: run it again"
+    advice = (
+        "poincare.csv and lyapunov.csv keep the periods so far; a Lyapunov run has no "
+        "restart: run it again"
+    )
     deadline = [DeadlineObserver(clock + wall, wall, comm, advice=advice)] if wall else []
     observers = [*options.pop("observers", ()), *deadline]
     summary: dict = {"command": "lyapunov", "period": period, "periods": periods}
-    try:
-        result = largest_exponent(
-            scene, period, periods=periods, out=folder, observers=observers, **options
-        )
-    except (StopError, SolverError) as exc:  # what stopped it, beside poincare.csv so far
-        if folder is not None:
-            status = "stopped" if isinstance(exc, StopError) else "failed"
-            summary |= {"status": status, "reason": str(exc)}
-            summary["wall_s"] = time.perf_counter() - clock
-            text = json.dumps(summary, indent=1) + "\n"
-            replace_on_root(folder / SUMMARY, text.encode(), comm)
-        raise
+    told = options.pop("stopped", None)
+
+    def stopped(partial, exc: BaseException) -> None:
+        """What stopped it, beside poincare.csv so far: the intervals done."""
+        if folder is not None and isinstance(exc, StopError | SolverError | KeyboardInterrupt):
+            status = "failed" if isinstance(exc, SolverError) else "stopped"
+            reason = str(exc) or "interrupted (Ctrl-C or SIGTERM)"
+            wall_s = time.perf_counter() - clock
+            _exponent_files(
+                folder,
+                partial,
+                summary | {"status": status, "reason": reason, "wall_s": wall_s},
+                comm,
+            )
+        if told is not None:
+            told(partial, exc)
+
+    result = largest_exponent(
+        scene, period, periods=periods, out=folder, observers=observers, stopped=stopped, **options
+    )
     if folder is not None:
-        lines = ["time,stretch,running_exponent"]
-        for t, s, lam in zip(result.times, result.stretches, result.running, strict=True):
-            lines.append(f"{t!r},{s!r}," + (repr(float(lam)) if math.isfinite(lam) else ""))
-        replace_on_root(folder / LYAPUNOV_CSV, ("\n".join(lines) + "\n").encode(), comm)
-        summary |= {
-            "status": "finished",
-            "exponent": result.exponent if math.isfinite(result.exponent) else None,
-            "every": result.every,
-            "discard": result.discard,
-            "perturbation": result.perturbation,
-            "intervals": int(result.times.size),
-            "wall_s": time.perf_counter() - clock,
-            "files": ["poincare.csv", LYAPUNOV_CSV],
-        }
-        replace_on_root(folder / SUMMARY, (json.dumps(summary, indent=1) + "\n").encode(), comm)
-        result.files = [*result.files, folder / LYAPUNOV_CSV, folder / SUMMARY]
+        summary |= {"status": "finished", "wall_s": time.perf_counter() - clock}
+        result.files = [*result.files, *_exponent_files(folder, result, summary, comm)]
     return result
