@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -199,6 +200,42 @@ def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path):
     done = cli("orbits", "--restart", str(cut))
     assert done.returncode == 2 and "--restart:" in done.stderr and "already ended" in done.stderr
     assert len(done.stderr.strip().splitlines()) == 1
+
+
+def test_the_branch_file_s_bytes_are_written_once_each(tmp_path, monkeypatch):
+    """orbit_branch.csv of :func:`api_branch`'s branch, cut at max_points 2 and restarted to
+    its end through ``cf.orbits``: the bytes written to it (every replace_on_root and
+    append_on_root of orbit_runs.py counted) are the file's size after each part, its rows
+    appended (before: the file rewritten whole after each point, Σ of its sizes: 1642
+    bytes for the 605 of the whole branch's 4 rows, quadratic in the rows); a restart writes
+    its kept rows once (cut to its record) and appends the rest. Its rows are the
+    uninterrupted branch's (:func:`same_rows`)."""
+    from cosserat_fem.analysis import orbit_runs
+
+    written: list[int] = []
+    for name in ("replace_on_root", "append_on_root"):
+        original = getattr(orbit_runs, name, None)
+        if original is None:
+            continue
+
+        def spy(path, data, *args, original=original, **kwargs):
+            if Path(path).name == "orbit_branch.csv":
+                written.append(len(data))
+            return original(path, data, *args, **kwargs)
+
+        monkeypatch.setattr(orbit_runs, name, spy)
+    (scene, *rest), options = api_branch()
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    cf.orbits(scene, *rest, out=whole, **options)
+    assert sum(written) == (whole / "orbit_branch.csv").stat().st_size
+    written.clear()
+    cf.orbits(scene, *rest, out=cut, max_points=2, **options)
+    assert sum(written) == (cut / "orbit_branch.csv").stat().st_size
+    assert len(rows(cut / "orbit_branch.csv")) == 2
+    written.clear()
+    cf.orbits(None, restart=cut, max_points=300)
+    assert sum(written) == (cut / "orbit_branch.csv").stat().st_size
+    same_rows(cut, whole)
 
 
 def test_the_progress_is_told_each_orbit(tmp_path):

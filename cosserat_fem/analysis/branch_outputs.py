@@ -121,14 +121,41 @@ class BranchOutputs:
 def replace_on_root(path: str | Path, data: bytes, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
     """``data`` into the file ``path`` by rank 0 (safe_files.replace: whole or not at all); the
     ranks agree on a failure (an OutputError naming the path)."""
+    from cosserat_fem.common.safe_files import replace
+
+    _on_root(path, lambda: replace(path, data), comm)
+
+
+def append_on_root(path: str | Path, data: bytes, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    """``data`` appended to the existing file ``path`` by rank 0 (safe_files.open_append: the
+    folder's own file, never written through a link), so a table that grows a row at a time
+    costs its new rows, not its whole; the ranks agree on a failure (an OutputError naming
+    the path). A failure midway may leave part of ``data``: a reader cuts the file to the
+    rows its record names (orbit_runs.py, path_restart.py)."""
+    import os
+
+    from cosserat_fem.common.safe_files import open_append, write_all
+
+    def append() -> None:
+        fd = open_append(path)
+        try:
+            write_all(fd, data)
+        finally:
+            os.close(fd)
+
+    _on_root(path, append, comm)
+
+
+def _on_root(path: str | Path, write: Callable[[], None], comm: MPI.Comm) -> None:
+    """``write()`` on rank 0, the ranks agreeing on its failure (an OutputError naming
+    ``path``)."""
     from cosserat_fem.common.errors import CosseratError, OutputError
     from cosserat_fem.common.parallel import agree
-    from cosserat_fem.common.safe_files import replace
 
     problem = None
     if comm.rank == 0:
         try:
-            replace(path, data)
+            write()
         except CosseratError as exc:
             problem = exc
         except OSError as exc:

@@ -6,8 +6,9 @@ they go (issue 27 item 5), around the algorithms of cosserat_fem/analysis/period
 killed run keeps every point found up to its last:
 
 * ``orbit_branch.csv``: periodic.py's ``ORBIT_COLUMNS``, one row per point in the order
-  traced (rewritten after each), then one per located special point (its ``point`` column
-  the kind: "limit" for a fold, or any kind the tracer gives, "period-doubling", "torus").
+  traced (appended after each; a restart first cuts the file to its record's rows), then
+  one per located special point (its ``point`` column the kind: "limit" for a fold, or any
+  kind the tracer gives, "period-doubling", "torus").
 * ``orbit_branch.xdmf`` (+ its HDF5 frames): the rod's state at t0 of each orbit, one frame a
   point, the frame's "time" the point's index along the branch (not p, which turns back at
   a fold); the arrays are the scene's ``output.fields`` (as a continuation's branch_<i>.xdmf,
@@ -55,7 +56,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from cosserat_fem.analysis.branch_outputs import replace_on_root
+from cosserat_fem.analysis.branch_outputs import append_on_root, replace_on_root
 from cosserat_fem.analysis.path_restart import FOLDER, KEPT, load_branch, save_branch_state
 from cosserat_fem.analysis.periodic import ORBIT_COLUMNS, OrbitBranch, OrbitPoint, orbit_point
 from cosserat_fem.analysis.progress import StatusLine
@@ -187,6 +188,9 @@ class _Recorder:
         self.deadline = None if clock is None or not wall else clock + wall
         self.record = record  # orbits.json's content, updated
         self.lines = lines  # orbit_branch.csv's lines (header first)
+        #: the first of ``lines`` not yet in the file; 0: the file is written whole at the
+        #: next flush (a new branch, or a restart's file cut back to its record's rows)
+        self.written = 0
         self.kept: list[tuple[Point, float, np.ndarray]] = []
         self.told = 0  # points told in this part
         self.writer = None
@@ -253,12 +257,25 @@ class _Recorder:
             step = min(step * min(factor, settings["max_grow"]), settings["max_step"])
         return step
 
-    def _save(self) -> None:
-        """orbit_branch.csv, then the restart data (its ``rows`` and ``frames`` name what was
-        written: a kill between the two leaves a row that a restart drops)."""
+    def _flush(self) -> None:
+        """orbit_branch.csv: the lines not yet written appended (the file is written whole
+        once a part, at its first flush: :attr:`written`), so a branch of n points costs
+        O(n) bytes written, not O(n²)."""
         assert self.folder is not None
         comm = self.shooting.comm
-        replace_on_root(self.folder / ORBIT_CSV, ("\n".join(self.lines) + "\n").encode(), comm)
+        text = "".join(line + "\n" for line in self.lines[self.written :])
+        if self.written:
+            append_on_root(self.folder / ORBIT_CSV, text.encode(), comm)
+        else:
+            replace_on_root(self.folder / ORBIT_CSV, text.encode(), comm)
+        self.written = len(self.lines)
+
+    def _save(self) -> None:
+        """orbit_branch.csv's new rows, then the restart data (its ``rows`` and ``frames``
+        name what was written: a kill between the two leaves a row that a restart drops)."""
+        assert self.folder is not None
+        comm = self.shooting.comm
+        self._flush()
         points = [k for k, _, _ in self.kept]
         branch = Branch(
             points=points,
@@ -319,7 +336,7 @@ class _Recorder:
         }
         if self.folder is not None:
             comm = self.shooting.comm
-            replace_on_root(self.folder / ORBIT_CSV, ("\n".join(self.lines) + "\n").encode(), comm)
+            self._flush()
             if self.kept:  # a restart's data: there is a point to go on from
                 replace_on_root(
                     self.folder / FOLDER / RECORD, (json.dumps(record) + "\n").encode(), comm
