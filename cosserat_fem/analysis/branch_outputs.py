@@ -10,6 +10,12 @@ goes, besides branches.csv (issue 27 item 5).
   solution.xdmf), so ParaView's "Warp By Vector" draws each state of the branch. Not with
   the scene's ``output.xdmf = false``.
 * ``continuation/``: each branch's end, for a restart (cosserat_fem/analysis/path_restart.py).
+* ``branches.csv`` (paths.py's columns): with restart data, the rows of the branch being
+  traced are appended as its points are accepted (:meth:`BranchOutputs.write_rows`), so a
+  continuation killed mid-branch keeps every row up to its last point, and each saved end
+  names the file's rows through it (restart.json's ``rows``, which a restart cuts the file
+  back to); as each branch ends the caller rewrites the file whole from its result (the
+  special points' rows after the branch's points), and a restart appends the new ones.
 * ``branches.json``: per branch its origin, why it ended (a bound of the range, max_points,
   ``stop``'s reason, or a step collapse with the corrector's failure), its steps and
   rejected steps (:func:`write_branch_reasons`). A branch that cannot go on still has every
@@ -30,6 +36,8 @@ from cosserat_fem.analysis.path_restart import branch_end, save_branch_state
 from cosserat_fem.common.parallel import from_root
 from cosserat_fem.nls.arclength import Branch, Point
 
+#: The continuation's table (paths.py's columns)
+BRANCHES_CSV = "branches.csv"
 #: progress(branch index, points so far on it, λ of the last)
 Progress = Callable[[int, int, float], None]
 
@@ -63,6 +71,13 @@ class BranchOutputs:
         #: ``finished(result)`` after each branch is added to the result (the caller's:
         #: branches.csv and branches.json of the branches so far), or None
         self.finished: Callable[[object], None] | None = None
+        #: branches.csv's data rows now (with ``record``: :meth:`write_rows`)
+        self.file_rows = 0
+        #: whether branches.csv is there (else the first rows come with its header)
+        self.csv_made = False
+        self._done = 0  # the current branch's points whose rows were handled
+        #: the current branch's first points whose rows are in the file already (a restart's)
+        self.skip = 0
 
     def save(self, branch: Branch, comm: MPI.Comm, final: bool = False) -> None:
         """The restart data of ``branch`` as it is now (its last points): its arrays into the
@@ -77,7 +92,41 @@ class BranchOutputs:
         self.slots[index] = slot
         self.ends[index] = branch_end(branch, slot)
         if self.record is not None:
+            self.ends[index]["rows"] = self.file_rows  # branches.csv's, through its end
             self.record(self.ends)
+
+    def write_rows(self, problem, branch: Branch) -> None:
+        """branches.csv's rows of ``branch``'s points not yet handled, appended (the file made
+        with its header first if it is not there): their (x, y, z, θ, ψ, φ) computed in
+        order along the branch from its first point, as paths.py's rows of a branch are (the
+        angles continued from point to point), the :attr:`skip` first ones only computed.
+        The chart of the engine's current point is kept. Nothing without ``record`` (no
+        restart data). Collective."""
+        if self.folder is None or self.record is None:
+            return
+        from cosserat_fem.analysis.paths import BRANCH_COLUMNS, _path_point, csv_lines
+
+        index = self._branch if self.resumed is None else self.resumed[0]
+        if self._done == 0:
+            problem.probe.angles.last = None  # continued along this branch from its start
+        chart = problem.chart
+        rows = []
+        for i in range(self._done, len(branch.points)):
+            point = _path_point(problem, branch.points[i])
+            if i >= self.skip:
+                rows.append(point.as_row(index))
+        problem.use_chart(chart)
+        self._done = len(branch.points)
+        if not rows:
+            return
+        text = "".join(line + "\n" for line in csv_lines(rows))
+        if self.csv_made:
+            append_on_root(self.folder / BRANCHES_CSV, text.encode(), problem.comm)
+        else:
+            header = ",".join(BRANCH_COLUMNS) + "\n"
+            replace_on_root(self.folder / BRANCHES_CSV, (header + text).encode(), problem.comm)
+            self.csv_made = True
+        self.file_rows += len(rows)
 
     def point(self, point: Point) -> None:
         self._points += 1
@@ -93,10 +142,14 @@ class BranchOutputs:
             self._branch += 1
             self._points = 1
             return
+        self.write_rows(problem, branch)  # the points the engine did not tell (a bound's)
         self.save(branch, problem.comm, final=True)
         index = self._branch if self.resumed is None else self.resumed[0]
         self._branch += 1
         self._points = 1
+        # the caller writes the branch's special points' rows next (finished, or a restart's)
+        self.file_rows += len(branch.special)
+        self._done = self.skip = 0
         if not problem.scene.output.xdmf:
             return
         path = self.folder / f"branch_{index}.xdmf"

@@ -442,7 +442,8 @@ def path_engine(
 
         def wrapped(q: Point) -> str | None:
             if observer is not None and engine.branch is not None:
-                observer.save(engine.branch, comm)  # collective, before any user code
+                observer.write_rows(problem, engine.branch)  # collective, before any user
+                observer.save(engine.branch, comm)  # code; the rows first (branch_outputs.py)
             point = None if stop is None else _path_point(problem, q)  # collective (the probe)
             error, reason = None, None
             try:
