@@ -45,6 +45,13 @@ LINEAR = {
     "parameters.r": 1.03,
     "discretisation.elements": 4,
 }
+#: LINEAR marched by 20 fixed steps a forcing period T = 2π/(1.03 ω1), over 3 periods.
+MARCHED = {
+    **LINEAR,
+    "time.step": 2 * math.pi / (1.03 * 1302.92) / 20,
+    "time.end": 3 * 2 * math.pi / (1.03 * 1302.92),
+    "output.xdmf_interval": 0,
+}
 BRANCH = ["--period", PERIOD, "--parameter", "r", "--from", "1.03", "--to", "1.07"]
 STEPS = ["--steps-per-period", "20", "--step", "0.01", "--max-step", "0.02"]
 #: |Δp| and the amplitude's relative difference the corrector's tolerance allows (module
@@ -360,13 +367,7 @@ def test_bad_lyapunov_requests_make_no_folder(tmp_path, arguments, message):
         (ROOT / "scenes" / "free_ring.toml", {}, "reference.closed: a closed rod has modes"),
         (  # 20 steps a period, 3 periods: above 1 µs by the budget's lower bound (budget.py)
             PAPER,
-            {
-                **LINEAR,
-                "time.step": 2 * math.pi / (1.03 * 1302.92) / 20,
-                "time.end": 3 * 2 * math.pi / (1.03 * 1302.92),
-                "output.xdmf_interval": 0,
-                "limits.wall_time": 1e-6,
-            },
+            {**MARCHED, "limits.wall_time": 1e-6},
             "time.step: the run needs",
         ),
     ],
@@ -385,6 +386,45 @@ def test_a_refused_lyapunov_run_makes_no_folder(tmp_path, scene, overrides, mess
     (line,) = proc.stderr.strip().splitlines()
     assert message in line and "Traceback" not in proc.stderr
     assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["continue", str(ROOT / "scenes" / "rollup.toml")],
+        ["orbits", str(PAPER), *sets(LINEAR), *BRANCH, *STEPS],
+        ["lyapunov", str(PAPER), *sets(MARCHED), "--period", PERIOD, "--periods", "1"],
+    ],
+    ids=["continue", "orbits", "lyapunov"],
+)
+def test_a_held_folder_is_refused_naming_the_option_given(tmp_path, command):
+    """Each command into a folder another writer holds (its lock taken here): exit 2, one
+    line naming the option that named the folder: ``--out`` when it was given (before:
+    output.directory, which the user had not set), output.directory when the folder is the
+    scene's default (``--set output.directory`` gave it; the command's own folder beneath),
+    and the holder's lock and folder left as they were."""
+    from cosserat_fem.io.folder_lock import LOCK, FolderLock
+
+    folder = tmp_path / "held"
+    default = {"continue": "continuation", "orbits": "orbits", "lyapunov": "lyapunov"}
+    own = tmp_path / "scene_out" / default[command[0]]
+    for path in (folder, own):
+        path.mkdir(parents=True)
+    locks = [FolderLock.take(folder, "run"), FolderLock.take(own, "run")]
+    try:
+        proc = cli(*command, "--out", str(folder))
+        assert proc.returncode == 2, proc.stderr
+        (line,) = proc.stderr.strip().splitlines()
+        assert line.startswith(f"cosserat-fem: error: --out: {str(folder)!r} is in use by")
+        scene_out = json.dumps(str(tmp_path / "scene_out"))
+        proc = cli(*command, "--set", f"output.directory={scene_out}")
+        assert proc.returncode == 2, proc.stderr
+        (line,) = proc.stderr.strip().splitlines()
+        assert line.startswith(f"cosserat-fem: error: output.directory: {str(own)!r} is in use")
+        assert sorted(p.name for p in folder.iterdir()) == [LOCK]
+    finally:
+        for lock in locks:
+            lock.release()
 
 
 def test_a_damaged_restart_folder_is_refused_in_one_line(tmp_path):
