@@ -82,6 +82,15 @@ def rows(path) -> list[dict]:
     return [dict(zip(lines[0].split(","), ln.split(","), strict=True)) for ln in lines[1:]]
 
 
+def refused(proc, message: str, out) -> None:
+    """``proc`` refused as bad input: exit 2, one line on stderr holding ``message``, no
+    traceback, and its --out folder ``out`` not made."""
+    assert proc.returncode == 2, proc.stderr
+    (line,) = proc.stderr.strip().splitlines()
+    assert message in line and "Traceback" not in proc.stderr
+    assert not out.exists()
+
+
 def same_rows(folder, reference) -> list[dict]:
     """orbit_branch.csv's rows in ``folder``, asserted to be those of ``reference`` to the
     module docstring's bounds (p within DP, the amplitude within DA relative, |μ| within
@@ -333,11 +342,7 @@ def test_bad_orbit_requests_are_one_line(tmp_path, arguments, message):
     scene's limits.wall_time by budget.py's lower bound of its settle + 1 periods is one
     (before, it ran until killed: orbits has no stop at the wall time)."""
     out = tmp_path / "out"
-    proc = cli("orbits", str(PAPER), *sets(LINEAR), *arguments, "--out", str(out))
-    assert proc.returncode == 2, proc.stderr
-    (line,) = proc.stderr.strip().splitlines()
-    assert message in line and "Traceback" not in proc.stderr
-    assert not out.exists()
+    refused(cli("orbits", str(PAPER), *sets(LINEAR), *arguments, "--out", str(out)), message, out)
 
 
 @pytest.mark.parametrize(
@@ -382,10 +387,7 @@ def test_a_refused_lyapunov_run_makes_no_folder(tmp_path, scene, overrides, mess
     proc = cli(
         "lyapunov", str(scene), *sets(overrides), *period, "--periods", "3", "--out", str(out)
     )
-    assert proc.returncode == 2, proc.stderr
-    (line,) = proc.stderr.strip().splitlines()
-    assert message in line and "Traceback" not in proc.stderr
-    assert not out.exists()
+    refused(proc, message, out)
 
 
 @pytest.mark.parametrize(
