@@ -584,6 +584,39 @@ def test_a_killed_restart_keeps_its_rows(tmp_path):
     assert (cut / "branches.csv").read_text().splitlines() == rows_w
 
 
+def test_a_switch_s_second_direction_killed_restarts_itself(tmp_path):
+    """The column (8 P4 cells under P_E) on [0, 1.5], λ growing, switched at λ_cr: three
+    branches, the primary (10 points) and the switched one both ways (7 each), the switch's
+    two traced before either is ended. Killed at the 4th told point of the third branch:
+    restart.json has each branch's own end, the third's at its 5th point (before: a switch's
+    second direction saved its points as the first's, branch 1, so restart.json had no
+    branch 2 and the restart continued branch 1 from branch 2's points); the restart (the
+    last branch saved, 2) gives the whole run's branch 2 from its index 2 on, exactly (the
+    argument of test_restart_equals_the_whole_branch)."""
+    overrides = {
+        "loads.end": cf.UNSET,
+        "discretisation.elements": 8,
+        "loads.end.force": [0, 0, "-pi**2*EI/(4*L**2)"],
+    }
+    scene = cf.load(ROLLUP, overrides)
+    options = dict(step=0.05, max_step=0.2, directions=(1,), max_points=30)
+    told: list[float] = []
+    whole = cf.continuation(scene, 0.0, 1.5, stop=lambda q: told.append(q.factor), **options)
+    assert [len(b.points) for b in whole.branches] == [10, 7, 7]
+    assert len(told) == 18  # every point but each branch's start and end
+    cut = tmp_path / "cut"
+    with pytest.raises(Killed):
+        cf.continuation(scene, 0.0, 1.5, out=cut, stop=kill_after(17), **options)
+    ends = json.loads((cut / "continuation" / "restart.json").read_text())["branches"]
+    assert sorted(ends) == ["0", "1", "2"]
+    assert ends["2"]["first_index"] + len(ends["2"]["points"]) == 5
+    assert [q["p"] for q in ends["1"]["points"]] == [
+        q.factor for q in whole.branches[1].points[3:6]
+    ]
+    (b,) = cf.continuation(None, restart=cut).branches
+    assert [q.factor for q in b.points] == [q.factor for q in whole.branches[2].points[2:]]
+
+
 MPI_STOP_ERROR = """
 import sys
 from mpi4py import MPI

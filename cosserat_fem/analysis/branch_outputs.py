@@ -75,8 +75,12 @@ class BranchOutputs:
         self.file_rows = 0
         #: whether branches.csv is there (else the first rows come with its header)
         self.csv_made = False
-        self._done = 0  # the current branch's points whose rows were handled
-        #: the current branch's first points whose rows are in the file already (a restart's)
+        #: the branches begun and not yet ended, in the order they began (a switch traces
+        #: both directions before the caller ends either); the rows written are the first's
+        self._open: list[Branch] = []
+        self._done = 0  # the first open branch's points whose rows were handled
+        self._ended_rows = 0  # the rows of the branches ended (points and special points)
+        #: the first open branch's first points whose rows are in the file (a restart's)
         self.skip = 0
 
     def save(self, branch: Branch, comm: MPI.Comm, final: bool = False) -> None:
@@ -86,14 +90,32 @@ class BranchOutputs:
         (``final``) without ``record``."""
         if self.folder is None or (self.record is None and not final):
             return
-        index = self._branch if self.resumed is None else self.resumed[0]
+        index = self._index(branch)
         slot = 1 - self.slots.get(index, 1)
         save_branch_state(self.folder, index, branch, comm, slot)
         self.slots[index] = slot
         self.ends[index] = branch_end(branch, slot)
         if self.record is not None:
-            self.ends[index]["rows"] = self.file_rows  # branches.csv's, through its end
+            if self._writing(branch):  # branches.csv's rows through its end
+                self.ends[index]["rows"] = self.file_rows
             self.record(self.ends)
+
+    def _index(self, branch: Branch) -> int:
+        """``branch``'s index: a restart's, or the next after the branches ended in the
+        order the open ones began (a branch seen first here is opened)."""
+        if self.resumed is not None:
+            return self.resumed[0]
+        for k, open_branch in enumerate(self._open):
+            if open_branch is branch:
+                return self._branch + k
+        self._open.append(branch)
+        return self._branch + len(self._open) - 1
+
+    def _writing(self, branch: Branch) -> bool:
+        """Whether ``branch``'s rows go to branches.csv as it grows: a restart's, or the
+        first open branch (whose rows follow those of the branches ended); a switch's
+        second direction gets its rows when the caller ends it (before, a kill loses them)."""
+        return self.resumed is not None or (bool(self._open) and self._open[0] is branch)
 
     def write_rows(self, problem, branch: Branch) -> None:
         """branches.csv's rows of ``branch``'s points not yet handled, appended (the file made
@@ -106,7 +128,9 @@ class BranchOutputs:
             return
         from cosserat_fem.analysis.paths import BRANCH_COLUMNS, _path_point, csv_lines
 
-        index = self._branch if self.resumed is None else self.resumed[0]
+        index = self._index(branch)
+        if not self._writing(branch):
+            return
         if self._done == 0:
             problem.probe.angles.last = None  # continued along this branch from its start
         chart = problem.chart
@@ -142,13 +166,26 @@ class BranchOutputs:
             self._branch += 1
             self._points = 1
             return
+        if self.resumed is None and not any(b is branch for b in self._open):
+            self._open.insert(0, branch)  # told of no point: it is the next branch
+            self._done = 0
+        elif self.resumed is None and self._open[0] is not branch:  # not expected
+            self._open.remove(branch)
+            self._open.insert(0, branch)
+            self._done = 0
         self.write_rows(problem, branch)  # the points the engine did not tell (a bound's)
         self.save(branch, problem.comm, final=True)
-        index = self._branch if self.resumed is None else self.resumed[0]
+        index = self._index(branch)
         self._branch += 1
         self._points = 1
-        # the caller writes the branch's special points' rows next (finished, or a restart's)
-        self.file_rows += len(branch.special)
+        if self.resumed is None:
+            self._open.pop(0)
+            # the caller rewrites the file whole next (finished): the branches ended, their
+            # points' and special points' rows
+            self._ended_rows += len(branch.points) + len(branch.special)
+            self.file_rows = self._ended_rows
+        else:  # the restart appends the special points' rows next
+            self.file_rows += len(branch.special)
         self._done = self.skip = 0
         if not problem.scene.output.xdmf:
             return

@@ -37,11 +37,14 @@ mid-branch has branches.csv with the branches that ended before and the killed b
 up to its last point, branches.json and the XDMF of the branches that ended before; the
 restart cuts branches.csv to the saved end's ``rows`` (a row written after the end was saved
 goes) and appends the rest as it goes, so the file ends as the uninterrupted run's; a
-restart killed in its turn is restarted alike. The killed branch's XDMF has its frames from
-the saved (last three) points on, and the branches after it are not traced (start them
-anew). A branch that ended (branches.json has its points) is continued at the end of the
-file, after the branches traced after it. A folder whose ends name no ``rows`` (written
-before they were saved) gets the killed branch's rows from its saved points on.
+restart killed in its turn is restarted alike. A switch traces its two directions before
+either is ended: the second's rows are written when it ends (a kill before loses them, and
+its end names no ``rows``), and each saves its end under its own index. The killed branch's
+XDMF has its frames from the saved (last three) points on, and the branches after it are not
+traced (start them anew). A branch that ended (branches.json has its points) is continued
+at the end of the file, after the branches traced after it. A folder whose ends name no
+``rows`` (written before they were saved) gets the killed branch's rows from its saved
+points on.
 """
 
 from __future__ import annotations
