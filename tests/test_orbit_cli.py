@@ -633,6 +633,47 @@ class TestLyapunov:
         assert summary["intervals"] == 2
         assert summary["exponent"] == pytest.approx(sum(stretches) / (2 * T), rel=1e-14)
 
+    def test_a_run_killed_by_sigterm_keeps_its_intervals(self, case, tmp_path):
+        """``lyapunov`` of 20000 periods (about a minute here) ended by SIGTERM (the process
+        ends where it is: no handler, and Open MPI's mpirun sends it to every rank) once
+        lyapunov.csv has 3 rows: the rows of the intervals done are there, fewer than the
+        run's (appended as each ends; before, the file was written at the end only, so
+        none), the first two stretches the uninterrupted
+        run's within the solver's noise (steps × stol × RMS(U) / d0, as above) and each
+        running exponent Σ s_j / (n T) (discard 0) to round-off."""
+        import signal
+        import subprocess
+        import time
+
+        from conftest import PYTHON, stop_tree, subprocess_env
+        from test_chaos import STOL
+
+        _, _, result, overrides, T = case
+        out = tmp_path / "killed"
+        command = ["-m", "cosserat_fem.cli", "lyapunov", str(PAPER), *sets(overrides)]
+        command += ["--period", repr(T), "--periods", "20000", "--out", str(out)]
+        killed = subprocess.Popen([PYTHON, *command], cwd=ROOT, env=subprocess_env())
+        try:
+            deadline = time.monotonic() + 120
+            table: list[dict] = []
+            while len(table) < 3 and killed.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.05)
+                if (out / "lyapunov.csv").exists():
+                    table = rows(out / "lyapunov.csv")
+            assert killed.poll() is None, "the run ended before it could be killed"
+            killed.send_signal(signal.SIGTERM)
+            assert killed.wait(timeout=60) == -signal.SIGTERM
+        finally:
+            stop_tree(killed)
+        table = rows(out / "lyapunov.csv")
+        assert 3 <= len(table) < 20000
+        stretches = np.array([float(r["stretch"]) for r in table])
+        noise = self.STEPS * STOL * result.poincare[:, -1].max() / result.perturbation
+        assert np.all(np.abs(stretches[:2] - result.stretches[:2]) <= noise)
+        running = np.cumsum(stretches) / (np.arange(1, stretches.size + 1) * T)
+        got = np.array([float(r["running_exponent"]) for r in table])
+        assert np.allclose(got, running, rtol=1e-12, atol=0)
+
     def test_a_failed_run_says_why_in_summary_json(self, case, tmp_path):
         """solver.max_iterations = 1: the first step's Newton fails (exit 3, one line with the
         time and place); summary.json says "failed" with that line's reason (before: none

@@ -153,8 +153,17 @@ class _Benettin:
     trajectories in one TimeLoop, interval by interval; the reference's events go to
     ``events`` (the section, the caller's observers), the perturbed one's to none."""
 
-    def __init__(self, loop: TimeLoop, intervals: int, steps: int, d0: float, seed: int):
+    def __init__(
+        self,
+        loop: TimeLoop,
+        intervals: int,
+        steps: int,
+        d0: float,
+        seed: int,
+        told: Callable[[float, float], None] | None = None,
+    ):
         self.loop, self.intervals, self.steps, self.d0, self.seed = loop, intervals, steps, d0, seed
+        self.told = told  # told(t, stretch) after each interval
         self.events, self.solver = loop.events, loop.solver
         self.model, self.integrator = loop.model, loop.integrator
         self.quiet = Events([])
@@ -272,6 +281,8 @@ class _Benettin:
                 )
             self.stretches.append(math.log(d / self.d0))
             self.times.append(loop.state.t)
+            if self.told is not None:
+                self.told(self.times[-1], self.stretches[-1])
             perturbed = self.rescaled(reference, perturbed, self.d0 / d)
         loop.events = self.events
         loop.load_state_dict(reference)  # the observers end on the reference's last state
@@ -292,6 +303,7 @@ def largest_exponent(
     initial_state: np.ndarray | None = None,
     comm: MPI.Comm = MPI.COMM_WORLD,
     stopped: Callable[[LyapunovResult, BaseException], None] | None = None,
+    interval: Callable[[float, float], None] | None = None,
 ) -> LyapunovResult:
     """The largest Lyapunov exponent of the scene forced with period ``period`` T [s] over
     ``periods`` periods from time.start, and the Poincaré section at the forcing's phase
@@ -303,7 +315,8 @@ def largest_exponent(
     when the run stops early (a CosseratError: limits.wall_time, a failed solve; or
     KeyboardInterrupt: Ctrl-C, SIGTERM), before that is raised: the intervals done, their
     stretches and the running estimate (NaN if none was averaged), so that nothing computed
-    is lost. Bad input: a SceneError naming the argument or key, before any work."""
+    is lost; ``interval(t [s], stretch)`` after each interval (every rank). Bad input: a
+    SceneError naming the argument or key, before any work."""
     intervals, steps, d0 = check_request(scene, period, periods, every, discard, perturbation)
     observers = [as_observer(o) for o in observers]
     initial_state = _initial_array(initial_state, comm)
@@ -322,7 +335,7 @@ def largest_exponent(
     model, integrator, solver = _discretise(scene, comm, initial_state, None)
     chain: list[Observer] = [section, *observers]
     loop = TimeLoop(model, integrator, solver, scene.time, Events(chain))
-    source = _Benettin(loop, intervals, steps, d0, seed)
+    source = _Benettin(loop, intervals, steps, d0, seed, interval)
 
     def result() -> LyapunovResult:
         """What the intervals run so far give (all of them once the run ended)."""

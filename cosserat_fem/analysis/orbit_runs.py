@@ -32,7 +32,8 @@ killed run keeps every point found up to its last:
 
 **A Lyapunov run's folder** (:func:`lyapunov_run`): ``poincare.csv`` (lyapunov.py),
 ``lyapunov.csv`` (per renormalisation interval: its end time [s], the stretch ln(d/d0), the
-running exponent [1/s], empty while discarded) and ``summary.json`` (the exponent). The run
+running exponent [1/s], empty while discarded; appended as each interval ends, so a run
+killed by SIGTERM or SIGKILL keeps them) and ``summary.json`` (the exponent). The run
 is refused before any work (and before its folder is made) if its time-marching cost exceeds
 the scene's limits (cosserat_fem/analysis/budget.py, as a run of ``periods`` periods), and
 stopped at ``limits.wall_time`` (observers.py ``DeadlineObserver``). A run that stops (the
@@ -511,12 +512,40 @@ def lyapunov_budget(
         )
 
 
+class _IntervalRows:
+    """lyapunov.csv's row of each interval appended as it ends (made with its header at the
+    first), so that a run killed (SIGTERM, SIGKILL) keeps the stretches computed: the running
+    exponent the same floating-point operations as lyapunov.running_estimate's (the sum in
+    the intervals' order over (n − discard) k T), so the rows are those written at the end.
+    Collective."""
+
+    def __init__(self, folder: Path, interval: float, discard: int, comm: MPI.Comm):
+        self.folder, self.interval, self.discard, self.comm = folder, interval, discard, comm
+        self.n, self.total = 0, 0.0
+
+    def __call__(self, t: float, stretch: float) -> None:
+        self.n += 1
+        self.total += stretch if self.n > self.discard else 0.0
+        averaged = self.n - self.discard
+        running = repr(float(self.total / (averaged * self.interval))) if averaged > 0 else ""
+        line = f"{t!r},{stretch!r},{running}\n"
+        if self.n == 1:
+            text = LYAPUNOV_HEADER + line
+            replace_on_root(self.folder / LYAPUNOV_CSV, text.encode(), self.comm)
+        else:
+            append_on_root(self.folder / LYAPUNOV_CSV, line.encode(), self.comm)
+
+
+#: lyapunov.csv's header
+LYAPUNOV_HEADER = "time,stretch,running_exponent\n"
+
+
 def _exponent_files(folder: Path, result, summary: dict, comm: MPI.Comm) -> list[Path]:
     """lyapunov.csv of ``result``'s intervals (none: not written) and summary.json
     (``summary`` with the exponent, its settings and the intervals); the files written."""
     files = []
     if result.times.size:
-        lines = ["time,stretch,running_exponent"]
+        lines = [LYAPUNOV_HEADER.strip()]
         for t, s, lam in zip(result.times, result.stretches, result.running, strict=True):
             lines.append(f"{t!r},{s!r}," + (repr(float(lam)) if math.isfinite(lam) else ""))
         replace_on_root(folder / LYAPUNOV_CSV, ("\n".join(lines) + "\n").encode(), comm)
@@ -577,8 +606,19 @@ def lyapunov_run(
         if told is not None:
             told(partial, exc)
 
+    rows = None
+    if folder is not None:
+        every, discard = options.get("every", 1), options.get("discard", 0)
+        rows = _IntervalRows(folder, every * period, discard, comm)
     result = largest_exponent(
-        scene, period, periods=periods, out=folder, observers=observers, stopped=stopped, **options
+        scene,
+        period,
+        periods=periods,
+        out=folder,
+        observers=observers,
+        stopped=stopped,
+        interval=rows,
+        **options,
     )
     if folder is not None:
         summary |= {"status": "finished", "wall_s": time.perf_counter() - clock}
