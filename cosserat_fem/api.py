@@ -459,7 +459,7 @@ def continuation(
 
     from cosserat_fem.analysis import path_restart
     from cosserat_fem.analysis.branch_outputs import BranchOutputs, write_branch_reasons
-    from cosserat_fem.analysis.paths import continue_path, write_branches
+    from cosserat_fem.analysis.paths import check_path_scene, continue_path, write_branches
     from cosserat_fem.io.run_folder import prepare_output_dir
     from cosserat_fem.nls.arclength import ContinuationSettings
 
@@ -505,6 +505,7 @@ def continuation(
             raise SceneError(
                 f"probe (--probe): must lie in [0, {scene.rod.length!r}] (m), got {probe!r}"
             )
+    check_path_scene(scene)  # a scene it cannot follow: before the folder is made too
     out = out_folder(out)
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "continue")
     observer = BranchOutputs(folder, progress)
@@ -756,5 +757,6 @@ def lyapunov_run(
         options.get("perturbation"),
     )
     out = out_folder(out)
+    orbit_runs.lyapunov_budget(scene, value, periods, out)  # before the folder is made
     folder = None if out is None else prepare_output_dir(out, MPI.COMM_WORLD, "lyapunov")
     return orbit_runs.lyapunov_run(scene, value, periods, folder, **options)

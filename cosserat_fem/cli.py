@@ -661,6 +661,21 @@ def _restart_only(args, what: str) -> str:
     return args.restart
 
 
+def _out_named(command):
+    """``command`` (continue, orbits, lyapunov) with its folder's refusals naming --out when
+    it was given, not output.directory (io/folder_lock.py ``named_by``)."""
+
+    def named(args) -> int:
+        from cosserat_fem.io.folder_lock import named_by
+
+        with named_by("--out" if args.out is not None else None):
+            return command(args)
+
+    named.__doc__ = command.__doc__
+    return named
+
+
+@_out_named
 def _continue(args) -> int:
     """``continue``: the branches through the Python API; a line per branch (its origin,
     points, λ and the free end's angle ψ at its end, why it ended), one per special point,
@@ -713,6 +728,7 @@ def _continue(args) -> int:
     return 0
 
 
+@_out_named
 def _orbits(args) -> int:
     """``orbits``: one orbit and its multipliers, or with a range the branch (or
     ``--restart DIR``) through the Python API; a line per special point and why the branch
@@ -831,6 +847,7 @@ def _one_orbit(args) -> int:
     return 0
 
 
+@_out_named
 def _lyapunov(args) -> int:
     """``lyapunov``: the exponent through the Python API; its value and the files."""
     from mpi4py import MPI

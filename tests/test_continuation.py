@@ -276,6 +276,28 @@ def test_continue_command_bad_option(tmp_path):
     assert proc.stderr.strip().count("\n") == 0 and "--max-points" in proc.stderr
 
 
+@pytest.mark.parametrize(
+    "scene, overrides, message",
+    [
+        (ROLLUP, ["loads.end.torque=[1.0, 0, 0]"], "discretisation.planar: continuation does"),
+        (ROOT / "scenes" / "free_ring.toml", [], "reference.closed: a closed rod has modes"),
+        (ROLLUP, ['supports.start="free"'], "supports: a static equilibrium needs the rod"),
+    ],
+)
+def test_a_refused_continuation_leaves_no_folder(tmp_path, scene, overrides, message):
+    """A scene that continuation cannot follow (the roll-up bent about e1, so solved in the
+    y-z plane by discretisation.planar = "auto"; a closed ring; the rod held at neither end)
+    is refused from the scene alone: exit 2, one line naming the key, and the --out folder
+    not made (before: made, locked, then refused when the path's model was built)."""
+    out = tmp_path / "out"
+    sets = [a for o in overrides for a in ("--set", o)]
+    proc = run_command(["-m", "cosserat_fem.cli", "continue", str(scene), *sets, "--out", str(out)])
+    assert proc.returncode == 2, proc.stderr
+    (line,) = proc.stderr.strip().splitlines()
+    assert message in line and "Traceback" not in proc.stderr
+    assert not out.exists()
+
+
 def test_a_finished_branch_is_not_restarted(tmp_path):
     """The roll-up (scenes/rollup.toml, its 40 P4 elements) traced to λ = 1 ends "p reached
     1"; ``continue --restart`` of it: exit 2, one line naming --restart and "already ended",
@@ -502,10 +524,13 @@ def test_killed_continuation_restarts_from_its_last_point(tmp_path):
     run's from its index 2 on (the three saved, 2-4, then the continued ones), equal exactly
     (the same floating-point operations on the same arrays: the argument of
     test_restart_equals_the_whole_branch), their ``tip`` the mid-span point's (the probe
-    survives the restart; the free end's differs by O(ℓ)). The restart writes branches.csv
-    with the branch's rows from its saved points on (those before were lost with the kill),
-    equal to the whole run's rows 2 on, and branch_0.xdmf with their frames, times 2, 3, ...;
-    restart.json's saved end stays one the arrays fit (the slots)."""
+    survives the restart; the free end's differs by O(ℓ)). The killed run's branches.csv
+    holds the branch's rows as they were accepted, the whole run's first 5 (the start and
+    the 4 told: before, no file, and the restart began it at the saved points, rows 0-1
+    lost), and restart.json names them; the restart appends the rest, so the file is the
+    whole run's byte for byte (the same rows computed in the same order); branch_0.xdmf
+    has the frames from the saved points on, times 2, 3, ...; restart.json's saved end
+    stays one the arrays fit (the slots)."""
     from xdmf_files import read_xdmf
 
     scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 1})
@@ -515,22 +540,81 @@ def test_killed_continuation_restarts_from_its_last_point(tmp_path):
     cut = tmp_path / "cut"
     with pytest.raises(Killed):
         cf.continuation(scene, 0.0, 1.0, max_points=40, out=cut, stop=kill_after(4), **options)
-    assert not (cut / "branches.csv").exists() and not (cut / "branch_0.xdmf").exists()
+    rows_w = (tmp_path / "whole" / "branches.csv").read_text().splitlines()
+    assert (cut / "branches.csv").read_text().splitlines() == rows_w[:6]
+    assert not (cut / "branch_0.xdmf").exists()
     record = json.loads((cut / "continuation" / "restart.json").read_text())
     assert record["branches"]["0"]["first_index"] == 2 and record["probe"] == half
+    assert record["branches"]["0"]["rows"] == 5
     second = cf.continuation(None, restart=cut)
     (w,) = whole.branches
     (b,) = second.branches
     assert w.reason == b.reason == "p reached 1" and len(w.points) > 6
     assert [q.factor for q in w.points[2:]] == [q.factor for q in b.points]
     assert all(np.array_equal(p.tip, q.tip) for p, q in zip(w.points[2:], b.points, strict=True))
-    rows = (cut / "branches.csv").read_text().splitlines()
-    rows_w = (tmp_path / "whole" / "branches.csv").read_text().splitlines()
-    assert rows[0] == rows_w[0] and rows[1:] == rows_w[3:]
+    assert (cut / "branches.csv").read_text() == (tmp_path / "whole" / "branches.csv").read_text()
     times, values = read_xdmf(cut / "branch_0.xdmf")["displacement"]
     times_w, values_w = read_xdmf(tmp_path / "whole" / "branch_0.xdmf")["displacement"]
     assert list(times) == list(range(2, len(w.points)))
     assert np.array_equal(values, values_w[2:])
+
+
+def test_a_killed_restart_keeps_its_rows(tmp_path):
+    """The roll-up of test_restart_equals_the_whole_branch cut at max_points = 5 (the branch
+    ended: its 5 rows), restarted with max_points = 40 and killed at the restart's 3rd
+    point: branches.csv holds the 5 rows and the 3 new ones, appended as they came (before:
+    none of them, the file was written as a restart ended); restarted again, the file is
+    the whole run's byte for byte (the restart cuts it to the rows restart.json names and
+    appends the rest; before, the rows between the first part's and the last saved points
+    were lost)."""
+    scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 1})
+    options = dict(step=0.05, max_step=0.3, switch=0, directions=(1,))
+    cf.continuation(scene, 0.0, 1.0, max_points=40, out=tmp_path / "whole", **options)
+    rows_w = (tmp_path / "whole" / "branches.csv").read_text().splitlines()
+    cut = tmp_path / "cut"
+    cf.continuation(scene, 0.0, 1.0, max_points=5, out=cut, **options)
+    assert (cut / "branches.csv").read_text().splitlines() == rows_w[:6]
+    with pytest.raises(Killed):
+        cf.continuation(None, max_points=40, restart=cut, stop=kill_after(3))
+    assert (cut / "branches.csv").read_text().splitlines() == rows_w[:9]
+    record = json.loads((cut / "continuation" / "restart.json").read_text())
+    assert record["branches"]["0"]["rows"] == 8
+    (b,) = cf.continuation(None, restart=cut).branches
+    assert b.reason == "p reached 1"
+    assert (cut / "branches.csv").read_text().splitlines() == rows_w
+
+
+def test_a_switch_s_second_direction_killed_restarts_itself(tmp_path):
+    """The column (8 P4 cells under P_E) on [0, 1.5], λ growing, switched at λ_cr: three
+    branches, the primary (10 points) and the switched one both ways (7 each), the switch's
+    two traced before either is ended. Killed at the 4th told point of the third branch:
+    restart.json has each branch's own end, the third's at its 5th point (before: a switch's
+    second direction saved its points as the first's, branch 1, so restart.json had no
+    branch 2 and the restart continued branch 1 from branch 2's points); the restart (the
+    last branch saved, 2) gives the whole run's branch 2 from its index 2 on, exactly (the
+    argument of test_restart_equals_the_whole_branch)."""
+    overrides = {
+        "loads.end": cf.UNSET,
+        "discretisation.elements": 8,
+        "loads.end.force": [0, 0, "-pi**2*EI/(4*L**2)"],
+    }
+    scene = cf.load(ROLLUP, overrides)
+    options = dict(step=0.05, max_step=0.2, directions=(1,), max_points=30)
+    told: list[float] = []
+    whole = cf.continuation(scene, 0.0, 1.5, stop=lambda q: told.append(q.factor), **options)
+    assert [len(b.points) for b in whole.branches] == [10, 7, 7]
+    assert len(told) == 18  # every point but each branch's start and end
+    cut = tmp_path / "cut"
+    with pytest.raises(Killed):
+        cf.continuation(scene, 0.0, 1.5, out=cut, stop=kill_after(17), **options)
+    ends = json.loads((cut / "continuation" / "restart.json").read_text())["branches"]
+    assert sorted(ends) == ["0", "1", "2"]
+    assert ends["2"]["first_index"] + len(ends["2"]["points"]) == 5
+    assert [q["p"] for q in ends["1"]["points"]] == [
+        q.factor for q in whole.branches[1].points[3:6]
+    ]
+    (b,) = cf.continuation(None, restart=cut).branches
+    assert [q.factor for q in b.points] == [q.factor for q in whole.branches[2].points[2:]]
 
 
 MPI_STOP_ERROR = """
@@ -614,11 +698,12 @@ def test_killed_restart_under_mpirun_equals_serial(tmp_path):
 
 def test_killed_on_the_second_branch_keeps_the_first(tmp_path):
     """The roll-up (4 elements, one turn) on [−1, 1], λ growing then falling, killed at the
-    4th point of the second branch: branches.csv and branches.json already hold the first
-    branch (written as it ended), and the restart (default: the last branch saved, 1) adds the
-    second's rows from its saved points on. The file is then the whole run's without the
-    second branch's first two rows (lost with the kill), byte for byte (the argument of
-    test_restart_equals_the_whole_branch), and branches.json has both branches' reasons."""
+    4th point of the second branch: branches.csv holds the first branch (written as it
+    ended) and the second's first 5 rows (its start and the 4 told, appended as they came),
+    branches.json the first; the restart (default: the last branch saved, 1) appends the
+    second's rows after its saved points. The file is then the whole run's, byte for byte
+    (the argument of test_restart_equals_the_whole_branch; before, the second branch's first
+    two rows were lost with the kill), and branches.json has both branches' reasons."""
     scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 1})
     options = dict(step=0.05, max_step=0.3, switch=0, directions=(1, -1))
     whole = cf.continuation(scene, -1.0, 1.0, max_points=40, out=tmp_path / "whole", **options)
@@ -630,11 +715,10 @@ def test_killed_on_the_second_branch_keeps_the_first(tmp_path):
         cf.continuation(scene, -1.0, 1.0, max_points=40, out=cut, stop=kill_after(calls), **options)
     rows_w = (tmp_path / "whole" / "branches.csv").read_text().splitlines()
     one = 1 + len(first.points)  # the header and the first branch's rows
-    assert (cut / "branches.csv").read_text().splitlines() == rows_w[:one]
+    assert (cut / "branches.csv").read_text().splitlines() == rows_w[: one + 5]
     (b,) = cf.continuation(None, restart=cut).branches
     assert [q.factor for q in b.points] == [q.factor for q in second.points[2:]]
-    rows = (cut / "branches.csv").read_text().splitlines()
-    assert rows == rows_w[:one] + rows_w[one + 2 :]
+    assert (cut / "branches.csv").read_text().splitlines() == rows_w
     reasons = json.loads((cut / "branches.json").read_text())
     assert [r["reason"] for r in reasons] == ["p reached 1", "p reached -1"]
 
@@ -644,9 +728,11 @@ def test_continue_killed_by_sigterm_restarts_from_its_last_point(tmp_path):
     """``continue`` killed by SIGTERM (not a Python exception: the process ends wherever it is,
     between the saved arrays and restart.json perhaps) once its saved end is at point 20 or
     later of the roll-up's branch (32 elements, two turns, steps of 0.02: 162 points), then
-    ``continue --restart``: its branches.csv is the uninterrupted run's header and rows from
-    the saved first index on, byte for byte (serial: the same operations on the same arrays,
-    test_restart_equals_the_whole_branch), whichever point the kill fell on."""
+    ``continue --restart``: its branches.csv is the uninterrupted run's, byte for byte
+    (serial: the same operations on the same arrays, test_restart_equals_the_whole_branch),
+    whichever point the kill fell on: the killed run's rows were appended as they came, the
+    restart cuts the file to those restart.json names (a row written after its saved end
+    goes) and appends the rest (before: the rows before the saved first index were lost)."""
     import signal
     import subprocess
 
@@ -676,15 +762,15 @@ def test_continue_killed_by_sigterm_restarts_from_its_last_point(tmp_path):
         killed.wait(timeout=60)
     finally:
         stop_tree(killed)
-    assert not (cut / "branches.csv").exists()
-    first = json.loads(index.read_text())["branches"]["0"]["first_index"]
-    assert first >= 20
+    end = json.loads(index.read_text())["branches"]["0"]
+    assert end["first_index"] >= 20 and end["rows"] == end["first_index"] + 3
+    assert len((cut / "branches.csv").read_text().splitlines()) - 1 >= end["rows"]
     proc = run_command([*base, "--restart", str(cut), "--quiet"])
     assert proc.returncode == 0, proc.stderr
     rows_w = (whole / "branches.csv").read_text().splitlines()
     rows = (cut / "branches.csv").read_text().splitlines()
     assert len(rows_w) == 163
-    assert rows == [rows_w[0], *rows_w[1 + first :]]
+    assert rows == rows_w
 
 
 # %% [markdown]

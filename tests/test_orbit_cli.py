@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -43,6 +44,13 @@ LINEAR = {
     "parameters.w1": 1302.92,
     "parameters.r": 1.03,
     "discretisation.elements": 4,
+}
+#: LINEAR marched by 20 fixed steps a forcing period T = 2π/(1.03 ω1), over 3 periods.
+MARCHED = {
+    **LINEAR,
+    "time.step": 2 * math.pi / (1.03 * 1302.92) / 20,
+    "time.end": 3 * 2 * math.pi / (1.03 * 1302.92),
+    "output.xdmf_interval": 0,
 }
 BRANCH = ["--period", PERIOD, "--parameter", "r", "--from", "1.03", "--to", "1.07"]
 STEPS = ["--steps-per-period", "20", "--step", "0.01", "--max-step", "0.02"]
@@ -72,6 +80,15 @@ def cli(*args: str):
 def rows(path) -> list[dict]:
     lines = path.read_text().splitlines()
     return [dict(zip(lines[0].split(","), ln.split(","), strict=True)) for ln in lines[1:]]
+
+
+def refused(proc, message: str, out) -> None:
+    """``proc`` refused as bad input: exit 2, one line on stderr holding ``message``, no
+    traceback, and its --out folder ``out`` not made."""
+    assert proc.returncode == 2, proc.stderr
+    (line,) = proc.stderr.strip().splitlines()
+    assert message in line and "Traceback" not in proc.stderr
+    assert not out.exists()
 
 
 def same_rows(folder, reference) -> list[dict]:
@@ -201,6 +218,42 @@ def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path):
     assert len(done.stderr.strip().splitlines()) == 1
 
 
+def test_the_branch_file_s_bytes_are_written_once_each(tmp_path, monkeypatch):
+    """orbit_branch.csv of :func:`api_branch`'s branch, cut at max_points 2 and restarted to
+    its end through ``cf.orbits``: the bytes written to it (every replace_on_root and
+    append_on_root of orbit_runs.py counted) are the file's size after each part, its rows
+    appended (before: the file rewritten whole after each point, Σ of its sizes: 1642
+    bytes for the 605 of the whole branch's 4 rows, quadratic in the rows); a restart writes
+    its kept rows once (cut to its record) and appends the rest. Its rows are the
+    uninterrupted branch's (:func:`same_rows`)."""
+    from cosserat_fem.analysis import orbit_runs
+
+    written: list[int] = []
+    for name in ("replace_on_root", "append_on_root"):
+        original = getattr(orbit_runs, name, None)
+        if original is None:
+            continue
+
+        def spy(path, data, *args, original=original, **kwargs):
+            if Path(path).name == "orbit_branch.csv":
+                written.append(len(data))
+            return original(path, data, *args, **kwargs)
+
+        monkeypatch.setattr(orbit_runs, name, spy)
+    (scene, *rest), options = api_branch()
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    cf.orbits(scene, *rest, out=whole, **options)
+    assert sum(written) == (whole / "orbit_branch.csv").stat().st_size
+    written.clear()
+    cf.orbits(scene, *rest, out=cut, max_points=2, **options)
+    assert sum(written) == (cut / "orbit_branch.csv").stat().st_size
+    assert len(rows(cut / "orbit_branch.csv")) == 2
+    written.clear()
+    cf.orbits(None, restart=cut, max_points=300)
+    assert sum(written) == (cut / "orbit_branch.csv").stat().st_size
+    same_rows(cut, whole)
+
+
 def test_the_progress_is_told_each_orbit(tmp_path):
     """``cf.orbits``' progress(points, p, amplitude) is called once per point of the branch,
     in order (as it grows: the start and each accepted point; at its end the step beyond
@@ -277,6 +330,10 @@ def test_one_orbit_and_its_multipliers(tmp_path):
         ),
         (["--period", PERIOD, "--settle", "1000000000"], "--settle, --steps-per-period: "),
         (["--period", PERIOD, "--steps-per-period", "0"], "(--steps-per-period): must be"),
+        (  # 2000 cubic cells: 36006 unknowns, 58 GiB of dense columns (periodic.py's bound 2)
+            [*BRANCH, "--set", "discretisation.elements=2000"],
+            "discretisation.elements: the monodromy matrix of 36006 dofs needs 58.0 GiB",
+        ),
     ],
 )
 def test_bad_orbit_requests_are_one_line(tmp_path, arguments, message):
@@ -285,11 +342,7 @@ def test_bad_orbit_requests_are_one_line(tmp_path, arguments, message):
     scene's limits.wall_time by budget.py's lower bound of its settle + 1 periods is one
     (before, it ran until killed: orbits has no stop at the wall time)."""
     out = tmp_path / "out"
-    proc = cli("orbits", str(PAPER), *sets(LINEAR), *arguments, "--out", str(out))
-    assert proc.returncode == 2, proc.stderr
-    (line,) = proc.stderr.strip().splitlines()
-    assert message in line and "Traceback" not in proc.stderr
-    assert not out.exists()
+    refused(cli("orbits", str(PAPER), *sets(LINEAR), *arguments, "--out", str(out)), message, out)
 
 
 @pytest.mark.parametrize(
@@ -311,6 +364,69 @@ def test_bad_lyapunov_requests_make_no_folder(tmp_path, arguments, message):
     assert proc.returncode == 2, proc.stderr
     (line,) = proc.stderr.strip().splitlines()
     assert message in line and not out.exists()
+
+
+@pytest.mark.parametrize(
+    "scene, overrides, message",
+    [
+        (ROOT / "scenes" / "free_ring.toml", {}, "reference.closed: a closed rod has modes"),
+        (  # 20 steps a period, 3 periods: above 1 µs by the budget's lower bound (budget.py)
+            PAPER,
+            {**MARCHED, "limits.wall_time": 1e-6},
+            "time.step: the run needs",
+        ),
+    ],
+)
+def test_a_refused_lyapunov_run_makes_no_folder(tmp_path, scene, overrides, message):
+    """A closed ring, and a run beyond the scene's limits.wall_time by budget.py's lower
+    bound, are refused before the --out folder is made: exit 2, one line naming the key, no
+    folder (before: both were refused after it was made, the budget's with a lock file and
+    an empty folder left behind)."""
+    out = tmp_path / "out"
+    period = ["--period", PERIOD] if scene == PAPER else ["--period", "0.1"]
+    proc = cli(
+        "lyapunov", str(scene), *sets(overrides), *period, "--periods", "3", "--out", str(out)
+    )
+    refused(proc, message, out)
+
+
+@pytest.mark.parametrize(
+    "command",
+    [
+        ["continue", str(ROOT / "scenes" / "rollup.toml")],
+        ["orbits", str(PAPER), *sets(LINEAR), *BRANCH, *STEPS],
+        ["lyapunov", str(PAPER), *sets(MARCHED), "--period", PERIOD, "--periods", "1"],
+    ],
+    ids=["continue", "orbits", "lyapunov"],
+)
+def test_a_held_folder_is_refused_naming_the_option_given(tmp_path, command):
+    """Each command into a folder another writer holds (its lock taken here): exit 2, one
+    line naming the option that named the folder: ``--out`` when it was given (before:
+    output.directory, which the user had not set), output.directory when the folder is the
+    scene's default (``--set output.directory`` gave it; the command's own folder beneath),
+    and the holder's lock and folder left as they were."""
+    from cosserat_fem.io.folder_lock import LOCK, FolderLock
+
+    folder = tmp_path / "held"
+    default = {"continue": "continuation", "orbits": "orbits", "lyapunov": "lyapunov"}
+    own = tmp_path / "scene_out" / default[command[0]]
+    for path in (folder, own):
+        path.mkdir(parents=True)
+    locks = [FolderLock.take(folder, "run"), FolderLock.take(own, "run")]
+    try:
+        proc = cli(*command, "--out", str(folder))
+        assert proc.returncode == 2, proc.stderr
+        (line,) = proc.stderr.strip().splitlines()
+        assert line.startswith(f"cosserat-fem: error: --out: {str(folder)!r} is in use by")
+        scene_out = json.dumps(str(tmp_path / "scene_out"))
+        proc = cli(*command, "--set", f"output.directory={scene_out}")
+        assert proc.returncode == 2, proc.stderr
+        (line,) = proc.stderr.strip().splitlines()
+        assert line.startswith(f"cosserat-fem: error: output.directory: {str(own)!r} is in use")
+        assert sorted(p.name for p in folder.iterdir()) == [LOCK]
+    finally:
+        for lock in locks:
+            lock.release()
 
 
 def test_a_damaged_restart_folder_is_refused_in_one_line(tmp_path):
@@ -435,12 +551,18 @@ class TestLyapunov:
     def test_the_scene_s_limits_refuse_or_stop_it(self, case, tmp_path):
         """limits.wall_time of 1 ms, below the budget's lower bound of the run's time
         (cosserat_fem/analysis/budget.py: 0.009 s for its 240 steps): refused before any work,
-        exit 2, one line naming time.step. Of 20 ms, above that bound but far below the
-        run's (its set-up alone takes longer): stopped at the first look at the clock (64
-        steps), exit 4, one line naming limits.wall_time (not advising run --restart, which
-        a Lyapunov run does not have), and summary.json saying so; ``plot`` of that folder
-        one line saying lyapunov.csv was not written and why."""
-        _, _, _, overrides, T = case
+        exit 2, one line naming time.step, no folder. Of 20 ms, above that bound but far below
+        the run's (its set-up alone takes longer): stopped at the first look at the clock (64
+        steps of the reference trajectory), exit 4, one line naming limits.wall_time (not
+        advising run --restart, which a Lyapunov run does not have), and what it computed
+        kept (before: the stretches were lost): the 64 // 40 = 1 interval done in
+        lyapunov.csv, its stretch the uninterrupted run's first (the same trajectories from
+        the same perturbation) within the solver's noise (as in the test above: steps ×
+        stol × RMS(U) / d0), its running exponent s_1 / T (discard 0, lyapunov.py), and
+        summary.json "stopped", the reason, 1 interval and that exponent; ``plot`` draws it."""
+        from test_chaos import STOL
+
+        _, _, result, overrides, T = case
         common = ["--period", repr(T), "--periods", str(self.PERIODS)]
         refused = cli(
             "lyapunov",
@@ -452,23 +574,105 @@ class TestLyapunov:
         )
         assert refused.returncode == 2 and "time.step: the run needs" in refused.stderr
         assert len(refused.stderr.strip().splitlines()) == 1
-        assert not (tmp_path / "refused" / "summary.json").exists()
+        assert not (tmp_path / "refused").exists()
+        stopped = tmp_path / "stopped"
         proc = cli(
             "lyapunov",
             str(PAPER),
             *sets({**overrides, "limits.wall_time": 0.02}),
             *common,
             "--out",
-            str(tmp_path / "stopped"),
+            str(stopped),
         )
         assert proc.returncode == 4, proc.stderr
         assert "limits.wall_time" in proc.stderr and len(proc.stderr.strip().splitlines()) == 1
         assert "run --restart" not in proc.stderr and "has no restart" in proc.stderr
-        summary = json.loads((tmp_path / "stopped" / "summary.json").read_text())
+        summary = json.loads((stopped / "summary.json").read_text())
         assert summary["status"] == "stopped" and "limits.wall_time" in summary["reason"]
-        plot = cli("plot", str(tmp_path / "stopped"))  # no lyapunov.csv: says why, not "a run"
-        assert plot.returncode == 2 and len(plot.stderr.strip().splitlines()) == 1
-        assert "lyapunov.csv' was not written: the Lyapunov run stopped (limits" in plot.stderr
+        (row,) = rows(stopped / "lyapunov.csv")
+        noise = self.STEPS * STOL * result.poincare[:, -1].max() / result.perturbation
+        assert abs(float(row["stretch"]) - result.stretches[0]) <= noise
+        assert float(row["running_exponent"]) == pytest.approx(float(row["stretch"]) / T, 1e-14)
+        assert summary["intervals"] == 1 and summary["discard"] == 0
+        assert summary["exponent"] == float(row["running_exponent"])
+        plot = cli("plot", str(stopped))
+        assert plot.returncode == 0, plot.stderr
+        assert (stopped / "lyapunov.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    def test_an_interrupted_run_keeps_its_intervals(self, case, tmp_path):
+        """A KeyboardInterrupt (Ctrl-C, or SIGTERM by cli.py) at the reference's 100th step,
+        within the third interval of 40 steps: raised, and the 2 intervals done kept (before:
+        lost): lyapunov.csv's 2 stretches the uninterrupted run's within the solver's noise,
+        summary.json "stopped", "interrupted", 2 intervals, its exponent their mean over T
+        (discard 0) to round-off."""
+        from test_chaos import STOL
+
+        from cosserat_fem.timestepping.events import Observer
+
+        _, _, result, overrides, T = case
+
+        class Interrupt(Observer):
+            steps = 0
+
+            def step_finished(self, loop) -> None:
+                self.steps += 1
+                if self.steps == 100:
+                    raise KeyboardInterrupt
+
+        out = tmp_path / "interrupted"
+        scene = cf.load(PAPER, overrides)
+        with pytest.raises(KeyboardInterrupt):
+            cf.lyapunov_run(scene, T, periods=self.PERIODS, out=out, observers=[Interrupt()])
+        table = rows(out / "lyapunov.csv")
+        assert len(table) == 2
+        noise = self.STEPS * STOL * result.poincare[:, -1].max() / result.perturbation
+        stretches = [float(r["stretch"]) for r in table]
+        assert np.all(np.abs(np.array(stretches) - result.stretches[:2]) <= noise)
+        summary = json.loads((out / "summary.json").read_text())
+        assert summary["status"] == "stopped" and "interrupted" in summary["reason"]
+        assert summary["intervals"] == 2
+        assert summary["exponent"] == pytest.approx(sum(stretches) / (2 * T), rel=1e-14)
+
+    def test_a_run_killed_by_sigterm_keeps_its_intervals(self, case, tmp_path):
+        """``lyapunov`` of 20000 periods (about a minute here) ended by SIGTERM (the process
+        ends where it is: no handler, and Open MPI's mpirun sends it to every rank) once
+        lyapunov.csv has 3 rows: the rows of the intervals done are there, fewer than the
+        run's (appended as each ends; before, the file was written at the end only, so
+        none), the first two stretches the uninterrupted
+        run's within the solver's noise (steps × stol × RMS(U) / d0, as above) and each
+        running exponent Σ s_j / (n T) (discard 0) to round-off."""
+        import signal
+        import subprocess
+        import time
+
+        from conftest import PYTHON, stop_tree, subprocess_env
+        from test_chaos import STOL
+
+        _, _, result, overrides, T = case
+        out = tmp_path / "killed"
+        command = ["-m", "cosserat_fem.cli", "lyapunov", str(PAPER), *sets(overrides)]
+        command += ["--period", repr(T), "--periods", "20000", "--out", str(out)]
+        killed = subprocess.Popen([PYTHON, *command], cwd=ROOT, env=subprocess_env())
+        try:
+            deadline = time.monotonic() + 120
+            table: list[dict] = []
+            while len(table) < 3 and killed.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.05)
+                if (out / "lyapunov.csv").exists():
+                    table = rows(out / "lyapunov.csv")
+            assert killed.poll() is None, "the run ended before it could be killed"
+            killed.send_signal(signal.SIGTERM)
+            assert killed.wait(timeout=60) == -signal.SIGTERM
+        finally:
+            stop_tree(killed)
+        table = rows(out / "lyapunov.csv")
+        assert 3 <= len(table) < 20000
+        stretches = np.array([float(r["stretch"]) for r in table])
+        noise = self.STEPS * STOL * result.poincare[:, -1].max() / result.perturbation
+        assert np.all(np.abs(stretches[:2] - result.stretches[:2]) <= noise)
+        running = np.cumsum(stretches) / (np.arange(1, stretches.size + 1) * T)
+        got = np.array([float(r["running_exponent"]) for r in table])
+        assert np.allclose(got, running, rtol=1e-12, atol=0)
 
     def test_a_failed_run_says_why_in_summary_json(self, case, tmp_path):
         """solver.max_iterations = 1: the first step's Newton fails (exit 3, one line with the

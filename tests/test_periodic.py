@@ -166,8 +166,15 @@ def test_three_orbits_inside_the_multivalued_band():
 
 
 MPI_ORBIT = """
+import sys
 import cosserat_fem as cf
+from cosserat_fem.analysis import periodic
 from mpi4py import MPI
+if sys.argv[1:] == ["petsc"]:  # the variational stages by MUMPS, not gathered
+    periodic.GATHERED_DOFS = 0
+gathers = []
+csr = periodic._csr
+periodic._csr = lambda A: gathers.append(1) or csr(A)
 scene = cf.load({paper!r}, {{"supports.end": "clamped", "damping.translational": 170.74,
     "loads.force_density": ["F*sin(pi*s/L)*sin(r*w1*t)", 0, 0], "parameters.F": 5915.8,
     "parameters.w1": 1302.92, "parameters.r": 1.07, "output.xdmf": False,
@@ -176,6 +183,7 @@ orbit = cf.periodic_orbit(scene, "2*pi/(r*w1)", steps_per_period=100, settle=2)
 if MPI.COMM_WORLD.rank == 0:
     print(f"QOI amplitude = {{orbit.amplitude!r}}")
     print(f"QOI stable = {{float(orbit.stable)!r}}")
+    print(f"QOI gathered = {{float(bool(gathers))!r}}")
     for k, m in enumerate(orbit.multipliers[:6]):
         print(f"QOI mu{{k}}_re = {{m.real!r}}")
         print(f"QOI mu{{k}}_im = {{m.imag!r}}")
@@ -185,20 +193,27 @@ if MPI.COMM_WORLD.rank == 0:
 @pytest.mark.long
 def test_periodic_orbit_serial_equals_mpirun():
     """cf.periodic_orbit (two settled periods from rest, then shooting; N = 100) on one rank
-    and on two: the same orbit's amplitude and six largest multipliers. The operations differ
-    in the LU (PETSc's own serially, MUMPS under mpirun) and the order of the reductions:
-    round-off, amplified by the Newton solves' tolerance (stol 1e-11), not by the result;
-    within 1e-9 relative (measured 1e-13)."""
+    and on two, there with the variational stages gathered on every rank (periodic.py,
+    "MPI": this 8-element rod's 150 unknowns are below GATHERED_DOFS) and by MUMPS: the same
+    orbit's amplitude and six largest multipliers. The operations differ in the LU (PETSc's
+    own serially, SuperLU gathered, MUMPS) and the order of the reductions: round-off,
+    amplified by the Newton solves' tolerance (stol 1e-11), not by the result; within 1e-9
+    relative (measured 1e-13)."""
     code = MPI_ORBIT.format(paper=str(PAPER))
     qoi = {}
-    for ranks in (1, 2):
-        proc = run_command(["-c", code], ranks)
+    for ranks, variant in ((1, []), (2, []), (2, ["petsc"])):
+        proc = run_command(["-c", code, *variant], ranks)
         assert proc.returncode == 0, proc.stdout + proc.stderr
-        qoi[ranks] = parse_qoi(proc.stdout)
-    assert qoi[1]["stable"] == 1.0 and len(qoi[1]) == 14
-    assert qoi[1].keys() == qoi[2].keys()
-    for key, value in qoi[1].items():
-        assert qoi[2][key] == pytest.approx(value, rel=1e-9, abs=1e-12), key
+        qoi[ranks, tuple(variant)] = parse_qoi(proc.stdout)
+    serial = qoi[1, ()]
+    assert serial["stable"] == 1.0 and len(serial) == 15
+    assert serial["gathered"] == 0.0 == qoi[2, ("petsc",)]["gathered"]
+    assert qoi[2, ()]["gathered"] == 1.0
+    for parallel in (qoi[2, ()], qoi[2, ("petsc",)]):
+        assert parallel.keys() == serial.keys()
+        for key, value in serial.items():
+            if key != "gathered":
+                assert parallel[key] == pytest.approx(value, rel=1e-9, abs=1e-12), key
 
 
 @pytest.mark.long

@@ -10,6 +10,12 @@ goes, besides branches.csv (issue 27 item 5).
   solution.xdmf), so ParaView's "Warp By Vector" draws each state of the branch. Not with
   the scene's ``output.xdmf = false``.
 * ``continuation/``: each branch's end, for a restart (cosserat_fem/analysis/path_restart.py).
+* ``branches.csv`` (paths.py's columns): with restart data, the rows of the branch being
+  traced are appended as its points are accepted (:meth:`BranchOutputs.write_rows`), so a
+  continuation killed mid-branch keeps every row up to its last point, and each saved end
+  names the file's rows through it (restart.json's ``rows``, which a restart cuts the file
+  back to); as each branch ends the caller rewrites the file whole from its result (the
+  special points' rows after the branch's points), and a restart appends the new ones.
 * ``branches.json``: per branch its origin, why it ended (a bound of the range, max_points,
   ``stop``'s reason, or a step collapse with the corrector's failure), its steps and
   rejected steps (:func:`write_branch_reasons`). A branch that cannot go on still has every
@@ -30,6 +36,8 @@ from cosserat_fem.analysis.path_restart import branch_end, save_branch_state
 from cosserat_fem.common.parallel import from_root
 from cosserat_fem.nls.arclength import Branch, Point
 
+#: The continuation's table (paths.py's columns)
+BRANCHES_CSV = "branches.csv"
 #: progress(branch index, points so far on it, λ of the last)
 Progress = Callable[[int, int, float], None]
 
@@ -63,6 +71,17 @@ class BranchOutputs:
         #: ``finished(result)`` after each branch is added to the result (the caller's:
         #: branches.csv and branches.json of the branches so far), or None
         self.finished: Callable[[object], None] | None = None
+        #: branches.csv's data rows now (with ``record``: :meth:`write_rows`)
+        self.file_rows = 0
+        #: whether branches.csv is there (else the first rows come with its header)
+        self.csv_made = False
+        #: the branches begun and not yet ended, in the order they began (a switch traces
+        #: both directions before the caller ends either); the rows written are the first's
+        self._open: list[Branch] = []
+        self._done = 0  # the first open branch's points whose rows were handled
+        self._ended_rows = 0  # the rows of the branches ended (points and special points)
+        #: the first open branch's first points whose rows are in the file (a restart's)
+        self.skip = 0
 
     def save(self, branch: Branch, comm: MPI.Comm, final: bool = False) -> None:
         """The restart data of ``branch`` as it is now (its last points): its arrays into the
@@ -71,13 +90,67 @@ class BranchOutputs:
         (``final``) without ``record``."""
         if self.folder is None or (self.record is None and not final):
             return
-        index = self._branch if self.resumed is None else self.resumed[0]
+        index = self._index(branch)
         slot = 1 - self.slots.get(index, 1)
         save_branch_state(self.folder, index, branch, comm, slot)
         self.slots[index] = slot
         self.ends[index] = branch_end(branch, slot)
         if self.record is not None:
+            if self._writing(branch):  # branches.csv's rows through its end
+                self.ends[index]["rows"] = self.file_rows
             self.record(self.ends)
+
+    def _index(self, branch: Branch) -> int:
+        """``branch``'s index: a restart's, or the next after the branches ended in the
+        order the open ones began (a branch seen first here is opened)."""
+        if self.resumed is not None:
+            return self.resumed[0]
+        for k, open_branch in enumerate(self._open):
+            if open_branch is branch:
+                return self._branch + k
+        self._open.append(branch)
+        return self._branch + len(self._open) - 1
+
+    def _writing(self, branch: Branch) -> bool:
+        """Whether ``branch``'s rows go to branches.csv as it grows: a restart's, or the
+        first open branch (whose rows follow those of the branches ended); a switch's
+        second direction gets its rows when the caller ends it (before, a kill loses them)."""
+        return self.resumed is not None or (bool(self._open) and self._open[0] is branch)
+
+    def write_rows(self, problem, branch: Branch) -> None:
+        """branches.csv's rows of ``branch``'s points not yet handled, appended (the file made
+        with its header first if it is not there): their (x, y, z, θ, ψ, φ) computed in
+        order along the branch from its first point, as paths.py's rows of a branch are (the
+        angles continued from point to point), the :attr:`skip` first ones only computed.
+        The chart of the engine's current point is kept. Nothing without ``record`` (no
+        restart data). Collective."""
+        if self.folder is None or self.record is None:
+            return
+        from cosserat_fem.analysis.paths import BRANCH_COLUMNS, _path_point, csv_lines
+
+        index = self._index(branch)
+        if not self._writing(branch):
+            return
+        if self._done == 0:
+            problem.probe.angles.last = None  # continued along this branch from its start
+        chart = problem.chart
+        rows = []
+        for i in range(self._done, len(branch.points)):
+            point = _path_point(problem, branch.points[i])
+            if i >= self.skip:
+                rows.append(point.as_row(index))
+        problem.use_chart(chart)
+        self._done = len(branch.points)
+        if not rows:
+            return
+        text = "".join(line + "\n" for line in csv_lines(rows))
+        if self.csv_made:
+            append_on_root(self.folder / BRANCHES_CSV, text.encode(), problem.comm)
+        else:
+            header = ",".join(BRANCH_COLUMNS) + "\n"
+            replace_on_root(self.folder / BRANCHES_CSV, (header + text).encode(), problem.comm)
+            self.csv_made = True
+        self.file_rows += len(rows)
 
     def point(self, point: Point) -> None:
         self._points += 1
@@ -93,10 +166,27 @@ class BranchOutputs:
             self._branch += 1
             self._points = 1
             return
+        if self.resumed is None and not any(b is branch for b in self._open):
+            self._open.insert(0, branch)  # told of no point: it is the next branch
+            self._done = 0
+        elif self.resumed is None and self._open[0] is not branch:  # not expected
+            self._open.remove(branch)
+            self._open.insert(0, branch)
+            self._done = 0
+        self.write_rows(problem, branch)  # the points the engine did not tell (a bound's)
         self.save(branch, problem.comm, final=True)
-        index = self._branch if self.resumed is None else self.resumed[0]
+        index = self._index(branch)
         self._branch += 1
         self._points = 1
+        if self.resumed is None:
+            self._open.pop(0)
+            # the caller rewrites the file whole next (finished): the branches ended, their
+            # points' and special points' rows
+            self._ended_rows += len(branch.points) + len(branch.special)
+            self.file_rows = self._ended_rows
+        else:  # the restart appends the special points' rows next
+            self.file_rows += len(branch.special)
+        self._done = self.skip = 0
         if not problem.scene.output.xdmf:
             return
         path = self.folder / f"branch_{index}.xdmf"
@@ -121,14 +211,41 @@ class BranchOutputs:
 def replace_on_root(path: str | Path, data: bytes, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
     """``data`` into the file ``path`` by rank 0 (safe_files.replace: whole or not at all); the
     ranks agree on a failure (an OutputError naming the path)."""
+    from cosserat_fem.common.safe_files import replace
+
+    _on_root(path, lambda: replace(path, data), comm)
+
+
+def append_on_root(path: str | Path, data: bytes, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    """``data`` appended to the existing file ``path`` by rank 0 (safe_files.open_append: the
+    folder's own file, never written through a link), so a table that grows a row at a time
+    costs its new rows, not its whole; the ranks agree on a failure (an OutputError naming
+    the path). A failure midway may leave part of ``data``: a reader cuts the file to the
+    rows its record names (orbit_runs.py, path_restart.py)."""
+    import os
+
+    from cosserat_fem.common.safe_files import open_append, write_all
+
+    def append() -> None:
+        fd = open_append(path)
+        try:
+            write_all(fd, data)
+        finally:
+            os.close(fd)
+
+    _on_root(path, append, comm)
+
+
+def _on_root(path: str | Path, write: Callable[[], None], comm: MPI.Comm) -> None:
+    """``write()`` on rank 0, the ranks agreeing on its failure (an OutputError naming
+    ``path``)."""
     from cosserat_fem.common.errors import CosseratError, OutputError
     from cosserat_fem.common.parallel import agree
-    from cosserat_fem.common.safe_files import replace
 
     problem = None
     if comm.rank == 0:
         try:
-            replace(path, data)
+            write()
         except CosseratError as exc:
             problem = exc
         except OSError as exc:

@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -112,7 +113,9 @@ def _whole(value, name: str, low: int) -> int:
 def check_request(
     scene: Scene, period, periods, every, discard, perturbation
 ) -> tuple[int, int, float]:
-    """The request checked before any work: (intervals, steps an interval, d0)."""
+    """The request checked before any work (a closed rod refused too): (intervals, steps an
+    interval, d0)."""
+    refuse_closed(scene, "lyapunov")
     if isinstance(period, bool) or not isinstance(period, int | float) or not period > 0.0:
         raise SceneError(f"period: must be the forcing period, a positive time [s], got {period!r}")
     if not math.isfinite(period):
@@ -150,8 +153,17 @@ class _Benettin:
     trajectories in one TimeLoop, interval by interval; the reference's events go to
     ``events`` (the section, the caller's observers), the perturbed one's to none."""
 
-    def __init__(self, loop: TimeLoop, intervals: int, steps: int, d0: float, seed: int):
+    def __init__(
+        self,
+        loop: TimeLoop,
+        intervals: int,
+        steps: int,
+        d0: float,
+        seed: int,
+        told: Callable[[float, float], None] | None = None,
+    ):
         self.loop, self.intervals, self.steps, self.d0, self.seed = loop, intervals, steps, d0, seed
+        self.told = told  # told(t, stretch) after each interval
         self.events, self.solver = loop.events, loop.solver
         self.model, self.integrator = loop.model, loop.integrator
         self.quiet = Events([])
@@ -269,6 +281,8 @@ class _Benettin:
                 )
             self.stretches.append(math.log(d / self.d0))
             self.times.append(loop.state.t)
+            if self.told is not None:
+                self.told(self.times[-1], self.stretches[-1])
             perturbed = self.rescaled(reference, perturbed, self.d0 / d)
         loop.events = self.events
         loop.load_state_dict(reference)  # the observers end on the reference's last state
@@ -288,6 +302,8 @@ def largest_exponent(
     out: str | Path | None = None,
     initial_state: np.ndarray | None = None,
     comm: MPI.Comm = MPI.COMM_WORLD,
+    stopped: Callable[[LyapunovResult, BaseException], None] | None = None,
+    interval: Callable[[float, float], None] | None = None,
 ) -> LyapunovResult:
     """The largest Lyapunov exponent of the scene forced with period ``period`` T [s] over
     ``periods`` periods from time.start, and the Poincaré section at the forcing's phase
@@ -295,9 +311,12 @@ def largest_exponent(
     renormalisations; ``discard``: intervals left out of the average; ``perturbation`` d0;
     ``seed``: its direction's; ``observers``: the reference trajectory's; with ``out``,
     poincare.csv there; ``initial_state``: the reference's start, as ``cf.run``'s (e.g. a
-    static solution: a buckled beam in one of its wells). Bad input: a SceneError naming the
-    argument or key, before any work."""
-    refuse_closed(scene, "lyapunov")
+    static solution: a buckled beam in one of its wells); ``stopped(result so far, why)``
+    when the run stops early (a CosseratError: limits.wall_time, a failed solve; or
+    KeyboardInterrupt: Ctrl-C, SIGTERM), before that is raised: the intervals done, their
+    stretches and the running estimate (NaN if none was averaged), so that nothing computed
+    is lost; ``interval(t [s], stretch)`` after each interval (every rank). Bad input: a
+    SceneError naming the argument or key, before any work."""
     intervals, steps, d0 = check_request(scene, period, periods, every, discard, perturbation)
     observers = [as_observer(o) for o in observers]
     initial_state = _initial_array(initial_state, comm)
@@ -316,24 +335,36 @@ def largest_exponent(
     model, integrator, solver = _discretise(scene, comm, initial_state, None)
     chain: list[Observer] = [section, *observers]
     loop = TimeLoop(model, integrator, solver, scene.time, Events(chain))
-    source = _Benettin(loop, intervals, steps, d0, seed)
-    failure = drive(source)
+    source = _Benettin(loop, intervals, steps, d0, seed, interval)
+
+    def result() -> LyapunovResult:
+        """What the intervals run so far give (all of them once the run ended)."""
+        stretches = np.array(source.stretches)
+        running = running_estimate(stretches, every * period, discard)
+        rows = section.rows  # set when the run ended (drive ends it, stopped or not)
+        assert rows is not None, "set when the run ended"
+        return LyapunovResult(
+            exponent=float(running[-1]) if running.size else math.nan,
+            times=np.array(source.times),
+            stretches=stretches,
+            running=running,
+            poincare=rows,
+            columns=section.columns,
+            perturbation=d0,
+            period=float(period),
+            every=every,
+            discard=discard,
+            files=[path] if path is not None else [],
+        )
+
+    try:
+        failure = drive(source)
+    except KeyboardInterrupt as exc:  # Ctrl-C, or SIGTERM (cli.py): every rank alike
+        if stopped is not None:
+            stopped(result(), exc)
+        raise
     if failure:
+        if stopped is not None:
+            stopped(result(), failure)
         raise failure
-    stretches = np.array(source.stretches)
-    interval = every * period
-    running = running_estimate(stretches, interval, discard)
-    assert section.rows is not None, "set when the run ended"
-    return LyapunovResult(
-        exponent=float(running[-1]) if running.size else math.nan,
-        times=np.array(source.times),
-        stretches=stretches,
-        running=running,
-        poincare=section.rows,
-        columns=section.columns,
-        perturbation=d0,
-        period=float(period),
-        every=every,
-        discard=discard,
-        files=[path] if path is not None else [],
-    )
+    return result()

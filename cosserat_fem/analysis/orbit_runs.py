@@ -6,8 +6,9 @@ they go (issue 27 item 5), around the algorithms of cosserat_fem/analysis/period
 killed run keeps every point found up to its last:
 
 * ``orbit_branch.csv``: periodic.py's ``ORBIT_COLUMNS``, one row per point in the order
-  traced (rewritten after each), then one per located special point (its ``point`` column
-  the kind: "limit" for a fold, or any kind the tracer gives, "period-doubling", "torus").
+  traced (appended after each; a restart first cuts the file to its record's rows), then
+  one per located special point (its ``point`` column the kind: "limit" for a fold, or any
+  kind the tracer gives, "period-doubling", "torus").
 * ``orbit_branch.xdmf`` (+ its HDF5 frames): the rod's state at t0 of each orbit, one frame a
   point, the frame's "time" the point's index along the branch (not p, which turns back at
   a fold); the arrays are the scene's ``output.fields`` (as a continuation's branch_<i>.xdmf,
@@ -31,10 +32,15 @@ killed run keeps every point found up to its last:
 
 **A Lyapunov run's folder** (:func:`lyapunov_run`): ``poincare.csv`` (lyapunov.py),
 ``lyapunov.csv`` (per renormalisation interval: its end time [s], the stretch ln(d/d0), the
-running exponent [1/s], empty while discarded) and ``summary.json`` (the exponent). The run
-is refused before any work if its time-marching cost exceeds the scene's limits
-(cosserat_fem/analysis/budget.py, as a run of ``periods`` periods), and stopped at
-``limits.wall_time`` (observers.py ``DeadlineObserver``; summary.json then says so).
+running exponent [1/s], empty while discarded; appended as each interval ends, so a run
+killed by SIGTERM or SIGKILL keeps them) and ``summary.json`` (the exponent). The run
+is refused before any work (and before its folder is made) if its time-marching cost exceeds
+the scene's limits (cosserat_fem/analysis/budget.py, as a run of ``periods`` periods), and
+stopped at ``limits.wall_time`` (observers.py ``DeadlineObserver``). A run that stops (the
+wall time, a failed solve, Ctrl-C or SIGTERM) keeps what it computed: poincare.csv so far,
+lyapunov.csv of the intervals done (not written if none was), and summary.json with its
+status ("stopped" or "failed"), the reason, the intervals done and the exponent they give
+(null if none was averaged).
 
 Both lock their folder (io/folder_lock.py). Collective: every rank calls them.
 """
@@ -51,7 +57,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from cosserat_fem.analysis.branch_outputs import replace_on_root
+from cosserat_fem.analysis.branch_outputs import append_on_root, replace_on_root
 from cosserat_fem.analysis.path_restart import FOLDER, KEPT, load_branch, save_branch_state
 from cosserat_fem.analysis.periodic import ORBIT_COLUMNS, OrbitBranch, OrbitPoint, orbit_point
 from cosserat_fem.analysis.progress import StatusLine
@@ -183,6 +189,9 @@ class _Recorder:
         self.deadline = None if clock is None or not wall else clock + wall
         self.record = record  # orbits.json's content, updated
         self.lines = lines  # orbit_branch.csv's lines (header first)
+        #: the first of ``lines`` not yet in the file; 0: the file is written whole at the
+        #: next flush (a new branch, or a restart's file cut back to its record's rows)
+        self.written = 0
         self.kept: list[tuple[Point, float, np.ndarray]] = []
         self.told = 0  # points told in this part
         self.writer = None
@@ -249,12 +258,25 @@ class _Recorder:
             step = min(step * min(factor, settings["max_grow"]), settings["max_step"])
         return step
 
-    def _save(self) -> None:
-        """orbit_branch.csv, then the restart data (its ``rows`` and ``frames`` name what was
-        written: a kill between the two leaves a row that a restart drops)."""
+    def _flush(self) -> None:
+        """orbit_branch.csv: the lines not yet written appended (the file is written whole
+        once a part, at its first flush: :attr:`written`), so a branch of n points costs
+        O(n) bytes written, not O(n²)."""
         assert self.folder is not None
         comm = self.shooting.comm
-        replace_on_root(self.folder / ORBIT_CSV, ("\n".join(self.lines) + "\n").encode(), comm)
+        text = "".join(line + "\n" for line in self.lines[self.written :])
+        if self.written:
+            append_on_root(self.folder / ORBIT_CSV, text.encode(), comm)
+        else:
+            replace_on_root(self.folder / ORBIT_CSV, text.encode(), comm)
+        self.written = len(self.lines)
+
+    def _save(self) -> None:
+        """orbit_branch.csv's new rows, then the restart data (its ``rows`` and ``frames``
+        name what was written: a kill between the two leaves a row that a restart drops)."""
+        assert self.folder is not None
+        comm = self.shooting.comm
+        self._flush()
         points = [k for k, _, _ in self.kept]
         branch = Branch(
             points=points,
@@ -315,7 +337,7 @@ class _Recorder:
         }
         if self.folder is not None:
             comm = self.shooting.comm
-            replace_on_root(self.folder / ORBIT_CSV, ("\n".join(self.lines) + "\n").encode(), comm)
+            self._flush()
             if self.kept:  # a restart's data: there is a point to go on from
                 replace_on_root(
                     self.folder / FOLDER / RECORD, (json.dumps(record) + "\n").encode(), comm
@@ -473,6 +495,73 @@ def resume_orbit_branch(
 # -- the largest Lyapunov exponent ------------------------------------------------------------
 
 
+def lyapunov_budget(
+    scene, period: float, periods, out_dir: Path | None, comm: MPI.Comm = MPI.COMM_WORLD
+) -> None:
+    """SceneError (on every rank) if time-marching ``periods`` periods of ``period`` [s] from
+    time.start, as a run (cosserat_fem/analysis/budget.py; its disk in ``out_dir``, made or
+    not), exceeds the scene's limits: checked before the folder is made (a Lyapunov run
+    marches two trajectories, so this is a lower bound of its cost)."""
+    from cosserat_fem.analysis import budget
+    from cosserat_fem.common.parallel import ranks_on_node
+
+    if isinstance(periods, int) and not isinstance(periods, bool) and periods >= 1:
+        span = replace(scene.time, end=scene.time.start + periods * period)
+        budget.check(
+            replace(scene, time=span), "run", out_dir, ranks_on_node(comm), comm.size, comm=comm
+        )
+
+
+class _IntervalRows:
+    """lyapunov.csv's row of each interval appended as it ends (made with its header at the
+    first), so that a run killed (SIGTERM, SIGKILL) keeps the stretches computed: the running
+    exponent the same floating-point operations as lyapunov.running_estimate's (the sum in
+    the intervals' order over (n − discard) k T), so the rows are those written at the end.
+    Collective."""
+
+    def __init__(self, folder: Path, interval: float, discard: int, comm: MPI.Comm):
+        self.folder, self.interval, self.discard, self.comm = folder, interval, discard, comm
+        self.n, self.total = 0, 0.0
+
+    def __call__(self, t: float, stretch: float) -> None:
+        self.n += 1
+        self.total += stretch if self.n > self.discard else 0.0
+        averaged = self.n - self.discard
+        running = repr(float(self.total / (averaged * self.interval))) if averaged > 0 else ""
+        line = f"{t!r},{stretch!r},{running}\n"
+        if self.n == 1:
+            text = LYAPUNOV_HEADER + line
+            replace_on_root(self.folder / LYAPUNOV_CSV, text.encode(), self.comm)
+        else:
+            append_on_root(self.folder / LYAPUNOV_CSV, line.encode(), self.comm)
+
+
+#: lyapunov.csv's header
+LYAPUNOV_HEADER = "time,stretch,running_exponent\n"
+
+
+def _exponent_files(folder: Path, result, summary: dict, comm: MPI.Comm) -> list[Path]:
+    """lyapunov.csv of ``result``'s intervals (none: not written) and summary.json
+    (``summary`` with the exponent, its settings and the intervals); the files written."""
+    files = []
+    if result.times.size:
+        lines = [LYAPUNOV_HEADER.strip()]
+        for t, s, lam in zip(result.times, result.stretches, result.running, strict=True):
+            lines.append(f"{t!r},{s!r}," + (repr(float(lam)) if math.isfinite(lam) else ""))
+        replace_on_root(folder / LYAPUNOV_CSV, ("\n".join(lines) + "\n").encode(), comm)
+        files.append(folder / LYAPUNOV_CSV)
+    summary |= {
+        "exponent": result.exponent if math.isfinite(result.exponent) else None,
+        "every": result.every,
+        "discard": result.discard,
+        "perturbation": result.perturbation,
+        "intervals": int(result.times.size),
+        "files": ["poincare.csv", *(f.name for f in files)],
+    }
+    replace_on_root(folder / SUMMARY, (json.dumps(summary, indent=1) + "\n").encode(), comm)
+    return [*files, folder / SUMMARY]
+
+
 def lyapunov_run(
     scene,
     period: float,
@@ -481,53 +570,57 @@ def lyapunov_run(
     comm: MPI.Comm = MPI.COMM_WORLD,
     **options,
 ):
-    """``largest_exponent`` (lyapunov.py) with its folder's files (module docstring): the
-    budget checked first, the run stopped at limits.wall_time; ``folder`` locked by the
-    caller. Returns the LyapunovResult."""
-    from cosserat_fem.analysis import budget
+    """``largest_exponent`` (lyapunov.py) with its folder's files (module docstring), the run
+    stopped at limits.wall_time; ``folder`` locked by the caller (the budget checked before
+    it was made: :func:`lyapunov_budget`). A run that stops (limits.wall_time, a failed
+    solve, Ctrl-C or SIGTERM) keeps what it computed: lyapunov.csv of the intervals done and
+    summary.json with the status, the reason and the exponent of those intervals (null if
+    none was averaged). Returns the LyapunovResult."""
     from cosserat_fem.analysis.lyapunov import largest_exponent
     from cosserat_fem.analysis.observers import DeadlineObserver
     from cosserat_fem.common.errors import StopError
-    from cosserat_fem.common.parallel import ranks_on_node
 
     clock = time.perf_counter()
-    if isinstance(periods, int) and not isinstance(periods, bool) and periods >= 1:
-        span = replace(scene.time, end=scene.time.start + periods * period)
-        budget.check(
-            replace(scene, time=span), "run", folder, ranks_on_node(comm), comm.size, comm=comm
-        )
     wall = scene.limits.wall_time
-    advice = "poincare.csv keeps its section so far; a Lyapunov run has no restart: run it again"
+    advice = (
+        "poincare.csv and lyapunov.csv keep the periods so far; a Lyapunov run has no "
+        "restart: run it again"
+    )
     deadline = [DeadlineObserver(clock + wall, wall, comm, advice=advice)] if wall else []
     observers = [*options.pop("observers", ()), *deadline]
     summary: dict = {"command": "lyapunov", "period": period, "periods": periods}
-    try:
-        result = largest_exponent(
-            scene, period, periods=periods, out=folder, observers=observers, **options
-        )
-    except (StopError, SolverError) as exc:  # what stopped it, beside poincare.csv so far
-        if folder is not None:
-            status = "stopped" if isinstance(exc, StopError) else "failed"
-            summary |= {"status": status, "reason": str(exc)}
-            summary["wall_s"] = time.perf_counter() - clock
-            text = json.dumps(summary, indent=1) + "\n"
-            replace_on_root(folder / SUMMARY, text.encode(), comm)
-        raise
+    told = options.pop("stopped", None)
+
+    def stopped(partial, exc: BaseException) -> None:
+        """What stopped it, beside poincare.csv so far: the intervals done."""
+        if folder is not None and isinstance(exc, StopError | SolverError | KeyboardInterrupt):
+            status = "failed" if isinstance(exc, SolverError) else "stopped"
+            reason = str(exc) or "interrupted (Ctrl-C or SIGTERM)"
+            wall_s = time.perf_counter() - clock
+            _exponent_files(
+                folder,
+                partial,
+                summary | {"status": status, "reason": reason, "wall_s": wall_s},
+                comm,
+            )
+        if told is not None:
+            told(partial, exc)
+
+    rows = None
     if folder is not None:
-        lines = ["time,stretch,running_exponent"]
-        for t, s, lam in zip(result.times, result.stretches, result.running, strict=True):
-            lines.append(f"{t!r},{s!r}," + (repr(float(lam)) if math.isfinite(lam) else ""))
-        replace_on_root(folder / LYAPUNOV_CSV, ("\n".join(lines) + "\n").encode(), comm)
-        summary |= {
-            "status": "finished",
-            "exponent": result.exponent if math.isfinite(result.exponent) else None,
-            "every": result.every,
-            "discard": result.discard,
-            "perturbation": result.perturbation,
-            "intervals": int(result.times.size),
-            "wall_s": time.perf_counter() - clock,
-            "files": ["poincare.csv", LYAPUNOV_CSV],
-        }
-        replace_on_root(folder / SUMMARY, (json.dumps(summary, indent=1) + "\n").encode(), comm)
-        result.files = [*result.files, folder / LYAPUNOV_CSV, folder / SUMMARY]
+        every, discard = options.get("every", 1), options.get("discard", 0)
+        rows = _IntervalRows(folder, every * period, discard, comm)
+    result = largest_exponent(
+        scene,
+        period,
+        periods=periods,
+        out=folder,
+        observers=observers,
+        stopped=stopped,
+        interval=rows,
+        **options,
+    )
+    if folder is not None:
+        summary |= {"status": "finished", "wall_s": time.perf_counter() - clock}
+        result.files = [*result.files, *_exponent_files(folder, result, summary, comm)]
     return result

@@ -29,12 +29,22 @@ Arrays are per rank: a restart needs the same number of ranks (the same partitio
 Only ``max_points`` may change on restart (a branch that ended at max_points goes on); the
 range, steps and tolerances are the saved ones. The continued points are appended to the
 branch's rows of branches.csv and frames of its branch_<i>.xdmf, and its end saved again.
-A continuation killed mid-branch has branches.csv, branches.json and the XDMF of the branches
-that ended before (they are written as each branch ends), not yet the killed branch's: the
-restart adds them, its rows and frames from its saved (last three) points on (the points
-before were lost with the kill), and the branches after it are not traced (start them
-anew). A restart killed in its turn loses the branch's rows between those the file has and
-its last saved points (the file is written as the restart ends).
+
+**Rows.** The rows of the branch being traced are appended to branches.csv as its points
+are accepted, before its end is saved (branch_outputs.BranchOutputs.write_rows), and each
+saved end names the file's rows through its last point (``rows``). A continuation killed
+mid-branch has branches.csv with the branches that ended before and the killed branch's rows
+up to its last point, branches.json and the XDMF of the branches that ended before; the
+restart cuts branches.csv to the saved end's ``rows`` (a row written after the end was saved
+goes) and appends the rest as it goes, so the file ends as the uninterrupted run's; a
+restart killed in its turn is restarted alike. A switch traces its two directions before
+either is ended: the second's rows are written when it ends (a kill before loses them, and
+its end names no ``rows``), and each saves its end under its own index. The killed branch's
+XDMF has its frames from the saved (last three) points on, and the branches after it are not
+traced (start them anew). A branch that ended (branches.json has its points) is continued
+at the end of the file, after the branches traced after it. A folder whose ends name no
+``rows`` (written before they were saved) gets the killed branch's rows from its saved
+points on.
 """
 
 from __future__ import annotations
@@ -224,7 +234,12 @@ def restart_branch(
     points from the first saved one on), its new rows appended to branches.csv (at the end
     of the file, the branch's index kept), its frames to branch_<index>.xdmf, its end and
     reason saved again (restart.json, branches.json's entry)."""
-    from cosserat_fem.analysis.branch_outputs import BranchOutputs, replace_on_root
+    from cosserat_fem.analysis.branch_outputs import (
+        BRANCHES_CSV,
+        BranchOutputs,
+        append_on_root,
+        replace_on_root,
+    )
     from cosserat_fem.analysis.paths import (
         BRANCH_COLUMNS,
         PathResult,
@@ -259,6 +274,22 @@ def restart_branch(
     observer.slots[index] = record["branches"][str(index)].get("slot", 0)
     ends = {int(k): v for k, v in record["branches"].items()}
     probe = record.get("probe")
+    reasons = ended  # branches.json's entries (none: killed on the first branch)
+    entry = next((e for e in reasons if e.get("branch") == index), None)
+    try:
+        lines = read_on_root(folder / BRANCHES_CSV, 1 << 30, comm).decode().splitlines()
+    except Unreadable:
+        lines = []
+    lines = lines or [",".join(BRANCH_COLUMNS)]
+    rows = ends[index].get("rows")
+    if entry is not None and entry.get("points") == saved.first_index + kept:
+        observer.skip = kept  # it ended: the file has its rows, specials and later branches'
+    elif isinstance(rows, int) and 0 <= rows <= len(lines) - 1:
+        lines = lines[: rows + 1]  # killed: its rows to its saved end (a later one's cut)
+        observer.skip = kept
+    # else (a folder of before the rows were saved): its rows from the saved points on
+    replace_on_root(folder / BRANCHES_CSV, "".join(ln + "\n" for ln in lines).encode(), comm)
+    observer.csv_made, observer.file_rows = True, len(lines) - 1
 
     def save_index(new: dict) -> None:
         write_index(folder, record["scene"], settings, ends | new, comm, restarts - 1, probe)
@@ -273,29 +304,19 @@ def restart_branch(
         result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
     finally:
         problem.destroy()
-    try:
-        reasons = json.loads(read_on_root(folder / "branches.json", 1 << 28, comm).decode())
-    except Unreadable:  # killed on the first branch: no file yet (module docstring)
-        reasons = []
-    points = path_branch.points[kept:]
-    if not any(entry["branch"] == index for entry in reasons):  # killed on this branch
-        points = path_branch.points  # its rows from the saved points on
+    if entry is None:  # killed on this branch
         xdmf = f"branch_{index}.xdmf" if scene.output.xdmf else None
         origin = "not recorded (the continuation was killed on this branch)"
-        reasons.append({"branch": index, "origin": origin, "xdmf": xdmf, "approximate": []})
-    try:
-        old = read_on_root(folder / "branches.csv", 1 << 30, comm).decode()
-    except Unreadable:
-        old = ",".join(BRANCH_COLUMNS) + "\n"
-    new = [p.as_row(index) for p in [*points, *path_branch.special]]
-    text = old + "".join(line + "\n" for line in csv_lines(new))
-    replace_on_root(folder / "branches.csv", text.encode(), comm)
-    for entry in reasons:
-        if entry["branch"] == index:
-            entry["reason"] = branch.reason
-            entry["points"] = branch.first_index + len(branch.points)
-            entry["steps"] = entry["points"] - 1
-            entry["rejected"] = branch.steps_rejected
+        entry = {"branch": index, "origin": origin, "xdmf": xdmf, "approximate": []}
+        reasons.append(entry)
+    special = csv_lines([p.as_row(index) for p in path_branch.special])
+    if special:  # its points' rows were appended as they came (BranchOutputs.write_rows)
+        text = "".join(line + "\n" for line in special)
+        append_on_root(folder / BRANCHES_CSV, text.encode(), comm)
+    entry["reason"] = branch.reason
+    entry["points"] = branch.first_index + len(branch.points)
+    entry["steps"] = entry["points"] - 1
+    entry["rejected"] = branch.steps_rejected
     replace_on_root(folder / "branches.json", (json.dumps(reasons, indent=1) + "\n").encode(), comm)
     write_index(folder, record["scene"], settings, ends | observer.ends, comm, restarts, probe)
     return result

@@ -76,6 +76,20 @@ from cosserat_fem.scene.build import Scene
 CHART_THETA_MAX = 1.3
 
 
+def check_path_scene(scene: Scene, command: str = "continue") -> None:
+    """SceneError naming the key unless the path of ``scene`` can be continued: it has static
+    states (statics.check_static_scene) and is not solved in the y-z plane (θ alone, no
+    chart: module docstring). From the scene alone (build_model solves the plane of
+    Scene.plane()), so a command checks it before it makes its folder."""
+    check_static_scene(scene, command)
+    if scene.plane() == "y-z":
+        raise SceneError(
+            "discretisation.planar: continuation does not follow a rod in the y-z plane "
+            "(θ alone meets the Euler-angle chart's singularity θ = ±π/2, and a chart "
+            'needs ψ too): solve it in 3D (discretisation.planar = "off")'
+        )
+
+
 class RodPath:
     """R(U, λ) = 0 of a scene as a :class:`~cosserat_fem.nls.arclength.ContinuationProblem`
     with charts (module docstring)."""
@@ -84,15 +98,10 @@ class RodPath:
         """``probe``: the arclength s [m] of the point whose (x, y, z, θ, ψ, φ) the path
         reports (:meth:`tip`), in [0, ℓ]; default the probe point of the other commands
         (output.fields.probe_sigma: the free end, else mid-span)."""
-        check_static_scene(scene, "continue")
+        check_path_scene(scene)
         self.scene = scene
         self.model = model = build_model(scene, comm)
-        if model.layout.index(3) is not None and not model.needs_chart:
-            raise SceneError(
-                "discretisation.planar: continuation does not follow a rod in the y-z plane "
-                "(θ alone meets the Euler-angle chart's singularity θ = ±π/2, and a chart "
-                'needs ψ too): solve it in 3D (discretisation.planar = "off")'
-            )
+        assert model.layout.index(3) is None or model.needs_chart, "the y-z plane is refused"
         #: the current chart: the nodal quaternions (local, with ghosts), one array per chart
         #: (the engine compares charts by identity), or None (a planar scene)
         self.chart: np.ndarray | None = None
@@ -433,7 +442,8 @@ def path_engine(
 
         def wrapped(q: Point) -> str | None:
             if observer is not None and engine.branch is not None:
-                observer.save(engine.branch, comm)  # collective, before any user code
+                observer.write_rows(problem, engine.branch)  # collective, before any user
+                observer.save(engine.branch, comm)  # code; the rows first (branch_outputs.py)
             point = None if stop is None else _path_point(problem, q)  # collective (the probe)
             error, reason = None, None
             try:

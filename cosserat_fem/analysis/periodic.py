@@ -61,7 +61,14 @@ real axis too, which a product over the complex pairs alone is not.
 **MPI.** Parallel in space, not in time: each rank carries its owned rows of X; the matrices
 are PETSc's (MUMPS under mpirun) and M is gathered (n × n, dense) on every rank for its
 eigenvalues and the Newton step, whose solve is rank 0's, broadcast. The period map itself is
-the same code as a run's.
+the same code as a run's. A small rod (n ≤ :data:`GATHERED_DOFS`) under mpirun solves each
+stage's variational equations gathered instead: every rank gathers ∂F/∂U, ∂F/∂Z (sparse) and
+dZ_i (dense) whole and solves for all of dU_i by SuperLU (scipy), keeping its own rows. The
+solve is then redundant, but it is one LU and a solve of n columns a stage, where MUMPS's
+distributed factorisation and n-column solve exchange messages that cost far more on a rod
+of a few hundred unknowns (the 8-element rod of demos/frequency_response.py: 150 unknowns,
+a monodromy of 100 steps 2.6 s on two ranks, of which MUMPS's factorisations and solves
+1.5 s, against 0.27 s serially; docs/decisions.md).
 """
 
 from __future__ import annotations
@@ -90,6 +97,10 @@ from cosserat_fem.timestepping.loop import TimeLoop
 #: The most memory [bytes] the dense columns of the variational equations (X, the stages' dK,
 #: PETSc's two dense matrices, a copy) may take on a rank.
 MAX_DENSE_BYTES = 2 * 2**30
+
+#: Under mpirun, a rod of at most this many unknowns solves its variational stages gathered
+#: on every rank (module docstring, "MPI"): ~100 MB of dense n × n arrays a rank at the bound.
+GATHERED_DOFS = 2000
 
 #: |μ| within this of 1 counts as on the unit circle in :func:`classify`.
 UNIT_CIRCLE = 1e-9
@@ -198,9 +209,36 @@ class _StageHook(Observer):
         self.shooting._stage_done()
 
 
-def shooting_problem(scene, steps_per_period, parameter: str | None) -> SceneError | None:
+def dense_problem(n: int, n_local: int, stages: int) -> SceneError | None:
+    """Why the dense columns of the variational equations of ``n`` unknowns, ``n_local`` on
+    the fullest rank, with ``stages`` stages exceed :data:`MAX_DENSE_BYTES`, or None."""
+    dense = (4 + stages) * 8 * n * n_local
+    if dense <= MAX_DENSE_BYTES:
+        return None
+    return SceneError(
+        f"discretisation.elements: the monodromy matrix of {n} dofs needs "
+        f"{dense / 2**30:.1f} GiB of dense columns on a rank (at most "
+        f"{MAX_DENSE_BYTES / 2**30:.0f}); use fewer elements or more ranks"
+    )
+
+
+def _csr(A: PETSc.Mat) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """This rank's rows of the AIJ matrix ``A``: (entries a row, global columns, values)."""
+    indptr, indices, values = A.getValuesCSR()
+    return np.diff(indptr), indices, values
+
+
+def shooting_problem(
+    scene, steps_per_period, parameter: str | None, ranks: int | None = None
+) -> SceneError | None:
     """Why :class:`Shooting` cannot shoot over this scene's period (its integrator, fixed
-    steps, ``steps_per_period``, ``parameter``), or None: checked before any work."""
+    steps, ``steps_per_period``, ``parameter``, the dense columns on ``ranks`` ranks, default
+    MPI.COMM_WORLD's, at least: :func:`dense_problem` of the scene's unknowns shared evenly),
+    or None: checked before any work (or folder)."""
+    from cosserat_fem.scene.layout import FULL
+    from cosserat_fem.scene.resolved import PLANAR
+    from cosserat_fem.timestepping.integrators import _sdirk_tableau
+
     problem = None
     if scene.time.integrator not in ("sdirk3", "sdirk4"):
         problem = SceneError(
@@ -220,6 +258,13 @@ def shooting_problem(scene, steps_per_period, parameter: str | None) -> SceneErr
             f"parameter: {parameter!r} is not one of the scene's parameters "
             f"{sorted(scene.parameters)}"
         )
+    else:
+        plane = scene.plane()
+        disc = scene.discretisation
+        n = (disc.elements * disc.degree + 1) * len(PLANAR[plane] if plane else FULL)
+        ranks = MPI.COMM_WORLD.size if ranks is None else ranks
+        stages = _sdirk_tableau(int(scene.time.integrator[-1]))[2].size
+        problem = dense_problem(n, -(-n // ranks), stages)
     return problem
 
 
@@ -246,7 +291,7 @@ class Shooting:
 
         from cosserat_fem.analysis.simulation import _discretise
 
-        problem = shooting_problem(scene, steps_per_period, parameter)
+        problem = shooting_problem(scene, steps_per_period, parameter, comm.size)
         agree(comm, problem)
         self.scene, self.comm, self.steps = scene, comm, steps_per_period
         self.parameter = parameter
@@ -316,15 +361,14 @@ class Shooting:
             dofs, _ = bc.dof_indices()
             held[dofs[dofs < self.n_local]] = True
         self.held_local = held
-        self.free = np.flatnonzero(~np.concatenate(self.comm.allgather(held)))
+        self.held = np.concatenate(self.comm.allgather(held))
+        self.free = np.flatnonzero(~self.held)
+        #: the variational stages solved gathered on every rank (module docstring, "MPI")
+        self.gathered = self.comm.size > 1 and self.n <= GATHERED_DOFS
         stages = len(integrator.b)
-        dense = (4 + stages) * 8 * self.n * max(self.comm.allgather(self.n_local))
-        if dense > MAX_DENSE_BYTES:
-            raise SceneError(
-                f"discretisation.elements: the monodromy matrix of {self.n} dofs needs "
-                f"{dense / 2**30:.1f} GiB of dense columns on a rank (at most "
-                f"{MAX_DENSE_BYTES / 2**30:.0f}); use fewer elements or more ranks"
-            )
+        problem = dense_problem(self.n, max(self.comm.allgather(self.n_local)), stages)
+        if problem is not None:  # the partition's fullest rank (shooting_problem: an even one)
+            raise problem
         self._ksp = PETSc.KSP().create(self.comm)
         self._ksp.setType("preonly")
         self._ksp.getPC().setType("lu")
@@ -349,6 +393,14 @@ class Shooting:
         dZ = self._X.copy()
         for j in range(i):
             dZ += h * integ.A[i, j] * self._dK[j]
+        dU = self._stage_solve(dZ)
+        self._dK[i] = (dU - dZ) / (integ.gamma * h)
+        self._stage += 1
+
+    def _stage_solve(self, dZ: np.ndarray) -> np.ndarray:
+        """The owned rows of dU_i = −(∂F/∂U)⁻¹ (∂F/∂Z) dZ_i (the held rows' right-hand side 0:
+        J has the identity's rows there), assembled at the stage's state; by PETSc (MUMPS
+        under mpirun), or gathered on every rank (:attr:`gathered`)."""
         for A, form, bcs in (
             (self._J, self._J_form, self.model.bcs),
             (self._JZ, self._JZ_form, []),
@@ -358,6 +410,15 @@ class Shooting:
             # DOLFINx's annotations
             assemble_matrix(A, form, bcs=bcs)  # type: ignore[misc]
             A.assemble()
+        if self.gathered:
+            import scipy.sparse.linalg
+
+            parts = self.comm.allgather((_csr(self._J), _csr(self._JZ), dZ))  # one message
+            J, JZ = (self._whole([part[k] for part in parts]) for k in (0, 1))
+            Y = -(JZ @ np.vstack([part[2] for part in parts]))
+            Y[self.held] = 0.0
+            dU = scipy.sparse.linalg.splu(J.tocsc()).solve(Y)
+            return dU[self.first : self.first + self.n_local]
         self._ksp.getPC().setUp()  # refactors: KSPSetUp alone keeps the old factors
         B = self._B.getDenseArray()
         B[:] = dZ
@@ -366,9 +427,17 @@ class Shooting:
         Y[self.held_local] = 0.0  # the held rows: dU = 0 there (J has the identity's)
         Y *= -1.0
         self._ksp.getPC().getFactorMatrix().matSolve(self._Y, self._B)
-        dU = self._B.getDenseArray()
-        self._dK[i] = (dU - dZ) / (integ.gamma * h)
-        self._stage += 1
+        return self._B.getDenseArray()  # a view, read before the next stage's solve
+
+    def _whole(self, parts: list[tuple[np.ndarray, np.ndarray, np.ndarray]]):
+        """The n × n matrix (scipy CSR) of the ranks' :func:`_csr` ``parts`` of a distributed
+        AIJ matrix, in rank order (ownership ranges are contiguous and in rank order)."""
+        import scipy.sparse
+
+        starts = np.concatenate([[0], np.cumsum(np.concatenate([c for c, _, _ in parts]))])
+        columns = np.concatenate([i for _, i, _ in parts])
+        entries = np.concatenate([v for _, _, v in parts])
+        return scipy.sparse.csr_matrix((entries, columns, starts), shape=(self.n, self.n))
 
     # -- the period map ---------------------------------------------------------------------
     def _start(self, u: np.ndarray) -> TimeLoop:

@@ -7,7 +7,9 @@ lock on its folder from before it reads or touches anything there to its end
 (:func:`cosserat_fem.io.run_folder.prepare_output_dir` with ``lock``, released when the
 enclosing :func:`holding_folders` call or :func:`folders_held` block returns or raises). A
 second writer is refused at once, in one line naming the holder: its kind, run id, process,
-host, start time and command line (written into the lock file by the holder). The lock is
+host, start time and command line (written into the lock file by the holder), and the key
+that named the folder (:data:`LOCK_KEYS` by kind, or ``--out`` where the command line gave it:
+:func:`named_by`). The lock is
 ``flock(2)`` on the file ``.cosserat-fem.lock`` in the folder, taken by rank 0 (under MPI every
 rank agrees on the outcome): the kernel releases it when the holder dies, SIGKILL included, so
 a killed run leaves no stale lock (the file it leaves is taken over by the next run); the
@@ -56,6 +58,30 @@ LOCK_KEYS = {
 _RECORD = 1024
 
 
+#: The command line's option that named the folder (``--out``) while :func:`named_by` says
+#: so: refusals name it, not the writer's key in :data:`LOCK_KEYS`.
+_OPTION: contextvars.ContextVar[str | None] = contextvars.ContextVar(
+    "cosserat_fem_folder_option", default=None
+)
+
+
+def lock_key(what: str) -> str:
+    """The key a refusal of the folder of a writer of kind ``what`` names: the option the
+    user gave (:func:`named_by`), else :data:`LOCK_KEYS`' (default output.directory)."""
+    return _OPTION.get() or LOCK_KEYS.get(what, "output.directory")
+
+
+@contextlib.contextmanager
+def named_by(option: str | None):
+    """Within the block, folder refusals name ``option`` (the command line's ``--out``, when
+    it was given) instead of the writer's key; None: the writer's key."""
+    token = _OPTION.set(option)
+    try:
+        yield
+    finally:
+        _OPTION.reset(token)
+
+
 class FolderLock:
     """The exclusive lock of one folder, held by this process (module docstring): taken by
     :meth:`take`, ended by :meth:`release`. The lock file holds the holder's record, a JSON
@@ -86,7 +112,7 @@ class FolderLock:
                 holder = _holder(fd)
                 os.close(fd)
                 raise SceneError(
-                    f"{LOCK_KEYS.get(what, 'output.directory')}: {str(folder)!r} is in use by "
+                    f"{lock_key(what)}: {str(folder)!r} is in use by "
                     f"{holder}; one writer a folder: wait for it to end, or write elsewhere"
                 ) from None
             except OSError as exc:

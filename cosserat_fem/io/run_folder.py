@@ -43,7 +43,7 @@ from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import OutputError, SceneError
 from cosserat_fem.common.parallel import agree, from_root
 from cosserat_fem.io.checkpoint import DIRECTORY, INDEX, OWN_FILES, Checkpoint
-from cosserat_fem.io.folder_lock import _HELD, LOCK_KEYS, FolderLock, held_lock
+from cosserat_fem.io.folder_lock import _HELD, FolderLock, held_lock, lock_key
 from cosserat_fem.io.probes import PROBES, probe_prefix
 from cosserat_fem.io.reading import decode, finite_number, json_kind, quoted, read_bytes
 from cosserat_fem.io.xdmf import FRAME_NAME, XDMF, cut_xdmf, frames_folder, xdmf_problem
@@ -64,7 +64,7 @@ def prepare_output_dir(
     held = _HELD.get()
     if lock is not None and held is None:
         raise RuntimeError("prepare_output_dir(lock=...) outside a holding_folders call")
-    key = LOCK_KEYS.get(lock or "run", "output.directory")
+    key = lock_key(lock or "run")  # --out if the command line gave it (folder_lock.named_by)
     problem: SceneError | None = None
     if comm.rank == 0:
         try:
