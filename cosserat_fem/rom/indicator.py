@@ -152,15 +152,26 @@ def oscillator_step(
     return y * c + ydot / omega * s + (a + b * dt) / lam, ydot * c - y * omega * s + b / lam
 
 
-def full_residual(solver) -> np.ndarray:
+def full_residual(solver, rows: np.ndarray | None = None, shift=None) -> np.ndarray:
     """F(U) of the full model at the solver's U (its owned rows, a copy): the solver's own
-    assembly (the C assembler where the reduced solver has one, else DOLFINx's), the one place
-    the indicator reads the solver's internals (cosserat_fem/rom/galerkin.py)."""
+    assembly (the C assembler where the reduced solver has one, else DOLFINx's); with
+    ``shift``, at U + ``shift`` in U's owned ``rows``, U and the solver's F vector restored after.
+    The one place the indicator reads the solver's internals (cosserat_fem/rom/galerkin.py)."""
+    U = solver._u_owned
+    if shift is not None:
+        kept_U, kept_b = U.copy(), solver.b.array.copy()
+        U[rows] += shift
     if solver._assembler is not None:
         solver._assembler.residual()
     else:
         solver._residual()
-    return solver.b.array.copy()
+    F = solver.b.array.copy()
+    if shift is not None:
+        U[:] = kept_U
+        solver.b.array[:] = kept_b
+        if solver.comm.size > 1:
+            solver.U.x.scatter_forward()
+    return F
 
 
 class ErrorModes:
@@ -314,7 +325,7 @@ class ErrorIndicator(Observer):
         solver, model = loop.solver, loop.model
         self.solver, self.basis = solver, solver.basis
         self.comm = model.msh.comm
-        self.length, self.U = model.rod.length, model.U
+        self.length = model.rod.length
         n = len(self.basis.weights)
         self.WV = self.basis.weights[:, None] * self.basis.V
         weights = getattr(loop.integrator, "b", None)
@@ -388,15 +399,9 @@ class ErrorIndicator(Observer):
         """F_q(p + e_p, q) − F_q(p, q) at the last stage's state, of which δ (10.8) is the part
         beyond the linear stiffness about the straight rod (the geometric coupling of the
         error's modes through the reduced state); one assembly."""
-        modes, U = self.modes, self.solver._u_owned
+        modes = self.modes
         assert modes is not None, "started comes first"
-        kept_U, kept_b = U.copy(), self.solver.b.array.copy()
-        U[modes.p_rows] += e[modes.places]
-        shifted = full_residual(self.solver)
-        U[:] = kept_U
-        self.solver.b.array[:] = kept_b
-        if self.comm.size > 1:
-            self.U.x.scatter_forward()
+        shifted = full_residual(self.solver, modes.p_rows, e[modes.places])
         q = modes.q_rows
         return shifted[q] - self._stages[-1][q]
 
