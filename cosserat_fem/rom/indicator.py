@@ -186,9 +186,12 @@ class ErrorModes:
     (empty on the ranks without it). Planar runs: the modes out of the plane get no forcing."""
 
     def __init__(self, model, t: float, count: int, lu_package: str, n: int):
-        from slepc4py import SLEPc
-
-        from cosserat_fem.analysis.modal import ModalOperator, _kinetic_weights, max_modes
+        from cosserat_fem.analysis.modal import (
+            ModalOperator,
+            _kinetic_weights,
+            max_modes,
+            shift_invert,
+        )
         from cosserat_fem.rom.basis import state_rows
 
         self.comm = model.msh.comm
@@ -205,23 +208,7 @@ class ErrorModes:
         self.ends = (6 * tip[:1, None] + np.arange(3)[None, :]).ravel()
         most = max_modes(model.scene)
         count = min(count, most)
-        eps = SLEPc.EPS().create(self.comm)
-        eps.setOperators(K, M)
-        eps.setProblemType(SLEPc.EPS.ProblemType.GNHEP)
-        eps.setDimensions(nev=count, ncv=min(max(2 * count + 10, 30), most))
-        eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
-        # a mechanism's K is singular: about λ = −1 (K + M definite), as modal.py does
-        shift = -1.0 if model.scene.supports.mechanism else 0.0
-        eps.setTarget(shift)
-        eps.setTolerances(tol=1e-10, max_it=500)
-        st = eps.getST()
-        st.setType(SLEPc.ST.Type.SINVERT)
-        st.setShift(shift)
-        ksp = st.getKSP()
-        ksp.setType("preonly")
-        ksp.getPC().setType("lu")
-        ksp.getPC().setFactorSolverType(lu_package)
-        eps.solve()
+        eps = shift_invert(problem, count, min(max(2 * count + 10, 30), most), 1e-10, lu_package)
         vr, vi = K.createVecs()
         Mv, shape = vr.duplicate(), vr.duplicate()
         pairs = []
