@@ -326,6 +326,12 @@ class ErrorIndicator(Observer):
         self._first = True
         self.setup_seconds = time.perf_counter() - t0
         provenance = self.basis.provenance
+        ranges = provenance.get("coordinates")  # as arrays once (outside_range takes either)
+        self._ranges = ranges and {
+            "min": np.asarray(ranges["min"], dtype=float),
+            "max": np.asarray(ranges["max"], dtype=float),
+            "largest_norm": float(ranges["largest_norm"]),
+        }
         trained = [run.get("loads") for run in provenance.get("runs", []) if "loads" in run]
         known = [json.dumps(x, sort_keys=True) for x in trained]
         if trained and _loads(model.scene) not in known:
@@ -455,7 +461,7 @@ class ErrorIndicator(Observer):
 
     def _check_range(self, c: np.ndarray, norm: float, t: float) -> None:
         """Flags a state outside the training's range (module docstring)."""
-        ranges, margin = self.basis.provenance.get("coordinates"), self.settings.margin
+        ranges, margin = self._ranges, self.settings.margin
         if not ranges:
             return
         largest = float(ranges["largest_norm"])
