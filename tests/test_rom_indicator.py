@@ -3,9 +3,10 @@
 run against the full one), on the paper's scene trained on its own run and under loads outside
 the training, the flags of a run outside its training, and the whip's refusal.
 
-The calibrated constant C = 1.2 of (10.4) was chosen from these runs' ratios (docs/rom.md §10):
-that the ratios lie within [1/3, 3] at all is what the tests hold; the constant alone could
-not put a spread of more than 9 inside."""
+The estimate carries the residual's forcing in the rod's normal modes (10.5)-(10.8) and has
+no calibrated constant (C = 1): the ratios E/error below are what the transport gives, and
+[1/3, 3] (the issue's factor) is what the tests hold. Over 0.006 s they lie in 0.41-1.03,
+over 0.06 s in 0.74-2.45 (docs/rom.md §10): the margin to either bound is 1.2x or more."""
 
 from __future__ import annotations
 
@@ -47,11 +48,13 @@ def short_training():
 
 
 def test_indicator_tracks_the_error_on_the_training_scene(short_training):
-    """(a) Trained on its own run, k = 4, 8, 12 modes: the final estimate E (10.4) over the true
-    relative L2 free-end error lies in [1/3, 3] (the issue's factor; measured 1.88, 0.52, 0.37
-    for errors 5.5e-3, 1.6e-4, 3.0e-5), and E falls with the error as modes are added. The run
-    is not flagged outside its training (its own load, its own range: no entry, no warning) and
-    at k = 8, 12, errors 50-300 times below the tolerance 1e-2, not exceeded. summary["rom"]
+    """(a) Trained on its own run, k = 4, 8, 12 modes: the final estimate E (10.7) over the true
+    relative L2 free-end error lies in [1/3, 3] (the issue's factor; measured 0.96, 0.71, 0.41
+    for errors 5.5e-3, 1.6e-4, 3.0e-5; the last the nearest the bound: sampled every 10th
+    step, the residual's content above ~50 ω0 is aliased; every step gives 1.08), and E falls
+    with the error as modes are added. The run is not flagged outside its training (its own
+    load, its own range: no entry, no warning) and at k = 8, 12, errors 50-300 times below the
+    tolerance 1e-2, not exceeded. summary["rom"]
     holds the contract that `rom validate` reads (keys and types), E sampled every 10th step:
     20 samples over 200 steps."""
     scene, basis, full = short_training
@@ -78,7 +81,8 @@ def test_indicator_flags_a_load_outside_the_training(short_training, load, caplo
     8 ω0, f2 = f1/2): the true error grows over the training's at k = 8, 12 (3x: 12x, 18x;
     frequency: 1.9x, 5.4x; direction: 4.9x, 13x; at k = 4: 2.1x, 0.75x, 3.3x, the training's
     own error being large there), and the estimate with it: E/error in [1/3, 3] for each k
-    (measured 3x: 1.33, 1.26, 1.71; frequency: 2.75, 1.76, 2.07; direction: 1.88, 2.72, 2.65).
+    (measured 3x: 0.69, 0.84, 0.98; frequency: 0.96, 1.01, 1.03; direction: 0.96, 0.92, 0.98;
+    without the coupling (10.8) the 3x load's were 0.43, 0.52, 0.84).
     The run says so: a warning line naming the load, an entry "load" in summary.json's
     rom.outside_training (with its time, the start), and for the larger amplitude also
     "amplitude" (its W-norm past 1.25 times the training's largest). Where the true error
@@ -117,7 +121,7 @@ def test_the_whip_in_3d_is_refused_at_the_chart_with_the_time(tmp_path):
     run does) and stops with one line saying why and when (SolverError: "chart", "at t ="); the
     summary.json of its folder has the same message and the samples of the indicator taken up
     to there (11 steps apart: 1e-5, 1.1e-4, 2.1e-4 s). Measured: the indicator stays below the
-    tolerance before the move (3.4e-3, 1.5e-3, 1.3e-3), it does not foresee the refusal."""
+    tolerance before the move (4.0e-4, 5.2e-4, 4.6e-4), it does not foresee the refusal."""
     in_3d = {"discretisation.planar": "off", "output.xdmf": False}
     basis, _ = rb.train([cf.load(WHIP, {**in_3d, "time.end": 4e-4})], tolerance=1e-10)
     with pytest.raises(SolverError) as refused:
@@ -134,9 +138,10 @@ def test_the_planar_whip_outside_its_training_is_flagged():
     2 ms: the rod whips far beyond what the basis saw. The reduced run completes, but the true
     relative error is 0.83, and the run says so: a coordinate leaves the training's range at
     0.51 ms ("coordinates" in rom.outside_training, before the error is large) and the estimate
-    exceeds the tolerance (measured E = 8.0: an overestimate of 9.6, the linear stiffness about
-    the straight rod does not hold for a rod rotated by π; asserted only beyond the tolerance,
-    the honest failure of the issue's goal)."""
+    exceeds the tolerance from 0.61 ms and ends at its ceiling 1 (reached at 0.81 ms: an error
+    as large as the motion; the modes about the straight rod do not describe a rod rotated by
+    π; asserted only beyond the tolerance and the true error, the honest failure of the
+    issue's goal)."""
     basis, _ = rb.train([cf.load(WHIP, {"time.end": 4e-4})], tolerance=1e-10)
     scene = cf.load(WHIP)
     reduced = galerkin.run(scene, basis, indicator=IndicatorSettings())
@@ -148,21 +153,46 @@ def test_the_planar_whip_outside_its_training_is_flagged():
     assert "coordinates" in flagged and flagged["coordinates"] < 1e-3
 
 
-@pytest.mark.long
-def test_indicator_over_the_paper_span():
-    """(e) The paper's whole 0.06 s (docs/rom.md §7's runs: errors 2.6e-2, 1.9e-3, 5.1e-5 at
-    k = 4, 8, 12): E/error measured 1.22, 1.63, 3.51: within [1/3, 3] at k = 4, 8; at k = 12 an
-    overestimate of 3.5 (the accumulated static response (10.3) grows linearly with time, the
-    error of a well-resolved run less fast), asserted within [1/3, 4] as the measured
-    conservative side; the run at k = 4 (error 2.6e-2) exceeds the tolerance 1e-2, the one at
-    k = 12 (5.1e-5) does not."""
+@pytest.fixture(scope="module")
+def long_training():
+    """The paper's whole 0.06 s (2000 steps) run in full, every output a snapshot."""
     scene = cf.load(PAPER)
     basis, (full,) = rb.train([scene], tolerance=1e-14)
-    for k, upper in zip(MODES, (3, 3, 4), strict=True):
+    return scene, basis, full
+
+
+#: E/error measured over 0.06 s at k = 4, 8, 12 (docs/rom.md §10), for the test's docstring.
+LONG_RATIOS = {
+    "own": (0.74, 0.97, 0.74),
+    "3x": (0.74, 1.00, 1.89),
+    "frequency": (0.77, 1.20, 2.45),
+    "direction": (0.76, 1.00, 0.87),
+}
+
+
+@pytest.mark.long
+@pytest.mark.parametrize("load", ["own", *sorted(LOADS)])
+def test_indicator_over_the_paper_span(long_training, load):
+    """(e) The paper's whole 0.06 s (docs/rom.md §7's runs: errors 2.6e-2, 1.9e-3, 5.1e-5 at
+    k = 4, 8, 12 on its own load; 0.22, 1.6e-2, 9.9e-5 under the 3x load; 5.2e-2, 3.8e-3,
+    2.6e-5 at 5 ω0; 2.5e-2, 2.3e-3, 6.7e-5 with f2 = f1/2), the basis of the 0.06 s training
+    run: E/error within [1/3, 3] at every k and load (measured: LONG_RATIOS, 0.74-2.45; the
+    running sum of the first version gave 0.35-10, the linear transport without the coupling
+    (10.8) 0.07-0.84). A run whose true error exceeds the tolerance 1e-2 (k = 4 everywhere,
+    and k = 8 under the 3x load) is ``exceeded``; on its own load the one at k = 12 (error
+    5.1e-5) is not."""
+    scene, basis, full = long_training
+    if load != "own":
+        scene = cf.load(PAPER, {"loads.force_density": LOADS[load]})
+        full = cf.run(scene)
+    for k in MODES:
         reduced = galerkin.run(scene, basis.truncated(k))
         error, indicator = _error(reduced, full), reduced.summary["rom"]["indicator"]
-        assert 1 / 3 <= indicator["final"] / error <= upper, (k, indicator["final"], error)
-        assert indicator["exceeded"] == (k == 4)
+        assert 1 / 3 <= indicator["final"] / error <= 3, (load, k, indicator["final"], error)
+        if error > indicator["tolerance"]:
+            assert indicator["exceeded"], (load, k, error, indicator["max"])
+        if load == "own" and k == 12:
+            assert not indicator["exceeded"]
 
 
 MPI_SCRIPT = """

@@ -221,29 +221,38 @@ def join_ends(problem: ModalProblem) -> ModalProblem:
     return ModalProblem(problem.model, P, problem.p0, K_joined, M_joined, joint=S)
 
 
-def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
-    """The ``count`` lowest modes, sorted by frequency."""
+def shift_invert(problem: ModalProblem, count: int, ncv: int, tol: float, lu_package: str):
+    """SLEPc's solved EPS of K φ = λ M φ (``problem``'s K, M) for the ``count`` eigenvalues
+    nearest the shift (``ncv`` the subspace, ``tol`` the tolerance, ``lu_package`` the LU of the
+    shift-and-invert); the caller reads and destroys it."""
     from slepc4py import SLEPc
 
-    comm = problem.model.msh.comm
-    eps = SLEPc.EPS().create(comm)
+    eps = SLEPc.EPS().create(problem.model.msh.comm)
     eps.setOperators(problem.K, problem.M)
     eps.setProblemType(SLEPc.EPS.ProblemType.GNHEP)
-    eps.setDimensions(nev=count, ncv=max(2 * count + 10, 30))
+    eps.setDimensions(nev=count, ncv=ncv)
     eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
     # A mechanism's K is singular (its rigid-body modes, λ = 0): shift-invert about λ = −1
     # (ω = i ω0: K + M is positive definite), which finds the same lowest modes.
     shift = -1.0 if problem.model.scene.supports.mechanism else 0.0
     eps.setTarget(shift)
-    eps.setTolerances(tol=1e-13, max_it=500)
+    eps.setTolerances(tol=tol, max_it=500)
     st = eps.getST()
     st.setType(SLEPc.ST.Type.SINVERT)
     st.setShift(shift)
     ksp = st.getKSP()
     ksp.setType("preonly")
     ksp.getPC().setType("lu")
-    ksp.getPC().setFactorSolverType("petsc" if comm.size == 1 else "mumps")
+    ksp.getPC().setFactorSolverType(lu_package)
     eps.solve()
+    return eps
+
+
+def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
+    """The ``count`` lowest modes, sorted by frequency."""
+    comm = problem.model.msh.comm
+    package = "petsc" if comm.size == 1 else "mumps"
+    eps = shift_invert(problem, count, max(2 * count + 10, 30), 1e-13, package)
     found = eps.getConverged()
     if found < count:
         eps.destroy()
