@@ -31,6 +31,16 @@ Constants, and it updates the history after each accepted step.
 Every integrator advances by :meth:`Integrator.step` (one or several nonlinear solves through
 the ``solve`` callable it is given) and :meth:`Integrator.accept` once the caller has checked
 the new state.
+
+**The space of the state arrays.** Everything an integrator does with U is linear (stage
+combinations, rates, predictors), so it runs unchanged on any coordinates of U that an affine
+map U = U_ref + V y gives (docs/rom.md §5, §8). Its arrays belong to a ``space``
+(:class:`FullSpace`: U's own values, zero-copy, the default; a reduced model's coordinates y,
+cosserat_fem/rom/hyper.py ``ReducedCoordinates``): ``space.values(F)`` is the array it treats
+as the Function F's values, ``space.size`` their length, ``to_full``/``from_full`` convert a
+checkpoint's arrays (which are always full vectors). :meth:`Integrator.use_space` moves an
+integrator into another space before its first step; SDIRK does, the others refuse (they
+write U's values directly).
 """
 
 from __future__ import annotations
@@ -48,6 +58,34 @@ ResidualFactory = Callable[[object, object, object], ufl.Form]
 StateMap = Callable[[np.ndarray], np.ndarray]
 #: The same change for a rate: (state array, rate array at it) -> rate array.
 RateMap = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+class FullSpace:
+    """The full model's space of state arrays: a Function's own values (zero-copy); the
+    conversions of a checkpoint's arrays are copies (module docstring, "The space")."""
+
+    reduced = False
+
+    def __init__(self, U: fem.Function):
+        self.size = U.x.array.size
+
+    def values(self, F: fem.Function, rate: bool = False) -> np.ndarray:
+        """The array the integrator treats as F's values (F's own, here)."""
+        return F.x.array
+
+    def to_full(self, array: np.ndarray, rate: bool = False) -> np.ndarray:
+        """A copy of a state (or with ``rate`` a rate) array as a full vector."""
+        return array.copy()
+
+    def from_full(self, array: np.ndarray, rate: bool = False) -> np.ndarray:
+        """A full vector's array in this space (itself)."""
+        return np.asarray(array)
+
+    def lift(self) -> None:
+        """The Functions' full values from the coordinates (nothing: they are the values)."""
+
+    def refuse_chart(self) -> None:
+        """The chart may move (the full model's variables change with it)."""
 
 
 def _constant(U: fem.Function, value: float = 0.0) -> fem.Constant:
@@ -73,6 +111,16 @@ class Integrator:
         self._factory = residual
         self.steps_taken = 0
         self.unknown_time = self.time  # τ of the unknown U in the current solve
+        self.space: FullSpace = FullSpace(U)  # of the state arrays (module docstring)
+
+    def use_space(self, space) -> None:
+        """Keep the state arrays in ``space`` from now on (before the first step; module
+        docstring, "The space"); NotImplementedError with the reason if this integrator cannot
+        (it writes U's values directly)."""
+        raise NotImplementedError(
+            f"the {self.name} integrator writes U's values directly (only SDIRK runs on "
+            "reduced coordinates)"
+        )
 
     def residual_form(self) -> ufl.Form:
         raise NotImplementedError
@@ -107,7 +155,7 @@ class Integrator:
     def reject(self) -> None:
         """Undo a step that is not accepted: U back to the last accepted state (the history
         is only updated by :meth:`accept`)."""
-        self.U.x.array[:] = self.last_accepted()
+        self.space.values(self.U)[:] = self.last_accepted()
 
     def last_accepted(self) -> np.ndarray:
         """The state array at ``self.time``."""
@@ -127,8 +175,12 @@ class Integrator:
         return {"time": self.time, "steps_taken": self.steps_taken}
 
     def load_state_dict(self, state: dict) -> None:
+        """The inverse of :meth:`state_dict`; the coordinates of U from U (which the caller
+        set) where the space is not U's own."""
         self.time = float(state["time"])
         self.steps_taken = int(state["steps_taken"])
+        if self.space.reduced:
+            self.space.values(self.U)[:] = self.space.from_full(self.U.x.array)
 
     def _copy(self, dst: fem.Function, src: fem.Function) -> None:
         dst.x.array[:] = src.x.array
@@ -408,21 +460,36 @@ class SDIRK(Integrator):
         self.name = f"sdirk{order}"
         self.gamma, self.A, self.b = _sdirk_tableau(order)
         self.c = self.A.sum(axis=1)
-        V = U.function_space
-        self.U_n = U.x.array.copy()
-        self.Z = fem.Function(V, name="Z")  # U_n + h Σ_{j<i} a_ij K_j of the current stage
+        self.Z = fem.Function(U.function_space, name="Z")  # U_n + h Σ_{j<i} a_ij K_j
         self.inv_gh = _constant(U, 1.0)
         stages = len(self.b)
         if stages > MAX_STAGES:
             raise ValueError(f"an SDIRK tableau of {stages} stages; at most {MAX_STAGES}")
-        self.K = np.zeros((stages, U.x.array.size))  # stage rates K_i of this step
-        self._taus = np.zeros(stages)  # their times
-        # The last s stage rates of accepted steps, a ring buffer in the order computed
-        # (slot = count mod s), and their times.
-        self._rates = np.zeros((stages, U.x.array.size))
-        self._times = np.zeros(stages)
+        self._taus = np.zeros(stages)  # the times of this step's stage rates
+        self._times = np.zeros(stages)  # and of the stored ones
         self._stored = 0
+        self._arrays()
+
+    def _arrays(self) -> None:
+        """The state arrays in ``self.space`` (module docstring, "The space"): U's and Z's
+        values (``_u``, ``_z``), U_n, this step's stage rates K_i, and the last s stage rates
+        of accepted steps, a ring buffer in the order computed (slot = count mod s); then
+        the C kernels' struct pointing into them."""
+        stages, size = len(self.b), self.space.size
+        self._u = self.space.values(self.U)
+        self._z = self.space.values(self.Z)
+        self.U_n = self._u.copy()
+        self.K = np.zeros((stages, size))
+        self._rates = np.zeros((stages, size))
         self._kernels()
+
+    def use_space(self, space) -> None:
+        """The stages on ``space``'s arrays (before the first step): U_n from U's coordinates;
+        the predictor's stored rates start empty."""
+        if self.steps_taken or self._stored:
+            raise NotImplementedError("sdirk: a space is chosen before the first step")
+        self.space = space
+        self._arrays()
 
     def _kernels(self) -> None:
         """The C kernels of the step's arithmetic (newton_loop.c ``cf_sdirk_*``) and the
@@ -445,7 +512,7 @@ class SDIRK(Integrator):
         sd = ffi.new("cf_sdirk*")
         sd.stages, sd.n, sd.gamma = len(self.b), self.U_n.size, float(self.gamma)
         sd.A, sd.b, sd.c = (pointer(x) for x in self._tableau)
-        sd.u, sd.z, sd.u_n = pointer(self.U.x.array), pointer(self.Z.x.array), pointer(self.U_n)
+        sd.u, sd.z, sd.u_n = pointer(self._u), pointer(self._z), pointer(self.U_n)
         sd.K, sd.taus = pointer(self.K), pointer(self._taus)
         sd.rates, sd.times = pointer(self._rates), pointer(self._times)
         sd.guess, sd.time_value = pointer(self._guess), pointer(time_view(self.time_eval))
@@ -503,17 +570,20 @@ class SDIRK(Integrator):
 
     def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
         """U and U_n mapped; the predictor's stage rates, whose states are not kept, are
-        dropped (the next step's first stage starts from U_n)."""
+        dropped (the next step's first stage starts from U_n). A reduced space refuses (the
+        new chart's variables are off its basis)."""
+        self.space.refuse_chart()
         super().change_variables(state_map, rate_map)
         self.U_n[:] = state_map(self.U_n)
         self._stored = 0
 
     def state_dict(self) -> dict:
-        """Adds U_n and the predictor's ring buffer: stage rates, their times, the count stored."""
+        """Adds U_n and the predictor's ring buffer: stage rates, their times, the count stored
+        (full vectors in any space)."""
         return {
             **super().state_dict(),
-            "U_n": self.U_n.copy(),
-            "rates": self._rates.copy(),
+            "U_n": self.space.to_full(self.U_n),
+            "rates": self.space.to_full(self._rates, rate=True),
             "rate_times": self._times.copy(),
             "stored": self._stored,
         }
@@ -521,14 +591,14 @@ class SDIRK(Integrator):
     def load_state_dict(self, state: dict) -> None:
         """The inverse of :meth:`state_dict`."""
         super().load_state_dict(state)
-        self.U_n[:] = state["U_n"]
+        self.U_n[:] = self.space.from_full(state["U_n"])
         rates, times, stored = state["rates"], state["rate_times"], int(state["stored"])
         size = len(self._times)
         if len(times) > size:  # a checkpoint of the predictor of degree s: its newest s rates
             newest = [(stored - size + j) % len(times) for j in range(size)]
             slots = [(stored - size + j) % size for j in range(size)]
             rates, times = rates[newest][np.argsort(slots)], times[newest][np.argsort(slots)]
-        self._rates[:] = rates
+        self._rates[:] = self.space.from_full(rates, rate=True)
         self._times[:] = times
         self._stored = stored
 

@@ -30,7 +30,7 @@ from cosserat_fem.nls.newton import NewtonFailure, NewtonSolver
 from cosserat_fem.rod.checks import StateCheck, cos_theta, worst_place
 from cosserat_fem.rod.model import RodModel
 from cosserat_fem.timestepping.adaptive import SHRINK, StateHistory, StepController
-from cosserat_fem.timestepping.events import Events
+from cosserat_fem.timestepping.events import Events, Observer
 
 #: Rejections in a row after which an adaptive run stops.
 MAX_CONSECUTIVE_REJECTIONS = 12
@@ -158,7 +158,13 @@ class TimeLoop:
             self._adaptive_parts()
         if restart is not None:
             self.load_state_dict(restart)
-        self._check = StateCheck(model)
+        # The integrator's state in reduced coordinates (docs/rom.md §8): U's full values are
+        # lifted only for what reads them (lift: outputs, checkpoints, observers, the end).
+        self.space = integrator.space
+        self._reduced = bool(self.space.reduced)
+        self._check = self.space.state_check(model) if self._reduced else StateCheck(model)
+        self._lifts = {hook: self._reads_state(hook) for hook in ("solve_done", "step_accepted")}
+        self._lifts["output"] = events.listens("output") and self._reduced
         self._cos_accepted = self._check.cos_theta()  # the chart-crossing check
         self._cos_candidate = self._cos_accepted
         # Fixed supports: their Dirichlet values are not read again before each solve.
@@ -170,6 +176,26 @@ class TimeLoop:
             )
 
     # -- state ----------------------------------------------------------------------------
+    def _reads_state(self, hook: str) -> bool:
+        """Whether, in reduced coordinates, an observer of ``hook`` reads the full state: every
+        one that does not say otherwise (``needs_full_state = False``: it reads none, or asks
+        for it by :meth:`lift`)."""
+        if not self._reduced:
+            return False
+        base = getattr(Observer, hook)
+        return any(
+            getattr(type(o), hook, base) is not base and getattr(o, "needs_full_state", True)
+            for o in self.events.observers
+        )
+
+    def lift(self) -> None:
+        """The model's U and the integrator's Functions (SDIRK's Z) written in full from the
+        reduced coordinates (O(n m)); nothing in a full run, whose arrays are the values. For an
+        observer with ``needs_full_state = False`` that reads them at some events only (a
+        reduced run's error indicator at its sampled steps)."""
+        if self._reduced:
+            self.space.lift()
+
     def _adaptive_parts(self) -> None:
         """For adaptive steps: the step controller (the error of p only) and the history of the
         last order + 2 accepted states (cosserat_fem/timestepping/adaptive.py)."""
@@ -192,6 +218,7 @@ class TimeLoop:
     def state_dict(self) -> dict[str, dict]:
         """Everything the remaining steps depend on, by part (cosserat_fem/io/checkpoint.py)."""
         model = self.model
+        self.lift()
         parts = {
             "state": {"U": model.U.x.array.copy()},
             "integrator": self.integrator.state_dict(),
@@ -248,7 +275,20 @@ class TimeLoop:
         """After an accepted step to t [s]: :func:`watch_chart`, and the chart-crossing check
         starts again from the new chart's angles."""
         model = self.model
-        largest = watch_chart(model, self.integrator, self.solver, self.history, self._cos_accepted)
+        if self._reduced:
+            if getattr(self._check, "quiet", False):
+                return  # the bound (8.1) keeps every node away from the chart's limit
+            self.lift()
+        try:
+            largest = watch_chart(
+                model, self.integrator, self.solver, self.history, self._cos_accepted
+            )
+        except SolverError as exc:  # a reduced run's refusal of the move: say when
+            if exc.time is None:
+                exc.time = t
+                exc.message = exc._compose()
+                exc.args = (exc.message,)
+            raise
         if largest is None:
             return
         self._cos_accepted = self._cos_candidate = self._check.cos_theta()
@@ -267,6 +307,8 @@ class TimeLoop:
             model.data.sync(self.integrator.time_eval)
         iterations = self.solver.solve()
         if self._watch_solves:
+            if self._lifts["solve_done"]:
+                self.space.lift()
             self.events.solve_done(self, iterations)
         return iterations
 
@@ -329,6 +371,8 @@ class TimeLoop:
         st.smallest = h if st.smallest is None else min(st.smallest, h)
         st.largest = h if st.largest is None else max(st.largest, h)
         self._watch_chart(t_new)
+        if self._lifts["step_accepted"]:
+            self.space.lift()
         self.events.step_accepted(self)
 
     def reject(self, cause: SolverError | None) -> None:
@@ -342,10 +386,13 @@ class TimeLoop:
         if self.pending:
             self.integrator.reject()
             self.pending = False
+        self.lift()
 
     def _output(self, k: int, t: float, state: np.ndarray | None = None) -> None:
         """The output event of t_k; ``state``, when given, is the (interpolated) state at
         t_k, put into the model's U while the observers run."""
+        if self._lifts["output"]:
+            self.space.lift()
         u = self.model.U.x.array
         kept = None
         if state is not None:
@@ -372,6 +419,7 @@ class TimeLoop:
                 self.run_fixed()
         finally:
             self.stepping_until = time.perf_counter()
+            self.lift()
 
     def run_fixed(self) -> None:
         """Steps of time.step; a failed step is retried with half of it, at most
