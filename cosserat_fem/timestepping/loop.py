@@ -32,6 +32,17 @@ from cosserat_fem.rod.model import RodModel
 from cosserat_fem.timestepping.adaptive import SHRINK, StateHistory, StepController
 from cosserat_fem.timestepping.events import Events, Observer
 
+#: The events before which a run in reduced coordinates lifts U (and the integrator's
+#: Functions) in full, if an observer of it reads the state (TimeLoop._reads_state).
+LIFTED = (
+    "step_attempted",
+    "solve_done",
+    "step_rejected",
+    "step_accepted",
+    "output",
+    "step_finished",
+)
+
 #: Rejections in a row after which an adaptive run stops.
 MAX_CONSECUTIVE_REJECTIONS = 12
 
@@ -163,8 +174,7 @@ class TimeLoop:
         self.space = integrator.space
         self._reduced = bool(self.space.reduced)
         self._check = self.space.state_check(model) if self._reduced else StateCheck(model)
-        self._lifts = {hook: self._reads_state(hook) for hook in ("solve_done", "step_accepted")}
-        self._lifts["output"] = events.listens("output") and self._reduced
+        self._lifts = {hook: self._reads_state(hook) for hook in LIFTED}
         self._cos_accepted = self._check.cos_theta()  # the chart-crossing check
         self._cos_candidate = self._cos_accepted
         # Fixed supports: their Dirichlet values are not read again before each solve.
@@ -188,13 +198,19 @@ class TimeLoop:
             for o in self.events.observers
         )
 
-    def lift(self) -> None:
+    def lift(self, rows: np.ndarray | None = None) -> None:
         """The model's U and the integrator's Functions (SDIRK's Z) written in full from the
-        reduced coordinates (O(n m)); nothing in a full run, whose arrays are the values. For an
+        reduced coordinates (O(n m)), or U's entries ``rows`` only (int32; a probe's:
+        observers.probe_rows); nothing in a full run, whose arrays are the values. For an
         observer with ``needs_full_state = False`` that reads them at some events only (a
         reduced run's error indicator at its sampled steps)."""
-        if self._reduced:
+        if not self._reduced:
+            return
+        if rows is None:
             self.space.lift()
+        else:
+            space = self.space
+            space.lift_rows(self.model.U.x.array, space.values(self.model.U), 1.0, rows)
 
     def _adaptive_parts(self) -> None:
         """For adaptive steps: the step controller (the error of p only) and the history of the
@@ -315,6 +331,8 @@ class TimeLoop:
     def attempt(self, t_new: float) -> SolverError | None:
         """Take a step to t_new [s]; None if it converged and the state is fine, else the
         retryable SolverError (U is then left as the integrator made it: reject or accept)."""
+        if self._lifts["step_attempted"]:
+            self.space.lift()
         self.events.step_attempted(self, t_new)
         self.pending = True
         try:
@@ -379,6 +397,8 @@ class TimeLoop:
         self.integrator.reject()
         self.pending = False
         self.state.rejected += 1
+        if self._lifts["step_rejected"]:
+            self.space.lift()
         self.events.step_rejected(self, cause)
 
     def back_to_accepted(self) -> None:
@@ -468,6 +488,8 @@ class TimeLoop:
                 solver.request_jacobian()
             self._output(st.outputs, st.t)
             st.level, st.done = 0, 0.0
+            if self._lifts["step_finished"]:
+                self.space.lift()
             self.events.step_finished(self)
 
     def run_adaptive(self) -> None:
