@@ -151,10 +151,14 @@ def floor(scene, basis, steps: int) -> None:
         ),
     }
     loop2 = TimeLoop(loop.model, integrator, solver, scene.time, Events())
-    t = loop2.state.t
-    rows["a whole step (TimeLoop.attempt + accept)"] = _median_us(
-        lambda: (loop2.attempt(t), loop2.accept(t)), 500
-    )
+
+    def whole_step() -> None:
+        t_new = loop2.state.t + scene.time.step
+        failure = loop2.attempt(t_new)
+        assert failure is None, failure
+        loop2.accept(t_new)
+
+    rows["a whole step (TimeLoop.attempt + accept)"] = _median_us(whole_step, 500)
     print("| part of a hyper-q step | µs |")
     print("|---|---|")
     for name, us in rows.items():
