@@ -91,6 +91,7 @@ typedef struct {
   int64_t jacobians, full_projections; double time_jacobian;
   int32_t coordinates; int32_t n_lifts; double* const* lift_values;
   double* const* lift_coords; const double* lift_affine; double* q0;
+  const double* VT; double* t;
 } cf_reduced;
 int cf_reduced_residual(cf_problem* p, const double* DV, int32_t m, double* r, double* out);
 int cf_reduced_jacobian(cf_problem* p, const double* DV, const double* V, int32_t m, double* Jr,

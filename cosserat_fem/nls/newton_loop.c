@@ -486,6 +486,8 @@ typedef struct {
   double* const* lift_coords;        /* its coordinates (m,) */
   const double* lift_affine;         /* 1: U_ref + V c (a state); 0: V c (a rate) */
   double* q0;                        /* (m) the guess, kept for a retry */
+  const double* VT;                  /* (m, n_rows) V's rows `rows`, transposed */
+  double* t;                         /* scratch (n_rows) */
 } cf_reduced;
 
 static void packed_constants(cf_problem* p)
@@ -644,8 +646,27 @@ static void write_rows(const cf_reduced* R, double* u, const int32_t* rows, int3
   }
 }
 
+/* values = a U_ref + V c on the entries `rows` (a = 1 a state, 0 a rate), from VT: the sums
+ * of each entry in write_rows' order (j = 0..m-1 from 0.0), so the same doubles, but with
+ * the entries independent in the inner loop (no chain of m dependent additions per entry). */
+static void set_values(const cf_reduced* R, double* values, const double* c, double affine)
+{
+  const int32_t nr = R->n_rows, m = R->m;
+  double* t = R->t;
+  memset(t, 0, sizeof(double) * (size_t)nr);
+  for (int32_t j = 0; j < m; ++j) {
+    const double cj = c[j];
+    const double* vt = R->VT + (int64_t)j * nr;
+    for (int32_t k = 0; k < nr; ++k) t[k] += vt[k] * cj;
+  }
+  for (int32_t k = 0; k < nr; ++k) {
+    const int32_t i = R->rows[k];
+    values[i] = affine * R->ref[i] + t[k];
+  }
+}
+
 /* U's entries the sampled entities read: U_ref + V q there. */
-static void set_rows(cf_reduced* R, double* u) { write_rows(R, u, R->rows, R->n_rows); }
+static void set_rows(cf_reduced* R, double* u) { set_values(R, u, R->q, 1.0); }
 
 static int reduced_residual(cf_reduced* R, double* fnorm)
 {
@@ -719,14 +740,7 @@ int cf_reduced_run(void* ctx, int* iterations, int* reason)
   *iterations = 0;
   if (R->coordinates)
     for (int32_t f = 0; f < R->n_lifts; ++f) /* the integrator's Functions on the rows */
-      for (int32_t k = 0; k < R->n_rows; ++k) {
-        const int32_t i = R->rows[k];
-        const double* v = R->V + (int64_t)i * m;
-        const double* c = R->lift_coords[f];
-        double t = 0.0;
-        for (int32_t j = 0; j < m; ++j) t += v[j] * c[j];
-        R->lift_values[f][i] = R->lift_affine[f] * R->ref[i] + t;
-      }
+      set_values(R, R->lift_values[f], R->lift_coords[f], R->lift_affine[f]);
   else
     project(R, u);
   set_rows(R, u);

@@ -306,13 +306,12 @@ class HyperSolver(ReducedSolver):
             "piv": np.zeros(m, dtype=np.int32),
             "q0": np.zeros(m),
         }
-        R = ffi.new("cf_reduced*")
+        self._R = R = ffi.new("cf_reduced*")
         R.n, R.m = n, m
         for name in ("V", "DV", "WV", "ref", "G", "g", "P", "q", "r", "dq", "Jr", "lu", "work"):
             setattr(R, name, ffi.cast("double*", arrays[name].ctypes.data))
         R.c = float(self.basis.reference @ self.basis.reference)
-        R.n_rows = row_array.size
-        R.rows = ffi.cast("int32_t*", row_array.ctypes.data)
+        self._set_rows(row_array)
         R.piv = ffi.cast("int32_t*", arrays["piv"].ctypes.data)
         R.q0 = ffi.cast("double*", arrays["q0"].ctypes.data)
         R.n_rest, R.rest = rest.size, ffi.cast("int32_t*", arrays["rest"].ctypes.data)
@@ -404,7 +403,17 @@ class HyperSolver(ReducedSolver):
         R.n_lifts = len(functions)
         R.lift_values, R.lift_coords = self._lift_values, self._lift_coords
         R.lift_affine = ffi.cast("double*", self._arrays["lift_affine"].ctypes.data)
-        R.n_rows, R.rows = union.size, ffi.cast("int32_t*", union.ctypes.data)
+        self._set_rows(union)
+
+    def _set_rows(self, rows: np.ndarray) -> None:
+        """The C iteration's sampled rows, with V's rows there transposed (newton_loop.c
+        ``set_values``) and its scratch."""
+        ffi, R = self._ffi, self._R
+        self._arrays["rows_now"] = rows
+        self._arrays["VT"] = VT = np.ascontiguousarray(self.V[rows].T)
+        self._arrays["t"] = t = np.zeros(max(rows.size, 1))
+        R.n_rows, R.rows = rows.size, ffi.cast("int32_t*", rows.ctypes.data)
+        R.VT, R.t = ffi.cast("double*", VT.ctypes.data), ffi.cast("double*", t.ctypes.data)
 
     def _coordinates_on(self) -> None:
         """cf_reduced_run in reduced coordinates: the guess is q (kept by cf_reduced_guess
