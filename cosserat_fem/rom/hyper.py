@@ -35,12 +35,21 @@ the reduced system keeps the sign structure (the energy) of the Galerkin one.
 Online (:class:`HyperSolver`), each Newton iteration of the reduced coordinates q (V has
 m = 2k columns) costs O(m |E| n_e) for r̃ and O(|E| (n_e² m + n_e m²)) for J̃_r (n_e the dofs
 of an element) and O(m³) for its LU, all in C (newton_loop.c ``cf_reduced_run``), with the
-state reconstructed only on the entries of U the sampled elements read. What a solve still
-does in O(n m): the whole U = U_ref + V q given back to the integrator at its end (on the
-rows the iterations did not write); the integrator's guess is read off the sampled rows,
-q₀ = V_S⁺ (U − U_ref)_S (every state the integrator forms from reduced ones is in the affine
-space; checked there, else and at the first solve the W-projection over every row). The
-integrator's own arithmetic on full vectors (cf_sdirk_*) is O(n) a stage.
+state reconstructed only on the entries of U the sampled elements read.
+
+Two ways to keep the integrator's state (docs/rom.md §8). **Reduced coordinates** (the
+default where it applies: SDIRK, fixed steps; :meth:`HyperSolver.coordinate_space`): the
+integrator's arrays are the coordinates y of U = U_ref + V y (:class:`ReducedCoordinates`,
+its "space"), 2k-vectors; its C kernels (cf_sdirk_*) run on them unchanged, q is the
+iteration's unknown and guess, SDIRK's Z is written on the sampled rows before each solve,
+and the full U only where something reads it (TimeLoop.lift: outputs, a probe's rows,
+checkpoints, observers, the run's end); the time loop's state check is the O(m) bound of
+:class:`ReducedStateCheck`. Nothing a step does is O(n). **Full vectors** (otherwise: the
+other integrators write U's values directly, adaptive steps read U): at the end of each solve
+the whole U = U_ref + V q is written for the integrator (O(n m)), whose arithmetic is O(n) a
+stage, and its guess is read off the sampled rows, q₀ = V_S⁺ (U − U_ref)_S (every state the
+integrator forms from reduced ones is in the affine space; checked there, else and at the
+first solve the W-projection over every row).
 
 Serial only: the C assembler is serial, and the sampled elements would be spread over the
 ranks; a hyper-reduced run under MPI is refused (one line).
