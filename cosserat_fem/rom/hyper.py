@@ -449,11 +449,13 @@ class ReducedCoordinates(FullSpace):
         self.V, self.ref = solver.V, np.ascontiguousarray(solver.basis.reference)
         self.WV = np.ascontiguousarray(solver.WV)
         self.n, self.size = self.V.shape
+        solver.q[:] = self.from_full(solver.U.x.array)  # U's coordinates, from U now
         self.functions: list = [(solver.U, solver.q, 1.0)]  # (Function, coordinates, affine)
 
     def values(self, F, rate: bool = False) -> np.ndarray:
-        """F's coordinates: U's are the solver's q (set to the W-projection of U's values
-        now), another Function's a new array (likewise), lifted by the solver on its rows."""
+        """F's coordinates: U's are the solver's q (the W-projection of U's values when this
+        space was made), another Function's a new array (the W-projection of its values
+        now), lifted by the solver on its rows before each solve."""
         for G, c, _a in self.functions:
             if G is F:
                 return c
@@ -463,9 +465,8 @@ class ReducedCoordinates(FullSpace):
 
     def activate(self) -> None:
         """The solver's iteration switched to these coordinates (after the integrator took
-        its arrays): q from U, the other Functions' lifts bound."""
+        its arrays): the other Functions' lifts bound."""
         solver = self.solver
-        solver.q[:] = self.from_full(solver.U.x.array)
         solver._bind_lifts(self.functions[1:])
         solver._coordinates_on()
 
