@@ -38,14 +38,15 @@ of an element) and O(m³) for its LU, all in C (newton_loop.c ``cf_reduced_run``
 state reconstructed only on the entries of U the sampled elements read.
 
 Two ways to keep the integrator's state (docs/rom.md §8). **Reduced coordinates** (the
-default where it applies: SDIRK, fixed steps; :meth:`HyperSolver.coordinate_space`): the
+default where it applies: fixed steps; :meth:`HyperSolver.coordinate_space`): the
 integrator's arrays are the coordinates y of U = U_ref + V y (:class:`ReducedCoordinates`,
-its "space"), 2k-vectors; its C kernels (cf_sdirk_*) run on them unchanged, q is the
-iteration's unknown and guess, SDIRK's Z is written on the sampled rows before each solve,
+its "space"), 2k-vectors; SDIRK's C kernels (cf_sdirk_*) run on them unchanged, q is the
+iteration's unknown and guess, the integrator's other Functions (SDIRK's Z; BDF2's U_n,
+U_{n−1}; generalized-α's U_n, U̇_n) are written on the sampled rows before each solve,
 and the full U only where something reads it (TimeLoop.lift: outputs, a probe's rows,
 checkpoints, observers, the run's end); the time loop's state check is the O(m) bound of
-:class:`ReducedStateCheck`. Nothing a step does is O(n). **Full vectors** (otherwise: the
-other integrators write U's values directly, adaptive steps read U): at the end of each solve
+:class:`ReducedStateCheck`. Nothing a step does is O(n). **Full vectors** (otherwise:
+adaptive steps read U; or on request, ``galerkin.solver_factory(..., coordinates=False)``): at the end of each solve
 the whole U = U_ref + V q is written for the integrator (O(n m)), whose arithmetic is O(n) a
 stage, and its guess is read off the sampled rows, q₀ = V_S⁺ (U − U_ref)_S (every state the
 integrator forms from reduced ones is in the affine space; checked there, else and at the

@@ -39,8 +39,8 @@ map U = U_ref + V y gives (docs/rom.md §5, §8). Its arrays belong to a ``space
 cosserat_fem/rom/hyper.py ``ReducedCoordinates``): ``space.values(F)`` is the array it treats
 as the Function F's values, ``space.size`` their length, ``to_full``/``from_full`` convert a
 checkpoint's arrays (which are always full vectors). :meth:`Integrator.use_space` moves an
-integrator into another space before its first step; SDIRK does, the others refuse (they
-write U's values directly).
+integrator into another space before its first step (the four here can; the forms read
+their Functions, which the space's owner writes where they are read).
 """
 
 from __future__ import annotations
@@ -198,6 +198,11 @@ class Static(Integrator):
         self.time_eval.value = self.time + h
         self.unknown_time = self.time + h
 
+    def use_space(self, space) -> None:
+        """Only U, in ``space`` (before the first step)."""
+        self.space = space
+        space.values(self.U)
+
 
 class BDF2(Integrator):
     """Variable-step BDF2 started by one implicit-midpoint step (module docstring)."""
@@ -215,6 +220,19 @@ class BDF2(Integrator):
         self.a0, self.a1, self.a2 = (_constant(U) for _ in range(3))
         self.mid = _constant(U, 1.0)  # 1 for the midpoint start, 0 for BDF2 steps
         self.h_prev: float | None = None
+        self._arrays()
+
+    def _arrays(self) -> None:
+        """U's, U_n's and U_{n−1}'s arrays in ``self.space`` (module docstring, "The space")."""
+        values = self.space.values
+        self._u, self._un, self._unm1 = values(self.U), values(self.U_n), values(self.U_nm1)
+
+    def use_space(self, space) -> None:
+        """The steps on ``space``'s arrays (before the first step)."""
+        if self.steps_taken:
+            raise NotImplementedError("bdf2: a space is chosen before the first step")
+        self.space = space
+        self._arrays()
 
     def residual_form(self) -> ufl.Form:
         U, Un, Unm1 = self.U, self.U_n, self.U_nm1
@@ -230,7 +248,7 @@ class BDF2(Integrator):
             self.mid.value = 1.0
             self.a0.value, self.a1.value, self.a2.value = 1.0 / h, -1.0 / h, 0.0
             self.time_eval.value = self.time + 0.5 * h
-            self._copy(self.U, self.U_n)
+            self._u[:] = self._un
             return
         w = h / self.h_prev
         self.mid.value = 0.0
@@ -239,19 +257,21 @@ class BDF2(Integrator):
         self.a2.value = w * w / ((1.0 + w) * h)
         self.time_eval.value = self.time + h
         # Predictor: linear extrapolation through U_{n-1}, U_n.
-        self.U.x.array[:] = (1.0 + w) * self.U_n.x.array - w * self.U_nm1.x.array
+        self._u[:] = (1.0 + w) * self._un - w * self._unm1
 
     def accept(self, h: float) -> None:
-        self._copy(self.U_nm1, self.U_n)
-        self._copy(self.U_n, self.U)
+        self._unm1[:] = self._un
+        self._un[:] = self._u
         self.h_prev = h
         super().accept(h)
 
     def last_accepted(self) -> np.ndarray:
-        return self.U_n.x.array
+        return self._un
 
     def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
-        """U, U_n and U_{n−1} mapped: the next step's BDF2 formula and predictor go on."""
+        """U, U_n and U_{n−1} mapped: the next step's BDF2 formula and predictor go on (a
+        reduced space refuses: the new chart's variables are off its basis)."""
+        self.space.refuse_chart()
         super().change_variables(state_map, rate_map)
         self.U_n.x.array[:] = state_map(self.U_n.x.array)
         self.U_nm1.x.array[:] = state_map(self.U_nm1.x.array)
@@ -260,16 +280,16 @@ class BDF2(Integrator):
         """Adds U_n, U_{n−1} and h_prev (NaN before the first step, which is the midpoint start)."""
         return {
             **super().state_dict(),
-            "U_n": self.U_n.x.array.copy(),
-            "U_nm1": self.U_nm1.x.array.copy(),
+            "U_n": self.space.to_full(self._un),
+            "U_nm1": self.space.to_full(self._unm1),
             "h_prev": np.nan if self.h_prev is None else self.h_prev,
         }
 
     def load_state_dict(self, state: dict) -> None:
         """The inverse of :meth:`state_dict`."""
         super().load_state_dict(state)
-        self.U_n.x.array[:] = state["U_n"]
-        self.U_nm1.x.array[:] = state["U_nm1"]
+        self._un[:] = self.space.from_full(state["U_n"])
+        self._unm1[:] = self.space.from_full(state["U_nm1"])
         h_prev = float(state["h_prev"])
         self.h_prev = None if np.isnan(h_prev) else h_prev
 
@@ -301,8 +321,20 @@ class GeneralizedAlpha(Integrator):
         self.h = _constant(U, 1.0)
         self._Udot_prev: np.ndarray | None = None
         self._h_prev = 1.0
-        # Views of U, U_n and U̇_n (the Functions' own memory; Function.x costs 1.2 μs a call).
-        self._arrays = (self.U.x.array, self.U_n.x.array, self.Udot_n.x.array)
+        # U's, U_n's and U̇_n's arrays in the space (at first the Functions' own memory;
+        # Function.x costs 1.2 μs a call).
+        self._arrays = self._space_arrays()
+
+    def _space_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        values = self.space.values
+        return values(self.U), values(self.U_n), values(self.Udot_n, rate=True)
+
+    def use_space(self, space) -> None:
+        """The steps on ``space``'s arrays (before the first step; U̇_n, a rate, as one)."""
+        if self.steps_taken:
+            raise NotImplementedError("generalized-alpha: a space is chosen before the first step")
+        self.space = space
+        self._arrays = self._space_arrays()
 
     def _rate_new(self):
         """U̇_{n+1} as a UFL expression of the unknown U = U_{n+1}."""
@@ -325,7 +357,8 @@ class GeneralizedAlpha(Integrator):
         return a, L, W
 
     def set_initial_rate(self, rate: np.ndarray) -> None:
-        self.Udot_n.x.array[:] = rate
+        """U̇_0 from a full rate array (in the space's coordinates)."""
+        self._arrays[2][:] = self.space.from_full(rate, rate=True)
 
     def start(self, problem, lu_package: str) -> None:
         """U̇_0 consistent with U_0: F(U_0, U̇_0, τ_0) = 0, affine in U̇_0, is one linear solve
@@ -391,11 +424,12 @@ class GeneralizedAlpha(Integrator):
         super().accept(h)
 
     def last_accepted(self) -> np.ndarray:
-        return self.U_n.x.array
+        return self._arrays[1]
 
     def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
         """U, U_n and U̇_n (at U_n) mapped; the previous rate, whose state is not kept, is
-        dropped: the next predictor is U_n + h U̇_n."""
+        dropped: the next predictor is U_n + h U̇_n (a reduced space refuses)."""
+        self.space.refuse_chart()
         u_n = self.U_n.x.array.copy()
         super().change_variables(state_map, rate_map)
         self.Udot_n.x.array[:] = rate_map(u_n, self.Udot_n.x.array)
@@ -405,22 +439,23 @@ class GeneralizedAlpha(Integrator):
     def state_dict(self) -> dict:
         """Adds U_n, U̇_n and the previous rate (empty before the first step) with its step
         h_prev."""
-        previous = self._Udot_prev
+        previous, space = self._Udot_prev, self.space
         return {
             **super().state_dict(),
-            "U_n": self.U_n.x.array.copy(),
-            "Udot_n": self.Udot_n.x.array.copy(),
-            "Udot_prev": np.zeros(0) if previous is None else previous.copy(),
+            "U_n": space.to_full(self._arrays[1]),
+            "Udot_n": space.to_full(self._arrays[2], rate=True),
+            "Udot_prev": np.zeros(0) if previous is None else space.to_full(previous, rate=True),
             "h_prev": self._h_prev,
         }
 
     def load_state_dict(self, state: dict) -> None:
         """The inverse of :meth:`state_dict`."""
         super().load_state_dict(state)
-        self.U_n.x.array[:] = state["U_n"]
-        self.Udot_n.x.array[:] = state["Udot_n"]
+        space = self.space
+        self._arrays[1][:] = space.from_full(state["U_n"])
+        self._arrays[2][:] = space.from_full(state["Udot_n"], rate=True)
         previous = np.asarray(state["Udot_prev"])
-        self._Udot_prev = previous.copy() if previous.size else None
+        self._Udot_prev = space.from_full(previous, rate=True).copy() if previous.size else None
         self._h_prev = float(state["h_prev"])
 
 
