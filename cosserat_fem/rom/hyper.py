@@ -46,8 +46,8 @@ U_{n−1}; generalized-α's U_n, U̇_n) are written on the sampled rows before e
 and the full U only where something reads it (TimeLoop.lift: outputs, a probe's rows,
 checkpoints, observers, the run's end); the time loop's state check is the O(m) bound of
 :class:`ReducedStateCheck`. Nothing a step does is O(n). **Full vectors** (otherwise:
-adaptive steps read U; or on request, ``galerkin.solver_factory(..., coordinates=False)``): at the end of each solve
-the whole U = U_ref + V q is written for the integrator (O(n m)), whose arithmetic is O(n) a
+adaptive steps read U; or on request, ``galerkin.solver_factory(..., coordinates=False)``):
+at the end of each solve the whole U = U_ref + V q is written for the integrator (O(n m)), whose arithmetic is O(n) a
 stage, and its guess is read off the sampled rows, q₀ = V_S⁺ (U − U_ref)_S (every state the
 integrator forms from reduced ones is in the affine space; checked there, else and at the
 first solve the W-projection over every row).
