@@ -47,10 +47,10 @@ and the full U only where something reads it (TimeLoop.lift: outputs, a probe's 
 checkpoints, observers, the run's end); the time loop's state check is the O(m) bound of
 :class:`ReducedStateCheck`. Nothing a step does is O(n). **Full vectors** (otherwise:
 adaptive steps read U; or on request, ``galerkin.solver_factory(..., coordinates=False)``):
-at the end of each solve the whole U = U_ref + V q is written for the integrator (O(n m)), whose arithmetic is O(n) a
-stage, and its guess is read off the sampled rows, q₀ = V_S⁺ (U − U_ref)_S (every state the
-integrator forms from reduced ones is in the affine space; checked there, else and at the
-first solve the W-projection over every row).
+at the end of each solve the whole U = U_ref + V q is written for the integrator (O(n m)),
+whose arithmetic is O(n) a stage, and its guess is read off the sampled rows,
+q₀ = V_S⁺ (U − U_ref)_S (every state the integrator forms from reduced ones is in the affine
+space; checked there, else and at the first solve the W-projection over every row).
 
 Serial only: the C assembler is serial, and the sampled elements would be spread over the
 ranks; a hyper-reduced run under MPI is refused (one line).
