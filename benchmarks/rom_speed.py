@@ -1,11 +1,15 @@
 """The reduced model's speed (issue 28's goals; docs/rom.md §8): full, Galerkin-reduced and
-hyper-reduced (ECSW) runs of the same scene, interleaved (full, Galerkin, hyper, full, ...),
+hyper-reduced (ECSW) runs of the same scene, the hyper-reduced with the integrator on full
+vectors ("hyper-full") and on the reduced coordinates ("hyper-q"), interleaved (full,
+Galerkin, hyper-full, hyper-q, full, ...), no error indicator,
 medians of the solve loop without output (summary.json ``wall_time_s``), their ratios, and
 where a reduced step's time goes (the solver's counters): per step, per residual (the sampled
 elements' kernels and projection), per Newton iteration apart from the residual (the k×k LU
 solve, the norms), per solve apart from its iterations (the guess's projection and the
 state's reconstruction, O(n k)), and the time loop's own per step (the integrator's
-arithmetic and Python, everything but the solves).
+arithmetic and Python, everything but the solves). Then the floor of a hyper-q step, part by
+part, timed alone (``floor``): one stage solve in C, SDIRK's step Python and kernels without
+its solves, the state check, the accept, the event calls, the loop's Python around them.
 
     .venv/bin/python benchmarks/rom_speed.py paper [--repeats 5] [--modes 12] [--tau 1e-2]
     .venv/bin/python benchmarks/rom_speed.py riser [--elements 10000] [--steps 20] [--tau 1e-2]
@@ -53,6 +57,7 @@ def breakdown(result, steps: int) -> dict:
         "iteration_beyond_residual": (solve - res - jac) / max(its, 1) * us
         if nt.get("loop") == "hyper"
         else float("nan"),
+        "solve": solve / max(solves, 1) * us,
         "loop_own_per_step": (loop - solve) / steps * us,
         "solves_per_step": solves / steps,
         "iterations_per_solve": its / max(solves, 1),
@@ -64,8 +69,11 @@ def interleaved(scene, bases: dict, repeats: int, steps: int) -> dict:
     runs: dict = {"full": [], **{name: [] for name in bases}}
     for _ in range(repeats):
         runs["full"].append(run_scene(scene, write_outputs=False, record=True))
-        for name, (basis, use_hyper) in bases.items():
-            runs[name].append(galerkin.run(scene, basis, hyper=use_hyper))
+        for name, (basis, use_hyper, coordinates) in bases.items():
+            make = galerkin.solver_factory(basis, use_hyper, coordinates)
+            runs[name].append(
+                run_scene(scene, write_outputs=False, record=True, solver_factory=make)
+            )
     return runs
 
 
@@ -84,17 +92,95 @@ def report(runs: dict, steps: int, reference) -> None:
     print()
     print(
         "| run | µs a step | µs a residual | µs an iteration beyond its residual | "
-        "loop's own µs a step | solves a step | iterations a solve |"
+        "µs a solve | loop's own µs a step | solves a step | iterations a solve |"
     )
-    print("|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     for name, results in runs.items():
         parts = [breakdown(r, steps) for r in results]
         b = {key: statistics.median(p[key] for p in parts) for key in parts[0]}
         print(
             f"| {name} | {b['step']:.1f} | {b['residual']:.2f} | "
-            f"{b['iteration_beyond_residual']:.2f} | {b['loop_own_per_step']:.1f} | "
-            f"{b['solves_per_step']:.2f} | {b['iterations_per_solve']:.2f} |"
+            f"{b['iteration_beyond_residual']:.2f} | {b['solve']:.1f} | "
+            f"{b['loop_own_per_step']:.1f} | {b['solves_per_step']:.2f} | "
+            f"{b['iterations_per_solve']:.2f} |"
         )
+
+
+def _median_us(call, repeats: int = 2000) -> float:
+    """The median µs of ``call()`` over ``repeats`` timed calls (after 50 untimed)."""
+    for _ in range(50):
+        call()
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        call()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times) * 1e6
+
+
+def floor(scene, basis, steps: int) -> None:
+    """Where a hyper-q step's time goes, each part timed alone on a run's loop after its
+    steps (medians, inside the run's ``ended``, before its solver is destroyed): a stage
+    solve at a converged state (C), SDIRK's step without its solves (its Python and the
+    cf_sdirk kernels on 2k-vectors), the state check, the accept, one event call with no
+    observer, and whole steps (attempt + accept, the loop's Python around them) with the C
+    solves' share of them from the solver's clock."""
+    from cosserat_fem.timestepping.events import Events, Observer
+    from cosserat_fem.timestepping.loop import TimeLoop
+
+    def measure(loop) -> dict:
+        integrator, solver = loop.integrator, loop.solver
+        h = scene.time.step * loop.omega0
+        quiet = Events()
+        rows = {
+            "a stage solve at a converged state (one residual, no iteration)": _median_us(
+                solver.solve
+            ),
+            "SDIRK's step without its solves (Python + cf_sdirk_stage)": _median_us(
+                lambda: integrator.step(h, lambda: 0)
+            ),
+            "the state check (bound (8.1))": _median_us(lambda: loop._check(loop.state.t)),
+            "SDIRK's accept (cf_sdirk_accept)": _median_us(lambda: integrator.accept(0.0)),
+            "an event with no observer (Events.step_attempted)": _median_us(
+                lambda: quiet.step_attempted(loop, 0.0)
+            ),
+        }
+        again = TimeLoop(loop.model, integrator, solver, scene.time, quiet)
+
+        def whole_step() -> None:
+            t_new = again.state.t + scene.time.step
+            failure = again.attempt(t_new)
+            assert failure is None, failure
+            again.accept(t_new)
+
+        count = 500
+        for _ in range(50):
+            whole_step()
+        clock = solver._state.time_solve
+        t0 = time.perf_counter()
+        for _ in range(count):
+            whole_step()
+        whole = (time.perf_counter() - t0) / count * 1e6
+        in_c = (solver._state.time_solve - clock) / count * 1e6
+        rows["a whole step (TimeLoop.attempt + accept), mean"] = whole
+        rows["of which its stage solves (cf_solve, C)"] = in_c
+        rows["of which Python (loop.py, SDIRK.step, the check, events)"] = whole - in_c
+        return rows
+
+    make = galerkin.solver_factory(basis, True, True)
+    kept: dict = {}
+
+    class Keep(Observer):
+        needs_full_state = False
+
+        def ended(self, loop, failure) -> None:
+            kept["rows"] = measure(loop)
+
+    run_scene(scene, write_outputs=False, solver_factory=make, observers=[Keep()])
+    print("| part of a hyper-q step | µs |")
+    print("|---|---|")
+    for name, us in kept["rows"].items():
+        print(f"| {name} | {us:.1f} |")
 
 
 def trained(scene, args, tolerance: float, modes: int | None = None):
@@ -116,8 +202,14 @@ def paper(args) -> None:
     scene = cf.load(PAPER)
     steps = round((scene.time.end - scene.time.start) / scene.time.step)
     basis, sampled, full = trained(scene, args, 1e-14, args.modes)
-    bases = {"galerkin": (basis, False), "hyper": (sampled, True)}
+    bases = {
+        "galerkin": (basis, False, False),
+        "hyper-full": (sampled, True, False),
+        "hyper-q": (sampled, True, True),
+    }
     report(interleaved(scene, bases, args.repeats, steps), steps, full.probes[:, 1:4])
+    print()
+    floor(scene, sampled, steps)
 
 
 def riser(args) -> None:
@@ -127,10 +219,12 @@ def riser(args) -> None:
     scene = riser_scene(args.elements, args.steps)
     print(f"riser, {args.elements} elements, {args.steps} steps, POD ε ≤ {args.pod_tolerance:g}")
     basis, sampled, full = trained(scene, args, args.pod_tolerance)
-    bases = {"hyper": (sampled, True)}
+    bases = {"hyper-full": (sampled, True, False), "hyper-q": (sampled, True, True)}
     if args.galerkin:
-        bases["galerkin"] = (basis, False)
+        bases["galerkin"] = (basis, False, False)
     report(interleaved(scene, bases, args.repeats, args.steps), args.steps, full.probes[:, 1:4])
+    print()
+    floor(scene, sampled, args.steps)
 
 
 def main() -> None:

@@ -194,10 +194,26 @@ class RunSummary(Observer):
             write_summary(self.folder / SUMMARY, self.summary, self.comm, failure is None)
 
 
+def probe_rows(probe: PointProbe) -> np.ndarray | None:
+    """The entries of U a probe reads (its node's block, or its cell's dofs), int32; None off
+    its rank. A reduced run in reduced coordinates lifts only these at an output
+    (TimeLoop.lift, docs/rom.md §8)."""
+    if probe.cell is None:
+        return None
+    bs = probe.U.function_space.dofmap.bs
+    if probe._node is not None:
+        nodes = np.array([probe._node])
+    else:
+        nodes = probe.U.function_space.dofmap.cell_dofs(probe.cell)
+    return np.ascontiguousarray((bs * nodes[:, None] + np.arange(bs)).ravel(), dtype=np.int32)
+
+
 class ProbeObserver(Observer):
     """probes.csv: the probe's values (x, y, z, θ, ψ, φ) [m, rad] at every output time; a
     restart continues the angles (PointProbe: from the fixed basis, continued) from the
-    file's last row."""
+    file's last row. In reduced coordinates it lifts the probe's rows of U only."""
+
+    needs_full_state = False
 
     def __init__(self, path: Path, probe: PointProbe, resume: bool = False):
         self.path, self.probe, self.resume = path, probe, resume
@@ -213,6 +229,9 @@ class ProbeObserver(Observer):
     def output(self, loop, k: int, t: float) -> None:
         writer = self.writer
         assert writer is not None, "started() made the writer"
+        rows = probe_rows(self.probe)
+        if rows is not None:
+            loop.lift(rows)
         writer.write(t)
         if writer.comm.size > 1:
             writer.check()  # the owner's write error, on every rank
@@ -279,6 +298,8 @@ class XdmfObserver(Observer):
 class ProgressObserver(Observer):
     """Calls ``callback(t [s], steps taken, Newton iterations)`` at every output time."""
 
+    needs_full_state = False  # reads no state
+
     def __init__(self, callback):
         self.callback = callback
 
@@ -294,6 +315,7 @@ class CheckpointObserver(Observer):
     last periodic checkpoint stands) nor an interruption (as after a kill)."""
 
     RESUMABLE = (SolverError, SceneError, LimitReached)
+    needs_full_state = False  # TimeLoop.state_dict lifts what it keeps
 
     def __init__(
         self,
@@ -360,6 +382,8 @@ class DeadlineObserver(Observer):
     ``every`` steps, where the loop's state is whole, every rank alike (rank 0's clock).
     ``advice``: how the stopped run goes on, in its message."""
 
+    needs_full_state = False  # reads no state
+
     def __init__(
         self,
         deadline: float,
@@ -394,6 +418,8 @@ class InterruptObserver(Observer):
     inside parallel.ABORT_AFTER): an allreduce every step made a sweep on a group of two
     ranks a quarter slower on a busy machine (docs/decisions.md, "Interrupts under MPI")."""
 
+    needs_full_state = False  # reads no state
+
     def __init__(self, comm, interval: float = 0.1, most: int = 100):
         self.comm, self.interval, self.most = comm, interval, most
         self.every, self._ticks, self._since = 1, 0, time.perf_counter()
@@ -411,17 +437,23 @@ class InterruptObserver(Observer):
 
 class ProbeRecorder(Observer):
     """The probe's rows (t, x, y, z, θ, ψ, φ, ...) [s, m, rad] (its ``columns``) in memory, at
-    the start and every output time: ``rows()`` on every rank (one broadcast at the end)."""
+    the start and every output time: ``rows()`` on every rank (one broadcast at the end).
+    In reduced coordinates it lifts the probe's rows of U only."""
+
+    needs_full_state = False
 
     def __init__(self, probe: PointProbe):
         self.probe = probe
         self._rows: list[np.ndarray] = []
+        self._lift_rows: np.ndarray | None = probe_rows(probe)
 
     def started(self, loop) -> None:
         if not loop.restarted:
             self.output(loop, 0, loop.state.t)
 
     def output(self, loop, k: int, t: float) -> None:
+        if k and self._lift_rows is not None:  # (k = 0: the initial state, full)
+            loop.lift(self._lift_rows)
         values = self.probe.values()
         if values is not None:
             self._rows.append(np.concatenate([[t], values]))

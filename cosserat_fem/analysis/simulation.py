@@ -321,6 +321,9 @@ def _discretise(scene: Scene, comm, initial_state, restart, solver_factory=None)
         solver = make_solver(integrator.residual_form(), model.U, model.bcs, settings)
     else:
         solver = solver_factory(model, integrator.residual_form(), model.bcs, settings)
+        space = getattr(solver, "coordinate_space", None)
+        if space is not None and getattr(solver, "use_coordinates", True):
+            space(integrator, tspan)  # the integrator on reduced coordinates (docs/rom.md §8)
     if restart is None:
         integrator.start(model, solver.lu_package)
     return model, integrator, solver

@@ -55,13 +55,14 @@ typedef struct {
 typedef int (*cf_call)(void* ctx);
 typedef int (*cf_observe)(void* ctx, int it, const double* norms, int reason);
 typedef int (*cf_run)(void* ctx, int* iterations, int* reason);
+typedef int (*cf_guess)(void* ctx, int restore);
 typedef struct {
   double rtol, atol, stol, xatol; int max_iterations; int linear_test;
   int full, lagged, lag, frozen, refresh_iterations;
 } cf_settings;
 typedef struct {
   cf_problem* problem; cf_call residual, jacobian; cf_observe on_iteration; cf_run run;
-  void* ctx; void *u, *b, *dx, *ksp, *initial;
+  void* ctx; void *u, *b, *dx, *ksp, *initial; cf_guess guess;
 } cf_solver;
 typedef struct {
   double f0, f_prev, update_prev; double norms[3]; int need_jacobian, since;
@@ -88,11 +89,17 @@ typedef struct {
   cf_newton_state* st; const cf_solver* solver; void* observer;
   double *q, *r, *dq, *Jr, *lu, *work; int32_t* piv; int32_t factored;
   int64_t jacobians, full_projections; double time_jacobian;
+  int32_t coordinates; int32_t n_lifts; double* const* lift_values;
+  double* const* lift_coords; const double* lift_affine; double* q0;
+  const double* VT; double* t;
 } cf_reduced;
 int cf_reduced_residual(cf_problem* p, const double* DV, int32_t m, double* r, double* out);
 int cf_reduced_jacobian(cf_problem* p, const double* DV, const double* V, int32_t m, double* Jr,
                         double* work);
 int cf_reduced_run(void* ctx, int* iterations, int* reason);
+int cf_reduced_guess(void* ctx, int restore);
+void cf_lift(const double* V, const double* ref, int32_t m, const double* q, double affine,
+             const int32_t* rows, int32_t count, double* u);
 extern "Python" int cf_py_residual(void* ctx);
 extern "Python" int cf_py_jacobian(void* ctx);
 extern "Python" int cf_py_iteration(void* ctx, int it, const double* norms, int reason);

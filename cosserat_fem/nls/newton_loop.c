@@ -128,6 +128,7 @@ void* cf_kernel(uintptr_t form, int type, int i)
 typedef int (*cf_call)(void* ctx);                 /* b = F(U), or A = J(U) */
 typedef int (*cf_observe)(void* ctx, int it, const double* norms, int reason);
 typedef int (*cf_run)(void* ctx, int* iterations, int* reason); /* SNES's iterations */
+typedef int (*cf_guess)(void* ctx, int restore); /* keep (0) or restore (1) the guess */
 
 typedef struct {
   double rtol, atol, stol, xatol;
@@ -143,6 +144,8 @@ typedef struct {
   cf_run run;             /* NULL: Newton's loop here; else the iterations of SNES */
   void* ctx;              /* the callbacks' argument */
   void *u, *b, *dx, *ksp, *initial; /* PETSc Vec and KSP; initial: the guess, for a retry */
+  cf_guess guess;         /* NULL: the guess kept in initial; else kept by this (a reduced
+                           * unknown's coordinates, docs/rom.md §8) */
 } cf_solver;
 
 typedef struct {
@@ -272,13 +275,19 @@ int cf_solve(const cf_solver* sv, const cf_settings* s, cf_newton_state* st)
   const double t0 = now();
   int ierr, iterations = 0, reason = SNES_CONVERGED_ITERATING;
   if (s->lagged && st->since >= s->lag) st->need_jacobian = 1;
-  if ((ierr = (int)VecCopy((Vec)sv->u, (Vec)sv->initial))) return ierr;
+  if (sv->guess) {
+    if ((ierr = sv->guess(sv->ctx, 0))) return ierr;
+  } else if ((ierr = (int)VecCopy((Vec)sv->u, (Vec)sv->initial)))
+    return ierr;
   const int fresh = st->need_jacobian || s->full;
   ierr = iterate(sv, s, st, &iterations, &reason);
   if (!ierr && reason <= 0 && !fresh) { /* an old Jacobian may be the cause */
     int more = 0;
     st->retries += 1;
-    if ((ierr = (int)VecCopy((Vec)sv->initial, (Vec)sv->u))) return ierr;
+    if (sv->guess) {
+      if ((ierr = sv->guess(sv->ctx, 1))) return ierr;
+    } else if ((ierr = (int)VecCopy((Vec)sv->initial, (Vec)sv->u)))
+      return ierr;
     st->need_jacobian = 1;
     ierr = iterate(sv, s, st, &more, &reason);
     iterations += more;
@@ -467,6 +476,18 @@ typedef struct {
   int32_t factored;                  /* 1 when lu holds J_r's factors */
   int64_t jacobians, full_projections; /* counters */
   double time_jacobian;
+  /* Reduced coordinates (docs/rom.md §8): the integrator's state is q itself and the
+   * coordinates of its other Functions (SDIRK's Z); each solve starts from q as the
+   * integrator left it, writes those Functions on `rows` only, and leaves the other rows of
+   * U as they are (lifted by the caller where needed). */
+  int32_t coordinates;               /* 1: this mode; 0: U is the integrator's full state */
+  int32_t n_lifts;
+  double* const* lift_values;        /* each Function's value array */
+  double* const* lift_coords;        /* its coordinates (m,) */
+  const double* lift_affine;         /* 1: U_ref + V c (a state); 0: V c (a rate) */
+  double* q0;                        /* (m) the guess, kept for a retry */
+  const double* VT;                  /* (m, n_rows) V's rows `rows`, transposed */
+  double* t;                         /* scratch (n_rows) */
 } cf_reduced;
 
 static void packed_constants(cf_problem* p)
@@ -625,8 +646,27 @@ static void write_rows(const cf_reduced* R, double* u, const int32_t* rows, int3
   }
 }
 
+/* values = a U_ref + V c on the entries `rows` (a = 1 a state, 0 a rate), from VT: the sums
+ * of each entry in write_rows' order (j = 0..m-1 from 0.0), so the same doubles, but with
+ * the entries independent in the inner loop (no chain of m dependent additions per entry). */
+static void set_values(const cf_reduced* R, double* values, const double* c, double affine)
+{
+  const int32_t nr = R->n_rows, m = R->m;
+  double* t = R->t;
+  memset(t, 0, sizeof(double) * (size_t)nr);
+  for (int32_t j = 0; j < m; ++j) {
+    const double cj = c[j];
+    const double* vt = R->VT + (int64_t)j * nr;
+    for (int32_t k = 0; k < nr; ++k) t[k] += vt[k] * cj;
+  }
+  for (int32_t k = 0; k < nr; ++k) {
+    const int32_t i = R->rows[k];
+    values[i] = affine * R->ref[i] + t[k];
+  }
+}
+
 /* U's entries the sampled entities read: U_ref + V q there. */
-static void set_rows(cf_reduced* R, double* u) { write_rows(R, u, R->rows, R->n_rows); }
+static void set_rows(cf_reduced* R, double* u) { set_values(R, u, R->q, 1.0); }
 
 static int reduced_residual(cf_reduced* R, double* fnorm)
 {
@@ -698,7 +738,11 @@ int cf_reduced_run(void* ctx, int* iterations, int* reason)
   int ierr, it = 0;
   double fnorm;
   *iterations = 0;
-  project(R, u);
+  if (R->coordinates)
+    for (int32_t f = 0; f < R->n_lifts; ++f) /* the integrator's Functions on the rows */
+      set_values(R, R->lift_values[f], R->lift_coords[f], R->lift_affine[f]);
+  else
+    project(R, u);
   set_rows(R, u);
   reduced_residual(R, &fnorm);
   if (!isfinite(fnorm)) {
@@ -744,7 +788,33 @@ int cf_reduced_run(void* ctx, int* iterations, int* reason)
   if (*reason == SNES_CONVERGED_ITERATING) *reason = SNES_DIVERGED_MAX_IT;
 done:
   /* the whole state, for the integrator: U = U_ref + V q (the sampled rows hold it already,
-   * set by the same arithmetic) */
-  write_rows(R, u, R->rest, R->n_rest);
+   * set by the same arithmetic); in reduced coordinates the integrator's state is q */
+  if (!R->coordinates) write_rows(R, u, R->rest, R->n_rest);
   return 0;
+}
+
+/* A cf_guess (ctx: a cf_reduced in reduced coordinates): q kept in q0 (restore = 0) or put
+ * back from it (1), O(m) where cf_solve's VecCopy of U is O(n). */
+int cf_reduced_guess(void* ctx, int restore)
+{
+  cf_reduced* R = (cf_reduced*)ctx;
+  if (restore)
+    memcpy(R->q, R->q0, sizeof(double) * (size_t)R->m);
+  else
+    memcpy(R->q0, R->q, sizeof(double) * (size_t)R->m);
+  return 0;
+}
+
+/* U = U_ref + a V q on the entries `rows` of `u` (a = 1 a state, 0 a rate): the lift of
+ * reduced coordinates q onto a full array (all rows, or a probe's), (n, m) V row-major. */
+void cf_lift(const double* V, const double* ref, int32_t m, const double* q, double affine,
+             const int32_t* rows, int32_t count, double* u)
+{
+  for (int32_t k = 0; k < count; ++k) {
+    const int32_t i = rows ? rows[k] : k;
+    const double* v = V + (int64_t)i * m;
+    double s = 0.0;
+    for (int32_t j = 0; j < m; ++j) s += v[j] * q[j];
+    u[i] = affine * ref[i] + s;
+  }
 }

@@ -176,11 +176,13 @@ class ReducedSolver(NewtonSolver):
         super().destroy()
 
 
-def solver_factory(basis: Basis | str | Path, hyper: bool | None = None):
+def solver_factory(basis: Basis | str | Path, hyper: bool | None = None, coordinates: bool = True):
     """The run's solver maker (cosserat_fem/analysis/simulation.py ``solver_factory``): a
     :class:`ReducedSolver` on ``basis`` (a Basis, or the path of a basis file, read for the
     run's model and refused if it does not match); with ``hyper`` (None: when the basis
-    carries ECSW's sampling) the hyper-reduced solver (cosserat_fem/rom/hyper.py)."""
+    carries ECSW's sampling) the hyper-reduced solver (cosserat_fem/rom/hyper.py), whose
+    integrator runs on the reduced coordinates where it can (``coordinates``; False: the
+    full-vector state, U = U_ref + V q written at every solve; docs/rom.md §8)."""
 
     def make(model, F, bcs, settings: NewtonSettings) -> ReducedSolver:
         if model.motions:
@@ -199,7 +201,9 @@ def solver_factory(basis: Basis | str | Path, hyper: bool | None = None):
         if chosen.sampled and hyper is not False:
             from cosserat_fem.rom.hyper import HyperSolver
 
-            return HyperSolver(F, model.U, bcs, settings, chosen)
+            solver = HyperSolver(F, model.U, bcs, settings, chosen)
+            solver.use_coordinates = coordinates
+            return solver
         return ReducedSolver(F, model.U, bcs, settings, chosen)
 
     return make

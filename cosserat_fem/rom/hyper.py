@@ -35,12 +35,22 @@ the reduced system keeps the sign structure (the energy) of the Galerkin one.
 Online (:class:`HyperSolver`), each Newton iteration of the reduced coordinates q (V has
 m = 2k columns) costs O(m |E| n_e) for r̃ and O(|E| (n_e² m + n_e m²)) for J̃_r (n_e the dofs
 of an element) and O(m³) for its LU, all in C (newton_loop.c ``cf_reduced_run``), with the
-state reconstructed only on the entries of U the sampled elements read. What a solve still
-does in O(n m): the whole U = U_ref + V q given back to the integrator at its end (on the
-rows the iterations did not write); the integrator's guess is read off the sampled rows,
+state reconstructed only on the entries of U the sampled elements read.
+
+Two ways to keep the integrator's state (docs/rom.md §8). **Reduced coordinates** (the
+default where it applies: fixed steps; :meth:`HyperSolver.coordinate_space`): the
+integrator's arrays are the coordinates y of U = U_ref + V y (:class:`ReducedCoordinates`,
+its "space"), 2k-vectors; SDIRK's C kernels (cf_sdirk_*) run on them unchanged, q is the
+iteration's unknown and guess, the integrator's other Functions (SDIRK's Z; BDF2's U_n,
+U_{n−1}; generalized-α's U_n, U̇_n) are written on the sampled rows before each solve,
+and the full U only where something reads it (TimeLoop.lift: outputs, a probe's rows,
+checkpoints, observers, the run's end); the time loop's state check is the O(m) bound of
+:class:`ReducedStateCheck`. Nothing a step does is O(n). **Full vectors** (otherwise:
+adaptive steps read U; or on request, ``galerkin.solver_factory(..., coordinates=False)``):
+at the end of each solve the whole U = U_ref + V q is written for the integrator (O(n m)),
+whose arithmetic is O(n) a stage, and its guess is read off the sampled rows,
 q₀ = V_S⁺ (U − U_ref)_S (every state the integrator forms from reduced ones is in the affine
-space; checked there, else and at the first solve the W-projection over every row). The
-integrator's own arithmetic on full vectors (cf_sdirk_*) is O(n) a stage.
+space; checked there, else and at the first solve the W-projection over every row).
 
 Serial only: the C assembler is serial, and the sampled elements would be spread over the
 ranks; a hyper-reduced run under MPI is refused (one line).
@@ -48,11 +58,16 @@ ranks; a hyper-reduced run under MPI is refused (one line).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
-from cosserat_fem.common.errors import SceneError
+from cosserat_fem.common.errors import SceneError, SolverError
+from cosserat_fem.rod.charts import RESET_THETA
+from cosserat_fem.rod.checks import StateCheck, check_state
 from cosserat_fem.rom.galerkin import ReducedSolver
 from cosserat_fem.timestepping.events import Observer
+from cosserat_fem.timestepping.integrators import FullSpace
 
 # --- ECSW's selection (pure numpy) ----------------------------------------------------------
 
@@ -265,6 +280,7 @@ class HyperSolver(ReducedSolver):
             for k, entries in reads.items():
                 if ffi.cast("uintptr_t", native.problem.coefficients[k]) == u.ctypes.data:
                     rows.append(entries)
+        self._reads = [(assembler, reads_F), (self._J_native, reads_J)]
         n = self.V.shape[0]
         row_array = np.unique(np.concatenate(rows)).astype(np.int32)
         row_array = np.ascontiguousarray(row_array[row_array < n])
@@ -298,15 +314,16 @@ class HyperSolver(ReducedSolver):
             "lu": np.zeros((m, m)),
             "work": np.zeros((Jp.dofs_per_cell, m)),
             "piv": np.zeros(m, dtype=np.int32),
+            "q0": np.zeros(m),
         }
-        R = ffi.new("cf_reduced*")
+        self._R = R = ffi.new("cf_reduced*")
         R.n, R.m = n, m
         for name in ("V", "DV", "WV", "ref", "G", "g", "P", "q", "r", "dq", "Jr", "lu", "work"):
             setattr(R, name, ffi.cast("double*", arrays[name].ctypes.data))
         R.c = float(self.basis.reference @ self.basis.reference)
-        R.n_rows = row_array.size
-        R.rows = ffi.cast("int32_t*", row_array.ctypes.data)
+        self._set_rows(row_array)
         R.piv = ffi.cast("int32_t*", arrays["piv"].ctypes.data)
+        R.q0 = ffi.cast("double*", arrays["q0"].ctypes.data)
         R.n_rest, R.rest = rest.size, ffi.cast("int32_t*", arrays["rest"].ctypes.data)
         R.n_fit, R.fit = fit.size, ffi.cast("int32_t*", arrays["fit"].ctypes.data)
         R.project_all = 1  # the first guess: the W-projection (it may be off the basis)
@@ -315,6 +332,8 @@ class HyperSolver(ReducedSolver):
         R.solver, R.observer = self._sv, self._handle  # the observer hook, if one is set
         self._R = R
         self.sampled_rows = row_array.size
+        self.reduced_coordinates = False  # coordinate_space switches it on
+        self.use_coordinates = True  # galerkin.solver_factory may say no
         self._sv.run = ffi.addressof(lib, "cf_reduced_run")
         self._sv.ctx = ffi.cast("void*", R)
         self.loop = "hyper"
@@ -346,3 +365,203 @@ class HyperSolver(ReducedSolver):
 
     def request_jacobian(self) -> None:
         self._need_jacobian = True
+
+    # -- reduced coordinates (docs/rom.md §8) -------------------------------------------------
+    def coordinate_space(self, integrator, tspan) -> ReducedCoordinates | None:
+        """Run ``integrator`` on the reduced coordinates (module docstring of
+        :class:`ReducedCoordinates`): its state arrays are q and 2k-vectors, this solver's
+        iterations start from q as the integrator leaves it and write U and the integrator's
+        Functions on the sampled rows only. Returns the space, or None (the reason logged at
+        INFO; the run keeps the full-vector state, U = U_ref + V q written at every solve) for
+        adaptive steps (their error control reads U) or an integrator that refuses."""
+        from cosserat_fem.common.log import LOGGER
+
+        if tspan.adaptive:
+            LOGGER.info("reduced run: full-vector state (adaptive steps read U's error)")
+            return None
+        space = ReducedCoordinates(self)
+        try:
+            integrator.use_space(space)
+        except NotImplementedError as exc:
+            LOGGER.info("reduced run: full-vector state (%s)", exc)
+            return None
+        space.activate()
+        return space
+
+    def _bind_lifts(self, functions: list) -> None:
+        """The C iteration's lifts of the integrator's Functions (other than U) on the sampled
+        rows, each from its coordinates: ``functions`` = [(Function, coordinates, affine)];
+        the rows they are read at are added to U's (the same entries of the same space)."""
+        ffi, R = self._ffi, self._R
+        rows = [self._arrays["rows"]]
+        for F, _c, _a in functions:
+            address = F.x.array.ctypes.data
+            for native, reads in self._reads:
+                for k, entries in reads.items():
+                    if ffi.cast("uintptr_t", native.problem.coefficients[k]) == address:
+                        rows.append(entries)
+        n = self.V.shape[0]
+        union = np.unique(np.concatenate(rows)).astype(np.int32)
+        self._arrays["lift_rows"] = union = np.ascontiguousarray(union[union < n])
+        self._arrays["lift_affine"] = np.array([a for _F, _c, a in functions] or [0.0])
+        self._lift_values = ffi.new(
+            "double*[]", [ffi.cast("double*", F.x.array.ctypes.data) for F, _c, _a in functions]
+        )
+        self._lift_coords = ffi.new(
+            "double*[]", [ffi.cast("double*", c.ctypes.data) for _F, c, _a in functions]
+        )
+        R.n_lifts = len(functions)
+        R.lift_values, R.lift_coords = self._lift_values, self._lift_coords
+        R.lift_affine = ffi.cast("double*", self._arrays["lift_affine"].ctypes.data)
+        self._set_rows(union)
+
+    def _set_rows(self, rows: np.ndarray) -> None:
+        """The C iteration's sampled rows, with V's rows there transposed (newton_loop.c
+        ``set_values``) and its scratch."""
+        ffi, R = self._ffi, self._R
+        self._arrays["rows_now"] = rows
+        self._arrays["VT"] = VT = np.ascontiguousarray(self.V[rows].T)
+        self._arrays["t"] = t = np.zeros(max(rows.size, 1))
+        R.n_rows, R.rows = rows.size, ffi.cast("int32_t*", rows.ctypes.data)
+        R.VT, R.t = ffi.cast("double*", VT.ctypes.data), ffi.cast("double*", t.ctypes.data)
+
+    def _coordinates_on(self) -> None:
+        """cf_reduced_run in reduced coordinates: the guess is q (kept by cf_reduced_guess
+        for a retry), nothing projected, U's other rows left alone."""
+        R = self._R
+        R.coordinates, R.project_all = 1, 0
+        self._sv.guess = self._ffi.addressof(self._lib, "cf_reduced_guess")
+        self.reduced_coordinates = True
+
+
+class ReducedCoordinates(FullSpace):
+    """The space of a reduced run's state arrays (cosserat_fem/timestepping/integrators.py,
+    "The space"; docs/rom.md §8): the coordinates y of U = U_ref + V y (a state) or of
+    U̇ = V y (a rate), length m = 2k. U's are the solver's q (the C iteration's unknown); each
+    other Function the integrator keeps (SDIRK's Z) gets its own, and the solver writes it on
+    the sampled elements' rows before each solve (cf_reduced_run). Nothing here is O(n) a
+    step: the full values are written by :meth:`lift` (outputs, checkpoints, an observer that
+    asks, the end of a run), O(n m). Its arrays are serial (a hyper-reduced run is)."""
+
+    reduced = True
+
+    def __init__(self, solver: HyperSolver):
+        self.solver = solver
+        self.V, self.ref = solver.V, np.ascontiguousarray(solver.basis.reference)
+        self.WV = np.ascontiguousarray(solver.WV)
+        self.n, self.size = self.V.shape
+        solver.q[:] = self.from_full(solver.U.x.array)  # U's coordinates, from U now
+        self.functions: list = [(solver.U, solver.q, 1.0)]  # (Function, coordinates, affine)
+
+    def values(self, F, rate: bool = False) -> np.ndarray:
+        """F's coordinates: U's are the solver's q (the W-projection of U's values when this
+        space was made), another Function's a new array (the W-projection of its values
+        now), lifted by the solver on its rows before each solve."""
+        for G, c, _a in self.functions:
+            if G is F:
+                return c
+        c = self.from_full(F.x.array, rate)
+        self.functions.append((F, c, 0.0 if rate else 1.0))
+        return c
+
+    def activate(self) -> None:
+        """The solver's iteration switched to these coordinates (after the integrator took
+        its arrays): the other Functions' lifts bound."""
+        solver = self.solver
+        solver._bind_lifts(self.functions[1:])
+        solver._coordinates_on()
+
+    def from_full(self, array: np.ndarray, rate: bool = False) -> np.ndarray:
+        """The W-projection y = (W V)ᵀ (u − U_ref) of a full state (rate: (W V)ᵀ u), rows of a
+        2-d array each; exact on U_ref + span V to round-off (Vᵀ W V = I)."""
+        a = np.asarray(array)[..., : self.n]
+        return np.ascontiguousarray((a if rate else a - self.ref) @ self.WV)
+
+    def to_full(self, array: np.ndarray, rate: bool = False) -> np.ndarray:
+        """U_ref + V y (rate: V y), rows of a 2-d array each."""
+        full = np.asarray(array) @ self.V.T
+        return full if rate else full + self.ref
+
+    def lift(self) -> None:
+        """Every registered Function's values (U and the integrator's) written in full from its
+        coordinates (newton_loop.c ``cf_lift``, the arithmetic of the iteration's rows)."""
+        for F, c, affine in self.functions:
+            self.lift_rows(F.x.array, c, affine, None)
+
+    def lift_rows(self, out: np.ndarray, c: np.ndarray, affine: float, rows) -> None:
+        """out[rows] = affine U_ref + V c on ``rows`` (int32 array; None: every row)."""
+        solver = self.solver
+        ffi, lib = solver._ffi, solver._lib
+        count = self.n if rows is None else rows.size
+        lib.cf_lift(
+            ffi.cast("double*", self.V.ctypes.data),
+            ffi.cast("double*", self.ref.ctypes.data),
+            self.size,
+            ffi.cast("double*", c.ctypes.data),
+            float(affine),
+            ffi.NULL if rows is None else ffi.cast("int32_t*", rows.ctypes.data),
+            count,
+            ffi.cast("double*", out.ctypes.data),
+        )
+
+    def refuse_chart(self) -> None:
+        """The chart's move maps the state off the basis: the reduced run's refusal."""
+        self.solver.set_form(None)
+
+    def state_check(self, model) -> ReducedStateCheck:
+        return ReducedStateCheck(model, self)
+
+
+class ReducedStateCheck(StateCheck):
+    """The time loop's state check (cosserat_fem/rod/checks.py) on reduced coordinates, O(m) a
+    step: U = U_ref + V y is finite iff y is (V, U_ref finite), and every node's θ lies within
+
+        |θ_j| ≤ max_j |θ_ref,j| + Σ_i (max_j |V_θj,i|) |y_i| = B,                      (8.1)
+
+    (the θ rows of U_ref and V). While B < charts.RESET_THETA (0.9 rad) no node is near the
+    chart's singularity (|cos θ| > cos 0.9 = 0.62 > CHART_COS_MIN) nor can cross it, and no
+    chart move is due: ``quiet``, and the loop skips its chart watch. Otherwise cos θ is
+    formed exactly on the θ rows (O(nodes m)) and checked as the full model's; a failure is
+    reported from the lifted U (the place along the rod)."""
+
+    def __init__(self, model, space: ReducedCoordinates):
+        super().__init__(model)
+        self.space = space
+        self._y = space.values(model.U)
+        self._owned = self._y  # the finite test's sum (StateCheck.__call__)
+        self.quiet = True
+        self._rows: np.ndarray | None = None
+        if self._theta is not None:
+            size, nodes = model.layout.size, self._ones.size
+            theta = model.layout.index(3)
+            self._rows = np.ascontiguousarray(np.arange(nodes) * size + theta, dtype=np.int32)
+            self._rows = self._rows[self._rows < space.n]
+            V_theta = space.V[self._rows]
+            self._column = np.abs(V_theta).max(axis=0, initial=0.0)
+            self._reference = float(np.abs(space.ref[self._rows]).max(initial=0.0))
+            self._theta_now = np.zeros(space.n)
+
+    def bound(self) -> float:
+        """B of (8.1) (0 without a chart)."""
+        if self._rows is None:
+            return 0.0
+        return self._reference + float(self._column @ np.abs(self._y))
+
+    def cos_theta(self) -> np.ndarray:
+        """cos θ at the owned nodes, exact (the θ rows lifted), or ones without a chart."""
+        if self._rows is None:
+            return self._ones
+        self.space.lift_rows(self._theta_now, self._y, 1.0, self._rows)
+        return np.cos(self._theta_now[self._rows])
+
+    def __call__(self, t, where_prefix: str = "", before=None) -> np.ndarray:
+        if self._rows is not None and not self.bound() < RESET_THETA:
+            self.quiet = False
+        elif math.isfinite(float(np.add.reduce(self._y))):
+            self.quiet = True
+            return self._ones
+        try:
+            return super().__call__(t, where_prefix, before)
+        except SolverError:
+            self.space.lift()  # the report's place, from the full U
+            return check_state(self.model, t, where_prefix, before)

@@ -31,6 +31,16 @@ Constants, and it updates the history after each accepted step.
 Every integrator advances by :meth:`Integrator.step` (one or several nonlinear solves through
 the ``solve`` callable it is given) and :meth:`Integrator.accept` once the caller has checked
 the new state.
+
+**The space of the state arrays.** Everything an integrator does with U is linear (stage
+combinations, rates, predictors), so it runs unchanged on any coordinates of U that an affine
+map U = U_ref + V y gives (docs/rom.md §5, §8). Its arrays belong to a ``space``
+(:class:`FullSpace`: U's own values, zero-copy, the default; a reduced model's coordinates y,
+cosserat_fem/rom/hyper.py ``ReducedCoordinates``): ``space.values(F)`` is the array it treats
+as the Function F's values, ``space.size`` their length, ``to_full``/``from_full`` convert a
+checkpoint's arrays (which are always full vectors). :meth:`Integrator.use_space` moves an
+integrator into another space before its first step (the four here can; the forms read
+their Functions, which the space's owner writes where they are read).
 """
 
 from __future__ import annotations
@@ -48,6 +58,34 @@ ResidualFactory = Callable[[object, object, object], ufl.Form]
 StateMap = Callable[[np.ndarray], np.ndarray]
 #: The same change for a rate: (state array, rate array at it) -> rate array.
 RateMap = Callable[[np.ndarray, np.ndarray], np.ndarray]
+
+
+class FullSpace:
+    """The full model's space of state arrays: a Function's own values (zero-copy); the
+    conversions of a checkpoint's arrays are copies (module docstring, "The space")."""
+
+    reduced = False
+
+    def __init__(self, U: fem.Function):
+        self.size = U.x.array.size
+
+    def values(self, F: fem.Function, rate: bool = False) -> np.ndarray:
+        """The array the integrator treats as F's values (F's own, here)."""
+        return F.x.array
+
+    def to_full(self, array: np.ndarray, rate: bool = False) -> np.ndarray:
+        """A copy of a state (or with ``rate`` a rate) array as a full vector."""
+        return array.copy()
+
+    def from_full(self, array: np.ndarray, rate: bool = False) -> np.ndarray:
+        """A full vector's array in this space (itself)."""
+        return np.asarray(array)
+
+    def lift(self) -> None:
+        """The Functions' full values from the coordinates (nothing: they are the values)."""
+
+    def refuse_chart(self) -> None:
+        """The chart may move (the full model's variables change with it)."""
 
 
 def _constant(U: fem.Function, value: float = 0.0) -> fem.Constant:
@@ -73,6 +111,16 @@ class Integrator:
         self._factory = residual
         self.steps_taken = 0
         self.unknown_time = self.time  # τ of the unknown U in the current solve
+        self.space: FullSpace = FullSpace(U)  # of the state arrays (module docstring)
+
+    def use_space(self, space) -> None:
+        """Keep the state arrays in ``space`` from now on (before the first step; module
+        docstring, "The space"); NotImplementedError with the reason if this integrator cannot
+        (it writes U's values directly)."""
+        raise NotImplementedError(
+            f"the {self.name} integrator writes U's values directly (only SDIRK runs on "
+            "reduced coordinates)"
+        )
 
     def residual_form(self) -> ufl.Form:
         raise NotImplementedError
@@ -107,7 +155,7 @@ class Integrator:
     def reject(self) -> None:
         """Undo a step that is not accepted: U back to the last accepted state (the history
         is only updated by :meth:`accept`)."""
-        self.U.x.array[:] = self.last_accepted()
+        self.space.values(self.U)[:] = self.last_accepted()
 
     def last_accepted(self) -> np.ndarray:
         """The state array at ``self.time``."""
@@ -127,8 +175,12 @@ class Integrator:
         return {"time": self.time, "steps_taken": self.steps_taken}
 
     def load_state_dict(self, state: dict) -> None:
+        """The inverse of :meth:`state_dict`; the coordinates of U from U (which the caller
+        set) where the space is not U's own."""
         self.time = float(state["time"])
         self.steps_taken = int(state["steps_taken"])
+        if self.space.reduced:
+            self.space.values(self.U)[:] = self.space.from_full(self.U.x.array)
 
     def _copy(self, dst: fem.Function, src: fem.Function) -> None:
         dst.x.array[:] = src.x.array
@@ -145,6 +197,11 @@ class Static(Integrator):
     def prepare(self, h: float) -> None:
         self.time_eval.value = self.time + h
         self.unknown_time = self.time + h
+
+    def use_space(self, space) -> None:
+        """Only U, in ``space`` (before the first step)."""
+        self.space = space
+        space.values(self.U)
 
 
 class BDF2(Integrator):
@@ -163,6 +220,19 @@ class BDF2(Integrator):
         self.a0, self.a1, self.a2 = (_constant(U) for _ in range(3))
         self.mid = _constant(U, 1.0)  # 1 for the midpoint start, 0 for BDF2 steps
         self.h_prev: float | None = None
+        self._arrays()
+
+    def _arrays(self) -> None:
+        """U's, U_n's and U_{n−1}'s arrays in ``self.space`` (module docstring, "The space")."""
+        values = self.space.values
+        self._u, self._un, self._unm1 = values(self.U), values(self.U_n), values(self.U_nm1)
+
+    def use_space(self, space) -> None:
+        """The steps on ``space``'s arrays (before the first step)."""
+        if self.steps_taken:
+            raise NotImplementedError("bdf2: a space is chosen before the first step")
+        self.space = space
+        self._arrays()
 
     def residual_form(self) -> ufl.Form:
         U, Un, Unm1 = self.U, self.U_n, self.U_nm1
@@ -178,7 +248,7 @@ class BDF2(Integrator):
             self.mid.value = 1.0
             self.a0.value, self.a1.value, self.a2.value = 1.0 / h, -1.0 / h, 0.0
             self.time_eval.value = self.time + 0.5 * h
-            self._copy(self.U, self.U_n)
+            self._u[:] = self._un
             return
         w = h / self.h_prev
         self.mid.value = 0.0
@@ -187,19 +257,21 @@ class BDF2(Integrator):
         self.a2.value = w * w / ((1.0 + w) * h)
         self.time_eval.value = self.time + h
         # Predictor: linear extrapolation through U_{n-1}, U_n.
-        self.U.x.array[:] = (1.0 + w) * self.U_n.x.array - w * self.U_nm1.x.array
+        self._u[:] = (1.0 + w) * self._un - w * self._unm1
 
     def accept(self, h: float) -> None:
-        self._copy(self.U_nm1, self.U_n)
-        self._copy(self.U_n, self.U)
+        self._unm1[:] = self._un
+        self._un[:] = self._u
         self.h_prev = h
         super().accept(h)
 
     def last_accepted(self) -> np.ndarray:
-        return self.U_n.x.array
+        return self._un
 
     def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
-        """U, U_n and U_{n−1} mapped: the next step's BDF2 formula and predictor go on."""
+        """U, U_n and U_{n−1} mapped: the next step's BDF2 formula and predictor go on (a
+        reduced space refuses: the new chart's variables are off its basis)."""
+        self.space.refuse_chart()
         super().change_variables(state_map, rate_map)
         self.U_n.x.array[:] = state_map(self.U_n.x.array)
         self.U_nm1.x.array[:] = state_map(self.U_nm1.x.array)
@@ -208,16 +280,16 @@ class BDF2(Integrator):
         """Adds U_n, U_{n−1} and h_prev (NaN before the first step, which is the midpoint start)."""
         return {
             **super().state_dict(),
-            "U_n": self.U_n.x.array.copy(),
-            "U_nm1": self.U_nm1.x.array.copy(),
+            "U_n": self.space.to_full(self._un),
+            "U_nm1": self.space.to_full(self._unm1),
             "h_prev": np.nan if self.h_prev is None else self.h_prev,
         }
 
     def load_state_dict(self, state: dict) -> None:
         """The inverse of :meth:`state_dict`."""
         super().load_state_dict(state)
-        self.U_n.x.array[:] = state["U_n"]
-        self.U_nm1.x.array[:] = state["U_nm1"]
+        self._un[:] = self.space.from_full(state["U_n"])
+        self._unm1[:] = self.space.from_full(state["U_nm1"])
         h_prev = float(state["h_prev"])
         self.h_prev = None if np.isnan(h_prev) else h_prev
 
@@ -249,8 +321,20 @@ class GeneralizedAlpha(Integrator):
         self.h = _constant(U, 1.0)
         self._Udot_prev: np.ndarray | None = None
         self._h_prev = 1.0
-        # Views of U, U_n and U̇_n (the Functions' own memory; Function.x costs 1.2 μs a call).
-        self._arrays = (self.U.x.array, self.U_n.x.array, self.Udot_n.x.array)
+        # U's, U_n's and U̇_n's arrays in the space (at first the Functions' own memory;
+        # Function.x costs 1.2 μs a call).
+        self._arrays = self._space_arrays()
+
+    def _space_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        values = self.space.values
+        return values(self.U), values(self.U_n), values(self.Udot_n, rate=True)
+
+    def use_space(self, space) -> None:
+        """The steps on ``space``'s arrays (before the first step; U̇_n, a rate, as one)."""
+        if self.steps_taken:
+            raise NotImplementedError("generalized-alpha: a space is chosen before the first step")
+        self.space = space
+        self._arrays = self._space_arrays()
 
     def _rate_new(self):
         """U̇_{n+1} as a UFL expression of the unknown U = U_{n+1}."""
@@ -273,7 +357,8 @@ class GeneralizedAlpha(Integrator):
         return a, L, W
 
     def set_initial_rate(self, rate: np.ndarray) -> None:
-        self.Udot_n.x.array[:] = rate
+        """U̇_0 from a full rate array (in the space's coordinates)."""
+        self._arrays[2][:] = self.space.from_full(rate, rate=True)
 
     def start(self, problem, lu_package: str) -> None:
         """U̇_0 consistent with U_0: F(U_0, U̇_0, τ_0) = 0, affine in U̇_0, is one linear solve
@@ -339,11 +424,12 @@ class GeneralizedAlpha(Integrator):
         super().accept(h)
 
     def last_accepted(self) -> np.ndarray:
-        return self.U_n.x.array
+        return self._arrays[1]
 
     def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
         """U, U_n and U̇_n (at U_n) mapped; the previous rate, whose state is not kept, is
-        dropped: the next predictor is U_n + h U̇_n."""
+        dropped: the next predictor is U_n + h U̇_n (a reduced space refuses)."""
+        self.space.refuse_chart()
         u_n = self.U_n.x.array.copy()
         super().change_variables(state_map, rate_map)
         self.Udot_n.x.array[:] = rate_map(u_n, self.Udot_n.x.array)
@@ -353,22 +439,23 @@ class GeneralizedAlpha(Integrator):
     def state_dict(self) -> dict:
         """Adds U_n, U̇_n and the previous rate (empty before the first step) with its step
         h_prev."""
-        previous = self._Udot_prev
+        previous, space = self._Udot_prev, self.space
         return {
             **super().state_dict(),
-            "U_n": self.U_n.x.array.copy(),
-            "Udot_n": self.Udot_n.x.array.copy(),
-            "Udot_prev": np.zeros(0) if previous is None else previous.copy(),
+            "U_n": space.to_full(self._arrays[1]),
+            "Udot_n": space.to_full(self._arrays[2], rate=True),
+            "Udot_prev": np.zeros(0) if previous is None else space.to_full(previous, rate=True),
             "h_prev": self._h_prev,
         }
 
     def load_state_dict(self, state: dict) -> None:
         """The inverse of :meth:`state_dict`."""
         super().load_state_dict(state)
-        self.U_n.x.array[:] = state["U_n"]
-        self.Udot_n.x.array[:] = state["Udot_n"]
+        space = self.space
+        self._arrays[1][:] = space.from_full(state["U_n"])
+        self._arrays[2][:] = space.from_full(state["Udot_n"], rate=True)
         previous = np.asarray(state["Udot_prev"])
-        self._Udot_prev = previous.copy() if previous.size else None
+        self._Udot_prev = space.from_full(previous, rate=True).copy() if previous.size else None
         self._h_prev = float(state["h_prev"])
 
 
@@ -408,21 +495,36 @@ class SDIRK(Integrator):
         self.name = f"sdirk{order}"
         self.gamma, self.A, self.b = _sdirk_tableau(order)
         self.c = self.A.sum(axis=1)
-        V = U.function_space
-        self.U_n = U.x.array.copy()
-        self.Z = fem.Function(V, name="Z")  # U_n + h Σ_{j<i} a_ij K_j of the current stage
+        self.Z = fem.Function(U.function_space, name="Z")  # U_n + h Σ_{j<i} a_ij K_j
         self.inv_gh = _constant(U, 1.0)
         stages = len(self.b)
         if stages > MAX_STAGES:
             raise ValueError(f"an SDIRK tableau of {stages} stages; at most {MAX_STAGES}")
-        self.K = np.zeros((stages, U.x.array.size))  # stage rates K_i of this step
-        self._taus = np.zeros(stages)  # their times
-        # The last s stage rates of accepted steps, a ring buffer in the order computed
-        # (slot = count mod s), and their times.
-        self._rates = np.zeros((stages, U.x.array.size))
-        self._times = np.zeros(stages)
+        self._taus = np.zeros(stages)  # the times of this step's stage rates
+        self._times = np.zeros(stages)  # and of the stored ones
         self._stored = 0
+        self._arrays()
+
+    def _arrays(self) -> None:
+        """The state arrays in ``self.space`` (module docstring, "The space"): U's and Z's
+        values (``_u``, ``_z``), U_n, this step's stage rates K_i, and the last s stage rates
+        of accepted steps, a ring buffer in the order computed (slot = count mod s); then
+        the C kernels' struct pointing into them."""
+        stages, size = len(self.b), self.space.size
+        self._u = self.space.values(self.U)
+        self._z = self.space.values(self.Z)
+        self.U_n = self._u.copy()
+        self.K = np.zeros((stages, size))
+        self._rates = np.zeros((stages, size))
         self._kernels()
+
+    def use_space(self, space) -> None:
+        """The stages on ``space``'s arrays (before the first step): U_n from U's coordinates;
+        the predictor's stored rates start empty."""
+        if self.steps_taken or self._stored:
+            raise NotImplementedError("sdirk: a space is chosen before the first step")
+        self.space = space
+        self._arrays()
 
     def _kernels(self) -> None:
         """The C kernels of the step's arithmetic (newton_loop.c ``cf_sdirk_*``) and the
@@ -445,7 +547,7 @@ class SDIRK(Integrator):
         sd = ffi.new("cf_sdirk*")
         sd.stages, sd.n, sd.gamma = len(self.b), self.U_n.size, float(self.gamma)
         sd.A, sd.b, sd.c = (pointer(x) for x in self._tableau)
-        sd.u, sd.z, sd.u_n = pointer(self.U.x.array), pointer(self.Z.x.array), pointer(self.U_n)
+        sd.u, sd.z, sd.u_n = pointer(self._u), pointer(self._z), pointer(self.U_n)
         sd.K, sd.taus = pointer(self.K), pointer(self._taus)
         sd.rates, sd.times = pointer(self._rates), pointer(self._times)
         sd.guess, sd.time_value = pointer(self._guess), pointer(time_view(self.time_eval))
@@ -503,17 +605,20 @@ class SDIRK(Integrator):
 
     def change_variables(self, state_map: StateMap, rate_map: RateMap) -> None:
         """U and U_n mapped; the predictor's stage rates, whose states are not kept, are
-        dropped (the next step's first stage starts from U_n)."""
+        dropped (the next step's first stage starts from U_n). A reduced space refuses (the
+        new chart's variables are off its basis)."""
+        self.space.refuse_chart()
         super().change_variables(state_map, rate_map)
         self.U_n[:] = state_map(self.U_n)
         self._stored = 0
 
     def state_dict(self) -> dict:
-        """Adds U_n and the predictor's ring buffer: stage rates, their times, the count stored."""
+        """Adds U_n and the predictor's ring buffer: stage rates, their times, the count stored
+        (full vectors in any space)."""
         return {
             **super().state_dict(),
-            "U_n": self.U_n.copy(),
-            "rates": self._rates.copy(),
+            "U_n": self.space.to_full(self.U_n),
+            "rates": self.space.to_full(self._rates, rate=True),
             "rate_times": self._times.copy(),
             "stored": self._stored,
         }
@@ -521,14 +626,14 @@ class SDIRK(Integrator):
     def load_state_dict(self, state: dict) -> None:
         """The inverse of :meth:`state_dict`."""
         super().load_state_dict(state)
-        self.U_n[:] = state["U_n"]
+        self.U_n[:] = self.space.from_full(state["U_n"])
         rates, times, stored = state["rates"], state["rate_times"], int(state["stored"])
         size = len(self._times)
         if len(times) > size:  # a checkpoint of the predictor of degree s: its newest s rates
             newest = [(stored - size + j) % len(times) for j in range(size)]
             slots = [(stored - size + j) % size for j in range(size)]
             rates, times = rates[newest][np.argsort(slots)], times[newest][np.argsort(slots)]
-        self._rates[:] = rates
+        self._rates[:] = self.space.from_full(rates, rate=True)
         self._times[:] = times
         self._stored = stored
 

@@ -30,7 +30,18 @@ from cosserat_fem.nls.newton import NewtonFailure, NewtonSolver
 from cosserat_fem.rod.checks import StateCheck, cos_theta, worst_place
 from cosserat_fem.rod.model import RodModel
 from cosserat_fem.timestepping.adaptive import SHRINK, StateHistory, StepController
-from cosserat_fem.timestepping.events import Events
+from cosserat_fem.timestepping.events import Events, Observer
+
+#: The events before which a run in reduced coordinates lifts U (and the integrator's
+#: Functions) in full, if an observer of it reads the state (TimeLoop._reads_state).
+LIFTED = (
+    "step_attempted",
+    "solve_done",
+    "step_rejected",
+    "step_accepted",
+    "output",
+    "step_finished",
+)
 
 #: Rejections in a row after which an adaptive run stops.
 MAX_CONSECUTIVE_REJECTIONS = 12
@@ -158,7 +169,12 @@ class TimeLoop:
             self._adaptive_parts()
         if restart is not None:
             self.load_state_dict(restart)
-        self._check = StateCheck(model)
+        # The integrator's state in reduced coordinates (docs/rom.md §8): U's full values are
+        # lifted only for what reads them (lift: outputs, checkpoints, observers, the end).
+        self.space = integrator.space
+        self._reduced = bool(self.space.reduced)
+        self._check = self.space.state_check(model) if self._reduced else StateCheck(model)
+        self._lifts = {hook: self._reads_state(hook) for hook in LIFTED}
         self._cos_accepted = self._check.cos_theta()  # the chart-crossing check
         self._cos_candidate = self._cos_accepted
         # Fixed supports: their Dirichlet values are not read again before each solve.
@@ -170,6 +186,32 @@ class TimeLoop:
             )
 
     # -- state ----------------------------------------------------------------------------
+    def _reads_state(self, hook: str) -> bool:
+        """Whether, in reduced coordinates, an observer of ``hook`` reads the full state: every
+        one that does not say otherwise (``needs_full_state = False``: it reads none, or asks
+        for it by :meth:`lift`)."""
+        if not self._reduced:
+            return False
+        base = getattr(Observer, hook)
+        return any(
+            getattr(type(o), hook, base) is not base and getattr(o, "needs_full_state", True)
+            for o in self.events.observers
+        )
+
+    def lift(self, rows: np.ndarray | None = None) -> None:
+        """The model's U and the integrator's Functions (SDIRK's Z) written in full from the
+        reduced coordinates (O(n m)), or U's entries ``rows`` only (int32; a probe's:
+        observers.probe_rows); nothing in a full run, whose arrays are the values. For an
+        observer with ``needs_full_state = False`` that reads them at some events only (a
+        reduced run's error indicator at its sampled steps)."""
+        if not self._reduced:
+            return
+        if rows is None:
+            self.space.lift()
+        else:
+            space = self.space
+            space.lift_rows(self.model.U.x.array, space.values(self.model.U), 1.0, rows)
+
     def _adaptive_parts(self) -> None:
         """For adaptive steps: the step controller (the error of p only) and the history of the
         last order + 2 accepted states (cosserat_fem/timestepping/adaptive.py)."""
@@ -192,6 +234,7 @@ class TimeLoop:
     def state_dict(self) -> dict[str, dict]:
         """Everything the remaining steps depend on, by part (cosserat_fem/io/checkpoint.py)."""
         model = self.model
+        self.lift()
         parts = {
             "state": {"U": model.U.x.array.copy()},
             "integrator": self.integrator.state_dict(),
@@ -248,7 +291,20 @@ class TimeLoop:
         """After an accepted step to t [s]: :func:`watch_chart`, and the chart-crossing check
         starts again from the new chart's angles."""
         model = self.model
-        largest = watch_chart(model, self.integrator, self.solver, self.history, self._cos_accepted)
+        if self._reduced:
+            if getattr(self._check, "quiet", False):
+                return  # the bound (8.1) keeps every node away from the chart's limit
+            self.lift()
+        try:
+            largest = watch_chart(
+                model, self.integrator, self.solver, self.history, self._cos_accepted
+            )
+        except SolverError as exc:  # a reduced run's refusal of the move: say when
+            if exc.time is None:
+                exc.time = t
+                exc.message = exc._compose()
+                exc.args = (exc.message,)
+            raise
         if largest is None:
             return
         self._cos_accepted = self._cos_candidate = self._check.cos_theta()
@@ -267,12 +323,16 @@ class TimeLoop:
             model.data.sync(self.integrator.time_eval)
         iterations = self.solver.solve()
         if self._watch_solves:
+            if self._lifts["solve_done"]:
+                self.space.lift()
             self.events.solve_done(self, iterations)
         return iterations
 
     def attempt(self, t_new: float) -> SolverError | None:
         """Take a step to t_new [s]; None if it converged and the state is fine, else the
         retryable SolverError (U is then left as the integrator made it: reject or accept)."""
+        if self._lifts["step_attempted"]:
+            self.space.lift()
         self.events.step_attempted(self, t_new)
         self.pending = True
         try:
@@ -329,12 +389,16 @@ class TimeLoop:
         st.smallest = h if st.smallest is None else min(st.smallest, h)
         st.largest = h if st.largest is None else max(st.largest, h)
         self._watch_chart(t_new)
+        if self._lifts["step_accepted"]:
+            self.space.lift()
         self.events.step_accepted(self)
 
     def reject(self, cause: SolverError | None) -> None:
         self.integrator.reject()
         self.pending = False
         self.state.rejected += 1
+        if self._lifts["step_rejected"]:
+            self.space.lift()
         self.events.step_rejected(self, cause)
 
     def back_to_accepted(self) -> None:
@@ -342,10 +406,13 @@ class TimeLoop:
         if self.pending:
             self.integrator.reject()
             self.pending = False
+        self.lift()
 
     def _output(self, k: int, t: float, state: np.ndarray | None = None) -> None:
         """The output event of t_k; ``state``, when given, is the (interpolated) state at
         t_k, put into the model's U while the observers run."""
+        if self._lifts["output"]:
+            self.space.lift()
         u = self.model.U.x.array
         kept = None
         if state is not None:
@@ -372,6 +439,7 @@ class TimeLoop:
                 self.run_fixed()
         finally:
             self.stepping_until = time.perf_counter()
+            self.lift()
 
     def run_fixed(self) -> None:
         """Steps of time.step; a failed step is retried with half of it, at most
@@ -420,6 +488,8 @@ class TimeLoop:
                 solver.request_jacobian()
             self._output(st.outputs, st.t)
             st.level, st.done = 0, 0.0
+            if self._lifts["step_finished"]:
+                self.space.lift()
             self.events.step_finished(self)
 
     def run_adaptive(self) -> None:
