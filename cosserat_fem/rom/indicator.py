@@ -282,7 +282,12 @@ class ErrorIndicator(Observer):
     """The reduced run's error indicator and out-of-training flags (module docstring): an
     observer of a run whose solver is a :class:`~cosserat_fem.rom.galerkin.ReducedSolver`.
     ``settings``: :class:`IndicatorSettings`. After the run: ``times`` [s] and ``values`` (E at
-    each sampled step's output), ``outside`` (the flags), ``seconds`` (its own wall time)."""
+    each sampled step's output), ``outside`` (the flags), ``seconds`` (its own wall time).
+    In reduced coordinates (cosserat_fem/timestepping/loop.py) it asks for the full state at
+    its sampled steps only (``loop.lift()``), not at every event."""
+
+    #: The time loop lifts U in full before this observer's hooks only when it asks.
+    needs_full_state = False
 
     def __init__(self, settings: IndicatorSettings | None = None):
         self.settings = settings or IndicatorSettings()
@@ -359,6 +364,7 @@ class ErrorIndicator(Observer):
         if not self._sampling or self._saturated:
             return
         t0 = time.perf_counter()
+        loop.lift()  # U and the stage's Z in full (nothing to do on full vectors)
         self._stages.append(full_residual(self.solver))
         b = self.stage_weights
         if b is None or len(self._stages) == len(b):
@@ -420,6 +426,7 @@ class ErrorIndicator(Observer):
             self._coupling, self._first = coupling, False
         self._pending = None
         basis = self.basis
+        loop.lift()
         u = loop.model.U.x.array[: len(basis.weights)] - basis.reference
         u6 = np.zeros(len(self.modes.D))
         u6[self.modes.places] = u[self.modes.p_rows]
