@@ -350,6 +350,12 @@ def _rom_parsers(sub) -> None:
         "--every", type=int, default=1, metavar="N", help="a snapshot every N outputs (default 1)"
     )
     build.add_argument("--keep", metavar="DIR", help="keep the training runs' outputs in DIR/<run>")
+    build.add_argument(
+        "--ecsw",
+        type=float,
+        metavar="TAU",
+        help="hyper-reduce: ECSW's elements and weights to the fit tolerance TAU (serial)",
+    )
     run = commands.add_parser(
         "run", help="a reduced run: probes.csv, XDMF and summary.json as a full run's"
     )
@@ -919,6 +925,7 @@ def _rom(args) -> int:
             modes=args.modes,
             every=args.every,
             keep=args.keep,
+            ecsw=args.ecsw,
         )
         if root:
             _say(
@@ -927,6 +934,12 @@ def _rom(args) -> int:
                 f"{len(basis.provenance['runs'])} runs, energy left out "
                 f"{basis.energy_left_out():.3e}"
             )
+            fit = basis.provenance.get("ecsw")
+            if fit is not None:
+                _say(
+                    f"cosserat-fem: rom build: ECSW kept {fit['elements']} of {fit['of']} "
+                    f"elements, fit error {fit['fit_error']:.3e} (tolerance {fit['tolerance']:g})"
+                )
             stem = Path(args.out).with_suffix("") if Path(args.out).suffix == ".npz" else args.out
             _say(f"-> {stem}.npz, {stem}.json")
         return 0

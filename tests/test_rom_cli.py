@@ -290,6 +290,12 @@ def _sweep_with(folder, name: str, rom: str) -> str:
         (["sweep", "{norom}", "--out", "{tmp}/s"], "sweep.rom: the reduced members need a basis"),
         (["sweep", "{far}", "--out", "{tmp}/s"], "sweep.rom.train: member 7 out of range"),
         (["sweep", "{nofile}", "--out", "{tmp}/s"], "sweep.rom.basis: no basis file"),
+        (
+            ["rom", "build", str(PAPER), "--modes", "3", "--ecsw", "1.5", "--out", "{tmp}/b"],
+            "--ecsw: must be a number in (0, 1), got 1.5",
+        ),
+        (["sweep", "{ecsw}", "--out", "{tmp}/s"], "sweep.rom.ecsw: must be a number in (0, 1)"),
+        (["sweep", "{grouped}", "--out", "{tmp}/s"], "sweep.rom.ecsw: hyper-reduced members"),
     ],
 )
 def test_bad_input_is_one_line(tmp_path, capsys, argv, fragment):
@@ -302,8 +308,14 @@ def test_bad_input_is_one_line(tmp_path, capsys, argv, fragment):
             ("norom", "[sweep.rom]\ntolerance = 1e-8\n"),
             ("far", "[sweep.rom]\ntrain = [0, 7]\nmodes = 3\n"),
             ("nofile", '[sweep.rom]\nbasis = "missing.npz"\n'),
+            ("ecsw", "[sweep.rom]\ntrain = [0]\nmodes = 2\necsw = 0\n"),
         )
     }
+    grouped = SWEEP.format(scene=PAPER).replace("[sweep]\n", "[sweep]\ngroup_size = 2\n", 1)
+    files["grouped"] = str(tmp_path / "grouped.toml")
+    (tmp_path / "grouped.toml").write_text(
+        grouped + "[sweep.rom]\ntrain = [0]\nmodes = 2\necsw = 0.01\n"
+    )
     (tmp_path / "file").write_text("")  # a file where a folder is asked for
     argv = [a.format(tmp=tmp_path, **files) for a in argv]
     assert main(argv) == 2
@@ -362,3 +374,65 @@ def test_fifos_at_the_basis_and_table_names_hang_nothing(basis_file, tmp_path, c
         assert main([*argv, "--basis", str(built) + ".npz", "--out", str(out)]) == 0
     rows = read_table(out / "validation.csv")
     assert (out / "validation.csv").is_file() and len(rows) == 1
+
+
+#: ECSW's fit tolerance of the hyper-reduced bases here, and the error it may add to the
+#: Galerkin run's (docs/rom.md §9: at most 0.019 τ measured on the riser, 0.0035 τ on the
+#: paper's rod; tests/test_rom_hyper.py holds 0.1 τ).
+ECSW = 1e-2
+ECSW_ADDED = 0.1
+
+
+def test_rom_build_ecsw_runs_hyper_reduced(basis_file, tmp_path):
+    """``rom build --ecsw τ`` on the short paper scene: the basis file records ECSW's fit
+    (its error ≤ τ, the selection's stop rule) and ``rom run`` on it is hyper-reduced (the
+    summary's loop "hyper"), within 10 √ε + 0.1 τ of the full run (§7's bound for the Galerkin
+    run plus ECSW's added error, tests/test_rom_hyper.py (b))."""
+    stem = tmp_path / "hyper"
+    args = ["--tolerance", str(TOLERANCE), "--ecsw", str(ECSW), "--out", str(stem)]
+    proc = cli("rom", "build", str(PAPER), *SHORT, *args)
+    assert proc.returncode == 0, proc.stderr
+    document = json.loads(stem.with_suffix(".json").read_text())
+    fit = document["provenance"]["ecsw"]
+    assert 0 < fit["elements"] <= 8 and fit["fit_error"] <= ECSW
+    out = tmp_path / "run"
+    proc = cli("rom", "run", str(PAPER), *SHORT, "--basis", f"{stem}.npz", "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["newton"]["loop"] == "hyper"
+    full = probes(basis_file.parent / "training" / "scene")[:, 1:4]
+    eps = document["provenance"]["energy_left_out"]
+    error = relative_l2(probes(out)[:, 1:4], full)
+    assert 0 < error <= ERROR_CONSTANT * math.sqrt(eps) + ECSW_ADDED * ECSW
+
+
+def test_a_hyper_reduced_sweep_under_mpirun_equals_serial(tmp_path):
+    """[sweep.rom] with ``ecsw``: the basis is trained on rank 0 alone (ECSW is serial) while
+    the other rank waits, then the members run hyper-reduced on one rank each. Under
+    ``mpirun -n 2`` the basis file is the serial one's (the same serial runs: its bytes
+    equal) and every member equals its serial run to 1e-12 of the largest |x, y, z| (the
+    same serial arithmetic on each rank; probes.csv's 17 digits give the doubles back). The
+    training members are within 10 √ε + 0.1 τ of their full runs (as above)."""
+    path = tmp_path / "hyper.toml"
+    path.write_text(SWEEP.format(scene=PAPER) + ROM + f"ecsw = {ECSW}\n")
+    folders = {}
+    for ranks in (1, 2):
+        folders[ranks] = tmp_path / f"n{ranks}"
+        proc = run_command(
+            ["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(folders[ranks])], ranks
+        )
+        assert proc.returncode == 0, proc.stderr
+    basis = [(folders[r] / "rom" / "basis.npz").read_bytes() for r in (1, 2)]
+    assert basis[0] == basis[1]
+    document = json.loads((folders[1] / "rom" / "basis.json").read_text())
+    eps = document["provenance"]["energy_left_out"]
+    for m in range(5):
+        runs = [probes(folders[r] / "members" / f"m{m:05d}") for r in (1, 2)]
+        scale = np.abs(runs[0][:, 1:4]).max()
+        assert np.abs(runs[0] - runs[1]).max() <= 1e-12 * scale
+        summary = json.loads((folders[2] / "members" / f"m{m:05d}" / "summary.json").read_text())
+        assert summary["newton"]["loop"] == "hyper"
+        if m in (0, 4):  # the training members: their full runs are kept in rom/training
+            full = probes(folders[1] / "rom" / "training" / f"m{m:05d}")[:, 1:4]
+            error = relative_l2(runs[0][:, 1:4], full)
+            assert 0 < error <= ERROR_CONSTANT * math.sqrt(eps) + ECSW_ADDED * ECSW

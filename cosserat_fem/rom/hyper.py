@@ -198,19 +198,36 @@ def cell_midpoints(model) -> np.ndarray:
     return dmesh.compute_midpoints(msh, 1, cells)[:, 0]
 
 
-def ecsw(scenes, basis, tolerance: float, every: int = 1, max_elements: int | None = None):
+def ecsw(
+    scenes, basis, tolerance: float, every: int = 1, max_elements: int | None = None, comm=None
+):
     """ECSW's elements and weights (module docstring, (11)) for ``basis`` from full runs of
-    ``scenes`` (serial): each stage's state, projected, gives a training block. Returns the
+    ``scenes`` (serial): each stage's state, projected, gives a training block. A scene may
+    also be a training run with its own observers (cosserat_fem/rom/runs.py ``Target``: its
+    ``scene`` and ``observers()``, e.g. a forced member's stop once settled). Returns the
     basis with ``sample_cells`` and ``sample_weights`` set and the fit in its provenance
-    (tolerance, elements, the fit error ‖C ξ − d‖/‖d‖ reached, the training states)."""
+    (tolerance, elements, the fit error ‖C ξ − d‖/‖d‖ reached, the training states).
+    ``comm``: the runs' communicator (default COMM_WORLD; one rank's, COMM_SELF, for a sweep's
+    training on its rank 0)."""
     from dataclasses import replace
+
+    from mpi4py import MPI
 
     from cosserat_fem.analysis.simulation import run_scene
 
+    if not 0.0 < tolerance < 1.0:
+        raise SceneError(f"ecsw: the tolerance must be in (0, 1), got {tolerance!r}")
     collector = ContributionCollector(basis, every)
     model = None
-    for scene in scenes:
-        result = run_scene(scene, write_outputs=False, observers=[collector], record=False)
+    for item in scenes:
+        scene, own = (item.scene, item.observers()) if hasattr(item, "scene") else (item, [])
+        result = run_scene(
+            scene,
+            comm=MPI.COMM_WORLD if comm is None else comm,
+            write_outputs=False,
+            observers=[collector, *own],
+            record=False,
+        )
         model = result.model
     if model is not None and model.msh.comm.size > 1:
         raise SceneError("ecsw: hyper-reduction is serial only (docs/rom.md §9)")

@@ -176,6 +176,19 @@ def _check_choice(tolerance, modes) -> None:
         raise SceneError(f"--tolerance: must be a number in [0, 1), got {tolerance!r}")
 
 
+def _check_ecsw(ecsw, where: str, comm) -> None:
+    """ECSW's tolerance, a number in (0, 1), and a serial training (docs/rom.md §9), checked
+    before any run: one line naming ``where``."""
+    if ecsw is None:
+        return
+    if isinstance(ecsw, bool) or not isinstance(ecsw, int | float) or not 0.0 < ecsw < 1.0:
+        raise SceneError(f"{where}: must be a number in (0, 1), got {ecsw!r}")
+    if comm.size > 1:
+        raise SceneError(
+            f"{where}: hyper-reduction is trained serially (docs/rom.md §9); run without mpirun"
+        )
+
+
 def train_targets(
     targets: Sequence[Target],
     *,
@@ -252,16 +265,22 @@ def build(
     modes: int | None = None,
     every: int = 1,
     keep: str | Path | None = None,
+    ecsw: float | None = None,
 ):
     """A reduced basis from full runs of ``scenes`` (a Scene or several) and/or of the
     ``members`` of ``sweep`` (a SweepSpec of cf.load_sweep; members as :func:`parse_members`
     reads them), with ``tolerance`` (energy left out, docs/rom.md (3)) or ``modes``, a
-    snapshot every ``every`` outputs; written to ``out``.npz and ``out``.json if given
-    (basis.write_basis); the training runs' outputs in ``keep``/<name> if given. Returns
-    the :class:`~cosserat_fem.rom.basis.Basis`. Collective."""
+    snapshot every ``every`` outputs; with ``ecsw`` (a tolerance in (0, 1)), hyper-reduced:
+    ECSW's elements and weights from second full runs of the same targets (docs/rom.md §9;
+    serial only); written to ``out``.npz and ``out``.json if given (basis.write_basis); the
+    training runs' outputs in ``keep``/<name> if given. Returns the
+    :class:`~cosserat_fem.rom.basis.Basis`. Collective."""
+    from mpi4py import MPI
+
     from cosserat_fem.rom import basis as rb
 
     _check_choice(tolerance, modes)
+    _check_ecsw(ecsw, "--ecsw", MPI.COMM_WORLD)
     targets = chosen_targets(scenes, sweep, members)
     if out is not None:  # before the training runs; rank 0 writes it (basis.write_basis)
         from mpi4py import MPI
@@ -273,6 +292,10 @@ def build(
         except SceneError as exc:
             raise SceneError(f"--out: {str(exc).partition(': ')[2]}") from None
     basis, model = train_targets(targets, tolerance=tolerance, modes=modes, every=every, keep=keep)
+    if ecsw is not None:
+        from cosserat_fem.rom import hyper
+
+        basis = hyper.ecsw(targets, basis, ecsw)
     if out is not None:
         rb.write_basis(basis, model, out)
     return basis

@@ -665,7 +665,12 @@ def sweep_basis(spec: SweepSpec, out: Path, world) -> Path | None:
     assert spec.rom is not None
     if spec.rom.basis is not None:
         model = build_model(spec.scene(spec.members[0]), world)
-        rb.read_basis(spec.rom.basis, model)  # refused here, before any member runs
+        given = rb.read_basis(spec.rom.basis, model)  # refused here, before any member runs
+        if given.sample_weights is not None and spec.group_size > 1:
+            raise SceneError(
+                "sweep.rom.basis: a hyper-reduced basis (rom build --ecsw) runs its members on "
+                f"one rank each (sweep.group_size = 1), got group_size = {spec.group_size}"
+            )
         return Path(spec.rom.basis)
     path = out / ROM_FOLDER / "basis.npz"
     if path.is_file() and (out / ROM_FOLDER / "basis.json").is_file():
@@ -675,15 +680,34 @@ def sweep_basis(spec: SweepSpec, out: Path, world) -> Path | None:
         except SceneError:
             pass  # cut by a kill: trained again
     targets = sweep_targets(spec, spec.rom.train)
-    trained, model = train_targets(
-        targets,
-        tolerance=spec.rom.tolerance,
-        modes=spec.rom.modes,
-        every=spec.rom.every,
-        keep=out / ROM_FOLDER / "training",
-        comm=world,
-    )
-    rb.write_basis(trained, model, path)
+    settings = spec.rom
+
+    def train(comm) -> None:
+        trained, model = train_targets(
+            targets,
+            tolerance=settings.tolerance,
+            modes=settings.modes,
+            every=settings.every,
+            keep=out / ROM_FOLDER / "training",
+            comm=comm,
+        )
+        if settings.ecsw is not None:  # ECSW's second runs (docs/rom.md §9)
+            from cosserat_fem.rom import hyper
+
+            trained = hyper.ecsw(targets, trained, settings.ecsw, comm=comm)
+        rb.write_basis(trained, model, path)
+
+    if settings.ecsw is None or world.size == 1:
+        train(world)
+        return path
+    # hyper-reduction is trained serially: rank 0 on its own, the others wait for its file
+    problem = None
+    if world.rank == 0:
+        try:
+            train(MPI.COMM_SELF)
+        except CosseratError as exc:
+            problem = exc
+    agree(world, problem)
     return path
 
 

@@ -68,6 +68,8 @@ Members run on a reduced model (docs/rom.md §11; cosserat_fem/rom/runs.py) with
     tolerance = 1e-8             # with train: the energy left out (docs/rom.md (3)), or
     modes = 12                   #   the number of modes
     every = 1                    # with train: a snapshot every so many outputs
+    ecsw = 1e-2                  # with train: hyper-reduced (docs/rom.md §9), ECSW's fit
+                                 #   tolerance; its members run on one rank each
 
 With a continuation, a member runs its scene's time span (time.end − time.start) from the
 start that carries the forcing's phase over from its predecessor's end
@@ -103,6 +105,7 @@ from pathlib import Path
 from typing import Any
 
 from cosserat_fem.analysis import budget
+from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import SceneError, show_value
 from cosserat_fem.scene.build import Scene, refuse_closed, scene_from_dict
 from cosserat_fem.scene.load_data import TableStore
@@ -122,7 +125,7 @@ KEYS = {
     "poincare",
     "rom",
 }
-ROM_KEYS = {"model", "basis", "train", "tolerance", "modes", "every"}
+ROM_KEYS = {"model", "basis", "train", "tolerance", "modes", "every", "ecsw"}
 ROM_MODELS = ("reduced", "full")
 POINCARE_KEYS = {"period", "phase", "discard", "continuation", "direction"}
 RESPONSE_KEYS = {
@@ -163,7 +166,8 @@ class SectionSettings:
 class RomSettings:
     """A sweep's ``[sweep.rom]`` (module docstring): the members' ``model``, and their basis:
     ``basis`` the path of a basis file (resolved), or the members ``train`` whose full runs
-    make it, with ``tolerance`` or ``modes`` and ``every``; ``digest`` the basis file's
+    make it, with ``tolerance`` or ``modes``, ``every`` and ``ecsw`` (hyper-reduced: ECSW's
+    tolerance; None: Galerkin); ``digest`` the basis file's
     SHA-256 (the sweep's fingerprint: another basis is another sweep)."""
 
     model: str = "reduced"
@@ -173,6 +177,7 @@ class RomSettings:
     modes: int | None = None
     every: int = 1
     digest: str | None = None
+    ecsw: float | None = None
 
     @property
     def reduced(self) -> bool:
@@ -662,7 +667,7 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
                 _check_section(poincare, scene, f"member {member.index}")
         except SceneError as exc:
             raise SceneError(f"sweep member {member.index} ({member.describe()}): {exc}") from None
-    rom = _rom(table.get("rom"), path, len(members))
+    rom = _rom(table.get("rom"), path, len(members), group_size)
     tables.seal()  # every member's tables are read: none is read again in a group
     return SweepSpec(
         base_data,
@@ -680,7 +685,7 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
     )
 
 
-def _rom(table: Any, path: Path, count: int) -> RomSettings | None:
+def _rom(table: Any, path: Path, count: int, group_size: int) -> RomSettings | None:
     """The [sweep.rom] table checked (module docstring), or None; the basis file must exist
     (read by rank 0, its SHA-256 every rank's)."""
     if table is None:
@@ -705,7 +710,7 @@ def _rom(table: Any, path: Path, count: int) -> RomSettings | None:
         raise SceneError("sweep.rom.train: give basis or train, not both")
     every = _positive_int(table, "every", 1, "sweep.rom")
     if basis is not None:
-        for key in ("tolerance", "modes", "every"):
+        for key in ("tolerance", "modes", "every", "ecsw"):
             if key in table:
                 raise SceneError(f"sweep.rom.{key}: only with train (the basis file has its modes)")
         if not isinstance(basis, str) or not basis:
@@ -738,6 +743,15 @@ def _rom(table: Any, path: Path, count: int) -> RomSettings | None:
         raise SceneError(
             f"sweep.rom.tolerance: must be a number in [0, 1), got {show_value(tolerance)}"
         )
+    ecsw = table.get("ecsw")
+    if ecsw is not None:
+        if isinstance(ecsw, bool) or not isinstance(ecsw, int | float) or not 0.0 < ecsw < 1.0:
+            raise SceneError(f"sweep.rom.ecsw: must be a number in (0, 1), got {show_value(ecsw)}")
+        if group_size > 1:
+            raise SceneError(
+                "sweep.rom.ecsw: hyper-reduced members run on one rank each (sweep.group_size "
+                f"= 1), got group_size = {group_size}"
+            )
     return RomSettings(
         model,
         None,
@@ -745,6 +759,7 @@ def _rom(table: Any, path: Path, count: int) -> RomSettings | None:
         None if tolerance is None else float(tolerance),
         modes,
         every,
+        ecsw=None if ecsw is None else float(ecsw),
     )
 
 
@@ -754,7 +769,7 @@ def _digest(file: Path) -> str | None:
     digest = None
     if world.rank == 0:
         try:
-            digest = hashlib.sha256(file.read_bytes()).hexdigest()
+            digest = hashlib.sha256(safe_files.read_regular(file)).hexdigest()
         except OSError:
             digest = None
     return world.bcast(digest, root=0) if world.size > 1 else digest
