@@ -31,9 +31,12 @@
 # the reduced run's **error indicator** (§10), then the wall times: training, the reduced
 # members, the full members.
 #
-# Run it with `mpirun -n 2 python demos/rom_frequency_sweep.py` (`make demo-rom`; 21 members,
-# a couple of minutes) or serially; `--members 201` (or `COSSERAT_ROM_SWEEP_MEMBERS=201`) runs
-# the full size (≥ 200 members), `--train 3` trains on three members instead of five.
+# Run it with `mpirun -n 2 python demos/rom_frequency_sweep.py` (`make demo-rom`; 21 members:
+# 117 s at load 5, of which the training 86 s, because each training run is on both ranks and
+# a step of 8 elements on two ranks is many MPI messages; serially 21 s) or serially;
+# `--members 201` (or `COSSERAT_ROM_SWEEP_MEMBERS=201`, `make demo-rom ROM_MEMBERS=201`) runs
+# the full size (≥ 200 members), `--train 3` trains on three members instead of five,
+# `--tolerance` sets ε of (3).
 # Today the reduced members are not faster than the full ones: the reduced model assembles the
 # full residual at every Newton iteration (docs/rom.md §8); hyper-reduction (§9) is what makes
 # them cheap.
