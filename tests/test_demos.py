@@ -488,7 +488,8 @@ def rom_sweep_runs(tmp_path_factory):
     """demos/rom_frequency_sweep.py with ``--members 9`` serially and under ``mpirun -n 2``:
     QOI of each. Serially 10 s at load 2.5; on two ranks the training runs are on both ranks,
     and a step of 8 elements on two ranks is many MPI messages (the members run a rank each):
-    the 5-member variant took 16.5 s at load 2.5, both runs of this one 8 min at load 7."""
+    the 5-member variant took 16.5 s at load 2.5; both runs of this one 85 s at load 2, 8 min
+    at load 7."""
     runs = {}
     for ranks in (1, 2):
         out = tmp_path_factory.mktemp(f"rom_sweep{ranks}")
