@@ -13,7 +13,7 @@ export OMPI_MCA_rmaps_base_oversubscribe := 1
 export OMPI_MCA_mpi_yield_when_idle := 1
 export OMPI_MCA_hwloc_base_binding_policy := none
 
-.PHONY: setup demo demo-response test test-long unit lint format verify bench clean container-test
+.PHONY: setup demo demo-response demo-rom test test-long unit lint format verify bench clean container-test
 
 setup:
 	@VENV=$(VENV) bash .ci/setup.sh
@@ -25,6 +25,11 @@ demo: setup
 ## The second demo: a frequency response with jumps (a sweep; two chains on two ranks).
 demo-response: setup
 	OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -n 2 $(PY) demos/frequency_response.py
+
+## The third demo: a forcing-frequency sweep over the first two resonances, reduced members
+## (POD, Galerkin) beside full ones (two ranks; ROM_MEMBERS=201 for the issue's size).
+demo-rom: setup
+	OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 COSSERAT_ROM_SWEEP_MEMBERS=$(or $(ROM_MEMBERS),21) mpirun -n 2 $(PY) demos/rom_frequency_sweep.py
 
 ## Lint, then the test suite (serial and mpirun -n 2 cases) without the long set, its files
 ## dealt to one pytest worker per core (pytest-xdist; a file's tests share its fixtures).
