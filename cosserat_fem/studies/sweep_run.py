@@ -654,7 +654,8 @@ def sweep_basis(spec: SweepSpec, out: Path, world) -> Path | None:
     full: the file of ``[sweep.rom] basis``, checked against the first member's mesh
     (basis.read_basis: another mesh or space refused in one line), or ``rom/basis.npz`` in
     ``out`` trained now from full runs of the members of ``[sweep.rom] train`` (from rest,
-    each on every rank of ``world``; their outputs in rom/training/<member>), or, when the
+    each on the first group of group_size ranks of ``world``, as a member runs, the other
+    ranks waiting; their outputs in rom/training/<member>), or, when the
     sweep is started again, the one trained before if it can be read. Collective."""
     from cosserat_fem.rod.model import build_model
     from cosserat_fem.rom import basis as rb
@@ -697,16 +698,22 @@ def sweep_basis(spec: SweepSpec, out: Path, world) -> Path | None:
             trained = hyper.ecsw(targets, trained, settings.ecsw, comm=comm)
         rb.write_basis(trained, model, path)
 
-    if settings.ecsw is None or world.size == 1:
+    if world.size == spec.group_size:
         train(world)
         return path
-    # hyper-reduction is trained serially: rank 0 on its own, the others wait for its file
+    # trained as a member runs: on the first group of group_size ranks (ECSW: one rank), the
+    # others waiting for its file; an 8-element rod's run on every rank of a world costs
+    # tens of times its serial run in messages, and the basis is then the serial sweep's
+    first = world.rank < spec.group_size
+    group = world.Split(0 if first else MPI.UNDEFINED, world.rank)
     problem = None
-    if world.rank == 0:
+    if first:
         try:
-            train(MPI.COMM_SELF)
+            train(group)
         except CosseratError as exc:
             problem = exc
+        finally:
+            group.Free()
     agree(world, problem)
     return path
 
