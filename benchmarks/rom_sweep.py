@@ -9,6 +9,7 @@ each in full and reduced, the true relative L2 free-end error beside the indicat
 asks for every indicated error ≤ 1e-2, confirmed by the true one.
 
     .venv/bin/python benchmarks/rom_sweep.py [--members 201] [--train 5] [--repeats 3]
+        [--ecsw TAU]
 
 Serial (one core) unless started under mpirun; prints Markdown tables.
 """
@@ -83,10 +84,16 @@ def main() -> None:
     parser.add_argument("--train", type=int, default=5)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--validate", type=int, default=20, help="members drawn at random")
+    parser.add_argument(
+        "--ecsw", type=float, default=None, metavar="TAU", help="hyper-reduced members (§9)"
+    )
     parser.add_argument("--out", default=None, help="folder of the sweeps (default: a temporary)")
     args = parser.parse_args()
     comm = MPI.COMM_WORLD
     spec = sweep_of(args.members, args.train)
+    if args.ecsw is not None:
+        assert spec.rom is not None
+        spec = replace(spec, rom=replace(spec.rom, ecsw=args.ecsw))
     full_spec = replace(spec, rom=RomSettings(model="full"))
     folder = Path(args.out) if args.out else Path(tempfile.gettempdir()) / "rom_sweep_bench"
     times: dict[str, list[float]] = {"reduced": [], "full": []}
