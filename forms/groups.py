@@ -31,7 +31,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .section import Section
+from .section import Section, SectionLaw
 
 
 @dataclass(frozen=True)
@@ -51,6 +51,10 @@ class RodConstants:
     torsion_inertia: str = "polar"
     #: (I11, I22, I33) [kg m] per unit length given apart from the section, or None: (46).
     inertia: tuple[float, float, float] | None = None
+    #: A general section law (forms/section.py), or None: the paper's diagonal (13) of
+    #: ``section``. With one, ``section``, ρ and the inertias above are the references of the
+    #: scaling (47)-(48) only (ω0, the rows' divisors); the law's K, μ and I act in the balance.
+    law: SectionLaw | None = None
 
     @property
     def rotary_inertias(self) -> tuple[float, float, float]:
