@@ -23,6 +23,7 @@ import pytest
 import scipy.linalg
 import ufl
 from cosserat_fem.forms.director_form import director_residual_terms
+from cosserat_fem.forms.energy import kinetic_energy_density, strain_energy_density
 from cosserat_fem.forms.general_form import (
     DistributedLoads,
     EndLoads,
@@ -131,6 +132,11 @@ def test_the_diagonal_law_is_the_papers_law(degree):
         fa = _assemble(ufl.inner(getattr(ra, name), weights) * w * dx)
         fb = _assemble(ufl.inner(getattr(rb, name), weights) * w * dx)
         assert np.abs(fa - fb).max() <= 1e-12 * np.abs(fa).max(), name
+    # and the energies (forms/energy.py): ½ (Γ·n + κ·m) and ½ (μ |ṙ|² + Σ I_i w_i²)
+    for density in (strain_energy_density, kinetic_energy_density):
+        ea = fem.assemble_scalar(fem.form(density(U, paper) * dx))
+        eb = fem.assemble_scalar(fem.form(density(U, diag) * dx))
+        assert abs(ea - eb) <= 1e-12 * abs(ea), density.__name__
 
 
 def _coupled_varying_law(rod: RodConstants, x) -> SectionLaw:
