@@ -17,6 +17,7 @@ Checks, each against an independent derivation:
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -38,6 +39,11 @@ from dolfinx.fem.petsc import NonlinearProblem, assemble_matrix, assemble_vector
 from dolfinx.nls.petsc import NewtonSolver
 from mpi4py import MPI
 from petsc4py import PETSc
+
+from cosserat_fem.api import run
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.rod.model import build_model
+from cosserat_fem.scene.build import load_scene
 
 E, G, RHO = 2.1e11, 8.1e10, 7800.0
 
@@ -428,3 +434,71 @@ def test_bad_stiffness_is_one_line_naming_the_key(matrix, message):
     assert text.startswith("rod.section.stiffness: ") and message in text and "\n" not in text
     ok = np.diag([2.0, 2.0, 3.0, 1.0, 1.0, 0.5]) + 1e-13 * np.triu(np.ones((6, 6)), 1)
     assert check_stiffness(ok, "k").shape == (6, 6)
+
+
+def _diagonal_scene_pair(extra: tuple[str, ...] = ()):
+    """The paper's scene (scenes/cao_tucker_2008.toml) and the same with
+    rod.section.stiffness = diag(κGA, κGA, EA, E c11, E c22, G c33) of its section."""
+    path = Path(__file__).parents[1] / "scenes" / "cao_tucker_2008.toml"
+    paper = load_scene(path, list(extra))
+    k = _diagonal_of(paper.rod_constants())
+    rows = [[k[i] if i == j else 0.0 for j in range(6)] for i in range(6)]
+    diag = load_scene(path, [*extra, f"rod.section.stiffness={rows!r}"])
+    return paper, diag
+
+
+def _diagonal_of(rod: RodConstants) -> tuple[float, ...]:
+    s = rod.section
+    kga = s.shear_coefficient * rod.shear_modulus * s.area
+    E_, G_ = rod.young_modulus, rod.shear_modulus
+    return (kga, kga, E_ * s.area, E_ * s.c11, E_ * s.c22, G_ * s.c33)
+
+
+def test_a_diagonal_stiffness_key_is_the_papers_scene():
+    """[rod.section] stiffness = the diagonal of (13) in the paper's scene: the model's
+    residual (the scene's loads at t = 1 ms, every term) at a random state equals the scene's
+    without the key to 1e-12 of its largest entry (round-off of the sums, as above), and a
+    short dynamic run (20 steps of sdirk3) gives the same probe to 1e-7 of its largest
+    displacement: the residuals differ at round-off, so the Newton iterates do; the bound is
+    the solver's stol = 1e-7, what one iteration more or less could change."""
+    paper, diag = _diagonal_scene_pair(('discretisation.planar="off"',))
+    assert paper.rod_constants().law is None and diag.rod_constants().law is not None
+    vectors = []
+    for scene in (paper, diag):
+        model = build_model(scene, MPI.COMM_SELF, planar=False)
+        U, Udot = fem.Function(model.V), fem.Function(model.V)
+        rng = np.random.default_rng(11)
+        U.x.array[:] = 0.3 * rng.standard_normal(U.x.array.size)
+        Udot.x.array[:] = 0.3 * rng.standard_normal(U.x.array.size)
+        tau = fem.Constant(model.msh, PETSc.ScalarType(1e-3 * model.omega0))
+        model.sync_loads(tau)
+        vectors.append(_assemble(model.residual(U, Udot, tau)))
+    assert np.abs(vectors[0] - vectors[1]).max() <= 1e-12 * np.abs(vectors[0]).max()
+    end = ("time.end=6e-4", "output.xdmf=false", "output.checkpoint=false")
+    runs = [run(scene, record=True).probes for scene in _diagonal_scene_pair(end)]
+    assert runs[0].shape == runs[1].shape and runs[0].shape[0] >= 2
+    scale = np.abs(runs[0][:, 1:4]).max()
+    assert scale > 0
+    assert np.abs(runs[0][:, 1:] - runs[1][:, 1:]).max() <= 1e-7 * scale
+
+
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        ("[[1, 0], [0, 1]]", "rod.section.stiffness: must be a 6×6 symmetric positive definite"),
+        ('"diag"', "rod.section.stiffness: must be a 6×6"),
+        ("[" + ", ".join(["[1, 1, 1, 1, 1, 1]"] * 5 + ["[1, 1, 1]"]) + "]", "stiffness[5]: must"),
+        ("[" + ", ".join(["[1, 2, 0, 0, 0, 0]"] * 6) + "]", "not symmetric"),
+        ("[" + ", ".join(["[1, 1, 1, 1, 1, 1]"] * 6) + "]", "not positive definite"),
+        ('[[1, 0, 0, 0, 0, "x"]' + ", [0, 1, 0, 0, 0, 0]" * 5 + "]", "stiffness[0][5]: must be"),
+    ],
+)
+def test_a_bad_stiffness_key_is_one_line(value, message):
+    """The scene key rod.section.stiffness: not a list of 6 rows of 6 numbers, not symmetric,
+    not positive definite: a SceneError of one line naming the key (the command line prints it
+    and exits 1, cosserat_fem/cli.py)."""
+    path = Path(__file__).parents[1] / "scenes" / "cao_tucker_2008.toml"
+    with pytest.raises(SceneError) as err:
+        load_scene(path, [f"rod.section.stiffness={value}"])
+    text = str(err.value)
+    assert message in text and "\n" not in text and text.startswith("rod.section.stiffness")

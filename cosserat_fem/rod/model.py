@@ -44,6 +44,7 @@ from cosserat_fem.forms.general_form import (
 from cosserat_fem.forms.groups import Groups, RodConstants, dimensionless_groups
 from cosserat_fem.forms.kinematics import P_NAMES, quaternion_chart
 from cosserat_fem.forms.reference import Reference
+from cosserat_fem.forms.resultants import scaled_law
 from cosserat_fem.rod import charts
 from cosserat_fem.rod.charts import change_chart, change_chart_rate, chart_of
 from cosserat_fem.rod.load_coefficients import DataLoads
@@ -524,6 +525,7 @@ class RodModel:
             kelvin_voigt,
             chart,
             self.reference_form(),
+            scaled_law(self.rod) if self.rod.law is not None else None,
         )
         form_loads = self.scene.loads.form_loads()
         if form_loads:  # the loads declared with their physics (resolved.FormLoad)

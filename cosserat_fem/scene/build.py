@@ -84,10 +84,11 @@ def _build_section(raw: dict[str, Any], poisson_ratio: float) -> SectionSpec:
     shape = raw["shape"]
     keys = SECTION_KEYS[shape]
     for name, value in raw.items():
-        if value is not None and name not in (*keys, "shape", "shear_coefficient"):
+        if value is not None and name not in (*keys, "shape", "shear_coefficient", "stiffness"):
             raise SceneError(
                 f"rod.section.{name}: not a key of shape {shape!r}, which takes "
-                f"{', '.join(keys)} (and shear_coefficient; --unset rod.section.{name} removes "
+                f"{', '.join(keys)} (and shear_coefficient, stiffness; --unset rod.section.{name} "
+                "removes "
                 "it)"
             )
     values = dict(raw)

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from cosserat_fem.common.errors import SceneError, show_value
+from cosserat_fem.forms.section import check_stiffness
 from cosserat_fem.io.xdmf import FIELD_ARRAYS
 from cosserat_fem.scene.expressions import RESERVED_NAMES, check_name
 from cosserat_fem.scene.load_data import INTERPOLATIONS, OUTSIDE, S_INTERPOLATIONS, component_dict
@@ -328,6 +329,39 @@ class Points(Field):
     def to_value(self, value: Any) -> Any:
         """The points as lists."""
         return None if value is None else [list(point) for point in value]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SymmetricMatrix(Field):
+    """A 6×6 symmetric positive definite matrix: a list of 6 rows of 6 finite numbers,
+    symmetric to 1e-12 relative, positive definite (cosserat_fem.forms.section
+    ``check_stiffness``)."""
+
+    unit: str = ""
+
+    def describe(self) -> str:
+        return f"a 6×6 symmetric positive definite matrix, 6 lists of 6 numbers [{self.unit}]"
+
+    def check(self, key: str, value: Any) -> Any:
+        if not isinstance(value, list) or len(value) != 6:
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        rows = []
+        for i, row in enumerate(value):
+            if not isinstance(row, list) or len(row) != 6:
+                raise SceneError(
+                    f"{key}[{i}]: must be a list of 6 numbers (a row of a 6×6 matrix), got "
+                    f"{show_value(row)}"
+                )
+            rows.append(tuple(Number().check(f"{key}[{i}][{j}]", x) for j, x in enumerate(row)))
+        try:
+            check_stiffness(rows, key)
+        except ValueError as err:
+            raise SceneError(str(err)) from None
+        return tuple(rows)
+
+    def to_value(self, value: Any) -> Any:
+        """The rows as lists."""
+        return None if value is None else [list(row) for row in value]
 
 
 @dataclass(frozen=True, kw_only=True)

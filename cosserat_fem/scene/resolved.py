@@ -14,7 +14,13 @@ import numpy as np
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.groups import RodConstants, euler_bernoulli_omega0
-from cosserat_fem.forms.section import TORSION_CONSTANT_RULES, Section, rectangle, tube
+from cosserat_fem.forms.section import (
+    TORSION_CONSTANT_RULES,
+    Section,
+    SectionLaw,
+    rectangle,
+    tube,
+)
 from cosserat_fem.io.probes import PROBE_FIELD_COLUMNS
 from cosserat_fem.scene.expressions import Expression, derivative
 from cosserat_fem.scene.keys import (
@@ -39,6 +45,7 @@ from cosserat_fem.scene.keys import (
     Parameters,
     PetscOptions,
     Points,
+    SymmetricMatrix,
     Table,
     Text,
     Vector,
@@ -60,6 +67,12 @@ class SectionSpec:
 
     ``shear_coefficient`` κ is resolved: given, or 5/6 (rectangle) or Cowper's value for ν
     (circle, tube); "constants" needs it given.
+
+    ``stiffness`` (any shape, optional): a general section law (docs/sections.md), the 6×6
+    symmetric positive definite K in the order (shear 1, shear 2, extension, bending 1,
+    bending 2, torsion) [N, N m, N m²], BeamDyn's: n = K₁ Γ + K₁₂ κ, m = K₂₁ Γ + K₂ κ in the
+    directors. It replaces the shape's diagonal law (13); the shape still gives the mass
+    ρ A, the rotary inertias (unless rod.rotary_inertia) and the scaling (47) (ω0 "auto").
     """
 
     shape: str = key(Choice(choices=tuple(SECTION_KEYS), default="rectangle"))
@@ -77,6 +90,14 @@ class SectionSpec:
     shear_coefficient: float = key(
         Number(default="auto", interval=Interval(0.0, 1.0, lo_open=True), auto=True)
     )
+    #: K [N | N m | N m²], the general section law (class docstring), or None: (13).
+    stiffness: tuple[tuple[float, ...], ...] | None = key(
+        SymmetricMatrix(unit="N, N m, N m^2"), default=None
+    )
+
+    def law(self) -> SectionLaw | None:
+        """The general section law of ``stiffness`` (μ and I those of the shape), or None."""
+        return None if self.stiffness is None else SectionLaw(self.stiffness)
 
     def constants(self) -> Section:
         """A, c11, c22, c33, κ (cosserat_fem.forms.section)."""
@@ -777,6 +798,7 @@ class Scene:
             omega0=self.omega0,
             torsion_inertia=self.model.torsion_inertia,
             inertia=self.rod.rotary_inertia,
+            law=self.rod.section.law(),
         )
 
     def load_components(self) -> list[tuple[str, Any]]:
