@@ -496,7 +496,7 @@ def test_a_diagonal_stiffness_key_is_the_papers_scene():
 def test_a_bad_stiffness_key_is_one_line(value, message):
     """The scene key rod.section.stiffness: not a list of 6 rows of 6 numbers, not symmetric,
     not positive definite: a SceneError of one line naming the key (the command line prints it
-    and exits 1, cosserat_fem/cli.py)."""
+    and exits 2, cosserat_fem/cli.py)."""
     path = Path(__file__).parents[1] / "scenes" / "cao_tucker_2008.toml"
     with pytest.raises(SceneError) as err:
         load_scene(path, [f"rod.section.stiffness={value}"])
