@@ -502,3 +502,18 @@ def test_a_bad_stiffness_key_is_one_line(value, message):
         load_scene(path, [f"rod.section.stiffness={value}"])
     text = str(err.value)
     assert message in text and "\n" not in text and text.startswith("rod.section.stiffness")
+
+
+def test_a_coupled_law_is_never_solved_in_a_plane():
+    """The paper's scene with its load in the x-z plane only is solved in that plane; with a
+    diagonal stiffness still, with an extension–twist coupling K36 not (an axial force would
+    twist the rod out of the plane, which the planar unknowns cannot hold)."""
+    inplane = ('loads.force_density=["2e3*sin(pi*s/L)*sin(8*omega0*t)", 0, 0]',)
+    paper, diag = _diagonal_scene_pair(inplane)
+    assert paper.plane() == diag.plane() == "x-z"
+    k = _diagonal_of(paper.rod_constants())
+    rows = [[k[i] if i == j else 0.0 for j in range(6)] for i in range(6)]
+    rows[2][5] = rows[5][2] = 0.5 * math.sqrt(k[2] * k[5])
+    path = Path(__file__).parents[1] / "scenes" / "cao_tucker_2008.toml"
+    coupled = load_scene(path, [*inplane, f"rod.section.stiffness={rows!r}"])
+    assert coupled.plane() is None

@@ -742,8 +742,13 @@ class Scene:
     def plane(self) -> str | None:
         """The plane the motion stays in, "x-z" or "y-z" (checked in that order: a scene in
         both moves along the axis only, and x-z keeps clear of the chart limit |θ| < π/2),
-        or None: asked for (discretisation.planar = "auto") and nothing leaves the plane."""
+        or None: asked for (discretisation.planar = "auto") and nothing leaves the plane; never
+        with a section law that couples its strains (rod.section.stiffness off its diagonal:
+        an extension may twist, a bending shear out of the plane)."""
         if self.discretisation.planar != "auto" or self.reference.curved:
+            return None
+        K = self.rod.section.stiffness
+        if K is not None and any(K[i][j] != 0.0 for i in range(6) for j in range(6) if i != j):
             return None
         return next((name for name in PLANES if self._stays_in(name)), None)
 
