@@ -40,7 +40,7 @@ from dolfinx.nls.petsc import NewtonSolver
 from mpi4py import MPI
 from petsc4py import PETSc
 
-from cosserat_fem.api import run
+from cosserat_fem.api import modes, run
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.rod.model import build_model
 from cosserat_fem.scene.build import load_scene
@@ -490,7 +490,8 @@ def test_a_diagonal_stiffness_key_is_the_papers_scene():
         ("[" + ", ".join(["[1, 1, 1, 1, 1, 1]"] * 5 + ["[1, 1, 1]"]) + "]", "stiffness[5]: must"),
         ("[" + ", ".join(["[1, 2, 0, 0, 0, 0]"] * 6) + "]", "not symmetric"),
         ("[" + ", ".join(["[1, 1, 1, 1, 1, 1]"] * 6) + "]", "not positive definite"),
-        ('[[1, 0, 0, 0, 0, "x"]' + ", [0, 1, 0, 0, 0, 0]" * 5 + "]", "stiffness[0][5]: must be"),
+        ("[[1, 0, 0, 0, 0, true]" + ", [0, 1, 0, 0, 0, 0]" * 5 + "]", "stiffness[0][5]: must be"),
+        ('[[1, 0, 0, 0, 0, "s"]' + ", [0, 1, 0, 0, 0, 0]" * 5 + "]", "not symmetric: [0][5]"),
     ],
 )
 def test_a_bad_stiffness_key_is_one_line(value, message):
@@ -517,3 +518,92 @@ def test_a_coupled_law_is_never_solved_in_a_plane():
     path = Path(__file__).parents[1] / "scenes" / "cao_tucker_2008.toml"
     coupled = load_scene(path, [*inplane, f"rod.section.stiffness={rows!r}"])
     assert coupled.plane() is None
+
+
+def _tapered_scene(elements: int, extra: tuple[str, ...] = ()):
+    """The paper's cantilever (scenes/cao_tucker_2008.toml) with its width tapering linearly
+    to half, given by expressions of s: K, μ and I all times (1 − s/(2L))."""
+    path = Path(__file__).parents[1] / "scenes" / "cao_tucker_2008.toml"
+    rod = load_scene(path).rod_constants()
+    k = _diagonal_of(rod)
+    taper = "*(1 - 0.5*s/L)"
+    rows = [[f"{k[i]!r}{taper}" if i == j else 0.0 for j in range(6)] for i in range(6)]
+    mu = rod.density * rod.section.area
+    inertia = [f"{i!r}{taper}" for i in rod.mass_inertias]
+    sets = [
+        f"rod.section.stiffness={rows!r}".replace("'", '"'),
+        f'rod.section.mass_per_length="{mu!r}{taper}"',
+        f"rod.section.inertia={inertia!r}".replace("'", '"'),
+        f"discretisation.elements={elements}",
+        *extra,
+    ]
+    return rod, load_scene(path, sets)
+
+
+def test_a_tapered_scene_by_expressions_of_s():
+    """[rod.section] stiffness, mass_per_length and inertia as expressions of s: the paper's
+    cantilever tapered to half its width (EI, κGA, μ, ρI ∝ 1 − s/(2L)); its first bending
+    mode about d2 (``modes``, the scene's P3 elements) against Timoshenko's Rayleigh–Ritz
+    (:func:`_ritz_frequency`, 12 terms, converged to 1e-9): on 4 and 8 cells the error must
+    be positive (a displacement method) and fall by ≥ 8 (P3: order ≥ 3), below 1e-5 on 8."""
+    errors = []
+    for elements in (4, 8):
+        rod, scene = _tapered_scene(elements)
+        E_, mu = rod.young_modulus, rod.density * rod.section.area
+        kGA = _diagonal_of(rod)[0]
+        reference = _ritz_frequency(
+            E_ * rod.section.c22, kGA, mu, rod.mass_inertias[1], rod.length, 0.5, 12
+        )
+        found = [m.omega for m in modes(scene, count=4) if m.kind == "bending-x"]
+        errors.append((found[0] - reference) / reference)
+    print(errors)
+    assert all(e > 0.0 for e in errors), errors
+    assert errors[1] <= errors[0] / 8 and errors[1] <= 1e-5, errors
+
+
+def _law_sets(rows, *extra: str) -> list[str]:
+    return [f"rod.section.stiffness={rows!r}".replace("'", '"'), *extra]
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ((0, 0, "1e8*(1 - 2*s/L)"), "rod.section.stiffness: not positive definite at s = 0.5 m"),
+        ((0, 0, "1e8*(1 + q*s)"), "rod.section.stiffness[0][0]: "),
+        ((0, 0, "1e8*log(0.5 - s/L)"), "rod.section.stiffness[0][0]: must be finite"),
+        ((2, 5, "1e3*s"), "rod.section.stiffness: not symmetric: [2][5] = "),
+    ],
+)
+def test_a_bad_law_along_s_is_one_line(change, message):
+    """A law by expressions of s checked at 401 stations along the rod: not positive definite
+    past s = L/2 (the first station where K11 ≤ 0 is s = 0.5 m on the 1 m rod), an unknown
+    name, not finite (log of a negative number past L/2), an entry not mirrored: one line
+    naming the key (and the station)."""
+    path = Path(__file__).parents[1] / "scenes" / "cao_tucker_2008.toml"
+    rows: list[list] = [[1e8 if i == j else 0.0 for j in range(6)] for i in range(6)]
+    i, j, value = change
+    rows[i][j] = value
+    with pytest.raises(SceneError) as err:
+        load_scene(path, _law_sets(rows))
+    text = str(err.value)
+    assert text.startswith(message) and "\n" not in text, text
+
+
+@pytest.mark.parametrize(
+    ("sets", "message"),
+    [
+        (['rod.section.mass_per_length="6.5*(1 - 2*s/L)"'], "rod.section.mass_per_length: must"),
+        (["rod.section.inertia=[1, 1, -1]"], "rod.section.inertia[2]: must be > 0"),
+        (["rod.rotary_inertia=[1, 1, 1]", "rod.section.inertia=[1, 1, 1]"], "give the inertias"),
+    ],
+)
+def test_a_bad_mass_along_s_is_one_line(sets, message):
+    """μ ≤ 0 past L/2, a negative inertia, the inertias given twice: one line naming the key;
+    and μ without a stiffness: refused (μ and I belong to the 6×6 law)."""
+    path = Path(__file__).parents[1] / "scenes" / "cao_tucker_2008.toml"
+    rows = [[1e8 if i == j else 0.0 for j in range(6)] for i in range(6)]
+    with pytest.raises(SceneError) as err:
+        load_scene(path, _law_sets(rows, *sets))
+    assert message in str(err.value) and "\n" not in str(err.value), str(err.value)
+    with pytest.raises(SceneError, match=r"^rod.section.mass_per_length: only with"):
+        load_scene(path, ["rod.section.mass_per_length=6.5"])

@@ -42,6 +42,8 @@ from cosserat_fem.scene.keys import (
     Interval,
     LoadVector,
     Number,
+    NumberOrExpression,
+    NumberOrExpressionVector,
     Parameters,
     PetscOptions,
     Points,
@@ -91,13 +93,36 @@ class SectionSpec:
         Number(default="auto", interval=Interval(0.0, 1.0, lo_open=True), auto=True)
     )
     #: K [N | N m | N m²], the general section law (class docstring), or None: (13).
-    stiffness: tuple[tuple[float, ...], ...] | None = key(
+    stiffness: tuple[tuple[Any, ...], ...] | None = key(
         SymmetricMatrix(unit="N, N m, N m^2"), default=None
     )
+    #: μ [kg/m] with ``stiffness``: a number or an expression of s; None: ρ A of the shape.
+    mass_per_length: Any = key(NumberOrExpression(unit="kg/m"), default=None)
+    #: (I11, I22, I33) [kg m] with ``stiffness``: numbers or expressions of s; None: the
+    #: shape's (or rod.rotary_inertia).
+    inertia: tuple[Any, Any, Any] | None = key(NumberOrExpressionVector(unit="kg m"), default=None)
 
     def law(self) -> SectionLaw | None:
-        """The general section law of ``stiffness`` (μ and I those of the shape), or None."""
-        return None if self.stiffness is None else SectionLaw(self.stiffness)
+        """The general section law of ``stiffness``, ``mass_per_length`` and ``inertia``
+        (entries floats or Expressions of s, made UFL by cosserat_fem/rod/model.py), or
+        None."""
+        if self.stiffness is None:
+            return None
+        return SectionLaw(self.stiffness, self.mass_per_length, self.inertia)
+
+    def expressions(self) -> list[tuple[str, Any]]:
+        """(key, Expression) of every entry of the law given as an expression of s."""
+        entries: list[tuple[str, Any]] = []
+        if self.stiffness is not None:
+            entries += [
+                (f"rod.section.stiffness[{i}][{j}]", x)
+                for i, row in enumerate(self.stiffness)
+                for j, x in enumerate(row)
+            ]
+        entries.append(("rod.section.mass_per_length", self.mass_per_length))
+        if self.inertia is not None:
+            entries += [(f"rod.section.inertia[{i}]", x) for i, x in enumerate(self.inertia)]
+        return [(k, x) for k, x in entries if x is not None and not isinstance(x, float)]
 
     def constants(self) -> Section:
         """A, c11, c22, c33, κ (cosserat_fem.forms.section)."""
