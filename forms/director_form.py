@@ -9,7 +9,10 @@ the tests to check that form term by term. It shares nothing with it but the unk
   with ∂t d_i and ∂tt d_i by UFL's chain rule through the Euler angles (not (25)-(26), (64));
 * the constitutive laws are the tensors (9)-(10): n = Σ K_ii (v·d_i − δ_i3) d_i,
   m = Σ J_ii (u·d_i) d_i, h = Σ I_ii (w·d_i) d_i with I33 = ρ (c11 + c22) (46), or the
-  rotary inertias given apart from the section (``RodConstants.mass_inertias``);
+  rotary inertias given apart from the section (``RodConstants.mass_inertias``); with a
+  general section law (``RodConstants.law``, forms/section.py) n = Σ n_i d_i and
+  m = Σ m_i d_i with (n_i, m_i) of forms/resultants.py ``section_law`` (the one place the law
+  is written) on the strains v·d_i − v0_i, u·d_i − u0_i, its μ(σ) and I_ii(σ) in the inertia;
 * the scaled stiffnesses come from the physical constants, not from the groups (48);
 * in a chart of quaternions Q(σ), the directors are the rows of that product times the frame
   Aᵀ = (n0² − |n|²) I + 2 n nᵀ + 2 n0 [n]× of the normalised quaternion (n0, n) = Q/|Q|
@@ -29,6 +32,7 @@ import ufl
 
 from .groups import RodConstants
 from .kinematics import split
+from .resultants import section_law, stiffness_matrix
 
 
 def _elementary_rotations(theta, psi, phi):
@@ -102,6 +106,22 @@ def director_residual_terms(
         rod.shear_modulus * sec.c33 / (fstar * ell**2),
     ]
     inertia = [i * w0**2 / fstar for i in rod.mass_inertias]
+    # A general section law (forms/section.py): K/F* on the strains (v·d_i − v0_i, u·d_i − u0_i)
+    # per unit σ (so the torque rows and the curvature columns carry 1/ℓ each), its μ and I
+    # in the balance, the rod's inertias above still scaling the virtual rotation.
+    law = rod.law
+    if law is not None:
+        stiff = stiffness_matrix(rod)
+        K6 = [
+            [stiff[a][b] / (fstar * ell ** ((a >= 3) + (b >= 3))) for b in range(6)]
+            for a in range(6)
+        ]
+    mass = 1.0
+    balance_inertia = inertia
+    if law is not None and law.mass_per_length is not None:
+        mass = law.mass_per_length / (rho * sec.area)
+    if law is not None and law.inertia is not None:
+        balance_inertia = [i * w0**2 / fstar for i in law.inertia]
 
     p, q = split(U)
     pdot, qdot = split(Udot)
@@ -140,11 +160,18 @@ def director_residual_terms(
         v0 = [ufl.dot(t0, d0[a]) for a in range(3)]
         u0 = [ufl.dot(u_ref, d0[a]) for a in range(3)]
 
-    n = sum((K[a] * (ufl.dot(r_s, d[a]) - v0[a]) * d[a] for a in range(3)), ufl.zero(3))
-    m = sum((J[a] * (ufl.dot(u, d[a]) - u0[a]) * d[a] for a in range(3)), ufl.zero(3))
+    if law is None:
+        n = sum((K[a] * (ufl.dot(r_s, d[a]) - v0[a]) * d[a] for a in range(3)), ufl.zero(3))
+        m = sum((J[a] * (ufl.dot(u, d[a]) - u0[a]) * d[a] for a in range(3)), ufl.zero(3))
+    else:
+        gamma = [ufl.dot(r_s, d[a]) - v0[a] for a in range(3)]
+        kappa = [ufl.dot(u, d[a]) - u0[a] for a in range(3)]
+        n_d, m_d = section_law(gamma, kappa, K6)
+        n = sum((n_d[a] * d[a] for a in range(3)), ufl.zero(3))
+        m = sum((m_d[a] * d[a] for a in range(3)), ufl.zero(3))
     h_t = sum(
         (
-            inertia[a]
+            balance_inertia[a]
             * ((ufl.dot(w_t, d[a]) + ufl.dot(w, d_t[a])) * d[a] + ufl.dot(w, d[a]) * d_t[a])
             for a in range(3)
         ),
@@ -159,7 +186,7 @@ def director_residual_terms(
 
     terms: dict[str, ufl.Form] = {
         "kinematic": ufl.inner(pdot - q, vp) * dx,
-        "inertia": (ufl.dot(r_tt, dr) + ufl.dot(h_t, dth)) * dx,
+        "inertia": (mass * ufl.dot(r_tt, dr) + ufl.dot(h_t, dth)) * dx,
         "elastic": (ufl.dot(n, dr_s) + ufl.dot(m, dth_s) - ufl.dot(ufl.cross(r_s, n), dth)) * dx,
     }
     if force_density is not None or torque_density is not None:
@@ -193,8 +220,13 @@ def director_residual_terms(
         u_t = _axial(d_t, d_s) + _axial(d, d_st)
         v_rates = [ufl.dot(r_st, d[a]) + ufl.dot(r_s, d_t[a]) for a in range(3)]
         u_rates = [ufl.dot(u_t, d[a]) + ufl.dot(u, d_t[a]) for a in range(3)]
-        n_v = sum((eta * K[a] * v_rates[a] * d[a] for a in range(3)), ufl.zero(3))
-        m_v = sum((eta * J[a] * u_rates[a] * d[a] for a in range(3)), ufl.zero(3))
+        if law is None:
+            n_v = sum((eta * K[a] * v_rates[a] * d[a] for a in range(3)), ufl.zero(3))
+            m_v = sum((eta * J[a] * u_rates[a] * d[a] for a in range(3)), ufl.zero(3))
+        else:
+            nv_d, mv_d = section_law(v_rates, u_rates, K6)
+            n_v = sum((eta * nv_d[a] * d[a] for a in range(3)), ufl.zero(3))
+            m_v = sum((eta * mv_d[a] * d[a] for a in range(3)), ufl.zero(3))
         terms["kelvin_voigt"] = (
             ufl.dot(n_v, dr_s) + ufl.dot(m_v, dth_s) - ufl.dot(ufl.cross(r_s, n_v), dth)
         ) * dx

@@ -35,7 +35,7 @@ from .kinematics import (
     stretch_shear_strain,
 )
 from .reference import Reference
-from .resultants import kelvin_voigt_parts, relative_strains
+from .resultants import kelvin_voigt_parts, relative_strains, section_law, stiffness_matrix
 
 
 def _rates(U, rod: RodConstants, reference: Reference | None = None):
@@ -53,6 +53,12 @@ def kinetic_energy_density(U, rod: RodConstants, reference: Reference | None = N
     directors, D0 R with a ``reference`` (forms/reference.py)."""
     _, r_dot, w = _rates(U, rod, reference)
     s = rod.section
+    law = rod.law
+    if law is not None:  # a general section law's μ(σ) and I(σ) (forms/section.py)
+        mu = law.mass_per_length if law.mass_per_length is not None else rod.density * s.area
+        inertia = law.inertia if law.inertia is not None else rod.mass_inertias
+        rot = sum(inertia[i] * w[i] ** 2 for i in range(3))
+        return 0.5 * rod.length * (mu * ufl.dot(r_dot, r_dot) + rot)
     inertia = rod.rotary_inertias
     rot = sum(inertia[i] * w[i] ** 2 for i in range(3))
     return 0.5 * rod.length * rod.density * (s.area * ufl.dot(r_dot, r_dot) + rot)
@@ -65,6 +71,10 @@ def strain_energy_density(
     strains measured from a ``reference``, forms/resultants.py :func:`relative_strains`)."""
     p, _ = split(U)
     dp, _ = sigma_derivatives(U)
+    if rod.law is not None:  # ½ (Γ·n + κ·m) of a general section law, K = Kᵀ
+        gamma, kappa = relative_strains(p, dp, rod.length, chart, reference)
+        n, m = section_law(gamma, kappa, stiffness_matrix(rod))
+        return 0.5 * rod.length * (ufl.dot(gamma, n) + ufl.dot(kappa, m))
     s, E, G = rod.section, rod.young_modulus, rod.shear_modulus
     kGA = s.shear_coefficient * G * s.area
     if reference is None:

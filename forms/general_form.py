@@ -64,7 +64,7 @@ from .kinematics import (
     stretch_shear_strain,
     translations,
 )
-from .reference import Reference
+from .reference import Reference, straight
 
 
 @dataclass(frozen=True)
@@ -150,6 +150,22 @@ class KelvinVoigtDamping:
 
     retardation_time: float
     omega0: float
+
+
+@dataclass(frozen=True)
+class ScaledLaw:
+    """A general section law (forms/section.py ``SectionLaw``, docs/sections.md) in the scaling
+    of the rows (:func:`kelvin_voigt_terms`; built by forms/resultants.py ``scaled_law``):
+    ``stiffness`` K̂ (6×6 rows, numbers or UFL expressions of σ) with (N̂, M̂) = K̂ (Γ, û);
+    ``mass`` μ̂(σ) = μ/(ρ A) and ``inertia`` Î_i(σ) = I_ii/(ρ A ℓ²), ρ A the reference's;
+    ``apply`` the law (forms/resultants.py ``section_law``). With one, the form is that of a
+    reference (module docstring; the straight one if none), with the rows 1-3 of Ma times μ̂
+    and I_λ = D0ᵀ diag(Î(σ)) D0, the rows still divided by the constant references."""
+
+    stiffness: list
+    mass: object
+    inertia: tuple
+    apply: Callable
 
 
 @dataclass
@@ -317,9 +333,12 @@ def row_inertias(groups: Groups) -> tuple[float, float, float]:
     return g0 / (ell * groups.g1), g0 / (ell * groups.g2), g0 / (ell * groups.g3)
 
 
-def scaled_resultants(v_strain, u_strain, groups: Groups):
+def scaled_resultants(v_strain, u_strain, groups: Groups, law: ScaledLaw | None = None):
     """(N̂, M̂) of strains (director components) of stretch-shear and curvature, in the scaling of
-    :func:`kelvin_voigt_terms`: N̂ = (ν01 e1, ν01 e2, ν02 e3), M̂_i = ν_i1 Î_i k_i."""
+    :func:`kelvin_voigt_terms`: N̂ = (ν01 e1, ν01 e2, ν02 e3), M̂_i = ν_i1 Î_i k_i; with a
+    ``law``, (N̂, M̂) = K̂ (e, k)."""
+    if law is not None:
+        return law.apply(v_strain, u_strain, law.stiffness)
     inertia = row_inertias(groups)
     axial = (groups.nu01, groups.nu01, groups.nu02)
     stiff = (groups.nu11, groups.nu21, groups.nu31)
@@ -351,18 +370,26 @@ def reference_strains(
     return reference.frame * v_rel, reference.frame * curvature(p, dp, chart)
 
 
-def reference_inertia(groups: Groups, reference: Reference) -> ufl.core.expr.Expr:
-    """I_λ = D0ᵀ diag(Î) D0: the rotary inertia in the components of the rows of R."""
-    return reference.frame.T * ufl.diag(ufl.as_vector(row_inertias(groups))) * reference.frame
+def reference_inertia(
+    groups: Groups, reference: Reference, law: ScaledLaw | None = None
+) -> ufl.core.expr.Expr:
+    """I_λ = D0ᵀ diag(Î) D0: the rotary inertia in the components of the rows of R (Î those
+    of a ``law`` if given)."""
+    inertias = row_inertias(groups) if law is None else law.inertia
+    return reference.frame.T * ufl.diag(ufl.as_vector(inertias)) * reference.frame
 
 
-def reference_inertial_terms(p, q, groups: Groups, reference: Reference):
+def reference_inertial_terms(
+    p, q, groups: Groups, reference: Reference, law: ScaledLaw | None = None
+):
     """(Ma, g_inertial) of the module docstring: Ma = diag(I₃, Î⁻¹ I_λ Mm) and
-    g = (0, −Î⁻¹ (I_λ Ṁm q_a + ŵ × I_λ ŵ))."""
+    g = (0, −Î⁻¹ (I_λ Ṁm q_a + ŵ × I_λ ŵ)); with a ``law`` diag(μ̂ I₃, ...) and its Î(σ)
+    in I_λ (:class:`ScaledLaw`)."""
     inertia = row_inertias(groups)
-    I_l = reference_inertia(groups, reference)
+    I_l = reference_inertia(groups, reference, law)
     mm = I_l * angular_map(p[3], p[5])
-    rows = [[1.0 if i == j else 0.0 for j in range(6)] for i in range(3)]
+    mass = 1.0 if law is None else law.mass
+    rows = [[mass if i == j else 0.0 for j in range(6)] for i in range(3)]
     rows += [[0.0, 0.0, 0.0, *(mm[i, j] / inertia[i] for j in range(3))] for i in range(3)]
     w = angular_velocity(p, q)
     rate = I_l * (angular_map_rate(p[3], p[5], q[3], q[5]) * angles(q)) + ufl.cross(w, I_l * w)
@@ -371,11 +398,18 @@ def reference_inertial_terms(p, q, groups: Groups, reference: Reference):
 
 
 def reference_contact_terms(
-    p, dp, groups: Groups, reference: Reference, v_strain, u_strain, chart: Chart | None = None
+    p,
+    dp,
+    groups: Groups,
+    reference: Reference,
+    v_strain,
+    u_strain,
+    chart: Chart | None = None,
+    law: ScaledLaw | None = None,
 ):
     """Flux and source of the contact force and torque of director-component strains (or strain
     rates) with a reference: N = D0ᵀ N̂, M = D0ᵀ M̂ in the rows of R (module docstring)."""
-    n, m = scaled_resultants(v_strain, u_strain, groups)
+    n, m = scaled_resultants(v_strain, u_strain, groups, law)
     D0 = reference.frame
     return contact_terms(p, dp, groups, D0.T * n, D0.T * m, chart, reference.tangent)
 
@@ -412,14 +446,18 @@ def residual_terms(
     kelvin_voigt: KelvinVoigtDamping | None = None,
     chart: Chart | None = None,
     reference: Reference | None = None,
+    law: ScaledLaw | None = None,
 ) -> ResidualTerms:
     """The weak residual of (65) (module docstring), term by term.
 
     U, Udot: the 12-component state (p, q) and its τ-derivative, as UFL expressions (the
     time integrator decides what they are); V: the test function; ``chart``: the frame the
     angles are measured from (forms/kinematics.py; None: the fixed basis, as in the paper);
-    ``reference``: the rest configuration (module docstring; None: the straight rod of (65)).
+    ``reference``: the rest configuration (module docstring; None: the straight rod of (65));
+    ``law``: a general section law (:class:`ScaledLaw`; None: the paper's (13) of ``groups``).
     """
+    if law is not None and reference is None:
+        reference = straight()
     p, q = split(U)
     pdot, qdot = split(Udot)
     vp, vq = split(V)
@@ -432,10 +470,10 @@ def residual_terms(
         inertia = ufl.inner(mass_matrix(p) * qdot - g.inertial, vq) * dx
         elastic = (-ufl.inner(flux(p, dp, groups, chart), dvq) - ufl.inner(g.elastic, vq)) * dx
     else:
-        Ma, g_inertial = reference_inertial_terms(p, q, groups, reference)
+        Ma, g_inertial = reference_inertial_terms(p, q, groups, reference, law)
         inertia = ufl.inner(Ma * qdot - g_inertial, vq) * dx
         strains = reference_strains(p, dp, reference, chart)
-        b_e, g_e = reference_contact_terms(p, dp, groups, reference, *strains, chart)
+        b_e, g_e = reference_contact_terms(p, dp, groups, reference, *strains, chart, law)
         elastic = (-ufl.inner(b_e, dvq) - ufl.inner(g_e, vq)) * dx
     distributed = -ufl.inner(g.load, vq) * dx if g.load is not None else None
     end_form = None
@@ -460,7 +498,7 @@ def residual_terms(
         v_dot, u_dot = strain_rates(p, dp, q, dq, chart, reference.tangent)
         D0 = reference.frame
         b_v, g_v = reference_contact_terms(
-            p, dp, groups, reference, eta * (D0 * v_dot), eta * (D0 * u_dot), chart
+            p, dp, groups, reference, eta * (D0 * v_dot), eta * (D0 * u_dot), chart, law
         )
         extra["kelvin_voigt"] = (-ufl.inner(b_v, dvq) - ufl.inner(g_v, vq)) * dx
     return ResidualTerms(
@@ -481,6 +519,7 @@ __all__ = [
     "LoadContext",
     "Reference",
     "ResidualTerms",
+    "ScaledLaw",
     "Source",
     "ViscousDamping",
     "damping_source",

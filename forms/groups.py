@@ -29,9 +29,9 @@ rows instead, and the gyroscopic coefficients of rows 4 and 5, (I33 − I22)/I11
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
-from .section import Section
+from .section import Section, SectionLaw
 
 
 @dataclass(frozen=True)
@@ -51,6 +51,17 @@ class RodConstants:
     torsion_inertia: str = "polar"
     #: (I11, I22, I33) [kg m] per unit length given apart from the section, or None: (46).
     inertia: tuple[float, float, float] | None = None
+    #: A general section law (forms/section.py), or None: the paper's diagonal (13) of
+    #: ``section``. With one, ``section``, ρ and the inertias above are the references of the
+    #: scaling (47)-(48) only (ω0, the rows' divisors); the law's K, μ and I act in the balance.
+    law: SectionLaw | None = None
+
+    def __repr__(self) -> str:
+        """The dataclass's repr, without ``law`` when there is none (the repr of the rods
+        before the law existed, which tests/unit/scene/test_keys.py compares)."""
+        shown = [f for f in fields(self) if not (f.name == "law" and self.law is None)]
+        text = ", ".join(f"{f.name}={getattr(self, f.name)!r}" for f in shown)
+        return f"{type(self).__name__}({text})"
 
     @property
     def rotary_inertias(self) -> tuple[float, float, float]:

@@ -9,6 +9,9 @@ director basis (d1, d2, d3) of (18) (``X_i = d_i · X``):
   (:func:`.kinematics.curvature`);
 * n = Σ K_ii (v_i − δ_i3) d_i, the contact force (9)-(10) [N], K = diag(κGA, κGA, EA);
 * m = Σ J_ii u_i d_i, the contact torque (13) [N m], J = diag(E c11, E c22, G c33);
+* or, with a general section law (forms/section.py ``SectionLaw``, docs/sections.md), the
+  6×6 K of :func:`stiffness_matrix`: n = K₁ Γ + K₁₂ κ, m = K₂₁ Γ + K₂ κ (:func:`section_law`,
+  the one place the law is written; the general and director forms use it too);
 * with Kelvin–Voigt damping (retardation time τ_d [s], :class:`.general_form.KelvinVoigtDamping`)
   n and m include their viscous parts τ_d K v̇ and τ_d J u̇ (rates of
   :func:`.kinematics.strain_rates`), the whole contact force and torque.
@@ -31,7 +34,7 @@ from dataclasses import dataclass
 
 import ufl
 
-from .general_form import reference_strains
+from .general_form import ScaledLaw, reference_strains
 from .groups import RodConstants
 from .kinematics import (
     Chart,
@@ -78,9 +81,60 @@ def relative_strains(
     return v_rel, u_rel / length
 
 
+def stiffness_matrix(rod: RodConstants) -> list[list]:
+    """The 6×6 section stiffness K of :class:`.section.SectionLaw` (order
+    :data:`.section.LAW_ORDER`; entries numbers or UFL expressions of σ): the rod's law, or
+    the paper's diagonal (13) diag(κGA, κGA, EA, E c11, E c22, G c33)."""
+    if rod.law is not None:
+        return [list(row) for row in rod.law.stiffness]
+    K, J = section_stiffnesses(rod)
+    diagonal = (*K, *J)
+    return [[diagonal[i] if i == j else 0.0 for j in range(6)] for i in range(6)]
+
+
+def section_law(gamma, kappa, K) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
+    """The section law, written once: n = K₁ Γ + K₁₂ κ, m = K₂₁ Γ + K₂ κ (director
+    components) of the 6×6 ``K`` (list of rows) and the strains Γ = v − v0, κ = u − u0; zero
+    entries add no term. Units are K's: [N], [N m] for :func:`stiffness_matrix` and SI
+    strains; the general form passes its scaled K̂ (:func:`scaled_law`)."""
+    strain = [gamma[i] for i in range(3)] + [kappa[i] for i in range(3)]
+
+    def row(i):
+        terms = [K[i][j] * strain[j] for j in range(6) if not _is_zero(K[i][j])]
+        return sum(terms[1:], terms[0]) if terms else 0.0
+
+    return ufl.as_vector([row(i) for i in range(3)]), ufl.as_vector([row(i) for i in range(3, 6)])
+
+
+def _is_zero(entry) -> bool:
+    return isinstance(entry, int | float) and entry == 0.0
+
+
+def scaled_law(rod: RodConstants) -> ScaledLaw:
+    """The rod's section law in the scaling of the general form (:func:`.general_form.
+    kelvin_voigt_terms`): with F* = ρ A ℓ² ω0² (the reference section's ρ A) and û = ℓ u,
+    N̂ = n/F*, M̂ = m/(F* ℓ) are K̂ (Γ, û) with K̂_ij = K_ij / (F* ℓ^(a_i + a_j)), a = 0 for
+    the force rows and 1 for the torque rows; μ̂ = μ/(ρ A) and Î_i = I_ii/(ρ A ℓ²)."""
+    ell, w0 = rod.length, rod.omega0
+    mu0 = rod.density * rod.section.area
+    fstar = mu0 * ell**2 * w0**2
+    K = stiffness_matrix(rod)
+    hat = [[K[i][j] / (fstar * ell ** ((i >= 3) + (j >= 3))) for j in range(6)] for i in range(6)]
+    law = rod.law
+    mu = law.mass_per_length if law is not None and law.mass_per_length is not None else mu0
+    given = law.inertia if law is not None and law.inertia is not None else rod.mass_inertias
+    return ScaledLaw(
+        stiffness=hat,
+        mass=mu / mu0,
+        inertia=tuple(i / (mu0 * ell**2) for i in given),
+        apply=section_law,
+    )
+
+
 def contact_force(v, rod: RodConstants, relative: bool = False) -> ufl.core.expr.Expr:
     """n_i = K_ii (v_i − δ_i3) [N], director components, from the strain v of (29); or
-    K_ii v_i from ``relative`` strains v − v0."""
+    K_ii v_i from ``relative`` strains v − v0 (the paper's diagonal law; a general law:
+    :func:`section_law`)."""
     K, _ = section_stiffnesses(rod)
     if relative:
         return ufl.as_vector([K[i] * v[i] for i in range(3)])
@@ -134,10 +188,10 @@ def kelvin_voigt_parts(
         v_dot, u_dot = reference.frame * v_dot, reference.frame * u_dot
     v_rate = rod.omega0 * v_dot
     u_rate = rod.omega0 / rod.length * u_dot
-    K, J = section_stiffnesses(rod)
-    n = ufl.as_vector([retardation_time * K[i] * v_rate[i] for i in range(3)])
-    m = ufl.as_vector([retardation_time * J[i] * u_rate[i] for i in range(3)])
-    return KelvinVoigtParts(v_rate=v_rate, u_rate=u_rate, n=n, m=m)
+    n, m = section_law(v_rate, u_rate, stiffness_matrix(rod))
+    return KelvinVoigtParts(
+        v_rate=v_rate, u_rate=u_rate, n=retardation_time * n, m=retardation_time * m
+    )
 
 
 def resultants(
@@ -155,11 +209,11 @@ def resultants(
     dU = U.dx(0)
     dp = ufl.as_vector([dU[i] for i in range(6)])
     v, u = strains(p, dp, rod.length, chart, reference)
-    if reference is None:
+    if reference is None and rod.law is None:
         n, m = contact_force(v, rod), contact_torque(u, rod)
     else:
         v_rel, u_rel = relative_strains(p, dp, rod.length, chart, reference)
-        n, m = contact_force(v_rel, rod, relative=True), contact_torque(u_rel, rod)
+        n, m = section_law(v_rel, u_rel, stiffness_matrix(rod))
     if retardation_time > 0.0:
         viscous = kelvin_voigt_parts(U, rod, retardation_time, chart, reference)
         n, m = n + viscous.n, m + viscous.m

@@ -17,6 +17,9 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
 
 TORSION_CONSTANT_RULES = ("series", "approximate")
 
@@ -94,3 +97,55 @@ def tube(outer_diameter: float, inner_diameter: float, shear_coefficient: float)
         c33=2.0 * second_moment,
         shear_coefficient=shear_coefficient,
     )
+
+
+#: The order of a 6×6 section law's rows and columns: the strains (Γ1, Γ2, Γ3, κ1, κ2, κ3) =
+#: (shear 1, shear 2, extension, bending 1, bending 2, torsion), director components. It is
+#: BeamDyn's order (axis 3 along the beam); GXBeam's (axis 1 along the beam) is taken to it
+#: by the permutation :data:`GXBEAM_TO_LAW` of rows and columns.
+LAW_ORDER = ("shear 1", "shear 2", "extension", "bending 1", "bending 2", "torsion")
+
+#: K_law[i][j] = K_gxbeam[P[i]][P[j]]: GXBeam's (extension, shear 2, shear 3, torsion,
+#: bending 2, bending 3) to :data:`LAW_ORDER` (GXBeam gives compliances: invert first).
+GXBEAM_TO_LAW = (1, 2, 0, 4, 5, 3)
+
+
+@dataclass(frozen=True)
+class SectionLaw:
+    """A general section law (docs/sections.md): contact force and torque in the directors,
+
+        n = K₁ Γ + K₁₂ κ,   m = K₂₁ Γ + K₂ κ,   K = [[K₁, K₁₂], [K₂₁, K₂]] = Kᵀ > 0,
+
+    Γ = v − v0 [-], κ = u − u0 [1/m], in the order :data:`LAW_ORDER`; ``stiffness`` K, rows of
+    6 entries [N | N m; N m | N m²], each a number or a UFL expression of the reference
+    coordinate σ = s/ℓ (a section that varies along s). ``mass_per_length`` μ [kg/m] and
+    ``inertia`` (I11, I22, I33) [kg m] likewise; None: ρ A and the rod's rotary inertias. The
+    paper's (13) is K = diag(κGA, κGA, EA, E c11, E c22, G c33)."""
+
+    stiffness: tuple[tuple[Any, ...], ...]
+    mass_per_length: Any = None
+    inertia: tuple[Any, Any, Any] | None = None
+
+
+def check_stiffness(matrix: Any, key: str, rtol: float = 1e-12) -> np.ndarray:
+    """The 6×6 ``matrix`` as an array if it is symmetric (|K − Kᵀ| ≤ rtol max|K|) and
+    positive definite (Cholesky); else ValueError, one line naming ``key``."""
+    try:
+        K = np.array(matrix, dtype=float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{key}: must be a 6×6 matrix of numbers") from None
+    if K.shape != (6, 6):
+        raise ValueError(f"{key}: must be a 6×6 matrix, got shape {K.shape}")
+    if not np.all(np.isfinite(K)):
+        raise ValueError(f"{key}: entries must be finite numbers")
+    asym = float(np.abs(K - K.T).max())
+    if asym > rtol * float(np.abs(K).max()):
+        raise ValueError(f"{key}: not symmetric (max |K - K^T| = {asym:.3g})")
+    try:
+        np.linalg.cholesky(K)
+    except np.linalg.LinAlgError:
+        smallest = float(np.linalg.eigvalsh(0.5 * (K + K.T)).min())
+        raise ValueError(
+            f"{key}: not positive definite (smallest eigenvalue {smallest:.3g})"
+        ) from None
+    return K

@@ -13,6 +13,7 @@ zero are left out of the form.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import importlib
 import logging
@@ -44,6 +45,8 @@ from cosserat_fem.forms.general_form import (
 from cosserat_fem.forms.groups import Groups, RodConstants, dimensionless_groups
 from cosserat_fem.forms.kinematics import P_NAMES, quaternion_chart
 from cosserat_fem.forms.reference import Reference
+from cosserat_fem.forms.resultants import scaled_law
+from cosserat_fem.forms.section import SectionLaw
 from cosserat_fem.rod import charts
 from cosserat_fem.rod.charts import change_chart, change_chart_rate, chart_of
 from cosserat_fem.rod.load_coefficients import DataLoads
@@ -524,6 +527,7 @@ class RodModel:
             kelvin_voigt,
             chart,
             self.reference_form(),
+            scaled_law(self.rod) if self.rod.law is not None else None,
         )
         form_loads = self.scene.loads.form_loads()
         if form_loads:  # the loads declared with their physics (resolved.FormLoad)
@@ -612,6 +616,25 @@ def is_fork(scene: Scene, end: str) -> bool:
     return 0 < len(scene.supports.held(end)[1]) < 3
 
 
+def _ufl_law(rod: RodConstants, scene: Scene, msh: mesh.Mesh) -> RodConstants:
+    """The rod with its section law's expressions of s (rod.section.stiffness, mass_per_length,
+    inertia; docs/sections.md) as UFL expressions of s = ℓ σ (L and the parameters numbers)."""
+    law = rod.law
+    if law is None or not scene.rod.section.expressions():
+        return rod
+    symbols = dict(scene.expression_names())
+    symbols["s"] = rod.length * ufl.SpatialCoordinate(msh)[0]
+
+    def convert(x):
+        return x if x is None or isinstance(x, float) else x.to_ufl(symbols)
+
+    inertia = None if law.inertia is None else tuple(convert(x) for x in law.inertia)
+    stiffness = tuple(tuple(convert(x) for x in row) for row in law.stiffness)
+    return dataclasses.replace(
+        rod, law=SectionLaw(stiffness, convert(law.mass_per_length), inertia)
+    )
+
+
 def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = True) -> RodModel:
     """The discrete rod; ``planar``: solve only the in-plane unknowns when the scene stays in
     the x-z or the y-z plane (:meth:`Scene.plane`, and discretisation.planar = "auto")."""
@@ -660,7 +683,7 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     q = disc.quadrature_degree
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": q})
     ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
-    rod = rod_constants(scene)
+    rod = _ufl_law(rod_constants(scene), scene, msh)
     skipped = scene.absent_terms()
     if plane is not None:
         dropped = ", ".join(P_NAMES[i] for i in range(6) if i not in components)

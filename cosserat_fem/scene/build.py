@@ -84,12 +84,17 @@ def _build_section(raw: dict[str, Any], poisson_ratio: float) -> SectionSpec:
     shape = raw["shape"]
     keys = SECTION_KEYS[shape]
     for name, value in raw.items():
-        if value is not None and name not in (*keys, "shape", "shear_coefficient"):
+        if value is not None and name not in (*keys, "shape", "shear_coefficient", *LAW_KEYS):
             raise SceneError(
                 f"rod.section.{name}: not a key of shape {shape!r}, which takes "
-                f"{', '.join(keys)} (and shear_coefficient; --unset rod.section.{name} removes "
+                f"{', '.join(keys)} (and shear_coefficient, {', '.join(LAW_KEYS)}; --unset "
+                f"rod.section.{name} "
+                "removes "
                 "it)"
             )
+    for name in LAW_KEYS[1:]:
+        if raw.get(name) is not None and raw.get("stiffness") is None:
+            raise SceneError(f"rod.section.{name}: only with rod.section.stiffness (a 6×6 law)")
     values = dict(raw)
     if shape == "rectangle" and values["torsion_constant"] is None:
         values["torsion_constant"] = "series"
@@ -698,6 +703,7 @@ def scene_from_dict(
         source=source,
     )
     _check_derived(scene)
+    _check_section_law(scene)
     reference = _build_reference(raw["reference"], scene.expression_names())
     _check_reference(scene, reference)
     supports = _place_supports(supports, reference, rod.length)
@@ -708,6 +714,57 @@ def scene_from_dict(
         check_span(component, time.start, time.end, scene.static.time, rod.length)
     initial = _build_initial(raw["initial"], supports, scene.expression_names(), time.start)
     return replace(scene, initial=initial, reference=reference)
+
+
+#: The keys of a general section law in [rod.section] (docs/sections.md), any shape.
+LAW_KEYS = ("stiffness", "mass_per_length", "inertia")
+#: The stations where a section law given by expressions of s is checked: 401 along the rod.
+LAW_STATIONS = 401
+
+
+def _check_section_law(scene: Scene) -> None:
+    """A section law's expressions of s (and L, the parameters): names known, and at
+    :data:`LAW_STATIONS` stations s ∈ [0, L] finite, K symmetric positive definite, μ and I
+    positive; SceneError naming the key (and the station). Between stations a K that loses
+    its definiteness is not seen: the law is a user's, smooth as a section is."""
+    spec = scene.rod.section
+    if scene.rod.rotary_inertia is not None and spec.inertia is not None:
+        raise SceneError(
+            "rod.section.inertia: give the inertias once, here or in rod.rotary_inertia"
+        )
+    entries = spec.expressions()
+    if not entries:
+        return
+    names = dict(scene.expression_names())
+    allowed = {*names, "s"}
+    s = np.linspace(0.0, scene.rod.length, LAW_STATIONS)
+    values = {}
+    for key, expr in entries:
+        parsed = Expression.parse(expr.source, allowed, key)
+        value = np.broadcast_to(parsed.evaluate(**names, s=s), s.shape)
+        bad = ~np.isfinite(value)
+        if "stiffness" not in key:  # μ and I: positive
+            bad |= value <= 0.0
+        if bad.any():
+            at = float(s[np.argmax(bad)])
+            raise SceneError(
+                f"{key}: must be finite (and > 0 for a mass) along the rod, "
+                f"got {float(value[np.argmax(bad)])!r} at s = {at:.6g} m"
+            )
+        values[key] = value
+    if spec.stiffness is None:
+        return
+    K = np.empty((LAW_STATIONS, 6, 6))
+    for i, row in enumerate(spec.stiffness):
+        for j, x in enumerate(row):
+            K[:, i, j] = x if isinstance(x, float) else values[f"rod.section.stiffness[{i}][{j}]"]
+    smallest = np.linalg.eigvalsh(K).min(axis=1)
+    if (smallest <= 0.0).any():
+        k = int(np.argmax(smallest <= 0.0))
+        raise SceneError(
+            f"rod.section.stiffness: not positive definite at s = {float(s[k]):.6g} m "
+            f"(smallest eigenvalue {float(smallest[k]):.3g})"
+        )
 
 
 def _place_supports(supports: Supports, reference: ReferenceShape, length: float) -> Supports:

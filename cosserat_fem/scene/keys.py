@@ -24,8 +24,9 @@ from dataclasses import dataclass
 from typing import Any
 
 from cosserat_fem.common.errors import SceneError, show_value
+from cosserat_fem.forms.section import check_stiffness
 from cosserat_fem.io.xdmf import FIELD_ARRAYS
-from cosserat_fem.scene.expressions import RESERVED_NAMES, check_name
+from cosserat_fem.scene.expressions import RESERVED_NAMES, Expression, check_name
 from cosserat_fem.scene.load_data import INTERPOLATIONS, OUTSIDE, S_INTERPOLATIONS, component_dict
 
 #: Names every load expression may use besides the [parameters] (``s`` only in distributed loads).
@@ -328,6 +329,103 @@ class Points(Field):
     def to_value(self, value: Any) -> Any:
         """The points as lists."""
         return None if value is None else [list(point) for point in value]
+
+
+@dataclass(frozen=True, kw_only=True)
+class SymmetricMatrix(Field):
+    """A 6×6 symmetric positive definite matrix: a list of 6 rows of 6 entries, each a finite
+    number or an expression string of s (a section varying along the rod; its names and its
+    values are checked when the scene is built, cosserat_fem/scene/build.py). All numbers:
+    symmetric to 1e-12 relative and positive definite here (cosserat_fem.forms.section
+    ``check_stiffness``); with expressions, entry (j, i) must be entry (i, j) as written."""
+
+    unit: str = ""
+
+    def describe(self) -> str:
+        return (
+            f"a 6×6 symmetric positive definite matrix, 6 lists of 6 numbers or expression "
+            f"strings [{self.unit}]"
+        )
+
+    def check(self, key: str, value: Any) -> Any:
+        if not isinstance(value, list) or len(value) != 6:
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        rows = []
+        for i, row in enumerate(value):
+            if not isinstance(row, list) or len(row) != 6:
+                raise SceneError(
+                    f"{key}[{i}]: must be a list of 6 numbers or expression strings (a row of "
+                    f"a 6×6 matrix), got {show_value(row)}"
+                )
+            rows.append(tuple(_entry(f"{key}[{i}][{j}]", x) for j, x in enumerate(row)))
+        if all(isinstance(x, float) for row in rows for x in row):
+            try:
+                check_stiffness(rows, key)
+            except ValueError as err:
+                raise SceneError(str(err)) from None
+        for i in range(6):
+            for j in range(i + 1, 6):
+                a, b = rows[i][j], rows[j][i]
+                if isinstance(a, float) != isinstance(b, float) or (
+                    not isinstance(a, float) and a != b
+                ):
+                    raise SceneError(
+                        f"{key}: not symmetric: [{i}][{j}] = {show_value(str(a))} but "
+                        f"[{j}][{i}] = {show_value(str(b))}"
+                    )
+        return tuple(rows)
+
+    def to_value(self, value: Any) -> Any:
+        """The rows as lists, expressions as their sources."""
+        if value is None:
+            return None
+        return [[x if isinstance(x, float) else x.source for x in row] for row in value]
+
+
+@dataclass(frozen=True, kw_only=True)
+class NumberOrExpression(Field):
+    """A number > 0 or an expression string of s (checked positive along the rod when the
+    scene is built, cosserat_fem/scene/build.py)."""
+
+    unit: str = ""
+
+    def describe(self) -> str:
+        return f"a number > 0 or an expression string of s [{self.unit}]"
+
+    def check(self, key: str, value: Any) -> Any:
+        if isinstance(value, str):
+            return Expression.parse(value, None, key)
+        return Number(interval=Interval(0.0, None, lo_open=True), unit=self.unit).check(key, value)
+
+    def to_value(self, value: Any) -> Any:
+        return value if value is None or isinstance(value, float) else value.source
+
+
+@dataclass(frozen=True, kw_only=True)
+class NumberOrExpressionVector(Field):
+    """A list of 3 entries of :class:`NumberOrExpression`."""
+
+    unit: str = ""
+
+    def describe(self) -> str:
+        return f"a list of 3 numbers > 0 or expression strings of s [{self.unit}]"
+
+    def check(self, key: str, value: Any) -> Any:
+        if not isinstance(value, list) or len(value) != 3:
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        entry = NumberOrExpression(unit=self.unit)
+        return tuple(entry.check(f"{key}[{i}]", x) for i, x in enumerate(value))
+
+    def to_value(self, value: Any) -> Any:
+        entry = NumberOrExpression(unit=self.unit)
+        return None if value is None else [entry.to_value(x) for x in value]
+
+
+def _entry(key: str, value: Any) -> Any:
+    """A number (float) or an expression string of s (Expression, names checked later)."""
+    if isinstance(value, str):
+        return Expression.parse(value, None, key)
+    return Number().check(key, value)
 
 
 @dataclass(frozen=True, kw_only=True)

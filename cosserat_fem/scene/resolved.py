@@ -14,7 +14,13 @@ import numpy as np
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.groups import RodConstants, euler_bernoulli_omega0
-from cosserat_fem.forms.section import TORSION_CONSTANT_RULES, Section, rectangle, tube
+from cosserat_fem.forms.section import (
+    TORSION_CONSTANT_RULES,
+    Section,
+    SectionLaw,
+    rectangle,
+    tube,
+)
 from cosserat_fem.io.probes import PROBE_FIELD_COLUMNS
 from cosserat_fem.scene.expressions import Expression, derivative
 from cosserat_fem.scene.keys import (
@@ -36,9 +42,12 @@ from cosserat_fem.scene.keys import (
     Interval,
     LoadVector,
     Number,
+    NumberOrExpression,
+    NumberOrExpressionVector,
     Parameters,
     PetscOptions,
     Points,
+    SymmetricMatrix,
     Table,
     Text,
     Vector,
@@ -60,6 +69,12 @@ class SectionSpec:
 
     ``shear_coefficient`` κ is resolved: given, or 5/6 (rectangle) or Cowper's value for ν
     (circle, tube); "constants" needs it given.
+
+    ``stiffness`` (any shape, optional): a general section law (docs/sections.md), the 6×6
+    symmetric positive definite K in the order (shear 1, shear 2, extension, bending 1,
+    bending 2, torsion) [N, N m, N m²], BeamDyn's: n = K₁ Γ + K₁₂ κ, m = K₂₁ Γ + K₂ κ in the
+    directors. It replaces the shape's diagonal law (13); the shape still gives the mass
+    ρ A, the rotary inertias (unless rod.rotary_inertia) and the scaling (47) (ω0 "auto").
     """
 
     shape: str = key(Choice(choices=tuple(SECTION_KEYS), default="rectangle"))
@@ -77,6 +92,37 @@ class SectionSpec:
     shear_coefficient: float = key(
         Number(default="auto", interval=Interval(0.0, 1.0, lo_open=True), auto=True)
     )
+    #: K [N | N m | N m²], the general section law (class docstring), or None: (13).
+    stiffness: tuple[tuple[Any, ...], ...] | None = key(
+        SymmetricMatrix(unit="N, N m, N m^2"), default=None
+    )
+    #: μ [kg/m] with ``stiffness``: a number or an expression of s; None: ρ A of the shape.
+    mass_per_length: Any = key(NumberOrExpression(unit="kg/m"), default=None)
+    #: (I11, I22, I33) [kg m] with ``stiffness``: numbers or expressions of s; None: the
+    #: shape's (or rod.rotary_inertia).
+    inertia: tuple[Any, Any, Any] | None = key(NumberOrExpressionVector(unit="kg m"), default=None)
+
+    def law(self) -> SectionLaw | None:
+        """The general section law of ``stiffness``, ``mass_per_length`` and ``inertia``
+        (entries floats or Expressions of s, made UFL by cosserat_fem/rod/model.py), or
+        None."""
+        if self.stiffness is None:
+            return None
+        return SectionLaw(self.stiffness, self.mass_per_length, self.inertia)
+
+    def expressions(self) -> list[tuple[str, Any]]:
+        """(key, Expression) of every entry of the law given as an expression of s."""
+        entries: list[tuple[str, Any]] = []
+        if self.stiffness is not None:
+            entries += [
+                (f"rod.section.stiffness[{i}][{j}]", x)
+                for i, row in enumerate(self.stiffness)
+                for j, x in enumerate(row)
+            ]
+        entries.append(("rod.section.mass_per_length", self.mass_per_length))
+        if self.inertia is not None:
+            entries += [(f"rod.section.inertia[{i}]", x) for i, x in enumerate(self.inertia)]
+        return [(k, x) for k, x in entries if x is not None and not isinstance(x, float)]
 
     def constants(self) -> Section:
         """A, c11, c22, c33, κ (cosserat_fem.forms.section)."""
@@ -721,8 +767,13 @@ class Scene:
     def plane(self) -> str | None:
         """The plane the motion stays in, "x-z" or "y-z" (checked in that order: a scene in
         both moves along the axis only, and x-z keeps clear of the chart limit |θ| < π/2),
-        or None: asked for (discretisation.planar = "auto") and nothing leaves the plane."""
+        or None: asked for (discretisation.planar = "auto") and nothing leaves the plane; never
+        with a section law that couples its strains (rod.section.stiffness off its diagonal:
+        an extension may twist, a bending shear out of the plane)."""
         if self.discretisation.planar != "auto" or self.reference.curved:
+            return None
+        K = self.rod.section.stiffness
+        if K is not None and any(K[i][j] != 0.0 for i in range(6) for j in range(6) if i != j):
             return None
         return next((name for name in PLANES if self._stays_in(name)), None)
 
@@ -777,6 +828,7 @@ class Scene:
             omega0=self.omega0,
             torsion_inertia=self.model.torsion_inertia,
             inertia=self.rod.rotary_inertia,
+            law=self.rod.section.law(),
         )
 
     def load_components(self) -> list[tuple[str, Any]]:
