@@ -118,6 +118,10 @@ class StaticLoop:
     def completed(self) -> bool:
         return abs(self.target - self.state.t) <= 1e-14 * max(1.0, abs(self.target))
 
+    def lift(self, rows: np.ndarray | None = None) -> None:
+        """TimeLoop.lift's contract (the full state in U before an observer reads it): load
+        stepping's U is always the full state, so nothing to do."""
+
     def _move_chart(self, U_n: np.ndarray) -> bool:
         """Before a load step: move the chart onto the rod's rotation (changing U_n in place)
         when |cos θ| < cos charts.RESET_THETA at some node, so that the step starts far from
