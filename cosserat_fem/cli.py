@@ -906,6 +906,7 @@ def _rom(args) -> int:
     from cosserat_fem import api
     from cosserat_fem.analysis.progress import ProgressBar, summary_screen
     from cosserat_fem.rom import runs
+    from cosserat_fem.rom.basis import basis_paths
 
     root = MPI.COMM_WORLD.rank == 0 and not args.quiet
     sweep = api.load_sweep(args.sweep, args.overrides) if getattr(args, "sweep", None) else None
@@ -940,8 +941,8 @@ def _rom(args) -> int:
                     f"cosserat-fem: rom build: ECSW kept {fit['elements']} of {fit['of']} "
                     f"elements, fit error {fit['fit_error']:.3e} (tolerance {fit['tolerance']:g})"
                 )
-            stem = Path(args.out).with_suffix("") if Path(args.out).suffix == ".npz" else args.out
-            _say(f"-> {stem}.npz, {stem}.json")
+            npz, meta = basis_paths(args.out)
+            _say(f"-> {npz}, {meta}")
         return 0
     if args.basis is None:
         raise SceneError(f"rom {args.rom_command} --basis: give the basis file (rom build --out)")

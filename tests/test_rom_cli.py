@@ -436,3 +436,33 @@ def test_a_hyper_reduced_sweep_under_mpirun_equals_serial(tmp_path):
             full = probes(folders[1] / "rom" / "training" / f"m{m:05d}")[:, 1:4]
             error = relative_l2(runs[0][:, 1:4], full)
             assert 0 < error <= ERROR_CONSTANT * math.sqrt(eps) + ECSW_ADDED * ECSW
+
+
+def test_a_basis_is_its_own_pair_of_files(basis_file, tmp_path, capsys):
+    """A basis's name keeps its dots (paper.v1 and paper.v2 are two bases: the suffixes are
+    appended, not replaced; before, v2 overwrote v1's files and a run on "v1" used v2's modes
+    silently); an .npz beside another basis's .json is refused in one line (its SHA-256 is
+    in the .json); a basis of a clamped rod on a pinned one is refused naming the supports
+    (the Dirichlet rows every mode holds at zero are not the run's)."""
+    short = ["--set", "time.end=0.0003"]
+    for name, modes in (("paper.v1", "3"), ("paper.v2", "2")):
+        argv = ["rom", "build", str(PAPER), *short, "--modes", modes]
+        assert main([*argv, "--out", str(tmp_path / name)]) == 0
+    capsys.readouterr()
+    files = sorted(p.name for p in tmp_path.iterdir() if p.suffix in (".npz", ".json"))
+    assert files == ["paper.v1.json", "paper.v1.npz", "paper.v2.json", "paper.v2.npz"]
+    out = tmp_path / "r1"
+    argv = ["rom", "run", str(PAPER), *short, "--basis", str(tmp_path / "paper.v1.npz")]
+    assert main([*argv, "--out", str(out), "--quiet"]) == 0
+    assert json.loads((out / "summary.json").read_text())["rom"]["basis"]["modes"] == 3
+    (tmp_path / "mixed.npz").write_bytes((tmp_path / "paper.v1.npz").read_bytes())
+    (tmp_path / "mixed.json").write_bytes((tmp_path / "paper.v2.json").read_bytes())
+    capsys.readouterr()
+    argv = ["rom", "run", str(PAPER), *short, "--basis", str(tmp_path / "mixed.npz")]
+    assert main([*argv, "--out", str(tmp_path / "r2")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "mixed.npz" in err[0] and "not the .npz its .json" in err[0], err
+    argv = ["rom", "run", str(PAPER), *SHORT, "--set", "supports.start=pinned"]
+    assert main([*argv, "--basis", str(basis_file), "--out", str(tmp_path / "r3")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "made for supports" in err[0], err

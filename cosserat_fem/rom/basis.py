@@ -33,6 +33,7 @@ line (SceneError) naming the file and what differs.
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import math
@@ -109,12 +110,15 @@ class Basis:
 
 def space_of(model) -> dict:
     """What a basis's rows must match: the scene's elements and degree, the components U
-    holds (the layout) and the global number of dofs."""
+    holds (the layout), the global number of dofs and the supports (the rows every mode holds
+    at zero)."""
+    supports = json.dumps(model.scene.to_dict().get("supports"), sort_keys=True, default=str)
     return {
         "elements": int(model.msh.topology.index_map(1).size_global),
         "degree": int(model.V.ufl_element().degree()),
         "components": [int(c) for c in model.layout.components],
         "dofs": int(model.global_dofs()),
+        "supports": json.loads(supports),  # the Dirichlet rows U_ref + V q holds
     }
 
 
@@ -269,10 +273,12 @@ def inner(basis_or_weights, u: np.ndarray, v: np.ndarray, comm) -> np.ndarray:
 # --- the file -------------------------------------------------------------------------------
 
 
-def _paths(path: str | Path) -> tuple[Path, Path]:
+def basis_paths(path: str | Path) -> tuple[Path, Path]:
+    """(FILE.npz, FILE.json) of a basis named FILE, FILE.npz or FILE.json: the suffixes
+    appended, never replaced (a name with a dot, paper.v1, is its own basis)."""
     path = Path(path)
     stem = path.with_suffix("") if path.suffix in (".npz", ".json") else path
-    return stem.with_suffix(".npz"), stem.with_suffix(".json")
+    return Path(f"{stem}.npz"), Path(f"{stem}.json")
 
 
 def _node_order(model) -> tuple[np.ndarray, np.ndarray]:
@@ -293,7 +299,7 @@ def write_basis(basis: Basis, model, path: str | Path) -> tuple[Path, Path]:
     sigma, entry = _node_order(model)
     tests = basis.tests if basis.tests is not None else np.ones_like(basis.weights)
     parts = comm.gather((sigma, entry, basis.V, basis.reference, basis.weights, tests), root=0)
-    npz, meta = _paths(path)
+    npz, meta = basis_paths(path)
     problem = None
     if comm.rank == 0:
         assert parts is not None
@@ -317,7 +323,12 @@ def write_basis(basis: Basis, model, path: str | Path) -> tuple[Path, Path]:
             energies=basis.energies,
             **sampling,
         )
-        document = {"format": FORMAT, "space": basis.space, "provenance": basis.provenance}
+        document = {
+            "format": FORMAT,
+            "space": basis.space,
+            "provenance": basis.provenance,
+            "npz_sha256": hashlib.sha256(data.getvalue()).hexdigest(),  # the pair's link
+        }
         try:  # each file replaced whole (never opened in place: a FIFO there blocks no one)
             npz.parent.mkdir(parents=True, exist_ok=True)
             safe_files.replace(npz, data.getvalue())
@@ -332,10 +343,11 @@ def read_basis(path: str | Path, model) -> Basis:
     """The basis of :func:`write_basis` for ``model``, each rank its owned rows; a SceneError of
     one line naming the file if it is missing, not a basis, or of another mesh or space
     (elements, degree, components, dofs) than the model's (collective)."""
-    npz, meta = _paths(path)
+    npz, meta = basis_paths(path)
     try:
         document = json.loads(safe_files.read_text(meta))
-        arrays = np.load(io.BytesIO(safe_files.read_regular(npz)))
+        content = safe_files.read_regular(npz)
+        arrays = np.load(io.BytesIO(content))
         data = {name: arrays[name] for name in ("V", "reference", "weights", "tests", "energies")}
         for name in ("sample_sigma", "sample_weights"):  # a basis without sampling: absent
             data[name] = arrays[name] if name in arrays.files else None
@@ -344,8 +356,18 @@ def read_basis(path: str | Path, model) -> Basis:
         raise SceneError(f"basis {str(npz)!r}: cannot be read ({why})") from None
     if not isinstance(document, dict) or document.get("format") != FORMAT:
         raise SceneError(f"basis {str(meta)!r}: not a reduced basis ({FORMAT!r})")
+    link = document.get("npz_sha256")  # absent in files written before it was kept
+    if link is not None and link != hashlib.sha256(content).hexdigest():
+        raise SceneError(
+            f"basis {str(npz)!r}: not the .npz its .json was written with (the pair was cut "
+            "apart or mixed; rebuild the basis)"
+        )
     expected, found = space_of(model), document.get("space", {})
-    differ = [k for k in expected if found.get(k) != expected[k]]
+    if not isinstance(found, dict):
+        found = {}
+    # a key the file lacks (supports, before they were kept) is not compared
+    differ = [k for k in expected if k in found and found[k] != expected[k]]
+    differ += [k for k in ("elements", "degree", "components", "dofs") if k not in found]
     if differ:
         name = differ[0]
         raise SceneError(

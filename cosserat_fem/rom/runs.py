@@ -306,10 +306,10 @@ def build(
 
 def basis_digest(path: str | Path) -> str | None:
     """SHA-256 of the basis file's .npz (None if it cannot be read)."""
-    from cosserat_fem.rom.basis import _paths
+    from cosserat_fem.rom.basis import basis_paths
 
     try:
-        return hashlib.sha256(safe_files.read_regular(_paths(path)[0])).hexdigest()
+        return hashlib.sha256(safe_files.read_regular(basis_paths(path)[0])).hexdigest()
     except OSError:
         return None
 
@@ -368,11 +368,11 @@ def recorded_basis(folder: str | Path) -> dict | None:
 def check_basis_file(basis) -> Path | None:
     """The .npz of a basis file's path (None for a Basis in memory); SceneError naming
     --basis if there is no such file."""
-    from cosserat_fem.rom.basis import Basis, _paths
+    from cosserat_fem.rom.basis import Basis, basis_paths
 
     if isinstance(basis, Basis):
         return None
-    path = _paths(basis)[0]
+    path = basis_paths(basis)[0]
     if not path.is_file():
         raise SceneError(f"--basis: no basis file {str(path)!r}")
     return path
