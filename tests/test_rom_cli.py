@@ -411,8 +411,9 @@ def test_a_hyper_reduced_sweep_under_mpirun_equals_serial(tmp_path):
     the other rank waits, then the members run hyper-reduced on one rank each. Under
     ``mpirun -n 2`` the basis file is the serial one's (the same serial runs: its bytes
     equal) and every member equals its serial run to 1e-12 of the largest |x, y, z| (the
-    same serial arithmetic on each rank; probes.csv's 17 digits give the doubles back). The
-    training members are within 10 √ε + 0.1 τ of their full runs (as above)."""
+    same serial arithmetic on each rank; probes.csv's 17 digits give the doubles back); the
+    sweep started again keeps its basis file untouched. The training members are within
+    10 √ε + 0.1 τ of their full runs (as above)."""
     path = tmp_path / "hyper.toml"
     path.write_text(SWEEP.format(scene=PAPER) + ROM + f"ecsw = {ECSW}\n")
     folders = {}
@@ -424,6 +425,12 @@ def test_a_hyper_reduced_sweep_under_mpirun_equals_serial(tmp_path):
         assert proc.returncode == 0, proc.stderr
     basis = [(folders[r] / "rom" / "basis.npz").read_bytes() for r in (1, 2)]
     assert basis[0] == basis[1]
+    # started again, the two-rank sweep reads its basis (on one rank, as its members do) and
+    # neither trains nor writes it again (before: refused on two ranks, so retrained)
+    stamp = (folders[2] / "rom" / "basis.npz").stat().st_mtime_ns
+    proc = run_command(["-m", "cosserat_fem.cli", "sweep", str(path), "--out", str(folders[2])], 2)
+    assert proc.returncode == 0, proc.stderr
+    assert (folders[2] / "rom" / "basis.npz").stat().st_mtime_ns == stamp
     document = json.loads((folders[1] / "rom" / "basis.json").read_text())
     eps = document["provenance"]["energy_left_out"]
     for m in range(5):

@@ -78,7 +78,13 @@ from mpi4py import MPI
 from cosserat_fem.analysis import budget
 from cosserat_fem.analysis.progress import SweepProgress
 from cosserat_fem.common import safe_files
-from cosserat_fem.common.errors import CosseratError, OutputError, SceneError, StopError
+from cosserat_fem.common.errors import (
+    CosseratError,
+    OutputError,
+    SceneError,
+    SolverError,
+    StopError,
+)
 from cosserat_fem.common.parallel import agree
 from cosserat_fem.io.folder_lock import holding_folders
 from cosserat_fem.io.poincare import POINCARE, STATE_RMS, read_poincare
@@ -664,22 +670,29 @@ def sweep_basis(spec: SweepSpec, out: Path, world) -> Path | None:
     if not spec.reduced:
         return None
     assert spec.rom is not None
+
+    def unreadable(file) -> SceneError | None:
+        """Why the basis ``file`` cannot run the members (read on a group of group_size
+        ranks, as a member reads it: a hyper-reduced basis is read on one), agreed by every
+        rank; None if it can."""
+        group = world.Split(world.rank // spec.group_size, world.rank)
+        try:
+            rb.read_basis(file, build_model(spec.scene(spec.members[0]), group))
+            problem = None
+        except SceneError as exc:
+            problem = str(exc)
+        found = [p for p in world.allgather(problem) if p] if world.size > 1 else [problem]
+        return SceneError(found[0]) if found and found[0] else None
+
     if spec.rom.basis is not None:
-        model = build_model(spec.scene(spec.members[0]), world)
-        given = rb.read_basis(spec.rom.basis, model)  # refused here, before any member runs
-        if given.sample_weights is not None and spec.group_size > 1:
-            raise SceneError(
-                "sweep.rom.basis: a hyper-reduced basis (rom build --ecsw) runs its members on "
-                f"one rank each (sweep.group_size = 1), got group_size = {spec.group_size}"
-            )
+        problem = unreadable(spec.rom.basis)  # refused here, before any member runs
+        if problem is not None:
+            raise SceneError(f"sweep.rom.basis: {problem}")
         return Path(spec.rom.basis)
     path = out / ROM_FOLDER / "basis.npz"
     if path.is_file() and (out / ROM_FOLDER / "basis.json").is_file():
-        try:
-            rb.read_basis(path, build_model(spec.scene(spec.members[0]), world))
+        if unreadable(path) is None:  # else cut by a kill: trained again
             return path
-        except SceneError:
-            pass  # cut by a kill: trained again
     targets = sweep_targets(spec, spec.rom.train)
     settings = spec.rom
 
@@ -706,15 +719,17 @@ def sweep_basis(spec: SweepSpec, out: Path, world) -> Path | None:
     # tens of times its serial run in messages, and the basis is then the serial sweep's
     first = world.rank < spec.group_size
     group = world.Split(0 if first else MPI.UNDEFINED, world.rank)
-    problem = None
+    failure: CosseratError | None = None
     if first:
         try:
             train(group)
         except CosseratError as exc:
-            problem = exc
+            failure = exc
+        except Exception as exc:  # PETSc, an SVD, memory: the waiting ranks must hear it too
+            failure = SolverError(f"sweep.rom: training the basis failed: {exc}")
         finally:
             group.Free()
-    agree(world, problem)
+    agree(world, failure)
     return path
 
 
