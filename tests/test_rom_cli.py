@@ -473,3 +473,27 @@ def test_a_basis_is_its_own_pair_of_files(basis_file, tmp_path, capsys):
     assert main([*argv, "--basis", str(basis_file), "--out", str(tmp_path / "r3")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "made for supports" in err[0], err
+
+
+def test_validate_keeps_every_row_it_made(tmp_path, capsys):
+    """``rom validate`` writes validation.csv after each target: the whip in 3D (its basis of
+    its first 0.4 ms, 4 modes; the reduced run is refused at the chart's move, docs/rom.md §10
+    (c), here at 0.2 ms) gives a row whose status is that one line and no error (before: no
+    table at all, the full run's outputs left without it); validated again into the same
+    folder over 0.15 ms, before the move, its row is replaced by a completed one (a target's
+    row is its latest validation's)."""
+    whip = ROOT / "scenes" / "whip.toml"
+    in_3d = ["--set", "discretisation.planar=off", "--set", "output.xdmf=false"]
+    stem = tmp_path / "whip"
+    argv = ["rom", "build", str(whip), *in_3d, "--set", "time.end=4e-4", "--modes", "4"]
+    assert main([*argv, "--out", str(stem)]) == 0
+    out = tmp_path / "v"
+    argv = ["rom", "validate", str(whip), *in_3d, "--basis", f"{stem}.npz", "--out", str(out)]
+    assert main(argv) == 0
+    (row,) = read_table(out / "validation.csv")
+    assert row["target"] == "scene" and row["error"] == "n/a" and "chart" in row["status"]
+    assert row["status"].startswith("reduced run at t = 0.000")
+    assert "failed: reduced run at t = " in capsys.readouterr().out
+    assert main([*argv, "--set", "time.end=1.5e-4"]) == 0
+    (row,) = read_table(out / "validation.csv")
+    assert row["status"] == "completed" and float(row["error"]) > 0

@@ -49,6 +49,7 @@ from cosserat_fem.timestepping.events import Observer
 VALIDATION = "validation.csv"
 VALIDATION_COLUMNS = (
     "target",
+    "status",
     "modes",
     "energy_left_out",
     "error",
@@ -491,11 +492,15 @@ def validate(
     given: per target the relative L2 error of the free end's (x, y, z) (basis.relative_l2,
     over the output times both runs reached: a forced member ends once settled) and the
     reduced run's indicator and what it found outside its training (module docstring);
-    validation.csv in ``out``. Collective."""
+    validation.csv in ``out``, written again after each target (a stop keeps the rows made)
+    with the rows of other targets an earlier validation left there. A target whose full or
+    reduced run fails (a SolverError: the reduced run's refusal at the chart's move, a
+    diverged solve) is a row with that line in ``status`` and no error; a stop (wall time,
+    Ctrl-C) ends the validation after the table is written. Collective."""
     from mpi4py import MPI
 
     from cosserat_fem.analysis.simulation import run_scene
-    from cosserat_fem.common.errors import out_folder
+    from cosserat_fem.common.errors import SolverError, out_folder
     from cosserat_fem.rom.basis import relative_l2
 
     targets = chosen_targets(scenes, sweep, members)
@@ -504,28 +509,36 @@ def validate(
     check_basis_file(basis)
     out = out_folder(out)
     comm = MPI.COMM_WORLD
-    rows = []
+    table = None if out is None else out / VALIDATION
+    earlier = [] if table is None else _earlier_rows(table, comm)
+    rows: list[dict] = []
     for target in targets:
-        full = run_scene(
-            target.scene,
-            None if out is None else out / "full" / target.name,
-            observers=target.observers(),
-            write_outputs=out is not None,
-            record=True,
-        )
-        reduced = run(
-            target.scene,
-            basis,
-            None if out is None else out / "reduced" / target.name,
-            observers=target.observers(),
-        )
+        row: dict = {"target": target.name, "status": "completed"}
+        try:
+            full = run_scene(
+                target.scene,
+                None if out is None else out / "full" / target.name,
+                observers=target.observers(),
+                write_outputs=out is not None,
+                record=True,
+            )
+            reduced = run(
+                target.scene,
+                basis,
+                None if out is None else out / "reduced" / target.name,
+                observers=target.observers(),
+            )
+        except SolverError as exc:  # the target's row says why; the others go on
+            row["status"] = str(exc).replace("\n", " ")
+            rows.append(row)
+            _write_validation(table, earlier, rows, comm)
+            continue
         assert full.probes is not None and reduced.probes is not None, "recorded"
         indicator, outside = indicator_of(reduced.summary)
         n = min(len(full.probes), len(reduced.probes))  # a forced run ends once settled
         rom = reduced.summary["rom"]["basis"]
-        rows.append(
+        row.update(
             {
-                "target": target.name,
                 "modes": rom["modes"],
                 "energy_left_out": rom["energy_left_out"],
                 "error": relative_l2(reduced.probes[:n, POSITION], full.probes[:n, POSITION]),
@@ -535,24 +548,49 @@ def validate(
                 "reduced_steps": reduced.summary["steps"],
             }
         )
-    table = None
-    if out is not None:
-        from cosserat_fem.common.errors import OutputError
-        from cosserat_fem.common.parallel import agree
-
-        table, problem = out / VALIDATION, None
-        if comm.rank == 0:
-            text = io.StringIO(newline="")
-            writer = csv.writer(text)
-            writer.writerow(VALIDATION_COLUMNS)
-            for row in rows:
-                writer.writerow([_cell(row[c]) for c in VALIDATION_COLUMNS])
-            try:  # replaced whole, never opened in place (a FIFO there blocks no one)
-                safe_files.replace(table, text.getvalue().encode("utf-8"))
-            except OSError as exc:
-                problem = OutputError(f"rom validate: cannot write {str(table)!r} ({exc})")
-        agree(comm, problem)  # every rank raises alike: none waits for rank 0
+        rows.append(row)
+        _write_validation(table, earlier, rows, comm)
     return Validation(rows, table)
+
+
+def _earlier_rows(table: Path, comm) -> list[dict]:
+    """The rows of a validation.csv already in the folder (an earlier validation's), as
+    strings; none if it cannot be read. Rank 0's, every rank's."""
+    rows: list[dict] = []
+    if comm.rank == 0:
+        try:
+            text = safe_files.read_text(table)
+            rows = [dict(r) for r in csv.DictReader(io.StringIO(text))]
+        except (OSError, ValueError):
+            rows = []
+    return comm.bcast(rows, root=0) if comm.size > 1 else rows
+
+
+def _write_validation(table: Path | None, earlier: list[dict], rows: list[dict], comm) -> None:
+    """validation.csv: the earlier rows of targets not validated now, then this validation's
+    (:data:`VALIDATION_COLUMNS`); replaced whole by rank 0 (a FIFO there blocks no one), a
+    failure raised on every rank alike."""
+    if table is None:
+        return
+    from cosserat_fem.common.errors import OutputError
+    from cosserat_fem.common.parallel import agree
+
+    problem = None
+    if comm.rank == 0:
+        now = {row["target"] for row in rows}
+        text = io.StringIO(newline="")
+        writer = csv.writer(text)
+        writer.writerow(VALIDATION_COLUMNS)
+        for old in earlier:
+            if old.get("target") not in now:
+                writer.writerow([old.get(c, "n/a") for c in VALIDATION_COLUMNS])
+        for row in rows:
+            writer.writerow([_cell(row.get(c)) for c in VALIDATION_COLUMNS])
+        try:
+            safe_files.replace(table, text.getvalue().encode("utf-8"))
+        except OSError as exc:
+            problem = OutputError(f"rom validate: cannot write {str(table)!r} ({exc})")
+    agree(comm, problem)  # every rank raises alike: none waits for rank 0
 
 
 def validation_lines(result: Validation) -> list[str]:
@@ -563,6 +601,9 @@ def validation_lines(result: Validation) -> list[str]:
         "outside training"
     ]
     for row in result.rows:
+        if row.get("status", "completed") != "completed":
+            lines.append(f"{row['target']:<10} failed: {row['status']}")
+            continue
         indicator = "n/a" if row["indicator"] is None else f"{row['indicator']:.3e}"
         lines.append(
             f"{row['target']:<10} {row['modes']:5d} {row['energy_left_out']:12.3e} "
