@@ -497,3 +497,23 @@ def test_validate_keeps_every_row_it_made(tmp_path, capsys):
     assert main([*argv, "--set", "time.end=1.5e-4"]) == 0
     (row,) = read_table(out / "validation.csv")
     assert row["status"] == "completed" and float(row["error"]) > 0
+
+
+def test_a_reduced_run_stopped_by_its_wall_time_says_how_to_go_on(basis_file, tmp_path, capsys):
+    """A reduced run past limits.wall_time stops with exit 4 and advises ``rom run --restart
+    DIR --basis FILE`` (before: ``run --restart DIR``, which refuses a reduced run); that
+    advice continues it to the end. The limit: 1.01 times the budget's lower bound of the
+    run's cost (cosserat_fem/analysis/budget.py ``estimate``, so it is not refused before it
+    starts; tests/test_reliability.py D8): the run's set-up alone, counted from its start,
+    exceeds it before the clock is first looked at (step 64 of 200)."""
+    from cosserat_fem.analysis.budget import estimate
+
+    bound = estimate(cf.load(PAPER, {"time.end": 0.006}), "run").seconds
+    out = tmp_path / "stopped"
+    argv = ["rom", "run", str(PAPER), *SHORT, "--basis", str(basis_file), "--out", str(out)]
+    assert main([*argv, "--set", f"limits.wall_time={1.01 * bound!r}"]) == 4
+    err = capsys.readouterr().err
+    assert "rom run --restart DIR --basis FILE" in err and "continue it with run" not in err
+    argv = ["rom", "run", "--restart", str(out), "--basis", str(basis_file)]
+    assert main([*argv, "--set", "limits.wall_time=600"]) == 0
+    assert probes(out).shape == (201, 7)

@@ -558,7 +558,12 @@ class StandardObservers:
             )
             chain.append(self.checkpoints)
         if wall_time is not None:
-            chain.append(DeadlineObserver(t_start + wall_time, wall_time, comm))
+            advice = (  # a reduced run continues on its basis (cosserat_fem/rom/runs.py)
+                "continue it with rom run --restart DIR --basis FILE"
+                if getattr(solver, "basis", None) is not None
+                else "continue it with run --restart DIR"
+            )
+            chain.append(DeadlineObserver(t_start + wall_time, wall_time, comm, advice=advice))
         chain.append(InterruptObserver(comm))
         chain.append(RunSummary(summary, solver, t_start, comm, out, begin, self.checkpoints))
         self.events = Events(chain)
