@@ -20,6 +20,7 @@ import cosserat_fem as cf
 from cosserat_fem.common.errors import SolverError
 from cosserat_fem.rom import basis as rb
 from cosserat_fem.rom import galerkin
+from cosserat_fem.rom import indicator as ri
 from cosserat_fem.rom.indicator import IndicatorSettings
 
 PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
@@ -109,6 +110,67 @@ def test_indicator_flags_a_load_outside_the_training(short_training, load, caplo
         assert any("load" in line and "\n" not in line for line in lines), lines
         if error > indicator["tolerance"]:
             assert indicator["exceeded"], (k, error, indicator["max"])
+
+
+def test_cached_modes_give_the_run_time_estimate(short_training):
+    """(g) The modes of (10.5) solved once a process (indicator.modes_key): k = 8 run three
+    times, the cache emptied before the first (SLEPc solves: ``modes_cached`` false, one
+    solve counted), the second finding them (``modes_cached`` true, no solve), the third
+    after emptying it again. The second uses the first's very arrays in the same arithmetic:
+    its estimates are the first's to the last bit (asserted to 1e-14 relative, nothing but
+    the same operations). The third solves anew: its modes may differ from the first's by
+    the solver's tolerance 1e-10 (a relative residual; divided by the relative gap of the
+    lowest modes, ≥ 0.1 here, 1e-9 a mode; a sign flip of φ_j flips η_j with it and leaves
+    e unchanged), which E, a sum of 30 modes' contributions, carries at most 30 times:
+    asserted 1e-7 relative (measured: equal)."""
+    scene, basis, _ = short_training
+    ri._MODES.clear()
+    solves = ri.SOLVES[0]
+    runs = []
+    for again in (False, False, True):
+        if again:
+            ri._MODES.clear()
+        runs.append(galerkin.run(scene, basis.truncated(8)).summary["rom"]["indicator"])
+    assert [r["modes_cached"] for r in runs] == [False, True, False]
+    assert ri.SOLVES[0] - solves == 2
+    assert runs[1]["values"] == pytest.approx(runs[0]["values"], rel=1e-14, abs=0)
+    assert runs[2]["values"] == pytest.approx(runs[0]["values"], rel=1e-7, abs=0)
+    assert runs[1]["setup_wall_time_s"] < runs[0]["setup_wall_time_s"]
+
+
+def test_a_sweeps_members_share_one_set_up(tmp_path):
+    """(h) A sweep of the short paper scene over the load's amplitude f0 (1, 2, 3 kN/m;
+    [sweep.rom] trained on member 0, 4 modes): the force density does no work that is not
+    linear in the state, so the three members' modes are the same (indicator.modes_key) and
+    the process solves for them once: one SLEPc solve counted for the sweep, the first
+    member's summary ``modes_cached`` false, the two others' true."""
+    sweep = tmp_path / "amplitude.toml"
+    sweep.write_text(
+        f"""[sweep]
+scene = "{PAPER}"
+keep = "probes"
+[sweep.set]
+"time.end" = 0.003
+"output.xdmf" = false
+"parameters.f0" = 2e3
+"loads.force_density" = ["f0*sin(pi*s/L)*sin(8*omega0*t)", "f0*sin(pi*s/L)*sin(8*omega0*t)", 0]
+[sweep.vary]
+"parameters.f0" = {{ start = 1e3, stop = 3e3, num = 3 }}
+[sweep.rom]
+train = [0]
+modes = 4
+"""
+    )
+    ri._MODES.clear()
+    solves = ri.SOLVES[0]
+    cf.sweep(cf.load_sweep(sweep), tmp_path / "out")
+    assert ri.SOLVES[0] - solves == 1
+    cached = {}
+    for path in sorted((tmp_path / "out").rglob("summary.json")):
+        rom = json.loads(path.read_text()).get("rom", {})
+        if "indicator" in rom:
+            cached[path.parent.name] = rom["indicator"]["modes_cached"]
+    assert sorted(cached.values()) == [False, True, True], cached
 
 
 def _own(training):
