@@ -70,6 +70,7 @@ raised where the solver does not know the time).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import time
@@ -184,15 +185,14 @@ KEPT = 2
 SOLVES = [0]
 
 
-def modes_key(model, t: float, count: int, lu_package: str, n: int) -> str:
-    """What the modes of (10.5) depend on: K and M about the straight rod (ModalOperator at
-    ``t``): the rod (length, section, material), its reference, model constants (ω0, the
-    inertia), supports, damping, the discretisation and the components U holds, this rank's
-    rows and the ranks; and the loads whose virtual work is not linear in the state (torques,
-    end and point loads, which give K a load stiffness: cosserat_fem/analysis/modal.py), with
-    the parameters and t when there are any. Force densities and gravity, in fixed directions,
-    do no work that is not linear in the displacement: a sweep over their amplitude or
-    frequency shares the modes."""
+def rod_key(model, t: float) -> dict:
+    """What K and M about the straight rod (ModalOperator at ``t``) depend on: the rod
+    (length, section, material), its reference, model constants (ω0, the inertia), supports,
+    damping, the discretisation and the components U holds; and the loads whose virtual work
+    is not linear in the state (torques, end and point loads, which give K a load stiffness:
+    cosserat_fem/analysis/modal.py), with the parameters and t when there are any. Force
+    densities and gravity, in fixed directions, do no work that is not linear in the
+    displacement: a sweep over their amplitude or frequency shares the modes."""
     d = model.scene.to_dict()
     loads = {
         k: v for k, v in (d.get("loads") or {}).items() if k not in ("force_density", "gravity")
@@ -201,22 +201,29 @@ def modes_key(model, t: float, count: int, lu_package: str, n: int) -> str:
     if isinstance(torque, list) and all(str(x).strip() in ("0", "0.0") for x in torque):
         loads.pop("torque_density")
     stiff = bool(loads)
+    return {
+        **{k: d.get(k) for k in ("rod", "reference", "model", "supports", "damping")},
+        "discretisation": d.get("discretisation"),
+        "components": [int(c) for c in model.layout.components],
+        "loads": loads,
+        "parameters": d.get("parameters") if stiff else None,
+        "t": float(t) if stiff else None,
+    }
+
+
+def stored_key(model, t: float) -> str:
+    """The SHA-256 of :func:`rod_key`, kept in a basis file beside the modes it stores
+    (basis.py): a run on another rod solves its own."""
+    text = json.dumps(rod_key(model, t), sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def modes_key(model, t: float, count: int, lu_package: str, n: int) -> str:
+    """The process cache's key (:data:`_MODES`): :func:`rod_key`, the modes asked for, the LU
+    package, this rank's rows and the ranks."""
     comm = model.msh.comm
-    return json.dumps(
-        {
-            **{k: d.get(k) for k in ("rod", "reference", "model", "supports", "damping")},
-            "discretisation": d.get("discretisation"),
-            "components": [int(c) for c in model.layout.components],
-            "loads": loads,
-            "parameters": d.get("parameters") if stiff else None,
-            "t": float(t) if stiff else None,
-            "count": count,
-            "lu": lu_package,
-            "rows": [n, comm.rank, comm.size],
-        },
-        sort_keys=True,
-        default=str,
-    )
+    extra = {"count": count, "lu": lu_package, "rows": [n, comm.rank, comm.size]}
+    return json.dumps({**rod_key(model, t), **extra}, sort_keys=True, default=str)
 
 
 class ErrorModes:
@@ -226,13 +233,15 @@ class ErrorModes:
     infinite), solved by SLEPc (shift-and-invert about 0, about −1 for a mechanism, whose
     rigid-body modes are then left out; a closed rod's shapes S φ as modal.join_ends's), each
     φ_j scaled to φ_jᵀ D M φ_j = 1 (D = diag of the kinetic weights: D M = M_sym symmetric, so
-    φ_jᵀ D K φ_l = λ_j δ_jl); once a process for a rod (:func:`modes_key`: a run that finds them
-    has ``cached`` True; every rank of the communicator must find them, else all solve).
+    φ_jᵀ D K φ_l = λ_j δ_jl); ``stored``: (λ, Φ on U's owned rows) of a basis file
+    (``source`` "basis", :func:`stored_modes`: K and M are not even assembled), else solved once a
+    process for a rod (:func:`modes_key`: a run that finds them
+    has ``source`` "cached"; every rank of the communicator must find them, else all solve).
     ``n``: U's owned rows; ``places``: where U's p rows sit in the 6-component space of K;
     ``ends``: the local 6-space rows of the free end's x/ℓ, y/ℓ, z/ℓ (empty on the ranks
     without it). Planar runs: the modes out of the plane get no forcing."""
 
-    def __init__(self, model, t: float, count: int, lu_package: str, n: int):
+    def __init__(self, model, t: float, count: int, lu_package: str, n: int, stored=None):
         from mpi4py import MPI
 
         from cosserat_fem.analysis.modal import _kinetic_weights
@@ -254,8 +263,14 @@ class ErrorModes:
         hit = found is not None
         if self.comm.size > 1:
             hit = bool(self.comm.allreduce(int(hit), op=MPI.MIN))
-        self.cached = hit
-        if hit and found is not None:
+        self.source = "cached" if hit else "solved"
+        if stored is not None:  # (λ, Φ on U's rows) of a basis file, this rank's rows
+            lam, on_rows = stored
+            self.lam = np.asarray(lam, dtype=float)[:count]
+            self.Phi = np.zeros((len(self.D), len(self.lam)))
+            self.Phi[self.places] = on_rows[self.p_rows, : len(self.lam)]
+            self.source = "basis"
+        elif hit and found is not None:
             _MODES.move_to_end(key)
             self.lam, self.Phi = found
         else:
@@ -265,6 +280,12 @@ class ErrorModes:
             while len(_MODES) > KEPT:
                 _MODES.popitem(last=False)
         self.DPhi = (self.D[:, None] * self.Phi)[self.places]  # on U's p rows' places
+
+    def on_rows(self, n: int) -> np.ndarray:
+        """Φ on U's n owned rows (p's rows; zero on q's): what a basis file stores."""
+        out = np.zeros((n, len(self.lam)))
+        out[self.p_rows] = self.Phi[self.places]
+        return out
 
     def _solve(self, model, t: float, count: int, lu_package: str):
         """(λ, Φ) of the class docstring, by SLEPc (collective)."""
@@ -309,6 +330,31 @@ class ErrorModes:
     def shape(self, eta: np.ndarray) -> np.ndarray:
         """e = Σ_j η_j φ_j on this rank's 6-space rows."""
         return self.Phi @ eta
+
+
+def basis_modes(model, n: int, count: int | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The modes of (10.5) for a basis file (cosserat_fem/rom/basis.py ``pod_basis``): λ, Φ on
+    U's n owned rows, and the provenance entry {"key": :func:`stored_key`, "modes": N} that a
+    run checks before it uses them (the training's start time; collective)."""
+    from cosserat_fem.nls.newton import NewtonSolver
+
+    t = model.scene.time.start
+    count = DEFAULT.modes if count is None else count
+    lu = NewtonSolver._lu_package(model.msh.comm, "auto")
+    modes = ErrorModes(model, t, count, lu, n)
+    entry = {"key": stored_key(model, t), "asked": count, "modes": len(modes.lam)}
+    return modes.lam, modes.on_rows(n), entry
+
+
+def stored_modes(basis, model, t: float, count: int):
+    """(λ, Φ on U's rows) of ``basis`` if it stores the first ``count`` modes (it asked for as
+    many or more) of this rod (:func:`stored_key` at ``t``), else None: solved at run time."""
+    entry = basis.provenance.get("error_modes")
+    if basis.error_modes is None or basis.error_lambda is None or not isinstance(entry, dict):
+        return None
+    if entry.get("key") != stored_key(model, t) or count > int(entry.get("asked", 0)):
+        return None
+    return basis.error_lambda, basis.error_modes
 
 
 def coordinate_ranges(coordinates: np.ndarray, norms: np.ndarray) -> dict:
@@ -384,7 +430,7 @@ class ErrorIndicator(Observer):
         self._saturated = False  # the transport blew up (:data:`BLOWN`)
         self._t_new = 0.0
         self.modes: ErrorModes | None = None
-        self.modes_cached = False  # the modes found in the process's cache (set-up without SLEPc)
+        self.modes_from = ""  # the modes "solved" (SLEPc), "cached" (this process's), or "basis"
 
     # -- set-up --------------------------------------------------------------------------
     def started(self, loop) -> None:
@@ -399,8 +445,10 @@ class ErrorIndicator(Observer):
         self.stage_weights = None if weights is None else np.asarray(weights, dtype=float)
         self.omega0 = model.omega0
         self._tau = loop.state.t * self.omega0
-        self.modes = ErrorModes(model, loop.state.t, self.settings.modes, solver.lu_package, n)
-        self.modes_cached = self.modes.cached
+        t, count = loop.state.t, self.settings.modes
+        stored = stored_modes(self.basis, model, t, count)
+        self.modes = ErrorModes(model, t, count, solver.lu_package, n, stored)
+        self.modes_from = self.modes.source
         m = self.modes  # V's rows of the free end's x/ℓ, y/ℓ, z/ℓ (of U's p rows)
         self._tip_V = self.basis.V[m.p_rows[np.isin(m.places, m.ends)]]
         count = len(self.modes.lam)
@@ -638,7 +686,7 @@ class ErrorIndicator(Observer):
                     "values": list(self.values),
                     "wall_time_s": self.seconds,
                     "setup_wall_time_s": self.setup_seconds,
-                    "modes_cached": self.modes_cached,
+                    "modes_from": self.modes_from,
                 },
                 "outside_training": list(self.outside),
             }
