@@ -79,6 +79,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+# SLEPc (the modes' solver) loaded by every rank that loads this module, used or not: loaded on
+# some ranks of the world only, it hangs the exit (PETSc's clean-up at exit waits in an
+# MPI_Comm_dup on those ranks while the others are in MPI_Finalize; measured with a basis
+# trained on rank 0 alone, a hyper-reduced sweep's under mpirun -n 2, whose members then read
+# the modes from its file).
+from slepc4py import SLEPc  # noqa: F401
+
 from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.common.log import LOGGER
 from cosserat_fem.timestepping.events import Observer
