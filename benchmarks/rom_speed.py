@@ -13,6 +13,13 @@ its solves, the state check, the accept, the event calls, the loop's Python arou
 
     .venv/bin/python benchmarks/rom_speed.py paper [--repeats 5] [--modes 12] [--tau 1e-2]
     .venv/bin/python benchmarks/rom_speed.py riser [--elements 10000] [--steps 20] [--tau 1e-2]
+    .venv/bin/python benchmarks/rom_speed.py paper --indicator [--repeats 5]
+
+``--indicator``: instead, the error indicator's cost (docs/rom.md §10, "Cost"): each reduced
+run without and with the indicator (cosserat_fem/rom/indicator.py, its default settings)
+interleaved, the indicator's own wall time (summary.json ``rom.indicator.wall_time_s``), its
+set-up's (``setup_wall_time_s``: the first run of the process builds the modes, the others
+find them cached) and the rest per sample, as shares of the solve loop without it (medians).
 
 ``paper``: scenes/cao_tucker_2008.toml (0.06 s, 2000 SDIRK3 steps), trained on its own full
 run. ``riser``: the riser of benchmarks/long_rods.py, trained on a short full run of
@@ -183,6 +190,46 @@ def floor(scene, basis, steps: int) -> None:
         print(f"| {name} | {us:.1f} |")
 
 
+def indicator_cost(scene, bases: dict, repeats: int) -> None:
+    """The indicator's share of the solve loop (module docstring, ``--indicator``)."""
+    from cosserat_fem.rom.indicator import ErrorIndicator
+
+    rows: dict = {
+        name: {"loop": [], "own": [], "setup": [], "samples": [], "every": []} for name in bases
+    }
+    for _ in range(repeats):
+        for name, (basis, use_hyper, coordinates) in bases.items():
+            make = galerkin.solver_factory(basis, use_hyper, coordinates)
+            bare = run_scene(scene, write_outputs=False, record=True, solver_factory=make)
+            watch = ErrorIndicator()
+            run_scene(
+                scene, write_outputs=False, record=True, solver_factory=make, observers=[watch]
+            )
+            entry = watch.summary_entries()["rom"]["indicator"]
+            r = rows[name]
+            r["loop"].append(loop_time(bare))
+            r["own"].append(entry["wall_time_s"])
+            r["setup"].append(entry["setup_wall_time_s"])
+            r["samples"].append(len(entry["times"]))
+            r["every"].append(entry["every"])
+    print(
+        "| run | solve loop without [s] | indicator [s] | of which set-up [s] (each run) | "
+        "samples | every | ms a sample | indicator / loop | without the set-up |"
+    )
+    print("|---|---|---|---|---|---|---|---|---|")
+    for name, r in rows.items():
+        loop, own = statistics.median(r["loop"]), statistics.median(r["own"])
+        setup = statistics.median(r["setup"])
+        samples = statistics.median(r["samples"])
+        per = (own - setup) / max(samples, 1) * 1e3
+        print(
+            f"| {name} | {loop:.4f} | {own:.4f} | {setup:.4f} "
+            f"({', '.join(f'{t:.3f}' for t in r['setup'])}) | {samples:g} | "
+            f"{statistics.median(r['every']):g} | {per:.2f} | {own / loop:.1%} | "
+            f"{(own - setup) / loop:.1%} |"
+        )
+
+
 def trained(scene, args, tolerance: float, modes: int | None = None):
     """The basis of a full run of ``scene`` (its first ``modes``), its ECSW sampling, the
     full run; the training's times printed."""
@@ -207,6 +254,8 @@ def paper(args) -> None:
         "hyper-full": (sampled, True, False),
         "hyper-q": (sampled, True, True),
     }
+    if args.indicator:
+        return indicator_cost(scene, bases, args.repeats)
     report(interleaved(scene, bases, args.repeats, steps), steps, full.probes[:, 1:4])
     print()
     floor(scene, sampled, steps)
@@ -222,6 +271,8 @@ def riser(args) -> None:
     bases = {"hyper-full": (sampled, True, False), "hyper-q": (sampled, True, True)}
     if args.galerkin:
         bases["galerkin"] = (basis, False, False)
+    if args.indicator:
+        return indicator_cost(scene, bases, args.repeats)
     report(interleaved(scene, bases, args.repeats, args.steps), args.steps, full.probes[:, 1:4])
     print()
     floor(scene, sampled, args.steps)
@@ -238,6 +289,9 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=20)
     parser.add_argument("--pod-tolerance", type=float, default=1e-8)
     parser.add_argument("--galerkin", action="store_true", help="riser: the Galerkin run too")
+    parser.add_argument(
+        "--indicator", action="store_true", help="the error indicator's cost instead"
+    )
     args = parser.parse_args()
     print(
         f"{time.strftime('%Y-%m-%d %H:%M')} {platform.node()} load {os.getloadavg()[0]:.1f}, serial"

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import logging
+from dataclasses import replace
 
 import pytest
 from conftest import ROOT, run_command
@@ -20,6 +21,7 @@ import cosserat_fem as cf
 from cosserat_fem.common.errors import SolverError
 from cosserat_fem.rom import basis as rb
 from cosserat_fem.rom import galerkin
+from cosserat_fem.rom import indicator as ri
 from cosserat_fem.rom.indicator import IndicatorSettings
 
 PAPER = ROOT / "scenes" / "cao_tucker_2008.toml"
@@ -109,6 +111,75 @@ def test_indicator_flags_a_load_outside_the_training(short_training, load, caplo
         assert any("load" in line and "\n" not in line for line in lines), lines
         if error > indicator["tolerance"]:
             assert indicator["exceeded"], (k, error, indicator["max"])
+
+
+def test_stored_and_cached_modes_give_the_run_time_estimate(short_training, tmp_path):
+    """(g) The modes of (10.5) solved at run time, found in the process's cache, and read from
+    the basis file (indicator.stored_modes; the file without them, as an older one, read too):
+    k = 8, the cache emptied first. (1) the basis without its modes: SLEPc solves
+    (``modes_from`` "solved", one solve counted); (2) again: "cached", no solve; (3) the basis
+    written and read back with its modes: "basis", no solve; (4) the basis written without
+    them and read back: "cached". (2) and (3) use the very values of (1)'s solve (the file
+    keeps its doubles; pod_basis's solve went into the cache, which (1) then recomputes
+    identically), in the same arithmetic: their estimates are (1)'s to 1e-14 relative. (5)
+    the cache emptied, solved anew: its modes may differ from (1)'s by the solver's tolerance
+    1e-10 (a relative residual; over the relative gap of the lowest modes, ≥ 0.1 here, 1e-9
+    a mode; a sign flip of φ_j flips η_j with it and leaves e unchanged), which E, a sum of
+    30 modes' contributions, carries at most 30 times: asserted 1e-7 relative (measured:
+    equal)."""
+    scene, basis, _ = short_training
+    bare = replace(basis.truncated(8), error_modes=None, error_lambda=None)
+    rb.write_basis(basis.truncated(8), short_training[2].model, tmp_path / "with")
+    rb.write_basis(bare, short_training[2].model, tmp_path / "without")
+    ri._MODES.clear()
+    solves = ri.SOLVES[0]
+    runs = []
+    for chosen in (bare, bare, tmp_path / "with.npz", tmp_path / "without.npz", None):
+        if chosen is None:
+            ri._MODES.clear()
+            chosen = bare
+        runs.append(galerkin.run(scene, chosen).summary["rom"]["indicator"])
+    assert [r["modes_from"] for r in runs] == ["solved", "cached", "basis", "cached", "solved"]
+    assert ri.SOLVES[0] - solves == 2
+    for again in runs[1:4]:
+        assert again["values"] == pytest.approx(runs[0]["values"], rel=1e-14, abs=0)
+    assert runs[4]["values"] == pytest.approx(runs[0]["values"], rel=1e-7, abs=0)
+    assert runs[2]["setup_wall_time_s"] < runs[0]["setup_wall_time_s"]
+
+
+def test_a_sweeps_members_share_one_set_up(tmp_path):
+    """(h) A sweep of the short paper scene over the load's amplitude f0 (1, 2, 3 kN/m;
+    [sweep.rom] trained on member 0, 4 modes): the force density does no work that is not
+    linear in the state, so the members' modes are the training's (indicator.rod_key): the
+    process solves for them once, when the basis is built (one SLEPc solve counted for the
+    sweep), and the three members read them from the basis file (``modes_from`` "basis")."""
+    sweep = tmp_path / "amplitude.toml"
+    sweep.write_text(
+        f"""[sweep]
+scene = "{PAPER}"
+keep = "probes"
+[sweep.set]
+"time.end" = 0.003
+"output.xdmf" = false
+"parameters.f0" = 2e3
+"loads.force_density" = ["f0*sin(pi*s/L)*sin(8*omega0*t)", "f0*sin(pi*s/L)*sin(8*omega0*t)", 0]
+[sweep.vary]
+"parameters.f0" = {{ start = 1e3, stop = 3e3, num = 3 }}
+[sweep.rom]
+train = [0]
+modes = 4
+"""
+    )
+    ri._MODES.clear()
+    solves = ri.SOLVES[0]
+    cf.sweep(cf.load_sweep(sweep), tmp_path / "out")
+    assert ri.SOLVES[0] - solves == 1
+    cached = {}
+    for path in sorted((tmp_path / "out").rglob("summary.json")):
+        rom = json.loads(path.read_text()).get("rom", {})
+        if "indicator" in rom:
+            cached[path.parent.name] = rom["indicator"]["modes_from"]
+    assert sorted(cached.values()) == ["basis"] * 3, cached
 
 
 def _own(training):

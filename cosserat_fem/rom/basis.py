@@ -45,7 +45,7 @@ import numpy as np
 from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import OutputError, SceneError
 from cosserat_fem.common.parallel import agree
-from cosserat_fem.rom.indicator import coordinate_ranges
+from cosserat_fem.rom.indicator import basis_modes, coordinate_ranges
 from cosserat_fem.studies.karhunen_loeve import modes_for_tolerance, snapshot_svd
 from cosserat_fem.timestepping.events import Observer
 
@@ -77,6 +77,11 @@ class Basis:
     sample_cells: np.ndarray | None = None
     sample_weights: np.ndarray | None = None
     sample_sigma: np.ndarray | None = None
+    #: The error indicator's modes (cosserat_fem/rom/indicator.py, (10.5)): their λ (N,) and
+    #: shapes on this rank's owned rows (n_owned, N; zero on q's rows), and in the provenance's
+    #: "error_modes" the rod they belong to; None: solved when a run needs them.
+    error_lambda: np.ndarray | None = None
+    error_modes: np.ndarray | None = None
 
     @property
     def sampled(self) -> bool:
@@ -104,7 +109,15 @@ class Basis:
         K = self.modes
         V = np.hstack([self.V[:, :k], self.V[:, K : K + k]])
         return Basis(
-            V, self.reference, self.weights, self.energies, self.space, provenance, self.tests
+            V,
+            self.reference,
+            self.weights,
+            self.energies,
+            self.space,
+            provenance,
+            self.tests,
+            error_lambda=self.error_lambda,
+            error_modes=self.error_modes,
         )
 
 
@@ -258,8 +271,18 @@ def pod_basis(model, collector: SnapshotCollector, tolerance: float, provenance:
         # the training's range of c = Vᵀ W u_i (cosserat_fem/rom/indicator.py)
         "coordinates": coordinate_ranges(coordinates, norms),
     }
+    lam, shapes, entry = basis_modes(model, len(weights))  # the indicator's, once a basis
+    provenance["error_modes"] = entry
     return Basis(
-        V, collector.reference.copy(), weights, energies, space_of(model), provenance, tests
+        V,
+        collector.reference.copy(),
+        weights,
+        energies,
+        space_of(model),
+        provenance,
+        tests,
+        error_lambda=lam,
+        error_modes=shapes,
     )
 
 
@@ -292,13 +315,17 @@ def _node_order(model) -> tuple[np.ndarray, np.ndarray]:
 
 
 def write_basis(basis: Basis, model, path: str | Path) -> tuple[Path, Path]:
-    """The basis as path.npz (V, reference, weights, energies: global arrays in the order of
+    """The basis as path.npz (V, reference, weights, energies, and where the basis has them
+    ECSW's sampling and the error indicator's modes: global arrays in the order of
     the nodes' σ and the block's entries, which no partition decides) and path.json (the
     format, the space, the provenance); written by rank 0 (collective). Returns both paths."""
     comm = model.msh.comm
     sigma, entry = _node_order(model)
     tests = basis.tests if basis.tests is not None else np.ones_like(basis.weights)
-    parts = comm.gather((sigma, entry, basis.V, basis.reference, basis.weights, tests), root=0)
+    modes = basis.error_modes if basis.error_modes is not None else np.zeros((len(tests), 0))
+    parts = comm.gather(
+        (sigma, entry, basis.V, basis.reference, basis.weights, tests, modes), root=0
+    )
     npz, meta = basis_paths(path)
     problem = None
     if comm.rank == 0:
@@ -313,6 +340,9 @@ def write_basis(basis: Basis, model, path: str | Path) -> tuple[Path, Path]:
         sampling = {}
         if basis.sample_sigma is not None and basis.sample_weights is not None:
             sampling = {"sample_sigma": basis.sample_sigma, "sample_weights": basis.sample_weights}
+        if basis.error_modes is not None and basis.error_lambda is not None:
+            sampling["error_modes"] = np.vstack([p[6] for p in parts])[order]
+            sampling["error_lambda"] = basis.error_lambda
         data = io.BytesIO()
         np.savez(
             data,
@@ -349,7 +379,8 @@ def read_basis(path: str | Path, model) -> Basis:
         content = safe_files.read_regular(npz)
         arrays = np.load(io.BytesIO(content))
         data = {name: arrays[name] for name in ("V", "reference", "weights", "tests", "energies")}
-        for name in ("sample_sigma", "sample_weights"):  # a basis without sampling: absent
+        optional = ("sample_sigma", "sample_weights", "error_modes", "error_lambda")
+        for name in optional:  # a basis without sampling or modes (an older file): absent
             data[name] = arrays[name] if name in arrays.files else None
     except (OSError, ValueError, KeyError) as exc:
         why = exc.strerror if isinstance(exc, OSError) and exc.strerror else type(exc).__name__
@@ -396,6 +427,8 @@ def read_basis(path: str | Path, model) -> Basis:
         sample_cells=cells,
         sample_weights=data["sample_weights"],
         sample_sigma=data["sample_sigma"],
+        error_lambda=data["error_lambda"],
+        error_modes=None if data["error_modes"] is None else data["error_modes"][rows],
     )
 
 

@@ -70,12 +70,21 @@ raised where the solver does not know the time).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import time
+from collections import OrderedDict
 from dataclasses import dataclass
 
 import numpy as np
+
+# SLEPc (the modes' solver) loaded by every rank that loads this module, used or not: loaded on
+# some ranks of the world only, it hangs the exit (PETSc's clean-up at exit waits in an
+# MPI_Comm_dup on those ranks while the others are in MPI_Finalize; measured with a basis
+# trained on rank 0 alone, a hyper-reduced sweep's under mpirun -n 2, whose members then read
+# the modes from its file).
+from slepc4py import SLEPc  # noqa: F401
 
 from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.common.log import LOGGER
@@ -174,38 +183,123 @@ def full_residual(solver, rows: np.ndarray | None = None, shift=None) -> np.ndar
     return F
 
 
+#: The modes of (10.5) of this process's last runs (λ, Φ), by what determines them
+#: (:func:`modes_key`): a sweep's members on one rod share one set-up. At most :data:`KEPT`
+#: (a riser of 10⁴ elements: 43 MB a set of 30 modes).
+_MODES: OrderedDict[str, tuple[np.ndarray, np.ndarray]] = OrderedDict()
+KEPT = 2
+#: How many times this process has solved for the modes (SLEPc): the set-ups not cached.
+SOLVES = [0]
+
+
+def rod_key(model, t: float) -> dict:
+    """What K and M about the straight rod (ModalOperator at ``t``) depend on: the rod
+    (length, section, material), its reference, model constants (ω0, the inertia), supports,
+    damping, the discretisation and the components U holds; and the loads whose virtual work
+    is not linear in the state (torques, end and point loads, which give K a load stiffness:
+    cosserat_fem/analysis/modal.py), with the parameters and t when there are any. Force
+    densities and gravity, in fixed directions, do no work that is not linear in the
+    displacement: a sweep over their amplitude or frequency shares the modes."""
+    d = model.scene.to_dict()
+    loads = {
+        k: v for k, v in (d.get("loads") or {}).items() if k not in ("force_density", "gravity")
+    }
+    torque = loads.get("torque_density")
+    if isinstance(torque, list) and all(str(x).strip() in ("0", "0.0") for x in torque):
+        loads.pop("torque_density")
+    stiff = bool(loads)
+    return {
+        **{k: d.get(k) for k in ("rod", "reference", "model", "supports", "damping")},
+        "discretisation": d.get("discretisation"),
+        "components": [int(c) for c in model.layout.components],
+        "loads": loads,
+        "parameters": d.get("parameters") if stiff else None,
+        "t": float(t) if stiff else None,
+    }
+
+
+def stored_key(model, t: float) -> str:
+    """The SHA-256 of :func:`rod_key`, kept in a basis file beside the modes it stores
+    (basis.py): a run on another rod solves its own."""
+    text = json.dumps(rod_key(model, t), sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def modes_key(model, t: float, count: int, lu_package: str, n: int) -> str:
+    """The process cache's key (:data:`_MODES`): :func:`rod_key`, the modes asked for, the LU
+    package, this rank's rows and the ranks."""
+    comm = model.msh.comm
+    extra = {"count": count, "lu": lu_package, "rows": [n, comm.rank, comm.size]}
+    return json.dumps({**rod_key(model, t), **extra}, sort_keys=True, default=str)
+
+
 class ErrorModes:
     """The first ``count`` normal modes of the rod about the straight state (10.5): K φ = λ M φ
     with K, M = D⁻¹ K_sym, D⁻¹ M_sym of cosserat_fem/analysis/modal.py (the balance rows over
     their inertia, as F's rows; supports as K's identity rows and M's zero rows, their λ
-    infinite), solved once by SLEPc (shift-and-invert about 0, about −1 for a mechanism, whose
+    infinite), solved by SLEPc (shift-and-invert about 0, about −1 for a mechanism, whose
     rigid-body modes are then left out; a closed rod's shapes S φ as modal.join_ends's), each
     φ_j scaled to φ_jᵀ D M φ_j = 1 (D = diag of the kinetic weights: D M = M_sym symmetric, so
-    φ_jᵀ D K φ_l = λ_j δ_jl). ``n``: U's owned rows; ``places``: where U's p rows sit in the
-    6-component space of K; ``ends``: the local 6-space rows of the free end's x/ℓ, y/ℓ, z/ℓ
-    (empty on the ranks without it). Planar runs: the modes out of the plane get no forcing."""
+    φ_jᵀ D K φ_l = λ_j δ_jl); ``stored``: (λ, Φ on U's owned rows) of a basis file
+    (``source`` "basis", :func:`stored_modes`: K and M are not even assembled), else solved once a
+    process for a rod (:func:`modes_key`: a run that finds them
+    has ``source`` "cached"; every rank of the communicator must find them, else all solve).
+    ``n``: U's owned rows; ``places``: where U's p rows sit in the 6-component space of K;
+    ``ends``: the local 6-space rows of the free end's x/ℓ, y/ℓ, z/ℓ (empty on the ranks
+    without it). Planar runs: the modes out of the plane get no forcing."""
 
-    def __init__(self, model, t: float, count: int, lu_package: str, n: int):
-        from cosserat_fem.analysis.modal import (
-            ModalOperator,
-            _kinetic_weights,
-            max_modes,
-            shift_invert,
-        )
+    def __init__(self, model, t: float, count: int, lu_package: str, n: int, stored=None):
+        from mpi4py import MPI
+
+        from cosserat_fem.analysis.modal import _kinetic_weights
         from cosserat_fem.rom.basis import state_rows
 
         self.comm = model.msh.comm
-        problem = ModalOperator(model, t).problem()
-        K, M, joint = problem.K, problem.M, problem.joint
         layout = model.layout
         self.p_rows, self.q_rows = state_rows(layout, n)
         p_entries = np.asarray(layout.components[: layout.p_count])
         nodes = n // layout.size
         self.places = (np.arange(nodes)[:, None] * 6 + p_entries[None, :]).ravel()
         self.D = np.tile(_kinetic_weights(model), nodes)  # D on this rank's 6-space rows
-        sigma = problem.P.tabulate_dof_coordinates()[:nodes, 0]
+        # the 6- and 12-component spaces share their node numbering (modal.ModalOperator)
+        sigma = model.V.tabulate_dof_coordinates()[:nodes, 0]
         tip = np.flatnonzero(np.isclose(sigma, 1.0))
         self.ends = (6 * tip[:1, None] + np.arange(3)[None, :]).ravel()
+        key = modes_key(model, t, count, lu_package, n)
+        found = _MODES.get(key)
+        hit = found is not None
+        if self.comm.size > 1:
+            hit = bool(self.comm.allreduce(int(hit), op=MPI.MIN))
+        self.source = "cached" if hit else "solved"
+        if stored is not None:  # (λ, Φ on U's rows) of a basis file, this rank's rows
+            lam, on_rows = stored
+            self.lam = np.asarray(lam, dtype=float)[:count]
+            self.Phi = np.zeros((len(self.D), len(self.lam)))
+            self.Phi[self.places] = on_rows[self.p_rows, : len(self.lam)]
+            self.source = "basis"
+        elif hit and found is not None:
+            _MODES.move_to_end(key)
+            self.lam, self.Phi = found
+        else:
+            self.lam, self.Phi = self._solve(model, t, count, lu_package)
+            SOLVES[0] += 1
+            _MODES[key] = (self.lam, self.Phi)
+            while len(_MODES) > KEPT:
+                _MODES.popitem(last=False)
+        self.DPhi = (self.D[:, None] * self.Phi)[self.places]  # on U's p rows' places
+
+    def on_rows(self, n: int) -> np.ndarray:
+        """Φ on U's n owned rows (p's rows; zero on q's): what a basis file stores."""
+        out = np.zeros((n, len(self.lam)))
+        out[self.p_rows] = self.Phi[self.places]
+        return out
+
+    def _solve(self, model, t: float, count: int, lu_package: str):
+        """(λ, Φ) of the class docstring, by SLEPc (collective)."""
+        from cosserat_fem.analysis.modal import ModalOperator, max_modes, shift_invert
+
+        problem = ModalOperator(model, t).problem()
+        K, M, joint = problem.K, problem.M, problem.joint
         most = max_modes(model.scene)
         count = min(count, most)
         eps = shift_invert(problem, count, min(max(2 * count + 10, 30), most), 1e-10, lu_package)
@@ -230,9 +324,7 @@ class ErrorModes:
         pairs = [p for p in sorted(pairs, key=lambda p: p[0])[rigid:] if p[0] > 0]
         if not pairs:
             raise SolverError("no normal mode found for the error indicator", where="indicator")
-        self.lam = np.array([pair[0] for pair in pairs])
-        self.Phi = np.column_stack([pair[1] for pair in pairs])
-        self.DPhi = (self.D[:, None] * self.Phi)[self.places]  # on U's p rows' places
+        return np.array([pair[0] for pair in pairs]), np.column_stack([pair[1] for pair in pairs])
 
     def _sum(self, local: np.ndarray) -> np.ndarray:
         return self.comm.allreduce(local) if self.comm.size > 1 else local
@@ -247,6 +339,31 @@ class ErrorModes:
         return self.Phi @ eta
 
 
+def basis_modes(model, n: int, count: int | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
+    """The modes of (10.5) for a basis file (cosserat_fem/rom/basis.py ``pod_basis``): λ, Φ on
+    U's n owned rows, and the provenance entry {"key": :func:`stored_key`, "modes": N} that a
+    run checks before it uses them (the training's start time; collective)."""
+    from cosserat_fem.nls.newton import NewtonSolver
+
+    t = model.scene.time.start
+    count = DEFAULT.modes if count is None else count
+    lu = NewtonSolver._lu_package(model.msh.comm, "auto")
+    modes = ErrorModes(model, t, count, lu, n)
+    entry = {"key": stored_key(model, t), "asked": count, "modes": len(modes.lam)}
+    return modes.lam, modes.on_rows(n), entry
+
+
+def stored_modes(basis, model, t: float, count: int):
+    """(λ, Φ on U's rows) of ``basis`` if it stores the first ``count`` modes (it asked for as
+    many or more) of this rod (:func:`stored_key` at ``t``), else None: solved at run time."""
+    entry = basis.provenance.get("error_modes")
+    if basis.error_modes is None or basis.error_lambda is None or not isinstance(entry, dict):
+        return None
+    if entry.get("key") != stored_key(model, t) or count > int(entry.get("asked", 0)):
+        return None
+    return basis.error_lambda, basis.error_modes
+
+
 def coordinate_ranges(coordinates: np.ndarray, norms: np.ndarray) -> dict:
     """The provenance entry of a basis's training range: ``coordinates`` (2k, T) the reduced
     coordinates c = Vᵀ W u_i of the T snapshots, ``norms`` (T,) their W-norms."""
@@ -257,10 +374,10 @@ def coordinate_ranges(coordinates: np.ndarray, norms: np.ndarray) -> dict:
     }
 
 
-def outside_range(c: np.ndarray, ranges: dict, modes: int, margin: float) -> list[int]:
-    """The coordinates of c (2k: the basis's first ``modes`` of p, then of its rate) that leave
-    the training range (``ranges`` of :func:`coordinate_ranges`, of 2K ≥ 2k coordinates) by
-    more than ``margin`` times the largest amplitude of the training's p-coordinates."""
+def range_limits(ranges: dict, modes: int, margin: float):
+    """(lo, hi, slack) of :func:`outside_range`: the training's range of the basis's first
+    ``modes`` coordinates of p and of its rate and how far each may leave it (computed once a
+    run)."""
     lo, hi = np.asarray(ranges["min"], dtype=float), np.asarray(ranges["max"], dtype=float)
     K = len(lo) // 2
     kept = np.r_[0:modes, K : K + modes]
@@ -269,8 +386,18 @@ def outside_range(c: np.ndarray, ranges: dict, modes: int, margin: float) -> lis
     slack = np.empty_like(amplitude)
     slack[:modes] = margin * amplitude[:modes].max()
     slack[modes:] = margin * amplitude[modes:].max()
-    beyond = np.maximum(c - hi, lo - c)
-    return [int(j) for j in np.flatnonzero(beyond > slack)]
+    return lo, hi, slack
+
+
+def outside_range(c: np.ndarray, ranges: dict, modes: int, margin: float) -> list[int]:
+    """The coordinates of c (2k: the basis's first ``modes`` of p, then of its rate) that leave
+    the training range (``ranges`` of :func:`coordinate_ranges`, of 2K ≥ 2k coordinates) by
+    more than ``margin`` times the largest amplitude of the training's p-coordinates."""
+    return _beyond(c, *range_limits(ranges, modes, margin))
+
+
+def _beyond(c: np.ndarray, lo: np.ndarray, hi: np.ndarray, slack: np.ndarray) -> list[int]:
+    return [int(j) for j in np.flatnonzero(np.maximum(c - hi, lo - c) > slack)]
 
 
 def _loads(scene) -> str:
@@ -310,6 +437,7 @@ class ErrorIndicator(Observer):
         self._saturated = False  # the transport blew up (:data:`BLOWN`)
         self._t_new = 0.0
         self.modes: ErrorModes | None = None
+        self.modes_from = ""  # the modes "solved" (SLEPc), "cached" (this process's), or "basis"
 
     # -- set-up --------------------------------------------------------------------------
     def started(self, loop) -> None:
@@ -324,7 +452,12 @@ class ErrorIndicator(Observer):
         self.stage_weights = None if weights is None else np.asarray(weights, dtype=float)
         self.omega0 = model.omega0
         self._tau = loop.state.t * self.omega0
-        self.modes = ErrorModes(model, loop.state.t, self.settings.modes, solver.lu_package, n)
+        t, count = loop.state.t, self.settings.modes
+        stored = stored_modes(self.basis, model, t, count)
+        self.modes = ErrorModes(model, t, count, solver.lu_package, n, stored)
+        self.modes_from = self.modes.source
+        m = self.modes  # V's rows of the free end's x/ℓ, y/ℓ, z/ℓ (of U's p rows)
+        self._tip_V = self.basis.V[m.p_rows[np.isin(m.places, m.ends)]]
         count = len(self.modes.lam)
         self._eta, self._rate = np.zeros(count), np.zeros(count)
         self._g, self._coupling = np.zeros(count), np.zeros(count)
@@ -337,6 +470,9 @@ class ErrorIndicator(Observer):
             "max": np.asarray(ranges["max"], dtype=float),
             "largest_norm": float(ranges["largest_norm"]),
         }
+        self._limits = self._ranges and range_limits(
+            self._ranges, self.basis.modes, self.settings.margin
+        )
         trained = [run.get("loads") for run in provenance.get("runs", []) if "loads" in run]
         known = [json.dumps(x, sort_keys=True) for x in trained]
         if trained and _loads(model.scene) not in known:
@@ -425,13 +561,15 @@ class ErrorIndicator(Observer):
             self._eta, self._rate, self._tau, self._g = eta, rate, tau, g
             self._coupling, self._first = coupling, False
         self._pending = None
-        basis = self.basis
-        loop.lift()
-        u = loop.model.U.x.array[: len(basis.weights)] - basis.reference
-        u6 = np.zeros(len(self.modes.D))
-        u6[self.modes.places] = u[self.modes.p_rows]
+        basis, space = self.basis, loop.space
         with np.errstate(over="ignore", invalid="ignore"):
-            local = self._sums(e, u, u6)
+            if space.reduced:  # U = U_ref + V c: its sums from c, nothing lifted
+                local = self._sums_reduced(e, space.values(loop.model.U))
+            else:
+                u = loop.model.U.x.array[: len(basis.weights)] - basis.reference
+                u6 = np.zeros(len(self.modes.D))
+                u6[self.modes.places] = u[self.modes.p_rows]
+                local = self._sums(e, u, u6)
         both = self.comm.allreduce(local) if self.comm.size > 1 else local
         self._errors2 += max(float(both[-5]), 0.0)
         self._norms2 += max(float(both[-4]), 0.0)
@@ -466,6 +604,28 @@ class ErrorIndicator(Observer):
             ]
         )
 
+    def _sums_reduced(self, e: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """:meth:`_sums` of U = U_ref + V c in reduced coordinates (serial), O(k) but for e's:
+        c itself, u_end = V_end c, and the W-norms ‖u_p‖_W² = Σ_{j≤k} c_j², ‖u‖_W² = Σ c_j²
+        (Vᵀ W V = I), equal to the lifted state's to round-off."""
+        modes, ell, w, k = self.modes, self.length, self.basis.weights, self.basis.modes
+        assert modes is not None, "started comes first"
+        ends, places, p = modes.ends, modes.places, modes.p_rows
+        ep = e[places]
+        u_end = self._tip_V @ c
+        return np.concatenate(
+            [
+                c,
+                [
+                    float(np.sum((ell * e[ends]) ** 2)),
+                    float(np.sum((ell * u_end) ** 2)),
+                    float(ep @ (w[p] * ep)),
+                    float(c[:k] @ c[:k]),
+                    float(c @ c),
+                ],
+            ]
+        )
+
     def _check_range(self, c: np.ndarray, norm: float, t: float) -> None:
         """Flags a state outside the training's range (module docstring)."""
         ranges, margin = self._ranges, self.settings.margin
@@ -480,7 +640,7 @@ class ErrorIndicator(Observer):
                 norm=norm,
                 largest=largest,
             )
-        beyond = outside_range(c, ranges, self.basis.modes, margin)
+        beyond = _beyond(c, *self._limits)
         if beyond:
             self._flag(
                 "coordinates",
@@ -533,6 +693,7 @@ class ErrorIndicator(Observer):
                     "values": list(self.values),
                     "wall_time_s": self.seconds,
                     "setup_wall_time_s": self.setup_seconds,
+                    "modes_from": self.modes_from,
                 },
                 "outside_training": list(self.outside),
             }
