@@ -655,9 +655,16 @@ class ErrorIndicator(Observer):
         return self.values[-1] if self.values else 0.0
 
     @property
+    def _settled(self) -> int:
+        """The first sample counted: after the first quarter of them, and never the first of
+        several (E there divides by a state still near rest: 1.0 in a run of 3 samples)."""
+        n = len(self.values)
+        return max(1, n // 4) if n > 1 else 0
+
+    @property
     def largest(self) -> float:
         """The largest E after the first quarter of the samples (module docstring)."""
-        settled = self.values[len(self.values) // 4 :]
+        settled = self.values[self._settled :]
         return max(settled) if settled else 0.0
 
     def ended(self, loop, failure) -> None:
@@ -668,7 +675,7 @@ class ErrorIndicator(Observer):
             failure.message = failure._compose()
             failure.args = (failure.message,)
         if self.largest > s.tolerance:
-            start = len(self.values) // 4
+            start = self._settled
             at = self.times[start + int(np.argmax(self.values[start:]))]
             LOGGER.warning(
                 "reduced run: estimated relative error %.3g exceeds the tolerance %.3g (t = "

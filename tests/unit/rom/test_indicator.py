@@ -12,6 +12,7 @@ import pytest
 
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.rom.indicator import (
+    ErrorIndicator,
     IndicatorSettings,
     coordinate_ranges,
     oscillator_step,
@@ -104,3 +105,19 @@ def test_settings_refuse_bad_values_in_one_line(key, value):
 def test_settings_refuse_infinity():
     with pytest.raises(SceneError, match="indicator.tolerance"):
         IndicatorSettings(tolerance=math.inf)
+
+
+def test_the_largest_estimate_leaves_out_the_first_samples():
+    """E's maximum (``rom.indicator.max``, the tolerance's test) leaves out the first quarter
+    of the samples and always the first of several: a run of 3 samples whose first is the
+    ratio of two near-zero norms (1.0) reports the largest of the others (before: 1.0, and a
+    warning for every member of a short sweep); one sample is kept."""
+    indicator = ErrorIndicator()
+    indicator.values = [1.0, 1.4e-3, 4.1e-4]
+    assert indicator.largest == 1.4e-3
+    indicator.values = [1.0, 2e-3, 3e-3, 1e-3, 5e-4, 4e-4, 3e-4, 2e-4]
+    assert indicator.largest == 3e-3  # the first two (a quarter) left out
+    indicator.values = [7e-3]
+    assert indicator.largest == 7e-3
+    indicator.values = []
+    assert indicator.largest == 0.0
