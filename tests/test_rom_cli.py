@@ -63,7 +63,10 @@ def test_rom_run_is_cf_rom_run_and_restarts(basis_file, tmp_path):
     starts with a fresh J_r where the straight one keeps its frozen one: each of the 100
     steps after the restart stops within stol of its solution, and the rod's stable dynamics
     do not amplify it; measured 1.5e-8 relative); ``run --restart`` (the full model) and a
-    restart on another basis are refused in one line."""
+    restart on another basis are refused in one line. The continued run's summary keeps the
+    indicator's samples of both parts (the same times as the straight run's; the first
+    part's values the straight run's, the same computation, to 1e-6: the restart's probes
+    agree to 1e-8) and the restart's time."""
     out = tmp_path / "reduced"
     proc = cli("rom", "run", str(PAPER), *SHORT, "--basis", str(basis_file), "--out", str(out))
     assert proc.returncode == 0, proc.stderr
@@ -107,6 +110,15 @@ def test_rom_run_is_cf_rom_run_and_restarts(basis_file, tmp_path):
     continued = probes(half)
     assert continued.shape == mine.shape
     assert np.abs(continued[:, 1:4] - mine[:, 1:4]).max() <= 100 * 1e-7 * scale
+    # the indicator's record spans both parts: the first part's samples and largest E kept,
+    # the restart's time listed (each part carries its error from zero again)
+    first = json.loads((half / "summary.json").read_text())["rom"]["indicator"]
+    whole = summary["rom"]["indicator"]
+    assert first["times"] == pytest.approx(whole["times"], rel=1e-12)
+    assert first["restarts"] == [pytest.approx(0.003, rel=1e-12)]
+    assert first["values"][: len(first["values"]) // 2] == pytest.approx(
+        whole["values"][: len(whole["values"]) // 2], rel=1e-6
+    )
 
 
 def test_two_ranks_equal_one(basis_file, tmp_path):

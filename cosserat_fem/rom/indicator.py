@@ -416,8 +416,12 @@ class ErrorIndicator(Observer):
     #: The time loop lifts U in full before this observer's hooks only when it asks.
     needs_full_state = False
 
-    def __init__(self, settings: IndicatorSettings | None = None):
+    def __init__(self, settings: IndicatorSettings | None = None, previous: dict | None = None):
+        """``previous``: the ``rom`` entry of the summary of the run this one continues (a
+        restart): its samples, flags and restarts are kept before this part's."""
         self.settings = settings or IndicatorSettings()
+        self.previous = previous if isinstance(previous, dict) else {}
+        self.restarted_at: float | None = None
         self.times: list[float] = []
         self.values: list[float] = []
         self.outside: list[dict] = []
@@ -442,6 +446,8 @@ class ErrorIndicator(Observer):
     # -- set-up --------------------------------------------------------------------------
     def started(self, loop) -> None:
         t0 = time.perf_counter()
+        if self.previous:
+            self.restarted_at = float(loop.state.t)
         solver, model = loop.solver, loop.model
         self.solver, self.basis = solver, solver.basis
         self.comm = model.msh.comm
@@ -686,22 +692,34 @@ class ErrorIndicator(Observer):
             )
 
     def summary_entries(self) -> dict:
-        """summary.json's ``rom`` entry (observers.py's RunSummary puts it in)."""
+        """summary.json's ``rom`` entry (observers.py's RunSummary puts it in). A restarted
+        run's keeps the earlier parts' samples, largest E and flags before its own, and lists
+        the times it was restarted at (``restarts``): each part carries the error in the modes
+        from zero again (the modes' state is not in the checkpoint), so a part's E does not
+        count the error made before it."""
         s = self.settings
+        before = self.previous.get("indicator") if self.previous else None
+        before = before if isinstance(before, dict) else {}
+        largest = max(self.largest, float(before.get("max", 0.0) or 0.0))
+        restarts = list(before.get("restarts", []))
+        if self.restarted_at is not None:
+            restarts.append(self.restarted_at)
+        outside = list(self.previous.get("outside_training", []) or []) if self.previous else []
         return {
             "rom": {
                 "indicator": {
-                    "max": self.largest,
+                    "max": largest,
                     "final": self.final,
                     "tolerance": float(s.tolerance),
-                    "exceeded": self.largest > s.tolerance,
+                    "exceeded": largest > s.tolerance,
                     "every": s.every,
-                    "times": list(self.times),
-                    "values": list(self.values),
+                    "times": [*before.get("times", []), *self.times],
+                    "values": [*before.get("values", []), *self.values],
+                    "restarts": restarts,
                     "wall_time_s": self.seconds,
                     "setup_wall_time_s": self.setup_seconds,
                     "modes_from": self.modes_from,
                 },
-                "outside_training": list(self.outside),
+                "outside_training": [*outside, *self.outside],
             }
         }

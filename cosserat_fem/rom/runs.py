@@ -413,8 +413,8 @@ def run(
         raise SceneError(
             f"indicator: must be IndicatorSettings or None, got {type(indicator).__name__}"
         )
-    own = [ErrorIndicator(indicator)] if indicator is not None else []
     path = check_basis_file(basis)
+    held = None
     if restart is not None:
         held = recorded_basis(restart.run_dir)
         if held is None:
@@ -428,6 +428,7 @@ def run(
                 f"--basis: not the basis the run in {str(restart.run_dir)!r} was started with "
                 f"({held['basis'].get('file')})"
             )
+    own = [ErrorIndicator(indicator, previous=held)] if indicator is not None else []
     out = out_folder(out)
     return run_scene(
         scene,
