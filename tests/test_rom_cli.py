@@ -337,13 +337,18 @@ def test_bad_input_is_one_line(tmp_path, capsys, argv, fragment):
 
 
 def test_a_basis_of_another_mesh_or_rest_state_is_refused(basis_file, tmp_path, capsys):
-    """A basis of the 8-element scene run on 12 elements, and training on two scenes whose
-    rest states differ (8 and 12 elements: U_ref is not shared), are refused in one line
-    naming the key (exit 2)."""
+    """A basis of the 8-element scene run (or validated) on 12 elements, and training on two
+    scenes whose rest states differ (8 and 12 elements: U_ref is not shared), are refused in
+    one line naming the key (exit 2), the run before its folder is made and the validation
+    before its full run."""
     argv = ["rom", "run", str(PAPER), *SHORT, "--set", "discretisation.elements=12"]
     assert main([*argv, "--basis", str(basis_file), "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "elements" in err[0] and "paper.npz" in err[0], err
+    assert not (tmp_path / "r").exists()  # refused before its folder is made
+    argv = ["rom", "validate", str(PAPER), *SHORT, "--set", "discretisation.elements=12"]
+    assert main([*argv, "--basis", str(basis_file), "--out", str(tmp_path / "v")]) == 2
+    assert "elements" in capsys.readouterr().err and not (tmp_path / "v").exists()
     other = tmp_path / "twelve.toml"
     text = PAPER.read_text().replace("elements = 8 ", "elements = 12")
     other.write_text(text.replace("end = 0.06 ", "end = 0.0003"))

@@ -366,16 +366,45 @@ def recorded_basis(folder: str | Path) -> dict | None:
     return rom if isinstance(rom, dict) and rom.get("model") == "reduced" else None
 
 
-def check_basis_file(basis) -> Path | None:
+def check_basis_file(basis, scene=None) -> Path | None:
     """The .npz of a basis file's path (None for a Basis in memory); SceneError naming
-    --basis if there is no such file."""
+    --basis if there is no such file, and, given the ``scene`` it is to run, one naming the
+    file if its .json says it was made for other elements, degree or supports, or for one
+    rank (ECSW's sampling) under mpirun: what the scene alone decides, checked before any
+    folder is made or run is done (basis.read_basis checks the whole space at the run)."""
+    from mpi4py import MPI
+
     from cosserat_fem.rom.basis import Basis, basis_paths
 
     if isinstance(basis, Basis):
         return None
-    path = basis_paths(basis)[0]
+    path, meta = basis_paths(basis)
     if not path.is_file():
         raise SceneError(f"--basis: no basis file {str(path)!r}")
+    if scene is None:
+        return path
+    try:
+        document = json.loads(safe_files.read_text(meta))
+        space = document["space"]
+        provenance = document.get("provenance", {})
+    except (OSError, ValueError, KeyError, TypeError):
+        return path  # read_basis says why, in one line, at the run
+    supports = json.loads(json.dumps(scene.to_dict().get("supports"), sort_keys=True, default=str))
+    expected = {
+        "elements": scene.discretisation.elements,
+        "degree": scene.discretisation.degree,
+        "supports": supports,
+    }
+    for name, value in expected.items():
+        if name in space and space[name] != value:
+            raise SceneError(
+                f"basis {str(path)!r}: made for {name} = {space[name]!r}, the scene has "
+                f"{value!r} (rebuild the basis for this scene)"
+            )
+    if isinstance(provenance, dict) and "ecsw" in provenance and MPI.COMM_WORLD.size > 1:
+        raise SceneError(
+            f"basis {str(path)!r}: hyper-reduced (sampled elements), which runs serially only"
+        )
     return path
 
 
@@ -413,7 +442,7 @@ def run(
         raise SceneError(
             f"indicator: must be IndicatorSettings or None, got {type(indicator).__name__}"
         )
-    path = check_basis_file(basis)
+    path = check_basis_file(basis, scene if comm is None else None)
     held = None
     if restart is not None:
         held = recorded_basis(restart.run_dir)
@@ -507,7 +536,8 @@ def validate(
     targets = chosen_targets(scenes, sweep, members)
     if not targets:
         raise SceneError("rom validate: give a SCENE or --sweep FILE")
-    check_basis_file(basis)
+    for target in targets:  # every target's basis refusal before any run or folder
+        check_basis_file(basis, target.scene)
     out = out_folder(out)
     comm = MPI.COMM_WORLD
     table = None if out is None else out / VALIDATION
