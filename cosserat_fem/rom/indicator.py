@@ -99,7 +99,7 @@ from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.common.log import LOGGER
 from cosserat_fem.timestepping.events import Observer
 
-#: C of (10.7): 1, nothing calibrated (measured E/error 0.41-2.48 over the checks of
+#: C of (10.7): 1, nothing calibrated (measured E/error 0.41-2.43 over the checks of
 #: docs/rom.md §10); a larger C makes the estimate more conservative.
 CONSTANT = 1.0
 
