@@ -47,9 +47,18 @@ modes, which the residual hardly forces, grows through it: without δ, E/error f
 
     δ = F_q(p + e_p, q) − F_q(p, q) − K e_p                                          (10.8)
 
-(one more assembly of F at the stage value with p moved by e_p; φ_jᵀ D K e = λ_j η_j), held
-until the next sample, so the forcing's coupling part is explicit; it forces only the modes
-the sampling resolves (:data:`RESOLVED`).
+(one more assembly of F at the stage value with p moved by e_p; φ_jᵀ D K e = λ_j η_j); it
+forces only the modes the sampling resolves (:data:`RESOLVED`). Between two samples the
+coupling's forcing c is taken linear, as the residual's, from c_n at the last sample to
+c_{n+1} at the new one (a predictor-corrector: η of (10.6) with c held at c_n, c_{n+1} at that
+η, then η again with c linear between them):
+
+    g(s) = g_R,n + c_n + s [(g_R,n+1 − g_R,n) + (c_{n+1} − c_n)]/Δτ,               (10.10)
+
+c_{n+1} kept for the next interval (no second assembly). Held at c_n instead, the coupling (a
+stiffness: δ ≈ (K_T(u) − K) e) lags the error by half an interval, a delayed restoring
+force that feeds the mode: near the first resonance, where the deflection and so K_T − K
+are largest, the transport grew 13-16 times past the error (docs/rom.md §10 "At resonance").
 
 **Out of training.** The basis's provenance records the range of the reduced coordinates
 c = Vᵀ W (U − U_ref) over its snapshots (per coordinate, min and max, and the largest W-norm of a
@@ -90,7 +99,7 @@ from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.common.log import LOGGER
 from cosserat_fem.timestepping.events import Observer
 
-#: C of (10.7): 1, nothing calibrated (measured E/error 0.41-2.48 over the checks of
+#: C of (10.7): 1, nothing calibrated (measured E/error 0.41-2.43 over the checks of
 #: docs/rom.md §10); a larger C makes the estimate more conservative.
 CONSTANT = 1.0
 
@@ -514,7 +523,10 @@ class ErrorIndicator(Observer):
         self.seconds += time.perf_counter() - t0
 
     def _advance(self, loop) -> None:
-        """The sampled step's new η, η̇ (kept in ``_pending`` until the step is accepted)."""
+        """The sampled step's new η, η̇ (kept in ``_pending`` until the step is accepted): the
+        forcing of R linear between the samples (10.6), the coupling's too (10.10): predicted
+        with c_n held, corrected with c linear from c_n to c_{n+1} at the predicted η (from the
+        start, c_0 = 0 with e = 0, the first interval is the prediction's)."""
         modes, b = self.modes, self.stage_weights
         assert modes is not None, "started comes first"
         if b is not None and len(b) == len(self._stages):
@@ -529,11 +541,14 @@ class ErrorIndicator(Observer):
         a = self._g + self._coupling
         slope = (g - self._g) / dt if dt > 0 else np.zeros_like(g)
         eta, rate = oscillator_step(self._eta, self._rate, modes.lam, dt, a, slope)
-        e = modes.shape(eta)
         coupling = self._coupling
         if self.settings.coupling:  # −Φᵀ D δ of (10.8): φ_jᵀ D K φ_l = λ_j δ_jl, so K e is Λ η
-            coupling = modes.forcing(self._difference(e)) + modes.lam * eta
+            coupling = modes.forcing(self._difference(modes.shape(eta))) + modes.lam * eta
             coupling = np.where(np.sqrt(modes.lam) * dt <= RESOLVED, coupling, 0.0)
+            if dt > 0 and not self._first:  # (10.10): the coupling linear over the interval
+                turn = slope + (coupling - self._coupling) / dt
+                eta, rate = oscillator_step(self._eta, self._rate, modes.lam, dt, a, turn)
+        e = modes.shape(eta)
         self._pending = (eta, rate, tau, g, coupling, e)
 
     def _difference(self, e: np.ndarray) -> np.ndarray:
