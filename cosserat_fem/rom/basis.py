@@ -121,17 +121,22 @@ class Basis:
         )
 
 
+def supports_of(scene) -> object:
+    """The scene's [supports] as the basis file keeps them (canonical JSON values): what
+    space_of compares, and what a run's scene is checked against before it starts."""
+    return json.loads(json.dumps(scene.to_dict().get("supports"), sort_keys=True, default=str))
+
+
 def space_of(model) -> dict:
     """What a basis's rows must match: the scene's elements and degree, the components U
     holds (the layout), the global number of dofs and the supports (the rows every mode holds
     at zero)."""
-    supports = json.dumps(model.scene.to_dict().get("supports"), sort_keys=True, default=str)
     return {
         "elements": int(model.msh.topology.index_map(1).size_global),
         "degree": int(model.V.ufl_element().degree()),
         "components": [int(c) for c in model.layout.components],
         "dofs": int(model.global_dofs()),
-        "supports": json.loads(supports),  # the Dirichlet rows U_ref + V q holds
+        "supports": supports_of(model.scene),  # the Dirichlet rows U_ref + V q holds
     }
 
 

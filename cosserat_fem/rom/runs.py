@@ -374,7 +374,7 @@ def check_basis_file(basis, scene=None) -> Path | None:
     folder is made or run is done (basis.read_basis checks the whole space at the run)."""
     from mpi4py import MPI
 
-    from cosserat_fem.rom.basis import Basis, basis_paths
+    from cosserat_fem.rom.basis import Basis, basis_paths, supports_of
 
     if isinstance(basis, Basis):
         return None
@@ -389,11 +389,10 @@ def check_basis_file(basis, scene=None) -> Path | None:
         provenance = document.get("provenance", {})
     except (OSError, ValueError, KeyError, TypeError):
         return path  # read_basis says why, in one line, at the run
-    supports = json.loads(json.dumps(scene.to_dict().get("supports"), sort_keys=True, default=str))
     expected = {
         "elements": scene.discretisation.elements,
         "degree": scene.discretisation.degree,
-        "supports": supports,
+        "supports": supports_of(scene),
     }
     for name, value in expected.items():
         if name in space and space[name] != value:
