@@ -46,12 +46,22 @@ _API = (
 )
 
 
+def _watchdog() -> None:
+    """A script's uncaught exception under mpirun ends the job instead of hanging it
+    (cosserat_fem/common/parallel.py :func:`install_exit_watchdog`)."""
+    from cosserat_fem.common.parallel import install_exit_watchdog
+
+    install_exit_watchdog()
+
+
 def __getattr__(name: str):
     if name in _API:
+        _watchdog()
         from cosserat_fem import api
 
         return getattr(api, name)
     if name == "rom":  # the reduced model's functions (cosserat_fem/rom/, docs/rom.md)
+        _watchdog()
         import importlib
 
         return importlib.import_module("cosserat_fem.rom")

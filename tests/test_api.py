@@ -474,3 +474,29 @@ def test_a_restart_end_before_or_at_the_checkpoint_suggests_later_ends(completed
         assert "the checkpoint is at t = 0.0015 s; give a later end" in text
     suggested = [float(v) for v in re.findall(r"time\.end = ([0-9.e-]+)", text)]
     assert all(v > 0.0015 for v in suggested), text
+
+
+# ------------------------------------------------------------------------------ a rank's error
+ONE_RANK_FAILS = """
+import sys
+from mpi4py import MPI
+import cosserat_fem as cf
+scene = cf.load(sys.argv[1])
+if MPI.COMM_WORLD.rank == 1:
+    raise RuntimeError("rank 1 stops here")
+cf.static(scene)  # collective: rank 0 waits in it for rank 1, which never comes
+"""
+
+
+@pytest.mark.mpi
+@pytest.mark.long
+def test_an_uncaught_error_on_one_rank_ends_the_job():
+    """A script under ``mpirun -n 2`` whose rank 1 raises while rank 0 is in a collective call
+    (cf.static builds the mesh) must end, not hang: before the API's exit watchdog
+    (cosserat_fem/common/parallel.py ``install_exit_watchdog``) rank 1 waited in MPI_Finalize
+    and rank 0 in the mesh's collectives until the test's hang limit. It ends within the
+    watchdog's ABORT_AFTER = 10 s after the error (plus two start-ups, ~5 s here; the hang
+    limit here is 120 s), non-zero, with rank 1's traceback. ~15 s."""
+    proc = run_command(["-c", ONE_RANK_FAILS, str(SCENE)], ranks=2, timeout=120)
+    assert proc.returncode != 0
+    assert "RuntimeError: rank 1 stops here" in proc.stderr

@@ -14,10 +14,14 @@ hang the others in their next collective call.
   status 130). An interrupt that no run checks (a compile, a factorisation, a rank waiting
   for another) aborts the job after a few seconds (:func:`abort_later`), unless every rank
   left by then (:func:`cancel_abort`).
+* :func:`install_exit_watchdog` is the Python API's counterpart of :func:`agree_or_abort`: a
+  script under mpirun whose rank leaves with an uncaught exception ends the job within
+  :data:`ABORT_AFTER` s instead of hanging it.
 """
 
 from __future__ import annotations
 
+import signal
 import sys
 import threading
 import time
@@ -164,3 +168,40 @@ def cancel_abort() -> None:
     if _WATCHDOG is not None:
         _WATCHDOG.cancel()
         _WATCHDOG = None
+
+
+#: Whether :func:`install_exit_watchdog` hooked this process.
+_HOOKED = False
+
+
+def install_exit_watchdog(timeout: float = ABORT_AFTER) -> bool:
+    """Under mpirun (more than one rank, main thread): make an uncaught exception end the job
+    within ``timeout`` s even when the other ranks are blocked in a collective call; True if
+    installed (once per process).
+
+    A rank that leaves a script with an exception calls MPI_Finalize at exit, which (Open MPI
+    4.1) waits for every rank: the others, blocked in their next collective call, never come,
+    and the job hangs. Nothing of Python runs by then (its threads are gone, faulthandler's
+    watchdog is cancelled), so the excepthook, after printing the traceback, arms the one
+    timer that outlives the interpreter: ``alarm(timeout)`` with SIGALRM's default action,
+    which kills the process. If every rank leaves in time (all met the same error) the
+    process exits first and the alarm never fires; else mpirun sees the rank killed by
+    signal 14 and ends the job. The command line has its own, :func:`agree_or_abort`."""
+    global _HOOKED
+    if (
+        _HOOKED
+        or MPI.COMM_WORLD.size == 1
+        or threading.current_thread() is not threading.main_thread()
+    ):
+        return False
+    before = sys.excepthook
+
+    def hook(kind, value, traceback) -> None:
+        before(kind, value, traceback)
+        sys.stderr.flush()
+        signal.signal(signal.SIGALRM, signal.SIG_DFL)
+        signal.alarm(max(1, round(timeout)))
+
+    sys.excepthook = hook
+    _HOOKED = True
+    return True

@@ -681,6 +681,8 @@ def sweep_basis(spec: SweepSpec, out: Path, world) -> Path | None:
             problem = None
         except SceneError as exc:
             problem = str(exc)
+        finally:  # the model's mesh holds a duplicate of its own (DOLFINx's MPI::Comm)
+            group.Free()
         found = [p for p in world.allgather(problem) if p] if world.size > 1 else [problem]
         return SceneError(found[0]) if found and found[0] else None
 
