@@ -640,7 +640,11 @@ class TestLyapunov:
         run's (appended as each ends; before, the file was written at the end only, so
         none), the first two stretches the uninterrupted
         run's within the solver's noise (steps × stol × RMS(U) / d0, as above) and each
-        running exponent Σ s_j / (n T) (discard 0) to round-off."""
+        running exponent Σ s_j / (n T) (discard 0) to round-off. poincare.csv keeps its rows
+        too (appended as each period's section is sampled; before, written at the end only,
+        so lost): at least the 3 periods of the intervals done, each row's period and time
+        the uninterrupted run's and its state RMS within the solver's noise (steps × stol ×
+        RMS(U) per period, 3 periods)."""
         import signal
         import subprocess
         import time
@@ -673,6 +677,15 @@ class TestLyapunov:
         running = np.cumsum(stretches) / (np.arange(1, stretches.size + 1) * T)
         got = np.array([float(r["running_exponent"]) for r in table])
         assert np.allclose(got, running, rtol=1e-12, atol=0)
+        from cosserat_fem.io.poincare import read_poincare
+
+        _, section = read_poincare(out / "poincare.csv")
+        assert len(section) >= 3
+        expected = result.poincare[:3]
+        np.testing.assert_array_equal(section[:3, 0], expected[:, 0])
+        np.testing.assert_allclose(section[:3, 1], expected[:, 1], rtol=1e-14, atol=0)
+        rms_noise = 3 * self.STEPS * STOL * expected[:, -1].max()
+        assert np.all(np.abs(section[:3, -1] - expected[:, -1]) <= rms_noise)
 
     def test_a_failed_run_says_why_in_summary_json(self, case, tmp_path):
         """solver.max_iterations = 1: the first step's Newton fails (exit 3, one line with the

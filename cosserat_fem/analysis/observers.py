@@ -583,8 +583,9 @@ class PoincareSection(Observer):
     O(Δt⁴ ‖∂⁴U/∂t⁴‖), Δt = time.step, below the error of the integrators of order ≤ 3 (and
     SDIRK4's own), so that a section between output times is as good as one on them. ``rows``
     (on every rank after the run): (j, t_j, probe values, state_rms); with ``path``,
-    poincare.csv written whole there at the run's end (by the probe's rank; a run killed
-    before its end leaves none)."""
+    poincare.csv there, each row appended as it is sampled (so that a run killed by SIGTERM
+    or SIGKILL keeps the rows so far) and the file written whole again at the run's end (the
+    same bytes: cosserat_fem/io/poincare.py ``poincare_bytes``)."""
 
     def __init__(
         self,
@@ -600,6 +601,7 @@ class PoincareSection(Observer):
         self.period, self.phase, self.path, self.sigma = float(period), float(phase), path, sigma
         self._buffer: deque[tuple[float, np.ndarray]] = deque(maxlen=4)
         self._rows: list[np.ndarray] = []
+        self._appended = False  # poincare.csv made, with its header (at the first row)
         self.rows: np.ndarray | None = None
         self.columns: tuple[str, ...] = ()
 
@@ -655,8 +657,27 @@ class PoincareSection(Observer):
         owned = state[: self.owned]
         rms = np.sqrt(self.comm.allreduce(float(owned @ owned)) / self.entries)
         values = self.probe.values()
-        if values is not None:
-            self._rows.append(np.concatenate([[self.next, t], values, [rms]]))
+        row = None if values is None else np.concatenate([[self.next, t], values, [rms]])
+        if row is not None:
+            self._rows.append(row)
+        if self.path is not None:
+            self._append(row)
+
+    def _append(self, row: np.ndarray | None) -> None:
+        """The probe owner's ``row`` appended to poincare.csv by rank 0 (the header with the
+        first); collective, the ranks agree on a failure."""
+        from cosserat_fem.analysis.branch_outputs import append_on_root, replace_on_root
+        from cosserat_fem.io.poincare import poincare_bytes
+
+        if self.comm.size > 1:
+            row = self.comm.bcast(row, root=self.probe.owner)
+        assert row is not None and self.path is not None, "the probe's owner sampled it"
+        text = poincare_bytes(self.columns, row)
+        if self._appended:
+            append_on_root(self.path, text[text.index(b"\n") + 1 :], self.comm)
+        else:
+            replace_on_root(self.path, text, self.comm)
+        self._appended = True
 
     def ended(self, loop, failure) -> None:
         from cosserat_fem.common.parallel import agree

@@ -1,6 +1,7 @@
 """poincare.csv: a Poincaré section of a periodically forced run, one row a forcing period,
-written whole at the run's end beside probes.csv (:func:`poincare_bytes`, by the observer
-cosserat_fem/analysis/observers.py ``PoincareSection``) and read back without DOLFINx
+appended a row at a time and written whole at the run's end beside probes.csv
+(:func:`poincare_bytes`, by the observer cosserat_fem/analysis/observers.py
+``PoincareSection``) and read back without DOLFINx
 (:func:`read_poincare`).
 
 The format, and its names, are kept here and nowhere else: the header
