@@ -541,6 +541,13 @@ class RodModel:
                 reference=self.reference_form(),
                 ds={"start": self.ds(START_TAG), "end": self.ds(END_TAG)},
                 vector=lambda exprs: self._vector(exprs, sym, time_eval),
+                Udot=Udot_eval,
+                omega0=self.omega0,
+                gravity=(
+                    self.load_factor * ufl.as_vector(self.scene.loads.gravity)
+                    if self.scene.loads.has_gravity
+                    else None
+                ),
             )
             for name, load in form_loads:
                 physics = importlib.import_module(f"{forms.__name__}.{load.physics}")
