@@ -471,8 +471,12 @@ class RodModel:
         sym = self._symbols(time_eval)
         loads = self.scene.loads
         force = self._vector(loads.force_density, sym, time_eval)
-        if loads.has_gravity:  # the weight ρ A g [N/m], a force density f of (36), fixed basis
-            weight = self.rod.density * self.rod.section.area
+        if loads.has_gravity:  # the weight μ g [N/m], a force density f of (36), fixed basis
+            law = self.rod.law  # μ = a general law's mass_per_length (of s), else ρ A
+            if law is not None and law.mass_per_length is not None:
+                weight = law.mass_per_length
+            else:
+                weight = self.rod.density * self.rod.section.area
             gravity = self.load_factor * ufl.as_vector([weight * g for g in loads.gravity])
             force = gravity if force is None else force + gravity
         distributed = DistributedLoads(
