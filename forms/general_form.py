@@ -116,7 +116,10 @@ class LoadContext:
     the ``chart`` (None: the fixed basis), the rest configuration ``reference`` (None: the
     straight rod, forms/reference.py), the boundary measure of each end by name ("start",
     "end"), and ``vector``, which makes a load vector of the scene (expressions of t, data)
-    a UFL 3-vector times the load factor, or None when it is zero."""
+    a UFL 3-vector times the load factor, or None when it is zero; ``Udot`` the state's
+    τ-derivative, ``omega0`` ω0 [rad/s] of τ = ω0 t (47) and ``gravity`` g [m/s²] times the
+    load factor (a UFL 3-vector, None without gravity), for loads that carry inertia or
+    weight (forms/rigid_body.py)."""
 
     U: ufl.core.expr.Expr
     V: ufl.core.expr.Expr
@@ -126,6 +129,9 @@ class LoadContext:
     reference: Reference | None
     ds: dict[str, ufl.Measure]
     vector: Callable[[tuple], ufl.core.expr.Expr | None]
+    Udot: ufl.core.expr.Expr | None = None
+    omega0: float = 1.0
+    gravity: ufl.core.expr.Expr | None = None
 
 
 @dataclass(frozen=True)

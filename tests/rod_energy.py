@@ -39,7 +39,21 @@ class EnergyMonitor:
         chart = model.chart_form() if model.chart_moved else None
         U, rod, dx = model.layout.full(model.U), model.rod, model.dx
         reference = model.reference_form()
-        self._T = fem.form(kinetic_energy_density(U, rod, reference) * dx)
+        kinetic = kinetic_energy_density(U, rod, reference) * dx
+        body = model.scene.loads.body
+        if body is not None:  # a rigid body at an end: its T_B (forms/rigid_body.py)
+            from cosserat_fem.forms import rigid_body
+            from cosserat_fem.forms.general_form import LoadContext
+
+            from cosserat_fem.rod.model import END_TAG, START_TAG
+
+            tag = START_TAG if body.end == "start" else END_TAG
+            context = LoadContext(
+                U=U, V=None, groups=model.groups, convention=None, chart=chart,
+                reference=reference, ds={}, vector=None, omega0=model.omega0,
+            )  # fmt: skip
+            kinetic = kinetic + rigid_body.kinetic_energy(body, context) * model.ds(tag)
+        self._T = fem.form(kinetic)
         self._V = fem.form(strain_energy_density(U, rod, chart, reference) * dx)
         distributed, ends = model.load_vectors(self.tau)
         power = None

@@ -471,8 +471,12 @@ class RodModel:
         sym = self._symbols(time_eval)
         loads = self.scene.loads
         force = self._vector(loads.force_density, sym, time_eval)
-        if loads.has_gravity:  # the weight ρ A g [N/m], a force density f of (36), fixed basis
-            weight = self.rod.density * self.rod.section.area
+        if loads.has_gravity:  # the weight μ g [N/m], a force density f of (36), fixed basis
+            law = self.rod.law  # μ = a general law's mass_per_length (of s), else ρ A
+            if law is not None and law.mass_per_length is not None:
+                weight = law.mass_per_length
+            else:
+                weight = self.rod.density * self.rod.section.area
             gravity = self.load_factor * ufl.as_vector([weight * g for g in loads.gravity])
             force = gravity if force is None else force + gravity
         distributed = DistributedLoads(
@@ -541,6 +545,13 @@ class RodModel:
                 reference=self.reference_form(),
                 ds={"start": self.ds(START_TAG), "end": self.ds(END_TAG)},
                 vector=lambda exprs: self._vector(exprs, sym, time_eval),
+                Udot=Udot_eval,
+                omega0=self.omega0,
+                gravity=(
+                    self.load_factor * ufl.as_vector(self.scene.loads.gravity)
+                    if self.scene.loads.has_gravity
+                    else None
+                ),
             )
             for name, load in form_loads:
                 physics = importlib.import_module(f"{forms.__name__}.{load.physics}")

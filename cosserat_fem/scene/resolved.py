@@ -11,7 +11,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from cosserat_fem.common.errors import SceneError
+from cosserat_fem.common.errors import SceneError, show_value
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.groups import RodConstants, euler_bernoulli_omega0
 from cosserat_fem.forms.section import (
@@ -519,6 +519,71 @@ class SemitangentialEndTorque(FormLoad):
 
 
 @dataclass(frozen=True, kw_only=True)
+class RigidBody(FormLoad):
+    """[loads.body]: a rigid body fixed to the ``end`` ("start" or "end") of the rod, whose
+    weight (with [loads] gravity) and inertia act on it (forms/rigid_body.py): ``mass`` m
+    [kg]; its inertia tensor about its centre of mass [kg m²], principal-axis entries
+    ``inertia`` (J11, J22, J33) and ``products`` (J23, J13, J12), and its centre's ``offset``
+    c [m] from the end's centroid, all in the components of the end's directors at rest
+    (d0_i; e_i for the straight rod). Numbers."""
+
+    physics: ClassVar[str] = "rigid_body"
+
+    end: str = key(Choice(choices=("start", "end"), default="end"))
+    mass: float = key(Number(interval=POSITIVE, unit="kg", required=True))
+    inertia: tuple[float, ...] = key(Vector(default=ZERO3, unit="kg m^2"))
+    products: tuple[float, ...] = key(Vector(default=ZERO3, unit="kg m^2"))
+    offset: tuple[float, ...] = key(Vector(default=ZERO3, unit="m"))
+
+    def inertia_tensor(self) -> list[list[float]]:
+        """J_C [kg m²], rows in the end's director components at rest."""
+        (j1, j2, j3), (j23, j13, j12) = self.inertia, self.products
+        return [[j1, j12, j13], [j12, j2, j23], [j13, j23, j3]]
+
+    def offset_vector(self) -> list[float]:
+        """c [m], in the end's director components at rest."""
+        return list(self.offset)
+
+    def check(self, key: str, supports: Supports) -> None:
+        """Numbers; an inertia tensor of a body: zero (a point mass) or positive definite
+        with its principal moments obeying the triangle inequalities (J_i ≤ J_j + J_k:
+        J = ∫ (|x|² I − x xᵀ) dm)."""
+        import numpy as np
+
+        for name in ("inertia", "products", "offset"):
+            for i, x in enumerate(getattr(self, name)):
+                if isinstance(x, bool) or not isinstance(x, int | float) or not np.isfinite(x):
+                    raise SceneError(
+                        f"{key}.{name}[{i}]: must be a finite number, got {show_value(x)}"
+                    )
+        J = np.array(self.inertia_tensor(), dtype=float)
+        if not J.any():
+            return
+        moments = np.linalg.eigvalsh(J)
+        scale = float(np.abs(moments).max())
+        if moments[0] <= 1e-12 * scale:
+            raise SceneError(
+                f"{key}.inertia: not positive definite with the products (smallest principal "
+                f"moment {moments[0]:.3g} kg m^2)"
+            )
+        if moments[2] > moments[0] + moments[1] + 1e-12 * scale:
+            raise SceneError(
+                f"{key}.inertia: not a rigid body's: the principal moments "
+                f"{', '.join(f'{m:.3g}' for m in moments)} kg m^2 break J3 <= J1 + J2"
+            )
+
+    def in_plane(self, normal: tuple[int, ...], torques: tuple[int, ...]) -> bool:
+        """In a plane of motion the body keeps it if its centre lies in the plane (no offset
+        along the normal) and its rotation about the plane's normal is a principal one (no
+        product of inertia with that axis)."""
+        (k,) = [i for i in range(3) if i not in torques]
+        J = self.inertia_tensor()
+        return all(self.offset[n] == 0 for n in normal) and all(
+            J[k][i] == 0 for i in range(3) if i != k
+        )
+
+
+@dataclass(frozen=True, kw_only=True)
 class Loads:
     """Distributed force [N/m] and torque [N m/m] (functions of s, t), end loads and a point
     load."""
@@ -537,6 +602,8 @@ class Loads:
     semitangential: SemitangentialEndTorque | None = table(
         SemitangentialEndTorque, optional=True, default=None
     )
+    #: a rigid body fixed to an end: its weight and inertia act there (forms/rigid_body.py)
+    body: RigidBody | None = table(RigidBody, optional=True, default=None)
 
     @property
     def has_gravity(self) -> bool:

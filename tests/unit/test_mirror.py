@@ -57,6 +57,7 @@ INTEGRATION_ONLY: dict[str, str] = {
     "forms.energy": "tests/test_energy.py",
     "forms.follower": "tests/test_follower.py",
     "forms.semitangential": "tests/test_greenhill.py",
+    "forms.rigid_body": "tests/test_rigid_body.py",
     "forms.general_form": "tests/test_forms.py",
     "forms.groups": "tests/test_forms.py",
     "forms.kinematics": "tests/test_forms.py",
