@@ -308,38 +308,46 @@ def _row(text: str, width: int) -> bool:
 # ================================================================================ geometry
 @dataclass(frozen=True)
 class Axis:
-    """The reference axis of the key points: ``length`` [m], and ``radius`` [m] for an arc
-    (None: straight)."""
+    """The reference axis of the key points: ``length`` [m], ``radius`` [m] for an arc (None:
+    straight), and ``twist`` [rad] (BeamDyn's initial_twist, about −Z_r) as a number or an
+    expression of s, or None (untwisted)."""
 
     length: float
     radius: float | None = None
+    twist: float | str | None = None
 
 
 def reference_axis(case: BeamDynCase) -> Axis:
-    """The rest shape of the key points: a straight line along Z_r from the origin, or a
-    circular arc in the X_r-Z_r plane leaving the origin along Z_r and bending towards +X_r
-    (this code's ``arc``). BeamDyn fits cubic splines through each member's key points; for
-    these two shapes the curve meant is the line or the circle, and a spline of three points
-    only approximates the circle (docs/beamdyn.md: the 45° bend). Any other key points are
-    refused naming the table."""
+    """The rest shape of the key points: a straight line along Z_r from the origin, twisted
+    or not, or an untwisted circular arc in the X_r-Z_r plane leaving the origin along Z_r
+    and bending towards +X_r (this code's ``arc``). BeamDyn fits its reference line and twist
+    through each member's key points (a cubic spline, later a least-squares polynomial); for
+    these shapes the line meant is the line or the circle, and the twist is taken linear
+    between the key points (docs/beamdyn.md). Any other key points are refused naming the
+    table."""
     kp = case.key_points
     where = case.where("kp_xr")
-    if np.any(kp[:, 3] != 0.0):
-        row = int(np.flatnonzero(kp[:, 3])[0])
-        raise SceneError(
-            f"{where}: initial_twist: key point {row + 1} has a twist of {kp[row, 3]} deg; only "
-            "an untwisted axis is taken in this version (docs/beamdyn.md)"
-        )
     points = kp[:, :3]
     if np.any(points[0] != 0.0):
         raise SceneError(f"{where}: kp_xr: the first key point (the root) must be the origin")
     chord = np.linalg.norm(points[-1])
     if chord == 0.0:
         raise SceneError(f"{where}: kp_zr: the key points do not leave the root")
+    twisted = bool(np.any(kp[:, 3] != 0.0))
     if np.all(np.abs(points[:, :2]) <= SHAPE_TOLERANCE * chord) and np.all(
         np.diff(points[:, 2]) > 0
     ):
-        return Axis(float(points[-1, 2]))
+        length = float(points[-1, 2])
+        twist = None
+        if twisted:
+            twist = piecewise_linear(points[:, 2] / length, np.radians(kp[:, 3]), length)
+        return Axis(length, twist=twist)
+    if twisted:
+        row = int(np.flatnonzero(kp[:, 3])[0])
+        raise SceneError(
+            f"{where}: initial_twist: key point {row + 1} has a twist of {kp[row, 3]} deg; a "
+            "twist is taken on a straight axis only in this version (docs/beamdyn.md)"
+        )
     # a circle through the root tangent to e3 in the x-z plane: centre (R, 0, 0),
     # (x - R)^2 + z^2 = R^2, i.e. R = (x^2 + z^2) / (2 x) at every other key point
     x, y, z = points[1:, 0], points[1:, 1], points[1:, 2]
@@ -437,17 +445,21 @@ def section_table(case: BeamDynCase, length: float) -> dict[str, Any]:
 
 
 # ================================================================================ the scene
-def scene_of(case: BeamDynCase, name: str | None = None) -> dict[str, Any]:
-    """The scene (TOML tables) of ``case``: the rod clamped at the root, its rest shape
+def scene_of(
+    case: BeamDynCase, name: str | None = None, retardation_time: float | None = None
+) -> dict[str, Any]:
+    """The scene (TOML tables) of ``case``: the rod clamped at the root (at the origin: GlbPos,
+    a translation of the whole blade, moves no displacement), its rest shape
     (:func:`reference_axis`), the section law of the stations (:func:`section_table`), the
     driver's dead loads (gravity as the force density μ(s) g), static load steps or the time
-    span, and the tip's directors among the probe's columns (for BeamDyn's TipRD). Refuses
-    in one line what this rod cannot take (docs/beamdyn.md)."""
-    if np.any(case.frame != np.eye(3)) or any(case.origin):
-        key = "GlbDCM" if np.any(case.frame != np.eye(3)) else "GlbPos(1)"
+    span, and the tip's directors among the probe's columns (for BeamDyn's TipRD). A dynamic
+    case's damping is BeamDyn's (:func:`_damping`) or, given ``retardation_time`` [s], that
+    Kelvin–Voigt time in its place (a stated approximation of unequal μ_i). Refuses in one
+    line what this rod cannot take (docs/beamdyn.md)."""
+    if np.any(case.frame != np.eye(3)):
         raise SceneError(
-            f"{case.where(key)}: {key}: only the global frame equal to the blade frame is taken "
-            "(GlbDCM the identity, GlbPos zero)"
+            f"{case.where('GlbDCM')}: GlbDCM: only the global frame equal to the blade frame "
+            "is taken (GlbDCM the identity)"
         )
     if any(case.root_velocity):
         raise SceneError(
@@ -498,6 +510,12 @@ def scene_of(case: BeamDynCase, name: str | None = None) -> dict[str, Any]:
     }
     if axis.radius is not None:
         scene["reference"] = {"shape": "arc", "radius": axis.radius}
+    elif axis.twist is not None:  # d0_1 turned by the twist about -e3
+        scene["reference"] = {
+            "shape": "curve",
+            "position": [0.0, 0.0, "s"],
+            "director": [f"cos({axis.twist})", f"-sin({axis.twist})", 0.0],
+        }
     if case.dynamic:
         if mass is None:
             raise SceneError(f"{case.where('DynamicSolve')}: DynamicSolve: a blade of zero mass")
@@ -508,7 +526,9 @@ def scene_of(case: BeamDynCase, name: str | None = None) -> dict[str, Any]:
             "integrator": "generalized-alpha",
             "rho_inf": case.rho_inf,
         }
-        scene["damping"] = _damping(case)
+        scene["damping"] = (
+            _damping(case) if retardation_time is None else {"retardation_time": retardation_time}
+        )
     else:
         scene["static"] = {"load_steps": 20}
         scene["time"] = {"end": case.dt, "step": case.dt}

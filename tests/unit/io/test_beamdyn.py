@@ -69,10 +69,29 @@ def test_the_rest_shapes_of_the_key_points():
     bent[1, 0] = 9.0  # off the circle by 1.4 m
     with pytest.raises(SceneError, match=r"^bd_primary.inp:25: kp_xr: the key points are neither"):
         reference_axis(dataclasses.replace(curved, key_points=bent))
-    twisted = straight.key_points.copy()
+    twisted = curved.key_points.copy()
     twisted[2, 3] = 5.0
     with pytest.raises(SceneError, match=r"^bd_primary.inp:25: initial_twist: key point 3"):
-        reference_axis(dataclasses.replace(straight, key_points=twisted))
+        reference_axis(dataclasses.replace(curved, key_points=twisted))
+
+
+def test_the_five_mw_blade_twist_and_damping():
+    """bd_5MW_dynamic_gravity_Az00: 49 key points on Z_r with a twist of 13.308° at the root
+    to 0 at the tip, read as an expression of s equal to the key points' twist [rad] at each
+    key point (1e-12); its rest frame a curve with d0_1 = (cos φ, −sin φ, 0); the six unequal
+    damping coefficients refused for a dynamic run unless a retardation time is given."""
+    case = read_case(DATA / "bd_5MW_dynamic_gravity_Az00" / "bd_driver.inp")
+    assert len(case.stations) == 49 and case.dynamic and case.origin == (0.0, 0.0, 1.0)
+    axis = reference_axis(case)
+    assert axis.length == 61.5 and isinstance(axis.twist, str)
+    z, twist = case.key_points[:, 2], np.radians(case.key_points[:, 3])
+    got = Expression.parse(axis.twist, {"s"}).evaluate(s=z)
+    np.testing.assert_allclose(got, twist, rtol=0, atol=1e-12)
+    with pytest.raises(SceneError, match=r"^beam_props.inp:9: mu1: the six damping"):
+        scene_of(case)
+    scene = scene_of(case, retardation_time=1.4e-3)
+    assert scene["damping"] == {"retardation_time": 1.4e-3}
+    assert scene["reference"]["director"][1] == f"-sin({axis.twist})"
 
 
 def test_stations_are_piecewise_linear_in_s():
@@ -112,7 +131,8 @@ def test_a_mass_centre_off_the_axis_is_refused_naming_the_entry():
 
 
 def test_driver_entries_the_rod_cannot_take_are_refused():
-    """A rotated global frame, a rotating root, point loads: one line each naming the key."""
+    """A rotated global frame, a rotating root, point loads: one line each naming the key (a
+    root moved by GlbPos is taken: a translation moves no displacement)."""
     case = read_case(DATA / "bd_isotropic_rollup" / "bd_driver.inp")
     frame = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     for change, key in (
