@@ -558,7 +558,8 @@ def _damping(case: BeamDynCase) -> dict[str, float]:
     if len(set(case.damping)) != 1:
         raise SceneError(
             f"{case.where('mu1')}: mu1: the six damping coefficients must be equal to be a "
-            f"Kelvin-Voigt retardation time, got {list(case.damping)}"
+            f"Kelvin-Voigt retardation time, got {list(case.damping)}; state one in their "
+            "place with --set damping.retardation_time=T (docs/beamdyn.md)"
         )
     return {"retardation_time": case.damping[0]} if case.damping[0] > 0.0 else {}
 
