@@ -4,9 +4,10 @@
 ``cosserat-fem lyapunov SCENE --period EXPR --periods N`` (cosserat_fem/analysis/orbit_runs.py),
 ``cosserat-fem rom build|run|validate`` for reduced models of POD modes
 (cosserat_fem/rom/runs.py; docs/rom.md §11),
-``cosserat-fem sweep SWEEP [--out DIR]`` for the members of a sweep file
-(cosserat_fem/studies/sweep_run.py), and ``cosserat-fem run --restart DIR [--set time.end=...]`` to
-continue a stopped run;
+``cosserat-fem beamdyn DRIVER [--out DIR]`` for a case of BeamDyn's input files
+(cosserat_fem/io/beamdyn.py), ``cosserat-fem sweep SWEEP [--out DIR]`` for the members of a
+sweep file (cosserat_fem/studies/sweep_run.py), and ``cosserat-fem run --restart DIR
+[--set time.end=...]`` to continue a stopped run;
 ``cosserat-fem plot|render RUN_DIR [--out DIR]`` draw a run's outputs (plot: a sweep's table
 too; no DOLFINx needed), and ``cosserat-fem pod RUN_DIR [--modes K] [--out DIR]`` gives the
 Karhunen–Loève (POD) modes of a run's XDMF frames (cosserat_fem/studies/karhunen_loeve.py; no
@@ -150,6 +151,16 @@ def _parser() -> argparse.ArgumentParser:
         "is used; --set may change time.end, time.max_halvings, solver.*, output.checkpoint*)",
     )
     _common(sub.add_parser("static", help="static equilibrium by load stepping"))
+    _common(
+        sub.add_parser(
+            "beamdyn", help="read a BeamDyn case (its driver input) and run it (docs/beamdyn.md)"
+        ),
+        texts={
+            "metavar": "DRIVER",
+            "scene": "BeamDyn's stand-alone driver input (bd_driver.inp), naming the primary file",
+            "out": "output folder (default: results/<the driver's folder name>)",
+        },
+    )
     _common(
         sub.add_parser(
             "validate", help="check a scene and print it resolved, with units, doing no work"
@@ -601,6 +612,37 @@ def _static(args) -> int:
             f"({result.bisections} halvings), {sum(result.iterations)} Newton iterations"
         )
         _say("  probe: " + ", ".join(f"{n} = {v:.10g}" for n, v in zip(P_NAMES, tip, strict=True)))
+    return 0
+
+
+def _beamdyn(args) -> int:
+    """``beamdyn``: the BeamDyn case of a driver input (cosserat_fem/io/beamdyn.py) run as its
+    driver says, static (load stepping) or dynamic (in time), through the Python API; the tip's
+    displacement and rotation as BeamDyn's TipTD and TipRD (Wiener-Milenkovic) channels."""
+    from mpi4py import MPI
+
+    from cosserat_fem import api
+    from cosserat_fem.io.beamdyn import read_case, scene_of, tip_of
+
+    case = read_case(args.scene)
+    # --set damping.retardation_time=T states the damping in place of BeamDyn's (unequal μ)
+    given = [o.partition("=")[2] for o in args.overrides if o.startswith("damping.retardation")]
+    try:
+        tau = float(given[-1]) if given else None
+    except ValueError:
+        raise SceneError(f"damping.retardation_time: a number [s], got {given[-1]!r}") from None
+    scene = api.load(scene_of(case, retardation_time=tau), args.overrides)
+    out = args.out if args.out is not None else scene.output.directory
+    if case.dynamic:
+        result = api.run(scene, out, record=True)
+    else:
+        result = api.static(scene, out)
+    tip = tip_of(scene, result.probes[-1])
+    if MPI.COMM_WORLD.rank == 0 and not args.quiet:
+        kind = "dynamic" if case.dynamic else "static"
+        _say(f"cosserat-fem: BeamDyn case {case.driver} ({kind}), outputs in {out}")
+        for name, values in tip.items():
+            _say(f"  {name}xr, yr, zr = " + ", ".join(f"{v:.10g}" for v in values))
     return 0
 
 
@@ -1071,6 +1113,8 @@ def _main(args) -> int:
             return _modes(args)
         if args.command == "static":
             return _static(args)
+        if args.command == "beamdyn":
+            return _beamdyn(args)
         if args.command == "stability":
             return _stability(args)
         if args.command == "continue":
