@@ -48,10 +48,12 @@ PROBE_HEADER = ",".join(PROBE_COLUMNS)
 #: The columns that each choice of ``output.probe_fields`` appends to probes.csv, in this order
 #: (the schema's choices): the unit quaternion (q0 the scalar part) of the rotation that takes
 #: e_j to the directors d_j, continued in sign from row to row; the directors' components in
-#: the fixed basis (d1_x = d1 · e1, ...).
+#: the fixed basis (d1_x = d1 · e1, ...); the displacement [m] of the centre of the rigid body
+#: ([loads.body], forms/rigid_body.py) carried by the end the probe is at.
 PROBE_FIELD_COLUMNS = {
     "quaternion": ("q0", "q1", "q2", "q3"),
     "directors": tuple(f"d{j}_{c}" for j in (1, 2, 3) for c in "xyz"),
+    "body": ("body_x", "body_y", "body_z"),
 }
 
 

@@ -51,13 +51,8 @@ def probe_position(scene, s: float) -> list[float]:
 
 
 def probe_sigma(scene) -> float:
-    """The probe point σ of a scene: the free end at s = ℓ, else the free end at s = 0, else
-    mid-span."""
-    if scene.supports.end == "free":
-        return 1.0
-    if scene.supports.start == "free":
-        return 0.0
-    return 0.5
+    """The probe point σ of a scene (cosserat_fem/scene/resolved.py ``Scene.probe_sigma``)."""
+    return scene.probe_sigma
 
 
 class FixedBasisAngles:
@@ -139,6 +134,7 @@ class PointProbe:
         self.columns = probe_columns(tuple(fields))
         self._quaternion = "quaternion" in fields
         self._directors = "directors" in fields
+        self._body = self._body_frame(model, sigma) if "body" in fields else None
         self._last_q: np.ndarray | None = None  # the quaternion of the previous call
         msh = U.function_space.mesh
         self.U = U
@@ -187,7 +183,7 @@ class PointProbe:
         out = np.zeros(len(self.columns) - 1)
         out[self._p] = block[self._slots] * self._scale
         out[3:6] = self.angles(out[None, 3:6], self._chart_value, lambda: [self.sigma])[0]
-        if self._quaternion or self._directors:
+        if self._quaternion or self._directors or self._body is not None:
             D = self.angles.directors(out[None, 3:6])[0]
             at = 6
             if self._quaternion:
@@ -198,7 +194,22 @@ class PointProbe:
                 at += 4
             if self._directors:
                 out[at : at + 9] = D.ravel()
+                at += 9
+            if self._body is not None:  # u_C = u + (D − D0)ᵀ c (forms/rigid_body.py (B1))
+                D0, c = self._body
+                out[at : at + 3] = out[:3] + (D - D0).T @ c
         return out
+
+    @staticmethod
+    def _body_frame(model: RodModel, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+        """(D0, c): the rest directors at the probe point and the offset [m] of the body
+        carried there (the scene's check puts the probe at the body's end)."""
+        scene = model.scene
+        body = scene.loads.body
+        assert body is not None, "the scene's check: probe field body needs [loads.body]"
+        reference = scene.reference
+        D0 = reference.frames(np.array([model.length * sigma]))[0] if reference.curved else None
+        return (np.eye(3) if D0 is None else D0), np.array(body.offset_vector(), dtype=float)
 
     def seed(self, row: np.ndarray) -> None:
         """Continue from a row (t, x, ..., φ, ...) of probes.csv: a restart's last row, so that

@@ -710,6 +710,7 @@ def scene_from_dict(
     _check_end_torques(loads, supports)
     scene = replace(scene, supports=supports)
     _check_point_load(scene)
+    _check_body_probe(scene)
     for _, component in scene.load_components():
         check_span(component, time.start, time.end, scene.static.time, rod.length)
     initial = _build_initial(raw["initial"], supports, scene.expression_names(), time.start)
@@ -896,6 +897,22 @@ def _check_curve(scene: Scene, reference: ReferenceShape) -> None:
         raise SceneError(
             f"reference.position: its radius of curvature at s = {s[i]:.6g} m, "
             f"{1.0 / curvature[i]:.4g} m, must exceed half the section's size, {half:.4g} m"
+        )
+
+
+def _check_body_probe(scene: Scene) -> None:
+    """probes.csv's body columns (output.probe_fields "body") are the centre of the body
+    carried by the end the probe is at: SceneError without one there."""
+    if "body" not in scene.output.probe_fields:
+        return
+    body = scene.loads.body
+    at = {1.0: "end", 0.0: "start"}.get(scene.probe_sigma)
+    if body is None or body.end != at:
+        where = f"the {at} (s = {'ℓ' if at == 'end' else 0})" if at else "mid-span"
+        raise SceneError(
+            'output.probe_fields: "body" is the centre of a [loads.body] at the probe\'s '
+            f"end, but the probe is at {where}"
+            + ("" if body is None else f" and the body at the {body.end}")
         )
 
 

@@ -831,6 +831,16 @@ class Scene:
         given = self.model.reference_frequency
         return given if given is not None else auto_reference_frequency(self.rod)
 
+    @property
+    def probe_sigma(self) -> float:
+        """The probe point σ = s/ℓ (probes.csv): the free end at s = ℓ, else the free end at
+        s = 0, else mid-span."""
+        if self.supports.end == "free":
+            return 1.0
+        if self.supports.start == "free":
+            return 0.0
+        return 0.5
+
     def plane(self) -> str | None:
         """The plane the motion stays in, "x-z" or "y-z" (checked in that order: a scene in
         both moves along the axis only, and x-z keeps clear of the chart limit |θ| < π/2),
