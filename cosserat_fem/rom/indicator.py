@@ -425,11 +425,22 @@ class ErrorIndicator(Observer):
     #: The time loop lifts U in full before this observer's hooks only when it asks.
     needs_full_state = False
 
-    def __init__(self, settings: IndicatorSettings | None = None, previous: dict | None = None):
+    def __init__(
+        self,
+        settings: IndicatorSettings | None = None,
+        previous: dict | None = None,
+        state: dict | None = None,
+    ):
         """``previous``: the ``rom`` entry of the summary of the run this one continues (a
-        restart): its samples, flags and restarts are kept before this part's."""
+        restart): its samples, flags and restarts are kept before this part's. ``state``: the
+        checkpoint's ``indicator`` part (:meth:`checkpoint_parts`), the modes' η, η̇ and the
+        sums of (10.7) at the checkpoint: carried on from there (``carried``), so that the
+        restarted run's E is the straight run's; without it (a checkpoint written before the
+        indicator kept its state, or one of other settings) the modes start from zero again."""
         self.settings = settings or IndicatorSettings()
         self.previous = previous if isinstance(previous, dict) else {}
+        self.state = state if isinstance(state, dict) else None
+        self.carried = False  # the checkpoint's modal state was restored (``state``)
         self.restarted_at: float | None = None
         self.times: list[float] = []
         self.values: list[float] = []
@@ -477,6 +488,9 @@ class ErrorIndicator(Observer):
         self._eta, self._rate = np.zeros(count), np.zeros(count)
         self._g, self._coupling = np.zeros(count), np.zeros(count)
         self._first = True
+        self._flagged = {str(x.get("what")) for x in self.previous.get("outside_training") or []}
+        if self.state is not None:
+            self._restore(self.state)
         self.setup_seconds = time.perf_counter() - t0
         provenance = self.basis.provenance
         ranges = provenance.get("coordinates")  # as arrays once (outside_range takes either)
@@ -493,6 +507,61 @@ class ErrorIndicator(Observer):
         if trained and _loads(model.scene) not in known:
             self._flag("load", loop.state.t, "the scene's loads are none of the training scenes'")
         self.seconds += time.perf_counter() - t0
+
+    # -- checkpoint/restart -----------------------------------------------------------------
+    #: The part of a checkpoint that holds the indicator's state (TimeLoop.state_dict).
+    PART = "indicator"
+
+    def checkpoint_parts(self) -> dict:
+        """{"indicator": its state at the checkpoint}: η, η̇, τ and the forcings g_R, c of the
+        last sample (10.6, 10.10), the sums of (10.7), whether the first sample is still to
+        come or the transport has saturated, and the settings they depend on (``every``,
+        ``modes``, ``coupling``: a restart with other settings starts from zero). Written at
+        the end of a step, where no sampled step is pending."""
+        s = self.settings
+        sums = [self._errors2, self._norms2, self._rod_errors2, self._rod_norms2]
+        return {
+            self.PART: {
+                "eta": self._eta.copy(),
+                "rate": self._rate.copy(),
+                "g": self._g.copy(),
+                "coupling": self._coupling.copy(),
+                "tau": self._tau,
+                "sums": np.array(sums),
+                "first": float(self._first),
+                "saturated": float(self._saturated),
+                "settings": np.array([s.every, s.modes, float(s.coupling)], dtype=float),
+            }
+        }
+
+    def _restore(self, state: dict) -> None:
+        """The inverse of :meth:`checkpoint_parts` (at :meth:`started`, the modes known), when
+        the settings and the modes' count are those of the checkpoint; the earlier parts'
+        samples become this run's first ones (E's running sums continue: ``carried``)."""
+        s = self.settings
+        settings = np.array([s.every, s.modes, float(s.coupling)], dtype=float)
+        eta = np.asarray(state.get("eta", ()), dtype=float)
+        if not (
+            np.array_equal(np.asarray(state.get("settings", ())), settings)
+            and eta.shape == self._eta.shape
+        ):
+            LOGGER.warning(
+                "reduced run: the indicator's state in the checkpoint is of other settings or "
+                "modes; its modes start from zero at the restart"
+            )
+            return
+        self._eta, self._rate = eta.copy(), np.asarray(state["rate"], dtype=float).copy()
+        self._g = np.asarray(state["g"], dtype=float).copy()
+        self._coupling = np.asarray(state["coupling"], dtype=float).copy()
+        self._tau = float(state["tau"])
+        sums = [float(x) for x in np.asarray(state["sums"])]
+        self._errors2, self._norms2, self._rod_errors2, self._rod_norms2 = sums
+        self._first, self._saturated = bool(state["first"]), bool(state["saturated"])
+        before = self.previous.get("indicator") if self.previous else None
+        before = before if isinstance(before, dict) else {}
+        self.times = [float(x) for x in before.get("times", [])]
+        self.values = [float(x) for x in before.get("values", [])]
+        self.carried = True
 
     def _flag(self, what: str, t: float, why: str, **extra) -> None:
         """One warning line and one summary entry per kind of flag (its first time)."""
@@ -709,12 +778,15 @@ class ErrorIndicator(Observer):
     def summary_entries(self) -> dict:
         """summary.json's ``rom`` entry (observers.py's RunSummary puts it in). A restarted
         run's keeps the earlier parts' samples, largest E and flags before its own, and lists
-        the times it was restarted at (``restarts``): each part carries the error in the modes
-        from zero again (the modes' state is not in the checkpoint), so a part's E does not
+        the times it was restarted at (``restarts``). Its modes' state carried on from the
+        checkpoint (``carried``, :meth:`checkpoint_parts`), E is the straight run's; else
+        (an older checkpoint) the part carried the error from zero again, and its E does not
         count the error made before it."""
         s = self.settings
         before = self.previous.get("indicator") if self.previous else None
         before = before if isinstance(before, dict) else {}
+        if self.carried:  # the earlier samples are this run's own (_restore)
+            before = {"restarts": before.get("restarts", [])}
         largest = max(self.largest, float(before.get("max", 0.0) or 0.0))
         restarts = list(before.get("restarts", []))
         if self.restarted_at is not None:
@@ -731,6 +803,7 @@ class ErrorIndicator(Observer):
                     "times": [*before.get("times", []), *self.times],
                     "values": [*before.get("values", []), *self.values],
                     "restarts": restarts,
+                    "carried": self.carried,
                     "wall_time_s": self.seconds,
                     "setup_wall_time_s": self.setup_seconds,
                     "modes_from": self.modes_from,

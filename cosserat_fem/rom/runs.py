@@ -456,7 +456,8 @@ def run(
                 f"--basis: not the basis the run in {str(restart.run_dir)!r} was started with "
                 f"({held['basis'].get('file')})"
             )
-    own = [ErrorIndicator(indicator, previous=held)] if indicator is not None else []
+    state = None if restart is None else restart.parts.get(ErrorIndicator.PART)
+    own = [ErrorIndicator(indicator, held, state)] if indicator is not None else []
     out = out_folder(out)
     return run_scene(
         scene,
