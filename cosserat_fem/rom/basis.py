@@ -38,6 +38,7 @@ import io
 import json
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -82,6 +83,26 @@ class Basis:
     #: "error_modes" the rod they belong to; None: solved when a run needs them.
     error_lambda: np.ndarray | None = None
     error_modes: np.ndarray | None = None
+
+    @cached_property
+    def digest(self) -> str:
+        """The SHA-256 of what a run on the basis computes with, this rank's rows: V's and
+        U_ref's bytes (float64, C order, with their shapes), the supports the modes hold
+        (space["supports"] as canonical JSON) and ECSW's sampled cells and weights if any;
+        computed once (the arrays are not changed after the basis is made: truncated and
+        hyper.ecsw make new ones). The identity of a basis given in memory, as the file's
+        SHA-256 is of a file (runs.basis_identity)."""
+        h = hashlib.sha256()
+        arrays = [self.V, self.reference, self.sample_cells, self.sample_weights]
+        for name, array in zip(("V", "U_ref", "cells", "weights"), arrays, strict=True):
+            if array is None:
+                continue
+            a = np.ascontiguousarray(array, dtype=np.int64 if name == "cells" else np.float64)
+            h.update(f"{name}{a.shape}".encode())
+            h.update(a.tobytes())
+        supports = json.dumps(self.space.get("supports"), sort_keys=True, default=str)
+        h.update(b"supports" + supports.encode())
+        return h.hexdigest()
 
     @property
     def sampled(self) -> bool:
