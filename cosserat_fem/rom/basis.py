@@ -46,7 +46,7 @@ import numpy as np
 from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import OutputError, SceneError
 from cosserat_fem.common.parallel import agree
-from cosserat_fem.rom.indicator import basis_modes, coordinate_ranges
+from cosserat_fem.rom.indicator import basis_modes, coordinate_ranges, load_values
 from cosserat_fem.studies.karhunen_loeve import modes_for_tolerance, snapshot_svd
 from cosserat_fem.timestepping.events import Observer
 
@@ -515,6 +515,7 @@ def train(scenes, tolerance: float, every: int = 1, record: bool = True):
                 "time_s": [s.time.start, s.time.end],
                 "step_s": s.time.step,
                 "loads": s.to_dict().get("loads"),
+                "load_values": load_values(s),
             }
             for s in scenes
         ],

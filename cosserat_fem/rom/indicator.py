@@ -82,6 +82,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
 import time
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -459,6 +460,70 @@ def _loads(scene) -> str:
     return json.dumps(scene.to_dict().get("loads"), sort_keys=True)
 
 
+#: A number written in an expression (not a digit of a name: omega0, f2).
+_NUMBER = re.compile(r"(?<![A-Za-z_0-9.])(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?(?![A-Za-z_0-9])")
+
+
+def load_values(scene) -> dict:
+    """What a run's loads are, for a basis's provenance (each training run's ``load_values``)
+    and the comparison with it (:func:`outside_loads`): ``form``, the loads with every number
+    written in them replaced by "#" (canonical JSON: the expressions' shape), and ``values``,
+    those numbers by name ("loads.force_density[0]#1": the first number of that
+    component's expression, e.g. its amplitude 2e3; "#2" the next, e.g. the 8 of
+    sin(8*omega0*t)) and the scene's [parameters] ("parameters.r"), all as floats."""
+    d = scene.to_dict()
+    values: dict[str, float] = {}
+
+    def form(x, path: str):
+        if isinstance(x, bool) or x is None:
+            return x
+        if isinstance(x, int | float):
+            values[path] = float(x)
+            return "#"
+        if isinstance(x, str):
+            for i, match in enumerate(_NUMBER.finditer(x)):
+                values[f"{path}#{i + 1}"] = float(match.group())
+            return _NUMBER.sub("#", x)
+        if isinstance(x, list | tuple):
+            return [form(v, f"{path}[{i}]") for i, v in enumerate(x)]
+        if isinstance(x, dict):
+            return {k: form(v, f"{path}.{k}") for k, v in sorted(x.items())}
+        return str(x)
+
+    shape = form(d.get("loads"), "loads")
+    for name, value in sorted((d.get("parameters") or {}).items()):
+        values[f"parameters.{name}"] = float(value)
+    return {"form": json.dumps(shape, sort_keys=True), "values": values}
+
+
+def outside_loads(mine: dict, trained: list[dict], margin: float) -> str | None:
+    """Why a run's loads (:func:`load_values`) are outside those of the training runs
+    (``trained``: theirs), or None. Outside: a form none of them has (another expression:
+    a load added, removed or written otherwise), or a value beyond the range [lo, hi] the
+    runs of that form trained on by more than ``margin`` (hi − lo) (+ 1e-12 max(|lo|, |hi|)
+    for round-off), or a parameter they did not have. A range trained on one value (hi = lo)
+    admits that value only: any other amplitude or frequency was not trained, as the text
+    comparison of the loads said before. A range trained on several admits a quarter of its
+    width beyond it (``margin`` 0.25, the coordinates' own, :func:`range_limits`): a sweep's
+    members interpolate, and a step of a quarter of the spacing of the training's ends is
+    what the coordinates' range admits of the states."""
+    same = [run["values"] for run in trained if run.get("form") == mine["form"]]
+    if not same:
+        return "the scene's loads are none of the training scenes' (another expression)"
+    for name, value in mine["values"].items():
+        seen = [v[name] for v in same if name in v]
+        if not seen:
+            return f"{name} = {value:g} was not a parameter of the training"
+        lo, hi = min(seen), max(seen)
+        slack = margin * (hi - lo) + 1e-12 * max(abs(lo), abs(hi))
+        if value < lo - slack or value > hi + slack:
+            return (
+                f"{name} = {value:g} outside the trained range [{lo:g}, {hi:g}] "
+                f"(by more than {margin:g} of its width)"
+            )
+    return None
+
+
 class ErrorIndicator(Observer):
     """The reduced run's error indicator and out-of-training flags (module docstring): an
     observer of a run whose solver is a :class:`~cosserat_fem.rom.galerkin.ReducedSolver`.
@@ -551,10 +616,20 @@ class ErrorIndicator(Observer):
         self._limits = self._ranges and range_limits(
             self._ranges, self.basis.modes, self.settings.margin
         )
-        trained = [run.get("loads") for run in provenance.get("runs", []) if "loads" in run]
-        known = [json.dumps(x, sort_keys=True) for x in trained]
-        if trained and _loads(model.scene) not in known:
-            self._flag("load", loop.state.t, "the scene's loads are none of the training scenes'")
+        runs = [run for run in provenance.get("runs", []) if "loads" in run]
+        if runs and all("load_values" in run for run in runs):  # the numbers trained on
+            why = outside_loads(
+                load_values(model.scene),
+                [run["load_values"] for run in runs],
+                self.settings.margin,
+            )
+            if why is not None:
+                self._flag("load", loop.state.t, why)
+        elif runs:  # a basis of before the numbers: the loads' text
+            known = [json.dumps(run.get("loads"), sort_keys=True) for run in runs]
+            if _loads(model.scene) not in known:
+                why = "the scene's loads are none of the training scenes'"
+                self._flag("load", loop.state.t, why)
         self.seconds += time.perf_counter() - t0
 
     # -- checkpoint/restart -----------------------------------------------------------------

@@ -41,7 +41,7 @@ import numpy as np
 from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.rom.indicator import DEFAULT as DEFAULT_INDICATOR
-from cosserat_fem.rom.indicator import ErrorIndicator, IndicatorSettings
+from cosserat_fem.rom.indicator import ErrorIndicator, IndicatorSettings, load_values
 from cosserat_fem.scene.build import Scene
 from cosserat_fem.timestepping.events import Observer
 
@@ -240,6 +240,8 @@ def train_targets(
                 "time_s": [t.scene.time.start, t.scene.time.end],
                 "time_reached_s": end,  # a forced member ends once settled
                 "step_s": t.scene.time.step,
+                "loads": t.scene.to_dict().get("loads"),
+                "load_values": load_values(t.scene),  # the out-of-training flag's
             }
             for t, end in zip(targets, reached, strict=True)
         ],
