@@ -65,9 +65,10 @@ c = Vᵀ W (U − U_ref) over its snapshots (per coordinate, min and max, and th
 snapshot: basis.py) and the loads of the scenes it was trained on. A run is flagged when a
 coordinate leaves its range by more than ``margin`` times the training's largest coordinate
 (of p, or of its rate), when the state's W-norm exceeds (1 + ``margin``) times the largest
-snapshot's ("amplitude"), or when the scene's loads are none of the training scenes' ("load"):
-one warning line naming what and when (the first time of each), and an entry in summary.json's
-``rom.outside_training``.
+snapshot's ("amplitude"), or when the scene's loads are not what the training ran ("load":
+another form of the expressions, or a number in them or a [parameters] value outside the
+trained range, :func:`outside_loads`): one warning line naming what and when (the first time
+of each), and an entry in summary.json's ``rom.outside_training``.
 
 :class:`ErrorIndicator` is the observer (cosserat_fem/timestepping/events.py) that a reduced run
 (cosserat_fem/rom/runs.py ``run``, cf.rom.run) adds; its
