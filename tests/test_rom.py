@@ -134,6 +134,7 @@ def test_basis_file_round_trip_and_mismatch(tmp_path):
     read = rb.read_basis(tmp_path / "paper.npz", full.model)
     for name in ("V", "reference", "weights", "energies", "tests"):
         assert np.array_equal(getattr(read, name), getattr(basis, name)), name
+    assert read.digest == basis.digest  # the same arrays and supports: the same identity
     document = json.loads(meta.read_text())
     assert document["provenance"]["tolerance"] == 1e-8
     assert document["provenance"]["modes"] == basis.modes
@@ -157,6 +158,36 @@ def test_basis_file_round_trip_and_mismatch(tmp_path):
     with pytest.raises(SolverError) as stopped:
         galerkin.run(scene, basis, observers=[MoveChart()])
     assert "\n" not in str(stopped.value) and "chart" in str(stopped.value)
+
+
+def test_a_basis_in_memory_restarts_only_on_itself(tmp_path):
+    """A reduced run on a Basis given in memory (no file), stopped at 1.5 ms, continues to
+    3 ms on the same Basis, and is refused, in one line naming the basis by its digest, on
+    one whose V differs in one entry by one ulp: Basis.digest hashes V's and U_ref's bytes
+    and the supports, so any change of a bit is another basis (SHA-256 collisions aside),
+    as the file's SHA-256 refuses a changed file (tests/test_rom_cli.py)."""
+    from dataclasses import replace
+
+    scene = cf.load(PAPER, {"time.end": 0.003})
+    basis, _ = rb.train([scene], tolerance=1e-8)
+    half = tmp_path / "half"
+    cf.rom.run(cf.load(PAPER, {"time.end": 0.0015}), basis, half)
+    recorded = json.loads((half / "summary.json").read_text())["rom"]["basis"]
+    assert recorded["file"] is None and recorded["digest"] == basis.digest
+    V = basis.V.copy()
+    row = int(np.argmax(np.abs(V[:, 0])))
+    V[row, 0] = np.nextafter(V[row, 0], np.inf)
+    other = replace(basis, V=V)
+    assert other.digest != basis.digest
+    later, checkpoint = cf.resume(half, {"time.end": 0.003})
+    with pytest.raises(SceneError) as refused:
+        cf.rom.run(later, other, restart=checkpoint)
+    message = str(refused.value)
+    assert "\n" not in message and "not the basis" in message and basis.digest in message
+    later, checkpoint = cf.resume(half, {"time.end": 0.003})
+    continued = cf.rom.run(later, basis, restart=checkpoint)
+    assert continued.summary["status"] == "completed"
+    assert continued.time_reached == pytest.approx(0.003, rel=1e-12)
 
 
 MPI_SCRIPT = """

@@ -77,6 +77,42 @@ def test_indicator_tracks_the_error_on_the_training_scene(short_training):
     assert estimates[0] > estimates[1] > estimates[2]
 
 
+def test_a_sweep_trained_basis_flags_the_amplitudes_it_was_not_trained_on(tmp_path):
+    """A basis trained on a sweep over the amplitude a ∈ {1e3, 2e3} N/m of the paper's load
+    (a a parameter of its expression, 3 ms): a run at a = 1.5e3, inside the trained range,
+    is not flagged "load"; at a = 4e3 = 2 a2, beyond a2 by 2 widths of the range (the flag
+    admits a quarter of one, indicator.outside_loads), it is, in one warning line naming
+    parameters.a and the range [1000, 2000]. The loads' text is the same in all three runs:
+    the text comparison of before saw none of this."""
+    amplitude = "a*sin(pi*s/L)*sin(8*omega0*t)"
+    sweep = tmp_path / "amplitudes.toml"
+    sweep.write_text(
+        f'[sweep]\nscene = "{PAPER}"\n[sweep.set]\n"time.end" = 0.003\n'
+        f'"loads.force_density" = ["{amplitude}", "{amplitude}", 0]\n"parameters.a" = 1e3\n'
+        '[sweep.vary]\n"parameters.a" = [1e3, 2e3]\n'
+    )
+    basis = cf.rom.build(sweep=cf.load_sweep(sweep), tolerance=1e-8)
+    trained = [run["load_values"]["values"]["parameters.a"] for run in basis.provenance["runs"]]
+    assert trained == [1e3, 2e3]
+    flags = {}
+    for a in (1.5e3, 4e3):
+        scene = cf.load(
+            PAPER,
+            {
+                "time.end": 0.003,
+                "loads.force_density": [amplitude, amplitude, 0],
+                "parameters.a": a,
+            },
+        )
+        flags[a] = {
+            e["what"]: e for e in cf.rom.run(scene, basis).summary["rom"]["outside_training"]
+        }
+    assert "load" not in flags[1.5e3]
+    reason = flags[4e3]["load"]["reason"]
+    assert "parameters.a = 4000 outside the trained range [1000, 2000]" in reason
+    assert "\n" not in reason
+
+
 @pytest.mark.parametrize("load", sorted(LOADS))
 def test_indicator_flags_a_load_outside_the_training(short_training, load, caplog, tmp_path):
     """(b) The basis of the paper's run, run under another load (3x larger, at 5 ω0 instead of

@@ -38,6 +38,7 @@ import io
 import json
 import math
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -45,7 +46,7 @@ import numpy as np
 from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import OutputError, SceneError
 from cosserat_fem.common.parallel import agree
-from cosserat_fem.rom.indicator import basis_modes, coordinate_ranges
+from cosserat_fem.rom.indicator import basis_modes, coordinate_ranges, load_values
 from cosserat_fem.studies.karhunen_loeve import modes_for_tolerance, snapshot_svd
 from cosserat_fem.timestepping.events import Observer
 
@@ -82,6 +83,26 @@ class Basis:
     #: "error_modes" the rod they belong to; None: solved when a run needs them.
     error_lambda: np.ndarray | None = None
     error_modes: np.ndarray | None = None
+
+    @cached_property
+    def digest(self) -> str:
+        """The SHA-256 of what a run on the basis computes with, this rank's rows: V's and
+        U_ref's bytes (float64, C order, with their shapes), the supports the modes hold
+        (space["supports"] as canonical JSON) and ECSW's sampled cells and weights if any;
+        computed once (the arrays are not changed after the basis is made: truncated and
+        hyper.ecsw make new ones). The identity of a basis given in memory, as the file's
+        SHA-256 is of a file (runs.basis_identity)."""
+        h = hashlib.sha256()
+        arrays = [self.V, self.reference, self.sample_cells, self.sample_weights]
+        for name, array in zip(("V", "U_ref", "cells", "weights"), arrays, strict=True):
+            if array is None:
+                continue
+            a = np.ascontiguousarray(array, dtype=np.int64 if name == "cells" else np.float64)
+            h.update(f"{name}{a.shape}".encode())
+            h.update(a.tobytes())
+        supports = json.dumps(self.space.get("supports"), sort_keys=True, default=str)
+        h.update(b"supports" + supports.encode())
+        return h.hexdigest()
 
     @property
     def sampled(self) -> bool:
@@ -494,6 +515,7 @@ def train(scenes, tolerance: float, every: int = 1, record: bool = True):
                 "time_s": [s.time.start, s.time.end],
                 "step_s": s.time.step,
                 "loads": s.to_dict().get("loads"),
+                "load_values": load_values(s),
             }
             for s in scenes
         ],

@@ -65,9 +65,10 @@ c = Vᵀ W (U − U_ref) over its snapshots (per coordinate, min and max, and th
 snapshot: basis.py) and the loads of the scenes it was trained on. A run is flagged when a
 coordinate leaves its range by more than ``margin`` times the training's largest coordinate
 (of p, or of its rate), when the state's W-norm exceeds (1 + ``margin``) times the largest
-snapshot's ("amplitude"), or when the scene's loads are none of the training scenes' ("load"):
-one warning line naming what and when (the first time of each), and an entry in summary.json's
-``rom.outside_training``.
+snapshot's ("amplitude"), or when the scene's loads are not what the training ran ("load":
+another form of the expressions, or a number in them or a [parameters] value outside the
+trained range, :func:`outside_loads`): one warning line naming what and when (the first time
+of each), and an entry in summary.json's ``rom.outside_training``.
 
 :class:`ErrorIndicator` is the observer (cosserat_fem/timestepping/events.py) that a reduced run
 (cosserat_fem/rom/runs.py ``run``, cf.rom.run) adds; its
@@ -82,6 +83,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import re
 import time
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -112,7 +114,10 @@ class IndicatorSettings:
     in (at most the discretisation's); ``coupling``: δ of (10.8) (False: δ = 0, the linear
     transport about the straight rod); ``margin``: how far the coordinates may leave the training's
     range (a fraction of the largest coordinate's amplitude, and of the largest snapshot's
-    W-norm) before the run is flagged."""
+    W-norm) before the run is flagged; ``sampled``: in a hyper-reduced run, the modes' forcing
+    from ECSW's sampled elements (10.11) instead of the full residual: a diagnostic, not an
+    estimate (measured 3.6-121 times off the full forcing over the paper's 0.06 s, E/error up
+    to 413: docs/rom.md §10 "Cost")."""
 
     every: int = 10
     tolerance: float = 1e-2
@@ -120,8 +125,12 @@ class IndicatorSettings:
     margin: float = 0.25
     modes: int = 30
     coupling: bool = True
+    sampled: bool = False
 
     def __post_init__(self) -> None:
+        for name in ("coupling", "sampled"):
+            if not isinstance(getattr(self, name), bool):
+                raise SceneError(f"indicator.{name}: must be true or false")
         if isinstance(self.every, bool) or not isinstance(self.every, int) or self.every < 1:
             raise SceneError(f"indicator.every: must be a whole number >= 1, got {self.every!r}")
         if isinstance(self.modes, bool) or not isinstance(self.modes, int) or self.modes < 1:
@@ -348,6 +357,44 @@ class ErrorModes:
         return self.Phi @ eta
 
 
+class SampledDefect:
+    """The modes' forcing from ECSW's sampled elements E and weights ξ_e of a hyper-reduced
+    run (cosserat_fem/rom/hyper.py (10)), in place of the full residual's:
+
+        Φᵀ D R ≈ Σ_{e∈E} ξ_e (T_e)ᵀ F_e(U_e),   T = D Φ on U's rows of q,         (10.11)
+
+    the sampled problem's kernels (cf_reduced_residual, the solver's own, on the rows of U it
+    keeps current) with the test functions T of the N modes instead of D V: O(|E| n_e N) a
+    stage, nothing O(n). ``projected(shift)``: that sum at U + Φ η on p's rows (δ of (10.8),
+    U's rows the sampled elements read moved and restored)."""
+
+    def __init__(self, solver, modes: ErrorModes, n: int):
+        self.ffi, self.lib = solver._ffi, solver._lib
+        self.problem = solver._R.F
+        self.U = solver.U.x.array
+        count = len(modes.lam)
+        self.T = np.zeros((n, count))
+        self.T[modes.q_rows] = modes.DPhi
+        self.rows = np.asarray(solver._arrays["rows"])
+        self.shapes = modes.on_rows(n)[self.rows]  # Φ on the sampled rows (zero on q's)
+        self.r = np.zeros(count)
+        self._T = self.ffi.cast("double*", self.T.ctypes.data)
+        self._r = self.ffi.cast("double*", self.r.ctypes.data)
+
+    def projected(self, eta: np.ndarray | None = None) -> np.ndarray:
+        """Σ_{e∈E} ξ_e T_eᵀ F_e (10.11) at U (with ``eta``: at U + Φ η on the sampled rows)."""
+        rows = self.rows
+        if eta is not None:
+            kept = self.U[rows].copy()
+            self.U[rows] += self.shapes @ eta
+        try:
+            self.lib.cf_reduced_residual(self.problem, self._T, len(self.r), self._r, self.ffi.NULL)
+        finally:
+            if eta is not None:
+                self.U[rows] = kept
+        return self.r.copy()
+
+
 def basis_modes(model, n: int, count: int | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """The modes of (10.5) for a basis file (cosserat_fem/rom/basis.py ``pod_basis``): λ, Φ on
     U's n owned rows, and the provenance entry {"key": :func:`stored_key`, "modes": N} that a
@@ -414,6 +461,70 @@ def _loads(scene) -> str:
     return json.dumps(scene.to_dict().get("loads"), sort_keys=True)
 
 
+#: A number written in an expression (not a digit of a name: omega0, f2).
+_NUMBER = re.compile(r"(?<![A-Za-z_0-9.])(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?(?![A-Za-z_0-9])")
+
+
+def load_values(scene) -> dict:
+    """What a run's loads are, for a basis's provenance (each training run's ``load_values``)
+    and the comparison with it (:func:`outside_loads`): ``form``, the loads with every number
+    written in them replaced by "#" (canonical JSON: the expressions' shape), and ``values``,
+    those numbers by name ("loads.force_density[0]#1": the first number of that
+    component's expression, e.g. its amplitude 2e3; "#2" the next, e.g. the 8 of
+    sin(8*omega0*t)) and the scene's [parameters] ("parameters.r"), all as floats."""
+    d = scene.to_dict()
+    values: dict[str, float] = {}
+
+    def form(x, path: str):
+        if isinstance(x, bool) or x is None:
+            return x
+        if isinstance(x, int | float):
+            values[path] = float(x)
+            return "#"
+        if isinstance(x, str):
+            for i, match in enumerate(_NUMBER.finditer(x)):
+                values[f"{path}#{i + 1}"] = float(match.group())
+            return _NUMBER.sub("#", x)
+        if isinstance(x, list | tuple):
+            return [form(v, f"{path}[{i}]") for i, v in enumerate(x)]
+        if isinstance(x, dict):
+            return {k: form(v, f"{path}.{k}") for k, v in sorted(x.items())}
+        return str(x)
+
+    shape = form(d.get("loads"), "loads")
+    for name, value in sorted((d.get("parameters") or {}).items()):
+        values[f"parameters.{name}"] = float(value)
+    return {"form": json.dumps(shape, sort_keys=True), "values": values}
+
+
+def outside_loads(mine: dict, trained: list[dict], margin: float) -> str | None:
+    """Why a run's loads (:func:`load_values`) are outside those of the training runs
+    (``trained``: theirs), or None. Outside: a form none of them has (another expression:
+    a load added, removed or written otherwise), or a value beyond the range [lo, hi] the
+    runs of that form trained on by more than ``margin`` (hi − lo) (+ 1e-12 max(|lo|, |hi|)
+    for round-off), or a parameter they did not have. A range trained on one value (hi = lo)
+    admits that value only: any other amplitude or frequency was not trained, as the text
+    comparison of the loads said before. A range trained on several admits a quarter of its
+    width beyond it (``margin`` 0.25, the coordinates' own, :func:`range_limits`): a sweep's
+    members interpolate, and a step of a quarter of the spacing of the training's ends is
+    what the coordinates' range admits of the states."""
+    same = [run["values"] for run in trained if run.get("form") == mine["form"]]
+    if not same:
+        return "the scene's loads are none of the training scenes' (another expression)"
+    for name, value in mine["values"].items():
+        seen = [v[name] for v in same if name in v]
+        if not seen:
+            return f"{name} = {value:g} was not a parameter of the training"
+        lo, hi = min(seen), max(seen)
+        slack = margin * (hi - lo) + 1e-12 * max(abs(lo), abs(hi))
+        if value < lo - slack or value > hi + slack:
+            return (
+                f"{name} = {value:g} outside the trained range [{lo:g}, {hi:g}] "
+                f"(by more than {margin:g} of its width)"
+            )
+    return None
+
+
 class ErrorIndicator(Observer):
     """The reduced run's error indicator and out-of-training flags (module docstring): an
     observer of a run whose solver is a :class:`~cosserat_fem.rom.galerkin.ReducedSolver`.
@@ -425,11 +536,22 @@ class ErrorIndicator(Observer):
     #: The time loop lifts U in full before this observer's hooks only when it asks.
     needs_full_state = False
 
-    def __init__(self, settings: IndicatorSettings | None = None, previous: dict | None = None):
+    def __init__(
+        self,
+        settings: IndicatorSettings | None = None,
+        previous: dict | None = None,
+        state: dict | None = None,
+    ):
         """``previous``: the ``rom`` entry of the summary of the run this one continues (a
-        restart): its samples, flags and restarts are kept before this part's."""
+        restart): its samples, flags and restarts are kept before this part's. ``state``: the
+        checkpoint's ``indicator`` part (:meth:`checkpoint_parts`), the modes' η, η̇ and the
+        sums of (10.7) at the checkpoint: carried on from there (``carried``), so that the
+        restarted run's E is the straight run's; without it (a checkpoint written before the
+        indicator kept its state, or one of other settings) the modes start from zero again."""
         self.settings = settings or IndicatorSettings()
         self.previous = previous if isinstance(previous, dict) else {}
+        self.state = state if isinstance(state, dict) else None
+        self.carried = False  # the checkpoint's modal state was restored (``state``)
         self.restarted_at: float | None = None
         self.times: list[float] = []
         self.values: list[float] = []
@@ -450,6 +572,7 @@ class ErrorIndicator(Observer):
         self._saturated = False  # the transport blew up (:data:`BLOWN`)
         self._t_new = 0.0
         self.modes: ErrorModes | None = None
+        self.sampler: SampledDefect | None = None  # a hyper-reduced run's (10.11)
         self.modes_from = ""  # the modes "solved" (SLEPc), "cached" (this process's), or "basis"
 
     # -- set-up --------------------------------------------------------------------------
@@ -474,9 +597,15 @@ class ErrorIndicator(Observer):
         m = self.modes  # V's rows of the free end's x/ℓ, y/ℓ, z/ℓ (of U's p rows)
         self._tip_V = self.basis.V[m.p_rows[np.isin(m.places, m.ends)]]
         count = len(self.modes.lam)
+        self.sampler = None
+        if self.settings.sampled and getattr(solver, "loop", None) == "hyper":
+            self.sampler = SampledDefect(solver, m, n)
         self._eta, self._rate = np.zeros(count), np.zeros(count)
         self._g, self._coupling = np.zeros(count), np.zeros(count)
         self._first = True
+        self._flagged = {str(x.get("what")) for x in self.previous.get("outside_training") or []}
+        if self.state is not None:
+            self._restore(self.state)
         self.setup_seconds = time.perf_counter() - t0
         provenance = self.basis.provenance
         ranges = provenance.get("coordinates")  # as arrays once (outside_range takes either)
@@ -488,11 +617,76 @@ class ErrorIndicator(Observer):
         self._limits = self._ranges and range_limits(
             self._ranges, self.basis.modes, self.settings.margin
         )
-        trained = [run.get("loads") for run in provenance.get("runs", []) if "loads" in run]
-        known = [json.dumps(x, sort_keys=True) for x in trained]
-        if trained and _loads(model.scene) not in known:
-            self._flag("load", loop.state.t, "the scene's loads are none of the training scenes'")
+        runs = [run for run in provenance.get("runs", []) if "loads" in run]
+        if runs and all("load_values" in run for run in runs):  # the numbers trained on
+            why = outside_loads(
+                load_values(model.scene),
+                [run["load_values"] for run in runs],
+                self.settings.margin,
+            )
+            if why is not None:
+                self._flag("load", loop.state.t, why)
+        elif runs:  # a basis of before the numbers: the loads' text
+            known = [json.dumps(run.get("loads"), sort_keys=True) for run in runs]
+            if _loads(model.scene) not in known:
+                why = "the scene's loads are none of the training scenes'"
+                self._flag("load", loop.state.t, why)
         self.seconds += time.perf_counter() - t0
+
+    # -- checkpoint/restart -----------------------------------------------------------------
+    #: The part of a checkpoint that holds the indicator's state (TimeLoop.state_dict).
+    PART = "indicator"
+
+    def checkpoint_parts(self) -> dict:
+        """{"indicator": its state at the checkpoint}: η, η̇, τ and the forcings g_R, c of the
+        last sample (10.6, 10.10), the sums of (10.7), whether the first sample is still to
+        come or the transport has saturated, and the settings they depend on (``every``,
+        ``modes``, ``coupling``: a restart with other settings starts from zero). Written at
+        the end of a step, where no sampled step is pending."""
+        s = self.settings
+        sums = [self._errors2, self._norms2, self._rod_errors2, self._rod_norms2]
+        return {
+            self.PART: {
+                "eta": self._eta.copy(),
+                "rate": self._rate.copy(),
+                "g": self._g.copy(),
+                "coupling": self._coupling.copy(),
+                "tau": self._tau,
+                "sums": np.array(sums),
+                "first": float(self._first),
+                "saturated": float(self._saturated),
+                "settings": np.array([s.every, s.modes, float(s.coupling)], dtype=float),
+            }
+        }
+
+    def _restore(self, state: dict) -> None:
+        """The inverse of :meth:`checkpoint_parts` (at :meth:`started`, the modes known), when
+        the settings and the modes' count are those of the checkpoint; the earlier parts'
+        samples become this run's first ones (E's running sums continue: ``carried``)."""
+        s = self.settings
+        settings = np.array([s.every, s.modes, float(s.coupling)], dtype=float)
+        eta = np.asarray(state.get("eta", ()), dtype=float)
+        if not (
+            np.array_equal(np.asarray(state.get("settings", ())), settings)
+            and eta.shape == self._eta.shape
+        ):
+            LOGGER.warning(
+                "reduced run: the indicator's state in the checkpoint is of other settings or "
+                "modes; its modes start from zero at the restart"
+            )
+            return
+        self._eta, self._rate = eta.copy(), np.asarray(state["rate"], dtype=float).copy()
+        self._g = np.asarray(state["g"], dtype=float).copy()
+        self._coupling = np.asarray(state["coupling"], dtype=float).copy()
+        self._tau = float(state["tau"])
+        sums = [float(x) for x in np.asarray(state["sums"])]
+        self._errors2, self._norms2, self._rod_errors2, self._rod_norms2 = sums
+        self._first, self._saturated = bool(state["first"]), bool(state["saturated"])
+        before = self.previous.get("indicator") if self.previous else None
+        before = before if isinstance(before, dict) else {}
+        self.times = [float(x) for x in before.get("times", [])]
+        self.values = [float(x) for x in before.get("values", [])]
+        self.carried = True
 
     def _flag(self, what: str, t: float, why: str, **extra) -> None:
         """One warning line and one summary entry per kind of flag (its first time)."""
@@ -515,8 +709,11 @@ class ErrorIndicator(Observer):
         if not self._sampling or self._saturated:
             return
         t0 = time.perf_counter()
-        loop.lift()  # U and the stage's Z in full (nothing to do on full vectors)
-        self._stages.append(full_residual(self.solver))
+        if self.sampler is not None:  # −g of the stage from the sampled elements (10.11)
+            self._stages.append(self.sampler.projected())
+        else:
+            loop.lift()  # U and the stage's Z in full (nothing to do on full vectors)
+            self._stages.append(full_residual(self.solver))
         b = self.stage_weights
         if b is None or len(self._stages) == len(b):
             self._advance(loop)
@@ -533,7 +730,7 @@ class ErrorIndicator(Observer):
             R = sum(w * F for w, F in zip(b, self._stages, strict=True))
         else:  # one-stage schemes: the last stage's
             R = self._stages[-1]
-        g = modes.forcing(R[modes.q_rows])
+        g = -R if self.sampler is not None else modes.forcing(R[modes.q_rows])
         if self._first:  # the forcing held from the start to the first sample
             self._g = g
         tau = self._t_new * self.omega0
@@ -543,7 +740,11 @@ class ErrorIndicator(Observer):
         eta, rate = oscillator_step(self._eta, self._rate, modes.lam, dt, a, slope)
         coupling = self._coupling
         if self.settings.coupling:  # −Φᵀ D δ of (10.8): φ_jᵀ D K φ_l = λ_j δ_jl, so K e is Λ η
-            coupling = modes.forcing(self._difference(modes.shape(eta))) + modes.lam * eta
+            if self.sampler is not None:  # (10.11) at p + e_p less at p
+                shifted = self.sampler.projected(eta) - self._stages[-1]
+                coupling = -shifted + modes.lam * eta
+            else:
+                coupling = modes.forcing(self._difference(modes.shape(eta))) + modes.lam * eta
             coupling = np.where(np.sqrt(modes.lam) * dt <= RESOLVED, coupling, 0.0)
             if dt > 0 and not self._first:  # (10.10): the coupling linear over the interval
                 turn = slope + (coupling - self._coupling) / dt
@@ -709,12 +910,15 @@ class ErrorIndicator(Observer):
     def summary_entries(self) -> dict:
         """summary.json's ``rom`` entry (observers.py's RunSummary puts it in). A restarted
         run's keeps the earlier parts' samples, largest E and flags before its own, and lists
-        the times it was restarted at (``restarts``): each part carries the error in the modes
-        from zero again (the modes' state is not in the checkpoint), so a part's E does not
+        the times it was restarted at (``restarts``). Its modes' state carried on from the
+        checkpoint (``carried``, :meth:`checkpoint_parts`), E is the straight run's; else
+        (an older checkpoint) the part carried the error from zero again, and its E does not
         count the error made before it."""
         s = self.settings
         before = self.previous.get("indicator") if self.previous else None
         before = before if isinstance(before, dict) else {}
+        if self.carried:  # the earlier samples are this run's own (_restore)
+            before = {"restarts": before.get("restarts", [])}
         largest = max(self.largest, float(before.get("max", 0.0) or 0.0))
         restarts = list(before.get("restarts", []))
         if self.restarted_at is not None:
@@ -731,9 +935,11 @@ class ErrorIndicator(Observer):
                     "times": [*before.get("times", []), *self.times],
                     "values": [*before.get("values", []), *self.values],
                     "restarts": restarts,
+                    "carried": self.carried,
                     "wall_time_s": self.seconds,
                     "setup_wall_time_s": self.setup_seconds,
                     "modes_from": self.modes_from,
+                    "defect": "full" if self.sampler is None else "sampled",
                 },
                 "outside_training": [*outside, *self.outside],
             }

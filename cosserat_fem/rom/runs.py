@@ -41,7 +41,7 @@ import numpy as np
 from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.rom.indicator import DEFAULT as DEFAULT_INDICATOR
-from cosserat_fem.rom.indicator import ErrorIndicator, IndicatorSettings
+from cosserat_fem.rom.indicator import ErrorIndicator, IndicatorSettings, load_values
 from cosserat_fem.scene.build import Scene
 from cosserat_fem.timestepping.events import Observer
 
@@ -240,6 +240,8 @@ def train_targets(
                 "time_s": [t.scene.time.start, t.scene.time.end],
                 "time_reached_s": end,  # a forced member ends once settled
                 "step_s": t.scene.time.step,
+                "loads": t.scene.to_dict().get("loads"),
+                "load_values": load_values(t.scene),  # the out-of-training flag's
             }
             for t, end in zip(targets, reached, strict=True)
         ],
@@ -315,10 +317,23 @@ def basis_digest(path: str | Path) -> str | None:
         return None
 
 
-def rom_record(basis, path: str | Path | None) -> dict:
+def basis_identity(basis, comm) -> str:
+    """The digest of ``basis``'s arrays over the ranks (Basis.digest: this rank's rows): the
+    one rank's, or the SHA-256 of the ranks' digests in rank order (a restart runs on as many
+    ranks, the same partition). Collective."""
+    own = basis.digest
+    if comm.size == 1:
+        return own
+    return hashlib.sha256("".join(comm.allgather(own)).encode()).hexdigest()
+
+
+def rom_record(basis, path: str | Path | None, comm=None) -> dict:
     """summary.json's ``rom`` of a reduced run on ``basis`` read from ``path``: the model, the
-    file and its SHA-256, the modes and energy left out, the provenance (without the scene's
+    file and its SHA-256, the digest of the basis's arrays (:func:`basis_identity`; a basis in
+    memory has no file), the modes and energy left out, the provenance (without the scene's
     text)."""
+    from mpi4py import MPI
+
     provenance = {k: v for k, v in basis.provenance.items() if k != "scene_text"}
     provenance.pop("snapshot_times_s", None)
     return {
@@ -326,6 +341,7 @@ def rom_record(basis, path: str | Path | None) -> dict:
         "basis": {
             "file": None if path is None else str(Path(path).resolve()),
             "sha256": None if path is None else basis_digest(path),
+            "digest": basis_identity(basis, MPI.COMM_WORLD if comm is None else comm),
             "modes": basis.modes,
             "energy_left_out": basis.energy_left_out(),
             "provenance": provenance,
@@ -345,7 +361,7 @@ class RomSummary(Observer):
         from cosserat_fem.analysis.observers import FolderStart, RunSummary
         from cosserat_fem.io.run_folder import SUMMARY, write_summary
 
-        record = rom_record(loop.solver.basis, self.path)
+        record = rom_record(loop.solver.basis, self.path, loop.model.msh.comm)
         for observer in loop.events.observers:
             if isinstance(observer, RunSummary):
                 observer.summary.setdefault("rom", {}).update(record)
@@ -450,13 +466,21 @@ def run(
                 f"--restart: {str(restart.run_dir)!r} is not a reduced run (continue it with "
                 "cosserat-fem run --restart)"
             )
-        given = None if path is None else basis_digest(path)
-        if given != held["basis"].get("sha256"):
+        kept = held["basis"]
+        if path is not None:  # a file: its SHA-256
+            same = basis_digest(path) == kept.get("sha256")
+        else:  # a Basis in memory: its arrays' digest (a run of before the digest: none)
+            same = "digest" in kept and kept["digest"] == basis_identity(
+                basis, MPI.COMM_WORLD if comm is None else comm
+            )
+        if not same:
+            name = kept.get("file") or f"a basis in memory, digest {kept.get('digest')}"
             raise SceneError(
                 f"--basis: not the basis the run in {str(restart.run_dir)!r} was started with "
-                f"({held['basis'].get('file')})"
+                f"({name})"
             )
-    own = [ErrorIndicator(indicator, previous=held)] if indicator is not None else []
+    state = None if restart is None else restart.parts.get(ErrorIndicator.PART)
+    own = [ErrorIndicator(indicator, held, state)] if indicator is not None else []
     out = out_folder(out)
     return run_scene(
         scene,

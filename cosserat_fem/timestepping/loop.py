@@ -232,7 +232,10 @@ class TimeLoop:
         self.history = StateHistory(capacity=order + 2)
 
     def state_dict(self) -> dict[str, dict]:
-        """Everything the remaining steps depend on, by part (cosserat_fem/io/checkpoint.py)."""
+        """Everything the remaining steps depend on, by part (cosserat_fem/io/checkpoint.py),
+        and the parts of the observers that keep a state across a restart (their
+        ``checkpoint_parts()``: {part: {key: array}}, read back by the observer itself from
+        the checkpoint: a reduced run's error indicator, cosserat_fem/rom/indicator.py)."""
         model = self.model
         self.lift()
         parts = {
@@ -250,6 +253,10 @@ class TimeLoop:
         if self.history is not None:
             assert self.control is not None, "set with the history (_adaptive_parts)"
             parts.update(history=self.history.state_dict(), control=self.control.state_dict())
+        for observer in self.events.observers:  # an observer's own state (rom's indicator)
+            kept = getattr(observer, "checkpoint_parts", None)
+            if kept is not None:
+                parts.update(kept())
         return parts
 
     def load_state_dict(self, parts: dict) -> None:

@@ -16,6 +16,7 @@ from cosserat_fem.rom.indicator import (
     IndicatorSettings,
     coordinate_ranges,
     oscillator_step,
+    outside_loads,
     outside_range,
     relative_estimate,
 )
@@ -121,3 +122,24 @@ def test_the_largest_estimate_leaves_out_the_first_samples():
     assert indicator.largest == 7e-3
     indicator.values = []
     assert indicator.largest == 0.0
+
+
+def test_the_loads_outside_the_trained_ranges():
+    """outside_loads against its rule: values trained on [1e3, 2e3] admit [750, 2250]
+    (a quarter of the width 1e3 beyond each end, margin 0.25), one trained value admits
+    itself only, another form (an expression the training had not) is outside, and a
+    parameter the training had not is named."""
+    form = '["#*sin(#*omega0*t)"]'
+    trained = [{"form": form, "values": {"parameters.a": a, "n#2": 8.0}} for a in (1e3, 2e3)]
+
+    def why(a, n=8.0, shape=form, extra=None):
+        values = {"parameters.a": a, "n#2": n, **(extra or {})}
+        return outside_loads({"form": shape, "values": values}, trained, 0.25)
+
+    assert why(1e3) is None and why(1.5e3) is None and why(2249.0) is None
+    assert why(751.0) is None
+    assert "parameters.a = 2251 outside the trained range [1000, 2000]" in why(2251.0)
+    assert "parameters.a = 749" in why(749.0)
+    assert "n#2 = 8.001 outside the trained range [8, 8]" in why(1.5e3, n=8.001)
+    assert "another expression" in why(1.5e3, shape='["#*cos(#*omega0*t)"]')
+    assert "parameters.b = 1 was not a parameter" in why(1.5e3, extra={"parameters.b": 1.0})
