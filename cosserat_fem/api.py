@@ -111,12 +111,19 @@ def run(
     )
 
 
-def load_sweep(source: str | Path, overrides: Mapping[str, Any] | Sequence[str] = ()):
+def load_sweep(
+    source: str | Path,
+    overrides: Mapping[str, Any] | Sequence[str] = (),
+    *,
+    changes: Mapping[str, Any] | None = None,
+):
     """A sweep file read and every member's scene validated (cosserat_fem/studies/sweep_spec.py);
-    ``overrides``: dotted scene keys for the base scene."""
+    ``overrides``: dotted scene keys for the base scene; ``changes``: the file's [sweep]
+    table changed first, tables merged key by key (``{"vary": {"parameters.r": [0.9, 1.1]}}``:
+    the same sweep over other values)."""
     from cosserat_fem.studies.sweep_spec import load_sweep as load
 
-    return load(source, overrides)
+    return load(source, overrides, changes)
 
 
 def sweep(spec, out: str | Path, *, progress: bool = False):

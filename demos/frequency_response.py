@@ -59,10 +59,7 @@
 from __future__ import annotations
 
 import argparse
-import json
-import shutil
 import sys
-import tempfile
 from pathlib import Path
 
 # cosserat_fem first: a process that mpirun did not start then starts MPI in 0.08 s instead of
@@ -132,27 +129,9 @@ if args.steps_per_period < 1:
 
 # %%
 try:
-    source = SWEEP
-    if args.values is not None:  # the same sweep over other frequencies
-        text = SWEEP.read_text(encoding="utf-8")
-        start = text.index('"parameters.r" = { start')
-        line = text[start : text.index("\n", start)]
-        text = text.replace(line, f'"parameters.r" = {json.dumps(args.values)}')
-        text = text.replace(
-            'scene = "../cao_tucker_2008.toml"',
-            f'scene = "{ROOT / "scenes" / "cao_tucker_2008.toml"}"',
-        )
-        folder = Path(tempfile.mkdtemp()) if comm.rank == 0 else None
-        source = Path(comm.bcast(str(folder), root=0)) / "sweep.toml"
-        if comm.rank == 0:
-            source.write_text(text, encoding="utf-8")
-        comm.Barrier()
-    try:
-        spec = api.load_sweep(source)  # read whole: the file is not needed after this
-    finally:
-        comm.Barrier()
-        if source != SWEEP and comm.rank == 0:
-            shutil.rmtree(source.parent, ignore_errors=True)
+    # --values: the same sweep over other frequencies (its [sweep.vary] changed)
+    other = None if args.values is None else {"vary": {"parameters.r": args.values}}
+    spec = api.load_sweep(SWEEP, changes=other)
     out = Path(args.out)
     result = api.sweep(spec, out, progress=True)  # a line on stderr as each member ends
 except CosseratError as exc:

@@ -50,7 +50,6 @@ import json
 import os
 import shutil
 import sys
-import tempfile
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -167,30 +166,12 @@ if not (np.isfinite(args.range).all() and 0 < args.range[0] < args.range[1]):
 # %%
 count, (r_from, r_to) = args.members, args.range
 train = sorted({int(round(x)) for x in np.linspace(0, count - 1, args.train)})
-text = SWEEP.read_text(encoding="utf-8")
-text = text.replace(
-    'scene = "../cao_tucker_2008.toml"', f'scene = "{ROOT / "scenes" / "cao_tucker_2008.toml"}"'
-)
-start = text.index('"parameters.r" = { start')
-line = text[start : text.index("\n", start)]
-text = text.replace(
-    line, f'"parameters.r" = {{ start = {r_from!r}, stop = {r_to!r}, num = {count} }}'
-)
-start = text.index("train = [")
-text = text.replace(text[start : text.index("]", start) + 1], f"train = {json.dumps(train)}")
-text = text.replace("tolerance = 1e-8", f"tolerance = {args.tolerance!r}")
+changes = {  # the sweep file's [sweep.vary] and [sweep.rom], as the options say
+    "vary": {"parameters.r": {"start": r_from, "stop": r_to, "num": count}},
+    "rom": {"train": train, "tolerance": args.tolerance},
+}
 try:
-    folder = Path(tempfile.mkdtemp()) if comm.rank == 0 else None
-    source = Path(comm.bcast(str(folder), root=0)) / "sweep.toml"
-    if comm.rank == 0:
-        source.write_text(text, encoding="utf-8")
-    comm.Barrier()
-    try:
-        reduced_spec = api.load_sweep(source)  # read whole: the file is not needed after this
-    finally:
-        comm.Barrier()
-        if comm.rank == 0:
-            shutil.rmtree(source.parent, ignore_errors=True)
+    reduced_spec = api.load_sweep(SWEEP, changes=changes)
 except CosseratError as exc:
     if comm.rank == 0:
         print(f"rom_frequency_sweep: {exc}", file=sys.stderr)

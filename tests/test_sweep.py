@@ -624,3 +624,22 @@ def test_a_table_damaged_at_the_sweeps_end_is_every_ranks_error(tmp_path):
         "cosserat-fem: error: table/group-1.csv: line 3: damaged while the sweep ran (a test)"
     ], proc.stderr
     assert "aborting the MPI job" not in proc.stderr and "MPI_ABORT" not in proc.stderr
+
+
+def test_changes_make_the_same_sweep_over_other_values():
+    """``cf.load_sweep(..., changes=...)`` (the demos' --values): the sweep file's [sweep.vary]
+    replaced by other values gives exactly the members a file with those values would, the
+    rest of the file kept (its [sweep.set], its response); [sweep.rom] merged key by key; what
+    comes out is checked as a file's table (a bad change: one line naming the key)."""
+    path = ROOT / "scenes" / "sweeps" / "clamped_hysteresis.toml"
+    spec = api.load_sweep(path, changes={"vary": {"parameters.r": [1.0, 1.05]}})
+    whole = api.load_sweep(path)
+    assert [m.values["parameters.r"] for m in spec.members[:2]] == [1.0, 1.05]
+    assert spec.response == whole.response and spec.base == whole.base
+    rom = ROOT / "scenes" / "sweeps" / "rom_forcing.toml"
+    changed = api.load_sweep(rom, changes={"rom": {"train": [0, 2]}})
+    assert (
+        changed.rom.train == (0, 2) and changed.rom.tolerance == api.load_sweep(rom).rom.tolerance
+    )
+    with pytest.raises(SceneError, match=r"^sweep\.scene: required, the base scene file"):
+        api.load_sweep(path, changes={"scene": {"x": 1}})

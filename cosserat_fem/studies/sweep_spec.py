@@ -604,13 +604,20 @@ def _count(table: dict, combine: str) -> int:
     return max(sizes, default=0) if combine == "zip" else math.prod(sizes)
 
 
-def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
+def load_sweep(
+    path: str | Path, overrides=(), changes: Mapping[str, Any] | None = None
+) -> SweepSpec:
     """Read and validate a sweep file (module docstring); ``overrides``: dotted scene keys
-    applied to the base scene after ``[sweep.set]`` (the command line's ``--set``: it wins).
-    Collective under MPI: rank 0 reads the sweep file and the base scene, every rank parses
-    their bytes (schema.read_input)."""
+    applied to the base scene after ``[sweep.set]`` (the command line's ``--set``: it wins);
+    ``changes``: the sweep file's own [sweep] table changed before it is checked, tables
+    merged key by key and any other value replaced (e.g. ``{"vary": {"parameters.r":
+    [0.9, 1.1]}, "rom": {"train": [0, 4]}}``: the same sweep over other values, as if the file
+    said so). Collective under MPI: rank 0 reads the sweep file and the base scene, every
+    rank parses their bytes (schema.read_input)."""
     path = Path(path)
     data = read_toml(path, "sweep file")
+    if changes and isinstance(data.get("sweep"), dict):  # else refused below, as without
+        data["sweep"] = _merged(data["sweep"], changes)
     table = data.get("sweep")
     unknown = sorted(set(data) - {"sweep"})
     if unknown:
@@ -683,6 +690,18 @@ def load_sweep(path: str | Path, overrides=()) -> SweepSpec:
         poincare,
         rom,
     )
+
+
+def _merged(table: dict[str, Any], changes: Mapping[str, Any]) -> dict[str, Any]:
+    """``table`` with ``changes`` merged in: a mapping into a table key by key, any other
+    value replacing (what comes out is checked as a file's table is)."""
+    merged = dict(table)
+    for key, value in changes.items():
+        if isinstance(value, Mapping) and isinstance(merged.get(key), dict):
+            merged[key] = _merged(merged[key], value)
+        else:
+            merged[key] = value
+    return merged
 
 
 def _rom(table: Any, path: Path, count: int, group_size: int) -> RomSettings | None:
