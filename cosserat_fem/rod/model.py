@@ -30,7 +30,7 @@ from petsc4py import PETSc
 
 from cosserat_fem import forms
 from cosserat_fem.common import jit
-from cosserat_fem.common.errors import SceneError
+from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.common.parallel import agree
 from cosserat_fem.forms import reference as reference_shapes
 from cosserat_fem.forms.general_form import (
@@ -50,6 +50,7 @@ from cosserat_fem.forms.section import SectionLaw
 from cosserat_fem.rod import charts
 from cosserat_fem.rod.charts import change_chart, change_chart_rate, chart_of
 from cosserat_fem.rod.load_coefficients import DataLoads
+from cosserat_fem.rod.structure import StructureMesh, create_structure_mesh, member_frames
 from cosserat_fem.scene.build import PLANAR, Scene
 from cosserat_fem.scene.expressions import Expression, derivative
 from cosserat_fem.scene.layout import FULL, Layout
@@ -137,6 +138,8 @@ class RodModel:
     _parameters: dict | None = None
     #: The loads given by data in the forms (made by build_model).
     data: DataLoads | None = None
+    #: A structure's mesh, nodes and node loads (cosserat_fem/rod/structure.py), or None.
+    structure: StructureMesh | None = None
 
     @property
     def needs_chart(self) -> bool:
@@ -165,6 +168,11 @@ class RodModel:
     def reference_form(self) -> Reference | None:
         """The rest configuration of the scene's [reference] in UFL (forms/reference.py), or
         None for the straight rod, whose forms are the paper's (65) as written."""
+        if self.scene.structure is not None:  # the members' frames (rod/structure.py)
+            if self.reference_frame is None:
+                self.reference_frame = member_frames(self.scene.structure, self.length, self.msh)
+            frame = self.reference_frame
+            return Reference(ufl.as_vector([frame[2, j] for j in range(3)]), frame, ufl.zero(3))
         shape = self.scene.reference
         if not shape.curved:
             return None
@@ -238,6 +246,11 @@ class RodModel:
         (:meth:`_continuous_signs`). Collective."""
         state = self.U.x.array if state is None else state
         assert self.chart is not None, "use_chart made it"
+        if self.scene.structure is not None:
+            raise SolverError(
+                "structure: a node turned near the Euler angles' limit |θ| = π/2, and moving the "
+                "chart on a structure (its signs along branching members) is not supported yet"
+            )
         Q_old = self.chart.x.array.reshape(-1, 4)
         Q_new = chart_of(self.layout.full_array(state), Q_old)
         self._continuous_signs(Q_new)
@@ -490,6 +503,18 @@ class RodModel:
                     torque=self._vector(end.torque, sym, time_eval),
                 )
             )
+        if self.structure is not None:  # node loads: a leaf's ds, a chain's dS (checked)
+            sub = self.ds.subdomain_data()
+            dS = ufl.Measure("dS", domain=self.msh, subdomain_data=sub)
+            for load, tag, interior in self.structure.loads:
+                ends.append(
+                    EndLoads(
+                        ds=(dS if interior else self.ds)(tag),
+                        force=self._vector(load.force, sym, time_eval),
+                        torque=self._vector(load.torque, sym, time_eval),
+                        interior=interior,
+                    )
+                )
         if loads.point is not None:  # at the node s (checked), on an interior facet
             dS = ufl.Measure("dS", domain=self.msh, subdomain_data=self.ds.subdomain_data())
             ends.append(
@@ -593,20 +618,38 @@ def support_conditions(
     held: dict[str, dict[int, fem.Constant]] = {}
     for name, ents in ends.items():
         kind, moving = getattr(scene.supports, name), scene.supports.motion(name) is not None
-        held[name] = {}
-        if kind == "clamped" and not moving:
-            dofs = fem.locate_dofs_topological(V, 0, ents)
-            bcs.append(fem.dirichletbc(np.zeros(len(components), dtype=np.float64), dofs, V))
-            continue
-        if kind == "free":
-            continue
-        for i in (i for i in scene.supports.held_components(name) if i in components):
-            j = components.index(i)
-            value = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
-            dofs = fem.locate_dofs_topological(V.sub(j), 0, ents)
-            bcs.append(fem.dirichletbc(value, dofs, V.sub(j)))
-            held[name][i] = value
+        held[name] = node_conditions(
+            V, ents, kind, scene.supports.held_components(name), components, moving, bcs
+        )
     return bcs, held
+
+
+def node_conditions(
+    V: fem.FunctionSpace,
+    ents: np.ndarray,
+    kind: str,
+    held: tuple[int, ...],
+    components: tuple[int, ...],
+    moving: bool,
+    bcs: list,
+) -> dict[int, fem.Constant]:
+    """Append to ``bcs`` the Dirichlet conditions of one support (:func:`support_conditions`)
+    at the vertices ``ents``: all components zero if clamped and not ``moving``, else each of
+    the ``held`` ones with a Constant value; returns {full component: its Constant}."""
+    values: dict[int, fem.Constant] = {}
+    if kind == "clamped" and not moving:
+        dofs = fem.locate_dofs_topological(V, 0, ents)
+        bcs.append(fem.dirichletbc(np.zeros(len(components), dtype=np.float64), dofs, V))
+        return values
+    if kind == "free":
+        return values
+    for i in (i for i in held if i in components):
+        j = components.index(i)
+        value = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
+        dofs = fem.locate_dofs_topological(V.sub(j), 0, ents)
+        bcs.append(fem.dirichletbc(value, dofs, V.sub(j)))
+        values[i] = value
+    return values
 
 
 def is_fork(scene: Scene, end: str) -> bool:
@@ -641,13 +684,14 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     quiet_jit_logging()
     jit.install()  # crash-safe, quiet compiles (cosserat_fem/common/jit.py)
     disc = scene.discretisation
+    if scene.structure is not None:
+        return _build_structure_model(scene, comm)
     msh = mesh.create_interval(comm, disc.elements, [0.0, 1.0])
     cell = msh.ufl_cell()
     plane = scene.plane() if planar else None
     components = PLANAR[plane] if plane is not None else FULL
     element = ufl.VectorElement("Lagrange", cell, disc.degree, dim=len(components))
     V = fem.FunctionSpace(msh, element)
-    U = fem.Function(V, name="U")
 
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
@@ -678,21 +722,28 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
             accelerations = tuple(derivative(e, "t") for e in rates)
             motions.append(SupportMotion(name, motion, rates, accelerations, held[name]))
 
-    # FFCx 0.5 reads the quadrature degree from the measure's metadata only; a
-    # form_compiler_params={"quadrature_degree": q} is silently ignored.
-    q = disc.quadrature_degree
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": q})
-    ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
-    rod = _ufl_law(rod_constants(scene), scene, msh)
     skipped = scene.absent_terms()
     if plane is not None:
         dropped = ", ".join(P_NAMES[i] for i in range(6) if i not in components)
         skipped += [f"out-of-plane unknowns {dropped}"]
+    model = _model(scene, V, bcs, tags, components, skipped, fork_nodes)
+    model.motions = motions
+    return model
+
+
+def _model(scene: Scene, V, bcs, tags, components, skipped, fork_nodes) -> RodModel:
+    """The RodModel on the space V with its conditions and vertex tags (build_model)."""
+    # FFCx 0.5 reads the quadrature degree from the measure's metadata only; a
+    # form_compiler_params={"quadrature_degree": q} is silently ignored.
+    msh, q = V.mesh, scene.discretisation.quadrature_degree
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": q})
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
+    rod = _ufl_law(rod_constants(scene), scene, msh)
     return RodModel(
         scene=scene,
         msh=msh,
         V=V,
-        U=U,
+        U=fem.Function(V, name="U"),
         bcs=bcs,
         dx=dx,
         ds=ds,
@@ -701,8 +752,33 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
         convention=EndLoadConvention(scene.model.end_load_sign, scene.model.end_load_scaling),
         skipped=skipped,
         load_factor=fem.Constant(msh, PETSc.ScalarType(1.0)),
-        motions=motions,
         layout=Layout(components),
         fork_nodes=fork_nodes,
         data=DataLoads(msh, q, scene.rod.length, scene.omega0),
     )
+
+
+def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
+    """The discrete structure (cosserat_fem/rod/structure.py): its mesh in 3D, all twelve
+    components, the supports at its nodes (node_conditions; a pinned node a hinge, whose
+    held angles keep the chart, like a fork), its node loads (RodModel.load_vectors)."""
+    structure = scene.structure
+    assert structure is not None, "build_model's branch"
+    made = create_structure_mesh(structure, scene.rod.length, comm)
+    element = ufl.VectorElement(
+        "Lagrange", made.msh.ufl_cell(), scene.discretisation.degree, dim=len(FULL)
+    )
+    V = fem.FunctionSpace(made.msh, element)
+    bcs: list = []
+    forks = [np.zeros(0, dtype=np.int32)]
+    for support in structure.supports:
+        ents = made.vertices[support.node]
+        held = support.held_components()
+        node_conditions(V, ents, support.kind, held, FULL, False, bcs)
+        if 0 < len([i for i in held if 3 <= i < 6]) < 3:
+            forks.append(fem.locate_dofs_topological(V, 0, ents))
+    model = _model(
+        scene, V, bcs, made.tags, FULL, scene.absent_terms(), np.concatenate(forks).astype(np.int32)
+    )
+    model.structure = made
+    return model

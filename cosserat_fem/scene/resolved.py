@@ -32,6 +32,7 @@ from cosserat_fem.scene.keys import (
     POSITIVE,
     REFERENCE_KEYS,
     SECTION_KEYS,
+    STRUCTURE_SUPPORTS,
     SUPPORTS,
     XDMF_DEFAULT_FIELDS,
     XDMF_FIELDS,
@@ -49,6 +50,7 @@ from cosserat_fem.scene.keys import (
     Points,
     SymmetricMatrix,
     Table,
+    Tables,
     Text,
     Vector,
     declared_names,
@@ -551,6 +553,105 @@ class Loads:
         ]
 
 
+@dataclass(frozen=True, kw_only=True)
+class StructureNode:
+    """A node of a structure ([[structure.nodes]]): its ``name`` and its ``position`` r0 [m]
+    at rest, fixed basis."""
+
+    name: str = key(Text(required=True, non_empty=True))
+    position: tuple[float, float, float] = key(Vector(required=True, unit="m"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class StructureMember:
+    """A straight member ([[structure.members]]) from the node ``start`` (key ``from``) to the
+    node ``end`` (key ``to``), ``elements`` cells; its rest frame D0: d0_3 along it, d0_1 the
+    unit ``d1`` (normal to it; default: e2 × d0_3 normalised, or e1 × d0_3 for a member along
+    e2), d0_2 = d0_3 × d0_1 (:meth:`frame`). The scene's [rod] section and material."""
+
+    name: str = key(Text(required=True, non_empty=True))
+    start: str = key(Text(required=True, non_empty=True), name="from")
+    end: str = key(Text(required=True, non_empty=True), name="to")
+    elements: int = key(Number(required=True, integer=True, interval=POSITIVE))
+    d1: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
+
+    def frame(self, tangent: np.ndarray) -> np.ndarray:
+        """D0 (3×3, rows d0_1, d0_2, d0_3) for the unit ``tangent`` d0_3 (class docstring)."""
+        t = np.asarray(tangent, dtype=float)
+        if self.d1 is not None:
+            d1 = np.asarray(self.d1, dtype=float)
+        else:
+            d1 = np.cross([0.0, 1.0, 0.0], t)
+            if np.linalg.norm(d1) < 1e-6:
+                d1 = np.cross([1.0, 0.0, 0.0], t)
+        d1 = d1 / np.linalg.norm(d1)
+        return np.stack([d1, np.cross(t, d1), t])
+
+
+@dataclass(frozen=True, kw_only=True)
+class StructureSupport:
+    """A support at a node ([[structure.supports]]): ``kind`` clamped (p = q = 0), pinned (the
+    position held, a hinge about ``axis``, e1, e2 or e3, default e2: the angles about the
+    other two held), spherical (the position held) or free; what each holds is
+    HELD_BY_SUPPORT's (scene/keys.py)."""
+
+    node: str = key(Text(required=True, non_empty=True))
+    kind: str = key(Choice(choices=STRUCTURE_SUPPORTS, required=True))
+    axis: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
+
+    def held_components(self) -> tuple[int, ...]:
+        """The components of U = (p, q) held: the positions and angles, and their rates."""
+        position, angles = HELD_BY_SUPPORT[self.kind]
+        if self.kind == "pinned":
+            k = int(np.argmax(np.abs(self.axis if self.axis is not None else (0, 1, 0))))
+            angles = tuple(i for i in range(3) if i != k)
+        p = (*position, *(3 + a for a in angles))
+        return (*p, *(6 + i for i in p))
+
+
+@dataclass(frozen=True, kw_only=True)
+class NodeLoad:
+    """A force [N] and torque [N m] at a node ([[structure.loads]]), fixed directions,
+    functions of t."""
+
+    node: str = key(Text(required=True, non_empty=True))
+    force: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N"))
+    torque: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Structure:
+    """Straight rods joined rigidly at shared nodes ([structure], docs/structures.md): a tree
+    or a closed frame. ℓ (rod.length) is the members' total length."""
+
+    nodes: tuple[StructureNode, ...] = key(Tables(item=StructureNode, required=True))
+    members: tuple[StructureMember, ...] = key(Tables(item=StructureMember, required=True))
+    supports: tuple[StructureSupport, ...] = key(
+        Tables(item=StructureSupport, default=[]), default=()
+    )
+    loads: tuple[NodeLoad, ...] = key(Tables(item=NodeLoad, default=[]), default=())
+
+    def positions(self) -> dict[str, np.ndarray]:
+        """{node name: r0 [m]}."""
+        return {n.name: np.asarray(n.position, dtype=float) for n in self.nodes}
+
+    def lengths(self) -> np.ndarray:
+        """The members' lengths [m]."""
+        r0 = self.positions()
+        return np.array([np.linalg.norm(r0[m.end] - r0[m.start]) for m in self.members])
+
+    def probe_node(self) -> str:
+        """The node probes.csv follows: the first loaded node, else the first node without a
+        support, else the first node."""
+        held = {s.node for s in self.supports if s.kind != "free"}
+        free = [n.name for n in self.nodes if n.name not in held]
+        return next(iter([x.node for x in self.loads] + free + [self.nodes[0].name]))
+
+    def degree(self, node: str) -> int:
+        """How many members meet at ``node``."""
+        return sum((m.start == node) + (m.end == node) for m in self.members)
+
+
 #: Planes of motion (Scene.plane): the normal e_k, the axes of torques that leave the plane
 #: and the angles (θ, ψ, φ) = (0, 1, 2) that stay zero in it.
 PLANES = {"x-z": ((1,), (0, 2), (0, 2)), "y-z": ((0,), (1, 2), (1, 2))}
@@ -753,6 +854,8 @@ class Scene:
     solver: Solver = table(Solver)
     output: Output = table(Output)
     limits: Limits = table(Limits)
+    #: Several straight rods joined rigidly at nodes (docs/structures.md), or None: one rod.
+    structure: Structure | None = table(Structure, optional=True, default=None)
     source: str = field(default="<dict>", compare=False)
     #: SHA-256 of the file's bytes the scene was read from ("" for a dict): what every MPI
     #: rank parsed (schema.read_input), written to summary.json as ``scene_file_sha256``
@@ -770,7 +873,7 @@ class Scene:
         or None: asked for (discretisation.planar = "auto") and nothing leaves the plane; never
         with a section law that couples its strains (rod.section.stiffness off its diagonal:
         an extension may twist, a bending shear out of the plane)."""
-        if self.discretisation.planar != "auto" or self.reference.curved:
+        if self.discretisation.planar != "auto" or self.reference.curved or self.structure:
             return None
         K = self.rod.section.stiffness
         if K is not None and any(K[i][j] != 0.0 for i in range(6) for j in range(6) if i != j):
@@ -863,8 +966,13 @@ class Scene:
         it (:func:`~cosserat_fem.scene.keys.to_table`: expressions as their sources, tables and
         callables as their dicts, reference_frequency and limits.memory "auto" where so
         chosen, absent optional tables left out): plain, JSON-serialisable;
-        ``scene_from_dict`` inverts it."""
-        return to_table(self)
+        ``scene_from_dict`` inverts it. A structure's scene leaves out the single rod's
+        [reference], [supports] and [initial], which it refuses (docs/structures.md)."""
+        table = to_table(self)
+        if self.structure is not None:
+            for name in ("reference", "supports", "initial"):
+                table.pop(name, None)
+        return table
 
 
 def auto_reference_frequency(rod: Rod) -> float:
