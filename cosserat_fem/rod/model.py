@@ -769,16 +769,25 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
         "Lagrange", made.msh.ufl_cell(), scene.discretisation.degree, dim=len(FULL)
     )
     V = fem.FunctionSpace(made.msh, element)
-    bcs: list = []
-    forks = [np.zeros(0, dtype=np.int32)]
-    for support in structure.supports:
-        ents = made.vertices[support.node]
-        held = support.held_components()
-        node_conditions(V, ents, support.kind, held, FULL, False, bcs)
-        if 0 < len([i for i in held if 3 <= i < 6]) < 3:
-            forks.append(fem.locate_dofs_topological(V, 0, ents))
-    model = _model(
-        scene, V, bcs, made.tags, FULL, scene.absent_terms(), np.concatenate(forks).astype(np.int32)
-    )
+    bcs, forks = structure_conditions(V, scene, made.vertices, FULL)
+    model = _model(scene, V, bcs, made.tags, FULL, scene.absent_terms(), forks)
     model.structure = made
     return model
+
+
+def structure_conditions(
+    V: fem.FunctionSpace, scene: Scene, vertices: dict[str, np.ndarray], components
+) -> tuple[list, np.ndarray]:
+    """The Dirichlet conditions of a structure's supports (node_conditions at each support's
+    node, ``vertices`` by node name) on a space of the ``components`` of (p, q), and the
+    blocks of the nodes that hold some angles but not all (a hinge: the chart stays there)."""
+    assert scene.structure is not None, "a structure's scene"
+    bcs: list = []
+    forks = [np.zeros(0, dtype=np.int32)]
+    for support in scene.structure.supports:
+        ents = vertices[support.node]
+        held = support.held_components()
+        node_conditions(V, ents, support.kind, held, components, False, bcs)
+        if 0 < len(support.held()[1]) < 3:
+            forks.append(fem.locate_dofs_topological(V, 0, ents))
+    return bcs, np.concatenate(forks).astype(np.int32)

@@ -386,14 +386,8 @@ class Supports:
         (the turn about the chord), a roller 3, a sliding end or two rollers 1 (along e3)."""
         chord = np.asarray(self.chord, dtype=float)
         chord = chord / max(float(np.linalg.norm(chord)), 1e-300)  # the rank is scale-free
-        rows = []
-        for end, r in (("start", np.zeros(3)), ("end", chord)):
-            position, angles = self.held(end)
-            for i in position:
-                e = np.eye(3)[i]
-                rows.append(np.concatenate([e, np.cross(r, e)]))  # (ω × r)·e = ω·(r × e)
-            rows += [np.concatenate([np.zeros(3), np.eye(3)[a]]) for a in angles]
-        return 6 - (int(np.linalg.matrix_rank(np.array(rows))) if rows else 0)
+        ends = (("start", np.zeros(3)), ("end", chord))
+        return rigid_body_modes([(r, *self.held(end)) for end, r in ends])
 
     @property
     def mechanism(self) -> bool:
@@ -403,6 +397,21 @@ class Supports:
 
     def motion(self, end: str) -> tuple[Expression, ...] | None:
         return self.start_motion if end == "start" else self.end_motion
+
+
+def rigid_body_modes(held: list[tuple[np.ndarray, tuple[int, ...], tuple[int, ...]]]) -> int:
+    """How many rigid-body motions supports leave: 6 less the rank of the components they
+    hold of a small rigid motion (translation t, rotation ω about the origin) at rest,
+    ``held`` [(point r, position components, angle components)]: position component i at r
+    is t_i + (ω × r)_i, angle a is ω_a (the angles' linearisation at rest: rotations about
+    e1, e2, e3)."""
+    rows = []
+    for r, position, angles in held:
+        for i in position:
+            e = np.eye(3)[i]
+            rows.append(np.concatenate([e, np.cross(r, e)]))  # (ω × r)·e = ω·(r × e)
+        rows += [np.concatenate([np.zeros(3), np.eye(3)[a]]) for a in angles]
+    return 6 - (int(np.linalg.matrix_rank(np.array(rows))) if rows else 0)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -599,12 +608,17 @@ class StructureSupport:
     kind: str = key(Choice(choices=STRUCTURE_SUPPORTS, required=True))
     axis: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
 
-    def held_components(self) -> tuple[int, ...]:
-        """The components of U = (p, q) held: the positions and angles, and their rates."""
+    def held(self) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """The components of the position (x, y, z) and of the angles (θ, ψ, φ) held."""
         position, angles = HELD_BY_SUPPORT[self.kind]
         if self.kind == "pinned":
             k = int(np.argmax(np.abs(self.axis if self.axis is not None else (0, 1, 0))))
             angles = tuple(i for i in range(3) if i != k)
+        return position, angles
+
+    def held_components(self) -> tuple[int, ...]:
+        """The components of U = (p, q) held: the positions and angles, and their rates."""
+        position, angles = self.held()
         p = (*position, *(3 + a for a in angles))
         return (*p, *(6 + i for i in p))
 
@@ -646,6 +660,13 @@ class Structure:
         held = {s.node for s in self.supports if s.kind != "free"}
         free = [n.name for n in self.nodes if n.name not in held]
         return next(iter([x.node for x in self.loads] + free + [self.nodes[0].name]))
+
+    def rigid_body_modes(self) -> int:
+        """How many rigid-body motions the supports leave (:func:`rigid_body_modes`, the
+        nodes' positions scaled by the structure's size: the rank is scale-free)."""
+        r0 = self.positions()
+        size = max(1e-300, max(float(np.abs(x).max()) for x in r0.values()))
+        return rigid_body_modes([(r0[s.node] / size, *s.held()) for s in self.supports])
 
     def degree(self, node: str) -> int:
         """How many members meet at ``node``."""
@@ -860,6 +881,18 @@ class Scene:
     #: SHA-256 of the file's bytes the scene was read from ("" for a dict): what every MPI
     #: rank parsed (schema.read_input), written to summary.json as ``scene_file_sha256``
     source_sha256: str = field(default="", compare=False)
+
+    def rigid_body_modes(self) -> int:
+        """How many rigid-body motions the supports leave: the structure's
+        (Structure.rigid_body_modes) or the rod's (Supports.rigid_body_modes)."""
+        if self.structure is not None:
+            return self.structure.rigid_body_modes()
+        return self.supports.rigid_body_modes()
+
+    @property
+    def mechanism(self) -> bool:
+        """Whether the supports leave a rigid-body motion (:meth:`rigid_body_modes` > 0)."""
+        return self.rigid_body_modes() > 0
 
     @property
     def omega0(self) -> float:
