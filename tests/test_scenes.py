@@ -90,17 +90,18 @@ def lee(scene, tip: np.ndarray) -> None:
 
 
 def portal(scene, tip: np.ndarray) -> None:
-    """scenes/portal_frame.toml at its small reference load F = 1e-6: the probe (B, the loaded
+    """scenes/portal_frame.toml at its small reference load F = 1e-3: the probe (B, the loaded
     corner) sways as the linear frame (tests/test_structures.py::frame_linear, the stiffness
-    method with exact Timoshenko members), within 1e-6 of it (P3 holds those members' fields
-    exactly; measured 3.2e-8, the geometric nonlinearity and Newton's tolerance)."""
+    method with exact Timoshenko members), within 1e-4 of it (P3 holds those members' fields
+    exactly; what is left is the geometric nonlinearity, of the order of the rotations, 3.6e-4:
+    measured 3.2e-8 at F = 1e-6, so 3.2e-5 here)."""
     from test_structures import frame_linear, stiffnesses
 
     nodes = {"A": (0, 0), "B": (0, 120), "C": (120, 120), "D": (120, 0)}
     members = [("A", "B"), ("B", "C"), ("D", "C")]
     F = scene.parameters["F"]
     sway = frame_linear(nodes, members, {"A", "D"}, {"B": (F, 0.0)}, *stiffnesses())["B"][0]
-    assert tip[1] == pytest.approx(sway, rel=1e-6)
+    assert tip[1] == pytest.approx(sway, rel=1e-4)
 
 
 #: The answer each static scene's comment states, checked on its own settings' result.

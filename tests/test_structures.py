@@ -224,7 +224,7 @@ def test_portal_frame_small_load_is_the_linear_frame():
         nodes, [("A", "B"), ("B", "C"), ("D", "C")], {"A", "D"}, {"B": (1e-6, 0.0)}, EA, EI, GA
     )
     ux, uz, beta = linear["B"]
-    scene = load_scene(PORTAL)
+    scene = load_scene(PORTAL, ["parameters.F=1e-6"])
     row = api.static(with_elements(scene, 1, 3)).probes[-1]  # λ, x, y, z, θ, ψ, φ at B
     assert abs(row[1] - ux) < 1e-6 * ux
     assert abs(row[3] - uz) < 4 * ux**2 / 120
@@ -364,6 +364,41 @@ def test_t_tree_small_load_is_the_linear_frame(tmp_path):
         (60.0, 0.0, 120.0),
         (-60.0, 0.0, 120.0),
     }
+
+
+def test_closed_square_frame_small_load_is_the_linear_frame():
+    """A closed frame (four members of 120 in a loop A-B-C-D-A, the mesh a cycle; the member
+    C-D against the loop's sense), clamped at A, forces 1e-8 along e1 and −e3 at C (a node
+    of two members: the interior-facet measure), against the linear frame
+    (:func:`frame_linear`): one P3 cell a member is exact for it, so within 1e-6 relative at
+    B, C and D (the geometric nonlinearity, rotations ~1e-7, and Newton's tolerance). The
+    closed loop is statically indeterminate: its sway needs the corners rigid."""
+    EA, EI, GA = stiffnesses()
+    data = read_toml(PORTAL)
+    data["structure"] = {
+        "nodes": [
+            {"name": n, "position": [x, 0, z]}
+            for n, (x, z) in {"A": (0, 0), "B": (0, 120), "C": (120, 120), "D": (120, 0)}.items()
+        ],
+        "members": [
+            {"name": "ab", "from": "A", "to": "B", "elements": 1},
+            {"name": "bc", "from": "B", "to": "C", "elements": 1},
+            {"name": "cd", "from": "D", "to": "C", "elements": 1},
+            {"name": "da", "from": "D", "to": "A", "elements": 1},
+        ],
+        "supports": [{"node": "A", "kind": "clamped"}],
+        "loads": [{"node": "C", "force": [1e-8, 0, -1e-8]}],
+    }
+    nodes = {"A": (0, 0), "B": (0, 120), "C": (120, 120), "D": (120, 0)}
+    members = [("A", "B"), ("B", "C"), ("D", "C"), ("D", "A")]
+    linear = frame_linear(nodes, members, {"A"}, {"C": (1e-8, -1e-8)}, EA, EI, GA)
+    result = api.static(scene_from_dict(data))
+    U, ell = nodal(result.model), result.model.length
+    for name in ("B", "C", "D"):
+        x, z = nodes[name]
+        got = U[(float(x), 0.0, float(z))][[0, 2]] * ell
+        want = linear[name][:2]
+        assert np.abs(got - want).max() < 1e-6 * np.abs(want).max(), (name, got, want)
 
 
 MPI_SCRIPT = """
@@ -531,6 +566,42 @@ def test_cli_refuses_a_bad_structure_in_one_line(tmp_path):
     lines = [line for line in done.stderr.splitlines() if line.strip()]
     assert "Traceback" not in done.stderr
     assert any("structure.members[2].to: unknown node 'Q'" in line for line in lines), lines
+
+
+@pytest.mark.parametrize(
+    ("command", "message"),
+    [
+        (["continue", "--range", "0", "1"], "structure: continue is not supported"),
+        (["stability", "--range", "0", "1"], "structure: stability is not supported"),
+    ],
+)
+def test_commands_a_structure_cannot_do_are_refused_in_one_line(tmp_path, command, message):
+    """`cosserat-fem continue` and `stability` on scenes/portal_frame.toml: exit status 2 (a
+    SceneError), one line naming the structure, no traceback, no output folder."""
+    out = tmp_path / "out"
+    done = run_command(
+        ["-m", "cosserat_fem.cli", command[0], str(PORTAL), *command[1:], "--out", str(out)]
+    )
+    assert done.returncode == 2
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and message in lines[0], lines
+    assert not out.exists()
+
+
+def test_a_structure_left_a_mechanism_has_no_static_state():
+    """Static equilibrium of the portal frame without supports (six rigid-body motions,
+    Structure.rigid_body_modes) or pinned at A only about e2 (one: the turn about e2 at A) is
+    refused by name; clamped at A it has none."""
+    for supports, rigid in (([], 6), ([{"node": "A", "kind": "pinned"}], 1)):
+        data = read_toml(PORTAL)
+        data["structure"]["supports"] = supports
+        scene = scene_from_dict(data)
+        assert scene.rigid_body_modes() == rigid
+        with pytest.raises(SceneError, match="^structure.supports: a static equilibrium needs"):
+            api.static(scene)
+    data = read_toml(PORTAL)
+    data["structure"]["supports"] = [{"node": "A", "kind": "clamped"}]
+    assert scene_from_dict(data).rigid_body_modes() == 0
 
 
 if __name__ == "__main__":  # pragma: no cover
