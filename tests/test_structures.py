@@ -51,9 +51,10 @@ def difference(a, b) -> float:
     return diff / max(float(np.abs(v).max()) for v in one.values())
 
 
-def rod_and_structure(end_force, end_torque, elements=8):
-    """The paper's rod along e3 (Lee's section, L = 120, clamped at s = 0, an end load) and the
-    same as a one-member structure from (0, 0, 0) to (0, 0, 120), as scene dicts."""
+def rod_and_structure(end_force, end_torque, elements=8, gravity=(0, 0, 0)):
+    """The paper's rod along e3 (Lee's section, L = 120, clamped at s = 0, an end load,
+    ``gravity``) and the same as a one-member structure from (0, 0, 0) to (0, 0, 120), as
+    scenes."""
     base = read_toml(LEE)
     for key in ("reference", "supports", "loads"):
         base.pop(key)
@@ -63,10 +64,11 @@ def rod_and_structure(end_force, end_torque, elements=8):
     rod = {
         **base,
         "supports": {"start": "clamped", "end": "free"},
-        "loads": {"end": {"force": end_force, "torque": end_torque}},
+        "loads": {"end": {"force": end_force, "torque": end_torque}, "gravity": list(gravity)},
     }
     structure = {**base, "rod": {k: v for k, v in base["rod"].items() if k != "length"}}
     structure["discretisation"] = {"degree": 3}
+    structure["loads"] = {"gravity": list(gravity)}
     structure["structure"] = {
         "nodes": [{"name": "A", "position": [0, 0, 0]}, {"name": "B", "position": [0, 0, 120]}],
         "members": [{"name": "m", "from": "A", "to": "B", "elements": elements}],
@@ -79,13 +81,14 @@ def rod_and_structure(end_force, end_torque, elements=8):
 def test_one_member_structure_is_the_single_rod():
     """A one-member structure along e3 (mesh in 3D, the rest frame D0 = I as a DG0 field, the
     tangential derivative) against the single rod (mesh in 1D, the paper's forms): an end load
-    that bends it in both planes and twists it (tip rotation ~0.5 rad, P L²/EI = 1), statics
+    that bends it in both planes and twists it (tip rotation ~0.5 rad, P L²/EI = 1) and a
+    gravity across and along it (ρ A g L = 0.072, a distributed load), statics
     in 4 load steps and 5 steps of a dynamic run after the load is applied suddenly. The two
     discretisations are the same (8 P3 cells, the same quadrature): the forms differ in their
     operations only (D0 D and t0 + p' with D0 = I, t0 = e3; grad f · t with t = e3), so the
     states agree to round-off amplified by Newton's tolerance: 1e-9 of max |U|
     (measured 1e-13 to 1e-12)."""
-    rod, structure = rod_and_structure([0.1, 0.05, 0], [0, 0, 2.0])
+    rod, structure = rod_and_structure([0.1, 0.05, 0], [0, 0, 2.0], gravity=(0, 1e-4, -1e-4))
     rod = dataclasses.replace(rod, static=dataclasses.replace(rod.static, load_steps=4))
     structure = dataclasses.replace(
         structure, static=dataclasses.replace(structure.static, load_steps=4)
@@ -330,6 +333,7 @@ def test_t_tree_small_load_is_the_linear_frame(tmp_path):
             {"name": "left", "from": "E", "to": "B", "elements": 1},
         ],
         "supports": [{"node": "A", "kind": "clamped"}],
+        "probe": "E",
         "loads": [
             {"node": "C", "force": [0, 0, -1e-8]},
             {"node": "E", "force": [2e-8, 0, 0]},
@@ -347,6 +351,9 @@ def test_t_tree_small_load_is_the_linear_frame(tmp_path):
         got = U[(float(x), 0.0, float(z))][[0, 2]] * ell
         want = linear[name][:2]
         assert np.abs(got - want).max() < 1e-6 * np.abs(want).max(), (name, got, want)
+    # structure.probe = "E": probes.csv follows that node (x, z there, exactly U's)
+    row = result.probes[-1]
+    np.testing.assert_array_equal(row[[1, 3]], U[(-60.0, 0.0, 120.0)][[0, 2]] * ell)
     # h5py cannot read in a process that has loaded DOLFINx (cosserat_fem/io/xdmf.py): another.
     # (read_xdmf orders the points of one rod by s: not a structure's; the mesh as written.)
     read = "import sys, json, h5py; f = h5py.File(sys.argv[1]); print(json.dumps(["

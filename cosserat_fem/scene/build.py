@@ -872,7 +872,11 @@ def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStor
             if sum(x != 0 for x in axis) != 1:
                 raise SceneError(f"{key}.axis: a hinge axis must lie along e1, e2 or e3")
         supports.append(build(StructureSupport, entry, axis=axis))
-    structure = Structure(nodes=tuple(nodes), members=tuple(members), supports=tuple(supports))
+    if raw["probe"] is not None and raw["probe"] not in r0:
+        raise SceneError(f"structure.probe: unknown node {raw['probe']!r}")
+    structure = Structure(
+        nodes=tuple(nodes), members=tuple(members), supports=tuple(supports), probe=raw["probe"]
+    )
     names_t = {"t", *constants}
     loads = []
     for i, entry in enumerate(raw["loads"]):

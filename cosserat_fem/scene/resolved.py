@@ -644,6 +644,8 @@ class Structure:
         Tables(item=StructureSupport, default=[]), default=()
     )
     loads: tuple[NodeLoad, ...] = key(Tables(item=NodeLoad, default=[]), default=())
+    #: the node probes.csv follows (default: :meth:`probe_node`'s rule)
+    probe: str | None = key(Text(non_empty=True), default=None)
 
     def positions(self) -> dict[str, np.ndarray]:
         """{node name: r0 [m]}."""
@@ -655,8 +657,10 @@ class Structure:
         return np.array([np.linalg.norm(r0[m.end] - r0[m.start]) for m in self.members])
 
     def probe_node(self) -> str:
-        """The node probes.csv follows: the first loaded node, else the first node without a
-        support, else the first node."""
+        """The node probes.csv follows: ``probe``, else the first loaded node, else the first
+        node without a support, else the first node."""
+        if self.probe is not None:
+            return self.probe
         held = {s.node for s in self.supports if s.kind != "free"}
         free = [n.name for n in self.nodes if n.name not in held]
         return next(iter([x.node for x in self.loads] + free + [self.nodes[0].name]))
