@@ -316,8 +316,9 @@ def test_t_tree_small_load_is_the_linear_frame(tmp_path):
     fields exactly, so what is left is the geometric nonlinearity, of the order of the
     rotations (1.5e-7 here; at 100 times the load the difference was 1.7e-5, 100 times
     larger, as it should), and Newton's tolerance: within 1e-6 relative at both tips; the
-    probe follows the node structure.probe names (E). The XDMF file is one mesh of the 3 members (4 nodes + 2 interior points a member: 10 points,
-    9 segments of 20 or 40), its first points the nodes' rest positions."""
+    probe follows the node structure.probe names (E). The XDMF file is one mesh of the 3
+    members (4 nodes + 2 interior points a member: 10 points, 9 segments of 20 or 40), its
+    first points the nodes' rest positions."""
     EA, EI, GA = stiffnesses()
     data = read_toml(PORTAL)
     data["structure"] = {
