@@ -147,36 +147,43 @@ def test_lee_frame_as_a_structure_is_the_kinked_rod():
     assert difference(a.model, b.model) < 1e-8
 
 
+def timoshenko_element(a, b, EA, EI, GA) -> np.ndarray:
+    """The 6×6 stiffness of an exact Timoshenko member from the point ``a`` to ``b`` in the
+    x-z plane, dofs (ux, uz, β) at a then b, β counter-clockwise in (x, z) (about −e2): axial
+    EA/L, bending with shear (the end forces of w'' linear in the member, Φ = 12 EI/(GA L²))."""
+    d = np.subtract(b, a)
+    L = float(np.hypot(*d))
+    c, s = d / L
+    phi = 12 * EI / (GA * L * L)
+    bend = (
+        EI
+        / (L**3 * (1 + phi))
+        * np.array(
+            [
+                [12, 6 * L, -12, 6 * L],
+                [6 * L, (4 + phi) * L * L, -6 * L, (2 - phi) * L * L],
+                [-12, -6 * L, 12, -6 * L],
+                [6 * L, (2 - phi) * L * L, -6 * L, (4 + phi) * L * L],
+            ]
+        )
+    )
+    k = np.zeros((6, 6))
+    k[np.ix_([0, 3], [0, 3])] = EA / L * np.array([[1, -1], [-1, 1]])
+    k[np.ix_([1, 2, 4, 5], [1, 2, 4, 5])] = bend
+    T = np.kron(np.eye(2), np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]]))
+    return T.T @ k @ T
+
+
 def frame_linear(nodes, members, clamped, loads, EA, EI, GA):
-    """The linear plane frame in the x-z plane (stiffness method, members exact Timoshenko
-    beams: the end forces of w'' ∝ const, θ with shear, Φ = 12 EI/(GA L²)): ``nodes`` {name:
-    (x, z)}, ``members`` [(from, to)], ``clamped`` node names, ``loads`` {name: (Fx, Fz)}.
-    Returns {name: (ux, uz, β)}, β the rotation counter-clockwise in (x, z) (about −e2)."""
+    """The linear plane frame in the x-z plane (stiffness method, members
+    :func:`timoshenko_element`): ``nodes`` {name: (x, z)}, ``members`` [(from, to)],
+    ``clamped`` node names, ``loads`` {name: (Fx, Fz)}. Returns {name: (ux, uz, β)}, β the
+    rotation counter-clockwise in (x, z) (about −e2)."""
     free = [n for n in nodes if n not in clamped]
     index = {n: 3 * i for i, n in enumerate(free)}
     K = np.zeros((3 * len(free), 3 * len(free)))
     for a, b in members:
-        d = np.subtract(nodes[b], nodes[a])
-        L = float(np.hypot(*d))
-        c, s = d / L
-        phi = 12 * EI / (GA * L * L)
-        bend = (
-            EI
-            / (L**3 * (1 + phi))
-            * np.array(
-                [
-                    [12, 6 * L, -12, 6 * L],
-                    [6 * L, (4 + phi) * L * L, -6 * L, (2 - phi) * L * L],
-                    [-12, -6 * L, 12, -6 * L],
-                    [6 * L, (2 - phi) * L * L, -6 * L, (4 + phi) * L * L],
-                ]
-            )
-        )
-        k = np.zeros((6, 6))
-        k[np.ix_([0, 3], [0, 3])] = EA / L * np.array([[1, -1], [-1, 1]])
-        k[np.ix_([1, 2, 4, 5], [1, 2, 4, 5])] = bend
-        T = np.kron(np.eye(2), np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]]))
-        kg = T.T @ k @ T
+        kg = timoshenko_element(nodes[a], nodes[b], EA, EI, GA)
         dofs = [index[n] + i if n in index else -1 for n in (a, b) for i in range(3)]
         for i, di in enumerate(dofs):
             for j, dj in enumerate(dofs):
@@ -240,7 +247,7 @@ def test_portal_frame_small_load_is_the_linear_frame():
 def portal_modes_linear(n: int, count: int = 4) -> np.ndarray:
     """The lowest ``count`` angular frequencies [rad/s] of the portal frame of
     scenes/portal_frame.toml as a linear plane frame: ``n`` exact Timoshenko elements a member
-    (:func:`frame_linear`'s stiffness) and lumped masses, ρA h/2 in both translations and
+    (:func:`timoshenko_element`) and lumped masses, ρA h/2 in both translations and
     ρI h/2 in the rotation at each end of an element (ρ = 1), the bases clamped. Lumping
     errs by O(h²)."""
     EA, EI, GA = stiffnesses()
@@ -256,27 +263,9 @@ def portal_modes_linear(n: int, count: int = 4) -> np.ndarray:
     points = {i: np.array(p) for p, i in index.items()}
     K, M = np.zeros((3 * len(index), 3 * len(index))), np.zeros(3 * len(index))
     for i, j in elements:
-        d = points[j] - points[i]
-        L = float(np.hypot(*d))
-        c, s = d / L
-        phi = 12 * EI / (GA * L * L)
-        k = np.zeros((6, 6))
-        k[np.ix_([0, 3], [0, 3])] = EA / L * np.array([[1, -1], [-1, 1]])
-        k[np.ix_([1, 2, 4, 5], [1, 2, 4, 5])] = (
-            EI
-            / (L**3 * (1 + phi))
-            * np.array(
-                [
-                    [12, 6 * L, -12, 6 * L],
-                    [6 * L, (4 + phi) * L * L, -6 * L, (2 - phi) * L * L],
-                    [-12, -6 * L, 12, -6 * L],
-                    [6 * L, (2 - phi) * L * L, -6 * L, (4 + phi) * L * L],
-                ]
-            )
-        )
-        T = np.kron(np.eye(2), np.array([[c, s, 0], [-s, c, 0], [0, 0, 1]]))
+        L = float(np.linalg.norm(points[j] - points[i]))
         dofs = [3 * i, 3 * i + 1, 3 * i + 2, 3 * j, 3 * j + 1, 3 * j + 2]
-        K[np.ix_(dofs, dofs)] += T.T @ k @ T
+        K[np.ix_(dofs, dofs)] += timoshenko_element(points[i], points[j], EA, EI, GA)
         for q in (i, j):
             M[3 * q : 3 * q + 2] += AREA * L / 2
             M[3 * q + 2] += I_PLANE * L / 2
