@@ -13,11 +13,14 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+import shutil
+import subprocess
 import sys
 
 import numpy as np
 import pytest
-from conftest import ROOT, run_command
+from conftest import ROOT, run_command, subprocess_env
+from virtual_display import virtual_display
 
 from cosserat_fem import api
 from cosserat_fem.common.errors import SceneError
@@ -627,6 +630,47 @@ def test_a_structure_left_a_mechanism_has_no_static_state():
     data = read_toml(PORTAL)
     data["structure"]["supports"] = [{"node": "A", "kind": "clamped"}]
     assert scene_from_dict(data).rigid_body_modes() == 0
+
+
+@pytest.mark.long
+@pytest.mark.skipif(
+    shutil.which("pvpython") is None or shutil.which("Xvfb") is None,
+    reason="ParaView (pvpython) or Xvfb not installed",
+)
+def test_paraview_opens_the_portal_frame_as_one_object(tmp_path):
+    """scenes/portal_frame.toml at F = 0.5 (a sway of 33.4) solved statically in 3 steps,
+    its solution.xdmf opened with ParaView's own XDMF reader (tests/paraview_check.py): one
+    dataset of 37 points (13 vertices, 2 more points in each of the 12 P3 cells), the nodes at
+    their rest positions, the displacement of B (0, 0, 120) the probe's to 1e-12 (the same
+    values, written and read in double precision), "Warp By Vector" the rest positions plus
+    the displacement, and a picture that is not blank."""
+    result = api.static(
+        load_scene(PORTAL, ["parameters.F=0.5", "static.load_steps=3"]), tmp_path / "run"
+    )
+    png, report = tmp_path / "paraview.png", tmp_path / "paraview.json"
+    script = str(ROOT / "tests" / "paraview_check.py")
+    with virtual_display() as display:
+        proc = subprocess.run(
+            ["pvpython", script, str(tmp_path / "run" / "solution.xdmf"), str(png), str(report)],
+            capture_output=True,
+            text=True,
+            timeout=300,
+            env={**subprocess_env(), "DISPLAY": display},
+        )
+    assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
+    seen = json.loads(report.read_text())
+    points = np.array(seen["points"])
+    assert points.shape == (37, 3)
+    rest = {tuple(np.round(p, 9)): i for i, p in enumerate(points)}
+    for node in ((0, 0, 0), (0, 0, 120), (120, 0, 120), (120, 0, 0)):
+        assert tuple(float(x) for x in node) in rest
+    last = seen["frames"][repr(seen["times"][-1])]
+    b = rest[(0.0, 0.0, 120.0)]
+    row = result.probes[-1]
+    np.testing.assert_allclose(last["displacement"][b], row[1:4], rtol=0, atol=1e-12)
+    warped = np.array(seen["warped_points"])
+    np.testing.assert_allclose(warped, points + np.array(last["displacement"]), atol=1e-12)
+    assert png.stat().st_size > 0
 
 
 if __name__ == "__main__":  # pragma: no cover
