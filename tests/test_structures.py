@@ -354,6 +354,9 @@ def test_t_tree_small_load_is_the_linear_frame(tmp_path):
     # structure.probe = "E": probes.csv follows that node (x, z there, exactly U's)
     row = result.probes[-1]
     np.testing.assert_array_equal(row[[1, 3]], U[(-60.0, 0.0, 120.0)][[0, 2]] * ell)
+    summary = json.loads((tmp_path / "t" / "summary.json").read_text())
+    assert summary["probe_node"] == "E" and "probe_s_m" not in summary
+    assert summary["probe_reference_position_m"] == [-60.0, 0.0, 120.0]
     # h5py cannot read in a process that has loaded DOLFINx (cosserat_fem/io/xdmf.py): another.
     # (read_xdmf orders the points of one rod by s: not a structure's; the mesh as written.)
     read = "import sys, json, h5py; f = h5py.File(sys.argv[1]); print(json.dumps(["
