@@ -30,7 +30,7 @@ from petsc4py import PETSc
 
 from cosserat_fem import forms
 from cosserat_fem.common import jit
-from cosserat_fem.common.errors import SceneError, SolverError
+from cosserat_fem.common.errors import SceneError
 from cosserat_fem.common.parallel import agree
 from cosserat_fem.forms import reference as reference_shapes
 from cosserat_fem.forms.general_form import (
@@ -246,11 +246,6 @@ class RodModel:
         (:meth:`_continuous_signs`). Collective."""
         state = self.U.x.array if state is None else state
         assert self.chart is not None, "use_chart made it"
-        if self.scene.structure is not None:
-            raise SolverError(
-                "structure: a node turned near the Euler angles' limit |θ| = π/2, and moving the "
-                "chart on a structure (its signs along branching members) is not supported yet"
-            )
         Q_old = self.chart.x.array.reshape(-1, 4)
         Q_new = chart_of(self.layout.full_array(state), Q_old)
         self._continuous_signs(Q_new)
@@ -266,9 +261,15 @@ class RodModel:
         node has turned by more than π in its chart since the last move (ψ and φ are not
         bounded by the move's test), and such a move once made the interpolated frame turn
         over inside an element (measured: the flying spaghetti's energy jumped from 750 J to
-        14000 J). Rank 0 sweeps the owned nodes of all ranks in the order of σ."""
+        14000 J). Rank 0 sweeps the owned nodes of all ranks in the order of σ; on a structure
+        along its mesh (:meth:`_graph_flips`)."""
         V, comm = self.V, self.msh.comm
         n = V.dofmap.index_map.size_local
+        if self.structure is not None:
+            mine = self._graph_flips(Q[:n])
+            Q[:n][mine] *= -1.0
+            self._ghost_signs(Q)
+            return
         sigma = V.tabulate_dof_coordinates()[:n, 0]
         parts = comm.gather((sigma, Q[:n].copy()), root=0)
         flips = None
@@ -286,6 +287,48 @@ class RodModel:
             flips = [flip[sizes[r] : sizes[r + 1]] for r in range(comm.size)]
         mine = comm.scatter(flips, root=0)
         Q[:n][mine] *= -1.0
+        self._ghost_signs(Q)
+
+    def _graph_flips(self, Q_owned: np.ndarray) -> np.ndarray:
+        """Which owned nodes' quaternions to negate on a structure's mesh (collective): rank 0
+        gathers the nodes and cells of all ranks and walks the mesh breadth-first from its
+        first node (global 0, which keeps its sign), a node signed like the neighbour it is
+        reached from (a node of the same cell: the frame between them is that cell's
+        interpolant), so that every node has a positive product with that neighbour: the
+        rod's rule along σ, on a tree or a closed frame (whose loop closes on a rotation
+        field continuous from the rest, so its last edge agrees too)."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import breadth_first_order
+
+        V, comm = self.V, self.msh.comm
+        imap = V.dofmap.index_map
+        n = imap.size_local
+        glob = imap.local_to_global(np.arange(n + imap.num_ghosts, dtype=np.int32))
+        owned_cells = self.msh.topology.index_map(self.msh.topology.dim).size_local
+        cells = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)[:owned_cells]
+        parts = comm.gather((glob[:n], Q_owned.copy(), glob[cells]), root=0)
+        flips = None
+        if comm.rank == 0:
+            total = imap.size_global
+            values = np.empty((total, 4))
+            for ids, q, _ in parts:
+                values[ids] = q
+            links = np.concatenate([c for _, _, c in parts])
+            k = links.shape[1]
+            rows = np.repeat(links, k, axis=1).ravel()
+            cols = np.tile(links, (1, k)).ravel()
+            graph = coo_matrix((np.ones(rows.size), (rows, cols)), shape=(total, total)).tocsr()
+            order, parent = breadth_first_order(graph, 0, directed=False)
+            sign = np.ones(total)
+            for node in order[1:]:
+                up = parent[node]
+                sign[node] = sign[up] * (-1.0 if values[node] @ values[up] < 0.0 else 1.0)
+            flips = [sign[ids] < 0.0 for ids, _, _ in parts]
+        return comm.scatter(flips, root=0)
+
+    def _ghost_signs(self, Q: np.ndarray) -> None:
+        """The ghost nodes' quaternions take their owners' (after signing the owned ones)."""
+        comm = self.msh.comm
         if comm.size > 1:  # the ghosts take their owners' signs
             assert self.chart is not None, "use_chart made it"
             work = fem.Function(self.chart.function_space)
