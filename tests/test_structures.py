@@ -14,13 +14,12 @@ import dataclasses
 import json
 import math
 import shutil
-import subprocess
 import sys
 
 import numpy as np
 import pytest
 from conftest import ROOT, run_command, subprocess_env
-from virtual_display import virtual_display
+from virtual_display import run_pvpython
 
 from cosserat_fem import api
 from cosserat_fem.common.errors import SceneError
@@ -128,14 +127,10 @@ def test_one_member_structure_moves_its_chart_as_the_rod():
     assert difference(a.model, b.model) < 1e-9
 
 
-def chart_tree(reverse: bool):
-    """A T (column A-B, arms B-C and E-B of 60, 4 P3 cells each, clamped at A) whose arms
-    twist under torques ±30 about e1 at their tips and C pushed along e2 (θ at C 1.23 rad:
-    the chart moves), the left arm given from B to E if ``reverse``; 8 load steps."""
-    data = read_toml(PORTAL)
-    data["static"]["load_steps"] = 8
-    left = ("B", "E") if reverse else ("E", "B")
-    data["structure"] = {
+def t_structure(elements: int, left: tuple[str, str] = ("E", "B")) -> dict:
+    """A T's [structure] without loads: a column A-B of 120 clamped at A, arms B-C and (by
+    ``left``) E-B of 60 along ±e1, ``elements`` cells each."""
+    return {
         "nodes": [
             {"name": "A", "position": [0, 0, 0]},
             {"name": "B", "position": [0, 0, 120]},
@@ -143,16 +138,25 @@ def chart_tree(reverse: bool):
             {"name": "E", "position": [-60, 0, 120]},
         ],
         "members": [
-            {"name": "column", "from": "A", "to": "B", "elements": 4},
-            {"name": "right", "from": "B", "to": "C", "elements": 4},
-            {"name": "left", "from": left[0], "to": left[1], "elements": 4},
+            {"name": "column", "from": "A", "to": "B", "elements": elements},
+            {"name": "right", "from": "B", "to": "C", "elements": elements},
+            {"name": "left", "from": left[0], "to": left[1], "elements": elements},
         ],
         "supports": [{"node": "A", "kind": "clamped"}],
-        "loads": [
-            {"node": "C", "torque": [30, 0, 0], "force": [0, 0.05, 0]},
-            {"node": "E", "torque": [-30, 0, 0]},
-        ],
     }
+
+
+def chart_tree(reverse: bool):
+    """A T (column A-B, arms B-C and E-B of 60, 4 P3 cells each, clamped at A) whose arms
+    twist under torques ±30 about e1 at their tips and C pushed along e2 (θ at C 1.23 rad:
+    the chart moves), the left arm given from B to E if ``reverse``; 8 load steps."""
+    data = read_toml(PORTAL)
+    data["static"]["load_steps"] = 8
+    data["structure"] = t_structure(4, ("B", "E") if reverse else ("E", "B"))
+    data["structure"]["loads"] = [
+        {"node": "C", "torque": [30, 0, 0], "force": [0, 0.05, 0]},
+        {"node": "E", "torque": [-30, 0, 0]},
+    ]
     return scene_from_dict(data)
 
 
@@ -386,18 +390,7 @@ def test_t_tree_small_load_is_the_linear_frame(tmp_path):
     EA, EI, GA = stiffnesses()
     data = read_toml(PORTAL)
     data["structure"] = {
-        "nodes": [
-            {"name": "A", "position": [0, 0, 0]},
-            {"name": "B", "position": [0, 0, 120]},
-            {"name": "C", "position": [60, 0, 120]},
-            {"name": "E", "position": [-60, 0, 120]},
-        ],
-        "members": [
-            {"name": "column", "from": "A", "to": "B", "elements": 1},
-            {"name": "right", "from": "B", "to": "C", "elements": 1},
-            {"name": "left", "from": "E", "to": "B", "elements": 1},
-        ],
-        "supports": [{"node": "A", "kind": "clamped"}],
+        **t_structure(1),
         "probe": "E",
         "loads": [
             {"node": "C", "force": [0, 0, -1e-8]},
@@ -703,14 +696,8 @@ def test_paraview_opens_the_portal_frame_as_one_object(tmp_path):
     )
     png, report = tmp_path / "paraview.png", tmp_path / "paraview.json"
     script = str(ROOT / "tests" / "paraview_check.py")
-    with virtual_display() as display:
-        proc = subprocess.run(
-            ["pvpython", script, str(tmp_path / "run" / "solution.xdmf"), str(png), str(report)],
-            capture_output=True,
-            text=True,
-            timeout=300,
-            env={**subprocess_env(), "DISPLAY": display},
-        )
+    args = [script, str(tmp_path / "run" / "solution.xdmf"), str(png), str(report)]
+    proc = run_pvpython(args, subprocess_env())
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     seen = json.loads(report.read_text())
     points = np.array(seen["points"])
