@@ -578,7 +578,7 @@ def test_the_bad_inputs_base_is_a_valid_structure():
                 "nodes": [*NODES, {"name": "Z", "position": [0, 0, 1]}],
                 "members": [{"name": "m", "from": "B", "to": "Z", "elements": 2}],
             },
-            "structure.members[0]: nodes 'B' and 'Z' are at the same place",
+            "structure.nodes[3].position: the place of node 'B'",
         ),
         (
             {"supports": [{"node": "Q", "kind": "clamped"}]},

@@ -795,8 +795,9 @@ def _unit_axis(raw: Any, key: str, nonzero: bool = True) -> tuple[float, float, 
 
 
 def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStore) -> Structure:
-    """[structure] (resolved.Structure): nodes with unique names and finite positions,
-    members between two different known nodes, of positive length, with a d1 normal to
+    """[structure] (resolved.Structure): nodes with unique names and finite positions, no two
+    at one place (so that a member has a length), members between two different known nodes,
+    with a d1 normal to
     them; every node on a member, the members connected; supports and loads at known nodes,
     one support a node, loads functions of t and the constants at nodes that join at most
     two members (the point-load measure, docs/structures.md). SceneError naming the key."""
@@ -812,6 +813,15 @@ def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStor
         raise SceneError("structure.nodes: a structure needs nodes ([[structure.nodes]])")
     r0 = {n.name: np.asarray(n.position, dtype=float) for n in nodes}
     size = max(1.0, max(float(np.abs(x).max()) for x in r0.values()))
+    points = np.array([n.position for n in nodes], dtype=float)
+    for i in range(1, len(nodes)):
+        near = np.linalg.norm(points[:i] - points[i], axis=1) <= 1e-12 * size
+        if near.any():
+            other = names[int(np.argmax(near))]
+            raise SceneError(
+                f"structure.nodes[{i}].position: the place of node {other!r}; a joint is one "
+                f"node (members meeting there name it), got {show_value(list(nodes[i].position))}"
+            )
     members = []
     for i, entry in enumerate(raw["members"]):
         key = f"structure.members[{i}]"
@@ -822,13 +832,8 @@ def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStor
                 )
         if entry["from"] == entry["to"]:
             raise SceneError(f"{key}.to: a member joins two different nodes, got {entry['to']!r}")
-        chord = r0[entry["to"]] - r0[entry["from"]]
+        chord = r0[entry["to"]] - r0[entry["from"]]  # not zero: two nodes, two places
         length = float(np.linalg.norm(chord))
-        if not length > 1e-12 * size:
-            raise SceneError(
-                f"{key}: nodes {entry['from']!r} and {entry['to']!r} are at the same place; "
-                "a member must have a length"
-            )
         d1 = None if entry["d1"] is None else _unit_axis(entry["d1"], f"{key}.d1")
         if d1 is not None and abs(np.dot(d1, chord)) > 1e-9 * length * np.linalg.norm(d1):
             raise SceneError(f"{key}.d1: must be normal to the member, got {show_value(d1)}")
