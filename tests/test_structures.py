@@ -663,6 +663,20 @@ def test_commands_a_structure_cannot_do_are_refused_in_one_line(tmp_path, comman
     assert not out.exists()
 
 
+@pytest.mark.parametrize("command", ["plot", "render", "pod"])
+def test_a_structures_run_is_refused_by_the_single_rod_readers(tmp_path, command):
+    """`plot`, `render` and `pod` read a single rod's outputs (points in the order of s): on a
+    structure's run folder they exit 2 with one line saying so, no traceback, nothing
+    written."""
+    api.run(load_scene(PORTAL, ["time.end=2"]), tmp_path / "run")
+    before = sorted(p.name for p in (tmp_path / "run").iterdir())
+    done = run_command(["-m", "cosserat_fem.cli", command, str(tmp_path / "run")])
+    assert done.returncode == 2, done.stderr[-2000:]
+    lines = [line for line in done.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1 and "is the run of a structure" in lines[0], lines
+    assert sorted(p.name for p in (tmp_path / "run").iterdir()) == before
+
+
 def test_a_structure_left_a_mechanism_has_no_static_state():
     """Static equilibrium of the portal frame without supports (six rigid-body motions,
     Structure.rigid_body_modes) or pinned at A only about e2 (one: the turn about e2 at A) is
