@@ -29,7 +29,7 @@ import numpy as np
 
 from cosserat_fem.common.errors import SceneError, out_folder
 from cosserat_fem.io.folder_lock import holding_folders
-from cosserat_fem.scene.build import Scene, load_scene, scene_from_dict
+from cosserat_fem.scene.build import Scene, load_scene, refuse_structure, scene_from_dict
 from cosserat_fem.scene.load_data import TableStore
 from cosserat_fem.scene.schema import UNSET  # noqa: F401 - cf.UNSET: an override that removes its key
 from cosserat_fem.timestepping.events import Observer
@@ -79,6 +79,8 @@ def run(
     ``initial_state`` none: a SceneError otherwise). ``observers``:
     cosserat_fem/timestepping/events.py;
     ``progress(t [s], steps, Newton iterations)`` at every output time."""
+    if fields is not None:
+        refuse_structure(scene, "run with fields at stations s")
     from cosserat_fem.analysis.simulation import run_scene
     from cosserat_fem.timestepping.events import as_observer
 
@@ -208,6 +210,7 @@ def stability(
     ``samples``: equally spaced factors visited first (up to the first unstable one);
     ``tolerance``: the root finder's, |Δf| ≤ tolerance (1 + |f|); ``count``: eigenvalues
     nearest 0 computed at each state. stability.json only with ``out``."""
+    refuse_structure(scene, "stability")
     from cosserat_fem.analysis.equilibria import stability as analyse
 
     return analyse(scene, low, high, samples, tolerance, count, out_folder(out))
@@ -217,6 +220,7 @@ def stability_at(scene: Scene, factor: float = 1.0, *, count: int = 6):
     """The static state at load factor ``factor`` (1: the scene's loads) and whether it is
     stable: a :class:`~cosserat_fem.analysis.equilibria.StabilityPoint` (``status``: "stable",
     "divergence" or "flutter"; ``eigenvalues``, ``kinds``)."""
+    refuse_structure(scene, "stability")
     from cosserat_fem.analysis.equilibria import stability_at as at
 
     return at(scene, factor, count)
@@ -292,6 +296,7 @@ def periodic_orbit(
     (half the range of the probe's x [m]), ``multipliers``, ``stability`` ("stable", "fold",
     "period-doubling", "torus"). Under mpirun every rank gets its own part of ``state`` and the
     same rest."""
+    refuse_structure(scene, "orbits")
     from cosserat_fem.analysis.periodic import Orbit, Shooting
 
     _check_shooting(scene, settle, steps_per_period)
@@ -322,6 +327,7 @@ def lyapunov(
     ``phase``, ``perturbation``, ``seed``, ``observers``, ``initial_state`` (as
     :func:`run`'s), documented on ``largest_exponent`` there. time.step must divide every·T,
     with fixed steps."""
+    refuse_structure(scene, "lyapunov")
     from cosserat_fem.analysis.lyapunov import largest_exponent
 
     _lyapunov_options(options)
@@ -460,6 +466,7 @@ def continuation(
     returns that one branch, its new points appended to the folder's files. ``probe``: the
     arclength s [m] of the point reported as ``tip`` instead (the load point of a frame
     pinned at both ends, say); a restart keeps the first run's."""
+    refuse_structure(scene, "continue")
     import dataclasses
 
     from mpi4py import MPI
@@ -602,6 +609,7 @@ def periodic_branch(
     ``points`` (``parameter``, ``amplitude`` [m], ``multipliers``, ``stability``, ``kind``,
     ``state``), ``folds``, ``period_doublings``, ``tori``, ``special``, ``reason``, ``steps``,
     ``monodromies``. With ``out``: orbit_branch.csv there (columns ``ORBIT_COLUMNS``)."""
+    refuse_structure(scene, "orbits")
     from mpi4py import MPI
 
     from cosserat_fem.analysis.paths import write_branches
@@ -686,6 +694,7 @@ def orbits(
     ``max_points`` if given, the new points appended. A ``period`` that the scene's load
     expressions do not repeat after is refused (orbit_runs.check_periodic). Returns (the
     :class:`~cosserat_fem.analysis.periodic.OrbitBranch`, the summary dict)."""
+    refuse_structure(scene, "orbits")
     from mpi4py import MPI
 
     from cosserat_fem.analysis import orbit_runs
@@ -744,6 +753,7 @@ def lyapunov_run(
     any work if a run of ``periods`` periods would
     exceed the scene's limits, stopped at limits.wall_time (a StopError). ``options``: as
     :func:`lyapunov`'s."""
+    refuse_structure(scene, "lyapunov")
     from mpi4py import MPI
 
     from cosserat_fem.analysis import orbit_runs

@@ -949,6 +949,7 @@ def _rom(args) -> int:
     from cosserat_fem.analysis.progress import ProgressBar, summary_screen
     from cosserat_fem.rom import runs
     from cosserat_fem.rom.basis import basis_paths
+    from cosserat_fem.scene.build import refuse_structure
 
     root = MPI.COMM_WORLD.rank == 0 and not args.quiet
     sweep = api.load_sweep(args.sweep, args.overrides) if getattr(args, "sweep", None) else None
@@ -957,6 +958,8 @@ def _rom(args) -> int:
             raise SceneError("rom build --out: give the basis file's name (FILE: FILE.npz, .json)")
         files = [args.scene, *args.scenes] if args.scene is not None else []
         scenes = [api.load(s, args.overrides) for s in files]
+        for scene in scenes:
+            refuse_structure(scene, "rom")
         if not scenes and sweep is None:
             raise SceneError("rom build: give SCENE files or --sweep FILE to train on")
         basis = runs.build(

@@ -28,6 +28,22 @@ from dataclasses import dataclass
 import ufl
 
 
+def d_sigma(f) -> ufl.core.expr.Expr:
+    """f' = df/dσ, σ = s/ℓ (47): ``f.dx(0)`` on the rod's own mesh (the interval [0, 1],
+    geometric dimension 1, the paper's), and on a structure's mesh (straight members embedded
+    in 3D, coordinates r0/ℓ, docs/structures.md) the tangential derivative grad f · t with
+    t = J[:, 0]/|J[:, 0]|, J the cell's Jacobian (t points from the cell's first vertex to its
+    second; the member's rest frame is oriented cell by cell to match, cosserat_fem/rod/
+    structure.py). For a 1D mesh the expression is the one the forms always had, so the single
+    rod's compiled kernels are unchanged."""
+    domain = ufl.domain.extract_unique_domain(f)
+    if domain is None or domain.geometric_dimension() == 1:
+        return f.dx(0)
+    J = ufl.Jacobian(domain)
+    t = ufl.as_vector([J[i, 0] for i in range(3)])
+    return ufl.dot(ufl.grad(f), t / ufl.sqrt(ufl.dot(t, t)))
+
+
 @dataclass(frozen=True)
 class Chart:
     """A reference frame of the Euler angles (module docstring): ``frame`` A (3×3, row j the
@@ -57,7 +73,7 @@ def quaternion_chart(Q) -> Chart:
     κ̂ from the skew matrix A' Aᵀ: a_j' = Σ_l (A' Aᵀ)_jl a_l = κ̂ × a_j, so
     (A' Aᵀ)_jl = (κ̂ × a_j) · a_l = ε_jlm κ̂_m."""
     A = quaternion_frame(Q)
-    W = A.dx(0) * A.T
+    W = d_sigma(A) * A.T
     return Chart(A, ufl.as_vector([W[1, 2], W[2, 0], W[0, 1]]))
 
 
@@ -115,7 +131,7 @@ def split(vec12):
 
 def sigma_derivatives(U) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
     """(p', q') = d/dσ of the two halves of the 12-component U = (p, q)."""
-    dU = U.dx(0)
+    dU = d_sigma(U)
     return split(ufl.as_vector([dU[i] for i in range(12)]))
 
 

@@ -39,6 +39,7 @@ from .groups import RodConstants
 from .kinematics import (
     Chart,
     curvature,
+    d_sigma,
     sigma_derivatives,
     split,
     strain_rates,
@@ -206,7 +207,7 @@ def resultants(
     measured in ``chart`` (forms/kinematics.py), the rod at rest a ``reference``'s
     (forms/reference.py; v and u total, n and m from the strains relative to it)."""
     p = split(U)[0] if U.ufl_shape == (12,) else U
-    dU = U.dx(0)
+    dU = d_sigma(U)
     dp = ufl.as_vector([dU[i] for i in range(6)])
     v, u = strains(p, dp, rod.length, chart, reference)
     if reference is None and rod.law is None:

@@ -752,7 +752,9 @@ def test_an_api_restart_refuses_every_scene_but_the_checkpoints(runs, tmp_path):
     assert _files(base) == before
     print(outcomes)
     assert outcomes["refused"] >= 150 and outcomes["would continue"] >= 50, outcomes
-    assert tables == set(SCHEMA.fields) - {"solver", "limits"}  # every kind of key
+    # every kind of key but a [structure] (its nodes and members are arrays of tables, which
+    # this fuzz does not write; its restart: tests/test_structures.py)
+    assert tables == set(SCHEMA.fields) - {"solver", "limits", "structure"}
 
 
 @pytest.mark.parametrize(

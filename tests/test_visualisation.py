@@ -45,7 +45,7 @@ from cosserat_fem.forms.kinematics import rotation_matrix, split
 from cosserat_fem.forms.resultants import resultants
 from dolfinx import fem
 from PIL import Image, ImageSequence
-from virtual_display import virtual_display
+from virtual_display import run_pvpython
 from xdmf_files import read_arrays
 
 from cosserat_fem.analysis.statics import static_path
@@ -200,14 +200,8 @@ def test_resultants_are_the_flux_of_the_general_form():
 def test_paraview_reads_the_rod(dynamic_run, tmp_path):
     png, report = tmp_path / "paraview.png", tmp_path / "paraview.json"
     script = str(ROOT / "tests" / "paraview_check.py")
-    with virtual_display() as display:  # not xvfb-run: see tests/virtual_display.py
-        proc = subprocess.run(
-            ["pvpython", script, str(dynamic_run / "solution.xdmf"), str(png), str(report), "100"],
-            capture_output=True,
-            text=True,
-            timeout=300,
-            env={**subprocess_env(), "DISPLAY": display},
-        )
+    args = [script, str(dynamic_run / "solution.xdmf"), str(png), str(report), "100"]
+    proc = run_pvpython(args, subprocess_env())
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     seen = json.loads(report.read_text())
     assert set(seen["point_arrays"]) == ARRAYS

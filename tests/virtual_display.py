@@ -74,3 +74,16 @@ def virtual_display(timeout: float = 60.0) -> Iterator[str]:
             except subprocess.TimeoutExpired:
                 server.kill()
                 server.wait()
+
+
+def run_pvpython(args: list[str], env: dict[str, str], timeout: float = 300.0):
+    """``pvpython ARGS`` on a display of its own (:func:`virtual_display`), with the
+    environment ``env`` (the tests' subprocess_env); its CompletedProcess, output captured."""
+    with virtual_display() as display:  # not xvfb-run: see the module docstring
+        return subprocess.run(
+            ["pvpython", *args],
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+            env={**env, "DISPLAY": display},
+        )

@@ -276,7 +276,12 @@ def compute_modes(
     and the modes are written there (:func:`write_modes`)."""
     if about not in ABOUT:
         raise SceneError(f"about (--about): must be 'undeformed' or 'static', got {about!r}")
-    if scene.supports.mechanism and about == "static":
+    if scene.structure is not None and scene.mechanism and about == "static":
+        raise SceneError(
+            "structure.supports: modes about the static state of a mechanism: it has none; "
+            "use --about undeformed"
+        )
+    if scene.supports.mechanism and scene.structure is None and about == "static":
         raise SceneError(
             f"supports: modes about the static state of a mechanism (start = "
             f'"{scene.supports.start}", end = "{scene.supports.end}"): it has none, its '

@@ -46,7 +46,7 @@ from cosserat_fem.common.errors import OutputError, SceneError, SolverError
 from cosserat_fem.common.parallel import agree
 from cosserat_fem.io.run_folder import write_summary
 from cosserat_fem.output.fields import XdmfWriter
-from cosserat_fem.rod.model import FULL, RodModel, support_conditions
+from cosserat_fem.rod.model import FULL, RodModel, structure_conditions, support_conditions
 from cosserat_fem.scene.build import Scene
 
 KINDS = ("bending-x", "bending-y", "axial", "torsion")
@@ -122,7 +122,10 @@ class ModalProblem:
 
 def modal_supports(model: RodModel, P: fem.FunctionSpace) -> list:
     """The supports on the 6-component space P of p (model.support_conditions: p = 0 at a
-    clamped end; x, y, z, φ = 0 at a pinned one)."""
+    clamped end; x, y, z, φ = 0 at a pinned one); a structure's at its nodes
+    (model.structure_conditions)."""
+    if model.structure is not None:
+        return structure_conditions(P, model.scene, model.structure.vertices, FULL[:6])[0]
     ends = {
         name: mesh.locate_entities_boundary(model.msh, 0, lambda x, c=coord: np.isclose(x[0], c))
         for name, coord in (("start", 0.0), ("end", 1.0))
@@ -234,7 +237,7 @@ def shift_invert(problem: ModalProblem, count: int, ncv: int, tol: float, lu_pac
     eps.setWhichEigenpairs(SLEPc.EPS.Which.TARGET_MAGNITUDE)
     # A mechanism's K is singular (its rigid-body modes, λ = 0): shift-invert about λ = −1
     # (ω = i ω0: K + M is positive definite), which finds the same lowest modes.
-    shift = -1.0 if problem.model.scene.supports.mechanism else 0.0
+    shift = -1.0 if problem.model.scene.mechanism else 0.0
     eps.setTarget(shift)
     eps.setTolerances(tol=tol, max_it=500)
     st = eps.getST()
@@ -277,7 +280,7 @@ def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
     pairs.sort(key=lambda pair: (pair[0].real, pair[0].imag))
     weights = _kinetic_weights(problem.model)
     scale = max((abs(lam) for lam, _ in pairs), default=1.0)
-    rigid = problem.model.scene.supports.rigid_body_modes()
+    rigid = problem.model.scene.rigid_body_modes()
     modes = []
     for i, (lam, shape) in enumerate(pairs[:count]):
         omega, note = angular_frequency(lam, problem.model.omega0, scale)
@@ -327,6 +330,11 @@ def max_modes(scene: Scene) -> int:
     clamped end, four at a fork or a hinge, three at a ball joint or a roller, five at a
     sliding end)."""
     disc = scene.discretisation
+    if scene.structure is not None:  # its vertices: the nodes and each member's interior ones
+        st = scene.structure
+        vertices = len(st.nodes) + sum(m.elements - 1 for m in st.members)
+        held = sum(len(sum(s.held(), ())) for s in st.supports)
+        return 6 * (vertices + (disc.degree - 1) * disc.elements) - held
     nodes = disc.elements * disc.degree + 1 - scene.reference.closed  # a ring: ends joined
     held = sum(len(sum(scene.supports.held(end), ())) for end in ("start", "end"))
     return 6 * nodes - held

@@ -120,7 +120,10 @@ def summary_start(
                 "groups": model.groups.as_dict(),
             }
         )
-    if probe is not None:
+    if probe is not None and scene.structure is not None:  # at a node, not at an s
+        node = scene.structure.probe_node()
+        summary.update({"probe_node": node, "probe_reference_position_m": probe_position(scene, 0)})
+    elif probe is not None:
         at = probe.sigma * scene.rod.length
         summary.update({"probe_s_m": at, "probe_reference_position_m": probe_position(scene, at)})
     if solver is not None:

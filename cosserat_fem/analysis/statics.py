@@ -214,7 +214,12 @@ def check_static_scene(scene: Scene, command: str) -> None:
     """SceneError naming the key unless the scene has static states: an open rod (not
     reference.closed), held (not a mechanism), with no prescribed support motion."""
     refuse_closed(scene, command)
-    if scene.supports.mechanism:
+    if scene.structure is not None and scene.mechanism:
+        raise SceneError(
+            "structure.supports: a static equilibrium needs the structure held; its supports "
+            "leave it a mechanism, whose rigid-body motion no load stops"
+        )
+    if scene.supports.mechanism and scene.structure is None:
         raise SceneError(
             f'supports: a static equilibrium needs the rod held (start = "{scene.supports.start}"'
             f', end = "{scene.supports.end}" leave it a mechanism, whose rigid-body motion no '

@@ -46,7 +46,10 @@ if TYPE_CHECKING:
 
 def probe_position(scene, s: float) -> list[float]:
     """r0(s) [m], the probe's point on the rod at rest (the scene's [reference]): the point
-    whose displacement probes.csv's x, y, z are (summary.json ``probe_reference_position_m``)."""
+    whose displacement probes.csv's x, y, z are (summary.json ``probe_reference_position_m``);
+    on a structure, its probe node's (resolved.Structure.probe_node), whatever s."""
+    if scene.structure is not None:
+        return [float(x) for x in scene.structure.positions()[scene.structure.probe_node()]]
     return [float(x) for x in scene.reference.positions([s])[0]]
 
 
@@ -142,6 +145,8 @@ class PointProbe:
         self.length = model.length
         self.sigma = sigma
         self.point = np.array([[sigma, 0.0, 0.0]])
+        if model.scene.structure is not None:  # its probe node, r0/ℓ
+            self.point = np.array([probe_position(model.scene, 0.0)]) / model.length
         tree = geometry.BoundingBoxTree(msh, msh.topology.dim)
         candidates = geometry.compute_collisions(tree, self.point)
         cells = geometry.compute_colliding_cells(msh, candidates, self.point).links(0)
@@ -162,8 +167,8 @@ class PointProbe:
         self._node = None
         if self.cell is not None:
             n_local = U.function_space.dofmap.index_map.size_local
-            coords = U.function_space.tabulate_dof_coordinates()[:n_local, 0]
-            hits = np.flatnonzero(np.abs(coords - sigma) < 1e-12)
+            coords = U.function_space.tabulate_dof_coordinates()[:n_local]
+            hits = np.flatnonzero(np.abs(coords - self.point).max(axis=1) < 1e-12)
             if hits.size:
                 self._node = int(hits[0])
 
@@ -283,11 +288,12 @@ def _fixed_basis_angles(U, chart, reference=None) -> ufl.core.expr.Expr:
     )
 
 
-def _output_nodes(msh: mesh.Mesh, k: int) -> tuple[np.ndarray, np.ndarray, int]:
+def _output_nodes(msh: mesh.Mesh, k: int) -> tuple[np.ndarray, np.ndarray, int, np.ndarray]:
     """The output points of the owned cells of the solver mesh: the reference points j/k,
     j = 0..k (each cell split into k segments), as global ids (a vertex keeps its input
     index; the interior points of global cell g get n_vertices + (k − 1) g + j − 1) and their
-    σ, arrays (owned cells, k + 1); and the total number of points."""
+    σ, arrays (owned cells, k + 1); the total number of points; and their mesh coordinates
+    (owned cells, k + 1, 3) (a structure's r0/ℓ, cosserat_fem/rod/structure.py)."""
     comm = msh.comm
     imap = msh.topology.index_map(msh.topology.dim)
     n_owned = imap.size_local
@@ -298,10 +304,14 @@ def _output_nodes(msh: mesh.Mesh, k: int) -> tuple[np.ndarray, np.ndarray, int]:
     ids = np.empty((n_owned, k + 1), dtype=np.int64)
     ids[:, 0], ids[:, k] = index[nodes[:, 0]], index[nodes[:, 1]]
     ids[:, 1:k] = n_vertices + (k - 1) * global_cells[:, None] + np.arange(k - 1)[None, :]
-    x0, x1 = msh.geometry.x[nodes[:, 0], 0], msh.geometry.x[nodes[:, 1], 0]
+    y0, y1 = msh.geometry.x[nodes[:, 0]], msh.geometry.x[nodes[:, 1]]
+    xi = np.linspace(0.0, 1.0, k + 1)[None, :, None]
+    coords = y0[:, None, :] + xi * (y1 - y0)[:, None, :]
+    coords[:, 0], coords[:, k] = y0, y1  # exactly the vertices
+    x0, x1 = y0[:, 0], y1[:, 0]
     sigma = x0[:, None] + np.linspace(0.0, 1.0, k + 1)[None, :] * (x1 - x0)[:, None]
     sigma[:, k] = x1  # exactly the vertex
-    return ids, sigma, n_vertices + (k - 1) * imap.size_global
+    return ids, sigma, n_vertices + (k - 1) * imap.size_global, coords
 
 
 class CentrelineOutput:
@@ -321,17 +331,24 @@ class CentrelineOutput:
 
     def __init__(self, msh: mesh.Mesh, length: float, k: int, positions=None):
         """``positions(s)``: the reference centreline r0 [m] at arc lengths s (n, 3); default
-        the straight rod's (0, 0, s)."""
+        the straight rod's (0, 0, s). On a structure's mesh (geometric dimension 3,
+        cosserat_fem/rod/structure.py) the points are ℓ times the mesh's, numbered by their
+        ids (its nodes first), and a junction's value the mean of two of its cells'."""
         comm = self.comm = msh.comm
         self.k = k
         self.cells = np.arange(msh.topology.index_map(msh.topology.dim).size_local, dtype=np.int32)
-        ids, sigma, self.n_points = _output_nodes(msh, k)
+        ids, sigma, self.n_points, coords = _output_nodes(msh, k)
+        embedded = msh.geometry.dim == 3
+        if embedded:  # the structure's points are numbered by their ids, not sorted by σ
+            sigma = ids.astype(float)
         self.counts = [ids.size] if comm.size == 1 else comm.allgather(ids.size)
         if comm.size > 1:
             ids_all = comm.gather(ids.ravel(), root=0)
             sigma_all = comm.gather(sigma.ravel(), root=0)
+            coords_all = comm.gather(coords.reshape(-1, 3), root=0)
         else:
             ids_all, sigma_all = [ids.ravel()], [sigma.ravel()]
+            coords_all = [coords.reshape(-1, 3)]
         self.geometry: np.ndarray | None = None
         self.topology: np.ndarray | None = None
         self._first = self._second = None
@@ -339,7 +356,7 @@ class CentrelineOutput:
             flat = np.concatenate(ids_all)
             n = self.n_points
             seen = np.bincount(flat, minlength=n)
-            if seen.min() < 1 or seen.max() > 2:
+            if seen.min() < 1 or (seen.max() > 2 and not embedded):
                 raise RuntimeError("output points: every point must have one or two cells")
             at = np.zeros(n)
             at[flat] = np.concatenate(sigma_all)  # a vertex has the same σ in both its cells
@@ -347,7 +364,10 @@ class CentrelineOutput:
             number = np.empty(n, dtype=np.int64)
             number[order] = np.arange(n)
             rows = number[flat]  # the point of each gathered row
-            if positions is None:
+            if embedded:
+                self.geometry = np.zeros((n, 3))
+                self.geometry[flat] = length * np.concatenate(coords_all)
+            elif positions is None:
                 self.geometry = np.zeros((n, 3))
                 self.geometry[:, 2] = length * at[order]
             else:

@@ -106,6 +106,12 @@ def open_run(directory: str | Path, command: str) -> Run:
     columns, probes = read_probe_table(probes_path) if is_file(probes_path) else (None, None)
     xdmf = path / XDMF
     run = Run(path, summary, probes, xdmf if is_file(xdmf) else None, columns or PROBE_COLUMNS)
+    if isinstance(summary, dict) and isinstance(summary.get("scene"), dict):
+        if summary["scene"].get("structure") is not None:
+            raise SceneError(
+                f"{command}: {str(path)!r} is the run of a structure, and {command} reads a "
+                "single rod's outputs (docs/structures.md); open its solution.xdmf in ParaView"
+            )
     if run.probes is None and run.xdmf is None:
         raise SceneError(
             f"{command}: {str(path)!r} holds no run outputs ({PROBES}, {XDMF}); "

@@ -50,6 +50,7 @@ from cosserat_fem.forms.section import SectionLaw
 from cosserat_fem.rod import charts
 from cosserat_fem.rod.charts import change_chart, change_chart_rate, chart_of
 from cosserat_fem.rod.load_coefficients import DataLoads
+from cosserat_fem.rod.structure import StructureMesh, create_structure_mesh, member_frames
 from cosserat_fem.scene.build import PLANAR, Scene
 from cosserat_fem.scene.expressions import Expression, derivative
 from cosserat_fem.scene.layout import FULL, Layout
@@ -137,6 +138,8 @@ class RodModel:
     _parameters: dict | None = None
     #: The loads given by data in the forms (made by build_model).
     data: DataLoads | None = None
+    #: A structure's mesh, nodes and node loads (cosserat_fem/rod/structure.py), or None.
+    structure: StructureMesh | None = None
 
     @property
     def needs_chart(self) -> bool:
@@ -165,6 +168,11 @@ class RodModel:
     def reference_form(self) -> Reference | None:
         """The rest configuration of the scene's [reference] in UFL (forms/reference.py), or
         None for the straight rod, whose forms are the paper's (65) as written."""
+        if self.scene.structure is not None:  # the members' frames (rod/structure.py)
+            if self.reference_frame is None:
+                self.reference_frame = member_frames(self.scene.structure, self.length, self.msh)
+            frame = self.reference_frame
+            return Reference(ufl.as_vector([frame[2, j] for j in range(3)]), frame, ufl.zero(3))
         shape = self.scene.reference
         if not shape.curved:
             return None
@@ -253,9 +261,15 @@ class RodModel:
         node has turned by more than π in its chart since the last move (ψ and φ are not
         bounded by the move's test), and such a move once made the interpolated frame turn
         over inside an element (measured: the flying spaghetti's energy jumped from 750 J to
-        14000 J). Rank 0 sweeps the owned nodes of all ranks in the order of σ."""
+        14000 J). Rank 0 sweeps the owned nodes of all ranks in the order of σ; on a structure
+        along its mesh (:meth:`_graph_flips`)."""
         V, comm = self.V, self.msh.comm
         n = V.dofmap.index_map.size_local
+        if self.structure is not None:
+            mine = self._graph_flips(Q[:n])
+            Q[:n][mine] *= -1.0
+            self._ghost_signs(Q)
+            return
         sigma = V.tabulate_dof_coordinates()[:n, 0]
         parts = comm.gather((sigma, Q[:n].copy()), root=0)
         flips = None
@@ -273,6 +287,48 @@ class RodModel:
             flips = [flip[sizes[r] : sizes[r + 1]] for r in range(comm.size)]
         mine = comm.scatter(flips, root=0)
         Q[:n][mine] *= -1.0
+        self._ghost_signs(Q)
+
+    def _graph_flips(self, Q_owned: np.ndarray) -> np.ndarray:
+        """Which owned nodes' quaternions to negate on a structure's mesh (collective): rank 0
+        gathers the nodes and cells of all ranks and walks the mesh breadth-first from its
+        first node (global 0, which keeps its sign), a node signed like the neighbour it is
+        reached from (a node of the same cell: the frame between them is that cell's
+        interpolant), so that every node has a positive product with that neighbour: the
+        rod's rule along σ, on a tree or a closed frame (whose loop closes on a rotation
+        field continuous from the rest, so its last edge agrees too)."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import breadth_first_order
+
+        V, comm = self.V, self.msh.comm
+        imap = V.dofmap.index_map
+        n = imap.size_local
+        glob = imap.local_to_global(np.arange(n + imap.num_ghosts, dtype=np.int32))
+        owned_cells = self.msh.topology.index_map(self.msh.topology.dim).size_local
+        cells = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)[:owned_cells]
+        parts = comm.gather((glob[:n], Q_owned.copy(), glob[cells]), root=0)
+        flips = None
+        if comm.rank == 0:
+            total = imap.size_global
+            values = np.empty((total, 4))
+            for ids, q, _ in parts:
+                values[ids] = q
+            links = np.concatenate([c for _, _, c in parts])
+            k = links.shape[1]
+            rows = np.repeat(links, k, axis=1).ravel()
+            cols = np.tile(links, (1, k)).ravel()
+            graph = coo_matrix((np.ones(rows.size), (rows, cols)), shape=(total, total)).tocsr()
+            order, parent = breadth_first_order(graph, 0, directed=False)
+            sign = np.ones(total)
+            for node in order[1:]:
+                up = parent[node]
+                sign[node] = sign[up] * (-1.0 if values[node] @ values[up] < 0.0 else 1.0)
+            flips = [sign[ids] < 0.0 for ids, _, _ in parts]
+        return comm.scatter(flips, root=0)
+
+    def _ghost_signs(self, Q: np.ndarray) -> None:
+        """The ghost nodes' quaternions take their owners' (after signing the owned ones)."""
+        comm = self.msh.comm
         if comm.size > 1:  # the ghosts take their owners' signs
             assert self.chart is not None, "use_chart made it"
             work = fem.Function(self.chart.function_space)
@@ -494,6 +550,18 @@ class RodModel:
                     torque=self._vector(end.torque, sym, time_eval),
                 )
             )
+        if self.structure is not None:  # node loads: a leaf's ds, a chain's dS (checked)
+            sub = self.ds.subdomain_data()
+            dS = ufl.Measure("dS", domain=self.msh, subdomain_data=sub)
+            for load, tag, interior in self.structure.loads:
+                ends.append(
+                    EndLoads(
+                        ds=(dS if interior else self.ds)(tag),
+                        force=self._vector(load.force, sym, time_eval),
+                        torque=self._vector(load.torque, sym, time_eval),
+                        interior=interior,
+                    )
+                )
         if loads.point is not None:  # at the node s (checked), on an interior facet
             dS = ufl.Measure("dS", domain=self.msh, subdomain_data=self.ds.subdomain_data())
             ends.append(
@@ -604,20 +672,38 @@ def support_conditions(
     held: dict[str, dict[int, fem.Constant]] = {}
     for name, ents in ends.items():
         kind, moving = getattr(scene.supports, name), scene.supports.motion(name) is not None
-        held[name] = {}
-        if kind == "clamped" and not moving:
-            dofs = fem.locate_dofs_topological(V, 0, ents)
-            bcs.append(fem.dirichletbc(np.zeros(len(components), dtype=np.float64), dofs, V))
-            continue
-        if kind == "free":
-            continue
-        for i in (i for i in scene.supports.held_components(name) if i in components):
-            j = components.index(i)
-            value = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
-            dofs = fem.locate_dofs_topological(V.sub(j), 0, ents)
-            bcs.append(fem.dirichletbc(value, dofs, V.sub(j)))
-            held[name][i] = value
+        held[name] = node_conditions(
+            V, ents, kind, scene.supports.held_components(name), components, moving, bcs
+        )
     return bcs, held
+
+
+def node_conditions(
+    V: fem.FunctionSpace,
+    ents: np.ndarray,
+    kind: str,
+    held: tuple[int, ...],
+    components: tuple[int, ...],
+    moving: bool,
+    bcs: list,
+) -> dict[int, fem.Constant]:
+    """Append to ``bcs`` the Dirichlet conditions of one support (:func:`support_conditions`)
+    at the vertices ``ents``: all components zero if clamped and not ``moving``, else each of
+    the ``held`` ones with a Constant value; returns {full component: its Constant}."""
+    values: dict[int, fem.Constant] = {}
+    if kind == "clamped" and not moving:
+        dofs = fem.locate_dofs_topological(V, 0, ents)
+        bcs.append(fem.dirichletbc(np.zeros(len(components), dtype=np.float64), dofs, V))
+        return values
+    if kind == "free":
+        return values
+    for i in (i for i in held if i in components):
+        j = components.index(i)
+        value = fem.Constant(V.mesh, PETSc.ScalarType(0.0))
+        dofs = fem.locate_dofs_topological(V.sub(j), 0, ents)
+        bcs.append(fem.dirichletbc(value, dofs, V.sub(j)))
+        values[i] = value
+    return values
 
 
 def is_fork(scene: Scene, end: str) -> bool:
@@ -652,13 +738,14 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     quiet_jit_logging()
     jit.install()  # crash-safe, quiet compiles (cosserat_fem/common/jit.py)
     disc = scene.discretisation
+    if scene.structure is not None:
+        return _build_structure_model(scene, comm)
     msh = mesh.create_interval(comm, disc.elements, [0.0, 1.0])
     cell = msh.ufl_cell()
     plane = scene.plane() if planar else None
     components = PLANAR[plane] if plane is not None else FULL
     element = ufl.VectorElement("Lagrange", cell, disc.degree, dim=len(components))
     V = fem.FunctionSpace(msh, element)
-    U = fem.Function(V, name="U")
 
     tdim = msh.topology.dim
     msh.topology.create_connectivity(tdim - 1, tdim)
@@ -689,21 +776,28 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
             accelerations = tuple(derivative(e, "t") for e in rates)
             motions.append(SupportMotion(name, motion, rates, accelerations, held[name]))
 
-    # FFCx 0.5 reads the quadrature degree from the measure's metadata only; a
-    # form_compiler_params={"quadrature_degree": q} is silently ignored.
-    q = disc.quadrature_degree
-    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": q})
-    ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
-    rod = _ufl_law(rod_constants(scene), scene, msh)
     skipped = scene.absent_terms()
     if plane is not None:
         dropped = ", ".join(P_NAMES[i] for i in range(6) if i not in components)
         skipped += [f"out-of-plane unknowns {dropped}"]
+    model = _model(scene, V, bcs, tags, components, skipped, fork_nodes)
+    model.motions = motions
+    return model
+
+
+def _model(scene: Scene, V, bcs, tags, components, skipped, fork_nodes) -> RodModel:
+    """The RodModel on the space V with its conditions and vertex tags (build_model)."""
+    # FFCx 0.5 reads the quadrature degree from the measure's metadata only; a
+    # form_compiler_params={"quadrature_degree": q} is silently ignored.
+    msh, q = V.mesh, scene.discretisation.quadrature_degree
+    dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": q})
+    ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
+    rod = _ufl_law(rod_constants(scene), scene, msh)
     return RodModel(
         scene=scene,
         msh=msh,
         V=V,
-        U=U,
+        U=fem.Function(V, name="U"),
         bcs=bcs,
         dx=dx,
         ds=ds,
@@ -712,8 +806,42 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
         convention=EndLoadConvention(scene.model.end_load_sign, scene.model.end_load_scaling),
         skipped=skipped,
         load_factor=fem.Constant(msh, PETSc.ScalarType(1.0)),
-        motions=motions,
         layout=Layout(components),
         fork_nodes=fork_nodes,
         data=DataLoads(msh, q, scene.rod.length, scene.omega0),
     )
+
+
+def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
+    """The discrete structure (cosserat_fem/rod/structure.py): its mesh in 3D, all twelve
+    components, the supports at its nodes (node_conditions; a pinned node a hinge, whose
+    held angles keep the chart, like a fork), its node loads (RodModel.load_vectors)."""
+    structure = scene.structure
+    assert structure is not None, "build_model's branch"
+    made = create_structure_mesh(structure, scene.rod.length, comm)
+    element = ufl.VectorElement(
+        "Lagrange", made.msh.ufl_cell(), scene.discretisation.degree, dim=len(FULL)
+    )
+    V = fem.FunctionSpace(made.msh, element)
+    bcs, forks = structure_conditions(V, scene, made.vertices, FULL)
+    model = _model(scene, V, bcs, made.tags, FULL, scene.absent_terms(), forks)
+    model.structure = made
+    return model
+
+
+def structure_conditions(
+    V: fem.FunctionSpace, scene: Scene, vertices: dict[str, np.ndarray], components
+) -> tuple[list, np.ndarray]:
+    """The Dirichlet conditions of a structure's supports (node_conditions at each support's
+    node, ``vertices`` by node name) on a space of the ``components`` of (p, q), and the
+    blocks of the nodes that hold some angles but not all (a hinge: the chart stays there)."""
+    assert scene.structure is not None, "a structure's scene"
+    bcs: list = []
+    forks = [np.zeros(0, dtype=np.int32)]
+    for support in scene.structure.supports:
+        ents = vertices[support.node]
+        held = support.held_components()
+        node_conditions(V, ents, support.kind, held, components, False, bcs)
+        if 0 < len(support.held()[1]) < 3:
+            forks.append(fem.locate_dofs_topological(V, 0, ents))
+    return bcs, np.concatenate(forks).astype(np.int32)

@@ -51,6 +51,7 @@ from cosserat_fem.scene.resolved import (  # noqa: F401 - the resolved scene, im
     Loads,
     Material,
     ModelChoices,
+    NodeLoad,
     Output,
     PointLoad,
     ReferenceShape,
@@ -59,6 +60,10 @@ from cosserat_fem.scene.resolved import (  # noqa: F401 - the resolved scene, im
     SectionSpec,
     Solver,
     StaticSettings,
+    Structure,
+    StructureMember,
+    StructureNode,
+    StructureSupport,
     Supports,
     Time,
     auto_reference_frequency,
@@ -679,10 +684,16 @@ def scene_from_dict(
     if not isinstance(data, dict):
         raise SceneError(f"{source}: a scene must be a table of keys, got {show_value(data)}")
     check_depth(data, source)
-    raw = check_scene(apply_overrides(data, overrides))
+    merged = apply_overrides(data, overrides)
+    given = _structure_given(merged)
+    raw = check_scene(merged)
     parameters = raw["parameters"]
-    rod = _build_rod(raw["rod"])
     tables = tables if tables is not None else TableStore()
+    structure = None
+    if raw["structure"] is not None:
+        structure = _build_structure(raw["structure"], {*SCENE_CONSTANTS, *parameters}, tables)
+        _fill_structure(raw, structure, given)
+    rod = _build_rod(raw["rod"])
     supports = _build_supports(raw["supports"], {*SCENE_CONSTANTS, *parameters}, tables)
     loads = _build_loads(raw["loads"], supports, {*SCENE_CONSTANTS, *parameters}, tables)
     time = _build_time(raw["time"], frozenset(fixed), after)
@@ -700,9 +711,11 @@ def scene_from_dict(
         static=build(StaticSettings, raw["static"]),
         damping=build(Damping, raw["damping"]),
         limits=_build_limits(raw["limits"]),
+        structure=structure,
         source=source,
     )
     _check_derived(scene)
+    _check_structure_scene(scene)
     _check_section_law(scene)
     reference = _build_reference(raw["reference"], scene.expression_names())
     _check_reference(scene, reference)
@@ -715,6 +728,199 @@ def scene_from_dict(
         check_span(component, time.start, time.end, scene.static.time, rod.length)
     initial = _build_initial(raw["initial"], supports, scene.expression_names(), time.start)
     return replace(scene, initial=initial, reference=reference)
+
+
+# =================================================================================== structures
+#: The keys of a single rod that a structure gives otherwise (docs/structures.md): refused.
+_ROD_ONLY = {
+    "reference": "a structure's members are straight between their nodes; give no [reference]",
+    "supports": "a structure is held at its nodes: [[structure.supports]]",
+    "initial": "initial fields on a structure are not supported yet (it starts at rest)",
+    "loads.start": "a structure is loaded at its nodes: [[structure.loads]]",
+    "loads.end": "a structure is loaded at its nodes: [[structure.loads]]",
+    "loads.point": "a structure is loaded at its nodes: [[structure.loads]]",
+    "loads.follower": "follower loads on a structure are not supported yet",
+    "loads.semitangential": "semitangential torques on a structure are not supported yet",
+}
+
+
+def _structure_given(data: dict[str, Any]) -> dict[str, bool]:
+    """For a scene with a [structure]: refuse the keys of a single rod it gives otherwise
+    (:data:`_ROD_ONLY`), and whether it gives rod.length and discretisation.elements (which
+    the structure sets: the members' total length and elements). Without one: {}."""
+    if not isinstance(data, dict) or "structure" not in data:
+        return {}
+    for dotted, why in _ROD_ONLY.items():
+        table: Any = data
+        for part in dotted.split("."):
+            table = table.get(part) if isinstance(table, dict) else None
+        if table is not None:
+            raise SceneError(f"{dotted}: {why}")
+    given = {}
+    for table_name, name in (("rod", "length"), ("discretisation", "elements")):
+        table = data.get(table_name)
+        given[name] = isinstance(table, dict) and name in table
+        if isinstance(table, dict) and not given[name]:
+            data[table_name] = {**table, name: 1}  # a placeholder, set by _fill_structure
+    return given
+
+
+def _fill_structure(raw: dict[str, Any], structure: Structure, given: dict[str, bool]) -> None:
+    """Set rod.length to the members' total length and discretisation.elements to their
+    total elements; SceneError naming the key if the scene gives another."""
+    total = float(structure.lengths().sum())
+    elements = sum(m.elements for m in structure.members)
+    if given["length"] and abs(raw["rod"]["length"] - total) > 1e-9 * total:
+        raise SceneError(
+            f"rod.length: a structure's length is its members' total, {total:.10g} m; leave "
+            f"the key out or give that, got {fmt(raw['rod']['length'])}"
+        )
+    if given["elements"] and raw["discretisation"]["elements"] != elements:
+        raise SceneError(
+            f"discretisation.elements: a structure's elements are its members', {elements} "
+            f"in all; leave the key out, got {raw['discretisation']['elements']}"
+        )
+    raw["rod"] = {**raw["rod"], "length": total}
+    raw["discretisation"] = {**raw["discretisation"], "elements": elements}
+
+
+def _unit_axis(raw: Any, key: str, nonzero: bool = True) -> tuple[float, float, float]:
+    """Three finite numbers, not all zero if ``nonzero``; SceneError naming ``key``."""
+    for i, x in enumerate(raw):
+        if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
+            raise SceneError(f"{key}[{i}]: must be a finite number, got {show_value(x)}")
+    if nonzero and not any(raw):
+        raise SceneError(f"{key}: must not be zero, got {show_value(raw)}")
+    x, y, z = (float(c) for c in raw)
+    return x, y, z
+
+
+def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStore) -> Structure:
+    """[structure] (resolved.Structure): nodes with unique names and finite positions, no two
+    at one place (so that a member has a length), members between two different known nodes,
+    with a d1 normal to
+    them; every node on a member, the members connected; supports and loads at known nodes,
+    one support a node, loads functions of t and the constants at nodes that join at most
+    two members (the point-load measure, docs/structures.md). SceneError naming the key."""
+    nodes = []
+    for i, entry in enumerate(raw["nodes"]):
+        position = _unit_axis(entry["position"], f"structure.nodes[{i}].position", False)
+        nodes.append(build(StructureNode, entry, position=position))
+    names = [n.name for n in nodes]
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise SceneError(f"structure.nodes[{i}].name: {name!r} is given twice")
+    if not nodes:
+        raise SceneError("structure.nodes: a structure needs nodes ([[structure.nodes]])")
+    r0 = {n.name: np.asarray(n.position, dtype=float) for n in nodes}
+    size = max(1.0, max(float(np.abs(x).max()) for x in r0.values()))
+    points = np.array([n.position for n in nodes], dtype=float)
+    for i in range(1, len(nodes)):
+        near = np.linalg.norm(points[:i] - points[i], axis=1) <= 1e-12 * size
+        if near.any():
+            other = names[int(np.argmax(near))]
+            raise SceneError(
+                f"structure.nodes[{i}].position: the place of node {other!r}; a joint is one "
+                f"node (members meeting there name it), got {show_value(list(nodes[i].position))}"
+            )
+    members = []
+    for i, entry in enumerate(raw["members"]):
+        key = f"structure.members[{i}]"
+        for end in ("from", "to"):
+            if entry[end] not in r0:
+                raise SceneError(
+                    f"{key}.{end}: unknown node {entry[end]!r}; the nodes are {', '.join(names)}"
+                )
+        if entry["from"] == entry["to"]:
+            raise SceneError(f"{key}.to: a member joins two different nodes, got {entry['to']!r}")
+        chord = r0[entry["to"]] - r0[entry["from"]]  # not zero: two nodes, two places
+        length = float(np.linalg.norm(chord))
+        d1 = None if entry["d1"] is None else _unit_axis(entry["d1"], f"{key}.d1")
+        if d1 is not None and abs(np.dot(d1, chord)) > 1e-9 * length * np.linalg.norm(d1):
+            raise SceneError(f"{key}.d1: must be normal to the member, got {show_value(d1)}")
+        members.append(build(StructureMember, entry, d1=d1))
+    if not members:
+        raise SceneError("structure.members: a structure needs members ([[structure.members]])")
+    member_names = [m.name for m in members]
+    for i, name in enumerate(member_names):
+        if name in member_names[:i]:
+            raise SceneError(f"structure.members[{i}].name: {name!r} is given twice")
+    joined = {m.start for m in members} | {m.end for m in members}
+    for i, name in enumerate(names):
+        if name not in joined:
+            raise SceneError(f"structure.nodes[{i}]: node {name!r} is joined to no member")
+    reached, front = {names[0]}, [names[0]]
+    while front:
+        node = front.pop()
+        for m in members:
+            for a, b in ((m.start, m.end), (m.end, m.start)):
+                if a == node and b not in reached:
+                    reached.add(b)
+                    front.append(b)
+    if len(reached) < len(names):
+        lost = next(n for n in names if n not in reached)
+        raise SceneError(
+            f"structure.members: the structure is not connected: node {lost!r} cannot be "
+            f"reached from node {names[0]!r}"
+        )
+    supports: list[StructureSupport] = []
+    for i, entry in enumerate(raw["supports"]):
+        key = f"structure.supports[{i}]"
+        if entry["node"] not in r0:
+            raise SceneError(f"{key}.node: unknown node {entry['node']!r}")
+        if entry["node"] in [s.node for s in supports]:
+            raise SceneError(f"{key}.node: node {entry['node']!r} has a support already")
+        axis = entry["axis"]
+        if axis is not None:
+            axis = _unit_axis(axis, f"{key}.axis")
+            if entry["kind"] != "pinned":
+                raise SceneError(f"{key}.axis: only a pinned node has a hinge axis")
+            if sum(x != 0 for x in axis) != 1:
+                raise SceneError(f"{key}.axis: a hinge axis must lie along e1, e2 or e3")
+        supports.append(build(StructureSupport, entry, axis=axis))
+    if raw["probe"] is not None and raw["probe"] not in r0:
+        raise SceneError(f"structure.probe: unknown node {raw['probe']!r}")
+    structure = Structure(
+        nodes=tuple(nodes), members=tuple(members), supports=tuple(supports), probe=raw["probe"]
+    )
+    names_t = {"t", *constants}
+    loads = []
+    for i, entry in enumerate(raw["loads"]):
+        key = f"structure.loads[{i}]"
+        if entry["node"] not in r0:
+            raise SceneError(f"{key}.node: unknown node {entry['node']!r}")
+        if structure.degree(entry["node"]) > 2:
+            raise SceneError(
+                f"{key}.node: a load at node {entry['node']!r}, which joins "
+                f"{structure.degree(entry['node'])} members, is not supported yet (a point "
+                "load needs a node of one or two members); load a node next to it"
+            )
+        vectors = {}
+        for name in ("force", "torque"):
+            vector = _point_vector(entry[name], names_t, f"{key}.{name}", tables, "a node load")
+            if any(is_data(e) for e in vector):
+                raise SceneError(f"{key}.{name}: loads given by data on a structure: not yet")
+            vectors[name] = vector
+        loads.append(build(NodeLoad, entry, **vectors))
+    return replace(structure, loads=tuple(loads))
+
+
+def _check_structure_scene(scene: Scene) -> None:
+    """What a structure does not support yet, refused by name: distributed loads that depend
+    on s or are data (a structure has no single arc length), a section law of s."""
+    if scene.structure is None:
+        return
+    for name in ("force_density", "torque_density"):
+        for i, e in enumerate(getattr(scene.loads, name)):
+            if is_data(e) or e.depends_on("s"):
+                raise SceneError(
+                    f"loads.{name}[{i}]: on a structure a distributed load may depend on t "
+                    "and constants only (no arc length s along a structure, no data yet)"
+                )
+    if scene.rod.section.expressions():
+        raise SceneError(
+            "rod.section: a section law of s on a structure is not supported yet (constants only)"
+        )
 
 
 #: The keys of a general section law in [rod.section] (docs/sections.md), any shape.
@@ -979,6 +1185,16 @@ def refuse_closed(scene: Scene, command: str) -> None:
             f"reference.closed: a closed rod has modes only ({command} needs its unknowns "
             "joined at s = 0 and s = ℓ, which its solver does not have yet); use "
             "cosserat-fem modes"
+        )
+
+
+def refuse_structure(scene: Scene | None, command: str) -> None:
+    """SceneError for a structure (scene.structure) in a command that supports the single rod
+    only (docs/structures.md: run, static, modes and validate take structures)."""
+    if scene is not None and scene.structure is not None:
+        raise SceneError(
+            f"structure: {command} is not supported on a structure yet (run, static, modes "
+            "and validate are); see docs/structures.md"
         )
 
 

@@ -58,6 +58,9 @@ def describe_scene(scene: Scene) -> str:
         solved = ", ".join(P_NAMES[i] for i in PLANAR[plane] if i < 6)
         unknowns = f"{solved} and their rates (planar in {plane})"
     nodes = scene.discretisation.elements * scene.discretisation.degree + 1
+    if scene.structure is not None:  # a vertex per node, elements − 1 inside each member
+        st = scene.structure
+        nodes += len(st.nodes) - 1 - len(st.members)
     absent = scene.absent_terms()
     lines = [f"cosserat-fem: {scene.source}: valid", f"  title = {_show(scene.title)}"]
     data = scene.to_dict()
@@ -96,6 +99,12 @@ def _data_lines(scene: Scene) -> list[str]:
 def _reference_line(scene: Scene) -> str:
     """The rod at rest: its shape, length, end points and the total turning of its tangent."""
     ref, ell = scene.reference, scene.rod.length
+    if scene.structure is not None:
+        st = scene.structure
+        return (
+            f"  structure: {len(st.nodes)} nodes, {len(st.members)} straight members joined "
+            f"rigidly, length {ell:.6g} m in all (docs/structures.md)"
+        )
     ends = ref.positions(np.array([0.0, ell]))
     turning = ref.turning(ell)
     start, end = (", ".join(f"{x:.6g}" for x in point) for point in ends)

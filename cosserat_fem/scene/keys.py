@@ -56,6 +56,9 @@ HELD_BY_SUPPORT: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {
     "roller": ((0, 1), (2,)),
     "sliding": ((0, 1), (0, 1, 2)),
 }
+#: A structure's node supports ([[structure.supports]], docs/structures.md): what each holds
+#: is :data:`HELD_BY_SUPPORT`'s, a pinned node a hinge about its axis.
+STRUCTURE_SUPPORTS = ("clamped", "pinned", "spherical", "free")
 #: Upper bounds of keys whose size alone makes a run impossible here
 #: (cosserat_fem/analysis/budget.py estimates the others): quadrature points per cell, Newton
 #: iterations per solve.
@@ -329,6 +332,29 @@ class Points(Field):
     def to_value(self, value: Any) -> Any:
         """The points as lists."""
         return None if value is None else [list(point) for point in value]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Tables(Field):
+    """An array of tables (TOML ``[[name]]``), each checked against the table ``item``
+    declares (a resolved dataclass, :meth:`Table.of`); the list may be empty unless
+    ``required``."""
+
+    item: type | None = None
+
+    def describe(self) -> str:
+        return "an array of tables [[...]]"
+
+    def check(self, key: str, value: Any) -> Any:
+        if not isinstance(value, list):
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        assert self.item is not None, "declared with its item"
+        spec = Table.of(self.item)
+        return [check_table(f"{key}[{i}]", entry, spec) for i, entry in enumerate(value)]
+
+    def to_value(self, value: Any) -> Any:
+        """The tables of the resolved entries (:func:`to_table`)."""
+        return None if value is None else [to_table(entry) for entry in value]
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -32,6 +32,7 @@ from cosserat_fem.scene.keys import (
     POSITIVE,
     REFERENCE_KEYS,
     SECTION_KEYS,
+    STRUCTURE_SUPPORTS,
     SUPPORTS,
     XDMF_DEFAULT_FIELDS,
     XDMF_FIELDS,
@@ -49,6 +50,7 @@ from cosserat_fem.scene.keys import (
     Points,
     SymmetricMatrix,
     Table,
+    Tables,
     Text,
     Vector,
     declared_names,
@@ -384,14 +386,8 @@ class Supports:
         (the turn about the chord), a roller 3, a sliding end or two rollers 1 (along e3)."""
         chord = np.asarray(self.chord, dtype=float)
         chord = chord / max(float(np.linalg.norm(chord)), 1e-300)  # the rank is scale-free
-        rows = []
-        for end, r in (("start", np.zeros(3)), ("end", chord)):
-            position, angles = self.held(end)
-            for i in position:
-                e = np.eye(3)[i]
-                rows.append(np.concatenate([e, np.cross(r, e)]))  # (ω × r)·e = ω·(r × e)
-            rows += [np.concatenate([np.zeros(3), np.eye(3)[a]]) for a in angles]
-        return 6 - (int(np.linalg.matrix_rank(np.array(rows))) if rows else 0)
+        ends = (("start", np.zeros(3)), ("end", chord))
+        return rigid_body_modes([(r, *self.held(end)) for end, r in ends])
 
     @property
     def mechanism(self) -> bool:
@@ -401,6 +397,21 @@ class Supports:
 
     def motion(self, end: str) -> tuple[Expression, ...] | None:
         return self.start_motion if end == "start" else self.end_motion
+
+
+def rigid_body_modes(held: list[tuple[np.ndarray, tuple[int, ...], tuple[int, ...]]]) -> int:
+    """How many rigid-body motions supports leave: 6 less the rank of the components they
+    hold of a small rigid motion (translation t, rotation ω about the origin) at rest,
+    ``held`` [(point r, position components, angle components)]: position component i at r
+    is t_i + (ω × r)_i, angle a is ω_a (the angles' linearisation at rest: rotations about
+    e1, e2, e3)."""
+    rows = []
+    for r, position, angles in held:
+        for i in position:
+            e = np.eye(3)[i]
+            rows.append(np.concatenate([e, np.cross(r, e)]))  # (ω × r)·e = ω·(r × e)
+        rows += [np.concatenate([np.zeros(3), np.eye(3)[a]]) for a in angles]
+    return 6 - (int(np.linalg.matrix_rank(np.array(rows))) if rows else 0)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -618,6 +629,121 @@ class Loads:
         ]
 
 
+@dataclass(frozen=True, kw_only=True)
+class StructureNode:
+    """A node of a structure ([[structure.nodes]]): its ``name`` and its ``position`` r0 [m]
+    at rest, fixed basis."""
+
+    name: str = key(Text(required=True, non_empty=True))
+    position: tuple[float, float, float] = key(Vector(required=True, unit="m"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class StructureMember:
+    """A straight member ([[structure.members]]) from the node ``start`` (key ``from``) to the
+    node ``end`` (key ``to``), ``elements`` cells; its rest frame D0: d0_3 along it, d0_1 the
+    unit ``d1`` (normal to it; default: e2 × d0_3 normalised, or e1 × d0_3 for a member along
+    e2), d0_2 = d0_3 × d0_1 (:meth:`frame`). The scene's [rod] section and material."""
+
+    name: str = key(Text(required=True, non_empty=True))
+    start: str = key(Text(required=True, non_empty=True), name="from")
+    end: str = key(Text(required=True, non_empty=True), name="to")
+    elements: int = key(Number(required=True, integer=True, interval=POSITIVE))
+    d1: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
+
+    def frame(self, tangent: np.ndarray) -> np.ndarray:
+        """D0 (3×3, rows d0_1, d0_2, d0_3) for the unit ``tangent`` d0_3 (class docstring)."""
+        t = np.asarray(tangent, dtype=float)
+        if self.d1 is not None:
+            d1 = np.asarray(self.d1, dtype=float)
+        else:
+            d1 = np.cross([0.0, 1.0, 0.0], t)
+            if np.linalg.norm(d1) < 1e-6:
+                d1 = np.cross([1.0, 0.0, 0.0], t)
+        d1 = d1 / np.linalg.norm(d1)
+        return np.stack([d1, np.cross(t, d1), t])
+
+
+@dataclass(frozen=True, kw_only=True)
+class StructureSupport:
+    """A support at a node ([[structure.supports]]): ``kind`` clamped (p = q = 0), pinned (the
+    position held, a hinge about ``axis``, e1, e2 or e3, default e2: the angles about the
+    other two held), spherical (the position held) or free; what each holds is
+    HELD_BY_SUPPORT's (scene/keys.py)."""
+
+    node: str = key(Text(required=True, non_empty=True))
+    kind: str = key(Choice(choices=STRUCTURE_SUPPORTS, required=True))
+    axis: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
+
+    def held(self) -> tuple[tuple[int, ...], tuple[int, ...]]:
+        """The components of the position (x, y, z) and of the angles (θ, ψ, φ) held."""
+        position, angles = HELD_BY_SUPPORT[self.kind]
+        if self.kind == "pinned":
+            k = int(np.argmax(np.abs(self.axis if self.axis is not None else (0, 1, 0))))
+            angles = tuple(i for i in range(3) if i != k)
+        return position, angles
+
+    def held_components(self) -> tuple[int, ...]:
+        """The components of U = (p, q) held: the positions and angles, and their rates."""
+        position, angles = self.held()
+        p = (*position, *(3 + a for a in angles))
+        return (*p, *(6 + i for i in p))
+
+
+@dataclass(frozen=True, kw_only=True)
+class NodeLoad:
+    """A force [N] and torque [N m] at a node ([[structure.loads]]), fixed directions,
+    functions of t."""
+
+    node: str = key(Text(required=True, non_empty=True))
+    force: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N"))
+    torque: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m"))
+
+
+@dataclass(frozen=True, kw_only=True)
+class Structure:
+    """Straight rods joined rigidly at shared nodes ([structure], docs/structures.md): a tree
+    or a closed frame. ℓ (rod.length) is the members' total length."""
+
+    nodes: tuple[StructureNode, ...] = key(Tables(item=StructureNode, required=True))
+    members: tuple[StructureMember, ...] = key(Tables(item=StructureMember, required=True))
+    supports: tuple[StructureSupport, ...] = key(
+        Tables(item=StructureSupport, default=[]), default=()
+    )
+    loads: tuple[NodeLoad, ...] = key(Tables(item=NodeLoad, default=[]), default=())
+    #: the node probes.csv follows (default: :meth:`probe_node`'s rule)
+    probe: str | None = key(Text(non_empty=True), default=None)
+
+    def positions(self) -> dict[str, np.ndarray]:
+        """{node name: r0 [m]}."""
+        return {n.name: np.asarray(n.position, dtype=float) for n in self.nodes}
+
+    def lengths(self) -> np.ndarray:
+        """The members' lengths [m]."""
+        r0 = self.positions()
+        return np.array([np.linalg.norm(r0[m.end] - r0[m.start]) for m in self.members])
+
+    def probe_node(self) -> str:
+        """The node probes.csv follows: ``probe``, else the first loaded node, else the first
+        node without a support, else the first node."""
+        if self.probe is not None:
+            return self.probe
+        held = {s.node for s in self.supports if s.kind != "free"}
+        free = [n.name for n in self.nodes if n.name not in held]
+        return next(iter([x.node for x in self.loads] + free + [self.nodes[0].name]))
+
+    def rigid_body_modes(self) -> int:
+        """How many rigid-body motions the supports leave (:func:`rigid_body_modes`, the
+        nodes' positions scaled by the structure's size: the rank is scale-free)."""
+        r0 = self.positions()
+        size = max(1e-300, max(float(np.abs(x).max()) for x in r0.values()))
+        return rigid_body_modes([(r0[s.node] / size, *s.held()) for s in self.supports])
+
+    def degree(self, node: str) -> int:
+        """How many members meet at ``node``."""
+        return sum((m.start == node) + (m.end == node) for m in self.members)
+
+
 #: Planes of motion (Scene.plane): the normal e_k, the axes of torques that leave the plane
 #: and the angles (θ, ψ, φ) = (0, 1, 2) that stay zero in it.
 PLANES = {"x-z": ((1,), (0, 2), (0, 2)), "y-z": ((0,), (1, 2), (1, 2))}
@@ -820,10 +946,24 @@ class Scene:
     solver: Solver = table(Solver)
     output: Output = table(Output)
     limits: Limits = table(Limits)
+    #: Several straight rods joined rigidly at nodes (docs/structures.md), or None: one rod.
+    structure: Structure | None = table(Structure, optional=True, default=None)
     source: str = field(default="<dict>", compare=False)
     #: SHA-256 of the file's bytes the scene was read from ("" for a dict): what every MPI
     #: rank parsed (schema.read_input), written to summary.json as ``scene_file_sha256``
     source_sha256: str = field(default="", compare=False)
+
+    def rigid_body_modes(self) -> int:
+        """How many rigid-body motions the supports leave: the structure's
+        (Structure.rigid_body_modes) or the rod's (Supports.rigid_body_modes)."""
+        if self.structure is not None:
+            return self.structure.rigid_body_modes()
+        return self.supports.rigid_body_modes()
+
+    @property
+    def mechanism(self) -> bool:
+        """Whether the supports leave a rigid-body motion (:meth:`rigid_body_modes` > 0)."""
+        return self.rigid_body_modes() > 0
 
     @property
     def omega0(self) -> float:
@@ -847,7 +987,7 @@ class Scene:
         or None: asked for (discretisation.planar = "auto") and nothing leaves the plane; never
         with a section law that couples its strains (rod.section.stiffness off its diagonal:
         an extension may twist, a bending shear out of the plane)."""
-        if self.discretisation.planar != "auto" or self.reference.curved:
+        if self.discretisation.planar != "auto" or self.reference.curved or self.structure:
             return None
         K = self.rod.section.stiffness
         if K is not None and any(K[i][j] != 0.0 for i in range(6) for j in range(6) if i != j):
@@ -940,8 +1080,13 @@ class Scene:
         it (:func:`~cosserat_fem.scene.keys.to_table`: expressions as their sources, tables and
         callables as their dicts, reference_frequency and limits.memory "auto" where so
         chosen, absent optional tables left out): plain, JSON-serialisable;
-        ``scene_from_dict`` inverts it."""
-        return to_table(self)
+        ``scene_from_dict`` inverts it. A structure's scene leaves out the single rod's
+        [reference], [supports] and [initial], which it refuses (docs/structures.md)."""
+        table = to_table(self)
+        if self.structure is not None:
+            for name in ("reference", "supports", "initial"):
+                table.pop(name, None)
+        return table
 
 
 def auto_reference_frequency(rod: Rod) -> float:

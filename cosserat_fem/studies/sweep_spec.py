@@ -107,7 +107,7 @@ from typing import Any
 from cosserat_fem.analysis import budget
 from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import SceneError, show_value
-from cosserat_fem.scene.build import Scene, refuse_closed, scene_from_dict
+from cosserat_fem.scene.build import Scene, refuse_closed, refuse_structure, scene_from_dict
 from cosserat_fem.scene.load_data import TableStore
 from cosserat_fem.scene.schema import apply_overrides, parse_toml, read_input, read_toml
 from cosserat_fem.studies.response import DIRECTIONS, ResponseSettings, check_sampling, period_of
@@ -842,6 +842,7 @@ def _check_member(
     memory of a group's rank counted as a share of one node's, a certain lower bound)."""
     scene = scene_from_dict(data, source, member.values, tables=tables)
     refuse_closed(scene, "run")
+    refuse_structure(scene, "sweep")
     if response is None:
         budget.check(scene, "run", ranks=group_size, comm=_world())
         return

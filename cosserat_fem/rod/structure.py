@@ -1,0 +1,119 @@
+"""A structure's mesh: straight members joined rigidly at shared nodes (docs/structures.md).
+
+The mesh is one interval mesh embedded in 3D (geometric dimension 3) whose vertices are the
+rest positions r0/ℓ (ℓ = rod.length, the members' total length): the structure's nodes first,
+in the scene's order, then each member's interior vertices, ``elements`` equal cells from its
+``from`` node to its ``to`` node. A junction is one vertex that several members' cells share,
+so they share its unknowns p = (x/ℓ, y/ℓ, z/ℓ, θ, ψ, φ), q = dp/dτ: the angles parametrise the
+spatial rotation Λ that turns every member's rest directors, d_i = Λ d0_i (forms/reference.py),
+so the members' directors there keep their rest angles to one another: a rigid joint.
+
+On this mesh σ is the arc length over ℓ along each cell, d/dσ the tangential derivative
+(forms/kinematics.py :func:`~cosserat_fem.forms.kinematics.d_sigma`), and the rest frame D0 a
+cellwise-constant 3×3 field (:func:`member_frames`): each cell holds its member's frame
+(resolved.StructureMember.frame), d0_1 and d0_3 negated where the cell runs against the member
+(t = J[:, 0]/|J[:, 0]| is the cell's own direction), so that d0_3 = t on every cell and the
+rest strains vanish (forms/reference.py).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import ufl
+from dolfinx import fem, mesh
+from dolfinx.fem.function import ElementMetaData
+from mpi4py import MPI
+
+from cosserat_fem.scene.resolved import NodeLoad, Structure
+
+#: The vertex tags of the structure's nodes: node i of the scene gets NODE_TAG + i.
+NODE_TAG = 10
+
+
+@dataclass
+class StructureMesh:
+    """The mesh of a structure, its nodes' vertices (local, by node name), their tags
+    (a vertex MeshTags: :data:`NODE_TAG` + the node's index) and the node loads with their
+    tag and whether the node is inside a chain of two members (an interior facet: dS)."""
+
+    msh: mesh.Mesh
+    vertices: dict[str, np.ndarray]
+    tags: mesh.MeshTagsMetaClass
+    loads: list[tuple[NodeLoad, int, bool]]
+
+
+def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -> StructureMesh:
+    """The mesh of ``structure`` (module docstring), ℓ = ``length`` [m]; collective (rank 0
+    gives the cells and points, DOLFINx distributes them)."""
+    r0 = structure.positions()
+    names = [n.name for n in structure.nodes]
+    points = [r0[n] for n in names]
+    cells = []
+    for m in structure.members:
+        a, b = r0[m.start], r0[m.end]
+        chain = [names.index(m.start)]
+        for j in range(1, m.elements):
+            chain.append(len(points))
+            points.append(a + (b - a) * j / m.elements)
+        chain.append(names.index(m.end))
+        cells += [[chain[j], chain[j + 1]] for j in range(m.elements)]
+    x = np.asarray(points, dtype=float) / length
+    topology = np.asarray(cells, dtype=np.int64)
+    if comm.rank != 0:
+        x, topology = np.zeros((0, 3)), np.zeros((0, 2), dtype=np.int64)
+    cell = ufl.Cell("interval", geometric_dimension=3)
+    domain = ufl.Mesh(ufl.VectorElement("Lagrange", cell, 1, dim=3))
+    msh = mesh.create_mesh(comm, topology, x, domain)
+    msh.topology.create_connectivity(0, 1)
+    scale = max(1.0, float(np.abs(np.asarray(points)).max()) / length)
+    vertices = {}
+    for name in names:
+        at = r0[name] / length
+        vertices[name] = mesh.locate_entities(
+            msh,
+            0,
+            lambda y, at=at: np.linalg.norm(y - at[:, None], axis=0) < 1e-10 * scale,
+        )
+    entities = np.concatenate(list(vertices.values())).astype(np.int32)
+    values = np.concatenate(
+        [np.full(len(vertices[n]), NODE_TAG + i, dtype=np.int32) for i, n in enumerate(names)]
+    )
+    order = np.argsort(entities)
+    tags = mesh.meshtags(msh, 0, entities[order], values[order])
+    loads = [
+        (load, NODE_TAG + names.index(load.node), structure.degree(load.node) == 2)
+        for load in structure.loads
+    ]
+    return StructureMesh(msh, vertices, tags, loads)
+
+
+def member_frames(structure: Structure, length: float, msh: mesh.Mesh) -> fem.Function:
+    """D0 on each cell (module docstring) as a DG0 3×3 Function ``D0``: the member a cell
+    belongs to is the one its midpoint lies on; its frame with d0_1, d0_3 negated where the
+    cell's vertices run against the member, so that d0_3 is the cell's own tangent."""
+    space = fem.TensorFunctionSpace(msh, ElementMetaData("DG", 0), shape=(3, 3))
+    cells = msh.topology.index_map(1)
+    count = cells.size_local + cells.num_ghosts
+    vertices = msh.geometry.dofmap.array.reshape(-1, 2)[:count]
+    x0, x1 = msh.geometry.x[vertices[:, 0]] * length, msh.geometry.x[vertices[:, 1]] * length
+    middle = 0.5 * (x0 + x1)
+    r0 = structure.positions()
+    starts = np.array([r0[m.start] for m in structure.members])
+    chords = np.array([r0[m.end] for m in structure.members]) - starts
+    lengths = np.linalg.norm(chords, axis=1)
+    tangents = chords / lengths[:, None]
+    # The distance of each midpoint from each member's segment (cells, members).
+    along = np.clip(((middle[:, None, :] - starts[None]) * tangents[None]).sum(2), 0, lengths)
+    foot = starts[None] + along[..., None] * tangents[None]
+    member = np.argmin(np.linalg.norm(middle[:, None, :] - foot, axis=2), axis=1)
+    frames = np.stack([m.frame(t) for m, t in zip(structure.members, tangents, strict=True)])
+    D0 = frames[member].copy()
+    against = ((x1 - x0) * tangents[member]).sum(1) < 0.0
+    D0[against, 0] *= -1.0
+    D0[against, 2] *= -1.0
+    dofs = space.dofmap.list.array.reshape(-1)[:count]
+    frame = fem.Function(space, name="D0")
+    frame.x.array.reshape(-1, 9)[dofs] = D0.reshape(-1, 9)
+    return frame
