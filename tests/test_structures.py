@@ -621,12 +621,14 @@ def test_bad_structures_are_refused_in_one_line(changes, message):
         ("reference", {"shape": "arc", "radius": 10.0}, "reference: a structure's members"),
         ("supports", {"start": "clamped"}, "supports: a structure is held at its nodes"),
         ("initial", {"displacement": [1, 0, 0]}, "initial: initial fields on a structure"),
+        ("loads.body", {"mass": 1.0}, "loads.body: a rigid body at a structure's node"),
     ],
 )
 def test_single_rod_keys_are_refused_on_a_structure(key, value, message):
     """The keys of a single rod that a structure gives otherwise are refused by name."""
     data = read_toml(PORTAL)
-    data[key] = value
+    table, _, leaf = key.rpartition(".")
+    (data.setdefault(table, {}) if table else data)[leaf] = value
     with pytest.raises(SceneError, match=f"^{message}"):
         scene_from_dict(data)
 

@@ -741,6 +741,8 @@ _ROD_ONLY = {
     "loads.point": "a structure is loaded at its nodes: [[structure.loads]]",
     "loads.follower": "follower loads on a structure are not supported yet",
     "loads.semitangential": "semitangential torques on a structure are not supported yet",
+    "loads.body": "a rigid body at a structure's node is not supported yet (a single rod's "
+    "end carries one: docs/rigid-bodies.md)",
 }
 
 
