@@ -41,7 +41,7 @@ import hashlib
 import io
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -139,18 +139,19 @@ class Basis:
         provenance.pop("ecsw", None)
         K = self.modes
         V = np.hstack([self.V[:, :k], self.V[:, K : K + k]])
-        return Basis(
-            V,
-            self.reference,
-            self.weights,
-            self.energies,
-            self.space,
-            provenance,
-            self.tests,
-            error_lambda=self.error_lambda,
-            error_modes=self.error_modes,
-            snapshots=self.snapshots,
-            snapshot_charts=self.snapshot_charts,
+        return self.with_modes(V, self.energies, provenance)
+
+    def with_modes(self, V: np.ndarray, energies: np.ndarray, provenance: dict) -> Basis:
+        """This basis with the modes ``V``, the POD's ``energies`` and ``provenance``, the rest
+        kept but a hyper-reduction's sampling (fitted to the modes of before)."""
+        return replace(
+            self,
+            V=V,
+            energies=energies,
+            provenance=provenance,
+            sample_cells=None,
+            sample_weights=None,
+            sample_sigma=None,
         )
 
 
@@ -383,20 +384,7 @@ def in_chart(basis: Basis, model) -> tuple[Basis, float]:
         "energy_left_out": left,
         "coordinates": coordinate_ranges(coordinates, norms),
     }
-    new = Basis(
-        V,
-        basis.reference,
-        basis.weights,
-        energies,
-        basis.space,
-        provenance,
-        basis.tests,
-        error_lambda=basis.error_lambda,
-        error_modes=basis.error_modes,
-        snapshots=basis.snapshots,
-        snapshot_charts=basis.snapshot_charts,
-    )
-    return new, left
+    return basis.with_modes(V, energies, provenance), left
 
 
 def inner(basis_or_weights, u: np.ndarray, v: np.ndarray, comm) -> np.ndarray:
