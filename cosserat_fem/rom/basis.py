@@ -29,6 +29,10 @@ global arrays (V, U_ref, W's diagonal, the energies) and a .json beside it of th
 provenance (the scene's text and hash, the runs, snapshot times, energies, the tolerance) and
 of the discretisation the rows belong to; a basis of another mesh or space is refused in one
 line (SceneError) naming the file and what differs.
+
+**A basis per chart.** Where the angles' chart may move (3D), the basis made by
+:func:`pod_basis` keeps its snapshots and the chart each was recorded in (in memory, not in the
+file); :func:`in_chart` maps them into another chart and PODs them again (docs/rom.md §9).
 """
 
 from __future__ import annotations
@@ -37,7 +41,7 @@ import hashlib
 import io
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from pathlib import Path
 
@@ -83,6 +87,12 @@ class Basis:
     #: "error_modes" the rod they belong to; None: solved when a run needs them.
     error_lambda: np.ndarray | None = None
     error_modes: np.ndarray | None = None
+    #: The training snapshots u_i = U(t_i) − U_ref (n_owned, T), and the nodal quaternions of
+    #: the chart each was recorded in (T entries, each (nodes·4,) or None: the fixed basis), for
+    #: a basis per chart (:func:`in_chart`, docs/rom.md §9); None: not kept (a basis file's, or
+    #: one trained without a chart: in a plane, where the angles' chart never moves).
+    snapshots: np.ndarray | None = None
+    snapshot_charts: list | None = None
 
     @cached_property
     def digest(self) -> str:
@@ -129,16 +139,19 @@ class Basis:
         provenance.pop("ecsw", None)
         K = self.modes
         V = np.hstack([self.V[:, :k], self.V[:, K : K + k]])
-        return Basis(
-            V,
-            self.reference,
-            self.weights,
-            self.energies,
-            self.space,
-            provenance,
-            self.tests,
-            error_lambda=self.error_lambda,
-            error_modes=self.error_modes,
+        return self.with_modes(V, self.energies, provenance)
+
+    def with_modes(self, V: np.ndarray, energies: np.ndarray, provenance: dict) -> Basis:
+        """This basis with the modes ``V``, the POD's ``energies`` and ``provenance``, the rest
+        kept but a hyper-reduction's sampling (fitted to the modes of before)."""
+        return replace(
+            self,
+            V=V,
+            energies=energies,
+            provenance=provenance,
+            sample_cells=None,
+            sample_weights=None,
+            sample_sigma=None,
         )
 
 
@@ -218,16 +231,17 @@ def state_rows(layout, n: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 class SnapshotCollector(Observer):
-    """Collects U − U_ref (this rank's owned values) at the output steps k with k % ``every``
-    == 0 of one run or several (give the same collector to each run: :func:`collect`). U_ref
-    is the state when the first run started (its ``started`` event). ``runs``: a label per run
-    (for the provenance)."""
+    """Collects U − U_ref (this rank's owned values) and the chart's nodal quaternions (None
+    without one) at the output steps k with k % ``every`` == 0 of one run or several (give the
+    same collector to each run: :func:`collect`). U_ref is the state when the first run
+    started (its ``started`` event). ``runs``: a label per run (for the provenance)."""
 
     def __init__(self, every: int = 1):
         if isinstance(every, bool) or not isinstance(every, int) or every < 1:
             raise SceneError(f"every: must be a whole number >= 1, got {every!r}")
         self.every = every
         self.columns: list[np.ndarray] = []
+        self.charts: list[np.ndarray | None] = []  # the chart of each column (None: fixed)
         self.times: list[float] = []
         self.reference: np.ndarray | None = None
         self.model = None
@@ -249,6 +263,8 @@ class SnapshotCollector(Observer):
             assert self.reference is not None, "started comes first"
             n = self.reference.size
             self.columns.append(loop.model.U.x.array[:n] - self.reference)
+            chart = loop.model.chart
+            self.charts.append(None if chart is None else chart.x.array.copy())
             self.times.append(t)
 
 
@@ -261,29 +277,10 @@ def pod_basis(model, collector: SnapshotCollector, tolerance: float, provenance:
         raise SceneError("snapshots: none collected (no output step of the runs)")
     comm = model.msh.comm
     weights = mass_weights(model)
-    p_rows, q_rows = state_rows(model.layout, len(weights))
-    root = np.sqrt(weights[p_rows])
-    A = np.column_stack(collector.columns)[p_rows] * root[:, None]
-    Phi, sigma, _ = snapshot_svd(A, comm)
-    energies = sigma**2
-    if not (energies.size and energies[0] > 0.0):
-        raise SceneError("snapshots: the state never left its reference: no modes to find")
-    k = modes_for_tolerance(energies, tolerance)
-    shapes = np.divide(
-        Phi[:, :k], root[:, None], out=np.zeros((len(root), k)), where=root[:, None] > 0
-    )
-    for j in range(k):  # the sign: each mode's entry of largest magnitude positive
-        column = shapes[:, j]
-        i = int(np.argmax(np.abs(column))) if column.size else 0
-        local = (float(abs(column[i])), float(column[i])) if column.size else (-1.0, 0.0)
-        if max(comm.allgather(local))[1] < 0:
-            shapes[:, j] *= -1.0
-    V = np.zeros((len(weights), 2 * k))
-    V[p_rows, :k] = shapes
-    V[q_rows, k:] = shapes
+    snapshots = np.column_stack(collector.columns)
+    V, energies, k = pod_modes(model.layout, weights, snapshots, comm, tolerance=tolerance)
     assert collector.reference is not None
     tests = kinetic_rows(model, len(weights))
-    snapshots = np.column_stack(collector.columns)
     coordinates = comm.allreduce((weights[:, None] * V).T @ snapshots)
     norms = np.sqrt(comm.allreduce(np.einsum("ij,i,ij->j", snapshots, weights, snapshots)))
     provenance = {
@@ -299,6 +296,7 @@ def pod_basis(model, collector: SnapshotCollector, tolerance: float, provenance:
     }
     lam, shapes, entry = basis_modes(model, len(weights))  # the indicator's, once a basis
     provenance["error_modes"] = entry
+    charted = any(chart is not None for chart in collector.charts)
     return Basis(
         V,
         collector.reference.copy(),
@@ -309,7 +307,84 @@ def pod_basis(model, collector: SnapshotCollector, tolerance: float, provenance:
         tests,
         error_lambda=lam,
         error_modes=shapes,
+        # kept where a chart may move (a basis per chart, :func:`in_chart`), not in the plane
+        snapshots=snapshots if charted else None,
+        snapshot_charts=list(collector.charts) if charted else None,
     )
+
+
+def pod_modes(layout, weights, snapshots, comm, tolerance=None, modes=None):
+    """(V, energies, k): the W-orthonormal POD modes of the snapshots' p rows (n_owned, T),
+    the fewest k whose energy left out is at most ``tolerance`` (docs/rom.md (3)), or the first
+    ``modes``; V (n_owned, 2k) holds them on p's rows, then on its rate's (docs/rom.md (4)),
+    each signed with its entry of largest magnitude positive. Collective."""
+    p_rows, q_rows = state_rows(layout, len(weights))
+    root = np.sqrt(weights[p_rows])
+    Phi, sigma, _ = snapshot_svd(snapshots[p_rows] * root[:, None], comm)
+    energies = sigma**2
+    if not (energies.size and energies[0] > 0.0):
+        raise SceneError("snapshots: the state never left its reference: no modes to find")
+    k = modes_for_tolerance(energies, tolerance) if modes is None else min(modes, energies.size)
+    shapes = np.divide(
+        Phi[:, :k], root[:, None], out=np.zeros((len(root), k)), where=root[:, None] > 0
+    )
+    for j in range(k):  # the sign: each mode's entry of largest magnitude positive
+        column = shapes[:, j]
+        i = int(np.argmax(np.abs(column))) if column.size else 0
+        local = (float(abs(column[i])), float(column[i])) if column.size else (-1.0, 0.0)
+        if max(comm.allgather(local))[1] < 0:
+            shapes[:, j] *= -1.0
+    V = np.zeros((len(weights), 2 * k))
+    V[p_rows, :k] = shapes
+    V[q_rows, k:] = shapes
+    return V, energies, k
+
+
+def in_chart(basis: Basis, model) -> tuple[Basis, float]:
+    """The basis per chart (docs/rom.md §9): the training snapshots, each mapped from the chart
+    it was recorded in to the model's chart now (charts.change_chart at the nodes whose
+    quaternion differs: the same directors and angular velocity, the angles and their rates
+    measured from the new frame), POD'd again to the same k; returns it and the new POD's
+    energy left out at k. Serial (the map needs every node of a snapshot). A SolverError
+    with the reason where it cannot: a basis without its snapshots (a basis file's)."""
+    from cosserat_fem.rod.charts import change_chart
+    from cosserat_fem.rom.galerkin import chart_refusal
+
+    if basis.snapshots is None or basis.snapshot_charts is None:
+        raise chart_refusal(
+            "the basis carries no training snapshots to re-express in the new chart (a basis "
+            "file's; a basis per chart needs them: cf.rom.basis.train, or rom build and run in "
+            "one process)"
+        )
+    if model.msh.comm.size > 1:
+        raise chart_refusal(
+            "a basis per chart is re-made serially only (the chart's map needs every node of "
+            "a snapshot)"
+        )
+    layout = model.layout
+    Q_new = model.chart.x.array.reshape(-1, 4)
+    identity = np.zeros_like(Q_new)
+    identity[:, 0] = 1.0
+    pick, T, nodes = list(layout.components), len(basis.snapshot_charts), len(Q_new)
+    Q_old = np.stack([identity if Q is None else Q.reshape(-1, 4) for Q in basis.snapshot_charts])
+    states = basis.reference[:, None] + basis.snapshots  # (n, T): every node of each (serial)
+    full = np.stack([layout.full_array(states[:, i]) for i in range(T)]).reshape(T * nodes, 12)
+    Q_to = np.broadcast_to(Q_new, (T, nodes, 4)).reshape(T * nodes, 4)
+    Q_from = Q_old.reshape(T * nodes, 4)
+    moved = np.any(Q_to != Q_from, axis=1)
+    full = full.copy()
+    full[moved] = change_chart(full[moved], Q_from[moved], Q_to[moved])
+    mapped = full.reshape(T, nodes, 12)[:, :, pick].reshape(T, -1).T - basis.reference[:, None]
+    V, energies, k = pod_modes(layout, basis.weights, mapped, model.msh.comm, modes=basis.modes)
+    coordinates = (basis.weights[:, None] * V).T @ mapped
+    norms = np.sqrt(np.einsum("ij,i,ij->j", mapped, basis.weights, mapped))
+    left = float(energies[k:].sum() / energies.sum())
+    provenance = {
+        **basis.provenance,
+        "energy_left_out": left,
+        "coordinates": coordinate_ranges(coordinates, norms),
+    }
+    return basis.with_modes(V, energies, provenance), left
 
 
 def inner(basis_or_weights, u: np.ndarray, v: np.ndarray, comm) -> np.ndarray:

@@ -23,9 +23,16 @@ frozen: kept across solves as cf_solve decides, with a retry on a fresh one), th
 (``cf_test`` on (‖U‖, ‖V δq‖, ‖r‖), 2-norms) and the statistics are the full model's. The
 residual is assembled by the C assembler where it applies (serial), else by DOLFINx.
 
+**Large rotations: a basis per chart** (docs/rom.md §9). When the Euler angles' chart moves
+(cosserat_fem/timestepping/loop.py ``watch_chart``: the integrator's states mapped in full, the
+model given the new chart), :meth:`ReducedSolver.follow_chart` makes the basis of the new
+chart (basis.in_chart: the training snapshots mapped from the charts they were recorded in,
+POD'd again to the same k), projects the state onto it and goes on.
+
 Refused (SceneError/SolverError, one line): a basis of another space (basis.read_basis), a
-scene whose supports move (the reference holds fixed Dirichlet values), and the moving chart
-(large rotations: a chart change maps U off the basis; docs/rom.md, "Large rotations").
+scene whose supports move (the reference holds fixed Dirichlet values), and a chart move the
+reduced run cannot follow (:func:`chart_refusal`): a hyper-reduced run, a basis without its
+snapshots (a basis file's), a run under MPI, a restart whose chart had moved.
 """
 
 from __future__ import annotations
@@ -42,6 +49,21 @@ from cosserat_fem.nls.newton import NewtonSettings, NewtonSolver
 from cosserat_fem.rom.basis import Basis, owned, read_basis
 
 _REASON = PETSc.SNES.ConvergedReason
+
+#: Why a hyper-reduced run refuses the chart's move (docs/rom.md §9).
+HYPER_CHARTS = (
+    "a hyper-reduced run cannot follow the chart (ECSW's elements and weights are fitted to "
+    "the first chart's modes; a Galerkin run, hyper=False, follows it)"
+)
+
+
+def chart_refusal(reason: str) -> SolverError:
+    """The reduced run's one-line refusal of the chart's move (|θ| near π/2), with ``reason``."""
+    return SolverError(
+        f"the rotations reached the Euler-angle chart's limit (|θ| near π/2): {reason}",
+        where="reduced run",
+        suggestion="run the full model (cf.run); docs/rom.md §9",
+    )
 
 
 class ReducedSolver(NewtonSolver):
@@ -64,6 +86,9 @@ class ReducedSolver(NewtonSolver):
         self._Vq = np.zeros(n)
         self.reduction_time = 0.0  # seconds spent forming J_r (J V and its projection)
         self._Vmat = None  # V as a dense PETSc matrix, for J V
+        self._following = False  # a chart move followed (follow_chart)
+        #: One entry per chart move followed: projection errors, energy left out, wall time.
+        self.chart_moves: list[dict] = []
         super().__init__(F, U, bcs, settings)
         self.comm = U.function_space.mesh.comm
         self._x, self._y = self.A.createVecs()
@@ -78,13 +103,66 @@ class ReducedSolver(NewtonSolver):
         self.loop = "galerkin"
 
     def set_form(self, F) -> None:
-        """A new residual form is the chart moving (cosserat_fem/timestepping/loop.py): refused."""
-        raise SolverError(
-            "the rotations reached the Euler-angle chart's limit (|θ| near π/2): the chart "
-            "change maps the state off the reduced basis (large rotations are not reduced yet)",
-            where="reduced run",
-            suggestion="run the full model (cf.run); docs/rom.md §9",
+        """A new residual form is the chart moving (cosserat_fem/timestepping/loop.py): taken
+        after :meth:`follow_chart` made the basis of the new chart, else (a restart whose
+        chart had moved: the basis of that chart is not rebuilt) refused."""
+        if not self._following:
+            raise chart_refusal(
+                "the checkpoint's chart has moved, and a reduced run continues in a moved "
+                "chart only within the run that moved it (its basis per chart)"
+            )
+        super().set_form(F)
+
+    def follow_chart(self, model, integrator) -> None:
+        """The chart moved (cosserat_fem/timestepping/loop.py ``watch_chart``, after the
+        integrator's states were mapped in full and the model took the new chart): the basis
+        of the new chart (basis.in_chart: the training snapshots mapped into it, POD'd again
+        to the same k), then U and the last accepted state projected onto it,
+        U ← U_ref + V Vᵀ W (U − U_ref), their relative W-norm projection error recorded in
+        :attr:`chart_moves` with the new POD's energy left out and the wall time; the
+        reduced Jacobian is made afresh. Refused in one line where it cannot follow: a
+        hyper-reduced run (ECSW's elements and weights were fitted to the first chart's
+        modes), or a basis without its snapshots (docs/rom.md §9)."""
+        from cosserat_fem.rom.basis import in_chart
+
+        t0 = time.perf_counter()
+        if self.loop == "hyper":
+            raise chart_refusal(HYPER_CHARTS)
+        basis, left = in_chart(self.basis, model)
+        self._use_basis(basis)
+        n = len(basis.weights)
+        errors = []
+        for state in (self.U.x.array, integrator.last_accepted()):
+            u = state[:n] - basis.reference
+            c = self.WV.T @ u
+            off = u - self.V @ c
+            norm = float(np.sqrt(u @ (basis.weights * u)))
+            errors.append(float(np.sqrt(off @ (basis.weights * off))) / norm if norm else 0.0)
+            state[:n] = basis.reference + self.V @ c
+        self.q = self.WV.T @ (self.U.x.array[:n] - basis.reference)
+        self._following = True
+        self.request_jacobian()
+        self.chart_moves.append(
+            {
+                "time_s": float(integrator.time / model.omega0),
+                "projection_error": errors[0],
+                "projection_error_accepted": errors[1],
+                "energy_left_out": left,
+                "wall_time_s": time.perf_counter() - t0,
+            }
         )
+
+    def _use_basis(self, basis: Basis) -> None:
+        """V, D V, W V of ``basis`` from now on (the same k); J_r and V's PETSc copy dropped."""
+        self.basis = basis
+        self.V = np.ascontiguousarray(basis.V)
+        tests = basis.tests if basis.tests is not None else np.ones(len(basis.weights))
+        self.DV = tests[:, None] * self.V
+        self.WV = basis.weights[:, None] * self.V
+        self._Jr_lu = None
+        if self._Vmat is not None:
+            self._Vmat.destroy()
+            self._Vmat = None
 
     # -- the reduced iteration ----------------------------------------------------------------
     def _sum(self, local: np.ndarray) -> np.ndarray:

@@ -65,7 +65,7 @@ import numpy as np
 from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.rod.charts import RESET_THETA
 from cosserat_fem.rod.checks import StateCheck, check_state
-from cosserat_fem.rom.galerkin import ReducedSolver
+from cosserat_fem.rom.galerkin import HYPER_CHARTS, ReducedSolver, chart_refusal
 from cosserat_fem.timestepping.events import Observer
 from cosserat_fem.timestepping.integrators import FullSpace
 
@@ -522,8 +522,8 @@ class ReducedCoordinates(FullSpace):
         )
 
     def refuse_chart(self) -> None:
-        """The chart's move maps the state off the basis: the reduced run's refusal."""
-        self.solver.set_form(None)
+        """The chart's move: a hyper-reduced run's refusal (galerkin.HYPER_CHARTS)."""
+        raise chart_refusal(HYPER_CHARTS)
 
     def state_check(self, model) -> ReducedStateCheck:
         return ReducedStateCheck(model, self)

@@ -783,6 +783,8 @@ class ErrorIndicator(Observer):
             self._eta, self._rate, self._tau, self._g = eta, rate, tau, g
             self._coupling, self._first = coupling, False
         self._pending = None
+        if self.solver.basis is not self.basis:
+            self._follow_chart(self.solver.basis)
         basis, space = self.basis, loop.space
         with np.errstate(over="ignore", invalid="ignore"):
             if space.reduced:  # U = U_ref + V c: its sums from c, nothing lifted
@@ -807,6 +809,26 @@ class ErrorIndicator(Observer):
         self.values.append(SATURATED if self._saturated else min(E, SATURATED))
         self._check_range(both[:-5], math.sqrt(max(float(both[-1]), 0.0)), t)
         self.seconds += time.perf_counter() - t0
+
+    def _follow_chart(self, basis) -> None:
+        """The solver's basis of a new chart (galerkin.ReducedSolver.follow_chart, docs/rom.md
+        §9): the coordinates' W V, the free end's rows and the training's range are its own
+        from now on; the modes' state η, η̇ is carried on (the error's positions do not
+        depend on the chart; its angles change with it by a rotation near the rod's)."""
+        m = self.modes
+        assert m is not None, "started comes first"
+        self.basis = basis
+        self.WV = basis.weights[:, None] * basis.V
+        self._tip_V = basis.V[m.p_rows[np.isin(m.places, m.ends)]]
+        ranges = basis.provenance.get("coordinates")
+        self._ranges = ranges and {
+            "min": np.asarray(ranges["min"], dtype=float),
+            "max": np.asarray(ranges["max"], dtype=float),
+            "largest_norm": float(ranges["largest_norm"]),
+        }
+        self._limits = self._ranges and range_limits(
+            self._ranges, basis.modes, self.settings.margin
+        )
 
     def _sums(self, e: np.ndarray, u: np.ndarray, u6: np.ndarray) -> np.ndarray:
         """This rank's c = Vᵀ W u, |ℓ e_end|², |ℓ u_end|², ‖e_p‖_W², ‖u_p‖_W², ‖u‖_W²."""

@@ -130,6 +130,9 @@ def watch_chart(
     if history is not None:
         history.map_states(state_map)
     model.set_chart(Q_new)
+    follow = getattr(solver, "follow_chart", None)  # a reduced run's basis per chart
+    if follow is not None:
+        follow(model, integrator)
     if model.chart_active:
         solver.request_jacobian()  # the matrix of the old chart's angles
     else:

@@ -61,3 +61,68 @@ def test_state_rows_pair_p_with_its_rate():
     assert p.tolist() == [0, 1, 2, 6, 7, 8] and q.tolist() == [3, 4, 5, 9, 10, 11]
     with pytest.raises(SceneError, match="layout"):
         state_rows(Layout((0, 2, 8, 6)), 8)
+
+
+def _quaternions(rng, nodes):
+    Q = rng.standard_normal((nodes, 4))
+    Q /= np.linalg.norm(Q, axis=1)[:, None]
+    Q[Q[:, 0] < 0] *= -1.0
+    return Q
+
+
+def test_a_basis_per_chart_is_the_pod_of_the_states_in_that_chart():
+    """basis.in_chart: T = 12 states of 5 nodes (angles up to 0.5 rad, random rates), given in
+    the chart Q_new, each recorded in another random chart Q_s (charts.change_chart: the same
+    directors and angular velocity, angles up to π/2) and its snapshot u_s = U_s − U_ref kept
+    with Q_s. Mapped back to Q_new and POD'd to the same k = 4 they span what the POD of the
+    states in Q_new spans: the W-projectors V Vᵀ W agree to 1e-9 (a round trip through two
+    charts is exact to ~1e-15 rad; the projector's sensitivity is that over the gap between
+    the 4th and 5th singular values, ~1e2 here). The energy left out is the same POD's. A
+    basis without its snapshots (a file's) is refused in one line."""
+    from types import SimpleNamespace
+
+    from cosserat_fem.common.errors import SolverError
+    from cosserat_fem.rod.charts import change_chart
+    from cosserat_fem.rom.basis import Basis, in_chart, pod_modes
+
+    class _Comm:
+        size = 1
+
+        def allgather(self, x):
+            return [x]
+
+    rng = np.random.default_rng(3)
+    nodes, T, k, layout = 5, 12, 4, Layout()
+    Q_new = _quaternions(rng, nodes)
+    states = 0.5 * rng.uniform(-1, 1, (T, nodes, 12))
+    weights = rng.uniform(0.5, 2.0, nodes * 12)
+    reference = np.zeros(nodes * 12)
+    columns, charts = [], []
+    for s in range(T):
+        Q_s = _quaternions(rng, nodes)
+        columns.append(change_chart(states[s], Q_new, Q_s).ravel())
+        charts.append(Q_s.ravel())
+    V0, energies0, _ = pod_modes(layout, weights, states.reshape(T, -1).T, _Comm(), modes=k)
+    basis = Basis(
+        np.eye(nodes * 12)[:, : 2 * k],  # any V: in_chart makes its own
+        reference,
+        weights,
+        energies0,
+        {},
+        {},
+        snapshots=np.column_stack(columns),
+        snapshot_charts=charts,
+    )
+    model = SimpleNamespace(
+        layout=layout,
+        msh=SimpleNamespace(comm=_Comm()),
+        chart=SimpleNamespace(x=SimpleNamespace(array=Q_new.ravel())),
+    )
+    mapped, left = in_chart(basis, model)
+    projector = mapped.V @ mapped.V.T * weights
+    assert np.abs(projector - V0 @ V0.T * weights).max() <= 1e-9
+    assert left == pytest.approx(energies0[k:].sum() / energies0.sum(), rel=1e-9)
+    bare = Basis(basis.V, reference, weights, energies0, {}, {})
+    with pytest.raises(SolverError) as refused:
+        in_chart(bare, model)
+    assert "\n" not in str(refused.value) and "snapshots" in str(refused.value)
