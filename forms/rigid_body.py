@@ -74,13 +74,21 @@ def end_force_and_moment(load, context: LoadContext):
 
 
 def residual(load, context: LoadContext) -> ufl.Form:
-    """The body's term of the weak residual, −g_b · v_q at its end with the f^b, l^b of
-    (B3), (B4)."""
+    """The term of a body at the rod's end ``load.end`` ([loads.body]): :func:`body_term`."""
+    return body_term(load, context, context.ds[load.end])
+
+
+def body_term(load, context: LoadContext, ds: ufl.Measure, interior: bool = False) -> ufl.Form:
+    """The body's term of the weak residual, −g_b · v_q over the point measure ``ds`` with the
+    f^b, l^b of (B3), (B4): an end's ds, or with ``interior`` a node's interior facet dS
+    between two cells (a structure's chain), evaluated on one side (the fields are
+    continuous there), as a point load is (forms/general_form.py ``EndLoads``)."""
     force, moment = end_force_and_moment(load, context)
     p, vq = split(context.U)[0], split(context.V)[1]
-    end = EndLoads(ds=context.ds[load.end], force=force, torque=moment)
+    end = EndLoads(ds=ds, force=force, torque=moment, interior=interior)
     data = end_data(p, context.groups, end, EndLoadConvention(), context.chart)
-    return -ufl.inner(data, vq) * end.ds
+    term = -ufl.inner(data, vq)
+    return (term("+") if interior else term) * ds
 
 
 def kinetic_energy(load, context: LoadContext):

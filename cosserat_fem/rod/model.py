@@ -33,6 +33,7 @@ from cosserat_fem.common import jit
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.common.parallel import agree
 from cosserat_fem.forms import reference as reference_shapes
+from cosserat_fem.forms import rigid_body
 from cosserat_fem.forms.general_form import (
     DistributedLoads,
     EndLoadConvention,
@@ -602,7 +603,8 @@ class RodModel:
             scaled_law(self.rod) if self.rod.law is not None else None,
         )
         form_loads = self.scene.loads.form_loads()
-        if form_loads:  # the loads declared with their physics (resolved.FormLoad)
+        bodies = self.structure.bodies if self.structure is not None else []
+        if form_loads or bodies:  # the loads declared with their physics (resolved.FormLoad)
             sym = self._symbols(time_eval)
             context = LoadContext(
                 U=U_eval,
@@ -624,6 +626,15 @@ class RodModel:
             for name, load in form_loads:
                 physics = importlib.import_module(f"{forms.__name__}.{load.physics}")
                 terms.extra[name] = physics.residual(load, context)
+            # a structure's bodies at its nodes: a leaf's ds, a chain's dS; their inertia and
+            # offset in the fixed basis at rest, so no member's frame D0 (forms/rigid_body.py)
+            at_node = dataclasses.replace(context, reference=None)
+            dS = ufl.Measure("dS", domain=self.msh, subdomain_data=self.ds.subdomain_data())
+            for i, (body, tag, interior) in enumerate(bodies):
+                measure = (dS if interior else self.ds)(tag)
+                terms.extra[f"structure.bodies[{i}]"] = rigid_body.body_term(
+                    body, at_node, measure, interior
+                )
         return terms
 
     def initial_state(self) -> np.ndarray:

@@ -26,7 +26,7 @@ from dolfinx import fem, mesh
 from dolfinx.fem.function import ElementMetaData
 from mpi4py import MPI
 
-from cosserat_fem.scene.resolved import NodeLoad, Structure
+from cosserat_fem.scene.resolved import NodeBody, NodeLoad, Structure
 
 #: The vertex tags of the structure's nodes: node i of the scene gets NODE_TAG + i.
 NODE_TAG = 10
@@ -42,6 +42,8 @@ class StructureMesh:
     vertices: dict[str, np.ndarray]
     tags: mesh.MeshTagsMetaClass
     loads: list[tuple[NodeLoad, int, bool]]
+    #: the rigid bodies at nodes, with their tag and whether the node is a chain's (dS)
+    bodies: list[tuple[NodeBody, int, bool]]
 
 
 def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -> StructureMesh:
@@ -82,11 +84,11 @@ def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -
     )
     order = np.argsort(entities)
     tags = mesh.meshtags(msh, 0, entities[order], values[order])
-    loads = [
-        (load, NODE_TAG + names.index(load.node), structure.degree(load.node) == 2)
-        for load in structure.loads
-    ]
-    return StructureMesh(msh, vertices, tags, loads)
+    loads, bodies = (
+        [(x, NODE_TAG + names.index(x.node), structure.degree(x.node) == 2) for x in items]
+        for items in (structure.loads, structure.bodies)
+    )
+    return StructureMesh(msh, vertices, tags, loads, bodies)  # type: ignore[arg-type]
 
 
 def member_frames(structure: Structure, length: float, msh: mesh.Mesh) -> fem.Function:

@@ -51,6 +51,7 @@ from cosserat_fem.scene.resolved import (  # noqa: F401 - the resolved scene, im
     Loads,
     Material,
     ModelChoices,
+    NodeBody,
     NodeLoad,
     Output,
     PointLoad,
@@ -889,14 +890,7 @@ def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStor
     loads = []
     for i, entry in enumerate(raw["loads"]):
         key = f"structure.loads[{i}]"
-        if entry["node"] not in r0:
-            raise SceneError(f"{key}.node: unknown node {entry['node']!r}")
-        if structure.degree(entry["node"]) > 2:
-            raise SceneError(
-                f"{key}.node: a load at node {entry['node']!r}, which joins "
-                f"{structure.degree(entry['node'])} members, is not supported yet (a point "
-                "load needs a node of one or two members); load a node next to it"
-            )
+        _check_point_node(structure, entry["node"], key, "a load", "load")
         vectors = {}
         for name in ("force", "torque"):
             vector = _point_vector(entry[name], names_t, f"{key}.{name}", tables, "a node load")
@@ -904,7 +898,28 @@ def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStor
                 raise SceneError(f"{key}.{name}: loads given by data on a structure: not yet")
             vectors[name] = vector
         loads.append(build(NodeLoad, entry, **vectors))
-    return replace(structure, loads=tuple(loads))
+    bodies = []
+    for i, entry in enumerate(raw["bodies"]):
+        key = f"structure.bodies[{i}]"
+        _check_point_node(structure, entry["node"], key, "a rigid body", "carry it at")
+        body = build(NodeBody, entry)
+        body.check_body(key)
+        bodies.append(body)
+    return replace(structure, loads=tuple(loads), bodies=tuple(bodies))
+
+
+def _check_point_node(structure: Structure, node: str, key: str, what: str, verb: str) -> None:
+    """A node that something at a point (``what``) may be at: a known node of one or two
+    members (the point's measure is a leaf's ds or the interior facet dS of a chain).
+    SceneError naming ``key``.node otherwise."""
+    if node not in structure.positions():
+        raise SceneError(f"{key}.node: unknown node {node!r}")
+    if structure.degree(node) > 2:
+        raise SceneError(
+            f"{key}.node: {what} at node {node!r}, which joins {structure.degree(node)} "
+            f"members, is not supported yet (it needs a node of one or two members); {verb} "
+            "a node next to it"
+        )
 
 
 def _check_structure_scene(scene: Scene) -> None:

@@ -530,37 +530,30 @@ class SemitangentialEndTorque(FormLoad):
 
 
 @dataclass(frozen=True, kw_only=True)
-class RigidBody(FormLoad):
-    """[loads.body]: a rigid body fixed to the ``end`` ("start" or "end") of the rod, whose
-    weight (with [loads] gravity) and inertia act on it (forms/rigid_body.py): ``mass`` m
-    [kg]; its inertia tensor about its centre of mass [kg m²], principal-axis entries
-    ``inertia`` (J11, J22, J33) and ``products`` (J23, J13, J12), and its centre's ``offset``
-    c [m] from the end's centroid, all in the components of the end's directors at rest
-    (d0_i; e_i for the straight rod). Numbers."""
+class BodyData:
+    """A rigid body (forms/rigid_body.py): ``mass`` m [kg]; its inertia tensor about its
+    centre of mass [kg m²], principal-axis entries ``inertia`` (J11, J22, J33) and
+    ``products`` (J23, J13, J12), and its centre's ``offset`` c [m] from the point it is
+    fixed to, in the components of a frame at rest that its subclass names. Numbers."""
 
-    physics: ClassVar[str] = "rigid_body"
-
-    end: str = key(Choice(choices=("start", "end"), default="end"))
     mass: float = key(Number(interval=POSITIVE, unit="kg", required=True))
     inertia: tuple[float, ...] = key(Vector(default=ZERO3, unit="kg m^2"))
     products: tuple[float, ...] = key(Vector(default=ZERO3, unit="kg m^2"))
     offset: tuple[float, ...] = key(Vector(default=ZERO3, unit="m"))
 
     def inertia_tensor(self) -> list[list[float]]:
-        """J_C [kg m²], rows in the end's director components at rest."""
+        """J_C [kg m²], rows in the frame at rest (class docstring)."""
         (j1, j2, j3), (j23, j13, j12) = self.inertia, self.products
         return [[j1, j12, j13], [j12, j2, j23], [j13, j23, j3]]
 
     def offset_vector(self) -> list[float]:
-        """c [m], in the end's director components at rest."""
+        """c [m], in the frame at rest (class docstring)."""
         return list(self.offset)
 
-    def check(self, key: str, supports: Supports) -> None:
+    def check_body(self, key: str) -> None:
         """Numbers; an inertia tensor of a body: zero (a point mass) or positive definite
         with its principal moments obeying the triangle inequalities (J_i ≤ J_j + J_k:
-        J = ∫ (|x|² I − x xᵀ) dm)."""
-        import numpy as np
-
+        J = ∫ (|x|² I − x xᵀ) dm). SceneError naming ``key``'s entry."""
         for name in ("inertia", "products", "offset"):
             for i, x in enumerate(getattr(self, name)):
                 if isinstance(x, bool) or not isinstance(x, int | float) or not np.isfinite(x):
@@ -582,6 +575,22 @@ class RigidBody(FormLoad):
                 f"{key}.inertia: not a rigid body's: the principal moments "
                 f"{', '.join(f'{m:.3g}' for m in moments)} kg m^2 break J3 <= J1 + J2"
             )
+
+
+@dataclass(frozen=True, kw_only=True)
+class RigidBody(FormLoad, BodyData):
+    """[loads.body]: a rigid body fixed to the ``end`` ("start" or "end") of the rod, whose
+    weight (with [loads] gravity) and inertia act on it (forms/rigid_body.py); its inertia
+    and offset (:class:`BodyData`) in the components of the end's directors at rest (d0_i;
+    e_i for the straight rod)."""
+
+    physics: ClassVar[str] = "rigid_body"
+
+    end: str = key(Choice(choices=("start", "end"), default="end"))
+
+    def check(self, key: str, supports: Supports) -> None:
+        """:meth:`BodyData.check_body`."""
+        self.check_body(key)
 
     def in_plane(self, normal: tuple[int, ...], torques: tuple[int, ...]) -> bool:
         """In a plane of motion the body keeps it if its centre lies in the plane (no offset
@@ -701,6 +710,15 @@ class NodeLoad:
 
 
 @dataclass(frozen=True, kw_only=True)
+class NodeBody(BodyData):
+    """A rigid body fixed to a structure's ``node`` ([[structure.bodies]]): its inertia and
+    offset (:class:`BodyData`) in the fixed basis at rest (the node's frame turns them with
+    the node's rotation Λ, forms/rigid_body.py)."""
+
+    node: str = key(Text(required=True, non_empty=True))
+
+
+@dataclass(frozen=True, kw_only=True)
 class Structure:
     """Straight rods joined rigidly at shared nodes ([structure], docs/structures.md): a tree
     or a closed frame. ℓ (rod.length) is the members' total length."""
@@ -711,6 +729,8 @@ class Structure:
         Tables(item=StructureSupport, default=[]), default=()
     )
     loads: tuple[NodeLoad, ...] = key(Tables(item=NodeLoad, default=[]), default=())
+    #: rigid bodies fixed to nodes (forms/rigid_body.py)
+    bodies: tuple[NodeBody, ...] = key(Tables(item=NodeBody, default=[]), default=())
     #: the node probes.csv follows (default: :meth:`probe_node`'s rule)
     probe: str | None = key(Text(non_empty=True), default=None)
 
