@@ -227,8 +227,37 @@ def small_load_expansion(alpha: float) -> TipValues:
 # --------------------------------------------------------------------------------------------
 # Elastica
 # --------------------------------------------------------------------------------------------
+class _PlanarFields:
+    """The fields of a planar solution (:class:`ElasticaSolution`: dimensionless, s ∈ [0, 1],
+    lengths over ℓ; :class:`ReissnerSolution`: s ∈ [0, ℓ] [m], lengths [m]) from its
+    interpolant ``_fields``: (ψ, ψ', x, z) at the stations s."""
+
+    _fields: Fields
+
+    def fields(self, s: ArrayLike) -> FloatArray:
+        """Array (4,) + s.shape of (ψ, ψ', x, z) at the stations s."""
+        s = np.asarray(s, dtype=float)
+        return self._fields(s.ravel()).reshape((4, *s.shape))
+
+    def psi(self, s: ArrayLike) -> FloatArray:
+        """The section's (the tangent's, unshearable) angle ψ(s) [rad]."""
+        return self.fields(s)[0]
+
+    def curvature(self, s: ArrayLike) -> FloatArray:
+        """The bending strain ψ'(s); the moment is EI ψ' (dimensionless: times ℓ)."""
+        return self.fields(s)[1]
+
+    def x(self, s: ArrayLike) -> FloatArray:
+        """x(s), along the load."""
+        return self.fields(s)[2]
+
+    def z(self, s: ArrayLike) -> FloatArray:
+        """z(s), along the undeformed axis."""
+        return self.fields(s)[3]
+
+
 @dataclass(frozen=True)
-class ElasticaSolution:
+class ElasticaSolution(_PlanarFields):
     """Dimensionless elastica (ℓ = 1, load α = Pℓ²/EI); see the module docstring for scaling.
 
     Attributes:
@@ -260,27 +289,6 @@ class ElasticaSolution:
     def tip(self) -> TipValues:
         """(w/ℓ, u/ℓ, ψ_tip)."""
         return TipValues(self.tip_deflection, self.shortening, self.tip_angle)
-
-    def fields(self, s: ArrayLike) -> FloatArray:
-        """Array (4,) + s.shape of (ψ, κ = ψ', x, z) at dimensionless stations s ∈ [0, 1]."""
-        s = np.asarray(s, dtype=float)
-        return self._fields(s.ravel()).reshape((4, *s.shape))
-
-    def psi(self, s: ArrayLike) -> FloatArray:
-        """Tangent angle ψ(s) [rad]."""
-        return self.fields(s)[0]
-
-    def curvature(self, s: ArrayLike) -> FloatArray:
-        """Curvature κ(s) = ψ'(s) (bending moment / EI, times ℓ)."""
-        return self.fields(s)[1]
-
-    def x(self, s: ArrayLike) -> FloatArray:
-        """x(s)/ℓ = ∫₀ˢ sin ψ, along the load."""
-        return self.fields(s)[2]
-
-    def z(self, s: ArrayLike) -> FloatArray:
-        """z(s)/ℓ = ∫₀ˢ cos ψ, along the undeformed axis."""
-        return self.fields(s)[3]
 
 
 def _elliptic_parts(beta: float) -> tuple[float, float, float, float]:
@@ -569,7 +577,7 @@ def elastica_tip_load(
 # Reissner rod
 # --------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class ReissnerSolution:
+class ReissnerSolution(_PlanarFields):
     """Static planar extensible, shearable rod under a dead end force and an end moment.
 
     Attributes:
@@ -592,27 +600,6 @@ class ReissnerSolution:
     s: FloatArray
     tol: float
     _fields: Fields = field(repr=False, compare=False)
-
-    def fields(self, s: ArrayLike) -> FloatArray:
-        """Array (4,) + s.shape of (ψ, ψ' [1/m], x [m], z [m]) at s ∈ [0, ℓ] [m]."""
-        s = np.asarray(s, dtype=float)
-        return self._fields(s.ravel()).reshape((4, *s.shape))
-
-    def psi(self, s: ArrayLike) -> FloatArray:
-        """Section angle ψ(s) [rad]."""
-        return self.fields(s)[0]
-
-    def curvature(self, s: ArrayLike) -> FloatArray:
-        """Bending strain ψ'(s) [1/m]; the moment is EI ψ'."""
-        return self.fields(s)[1]
-
-    def x(self, s: ArrayLike) -> FloatArray:
-        """x(s) [m]."""
-        return self.fields(s)[2]
-
-    def z(self, s: ArrayLike) -> FloatArray:
-        """z(s) [m]."""
-        return self.fields(s)[3]
 
     def normal_force(self, s: ArrayLike) -> FloatArray:
         """N = n·d3 = P sin ψ + P_z cos ψ [N]."""
