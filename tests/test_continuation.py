@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import time
 
 import numpy as np
@@ -584,37 +585,170 @@ def test_a_killed_restart_keeps_its_rows(tmp_path):
     assert (cut / "branches.csv").read_text().splitlines() == rows_w
 
 
-def test_a_switch_s_second_direction_killed_restarts_itself(tmp_path):
-    """The column (8 P4 cells under P_E) on [0, 1.5], λ growing, switched at λ_cr: three
-    branches, the primary (10 points) and the switched one both ways (7 each), the switch's
-    two traced before either is ended. Killed at the 4th told point of the third branch:
-    restart.json has each branch's own end, the third's at its 5th point (before: a switch's
-    second direction saved its points as the first's, branch 1, so restart.json had no
-    branch 2 and the restart continued branch 1 from branch 2's points); the restart (the
-    last branch saved, 2) gives the whole run's branch 2 from its index 2 on, exactly (the
-    argument of test_restart_equals_the_whole_branch)."""
+def pitchfork_column():
+    """The column of test_post_buckled_elastica (8 P4 cells under P_E) on [−0.5, 1.5], both
+    ways, switched at λ_cr = 0.99929: four branches, the primary to λ = 1.5 (10 points)
+    and to −0.5 (in tension, no bifurcation), then the buckled branch both ways (7 points
+    each, to λ = 1.5). ((scene, options), the whole run's result and folder are made once
+    per test: 2 s.)"""
     overrides = {
         "loads.end": cf.UNSET,
         "discretisation.elements": 8,
         "loads.end.force": [0, 0, "-pi**2*EI/(4*L**2)"],
     }
     scene = cf.load(ROLLUP, overrides)
-    options = dict(step=0.05, max_step=0.2, directions=(1,), max_points=30)
-    told: list[float] = []
-    whole = cf.continuation(scene, 0.0, 1.5, stop=lambda q: told.append(q.factor), **options)
-    assert [len(b.points) for b in whole.branches] == [10, 7, 7]
-    assert len(told) == 18  # every point but each branch's start and end
+    return scene, dict(step=0.05, max_step=0.2, directions=(1, -1), max_points=30)
+
+
+def told_before(result, branch: int) -> int:
+    """``stop``'s calls before branch ``branch`` (it is told of every point but each
+    branch's start and its end at a bound)."""
+    return sum(len(b.points) - 2 for b in result.branches[:branch])
+
+
+def assert_same_folders(cut, whole, resumed: dict[int, int]) -> None:
+    """branches.csv byte for byte, branches.json equal, and every branch's XDMF frames
+    (times and values) equal to the whole run's; a branch i killed and resumed from its
+    saved points (``resumed[i]`` the first's index) has its frames from that one on."""
+    from xdmf_files import read_xdmf
+
+    assert (cut / "branches.csv").read_text() == (whole / "branches.csv").read_text()
+    assert (cut / "branches.json").read_text() == (whole / "branches.json").read_text()
+    for i in range(len(json.loads((whole / "branches.json").read_text()))):
+        skip = resumed.get(i, 0)
+        for array in ("displacement", "angles"):
+            times, values = read_xdmf(cut / f"branch_{i}.xdmf")[array]
+            times_w, values_w = read_xdmf(whole / f"branch_{i}.xdmf")[array]
+            assert list(times) == list(times_w)[skip:]
+            assert np.array_equal(values, values_w[skip:])
+
+
+@pytest.fixture(scope="module")
+def pitchfork_whole(tmp_path_factory):
+    """The whole continuation of :func:`pitchfork_column` in its folder: (result, folder)."""
+    scene, options = pitchfork_column()
+    folder = tmp_path_factory.mktemp("pitchfork") / "whole"
+    result = cf.continuation(scene, -0.5, 1.5, out=folder, **options)
+    return result, folder
+
+
+@pytest.mark.parametrize(
+    ("branch", "point"),
+    [(0, 4), (2, 3), (3, 2)],
+    ids=["primary's first direction", "switch's first direction", "switch's second direction"],
+)
+def test_a_killed_continuation_traces_the_branches_after_it(
+    tmp_path, pitchfork_whole, branch, point
+):
+    """Issue 27's leftover: a continuation killed mid-branch restarts that branch and then
+    traces every branch the whole run traces after it, in its order. The column of
+    :func:`pitchfork_column` (4 branches: 10, 5, 7, 7 points; the whole run's) killed at the
+    ``point``-th told point of branch ``branch``: in the primary branch's first direction
+    (everything after is pending: the primary's second direction and the switch, at a
+    bifurcation located before the kill), in the switched branch's first direction (its
+    second pending) and in its second. The restart (``continue --restart``'s default, the
+    last branch saved) returns the killed branch from its saved points on and the branches
+    after it; its λ are the whole run's exactly, and branches.csv is the whole run's byte
+    for byte, branches.json equal, every XDMF frame's values equal (the killed branch's from
+    its first saved point on): the queue saved with each end (the tasks to come and the
+    bifurcation points found, their arrays exact in npz, their scalars by repr) makes the
+    restart perform the same floating-point operations on the same arrays as the whole run
+    (serially deterministic: test_restart_equals_the_whole_branch). Before, the restart
+    traced the killed branch alone. A folder whose restart.json has no queue (written
+    before it was saved) keeps that: only the killed branch is traced."""
+    whole, whole_folder = pitchfork_whole
+    assert [len(b.points) for b in whole.branches] == [10, 5, 7, 7]
+    assert [q.kind for q in whole.branches[0].special] == ["bifurcation"]
+    scene, options = pitchfork_column()
     cut = tmp_path / "cut"
     with pytest.raises(Killed):
-        cf.continuation(scene, 0.0, 1.5, out=cut, stop=kill_after(17), **options)
+        stop = kill_after(told_before(whole, branch) + point)
+        cf.continuation(scene, -0.5, 1.5, out=cut, stop=stop, **options)
+    old = tmp_path / "old"
+    shutil.copytree(cut, old)
     ends = json.loads((cut / "continuation" / "restart.json").read_text())["branches"]
-    assert sorted(ends) == ["0", "1", "2"]
-    assert ends["2"]["first_index"] + len(ends["2"]["points"]) == 5
-    assert [q["p"] for q in ends["1"]["points"]] == [
-        q.factor for q in whole.branches[1].points[3:6]
+    assert sorted(map(int, ends)) == list(range(branch + 1))
+    first = ends[str(branch)]["first_index"]
+    assert first == point - 2  # the start and the told points, the last three kept
+    result = cf.continuation(None, restart=cut)
+    assert len(result.branches) == 4 - branch
+    assert [q.factor for q in result.branches[0].points] == [
+        q.factor for q in whole.branches[branch].points[first:]
     ]
-    (b,) = cf.continuation(None, restart=cut).branches
-    assert [q.factor for q in b.points] == [q.factor for q in whole.branches[2].points[2:]]
+    for b, w in zip(result.branches[1:], whole.branches[branch + 1 :], strict=True):
+        assert [q.factor for q in b.points] == [q.factor for q in w.points]
+        assert b.origin == w.origin and b.reason == w.reason
+    assert_same_folders(cut, whole_folder, {branch: first})
+    record = json.loads((old / "continuation" / "restart.json").read_text())
+    for end in record["branches"].values():
+        end.pop("queue")
+    (old / "continuation" / "restart.json").write_text(json.dumps(record))
+    assert len(cf.continuation(None, restart=old).branches) == 1
+
+
+def test_a_continuation_killed_between_two_branches_traces_the_rest(
+    tmp_path, pitchfork_whole, monkeypatch
+):
+    """The column of :func:`pitchfork_column` killed just after the primary branch's second
+    direction ended (its files and its final restart data written, before the switch's
+    first point: BranchOutputs.end raising once it has saved), then restarted: no branch is
+    resumed, the queue's switch (at the bifurcation point located on the first branch,
+    read back from branch 0's saved arrays) is traced both ways, and the folder is the
+    whole run's (branches.csv byte for byte, branches.json, every XDMF frame)."""
+    from cosserat_fem.analysis.branch_outputs import BranchOutputs
+
+    whole, whole_folder = pitchfork_whole
+    scene, options = pitchfork_column()
+    end = BranchOutputs.end
+
+    def killed_end(self, problem, branch, special_rows=None):
+        end(self, problem, branch, special_rows)
+        if self.index == 1:
+            raise Killed("killed between branches 1 and 2")
+
+    cut = tmp_path / "cut"
+    with monkeypatch.context() as patch:
+        patch.setattr(BranchOutputs, "end", killed_end)
+        with pytest.raises(Killed):
+            cf.continuation(scene, -0.5, 1.5, out=cut, **options)
+    ends = json.loads((cut / "continuation" / "restart.json").read_text())["branches"]
+    assert ends["1"]["reason"] == "p reached -0.5"
+    assert [t["kind"] for t in ends["1"]["queue"]["pending"]] == ["switches"]
+    assert ends["1"]["queue"]["found"] == [["special", 0, 0]]
+    result = cf.continuation(None, restart=cut)
+    assert [b.origin for b in result.branches] == [b.origin for b in whole.branches[2:]]
+    for b, w in zip(result.branches, whole.branches[2:], strict=True):
+        assert [q.factor for q in b.points] == [q.factor for q in w.points]
+    assert_same_folders(cut, whole_folder, {})
+
+
+def test_a_killed_restart_traces_the_rest_when_restarted(tmp_path, pitchfork_whole):
+    """The column of :func:`pitchfork_column` killed in its first branch (4th point), its
+    restart killed in its turn in the switched branch's first direction (3rd point of
+    branch 2), restarted again: the folder is the whole run's (branches.csv byte for byte,
+    branches.json, every XDMF frame; branches 0 and 2 from their saved points on), the
+    second restart's branches the whole run's from branch 2 on."""
+    whole, whole_folder = pitchfork_whole
+    scene, options = pitchfork_column()
+    cut = tmp_path / "cut"
+    with pytest.raises(Killed):
+        cf.continuation(scene, -0.5, 1.5, out=cut, stop=kill_after(4), **options)
+    first = json.loads((cut / "continuation" / "restart.json").read_text())["branches"]
+    assert first["0"]["first_index"] == 2
+    told = told_before(whole, 2) - 4  # the restart's, before branch 2
+    with pytest.raises(Killed):
+        cf.continuation(None, restart=cut, stop=kill_after(told + 3))
+    ends = json.loads((cut / "continuation" / "restart.json").read_text())["branches"]
+    assert sorted(ends) == ["0", "1", "2"] and ends["2"]["first_index"] == 1
+    result = cf.continuation(None, restart=cut)
+    assert [len(b.points) for b in result.branches] == [6, 7]
+    assert [q.factor for q in result.branches[0].points] == [
+        q.factor for q in whole.branches[2].points[1:]
+    ]
+    assert [q.factor for q in result.branches[1].points] == [
+        q.factor for q in whole.branches[3].points
+    ]
+    assert_same_folders(cut, whole_folder, {0: 2, 2: 1})
 
 
 MPI_STOP_ERROR = """

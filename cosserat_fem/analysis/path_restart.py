@@ -63,6 +63,8 @@ FOLDER = "continuation"
 INDEX = "restart.json"
 #: The points of a branch's end kept (the quadratic predictor's history).
 KEPT = 3
+#: branches.json's origin of a branch killed before its end saved its origin
+NOT_RECORDED = "not recorded (the continuation was killed on this branch)"
 
 
 def state_file(branch: int, rank: int, slot: int = 0) -> str:
@@ -94,10 +96,16 @@ def branch_end(branch: Branch, slot: int = 0) -> dict:
 
 
 def save_branch_state(
-    folder: Path, index: int, branch: Branch, comm: MPI.Comm, slot: int = 0
+    folder: Path,
+    index: int,
+    branch: Branch,
+    comm: MPI.Comm,
+    slot: int = 0,
+    extra: dict[str, np.ndarray] | None = None,
 ) -> None:
     """Rank r's arrays of ``branch``'s end into its file of ``slot`` (:func:`state_file`;
-    every rank its own file; the ranks agree on a failure)."""
+    every rank its own file; the ranks agree on a failure), with the ``extra`` arrays
+    (:func:`point_arrays` of the branch's start and special points)."""
     from cosserat_fem.common.errors import OutputError
     from cosserat_fem.common.parallel import agree
     from cosserat_fem.common.safe_files import replace
@@ -106,6 +114,7 @@ def save_branch_state(
     arrays = {f"u{i}": q.u for i, q in enumerate(kept)}
     arrays |= {f"t{i}": q.t_u for i, q in enumerate(kept)}
     arrays |= {f"q{i}": q.chart for i, q in enumerate(kept) if isinstance(q.chart, np.ndarray)}
+    arrays |= extra or {}
     problem = None
     try:
         (folder / FOLDER).mkdir(exist_ok=True)
@@ -122,6 +131,69 @@ def _npz(arrays: dict[str, np.ndarray]) -> bytes:
     out = io.BytesIO()
     np.savez(out, **arrays)
     return out.getvalue()
+
+
+def point_json(point: Point) -> dict:
+    """The JSON part of a saved point (floats by repr, which round-trips)."""
+    return {
+        "p": point.p,
+        "t_p": point.t_p,
+        "det_sign": point.det_sign,
+        "log_det": point.log_det,
+        "iterations": point.iterations,
+        "kind": point.kind,
+        "note": point.note,
+    }
+
+
+def point_arrays(point: Point, name: str) -> dict[str, np.ndarray]:
+    """The arrays of a saved point under ``name``: u, t_u and its chart if it has one."""
+    arrays = {f"{name}_u": point.u, f"{name}_t": point.t_u}
+    if isinstance(point.chart, np.ndarray):
+        arrays[f"{name}_q"] = point.chart
+    return arrays
+
+
+def saved_point(data: dict, arrays, name: str) -> Point:
+    """The point :func:`point_json` and :func:`point_arrays` saved under ``name``."""
+    chart = arrays[f"{name}_q"] if f"{name}_q" in arrays else None
+    return Point(
+        arrays[f"{name}_u"],
+        data["p"],
+        arrays[f"{name}_t"],
+        data["t_p"],
+        data["det_sign"],
+        data["log_det"],
+        data["iterations"],
+        data["kind"],
+        data.get("note", ""),
+        chart=chart,
+    )
+
+
+def queue_record(pending: list, found: list, ref) -> dict:
+    """The JSON of what a continuation has still to trace after its current branch
+    (paths.py's queue: ``pending`` tasks, ``found`` the bifurcation points located on its
+    primary branches), each point named by ``ref(point)``: ["start", i] (branch i's start)
+    or ["special", i, k] (branch i's k-th special point), whose arrays that branch's end
+    saved (module docstring, "The queue")."""
+    tasks = []
+    for task in pending:
+        entry: dict = {"kind": task.kind}
+        if task.kind == "trace":
+            entry |= {
+                "start": ref(task.start),
+                "direction": task.direction,
+                "search_first": task.search_first,
+                "origin": task.origin,
+                "primary": task.primary,
+            }
+        elif task.kind == "switch":
+            entry["at"] = ref(task.at)
+        else:
+            entry["count"] = task.count
+        tasks.append(entry)
+    return {"pending": tasks, "found": [ref(q) for q in found]}
 
 
 def write_index(
@@ -172,52 +244,83 @@ def read_index(folder: Path, comm: MPI.Comm) -> dict:
     return record
 
 
-def load_branch(folder: Path, record: dict, index: int, comm: MPI.Comm) -> Branch:
-    """The engine's :class:`~cosserat_fem.nls.arclength.Branch` of branch ``index``'s saved end
-    (its last points, first_index, step, rejected, direction)."""
-    end = record["branches"].get(str(index))
-    if end is None:
-        raise SceneError(f"--branch: no branch {index} saved in {str(folder)!r}")
+def _arrays(folder: Path, end: dict, index: int, comm: MPI.Comm) -> dict[str, np.ndarray]:
+    """Rank r's saved arrays of branch ``index``'s end (the slot ``end`` names); SceneError
+    naming --restart on every rank if one cannot read its file."""
     from zipfile import BadZipFile
 
     from cosserat_fem.common.parallel import agree
 
     path = folder / FOLDER / state_file(index, comm.rank, end.get("slot", 0))
+    arrays: dict[str, np.ndarray] = {}
+    problem = None
     try:
-        arrays = np.load(path)
-        problem = None
+        with np.load(path) as data:
+            arrays = {name: data[name] for name in data.files}
     except (OSError, ValueError, BadZipFile) as exc:  # missing or damaged: every rank refuses alike
         problem = SceneError(
             f"--restart: {str(path)!r} cannot be read ({getattr(exc, 'strerror', None) or exc})"
         )
     agree(comm, problem)
-    with arrays:
-        charts: list = []  # one array per chart (the engine compares them by identity)
-        for i in range(len(end["points"])):
-            chart = arrays[f"q{i}"] if f"q{i}" in arrays else None
-            same = chart is not None and charts and np.array_equal(charts[-1], chart)
-            charts.append(charts[-1] if same else chart)
-        points = [
-            Point(
-                arrays[f"u{i}"],
-                q["p"],
-                arrays[f"t{i}"],
-                q["t_p"],
-                q["det_sign"],
-                q["log_det"],
-                q["iterations"],
-                q["kind"],
-                chart=charts[i],
-            )
-            for i, q in enumerate(end["points"])
-        ]
+    return arrays
+
+
+def load_branch(folder: Path, record: dict, index: int, comm: MPI.Comm) -> Branch:
+    """The engine's :class:`~cosserat_fem.nls.arclength.Branch` of branch ``index``'s saved end
+    (its last points, first_index, step, rejected, direction; its special points and
+    chart moves if the end has them: a folder of before they were saved has none)."""
+    end = record["branches"].get(str(index))
+    if end is None:
+        raise SceneError(f"--branch: no branch {index} saved in {str(folder)!r}")
+    arrays = _arrays(folder, end, index, comm)
+    charts: list = []  # one array per chart (the engine compares them by identity)
+    for i in range(len(end["points"])):
+        chart = arrays[f"q{i}"] if f"q{i}" in arrays else None
+        same = chart is not None and charts and np.array_equal(charts[-1], chart)
+        charts.append(charts[-1] if same else chart)
+    points = [
+        Point(
+            arrays[f"u{i}"],
+            q["p"],
+            arrays[f"t{i}"],
+            q["t_p"],
+            q["det_sign"],
+            q["log_det"],
+            q["iterations"],
+            q["kind"],
+            chart=charts[i],
+        )
+        for i, q in enumerate(end["points"])
+    ]
+    special = [saved_point(q, arrays, f"s{k}") for k, q in enumerate(end.get("special", []))]
     return Branch(
         points=points,
+        special=special,
         direction=end["direction"],
         steps_rejected=end["rejected"],
         step=end["step"],
         first_index=end["first_index"],
+        charts_moved=end.get("charts_moved", 0),
     )
+
+
+def load_point(folder: Path, record: dict, ref: list, comm: MPI.Comm) -> Point:
+    """The saved point ``ref`` names (:func:`queue_record`): a branch's start or one of its
+    special points."""
+    index = ref[1]
+    end = record["branches"][str(index)]
+    arrays = _arrays(folder, end, index, comm)
+    if ref[0] == "start":
+        return saved_point(end["start"], arrays, "start")
+    return saved_point(end["special"][ref[2]], arrays, f"s{ref[2]}")
+
+
+def _has_work(queue: dict) -> bool:
+    """Whether ``queue`` (:func:`queue_record`) has a branch left to trace."""
+    for task in queue["pending"]:
+        if task["kind"] != "switches" or (task["count"] > 0 and queue["found"]):
+            return True
+    return False
 
 
 def restart_branch(
@@ -230,35 +333,191 @@ def restart_branch(
     comm: MPI.Comm = MPI.COMM_WORLD,
 ):
     """Branch ``index`` of the continuation in ``folder`` traced on from its saved end with
-    ``settings``: a :class:`~cosserat_fem.analysis.paths.PathResult` of that one branch (its
-    points from the first saved one on), its new rows appended to branches.csv (at the end
-    of the file, the branch's index kept), its frames to branch_<index>.xdmf, its end and
+    ``settings``, and, if it is the last branch saved and the continuation was cut before
+    its end (its end's queue has work, or it did not end), everything the whole run would
+    have traced after it (:func:`restart_queue`): a
+    :class:`~cosserat_fem.analysis.paths.PathResult` of those branches (the restarted one's
+    points from its first saved one on). Else (a branch that ended, a folder of before the
+    queue was saved) only that branch: its new rows appended to branches.csv (at the end of
+    the file, the branch's index kept), its frames to branch_<index>.xdmf, its end and
     reason saved again (restart.json, branches.json's entry)."""
+    ends = {int(k): v for k, v in record["branches"].items()}
+    last = max(ends, default=index)
+    end = ends.get(last, {})
+    queue = end.get("queue")
+    if index == last and queue is not None and ("reason" not in end or _has_work(queue)):
+        return restart_queue(folder, record, settings, stop, progress, comm)
+    return _restart_one(folder, record, index, settings, stop, progress, comm)
+
+
+def _csv_lines(folder: Path, comm: MPI.Comm) -> list[str]:
+    """branches.csv's lines (the header alone if there is none)."""
+    from cosserat_fem.analysis.branch_outputs import BRANCHES_CSV
+    from cosserat_fem.analysis.paths import BRANCH_COLUMNS
+    from cosserat_fem.common.safe_files import Unreadable, read_on_root
+
+    try:
+        lines = read_on_root(folder / BRANCHES_CSV, 1 << 30, comm).decode().splitlines()
+    except Unreadable:
+        lines = []
+    return lines or [",".join(BRANCH_COLUMNS)]
+
+
+def _reasons(folder: Path, comm: MPI.Comm) -> list[dict]:
+    """branches.json's entries (none if there is none)."""
+    from cosserat_fem.common.safe_files import Unreadable, read_on_root
+
+    try:
+        return json.loads(read_on_root(folder / "branches.json", 1 << 28, comm).decode())
+    except Unreadable:
+        return []
+
+
+def _task(end: dict, start: Point):
+    """The paths.Pending of the branch whose saved end is ``end``."""
+    from cosserat_fem.analysis.paths import Pending
+
+    origin = end.get("origin", NOT_RECORDED)
+    return Pending("trace", start, end["direction"], True, origin, bool(end.get("primary")))
+
+
+def restart_queue(
+    folder: Path,
+    record: dict,
+    settings: ContinuationSettings,
+    stop=None,
+    progress=None,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+):
+    """The continuation in ``folder`` finished as the whole run would have (module
+    docstring, "The queue"): the last branch saved traced on from its saved end unless it
+    ended, then the tasks of its end's queue in order. branches.csv is cut to the rows that
+    end names, branches.json to the branches ended before; each branch then appends its
+    rows, its special points' rows and its entry as the whole run writes them, and its
+    XDMF (the resumed one's from its saved points on)."""
+    from cosserat_fem.analysis.branch_outputs import (
+        BRANCHES_CSV,
+        BranchOutputs,
+        append_on_root,
+        branch_entry,
+        replace_on_root,
+    )
+    from cosserat_fem.analysis.paths import (
+        PathResult,
+        Pending,
+        RodPath,
+        csv_lines,
+        end_branch,
+        path_engine,
+        trace_queue,
+    )
+    from cosserat_fem.scene.build import scene_from_dict
+
+    ends = {int(k): v for k, v in record["branches"].items()}
+    last = max(ends)
+    end = ends[last]
+    resuming = "reason" not in end
+    scene = scene_from_dict(record["scene"], source=f"{folder}/{FOLDER}/{INDEX}")
+    restarts = int(record.get("restarts", 0)) + 1
+    probe = record.get("probe")
+    saved = load_branch(folder, record, last, comm) if resuming else None
+    kept = 0 if saved is None else len(saved.points)
+    first = last if resuming else last + 1  # the first branch this restart writes
+    reasons = [e for e in _reasons(folder, comm) if e.get("branch", -1) < first]
+    lines = _csv_lines(folder, comm)
+    rows = end.get("rows")
+    if isinstance(rows, int) and 0 <= rows <= len(lines) - 1:
+        lines = lines[: rows + 1]  # a row written after the saved end goes
+    replace_on_root(folder / BRANCHES_CSV, "".join(ln + "\n" for ln in lines).encode(), comm)
+    observer = BranchOutputs(folder, progress, (last, kept, restarts) if resuming else None)
+    observer._next = last + 1
+    observer.csv_made, observer.file_rows = True, len(lines) - 1
+    observer.ends = dict(ends)
+    observer.slots = {k: v.get("slot", 0) for k, v in ends.items()}
+
+    def save_index(new: dict) -> None:
+        write_index(folder, record["scene"], settings, new, comm, restarts - 1, probe)
+
+    observer.record = save_index
+    before = {last: saved.first_index} if saved is not None else {}
+
+    def finished(so_far) -> None:  # the special points' rows and the entry, as the whole run's
+        branch, i = so_far.branches[-1], observer.index
+        special = csv_lines([p.as_row(i) for p in branch.special])
+        if special:
+            text = "".join(line + "\n" for line in special)
+            append_on_root(folder / BRANCHES_CSV, text.encode(), comm)
+        reasons.append(branch_entry(i, branch, scene.output.xdmf, before.get(i, 0)))
+        text = json.dumps(reasons, indent=1) + "\n"
+        replace_on_root(folder / "branches.json", text.encode(), comm)
+
+    observer.finished = finished
+    problem = RodPath(scene, comm, probe)
+    problem.model.chart_moved = bool(end.get("chart_moved", False))  # the whole run's outputs
+    loaded: dict[tuple, Point] = {}
+
+    def point(ref: list) -> Point:
+        key = tuple(ref)
+        if key not in loaded:
+            loaded[key] = load_point(folder, record, ref, comm)
+            observer.remember(loaded[key], ref)
+        return loaded[key]
+
+    def task(entry: dict) -> Pending:
+        if entry["kind"] == "trace":
+            start = point(entry["start"])
+            keys = ("direction", "search_first", "origin", "primary")
+            return Pending("trace", start, *(entry[k] for k in keys))
+        if entry["kind"] == "switch":
+            return Pending("switch", at=point(entry["at"]))
+        return Pending("switches", count=entry["count"])
+
+    try:
+        found = [point(ref) for ref in end["queue"]["found"]]
+        pending = [task(entry) for entry in end["queue"]["pending"]]
+        engine = path_engine(problem, settings, stop, observer)
+        result = PathResult()
+        if saved is not None:
+            current = _task(end, point(["start", last]))
+            observer.task, observer.pending, observer.found = current, pending, found
+            observer.skip = kept
+            observer._points = saved.first_index + kept
+            branch = engine.resume(saved)
+            end_branch(problem, branch, current, found, result, observer)
+        trace_queue(engine, problem, pending, found, result, observer)
+        result.corrector_factorisations = engine.corrector_solves
+        result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
+    finally:
+        problem.destroy()
+    write_index(folder, record["scene"], settings, observer.ends, comm, restarts, probe)
+    return result
+
+
+def _restart_one(
+    folder: Path,
+    record: dict,
+    index: int,
+    settings: ContinuationSettings,
+    stop=None,
+    progress=None,
+    comm: MPI.Comm = MPI.COMM_WORLD,
+):
+    """Branch ``index`` alone traced on from its saved end (:func:`restart_branch`)."""
     from cosserat_fem.analysis.branch_outputs import (
         BRANCHES_CSV,
         BranchOutputs,
         append_on_root,
         replace_on_root,
     )
-    from cosserat_fem.analysis.paths import (
-        BRANCH_COLUMNS,
-        PathResult,
-        RodPath,
-        _path_branch,
-        csv_lines,
-        path_engine,
-    )
-    from cosserat_fem.common.safe_files import Unreadable, read_on_root
+    from cosserat_fem.analysis.paths import PathResult, RodPath, _path_branch, path_engine
+    from cosserat_fem.analysis.paths import csv_lines as rows_text
     from cosserat_fem.scene.build import scene_from_dict
 
-    try:  # a branch that reached its range's end has nothing to trace on
-        ended = json.loads(read_on_root(folder / "branches.json", 1 << 28, comm).decode())
-    except Unreadable:
-        ended = []
-    for entry in ended:
-        if entry.get("branch") == index and str(entry.get("reason")).startswith("p reached"):
+    ended = _reasons(folder, comm)
+    for done in ended:  # a branch that reached its range's end has nothing to trace on
+        if done.get("branch") == index and str(done.get("reason")).startswith("p reached"):
             raise SceneError(
-                f"--restart: branch {index} in {str(folder)!r} already ended: {entry['reason']}"
+                f"--restart: branch {index} in {str(folder)!r} already ended: {done['reason']}"
             )
     scene = scene_from_dict(record["scene"], source=f"{folder}/{FOLDER}/{INDEX}")
     saved = load_branch(folder, record, index, comm)
@@ -271,19 +530,18 @@ def restart_branch(
     restarts = int(record.get("restarts", 0)) + 1
     observer = BranchOutputs(folder, progress, resumed=(index, kept, restarts))
     observer._points = saved.first_index + kept
-    observer.slots[index] = record["branches"][str(index)].get("slot", 0)
     ends = {int(k): v for k, v in record["branches"].items()}
+    observer.ends = dict(ends)
+    observer.slots[index] = ends[index].get("slot", 0)
     probe = record.get("probe")
     reasons = ended  # branches.json's entries (none: killed on the first branch)
-    entry = next((e for e in reasons if e.get("branch") == index), None)
-    try:
-        lines = read_on_root(folder / BRANCHES_CSV, 1 << 30, comm).decode().splitlines()
-    except Unreadable:
-        lines = []
-    lines = lines or [",".join(BRANCH_COLUMNS)]
+    entry: dict | None = next((e for e in reasons if e.get("branch") == index), None)
+    lines = _csv_lines(folder, comm)
     rows = ends[index].get("rows")
+    known = 0  # the special points whose rows the file has
     if entry is not None and entry.get("points") == saved.first_index + kept:
         observer.skip = kept  # it ended: the file has its rows, specials and later branches'
+        known = len(saved.special)
     elif isinstance(rows, int) and 0 <= rows <= len(lines) - 1:
         lines = lines[: rows + 1]  # killed: its rows to its saved end (a later one's cut)
         observer.skip = kept
@@ -292,31 +550,39 @@ def restart_branch(
     observer.csv_made, observer.file_rows = True, len(lines) - 1
 
     def save_index(new: dict) -> None:
-        write_index(folder, record["scene"], settings, ends | new, comm, restarts - 1, probe)
+        write_index(folder, record["scene"], settings, new, comm, restarts - 1, probe)
 
     observer.record = save_index
     problem = RodPath(scene, comm, record.get("probe"))
+    problem.model.chart_moved = bool(ends[index].get("chart_moved", False))
     try:
+        if "start" in ends[index]:  # its task kept in its end (no queue traced)
+            start = load_point(folder, record, ["start", index], comm)
+            observer.task = _task(ends[index], start)
+            observer.remember(start, ["start", index])
         engine = path_engine(problem, settings, stop, observer)
         branch = engine.resume(saved)
-        path_branch = _path_branch(problem, branch, f"restarted ({restarts})", observer)
+        origin = ends[index].get("origin", f"restarted ({restarts})")
+        path_branch = _path_branch(problem, branch, origin, observer)
         result = PathResult([path_branch], engine.corrector_solves)
         result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
+        if entry is None:  # killed on this branch
+            xdmf = f"branch_{index}.xdmf" if scene.output.xdmf else None
+            origin = ends[index].get("origin", NOT_RECORDED)
+            entry = {"branch": index, "origin": origin, "xdmf": xdmf, "approximate": []}
+            reasons.append(entry)
+        special = rows_text([p.as_row(index) for p in path_branch.special[known:]])
+        if special:  # its points' rows were appended as they came (BranchOutputs.write_rows)
+            text = "".join(line + "\n" for line in special)
+            append_on_root(folder / BRANCHES_CSV, text.encode(), comm)
+        entry["reason"] = branch.reason
+        entry["points"] = branch.first_index + len(branch.points)
+        entry["steps"] = entry["points"] - 1
+        entry["rejected"] = branch.steps_rejected
+        text = json.dumps(reasons, indent=1) + "\n"
+        replace_on_root(folder / "branches.json", text.encode(), comm)
+        observer.end(problem, branch, len(special))
     finally:
         problem.destroy()
-    if entry is None:  # killed on this branch
-        xdmf = f"branch_{index}.xdmf" if scene.output.xdmf else None
-        origin = "not recorded (the continuation was killed on this branch)"
-        entry = {"branch": index, "origin": origin, "xdmf": xdmf, "approximate": []}
-        reasons.append(entry)
-    special = csv_lines([p.as_row(index) for p in path_branch.special])
-    if special:  # its points' rows were appended as they came (BranchOutputs.write_rows)
-        text = "".join(line + "\n" for line in special)
-        append_on_root(folder / BRANCHES_CSV, text.encode(), comm)
-    entry["reason"] = branch.reason
-    entry["points"] = branch.first_index + len(branch.points)
-    entry["steps"] = entry["points"] - 1
-    entry["rejected"] = branch.steps_rejected
-    replace_on_root(folder / "branches.json", (json.dumps(reasons, indent=1) + "\n").encode(), comm)
-    write_index(folder, record["scene"], settings, ends | observer.ends, comm, restarts, probe)
+    write_index(folder, record["scene"], settings, observer.ends, comm, restarts, probe)
     return result

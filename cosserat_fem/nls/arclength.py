@@ -606,6 +606,12 @@ class Continuation:
     def switch(self, point: Point) -> list[Branch]:
         """The other branch through the bifurcation point ``point``, both ways (module
         docstring)."""
+        return self.both_ways(self.switch_start(point), search_first=False)
+
+    def switch_start(self, point: Point) -> Point:
+        """The start of the other branch through the bifurcation point ``point``: ``point``
+        with the direction d of the module docstring as its tangent (:meth:`switch` traces
+        it along ±d; a caller that ends each branch before the next traces it alike)."""
         phi = self.null_vector(point)
         along = self._dot(phi, 0.0, point.t_u, point.t_p)
         d_u, d_p = phi - along * point.t_u, -along * point.t_p
@@ -621,4 +627,4 @@ class Continuation:
             "bifurcation",
             chart=point.chart,
         )
-        return self.both_ways(start, search_first=False)
+        return start
