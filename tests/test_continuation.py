@@ -530,8 +530,10 @@ def test_killed_continuation_restarts_from_its_last_point(tmp_path):
     the 4 told: before, no file, and the restart began it at the saved points, rows 0-1
     lost), and restart.json names them; the restart appends the rest, so the file is the
     whole run's byte for byte (the same rows computed in the same order); branch_0.xdmf
-    has the frames from the saved points on, times 2, 3, ...; restart.json's saved end
-    stays one the arrays fit (the slots)."""
+    has the killed run's frames 0-4 (written as the points came; before, none, and the
+    restart wrote them from the saved points on, times 2, 3, ...), then all of the whole
+    run's, times 0, 1, ...; restart.json's saved end stays one the arrays fit (the
+    slots)."""
     from xdmf_files import read_xdmf
 
     scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 1})
@@ -543,7 +545,7 @@ def test_killed_continuation_restarts_from_its_last_point(tmp_path):
         cf.continuation(scene, 0.0, 1.0, max_points=40, out=cut, stop=kill_after(4), **options)
     rows_w = (tmp_path / "whole" / "branches.csv").read_text().splitlines()
     assert (cut / "branches.csv").read_text().splitlines() == rows_w[:6]
-    assert not (cut / "branch_0.xdmf").exists()
+    assert list(read_xdmf(cut / "branch_0.xdmf")["displacement"][0]) == list(range(5))
     record = json.loads((cut / "continuation" / "restart.json").read_text())
     assert record["branches"]["0"]["first_index"] == 2 and record["probe"] == half
     assert record["branches"]["0"]["rows"] == 5
@@ -556,8 +558,8 @@ def test_killed_continuation_restarts_from_its_last_point(tmp_path):
     assert (cut / "branches.csv").read_text() == (tmp_path / "whole" / "branches.csv").read_text()
     times, values = read_xdmf(cut / "branch_0.xdmf")["displacement"]
     times_w, values_w = read_xdmf(tmp_path / "whole" / "branch_0.xdmf")["displacement"]
-    assert list(times) == list(range(2, len(w.points)))
-    assert np.array_equal(values, values_w[2:])
+    assert list(times) == list(times_w) == list(range(len(w.points)))
+    assert np.array_equal(values, values_w)
 
 
 def test_a_killed_restart_keeps_its_rows(tmp_path):
@@ -606,21 +608,19 @@ def told_before(result, branch: int) -> int:
     return sum(len(b.points) - 2 for b in result.branches[:branch])
 
 
-def assert_same_folders(cut, whole, resumed: dict[int, int]) -> None:
+def assert_same_folders(cut, whole) -> None:
     """branches.csv byte for byte, branches.json equal, and every branch's XDMF frames
-    (times and values) equal to the whole run's; a branch i killed and resumed from its
-    saved points (``resumed[i]`` the first's index) has its frames from that one on."""
+    (times and values) equal to the whole run's."""
     from xdmf_files import read_xdmf
 
     assert (cut / "branches.csv").read_text() == (whole / "branches.csv").read_text()
     assert (cut / "branches.json").read_text() == (whole / "branches.json").read_text()
     for i in range(len(json.loads((whole / "branches.json").read_text()))):
-        skip = resumed.get(i, 0)
         for array in ("displacement", "angles"):
             times, values = read_xdmf(cut / f"branch_{i}.xdmf")[array]
             times_w, values_w = read_xdmf(whole / f"branch_{i}.xdmf")[array]
-            assert list(times) == list(times_w)[skip:]
-            assert np.array_equal(values, values_w[skip:])
+            assert list(times) == list(times_w)
+            assert np.array_equal(values, values_w)
 
 
 @pytest.fixture(scope="module")
@@ -649,8 +649,9 @@ def test_a_killed_continuation_traces_the_branches_after_it(
     second pending) and in its second. The restart (``continue --restart``'s default, the
     last branch saved) returns the killed branch from its saved points on and the branches
     after it; its λ are the whole run's exactly, and branches.csv is the whole run's byte
-    for byte, branches.json equal, every XDMF frame's values equal (the killed branch's from
-    its first saved point on): the queue saved with each end (the tasks to come and the
+    for byte, branches.json equal, every branch's XDMF frames equal (times and values; the
+    killed branch's frames were written as its points came, and the restart cuts them back
+    to its saved end and appends the rest): the queue saved with each end (the tasks to come and the
     bifurcation points found, their arrays exact in npz, their scalars by repr) makes the
     restart perform the same floating-point operations on the same arrays as the whole run
     (serially deterministic: test_restart_equals_the_whole_branch). Before, the restart
@@ -678,7 +679,7 @@ def test_a_killed_continuation_traces_the_branches_after_it(
     for b, w in zip(result.branches[1:], whole.branches[branch + 1 :], strict=True):
         assert [q.factor for q in b.points] == [q.factor for q in w.points]
         assert b.origin == w.origin and b.reason == w.reason
-    assert_same_folders(cut, whole_folder, {branch: first})
+    assert_same_folders(cut, whole_folder)
     record = json.loads((old / "continuation" / "restart.json").read_text())
     for end in record["branches"].values():
         end.pop("queue")
@@ -719,15 +720,15 @@ def test_a_continuation_killed_between_two_branches_traces_the_rest(
     assert [b.origin for b in result.branches] == [b.origin for b in whole.branches[2:]]
     for b, w in zip(result.branches, whole.branches[2:], strict=True):
         assert [q.factor for q in b.points] == [q.factor for q in w.points]
-    assert_same_folders(cut, whole_folder, {})
+    assert_same_folders(cut, whole_folder)
 
 
 def test_a_killed_restart_traces_the_rest_when_restarted(tmp_path, pitchfork_whole):
     """The column of :func:`pitchfork_column` killed in its first branch (4th point), its
     restart killed in its turn in the switched branch's first direction (3rd point of
     branch 2), restarted again: the folder is the whole run's (branches.csv byte for byte,
-    branches.json, every XDMF frame; branches 0 and 2 from their saved points on), the
-    second restart's branches the whole run's from branch 2 on."""
+    branches.json, every XDMF frame), the second restart's branches the whole run's from
+    branch 2 on (its points from the saved ones on)."""
     whole, whole_folder = pitchfork_whole
     scene, options = pitchfork_column()
     cut = tmp_path / "cut"
@@ -748,7 +749,7 @@ def test_a_killed_restart_traces_the_rest_when_restarted(tmp_path, pitchfork_who
     assert [q.factor for q in result.branches[1].points] == [
         q.factor for q in whole.branches[3].points
     ]
-    assert_same_folders(cut, whole_folder, {0: 2, 2: 1})
+    assert_same_folders(cut, whole_folder)
 
 
 MPI_STOP_ERROR = """

@@ -29,6 +29,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from mpi4py import MPI
@@ -99,6 +100,8 @@ class BranchOutputs:
         self.found: list = []
         self._refs: list[tuple[Point, list]] = []  # the saved points, by identity
         self._problem = None  # the path problem told of last (its model's chart_moved)
+        self._writer: Any = None  # the current branch's XDMF writer, while it is open
+        self._framed = 0  # the current branch's points whose frames were handled
 
     def begin(self, task, pending: list, found: list) -> None:
         """Branch ``task`` (a paths.Pending) begins, ``pending`` to come after it (the
@@ -168,8 +171,9 @@ class BranchOutputs:
             point = _path_point(problem, branch.points[i])
             if i >= self.skip:
                 rows.append(point.as_row(self.index))
-        problem.use_chart(chart)
         self._done = len(branch.points)
+        self._write_frames(problem, branch)
+        problem.use_chart(chart)
         if not rows:
             return
         text = "".join(line + "\n" for line in csv_lines(rows))
@@ -187,36 +191,52 @@ class BranchOutputs:
             self.progress(self._branch, self._points, point.p)
 
     def branch(self, problem, branch: Branch) -> None:
-        """Write the rest of ``branch``'s rows and ``branch_<i>.xdmf`` of ``branch`` (engine
+        """Write the rest of ``branch``'s rows and frames of ``branch_<i>.xdmf`` (engine
         points, their states u) through ``problem`` (a
-        :class:`~cosserat_fem.analysis.paths.RodPath`: its model's U)."""
-        from cosserat_fem.output.fields import XdmfWriter
-
+        :class:`~cosserat_fem.analysis.paths.RodPath`: its model's U), and close the XDMF."""
         self._branch += 1
         self._points = 1
         if self.folder is None:
             return
         self.write_rows(problem, branch)  # the points the engine did not tell (a bound's)
         self._done = 0
-        if not problem.scene.output.xdmf:
+        self._write_frames(problem, branch)  # all of them without restart data
+        if self._writer is not None:
+            self.files.append(self._writer.path)
+        self.close()
+
+    def _write_frames(self, problem, branch: Branch) -> None:
+        """The frames of ``branch``'s points not yet written into ``branch_<i>.xdmf``, frame
+        k the point of index k along the branch; the file opened at the branch's first (a
+        resumed branch's: continued as restart n after its saved points' frames, cut back to
+        them; from its saved points if it has none, a folder of before the frames were
+        written as the points came). Nothing with the scene's ``output.xdmf`` false."""
+        from cosserat_fem.output.fields import XdmfWriter
+
+        if self.folder is None or not problem.scene.output.xdmf:
             return
-        path = self.folder / f"branch_{self.index}.xdmf"
-        skip = 0 if self.resumed is None else self.resumed[1]
-        if self.resumed is not None and not from_root(problem.comm, path.exists()):
-            skip = 0  # killed before the branch's XDMF was written: from the saved points
-        frames = branch.first_index + skip  # those written before
-        resume = None if self.resumed is None or not skip else (self.resumed[2], frames)
-        writer = XdmfWriter(path, problem.model, resume=resume)
-        try:
-            for i, q in enumerate(branch.points[skip:], start=frames):
-                if q.chart is None:
-                    problem.set_state(q.u, q.p)
-                else:  # a point of a path with charts (paths.py)
-                    problem.set_state(q.u, q.p, q.chart)
-                writer.write(float(i))
-        finally:
+        if self._writer is None:
+            path = self.folder / f"branch_{self.index}.xdmf"
+            resume, self._framed = None, 0
+            if self.resumed is not None and from_root(problem.comm, path.exists()):
+                self._framed = self.resumed[1]  # the saved points' frames are there
+                resume = (self.resumed[2], branch.first_index + self._framed)
+            self._writer = XdmfWriter(path, problem.model, resume=resume)
+        for i in range(self._framed, len(branch.points)):
+            q = branch.points[i]
+            if q.chart is None:
+                problem.set_state(q.u, q.p)
+            else:  # a point of a path with charts (paths.py)
+                problem.set_state(q.u, q.p, q.chart)
+            self._writer.write(float(branch.first_index + i))
+        self._framed = len(branch.points)
+
+    def close(self) -> None:
+        """Close the current branch's XDMF if it is open (as a branch ends, or when the
+        continuation stops on an exception: the caller's ``finally``). Collective."""
+        writer, self._writer = self._writer, None
+        if writer is not None:
             writer.close()
-        self.files.append(path)
 
     def end(self, problem, branch: Branch, special_rows: int | None = None) -> None:
         """The caller has written its files of ``branch`` (``finished``: branches.csv with

@@ -488,6 +488,7 @@ def restart_queue(
         result.corrector_factorisations = engine.corrector_solves
         result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
     finally:
+        observer.close()
         problem.destroy()
     write_index(folder, record["scene"], settings, observer.ends, comm, restarts, probe)
     return result
@@ -583,6 +584,7 @@ def _restart_one(
         replace_on_root(folder / "branches.json", text.encode(), comm)
         observer.end(problem, branch, len(special))
     finally:
+        observer.close()
         problem.destroy()
     write_index(folder, record["scene"], settings, observer.ends, comm, restarts, probe)
     return result

@@ -573,6 +573,8 @@ def continue_path(
         result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
         return result
     finally:
+        if observer is not None:
+            observer.close()  # a branch's XDMF left open by an exception
         problem.destroy()
 
 
