@@ -908,6 +908,63 @@ def test_continue_killed_by_sigterm_restarts_from_its_last_point(tmp_path):
     assert rows == rows_w
 
 
+@pytest.mark.long
+@pytest.mark.parametrize("branch", [0, 2])
+def test_continue_killed_by_sigterm_traces_the_branches_after_it(tmp_path, branch):
+    """``continue`` on the column of :func:`pitchfork_column` with steps of 0.01 (four
+    branches: 152, 52, 80 and 80 points, 6 s) killed by SIGTERM (the process ends wherever it
+    is: between a branch's rows, frames, arrays and restart.json perhaps) once the saved end
+    of branch ``branch`` (the primary's first direction, or the switch's first) is at point
+    20 or later, then ``continue --restart``: the folder is the uninterrupted run's,
+    branches.csv byte for byte, branches.json, every branch's XDMF frames (times and
+    values), whichever point the kill fell on (serial: the same operations on the same
+    arrays, test_restart_equals_the_whole_branch; the restart cuts each file back to the
+    saved end and traces the queue saved with it)."""
+    import signal
+    import subprocess
+
+    from conftest import PYTHON, stop_tree, subprocess_env
+
+    base = ["-m", "cosserat_fem.cli", "continue"]
+    case = [
+        str(ROLLUP),
+        "--unset",
+        "loads.end",
+        "--set",
+        'loads.end.force=[0, 0, "-pi**2*EI/(4*L**2)"]',
+    ]
+    case += ["--set", "discretisation.elements=8", "--range", "-0.5", "1.5", "--step", "0.01"]
+    case += ["--max-step", "0.01", "--max-points", "400"]
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    proc = run_command([*base, *case, "--out", str(whole), "--quiet"])
+    assert proc.returncode == 0, proc.stderr
+    points = [e["points"] for e in json.loads((whole / "branches.json").read_text())]
+    assert points == [152, 52, 80, 80]
+    index = cut / "continuation" / "restart.json"
+    killed = subprocess.Popen(
+        [PYTHON, *base, *case, "--out", str(cut), "--quiet"], cwd=ROOT, env=subprocess_env()
+    )
+    try:
+        deadline = time.monotonic() + 300
+        first = -1
+        while first < 20 and killed.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+            try:
+                first = json.loads(index.read_text())["branches"][str(branch)]["first_index"]
+            except (OSError, ValueError, KeyError):
+                pass
+        assert killed.poll() is None, "the run ended before it could be killed"
+        killed.send_signal(signal.SIGTERM)
+        killed.wait(timeout=60)
+    finally:
+        stop_tree(killed)
+    ends = json.loads(index.read_text())["branches"]
+    assert max(map(int, ends)) == branch and ends[str(branch)]["first_index"] >= 20
+    proc = run_command([*base, "--restart", str(cut), "--quiet"])
+    assert proc.returncode == 0, proc.stderr
+    assert_same_folders(cut, whole)
+
+
 # %% [markdown]
 # ## Rods in 3D: the chart moves on the path (issue 27 item 2)
 

@@ -2,10 +2,12 @@
 goes, besides branches.csv (issue 27 item 5).
 
 * ``branch_<i>.xdmf`` (+ its HDF5 frames), one file per branch i (i as in branches.csv's
-  ``branch`` column), written by :class:`BranchOutputs` as each branch ends: one frame per
-  point of the branch in its order (the located special points are not frames; they are
-  rows of branches.csv), the frame's "time" the point's index along the branch (0 = its
-  first point), not λ, which turns back at a fold. The arrays are the scene's
+  ``branch`` column), written by :class:`BranchOutputs` as the points are accepted (with
+  restart data; else as the branch ends): one frame per point of the branch in its order
+  (the located special points are not frames; they are rows of branches.csv), the frame's
+  "time" the point's index along the branch (0 = its first point), not λ, which turns back
+  at a fold; a killed branch keeps its frames up to its last point, and a restart cuts
+  them back to its saved end and appends the rest. The arrays are the scene's
   ``output.fields`` (:class:`~cosserat_fem.output.fields.XdmfWriter`, as a static path's
   solution.xdmf), so ParaView's "Warp By Vector" draws each state of the branch. Not with
   the scene's ``output.xdmf = false``.
@@ -16,6 +18,8 @@ goes, besides branches.csv (issue 27 item 5).
   names the file's rows through it (restart.json's ``rows``, which a restart cuts the file
   back to); as each branch ends the caller rewrites the file whole from its result (the
   special points' rows after the branch's points), and a restart appends the new ones.
+  The branches are ended one at a time (paths.py's queue): the next begins after
+  :meth:`BranchOutputs.end` has saved the last one's final end and the queue after it.
 * ``branches.json``: per branch its origin, why it ended (a bound of the range, max_points,
   ``stop``'s reason, or a step collapse with the corrector's failure), its steps and
   rejected steps (:func:`write_branch_reasons`). A branch that cannot go on still has every

@@ -1,50 +1,73 @@
-"""Restarts of a continuation from the last point of a branch (issue 27 item 5).
+"""Restarts of a continuation from the last point of a branch, and of the branches after it
+(issue 27 item 5).
 
 A continuation with an output folder keeps, after each point of a branch and as it ends,
-what the rest of that branch depends on, following the run's checkpoints
-(cosserat_fem/io/checkpoint.py), so a continuation killed mid-branch restarts from its last
-point:
+what the rest of the continuation depends on, following the run's checkpoints
+(cosserat_fem/io/checkpoint.py), so a continuation killed anywhere restarts where it was and
+traces what the whole run would have traced:
 
     continuation/restart.json          the scene (as a dict), the settings, the ranks, and per
                                        branch its end: first_index, step, rejected, direction,
-                                       slot
+                                       slot, rows, its start, special points, origin, chart
+                                       moves, the queue after it, and its reason once ended
     continuation/branch<i>.rank<r>.npz  rank r's owned entries of u and t_u of the branch's
-    (slot 0; slot 1: .rank<r>.b.npz)    last (at most) three points, and in 3D their charts
-                                        (the nodal quaternions: paths.py)
+    (slot 0; slot 1: .rank<r>.b.npz)    last (at most) three points, of its start and of its
+                                        special points, and in 3D their charts (the nodal
+                                        quaternions: paths.py)
 
 Each file is replaced whole (common/safe_files.replace). The arrays of a new end go to the
 slot the JSON does not name, then the JSON is replaced to name it: a kill between the two
 leaves the JSON and the arrays it names of the same, earlier, end.
 
-with each point's λ, dλ/ds, sign and ln|det R_u|, iterations and kind in the JSON (floats
-written by repr, which round-trips). The three last points are the quadratic predictor's
-history; ``first_index`` counts the points before them (max_points), ``step`` is the step
-the next point would have taken. :func:`resume_branch` rebuilds the scene's path problem and
-calls :meth:`~cosserat_fem.nls.arclength.Continuation.resume`: the same floating-point
-operations on the same arrays as the uninterrupted trace (the problem's assemblies and LU
-factorisations are functions of (u, λ) alone), so a continuation cut in two gives the very
-points of the whole one (tests/test_continuation.py::test_restart_equals_the_whole_branch).
-Arrays are per rank: a restart needs the same number of ranks (the same partition).
+with each point's λ, dλ/ds, sign and ln|det R_u|, iterations, kind and note in the JSON
+(floats written by repr, which round-trips). The three last points are the quadratic
+predictor's history; ``first_index`` counts the points before them (max_points), ``step``
+is the step the next point would have taken. :func:`restart_branch` rebuilds the scene's
+path problem and calls :meth:`~cosserat_fem.nls.arclength.Continuation.resume`: the same
+floating-point operations on the same arrays as the uninterrupted trace (the problem's
+assemblies and LU factorisations are functions of (u, λ) alone), so a continuation cut in
+two gives the very points of the whole one
+(tests/test_continuation.py::test_restart_equals_the_whole_branch). Arrays are per rank: a
+restart needs the same number of ranks (the same partition). Only ``max_points`` may
+change on restart; the range, steps and tolerances are the saved ones.
 
-Only ``max_points`` may change on restart (a branch that ended at max_points goes on); the
-range, steps and tolerances are the saved ones. The continued points are appended to the
-branch's rows of branches.csv and frames of its branch_<i>.xdmf, and its end saved again.
+**The queue.** The whole run (paths.continue_path) traces its branches one at a time from a
+queue (paths.Pending): the primary branch's directions, then a switch at each of the first
+``switch`` bifurcation points located on them, each switch the new branch's two directions;
+each branch is ended (its files, then its final end) before the next begins. All it keeps
+to decide the next branch is the queue's pending tasks and the bifurcation points found
+(a switch's start is computed from its point when the switch comes up), so each saved end
+holds the queue after its branch (:func:`queue_record`), each point named by the branch end
+that saved its arrays: ["start", i] (branch i's start: the λ = 0 state of the primary
+branch, or a switch's start, from which the second direction is traced) or ["special", i,
+k] (branch i's k-th special point). The last branch's end tells the restart
+(:func:`restart_queue`) what to do: a branch that did not end (no ``reason``: killed in
+it) is resumed from its saved end and ended; then the queue's tasks are traced in order,
+numbered on after it. A kill between two branches (the last end has its reason) resumes
+nothing and traces the queue; a restart killed in its turn is restarted alike. The files
+then are the whole run's: branches.csv byte for byte, branches.json, every branch's XDMF
+frames (tests/test_continuation.py::test_a_killed_continuation_traces_the_branches_after_it).
 
-**Rows.** The rows of the branch being traced are appended to branches.csv as its points
-are accepted, before its end is saved (branch_outputs.BranchOutputs.write_rows), and each
-saved end names the file's rows through its last point (``rows``). A continuation killed
-mid-branch has branches.csv with the branches that ended before and the killed branch's rows
-up to its last point, branches.json and the XDMF of the branches that ended before; the
-restart cuts branches.csv to the saved end's ``rows`` (a row written after the end was saved
-goes) and appends the rest as it goes, so the file ends as the uninterrupted run's; a
-restart killed in its turn is restarted alike. A switch traces its two directions before
-either is ended: the second's rows are written when it ends (a kill before loses them, and
-its end names no ``rows``), and each saves its end under its own index. The killed branch's
-XDMF has its frames from the saved (last three) points on, and the branches after it are not
-traced (start them anew). A branch that ended (branches.json has its points) is continued
-at the end of the file, after the branches traced after it. A folder whose ends name no
-``rows`` (written before they were saved) gets the killed branch's rows from its saved
-points on.
+**Rows and frames.** The rows of the branch being traced are appended to branches.csv, and
+its frames to branch_<i>.xdmf, as its points are accepted, before its end is saved
+(branch_outputs.BranchOutputs.write_rows), and each saved end names the file's rows
+through its last point (``rows``; the frames are first_index + the kept points). The
+restart cuts branches.csv to the last end's ``rows`` (a row written after it goes), and the
+resumed branch's XDMF to its saved points (as restart n), branches.json to the branches
+ended before, and appends the rest as the whole run writes it: each branch's points' rows,
+then its special points' rows (the killed branch's found before the kill come back from its
+end), its entry in branches.json and its frames.
+
+**Restarting one branch.** A restart of a branch that is not the last saved, or of the last
+of a continuation that traced its whole queue (a branch ended at max_points: give a larger
+--max-points), traces that branch alone (:func:`_restart_one`): its rows appended at the end
+of branches.csv (the branch's index kept), its special points found after the restart
+after them, its frames to its XDMF, its end and reason saved again. A branch that reached
+its range's end is refused. A folder written before the queue was saved (no ``queue`` in
+its ends) is restarted this way too, as then: the killed branch alone (its rows from its
+saved ``rows`` on, or from its saved points on if its ends name no ``rows``; its XDMF from
+its saved points on; its special points found before the kill lost), the branches after it
+not traced (start them anew).
 """
 
 from __future__ import annotations
