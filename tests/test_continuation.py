@@ -831,6 +831,60 @@ def test_killed_restart_under_mpirun_equals_serial(tmp_path):
     assert np.max(np.abs(restarted - expected)) < 1e-8
 
 
+MPI_KILLED_QUEUE = """
+import json, sys
+from mpi4py import MPI
+import cosserat_fem as cf
+
+class Killed(Exception):
+    pass
+
+overrides = {
+    "loads.end": cf.UNSET,
+    "discretisation.elements": 8,
+    "loads.end.force": [0, 0, "-pi**2*EI/(4*L**2)"],
+}
+scene = cf.load(sys.argv[1], overrides)
+options = dict(step=0.05, max_step=0.2, directions=(1, -1), max_points=30)
+calls = []
+
+def stop(q):
+    calls.append(q.factor)
+    if len(calls) == 4:
+        raise Killed("killed")
+    return None
+
+try:
+    cf.continuation(scene, -0.5, 1.5, out=sys.argv[2], stop=stop, **options)
+except Killed:
+    pass
+result = cf.continuation(None, restart=sys.argv[2])
+if MPI.COMM_WORLD.rank == 0:
+    print(json.dumps([[q.factor, *map(float, q.tip)] for b in result.branches for q in b.points]))
+"""
+
+
+@pytest.mark.long
+def test_killed_queue_under_mpirun_equals_serial(tmp_path, pitchfork_whole):
+    """test_a_killed_continuation_traces_the_branches_after_it under ``mpirun -n 2``: the
+    column killed at the 4th point of its first branch, restarted on 2 ranks (each rank
+    reads its own arrays of the queue's points: the start, the bifurcation point); the
+    restart's points (branch 0 from index 2 on, then branches 1-3 whole) equal the serial
+    whole run's, λ and the free end's (x, y, z, θ, ψ, φ) to 1e-8 (the argument of
+    test_killed_restart_under_mpirun_equals_serial: the corrector's tolerance 1e-10 with
+    full Newton, the partitions' round-off ~1e-13, the same steps taken)."""
+    whole, _ = pitchfork_whole
+    proc = run_command(
+        ["-c", MPI_KILLED_QUEUE, str(ROLLUP), str(tmp_path / "cut")], ranks=2, timeout=300
+    )
+    assert proc.returncode == 0, proc.stderr
+    restarted = np.array(json.loads(proc.stdout.strip().splitlines()[-1]))
+    points = [*whole.branches[0].points[2:], *(q for b in whole.branches[1:] for q in b.points)]
+    expected = np.array([[q.factor, *q.tip] for q in points])
+    assert restarted.shape == expected.shape
+    assert np.max(np.abs(restarted - expected)) < 1e-8
+
+
 def test_killed_on_the_second_branch_keeps_the_first(tmp_path):
     """The roll-up (4 elements, one turn) on [−1, 1], λ growing then falling, killed at the
     4th point of the second branch: branches.csv holds the first branch (written as it

@@ -225,6 +225,7 @@ class BranchOutputs:
             if self.resumed is not None and from_root(problem.comm, path.exists()):
                 self._framed = self.resumed[1]  # the saved points' frames are there
                 resume = (self.resumed[2], branch.first_index + self._framed)
+                cut_frames(path, resume[1], problem.comm)  # a frame after the saved end goes
             self._writer = XdmfWriter(path, problem.model, resume=resume)
         for i in range(self._framed, len(branch.points)):
             q = branch.points[i]
@@ -281,6 +282,25 @@ def append_on_root(path: str | Path, data: bytes, comm: MPI.Comm = MPI.COMM_WORL
             os.close(fd)
 
     _on_root(path, append, comm)
+
+
+def cut_frames(path: Path, frames: int, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    """The XDMF series ``path`` cut back to its first ``frames`` frames (rank 0; the ranks
+    agree on a failure): the XML (io/xdmf.cut_xdmf), then the frame files after them and the
+    scratch XML of a frame being written (a kill after a frame's files were written and
+    before the restart data that count it: the resumed writer writes those files again)."""
+    from cosserat_fem.io.xdmf import cut_xdmf, frames_folder
+
+    def cut() -> None:
+        cut_xdmf(path, frames)
+        folder = frames_folder(path)
+        if folder.is_dir():
+            for old in folder.iterdir():
+                later = old.suffix == ".h5" and old.stem.isdigit() and int(old.stem) >= frames
+                if later or old.suffix == ".xdmf-partial":
+                    old.unlink()
+
+    _on_root(path, cut, comm)
 
 
 def _on_root(path: str | Path, write: Callable[[], None], comm: MPI.Comm) -> None:

@@ -454,6 +454,7 @@ def restart_queue(
     replace_on_root(folder / BRANCHES_CSV, "".join(ln + "\n" for ln in lines).encode(), comm)
     observer = BranchOutputs(folder, progress, (last, kept, restarts) if resuming else None)
     observer._next = last + 1
+    observer._branch = last if resuming else last + 1  # the branches ended (the progress)
     observer.csv_made, observer.file_rows = True, len(lines) - 1
     observer.ends = dict(ends)
     observer.slots = {k: v.get("slot", 0) for k, v in ends.items()}
