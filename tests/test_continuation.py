@@ -723,6 +723,42 @@ def test_a_continuation_killed_between_two_branches_traces_the_rest(
     assert_same_folders(cut, whole_folder)
 
 
+def test_a_kill_after_a_point_s_rows_and_frame_is_cut_back(tmp_path, pitchfork_whole, monkeypatch):
+    """The column of :func:`pitchfork_column` killed after the 3rd point of branch 2 had its
+    row appended to branches.csv and its frame to branch_2.xdmf, before its end was saved
+    (BranchOutputs.save raising there): the files hold a row and a frame more than the saved
+    end names (4 frames, the end at point 2); the restart cuts both back to it (the XML to
+    its frames, the later frame files removed) and appends the rest, so the folder is the
+    whole run's (branches.csv byte for byte, branches.json, every XDMF frame, frame i in its
+    file i; before the cut, the frame stayed and the restart wrote its file again, a time
+    twice in the XML)."""
+    from xdmf_files import read_xdmf
+
+    from cosserat_fem.analysis.branch_outputs import BranchOutputs
+
+    whole, whole_folder = pitchfork_whole
+    scene, options = pitchfork_column()
+    save = BranchOutputs.save
+
+    def killed_save(self, branch, comm, final=False):
+        if self.index == 2 and len(branch.points) == 4 and not final:
+            raise Killed("killed before the end of point 3 was saved")
+        save(self, branch, comm, final)
+
+    cut = tmp_path / "cut"
+    with monkeypatch.context() as patch:
+        patch.setattr(BranchOutputs, "save", killed_save)
+        with pytest.raises(Killed):
+            cf.continuation(scene, -0.5, 1.5, out=cut, **options)
+    end = json.loads((cut / "continuation" / "restart.json").read_text())["branches"]["2"]
+    assert end["first_index"] + len(end["points"]) == 3
+    assert list(read_xdmf(cut / "branch_2.xdmf")["displacement"][0]) == [0, 1, 2, 3]
+    rows = (cut / "branches.csv").read_text().splitlines()
+    assert len(rows) - 1 == end["rows"] + 1
+    cf.continuation(None, restart=cut)
+    assert_same_folders(cut, whole_folder)
+
+
 def test_a_killed_restart_traces_the_rest_when_restarted(tmp_path, pitchfork_whole):
     """The column of :func:`pitchfork_column` killed in its first branch (4th point), its
     restart killed in its turn in the switched branch's first direction (3rd point of
