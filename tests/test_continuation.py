@@ -966,6 +966,32 @@ def test_killed_on_the_second_branch_keeps_the_first(tmp_path):
     assert [r["reason"] for r in reasons] == ["p reached 1", "p reached -1"]
 
 
+def sigterm_when_saved(command: list[str], index, branch: int = 0, at: int = 20) -> None:
+    """Run ``command`` (a ``continue``) and kill it by SIGTERM once restart.json (``index``)
+    has branch ``branch``'s saved end at point ``at`` or later (its first_index), within
+    300 s; the run must not have ended before."""
+    import signal
+    import subprocess
+
+    from conftest import PYTHON, stop_tree, subprocess_env
+
+    killed = subprocess.Popen([PYTHON, *command], cwd=ROOT, env=subprocess_env())
+    try:
+        deadline = time.monotonic() + 300
+        first = -1
+        while first < at and killed.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+            try:
+                first = json.loads(index.read_text())["branches"][str(branch)]["first_index"]
+            except (OSError, ValueError, KeyError):
+                pass
+        assert killed.poll() is None, "the run ended before it could be killed"
+        killed.send_signal(signal.SIGTERM)
+        killed.wait(timeout=60)
+    finally:
+        stop_tree(killed)
+
+
 @pytest.mark.long
 def test_continue_killed_by_sigterm_restarts_from_its_last_point(tmp_path):
     """``continue`` killed by SIGTERM (not a Python exception: the process ends wherever it is,
@@ -976,11 +1002,6 @@ def test_continue_killed_by_sigterm_restarts_from_its_last_point(tmp_path):
     whichever point the kill fell on: the killed run's rows were appended as they came, the
     restart cuts the file to those restart.json names (a row written after its saved end
     goes) and appends the rest (before: the rows before the saved first index were lost)."""
-    import signal
-    import subprocess
-
-    from conftest import PYTHON, stop_tree, subprocess_env
-
     base = ["-m", "cosserat_fem.cli", "continue"]
     case = [str(ROLLUP), "--set", "discretisation.elements=32", "--set", "parameters.turns=2"]
     case += ["--step", "0.02", "--max-step", "0.02", "--switch", "0", "--max-points", "400"]
@@ -988,23 +1009,7 @@ def test_continue_killed_by_sigterm_restarts_from_its_last_point(tmp_path):
     proc = run_command([*base, *case, "--out", str(whole), "--quiet"])
     assert proc.returncode == 0, proc.stderr
     index = cut / "continuation" / "restart.json"
-    killed = subprocess.Popen(
-        [PYTHON, *base, *case, "--out", str(cut), "--quiet"], cwd=ROOT, env=subprocess_env()
-    )
-    try:
-        deadline = time.monotonic() + 300
-        first = -1
-        while first < 20 and killed.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.01)
-            try:
-                first = json.loads(index.read_text())["branches"]["0"]["first_index"]
-            except (OSError, ValueError, KeyError):
-                pass
-        assert killed.poll() is None, "the run ended before it could be killed"
-        killed.send_signal(signal.SIGTERM)
-        killed.wait(timeout=60)
-    finally:
-        stop_tree(killed)
+    sigterm_when_saved([*base, *case, "--out", str(cut), "--quiet"], index)
     end = json.loads(index.read_text())["branches"]["0"]
     assert end["first_index"] >= 20 and end["rows"] == end["first_index"] + 3
     assert len((cut / "branches.csv").read_text().splitlines()) - 1 >= end["rows"]
@@ -1028,11 +1033,6 @@ def test_continue_killed_by_sigterm_traces_the_branches_after_it(tmp_path, branc
     values), whichever point the kill fell on (serial: the same operations on the same
     arrays, test_restart_equals_the_whole_branch; the restart cuts each file back to the
     saved end and traces the queue saved with it)."""
-    import signal
-    import subprocess
-
-    from conftest import PYTHON, stop_tree, subprocess_env
-
     base = ["-m", "cosserat_fem.cli", "continue"]
     case = [
         str(ROLLUP),
@@ -1049,23 +1049,7 @@ def test_continue_killed_by_sigterm_traces_the_branches_after_it(tmp_path, branc
     points = [e["points"] for e in json.loads((whole / "branches.json").read_text())]
     assert points == [152, 52, 80, 80]
     index = cut / "continuation" / "restart.json"
-    killed = subprocess.Popen(
-        [PYTHON, *base, *case, "--out", str(cut), "--quiet"], cwd=ROOT, env=subprocess_env()
-    )
-    try:
-        deadline = time.monotonic() + 300
-        first = -1
-        while first < 20 and killed.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.01)
-            try:
-                first = json.loads(index.read_text())["branches"][str(branch)]["first_index"]
-            except (OSError, ValueError, KeyError):
-                pass
-        assert killed.poll() is None, "the run ended before it could be killed"
-        killed.send_signal(signal.SIGTERM)
-        killed.wait(timeout=60)
-    finally:
-        stop_tree(killed)
+    sigterm_when_saved([*base, *case, "--out", str(cut), "--quiet"], index, branch)
     ends = json.loads(index.read_text())["branches"]
     assert max(map(int, ends)) == branch and ends[str(branch)]["first_index"] >= 20
     proc = run_command([*base, "--restart", str(cut), "--quiet"])

@@ -396,6 +396,54 @@ def _reasons(folder: Path, comm: MPI.Comm) -> list[dict]:
         return []
 
 
+def _restart_outputs(
+    folder: Path,
+    record: dict,
+    settings: ContinuationSettings,
+    lines: list[str],
+    progress,
+    resumed: tuple[int, int, int] | None,
+    comm: MPI.Comm,
+):
+    """branches.csv replaced by ``lines`` (cut back), and a restart's observer that appends to
+    it and saves its ends into restart.json beside the saved ones (the restarts counted
+    there only once the restart ends: :func:`_finish_index`)."""
+    from cosserat_fem.analysis.branch_outputs import BRANCHES_CSV, BranchOutputs, replace_on_root
+
+    replace_on_root(folder / BRANCHES_CSV, "".join(ln + "\n" for ln in lines).encode(), comm)
+    observer = BranchOutputs(folder, progress, resumed)
+    observer.csv_made, observer.file_rows = True, len(lines) - 1
+    observer.ends = {int(k): v for k, v in record["branches"].items()}
+    observer.slots = {k: v.get("slot", 0) for k, v in observer.ends.items()}
+    restarts = int(record.get("restarts", 0))
+
+    def save_index(new: dict) -> None:
+        write_index(folder, record["scene"], settings, new, comm, restarts, record.get("probe"))
+
+    observer.record = save_index
+    return observer
+
+
+def _finish_index(folder: Path, record: dict, settings, observer, comm: MPI.Comm) -> None:
+    """restart.json with the restart's ends, counting it among the restarts."""
+    restarts = int(record.get("restarts", 0)) + 1
+    write_index(
+        folder, record["scene"], settings, observer.ends, comm, restarts, record.get("probe")
+    )
+
+
+def _path_problem(record: dict, folder: Path, end: dict, comm: MPI.Comm):
+    """The saved scene's paths.RodPath, its model's ``chart_moved`` as ``end`` saved it (it
+    chooses the outputs' expressions: output/fields.py), its probe the saved one."""
+    from cosserat_fem.analysis.paths import RodPath
+    from cosserat_fem.scene.build import scene_from_dict
+
+    scene = scene_from_dict(record["scene"], source=f"{folder}/{FOLDER}/{INDEX}")
+    problem = RodPath(scene, comm, record.get("probe"))
+    problem.model.chart_moved = bool(end.get("chart_moved", False))
+    return problem
+
+
 def _task(end: dict, start: Point):
     """The paths.Pending of the branch whose saved end is ``end``."""
     from cosserat_fem.analysis.paths import Pending
@@ -420,7 +468,6 @@ def restart_queue(
     XDMF (the resumed one's from its saved points on)."""
     from cosserat_fem.analysis.branch_outputs import (
         BRANCHES_CSV,
-        BranchOutputs,
         append_on_root,
         branch_entry,
         replace_on_root,
@@ -428,21 +475,17 @@ def restart_queue(
     from cosserat_fem.analysis.paths import (
         PathResult,
         Pending,
-        RodPath,
         csv_lines,
         end_branch,
         path_engine,
         trace_queue,
     )
-    from cosserat_fem.scene.build import scene_from_dict
 
     ends = {int(k): v for k, v in record["branches"].items()}
     last = max(ends)
     end = ends[last]
     resuming = "reason" not in end
-    scene = scene_from_dict(record["scene"], source=f"{folder}/{FOLDER}/{INDEX}")
     restarts = int(record.get("restarts", 0)) + 1
-    probe = record.get("probe")
     saved = load_branch(folder, record, last, comm) if resuming else None
     kept = 0 if saved is None else len(saved.points)
     first = last if resuming else last + 1  # the first branch this restart writes
@@ -451,18 +494,10 @@ def restart_queue(
     rows = end.get("rows")
     if isinstance(rows, int) and 0 <= rows <= len(lines) - 1:
         lines = lines[: rows + 1]  # a row written after the saved end goes
-    replace_on_root(folder / BRANCHES_CSV, "".join(ln + "\n" for ln in lines).encode(), comm)
-    observer = BranchOutputs(folder, progress, (last, kept, restarts) if resuming else None)
+    resumed = (last, kept, restarts) if resuming else None
+    observer = _restart_outputs(folder, record, settings, lines, progress, resumed, comm)
     observer._next = last + 1
-    observer._branch = last if resuming else last + 1  # the branches ended (the progress)
-    observer.csv_made, observer.file_rows = True, len(lines) - 1
-    observer.ends = dict(ends)
-    observer.slots = {k: v.get("slot", 0) for k, v in ends.items()}
-
-    def save_index(new: dict) -> None:
-        write_index(folder, record["scene"], settings, new, comm, restarts - 1, probe)
-
-    observer.record = save_index
+    observer._branch = first  # the branches ended (the progress)
     before = {last: saved.first_index} if saved is not None else {}
 
     def finished(so_far) -> None:  # the special points' rows and the entry, as the whole run's
@@ -471,13 +506,13 @@ def restart_queue(
         if special:
             text = "".join(line + "\n" for line in special)
             append_on_root(folder / BRANCHES_CSV, text.encode(), comm)
-        reasons.append(branch_entry(i, branch, scene.output.xdmf, before.get(i, 0)))
+        reasons.append(branch_entry(i, branch, xdmf, before.get(i, 0)))
         text = json.dumps(reasons, indent=1) + "\n"
         replace_on_root(folder / "branches.json", text.encode(), comm)
 
     observer.finished = finished
-    problem = RodPath(scene, comm, probe)
-    problem.model.chart_moved = bool(end.get("chart_moved", False))  # the whole run's outputs
+    problem = _path_problem(record, folder, end, comm)
+    xdmf = problem.scene.output.xdmf
     loaded: dict[tuple, Point] = {}
 
     def point(ref: list) -> Point:
@@ -514,7 +549,7 @@ def restart_queue(
     finally:
         observer.close()
         problem.destroy()
-    write_index(folder, record["scene"], settings, observer.ends, comm, restarts, probe)
+    _finish_index(folder, record, settings, observer, comm)
     return result
 
 
@@ -530,13 +565,11 @@ def _restart_one(
     """Branch ``index`` alone traced on from its saved end (:func:`restart_branch`)."""
     from cosserat_fem.analysis.branch_outputs import (
         BRANCHES_CSV,
-        BranchOutputs,
         append_on_root,
         replace_on_root,
     )
-    from cosserat_fem.analysis.paths import PathResult, RodPath, _path_branch, path_engine
+    from cosserat_fem.analysis.paths import PathResult, _path_branch, path_engine
     from cosserat_fem.analysis.paths import csv_lines as rows_text
-    from cosserat_fem.scene.build import scene_from_dict
 
     ended = _reasons(folder, comm)
     for done in ended:  # a branch that reached its range's end has nothing to trace on
@@ -544,7 +577,6 @@ def _restart_one(
             raise SceneError(
                 f"--restart: branch {index} in {str(folder)!r} already ended: {done['reason']}"
             )
-    scene = scene_from_dict(record["scene"], source=f"{folder}/{FOLDER}/{INDEX}")
     saved = load_branch(folder, record, index, comm)
     kept = len(saved.points)
     if settings.max_points <= saved.first_index + kept:  # nothing to add: change nothing
@@ -553,47 +585,38 @@ def _restart_one(
             f"points already, max_points = {settings.max_points}; give --max-points above that"
         )
     restarts = int(record.get("restarts", 0)) + 1
-    observer = BranchOutputs(folder, progress, resumed=(index, kept, restarts))
-    observer._points = saved.first_index + kept
-    ends = {int(k): v for k, v in record["branches"].items()}
-    observer.ends = dict(ends)
-    observer.slots[index] = ends[index].get("slot", 0)
-    probe = record.get("probe")
+    end = record["branches"][str(index)]
     reasons = ended  # branches.json's entries (none: killed on the first branch)
     entry: dict | None = next((e for e in reasons if e.get("branch") == index), None)
     lines = _csv_lines(folder, comm)
-    rows = ends[index].get("rows")
-    known = 0  # the special points whose rows the file has
+    rows = end.get("rows")
+    skip, known = 0, 0  # the saved points and the special points whose rows the file has
     if entry is not None and entry.get("points") == saved.first_index + kept:
-        observer.skip = kept  # it ended: the file has its rows, specials and later branches'
+        skip = kept  # it ended: the file has its rows, specials and later branches'
         known = len(saved.special)
     elif isinstance(rows, int) and 0 <= rows <= len(lines) - 1:
         lines = lines[: rows + 1]  # killed: its rows to its saved end (a later one's cut)
-        observer.skip = kept
+        skip = kept
     # else (a folder of before the rows were saved): its rows from the saved points on
-    replace_on_root(folder / BRANCHES_CSV, "".join(ln + "\n" for ln in lines).encode(), comm)
-    observer.csv_made, observer.file_rows = True, len(lines) - 1
-
-    def save_index(new: dict) -> None:
-        write_index(folder, record["scene"], settings, new, comm, restarts - 1, probe)
-
-    observer.record = save_index
-    problem = RodPath(scene, comm, record.get("probe"))
-    problem.model.chart_moved = bool(ends[index].get("chart_moved", False))
+    resumed = (index, kept, restarts)
+    observer = _restart_outputs(folder, record, settings, lines, progress, resumed, comm)
+    observer._points = saved.first_index + kept
+    observer.skip = skip
+    problem = _path_problem(record, folder, end, comm)
     try:
-        if "start" in ends[index]:  # its task kept in its end (no queue traced)
+        if "start" in end:  # its task kept in its end (no queue traced)
             start = load_point(folder, record, ["start", index], comm)
-            observer.task = _task(ends[index], start)
+            observer.task = _task(end, start)
             observer.remember(start, ["start", index])
         engine = path_engine(problem, settings, stop, observer)
         branch = engine.resume(saved)
-        origin = ends[index].get("origin", f"restarted ({restarts})")
+        origin = end.get("origin", f"restarted ({restarts})")
         path_branch = _path_branch(problem, branch, origin, observer)
         result = PathResult([path_branch], engine.corrector_solves)
         result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
         if entry is None:  # killed on this branch
-            xdmf = f"branch_{index}.xdmf" if scene.output.xdmf else None
-            origin = ends[index].get("origin", NOT_RECORDED)
+            xdmf = f"branch_{index}.xdmf" if problem.scene.output.xdmf else None
+            origin = end.get("origin", NOT_RECORDED)
             entry = {"branch": index, "origin": origin, "xdmf": xdmf, "approximate": []}
             reasons.append(entry)
         special = rows_text([p.as_row(index) for p in path_branch.special[known:]])
@@ -610,5 +633,5 @@ def _restart_one(
     finally:
         observer.close()
         problem.destroy()
-    write_index(folder, record["scene"], settings, observer.ends, comm, restarts, probe)
+    _finish_index(folder, record, settings, observer, comm)
     return result
