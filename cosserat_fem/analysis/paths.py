@@ -32,9 +32,10 @@ does: the angles are measured from the nodal frames Q, and (:meth:`RodPath.chart
 before each step, when some node's |θ| exceeds charts.RESET_THETA = 0.9 rad (statics' and
 runs' test, model.chart_move_due), Q moves onto the rod's rotation and the state's angles
 and rates are re-expressed in it (model.reset_chart's maps: directors and positions
-unchanged at the nodes). The engine re-expresses the branch's last point (nls/arclength.py,
-"Charts": corrected at the same λ, its tangent the image J t of the old one, the step scaled
-by ‖J t‖, no sign change of det R_u looked for across the move); each point keeps its
+unchanged at the nodes). The engine re-expresses the branch's last point as the next
+step's base (nls/arclength.py, "Charts": corrected on the hyperplane normal to the image
+J t of its tangent, the step scaled by ‖J t‖, no sign change of det R_u looked for across
+the move; the branch keeps the point as accepted); each point keeps its
 chart (:attr:`RodPath.chart`, the nodal quaternions), with which its outputs are computed.
 A point with some node's θ beyond :data:`CHART_THETA_MAX` in its chart is rejected
 (:meth:`RodPath.inadmissible`; the step halved), so no step crosses θ = ±π/2, where det R_u
