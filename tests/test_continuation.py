@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 import time
 
 import numpy as np
@@ -529,8 +530,10 @@ def test_killed_continuation_restarts_from_its_last_point(tmp_path):
     the 4 told: before, no file, and the restart began it at the saved points, rows 0-1
     lost), and restart.json names them; the restart appends the rest, so the file is the
     whole run's byte for byte (the same rows computed in the same order); branch_0.xdmf
-    has the frames from the saved points on, times 2, 3, ...; restart.json's saved end
-    stays one the arrays fit (the slots)."""
+    has the killed run's frames 0-4 (written as the points came; before, none, and the
+    restart wrote them from the saved points on, times 2, 3, ...), then all of the whole
+    run's, times 0, 1, ...; restart.json's saved end stays one the arrays fit (the
+    slots)."""
     from xdmf_files import read_xdmf
 
     scene = cf.load(ROLLUP, {"discretisation.elements": 4, "parameters.turns": 1})
@@ -542,7 +545,7 @@ def test_killed_continuation_restarts_from_its_last_point(tmp_path):
         cf.continuation(scene, 0.0, 1.0, max_points=40, out=cut, stop=kill_after(4), **options)
     rows_w = (tmp_path / "whole" / "branches.csv").read_text().splitlines()
     assert (cut / "branches.csv").read_text().splitlines() == rows_w[:6]
-    assert not (cut / "branch_0.xdmf").exists()
+    assert list(read_xdmf(cut / "branch_0.xdmf")["displacement"][0]) == list(range(5))
     record = json.loads((cut / "continuation" / "restart.json").read_text())
     assert record["branches"]["0"]["first_index"] == 2 and record["probe"] == half
     assert record["branches"]["0"]["rows"] == 5
@@ -555,8 +558,8 @@ def test_killed_continuation_restarts_from_its_last_point(tmp_path):
     assert (cut / "branches.csv").read_text() == (tmp_path / "whole" / "branches.csv").read_text()
     times, values = read_xdmf(cut / "branch_0.xdmf")["displacement"]
     times_w, values_w = read_xdmf(tmp_path / "whole" / "branch_0.xdmf")["displacement"]
-    assert list(times) == list(range(2, len(w.points)))
-    assert np.array_equal(values, values_w[2:])
+    assert list(times) == list(times_w) == list(range(len(w.points)))
+    assert np.array_equal(values, values_w)
 
 
 def test_a_killed_restart_keeps_its_rows(tmp_path):
@@ -584,37 +587,205 @@ def test_a_killed_restart_keeps_its_rows(tmp_path):
     assert (cut / "branches.csv").read_text().splitlines() == rows_w
 
 
-def test_a_switch_s_second_direction_killed_restarts_itself(tmp_path):
-    """The column (8 P4 cells under P_E) on [0, 1.5], λ growing, switched at λ_cr: three
-    branches, the primary (10 points) and the switched one both ways (7 each), the switch's
-    two traced before either is ended. Killed at the 4th told point of the third branch:
-    restart.json has each branch's own end, the third's at its 5th point (before: a switch's
-    second direction saved its points as the first's, branch 1, so restart.json had no
-    branch 2 and the restart continued branch 1 from branch 2's points); the restart (the
-    last branch saved, 2) gives the whole run's branch 2 from its index 2 on, exactly (the
-    argument of test_restart_equals_the_whole_branch)."""
+def pitchfork_column():
+    """The column of test_post_buckled_elastica (8 P4 cells under P_E) on [−0.5, 1.5], both
+    ways, switched at λ_cr = 0.99929: four branches, the primary to λ = 1.5 (10 points)
+    and to −0.5 (in tension, no bifurcation), then the buckled branch both ways (7 points
+    each, to λ = 1.5). ((scene, options), the whole run's result and folder are made once
+    per test: 2 s.)"""
     overrides = {
         "loads.end": cf.UNSET,
         "discretisation.elements": 8,
         "loads.end.force": [0, 0, "-pi**2*EI/(4*L**2)"],
     }
     scene = cf.load(ROLLUP, overrides)
-    options = dict(step=0.05, max_step=0.2, directions=(1,), max_points=30)
-    told: list[float] = []
-    whole = cf.continuation(scene, 0.0, 1.5, stop=lambda q: told.append(q.factor), **options)
-    assert [len(b.points) for b in whole.branches] == [10, 7, 7]
-    assert len(told) == 18  # every point but each branch's start and end
+    return scene, dict(step=0.05, max_step=0.2, directions=(1, -1), max_points=30)
+
+
+def told_before(result, branch: int) -> int:
+    """``stop``'s calls before branch ``branch`` (it is told of every point but each
+    branch's start and its end at a bound)."""
+    return sum(len(b.points) - 2 for b in result.branches[:branch])
+
+
+def assert_same_folders(cut, whole) -> None:
+    """branches.csv byte for byte, branches.json equal, and every branch's XDMF frames
+    (times and values) equal to the whole run's."""
+    from xdmf_files import read_xdmf
+
+    assert (cut / "branches.csv").read_text() == (whole / "branches.csv").read_text()
+    assert (cut / "branches.json").read_text() == (whole / "branches.json").read_text()
+    for i in range(len(json.loads((whole / "branches.json").read_text()))):
+        for array in ("displacement", "angles"):
+            times, values = read_xdmf(cut / f"branch_{i}.xdmf")[array]
+            times_w, values_w = read_xdmf(whole / f"branch_{i}.xdmf")[array]
+            assert list(times) == list(times_w)
+            assert np.array_equal(values, values_w)
+
+
+@pytest.fixture(scope="module")
+def pitchfork_whole(tmp_path_factory):
+    """The whole continuation of :func:`pitchfork_column` in its folder: (result, folder)."""
+    scene, options = pitchfork_column()
+    folder = tmp_path_factory.mktemp("pitchfork") / "whole"
+    result = cf.continuation(scene, -0.5, 1.5, out=folder, **options)
+    return result, folder
+
+
+@pytest.mark.parametrize(
+    ("branch", "point"),
+    [(0, 4), (2, 3), (3, 2)],
+    ids=["primary's first direction", "switch's first direction", "switch's second direction"],
+)
+def test_a_killed_continuation_traces_the_branches_after_it(
+    tmp_path, pitchfork_whole, branch, point
+):
+    """Issue 27's leftover: a continuation killed mid-branch restarts that branch and then
+    traces every branch the whole run traces after it, in its order. The column of
+    :func:`pitchfork_column` (4 branches: 10, 5, 7, 7 points; the whole run's) killed at the
+    ``point``-th told point of branch ``branch``: in the primary branch's first direction
+    (everything after is pending: the primary's second direction and the switch, at a
+    bifurcation located before the kill), in the switched branch's first direction (its
+    second pending) and in its second. The restart (``continue --restart``'s default, the
+    last branch saved) returns the killed branch from its saved points on and the branches
+    after it; its λ are the whole run's exactly, and branches.csv is the whole run's byte
+    for byte, branches.json equal, every branch's XDMF frames equal (times and values; the
+    killed branch's frames were written as its points came, and the restart cuts them back
+    to its saved end and appends the rest): the queue saved with each end (the tasks to come and the
+    bifurcation points found, their arrays exact in npz, their scalars by repr) makes the
+    restart perform the same floating-point operations on the same arrays as the whole run
+    (serially deterministic: test_restart_equals_the_whole_branch). Before, the restart
+    traced the killed branch alone. A folder whose restart.json has no queue (written
+    before it was saved) keeps that: only the killed branch is traced."""
+    whole, whole_folder = pitchfork_whole
+    assert [len(b.points) for b in whole.branches] == [10, 5, 7, 7]
+    assert [q.kind for q in whole.branches[0].special] == ["bifurcation"]
+    scene, options = pitchfork_column()
     cut = tmp_path / "cut"
     with pytest.raises(Killed):
-        cf.continuation(scene, 0.0, 1.5, out=cut, stop=kill_after(17), **options)
+        stop = kill_after(told_before(whole, branch) + point)
+        cf.continuation(scene, -0.5, 1.5, out=cut, stop=stop, **options)
+    old = tmp_path / "old"
+    shutil.copytree(cut, old)
     ends = json.loads((cut / "continuation" / "restart.json").read_text())["branches"]
-    assert sorted(ends) == ["0", "1", "2"]
-    assert ends["2"]["first_index"] + len(ends["2"]["points"]) == 5
-    assert [q["p"] for q in ends["1"]["points"]] == [
-        q.factor for q in whole.branches[1].points[3:6]
+    assert sorted(map(int, ends)) == list(range(branch + 1))
+    first = ends[str(branch)]["first_index"]
+    assert first == point - 2  # the start and the told points, the last three kept
+    result = cf.continuation(None, restart=cut)
+    assert len(result.branches) == 4 - branch
+    assert [q.factor for q in result.branches[0].points] == [
+        q.factor for q in whole.branches[branch].points[first:]
     ]
-    (b,) = cf.continuation(None, restart=cut).branches
-    assert [q.factor for q in b.points] == [q.factor for q in whole.branches[2].points[2:]]
+    for b, w in zip(result.branches[1:], whole.branches[branch + 1 :], strict=True):
+        assert [q.factor for q in b.points] == [q.factor for q in w.points]
+        assert b.origin == w.origin and b.reason == w.reason
+    assert_same_folders(cut, whole_folder)
+    record = json.loads((old / "continuation" / "restart.json").read_text())
+    for end in record["branches"].values():
+        end.pop("queue")
+    (old / "continuation" / "restart.json").write_text(json.dumps(record))
+    assert len(cf.continuation(None, restart=old).branches) == 1
+
+
+def test_a_continuation_killed_between_two_branches_traces_the_rest(
+    tmp_path, pitchfork_whole, monkeypatch
+):
+    """The column of :func:`pitchfork_column` killed just after the primary branch's second
+    direction ended (its files and its final restart data written, before the switch's
+    first point: BranchOutputs.end raising once it has saved), then restarted: no branch is
+    resumed, the queue's switch (at the bifurcation point located on the first branch,
+    read back from branch 0's saved arrays) is traced both ways, and the folder is the
+    whole run's (branches.csv byte for byte, branches.json, every XDMF frame)."""
+    from cosserat_fem.analysis.branch_outputs import BranchOutputs
+
+    whole, whole_folder = pitchfork_whole
+    scene, options = pitchfork_column()
+    end = BranchOutputs.end
+
+    def killed_end(self, problem, branch, special_rows=None):
+        end(self, problem, branch, special_rows)
+        if self.index == 1:
+            raise Killed("killed between branches 1 and 2")
+
+    cut = tmp_path / "cut"
+    with monkeypatch.context() as patch:
+        patch.setattr(BranchOutputs, "end", killed_end)
+        with pytest.raises(Killed):
+            cf.continuation(scene, -0.5, 1.5, out=cut, **options)
+    ends = json.loads((cut / "continuation" / "restart.json").read_text())["branches"]
+    assert ends["1"]["reason"] == "p reached -0.5"
+    assert [t["kind"] for t in ends["1"]["queue"]["pending"]] == ["switches"]
+    assert ends["1"]["queue"]["found"] == [["special", 0, 0]]
+    result = cf.continuation(None, restart=cut)
+    assert [b.origin for b in result.branches] == [b.origin for b in whole.branches[2:]]
+    for b, w in zip(result.branches, whole.branches[2:], strict=True):
+        assert [q.factor for q in b.points] == [q.factor for q in w.points]
+    assert_same_folders(cut, whole_folder)
+
+
+def test_a_kill_after_a_point_s_rows_and_frame_is_cut_back(tmp_path, pitchfork_whole, monkeypatch):
+    """The column of :func:`pitchfork_column` killed after the 3rd point of branch 2 had its
+    row appended to branches.csv and its frame to branch_2.xdmf, before its end was saved
+    (BranchOutputs.save raising there): the files hold a row and a frame more than the saved
+    end names (4 frames, the end at point 2); the restart cuts both back to it (the XML to
+    its frames, the later frame files removed) and appends the rest, so the folder is the
+    whole run's (branches.csv byte for byte, branches.json, every XDMF frame, frame i in its
+    file i; before the cut, the frame stayed and the restart wrote its file again, a time
+    twice in the XML)."""
+    from xdmf_files import read_xdmf
+
+    from cosserat_fem.analysis.branch_outputs import BranchOutputs
+
+    whole, whole_folder = pitchfork_whole
+    scene, options = pitchfork_column()
+    save = BranchOutputs.save
+
+    def killed_save(self, branch, comm, final=False):
+        if self.index == 2 and len(branch.points) == 4 and not final:
+            raise Killed("killed before the end of point 3 was saved")
+        save(self, branch, comm, final)
+
+    cut = tmp_path / "cut"
+    with monkeypatch.context() as patch:
+        patch.setattr(BranchOutputs, "save", killed_save)
+        with pytest.raises(Killed):
+            cf.continuation(scene, -0.5, 1.5, out=cut, **options)
+    end = json.loads((cut / "continuation" / "restart.json").read_text())["branches"]["2"]
+    assert end["first_index"] + len(end["points"]) == 3
+    assert list(read_xdmf(cut / "branch_2.xdmf")["displacement"][0]) == [0, 1, 2, 3]
+    rows = (cut / "branches.csv").read_text().splitlines()
+    assert len(rows) - 1 == end["rows"] + 1
+    cf.continuation(None, restart=cut)
+    assert_same_folders(cut, whole_folder)
+
+
+def test_a_killed_restart_traces_the_rest_when_restarted(tmp_path, pitchfork_whole):
+    """The column of :func:`pitchfork_column` killed in its first branch (4th point), its
+    restart killed in its turn in the switched branch's first direction (3rd point of
+    branch 2), restarted again: the folder is the whole run's (branches.csv byte for byte,
+    branches.json, every XDMF frame), the second restart's branches the whole run's from
+    branch 2 on (its points from the saved ones on)."""
+    whole, whole_folder = pitchfork_whole
+    scene, options = pitchfork_column()
+    cut = tmp_path / "cut"
+    with pytest.raises(Killed):
+        cf.continuation(scene, -0.5, 1.5, out=cut, stop=kill_after(4), **options)
+    first = json.loads((cut / "continuation" / "restart.json").read_text())["branches"]
+    assert first["0"]["first_index"] == 2
+    told = told_before(whole, 2) - 4  # the restart's, before branch 2
+    with pytest.raises(Killed):
+        cf.continuation(None, restart=cut, stop=kill_after(told + 3))
+    ends = json.loads((cut / "continuation" / "restart.json").read_text())["branches"]
+    assert sorted(ends) == ["0", "1", "2"] and ends["2"]["first_index"] == 1
+    result = cf.continuation(None, restart=cut)
+    assert [len(b.points) for b in result.branches] == [6, 7]
+    assert [q.factor for q in result.branches[0].points] == [
+        q.factor for q in whole.branches[2].points[1:]
+    ]
+    assert [q.factor for q in result.branches[1].points] == [
+        q.factor for q in whole.branches[3].points
+    ]
+    assert_same_folders(cut, whole_folder)
 
 
 MPI_STOP_ERROR = """
@@ -696,6 +867,78 @@ def test_killed_restart_under_mpirun_equals_serial(tmp_path):
     assert np.max(np.abs(restarted - expected)) < 1e-8
 
 
+MPI_KILLED_QUEUE = """
+import json, sys
+from mpi4py import MPI
+import cosserat_fem as cf
+
+class Killed(Exception):
+    pass
+
+overrides = {
+    "loads.end": cf.UNSET,
+    "discretisation.elements": 8,
+    "loads.end.force": [0, 0, "-pi**2*EI/(4*L**2)"],
+}
+scene = cf.load(sys.argv[1], overrides)
+options = dict(step=0.05, max_step=0.2, directions=(1, -1), max_points=30)
+calls = []
+
+def stop(q):
+    calls.append(q.factor)
+    if len(calls) == 4:
+        raise Killed("killed")
+    return None
+
+whole = cf.continuation(scene, -0.5, 1.5, **options)
+try:
+    cf.continuation(scene, -0.5, 1.5, out=sys.argv[2], stop=stop, **options)
+except Killed:
+    pass
+result = cf.continuation(None, restart=sys.argv[2])
+points = [*whole.branches[0].points[2:], *(q for b in whole.branches[1:] for q in b.points)]
+rows = [[[q.factor, *map(float, q.tip)] for q in points]]
+rows.append([[q.factor, *map(float, q.tip)] for b in result.branches for q in b.points])
+if MPI.COMM_WORLD.rank == 0:
+    print(json.dumps(rows))
+"""
+
+
+@pytest.mark.long
+def test_killed_queue_under_mpirun_equals_serial(tmp_path, pitchfork_whole):
+    """test_a_killed_continuation_traces_the_branches_after_it under ``mpirun -n 2``: the
+    column killed at the 4th point of its first branch, restarted on 2 ranks (each rank
+    reads its own arrays of the queue's points: the start, the bifurcation point). The
+    restart's points (branch 0 from index 2 on, then branches 1-3 whole) equal those of the
+    whole run on 2 ranks, λ and the free end's (x, y, z, θ, ψ, φ) to 1e-8, and the
+    primary branches' equal serial's to 1e-8 (the argument of
+    test_killed_restart_under_mpirun_equals_serial: the corrector's tolerance 1e-10 with
+    full Newton, the partitions' round-off ~1e-13, the same steps taken). The switched
+    branches on 2 ranks are not serial's point by point: the null vector's inverse
+    iteration (8 solves) starts from each rank's own pseudo-random vector, so its sign and
+    its residue of the other modes differ, and so do the first step's direction and the
+    steps (measured: λ = 1.013762 against 1.009856 at the first point, the branch mirrored,
+    x and ψ of opposite signs); their last points, corrected at λ = 1.5 on the same curve,
+    are serial's to 1e-8 up to that sign (x and ψ; the other columns are 0 or even)."""
+    whole, _ = pitchfork_whole
+    proc = run_command(
+        ["-c", MPI_KILLED_QUEUE, str(ROLLUP), str(tmp_path / "cut")], ranks=2, timeout=300
+    )
+    assert proc.returncode == 0, proc.stderr
+    mpi_whole, restarted = map(np.array, json.loads(proc.stdout.strip().splitlines()[-1]))
+    assert restarted.shape == mpi_whole.shape
+    assert np.max(np.abs(restarted - mpi_whole)) < 1e-8
+    points = [*whole.branches[0].points[2:], *(q for b in whole.branches[1:] for q in b.points)]
+    serial = np.array([[q.factor, *q.tip] for q in points])
+    primary = len(whole.branches[0].points) - 2 + len(whole.branches[1].points)
+    assert np.max(np.abs(restarted[:primary] - serial[:primary])) < 1e-8
+    ends = [len(whole.branches[2].points), len(whole.branches[3].points)]
+    last = primary + np.cumsum(ends) - 1  # the switched branches' points at λ = 1.5
+    for i in last:
+        assert restarted[i, 0] == pytest.approx(1.5, abs=1e-12)
+        assert np.max(np.abs(np.abs(restarted[i]) - np.abs(serial[i]))) < 1e-8
+
+
 def test_killed_on_the_second_branch_keeps_the_first(tmp_path):
     """The roll-up (4 elements, one turn) on [−1, 1], λ growing then falling, killed at the
     4th point of the second branch: branches.csv holds the first branch (written as it
@@ -723,6 +966,32 @@ def test_killed_on_the_second_branch_keeps_the_first(tmp_path):
     assert [r["reason"] for r in reasons] == ["p reached 1", "p reached -1"]
 
 
+def sigterm_when_saved(command: list[str], index, branch: int = 0, at: int = 20) -> None:
+    """Run ``command`` (a ``continue``) and kill it by SIGTERM once restart.json (``index``)
+    has branch ``branch``'s saved end at point ``at`` or later (its first_index), within
+    300 s; the run must not have ended before."""
+    import signal
+    import subprocess
+
+    from conftest import PYTHON, stop_tree, subprocess_env
+
+    killed = subprocess.Popen([PYTHON, *command], cwd=ROOT, env=subprocess_env())
+    try:
+        deadline = time.monotonic() + 300
+        first = -1
+        while first < at and killed.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.01)
+            try:
+                first = json.loads(index.read_text())["branches"][str(branch)]["first_index"]
+            except (OSError, ValueError, KeyError):
+                pass
+        assert killed.poll() is None, "the run ended before it could be killed"
+        killed.send_signal(signal.SIGTERM)
+        killed.wait(timeout=60)
+    finally:
+        stop_tree(killed)
+
+
 @pytest.mark.long
 def test_continue_killed_by_sigterm_restarts_from_its_last_point(tmp_path):
     """``continue`` killed by SIGTERM (not a Python exception: the process ends wherever it is,
@@ -733,11 +1002,6 @@ def test_continue_killed_by_sigterm_restarts_from_its_last_point(tmp_path):
     whichever point the kill fell on: the killed run's rows were appended as they came, the
     restart cuts the file to those restart.json names (a row written after its saved end
     goes) and appends the rest (before: the rows before the saved first index were lost)."""
-    import signal
-    import subprocess
-
-    from conftest import PYTHON, stop_tree, subprocess_env
-
     base = ["-m", "cosserat_fem.cli", "continue"]
     case = [str(ROLLUP), "--set", "discretisation.elements=32", "--set", "parameters.turns=2"]
     case += ["--step", "0.02", "--max-step", "0.02", "--switch", "0", "--max-points", "400"]
@@ -745,23 +1009,7 @@ def test_continue_killed_by_sigterm_restarts_from_its_last_point(tmp_path):
     proc = run_command([*base, *case, "--out", str(whole), "--quiet"])
     assert proc.returncode == 0, proc.stderr
     index = cut / "continuation" / "restart.json"
-    killed = subprocess.Popen(
-        [PYTHON, *base, *case, "--out", str(cut), "--quiet"], cwd=ROOT, env=subprocess_env()
-    )
-    try:
-        deadline = time.monotonic() + 300
-        first = -1
-        while first < 20 and killed.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.01)
-            try:
-                first = json.loads(index.read_text())["branches"]["0"]["first_index"]
-            except (OSError, ValueError, KeyError):
-                pass
-        assert killed.poll() is None, "the run ended before it could be killed"
-        killed.send_signal(signal.SIGTERM)
-        killed.wait(timeout=60)
-    finally:
-        stop_tree(killed)
+    sigterm_when_saved([*base, *case, "--out", str(cut), "--quiet"], index)
     end = json.loads(index.read_text())["branches"]["0"]
     assert end["first_index"] >= 20 and end["rows"] == end["first_index"] + 3
     assert len((cut / "branches.csv").read_text().splitlines()) - 1 >= end["rows"]
@@ -771,6 +1019,42 @@ def test_continue_killed_by_sigterm_restarts_from_its_last_point(tmp_path):
     rows = (cut / "branches.csv").read_text().splitlines()
     assert len(rows_w) == 163
     assert rows == rows_w
+
+
+@pytest.mark.long
+@pytest.mark.parametrize("branch", [0, 2])
+def test_continue_killed_by_sigterm_traces_the_branches_after_it(tmp_path, branch):
+    """``continue`` on the column of :func:`pitchfork_column` with steps of 0.01 (four
+    branches: 152, 52, 80 and 80 points, 6 s) killed by SIGTERM (the process ends wherever it
+    is: between a branch's rows, frames, arrays and restart.json perhaps) once the saved end
+    of branch ``branch`` (the primary's first direction, or the switch's first) is at point
+    20 or later, then ``continue --restart``: the folder is the uninterrupted run's,
+    branches.csv byte for byte, branches.json, every branch's XDMF frames (times and
+    values), whichever point the kill fell on (serial: the same operations on the same
+    arrays, test_restart_equals_the_whole_branch; the restart cuts each file back to the
+    saved end and traces the queue saved with it)."""
+    base = ["-m", "cosserat_fem.cli", "continue"]
+    case = [
+        str(ROLLUP),
+        "--unset",
+        "loads.end",
+        "--set",
+        'loads.end.force=[0, 0, "-pi**2*EI/(4*L**2)"]',
+    ]
+    case += ["--set", "discretisation.elements=8", "--range", "-0.5", "1.5", "--step", "0.01"]
+    case += ["--max-step", "0.01", "--max-points", "400"]
+    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    proc = run_command([*base, *case, "--out", str(whole), "--quiet"])
+    assert proc.returncode == 0, proc.stderr
+    points = [e["points"] for e in json.loads((whole / "branches.json").read_text())]
+    assert points == [152, 52, 80, 80]
+    index = cut / "continuation" / "restart.json"
+    sigterm_when_saved([*base, *case, "--out", str(cut), "--quiet"], index, branch)
+    ends = json.loads(index.read_text())["branches"]
+    assert max(map(int, ends)) == branch and ends[str(branch)]["first_index"] >= 20
+    proc = run_command([*base, "--restart", str(cut), "--quiet"])
+    assert proc.returncode == 0, proc.stderr
+    assert_same_folders(cut, whole)
 
 
 # %% [markdown]
@@ -884,17 +1168,19 @@ def rolled_about_e1(elements: int):
     return cf.load(ROLLUP, overrides)
 
 
-def test_rolled_about_e1_in_3d_moves_the_chart():
+def test_rolled_about_e1_in_3d_moves_the_chart(monkeypatch):
     """scenes/rollup.toml rolled up about e1 (the section turned so that E c11 = EI) and
     solved in 3D: the rod bends in the y-z plane through the angle θ, and the free end turns
     by θ(ℓ) = 2πλ to one full circle at λ = 1, past θ = ±π/2 where the Euler-angle chart (18)
     is singular. So the chart moves on the path: at least 3 times (each chart holds the
     rod's rotation within |θ| < π/2 of its own, and the tip turns by 2π), and:
 
-    * the path is continuous across each move: the point before the move (as ``stop`` saw it)
-      and the same point re-charted and corrected at its λ differ by the change of the
+    * the path is continuous across each move: the point before the move (the branch's,
+      as ``stop`` saw it) and the same point re-charted and corrected (the engine's base of
+      the next step, recorded from Continuation._move_chart) differ by the change of the
       discretisation with the chart (the frame interpolated from the nodal quaternions,
-      O(h⁵)): measured ≤ 2.4e-10 m; asserted 1e-9;
+      O(h⁵)): measured ≤ 2.2e-11 m (2.4e-10 m when it was corrected at the same λ);
+      asserted 1e-9;
     * no bifurcation is reported (the pure moment's circle is the only path) and det R_u keeps
       its sign on every point;
     * every point lies on the closed-form circle, radius ℓ/(2πλ): the tip
@@ -903,16 +1189,31 @@ def test_rolled_about_e1_in_3d_moves_the_chart():
     * load stepping (``cf.static``, 16 steps, its chart moved at other loads) reaches the
       same state at λ = 1: measured 9e-11 m; asserted 1e-9 (the Newton tolerance, 1e-10,
       and the chart's change of the discretisation above)."""
+    from cosserat_fem.nls.arclength import Continuation
+
     scene = rolled_about_e1(10)
     seen = []
+    moves: list[tuple] = []
+    move = Continuation._move_chart
+
+    def recorded(self, point):  # the point and its re-charted image's positions [m]
+        moved = move(self, point)
+        if moved is not None:
+            after = self.problem.tip(moved[0].u, moved[0].chart)[:3]
+            moves.append((point.p, after))
+        return moved
+
+    monkeypatch.setattr(Continuation, "_move_chart", recorded)
     result = cf.continuation(
         scene, 0.0, 1.0, step=0.05, max_step=0.5, directions=(1,), stop=seen.append
     )
     (branch,) = result.branches
     assert branch.reason.startswith("p reached 1")
     assert branch.charts_moved >= 3 and not branch.special
+    assert len(moves) == branch.charts_moved
     assert {q.det_sign for q in branch.points} == {branch.points[0].det_sign}
-    jumps = [np.max(np.abs(a.tip - b.tip)) for a, b in zip(seen, branch.points[1:-1], strict=True)]
+    before = {q.factor: q.tip[:3] for q in seen}
+    jumps = [np.max(np.abs(before[p] - after)) for p, after in moves]
     print(f"moves {branch.charts_moved}, jumps {max(jumps):.3g}, points {len(branch.points)}")
     assert max(jumps) < 1e-9, jumps
     for q in branch.points[1:]:
@@ -949,6 +1250,47 @@ def test_restart_across_chart_moves_equals_the_whole_branch(tmp_path):
     assert all(
         np.array_equal(p.tip[:3], q.tip[:3]) for p, q in zip(w.points[1:], b.points, strict=True)
     )
+
+
+@pytest.mark.long
+def test_a_killed_lee_frame_restarts_across_chart_moves(tmp_path):
+    """Lee's frame of :func:`test_lee_frame_switches_out_of_its_plane` (20 P3, 25 points a
+    branch, its switched branches moving the chart once each, near the fold where λ turns
+    back) killed at the 20th point of the first switched branch (after its move: rows 0-19
+    written as the points came, the point of the move as it was accepted), restarted: the
+    folder is the whole run's, branches.csv byte for byte, branches.json, every XDMF frame
+    (read_arrays: the frame is not straight). Before, the whole run's file showed the
+    re-charted point, corrected at the same λ onto another state (the load point 0.47 away
+    sideways), where the restart's rows showed the accepted one (docs/decisions.md)."""
+    from xdmf_files import read_arrays
+
+    scene = cf.load(
+        ROOT / "scenes" / "lee_frame.toml",
+        {"parameters.P": 10.0, "discretisation.elements": 20, "discretisation.degree": 3},
+    )
+    options = dict(step=0.05, max_step=0.05, max_points=25, switch=1, directions=(1,))
+    options["probe"] = 144.0
+    whole = cf.continuation(scene, -1.0, 1.0, out=tmp_path / "whole", **options)
+    assert [b.charts_moved for b in whole.branches] == [0, 1, 1]
+    assert all(b.reason == "25 points (max_points)" for b in whole.branches)
+    cut = tmp_path / "cut"
+    with pytest.raises(Killed):  # every point but the start is told (no bound reached)
+        cf.continuation(scene, -1.0, 1.0, out=cut, stop=kill_after(24 + 20), **options)
+    assert (
+        json.loads((cut / "continuation" / "restart.json").read_text())["branches"]["1"][
+            "charts_moved"
+        ]
+        == 1
+    )
+    result = cf.continuation(None, restart=cut)
+    assert [len(b.points) for b in result.branches] == [7, 25]
+    for name in ("branches.csv", "branches.json"):
+        assert (cut / name).read_text() == (tmp_path / "whole" / name).read_text()
+    for i in range(3):
+        _, times, arrays = read_arrays(cut / f"branch_{i}.xdmf")
+        _, times_w, arrays_w = read_arrays(tmp_path / "whole" / f"branch_{i}.xdmf")
+        assert list(times) == list(times_w) == list(range(25))
+        assert all(np.array_equal(arrays[k], arrays_w[k]) for k in arrays_w)
 
 
 @pytest.mark.long

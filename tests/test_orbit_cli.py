@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -180,13 +181,16 @@ def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path):
     max_step, so the restart must rebuild the grown one) and restarted with --max-points 300
     has the rows of the uninterrupted branch (p within DP, amplitude within DA relative:
     module docstring; the kinds the same), orbit_branch.xdmf one frame per row, times 0, 1,
-    ..., across the restart, and summary.json the same steps and monodromies in all (the
+    ..., across the restart (also when, as after a kill between a frame and the restart
+    record that counts it, the XML holds a frame more than the record: the restart cuts it
+    back, and frame i is in its file i; before, the extra frame stayed, its file written
+    over), and summary.json the same steps and monodromies in all (the
     restarted part's added to the first's) and restarts = 1. A restart of a branch that
     reached its range's end is refused in one line (exit 2), and so is ``continue
     --restart`` of the folder (no static continuation's record there), and, before, a
     restart of the cut branch without --max-points or with --max-points 2 (no point to add;
     before this was checked it ran, changed nothing but summary.json's restarts, exit 0)."""
-    from xdmf_files import read_arrays
+    from xdmf_files import read_arrays, read_xdmf
 
     whole, cut = tmp_path / "whole", tmp_path / "cut"
     base = ["orbits", str(PAPER), *sets(LINEAR), *BRANCH, *STEPS]
@@ -201,10 +205,20 @@ def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path):
         assert idle.returncode == 2 and len(idle.stderr.strip().splitlines()) == 1
         assert "--max-points: the orbit branch in " in idle.stderr and "has 2 points" in idle.stderr
         assert (cut / "orbit_branch.csv").read_bytes() == table
+    # a kill after a third frame was written and before the record counted it: the XML and
+    # frame file of a branch cut at 3 points (its first two frames are these two's)
+    three = tmp_path / "three"
+    assert cli(*base, "--max-points", "3", "--out", str(three)).returncode == 0
+    shutil.copy(three / "orbit_branch.xdmf", cut / "orbit_branch.xdmf")
+    frame = Path("orbit_branch.frames") / "000002.h5"
+    shutil.copy(three / frame, cut / frame)
+    assert len(read_xdmf(cut / "orbit_branch.xdmf")["displacement"][0]) == 3
     again = cli("orbits", "--restart", str(cut), "--max-points", "300")
     assert again.returncode == 0, again.stderr
     got = same_rows(cut, whole)
     _, times, _ = read_arrays(cut / "orbit_branch.xdmf")
+    assert list(times) == list(range(len(got)))
+    times, values = read_xdmf(cut / "orbit_branch.xdmf")["displacement"]  # frame i in file i
     assert list(times) == list(range(len(got)))
     s_whole = json.loads((whole / "summary.json").read_text())
     s_cut = json.loads((cut / "summary.json").read_text())

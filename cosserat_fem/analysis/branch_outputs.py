@@ -2,10 +2,12 @@
 goes, besides branches.csv (issue 27 item 5).
 
 * ``branch_<i>.xdmf`` (+ its HDF5 frames), one file per branch i (i as in branches.csv's
-  ``branch`` column), written by :class:`BranchOutputs` as each branch ends: one frame per
-  point of the branch in its order (the located special points are not frames; they are
-  rows of branches.csv), the frame's "time" the point's index along the branch (0 = its
-  first point), not λ, which turns back at a fold. The arrays are the scene's
+  ``branch`` column), written by :class:`BranchOutputs` as the points are accepted (with
+  restart data; else as the branch ends): one frame per point of the branch in its order
+  (the located special points are not frames; they are rows of branches.csv), the frame's
+  "time" the point's index along the branch (0 = its first point), not λ, which turns back
+  at a fold; a killed branch keeps its frames up to its last point, and a restart cuts
+  them back to its saved end and appends the rest. The arrays are the scene's
   ``output.fields`` (:class:`~cosserat_fem.output.fields.XdmfWriter`, as a static path's
   solution.xdmf), so ParaView's "Warp By Vector" draws each state of the branch. Not with
   the scene's ``output.xdmf = false``.
@@ -16,6 +18,8 @@ goes, besides branches.csv (issue 27 item 5).
   names the file's rows through it (restart.json's ``rows``, which a restart cuts the file
   back to); as each branch ends the caller rewrites the file whole from its result (the
   special points' rows after the branch's points), and a restart appends the new ones.
+  The branches are ended one at a time (paths.py's queue): the next begins after
+  :meth:`BranchOutputs.end` has saved the last one's final end and the queue after it.
 * ``branches.json``: per branch its origin, why it ended (a bound of the range, max_points,
   ``stop``'s reason, or a step collapse with the corrector's failure), its steps and
   rejected steps (:func:`write_branch_reasons`). A branch that cannot go on still has every
@@ -29,10 +33,18 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
+import numpy as np
 from mpi4py import MPI
 
-from cosserat_fem.analysis.path_restart import branch_end, save_branch_state
+from cosserat_fem.analysis.path_restart import (
+    branch_end,
+    point_arrays,
+    point_json,
+    queue_record,
+    save_branch_state,
+)
 from cosserat_fem.common.parallel import from_root
 from cosserat_fem.nls.arclength import Branch, Point
 
@@ -43,9 +55,11 @@ Progress = Callable[[int, int, float], None]
 
 
 class BranchOutputs:
-    """The observer :func:`~cosserat_fem.analysis.paths.continue_path` calls: ``point`` after
-    each accepted point (the progress), ``branch`` as each branch ends (its XDMF, in
-    ``folder`` if given). Collective (every rank calls both)."""
+    """The observer :func:`~cosserat_fem.analysis.paths.continue_path` calls: ``begin`` as
+    each branch begins (its task and what comes after it: paths.py's queue), ``point`` after
+    each accepted point (the progress), ``branch`` as each branch ends (its rows, its XDMF,
+    in ``folder`` if given) and ``end`` once the caller's files of it are written (its final
+    restart data). Collective (every rank calls them)."""
 
     def __init__(
         self,
@@ -53,12 +67,13 @@ class BranchOutputs:
         progress: Progress | None = None,
         resumed: tuple[int, int, int] | None = None,
     ):
-        """``resumed = (i, kept, n)``: the one branch told of is branch i resumed from its
-        ``kept`` saved points (path_restart.py), its XDMF continued as restart n."""
+        """``resumed = (i, kept, n)``: the first branch told of is branch i resumed from its
+        ``kept`` saved points (path_restart.py), its XDMF continued as restart n; the
+        branches after it (a restart's queue) are i + 1, i + 2, ..."""
         self.folder = None if folder is None else Path(folder)
         self.progress = progress
         self.resumed = resumed
-        self._branch = 0
+        self._branch = 0  # the branches ended (the progress)
         self._points = 1  # the branch's first point
         self.files: list[Path] = []
         #: each branch's saved end (path_restart.branch_end), by branch index
@@ -75,47 +90,70 @@ class BranchOutputs:
         self.file_rows = 0
         #: whether branches.csv is there (else the first rows come with its header)
         self.csv_made = False
-        #: the branches begun and not yet ended, in the order they began (a switch traces
-        #: both directions before the caller ends either); the rows written are the first's
-        self._open: list[Branch] = []
-        self._done = 0  # the first open branch's points whose rows were handled
-        self._ended_rows = 0  # the rows of the branches ended (points and special points)
-        #: the first open branch's first points whose rows are in the file (a restart's)
+        #: the index of the branch being traced, and of the next one begun
+        self.index = 0 if resumed is None else resumed[0]
+        self._next = self.index + 1 if resumed is not None else 0
+        self._done = 0  # the current branch's points whose rows were handled
+        #: the current branch's first points whose rows are in the file (a restart's)
         self.skip = 0
+        #: the current branch's task (paths.Pending), the tasks after it and the bifurcation
+        #: points found on the primary branches (the caller's lists, saved with each end:
+        #: path_restart.queue_record); None: no queue saved (a restart of one branch)
+        self.task = None
+        self.pending: list = []
+        self.found: list = []
+        self._refs: list[tuple[Point, list]] = []  # the saved points, by identity
+        self._problem = None  # the path problem told of last (its model's chart_moved)
+        self._writer: Any = None  # the current branch's XDMF writer, while it is open
+        self._framed = 0  # the current branch's points whose frames were handled
+
+    def begin(self, task, pending: list, found: list) -> None:
+        """Branch ``task`` (a paths.Pending) begins, ``pending`` to come after it (the
+        caller's list) and ``found`` the bifurcation points to switch at."""
+        self.index, self._next = self._next, self._next + 1
+        self.task, self.pending, self.found = task, pending, found
+        self.remember(task.start, ["start", self.index])
+        self._done = self.skip = 0
+
+    def remember(self, point: Point, ref: list) -> None:
+        """``point`` is saved as ``ref`` (path_restart.queue_record), unless it already is."""
+        if all(q is not point for q, _ in self._refs):
+            self._refs.append((point, ref))
+
+    def _ref(self, point: Point) -> list:
+        return next(ref for q, ref in self._refs if q is point)
 
     def save(self, branch: Branch, comm: MPI.Comm, final: bool = False) -> None:
-        """The restart data of ``branch`` as it is now (its last points): its arrays into the
-        slot restart.json does not name, then restart.json naming it (``record``;
+        """The restart data of ``branch`` as it is now (its last points, its start and
+        special points, its task and the queue after it): its arrays into the slot
+        restart.json does not name, then restart.json naming it (``record``;
         path_restart.py). Collective; nothing without a folder, nor before the branch ends
         (``final``) without ``record``."""
         if self.folder is None or (self.record is None and not final):
             return
-        index = self._index(branch)
+        index = self.index
         slot = 1 - self.slots.get(index, 1)
-        save_branch_state(self.folder, index, branch, comm, slot)
+        extra: dict[str, np.ndarray] = {}
+        for k, q in enumerate(branch.special):
+            extra |= point_arrays(q, f"s{k}")
+        end = branch_end(branch, slot)
+        end["special"] = [point_json(q) for q in branch.special]
+        end["charts_moved"] = branch.charts_moved
+        model = getattr(self._problem, "model", None)
+        end["chart_moved"] = bool(getattr(model, "chart_moved", False))
+        if self.task is not None:
+            extra |= point_arrays(self.task.start, "start")
+            end["start"] = point_json(self.task.start)
+            end["origin"], end["primary"] = self.task.origin, self.task.primary
+            end["queue"] = queue_record(self.pending, self.found, self._ref)
+        if final:
+            end["reason"] = branch.reason
+        save_branch_state(self.folder, index, branch, comm, slot, extra)
         self.slots[index] = slot
-        self.ends[index] = branch_end(branch, slot)
+        self.ends[index] = end
         if self.record is not None:
-            if self._writing(branch):  # branches.csv's rows through its end
-                self.ends[index]["rows"] = self.file_rows
+            end["rows"] = self.file_rows  # branches.csv's rows through its end
             self.record(self.ends)
-
-    def _index(self, branch: Branch) -> int:
-        """``branch``'s index: a restart's, or the next after the branches ended in the
-        order the open ones began (a branch seen first here is opened)."""
-        if self.resumed is not None:
-            return self.resumed[0]
-        for k, open_branch in enumerate(self._open):
-            if open_branch is branch:
-                return self._branch + k
-        self._open.append(branch)
-        return self._branch + len(self._open) - 1
-
-    def _writing(self, branch: Branch) -> bool:
-        """Whether ``branch``'s rows go to branches.csv as it grows: a restart's, or the
-        first open branch (whose rows follow those of the branches ended); a switch's
-        second direction gets its rows when the caller ends it (before, a kill loses them)."""
-        return self.resumed is not None or (bool(self._open) and self._open[0] is branch)
 
     def write_rows(self, problem, branch: Branch) -> None:
         """branches.csv's rows of ``branch``'s points not yet handled, appended (the file made
@@ -124,13 +162,11 @@ class BranchOutputs:
         angles continued from point to point), the :attr:`skip` first ones only computed.
         The chart of the engine's current point is kept. Nothing without ``record`` (no
         restart data). Collective."""
+        self._problem = problem
         if self.folder is None or self.record is None:
             return
         from cosserat_fem.analysis.paths import BRANCH_COLUMNS, _path_point, csv_lines
 
-        index = self._index(branch)
-        if not self._writing(branch):
-            return
         if self._done == 0:
             problem.probe.angles.last = None  # continued along this branch from its start
         chart = problem.chart
@@ -138,9 +174,10 @@ class BranchOutputs:
         for i in range(self._done, len(branch.points)):
             point = _path_point(problem, branch.points[i])
             if i >= self.skip:
-                rows.append(point.as_row(index))
-        problem.use_chart(chart)
+                rows.append(point.as_row(self.index))
         self._done = len(branch.points)
+        self._write_frames(problem, branch)
+        problem.use_chart(chart)
         if not rows:
             return
         text = "".join(line + "\n" for line in csv_lines(rows))
@@ -158,54 +195,65 @@ class BranchOutputs:
             self.progress(self._branch, self._points, point.p)
 
     def branch(self, problem, branch: Branch) -> None:
-        """Write ``branch_<i>.xdmf`` of ``branch`` (engine points, their states u) through
-        ``problem`` (a :class:`~cosserat_fem.analysis.paths.RodPath`: its model's U)."""
-        from cosserat_fem.output.fields import XdmfWriter
-
-        if self.folder is None:
-            self._branch += 1
-            self._points = 1
-            return
-        if self.resumed is None and not any(b is branch for b in self._open):
-            self._open.insert(0, branch)  # told of no point: it is the next branch
-            self._done = 0
-        elif self.resumed is None and self._open[0] is not branch:  # not expected
-            self._open.remove(branch)
-            self._open.insert(0, branch)
-            self._done = 0
-        self.write_rows(problem, branch)  # the points the engine did not tell (a bound's)
-        self.save(branch, problem.comm, final=True)
-        index = self._index(branch)
+        """Write the rest of ``branch``'s rows and frames of ``branch_<i>.xdmf`` (engine
+        points, their states u) through ``problem`` (a
+        :class:`~cosserat_fem.analysis.paths.RodPath`: its model's U), and close the XDMF."""
         self._branch += 1
         self._points = 1
-        if self.resumed is None:
-            self._open.pop(0)
-            # the caller rewrites the file whole next (finished): the branches ended, their
-            # points' and special points' rows
-            self._ended_rows += len(branch.points) + len(branch.special)
-            self.file_rows = self._ended_rows
-        else:  # the restart appends the special points' rows next
-            self.file_rows += len(branch.special)
-        self._done = self.skip = 0
-        if not problem.scene.output.xdmf:
+        if self.folder is None:
             return
-        path = self.folder / f"branch_{index}.xdmf"
-        skip = 0 if self.resumed is None else self.resumed[1]
-        if self.resumed is not None and not from_root(problem.comm, path.exists()):
-            skip = 0  # killed before the branch's XDMF was written: from the saved points
-        frames = branch.first_index + skip  # those written before
-        resume = None if self.resumed is None or not skip else (self.resumed[2], frames)
-        writer = XdmfWriter(path, problem.model, resume=resume)
-        try:
-            for i, q in enumerate(branch.points[skip:], start=frames):
-                if q.chart is None:
-                    problem.set_state(q.u, q.p)
-                else:  # a point of a path with charts (paths.py)
-                    problem.set_state(q.u, q.p, q.chart)
-                writer.write(float(i))
-        finally:
+        self.write_rows(problem, branch)  # the points the engine did not tell (a bound's)
+        self._done = 0
+        self._write_frames(problem, branch)  # all of them without restart data
+        if self._writer is not None:
+            self.files.append(self._writer.path)
+        self.close()
+
+    def _write_frames(self, problem, branch: Branch) -> None:
+        """The frames of ``branch``'s points not yet written into ``branch_<i>.xdmf``, frame
+        k the point of index k along the branch; the file opened at the branch's first (a
+        resumed branch's: continued as restart n after its saved points' frames, cut back to
+        them; from its saved points if it has none, a folder of before the frames were
+        written as the points came). Nothing with the scene's ``output.xdmf`` false."""
+        from cosserat_fem.output.fields import XdmfWriter
+
+        if self.folder is None or not problem.scene.output.xdmf:
+            return
+        if self._writer is None:
+            path = self.folder / f"branch_{self.index}.xdmf"
+            resume, self._framed = None, 0
+            if self.resumed is not None and from_root(problem.comm, path.exists()):
+                self._framed = self.resumed[1]  # the saved points' frames are there
+                resume = (self.resumed[2], branch.first_index + self._framed)
+                cut_frames(path, resume[1], problem.comm)  # a frame after the saved end goes
+            self._writer = XdmfWriter(path, problem.model, resume=resume)
+        for i in range(self._framed, len(branch.points)):
+            q = branch.points[i]
+            if q.chart is None:
+                problem.set_state(q.u, q.p)
+            else:  # a point of a path with charts (paths.py)
+                problem.set_state(q.u, q.p, q.chart)
+            self._writer.write(float(branch.first_index + i))
+        self._framed = len(branch.points)
+
+    def close(self) -> None:
+        """Close the current branch's XDMF if it is open (as a branch ends, or when the
+        continuation stops on an exception: the caller's ``finally``). Collective."""
+        writer, self._writer = self._writer, None
+        if writer is not None:
             writer.close()
-        self.files.append(path)
+
+    def end(self, problem, branch: Branch, special_rows: int | None = None) -> None:
+        """The caller has written its files of ``branch`` (``finished``: branches.csv with
+        its special points' rows after its points, branches.json): its final end, with its
+        reason and the queue after it, is saved (a kill before restarts the branch from
+        its last saved point, a kill after traces the queue); ``special_rows``: the special
+        points' rows written, if not all. Collective."""
+        self._problem = problem
+        self.file_rows += len(branch.special) if special_rows is None else special_rows
+        self.save(branch, problem.comm, final=True)
+        self.resumed = None
+        self.skip = 0
 
 
 def replace_on_root(path: str | Path, data: bytes, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
@@ -236,6 +284,25 @@ def append_on_root(path: str | Path, data: bytes, comm: MPI.Comm = MPI.COMM_WORL
     _on_root(path, append, comm)
 
 
+def cut_frames(path: Path, frames: int, comm: MPI.Comm = MPI.COMM_WORLD) -> None:
+    """The XDMF series ``path`` cut back to its first ``frames`` frames (rank 0; the ranks
+    agree on a failure): the XML (io/xdmf.cut_xdmf), then the frame files after them and the
+    scratch XML of a frame being written (a kill after a frame's files were written and
+    before the restart data that count it: the resumed writer writes those files again)."""
+    from cosserat_fem.io.xdmf import cut_xdmf, frames_folder
+
+    def cut() -> None:
+        cut_xdmf(path, frames)
+        folder = frames_folder(path)
+        if folder.is_dir():
+            for old in folder.iterdir():
+                later = old.suffix == ".h5" and old.stem.isdigit() and int(old.stem) >= frames
+                if later or old.suffix == ".xdmf-partial":
+                    old.unlink()
+
+    _on_root(path, cut, comm)
+
+
 def _on_root(path: str | Path, write: Callable[[], None], comm: MPI.Comm) -> None:
     """``write()`` on rank 0, the ranks agreeing on its failure (an OutputError naming
     ``path``)."""
@@ -262,20 +329,24 @@ def write_branch_reasons(
     the chart's moves on it, paths.py, 0 without charts; "xdmf": the branch's file name,
     null if ``xdmf`` is false; "approximate": the special points located only approximately,
     "<kind> at load factor <λ>: <note>", cosserat_fem/nls/arclength.py)."""
-    rows = [
-        {
-            "branch": i,
-            "origin": b.origin,
-            "reason": b.reason,
-            "points": len(b.points),
-            "steps": b.steps,
-            "rejected": b.rejected,
-            "charts_moved": getattr(b, "charts_moved", 0),
-            "xdmf": f"branch_{i}.xdmf" if xdmf else None,
-            "approximate": [
-                f"{q.kind} at load factor {q.factor!r}: {q.note}" for q in b.special if q.note
-            ],
-        }
-        for i, b in enumerate(result.branches)
-    ]
+    rows = [branch_entry(i, b, xdmf) for i, b in enumerate(result.branches)]
     replace_on_root(path, (json.dumps(rows, indent=1) + "\n").encode(), comm)
+
+
+def branch_entry(i: int, b, xdmf: bool = True, before: int = 0) -> dict:
+    """branches.json's entry of branch ``i`` (:func:`write_branch_reasons`), ``b`` a
+    :class:`~cosserat_fem.analysis.paths.PathBranch` whose first ``before`` points are not
+    among its ``points`` (a restart's: path_restart.py)."""
+    return {
+        "branch": i,
+        "origin": b.origin,
+        "reason": b.reason,
+        "points": before + len(b.points),
+        "steps": before + b.steps,
+        "rejected": b.rejected,
+        "charts_moved": getattr(b, "charts_moved", 0),
+        "xdmf": f"branch_{i}.xdmf" if xdmf else None,
+        "approximate": [
+            f"{q.kind} at load factor {q.factor!r}: {q.note}" for q in b.special if q.note
+        ],
+    }

@@ -12,7 +12,9 @@ killed run keeps every point found up to its last:
 * ``orbit_branch.xdmf`` (+ its HDF5 frames): the rod's state at t0 of each orbit, one frame a
   point, the frame's "time" the point's index along the branch (not p, which turns back at
   a fold); the arrays are the scene's ``output.fields`` (as a continuation's branch_<i>.xdmf,
-  cosserat_fem/analysis/branch_outputs.py). Not with ``output.xdmf = false``.
+  cosserat_fem/analysis/branch_outputs.py). Not with ``output.xdmf = false``. A restart
+  first cuts it back to its record's frames (branch_outputs.cut_frames: a frame written
+  after the record was saved goes).
 * ``summary.json``: the reason the branch ended, its steps, rejected steps, monodromies
   (periods with the variational equations), the folds and special points, the restarts;
   also when the first orbit is not found (a SolverError: no point, its message the
@@ -57,7 +59,7 @@ from pathlib import Path
 import numpy as np
 from mpi4py import MPI
 
-from cosserat_fem.analysis.branch_outputs import append_on_root, replace_on_root
+from cosserat_fem.analysis.branch_outputs import append_on_root, cut_frames, replace_on_root
 from cosserat_fem.analysis.path_restart import FOLDER, KEPT, load_branch, save_branch_state
 from cosserat_fem.analysis.periodic import ORBIT_COLUMNS, OrbitBranch, OrbitPoint, orbit_point
 from cosserat_fem.analysis.progress import StatusLine
@@ -200,6 +202,8 @@ class _Recorder:
 
             frames = record["frames"]
             resume = (record["restarts"], frames) if frames else None
+            if resume is not None:  # a frame written after the record was saved goes
+                cut_frames(folder / ORBIT_XDMF, frames, shooting.comm)
             self.writer = XdmfWriter(folder / ORBIT_XDMF, shooting.model, resume=resume)
 
     # -- a point ------------------------------------------------------------------------

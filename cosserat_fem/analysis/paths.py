@@ -32,9 +32,10 @@ does: the angles are measured from the nodal frames Q, and (:meth:`RodPath.chart
 before each step, when some node's |θ| exceeds charts.RESET_THETA = 0.9 rad (statics' and
 runs' test, model.chart_move_due), Q moves onto the rod's rotation and the state's angles
 and rates are re-expressed in it (model.reset_chart's maps: directors and positions
-unchanged at the nodes). The engine re-expresses the branch's last point (nls/arclength.py,
-"Charts": corrected at the same λ, its tangent the image J t of the old one, the step scaled
-by ‖J t‖, no sign change of det R_u looked for across the move); each point keeps its
+unchanged at the nodes). The engine re-expresses the branch's last point as the next
+step's base (nls/arclength.py, "Charts": corrected on the hyperplane normal to the image
+J t of its tangent, the step scaled by ‖J t‖, no sign change of det R_u looked for across
+the move; the branch keeps the point as accepted); each point keeps its
 chart (:attr:`RodPath.chart`, the nodal quaternions), with which its outputs are computed.
 A point with some node's θ beyond :data:`CHART_THETA_MAX` in its chart is rejected
 (:meth:`RodPath.inadmissible`; the step halved), so no step crosses θ = ±π/2, where det R_u
@@ -461,6 +462,82 @@ def path_engine(
     return engine
 
 
+@dataclass
+class Pending:
+    """A step of a continuation to come (its queue: :func:`continue_path`): ``kind``
+    "trace", the branch from ``start`` along ``direction`` × its tangent (``search_first``:
+    its first segment searched for special points; ``primary``: its bifurcation points are
+    switched at later; ``origin`` as in :class:`PathBranch`); "switches", a switch at each
+    of the first ``count`` bifurcation points found on the primary branches; "switch", the
+    other branch through the bifurcation point ``at``, both ways."""
+
+    kind: str
+    start: Point | None = None
+    direction: int = 1
+    search_first: bool = True
+    origin: str = "primary"
+    primary: bool = False
+    count: int = 0
+    at: Point | None = None
+
+
+def trace_queue(
+    engine: Continuation,
+    problem: RodPath,
+    pending: list[Pending],
+    found: list[Point],
+    result: PathResult,
+    observer: BranchOutputs | None = None,
+) -> None:
+    """Trace the branches of ``pending`` in order (it is emptied), each ended (its
+    :class:`PathBranch` appended to ``result``, the observer's files and restart data
+    written) before the next begins; the bifurcation points of the primary ones are
+    appended to ``found``. All the continuation keeps to decide its next branch is in
+    ``pending`` and ``found``, which the observer saves with each branch's end
+    (path_restart.queue_record), so a restart traces what the whole run would."""
+    while pending:
+        task = pending.pop(0)
+        if task.kind == "switches":
+            pending[:0] = [Pending("switch", at=q) for q in found[: task.count]]
+            continue
+        if task.kind == "switch":
+            assert task.at is not None
+            start = engine.switch_start(task.at)
+            origin = f"switched at load factor {task.at.p:.9g}"
+            pending[:0] = [Pending("trace", start, d, False, origin) for d in (1, -1)]
+            continue
+        assert task.start is not None
+        if observer is not None:
+            observer.begin(task, pending, found)
+        branch = engine.trace(task.start, task.direction, task.search_first)
+        end_branch(problem, branch, task, found, result, observer)
+
+
+def end_branch(
+    problem: RodPath,
+    branch: Branch,
+    task: Pending,
+    found: list[Point],
+    result: PathResult,
+    observer: BranchOutputs | None = None,
+) -> None:
+    """``branch`` (traced for ``task``) ended: its bifurcation points appended to ``found``
+    if it is primary, its :class:`PathBranch` to ``result``, then the observer's files, the
+    caller's (``finished``) and its final restart data, in that order."""
+    index = len(result.branches) if observer is None else observer.index
+    if task.primary:
+        for k, q in enumerate(branch.special):
+            if q.kind == "bifurcation":
+                found.append(q)
+                if observer is not None:
+                    observer.remember(q, ["special", index, k])
+    result.branches.append(_path_branch(problem, branch, task.origin, observer))
+    if observer is not None:
+        if observer.finished is not None:
+            observer.finished(result)
+        observer.end(problem, branch)
+
+
 def continue_path(
     scene: Scene,
     settings: ContinuationSettings,
@@ -475,34 +552,30 @@ def continue_path(
     a direction that leaves [p_min, p_max] at once is not traced), then, at each of the first
     ``switch`` bifurcation points located on it, the other branch both ways; each branch ends
     at a bound of [settings.p_min, p_max] (a point there), max_points, ``stop(point)`` or a
-    step collapse (its reason kept). ``observer``: told of each point and each branch as it
-    ends (cosserat_fem/analysis/branch_outputs.py: the progress, the XDMF). ``probe``: the
-    arclength [m] of the point reported as each point's ``tip`` (:class:`RodPath`; default
-    the free end, else mid-span)."""
+    step collapse (its reason kept). The branches are a queue (:class:`Pending`,
+    :func:`trace_queue`), each ended before the next begins. ``observer``: told of each
+    point and each branch as it ends (cosserat_fem/analysis/branch_outputs.py: the progress,
+    the XDMF, the restart data with the queue). ``probe``: the arclength [m] of the point
+    reported as each point's ``tip`` (:class:`RodPath`; default the free end, else
+    mid-span)."""
     problem = RodPath(scene, comm, probe)
     try:
         engine = path_engine(problem, settings, stop, observer)
         start = engine.start_point(problem.state(), 0.0)
         result = PathResult()
-        found: list[Point] = []
-        for d in directions:
-            if (d > 0 and settings.p_max <= 0.0) or (d < 0 and settings.p_min >= 0.0):
-                continue  # λ would leave the range at once
-            branch = engine.trace(start, d)
-            found += [q for q in branch.special if q.kind == "bifurcation"]
-            result.branches.append(_path_branch(problem, branch, "primary", observer))
-            if observer is not None and observer.finished is not None:
-                observer.finished(result)
-        for point in found[:switch]:
-            for branch in engine.switch(point):
-                origin = f"switched at load factor {point.p:.9g}"
-                result.branches.append(_path_branch(problem, branch, origin, observer))
-                if observer is not None and observer.finished is not None:
-                    observer.finished(result)
+        pending = [
+            Pending("trace", start, d, True, "primary", True)
+            for d in directions
+            if not ((d > 0 and settings.p_max <= 0.0) or (d < 0 and settings.p_min >= 0.0))
+        ]  # a direction in which λ would leave the range at once is not traced
+        pending.append(Pending("switches", count=switch))
+        trace_queue(engine, problem, pending, [], result, observer)
         result.corrector_factorisations = engine.corrector_solves
         result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
         return result
     finally:
+        if observer is not None:
+            observer.close()  # a branch's XDMF left open by an exception
         problem.destroy()
 
 

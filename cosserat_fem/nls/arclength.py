@@ -87,17 +87,22 @@ x_k = (u_k, p_k) with unit tangent t_k. On a move:
   in a chart's own metric);
 * the discretised problem in the new chart is not exactly the old one (the rod's frame
   between the nodes is interpolated from the new chart's: charts.py), so φ(u_k) solves it to
-  that difference only: the point is corrected at fixed p = p_k (Newton, the constraint
-  p = p_k), its tangent computed there (the bordered system, oriented along t') and its
-  det R_u anew. It replaces x_k as the branch's last point (if the correction fails the move
-  is undone and asked again at the next point);
+  that difference only: the point is corrected on the hyperplane through φ(x_k) normal to
+  t' (Newton, the constraint ⟨t', x − (φ(u_k), p_k)⟩ = 0: well posed at a fold too, where
+  a correction at fixed p = p_k may land on another state of the same p: Lee's frame's
+  switched branch, before, 0.47 of its 120 sideways), its tangent computed there (the
+  bordered system, oriented along t') and its det R_u anew. It is the base of the next
+  step; the branch keeps x_k as it was accepted (its outputs, its restart data: a point's
+  rows and frames are written as it comes, path_restart.py), so x_k and its re-charted
+  image differ by the change of the discretisation, O(h^(k+1)) (if the correction fails
+  the move is undone and asked again at the next point);
 * sign changes of det R_u and of t_p, and the tests, are looked for between two points of
   one chart only: across a move det R'_u' = det(R_u) times the determinants of the chart's
   Jacobian on the unknowns and on the test functions, whose sign the move alone may change
   (not a bifurcation). Every segment is searched: [x_{k−1}, x_k] in the old chart before
   the move, [x'_k, x_{k+1}] in the new one after it;
 * the quadratic predictor's history: only through three points of one chart (else the
-  tangent predictor, for the two steps after a move);
+  tangent predictor, for the three steps after a move);
 * a chart is itself singular somewhere (the Euler angles at θ = ±π/2, where det R_u changes
   sign by the chart alone): a problem's ``inadmissible(u)`` names why a corrected point lies
   too near it, and the step is then halved (a StepFailure), so that a step does not carry
@@ -270,10 +275,11 @@ class Continuation:
         eps = CHART_EPS
         J_t = (to_new(point.u + eps * point.t_u) - to_new(point.u - eps * point.t_u)) / (2 * eps)
         scale = math.sqrt(self._dot(J_t, point.t_p, J_t, point.t_p))
-        zero = np.zeros_like(point.u)
-        try:
-            u, p, its = self.correct(to_new(point.u), point.p, zero, 1.0, point.p)
-            t_u, t_p, sign, log_det = self._tangent_and_det(u, p, J_t / scale, point.t_p / scale)
+        mapped, n_u, n_p = to_new(point.u), J_t / scale, point.t_p / scale
+        try:  # on the hyperplane through the mapped point normal to the mapped tangent
+            value = self._dot(n_u, n_p, mapped, point.p)
+            u, p, its = self.correct(mapped, point.p, n_u, n_p, value)
+            t_u, t_p, sign, log_det = self._tangent_and_det(u, p, n_u, n_p)
         except (StepFailure, ArithmeticError, RuntimeError):
             self._use_chart(Point(point.u, point.p, point.t_u, point.t_p, 1.0, 0.0, chart=old))
             return None
@@ -529,18 +535,19 @@ class Continuation:
         branch.reason = ""
         self.branch = branch
         self._use_chart(branch.points[-1])
+        prev = branch.points[-1]  # the step's base: the last point, or it re-charted
         while True:
-            moved = self._move_chart(branch.points[-1])
+            count = branch.first_index + len(branch.points)
+            if count >= st.max_points:  # before a move: the step kept is the last point's
+                branch.step = step
+                branch.reason = f"{st.max_points} points (max_points)"
+                return branch
+            moved = self._move_chart(prev)
             if moved is not None:
-                branch.points[-1], scale = moved
+                prev, scale = moved
                 step *= scale  # the same step on the path (not capped: module docstring)
                 branch.charts_moved += 1
             branch.step = step
-            prev = branch.points[-1]
-            count = branch.first_index + len(branch.points)
-            if count >= st.max_points:
-                branch.reason = f"{st.max_points} points (max_points)"
-                return branch
             checked = count > 1 or search_first
             try:
                 history = None
@@ -578,6 +585,7 @@ class Continuation:
                 branch.reason = f"p reached {bound:g}"
                 return branch
             branch.points.append(cur)
+            prev = cur
             if cur.iterations <= st.easy_iterations:
                 factor = max(st.grow, st.easy_iterations / max(cur.iterations, 1))
                 step = min(step * min(factor, st.max_grow), st.max_step)
@@ -606,6 +614,12 @@ class Continuation:
     def switch(self, point: Point) -> list[Branch]:
         """The other branch through the bifurcation point ``point``, both ways (module
         docstring)."""
+        return self.both_ways(self.switch_start(point), search_first=False)
+
+    def switch_start(self, point: Point) -> Point:
+        """The start of the other branch through the bifurcation point ``point``: ``point``
+        with the direction d of the module docstring as its tangent (:meth:`switch` traces
+        it along ±d; a caller that ends each branch before the next traces it alike)."""
         phi = self.null_vector(point)
         along = self._dot(phi, 0.0, point.t_u, point.t_p)
         d_u, d_p = phi - along * point.t_u, -along * point.t_p
@@ -621,4 +635,4 @@ class Continuation:
             "bifurcation",
             chart=point.chart,
         )
-        return self.both_ways(start, search_first=False)
+        return start
