@@ -463,7 +463,9 @@ def continuation(
     ``restart``: the folder of an earlier continuation (its ``out``): its branch ``branch``
     (default the last) traced on from its last point with its own scene and settings (give
     ``scene`` None), but ``max_points`` if given (cosserat_fem/analysis/path_restart.py);
-    returns that one branch, its new points appended to the folder's files. ``probe``: the
+    returns that branch and, when the continuation was cut short, every branch the whole run
+    would have traced after it, in its order (``first_branch`` the first's index in the
+    folder), their points appended to the folder's files. ``probe``: the
     arclength s [m] of the point reported as ``tip`` instead (the load point of a frame
     pinned at both ends, say); a restart keeps the first run's."""
     refuse_structure(scene, "continue")

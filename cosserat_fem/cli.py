@@ -763,7 +763,7 @@ def _continue(args) -> int:
         )
     bar.close()
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
-        for i, branch in enumerate(result.branches):
+        for i, branch in enumerate(result.branches, start=result.first_branch):
             end = branch.points[-1]
             _say(
                 f"branch {i} ({branch.origin}): {branch.steps} steps, to load factor "

@@ -655,8 +655,9 @@ def test_a_killed_continuation_traces_the_branches_after_it(
     bifurcation points found, their arrays exact in npz, their scalars by repr) makes the
     restart perform the same floating-point operations on the same arrays as the whole run
     (serially deterministic: test_restart_equals_the_whole_branch). Before, the restart
-    traced the killed branch alone. A folder whose restart.json has no queue (written
-    before it was saved) keeps that: only the killed branch is traced."""
+    traced the killed branch alone. ``first_branch`` names the killed branch's index (the
+    command line numbers the branches it prints by it). A folder whose restart.json has no
+    queue (written before it was saved) keeps that: only the killed branch is traced."""
     whole, whole_folder = pitchfork_whole
     assert [len(b.points) for b in whole.branches] == [10, 5, 7, 7]
     assert [q.kind for q in whole.branches[0].special] == ["bifurcation"]
@@ -672,7 +673,7 @@ def test_a_killed_continuation_traces_the_branches_after_it(
     first = ends[str(branch)]["first_index"]
     assert first == point - 2  # the start and the told points, the last three kept
     result = cf.continuation(None, restart=cut)
-    assert len(result.branches) == 4 - branch
+    assert len(result.branches) == 4 - branch and result.first_branch == branch
     assert [q.factor for q in result.branches[0].points] == [
         q.factor for q in whole.branches[branch].points[first:]
     ]

@@ -535,7 +535,7 @@ def restart_queue(
         found = [point(ref) for ref in end["queue"]["found"]]
         pending = [task(entry) for entry in end["queue"]["pending"]]
         engine = path_engine(problem, settings, stop, observer)
-        result = PathResult()
+        result = PathResult(first_branch=first)
         if saved is not None:
             current = _task(end, point(["start", last]))
             observer.task, observer.pending, observer.found = current, pending, found
@@ -612,7 +612,7 @@ def _restart_one(
         branch = engine.resume(saved)
         origin = end.get("origin", f"restarted ({restarts})")
         path_branch = _path_branch(problem, branch, origin, observer)
-        result = PathResult([path_branch], engine.corrector_solves)
+        result = PathResult([path_branch], engine.corrector_solves, first_branch=index)
         result.jacobian_assemblies = problem.solver.stats.jacobian_assemblies
         if entry is None:  # killed on this branch
             xdmf = f"branch_{index}.xdmf" if problem.scene.output.xdmf else None

@@ -393,6 +393,8 @@ class PathResult:
 
     branches: list[PathBranch] = field(default_factory=list)
     corrector_factorisations: int = 0
+    #: the index in its folder of ``branches[0]`` (a restart's first branch; 0 otherwise)
+    first_branch: int = 0
     #: Jacobian assemblies in all (correctors, tangents and determinants, refinements,
     #: null vectors), each followed by a factorisation.
     jacobian_assemblies: int = 0
