@@ -346,9 +346,10 @@ def test_dead_load_curve_against_gxbeam():
     """The nonlinear dead-force curve (0 to 70 kN in 140 steps of 0.5 kN, each from the
     last, as GXBeam's sweep), P3 with (1, 1, 1, 1, 4) × r cells, r = 1, 2, 4, 8.
 
-    Ours converges: the largest change of the joint's rise along the curve from r to 2r,
-    d_r, falls by 2^4.5 or more a halving (measured d1 = 0.094, d2 = 7.3e-3, d4 = 3.0e-4:
-    ratios 2^3.7, 2^4.6 ... asserted rate ≥ 3.5 and d4 < 1e-3 m).
+    Ours converges: the largest change of the joint's rise along the curve from r to 2r
+    cells, d_r, falls faster than h³ and then h⁴ (P3's nodal values in the buckled range:
+    measured d1 = 0.086, d2 = 7.3e-3, d4 = 2.9e-4 m, rates 3.6 and 4.6, then d8 = 5.5e-6,
+    5.8; asserted rates > 3 and > 4, d4 < 1e-3 m).
 
     Against GXBeam's 43 figure points, with r = 4: the load ours needs for GXBeam's rise
     (cubic interpolation in our 0.5 kN points) is GXBeam's load within 1 %: GXBeam's
@@ -366,7 +367,7 @@ def test_dead_load_curve_against_gxbeam():
         curves[refine] = rows[:, 3]
     d = {r: float(np.abs(curves[r] - curves[2 * r]).max()) for r in (1, 2, 4)}
     assert d[4] < 1e-3
-    assert math.log2(d[1] / d[2]) > 3.5 and math.log2(d[2] / d[4]) > 3.5, d
+    assert math.log2(d[1] / d[2]) > 3.0 and math.log2(d[2] / d[4]) > 4.0, d
     rise = curves[4]
     assert np.all(np.diff(rise) > 0)
     ours = CubicSpline(rise, np.arange(141) * 0.5)(GXBEAM_DEAD[:, 1])
@@ -422,8 +423,9 @@ def test_dynamic_history_against_gxbeam():
     1e-5 s, converged, is ours within 3e-3 of the largest |u| (measured 1.1e-3: the
     nonlinearity, as in the previous test), and on its own mesh it is GXBeam's figure, so
     ours − GXBeam = (converged − GXBeam's mesh) of the scheme within 5e-3 (the two 3e-3
-    bounds, measured ~2e-3). u_y, nonlinear only, within 12 % of its largest value (measured
-    7.7 %: a product of the linear fields, so twice their 4.7 %, and a margin)."""
+    bounds, measured 6.3e-4 and 8.5e-4). u_y, nonlinear only, within 12 % of its largest
+    value (measured 7.6 %: a product of the linear fields, so twice their 4.7 %, and a
+    margin)."""
     ours = np.array(api.run(dynamic_scene(8)).probes)[:, 1:4]
     scale = np.abs(ours).max()
     finer = np.array(api.run(dynamic_scene(16)).probes)[:, 1:4]
