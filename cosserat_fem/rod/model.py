@@ -51,7 +51,12 @@ from cosserat_fem.forms.section import SectionLaw
 from cosserat_fem.rod import charts
 from cosserat_fem.rod.charts import change_chart, change_chart_rate, chart_of
 from cosserat_fem.rod.load_coefficients import DataLoads
-from cosserat_fem.rod.structure import StructureMesh, create_structure_mesh, member_frames
+from cosserat_fem.rod.structure import (
+    StructureMesh,
+    create_structure_mesh,
+    member_frames,
+    member_laws,
+)
 from cosserat_fem.scene.build import PLANAR, Scene
 from cosserat_fem.scene.expressions import Expression, derivative
 from cosserat_fem.scene.layout import FULL, Layout
@@ -804,6 +809,8 @@ def _model(scene: Scene, V, bcs, tags, components, skipped, fork_nodes) -> RodMo
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": q})
     ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
     rod = _ufl_law(rod_constants(scene), scene, msh)
+    if scene.structure is not None:  # the members' own sections, DG0 fields (rod/structure.py)
+        rod = member_laws(rod, scene.structure, msh)
     return RodModel(
         scene=scene,
         msh=msh,

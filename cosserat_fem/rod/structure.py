@@ -18,6 +18,7 @@ rest strains vanish (forms/reference.py).
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +27,10 @@ from dolfinx import fem, mesh
 from dolfinx.fem.function import ElementMetaData
 from mpi4py import MPI
 
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.forms.groups import RodConstants
+from cosserat_fem.forms.resultants import stiffness_matrix
+from cosserat_fem.forms.section import SectionLaw
 from cosserat_fem.scene.resolved import NodeBody, NodeLoad, Structure
 
 #: The vertex tags of the structure's nodes: node i of the scene gets NODE_TAG + i.
@@ -91,11 +96,12 @@ def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -
     return StructureMesh(msh, vertices, tags, loads, bodies)  # type: ignore[arg-type]
 
 
-def member_frames(structure: Structure, length: float, msh: mesh.Mesh) -> fem.Function:
-    """D0 on each cell (module docstring) as a DG0 3×3 Function ``D0``: the member a cell
-    belongs to is the one its midpoint lies on; its frame with d0_1, d0_3 negated where the
-    cell's vertices run against the member, so that d0_3 is the cell's own tangent."""
-    space = fem.TensorFunctionSpace(msh, ElementMetaData("DG", 0), shape=(3, 3))
+def cell_members(
+    structure: Structure, length: float, msh: mesh.Mesh
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each local and ghost cell: the index of the member it belongs to (the one its
+    midpoint lies on), whether its vertices run against that member, and the members' unit
+    tangents (members, 3)."""
     cells = msh.topology.index_map(1)
     count = cells.size_local + cells.num_ghosts
     vertices = msh.geometry.dofmap.array.reshape(-1, 2)[:count]
@@ -110,12 +116,73 @@ def member_frames(structure: Structure, length: float, msh: mesh.Mesh) -> fem.Fu
     along = np.clip(((middle[:, None, :] - starts[None]) * tangents[None]).sum(2), 0, lengths)
     foot = starts[None] + along[..., None] * tangents[None]
     member = np.argmin(np.linalg.norm(middle[:, None, :] - foot, axis=2), axis=1)
+    against = ((x1 - x0) * tangents[member]).sum(1) < 0.0
+    return member, against, tangents
+
+
+def member_frames(structure: Structure, length: float, msh: mesh.Mesh) -> fem.Function:
+    """D0 on each cell (module docstring) as a DG0 3×3 Function ``D0``: the member a cell
+    belongs to is the one its midpoint lies on; its frame with d0_1, d0_3 negated where the
+    cell's vertices run against the member, so that d0_3 is the cell's own tangent."""
+    space = fem.TensorFunctionSpace(msh, ElementMetaData("DG", 0), shape=(3, 3))
+    member, against, tangents = cell_members(structure, length, msh)
     frames = np.stack([m.frame(t) for m, t in zip(structure.members, tangents, strict=True)])
     D0 = frames[member].copy()
-    against = ((x1 - x0) * tangents[member]).sum(1) < 0.0
     D0[against, 0] *= -1.0
     D0[against, 2] *= -1.0
-    dofs = space.dofmap.list.array.reshape(-1)[:count]
+    dofs = space.dofmap.list.array.reshape(-1)[: len(member)]
     frame = fem.Function(space, name="D0")
     frame.x.array.reshape(-1, 9)[dofs] = D0.reshape(-1, 9)
     return frame
+
+
+def member_laws(rod: RodConstants, structure: Structure, msh: mesh.Mesh) -> RodConstants:
+    """The rod with the members' own section laws (structure.members[i].section,
+    resolved.MemberSection) as one :class:`SectionLaw` of cellwise-constant entries: each
+    entry of K, μ and (I11, I22, I33) that differs between members a DG0 Function holding its
+    member's value on each cell, an entry equal on all members that number (so zero entries
+    add no term, forms/resultants.section_law). A member without a section takes the scene's
+    law (rod.section.stiffness, mass_per_length, inertia), else the shape's diagonal (13), ρA
+    and rotary inertias. The rod unchanged when no member has a section. The directors'
+    components are the member's (d0_1, d0_2, d0_3). A cell running against its member has
+    d0_1, d0_3 negated and s reversed (:func:`member_frames`), which negates the d2 components
+    of the strains (Γ2, κ2) and of the resultants: K is the same law there only if it couples
+    (Γ2, κ2) with none of the others (true of a diagonal K), else SceneError naming the key."""
+    if all(m.section is None for m in structure.members):
+        return rod
+    K0 = np.array(stiffness_matrix(rod), dtype=float)
+    law = rod.law
+    mu0 = law.mass_per_length if law is not None and law.mass_per_length is not None else None
+    mu0 = rod.density * rod.section.area if mu0 is None else mu0
+    given = law.inertia if law is not None and law.inertia is not None else rod.mass_inertias
+    values = []  # per member: the 6×6 K, μ, I as one vector of 6*6 + 1 + 3
+    for m in structure.members:
+        s = m.section
+        K = K0 if s is None else np.array(s.stiffness, dtype=float)
+        mu = mu0 if s is None or s.mass_per_length is None else s.mass_per_length
+        inertia = given if s is None or s.inertia is None else s.inertia
+        values.append(np.concatenate([K.reshape(-1), [mu], np.asarray(inertia, dtype=float)]))
+    table = np.array(values)
+    member, against, _ = cell_members(structure, rod.length, msh)
+    flips = np.array([1, -1, 1, 1, -1, 1])  # (Γ1, Γ2, Γ3, κ1, κ2, κ3) on a cell run against
+    for k in np.unique(member[against]):
+        K = table[k, :36].reshape(6, 6)
+        if np.any(K != K * np.outer(flips, flips)):
+            raise SceneError(
+                f"structure.members[{k}].section.stiffness: couples shear 2 or bending 2 with "
+                f"the other strains, not supported on a cell the mesh runs against its member"
+            )
+    space = fem.FunctionSpace(msh, ("DG", 0))
+    dofs = space.dofmap.list.array.reshape(-1)[: len(member)]
+
+    def entry(j: int):
+        column = table[:, j]
+        if np.all(column == column[0]):
+            return float(column[0])
+        field = fem.Function(space)
+        field.x.array[dofs] = column[member]
+        return field
+
+    stiffness = tuple(tuple(entry(6 * i + j) for j in range(6)) for i in range(6))
+    inertia = (entry(37), entry(38), entry(39))
+    return dataclasses.replace(rod, law=SectionLaw(stiffness, entry(36), inertia))

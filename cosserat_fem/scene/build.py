@@ -50,6 +50,7 @@ from cosserat_fem.scene.resolved import (  # noqa: F401 - the resolved scene, im
     Limits,
     Loads,
     Material,
+    MemberSection,
     ModelChoices,
     NodeBody,
     NodeLoad,
@@ -798,6 +799,28 @@ def _unit_axis(raw: Any, key: str, nonzero: bool = True) -> tuple[float, float, 
     return x, y, z
 
 
+def _member_section(raw: dict[str, Any] | None, key: str) -> MemberSection | None:
+    """A member's own section law (resolved.MemberSection): numbers only (a member's section is
+    constant along it; the schema checked K symmetric positive definite when all numbers),
+    inertias finite and positive. SceneError naming the key."""
+    if raw is None:
+        return None
+    for i, row in enumerate(raw["stiffness"]):
+        for j, x in enumerate(row):
+            if not isinstance(x, float):
+                raise SceneError(
+                    f"{key}.stiffness[{i}][{j}]: must be a number (a member's section is "
+                    f"constant along it), got {show_value(str(x))}"
+                )
+    inertia = raw["inertia"]
+    if inertia is not None:
+        inertia = _unit_axis(inertia, f"{key}.inertia")
+        for i, x in enumerate(inertia):
+            if x <= 0.0:
+                raise SceneError(f"{key}.inertia[{i}]: must be > 0, got {show_value(x)}")
+    return build(MemberSection, raw, inertia=inertia)
+
+
 def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStore) -> Structure:
     """[structure] (resolved.Structure): nodes with unique names and finite positions, no two
     at one place (so that a member has a length), members between two different known nodes,
@@ -841,7 +864,8 @@ def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStor
         d1 = None if entry["d1"] is None else _unit_axis(entry["d1"], f"{key}.d1")
         if d1 is not None and abs(np.dot(d1, chord)) > 1e-9 * length * np.linalg.norm(d1):
             raise SceneError(f"{key}.d1: must be normal to the member, got {show_value(d1)}")
-        members.append(build(StructureMember, entry, d1=d1))
+        section = _member_section(entry["section"], f"{key}.section")
+        members.append(build(StructureMember, entry, d1=d1, section=section))
     if not members:
         raise SceneError("structure.members: a structure needs members ([[structure.members]])")
     member_names = [m.name for m in members]

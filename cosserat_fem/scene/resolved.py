@@ -648,17 +648,34 @@ class StructureNode:
 
 
 @dataclass(frozen=True, kw_only=True)
+class MemberSection:
+    """A member's own section law ([structure.members.section], docs/structures.md), constant
+    along it: the 6×6 ``stiffness`` K in :data:`~cosserat_fem.forms.section.LAW_ORDER` [N, N m,
+    N m²] in the member's directors (numbers, symmetric positive definite), and optionally its
+    ``mass_per_length`` μ [kg/m] and rotary ``inertia`` (I11, I22, I33) [kg m] (absent: the
+    scene's, docs/sections.md)."""
+
+    stiffness: tuple[tuple[float, ...], ...] = key(
+        SymmetricMatrix(required=True, unit="N, N m, N m^2")
+    )
+    mass_per_length: float | None = key(Number(interval=POSITIVE, unit="kg/m"), default=None)
+    inertia: tuple[float, float, float] | None = key(Vector(unit="kg m"), default=None)
+
+
+@dataclass(frozen=True, kw_only=True)
 class StructureMember:
     """A straight member ([[structure.members]]) from the node ``start`` (key ``from``) to the
     node ``end`` (key ``to``), ``elements`` cells; its rest frame D0: d0_3 along it, d0_1 the
     unit ``d1`` (normal to it; default: e2 × d0_3 normalised, or e1 × d0_3 for a member along
-    e2), d0_2 = d0_3 × d0_1 (:meth:`frame`). The scene's [rod] section and material."""
+    e2), d0_2 = d0_3 × d0_1 (:meth:`frame`). The scene's [rod] section and material, or the
+    member's own ``section`` law (:class:`MemberSection`)."""
 
     name: str = key(Text(required=True, non_empty=True))
     start: str = key(Text(required=True, non_empty=True), name="from")
     end: str = key(Text(required=True, non_empty=True), name="to")
     elements: int = key(Number(required=True, integer=True, interval=POSITIVE))
     d1: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
+    section: MemberSection | None = table(MemberSection, optional=True, default=None)
 
     def frame(self, tangent: np.ndarray) -> np.ndarray:
         """D0 (3×3, rows d0_1, d0_2, d0_3) for the unit ``tangent`` d0_3 (class docstring)."""
