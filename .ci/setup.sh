@@ -17,6 +17,8 @@ APT_PACKAGES=(
   python3-dolfinx python3-dolfinx-real python3-petsc4py python3-slepc4py python3-mpi4py
   python3-scipy python3-matplotlib python3-venv python3-dev openmpi-bin g++ make git
   ca-certificates
+  # meshio reads a structure's geometry from a file of line cells (cosserat_fem/io/line_mesh.py)
+  python3-meshio
   # ParaView's own Python (pvpython) and a virtual screen for it: tests/test_visualisation.py
   # opens the XDMF output as ParaView does (pvpython on an Xvfb display, tests/virtual_display.py).
   paraview python3-paraview xvfb xauth

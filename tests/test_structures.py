@@ -732,3 +732,73 @@ def test_paraview_opens_the_portal_frame_as_one_object(tmp_path):
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(pytest.main([__file__, "-q"]))
+
+
+@pytest.mark.parametrize("suffix", [".vtk", ".msh"])
+def test_a_structure_read_from_a_file_of_line_cells_is_the_scenes(tmp_path, suffix):
+    """The portal frame's geometry written as a file of line cells (meshio: legacy VTK and
+    Gmsh 2.2), points A, B, C, D and lines A–B, B–C, D–C, read by ``[structure] file`` with
+    ``elements = 4`` (cosserat_fem/io/line_mesh.py: nodes n0..n3, members c0..c2): the same
+    nodes, members, order and orientation as scenes/portal_frame.toml, so the same mesh and
+    forms; its static sway equals the scene's to round-off (1e-12 of it). Its supports and
+    load name the file's nodes (n0, n3; n1)."""
+    import meshio
+
+    from cosserat_fem.scene.build import load_scene
+
+    portal = read_toml(PORTAL)
+    positions = [n["position"] for n in portal["structure"]["nodes"]]
+    path = tmp_path / f"portal{suffix}"
+    lines = np.array([[0, 1], [1, 2], [3, 2]])
+    extra = {"file_format": "gmsh22", "binary": False} if suffix == ".msh" else {}
+    meshio.write_points_cells(path, np.array(positions, float), [("line", lines)], **extra)
+    text = PORTAL.read_text()
+    start = text.index("[structure]")
+    end = text.index("\n[", start + 1)
+    table = (
+        f'[structure]\nfile = "{path.name}"\nelements = 4\n'
+        'supports = [{ node = "n0", kind = "clamped" }, { node = "n3", kind = "clamped" }]\n'
+        'loads = [{ node = "n1", force = ["F", 0, 0] }]\n'
+    )
+    scene_file = tmp_path / "portal_file.toml"
+    scene_file.write_text(text[:start] + table + text[end:])
+    from_file = load_scene(scene_file)
+    assert [n.name for n in from_file.structure.nodes] == ["n0", "n1", "n2", "n3"]
+    assert [(m.start, m.end) for m in from_file.structure.members] == [
+        ("n0", "n1"), ("n1", "n2"), ("n3", "n2")
+    ]  # fmt: skip
+    ours, theirs = api.static(from_file).probes[-1], api.static(load_scene(PORTAL)).probes[-1]
+    assert np.abs(ours - theirs).max() <= 1e-12 * np.abs(theirs).max()
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ('file = "missing.vtk"', r"^structure\.file: .*missing\.vtk.*: no such file"),
+        ('file = "bad.vtk"', r"^structure\.file: meshio cannot read"),
+        ('file = "points.vtk"', r"^structure\.file: .*has no line cells"),
+        ('file = "portal.vtk"\nelements = 0', r"^structure\.elements: a whole number"),
+        ('file = "portal.vtk"\nnodes = []', r"^structure\.nodes: the structure's geometry"),
+        ("elements = 2", r"^structure\.elements: the elements of each line cell"),
+    ],
+)
+def test_a_bad_structure_file_is_one_line(tmp_path, table, message):
+    """A missing, unreadable or lineless file, bad elements, and a file beside nodes: one
+    line naming the key (the command line's exit 2)."""
+    import meshio
+
+    from cosserat_fem.scene.build import load_scene
+
+    meshio.write_points_cells(
+        tmp_path / "portal.vtk", np.eye(3), [("line", np.array([[0, 1], [1, 2]]))]
+    )
+    meshio.write_points_cells(tmp_path / "points.vtk", np.eye(3), [("vertex", np.array([[0]]))])
+    (tmp_path / "bad.vtk").write_text("not a mesh\n")
+    text = PORTAL.read_text()
+    start = text.index("[structure]")
+    end = text.index("\n[", start + 1)
+    scene_file = tmp_path / "bad.toml"
+    scene_file.write_text(text[:start] + "[structure]\n" + table + "\n" + text[end:])
+    with pytest.raises(SceneError, match=message) as info:
+        load_scene(scene_file)
+    assert "\n" not in str(info.value)

@@ -687,10 +687,11 @@ def scene_from_dict(
         raise SceneError(f"{source}: a scene must be a table of keys, got {show_value(data)}")
     check_depth(data, source)
     merged = apply_overrides(data, overrides)
+    tables = tables if tables is not None else TableStore()
+    merged = _structure_from_file(merged, tables)
     given = _structure_given(merged)
     raw = check_scene(merged)
     parameters = raw["parameters"]
-    tables = tables if tables is not None else TableStore()
     structure = None
     if raw["structure"] is not None:
         structure = _build_structure(raw["structure"], {*SCENE_CONSTANTS, *parameters}, tables)
@@ -746,6 +747,35 @@ _ROD_ONLY = {
     "loads.body": "a rigid body at a structure's node is not supported yet (a single rod's "
     "end carries one: docs/rigid-bodies.md)",
 }
+
+
+def _structure_from_file(data: dict[str, Any], tables: TableStore) -> dict[str, Any]:
+    """``data`` with a [structure] ``file`` of line cells (a path relative to the scene's
+    folder, read with meshio: cosserat_fem/io/line_mesh.py) replaced by the ``nodes`` and
+    ``members`` it holds, each line cell a member of ``elements`` (default 1) elements, so
+    that the scene holds the geometry itself. SceneError naming the key."""
+    table = data.get("structure")
+    if not isinstance(table, dict) or "file" not in table:
+        if isinstance(table, dict) and "elements" in table:
+            raise SceneError("structure.elements: the elements of each line cell of a file")
+        return data
+    name = table["file"]
+    if not isinstance(name, str) or not name:
+        raise SceneError(f"structure.file: a file of line cells, got {show_value(name)}")
+    for given in ("nodes", "members"):
+        if given in table:
+            raise SceneError(
+                f"structure.{given}: the structure's geometry comes from structure.file; give "
+                "nodes and members either in the file or in the scene"
+            )
+    elements = table.get("elements", 1)
+    if isinstance(elements, bool) or not isinstance(elements, int) or elements < 1:
+        raise SceneError(f"structure.elements: a whole number ≥ 1, got {show_value(elements)}")
+    from cosserat_fem.io.line_mesh import read_line_mesh
+
+    geometry = read_line_mesh(tables.path(name), elements)
+    rest = {k: v for k, v in table.items() if k not in ("file", "elements")}
+    return {**data, "structure": {**rest, **geometry}}
 
 
 def _structure_given(data: dict[str, Any]) -> dict[str, bool]:
