@@ -122,7 +122,8 @@ def load_sweep(
     """A sweep file read and every member's scene validated (cosserat_fem/studies/sweep_spec.py);
     ``overrides``: dotted scene keys for the base scene; ``changes``: the file's [sweep]
     table changed first, tables merged key by key (``{"vary": {"parameters.r": [0.9, 1.1]}}``:
-    the same sweep over other values)."""
+    the same sweep over other values), ``cf.UNSET`` removing a key (``{"vary":
+    {"parameters.f0": cf.UNSET, ...}}``: vary another parameter instead)."""
     from cosserat_fem.studies.sweep_spec import load_sweep as load
 
     return load(source, overrides, changes)

@@ -8,7 +8,7 @@ rod), and the end's position r, directors' matrix R (rows λ_j, forms/kinematics
 :func:`directors`; D0 R on a rod curved at rest, forms/reference.py), angular velocity ω and
 acceleration α, the body's centre and its acceleration are, in the fixed basis,
 
-    r_C = r + c_s,   c_s = Rᵀ D0 c,                                             (B1)
+    r_C = r + c_s,   c_s = Rᵀ D0ᵀ c,                                             (B1)
     a_C = r̈ + α × c_s + ω × (ω × c_s),                                          (B2)
 
 and the body exerts on the end the force and the moment about the end's centroid

@@ -199,10 +199,10 @@ def test_a_swinging_body_keeps_the_energy_at_the_integrators_order(tmp_path):
     (B2)-(B4) works (the centripetal ω × (ω × c), the angular acceleration's α × c, the
     gyroscopic ω̂ × J ω̂). E = T + V of the rod plus the body's T_B is conserved by the
     equations; generalized-α with ρ∞ = 1 (the midpoint rule's energy behaviour) keeps it to
-    O(Δt²): the drift over 0.01 s falls by 4 (2^2, ±20%) when Δt halves, and is below 1e-4
-    of E at Δt = 2e-5 s. Measured: drifts 1.08e-7, 2.63e-8 (ratio 4.08). The centripetal
-    term with the wrong sign drifts 4e-2; the gyroscopic term does no work (ω · (ω × J ω) =
-    0), which the next test checks instead."""
+    O(Δt²): the drift over 0.01 s falls by 4 (2^2, ±20%) when Δt halves (a wrong term
+    drifts at O(1), alike at both steps). Measured: drifts 1.08e-7, 2.63e-8 (ratio 4.08).
+    The centripetal term with the wrong sign drifts 4e-2; the gyroscopic term does no work
+    (ω · (ω × J ω) = 0), which the next test checks instead."""
     from rod_energy import EnergyRecorder
 
     def drift(recorder) -> float:
@@ -210,7 +210,6 @@ def test_a_swinging_body_keeps_the_energy_at_the_integrators_order(tmp_path):
         return np.abs(E - E[0]).max() / E[0]
 
     drifts = swing_drifts(tmp_path, EnergyRecorder, drift)
-    assert drifts[-1] < 1e-4, drifts
     assert 3.2 < drifts[0] / drifts[1] < 4.8, drifts
 
 
@@ -278,7 +277,7 @@ def test_a_flying_rod_and_its_body_keep_their_angular_momentum(tmp_path):
     m/s, a twist rate 30 s/L rad/s) with the off-axis body of products of inertia: the
     angular momentum H of rod and body (:class:`MomentumRecorder`) is conserved by the
     equations; generalized-α with ρ∞ = 1 keeps it to O(Δt²): the drift of H over 0.01 s,
-    relative to |H|, falls by 4 (±20%) when Δt halves and is below 1e-4 at Δt = 2e-5 s.
+    relative to |H|, falls by 4 (±20%) when Δt halves (a wrong term drifts at O(1)).
     This holds the gyroscopic ω̂ × J ω̂ of (B4), which does no work and so escapes the
     energy. Measured: drifts 1.16e-8, 2.93e-9 (ratio 3.97); with the gyroscopic term's sign
     flipped 3.8e-3 at both steps."""
@@ -288,7 +287,6 @@ def test_a_flying_rod_and_its_body_keep_their_angular_momentum(tmp_path):
         return np.linalg.norm(H - H[0], axis=1).max() / np.linalg.norm(H[0])
 
     drifts = swing_drifts(tmp_path, MomentumRecorder, drift, {"supports.start": "free"})
-    assert drifts[-1] < 1e-4, drifts
     assert 3.2 < drifts[0] / drifts[1] < 4.8, drifts
 
 
@@ -330,7 +328,7 @@ def test_probes_csv_follows_the_bodys_centre(tmp_path):
 @pytest.mark.parametrize(
     ("sets", "message"),
     [
-        ({}, r'^output\.probe_fields: "body" is the centre of a \[loads\.body\]'),
+        ({}, r'^output\.probe_fields: "body" is the centre of a \[loads\.body\], and the scene'),
         ({"loads.body.mass": 1.0, "loads.body.end": "start"}, r"and the body at the start$"),
     ],
 )
@@ -474,3 +472,16 @@ def test_a_weight_inside_a_chain_bends_it_as_the_closed_form():
     w = q * L**4 / (8 * EI) + q * L**2 / (2 * kGA) + P * a**3 / (3 * EI) + P * a / kGA
     w += P * e * a**2 / (2 * EI) + (P * a**2 / (2 * EI) + P * e * a / EI) * (L - a)
     assert tip == pytest.approx(w, rel=1e-9)
+
+
+def test_a_structures_bodies_are_not_probed_yet():
+    """output.probe_fields "body" on a structure with a body at a node: one line saying so
+    (before: a message about the single rod's s = ℓ)."""
+    from cosserat_fem.scene.build import scene_from_dict
+
+    data = paper_structure(
+        {"A": (0, 0, 0), "B": (0, 0, 1)}, [("m", "A", "B", 4)], {"node": "B", "mass": 1.0}
+    )
+    data["output"] = {**data.get("output", {}), "probe_fields": ["body"]}
+    with pytest.raises(SceneError, match=r"a structure's bodies \(\[\[structure\.bodies\]\]\)"):
+        scene_from_dict(data)

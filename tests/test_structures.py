@@ -802,3 +802,35 @@ def test_a_bad_structure_file_is_one_line(tmp_path, table, message):
     with pytest.raises(SceneError, match=message) as info:
         load_scene(scene_file)
     assert "\n" not in str(info.value)
+
+
+def test_two_members_between_the_same_nodes_keep_their_own_cells():
+    """The portal frame with a second member from C to D beside the right column (a double
+    column: a closed loop of two members): each member's cells are its own (by their input
+    index, rod/structure.py ``cell_members``), 4 each, none run against its member. Before,
+    cells went to the member nearest their midpoint, and the second of two members between
+    the same nodes got none of them (3 cells flagged against), so its d1 and section were
+    silently the first's (review of 2026-12-04)."""
+    from cosserat_fem.rod.model import build_model
+    from cosserat_fem.rod.structure import cell_members
+
+    data = read_toml(PORTAL)
+    data["structure"]["members"].append({"name": "right2", "from": "C", "to": "D", "elements": 4})
+    scene = scene_from_dict(data)
+    model = build_model(scene)
+    member, against, _ = cell_members(scene.structure, model.length, model.msh)
+    assert np.bincount(member, minlength=4).tolist() == [4, 4, 4, 4]
+    assert not against.any()
+
+
+def test_the_xdmf_angles_of_a_structure_are_its_nodes_rotation(tmp_path):
+    """The portal frame's solution.xdmf ``angles`` at rest (t = 0) are zero at every point,
+    the corners included, as probes.csv's: the Euler angles of the nodes' rotation Λ, not
+    of the members' directors D0 Λ (the beam's would be (0, π/2, 0) and a corner the mean of
+    two members', (0, π/4, 0): the review of 2026-12-04). To 1e-12 rad."""
+    from xdmf_files import read_arrays  # tests/xdmf_files.py
+
+    scene = api.load(PORTAL, {"time.end": 2.0, "output.fields": ["displacement", "angles"]})
+    api.run(scene, tmp_path / "run")
+    _, times, arrays = read_arrays(tmp_path / "run" / "solution.xdmf")
+    assert times[0] == 0.0 and np.abs(arrays["angles"][0]).max() <= 1e-12

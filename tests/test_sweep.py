@@ -641,5 +641,9 @@ def test_changes_make_the_same_sweep_over_other_values():
     assert (
         changed.rom.train == (0, 2) and changed.rom.tolerance == api.load_sweep(rom).rom.tolerance
     )
+    varied = {"parameters.r": api.UNSET, "parameters.F": [5000.0, 6000.0]}
+    other = api.load_sweep(path, changes={"vary": varied, "response": api.UNSET})
+    # UNSET removes a key: F varied instead of r, and no frequency response
+    assert other.varied == ("parameters.F",) and len(other.members) == 2
     with pytest.raises(SceneError, match=r"^sweep\.scene: required, the base scene file"):
         api.load_sweep(path, changes={"scene": {"x": 1}})

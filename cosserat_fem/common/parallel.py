@@ -186,7 +186,13 @@ def install_exit_watchdog(timeout: float = ABORT_AFTER) -> bool:
     timer that outlives the interpreter: ``alarm(timeout)`` with SIGALRM's default action,
     which kills the process. If every rank leaves in time (all met the same error) the
     process exits first and the alarm never fires; else mpirun sees the rank killed by
-    signal 14 and ends the job. The command line has its own, :func:`agree_or_abort`."""
+    signal 14 and ends the job. The command line has its own, :func:`agree_or_abort`.
+
+    Not covered: ``sys.exit`` (SystemExit) on one rank alone, which reaches no excepthook
+    and whose status an exit hook cannot read (arming the alarm at every exit would kill a
+    rank that legitimately waits in MPI_Finalize for a slower one); run such a script as
+    ``mpirun -n N python -m mpi4py script.py``, whose runner aborts the job on a non-zero
+    SystemExit."""
     global _HOOKED
     if (
         _HOOKED

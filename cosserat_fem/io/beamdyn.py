@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from cosserat_fem.common.errors import SceneError
+from cosserat_fem.io.reading import is_file, read_bytes
 
 #: Our discretisation of a BeamDyn case (BeamDyn's order_elem and members are recorded, not
 #: used): quartic elements, whose error at the tip falls as h^8 for these smooth cases.
@@ -97,6 +98,10 @@ class BeamDynCase:
 
 
 # ====================================================================== the files' lines
+#: The largest input file read [bytes] (BeamDyn's are a few hundred kB).
+MAX_INPUT_BYTES = 1 << 26
+
+
 class _Lines:
     """A text input file of OpenFAST's kind: lines of ``VALUE NAME - description``, tables,
     comments. Keys are found by NAME (the second word), so the sections' order and the
@@ -105,10 +110,9 @@ class _Lines:
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        try:
-            text = path.read_text(encoding="utf-8", errors="replace")
-        except OSError as exc:
-            raise SceneError(f"{path}: cannot read ({exc.strerror or exc})") from None
+        if not is_file(path):  # a FIFO or a device is refused there, never opened (no hang)
+            raise SceneError(f"{path}: cannot read (no such file)")
+        text = read_bytes(path, MAX_INPUT_BYTES).decode("utf-8", errors="replace")
         self.lines = text.splitlines()
         self.read: dict[str, tuple[Path, int]] = {}
 
@@ -250,6 +254,12 @@ def read_case(driver: str | Path) -> BeamDynCase:
 
     bld = _Lines(blade_path)
     station_total = bld.integer("station_total")
+    if station_total < 2:
+        raise bld.fail(
+            bld.read["station_total"][1],
+            "station_total",
+            f"at least 2 stations (the blade's root and tip), got {station_total}",
+        )
     damp_type = bld.integer("damp_type", 0)
     mu_header = next((i for i, t in enumerate(bld.lines) if t.split()[:1] == ["mu1"]), None)
     damping: tuple[float, ...] = (0.0,) * 6
@@ -575,9 +585,11 @@ def wiener_milenkovic(rotation: np.ndarray) -> np.ndarray:
     # axial = sin φ n = 2 q0 q
     if q0 > 1e-8:
         q = axial / (2.0 * q0)
-    else:  # φ = π: q the unit axis, from R = 2 n n^T - I
-        n = np.sqrt(np.clip((np.diag(R) + 1.0) / 2.0, 0.0, None))
-        q = n
+    else:  # φ = π: q the unit axis n, from n n^T = (R + I)/2: its largest diagonal entry
+        k = int(np.argmax(np.diag(R)))  # gives n_k (> 1/√3), the others' signs from row k
+        n_k = math.sqrt(max((R[k, k] + 1.0) / 2.0, 0.0))
+        q = (R[k] + R[:, k]) / (4.0 * n_k)
+        q[k] = n_k
     return 4.0 * q / (1.0 + q0)
 
 

@@ -253,7 +253,10 @@ def _field_expressions(
 
     exprs: dict[str, Callable[[], ufl.core.expr.Expr]] = {
         "displacement": lambda: ufl.as_vector([ell * U[0], ell * U[1], ell * U[2]]),
-        "angles": lambda: _fixed_basis_angles(U, chart, reference),
+        # a structure's: those of the nodes' rotation Λ, as its probes (docs/structures.md)
+        "angles": lambda: _fixed_basis_angles(
+            U, chart, None if model.scene.structure is not None else reference
+        ),
         "strain_v": lambda: resultant("v"),
         "curvature_u": lambda: resultant("u"),
         "force_n": lambda: resultant("n"),

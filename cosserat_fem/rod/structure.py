@@ -99,30 +99,28 @@ def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -
 def cell_members(
     structure: Structure, length: float, msh: mesh.Mesh
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """For each local and ghost cell: the index of the member it belongs to (the one its
-    midpoint lies on), whether its vertices run against that member, and the members' unit
-    tangents (members, 3)."""
+    """For each local and ghost cell: the index of the member it belongs to (by the cell's
+    index in the input, :func:`create_structure_mesh` making each member's ``elements`` cells
+    in the members' order: exact even for two members between the same nodes), whether its
+    vertices run against that member, and the members' unit tangents (members, 3)."""
     cells = msh.topology.index_map(1)
     count = cells.size_local + cells.num_ghosts
     vertices = msh.geometry.dofmap.array.reshape(-1, 2)[:count]
     x0, x1 = msh.geometry.x[vertices[:, 0]] * length, msh.geometry.x[vertices[:, 1]] * length
-    middle = 0.5 * (x0 + x1)
     r0 = structure.positions()
     starts = np.array([r0[m.start] for m in structure.members])
     chords = np.array([r0[m.end] for m in structure.members]) - starts
-    lengths = np.linalg.norm(chords, axis=1)
-    tangents = chords / lengths[:, None]
-    # The distance of each midpoint from each member's segment (cells, members).
-    along = np.clip(((middle[:, None, :] - starts[None]) * tangents[None]).sum(2), 0, lengths)
-    foot = starts[None] + along[..., None] * tangents[None]
-    member = np.argmin(np.linalg.norm(middle[:, None, :] - foot, axis=2), axis=1)
+    tangents = chords / np.linalg.norm(chords, axis=1)[:, None]
+    first = np.cumsum([0] + [m.elements for m in structure.members])
+    original = np.asarray(msh.topology.original_cell_index, dtype=np.int64)[:count]
+    member = np.searchsorted(first, original, side="right") - 1
     against = ((x1 - x0) * tangents[member]).sum(1) < 0.0
     return member, against, tangents
 
 
 def member_frames(structure: Structure, length: float, msh: mesh.Mesh) -> fem.Function:
     """D0 on each cell (module docstring) as a DG0 3×3 Function ``D0``: the member a cell
-    belongs to is the one its midpoint lies on; its frame with d0_1, d0_3 negated where the
+    belongs to is :func:`cell_members`'s; its frame with d0_1, d0_3 negated where the
     cell's vertices run against the member, so that d0_3 is the cell's own tangent."""
     space = fem.TensorFunctionSpace(msh, ElementMetaData("DG", 0), shape=(3, 3))
     member, against, tangents = cell_members(structure, length, msh)

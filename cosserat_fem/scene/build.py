@@ -1179,17 +1179,22 @@ def _check_curve(scene: Scene, reference: ReferenceShape) -> None:
 
 def _check_body_probe(scene: Scene) -> None:
     """probes.csv's body columns (output.probe_fields "body") are the centre of the body
-    carried by the end the probe is at: SceneError without one there."""
+    carried by the end the probe is at: SceneError without a [loads.body], on a structure
+    (its bodies are at nodes: not probed yet), or with the body at the other end."""
     if "body" not in scene.output.probe_fields:
         return
+    key = 'output.probe_fields: "body"'
+    if scene.structure is not None:
+        raise SceneError(f"{key}: a structure's bodies ([[structure.bodies]]) are not probed yet")
     body = scene.loads.body
+    if body is None:
+        raise SceneError(f"{key} is the centre of a [loads.body], and the scene has none")
     at = {1.0: "end", 0.0: "start"}.get(scene.probe_sigma)
-    if body is None or body.end != at:
+    if body.end != at:
         where = f"the {at} (s = {'ℓ' if at == 'end' else 0})" if at else "mid-span"
         raise SceneError(
-            'output.probe_fields: "body" is the centre of a [loads.body] at the probe\'s '
-            f"end, but the probe is at {where}"
-            + ("" if body is None else f" and the body at the {body.end}")
+            f"{key} is the centre of the body at the probe's end, but the probe is at "
+            f"{where} and the body at the {body.end}"
         )
 
 

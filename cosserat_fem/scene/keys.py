@@ -275,6 +275,27 @@ class Vector(Field):
 
 
 @dataclass(frozen=True, kw_only=True)
+class NumberVector(Field):
+    """A list of 3 finite numbers (no expressions: a body's inertia, its offset)."""
+
+    unit: str = ""
+
+    def describe(self) -> str:
+        return f"a list of 3 numbers [{self.unit}]"
+
+    def check(self, key: str, value: Any) -> Any:
+        if not isinstance(value, list) or len(value) != 3:
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        for i, x in enumerate(value):
+            if isinstance(x, bool) or not isinstance(x, int | float) or not math.isfinite(x):
+                raise SceneError(f"{key}[{i}]: must be a finite number, got {show_value(x)}")
+        return tuple(float(x) for x in value)
+
+    def to_value(self, value: Any) -> Any:
+        return None if value is None else list(value)
+
+
+@dataclass(frozen=True, kw_only=True)
 class LoadVector(Vector):
     """A load's list of 3 components: numbers, expression strings, tables (an inline table
     checked against :data:`LOAD_TABLE`, defaults filled in) or, through the API, Python

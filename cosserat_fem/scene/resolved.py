@@ -11,7 +11,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from cosserat_fem.common.errors import SceneError, show_value
+from cosserat_fem.common.errors import SceneError
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
 from cosserat_fem.forms.groups import RodConstants, euler_bernoulli_omega0
 from cosserat_fem.forms.section import (
@@ -45,6 +45,7 @@ from cosserat_fem.scene.keys import (
     Number,
     NumberOrExpression,
     NumberOrExpressionVector,
+    NumberVector,
     Parameters,
     PetscOptions,
     Points,
@@ -537,9 +538,9 @@ class BodyData:
     fixed to, in the components of a frame at rest that its subclass names. Numbers."""
 
     mass: float = key(Number(interval=POSITIVE, unit="kg", required=True))
-    inertia: tuple[float, ...] = key(Vector(default=ZERO3, unit="kg m^2"))
-    products: tuple[float, ...] = key(Vector(default=ZERO3, unit="kg m^2"))
-    offset: tuple[float, ...] = key(Vector(default=ZERO3, unit="m"))
+    inertia: tuple[float, ...] = key(NumberVector(default=ZERO3, unit="kg m^2"))
+    products: tuple[float, ...] = key(NumberVector(default=ZERO3, unit="kg m^2"))
+    offset: tuple[float, ...] = key(NumberVector(default=ZERO3, unit="m"))
 
     def inertia_tensor(self) -> list[list[float]]:
         """J_C [kg m²], rows in the frame at rest (class docstring)."""
@@ -551,15 +552,9 @@ class BodyData:
         return list(self.offset)
 
     def check_body(self, key: str) -> None:
-        """Numbers; an inertia tensor of a body: zero (a point mass) or positive definite
-        with its principal moments obeying the triangle inequalities (J_i ≤ J_j + J_k:
-        J = ∫ (|x|² I − x xᵀ) dm). SceneError naming ``key``'s entry."""
-        for name in ("inertia", "products", "offset"):
-            for i, x in enumerate(getattr(self, name)):
-                if isinstance(x, bool) or not isinstance(x, int | float) or not np.isfinite(x):
-                    raise SceneError(
-                        f"{key}.{name}[{i}]: must be a finite number, got {show_value(x)}"
-                    )
+        """An inertia tensor of a body (its entries are numbers: NumberVector): zero (a point
+        mass) or positive definite with its principal moments obeying the triangle
+        inequalities (J_i ≤ J_j + J_k: J = ∫ (|x|² I − x xᵀ) dm). SceneError naming ``key``."""
         J = np.array(self.inertia_tensor(), dtype=float)
         if not J.any():
             return

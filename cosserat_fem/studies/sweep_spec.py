@@ -693,11 +693,16 @@ def load_sweep(
 
 
 def _merged(table: dict[str, Any], changes: Mapping[str, Any]) -> dict[str, Any]:
-    """``table`` with ``changes`` merged in: a mapping into a table key by key, any other
-    value replacing (what comes out is checked as a file's table is)."""
+    """``table`` with ``changes`` merged in: a mapping into a table key by key, ``UNSET``
+    (cosserat_fem/scene/schema.py) removing the key, any other value replacing (what comes
+    out is checked as a file's table is)."""
+    from cosserat_fem.scene.schema import UNSET
+
     merged = dict(table)
     for key, value in changes.items():
-        if isinstance(value, Mapping) and isinstance(merged.get(key), dict):
+        if value is UNSET:
+            merged.pop(key, None)
+        elif isinstance(value, Mapping) and isinstance(merged.get(key), dict):
             merged[key] = _merged(merged[key], value)
         else:
             merged[key] = value

@@ -171,3 +171,37 @@ def test_a_missing_file_and_a_missing_key_are_one_line(tmp_path):
     (tmp_path / "bd_driver.inp").write_text(text.replace(" Gx ", " G_x "))
     with pytest.raises(SceneError, match=r"^bd_driver.inp: Gx: not found"):
         read_case(tmp_path / "bd_driver.inp")
+
+
+@pytest.mark.parametrize("angle", [math.pi - 1e-9, math.pi])
+def test_wiener_milenkovic_near_a_half_turn_keeps_the_axis_signs(angle):
+    """About n = (1, −1, 0)/√2 by φ within 1e-8 of π (q0 < 1e-8: the axis from n nᵀ = (R + I)/2,
+    its largest diagonal entry's row giving the others' signs): c = 4 tan(φ/4) n to 1e-7 (the
+    branch takes φ = π; 4 tan(φ/4) changes by 2e-9 over the 1e-9 left). Before, every
+    component came out positive: (2.83, +2.83, 0) (review of 2026-12-04)."""
+    from scipy.spatial.transform import Rotation
+
+    n = np.array([1.0, -1.0, 0.0]) / math.sqrt(2.0)
+    R = Rotation.from_rotvec(angle * n).as_matrix()
+    np.testing.assert_allclose(wiener_milenkovic(R), 4.0 * math.tan(angle / 4.0) * n, atol=1e-7)
+
+
+def test_bad_station_totals_and_a_fifo_are_one_line(tmp_path):
+    """station_total < 2 in the blade file: one line naming its file, line and key (before:
+    an internal IndexError); a blade file that is a FIFO: refused, never opened (no hang)."""
+    import os
+    import shutil
+
+    case = tmp_path / "case"
+    shutil.copytree(DATA / "bd_isotropic_rollup", case)
+    blade = case / "beam_props.inp"
+    lines = blade.read_text().splitlines()
+    at = next(i for i, t in enumerate(lines) if t.split()[1:2] == ["station_total"])
+    lines[at] = "0   station_total   - Number of blade input stations (-)"
+    blade.write_text("\n".join(lines) + "\n")
+    with pytest.raises(SceneError, match=rf"^beam_props.inp:{at + 1}: station_total: at least 2"):
+        read_case(case / "bd_driver.inp")
+    blade.unlink()
+    os.mkfifo(blade)
+    with pytest.raises(SceneError, match=r"beam_props.inp': is not a regular file"):
+        read_case(case / "bd_driver.inp")
