@@ -1269,8 +1269,8 @@ def refuse_structure(scene: Scene | None, command: str) -> None:
     only (docs/structures.md: run, static, modes and validate take structures)."""
     if scene is not None and scene.structure is not None:
         raise SceneError(
-            f"structure: {command} is not supported on a structure yet (run, static, modes "
-            "and validate are); see docs/structures.md"
+            f"structure: {command} is not supported on a structure yet (run, static, modes, "
+            "validate and sweeps of plain members are); see docs/structures.md"
         )
 
 

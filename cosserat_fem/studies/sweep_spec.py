@@ -675,6 +675,13 @@ def load_sweep(
         except SceneError as exc:
             raise SceneError(f"sweep member {member.index} ({member.describe()}): {exc}") from None
     rom = _rom(table.get("rom"), path, len(members), group_size)
+    if "structure" in base_data:  # plain members only: a structure's run (docs/structures.md)
+        for name, given in (("poincare", poincare), ("rom", rom)):
+            if given is not None:
+                raise SceneError(
+                    f"sweep.{name}: not supported on a structure yet (a sweep of plain "
+                    "members is); see docs/structures.md"
+                )
     tables.seal()  # every member's tables are read: none is read again in a group
     return SweepSpec(
         base_data,
@@ -847,7 +854,8 @@ def _check_member(
     memory of a group's rank counted as a share of one node's, a certain lower bound)."""
     scene = scene_from_dict(data, source, member.values, tables=tables)
     refuse_closed(scene, "run")
-    refuse_structure(scene, "sweep")
+    if response is not None:  # a frequency response's chains continue a single rod's state
+        refuse_structure(scene, "a sweep with a [sweep.response]")
     if response is None:
         budget.check(scene, "run", ranks=group_size, comm=_world())
         return
