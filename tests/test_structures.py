@@ -780,11 +780,14 @@ def test_a_structure_read_from_a_file_of_line_cells_is_the_scenes(tmp_path, suff
         ('file = "portal.vtk"\nelements = 0', r"^structure\.elements: a whole number"),
         ('file = "portal.vtk"\nnodes = []', r"^structure\.nodes: the structure's geometry"),
         ("elements = 2", r"^structure\.elements: the elements of each line cell"),
+        ('file = "twice.vtk"', r"line cells 0 and 2 join the same points 0 and 1"),
+        ('file = "curved.vtk"', r"has curved line cells \(line3\)"),
     ],
 )
 def test_a_bad_structure_file_is_one_line(tmp_path, table, message):
-    """A missing, unreadable or lineless file, bad elements, and a file beside nodes: one
-    line naming the key (the command line's exit 2)."""
+    """A missing, unreadable or lineless file, bad elements, a file beside nodes, a cell
+    given twice (as Gmsh's MSH2 writes a cell of two physical groups: it would double that
+    member) and a curved line: one line naming the key (the command line's exit 2)."""
     import meshio
 
     from cosserat_fem.scene.build import load_scene
@@ -793,6 +796,11 @@ def test_a_bad_structure_file_is_one_line(tmp_path, table, message):
         tmp_path / "portal.vtk", np.eye(3), [("line", np.array([[0, 1], [1, 2]]))]
     )
     meshio.write_points_cells(tmp_path / "points.vtk", np.eye(3), [("vertex", np.array([[0]]))])
+    twice = np.array([[0, 1], [1, 2], [1, 0]])
+    meshio.write_points_cells(tmp_path / "twice.vtk", np.eye(3), [("line", twice)])
+    meshio.write_points_cells(
+        tmp_path / "curved.vtk", np.eye(3), [("line3", np.array([[0, 2, 1]]))]
+    )
     (tmp_path / "bad.vtk").write_text("not a mesh\n")
     text = PORTAL.read_text()
     start = text.index("[structure]")
@@ -899,3 +907,33 @@ def test_a_closed_polygon_of_members_converges_to_the_ring():
     ratio = errors[0] / errors[1]
     assert np.all((3.6 <= ratio) & (ratio <= 4.4)), errors
     assert errors[1].max() < 1e-2, errors
+
+
+def test_a_sweep_reads_its_structures_file_once(tmp_path):
+    """A sweep over a structure whose geometry is a file of line cells: the file is read when
+    the sweep is validated and its nodes are the members' (a member never reads it again),
+    so a file changed afterwards changes no member and the sweep's fingerprint holds the
+    geometry (the second review of 2026-12-04: it was read again by each member)."""
+    import meshio
+
+    portal = read_toml(PORTAL)
+    positions = np.array([n["position"] for n in portal["structure"]["nodes"]], float)
+    lines = np.array([[0, 1], [1, 2], [3, 2]])
+    meshio.write_points_cells(tmp_path / "portal.vtk", positions, [("line", lines)])
+    text = PORTAL.read_text()
+    start, end = text.index("[structure]"), text.index("\n[", text.index("[structure]") + 1)
+    table = (
+        '[structure]\nfile = "portal.vtk"\nelements = 4\n'
+        'supports = [{ node = "n0", kind = "clamped" }, { node = "n3", kind = "clamped" }]\n'
+        'loads = [{ node = "n1", force = ["F", 0, 0] }]\n'
+    )
+    (tmp_path / "portal.toml").write_text(text[:start] + table + text[end:])
+    (tmp_path / "sweep.toml").write_text(
+        '[sweep]\nscene = "portal.toml"\n[sweep.vary]\n"parameters.F" = [1e-3, 2e-3]\n'
+    )
+    spec = api.load_sweep(tmp_path / "sweep.toml")
+    moved = positions.copy()
+    moved[1, 2] = 150.0
+    meshio.write_points_cells(tmp_path / "portal.vtk", moved, [("line", lines)])
+    scene = spec.scene(spec.members[0])
+    assert [list(n.position) for n in scene.structure.nodes][1] == [0.0, 0.0, 120.0]

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from cosserat_fem.common.errors import SceneError
-from cosserat_fem.io.reading import is_file, read_bytes
+from cosserat_fem.io.reading import check_size, is_file, read_bytes
 
 #: Our discretisation of a BeamDyn case (BeamDyn's order_elem and members are recorded, not
 #: used): quartic elements, whose error at the tip falls as h^8 for these smooth cases.
@@ -112,6 +112,7 @@ class _Lines:
         self.path = path
         if not is_file(path):  # a FIFO or a device is refused there, never opened (no hang)
             raise SceneError(f"{path}: cannot read (no such file)")
+        check_size(path, MAX_INPUT_BYTES, "a BeamDyn input file")
         text = read_bytes(path, MAX_INPUT_BYTES).decode("utf-8", errors="replace")
         self.lines = text.splitlines()
         self.read: dict[str, tuple[Path, int]] = {}

@@ -66,17 +66,16 @@ def is_file(path: Path) -> bool:
     raise SceneError(f"{quoted(path)}: {problem}")
 
 
-def check_size(path: Path, limit: int) -> None:
-    """SceneError if ``path`` cannot be looked at or holds more than ``limit`` bytes."""
+def check_size(path: Path, limit: int, what: str = "") -> None:
+    """SceneError if ``path`` cannot be looked at or holds more than ``limit`` bytes;
+    ``what``: the kind of file, for the message (default: a run's output)."""
     try:
         size = path.stat().st_size
     except OSError as exc:
         raise SceneError(f"{quoted(path)}: cannot read it ({exc})") from None
     if size > limit:
-        raise SceneError(
-            f"{quoted(path)}: {size} bytes, more than the {limit >> 20} MiB a run's file "
-            "can have; not a run's output"
-        )
+        kind = f"{what} can have" if what else "a run's file can have; not a run's output"
+        raise SceneError(f"{quoted(path)}: {size} bytes, more than the {limit >> 20} MiB {kind}")
 
 
 def read_bytes(path: Path, limit: int) -> bytes:

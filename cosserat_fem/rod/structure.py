@@ -27,7 +27,6 @@ from dolfinx import fem, mesh
 from dolfinx.fem.function import ElementMetaData
 from mpi4py import MPI
 
-from cosserat_fem.common.errors import SceneError
 from cosserat_fem.forms.groups import RodConstants
 from cosserat_fem.forms.resultants import stiffness_matrix
 from cosserat_fem.forms.section import SectionLaw
@@ -144,8 +143,9 @@ def member_laws(rod: RodConstants, structure: Structure, msh: mesh.Mesh) -> RodC
     and rotary inertias. The rod unchanged when no member has a section. The directors'
     components are the member's (d0_1, d0_2, d0_3). A cell running against its member has
     d0_1, d0_3 negated and s reversed (:func:`member_frames`), which negates the d2 components
-    of the strains (Γ2, κ2) and of the resultants: K is the same law there only if it couples
-    (Γ2, κ2) with none of the others (true of a diagonal K), else SceneError naming the key."""
+    of the strains (Γ2, κ2) and of the resultants: its K is F K F, F = diag(1, −1, 1, 1, −1,
+    1) (K itself for a diagonal law). (The mesh builds every cell along its member, so no
+    cell runs against it today; the rule keeps the law right if one does.)"""
     if all(m.section is None for m in structure.members):
         return rod
     K0 = np.array(stiffness_matrix(rod), dtype=float)
@@ -162,23 +162,21 @@ def member_laws(rod: RodConstants, structure: Structure, msh: mesh.Mesh) -> RodC
         values.append(np.concatenate([K.reshape(-1), [mu], np.asarray(inertia, dtype=float)]))
     table = np.array(values)
     member, against, _ = cell_members(structure, rod.length, msh)
-    flips = np.array([1, -1, 1, 1, -1, 1])  # (Γ1, Γ2, Γ3, κ1, κ2, κ3) on a cell run against
-    for k in np.unique(member[against]):
-        K = table[k, :36].reshape(6, 6)
-        if np.any(K != K * np.outer(flips, flips)):
-            raise SceneError(
-                f"structure.members[{k}].section.stiffness: couples shear 2 or bending 2 with "
-                f"the other strains, not supported on a cell the mesh runs against its member"
-            )
+    # On a cell run against its member (d0_1, d0_3 and s reversed) the d2 components of the
+    # strains and resultants change sign: the law there is F K F, F = diag(1, −1, 1, 1, −1, 1)
+    # (the same K for a diagonal law).
+    flips = np.array([1.0, -1.0, 1.0, 1.0, -1.0, 1.0])
+    cells = table[member]
+    cells[against, :36] *= np.outer(flips, flips).reshape(-1)
     space = fem.FunctionSpace(msh, ("DG", 0))
     dofs = space.dofmap.list.array.reshape(-1)[: len(member)]
 
     def entry(j: int):
-        column = table[:, j]
-        if np.all(column == column[0]):
+        column = table[:, j]  # constant over the members and their cells' turns: a number
+        if np.all(column == column[0]) and np.all(cells[:, j] == column[0]):
             return float(column[0])
         field = fem.Function(space)
-        field.x.array[dofs] = column[member]
+        field.x.array[dofs] = cells[:, j]
         return field
 
     stiffness = tuple(tuple(entry(6 * i + j) for j in range(6)) for i in range(6))

@@ -688,7 +688,7 @@ def scene_from_dict(
     check_depth(data, source)
     merged = apply_overrides(data, overrides)
     tables = tables if tables is not None else TableStore()
-    merged = _structure_from_file(merged, tables)
+    merged = structure_from_file(merged, tables)
     given = _structure_given(merged)
     raw = check_scene(merged)
     parameters = raw["parameters"]
@@ -749,7 +749,7 @@ _ROD_ONLY = {
 }
 
 
-def _structure_from_file(data: dict[str, Any], tables: TableStore) -> dict[str, Any]:
+def structure_from_file(data: dict[str, Any], tables: TableStore) -> dict[str, Any]:
     """``data`` with a [structure] ``file`` of line cells (a path relative to the scene's
     folder, read with meshio: cosserat_fem/io/line_mesh.py) replaced by the ``nodes`` and
     ``members`` it holds, each line cell a member of ``elements`` (default 1) elements, so
@@ -773,7 +773,21 @@ def _structure_from_file(data: dict[str, Any], tables: TableStore) -> dict[str, 
         raise SceneError(f"structure.elements: a whole number ≥ 1, got {show_value(elements)}")
     from cosserat_fem.io.line_mesh import read_line_mesh
 
-    geometry = read_line_mesh(tables.path(name), elements)
+    comm = tables.comm
+    if comm is None or comm.size == 1:
+        geometry = read_line_mesh(tables.path(name), elements)
+    else:  # rank 0 reads, every rank takes its nodes and members (one geometry, agreed)
+        from cosserat_fem.common.parallel import agree
+
+        geometry, problem = None, None
+        if comm.rank == 0:
+            try:
+                geometry = read_line_mesh(tables.path(name), elements)
+            except SceneError as exc:
+                problem = exc
+        agree(comm, problem)
+        geometry = comm.bcast(geometry, root=0)
+    assert geometry is not None, "read on rank 0, or agreed failed"
     rest = {k: v for k, v in table.items() if k not in ("file", "elements")}
     return {**data, "structure": {**rest, **geometry}}
 

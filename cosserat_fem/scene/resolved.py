@@ -654,7 +654,7 @@ class MemberSection:
         SymmetricMatrix(required=True, unit="N, N m, N m^2")
     )
     mass_per_length: float | None = key(Number(interval=POSITIVE, unit="kg/m"), default=None)
-    inertia: tuple[float, float, float] | None = key(Vector(unit="kg m"), default=None)
+    inertia: tuple[float, float, float] | None = key(NumberVector(unit="kg m"), default=None)
 
 
 @dataclass(frozen=True, kw_only=True)

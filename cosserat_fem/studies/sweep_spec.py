@@ -107,7 +107,13 @@ from typing import Any
 from cosserat_fem.analysis import budget
 from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import SceneError, show_value
-from cosserat_fem.scene.build import Scene, refuse_closed, refuse_structure, scene_from_dict
+from cosserat_fem.scene.build import (
+    Scene,
+    refuse_closed,
+    refuse_structure,
+    scene_from_dict,
+    structure_from_file,
+)
 from cosserat_fem.scene.load_data import TableStore
 from cosserat_fem.scene.schema import apply_overrides, parse_toml, read_input, read_toml
 from cosserat_fem.studies.response import DIRECTIONS, ResponseSettings, check_sampling, period_of
@@ -653,8 +659,12 @@ def load_sweep(
     values, varied = _members(table, combine)
     scene_path = (path.parent / table["scene"]).resolve()
     raw = read_input(scene_path, "scene file (sweep.scene)", same_name=False)  # rank 0's
-    base_data = _base(parse_toml(raw, scene_path), fixed, overrides, values)
     tables = TableStore.collective(scene_path.parent)
+    # a structure's file of line cells read once, here: the members hold its geometry, which
+    # the sweep's fingerprint then covers (no member reads the file again)
+    base_data = structure_from_file(
+        _base(parse_toml(raw, scene_path), fixed, overrides, values), tables
+    )
     response = _response(table.get("response"), varied)
     poincare = _poincare(table.get("poincare"), varied, response)
     if response is not None and response.continuation is not None:
