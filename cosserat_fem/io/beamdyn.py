@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from cosserat_fem.common.errors import SceneError
+from cosserat_fem.common.rotations import quaternion_of_frame
 from cosserat_fem.io.reading import check_size, is_file, read_bytes
 
 #: Our discretisation of a BeamDyn case (BeamDyn's order_elem and members are recorded, not
@@ -578,20 +579,11 @@ def _damping(case: BeamDynCase) -> dict[str, float]:
 # ================================================================================ outputs
 def wiener_milenkovic(rotation: np.ndarray) -> np.ndarray:
     """BeamDyn's rotation parameters c = 4 tan(φ/4) n of the rotation matrix ``rotation``
-    (angle φ about the unit axis n; TipRDxr..zr), from its quaternion (q0, q): c = 4 q/(1 + q0)
-    (q0 ≥ 0 taken, φ ≤ π)."""
-    R = np.asarray(rotation, dtype=float)
-    q0 = 0.5 * math.sqrt(max(1.0 + np.trace(R), 0.0))
-    axial = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-    # axial = sin φ n = 2 q0 q
-    if q0 > 1e-8:
-        q = axial / (2.0 * q0)
-    else:  # φ = π: q the unit axis n, from n n^T = (R + I)/2: its largest diagonal entry
-        k = int(np.argmax(np.diag(R)))  # gives n_k (> 1/√3), the others' signs from row k
-        n_k = math.sqrt(max((R[k, k] + 1.0) / 2.0, 0.0))
-        q = (R[k] + R[:, k]) / (4.0 * n_k)
-        q[k] = n_k
-    return 4.0 * q / (1.0 + q0)
+    (angle φ about the unit axis n; TipRDxr..zr), from its unit quaternion (q0, q), q0 ≥ 0
+    (Shepperd's method, common/rotations.py: accurate at every angle, a half turn
+    included): c = 4 q/(1 + q0)."""
+    q = quaternion_of_frame(np.asarray(rotation, dtype=float).T)  # R = Dᵀ: D = Rᵀ
+    return 4.0 * q[1:] / (1.0 + q[0])
 
 
 def tip_outputs(row: np.ndarray, rest_directors: np.ndarray) -> dict[str, np.ndarray]:

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from cosserat_fem.common.rotations import quaternion_of_frame  # noqa: F401 (re-exported)
+
 #: A reset moves the frame when |θ| exceeds this at some node [rad]: far enough from π/2 that a
 #: step of up to ~0.5 rad of θ stays regular (|cos θ| ≥ 0.1 until θ = 1.47).
 RESET_THETA = 0.9
@@ -67,55 +69,6 @@ def quaternion_frame(Q: np.ndarray) -> np.ndarray:
     scale = (2.0 / np.einsum("...i,...i", Q, Q))[..., None, None]
     R = np.eye(3) + scale * (q0[..., None, None] * hat + hat @ hat)
     return np.swapaxes(R, -1, -2)
-
-
-def quaternion_of_frame(D: np.ndarray) -> np.ndarray:
-    """The unit quaternion (..., 4) of the rotation R = Dᵀ taking e_j to the rows d_j of D
-    (Shepperd's method: the largest of the four squares first, for accuracy), q0 ≥ 0."""
-    R = np.swapaxes(np.asarray(D, dtype=float), -1, -2)
-    tr = np.trace(R, axis1=-2, axis2=-1)
-    diag = np.diagonal(R, axis1=-2, axis2=-1)
-    squares = np.concatenate([(1.0 + tr)[..., None], 1.0 + 2.0 * diag - tr[..., None]], -1)
-    pick = np.argmax(squares, axis=-1)
-    out = np.empty((*R.shape[:-2], 4))
-    r = R
-    for case in range(4):
-        sel = pick == case
-        if not sel.any():
-            continue
-        m = r[sel]
-        big = 0.5 * np.sqrt(squares[sel, case])
-        f = 0.25 / big
-        if case == 0:
-            q = [
-                big,
-                (m[:, 2, 1] - m[:, 1, 2]) * f,
-                (m[:, 0, 2] - m[:, 2, 0]) * f,
-                (m[:, 1, 0] - m[:, 0, 1]) * f,
-            ]
-        elif case == 1:
-            q = [
-                (m[:, 2, 1] - m[:, 1, 2]) * f,
-                big,
-                (m[:, 0, 1] + m[:, 1, 0]) * f,
-                (m[:, 0, 2] + m[:, 2, 0]) * f,
-            ]
-        elif case == 2:
-            q = [
-                (m[:, 0, 2] - m[:, 2, 0]) * f,
-                (m[:, 0, 1] + m[:, 1, 0]) * f,
-                big,
-                (m[:, 1, 2] + m[:, 2, 1]) * f,
-            ]
-        else:
-            q = [
-                (m[:, 1, 0] - m[:, 0, 1]) * f,
-                (m[:, 0, 2] + m[:, 2, 0]) * f,
-                (m[:, 1, 2] + m[:, 2, 1]) * f,
-                big,
-            ]
-        out[sel] = np.stack(q, -1)
-    return np.where(out[..., :1] < 0.0, -out, out)
 
 
 def euler_angles(D: np.ndarray, near: np.ndarray | None = None) -> np.ndarray:

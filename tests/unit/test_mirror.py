@@ -42,6 +42,7 @@ INTEGRATION_ONLY: dict[str, str] = {
     "io.checkpoint": "tests/test_restart.py tests/test_reliability.py",
     "io.folder_lock": "tests/test_run_folders.py",
     "io.line_mesh": "tests/test_structures.py",
+    "common.rotations": "tests/unit/rod/test_charts.py tests/unit/io/test_beamdyn.py",
     "io.hdf5": "tests/test_xdmf_writer.py tests/test_pod.py",
     "io.output_files": "tests/test_visualisation.py tests/test_pod.py",
     "io.run_folder": "tests/test_run_folders.py tests/test_claims.py",
