@@ -19,9 +19,7 @@ its solves, the state check, the accept, the event calls, the loop's Python arou
 run without and with the indicator (cosserat_fem/rom/indicator.py, its default settings)
 interleaved, the indicator's own wall time (summary.json ``rom.indicator.wall_time_s``), its
 set-up's (``setup_wall_time_s``: the first run of the process builds the modes, the others
-find them cached) and the rest per sample, as shares of the solve loop without it (medians);
-a hyper-reduced run also with the forcing from the sampled elements (``sampled (10.11)``, a
-diagnostic: docs/rom.md §10 "Cost").
+find them cached) and the rest per sample, as shares of the solve loop without it (medians).
 
 ``paper``: scenes/cao_tucker_2008.toml (0.06 s, 2000 SDIRK3 steps), trained on its own full
 run. ``riser``: the riser of benchmarks/long_rods.py, trained on a short full run of
@@ -196,19 +194,14 @@ def indicator_cost(scene, bases: dict, repeats: int) -> None:
     """The indicator's share of the solve loop (module docstring, ``--indicator``)."""
     from cosserat_fem.rom.indicator import ErrorIndicator, IndicatorSettings
 
-    variants = {}  # a hyper-reduced run also with the sampled elements' forcing (10.11)
-    for name, (basis, use_hyper, coordinates) in bases.items():
-        variants[name] = (basis, use_hyper, coordinates, False)
-        if use_hyper:
-            variants[f"{name}, sampled (10.11)"] = (basis, use_hyper, coordinates, True)
     rows: dict = {
-        name: {"loop": [], "own": [], "setup": [], "samples": [], "every": []} for name in variants
+        name: {"loop": [], "own": [], "setup": [], "samples": [], "every": []} for name in bases
     }
     for _ in range(repeats):
-        for name, (basis, use_hyper, coordinates, sampled) in variants.items():
+        for name, (basis, use_hyper, coordinates) in bases.items():
             make = galerkin.solver_factory(basis, use_hyper, coordinates)
             bare = run_scene(scene, write_outputs=False, record=True, solver_factory=make)
-            watch = ErrorIndicator(IndicatorSettings(sampled=sampled))
+            watch = ErrorIndicator(IndicatorSettings())
             run_scene(
                 scene, write_outputs=False, record=True, solver_factory=make, observers=[watch]
             )

@@ -53,6 +53,7 @@ from cosserat_fem.rod.charts import change_chart, change_chart_rate, chart_of
 from cosserat_fem.rod.load_coefficients import DataLoads
 from cosserat_fem.rod.structure import (
     StructureMesh,
+    cell_members,
     create_structure_mesh,
     member_frames,
     member_laws,
@@ -175,9 +176,8 @@ class RodModel:
         """The rest configuration of the scene's [reference] in UFL (forms/reference.py), or
         None for the straight rod, whose forms are the paper's (65) as written."""
         if self.scene.structure is not None:  # the members' frames (rod/structure.py)
-            if self.reference_frame is None:
-                self.reference_frame = member_frames(self.scene.structure, self.length, self.msh)
             frame = self.reference_frame
+            assert frame is not None, "_model's (member_frames)"
             return Reference(ufl.as_vector([frame[2, j] for j in range(3)]), frame, ufl.zero(3))
         shape = self.scene.reference
         if not shape.curved:
@@ -809,8 +809,11 @@ def _model(scene: Scene, V, bcs, tags, components, skipped, fork_nodes) -> RodMo
     dx = ufl.Measure("dx", domain=msh, metadata={"quadrature_degree": q})
     ds = ufl.Measure("ds", domain=msh, subdomain_data=tags)
     rod = _ufl_law(rod_constants(scene), scene, msh)
-    if scene.structure is not None:  # the members' own sections, DG0 fields (rod/structure.py)
-        rod = member_laws(rod, scene.structure, msh)
+    frame = None
+    if scene.structure is not None:  # the members' sections and frames, DG0 fields of one
+        cells = cell_members(scene.structure, rod.length, msh)  # cell assignment (structure.py)
+        rod = member_laws(rod, scene.structure, msh, assignment=cells)
+        frame = member_frames(scene.structure, rod.length, msh, assignment=cells)
     return RodModel(
         scene=scene,
         msh=msh,
@@ -820,6 +823,7 @@ def _model(scene: Scene, V, bcs, tags, components, skipped, fork_nodes) -> RodMo
         dx=dx,
         ds=ds,
         rod=rod,
+        reference_frame=frame,
         groups=dimensionless_groups(rod),
         convention=EndLoadConvention(scene.model.end_load_sign, scene.model.end_load_scaling),
         skipped=skipped,

@@ -101,7 +101,9 @@ def cell_members(
     """For each local and ghost cell: the index of the member it belongs to (by the cell's
     index in the input, :func:`create_structure_mesh` making each member's ``elements`` cells
     in the members' order: exact even for two members between the same nodes), whether its
-    vertices run against that member, and the members' unit tangents (members, 3)."""
+    vertices run against that member, and the members' unit tangents (members, 3). A model's
+    build computes it once and gives it to :func:`member_laws` and :func:`member_frames`
+    (rod/model.py)."""
     cells = msh.topology.index_map(1)
     count = cells.size_local + cells.num_ghosts
     vertices = msh.geometry.dofmap.array.reshape(-1, 2)[:count]
@@ -117,12 +119,20 @@ def cell_members(
     return member, against, tangents
 
 
-def member_frames(structure: Structure, length: float, msh: mesh.Mesh) -> fem.Function:
+def member_frames(
+    structure: Structure,
+    length: float,
+    msh: mesh.Mesh,
+    assignment: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> fem.Function:
     """D0 on each cell (module docstring) as a DG0 3×3 Function ``D0``: the member a cell
-    belongs to is :func:`cell_members`'s; its frame with d0_1, d0_3 negated where the
-    cell's vertices run against the member, so that d0_3 is the cell's own tangent."""
+    belongs to is :func:`cell_members`'s (``assignment``, its result; None: computed here); its
+    frame with d0_1, d0_3 negated where the cell's vertices run against the member, so that
+    d0_3 is the cell's own tangent."""
     space = fem.TensorFunctionSpace(msh, ElementMetaData("DG", 0), shape=(3, 3))
-    member, against, tangents = cell_members(structure, length, msh)
+    member, against, tangents = (
+        cell_members(structure, length, msh) if assignment is None else assignment
+    )
     frames = np.stack([m.frame(t) for m, t in zip(structure.members, tangents, strict=True)])
     D0 = frames[member].copy()
     D0[against, 0] *= -1.0
@@ -133,7 +143,12 @@ def member_frames(structure: Structure, length: float, msh: mesh.Mesh) -> fem.Fu
     return frame
 
 
-def member_laws(rod: RodConstants, structure: Structure, msh: mesh.Mesh) -> RodConstants:
+def member_laws(
+    rod: RodConstants,
+    structure: Structure,
+    msh: mesh.Mesh,
+    assignment: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+) -> RodConstants:
     """The rod with the members' own section laws (structure.members[i].section,
     resolved.MemberSection) as one :class:`SectionLaw` of cellwise-constant entries: each
     entry of K, μ and (I11, I22, I33) that differs between members a DG0 Function holding its
@@ -145,7 +160,8 @@ def member_laws(rod: RodConstants, structure: Structure, msh: mesh.Mesh) -> RodC
     d0_1, d0_3 negated and s reversed (:func:`member_frames`), which negates the d2 components
     of the strains (Γ2, κ2) and of the resultants: its K is F K F, F = diag(1, −1, 1, 1, −1,
     1) (K itself for a diagonal law). (The mesh builds every cell along its member, so no
-    cell runs against it today; the rule keeps the law right if one does.)"""
+    cell runs against it today; the rule keeps the law right if one does.)
+    ``assignment``: :func:`cell_members`'s result (None: computed here)."""
     if all(m.section is None for m in structure.members):
         return rod
     K0 = np.array(stiffness_matrix(rod), dtype=float)
@@ -161,7 +177,9 @@ def member_laws(rod: RodConstants, structure: Structure, msh: mesh.Mesh) -> RodC
         inertia = given if s is None or s.inertia is None else s.inertia
         values.append(np.concatenate([K.reshape(-1), [mu], np.asarray(inertia, dtype=float)]))
     table = np.array(values)
-    member, against, _ = cell_members(structure, rod.length, msh)
+    member, against, _ = (
+        cell_members(structure, rod.length, msh) if assignment is None else assignment
+    )
     # On a cell run against its member (d0_1, d0_3 and s reversed) the d2 components of the
     # strains and resultants change sign: the law there is F K F, F = diag(1, −1, 1, 1, −1, 1)
     # (the same K for a diagonal law).

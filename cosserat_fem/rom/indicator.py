@@ -114,10 +114,9 @@ class IndicatorSettings:
     in (at most the discretisation's); ``coupling``: δ of (10.8) (False: δ = 0, the linear
     transport about the straight rod); ``margin``: how far the coordinates may leave the training's
     range (a fraction of the largest coordinate's amplitude, and of the largest snapshot's
-    W-norm) before the run is flagged; ``sampled``: in a hyper-reduced run, the modes' forcing
-    from ECSW's sampled elements (10.11) instead of the full residual: a diagnostic, not an
-    estimate (measured 3.6-121 times off the full forcing over the paper's 0.06 s, E/error up
-    to 413: docs/rom.md §10 "Cost")."""
+    W-norm) before the run is flagged. A hyper-reduced run's forcing is the full residual's
+    too (the forcing from ECSW's sampled elements alone was measured and removed: docs/rom.md
+    §10 "Cost")."""
 
     every: int = 10
     tolerance: float = 1e-2
@@ -125,12 +124,10 @@ class IndicatorSettings:
     margin: float = 0.25
     modes: int = 30
     coupling: bool = True
-    sampled: bool = False
 
     def __post_init__(self) -> None:
-        for name in ("coupling", "sampled"):
-            if not isinstance(getattr(self, name), bool):
-                raise SceneError(f"indicator.{name}: must be true or false")
+        if not isinstance(self.coupling, bool):
+            raise SceneError("indicator.coupling: must be true or false")
         if isinstance(self.every, bool) or not isinstance(self.every, int) or self.every < 1:
             raise SceneError(f"indicator.every: must be a whole number >= 1, got {self.every!r}")
         if isinstance(self.modes, bool) or not isinstance(self.modes, int) or self.modes < 1:
@@ -357,44 +354,6 @@ class ErrorModes:
         return self.Phi @ eta
 
 
-class SampledDefect:
-    """The modes' forcing from ECSW's sampled elements E and weights ξ_e of a hyper-reduced
-    run (cosserat_fem/rom/hyper.py (10)), in place of the full residual's:
-
-        Φᵀ D R ≈ Σ_{e∈E} ξ_e (T_e)ᵀ F_e(U_e),   T = D Φ on U's rows of q,         (10.11)
-
-    the sampled problem's kernels (cf_reduced_residual, the solver's own, on the rows of U it
-    keeps current) with the test functions T of the N modes instead of D V: O(|E| n_e N) a
-    stage, nothing O(n). ``projected(shift)``: that sum at U + Φ η on p's rows (δ of (10.8),
-    U's rows the sampled elements read moved and restored)."""
-
-    def __init__(self, solver, modes: ErrorModes, n: int):
-        self.ffi, self.lib = solver._ffi, solver._lib
-        self.problem = solver._R.F
-        self.U = solver.U.x.array
-        count = len(modes.lam)
-        self.T = np.zeros((n, count))
-        self.T[modes.q_rows] = modes.DPhi
-        self.rows = np.asarray(solver._arrays["rows"])
-        self.shapes = modes.on_rows(n)[self.rows]  # Φ on the sampled rows (zero on q's)
-        self.r = np.zeros(count)
-        self._T = self.ffi.cast("double*", self.T.ctypes.data)
-        self._r = self.ffi.cast("double*", self.r.ctypes.data)
-
-    def projected(self, eta: np.ndarray | None = None) -> np.ndarray:
-        """Σ_{e∈E} ξ_e T_eᵀ F_e (10.11) at U (with ``eta``: at U + Φ η on the sampled rows)."""
-        rows = self.rows
-        if eta is not None:
-            kept = self.U[rows].copy()
-            self.U[rows] += self.shapes @ eta
-        try:
-            self.lib.cf_reduced_residual(self.problem, self._T, len(self.r), self._r, self.ffi.NULL)
-        finally:
-            if eta is not None:
-                self.U[rows] = kept
-        return self.r.copy()
-
-
 def basis_modes(model, n: int, count: int | None = None) -> tuple[np.ndarray, np.ndarray, dict]:
     """The modes of (10.5) for a basis file (cosserat_fem/rom/basis.py ``pod_basis``): λ, Φ on
     U's n owned rows, and the provenance entry {"key": :func:`stored_key`, "modes": N} that a
@@ -572,7 +531,6 @@ class ErrorIndicator(Observer):
         self._saturated = False  # the transport blew up (:data:`BLOWN`)
         self._t_new = 0.0
         self.modes: ErrorModes | None = None
-        self.sampler: SampledDefect | None = None  # a hyper-reduced run's (10.11)
         self.modes_from = ""  # the modes "solved" (SLEPc), "cached" (this process's), or "basis"
 
     # -- set-up --------------------------------------------------------------------------
@@ -597,9 +555,6 @@ class ErrorIndicator(Observer):
         m = self.modes  # V's rows of the free end's x/ℓ, y/ℓ, z/ℓ (of U's p rows)
         self._tip_V = self.basis.V[m.p_rows[np.isin(m.places, m.ends)]]
         count = len(self.modes.lam)
-        self.sampler = None
-        if self.settings.sampled and getattr(solver, "loop", None) == "hyper":
-            self.sampler = SampledDefect(solver, m, n)
         self._eta, self._rate = np.zeros(count), np.zeros(count)
         self._g, self._coupling = np.zeros(count), np.zeros(count)
         self._first = True
@@ -709,11 +664,8 @@ class ErrorIndicator(Observer):
         if not self._sampling or self._saturated:
             return
         t0 = time.perf_counter()
-        if self.sampler is not None:  # −g of the stage from the sampled elements (10.11)
-            self._stages.append(self.sampler.projected())
-        else:
-            loop.lift()  # U and the stage's Z in full (nothing to do on full vectors)
-            self._stages.append(full_residual(self.solver))
+        loop.lift()  # U and the stage's Z in full (nothing to do on full vectors)
+        self._stages.append(full_residual(self.solver))
         b = self.stage_weights
         if b is None or len(self._stages) == len(b):
             self._advance(loop)
@@ -730,7 +682,7 @@ class ErrorIndicator(Observer):
             R = sum(w * F for w, F in zip(b, self._stages, strict=True))
         else:  # one-stage schemes: the last stage's
             R = self._stages[-1]
-        g = -R if self.sampler is not None else modes.forcing(R[modes.q_rows])
+        g = modes.forcing(R[modes.q_rows])
         if self._first:  # the forcing held from the start to the first sample
             self._g = g
         tau = self._t_new * self.omega0
@@ -740,11 +692,7 @@ class ErrorIndicator(Observer):
         eta, rate = oscillator_step(self._eta, self._rate, modes.lam, dt, a, slope)
         coupling = self._coupling
         if self.settings.coupling:  # −Φᵀ D δ of (10.8): φ_jᵀ D K φ_l = λ_j δ_jl, so K e is Λ η
-            if self.sampler is not None:  # (10.11) at p + e_p less at p
-                shifted = self.sampler.projected(eta) - self._stages[-1]
-                coupling = -shifted + modes.lam * eta
-            else:
-                coupling = modes.forcing(self._difference(modes.shape(eta))) + modes.lam * eta
+            coupling = modes.forcing(self._difference(modes.shape(eta))) + modes.lam * eta
             coupling = np.where(np.sqrt(modes.lam) * dt <= RESOLVED, coupling, 0.0)
             if dt > 0 and not self._first:  # (10.10): the coupling linear over the interval
                 turn = slope + (coupling - self._coupling) / dt
@@ -961,7 +909,6 @@ class ErrorIndicator(Observer):
                     "wall_time_s": self.seconds,
                     "setup_wall_time_s": self.setup_seconds,
                     "modes_from": self.modes_from,
-                    "defect": "full" if self.sampler is None else "sampled",
                 },
                 "outside_training": [*outside, *self.outside],
             }
