@@ -36,7 +36,6 @@ import sys
 import time
 
 import numpy as np
-import ufl
 from dolfinx import cpp as _cpp
 from dolfinx import fem, mesh
 from mpi4py import MPI
@@ -103,48 +102,22 @@ _original = structure_module.create_structure_mesh
 
 
 def duplicated_mesh(structure, length, comm):
-    """create_structure_mesh with member 1 (BD) starting from its own copy of node B."""
-    names = [n.name for n in structure.nodes]
-    r0 = structure.positions()
-    points = [r0[n] for n in names]
-    cells = []
-    for k, m in enumerate(structure.members):
-        a, b = r0[m.start], r0[m.end]
-        first = names.index(m.start)
-        if k == 1:
-            first = len(points)
-            points.append(a.copy())
-        chain = [first]
-        for j in range(1, m.elements):
-            chain.append(len(points))
-            points.append(a + (b - a) * j / m.elements)
-        chain.append(names.index(m.end))
-        cells += [[chain[j], chain[j + 1]] for j in range(m.elements)]
-    x = np.asarray(points, dtype=float) / length
-    cell = ufl.Cell("interval", geometric_dimension=3)
-    domain = ufl.Mesh(ufl.VectorElement("Lagrange", cell, 1, dim=3))
-    msh = mesh.create_mesh(comm, np.asarray(cells, dtype=np.int64), x, domain)
-    msh.topology.create_connectivity(0, 1)
-    vertices = {
-        n: mesh.locate_entities(
-            msh, 0, lambda y, at=r0[n] / length: np.linalg.norm(y - at[:, None], axis=0) < 1e-10
-        )
-        for n in names
-    }
-    entities = np.concatenate(list(vertices.values())).astype(np.int32)
-    values = np.concatenate(
-        [
-            np.full(len(vertices[n]), structure_module.NODE_TAG + i, np.int32)
-            for i, n in enumerate(names)
-        ]
-    )
-    order = np.argsort(entities)
-    tags = mesh.meshtags(msh, 0, entities[order], values[order])
-    loads = [
-        (x, structure_module.NODE_TAG + names.index(x.node), structure.degree(x.node) == 2)
-        for x in structure.loads
-    ]
-    return structure_module.StructureMesh(msh, vertices, tags, loads, [])
+    """create_structure_mesh with member 1 (BD) starting from its own copy of node B: the
+    function's call of dolfinx.mesh.create_mesh is given one more point, B's copy, and
+    member 1's first cell starts from it (its vertices tagged as B's, both)."""
+    real = mesh.create_mesh
+
+    def create(comm, topology, x, domain):
+        first = structure.members[0].elements  # member 1's first cell
+        topology = topology.copy()
+        joint, topology[first, 0] = topology[first, 0], len(x)
+        return real(comm, topology, np.vstack([x, x[joint]]), domain)
+
+    mesh.create_mesh = create
+    try:
+        return _original(structure, length, comm)
+    finally:
+        mesh.create_mesh = real
 
 
 def joint_blocks(model, elements: int) -> tuple[int, int]:
