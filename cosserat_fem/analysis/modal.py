@@ -45,6 +45,7 @@ from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import OutputError, SceneError, SolverError
 from cosserat_fem.common.parallel import agree
 from cosserat_fem.io.run_folder import write_summary
+from cosserat_fem.nls.constraints import Identification
 from cosserat_fem.output.fields import XdmfWriter
 from cosserat_fem.rod.model import FULL, RodModel, structure_conditions, support_conditions
 from cosserat_fem.scene.build import Scene
@@ -170,6 +171,8 @@ class ModalOperator:
         M = assemble_matrix(self.M_form, bcs=self.bcs, diagonal=0.0)
         M.assemble()
         problem = ModalProblem(model=self.model, P=self.P, p0=self.p0, K=K, M=M)
+        if self.model.constraints is not None:  # a structure's joints
+            return join_copies(problem, self.model.constraints)
         return join_ends(problem) if self.model.scene.reference.closed else problem
 
 
@@ -193,35 +196,61 @@ def _end_dofs(P: fem.FunctionSpace, sigma: float) -> np.ndarray:
 
 
 def join_ends(problem: ModalProblem) -> ModalProblem:
-    """The eigenproblem of a closed rod (reference.closed): its unknowns p(ℓ) = p(0).
+    """The eigenproblem of a closed rod (reference.closed): its unknowns p(ℓ) = p(0), the end
+    node (σ = 1) a copy of the start node (σ = 0) (:func:`identify`). The weak form of the
+    ring has test functions continuous across the joint too, so its rows are Sᵀ applied to the
+    open rod's. The reference must close in position and frame (scene validation), so p =
+    (displacement, Euler angles of R that carries D0) means the same at both ends."""
+    start, end = _end_dofs(problem.P, 0.0), _end_dofs(problem.P, 1.0)
+    return identify(problem, end, start, np.zeros(end.size, dtype=bool))
 
-    S maps p onto the p whose end node (σ = 1) takes the values of the start node (σ = 0):
-    S = I but for the end node's columns, which move to the start node's. The weak form of
-    the ring has test functions continuous across the joint too, so its rows are Sᵀ applied
-    to the open rod's: K̃ = Sᵀ K S + D, M̃ = Sᵀ M S, where the end node's rows and columns
-    are zero and D puts 1 on K̃'s diagonal there (their eigenvalues are infinite, as a
-    clamped dof's: away from the wanted ones); a mode φ of (K̃, M̃) has the shape S φ. The
-    reference must close in position and frame (scene validation), so p = (displacement,
-    Euler angles of R that carries D0) means the same at both ends."""
-    P, K, M = problem.P, problem.K, problem.M
-    start, end = _end_dofs(P, 0.0), _end_dofs(P, 1.0)
+
+def join_copies(problem: ModalProblem, ties: Identification) -> ModalProblem:
+    """The eigenproblem of a structure whose joints tie dofs (cosserat_fem/nls/constraints.py,
+    ``ties`` on the model's 12-component space): the ties of p's components, on the
+    6-component space (the same blocks), by :func:`identify`; a copy whose master a support
+    holds is held."""
+    P = problem.P
+    offset = P.dofmap.index_map.local_range[0]
+    block, k = np.divmod(ties.copies, ties.bs)
+    master = ties.masters // ties.bs
+    of_p = k < 6  # p's components: the first six of (p, q)
+    copies = 6 * (block[of_p] + offset) + k[of_p]
+    masters = 6 * (master[of_p] + offset) + k[of_p]
+    return identify(problem, copies, masters, ~ties.added[of_p])
+
+
+def identify(
+    problem: ModalProblem, copies: np.ndarray, masters: np.ndarray, held: np.ndarray
+) -> ModalProblem:
+    """The eigenproblem with the dofs ``copies`` (global indices) taking the values of their
+    ``masters``, or zero where ``held`` (the master held by a support).
+
+    S maps the reduced p onto p: S = I but for the copies' rows, whose 1 moves to their
+    master's column (none where held). The copies' test functions are their masters' too, so
+    K̃ = Sᵀ K S + D, M̃ = Sᵀ M S, where the copies' rows and columns are zero and D puts 1 on
+    K̃'s diagonal there (their eigenvalues are infinite, as a clamped dof's: away from the
+    wanted ones); a mode φ of (K̃, M̃) has the shape S φ. Each rank gives the copies it owns,
+    or all (only the owned ones are used)."""
+    K, M = problem.K, problem.M
     rows = K.getOwnershipRange()
     columns = np.arange(*rows, dtype=PETSc.IntType)  # S's one entry a row: 1 in this column
-    mine = (end >= rows[0]) & (end < rows[1])
-    columns[end[mine] - rows[0]] = start[mine]
+    mine = (copies >= rows[0]) & (copies < rows[1])
+    columns[copies[mine] - rows[0]] = masters[mine]
+    keep = np.ones(columns.size, dtype=bool)
+    keep[copies[mine & held] - rows[0]] = False
     S = PETSc.Mat().createAIJ((K.getSizes()[0], K.getSizes()[0]), nnz=(1, 1), comm=K.comm)
-    pointers = np.arange(columns.size + 1, dtype=PETSc.IntType)
-    S.setValuesCSR(pointers, columns, np.ones(columns.size))
+    pointers = np.concatenate([[0], np.cumsum(keep)]).astype(PETSc.IntType)
+    S.setValuesCSR(pointers, columns[keep], np.ones(int(keep.sum())))
     S.assemble()
     K_joined, M_joined = K.PtAP(S), M.PtAP(S)
-    K.destroy()  # the open rod's: replaced
+    K.destroy()  # the unjoined: replaced
     M.destroy()
     K_joined.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-    for row in end:
-        if rows[0] <= row < rows[1]:
-            K_joined.setValue(int(row), int(row), 1.0, addv=PETSc.InsertMode.ADD_VALUES)
+    for row in copies[mine]:
+        K_joined.setValue(int(row), int(row), 1.0, addv=PETSc.InsertMode.ADD_VALUES)
     K_joined.assemble()
-    return ModalProblem(problem.model, P, problem.p0, K_joined, M_joined, joint=S)
+    return ModalProblem(problem.model, problem.P, problem.p0, K_joined, M_joined, joint=S)
 
 
 def shift_invert(problem: ModalProblem, count: int, ncv: int, tol: float, lu_package: str):

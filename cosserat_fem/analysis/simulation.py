@@ -318,7 +318,9 @@ def _discretise(scene: Scene, comm, initial_state, restart, solver_factory=None)
     )
     settings = NewtonSettings.of(scene.solver)
     if solver_factory is None:
-        solver = make_solver(integrator.residual_form(), model.U, model.bcs, settings)
+        solver = make_solver(
+            integrator.residual_form(), model.U, model.bcs, settings, model.constraints
+        )
     else:
         solver = solver_factory(model, integrator.residual_form(), model.bcs, settings)
         space = getattr(solver, "coordinate_space", None)

@@ -245,7 +245,9 @@ def static_solver(scene: Scene, model: RodModel) -> NewtonSolver:
         # full Newton's quadratic end (a reused matrix left roll-up gaps of 7e-8).
         LOGGER.info("static: full Newton (solver.jacobian = %r is for runs)", settings.jacobian)
     settings = replace(settings, jacobian="full")
-    solver = make_solver(integrator.residual_form(), model.U, model.bcs, settings)
+    solver = make_solver(
+        integrator.residual_form(), model.U, model.bcs, settings, model.constraints
+    )
     integrator.prepare(scene.static.time * model.omega0)
     model.sync_loads(integrator.time_eval)  # loads given by data, at static.time
     return solver

@@ -55,6 +55,7 @@ from petsc4py import PETSc
 from ufl.algorithms.analysis import extract_coefficients, extract_constants
 
 from cosserat_fem.common.errors import CosseratError
+from cosserat_fem.nls.constraints import Identification
 from cosserat_fem.nls.native_newton import NativeLoop, core
 
 JACOBIAN_POLICIES = ("full", "lagged", "frozen")
@@ -155,11 +156,15 @@ class NewtonSolver:
         settings: NewtonSettings,
         form_compiler_params: dict | None = None,
         jit_params: dict | None = None,
+        constraints: Identification | None = None,
     ):
         if settings.jacobian not in JACOBIAN_POLICIES:
             raise ValueError(f"unknown Jacobian policy {settings.jacobian!r}")
         self.U = U
         self.bcs = bcs
+        #: dofs tied to others by rows of F and J (cosserat_fem/nls/constraints.py), or None;
+        #: under MPI on every rank alike (its matrix operations are collective)
+        self.constraints = constraints
         self._native: NativeLoop | None = None
         comm = U.function_space.mesh.comm
         module = core(comm)  # collective: rank 0 compiles on a cold cache
@@ -190,7 +195,10 @@ class NewtonSolver:
         self.b = create_vector(self.F_form)  # F(U)
         self.dx = create_vector(self.F_form)  # the Newton update δU
         self._initial = create_vector(self.F_form)  # the initial guess, kept for a retry
-        self.A = create_matrix(self.J_form, mat_type="baij")
+        if self.constraints is None:
+            self.A = create_matrix(self.J_form, mat_type="baij")
+        else:  # with the blocks the constraints' rows fill
+            self.A = self.constraints.create_matrix(self.J_form)
 
         self.lu_package = self._lu_package(comm, settings.linear_solver)
         self.ksp = PETSc.KSP().create(comm)
@@ -301,6 +309,9 @@ class NewtonSolver:
         self.loop = "python"
         if self.settings.loop != "auto" or self._parallel:
             return
+        if self.constraints is not None:  # their rows are applied after DOLFINx's assembly
+            logging.getLogger(__name__).info("Newton's inner loop in Python: constrained dofs")
+            return
         from cosserat_fem.nls.native_newton import NativeLoop, NotApplicable
 
         try:
@@ -353,6 +364,8 @@ class NewtonSolver:
             cpp.fem.set_bc(b.array_w, self.bcs, self._u_owned, -1.0)
         else:
             self._assemble(b.array_w, dirichlet=True)
+        if self.constraints is not None:  # (C.1)-(C.2) of cosserat_fem/nls/constraints.py
+            self.constraints.apply_vector(b.array_w, self.U.x.array)
         # b's arrays are released (VecRestoreArray): its state has moved on, so PETSc does
         # not answer with a norm it cached before.
 
@@ -371,12 +384,7 @@ class NewtonSolver:
         """J(U) into A (identity rows and columns at the Dirichlet dofs), when cf_solve's
         policy asks for it; for a reused Jacobian its inputs are kept for a checkpoint."""
         t0 = time.perf_counter()
-        A = self.A
-        A.zeroEntries()
-        # assemble_matrix is a singledispatch whose overload for a PETSc.Mat first (mat, form,
-        # bcs) DOLFINx's annotations do not show
-        assemble_matrix(A, self.J_form, bcs=self.bcs)  # type: ignore[misc]
-        A.assemble()
+        self._assemble_jacobian()
         if self.settings.jacobian != "full":
             coefficients, constants = self._J_inputs
             self._J_snapshot = {
@@ -385,6 +393,18 @@ class NewtonSolver:
             }
         self._stats.jacobian_assemblies += 1
         self._stats.time_jacobian += time.perf_counter() - t0
+
+    def _assemble_jacobian(self) -> None:
+        """J(U) into A, with the constraints' rows (cosserat_fem/nls/constraints.py)."""
+        A = self.A
+        A.zeroEntries()
+        if self.constraints is not None:
+            self.constraints.assemble_matrix(A, self.J_form, self.bcs)
+            return
+        # assemble_matrix is a singledispatch whose overload for a PETSc.Mat first (mat, form,
+        # bcs) DOLFINx's annotations do not show
+        assemble_matrix(A, self.J_form, bcs=self.bcs)  # type: ignore[misc]
+        A.assemble()
 
     def _converged(self, it: int, norms) -> int:
         """The stop rule of the module docstring (``cf_test``, the one cf_solve runs) after
@@ -484,10 +504,7 @@ class NewtonSolver:
             c.x.array[:] = state[f"jacobian.coefficient{i}"]
         for i, c in enumerate(constants):
             c.value = state[f"jacobian.constant{i}"]
-        self.A.zeroEntries()
-        # a singledispatch overload DOLFINx's annotations do not show (as in _jacobian)
-        assemble_matrix(self.A, self.J_form, bcs=self.bcs)  # type: ignore[misc]
-        self.A.assemble()
+        self._assemble_jacobian()
         self._J_snapshot = {
             k.removeprefix("jacobian."): np.array(v)
             for k, v in state.items()

@@ -8,16 +8,24 @@ from __future__ import annotations
 import ufl
 from dolfinx import fem
 
+from cosserat_fem.nls.constraints import Identification
 from cosserat_fem.nls.newton import NewtonSettings, NewtonSolver
 
 
-def make_solver(F: ufl.Form, U: fem.Function, bcs: list, settings: NewtonSettings) -> NewtonSolver:
+def make_solver(
+    F: ufl.Form,
+    U: fem.Function,
+    bcs: list,
+    settings: NewtonSettings,
+    constraints: Identification | None = None,
+) -> NewtonSolver:
     """The nonlinear solver of F(U) = 0 that ``settings`` choose: PETSc's SNES configured by
     ``settings.petsc`` (:class:`~cosserat_fem.nls.snes.SNESSolver`) for
     nonlinear = "snes", or "auto" with options; else :class:`NewtonSolver`. Both have the
-    same interface, stop rule and Jacobian policies."""
+    same interface, stop rule and Jacobian policies, and take the dofs ``constraints`` ties
+    (cosserat_fem/nls/constraints.py)."""
     if settings.nonlinear == "snes" or (settings.nonlinear == "auto" and settings.petsc):
         from cosserat_fem.nls.snes import SNESSolver
 
-        return SNESSolver(F, U, bcs, settings)
-    return NewtonSolver(F, U, bcs, settings)
+        return SNESSolver(F, U, bcs, settings, constraints=constraints)
+    return NewtonSolver(F, U, bcs, settings, constraints=constraints)

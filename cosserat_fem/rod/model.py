@@ -48,6 +48,7 @@ from cosserat_fem.forms.kinematics import P_NAMES, quaternion_chart
 from cosserat_fem.forms.reference import Reference
 from cosserat_fem.forms.resultants import scaled_law
 from cosserat_fem.forms.section import SectionLaw
+from cosserat_fem.nls.constraints import Identification
 from cosserat_fem.rod import charts
 from cosserat_fem.rod.charts import change_chart, change_chart_rate, chart_of
 from cosserat_fem.rod.load_coefficients import DataLoads
@@ -147,6 +148,8 @@ class RodModel:
     data: DataLoads | None = None
     #: A structure's mesh, nodes and node loads (cosserat_fem/rod/structure.py), or None.
     structure: StructureMesh | None = None
+    #: The dofs its joints tie (cosserat_fem/nls/constraints.py), or None: no joints.
+    constraints: Identification | None = None
 
     @property
     def needs_chart(self) -> bool:
@@ -302,7 +305,9 @@ class RodModel:
         reached from (a node of the same cell: the frame between them is that cell's
         interpolant), so that every node has a positive product with that neighbour: the
         rod's rule along σ, on a tree or a closed frame (whose loop closes on a rotation
-        field continuous from the rest, so its last edge agrees too)."""
+        field continuous from the rest, so its last edge agrees too). A joint's two copies are
+        one more edge (their rotations apart, the sign across it is any: the walk reaches the
+        members beyond it)."""
         from scipy.sparse import coo_matrix
         from scipy.sparse.csgraph import breadth_first_order
 
@@ -312,24 +317,30 @@ class RodModel:
         glob = imap.local_to_global(np.arange(n + imap.num_ghosts, dtype=np.int32))
         owned_cells = self.msh.topology.index_map(self.msh.topology.dim).size_local
         cells = V.dofmap.list.array.reshape(-1, V.dofmap.dof_layout.num_dofs)[:owned_cells]
-        parts = comm.gather((glob[:n], Q_owned.copy(), glob[cells]), root=0)
+        if self.constraints is not None:  # a joint's copies: one more edge of the walk
+            ties = self.constraints
+            joined = glob[np.stack([ties.master_blocks, ties.copy_blocks], axis=1)]
+        else:
+            joined = np.zeros((0, 2), dtype=np.int64)
+        parts = comm.gather((glob[:n], Q_owned.copy(), glob[cells], joined), root=0)
         flips = None
         if comm.rank == 0:
             total = imap.size_global
             values = np.empty((total, 4))
-            for ids, q, _ in parts:
+            for ids, q, _, _ in parts:
                 values[ids] = q
-            links = np.concatenate([c for _, _, c in parts])
+            links = np.concatenate([c for _, _, c, _ in parts])
             k = links.shape[1]
-            rows = np.repeat(links, k, axis=1).ravel()
-            cols = np.tile(links, (1, k)).ravel()
+            pairs = np.concatenate([j for _, _, _, j in parts])
+            rows = np.concatenate([np.repeat(links, k, axis=1).ravel(), pairs[:, 0]])
+            cols = np.concatenate([np.tile(links, (1, k)).ravel(), pairs[:, 1]])
             graph = coo_matrix((np.ones(rows.size), (rows, cols)), shape=(total, total)).tocsr()
             order, parent = breadth_first_order(graph, 0, directed=False)
             sign = np.ones(total)
             for node in order[1:]:
                 up = parent[node]
                 sign[node] = sign[up] * (-1.0 if values[node] @ values[up] < 0.0 else 1.0)
-            flips = [sign[ids] < 0.0 for ids, _, _ in parts]
+            flips = [sign[ids] < 0.0 for ids, _, _, _ in parts]
         return comm.scatter(flips, root=0)
 
     def _ghost_signs(self, Q: np.ndarray) -> None:
@@ -848,6 +859,8 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
     bcs, forks = structure_conditions(V, scene, made.vertices, FULL)
     model = _model(scene, V, bcs, made.tags, FULL, scene.absent_terms(), forks)
     model.structure = made
+    if structure.joints:  # the copies of the joints' nodes, tied (rod/structure.py)
+        model.constraints = Identification(V, *made.joint_blocks(V, structure), bcs)
     return model
 
 

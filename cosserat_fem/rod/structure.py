@@ -8,6 +8,14 @@ so they share its unknowns p = (x/ℓ, y/ℓ, z/ℓ, θ, ψ, φ), q = dp/dτ: th
 spatial rotation Λ that turns every member's rest directors, d_i = Λ d0_i (forms/reference.py),
 so the members' directors there keep their rest angles to one another: a rigid joint.
 
+A joint other than rigid ([[structure.joints]], docs/structures.md) gives the members it names
+their own copy of the node's vertex, a point appended after the members' interior vertices
+(one copy a joint); the members it does not name keep the node's vertex (the *master*). The
+copies' dofs are tied afterwards, by rows of the assembled system
+(cosserat_fem/nls/constraints.py): a spherical joint identifies the translations and their
+rates. Under MPI a joint's cells are all owned by one rank (:func:`_partitioner`), so that
+both copies' dofs are its own.
+
 On this mesh σ is the arc length over ℓ along each cell, d/dσ the tangential derivative
 (forms/kinematics.py :func:`~cosserat_fem.forms.kinematics.d_sigma`), and the rest frame D0 a
 cellwise-constant 3×3 field (:func:`member_frames`): each cell holds its member's frame
@@ -23,14 +31,14 @@ from dataclasses import dataclass
 
 import numpy as np
 import ufl
-from dolfinx import fem, mesh
+from dolfinx import cpp, fem, mesh
 from dolfinx.fem.function import ElementMetaData
 from mpi4py import MPI
 
 from cosserat_fem.forms.groups import RodConstants
 from cosserat_fem.forms.resultants import stiffness_matrix
 from cosserat_fem.forms.section import SectionLaw
-from cosserat_fem.scene.resolved import NodeBody, NodeLoad, Structure
+from cosserat_fem.scene.resolved import JOINT_COMPONENTS, NodeBody, NodeLoad, Structure
 
 #: The vertex tags of the structure's nodes: node i of the scene gets NODE_TAG + i.
 NODE_TAG = 10
@@ -38,9 +46,10 @@ NODE_TAG = 10
 
 @dataclass
 class StructureMesh:
-    """The mesh of a structure, its nodes' vertices (local, by node name), their tags
-    (a vertex MeshTags: :data:`NODE_TAG` + the node's index) and the node loads with their
-    tag and whether the node is inside a chain of two members (an interior facet: dS)."""
+    """The mesh of a structure, its nodes' vertices (local, by node name; at a joint the
+    master's), their tags (a vertex MeshTags: :data:`NODE_TAG` + the node's index) and the
+    node loads with their tag and whether the node is inside a chain of two members (an
+    interior facet: dS)."""
 
     msh: mesh.Mesh
     vertices: dict[str, np.ndarray]
@@ -48,6 +57,28 @@ class StructureMesh:
     loads: list[tuple[NodeLoad, int, bool]]
     #: the rigid bodies at nodes, with their tag and whether the node is a chain's (dS)
     bodies: list[tuple[NodeBody, int, bool]]
+    #: per joint of structure.joints: the local vertices (local or ghost; none on a rank
+    #: without the joint's cells) of its master and of its copy
+    joints: list[tuple[np.ndarray, np.ndarray]] = dataclasses.field(default_factory=list)
+
+    def joint_blocks(
+        self, V: fem.FunctionSpace, structure: Structure
+    ) -> tuple[list[int], list[int], list[tuple[int, ...]]]:
+        """The dof blocks of V tied by the joints that this rank owns, (masters, copies,
+        components): per joint one (master block, copy block), local indices, and the
+        components of U = (p, q) it identifies (resolved.JOINT_COMPONENTS of its kind). A
+        joint's two blocks are one rank's (:func:`_partitioner`); AssertionError if not."""
+        owned = V.dofmap.index_map.size_local
+        masters, copies, components = [], [], []
+        for joint, (master, copy) in zip(structure.joints, self.joints, strict=True):
+            pair = [fem.locate_dofs_topological(V, 0, v) for v in (master, copy)]
+            mine = [len(b) > 0 and int(b[0]) < owned for b in pair]
+            assert mine[0] == mine[1], f"joint at {joint.node!r}: its copies on two ranks"
+            if mine[0]:
+                masters.append(int(pair[0][0]))
+                copies.append(int(pair[1][0]))
+                components.append(JOINT_COMPONENTS[joint.kind])
+        return masters, copies, components
 
 
 def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -> StructureMesh:
@@ -65,23 +96,53 @@ def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -
             points.append(a + (b - a) * j / m.elements)
         chain.append(names.index(m.end))
         cells += [[chain[j], chain[j + 1]] for j in range(m.elements)]
+    first = np.cumsum([0] + [m.elements for m in structure.members])
+    joint_points = []
+    for joint in structure.joints:  # the named members' cells at the node: the copy
+        joint_points.append(len(points))
+        points.append(r0[joint.node])
+        node = names.index(joint.node)
+        for name in joint.members:
+            i = [m.name for m in structure.members].index(name)
+            for c in range(first[i], first[i + 1]):
+                cells[c] = [len(points) - 1 if v == node else v for v in cells[c]]
     x = np.asarray(points, dtype=float) / length
     topology = np.asarray(cells, dtype=np.int64)
     if comm.rank != 0:
         x, topology = np.zeros((0, 3)), np.zeros((0, 2), dtype=np.int64)
     cell = ufl.Cell("interval", geometric_dimension=3)
     domain = ufl.Mesh(ufl.VectorElement("Lagrange", cell, 1, dim=3))
-    msh = mesh.create_mesh(comm, topology, x, domain)
+    if structure.joints:
+        groups = [
+            [names.index(j.node), p] for j, p in zip(structure.joints, joint_points, strict=True)
+        ]
+        msh = mesh.create_mesh(comm, topology, x, domain, partitioner=_partitioner(groups))
+    else:
+        msh = mesh.create_mesh(comm, topology, x, domain)
     msh.topology.create_connectivity(0, 1)
+    original = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)
     scale = max(1.0, float(np.abs(np.asarray(points)).max()) / length)
     vertices = {}
     for name in names:
         at = r0[name] / length
-        vertices[name] = mesh.locate_entities(
+        found = mesh.locate_entities(
             msh,
             0,
             lambda y, at=at: np.linalg.norm(y - at[:, None], axis=0) < 1e-10 * scale,
         )
+        vertices[name] = found[~np.isin(_input_vertex(msh, found, original), joint_points)]
+    joints = []
+    for joint, point in zip(structure.joints, joint_points, strict=True):
+        master = vertices[joint.node]
+        at = mesh.locate_entities(
+            msh,
+            0,
+            lambda y, at=r0[joint.node] / length: (
+                np.linalg.norm(y - at[:, None], axis=0) < 1e-10 * scale
+            ),
+        )
+        copy = at[_input_vertex(msh, at, original) == point]
+        joints.append((master, copy))
     entities = np.concatenate(list(vertices.values())).astype(np.int32)
     values = np.concatenate(
         [np.full(len(vertices[n]), NODE_TAG + i, dtype=np.int32) for i, n in enumerate(names)]
@@ -92,7 +153,56 @@ def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -
         [(x, NODE_TAG + names.index(x.node), structure.degree(x.node) == 2) for x in items]
         for items in (structure.loads, structure.bodies)
     )
-    return StructureMesh(msh, vertices, tags, loads, bodies)  # type: ignore[arg-type]
+    return StructureMesh(msh, vertices, tags, loads, bodies, joints)  # type: ignore[arg-type]
+
+
+def _input_vertex(msh: mesh.Mesh, vertices: np.ndarray, original: np.ndarray) -> np.ndarray:
+    """The input point (index in create_mesh's x) of each of the local ``vertices``: through
+    a cell's geometry dofs (``original``: the geometry nodes' input indices; P1 geometry, so
+    a cell's vertices are its geometry nodes, in the same order)."""
+    c2v = msh.topology.connectivity(1, 0)
+    v2c = msh.topology.connectivity(0, 1)
+    nodes = msh.geometry.dofmap
+    found = np.empty(len(vertices), dtype=np.int64)
+    for k, v in enumerate(vertices):
+        c = v2c.links(v)[0]
+        local = list(c2v.links(c)).index(v)
+        found[k] = original[nodes.links(c)[local]]
+    return found
+
+
+def _partitioner(groups: list[list[int]]):
+    """DOLFINx's default cell partition with every cell that touches a joint (``groups``:
+    per joint the input points of its master and its copy) owned by one rank, that of the
+    joint's first such cell, and the ghosts made again as DOLFINx makes them for a
+    shared-facet mesh of intervals: a cell is a ghost on each other rank that owns a cell
+    sharing a vertex with it. Rank 0 holds every input cell (create_structure_mesh)."""
+    default = cpp.mesh.create_cell_partitioner()
+
+    def partition(comm, nparts, tdim, cells, ghost_mode):
+        parts = default(comm, nparts, tdim, cells, ghost_mode)
+        count = cells.num_nodes
+        if count == 0:
+            return parts
+        owner = np.array([parts.links(i)[0] for i in range(count)], dtype=np.int32)
+        topology = cells.array.reshape(count, -1)
+        for group in groups:
+            touching = np.flatnonzero(np.isin(topology, group).any(axis=1))
+            owner[touching] = owner[touching[0]]
+        by_vertex: dict[int, set[int]] = {}
+        for c, vertices in enumerate(topology):
+            for v in vertices:
+                by_vertex.setdefault(int(v), set()).add(int(owner[c]))
+        data, offsets = [], [0]
+        for c, vertices in enumerate(topology):
+            ranks = set().union(*(by_vertex[int(v)] for v in vertices)) - {int(owner[c])}
+            data += [int(owner[c]), *sorted(ranks)]
+            offsets.append(len(data))
+        return cpp.graph.AdjacencyList_int32(
+            np.asarray(data, dtype=np.int32), np.asarray(offsets, dtype=np.int32)
+        )
+
+    return partition
 
 
 def cell_members(

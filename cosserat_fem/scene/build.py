@@ -63,6 +63,7 @@ from cosserat_fem.scene.resolved import (  # noqa: F401 - the resolved scene, im
     Solver,
     StaticSettings,
     Structure,
+    StructureJoint,
     StructureMember,
     StructureNode,
     StructureSupport,
@@ -949,10 +950,20 @@ def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStor
             if sum(x != 0 for x in axis) != 1:
                 raise SceneError(f"{key}.axis: a hinge axis must lie along e1, e2 or e3")
         supports.append(build(StructureSupport, entry, axis=axis))
+    joints = _structure_joints(raw["joints"], members, r0)
     if raw["probe"] is not None and raw["probe"] not in r0:
         raise SceneError(f"structure.probe: unknown node {raw['probe']!r}")
+    if raw["probe"] in {j.node for j in joints}:
+        raise SceneError(
+            f"structure.probe: node {raw['probe']!r} is a joint's, whose copies turn apart; "
+            "probe a node next to it"
+        )
     structure = Structure(
-        nodes=tuple(nodes), members=tuple(members), supports=tuple(supports), probe=raw["probe"]
+        nodes=tuple(nodes),
+        members=tuple(members),
+        supports=tuple(supports),
+        probe=raw["probe"],
+        joints=joints,
     )
     names_t = {"t", *constants}
     loads = []
@@ -976,12 +987,51 @@ def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStor
     return replace(structure, loads=tuple(loads), bodies=tuple(bodies))
 
 
+def _structure_joints(
+    raw: list[dict[str, Any]], members: list[StructureMember], r0: dict[str, np.ndarray]
+) -> tuple[StructureJoint, ...]:
+    """[[structure.joints]] (resolved.StructureJoint): at a known node, naming members with an
+    end there, each in one joint of the node, and leaving the node one member at least.
+    SceneError naming the key."""
+    joints = []
+    named: dict[str, set[str]] = {}
+    for i, entry in enumerate(raw):
+        key = f"structure.joints[{i}]"
+        node = entry["node"]
+        if node not in r0:
+            raise SceneError(f"{key}.node: unknown node {node!r}")
+        at = [m.name for m in members if node in (m.start, m.end)]
+        for k, name in enumerate(entry["members"]):
+            if name not in at:
+                raise SceneError(
+                    f"{key}.members[{k}]: {name!r} is not a member at node {node!r}; "
+                    f"those are {', '.join(at)}"
+                )
+            if name in named.get(node, set()):
+                raise SceneError(
+                    f"{key}.members[{k}]: {name!r} is in another joint at node {node!r}"
+                )
+            named.setdefault(node, set()).add(name)
+        if named[node] >= set(at):
+            raise SceneError(
+                f"{key}.members: a joint joins the members it names to the node's others; "
+                f"node {node!r} keeps none of {', '.join(at)}"
+            )
+        joints.append(build(StructureJoint, entry))
+    return tuple(joints)
+
+
 def _check_point_node(structure: Structure, node: str, key: str, what: str, verb: str) -> None:
     """A node that something at a point (``what``) may be at: a known node of one or two
-    members (the point's measure is a leaf's ds or the interior facet dS of a chain).
-    SceneError naming ``key``.node otherwise."""
+    members (the point's measure is a leaf's ds or the interior facet dS of a chain), not a
+    joint's. SceneError naming ``key``.node otherwise."""
     if node not in structure.positions():
         raise SceneError(f"{key}.node: unknown node {node!r}")
+    if node in {j.node for j in structure.joints}:
+        raise SceneError(
+            f"{key}.node: {what} at node {node!r}, a joint's, is not supported yet (which "
+            f"copy would it act on?); {verb} a node next to it"
+        )
     if structure.degree(node) > 2:
         raise SceneError(
             f"{key}.node: {what} at node {node!r}, which joins {structure.degree(node)} "

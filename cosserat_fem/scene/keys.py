@@ -59,6 +59,8 @@ HELD_BY_SUPPORT: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {
 #: A structure's node supports ([[structure.supports]], docs/structures.md): what each holds
 #: is :data:`HELD_BY_SUPPORT`'s, a pinned node a hinge about its axis.
 STRUCTURE_SUPPORTS = ("clamped", "pinned", "spherical", "free")
+#: The joints between a structure's members other than rigid ([[structure.joints]]).
+STRUCTURE_JOINTS = ("spherical",)
 #: Upper bounds of keys whose size alone makes a run impossible here
 #: (cosserat_fem/analysis/budget.py estimates the others): quadrature points per cell, Newton
 #: iterations per solve.
@@ -353,6 +355,27 @@ class Points(Field):
     def to_value(self, value: Any) -> Any:
         """The points as lists."""
         return None if value is None else [list(point) for point in value]
+
+
+@dataclass(frozen=True, kw_only=True)
+class Names(Field):
+    """A non-empty list of distinct non-empty strings (names of other entries)."""
+
+    def describe(self) -> str:
+        return "a non-empty list of distinct names"
+
+    def check(self, key: str, value: Any) -> Any:
+        """``value`` as a tuple; else SceneError naming ``key`` (and the index of a bad item)."""
+        if not isinstance(value, list | tuple) or not value:
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        for i, item in enumerate(value):
+            Text(non_empty=True).check(f"{key}[{i}]", item)
+            if item in value[:i]:
+                raise SceneError(f"{key}[{i}]: {item!r} is given twice")
+        return tuple(value)
+
+    def to_value(self, value: Any) -> Any:
+        return None if value is None else list(value)
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -32,6 +32,7 @@ from cosserat_fem.scene.keys import (
     POSITIVE,
     REFERENCE_KEYS,
     SECTION_KEYS,
+    STRUCTURE_JOINTS,
     STRUCTURE_SUPPORTS,
     SUPPORTS,
     XDMF_DEFAULT_FIELDS,
@@ -42,6 +43,7 @@ from cosserat_fem.scene.keys import (
     Flag,
     Interval,
     LoadVector,
+    Names,
     Number,
     NumberOrExpression,
     NumberOrExpressionVector,
@@ -711,6 +713,24 @@ class StructureSupport:
         return (*p, *(6 + i for i in p))
 
 
+#: The components of U = (p, q) a joint's copies share, by kind ([[structure.joints]]): a
+#: spherical joint the position (x, y, z)/ℓ and its rate, its angles free.
+JOINT_COMPONENTS: dict[str, tuple[int, ...]] = {"spherical": (0, 1, 2, 6, 7, 8)}
+
+
+@dataclass(frozen=True, kw_only=True)
+class StructureJoint:
+    """A joint at ``node`` ([[structure.joints]], docs/structures.md): the ``members`` it names
+    (each with an end at the node) hold their own copy of the node, joined rigidly to one
+    another, and that copy joins the node's other members (which keep the node: one of them at
+    least) as ``kind`` says: spherical, the positions shared and the rotations free
+    (:data:`JOINT_COMPONENTS`). A support at the node holds its other members."""
+
+    node: str = key(Text(required=True, non_empty=True))
+    kind: str = key(Choice(choices=STRUCTURE_JOINTS, required=True))
+    members: tuple[str, ...] = key(Names(required=True))
+
+
 @dataclass(frozen=True, kw_only=True)
 class NodeLoad:
     """A force [N] and torque [N m] at a node ([[structure.loads]]), fixed directions,
@@ -732,8 +752,9 @@ class NodeBody(BodyData):
 
 @dataclass(frozen=True, kw_only=True)
 class Structure:
-    """Straight rods joined rigidly at shared nodes ([structure], docs/structures.md): a tree
-    or a closed frame. ℓ (rod.length) is the members' total length."""
+    """Straight rods joined at shared nodes ([structure], docs/structures.md), rigidly but where
+    a joint says otherwise: a tree or a closed frame. ℓ (rod.length) is the members' total
+    length."""
 
     nodes: tuple[StructureNode, ...] = key(Tables(item=StructureNode, required=True))
     members: tuple[StructureMember, ...] = key(Tables(item=StructureMember, required=True))
@@ -743,6 +764,8 @@ class Structure:
     loads: tuple[NodeLoad, ...] = key(Tables(item=NodeLoad, default=[]), default=())
     #: rigid bodies fixed to nodes (forms/rigid_body.py)
     bodies: tuple[NodeBody, ...] = key(Tables(item=NodeBody, default=[]), default=())
+    #: joints other than rigid (:class:`StructureJoint`)
+    joints: tuple[StructureJoint, ...] = key(Tables(item=StructureJoint, default=[]), default=())
     #: the node probes.csv follows (default: :meth:`probe_node`'s rule)
     probe: str | None = key(Text(non_empty=True), default=None)
 
@@ -761,6 +784,7 @@ class Structure:
         if self.probe is not None:
             return self.probe
         held = {s.node for s in self.supports if s.kind != "free"}
+        held |= {j.node for j in self.joints}  # a joint's node has two rotations: none
         free = [n.name for n in self.nodes if n.name not in held]
         return next(iter([x.node for x in self.loads] + free + [self.nodes[0].name]))
 

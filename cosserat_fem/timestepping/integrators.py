@@ -130,7 +130,8 @@ class Integrator:
         state in U (not a restart, whose history comes from :meth:`load_state_dict`). Most
         integrators need none; :class:`GeneralizedAlpha` solves for a consistent rate.
         ``problem`` gives what such a solve needs of the system: ``bcs`` (the Dirichlet
-        conditions), ``move_supports(τ, rates=False)`` (prescribed values, or their rates,
+        conditions), ``constraints`` (dofs tied by rows, cosserat_fem/nls/constraints.py, or
+        None), ``move_supports(τ, rates=False)`` (prescribed values, or their rates,
         at τ), ``sync_loads(time_eval)`` (data loads at the Constant's τ); ``lu_package`` the
         LU factorisation's PETSc package."""
 
@@ -373,12 +374,18 @@ class GeneralizedAlpha(Integrator):
         a_form, L_form = fem.form(a), fem.form(L)
         problem.move_supports(self.time, rates=True)  # moving supports: U̇ = their rates
         problem.sync_loads(self.time_eval)  # loads given by data, at τ0
-        A = assemble_matrix(a_form, bcs=problem.bcs)
-        A.assemble()
+        ties = getattr(problem, "constraints", None)  # dofs tied by rows (nls/constraints.py)
+        if ties is None:
+            A = assemble_matrix(a_form, bcs=problem.bcs)
+            A.assemble()
+        else:
+            A = ties.assemble_matrix(ties.create_matrix(a_form), a_form, problem.bcs)
         b = assemble_vector(L_form)
         apply_lifting(b, [a_form], bcs=[problem.bcs])
         b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         set_bc(b, problem.bcs)
+        if ties is not None:  # the copies' rates equal their masters'
+            ties.apply_vector(b.array_w, None)
         ksp = PETSc.KSP().create(self.U.function_space.mesh.comm)
         ksp.setOperators(A)
         ksp.setType("preonly")

@@ -1,0 +1,362 @@
+"""Joints between a structure's members other than rigid (issue 29 item 1; docs/structures.md
+"Joints", docs/joints-design.md): a spherical joint, the named members' own copy of the node
+with its translations tied to the node's by rows of the Newton system
+(cosserat_fem/nls/constraints.py). Checked here against closed forms and independent
+derivations: a Gerber beam's deflection (statics), a clamped beam hinged at its middle whose
+spectrum is its halves' (modes), a double compound pendulum against the rigid bodies' own
+equations of motion (dynamics, at the integrator's order), serial against mpirun -n 2, a
+restart bit for bit, and the bad input in one line.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from conftest import run_command
+from scipy.integrate import solve_ivp
+
+from cosserat_fem import api
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.scene.build import scene_from_dict
+
+# The portal frame's section (scenes/portal_frame.toml): EI = 1440 in the x-z plane.
+E, NU, AREA, I_PLANE, KAPPA = 720.0, 0.3, 6.0, 2.0, 5.0 / 6.0
+EI, KGA = E * I_PLANE, KAPPA * E / (2 * (1 + NU)) * AREA
+ROD = {
+    "section": {
+        "shape": "constants",
+        "area": AREA,
+        "c11": 4.5,
+        "c22": I_PLANE,
+        "c33": 4.7,
+        "shear_coefficient": KAPPA,
+    },
+    "material": {"density": 1.0, "young_modulus": E, "poisson_ratio": NU},
+}
+
+
+def node(name: str, x: float, z: float = 0.0) -> dict:
+    return {"name": name, "position": [x, 0.0, z]}
+
+
+def member(name: str, start: str, end: str, elements: int = 1) -> dict:
+    return {"name": name, "from": start, "to": end, "elements": elements}
+
+
+def frame_scene(structure: dict, **tables) -> object:
+    """A scene of the portal's section with this [structure] (P3 elements)."""
+    data = {
+        "title": "joints",
+        "rod": ROD,
+        "structure": structure,
+        "static": {"load_steps": 1},
+        "time": {"end": 1.0, "step": 1.0},
+        "discretisation": {"degree": 3},
+        **tables,
+    }
+    return scene_from_dict(data)
+
+
+# --- statics: a Gerber beam ----------------------------------------------------------------
+A_LEN, B_LEN, C_LEN = 40.0, 30.0, 60.0
+
+
+def gerber(load: float, joint: bool = True) -> dict:
+    """A (clamped) - B - D - C (pinned about e2) along e1, |AB| = 40, |BD| = |DC| = 30, a dead
+    force ``load`` along −e3 at D, a spherical joint at B (member BD its copy's)."""
+    structure = {
+        "nodes": [node("A", 0), node("B", A_LEN), node("D", A_LEN + B_LEN), node("C", 100)],
+        "members": [member("AB", "A", "B"), member("BD", "B", "D"), member("DC", "D", "C")],
+        "supports": [
+            {"node": "A", "kind": "clamped"},
+            {"node": "C", "kind": "pinned", "axis": [0, 1, 0]},
+        ],
+        "loads": [{"node": "D", "force": [0, 0, -load]}],
+    }
+    if joint:
+        structure["joints"] = [{"node": "B", "kind": "spherical", "members": ["BD"]}]
+    return structure
+
+
+def gerber_deflection(load: float) -> float:
+    """w_D of the Gerber beam, Timoshenko members: with a spherical joint at B the beam BC has
+    moment-free ends, so it is statically determinate; B carries V = P (c − b)/c and the
+    cantilever AB deflects there by w_B = V (a³/(3 EI) + a/(κGA)); D, b = 30 from B, by the
+    simply supported beam's own deflection on top of B's share:
+
+        w_D = w_B (c − b)/c + P b² (c − b)²/(3 EI c) + P b (c − b)/(κGA c)."""
+    a, b, c = A_LEN, B_LEN, C_LEN
+    w_B = load * (c - b) / c * (a**3 / (3 * EI) + a / KGA)
+    return (
+        w_B * (c - b) / c
+        + load * b**2 * (c - b) ** 2 / (3 * EI * c)
+        + load * b * (c - b) / (KGA * c)
+    )
+
+
+def test_a_spherical_joint_makes_a_gerber_beam():
+    """The Gerber beam (:func:`gerber`) at P = 1e-4 against its closed form
+    (:func:`gerber_deflection`). One P3 cell a member holds the Timoshenko members' linear
+    fields exactly (cubic deflection, quadratic rotation), so what is left is the geometric
+    nonlinearity, relative O((w/ℓ)²) ~ P²: 3.6e-5 at P = 1e-3 and 3.6e-7 at P = 1e-4
+    (measured, the ratio 100 of O(P²)): the bound 1e-6 at P = 1e-4. The rigid corner (no
+    joint) deflects 14 % less (5.91e-4): the joint is what the closed form sees. Full Newton
+    converges quadratically through the constraint rows: at most 4 iterations."""
+    load = 1e-4
+    want = gerber_deflection(load)
+    result = api.static(frame_scene(gerber(load)))
+    w = -result.probes[-1][3]
+    assert abs(w - want) <= 1e-6 * want, (w, want)
+    assert max(result.iterations) <= 4
+    rigid = -api.static(frame_scene(gerber(load, joint=False))).probes[-1][3]
+    assert rigid < 0.9 * want  # 5.91e-4 against 6.85e-4
+
+
+# --- modes: a clamped beam hinged at its middle --------------------------------------------
+def test_a_beam_hinged_at_its_middle_has_its_halves_modes():
+    """A beam A - B - C along e1, clamped at A and C, a spherical joint at B (each half a =
+    60, four P3 cells, the member CB given from C, the mirror image of AB): the reflection
+    about B splits its modes into symmetric and antisymmetric ones. A symmetric mode has no
+    shear at B (odd in the reflection), and the joint no moment: each half is a cantilever;
+    its axial force is zero at B, its torque too (the joint transmits none): the cantilever's
+    axial and torsion modes. An antisymmetric mode has w = 0 and u = 0 at B: each half is
+    clamped at A and held in position at B, free to turn (a spherical support); its torsion
+    is the cantilever's again (the joint transmits no torque). So the hinged beam's spectrum
+    is the union of the two single members' spectra, discrete for discrete (the same cells):
+    equal to the eigensolver's tolerance, 1e-13 on λ (measured 4e-12 on the two lowest ω,
+    whose λ are smallest; 1e-14 elsewhere): the bound 1e-9 on ω."""
+    a = 60.0
+    clamped_a = {"node": "A", "kind": "clamped"}
+    hinged = frame_scene(
+        {
+            "nodes": [node("A", 0), node("B", a), node("C", 2 * a)],
+            "members": [member("AB", "A", "B", 4), member("CB", "C", "B", 4)],
+            "supports": [clamped_a, {"node": "C", "kind": "clamped"}],
+            "joints": [{"node": "B", "kind": "spherical", "members": ["CB"]}],
+        }
+    )
+    halves = [
+        frame_scene(
+            {
+                "nodes": [node("A", 0), node("B", a)],
+                "members": [member("AB", "A", "B", 4)],
+                "supports": [clamped_a, *end],
+            }
+        )
+        for end in ([], [{"node": "B", "kind": "spherical"}])
+    ]
+    count = 14
+    got = np.sort([m.omega for m in api.modes(hinged, count)])
+    want = np.sort([m.omega for half in halves for m in api.modes(half, count)])[:count]
+    np.testing.assert_allclose(got, want, rtol=1e-9, atol=0)
+    assert np.sum(np.isclose(got, got[9], rtol=1e-9)) == 2  # torsion: both halves alike
+
+
+# --- dynamics: a double compound pendulum --------------------------------------------------
+LINK, ANGLE, DIAMETER, DENSITY, GRAVITY = 1.0, 0.3, 0.02, 7800.0, 9.81
+
+
+def pendulum(step: float, integrator: str = "generalized-alpha", end: float = 1.0) -> dict:
+    """Two steel-like links of length 1 m, 20 mm round, hung from A (pinned about e2) and
+    joined at B by a spherical joint, released at rest at ANGLE from the vertical in the
+    x-z plane under gravity; E = 2e15 Pa, stiff enough for the links' own frequencies
+    (bending ~ 6e4 rad/s) to be 1e4 above the swing's (~7 rad/s): their flexibility moves
+    the motion by (7/6e4)² ~ 1e-8 of it."""
+    s, c = math.sin(ANGLE), math.cos(ANGLE)
+    return {
+        "title": "double compound pendulum",
+        "rod": {
+            "section": {"shape": "circle", "diameter": DIAMETER},
+            "material": {"density": DENSITY, "young_modulus": 2e15, "poisson_ratio": 0.3},
+        },
+        "structure": {
+            "nodes": [
+                {"name": "A", "position": [0, 0, 0]},
+                {"name": "B", "position": [LINK * s, 0, -LINK * c]},
+                {"name": "C", "position": [2 * LINK * s, 0, -2 * LINK * c]},
+            ],
+            "members": [member("upper", "A", "B", 2), member("lower", "B", "C", 2)],
+            "supports": [{"node": "A", "kind": "pinned", "axis": [0, 1, 0]}],
+            "joints": [{"node": "B", "kind": "spherical", "members": ["lower"]}],
+            "probe": "C",
+        },
+        "loads": {"gravity": [0, 0, -GRAVITY]},
+        "time": {"end": end, "step": step, "integrator": integrator},
+        "discretisation": {"degree": 3},
+        "solver": {"jacobian": "full"},
+    }
+
+
+def rigid_pendulum(times: np.ndarray) -> np.ndarray:
+    """The displacement (x, z) of C of the double compound pendulum as two rigid links (mass
+    m = ρAL, inertia about the centre J = mL²/12 + ρ I L, the rod's rotary inertia of the
+    section included), angles φ1, φ2 from the vertical, Lagrange's equations
+
+        [J + mL²/4 + mL²    (mL²/2) cos Δ] [φ1″]   [−(3/2) m g L sin φ1 − (mL²/2) sin Δ φ2′²]
+        [(mL²/2) cos Δ      J + mL²/4    ] [φ2″] = [−(1/2) m g L sin φ2 + (mL²/2) sin Δ φ1′²],
+
+    Δ = φ1 − φ2, from φ1 = φ2 = ANGLE at rest, integrated by scipy's RK45 to 1e-12."""
+    area, inertia = math.pi * DIAMETER**2 / 4, math.pi * DIAMETER**4 / 64
+    m, L, g = DENSITY * area * LINK, LINK, GRAVITY
+    J = m * L**2 / 12 + DENSITY * inertia * L
+
+    def rates(_t, y):
+        p1, p2, w1, w2 = y
+        c, s = math.cos(p1 - p2), math.sin(p1 - p2)
+        M = np.array(
+            [[J + 1.25 * m * L**2, 0.5 * m * L**2 * c], [0.5 * m * L**2 * c, J + 0.25 * m * L**2]]
+        )
+        force = np.array(
+            [
+                -1.5 * m * g * L * math.sin(p1) - 0.5 * m * L**2 * s * w2**2,
+                -0.5 * m * g * L * math.sin(p2) + 0.5 * m * L**2 * s * w1**2,
+            ]
+        )
+        return [w1, w2, *np.linalg.solve(M, force)]
+
+    y0 = [ANGLE, ANGLE, 0.0, 0.0]
+    sol = solve_ivp(rates, (0.0, times[-1]), y0, t_eval=times, rtol=1e-12, atol=1e-12)
+    p1, p2 = sol.y[0], sol.y[1]
+    x = L * (np.sin(p1) + np.sin(p2) - 2 * math.sin(ANGLE))
+    z = L * (2 * math.cos(ANGLE) - np.cos(p1) - np.cos(p2))
+    return np.stack([x, z], axis=1)
+
+
+def pendulum_error(step: float, integrator: str, tmp_path) -> tuple[float, float]:
+    """The largest distance of C from the rigid links' C over 1 s, and the swing's size."""
+    result = api.run(scene_from_dict(pendulum(step, integrator)), tmp_path / f"{step}")
+    rows = np.array(result.probes)
+    want = rigid_pendulum(rows[:, 0])
+    error = np.linalg.norm(rows[:, [1, 3]] - want, axis=1).max()
+    return float(error), float(np.abs(want[:, 0]).max())
+
+
+def test_a_double_pendulum_swings_as_two_rigid_links(tmp_path):
+    """The double compound pendulum (:func:`pendulum`) by generalized-α at h = 2 and 1 ms
+    against the rigid links (:func:`rigid_pendulum`) over 1 s, a swing of 1.17 m. Without the
+    joint it would be one rigid link of 2 m. The links' flexibility moves C by ~1e-8 of the
+    swing (:func:`pendulum`), so what is left is the integrator's error, O(h²): measured
+    9.4e-6 and 2.3e-6 m, the ratio 4.0. Asserted: the ratio in [3.2, 4.8] (order 2 ± 0.3)
+    and the error at 1 ms below 4e-6 m (3.4e-6 of the swing; the O(h²) term's constant
+    measured 2.3, bound 1.7 × it)."""
+    coarse, swing = pendulum_error(2e-3, "generalized-alpha", tmp_path)
+    fine, _ = pendulum_error(1e-3, "generalized-alpha", tmp_path)
+    assert swing > 1.0
+    assert 3.2 <= coarse / fine <= 4.8, (coarse, fine)
+    assert fine < 4e-6, fine
+
+
+@pytest.mark.long
+@pytest.mark.parametrize("integrator", ["sdirk3", "bdf2"])
+def test_the_double_pendulum_at_second_order_by_each_integrator(tmp_path, integrator):
+    """As :func:`test_a_double_pendulum_swings_as_two_rigid_links` for SDIRK3 and BDF2: the
+    error ratio between h = 2 and 1 ms is 4 (order 2) within [2^1.6, 2^2.4], both errors above
+    the links' flexibility (1e-8 of the swing). SDIRK3 too is at order 2 here, not 3: links
+    this stiff are a stiff mechanical system near its rigid (index-3) limit, where a
+    Runge-Kutta method's positions converge at min(p, q + 1), q its stage order (Lubich 1993,
+    "Integration of stiff mechanical systems by Runge-Kutta methods", ZAMP 44; SDIRK3's q =
+    1): measured 3.66e-6, 9.1e-7, 2.3e-7 m at h = 4, 2, 1 ms (ratios 4.0). It is the links'
+    stiffness, not the joint: with E = 2e11 Pa the flexibility's 4.4e-5 m dominates."""
+    coarse, swing = pendulum_error(2e-3, integrator, tmp_path)
+    fine, _ = pendulum_error(1e-3, integrator, tmp_path)
+    assert fine > 1e-7 * swing
+    assert 2**1.6 <= coarse / fine <= 2**2.4, (coarse, fine)
+
+
+# --- serial against MPI, restart ----------------------------------------------------------
+MPI_SCRIPT = """
+import json, sys
+from mpi4py import MPI
+from cosserat_fem import api
+from cosserat_fem.scene.build import scene_from_dict
+sys.path.insert(0, "tests")
+from test_joints import frame_scene, gerber, pendulum
+static = api.static(frame_scene(gerber(1e-3))).probes[-1]
+run = api.run(scene_from_dict(pendulum(2e-3, end=0.1))).probes[-1]
+if MPI.COMM_WORLD.rank == 0:
+    print(json.dumps({"static": list(map(float, static)), "run": list(map(float, run))}))
+"""
+
+
+def test_joints_serial_equals_mpi(tmp_path):
+    """The Gerber beam at P = 1e-3 (statics) and 50 steps of the double pendulum, in one
+    process and under mpirun -n 2 (the joint's cells on one rank, rod/structure.py
+    _partitioner, the rest split): the probe's values agree to 1e-8 of their largest (the
+    same equations, Newton to its tolerance from the same start; measured ~1e-15)."""
+    script = tmp_path / "joints_mpi.py"
+    script.write_text(MPI_SCRIPT)
+    answers = []
+    for ranks in (1, 2):
+        done = run_command([str(script)], ranks=ranks)
+        assert done.returncode == 0, done.stderr[-2000:]
+        answers.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    assert abs(answers[0]["run"][1]) > 1e-3  # C moved
+    for key in ("static", "run"):
+        one, two = np.array(answers[0][key]), np.array(answers[1][key])
+        np.testing.assert_allclose(two, one, rtol=0, atol=1e-8 * np.abs(one).max())
+
+
+def test_a_jointed_run_restarts_bit_for_bit(tmp_path):
+    """The double pendulum to 0.1 s in one go, and to 0.05 s then restarted from its
+    checkpoint: the same states, bit for bit (the state holds both copies of the joint's
+    node; the rows are applied alike)."""
+    data = pendulum(2e-3, end=0.1)
+    data["output"] = {"checkpoint_interval": 0.05}
+    whole = api.run(scene_from_dict(data), tmp_path / "whole")
+    api.run(scene_from_dict({**data, "time": {**data["time"], "end": 0.05}}), tmp_path / "part")
+    scene, checkpoint = api.resume(tmp_path / "part", ["time.end=0.1"])
+    rest = api.run(scene, restart=checkpoint)
+    assert abs(whole.probes[-1][1]) > 1e-3
+    assert np.array_equal(whole.model.U.x.array, rest.model.U.x.array)
+
+
+# --- bad input -----------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("joints", "extra", "message"),
+    [
+        (
+            [{"node": "X", "kind": "spherical", "members": ["BD"]}],
+            {},
+            r"joints\[0\]\.node: unknown",
+        ),
+        (
+            [{"node": "B", "kind": "spherical", "members": ["DC"]}],
+            {},
+            r"joints\[0\]\.members\[0\]: 'DC' is not a member at node 'B'",
+        ),
+        (
+            [{"node": "B", "kind": "spherical", "members": ["AB", "BD"]}],
+            {},
+            r"joints\[0\]\.members: a joint joins .* node 'B' keeps none",
+        ),
+        (
+            [
+                {"node": "B", "kind": "spherical", "members": ["BD"]},
+                {"node": "B", "kind": "spherical", "members": ["BD"]},
+            ],
+            {},
+            r"joints\[1\]\.members\[0\]: 'BD' is in another joint",
+        ),
+        ([{"node": "B", "kind": "spherical", "members": []}], {}, r"joints\[0\]\.members: must"),
+        ([{"node": "B", "kind": "hinge", "members": ["BD"]}], {}, r"joints\[0\]\.kind: must be"),
+        (
+            [{"node": "D", "kind": "spherical", "members": ["DC"]}],
+            {},
+            r"loads\[0\]\.node: a load at node 'D', a joint's",
+        ),
+        (
+            [{"node": "B", "kind": "spherical", "members": ["BD"]}],
+            {"probe": "B"},
+            r"structure\.probe: node 'B' is a joint's",
+        ),
+    ],
+)
+def test_bad_joints_are_refused_in_one_line(joints, extra, message):
+    """Each bad [[structure.joints]] entry: a SceneError naming its key, one line."""
+    structure = {**gerber(1e-3, joint=False), "joints": joints, **extra}
+    with pytest.raises(SceneError, match=message) as caught:
+        frame_scene(structure)
+    assert "\n" not in str(caught.value)

@@ -1,0 +1,80 @@
+"""cosserat_fem/nls/constraints.py: dofs identified by rows of the assembled system.
+
+A joint whose copy is tied to its master in all twelve components is a rigid joint: the Newton
+iterates with the rows (C.1)-(C.2) must be those of the shared vertex (today's rigid joint), to
+the round-off of the row operations; and the rows on a vector are the sums and differences
+(C.1)-(C.2) themselves.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from cosserat_fem.analysis.statics import static_solver
+from cosserat_fem.nls.constraints import Identification
+from cosserat_fem.rod.model import build_model
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+from test_joints import frame_scene, gerber  # noqa: E402
+
+
+def solved(joint: bool, components: tuple[int, ...] | None = None):
+    """The Gerber beam (tests/test_joints.py) at P = 1e-3 statically; with the joint's
+    identified ``components`` replaced (all twelve: a rigid joint). w_D [length]."""
+    scene = frame_scene(gerber(1e-3, joint=joint))
+    model = build_model(scene, MPI.COMM_SELF, planar=False)
+    if components is not None:
+        ties = model.constraints
+        assert ties is not None
+        model.constraints = Identification(
+            model.V,
+            list(ties.master_blocks),
+            list(ties.copy_blocks),
+            [components] * len(ties.master_blocks),
+            model.bcs,
+        )
+    solver = static_solver(scene, model)
+    model.load_factor.value = 1.0
+    solver.solve()
+    return model, solver
+
+
+def test_all_twelve_components_tied_are_the_shared_vertex():
+    """Identification of the copy's twelve components: the state of the rigid joint (one
+    shared vertex) within 1e-12 of its largest value (measured 1.5e-16: the row sums'
+    round-off); the copy's values equal its master's exactly (the constraint rows)."""
+    shared, _ = solved(joint=False)
+    tied, _ = solved(joint=True, components=tuple(range(12)))
+    ties = tied.constraints
+    u = tied.U.x.array
+    assert np.array_equal(u[ties.copies], u[ties.masters])
+    at = {}
+    for model in (shared, tied):
+        x = model.V.tabulate_dof_coordinates()
+        values = model.U.x.array.reshape(-1, 12)
+        at[id(model)] = {tuple(np.round(p, 9)): v for p, v in zip(x, values, strict=True)}
+    scale = np.abs(shared.U.x.array).max()
+    for point, value in at[id(shared)].items():
+        assert np.abs(at[id(tied)][point] - value).max() <= 1e-12 * scale
+
+
+def test_the_rows_on_a_vector_are_sums_and_differences():
+    """apply_vector on a residual: each master's entry gains its copy's (C.1), each copy's is
+    u_c − u_m (C.2); a master held by a support keeps its entry."""
+    model, solver = solved(joint=True)
+    ties = model.constraints
+    rng = np.random.default_rng(1)
+    b = rng.standard_normal(model.U.x.array.size)
+    u = rng.standard_normal(b.size)
+    want = b.copy()
+    for c, m, added in zip(ties.copies, ties.masters, ties.added, strict=True):
+        if added:
+            want[m] += b[c]
+        want[c] = u[c] - u[m]
+    ties.apply_vector(b, u)
+    assert np.array_equal(b, want)
+    assert len(ties) == 6 and ties.added.all()  # x, y, z and their rates; B is not held
