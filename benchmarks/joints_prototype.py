@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from dolfinx import cpp as _cpp
@@ -45,7 +46,9 @@ import cosserat_fem.rod.model as model_module
 from cosserat_fem.analysis.statics import static_solver
 from cosserat_fem.rod import structure as structure_module
 from cosserat_fem.rod.model import build_model
-from cosserat_fem.scene.build import scene_from_dict
+from cosserat_fem.scene.build import read_toml, scene_from_dict
+
+ROOT = Path(__file__).resolve().parents[1]
 
 E, NU, AREA, I_PLANE, KAPPA = 720.0, 0.3, 6.0, 2.0, 5.0 / 6.0
 EI, KGA = E * I_PLANE, KAPPA * E / (2 * (1 + NU)) * AREA
@@ -57,17 +60,7 @@ def scene(elements: int, load: float = LOAD):
     return scene_from_dict(
         {
             "title": "joint prototype",
-            "rod": {
-                "section": {
-                    "shape": "constants",
-                    "area": AREA,
-                    "c11": 4.5,
-                    "c22": I_PLANE,
-                    "c33": 4.7,
-                    "shear_coefficient": KAPPA,
-                },
-                "material": {"density": 1.0, "young_modulus": E, "poisson_ratio": NU},
-            },
+            "rod": read_toml(ROOT / "scenes" / "portal_frame.toml")["rod"],  # E, NU, ... above
             "structure": {
                 "nodes": [
                     {"name": "A", "position": [0, 0, 0]},

@@ -15,27 +15,19 @@ import math
 
 import numpy as np
 import pytest
-from conftest import run_command
+from conftest import ROOT, run_command
 from scipy.integrate import solve_ivp
 
 from cosserat_fem import api
 from cosserat_fem.common.errors import SceneError
-from cosserat_fem.scene.build import scene_from_dict
+from cosserat_fem.scene.build import read_toml, scene_from_dict
 
 # The portal frame's section (scenes/portal_frame.toml): EI = 1440 in the x-z plane.
-E, NU, AREA, I_PLANE, KAPPA = 720.0, 0.3, 6.0, 2.0, 5.0 / 6.0
+ROD = read_toml(ROOT / "scenes" / "portal_frame.toml")["rod"]
+E, NU = ROD["material"]["young_modulus"], ROD["material"]["poisson_ratio"]
+AREA, I_PLANE = ROD["section"]["area"], ROD["section"]["c22"]
+KAPPA = ROD["section"]["shear_coefficient"]
 EI, KGA = E * I_PLANE, KAPPA * E / (2 * (1 + NU)) * AREA
-ROD = {
-    "section": {
-        "shape": "constants",
-        "area": AREA,
-        "c11": 4.5,
-        "c22": I_PLANE,
-        "c33": 4.7,
-        "shear_coefficient": KAPPA,
-    },
-    "material": {"density": 1.0, "young_modulus": E, "poisson_ratio": NU},
-}
 
 
 def node(name: str, x: float, z: float = 0.0) -> dict:
@@ -271,7 +263,7 @@ MPI_SCRIPT = """
 import json, sys
 from mpi4py import MPI
 from cosserat_fem import api
-from cosserat_fem.scene.build import scene_from_dict
+from cosserat_fem.scene.build import read_toml, scene_from_dict
 sys.path.insert(0, "tests")
 from test_joints import frame_scene, gerber, pendulum
 static = api.static(frame_scene(gerber(1e-3))).probes[-1]
