@@ -151,13 +151,30 @@ def test_a_beam_hinged_at_its_middle_has_its_halves_modes():
 LINK, ANGLE, DIAMETER, DENSITY, GRAVITY = 1.0, 0.3, 0.02, 7800.0, 9.81
 
 
-def pendulum(step: float, integrator: str = "generalized-alpha", end: float = 1.0) -> dict:
+def pendulum(
+    step: float, integrator: str = "generalized-alpha", end: float = 1.0, kind: str = "spherical"
+) -> dict:
     """Two steel-like links of length 1 m, 20 mm round, hung from A (pinned about e2) and
     joined at B by a spherical joint, released at rest at ANGLE from the vertical in the
     x-z plane under gravity; E = 2e15 Pa, stiff enough for the links' own frequencies
     (bending ~ 6e4 rad/s) to be 1e4 above the swing's (~7 rad/s): their flexibility moves
-    the motion by (7/6e4)² ~ 1e-8 of it."""
+    the motion by (7/6e4)² ~ 1e-8 of it. With ``kind`` = "hinge" the joint is a hinge about
+    e3 and the pendulum swings in the x-y plane (gravity along −e2, A pinned about e3): the
+    same motion in other axes (probes' x and y)."""
     s, c = math.sin(ANGLE), math.cos(ANGLE)
+    down = 1 if kind == "hinge" else 2  # the axis gravity acts along
+    axis = [0, 0, 1] if kind == "hinge" else [0, 1, 0]
+
+    def at(k: int) -> list[float]:
+        point = [k * LINK * s, 0.0, 0.0]
+        point[down] = -k * LINK * c
+        return point
+
+    gravity = [0.0, 0.0, 0.0]
+    gravity[down] = -GRAVITY
+    joint = {"node": "B", "kind": kind, "members": ["lower"]}
+    if kind == "hinge":
+        joint["axis"] = axis
     return {
         "title": "double compound pendulum",
         "rod": {
@@ -165,17 +182,13 @@ def pendulum(step: float, integrator: str = "generalized-alpha", end: float = 1.
             "material": {"density": DENSITY, "young_modulus": 2e15, "poisson_ratio": 0.3},
         },
         "structure": {
-            "nodes": [
-                {"name": "A", "position": [0, 0, 0]},
-                {"name": "B", "position": [LINK * s, 0, -LINK * c]},
-                {"name": "C", "position": [2 * LINK * s, 0, -2 * LINK * c]},
-            ],
+            "nodes": [{"name": n, "position": at(k)} for k, n in enumerate("ABC")],
             "members": [member("upper", "A", "B", 2), member("lower", "B", "C", 2)],
-            "supports": [{"node": "A", "kind": "pinned", "axis": [0, 1, 0]}],
-            "joints": [{"node": "B", "kind": "spherical", "members": ["lower"]}],
+            "supports": [{"node": "A", "kind": "pinned", "axis": axis}],
+            "joints": [joint],
             "probe": "C",
         },
-        "loads": {"gravity": [0, 0, -GRAVITY]},
+        "loads": {"gravity": gravity},
         "time": {"end": end, "step": step, "integrator": integrator},
         "discretisation": {"degree": 3},
         "solver": {"jacobian": "full"},
@@ -217,12 +230,16 @@ def rigid_pendulum(times: np.ndarray) -> np.ndarray:
     return np.stack([x, z], axis=1)
 
 
-def pendulum_error(step: float, integrator: str, tmp_path) -> tuple[float, float]:
+def pendulum_error(
+    step: float, integrator: str, tmp_path, kind: str = "spherical"
+) -> tuple[float, float]:
     """The largest distance of C from the rigid links' C over 1 s, and the swing's size."""
-    result = api.run(scene_from_dict(pendulum(step, integrator)), tmp_path / f"{step}")
+    scene = scene_from_dict(pendulum(step, integrator, kind=kind))
+    result = api.run(scene, tmp_path / f"{kind}{step}")
     rows = np.array(result.probes)
     want = rigid_pendulum(rows[:, 0])
-    error = np.linalg.norm(rows[:, [1, 3]] - want, axis=1).max()
+    down = 2 if kind == "hinge" else 3  # the probe's y or z column
+    error = np.linalg.norm(rows[:, [1, down]] - want, axis=1).max()
     return float(error), float(np.abs(want[:, 0]).max())
 
 
@@ -256,6 +273,150 @@ def test_the_double_pendulum_at_second_order_by_each_integrator(tmp_path, integr
     fine, _ = pendulum_error(1e-3, integrator, tmp_path)
     assert fine > 1e-7 * swing
     assert 2**1.6 <= coarse / fine <= 2**2.4, (coarse, fine)
+
+
+def test_a_hinged_double_pendulum_swings_as_two_rigid_links(tmp_path):
+    """The double pendulum of :func:`test_a_double_pendulum_swings_as_two_rigid_links` with a
+    hinge about e3 at B, swinging in the x-y plane: the same rigid links' motion at the same
+    order and bounds (generalized-α; measured as the spherical joint's: the plane's motion
+    does not see which of the two joints it is)."""
+    coarse, swing = pendulum_error(2e-3, "generalized-alpha", tmp_path, "hinge")
+    fine, _ = pendulum_error(1e-3, "generalized-alpha", tmp_path, "hinge")
+    assert swing > 1.0
+    assert 3.2 <= coarse / fine <= 4.8, (coarse, fine)
+    assert fine < 4e-6, fine
+
+
+# --- statics: a portal frame whose beam is hinged ------------------------------------------
+HEIGHT, SPAN = 120.0, 120.0
+
+
+def hinged_portal(load: tuple[float, float, float], hinges: bool = True) -> dict:
+    """The portal frame in the x-y plane: columns A(0, 0) - E(0, h/2) - B(0, h) and D(L, 0) -
+    C(L, h) clamped at A and D, the beam B - C joined to them by hinges about e3 (the beam's
+    own copies at B and C), a dead ``load`` at E, the columns' middle; the portal's section
+    with c11 = c22 = 2 (EI = 1440 in and out of the plane)."""
+    nodes = [
+        {"name": "A", "position": [0, 0, 0]},
+        {"name": "E", "position": [0, HEIGHT / 2, 0]},
+        {"name": "B", "position": [0, HEIGHT, 0]},
+        {"name": "C", "position": [SPAN, HEIGHT, 0]},
+        {"name": "D", "position": [SPAN, 0, 0]},
+    ]
+    structure = {
+        "nodes": nodes,
+        "members": [
+            member("lower", "A", "E", 2),
+            member("upper", "E", "B", 2),
+            member("beam", "B", "C", 2),
+            member("right", "D", "C", 2),
+        ],
+        "supports": [{"node": "A", "kind": "clamped"}, {"node": "D", "kind": "clamped"}],
+        "loads": [{"node": "E", "force": list(load)}],
+    }
+    if hinges:
+        hinge = {"kind": "hinge", "members": ["beam"], "axis": [0, 0, 1]}
+        structure["joints"] = [{"node": "B", **hinge}, {"node": "C", **hinge}]
+    rod = {**ROD, "section": {**ROD["section"], "c11": I_PLANE}}
+    data = {
+        "title": "hinged portal",
+        "rod": rod,
+        "structure": structure,
+        "static": {"load_steps": 1},
+        "time": {"end": 1.0, "step": 1.0},
+        "discretisation": {"degree": 3},
+    }
+    return data
+
+
+def test_a_portal_frame_with_a_hinged_beam_is_a_link_between_cantilevers():
+    """:func:`hinged_portal` under H = 1e-4 along e1 at E. The hinges pass no moment about e3,
+    so the beam is a link, its force N; each column a clamped Timoshenko cantilever. The
+    left one under H at a = h/2 and −N at its top sways there by H g − N f, the right one
+    under N by N f, g = a²(3h − a)/(6 EI) + a/(κGA), f = h³/(3 EI) + h/(κGA); the link
+    shortens by N L/EA, so
+
+        N = H g/(2 f + L/EA),   u_B = H g − N f,   u_C = N f.
+
+    P3 holds these linear fields exactly (two cells a member), so what is left is the
+    geometric nonlinearity, relative O(H²) (~1e-7 at this load): the bound 1e-6 of u_B."""
+    H = 1e-4
+    result = api.static(scene_from_dict(hinged_portal((H, 0, 0))))
+    EA = E * AREA
+    a = HEIGHT / 2
+    g = a**2 * (3 * HEIGHT - a) / (6 * EI) + a / KGA
+    f = HEIGHT**3 / (3 * EI) + HEIGHT / KGA
+    N = H * g / (2 * f + SPAN / EA)
+    want = {"B": H * g - N * f, "C": N * f}
+    for name, value in want.items():
+        got = nodal_x(result.model, name)
+        assert abs(got - value) <= 1e-6 * want["B"], (name, got, value)
+    rigid = api.static(scene_from_dict(hinged_portal((H, 0, 0), hinges=False)))
+    assert nodal_x(rigid.model, "B") < 0.9 * want["B"]  # the rigid corners: stiffer
+
+
+def nodal_x(model, name: str) -> float:
+    """The displacement along e1 [length] of node ``name``'s own vertex (serial)."""
+    from dolfinx import fem
+
+    block = fem.locate_dofs_topological(model.V, 0, model.structure.vertices[name])[0]
+    return float(model.U.x.array[12 * block] * model.length)
+
+
+def test_a_hinge_about_e3_passes_the_moments_out_of_the_plane():
+    """The portal of :func:`hinged_portal` under a load along e3 at E (out of its plane): the
+    hinges about e3 pass the moments about e1 and e2, which carry the out-of-plane response
+    (in the linear regime it does not involve the in-plane moment about e3), so the hinged
+    and the rigid portal deflect alike: within 1e-6 at 1e-4 (the geometric coupling of the
+    planes, O(load²))."""
+    load = (0.0, 0.0, 1e-4)
+    hinged = api.static(scene_from_dict(hinged_portal(load))).probes[-1]
+    rigid = api.static(scene_from_dict(hinged_portal(load, hinges=False))).probes[-1]
+    w = abs(rigid[3])
+    assert w > 1e-3  # 3.9e-3
+    assert abs(hinged[3] - rigid[3]) <= 1e-6 * w
+    # in the plane, the second-order displacements (w²/ℓ, ℓ = h/2: 2.5e-7) see the hinges
+    np.testing.assert_allclose(hinged[1:3], rigid[1:3], rtol=0, atol=w**2 / (HEIGHT / 2))
+
+
+def test_a_hinge_stays_a_hinge_through_chart_moves():
+    """A bar along e1 clamped at A, a hinge about e3 at B, a bar B - D - C held in position
+    at C (spherical), twisted by a torque about e1 at C (2 rad at C: past the chart's move at
+    θ = ±π/2 · 0.9, the twist being θ here) and pushed along e2 at D: the copies' relative
+    rotation Λ_Bᵀ Λ_B' (from their angles and charts, rod/charts.py) keeps e3 within 1e-10
+    (the constraint rows hold θ, ψ equal in one chart: round-off), though the member BC has
+    turned about it (the relative angle > 1e-4)."""
+
+    from cosserat_fem.rod.charts import euler_matrix, quaternion_frame
+
+    GJ = E / (2 * (1 + NU)) * 4.7
+    torque = 3.0 * GJ / 100.0  # 3 rad at C: T (|AB| + |BC|)/GJ
+    structure = {
+        "nodes": [node("A", 0), node("B", 60), node("D", 80), node("C", 100)],
+        "members": [
+            member("AB", "A", "B", 4),
+            member("BD", "B", "D", 2),
+            member("DC", "D", "C", 2),
+        ],
+        "supports": [{"node": "A", "kind": "clamped"}, {"node": "C", "kind": "spherical"}],
+        "loads": [
+            {"node": "C", "torque": [torque, 0, 0]},
+            {"node": "D", "force": [0, 1e-2, 0]},
+        ],
+        "joints": [{"node": "B", "kind": "hinge", "members": ["BD"], "axis": [0, 0, 1]}],
+    }
+    result = api.static(frame_scene(structure, static={"load_steps": 12}))
+    model = result.model
+    assert model.chart_moved
+    ties = model.constraints
+    frames = []
+    for block in (ties.master_blocks[0], ties.copy_blocks[0]):
+        theta, psi, phi = model.U.x.array[12 * block + 3 : 12 * block + 6]
+        Q = model.chart.x.array.reshape(-1, 4)[block]
+        frames.append(euler_matrix(theta, psi, phi) @ quaternion_frame(Q))  # rows d_i
+    relative = frames[0] @ frames[1].T  # Λ_Bᵀ Λ_B'
+    assert np.abs(relative @ np.array([0, 0, 1.0]) - [0, 0, 1.0]).max() < 1e-10
+    assert abs(relative[0, 1]) > 1e-4  # turned about e3
 
 
 # --- serial against MPI, restart ----------------------------------------------------------
@@ -333,7 +494,22 @@ def test_a_jointed_run_restarts_bit_for_bit(tmp_path):
             r"joints\[1\]\.members\[0\]: 'BD' is in another joint",
         ),
         ([{"node": "B", "kind": "spherical", "members": []}], {}, r"joints\[0\]\.members: must"),
-        ([{"node": "B", "kind": "hinge", "members": ["BD"]}], {}, r"joints\[0\]\.kind: must be"),
+        ([{"node": "B", "kind": "hing", "members": ["BD"]}], {}, r"joints\[0\]\.kind: must be"),
+        (
+            [{"node": "B", "kind": "hinge", "members": ["BD"]}],
+            {},
+            r"joints\[0\]\.axis: a hinge needs its axis",
+        ),
+        (
+            [{"node": "B", "kind": "hinge", "members": ["BD"], "axis": [0, 1, 0]}],
+            {},
+            r"joints\[0\]\.axis: a hinge's axis must be e3",
+        ),
+        (
+            [{"node": "B", "kind": "spherical", "members": ["BD"], "axis": [0, 0, 1]}],
+            {},
+            r"joints\[0\]\.axis: only a hinge",
+        ),
         (
             [{"node": "D", "kind": "spherical", "members": ["DC"]}],
             {},

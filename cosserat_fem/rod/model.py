@@ -150,6 +150,12 @@ class RodModel:
     structure: StructureMesh | None = None
     #: The dofs its joints tie (cosserat_fem/nls/constraints.py), or None: no joints.
     constraints: Identification | None = None
+    #: The nodes (masters, copies; local, owned) of the hinges, whose copies share their
+    #: master's chart: identified (θ, ψ) mean a turn about e3 only in one chart
+    #: (resolved.StructureJoint).
+    chart_ties: tuple[np.ndarray, np.ndarray] = field(
+        default_factory=lambda: (np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32))
+    )
 
     @property
     def needs_chart(self) -> bool:
@@ -251,14 +257,18 @@ class RodModel:
     def new_chart(self, state: np.ndarray | None = None) -> np.ndarray:
         """The nodal quaternions (nodes, 4) of the rod's own rotation in ``state`` (default U):
         the chart in which its angles are zero (cosserat_fem/rod/charts.py ``chart_of``), but at
-        :attr:`fork_nodes`, which keep theirs. Signed for a continuous field along the rod
+        :attr:`fork_nodes`, which keep theirs, and at a hinge's copy, which takes its master's
+        (:attr:`chart_ties`). Signed for a continuous field along the rod
         (:meth:`_continuous_signs`). Collective."""
         state = self.U.x.array if state is None else state
         assert self.chart is not None, "use_chart made it"
         Q_old = self.chart.x.array.reshape(-1, 4)
         Q_new = chart_of(self.layout.full_array(state), Q_old)
+        masters, copies = self.chart_ties
+        Q_new[copies] = Q_new[masters]
         self._continuous_signs(Q_new)
         Q_new[self.fork_nodes] = Q_old[self.fork_nodes]
+        Q_new[copies] = Q_new[masters]
         return Q_new
 
     def _continuous_signs(self, Q: np.ndarray) -> None:
@@ -860,7 +870,12 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
     model = _model(scene, V, bcs, made.tags, FULL, scene.absent_terms(), forks)
     model.structure = made
     if structure.joints:  # the copies of the joints' nodes, tied (rod/structure.py)
-        model.constraints = Identification(V, *made.joint_blocks(V, structure), bcs)
+        masters, copies, components = made.joint_blocks(V, structure)
+        model.constraints = Identification(V, masters, copies, components, bcs)
+        hinge = np.array([3 in c for c in components], dtype=bool)
+        model.chart_ties = tuple(
+            np.asarray(blocks, dtype=np.int32)[hinge] for blocks in (masters, copies)
+        )
     return model
 
 

@@ -1017,7 +1017,20 @@ def _structure_joints(
                 f"{key}.members: a joint joins the members it names to the node's others; "
                 f"node {node!r} keeps none of {', '.join(at)}"
             )
-        joints.append(build(StructureJoint, entry))
+        axis = entry["axis"]
+        if entry["kind"] == "hinge":
+            if axis is None:
+                raise SceneError(f"{key}.axis: a hinge needs its axis, [0, 0, 1]")
+            axis = _unit_axis(axis, f"{key}.axis")
+            if axis[0] != 0.0 or axis[1] != 0.0:
+                raise SceneError(
+                    f"{key}.axis: a hinge's axis must be e3 at rest for now (the Euler angles' "
+                    f"innermost axis; turn the structure so that its hinges lie along e3), got "
+                    f"{show_value(list(axis))}"
+                )
+        elif axis is not None:
+            raise SceneError(f"{key}.axis: only a hinge has an axis")
+        joints.append(build(StructureJoint, entry, axis=axis))
     return tuple(joints)
 
 

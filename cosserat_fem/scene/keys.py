@@ -60,7 +60,7 @@ HELD_BY_SUPPORT: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {
 #: is :data:`HELD_BY_SUPPORT`'s, a pinned node a hinge about its axis.
 STRUCTURE_SUPPORTS = ("clamped", "pinned", "spherical", "free")
 #: The joints between a structure's members other than rigid ([[structure.joints]]).
-STRUCTURE_JOINTS = ("spherical",)
+STRUCTURE_JOINTS = ("spherical", "hinge")
 #: Upper bounds of keys whose size alone makes a run impossible here
 #: (cosserat_fem/analysis/budget.py estimates the others): quadrature points per cell, Newton
 #: iterations per solve.

@@ -714,8 +714,14 @@ class StructureSupport:
 
 
 #: The components of U = (p, q) a joint's copies share, by kind ([[structure.joints]]): a
-#: spherical joint the position (x, y, z)/ℓ and its rate, its angles free.
-JOINT_COMPONENTS: dict[str, tuple[int, ...]] = {"spherical": (0, 1, 2, 6, 7, 8)}
+#: spherical joint the position (x, y, z)/ℓ and its rate, its angles free; a hinge about e3
+#: also θ and ψ and their rates. The rotation is Λ = A(Q) R2(ψ) R1(θ) R3(φ) in a node's chart
+#: Q (rod/charts.py), so two copies with one chart and equal θ, ψ differ by R3(φ_b − φ_a)
+#: only: a turn about the rest axis e3, the same in both members (rod/model.py chart_ties).
+JOINT_COMPONENTS: dict[str, tuple[int, ...]] = {
+    "spherical": (0, 1, 2, 6, 7, 8),
+    "hinge": (0, 1, 2, 3, 4, 6, 7, 8, 9, 10),
+}
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -723,12 +729,14 @@ class StructureJoint:
     """A joint at ``node`` ([[structure.joints]], docs/structures.md): the ``members`` it names
     (each with an end at the node) hold their own copy of the node, joined rigidly to one
     another, and that copy joins the node's other members (which keep the node: one of them at
-    least) as ``kind`` says: spherical, the positions shared and the rotations free
+    least) as ``kind`` says: spherical, the positions shared and the rotations free; hinge,
+    the positions shared and the rotations free about ``axis`` only, which must be e3 at rest
     (:data:`JOINT_COMPONENTS`). A support at the node holds its other members."""
 
     node: str = key(Text(required=True, non_empty=True))
     kind: str = key(Choice(choices=STRUCTURE_JOINTS, required=True))
     members: tuple[str, ...] = key(Names(required=True))
+    axis: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
 
 
 @dataclass(frozen=True, kw_only=True)
