@@ -163,6 +163,7 @@ class StaticLoop:
                     model.U.x.array[:] = U_n + (trial - lam) / prev_step * (U_n - U_nm1)
                 else:
                     model.U.x.array[:] = U_n
+                model.turn_nodes(static.time, trial)  # prescribed rotations: α λ
                 try:
                     its = solver.solve()
                     events.solve_done(self, its)
