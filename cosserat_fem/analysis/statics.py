@@ -1,7 +1,8 @@
 """Static equilibrium by load stepping: F(U, 0, τ; λ) = 0 for a load factor λ from 0 to 1.
 
 All loads of the scene (distributed force and torque, end force and torque), evaluated at the
-time ``static.time``, are multiplied by λ. The factor grows in ``static.load_steps`` equal
+time ``static.time``, are multiplied by λ, and so are the angles of a structure's turned nodes
+(``rotation`` α: the node turned by α(static.time) λ, RodModel.turn_nodes). The factor grows in ``static.load_steps`` equal
 increments; each increment is a Newton solve from a secant predictor
 U = U_n + (Δλ/Δλ_{n−1}) (U_n − U_{n−1}). An increment that fails (Newton divergence, a
 non-finite state, or the Euler-angle chart's singularity cos θ → 0) is retried with half the
