@@ -16,22 +16,19 @@ import math
 
 import numpy as np
 import pytest
-from conftest import ROOT, run_command
+from conftest import run_command
+from test_structures import ring_polygon
 
 from cosserat_fem import api
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.rod import charts
 from cosserat_fem.rod.model import rotation_matrix
-from cosserat_fem.scene.build import read_toml, scene_from_dict
+from cosserat_fem.scene.build import scene_from_dict
 
 
 def free_ring_base() -> dict:
-    """scenes/free_ring.toml without its single rod's keys (reference, supports, length)."""
-    base = read_toml(ROOT / "scenes" / "free_ring.toml")
-    data = {k: v for k, v in base.items() if k not in ("reference", "supports")}
-    data["rod"] = {k: v for k, v in base["rod"].items() if k != "length"}
-    data["discretisation"] = {"degree": 3}
-    return data
+    """scenes/free_ring.toml's rod, material and cubic elements, without a structure."""
+    return {k: v for k, v in ring_polygon(3).items() if k != "structure"}
 
 
 def member_data(rotation="2*pi*0.8", turn_axis=(1.0, 2.0, 2.0), **support) -> dict:
@@ -157,20 +154,11 @@ def goto_ring(count: int) -> dict:
     (one cubic element each; the band section :data:`BAND`, d0_2 = e2 the ring's normal), A =
     (−1, 0, 0) clamped, B = (1, 0, 0) sliding along AB = e1 and turned by α = 2π λ about e1
     in 64 load steps (docs/goto-ring.md (1))."""
-    data = free_ring_base()
+    data = ring_polygon(count)
     data["rod"]["section"] = BAND
     data["static"] = {"load_steps": 64, "max_bisections": 12}
-    angles = 2.0 * math.pi * np.arange(count) / count
     half = count // 2
-    data["structure"] = {
-        "nodes": [
-            {"name": f"p{i}", "position": [math.cos(a), 0.0, math.sin(a)]}
-            for i, a in enumerate(angles)
-        ],
-        "members": [
-            {"name": f"m{i}", "from": f"p{i}", "to": f"p{(i + 1) % count}", "elements": 1}
-            for i in range(count)
-        ],
+    data["structure"] |= {
         "supports": [
             {"node": f"p{half}", "kind": "clamped"},
             {
