@@ -121,8 +121,9 @@ class NodeRotation:
     triple nearest the node's current angles, so that a rotation through 2π passes the
     chart's limits as the rest of the structure does, by the chart's moves (the node is not a
     fork: all its angles are held). Their τ-rates are dα/dτ ∂a/∂α (and d²a/dτ² = (dα/dτ)²
-    ∂²a/∂α² + d²α/dτ² ∂a/∂α), ∂a/∂α by central differences in α of step :attr:`H`
-    (truncation O(H²) ≈ 1e-8 relative, round-off ≈ 1e-16/H²)."""
+    ∂²a/∂α² + d²α/dτ² ∂a/∂α), the α-derivatives by central differences of step :attr:`H`
+    (truncation O(H²) ~ 1e-8; round-off ~ 1e-16/H = 1e-12 in the first, 1e-16/H² = 1e-8 in
+    the second). The held angles themselves are exact."""
 
     key: str
     axis: tuple[float, float, float]
