@@ -1,8 +1,9 @@
 """Static equilibrium by load stepping: F(U, 0, τ; λ) = 0 for a load factor λ from 0 to 1.
 
 All loads of the scene (distributed force and torque, end force and torque), evaluated at the
-time ``static.time``, are multiplied by λ. The factor grows in ``static.load_steps`` equal
-increments; each increment is a Newton solve from a secant predictor
+time ``static.time``, are multiplied by λ, and so are the angles of a structure's turned nodes
+(``rotation`` α: the node turned by α(static.time) λ, RodModel.turn_nodes). The factor grows
+in ``static.load_steps`` equal increments; each increment is a Newton solve from a secant predictor
 U = U_n + (Δλ/Δλ_{n−1}) (U_n − U_{n−1}). An increment that fails (Newton divergence, a
 non-finite state, or the Euler-angle chart's singularity cos θ → 0) is retried with half the
 increment, down to 2^−``static.max_bisections`` of the nominal increment (then the run stops
@@ -163,6 +164,7 @@ class StaticLoop:
                     model.U.x.array[:] = U_n + (trial - lam) / prev_step * (U_n - U_nm1)
                 else:
                     model.U.x.array[:] = U_n
+                model.turn_nodes(static.time, trial)  # prescribed rotations: α λ
                 try:
                     its = solver.solve()
                     events.solve_done(self, its)

@@ -105,6 +105,84 @@ class SupportMotion:
     values: dict[int, fem.Constant]
 
 
+def rotation_matrix(axis, angle: float) -> np.ndarray:
+    """Λ = exp(α n×) = I + sin α n× + (1 − cos α) n×² (Rodrigues): the right-handed rotation
+    by ``angle`` α [rad] about the unit ``axis`` n."""
+    n = np.asarray(axis, dtype=float)
+    cross = np.array([[0.0, -n[2], n[1]], [n[2], 0.0, -n[0]], [-n[1], n[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * cross + (1.0 - math.cos(angle)) * cross @ cross
+
+
+@dataclass
+class NodeRotation:
+    """A structure node turned by a prescribed rotation Λ(t) = exp(α(t) n×) from the rest
+    (StructureSupport.rotation, rotation_axis: ``key``, ``angle`` α(t) [rad], ``axis`` n), and
+    the Dirichlet Constants of its angles (θ, ψ, φ) and their rates (components 3-5, 9-11).
+
+    The angles are those of Λ in the node's chart A(Q) (charts.py): D(θ, ψ, φ) = Λᵀ Aᵀ, the
+    triple nearest the node's current angles, so that a rotation through 2π passes the
+    chart's limits as the rest of the structure does, by the chart's moves (the node is not a
+    fork: all its angles are held). Their τ-rates are dα/dτ ∂a/∂α (and d²a/dτ² = (dα/dτ)²
+    ∂²a/∂α² + d²α/dτ² ∂a/∂α), the α-derivatives by central differences of step :attr:`H`
+    (truncation O(H²) ~ 1e-8; round-off ~ 1e-16/H = 1e-12 in the first, 1e-16/H² = 1e-8 in
+    the second). The held angles themselves are exact."""
+
+    key: str
+    axis: tuple[float, float, float]
+    angle: Expression
+    rate: Expression
+    acceleration: Expression
+    blocks: np.ndarray  # the node's blocks of U on this rank (none where it is not)
+    values: dict[int, fem.Constant]
+    H = 1e-4
+
+    def angles(self, model: RodModel, alpha: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The node's angles at α in its chart, and their first and second α-derivatives
+        (collective: the node's chart and angles come from the ranks that have it)."""
+        Q, near = np.array([1.0, 0.0, 0.0, 0.0]), np.zeros(3)
+        local = None
+        if self.blocks.size:
+            block = int(self.blocks[0])
+            full = model.layout.full_array(model.U.x.array)
+            chart = None if model.chart is None else model.chart.x.array.reshape(-1, 4)[block]
+            local = (chart, full[block, 3:6].copy())
+        found = [x for x in model.msh.comm.allgather(local) if x is not None]
+        if found:
+            Q = Q if found[0][0] is None else found[0][0]
+            near = found[0][1]
+        frame = charts.quaternion_frame(Q)
+        h = self.H
+        a = [
+            charts.euler_angles(rotation_matrix(self.axis, alpha + k * h).T @ frame.T, near)
+            for k in (0, -1, 1)
+        ]
+        return a[0], (a[2] - a[1]) / (2.0 * h), (a[2] - 2.0 * a[0] + a[1]) / h**2
+
+    def set(self, model: RodModel, t: float, rates: bool, factor: float | None) -> None:
+        """The Constants at time ``t`` [s]: the angles and their τ-rates (``rates``: the
+        τ-rates and τ-accelerations, for the initial-rate problem); ``factor`` λ (statics):
+        α(t) λ, the rates zero. SceneError naming the key if α(t) is not finite."""
+        values = dict(model.scene.expression_names(), t=t)
+        try:
+            alpha, rate, acc = (
+                e.evaluate(**values) for e in (self.angle, self.rate, self.acceleration)
+            )
+        except ValueError:
+            alpha = rate = acc = math.nan
+        if factor is not None:
+            alpha, rate, acc = alpha * factor, 0.0, 0.0
+        if not all(math.isfinite(x) for x in (alpha, rate, acc)):
+            raise SceneError(f"{self.key}: {self.angle.source!r} is not finite at t = {t:.6g} s")
+        a, da, dda = self.angles(model, alpha)
+        w = model.omega0
+        dadtau = da * rate / w
+        second = (dda * rate**2 + da * acc) / w**2
+        p, q = (dadtau, second) if rates else (a, dadtau)
+        for i in range(3):
+            self.values[3 + i].value = p[i]
+            self.values[9 + i].value = q[i]
+
+
 def _what(component: int) -> str:
     """What a support's component holds: the position, or its rate."""
     return "its position" if component < 6 else "its rate"
@@ -126,7 +204,8 @@ class RodModel:
     convention: EndLoadConvention
     skipped: list[str]
     load_factor: fem.Constant
-    motions: list[SupportMotion] = field(default_factory=list)
+    #: Prescribed support motions (a rod's ends) and node rotations (a structure's).
+    motions: list[SupportMotion | NodeRotation] = field(default_factory=list)
     layout: Layout = field(default_factory=Layout)  # the components of (p, q) U holds
     #: The quaternions Q(σ) of the frame the angles are measured from (forms/kinematics.py,
     #: "Charts"; cosserat_fem/rod/charts.py), or None: the fixed basis, the paper's chart.
@@ -428,6 +507,9 @@ class RodModel:
         values = dict(self.scene.expression_names(), t=t)
         w, ell = self.omega0, self.length
         for m in self.motions:
+            if isinstance(m, NodeRotation):
+                m.set(self, t, rates, None)
+                continue
             p, q = (m.rate, m.acceleration) if rates else (m.position, m.rate)
             scale = (1.0 / ell, 1.0 / (ell * w))
             scale = (scale[1], scale[1] / w) if rates else scale
@@ -479,6 +561,15 @@ class RodModel:
                     found = f"{key} = {e.source!r} is {values[bad[0]]} at t = {t:.6g} s{where}"
         found_all = [f for f in self.msh.comm.allgather(found) if f]
         return found_all[0] if found_all else None
+
+    def turn_nodes(self, t: float, factor: float) -> None:
+        """Statics: the prescribed node rotations at α(t) times the load factor ``factor``,
+        written into U (their dofs only). Collective."""
+        rotations = [m for m in self.motions if isinstance(m, NodeRotation)]
+        for m in rotations:
+            m.set(self, t, False, factor)
+        if rotations:
+            fem.set_bc(self.U.x.array, self.bcs)
 
     def support_dofs_to(self, state: np.ndarray, tau: float) -> None:
         """Write the moving supports' values at τ into a state array (their dofs only)."""
@@ -805,7 +896,7 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     fork_nodes = np.concatenate(
         [np.zeros(0, dtype=np.int32)] + [fem.locate_dofs_topological(V, 0, e) for e in forks]
     ).astype(np.int32)
-    motions = []
+    motions: list[SupportMotion | NodeRotation] = []
     for name in ("start", "end"):
         motion = scene.supports.motion(name)
         if motion is not None:
@@ -866,7 +957,7 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
         "Lagrange", made.msh.ufl_cell(), scene.discretisation.degree, dim=len(FULL)
     )
     V = fem.FunctionSpace(made.msh, element)
-    bcs, forks = structure_conditions(V, scene, made.vertices, FULL)
+    bcs, forks, rotations = structure_conditions(V, scene, made.vertices, FULL)
     model = _model(scene, V, bcs, made.tags, FULL, scene.absent_terms(), forks)
     model.structure = made
     if structure.joints:  # the copies of the joints' nodes, tied (rod/structure.py)
@@ -876,22 +967,39 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
         model.chart_ties = tuple(
             np.asarray(blocks, dtype=np.int32)[hinge] for blocks in (masters, copies)
         )
+    model.motions = rotations
     return model
 
 
 def structure_conditions(
     V: fem.FunctionSpace, scene: Scene, vertices: dict[str, np.ndarray], components
-) -> tuple[list, np.ndarray]:
+) -> tuple[list, np.ndarray, list]:
     """The Dirichlet conditions of a structure's supports (node_conditions at each support's
-    node, ``vertices`` by node name) on a space of the ``components`` of (p, q), and the
-    blocks of the nodes that hold some angles but not all (a hinge: the chart stays there)."""
+    node, ``vertices`` by node name) on a space of the ``components`` of (p, q), the blocks
+    of the nodes that hold some angles but not all (a hinge: the chart stays there), and the
+    prescribed rotations (:class:`NodeRotation`; their Constants zero, the rest, until set)."""
     assert scene.structure is not None, "a structure's scene"
     bcs: list = []
     forks = [np.zeros(0, dtype=np.int32)]
-    for support in scene.structure.supports:
+    rotations = []
+    for i, support in enumerate(scene.structure.supports):
         ents = vertices[support.node]
         held = support.held_components()
-        node_conditions(V, ents, support.kind, held, components, False, bcs)
+        turned = support.rotation is not None
+        values = node_conditions(V, ents, support.kind, held, components, turned, bcs)
         if 0 < len(support.held()[1]) < 3:
             forks.append(fem.locate_dofs_topological(V, 0, ents))
-    return bcs, np.concatenate(forks).astype(np.int32)
+        if turned and support.rotation_axis is not None and support.rotation is not None:
+            rate = derivative(support.rotation, "t")
+            rotations.append(
+                NodeRotation(
+                    f"structure.supports[{i}].rotation",
+                    support.rotation_axis,
+                    support.rotation,
+                    rate,
+                    derivative(rate, "t"),
+                    fem.locate_dofs_topological(V, 0, ents),
+                    values,
+                )
+            )
+    return bcs, np.concatenate(forks).astype(np.int32), rotations

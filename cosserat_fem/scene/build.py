@@ -945,11 +945,14 @@ def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStor
         axis = entry["axis"]
         if axis is not None:
             axis = _unit_axis(axis, f"{key}.axis")
-            if entry["kind"] != "pinned":
-                raise SceneError(f"{key}.axis: only a pinned node has a hinge axis")
+            if entry["kind"] not in ("pinned", "sliding"):
+                raise SceneError(
+                    f"{key}.axis: only a pinned node (its hinge) or a sliding node has an axis"
+                )
             if sum(x != 0 for x in axis) != 1:
-                raise SceneError(f"{key}.axis: a hinge axis must lie along e1, e2 or e3")
-        supports.append(build(StructureSupport, entry, axis=axis))
+                raise SceneError(f"{key}.axis: the axis must lie along e1, e2 or e3")
+        rotation = _node_rotation(entry, key, {"t", *constants})
+        supports.append(build(StructureSupport, entry, axis=axis, **rotation))
     joints = _structure_joints(raw["joints"], members, r0)
     if raw["probe"] is not None and raw["probe"] not in r0:
         raise SceneError(f"structure.probe: unknown node {raw['probe']!r}")
@@ -1032,6 +1035,29 @@ def _structure_joints(
             raise SceneError(f"{key}.axis: only a hinge has an axis")
         joints.append(build(StructureJoint, entry, axis=axis))
     return tuple(joints)
+
+
+def _node_rotation(entry: dict[str, Any], key: str, names: set[str]) -> dict[str, Any]:
+    """A structure support's prescribed rotation (StructureSupport.rotation, rotation_axis):
+    the angle α(t) [rad] parsed (a number or an expression of t and the parameters) and the
+    axis normalised, both or neither given, at a node whose angles are held (clamped or
+    sliding); None for both if absent. SceneError naming the key."""
+    angle, axis = entry["rotation"], entry["rotation_axis"]
+    if angle is None and axis is None:
+        return {"rotation": None, "rotation_axis": None}
+    if angle is None:
+        raise SceneError(f"{key}.rotation_axis: given without a rotation (the angle, of t)")
+    if axis is None:
+        raise SceneError(f"{key}.rotation: needs rotation_axis (the axis it turns about)")
+    if entry["kind"] not in ("clamped", "sliding"):
+        raise SceneError(
+            f"{key}.rotation: a prescribed rotation needs a node whose angles are held "
+            f'(clamped or sliding), but kind = "{entry["kind"]}"'
+        )
+    n = np.asarray(_unit_axis(axis, f"{key}.rotation_axis"))
+    alpha = Expression.parse(angle, names, f"{key}.rotation")
+    x, y, z = (float(c) for c in n / np.linalg.norm(n))
+    return {"rotation": alpha, "rotation_axis": (x, y, z)}
 
 
 def _check_point_node(structure: Structure, node: str, key: str, what: str, verb: str) -> None:

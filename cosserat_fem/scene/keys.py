@@ -57,8 +57,9 @@ HELD_BY_SUPPORT: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {
     "sliding": ((0, 1), (0, 1, 2)),
 }
 #: A structure's node supports ([[structure.supports]], docs/structures.md): what each holds
-#: is :data:`HELD_BY_SUPPORT`'s, a pinned node a hinge about its axis.
-STRUCTURE_SUPPORTS = ("clamped", "pinned", "spherical", "free")
+#: is :data:`HELD_BY_SUPPORT`'s, a pinned node a hinge about its axis, a sliding node free
+#: to move along its axis only.
+STRUCTURE_SUPPORTS = ("clamped", "pinned", "spherical", "sliding", "free")
 #: The joints between a structure's members other than rigid ([[structure.joints]]).
 STRUCTURE_JOINTS = ("spherical", "hinge")
 #: Upper bounds of keys whose size alone makes a run impossible here
@@ -274,6 +275,25 @@ class Vector(Field):
         if value is None:
             return None
         return [x if isinstance(x, int | float) else component_dict(x) for x in value]
+
+
+@dataclass(frozen=True, kw_only=True)
+class NumberOrTimeExpression(Field):
+    """A number or an expression string of t and the parameters; parsed later, when the names
+    are known (a prescribed rotation's angle)."""
+
+    unit: str = ""
+
+    def describe(self) -> str:
+        return f"a number or an expression string of t [{self.unit}]"
+
+    def check(self, key: str, value: Any) -> Any:
+        if isinstance(value, bool) or not isinstance(value, int | float | str):
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        return value
+
+    def to_value(self, value: Any) -> Any:
+        return None if value is None else value.source
 
 
 @dataclass(frozen=True, kw_only=True)

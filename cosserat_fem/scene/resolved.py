@@ -47,6 +47,7 @@ from cosserat_fem.scene.keys import (
     Number,
     NumberOrExpression,
     NumberOrExpressionVector,
+    NumberOrTimeExpression,
     NumberVector,
     Parameters,
     PetscOptions,
@@ -691,12 +692,20 @@ class StructureMember:
 class StructureSupport:
     """A support at a node ([[structure.supports]]): ``kind`` clamped (p = q = 0), pinned (the
     position held, a hinge about ``axis``, e1, e2 or e3, default e2: the angles about the
-    other two held), spherical (the position held) or free; what each holds is
-    HELD_BY_SUPPORT's (scene/keys.py)."""
+    other two held), spherical (the position held), sliding (the angles and the position
+    across ``axis``, e1, e2 or e3, default e3, held: the node slides along it) or free; what
+    each holds is HELD_BY_SUPPORT's (scene/keys.py).
+
+    A clamped or sliding node may be turned: ``rotation`` α(t) [rad] about the unit
+    ``rotation_axis`` n (fixed basis), its rotation Λ(t) = exp(α(t) n×) from the rest
+    (Rodrigues), the angles held at Λ's in the node's chart (rod/model.py NodeRotation;
+    docs/goto-ring.md). In statics α(static.time) is scaled by the load factor λ."""
 
     node: str = key(Text(required=True, non_empty=True))
     kind: str = key(Choice(choices=STRUCTURE_SUPPORTS, required=True))
     axis: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
+    rotation: Expression | None = key(NumberOrTimeExpression(unit="rad"), default=None)
+    rotation_axis: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
 
     def held(self) -> tuple[tuple[int, ...], tuple[int, ...]]:
         """The components of the position (x, y, z) and of the angles (θ, ψ, φ) held."""
@@ -704,6 +713,9 @@ class StructureSupport:
         if self.kind == "pinned":
             k = int(np.argmax(np.abs(self.axis if self.axis is not None else (0, 1, 0))))
             angles = tuple(i for i in range(3) if i != k)
+        if self.kind == "sliding":
+            k = int(np.argmax(np.abs(self.axis if self.axis is not None else (0, 0, 1))))
+            position = tuple(i for i in range(3) if i != k)
         return position, angles
 
     def held_components(self) -> tuple[int, ...]:
