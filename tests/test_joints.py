@@ -444,14 +444,18 @@ sys.path.insert(0, "tests")
 from test_joints import frame_scene, gerber, pendulum
 static = api.static(frame_scene(gerber(1e-3))).probes[-1]
 run = api.run(scene_from_dict(pendulum(2e-3, end=0.1))).probes[-1]
+data = pendulum(2e-3, end=0.1, kind="hinge")
+data["structure"]["joints"][0].update(kind="driven", angle="0.2 * (1 - cos(5 * t))")
+driven = api.run(scene_from_dict(data)).probes[-1]
 if MPI.COMM_WORLD.rank == 0:
-    print(json.dumps({"static": list(map(float, static)), "run": list(map(float, run))}))
+    rows = {"static": static, "run": run, "driven": driven}
+    print(json.dumps({k: list(map(float, v)) for k, v in rows.items()}))
 """
 
 
 def test_joints_serial_equals_mpi(tmp_path):
-    """The Gerber beam at P = 1e-3 (statics) and 50 steps of the double pendulum, in one
-    process and under mpirun -n 2 (the joint's cells on one rank, rod/structure.py
+    """The Gerber beam at P = 1e-3 (statics) and 50 steps of the double pendulum, free and
+    driven at its joint, in one process and under mpirun -n 2 (the joint's cells on one rank, rod/structure.py
     _partitioner, the rest split): the probe's values agree to 1e-8 of their largest (the
     same equations, Newton to its tolerance from the same start; measured ~1e-15)."""
     script = tmp_path / "joints_mpi.py"
@@ -462,7 +466,7 @@ def test_joints_serial_equals_mpi(tmp_path):
         assert done.returncode == 0, done.stderr[-2000:]
         answers.append(json.loads(done.stdout.strip().splitlines()[-1]))
     assert abs(answers[0]["run"][1]) > 1e-3  # C moved
-    for key in ("static", "run"):
+    for key in ("static", "run", "driven"):
         one, two = np.array(answers[0][key]), np.array(answers[1][key])
         np.testing.assert_allclose(two, one, rtol=0, atol=1e-8 * np.abs(one).max())
 
