@@ -5,8 +5,11 @@ An :class:`Identification` ties pairs of dofs: the copy's value u_c equals its m
 unknowns keep both copies, and the Newton system J δ = F of the constrained problem is made
 from the assembled one by row operations, for each pair (c, m):
 
-    F_m ← F_m + F_c,   J_m,: ← J_m,: + J_c,:   (the copy's equation moved to its master)  (C.1)
-    F_c ← u_c − u_m,   J_c,: ← e_cᵀ − e_mᵀ      (the constraint)                           (C.2)
+    F_m ← F_m + F_c,       J_m,: ← J_m,: + J_c,:   (the copy's equation moved to its master)  (C.1)
+    F_c ← u_c − u_m − o_c,  J_c,: ← e_cᵀ − e_mᵀ     (the constraint)                          (C.2)
+
+with o_c the pair's offset (:attr:`Identification.offset`; zero but where a joint drives its
+copy, set before each solve: cosserat_fem/rod/model.py JointDrive).
 
 With u = P u_r (P the 0/1 prolongation: the copy takes its master's value) (C.1) is Pᵀ F and
 Pᵀ J on the masters' rows, and a solution of the square system (C.1)-(C.2) is the solution of
@@ -60,6 +63,8 @@ class Identification:
         )
         #: the pairs whose master's row takes its copy's (C.1): its master not held
         self.added = ~np.isin(self.masters, held)
+        #: o_c of (C.2), per pair: u_c = u_m + o_c
+        self.offset = np.zeros(len(pairs))
         offset = V.dofmap.index_map.local_range[0] * bs
         self._global_copies = (self.copies + offset).astype(PETSc.IntType)
         self._global_masters = (self.masters + offset).astype(PETSc.IntType)
@@ -125,8 +130,16 @@ class Identification:
 
     def apply_vector(self, b: np.ndarray, u: np.ndarray | None) -> None:
         """(C.1)-(C.2) on the owned values ``b`` of an assembled vector, u the unknowns' local
-        values (None: the constraint rows 0, a linear problem's right-hand side whose copies
-        and masters are to be equal)."""
+        values (None: the constraint rows o_c, a linear problem's right-hand side whose
+        copies are to be their masters plus the offsets)."""
         added = self.added
         np.add.at(b, self.masters[added], b[self.copies[added]])
-        b[self.copies] = 0.0 if u is None else u[self.copies] - u[self.masters]
+        if u is None:
+            b[self.copies] = self.offset
+        else:
+            b[self.copies] = u[self.copies] - u[self.masters] - self.offset
+
+    def enforce(self, u: np.ndarray) -> None:
+        """u_c = u_m + o_c in the unknowns' local values ``u`` (a guess, or a state a method
+        combined from its stages, which meets time-dependent offsets only to its order)."""
+        u[self.copies] = u[self.masters] + self.offset

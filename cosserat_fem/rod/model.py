@@ -30,7 +30,7 @@ from petsc4py import PETSc
 
 from cosserat_fem import forms
 from cosserat_fem.common import jit
-from cosserat_fem.common.errors import SceneError
+from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.common.parallel import agree
 from cosserat_fem.forms import reference as reference_shapes
 from cosserat_fem.forms import rigid_body
@@ -63,6 +63,7 @@ from cosserat_fem.scene.build import PLANAR, Scene
 from cosserat_fem.scene.expressions import Expression, derivative
 from cosserat_fem.scene.layout import FULL, Layout
 from cosserat_fem.scene.load_data import is_data
+from cosserat_fem.scene.resolved import JOINT_COMPONENTS
 
 START_TAG, END_TAG, POINT_TAG = 1, 2, 3
 # The unknowns solved (the model's Layout): all twelve, or those of motion in one plane: x-z,
@@ -183,6 +184,45 @@ class NodeRotation:
             self.values[9 + i].value = q[i]
 
 
+@dataclass
+class JointDrive:
+    """A driven joint of a structure (StructureJoint kind "driven": ``key``, ``angle`` α(t)
+    [rad] about e3): its copy is its master turned by R3(α) in their one chart (the chart
+    stays on such a structure: :meth:`RodModel.new_chart`), so φ_c = φ_m + α and the other
+    components equal: the offsets o_c of its φ and q_φ pairs in the constraints
+    (cosserat_fem/nls/constraints.py), α and dα/dτ; ``pairs`` their indices in ``ties`` on
+    the rank that owns the joint (empty elsewhere)."""
+
+    key: str
+    angle: Expression
+    rate: Expression
+    acceleration: Expression
+    ties: Identification
+    pairs: np.ndarray
+
+    def set(self, model: RodModel, t: float, rates: bool, factor: float | None) -> None:
+        """The offsets at time ``t`` [s] (``rates``: their τ-rates, for the initial-rate
+        problem; ``factor`` λ, statics: α(t) λ, rates zero), as NodeRotation.set. SceneError
+        naming the key if α(t) is not finite."""
+        values = dict(model.scene.expression_names(), t=t)
+        try:
+            alpha, rate, acc = (
+                e.evaluate(**values) for e in (self.angle, self.rate, self.acceleration)
+            )
+        except ValueError:
+            alpha = rate = acc = math.nan
+        if factor is not None:
+            alpha, rate, acc = alpha * factor, 0.0, 0.0
+        if not all(math.isfinite(x) for x in (alpha, rate, acc)):
+            raise SceneError(f"{self.key}: {self.angle.source!r} is not finite at t = {t:.6g} s")
+        if not self.pairs.size:
+            return
+        w = model.omega0
+        p, q = (rate / w, acc / w**2) if rates else (alpha, rate / w)
+        angle, its_rate = self.pairs
+        self.ties.offset[angle], self.ties.offset[its_rate] = p, q
+
+
 def _what(component: int) -> str:
     """What a support's component holds: the position, or its rate."""
     return "its position" if component < 6 else "its rate"
@@ -205,7 +245,7 @@ class RodModel:
     skipped: list[str]
     load_factor: fem.Constant
     #: Prescribed support motions (a rod's ends) and node rotations (a structure's).
-    motions: list[SupportMotion | NodeRotation] = field(default_factory=list)
+    motions: list[SupportMotion | NodeRotation | JointDrive] = field(default_factory=list)
     layout: Layout = field(default_factory=Layout)  # the components of (p, q) U holds
     #: The quaternions Q(σ) of the frame the angles are measured from (forms/kinematics.py,
     #: "Charts"; cosserat_fem/rod/charts.py), or None: the fixed basis, the paper's chart.
@@ -229,12 +269,10 @@ class RodModel:
     structure: StructureMesh | None = None
     #: The dofs its joints tie (cosserat_fem/nls/constraints.py), or None: no joints.
     constraints: Identification | None = None
-    #: The nodes (masters, copies; local, owned) of the hinges, whose copies share their
-    #: master's chart: identified (θ, ψ) mean a turn about e3 only in one chart
-    #: (resolved.StructureJoint).
-    chart_ties: tuple[np.ndarray, np.ndarray] = field(
-        default_factory=lambda: (np.zeros(0, dtype=np.int32), np.zeros(0, dtype=np.int32))
-    )
+    #: Whether the structure has hinges or driven joints, whose copies and masters share a
+    #: chart: identified (θ, ψ) mean a turn about e3 only in one chart (resolved.
+    #: JOINT_COMPONENTS); the chart cannot move then (:meth:`new_chart`).
+    chart_tied: bool = False
 
     @property
     def needs_chart(self) -> bool:
@@ -336,18 +374,28 @@ class RodModel:
     def new_chart(self, state: np.ndarray | None = None) -> np.ndarray:
         """The nodal quaternions (nodes, 4) of the rod's own rotation in ``state`` (default U):
         the chart in which its angles are zero (cosserat_fem/rod/charts.py ``chart_of``), but at
-        :attr:`fork_nodes`, which keep theirs, and at a hinge's copy, which takes its master's
-        (:attr:`chart_ties`). Signed for a continuous field along the rod
-        (:meth:`_continuous_signs`). Collective."""
+        :attr:`fork_nodes`, which keep theirs. Signed for a continuous field along the rod
+        (:meth:`_continuous_signs`). Collective. SolverError on a structure with hinges or
+        driven joints (:attr:`chart_tied`)."""
         state = self.U.x.array if state is None else state
         assert self.chart is not None, "use_chart made it"
+        if self.chart_tied:
+            # A hinge's copy would take its master's chart (identified θ, ψ mean a turn about
+            # e3 in one chart only), which differs from its own rotation by the hinge's turn:
+            # its cells would interpolate between charts that far apart, and a rigid turn of
+            # the member after the move then strains it (measured: 7e-3 rad at a hinge turned
+            # 1 rad, not reduced by refinement). Until that is solved: refused.
+            raise SolverError(
+                "the chart must move (an angle θ neared ±π/2), but a structure's hinge or "
+                "driven joint cannot follow a chart's move yet",
+                where="charts",
+                suggestion="keep every node's turn about e1 (θ) below 0.9 rad, or join by "
+                "spherical joints (docs/structures.md, Joints)",
+            )
         Q_old = self.chart.x.array.reshape(-1, 4)
         Q_new = chart_of(self.layout.full_array(state), Q_old)
-        masters, copies = self.chart_ties
-        Q_new[copies] = Q_new[masters]
         self._continuous_signs(Q_new)
         Q_new[self.fork_nodes] = Q_old[self.fork_nodes]
-        Q_new[copies] = Q_new[masters]
         return Q_new
 
     def _continuous_signs(self, Q: np.ndarray) -> None:
@@ -507,7 +555,7 @@ class RodModel:
         values = dict(self.scene.expression_names(), t=t)
         w, ell = self.omega0, self.length
         for m in self.motions:
-            if isinstance(m, NodeRotation):
+            if isinstance(m, NodeRotation | JointDrive):
                 m.set(self, t, rates, None)
                 continue
             p, q = (m.rate, m.acceleration) if rates else (m.position, m.rate)
@@ -565,11 +613,13 @@ class RodModel:
     def turn_nodes(self, t: float, factor: float) -> None:
         """Statics: the prescribed node rotations at α(t) times the load factor ``factor``,
         written into U (their dofs only). Collective."""
-        rotations = [m for m in self.motions if isinstance(m, NodeRotation)]
+        rotations = [m for m in self.motions if isinstance(m, NodeRotation | JointDrive)]
         for m in rotations:
             m.set(self, t, False, factor)
         if rotations:
             fem.set_bc(self.U.x.array, self.bcs)
+            if self.constraints is not None:
+                self.constraints.enforce(self.U.x.array)
 
     def support_dofs_to(self, state: np.ndarray, tau: float) -> None:
         """Write the moving supports' values at τ into a state array (their dofs only)."""
@@ -577,6 +627,8 @@ class RodModel:
             return
         self.move_supports(tau)
         fem.set_bc(state, self.bcs)
+        if self.constraints is not None:  # driven joints' copies
+            self.constraints.enforce(state)
 
     @property
     def length(self) -> float:
@@ -896,7 +948,7 @@ def build_model(scene: Scene, comm: MPI.Comm = MPI.COMM_WORLD, planar: bool = Tr
     fork_nodes = np.concatenate(
         [np.zeros(0, dtype=np.int32)] + [fem.locate_dofs_topological(V, 0, e) for e in forks]
     ).astype(np.int32)
-    motions: list[SupportMotion | NodeRotation] = []
+    motions: list[SupportMotion | NodeRotation | JointDrive] = []
     for name in ("start", "end"):
         motion = scene.supports.motion(name)
         if motion is not None:
@@ -960,14 +1012,29 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
     bcs, forks, rotations = structure_conditions(V, scene, made.vertices, FULL)
     model = _model(scene, V, bcs, made.tags, FULL, scene.absent_terms(), forks)
     model.structure = made
+    model.motions = list(rotations)
     if structure.joints:  # the copies of the joints' nodes, tied (rod/structure.py)
-        masters, copies, components = made.joint_blocks(V, structure)
-        model.constraints = Identification(V, masters, copies, components, bcs)
-        hinge = np.array([3 in c for c in components], dtype=bool)
-        model.chart_ties = tuple(
-            np.asarray(blocks, dtype=np.int32)[hinge] for blocks in (masters, copies)
-        )
-    model.motions = rotations
+        masters, copies, components, which = made.joint_blocks(V, structure)
+        ties = Identification(V, masters, copies, components, bcs)
+        model.constraints = ties
+        model.chart_tied = any(3 in JOINT_COMPONENTS[j.kind] for j in structure.joints)
+        for j, joint in enumerate(structure.joints):
+            if joint.kind != "driven":
+                continue
+            assert joint.angle is not None, "a driven joint's angle (scene/build.py)"
+            mine = [copies[which.index(j)] * 12 + k for k in (5, 11)] if j in which else []
+            pairs = np.array([int(np.flatnonzero(ties.copies == c)[0]) for c in mine], dtype=int)
+            rate = derivative(joint.angle, "t")
+            model.motions.append(
+                JointDrive(
+                    f"structure.joints[{j}].angle",
+                    joint.angle,
+                    rate,
+                    derivative(rate, "t"),
+                    ties,
+                    pairs,
+                )
+            )
     return model
 
 

@@ -63,14 +63,17 @@ class StructureMesh:
 
     def joint_blocks(
         self, V: fem.FunctionSpace, structure: Structure
-    ) -> tuple[list[int], list[int], list[tuple[int, ...]]]:
+    ) -> tuple[list[int], list[int], list[tuple[int, ...]], list[int]]:
         """The dof blocks of V tied by the joints that this rank owns, (masters, copies,
-        components): per joint one (master block, copy block), local indices, and the
-        components of U = (p, q) it identifies (resolved.JOINT_COMPONENTS of its kind). A
-        joint's two blocks are one rank's (:func:`_partitioner`); AssertionError if not."""
+        components, joints): per joint one (master block, copy block), local indices, the
+        components of U = (p, q) it identifies (resolved.JOINT_COMPONENTS of its kind) and
+        its index in structure.joints. A joint's two blocks are one rank's
+        (:func:`_partitioner`); AssertionError if not."""
         owned = V.dofmap.index_map.size_local
-        masters, copies, components = [], [], []
-        for joint, (master, copy) in zip(structure.joints, self.joints, strict=True):
+        masters, copies, components, which = [], [], [], []
+        for j, (joint, (master, copy)) in enumerate(
+            zip(structure.joints, self.joints, strict=True)
+        ):
             pair = [fem.locate_dofs_topological(V, 0, v) for v in (master, copy)]
             mine = [len(b) > 0 and int(b[0]) < owned for b in pair]
             assert mine[0] == mine[1], f"joint at {joint.node!r}: its copies on two ranks"
@@ -78,7 +81,8 @@ class StructureMesh:
                 masters.append(int(pair[0][0]))
                 copies.append(int(pair[1][0]))
                 components.append(JOINT_COMPONENTS[joint.kind])
-        return masters, copies, components
+                which.append(j)
+        return masters, copies, components, which
 
 
 def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -> StructureMesh:

@@ -953,7 +953,7 @@ def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStor
                 raise SceneError(f"{key}.axis: the axis must lie along e1, e2 or e3")
         rotation = _node_rotation(entry, key, {"t", *constants})
         supports.append(build(StructureSupport, entry, axis=axis, **rotation))
-    joints = _structure_joints(raw["joints"], members, r0)
+    joints = _structure_joints(raw["joints"], members, r0, {"t", *constants})
     if raw["probe"] is not None and raw["probe"] not in r0:
         raise SceneError(f"structure.probe: unknown node {raw['probe']!r}")
     if raw["probe"] in {j.node for j in joints}:
@@ -991,11 +991,14 @@ def _build_structure(raw: dict[str, Any], constants: set[str], tables: TableStor
 
 
 def _structure_joints(
-    raw: list[dict[str, Any]], members: list[StructureMember], r0: dict[str, np.ndarray]
+    raw: list[dict[str, Any]],
+    members: list[StructureMember],
+    r0: dict[str, np.ndarray],
+    names: set[str],
 ) -> tuple[StructureJoint, ...]:
     """[[structure.joints]] (resolved.StructureJoint): at a known node, naming members with an
-    end there, each in one joint of the node, and leaving the node one member at least.
-    SceneError naming the key."""
+    end there, each in one joint of the node, and leaving the node one member at least; a
+    driven joint's angle an expression of ``names``. SceneError naming the key."""
     joints = []
     named: dict[str, set[str]] = {}
     for i, entry in enumerate(raw):
@@ -1021,19 +1024,27 @@ def _structure_joints(
                 f"node {node!r} keeps none of {', '.join(at)}"
             )
         axis = entry["axis"]
-        if entry["kind"] == "hinge":
+        angle = entry["angle"]
+        if entry["kind"] == "driven":
+            if angle is None:
+                raise SceneError(f"{key}.angle: a driven joint needs its angle (rad, of t)")
+            angle = Expression.parse(angle, names, f"{key}.angle")
+        elif angle is not None:
+            raise SceneError(f"{key}.angle: only a driven joint has an angle")
+        if entry["kind"] in ("hinge", "driven"):
             if axis is None:
-                raise SceneError(f"{key}.axis: a hinge needs its axis, [0, 0, 1]")
+                raise SceneError(f"{key}.axis: a {entry['kind']} joint needs its axis, [0, 0, 1]")
             axis = _unit_axis(axis, f"{key}.axis")
             if axis[0] != 0.0 or axis[1] != 0.0:
                 raise SceneError(
-                    f"{key}.axis: a hinge's axis must be e3 at rest for now (the Euler angles' "
+                    f"{key}.axis: a {entry['kind']} joint's axis must be e3 at rest for now (the "
+                    "Euler angles' "
                     f"innermost axis; turn the structure so that its hinges lie along e3), got "
                     f"{show_value(list(axis))}"
                 )
         elif axis is not None:
-            raise SceneError(f"{key}.axis: only a hinge has an axis")
-        joints.append(build(StructureJoint, entry, axis=axis))
+            raise SceneError(f"{key}.axis: only a hinge or a driven joint has an axis")
+        joints.append(build(StructureJoint, entry, axis=axis, angle=angle))
     return tuple(joints)
 
 

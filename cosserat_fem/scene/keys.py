@@ -61,7 +61,7 @@ HELD_BY_SUPPORT: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {
 #: to move along its axis only.
 STRUCTURE_SUPPORTS = ("clamped", "pinned", "spherical", "sliding", "free")
 #: The joints between a structure's members other than rigid ([[structure.joints]]).
-STRUCTURE_JOINTS = ("spherical", "hinge")
+STRUCTURE_JOINTS = ("spherical", "hinge", "driven")
 #: Upper bounds of keys whose size alone makes a run impossible here
 #: (cosserat_fem/analysis/budget.py estimates the others): quadrature points per cell, Newton
 #: iterations per solve.

@@ -729,10 +729,12 @@ class StructureSupport:
 #: spherical joint the position (x, y, z)/ℓ and its rate, its angles free; a hinge about e3
 #: also θ and ψ and their rates. The rotation is Λ = A(Q) R2(ψ) R1(θ) R3(φ) in a node's chart
 #: Q (rod/charts.py), so two copies with one chart and equal θ, ψ differ by R3(φ_b − φ_a)
-#: only: a turn about the rest axis e3, the same in both members (rod/model.py chart_ties).
+#: only: a turn about the rest axis e3, the same in both members (so the chart may not move:
+#: rod/model.py RodModel.new_chart).
 JOINT_COMPONENTS: dict[str, tuple[int, ...]] = {
     "spherical": (0, 1, 2, 6, 7, 8),
     "hinge": (0, 1, 2, 3, 4, 6, 7, 8, 9, 10),
+    "driven": tuple(range(12)),  # φ and its rate offset by α(t) (rod/model.py JointDrive)
 }
 
 
@@ -742,13 +744,16 @@ class StructureJoint:
     (each with an end at the node) hold their own copy of the node, joined rigidly to one
     another, and that copy joins the node's other members (which keep the node: one of them at
     least) as ``kind`` says: spherical, the positions shared and the rotations free; hinge,
-    the positions shared and the rotations free about ``axis`` only, which must be e3 at rest
-    (:data:`JOINT_COMPONENTS`). A support at the node holds its other members."""
+    the positions shared and the rotations free about ``axis`` only, which must be e3 at rest;
+    driven, a hinge whose turn is prescribed, the copy turned from the node's members by
+    R3(``angle``), α(t) [rad] (:data:`JOINT_COMPONENTS`; in statics α(static.time) scaled by
+    the load factor λ). A support at the node holds its other members."""
 
     node: str = key(Text(required=True, non_empty=True))
     kind: str = key(Choice(choices=STRUCTURE_JOINTS, required=True))
     members: tuple[str, ...] = key(Names(required=True))
     axis: tuple[float, float, float] | None = key(Vector(unit="-"), default=None)
+    angle: Expression | None = key(NumberOrTimeExpression(unit="rad"), default=None)
 
 
 @dataclass(frozen=True, kw_only=True)
