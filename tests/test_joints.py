@@ -455,9 +455,10 @@ if MPI.COMM_WORLD.rank == 0:
 
 def test_joints_serial_equals_mpi(tmp_path):
     """The Gerber beam at P = 1e-3 (statics) and 50 steps of the double pendulum, free and
-    driven at its joint, in one process and under mpirun -n 2 (the joint's cells on one rank, rod/structure.py
-    _partitioner, the rest split): the probe's values agree to 1e-8 of their largest (the
-    same equations, Newton to its tolerance from the same start; measured ~1e-15)."""
+    driven at its joint, in one process and under mpirun -n 2 (the joint's cells on one
+    rank, rod/structure.py _partitioner, the rest split): the probe's values agree to 1e-8
+    of their largest (the same equations, Newton to its tolerance from the same start;
+    measured ~1e-15)."""
     script = tmp_path / "joints_mpi.py"
     script.write_text(MPI_SCRIPT)
     answers = []

@@ -51,6 +51,8 @@ typedef struct {
   double* constants; const double* coordinates; int32_t coordinates_per_cell;
   const int32_t* dofs; int32_t dofs_per_cell; int32_t n_bc; const int32_t* bc_dofs;
   const double* bc_values; const double* u_values; double* w; double* be; void* b;
+  int32_t n_ties; const int32_t* tie_copies; const int32_t* tie_masters;
+  const int32_t* tie_added; const double* tie_offsets;
 } cf_problem;
 typedef int (*cf_call)(void* ctx);
 typedef int (*cf_observe)(void* ctx, int it, const double* norms, int reason);
@@ -385,9 +387,10 @@ class NativeLoop:
     docstring): ``problem`` is what cf_solve's ``problem`` points to. ``refresh`` before a
     solve whose Dirichlet values moved."""
 
-    def __init__(self, form, U, bcs, b, constants):
+    def __init__(self, form, U, bcs, b, constants, ties=None):
         """``b``: the solver's residual vector; ``constants``: the form's DOLFINx Constants
-        in its order (the UFL form's ``constants()``), whose own storage cf_residual reads."""
+        in its order (the UFL form's ``constants()``), whose own storage cf_residual reads;
+        ``ties``: dofs identified by rows (cosserat_fem/nls/constraints.py), or None."""
         mesh = U.function_space.mesh
         if mesh.comm.size > 1:
             raise NotApplicable("a parallel run")
@@ -481,6 +484,12 @@ class NativeLoop:
         p.w = pointer(np.zeros(max(wsize, 1)), "double*")
         p.be = pointer(np.zeros(dofs.shape[1]), "double*")
         p.b = ffi.cast("void*", b.handle)
+        if ties is not None:
+            p.n_ties = len(ties)
+            p.tie_copies = pointer(np.ascontiguousarray(ties.copies, dtype=np.int32), "int32_t*")
+            p.tie_masters = pointer(np.ascontiguousarray(ties.masters, dtype=np.int32), "int32_t*")
+            p.tie_added = pointer(ties.added.astype(np.int32), "int32_t*")
+            p.tie_offsets = pointer(ties.offset, "double*")  # live: set before each solve
         self.problem = p
         self._form, self._bcs = form, bcs
 

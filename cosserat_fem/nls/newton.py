@@ -309,17 +309,17 @@ class NewtonSolver:
         self.loop = "python"
         if self.settings.loop != "auto" or self._parallel:
             return
-        if self.constraints is not None:  # their rows are applied after DOLFINx's assembly
-            logging.getLogger(__name__).info("Newton's inner loop in Python: constrained dofs")
-            return
         from cosserat_fem.nls.native_newton import NativeLoop, NotApplicable
 
+        ties = self.constraints
         try:
-            native = NativeLoop(self.F_form, self.U, self.bcs, self.b, self._F_constants)
+            native = NativeLoop(self.F_form, self.U, self.bcs, self.b, self._F_constants, ties)
             native.refresh()
             native.residual()
             via_c = self.b.array.copy()
             self._assemble(self.b.array_w, dirichlet=True)
+            if ties is not None:
+                ties.apply_vector(self.b.array_w, self.U.x.array)
             if not np.array_equal(via_c, self.b.array, equal_nan=True):
                 raise NotApplicable("its residual differs from DOLFINx's")
         except NotApplicable as exc:

@@ -62,6 +62,11 @@ typedef struct {
   double* w;                   /* scratch: the largest wsize */
   double* be;                  /* scratch: dofs_per_cell */
   void* b;                     /* the PETSc Vec F(U) goes into */
+  int32_t n_ties;              /* dofs identified by rows (cosserat_fem/nls/constraints.py) */
+  const int32_t* tie_copies;   /* (n_ties,) each pair's copy */
+  const int32_t* tie_masters;  /* (n_ties,) and master */
+  const int32_t* tie_added;    /* (n_ties,) 1: the master's row takes the copy's (C.1) */
+  const double* tie_offsets;   /* (n_ties,) o_c of (C.2), the caller's live array */
 } cf_problem;
 
 static double now(void)
@@ -92,7 +97,8 @@ static void assemble(const cf_problem* p, double* b)
   }
 }
 
-/* b = F(U) with the Dirichlet rows x - g; 0 or a PETSc error code. */
+/* b = F(U) with the Dirichlet rows x - g and the identified dofs' rows; 0 or a PETSc error
+ * code. */
 int cf_residual(cf_problem* p)
 {
   PetscScalar* b;
@@ -109,6 +115,13 @@ int cf_residual(cf_problem* p)
   for (int32_t i = 0; i < p->n_bc; ++i) {
     const int32_t d = p->bc_dofs[i];
     b[d] = -1.0 * (p->bc_values[d] - p->u_values[d]);
+  }
+  /* Identification.apply_vector's (C.1)-(C.2), in its order: the same bits */
+  for (int32_t i = 0; i < p->n_ties; ++i)
+    if (p->tie_added[i]) b[p->tie_masters[i]] += b[p->tie_copies[i]];
+  for (int32_t i = 0; i < p->n_ties; ++i) {
+    const int32_t c = p->tie_copies[i];
+    b[c] = p->u_values[c] - p->u_values[p->tie_masters[i]] - p->tie_offsets[i];
   }
   ierr = VecRestoreArray((Vec)p->b, &b);
   return (int)ierr;
