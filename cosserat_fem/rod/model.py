@@ -63,7 +63,6 @@ from cosserat_fem.scene.build import PLANAR, Scene
 from cosserat_fem.scene.expressions import Expression, derivative
 from cosserat_fem.scene.layout import FULL, Layout
 from cosserat_fem.scene.load_data import is_data
-from cosserat_fem.scene.resolved import JOINT_COMPONENTS
 
 START_TAG, END_TAG, POINT_TAG = 1, 2, 3
 # The unknowns solved (the model's Layout): all twelve, or those of motion in one plane: x-z,
@@ -1013,11 +1012,17 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
     model = _model(scene, V, bcs, made.tags, FULL, scene.absent_terms(), forks)
     model.structure = made
     model.motions = list(rotations)
-    if structure.joints:  # the copies of the joints' nodes, tied (rod/structure.py)
+    if structure.all_joints():  # the copies of the joints' nodes, tied (rod/structure.py)
         masters, copies, components, which = made.joint_blocks(V, structure)
         ties = Identification(V, masters, copies, components, bcs)
         model.constraints = ties
-        model.chart_tied = any(3 in JOINT_COMPONENTS[j.kind] for j in structure.joints)
+        model.chart_tied = any(j.kind in ("hinge", "driven") for j in structure.joints)
+        # a rigid copy (a loaded junction's split) keeps its chart with its master's: a fork's
+        rigid = np.array([len(c) == 12 for c in components], dtype=bool)
+        held = rigid & np.isin(masters, model.fork_nodes)
+        model.fork_nodes = np.concatenate(
+            [model.fork_nodes, np.asarray(copies, dtype=np.int32)[held]]
+        ).astype(np.int32)
         for j, joint in enumerate(structure.joints):
             if joint.kind != "driven":
                 continue

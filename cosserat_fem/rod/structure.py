@@ -57,8 +57,8 @@ class StructureMesh:
     loads: list[tuple[NodeLoad, int, bool]]
     #: the rigid bodies at nodes, with their tag and whether the node is a chain's (dS)
     bodies: list[tuple[NodeBody, int, bool]]
-    #: per joint of structure.joints: the local vertices (local or ghost; none on a rank
-    #: without the joint's cells) of its master and of its copy
+    #: per joint of structure.all_joints(): the local vertices (local or ghost; none on a
+    #: rank without the joint's cells) of its master and of its copy
     joints: list[tuple[np.ndarray, np.ndarray]] = dataclasses.field(default_factory=list)
 
     def joint_blocks(
@@ -67,12 +67,12 @@ class StructureMesh:
         """The dof blocks of V tied by the joints that this rank owns, (masters, copies,
         components, joints): per joint one (master block, copy block), local indices, the
         components of U = (p, q) it identifies (resolved.JOINT_COMPONENTS of its kind) and
-        its index in structure.joints. A joint's two blocks are one rank's
+        its index in structure.all_joints(). A joint's two blocks are one rank's
         (:func:`_partitioner`); AssertionError if not."""
         owned = V.dofmap.index_map.size_local
         masters, copies, components, which = [], [], [], []
         for j, (joint, (master, copy)) in enumerate(
-            zip(structure.joints, self.joints, strict=True)
+            zip(structure.all_joints(), self.joints, strict=True)
         ):
             pair = [fem.locate_dofs_topological(V, 0, v) for v in (master, copy)]
             mine = [len(b) > 0 and int(b[0]) < owned for b in pair]
@@ -102,7 +102,8 @@ def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -
         cells += [[chain[j], chain[j + 1]] for j in range(m.elements)]
     first = np.cumsum([0] + [m.elements for m in structure.members])
     joint_points = []
-    for joint in structure.joints:  # the named members' cells at the node: the copy
+    joints = structure.all_joints()
+    for joint in joints:  # the named members' cells at the node: the copy
         joint_points.append(len(points))
         points.append(r0[joint.node])
         node = names.index(joint.node)
@@ -116,10 +117,8 @@ def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -
         x, topology = np.zeros((0, 3)), np.zeros((0, 2), dtype=np.int64)
     cell = ufl.Cell("interval", geometric_dimension=3)
     domain = ufl.Mesh(ufl.VectorElement("Lagrange", cell, 1, dim=3))
-    if structure.joints:
-        groups = [
-            [names.index(j.node), p] for j, p in zip(structure.joints, joint_points, strict=True)
-        ]
+    if joints:
+        groups = [[names.index(j.node), p] for j, p in zip(joints, joint_points, strict=True)]
         msh = mesh.create_mesh(comm, topology, x, domain, partitioner=_partitioner(groups))
     else:
         msh = mesh.create_mesh(comm, topology, x, domain)
@@ -135,8 +134,8 @@ def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -
             lambda y, at=at: np.linalg.norm(y - at[:, None], axis=0) < 1e-10 * scale,
         )
         vertices[name] = found[~np.isin(_input_vertex(msh, found, original), joint_points)]
-    joints = []
-    for joint, point in zip(structure.joints, joint_points, strict=True):
+    copies = []
+    for joint, point in zip(joints, joint_points, strict=True):
         master = vertices[joint.node]
         at = mesh.locate_entities(
             msh,
@@ -146,18 +145,19 @@ def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -
             ),
         )
         copy = at[_input_vertex(msh, at, original) == point]
-        joints.append((master, copy))
+        copies.append((master, copy))
     entities = np.concatenate(list(vertices.values())).astype(np.int32)
     values = np.concatenate(
         [np.full(len(vertices[n]), NODE_TAG + i, dtype=np.int32) for i, n in enumerate(names)]
     )
     order = np.argsort(entities)
     tags = mesh.meshtags(msh, 0, entities[order], values[order])
+    # a node of two members, or of more split to two (Structure.splits): an interior facet
     loads, bodies = (
-        [(x, NODE_TAG + names.index(x.node), structure.degree(x.node) == 2) for x in items]
+        [(x, NODE_TAG + names.index(x.node), structure.degree(x.node) >= 2) for x in items]
         for items in (structure.loads, structure.bodies)
     )
-    return StructureMesh(msh, vertices, tags, loads, bodies, joints)  # type: ignore[arg-type]
+    return StructureMesh(msh, vertices, tags, loads, bodies, copies)  # type: ignore[arg-type]
 
 
 def _input_vertex(msh: mesh.Mesh, vertices: np.ndarray, original: np.ndarray) -> np.ndarray:

@@ -1072,21 +1072,16 @@ def _node_rotation(entry: dict[str, Any], key: str, names: set[str]) -> dict[str
 
 
 def _check_point_node(structure: Structure, node: str, key: str, what: str, verb: str) -> None:
-    """A node that something at a point (``what``) may be at: a known node of one or two
-    members (the point's measure is a leaf's ds or the interior facet dS of a chain), not a
-    joint's. SceneError naming ``key``.node otherwise."""
+    """A node that something at a point (``what``) may be at: a known node, not a joint's
+    (the point's measure is a leaf's ds or the interior facet dS of a chain; a junction of
+    more members is split to a chain, resolved.Structure.splits). SceneError naming
+    ``key``.node otherwise."""
     if node not in structure.positions():
         raise SceneError(f"{key}.node: unknown node {node!r}")
     if node in {j.node for j in structure.joints}:
         raise SceneError(
             f"{key}.node: {what} at node {node!r}, a joint's, is not supported yet (which "
             f"copy would it act on?); {verb} a node next to it"
-        )
-    if structure.degree(node) > 2:
-        raise SceneError(
-            f"{key}.node: {what} at node {node!r}, which joins {structure.degree(node)} "
-            f"members, is not supported yet (it needs a node of one or two members); {verb} "
-            "a node next to it"
         )
 
 

@@ -735,6 +735,7 @@ JOINT_COMPONENTS: dict[str, tuple[int, ...]] = {
     "spherical": (0, 1, 2, 6, 7, 8),
     "hinge": (0, 1, 2, 3, 4, 6, 7, 8, 9, 10),
     "driven": tuple(range(12)),  # φ and its rate offset by α(t) (rod/model.py JointDrive)
+    "rigid": tuple(range(12)),  # a loaded junction's split (Structure.splits): no joint at all
 }
 
 
@@ -823,6 +824,24 @@ class Structure:
     def degree(self, node: str) -> int:
         """How many members meet at ``node``."""
         return sum((m.start == node) + (m.end == node) for m in self.members)
+
+    def splits(self) -> tuple[StructureJoint, ...]:
+        """The junctions of three or more members that carry a load or a body, split: the
+        members at such a node after its first two (in the members' order) hold a copy of it
+        tied in all twelve components (kind "rigid": the shared vertex it replaces, to
+        round-off; nls/constraints.py), so that the node's own vertex joins two cells, whose
+        interior facet carries the point measure dS (a facet of three cells has none)."""
+        loaded = {x.node for x in self.loads} | {x.node for x in self.bodies}
+        out = []
+        for n in self.nodes:
+            at = [m.name for m in self.members if n.name in (m.start, m.end)]
+            if n.name in loaded and len(at) > 2:
+                out.append(StructureJoint(node=n.name, kind="rigid", members=tuple(at[2:])))
+        return tuple(out)
+
+    def all_joints(self) -> tuple[StructureJoint, ...]:
+        """The scene's joints, then :meth:`splits` (the mesh's copies, in this order)."""
+        return self.joints + self.splits()
 
 
 #: Planes of motion (Scene.plane): the normal e_k, the axes of torques that leave the plane
