@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import ufl
 
-from .general_form import EndLoads, LoadContext, end_data
+from .general_form import EndLoadConvention, EndLoads, LoadContext, end_data
 from .kinematics import directors, split
 
 
@@ -44,12 +44,26 @@ def residual(load, context: LoadContext) -> ufl.Form | None:
         frame = context.reference.frame
         force = frame.T * force if force is not None else None
         torque = frame.T * torque if torque is not None else None
+    return turning(force, torque, context, context.ds[load.end])
+
+
+def turning(force, torque, context: LoadContext, ds: ufl.Measure, interior: bool = False):
+    """The term −g_b · v_q of a force F and a torque M (UFL 3-vectors or None) given by their
+    components along the rows λ_k of D (the directors' of a straight rod; at a structure's
+    node the fixed basis at rest, turned by the node's rotation Λ = Dᵀ), on the measure ``ds``
+    of an end or, ``interior``, the interior facet of a node (evaluated on its '+' side, the
+    sign and scaling as a point load's: forms/general_form.py residual_terms)."""
     p, vq = split(context.U)[0], split(context.V)[1]
     D = directors(p, context.chart)
     fixed = EndLoads(
-        ds=context.ds[load.end],
+        ds=ds,
         force=D.T * force if force is not None else None,
         torque=D.T * torque if torque is not None else None,
+        interior=interior,
     )
+    if interior:
+        convention = EndLoadConvention(scaling=context.convention.scaling)
+        data = end_data(p, context.groups, fixed, convention, context.chart)
+        return (-ufl.inner(data, vq))("+") * ds
     data = end_data(p, context.groups, fixed, context.convention, context.chart)
-    return -ufl.inner(data, vq) * fixed.ds
+    return -ufl.inner(data, vq) * ds

@@ -10,6 +10,7 @@ exact Timoshenko members, derived here), serial against mpirun -n 2, and the bad
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import json
 import math
@@ -56,7 +57,14 @@ def difference(a, b) -> float:
 def rod_and_structure(end_force, end_torque, elements=8, gravity=(0, 0, 0)):
     """The paper's rod along e3 (Lee's section, L = 120, clamped at s = 0, an end load,
     ``gravity``) and the same as a one-member structure from (0, 0, 0) to (0, 0, 120), as
-    scenes."""
+    scenes (:func:`rod_and_structure_data`'s)."""
+    return tuple(
+        scene_from_dict(d) for d in rod_and_structure_data(end_force, end_torque, elements, gravity)
+    )
+
+
+def rod_and_structure_data(end_force, end_torque, elements=8, gravity=(0, 0, 0)):
+    """The data of :func:`rod_and_structure`'s scenes."""
     base = read_toml(LEE)
     for key in ("reference", "supports", "loads"):
         base.pop(key)
@@ -77,7 +85,7 @@ def rod_and_structure(end_force, end_torque, elements=8, gravity=(0, 0, 0)):
         "supports": [{"node": "A", "kind": "clamped"}],
         "loads": [{"node": "B", "force": end_force, "torque": end_torque}],
     }
-    return scene_from_dict(rod), scene_from_dict(structure)
+    return rod, structure
 
 
 def test_one_member_structure_is_the_single_rod():
@@ -103,6 +111,41 @@ def test_one_member_structure_is_the_single_rod():
     c, d = api.run(rod), api.run(structure)
     assert difference(c.model, d.model) < 1e-9
     assert np.abs(c.model.U.x.array).max() > 1e-4  # it moved
+
+
+def test_a_follower_node_load_is_the_rods_follower_end_load():
+    """A follower force and torque at the leaf of the one-member structure along e3 (D0 = I,
+    so the node's rest basis is the end's directors at rest) against the single rod's
+    [loads.follower] at its end (components along d1, d2, d3): the same forms on the two
+    meshes, within 1e-9 of max |U| as :func:`test_one_member_structure_is_the_single_rod`
+    (a tip rotation > 0.3 rad: the load has turned with the end). And inside a chain: the
+    same load at the middle node B of A - B - C (|AB| = 120, |BC| = 60, its interior facet
+    dS, one side) leaves AB as the one member with the load at its leaf (BC unloaded, straight,
+    carried along): within 1e-9 on AB's nodes."""
+    force, torque = [0.1, 0.05, 0.02], [0, 0.5, 1.0]
+    rod_data, structure = rod_and_structure_data([0, 0, 0], [0, 0, 0])
+    rod_data["loads"] = {"follower": {"force": force, "torque": torque}}
+    rod_data["static"] = {"load_steps": 4}
+    data = copy.deepcopy(structure)
+    data["structure"]["loads"] = [{"node": "B", "force": force, "torque": torque, "follower": True}]
+    data["static"] = {"load_steps": 4}
+    a, b = api.static(scene_from_dict(rod_data)), api.static(scene_from_dict(data))
+    assert max(abs(a.probes[-1][4]), abs(a.probes[-1][5])) > 0.3  # turned
+    assert difference(a.model, b.model) < 1e-9
+    chain = copy.deepcopy(structure)
+    chain["structure"]["nodes"].append({"name": "C", "position": [0, 0, 180]})
+    chain["structure"]["members"].append({"name": "n", "from": "B", "to": "C", "elements": 4})
+    chain["structure"]["loads"] = data["structure"]["loads"]
+    chain["static"] = {"load_steps": 4}
+    c = api.static(scene_from_dict(chain))
+    one, two = nodal(b.model), nodal(c.model)
+
+    def physical(values, ell):  # positions [m] (p = x/ℓ, ℓ the members' total) and angles
+        return np.concatenate([values[:3] * ell, values[3:6]])
+
+    gaps = [physical(one[k], 120.0) - physical(two[k], 180.0) for k in one]
+    scale = max(float(np.abs(physical(v, 120.0)).max()) for v in one.values())
+    assert max(float(np.abs(g).max()) for g in gaps) < 1e-9 * scale
 
 
 def test_one_member_structure_moves_its_chart_as_the_rod():

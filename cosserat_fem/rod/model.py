@@ -32,8 +32,8 @@ from cosserat_fem import forms
 from cosserat_fem.common import jit
 from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.common.parallel import agree
+from cosserat_fem.forms import follower, rigid_body
 from cosserat_fem.forms import reference as reference_shapes
-from cosserat_fem.forms import rigid_body
 from cosserat_fem.forms.general_form import (
     DistributedLoads,
     EndLoadConvention,
@@ -723,6 +723,8 @@ class RodModel:
             sub = self.ds.subdomain_data()
             dS = ufl.Measure("dS", domain=self.msh, subdomain_data=sub)
             for load, tag, interior in self.structure.loads:
+                if load.follower:  # turning with the node: residual_terms
+                    continue
                 ends.append(
                     EndLoads(
                         ds=(dS if interior else self.ds)(tag),
@@ -772,7 +774,12 @@ class RodModel:
         )
         form_loads = self.scene.loads.form_loads()
         bodies = self.structure.bodies if self.structure is not None else []
-        if form_loads or bodies:  # the loads declared with their physics (resolved.FormLoad)
+        followers = [
+            (i, x)
+            for i, x in enumerate(self.structure.loads if self.structure else [])
+            if x[0].follower
+        ]
+        if form_loads or bodies or followers:  # the loads declared with their physics
             sym = self._symbols(time_eval)
             context = LoadContext(
                 U=U_eval,
@@ -802,6 +809,12 @@ class RodModel:
                 measure = (dS if interior else self.ds)(tag)
                 terms.extra[f"structure.bodies[{i}]"] = rigid_body.body_term(
                     body, at_node, measure, interior
+                )
+            for i, (node_load, tag, interior) in followers:  # Λ F, Λ M: the rest basis
+                measure = (dS if interior else self.ds)(tag)
+                force, torque = (context.vector(v) for v in (node_load.force, node_load.torque))
+                terms.extra[f"structure.loads[{i}]"] = follower.turning(
+                    force, torque, at_node, measure, interior
                 )
         return terms
 

@@ -743,7 +743,7 @@ _ROD_ONLY = {
     "loads.start": "a structure is loaded at its nodes: [[structure.loads]]",
     "loads.end": "a structure is loaded at its nodes: [[structure.loads]]",
     "loads.point": "a structure is loaded at its nodes: [[structure.loads]]",
-    "loads.follower": "follower loads on a structure are not supported yet",
+    "loads.follower": "a structure's loads that turn are node loads with follower = true",
     "loads.semitangential": "semitangential torques on a structure are not supported yet",
     "loads.body": "a rigid body at a structure's node is not supported yet (a single rod's "
     "end carries one: docs/rigid-bodies.md)",

@@ -759,12 +759,14 @@ class StructureJoint:
 
 @dataclass(frozen=True, kw_only=True)
 class NodeLoad:
-    """A force [N] and torque [N m] at a node ([[structure.loads]]), fixed directions,
-    functions of t."""
+    """A force [N] and torque [N m] at a node ([[structure.loads]]), functions of t: in fixed
+    directions, or with ``follower`` turning with the node, their components in the fixed
+    basis at rest turned by the node's rotation Λ (forms/follower.py ``turning``)."""
 
     node: str = key(Text(required=True, non_empty=True))
     force: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N"))
     torque: tuple[Expression, ...] = key(LoadVector(default=ZERO3, unit="N m"))
+    follower: bool = key(Flag(), default=False)
 
 
 @dataclass(frozen=True, kw_only=True)
