@@ -211,7 +211,6 @@ def stability(
     ``samples``: equally spaced factors visited first (up to the first unstable one);
     ``tolerance``: the root finder's, |Δf| ≤ tolerance (1 + |f|); ``count``: eigenvalues
     nearest 0 computed at each state. stability.json only with ``out``."""
-    refuse_structure(scene, "stability")
     from cosserat_fem.analysis.equilibria import stability as analyse
 
     return analyse(scene, low, high, samples, tolerance, count, out_folder(out))
@@ -221,7 +220,6 @@ def stability_at(scene: Scene, factor: float = 1.0, *, count: int = 6):
     """The static state at load factor ``factor`` (1: the scene's loads) and whether it is
     stable: a :class:`~cosserat_fem.analysis.equilibria.StabilityPoint` (``status``: "stable",
     "divergence" or "flutter"; ``eigenvalues``, ``kinds``)."""
-    refuse_structure(scene, "stability")
     from cosserat_fem.analysis.equilibria import stability_at as at
 
     return at(scene, factor, count)
@@ -468,8 +466,12 @@ def continuation(
     would have traced after it, in its order (``first_branch`` the first's index in the
     folder), their points appended to the folder's files. ``probe``: the
     arclength s [m] of the point reported as ``tip`` instead (the load point of a frame
-    pinned at both ends, say); a restart keeps the first run's."""
-    refuse_structure(scene, "continue")
+    pinned at both ends, say); a restart keeps the first run's. On a structure ``tip`` is its
+    probe node's (structure.probe), and ``probe`` is refused (no arclength s)."""
+    if scene is not None and scene.structure is not None and probe is not None:
+        raise SceneError(
+            "probe: a structure has no arclength s; name the node with structure.probe"
+        )
     import dataclasses
 
     from mpi4py import MPI

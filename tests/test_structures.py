@@ -338,6 +338,40 @@ def with_elements(scene, n: int, degree: int):
 
 
 @pytest.mark.long
+def test_lee_frame_as_a_structure_continues_as_the_kinked_rod():
+    """Pseudo-arclength continuation (cosserat_fem/nls/arclength.py) of Lee's frame, P = 10 λ,
+    as the kinked rod (its load point s = 144 probed) and as the structure of three members
+    (its probe node P, the loaded one; :func:`lee_as_structure`): the same discretisation
+    (tests/test_structures.py, statics within 1e-8), so the same path: the first 13 points
+    (up past the limit load, whose λ is located, and back): λ and the load point's position
+    within 1e-8 of the largest value (measured ~1e-11: the continuation's corrector tolerance on the
+    same equations), the limit load's λ within 1e-8 relative (the published limit load of
+    this discretisation, 18.55, is tests/test_snap_through.py's). And the stability of the
+    two at λ = 0.1: the same lowest eigenvalues of K φ = λ M φ within 1e-8 relative."""
+    rod, structure = lee_as_structure(10.0, 1)
+    options = {"max_points": 13, "switch": 0, "directions": (1,)}
+    a = api.continuation(rod, 0.0, 1.0, probe=144.0, **options)
+    b = api.continuation(structure, 0.0, 1.0, **options)
+    # λ and the load point's position (the angles: the rod's of its directors, the
+    # structure's of its node's rotation from the rest, tests/test_structures.py probes)
+    one = np.array([[q.factor, *q.tip[:3]] for q in a.branches[0].points])
+    two = np.array([[q.factor, *q.tip[:3]] for q in b.branches[0].points])
+    assert one.shape == two.shape == (13, 4)
+    np.testing.assert_allclose(two, one, rtol=0, atol=1e-8 * np.abs(one).max(axis=0).max())
+    limits = [[q.factor for q in r.branches[0].special if q.kind == "limit"] for r in (a, b)]
+    assert len(limits[0]) == len(limits[1]) == 1
+    assert abs(limits[1][0] - limits[0][0]) <= 1e-8 * abs(limits[0][0])
+    rod_at, structure_at = api.stability_at(rod, 0.1), api.stability_at(structure, 0.1)
+    assert rod_at.status == structure_at.status == "stable"
+    np.testing.assert_allclose(
+        np.sort(np.real(structure_at.eigenvalues))[:4],
+        np.sort(np.real(rod_at.eigenvalues))[:4],
+        rtol=1e-8,
+    )
+    with pytest.raises(SceneError, match="^probe: a structure has no arclength s"):
+        api.continuation(structure, 0.0, 1.0, probe=144.0, **options)
+
+
 def test_portal_frame_small_load_is_the_linear_frame():
     """scenes/portal_frame.toml (two columns clamped at the base, a beam joined rigidly, F at
     B along e1, F = 1e-6: sway 7.2e-5 of 120) against the linear frame (:func:`frame_linear`,
@@ -720,13 +754,16 @@ def test_cli_refuses_a_bad_structure_in_one_line(tmp_path):
 @pytest.mark.parametrize(
     ("command", "message"),
     [
-        (["continue", "--range", "0", "1"], "structure: continue is not supported"),
-        (["stability", "--range", "0", "1"], "structure: stability is not supported"),
+        (
+            ["continue", "--range", "0", "1", "--probe", "10"],
+            "probe: a structure has no arclength s",
+        ),
     ],
 )
 def test_commands_a_structure_cannot_do_are_refused_in_one_line(tmp_path, command, message):
-    """`cosserat-fem continue` and `stability` on scenes/portal_frame.toml: exit status 2 (a
-    SceneError), one line naming the structure, no traceback, no output folder."""
+    """`cosserat-fem continue --probe s` on scenes/portal_frame.toml (a structure has no
+    arclength: its probe is a node): exit status 2 (a SceneError), one line naming the key,
+    no traceback, no output folder."""
     out = tmp_path / "out"
     done = run_command(
         ["-m", "cosserat_fem.cli", command[0], str(PORTAL), *command[1:], "--out", str(out)]

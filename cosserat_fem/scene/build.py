@@ -1375,11 +1375,13 @@ def refuse_closed(scene: Scene, command: str) -> None:
 
 def refuse_structure(scene: Scene | None, command: str) -> None:
     """SceneError for a structure (scene.structure) in a command that supports the single rod
-    only (docs/structures.md: run, static, modes and validate take structures)."""
+    only (docs/structures.md: run, static, modes, continue, stability and validate take
+    structures)."""
     if scene is not None and scene.structure is not None:
         raise SceneError(
             f"structure: {command} is not supported on a structure yet (run, static, modes, "
-            "validate and sweeps of plain members are); see docs/structures.md"
+            "continue, stability, validate and sweeps of plain members are); see "
+            "docs/structures.md"
         )
 
 
