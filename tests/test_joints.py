@@ -39,7 +39,8 @@ def member(name: str, start: str, end: str, elements: int = 1) -> dict:
 
 
 def frame_scene(structure: dict, **tables) -> object:
-    """A scene of the portal's section with this [structure] (P3 elements)."""
+    """A scene of the portal's section with this [structure] (P3 elements); ``tables``
+    replace or add top-level tables."""
     data = {
         "title": "joints",
         "rod": ROD,
@@ -110,16 +111,18 @@ def test_a_spherical_joint_makes_a_gerber_beam():
 # --- modes: a clamped beam hinged at its middle --------------------------------------------
 def test_a_beam_hinged_at_its_middle_has_its_halves_modes():
     """A beam A - B - C along e1, clamped at A and C, a spherical joint at B (each half a =
-    60, four P3 cells, the member CB given from C, the mirror image of AB): the reflection
-    about B splits its modes into symmetric and antisymmetric ones. A symmetric mode has no
-    shear at B (odd in the reflection), and the joint no moment: each half is a cantilever;
-    its axial force is zero at B, its torque too (the joint transmits none): the cantilever's
-    axial and torsion modes. An antisymmetric mode has w = 0 and u = 0 at B: each half is
-    clamped at A and held in position at B, free to turn (a spherical support); its torsion
-    is the cantilever's again (the joint transmits no torque). So the hinged beam's spectrum
-    is the union of the two single members' spectra, discrete for discrete (the same cells):
-    equal to the eigensolver's tolerance, 1e-13 on λ (measured 4e-12 on the two lowest ω,
-    whose λ are smallest; 1e-14 elsewhere): the bound 1e-9 on ω."""
+    60, four P3 cells, the member CB given from C, the mirror image of AB). At the straight
+    state bending, torsion and extension decouple, and the reflection about B splits each:
+    bending symmetric (w even): no shear at B (odd), and the joint passes no moment: each
+    half a cantilever; bending antisymmetric (w odd): w = 0 at B, no moment: each half
+    clamped and held in position at B, free to turn (a spherical support). Extension
+    symmetric (u odd): u = 0 at B, each half clamped at both ends (the spherical support's);
+    antisymmetric (u even): N = 0 at B, each half clamped-free (the cantilever's). Torsion:
+    the joint passes no torque, each half clamped-free, twice (both supports' halves). So
+    the hinged beam's spectrum is the union of the two single members' spectra, discrete
+    for discrete (the same cells): equal to the eigensolver's tolerance, 1e-13 on λ
+    (measured 4e-12 on the two lowest ω, whose λ are smallest; 1e-14 elsewhere): the bound
+    1e-9 on ω."""
     a = 60.0
     clamped_a = {"node": "A", "kind": "clamped"}
     hinged = frame_scene(
@@ -441,22 +444,27 @@ from mpi4py import MPI
 from cosserat_fem import api
 from cosserat_fem.scene.build import read_toml, scene_from_dict
 sys.path.insert(0, "tests")
-from test_joints import frame_scene, gerber, pendulum
+from test_joints import frame_scene, gerber, hinged_portal, pendulum
 static = api.static(frame_scene(gerber(1e-3))).probes[-1]
 run = api.run(scene_from_dict(pendulum(2e-3, end=0.1))).probes[-1]
 data = pendulum(2e-3, end=0.1, kind="hinge")
 data["structure"]["joints"][0].update(kind="driven", angle="0.2 * (1 - cos(5 * t))")
 driven = api.run(scene_from_dict(data)).probes[-1]
+portal = hinged_portal((1e-4, 0, 0))  # its beam one cell, last: two joints share it
+beam = portal["structure"]["members"].pop(2)
+portal["structure"]["members"].append({**beam, "elements": 1})
+shared = api.static(scene_from_dict(portal)).probes[-1]
 if MPI.COMM_WORLD.rank == 0:
-    rows = {"static": static, "run": run, "driven": driven}
+    rows = {"static": static, "run": run, "driven": driven, "shared": shared}
     print(json.dumps({k: list(map(float, v)) for k, v in rows.items()}))
 """
 
 
 def test_joints_serial_equals_mpi(tmp_path):
     """The Gerber beam at P = 1e-3 (statics) and 50 steps of the double pendulum, free and
-    driven at its joint, in one process and under mpirun -n 2 (the joint's cells on one
-    rank, rod/structure.py _partitioner, the rest split): the probe's values agree to 1e-8
+    driven at its joint, and the hinged portal whose one-cell beam two joints share, in one
+    process and under mpirun -n 2 (a joint's cells on one rank, joints sharing a cell on one
+    too: rod/structure.py _partitioner; the rest split): the probe's values agree to 1e-8
     of their largest (the same equations, Newton to its tolerance from the same start;
     measured ~1e-15)."""
     script = tmp_path / "joints_mpi.py"
@@ -467,7 +475,7 @@ def test_joints_serial_equals_mpi(tmp_path):
         assert done.returncode == 0, done.stderr[-2000:]
         answers.append(json.loads(done.stdout.strip().splitlines()[-1]))
     assert abs(answers[0]["run"][1]) > 1e-3  # C moved
-    for key in ("static", "run", "driven"):
+    for key in ("static", "run", "driven", "shared"):
         one, two = np.array(answers[0][key]), np.array(answers[1][key])
         np.testing.assert_allclose(two, one, rtol=0, atol=1e-8 * np.abs(one).max())
 
@@ -484,6 +492,39 @@ def test_a_jointed_run_restarts_bit_for_bit(tmp_path):
     rest = api.run(scene, restart=checkpoint)
     assert abs(whole.probes[-1][1]) > 1e-3
     assert np.array_equal(whole.model.U.x.array, rest.model.U.x.array)
+
+
+def test_a_support_at_a_hinges_node_holds_the_node_and_through_it_the_copy():
+    """A stub T - S clamped at S, a beam S - M - E (|SE| = 120) on a hinge about e3 at S (the
+    beam's copy; the support holds the stub's vertex, the master: Identification.added false,
+    its row kept) and pinned about e3 at E, a force P = 1e-4 along e2 at mid-span M: the
+    hinge passes no moment about e3, so the beam is simply supported in its plane (its
+    position at S held through the joint): w_M = P L³/(48 EI) + P L/(4 κGA) (Timoshenko),
+    at P = 1e-5 within 1e-6 relative: P3 holds the linear fields exactly, and the ends held
+    apart make the geometric nonlinearity the membrane's, relative O((w/r)²), r = √(I/A)
+    the radius of gyration ((4.3e-4)² = 1.9e-7; measured 4.5e-8, and 4.5e-6 at P = 1e-4, the
+    same beam pinned at both ends without the stub and the joint alike). The modes then hold
+    the copy where the master is held (modal identify): no rigid-body mode."""
+    P, L = 1e-5, 120.0
+    structure = {
+        "nodes": [node("T", -10), node("S", 0), node("M", 60), node("E", 120)],
+        "members": [member("stub", "T", "S"), member("b1", "S", "M", 2), member("b2", "M", "E", 2)],
+        "supports": [
+            {"node": "S", "kind": "clamped"},
+            {"node": "E", "kind": "pinned", "axis": [0, 0, 1]},
+        ],
+        "joints": [{"node": "S", "kind": "hinge", "members": ["b1"], "axis": [0, 0, 1]}],
+        "loads": [{"node": "M", "force": [0, P, 0]}],
+        "probe": "M",
+    }
+    rod = {**ROD, "section": {**ROD["section"], "c11": I_PLANE}}
+    scene = frame_scene(structure, rod=rod)
+    result = api.static(scene)
+    ties = result.model.constraints
+    assert not ties.added.any()  # S's master is held: each pair keeps its master's row
+    want = P * L**3 / (48 * EI) + P * L / (4 * KGA)
+    assert abs(result.probes[-1][2] - want) <= 1e-6 * want, (result.probes[-1][2], want)
+    assert min(m.omega for m in api.modes(scene, 4)) > 0.0  # held: no rigid-body mode
 
 
 # --- driven joints ------------------------------------------------------------------------
@@ -577,6 +618,72 @@ def test_a_driven_joint_drives_a_pendulums_lower_link(tmp_path):
         assert np.abs(want[:, 0]).max() > 1.0
     assert 3.2 <= errors[0] / errors[1] <= 4.8, errors
     assert errors[1] < 4e-6, errors
+
+
+def test_joints_that_leave_a_mechanism_are_counted():
+    """Structure.rigid_body_modes counts the rigid groups' motions the supports and joints
+    leave: a cantilever with a link B - D - C hung on a spherical joint at B and free at C
+    swings three ways about B (3); a member between two spherical joints of two clamped
+    cantilevers spins about its own axis (1); the Gerber beam (a pin at C about e2, holding
+    the link's spin) has none. Statics refuses a mechanism by name; its modes start with
+    that many zeros."""
+    hung = {
+        "nodes": [node("A", 0), node("B", 40), node("D", 70), node("C", 100)],
+        "members": [member("AB", "A", "B"), member("BD", "B", "D"), member("DC", "D", "C")],
+        "supports": [{"node": "A", "kind": "clamped"}],
+        "joints": [{"node": "B", "kind": "spherical", "members": ["BD"]}],
+        "loads": [{"node": "D", "force": [0, 0, -1e-4]}],
+    }
+    spin = {
+        "nodes": [node("A", 0), node("B", 40), node("M", 70), node("C", 110)],
+        "members": [member("AB", "A", "B"), member("BM", "B", "M"), member("CM", "C", "M")],
+        "supports": [{"node": "A", "kind": "clamped"}, {"node": "C", "kind": "clamped"}],
+        "joints": [
+            {"node": "B", "kind": "spherical", "members": ["BM"]},
+            {"node": "M", "kind": "spherical", "members": ["CM"]},
+        ],
+    }
+    for structure, count in ((hung, 3), (spin, 1), (gerber(1e-4), 0)):
+        assert frame_scene(structure).rigid_body_modes() == count
+    with pytest.raises(SceneError, match="^structure.supports: a static equilibrium needs"):
+        api.static(frame_scene(hung))
+    omegas = sorted(m.omega for m in api.modes(frame_scene(spin), 3))
+    assert omegas[0] == 0.0 and omegas[1] > 0.0
+
+
+def test_the_default_probe_is_not_a_joints_node():
+    """With no probe given, no load and every node held or a joint's, a structure whose first
+    node is a joint's probes the first other node (a joint's two copies turn apart)."""
+    structure = gerber(0.0)
+    structure["nodes"] = [structure["nodes"][1], *structure["nodes"][:1], *structure["nodes"][2:]]
+    structure.pop("loads")
+    structure["supports"].append({"node": "D", "kind": "spherical"})
+    assert frame_scene(structure).structure.probe_node() == "A"
+
+
+def test_a_driven_joint_about_minus_e3_turns_the_other_way():
+    """The driven member of :func:`test_a_driven_joint_turns_its_member_rigidly` without the
+    stub's turn, driven through 0.3 rad about e3 and about −e3: B at R3(±0.3) (10, 0, 0)
+    within 1e-9 of |AB| (R(−e3, α) = R3(−α))."""
+    for sign in (1, -1):
+        structure = {
+            "nodes": [node("S", -10), node("A", 0), node("B", 10)],
+            "members": [member("SA", "S", "A", 2), member("AB", "A", "B", 3)],
+            "supports": [{"node": "S", "kind": "clamped"}],
+            "joints": [
+                {
+                    "node": "A",
+                    "kind": "driven",
+                    "members": ["AB"],
+                    "axis": [0, 0, sign],
+                    "angle": 0.3,
+                }
+            ],
+            "probe": "B",
+        }
+        got = api.static(frame_scene(structure)).probes[-1][1:4]
+        want = [10 * math.cos(0.3) - 10, sign * 10 * math.sin(0.3), 0]
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-8)
 
 
 # --- bad input -----------------------------------------------------------------------------

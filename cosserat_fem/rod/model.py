@@ -198,6 +198,8 @@ class JointDrive:
     acceleration: Expression
     ties: Identification
     pairs: np.ndarray
+    #: +1 for the axis e3, −1 for −e3 (a turn by α about −e3 is R3(−α))
+    sign: float = 1.0
 
     def set(self, model: RodModel, t: float, rates: bool, factor: float | None) -> None:
         """The offsets at time ``t`` [s] (``rates``: their τ-rates, for the initial-rate
@@ -214,6 +216,7 @@ class JointDrive:
             alpha, rate, acc = alpha * factor, 0.0, 0.0
         if not all(math.isfinite(x) for x in (alpha, rate, acc)):
             raise SceneError(f"{self.key}: {self.angle.source!r} is not finite at t = {t:.6g} s")
+        alpha, rate, acc = (self.sign * x for x in (alpha, rate, acc))
         if not self.pairs.size:
             return
         w = model.omega0
@@ -1051,6 +1054,7 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
                     derivative(rate, "t"),
                     ties,
                     pairs,
+                    1.0 if joint.axis is None or joint.axis[2] > 0 else -1.0,
                 )
             )
     return model

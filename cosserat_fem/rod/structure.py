@@ -35,6 +35,7 @@ from dolfinx import cpp, fem, mesh
 from dolfinx.fem.function import ElementMetaData
 from mpi4py import MPI
 
+from cosserat_fem.common.parallel import agree
 from cosserat_fem.forms.groups import RodConstants
 from cosserat_fem.forms.resultants import stiffness_matrix
 from cosserat_fem.forms.section import SectionLaw
@@ -68,20 +69,23 @@ class StructureMesh:
         components, joints): per joint one (master block, copy block), local indices, the
         components of U = (p, q) it identifies (resolved.JOINT_COMPONENTS of its kind) and
         its index in structure.all_joints(). A joint's two blocks are one rank's
-        (:func:`_partitioner`); AssertionError if not."""
+        (:func:`_partitioner`); a RuntimeError on every rank if not. Collective."""
         owned = V.dofmap.index_map.size_local
         masters, copies, components, which = [], [], [], []
+        problem = None
         for j, (joint, (master, copy)) in enumerate(
             zip(structure.all_joints(), self.joints, strict=True)
         ):
             pair = [fem.locate_dofs_topological(V, 0, v) for v in (master, copy)]
             mine = [len(b) > 0 and int(b[0]) < owned for b in pair]
-            assert mine[0] == mine[1], f"joint at {joint.node!r}: its copies on two ranks"
-            if mine[0]:
+            if mine[0] != mine[1] and problem is None:  # _partitioner's to prevent
+                problem = RuntimeError(f"joint at {joint.node!r}: its copies on two ranks")
+            if mine[0] and mine[1]:
                 masters.append(int(pair[0][0]))
                 copies.append(int(pair[1][0]))
                 components.append(JOINT_COMPONENTS[joint.kind])
                 which.append(j)
+        agree(V.mesh.comm, problem)
         return masters, copies, components, which
 
 
@@ -178,9 +182,10 @@ def _input_vertex(msh: mesh.Mesh, vertices: np.ndarray, original: np.ndarray) ->
 def _partitioner(groups: list[list[int]]):
     """DOLFINx's default cell partition with every cell that touches a joint (``groups``:
     per joint the input points of its master and its copy) owned by one rank, that of the
-    joint's first such cell, and the ghosts made again as DOLFINx makes them for a
-    shared-facet mesh of intervals: a cell is a ghost on each other rank that owns a cell
-    sharing a vertex with it. Rank 0 holds every input cell (create_structure_mesh)."""
+    joint's first such cell (joints that share a cell: one rank for all their cells), and
+    the ghosts made again as DOLFINx makes them for a shared-facet mesh of intervals: a cell
+    is a ghost on each other rank that owns a cell sharing a vertex with it. Rank 0 holds
+    every input cell (create_structure_mesh)."""
     default = cpp.mesh.create_cell_partitioner()
 
     def partition(comm, nparts, tdim, cells, ghost_mode):
@@ -190,9 +195,16 @@ def _partitioner(groups: list[list[int]]):
             return parts
         owner = np.array([parts.links(i)[0] for i in range(count)], dtype=np.int32)
         topology = cells.array.reshape(count, -1)
+        merged: list[set[int]] = []  # the joints' cells, joints sharing a cell in one set
         for group in groups:
-            touching = np.flatnonzero(np.isin(topology, group).any(axis=1))
-            owner[touching] = owner[touching[0]]
+            touching = set(np.flatnonzero(np.isin(topology, group).any(axis=1)).tolist())
+            for other in [m for m in merged if m & touching]:
+                touching |= other
+                merged.remove(other)
+            merged.append(touching)
+        for touching in merged:
+            cells_of = np.array(sorted(touching))
+            owner[cells_of] = owner[cells_of[0]]
         by_vertex: dict[int, set[int]] = {}
         for c, vertices in enumerate(topology):
             for v in vertices:

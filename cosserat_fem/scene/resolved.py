@@ -409,13 +409,19 @@ def rigid_body_modes(held: list[tuple[np.ndarray, tuple[int, ...], tuple[int, ..
     ``held`` [(point r, position components, angle components)]: position component i at r
     is t_i + (ω × r)_i, angle a is ω_a (the angles' linearisation at rest: rotations about
     e1, e2, e3)."""
-    rows = []
-    for r, position, angles in held:
-        for i in position:
-            e = np.eye(3)[i]
-            rows.append(np.concatenate([e, np.cross(r, e)]))  # (ω × r)·e = ω·(r × e)
-        rows += [np.concatenate([np.zeros(3), np.eye(3)[a]]) for a in angles]
+    rows = [row for r, position, angles in held for row in _held_rows(r, position, angles)]
     return 6 - (int(np.linalg.matrix_rank(np.array(rows))) if rows else 0)
+
+
+def _held_rows(r: np.ndarray, position, angles) -> list[np.ndarray]:
+    """The rows (over t, ω) of the position components ``position`` at r, t_i + (ω × r)_i,
+    and of the angle components ``angles``, ω_a, of a small rigid motion (rigid_body_modes)."""
+    rows = []
+    for i in position:
+        e = np.eye(3)[i]
+        rows.append(np.concatenate([e, np.cross(r, e)]))  # (ω × r)·e = ω·(r × e)
+    rows += [np.concatenate([np.zeros(3), np.eye(3)[a]]) for a in angles]
+    return rows
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -808,20 +814,67 @@ class Structure:
 
     def probe_node(self) -> str:
         """The node probes.csv follows: ``probe``, else the first loaded node, else the first
-        node without a support, else the first node."""
+        node without a support, else the first node; not a joint's (whose two copies turn
+        apart; a load cannot be there) but when every node is one's."""
         if self.probe is not None:
             return self.probe
         held = {s.node for s in self.supports if s.kind != "free"}
-        held |= {j.node for j in self.joints}  # a joint's node has two rotations: none
-        free = [n.name for n in self.nodes if n.name not in held]
-        return next(iter([x.node for x in self.loads] + free + [self.nodes[0].name]))
+        jointed = {j.node for j in self.joints}  # a joint's node has two rotations: none
+        free = [n.name for n in self.nodes if n.name not in held | jointed]
+        rest = [n.name for n in self.nodes if n.name not in jointed] + [self.nodes[0].name]
+        return next(iter([x.node for x in self.loads] + free + rest))
 
     def rigid_body_modes(self) -> int:
-        """How many rigid-body motions the supports leave (:func:`rigid_body_modes`, the
-        nodes' positions scaled by the structure's size: the rank is scale-free)."""
+        """How many rigid-body motions the supports and joints leave: the members joined
+        rigidly form rigid groups (the graph of members cut at the joints' copies, each a
+        small rigid motion (t, ω) of 6 unknowns); the supports hold components of their
+        node's group (:func:`rigid_body_modes`'s rows) and each joint the differences of its
+        two groups' motions at its node in the components it ties (JOINT_COMPONENTS: a
+        spherical joint the position, a hinge also the turns about e1 and e2). The count is
+        6 × groups less the rank of those rows: a mechanism's motions, e.g. a member between
+        two spherical joints spinning about its own axis. The nodes' positions are scaled by
+        the structure's size (the rank is scale-free)."""
         r0 = self.positions()
         size = max(1e-300, max(float(np.abs(x).max()) for x in r0.values()))
-        return rigid_body_modes([(r0[s.node] / size, *s.held()) for s in self.supports])
+        joints = self.all_joints()
+        copy_of = {(m, j.node): f"{j.node}#{k}" for k, j in enumerate(joints) for m in j.members}
+        parent: dict[str, str] = {}
+
+        def root(v: str) -> str:
+            parent.setdefault(v, v)
+            while parent[v] != v:
+                v = parent[v]
+            return v
+
+        for m in self.members:
+            a, b = (root(copy_of.get((m.name, n), n)) for n in (m.start, m.end))
+            parent[a] = b
+        groups = sorted({root(v) for v in list(parent)})
+        column = {g: 6 * i for i, g in enumerate(groups)}
+
+        def placed(group: str, rows: list[np.ndarray], sign: float = 1.0) -> list[np.ndarray]:
+            out = []
+            for row in rows:
+                full = np.zeros(6 * len(groups))
+                full[column[group] : column[group] + 6] = sign * row
+                out.append(full)
+            return out
+
+        rows = []
+        for s in self.supports:
+            rows += placed(root(s.node), _held_rows(r0[s.node] / size, *s.held()))
+        for k, j in enumerate(joints):
+            tied = JOINT_COMPONENTS[j.kind]
+            held = (
+                tuple(i for i in tied if i < 3),
+                tuple(i - 3 for i in tied if 3 <= i < 6),
+            )
+            local = _held_rows(r0[j.node] / size, *held)
+            one = placed(root(j.node), local)
+            two = placed(root(f"{j.node}#{k}"), local, -1.0)
+            rows += [x + y for x, y in zip(one, two, strict=True)]
+        rank = int(np.linalg.matrix_rank(np.array(rows))) if rows else 0
+        return 6 * len(groups) - rank
 
     def degree(self, node: str) -> int:
         """How many members meet at ``node``."""
