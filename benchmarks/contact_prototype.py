@@ -203,6 +203,63 @@ def no_contact_timing(elements: int) -> dict:
     return timings
 
 
+# %% [markdown]
+# ## The rod-rod search: boxes in a uniform grid, O(n)
+#
+# Each segment (a cell of the deformed rod, a P_k curve) gets an axis-aligned box of its
+# nodes, widened by the section's radius and a margin (a P_k curve may leave its nodes' hull by
+# its interpolation error: the implementation widens by a bound of it). The boxes are hashed
+# into a uniform grid of spacing the largest box's extent, so a box meets at most 8 grid cells
+# (3D); pairs are the boxes sharing a grid cell whose boxes overlap, excluding neighbours
+# along the rod (|i − j| ≤ ``skip``: adjacent cells always touch). Expected cost O(n) for
+# boxes of bounded density (sorting the keys: O(n log n) with a small constant).
+
+
+# %%
+def candidate_pairs(lo: np.ndarray, hi: np.ndarray, skip: int = 1) -> np.ndarray:
+    """The pairs (i, j), i < j − skip, of boxes [lo_i, hi_i] (n × 3) that overlap."""
+    n = lo.shape[0]
+    cell = float((hi - lo).max())
+    first = np.floor(lo / cell).astype(np.int64)
+    entries, owners = [], []
+    for corner in np.ndindex(2, 2, 2):  # the ≤ 8 grid cells a box can meet
+        c = np.minimum(first + np.array(corner), np.floor(hi / cell).astype(np.int64))
+        entries.append(c)
+        owners.append(np.arange(n))
+    c, who = np.vstack(entries), np.concatenate(owners)
+    key = (c[:, 0] * 73856093) ^ (c[:, 1] * 19349663) ^ (c[:, 2] * 83492791)  # spatial hash
+    key, unique_rows = np.unique(np.column_stack([key, who]), axis=0).T  # a box once a cell
+    order = np.argsort(key, kind="stable")
+    key, who = key[order], unique_rows[order]
+    pairs = []
+    for d in range(1, n):
+        same = key[d:] == key[:-d]
+        if not same.any():
+            break
+        a, b = who[:-d][same], who[d:][same]
+        pairs.append(np.column_stack([np.minimum(a, b), np.maximum(a, b)]))
+    if not pairs:
+        return np.zeros((0, 2), dtype=np.int64)
+    p = np.unique(np.vstack(pairs), axis=0)
+    p = p[p[:, 1] - p[:, 0] > skip]
+    overlap = np.all((lo[p[:, 0]] <= hi[p[:, 1]]) & (lo[p[:, 1]] <= hi[p[:, 0]]), axis=1)
+    return p[overlap]
+
+
+def plectoneme_boxes(n: int, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Boxes of n segments of a two-strand plectoneme-like curve: a double helix of pitch
+    8 radius whose strands touch (the self-contact's worst case: every segment has partners)."""
+    m, total = n // 2, 2 * np.pi * n / 32  # 16 segments a turn, on either strand
+    phase = np.concatenate([np.linspace(0.0, total, m + 1), np.linspace(total, 0.0, n - m)])
+    strand = np.where(np.arange(n + 1) <= m, 0.0, np.pi)  # the loop: one segment across
+    x = np.column_stack(
+        [radius * np.cos(phase + strand), radius * np.sin(phase + strand), 8 * radius * phase]
+    )
+    lo = np.minimum(x[:-1], x[1:]) - radius
+    hi = np.maximum(x[:-1], x[1:]) + radius
+    return lo, hi
+
+
 # %%
 if __name__ == "__main__":
     EA, EI = E * AREA, E * INERTIA
@@ -258,6 +315,16 @@ if __name__ == "__main__":
             f"{T**2 / (2 * EA * mu * W):.6e}), slip zone {slip_zone:.4f} m (T/(μw) = "
             f"{T / (mu * W):.4f}), max |slide| where it sticks {np.abs(z[stuck]).max():.1e} m, "
             f"Newton {its} iterations a step, {changes} active-set changes"
+        )
+
+    for n in (1000, 10000, 100000):
+        lo, hi = plectoneme_boxes(n, 0.01)
+        t0 = time.perf_counter()
+        pairs = candidate_pairs(lo, hi, skip=2)
+        dt = time.perf_counter() - t0
+        print(
+            f"search: {n} segments, {len(pairs)} candidate pairs, {dt * 1e3:.1f} ms "
+            f"({dt / n * 1e9:.0f} ns a segment)"
         )
 
     elements = int(sys.argv[1]) if len(sys.argv) > 1 else 2000
