@@ -260,6 +260,27 @@ def plectoneme_boxes(n: int, radius: float) -> tuple[np.ndarray, np.ndarray]:
     return lo, hi
 
 
+# %% [markdown]
+# ## Greenhill's clamped rod (docs/contact-design.md, the plectoneme check)
+#
+# Linearised about the straight rod under a torque M (no tension), w = u + iv obeys
+# EI w'''' − iM w''' = 0: w = c0 + c1 s + c2 s² + c3 exp(iαs/L), α = ML/EI; clamped ends
+# (w = w' = 0 at s = 0, L) make a 4×4 determinant whose first zero is α_c.
+
+
+# %%
+def greenhill_clamped() -> float:
+    """α_c = M_c L/EI of a rod clamped at both ends under a torque (Love's 8.99)."""
+    from scipy.optimize import minimize_scalar
+
+    def det(a: float) -> float:
+        e = np.exp(1j * a)
+        m = np.array([[1, 0, 0, 1], [0, 1, 0, 1j * a], [1, 1, 1, e], [0, 1, 2, 1j * a * e]])
+        return abs(np.linalg.det(m))
+
+    return float(minimize_scalar(det, bracket=(8.5, 9.0, 9.5), tol=1e-12).x)
+
+
 # %%
 if __name__ == "__main__":
     EA, EI = E * AREA, E * INERTIA
@@ -326,6 +347,9 @@ if __name__ == "__main__":
             f"search: {n} segments, {len(pairs)} candidate pairs, {dt * 1e3:.1f} ms "
             f"({dt / n * 1e9:.0f} ns a segment)"
         )
+
+    alpha = greenhill_clamped()
+    print(f"Greenhill, clamped ends: M_c L/EI = {alpha:.6f} = {alpha / np.pi:.6f} π")
 
     elements = int(sys.argv[1]) if len(sys.argv) > 1 else 2000
     base = no_contact_timing(elements)
