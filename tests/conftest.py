@@ -219,6 +219,20 @@ def sweep_serial_and_mpi(path: Path, folder: Path) -> dict[int, list[dict]]:
     return tables
 
 
+def script_serial_and_mpi(script: Path, text: str) -> list[dict]:
+    """The Python ``text`` written to ``script`` and run on one rank and under mpirun -n 2:
+    the JSON object each run prints on its last line (rank 0's), serial first."""
+    import json
+
+    script.write_text(text)
+    answers = []
+    for ranks in (1, 2):
+        done = run_command([str(script)], ranks=ranks)
+        assert done.returncode == 0, done.stderr[-2000:]
+        answers.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    return answers
+
+
 def damage_library(library: Path, how: str) -> None:
     """Damage a compiled library as a partial copy of the cache or a disk error would.
 

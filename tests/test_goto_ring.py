@@ -11,13 +11,12 @@ Goto's twisted ring folding into a triple-covered ring of radius R/3 (docs/goto-
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 import pytest
 import ufl
-from conftest import run_command
+from conftest import script_serial_and_mpi
 from cosserat_fem.forms.resultants import resultants
 from dolfinx import fem
 from test_structures import ring_polygon
@@ -274,13 +273,7 @@ def test_turned_nodes_serial_equal_mpi(tmp_path):
     both: its chart and angles gathered, rod/model.py NodeRotation.angles): the probe's last
     rows agree to 1e-8 of their largest value (Newton to its tolerance from the same start,
     sums in another order; measured 4e-15 for the ring's B)."""
-    script = tmp_path / "goto_mpi.py"
-    script.write_text(MPI_SCRIPT)
-    answers = []
-    for ranks in (1, 2):
-        done = run_command([str(script)], ranks=ranks)
-        assert done.returncode == 0, done.stderr[-2000:]
-        answers.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    answers = script_serial_and_mpi(tmp_path / "goto_mpi.py", MPI_SCRIPT)
     assert answers[0]["ring"][1] < -1.0  # folded: B moved by -4R/3 (-1.315 at N = 16)
     for key in ("ring", "run"):
         one, two = np.array(answers[0][key]), np.array(answers[1][key])

@@ -10,12 +10,11 @@ restart bit for bit, and the bad input in one line.
 
 from __future__ import annotations
 
-import json
 import math
 
 import numpy as np
 import pytest
-from conftest import ROOT, run_command
+from conftest import ROOT, script_serial_and_mpi
 from scipy.integrate import solve_ivp
 
 from cosserat_fem import api
@@ -38,10 +37,10 @@ def member(name: str, start: str, end: str, elements: int = 1) -> dict:
     return {"name": name, "from": start, "to": end, "elements": elements}
 
 
-def frame_scene(structure: dict, **tables) -> object:
-    """A scene of the portal's section with this [structure] (P3 elements); ``tables``
-    replace or add top-level tables."""
-    data = {
+def frame_data(structure: dict, **tables) -> dict:
+    """A scene's data of the portal's section with this [structure] (P3 elements);
+    ``tables`` replace or add top-level tables."""
+    return {
         "title": "joints",
         "rod": ROD,
         "structure": structure,
@@ -50,7 +49,11 @@ def frame_scene(structure: dict, **tables) -> object:
         "discretisation": {"degree": 3},
         **tables,
     }
-    return scene_from_dict(data)
+
+
+def frame_scene(structure: dict, **tables) -> object:
+    """:func:`frame_data`'s scene."""
+    return scene_from_dict(frame_data(structure, **tables))
 
 
 # --- statics: a Gerber beam ----------------------------------------------------------------
@@ -321,15 +324,7 @@ def hinged_portal(load: tuple[float, float, float], hinges: bool = True) -> dict
         hinge = {"kind": "hinge", "members": ["beam"], "axis": [0, 0, 1]}
         structure["joints"] = [{"node": "B", **hinge}, {"node": "C", **hinge}]
     rod = {**ROD, "section": {**ROD["section"], "c11": I_PLANE}}
-    data = {
-        "title": "hinged portal",
-        "rod": rod,
-        "structure": structure,
-        "static": {"load_steps": 1},
-        "time": {"end": 1.0, "step": 1.0},
-        "discretisation": {"degree": 3},
-    }
-    return data
+    return frame_data(structure, rod=rod, title="hinged portal")
 
 
 def test_a_portal_frame_with_a_hinged_beam_is_a_link_between_cantilevers():
@@ -467,13 +462,7 @@ def test_joints_serial_equals_mpi(tmp_path):
     too: rod/structure.py _partitioner; the rest split): the probe's values agree to 1e-8
     of their largest (the same equations, Newton to its tolerance from the same start;
     measured ~1e-15)."""
-    script = tmp_path / "joints_mpi.py"
-    script.write_text(MPI_SCRIPT)
-    answers = []
-    for ranks in (1, 2):
-        done = run_command([str(script)], ranks=ranks)
-        assert done.returncode == 0, done.stderr[-2000:]
-        answers.append(json.loads(done.stdout.strip().splitlines()[-1]))
+    answers = script_serial_and_mpi(tmp_path / "joints_mpi.py", MPI_SCRIPT)
     assert abs(answers[0]["run"][1]) > 1e-3  # C moved
     for key in ("static", "run", "driven", "shared"):
         one, two = np.array(answers[0][key]), np.array(answers[1][key])

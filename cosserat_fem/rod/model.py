@@ -113,6 +113,24 @@ def rotation_matrix(axis, angle: float) -> np.ndarray:
     return np.eye(3) + math.sin(angle) * cross + (1.0 - math.cos(angle)) * cross @ cross
 
 
+def prescribed_angle(motion, model: RodModel, t: float, factor: float | None):
+    """(α, dα/dt, d²α/dt²) of a prescribed angle (``motion``'s ``angle``, ``rate``,
+    ``acceleration`` Expressions, its ``key``) at time ``t`` [s]; ``factor`` λ (statics): α λ
+    and zero rates. SceneError naming the key if one is not finite."""
+    values = dict(model.scene.expression_names(), t=t)
+    try:
+        alpha, rate, acc = (
+            e.evaluate(**values) for e in (motion.angle, motion.rate, motion.acceleration)
+        )
+    except ValueError:
+        alpha = rate = acc = math.nan
+    if factor is not None:
+        alpha, rate, acc = alpha * factor, 0.0, 0.0
+    if not all(math.isfinite(x) for x in (alpha, rate, acc)):
+        raise SceneError(f"{motion.key}: {motion.angle.source!r} is not finite at t = {t:.6g} s")
+    return alpha, rate, acc
+
+
 @dataclass
 class NodeRotation:
     """A structure node turned by a prescribed rotation Λ(t) = exp(α(t) n×) from the rest
@@ -162,17 +180,7 @@ class NodeRotation:
         """The Constants at time ``t`` [s]: the angles and their τ-rates (``rates``: the
         τ-rates and τ-accelerations, for the initial-rate problem); ``factor`` λ (statics):
         α(t) λ, the rates zero. SceneError naming the key if α(t) is not finite."""
-        values = dict(model.scene.expression_names(), t=t)
-        try:
-            alpha, rate, acc = (
-                e.evaluate(**values) for e in (self.angle, self.rate, self.acceleration)
-            )
-        except ValueError:
-            alpha = rate = acc = math.nan
-        if factor is not None:
-            alpha, rate, acc = alpha * factor, 0.0, 0.0
-        if not all(math.isfinite(x) for x in (alpha, rate, acc)):
-            raise SceneError(f"{self.key}: {self.angle.source!r} is not finite at t = {t:.6g} s")
+        alpha, rate, acc = prescribed_angle(self, model, t, factor)
         a, da, dda = self.angles(model, alpha)
         w = model.omega0
         dadtau = da * rate / w
@@ -205,18 +213,7 @@ class JointDrive:
         """The offsets at time ``t`` [s] (``rates``: their τ-rates, for the initial-rate
         problem; ``factor`` λ, statics: α(t) λ, rates zero), as NodeRotation.set. SceneError
         naming the key if α(t) is not finite."""
-        values = dict(model.scene.expression_names(), t=t)
-        try:
-            alpha, rate, acc = (
-                e.evaluate(**values) for e in (self.angle, self.rate, self.acceleration)
-            )
-        except ValueError:
-            alpha = rate = acc = math.nan
-        if factor is not None:
-            alpha, rate, acc = alpha * factor, 0.0, 0.0
-        if not all(math.isfinite(x) for x in (alpha, rate, acc)):
-            raise SceneError(f"{self.key}: {self.angle.source!r} is not finite at t = {t:.6g} s")
-        alpha, rate, acc = (self.sign * x for x in (alpha, rate, acc))
+        alpha, rate, acc = (self.sign * x for x in prescribed_angle(self, model, t, factor))
         if not self.pairs.size:
             return
         w = model.omega0
