@@ -294,8 +294,7 @@ def periodic_orbit(
     :class:`~cosserat_fem.analysis.periodic.Orbit`: ``state`` (U at time.start), ``amplitude``
     (half the range of the probe's x [m]), ``multipliers``, ``stability`` ("stable", "fold",
     "period-doubling", "torus"). Under mpirun every rank gets its own part of ``state`` and the
-    same rest."""
-    refuse_structure(scene, "orbits")
+    same rest. On a structure the probe is its probe node (structure.probe)."""
     from cosserat_fem.analysis.periodic import Orbit, Shooting
 
     _check_shooting(scene, settle, steps_per_period)

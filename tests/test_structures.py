@@ -385,6 +385,34 @@ def test_lee_frame_as_a_structure_continues_as_the_kinked_rod():
         api.continuation(structure, 0.0, 1.0, probe=144.0, **options)
 
 
+def test_a_one_member_structures_periodic_orbit_is_the_rods():
+    """The periodic orbit (cosserat_fem/analysis/periodic.py: shooting over one forcing
+    period, 60 SDIRK steps, one settled period) of the rod of :func:`rod_and_structure` (4
+    P3 cells) under an end force F sin(ω t) along e1 at ω = 1.1 ω1, damped, and of the same
+    as a one-member structure with the force at its leaf: the same equations on the two
+    meshes, so the same amplitude (the probe's x, the tip's), within 1e-8 relative (the
+    shooting's tolerance 1e-9; measured 2e-12), stable both; the structure solves all
+    twelve components, so its Floquet multipliers hold the rod's (each within 1e-6 of one of
+    the structure's: the in-plane motions are an invariant subspace) and more."""
+    rod_data, structure_data = rod_and_structure_data([0, 0, 0], [0, 0, 0], elements=4)
+    omega1 = api.modes(scene_from_dict(rod_data), 1)[0].omega
+    for data in (rod_data, structure_data):
+        data["parameters"] = {"w": 1.1 * omega1, "F": 1e-3}
+        data["damping"] = {"translational": 1e-3}
+        data["output"] = {"xdmf": False, "checkpoint": False}
+    rod_data["loads"]["end"] = {"force": ["F*sin(w*t)", 0, 0], "torque": [0, 0, 0]}
+    structure_data["structure"]["loads"] = [{"node": "B", "force": ["F*sin(w*t)", 0, 0]}]
+    rod, structure = (
+        api.periodic_orbit(scene_from_dict(d), "2*pi/w", steps_per_period=60, settle=1)
+        for d in (rod_data, structure_data)
+    )
+    assert rod.amplitude > 1.0  # 1.79 (the tip's x over a length of 120)
+    assert abs(structure.amplitude - rod.amplitude) <= 1e-8 * rod.amplitude
+    assert rod.stability == structure.stability == "stable"
+    for mu in rod.multipliers:
+        assert np.abs(np.asarray(structure.multipliers) - mu).min() < 1e-6, mu
+
+
 def test_portal_frame_small_load_is_the_linear_frame():
     """scenes/portal_frame.toml (two columns clamped at the base, a beam joined rigidly, F at
     B along e1, F = 1e-6: sway 7.2e-5 of 120) against the linear frame (:func:`frame_linear`,
