@@ -455,6 +455,7 @@ if MPI.COMM_WORLD.rank == 0:
 """
 
 
+@pytest.mark.long  # a subprocess each or many solves: the fast set stays under 3 min
 def test_joints_serial_equals_mpi(tmp_path):
     """The Gerber beam at P = 1e-3 (statics) and 50 steps of the double pendulum, free and
     driven at its joint, and the hinged portal whose one-cell beam two joints share, in one
