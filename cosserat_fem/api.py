@@ -613,7 +613,7 @@ def periodic_branch(
     ``points`` (``parameter``, ``amplitude`` [m], ``multipliers``, ``stability``, ``kind``,
     ``state``), ``folds``, ``period_doublings``, ``tori``, ``special``, ``reason``, ``steps``,
     ``monodromies``. With ``out``: orbit_branch.csv there (columns ``ORBIT_COLUMNS``)."""
-    refuse_structure(scene, "orbits")
+    refuse_structure(scene, "a branch of orbits over a parameter range")
     from mpi4py import MPI
 
     from cosserat_fem.analysis.paths import write_branches
@@ -698,7 +698,7 @@ def orbits(
     ``max_points`` if given, the new points appended. A ``period`` that the scene's load
     expressions do not repeat after is refused (orbit_runs.check_periodic). Returns (the
     :class:`~cosserat_fem.analysis.periodic.OrbitBranch`, the summary dict)."""
-    refuse_structure(scene, "orbits")
+    refuse_structure(scene, "a branch of orbits over a parameter range")
     from mpi4py import MPI
 
     from cosserat_fem.analysis import orbit_runs

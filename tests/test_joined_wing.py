@@ -532,6 +532,7 @@ def test_dead_load_curve_against_gxbeam():
     assert rise[-1] == pytest.approx(GXBEAM_DEAD[-1, 1], rel=1e-3)
 
 
+@pytest.mark.long  # a subprocess each or many solves: the fast set stays under 3 min
 def test_gxbeam_nonlinear_scheme_reproduces_its_follower_curve():
     """GXBeam's nonlinear static scheme transcribed (:func:`gxbeam_static`, its follower
     point force C(θ)' Ff) on its mesh gives the figure's follower-force curve at its 59

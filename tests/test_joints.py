@@ -455,6 +455,7 @@ if MPI.COMM_WORLD.rank == 0:
 """
 
 
+@pytest.mark.long  # a subprocess each or many solves: the fast set stays under 3 min
 def test_joints_serial_equals_mpi(tmp_path):
     """The Gerber beam at P = 1e-3 (statics) and 50 steps of the double pendulum, free and
     driven at its joint, and the hinged portal whose one-cell beam two joints share, in one
@@ -673,6 +674,45 @@ def test_a_driven_joint_about_minus_e3_turns_the_other_way():
         got = api.static(frame_scene(structure)).probes[-1][1:4]
         want = [10 * math.cos(0.3) - 10, sign * 10 * math.sin(0.3), 0]
         np.testing.assert_allclose(got, want, rtol=0, atol=1e-8)
+
+
+def test_continuation_through_joints_and_split_junctions_ends_at_the_static_state():
+    """Pseudo-arclength continuation (cosserat_fem/analysis/paths.py) of the Gerber beam at
+    P = 1e-3 (a spherical joint) and of the T of tests/test_structures.py loaded at its
+    junction (split: a rigid copy) from λ = 0 to 1: its last point, at λ = 1, is the static
+    state (statics' probe within 1e-8 of its largest value: the corrector's tolerance on the
+    same equations). The predictor's refinement leaves the copies' rows (constraints) out of
+    the positions' block and puts the copies back on their masters (singular before: found
+    by review). A driven joint or a turned support is refused in one line (λ scales the
+    loads, not a prescribed turn)."""
+    from test_structures import PORTAL, t_structure
+
+    from cosserat_fem.scene.build import read_toml
+
+    tee = read_toml(PORTAL)
+    tee["structure"] = {
+        **t_structure(1),
+        "loads": [{"node": "B", "force": [1e-3, 0, -2e-3]}],
+    }
+    for scene in (frame_scene(gerber(1e-3)), scene_from_dict(tee)):
+        path = api.continuation(scene, 0.0, 1.0, switch=0, directions=(1,), max_points=40)
+        last = path.branches[0].points[-1]
+        static = api.static(scene).probes[-1]
+        assert last.factor == pytest.approx(1.0, abs=1e-12)
+        assert np.abs(static[1:7]).max() > 1e-3
+        np.testing.assert_allclose(
+            last.tip, static[1:7], rtol=0, atol=1e-8 * np.abs(static[1:7]).max()
+        )
+    structure = {
+        "nodes": [node("S", -10), node("A", 0), node("B", 10)],
+        "members": [member("SA", "S", "A", 2), member("AB", "A", "B", 3)],
+        "supports": [{"node": "S", "kind": "clamped"}],
+        "joints": [
+            {"node": "A", "kind": "driven", "members": ["AB"], "axis": [0, 0, 1], "angle": 0.3}
+        ],
+    }
+    with pytest.raises(SceneError, match=r"^structure.joints\[0\].angle: continuation scales"):
+        api.continuation(frame_scene(structure), 0.0, 1.0)
 
 
 # --- bad input -----------------------------------------------------------------------------

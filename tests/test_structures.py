@@ -700,6 +700,14 @@ def structure_data(**changes) -> dict:
     return data
 
 
+def test_the_printed_end_load_sign_is_refused_on_a_structure():
+    """model.end_load_sign = "printed" would turn the loads at a structure's leaves (ds, the
+    scene's convention) but not inside its chains (dS, the balance sign): refused in one
+    line (found by review)."""
+    with pytest.raises(SceneError, match="^model.end_load_sign: a structure's node loads"):
+        load_scene(PORTAL, ["model.end_load_sign=printed"])
+
+
 def test_the_bad_inputs_base_is_a_valid_structure():
     """The L that each bad input changes (:func:`structure_data`) is itself accepted: its
     length 2 m the members' total, its elements 4."""

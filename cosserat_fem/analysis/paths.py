@@ -83,6 +83,20 @@ def check_path_scene(scene: Scene, command: str = "continue") -> None:
     chart: module docstring). From the scene alone (build_model solves the plane of
     Scene.plane()), so a command checks it before it makes its folder."""
     check_static_scene(scene, command)
+    structure = scene.structure
+    if structure is not None:
+        turned = [i for i, x in enumerate(structure.supports) if x.rotation is not None]
+        driven = [i for i, j in enumerate(structure.joints) if j.kind == "driven"]
+        if turned or driven:
+            key = (
+                f"structure.supports[{turned[0]}].rotation"
+                if turned
+                else f"structure.joints[{driven[0]}].angle"
+            )
+            raise SceneError(
+                f"{key}: continuation scales the loads by λ, not a prescribed turn (not "
+                "linear in λ in the angles); use static for it"
+            )
     if scene.plane() == "y-z":
         raise SceneError(
             "discretisation.planar: continuation does not follow a rod in the y-z plane "
@@ -262,13 +276,17 @@ class RodPath:
         """(rows, columns), local owned indices: the rows of the linear momentum balance (the
         entries of the positions' rates, whose test functions weigh n' + f = 0) and the
         columns of the positions, both without the Dirichlet dofs (a clamp holds p and q
-        alike, so the two are as many); None if they are not (then no refinement)."""
+        alike, so the two are as many) and a joint's copies (whose rows are constraints, and
+        whose positions follow their masters'); None if they are not (then no refinement)."""
         layout = self.model.layout
         bs = layout.size
         fixed = np.zeros(self.owned, dtype=bool)
         for bc in self.model.bcs:
             dofs, ghost_start = bc.dof_indices()
             fixed[dofs[dofs < self.owned]] = True
+        ties = self.model.constraints  # a joint's copy: its rows are its constraint's
+        if ties is not None:
+            fixed[ties.copies] = True
         slots = np.arange(self.owned) % bs
         components = np.asarray(layout.components)[slots]
         rows = np.flatnonzero(np.isin(components, (6, 7, 8)) & ~fixed)
@@ -311,6 +329,8 @@ class RodPath:
                 raise ZeroDivisionError("the positions' block is singular")
             refined = u.copy()
             refined[cols] -= x.array
+            if self.model.constraints is not None:  # the copies with their masters
+                self.model.constraints.enforce(refined)
             return refined
         finally:
             for obj in (ksp, block, row_is, col_is):

@@ -1031,7 +1031,8 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
         model.constraints = ties
         model.chart_tied = any(j.kind in ("hinge", "driven") for j in structure.joints)
         # a rigid copy (a loaded junction's split) keeps its chart with its master's: a fork's
-        rigid = np.array([len(c) == 12 for c in components], dtype=bool)
+        kinds = [structure.all_joints()[j].kind for j in which]
+        rigid = np.array([k == "rigid" for k in kinds], dtype=bool)
         held = rigid & np.isin(masters, model.fork_nodes)
         model.fork_nodes = np.concatenate(
             [model.fork_nodes, np.asarray(copies, dtype=np.int32)[held]]

@@ -1087,7 +1087,8 @@ def _check_point_node(structure: Structure, node: str, key: str, what: str, verb
 
 def _check_structure_scene(scene: Scene) -> None:
     """What a structure does not support yet, refused by name: distributed loads that depend
-    on s or are data (a structure has no single arc length), a section law of s."""
+    on s or are data (a structure has no single arc length), a section law of s, the printed
+    end-load sign (its leaves' loads alone would take it)."""
     if scene.structure is None:
         return
     for name in ("force_density", "torque_density"):
@@ -1100,6 +1101,12 @@ def _check_structure_scene(scene: Scene) -> None:
     if scene.rod.section.expressions():
         raise SceneError(
             "rod.section: a section law of s on a structure is not supported yet (constants only)"
+        )
+    if scene.model.end_load_sign != "balance":
+        # a leaf's load takes the scene's convention on ds, a chain's the balance sign on dS
+        raise SceneError(
+            'model.end_load_sign: a structure\'s node loads take the balance sign; "printed" '
+            "would turn them at its leaves only"
         )
 
 
@@ -1380,8 +1387,8 @@ def refuse_structure(scene: Scene | None, command: str) -> None:
     if scene is not None and scene.structure is not None:
         raise SceneError(
             f"structure: {command} is not supported on a structure yet (run, static, modes, "
-            "continue, stability, validate and sweeps of plain members are); see "
-            "docs/structures.md"
+            "continue, stability, a periodic orbit, validate and sweeps of plain members "
+            "are); see docs/structures.md"
         )
 
 
