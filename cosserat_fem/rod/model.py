@@ -1025,13 +1025,14 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
     model = _model(scene, V, bcs, made.tags, FULL, scene.absent_terms(), forks)
     model.structure = made
     model.motions = list(rotations)
-    if structure.all_joints():  # the copies of the joints' nodes, tied (rod/structure.py)
+    all_joints = structure.all_joints()
+    if all_joints:  # the copies of the joints' nodes, tied (rod/structure.py)
         masters, copies, components, which = made.joint_blocks(V, structure)
         ties = Identification(V, masters, copies, components, bcs)
         model.constraints = ties
         model.chart_tied = any(j.kind in ("hinge", "driven") for j in structure.joints)
         # a rigid copy (a loaded junction's split) keeps its chart with its master's: a fork's
-        kinds = [structure.all_joints()[j].kind for j in which]
+        kinds = [all_joints[j].kind for j in which]
         rigid = np.array([k == "rigid" for k in kinds], dtype=bool)
         held = rigid & np.isin(masters, model.fork_nodes)
         model.fork_nodes = np.concatenate(

@@ -129,7 +129,7 @@ def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -
     msh.topology.create_connectivity(0, 1)
     original = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)
     scale = max(1.0, float(np.abs(np.asarray(points)).max()) / length)
-    vertices = {}
+    vertices, at_node = {}, {}
     for name in names:
         at = r0[name] / length
         found = mesh.locate_entities(
@@ -137,19 +137,12 @@ def create_structure_mesh(structure: Structure, length: float, comm: MPI.Comm) -
             0,
             lambda y, at=at: np.linalg.norm(y - at[:, None], axis=0) < 1e-10 * scale,
         )
-        vertices[name] = found[~np.isin(_input_vertex(msh, found, original), joint_points)]
+        at_node[name] = (found, _input_vertex(msh, found, original))  # all copies there
+        vertices[name] = found[~np.isin(at_node[name][1], joint_points)]
     copies = []
     for joint, point in zip(joints, joint_points, strict=True):
-        master = vertices[joint.node]
-        at = mesh.locate_entities(
-            msh,
-            0,
-            lambda y, at=r0[joint.node] / length: (
-                np.linalg.norm(y - at[:, None], axis=0) < 1e-10 * scale
-            ),
-        )
-        copy = at[_input_vertex(msh, at, original) == point]
-        copies.append((master, copy))
+        found, points_of = at_node[joint.node]
+        copies.append((vertices[joint.node], found[points_of == point]))
     entities = np.concatenate(list(vertices.values())).astype(np.int32)
     values = np.concatenate(
         [np.full(len(vertices[n]), NODE_TAG + i, dtype=np.int32) for i, n in enumerate(names)]
