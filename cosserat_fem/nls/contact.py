@@ -82,7 +82,8 @@ def _cross_matrix(v: np.ndarray) -> np.ndarray:
 class NodeContact:
     """The rows (K.1)-(K.3) of the module docstring at the owned node ``blocks`` of ``V``,
     their rest positions ``rest`` [m] (len(blocks), 3), ``surface`` x ↦ (g, ∇g, ∇²g),
-    ``length`` ℓ [m], ``force_scale`` the newtons of a unit of a balance row (ℓ/g0), the slots
+    ``length`` ℓ [m], ``force_scale`` the newtons of a unit of a balance row (ℓ/g0),
+    ``shares`` each node's share of the length ℓ ∫ φ_k dσ [m], the slots
     in a block of the solved positions and of their balance rows, ``solved`` the fixed-basis
     components they are (0, 1, 2 or a plane's two), the friction coefficients."""
 
@@ -95,6 +96,7 @@ class NodeContact:
         *,
         length: float,
         force_scale: float,
+        shares: np.ndarray,
         position_slots: list,
         balance_slots: list,
         solved: list[int],
@@ -105,6 +107,7 @@ class NodeContact:
         self.comm = V.mesh.comm
         self.blocks, self.rest, self.surface = blocks, rest, surface
         self.ell, self.force_scale, self.solved = length, force_scale, list(solved)
+        self.shares = shares
         self.mu_s, self.mu_k = static_friction, kinetic_friction
         self.px = blocks[:, None] * bs + np.asarray(position_slots, dtype=np.int32)[None, :]
         self.pq = blocks[:, None] * bs + np.asarray(balance_slots, dtype=np.int32)[None, :]
@@ -127,6 +130,13 @@ class NodeContact:
         #: the most nodes in contact in an accepted state
         self.most = 0
         self._rows: dict = {}
+        #: the outputs at the nodes of a Lagrange space like V's, 6 a node: the contact load
+        #: [N/m] (the node's force over its share of the length, fixed basis), the gap [m],
+        #: the state (0 free, 1 stick, 2 slip); filled by :meth:`accept` (nodes that cannot
+        #: touch: zeros)
+        element = V.ufl_element()
+        space = fem.VectorFunctionSpace(V.mesh, (element.family(), element.degree()), dim=6)
+        self.values = fem.Function(space, name="contact")
 
     def __len__(self) -> int:
         return len(self.blocks)
@@ -244,6 +254,11 @@ class NodeContact:
         self.u_old = u[self.px].copy()
         self.accepted = self.state.copy()
         self.most = max(self.most, self.counts()["contact"])
+        out = self.values.x.array.reshape(-1, 6)
+        out[self.blocks, :3] = self.force / self.shares[:, None]
+        out[self.blocks, 3] = self.gap
+        out[self.blocks, 4] = self.state
+        self.values.x.scatter_forward()
 
     def counts(self) -> dict[str, int]:
         """The nodes in contact, sticking and sliding, over the ranks."""

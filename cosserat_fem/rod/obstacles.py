@@ -19,6 +19,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem.petsc import assemble_vector
+from petsc4py import PETSc
 
 from cosserat_fem.nls.contact import NodeContact
 
@@ -88,7 +92,8 @@ def contact_rows(model) -> NodeContact | None:
     [contact] table, else None: every owned node whose positions no support holds, at its
     rest position r0(s) (the scene's [reference]), the positions x = r0 + ℓ u, the balance
     rows' forces in N times g0/ℓ (forms/general_form.py: a nodal force P enters its row as
-    g0 P/ℓ)."""
+    g0 P/ℓ), their shares of the length ℓ ∫ φ_k dσ. Kept as ``model.contact``, whose
+    ``values`` the outputs read."""
     spec = model.scene.contact
     if spec is None:
         return None
@@ -108,16 +113,22 @@ def contact_rows(model) -> NodeContact | None:
     sigma = V.tabulate_dof_coordinates()[blocks, 0]
     rest = np.asarray(model.scene.reference.positions(ell * sigma), dtype=float).reshape(-1, 3)
     surface = Surface([Obstacle.of(o) for o in spec.obstacles], float(spec.radius))
-    return NodeContact(
+    # each node's share of the length, ℓ ∫ φ_k dσ [m]: a nodal force over it is a load per length
+    scalar = fem.FunctionSpace(model.msh, ("Lagrange", V.ufl_element().degree()))
+    shares = assemble_vector(fem.form(ufl.TestFunction(scalar) * model.dx))
+    shares.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    model.contact = NodeContact(
         V,
         blocks,
         rest,
         surface,
         length=ell,
         force_scale=ell / model.groups.g0,
+        shares=ell * shares.array[blocks],
         position_slots=[positions[k] for k in solved],
         balance_slots=[layout.index(6 + k) for k in solved],
         solved=solved,
         static_friction=spec.static_friction,
         kinetic_friction=spec.kinetic,
     )
+    return model.contact

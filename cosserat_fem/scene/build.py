@@ -1136,8 +1136,12 @@ def _build_contact(raw: dict[str, Any] | None, rod: Rod) -> Contact | None:
 
 
 def _check_contact_scene(scene: Scene) -> None:
-    """What contact does not support yet, refused by name (docs/contact.md, "Limits")."""
+    """What contact does not support yet, refused by name (docs/contact.md, "Limits"); its
+    outputs asked of a scene without it."""
     if scene.contact is None:
+        for key in ("fields", "probe_fields"):
+            if "contact" in getattr(scene.output, key):
+                raise SceneError(f"output.{key}: contact needs a [contact] table")
         return
     if scene.structure is not None:
         raise SceneError("contact: contact on a structure is not supported yet (one rod)")
