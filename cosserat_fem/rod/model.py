@@ -48,8 +48,8 @@ from cosserat_fem.forms.kinematics import P_NAMES, quaternion_chart
 from cosserat_fem.forms.reference import Reference
 from cosserat_fem.forms.resultants import scaled_law
 from cosserat_fem.forms.section import SectionLaw
-from cosserat_fem.nls.contact import NodeContact
 from cosserat_fem.nls.constraints import Identification
+from cosserat_fem.nls.contact import NodeContact
 from cosserat_fem.rod import charts
 from cosserat_fem.rod.charts import change_chart, change_chart_rate, chart_of
 from cosserat_fem.rod.load_coefficients import DataLoads
