@@ -207,39 +207,65 @@ class NodeContact:
             default=0.0,
         )
         on = np.flatnonzero(self.state != FREE)
-        r = self._rows
-        m = self.px.shape[1]
         gathered = [[A.getRow(int(q)) for q in self._gq[k]] for k in on]  # before any insert
-        for k, rows in zip(on, gathered, strict=True):
-            cols = rows[0][0]
-            J = np.array([vals for _, vals in rows])  # (m, ncols), the same columns
-            at = np.searchsorted(cols, self._gx[k])  # the node's position columns
-            assert np.array_equal(cols[at], self._gx[k]), "a block row holds its own block"
-            n, T, D = r["n"][k], r["T"][k], r["D"][k]
-            new = np.zeros((m, len(cols)))
-            new[0, at] = n
-            # d(T v) = T dv + (∂T/∂n · v) ∂n/∂u, ∂n/∂u = D at the node's positions
-            new[1:, at] = np.einsum("jab,a->jb", r["dT"][k], r["v"][k]) @ D
-            if self.state[k] == STICK:
-                new[1:, at] += T
-            else:  # (K.3): dv = d(P F − μ f_N s)
-                F, fN, w, s, size = r["F"][k], r["fN"][k], r["w"][k], r["s"][k], r["size"][k]
-                c = 0.0 if self.c is None else self.c
-                P = np.eye(m) - np.outer(n, n)
-                dPF = P @ J
-                dPF[:, at] -= (np.outer(n, F) + fN * np.eye(m)) @ D
-                dfN = n @ J
-                dfN[at] += F @ D
-                dtrial = P @ J
-                dtrial[:, at] -= c * P + (np.outer(n, w) + (n @ w) * np.eye(m)) @ D
-                ds = (np.eye(m) - np.outer(s, s)) @ dtrial / size if size > 0 else 0.0 * dtrial
-                new[1:] += T @ (dPF - self.mu_k * (np.outer(s, dfN) + fN * ds))
-            for j in range(m):
-                A.setValues(
-                    [int(self._gq[k, j])], cols, new[j], addv=PETSc.InsertMode.INSERT_VALUES
-                )
+        groups: dict[int, list[int]] = {}  # the nodes by their rows' length, done together
+        for i, rows in enumerate(gathered):
+            groups.setdefault(len(rows[0][0]), []).append(i)
+        for members in groups.values():
+            nodes = on[members]
+            cols = np.array([gathered[i][0][0] for i in members])  # (K, ncols)
+            J = np.array([[vals for _, vals in gathered[i]] for i in members])  # (K, m, ncols)
+            at = np.array(
+                [np.searchsorted(c, g) for c, g in zip(cols, self._gx[nodes], strict=True)]
+            )
+            assert np.array_equal(np.take_along_axis(cols, at, 1), self._gx[nodes]), "own block"
+            new = self._jacobian_rows(nodes, J, at)
+            for k, c, values in zip(nodes, cols, new, strict=True):
+                A.setValues(self._gq[k], c, values, addv=PETSc.InsertMode.INSERT_VALUES)
         A.assemble()
         self.c = self.comm.allreduce(float(local), op=MPI.MAX) or None
+
+    def _jacobian_rows(self, nodes: np.ndarray, J: np.ndarray, at: np.ndarray) -> np.ndarray:
+        """The new rows (K, m, ncols) of the active ``nodes`` whose assembled balance rows are
+        ``J`` (K, m, ncols), their positions at the columns ``at`` (K, m): the derivatives of
+        (K.2)-(K.3) (module docstring), all nodes at once."""
+        r = {key: value[nodes] for key, value in self._rows.items()}
+        K, m, _ = J.shape
+        n, T, D, F, fN = r["n"], r["T"], r["D"], r["F"], r["fN"]
+        eye = np.eye(m)
+
+        def positions(k: np.ndarray, lines: np.ndarray) -> tuple:
+            """The index of the rows ``lines`` of the nodes ``k`` at their positions' columns."""
+            return k[:, None, None], lines[None, :, None], at[k][:, None, :]
+
+        every, tangent = np.arange(K), np.arange(1, m)
+        new = np.zeros_like(J)
+        new[positions(every, np.arange(1))] = n[:, None, :]  # the gap row: ∂(g/ℓ)/∂u = n
+        # d(T v) = T dv + (∂T/∂n · v) ∂n/∂u, ∂n/∂u = D at the node's positions
+        new[positions(every, tangent)] += np.einsum("kjab,ka,kbc->kjc", r["dT"], r["v"], D)
+        stick = self.state[nodes] == STICK
+        new[positions(np.flatnonzero(stick), tangent)] += T[stick]  # dv = dΔu
+        slip = np.flatnonzero(~stick)
+        if slip.size:  # (K.3): dv = d(P F − μ f_N s)
+            w, s, size = r["w"][slip], r["s"][slip], r["size"][slip]
+            Js, Ds, ns, Fs, fNs = J[slip], D[slip], n[slip], F[slip], fN[slip]
+            local = np.arange(slip.size)
+            own = local[:, None, None], np.arange(m)[None, :, None], at[slip][:, None, :]
+            P = eye - ns[:, :, None] * ns[:, None, :]
+            dPF = P @ Js
+            dPF[own] -= (ns[:, :, None] * Fs[:, None, :] + fNs[:, None, None] * eye) @ Ds
+            dfN = np.einsum("ka,kac->kc", ns, Js)
+            dfN[local[:, None], at[slip]] += np.einsum("ka,kab->kb", Fs, Ds)
+            c = 0.0 if self.c is None else self.c
+            nw = np.sum(ns * w, axis=1)
+            dtrial = P @ Js
+            dtrial[own] -= c * P + (ns[:, :, None] * w[:, None, :] + nw[:, None, None] * eye) @ Ds
+            safe = np.where(size > 0, size, 1.0)
+            ds = (eye - s[:, :, None] * s[:, None, :]) @ dtrial / safe[:, None, None]
+            ds[size == 0] = 0.0  # frictionless: no direction
+            dv = dPF - self.mu_k * (s[:, :, None] * dfN[:, None, :] + fNs[:, None, None] * ds)
+            new[slip, 1:, :] += T[slip] @ dv
+        return new
 
     # -- the history ----------------------------------------------------------------------
     def accept(self, u: np.ndarray) -> None:
