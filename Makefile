@@ -13,7 +13,7 @@ export OMPI_MCA_rmaps_base_oversubscribe := 1
 export OMPI_MCA_mpi_yield_when_idle := 1
 export OMPI_MCA_hwloc_base_binding_policy := none
 
-.PHONY: setup demo demo-response demo-rom demo-structure test test-long unit lint format verify bench clean container-test
+.PHONY: setup demo demo-response demo-rom demo-structure demo-contact test test-long unit lint format verify bench clean container-test
 
 setup:
 	@VENV=$(VENV) bash .ci/setup.sh
@@ -34,6 +34,10 @@ demo-rom: setup
 ## The fourth demo: a branched cable (a structure of three rods) swinging under gravity.
 demo-structure: setup
 	OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -n 2 $(PY) demos/branched_cable.py
+
+## The fifth demo: the capstan, a rope held on a fixed drum by Coulomb friction (contact).
+demo-contact: setup
+	OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun -n 2 $(PY) demos/capstan.py
 
 ## Lint, then the test suite (serial and mpirun -n 2 cases) without the long set, its files
 ## dealt to one pytest worker per core (pytest-xdist; a file's tests share its fixtures).

@@ -63,7 +63,7 @@ from cosserat_fem.analysis.simulation import _discretise, _initial_array, drive
 from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.common.parallel import agree
 from cosserat_fem.io.poincare import POINCARE
-from cosserat_fem.scene.build import Scene, refuse_closed
+from cosserat_fem.scene.build import Scene, refuse_closed, refuse_contact
 from cosserat_fem.timestepping.events import Events, Observer, as_observer
 from cosserat_fem.timestepping.loop import TimeLoop
 
@@ -116,6 +116,7 @@ def check_request(
     """The request checked before any work (a closed rod refused too): (intervals, steps an
     interval, d0)."""
     refuse_closed(scene, "lyapunov")
+    refuse_contact(scene, "lyapunov")
     if isinstance(period, bool) or not isinstance(period, int | float) or not period > 0.0:
         raise SceneError(f"period: must be the forcing period, a positive time [s], got {period!r}")
     if not math.isfinite(period):

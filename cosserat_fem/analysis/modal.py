@@ -48,7 +48,7 @@ from cosserat_fem.io.run_folder import write_summary
 from cosserat_fem.nls.constraints import Identification
 from cosserat_fem.output.fields import XdmfWriter
 from cosserat_fem.rod.model import FULL, RodModel, structure_conditions, support_conditions
-from cosserat_fem.scene.build import Scene
+from cosserat_fem.scene.build import Scene, refuse_contact
 
 KINDS = ("bending-x", "bending-y", "axial", "torsion")
 # Which of p1..p6 = (x/ℓ, y/ℓ, z/ℓ, θ, ψ, φ) belongs to which kind of motion.
@@ -370,7 +370,9 @@ def max_modes(scene: Scene) -> int:
 
 
 def check_count(scene: Scene, count) -> None:
-    """SceneError naming --count unless it is a whole number in [1, :func:`max_modes`]."""
+    """SceneError naming --count unless it is a whole number in [1, :func:`max_modes`]; for a
+    scene with [contact] (its modes would ignore the obstacles)."""
+    refuse_contact(scene, "modes")
     if isinstance(count, bool) or not isinstance(count, int | np.integer):
         raise SceneError(f"count (--count): must be a whole number, got {count!r}")
     most = max_modes(scene)

@@ -47,6 +47,13 @@ from cosserat_fem.output.fields import LineSampler, PointProbe, XdmfWriter, prob
 from cosserat_fem.timestepping.events import Events, Observer
 
 
+def _contact_entries(solver) -> dict:
+    """summary.json's "contact" (cosserat_fem/nls/contact.py ``NodeContact.summary``), if the
+    solver imposes contact."""
+    contact = getattr(solver, "contact", None)
+    return {} if contact is None else {"contact": contact.summary()}
+
+
 class FolderStart(Observer):
     """Claims the folder of a new run, or cuts a restart's outputs back to its checkpoint
     (``plan``, from io/run_folder.py's check_outputs); then summary.json says "running".
@@ -173,6 +180,7 @@ class RunSummary(Observer):
                 **({"ended_early": loop.end_reason} if loop.end_reason else {}),
                 "checkpoints_written": self.checkpoints.written if self.checkpoints else 0,
                 "newton": {**self.solver.stats.as_dict(), "loop": self.solver.loop},
+                **_contact_entries(self.solver),
                 "wall_time_s": {
                     "setup": since - self.t_start,
                     "jit_compile": self.solver.compile_time,

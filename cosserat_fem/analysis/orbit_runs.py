@@ -67,6 +67,7 @@ from cosserat_fem.common.errors import SceneError, SolverError
 from cosserat_fem.nls.arclength import Branch, ContinuationSettings, Point
 from cosserat_fem.plot import LYAPUNOV as LYAPUNOV_CSV
 from cosserat_fem.plot import ORBIT_BRANCH as ORBIT_CSV
+from cosserat_fem.scene.build import refuse_contact
 
 ORBIT_XDMF = "orbit_branch.xdmf"
 SUMMARY = "summary.json"
@@ -123,7 +124,8 @@ def check_periodic(scene, period: float, key: str = "--period") -> None:
     5 stations s and 7 times t in a period from time.start, to 1e-9 of the largest |f| seen
     (the round-off of a sine's argument is ~1e-16 of it; a load of another period, or with
     a trend such as t sin Ωt, differs by O(1)). Loads given as tables or Python functions
-    are not looked at."""
+    are not looked at. A scene with [contact] is refused (its orbits' shooting has no rows)."""
+    refuse_contact(scene, "a periodic orbit")
     constants = dict(scene.expression_names())
     s = np.linspace(0.0, scene.rod.length, 5)[:, None]
     t = scene.time.start + period * (np.arange(7) / 7.0 + 0.0123)[None, :]

@@ -18,9 +18,10 @@ of the last accepted state is kept where a restart can continue, and summary.jso
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,7 @@ from cosserat_fem.nls.newton import NewtonSettings
 from cosserat_fem.nls.solvers import make_solver
 from cosserat_fem.output.fields import PointProbe, probe_sigma
 from cosserat_fem.rod.model import RodModel, build_model
+from cosserat_fem.rod.obstacles import contact_rows
 from cosserat_fem.scene.build import Scene, refuse_closed
 from cosserat_fem.scene.load_data import refuse_callable_restart
 from cosserat_fem.timestepping.events import Observer
@@ -317,9 +319,22 @@ def _discretise(scene: Scene, comm, initial_state, restart, solver_factory=None)
         tspan.integrator, model.U, model.residual, tspan.start * model.omega0, rho_inf=tspan.rho_inf
     )
     settings = NewtonSettings.of(scene.solver)
+    contact = contact_rows(model)
+    if contact is not None:
+        if tspan.integrator.startswith("sdirk") or solver_factory is not None:
+            raise SceneError(
+                f"time.integrator: contact needs a method whose step ends at its solved state "
+                f"(bdf2 or generalized-alpha; SDIRK's stages are not its step's end, and a "
+                f"reduced model has no contact rows), got {tspan.integrator!r}"
+            )
+        if settings.jacobian != "full":  # the rows change with every iterate
+            logging.getLogger(__name__).info(
+                "contact: full Newton (solver.jacobian = %r)", settings.jacobian
+            )
+            settings = replace(settings, jacobian="full")
     if solver_factory is None:
         solver = make_solver(
-            integrator.residual_form(), model.U, model.bcs, settings, model.constraints
+            integrator.residual_form(), model.U, model.bcs, settings, model.constraints, contact
         )
     else:
         solver = solver_factory(model, integrator.residual_form(), model.bcs, settings)
@@ -328,4 +343,6 @@ def _discretise(scene: Scene, comm, initial_state, restart, solver_factory=None)
             space(integrator, tspan)  # the integrator on reduced coordinates (docs/rom.md §8)
     if restart is None:
         integrator.start(model, solver.lu_package)
+        if contact is not None:  # the friction's history starts at the initial state
+            contact.accept(model.U.x.array)
     return model, integrator, solver

@@ -42,7 +42,8 @@ from cosserat_fem.nls.solvers import make_solver
 from cosserat_fem.output.fields import PointProbe, probe_sigma
 from cosserat_fem.rod.checks import check_state, cos_theta
 from cosserat_fem.rod.model import RodModel, build_model
-from cosserat_fem.scene.build import Scene, refuse_closed
+from cosserat_fem.rod.obstacles import contact_rows
+from cosserat_fem.scene.build import Scene, refuse_closed, refuse_contact
 from cosserat_fem.timestepping.events import Events, Observer
 from cosserat_fem.timestepping.integrators import make_integrator
 
@@ -198,6 +199,8 @@ class StaticLoop:
                         ) from None
                     continue
                 U_nm1, U_n = U_n, model.U.x.array.copy()
+                if solver.contact is not None:  # the friction's history: this load step
+                    solver.contact.accept(U_n)
                 prev_step, st.t = trial - lam, trial
                 step = 2.0 * step if abs(2.0 * step) < abs(nominal) else nominal
                 st.accepted += 1
@@ -216,12 +219,14 @@ def check_static_scene(scene: Scene, command: str) -> None:
     """SceneError naming the key unless the scene has static states: an open rod (not
     reference.closed), held (not a mechanism), with no prescribed support motion."""
     refuse_closed(scene, command)
+    if command != "static":
+        refuse_contact(scene, command)
     if scene.structure is not None and scene.mechanism:
         raise SceneError(
             "structure.supports: a static equilibrium needs the structure held; its supports "
             "leave it a mechanism, whose rigid-body motion no load stops"
         )
-    if scene.supports.mechanism and scene.structure is None:
+    if scene.supports.mechanism and scene.structure is None and scene.contact is None:
         raise SceneError(
             f'supports: a static equilibrium needs the rod held (start = "{scene.supports.start}"'
             f', end = "{scene.supports.end}" leave it a mechanism, whose rigid-body motion no '
@@ -247,9 +252,12 @@ def static_solver(scene: Scene, model: RodModel) -> NewtonSolver:
         # full Newton's quadratic end (a reused matrix left roll-up gaps of 7e-8).
         LOGGER.info("static: full Newton (solver.jacobian = %r is for runs)", settings.jacobian)
     settings = replace(settings, jacobian="full")
+    contact = contact_rows(model)
     solver = make_solver(
-        integrator.residual_form(), model.U, model.bcs, settings, model.constraints
+        integrator.residual_form(), model.U, model.bcs, settings, model.constraints, contact
     )
+    if contact is not None:
+        contact.accept(model.U.x.array)  # the friction's history starts at the initial state
     integrator.prepare(scene.static.time * model.omega0)
     model.sync_loads(integrator.time_eval)  # loads given by data, at static.time
     return solver

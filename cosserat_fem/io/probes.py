@@ -54,6 +54,7 @@ PROBE_FIELD_COLUMNS = {
     "quaternion": ("q0", "q1", "q2", "q3"),
     "directors": tuple(f"d{j}_{c}" for j in (1, 2, 3) for c in "xyz"),
     "body": ("body_x", "body_y", "body_z"),
+    "contact": ("contact_qx", "contact_qy", "contact_qz", "contact_gap", "contact_state"),
 }
 
 

@@ -81,6 +81,7 @@ FIELD_ARRAYS: dict[str, tuple[str, ...]] = {
     "strains": ("strain_v", "curvature_u"),
     "forces": ("force_n", "torque_m"),
     "directors": ("director_d1", "director_d2", "director_d3"),
+    "contact": ("contact_load", "contact_gap"),
 }
 
 #: The folder of an XDMF file's HDF5 files: ``<stem>.frames`` beside ``<stem>.xdmf``.

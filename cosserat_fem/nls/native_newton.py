@@ -70,6 +70,7 @@ typedef struct {
   double f0, f_prev, update_prev; double norms[3]; int need_jacobian, since;
   int iterations, reason; int64_t solves, newton_iterations, retries, residuals;
   int last_iterations, max_in_a_solve; double time_solve, time_residual;
+  int hold, guard;
 } cf_newton_state;
 int cf_residual(cf_problem* p);
 int cf_test(const cf_settings* s, cf_newton_state* st, int it, const double* n);

@@ -56,6 +56,7 @@ from ufl.algorithms.analysis import extract_coefficients, extract_constants
 
 from cosserat_fem.common.errors import CosseratError
 from cosserat_fem.nls.constraints import Identification
+from cosserat_fem.nls.contact import NodeContact
 from cosserat_fem.nls.native_newton import NativeLoop, core
 
 JACOBIAN_POLICIES = ("full", "lagged", "frozen")
@@ -157,14 +158,19 @@ class NewtonSolver:
         form_compiler_params: dict | None = None,
         jit_params: dict | None = None,
         constraints: Identification | None = None,
+        contact: NodeContact | None = None,
     ):
         if settings.jacobian not in JACOBIAN_POLICIES:
             raise ValueError(f"unknown Jacobian policy {settings.jacobian!r}")
+        if contact is not None and settings.jacobian != "full":
+            raise ValueError("contact's rows change with every iterate: solver.jacobian = 'full'")
         self.U = U
         self.bcs = bcs
         #: dofs tied to others by rows of F and J (cosserat_fem/nls/constraints.py), or None;
         #: under MPI on every rank alike (its matrix operations are collective)
         self.constraints = constraints
+        #: rows replaced at every iterate (cosserat_fem/nls/contact.py), or None
+        self.contact = contact
         self._native: NativeLoop | None = None
         comm = U.function_space.mesh.comm
         module = core(comm)  # collective: rank 0 compiles on a cold cache
@@ -172,6 +178,7 @@ class NewtonSolver:
         self._cs = self._ffi.new("cf_settings*")  # the stop rule's and the policy's settings
         self._state = self._ffi.new("cf_newton_state*")  # the policy's state, the counters
         self._state.need_jacobian = 1
+        self._state.guard = int(contact is not None)
         self._sv = self._ffi.new("cf_solver*")  # the C solve's vectors and callbacks
         self._handle = self._ffi.new_handle(self)
         #: An exception a callback raised inside cf_solve, raised again after it.
@@ -307,7 +314,7 @@ class NewtonSolver:
         self._native = None
         self._sv.problem = self._ffi.NULL
         self.loop = "python"
-        if self.settings.loop != "auto" or self._parallel:
+        if self.settings.loop != "auto" or self._parallel or self.contact is not None:
             return
         from cosserat_fem.nls.native_newton import NativeLoop, NotApplicable
 
@@ -366,6 +373,8 @@ class NewtonSolver:
             self._assemble(b.array_w, dirichlet=True)
         if self.constraints is not None:  # (C.1)-(C.2) of cosserat_fem/nls/constraints.py
             self.constraints.apply_vector(b.array_w, self.U.x.array)
+        if self.contact is not None:  # (K.1)-(K.3): not converged while its set changes
+            self._state.hold = int(self.contact.apply_vector(b.array_w, self.U.x.array))
         # b's arrays are released (VecRestoreArray): its state has moved on, so PETSc does
         # not answer with a norm it cached before.
 
@@ -400,11 +409,13 @@ class NewtonSolver:
         A.zeroEntries()
         if self.constraints is not None:
             self.constraints.assemble_matrix(A, self.J_form, self.bcs)
-            return
-        # assemble_matrix is a singledispatch whose overload for a PETSc.Mat first (mat, form,
-        # bcs) DOLFINx's annotations do not show
-        assemble_matrix(A, self.J_form, bcs=self.bcs)  # type: ignore[misc]
-        A.assemble()
+        else:
+            # assemble_matrix is a singledispatch whose overload for a PETSc.Mat first (mat,
+            # form, bcs) DOLFINx's annotations do not show
+            assemble_matrix(A, self.J_form, bcs=self.bcs)  # type: ignore[misc]
+            A.assemble()
+        if self.contact is not None:
+            self.contact.apply_matrix(A)
 
     def _converged(self, it: int, norms) -> int:
         """The stop rule of the module docstring (``cf_test``, the one cf_solve runs) after
@@ -472,6 +483,8 @@ class NewtonSolver:
         }
         if self._J_snapshot is not None:
             state.update({f"jacobian.{k}": v for k, v in self._J_snapshot.items()})
+        if self.contact is not None:
+            state.update(self.contact.state_dict())
         return state
 
     def load_state_dict(self, state: dict) -> None:
@@ -493,6 +506,8 @@ class NewtonSolver:
             stats.max_iterations_in_a_solve,
         )
         st.since = int(state["solves_since_jacobian"])
+        if self.contact is not None:
+            self.contact.load_state_dict(state)
         self._need_jacobian = bool(state["need_jacobian"])
         if self.settings.jacobian == "full" or "jacobian.coefficient0" not in state:
             self._need_jacobian = True

@@ -170,11 +170,28 @@ typedef struct {
   int64_t solves, newton_iterations, retries, residuals;
   int last_iterations, max_in_a_solve;
   double time_solve, time_residual; /* s */
+  int hold;  /* 1: the last residual changed rows it replaces (an active set): not converged */
+  int guard; /* 1: the update test also needs ||F|| <= ||F0|| (a drift of a mechanism that an
+              * active set leaves, whose updates shrink relative to a growing U, is no answer) */
 } cf_newton_state;
 
+static int rule(const cf_settings* s, cf_newton_state* st, int it, const double* n);
+
 /* The stop rule: the reason after iteration it with norms (||U||, ||dU||, ||F||), at it = 0
- * (0, 0, ||F0||); keeps ||F0|| and the last ||dU||, ||F|| in st for the estimate. */
+ * (0, 0, ||F0||); keeps ||F0|| and the last ||dU||, ||F|| in st for the estimate. While
+ * st->hold is set (the residual's rows changed with its iterate: a contact's active set,
+ * cosserat_fem/nls/contact.py) a solve is not converged: it goes on, or ends at the
+ * iteration limit; with st->guard the update test stops it only with ||F|| <= ||F0||. */
 int cf_test(const cf_settings* s, cf_newton_state* st, int it, const double* n)
+{
+  const int reason = rule(s, st, it, n);
+  const int unsettled = st->hold || (st->guard && reason == SNES_CONVERGED_SNORM_RELATIVE &&
+                                     !(n[2] <= st->f0));
+  if (!unsettled || reason <= 0) return reason;
+  return it >= s->max_iterations ? SNES_DIVERGED_MAX_IT : SNES_CONVERGED_ITERATING;
+}
+
+static int rule(const cf_settings* s, cf_newton_state* st, int it, const double* n)
 {
   const double xnorm = n[0], ynorm = n[1], fnorm = n[2];
   if (fnorm != fnorm || ynorm != ynorm) return SNES_DIVERGED_FNORM_NAN;

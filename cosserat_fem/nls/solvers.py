@@ -9,6 +9,7 @@ import ufl
 from dolfinx import fem
 
 from cosserat_fem.nls.constraints import Identification
+from cosserat_fem.nls.contact import NodeContact
 from cosserat_fem.nls.newton import NewtonSettings, NewtonSolver
 
 
@@ -18,14 +19,19 @@ def make_solver(
     bcs: list,
     settings: NewtonSettings,
     constraints: Identification | None = None,
+    contact: NodeContact | None = None,
 ) -> NewtonSolver:
     """The nonlinear solver of F(U) = 0 that ``settings`` choose: PETSc's SNES configured by
     ``settings.petsc`` (:class:`~cosserat_fem.nls.snes.SNESSolver`) for
     nonlinear = "snes", or "auto" with options; else :class:`NewtonSolver`. Both have the
     same interface, stop rule and Jacobian policies, and take the dofs ``constraints`` ties
-    (cosserat_fem/nls/constraints.py)."""
+    (cosserat_fem/nls/constraints.py); ``contact``'s rows (cosserat_fem/nls/contact.py) need
+    the project's Newton loop."""
     if settings.nonlinear == "snes" or (settings.nonlinear == "auto" and settings.petsc):
         from cosserat_fem.nls.snes import SNESSolver
 
+        if contact is not None:
+            raise ValueError("contact's rows need the project's Newton loop, not SNES")
+
         return SNESSolver(F, U, bcs, settings, constraints=constraints)
-    return NewtonSolver(F, U, bcs, settings, constraints=constraints)
+    return NewtonSolver(F, U, bcs, settings, constraints=constraints, contact=contact)

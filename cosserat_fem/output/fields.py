@@ -110,7 +110,8 @@ class PointProbe:
     its owning rank (the components of p the model does not solve are 0), followed by the
     ``fields`` of ``output.probe_fields`` (:data:`~cosserat_fem.io.probes.PROBE_FIELD_COLUMNS`):
     the quaternion of the directors (q0, q1, q2, q3), signed as the previous call's so that it
-    is continuous in time, and the directors d1, d2, d3 in the fixed basis.
+    is continuous in time, the directors d1, d2, d3 in the fixed basis, a body's position, and
+    the contact's load [N/m], gap [m] and state at the probe (cosserat_fem/nls/contact.py).
 
     With a chart (cosserat_fem/rod/charts.py) the angles are those of (18) for the rod's own
     directors D A, measured from the fixed basis as without one, and continued from the
@@ -138,6 +139,9 @@ class PointProbe:
         self._quaternion = "quaternion" in fields
         self._directors = "directors" in fields
         self._body = self._body_frame(model, sigma) if "body" in fields else None
+        if "contact" in fields and model.contact is None:
+            raise ValueError("the probe field contact needs a scene with [contact]")
+        self._contact = model.contact.values if model.contact and "contact" in fields else None
         self._last_q: np.ndarray | None = None  # the quaternion of the previous call
         msh = U.function_space.mesh
         self.U = U
@@ -203,6 +207,13 @@ class PointProbe:
             if self._body is not None:  # u_C = u + (D − D0)ᵀ c (forms/rigid_body.py (B1))
                 D0, c = self._body
                 out[at : at + 3] = out[:3] + (D - D0).T @ c
+                at += 3
+        if self._contact is not None:  # load [N/m], gap [m], state at the probe
+            if self._node is not None:
+                out[-5:] = self._contact.x.array[6 * self._node : 6 * self._node + 5]
+            else:
+                point = np.array([self.cell], dtype=np.int32)
+                out[-5:] = self._contact.eval(self.point, point)[:5]
         return out
 
     @staticmethod
@@ -262,8 +273,20 @@ def _field_expressions(
         "force_n": lambda: resultant("n"),
         "torque_m": lambda: resultant("m"),
         **{f"director_d{i + 1}": partial(_director, U, chart, i, reference) for i in range(3)},
+        "contact_load": lambda: _contact(model, (0, 1, 2)),
+        "contact_gap": lambda: _contact(model, (3, 4, None)),
     }
     return [(name, exprs[name]()) for field in fields for name in FIELD_ARRAYS[field]]
+
+
+def _contact(model: RodModel, slots: tuple[int | None, ...]) -> ufl.core.expr.Expr:
+    """The 3-vector of the contact's output values (cosserat_fem/nls/contact.py
+    ``NodeContact.values``) in ``slots`` (None: 0): the load [N/m] (a node's force over its
+    share of the length), or (gap [m], state, 0), interpolated between the nodes."""
+    if model.contact is None:
+        raise ValueError("the XDMF field contact needs a scene with [contact]")
+    values = model.contact.values
+    return ufl.as_vector([0.0 * values[0] if k is None else values[k] for k in slots])
 
 
 def _directors(U, chart, reference) -> ufl.core.expr.Expr:
@@ -426,6 +449,8 @@ class XdmfWriter:
     ``forces``        force_n         contact force n_i = d_i · n (9)-(10)          N
     ``forces``        torque_m        contact torque m_i = d_i · m (13)             N m
     ``directors``     director_d1..3  the directors d_i, fixed basis e_j (18)       1
+    ``contact``       contact_load    the obstacles' load on the rod, fixed basis   N/m
+    ``contact``       contact_gap     (gap, state: 0 free 1 stick 2 slip, 0)        m, 1
     ================  ==============  ============================================  =======
 
     v, u, n, m are those of forms/resultants.py (reference state v = (0, 0, 1), u = n = m = 0;

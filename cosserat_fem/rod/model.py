@@ -49,6 +49,7 @@ from cosserat_fem.forms.reference import Reference
 from cosserat_fem.forms.resultants import scaled_law
 from cosserat_fem.forms.section import SectionLaw
 from cosserat_fem.nls.constraints import Identification
+from cosserat_fem.nls.contact import NodeContact
 from cosserat_fem.rod import charts
 from cosserat_fem.rod.charts import change_chart, change_chart_rate, chart_of
 from cosserat_fem.rod.load_coefficients import DataLoads
@@ -272,6 +273,9 @@ class RodModel:
     #: chart: identified (θ, ψ) mean a turn about e3 only in one chart (resolved.
     #: JOINT_COMPONENTS); the chart cannot move then (:meth:`new_chart`).
     chart_tied: bool = False
+    #: The contact rows (cosserat_fem/nls/contact.py; made by rod/obstacles.py contact_rows),
+    #: whose ``values`` the outputs read; None: no contact.
+    contact: NodeContact | None = None
 
     @property
     def needs_chart(self) -> bool:

@@ -42,6 +42,7 @@ from cosserat_fem.scene.load_data import TableStore, check_span, is_data, parse_
 from cosserat_fem.scene.resolved import (  # noqa: F401 - the resolved scene, importable from here
     PLANAR,
     PLANES,
+    Contact,
     Damping,
     Discretisation,
     EndLoad,
@@ -54,6 +55,7 @@ from cosserat_fem.scene.resolved import (  # noqa: F401 - the resolved scene, im
     ModelChoices,
     NodeBody,
     NodeLoad,
+    Obstacle,
     Output,
     PointLoad,
     ReferenceShape,
@@ -716,10 +718,12 @@ def scene_from_dict(
         damping=build(Damping, raw["damping"]),
         limits=_build_limits(raw["limits"]),
         structure=structure,
+        contact=_build_contact(raw["contact"], rod),
         source=source,
     )
     _check_derived(scene)
     _check_structure_scene(scene)
+    _check_contact_scene(scene)
     _check_section_law(scene)
     reference = _build_reference(raw["reference"], scene.expression_names())
     _check_reference(scene, reference)
@@ -1085,6 +1089,74 @@ def _check_point_node(structure: Structure, node: str, key: str, what: str, verb
         )
 
 
+# ====================================================================================== contact
+#: What each obstacle needs besides ``point`` (docs/contact.md).
+_OBSTACLE_KEYS = {"plane": ("normal",), "sphere": ("radius",), "cylinder": ("axis", "radius")}
+
+
+def _build_contact(raw: dict[str, Any] | None, rod: Rod) -> Contact | None:
+    """The [contact] table: each obstacle with the keys its kind needs and no other, its
+    directions made unit; the surface's radius resolved ("auto": a circle's or a tube's
+    outer radius); SceneError naming the key."""
+    if raw is None:
+        return None
+    obstacles = []
+    for i, entry in enumerate(raw["obstacles"]):
+        name = f"contact.obstacles[{i}]"
+        needs = _OBSTACLE_KEYS[entry["kind"]]
+        for k in ("normal", "axis", "radius"):
+            if k in needs and entry[k] is None:
+                raise SceneError(f"{name}.{k}: a {entry['kind']} needs it")
+            if k not in needs and entry[k] is not None:
+                raise SceneError(f"{name}.{k}: a {entry['kind']} takes no {k}")
+        values = dict(entry)
+        for k in ("normal", "axis"):
+            if entry[k] is not None:
+                v = np.asarray(entry[k], dtype=float)
+                norm = float(np.linalg.norm(v))
+                if norm == 0.0:
+                    raise SceneError(f"{name}.{k}: must not be the zero vector")
+                values[k] = tuple(float(x) for x in v / norm)
+        obstacles.append(build(Obstacle, values))
+    if not obstacles:
+        raise SceneError("contact.obstacles: give one obstacle at least ([[contact.obstacles]])")
+    radius = raw["radius"]
+    if radius == "auto":
+        section = rod.section
+        if section.shape == "circle" and section.diameter is not None:
+            radius = section.diameter / 2
+        elif section.shape == "tube" and section.outer_diameter is not None:
+            radius = section.outer_diameter / 2
+        else:
+            raise SceneError(
+                f"contact.radius: give the surface's radius [m]; \"auto\" takes a circle's or "
+                f"a tube's, and the section is a {section.shape}"
+            )
+    return build(Contact, {**raw, "radius": radius}, obstacles=tuple(obstacles))
+
+
+def _check_contact_scene(scene: Scene) -> None:
+    """What contact does not support yet, refused by name (docs/contact.md, "Limits"); its
+    outputs asked of a scene without it."""
+    if scene.contact is None:
+        for key in ("fields", "probe_fields"):
+            if "contact" in getattr(scene.output, key):
+                raise SceneError(f"output.{key}: contact needs a [contact] table")
+        return
+    if scene.structure is not None:
+        raise SceneError("contact: contact on a structure is not supported yet (one rod)")
+    if scene.solver.nonlinear == "snes" or scene.solver.petsc:
+        raise SceneError(
+            "solver.nonlinear: contact's rows need the project's Newton loop, not SNES "
+            "(no [solver.petsc] options)"
+        )
+    if scene.contact.kinetic > scene.contact.static_friction:
+        raise SceneError(
+            f"contact.kinetic_friction: must not exceed contact.static_friction "
+            f"({scene.contact.static_friction}), got {scene.contact.kinetic}"
+        )
+
+
 def _check_structure_scene(scene: Scene) -> None:
     """What a structure does not support yet, refused by name: distributed loads that depend
     on s or are data (a structure has no single arc length), a section law of s, the printed
@@ -1377,6 +1449,17 @@ def refuse_closed(scene: Scene, command: str) -> None:
             f"reference.closed: a closed rod has modes only ({command} needs its unknowns "
             "joined at s = 0 and s = ℓ, which its solver does not have yet); use "
             "cosserat-fem modes"
+        )
+
+
+def refuse_contact(scene: Scene | None, command: str) -> None:
+    """SceneError for a scene with [contact] in a command that does not impose it
+    (docs/contact.md: static and run do; the linearisations about a state and the reduced
+    models do not have its rows yet)."""
+    if scene is not None and scene.contact is not None:
+        raise SceneError(
+            f"contact: {command} does not impose contact yet (static and run do); remove the "
+            "[contact] table (--unset contact) to analyse the rod without its obstacles"
         )
 
 

@@ -62,6 +62,8 @@ HELD_BY_SUPPORT: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {
 STRUCTURE_SUPPORTS = ("clamped", "pinned", "spherical", "sliding", "free")
 #: The joints between a structure's members other than rigid ([[structure.joints]]).
 STRUCTURE_JOINTS = ("spherical", "hinge", "driven")
+#: The rigid obstacles a rod may touch ([[contact.obstacles]], docs/contact.md).
+CONTACT_OBSTACLES = ("plane", "sphere", "cylinder")
 #: Upper bounds of keys whose size alone makes a run impossible here
 #: (cosserat_fem/analysis/budget.py estimates the others): quadrature points per cell, Newton
 #: iterations per solve.

@@ -24,6 +24,7 @@ from cosserat_fem.forms.section import (
 from cosserat_fem.io.probes import PROBE_FIELD_COLUMNS
 from cosserat_fem.scene.expressions import Expression, derivative
 from cosserat_fem.scene.keys import (
+    CONTACT_OBSTACLES,
     DEFAULT_WALL_TIME,
     HELD_BY_SUPPORT,
     MAX_NEWTON_ITERATIONS,
@@ -1079,6 +1080,52 @@ class Limits:
 
 
 @dataclass(frozen=True, kw_only=True)
+class Obstacle:
+    """A rigid obstacle ([[contact.obstacles]], docs/contact.md): the rod stays on the side of
+    a ``plane`` through ``point`` [m] that its ``normal`` points to; outside a ``sphere`` of
+    ``radius`` [m] about ``point``; outside an infinite ``cylinder`` of ``radius`` whose axis
+    passes through ``point`` along ``axis``. ``normal`` and ``axis`` are made unit vectors."""
+
+    kind: str = key(Choice(choices=CONTACT_OBSTACLES, required=True))
+    point: tuple[float, float, float] = key(NumberVector(unit="m", required=True))
+    normal: tuple[float, float, float] | None = key(NumberVector(unit="-"), default=None)
+    axis: tuple[float, float, float] | None = key(NumberVector(unit="-"), default=None)
+    radius: float | None = key(Number(interval=POSITIVE, unit="m"), default=None)
+
+    def keeps(self, normal: tuple[int, ...]) -> bool:
+        """Whether a rod in the plane x_k = 0 (k in ``normal``, the plane's normal axes) is
+        pushed within it: the plane's normal, the sphere's centre in it, the cylinder's axis
+        along its normal."""
+        if self.kind == "plane":
+            assert self.normal is not None, "a plane has one (build.py)"
+            return all(self.normal[k] == 0.0 for k in normal)
+        if self.kind == "sphere":
+            return all(self.point[k] == 0.0 for k in normal)
+        assert self.axis is not None, "a cylinder has one (build.py)"
+        return all(self.axis[k] == 0.0 for k in range(3) if k not in normal)
+
+
+@dataclass(frozen=True, kw_only=True)
+class Contact:
+    """Unilateral contact of the rod's surface with rigid ``obstacles``, with Coulomb friction
+    (docs/contact.md): a point of the surface sticks while the tangential force is below
+    ``static_friction`` times the normal force, and slides against it with
+    ``kinetic_friction`` (by default the static coefficient) times the normal force. The
+    surface is a tube of ``radius`` [m] about the centreline: "auto" is a circular section's
+    radius (a tube's outer one)."""
+
+    obstacles: tuple[Obstacle, ...] = key(Tables(item=Obstacle, required=True))
+    static_friction: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="-"))
+    kinetic_friction: float | None = key(Number(interval=NON_NEGATIVE, unit="-"), default=None)
+    radius: float | str = key(Number(default="auto", interval=POSITIVE, unit="m", auto=True))
+
+    @property
+    def kinetic(self) -> float:
+        """The kinetic coefficient (the static one unless given)."""
+        return self.static_friction if self.kinetic_friction is None else self.kinetic_friction
+
+
+@dataclass(frozen=True, kw_only=True)
 class Scene:
     """A validated scene; ``source`` (file name or "<dict>") and its digest do not take part
     in equality."""
@@ -1103,6 +1150,8 @@ class Scene:
     limits: Limits = table(Limits)
     #: Several straight rods joined rigidly at nodes (docs/structures.md), or None: one rod.
     structure: Structure | None = table(Structure, optional=True, default=None)
+    #: Contact with rigid obstacles (docs/contact.md), or None: no contact, nothing computed.
+    contact: Contact | None = table(Contact, optional=True, default=None)
     source: str = field(default="<dict>", compare=False)
     #: SHA-256 of the file's bytes the scene was read from ("" for a dict): what every MPI
     #: rank parsed (schema.read_input), written to summary.json as ``scene_file_sha256``
@@ -1185,6 +1234,8 @@ class Scene:
         vectors += [(init.displacement, normal), (init.velocity, normal)]
         vectors += [(init.angles, angles), (init.angle_rates, angles)]
         if any(loads.gravity[i] != 0.0 for i in normal):
+            return False
+        if self.contact is not None and not all(o.keeps(normal) for o in self.contact.obstacles):
             return False
         return all(v is None or all(v[i].is_zero for i in idx) for v, idx in vectors)
 

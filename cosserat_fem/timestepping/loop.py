@@ -392,6 +392,9 @@ class TimeLoop:
         st = self.state
         h = t_new - st.t
         self.integrator.accept(h * self.omega0)
+        contact = getattr(self.solver, "contact", None)
+        if contact is not None:  # the friction's history: the accepted state (nls/contact.py)
+            contact.accept(self.model.U.x.array)
         self.pending = False
         self._cos_accepted = self._cos_candidate
         st.t = t_new

@@ -369,3 +369,35 @@ def test_settings_of_a_table_own_their_petsc_options():
     settings = NewtonSettings.of(table)
     table.petsc["snes_linesearch_type"] = "bt"
     assert settings.petsc == {"snes_type": "newtonls"} and settings.rtol == 1e-9
+
+
+def test_an_active_set_that_changed_holds_the_solve(problem):
+    """``hold`` (a contact's active set changed at this iterate, cosserat_fem/nls/contact.py):
+    a sequence the rule stops at iteration 1 by the residual test goes on while it is set,
+    and ends at the iteration limit (DIVERGED_MAX_IT) if it stays set; cleared, it stops."""
+    state = problem.solver._state
+    norms = [(1.0, 0.0, 1.0), (1.0, 1e-3, 1e-12)]
+    try:
+        state.hold = 1
+        assert feed(problem, full(), norms) == (2, ITERATING)
+        assert feed(problem, full(max_iterations=1), norms) == (1, MAX_IT)
+        state.hold = 0
+        assert feed(problem, full(), norms) == (1, ABS)
+    finally:
+        state.hold = 0
+
+
+def test_the_guard_refuses_a_drift_the_update_test_would_take(problem):
+    """``guard`` (set with contact): the update test stops a solve only if ‖F‖ ≤ ‖F_0‖. A
+    mechanism's drift (U growing 1e6×, updates relatively small, ‖F‖ growing) stops by the
+    update test without it, not with it; a residual at or below ‖F_0‖ still stops."""
+    state = problem.solver._state
+    drift = [(1.0, 0.0, 6.5), (1e24, 1e15, 7e27)]
+    settled = [(1.0, 0.0, 6.5), (1.0, 1e-9, 6.5)]
+    try:
+        assert feed(problem, full(), drift) == (1, STEP)
+        state.guard = 1
+        assert feed(problem, full(), drift) == (2, ITERATING)
+        assert feed(problem, full(), settled) == (1, STEP)
+    finally:
+        state.guard = 0

@@ -1,0 +1,323 @@
+"""Unilateral contact with Coulomb friction at nodes, by rows of the Newton system
+(docs/contact.md; the design and its measurements: docs/contact-design.md).
+
+At a node k that may touch, with positions x = r0 + ℓ u_x (u_x its scaled position
+unknowns), gap g(x) [m] (≥ 0 outside, :class:`~cosserat_fem.rod.obstacles.Surface`), unit
+normal n = ∇g and tangent basis T (rows spanning n's orthogonal complement), let F be the
+node's translational balance rows of the assembled residual (the rows tested by the rates'
+test functions, in the scaling where a nodal force P [N] is g0 P/ℓ). F is the force the node
+lacks: with a contact force R the balance is F − R = 0, so at a node in contact R = F, with
+
+    f_N = n·F ≥ 0 (pressure),   f_T = T F (friction),   Δu = u_x − u_x,old (since the last
+    accepted state),  trial t = P (F − c Δu), P = I − n nᵀ  (c > 0: the augmentation),
+    λ_N = f_N − c g/ℓ (the augmented pressure).
+
+The Alart–Curnier conditions, decided anew at each Newton iterate (a semi-smooth Newton =
+the primal-dual active set method, Hintermüller, Ito & Kunisch 2002), replace the node's
+balance rows [n; T] F by
+
+    free  (f_N − c g/ℓ < 0):      the rows as assembled (R = 0);                      (K.1)
+    stick (|t| < μ λ_N, or t = 0): g/ℓ = 0 and T Δu = 0 (exact: no penetration, no creep); (K.2)
+    slip  (otherwise):            g/ℓ = 0 and T (P F − μ_k f_N t/|t|) = 0              (K.3)
+
+with μ = μ_s, or μ_k for a node that slipped in the last accepted state (a sliding node sticks
+again when the force it needs drops below the kinetic limit). The contact force is the
+replaced rows' residual: no multiplier unknowns, the matrix keeps its blocks (every new entry
+lies in the node's own block row). The Jacobian rows are the generalized derivative of
+(K.2)-(K.3), with the obstacle's curvature ∂n/∂u = ℓ ∇²g and the tangent basis's turn with
+n. A solve is converged only when its active set stopped changing (``hold``: the C stop
+rule's flag, cosserat_fem/nls/newton_loop.c ``cf_test``), and by the update test only with
+‖F‖ ≤ ‖F0‖ (``guard``: a rigid slide that no stuck node holds drifts with shrinking relative
+updates, which is no answer).
+
+The node's slip is its centreline's: the friction acts at the centreline (no moment about
+it; docs/contact.md "Limits").
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from dolfinx import fem
+from mpi4py import MPI
+from petsc4py import PETSc
+
+FREE, STICK, SLIP = 0, 1, 2
+#: |g|/ℓ below which a node touches before the augmentation is known (the round-off of a
+#: position placed on a surface is ~1e-16 ℓ)
+TOUCHING = 1e-12
+#: a force below this times the residual's largest entry is round-off (a zero pressure)
+ROUNDOFF = 1e-12
+
+
+def tangent_bases(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Orthonormal rows T (len(n), m − 1, m) spanning each unit normal's complement in R^m
+    (m = 2: n turned by a right angle; m = 3: t1 from the axis e that n is furthest from,
+    a = e − (e·n) n, t1 = a/|a|, t2 = n × t1), and their derivatives ∂T_j/∂n
+    (len(n), m − 1, m, m)."""
+    count, m = n.shape
+    if m == 2:
+        turn = np.array([[0.0, -1.0], [1.0, 0.0]])
+        return (n @ turn.T)[:, None, :], np.broadcast_to(turn, (count, 1, 2, 2)).copy()
+    e = np.zeros_like(n)
+    e[np.arange(count), np.argmin(np.abs(n), axis=1)] = 1.0
+    en = np.sum(e * n, axis=1)
+    a = e - en[:, None] * n
+    size = np.linalg.norm(a, axis=1)
+    t1 = a / size[:, None]
+    t2 = np.cross(n, t1)
+    eye = np.eye(3)
+    da = -(n[:, :, None] * e[:, None, :] + en[:, None, None] * eye)
+    dt1 = np.einsum("kij,kjl->kil", eye - t1[:, :, None] * t1[:, None, :], da) / size[:, None, None]
+    dt2 = -_cross_matrix(t1) + np.einsum("kij,kjl->kil", _cross_matrix(n), dt1)
+    return np.stack([t1, t2], axis=1), np.stack([dt1, dt2], axis=1)
+
+
+def _cross_matrix(v: np.ndarray) -> np.ndarray:
+    """[v]× (len(v), 3, 3): [v]× w = v × w."""
+    out = np.zeros((len(v), 3, 3))
+    out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    return out - out.transpose(0, 2, 1)
+
+
+class NodeContact:
+    """The rows (K.1)-(K.3) of the module docstring at the owned node ``blocks`` of ``V``,
+    their rest positions ``rest`` [m] (len(blocks), 3), ``surface`` x ↦ (g, ∇g, ∇²g),
+    ``length`` ℓ [m], ``force_scale`` the newtons of a unit of a balance row (ℓ/g0),
+    ``shares`` each node's share of the length ℓ ∫ φ_k dσ [m], the slots
+    in a block of the solved positions and of their balance rows, ``solved`` the fixed-basis
+    components they are (0, 1, 2 or a plane's two), the friction coefficients."""
+
+    def __init__(
+        self,
+        V: fem.FunctionSpace,
+        blocks: np.ndarray,
+        rest: np.ndarray,
+        surface,
+        *,
+        length: float,
+        force_scale: float,
+        shares: np.ndarray,
+        position_slots: list,
+        balance_slots: list,
+        solved: list[int],
+        static_friction: float,
+        kinetic_friction: float,
+    ):
+        bs = V.dofmap.index_map_bs
+        self.comm = V.mesh.comm
+        self.blocks, self.rest, self.surface = blocks, rest, surface
+        self.ell, self.force_scale, self.solved = length, force_scale, list(solved)
+        self.shares = shares
+        self.mu_s, self.mu_k = static_friction, kinetic_friction
+        self.px = blocks[:, None] * bs + np.asarray(position_slots, dtype=np.int32)[None, :]
+        self.pq = blocks[:, None] * bs + np.asarray(balance_slots, dtype=np.int32)[None, :]
+        start = V.dofmap.index_map.local_range[0] * bs
+        self._gx = (self.px + start).astype(PETSc.IntType)
+        self._gq = (self.pq + start).astype(PETSc.IntType)
+        count = len(blocks)
+        #: each node's state at the last iterate and at the last accepted state (FREE, ...)
+        self.state = np.zeros(count, dtype=np.int8)
+        self.accepted = np.zeros(count, dtype=np.int8)
+        #: the scaled positions at the last accepted state (the friction's history)
+        self.u_old = np.zeros(self.px.shape)
+        #: the augmentation c of the module docstring (None until a Jacobian is seen)
+        self.c: float | None = None
+        #: the contact force [N] on each node (fixed basis) and its gap [m], at the last iterate
+        self.force = np.zeros((count, 3))
+        self.gap = np.zeros(count)
+        #: the work friction dissipated [J] over the accepted states
+        self.dissipated = 0.0
+        #: the most nodes in contact in an accepted state
+        self.most = 0
+        self._rows: dict = {}
+        #: the outputs at the nodes of a Lagrange space like V's, 6 a node: the contact load
+        #: [N/m] (the node's force over its share of the length, fixed basis), the gap [m],
+        #: the state (0 free, 1 stick, 2 slip); filled by :meth:`accept` (nodes that cannot
+        #: touch: zeros)
+        element = V.ufl_element()
+        space = fem.VectorFunctionSpace(V.mesh, (element.family(), element.degree()), dim=6)
+        self.values = fem.Function(space, name="contact")
+
+    def __len__(self) -> int:
+        return len(self.blocks)
+
+    # -- the rows -------------------------------------------------------------------------
+    def apply_vector(self, b: np.ndarray, u: np.ndarray) -> bool:
+        """Decide each node's state at the iterate (u, F = ``b``: the owned values of the
+        assembled residual, Dirichlet rows set) and replace its rows in ``b``; whether the
+        set changed on any rank since the last iterate (collective)."""
+        m = self.px.shape[1]
+        x = self.rest.copy()
+        x[:, self.solved] += self.ell * u[self.px]
+        g, normal, hessian = self.surface(x)
+        n = normal[:, self.solved]
+        curvature = hessian[:, self.solved][:, :, self.solved] * self.ell
+        F = b[self.pq]
+        fN = np.sum(n * F, axis=1)
+        gs = g / self.ell
+        c = self.c
+        # a pressure of the forces' round-off counts as none (a touching, unloaded node stays)
+        zero = ROUNDOFF * self.comm.allreduce(float(np.abs(b).max(initial=0.0)), op=MPI.MAX)
+        if c is None:  # before any Jacobian: through, or touching (to round-off) and pressed
+            active = (gs < -TOUCHING) | ((gs <= TOUCHING) & (fN >= -zero))
+        else:  # a node touching and not pulled away stays (f_N = 0 at a touching node: held)
+            active = fN - c * gs >= -zero
+        du = u[self.px] - self.u_old
+        w = F - (0.0 if c is None else c) * du
+        trial = w - np.sum(n * w, axis=1)[:, None] * n
+        size = np.linalg.norm(trial, axis=1)
+        mu = np.where(self.accepted == SLIP, self.mu_k, self.mu_s)
+        pressure = fN - (0.0 if c is None else c) * gs  # the augmented f_N: > 0 if active
+        # at the cone's edge a node slides on (docs/contact-design.md), but a node neither
+        # pressed nor pulled sticks (else a free rope's nodes would all be frictionless)
+        holds = (size < mu * pressure) | (size == 0.0)
+        state = np.where(active, np.where(holds, STICK, SLIP), FREE)
+        state = state.astype(np.int8)
+        changed = bool(np.any(state != self.state))
+        self.state = state
+        T, dT = tangent_bases(n)
+        s = np.divide(trial, size[:, None], out=np.zeros_like(trial), where=size[:, None] > 0)
+        friction = F - self.mu_k * fN[:, None] * s
+        # the tangential rows are T v: v = Δu (stick), P F − μ_k f_N s (slip)
+        v = np.where(
+            (state == STICK)[:, None], du, friction - np.sum(n * friction, axis=1)[:, None] * n
+        )
+        self._rows = dict(n=n, T=T, dT=dT, F=F, fN=fN, w=w, s=s, size=size, D=curvature, v=v)
+        self.force.fill(0.0)
+        self.force[:, self.solved] = np.where(active[:, None], F * self.force_scale, 0.0)
+        self.gap = g
+        # (K.2)-(K.3)
+        on = state != FREE
+        rows = np.zeros((len(state), m))
+        rows[:, 0] = gs
+        rows[:, 1:] = np.einsum("kij,kj->ki", T, v)
+        b[self.pq[on]] = rows[on]
+        return bool(self.comm.allreduce(changed, op=MPI.LOR))
+
+    def apply_matrix(self, A: PETSc.Mat) -> None:
+        """The Jacobian rows of the states :meth:`apply_vector` decided, in the assembled
+        ``A`` (collective; after its final assembly): each active node's balance rows
+        overwritten on their own columns; the augmentation c taken from A's first
+        position block (the largest over the ranks: the same c serially and under MPI)."""
+        local = max(
+            (
+                abs(A.getValue(int(r), int(c)))
+                for r, c in zip(self._gq[:, 0], self._gx[:, 0], strict=True)
+            ),
+            default=0.0,
+        )
+        on = np.flatnonzero(self.state != FREE)
+        gathered = [[A.getRow(int(q)) for q in self._gq[k]] for k in on]  # before any insert
+        groups: dict[int, list[int]] = {}  # the nodes by their rows' length, done together
+        for i, rows in enumerate(gathered):
+            groups.setdefault(len(rows[0][0]), []).append(i)
+        for members in groups.values():
+            nodes = on[members]
+            cols = np.array([gathered[i][0][0] for i in members])  # (K, ncols)
+            J = np.array([[vals for _, vals in gathered[i]] for i in members])  # (K, m, ncols)
+            at = np.array(
+                [np.searchsorted(c, g) for c, g in zip(cols, self._gx[nodes], strict=True)]
+            )
+            assert np.array_equal(np.take_along_axis(cols, at, 1), self._gx[nodes]), "own block"
+            new = self._jacobian_rows(nodes, J, at)
+            for k, c, values in zip(nodes, cols, new, strict=True):
+                A.setValues(self._gq[k], c, values, addv=PETSc.InsertMode.INSERT_VALUES)
+        A.assemble()
+        self.c = self.comm.allreduce(float(local), op=MPI.MAX) or None
+
+    def _jacobian_rows(self, nodes: np.ndarray, J: np.ndarray, at: np.ndarray) -> np.ndarray:
+        """The new rows (K, m, ncols) of the active ``nodes`` whose assembled balance rows are
+        ``J`` (K, m, ncols), their positions at the columns ``at`` (K, m): the derivatives of
+        (K.2)-(K.3) (module docstring), all nodes at once."""
+        r = {key: value[nodes] for key, value in self._rows.items()}
+        K, m, _ = J.shape
+        n, T, D, F, fN = r["n"], r["T"], r["D"], r["F"], r["fN"]
+        eye = np.eye(m)
+
+        def positions(k: np.ndarray, lines: np.ndarray) -> tuple:
+            """The index of the rows ``lines`` of the nodes ``k`` at their positions' columns."""
+            return k[:, None, None], lines[None, :, None], at[k][:, None, :]
+
+        every, tangent = np.arange(K), np.arange(1, m)
+        new = np.zeros_like(J)
+        new[positions(every, np.arange(1))] = n[:, None, :]  # the gap row: ∂(g/ℓ)/∂u = n
+        # d(T v) = T dv + (∂T/∂n · v) ∂n/∂u, ∂n/∂u = D at the node's positions
+        new[positions(every, tangent)] += np.einsum("kjab,ka,kbc->kjc", r["dT"], r["v"], D)
+        stick = self.state[nodes] == STICK
+        new[positions(np.flatnonzero(stick), tangent)] += T[stick]  # dv = dΔu
+        slip = np.flatnonzero(~stick)
+        if slip.size:  # (K.3): dv = d(P F − μ f_N s)
+            w, s, size = r["w"][slip], r["s"][slip], r["size"][slip]
+            Js, Ds, ns, Fs, fNs = J[slip], D[slip], n[slip], F[slip], fN[slip]
+            local = np.arange(slip.size)
+            own = local[:, None, None], np.arange(m)[None, :, None], at[slip][:, None, :]
+            P = eye - ns[:, :, None] * ns[:, None, :]
+            dPF = P @ Js
+            dPF[own] -= (ns[:, :, None] * Fs[:, None, :] + fNs[:, None, None] * eye) @ Ds
+            dfN = np.einsum("ka,kac->kc", ns, Js)
+            dfN[local[:, None], at[slip]] += np.einsum("ka,kab->kb", Fs, Ds)
+            c = 0.0 if self.c is None else self.c
+            nw = np.sum(ns * w, axis=1)
+            dtrial = P @ Js
+            dtrial[own] -= c * P + (ns[:, :, None] * w[:, None, :] + nw[:, None, None] * eye) @ Ds
+            safe = np.where(size > 0, size, 1.0)
+            ds = (eye - s[:, :, None] * s[:, None, :]) @ dtrial / safe[:, None, None]
+            ds[size == 0] = 0.0  # frictionless: no direction
+            dv = dPF - self.mu_k * (s[:, :, None] * dfN[:, None, :] + fNs[:, None, None] * ds)
+            new[slip, 1:, :] += T[slip] @ dv
+        return new
+
+    # -- the history ----------------------------------------------------------------------
+    def accept(self, u: np.ndarray) -> None:
+        """The solved state ``u`` is kept (a load step, a time step): the friction's history
+        moves to it, and the work of the sliding nodes' friction over the step is added to
+        :attr:`dissipated` (−R_T·Δx ≥ 0 a node)."""
+        dx = np.zeros((len(self), 3))
+        dx[:, self.solved] = self.ell * (u[self.px] - self.u_old)
+        slip = self.state == SLIP
+        local = -float(np.sum(self.force[slip] * dx[slip]))  # the normal part: g = 0 at both
+        self.dissipated += self.comm.allreduce(local)
+        self.u_old = u[self.px].copy()
+        self.accepted = self.state.copy()
+        self.most = max(self.most, self.counts()["contact"])
+        out = self.values.x.array.reshape(-1, 6)
+        out[self.blocks, :3] = self.force / self.shares[:, None]
+        out[self.blocks, 3] = self.gap
+        out[self.blocks, 4] = self.state
+        self.values.x.scatter_forward()
+
+    def counts(self) -> dict[str, int]:
+        """The nodes in contact, sticking and sliding, over the ranks."""
+        local = np.array(
+            [np.sum(self.state != FREE), np.sum(self.state == STICK), np.sum(self.state == SLIP)]
+        )
+        total = self.comm.allreduce(local)
+        return {"contact": int(total[0]), "stick": int(total[1]), "slip": int(total[2])}
+
+    def summary(self) -> dict:
+        """summary.json's "contact": the nodes in contact, sticking and sliding at the last
+        iterate, the most in contact in an accepted state, the friction's work [J]."""
+        return {
+            **{f"nodes_{k}": v for k, v in self.counts().items()},
+            "most_nodes_in_contact": self.most,
+            "friction_work_J": self.dissipated,
+        }
+
+    def state_dict(self) -> dict:
+        return {
+            "contact.state": self.state.copy(),
+            "contact.accepted": self.accepted.copy(),
+            "contact.u_old": self.u_old.copy(),
+            "contact.c": np.array(np.nan if self.c is None else self.c),
+            "contact.dissipated": np.array(self.dissipated),
+            "contact.most": np.array(self.most),
+        }
+
+    def load_state_dict(self, state: dict) -> None:
+        self.state = np.asarray(state["contact.state"], dtype=np.int8).copy()
+        self.accepted = np.asarray(state["contact.accepted"], dtype=np.int8).copy()
+        self.u_old = np.asarray(state["contact.u_old"], dtype=float).copy()
+        c = float(state["contact.c"])
+        self.c = None if np.isnan(c) else c
+        self.dissipated = float(state["contact.dissipated"])
+        self.most = int(state["contact.most"])

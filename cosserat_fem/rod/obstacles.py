@@ -1,0 +1,134 @@
+"""Rigid obstacles and the rod's contact with them (docs/contact.md).
+
+An obstacle is the outside of a surface with a signed distance d(x) [m] (positive outside):
+
+* plane through a, unit normal n:  d = n·(x − a),  ∇d = n,  ∇²d = 0;
+* sphere of radius R about c:      d = |x − c| − R,  ∇d = ê,  ∇²d = (I − ê êᵀ)/|x − c|;
+* cylinder of radius R, unit axis a through c, e = (I − a aᵀ)(x − c):
+                                   d = |e| − R,  ∇d = ê,  ∇²d = (I − a aᵀ − ê êᵀ)/|e|,
+
+ê the unit vector along x − c or e. The rod's surface, a tube of radius r about its centreline,
+keeps out of an obstacle when the gap g = d(x) − r of each centreline node x is ≥ 0 (exact for
+a circular section whatever the rotation). Several obstacles: each node meets the one of the
+smallest gap. :func:`contact_rows` makes the rows of the Newton system that impose it with
+Coulomb friction (cosserat_fem/nls/contact.py) on a rod's model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx.fem.petsc import assemble_vector
+from petsc4py import PETSc
+
+from cosserat_fem.nls.contact import NodeContact
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A rigid obstacle (module docstring): ``kind`` plane | sphere | cylinder, ``point`` a
+    [m], ``direction`` its unit normal (plane) or axis (cylinder), ``radius`` R [m]."""
+
+    kind: str
+    point: np.ndarray
+    direction: np.ndarray | None = None
+    radius: float = 0.0
+
+    @classmethod
+    def of(cls, spec) -> Obstacle:
+        """From a scene's [[contact.obstacles]] entry (cosserat_fem/scene/resolved.py)."""
+        direction = spec.normal if spec.kind == "plane" else spec.axis
+        return cls(
+            spec.kind,
+            np.asarray(spec.point, dtype=float),
+            None if direction is None else np.asarray(direction, dtype=float),
+            0.0 if spec.radius is None else float(spec.radius),
+        )
+
+    def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(d, ∇d, ∇²d) at the points ``x`` (n, 3): (n,), (n, 3), (n, 3, 3)."""
+        rel = x - self.point
+        eye = np.broadcast_to(np.eye(3), (len(x), 3, 3))
+        if self.kind == "plane":
+            assert self.direction is not None, "a plane has its normal"
+            n = np.broadcast_to(self.direction, x.shape).copy()
+            return rel @ self.direction, n, np.zeros((len(x), 3, 3))
+        if self.kind == "cylinder":
+            assert self.direction is not None, "a cylinder has its axis"
+            a = self.direction
+            rel = rel - np.outer(rel @ a, a)
+            eye = eye - np.outer(a, a)
+        norm = np.linalg.norm(rel, axis=1)
+        if np.any(norm == 0.0):
+            raise FloatingPointError(f"a node at the {self.kind}'s centre: its normal is undefined")
+        n = rel / norm[:, None]
+        hessian = (eye - n[:, :, None] * n[:, None, :]) / norm[:, None, None]
+        return norm - self.radius, n, hessian
+
+
+class Surface:
+    """The gap g = min over ``obstacles`` of d(x) − ``radius`` and its derivatives (module
+    docstring): the geometry :class:`~cosserat_fem.nls.contact.NodeContact` asks for."""
+
+    def __init__(self, obstacles: list[Obstacle], radius: float):
+        self.obstacles, self.radius = obstacles, radius
+
+    def __call__(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(g [m], ∇g, ∇²g [1/m]) at the points ``x`` (n, 3), each point's nearest obstacle."""
+        best = [o.distance(x) for o in self.obstacles]
+        which = np.argmin(np.stack([d for d, _, _ in best]), axis=0)
+        pick = np.arange(len(x))
+        d = np.stack([d for d, _, _ in best])[which, pick]
+        n = np.stack([n for _, n, _ in best])[which, pick]
+        hessian = np.stack([h for _, _, h in best])[which, pick]
+        return d - self.radius, n, hessian
+
+
+def contact_rows(model) -> NodeContact | None:
+    """The contact rows of a rod's ``model`` (cosserat_fem/rod/model.py) whose scene has a
+    [contact] table, else None: every owned node whose positions no support holds, at its
+    rest position r0(s) (the scene's [reference]), the positions x = r0 + ℓ u, the balance
+    rows' forces in N times g0/ℓ (forms/general_form.py: a nodal force P enters its row as
+    g0 P/ℓ), their shares of the length ℓ ∫ φ_k dσ. Kept as ``model.contact``, whose
+    ``values`` the outputs read."""
+    spec = model.scene.contact
+    if spec is None:
+        return None
+    layout, V = model.layout, model.V
+    bs = layout.size
+    owned = V.dofmap.index_map.size_local
+    held = np.zeros(owned * bs, dtype=bool)
+    for bc in model.bcs:
+        dofs, _ = bc.dof_indices()
+        held[dofs[dofs < owned * bs]] = True
+    positions = [layout.index(k) for k in range(3)]
+    solved = [k for k in range(3) if positions[k] is not None]
+    blocks = np.arange(owned, dtype=np.int32)
+    free = ~held.reshape(owned, bs)[:, [positions[k] for k in solved]].any(axis=1)
+    blocks = blocks[free]
+    ell = model.length
+    sigma = V.tabulate_dof_coordinates()[blocks, 0]
+    rest = np.asarray(model.scene.reference.positions(ell * sigma), dtype=float).reshape(-1, 3)
+    surface = Surface([Obstacle.of(o) for o in spec.obstacles], float(spec.radius))
+    # each node's share of the length, ℓ ∫ φ_k dσ [m]: a nodal force over it is a load per length
+    scalar = fem.FunctionSpace(model.msh, ("Lagrange", V.ufl_element().degree()))
+    shares = assemble_vector(fem.form(ufl.TestFunction(scalar) * model.dx))
+    shares.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    model.contact = NodeContact(
+        V,
+        blocks,
+        rest,
+        surface,
+        length=ell,
+        force_scale=ell / model.groups.g0,
+        shares=ell * shares.array[blocks],
+        position_slots=[positions[k] for k in solved],
+        balance_slots=[layout.index(6 + k) for k in solved],
+        solved=solved,
+        static_friction=spec.static_friction,
+        kinetic_friction=spec.kinetic,
+    )
+    return model.contact

@@ -1,0 +1,64 @@
+"""cosserat_fem/rod/obstacles.py: the obstacles' signed distances and their derivatives.
+
+Each distance against its closed form at chosen points (a plane's is linear, a sphere's and
+a cylinder's the distance to the centre or the axis minus the radius), and ∇d, ∇²d against
+central differences of d and ∇d (error O(ε²): 1e-8 relative at ε = 1e-5 m on a 1 m scale,
+bound 1e-7). A surface of several obstacles takes, at each point, the nearest one.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cosserat_fem.rod.obstacles import Obstacle, Surface
+
+pytestmark = pytest.mark.unit
+
+PLANE = Obstacle("plane", np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.6, 0.8]))
+SPHERE = Obstacle("sphere", np.array([1.0, 2.0, 3.0]), None, 0.5)
+CYLINDER = Obstacle("cylinder", np.array([1.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), 0.3)
+
+
+def test_distances_are_the_closed_forms():
+    """Points at known distances: 0.64 and 1 above the plane (n·(x − a)), 1.5 outside the sphere
+    (|x − c| − R = 2 − 0.5), on the cylinder's surface at any height (|e| = R), inside it."""
+    x = np.array([[0.0, 0.0, -0.2], [5.0, 7.0, -1.0 - 5.0 * 0.75]])
+    assert np.allclose(PLANE.distance(x)[0], [0.64, 0.6 * 7 - 0.8 * 3.75], atol=1e-15)
+    assert PLANE.distance(np.array([[0.0, 0.6, -0.2]]))[0][0] == pytest.approx(1.0, abs=1e-15)
+    assert SPHERE.distance(np.array([[1.0, 4.0, 3.0]]))[0][0] == pytest.approx(1.5, abs=1e-15)
+    on = np.array([[1.3, 0.0, -4.0], [1.0, 0.3, 7.0], [1.1, 0.0, 0.0]])
+    assert np.allclose(CYLINDER.distance(on)[0], [0.0, 0.0, -0.2], atol=1e-15)
+
+
+@pytest.mark.parametrize("obstacle", [PLANE, SPHERE, CYLINDER], ids=["plane", "sphere", "cylinder"])
+def test_gradient_and_hessian_are_the_derivatives(obstacle):
+    """∇d and ∇²d against central differences at random points (module docstring); ∇d is
+    a unit vector."""
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(6, 3)) * 2
+    d, grad, hessian = obstacle.distance(x)
+    assert np.allclose(np.linalg.norm(grad, axis=1), 1.0, atol=1e-14)
+    eps = 1e-5
+    for k in range(3):
+        step = np.zeros(3)
+        step[k] = eps
+        dp, gp, _ = obstacle.distance(x + step)
+        dm, gm, _ = obstacle.distance(x - step)
+        assert np.abs((dp - dm) / (2 * eps) - grad[:, k]).max() < 1e-7
+        assert np.abs((gp - gm) / (2 * eps) - hessian[:, :, k]).max() < 1e-7
+
+
+def test_a_surface_takes_the_nearest_obstacle_less_the_radius():
+    """Two planes facing each other (a channel |x| ≤ 1): each point's gap is its distance to
+    the nearer wall minus the tube's radius 0.1, its normal that wall's."""
+    walls = Surface(
+        [
+            Obstacle("plane", np.array([-1.0, 0, 0]), np.array([1.0, 0, 0])),
+            Obstacle("plane", np.array([1.0, 0, 0]), np.array([-1.0, 0, 0])),
+        ],
+        0.1,
+    )
+    g, n, _ = walls(np.array([[-0.5, 0, 0], [0.7, 3, 0]]))
+    assert np.allclose(g, [0.4, 0.2], atol=1e-15)
+    assert np.array_equal(n[:, 0], [1.0, -1.0])
