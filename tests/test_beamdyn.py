@@ -359,9 +359,9 @@ def test_five_mw_blade_released_under_gravity():
     After 30 s (about 32 edgewise periods) the swing has decayed by the damping: its half
     peak-to-peak in BeamDyn's rows 29.23-29.97 s is 0.1602 m (from 0.44 m), ours over the
     last second 0.1652 m, within 0.01 m (3 %; the decay rate within 1.5 %: ln(0.441/0.160)
-    against ln(0.449/0.165), the first swings'); undamped, ours keeps 0.43 m. The phase after 30 s differs by ~0.15 s
-    (16 × P4) and ~0.03 s (one quintic element): the frequencies' 0.5 % and 0.1 %, the same
-    discretisation. Three runs of 1-2 s each once the forms are compiled (measured 4.3 s in
+    against ln(0.449/0.165), the first swings'); undamped, ours keeps 0.43 m. The phase after
+    30 s differs by ~0.15 s (16 × P4) and ~0.03 s (one quintic element): the frequencies'
+    0.5 % and 0.1 %, the same discretisation. Three runs of 1-2 s each once the forms are compiled (measured 4.3 s in
     all; compiling them adds some): the long set, for the 30 s of the case."""
     beamdyn = np.array(FIVE_MW)
     probes = _five_mw_run(30.0)
