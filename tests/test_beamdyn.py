@@ -361,8 +361,9 @@ def test_five_mw_blade_released_under_gravity():
     last second 0.1652 m, within 0.01 m (3 %; the decay rate within 1.5 %: ln(0.441/0.160)
     against ln(0.449/0.165), the first swings'); undamped, ours keeps 0.43 m. The phase after
     30 s differs by ~0.15 s (16 × P4) and ~0.03 s (one quintic element): the frequencies'
-    0.5 % and 0.1 %, the same discretisation. Three runs of 1-2 s each once the forms are compiled (measured 4.3 s in
-    all; compiling them adds some): the long set, for the 30 s of the case."""
+    0.5 % and 0.1 %, the same discretisation. Three runs of 1-2 s each once the forms are
+    compiled (measured 4.3 s in all; compiling them adds some): the long set, for the 30 s
+    of the case."""
     beamdyn = np.array(FIVE_MW)
     probes = _five_mw_run(30.0)
     ours = _at_beamdyns_times(probes)
