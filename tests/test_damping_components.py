@@ -115,3 +115,19 @@ def test_bad_retardation_times_are_one_line(tmp_path, value, message):
     assert message in proc.stderr, proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1 and "Traceback" not in proc.stderr
     assert not (tmp_path / "x" / "probes.csv").exists()
+
+
+def test_six_retardation_times_are_written_as_read():
+    """The scene keeps the value as given, a number or six (a tuple); written back
+    (``Scene.to_dict``, what a checkpoint and summary.json hold) as the number or the list,
+    and read again it is the same scene: a restart runs the damping it ran."""
+    from cosserat_fem.scene.build import scene_from_dict
+
+    six = [1e-4, 2e-4, 1e-5, 2e-4, 1e-4, 3e-5]
+    for value, resolved in ((six, tuple(six)), (2e-4, 2e-4)):
+        sc = scene({"damping": {"retardation_time": value}})
+        assert sc.damping.retardation_time == resolved and sc.damping.kelvin_voigt
+        written = sc.to_dict()
+        assert written["damping"]["retardation_time"] == value
+        assert scene_from_dict(written) == sc
+    assert not scene({"damping": {"retardation_time": [0.0] * 6}}).damping.kelvin_voigt
