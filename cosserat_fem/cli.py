@@ -625,13 +625,7 @@ def _beamdyn(args) -> int:
     from cosserat_fem.io.beamdyn import read_case, scene_of, tip_of
 
     case = read_case(args.scene)
-    # --set damping.retardation_time=T states the damping in place of BeamDyn's (unequal μ)
-    given = [o.partition("=")[2] for o in args.overrides if o.startswith("damping.retardation")]
-    try:
-        tau = float(given[-1]) if given else None
-    except ValueError:
-        raise SceneError(f"damping.retardation_time: a number [s], got {given[-1]!r}") from None
-    scene = api.load(scene_of(case, retardation_time=tau), args.overrides)
+    scene = api.load(scene_of(case), args.overrides)
     out = args.out if args.out is not None else scene.output.directory
     if case.dynamic:
         result = api.run(scene, out, record=True)

@@ -74,7 +74,7 @@ def director_residual_terms(
     torque_density=None,
     end_loads: tuple = (),
     viscous_damping: tuple[float, float] | None = None,
-    retardation_time: float | None = None,
+    retardation_time: float | tuple[float, ...] | None = None,
     chart_quaternion=None,
     reference=None,
 ) -> dict[str, ufl.Form]:
@@ -83,14 +83,16 @@ def director_residual_terms(
     force_density f [N/m], torque_density l [N m/m]: UFL 3-vectors in the fixed basis or None.
     end_loads: tuples (ds, f^b [N] or None, l^b [N m] or None).
     viscous_damping (c_t [N s/m²], c_r [N s]): the densities f_d = −c_t ∂t r and l_d = −c_r w,
-    term ``damping``. retardation_time τ_d [s]: Kelvin–Voigt contact force and torque
-    n_v = Σ K_ii τ_d ∂t(∂s r · d_i) d_i, m_v = Σ J_ii τ_d ∂t(u · d_i) d_i, term
-    ``kelvin_voigt``, with ∂t(u · d_i) = ∂t u · d_i + u · ∂t d_i and
-    ∂t u = ½ Σ (∂t d_i × ∂s d_i + d_i × ∂s ∂t d_i) from (3). chart_quaternion: a UFL
-    4-vector Q(σ), the angles measured from its frame (module docstring). reference: a
-    forms.reference.Reference (t0, D0) of a rod curved at rest, for smooth t0 and D0: the
-    directors are the rows of D0 times the rotation above (λ_j its rows), ∂s r = t0 +
-    (p1', p2', p3'), and the strains are measured from those of the reference by (9)-(13):
+    term ``damping``. retardation_time τ_d [s], or six μ_1..μ_6 [s] (strain order,
+    docs/sections.md §1; τ_d is μ_i = τ_d): Kelvin–Voigt contact force and torque
+    n_v = Σ μ_i K_ii ∂t(∂s r · d_i) d_i, m_v = Σ μ_{3+i} J_ii ∂t(u · d_i) d_i, or with a law
+    row i of its K times μ_i (BeamDyn's diag(μ) K), term ``kelvin_voigt``, with
+    ∂t(u · d_i) = ∂t u · d_i + u · ∂t d_i and ∂t u = ½ Σ (∂t d_i × ∂s d_i + d_i × ∂s ∂t d_i)
+    from (3). chart_quaternion: a UFL 4-vector Q(σ), the angles measured from its frame
+    (module docstring). reference: a forms.reference.Reference (t0, D0) of a rod curved at
+    rest, for smooth t0 and D0: the directors are the rows of D0 times the rotation above
+    (λ_j its rows), ∂s r = t0 + (p1', p2', p3'), and the strains are measured from those
+    of the reference by (9)-(13):
     n = Σ K_ii (∂s r · d_i − t0 · d0_i) d_i, m = Σ J_ii (u · d_i − u0 · d0_i) d_i with
     u0 = ½ Σ d0_i × ∂s d0_i (3) (UFL's derivative of D0); the virtual rotation is
     δϑ = Σ_j v_{9+j} λ_j / Î_j (general_form.py, "A reference configuration").
@@ -214,19 +216,22 @@ def director_residual_terms(
         l_d = -c_r * w0 * w
         terms["damping"] = (-ufl.dot(f_d * ell / fstar, dr) - ufl.dot(l_d / fstar, dth)) * dx
     if retardation_time is not None:
-        eta = retardation_time * w0
+        if isinstance(retardation_time, int | float):
+            eta = [retardation_time * w0] * 6
+        else:
+            eta = [t * w0 for t in retardation_time]
         r_st = ufl.as_vector([q[a].dx(0) for a in range(3)])
         d_st = [ufl.as_vector([dt[m].dx(0) for m in range(3)]) for dt in d_t]
         u_t = _axial(d_t, d_s) + _axial(d, d_st)
         v_rates = [ufl.dot(r_st, d[a]) + ufl.dot(r_s, d_t[a]) for a in range(3)]
         u_rates = [ufl.dot(u_t, d[a]) + ufl.dot(u, d_t[a]) for a in range(3)]
         if law is None:
-            n_v = sum((eta * K[a] * v_rates[a] * d[a] for a in range(3)), ufl.zero(3))
-            m_v = sum((eta * J[a] * u_rates[a] * d[a] for a in range(3)), ufl.zero(3))
+            n_v = sum((eta[a] * K[a] * v_rates[a] * d[a] for a in range(3)), ufl.zero(3))
+            m_v = sum((eta[3 + a] * J[a] * u_rates[a] * d[a] for a in range(3)), ufl.zero(3))
         else:
             nv_d, mv_d = section_law(v_rates, u_rates, K6)
-            n_v = sum((eta * nv_d[a] * d[a] for a in range(3)), ufl.zero(3))
-            m_v = sum((eta * mv_d[a] * d[a] for a in range(3)), ufl.zero(3))
+            n_v = sum((eta[a] * nv_d[a] * d[a] for a in range(3)), ufl.zero(3))
+            m_v = sum((eta[3 + a] * mv_d[a] * d[a] for a in range(3)), ufl.zero(3))
         terms["kelvin_voigt"] = (
             ufl.dot(n_v, dr_s) + ufl.dot(m_v, dth_s) - ufl.dot(ufl.cross(r_s, n_v), dth)
         ) * dx

@@ -13,17 +13,22 @@ and the power of the loads (36), (42) in fixed directions is
 with l · w = Σ_i l_i w_i, l_i = d_i · l (38). For the rod of (6) with the consistent rotary
 inertia (docs/errata.md, erratum 1), dE/dt = P with E = T + V. Damping adds its power
 
-    P_d = −∫₀^ℓ [c_t |∂t r|² + c_r |w|² + τ_d (K v̇ · v̇ + J u̇ · u̇)] ds ≤ 0
+    P_d = −∫₀^ℓ [c_t |∂t r|² + c_r |w|² + ε̇ · diag(μ) K ε̇] ds,   ε̇ = (v̇, u̇),
 
-(viscous densities −c_t ∂t r, −c_r w; Kelvin–Voigt parts τ_d K v̇, τ_d J u̇ of n and m, whose
-power against the strain rates is what the elastic parts' is against V). Integrands are per unit σ
-(ds = ℓ dσ): integrate them with ``* dx`` over the interval mesh σ ∈ [0, 1].
+(viscous densities −c_t ∂t r, −c_r w; Kelvin–Voigt parts (n_v, m_v) = diag(μ) K ε̇ of n and m,
+forms/general_form.py KelvinVoigtDamping, whose power against the strain rates is what the
+elastic parts' is against V). P_d ≤ 0 when diag(μ) K + K diag(μ) is positive semi-definite:
+always for one τ_d (μ_i = τ_d, K positive definite) and for a diagonal K; BeamDyn's law with
+unequal μ_i and a K that couples their components may, for some rates, not dissipate.
+Integrands are per unit σ (ds = ℓ dσ): integrate them with ``* dx`` over the interval mesh
+σ ∈ [0, 1].
 """
 
 from __future__ import annotations
 
 import ufl
 
+from .general_form import retardation_times
 from .groups import RodConstants
 from .kinematics import (
     Chart,
@@ -110,15 +115,15 @@ def damping_power(
     rod: RodConstants,
     translational=0.0,
     rotational=0.0,
-    retardation_time=0.0,
+    retardation_time: float | tuple[float, ...] = 0.0,
     chart: Chart | None = None,
     reference: Reference | None = None,
 ) -> ufl.core.expr.Expr:
     """P_d per unit length [W/m] (module docstring), to be multiplied by ℓ and integrated with
-    ``dx``: c_t [N s/m²], c_r [N s], τ_d [s]."""
+    ``dx``: c_t [N s/m²], c_r [N s], τ_d [s] or six μ_i [s]."""
     _, r_dot, w = _rates(U, rod)
     power = -translational * ufl.dot(r_dot, r_dot) - rotational * ufl.dot(w, w)
-    if retardation_time > 0.0:  # −(n_v · ∂t v + m_v · ∂t u)
+    if any(retardation_times(retardation_time)):  # −(n_v · ∂t v + m_v · ∂t u)
         kv = kelvin_voigt_parts(U, rod, retardation_time, chart, reference)
         power = power - ufl.dot(kv.n, kv.v_rate) - ufl.dot(kv.m, kv.u_rate)
     return power

@@ -145,17 +145,57 @@ class ViscousDamping:
     omega0: float
 
 
+#: The six strain components of a section law, in its order (docs/sections.md §1).
+STRAIN_COMPONENTS = 6
+
+
+def retardation_times(value) -> tuple[float, ...]:
+    """The six retardation times μ_1..μ_6 [s] of ``value``: one number τ_d (every component
+    alike, μ_i = τ_d) or six, in the section's strain order (shear 1, shear 2, extension,
+    bending 1, bending 2, torsion)."""
+    if isinstance(value, int | float):
+        return (float(value),) * STRAIN_COMPONENTS
+    times = tuple(float(x) for x in value)
+    if len(times) != STRAIN_COMPONENTS:
+        raise ValueError(f"retardation times: one number or {STRAIN_COMPONENTS}, got {value!r}")
+    return times
+
+
+def per_component(times, n, m) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
+    """diag(μ) (n, m): the contact force and torque of the strain rates (director components)
+    with row i times μ_i, the Kelvin–Voigt law of :class:`KelvinVoigtDamping`."""
+    return (
+        ufl.as_vector([times[i] * n[i] for i in range(3)]),
+        ufl.as_vector([times[3 + i] * m[i] for i in range(3)]),
+    )
+
+
 @dataclass(frozen=True)
 class KelvinVoigtDamping:
-    """Kelvin–Voigt damping of the section: the contact force and torque (9)-(13) become
-    n = Σ K_ii (v_i − δ_i3 + τ_d v̇_i) d_i and m = Σ J_ii (u_i + τ_d u̇_i) d_i, with the
-    ``retardation_time`` τ_d [s] of a material whose E and G both carry (1 + τ_d ∂t), and the
-    director-component rates of :func:`.kinematics.strain_rates`. Linearised about the straight
-    rod the damping operator is τ_d × the stiffness operator, so every mode decays at
-    τ_d ω_n²/2 (modal damping ratio ζ_n = τ_d ω_n/2). ``omega0`` [rad/s] converts the rates."""
+    """Kelvin–Voigt damping of the section: the contact force and torque (9)-(13), or the
+    section law (S1) of docs/sections.md, (n, m) = K ε, become
 
-    retardation_time: float
+        (n, m) = K ε + diag(μ) K ε̇,    ε = (Γ, κ) = (v − v0, u − u0),
+
+    with the director-component rates ε̇ of :func:`.kinematics.strain_rates` (objective rates)
+    and ``retardation_time`` μ [s]: one number τ_d (μ_i = τ_d: a material whose E and G both
+    carry (1 + τ_d ∂t)) or six, μ_1..μ_6 in the strain order (shear 1, shear 2, extension,
+    bending 1, bending 2, torsion). diag(μ) K, row i of K ε̇ times μ_i, is BeamDyn's
+    stiffness-proportional damping f_d = μ C ε̇ (OpenFAST docs/source/user/beamdyn/theory.rst,
+    "Damping Forces and Linearization", μ "a user-defined damping-coefficient diagonal
+    matrix"; modules/beamdyn/src/BeamDyn.f90, Calc_Stif_betaC: betaC = diag(beta) Stif in
+    the section's frame, then ffd = betaC eed); it differs from K diag(μ) only where K
+    couples components of unequal μ. For a diagonal K, component i of a mode linearised about
+    the straight rod decays at μ_i ω_n²/2 (ζ_n = μ_i ω_n/2: every mode alike for one τ_d).
+    ``omega0`` [rad/s] converts the rates."""
+
+    retardation_time: float | tuple[float, ...]
     omega0: float
+
+    @property
+    def eta(self) -> tuple[float, ...]:
+        """η_i = ω0 μ_i: the six retardation times in units of 1/ω0 (47)."""
+        return tuple(self.omega0 * t for t in retardation_times(self.retardation_time))
 
 
 @dataclass(frozen=True)
@@ -315,7 +355,15 @@ def damping_source(p, q, groups: Groups, damping: ViscousDamping) -> ufl.core.ex
 
 
 def kelvin_voigt_terms(
-    p, dp, q, dq, groups: Groups, damping: KelvinVoigtDamping, chart: Chart | None = None
+    p,
+    dp,
+    q,
+    dq,
+    groups: Groups,
+    damping: KelvinVoigtDamping,
+    chart: Chart | None = None,
+    reference: Reference | None = None,
+    law: ScaledLaw | None = None,
 ) -> tuple[ufl.core.expr.Expr, ufl.core.expr.Expr]:
     """The viscous parts (b_v, g_v) of the flux b (63) and the source g (67).
 
@@ -324,13 +372,21 @@ def kelvin_voigt_terms(
     inertias Î_i = I_ii/(ρ A ℓ²) = g0/(ℓ g_i), the elastic flux (63) is b = −(Dᵀ N̂, M̂_i/Î_i)
     and the elastic source of the moment rows (67) is ((û × M̂) + (v × N̂))_i/Î_i, which is the
     moment balance (6) in director components, m' + u × m + v × n. The viscous parts are the
-    same expressions of N̂_v = η (ν01 v̇1, ν01 v̇2, ν02 v̇3) and M̂_v = η (ν11 Î1 û̇1, ν21 Î2 û̇2,
-    ν31 Î3 û̇3), η = ω0 τ_d, and enter the free-end condition a_m b = −g_b with the elastic
-    flux: n(ℓ) = f^b holds for the whole contact force."""
-    eta = damping.omega0 * damping.retardation_time
-    v_dot, u_dot = strain_rates(p, dp, q, dq, chart)
-    n_v, m_v = scaled_resultants(v_dot, u_dot, groups)
-    return contact_terms(p, dp, groups, eta * n_v, eta * m_v, chart)
+    same expressions of (N̂_v, M̂_v) = diag(η) K̂ (v̇, û̇), η_i = ω0 μ_i
+    (:class:`KelvinVoigtDamping`; without a law K̂ (v̇, û̇) = (ν01 v̇1, ν01 v̇2, ν02 v̇3,
+    ν11 Î1 û̇1, ν21 Î2 û̇2, ν31 Î3 û̇3)), and enter the free-end condition a_m b = −g_b with
+    the elastic flux: n(ℓ) = f^b holds for the whole contact force. With a ``reference`` the
+    rates are those of D0 (R r' − t0) and D0 κ_R, the director components, and
+    N = D0ᵀ N̂_v, M = D0ᵀ M̂_v as for the elastic part (module docstring)."""
+    eta = damping.eta
+    if reference is None:
+        v_dot, u_dot = strain_rates(p, dp, q, dq, chart)
+        n_v, m_v = per_component(eta, *scaled_resultants(v_dot, u_dot, groups, law))
+        return contact_terms(p, dp, groups, n_v, m_v, chart)
+    v_dot, u_dot = strain_rates(p, dp, q, dq, chart, reference.tangent)
+    D0 = reference.frame
+    n_v, m_v = per_component(eta, *scaled_resultants(D0 * v_dot, D0 * u_dot, groups, law))
+    return contact_terms(p, dp, groups, D0.T * n_v, D0.T * m_v, chart, reference.tangent)
 
 
 def row_inertias(groups: Groups) -> tuple[float, float, float]:
@@ -413,8 +469,8 @@ def reference_contact_terms(
     chart: Chart | None = None,
     law: ScaledLaw | None = None,
 ):
-    """Flux and source of the contact force and torque of director-component strains (or strain
-    rates) with a reference: N = D0ᵀ N̂, M = D0ᵀ M̂ in the rows of R (module docstring)."""
+    """Flux and source of the contact force and torque of director-component strains with a
+    reference: N = D0ᵀ N̂, M = D0ᵀ M̂ in the rows of R (module docstring)."""
     n, m = scaled_resultants(v_strain, u_strain, groups, law)
     D0 = reference.frame
     return contact_terms(p, dp, groups, D0.T * n, D0.T * m, chart, reference.tangent)
@@ -495,17 +551,8 @@ def residual_terms(
     extra = {}
     if damping is not None:
         extra["damping"] = -ufl.inner(damping_source(p, q, groups, damping), vq) * dx
-    if kelvin_voigt is not None and reference is None:
-        b_v, g_v = kelvin_voigt_terms(p, dp, q, dq, groups, kelvin_voigt, chart)
-        extra["kelvin_voigt"] = (-ufl.inner(b_v, dvq) - ufl.inner(g_v, vq)) * dx
-    elif kelvin_voigt is not None:  # the rates of D0 (R r' − t0) and D0 κ_R, times η
-        assert reference is not None  # the branch above took kelvin_voigt without one
-        eta = kelvin_voigt.omega0 * kelvin_voigt.retardation_time
-        v_dot, u_dot = strain_rates(p, dp, q, dq, chart, reference.tangent)
-        D0 = reference.frame
-        b_v, g_v = reference_contact_terms(
-            p, dp, groups, reference, eta * (D0 * v_dot), eta * (D0 * u_dot), chart, law
-        )
+    if kelvin_voigt is not None:
+        b_v, g_v = kelvin_voigt_terms(p, dp, q, dq, groups, kelvin_voigt, chart, reference, law)
         extra["kelvin_voigt"] = (-ufl.inner(b_v, dvq) - ufl.inner(g_v, vq)) * dx
     return ResidualTerms(
         kinematic=kinematic,
@@ -533,7 +580,9 @@ __all__ = [
     "flux",
     "kelvin_voigt_terms",
     "mass_matrix",
+    "per_component",
     "residual_terms",
+    "retardation_times",
     "source",
     "translations",
 ]

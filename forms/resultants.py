@@ -12,9 +12,10 @@ director basis (d1, d2, d3) of (18) (``X_i = d_i · X``):
 * or, with a general section law (forms/section.py ``SectionLaw``, docs/sections.md), the
   6×6 K of :func:`stiffness_matrix`: n = K₁ Γ + K₁₂ κ, m = K₂₁ Γ + K₂ κ (:func:`section_law`,
   the one place the law is written; the general and director forms use it too);
-* with Kelvin–Voigt damping (retardation time τ_d [s], :class:`.general_form.KelvinVoigtDamping`)
-  n and m include their viscous parts τ_d K v̇ and τ_d J u̇ (rates of
-  :func:`.kinematics.strain_rates`), the whole contact force and torque.
+* with Kelvin–Voigt damping (retardation times μ_1..μ_6 [s], one τ_d or six,
+  :class:`.general_form.KelvinVoigtDamping`) n and m include their viscous parts
+  diag(μ) K (v̇, u̇) (rates of :func:`.kinematics.strain_rates`; τ_d K v̇ and τ_d J u̇ for one
+  τ_d), the whole contact force and torque.
 
 The reference configuration is the straight rod along e3 (r' = (p1', p2', 1 + p3'), (14),
 (27)): there v = (0, 0, 1), u = n = m = 0. n(s) and m(s) are the force and torque that the
@@ -34,7 +35,7 @@ from dataclasses import dataclass
 
 import ufl
 
-from .general_form import ScaledLaw, reference_strains
+from .general_form import ScaledLaw, per_component, reference_strains, retardation_times
 from .groups import RodConstants
 from .kinematics import (
     Chart,
@@ -160,9 +161,9 @@ class Resultants:
 
 @dataclass
 class KelvinVoigtParts:
-    """The strain rates ∂t v [1/s], ∂t u [1/(m s)] and the viscous contact force
-    n_v = τ_d K ∂t v [N] and torque m_v = τ_d J ∂t u [N m]: UFL 3-vectors, director
-    components (:class:`.general_form.KelvinVoigtDamping`)."""
+    """The strain rates ∂t v [1/s], ∂t u [1/(m s)] and the viscous contact force n_v [N] and
+    torque m_v [N m], (n_v, m_v) = diag(μ) K (∂t v, ∂t u): UFL 3-vectors, director components
+    (:class:`.general_form.KelvinVoigtDamping`)."""
 
     v_rate: ufl.core.expr.Expr
     u_rate: ufl.core.expr.Expr
@@ -173,12 +174,13 @@ class KelvinVoigtParts:
 def kelvin_voigt_parts(
     U,
     rod: RodConstants,
-    retardation_time: float,
+    retardation_time,
     chart: Chart | None = None,
     reference: Reference | None = None,
 ) -> KelvinVoigtParts:
-    """The Kelvin–Voigt parts of the 12-component state U = (p, q), retardation time τ_d [s];
-    the rates of :func:`.kinematics.strain_rates` are per unit τ = ω0 t, hence the ω0 (with a
+    """The Kelvin–Voigt parts of the 12-component state U = (p, q), retardation time τ_d [s]
+    or six μ_1..μ_6 [s] (:func:`.general_form.retardation_times`); the rates of
+    :func:`.kinematics.strain_rates` are per unit τ = ω0 t, hence the ω0 (with a
     ``reference``, turned into the directors' components by D0)."""
     p, q = split(U)
     dp, dq = sigma_derivatives(U)
@@ -189,23 +191,23 @@ def kelvin_voigt_parts(
         v_dot, u_dot = reference.frame * v_dot, reference.frame * u_dot
     v_rate = rod.omega0 * v_dot
     u_rate = rod.omega0 / rod.length * u_dot
-    n, m = section_law(v_rate, u_rate, stiffness_matrix(rod))
-    return KelvinVoigtParts(
-        v_rate=v_rate, u_rate=u_rate, n=retardation_time * n, m=retardation_time * m
-    )
+    times = retardation_times(retardation_time)
+    n, m = per_component(times, *section_law(v_rate, u_rate, stiffness_matrix(rod)))
+    return KelvinVoigtParts(v_rate=v_rate, u_rate=u_rate, n=n, m=m)
 
 
 def resultants(
     U,
     rod: RodConstants,
-    retardation_time: float = 0.0,
+    retardation_time: float | tuple[float, ...] = 0.0,
     chart: Chart | None = None,
     reference: Reference | None = None,
 ) -> Resultants:
     """v, u, n, m of the state U = (p, q) (12 components, or p alone with 6) on σ ∈ [0, 1];
-    a ``retardation_time`` τ_d > 0 adds the Kelvin–Voigt parts to n and m (needs q); angles
-    measured in ``chart`` (forms/kinematics.py), the rod at rest a ``reference``'s
-    (forms/reference.py; v and u total, n and m from the strains relative to it)."""
+    a ``retardation_time`` τ_d > 0 (or six μ_i, one > 0) adds the Kelvin–Voigt parts to n and
+    m (needs q); angles measured in ``chart`` (forms/kinematics.py), the rod at rest a
+    ``reference``'s (forms/reference.py; v and u total, n and m from the strains relative to
+    it)."""
     p = split(U)[0] if U.ufl_shape == (12,) else U
     dU = d_sigma(U)
     dp = ufl.as_vector([dU[i] for i in range(6)])
@@ -215,7 +217,7 @@ def resultants(
     else:
         v_rel, u_rel = relative_strains(p, dp, rod.length, chart, reference)
         n, m = section_law(v_rel, u_rel, stiffness_matrix(rod))
-    if retardation_time > 0.0:
+    if any(retardation_times(retardation_time)):
         viscous = kelvin_voigt_parts(U, rod, retardation_time, chart, reference)
         n, m = n + viscous.n, m + viscous.m
     return Resultants(v=v, u=u, n=n, m=m)

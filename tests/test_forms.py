@@ -29,6 +29,10 @@ from dolfinx.fem.petsc import assemble_vector
 from mpi4py import MPI
 
 TERMS = ("kinematic", "inertia", "elastic", "distributed_load", "end_load")
+#: Six unequal retardation times μ_1..μ_6 [s] (strain order: shear 1, shear 2, extension,
+#: bending 1, bending 2, torsion), spread by a factor 12 so that a component given another's μ
+#: changes the viscous term by O(1).
+TIMES = (2.5e-4, 1.0e-4, 4.0e-4, 3.0e-4, 0.5e-4, 6.0e-4)
 
 
 def _assemble(form) -> np.ndarray:
@@ -108,13 +112,15 @@ def test_general_form_equals_director_form_term_by_term(rod, degree):
         assert np.abs(a - b).max() <= 1e-12 * scale, name
 
 
+@pytest.mark.parametrize("tau", [2.5e-4, TIMES], ids=["one", "six"])
 @pytest.mark.parametrize("torsion_inertia", ["polar", "printed"])
 @pytest.mark.parametrize("degree", [1, 3])
-def test_damping_terms_equal_the_director_form(rod, degree, torsion_inertia):
+def test_damping_terms_equal_the_director_form(rod, degree, torsion_inertia, tau):
     """Viscous damping and Kelvin–Voigt damping at random states: the general form's rows
     (``damping_source``; ``kelvin_voigt_terms`` with the strain rates of
     ``kinematics.strain_rates``) against the director form's (∂t d_i by UFL's chain rule,
-    ∂t u from (3), n_v and m_v in the fixed basis). Same round-off bound as above. With the
+    ∂t u from (3), n_v and m_v in the fixed basis), with one retardation time and with six
+    unequal ones per strain component. Same round-off bound as above. With the
     printed torsion inertia the torsion row (12) is the director form's times
     (c11 + c22)/c33, like every other term of that row (erratum 1): the viscous torsion row
     is scaled by the row's own reference."""
@@ -122,7 +128,7 @@ def test_damping_terms_equal_the_director_form(rod, degree, torsion_inertia):
 
     rod = replace(rod, torsion_inertia=torsion_inertia)
     msh, V, U, Udot, dx, loads = _setup(degree, seed=10 + degree)
-    viscous, tau = (3.0e2, 0.7), 2.5e-4
+    viscous = (3.0e2, 0.7)
     general = residual_terms(
         U,
         Udot,
@@ -148,6 +154,40 @@ def test_damping_terms_equal_the_director_form(rod, degree, torsion_inertia):
     # not a negligible addition that would pass any comparison.
     ratio = np.abs(_assemble(general["kelvin_voigt"])).max()
     assert ratio > 1e-3 * np.abs(_assemble(general["elastic"])).max()
+
+
+def test_six_equal_retardation_times_are_the_one_time(rod):
+    """μ_1 = ... = μ_6 = τ_d is the scalar law exactly: the general form's Kelvin–Voigt term,
+    straight and with a reference (arc) and a chart, the output's viscous resultants and the
+    dissipated power, assembled at random states, equal the scalar's to round-off (the same
+    products in another order: 1e-13 of the largest entry, observed ~1e-16); the six unequal
+    TIMES give another term (by O(1): > 0.1 of the largest entry), so the check can fail."""
+    from cosserat_fem.forms.energy import damping_power
+    from cosserat_fem.forms.resultants import kelvin_voigt_parts
+
+    msh, V, U, Udot, dx, loads = _setup(1, seed=17)
+    Q = _chart_quaternion(msh, 1, seed=18)
+    arc = _references(msh, rod.length)["arc"]
+    tau = 2.5e-4
+    for reference in (None, arc):
+        terms = {}
+        for name, times in (("one", tau), ("six", (tau,) * 6), ("unequal", TIMES)):
+            kv = KelvinVoigtDamping(times, rod.omega0)
+            extra = dict(kelvin_voigt=kv, chart=quaternion_chart(Q), reference=reference)
+            terms[name] = _assemble(_general(rod, U, Udot, V, dx, loads, **extra)["kelvin_voigt"])
+        scale = np.abs(terms["one"]).max()
+        assert np.abs(terms["six"] - terms["one"]).max() <= 1e-13 * scale, reference
+        assert np.abs(terms["unequal"] - terms["one"]).max() > 0.1 * scale, reference
+    w = ufl.TestFunction(fem.FunctionSpace(msh, ("Lagrange", 1)))
+    weights = ufl.as_vector([1.0, 2.0, 3.0])
+    for name in ("n", "m"):
+        one = _assemble(ufl.inner(getattr(kelvin_voigt_parts(U, rod, tau), name), weights) * w * dx)
+        six = kelvin_voigt_parts(U, rod, (tau,) * 6)
+        six = _assemble(ufl.inner(getattr(six, name), weights) * w * dx)
+        assert np.abs(six - one).max() <= 1e-13 * np.abs(one).max(), name
+    one = _assemble(damping_power(U, rod, retardation_time=tau) * w * dx)
+    six = _assemble(damping_power(U, rod, retardation_time=(tau,) * 6) * w * dx)
+    assert np.abs(six - one).max() <= 1e-13 * np.abs(one).max()
 
 
 def _row_ratio(rod_a, rod_b, name, convention_b=EndLoadConvention()):
@@ -234,7 +274,7 @@ def test_charted_general_form_equals_the_director_form(rod, degree):
     docstring; the frame turns the directors by O(1), so a missing frame or κ̂ term fails."""
     msh, V, U, Udot, dx, loads = _setup(degree, seed=20 + degree)
     Q = _chart_quaternion(msh, degree, seed=30 + degree)
-    viscous, tau = (3.0e2, 0.7), 2.5e-4
+    viscous, tau = (3.0e2, 0.7), TIMES
     general = _general(
         rod,
         U,
@@ -350,7 +390,7 @@ def test_general_form_with_a_reference_equals_the_director_form(rod, degree, sha
     msh, V, U, Udot, dx, loads = _setup(degree, seed=60 + degree)
     Q = _chart_quaternion(msh, degree, seed=70 + degree)
     reference = _references(msh, rod.length)[shape]
-    viscous, tau = (3.0e2, 0.7), 2.5e-4
+    viscous, tau = (3.0e2, 0.7), TIMES
     extra = dict(
         damping=ViscousDamping(*viscous, rod.omega0),
         kelvin_voigt=KelvinVoigtDamping(tau, rod.omega0),

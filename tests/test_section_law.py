@@ -46,6 +46,9 @@ from cosserat_fem.rod.model import build_model
 from cosserat_fem.scene.build import load_scene
 
 E, G, RHO = 2.1e11, 8.1e10, 7800.0
+#: Six unequal retardation times μ_1..μ_6 [s] (shear 1, shear 2, extension, bending 1,
+#: bending 2, torsion), spread by a factor 12.
+TIMES = (2.5e-4, 1.0e-4, 4.0e-4, 3.0e-4, 0.5e-4, 6.0e-4)
 
 
 def _rod(length=1.7, law=None, a=0.03, b=0.07) -> RodConstants:
@@ -163,13 +166,14 @@ def _coupled_varying_law(rod: RodConstants, x) -> SectionLaw:
 def test_a_coupled_varying_law_in_the_general_form_equals_the_director_form(degree):
     """The general form with a coupled, tapered law (every K_ij ≠ 0, K, μ, I linear in σ)
     against the director form (directors by UFL's chain rule, n and m in the fixed basis),
-    term by term with Kelvin–Voigt damping; the same round-off bound as above."""
+    term by term with Kelvin–Voigt damping of six unequal retardation times (BeamDyn's
+    diag(μ) K, where every coupling of K meets unequal μ); the same round-off bound as above."""
     msh, V, U, Udot, dx = _random_state(degree, seed=3 * degree)
     ds = _ends(msh)
     x = ufl.SpatialCoordinate(msh)[0]
     rod = _rod()
     rod = _rod(law=_coupled_varying_law(rod, x))
-    kv = KelvinVoigtDamping(1e-3, rod.omega0)
+    kv = KelvinVoigtDamping(TIMES, rod.omega0)
     general = _general(rod, U, Udot, V, dx, ds, kelvin_voigt=kv)
     director = director_residual_terms(
         U,
@@ -180,9 +184,37 @@ def test_a_coupled_varying_law_in_the_general_form_equals_the_director_form(degr
         ufl.as_vector([2e3 * x, -1e3, 500.0]),
         ufl.as_vector([30 * x, 20.0, -15.0]),
         ((ds(2), ufl.as_vector([100.0, -200.0, 300.0]), ufl.as_vector([10.0, 20.0, -30.0])),),
-        retardation_time=1e-3,
+        retardation_time=TIMES,
     )
     _assert_terms_equal(general, director)
+
+
+def test_the_viscous_law_is_beamdyns_diag_mu_times_k():
+    """BeamDyn's f_d = μ C ε̇ with μ diagonal (OpenFAST theory.rst, "Damping Forces"; BeamDyn.f90
+    Calc_Stif_betaC: betaC = diag(beta) Stif): row i of K ε̇ times μ_i. With a coupled K (all
+    K_ij ≠ 0) and six unequal μ_i, the output's viscous resultants (forms/resultants.py
+    kelvin_voigt_parts) at a random state equal diag(μ) K ε̇ formed here from the 6×6 product
+    in numpy and the parts' own rates ε̇, to 1e-12 of the largest (round-off of six-term sums),
+    and differ from K diag(μ) ε̇ by more than 0.1 of it: the two orders are told apart."""
+    from cosserat_fem.forms.resultants import kelvin_voigt_parts
+
+    msh, _, U, _, dx = _random_state(2, seed=41)
+    rod = _rod()
+    K = np.array(_coupled_varying_law(rod, 0.0).stiffness, dtype=float)
+    rod = _rod(law=_coupled_varying_law(rod, 0.0))
+    parts = kelvin_voigt_parts(U, rod, TIMES)
+    rates = ufl.as_vector([parts.v_rate[i] for i in range(3)] + [parts.u_rate[i] for i in range(3)])
+    got = ufl.as_vector([parts.n[i] for i in range(3)] + [parts.m[i] for i in range(3)])
+    mu = np.diag(TIMES)
+    w = ufl.TestFunction(fem.VectorFunctionSpace(msh, ("Lagrange", 1), dim=6))
+    vectors = {
+        name: _assemble(ufl.inner(ufl.as_matrix(matrix.tolist()) * rates, w) * dx)
+        for name, matrix in (("beamdyn", mu @ K), ("other", K @ mu))
+    }
+    ours = _assemble(ufl.inner(got, w) * dx)
+    scale = np.abs(ours).max()
+    assert np.abs(ours - vectors["beamdyn"]).max() <= 1e-12 * scale
+    assert np.abs(ours - vectors["other"]).max() > 0.1 * scale
 
 
 def _static_tip(rod: RodConstants, force, cells: int, degree: int = 2, taper=None) -> np.ndarray:

@@ -457,17 +457,14 @@ def section_table(case: BeamDynCase, length: float) -> dict[str, Any]:
 
 
 # ================================================================================ the scene
-def scene_of(
-    case: BeamDynCase, name: str | None = None, retardation_time: float | None = None
-) -> dict[str, Any]:
+def scene_of(case: BeamDynCase, name: str | None = None) -> dict[str, Any]:
     """The scene (TOML tables) of ``case``: the rod clamped at the root (at the origin: GlbPos,
     a translation of the whole blade, moves no displacement), its rest shape
     (:func:`reference_axis`), the section law of the stations (:func:`section_table`), the
     driver's dead loads (gravity as the force density μ(s) g), static load steps or the time
-    span, and the tip's directors among the probe's columns (for BeamDyn's TipRD). A dynamic
-    case's damping is BeamDyn's (:func:`_damping`) or, given ``retardation_time`` [s], that
-    Kelvin–Voigt time in its place (a stated approximation of unequal μ_i). Refuses in one
-    line what this rod cannot take (docs/beamdyn.md)."""
+    span with BeamDyn's damping (:func:`_damping`), and the tip's directors among the probe's
+    columns (for BeamDyn's TipRD). Refuses in one line what this rod cannot take
+    (docs/beamdyn.md)."""
     if np.any(case.frame != np.eye(3)):
         raise SceneError(
             f"{case.where('GlbDCM')}: GlbDCM: only the global frame equal to the blade frame "
@@ -538,9 +535,7 @@ def scene_of(
             "integrator": "generalized-alpha",
             "rho_inf": case.rho_inf,
         }
-        scene["damping"] = (
-            _damping(case) if retardation_time is None else {"retardation_time": retardation_time}
-        )
+        scene["damping"] = _damping(case)
     else:
         scene["static"] = {"load_steps": 20}
         scene["time"] = {"end": case.dt, "step": case.dt}
@@ -556,24 +551,26 @@ def _add(force: float | str, g: float, mass: float | str) -> float | str:
     return f"{force!r} + {g!r}*({mass})"
 
 
-def _damping(case: BeamDynCase) -> dict[str, float]:
-    """[damping] of BeamDyn's stiffness-proportional damping F = μ K ε̇: this code's
-    Kelvin–Voigt law n = K (Γ + τ Γ̇) (forms/general_form.py) with τ = μ, which needs the six
-    μ_i equal; modal damping (damp_type 2) is refused."""
+def _damping(case: BeamDynCase) -> dict[str, Any]:
+    """[damping] of BeamDyn's stiffness-proportional damping (damp_type 1), f_d = diag(μ) C ε̇:
+    this code's Kelvin–Voigt law with the six retardation times μ_1..μ_6 [s], in the same
+    strain order (forms/general_form.py KelvinVoigtDamping, which follows BeamDyn's diag(μ) C);
+    damp_type 0 none; modal damping (2) and a negative μ_i are refused naming the entry."""
     if case.damp_type == 0:
         return {}
     if case.damp_type != 1:
         raise SceneError(
             f"{case.where('damp_type')}: damp_type: {case.damp_type} (modal damping) is not "
-            "taken; 0 (none) and 1 (stiffness-proportional, equal mu) are"
+            "taken; 0 (none) and 1 (stiffness-proportional) are"
         )
-    if len(set(case.damping)) != 1:
+    if "mu1" not in case.lines:
+        raise SceneError(f"{case.blade.name}: mu1: damp_type 1 needs the six mu1..mu6")
+    if any(mu < 0.0 for mu in case.damping):
         raise SceneError(
-            f"{case.where('mu1')}: mu1: the six damping coefficients must be equal to be a "
-            f"Kelvin-Voigt retardation time, got {list(case.damping)}; state one in their "
-            "place with --set damping.retardation_time=T (docs/beamdyn.md)"
+            f"{case.where('mu1')}: mu1: the damping coefficients must be >= 0 [s], got "
+            f"{list(case.damping)}"
         )
-    return {"retardation_time": case.damping[0]} if case.damping[0] > 0.0 else {}
+    return {"retardation_time": list(case.damping)} if any(case.damping) else {}
 
 
 # ================================================================================ outputs

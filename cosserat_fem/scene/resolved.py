@@ -11,8 +11,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from cosserat_fem.common.errors import SceneError
+from cosserat_fem.common.errors import SceneError, show_value
 from cosserat_fem.forms.conventions import END_LOAD_SCALINGS, END_LOAD_SIGNS, TORSION_INERTIAS
+from cosserat_fem.forms.general_form import STRAIN_COMPONENTS, retardation_times
 from cosserat_fem.forms.groups import RodConstants, euler_bernoulli_omega0
 from cosserat_fem.forms.section import (
     TORSION_CONSTANT_RULES,
@@ -41,6 +42,7 @@ from cosserat_fem.scene.keys import (
     ZERO3,
     Choice,
     ChoiceList,
+    Field,
     Flag,
     Interval,
     LoadVector,
@@ -917,6 +919,30 @@ PLANAR = {name: _in_plane(normal, angles) for name, (normal, _, angles) in PLANE
 
 
 @dataclass(frozen=True, kw_only=True)
+class RetardationTimes(Field):
+    """``damping.retardation_time``: one number ≥ 0 [s] (τ_d, every strain component alike), or
+    a list of six, μ_1..μ_6 in the section's strain order (docs/sections.md §1); kept as given,
+    a float or a tuple of six floats (forms/general_form.py ``retardation_times`` makes six)."""
+
+    def describe(self) -> str:
+        return (
+            f"a number >= 0 [s] or a list of {STRAIN_COMPONENTS} (shear 1, shear 2, extension, "
+            "bending 1, bending 2, torsion)"
+        )
+
+    def check(self, key: str, value: Any) -> Any:
+        number = Number(interval=NON_NEGATIVE, unit="s")
+        if not isinstance(value, list):
+            return number.check(key, value)
+        if len(value) != STRAIN_COMPONENTS:
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        return tuple(number.check(f"{key}[{i}]", x) for i, x in enumerate(value))
+
+    def to_value(self, value: Any) -> Any:
+        return list(value) if isinstance(value, tuple) else value
+
+
+@dataclass(frozen=True, kw_only=True)
 class Damping:
     """Viscous damping densities: force −c_t ṙ [N/m] with ``translational`` c_t [N s/m²], and
     torque −c_r ω [N m/m] with ``rotational`` c_r [N s] (ω the angular velocity). For a
@@ -924,11 +950,14 @@ class Damping:
 
     Kelvin–Voigt (material) damping with ``retardation_time`` τ_d [s]: E and G act on
     (1 + τ_d ∂t) of the strains, n = K (v − e3 + τ_d v̇), m = J (u + τ_d u̇); it damps each
-    mode in proportion to its frequency, ζ_n = τ_d ω_n / 2 (forms/general_form.py)."""
+    mode in proportion to its frequency, ζ_n = τ_d ω_n / 2. Or six times μ_1..μ_6 [s], one per
+    strain component (shear 1, shear 2, extension, bending 1, bending 2, torsion), BeamDyn's
+    stiffness-proportional damping: the viscous parts are diag(μ) K ε̇, and a mode of
+    component i decays with ζ_n = μ_i ω_n / 2 (forms/general_form.py KelvinVoigtDamping)."""
 
     translational: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="N s/m^2"))
     rotational: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="N s"))
-    retardation_time: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="s"))
+    retardation_time: float | tuple[float, ...] = key(RetardationTimes(default=0.0))
 
     @property
     def viscous(self) -> bool:
@@ -936,7 +965,7 @@ class Damping:
 
     @property
     def kelvin_voigt(self) -> bool:
-        return self.retardation_time > 0.0
+        return any(retardation_times(self.retardation_time))
 
     @property
     def active(self) -> bool:

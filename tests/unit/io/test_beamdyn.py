@@ -79,7 +79,9 @@ def test_the_five_mw_blade_twist_and_damping():
     """bd_5MW_dynamic_gravity_Az00: 49 key points on Z_r with a twist of 13.308° at the root
     to 0 at the tip, read as an expression of s equal to the key points' twist [rad] at each
     key point (1e-12); its rest frame a curve with d0_1 = (cos φ, −sin φ, 0); the six unequal
-    damping coefficients refused for a dynamic run unless a retardation time is given."""
+    damping coefficients μ = (1, 1, 1, 1.4, 2.2, 2.2)e-3 s taken as the six retardation times
+    as they are (same strain order); modal damping and a negative μ_i refused naming the
+    entry."""
     case = read_case(DATA / "bd_5MW_dynamic_gravity_Az00" / "bd_driver.inp")
     assert len(case.stations) == 49 and case.dynamic and case.origin == (0.0, 0.0, 1.0)
     axis = reference_axis(case)
@@ -87,11 +89,14 @@ def test_the_five_mw_blade_twist_and_damping():
     z, twist = case.key_points[:, 2], np.radians(case.key_points[:, 3])
     got = Expression.parse(axis.twist, {"s"}).evaluate(s=z)
     np.testing.assert_allclose(got, twist, rtol=0, atol=1e-12)
-    with pytest.raises(SceneError, match=r"^beam_props.inp:9: mu1: the six damping"):
-        scene_of(case)
-    scene = scene_of(case, retardation_time=1.4e-3)
-    assert scene["damping"] == {"retardation_time": 1.4e-3}
+    scene = scene_of(case)
+    assert scene["damping"] == {"retardation_time": [1e-3, 1e-3, 1e-3, 1.4e-3, 2.2e-3, 2.2e-3]}
     assert scene["reference"]["director"][1] == f"-sin({axis.twist})"
+    negative = dataclasses.replace(case, damping=(1e-3, 1e-3, -1e-3, 1.4e-3, 2.2e-3, 2.2e-3))
+    with pytest.raises(SceneError, match=r"^beam_props.inp:9: mu1: the damping coefficients"):
+        scene_of(negative)
+    with pytest.raises(SceneError, match=r"^beam_props.inp:5: damp_type: 2 \(modal"):
+        scene_of(dataclasses.replace(case, damp_type=2))
 
 
 def test_stations_are_piecewise_linear_in_s():
