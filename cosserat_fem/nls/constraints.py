@@ -332,7 +332,7 @@ class Identification:
                 A.setValues([row], cols, vals, addv=PETSc.InsertMode.INSERT_VALUES)
         A.assemble()
 
-    def _frames(self, joint: Joint) -> tuple[np.ndarray, np.ndarray]:
+    def frames(self, joint: Joint) -> tuple[np.ndarray, np.ndarray]:
         """The chart frames (A_a, A_b) at the joint's master and copy."""
         Q = self.chart()
         if Q is None:
@@ -356,7 +356,7 @@ class Identification:
             zeros = np.zeros(6)
             joint.last = (np.zeros(3), np.zeros(3), zeros, zeros)
         K_b, R_b, alpha, q = joint.last
-        frames = self._frames(joint)
+        frames = self.frames(joint)
         _, _, _, _, C, N, G = joint.rows(alpha, q, K_b, R_b, frames)
         DK, DR = joint.tangent(alpha, q, K_b, R_b, frames) if tangent else (None, None)
         angles = np.array([a + 3, a + 4, a + 5, b + 3, b + 4, b + 5], dtype=PETSc.IntType)
@@ -414,7 +414,7 @@ class Identification:
             alpha, q = self._angles(joint, state)
             ia, ib = joint.master * bs, joint.copy * bs
             K_b, R_b = b[ib + 3 : ib + 6].copy(), b[ib + 9 : ib + 12].copy()
-            frames = self._frames(joint)
+            frames = self.frames(joint)
             to_K, K, to_R, R, _, _, _ = joint.rows(alpha, q, K_b, R_b, frames)
             m = joint.count
             if u is None:  # the initial rates: (C.5), (C.7) differentiated in τ
@@ -432,4 +432,4 @@ class Identification:
         (which meets nonlinear or time-dependent constraints only to its order)."""
         u[self.copies] = u[self.masters]
         for joint in self.joints:
-            joint.enforce(u, self.bs, self._frames(joint))
+            joint.enforce(u, self.bs, self.frames(joint))
