@@ -904,9 +904,9 @@ def test_continuation_through_joints_and_split_junctions_ends_at_the_static_stat
             r"joints\[0\]\.axis: a hinge joint needs its axis",
         ),
         (
-            [{"node": "B", "kind": "hinge", "members": ["BD"], "axis": [0, 1, 0]}],
+            [{"node": "B", "kind": "hinge", "members": ["BD"], "axis": [0, 0, 0]}],
             {},
-            r"joints\[0\]\.axis: a hinge joint's axis must be e3",
+            r"joints\[0\]\.axis: must not be zero",
         ),
         (
             [{"node": "B", "kind": "spherical", "members": ["BD"], "axis": [0, 0, 1]}],
