@@ -377,7 +377,12 @@ def test_a_turned_pendulum_swings_as_the_planar_one(tmp_path):
     2 and 1 ms, the ratio in [3.2, 4.8] (order 2), the error at 1 ms below 4e-6 m. (ii) The
     same with the joint at B driven through α(t) = 0.2 (1 − cos 5t) about n0, against the
     one-degree-of-freedom equation (:func:`driven_pendulum`), the same bounds. Out of the
-    plane: below 1e-9 m (the stub's deflection, the Newton tolerance)."""
+    plane C moves by the integrator's error only (the chart's Euler angles are not those of a
+    turn about n0, so the discrete motion leaves the plane by a truncation error, where the
+    planar case's φ alone stays exactly in it): it shrinks with h at order ≥ 1.7 (ratio ≥
+    3.2) and stays below 2e-7 m at 1 ms (measured 4.9e-7 and 9.8e-8 m hinged, 2.7e-7 and
+    6.1e-8 driven). Measured in the plane: hinged 9.47e-6 and 2.36e-6 m (the planar case's
+    9.4e-6 and 2.3e-6), driven 1.03e-6 at 0.3 s as the planar one."""
     for kind, exact in (("hinge", rigid_pendulum), ("driven", driven_pendulum)):
         errors, off = [], []
         for step in (2e-3, 1e-3):
@@ -391,7 +396,7 @@ def test_a_turned_pendulum_swings_as_the_planar_one(tmp_path):
         print(kind, "errors", errors, "ratio", errors[0] / errors[1], "off the plane", off)
         assert 3.2 <= errors[0] / errors[1] <= 4.8, (kind, errors)
         assert errors[1] < 4e-6, (kind, errors)
-        assert max(off) < 1e-9, (kind, off)
+        assert off[0] / off[1] >= 3.2 and off[1] < 2e-7, (kind, off)
 
 
 # --- statics: a portal frame whose beam is hinged ------------------------------------------

@@ -218,6 +218,16 @@ def join_copies(problem: ModalProblem, ties: Identification) -> ModalProblem:
     copies = 6 * (block[of_p] + offset) + k[of_p]
     masters = 6 * (master[of_p] + offset) + k[of_p]
     combos = [row for joint in ties.joints for row in joint_rows(problem, ties, joint)]
+    # K's and M's angle rows are moments over the rows' rotary inertias Î (forms/
+    # general_form.py): times Î they are the virtual work of the angles (at the rest), which
+    # Sᵀ combines across components for a hinge off the axes (the eigenproblem unchanged)
+    if ties.joints:
+        scale = problem.K.createVecLeft()
+        blocks = scale.getArray().reshape(-1, 6)
+        blocks[:, :3] = 1.0
+        blocks[:, 3:] = ties.joints[0].inertia
+        problem.K.diagonalScale(L=scale)
+        problem.M.diagonalScale(L=scale)
     return identify(problem, copies, masters, ~ties.added[of_p], combos)
 
 

@@ -26,16 +26,20 @@ orthonormal:
     hinge:  g = (t1, t2)ᵀ Λ_aᵀ Λ_b n0  (m = 2),   driven:  g = vee(skew(exp(α_d [n0×])ᵀ Λ_aᵀ Λ_b))
     (m = 3, α_d(τ) the drive),                                                          (C.3)
 
-G_a, G_b, G_d = ∂g/∂(α_a, α_b, α_d) (by complex steps: exact), C = −G_aᵀ (G_b G_bᵀ)⁻¹ G_b
-(the copy's reaction moved across: the multiplier λ = −(G_b G_bᵀ)⁻¹ G_b R_b eliminated), N the
-3 − m rows spanning G_b's null space (a hinge: G_b's rows' cross product, the free turn). For
-the kinematic rows K (tested by the angles' v_p, components 3-5) and the balance rows R
-(tested by v_q, components 9-11) of the two nodes:
+G_a, G_b, G_d = ∂g/∂(α_a, α_b, α_d) (by complex steps: exact). The copy's rows reach its
+master's by the reaction moved across (the multiplier of the joint eliminated, λ = −(G_b
+G_bᵀ)⁻¹ G_b f_b for generalised forces f conjugate to the coordinates G is taken in), and the
+copy keeps the rows of its free turn (N, spanning the null space). The two row groups are
+conjugate to different virtual motions: the kinematic rows K (tested by the angles' v_p,
+components 3-5, ∫ (ṗ − q)·v_p) to the angles α, the balance rows R (tested by v_q,
+components 9-11) to the body turns c (Λ → Λ exp(c×), ŵ = Mm α̇) each divided by its row's
+rotary inertia Î_j (forms/general_form.py: δϑ = Σ_j v_{9+j} λ_j/Î_j), so with H = G Mm⁻¹:
 
-    K_a ← K_a + C K_b,    R_a ← R_a + C R_b                                               (C.4)
-    K_b ← (g, N K_b)                                                                      (C.5)
-    (C.4)'s and (C.5)'s rows for R                                                        (C.6)
-    R_b ← (G_a q_a + G_b q_b + G_d dα_d/dτ, N R_b)   (the constraint's rate)              (C.7)
+    C_K = −G_aᵀ (G_b G_bᵀ)⁻¹ G_b,   N_K = (G_b's rows' cross product) (a hinge; none if m = 3)
+    C_R = −Î⁻¹ H_aᵀ (H_b H_bᵀ)⁻¹ H_b Î,   N_R = (Mm_b N_Kᵀ)ᵀ Î                              (C.4)
+    K_a ← K_a + C_K K_b,   K_b ← (g, N_K K_b)                                               (C.5)
+    R_a ← R_a + C_R R_b                                                                     (C.6)
+    R_b ← (G_a q_a + G_b q_b + G_d dα_d/dτ, N_R R_b)   (the constraint's rate)             (C.7)
 
 and their Jacobian rows exactly: C J_b,: and N J_b,:, G in the angles' (and the rates')
 columns, and the derivatives of C K_b, N K_b, C R_b, N R_b and of (C.7)'s G q in the angles
@@ -44,8 +48,12 @@ the exact G, :meth:`Joint.tangent`, at the last residual's reactions). This is t
 null-space (Galerkin) reduction of both row groups onto the joint's constraint, the position
 constraint in the kinematic rows and its rate in the balance rows, so the integrators see
 an ODE again (no multiplier, no index). For a hinge about e3 whose copies share a chart,
-(C.3) gives G_b = −G_a = (e1, e2)ᵀ at any angles, C = diag(1, 1, 0), N ∝ e3: (C.4)-(C.7) are
-(C.1)-(C.2) on θ, ψ and their rates, the linear identification as the special case.
+(C.3) gives G_b = −G_a = (e1, e2)ᵀ at any angles: C_K = diag(1, 1, 0), N_K ∝ e3 and (C.5),
+(C.7) are (C.1)-(C.2) on θ, ψ and their rates, the former linear identification; C_R is
+diag(1, 1, 0) too while the copies' φ agree, and differs once the hinge has turned: the
+former identification's sum of the balance rows added moments in two body frames a hinge's
+turn apart (invisible in a plane, where no moment crosses the axis; a driven joint about a
+tilted axis showed it: an error of 7e-3 m that did not shrink with h, tests/test_joints.py).
 
 A pair's two dofs, and a joint's two blocks, are owned by one rank (the structure's
 partitioner); each rank lists its own.
@@ -61,7 +69,7 @@ from dolfinx import cpp, fem
 from dolfinx.fem.petsc import assemble_matrix
 from petsc4py import PETSc
 
-from cosserat_fem.rod.charts import euler_angles, euler_matrix, quaternion_frame
+from cosserat_fem.rod.charts import angular_map, euler_angles, euler_matrix, quaternion_frame
 
 
 # --- joints whose rotations are tied nonlinearly (hinge, driven) ----------------------------
@@ -98,6 +106,9 @@ class Joint:
     added: bool = True
     #: α, dα/dτ, d²α/dτ² [rad, rad per unit τ, ...] of a driven joint
     drive: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    #: Î, the rotary inertias that divide the balance rows 9-11 (forms/general_form.py
+    #: row_inertias; only their ratios matter)
+    inertia: np.ndarray = field(default_factory=lambda: np.ones(3))
     #: the copy's rows (K_b, R_b) and (α, q) of the joint at the last residual (the
     #: Jacobian's reaction terms (C.8) are taken there)
     last: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
@@ -140,20 +151,28 @@ class Joint:
             columns.append(self.constraint(a, d, frames).imag / h)
         return np.stack(columns, axis=1)
 
-    def rows(self, alpha, q, K_b, R_b, frames) -> tuple[np.ndarray, ...]:
+    def rows(self, alpha, q, K_b, R_b, frames) -> tuple:
         """The joint's rows (C.4)-(C.7) at the angles ``alpha`` (6), their rates ``q`` (6), the
-        copy's kinematic and balance rows ``K_b``, ``R_b`` (3 each): (C K_b, copy's K rows,
-        C R_b, copy's R rows, C, N) with C = −G_aᵀ (G_b G_bᵀ)⁻¹ G_b and N the (3 − m, 3) rows
-        spanning G_b's null space."""
+        copy's kinematic and balance rows ``K_b``, ``R_b`` (3 each): (C_K K_b, copy's K rows,
+        C_R R_b, copy's R rows, (C_K, C_R), (N_K, N_R), G), N the (3 − m, 3) rows of the
+        free turn."""
         angle, rate = self.drive[0], self.drive[1]
         G = self.gradient(alpha, angle, frames)
         Ga, Gb, Gd = G[:, :3], G[:, 3:6], G[:, 6]
         C = -Ga.T @ np.linalg.solve(Gb @ Gb.T, Gb)
         N = np.cross(Gb[0], Gb[1])[None, :] if self.count == 2 else np.zeros((0, 3))
+        # the balance rows' virtual turns: body components c (Λ → Λ exp(c×)) over Î
+        # (forms/general_form.py), ŵ = Mm α̇: H = G Mm⁻¹, C_R = −Î⁻¹ H_aᵀ (H_b H_bᵀ)⁻¹ H_b Î
+        Ma = angular_map(alpha[0], alpha[2])
+        Mb = angular_map(alpha[3], alpha[5])
+        Ha, Hb = np.linalg.solve(Ma.T, Ga.T).T, np.linalg.solve(Mb.T, Gb.T).T
+        inertia = self.inertia
+        C_R = -(Ha.T @ np.linalg.solve(Hb @ Hb.T, Hb)) * inertia[None, :] / inertia[:, None]
+        N_R = (N @ Mb.T) * inertia[None, :]
         g = self.constraint(alpha, angle, frames)
         K = np.concatenate([g, N @ K_b])
-        R = np.concatenate([Ga @ q[:3] + Gb @ q[3:] + Gd * rate, N @ R_b])
-        return C @ K_b, K, C @ R_b, R, C, N, G
+        R = np.concatenate([Ga @ q[:3] + Gb @ q[3:] + Gd * rate, N_R @ R_b])
+        return C @ K_b, K, C_R @ R_b, R, (C, C_R), (N, N_R), G
 
     def rate_rows(self, alpha, q, frames) -> tuple[np.ndarray, np.ndarray]:
         """The right-hand sides of (C.5), (C.7) differentiated in τ, for the initial rates
@@ -357,13 +376,13 @@ class Identification:
             joint.last = (np.zeros(3), np.zeros(3), zeros, zeros)
         K_b, R_b, alpha, q = joint.last
         frames = self.frames(joint)
-        _, _, _, _, C, N, G = joint.rows(alpha, q, K_b, R_b, frames)
+        _, _, _, _, Cs, Ns, G = joint.rows(alpha, q, K_b, R_b, frames)
         DK, DR = joint.tangent(alpha, q, K_b, R_b, frames) if tangent else (None, None)
         angles = np.array([a + 3, a + 4, a + 5, b + 3, b + 4, b + 5], dtype=PETSc.IntType)
         rates = angles + 6
         m = joint.count
         out = []
-        for first, D in ((3, DK), (9, DR)):
+        for first, D, C, N in ((3, DK, Cs[0], Ns[0]), (9, DR, Cs[1], Ns[1])):
             old = copy_rows[:3] if first == 3 else copy_rows[3:]
             cols = np.concatenate([c for c, _ in old]).astype(PETSc.IntType)
 

@@ -1009,6 +1009,8 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
             for m, c, j in zip(masters, copies, which, strict=True)
             if all_joints[j].kind in ("hinge", "driven")
         }
+        for tie in turning.values():  # the balance rows' divisors (forms/general_form.py)
+            tie.inertia = np.array(forms.general_form.row_inertias(model.groups))
         ties = Identification(V, masters, copies, components, bcs, list(turning.values()))
         ties.chart = lambda: None if model.chart is None else model.chart.x.array.reshape(-1, 4)
         ties.state = lambda: model.U.x.array
