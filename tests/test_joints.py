@@ -598,7 +598,7 @@ from mpi4py import MPI
 from cosserat_fem import api
 from cosserat_fem.scene.build import read_toml, scene_from_dict
 sys.path.insert(0, "tests")
-from test_joints import frame_scene, gerber, hinged_portal, pendulum
+from test_joints import frame_scene, gerber, hinged_portal, pendulum, turned
 static = api.static(frame_scene(gerber(1e-3))).probes[-1]
 run = api.run(scene_from_dict(pendulum(2e-3, end=0.1))).probes[-1]
 data = pendulum(2e-3, end=0.1, kind="hinge")
@@ -608,8 +608,9 @@ portal = hinged_portal((1e-4, 0, 0))  # its beam one cell, last: two joints shar
 beam = portal["structure"]["members"].pop(2)
 portal["structure"]["members"].append({**beam, "elements": 1})
 shared = api.static(scene_from_dict(portal)).probes[-1]
+tilted = api.run(scene_from_dict(turned(2e-3, "driven", end=0.1)[0])).probes[-1]
 if MPI.COMM_WORLD.rank == 0:
-    rows = {"static": static, "run": run, "driven": driven, "shared": shared}
+    rows = {"static": static, "run": run, "driven": driven, "shared": shared, "tilted": tilted}
     print(json.dumps({k: list(map(float, v)) for k, v in rows.items()}))
 """
 
@@ -617,14 +618,15 @@ if MPI.COMM_WORLD.rank == 0:
 @pytest.mark.long  # a subprocess each or many solves: the fast set stays under 3 min
 def test_joints_serial_equals_mpi(tmp_path):
     """The Gerber beam at P = 1e-3 (statics) and 50 steps of the double pendulum, free and
-    driven at its joint, and the hinged portal whose one-cell beam two joints share, in one
+    driven at its joint, the same turned about (1, 2, 2)/3 (:func:`turned`, two tilted
+    joints, one driven), and the hinged portal whose one-cell beam two joints share, in one
     process and under mpirun -n 2 (a joint's cells on one rank, joints sharing a cell on one
     too: rod/structure.py _partitioner; the rest split): the probe's values agree to 1e-8
     of their largest (the same equations, Newton to its tolerance from the same start;
     measured ~1e-15)."""
     answers = script_serial_and_mpi(tmp_path / "joints_mpi.py", MPI_SCRIPT)
     assert abs(answers[0]["run"][1]) > 1e-3  # C moved
-    for key in ("static", "run", "driven", "shared"):
+    for key in ("static", "run", "driven", "shared", "tilted"):
         one, two = np.array(answers[0][key]), np.array(answers[1][key])
         np.testing.assert_allclose(two, one, rtol=0, atol=1e-8 * np.abs(one).max())
 

@@ -79,15 +79,19 @@ def _hat(n) -> np.ndarray:
 
 
 def _turn(n: np.ndarray, alpha) -> np.ndarray:
-    """exp(α [n×]) for a unit n (Rodrigues), α real or complex."""
+    """exp(α [n×]) for a unit n (Rodrigues), α real or complex, a number or an array
+    (..., 3, 3)."""
     K = _hat(n)
+    alpha = np.asarray(alpha)[..., None, None]
     return np.eye(3) + np.sin(alpha) * K + (1.0 - np.cos(alpha)) * (K @ K)
 
 
 def _rotation(angles, frame: np.ndarray) -> np.ndarray:
-    """Λ = (D(θ, ψ, φ) A)ᵀ, the spatial rotation of a node whose angles (real or complex) are
-    measured in the chart whose frame is A (rows a_j; charts.py): d_i = Λ d0_i."""
-    return (euler_matrix(angles[0], angles[1], angles[2]) @ frame).T
+    """Λ = (D(θ, ψ, φ) A)ᵀ, the spatial rotation of a node whose angles (real or complex,
+    (..., 3)) are measured in the chart whose frame is A (rows a_j; charts.py): d_i = Λ d0_i."""
+    angles = np.asarray(angles)
+    D = euler_matrix(angles[..., 0], angles[..., 1], angles[..., 2])
+    return np.swapaxes(D @ frame, -1, -2)
 
 
 @dataclass
@@ -109,9 +113,9 @@ class Joint:
     #: Î, the rotary inertias that divide the balance rows 9-11 (forms/general_form.py
     #: row_inertias; only their ratios matter)
     inertia: np.ndarray = field(default_factory=lambda: np.ones(3))
-    #: the copy's rows (K_b, R_b) and (α, q) of the joint at the last residual (the
-    #: Jacobian's reaction terms (C.8) are taken there)
-    last: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+    #: the copy's rows (K_b, R_b), (α, q) and the rows' (C, N, G) of the joint at the last
+    #: residual (the Jacobian's rows and reaction terms (C.8) are taken there)
+    last: tuple | None = None
 
     def __post_init__(self) -> None:
         n = np.asarray(self.axis, dtype=float)
@@ -129,49 +133,54 @@ class Joint:
 
     def constraint(self, alpha, angle, frames: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
         """g(α_a, α_b, α_d) of (C.3) for the six angles ``alpha`` (master's, copy's; real or
-        complex) in the charts ``frames`` (A_a, A_b) and the drive angle ``angle``."""
-        M = _rotation(alpha[:3], frames[0]).T @ _rotation(alpha[3:], frames[1])
+        complex; (..., 6) for a batch) in the charts ``frames`` (A_a, A_b) and the drive
+        angle ``angle`` (a number, or (...) with the batch): (..., m)."""
+        alpha = np.asarray(alpha)
+        La, Lb = _rotation(alpha[..., :3], frames[0]), _rotation(alpha[..., 3:], frames[1])
+        M = np.swapaxes(La, -1, -2) @ Lb
         if not self.driven:
-            return self.basis.T @ (M @ self.axis)
-        E = _turn(self.axis, angle).T @ M
-        return 0.5 * np.array([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]])
+            return (M @ self.axis) @ self.basis
+        E = np.swapaxes(_turn(self.axis, angle), -1, -2) @ M
+        return 0.5 * np.stack(
+            [E[..., 2, 1] - E[..., 1, 2], E[..., 0, 2] - E[..., 2, 0], E[..., 1, 0] - E[..., 0, 1]],
+            axis=-1,
+        )
 
     def gradient(self, alpha, angle, frames) -> np.ndarray:
-        """(G_a, G_b, G_d) = ∂g/∂(α_a, α_b, α_d) as one (m, 7) array, by complex steps (exact
-        to round-off: no difference is taken)."""
+        """(G_a, G_b, G_d) = ∂g/∂(α_a, α_b, α_d) as one (..., m, 7) array for angles (..., 6),
+        by complex steps (exact to round-off: no difference is taken), in one batch."""
         h = 1e-30
-        columns = []
-        for k in range(7):
-            a = np.asarray(alpha, dtype=complex).copy()
-            d = complex(angle)
-            if k < 6:
-                a[k] += 1j * h
-            else:
-                d += 1j * h
-            columns.append(self.constraint(a, d, frames).imag / h)
-        return np.stack(columns, axis=1)
+        steps = 1j * h * np.eye(7)
+        a = np.asarray(alpha, dtype=complex)[..., None, :] + steps[:, :6]
+        d = complex(angle) + steps[:, 6]
+        return np.swapaxes(self.constraint(a, d, frames).imag, -1, -2) / h
 
     def rows(self, alpha, q, K_b, R_b, frames) -> tuple:
-        """The joint's rows (C.4)-(C.7) at the angles ``alpha`` (6), their rates ``q`` (6), the
-        copy's kinematic and balance rows ``K_b``, ``R_b`` (3 each): (C_K K_b, copy's K rows,
-        C_R R_b, copy's R rows, (C_K, C_R), (N_K, N_R), G), N the (3 − m, 3) rows of the
-        free turn."""
+        """The joint's rows (C.4)-(C.7) at the angles ``alpha`` ((..., 6): a batch), their rates
+        ``q`` (6), the copy's kinematic and balance rows ``K_b``, ``R_b`` (3 each): (C_K K_b,
+        copy's K rows, C_R R_b, copy's R rows, (C_K, C_R), (N_K, N_R), G), N the (3 − m, 3)
+        rows of the free turn."""
+        T = lambda X: np.swapaxes(X, -1, -2)  # noqa: E731
+        alpha = np.asarray(alpha)
         angle, rate = self.drive[0], self.drive[1]
         G = self.gradient(alpha, angle, frames)
-        Ga, Gb, Gd = G[:, :3], G[:, 3:6], G[:, 6]
-        C = -Ga.T @ np.linalg.solve(Gb @ Gb.T, Gb)
-        N = np.cross(Gb[0], Gb[1])[None, :] if self.count == 2 else np.zeros((0, 3))
+        Ga, Gb, Gd = G[..., :3], G[..., 3:6], G[..., 6]
+        C = -T(Ga) @ np.linalg.solve(Gb @ T(Gb), Gb)
+        if self.count == 2:
+            N = np.cross(Gb[..., 0, :], Gb[..., 1, :])[..., None, :]
+        else:
+            N = np.zeros((*alpha.shape[:-1], 0, 3))
         # the balance rows' virtual turns: body components c (Λ → Λ exp(c×)) over Î
         # (forms/general_form.py), ŵ = Mm α̇: H = G Mm⁻¹, C_R = −Î⁻¹ H_aᵀ (H_b H_bᵀ)⁻¹ H_b Î
-        Ma = angular_map(alpha[0], alpha[2])
-        Mb = angular_map(alpha[3], alpha[5])
-        Ha, Hb = np.linalg.solve(Ma.T, Ga.T).T, np.linalg.solve(Mb.T, Gb.T).T
+        Ma = angular_map(alpha[..., 0], alpha[..., 2])
+        Mb = angular_map(alpha[..., 3], alpha[..., 5])
+        Ha, Hb = T(np.linalg.solve(T(Ma), T(Ga))), T(np.linalg.solve(T(Mb), T(Gb)))
         inertia = self.inertia
-        C_R = -(Ha.T @ np.linalg.solve(Hb @ Hb.T, Hb)) * inertia[None, :] / inertia[:, None]
-        N_R = (N @ Mb.T) * inertia[None, :]
+        C_R = -(T(Ha) @ np.linalg.solve(Hb @ T(Hb), Hb)) * inertia[None, :] / inertia[:, None]
+        N_R = (N @ T(Mb)) * inertia
         g = self.constraint(alpha, angle, frames)
-        K = np.concatenate([g, N @ K_b])
-        R = np.concatenate([Ga @ q[:3] + Gb @ q[3:] + Gd * rate, N_R @ R_b])
+        K = np.concatenate([g, N @ K_b], axis=-1)
+        R = np.concatenate([Ga @ q[:3] + Gb @ q[3:] + Gd * rate, N_R @ R_b], axis=-1)
         return C @ K_b, K, C_R @ R_b, R, (C, C_R), (N, N_R), G
 
     def rate_rows(self, alpha, q, frames) -> tuple[np.ndarray, np.ndarray]:
@@ -217,16 +226,11 @@ class Joint:
         R rows), by central differences of step 1e-6 rad of :meth:`rows` (whose G is exact:
         error O(1e-12) truncation + O(1e-10) round-off, relative)."""
         eps = 1e-6
-        cols_K, cols_R = [], []
-        for k in range(6):
-            plus, minus = alpha.copy(), alpha.copy()
-            plus[k] += eps
-            minus[k] -= eps
-            up = self.rows(plus, q, K_b, R_b, frames)
-            down = self.rows(minus, q, K_b, R_b, frames)
-            cols_K.append(np.concatenate([up[0] - down[0], up[1] - down[1]]) / (2 * eps))
-            cols_R.append(np.concatenate([up[2] - down[2], up[3] - down[3]]) / (2 * eps))
-        return np.stack(cols_K, axis=1), np.stack(cols_R, axis=1)
+        shifted = np.asarray(alpha)[None, :] + eps * np.concatenate([np.eye(6), -np.eye(6)])
+        out = self.rows(shifted, q, K_b, R_b, frames)
+        K = np.concatenate([out[0], out[1]], axis=-1)
+        R = np.concatenate([out[2], out[3]], axis=-1)
+        return (K[:6] - K[6:]).T / (2 * eps), (R[:6] - R[6:]).T / (2 * eps)
 
 
 class Identification:
@@ -371,12 +375,13 @@ class Identification:
         columns, values) to insert once its old rows are zeroed (global indices)."""
         bs, off = self.bs, self._offset
         a, b = joint.master * bs + off, joint.copy * bs + off
-        if joint.last is None:  # no residual yet: at the rest, no reaction
-            zeros = np.zeros(6)
-            joint.last = (np.zeros(3), np.zeros(3), zeros, zeros)
-        K_b, R_b, alpha, q = joint.last
         frames = self.frames(joint)
-        _, _, _, _, Cs, Ns, G = joint.rows(alpha, q, K_b, R_b, frames)
+        if tangent and joint.last is not None:  # at the last residual's state
+            K_b, R_b, alpha, q, Cs, Ns, G = joint.last
+        else:  # a linear problem's matrix (no reactions), or no residual yet
+            alpha, q = self._angles(joint, self.state())
+            K_b = R_b = np.zeros(3)
+            Cs, Ns, G = joint.rows(alpha, q, K_b, R_b, frames)[4:]
         DK, DR = joint.tangent(alpha, q, K_b, R_b, frames) if tangent else (None, None)
         angles = np.array([a + 3, a + 4, a + 5, b + 3, b + 4, b + 5], dtype=PETSc.IntType)
         rates = angles + 6
@@ -434,12 +439,12 @@ class Identification:
             ia, ib = joint.master * bs, joint.copy * bs
             K_b, R_b = b[ib + 3 : ib + 6].copy(), b[ib + 9 : ib + 12].copy()
             frames = self.frames(joint)
-            to_K, K, to_R, R, _, _, _ = joint.rows(alpha, q, K_b, R_b, frames)
+            to_K, K, to_R, R, Cs, Ns, G = joint.rows(alpha, q, K_b, R_b, frames)
             m = joint.count
             if u is None:  # the initial rates: (C.5), (C.7) differentiated in τ
                 K[:m], R[:m] = joint.rate_rows(alpha, q, frames)
             else:  # the reactions at u, for the Jacobian's (C.8)
-                joint.last = (K_b, R_b, alpha, q)
+                joint.last = (K_b, R_b, alpha, q, Cs, Ns, G)
             if joint.added:
                 b[ia + 3 : ia + 6] += to_K
                 b[ia + 9 : ia + 12] += to_R
