@@ -752,10 +752,12 @@ class StructureJoint:
     (each with an end at the node) hold their own copy of the node, joined rigidly to one
     another, and that copy joins the node's other members (which keep the node: one of them at
     least) as ``kind`` says: spherical, the positions shared and the rotations free; hinge,
-    the positions shared and the rotations free about ``axis`` only, which must be e3 at rest;
-    driven, a hinge whose turn is prescribed, the copy turned from the node's members by
-    R3(``angle``), α(t) [rad] (:data:`JOINT_COMPONENTS`; in statics α(static.time) scaled by
-    the load factor λ). A support at the node holds its other members."""
+    the positions shared and the rotations free about ``axis`` n0 only (any nonzero vector
+    of the rest frame, normalised: Λ_a n0 = Λ_b n0); driven, a hinge whose turn is
+    prescribed, the copy turned from the node's members by exp(α [n0×]), α(t) = ``angle``
+    [rad] (:data:`JOINT_COMPONENTS` the positions; the rotations by nonlinear rows,
+    cosserat_fem/nls/constraints.py Joint; in statics α(static.time) scaled by the load
+    factor λ). A support at the node holds its other members."""
 
     node: str = key(Text(required=True, non_empty=True))
     kind: str = key(Choice(choices=STRUCTURE_JOINTS, required=True))
