@@ -153,47 +153,52 @@ def test_a_beam_hinged_at_its_middle_has_its_halves_modes():
     assert np.sum(np.isclose(got, got[9], rtol=1e-9)) == 2  # torsion: both halves alike
 
 
-def test_a_turned_hinged_beam_has_the_same_modes():
-    """A beam A - B - C along e1 clamped at A and C with a hinge about e3 at B (each half 60,
-    four P3 cells), and the same beam turned as a whole by the rotation R with R e3 = n0 =
-    (1, 2, 2)/3, its hinge about n0. The modes about the rest are those of the linearised
-    problem, in which the angles are the small rotation vector (θ, ψ, φ) in the fixed basis:
-    turning the structure (its sections' d1 too) turns its K and M and leaves the spectrum;
-    the tilted hinge's copy angles are combinations of its master's and its own free one
-    (modal.joint_rows), the e3 hinge's identifications. Equal to 1e-9 (the eigensolver's
-    tolerance, as :func:`test_a_beam_hinged_at_its_middle_has_its_halves_modes`), and the
-    hinge releases a bending: the lowest ω below the rigid beam's by more than 1 % (measured
-    0.022651 against 0.024025, 5.7 %)."""
-    a = 60.0
-    n0 = np.array([1.0, 2.0, 2.0]) / 3.0
+def turn_to(n0: np.ndarray) -> np.ndarray:
+    """The smallest rotation R with R e3 = n0 (a unit vector, not −e3)."""
     v, c = np.cross([0.0, 0.0, 1.0], n0), n0[2]
     K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    R = np.eye(3) + K + K @ K / (1 + c)
+    return np.eye(3) + K + K @ K / (1 + c)
 
-    def beam(turn: np.ndarray, axis, joint: bool = True) -> object:
-        nodes = [
-            {"name": n, "position": list(turn @ [x, 0.0, 0.0])}
-            for n, x in (("A", 0.0), ("B", a), ("C", 2 * a))
+
+def hinged_beam(turn: np.ndarray, axis, joint: bool = True) -> object:
+    """A beam A - B - C along e1 (each half 60, four P3 cells, d1 = e3) clamped at A and C,
+    a hinge about ``axis`` at B (none without ``joint``), the whole turned by ``turn``."""
+    a = 60.0
+    nodes = [
+        {"name": n, "position": list(turn @ [x, 0.0, 0.0])}
+        for n, x in (("A", 0.0), ("B", a), ("C", 2 * a))
+    ]
+    structure = {
+        "nodes": nodes,
+        "members": [
+            {**member(name, *ends, 4), "d1": list(turn @ [0.0, 0.0, 1.0])}
+            for name, ends in (("AB", ("A", "B")), ("BC", ("B", "C")))
+        ],
+        "supports": [{"node": "A", "kind": "clamped"}, {"node": "C", "kind": "clamped"}],
+    }
+    if joint:
+        structure["joints"] = [
+            {"node": "B", "kind": "hinge", "members": ["BC"], "axis": list(axis)}
         ]
-        structure = {
-            "nodes": nodes,
-            "members": [
-                {**member(name, *ends, 4), "d1": list(turn @ [0.0, 0.0, 1.0])}
-                for name, ends in (("AB", ("A", "B")), ("BC", ("B", "C")))
-            ],
-            "supports": [{"node": "A", "kind": "clamped"}, {"node": "C", "kind": "clamped"}],
-        }
-        if joint:
-            structure["joints"] = [
-                {"node": "B", "kind": "hinge", "members": ["BC"], "axis": list(axis)}
-            ]
-        return frame_scene(structure)
+    return frame_scene(structure)
 
+
+def test_a_turned_hinged_beam_has_the_same_modes():
+    """:func:`hinged_beam` with a hinge about e3, and the same beam turned as a whole by the
+    rotation R with R e3 = n0 = (1, 2, 2)/3 (:func:`turn_to`), its hinge about n0. The modes
+    about the rest are those of the linearised problem, in which the angles are the small
+    rotation vector (θ, ψ, φ) in the fixed basis: turning the structure (its sections' d1
+    too) turns its K and M and leaves the spectrum; the tilted hinge's copy angles are
+    combinations of its master's and its own free one (modal.joint_rows), the e3 hinge's
+    identifications. Equal to 1e-9 (the eigensolver's tolerance, as
+    :func:`test_a_beam_hinged_at_its_middle_has_its_halves_modes`), and the hinge releases a
+    bending: the lowest ω below the rigid beam's by more than 1 % (measured 0.022651 against
+    0.024025, 5.7 %)."""
+    n0 = np.array([1.0, 2.0, 2.0]) / 3.0
     count = 10
-    flat = np.sort([m.omega for m in api.modes(beam(np.eye(3), [0, 0, 1]), count)])
-    tilted = np.sort([m.omega for m in api.modes(beam(R, n0), count)])
-    rigid = np.sort([m.omega for m in api.modes(beam(np.eye(3), None, False), count)])
-    print("modes flat", flat[:4], "tilted", tilted[:4], "rigid", rigid[:4])
+    flat = np.sort([m.omega for m in api.modes(hinged_beam(np.eye(3), [0, 0, 1]), count)])
+    tilted = np.sort([m.omega for m in api.modes(hinged_beam(turn_to(n0), n0), count)])
+    rigid = np.sort([m.omega for m in api.modes(hinged_beam(np.eye(3), None, False), count)])
     np.testing.assert_allclose(tilted, flat, rtol=1e-9, atol=0)
     assert flat[0] < 0.99 * rigid[0]
 
@@ -348,9 +353,7 @@ def turned(step: float, kind: str = "hinge", **changes) -> tuple[dict, np.ndarra
     S - A along n0 (|SA| = 0.1 m, one cell, clamped at S: under the links' weight its
     deflection P |SA|³/(3 EI) ~ 1e-9 m). Returns the scene's data and B."""
     data = pendulum(step, kind="hinge", **changes)
-    v, c = np.cross([0.0, 0.0, 1.0], NORMAL), NORMAL[2]
-    K = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-    B = np.eye(3) + K + K @ K / (1 + c)
+    B = turn_to(NORMAL)
     structure = data["structure"]
     for entry in structure["nodes"]:
         entry["position"] = list(B @ entry["position"])
@@ -600,7 +603,7 @@ from mpi4py import MPI
 from cosserat_fem import api
 from cosserat_fem.scene.build import read_toml, scene_from_dict
 sys.path.insert(0, "tests")
-from test_joints import frame_scene, gerber, hinged_portal, pendulum, turned
+from test_joints import frame_scene, gerber, hinged_beam, hinged_portal, pendulum, turn_to, turned
 static = api.static(frame_scene(gerber(1e-3))).probes[-1]
 run = api.run(scene_from_dict(pendulum(2e-3, end=0.1))).probes[-1]
 data = pendulum(2e-3, end=0.1, kind="hinge")
@@ -611,8 +614,11 @@ beam = portal["structure"]["members"].pop(2)
 portal["structure"]["members"].append({**beam, "elements": 1})
 shared = api.static(scene_from_dict(portal)).probes[-1]
 tilted = api.run(scene_from_dict(turned(2e-3, "driven", end=0.1)[0])).probes[-1]
+n0 = [1 / 3, 2 / 3, 2 / 3]
+modes = sorted(m.omega for m in api.modes(hinged_beam(turn_to(n0), n0), 6))
 if MPI.COMM_WORLD.rank == 0:
     rows = {"static": static, "run": run, "driven": driven, "shared": shared, "tilted": tilted}
+    rows["modes"] = modes
     print(json.dumps({k: list(map(float, v)) for k, v in rows.items()}))
 """
 
@@ -621,14 +627,15 @@ if MPI.COMM_WORLD.rank == 0:
 def test_joints_serial_equals_mpi(tmp_path):
     """The Gerber beam at P = 1e-3 (statics) and 50 steps of the double pendulum, free and
     driven at its joint, the same turned about (1, 2, 2)/3 (:func:`turned`, two tilted
-    joints, one driven), and the hinged portal whose one-cell beam two joints share, in one
+    joints, one driven), the hinged portal whose one-cell beam two joints share, and the
+    modes of the turned hinged beam (:func:`hinged_beam`; measured 3e-12), in one
     process and under mpirun -n 2 (a joint's cells on one rank, joints sharing a cell on one
     too: rod/structure.py _partitioner; the rest split): the probe's values agree to 1e-8
     of their largest (the same equations, Newton to its tolerance from the same start;
     measured ~1e-15)."""
     answers = script_serial_and_mpi(tmp_path / "joints_mpi.py", MPI_SCRIPT)
     assert abs(answers[0]["run"][1]) > 1e-3  # C moved
-    for key in ("static", "run", "driven", "shared", "tilted"):
+    for key in ("static", "run", "driven", "shared", "tilted", "modes"):
         one, two = np.array(answers[0][key]), np.array(answers[1][key])
         np.testing.assert_allclose(two, one, rtol=0, atol=1e-8 * np.abs(one).max())
 

@@ -44,6 +44,7 @@ from cosserat_fem.analysis.observers import summary_start
 from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import OutputError, SceneError, SolverError
 from cosserat_fem.common.parallel import agree
+from cosserat_fem.forms.general_form import row_inertias
 from cosserat_fem.io.run_folder import write_summary
 from cosserat_fem.nls.constraints import Identification
 from cosserat_fem.output.fields import XdmfWriter
@@ -221,11 +222,11 @@ def join_copies(problem: ModalProblem, ties: Identification) -> ModalProblem:
     # K's and M's angle rows are moments over the rows' rotary inertias Î (forms/
     # general_form.py): times Î they are the virtual work of the angles (at the rest), which
     # Sᵀ combines across components for a hinge off the axes (the eigenproblem unchanged)
-    if ties.joints:
+    if problem.model.msh.comm.allreduce(len(ties.joints), op=MPI.SUM):  # collective
         scale = problem.K.createVecLeft()
         blocks = scale.getArray().reshape(-1, 6)
         blocks[:, :3] = 1.0
-        blocks[:, 3:] = ties.joints[0].inertia
+        blocks[:, 3:] = row_inertias(problem.model.groups)
         problem.K.diagonalScale(L=scale)
         problem.M.diagonalScale(L=scale)
     return identify(problem, copies, masters, ~ties.added[of_p], combos)
