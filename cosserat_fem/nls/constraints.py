@@ -27,9 +27,10 @@ orthonormal:
     (m = 3, α_d(τ) the drive),                                                          (C.3)
 
 G_a, G_b, G_d = ∂g/∂(α_a, α_b, α_d) (by complex steps: exact). The copy's rows reach its
-master's by the reaction moved across (the multiplier of the joint eliminated, λ = −(G_b
-G_bᵀ)⁻¹ G_b f_b for generalised forces f conjugate to the coordinates G is taken in), and the
-copy keeps the rows of its free turn (N, spanning the null space). The two row groups are
+master's by the reaction moved across: with multipliers, f_a + G_aᵀ λ = 0 and f_b + G_bᵀ λ = 0
+for the generalised forces f conjugate to the coordinates G is taken in, so λ = −(G_b
+G_bᵀ)⁻¹ G_b f_b is eliminated; the copy keeps the rows of its free turn (N, spanning G_b's
+null space). The two row groups are
 conjugate to different virtual motions: the kinematic rows K (tested by the angles' v_p,
 components 3-5, ∫ (ṗ − q)·v_p) to the angles α, the balance rows R (tested by v_q,
 components 9-11) to the body turns c (Λ → Λ exp(c×), ŵ = Mm α̇) each divided by its row's
@@ -48,7 +49,8 @@ the exact G, :meth:`Joint.tangent`, at the last residual's reactions). This is t
 null-space (Galerkin) reduction of both row groups onto the joint's constraint, the position
 constraint in the kinematic rows and its rate in the balance rows, so the integrators see
 an ODE again (no multiplier, no index). For a hinge about e3 whose copies share a chart,
-(C.3) gives G_b = −G_a = (e1, e2)ᵀ at any angles: C_K = diag(1, 1, 0), N_K ∝ e3 and (C.5),
+(C.3) gives G_b = −G_a = S (e1, e2)ᵀ (S an invertible 2×2) at any angles with θ_a = θ_b,
+ψ_a = ψ_b: C_K = diag(1, 1, 0), N_K ∝ e3 and (C.5),
 (C.7) are (C.1)-(C.2) on θ, ψ and their rates, the former linear identification; C_R is
 diag(1, 1, 0) too while the copies' φ agree, and differs once the hinge has turned: the
 former identification's sum of the balance rows added moments in two body frames a hinge's

@@ -99,7 +99,7 @@ def test_the_compiled_residual_applies_the_linear_rows_only():
 
 def test_a_hinge_about_e3_in_one_chart_is_the_identification_of_theta_and_psi():
     """Joint (C.3)-(C.7) for a hinge about e3 whose copies share a chart (any chart, any
-    angles with θ_a = θ_b, ψ_a = ψ_b): g = 0, G_b = −G_a = (e1, e2)ᵀ on (θ, ψ), so the kinematic
+    angles with θ_a = θ_b, ψ_a = ψ_b): g = 0, G_b = −G_a on (θ, ψ), so the kinematic
     rows' C_K = diag(1, 1, 0) and N_K ∝ e3: the former identification, to round-off (1e-14).
     With φ_a = φ_b also C_R = diag(1, 1, 0) (the balance rows' combination, body turns over Î,
     equals the sum while the body frames agree) and differs once φ differs (by more than 1e-3
