@@ -44,6 +44,7 @@ from cosserat_fem.analysis.observers import summary_start
 from cosserat_fem.common import safe_files
 from cosserat_fem.common.errors import OutputError, SceneError, SolverError
 from cosserat_fem.common.parallel import agree
+from cosserat_fem.forms.general_form import row_inertias
 from cosserat_fem.io.run_folder import write_summary
 from cosserat_fem.nls.constraints import Identification
 from cosserat_fem.output.fields import XdmfWriter
@@ -217,37 +218,95 @@ def join_copies(problem: ModalProblem, ties: Identification) -> ModalProblem:
     of_p = k < 6  # p's components: the first six of (p, q)
     copies = 6 * (block[of_p] + offset) + k[of_p]
     masters = 6 * (master[of_p] + offset) + k[of_p]
-    return identify(problem, copies, masters, ~ties.added[of_p])
+    combos = [row for joint in ties.joints for row in joint_rows(problem, ties, joint)]
+    # K's and M's angle rows are moments over the rows' rotary inertias Î (forms/
+    # general_form.py): times Î they are the virtual work of the angles (at the rest), which
+    # Sᵀ combines across components for a hinge off the axes (the eigenproblem unchanged)
+    if problem.model.msh.comm.allreduce(len(ties.joints), op=MPI.SUM):  # collective
+        scale = problem.K.createVecLeft()
+        blocks = scale.getArray().reshape(-1, 6)
+        blocks[:, :3] = 1.0
+        blocks[:, 3:] = row_inertias(problem.model.groups)
+        problem.K.diagonalScale(L=scale)
+        problem.M.diagonalScale(L=scale)
+    return identify(problem, copies, masters, ~ties.added[of_p], combos)
+
+
+def joint_rows(problem: ModalProblem, ties: Identification, joint) -> list:
+    """A hinge's or a driven joint's copy angles as functions of its master's about p0:
+    the constraint (C.3) of cosserat_fem/nls/constraints.py linearised, G_a δα_a + G_b δα_b =
+    0, so δα_b = L δα_a + n β, L = −G_bᵀ (G_b G_bᵀ)⁻¹ G_a, n spanning G_b's null space (a
+    hinge's free turn; none for a driven joint). β is the copy's angle k* with the largest
+    |n_k|, which keeps its own column: the others are rows (row, columns, coefficients) of S
+    over the master's angles (none if a support holds them) and that angle (global indices
+    of the 6-component space). Exact about a base without reactions (the rest); about a
+    loaded base the reactions' λ·∂²g term is not in K."""
+    offset = problem.P.dofmap.index_map.local_range[0]
+    p0 = problem.p0.x.array
+    a, b = 6 * joint.master, 6 * joint.copy
+    alpha = np.concatenate([p0[a + 3 : a + 6], p0[b + 3 : b + 6]])
+    G = joint.gradient(alpha, joint.drive[0], ties.frames(joint))
+    Ga, Gb = G[:, :3], G[:, 3:6]
+    L = -Gb.T @ np.linalg.solve(Gb @ Gb.T, Ga)
+    masters = 6 * (joint.master + offset) + 3 + np.arange(3)
+    copies = 6 * (joint.copy + offset) + 3 + np.arange(3)
+    keep = [] if joint.count == 3 else [int(np.argmax(np.abs(np.cross(Gb[0], Gb[1]))))]
+    if keep:
+        n = np.cross(Gb[0], Gb[1])
+        k = keep[0]
+        L = L - np.outer(n / n[k], L[k])
+    rows = []
+    for j in (j for j in range(3) if j not in keep):
+        cols = list(masters) if joint.added else []
+        coefs = list(L[j]) if joint.added else []
+        if keep:
+            cols.append(copies[keep[0]])
+            coefs.append(n[j] / n[keep[0]])
+        rows.append((int(copies[j]), np.array(cols), np.array(coefs)))
+    return rows
 
 
 def identify(
-    problem: ModalProblem, copies: np.ndarray, masters: np.ndarray, held: np.ndarray
+    problem: ModalProblem,
+    copies: np.ndarray,
+    masters: np.ndarray,
+    held: np.ndarray,
+    combos: list | None = None,
 ) -> ModalProblem:
     """The eigenproblem with the dofs ``copies`` (global indices) taking the values of their
     ``masters``, or zero where ``held`` (the master held by a support).
 
     S maps the reduced p onto p: S = I but for the copies' rows, whose 1 moves to their
-    master's column (none where held). The copies' test functions are their masters' too, so
+    master's column (none where held), and the rows ``combos`` (row, columns, coefficients):
+    a copy's value a combination of others (a hinge's linearised angles, :func:`joint_rows`).
+    The copies' test functions are their masters' too, so
     K̃ = Sᵀ K S + D, M̃ = Sᵀ M S, where the copies' rows and columns are zero and D puts 1 on
     K̃'s diagonal there (their eigenvalues are infinite, as a clamped dof's: away from the
     wanted ones); a mode φ of (K̃, M̃) has the shape S φ. Each rank gives the copies it owns,
     or all (only the owned ones are used)."""
     K, M = problem.K, problem.M
     rows = K.getOwnershipRange()
-    columns = np.arange(*rows, dtype=PETSc.IntType)  # S's one entry a row: 1 in this column
+    entries: list[tuple[list, list]] = [([r], [1.0]) for r in range(*rows)]
     mine = (copies >= rows[0]) & (copies < rows[1])
-    columns[copies[mine] - rows[0]] = masters[mine]
-    keep = np.ones(columns.size, dtype=bool)
-    keep[copies[mine & held] - rows[0]] = False
-    S = PETSc.Mat().createAIJ((K.getSizes()[0], K.getSizes()[0]), nnz=(1, 1), comm=K.comm)
-    pointers = np.concatenate([[0], np.cumsum(keep)]).astype(PETSc.IntType)
-    S.setValuesCSR(pointers, columns[keep], np.ones(int(keep.sum())))
+    for copy, master, is_held in zip(copies[mine], masters[mine], held[mine], strict=True):
+        entries[copy - rows[0]] = ([], []) if is_held else ([master], [1.0])
+    dependent = list(copies[mine])
+    for row, cols, coefs in combos or []:
+        if rows[0] <= row < rows[1]:
+            entries[row - rows[0]] = (list(cols), list(coefs))
+            dependent.append(row)
+    widest = max((len(c) for c, _ in entries), default=1)
+    S = PETSc.Mat().createAIJ((K.getSizes()[0], K.getSizes()[0]), nnz=(widest, widest), comm=K.comm)
+    pointers = np.concatenate([[0], np.cumsum([len(c) for c, _ in entries])])
+    columns = np.array([c for cs, _ in entries for c in cs], dtype=PETSc.IntType)
+    values = np.array([v for _, vs in entries for v in vs], dtype=float)
+    S.setValuesCSR(pointers.astype(PETSc.IntType), columns, values)
     S.assemble()
     K_joined, M_joined = K.PtAP(S), M.PtAP(S)
     K.destroy()  # the unjoined: replaced
     M.destroy()
     K_joined.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-    for row in copies[mine]:
+    for row in dependent:
         K_joined.setValue(int(row), int(row), 1.0, addv=PETSc.InsertMode.ADD_VALUES)
     K_joined.assemble()
     return ModalProblem(problem.model, problem.P, problem.p0, K_joined, M_joined, joint=S)

@@ -52,7 +52,7 @@ typedef struct {
   const int32_t* dofs; int32_t dofs_per_cell; int32_t n_bc; const int32_t* bc_dofs;
   const double* bc_values; const double* u_values; double* w; double* be; void* b;
   int32_t n_ties; const int32_t* tie_copies; const int32_t* tie_masters;
-  const int32_t* tie_added; const double* tie_offsets;
+  const int32_t* tie_added;
 } cf_problem;
 typedef int (*cf_call)(void* ctx);
 typedef int (*cf_observe)(void* ctx, int it, const double* norms, int reason);
@@ -395,6 +395,8 @@ class NativeLoop:
         mesh = U.function_space.mesh
         if mesh.comm.size > 1:
             raise NotApplicable("a parallel run")
+        if ties is not None and ties.joints:  # cf_residual applies the linear ties only
+            raise NotApplicable("a hinge's or a driven joint's rows (nls/constraints.py Joint)")
         types = list(form.integral_types)
         if cpp.fem.IntegralType.interior_facet in types:
             raise NotApplicable("an interior facet integral (a point load)")
@@ -490,7 +492,6 @@ class NativeLoop:
             p.tie_copies = pointer(np.ascontiguousarray(ties.copies, dtype=np.int32), "int32_t*")
             p.tie_masters = pointer(np.ascontiguousarray(ties.masters, dtype=np.int32), "int32_t*")
             p.tie_added = pointer(ties.added.astype(np.int32), "int32_t*")
-            p.tie_offsets = pointer(ties.offset, "double*")  # live: set before each solve
         self.problem = p
         self._form, self._bcs = form, bcs
 

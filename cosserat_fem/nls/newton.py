@@ -408,7 +408,7 @@ class NewtonSolver:
         A = self.A
         A.zeroEntries()
         if self.constraints is not None:
-            self.constraints.assemble_matrix(A, self.J_form, self.bcs)
+            self.constraints.assemble_matrix(A, self.J_form, self.bcs, tangent=True)
         else:
             # assemble_matrix is a singledispatch whose overload for a PETSc.Mat first (mat,
             # form, bcs) DOLFINx's annotations do not show

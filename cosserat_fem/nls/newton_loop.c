@@ -66,7 +66,6 @@ typedef struct {
   const int32_t* tie_copies;   /* (n_ties,) each pair's copy */
   const int32_t* tie_masters;  /* (n_ties,) and master */
   const int32_t* tie_added;    /* (n_ties,) 1: the master's row takes the copy's (C.1) */
-  const double* tie_offsets;   /* (n_ties,) o_c of (C.2), the caller's live array */
 } cf_problem;
 
 static double now(void)
@@ -121,7 +120,7 @@ int cf_residual(cf_problem* p)
     if (p->tie_added[i]) b[p->tie_masters[i]] += b[p->tie_copies[i]];
   for (int32_t i = 0; i < p->n_ties; ++i) {
     const int32_t c = p->tie_copies[i];
-    b[c] = p->u_values[c] - p->u_values[p->tie_masters[i]] - p->tie_offsets[i];
+    b[c] = p->u_values[c] - p->u_values[p->tie_masters[i]];
   }
   ierr = VecRestoreArray((Vec)p->b, &b);
   return (int)ierr;

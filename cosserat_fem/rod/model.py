@@ -30,7 +30,7 @@ from petsc4py import PETSc
 
 from cosserat_fem import forms
 from cosserat_fem.common import jit
-from cosserat_fem.common.errors import SceneError, SolverError
+from cosserat_fem.common.errors import SceneError
 from cosserat_fem.common.parallel import agree
 from cosserat_fem.forms import follower, rigid_body
 from cosserat_fem.forms import reference as reference_shapes
@@ -48,7 +48,7 @@ from cosserat_fem.forms.kinematics import P_NAMES, quaternion_chart
 from cosserat_fem.forms.reference import Reference
 from cosserat_fem.forms.resultants import scaled_law
 from cosserat_fem.forms.section import SectionLaw
-from cosserat_fem.nls.constraints import Identification
+from cosserat_fem.nls.constraints import Identification, Joint
 from cosserat_fem.nls.contact import NodeContact
 from cosserat_fem.rod import charts
 from cosserat_fem.rod.charts import change_chart, change_chart_rate, chart_of
@@ -195,32 +195,24 @@ class NodeRotation:
 @dataclass
 class JointDrive:
     """A driven joint of a structure (StructureJoint kind "driven": ``key``, ``angle`` α(t)
-    [rad] about e3): its copy is its master turned by R3(α) in their one chart (the chart
-    stays on such a structure: :meth:`RodModel.new_chart`), so φ_c = φ_m + α and the other
-    components equal: the offsets o_c of its φ and q_φ pairs in the constraints
-    (cosserat_fem/nls/constraints.py), α and dα/dτ; ``pairs`` their indices in ``ties`` on
-    the rank that owns the joint (empty elsewhere)."""
+    [rad] about its axis n0): its copy is its master turned by exp(α [n0×]), the constraint
+    (C.3) of cosserat_fem/nls/constraints.py whose ``joint`` (None on a rank that does not own
+    it) takes α and its τ-derivatives before each solve."""
 
     key: str
     angle: Expression
     rate: Expression
     acceleration: Expression
-    ties: Identification
-    pairs: np.ndarray
-    #: +1 for the axis e3, −1 for −e3 (a turn by α about −e3 is R3(−α))
-    sign: float = 1.0
+    joint: Joint | None
 
     def set(self, model: RodModel, t: float, rates: bool, factor: float | None) -> None:
-        """The offsets at time ``t`` [s] (``rates``: their τ-rates, for the initial-rate
-        problem; ``factor`` λ, statics: α(t) λ, rates zero), as NodeRotation.set. SceneError
-        naming the key if α(t) is not finite."""
-        alpha, rate, acc = (self.sign * x for x in prescribed_angle(self, model, t, factor))
-        if not self.pairs.size:
-            return
-        w = model.omega0
-        p, q = (rate / w, acc / w**2) if rates else (alpha, rate / w)
-        angle, its_rate = self.pairs
-        self.ties.offset[angle], self.ties.offset[its_rate] = p, q
+        """α, dα/dτ, d²α/dτ² at time ``t`` [s] (``factor`` λ, statics: α(t) λ, the rates
+        zero; ``rates`` changes nothing: the joint's rows take what they need), as
+        NodeRotation.set. SceneError naming the key if α(t) is not finite."""
+        alpha, rate, acc = prescribed_angle(self, model, t, factor)
+        if self.joint is not None:
+            w = model.omega0
+            self.joint.drive[:] = (alpha, rate / w, acc / w**2)
 
 
 def _what(component: int) -> str:
@@ -269,10 +261,6 @@ class RodModel:
     structure: StructureMesh | None = None
     #: The dofs its joints tie (cosserat_fem/nls/constraints.py), or None: no joints.
     constraints: Identification | None = None
-    #: Whether the structure has hinges or driven joints, whose copies and masters share a
-    #: chart: identified (θ, ψ) mean a turn about e3 only in one chart (resolved.
-    #: JOINT_COMPONENTS); the chart cannot move then (:meth:`new_chart`).
-    chart_tied: bool = False
     #: The contact rows (cosserat_fem/nls/contact.py; made by rod/obstacles.py contact_rows),
     #: whose ``values`` the outputs read; None: no contact.
     contact: NodeContact | None = None
@@ -378,23 +366,11 @@ class RodModel:
         """The nodal quaternions (nodes, 4) of the rod's own rotation in ``state`` (default U):
         the chart in which its angles are zero (cosserat_fem/rod/charts.py ``chart_of``), but at
         :attr:`fork_nodes`, which keep theirs. Signed for a continuous field along the rod
-        (:meth:`_continuous_signs`). Collective. SolverError on a structure with hinges or
-        driven joints (:attr:`chart_tied`)."""
+        (:meth:`_continuous_signs`). Collective. A joint's copy takes its own rotation as its
+        chart, as every node: the joints' rows (C.3)-(C.8) of cosserat_fem/nls/constraints.py
+        read each copy's chart."""
         state = self.U.x.array if state is None else state
         assert self.chart is not None, "use_chart made it"
-        if self.chart_tied:
-            # A hinge's copy would take its master's chart (identified θ, ψ mean a turn about
-            # e3 in one chart only), which differs from its own rotation by the hinge's turn:
-            # its cells would interpolate between charts that far apart, and a rigid turn of
-            # the member after the move then strains it (measured: 7e-3 rad at a hinge turned
-            # 1 rad, not reduced by refinement). Until that is solved: refused.
-            raise SolverError(
-                "the chart must move (an angle θ neared ±π/2), but a structure's hinge or "
-                "driven joint cannot follow a chart's move yet",
-                where="charts",
-                suggestion="keep every node's turn about e1 (θ) below 0.9 rad, or join by "
-                "spherical joints (docs/structures.md, Joints)",
-            )
         Q_old = self.chart.x.array.reshape(-1, 4)
         Q_new = chart_of(self.layout.full_array(state), Q_old)
         self._continuous_signs(Q_new)
@@ -1032,9 +1008,17 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
     all_joints = structure.all_joints()
     if all_joints:  # the copies of the joints' nodes, tied (rod/structure.py)
         masters, copies, components, which = made.joint_blocks(V, structure)
-        ties = Identification(V, masters, copies, components, bcs)
+        turning = {
+            j: Joint(m, c, np.asarray(all_joints[j].axis), all_joints[j].kind == "driven")
+            for m, c, j in zip(masters, copies, which, strict=True)
+            if all_joints[j].kind in ("hinge", "driven")
+        }
+        for tie in turning.values():  # the balance rows' divisors (forms/general_form.py)
+            tie.inertia = np.array(forms.general_form.row_inertias(model.groups))
+        ties = Identification(V, masters, copies, components, bcs, list(turning.values()))
+        ties.chart = lambda: None if model.chart is None else model.chart.x.array.reshape(-1, 4)
+        ties.state = lambda: model.U.x.array
         model.constraints = ties
-        model.chart_tied = any(j.kind in ("hinge", "driven") for j in structure.joints)
         # a rigid copy (a loaded junction's split) keeps its chart with its master's: a fork's
         kinds = [all_joints[j].kind for j in which]
         rigid = np.array([k == "rigid" for k in kinds], dtype=bool)
@@ -1046,8 +1030,6 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
             if joint.kind != "driven":
                 continue
             assert joint.angle is not None, "a driven joint's angle (scene/build.py)"
-            mine = [copies[which.index(j)] * 12 + k for k in (5, 11)] if j in which else []
-            pairs = np.array([int(np.flatnonzero(ties.copies == c)[0]) for c in mine], dtype=int)
             rate = derivative(joint.angle, "t")
             model.motions.append(
                 JointDrive(
@@ -1055,9 +1037,7 @@ def _build_structure_model(scene: Scene, comm: MPI.Comm) -> RodModel:
                     joint.angle,
                     rate,
                     derivative(rate, "t"),
-                    ties,
-                    pairs,
-                    1.0 if joint.axis is None or joint.axis[2] > 0 else -1.0,
+                    turning.get(j),
                 )
             )
     return model

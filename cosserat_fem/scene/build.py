@@ -1039,13 +1039,6 @@ def _structure_joints(
             if axis is None:
                 raise SceneError(f"{key}.axis: a {entry['kind']} joint needs its axis, [0, 0, 1]")
             axis = _unit_axis(axis, f"{key}.axis")
-            if axis[0] != 0.0 or axis[1] != 0.0:
-                raise SceneError(
-                    f"{key}.axis: a {entry['kind']} joint's axis must be e3 at rest for now (the "
-                    "Euler angles' "
-                    f"innermost axis; turn the structure so that its hinges lie along e3), got "
-                    f"{show_value(list(axis))}"
-                )
         elif axis is not None:
             raise SceneError(f"{key}.axis: only a hinge or a driven joint has an axis")
         joints.append(build(StructureJoint, entry, axis=axis, angle=angle))

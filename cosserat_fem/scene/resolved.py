@@ -742,8 +742,9 @@ class StructureSupport:
 #: rod/model.py RodModel.new_chart).
 JOINT_COMPONENTS: dict[str, tuple[int, ...]] = {
     "spherical": (0, 1, 2, 6, 7, 8),
-    "hinge": (0, 1, 2, 3, 4, 6, 7, 8, 9, 10),
-    "driven": tuple(range(12)),  # φ and its rate offset by α(t) (rod/model.py JointDrive)
+    # a hinge's and a driven joint's rotations: nonlinear rows (nls/constraints.py Joint)
+    "hinge": (0, 1, 2, 6, 7, 8),
+    "driven": (0, 1, 2, 6, 7, 8),
     "rigid": tuple(range(12)),  # a loaded junction's split (Structure.splits): no joint at all
 }
 
@@ -754,10 +755,12 @@ class StructureJoint:
     (each with an end at the node) hold their own copy of the node, joined rigidly to one
     another, and that copy joins the node's other members (which keep the node: one of them at
     least) as ``kind`` says: spherical, the positions shared and the rotations free; hinge,
-    the positions shared and the rotations free about ``axis`` only, which must be e3 at rest;
-    driven, a hinge whose turn is prescribed, the copy turned from the node's members by
-    R3(``angle``), α(t) [rad] (:data:`JOINT_COMPONENTS`; in statics α(static.time) scaled by
-    the load factor λ). A support at the node holds its other members."""
+    the positions shared and the rotations free about ``axis`` n0 only (any nonzero vector
+    of the rest frame, normalised: Λ_a n0 = Λ_b n0); driven, a hinge whose turn is
+    prescribed, the copy turned from the node's members by exp(α [n0×]), α(t) = ``angle``
+    [rad] (:data:`JOINT_COMPONENTS` the positions; the rotations by nonlinear rows,
+    cosserat_fem/nls/constraints.py Joint; in statics α(static.time) scaled by the load
+    factor λ). A support at the node holds its other members."""
 
     node: str = key(Text(required=True, non_empty=True))
     kind: str = key(Choice(choices=STRUCTURE_JOINTS, required=True))
@@ -832,8 +835,8 @@ class Structure:
         rigidly form rigid groups (the graph of members cut at the joints' copies, each a
         small rigid motion (t, ω) of 6 unknowns); the supports hold components of their
         node's group (:func:`rigid_body_modes`'s rows) and each joint the differences of its
-        two groups' motions at its node in the components it ties (JOINT_COMPONENTS: a
-        spherical joint the position, a hinge also the turns about e1 and e2). The count is
+        two groups' motions at its node in the components it ties (JOINT_COMPONENTS: the
+        position; a hinge also the turns across its axis, a driven joint all turns). The count is
         6 × groups less the rank of those rows: a mechanism's motions, e.g. a member between
         two spherical joints spinning about its own axis. The nodes' positions are scaled by
         the structure's size (the rank is scale-free)."""
@@ -873,6 +876,11 @@ class Structure:
                 tuple(i - 3 for i in tied if 3 <= i < 6),
             )
             local = _held_rows(r0[j.node] / size, *held)
+            if j.kind in ("hinge", "driven"):  # the turns across the axis, or all three
+                assert j.axis is not None, "a hinge's axis (scene/build.py)"
+                n = np.asarray(j.axis) / np.linalg.norm(j.axis)
+                turns = np.eye(3) - np.outer(n, n) if j.kind == "hinge" else np.eye(3)
+                local += [np.concatenate([np.zeros(3), t]) for t in turns]
             one = placed(root(j.node), local)
             two = placed(root(f"{j.node}#{k}"), local, -1.0)
             rows += [x + y for x, y in zip(one, two, strict=True)]

@@ -83,23 +83,67 @@ def test_the_rows_on_a_vector_are_sums_and_differences():
     assert len(ties) == 6 and ties.added.all()  # x, y, z and their rates; B is not held
 
 
-def test_the_compiled_residual_applies_the_rows():
-    """A serial solve of a jointed structure assembles its residual in C (newton_loop.c
-    cf_residual, the rows (C.1)-(C.2) included): the solver takes the C loop only after its
-    first residual equalled DOLFINx's with Identification.apply_vector bit for bit
-    (NewtonSolver._make_native), and the driven offsets are read live: an offset set after
-    the solver was built moves the copy's row by exactly it. (The double pendulum of
+def test_the_compiled_residual_applies_the_linear_rows_only():
+    """A serial solve of a structure with spherical joints assembles its residual in C
+    (newton_loop.c cf_residual, the rows (C.1)-(C.2) included): the solver takes the C loop
+    only after its first residual equalled DOLFINx's with Identification.apply_vector bit
+    for bit (NewtonSolver._make_native). A hinge's rows (C.3)-(C.8) are numpy's only, one
+    implementation: with a hinge the loop is Python's. (The double pendulum of
     tests/test_joints.py: no point load, whose interior facet integral keeps DOLFINx's
     assembly.)"""
-    scene = scene_from_dict(pendulum(1e-3, kind="hinge"))
-    model = build_model(scene, MPI.COMM_SELF, planar=False)
-    solver = static_solver(scene, model)
-    assert solver.loop == "c"
-    ties = model.constraints
-    solver._native.residual()
-    before = solver.b.array.copy()
-    ties.offset[:] = 0.25
-    solver._native.residual()
-    after = solver.b.array.copy()
-    ties.offset[:] = 0.0
-    assert np.array_equal(after[ties.copies], before[ties.copies] - 0.25)
+    for kind, loop in (("spherical", "c"), ("hinge", "python")):
+        scene = scene_from_dict(pendulum(1e-3, kind=kind))
+        model = build_model(scene, MPI.COMM_SELF, planar=False)
+        assert static_solver(scene, model).loop == loop, kind
+
+
+def test_a_hinge_about_e3_in_one_chart_is_the_identification_of_theta_and_psi():
+    """Joint (C.3)-(C.7) for a hinge about e3 whose copies share a chart (any chart, any
+    angles with θ_a = θ_b, ψ_a = ψ_b): g = 0, G_b = −G_a on (θ, ψ), so the kinematic
+    rows' C_K = diag(1, 1, 0) and N_K ∝ e3: the former identification, to round-off (1e-14).
+    With φ_a = φ_b also C_R = diag(1, 1, 0) (the balance rows' combination, body turns over Î,
+    equals the sum while the body frames agree) and differs once φ differs (by more than 1e-3
+    at Δφ = 0.9)."""
+    from cosserat_fem.nls.constraints import Joint
+    from cosserat_fem.rod.charts import quaternion_frame
+
+    rng = np.random.default_rng(3)
+    Q = rng.standard_normal(4)
+    frame = quaternion_frame(Q / np.linalg.norm(Q))
+    joint = Joint(0, 1, np.array([0.0, 0.0, 2.0]), False)  # normalised
+    joint.inertia = np.array([7.5e-5, 3.3e-5, 1.1e-4])
+    theta, psi = 0.4, -1.3
+    for phi_b, same in ((0.7, True), (1.6, False)):
+        alpha = np.array([theta, psi, 0.7, theta, psi, phi_b])
+        g = joint.constraint(alpha, 0.0, (frame, frame))
+        _, _, _, _, (C_K, C_R), (N_K, _), G = joint.rows(
+            alpha, np.zeros(6), np.zeros(3), np.zeros(3), (frame, frame)
+        )
+        assert np.abs(g).max() < 1e-14
+        np.testing.assert_allclose(G[:, 3:5] @ np.linalg.inv(-G[:, :2]), np.eye(2), atol=1e-14)
+        np.testing.assert_allclose(C_K, np.diag([1.0, 1.0, 0.0]), rtol=0, atol=1e-14)
+        assert abs(N_K[0, 0]) + abs(N_K[0, 1]) < 1e-14 * abs(N_K[0, 2])
+        off = np.abs(C_R - np.diag([1.0, 1.0, 0.0])).max()
+        assert (off < 1e-13) if same else (off > 1e-3), (phi_b, off)
+
+
+def test_a_joints_gradient_is_its_constraints_derivative():
+    """Joint.gradient (complex steps) against central differences of Joint.constraint (step
+    1e-6: truncation ~1e-12, round-off ~1e-10), for a hinge and a driven joint about a tilted
+    axis in two different charts, at angles off the rest: within 1e-8."""
+    from cosserat_fem.nls.constraints import Joint
+    from cosserat_fem.rod.charts import quaternion_frame
+
+    rng = np.random.default_rng(5)
+    frames = tuple(quaternion_frame(q / np.linalg.norm(q)) for q in rng.standard_normal((2, 4)))
+    alpha = rng.uniform(-0.8, 0.8, 6)
+    for driven in (False, True):
+        joint = Joint(0, 1, np.array([0.8, 0.0, 0.6]), driven)
+        G = joint.gradient(alpha, 0.7, frames)
+        eps = 1e-6
+        for k in range(7):
+            step = np.zeros(7)
+            step[k] = eps
+            up = joint.constraint(alpha + step[:6], 0.7 + step[6], frames)
+            down = joint.constraint(alpha - step[:6], 0.7 - step[6], frames)
+            np.testing.assert_allclose(G[:, k], (up - down) / (2 * eps), rtol=0, atol=1e-8)
