@@ -344,5 +344,5 @@ def _discretise(scene: Scene, comm, initial_state, restart, solver_factory=None)
     if restart is None:
         integrator.start(model, solver.lu_package)
         if contact is not None:  # the friction's history starts at the initial state
-            contact.accept(model.U.x.array)
+            contact.accept(model.U.x.array, initial=True)
     return model, integrator, solver

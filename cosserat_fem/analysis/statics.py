@@ -257,7 +257,7 @@ def static_solver(scene: Scene, model: RodModel) -> NewtonSolver:
         integrator.residual_form(), model.U, model.bcs, settings, model.constraints, contact
     )
     if contact is not None:
-        contact.accept(model.U.x.array)  # the friction's history starts at the initial state
+        contact.accept(model.U.x.array, initial=True)  # the friction's history starts here
     integrator.prepare(scene.static.time * model.omega0)
     model.sync_loads(integrator.time_eval)  # loads given by data, at static.time
     return solver

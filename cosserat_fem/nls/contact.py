@@ -85,7 +85,9 @@ class NodeContact:
     ``length`` ℓ [m], ``force_scale`` the newtons of a unit of a balance row (ℓ/g0),
     ``shares`` each node's share of the length ℓ ∫ φ_k dσ [m], the slots
     in a block of the solved positions and of their balance rows, ``solved`` the fixed-basis
-    components they are (0, 1, 2 or a plane's two), the friction coefficients."""
+    components they are (0, 1, 2 or a plane's two), the friction coefficients; ``places`` each
+    node's arc length s [m] (for messages); ``max_changes`` the most nodes that may come into
+    or out of contact in an accepted step (0: any number; :meth:`step_changes`)."""
 
     def __init__(
         self,
@@ -102,6 +104,8 @@ class NodeContact:
         solved: list[int],
         static_friction: float,
         kinetic_friction: float,
+        places: np.ndarray | None = None,
+        max_changes: int = 0,
     ):
         bs = V.dofmap.index_map_bs
         self.comm = V.mesh.comm
@@ -109,6 +113,15 @@ class NodeContact:
         self.ell, self.force_scale, self.solved = length, force_scale, list(solved)
         self.shares = shares
         self.mu_s, self.mu_k = static_friction, kinetic_friction
+        self.places = np.zeros(len(blocks)) if places is None else np.asarray(places, float)
+        self.max_changes = max_changes
+        #: the nodes whose state changed at the last iterate (local indices)
+        self.flipped = np.zeros(0, dtype=np.int64)
+        #: whether a state was accepted after the initial one (the first step's contacts
+        #: are not changes)
+        self.started = False
+        #: the most nodes that came into or out of contact in an accepted step
+        self.most_changes = 0
         self.px = blocks[:, None] * bs + np.asarray(position_slots, dtype=np.int32)[None, :]
         self.pq = blocks[:, None] * bs + np.asarray(balance_slots, dtype=np.int32)[None, :]
         start = V.dofmap.index_map.local_range[0] * bs
@@ -173,7 +186,8 @@ class NodeContact:
         holds = (size < mu * pressure) | (size == 0.0)
         state = np.where(active, np.where(holds, STICK, SLIP), FREE)
         state = state.astype(np.int8)
-        changed = bool(np.any(state != self.state))
+        self.flipped = np.flatnonzero(state != self.state)
+        changed = bool(self.flipped.size)
         self.state = state
         T, dT = tangent_bases(n)
         s = np.divide(trial, size[:, None], out=np.zeros_like(trial), where=size[:, None] > 0)
@@ -268,10 +282,14 @@ class NodeContact:
         return new
 
     # -- the history ----------------------------------------------------------------------
-    def accept(self, u: np.ndarray) -> None:
-        """The solved state ``u`` is kept (a load step, a time step): the friction's history
-        moves to it, and the work of the sliding nodes' friction over the step is added to
-        :attr:`dissipated` (−R_T·Δx ≥ 0 a node)."""
+    def accept(self, u: np.ndarray, initial: bool = False) -> None:
+        """The solved state ``u`` is kept (a load step, a time step; ``initial``: the state a
+        solve starts from): the friction's history moves to it, and the work of the sliding
+        nodes' friction over the step is added to :attr:`dissipated` (−R_T·Δx ≥ 0 a node)."""
+        if not initial:
+            if self.started:
+                self.most_changes = max(self.most_changes, self._changes()[0])
+            self.started = True
         dx = np.zeros((len(self), 3))
         dx[:, self.solved] = self.ell * (u[self.px] - self.u_old)
         slip = self.state == SLIP
@@ -285,6 +303,43 @@ class NodeContact:
         out[self.blocks, 3] = self.gap
         out[self.blocks, 4] = self.state
         self.values.x.scatter_forward()
+
+    def _changes(self) -> tuple[int, float, float]:
+        """The nodes that came into or out of contact since the accepted state, over the ranks,
+        and the least and largest s [m] among them (collective)."""
+        moved = (self.state != FREE) != (self.accepted != FREE)
+        places = self.places[moved]
+        count = self.comm.allreduce(int(moved.sum()))
+        low = self.comm.allreduce(float(places.min(initial=np.inf)), op=MPI.MIN)
+        high = self.comm.allreduce(float(places.max(initial=-np.inf)), op=MPI.MAX)
+        return count, low, high
+
+    def step_changes(self) -> tuple[str, str] | None:
+        """(where, reason) if more than ``max_changes`` nodes came into or out of contact in
+        the step just solved (not the first step: its contacts are the initial ones), else
+        None (collective). A smaller step splits such changes when they are successive (an
+        impact front), not when they are simultaneous (a flat rod landing flat)."""
+        if not self.max_changes or not self.started:
+            return None
+        count, low, high = self._changes()
+        if count <= self.max_changes:
+            return None
+        return (
+            f"s = {low:.4g} to {high:.4g} m",
+            f"{count} nodes came into or out of contact in one step, more than "
+            f"contact.max_changes = {self.max_changes}",
+        )
+
+    def unsettled(self) -> str:
+        """Where the set changed at the last iterate, for a solve that failed (collective):
+        "" if it did not change."""
+        places = self.places[self.flipped]
+        count = self.comm.allreduce(int(places.size))
+        if not count:
+            return ""
+        low = self.comm.allreduce(float(places.min(initial=np.inf)), op=MPI.MIN)
+        high = self.comm.allreduce(float(places.max(initial=-np.inf)), op=MPI.MAX)
+        return f"the contact set still changed at {count} nodes, s = {low:.4g} to {high:.4g} m"
 
     def counts(self) -> dict[str, int]:
         """The nodes in contact, sticking and sliding, over the ranks."""
@@ -300,6 +355,7 @@ class NodeContact:
         return {
             **{f"nodes_{k}": v for k, v in self.counts().items()},
             "most_nodes_in_contact": self.most,
+            "most_changes_in_a_step": self.most_changes,
             "friction_work_J": self.dissipated,
         }
 
@@ -311,6 +367,8 @@ class NodeContact:
             "contact.c": np.array(np.nan if self.c is None else self.c),
             "contact.dissipated": np.array(self.dissipated),
             "contact.most": np.array(self.most),
+            "contact.most_changes": np.array(self.most_changes),
+            "contact.started": np.array(self.started),
         }
 
     def load_state_dict(self, state: dict) -> None:
@@ -321,3 +379,5 @@ class NodeContact:
         self.c = None if np.isnan(c) else c
         self.dissipated = float(state["contact.dissipated"])
         self.most = int(state["contact.most"])
+        self.most_changes = int(state["contact.most_changes"])
+        self.started = bool(state["contact.started"])

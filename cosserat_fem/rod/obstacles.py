@@ -130,5 +130,7 @@ def contact_rows(model) -> NodeContact | None:
         solved=solved,
         static_friction=spec.static_friction,
         kinetic_friction=spec.kinetic,
+        places=ell * sigma,
+        max_changes=spec.max_changes,
     )
     return model.contact

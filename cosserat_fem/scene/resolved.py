@@ -1155,6 +1155,9 @@ class Contact:
     static_friction: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="-"))
     kinetic_friction: float | None = key(Number(interval=NON_NEGATIVE, unit="-"), default=None)
     radius: float | str = key(Number(default="auto", interval=POSITIVE, unit="m", auto=True))
+    #: the most nodes that may come into or out of contact in one accepted time step (a step
+    #: with more is rejected and halved: an impact front resolved in time); 0: any number
+    max_changes: int = key(Number(default=0, integer=True, interval=NON_NEGATIVE))
 
     @property
     def kinetic(self) -> float:

@@ -352,6 +352,11 @@ class TimeLoop:
             if self.model.motions:
                 self.model.support_dofs_to(self.model.U.x.array, t_new * self.omega0)
             self._cos_candidate = self._check(t_new, before=self._cos_accepted)
+            contact = getattr(self.solver, "contact", None)
+            changes = None if contact is None else contact.step_changes()
+            if changes is not None:  # an impact front crossing too many nodes at once
+                where, reason = changes
+                return SolverError(time=t_new, where=where, reason=reason, retry=True)
         except NewtonFailure as exc:
             self._blame_loads(t_new)
             blocks = self.model.layout.size
@@ -359,6 +364,11 @@ class TimeLoop:
             s, _ = worst_place(self.model, residual)
             reason = f"Newton did not converge ({exc.reason}, {exc.iterations} iterations)"
             suggestion = "reduce time.step, or use solver.jacobian = 'full'"
+            contact = getattr(self.solver, "contact", None)
+            unsettled = "" if contact is None else contact.unsettled()
+            if unsettled:
+                reason += f": {unsettled}"
+                suggestion = "reduce time.step (an impact or a slip front crossing many nodes)"
             if exc.reason == "DIVERGED_FNORM_NAN" and exc.iterations == 0:
                 # Not finite before any iteration: the loads and the state are finite (checked
                 # above), so their products with the groups (48) leave double precision.
