@@ -281,6 +281,61 @@ class NodeContact:
             new[slip, 1:, :] += T[slip] @ dv
         return new
 
+    # -- a consistent initial rate (generalized-α) ---------------------------------------
+    def touching(self, u: np.ndarray) -> np.ndarray:
+        """The nodes (local indices) on an obstacle at the state ``u`` (|g| ≤ TOUCHING ℓ)."""
+        x = self.rest.copy()
+        x[:, self.solved] += self.ell * u[self.px]
+        g, _, _ = self.surface(x)
+        return np.flatnonzero(np.abs(g) <= TOUCHING * self.ell)
+
+    def hold_rates(self, A: PETSc.Mat, b: np.ndarray, nodes: np.ndarray, u: np.ndarray) -> None:
+        """In the linear system A U̇ = b of a consistent initial rate (rows tested as F's, so
+        a node's balance rows A U̇ − b are the force R it lacks), the ``nodes``' balance rows
+        [n; T] turned to: n·q̇ = 0 (a node resting on an obstacle does not accelerate into
+        it), and T q̇ = 0 where the node does not slide (stuck), T R = −μ_k (n·R) T v̂ where
+        it slides with the tangential velocity v (kinetic friction against it: linear in U̇)
+        (collective; A assembled; ``b`` its owned values)."""
+        x = self.rest.copy()
+        x[:, self.solved] += self.ell * u[self.px]
+        _, normal, _ = self.surface(x)
+        n = normal[:, self.solved]
+        T, _ = tangent_bases(n)
+        v = u[self.pq] - np.sum(n * u[self.pq], axis=1)[:, None] * n  # tangential velocity
+        speed = np.linalg.norm(v, axis=1)
+        sliding = speed > TOUCHING * np.abs(u[self.pq]).max(initial=0.0) + 1e-300
+        drag = np.zeros((len(speed), T.shape[1]))  # μ_k T v̂ of the sliding nodes
+        drag[sliding] = self.mu_k * np.einsum(
+            "kij,kj->ki", T[sliding], v[sliding] / speed[sliding, None]
+        )
+        gathered = [[A.getRow(int(q)) for q in self._gq[k]] for k in nodes]
+        for k, rows in zip(nodes, gathered, strict=True):
+            cols = rows[0][0]
+            J = np.array([vals for _, vals in rows])
+            at = np.searchsorted(cols, self._gq[k])  # the rates of q at their columns
+            new = np.zeros_like(J)
+            new[0, at] = n[k]
+            if sliding[k]:
+                new[1:] = T[k] @ J + np.outer(drag[k], n[k] @ J)
+            else:
+                new[1:, at] = T[k]
+            A.setValues(self._gq[k], cols, new, addv=PETSc.InsertMode.INSERT_VALUES)
+        A.assemble()
+        rows = b[self.pq[nodes]]
+        b[self.pq[nodes, 0]] = 0.0
+        tangential = np.einsum("kij,kj->ki", T[nodes], rows)
+        tangential += drag[nodes] * np.sum(n[nodes] * rows, axis=1)[:, None]
+        b[self.pq[nodes, 1:]] = np.where(sliding[nodes, None], tangential, 0.0)
+
+    def normal_reactions(self, r: np.ndarray, nodes: np.ndarray, u: np.ndarray) -> np.ndarray:
+        """n·r at the ``nodes``' balance rows of ``r`` (owned values of A U̇ − b of the system
+        without :meth:`hold_rates`): the obstacle's push (> 0) or pull (< 0) that holds them."""
+        x = self.rest.copy()
+        x[:, self.solved] += self.ell * u[self.px]
+        _, normal, _ = self.surface(x)
+        n = normal[nodes][:, self.solved]
+        return np.sum(n * r[self.pq[nodes]], axis=1)
+
     # -- the history ----------------------------------------------------------------------
     def accept(self, u: np.ndarray, initial: bool = False) -> None:
         """The solved state ``u`` is kept (a load step, a time step; ``initial``: the state a
