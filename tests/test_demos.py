@@ -5,6 +5,8 @@ independently: the paper's demo over its whole 0.06 s serially, and its first 0.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 from conftest import HUNG_AFTER, ROOT, parse_qoi, run_command
@@ -598,6 +600,19 @@ def test_rom_sweep_demo_serial_equals_mpirun(rom_sweep_runs):
 CABLE_DEMO = str(ROOT / "demos" / "branched_cable.py")
 
 
+def demo_serial_and_mpi(demo: str, out: Path) -> list[dict]:
+    """The quantities of interest ``demo`` prints on one rank and under mpirun -n 2 (its
+    folders ``out``1 and ``out``2), each run with its solution.xdmf and probes.csv written."""
+    runs = []
+    for ranks in (1, 2):
+        folder = out.with_name(f"{out.name}{ranks}")
+        proc = run_command([demo, "--out", str(folder)], ranks)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        runs.append(parse_qoi(proc.stdout))
+        assert (folder / "solution.xdmf").stat().st_size > 0 and (folder / "probes.csv").exists()
+    return runs
+
+
 @pytest.mark.mpi
 @pytest.mark.long
 def test_the_branched_cable_demo_serial_equals_mpirun(tmp_path):
@@ -608,13 +623,7 @@ def test_the_branched_cable_demo_serial_equals_mpirun(tmp_path):
     Newton iterations stop at stol = 1e-8 of ‖U‖ on both alike; measured: the 13 printed
     digits equal), a real swing (R falls by more than 0.1 m, 30% of its branch), and
     solution.xdmf written beside probes.csv for ParaView. ~10 s."""
-    runs = []
-    for ranks in (1, 2):
-        out = tmp_path / f"cable{ranks}"
-        proc = run_command([CABLE_DEMO, "--out", str(out)], ranks)
-        assert proc.returncode == 0, proc.stdout + proc.stderr
-        runs.append(parse_qoi(proc.stdout))
-        assert (out / "solution.xdmf").stat().st_size > 0 and (out / "probes.csv").exists()
+    runs = demo_serial_and_mpi(CABLE_DEMO, tmp_path / "cable")
     scale = max(abs(v) for v in runs[0].values())
     for name, value in runs[0].items():
         assert abs(runs[1][name] - value) <= 1e-9 * scale, name
@@ -634,13 +643,7 @@ def test_the_capstan_demo_serial_equals_mpirun(tmp_path):
     7e-12), the rope held (its low end moved less than 1e-4 m: the elastic stretch,
     measured 4.9e-5 m; every one of the 49 nodes sticking at the end) and solution.xdmf
     written for ParaView. ~30 s."""
-    runs = []
-    for ranks in (1, 2):
-        out = tmp_path / f"capstan{ranks}"
-        proc = run_command([CAPSTAN_DEMO, "--out", str(out)], ranks)
-        assert proc.returncode == 0, proc.stdout + proc.stderr
-        runs.append(parse_qoi(proc.stdout))
-        assert (out / "solution.xdmf").stat().st_size > 0 and (out / "probes.csv").exists()
+    runs = demo_serial_and_mpi(CAPSTAN_DEMO, tmp_path / "capstan")
     for name, value in runs[0].items():
         assert abs(runs[1][name] - value) <= 1e-8 * abs(value), name
     assert runs[0]["low_end_m"] < 1e-4
