@@ -258,10 +258,11 @@ def test_twisted_beam_converges_to_the_shooting_solution():
     −0.1664479995). Ours, 16 quartic elements, within 2e-8 of it (measured 1.8e-9; 8
     elements 4e-7, 32 elements 1e-10: the h^2p superconvergence of the nodes). BeamDyn's 9
     printed digits, (1.71810805, −3.59245231, −1.14114462) m, (0.652044084, 0.340538298,
-    −0.166342576), are 7.6e-4 from it: its discretisation, one element of order 7 (p-
-    convergence of ours on one element: order 4 0.16, order 5 0.027, a factor 6 per order,
-    which extrapolates to 7.7e-4 at order 7). So BeamDyn's is held within 1e-3, and more
-    than 1e-4 off (its digits are of its mesh, not of the converged solution)."""
+    −0.166342576), are 7.6e-4 from it: its discretisation, one element of order 7 (8 nodes).
+    Ours on as few nodes errs by as much: one element of order 3, 4, 5 (4-6 nodes) 0.35,
+    0.16, 0.027; two of order 4 (9 nodes) 8.1e-3, of order 5 (11 nodes) 5.7e-4 (our degree
+    stops at 5). So BeamDyn's is held within 1e-3 of the converged solution, and more than
+    1e-4 off: its 9 digits are of its mesh, 3-4 of them converged."""
     straight = lambda t, k: np.array([0.0, (t, 1.0, 0.0)[k]])  # noqa: E731
     bend = np.array([0.520833e9, 0.130208333e9, 0.141872656e9])
     shear = np.array([8.2604167e9, 8.2604167e9, 2.5e10])
