@@ -262,7 +262,12 @@ def test_twisted_beam_converges_to_the_shooting_solution():
     Ours on as few nodes errs by as much: one element of order 3, 4, 5 (4-6 nodes) 0.35,
     0.16, 0.027; two of order 4 (9 nodes) 8.1e-3, of order 5 (11 nodes) 5.7e-4 (our degree
     stops at 5). So BeamDyn's is held within 1e-3 of the converged solution, and more than
-    1e-4 off: its 9 digits are of its mesh, 3-4 of them converged."""
+    1e-4 off: its 9 digits are of its mesh, 3-4 of them converged.
+
+    Frames: BeamDyn's root moments, RootMxr 3.54354215e7 and RootMzr −6.87243219e6 N m, are
+    the contact moment at the root, m(0) = r_tip × F with r_tip = (0, 0, 10) + its own TipTD,
+    to their 9 digits (1e-8 relative): its TipTD is the tip's displacement in the frame of
+    the driver's force, as ours."""
     straight = lambda t, k: np.array([0.0, (t, 1.0, 0.0)[k]])  # noqa: E731
     bend = np.array([0.520833e9, 0.130208333e9, 0.141872656e9])
     shear = np.array([8.2604167e9, 8.2604167e9, 2.5e10])
@@ -273,6 +278,8 @@ def test_twisted_beam_converges_to_the_shooting_solution():
     np.testing.assert_allclose(ours, exact, rtol=0, atol=2e-8)
     beamdyn = np.array(BEAMDYN["bd_static_twisted_with_k1"])
     assert 1e-4 < np.abs(beamdyn - exact).max() < 1e-3
+    root = np.cross(np.array([0.0, 0.0, 10.0]) + beamdyn[:3], [0.0, -4e6, 0.0])
+    np.testing.assert_allclose(root, [3.54354215e7, 0.0, -6.87243219e6], rtol=1e-8, atol=1e-3)
 
 
 # ================================================================== the command line
