@@ -14,8 +14,10 @@ Frames. BeamDyn's blade frame (X_r, Y_r, Z_r), Z_r along the blade from the root
 code's fixed basis (e1, e2, e3): the straight rod runs along e3, its directors d1, d2 are X_r,
 Y_r, and the section's axes 1, 2, 3 of the 6×6 matrices are d1, d2, d3, so the stiffness goes
 in as it is ((shear 1, shear 2, extension, bending 1, bending 2, torsion) is BeamDyn's order,
-docs/sections.md). The driver's global frame must be the blade frame (``GlbDCM`` the identity,
-``GlbPos`` zero): its loads and gravity are then the scene's components as they are.
+docs/sections.md). The driver's loads and gravity, given in its global frame, are turned into
+the blade frame by ``GlbDCM`` (row i: the blade axis i in global components, v_r = GlbDCM v_g;
+a proper rotation, else refused); ``GlbPos``, a translation of the whole blade, moves no
+displacement and is not applied.
 
 Every refusal and every bad entry is a :class:`~cosserat_fem.common.errors.SceneError` of one
 line, ``FILE:LINE: KEY: reason`` (the line where it is, or the file alone when a key is
@@ -43,6 +45,8 @@ ELEMENTS, DEGREE = 16, 4
 SHAPE_TOLERANCE = 1e-5
 #: The mass matrix's translational diagonal must be one m to this relative difference.
 MASS_TOLERANCE = 1e-9
+#: GlbDCM's rows must be orthonormal to this (its 8 printed digits leave ~1e-8).
+FRAME_TOLERANCE = 1e-6
 
 
 @dataclass(frozen=True)
@@ -426,10 +430,12 @@ def _check_mass(case: BeamDynCase) -> None:
             )
 
 
-def section_table(case: BeamDynCase, length: float) -> dict[str, Any]:
+def section_table(case: BeamDynCase, length: float, inertia: bool = True) -> dict[str, Any]:
     """[rod.section] of the stations: the 6×6 stiffness, μ and (I11, I22, I33) as
     piecewise-linear expressions of s [m], and a "constants" shape whose ρ A, E c_ii, G c33
-    are the root's (the shape gives the scaling (47) only; docs/sections.md §3)."""
+    are the root's (the shape gives the scaling (47) only; docs/sections.md §3). With
+    ``inertia`` False (a static case without gravity, which no mass enters) the mass matrices
+    are read and neither checked nor taken."""
     stations = case.stations
     eta = np.array([st.eta for st in stations])
     if eta[0] != 0.0 or eta[-1] != 1.0 or np.any(np.diff(eta) <= 0.0):
@@ -437,7 +443,8 @@ def section_table(case: BeamDynCase, length: float) -> dict[str, Any]:
             f"{case.blade.name}:{stations[0].line}: eta: the stations must rise from 0 to 1, "
             f"got {eta.tolist()}"
         )
-    _check_mass(case)
+    if inertia:
+        _check_mass(case)
     K = np.array([st.stiffness for st in stations])
     M = np.array([st.mass for st in stations])
     rows = [[piecewise_linear(eta, K[:, i, j], length) for j in range(6)] for i in range(6)]
@@ -450,7 +457,7 @@ def section_table(case: BeamDynCase, length: float) -> dict[str, Any]:
         "shear_coefficient": 1.0,
         "stiffness": rows,
     }
-    if np.any(M != 0.0):
+    if inertia and np.any(M != 0.0):
         table["mass_per_length"] = piecewise_linear(eta, M[:, 0, 0], length)
         table["inertia"] = [piecewise_linear(eta, M[:, k, k], length) for k in (3, 4, 5)]
     return table
@@ -465,11 +472,7 @@ def scene_of(case: BeamDynCase, name: str | None = None) -> dict[str, Any]:
     span with BeamDyn's damping (:func:`_damping`), and the tip's directors among the probe's
     columns (for BeamDyn's TipRD). Refuses in one line what this rod cannot take
     (docs/beamdyn.md)."""
-    if np.any(case.frame != np.eye(3)):
-        raise SceneError(
-            f"{case.where('GlbDCM')}: GlbDCM: only the global frame equal to the blade frame "
-            "is taken (GlbDCM the identity)"
-        )
+    frame = _blade_frame(case)
     if any(case.root_velocity):
         raise SceneError(
             f"{case.where('RootVel(4)')}: RootVel: a rotating root is not taken in this version"
@@ -480,11 +483,11 @@ def scene_of(case: BeamDynCase, name: str | None = None) -> dict[str, Any]:
             "taken in this version"
         )
     axis = reference_axis(case)
-    section = section_table(case, axis.length)
+    section = section_table(case, axis.length, case.dynamic or any(case.gravity))
     mass = section.get("mass_per_length")
     K0 = case.stations[0].stiffness
-    gravity = [g for g in case.gravity]
-    force: list[float | str] = list(case.distributed[:3])
+    gravity = _turned(frame, case.gravity)
+    force: list[float | str] = list(_turned(frame, case.distributed[:3]))
     if any(gravity):
         if mass is None:
             raise SceneError(
@@ -507,8 +510,8 @@ def scene_of(case: BeamDynCase, name: str | None = None) -> dict[str, Any]:
         "supports": {"start": "clamped", "end": "free"},
         "loads": {
             "force_density": force,
-            "torque_density": list(case.distributed[3:]),
-            "end": {"force": list(case.tip[:3]), "torque": list(case.tip[3:])},
+            "torque_density": _turned(frame, case.distributed[3:]),
+            "end": {"force": _turned(frame, case.tip[:3]), "torque": _turned(frame, case.tip[3:])},
         },
         "discretisation": {"elements": ELEMENTS, "degree": DEGREE},
         "solver": {"max_iterations": 50},
@@ -540,6 +543,27 @@ def scene_of(case: BeamDynCase, name: str | None = None) -> dict[str, Any]:
         scene["static"] = {"load_steps": 20}
         scene["time"] = {"end": case.dt, "step": case.dt}
     return scene
+
+
+def _blade_frame(case: BeamDynCase) -> np.ndarray:
+    """The driver's GlbDCM, checked to be a proper rotation (orthonormal within FRAME_TOLERANCE,
+    the inputs' 8 digits, determinant +1): row i is the blade axis i (X_r, Y_r, Z_r) in the
+    global frame's components, so a vector's blade components are GlbDCM v_g. (Identified on
+    r-test's bd_5MW_dynamic_gravity_Az90, GlbDCM rows (1, 0, 0), (0, 0, 1), (0, −1, 0) and
+    gravity −9.8 m/s² along global Z, whose tip history is bd_5MW_dynamic_gravity_Az00's,
+    gravity −9.8 along Y_r: the transpose would give +Y_r and the opposite swing.)"""
+    D = np.asarray(case.frame, dtype=float)
+    if np.abs(D @ D.T - np.eye(3)).max() > FRAME_TOLERANCE or np.linalg.det(D) < 0.0:
+        raise SceneError(
+            f"{case.where('GlbDCM')}: GlbDCM: not a rotation (orthonormal rows of determinant "
+            f"+1), got {D.tolist()}"
+        )
+    return D
+
+
+def _turned(frame: np.ndarray, vector) -> list[float]:
+    """The blade components GlbDCM v of a vector ``vector`` given in the global frame."""
+    return [float(c) + 0.0 for c in frame @ np.asarray(vector, dtype=float)]
 
 
 def _add(force: float | str, g: float, mass: float | str) -> float | str:

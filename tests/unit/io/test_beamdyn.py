@@ -136,8 +136,9 @@ def test_a_mass_centre_off_the_axis_is_refused_naming_the_entry():
 
 
 def test_driver_entries_the_rod_cannot_take_are_refused():
-    """A rotated global frame, a rotating root, point loads: one line each naming the key (a
-    root moved by GlbPos is taken: a translation moves no displacement)."""
+    """A reflected global frame (GlbDCM of determinant −1), a rotating root, point loads: one
+    line each naming the key (a root moved by GlbPos is taken: a translation moves no
+    displacement)."""
     case = read_case(DATA / "bd_isotropic_rollup" / "bd_driver.inp")
     frame = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
     for change, key in (
@@ -147,6 +148,39 @@ def test_driver_entries_the_rod_cannot_take_are_refused():
     ):
         with pytest.raises(SceneError, match=rf"^bd_driver.inp:\d+: {key}"):
             scene_of(dataclasses.replace(case, **change))
+
+
+def test_a_rotated_global_frame_turns_the_drivers_vectors():
+    """GlbDCM rows (0, 1, 0), (−1, 0, 0), (0, 0, 1) (a quarter turn about Z): the tip force
+    (1, 2, 3) N and torque (4, 5, 6) N m and the distributed force (7, 8, 9) N/m given in the
+    global frame are GlbDCM v in the blade frame, (2, −1, 3), (5, −4, 6), (8, −7, 9); rows
+    skewed by 1e-3 (not orthonormal) are refused naming GlbDCM."""
+    case = read_case(DATA / "bd_isotropic_rollup" / "bd_driver.inp")
+    frame = np.array([[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    turned = dataclasses.replace(
+        case, frame=frame, tip=(1.0, 2.0, 3.0, 4.0, 5.0, 6.0), distributed=(7.0, 8.0, 9.0, 0, 0, 0)
+    )
+    loads = scene_of(turned)["loads"]
+    assert loads["end"] == {"force": [2.0, -1.0, 3.0], "torque": [5.0, -4.0, 6.0]}
+    assert loads["force_density"] == [8.0, -7.0, 9.0]
+    skewed = frame + np.array([[0.0, 0.0, 1e-3], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    with pytest.raises(SceneError, match=r"^bd_driver.inp:\d+: GlbDCM: not a rotation"):
+        scene_of(dataclasses.replace(case, frame=skewed))
+
+
+def test_a_static_case_without_gravity_takes_no_mass():
+    """bd_static_twisted_with_k1: its mass matrices put the mass centre 1.7e-4 m off the axis
+    (m Ycm = 0.1154 kg), which no static case without gravity feels: the scene has no mass
+    and the twist is the key points' 0 to 90°; with gravity the offset is refused naming the
+    entry."""
+    case = read_case(DATA / "bd_static_twisted_with_k1" / "bd_driver.inp")
+    scene = scene_of(case)
+    assert "mass_per_length" not in scene["rod"]["section"]
+    assert scene["reference"]["director"][0] == f"cos({reference_axis(case).twist})"
+    twist = Expression.parse(reference_axis(case).twist, {"s"}).evaluate(s=np.array([0.0, 10.0]))
+    np.testing.assert_allclose(twist, [0.0, math.pi / 2], atol=1e-12)
+    with pytest.raises(SceneError, match=r"^beam_props.inp:\d+: mass\[1\]\[6\] \(-m Ycm\)"):
+        scene_of(dataclasses.replace(case, gravity=(0.0, -9.8, 0.0)))
 
 
 def test_gravity_is_the_weight_of_the_stations():
