@@ -49,6 +49,7 @@ import fcntl
 import functools
 import hashlib
 import importlib.machinery
+import importlib.util
 import logging
 import os
 import re
@@ -433,13 +434,22 @@ def _remove_leftovers(cache_dir: Path, module_name: str) -> None:
 
 def _load(cache_dir: Path, module_name: str, object_names):
     """(objects, module) of a compiled FFCx module, or (None, why it must be compiled again)
-    (:func:`load_checked`)."""
-    import ffcx.codegeneration.jit as ffcx_jit
+    (:func:`load_checked`). The library file is loaded by its path (:func:`_library`: the
+    suffix FFCx's finder would take), not by FFCx's ``_load_objects``, whose FileFinder lists
+    the whole cache folder at every form: 5 ms at 16 000 files, most of a test suite's time
+    once many modules are cached (docs/developers.md)."""
+    library = _library(cache_dir, module_name)
 
     def load():
-        return ffcx_jit._load_objects(cache_dir, module_name, object_names)
+        loader = importlib.machinery.ExtensionFileLoader(module_name, str(library))
+        spec = importlib.util.spec_from_file_location(module_name, library, loader=loader)
+        if spec is None:
+            raise ImportError(f"no module spec for {library}")
+        module = importlib.util.module_from_spec(spec)
+        loader.exec_module(module)
+        return [getattr(module.lib, name) for name in object_names], module
 
-    return load_checked(_library(cache_dir, module_name), load)
+    return load_checked(library, load)
 
 
 def _get_cached_module(module_name, object_names, cache_dir, timeout):
