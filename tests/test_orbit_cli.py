@@ -78,6 +78,17 @@ def cli(*args: str):
     return run_command(["-m", "cosserat_fem.cli", *args])
 
 
+@pytest.fixture(scope="module")
+def whole_branch(tmp_path_factory) -> Path:
+    """The folder of the uninterrupted ``orbits`` branch over :data:`BRANCH` with
+    :data:`STEPS` of :data:`LINEAR`: the reference of the cut and restarted branches (one
+    run for the module's tests, which only read it; a run of the command is ~1 s)."""
+    whole = tmp_path_factory.mktemp("orbits") / "whole"
+    proc = cli("orbits", str(PAPER), *sets(LINEAR), *BRANCH, *STEPS, "--out", str(whole))
+    assert proc.returncode == 0, proc.stderr
+    return whole
+
+
 def rows(path) -> list[dict]:
     lines = path.read_text().splitlines()
     return [dict(zip(lines[0].split(","), ln.split(","), strict=True)) for ln in lines[1:]]
@@ -106,7 +117,7 @@ def same_rows(folder, reference) -> list[dict]:
     return got
 
 
-def test_a_branch_stops_at_its_wall_time_and_restarts_to_the_whole_branch(tmp_path):
+def test_a_branch_stops_at_its_wall_time_and_restarts_to_the_whole_branch(tmp_path, whole_branch):
     """About 3 s (a process per part: here 3 parts). limits.wall_time = 2 ms: above the
     budget's lower bound of the one period the command checks up front (budget.py: 0.76 ms
     for 20 steps of this 4-element rod), far below what the branch costs by the same bound
@@ -118,9 +129,8 @@ def test_a_branch_stops_at_its_wall_time_and_restarts_to_the_whole_branch(tmp_pa
     with the uninterrupted branch's rows (:func:`same_rows`)."""
     from cosserat_fem.analysis.orbit_runs import WALL_TIME_STOP
 
-    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    whole, cut = whole_branch, tmp_path / "cut"
     base = ["orbits", str(PAPER), *BRANCH, *STEPS]
-    assert cli(*base, *sets(LINEAR), "--out", str(whole)).returncode == 0
     limited = sets({**LINEAR, "limits.wall_time": 2e-3})
     proc = cli(*base, *limited, "--out", str(cut))
     parts = 1
@@ -176,7 +186,7 @@ def test_the_orbits_command_gives_the_api_s_branch_with_its_files(tmp_path):
     assert (out / "orbit_branch.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
-def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path):
+def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path, whole_branch):
     """A branch stopped at --max-points 2 (the start and one step: the step not yet at
     max_step, so the restart must rebuild the grown one) and restarted with --max-points 300
     has the rows of the uninterrupted branch (p within DP, amplitude within DA relative:
@@ -192,9 +202,8 @@ def test_a_restarted_branch_reaches_the_whole_branch_s_points(tmp_path):
     before this was checked it ran, changed nothing but summary.json's restarts, exit 0)."""
     from xdmf_files import read_arrays, read_xdmf
 
-    whole, cut = tmp_path / "whole", tmp_path / "cut"
+    whole, cut = whole_branch, tmp_path / "cut"
     base = ["orbits", str(PAPER), *sets(LINEAR), *BRANCH, *STEPS]
-    assert cli(*base, "--out", str(whole)).returncode == 0
     first = cli(*base, "--max-points", "2", "--out", str(cut))
     assert first.returncode == 0, first.stderr
     assert "the branch ended: 2 points (max_points)" in first.stderr

@@ -51,7 +51,17 @@ def basis_file(tmp_path_factory):
     return folder / "paper.npz"
 
 
-def test_rom_run_is_cf_rom_run_and_restarts(basis_file, tmp_path):
+@pytest.fixture(scope="module")
+def reduced_run(basis_file):
+    """The folder of the serial ``rom run`` of the short paper scene on :func:`basis_file`
+    (read, never written, by the tests that use it)."""
+    out = basis_file.parent / "reduced"
+    proc = cli("rom", "run", str(PAPER), *SHORT, "--basis", str(basis_file), "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+def test_rom_run_is_cf_rom_run_and_restarts(basis_file, reduced_run, tmp_path):
     """``rom run`` of the short paper scene on the basis of ``rom build`` writes probes.csv,
     XDMF and summary.json as ``run`` does, and its probes equal ``cf.rom.run``'s on the same
     file (in this process) to 1e-12 of the largest |x, y, z|: the same code path, the same
@@ -77,9 +87,7 @@ def test_rom_run_is_cf_rom_run_and_restarts(basis_file, tmp_path):
     (10: a margin for the two "about"s; E ≥ 1e-4 here, so the bound is ≥ 4e-4 relative;
     measured |ΔE| ≤ 0.087 δ, at most 3.3e-6 relative). Without the state, the modes start
     from zero at 3 ms: ΔE/E = O(1)."""
-    out = tmp_path / "reduced"
-    proc = cli("rom", "run", str(PAPER), *SHORT, "--basis", str(basis_file), "--out", str(out))
-    assert proc.returncode == 0, proc.stderr
+    out = reduced_run
     mine = probes(out)
     assert mine.shape == (201, 7)
     assert (out / "solution.xdmf").is_file() and (out / "solution.frames" / "mesh.h5").is_file()
@@ -135,18 +143,17 @@ def test_rom_run_is_cf_rom_run_and_restarts(basis_file, tmp_path):
     assert first["max"] == pytest.approx(whole["max"], rel=10 * max(delta, 1e-16) / E.min())
 
 
-def test_two_ranks_equal_one(basis_file, tmp_path):
-    """``mpirun -n 2 rom run`` equals the serial run to 1e-9 of the largest |x, y, z|: the two
-    differ by the order of sums (the reduced residual's allreduce, the distributed assembly),
-    each Newton solve to rtol 1e-10, as tests/test_rom.py (d) (measured 2e-16 m, 2e-13
-    relative)."""
-    runs = {}
-    for ranks in (1, 2):
-        out = tmp_path / f"n{ranks}"
-        args = ["--basis", str(basis_file), "--out", str(out), "--quiet"]
-        proc = cli("rom", "run", str(PAPER), *SHORT, *args, ranks=ranks)
-        assert proc.returncode == 0, proc.stderr
-        runs[ranks] = probes(out)
+def test_two_ranks_equal_one(basis_file, reduced_run, tmp_path):
+    """``mpirun -n 2 rom run`` equals the serial run (:func:`reduced_run`) to 1e-9 of the
+    largest |x, y, z|: the two differ by the order of sums (the reduced residual's
+    allreduce, the distributed assembly), each Newton solve to rtol 1e-10, as
+    tests/test_rom.py (d) (measured 2e-16 m, 2e-13 relative)."""
+    runs = {1: probes(reduced_run)}
+    out = tmp_path / "n2"
+    args = ["--basis", str(basis_file), "--out", str(out), "--quiet"]
+    proc = cli("rom", "run", str(PAPER), *SHORT, *args, ranks=2)
+    assert proc.returncode == 0, proc.stderr
+    runs[2] = probes(out)
     scale = np.abs(runs[1][:, 1:4]).max()
     assert np.abs(runs[1] - runs[2]).max() <= 1e-9 * scale
 

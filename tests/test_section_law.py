@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import scipy.linalg
+import scipy.sparse.linalg
 import ufl
 from cosserat_fem.forms.director_form import director_residual_terms
 from cosserat_fem.forms.energy import kinetic_energy_density, strain_energy_density
@@ -349,10 +350,17 @@ def _tapered_law(rod: RodConstants, taper: float):
     return law
 
 
-def _first_bending_frequency(rod: RodConstants, law, cells: int, degree: int = 2) -> float:
+def _first_bending_frequency(
+    rod: RodConstants, law, cells: int, near: float, degree: int = 2
+) -> float:
     """ω1 [rad/s] of the linearised clamped-free rod: A x + λ B x = 0 with A = ∂F/∂U and
     B = ∂F/∂U̇ of the residual (65) at the straight rod at rest (dense, the clamped end's dofs
-    removed), ω = ω0 |Im λ|, the smallest of the bending-about-d2 (x) modes."""
+    removed), ω = ω0 |Im λ|, the smallest of the bending-about-d2 (x) modes among the six
+    eigenvalues λ nearest σ = i ``near``/ω0 [rad/s]: shift-invert, (A + σB)⁻¹ B x =
+    x/(σ − λ), by ARPACK on a dense LU (B's null space, the λ = ∞, maps to 0), instead of
+    every eigenpair of the dense pencil (O(n³): 4.7 s of 5 on 32 cells). The first bending
+    mode lies within 1e-2 of ``near`` = the Ritz frequency; the nearest other modes, the
+    first about d1 (c11 > c22) and the second about d2, lie 1.5 and 6 times higher."""
     msh = mesh.create_unit_interval(MPI.COMM_WORLD, cells)
     V = fem.VectorFunctionSpace(msh, ("Lagrange", degree), dim=12)
     U, Udot = fem.Function(V), fem.Function(V)
@@ -371,10 +379,15 @@ def _first_bending_frequency(rod: RodConstants, law, cells: int, degree: int = 2
     points = V.tabulate_dof_coordinates()[:, 0]
     free = np.repeat(~np.isclose(points, 0.0), 12)  # the blocks' dofs, 12 a node
     A, B = (M[np.ix_(free, free)] for M in mats)
-    lam, vecs = scipy.linalg.eig(A, -B)
-    finite = np.isfinite(lam) & (np.abs(lam) > 1e-8)
+    sigma = 1j * near / rod.omega0
+    lu = scipy.linalg.lu_factor(A + sigma * B)
+    op = scipy.sparse.linalg.LinearOperator(
+        A.shape, matvec=lambda v: scipy.linalg.lu_solve(lu, B @ v), dtype=complex
+    )
+    nu, vecs = scipy.sparse.linalg.eigs(op, k=6, v0=np.ones(A.shape[0], dtype=complex))
+    lam = sigma - 1.0 / nu
     best = math.inf
-    for value, vec in zip(lam[finite], vecs[:, finite].T, strict=True):
+    for value, vec in zip(lam, vecs.T, strict=True):
         comps = np.abs(vec.reshape(-1, 12))
         if comps[:, 0].max() > 10 * comps[:, 1].max():  # bending in x (about d2)
             best = min(best, abs(value.imag))
@@ -423,7 +436,11 @@ def test_a_tapered_cantilevers_first_frequency():
     further the equal-degree series locks). The FE frequency converges from
     above (a displacement method): on 8, 16 and 32 quadratic cells the error must be
     positive, fall by a factor ≥ 4 each time (order ≥ 2 in ω; observed 1.6e-3, 2.3e-4, 2.2e-5, the
-    pre-asymptotic range of a slender rod's shear locking) and be below 5e-5 on 32 cells."""
+    pre-asymptotic range of a slender rod's shear locking) and be below 5e-5 on 32 cells. The
+    FE frequency is the eigenvalue nearest the reference by shift-invert
+    (:func:`_first_bending_frequency`): it agrees with every eigenpair of the dense pencil
+    (scipy.linalg.eig, 4.7 s) to 5e-8 relative on 8 and 32 cells (measured), 400 times below
+    the finest error, in 0.5 s."""
     rod = _rod()
     ell, EI, mu = rod.length, E * rod.section.c22, RHO * rod.section.area
     kGA, rhoI = _diagonal(rod)[0], rod.mass_inertias[1]
@@ -433,7 +450,10 @@ def test_a_tapered_cantilevers_first_frequency():
     reference = _ritz_frequency(EI, kGA, mu, rhoI, ell, taper, 12)
     assert abs(_ritz_frequency(EI, kGA, mu, rhoI, ell, taper, 10) - reference) <= 1e-9 * reference
     law = _tapered_law(rod, taper)
-    errors = [(_first_bending_frequency(rod, law, n) - reference) / reference for n in (8, 16, 32)]
+    errors = [
+        (_first_bending_frequency(rod, law, n, reference) - reference) / reference
+        for n in (8, 16, 32)
+    ]
     print(reference, errors)
     assert all(e > 0.0 for e in errors), errors
     assert errors[1] <= errors[0] / 4 and errors[2] <= errors[1] / 4, errors
