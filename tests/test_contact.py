@@ -375,7 +375,7 @@ def test_the_capstan_holds_below_its_critical_ratio_and_slides_above(mu, theta):
     0.5 % lower here). μ ∈ {0.1, 0.3, 0.5}, θ ∈ {π/2, π, 3π/2}, T2 = 2.5 N (EA = 314 N).
     At 0.99 e^{μθ} the rope holds: its low end s = 0 moves at most 1e-4 m over the run (the
     issue's bound; it is the elastic stretch of a short slip zone there: measured 5.8e-5,
-    2.6e-6, 4.0e-5 m), nothing moves over the last 30 ms (1e-12 m: the stick rows), and no
+    2.3e-6, 4.0e-5 m), nothing moves over the last 30 ms (1e-12 m: the stick rows), and no
     point between the nodes goes through the drum by more than 1 % of the rope's radius (the
     P3 curve's dip between nodes on the drum; measured 1.8e-4, 5.4e-5, 8.5e-6 r). At
     1.01 e^{μθ} it slides: the excess 1 % of T2 = 0.025 N on the rope's mass (1.2-1.7 g)
