@@ -754,7 +754,7 @@ def test_an_api_restart_refuses_every_scene_but_the_checkpoints(runs, tmp_path):
     assert outcomes["refused"] >= 150 and outcomes["would continue"] >= 50, outcomes
     # every kind of key but a [structure] and a [contact] (their nodes, members and obstacles
     # are arrays of tables, which this fuzz does not write; a structure's restart:
-    # tests/test_structures.py; contact is static only so far: no restart)
+    # tests/test_structures.py; a contact run's restart: tests/test_contact.py)
     assert tables == set(SCHEMA.fields) - {"solver", "limits", "structure", "contact"}
 
 

@@ -42,7 +42,7 @@ from cosserat_fem.nls.solvers import make_solver
 from cosserat_fem.output.fields import PointProbe, probe_sigma
 from cosserat_fem.rod.model import RodModel, build_model
 from cosserat_fem.rod.obstacles import contact_rows
-from cosserat_fem.scene.build import Scene, refuse_closed
+from cosserat_fem.scene.build import Scene, refuse_closed, refuse_contact
 from cosserat_fem.scene.load_data import refuse_callable_restart
 from cosserat_fem.timestepping.events import Observer
 from cosserat_fem.timestepping.integrators import make_integrator
@@ -321,11 +321,13 @@ def _discretise(scene: Scene, comm, initial_state, restart, solver_factory=None)
     settings = NewtonSettings.of(scene.solver)
     contact = contact_rows(model)
     if contact is not None:
-        if tspan.integrator.startswith("sdirk") or solver_factory is not None:
+        if solver_factory is not None:
+            refuse_contact(scene, "a reduced model")
+        if tspan.integrator.startswith("sdirk"):
             raise SceneError(
                 f"time.integrator: contact needs a method whose step ends at its solved state "
-                f"(bdf2 or generalized-alpha; SDIRK's stages are not its step's end, and a "
-                f"reduced model has no contact rows), got {tspan.integrator!r}"
+                f"(bdf2 or generalized-alpha; SDIRK's stages are not its step's end), got "
+                f"{tspan.integrator!r}"
             )
         if settings.jacobian != "full":  # the rows change with every iterate
             logging.getLogger(__name__).info(

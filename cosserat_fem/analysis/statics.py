@@ -178,6 +178,11 @@ class StaticLoop:
                 except (NewtonFailure, SolverError) as exc:
                     st.rejected += 1
                     step *= 0.5
+                    unsettled = (
+                        solver.contact.unsettled()
+                        if isinstance(exc, NewtonFailure) and solver.contact is not None
+                        else ""
+                    )
                     cause = (
                         exc
                         if isinstance(exc, SolverError)
@@ -193,9 +198,15 @@ class StaticLoop:
                             time=None,
                             where=f"load factor {trial:.6g} (last converged {lam:.6g})",
                             reason=f"no load increment down to 1/{2**static.max_bisections} "
-                            f"of the nominal one converges: {exc.reason}",
+                            f"of the nominal one converges: {exc.reason}"
+                            + (f" ({unsettled})" if unsettled else ""),
                             suggestion=getattr(exc, "suggestion", None)
-                            or "increase static.load_steps, or the load passes a limit point",
+                            or (
+                                "the contact set does not settle: a rod that slides along most "
+                                "of its contact may need a run in time (docs/contact.md)"
+                                if unsettled
+                                else "increase static.load_steps, or the load passes a limit point"
+                            ),
                         ) from None
                     continue
                 U_nm1, U_n = U_n, model.U.x.array.copy()

@@ -20,15 +20,16 @@ balance rows [n; T] F by
     stick (|t| < μ λ_N, or t = 0): g/ℓ = 0 and T Δu = 0 (exact: no penetration, no creep); (K.2)
     slip  (otherwise):            g/ℓ = 0 and T (P F − μ_k f_N t/|t|) = 0              (K.3)
 
-with μ = μ_s, or μ_k for a node that slipped in the last accepted state (a sliding node sticks
-again when the force it needs drops below the kinetic limit). The contact force is the
-replaced rows' residual: no multiplier unknowns, the matrix keeps its blocks (every new entry
-lies in the node's own block row). The Jacobian rows are the generalized derivative of
-(K.2)-(K.3), with the obstacle's curvature ∂n/∂u = ℓ ∇²g and the tangent basis's turn with
-n. A solve is converged only when its active set stopped changing (``hold``: the C stop
-rule's flag, cosserat_fem/nls/newton_loop.c ``cf_test``), and by the update test only with
-‖F‖ ≤ ‖F0‖ (``guard``: a rigid slide that no stuck node holds drifts with shrinking relative
-updates, which is no answer).
+with μ = μ_s, or μ_k for a node that slid in the last accepted state or at the last iterate
+(a sliding node sticks again when the force it needs drops below the kinetic limit; a node
+that starts to slide within a solve does not stick again by the static one). The contact
+force is the replaced rows' residual: no multiplier unknowns, the matrix keeps its blocks
+(every new entry lies in the node's own block row). The Jacobian rows are the generalized
+derivative of (K.2)-(K.3), with the obstacle's curvature ∂n/∂u = ℓ ∇²g and the tangent
+basis's turn with n. A solve is converged only when its active set stopped changing
+(``hold``: the C stop rule's flag, cosserat_fem/nls/newton_loop.c ``cf_test``), and by the
+update test only with ‖F‖ ≤ ‖F0‖ (``guard``: a rigid slide that no stuck node holds drifts
+with shrinking relative updates, which is no answer).
 
 The node's slip is its centreline's: the friction acts at the centreline (no moment about
 it; docs/contact.md "Limits").
@@ -180,7 +181,11 @@ class NodeContact:
         w = F - (0.0 if c is None else c) * du
         trial = w - np.sum(n * w, axis=1)[:, None] * n
         size = np.linalg.norm(trial, axis=1)
-        mu = np.where(self.accepted == SLIP, self.mu_k, self.mu_s)
+        # μ_k for a node sliding at the last accepted state or at the last iterate: a node
+        # that starts to slide meets μ_k f_N and must not stick again by μ_s at once (with
+        # μ_k < μ_s the onset would alternate stick and slip to the iteration limit)
+        sliding = (self.accepted == SLIP) | (self.state == SLIP)
+        mu = np.where(sliding, self.mu_k, self.mu_s)
         pressure = fN - (0.0 if c is None else c) * gs  # the augmented f_N: > 0 if active
         # at the cone's edge a node slides on (docs/contact-design.md), but a node neither
         # pressed nor pulled sticks (else a free rope's nodes would all be frictionless)
@@ -369,7 +374,11 @@ class NodeContact:
         """The solved state ``u`` is kept (a load step, a time step; ``initial``: the state a
         solve starts from): the friction's history moves to it, and the work of the sliding
         nodes' friction over the step is added to :attr:`dissipated` (−R_T·Δx ≥ 0 a node)."""
-        if not initial:
+        if initial:  # no iterate yet: the gaps of the state, no force
+            x = self.rest.copy()
+            x[:, self.solved] += self.ell * u[self.px]
+            self.gap = self.surface(x)[0]
+        else:
             if self.started:
                 self.most_changes = max(self.most_changes, self._changes()[0])
             self.started = True

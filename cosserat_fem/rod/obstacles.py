@@ -49,7 +49,10 @@ class Obstacle:
         )
 
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(d, ∇d, ∇²d) at the points ``x`` (n, 3): (n,), (n, 3), (n, 3, 3)."""
+        """(d, ∇d, ∇²d) at the points ``x`` (n, 3): (n,), (n, 3), (n, 3, 3). At a sphere's
+        centre or on a cylinder's axis (d = −R, the deepest point, where ∇d is undefined) a
+        unit normal across the axis and no curvature: a value on every rank, never an error
+        (an MPI rank that raised here would leave the others waiting)."""
         rel = x - self.point
         eye = np.broadcast_to(np.eye(3), (len(x), 3, 3))
         if self.kind == "plane":
@@ -62,10 +65,19 @@ class Obstacle:
             rel = rel - np.outer(rel @ a, a)
             eye = eye - np.outer(a, a)
         norm = np.linalg.norm(rel, axis=1)
-        if np.any(norm == 0.0):
-            raise FloatingPointError(f"a node at the {self.kind}'s centre: its normal is undefined")
-        n = rel / norm[:, None]
-        hessian = (eye - n[:, :, None] * n[:, None, :]) / norm[:, None, None]
+        centre = norm == 0.0  # on the centre or the axis: the deepest point, any normal will do
+        if np.any(centre):
+            across = np.array([1.0, 0.0, 0.0])
+            if self.kind == "cylinder":  # a unit direction across the axis
+                assert self.direction is not None
+                a = self.direction
+                across = np.eye(3)[np.argmin(np.abs(a))]
+                across = (across - (across @ a) * a) / np.linalg.norm(across - (across @ a) * a)
+            rel = rel.copy()
+            rel[centre] = across
+        n = rel / np.where(centre, 1.0, norm)[:, None]
+        safe = np.where(centre, np.inf, norm)  # a centre point's curvature: none
+        hessian = (eye - n[:, :, None] * n[:, None, :]) / safe[:, None, None]
         return norm - self.radius, n, hessian
 
 
@@ -85,6 +97,31 @@ class Surface:
         n = np.stack([n for _, n, _ in best])[which, pick]
         hessian = np.stack([h for _, _, h in best])[which, pick]
         return d - self.radius, n, hessian
+
+
+def _check_start(model, spec, blocks, sigma, slots, solved) -> None:
+    """SceneError (on every rank) naming the obstacle if a node starts inside one, beyond the
+    round-off of a position placed on its surface (1e-12 ℓ): its depth and s."""
+    from cosserat_fem.common.errors import SceneError
+    from cosserat_fem.common.parallel import agree
+
+    ell, bs = model.length, model.layout.size
+    x = np.asarray(model.scene.reference.positions(ell * sigma), dtype=float).reshape(-1, 3)
+    u = model.U.x.array
+    for k, slot in zip(solved, slots, strict=True):
+        x[:, k] += ell * u[blocks * bs + slot]
+    problem = None
+    for i, obstacle in enumerate(spec.obstacles):
+        g = Obstacle.of(obstacle).distance(x)[0] - float(spec.radius)
+        inside = g < -1e-12 * ell
+        if inside.any() and problem is None:
+            j = int(np.argmin(g))
+            problem = SceneError(
+                f"contact.obstacles[{i}]: the rod starts inside this {obstacle.kind}, "
+                f"{-g[j]:.3g} m deep at s = {ell * sigma[j]:.4g} m (its surface of radius "
+                f"{float(spec.radius):.3g} m included); move the obstacle or the rod"
+            )
+    agree(model.V.mesh.comm, problem)
 
 
 def contact_rows(model) -> NodeContact | None:
@@ -111,6 +148,7 @@ def contact_rows(model) -> NodeContact | None:
     blocks = blocks[free]
     ell = model.length
     sigma = V.tabulate_dof_coordinates()[blocks, 0]
+    _check_start(model, spec, blocks, sigma, [positions[k] for k in solved], solved)
     rest = np.asarray(model.scene.reference.positions(ell * sigma), dtype=float).reshape(-1, 3)
     surface = Surface([Obstacle.of(o) for o in spec.obstacles], float(spec.radius))
     # each node's share of the length, ℓ ∫ φ_k dσ [m]: a nodal force over it is a load per length

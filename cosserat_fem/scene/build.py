@@ -1143,6 +1143,13 @@ def _check_contact_scene(scene: Scene) -> None:
             "solver.nonlinear: contact's rows need the project's Newton loop, not SNES "
             "(no [solver.petsc] options)"
         )
+    for end in ("start", "end"):
+        if getattr(scene.supports, end) in ("roller", "sliding"):
+            raise SceneError(
+                f"supports.{end}: a {getattr(scene.supports, end)} end holds some of its "
+                "positions: contact's rows are written for nodes free in all or held in all "
+                "(not yet for this end)"
+            )
     if scene.contact.kinetic > scene.contact.static_friction:
         raise SceneError(
             f"contact.kinetic_friction: must not exceed contact.static_friction "

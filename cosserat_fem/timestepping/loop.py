@@ -369,6 +369,8 @@ class TimeLoop:
             if unsettled:
                 reason += f": {unsettled}"
                 suggestion = "reduce time.step (an impact or a slip front crossing many nodes)"
+            elif contact is not None:  # its Jacobian is full already
+                suggestion = "reduce time.step"
             if exc.reason == "DIVERGED_FNORM_NAN" and exc.iterations == 0:
                 # Not finite before any iteration: the loads and the state are finite (checked
                 # above), so their products with the groups (48) leave double precision.

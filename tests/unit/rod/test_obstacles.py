@@ -62,3 +62,16 @@ def test_a_surface_takes_the_nearest_obstacle_less_the_radius():
     g, n, _ = walls(np.array([[-0.5, 0, 0], [0.7, 3, 0]]))
     assert np.allclose(g, [0.4, 0.2], atol=1e-15)
     assert np.array_equal(n[:, 0], [1.0, -1.0])
+
+
+def test_a_point_at_a_centre_or_on_an_axis_has_a_normal():
+    """At a sphere's centre or on a cylinder's axis ∇d is undefined; the distance is then −R
+    (the deepest point) with a unit normal across the axis and no curvature, never an error
+    (an MPI rank that raised there would leave the others waiting in a collective)."""
+    for obstacle, at in ((SPHERE, SPHERE.point), (CYLINDER, CYLINDER.point + [0, 0, 3.0])):
+        d, grad, hessian = obstacle.distance(np.array([at]))
+        assert d[0] == -obstacle.radius
+        assert np.linalg.norm(grad[0]) == pytest.approx(1.0, abs=1e-15)
+        if obstacle is CYLINDER:
+            assert abs(grad[0] @ CYLINDER.direction) < 1e-15
+        assert not hessian.any()
