@@ -299,3 +299,38 @@ def test_verlet_list_holds_every_closing_pair():
     jump = positions.copy()
     jump[7, 0] += 1.01 * margin / (1 + lebesgue_constant(3))
     assert listed.stale(jump)
+
+
+def hairpin(s: np.ndarray, rho: float, leg: float) -> np.ndarray:
+    """A hairpin by arc length s: down the leg x = −ρ (z from ``leg`` to 0), a half circle of
+    radius ρ below the origin, up the leg x = +ρ."""
+    bend = np.clip((s - leg) / rho, 0.0, np.pi)  # the angle turned
+    x = -rho * np.cos(bend)
+    z = np.where(s < leg, leg - s, 0.0) - rho * np.sin(bend) + np.maximum(s - leg - np.pi * rho, 0)
+    return np.column_stack([x, 0 * s, z])
+
+
+def test_self_exclusion_keeps_the_hairpins_legs():
+    """A hairpin of bending radius ρ = 1.5 r (r = 0.1, legs 0.6, 67 P3 cells ≈ r/4 long), margin
+    1.2 r: the legs face each other at 2ρ, so every leg node above z = 0.4 (farther than 2ρ from
+    the bend; its partners straight cells: exact) has a least gap 2ρ − 2r = r (round-off, bound
+    1e-13); lower leg nodes meet their own bend beyond π r of arc (gap 0.086, real); no kept
+    pair has a
+    negative gap (the bend's points ≥ π r apart in arc subtend ≥ π/1.5 rad: chord ≥ 2ρ sin(π/3)
+    = 2.6 r, gap ≥ 0.6 r; P3 interpolates the bend to ~1e-6 r); without the exclusion nodes
+    meet their own neighbours' tubes (negative gaps)."""
+    r, rho, leg, margin = 0.1, 0.15, 0.6, 0.12
+    total = 2 * leg + np.pi * rho
+    n = 67
+    positions, dofs = curve_cells(lambda s: hairpin(s, rho, leg), 0.0, total, n)
+    s = np.linspace(0.0, total, n + 1)
+    arc = np.column_stack([s[:-1], s[1:]])
+    listed = VerletList(positions, dofs, r, margin, arc)
+    assert listed.closest is not None
+    assert listed.closest.gap.min() >= 0.5 * r
+    best = np.full(len(positions), np.inf)
+    np.minimum.at(best, listed.pairs[:, 0], listed.closest.gap)
+    high = positions[:, 2] >= 0.4
+    assert np.allclose(best[high], 2 * rho - 2 * r, atol=1e-13, rtol=0)
+    spurious = VerletList(positions, dofs, r, margin, arc=None)
+    assert spurious.closest is not None and spurious.closest.gap.min() < -r
