@@ -334,3 +334,23 @@ def test_self_exclusion_keeps_the_hairpins_legs():
     assert np.allclose(best[high], 2 * rho - 2 * r, atol=1e-13, rtol=0)
     spurious = VerletList(positions, dofs, r, margin, arc=None)
     assert spurious.closest is not None and spurious.closest.gap.min() < -r
+
+
+def test_closest_points_find_the_least_of_several_minima():
+    """2000 random curved P3 cells (nodes off the unit chord by N(0, 0.15²): wiggly, φ often
+    with two minima) against random nodes: the gap equals the least distance over 2001
+    samples of the cell from above to within the samples' error, max|x_b'| δ/2 (δ = 1/2000:
+    the distance is Lipschitz in ξ), and from below to 1e-14 (a sample is a point of the cell).
+    Newton from the nearest node alone missed the least minimum for 1.6 % of 20 000 such
+    pairs (by up to 0.39); from every sampled local minimum, none."""
+    rng = np.random.default_rng(0)
+    m = 2000
+    cells = np.column_stack([XI3, 0 * XI3, 0 * XI3])[None] + rng.normal(scale=0.15, size=(m, 4, 3))
+    x = rng.normal(scale=0.7, size=(m, 3)) + [0.5, 0, 0]
+    near = closest_points(x, cells)
+    table = shape_functions(3, np.linspace(0, 1, 2001), 1)
+    sampled = np.linalg.norm(np.einsum("qj,mjd->mqd", table[0], cells) - x[:, None], axis=2)
+    speed = np.linalg.norm(np.einsum("qj,mjd->mqd", table[1], cells), axis=2).max(axis=1)
+    excess = sampled.min(axis=1) - near.gap
+    assert np.all(excess >= -1e-14)
+    assert np.all(excess <= 1.1 * speed / 2000 / 2)
