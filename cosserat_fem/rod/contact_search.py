@@ -70,7 +70,7 @@ import numpy as np
 from mpi4py import MPI
 
 #: Closest points are computed in chunks of this many pairs (a working set that stays in the
-#: cache: measured 42 µs a cell at 10⁵ cells instead of 72-97 in one piece).
+#: cache: 42 µs a cell at 10⁵ cells, not 72-97 in one piece, before the sampled starts).
 CHUNK = 1 << 15
 #: Newton starts from each local minimum of the distance sampled at SAMPLES k + 1 points.
 SAMPLES = 4
