@@ -16,9 +16,10 @@ A cell is given by its nodal positions, an array (cells, k+1, 3) [m] in that dof
   their tubes come within ``margin`` of each other (the gap's points differ by ≤ r_a + r_b +
   margin along every axis).
 * **Candidate pairs** (:func:`candidate_pairs`): the boxes hashed into a uniform grid of
-  spacing s (the 90th percentile of the boxes' largest widths; a box meets ∏_c (⌊hi_c/s⌋ −
-  ⌊lo_c/s⌋ + 1) grid cells, ≤ 8 for most), pairs formed within each grid cell, each pair kept
-  once (in the grid cell of its overlap's lower corner) when the boxes overlap. The cost is
+  spacing s (the 90th percentile of the boxes' largest widths, ≥ 1/16 of the widest; a box
+  meets ∏_c (⌊hi_c/s⌋ − ⌊lo_c/s⌋ + 1) grid cells, ≤ 8 for most, ≤ 17³ for the widest), pairs
+  formed within each grid cell, each pair kept once (in the grid cell of its overlap's lower
+  corner) when the boxes overlap. The cost is
   O(n) in the cells when the number of boxes a grid cell meets is bounded (tubes that do not
   interpenetrate pack at most O(s³/(r² h)) cells into a grid cell), plus a sort (n log n).
 * **Self contact** (:func:`exclude_neighbours`): two cells of one rod closer than π r in arc
@@ -138,7 +139,9 @@ def candidate_pairs(
     n = len(lo)
     if n < 2:
         return np.zeros((0, 2), dtype=np.int64)
-    spacing = float(np.quantile((hi - lo).max(axis=1), 0.9))
+    widths = (hi - lo).max(axis=1)
+    # A box meets ≤ 8 grid cells if it is no wider than the spacing, the widest ≤ 17³.
+    spacing = max(float(np.quantile(widths, 0.9)), float(widths.max()) / 16)
     spacing = spacing if spacing > 0.0 else 1.0
     first = np.floor(lo / spacing).astype(np.int64)
     counts = np.floor(hi / spacing).astype(np.int64) - first + 1
