@@ -42,6 +42,8 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from cosserat_fem.common.rotations import cross_matrix
+
 FREE, STICK, SLIP = 0, 1, 2
 #: |g|/ℓ below which a node touches before the augmentation is known (the round-off of a
 #: position placed on a surface is ~1e-16 ℓ)
@@ -69,20 +71,13 @@ def tangent_bases(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     eye = np.eye(3)
     da = -(n[:, :, None] * e[:, None, :] + en[:, None, None] * eye)
     dt1 = np.einsum("kij,kjl->kil", eye - t1[:, :, None] * t1[:, None, :], da) / size[:, None, None]
-    dt2 = -_cross_matrix(t1) + np.einsum("kij,kjl->kil", _cross_matrix(n), dt1)
+    dt2 = -cross_matrix(t1) + np.einsum("kij,kjl->kil", cross_matrix(n), dt1)
     return np.stack([t1, t2], axis=1), np.stack([dt1, dt2], axis=1)
 
 
 def tangential(v: np.ndarray, n: np.ndarray) -> np.ndarray:
     """P v = v − (n·v) n of each row (the part in the tangent plane of the unit normal n)."""
     return v - np.sum(n * v, axis=1)[:, None] * n
-
-
-def _cross_matrix(v: np.ndarray) -> np.ndarray:
-    """[v]× (len(v), 3, 3): [v]× w = v × w."""
-    out = np.zeros((len(v), 3, 3))
-    out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    return out - out.transpose(0, 2, 1)
 
 
 class NodeContact:
