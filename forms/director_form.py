@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import ufl
 
+from .general_form import retardation_times
 from .groups import RodConstants
 from .kinematics import split
 from .resultants import section_law, stiffness_matrix
@@ -216,10 +217,7 @@ def director_residual_terms(
         l_d = -c_r * w0 * w
         terms["damping"] = (-ufl.dot(f_d * ell / fstar, dr) - ufl.dot(l_d / fstar, dth)) * dx
     if retardation_time is not None:
-        if isinstance(retardation_time, int | float):
-            eta = [retardation_time * w0] * 6
-        else:
-            eta = [t * w0 for t in retardation_time]
+        eta = [t * w0 for t in retardation_times(retardation_time)]
         r_st = ufl.as_vector([q[a].dx(0) for a in range(3)])
         d_st = [ufl.as_vector([dt[m].dx(0) for m in range(3)]) for dt in d_t]
         u_t = _axial(d_t, d_s) + _axial(d, d_st)

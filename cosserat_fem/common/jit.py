@@ -436,8 +436,8 @@ def _load(cache_dir: Path, module_name: str, object_names):
     """(objects, module) of a compiled FFCx module, or (None, why it must be compiled again)
     (:func:`load_checked`). The library file is loaded by its path (:func:`_library`: the
     suffix FFCx's finder would take), not by FFCx's ``_load_objects``, whose FileFinder lists
-    the whole cache folder at every form: 5 ms at 16 000 files, most of a test suite's time
-    once many modules are cached (docs/developers.md)."""
+    the whole cache folder at every form: 5-10 ms at 16 000 files, most of a test suite's
+    time once many modules are cached (docs/developers.md)."""
     library = _library(cache_dir, module_name)
 
     def load():
@@ -619,9 +619,7 @@ def install(wait_timeout: float | None = None) -> bool:
             import ffcx.codegeneration.jit as ffcx_jit
         except ImportError:
             return False
-        if not all(
-            callable(getattr(ffcx_jit, name, None)) for name in (*_PATCHED, "_load_objects")
-        ):
+        if not all(callable(getattr(ffcx_jit, name, None)) for name in _PATCHED):
             LOGGER.debug("ffcx.codegeneration.jit is not the FFCx 0.5 layout: not patched")
             return False
         originals = {name: getattr(ffcx_jit, name) for name in _PATCHED}

@@ -1,5 +1,6 @@
 """Rotations in numpy that more than one layer needs: the unit quaternion of a rotation
-matrix (rod/charts.py's charts and outputs, io/beamdyn.py's Wiener–Milenkovic parameters)."""
+matrix (rod/charts.py's charts and outputs, io/beamdyn.py's Wiener–Milenkovic parameters), the
+cross product's matrix and the rotation about an axis (joints, prescribed turns, contact)."""
 
 from __future__ import annotations
 
@@ -53,3 +54,19 @@ def quaternion_of_frame(D: np.ndarray) -> np.ndarray:
             ]
         out[sel] = np.stack(q, -1)
     return np.where(out[..., :1] < 0.0, -out, out)
+
+
+def cross_matrix(v) -> np.ndarray:
+    """[v×] (..., 3, 3), [v×] w = v × w, of v (..., 3), real or complex."""
+    v = np.asarray(v)
+    out = np.zeros((*v.shape[:-1], 3, 3), dtype=np.result_type(v.dtype, float))
+    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    return out - np.swapaxes(out, -1, -2)
+
+
+def axis_rotation(n, alpha) -> np.ndarray:
+    """exp(α [n×]) = I + sin α [n×] + (1 − cos α) [n×]² (Rodrigues): the right-handed turn by
+    α [rad] about the unit axis n (3,); α real or complex, a number or an array (..., 3, 3)."""
+    K = cross_matrix(n)
+    alpha = np.asarray(alpha)[..., None, None]
+    return np.eye(3) + np.sin(alpha) * K + (1.0 - np.cos(alpha)) * (K @ K)

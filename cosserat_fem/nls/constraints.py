@@ -71,23 +71,11 @@ from dolfinx import cpp, fem
 from dolfinx.fem.petsc import assemble_matrix
 from petsc4py import PETSc
 
+from cosserat_fem.common.rotations import axis_rotation, cross_matrix
 from cosserat_fem.rod.charts import angular_map, euler_angles, euler_matrix, quaternion_frame
 
 
 # --- joints whose rotations are tied nonlinearly (hinge, driven) ----------------------------
-def _hat(n) -> np.ndarray:
-    """[n×]: the matrix of the cross product n × ·."""
-    return np.array([[0.0, -n[2], n[1]], [n[2], 0.0, -n[0]], [-n[1], n[0], 0.0]])
-
-
-def _turn(n: np.ndarray, alpha) -> np.ndarray:
-    """exp(α [n×]) for a unit n (Rodrigues), α real or complex, a number or an array
-    (..., 3, 3)."""
-    K = _hat(n)
-    alpha = np.asarray(alpha)[..., None, None]
-    return np.eye(3) + np.sin(alpha) * K + (1.0 - np.cos(alpha)) * (K @ K)
-
-
 def _rotation(angles, frame: np.ndarray) -> np.ndarray:
     """Λ = (D(θ, ψ, φ) A)ᵀ, the spatial rotation of a node whose angles (real or complex,
     (..., 3)) are measured in the chart whose frame is A (rows a_j; charts.py): d_i = Λ d0_i."""
@@ -142,7 +130,7 @@ class Joint:
         M = np.swapaxes(La, -1, -2) @ Lb
         if not self.driven:
             return (M @ self.axis) @ self.basis
-        E = np.swapaxes(_turn(self.axis, angle), -1, -2) @ M
+        E = np.swapaxes(axis_rotation(self.axis, angle), -1, -2) @ M
         return 0.5 * np.stack(
             [E[..., 2, 1] - E[..., 1, 2], E[..., 0, 2] - E[..., 2, 0], E[..., 1, 0] - E[..., 0, 1]],
             axis=-1,
@@ -208,11 +196,13 @@ class Joint:
         a, b = self.master * bs, self.copy * bs
         La, Lb = _rotation(u[a + 3 : a + 6], frames[0]), _rotation(u[b + 3 : b + 6], frames[1])
         if self.driven:
-            target = La @ _turn(self.axis, self.drive[0])
+            target = La @ axis_rotation(self.axis, self.drive[0])
         else:
             s, t = Lb @ self.axis, La @ self.axis
             v, c = np.cross(s, t), float(s @ t)
-            target = (np.eye(3) + _hat(v) + _hat(v) @ _hat(v) / (1.0 + c)) @ Lb
+            target = (
+                np.eye(3) + cross_matrix(v) + cross_matrix(v) @ cross_matrix(v) / (1.0 + c)
+            ) @ Lb
         u[b + 3 : b + 6] = euler_angles(target.T @ frames[1].T, near=u[b + 3 : b + 6])
         alpha = np.concatenate([u[a + 3 : a + 6], u[b + 3 : b + 6]])
         q = np.concatenate([u[a + 9 : a + 12], u[b + 9 : b + 12]])

@@ -42,6 +42,8 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from cosserat_fem.common.rotations import cross_matrix
+
 FREE, STICK, SLIP = 0, 1, 2
 #: |g|/ℓ below which a node touches before the augmentation is known (the round-off of a
 #: position placed on a surface is ~1e-16 ℓ)
@@ -69,15 +71,13 @@ def tangent_bases(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     eye = np.eye(3)
     da = -(n[:, :, None] * e[:, None, :] + en[:, None, None] * eye)
     dt1 = np.einsum("kij,kjl->kil", eye - t1[:, :, None] * t1[:, None, :], da) / size[:, None, None]
-    dt2 = -_cross_matrix(t1) + np.einsum("kij,kjl->kil", _cross_matrix(n), dt1)
+    dt2 = -cross_matrix(t1) + np.einsum("kij,kjl->kil", cross_matrix(n), dt1)
     return np.stack([t1, t2], axis=1), np.stack([dt1, dt2], axis=1)
 
 
-def _cross_matrix(v: np.ndarray) -> np.ndarray:
-    """[v]× (len(v), 3, 3): [v]× w = v × w."""
-    out = np.zeros((len(v), 3, 3))
-    out[:, 0, 1], out[:, 0, 2], out[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
-    return out - out.transpose(0, 2, 1)
+def tangential(v: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """P v = v − (n·v) n of each row (the part in the tangent plane of the unit normal n)."""
+    return v - np.sum(n * v, axis=1)[:, None] * n
 
 
 class NodeContact:
@@ -156,15 +156,20 @@ class NodeContact:
     def __len__(self) -> int:
         return len(self.blocks)
 
+    def positions(self, u: np.ndarray) -> np.ndarray:
+        """The nodes' positions x = r0 + ℓ u_x [m] (len, 3) at the unknowns' local values ``u``
+        (the components a planar model does not solve stay at rest)."""
+        x = self.rest.copy()
+        x[:, self.solved] += self.ell * u[self.px]
+        return x
+
     # -- the rows -------------------------------------------------------------------------
     def apply_vector(self, b: np.ndarray, u: np.ndarray) -> bool:
         """Decide each node's state at the iterate (u, F = ``b``: the owned values of the
         assembled residual, Dirichlet rows set) and replace its rows in ``b``; whether the
         set changed on any rank since the last iterate (collective)."""
         m = self.px.shape[1]
-        x = self.rest.copy()
-        x[:, self.solved] += self.ell * u[self.px]
-        g, normal, hessian = self.surface(x)
+        g, normal, hessian = self.surface(self.positions(u))
         n = normal[:, self.solved]
         curvature = hessian[:, self.solved][:, :, self.solved] * self.ell
         F = b[self.pq]
@@ -179,7 +184,7 @@ class NodeContact:
             active = fN - c * gs >= -zero
         du = u[self.px] - self.u_old
         w = F - (0.0 if c is None else c) * du
-        trial = w - np.sum(n * w, axis=1)[:, None] * n
+        trial = tangential(w, n)
         size = np.linalg.norm(trial, axis=1)
         # μ_k for a node sliding at the last accepted state or at the last iterate: a node
         # that starts to slide meets μ_k f_N and must not stick again by μ_s at once (with
@@ -200,9 +205,7 @@ class NodeContact:
         T, dT = tangent_bases(n)
         friction = F - self.mu_k * fN[:, None] * s
         # the tangential rows are T v: v = Δu (stick), P F − μ_k f_N s (slip)
-        v = np.where(
-            (state == STICK)[:, None], du, friction - np.sum(n * friction, axis=1)[:, None] * n
-        )
+        v = np.where((state == STICK)[:, None], du, tangential(friction, n))
         self._rows = dict(n=n, T=T, dT=dT, F=F, fN=fN, w=w, s=s, size=size, D=curvature, v=v)
         self.force.fill(0.0)
         self.force[:, self.solved] = np.where(active[:, None], F * self.force_scale, 0.0)
@@ -317,9 +320,7 @@ class NodeContact:
     # -- a consistent initial rate (generalized-α) ---------------------------------------
     def touching(self, u: np.ndarray) -> np.ndarray:
         """The nodes (local indices) on an obstacle at the state ``u`` (|g| ≤ TOUCHING ℓ)."""
-        x = self.rest.copy()
-        x[:, self.solved] += self.ell * u[self.px]
-        g, _, _ = self.surface(x)
+        g, _, _ = self.surface(self.positions(u))
         return np.flatnonzero(np.abs(g) <= TOUCHING * self.ell)
 
     def hold_rates(self, A: PETSc.Mat, b: np.ndarray, nodes: np.ndarray, u: np.ndarray) -> None:
@@ -329,12 +330,10 @@ class NodeContact:
         it), and T q̇ = 0 where the node does not slide (stuck), T R = −μ_k (n·R) T v̂ where
         it slides with the tangential velocity v (kinetic friction against it: linear in U̇)
         (collective; A assembled; ``b`` its owned values)."""
-        x = self.rest.copy()
-        x[:, self.solved] += self.ell * u[self.px]
-        _, normal, _ = self.surface(x)
+        _, normal, _ = self.surface(self.positions(u))
         n = normal[:, self.solved]
         T, _ = tangent_bases(n)
-        v = u[self.pq] - np.sum(n * u[self.pq], axis=1)[:, None] * n  # tangential velocity
+        v = tangential(u[self.pq], n)  # the nodes' tangential velocities
         speed = np.linalg.norm(v, axis=1)
         sliding = speed > TOUCHING * np.abs(u[self.pq]).max(initial=0.0) + 1e-300
         drag = np.zeros((len(speed), T.shape[1]))  # μ_k T v̂ of the sliding nodes
@@ -356,16 +355,14 @@ class NodeContact:
         A.assemble()
         rows = b[self.pq[nodes]]
         b[self.pq[nodes, 0]] = 0.0
-        tangential = np.einsum("kij,kj->ki", T[nodes], rows)
-        tangential += drag[nodes] * np.sum(n[nodes] * rows, axis=1)[:, None]
-        b[self.pq[nodes, 1:]] = np.where(sliding[nodes, None], tangential, 0.0)
+        along = np.einsum("kij,kj->ki", T[nodes], rows)
+        along += drag[nodes] * np.sum(n[nodes] * rows, axis=1)[:, None]
+        b[self.pq[nodes, 1:]] = np.where(sliding[nodes, None], along, 0.0)
 
     def normal_reactions(self, r: np.ndarray, nodes: np.ndarray, u: np.ndarray) -> np.ndarray:
         """n·r at the ``nodes``' balance rows of ``r`` (owned values of A U̇ − b of the system
         without :meth:`hold_rates`): the obstacle's push (> 0) or pull (< 0) that holds them."""
-        x = self.rest.copy()
-        x[:, self.solved] += self.ell * u[self.px]
-        _, normal, _ = self.surface(x)
+        _, normal, _ = self.surface(self.positions(u))
         n = normal[nodes][:, self.solved]
         return np.sum(n * r[self.pq[nodes]], axis=1)
 
@@ -375,9 +372,7 @@ class NodeContact:
         solve starts from): the friction's history moves to it, and the work of the sliding
         nodes' friction over the step is added to :attr:`dissipated` (−R_T·Δx ≥ 0 a node)."""
         if initial:  # no iterate yet: the gaps of the state, no force
-            x = self.rest.copy()
-            x[:, self.solved] += self.ell * u[self.px]
-            self.gap = self.surface(x)[0]
+            self.gap = self.surface(self.positions(u))[0]
         else:
             if self.started:
                 self.most_changes = max(self.most_changes, self._changes()[0])

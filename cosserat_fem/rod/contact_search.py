@@ -130,6 +130,9 @@ def candidate_pairs(
 ) -> np.ndarray:
     """The pairs of overlapping boxes, (m, 2) sorted: of one set, (i, j) with i < j; of two,
     (i, j) with i in the first and j in the second. Grid hashing (module docstring)."""
+    boxes = [b for b in (lo, hi, lo_b, hi_b) if b is not None]
+    if not all(np.isfinite(b).all() for b in boxes):  # a diverged state: no pair is lost silently
+        raise FloatingPointError("contact search: a cell's box is not finite")
     side, offset = np.zeros(len(lo), dtype=np.int64), 0
     two = lo_b is not None and hi_b is not None
     if lo_b is not None and hi_b is not None:

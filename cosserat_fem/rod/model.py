@@ -32,6 +32,7 @@ from cosserat_fem import forms
 from cosserat_fem.common import jit
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.common.parallel import agree
+from cosserat_fem.common.rotations import axis_rotation
 from cosserat_fem.forms import follower, rigid_body
 from cosserat_fem.forms import reference as reference_shapes
 from cosserat_fem.forms.general_form import (
@@ -109,9 +110,7 @@ class SupportMotion:
 def rotation_matrix(axis, angle: float) -> np.ndarray:
     """Λ = exp(α n×) = I + sin α n× + (1 − cos α) n×² (Rodrigues): the right-handed rotation
     by ``angle`` α [rad] about the unit ``axis`` n."""
-    n = np.asarray(axis, dtype=float)
-    cross = np.array([[0.0, -n[2], n[1]], [n[2], 0.0, -n[0]], [-n[1], n[0], 0.0]])
-    return np.eye(3) + math.sin(angle) * cross + (1.0 - math.cos(angle)) * cross @ cross
+    return axis_rotation(np.asarray(axis, dtype=float), angle)
 
 
 def prescribed_angle(motion, model: RodModel, t: float, factor: float | None):

@@ -24,7 +24,9 @@ from dolfinx import fem
 from dolfinx.fem.petsc import assemble_vector
 from petsc4py import PETSc
 
-from cosserat_fem.nls.contact import NodeContact
+from cosserat_fem.common.errors import SceneError
+from cosserat_fem.common.parallel import agree
+from cosserat_fem.nls.contact import TOUCHING, NodeContact
 
 
 @dataclass(frozen=True)
@@ -99,29 +101,21 @@ class Surface:
         return d - self.radius, n, hessian
 
 
-def _check_start(model, spec, blocks, sigma, slots, solved) -> None:
+def _check_start(contact: NodeContact, spec, u: np.ndarray, comm) -> None:
     """SceneError (on every rank) naming the obstacle if a node starts inside one, beyond the
     round-off of a position placed on its surface (1e-12 ℓ): its depth and s."""
-    from cosserat_fem.common.errors import SceneError
-    from cosserat_fem.common.parallel import agree
-
-    ell, bs = model.length, model.layout.size
-    x = np.asarray(model.scene.reference.positions(ell * sigma), dtype=float).reshape(-1, 3)
-    u = model.U.x.array
-    for k, slot in zip(solved, slots, strict=True):
-        x[:, k] += ell * u[blocks * bs + slot]
+    x = contact.positions(u)
     problem = None
     for i, obstacle in enumerate(spec.obstacles):
         g = Obstacle.of(obstacle).distance(x)[0] - float(spec.radius)
-        inside = g < -1e-12 * ell
-        if inside.any() and problem is None:
+        if (g < -TOUCHING * contact.ell).any() and problem is None:
             j = int(np.argmin(g))
             problem = SceneError(
                 f"contact.obstacles[{i}]: the rod starts inside this {obstacle.kind}, "
-                f"{-g[j]:.3g} m deep at s = {ell * sigma[j]:.4g} m (its surface of radius "
+                f"{-g[j]:.3g} m deep at s = {contact.places[j]:.4g} m (its surface of radius "
                 f"{float(spec.radius):.3g} m included); move the obstacle or the rod"
             )
-    agree(model.V.mesh.comm, problem)
+    agree(comm, problem)
 
 
 def contact_rows(model) -> NodeContact | None:
@@ -148,7 +142,6 @@ def contact_rows(model) -> NodeContact | None:
     blocks = blocks[free]
     ell = model.length
     sigma = V.tabulate_dof_coordinates()[blocks, 0]
-    _check_start(model, spec, blocks, sigma, [positions[k] for k in solved], solved)
     rest = np.asarray(model.scene.reference.positions(ell * sigma), dtype=float).reshape(-1, 3)
     surface = Surface([Obstacle.of(o) for o in spec.obstacles], float(spec.radius))
     # each node's share of the length, ℓ ∫ φ_k dσ [m]: a nodal force over it is a load per length
@@ -171,4 +164,5 @@ def contact_rows(model) -> NodeContact | None:
         places=ell * sigma,
         max_changes=spec.max_changes,
     )
+    _check_start(model.contact, spec, model.U.x.array, V.mesh.comm)
     return model.contact

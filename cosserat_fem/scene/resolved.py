@@ -734,17 +734,15 @@ class StructureSupport:
         return (*p, *(6 + i for i in p))
 
 
-#: The components of U = (p, q) a joint's copies share, by kind ([[structure.joints]]): a
-#: spherical joint the position (x, y, z)/ℓ and its rate, its angles free; a hinge about e3
-#: also θ and ψ and their rates. The rotation is Λ = A(Q) R2(ψ) R1(θ) R3(φ) in a node's chart
-#: Q (rod/charts.py), so two copies with one chart and equal θ, ψ differ by R3(φ_b − φ_a)
-#: only: a turn about the rest axis e3, the same in both members (so the chart may not move:
-#: rod/model.py RodModel.new_chart).
+#: The components of U = (p, q) a joint's copies share by identification, by kind
+#: ([[structure.joints]]): the position (x, y, z)/ℓ and its rate; a hinge's and a driven
+#: joint's rotations are tied by nonlinear rows besides (nls/constraints.py Joint), a
+#: spherical joint's are free.
+_POSITIONS = (0, 1, 2, 6, 7, 8)
 JOINT_COMPONENTS: dict[str, tuple[int, ...]] = {
-    "spherical": (0, 1, 2, 6, 7, 8),
-    # a hinge's and a driven joint's rotations: nonlinear rows (nls/constraints.py Joint)
-    "hinge": (0, 1, 2, 6, 7, 8),
-    "driven": (0, 1, 2, 6, 7, 8),
+    "spherical": _POSITIONS,
+    "hinge": _POSITIONS,
+    "driven": _POSITIONS,
     "rigid": tuple(range(12)),  # a loaded junction's split (Structure.splits): no joint at all
 }
 
