@@ -26,14 +26,35 @@ Eliminating s0 from z: w z = T − H + (T² − H²)/(2 EA), so at the top
     T_top + T_top²/(2 EA) = H + H²/(2 EA) + w h,                                     (K.3)
 
 a quadratic in T_top (EA → ∞: T_top = H + w h, docs/contact-design.md (C.2)), whence
-S0 = sqrt(T_top² − H²)/w. (K.3) also holds with bending stiffness (T + T²/(2EA) + EI κ²/2 − w z
-is a first integral of the inextensible-in-bending rod under gravity: tests/test_riser.py).
+S0 = sqrt(T_top² − H²)/w (with bending stiffness: (K.4) below).
 Given the top's position, X_top(H) of (K.2) with S0(H) from (K.3) increases with H (a tauter
 cable hangs from further away), so H is the root of one monotone equation (brentq on a
 bracket grown by factors of 2). Given the top's force (H, V) instead, S0 = V/w directly.
 
 The touchdown point is at s = L − S0 (unstretched, from the anchor) and at the horizontal
-distance (L − S0)(1 + H/EA) from it. Units: SI (any consistent set).
+distance (L − S0)(1 + H/EA) from it.
+
+**Bending stiffness** EI (a rod, its top free to turn: no moment there), by matched
+asymptotics in λ = sqrt(EI/H) ≪ a = H/w (θ the tangent's angle to the seabed; above the
+touchdown the internal force is n(s) = F − w (L − s) e_z, F = (H, V) the top's force, of angle
+θ_n, and the moment balance is EI θ'' = T (θ − θ_n) to first order):
+
+* at the touchdown (the beam-column EI y'''' − H y'' = −w on a rigid seabed, y = y' = y'' = 0
+  there) the seabed's point reaction is w λ, so the touchdown point moves to
+  s = L − S0 − λ, S0 = V/w, and the outer catenary's vertex is λ²/(2a) above the seabed;
+* along the suspended part θ − θ_n = (EI/T) θ_n''; at the top a layer of length sqrt(EI/T_top)
+  turns the tangent by −κ_t sqrt(EI/T_top) (κ_t = w H/T_top² the catenary's curvature there),
+  and its shear force is Q_t = κ_t sqrt(EI T_top).
+
+For the top's force (H, V) given, the top moves by, to O(λ²) (θ_t = atan(V/H)),
+
+    δX_top = (λ²/a) (θ_t/4 − sin 4θ_t/16 + cos³θ_t sin θ_t),
+    δh = −(λ²/(2a)) cos⁴θ_t,                                                          (K.4)
+
+and (K.3) holds for the top's axial force N_t = sqrt(T_top² − Q_t²) (T + T²/(2EA) + EI κ²/2
+− w z is a first integral of the unshearable rod under gravity; the seabed's reactions act
+where the tangent is horizontal): the same δh, w δh = −Q_t²/(2 T_top) to O(λ²).
+Units: SI (any consistent set).
 """
 
 from __future__ import annotations
@@ -137,3 +158,11 @@ def from_top_position(
     if result.S0 > L:
         raise ValueError(f"top at h = {h}, X_top = {X_top}: the cable (L = {L}) leaves the seabed")
     return result
+
+
+def bending_shift(weight: float, H: float, V: float, EI: float) -> tuple[float, float]:
+    """(K.4): the top's horizontal and vertical moves (δX_top, δh) [m] by the bending
+    stiffness EI [N m²] of a cable whose top carries the force (H, V) [N], to O(λ²)."""
+    theta, a, lam2 = math.atan2(V, H), H / weight, EI / H
+    dX = lam2 / a * (theta / 4 - math.sin(4 * theta) / 16 + math.cos(theta) ** 3 * math.sin(theta))
+    return dX, -lam2 / (2 * a) * math.cos(theta) ** 4

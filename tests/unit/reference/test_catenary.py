@@ -12,6 +12,8 @@ length against independent forms.
 * h → 0 (a cable barely lifted, H fixed): the suspended part is the parabola's, S0 ≈ X ≈
   sqrt(2 a h) (a = H/w), and X_top → L (EA = ∞): S0/sqrt(2ah) − 1 = O(h/a), measured
   against the bound h/a at h/a = 1e-4.
+* The bending's shift of the top (K.4) against its pieces, the suspended part's integral by
+  quadrature in the arc length (1e-10), and its δh against the first integral's −Q_t²/(2 w T_top).
 * Refusals: a top too low for a slack cable to reach with a vertex (X_top ≤ L − h), and a
   force lifting the whole cable (V ≥ w L): ValueError.
 """
@@ -23,7 +25,12 @@ import math
 import pytest
 from scipy.integrate import quad
 
-from cosserat_fem.reference.catenary import from_top_force, from_top_position, top_tension
+from cosserat_fem.reference.catenary import (
+    bending_shift,
+    from_top_force,
+    from_top_position,
+    top_tension,
+)
 
 pytestmark = pytest.mark.unit
 
@@ -87,3 +94,35 @@ def test_unreachable_tops_are_refused():
         from_top_position(W, EA, L, 3.0, 12.0)
     with pytest.raises(ValueError, match="0 < V < w L"):
         from_top_force(W, EA, L, 1.0, W * L)
+
+
+@pytest.mark.parametrize(("H", "V"), [(6.0, 9.0), (2.0, 2.2), (10.0, 1.0)])
+def test_the_bending_shift_is_its_pieces_integrated(H, V):
+    """(K.4) against its pieces summed with the suspended part's integral done by quadrature
+    in the arc length (θ_n = atan(w s/H); the integrand in s, not (K.4)'s substitution in θ):
+    δX = −∫ (EI/T) θ_n'' sin θ_n ds + κ_t λ_t² sin θ_t and δh = λ²/(2a) +
+    ∫ (EI/T) θ_n'' cos θ_n ds − κ_t λ_t² cos θ_t (the touchdown's and the top's layers,
+    λ_t² = EI/T_top), to 1e-10; and w δh = −Q_t²/(2 T_top) (the first integral's form)."""
+    EI = 0.01
+    S0, T_top = V / W, math.hypot(H, V)
+
+    def theta(s):
+        return math.atan(W * s / H)
+
+    def bend(s):
+        u = W * s / H  # θ_n'' = d²/ds² atan(u) = −2 (w/H)² u/(1 + u²)²
+        return EI * -2 * (W / H) ** 2 * u / (1 + u**2) ** 2 / math.hypot(H, W * s)
+
+    def integral(f):
+        return quad(f, 0, S0, epsabs=0, epsrel=1e-12, limit=200)[0]
+
+    kappa, lam_t2 = W * H / T_top**2, EI / T_top
+    theta_t = math.atan2(V, H)
+    dX = -integral(lambda s: bend(s) * math.sin(theta(s))) + kappa * lam_t2 * math.sin(theta_t)
+    dh = EI / H / (2 * H / W) + integral(lambda s: bend(s) * math.cos(theta(s)))
+    dh -= kappa * lam_t2 * math.cos(theta_t)
+    shift = bending_shift(W, H, V, EI)
+    assert shift[0] == pytest.approx(dX, rel=1e-10)
+    assert shift[1] == pytest.approx(dh, rel=1e-10)
+    shear = kappa * math.sqrt(EI * T_top)
+    assert W * shift[1] == pytest.approx(-(shear**2) / (2 * T_top), rel=1e-12)
