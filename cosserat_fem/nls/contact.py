@@ -395,20 +395,20 @@ class NodeContact:
         of the force (their numerical dissipation, or gain, of the jump), which no counter
         holds (docs/contact.md, "The dropped rod's energy"). On a plane n·Δx = Δg: the normal
         work is −R_N g_old at the step a node lands (g = 0 at both ends after it)."""
-        if initial:  # no iterate yet: the gaps of the state, no force
+        if initial:  # no iterate yet: the gaps of the state, no force, no step's work
             self.gap = self.surface(self.positions(u))[0]
         else:
             if self.started:
                 self.most_changes = max(self.most_changes, self._changes()[0])
             self.started = True
-        dx = np.zeros((len(self), 3))
-        dx[:, self.solved] = self.ell * (u[self.px] - self.u_old)
-        n = self.surface(self.positions(u))[1]
-        normal = np.sum(n * self.force, axis=1) * np.sum(n * dx, axis=1)
-        work = np.array([np.sum(normal), np.sum(self.force * dx)])  # (W.1): normal, whole
-        normal_work, whole = self.comm.allreduce(work)
-        self.impact_loss -= float(normal_work)
-        self.dissipated -= float(whole - normal_work)
+            dx = np.zeros((len(self), 3))
+            dx[:, self.solved] = self.ell * (u[self.px] - self.u_old)
+            n = self.surface(self.positions(u))[1]
+            normal = np.sum(n * self.force, axis=1) * np.sum(n * dx, axis=1)
+            work = np.array([np.sum(normal), np.sum(self.force * dx)])  # (W.1): normal, whole
+            normal_work, whole = self.comm.allreduce(work)
+            self.impact_loss -= float(normal_work)
+            self.dissipated -= float(whole - normal_work)
         self.u_old = u[self.px].copy()
         self.accepted = self.state.copy()
         self.most = max(self.most, self.counts()["contact"])
