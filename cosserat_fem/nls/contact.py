@@ -389,12 +389,12 @@ class NodeContact:
         error of the elastic forces and the rotations, O(h³) a step (the positions are
         Lipschitz across impacts): O(h²) in all (tests/test_contact_energy.py). A trapezoid
         of consecutive forces would credit the landing step with half its impulse's work:
-        an O(1) error an impact. For
-        BDF2 and generalized-α at ρ∞ < 1 no quadrature of R closes the balance at an impact:
-        their kinetic energy at a velocity jump Δv changes by O(Δvᵀ M Δv) more than any work
-        of the force (their numerical dissipation, or gain, of the jump), which no counter
-        holds (docs/contact.md, "The dropped rod's energy"). On a plane n·Δx = Δg: the normal
-        work is −R_N g_old at the step a node lands (g = 0 at both ends after it)."""
+        an O(1) error an impact. For BDF2 and generalized-α at ρ∞ < 1 no quadrature of R
+        closes the balance at an impact: their kinetic energy at a velocity jump Δv changes
+        by O(Δvᵀ M Δv) more than any work of the force (their numerical dissipation, or
+        gain, of the jump), which no counter holds (docs/contact.md, "The dropped rod's
+        energy"). On a plane n·Δx = Δg: the normal work is −R_N g_old at the step a node
+        lands (g = 0 at both ends after it)."""
         if initial:  # no iterate yet: the gaps of the state, no force, no step's work
             self.gap = self.surface(self.positions(u))[0]
         else:
