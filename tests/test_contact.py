@@ -296,8 +296,10 @@ def test_kinetic_friction_slides_and_static_friction_holds():
 def test_a_sliding_run_restarts_bit_for_bit(tmp_path):
     """To 0.15 s in one go, and to 0.1 s then restarted from its checkpoint: the same states,
     bit for bit (the contact's set, its friction history and augmentation are in the
-    checkpoint), while the rod still slides at 0.1 s."""
+    checkpoint), while the rod still slides at 0.1 s. Released 1 mm above the plane, it lands
+    at 14 ms: the counters (friction_work_J, impact_loss_J > 0) are restored too."""
     data = sliding("bdf2", 0.005, end=0.15)
+    data["initial"]["displacement"] = ["0.001", 0, 0]
     data["output"] = {"checkpoint_interval": 0.05}
     whole = api.run(scene_from_dict(data), tmp_path / "whole")
     part = {**data, "time": {**data["time"], "end": 0.1}}
@@ -306,6 +308,7 @@ def test_a_sliding_run_restarts_bit_for_bit(tmp_path):
     rest = api.run(scene, restart=checkpoint)
     assert np.array_equal(whole.model.U.x.array, rest.model.U.x.array)
     assert whole.summary["contact"] == rest.summary["contact"]
+    assert whole.summary["contact"]["impact_loss_J"] > 0
 
 
 def test_contact_is_refused_where_it_is_not_imposed():

@@ -140,8 +140,10 @@ class NodeContact:
         #: the contact force [N] on each node (fixed basis) and its gap [m], at the last iterate
         self.force = np.zeros((count, 3))
         self.gap = np.zeros(count)
-        #: the work friction dissipated [J] over the accepted states
+        #: the work friction dissipated [J] over the accepted states (:meth:`accept`)
         self.dissipated = 0.0
+        #: the energy the normal contact forces took [J] over the accepted states (:meth:`accept`)
+        self.impact_loss = 0.0
         #: the most nodes in contact in an accepted state
         self.most = 0
         self._rows: dict = {}
@@ -369,19 +371,44 @@ class NodeContact:
     # -- the history ----------------------------------------------------------------------
     def accept(self, u: np.ndarray, initial: bool = False) -> None:
         """The solved state ``u`` is kept (a load step, a time step; ``initial``: the state a
-        solve starts from): the friction's history moves to it, and the work of the sliding
-        nodes' friction over the step is added to :attr:`dissipated` (−R_T·Δx ≥ 0 a node)."""
-        if initial:  # no iterate yet: the gaps of the state, no force
+        solve starts from): the friction's history moves to it, and the work of the contact
+        forces over the step is added to the counters, split along the normal n at ``u``:
+
+            W = Σ_k R_k · Δx_k,   Δx_k = ℓ (u_x − u_x,old) at node k,                     (W.1)
+            :attr:`impact_loss` += −Σ_k (n·R_k)(n·Δx_k),
+            :attr:`dissipated` += −Σ_k (R_k − (n·R_k) n)·Δx_k      (friction, ≥ 0 a sliding
+            node; 0 at a stuck one, whose row T Δu = 0 holds),
+
+        with R_k the force of the step's solve (the replaced rows' residual at its last
+        iterate: at the step's end for BDF2, at generalized-α's α_f point, 0 at a free node)
+        and Δx over the whole step: one force a step, not a trapezoid of two steps' forces.
+        Why: the midpoint rule (generalized-α at ρ∞ = 1) solves M (v₁ − v₀)/h = f(x_m) + R
+        with Δx = h (v₀ + v₁)/2, so ½ v₁ᵀM v₁ − ½ v₀ᵀM v₀ = (f(x_m) + R)·Δx exactly, at an
+        impact too (v jumps within the step; the impulse's work is R h at the mean velocity,
+        Kelvin's theorem), and E(t) + W_friction + W_impact + W_damping − E(0) is the midpoint
+        error of the elastic forces and the rotations, O(h³) a step (the positions are
+        Lipschitz across impacts): O(h²) in all (tests/test_contact_energy.py). A trapezoid
+        of consecutive forces would credit the landing step with half its impulse's work:
+        an O(1) error an impact. For BDF2 and generalized-α at ρ∞ < 1 no quadrature of R
+        closes the balance at an impact: their kinetic energy at a velocity jump Δv changes
+        by O(Δvᵀ M Δv) more than any work of the force (their numerical dissipation, or
+        gain, of the jump), which no counter holds (docs/contact.md, "The dropped rod's
+        energy"). On a plane n·Δx = Δg: the normal work is −R_N g_old at the step a node
+        lands (g = 0 at both ends after it)."""
+        if initial:  # no iterate yet: the gaps of the state, no force, no step's work
             self.gap = self.surface(self.positions(u))[0]
         else:
             if self.started:
                 self.most_changes = max(self.most_changes, self._changes()[0])
             self.started = True
-        dx = np.zeros((len(self), 3))
-        dx[:, self.solved] = self.ell * (u[self.px] - self.u_old)
-        slip = self.state == SLIP
-        local = -float(np.sum(self.force[slip] * dx[slip]))  # the normal part: g = 0 at both
-        self.dissipated += self.comm.allreduce(local)
+            dx = np.zeros((len(self), 3))
+            dx[:, self.solved] = self.ell * (u[self.px] - self.u_old)
+            n = self.surface(self.positions(u))[1]
+            normal = np.sum(n * self.force, axis=1) * np.sum(n * dx, axis=1)
+            work = np.array([np.sum(normal), np.sum(self.force * dx)])  # (W.1): normal, whole
+            normal_work, whole = self.comm.allreduce(work)
+            self.impact_loss -= float(normal_work)
+            self.dissipated -= float(whole - normal_work)
         self.u_old = u[self.px].copy()
         self.accepted = self.state.copy()
         self.most = max(self.most, self.counts()["contact"])
@@ -438,12 +465,15 @@ class NodeContact:
 
     def summary(self) -> dict:
         """summary.json's "contact": the nodes in contact, sticking and sliding at the last
-        iterate, the most in contact in an accepted state, the friction's work [J]."""
+        iterate, the most in contact in an accepted state, the friction's work
+        ``friction_work_J`` and the impacts' energy loss ``impact_loss_J`` [J] (the normal
+        forces' work, negated; :meth:`accept`: −(their sum) is the contact's whole work)."""
         return {
             **{f"nodes_{k}": v for k, v in self.counts().items()},
             "most_nodes_in_contact": self.most,
             "most_changes_in_a_step": self.most_changes,
             "friction_work_J": self.dissipated,
+            "impact_loss_J": self.impact_loss,
         }
 
     def state_dict(self) -> dict:
@@ -453,6 +483,7 @@ class NodeContact:
             "contact.u_old": self.u_old.copy(),
             "contact.c": np.array(np.nan if self.c is None else self.c),
             "contact.dissipated": np.array(self.dissipated),
+            "contact.impact_loss": np.array(self.impact_loss),
             "contact.most": np.array(self.most),
             "contact.most_changes": np.array(self.most_changes),
             "contact.started": np.array(self.started),
@@ -465,6 +496,7 @@ class NodeContact:
         c = float(state["contact.c"])
         self.c = None if np.isnan(c) else c
         self.dissipated = float(state["contact.dissipated"])
+        self.impact_loss = float(state["contact.impact_loss"])
         self.most = int(state["contact.most"])
         self.most_changes = int(state["contact.most_changes"])
         self.started = bool(state["contact.started"])
