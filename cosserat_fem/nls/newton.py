@@ -57,6 +57,7 @@ from ufl.algorithms.analysis import extract_coefficients, extract_constants
 from cosserat_fem.common.errors import CosseratError
 from cosserat_fem.nls.constraints import Identification
 from cosserat_fem.nls.contact import NodeContact
+from cosserat_fem.nls.contacts import Contacts
 from cosserat_fem.nls.native_newton import NativeLoop, core
 
 JACOBIAN_POLICIES = ("full", "lagged", "frozen")
@@ -158,7 +159,7 @@ class NewtonSolver:
         form_compiler_params: dict | None = None,
         jit_params: dict | None = None,
         constraints: Identification | None = None,
-        contact: NodeContact | None = None,
+        contact: NodeContact | Contacts | None = None,
     ):
         if settings.jacobian not in JACOBIAN_POLICIES:
             raise ValueError(f"unknown Jacobian policy {settings.jacobian!r}")
@@ -415,7 +416,14 @@ class NewtonSolver:
             assemble_matrix(A, self.J_form, bcs=self.bcs)  # type: ignore[misc]
             A.assemble()
         if self.contact is not None:
+            before = A.getInfo()["nz_allocated"]
             self.contact.apply_matrix(A)
+            if A.getInfo()["nz_allocated"] != before:
+                # self contact's rows added entries (cosserat_fem/nls/pair_contact.py): a new
+                # factorization from scratch (MUMPS 5.5 under PETSc 3.18 reused the first
+                # analysis's arrays for the larger pattern and corrupted the heap)
+                self.ksp.reset()
+                self.ksp.setOperators(A)
 
     def _converged(self, it: int, norms) -> int:
         """The stop rule of the module docstring (``cf_test``, the one cf_solve runs) after

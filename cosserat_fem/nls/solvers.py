@@ -10,6 +10,7 @@ from dolfinx import fem
 
 from cosserat_fem.nls.constraints import Identification
 from cosserat_fem.nls.contact import NodeContact
+from cosserat_fem.nls.contacts import Contacts
 from cosserat_fem.nls.newton import NewtonSettings, NewtonSolver
 
 
@@ -19,7 +20,7 @@ def make_solver(
     bcs: list,
     settings: NewtonSettings,
     constraints: Identification | None = None,
-    contact: NodeContact | None = None,
+    contact: NodeContact | Contacts | None = None,
 ) -> NewtonSolver:
     """The nonlinear solver of F(U) = 0 that ``settings`` choose: PETSc's SNES configured by
     ``settings.petsc`` (:class:`~cosserat_fem.nls.snes.SNESSolver`) for

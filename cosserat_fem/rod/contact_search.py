@@ -305,6 +305,59 @@ def closest_points(
     return ClosestPoints(xi, origin - rel, gap, rel / norm[:, None], weights)
 
 
+@dataclass(frozen=True)
+class Sensitivities:
+    """The derivatives of node-to-cell closest points with respect to the positions of the
+    K = k + 2 points X = (x_a, x_0, ..., x_k) (the node, then the cell's nodes in dof order):
+    ``gap`` (m, K, 3), ``normal`` (m, 3, K, 3) (∂n_p/∂X_iq), ``weights`` (m, k+1, K, 3)."""
+
+    gap: np.ndarray
+    normal: np.ndarray
+    weights: np.ndarray
+
+
+def closest_point_sensitivities(
+    x: np.ndarray, cells: np.ndarray, closest: ClosestPoints
+) -> Sensitivities:
+    """The derivatives of :func:`closest_points`' answer at the nodes ``x`` (m, 3) and cells
+    ``cells`` (m, k+1, 3). With d = x_a − x_b(ξ), ρ = |d|, n = d/ρ, t = x_b'(ξ), x_b'' = t₂,
+    an interior closest point keeps h = d·t = 0, so
+
+        (|t|² − d·t₂) dξ = t·(dx_a − Σ N_j dx_j) + d·Σ N_j' dx_j,                       (S.3)
+        dg = n·(dx_a − Σ N_j dx_j),   dn = (I − n nᵀ)(dx_a − Σ N_j dx_j − t dξ)/ρ,
+        dN_j = N_j' dξ;
+
+    at an end of the cell (ξ = 0 or 1, where h ≠ 0 in general) dξ = 0 and dg gains −(n·t) dξ
+    = 0 all the same. (S.3)'s coefficient is > 0 at a strict interior minimum; where it is not
+    (a node at a centre of curvature of the cell) ξ is held (dξ = 0)."""
+    k = _degree(cells)
+    m = len(x)
+    table = shape_functions(k, closest.xi, 2)
+    N, dN, ddN = table[0], table[1], table[2]
+    t = np.einsum("mj,mjd->md", dN, cells)
+    t2 = np.einsum("mj,mjd->md", ddN, cells)
+    d = x - np.einsum("mj,mjd->md", N, cells)
+    rho = np.linalg.norm(d, axis=1)
+    n = d / rho[:, None]
+    # the weights of the K points in dx_a − Σ N_j dx_j and in Σ N_j' dx_j
+    w = np.concatenate([np.ones((m, 1)), -N], axis=1)  # (m, K)
+    wd = np.concatenate([np.zeros((m, 1)), dN], axis=1)
+    coefficient = np.einsum("md,md->m", t, t) - np.einsum("md,md->m", d, t2)
+    interior = (closest.xi > 0.0) & (closest.xi < 1.0) & (coefficient > 0.0)
+    scale = np.where(interior, 1.0 / np.where(coefficient > 0.0, coefficient, 1.0), 0.0)
+    # dξ/dX_iq = (w_i t_q + wd_i d_q)/coefficient (m, K, 3)
+    dxi = (w[:, :, None] * t[:, None, :] + wd[:, :, None] * d[:, None, :]) * scale[:, None, None]
+    gap = w[:, :, None] * n[:, None, :]
+    P = np.eye(3) - n[:, :, None] * n[:, None, :]
+    # dn_p/dX_iq = (P_pq w_i − (P t)_p dξ/dX_iq)/ρ
+    Pt = np.einsum("mpq,mq->mp", P, t)
+    normal = (
+        P[:, :, None, :] * w[:, None, :, None] - Pt[:, :, None, None] * dxi[:, None, :, :]
+    ) / rho[:, None, None, None]
+    weights = dN[:, :, None, None] * dxi[:, None, :, :]
+    return Sensitivities(gap, normal, weights)
+
+
 def cell_pairs(
     nodes: np.ndarray,
     radius: np.ndarray | float,

@@ -51,6 +51,7 @@ from cosserat_fem.forms.resultants import scaled_law
 from cosserat_fem.forms.section import SectionLaw
 from cosserat_fem.nls.constraints import Identification, Joint
 from cosserat_fem.nls.contact import NodeContact
+from cosserat_fem.nls.contacts import Contacts
 from cosserat_fem.rod import charts
 from cosserat_fem.rod.charts import change_chart, change_chart_rate, chart_of
 from cosserat_fem.rod.load_coefficients import DataLoads
@@ -262,7 +263,7 @@ class RodModel:
     constraints: Identification | None = None
     #: The contact rows (cosserat_fem/nls/contact.py; made by rod/obstacles.py contact_rows),
     #: whose ``values`` the outputs read; None: no contact.
-    contact: NodeContact | None = None
+    contact: NodeContact | Contacts | None = None
 
     @property
     def needs_chart(self) -> bool:

@@ -27,6 +27,9 @@ from petsc4py import PETSc
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.common.parallel import agree
 from cosserat_fem.nls.contact import TOUCHING, NodeContact
+from cosserat_fem.nls.contacts import Contacts
+from cosserat_fem.nls.pair_contact import PairContact
+from cosserat_fem.rod.self_contact import SelfContactGeometry
 
 
 @dataclass(frozen=True)
@@ -118,13 +121,14 @@ def _check_start(contact: NodeContact, spec, u: np.ndarray, comm) -> None:
     agree(comm, problem)
 
 
-def contact_rows(model) -> NodeContact | None:
+def contact_rows(model) -> NodeContact | Contacts | None:
     """The contact rows of a rod's ``model`` (cosserat_fem/rod/model.py) whose scene has a
     [contact] table, else None: every owned node whose positions no support holds, at its
     rest position r0(s) (the scene's [reference]), the positions x = r0 + ℓ u, the balance
     rows' forces in N times g0/ℓ (forms/general_form.py: a nodal force P enters its row as
-    g0 P/ℓ), their shares of the length ℓ ∫ φ_k dσ. Kept as ``model.contact``, whose
-    ``values`` the outputs read."""
+    g0 P/ℓ), their shares of the length ℓ ∫ φ_k dσ; with ``self_contact`` the rod's pairs
+    too (cosserat_fem/rod/self_contact.py, :class:`~cosserat_fem.nls.contacts.Contacts`).
+    Kept as ``model.contact``, whose ``values`` the outputs read."""
     spec = model.scene.contact
     if spec is None:
         return None
@@ -137,32 +141,64 @@ def contact_rows(model) -> NodeContact | None:
         held[dofs[dofs < owned * bs]] = True
     positions = [layout.index(k) for k in range(3)]
     solved = [k for k in range(3) if positions[k] is not None]
-    blocks = np.arange(owned, dtype=np.int32)
-    free = ~held.reshape(owned, bs)[:, [positions[k] for k in solved]].any(axis=1)
-    blocks = blocks[free]
+    held_nodes = held.reshape(owned, bs)[:, [positions[k] for k in solved]].any(axis=1)
     ell = model.length
-    sigma = V.tabulate_dof_coordinates()[blocks, 0]
+    sigma = V.tabulate_dof_coordinates()[:owned, 0]
     rest = np.asarray(model.scene.reference.positions(ell * sigma), dtype=float).reshape(-1, 3)
-    surface = Surface([Obstacle.of(o) for o in spec.obstacles], float(spec.radius))
     # each node's share of the length, ℓ ∫ φ_k dσ [m]: a nodal force over it is a load per length
     scalar = fem.FunctionSpace(model.msh, ("Lagrange", V.ufl_element().degree()))
     shares = assemble_vector(fem.form(ufl.TestFunction(scalar) * model.dx))
     shares.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    model.contact = NodeContact(
-        V,
-        blocks,
-        rest,
-        surface,
+    shares = ell * shares.array[:owned]
+    common = dict(
         length=ell,
         force_scale=ell / model.groups.g0,
-        shares=ell * shares.array[blocks],
         position_slots=[positions[k] for k in solved],
         balance_slots=[layout.index(6 + k) for k in solved],
         solved=solved,
-        static_friction=spec.static_friction,
-        kinetic_friction=spec.kinetic,
-        places=ell * sigma,
-        max_changes=spec.max_changes,
     )
-    _check_start(model.contact, spec, model.U.x.array, V.mesh.comm)
+    obstacles = None
+    if spec.obstacles:
+        free = np.flatnonzero(~held_nodes).astype(np.int32)
+        obstacles = NodeContact(
+            V,
+            free,
+            rest[free],
+            Surface([Obstacle.of(o) for o in spec.obstacles], float(spec.radius)),
+            shares=shares[free],
+            static_friction=spec.static_friction,
+            kinetic_friction=spec.kinetic,
+            places=ell * sigma[free],
+            max_changes=spec.max_changes,
+            **common,
+        )
+        _check_start(obstacles, spec, model.U.x.array, V.mesh.comm)
+    model.contact = obstacles
+    if spec.self_contact:
+        model.contact = Contacts(
+            obstacles,
+            PairContact(
+                V,
+                rest,
+                held_nodes,
+                _self_geometry(model, ell * sigma, float(spec.radius)),
+                places=ell * sigma,
+                shares=shares,
+                **common,
+            ),
+        )
     return model.contact
+
+
+def _self_geometry(model, places: np.ndarray, radius: float) -> SelfContactGeometry:
+    """The rod's cells as global node indices (every rank's, gathered) and its nodes' arc
+    lengths, for the self-contact search; the Verlet margin 2r (rebuilt when a node has moved
+    2r/(1 + Λ_k))."""
+    V = model.V
+    comm = V.mesh.comm
+    imap = V.dofmap.index_map
+    cells = model.msh.topology.index_map(model.msh.topology.dim).size_local
+    local = np.array([V.dofmap.cell_dofs(c) for c in range(cells)], dtype=np.int32)
+    dofs = imap.local_to_global(local.ravel()).reshape(local.shape)
+    every = np.vstack(comm.allgather(dofs)).astype(np.int64)
+    return SelfContactGeometry(every, np.concatenate(comm.allgather(places)), radius, 2.0 * radius)

@@ -1111,8 +1111,11 @@ def _build_contact(raw: dict[str, Any] | None, rod: Rod) -> Contact | None:
                     raise SceneError(f"{name}.{k}: must not be the zero vector")
                 values[k] = tuple(float(x) for x in v / norm)
         obstacles.append(build(Obstacle, values))
-    if not obstacles:
-        raise SceneError("contact.obstacles: give one obstacle at least ([[contact.obstacles]])")
+    if not obstacles and not raw["self_contact"]:
+        raise SceneError(
+            "contact.obstacles: give one obstacle at least ([[contact.obstacles]]), or "
+            "self_contact = true"
+        )
     radius = raw["radius"]
     if radius == "auto":
         section = rod.section

@@ -1147,9 +1147,12 @@ class Contact:
     ``static_friction`` times the normal force, and slides against it with
     ``kinetic_friction`` (by default the static coefficient) times the normal force. The
     surface is a tube of ``radius`` [m] about the centreline: "auto" is a circular section's
-    radius (a tube's outer one)."""
+    radius (a tube's outer one). ``self_contact``: the rod's surface does not pass through
+    itself either (without friction)."""
 
-    obstacles: tuple[Obstacle, ...] = key(Tables(item=Obstacle, required=True))
+    obstacles: tuple[Obstacle, ...] = key(Tables(item=Obstacle, default=[]), default=())
+    #: the rod's contact with itself (frictionless; docs/contact.md, "Self contact")
+    self_contact: bool = key(Flag(default=False), default=False)
     static_friction: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="-"))
     kinetic_friction: float | None = key(Number(interval=NON_NEGATIVE, unit="-"), default=None)
     radius: float | str = key(Number(default="auto", interval=POSITIVE, unit="m", auto=True))

@@ -38,6 +38,10 @@ INTEGRATION_ONLY: dict[str, str] = {
     "common.parallel": "tests/test_newton_mpi.py tests/test_mpi_fuzz.py",
     "common.pkg_resources_shim": "tests/test_pkg_resources_shim.py",
     "common.safe_files": "tests/test_input_fuzz.py tests/test_budget.py",
+    # contact's rows with the rod itself
+    "nls.contacts": "tests/test_self_contact.py",
+    "nls.pair_contact": "tests/test_self_contact.py",
+    "rod.self_contact": "tests/test_self_contact.py",
     # io
     "io.checkpoint": "tests/test_restart.py tests/test_reliability.py",
     "io.folder_lock": "tests/test_run_folders.py",

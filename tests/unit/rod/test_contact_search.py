@@ -30,6 +30,7 @@ from cosserat_fem.rod.contact_search import (
     candidate_pairs,
     cell_boxes,
     cell_pairs,
+    closest_point_sensitivities,
     closest_points,
     lebesgue_constant,
     reference_nodes,
@@ -354,3 +355,38 @@ def test_closest_points_find_the_least_of_several_minima():
     excess = sampled.min(axis=1) - near.gap
     assert np.all(excess >= -1e-14)
     assert np.all(excess <= 1.1 * speed / 2000 / 2)
+
+
+def test_closest_point_sensitivities_are_the_derivatives():
+    """(S.3)'s derivatives of the gap, the normal and the partner's weights against central
+    differences of :func:`closest_points` re-solved at moved points, on wiggly P3 cells (an
+    interior foot) and with the foot clamped at an end (ξ held). Central differences err by
+    O(ε²) times the third derivatives (O(1) here, the cells of size 1) plus the solve's
+    round-off 1e-14/ε: at ε = 1e-5 both are ~1e-9 — the bound 1e-7 is above them and far
+    below a missing term (the ξ terms are O(1): dropping dξ changes ∂n by > 0.1)."""
+    rng = np.random.default_rng(7)
+    m = 6
+    cells = np.column_stack([XI3, np.zeros(4), np.zeros(4)])[None].repeat(m, axis=0)
+    cells = cells + 0.15 * rng.standard_normal(cells.shape)
+    x = np.column_stack([rng.uniform(0.3, 0.7, m), 0.4 + 0.2 * rng.random(m), rng.random(m)])
+    x[-1] = [-0.8, 0.1, 0.0]  # beyond the cell's start: the foot is the end ξ = 0
+    near = closest_points(x, cells)
+    assert 0.0 < near.xi[:-1].min() and near.xi[:-1].max() < 1.0 and near.xi[-1] == 0.0
+    exact = closest_point_sensitivities(x, cells, near)
+    eps = 1e-5
+    for i in range(5):  # the node, then the cell's four nodes
+        for q in range(3):
+            moved = []
+            for sign in (1.0, -1.0):
+                xs, cs = x.copy(), cells.copy()
+                if i == 0:
+                    xs[:, q] += sign * eps
+                else:
+                    cs[:, i - 1, q] += sign * eps
+                moved.append(closest_points(xs, cs))
+            up, down = moved
+            assert np.abs((up.gap - down.gap) / (2 * eps) - exact.gap[:, i, q]).max() < 1e-7
+            dn = (up.normal - down.normal) / (2 * eps)
+            assert np.abs(dn - exact.normal[:, :, i, q]).max() < 1e-7
+            dw = (up.weights - down.weights) / (2 * eps)
+            assert np.abs(dw - exact.weights[:, :, i, q]).max() < 1e-7
