@@ -605,7 +605,7 @@ def _static(args) -> int:
 
     scene = api.load(args.scene, args.overrides)
     result = api.static(scene, _out(args, scene))
-    tip = result.probes[-1, 1:]
+    tip = result.probes[-1, 1 : 1 + len(P_NAMES)]  # the six of P_NAMES; probe_fields follow
     if MPI.COMM_WORLD.rank == 0 and not args.quiet:
         _say(
             f"cosserat-fem: static, {len(result.load_factors) - 1} load steps "

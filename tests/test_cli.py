@@ -276,3 +276,20 @@ def test_a_closed_stdout_ends_the_command_quietly(tmp_path, command):
     assert status == 0 and (stream == "stderr" or not said), text
     if command == "run":
         assert json.loads((tmp_path / "run" / "summary.json").read_text())["status"] == "completed"
+
+
+def test_static_with_probe_fields_prints_the_probe(tmp_path, monkeypatch, capsys):
+    """`static` with output.probe_fields printed the six probe values by zipping them against
+    every probe column (strict): an internal error, exit 1, after the outputs were written.
+    Now it prints the six and exits 0; probes.csv keeps the fields' columns too."""
+    from cosserat_fem.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    status = main(
+        ["static", SCENE, "--set", 'output.probe_fields=["directors"]', "--out", "static"]
+    )
+    out = capsys.readouterr()
+    assert status == 0, out.err
+    assert "probe: " in out.out + out.err
+    header = (tmp_path / "static" / "probes.csv").read_text().splitlines()[0]
+    assert "d3" in header or "director" in header, header
