@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 from conftest import script_serial_and_mpi
 from mpi4py import MPI
@@ -125,3 +126,20 @@ def test_the_hairpin_under_mpirun_equals_serial(tmp_path):
     serial, parallel = script_serial_and_mpi(tmp_path / "hairpin.py", text)
     assert serial["pairs"] == parallel["pairs"] == 1
     assert abs(parallel["force"] / serial["force"] - 1) < 1e-9
+
+
+def test_a_chain_of_contacts_is_refused_in_one_line():
+    """A node pressed onto the rod that also carries another node's contact is refused with
+    its place, as a SolverError (one line, exit 3 at the command line): the rows would need
+    the reactions ordered (docs/decisions.md, "Self contact")."""
+    from cosserat_fem.common.errors import SolverError
+    from cosserat_fem.rod.model import build_model
+    from cosserat_fem.rod.obstacles import contact_rows
+
+    model = build_model(scene_from_dict(hairpin(0.0, 0.0245)), MPI.COMM_SELF)
+    pairs = contact_rows(model).pairs
+    slave = np.array([100])
+    with pytest.raises(SolverError, match=r"^contact: a node pressed onto the rod also") as e:
+        pairs._check_chains(slave, np.array([[3, 100, 101, 102]]))
+    assert "\n" not in str(e.value) and "s = " in str(e.value)
+    pairs._check_chains(slave, np.array([[3, 4, 5, 6]]))  # no chain: nothing raised

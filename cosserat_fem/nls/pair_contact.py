@@ -36,6 +36,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from cosserat_fem.common.errors import SolverError
 from cosserat_fem.nls.contact import ROUNDOFF, TOUCHING, tangent_bases
 
 
@@ -330,5 +331,9 @@ class PairContact:
         self.started = bool(state["pairs.started"])
 
 
-class ContactChain(RuntimeError):
-    """A contact configuration the pair rows do not support (a chain of contacts)."""
+class ContactChain(SolverError):
+    """A contact configuration the pair rows do not support (a chain of contacts): one line,
+    where = "contact" (not retried: a smaller step meets it again)."""
+
+    def __init__(self, reason: str):
+        super().__init__(reason, where="contact")
