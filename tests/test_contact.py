@@ -145,6 +145,12 @@ def jacobian_case(case: str) -> dict:
         data["loads"] = {"start": {"force": [0, 0, -10]}, "end": {"force": [5, 3, 1]}}
         data["contact"]["obstacles"] = [{"kind": "sphere", "point": [rho, 0, 0], "radius": R}]
         return data
+    if case == "surface":  # the 3D case's sphere given as a signed distance of x, y, z
+        data = jacobian_case("3d")
+        rho, R = data["reference"]["radius"], data["contact"]["obstacles"][0]["radius"]
+        distance = f"sqrt((x - {rho!r})**2 + y**2 + z**2) - {R!r}"
+        data["contact"]["obstacles"] = [{"kind": "surface", "distance": distance}]
+        return data
     data = rod_on_plane(3, mu=0.3, kinetic_friction=0.2)
     data["contact"]["obstacles"] = [
         {"kind": "cylinder", "point": [-20 - D / 2, 0, 0.5], "axis": [0, 1, 0], "radius": 20}
@@ -152,7 +158,7 @@ def jacobian_case(case: str) -> dict:
     return data
 
 
-@pytest.mark.parametrize("case", ["3d", "planar"])
+@pytest.mark.parametrize("case", ["3d", "planar", "surface"])
 @pytest.mark.parametrize("state", ["slip", "stick"])
 def test_the_rows_jacobian_is_the_derivative_of_the_rows(case, state):
     """The Jacobian rows of the contact (K.2)-(K.3) against central differences of the
@@ -160,12 +166,13 @@ def test_the_rows_jacobian_is_the_derivative_of_the_rows(case, state):
     the obstacle and off it): sliding nodes (c = 1e3, the friction's history at rest: the
     trial c Δu beyond the cone) or stuck ones (c = 1e6, the history at u: Δu = 0), in 3D on
     a sphere (the obstacle's curvature in both tangent directions, the tangent basis's turn)
-    and in the x-z plane on a cylinder. The differences' error is O(ε²): from ε = 1e-5 to
-    1e-6 it falls 100× (bound 30-300; measured 3D slip 1.7e-5 → 1.7e-7, stick 7.7e-6 →
-    7.7e-8), unless it is the differences' round-off already (planar, the cylinder's
-    curvature 1/20 m: 7e-11 and 2e-10 at 1e-5), and at 1e-6 it is below 1e-5 of the rows (a
-    missing term would leave an O(1) error). The states decided at u ± ε v are those at u
-    (checked)."""
+    and in the x-z plane on a cylinder, and on the sphere given as a surface's signed
+    distance (its gradient and Hessian by the expressions' derivatives). The differences'
+    error is O(ε²): from ε = 1e-5 to 1e-6 it falls 100× (bound 30-300; measured 3D slip
+    1.7e-5 → 1.7e-7, stick 7.7e-6 → 7.7e-8), unless it is the differences' round-off
+    already (planar, the cylinder's curvature 1/20 m: 7e-11 and 2e-10 at 1e-5), and at 1e-6
+    it is below 1e-5 of the rows (a missing term would leave an O(1) error). The states
+    decided at u ± ε v are those at u (checked)."""
     data = jacobian_case(case)
     scene = scene_from_dict(data)
     model = build_model(scene, MPI.COMM_SELF)
@@ -204,6 +211,33 @@ def test_the_rows_jacobian_is_the_derivative_of_the_rows(case, state):
     assert errors[0] < 1e-8 or 30 < errors[0] / errors[1] < 300, errors
 
 
+def test_a_surface_given_by_its_distance_is_the_obstacle_it_describes():
+    """(P.1) and (P.2) at once (the rod lifted by V = 0.05 w L and pulled by 0.4 μ w L) on
+    the plane x = −r given as kind "plane" and as kind "surface" with the distance x + r
+    (evaluated through the expressions and their derivatives, which the rows' Jacobian test
+    above checks on a sphere): the same static state to round-off (1e-12 of the
+    displacements) and the same Newton iterations."""
+    states = []
+    for kind in ("plane", "surface"):
+        data = rod_on_plane(10, lift=0.05 * W * L, pull=0.2 * W * L, nu=-0.99)
+        if kind == "surface":
+            data["contact"]["obstacles"] = [{"kind": "surface", "distance": f"x + {D / 2!r}"}]
+        result = static_path(scene_from_dict(data), comm=MPI.COMM_SELF, write_outputs=False)
+        states.append((result.model.U.x.array.copy(), result.iterations))
+    (u_plane, it_plane), (u_surface, it_surface) = states
+    assert it_surface == it_plane
+    assert np.abs(u_surface - u_plane).max() <= 1e-12 * np.abs(u_plane).max()
+
+
+def test_a_surface_that_is_not_a_signed_distance_is_refused():
+    """A function that vanishes on the surface but is no distance (|∇d| ≠ 1) would give
+    wrong gaps: refused at the start in one line naming the key, the place and |∇d|."""
+    data = jacobian_case("surface")
+    data["contact"]["obstacles"][0]["distance"] = "x**2 + y**2 + z**2 - 1"
+    with pytest.raises(SceneError, match=r"^contact\.obstacles\[0\]\.distance: not a signed"):
+        static_path(scene_from_dict(data), comm=MPI.COMM_SELF, write_outputs=False)
+
+
 @pytest.mark.parametrize(
     ("change", "message"),
     [
@@ -224,6 +258,19 @@ def test_the_rows_jacobian_is_the_derivative_of_the_rows(case, state):
             r"^contact\.obstacles\[0\]\.normal: must not be the zero vector",
         ),
         ({"obstacles": []}, r"^contact\.obstacles: give one obstacle"),
+        (
+            {"obstacles": [{"kind": "surface", "point": [0, 0, 0], "distance": "z"}]},
+            r"^contact\.obstacles\[0\]\.point: a surface takes no point",
+        ),
+        ({"obstacles": [{"kind": "surface"}]}, r"^contact\.obstacles\[0\]\.distance: a surface"),
+        (
+            {"obstacles": [{"kind": "surface", "distance": "z + w"}]},
+            r"^contact\.obstacles\[0\]\.distance",
+        ),
+        (
+            {"obstacles": [{"kind": "plane", "normal": [1, 0, 0]}]},
+            r"^contact\.obstacles\[0\]\.point",
+        ),
         ({"obstacles": [{"kind": "cone", "point": [0, 0, 0]}]}, r"^contact\.obstacles\[0\]\.kind"),
         ({"kinetic_friction": 0.9}, r"^contact\.kinetic_friction: must not exceed"),
         ({"static_friction": -1}, r"^contact\.static_friction"),

@@ -30,34 +30,79 @@ from cosserat_fem.nls.contact import TOUCHING, NodeContact
 from cosserat_fem.nls.contacts import Contacts
 from cosserat_fem.nls.pair_contact import PairContact
 from cosserat_fem.rod.self_contact import SelfContactGeometry
+from cosserat_fem.scene.expressions import derivative
 
 
 @dataclass(frozen=True)
 class Obstacle:
-    """A rigid obstacle (module docstring): ``kind`` plane | sphere | cylinder, ``point`` a
-    [m], ``direction`` its unit normal (plane) or axis (cylinder), ``radius`` R [m]."""
+    """A rigid obstacle (module docstring): ``kind`` plane | sphere | cylinder | surface,
+    ``point`` a [m], ``direction`` its unit normal (plane) or axis (cylinder), ``radius`` R
+    [m]; a surface's signed distance d and its first and second derivatives in x, y, z
+    (``field``: d, ∇d (3), ∇²d (3, 3) as expressions) with the ``constants`` they use."""
 
     kind: str
     point: np.ndarray
     direction: np.ndarray | None = None
     radius: float = 0.0
+    field: tuple | None = None
+    constants: dict | None = None
 
     @classmethod
-    def of(cls, spec) -> Obstacle:
-        """From a scene's [[contact.obstacles]] entry (cosserat_fem/scene/resolved.py)."""
+    def of(cls, spec, constants: dict | None = None) -> Obstacle:
+        """From a scene's [[contact.obstacles]] entry (cosserat_fem/scene/resolved.py), the
+        scene's ``constants`` (L, omega0, the parameters: Scene.expression_names())."""
         direction = spec.normal if spec.kind == "plane" else spec.axis
+        field = None
+        if spec.distance is not None:
+            d = spec.distance
+            gradient = [derivative(d, v) for v in "xyz"]
+            field = (d, gradient, [[derivative(g, v) for v in "xyz"] for g in gradient])
         return cls(
             spec.kind,
-            np.asarray(spec.point, dtype=float),
+            np.zeros(3) if spec.point is None else np.asarray(spec.point, dtype=float),
             None if direction is None else np.asarray(direction, dtype=float),
             0.0 if spec.radius is None else float(spec.radius),
+            field,
+            dict(constants or {}),
         )
+
+    def _surface(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A surface's (d, ∇d/|∇d|, ∇²d) at ``x`` (n, 3): the expressions evaluated (a
+        signed distance has |∇d| = 1; :func:`_check_start` refuses one that has not)."""
+        assert self.field is not None, "a surface has its distance"
+        d, gradient, hessian = self.field
+        at = {"x": x[:, 0], "y": x[:, 1], "z": x[:, 2], **(self.constants or {})}
+        count = len(x)
+
+        def values(e) -> np.ndarray:
+            return np.broadcast_to(np.asarray(e.evaluate(**at), dtype=float), (count,))
+
+        g = np.column_stack([values(e) for e in gradient]) if count else np.zeros((0, 3))
+        h = np.array([[values(e) for e in row] for row in hessian]).transpose(2, 0, 1)
+        h = h.reshape(count, 3, 3)
+        size = np.linalg.norm(g, axis=1)
+        # on a medial axis (∇d not finite or zero: the tube's axis of "R - sqrt(x**2 + y**2)")
+        # any unit normal and no curvature, as at a sphere's centre: never an error on one rank
+        singular = ~np.isfinite(size) | (size == 0.0) | ~np.isfinite(h).all(axis=(1, 2))
+        g[singular], size[singular], h[singular] = [1.0, 0.0, 0.0], 1.0, 0.0
+        return values(d), g / size[:, None], h
+
+    def gradient_size(self, x: np.ndarray) -> np.ndarray:
+        """|∇d| at ``x`` (n, 3): 1 for the plane, sphere and cylinder; a surface's as given."""
+        if self.field is None:
+            return np.ones(len(x))
+        at = {"x": x[:, 0], "y": x[:, 1], "z": x[:, 2], **(self.constants or {})}
+        g = [np.broadcast_to(np.asarray(e.evaluate(**at), float), (len(x),)) for e in self.field[1]]
+        size = np.linalg.norm(np.column_stack(g), axis=1) if len(x) else np.zeros(0)
+        return np.where(np.isfinite(size) & (size > 0.0), size, 1.0)  # a medial axis: any
 
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(d, ∇d, ∇²d) at the points ``x`` (n, 3): (n,), (n, 3), (n, 3, 3). At a sphere's
         centre or on a cylinder's axis (d = −R, the deepest point, where ∇d is undefined) a
         unit normal across the axis and no curvature: a value on every rank, never an error
         (an MPI rank that raised here would leave the others waiting)."""
+        if self.kind == "surface":
+            return self._surface(x)
         rel = x - self.point
         eye = np.broadcast_to(np.eye(3), (len(x), 3, 3))
         if self.kind == "plane":
@@ -104,17 +149,33 @@ class Surface:
         return d - self.radius, n, hessian
 
 
-def _check_start(contact: NodeContact, spec, u: np.ndarray, comm) -> None:
+#: how far a surface's |∇d| may be from 1 at the nodes (its distance is then a distance to
+#: this relative accuracy: the gap and the rows' derivative n are as exact)
+UNIT_GRADIENT = 1e-6
+
+
+def _check_start(
+    contact: NodeContact, spec, u: np.ndarray, comm, obstacles: list[Obstacle]
+) -> None:
     """SceneError (on every rank) naming the obstacle if a node starts inside one, beyond the
-    round-off of a position placed on its surface (1e-12 ℓ): its depth and s."""
+    round-off of a position placed on its surface (1e-12 ℓ): its depth and s; or if a
+    surface's distance is not a signed distance at a node (|∇d| − 1 beyond 1e-6)."""
     x = contact.positions(u)
     problem = None
-    for i, obstacle in enumerate(spec.obstacles):
-        g = Obstacle.of(obstacle).distance(x)[0] - float(spec.radius)
+    for i, (obstacle, spec_i) in enumerate(zip(obstacles, spec.obstacles, strict=True)):
+        g = obstacle.distance(x)[0] - float(spec.radius)
+        size = obstacle.gradient_size(x)
+        if problem is None and (np.abs(size - 1.0) > UNIT_GRADIENT).any():
+            j = int(np.argmax(np.abs(size - 1.0)))
+            problem = SceneError(
+                f"contact.obstacles[{i}].distance: not a signed distance, |grad d| = "
+                f"{size[j]:.6g} at s = {contact.places[j]:.4g} m (it must be 1: the distance "
+                "to the surface, not any function that vanishes on it)"
+            )
         if (g < -TOUCHING * contact.ell).any() and problem is None:
             j = int(np.argmin(g))
             problem = SceneError(
-                f"contact.obstacles[{i}]: the rod starts inside this {obstacle.kind}, "
+                f"contact.obstacles[{i}]: the rod starts inside this {spec_i.kind}, "
                 f"{-g[j]:.3g} m deep at s = {contact.places[j]:.4g} m (its surface of radius "
                 f"{float(spec.radius):.3g} m included); move the obstacle or the rod"
             )
@@ -159,12 +220,14 @@ def contact_rows(model) -> NodeContact | Contacts | None:
     )
     obstacles = None
     if spec.obstacles:
+        constants = model.scene.expression_names()
+        shapes = [Obstacle.of(o, constants) for o in spec.obstacles]
         free = np.flatnonzero(~held_nodes).astype(np.int32)
         obstacles = NodeContact(
             V,
             free,
             rest[free],
-            Surface([Obstacle.of(o) for o in spec.obstacles], float(spec.radius)),
+            Surface(shapes, float(spec.radius)),
             shares=shares[free],
             static_friction=spec.static_friction,
             kinetic_friction=spec.kinetic,
@@ -172,7 +235,7 @@ def contact_rows(model) -> NodeContact | Contacts | None:
             max_changes=spec.max_changes,
             **common,
         )
-        _check_start(obstacles, spec, model.U.x.array, V.mesh.comm)
+        _check_start(obstacles, spec, model.U.x.array, V.mesh.comm, shapes)
     model.contact = obstacles
     if spec.self_contact:
         model.contact = Contacts(

@@ -718,7 +718,7 @@ def scene_from_dict(
         damping=build(Damping, raw["damping"]),
         limits=_build_limits(raw["limits"]),
         structure=structure,
-        contact=_build_contact(raw["contact"], rod),
+        contact=_build_contact(raw["contact"], rod, {*SCENE_CONSTANTS, *parameters}),
         source=source,
     )
     _check_derived(scene)
@@ -1083,21 +1083,27 @@ def _check_point_node(structure: Structure, node: str, key: str, what: str, verb
 
 
 # ====================================================================================== contact
-#: What each obstacle needs besides ``point`` (docs/contact.md).
-_OBSTACLE_KEYS = {"plane": ("normal",), "sphere": ("radius",), "cylinder": ("axis", "radius")}
+#: What each obstacle needs (docs/contact.md).
+_OBSTACLE_KEYS = {
+    "plane": ("point", "normal"),
+    "sphere": ("point", "radius"),
+    "cylinder": ("point", "axis", "radius"),
+    "surface": ("distance",),
+}
 
 
-def _build_contact(raw: dict[str, Any] | None, rod: Rod) -> Contact | None:
+def _build_contact(raw: dict[str, Any] | None, rod: Rod, names: set[str]) -> Contact | None:
     """The [contact] table: each obstacle with the keys its kind needs and no other, its
-    directions made unit; the surface's radius resolved ("auto": a circle's or a tube's
-    outer radius); SceneError naming the key."""
+    directions made unit, a surface's distance parsed (an expression of x, y, z and the
+    scene's constants ``names``); the surface's radius resolved ("auto": a circle's or a
+    tube's outer radius); SceneError naming the key."""
     if raw is None:
         return None
     obstacles = []
     for i, entry in enumerate(raw["obstacles"]):
         name = f"contact.obstacles[{i}]"
         needs = _OBSTACLE_KEYS[entry["kind"]]
-        for k in ("normal", "axis", "radius"):
+        for k in ("point", "normal", "axis", "radius", "distance"):
             if k in needs and entry[k] is None:
                 raise SceneError(f"{name}.{k}: a {entry['kind']} needs it")
             if k not in needs and entry[k] is not None:
@@ -1110,6 +1116,10 @@ def _build_contact(raw: dict[str, Any] | None, rod: Rod) -> Contact | None:
                 if norm == 0.0:
                     raise SceneError(f"{name}.{k}: must not be the zero vector")
                 values[k] = tuple(float(x) for x in v / norm)
+        if entry["distance"] is not None:
+            values["distance"] = Expression.parse(
+                entry["distance"], {"x", "y", "z", *names}, f"{name}.distance"
+            )
         obstacles.append(build(Obstacle, values))
     if not obstacles and not raw["self_contact"]:
         raise SceneError(

@@ -63,7 +63,7 @@ STRUCTURE_SUPPORTS = ("clamped", "pinned", "spherical", "sliding", "free")
 #: The joints between a structure's members other than rigid ([[structure.joints]]).
 STRUCTURE_JOINTS = ("spherical", "hinge", "driven")
 #: The rigid obstacles a rod may touch ([[contact.obstacles]], docs/contact.md).
-CONTACT_OBSTACLES = ("plane", "sphere", "cylinder")
+CONTACT_OBSTACLES = ("plane", "sphere", "cylinder", "surface")
 #: Upper bounds of keys whose size alone makes a run impossible here
 #: (cosserat_fem/analysis/budget.py estimates the others): quadrature points per cell, Newton
 #: iterations per solve.
@@ -491,6 +491,25 @@ class NumberOrExpression(Field):
 
     def to_value(self, value: Any) -> Any:
         return value if value is None or isinstance(value, float) else value.source
+
+
+@dataclass(frozen=True, kw_only=True)
+class PositionExpression(Field):
+    """A number or an expression string of the position x, y, z [m] and the parameters;
+    parsed later, when the names are known (a surface's signed distance)."""
+
+    unit: str = ""
+
+    def describe(self) -> str:
+        return f"an expression string of x, y, z [{self.unit}]"
+
+    def check(self, key: str, value: Any) -> Any:
+        if isinstance(value, bool) or not isinstance(value, int | float | str):
+            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
+        return value
+
+    def to_value(self, value: Any) -> Any:
+        return None if value is None else value.source
 
 
 @dataclass(frozen=True, kw_only=True)

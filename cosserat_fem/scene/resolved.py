@@ -55,6 +55,7 @@ from cosserat_fem.scene.keys import (
     Parameters,
     PetscOptions,
     Points,
+    PositionExpression,
     SymmetricMatrix,
     Table,
     Tables,
@@ -1119,13 +1120,17 @@ class Obstacle:
     """A rigid obstacle ([[contact.obstacles]], docs/contact.md): the rod stays on the side of
     a ``plane`` through ``point`` [m] that its ``normal`` points to; outside a ``sphere`` of
     ``radius`` [m] about ``point``; outside an infinite ``cylinder`` of ``radius`` whose axis
-    passes through ``point`` along ``axis``. ``normal`` and ``axis`` are made unit vectors."""
+    passes through ``point`` along ``axis``; where the signed ``distance`` of a ``surface``,
+    an expression of x, y, z [m], is positive. ``normal`` and ``axis`` are made unit
+    vectors."""
 
     kind: str = key(Choice(choices=CONTACT_OBSTACLES, required=True))
-    point: tuple[float, float, float] = key(NumberVector(unit="m", required=True))
+    point: tuple[float, float, float] | None = key(NumberVector(unit="m"), default=None)
     normal: tuple[float, float, float] | None = key(NumberVector(unit="-"), default=None)
     axis: tuple[float, float, float] | None = key(NumberVector(unit="-"), default=None)
     radius: float | None = key(Number(interval=POSITIVE, unit="m"), default=None)
+    #: a ``surface``'s signed distance d(x, y, z) [m], > 0 on the rod's side, |∇d| = 1
+    distance: Expression | None = key(PositionExpression(unit="m"), default=None)
 
     def keeps(self, normal: tuple[int, ...]) -> bool:
         """Whether a rod in the plane x_k = 0 (k in ``normal``, the plane's normal axes) is
@@ -1134,6 +1139,10 @@ class Obstacle:
         if self.kind == "plane":
             assert self.normal is not None, "a plane has one (build.py)"
             return all(self.normal[k] == 0.0 for k in normal)
+        if self.kind == "surface":  # d must not vary across the plane: no push out of it
+            assert self.distance is not None, "a surface has one (build.py)"
+            return not any(self.distance.depends_on("xyz"[k]) for k in normal)
+        assert self.point is not None, "a sphere and a cylinder have one (build.py)"
         if self.kind == "sphere":
             return all(self.point[k] == 0.0 for k in normal)
         assert self.axis is not None, "a cylinder has one (build.py)"

@@ -75,3 +75,32 @@ def test_a_point_at_a_centre_or_on_an_axis_has_a_normal():
         if obstacle is CYLINDER:
             assert abs(grad[0] @ CYLINDER.direction) < 1e-15
         assert not hessian.any()
+
+
+def _surface(distance: str) -> Obstacle:
+    """A "surface" obstacle of the signed ``distance`` (an expression of x, y, z)."""
+    from cosserat_fem.scene.expressions import Expression
+    from cosserat_fem.scene.resolved import Obstacle as Spec
+
+    spec = Spec(kind="surface", distance=Expression.parse(distance, {"x", "y", "z"}, "d"))
+    return Obstacle.of(spec)
+
+
+def test_a_surface_given_by_its_distance_equals_the_closed_forms():
+    """The sphere and the cylinder above written as distances of x, y, z give their d, ∇d and
+    ∇²d (the expressions' symbolic derivatives) to round-off at random points; the inside of
+    a tube, 0.3 − |e|, is the cylinder's with the signs turned, and on its axis (∇d not
+    finite) a unit normal and no curvature, no error."""
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(6, 3)) * 2
+    sphere = _surface("sqrt((x - 1)**2 + (y - 2)**2 + (z - 3)**2) - 0.5")
+    cylinder = _surface("sqrt((x - 1)**2 + y**2) - 0.3")
+    tube = _surface("0.3 - sqrt((x - 1)**2 + y**2)")
+    for given, exact, sign in ((sphere, SPHERE, 1), (cylinder, CYLINDER, 1), (tube, CYLINDER, -1)):
+        for a, b in zip(given.distance(x), exact.distance(x), strict=True):
+            assert np.allclose(a, sign * b, rtol=0, atol=1e-13)
+    d, n, hessian = tube.distance(np.array([[1.0, 0.0, 4.0]]))
+    assert d[0] == pytest.approx(0.3) and np.linalg.norm(n[0]) == pytest.approx(1.0)
+    assert np.all(hessian == 0.0)
+    assert np.allclose(tube.gradient_size(x), 1.0, rtol=0, atol=1e-14)
+    assert np.allclose(_surface("x**2").gradient_size(np.array([[2.0, 0, 0]])), 4.0)
