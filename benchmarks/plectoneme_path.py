@@ -349,6 +349,9 @@ class Path:
     reasons: tuple[str, str]
     counts: tuple[int, int]
     seconds: float
+    #: the nodes' positions [m] (nodes, 3) and the cells' nodes (cells, k + 1), along the
+    #: rod, at the contact onset (None if not reached)
+    centreline: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def trace(
@@ -419,6 +422,7 @@ def trace(
     two = engine.trace(start)
     touch = [q for q in two.special if q.kind == "contact"]
     at = second.point(touch[0]) if touch else None
+    centreline = (second.positions(), second.dofs) if touch else None
     return Path(
         points,
         fold,
@@ -427,6 +431,7 @@ def trace(
         (one.reason, two.reason),
         (count, len(points) - count),
         time.perf_counter() - t0,
+        centreline,
     )
 
 
@@ -434,25 +439,47 @@ def row(p: PathPoint) -> str:
     """One line of the table."""
     f = p.force
     return (
-        f"{p.phi:9.4f} {p.torque * 1e3:10.5f} {p.spread * 1e3:+9.1e} "
-        f"{math.hypot(f[0], f[1]) * 1e3:10.5f} {p.shift * 1e3:+10.4f} {p.lateral * 1e3:8.3f} "
-        f"{p.gap / p.radius:+9.3f} {p.node_gap / p.radius:+9.3f}"
+        f"{p.phi:9.4f} {p.torque * 1e3:9.5f} {p.spread * 1e3:+8.1e} "
+        f"{math.hypot(f[0], f[1]) * 1e3:8.4f} {p.shift * 1e3:+9.3f} {p.lateral * 1e3:8.3f} "
+        f"{p.gap / p.radius:+8.3f} {p.node_gap / p.radius:+8.3f}  {p.imperfection:g}"
     )
 
 
-HEADER = "  Φ [rad]  M [mN m] M_B−M_A    |F⊥(L)| [mN] Δz_B [mm] max|w| [mm]    g/r  node g/r"
+HEADER = "  Φ [rad] M [mN m] M(L)−M(0) |F⊥B| [mN] Δz_B [mm] max|w| [mm]  g/r  node g/r  g_x [m/s²]"
+
+
+def table(path: Path, rows: int = 24) -> list[str]:
+    """About ``rows`` lines of the path, evenly in the points' order, with the last point
+    before the fold, the first past it, and the located contact onset in their place."""
+    points = path.points
+    stride = max(1, len(points) // rows)
+    top = int(np.argmax([q.phi for q in points[: path.counts[0]]]))
+    keep = sorted({*range(0, len(points), stride), top, top + 1, len(points) - 1})
+    lines = [row(points[i]) for i in keep if i < len(points)]
+    if path.onset_point is not None:
+        where = next(
+            (k for k, i in enumerate(keep) if i >= path.counts[0] and points[i].gap <= 0.0),
+            len(lines),
+        )
+        lines.insert(where, row(path.onset_point) + "  <- contact onset")
+    return lines
+
 
 # %%
 if __name__ == "__main__":
     meshes = [int(a) for a in sys.argv[1:]] or [16, 32]
+    phi_c = buckling_torque(TENSION) * LENGTH / (EI / (1 + NU))
     print(
-        f"Greenhill's Φ_c = {greenhill_twist():.5f} rad; GJ/L = "
-        f"{1e9 / (2 * (1 + NU)) * math.pi * DIAMETER**4 / 32 / LENGTH:.6e} N m"
+        f"T = {TENSION:.6g} N (T L²/EI = 100), M_c = {buckling_torque(TENSION):.6g} N m, "
+        f"Φ_c = {phi_c:.5f} rad (linear analysis); GJ/L = {EI / (1 + NU) / LENGTH:.6e} N m"
     )
-    print(HEADER)
     for cells in meshes:
-        path = trace(cells, report=lambda p: print(row(p), flush=True))
+        path = trace(cells)
+        print(f"\n{cells} P3 cells\n{HEADER}")
+        print("\n".join(table(path)))
         print(
-            f"{cells} P3 cells: {path.counts} points, {path.seconds:.1f} s, ended: "
-            f"{path.reasons}; fold Φ_max = {path.fold:.5f}, contact onset Φ = {path.onset}"
+            f"{path.counts} points (two stages), {path.seconds:.1f} s; ended: {path.reasons}; "
+            f"fold Φ_max = {path.fold:.5f} rad, contact onset Φ = {path.onset:.6f} rad"
+            if path.onset is not None
+            else f"{path.counts} points, {path.seconds:.1f} s; ended: {path.reasons}"
         )
