@@ -77,7 +77,7 @@ def test_the_buckling_torque_with_tension():
 
 @pytest.mark.long
 def test_the_path_turns_back_below_the_buckling_twist_as_koiter_says():
-    """The imperfect path (32 P3 cells; stage one alone, ~25 s): (1) on its straight part,
+    """The imperfect path (32 P3 cells; stage one alone, 30-50 s): (1) on its straight part,
     Φ ≤ Φ_c/2, the end torque grows as GJ/L (the secant from Φ_c/4 to Φ_c/2 within 1e-4:
     the imperfection's lateral sag, w/L = 3e-3, changes it at second order, (w/L)² ~ 1e-5;
     measured −6.6e-6);
@@ -106,7 +106,7 @@ def test_the_path_turns_back_below_the_buckling_twist_as_koiter_says():
 
 @pytest.mark.long
 def test_the_contact_onset_twist_converges_under_refinement():
-    """The contact onset Φ_onset on 16, 32 and 64 P3 cells (~3 min): 6.483009, 6.481680,
+    """The contact onset Φ_onset on 16, 32 and 64 P3 cells (2 min): 6.483009, 6.481680,
     6.481631 rad (measured); the differences fall from 1.3e-3 to 4.9e-5 rad, by 27 (P3
     positions converge as h⁴, 16: asserted > 8); the finest two within 2e-4 rad. Along the
     way: the torque at the onset is a small part of M_c (the loop nearly planar, the strands
