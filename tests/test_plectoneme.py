@@ -1,0 +1,130 @@
+"""A clamped rod twisted past Greenhill's buckling twist towards a plectoneme, without contact
+(issue 30; benchmarks/plectoneme_path.py, docs/plectoneme.md).
+
+The rod of tests/test_greenhill.py (L = 1 m, circle d = 2 mm, E = 1e9 Pa, ν = 0.3), clamped
+at A and held at B by a sliding support turned about e3 by the twist Φ, under a dead tension
+T = 100 EI/L² along e3 at B, and a lateral gravity g_x (ρ A g_x e1 [N/m]) as the imperfection
+that pins the buckled shape's orientation (a round rod's buckled states are a circle of
+them). The path is continued in Φ by the arclength engine (cosserat_fem/nls/arclength.py)
+on the static residual with the turn as its parameter (benchmarks/plectoneme_path.py,
+``TwistPath``): with g_x = 1 m/s² from Φ = 0 over the fold to a B shortened by 5 cm, then
+with g_x = 1e-2 m/s² on, Φ decreasing, to the first self-contact of the tube (radius r).
+
+**The buckling twist.** The straight rod under T buckles at M_c, the first root of the
+clamped-clamped determinant of EI w⁗ − i M w‴ − T w″ = 0 (``buckling_torque``): M_c L/EI =
+20.9835 (1.0492 times the infinite rod's 2 √(EI T)), Φ_c = M_c L/GJ = 27.27855 rad; as T → 0
+it tends to Greenhill's 2 x1 = 8.98682 of tests/test_greenhill.py. The bifurcation is
+subcritical (unstable-symmetric): the imperfect path turns back at a fold Φ_max < Φ_c, and
+Koiter's law for that kind, Φ_c − Φ_max = C ε^(2/3) + O(ε^(4/3)), relates the folds of two
+imperfections ε (J. W. Hutchinson & W. T. Koiter, Postbuckling theory, Appl. Mech. Rev. 23
+(1970) 1353; the 2/3 power from the cubic normal form λ = λ_c − a w² − ε b/w at its maximum).
+
+**The contact onset.** Past the fold the torque falls with Φ while the loop grows and B comes
+in (the descending, unstable branch: under twist control the rod would snap here); the two
+strands that cross at the loop's neck come within 2r at Φ_onset = 6.4816 rad (M = 0.14 mN m,
+0.86 % of M_c; B 40 cm in). The node-to-cell gap there is still +2.4 r on 32 cells: the strands
+meet between the nodes (docs/plectoneme.md). The gap is the least distance of the cells'
+curves (contact_search's closest points from 8k + 1 points of each cell, refined), located
+as the engine's test function to 1e-9 in arclength.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import sys
+
+import pytest
+from conftest import ROOT
+
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from plectoneme_path import (  # noqa: E402
+    DIAMETER,
+    EI,
+    LENGTH,
+    NU,
+    TENSION,
+    buckling_torque,
+    greenhill_twist,
+    trace,
+)
+
+GJ = EI / (1 + NU)  # a circle: J = 2 I, G = E/(2 (1 + ν)) [N m²]
+
+
+@functools.cache
+def path(cells: int, first: float = 1.0, second: float | None = 1e-2):
+    """The traced path (``trace``) on ``cells`` P3 cells, imperfections ``first`` and
+    ``second`` [m/s²]; ``second`` None: the first stage alone."""
+    return trace(cells, imperfections=(first, second or 0.0), second_stage=second is not None)
+
+
+def test_the_buckling_torque_with_tension():
+    """``buckling_torque``: as T → 0 the root tends to Greenhill's M_c L/EI = 2 x1 (at
+    T = 1e-6 EI/L² it differs by 1.5e-7, the tension's first-order term, within 1e-6); at
+    T = 100 EI/L² it is 20.98350 EI/L (a root of the determinant, Brent to 1e-14: held to
+    1e-9); and it tends to the infinite rod's 2 √(EI T) from above as T L²/EI grows (the
+    clamps' excess M_c/(2 √(EI T)) − 1 falls: 4.9e-2 at 100, below 1e-2 at 1e4)."""
+    x2 = greenhill_twist() / (1 + NU)
+    assert abs(buckling_torque(1e-6 * EI) * LENGTH / EI - x2) < 1e-6
+    assert buckling_torque(TENSION) * LENGTH / EI == pytest.approx(20.98350083, abs=1e-7)
+    excess = [
+        buckling_torque(t * EI / LENGTH**2) / (2 * math.sqrt(EI * t * EI / LENGTH**2)) - 1
+        for t in (100.0, 1e4)
+    ]
+    assert 0 < excess[1] < 1e-2 < excess[0] < 5e-2
+
+
+@pytest.mark.long
+def test_the_path_turns_back_below_the_buckling_twist_as_koiter_says():
+    """The imperfect path (32 P3 cells; stage one alone, 30-50 s): (1) on its straight part,
+    Φ ≤ Φ_c/2, the end torque grows as GJ/L (the secant from Φ_c/4 to Φ_c/2 within 1e-4:
+    the imperfection's lateral sag, w/L = 3e-3, changes it at second order, (w/L)² ~ 1e-5;
+    measured −6.6e-6);
+    (2) it turns back at a fold Φ_max below Φ_c for both imperfections ε = 1 and 1/4 m/s²
+    (subcritical: a stable, supercritical branch would have no fold), B shortening past it;
+    (3) the deficits scale as ε^(2/3): their ratio 4^(2/3) = 2.520 within 0.03 (measured
+    2.527; the O(ε^(4/3)) term and the FE's error in Φ_c, 1.5e-5 of it, below that); (4) the
+    buckling twist extrapolated from the two folds by that law, (4^(2/3) Φ_max(1/4) −
+    Φ_max(1))/(4^(2/3) − 1), is the linear analysis' Φ_c within 1e-4 of it (measured
+    −1.9e-5; on 16 cells +2.6e-4, the P3 error falling as h⁴)."""
+    phi_c = buckling_torque(TENSION) * LENGTH / GJ
+    big, small = path(32, 1.0, None), path(32, 0.25, None)
+    straight = [p for p in big.points if phi_c / 4 <= p.phi <= phi_c / 2 and p.shift > -1e-3]
+    a, b = straight[0], straight[-1]
+    slope = (b.torque - a.torque) / (b.phi - a.phi)
+    assert abs(slope / (GJ / LENGTH) - 1) < 1e-4, slope
+    for traced in (big, small):
+        assert traced.fold < phi_c
+        assert traced.points[-1].phi < traced.fold and traced.points[-1].shift < -0.05 * LENGTH
+    ratio = (phi_c - big.fold) / (phi_c - small.fold)
+    assert abs(ratio - 4 ** (2 / 3)) < 0.03, ratio
+    a = 4 ** (2 / 3)
+    extrapolated = (a * small.fold - big.fold) / (a - 1)
+    assert abs(extrapolated / phi_c - 1) < 1e-4, extrapolated
+
+
+@pytest.mark.long
+def test_the_contact_onset_twist_converges_under_refinement():
+    """The contact onset Φ_onset on 16, 32 and 64 P3 cells (2 min): 6.483009, 6.481680,
+    6.481631 rad (measured); the differences fall from 1.3e-3 to 4.9e-5 rad, by 27 (P3
+    positions converge as h⁴, 16: asserted > 8); the finest two within 2e-4 rad. Along the
+    way: the torque at the onset is a small part of M_c (the loop nearly planar, the strands
+    crossing at its neck: measured 0.14 mN m = 0.86 % of M_c, asserted < 5 %), past the fold
+    (Φ_onset < Φ_max), and the node-to-cell gap there still positive on 16 and 32 cells (the
+    strands meet between the nodes: +2.4 r on 32 cells)."""
+    onsets = []
+    for cells in (16, 32, 64):
+        traced = path(cells)
+        assert traced.onset is not None, traced.reasons
+        at = traced.onset_point
+        assert at is not None and abs(at.gap) < 1e-6 * at.radius
+        assert 0 < at.torque < 0.05 * buckling_torque(TENSION)
+        assert at.phi < traced.fold
+        if cells < 64:
+            assert at.node_gap > 0
+        onsets.append(traced.onset)
+    first, second = abs(onsets[0] - onsets[1]), abs(onsets[1] - onsets[2])
+    assert first / second > 8, onsets
+    assert second < 2e-4, onsets
+    assert DIAMETER == 0.002  # the figures above are this rod's
