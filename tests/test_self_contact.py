@@ -143,3 +143,35 @@ def test_a_chain_of_contacts_is_refused_in_one_line():
         pairs._check_chains(slave, np.array([[3, 100, 101, 102]]))
     assert "\n" not in str(e.value) and "s = " in str(e.value)
     pairs._check_chains(slave, np.array([[3, 4, 5, 6]]))  # no chain: nothing raised
+
+
+def test_the_rod_through_itself_between_nodes_is_found_with_its_place():
+    """The hairpin's free leg turned down about its corner until its end is 2.5r through leg 1
+    (a displacement linear along the leg: exact in P3, through at its nodes and between
+    them): the pairs' check names both places along the rod and the depth, and a time step
+    or a load step with it is rejected (Contacts.step_changes, the statics' check). Through
+    by 0.005 r at the end (within the bound 1e-2 r) it passes."""
+    from cosserat_fem.analysis.statics import static_solver
+    from cosserat_fem.rod.model import build_model
+
+    r = 0.0245
+    delta0, _ = closure(r)
+    scene = scene_from_dict(hairpin(0.0, r))
+    model = build_model(scene, MPI.COMM_SELF)
+    solver = static_solver(scene, model)
+    contact = solver.contact
+    bs, ell = model.layout.size, model.length
+    s = model.V.tabulate_dof_coordinates()[:, 0] * ell
+    z = model.layout.index(2)
+    ramp = np.clip((s - L1 - H) / L2, 0.0, None)  # 0 at the corner, 1 at the free end
+    assert contact.step_changes() is None  # before any iterate
+    for depth, found in ((2.5 * r, True), (0.005 * r, False)):
+        model.U.x.array[:] = 0.0
+        model.U.x.array[z::bs] -= ramp * (delta0 + depth) / ell
+        solver._residual()
+        trouble = contact.step_changes()
+        assert (trouble is not None) is found, trouble
+    model.U.x.array[z::bs] -= ramp * 2.5 * r / ell
+    solver._residual()
+    where, reason = contact.step_changes()
+    assert where.startswith("s = ") and "passes through itself between its nodes" in reason

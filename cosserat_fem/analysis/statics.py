@@ -175,6 +175,11 @@ class StaticLoop:
                         where_prefix=f"load factor {trial:.6g} (from {lam:.6g})",
                         before=cos_theta(model, U_n),
                     )
+                    through = getattr(solver.contact, "interpenetration", lambda: None)()
+                    if through is not None:  # self contact: the rod through itself
+                        raise SolverError(
+                            through[1], where=f"load factor {trial:.6g}, {through[0]}", retry=True
+                        )
                 except (NewtonFailure, SolverError) as exc:
                     st.rejected += 1
                     step *= 0.5

@@ -55,7 +55,16 @@ class Contacts:
             self.obstacles.accept(u, initial)
 
     def step_changes(self) -> tuple[str, str] | None:
-        return None if self.obstacles is None else self.obstacles.step_changes()
+        """The rod passing through itself between nodes (a step is rejected, halved and at
+        last stopped with the place), else the obstacles' changes beyond max_changes."""
+        trouble = self.pairs.interpenetration()
+        if trouble is not None or self.obstacles is None:
+            return trouble
+        return self.obstacles.step_changes()
+
+    def interpenetration(self) -> tuple[str, str] | None:
+        """The pairs' :meth:`PairContact.interpenetration` (a load step's check)."""
+        return self.pairs.interpenetration()
 
     def unsettled(self) -> str:
         parts = [self.pairs.unsettled()]

@@ -39,6 +39,10 @@ from petsc4py import PETSc
 from cosserat_fem.common.errors import SolverError
 from cosserat_fem.nls.contact import ROUNDOFF, TOUCHING, tangent_bases
 
+#: how deep [in radii] the rod's parts may pass through each other between the nodes before
+#: a step is rejected (the issue's bound for a capstan's penetration: 1 % of the radius)
+BETWEEN_NODES = 1e-2
+
 
 @dataclass(frozen=True)
 class Pairs:
@@ -110,6 +114,8 @@ class PairContact:
         self.started = False
         self.most_changes = 0
         self.flipped = np.zeros(0, dtype=np.int64)
+        #: every node's position at the last iterate [m] (None before one)
+        self._x: np.ndarray | None = None
         self.shares = shares
         #: the outputs, as NodeContact's: each slave's contact load [N/m], its gap [m] and 1
         #: while pressed (other nodes: zeros)
@@ -138,7 +144,8 @@ class PairContact:
         """Decide the pairs at the iterate (u, F = ``b``, the owned values of the assembled
         residual) and write (P.1)-(P.2) into ``b``; whether the active set changed on any rank
         since the last iterate (collective)."""
-        pairs = self.geometry(self.everywhere(u))
+        self._x = self.everywhere(u)
+        pairs = self.geometry(self._x)
         mine = (pairs.slave >= self.start) & (pairs.slave < self.start + self.owned)
         mine &= ~self.held_all[pairs.slave]
         local = pairs.slave[mine] - self.start
@@ -262,6 +269,24 @@ class PairContact:
             A.setValues(q.astype(PETSc.IntType), every, add, addv=PETSc.InsertMode.ADD_VALUES)
         A.assemble()
         self.c = self.comm.allreduce(float(local_c), op=MPI.MAX) or None
+
+    def interpenetration(self) -> tuple[str, str] | None:
+        """(where, reason) if the rod's parts pass through each other between the nodes by
+        more than :data:`BETWEEN_NODES` r at the last iterate, else None. The rows hold the
+        gap at the nodes: parts that cross between their nodes (at an angle, on cells longer
+        than ~2r) meet where no row looks. The same answer on every rank (every rank has
+        every position)."""
+        if self._x is None:
+            return None
+        gap, a, b = self.geometry.between_nodes(self._x)
+        if gap >= -BETWEEN_NODES * self.geometry.radius:
+            return None
+        return (
+            f"s = {a:.4g} m against s = {b:.4g} m",
+            f"the rod passes through itself between its nodes, {-gap:.3g} m deep (the "
+            "contact rows hold at the nodes; parts crossing between them need cells of "
+            "about 2r there)",
+        )
 
     # -- the history ----------------------------------------------------------------------
     def accept(self, u: np.ndarray, initial: bool = False) -> None:

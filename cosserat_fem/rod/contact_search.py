@@ -404,6 +404,8 @@ class VerletList:
         self.threshold = margin / (1.0 + lebesgue_constant(dofs.shape[1] - 1))
         nodes = positions[dofs]
         cells = cell_pairs(nodes, self.radius, margin, arc, rod)
+        #: the candidate cell pairs (i, j), i < j, of the build
+        self.cell_pairs = cells
         k1 = dofs.shape[1]
         # (node, partner cell, the node's own cell): each node of a pair's cell against the other.
         rows = np.vstack(
@@ -435,6 +437,31 @@ class VerletList:
         """Whether a node has moved more than margin/(1 + Λ_k) since the build: then a pair
         outside the list may have closed its gap (module docstring), rebuild."""
         return bool(np.linalg.norm(positions - self.reference, axis=1).max() > self.threshold)
+
+
+def least_gap_between_nodes(
+    positions: np.ndarray, dofs: np.ndarray, pairs: np.ndarray, radius: float
+) -> tuple[float, int, int]:
+    """The least gap [m] between the tubes of the cell ``pairs`` (m, 2) of a rod whose nodes
+    are at ``positions`` (N, 3) [m] and cells ``dofs`` (cells, k+1), sampled at 2k + 1 points
+    inside each cell (ξ = q/(2k + 2)) against the other cell's closest point, both ways; and
+    the cells of the least (−1, −1 if no pair). Node-to-cell rows hold the gap at the nodes:
+    where two parts of a rod cross between their nodes this finds how far they pass through
+    each other (to the sampling, h/(2k + 2) along each cell)."""
+    if not len(pairs):
+        return np.inf, -1, -1
+    k = dofs.shape[1] - 1
+    xi = np.arange(1, 2 * k + 2) / (2 * k + 2)
+    table = shape_functions(k, xi)[0]  # (q, k+1)
+    best, where = np.inf, (-1, -1)
+    for mine, other in ((pairs[:, 0], pairs[:, 1]), (pairs[:, 1], pairs[:, 0])):
+        points = np.einsum("qj,mjd->mqd", table, positions[dofs[mine]]).reshape(-1, 3)
+        partner = np.repeat(positions[dofs[other]], len(xi), axis=0)
+        gap = closest_points(points, partner, radius, radius).gap.reshape(len(mine), -1).min(1)
+        i = int(np.argmin(gap))
+        if gap[i] < best:
+            best, where = float(gap[i]), (int(mine[i]), int(other[i]))
+    return best, *where
 
 
 @dataclass(frozen=True)

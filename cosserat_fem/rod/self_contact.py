@@ -18,6 +18,7 @@ from cosserat_fem.rod.contact_search import (
     VerletList,
     closest_point_sensitivities,
     closest_points,
+    least_gap_between_nodes,
 )
 
 
@@ -57,3 +58,15 @@ class SelfContactGeometry:
         return Pairs(
             node, self.dofs[cell], near.gap, near.normal, near.weights, d.gap, d.normal, d.weights
         )
+
+    def between_nodes(self, x: np.ndarray) -> tuple[float, float, float]:
+        """The least gap [m] between the rod's parts sampled between the nodes (the rows hold
+        it at the nodes only: contact_search.least_gap_between_nodes) at the positions ``x``
+        of the last Verlet list's cell pairs, and the arc lengths s [m] of the two cells'
+        middles (inf, nan, nan without pairs)."""
+        if self.verlet is None:
+            return np.inf, np.nan, np.nan
+        gap, i, j = least_gap_between_nodes(x, self.dofs, self.verlet.cell_pairs, self.radius)
+        if i < 0:
+            return gap, np.nan, np.nan
+        return gap, float(self.arc[i].mean()), float(self.arc[j].mean())

@@ -32,6 +32,7 @@ from cosserat_fem.rod.contact_search import (
     cell_pairs,
     closest_point_sensitivities,
     closest_points,
+    least_gap_between_nodes,
     lebesgue_constant,
     reference_nodes,
     shape_functions,
@@ -390,3 +391,20 @@ def test_closest_point_sensitivities_are_the_derivatives():
             assert np.abs(dn - exact.normal[:, :, i, q]).max() < 1e-7
             dw = (up.weights - down.weights) / (2 * eps)
             assert np.abs(dw - exact.weights[:, :, i, q]).max() < 1e-7
+
+
+def test_the_gap_between_nodes_finds_crossing_cells():
+    """Two straight P3 cells of length 1 crossing at a right angle at their middles, their
+    axes d = 0.05 apart, tubes of r = 0.03: they pass through each other by 2r − d = 0.01,
+    yet every node is ≥ √(d² + (0.5 − 0.2764)²) − 2r = 0.169 from the other cell. Sampled at
+    ξ = q/8, the middles ξ = 1/2 are among the points: the least gap is d − 2r exactly (to
+    round-off), found on the pair, which node-to-cell gaps miss."""
+    xi = reference_nodes(3)
+    a = np.column_stack([xi - 0.5, 0 * xi, 0 * xi])
+    b = np.column_stack([0 * xi, xi - 0.5, 0 * xi + 0.05])
+    positions, dofs = np.vstack([a, b]), np.array([[0, 1, 2, 3], [4, 5, 6, 7]])
+    gap, i, j = least_gap_between_nodes(positions, dofs, np.array([[0, 1]]), 0.03)
+    assert gap == pytest.approx(-0.01, abs=1e-14) and {i, j} == {0, 1}
+    nodes = closest_points(positions[[0, 1, 2, 3]], np.repeat(b[None], 4, 0), 0.03, 0.03)
+    assert nodes.gap.min() > 0.16
+    assert least_gap_between_nodes(positions, dofs, np.zeros((0, 2), int), 0.03)[0] == np.inf
