@@ -16,12 +16,14 @@ beyond X carries nothing), so B touches at P_c = δ0/c(b, L) and beyond it the c
 
     R = (P c(b, L) − δ0) / (c(b, b) + c(a, a))                                      (X.2)
 
-(their sections circles: no coupling of the two bending planes, no twist). The same with A's
-outer half joined to its inner half by a spherical joint at X and pinned at (L, 0, 0): a
-link with moment-free ends and no load between them carries no transverse force in the
-linear theory, so (X.2) holds unchanged, and the reaction lands on the cells that meet at
-the joint's master and copy (cosserat_fem/rod/obstacles.py: a copy's reaction reaches its
-master's balance rows).
+(their sections circles: no coupling of the two bending planes, no twist). The same with a
+spherical joint at X whose copy is A's inner half's (A's outer half keeps the node) and A's
+end pinned: a link with moment-free ends and no load between them carries no transverse
+force in the linear theory, so (X.2) holds unchanged. The pair's partner cell is then the
+inner half's last, which holds the copy: the cells carry the copy's master instead
+(cosserat_fem/rod/obstacles.py), so the reaction reaches the master's balance rows, which
+the joint's (C.1) made the node's whole (without that the copy, a node of its own at X, sits
+on the outer half's centreline, and the scene is refused as starting through itself).
 
 The linear frame is exact for the P3 elements when the loads sit at vertices (moments linear
 along each cell; tests/test_self_contact.py measured the same), and X is a vertex of both
