@@ -208,9 +208,12 @@ def _check_self_start(pairs: PairContact, u: np.ndarray) -> None:
 
 
 def _rest(model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The owned nodes' rest positions [m] (owned, 3), their places [m] (a rod's arc length s;
-    on a structure the arc along the node's member from its ``from`` node, at a junction the
-    member of the largest index: what messages call s) and whether each is a joint's copy
+    """The owned nodes' rest positions [m] (owned, 3), their places s [m] (a rod's arc length;
+    on a structure the members laid end to end in the scene's order, as ℓ is their total
+    length: member m's node at arc a from its ``from`` node at s = a + the lengths of the
+    members before m, a junction's node on its member of the largest index; the order in
+    which NodeContact's slip fronts walk from node to node, and the s of the messages) and
+    whether each is a joint's copy
     (rod/structure.py: its rows are the joint's, its equation its master's; no contact of its
     own). A structure's mesh has its vertices at r0/ℓ, so its dofs' coordinates times ℓ."""
     V, ell = model.V, model.length
@@ -222,14 +225,15 @@ def _rest(model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         rest = np.asarray(model.scene.reference.positions(ell * sigma), dtype=float)
         return rest.reshape(-1, 3), ell * sigma, np.zeros(owned, dtype=bool)
     rest = ell * coordinates
-    starts, tangents, _ = _member_lines(structure)
+    starts, tangents, lengths = _member_lines(structure)
     member, _, _ = cell_members(structure, ell, model.msh)
     top = np.full(owned, -1, dtype=np.int64)
     for c, m in enumerate(member):
         dofs = V.dofmap.cell_dofs(c)
         dofs = dofs[dofs < owned]
         top[dofs] = np.maximum(top[dofs], m)
-    places = np.einsum("nd,nd->n", rest - starts[top], tangents[top])
+    before = np.concatenate([[0.0], np.cumsum(lengths)[:-1]])
+    places = before[top] + np.einsum("nd,nd->n", rest - starts[top], tangents[top])
     copies = np.zeros(owned, dtype=bool)
     if structure.all_joints():
         copies[model.structure.joint_blocks(V, structure)[1]] = True
