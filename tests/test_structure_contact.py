@@ -151,6 +151,21 @@ def test_crossing_cantilevers_carry_the_frames_reaction(delta0, bound, joint):
     assert abs(summary["least_pair_gap_m"] / (0.5 * delta0) - 1) < 1e-5
 
 
+def test_a_joints_copy_is_neither_an_obstacle_node_nor_in_a_cell():
+    """On the crossing with the joint at X and a plane far below: the joint's copy (its rows
+    the joint's, (C.1)-(C.2)) is not among the obstacle's nodes, its master is, and no cell
+    of the pairs' search holds the copy (its master's index instead). Serial: local blocks
+    are global nodes."""
+    scene = crossing(0.5 * 1e-4 / c(B_AT, L), 1e-4, joint=True)
+    scene["contact"]["obstacles"] = [{"kind": "plane", "point": [0, 0, -1], "normal": [0, 0, 1]}]
+    model = static_path(scene_from_dict(scene), comm=MPI.COMM_SELF, write_outputs=False).model
+    (master,), (copy,), _, _ = model.structure.joint_blocks(model.V, model.scene.structure)
+    assert copy not in model.contact.obstacles.blocks
+    assert master in model.contact.obstacles.blocks
+    cells = model.contact.pairs.geometry.dofs
+    assert copy not in cells and master in cells
+
+
 def corner(alpha: float, r: float, h: float, cells: int = 12):
     """Two straight members of ``cells`` P3 cells of length ``h`` leaving J = 0 at the angle
     ``alpha`` (member 0 along e1 from J, member 1 towards J along the direction at alpha from
