@@ -384,7 +384,9 @@ def cell_pairs(
 class VerletList:
     """The (node, cell) pairs within a gap of ``margin`` (module docstring) of rods given by
     their nodes' ``positions`` (nodes, 3) [m] and cells ``dofs`` (cells, k+1) (node indices,
-    dof order), a radius a cell, ``arc`` and ``rod`` as :func:`cell_pairs`'.
+    dof order), a radius a cell, ``arc`` and ``rod`` as :func:`cell_pairs`'; ``keep`` (None:
+    all) maps :func:`cell_pairs`' cell pairs to those kept (a structure's joints,
+    cosserat_fem/rod/self_contact.py), before any closest point.
 
     ``pairs`` (m, 2): node, partner cell; ``closest`` their :class:`ClosestPoints` at the build.
     """
@@ -397,6 +399,7 @@ class VerletList:
         margin: float,
         arc: np.ndarray | None = None,
         rod: np.ndarray | None = None,
+        keep=None,
     ):
         self.margin, self.dofs = margin, dofs
         self.radius = np.broadcast_to(np.asarray(radius, dtype=float), (len(dofs),)).copy()
@@ -404,6 +407,7 @@ class VerletList:
         self.threshold = margin / (1.0 + lebesgue_constant(dofs.shape[1] - 1))
         nodes = positions[dofs]
         cells = cell_pairs(nodes, self.radius, margin, arc, rod)
+        cells = cells if keep is None else keep(cells)
         #: the candidate cell pairs (i, j), i < j, of the build
         self.cell_pairs = cells
         k1 = dofs.shape[1]

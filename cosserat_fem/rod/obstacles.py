@@ -29,7 +29,8 @@ from cosserat_fem.common.parallel import agree
 from cosserat_fem.nls.contact import TOUCHING, NodeContact
 from cosserat_fem.nls.contacts import Contacts
 from cosserat_fem.nls.pair_contact import PairContact
-from cosserat_fem.rod.self_contact import SelfContactGeometry
+from cosserat_fem.rod.self_contact import Members, SelfContactGeometry
+from cosserat_fem.rod.structure import cell_members
 from cosserat_fem.scene.expressions import derivative
 
 
@@ -204,8 +205,7 @@ def contact_rows(model) -> NodeContact | Contacts | None:
     solved = [k for k in range(3) if positions[k] is not None]
     held_nodes = held.reshape(owned, bs)[:, [positions[k] for k in solved]].any(axis=1)
     ell = model.length
-    sigma = V.tabulate_dof_coordinates()[:owned, 0]
-    rest = np.asarray(model.scene.reference.positions(ell * sigma), dtype=float).reshape(-1, 3)
+    rest, places, copies = _rest(model)
     # each node's share of the length, ℓ ∫ φ_k dσ [m]: a nodal force over it is a load per length
     scalar = fem.FunctionSpace(model.msh, ("Lagrange", V.ufl_element().degree()))
     shares = assemble_vector(fem.form(ufl.TestFunction(scalar) * model.dx))
@@ -222,7 +222,7 @@ def contact_rows(model) -> NodeContact | Contacts | None:
     if spec.obstacles:
         constants = model.scene.expression_names()
         shapes = [Obstacle.of(o, constants) for o in spec.obstacles]
-        free = np.flatnonzero(~held_nodes).astype(np.int32)
+        free = np.flatnonzero(~held_nodes & ~copies).astype(np.int32)
         obstacles = NodeContact(
             V,
             free,
@@ -231,32 +231,97 @@ def contact_rows(model) -> NodeContact | Contacts | None:
             shares=shares[free],
             static_friction=spec.static_friction,
             kinetic_friction=spec.kinetic,
-            places=ell * sigma[free],
+            places=places[free],
             max_changes=spec.max_changes,
             **common,
         )
         _check_start(obstacles, spec, model.U.x.array, V.mesh.comm, shapes)
     model.contact = obstacles
     if spec.self_contact:
-        model.contact = Contacts(
-            obstacles,
-            PairContact(
-                V,
-                rest,
-                held_nodes,
-                _self_geometry(model, ell * sigma, float(spec.radius)),
-                places=ell * sigma,
-                shares=shares,
-                **common,
-            ),
+        pairs = PairContact(
+            V,
+            rest,
+            held_nodes,
+            _self_geometry(model, places, rest, float(spec.radius)),
+            places=places,
+            shares=shares,
+            **common,
         )
+        _check_self_start(pairs, model.U.x.array)
+        model.contact = Contacts(obstacles, pairs)
     return model.contact
 
 
-def _self_geometry(model, places: np.ndarray, radius: float) -> SelfContactGeometry:
+def _check_self_start(pairs: PairContact, u: np.ndarray) -> None:
+    """SceneError (on every rank: each finds the same pairs) if a slave starts through its
+    partner's surface, beyond round-off (1e-12 ℓ): on a structure, members whose tubes
+    overlap where the exclusion at their junctions (rod/self_contact.py (J.1)) leaves them
+    paired, e.g. across a member shorter than the exclusion."""
+    x = pairs.everywhere(u)
+    found = pairs.geometry(x)
+    if not len(found.gap) or found.gap.min() >= -TOUCHING * pairs.ell:
+        return
+    j = int(np.argmin(found.gap))
+    where = ", ".join(f"{v:.4g}" for v in x[found.slave[j]])
+    raise SceneError(
+        f"contact.self_contact: the surface starts through itself, {-found.gap[j]:.3g} m deep "
+        f"at the node at ({where}) m (contact.radius {pairs.geometry.radius:.3g} m); move "
+        "the members apart or give a smaller radius"
+    )
+
+
+def _rest(model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The owned nodes' rest positions [m] (owned, 3), their places s [m] (a rod's arc length;
+    on a structure the members laid end to end in the scene's order, as ℓ is their total
+    length: member m's node at arc a from its ``from`` node at s = a + the lengths of the
+    members before m, a junction's node on its member of the largest index; the order in
+    which NodeContact's slip fronts walk from node to node, and the s of the messages) and
+    whether each is a joint's copy
+    (rod/structure.py: its rows are the joint's, its equation its master's; no contact of its
+    own). A structure's mesh has its vertices at r0/ℓ, so its dofs' coordinates times ℓ."""
+    V, ell = model.V, model.length
+    owned = V.dofmap.index_map.size_local
+    coordinates = V.tabulate_dof_coordinates()[:owned]
+    structure = model.scene.structure
+    if structure is None:
+        sigma = coordinates[:, 0]
+        rest = np.asarray(model.scene.reference.positions(ell * sigma), dtype=float)
+        return rest.reshape(-1, 3), ell * sigma, np.zeros(owned, dtype=bool)
+    rest = ell * coordinates
+    starts, tangents, lengths = _member_lines(structure)
+    member, _, _ = cell_members(structure, ell, model.msh)
+    top = np.full(owned, -1, dtype=np.int64)
+    for c, m in enumerate(member):
+        dofs = V.dofmap.cell_dofs(c)
+        dofs = dofs[dofs < owned]
+        top[dofs] = np.maximum(top[dofs], m)
+    before = np.concatenate([[0.0], np.cumsum(lengths)[:-1]])
+    places = before[top] + np.einsum("nd,nd->n", rest - starts[top], tangents[top])
+    copies = np.zeros(owned, dtype=bool)
+    if structure.all_joints():
+        copies[model.structure.joint_blocks(V, structure)[1]] = True
+    return rest, places, copies
+
+
+def _member_lines(structure) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The members' rest starts [m] (M, 3), unit tangents (M, 3) and lengths [m] (M,)."""
+    r0 = structure.positions()
+    starts = np.array([r0[m.start] for m in structure.members])
+    chords = np.array([r0[m.end] for m in structure.members]) - starts
+    lengths = np.linalg.norm(chords, axis=1)
+    return starts, chords / lengths[:, None], lengths
+
+
+def _self_geometry(
+    model, places: np.ndarray, rest: np.ndarray, radius: float
+) -> SelfContactGeometry:
     """The rod's cells as global node indices (every rank's, gathered) and its nodes' arc
     lengths, for the self-contact search; the Verlet margin 2r (rebuilt when a node has moved
-    2r/(1 + Λ_k))."""
+    2r/(1 + Λ_k)). On a structure its members (self_contact.Members) instead of the arc
+    lengths, and each joint's copy replaced in the cells by its master: the copy's position
+    is its master's (the joint's rows), and a reaction (P.2) on its cells then reaches the
+    master's balance rows, which (C.1) (nls/constraints.py, applied before the contact's rows
+    in nls/newton.py) made the node's whole balance."""
     V = model.V
     comm = V.mesh.comm
     imap = V.dofmap.index_map
@@ -264,4 +329,24 @@ def _self_geometry(model, places: np.ndarray, radius: float) -> SelfContactGeome
     local = np.array([V.dofmap.cell_dofs(c) for c in range(cells)], dtype=np.int32)
     dofs = imap.local_to_global(local.ravel()).reshape(local.shape)
     every = np.vstack(comm.allgather(dofs)).astype(np.int64)
-    return SelfContactGeometry(every, np.concatenate(comm.allgather(places)), radius, 2.0 * radius)
+    structure = model.scene.structure
+    if structure is None:
+        return SelfContactGeometry(
+            every, np.concatenate(comm.allgather(places)), radius, 2.0 * radius
+        )
+    master = np.arange(imap.size_global, dtype=np.int64)
+    if structure.all_joints():  # each copy's master, global indices, every rank's
+        masters, copies, _, _ = model.structure.joint_blocks(V, structure)
+        mine = np.column_stack([copies, masters]).astype(np.int64) + imap.local_range[0]
+        ties = np.vstack(comm.allgather(mine.reshape(-1, 2)))
+        master[ties[:, 0]] = ties[:, 1]
+    member = cell_members(structure, model.length, model.msh)[0][:cells]
+    starts, tangents, lengths = _member_lines(structure)
+    members = Members(
+        np.concatenate(comm.allgather(member)),
+        starts,
+        tangents,
+        lengths,
+        np.vstack(comm.allgather(rest)),
+    )
+    return SelfContactGeometry(master[every], None, radius, 2.0 * radius, members)

@@ -6,9 +6,30 @@ within π r of arc (S.2)); the rows are cosserat_fem/nls/pair_contact.py's.
 Single pass: of the two directions of a contact (a node of one part of the rod on a cell of the
 other, and back), the node that lies later along the rod is the slave and the cell the partner
 (a node after the cell's last node in arc length). Each slave keeps its nearest partner cell.
+
+On a structure (:class:`Members`; docs/contact.md, "Contact on a structure") each member is a
+rod of its own with its arc a from its ``from`` node at rest:
+
+* a member against itself: as a rod's, π r of its arc excluded (S.2), the node later along it
+  the slave;
+* two members p, q that meet at a junction J, at the angle α between their directions leaving
+  J at rest: the cell pairs whose nearer ends lie a and b from J along them with
+
+      a + b < λ = π r / sin(α/2)                                                      (J.1)
+
+  excluded. At rest the members are straight: |a t_p − b t_q|² = a² + b² − 2ab cos α, whose
+  least on a + b = λ is λ sin(α/2) (at a = b; homogeneous in (a, b), so λ sin(α/2) is the
+  least for a + b ≥ λ too). So every kept pair starts π r apart, a gap ≥ (π − 2) r as the
+  straight rod's nearest kept pair ((S.2)), and a member's node at J, which lies on the other
+  member's centreline, is never paired with that member's cells at J. α = π (members in line)
+  gives the rod's π r; α → 0 excludes everything near J (members folded onto each other);
+* two members: the node whose member has the larger index is the slave (at a junction a node
+  takes the largest index of its members), the same serially and under MPI.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -22,27 +43,116 @@ from cosserat_fem.rod.contact_search import (
 )
 
 
+@dataclass(frozen=True)
+class Members:
+    """A structure's members, for its pairs (module docstring): each cell's ``member``
+    (cells,), the members' rest ``starts`` (M, 3) [m] and unit ``tangents`` (M, 3), every
+    node's ``rest`` position (N, 3) [m] (a joint's copies given their master's index in the
+    cells: cosserat_fem/rod/obstacles.py) and the members' ``lengths`` (M,) [m]."""
+
+    member: np.ndarray
+    starts: np.ndarray
+    tangents: np.ndarray
+    lengths: np.ndarray
+    rest: np.ndarray
+
+    def along(self, nodes: np.ndarray, members: np.ndarray) -> np.ndarray:
+        """The arc [m] of the ``nodes`` along the ``members`` (at rest, from each ``from``)."""
+        rel = self.rest[nodes] - self.starts[members]
+        return np.einsum("...d,...d->...", rel, self.tangents[members])
+
+
 class SelfContactGeometry:
     """The :class:`~cosserat_fem.nls.pair_contact.Pairs` of one rod whose cells are ``dofs``
     (cells, k+1) (global node indices, dof order), its nodes at arc lengths ``places`` (N,)
-    [m] at rest, its surface a tube of ``radius`` r [m]; pairs within ``margin`` [m]."""
+    [m] at rest, its surface a tube of ``radius`` r [m]; pairs within ``margin`` [m]. A
+    structure gives its ``members`` instead of ``places`` (module docstring)."""
 
-    def __init__(self, dofs: np.ndarray, places: np.ndarray, radius: float, margin: float):
+    def __init__(
+        self,
+        dofs: np.ndarray,
+        places: np.ndarray | None,
+        radius: float,
+        margin: float,
+        members: Members | None = None,
+    ):
         self.dofs, self.places = dofs, places
-        self.radius, self.margin = radius, margin
-        arc = places[dofs]
+        self.radius, self.margin, self.members = radius, margin, members
+        self.rod = None if members is None else members.member
+        if members is None:
+            assert places is not None, "a rod's arc lengths"
+            arc = places[dofs]
+        else:
+            arc = members.along(dofs, members.member[:, None])
+            self._junctions(members)
         self.arc = np.column_stack([arc.min(axis=1), arc.max(axis=1)])
         self.verlet: VerletList | None = None
         #: how many times the Verlet list was built
         self.builds = 0
 
+    def _junctions(self, members: Members) -> None:
+        """Each node's (node, member) memberships and the largest member it is a node of; per
+        two members meeting at a junction J: (p, q, J's arc along p and q, λ of (J.1))."""
+        count = len(members.starts)
+        k1 = self.dofs.shape[1]
+        keys = np.unique(self.dofs.ravel() * count + np.repeat(members.member, k1))
+        self.memberships = keys
+        node, member = keys // count, keys % count
+        self.top = np.full(len(members.rest), -1, dtype=np.int64)
+        np.maximum.at(self.top, node, member)
+        self.joints = []
+        shared, first = np.unique(node, return_index=True)
+        many = np.flatnonzero(np.diff(np.append(first, len(node))) > 1)
+        for J in shared[many]:
+            at = member[node == J]
+            arcs = members.along(np.full(len(at), J), at)
+            # the directions leaving J: along the member from its start, against it from its end
+            out = members.tangents[at] * np.where(arcs < 0.5 * members.lengths[at], 1, -1)[:, None]
+            for i in range(len(at)):
+                for j in range(i + 1, len(at)):
+                    half = np.sqrt(max(0.0, 0.5 * (1.0 - float(out[i] @ out[j]))))
+                    reach = np.pi * self.radius / half if half > 0.0 else np.inf
+                    self.joints.append((at[i], at[j], arcs[i], arcs[j], reach))
+
+    def _keep(self, pairs: np.ndarray) -> np.ndarray:
+        """The cell ``pairs`` (m, 2) not excluded at a junction by (J.1)."""
+        member = self.members.member if self.members is not None else None
+        if member is None or not len(pairs):
+            return pairs
+        near = np.zeros(len(pairs), dtype=bool)
+        for p, q, ap, aq, reach in self.joints:
+            for i, j, a_i, a_j in ((0, 1, ap, aq), (1, 0, aq, ap)):
+                ci, cj = pairs[:, i], pairs[:, j]
+                here = (member[ci] == p) & (member[cj] == q)
+                a = self._from(ci, a_i)
+                b = self._from(cj, a_j)
+                near |= here & (a + b < reach)
+        return pairs[~near]
+
+    def _from(self, cells: np.ndarray, at: float) -> np.ndarray:
+        """The arc [m] from the point ``at`` of the cells' member to their nearer end."""
+        return np.maximum(np.maximum(self.arc[cells, 0] - at, at - self.arc[cells, 1]), 0.0)
+
+    def _slaves(self, node: np.ndarray, cell: np.ndarray) -> np.ndarray:
+        """Whether each (node, cell) pair's node is the slave (module docstring)."""
+        if self.members is None:
+            assert self.places is not None
+            return self.places[node] > self.arc[cell, 1]
+        member = self.members.member[cell]
+        count = len(self.members.starts)
+        inside = np.isin(node * count + member, self.memberships)
+        later = self.members.along(node, member) > self.arc[cell, 1]
+        return np.where(inside, later, self.top[node] > member)
+
     def __call__(self, x: np.ndarray) -> Pairs:
         """The single-pass pairs at the nodes' positions ``x`` (N, 3) [m]."""
         if self.verlet is None or self.verlet.stale(x):
-            self.verlet = VerletList(x, self.dofs, self.radius, self.margin, self.arc)
+            self.verlet = VerletList(
+                x, self.dofs, self.radius, self.margin, self.arc, self.rod, self._keep
+            )
             self.builds += 1
         node, cell = self.verlet.pairs.reshape(-1, 2).T
-        later = self.places[node] > self.arc[cell, 1]
+        later = self._slaves(node, cell)
         node, cell = node[later], cell[later]
         cells = x[self.dofs[cell]]
         near = closest_points(x[node], cells, self.radius, self.radius)

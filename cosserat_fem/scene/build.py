@@ -1149,8 +1149,13 @@ def _check_contact_scene(scene: Scene) -> None:
             if "contact" in getattr(scene.output, key):
                 raise SceneError(f"output.{key}: contact needs a [contact] table")
         return
-    if scene.structure is not None:
-        raise SceneError("contact: contact on a structure is not supported yet (one rod)")
+    for i, support in enumerate(scene.structure.supports if scene.structure else ()):
+        if support.kind == "sliding":
+            raise SceneError(
+                f"structure.supports[{i}].kind: a sliding node holds some of its positions: "
+                "contact's rows are written for nodes free in all or held in all (not yet "
+                "for this support)"
+            )
     if scene.solver.nonlinear == "snes" or scene.solver.petsc:
         raise SceneError(
             "solver.nonlinear: contact's rows need the project's Newton loop, not SNES "
