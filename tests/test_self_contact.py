@@ -175,3 +175,146 @@ def test_the_rod_through_itself_between_nodes_is_found_with_its_place():
     solver._residual()
     where, reason = contact.step_changes()
     assert where.startswith("s = ") and "passes through itself between its nodes" in reason
+
+
+@pytest.mark.parametrize("state", ["slip", "stick", "frictionless"])
+def test_the_pair_rows_jacobian_is_the_derivative_of_the_rows(state):
+    """The Jacobian of (P.1)-(P.4) against central differences of the residual with its rows,
+    on the hairpin with friction (μ_s = 0.3, μ_k = 0.2) or without: the free leg turned down
+    through leg 1 by 1 cm at its end (about twenty slaves pressed, their partners' rows
+    receiving) and moved along it by 7 mm (no slave over a vertex of leg 1, where the nearest
+    cell would switch), since the friction's history (slip: the trial force c Δ beyond the
+    cone, c = 1e6 held) or hardly (stick: the history at the state but for the partners
+    0.01 mm off along the leg, unevenly within their cells, so that Σ Δu_j dN_j counts), plus
+    a random 1e-7 state. The differences
+    move neither the supports' dofs nor the out-of-plane positions (n keeps n_y = 0 and the
+    tangent basis its branch: T jumps where two of |n|'s components cross). On the rows the
+    pairs write (the slaves' tangential rows) and add to (the partners'), relative to their
+    largest: the error is O(ε²) (ε = 1e-6 → 1e-7: it falls 30-300×, unless below 1e-9
+    already), below 1e-6 at 1e-7, far below a missing term's O(1)."""
+    from cosserat_fem.analysis.statics import static_solver
+    from cosserat_fem.rod.model import build_model
+
+    r = 0.0245
+    delta0, _ = closure(r)
+    data = hairpin(0.0, r)
+    if state != "frictionless":
+        data["contact"].update(static_friction=0.3, kinetic_friction=0.2)
+    scene = scene_from_dict(data)
+    model = build_model(scene, MPI.COMM_SELF)
+    solver = static_solver(scene, model)
+    pairs = solver.contact.pairs
+    bs, ell = model.layout.size, model.length
+    s = model.V.tabulate_dof_coordinates()[:, 0] * ell
+    x, y, z = (model.layout.index(k) for k in range(3))
+    rng = np.random.default_rng(2)
+    u0 = rng.normal(size=model.U.x.array.size) * 1e-7
+    u0[z::bs] -= np.clip((s - L1 - H) / L2, 0.0, None) * (delta0 + 0.01) / ell
+    u0[y::bs] = 0.0
+    u0[x::bs] += np.where(s > L1 + H, 0.007 / ell, 0.0)  # no slave above a partner's vertex
+    # the partners move too, unevenly within their cells (else Σ Δu_j dN_j = 0)
+    u0[x::bs] -= np.where(s < L1, 0.003 * np.sin(40 * np.pi * s) / ell, 0.0)
+    held = np.concatenate([bc.dof_indices()[0] for bc in model.bcs])
+    u0[held] = 0.0
+
+    def rows(u):
+        model.U.x.array[:] = u
+        pairs.c = 1e6
+        solver._residual()
+        return solver.b.array.copy(), pairs.active.copy()
+
+    if state == "stick":  # the history near the state: the partners 0.01 mm off, unevenly
+        history = u0.copy()
+        history[x::bs] += np.where(s < L1, 1e-5 * np.sin(40 * np.pi * s) / ell, 0.0)
+        history[held] = 0.0
+        pairs.x_old = pairs.everywhere(history)
+    _, active = rows(u0)
+    assert len(active) >= 10 and set(active[:, 2]) == {2 if state != "stick" else 1}, active
+    solver._assemble_jacobian()
+    v = rng.normal(size=u0.size)
+    v[y::bs], v[held] = 0.0, 0.0
+    xv, yv = solver.A.createVecs()
+    xv.array[:] = v
+    solver.A.mult(xv, yv)
+    # the rows the pairs write or add to: the slaves' tangential rows, the partners' balance
+    slaves = pairs.pq[active[:, 0] - pairs.start][:, 1:].ravel()
+    partners = pairs.pq[np.unique(pairs._rows["partner"])].ravel()
+    errors = {"slaves": [], "partners": []}
+    for eps in (1e-6, 1e-7):
+        (plus, a_plus), (minus, a_minus) = rows(u0 + eps * v), rows(u0 - eps * v)
+        assert np.array_equal(a_plus, active) and np.array_equal(a_minus, active)
+        error = np.abs((plus - minus) / (2 * eps) - yv.array)
+        for name, where in (("slaves", slaves), ("partners", partners)):
+            errors[name].append(error[where].max() / np.abs(yv.array[where]).max())
+    for name, (coarse, fine) in errors.items():
+        assert fine < 1e-6 and (coarse < 1e-9 or 30 < coarse / fine < 300), (name, errors)
+
+
+# Friction between the parts: the hairpin whose long leg and corner are 1e6 times stiffer than
+# its free leg (a section varying along s), so that the free leg is a cantilever of length L2
+# clamped at the corner and its end D presses on a rigid leg. EI, EA, κGA of the free leg:
+STIFF = (100.0, 1.0e4, 1.0e6)  # N m², N, N
+
+
+def rigid_hairpin(Px: float, Pz: float, r: float, mu: float) -> dict:
+    """The hairpin above with friction μ between its parts, the free end loaded by (Px, 0,
+    −Pz) (Px along e1, back towards the corner: along the free leg), in four load steps."""
+    EI, EA, GA = STIFF
+    factor = f"(1 + 1e6*heaviside({L1 + H!r} - s))"  # the long leg and the corner
+    diagonal = [GA, GA, EA, EI, EI, EI / 1.3]
+    data = hairpin(0.0, r)
+    data["rod"]["section"]["stiffness"] = [
+        [f"{k!r}*{factor}" if i == j else 0 for j in range(6)] for i, k in enumerate(diagonal)
+    ]
+    data["loads"] = {"end": {"force": [Px, 0, -Pz]}}
+    data["static"] = {"load_steps": 4}
+    data["contact"].update(static_friction=mu)
+    return data
+
+
+@pytest.mark.parametrize("slides", [False, True])
+def test_friction_between_the_parts_sticks_and_slides_as_the_closed_form(slides):
+    """The free leg, a cantilever (c2 = L2³/3EI + L2/κGA), is pressed on the rigid leg by Pz =
+    2 δ0/c2 (contact from the load factor λ_c = 1/2 on: R = Pz − δ0/c2) and pulled along it by
+    Px. Proportional loading: after contact the pair must carry (λ − λ_c) Px against at most
+    μ (λ − λ_c) Pz, so it sticks for all λ if Px < μ Pz, and slides from the contact on if
+    Px > μ Pz. Stick: the end moves along the leg only before the contact, u = λ_c Px L2/EA
+    + 3δ0²/(5 L2) (the bent cantilever's end comes back by ∫ w'²/2: 1.2 % of u here), and the
+    pair carries T = (1 − λ_c) Px < μ R. Slide: |P F| = μ f_N (to the Newton tolerance),
+    T = μ R and u = (Px − μ R) L2/EA + 3δ0²/(5 L2). Tolerances 1e-3: the linear theory's
+    O(δ0/L2) = 1e-4 (δ0 = 1e-4 m), the beam-column coupling Px L2²/EI ≈ 1e-4, the legs' 1e-6
+    compliance (measured: R 2e-5 and 7.6e-5, T 4e-5 and 7.6e-5, slip u 2.3e-4); the stuck u
+    3e-3, as it is set by where the contact starts, λ_c, whose O(δ0/L2) error it takes
+    relative to λ_c (measured 7.9e-4). A stick that crept or a slip force wrong by μ would
+    miss by O(1)."""
+    EI, EA, GA = STIFF
+    r, mu = 0.02495, 0.3
+    delta0 = H - 2 * r
+    c2 = L2**3 / (3 * EI) + L2 / GA
+    Pz = 2 * delta0 / c2
+    Px = (1.5 if slides else 0.5) * mu * Pz
+    result = static_path(
+        scene_from_dict(rigid_hairpin(Px, Pz, r, mu)), comm=MPI.COMM_SELF, write_outputs=False
+    )
+    model = result.model
+    pairs = model.contact.pairs
+    rows = pairs._rows
+    assert len(rows["local"]) == 1 and rows["state"][0] == (2 if slides else 1)
+    force = rows["F"][0] * pairs.force_scale  # the whole force on the end (its x, z parts)
+    # the push up, and the force along e1 (against Px: the pair holds the end back)
+    normal, along = force[pairs.solved.index(2)], -force[pairs.solved.index(0)]
+    R = Pz - delta0 / c2
+    shortening = 3 * delta0**2 / (5 * L2)  # the bent leg's end comes back by ∫ w'²/2
+    bs = model.layout.size
+    end = np.argmax(model.V.tabulate_dof_coordinates()[:, 0])
+    u = model.U.x.array[end * bs + model.layout.index(0)] * model.length
+    assert abs(normal / R - 1) < 1e-3
+    if slides:  # the rows' |P F| = μ_k f_N to the Newton tolerance, along e1 to the tilt
+        n, F = rows["n"][0], rows["F"][0]
+        tangential = F - (n @ F) * n
+        assert abs(np.linalg.norm(tangential) / (mu * (n @ F)) - 1) < 1e-9
+        assert abs(along / (mu * R) - 1) < 1e-3
+        assert abs(u / ((Px - mu * R) * L2 / EA + shortening) - 1) < 1e-3
+    else:
+        assert abs(along / (0.5 * Px) - 1) < 1e-3 and along < mu * R
+        assert abs(u / (0.5 * Px * L2 / EA + shortening) - 1) < 3e-3

@@ -37,7 +37,15 @@ from mpi4py import MPI
 from petsc4py import PETSc
 
 from cosserat_fem.common.errors import SolverError
-from cosserat_fem.nls.contact import ROUNDOFF, TOUCHING, tangent_bases
+from cosserat_fem.nls.contact import (
+    FREE,
+    ROUNDOFF,
+    SLIP,
+    STICK,
+    TOUCHING,
+    tangent_bases,
+    tangential,
+)
 
 #: how deep [in radii] the rod's parts may pass through each other between the nodes before
 #: a step is rejected (the issue's bound for a capstan's penetration: 1 % of the radius)
@@ -83,6 +91,8 @@ class PairContact:
         solved: list[int],
         places: np.ndarray,
         shares: np.ndarray,
+        static_friction: float = 0.0,
+        kinetic_friction: float | None = None,
     ):
         self.comm = V.mesh.comm
         bs = V.dofmap.index_map_bs
@@ -106,8 +116,20 @@ class PairContact:
         self.c: float | None = None
         #: the active pairs at the last iterate and at the last accepted state, (slave, first
         #: partner node) global, and the rows' data of the last iterate
-        self.active = np.zeros((0, 2), dtype=np.int64)
-        self.accepted = np.zeros((0, 2), dtype=np.int64)
+        self.active = np.zeros((0, 3), dtype=np.int64)
+        self.accepted = np.zeros((0, 3), dtype=np.int64)
+        #: Coulomb friction between the parts (P.3)-(P.4), or none (μ_s = 0)
+        self.mu_s = static_friction
+        self.mu_k = static_friction if kinetic_friction is None else kinetic_friction
+        self.friction = static_friction > 0.0
+        count = len(self.held_all)
+        #: each node's state as a slave (FREE, STICK, SLIP) at the last iterate and accepted
+        self.node_state = np.zeros(count, dtype=np.int8)
+        self.node_accepted = np.zeros(count, dtype=np.int8)
+        #: every node's position at the last accepted state [m] (the friction's history)
+        self.x_old = np.concatenate(self.comm.allgather(np.asarray(rest, dtype=float)))
+        #: the work friction between the parts dissipated [J] over the accepted states
+        self.dissipated = 0.0
         self._rows: dict = {}
         self.least_gap = np.inf
         self.most = 0
@@ -141,9 +163,10 @@ class PairContact:
 
     # -- the rows -------------------------------------------------------------------------
     def apply_vector(self, b: np.ndarray, u: np.ndarray) -> bool:
-        """Decide the pairs at the iterate (u, F = ``b``, the owned values of the assembled
-        residual) and write (P.1)-(P.2) into ``b``; whether the active set changed on any rank
-        since the last iterate (collective)."""
+        """Decide the pairs and their states at the iterate (u, F = ``b``, the owned values of
+        the assembled residual) and write (P.1)-(P.2) into ``b`` ((P.3)-(P.4) with
+        friction); whether the active set or a state changed on any rank since the last
+        iterate (collective)."""
         self._x = self.everywhere(u)
         pairs = self.geometry(self._x)
         mine = (pairs.slave >= self.start) & (pairs.slave < self.start + self.owned)
@@ -154,34 +177,68 @@ class PairContact:
         F = b[self.pq[local]]
         fN = np.sum(n * F, axis=1)
         gs = pairs.gap[mine] / self.ell
+        c = self.c
         zero = ROUNDOFF * self.comm.allreduce(float(np.abs(b).max(initial=0.0)), op=MPI.MAX)
-        if self.c is None:
+        if c is None:
             on = (gs < -TOUCHING) | ((gs <= TOUCHING) & (fN >= -zero))
         else:
-            on = fN - self.c * gs >= -zero
+            on = fN - c * gs >= -zero
         slave, partner = pairs.slave[mine][on], pairs.partner[mine][on]
         self._check_chains(slave, partner)
         which = np.flatnonzero(mine)[on]
-        T, dT = tangent_bases(n[on])
+        n, F, fN, gs = n[on], F[on], fN[on], gs[on]
+        weights = pairs.weights[which]
+        T, dT = tangent_bases(n)
+        state = np.full(len(slave), SLIP, dtype=np.int8)  # frictionless: free to slide
+        # the relative slip of the two centreline points since the accepted state (scaled)
+        moved = (self._x - self.x_old)[:, solved] / self.ell
+        slips = moved[partner]  # (m, k+1, solved)
+        du = moved[slave] - np.einsum("mj,mjd->md", weights, slips)
+        s = np.zeros_like(F)
+        size = np.zeros(len(slave))
+        w = F - (0.0 if c is None else c) * du
+        if self.friction:
+            trial = tangential(w, n)
+            size = np.linalg.norm(trial, axis=1)
+            sliding = (self.node_accepted[slave] == SLIP) | (self.node_state[slave] == SLIP)
+            mu = np.where(sliding, self.mu_k, self.mu_s)
+            pressure = fN - (0.0 if c is None else c) * gs
+            state = np.where((size < mu * pressure) | (size == 0.0), STICK, SLIP).astype(np.int8)
+            s = np.divide(trial, size[:, None], out=np.zeros_like(trial), where=size[:, None] > 0)
+            # (P.3): stick holds the relative slip, slip gives μ_k f_N against it
+            v = np.where(
+                (state == STICK)[:, None], du, tangential(F - self.mu_k * fN[:, None] * s, n)
+            )
+            force = F  # the whole force the slave lacks goes to the partner (P.4)
+        else:
+            v = F  # (P.1): the tangential balance kept
+            force = n * fN[:, None]
         self._rows = dict(
             local=local[on],
             partner=partner,
-            n=n[on],
+            state=state,
+            n=n,
             T=T,
             dT=dT,
-            F=F[on],
-            fN=fN[on],
+            F=F,
+            fN=fN,
+            v=v,
+            w=w,
+            s=s,
+            size=size,
+            du=du,
+            slips=slips,
             gap=pairs.gap[which],
-            weights=pairs.weights[which],
+            weights=weights,
             d_gap=pairs.d_gap[which][:, :, solved],
             d_normal=pairs.d_normal[which][:, solved][:, :, :, solved],
             d_weights=pairs.d_weights[which][:, :, :, solved],
         )
         self.least_gap = self.comm.allreduce(float(pairs.gap[mine].min(initial=np.inf)), op=MPI.MIN)
-        # (P.2): the reactions N_j n f_N to the partner's nodes, on whichever rank owns them
+        # (P.2)/(P.4): the reactions N_j R to the partner's nodes, on whichever rank owns them
         reactions = self._reactions
         reactions.zeroEntries()
-        values = pairs.weights[which][:, :, None] * (n[on] * fN[on, None])[:, None, :]
+        values = weights[:, :, None] * force[:, None, :]
         reactions.setValues(
             self._global_rows(partner, self.balance_slots).ravel(),
             values.ravel(),
@@ -189,13 +246,15 @@ class PairContact:
         )
         reactions.assemble()
         b += reactions.getArray(readonly=True)
-        # (P.1)
-        rows = np.column_stack([gs[on], np.einsum("kij,kj->ki", T, F[on])])
+        # (P.1)/(P.3)
+        rows = np.column_stack([gs, np.einsum("kij,kj->ki", T, v)])
         b[self.pq[local[on]]] = rows
-        active = np.column_stack([slave, partner[:, 0]]) if len(slave) else self.active[:0]
+        active = np.column_stack([slave, partner[:, 0], state]).astype(np.int64)
         changed = not np.array_equal(active, self.active)
         self.flipped = slave if changed else slave[:0]
         self.active = active
+        self.node_state[:] = FREE
+        self.node_state[slave] = state
         return bool(self.comm.allreduce(changed, op=MPI.LOR))
 
     def _check_chains(self, slave: np.ndarray, partner: np.ndarray) -> None:
@@ -211,10 +270,10 @@ class PairContact:
             )
 
     def apply_matrix(self, A: PETSc.Mat) -> None:
-        """The Jacobian rows of (P.1)-(P.2) at the pairs :meth:`apply_vector` decided, in the
-        assembled ``A`` (collective; after its final assembly); the augmentation c as
-        NodeContact's (the largest diagonal position entry of an owned free node over the
-        ranks)."""
+        """The Jacobian rows of (P.1)-(P.4) at the pairs and states :meth:`apply_vector`
+        decided, in the assembled ``A`` (collective; after its final assembly); the
+        augmentation c as NodeContact's (the largest diagonal position entry of an owned free
+        node over the ranks)."""
         free = np.flatnonzero(~self.held_all[self.start : self.start + self.owned])
         local_c = max(
             (
@@ -229,46 +288,82 @@ class PairContact:
         )
         r = self._rows
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        count = len(r.get("local", ()))
         rows_out, adds = [], []
-        for p in range(count):
+        for p in range(len(r.get("local", ()))):
             a = int(r["local"][p])
             q = self.pq[a] + self.start * self.bs
             gathered = [A.getRow(int(row)) for row in q]
             cols = gathered[0][0]
-            J = np.array([vals for _, vals in gathered])  # (m, ncols)
             nodes = np.concatenate([[a + self.start], r["partner"][p]])
             geo_cols = (nodes[:, None] * self.bs + self.position_slots[None, :]).ravel()
             every = np.union1d(cols, geo_cols).astype(PETSc.IntType)
             at, geo_at = np.searchsorted(every, cols), np.searchsorted(every, geo_cols)
-            m = len(q)
-            n, T, dT, F, fN = r["n"][p], r["T"][p], r["dT"][p], r["F"][p], r["fN"][p]
-            dn = self.ell * r["d_normal"][p].reshape(m, -1)  # ∂n/∂u (m, K m)
-            # (P.1): the gap row ∂(g/ℓ)/∂u; the tangential rows T J + (∂T/∂n F) ∂n/∂u
-            new = np.zeros((m, len(every)))
-            new[0, geo_at] = r["d_gap"][p].ravel()
-            new[1:, at] = T @ J
-            new[1:, geo_at] += np.einsum("jab,a->jb", dT, F) @ dn
+            new, add = self._derivatives(p, np.array([v for _, v in gathered]), at, geo_at, every)
             rows_out.append((q, every, new))
-            # (P.2): the partner's rows gain N_j n nᵀ J and ∂(N_j n f_N)/∂u
-            dfN = np.zeros(len(every))
-            dfN[at] = n @ J
-            dfN[geo_at] += F @ dn
-            weights = r["weights"][p]
-            dw = self.ell * r["d_weights"][p].reshape(len(weights), -1)
             for j, node in enumerate(r["partner"][p]):
-                if self.held_all[node]:
-                    continue
-                add = weights[j] * np.outer(n, dfN)
-                add[:, geo_at] += fN * np.outer(n, dw[j]) + weights[j] * fN * dn
-                adds.append((node * self.bs + self.balance_slots, every, add))
+                if not self.held_all[node]:
+                    adds.append((node * self.bs + self.balance_slots, every, add[j]))
         for q, every, new in rows_out:
             A.setValues(q.astype(PETSc.IntType), every, new, addv=PETSc.InsertMode.INSERT_VALUES)
         A.assemble()
-        for q, every, add in adds:
-            A.setValues(q.astype(PETSc.IntType), every, add, addv=PETSc.InsertMode.ADD_VALUES)
+        for q, every, rows in adds:
+            A.setValues(q.astype(PETSc.IntType), every, rows, addv=PETSc.InsertMode.ADD_VALUES)
         A.assemble()
         self.c = self.comm.allreduce(float(local_c), op=MPI.MAX) or None
+
+    def _derivatives(
+        self, p: int, J: np.ndarray, at: np.ndarray, geo_at: np.ndarray, every: np.ndarray
+    ) -> tuple[np.ndarray, list[np.ndarray]]:
+        """The pair ``p``'s new slave rows (m, E) and the rows each partner node adds (k+1 of
+        (m, E)) over the columns ``every`` (E): its assembled rows ``J`` (m, ·) at ``at``, the
+        K points' positions at ``geo_at``. Each quantity's derivative is a row block over
+        ``every``: dF = J, dn = ℓ ∂n/∂x, dN_j = ℓ ∂N_j/∂x, dΔ of the relative slip."""
+        r = self._rows
+        m = J.shape[0]
+        E = len(every)
+        n, T, dT, F, fN = r["n"][p], r["T"][p], r["dT"][p], r["F"][p], r["fN"][p]
+        weights, state = r["weights"][p], r["state"][p]
+
+        def placed(block: np.ndarray, where: np.ndarray) -> np.ndarray:
+            out = np.zeros((block.shape[0], E))
+            out[:, where] = block
+            return out
+
+        dF = placed(J, at)
+        dn = placed(self.ell * r["d_normal"][p].reshape(m, -1), geo_at)
+        dw = [
+            placed(self.ell * r["d_weights"][p][j].reshape(1, -1), geo_at)[0]
+            for j in range(len(weights))
+        ]
+        dfN = n @ dF + F @ dn
+        eye = np.eye(m)
+        P = eye - np.outer(n, n)
+        new = np.zeros((m, E))
+        new[0, geo_at] = r["d_gap"][p].ravel()  # ∂(g/ℓ)/∂u
+        v = r["v"][p]
+        if not self.friction:  # (P.1): T F; (P.2): N_j n f_N
+            dv = dF
+            force, dforce = n * fN, np.outer(n, dfN) + fN * dn
+        else:
+            force, dforce = F, dF
+            # dΔ = du_a − Σ N_j du_j − Σ Δu_j dN_j (positions' columns: a, then the partner)
+            block = np.zeros((m, len(weights) + 1, m))
+            block[:, 0] = eye
+            block[:, 1:] = -weights[None, :, None] * eye[:, None, :]
+            dDelta = placed(block.reshape(m, -1), geo_at)
+            dDelta -= sum(np.outer(r["slips"][p][j], dw[j]) for j in range(len(weights)))
+            if state == STICK:
+                dv = dDelta
+            else:  # v = P F − μ_k f_N s, s = t/|t|, t = P w, w = F − c Δ
+                c = 0.0 if self.c is None else self.c
+                w, s, size = r["w"][p], r["s"][p], r["size"][p]
+                dPF = P @ dF - fN * dn - np.outer(n, F @ dn)
+                dt = P @ (dF - c * dDelta) - (n @ w) * dn - np.outer(n, w @ dn)
+                ds = (eye - np.outer(s, s)) @ dt / size if size > 0 else np.zeros((m, E))
+                dv = dPF - self.mu_k * (np.outer(s, dfN) + fN * ds)
+        new[1:] = T @ dv + np.einsum("jab,a->jb", dT, v) @ dn
+        add = [weights[j] * dforce + np.outer(force, dw[j]) for j in range(len(weights))]
+        return new, add
 
     def interpenetration(self) -> tuple[str, str] | None:
         """(where, reason) if the rod's parts pass through each other between the nodes by
@@ -295,18 +390,31 @@ class PairContact:
             if self.started:
                 self.most_changes = max(self.most_changes, self._changes())
             self.started = True
+        r = self._rows
+        x = self.everywhere(u)
+        if not initial and self.friction and len(r.get("local", ())):
+            # the sliding slaves' friction work −R_T·Δ (Δ the relative slip of the step [m])
+            slip = r["state"] == SLIP
+            step = ((x - self.x_old)[:, self.solved] / self.ell)[r["partner"]]
+            du = (x - self.x_old)[r["local"] + self.start][:, self.solved] / self.ell
+            du -= np.einsum("mj,mjd->md", r["weights"], step)
+            tangent = tangential(r["F"], r["n"])
+            work = -np.sum(tangent[slip] * du[slip]) * self.force_scale * self.ell
+            self.dissipated += self.comm.allreduce(float(work))
+        self.x_old = x
         self.accepted = self.active.copy()
+        self.node_accepted = self.node_state.copy()
         self.most = max(self.most, self.count())
         out = self.values.x.array.reshape(-1, 6)
         out[: self.owned] = 0.0
-        r = self._rows
         if len(r.get("local", ())):
             a = r["local"]
             force = np.zeros((len(a), 3))
-            force[:, self.solved] = r["n"] * (r["fN"] * self.force_scale)[:, None]
+            pushed = r["F"] if self.friction else r["n"] * r["fN"][:, None]
+            force[:, self.solved] = pushed * self.force_scale
             out[a, :3] = force / self.shares[a, None]
             out[a, 3] = r["gap"]
-            out[a, 4] = 1.0
+            out[a, 4] = r["state"]
         self.values.x.scatter_forward()
 
     def _changes(self) -> int:
@@ -333,6 +441,7 @@ class PairContact:
         return {
             "pairs_in_contact": self.count(),
             "most_pairs_in_contact": self.most,
+            "pair_friction_work_J": self.dissipated,
             "least_pair_gap_m": self.least_gap,
         }
 
@@ -344,11 +453,19 @@ class PairContact:
             "pairs.most": np.array(self.most),
             "pairs.most_changes": np.array(self.most_changes),
             "pairs.started": np.array(self.started),
+            "pairs.node_state": self.node_state.copy(),
+            "pairs.node_accepted": self.node_accepted.copy(),
+            "pairs.x_old": self.x_old.copy(),
+            "pairs.dissipated": np.array(self.dissipated),
         }
 
     def load_state_dict(self, state: dict) -> None:
-        self.active = np.asarray(state["pairs.active"], dtype=np.int64).reshape(-1, 2).copy()
-        self.accepted = np.asarray(state["pairs.accepted"], dtype=np.int64).reshape(-1, 2).copy()
+        self.active = np.asarray(state["pairs.active"], dtype=np.int64).reshape(-1, 3).copy()
+        self.accepted = np.asarray(state["pairs.accepted"], dtype=np.int64).reshape(-1, 3).copy()
+        self.node_state = np.asarray(state["pairs.node_state"], dtype=np.int8).copy()
+        self.node_accepted = np.asarray(state["pairs.node_accepted"], dtype=np.int8).copy()
+        self.x_old = np.asarray(state["pairs.x_old"], dtype=float).copy()
+        self.dissipated = float(state["pairs.dissipated"])
         c = float(state["pairs.c"])
         self.c = None if np.isnan(c) else c
         self.most = int(state["pairs.most"])

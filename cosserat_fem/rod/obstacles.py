@@ -245,6 +245,8 @@ def contact_rows(model) -> NodeContact | Contacts | None:
             _self_geometry(model, places, rest, float(spec.radius)),
             places=places,
             shares=shares,
+            static_friction=spec.static_friction,
+            kinetic_friction=spec.kinetic,
             **common,
         )
         _check_self_start(pairs, model.U.x.array)
