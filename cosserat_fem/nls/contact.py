@@ -80,6 +80,65 @@ def tangential(v: np.ndarray, n: np.ndarray) -> np.ndarray:
     return v - np.sum(n * v, axis=1)[:, None] * n
 
 
+def pressed(fN: np.ndarray, gs: np.ndarray, c: float | None, zero: float) -> np.ndarray:
+    """Whether each node is in contact (K.1): its augmented pressure f_N − c g/ℓ ≥ 0 (``gs``
+    = g/ℓ; a force of ``zero`` is round-off), or before any Jacobian (c None) through the
+    obstacle, or touching to round-off and pressed (a touching node not pulled away stays:
+    f_N = 0 at a touching node holds it)."""
+    if c is None:
+        return (gs < -TOUCHING) | ((gs <= TOUCHING) & (fN >= -zero))
+    return fN - c * gs >= -zero
+
+
+def trial_force(
+    F: np.ndarray, n: np.ndarray, du: np.ndarray, c: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The Coulomb trial of (K.2)-(K.3) for each row of forces ``F`` the nodes lack, unit
+    normals ``n`` and slips ``du`` since the accepted state: w = F − c Δu, t = P w, |t| and
+    its direction s (0 where t = 0)."""
+    w = F - c * du
+    trial = tangential(w, n)
+    size = np.linalg.norm(trial, axis=1)
+    s = np.divide(trial, size[:, None], out=np.zeros_like(trial), where=size[:, None] > 0)
+    return w, trial, size, s
+
+
+def slip_derivative(
+    n: np.ndarray,
+    F: np.ndarray,
+    w: np.ndarray,
+    s: np.ndarray,
+    size: np.ndarray,
+    dF: np.ndarray,
+    dn: np.ndarray,
+    dslip: np.ndarray,
+    c: float,
+    mu_k: float,
+) -> np.ndarray:
+    """The derivative (K, m, E) of the slip rows' v = P F − μ_k f_N s (K.3), s = t/|t|,
+    t = P(F − c Δ), at K nodes (or contact points) with ``n``, ``F``, ``w``, ``s``, ``size``
+    of :func:`trial_force`, given the derivatives over E columns of F, n and the slip Δ
+    (each (K, m, E)): with P = I − n nᵀ, f_N = n·F,
+
+        d(P F) = P dF − f_N dn − n (F·dn),   df_N = n·dF + F·dn,
+        dt = P (dF − c dΔ) − (n·w) dn − n (w·dn),   ds = (I − s sᵀ) dt/|t|,
+        dv = d(P F) − μ_k (s df_N + f_N ds)."""
+    m = n.shape[1]
+    eye = np.eye(m)
+    fN = np.sum(n * F, axis=1)
+    P = eye - n[:, :, None] * n[:, None, :]
+    F_dn = np.einsum("ka,kac->kc", F, dn)
+    dPF = P @ dF - fN[:, None, None] * dn - n[:, :, None] * F_dn[:, None, :]
+    dfN = np.einsum("ka,kac->kc", n, dF) + F_dn
+    nw = np.sum(n * w, axis=1)
+    w_dn = np.einsum("ka,kac->kc", w, dn)
+    dt = P @ (dF - c * dslip) - nw[:, None, None] * dn - n[:, :, None] * w_dn[:, None, :]
+    safe = np.where(size > 0, size, 1.0)
+    ds = (eye - s[:, :, None] * s[:, None, :]) @ dt / safe[:, None, None]
+    ds[size == 0] = 0.0  # frictionless: no direction
+    return dPF - mu_k * (s[:, :, None] * dfN[:, None, :] + fN[:, None, None] * ds)
+
+
 class NodeContact:
     """The rows (K.1)-(K.3) of the module docstring at the owned node ``blocks`` of ``V``,
     their rest positions ``rest`` [m] (len(blocks), 3), ``surface`` x ↦ (g, ∇g, ∇²g),
@@ -180,14 +239,9 @@ class NodeContact:
         c = self.c
         # a pressure of the forces' round-off counts as none (a touching, unloaded node stays)
         zero = ROUNDOFF * self.comm.allreduce(float(np.abs(b).max(initial=0.0)), op=MPI.MAX)
-        if c is None:  # before any Jacobian: through, or touching (to round-off) and pressed
-            active = (gs < -TOUCHING) | ((gs <= TOUCHING) & (fN >= -zero))
-        else:  # a node touching and not pulled away stays (f_N = 0 at a touching node: held)
-            active = fN - c * gs >= -zero
+        active = pressed(fN, gs, c, zero)
         du = u[self.px] - self.u_old
-        w = F - (0.0 if c is None else c) * du
-        trial = tangential(w, n)
-        size = np.linalg.norm(trial, axis=1)
+        w, _, size, s = trial_force(F, n, du, 0.0 if c is None else c)
         # μ_k for a node sliding at the last accepted state or at the last iterate: a node
         # that starts to slide meets μ_k f_N and must not stick again by μ_s at once (with
         # μ_k < μ_s the onset would alternate stick and slip to the iteration limit)
@@ -199,7 +253,6 @@ class NodeContact:
         holds = (size < mu * pressure) | (size == 0.0)
         state = np.where(active, np.where(holds, STICK, SLIP), FREE)
         state = state.astype(np.int8)
-        s = np.divide(trial, size[:, None], out=np.zeros_like(trial), where=size[:, None] > 0)
         self._chain(state, s, size - mu * pressure, mu * pressure)
         self.flipped = np.flatnonzero(state != self.state)
         changed = bool(self.flipped.size)
@@ -283,7 +336,7 @@ class NodeContact:
         (K.2)-(K.3) (module docstring), all nodes at once."""
         r = {key: value[nodes] for key, value in self._rows.items()}
         K, m, _ = J.shape
-        n, T, D, F, fN = r["n"], r["T"], r["D"], r["F"], r["fN"]
+        n, T, D, F = r["n"], r["T"], r["D"], r["F"]
         eye = np.eye(m)
 
         def positions(k: np.ndarray, lines: np.ndarray) -> tuple:
@@ -298,24 +351,18 @@ class NodeContact:
         stick = self.state[nodes] == STICK
         new[positions(np.flatnonzero(stick), tangent)] += T[stick]  # dv = dΔu
         slip = np.flatnonzero(~stick)
-        if slip.size:  # (K.3): dv = d(P F − μ f_N s)
-            w, s, size = r["w"][slip], r["s"][slip], r["size"][slip]
-            Js, Ds, ns, Fs, fNs = J[slip], D[slip], n[slip], F[slip], fN[slip]
+        if slip.size:  # (K.3): dv = d(P F − μ f_N s), n and Δu moving with the node's positions
             local = np.arange(slip.size)
             own = local[:, None, None], np.arange(m)[None, :, None], at[slip][:, None, :]
-            P = eye - ns[:, :, None] * ns[:, None, :]
-            dPF = P @ Js
-            dPF[own] -= (ns[:, :, None] * Fs[:, None, :] + fNs[:, None, None] * eye) @ Ds
-            dfN = np.einsum("ka,kac->kc", ns, Js)
-            dfN[local[:, None], at[slip]] += np.einsum("ka,kab->kb", Fs, Ds)
+            dn = np.zeros_like(J[slip])
+            dn[own] = D[slip]
+            dslip = np.zeros_like(J[slip])
+            dslip[own] = eye
             c = 0.0 if self.c is None else self.c
-            nw = np.sum(ns * w, axis=1)
-            dtrial = P @ Js
-            dtrial[own] -= c * P + (ns[:, :, None] * w[:, None, :] + nw[:, None, None] * eye) @ Ds
-            safe = np.where(size > 0, size, 1.0)
-            ds = (eye - s[:, :, None] * s[:, None, :]) @ dtrial / safe[:, None, None]
-            ds[size == 0] = 0.0  # frictionless: no direction
-            dv = dPF - self.mu_k * (s[:, :, None] * dfN[:, None, :] + fNs[:, None, None] * ds)
+            dv = slip_derivative(
+                n[slip], F[slip], r["w"][slip], r["s"][slip], r["size"][slip], J[slip], dn,
+                dslip, c, self.mu_k,
+            )  # fmt: skip
             new[slip, 1:, :] += T[slip] @ dv
         return new
 

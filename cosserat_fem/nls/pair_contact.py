@@ -42,9 +42,11 @@ from cosserat_fem.nls.contact import (
     ROUNDOFF,
     SLIP,
     STICK,
-    TOUCHING,
+    pressed,
+    slip_derivative,
     tangent_bases,
     tangential,
+    trial_force,
 )
 
 #: how deep [in radii] the rod's parts may pass through each other between the nodes before
@@ -179,10 +181,7 @@ class PairContact:
         gs = pairs.gap[mine] / self.ell
         c = self.c
         zero = ROUNDOFF * self.comm.allreduce(float(np.abs(b).max(initial=0.0)), op=MPI.MAX)
-        if c is None:
-            on = (gs < -TOUCHING) | ((gs <= TOUCHING) & (fN >= -zero))
-        else:
-            on = fN - c * gs >= -zero
+        on = pressed(fN, gs, c, zero)
         slave, partner = pairs.slave[mine][on], pairs.partner[mine][on]
         self._check_chains(slave, partner)
         which = np.flatnonzero(mine)[on]
@@ -194,17 +193,12 @@ class PairContact:
         moved = (self._x - self.x_old)[:, solved] / self.ell
         slips = moved[partner]  # (m, k+1, solved)
         du = moved[slave] - np.einsum("mj,mjd->md", weights, slips)
-        s = np.zeros_like(F)
-        size = np.zeros(len(slave))
-        w = F - (0.0 if c is None else c) * du
+        w, _, size, s = trial_force(F, n, du, 0.0 if c is None else c)
         if self.friction:
-            trial = tangential(w, n)
-            size = np.linalg.norm(trial, axis=1)
             sliding = (self.node_accepted[slave] == SLIP) | (self.node_state[slave] == SLIP)
             mu = np.where(sliding, self.mu_k, self.mu_s)
             pressure = fN - (0.0 if c is None else c) * gs
             state = np.where((size < mu * pressure) | (size == 0.0), STICK, SLIP).astype(np.int8)
-            s = np.divide(trial, size[:, None], out=np.zeros_like(trial), where=size[:, None] > 0)
             # (P.3): stick holds the relative slip, slip gives μ_k f_N against it
             v = np.where(
                 (state == STICK)[:, None], du, tangential(F - self.mu_k * fN[:, None] * s, n)
@@ -337,7 +331,6 @@ class PairContact:
         ]
         dfN = n @ dF + F @ dn
         eye = np.eye(m)
-        P = eye - np.outer(n, n)
         new = np.zeros((m, E))
         new[0, geo_at] = r["d_gap"][p].ravel()  # ∂(g/ℓ)/∂u
         v = r["v"][p]
@@ -354,13 +347,12 @@ class PairContact:
             dDelta -= sum(np.outer(r["slips"][p][j], dw[j]) for j in range(len(weights)))
             if state == STICK:
                 dv = dDelta
-            else:  # v = P F − μ_k f_N s, s = t/|t|, t = P w, w = F − c Δ
+            else:  # (P.3): v = P F − μ_k f_N s
                 c = 0.0 if self.c is None else self.c
-                w, s, size = r["w"][p], r["s"][p], r["size"][p]
-                dPF = P @ dF - fN * dn - np.outer(n, F @ dn)
-                dt = P @ (dF - c * dDelta) - (n @ w) * dn - np.outer(n, w @ dn)
-                ds = (eye - np.outer(s, s)) @ dt / size if size > 0 else np.zeros((m, E))
-                dv = dPF - self.mu_k * (np.outer(s, dfN) + fN * ds)
+                one = (r["w"][p : p + 1], r["s"][p : p + 1], r["size"][p : p + 1])
+                dv = slip_derivative(
+                    n[None], F[None], *one, dF[None], dn[None], dDelta[None], c, self.mu_k
+                )[0]
         new[1:] = T @ dv + np.einsum("jab,a->jb", dT, v) @ dn
         add = [weights[j] * dforce + np.outer(force, dw[j]) for j in range(len(weights))]
         return new, add

@@ -494,22 +494,12 @@ class NumberOrExpression(Field):
 
 
 @dataclass(frozen=True, kw_only=True)
-class PositionExpression(Field):
+class PositionExpression(NumberOrTimeExpression):
     """A number or an expression string of the position x, y, z [m] and the parameters;
     parsed later, when the names are known (a surface's signed distance)."""
 
-    unit: str = ""
-
     def describe(self) -> str:
         return f"an expression string of x, y, z [{self.unit}]"
-
-    def check(self, key: str, value: Any) -> Any:
-        if isinstance(value, bool) or not isinstance(value, int | float | str):
-            raise SceneError(f"{key}: must be {self.describe()}, got {show_value(value)}")
-        return value
-
-    def to_value(self, value: Any) -> Any:
-        return None if value is None else value.source
 
 
 @dataclass(frozen=True, kw_only=True)
