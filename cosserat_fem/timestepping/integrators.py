@@ -156,7 +156,9 @@ class Integrator:
 
     def use_one_step(self, on: bool) -> None:
         """From the next step on, implicit-midpoint steps (``on``) or the method's own again
-        (module docstring, "One-step steps around a jump"); nothing for a one-step method."""
+        (module docstring, "One-step steps around a jump"); nothing for a one-step method.
+        The residual's coefficients change: a Jacobian kept from before is stale (the caller
+        asks its solver for a new one)."""
 
     def restart(self, problem, lu_package: str) -> None:
         """Before the first step after midpoint steps: history derived anew from the state in
@@ -500,18 +502,24 @@ class GeneralizedAlpha(Integrator):
 
     def accept(self, h: float) -> None:
         """U̇_{n+1} = U̇_n + (U_{n+1} − U_n − h U̇_n)/(γ h) and U_n = U_{n+1}; U̇_n and h are
-        kept for the next predictor."""
+        kept for the next predictor. A midpoint step (:meth:`use_one_step`) keeps its own
+        rate (U_{n+1} − U_n)/h instead, which its residual read: the recurrence's
+        2 (U_{n+1} − U_n)/h − U̇_n would carry a jump's impulse on, alternating, into the
+        predictor (the residual of the next midpoint step does not read U̇_n)."""
         u, un, vn = self._arrays
         if self._Udot_prev is None:
             self._Udot_prev = vn.copy()
         else:
             self._Udot_prev[:] = vn
         self._h_prev = h
-        # U̇_{n+1} = U̇_n + (U_{n+1} − U_n − h U̇_n)/(γ h)
-        increment = u - un
-        increment -= h * vn
-        increment *= 1.0 / (self._alpha_now[1] * h)
-        vn += increment
+        if self._one_step:
+            np.subtract(u, un, out=vn)
+            vn *= 1.0 / h
+        else:  # U̇_{n+1} = U̇_n + (U_{n+1} − U_n − h U̇_n)/(γ h)
+            increment = u - un
+            increment -= h * vn
+            increment *= 1.0 / (self.gamma * h)
+            vn += increment
         un[:] = u
         super().accept(h)
 
