@@ -491,6 +491,18 @@ class NodeContact:
             f"contact.max_changes = {self.max_changes}",
         )
 
+    def transitions(self) -> tuple[int, int]:
+        """The nodes that came into contact and those that left it in the step just solved
+        (since the accepted state), over the ranks; (0, 0) in the first step, whose contacts
+        are the initial ones (collective). The time loop takes midpoint steps around an
+        impact by them (cosserat_fem/timestepping/loop.py, "Impacts")."""
+        if not self.started:
+            return 0, 0
+        came = np.sum((self.state != FREE) & (self.accepted == FREE))
+        left = np.sum((self.state == FREE) & (self.accepted != FREE))
+        total = self.comm.allreduce(np.array([came, left], dtype=np.int64))
+        return int(total[0]), int(total[1])
+
     def unsettled(self) -> str:
         """Where the set changed at the last iterate, for a solve that failed (collective):
         "" if it did not change."""

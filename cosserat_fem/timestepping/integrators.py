@@ -32,6 +32,17 @@ Every integrator advances by :meth:`Integrator.step` (one or several nonlinear s
 the ``solve`` callable it is given) and :meth:`Integrator.accept` once the caller has checked
 the new state.
 
+**One-step steps around a jump.** BDF2 (from its last two states) and generalized-α at ρ∞ < 1
+(from its rate recurrence) carry history that a jump of the solution's rate within a step (an
+impact) spoils: the steps after it drag the jump on. Such an integrator is ``multistep``; its
+caller may ask for implicit-midpoint steps, F((U_n + U_{n+1})/2, (U_{n+1} − U_n)/h,
+τ_n + h/2) = 0, by :meth:`Integrator.use_one_step` (BDF2: its start step; generalized-α: its
+own form at αm = αf = γ = ½), and go back to the method by ``use_one_step(False)`` and
+:meth:`Integrator.restart` (generalized-α: a consistent rate at the new state, as at its
+start). The midpoint rule depends on U_n only and changes the kinetic energy of a mechanical
+system by the work of its forces exactly, at a jump too (cosserat_fem/nls/contact.py,
+``NodeContact.accept``); the caller decides when (cosserat_fem/timestepping/loop.py).
+
 **The space of the state arrays.** Everything an integrator does with U is linear (stage
 combinations, rates, predictors), so it runs unchanged on any coordinates of U that an affine
 map U = U_ref + V y gives (docs/rom.md §5, §8). Its arrays belong to a ``space``
@@ -104,6 +115,9 @@ class Integrator:
 
     name = "integrator"
     order = 0
+    #: whether the steps carry history that a jump of the rate spoils (module docstring,
+    #: "One-step steps around a jump")
+    multistep = False
 
     def __init__(self, U: fem.Function, residual: ResidualFactory, time: float = 0.0):
         self.U = U
@@ -139,6 +153,16 @@ class Integrator:
     def prepare(self, h: float) -> None:
         """Set the Constants for a step of size h from ``self.time`` and predict U."""
         raise NotImplementedError
+
+    def use_one_step(self, on: bool) -> None:
+        """From the next step on, implicit-midpoint steps (``on``) or the method's own again
+        (module docstring, "One-step steps around a jump"); nothing for a one-step method.
+        The residual's coefficients change: a Jacobian kept from before is stale (the caller
+        asks its solver for a new one)."""
+
+    def restart(self, problem, lu_package: str) -> None:
+        """Before the first step after midpoint steps: history derived anew from the state in
+        U alone (``problem``, ``lu_package``: :meth:`start`); nothing for most integrators."""
 
     def step(self, h: float, solve: Callable[[], int]) -> int:
         """Advance U from ``self.time`` to ``self.time + h``; the Newton iterations used.
@@ -211,9 +235,11 @@ class BDF2(Integrator):
 
     name = "bdf2"
     order = 2
+    multistep = True
 
     def __init__(self, U, residual, time=0.0):
         super().__init__(U, residual, time)
+        self._one_step = False  # midpoint steps (use_one_step)
         V = U.function_space
         self.U_n = fem.Function(V, name="U_n")
         self.U_nm1 = fem.Function(V, name="U_nm1")
@@ -243,10 +269,11 @@ class BDF2(Integrator):
         return self._factory(U_eval, Udot, self.time_eval)
 
     def prepare(self, h: float) -> None:
-        """First step: the implicit-midpoint start from U = U_n; later steps: the BDF2
-        coefficients for ω = h/h_prev and the linear predictor."""
+        """First step (and every step after ``use_one_step(True)``): the implicit-midpoint step
+        from U = U_n; later steps: the BDF2 coefficients for ω = h/h_prev and the linear
+        predictor."""
         self.unknown_time = self.time + h
-        if self.h_prev is None:  # implicit-midpoint start
+        if self.h_prev is None or self._one_step:  # implicit-midpoint start
             self.mid.value = 1.0
             self.a0.value, self.a1.value, self.a2.value = 1.0 / h, -1.0 / h, 0.0
             self.time_eval.value = self.time + 0.5 * h
@@ -260,6 +287,12 @@ class BDF2(Integrator):
         self.time_eval.value = self.time + h
         # Predictor: linear extrapolation through U_{n-1}, U_n.
         self._u[:] = (1.0 + w) * self._un - w * self._unm1
+
+    def use_one_step(self, on: bool) -> None:
+        """Midpoint steps from the next one on (``on``), or BDF2 again: its formula then reads
+        U_{n−1}, U_n of the last midpoint step, both after the jump (no :meth:`restart`
+        needed)."""
+        self._one_step = bool(on)
 
     def accept(self, h: float) -> None:
         self._unm1[:] = self._un
@@ -315,6 +348,11 @@ class GeneralizedAlpha(Integrator):
         super().__init__(U, residual, time)
         self.rho_inf = rho_inf
         self.alpha_m, self.alpha_f, self.gamma = alpha_parameters(rho_inf)
+        self.multistep = rho_inf < 1.0  # ρ∞ = 1 is the midpoint rule: one-step already
+        # αm, αf in the forms: ½ for midpoint steps (use_one_step), γ follows in accept
+        self._am, self._af = _constant(U, self.alpha_m), _constant(U, self.alpha_f)
+        self._one_step = False
+        self._alpha_now = self.alpha_f, self.gamma  # αf, γ of the steps (use_one_step)
         V = U.function_space
         self.U_n = fem.Function(V, name="U_n")
         self.Udot_n = fem.Function(V, name="Udot_n")
@@ -343,7 +381,7 @@ class GeneralizedAlpha(Integrator):
         return self.Udot_n + self.inv_gh * (self.U - self.U_n - self.h * self.Udot_n)
 
     def residual_form(self) -> ufl.Form:
-        am, af = self.alpha_m, self.alpha_f
+        am, af = self._am, self._af
         U_eval = self.U_n + af * (self.U - self.U_n)
         Udot_eval = self.Udot_n + am * (self._rate_new() - self.Udot_n)
         return self._factory(U_eval, Udot_eval, self.time_eval)
@@ -428,13 +466,32 @@ class GeneralizedAlpha(Integrator):
                 return
             nodes = nodes[~pulled]
 
+    def use_one_step(self, on: bool) -> None:
+        """Midpoint steps from the next one on (``on``: αm = αf = γ = ½, where the rate
+        recurrence drops out of the residual: U̇ = (U_{n+1} − U_n)/h at the midpoint), or the
+        method's own parameters again; then :meth:`restart` makes the rate consistent."""
+        self._one_step = bool(on) and self.multistep
+        am, af, gamma = (0.5, 0.5, 0.5) if self._one_step else alpha_parameters(self.rho_inf)
+        self._am.value, self._af.value = am, af
+        self._alpha_now = af, gamma
+
+    def restart(self, problem, lu_package: str) -> None:
+        """The rate U̇_n made consistent with U_n anew (:meth:`start`'s solve at τ_n, the
+        nodes resting on an obstacle held): the midpoint steps' rate recurrence, which their
+        residual does not read, carries the jump's impulse; the predictor's previous rate is
+        dropped."""
+        self.time_eval.value = self.time
+        self.start(problem, lu_package)
+        self._Udot_prev = None
+
     def prepare(self, h: float) -> None:
         """The Constants for a step of h from τ_n (evaluation at τ_n + αf h) and the second-order
         predictor of the comment below."""
+        alpha_f, gamma = self._alpha_now
         self.unknown_time = self.time + h
         self.h.value = h
-        self.inv_gh.value = 1.0 / (self.gamma * h)
-        self.time_eval.value = self.time + self.alpha_f * h
+        self.inv_gh.value = 1.0 / (gamma * h)
+        self.time_eval.value = self.time + alpha_f * h
         # Predictor: U_{n+1} = U_n + h U̇_n + ½ h² Ü_n, with Ü_n from the last two rates
         # (first step: U_n + h U̇_n). Second order, it saves about one Newton iteration a step.
         u, un, vn = self._arrays
@@ -445,18 +502,24 @@ class GeneralizedAlpha(Integrator):
 
     def accept(self, h: float) -> None:
         """U̇_{n+1} = U̇_n + (U_{n+1} − U_n − h U̇_n)/(γ h) and U_n = U_{n+1}; U̇_n and h are
-        kept for the next predictor."""
+        kept for the next predictor. A midpoint step (:meth:`use_one_step`) keeps its own
+        rate (U_{n+1} − U_n)/h instead, which its residual read: the recurrence's
+        2 (U_{n+1} − U_n)/h − U̇_n would carry a jump's impulse on, alternating, into the
+        predictor (the residual of the next midpoint step does not read U̇_n)."""
         u, un, vn = self._arrays
         if self._Udot_prev is None:
             self._Udot_prev = vn.copy()
         else:
             self._Udot_prev[:] = vn
         self._h_prev = h
-        # U̇_{n+1} = U̇_n + (U_{n+1} − U_n − h U̇_n)/(γ h)
-        increment = u - un
-        increment -= h * vn
-        increment *= 1.0 / (self.gamma * h)
-        vn += increment
+        if self._one_step:
+            np.subtract(u, un, out=vn)
+            vn *= 1.0 / h
+        else:  # U̇_{n+1} = U̇_n + (U_{n+1} − U_n − h U̇_n)/(γ h)
+            increment = u - un
+            increment -= h * vn
+            increment *= 1.0 / (self.gamma * h)
+            vn += increment
         un[:] = u
         super().accept(h)
 

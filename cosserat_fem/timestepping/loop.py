@@ -10,6 +10,20 @@ rejected and retried smaller:
 * adaptive steps (:meth:`TimeLoop.run_adaptive`): chosen by the local error estimate of
   cosserat_fem/timestepping/adaptive.py; outputs on the same grid by interpolation.
 
+**Impacts.** With contact rows (cosserat_fem/nls/contact.py) and a ``multistep`` integrator
+(BDF2, generalized-α at ρ∞ < 1: cosserat_fem/timestepping/integrators.py, "One-step steps
+around a jump"), a step in which nodes come into contact is solved again by the implicit
+midpoint rule, and so are the steps after it until two in a row leave the contact set as it
+was (``ONE_STEP_AFTER``); then the method restarts (``Integrator.restart``). An impact makes
+the velocity jump within a step: the midpoint rule changes the kinetic energy by the work of
+the contact force exactly there (NodeContact.accept), while BDF2's last two states and
+generalized-α's rate recurrence would carry the jump into the next steps, which then change
+the energy by O(Δvᵀ M Δv) that no force did. Why two: a node that lands moving into the
+obstacle has its normal velocity reversed by the next midpoint step (it stays, the velocity
+flips) and leaves at the one after; with one, BDF2's history would span that flip. An
+adaptive run forgets its error estimate's history at a landing (the states' kink), as at its
+start. ``LoopState.redone`` counts the steps solved again.
+
 Trouble that no smaller step can mend (a load that is not finite) or that persists stops the
 loop with a SolverError or a SceneError naming the time, the place and the reason. The loop
 knows nothing of files: probes, frames, checkpoints, progress and limits are observers of its
@@ -46,13 +60,19 @@ LIFTED = (
 #: Rejections in a row after which an adaptive run stops.
 MAX_CONSECUTIVE_REJECTIONS = 12
 
+#: Midpoint steps in a row without a change of the contact set after which a multistep
+#: integrator takes its own steps again (module docstring, "Impacts").
+ONE_STEP_AFTER = 2
+
 
 @dataclass
 class LoopState:
     """Where a time loop is: ``t`` [s] of the last accepted state; counts of accepted and
     rejected steps and of output steps; the smallest and largest accepted step [s]; for
     fixed steps the halving level and the part of the nominal step done, for adaptive ones
-    the next step size ``h`` [s] (NaN when not chosen)."""
+    the next step size ``h`` [s] (NaN when not chosen); ``one_step`` the midpoint steps
+    still to take after an impact, ``redone`` the steps solved again by the midpoint rule
+    (module docstring, "Impacts")."""
 
     t: float
     accepted: int = 0
@@ -64,8 +84,10 @@ class LoopState:
     done: float = 0.0
     h: float = math.nan
     chart_resets: int = 0
+    one_step: int = 0
+    redone: int = 0
 
-    _INTEGERS = ("accepted", "rejected", "outputs", "level", "chart_resets")
+    _INTEGERS = ("accepted", "rejected", "outputs", "level", "chart_resets", "one_step", "redone")
 
     def state_dict(self) -> dict[str, float]:
         """Numbers only (None as NaN), for a checkpoint."""
@@ -96,6 +118,7 @@ class LoopState:
             "smallest_step_s": self.smallest,
             "largest_step_s": self.largest,
             "chart_resets": self.chart_resets,
+            "impact_steps_redone": self.redone,
         }
 
 
@@ -168,6 +191,8 @@ class TimeLoop:
         self.stepping_until: float | None = None
         self.history: StateHistory | None = None
         self.control: StepController | None = None
+        self._one_step = False  # the integrator takes midpoint steps (module docstring)
+        self.landing = False  # the last accepted step brought nodes into contact
         if tspan.adaptive:
             self._adaptive_parts()
         if restart is not None:
@@ -276,6 +301,8 @@ class TimeLoop:
                 self._activate_chart()
         self.solver.load_state_dict(parts["newton"])
         self.state.load_state_dict(parts["loop"])
+        if self.state.one_step:  # stopped among the midpoint steps after an impact
+            self._use_one_step(True)
         if self.history is not None:
             assert self.control is not None, "set with the history (_adaptive_parts)"
             self.history.load_state_dict(parts["history"])
@@ -340,11 +367,48 @@ class TimeLoop:
 
     def attempt(self, t_new: float) -> SolverError | None:
         """Take a step to t_new [s]; None if it converged and the state is fine, else the
-        retryable SolverError (U is then left as the integrator made it: reject or accept)."""
+        retryable SolverError (U is then left as the integrator made it: reject or accept).
+        A step of a multistep integrator in which nodes came into contact is solved again by
+        the midpoint rule (module docstring, "Impacts")."""
         if self._lifts["step_attempted"]:
             self.space.lift()
         self.events.step_attempted(self, t_new)
         self.pending = True
+        cause = self._advance(t_new)
+        if cause is None and self._landed():
+            self.integrator.reject()
+            self._use_one_step(True)
+            self.state.redone += 1
+            cause = self._advance(t_new)
+        return cause
+
+    def _use_one_step(self, on: bool) -> None:
+        """The integrator's midpoint steps on, or off with its restart at the new state."""
+        self._one_step = on
+        self.integrator.use_one_step(on)
+        if not on:
+            self.integrator.restart(self.model, self.solver.lu_package)
+        self.solver.request_jacobian()  # the residual's coefficients changed
+
+    def _impacts(self):
+        """The contact rows whose impacts take midpoint steps (module docstring, "Impacts"), or
+        None: none, an integrator without history to spoil, or rows that do not tell their
+        transitions."""
+        contact = getattr(self.solver, "contact", None)
+        if contact is None or not self.integrator.multistep:
+            return None
+        return contact if hasattr(contact, "transitions") else None
+
+    def _landed(self) -> bool:
+        """Whether the step just solved, by the integrator's own rule, brought nodes into
+        contact (collective)."""
+        contact = self._impacts()
+        if contact is None or self._one_step:
+            return False
+        return contact.transitions()[0] > 0
+
+    def _advance(self, t_new: float) -> SolverError | None:
+        """One try of the step to t_new [s] (:meth:`attempt`)."""
         try:
             self.integrator.step((t_new - self.state.t) * self.omega0, self._solve)
             # A method whose new state is not its last stage (SDIRK3/4) meets a moving
@@ -404,9 +468,17 @@ class TimeLoop:
         st = self.state
         h = t_new - st.t
         self.integrator.accept(h * self.omega0)
+        impacts = self._impacts()
+        came, left = (0, 0) if impacts is None else impacts.transitions()
         contact = getattr(self.solver, "contact", None)
         if contact is not None:  # the friction's history: the accepted state (nls/contact.py)
             contact.accept(self.model.U.x.array)
+        self.landing = came > 0
+        if self._one_step:  # the midpoint steps of an impact
+            st.one_step = ONE_STEP_AFTER if came or left else st.one_step - 1
+            if st.one_step <= 0:
+                st.one_step = 0
+                self._use_one_step(False)
         self.pending = False
         self._cos_accepted = self._cos_candidate
         st.t = t_new
@@ -568,7 +640,10 @@ class TimeLoop:
                 continue
             consecutive = 0
             self.accept(t_new)
-            history.push(t_new, model.U.x.array)
+            if self.landing:  # the states' kink: the estimate starts again (module docstring)
+                history.load_state_dict({"times": [t_new], "states": [model.U.x.array]})
+            else:
+                history.push(t_new, model.U.x.array)
             control.accept(model.U.x.array)
             while st.outputs < tspan.n_steps:
                 t_k = tspan.start + (st.outputs + 1) * tspan.step

@@ -468,6 +468,83 @@ def test_generalized_alpha_amplification(linear_system, rho_inf):
         )
 
 
+@pytest.mark.parametrize(
+    ("name", "rho_inf"), [("bdf2", 0.5), ("generalized-alpha", 0.5), ("generalized-alpha", 0.0)]
+)
+def test_one_step_requests_take_midpoint_steps_then_the_method_restarts(
+    linear_system, name, rho_inf
+):
+    """Integrator.use_one_step (module docstring, "One-step steps around a jump") on y' = M y:
+    after two steps of the method, three steps at ``use_one_step(True)`` are the implicit
+    midpoint rule's, y_{k+1} = (I − hM/2)⁻¹ (I + hM/2) y_k, whatever the history (BDF2's
+    U_{n−1}, generalized-α's rate); then ``use_one_step(False)`` and ``restart``: BDF2 goes on
+    by its formula from the last two midpoint states, generalized-α from the consistent rate
+    h ẏ = h M y (restart's solve) by its own map on (y, hẏ). Bound 32 ε of each component's
+    largest size over the steps compared, as the amplification tests (one linear solve a
+    step; the mode z = −2 falls to 0 at the midpoint's first step, so not the window of
+    relative_errors), and for generalized-α's first midpoint step to 32 ε of its predictor's
+    size, 2 |h U̇_n| (the method's last rate: 1e8 for the stiff mode, whose answer is the
+    predictor plus a correction of its size; later midpoint steps predict from their own
+    rates (U_{n+1} − U_n)/h), and its steps after the restart to 32 ε of 2 |h ẏ| (its own
+    predictor, as in its amplification test); the rate 4 ε of h M y (one solve of the
+    identity). Measured: midpoint steps 3.6, 0.88, 1.1 ε (BDF2, ρ∞ = 0.5, 0); after the
+    restart 3.0, 0.80, 1.1 ε. Only these are ``multistep``: ρ∞ = 1 is the midpoint rule
+    already."""
+
+    def held(measured: np.ndarray, reference: np.ndarray, predicted=0.0) -> float:
+        size = np.maximum(np.abs(reference).max(axis=0), predicted)
+        return float((np.abs(measured - reference) / np.where(size > 0, size, 1.0)).max())
+
+    M = diagonal_plus_oscillator(DIAG_Z, OMEGA_H, H)
+    linear_system.M.value = M
+    y0 = np.array([1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0])
+    run = Run(linear_system, linear_system.linear, name, y0, rho_inf=rho_inf)
+    try:
+        integrator = run.integrator
+        assert integrator.multistep
+        integrator.start(_Unsupported(), "petsc")
+        own = run.advance([H, H])
+        # the first midpoint step's predictor U_n + h U̇_n + ½ h (U̇_n − U̇_{n−1}) (BDF2: U_n)
+        rates = [np.abs(H * integrator.Udot_n.x.array)] if name != "bdf2" else []
+        predicted = 2 * np.max([np.zeros(N), *rates], axis=0)
+        integrator.use_one_step(True)
+        run.solver.request_jacobian()  # the residual's coefficients changed (as the loop does)
+        midpoint = run.advance([H, H, H])
+        integrator.use_one_step(False)
+        integrator.restart(_Unsupported(), "petsc")
+        run.solver.request_jacobian()
+        rate = H * integrator.Udot_n.x.array.copy() if name != "bdf2" else None
+        after = run.advance([H, H])
+    finally:
+        run.close()
+    step = midpoint_matrix_step(H * M)
+    reference = [own[-1]]
+    for _ in range(3):
+        reference.append(step @ reference[-1])
+    assert held(midpoint, np.array(reference), predicted) <= 32 * EPS
+    y = midpoint[-1]
+    if name == "bdf2":
+        d = bdf2_weights(0.0, H, 2 * H)
+        ahead = [midpoint[-2], y]
+        for _ in range(2):
+            rhs = -d[0] * ahead[-2] - d[1] * ahead[-1]
+            ahead.append(np.linalg.solve(d[2] * np.eye(N) - M, rhs))
+        expected = np.array(ahead[1:])
+        predicted = np.zeros(N)
+    else:
+        consistent = H * M @ y
+        assert np.all(np.abs(rate - consistent) <= 4 * EPS * np.abs(consistent)), rate
+        alpha = alpha_matrix_step(H * M, rho_inf)
+        pairs = [np.concatenate([y, H * M @ y])]
+        for _ in range(2):
+            pairs.append(alpha @ pairs[-1])
+        expected = np.array(pairs)[:, :N]
+        predicted = 2 * np.abs(np.array(pairs)[:, N:]).max(axis=0)
+    assert held(after, expected, predicted) <= 32 * EPS
+    midpoint_rule = make_integrator("generalized-alpha", run.U, linear_system.linear, 0.0, 1.0)
+    assert not midpoint_rule.multistep
+
+
 # ---------------------------------------------------------------------- order
 ORDERS = {"bdf2": 2, "generalized-alpha": 2, "sdirk3": 3, "sdirk4": 4}
 
