@@ -318,3 +318,25 @@ def test_friction_between_the_parts_sticks_and_slides_as_the_closed_form(slides)
     else:
         assert abs(along / (0.5 * Px) - 1) < 1e-3 and along < mu * R
         assert abs(u / (0.5 * Px * L2 / EA + shortening) - 1) < 3e-3
+
+
+def test_a_hairpin_shut_in_time_lands_by_midpoint_steps_and_stays_shut():
+    """The hairpin (δ0 = 1e-3 m) loaded at once by P = 3 P_c at its free end, in time (BDF2,
+    h = 2 ms, 0.2 s; Kelvin-Voigt τ = 5 ms so that it settles): its end swings onto leg 1
+    within the first half period. The landing step is
+    redone by the midpoint rule (summary.json impact_steps_redone ≥ 1: the pairs report their
+    landings as the obstacles do), the pair is shut at the end, and no node went through
+    (least gap ≥ −1e-12 δ0: the row holds g = 0 at the node)."""
+    from cosserat_fem import api
+
+    r = 0.0245
+    delta0, C = closure(r)
+    data = hairpin(3 * delta0 / C, r)
+    data["time"] = {"end": 0.2, "step": 0.002, "integrator": "bdf2"}
+    data["damping"] = {"retardation_time": 0.005}
+    data["output"] = {"xdmf": False}
+    result = api.run(scene_from_dict(data))
+    assert result.summary["impact_steps_redone"] >= 1
+    contact = result.summary["contact"]
+    assert contact["pairs_in_contact"] == 1
+    assert contact["least_pair_gap_m"] >= -1e-12 * delta0

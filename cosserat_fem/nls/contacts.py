@@ -66,6 +66,15 @@ class Contacts:
         """The pairs' :meth:`PairContact.interpenetration` (a load step's check)."""
         return self.pairs.interpenetration()
 
+    def transitions(self) -> tuple[int, int]:
+        """The nodes that came into and left contact in the step just solved, the obstacles'
+        and the pairs' together (the time loop's midpoint steps around an impact)."""
+        came, left = self.pairs.transitions()
+        if self.obstacles is not None:
+            more = self.obstacles.transitions()
+            came, left = came + more[0], left + more[1]
+        return came, left
+
     def unsettled(self) -> str:
         parts = [self.pairs.unsettled()]
         if self.obstacles is not None:

@@ -414,6 +414,15 @@ class PairContact:
         now, before = set(self.active[:, 0].tolist()), set(self.accepted[:, 0].tolist())
         return int(self.comm.allreduce(len(now ^ before)))
 
+    def transitions(self) -> tuple[int, int]:
+        """The slaves that came into contact and those that left it in the step just solved,
+        over the ranks; (0, 0) in the first step (collective): NodeContact.transitions'."""
+        if not self.started:
+            return 0, 0
+        now, before = set(self.active[:, 0].tolist()), set(self.accepted[:, 0].tolist())
+        total = self.comm.allreduce(np.array([len(now - before), len(before - now)]))
+        return int(total[0]), int(total[1])
+
     def count(self) -> int:
         """The active pairs over the ranks."""
         return int(self.comm.allreduce(len(self.active)))
