@@ -340,3 +340,24 @@ def test_a_hairpin_shut_in_time_lands_by_midpoint_steps_and_stays_shut():
     contact = result.summary["contact"]
     assert contact["pairs_in_contact"] == 1
     assert contact["least_pair_gap_m"] >= -1e-12 * delta0
+
+
+def test_the_contact_field_carries_the_pairs_with_obstacles_too():
+    """With an obstacle besides (a plane far below), the outputs' contact field is both rows'
+    (Contacts.values): at the pressed end the pair's load R over the node's share of the
+    length, along +e3 (frictionless: state 2, sliding), to the Newton tolerance; nothing where
+    the obstacle touches nothing."""
+    r = 0.0245
+    delta0, C = closure(r)
+    data = hairpin(2 * delta0 / C, r)
+    data["contact"]["obstacles"] = [{"kind": "plane", "point": [0, 0, -1], "normal": [0, 0, 1]}]
+    result = static_path(scene_from_dict(data), comm=MPI.COMM_SELF, write_outputs=False)
+    contact = result.model.contact
+    values = contact.values.x.array.reshape(-1, 6)
+    pairs = contact.pairs
+    end = pairs._rows["local"][0]
+    R = pairs._rows["fN"][0] * pairs.force_scale
+    assert values[end, 2] == pytest.approx(R / pairs.shares[end], rel=1e-9)
+    assert values[end, 4] == 2.0
+    others = np.delete(np.arange(len(values)), end)
+    assert np.all(values[others, :3] == 0.0) and np.all(values[others, 4] == 0.0)

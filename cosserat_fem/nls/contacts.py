@@ -23,8 +23,12 @@ class Contacts:
     def __init__(self, obstacles: NodeContact | None, pairs: PairContact):
         self.obstacles, self.pairs = obstacles, pairs
         self.comm = pairs.comm
-        #: the outputs (the obstacles' contact field; zeros without obstacles)
-        self.values = obstacles.values if obstacles is not None else pairs.values
+        #: the outputs: the pairs' contact field, or with obstacles a field of both (the
+        #: loads added, the obstacles' gap, the larger state) made at each accepted state
+        self.values = pairs.values
+        if obstacles is not None:
+            self.values = pairs.values.copy()
+            self.values.name = "contact"
 
     def __len__(self) -> int:
         return len(self.pairs)
@@ -51,8 +55,15 @@ class Contacts:
 
     def accept(self, u: np.ndarray, initial: bool = False) -> None:
         self.pairs.accept(u, initial)
-        if self.obstacles is not None:
-            self.obstacles.accept(u, initial)
+        if self.obstacles is None:
+            return
+        self.obstacles.accept(u, initial)
+        out = self.values.x.array.reshape(-1, 6)
+        obstacle = self.obstacles.values.x.array.reshape(-1, 6)
+        pair = self.pairs.values.x.array.reshape(-1, 6)
+        out[:] = obstacle
+        out[:, :3] += pair[:, :3]
+        out[:, 4] = np.maximum(obstacle[:, 4], pair[:, 4])
 
     def step_changes(self) -> tuple[str, str] | None:
         """The rod passing through itself between nodes (a step is rejected, halved and at
