@@ -229,12 +229,17 @@ def test_a_surface_given_by_its_distance_is_the_obstacle_it_describes():
     assert np.abs(u_surface - u_plane).max() <= 1e-12 * np.abs(u_plane).max()
 
 
-def test_a_surface_that_is_not_a_signed_distance_is_refused():
+@pytest.mark.parametrize(
+    ("distance", "message"),
+    [("x**2 + y**2 + z**2 - 1", "not a signed distance"), ("sqrt(x - 1)", "not finite at s")],
+)
+def test_a_surface_that_is_not_a_signed_distance_is_refused(distance, message):
     """A function that vanishes on the surface but is no distance (|∇d| ≠ 1) would give
-    wrong gaps: refused at the start in one line naming the key, the place and |∇d|."""
+    wrong gaps, and one without a value at a node (a NaN gap is never in contact): refused
+    at the start in one line naming the key and the place."""
     data = jacobian_case("surface")
-    data["contact"]["obstacles"][0]["distance"] = "x**2 + y**2 + z**2 - 1"
-    with pytest.raises(SceneError, match=r"^contact\.obstacles\[0\]\.distance: not a signed"):
+    data["contact"]["obstacles"][0]["distance"] = distance
+    with pytest.raises(SceneError, match=rf"^contact\.obstacles\[0\]\.distance: {message}"):
         static_path(scene_from_dict(data), comm=MPI.COMM_SELF, write_outputs=False)
 
 
@@ -266,6 +271,10 @@ def test_a_surface_that_is_not_a_signed_distance_is_refused():
         (
             {"obstacles": [{"kind": "surface", "distance": "z + w"}]},
             r"^contact\.obstacles\[0\]\.distance",
+        ),
+        (
+            {"obstacles": [{"kind": "surface", "distance": 0.5}]},
+            r"^contact\.obstacles\[0\]\.distance: must depend on the position",
         ),
         (
             {"obstacles": [{"kind": "plane", "normal": [1, 0, 0]}]},
@@ -586,3 +595,29 @@ def test_the_first_output_has_the_initial_gaps():
     first = api.run(scene_from_dict(data)).probes[0]
     assert first[0] == 0.0
     assert first[10] == pytest.approx(0.022, abs=1e-15)  # contact_gap at s = L
+
+
+def test_a_gap_without_a_value_during_a_solve_is_an_error_with_its_place():
+    """A surface's distance defined only on part of space (x + r plus 0 × sqrt(x + 0.5):
+    a plane's distance where x ≥ −0.5, none below): an iterate that puts a node below gets a
+    NaN gap, which no row would hold (a NaN is never pressed). The residual raises a
+    SolverError naming the node's s, on every rank (retried by a smaller step)."""
+    from cosserat_fem.common.errors import SolverError
+
+    data = rod_on_plane(3)
+    data["contact"]["obstacles"] = [
+        {"kind": "surface", "distance": f"x + {D / 2!r} + 0*sqrt(x + 0.5)"}
+    ]
+    scene = scene_from_dict(data)
+    model = build_model(scene, MPI.COMM_SELF)
+    solver = static_solver(scene, model)
+    solver._residual()  # finite at rest
+    bs, x = model.layout.size, model.layout.index(0)
+    sigma = model.V.tabulate_dof_coordinates()[:, 0]
+    end = int(np.argmax(sigma))
+    model.U.x.array[end * bs + x] = -1.0 / L  # the end node 1 m down: below x = −0.5
+    with pytest.raises(
+        SolverError, match=r"^contact: the obstacle's gap is not finite at s = 1 m"
+    ) as e:
+        solver._residual()
+    assert e.value.retry

@@ -42,6 +42,7 @@ from dolfinx import fem
 from mpi4py import MPI
 from petsc4py import PETSc
 
+from cosserat_fem.common.errors import SolverError
 from cosserat_fem.common.rotations import cross_matrix
 
 FREE, STICK, SLIP = 0, 1, 2
@@ -88,6 +89,17 @@ def pressed(fN: np.ndarray, gs: np.ndarray, c: float | None, zero: float) -> np.
     if c is None:
         return (gs < -TOUCHING) | ((gs <= TOUCHING) & (fN >= -zero))
     return fN - c * gs >= -zero
+
+
+def augmentation(A: PETSc.Mat, rows: np.ndarray, cols: np.ndarray, comm) -> float | None:
+    """The augmentation c of (K.1)-(K.3): the largest |A| at the owned (row, column) pairs
+    given, the contact nodes' first balance row against their first position (the stiffness
+    scale of the rows), over the ranks, so the same c serially and under MPI; None if all
+    are 0 (collective)."""
+    local = max(
+        (abs(A.getValue(int(r), int(c))) for r, c in zip(rows, cols, strict=True)), default=0.0
+    )
+    return comm.allreduce(float(local), op=MPI.MAX) or None
 
 
 def trial_force(
@@ -231,6 +243,7 @@ class NodeContact:
         set changed on any rank since the last iterate (collective)."""
         m = self.px.shape[1]
         g, normal, hessian = self.surface(self.positions(u))
+        self._finite(g)
         n = normal[:, self.solved]
         curvature = hessian[:, self.solved][:, :, self.solved] * self.ell
         F = b[self.pq]
@@ -273,6 +286,19 @@ class NodeContact:
         b[self.pq[on]] = rows[on]
         return bool(self.comm.allreduce(changed, op=MPI.LOR))
 
+    def _finite(self, g: np.ndarray) -> None:
+        """SolverError on every rank if a node's gap is not finite (a surface's distance
+        evaluated where it has none), with the least s [m] among such nodes (collective)."""
+        bad = self.places[~np.isfinite(g)]
+        where = self.comm.allreduce(float(bad.min(initial=np.inf)), op=MPI.MIN)
+        if np.isfinite(where):
+            raise SolverError(
+                f"the obstacle's gap is not finite at s = {where:.4g} m (a surface's distance "
+                "that has no value there)",
+                where="contact",
+                retry=True,
+            )
+
     def _chain(
         self, state: np.ndarray, s: np.ndarray, excess: np.ndarray, capacity: np.ndarray
     ) -> None:
@@ -304,13 +330,7 @@ class NodeContact:
         ``A`` (collective; after its final assembly): each active node's balance rows
         overwritten on their own columns; the augmentation c taken from A's first
         position block (the largest over the ranks: the same c serially and under MPI)."""
-        local = max(
-            (
-                abs(A.getValue(int(r), int(c)))
-                for r, c in zip(self._gq[:, 0], self._gx[:, 0], strict=True)
-            ),
-            default=0.0,
-        )
+        augmented = augmentation(A, self._gq[:, 0], self._gx[:, 0], self.comm)  # before inserts
         on = np.flatnonzero(self.state != FREE)
         gathered = [[A.getRow(int(q)) for q in self._gq[k]] for k in on]  # before any insert
         groups: dict[int, list[int]] = {}  # the nodes by their rows' length, done together
@@ -328,7 +348,7 @@ class NodeContact:
             for k, c, values in zip(nodes, cols, new, strict=True):
                 A.setValues(self._gq[k], c, values, addv=PETSc.InsertMode.INSERT_VALUES)
         A.assemble()
-        self.c = self.comm.allreduce(float(local), op=MPI.MAX) or None
+        self.c = augmented
 
     def _jacobian_rows(self, nodes: np.ndarray, J: np.ndarray, at: np.ndarray) -> np.ndarray:
         """The new rows (K, m, ncols) of the active ``nodes`` whose assembled balance rows are
@@ -371,6 +391,11 @@ class NodeContact:
         """The nodes (local indices) on an obstacle at the state ``u`` (|g| ≤ TOUCHING ℓ)."""
         g, _, _ = self.surface(self.positions(u))
         return np.flatnonzero(np.abs(g) <= TOUCHING * self.ell)
+
+    def holds_rates(self) -> bool:
+        """Whether :meth:`hold_rates` can make a consistent initial rate (always, for
+        obstacles)."""
+        return True
 
     def hold_rates(self, A: PETSc.Mat, b: np.ndarray, nodes: np.ndarray, u: np.ndarray) -> None:
         """In the linear system A U̇ = b of a consistent initial rate (rows tested as F's, so

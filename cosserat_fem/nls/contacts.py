@@ -102,6 +102,12 @@ class Contacts:
             return np.zeros(0, dtype=np.int64)
         return self.obstacles.touching(u)
 
+    def holds_rates(self) -> bool:
+        """No pair pressed (collective): a consistent initial rate holds only the nodes
+        resting on obstacles; a slave pressed on the rod would accelerate into it (the
+        integrator then keeps its own rate: GeneralizedAlpha.restart)."""
+        return self.pairs.count() == 0
+
     def hold_rates(self, A, b, nodes, u) -> None:
         if self.obstacles is not None:
             self.obstacles.hold_rates(A, b, nodes, u)

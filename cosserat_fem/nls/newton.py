@@ -416,10 +416,11 @@ class NewtonSolver:
             assemble_matrix(A, self.J_form, bcs=self.bcs)  # type: ignore[misc]
             A.assemble()
         if self.contact is not None:
-            before = A.getInfo()["nz_allocated"]
+            before = A.getInfo()["nz_used"]
             self.contact.apply_matrix(A)
-            if A.getInfo()["nz_allocated"] != before:
-                # self contact's rows added entries (cosserat_fem/nls/pair_contact.py): a new
+            if A.getInfo()["nz_used"] != before:
+                # self contact's rows added entries (cosserat_fem/nls/pair_contact.py; the
+                # pattern, not the allocation, which PETSc grows in chunks): a new
                 # factorization from scratch (MUMPS 5.5 under PETSc 3.18 reused the first
                 # analysis's arrays for the larger pattern and corrupted the heap)
                 self.ksp.reset()

@@ -1,30 +1,43 @@
-"""Frictionless contact between a node and a partner cell, by rows of the Newton system
-(docs/contact.md, "Self contact"; the geometry: cosserat_fem/rod/contact_search.py).
+"""Contact between a node and a partner cell of the same rod (or structure), with Coulomb
+friction or without, by rows of the Newton system (docs/contact.md, "Self contact"; the
+geometry: cosserat_fem/rod/contact_search.py, cosserat_fem/rod/self_contact.py).
 
 A pair is a node a (the slave) and a partner cell of nodes j (the master) with its closest
 point x_b(ξ) = Σ N_j(ξ) x_j, gap g = |x_a − x_b| − r_a − r_b [m] and unit normal n (from the
 partner to the node). With F_a the node's translational balance rows of the assembled residual
 (cosserat_fem/nls/contact.py: the force the node lacks, in the rows' scaling), f_N = n·F_a and
-c the augmentation, an active pair (f_N − c g/ℓ ≥ 0) replaces the node's rows [n; T] F_a by
+c the augmentation, an active pair (f_N − c g/ℓ ≥ 0) replaces the node's rows [n; T] F_a:
+without friction by
 
-    [g/ℓ; T F_a]    (the gap closed, the tangential balance kept: no friction)        (P.1)
+    [g/ℓ; T F_a]    (the gap closed, the tangential balance kept)                      (P.1)
 
-and carries the reaction to the partner's nodes, each free node's balance rows
+carrying the reaction to the partner's nodes, each free node's balance rows
 
     F_j ← F_j + N_j(ξ) n f_N                                                          (P.2)
 
 (the joints' (C.1), cosserat_fem/nls/constraints.py, with weights: Σ N_j = 1, so the partner
-takes what the node is pushed with). The Jacobian is the derivative of (P.1)-(P.2), with the
-closest point's (S.3): the slave's rows gain the partner's position columns and the partner's
-rows the slave's, entries the assembled pattern lacks (PETSc allocates them at the first
-insertion and keeps them). A node is the slave of the pair whose partner lies before it
-along the rod (single pass: the other direction's pairs are dropped); a node that carries a
-partner's reaction and is itself pressed (a chain of contacts) is refused with its place, and
-so is a slave held by a support.
+takes what the node is pushed with); with friction (μ_s > 0) by the obstacles' (K.2)-(K.3)
+with the relative slip Δ = Δx_a − Σ N_j(ξ) Δx_j of the two centreline points since the
+accepted state,
+
+    stick: [g/ℓ; T Δ],   slip: [g/ℓ; T (P F_a − μ_k f_N s)],  s the direction of the trial
+    P (F_a − c Δ)                                                                       (P.3)
+
+and the whole force then to the partner, F_j ← F_j + N_j(ξ) F_a                       (P.4).
+
+The Jacobian is the derivative of (P.1)-(P.4), with the closest point's (S.3): the slave's
+rows gain the partner's position columns and the partner's rows the slave's, entries the
+assembled pattern lacks (PETSc allocates them at the first insertion and keeps them). A node
+is the slave of the pair whose partner lies before it along the rod (single pass: the other
+direction's pairs are dropped). A node that carries a partner's reaction and is itself
+pressed (a chain of contacts) is refused with its place (a retried SolverError). A node whose
+positions a support holds has no rows: it is no slave, and a reaction onto it goes to the
+support (a part of the rod may then pass through it: the sampled check between nodes does
+not look at the nodes themselves).
 
 Under MPI every rank holds every node's position (an Allgatherv an iterate: 24 bytes a node)
 and finds the same pairs; each rank writes the rows of the slaves it owns, and the reactions
-(P.2) reach their owners by PETSc's assembly.
+reach their owners by PETSc's assembly.
 """
 
 from __future__ import annotations
@@ -42,6 +55,7 @@ from cosserat_fem.nls.contact import (
     ROUNDOFF,
     SLIP,
     STICK,
+    augmentation,
     pressed,
     slip_derivative,
     tangent_bases,
@@ -130,8 +144,10 @@ class PairContact:
         self.node_accepted = np.zeros(count, dtype=np.int8)
         #: every node's position at the last accepted state [m] (the friction's history)
         self.x_old = np.concatenate(self.comm.allgather(np.asarray(rest, dtype=float)))
-        #: the work friction between the parts dissipated [J] over the accepted states
+        #: the work friction between the parts dissipated [J] over the accepted states, and
+        #: the normal forces' (the impacts' loss), as NodeContact's
         self.dissipated = 0.0
+        self.impact_loss = 0.0
         self._rows: dict = {}
         self.least_gap = np.inf
         self.most = 0
@@ -183,8 +199,8 @@ class PairContact:
         zero = ROUNDOFF * self.comm.allreduce(float(np.abs(b).max(initial=0.0)), op=MPI.MAX)
         on = pressed(fN, gs, c, zero)
         slave, partner = pairs.slave[mine][on], pairs.partner[mine][on]
-        self._check_chains(slave, partner)
         which = np.flatnonzero(mine)[on]
+        self._check_chains(slave, partner, pairs.weights[which])
         n, F, fN, gs = n[on], F[on], fN[on], gs[on]
         weights = pairs.weights[which]
         T, dT = tangent_bases(n)
@@ -251,10 +267,12 @@ class PairContact:
         self.node_state[slave] = state
         return bool(self.comm.allreduce(changed, op=MPI.LOR))
 
-    def _check_chains(self, slave: np.ndarray, partner: np.ndarray) -> None:
-        """ContactChain (every rank) if an active slave also carries a partner's reaction."""
+    def _check_chains(self, slave: np.ndarray, partner: np.ndarray, weights) -> None:
+        """ContactChain (every rank) if an active slave also carries a partner's reaction
+        (a partner node of weight N_j(ξ) = 0 carries none)."""
         slaves = np.concatenate(self.comm.allgather(slave))
-        carriers = np.concatenate(self.comm.allgather(partner.ravel()))
+        carries = partner[np.abs(weights) > 0.0]
+        carriers = np.concatenate(self.comm.allgather(carries.ravel()))
         both = np.intersect1d(slaves, carriers)
         if both.size:
             where = self.places_all[both]
@@ -266,20 +284,16 @@ class PairContact:
     def apply_matrix(self, A: PETSc.Mat) -> None:
         """The Jacobian rows of (P.1)-(P.4) at the pairs and states :meth:`apply_vector`
         decided, in the assembled ``A`` (collective; after its final assembly); the
-        augmentation c as NodeContact's (the largest diagonal position entry of an owned free
-        node over the ranks)."""
-        free = np.flatnonzero(~self.held_all[self.start : self.start + self.owned])
-        local_c = max(
-            (
-                abs(A.getValue(int(q), int(x)))
-                for q, x in zip(
-                    self.pq[free[:1], 0] + self.start * self.bs,
-                    self.px[free[:1], 0] + self.start * self.bs,
-                    strict=True,
-                )
-            ),
-            default=0.0,
-        )
+        augmentation c (:func:`~cosserat_fem.nls.contact.augmentation`) at the rod's first free
+        node."""
+        # the rod's first free node (in the global numbering: the same node on any number
+        # of ranks) gives c; the largest over all nodes (NodeContact's, among nodes that all
+        # touch one obstacle) would take a stiff part's scale and make the decision at a
+        # contact's onset chatter (the rigid-leg hairpin: no convergence down to 1/1024)
+        first = int(np.flatnonzero(~self.held_all)[0])
+        mine = np.arange(self.start, self.start + self.owned) == first
+        start = self.start * self.bs
+        c = augmentation(A, self.pq[mine, 0] + start, self.px[mine, 0] + start, self.comm)
         r = self._rows
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
         rows_out, adds = [], []
@@ -303,7 +317,7 @@ class PairContact:
         for q, every, rows in adds:
             A.setValues(q.astype(PETSc.IntType), every, rows, addv=PETSc.InsertMode.ADD_VALUES)
         A.assemble()
-        self.c = self.comm.allreduce(float(local_c), op=MPI.MAX) or None
+        self.c = c
 
     def _derivatives(
         self, p: int, J: np.ndarray, at: np.ndarray, geo_at: np.ndarray, every: np.ndarray
@@ -383,16 +397,23 @@ class PairContact:
                 self.most_changes = max(self.most_changes, self._changes())
             self.started = True
         r = self._rows
-        x = self.everywhere(u)
-        if not initial and self.friction and len(r.get("local", ())):
-            # the sliding slaves' friction work −R_T·Δ (Δ the relative slip of the step [m])
-            slip = r["state"] == SLIP
-            step = ((x - self.x_old)[:, self.solved] / self.ell)[r["partner"]]
-            du = (x - self.x_old)[r["local"] + self.start][:, self.solved] / self.ell
-            du -= np.einsum("mj,mjd->md", r["weights"], step)
-            tangent = tangential(r["F"], r["n"])
-            work = -np.sum(tangent[slip] * du[slip]) * self.force_scale * self.ell
-            self.dissipated += self.comm.allreduce(float(work))
+        x = self.everywhere(u)  # collective
+        if not initial:
+            # the step's contact work −R·Δ [J] (Δ the relative motion of the two centreline
+            # points), split as NodeContact.accept's: its part along n the impacts' loss, the
+            # rest friction's; on every rank (a rank without slaves adds zeros)
+            work = np.zeros(2)
+            if len(r.get("local", ())):
+                moved = (x - self.x_old)[:, self.solved] / self.ell
+                du = moved[r["local"] + self.start]
+                du -= np.einsum("mj,mjd->md", r["weights"], moved[r["partner"]])
+                R = r["F"] if self.friction else r["n"] * r["fN"][:, None]
+                scale = self.force_scale * self.ell
+                normal = -np.sum(np.sum(r["n"] * R, axis=1) * np.sum(r["n"] * du, axis=1))
+                work[:] = normal * scale, (-np.sum(R * du) - normal) * scale
+            normal, tangential_work = self.comm.allreduce(work)
+            self.impact_loss += float(normal)
+            self.dissipated += float(tangential_work)
         self.x_old = x
         self.accepted = self.active.copy()
         self.node_accepted = self.node_state.copy()
@@ -409,19 +430,21 @@ class PairContact:
             out[a, 4] = r["state"]
         self.values.x.scatter_forward()
 
+    def _moved(self) -> tuple[int, int]:
+        """The slaves that came into contact and those that left it since the accepted state,
+        over the ranks (collective)."""
+        now, before = set(self.active[:, 0].tolist()), set(self.accepted[:, 0].tolist())
+        total = self.comm.allreduce(np.array([len(now - before), len(before - now)]))
+        return int(total[0]), int(total[1])
+
     def _changes(self) -> int:
         """The slaves that came into or out of contact since the accepted state (collective)."""
-        now, before = set(self.active[:, 0].tolist()), set(self.accepted[:, 0].tolist())
-        return int(self.comm.allreduce(len(now ^ before)))
+        return sum(self._moved())
 
     def transitions(self) -> tuple[int, int]:
         """The slaves that came into contact and those that left it in the step just solved,
         over the ranks; (0, 0) in the first step (collective): NodeContact.transitions'."""
-        if not self.started:
-            return 0, 0
-        now, before = set(self.active[:, 0].tolist()), set(self.accepted[:, 0].tolist())
-        total = self.comm.allreduce(np.array([len(now - before), len(before - now)]))
-        return int(total[0]), int(total[1])
+        return self._moved() if self.started else (0, 0)
 
     def count(self) -> int:
         """The active pairs over the ranks."""
@@ -443,6 +466,7 @@ class PairContact:
             "pairs_in_contact": self.count(),
             "most_pairs_in_contact": self.most,
             "pair_friction_work_J": self.dissipated,
+            "pair_impact_loss_J": self.impact_loss,
             "least_pair_gap_m": self.least_gap,
         }
 
@@ -458,6 +482,7 @@ class PairContact:
             "pairs.node_accepted": self.node_accepted.copy(),
             "pairs.x_old": self.x_old.copy(),
             "pairs.dissipated": np.array(self.dissipated),
+            "pairs.impact_loss": np.array(self.impact_loss),
         }
 
     def load_state_dict(self, state: dict) -> None:
@@ -467,6 +492,7 @@ class PairContact:
         self.node_accepted = np.asarray(state["pairs.node_accepted"], dtype=np.int8).copy()
         self.x_old = np.asarray(state["pairs.x_old"], dtype=float).copy()
         self.dissipated = float(state["pairs.dissipated"])
+        self.impact_loss = float(state["pairs.impact_loss"])
         c = float(state["pairs.c"])
         self.c = None if np.isnan(c) else c
         self.most = int(state["pairs.most"])
@@ -476,7 +502,9 @@ class PairContact:
 
 class ContactChain(SolverError):
     """A contact configuration the pair rows do not support (a chain of contacts): one line,
-    where = "contact" (not retried: a smaller step meets it again)."""
+    where = "contact", retried (a chain at a passing iterate, as the first iterate that
+    pushes a whole leg through, may be gone in a smaller step; a real one stops the run at
+    the last halving, as in statics)."""
 
     def __init__(self, reason: str):
-        super().__init__(reason, where="contact")
+        super().__init__(reason, where="contact", retry=True)

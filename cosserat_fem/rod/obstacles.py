@@ -67,35 +67,36 @@ class Obstacle:
             dict(constants or {}),
         )
 
+    def _values(self, expressions, x: np.ndarray) -> np.ndarray:
+        """The ``expressions`` (a list, nested or not) of a surface at the points ``x`` (n, 3):
+        an array of the list's shape followed by (n,)."""
+        at = {"x": x[:, 0], "y": x[:, 1], "z": x[:, 2], **(self.constants or {})}
+        if isinstance(expressions, list):
+            rows = [self._values(e, x) for e in expressions]
+            return np.concatenate([r if r.ndim == 2 else r[None] for r in rows])
+        return np.broadcast_to(np.asarray(expressions.evaluate(**at), dtype=float), (len(x),))
+
     def _surface(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """A surface's (d, ∇d/|∇d|, ∇²d) at ``x`` (n, 3): the expressions evaluated (a
         signed distance has |∇d| = 1; :func:`_check_start` refuses one that has not)."""
         assert self.field is not None, "a surface has its distance"
         d, gradient, hessian = self.field
-        at = {"x": x[:, 0], "y": x[:, 1], "z": x[:, 2], **(self.constants or {})}
-        count = len(x)
-
-        def values(e) -> np.ndarray:
-            return np.broadcast_to(np.asarray(e.evaluate(**at), dtype=float), (count,))
-
-        g = np.column_stack([values(e) for e in gradient]) if count else np.zeros((0, 3))
-        h = np.array([[values(e) for e in row] for row in hessian]).transpose(2, 0, 1)
-        h = h.reshape(count, 3, 3)
+        g = self._values(gradient, x).T.copy()
+        h = self._values(hessian, x).T.reshape(len(x), 3, 3).copy()
         size = np.linalg.norm(g, axis=1)
         # on a medial axis (∇d not finite or zero: the tube's axis of "R - sqrt(x**2 + y**2)")
         # any unit normal and no curvature, as at a sphere's centre: never an error on one rank
         singular = ~np.isfinite(size) | (size == 0.0) | ~np.isfinite(h).all(axis=(1, 2))
         g[singular], size[singular], h[singular] = [1.0, 0.0, 0.0], 1.0, 0.0
-        return values(d), g / size[:, None], h
+        return self._values(d, x), g / size[:, None], h
 
     def gradient_size(self, x: np.ndarray) -> np.ndarray:
-        """|∇d| at ``x`` (n, 3): 1 for the plane, sphere and cylinder; a surface's as given."""
+        """|∇d| at ``x`` (n, 3): 1 for the plane, sphere and cylinder; a surface's as given (1
+        on a medial axis, where it has none)."""
         if self.field is None:
             return np.ones(len(x))
-        at = {"x": x[:, 0], "y": x[:, 1], "z": x[:, 2], **(self.constants or {})}
-        g = [np.broadcast_to(np.asarray(e.evaluate(**at), float), (len(x),)) for e in self.field[1]]
-        size = np.linalg.norm(np.column_stack(g), axis=1) if len(x) else np.zeros(0)
-        return np.where(np.isfinite(size) & (size > 0.0), size, 1.0)  # a medial axis: any
+        size = np.linalg.norm(self._values(self.field[1], x), axis=0)
+        return np.where(np.isfinite(size) & (size > 0.0), size, 1.0)
 
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(d, ∇d, ∇²d) at the points ``x`` (n, 3): (n,), (n, 3), (n, 3, 3). At a sphere's
@@ -166,6 +167,12 @@ def _check_start(
     for i, (obstacle, spec_i) in enumerate(zip(obstacles, spec.obstacles, strict=True)):
         g = obstacle.distance(x)[0] - float(spec.radius)
         size = obstacle.gradient_size(x)
+        if problem is None and not np.isfinite(g).all():
+            j = int(np.flatnonzero(~np.isfinite(g))[0])
+            problem = SceneError(
+                f"contact.obstacles[{i}].distance: not finite at s = {contact.places[j]:.4g} m "
+                f"(the rod's node at {np.array2string(x[j], precision=4)} m)"
+            )
         if problem is None and (np.abs(size - 1.0) > UNIT_GRADIENT).any():
             j = int(np.argmax(np.abs(size - 1.0)))
             problem = SceneError(

@@ -1120,6 +1120,11 @@ def _build_contact(raw: dict[str, Any] | None, rod: Rod, names: set[str]) -> Con
             values["distance"] = Expression.parse(
                 entry["distance"], {"x", "y", "z", *names}, f"{name}.distance"
             )
+            if not values["distance"].names & {"x", "y", "z"}:
+                raise SceneError(
+                    f"{name}.distance: must depend on the position x, y, z, got "
+                    f"{entry['distance']!r}"
+                )
         obstacles.append(build(Obstacle, values))
     if not obstacles and not raw["self_contact"]:
         raise SceneError(

@@ -1156,11 +1156,11 @@ class Contact:
     ``static_friction`` times the normal force, and slides against it with
     ``kinetic_friction`` (by default the static coefficient) times the normal force. The
     surface is a tube of ``radius`` [m] about the centreline: "auto" is a circular section's
-    radius (a tube's outer one). ``self_contact``: the rod's surface does not pass through
-    itself either (without friction)."""
+    radius (a tube's outer one). ``self_contact``: the rod's surface (a structure's members')
+    does not pass through itself either, with the same friction."""
 
     obstacles: tuple[Obstacle, ...] = key(Tables(item=Obstacle, default=[]), default=())
-    #: the rod's contact with itself (frictionless; docs/contact.md, "Self contact")
+    #: the rod's contact with itself, with the same friction (docs/contact.md, "Self contact")
     self_contact: bool = key(Flag(default=False), default=False)
     static_friction: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="-"))
     kinetic_friction: float | None = key(Number(interval=NON_NEGATIVE, unit="-"), default=None)

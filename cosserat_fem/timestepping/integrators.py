@@ -479,9 +479,14 @@ class GeneralizedAlpha(Integrator):
         """The rate U̇_n made consistent with U_n anew (:meth:`start`'s solve at τ_n, the
         nodes resting on an obstacle held): the midpoint steps' rate recurrence, which their
         residual does not read, carries the jump's impulse; the predictor's previous rate is
-        dropped."""
-        self.time_eval.value = self.time
-        self.start(problem, lu_package)
+        dropped. A contact that cannot hold its nodes' rates (``contact.holds_rates()``
+        False) keeps the midpoint steps' rate instead."""
+        contact = getattr(problem, "contact", None)
+        if contact is None or contact.holds_rates():
+            self.time_eval.value = self.time
+            self.start(problem, lu_package)
+        # else the contact cannot hold its nodes' rates (a rod pressed on itself): the
+        # midpoint steps' own rate (U_{n+1} − U_n)/h is kept, as BDF2 keeps its states
         self._Udot_prev = None
 
     def prepare(self, h: float) -> None:
