@@ -34,6 +34,7 @@ import functools
 import math
 import sys
 
+import numpy as np
 import pytest
 from conftest import ROOT
 
@@ -128,3 +129,64 @@ def test_the_contact_onset_twist_converges_under_refinement():
     assert first / second > 8, onsets
     assert second < 2e-4, onsets
     assert DIAMETER == 0.002  # the figures above are this rod's
+
+
+def _sliding(contact: dict) -> dict:
+    """The twisted rod of tests/test_greenhill.py on 8 P3 cells, B sliding along e3, with the
+    [contact] table ``contact``."""
+    return {
+        "rod": {
+            "section": {"shape": "circle", "diameter": 0.02},
+            "material": {"density": 1000.0, "young_modulus": 1e9, "poisson_ratio": NU},
+        },
+        "structure": {
+            "nodes": [{"name": "A", "position": [0, 0, 0]}, {"name": "B", "position": [0, 0, 1]}],
+            "members": [{"name": "AB", "from": "A", "to": "B", "elements": 8}],
+            "supports": [
+                {"node": "A", "kind": "clamped"},
+                {"node": "B", "kind": "sliding", "rotation": "t", "rotation_axis": [0, 0, 1]},
+            ],
+        },
+        "time": {"end": 1.0, "step": 0.1, "integrator": "bdf2"},
+        "discretisation": {"degree": 3},
+        "contact": contact,
+    }
+
+
+def test_a_sliding_end_takes_self_contact_and_no_pair_presses_at_it():
+    """A `sliding` support with self contact alone is taken (its node is no slave, its
+    reactions would lose their free component), with an obstacle still refused by name; at
+    run time a pair whose slave is that node touching (gap 0) or whose partner cell holds it
+    (an active pair) is refused in one line with the place s = 1 m (PartlyHeld); a pair
+    elsewhere passes. The clamp A, held in all its positions, is no such node."""
+    from mpi4py import MPI
+
+    from cosserat_fem.common.errors import SceneError
+    from cosserat_fem.nls.pair_contact import Pairs, PartlyHeld
+    from cosserat_fem.rod.model import build_model
+    from cosserat_fem.rod.obstacles import contact_rows
+    from cosserat_fem.scene.build import scene_from_dict
+
+    plane = {"kind": "plane", "point": [-1.0, 0, 0], "normal": [1.0, 0, 0]}
+    with pytest.raises(SceneError, match=r"^structure\.supports\[1\]\.kind: a sliding node"):
+        scene_from_dict(_sliding({"self_contact": True, "obstacles": [plane]}))
+    model = build_model(scene_from_dict(_sliding({"self_contact": True})), MPI.COMM_SELF)
+    pairs = contact_rows(model).pairs
+    places = pairs.places_all
+    b, a = int(np.argmax(places)), int(np.argmin(places))
+    assert pairs.partly_all[b] and not pairs.partly_all[a] and pairs.partly_all.sum() == 1
+    middle = np.argsort(np.abs(places - 0.5))[:4]  # a cell's worth of nodes near s = L/2
+
+    def found(slave: int, gap: float) -> Pairs:
+        one = np.zeros(1)
+        return Pairs(np.array([slave]), middle[None, :], np.array([gap]), *[one] * 5)
+
+    with pytest.raises(
+        PartlyHeld, match=r"^contact: a part of the rod touches at s = 1 to 1 m"
+    ) as e:
+        pairs._check_partly(found(b, 0.0), middle[:0][None, :])
+    assert "\n" not in str(e.value)
+    with pytest.raises(PartlyHeld, match=r"s = 1 to 1 m"):
+        pairs._check_partly(found(a, 1.0), np.array([[b, *middle[:3]]]))
+    pairs._check_partly(found(b, 1e-3), middle[None, :])  # B near, not touching; none at B
+    pairs._check_partly(found(a, 0.0), middle[None, :])
