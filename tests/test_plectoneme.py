@@ -190,3 +190,61 @@ def test_a_sliding_end_takes_self_contact_and_no_pair_presses_at_it():
         pairs._check_partly(found(a, 1.0), np.array([[b, *middle[:3]]]))
     pairs._check_partly(found(b, 1e-3), middle[None, :])  # B near, not touching; none at B
     pairs._check_partly(found(a, 0.0), middle[None, :])
+
+
+@functools.cache
+def in_time(cells: int):
+    """scenes/plectoneme.toml on ``cells`` P3 cells (benchmarks/plectoneme_run.py ``run``):
+    its rows, wall time and closed forms."""
+    from plectoneme_run import run
+
+    return run(cells)
+
+
+@pytest.mark.long
+def test_the_twisted_rod_in_time_snaps_until_its_strands_meet_without_passing_through():
+    """scenes/plectoneme.toml (r = L/100, T = 100 EI/L², twist control at 1 rad/s, a drag,
+    no damping in torsion) on 64 and 96 P3 cells (~40 s), docs/plectoneme.md "With self
+    contact":
+
+    (1) straight, Φ in [Φ_c/4, Φ_c/2]: the torque at the clamp grows as GJ/L (the secant
+    within 1e-4: the gravity's sag changes it at (w/L)² ~ 1e-5; measured −4e-6; the drag is
+    translational and torsion undamped, so no viscous torque) and B has moved out by the
+    stretch T L/EA within 2 % (the sag's shortening, (π w/L)² L/4 ~ 1.3e-5 m, is 0.5 % of
+    it; measured 6.6e-3 on both meshes);
+    (2) past the fold the rod snaps: B comes in by more than 0.2 m before the strands meet
+    (0.282 m on 64 cells at Φ = 32.3427 rad: the loop of the descending branch,
+    docs/plectoneme.md);
+    (3) the path up to the contact is converged in space: the torque's maximum (~1.11 M_c
+    at this rate, the snap's delay) on 64 and 96 cells within 1e-4 relative (measured
+    1.3e-6) and the twist where the strands first meet, bracketed on 96 cells by its last
+    accepted and its failing step (32.3423, 32.3481 rad), within 1e-2 rad of the 64 cells'
+    (the adaptive steps' tolerance 1e-3 sets the steps there, of 1e-3 rad);
+    (4) no interpenetration at any accepted state: the pairs' node gaps ≥ −1e-9 r (the rows
+    hold them to the Newton tolerance) and the least gap between the nodes ≥ −1e-2 r (the
+    guard's bound; measured −7.9e-3 r on 64 cells);
+    (5) a run that stops does so in one line naming the place s (a chain of contacts soon
+    after the strands meet: not supported yet)."""
+    rows, _, forms = in_time(64)
+    r, GJ, phi_c = 0.5 * forms["diameter"], forms["GJ"], forms["phi_c"]
+    t, phi, M, dz, w, pairs, node_gap, between = rows.T
+    straight = (phi >= phi_c / 4) & (phi <= phi_c / 2)
+    slope = np.polyfit(phi[straight], M[straight], 1)[0]
+    assert abs(slope / GJ - 1) < 1e-4, slope / GJ - 1
+    EA = 4e6 * math.pi * r**2
+    assert abs(dz[straight] / (forms["T"] / EA) - 1).max() < 2e-2
+    touching = np.flatnonzero(pairs > 0)
+    assert touching.size, forms.get("failure")
+    onset = phi[touching[0]]
+    assert dz[touching[0]] < -0.2
+    assert node_gap[touching].min() >= -1e-9 * r
+    assert between.min() >= -1e-2 * r
+    fine, _, finer = in_time(96)
+    assert abs(fine[:, 2].max() / M.max() - 1) < 1e-4
+    if (fine[:, 5] > 0).any():
+        low = high = fine[np.argmax(fine[:, 5] > 0), 1]
+    else:
+        low, high = fine[-1, 1], finer["failed_at"] * float(finer["rate"])
+    assert low - 1e-2 <= onset <= high + 1e-2, (onset, low, high)
+    for failure in (forms.get("failure"), finer.get("failure")):
+        assert failure is None or ("\n" not in failure and "s = " in failure)
