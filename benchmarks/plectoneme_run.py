@@ -125,7 +125,7 @@ def run(cells: int, overrides: tuple[str, ...] | dict = ()) -> tuple[np.ndarray,
     forms = closed_form(scene)
     try:
         api.run(scene, None, observers=[record], record=False)
-    except CosseratError as exc:
+    except (CosseratError, FloatingPointError) as exc:  # the latter: see docs/plectoneme.md
         forms["failure"] = str(exc)
         forms["failed_at"] = record.attempted
     return np.array(record.rows), time.perf_counter() - start, forms
