@@ -157,21 +157,8 @@ def allow_chains() -> None:
 
 # %%
 if __name__ == "__main__" and MPI.COMM_WORLD.size == 1:
-    from plectoneme_run import figures, run
+    from plectoneme_run import report, run
 
     allow_chains()
     for cells in [int(a) for a in sys.argv[1:]] or [64]:
-        rows, wall, forms = run(cells)
-        np.save(f"/tmp/plectoneme_chains_{cells}.npy", rows)
-        print(f"\n{cells} P3 cells ({wall:.1f} s, {len(rows)} steps)")
-        print(forms.get("failure", "completed"))
-        print("   t [s]   Φ [rad]  M [N m]   Δz_B [m]  max|w| [m] pairs  gap/r   between/r")
-        r = 0.5 * forms["diameter"]
-        for i in range(0, len(rows), max(1, len(rows) // 40)):
-            t, phi, M, dz, w, n, g, gb = rows[i]
-            print(
-                f"{t:7.3f} {phi:8.4f} {M:9.5f} {dz:+9.5f} {w:9.5f} {int(n):4d} "
-                f"{g / r:+8.3f} {gb / r:+8.3f}"
-            )
-        for key, value in figures(rows, forms).items():
-            print(f"  {key}: {value:.6g}")
+        report(cells, *run(cells))

@@ -158,21 +158,23 @@ def figures(rows: np.ndarray, forms: dict) -> dict:
     }
 
 
+def report(cells: int, rows: np.ndarray, wall: float, forms: dict) -> None:
+    """Print a run of :func:`run`: its rows (some 24 and the last 0.3 s) and its figures."""
+    print(f"\n{cells} P3 cells ({wall:.1f} s, {len(rows)} steps); Φ_c = {forms['phi_c']:.5f} rad")
+    print(forms.get("failure", "completed"))
+    print("   t [s]   Φ [rad]  M [N m]   Δz_B [m]  max|w| [m] pairs  gap/r   between/r")
+    r = 0.5 * forms["diameter"]
+    last = [i for i in range(len(rows)) if rows[i, 0] > rows[-1, 0] - 0.3]
+    for i in sorted(set(range(0, len(rows), max(1, len(rows) // 24))) | set(last)):
+        t, phi, M, dz, w, n, g, gb = rows[i]
+        print(
+            f"{t:7.3f} {phi:8.4f} {M:9.5f} {dz:+9.5f} {w:9.5f} {int(n):4d} "
+            f"{g / r:+8.3f} {gb / r:+8.3f}"
+        )
+    for key, value in figures(rows, forms).items():
+        print(f"  {key}: {value:.6g}")
+
+
 if __name__ == "__main__" and MPI.COMM_WORLD.size == 1:
     for cells in [int(a) for a in sys.argv[1:]] or [64]:
-        rows, wall, forms = run(cells)
-        print(
-            f"\n{cells} P3 cells ({wall:.1f} s, {len(rows)} steps); Φ_c = {forms['phi_c']:.5f} rad"
-        )
-        print(forms.get("failure", "completed"))
-        print("   t [s]   Φ [rad]  M [N m]   Δz_B [m]  max|w| [m] pairs  gap/r   between/r")
-        r = 0.5 * forms["diameter"]
-        last = [i for i in range(len(rows)) if rows[i, 0] > rows[-1, 0] - 0.3]
-        for i in sorted(set(range(0, len(rows), max(1, len(rows) // 24))) | set(last)):
-            t, phi, M, dz, w, n, g, gb = rows[i]
-            print(
-                f"{t:7.3f} {phi:8.4f} {M:9.5f} {dz:+9.5f} {w:9.5f} {int(n):4d} "
-                f"{g / r:+8.3f} {gb / r:+8.3f}"
-            )
-        for key, value in figures(rows, forms).items():
-            print(f"  {key}: {value:.6g}")
+        report(cells, *run(cells))
