@@ -34,6 +34,7 @@ import functools
 import math
 import sys
 
+import numpy as np
 import pytest
 from conftest import ROOT
 
@@ -128,3 +129,122 @@ def test_the_contact_onset_twist_converges_under_refinement():
     assert first / second > 8, onsets
     assert second < 2e-4, onsets
     assert DIAMETER == 0.002  # the figures above are this rod's
+
+
+def _sliding(contact: dict) -> dict:
+    """The twisted rod of tests/test_greenhill.py on 8 P3 cells, B sliding along e3, with the
+    [contact] table ``contact``."""
+    return {
+        "rod": {
+            "section": {"shape": "circle", "diameter": 0.02},
+            "material": {"density": 1000.0, "young_modulus": 1e9, "poisson_ratio": NU},
+        },
+        "structure": {
+            "nodes": [{"name": "A", "position": [0, 0, 0]}, {"name": "B", "position": [0, 0, 1]}],
+            "members": [{"name": "AB", "from": "A", "to": "B", "elements": 8}],
+            "supports": [
+                {"node": "A", "kind": "clamped"},
+                {"node": "B", "kind": "sliding", "rotation": "t", "rotation_axis": [0, 0, 1]},
+            ],
+        },
+        "time": {"end": 1.0, "step": 0.1, "integrator": "bdf2"},
+        "discretisation": {"degree": 3},
+        "contact": contact,
+    }
+
+
+def test_a_sliding_end_takes_self_contact_and_no_pair_presses_at_it():
+    """A `sliding` support with self contact alone is taken (its node is no slave, its
+    reactions would lose their free component), with an obstacle still refused by name; at
+    run time a pair whose slave is that node touching (gap 0) or whose partner cell holds it
+    (an active pair) is refused in one line with the place s = 1 m (PartlyHeld); a pair
+    elsewhere passes. The clamp A, held in all its positions, is no such node."""
+    from mpi4py import MPI
+
+    from cosserat_fem.common.errors import SceneError
+    from cosserat_fem.nls.pair_contact import Pairs, PartlyHeld
+    from cosserat_fem.rod.model import build_model
+    from cosserat_fem.rod.obstacles import contact_rows
+    from cosserat_fem.scene.build import scene_from_dict
+
+    plane = {"kind": "plane", "point": [-1.0, 0, 0], "normal": [1.0, 0, 0]}
+    with pytest.raises(SceneError, match=r"^structure\.supports\[1\]\.kind: a sliding node"):
+        scene_from_dict(_sliding({"self_contact": True, "obstacles": [plane]}))
+    model = build_model(scene_from_dict(_sliding({"self_contact": True})), MPI.COMM_SELF)
+    pairs = contact_rows(model).pairs
+    places = pairs.places_all
+    b, a = int(np.argmax(places)), int(np.argmin(places))
+    assert pairs.partly_all[b] and not pairs.partly_all[a] and pairs.partly_all.sum() == 1
+    middle = np.argsort(np.abs(places - 0.5))[:4]  # a cell's worth of nodes near s = L/2
+
+    def found(slave: int, gap: float) -> Pairs:
+        one = np.zeros(1)
+        return Pairs(np.array([slave]), middle[None, :], np.array([gap]), *[one] * 5)
+
+    with pytest.raises(
+        PartlyHeld, match=r"^contact: a part of the rod touches at s = 1 to 1 m"
+    ) as e:
+        pairs._check_partly(found(b, 0.0), middle[:0][None, :])
+    assert "\n" not in str(e.value)
+    with pytest.raises(PartlyHeld, match=r"s = 1 to 1 m"):
+        pairs._check_partly(found(a, 1.0), np.array([[b, *middle[:3]]]))
+    pairs._check_partly(found(b, 1e-3), middle[None, :])  # B near, not touching; none at B
+    pairs._check_partly(found(a, 0.0), middle[None, :])
+
+
+@functools.cache
+def in_time(cells: int):
+    """scenes/plectoneme.toml on ``cells`` P3 cells (benchmarks/plectoneme_run.py ``run``):
+    its rows, wall time and closed forms."""
+    from plectoneme_run import run
+
+    return run(cells)
+
+
+@pytest.mark.long
+def test_the_twisted_rod_in_time_snaps_until_its_strands_meet_without_passing_through():
+    """scenes/plectoneme.toml (r = L/100, T = 100 EI/L², twist control at 1 rad/s, a drag,
+    no damping in torsion) on 64 and 96 P3 cells (~40 s), docs/plectoneme.md "With self
+    contact":
+
+    (1) straight, Φ in [Φ_c/4, Φ_c/2]: the torque at the clamp grows as GJ/L (the secant
+    within 1e-4: the gravity's sag changes it at (w/L)² ~ 1e-5; measured −4e-6; the drag is
+    translational and torsion undamped, so no viscous torque) and B has moved out by the
+    stretch T L/EA within 2 % (the sag's shortening, (π w/L)² L/4 ~ 1.3e-5 m, is 0.5 % of
+    it; measured 6.6e-3 on both meshes);
+    (2) past the fold the rod snaps: B comes in by more than 0.2 m before the strands meet
+    (0.282 m on 64 cells at Φ = 32.3427 rad: the loop of the descending branch,
+    docs/plectoneme.md);
+    (3) the path up to the contact is converged in space: the torque's maximum (~1.11 M_c
+    at this rate, the snap's delay) on 64 and 96 cells within 1e-4 relative (measured
+    1.3e-6) and the twist where the strands first meet, bracketed on 96 cells by its last
+    accepted and its failing step (32.3423, 32.3481 rad), within 1e-2 rad of the 64 cells'
+    (the adaptive steps' tolerance 1e-3 sets the steps there, of 1e-3 rad);
+    (4) no interpenetration at any accepted state: the pairs' node gaps ≥ −1e-9 r (the rows
+    hold them to the Newton tolerance) and the least gap between the nodes ≥ −1e-2 r (the
+    guard's bound; measured −7.9e-3 r on 64 cells);
+    (5) a run that stops does so in one line naming the place s (a chain of contacts soon
+    after the strands meet: not supported yet)."""
+    rows, _, forms = in_time(64)
+    r, GJ, phi_c = 0.5 * forms["diameter"], forms["GJ"], forms["phi_c"]
+    t, phi, M, dz, w, pairs, node_gap, between = rows.T
+    straight = (phi >= phi_c / 4) & (phi <= phi_c / 2)
+    slope = np.polyfit(phi[straight], M[straight], 1)[0]
+    assert abs(slope / GJ - 1) < 1e-4, slope / GJ - 1
+    EA = 4e6 * math.pi * r**2
+    assert abs(dz[straight] / (forms["T"] / EA) - 1).max() < 2e-2
+    touching = np.flatnonzero(pairs > 0)
+    assert touching.size, forms.get("failure")
+    onset = phi[touching[0]]
+    assert dz[touching[0]] < -0.2
+    assert node_gap[touching].min() >= -1e-9 * r
+    assert between.min() >= -1e-2 * r
+    fine, _, finer = in_time(96)
+    assert abs(fine[:, 2].max() / M.max() - 1) < 1e-4
+    if (fine[:, 5] > 0).any():
+        low = high = fine[np.argmax(fine[:, 5] > 0), 1]
+    else:
+        low, high = fine[-1, 1], finer["failed_at"] * float(finer["rate"])
+    assert low - 1e-2 <= onset <= high + 1e-2, (onset, low, high)
+    for failure in (forms.get("failure"), finer.get("failure")):
+        assert failure is None or ("\n" not in failure and "s = " in failure)

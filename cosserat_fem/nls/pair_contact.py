@@ -55,6 +55,7 @@ from cosserat_fem.nls.contact import (
     ROUNDOFF,
     SLIP,
     STICK,
+    TOUCHING,
     augmentation,
     pressed,
     slip_derivative,
@@ -109,6 +110,7 @@ class PairContact:
         shares: np.ndarray,
         static_friction: float = 0.0,
         kinetic_friction: float | None = None,
+        partly: np.ndarray | None = None,
     ):
         self.comm = V.mesh.comm
         bs = V.dofmap.index_map_bs
@@ -124,6 +126,10 @@ class PairContact:
         self.pq = np.arange(owned)[:, None] * bs + self.balance_slots[None, :]
         self.held_all = np.concatenate(self.comm.allgather(np.asarray(held, dtype=bool)))
         self.places_all = np.concatenate(self.comm.allgather(np.asarray(places, dtype=float)))
+        #: the nodes some of whose positions a support holds (a sliding node): no pair may
+        #: press on or with them (:meth:`_check_partly`)
+        partly = np.zeros(len(held), dtype=bool) if partly is None else partly
+        self.partly_all = np.concatenate(self.comm.allgather(np.asarray(partly, dtype=bool)))
         self.owned = owned
         #: PETSc's Vec of the owned layout that carries the reactions (P.2) to their owners
         self._reactions = PETSc.Vec().createMPI((owned * bs, PETSc.DECIDE), comm=self.comm)
@@ -201,6 +207,7 @@ class PairContact:
         slave, partner = pairs.slave[mine][on], pairs.partner[mine][on]
         which = np.flatnonzero(mine)[on]
         self._check_chains(slave, partner, pairs.weights[which])
+        self._check_partly(pairs, partner)
         n, F, fN, gs = n[on], F[on], fN[on], gs[on]
         weights = pairs.weights[which]
         T, dT = tangent_bases(n)
@@ -279,6 +286,22 @@ class PairContact:
             raise ContactChain(
                 f"a node pressed onto the rod also carries another's contact (a chain of "
                 f"contacts) at s = {where.min():.4g} to {where.max():.4g} m: not supported yet"
+            )
+
+    def _check_partly(self, pairs: Pairs, partner: np.ndarray) -> None:
+        """PartlyHeld (every rank) if an active pair's partner cell (``partner``, this rank's)
+        has a node some of whose positions a support holds, or such a node touches a cell as a
+        slave: its free components would lose the reaction, or it would have no rows."""
+        partly = self.partly_all
+        bad = partner[partly[partner].any(axis=1)].ravel() if len(partner) else partner.ravel()
+        slaves = pairs.slave[partly[pairs.slave] & (pairs.gap <= TOUCHING * self.ell)]
+        nodes = np.concatenate(self.comm.allgather(np.concatenate([bad, slaves])))
+        nodes = nodes[partly[nodes]]
+        if nodes.size:
+            where = self.places_all[nodes]
+            raise PartlyHeld(
+                f"a part of the rod touches at s = {where.min():.4g} to {where.max():.4g} m, "
+                "a node held in some of its positions (a sliding support): not supported yet"
             )
 
     def apply_matrix(self, A: PETSc.Mat) -> None:
@@ -498,6 +521,13 @@ class PairContact:
         self.most = int(state["pairs.most"])
         self.most_changes = int(state["pairs.most_changes"])
         self.started = bool(state["pairs.started"])
+
+
+class PartlyHeld(SolverError):
+    """A pair at a node a sliding support holds in part: one line, where = "contact"."""
+
+    def __init__(self, reason: str):
+        super().__init__(reason, where="contact")
 
 
 class ContactChain(SolverError):

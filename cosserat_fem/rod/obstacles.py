@@ -210,7 +210,8 @@ def contact_rows(model) -> NodeContact | Contacts | None:
         held[dofs[dofs < owned * bs]] = True
     positions = [layout.index(k) for k in range(3)]
     solved = [k for k in range(3) if positions[k] is not None]
-    held_nodes = held.reshape(owned, bs)[:, [positions[k] for k in solved]].any(axis=1)
+    held_position = held.reshape(owned, bs)[:, [positions[k] for k in solved]]
+    held_nodes = held_position.any(axis=1)
     ell = model.length
     rest, places, copies = _rest(model)
     # each node's share of the length, ℓ ∫ φ_k dσ [m]: a nodal force over it is a load per length
@@ -254,6 +255,7 @@ def contact_rows(model) -> NodeContact | Contacts | None:
             shares=shares,
             static_friction=spec.static_friction,
             kinetic_friction=spec.kinetic,
+            partly=held_nodes & ~held_position.all(axis=1),
             **common,
         )
         _check_self_start(pairs, model.U.x.array)
