@@ -41,21 +41,30 @@ def one(cells: int, contact: bool, full: bool = False) -> tuple[float, int, str]
     return wall / newton["iterations"], newton["iterations"], newton["loop"]
 
 
-if __name__ == "__main__":
-    cells = int(sys.argv[1]) if len(sys.argv) > 1 else 100
-    repeats = int(sys.argv[2]) if len(sys.argv) > 2 else 3
+def compare(one, cells: int, repeats: int, contact: str = "contact") -> None:
+    """``one(cells, contact, full)`` → (seconds an iteration, iterations, a note) for the
+    three cases, interleaved ``repeats`` times; prints each run and the medians, with their
+    ratios to the full-Newton run without contact."""
     cases = {
         "no contact": (False, False),
         "no contact, full": (False, True),
-        "contact": (True, False),
+        contact: (True, False),
     }
     times: dict[str, list[float]] = {name: [] for name in cases}
     for _ in range(repeats):
-        for name, (contact, full) in cases.items():
-            per, its, loop = one(cells, contact, full)
+        for name, (on, full) in cases.items():
+            per, its, note = one(cells, on, full)
             times[name].append(per)
-            print(f"{name}: {its} iterations, {1e3 * per:.2f} ms each (loop {loop})")
+            print(f"{name}: {its} iterations, {1e3 * per:.2f} ms each ({note})")
     medians = {name: statistics.median(values) for name, values in times.items()}
     for name, value in medians.items():
         ratio = value / medians["no contact, full"]
         print(f"{cells} cells, {name}: {1e3 * value:.2f} ms an iteration ({ratio:.2f})")
+
+
+if __name__ == "__main__":
+    compare(
+        one,
+        int(sys.argv[1]) if len(sys.argv) > 1 else 100,
+        int(sys.argv[2]) if len(sys.argv) > 2 else 3,
+    )

@@ -14,12 +14,12 @@
 # %%
 from __future__ import annotations
 
-import statistics
 import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+from contact_cost import compare  # noqa: E402
 from test_self_contact import rigid_hairpin  # noqa: E402
 
 from cosserat_fem import api  # noqa: E402
@@ -45,20 +45,9 @@ def one(cells: int, contact: bool, full: bool = False) -> tuple[float, int, dict
 
 
 if __name__ == "__main__":
-    cells = int(sys.argv[1]) if len(sys.argv) > 1 else 39
-    repeats = int(sys.argv[2]) if len(sys.argv) > 2 else 3
-    cases = {
-        "no contact": (False, False),
-        "no contact, full": (False, True),
-        "self contact": (True, False),
-    }
-    times: dict[str, list[float]] = {name: [] for name in cases}
-    for _ in range(repeats):
-        for name, (contact, full) in cases.items():
-            per, its, summary = one(cells, contact, full)
-            times[name].append(per)
-            print(f"{name}: {its} iterations, {1e3 * per:.2f} ms each {summary}")
-    medians = {name: statistics.median(values) for name, values in times.items()}
-    for name, value in medians.items():
-        ratio = value / medians["no contact, full"]
-        print(f"{name}: median {1e3 * value:.2f} ms an iteration ({ratio:.2f} x no contact, full)")
+    compare(
+        one,
+        int(sys.argv[1]) if len(sys.argv) > 1 else 39,
+        int(sys.argv[2]) if len(sys.argv) > 2 else 3,
+        "self contact",
+    )
