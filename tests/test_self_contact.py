@@ -430,3 +430,21 @@ def test_generalized_alpha_keeps_its_rate_after_a_landing_on_the_rod(monkeypatch
     assert result.summary["contact"]["pairs_in_contact"] == 1
     pressed = [(before, after) for holds, before, after in seen if not holds]
     assert pressed and all(np.array_equal(b, a) for b, a in pressed)
+
+
+def test_a_geometry_that_fails_is_a_retried_error_not_a_traceback():
+    """A non-finite iterate (a NaN position: every gap would be NaN, never pressed, the
+    contact silently lost) is a SolverError where = contact naming s, retried by a smaller
+    step, the same on every rank (every rank searches the same gathered positions); so is a
+    closest point that does not converge (contact_search's FloatingPointError)."""
+    from cosserat_fem.analysis.statics import static_solver
+    from cosserat_fem.common.errors import SolverError
+    from cosserat_fem.rod.model import build_model
+
+    scene = scene_from_dict(hairpin(0.0, 0.0245))
+    model = build_model(scene, MPI.COMM_SELF)
+    solver = static_solver(scene, model)
+    model.U.x.array[model.layout.index(2)] = np.nan  # a diverged iterate
+    with pytest.raises(SolverError, match=r"^contact: self contact: ") as e:
+        solver._residual()
+    assert e.value.retry

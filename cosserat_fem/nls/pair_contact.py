@@ -192,7 +192,10 @@ class PairContact:
         friction); whether the active set or a state changed on any rank since the last
         iterate (collective)."""
         self._x = self.everywhere(u)
-        pairs = self.geometry(self._x)
+        try:  # the same positions on every rank: the same answer, or the same error
+            pairs = self.geometry(self._x)
+        except FloatingPointError as exc:  # a diverged iterate, a degenerate closest point
+            raise SolverError(f"self contact: {exc}", where="contact", retry=True) from None
         mine = (pairs.slave >= self.start) & (pairs.slave < self.start + self.owned)
         mine &= ~self.held_all[pairs.slave]
         local = pairs.slave[mine] - self.start
