@@ -148,8 +148,9 @@ class SelfContactGeometry:
         """The single-pass pairs at the nodes' positions ``x`` (N, 3) [m]; FloatingPointError
         if a position is not finite (a NaN would make every gap NaN, never pressed)."""
         if not np.isfinite(x).all():
-            where = self.places[np.flatnonzero(~np.isfinite(x).all(axis=1))[0]]
-            raise FloatingPointError(f"a node's position is not finite (s = {where:.4g} m)")
+            node = int(np.flatnonzero(~np.isfinite(x).all(axis=1))[0])
+            where = f"s = {self.places[node]:.4g} m" if self.places is not None else f"node {node}"
+            raise FloatingPointError(f"a node's position is not finite ({where})")
         if self.verlet is None or self.verlet.stale(x):
             self.verlet = VerletList(
                 x, self.dofs, self.radius, self.margin, self.arc, self.rod, self._keep
