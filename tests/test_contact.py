@@ -231,7 +231,11 @@ def test_a_surface_given_by_its_distance_is_the_obstacle_it_describes():
 
 @pytest.mark.parametrize(
     ("distance", "message"),
-    [("x**2 + y**2 + z**2 - 1", "not a signed distance"), ("sqrt(x - 1)", "not finite at s")],
+    [
+        ("x**2 + y**2 + z**2 - 1", "not a signed distance"),
+        ("sqrt(x - 1)", "not finite at s"),
+        ("0*x + 0.5", "its gradient is 0 at every node"),
+    ],
 )
 def test_a_surface_that_is_not_a_signed_distance_is_refused(distance, message):
     """A function that vanishes on the surface but is no distance (|∇d| ≠ 1) would give

@@ -580,7 +580,8 @@ class NodeContact:
         c = float(state["contact.c"])
         self.c = None if np.isnan(c) else c
         self.dissipated = float(state["contact.dissipated"])
-        self.impact_loss = float(state["contact.impact_loss"])
+        # a checkpoint from before the impacts' counter (2026-12-05): none counted yet
+        self.impact_loss = float(state.get("contact.impact_loss", 0.0))
         self.most = int(state["contact.most"])
         self.most_changes = int(state["contact.most_changes"])
         self.started = bool(state["contact.started"])

@@ -33,7 +33,8 @@ direction's pairs are dropped). A node that carries a partner's reaction and is 
 pressed (a chain of contacts) is refused with its place (a retried SolverError). A node whose
 positions a support holds has no rows: it is no slave, and a reaction onto it goes to the
 support (a part of the rod may then pass through it: the sampled check between nodes does
-not look at the nodes themselves).
+not look at the nodes themselves); a node held in part (a sliding support) that touches or
+would take a reaction is refused with its place.
 
 Under MPI every rank holds every node's position (an Allgatherv an iterate: 24 bytes a node)
 and finds the same pairs; each rank writes the rows of the slaves it owns, and the reactions
@@ -88,11 +89,13 @@ class Pairs:
 
 
 class PairContact:
-    """The rows (P.1)-(P.2) of the module docstring on the space ``V`` of a rod whose owned
-    nodes are at ``rest`` [m] (owned, 3), ``held`` those whose positions a support holds,
-    ``places`` their arc lengths s [m]; ``geometry`` maps every node's position (global
-    order, (N, 3)) to the :class:`Pairs` of nodes at most a margin from a partner; the slots
-    and ``solved`` as :class:`~cosserat_fem.nls.contact.NodeContact`'s."""
+    """The rows (P.1)-(P.4) of the module docstring on the space ``V`` of a rod whose owned
+    nodes are at ``rest`` [m] (owned, 3), ``held`` those some of whose positions a support
+    holds (no rows; ``partly``: those held in part only, a sliding support's, refused in a
+    pair), ``places`` their arc lengths s [m]; ``geometry`` maps every node's position
+    (global order, (N, 3)) to the :class:`Pairs` of nodes at most a margin from a partner;
+    the slots and ``solved`` as :class:`~cosserat_fem.nls.contact.NodeContact`'s; the
+    friction ``static_friction`` μ_s (0: none) and ``kinetic_friction`` μ_k (default μ_s)."""
 
     def __init__(
         self,
@@ -134,8 +137,13 @@ class PairContact:
         #: PETSc's Vec of the owned layout that carries the reactions (P.2) to their owners
         self._reactions = PETSc.Vec().createMPI((owned * bs, PETSc.DECIDE), comm=self.comm)
         self._reactions.setOption(PETSc.Vec.Option.IGNORE_NEGATIVE_INDICES, True)
-        #: the augmentation c (None until a Jacobian is seen), as NodeContact's
+        #: the augmentation c (None until a Jacobian is seen), at the free node first along
+        #: the rod (:meth:`apply_matrix`; global index)
         self.c: float | None = None
+        rest_all = np.concatenate(self.comm.allgather(np.asarray(rest, dtype=float)))
+        free = np.flatnonzero(~self.held_all)
+        key = (*rest_all[free].T[::-1], self.places_all[free])
+        self._first = int(free[np.lexsort(key)[0]]) if free.size else -1
         #: the active pairs at the last iterate and at the last accepted state, (slave, first
         #: partner node) global, and the rows' data of the last iterate
         self.active = np.zeros((0, 3), dtype=np.int64)
@@ -310,14 +318,14 @@ class PairContact:
     def apply_matrix(self, A: PETSc.Mat) -> None:
         """The Jacobian rows of (P.1)-(P.4) at the pairs and states :meth:`apply_vector`
         decided, in the assembled ``A`` (collective; after its final assembly); the
-        augmentation c (:func:`~cosserat_fem.nls.contact.augmentation`) at the rod's first free
-        node."""
-        # the rod's first free node (in the global numbering: the same node on any number
-        # of ranks) gives c; the largest over all nodes (NodeContact's, among nodes that all
-        # touch one obstacle) would take a stiff part's scale and make the decision at a
-        # contact's onset chatter (the rigid-leg hairpin: no convergence down to 1/1024)
-        first = int(np.flatnonzero(~self.held_all)[0])
-        mine = np.arange(self.start, self.start + self.owned) == first
+        augmentation c (:func:`~cosserat_fem.nls.contact.augmentation`) at the free node first
+        along the rod."""
+        # the free node first along the rod (by s, then its rest position: the same node on
+        # any number of ranks, which the global numbering is not) gives c; the largest over
+        # all nodes (NodeContact's, among nodes that all touch one obstacle) would take a
+        # stiff part's scale and make the decision at a contact's onset chatter (the
+        # rigid-leg hairpin: no convergence down to 1/1024)
+        mine = np.arange(self.start, self.start + self.owned) == self._first
         start = self.start * self.bs
         c = augmentation(A, self.pq[mine, 0] + start, self.px[mine, 0] + start, self.comm)
         r = self._rows
@@ -527,10 +535,11 @@ class PairContact:
 
 
 class PartlyHeld(SolverError):
-    """A pair at a node a sliding support holds in part: one line, where = "contact"."""
+    """A pair at a node a sliding support holds in part: one line, where = "contact",
+    retried as a chain is (an iterate may touch where the converged state does not)."""
 
     def __init__(self, reason: str):
-        super().__init__(reason, where="contact")
+        super().__init__(reason, where="contact", retry=True)
 
 
 class ContactChain(SolverError):

@@ -22,6 +22,7 @@ import numpy as np
 import ufl
 from dolfinx import fem
 from dolfinx.fem.petsc import assemble_vector
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from cosserat_fem.common.errors import SceneError
@@ -90,13 +91,15 @@ class Obstacle:
         g[singular], size[singular], h[singular] = [1.0, 0.0, 0.0], 1.0, 0.0
         return self._values(d, x), g / size[:, None], h
 
-    def gradient_size(self, x: np.ndarray) -> np.ndarray:
-        """|∇d| at ``x`` (n, 3): 1 for the plane, sphere and cylinder; a surface's as given (1
-        on a medial axis, where it has none)."""
+    def gradient_size(self, x: np.ndarray, medial: float | None = 1.0) -> np.ndarray:
+        """|∇d| at ``x`` (n, 3): 1 for the plane, sphere and cylinder; a surface's as given,
+        ``medial`` where it has none (0 or not finite: a medial axis; None: as it is)."""
         if self.field is None:
             return np.ones(len(x))
         size = np.linalg.norm(self._values(self.field[1], x), axis=0)
-        return np.where(np.isfinite(size) & (size > 0.0), size, 1.0)
+        if medial is None:
+            return size
+        return np.where(np.isfinite(size) & (size > 0.0), size, medial)
 
     def distance(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(d, ∇d, ∇²d) at the points ``x`` (n, 3): (n,), (n, 3), (n, 3, 3). At a sphere's
@@ -167,6 +170,14 @@ def _check_start(
     for i, (obstacle, spec_i) in enumerate(zip(obstacles, spec.obstacles, strict=True)):
         g = obstacle.distance(x)[0] - float(spec.radius)
         size = obstacle.gradient_size(x)
+        # a gradient exactly 0 at every node of every rank: the distance does not vary ("0*x
+        # + 0.5"; a medial axis gives 0/0, not 0: a string centred in a borehole is fine)
+        flat = bool((obstacle.gradient_size(x, None) == 0.0).all()) if len(x) else True
+        if comm.allreduce(flat, op=MPI.LAND) and problem is None:
+            problem = SceneError(
+                f"contact.obstacles[{i}].distance: its gradient is 0 at every node (a "
+                "distance must vary with the position)"
+            )
         if problem is None and not np.isfinite(g).all():
             j = int(np.flatnonzero(~np.isfinite(g))[0])
             problem = SceneError(

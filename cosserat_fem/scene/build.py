@@ -1173,7 +1173,8 @@ def _check_contact_scene(scene: Scene) -> None:
             raise SceneError(
                 f"supports.{end}: a {getattr(scene.supports, end)} end holds some of its "
                 "positions: contact's rows are written for nodes free in all or held in all "
-                "(not yet for this end)"
+                "(not yet for a rod's end; self contact without obstacles takes a structure's "
+                "sliding support)"
             )
     if scene.contact.kinetic > scene.contact.static_friction:
         raise SceneError(
