@@ -30,7 +30,7 @@ rows gain the partner's position columns and the partner's rows the slave's, ent
 assembled pattern lacks (PETSc allocates them at the first insertion and keeps them). A node
 is the slave of the pair whose partner lies before it along the rod (single pass: the other
 direction's pairs are dropped). A node that carries a partner's reaction and is itself
-pressed (a chain of contacts) is refused with its place (a retried SolverError). A node whose
+pressed (a chain of contacts) is refused with its place (a SolverError). A node whose
 positions a support holds has no rows: it is no slave, and a reaction onto it goes to the
 support (a part of the rod may then pass through it: the sampled check between nodes does
 not look at the nodes themselves); a node held in part (a sliding support) that touches or
@@ -535,18 +535,19 @@ class PairContact:
 
 
 class PartlyHeld(SolverError):
-    """A pair at a node a sliding support holds in part: one line, where = "contact",
-    retried as a chain is (an iterate may touch where the converged state does not)."""
+    """A pair at a node a sliding support holds in part: one line, where = "contact", not
+    retried (as a chain: ContactChain)."""
 
     def __init__(self, reason: str):
-        super().__init__(reason, where="contact", retry=True)
+        super().__init__(reason, where="contact")
 
 
 class ContactChain(SolverError):
     """A contact configuration the pair rows do not support (a chain of contacts): one line,
-    where = "contact", retried (a chain at a passing iterate, as the first iterate that
-    pushes a whole leg through, may be gone in a smaller step; a real one stops the run at
-    the last halving, as in statics)."""
+    where = "contact", not retried. Retried, the plectoneme's run in time (its strands
+    winding into a ply: a real chain) halved its adaptive steps for more than 10 minutes
+    instead of stopping in 25 s; a chain met only at a passing iterate stops the run too
+    (statics halves the load step on any SolverError)."""
 
     def __init__(self, reason: str):
-        super().__init__(reason, where="contact", retry=True)
+        super().__init__(reason, where="contact")
