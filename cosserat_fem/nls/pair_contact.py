@@ -157,7 +157,7 @@ class PairContact:
         self.node_state = np.zeros(count, dtype=np.int8)
         self.node_accepted = np.zeros(count, dtype=np.int8)
         #: every node's position at the last accepted state [m] (the friction's history)
-        self.x_old = np.concatenate(self.comm.allgather(np.asarray(rest, dtype=float)))
+        self.x_old = rest_all.copy()
         #: the work friction between the parts dissipated [J] over the accepted states, and
         #: the normal forces' (the impacts' loss), as NodeContact's
         self.dissipated = 0.0
