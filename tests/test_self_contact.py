@@ -128,25 +128,138 @@ def test_the_hairpin_under_mpirun_equals_serial(tmp_path):
     assert abs(parallel["force"] / serial["force"] - 1) < 1e-9
 
 
-def test_a_chain_of_contacts_is_refused_in_one_line():
-    """A node pressed onto the rod that also carries another node's contact is refused with
-    its place, as a SolverError not retried (one line, exit 3 at the command line; retried,
-    the plectoneme's real chain halved its steps for minutes): the rows would need the
-    reactions ordered (docs/decisions.md, "Self contact"). A partner node of weight 0
-    carries nothing: no chain."""
+def test_chains_of_contacts_are_taken_by_levels_and_a_cycle_is_refused_in_one_line():
+    """(P.5)'s levels: a pair is at level 0 if nothing presses on its slave, else one more
+    than the deepest pair whose partner cell holds the slave with a weight ≠ 0 (the longest
+    chain ending at it). Three stacked pairs (117 on 110's cell, 110 on 100's, 100 on a
+    cell of nodes no pair presses with) are at levels 2, 1, 0 whatever their order; a
+    partner node of weight 0 (the closest point at the cell's other end) passes nothing.
+    Pairs pressing on each other in a cycle (possible on a structure only) are refused with
+    their place, one line, a SolverError not retried."""
     from cosserat_fem.common.errors import SolverError
+    from cosserat_fem.nls.pair_contact import Pairs
     from cosserat_fem.rod.model import build_model
     from cosserat_fem.rod.obstacles import contact_rows
 
     model = build_model(scene_from_dict(hairpin(0.0, 0.0245)), MPI.COMM_SELF)
     pairs = contact_rows(model).pairs
-    slave, weights = np.array([100]), np.array([[0.1, 0.5, 0.3, 0.1]])
-    with pytest.raises(SolverError, match=r"^contact: a node pressed onto the rod also") as e:
-        pairs._check_chains(slave, np.array([[3, 100, 101, 102]]), weights)
+
+    def levels(slave, partner, weights):
+        empty = np.zeros(len(slave))
+        return pairs._levels(
+            Pairs(
+                np.array(slave),
+                np.array(partner),
+                empty,
+                empty,
+                np.array(weights),
+                empty,
+                empty,
+                empty,
+            )
+        )
+
+    even = [0.25, 0.25, 0.25, 0.25]
+    stack = levels(
+        [100, 117, 110], [[3, 4, 5, 6], [108, 109, 110, 111], [99, 100, 101, 102]], [even] * 3
+    )
+    assert stack.tolist() == [2, 0, 1]
+    # 117's closest point at the end of its cell away from 110: 110 carries nothing
+    apart = levels(
+        [100, 117, 110],
+        [[3, 4, 5, 6], [108, 109, 110, 111], [99, 100, 101, 102]],
+        [even, [1.0, 0.0, 0.0, 0.0], even],
+    )
+    assert apart.tolist() == [1, 0, 0]
+    with pytest.raises(
+        SolverError, match=r"^contact: parts of the rod press on each other in a cycle"
+    ) as e:
+        levels([100, 110], [[108, 109, 110, 111], [99, 100, 101, 102]], [even, even])
     assert "\n" not in str(e.value) and "s = " in str(e.value) and not e.value.retry
-    pairs._check_chains(slave, np.array([[3, 4, 5, 6]]), weights)  # no chain: nothing raised
-    # a partner node of weight 0 (the closest point at the cell's other end) carries nothing
-    pairs._check_chains(slave, np.array([[3, 100, 101, 102]]), np.array([[1.0, 0, 0, 0]]))
+
+
+# Three parts stacked (a chain of contacts, (P.5)): leg 1 from the clamp along e1, a corner
+# up to leg 2 back over it, a short slanted corner up to leg 3 forward over leg 2; its end D3
+# pressed down lands on leg 2, which presses on leg 1 under it. Lengths [m]; the corners at
+# vertices of cells of 0.05 m; leg 3 rises SLANT along e1 so that D3 lies inside a cell.
+ZL1, ZL2, ZL3, SLANT, ZR = 0.7, 0.6, 0.15, 0.008, 0.0245
+STIFF_LEG3 = 100.0
+
+
+def stack(P: float, rigid: float | None) -> dict:
+    """The stacked rod loaded by P [N] down at D3, its leg 1 and first corner ``rigid`` times
+    stiffer than leg 2, its second corner and leg 3 STIFF times; or (``rigid`` None) the rod
+    from the first corner's top, clamped there, over the plane z = r that is leg 1's top."""
+    rise = math.sqrt(0.05**2 - SLANT**2)
+    top = [[ZL1, 0, H], [ZL1 - ZL2, 0, H], [ZL1 - ZL2 + SLANT, 0, H + rise]]
+    top.append([ZL1 - ZL2 + SLANT + ZL3, 0, H + rise])
+    data = hairpin(0.0, ZR)
+    data["loads"] = {"end": {"force": [0, 0, -P]}}
+    start = 0.0 if rigid is None else ZL1 + H  # s [m] at the first corner's top
+    factor = f"(1 + {STIFF_LEG3 - 1!r}*heaviside(s - {start + ZL2!r}))"
+    if rigid is None:
+        data["reference"]["points"] = top
+        data["contact"]["obstacles"] = [{"kind": "plane", "point": [0, 0, ZR], "normal": [0, 0, 1]}]
+    else:
+        data["reference"]["points"] = [[0, 0, 0], [ZL1, 0, 0]] + top
+        factor += f"*(1 + {rigid!r}*heaviside({start!r} - s))"
+    data["rod"]["length"] = start + ZL2 + 0.05 + ZL3
+    area, inertia = math.pi * ZR**2, math.pi * ZR**4 / 4
+    EI, EA, GA = E * inertia, E * area, KAPPA * E / (2 * (1 + NU)) * area
+    diagonal = [GA, GA, EA, EI, EI, EI / (1 + NU)]
+    data["rod"]["section"]["stiffness"] = [
+        [f"{k!r}*{factor}" if i == j else 0 for j in range(6)] for i, k in enumerate(diagonal)
+    ]
+    data["discretisation"]["elements"] = round(data["rod"]["length"] / 0.05)
+    # leg 2 lands on a rigid base along its length: in one step its nodes all touch at the
+    # first iterate and are let go one an iteration (16 steps: 4 s instead of 12 s)
+    data["static"]["load_steps"] = 16
+    return data
+
+
+def stacked_forces(P: float, rigid: float | None) -> tuple[dict, np.ndarray]:
+    """{node's s from the first corner's top [m] (rounded to 1e-9): its contact force [N]} of
+    D3 (the pair on leg 2) and of leg 2's nodes (pairs on leg 1, or on the plane), and the
+    levels of the pressed pairs whose slave carries another pressed pair's reaction."""
+    result = static_path(scene_from_dict(stack(P, rigid)), comm=MPI.COMM_SELF, write_outputs=False)
+    model = result.model
+    x = model.V.tabulate_dof_coordinates()[:, 0] * model.length
+    x -= 0.0 if rigid is None else ZL1 + H
+    pairs = model.contact.pairs
+    r = pairs._rows
+    forces = {
+        round(float(x[a]), 9): float(f) * pairs.force_scale
+        for a, f in zip(r["local"], r["fN"], strict=True)
+    }
+    obstacles = model.contact.obstacles
+    if obstacles is not None:
+        on = np.flatnonzero(obstacles.state != 0)
+        for a, f in zip(obstacles.blocks[on], obstacles._rows["fN"][on], strict=True):
+            forces[round(float(x[a]), 9)] = float(f) * obstacles.force_scale
+    carried = r["partner"][np.abs(r["weights"]) > 0.0]
+    return forces, r["level"][np.isin(r["local"] + pairs.start, carried)]
+
+
+def test_a_chain_of_contacts_passes_the_reaction_on_as_the_rod_on_a_plane():
+    """Three parts stacked (the scene :func:`stack`), P = 800 N at D3: D3 presses on leg 2,
+    whose nodes press on leg 1 there, one of them in D3's partner cell (a chain: it carries
+    D3's reaction and presses, level 1). With leg 1 and its corner 1e7 times stiffer than leg
+    2, leg 2 is clamped at the corner's top and lies over leg 1's top as over a plane: the
+    same rod from there on the plane z = r (D3 on leg 2 by the pair rows, leg 2 on the plane
+    by the obstacles' rows, which read the pair's reaction: no chain) must give the same
+    forces. They differ by leg 1's compliance only, relative O(1/factor): measured at the
+    factors 1e6 and 1e7 1.0e-6 and 1.0e-7 of the largest force at leg 2's nodes (tolerance
+    10/factor = 1e-6), 2.4e-8 and 2.4e-9 at D3 (tolerance 1e-7). Rows that took the assembled
+    F_a for F̃_a (all pairs in one level) give a leg-2 node −797 N, pulling: 0.19 of the
+    largest off, and D3 7e-4."""
+    chain, carrying = stacked_forces(800.0, 1e7)
+    plane, _ = stacked_forces(800.0, None)
+    assert carrying.size and carrying.min() == 1, carrying
+    end = max(chain)
+    assert abs(chain.pop(end) / plane.pop(max(plane)) - 1) < 1e-7
+    assert chain.keys() == plane.keys() and len(chain) >= 2, (chain, plane)
+    largest = max(plane.values())
+    assert all(abs(chain[x] - plane[x]) < 1e-6 * largest for x in chain), (chain, plane)
 
 
 def test_the_rod_through_itself_between_nodes_is_found_with_its_place():
@@ -223,7 +336,7 @@ def test_the_pair_rows_jacobian_is_the_derivative_of_the_rows(state):
 
     def rows(u):
         model.U.x.array[:] = u
-        pairs.c = 1e6
+        pairs.c = np.full(pairs.owned, 1e6)
         solver._residual()
         return solver.b.array.copy(), pairs.active.copy()
 

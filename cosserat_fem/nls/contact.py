@@ -81,7 +81,9 @@ def tangential(v: np.ndarray, n: np.ndarray) -> np.ndarray:
     return v - np.sum(n * v, axis=1)[:, None] * n
 
 
-def pressed(fN: np.ndarray, gs: np.ndarray, c: float | None, zero: float) -> np.ndarray:
+def pressed(
+    fN: np.ndarray, gs: np.ndarray, c: float | np.ndarray | None, zero: float
+) -> np.ndarray:
     """Whether each node is in contact (K.1): its augmented pressure f_N − c g/ℓ ≥ 0 (``gs``
     = g/ℓ; a force of ``zero`` is round-off), or before any Jacobian (c None) through the
     obstacle, or touching to round-off and pressed (a touching node not pulled away stays:
@@ -103,11 +105,11 @@ def augmentation(A: PETSc.Mat, rows: np.ndarray, cols: np.ndarray, comm) -> floa
 
 
 def trial_force(
-    F: np.ndarray, n: np.ndarray, du: np.ndarray, c: float
+    F: np.ndarray, n: np.ndarray, du: np.ndarray, c: float | np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The Coulomb trial of (K.2)-(K.3) for each row of forces ``F`` the nodes lack, unit
-    normals ``n`` and slips ``du`` since the accepted state: w = F − c Δu, t = P w, |t| and
-    its direction s (0 where t = 0)."""
+    normals ``n`` and slips ``du`` since the accepted state: w = F − c Δu (c one for all, or
+    a column of each node's), t = P w, |t| and its direction s (0 where t = 0)."""
     w = F - c * du
     trial = tangential(w, n)
     size = np.linalg.norm(trial, axis=1)

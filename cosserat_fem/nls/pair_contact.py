@@ -29,12 +29,27 @@ The Jacobian is the derivative of (P.1)-(P.4), with the closest point's (S.3): t
 rows gain the partner's position columns and the partner's rows the slave's, entries the
 assembled pattern lacks (PETSc allocates them at the first insertion and keeps them). A node
 is the slave of the pair whose partner lies before it along the rod (single pass: the other
-direction's pairs are dropped). A node that carries a partner's reaction and is itself
-pressed (a chain of contacts) is refused with its place (a SolverError). A node whose
-positions a support holds has no rows: it is no slave, and a reaction onto it goes to the
-support (a part of the rod may then pass through it: the sampled check between nodes does
-not look at the nodes themselves); a node held in part (a sliding support) that touches or
-would take a reaction is refused with its place.
+direction's pairs are dropped).
+
+A node may be pressed and carry other pairs' reactions at once (a chain of contacts: a loop
+turning into a ply, three parts of the rod stacked). Its force is then the assembled one plus
+what is passed to it,
+
+    F̃_a = F_a + Σ_q N_a(ξ_q) R_q    (R_q the force (P.2)/(P.4) of each pair q whose
+    partner cell holds a)                                                              (P.5)
+
+and F̃_a takes F_a's place in (P.1)-(P.4). The pairs are taken by levels: a pair's level is
+0 if nothing presses on its slave, else one more than the largest level of the pairs pressing
+on it; each level reads F̃ with the reactions of the levels before and passes its own on
+(each level one assembly of PETSc's Vec, and of the matrix, whose rows then carry the
+reactions' derivatives: the Jacobian stays exact). On one rod a partner's nodes lie before its
+slave along the rod, so the levels exist; pairs that press on each other in a cycle (possible
+on a structure) are refused with their place.
+
+A node whose positions a support holds has no rows: it is no slave, and a reaction onto it
+goes to the support (a part of the rod may then pass through it: the sampled check between
+nodes does not look at the nodes themselves); a node held in part (a sliding support) that
+touches or would take a reaction is refused with its place.
 
 Under MPI every rank holds every node's position (an Allgatherv an iterate: 24 bytes a node)
 and finds the same pairs; each rank writes the rows of the slaves it owns, and the reactions
@@ -57,7 +72,6 @@ from cosserat_fem.nls.contact import (
     SLIP,
     STICK,
     TOUCHING,
-    augmentation,
     pressed,
     slip_derivative,
     tangent_bases,
@@ -137,13 +151,10 @@ class PairContact:
         #: PETSc's Vec of the owned layout that carries the reactions (P.2) to their owners
         self._reactions = PETSc.Vec().createMPI((owned * bs, PETSc.DECIDE), comm=self.comm)
         self._reactions.setOption(PETSc.Vec.Option.IGNORE_NEGATIVE_INDICES, True)
-        #: the augmentation c (None until a Jacobian is seen), at the free node first along
-        #: the rod (:meth:`apply_matrix`; global index)
-        self.c: float | None = None
+        #: each owned node's augmentation c as a slave (None until a Jacobian is seen:
+        #: :meth:`apply_matrix`)
+        self.c: np.ndarray | None = None
         rest_all = np.concatenate(self.comm.allgather(np.asarray(rest, dtype=float)))
-        free = np.flatnonzero(~self.held_all)
-        key = (*rest_all[free].T[::-1], self.places_all[free])
-        self._first = int(free[np.lexsort(key)[0]]) if free.size else -1
         #: the active pairs at the last iterate and at the last accepted state, (slave, first
         #: partner node) global, and the rows' data of the last iterate
         self.active = np.zeros((0, 3), dtype=np.int64)
@@ -197,8 +208,8 @@ class PairContact:
     def apply_vector(self, b: np.ndarray, u: np.ndarray) -> bool:
         """Decide the pairs and their states at the iterate (u, F = ``b``, the owned values of
         the assembled residual) and write (P.1)-(P.2) into ``b`` ((P.3)-(P.4) with
-        friction); whether the active set or a state changed on any rank since the last
-        iterate (collective)."""
+        friction), level by level (P.5); whether the active set or a state changed on any
+        rank since the last iterate (collective)."""
         self._x = self.everywhere(u)
         try:  # the same positions on every rank: the same answer, or the same error
             pairs = self.geometry(self._x)
@@ -206,32 +217,82 @@ class PairContact:
             raise SolverError(f"self contact: {exc}", where="contact", retry=True) from None
         mine = (pairs.slave >= self.start) & (pairs.slave < self.start + self.owned)
         mine &= ~self.held_all[pairs.slave]
-        local = pairs.slave[mine] - self.start
+        level = self._levels(pairs)  # the same on every rank
+        zero = ROUNDOFF * self.comm.allreduce(float(np.abs(b).max(initial=0.0)), op=MPI.MAX)
+        parts = []
+        for at in range(max(1, int(level.max(initial=0)) + 1)):
+            part = self._press(pairs, np.flatnonzero(mine & (level == at)), b, zero)
+            self._pass_on(part, b)  # collective: the reactions before the next level reads
+            part["level"] = np.full(len(part["local"]), at)
+            parts.append(part)
+        self._rows = r = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+        self._check_partly(pairs, r["partner"])
+        self.least_gap = self.comm.allreduce(float(pairs.gap[mine].min(initial=np.inf)), op=MPI.MIN)
+        slave = r["local"] + self.start
+        active = np.column_stack([slave, r["partner"][:, 0], r["state"]]).astype(np.int64)
+        active = active[np.argsort(slave, kind="stable")]
+        changed = not np.array_equal(active, self.active)
+        self.flipped = slave if changed else slave[:0]
+        self.active = active
+        self.node_state[:] = FREE
+        self.node_state[slave] = r["state"]
+        return bool(self.comm.allreduce(changed, op=MPI.LOR))
+
+    def _levels(self, pairs: Pairs) -> np.ndarray:
+        """Each pair's level (P.5): 0 if no pair presses on its slave, else one more than the
+        largest level of the pairs whose partner cell holds the slave with a weight N_j(ξ) ≠ 0
+        (the longest chain of contacts that ends at it). ContactChain if the pairs press on
+        each other in a cycle (possible on a structure only: on one rod a partner's nodes lie
+        before its slave along the rod). The same on every rank (every rank has all pairs)."""
+        count = len(pairs.slave)
+        level = np.zeros(count, dtype=np.int64)
+        pressing = ~self.held_all[pairs.slave]
+        index = np.full(len(self.held_all), -1, dtype=np.int64)
+        index[pairs.slave[pressing]] = np.flatnonzero(pressing)
+        source, j = np.nonzero((np.abs(pairs.weights) > 0.0) & pressing[:, None])
+        target = index[pairs.partner[source, j]]
+        source, target = source[target >= 0], target[target >= 0]
+        for _ in range(count + 1):  # the longest paths: at most count rounds without a cycle
+            longer = level.copy()
+            np.maximum.at(longer, target, level[source] + 1)
+            grew = longer != level
+            if not grew.any():
+                return level
+            level = longer
+        where = self.places_all[pairs.slave[grew]]
+        raise ContactChain(
+            f"parts of the rod press on each other in a cycle at s = {where.min():.4g} to "
+            f"{where.max():.4g} m (a chain of contacts that closes): not supported"
+        )
+
+    def _press(self, pairs: Pairs, here: np.ndarray, b: np.ndarray, zero: float) -> dict:
+        """The rows' data of the pairs ``here`` (this rank's slaves of one level) that press:
+        their force F̃_a = ``b`` at the slaves' balance rows (the reactions of the levels
+        before included, (P.5)), the states and (P.1)/(P.3)'s rows, which are written into
+        ``b``; ``force`` is what (P.2)/(P.4) pass to the partner."""
         solved = self.solved
-        n = pairs.normal[mine][:, solved]
+        local = pairs.slave[here] - self.start
+        n = pairs.normal[here][:, solved]
         F = b[self.pq[local]]
         fN = np.sum(n * F, axis=1)
-        gs = pairs.gap[mine] / self.ell
-        c = self.c
-        zero = ROUNDOFF * self.comm.allreduce(float(np.abs(b).max(initial=0.0)), op=MPI.MAX)
-        on = pressed(fN, gs, c, zero)
-        slave, partner = pairs.slave[mine][on], pairs.partner[mine][on]
-        which = np.flatnonzero(mine)[on]
-        self._check_chains(slave, partner, pairs.weights[which])
-        self._check_partly(pairs, partner)
+        gs = pairs.gap[here] / self.ell
+        c = np.zeros(len(local)) if self.c is None else self.c[local]
+        on = pressed(fN, gs, None if self.c is None else c, zero)
+        c = c[on]
+        which = here[on]
+        slave, partner, weights = pairs.slave[which], pairs.partner[which], pairs.weights[which]
         n, F, fN, gs = n[on], F[on], fN[on], gs[on]
-        weights = pairs.weights[which]
         T, dT = tangent_bases(n)
         state = np.full(len(slave), SLIP, dtype=np.int8)  # frictionless: free to slide
         # the relative slip of the two centreline points since the accepted state (scaled)
         moved = (self._x - self.x_old)[:, solved] / self.ell
         slips = moved[partner]  # (m, k+1, solved)
         du = moved[slave] - np.einsum("mj,mjd->md", weights, slips)
-        w, _, size, s = trial_force(F, n, du, 0.0 if c is None else c)
+        w, _, size, s = trial_force(F, n, du, c[:, None])
         if self.friction:
             sliding = (self.node_accepted[slave] == SLIP) | (self.node_state[slave] == SLIP)
             mu = np.where(sliding, self.mu_k, self.mu_s)
-            pressure = fN - (0.0 if c is None else c) * gs
+            pressure = fN - c * gs
             state = np.where((size < mu * pressure) | (size == 0.0), STICK, SLIP).astype(np.int8)
             # (P.3): stick holds the relative slip, slip gives μ_k f_N against it
             v = np.where(
@@ -241,7 +302,8 @@ class PairContact:
         else:
             v = F  # (P.1): the tangential balance kept
             force = n * fN[:, None]
-        self._rows = dict(
+        b[self.pq[local[on]]] = np.column_stack([gs, np.einsum("kij,kj->ki", T, v)])
+        return dict(
             local=local[on],
             partner=partner,
             state=state,
@@ -258,46 +320,25 @@ class PairContact:
             slips=slips,
             gap=pairs.gap[which],
             weights=weights,
+            force=force,
             d_gap=pairs.d_gap[which][:, :, solved],
             d_normal=pairs.d_normal[which][:, solved][:, :, :, solved],
             d_weights=pairs.d_weights[which][:, :, :, solved],
         )
-        self.least_gap = self.comm.allreduce(float(pairs.gap[mine].min(initial=np.inf)), op=MPI.MIN)
-        # (P.2)/(P.4): the reactions N_j R to the partner's nodes, on whichever rank owns them
+
+    def _pass_on(self, part: dict, b: np.ndarray) -> None:
+        """(P.2)/(P.4): the reactions N_j R of the pairs ``part`` added to the partner nodes'
+        balance rows in ``b``, on whichever rank owns them (collective)."""
         reactions = self._reactions
         reactions.zeroEntries()
-        values = weights[:, :, None] * force[:, None, :]
+        values = part["weights"][:, :, None] * part["force"][:, None, :]
         reactions.setValues(
-            self._global_rows(partner, self.balance_slots).ravel(),
+            self._global_rows(part["partner"], self.balance_slots).ravel(),
             values.ravel(),
             addv=PETSc.InsertMode.ADD_VALUES,
         )
         reactions.assemble()
         b += reactions.getArray(readonly=True)
-        # (P.1)/(P.3)
-        rows = np.column_stack([gs, np.einsum("kij,kj->ki", T, v)])
-        b[self.pq[local[on]]] = rows
-        active = np.column_stack([slave, partner[:, 0], state]).astype(np.int64)
-        changed = not np.array_equal(active, self.active)
-        self.flipped = slave if changed else slave[:0]
-        self.active = active
-        self.node_state[:] = FREE
-        self.node_state[slave] = state
-        return bool(self.comm.allreduce(changed, op=MPI.LOR))
-
-    def _check_chains(self, slave: np.ndarray, partner: np.ndarray, weights) -> None:
-        """ContactChain (every rank) if an active slave also carries a partner's reaction
-        (a partner node of weight N_j(ξ) = 0 carries none)."""
-        slaves = np.concatenate(self.comm.allgather(slave))
-        carries = partner[np.abs(weights) > 0.0]
-        carriers = np.concatenate(self.comm.allgather(carries.ravel()))
-        both = np.intersect1d(slaves, carriers)
-        if both.size:
-            where = self.places_all[both]
-            raise ContactChain(
-                f"a node pressed onto the rod also carries another's contact (a chain of "
-                f"contacts) at s = {where.min():.4g} to {where.max():.4g} m: not supported yet"
-            )
 
     def _check_partly(self, pairs: Pairs, partner: np.ndarray) -> None:
         """PartlyHeld (every rank) if an active pair's partner cell (``partner``, this rank's)
@@ -317,52 +358,61 @@ class PairContact:
 
     def apply_matrix(self, A: PETSc.Mat) -> None:
         """The Jacobian rows of (P.1)-(P.4) at the pairs and states :meth:`apply_vector`
-        decided, in the assembled ``A`` (collective; after its final assembly); the
-        augmentation c (:func:`~cosserat_fem.nls.contact.augmentation`) at the free node first
-        along the rod."""
-        # the free node first along the rod (by s, then its rest position: the same node on
-        # any number of ranks, which the global numbering is not) gives c; the largest over
-        # all nodes (NodeContact's, among nodes that all touch one obstacle) would take a
-        # stiff part's scale and make the decision at a contact's onset chatter (the
-        # rigid-leg hairpin: no convergence down to 1/1024)
-        mine = np.arange(self.start, self.start + self.owned) == self._first
+        decided, in the assembled ``A`` (collective; after its final assembly); each node's
+        augmentation c as a slave: |A| at its first balance row against its first position,
+        the node's own stiffness scale (before the rows change A). One c for every pair (the
+        obstacles' choice, NodeContact's) takes one part's scale: the largest took a stiff
+        part's and made the decision at a contact's onset chatter (the rigid-leg hairpin),
+        the first node's along the rod did the same where that part is the stiff one (three
+        parts stacked on a rigid leg: no convergence down to 1/1024)."""
         start = self.start * self.bs
-        c = augmentation(A, self.pq[mine, 0] + start, self.px[mine, 0] + start, self.comm)
+        c = np.array(
+            [
+                abs(A.getValue(int(q), int(x)))
+                for q, x in zip(self.pq[:, 0] + start, self.px[:, 0] + start, strict=True)
+            ]
+        )
         r = self._rows
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        rows_out, adds = [], []
-        for p in range(len(r.get("local", ()))):
-            a = int(r["local"][p])
-            q = self.pq[a] + self.start * self.bs
-            gathered = [A.getRow(int(row)) for row in q]
-            cols = gathered[0][0]
-            nodes = np.concatenate([[a + self.start], r["partner"][p]])
-            geo_cols = (nodes[:, None] * self.bs + self.position_slots[None, :]).ravel()
-            every = np.union1d(cols, geo_cols).astype(PETSc.IntType)
-            at, geo_at = np.searchsorted(every, cols), np.searchsorted(every, geo_cols)
-            new, add = self._derivatives(p, np.array([v for _, v in gathered]), at, geo_at, every)
-            rows_out.append((q, every, new))
-            for j, node in enumerate(r["partner"][p]):
-                if not self.held_all[node]:
-                    adds.append((node * self.bs + self.balance_slots, every, add[j]))
-        for q, every, new in rows_out:
-            A.setValues(q.astype(PETSc.IntType), every, new, addv=PETSc.InsertMode.INSERT_VALUES)
-        A.assemble()
-        for q, every, rows in adds:
-            A.setValues(q.astype(PETSc.IntType), every, rows, addv=PETSc.InsertMode.ADD_VALUES)
-        A.assemble()
+        levels = self.comm.allreduce(int(r["level"].max(initial=-1)) + 1, op=MPI.MAX)
+        for at in range(levels):  # (P.5): a level's rows read the reactions passed to them
+            rows_out, adds = [], []
+            for p in np.flatnonzero(r["level"] == at):
+                a = int(r["local"][p])
+                q = self.pq[a] + self.start * self.bs
+                gathered = [A.getRow(int(row)) for row in q]
+                nodes = np.concatenate([[a + self.start], r["partner"][p]])
+                geo_cols = (nodes[:, None] * self.bs + self.position_slots[None, :]).ravel()
+                cols = np.concatenate([c for c, _ in gathered] + [geo_cols])
+                every = np.unique(cols).astype(PETSc.IntType)
+                J = np.zeros((len(q), len(every)))
+                for i, (c_i, v_i) in enumerate(gathered):
+                    J[i, np.searchsorted(every, c_i)] = v_i
+                new, add = self._derivatives(p, J, np.searchsorted(every, geo_cols))
+                rows_out.append((q, every, new))
+                for j, node in enumerate(r["partner"][p]):
+                    if not self.held_all[node]:
+                        adds.append((node * self.bs + self.balance_slots, every, add[j]))
+            for q, every, new in rows_out:
+                A.setValues(
+                    q.astype(PETSc.IntType), every, new, addv=PETSc.InsertMode.INSERT_VALUES
+                )
+            A.assemble()
+            for q, every, rows in adds:
+                A.setValues(q.astype(PETSc.IntType), every, rows, addv=PETSc.InsertMode.ADD_VALUES)
+            A.assemble()
         self.c = c
 
     def _derivatives(
-        self, p: int, J: np.ndarray, at: np.ndarray, geo_at: np.ndarray, every: np.ndarray
+        self, p: int, J: np.ndarray, geo_at: np.ndarray
     ) -> tuple[np.ndarray, list[np.ndarray]]:
         """The pair ``p``'s new slave rows (m, E) and the rows each partner node adds (k+1 of
-        (m, E)) over the columns ``every`` (E): its assembled rows ``J`` (m, ·) at ``at``, the
-        K points' positions at ``geo_at``. Each quantity's derivative is a row block over
-        ``every``: dF = J, dn = ℓ ∂n/∂x, dN_j = ℓ ∂N_j/∂x, dΔ of the relative slip."""
+        (m, E)) over E columns: its rows ``J`` (m, E) of the assembled matrix with the
+        reactions passed to it (P.5), the K points' positions at the columns ``geo_at``. Each
+        quantity's derivative is a row block over the E columns: dF̃ = J, dn = ℓ ∂n/∂x,
+        dN_j = ℓ ∂N_j/∂x, dΔ of the relative slip."""
         r = self._rows
-        m = J.shape[0]
-        E = len(every)
+        m, E = J.shape
         n, T, dT, F, fN = r["n"][p], r["T"][p], r["dT"][p], r["F"][p], r["fN"][p]
         weights, state = r["weights"][p], r["state"][p]
 
@@ -371,7 +421,7 @@ class PairContact:
             out[:, where] = block
             return out
 
-        dF = placed(J, at)
+        dF = J
         dn = placed(self.ell * r["d_normal"][p].reshape(m, -1), geo_at)
         dw = [
             placed(self.ell * r["d_weights"][p][j].reshape(1, -1), geo_at)[0]
@@ -396,7 +446,7 @@ class PairContact:
             if state == STICK:
                 dv = dDelta
             else:  # (P.3): v = P F − μ_k f_N s
-                c = 0.0 if self.c is None else self.c
+                c = 0.0 if self.c is None else float(self.c[r["local"][p]])
                 one = (r["w"][p : p + 1], r["s"][p : p + 1], r["size"][p : p + 1])
                 dv = slip_derivative(
                     n[None], F[None], *one, dF[None], dn[None], dDelta[None], c, self.mu_k
@@ -441,7 +491,7 @@ class PairContact:
                 moved = (x - self.x_old)[:, self.solved] / self.ell
                 du = moved[r["local"] + self.start]
                 du -= np.einsum("mj,mjd->md", r["weights"], moved[r["partner"]])
-                R = r["F"] if self.friction else r["n"] * r["fN"][:, None]
+                R = r["force"]
                 scale = self.force_scale * self.ell
                 normal = -np.sum(np.sum(r["n"] * R, axis=1) * np.sum(r["n"] * du, axis=1))
                 work[:] = normal * scale, (-np.sum(R * du) - normal) * scale
@@ -457,8 +507,7 @@ class PairContact:
         if len(r.get("local", ())):
             a = r["local"]
             force = np.zeros((len(a), 3))
-            pushed = r["F"] if self.friction else r["n"] * r["fN"][:, None]
-            force[:, self.solved] = pushed * self.force_scale
+            force[:, self.solved] = r["force"] * self.force_scale
             out[a, :3] = force / self.shares[a, None]
             out[a, 3] = r["gap"]
             out[a, 4] = r["state"]
@@ -508,7 +557,7 @@ class PairContact:
         return {
             "pairs.active": self.active.copy(),
             "pairs.accepted": self.accepted.copy(),
-            "pairs.c": np.array(np.nan if self.c is None else self.c),
+            "pairs.c": np.full(self.owned, np.nan) if self.c is None else self.c.copy(),
             "pairs.most": np.array(self.most),
             "pairs.most_changes": np.array(self.most_changes),
             "pairs.started": np.array(self.started),
@@ -527,8 +576,8 @@ class PairContact:
         self.x_old = np.asarray(state["pairs.x_old"], dtype=float).copy()
         self.dissipated = float(state["pairs.dissipated"])
         self.impact_loss = float(state["pairs.impact_loss"])
-        c = float(state["pairs.c"])
-        self.c = None if np.isnan(c) else c
+        c = np.broadcast_to(np.asarray(state["pairs.c"], dtype=float), (self.owned,))
+        self.c = None if np.isnan(c).all() else c.copy()  # an old checkpoint: one c for all
         self.most = int(state["pairs.most"])
         self.most_changes = int(state["pairs.most_changes"])
         self.started = bool(state["pairs.started"])
@@ -543,11 +592,12 @@ class PartlyHeld(SolverError):
 
 
 class ContactChain(SolverError):
-    """A contact configuration the pair rows do not support (a chain of contacts): one line,
-    where = "contact", not retried. Retried, the plectoneme's run in time (its strands
-    winding into a ply: a real chain) halved its adaptive steps for more than 10 minutes
-    instead of stopping in 25 s; a chain met only at a passing iterate stops the run too
-    (statics halves the load step on any SolverError)."""
+    """A contact configuration the rows do not support (pairs pressing on each other in a
+    cycle; a node pressed onto the rod and onto an obstacle at once): one line, where =
+    "contact", not retried. Retried, such a configuration met in a run in time (the
+    plectoneme's chains, before (P.5)) halved the adaptive steps for more than 10 minutes
+    instead of stopping in 25 s; one met only at a passing iterate stops the run too (statics
+    halves the load step on any SolverError)."""
 
     def __init__(self, reason: str):
         super().__init__(reason, where="contact")
