@@ -488,7 +488,14 @@ def test_friction_between_the_parts_sticks_and_slides_as_the_closed_form(slides)
     compliance (measured: R 2e-5 and 7.6e-5, T 4e-5 and 7.6e-5, slip u 2.3e-4); the stuck u
     3e-3, as it is set by where the contact starts, λ_c, whose O(δ0/L2) error it takes
     relative to λ_c (measured 7.9e-4). A stick that crept or a slip force wrong by μ would
-    miss by O(1)."""
+    miss by O(1).
+
+    The work friction dissipated (summary.json's pair_friction_work_J) is counted a load
+    step at a time as the step's T times its slip: over the steps λ = 3/4 and 1 (the 4 load
+    steps; sliding from λ_c = 1/2), with R_k = (λ_k − λ_c) Pz and the slip Δu_k = (Px/4 −
+    μ ΔR_k) L2/EA, W = Σ μ R_k Δu_k = (3/32) μ² Pz² L2/EA (Px = 1.5 μ Pz). Tolerance 1e-3
+    as above (measured 1.7e-4; 2.2e-5 at δ0 = 1e-5: the linear theory's O(δ0/L2)); the
+    integral ∫ μ R du instead of the steps' sum, (1/16) μ² Pz² L2/EA, would miss by a third."""
     EI, EA, GA = STIFF
     r, mu = 0.02495, 0.3
     delta0 = H - 2 * r
@@ -517,6 +524,8 @@ def test_friction_between_the_parts_sticks_and_slides_as_the_closed_form(slides)
         assert abs(np.linalg.norm(tangential) / (mu * (n @ F)) - 1) < 1e-9
         assert abs(along / (mu * R) - 1) < 1e-3
         assert abs(u / ((Px - mu * R) * L2 / EA + shortening) - 1) < 1e-3
+        work = model.contact.summary()["pair_friction_work_J"]
+        assert abs(work / (3 / 32 * mu**2 * Pz**2 * L2 / EA) - 1) < 1e-3
     else:
         assert abs(along / (0.5 * Px) - 1) < 1e-3 and along < mu * R
         assert abs(u / (0.5 * Px * L2 / EA + shortening) - 1) < 3e-3
@@ -591,8 +600,10 @@ def test_friction_between_the_parts_under_mpirun_equals_serial(tmp_path):
     different ranks, every rank in the counters' sums (a rank without a slave once skipped
     them and mpirun hung). The friction's and the impacts' work equal serial to 1e-9 of
     their sum (MUMPS against PETSc's LU: round-off). Not each to 1e-9 of itself: the
-    impacts' part is the normal work of a pair whose gap the rows hold at 0, 1e-10 J here,
-    set by how far the solves' iterates move along n (measured 2.9e-8 of itself apart)."""
+    impacts' part is the landing step's R times the gap the end still closes in it (the
+    contact starts a little after λ_c = 1/2: some 6e-9 m, O(δ0²/L2)), 1.2e-10 J, 2 % of
+    the friction's; that small gap comes from the solves to their tolerance (measured 2.9e-8
+    of itself apart)."""
     from pathlib import Path
 
     text = _FRICTION_SCRIPT.format(tests=str(Path(__file__).parent))
