@@ -239,17 +239,20 @@ class PairContact:
         return bool(self.comm.allreduce(changed, op=MPI.LOR))
 
     def _levels(self, pairs: Pairs) -> np.ndarray:
-        """Each pair's level (P.5): 0 if no pair presses on its slave, else one more than the
-        largest level of the pairs whose partner cell holds the slave with a weight N_j(ξ) ≠ 0
-        (the longest chain of contacts that ends at it). ContactChain if the pairs press on
-        each other in a cycle (possible on a structure only: on one rod a partner's nodes lie
-        before its slave along the rod). The same on every rank (every rank has all pairs)."""
+        """Each pair's level (P.5): 0 if no candidate pair (a node within the search's margin
+        of a cell) has its slave in its partner cell, else one more than the largest level of
+        those pairs (the longest chain of candidates that ends at it). Every partner node
+        counts, its weight N_j(ξ) 0 or not: inside a P_k cell (k ≥ 2) a weight vanishes where
+        its derivative does not, and the pair's Jacobian then adds to that node's rows.
+        ContactChain if the candidates form a cycle (possible on a structure only: on one rod
+        a partner's nodes lie before its slave along the rod). The same on every rank (every
+        rank has all pairs)."""
         count = len(pairs.slave)
         level = np.zeros(count, dtype=np.int64)
         pressing = ~self.held_all[pairs.slave]
         index = np.full(len(self.held_all), -1, dtype=np.int64)
         index[pairs.slave[pressing]] = np.flatnonzero(pressing)
-        source, j = np.nonzero((np.abs(pairs.weights) > 0.0) & pressing[:, None])
+        source, j = np.nonzero(np.broadcast_to(pressing[:, None], pairs.partner.shape))
         target = index[pairs.partner[source, j]]
         source, target = source[target >= 0], target[target >= 0]
         for _ in range(count + 1):  # the longest paths: at most count rounds without a cycle
@@ -261,8 +264,9 @@ class PairContact:
             level = longer
         where = self.places_all[pairs.slave[grew]]
         raise ContactChain(
-            f"parts of the rod press on each other in a cycle at s = {where.min():.4g} to "
-            f"{where.max():.4g} m (a chain of contacts that closes): not supported"
+            f"parts of the rod lie on each other in a cycle at s = {where.min():.4g} to "
+            f"{where.max():.4g} m (within 2r: a chain of contacts that could close): not "
+            "supported"
         )
 
     def _press(self, pairs: Pairs, here: np.ndarray, b: np.ndarray, zero: float) -> dict:
@@ -359,8 +363,10 @@ class PairContact:
     def apply_matrix(self, A: PETSc.Mat) -> None:
         """The Jacobian rows of (P.1)-(P.4) at the pairs and states :meth:`apply_vector`
         decided, in the assembled ``A`` (collective; after its final assembly); each node's
-        augmentation c as a slave: |A| at its first balance row against its first position,
-        the node's own stiffness scale (before the rows change A). One c for every pair (the
+        augmentation c as a slave: the largest |A| at its balance rows against its positions
+        (the diagonal of that block: the node's own stiffness scale, whatever the rod's
+        direction), read before the rows change A; a node where all are 0 takes the largest
+        c of the rod (c = 0 would press it whatever its gap). One c for every pair (the
         obstacles' choice, NodeContact's) takes one part's scale: the largest took a stiff
         part's and made the decision at a contact's onset chatter (the rigid-leg hairpin),
         the first node's along the rod did the same where that part is the stiff one (three
@@ -368,11 +374,16 @@ class PairContact:
         start = self.start * self.bs
         c = np.array(
             [
-                abs(A.getValue(int(q), int(x)))
-                for q, x in zip(self.pq[:, 0] + start, self.px[:, 0] + start, strict=True)
+                max(abs(A.getValue(int(q), int(x))) for q, x in zip(qs, xs, strict=True))
+                for qs, xs in zip(self.pq + start, self.px + start, strict=True)
             ]
-        )
+        ).reshape(-1)
+        largest = self.comm.allreduce(float(c.max(initial=0.0)), op=MPI.MAX)
+        c[c == 0.0] = largest
         r = self._rows
+        if not r:  # no residual seen yet: no pairs to write
+            self.c = c
+            return
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
         levels = self.comm.allreduce(int(r["level"].max(initial=-1)) + 1, op=MPI.MAX)
         for at in range(levels):  # (P.5): a level's rows read the reactions passed to them
@@ -585,7 +596,7 @@ class PairContact:
 
 class PartlyHeld(SolverError):
     """A pair at a node a sliding support holds in part: one line, where = "contact", not
-    retried (as a chain: ContactChain)."""
+    retried (as ContactChain)."""
 
     def __init__(self, reason: str):
         super().__init__(reason, where="contact")
