@@ -203,10 +203,10 @@ class NewtonSolver:
         self.b = create_vector(self.F_form)  # F(U)
         self.dx = create_vector(self.F_form)  # the Newton update δU
         self._initial = create_vector(self.F_form)  # the initial guess, kept for a retry
-        if self.constraints is None:
-            self.A = create_matrix(self.J_form, mat_type="baij")
-        else:  # with the blocks the constraints' rows fill
-            self.A = self.constraints.create_matrix(self.J_form)
+        self.A = self._new_matrix()
+        #: the contact rows' share of A's pattern (:meth:`_renew_pattern`): the form's
+        #: nonzeros, those a fresh matrix's first contact rows added, those added since
+        self._pattern = {"fresh": True, "base": 0, "need": 0, "extra": 0, "renewals": 0}
 
         self.lu_package = self._lu_package(comm, settings.linear_solver)
         self.ksp = PETSc.KSP().create(comm)
@@ -404,8 +404,37 @@ class NewtonSolver:
         self._stats.jacobian_assemblies += 1
         self._stats.time_jacobian += time.perf_counter() - t0
 
+    def _new_matrix(self) -> PETSc.Mat:
+        """A matrix of J's pattern (with the blocks the constraints' rows fill)."""
+        if self.constraints is None:
+            return create_matrix(self.J_form, mat_type="baij")
+        return self.constraints.create_matrix(self.J_form)
+
+    def _nonzeros(self) -> int:
+        """A's nonzeros in use over the ranks (the same number on every rank)."""
+        return int(self.A.getInfo(PETSc.Mat.InfoType.GLOBAL_SUM)["nz_used"])
+
+    def _renew_pattern(self) -> None:
+        """A fresh A when the contact rows' entries have grown past twice what a fresh
+        matrix's first contact rows needed (or a tenth of the form's pattern, if more): the
+        pairs' entries (cosserat_fem/nls/pair_contact.py) stay in the pattern once inserted,
+        and as the pairs move along the rod they would fill it (the plectoneme's Jacobian
+        grew 22-44 times after its strands met) and the LU with it. Collective."""
+        p = self._pattern
+        if p["fresh"] or p["extra"] <= max(2 * p["need"], p["base"] // 10):
+            return
+        old, self.A = self.A, self._new_matrix()
+        self.ksp.reset()
+        self.ksp.setOperators(self.A)
+        old.destroy()
+        p["fresh"] = True
+        p["renewals"] += 1
+
     def _assemble_jacobian(self) -> None:
-        """J(U) into A, with the constraints' rows (cosserat_fem/nls/constraints.py)."""
+        """J(U) into A, with the constraints' rows (cosserat_fem/nls/constraints.py) and the
+        contact rows (a fresh A first if their entries have grown: :meth:`_renew_pattern`)."""
+        if self.contact is not None:
+            self._renew_pattern()
         A = self.A
         A.zeroEntries()
         if self.constraints is not None:
@@ -416,15 +445,21 @@ class NewtonSolver:
             assemble_matrix(A, self.J_form, bcs=self.bcs)  # type: ignore[misc]
             A.assemble()
         if self.contact is not None:
-            before = A.getInfo()["nz_used"]
+            before = self._nonzeros()
             self.contact.apply_matrix(A)
-            if A.getInfo()["nz_used"] != before:
+            after = self._nonzeros()
+            if after != before:
                 # self contact's rows added entries (cosserat_fem/nls/pair_contact.py; the
-                # pattern, not the allocation, which PETSc grows in chunks): a new
-                # factorization from scratch (MUMPS 5.5 under PETSc 3.18 reused the first
-                # analysis's arrays for the larger pattern and corrupted the heap)
+                # pattern, not the allocation, which PETSc grows in chunks; over the ranks,
+                # so that every rank resets): a new factorization from scratch (MUMPS 5.5
+                # under PETSc 3.18 reused the first analysis's arrays for the larger pattern
+                # and corrupted the heap)
                 self.ksp.reset()
                 self.ksp.setOperators(A)
+            p = self._pattern
+            if p["fresh"]:
+                p.update(fresh=False, base=before, need=after - before)
+            p["extra"] = after - p["base"]
 
     def _converged(self, it: int, norms) -> int:
         """The stop rule of the module docstring (``cf_test``, the one cf_solve runs) after
