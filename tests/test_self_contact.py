@@ -351,8 +351,8 @@ def jacobian_errors(data: dict, displace, history=None) -> tuple[dict, np.ndarra
     """The Jacobian of the rows against central differences of the residual with its rows, on
     the scene ``data`` at a state ``displace(ux, uz, s, ℓ)`` sets (in place, on the scaled
     displacements along e1 and e3 at the nodes' arc lengths s [m]) plus a random 1e-7, the
-    friction's history at ``history(ux, s, ℓ)`` of the state if given (else at rest), c = 1e6
-    held. The differences move neither the supports' dofs nor the out-of-plane positions (n
+    friction's history at ``history(ux, s, ℓ)`` of the state if given (else at rest), each
+    node's c held at a random value in [1e6, 2e6] (so that a slave given another's shows). The differences move neither the supports' dofs nor the out-of-plane positions (n
     keeps n_y = 0 and the tangent basis its branch: T jumps where two of |n|'s components
     cross). Errors on the rows the pairs write (the slaves' tangential rows) and add to (the
     partners'), relative to their largest, at ε = 1e-6 and 1e-7; the active pairs and their
@@ -369,6 +369,7 @@ def jacobian_errors(data: dict, displace, history=None) -> tuple[dict, np.ndarra
     x, y, z = (model.layout.index(k) for k in range(3))
     rng = np.random.default_rng(2)
     u0 = rng.normal(size=model.U.x.array.size) * 1e-7
+    c = 1e6 * (1.0 + rng.random(pairs.owned))  # each slave's own (P.3): a mix-up shows
     displace(u0[x::bs], u0[z::bs], s, ell)
     u0[y::bs] = 0.0
     held = np.concatenate([bc.dof_indices()[0] for bc in model.bcs])
@@ -376,7 +377,7 @@ def jacobian_errors(data: dict, displace, history=None) -> tuple[dict, np.ndarra
 
     def rows(u):
         model.U.x.array[:] = u
-        pairs.c = np.full(pairs.owned, 1e6)
+        pairs.c = c
         solver._residual()
         return solver.b.array.copy(), pairs.active.copy()
 
@@ -516,6 +517,7 @@ def test_the_matrix_pattern_stays_bounded_as_the_pairs_move_along_the_rod():
         assert len(solver.contact.pairs.active) >= 40
         assert p["extra"] <= max(2 * p["need"], p["base"] // 10) + max(needs), (shift, p)
     assert solver._pattern["renewals"] >= 3
+    assert solver.ksp.getOperators()[0].handle == solver.A.handle  # the KSP solves with it
     model.U.x.array[:] = 0.0  # a solver starts from a state not through itself
     fresh = static_solver(scene, model)
     jacobian(fresh, state(shift))
