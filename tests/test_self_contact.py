@@ -352,9 +352,11 @@ def jacobian_errors(data: dict, displace, history=None) -> tuple[dict, np.ndarra
     the scene ``data`` at a state ``displace(ux, uz, s, ℓ)`` sets (in place, on the scaled
     displacements along e1 and e3 at the nodes' arc lengths s [m]) plus a random 1e-7, the
     friction's history at ``history(ux, s, ℓ)`` of the state if given (else at rest), each
-    node's c held at a random value in [1e6, 2e6] (so that a slave given another's shows). The differences move neither the supports' dofs nor the out-of-plane positions (n
-    keeps n_y = 0 and the tangent basis its branch: T jumps where two of |n|'s components
-    cross). Errors on the rows the pairs write (the slaves' tangential rows) and add to (the
+    node's c held at a random value in [1e6, 2e6] (so that a slave given another's shows).
+    The differences move neither the supports' dofs nor the out-of-plane positions (n keeps
+    n_y = 0 and the tangent basis its branch: T jumps where two of |n|'s components cross;
+    in the plane the slip rows' c dΔ lies along s and is projected out, so the c term is
+    checked by a mix-up of slaves, not by its size). Errors on the rows the pairs write (the slaves' tangential rows) and add to (the
     partners'), relative to their largest, at ε = 1e-6 and 1e-7; the active pairs and their
     levels (the pairs and states must not change within ±ε)."""
     from cosserat_fem.analysis.statics import static_solver
