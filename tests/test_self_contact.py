@@ -356,9 +356,10 @@ def jacobian_errors(data: dict, displace, history=None) -> tuple[dict, np.ndarra
     The differences move neither the supports' dofs nor the out-of-plane positions (n keeps
     n_y = 0 and the tangent basis its branch: T jumps where two of |n|'s components cross;
     in the plane the slip rows' c dΔ lies along s and is projected out, so the c term is
-    checked by a mix-up of slaves, not by its size). Errors on the rows the pairs write (the slaves' tangential rows) and add to (the
-    partners'), relative to their largest, at ε = 1e-6 and 1e-7; the active pairs and their
-    levels (the pairs and states must not change within ±ε)."""
+    checked by a mix-up of slaves, not by its size). Errors on the rows the pairs write (the
+    slaves' tangential rows) and add to (the partners'), relative to their largest, at
+    ε = 1e-6 and 1e-7; the active pairs and their levels (the pairs and states must not
+    change within ±ε)."""
     from cosserat_fem.analysis.statics import static_solver
     from cosserat_fem.rod.model import build_model
 
