@@ -248,3 +248,23 @@ def test_the_twisted_rod_in_time_snaps_until_its_strands_meet_without_passing_th
     assert low - 1e-2 <= onset <= high + 1e-2, (onset, low, high)
     for failure in (forms.get("failure"), finer.get("failure")):
         assert failure is None or ("\n" not in failure and "s = " in failure)
+
+
+def test_the_plateau_scene_twists_its_straight_rod_as_gj_over_l():
+    """scenes/plectoneme_plateau.toml (r = L/200, T = 300 EI/L², the twist 2 rad/s up to t1,
+    a point imperfection at mid-span; docs/plectoneme.md "Towards the plateau") on 16 P3
+    cells for its first 2 s (~1 s of wall): the torque at the clamp against the twist
+    Φ(t) of benchmarks/plectoneme_plateau.py ``twist`` grows as GJ/L, the secant over Φ in
+    [1, 4] rad within 1e-4 (the straight rod: M = GJ Φ/L; the imperfection's lateral sag,
+    w/L ~ 5e-3, changes it at (w/L)² ~ 3e-5; measured −2.4e-5), so the benchmark's Φ(t) is
+    the scene's turn of B (a wrong rate or t1 would move it by its own relative error); and
+    the torque's plateau over a window the run did not reach is nan (``plateau``)."""
+    from plectoneme_plateau import plateau, run
+
+    rows, _, forms = run(16, end=2.0)
+    phi, M = rows[:, 1], rows[:, 2]
+    straight = (phi >= 1.0) & (phi <= 4.0)
+    slope = np.polyfit(phi[straight], M[straight], 1)[0]
+    assert abs(slope / forms["GJ"] - 1) < 1e-4, slope / forms["GJ"] - 1
+    assert forms["phi_c"] == pytest.approx(45.78112494284397, rel=1e-9)
+    assert math.isnan(plateau(rows, forms, (3.0, 5.0))["mean"])
