@@ -16,7 +16,11 @@
 # displacement [m], the active self-contact pairs and the least gaps. The plateau's figures
 # are the torque's mean and spread over a window of twist [Φ_a, Φ_b] after the strands meet.
 #
-#     .venv/bin/python benchmarks/plectoneme_plateau.py [cells ...]     # default 240 300
+#     .venv/bin/python benchmarks/plectoneme_plateau.py [cells ...] [--end t]   # default 240 300
+#
+# ``--end t`` [s] stops the runs at t (the scene's end, 80 s, otherwise): the steps after the
+# strands meet are slow (docs/plectoneme.md), so a run to just past the contact is the one
+# that ends in minutes.
 # %%
 from __future__ import annotations
 
@@ -131,9 +135,15 @@ def report(cells: int, rows: np.ndarray, wall: float, forms: dict) -> None:
 
 if __name__ == "__main__" and MPI.COMM_WORLD.size == 1:
     window = (50.0, 54.0)  # rad: after the snap (docs/plectoneme.md)
+    args = sys.argv[1:]
+    end = None
+    if "--end" in args:
+        at = args.index("--end")
+        end = float(args[at + 1])
+        del args[at : at + 2]
     results = {}
-    for cells in [int(a) for a in sys.argv[1:]] or [240, 300]:
-        rows, wall, forms = run(cells)
+    for cells in [int(a) for a in args] or [240, 300]:
+        rows, wall, forms = run(cells, end)
         report(cells, rows, wall, forms)
         results[cells] = plateau(rows, forms, window)
         print(f"  plateau over Φ in {window}: {results[cells]}")
