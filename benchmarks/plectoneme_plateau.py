@@ -39,29 +39,23 @@ from cosserat_fem.common.errors import CosseratError
 ROOT = Path(__file__).resolve().parents[1]
 SCENE = ROOT / "scenes" / "plectoneme_plateau.toml"
 sys.path.insert(0, str(ROOT / "benchmarks"))
-from plectoneme_path import buckling_torque  # noqa: E402
+import plectoneme_run  # noqa: E402
 from plectoneme_run import Record  # noqa: E402
 
 
 def twist(t: np.ndarray | float, parameters: dict) -> np.ndarray:
-    """The scene's turn of B [rad] at t [s]: fast min(t, t1) + slow max(t − t1, 0)."""
+    """The scene's turn of B [rad] at t [s]: fast min(t, t1) + rate max(t − t1, 0)."""
     t = np.asarray(t, dtype=float)
-    fast, slow, t1 = (float(parameters[k]) for k in ("fast", "slow", "t1"))
-    return fast * np.minimum(t, t1) + slow * np.maximum(t - t1, 0.0)
+    fast, rate, t1 = (float(parameters[k]) for k in ("fast", "rate", "t1"))
+    return fast * np.minimum(t, t1) + rate * np.maximum(t - t1, 0.0)
 
 
 def closed_form(scene) -> dict[str, float]:
-    """EI, GJ [N m²], T [N], M_c [N m] and Φ_c [rad] (the clamped-clamped root with tension,
-    plectoneme_path ``buckling_torque``; shear and extension dropped), r [m] and √(2 EI T)
-    [N m], the scale of a ply's torque (docs/plectoneme.md)."""
-    d = scene.rod.section.diameter
-    E, nu = scene.rod.material.young_modulus, scene.rod.material.poisson_ratio
-    EI = E * math.pi * d**4 / 64
-    GJ = EI / (1 + nu)
-    T = float(scene.parameters["tension"])
-    M = buckling_torque(T, EI, 1.0)
-    return {"EI": EI, "GJ": GJ, "T": T, "M_c": M, "phi_c": M / GJ, "r": d / 2,
-            "ply": math.sqrt(2 * EI * T)}  # fmt: skip
+    """plectoneme_run's closed forms (EI, GJ, T, M_c, Φ_c, the diameter, the later rate) with
+    r [m] and √(2 EI T) [N m], the scale of a ply's torque (docs/plectoneme.md)."""
+    forms = plectoneme_run.closed_form(scene)
+    r = forms["diameter"] / 2
+    return {**forms, "r": r, "ply": math.sqrt(2 * forms["EI"] * forms["T"])}
 
 
 def run(cells: int, end: float | None = None) -> tuple[np.ndarray, float, dict]:
