@@ -126,13 +126,13 @@ def slip_derivative(
     dF: np.ndarray,
     dn: np.ndarray,
     dslip: np.ndarray,
-    c: float,
+    c: float | np.ndarray,
     mu_k: float,
 ) -> np.ndarray:
     """The derivative (K, m, E) of the slip rows' v = P F − μ_k f_N s (K.3), s = t/|t|,
     t = P(F − c Δ), at K nodes (or contact points) with ``n``, ``F``, ``w``, ``s``, ``size``
     of :func:`trial_force`, given the derivatives over E columns of F, n and the slip Δ
-    (each (K, m, E)): with P = I − n nᵀ, f_N = n·F,
+    (each (K, m, E)), c one for all or (K, 1, 1): with P = I − n nᵀ, f_N = n·F,
 
         d(P F) = P dF − f_N dn − n (F·dn),   df_N = n·dF + F·dn,
         dt = P (dF − c dΔ) − (n·w) dn − n (w·dn),   ds = (I − s sᵀ) dt/|t|,

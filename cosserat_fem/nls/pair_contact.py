@@ -239,17 +239,20 @@ class PairContact:
         return bool(self.comm.allreduce(changed, op=MPI.LOR))
 
     def _levels(self, pairs: Pairs) -> np.ndarray:
-        """Each pair's level (P.5): 0 if no pair presses on its slave, else one more than the
-        largest level of the pairs whose partner cell holds the slave with a weight N_j(ξ) ≠ 0
-        (the longest chain of contacts that ends at it). ContactChain if the pairs press on
-        each other in a cycle (possible on a structure only: on one rod a partner's nodes lie
-        before its slave along the rod). The same on every rank (every rank has all pairs)."""
+        """Each pair's level (P.5): 0 if no candidate pair (a node within the search's margin
+        of a cell) has its slave in its partner cell, else one more than the largest level of
+        those pairs (the longest chain of candidates that ends at it). Every partner node
+        counts, its weight N_j(ξ) 0 or not: inside a P_k cell (k ≥ 2) a weight vanishes where
+        its derivative does not, and the pair's Jacobian then adds to that node's rows.
+        ContactChain if the candidates form a cycle (possible on a structure only: on one rod
+        a partner's nodes lie before its slave along the rod). The same on every rank (every
+        rank has all pairs)."""
         count = len(pairs.slave)
         level = np.zeros(count, dtype=np.int64)
         pressing = ~self.held_all[pairs.slave]
         index = np.full(len(self.held_all), -1, dtype=np.int64)
         index[pairs.slave[pressing]] = np.flatnonzero(pressing)
-        source, j = np.nonzero((np.abs(pairs.weights) > 0.0) & pressing[:, None])
+        source, j = np.nonzero(np.broadcast_to(pressing[:, None], pairs.partner.shape))
         target = index[pairs.partner[source, j]]
         source, target = source[target >= 0], target[target >= 0]
         for _ in range(count + 1):  # the longest paths: at most count rounds without a cycle
@@ -261,8 +264,9 @@ class PairContact:
             level = longer
         where = self.places_all[pairs.slave[grew]]
         raise ContactChain(
-            f"parts of the rod press on each other in a cycle at s = {where.min():.4g} to "
-            f"{where.max():.4g} m (a chain of contacts that closes): not supported"
+            f"parts of the rod lie on each other in a cycle at s = {where.min():.4g} to "
+            f"{where.max():.4g} m (within 2r: a chain of contacts that could close): not "
+            "supported"
         )
 
     def _press(self, pairs: Pairs, here: np.ndarray, b: np.ndarray, zero: float) -> dict:
@@ -359,8 +363,10 @@ class PairContact:
     def apply_matrix(self, A: PETSc.Mat) -> None:
         """The Jacobian rows of (P.1)-(P.4) at the pairs and states :meth:`apply_vector`
         decided, in the assembled ``A`` (collective; after its final assembly); each node's
-        augmentation c as a slave: |A| at its first balance row against its first position,
-        the node's own stiffness scale (before the rows change A). One c for every pair (the
+        augmentation c as a slave: the largest |A| at its balance rows against its positions
+        (the diagonal of that block: the node's own stiffness scale, whatever the rod's
+        direction), read before the rows change A; a node where all are 0 takes the largest
+        c of the rod (c = 0 would press it whatever its gap). One c for every pair (the
         obstacles' choice, NodeContact's) takes one part's scale: the largest took a stiff
         part's and made the decision at a contact's onset chatter (the rigid-leg hairpin),
         the first node's along the rod did the same where that part is the stiff one (three
@@ -368,91 +374,119 @@ class PairContact:
         start = self.start * self.bs
         c = np.array(
             [
-                abs(A.getValue(int(q), int(x)))
-                for q, x in zip(self.pq[:, 0] + start, self.px[:, 0] + start, strict=True)
+                max(abs(A.getValue(int(q), int(x))) for q, x in zip(qs, xs, strict=True))
+                for qs, xs in zip(self.pq + start, self.px + start, strict=True)
             ]
-        )
+        ).reshape(-1)
+        largest = self.comm.allreduce(float(c.max(initial=0.0)), op=MPI.MAX)
+        c[c == 0.0] = largest
         r = self._rows
+        if not r:  # no residual seen yet: no pairs to write
+            self.c = c
+            return
         A.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
         levels = self.comm.allreduce(int(r["level"].max(initial=-1)) + 1, op=MPI.MAX)
         for at in range(levels):  # (P.5): a level's rows read the reactions passed to them
-            rows_out, adds = [], []
-            for p in np.flatnonzero(r["level"] == at):
-                a = int(r["local"][p])
-                q = self.pq[a] + self.start * self.bs
-                gathered = [A.getRow(int(row)) for row in q]
-                nodes = np.concatenate([[a + self.start], r["partner"][p]])
-                geo_cols = (nodes[:, None] * self.bs + self.position_slots[None, :]).ravel()
-                cols = np.concatenate([c for c, _ in gathered] + [geo_cols])
-                every = np.unique(cols).astype(PETSc.IntType)
-                J = np.zeros((len(q), len(every)))
-                for i, (c_i, v_i) in enumerate(gathered):
-                    J[i, np.searchsorted(every, c_i)] = v_i
-                new, add = self._derivatives(p, J, np.searchsorted(every, geo_cols))
-                rows_out.append((q, every, new))
+            pairs = np.flatnonzero(r["level"] == at)
+            J, every, geo_at = self._gather(A, pairs)
+            new, add = self._derivatives(pairs, J, geo_at) if len(pairs) else (J, J)
+            start = self.start * self.bs
+            for i, p in enumerate(pairs):
+                q = (self.pq[r["local"][p]] + start).astype(PETSc.IntType)
+                A.setValues(q, every[i], new[i], addv=PETSc.InsertMode.INSERT_VALUES)
+            A.assemble()
+            for i, p in enumerate(pairs):
                 for j, node in enumerate(r["partner"][p]):
                     if not self.held_all[node]:
-                        adds.append((node * self.bs + self.balance_slots, every, add[j]))
-            for q, every, new in rows_out:
-                A.setValues(
-                    q.astype(PETSc.IntType), every, new, addv=PETSc.InsertMode.INSERT_VALUES
-                )
-            A.assemble()
-            for q, every, rows in adds:
-                A.setValues(q.astype(PETSc.IntType), every, rows, addv=PETSc.InsertMode.ADD_VALUES)
+                        q = (node * self.bs + self.balance_slots).astype(PETSc.IntType)
+                        A.setValues(q, every[i], add[i, j], addv=PETSc.InsertMode.ADD_VALUES)
             A.assemble()
         self.c = c
 
-    def _derivatives(
-        self, p: int, J: np.ndarray, geo_at: np.ndarray
-    ) -> tuple[np.ndarray, list[np.ndarray]]:
-        """The pair ``p``'s new slave rows (m, E) and the rows each partner node adds (k+1 of
-        (m, E)) over E columns: its rows ``J`` (m, E) of the assembled matrix with the
-        reactions passed to it (P.5), the K points' positions at the columns ``geo_at``. Each
-        quantity's derivative is a row block over the E columns: dF̃ = J, dn = ℓ ∂n/∂x,
-        dN_j = ℓ ∂N_j/∂x, dΔ of the relative slip."""
+    def _gather(self, A: PETSc.Mat, pairs: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The ``pairs``' slave rows of ``A`` over the union of their columns and the K
+        points' positions: J (P, m, E), the columns ``every`` (P, E; −1 pads a pair's shorter
+        list: PETSc skips negative columns) and where the positions' columns lie in them,
+        ``geo_at`` (P, K m)."""
         r = self._rows
-        m, E = J.shape
-        n, T, dT, F, fN = r["n"][p], r["T"][p], r["dT"][p], r["F"][p], r["fN"][p]
-        weights, state = r["weights"][p], r["state"][p]
+        m, k1 = len(self.solved), r["partner"].shape[1]
+        gathered, columns, geo = [], [], []
+        for p in pairs:
+            a = int(r["local"][p])
+            rows = [A.getRow(int(row)) for row in self.pq[a] + self.start * self.bs]
+            nodes = np.concatenate([[a + self.start], r["partner"][p]])
+            geo_cols = (nodes[:, None] * self.bs + self.position_slots[None, :]).ravel()
+            gathered.append(rows)
+            columns.append(np.unique(np.concatenate([c for c, _ in rows] + [geo_cols])))
+            geo.append(geo_cols)
+        E = max((len(c) for c in columns), default=0)
+        every = np.full((len(pairs), E), -1, dtype=PETSc.IntType)
+        J = np.zeros((len(pairs), m, E))
+        geo_at = np.zeros((len(pairs), (k1 + 1) * m), dtype=np.int64)
+        for i, (rows, cols, geo_cols) in enumerate(zip(gathered, columns, geo, strict=True)):
+            every[i, : len(cols)] = cols
+            for row, (c_i, v_i) in enumerate(rows):
+                J[i, row, np.searchsorted(cols, c_i)] = v_i
+            geo_at[i] = np.searchsorted(cols, geo_cols)
+        return J, every, geo_at
 
-        def placed(block: np.ndarray, where: np.ndarray) -> np.ndarray:
-            out = np.zeros((block.shape[0], E))
-            out[:, where] = block
+    def _derivatives(
+        self, pairs: np.ndarray, J: np.ndarray, geo_at: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The ``pairs``' new slave rows (P, m, E) and the rows each partner node adds (P, k+1,
+        m, E) over E columns: their rows ``J`` (P, m, E) of the assembled matrix with the
+        reactions passed to them (P.5), the K points' positions at the columns ``geo_at`` (P,
+        K m). Each quantity's derivative is a row block over the E columns: dF̃ = J, dn =
+        ℓ ∂n/∂x, dN_j = ℓ ∂N_j/∂x, dΔ of the relative slip."""
+        r = {key: value[pairs] for key, value in self._rows.items()}
+        P, m, E = J.shape
+        n, T, dT, F, fN = r["n"], r["T"], r["dT"], r["F"], r["fN"]
+        weights, k1 = r["weights"], r["weights"].shape[1]
+
+        def placed(block: np.ndarray) -> np.ndarray:
+            """A block (P, rows, K m) over the positions' columns, spread over the E."""
+            out = np.zeros((P, block.shape[1], E))
+            np.put_along_axis(out, np.broadcast_to(geo_at[:, None, :], block.shape), block, 2)
             return out
 
         dF = J
-        dn = placed(self.ell * r["d_normal"][p].reshape(m, -1), geo_at)
-        dw = [
-            placed(self.ell * r["d_weights"][p][j].reshape(1, -1), geo_at)[0]
-            for j in range(len(weights))
-        ]
-        dfN = n @ dF + F @ dn
+        dn = placed(self.ell * r["d_normal"].reshape(P, m, -1))
+        dw = placed(self.ell * r["d_weights"].reshape(P, k1, -1))  # (P, k+1, E)
+        dfN = np.einsum("pa,pae->pe", n, dF) + np.einsum("pa,pae->pe", F, dn)
         eye = np.eye(m)
-        new = np.zeros((m, E))
-        new[0, geo_at] = r["d_gap"][p].ravel()  # ∂(g/ℓ)/∂u
-        v = r["v"][p]
+        new = np.zeros((P, m, E))
+        new[:, :1] = placed(r["d_gap"].reshape(P, 1, -1))  # ∂(g/ℓ)/∂u
         if not self.friction:  # (P.1): T F; (P.2): N_j n f_N
             dv = dF
-            force, dforce = n * fN, np.outer(n, dfN) + fN * dn
+            force = n * fN[:, None]
+            dforce = n[:, :, None] * dfN[:, None, :] + fN[:, None, None] * dn
         else:
             force, dforce = F, dF
             # dΔ = du_a − Σ N_j du_j − Σ Δu_j dN_j (positions' columns: a, then the partner)
-            block = np.zeros((m, len(weights) + 1, m))
-            block[:, 0] = eye
-            block[:, 1:] = -weights[None, :, None] * eye[:, None, :]
-            dDelta = placed(block.reshape(m, -1), geo_at)
-            dDelta -= sum(np.outer(r["slips"][p][j], dw[j]) for j in range(len(weights)))
-            if state == STICK:
-                dv = dDelta
-            else:  # (P.3): v = P F − μ_k f_N s
-                c = 0.0 if self.c is None else float(self.c[r["local"][p]])
-                one = (r["w"][p : p + 1], r["s"][p : p + 1], r["size"][p : p + 1])
-                dv = slip_derivative(
-                    n[None], F[None], *one, dF[None], dn[None], dDelta[None], c, self.mu_k
-                )[0]
-        new[1:] = T @ dv + np.einsum("jab,a->jb", dT, v) @ dn
-        add = [weights[j] * dforce + np.outer(force, dw[j]) for j in range(len(weights))]
+            block = np.zeros((P, m, k1 + 1, m))
+            block[:, :, 0] = eye
+            block[:, :, 1:] = -weights[:, None, :, None] * eye[None, :, None, :]
+            dDelta = placed(block.reshape(P, m, -1))
+            dDelta -= np.einsum("pjd,pje->pde", r["slips"], dw)
+            dv = dDelta.copy()  # stick: the slip held
+            slip = r["state"] != STICK
+            if slip.any():  # (P.3): v = P F − μ_k f_N s
+                c = np.zeros(P) if self.c is None else self.c[r["local"]]
+                dv[slip] = slip_derivative(
+                    n[slip],
+                    F[slip],
+                    r["w"][slip],
+                    r["s"][slip],
+                    r["size"][slip],
+                    dF[slip],
+                    dn[slip],
+                    dDelta[slip],
+                    c[slip][:, None, None],
+                    self.mu_k,
+                )
+        new[:, 1:] = np.einsum("pjm,pme->pje", T, dv)
+        new[:, 1:] += np.einsum("pjab,pa,pbe->pje", dT, r["v"], dn)
+        add = weights[:, :, None, None] * dforce[:, None] + force[:, None, :, None] * dw[:, :, None]
         return new, add
 
     def interpenetration(self) -> tuple[str, str] | None:
@@ -585,7 +619,7 @@ class PairContact:
 
 class PartlyHeld(SolverError):
     """A pair at a node a sliding support holds in part: one line, where = "contact", not
-    retried (as a chain: ContactChain)."""
+    retried (as ContactChain)."""
 
     def __init__(self, reason: str):
         super().__init__(reason, where="contact")
