@@ -204,8 +204,8 @@ def in_time(cells: int):
 @pytest.mark.long
 def test_the_twisted_rod_in_time_snaps_until_its_strands_meet_without_passing_through():
     """scenes/plectoneme.toml (r = L/100, T = 100 EI/L², twist control at 1 rad/s, a drag,
-    no damping in torsion) on 64 and 96 P3 cells (~40 s), docs/plectoneme.md "With self
-    contact":
+    no damping in torsion) on 64 and 96 P3 cells (~2 min since the chains of contacts: the
+    96 cells' run goes on to Φ = 33.0 rad, 103 s), docs/plectoneme.md "With self contact":
 
     (1) straight, Φ in [Φ_c/4, Φ_c/2]: the torque at the clamp grows as GJ/L (the secant
     within 1e-4: the gravity's sag changes it at (w/L)² ~ 1e-5; measured −4e-6; the drag is
@@ -222,9 +222,10 @@ def test_the_twisted_rod_in_time_snaps_until_its_strands_meet_without_passing_th
     (the adaptive steps' tolerance 1e-3 sets the steps there, of 1e-3 rad);
     (4) no interpenetration at any accepted state: the pairs' node gaps ≥ −1e-9 r (the rows
     hold them to the Newton tolerance) and the least gap between the nodes ≥ −1e-2 r (the
-    guard's bound; measured −7.9e-3 r on 64 cells);
-    (5) a run that stops does so in one line naming the place s (a chain of contacts soon
-    after the strands meet: not supported yet)."""
+    guard's bound, which rejects deeper states; measured −1.0e-2 r on 64 cells, its last
+    state before the guard stops it, and −9.5e-3 r on 96);
+    (5) a run that stops does so in one line naming the place s (64 cells: the guard at
+    Φ = 32.630 rad; 96 cells: B's sliding node touching at Φ = 33.001 rad, 26 pairs)."""
     rows, _, forms = in_time(64)
     r, GJ, phi_c = 0.5 * forms["diameter"], forms["GJ"], forms["phi_c"]
     t, phi, M, dz, w, pairs, node_gap, between = rows.T
@@ -248,3 +249,23 @@ def test_the_twisted_rod_in_time_snaps_until_its_strands_meet_without_passing_th
     assert low - 1e-2 <= onset <= high + 1e-2, (onset, low, high)
     for failure in (forms.get("failure"), finer.get("failure")):
         assert failure is None or ("\n" not in failure and "s = " in failure)
+
+
+def test_the_plateau_scene_twists_its_straight_rod_as_gj_over_l():
+    """scenes/plectoneme_plateau.toml (r = L/200, T = 300 EI/L², the twist 2 rad/s up to t1,
+    a point imperfection at mid-span; docs/plectoneme.md "Towards the plateau") on 16 P3
+    cells for its first 2 s (~1 s of wall): the torque at the clamp against the twist
+    Φ(t) of benchmarks/plectoneme_plateau.py ``twist`` grows as GJ/L, the secant over Φ in
+    [1, 4] rad within 1e-4 (the straight rod: M = GJ Φ/L; the imperfection's lateral sag,
+    w/L ~ 5e-3, changes it at (w/L)² ~ 3e-5; measured −2.4e-5), so the benchmark's Φ(t) is
+    the scene's turn of B (a wrong rate or t1 would move it by its own relative error); and
+    the torque's plateau over a window the run did not reach is nan (``plateau``)."""
+    from plectoneme_plateau import plateau, run
+
+    rows, _, forms = run(16, end=2.0)
+    phi, M = rows[:, 1], rows[:, 2]
+    straight = (phi >= 1.0) & (phi <= 4.0)
+    slope = np.polyfit(phi[straight], M[straight], 1)[0]
+    assert abs(slope / forms["GJ"] - 1) < 1e-4, slope / forms["GJ"] - 1
+    assert forms["phi_c"] == pytest.approx(45.78112494284397, rel=1e-9)
+    assert math.isnan(plateau(rows, forms, (3.0, 5.0))["mean"])

@@ -1,0 +1,148 @@
+# ---
+# jupyter:
+#   jupytext:
+#     formats: py:percent
+#     text_representation:
+#       extension: .py
+#       format_name: percent
+# ---
+# %% [markdown]
+# # The plectoneme's torque after the snap, on refined meshes (issue 30; docs/plectoneme.md)
+#
+# scenes/plectoneme_plateau.toml (r/L = 5e-3, T = 300 EI/L², a point imperfection at mid-span,
+# twist 2 rad/s up to t1 then 0.5 rad/s) run by `cosserat_fem.api.run` with
+# benchmarks/plectoneme_run.py's observer: at every accepted step the twist Φ(t), the section
+# torque M = e3 · m(0) at the clamp A [N m], B's axial shift [m], the largest lateral
+# displacement [m], the active self-contact pairs and the least gaps. The plateau's figures
+# are the torque's mean and spread over a window of twist [Φ_a, Φ_b] after the strands meet.
+#
+#     .venv/bin/python benchmarks/plectoneme_plateau.py [cells ...] [--end t]   # default 240 300
+#
+# ``--end t`` [s] stops the runs at t (the scene's end, 80 s, otherwise): the steps after the
+# strands meet are slow (docs/plectoneme.md), so a run to just past the contact is the one
+# that ends in minutes.
+# %%
+from __future__ import annotations
+
+import math
+import sys
+import time
+import tomllib
+from pathlib import Path
+
+import numpy as np
+from mpi4py import MPI
+
+from cosserat_fem import api
+from cosserat_fem.common.errors import CosseratError
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENE = ROOT / "scenes" / "plectoneme_plateau.toml"
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import plectoneme_run  # noqa: E402
+from plectoneme_run import Record  # noqa: E402
+
+
+def twist(t: np.ndarray | float, parameters: dict) -> np.ndarray:
+    """The scene's turn of B [rad] at t [s]: fast min(t, t1) + rate max(t − t1, 0)."""
+    t = np.asarray(t, dtype=float)
+    fast, rate, t1 = (float(parameters[k]) for k in ("fast", "rate", "t1"))
+    return fast * np.minimum(t, t1) + rate * np.maximum(t - t1, 0.0)
+
+
+def closed_form(scene) -> dict[str, float]:
+    """plectoneme_run's closed forms (EI, GJ, T, M_c, Φ_c, the diameter, the later rate) with
+    r [m] and √(2 EI T) [N m], the scale of a ply's torque (docs/plectoneme.md)."""
+    forms = plectoneme_run.closed_form(scene)
+    r = forms["diameter"] / 2
+    return {**forms, "r": r, "ply": math.sqrt(2 * forms["EI"] * forms["T"])}
+
+
+def run(cells: int, end: float | None = None) -> tuple[np.ndarray, float, dict]:
+    """The rows (steps, 8) of plectoneme_run's ``Record`` with column 1 the twist Φ(t), on
+    ``cells`` P3 cells (half on each member), up to ``end`` [s] (the scene's if None); the
+    run's wall time [s]; its closed forms (:func:`closed_form`), with "failure" the message of
+    a run that stopped and "failed_at" the twist it stopped at."""
+    data = tomllib.loads(SCENE.read_text())
+    for member in data["structure"]["members"]:
+        member["elements"] = cells // 2
+    if end is not None:
+        data["time"]["end"] = end
+    data.pop("output")
+    scene = api.load(data, ())
+    record = Record(1.0)
+    forms = closed_form(scene)
+    start = time.perf_counter()
+    try:
+        api.run(scene, None, observers=[record], record=False)
+    except (CosseratError, FloatingPointError) as exc:  # the latter: see docs/plectoneme.md
+        forms["failure"] = str(exc)
+        forms["failed_at"] = float(twist(record.attempted, scene.parameters))
+    rows = np.array(record.rows)
+    rows[:, 1] = twist(rows[:, 0], scene.parameters)
+    return rows, time.perf_counter() - start, forms
+
+
+# %%
+def plateau(rows: np.ndarray, forms: dict, window: tuple[float, float]) -> dict:
+    """The torque over the twists Φ in ``window`` [rad]: its mean [N m], spread (max − min)
+    [N m] and slope dM/dΦ [N m/rad] (least squares), over √(2 EI T) and M_c too; B's shift
+    over the window [m], the most pairs, the least gap between the nodes over r; nan if the
+    run did not reach the window's end."""
+    t, phi, M, dz, w, pairs, gap, between = rows.T
+    inside = (phi >= window[0]) & (phi <= window[1])
+    if phi[-1] < window[1] or inside.sum() < 3:
+        return {"mean": math.nan, "spread": math.nan, "slope": math.nan}
+    m = M[inside]
+    return {
+        "mean": float(m.mean()),
+        "spread": float(m.max() - m.min()),
+        "slope": float(np.polyfit(phi[inside], m, 1)[0]),
+        "mean/ply": float(m.mean() / forms["ply"]),
+        "mean/M_c": float(m.mean() / forms["M_c"]),
+        "shift": (float(dz[inside][0]), float(dz[inside][-1])),
+        "pairs": int(pairs[inside].max()),
+        "between/r": float(between[inside].min() / forms["r"]),
+    }
+
+
+def report(cells: int, rows: np.ndarray, wall: float, forms: dict) -> None:
+    """Print a run: some 30 rows, where it stopped, and the torque's maximum."""
+    print(f"\n{cells} P3 cells ({wall:.1f} s, {len(rows)} steps); Φ_c = {forms['phi_c']:.5f} rad")
+    print(forms.get("failure", "completed"))
+    print("   t [s]   Φ [rad]  M/M_c    M/√(2EIT) Δz_B [m]  max|w| [m] pairs between/r")
+    r = forms["r"]
+    touching = np.flatnonzero(rows[:, 5] > 0)
+    chosen = set(range(0, len(rows), max(1, len(rows) // 30))) | {len(rows) - 1}
+    chosen |= {int(touching[0])} if touching.size else set()
+    for i in sorted(chosen):
+        t, phi, M, dz, w, n, g, gb = rows[i]
+        print(
+            f"{t:7.3f} {phi:8.4f} {M / forms['M_c']:8.5f} {M / forms['ply']:8.5f} {dz:+9.5f} "
+            f"{w:9.5f} {int(n):4d} {gb / r:+8.4f}"
+        )
+    i = int(np.argmax(rows[:, 2]))
+    print(f"  the torque's maximum {rows[i, 2] / forms['M_c']:.6f} M_c at Φ = {rows[i, 1]:.4f} rad")
+    if touching.size:
+        print(f"  the strands meet at Φ = {rows[touching[0], 1]:.4f} rad")
+
+
+if __name__ == "__main__" and MPI.COMM_WORLD.size == 1:
+    window = (50.0, 54.0)  # rad: after the snap (docs/plectoneme.md)
+    args = sys.argv[1:]
+    end = None
+    if "--end" in args:
+        at = args.index("--end")
+        end = float(args[at + 1])
+        del args[at : at + 2]
+    results = {}
+    for cells in [int(a) for a in args] or [240, 300]:
+        rows, wall, forms = run(cells, end)
+        report(cells, rows, wall, forms)
+        results[cells] = plateau(rows, forms, window)
+        print(f"  plateau over Φ in {window}: {results[cells]}")
+    means = [results[c]["mean"] for c in results]
+    print("\ncells, the plateau's mean [N m] and its change from the coarser mesh")
+    for k, c in enumerate(results):
+        change = means[k] - means[k - 1] if k else math.nan
+        print(f"{c:5d} {means[k]:.6f} {change:+.2e}")
