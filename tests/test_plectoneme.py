@@ -153,18 +153,21 @@ def _sliding(contact: dict) -> dict:
     }
 
 
-def test_a_sliding_end_takes_self_contact_and_no_pair_presses_at_it():
-    """A `sliding` support with self contact alone is taken (its node is no slave, its
-    reactions would lose their free component), with an obstacle still refused by name; at
-    run time a pair whose slave is that node touching (gap 0) or whose partner cell holds it
-    (an active pair) is refused in one line with the place s = 1 m (PartlyHeld); a pair
-    elsewhere passes. The clamp A, held in all its positions, is no such node."""
+def test_a_sliding_end_takes_self_contact_and_its_cells_are_pressed_on():
+    """A `sliding` support with self contact alone is taken, with an obstacle still refused by
+    name. B's node holds x and y but not z, the clamp A all three; B's last cell is its held
+    cell and its nodes are no slaves (rod/self_contact.py). A mid-span node bent over beside
+    that cell, 0.5 r into it, is the slave of a pair on it (against the rule "the later node
+    is the slave", which B's nodes would win), and none of B's cell's nodes is a slave. Two
+    held cells (A's first, were A sliding too) brought into contact are refused in one line
+    with the place (PartlyHeld): neither side has a slave."""
     from mpi4py import MPI
 
     from cosserat_fem.common.errors import SceneError
-    from cosserat_fem.nls.pair_contact import Pairs, PartlyHeld
+    from cosserat_fem.nls.pair_contact import PartlyHeld
     from cosserat_fem.rod.model import build_model
     from cosserat_fem.rod.obstacles import contact_rows
+    from cosserat_fem.rod.self_contact import SelfContactGeometry
     from cosserat_fem.scene.build import scene_from_dict
 
     plane = {"kind": "plane", "point": [-1.0, 0, 0], "normal": [1.0, 0, 0]}
@@ -172,24 +175,29 @@ def test_a_sliding_end_takes_self_contact_and_no_pair_presses_at_it():
         scene_from_dict(_sliding({"self_contact": True, "obstacles": [plane]}))
     model = build_model(scene_from_dict(_sliding({"self_contact": True})), MPI.COMM_SELF)
     pairs = contact_rows(model).pairs
-    places = pairs.places_all
+    geometry, places, r = pairs.geometry, pairs.places_all, 0.01
     b, a = int(np.argmax(places)), int(np.argmin(places))
-    assert pairs.partly_all[b] and not pairs.partly_all[a] and pairs.partly_all.sum() == 1
-    middle = np.argsort(np.abs(places - 0.5))[:4]  # a cell's worth of nodes near s = L/2
-
-    def found(slave: int, gap: float) -> Pairs:
-        one = np.zeros(1)
-        return Pairs(np.array([slave]), middle[None, :], np.array([gap]), *[one] * 5)
-
-    with pytest.raises(
-        PartlyHeld, match=r"^contact: a part of the rod touches at s = 1 to 1 m"
-    ) as e:
-        pairs._check_partly(found(b, 0.0), middle[:0][None, :])
+    assert pairs.held_slots_all[b].tolist() == [True, True, False]
+    assert pairs.held_slots_all[a].all() and pairs.held_all.sum() == 2
+    (cell,) = geometry.dofs[geometry.held_cells]
+    assert b in cell and set(np.flatnonzero(geometry.masters_only)) == set(cell.tolist())
+    x = pairs.everywhere(model.U.x.array)
+    middle = int(np.argmin(np.abs(places - 0.5)))
+    x[middle] = [1.5 * r, 0.0, x[cell, 2].mean()]
+    found = geometry(x)
+    (k,) = np.flatnonzero(found.slave == middle)
+    assert b in found.partner[k] and abs(found.gap[k] + 0.5 * r) < 1e-3 * r
+    assert not geometry.masters_only[found.slave].any()
+    partly = np.zeros(len(places), dtype=bool)
+    partly[[a, b]] = True
+    both = SelfContactGeometry(geometry.dofs, places, r, 2 * r, partly=partly)
+    (first,) = both.dofs[both.held_cells & np.isin(both.dofs, a).any(axis=1)]
+    x = pairs.everywhere(model.U.x.array)
+    x[first, 0] += 1.5 * r
+    x[first, 2] += x[cell, 2].mean() - x[first, 2].mean()
+    with pytest.raises(PartlyHeld, match=r"^contact: the cells of two supports .* touch at") as e:
+        both(x)
     assert "\n" not in str(e.value)
-    with pytest.raises(PartlyHeld, match=r"s = 1 to 1 m"):
-        pairs._check_partly(found(a, 1.0), np.array([[b, *middle[:3]]]))
-    pairs._check_partly(found(b, 1e-3), middle[None, :])  # B near, not touching; none at B
-    pairs._check_partly(found(a, 0.0), middle[None, :])
 
 
 @functools.cache

@@ -151,6 +151,89 @@ def test_crossing_cantilevers_carry_the_frames_reaction(delta0, bound, joint):
     assert abs(summary["least_pair_gap_m"] / (0.5 * delta0) - 1) < 1e-5
 
 
+def guided(a: float) -> float:
+    """A cantilever's tip deflection [m/N] under a unit force there, the tip's turn held (a
+    `sliding` support along the force): a³/(12 EI) + a/(κGA)."""
+    return a**3 / (12 * EI) + a / GA
+
+
+def sliding_crossing(P: float, delta0: float, reverse: bool) -> dict:
+    """The crossing cantilevers with X on a `sliding` support along e3 (its x, y and turn
+    held, z free); ``reverse``: B listed first, so that A's nodes would be the slaves on a
+    structure's rule (the larger member index)."""
+    scene = crossing(P, delta0)
+    structure = scene["structure"]
+    structure["supports"].append({"node": "X", "kind": "sliding", "axis": [0, 0, 1]})
+    if reverse:
+        structure["members"] = structure["members"][::-1]
+    return scene
+
+
+@pytest.mark.parametrize("reverse", [False, True])
+def test_a_sliding_node_takes_its_free_part_of_the_reaction(reverse):
+    """X on a `sliding` support along e3: A's inner half is a cantilever whose tip X moves
+    down with its turn held, so under B's force R it sinks by R g(a) (:func:`guided`), and
+
+        R = (P c(b, L) − δ0) / (c(b, b) + g(a))                                     (X.3)
+
+    (A's outer half carries nothing). The pair's partner cell holds X: the reaction's z part
+    must reach X's free balance row (its x, y parts the support); dropped there as at a fully
+    held node, X would not move and R would be (P c(b, L) − δ0)/c(b, b), 25 % higher. With
+    the members reversed, A's nodes at X would be the slaves by the structure's rule; the
+    nodes of X's cells are no slaves (rod/self_contact.py), so B's node presses on A there
+    too. P = 2 P_c, δ0 = 1e-4 m: the error is the geometric nonlinearity's, here O((δ0/L)²)
+    (X's turn held, the first-order term of the crossing above vanishes): measured −7.66e-6,
+    −7.79e-8, −7.79e-10 at δ0 = 1e-3, 1e-4, 1e-5 m, both orders alike to 3e-12. Bound 2e-7 at
+    1e-4 m; a reaction part lost or doubled is O(1)."""
+    delta0 = 1e-4
+    closing = delta0 / c(B_AT, L)
+    scene = sliding_crossing(2 * closing, delta0, reverse)
+    result = static_path(scene_from_dict(scene), comm=MPI.COMM_SELF, write_outputs=False)
+    pairs = result.model.contact.pairs
+    rows = pairs._rows
+    assert len(rows["local"]) == 1
+    expected = (2 * closing * c(B_AT, L) - delta0) / (c(B_AT, B_AT) + guided(A_AT))
+    force = float(rows["fN"][0] * pairs.force_scale)
+    assert abs(force / expected - 1) < 2e-7, (force, expected)
+    slave = rows["local"][0] + pairs.start
+    x = pairs.everywhere(result.model.U.x.array)
+    assert np.abs(x[slave, :2] - [A_AT, 0.0]).max() < 1e-6 and x[slave, 2] > R  # B's, over X
+    assert np.isin(rows["partner"][0], np.flatnonzero(pairs.held_slots_all[:, 0])).any()
+
+
+@pytest.mark.parametrize("friction", [False, True])
+def test_the_jacobian_at_a_sliding_nodes_cell_is_the_derivative_of_the_rows(friction):
+    """tests/test_self_contact.py's ``jacobian_errors`` on the sliding crossing
+    (:func:`sliding_crossing`, μ_s = 0.3, μ_k = 0.2 or frictionless): B moved 0.1 m back
+    along e1, so that it crosses A inside X's cell (its weights all nonzero), and 5 mm down
+    through it; A tilted there by a slope of 0.05 and its nodes moved unevenly along it, so
+    that the normal and (with friction, sliding: the history at rest) the force have an x part
+    at X, which X's support takes, and a z part, which X's free row gets. Second order
+    (``assert_second_order``)."""
+    from test_self_contact import assert_second_order, jacobian_errors
+
+    from cosserat_fem.rod.model import build_model
+    from cosserat_fem.rod.obstacles import contact_rows
+
+    data = sliding_crossing(0.0, 1e-4, reverse=False)
+    if friction:
+        data["contact"].update(static_friction=0.3, kinetic_friction=0.2)
+    # the nodes' rest positions (serial: local order is global)
+    model = build_model(scene_from_dict(data), MPI.COMM_SELF)
+    x, y, z = contact_rows(model).pairs.everywhere(model.U.x.array).T
+    on_b, on_a = z > R, (y == 0.0) & (z == 0.0)
+
+    def displace(ux, uz, s, ell):
+        ux -= np.where(on_b, 0.1 / ell, 0.0)
+        uz -= np.where(on_b, 0.005 / ell, 0.0)
+        uz += np.where(on_a, 0.05 * (x - 0.4) / ell, 0.0)
+        ux += np.where(on_a, 0.003 * np.sin(40 * np.pi * x) / ell, 0.0)
+
+    errors, active, _ = jacobian_errors(data, displace)
+    assert len(active) == 1 and active[0, 2] == 2, active  # one pair, sliding (or frictionless)
+    assert_second_order(errors)
+
+
 def test_a_joints_copy_is_neither_an_obstacle_node_nor_in_a_cell():
     """On the crossing with the joint at X and a plane far below: the joint's copy (its rows
     the joint's, (C.1)-(C.2)) is not among the obstacle's nodes, its master is, and no cell

@@ -29,7 +29,7 @@ The Jacobian is the derivative of (P.1)-(P.4), with the closest point's (S.3): t
 rows gain the partner's position columns and the partner's rows the slave's, entries the
 assembled pattern lacks (PETSc allocates them at the first insertion and keeps them). A node
 is the slave of the pair whose partner lies before it along the rod (single pass: the other
-direction's pairs are dropped).
+direction's pairs are dropped), except at a sliding node (below).
 
 A node may be pressed and carry other pairs' reactions at once (a chain of contacts: a loop
 turning into a ply, three parts of the rod stacked). Its force is then the assembled one plus
@@ -43,13 +43,18 @@ and F̃_a takes F_a's place in (P.1)-(P.4). The pairs are taken by levels: a pai
 on it; each level reads F̃ with the reactions of the levels before and passes its own on
 (each level one assembly of PETSc's Vec, and of the matrix, whose rows then carry the
 reactions' derivatives: the Jacobian stays exact). On one rod a partner's nodes lie before its
-slave along the rod, so the levels exist; pairs that press on each other in a cycle (possible
-on a structure) are refused with their place.
+slave along the rod, or hold a sliding node (whose cells' nodes are no slaves:
+rod/self_contact.py), so the levels exist; pairs that press on each other in a cycle
+(possible on a structure) are refused with their place.
 
-A node whose positions a support holds has no rows: it is no slave, and a reaction onto it
-goes to the support (a part of the rod may then pass through it: the sampled check between
-nodes does not look at the nodes themselves); a node held in part (a sliding support) that
-touches or would take a reaction is refused with its place.
+A node whose positions a support holds has no rows as a slave, and a reaction onto it goes to
+the support in the components the support holds (a part of the rod may then pass through a
+fully held node: the sampled check between nodes does not look at the nodes themselves). A
+node held in part (a sliding support: held across its axis, free along it) keeps the free
+component of the reactions (P.2)/(P.4) in its balance row along the axis; it is no slave,
+nor is any node of its cells, which the other parts' nodes press on instead
+(rod/self_contact.py): a slave row there could close a gap across the held directions only
+by a force n·e/(n·e) that a lateral contact (n ⊥ e) leaves undetermined.
 
 Under MPI every rank holds every node's position (an Allgatherv an iterate: 24 bytes a node)
 and finds the same pairs; each rank writes the rows of the slaves it owns, and the reactions
@@ -71,7 +76,6 @@ from cosserat_fem.nls.contact import (
     ROUNDOFF,
     SLIP,
     STICK,
-    TOUCHING,
     pressed,
     slip_derivative,
     tangent_bases,
@@ -104,9 +108,9 @@ class Pairs:
 
 class PairContact:
     """The rows (P.1)-(P.4) of the module docstring on the space ``V`` of a rod whose owned
-    nodes are at ``rest`` [m] (owned, 3), ``held`` those some of whose positions a support
-    holds (no rows; ``partly``: those held in part only, a sliding support's, refused in a
-    pair), ``places`` their arc lengths s [m]; ``geometry`` maps every node's position
+    nodes are at ``rest`` [m] (owned, 3), ``held`` (owned, m) which of their solved positions a
+    support holds (a node with any held has no rows as a slave; the reactions reach its free
+    components only), ``places`` their arc lengths s [m]; ``geometry`` maps every node's position
     (global order, (N, 3)) to the :class:`Pairs` of nodes at most a margin from a partner;
     the slots and ``solved`` as :class:`~cosserat_fem.nls.contact.NodeContact`'s; the
     friction ``static_friction`` μ_s (0: none) and ``kinetic_friction`` μ_k (default μ_s)."""
@@ -127,7 +131,6 @@ class PairContact:
         shares: np.ndarray,
         static_friction: float = 0.0,
         kinetic_friction: float | None = None,
-        partly: np.ndarray | None = None,
     ):
         self.comm = V.mesh.comm
         bs = V.dofmap.index_map_bs
@@ -141,12 +144,11 @@ class PairContact:
         self.balance_slots = np.asarray(balance_slots, dtype=np.int64)
         self.px = np.arange(owned)[:, None] * bs + self.position_slots[None, :]
         self.pq = np.arange(owned)[:, None] * bs + self.balance_slots[None, :]
-        self.held_all = np.concatenate(self.comm.allgather(np.asarray(held, dtype=bool)))
+        held = np.asarray(held, dtype=bool).reshape(owned, len(self.solved))
+        #: every node's held positions (N, m), and whether any is held (no rows as a slave)
+        self.held_slots_all = np.vstack(self.comm.allgather(held))
+        self.held_all = self.held_slots_all.any(axis=1)
         self.places_all = np.concatenate(self.comm.allgather(np.asarray(places, dtype=float)))
-        #: the nodes some of whose positions a support holds (a sliding node): no pair may
-        #: press on or with them (:meth:`_check_partly`)
-        partly = np.zeros(len(held), dtype=bool) if partly is None else partly
-        self.partly_all = np.concatenate(self.comm.allgather(np.asarray(partly, dtype=bool)))
         self.owned = owned
         #: PETSc's Vec of the owned layout that carries the reactions (P.2) to their owners
         self._reactions = PETSc.Vec().createMPI((owned * bs, PETSc.DECIDE), comm=self.comm)
@@ -199,10 +201,11 @@ class PairContact:
         return np.concatenate(self.comm.allgather(x))
 
     def _global_rows(self, nodes: np.ndarray, slots: np.ndarray) -> np.ndarray:
-        """The global row indices of the ``slots`` of the global ``nodes``; held nodes' −1
-        (PETSc drops negative indices: a support takes those reactions)."""
+        """The global row indices of the balance ``slots`` (one per solved position) of the
+        global ``nodes``; −1 where a support holds that position (PETSc drops negative
+        indices: the support takes those reactions)."""
         rows = nodes[..., None] * self.bs + slots
-        return np.where(self.held_all[nodes][..., None], -1, rows).astype(PETSc.IntType)
+        return np.where(self.held_slots_all[nodes], -1, rows).astype(PETSc.IntType)
 
     # -- the rows -------------------------------------------------------------------------
     def apply_vector(self, b: np.ndarray, u: np.ndarray) -> bool:
@@ -226,7 +229,6 @@ class PairContact:
             part["level"] = np.full(len(part["local"]), at)
             parts.append(part)
         self._rows = r = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
-        self._check_partly(pairs, r["partner"])
         self.least_gap = self.comm.allreduce(float(pairs.gap[mine].min(initial=np.inf)), op=MPI.MIN)
         slave = r["local"] + self.start
         active = np.column_stack([slave, r["partner"][:, 0], r["state"]]).astype(np.int64)
@@ -344,37 +346,18 @@ class PairContact:
         reactions.assemble()
         b += reactions.getArray(readonly=True)
 
-    def _check_partly(self, pairs: Pairs, partner: np.ndarray) -> None:
-        """PartlyHeld (every rank) if an active pair's partner cell (``partner``, this rank's)
-        has a node some of whose positions a support holds, or such a node touches a cell as a
-        slave: its free components would lose the reaction, or it would have no rows."""
-        partly = self.partly_all
-        bad = partner[partly[partner].any(axis=1)].ravel() if len(partner) else partner.ravel()
-        slaves = pairs.slave[partly[pairs.slave] & (pairs.gap <= TOUCHING * self.ell)]
-        nodes = np.concatenate(self.comm.allgather(np.concatenate([bad, slaves])))
-        nodes = nodes[partly[nodes]]
-        if nodes.size:
-            where = self.places_all[nodes]
-            raise PartlyHeld(
-                f"a part of the rod touches at s = {where.min():.4g} to {where.max():.4g} m, "
-                "a node held in some of its positions (a sliding support): not supported yet"
-            )
-
     def apply_matrix(self, A: PETSc.Mat) -> None:
         """The Jacobian rows of (P.1)-(P.4) at the pairs and states :meth:`apply_vector`
         decided, in the assembled ``A`` (collective; after its final assembly); each node's
-        augmentation c as a slave: the largest |A| at its balance rows against its positions
-        (the diagonal of that block: the node's own stiffness scale, whatever the rod's
-        direction), read before the rows change A; a node where all are 0 takes the largest
-        c of the rod (c = 0 would press it whatever its gap). One c for every pair (the
-        obstacles' choice, NodeContact's) takes one part's scale: the largest took a stiff
-        part's and made the decision at a contact's onset chatter (the rigid-leg hairpin),
-        the first node's along the rod did the same where that part is the stiff one (three
-        parts stacked on a rigid leg: no convergence down to 1/1024)."""
+        augmentation c as a slave: the largest |A| on the diagonal of its balance rows against
+        its positions (the node's own stiffness scale, whatever the rod's direction), read
+        before the rows change A; a node where all are 0 takes the largest c of the rod (c = 0
+        would press it whatever its gap). Why each node its own: docs/decisions.md, "Self
+        contact: node-to-cell rows", its "Each slave's own augmentation c"."""
         start = self.start * self.bs
         c = np.array(
             [
-                max(abs(A.getValue(int(q), int(x))) for q, x in zip(qs, xs, strict=True))
+                np.abs(np.diag(A.getValues(qs.tolist(), xs.tolist()))).max()
                 for qs, xs in zip(self.pq + start, self.px + start, strict=True)
             ]
         ).reshape(-1)
@@ -390,15 +373,14 @@ class PairContact:
             pairs = np.flatnonzero(r["level"] == at)
             J, every, geo_at = self._gather(A, pairs)
             new, add = self._derivatives(pairs, J, geo_at) if len(pairs) else (J, J)
-            start = self.start * self.bs
             for i, p in enumerate(pairs):
                 q = (self.pq[r["local"][p]] + start).astype(PETSc.IntType)
                 A.setValues(q, every[i], new[i], addv=PETSc.InsertMode.INSERT_VALUES)
             A.assemble()
             for i, p in enumerate(pairs):
-                for j, node in enumerate(r["partner"][p]):
-                    if not self.held_all[node]:
-                        q = (node * self.bs + self.balance_slots).astype(PETSc.IntType)
+                rows = self._global_rows(r["partner"][p], self.balance_slots)
+                for j, q in enumerate(rows):
+                    if (q >= 0).any():  # PETSc skips a held position's row (−1)
                         A.setValues(q, every[i], add[i, j], addv=PETSc.InsertMode.ADD_VALUES)
             A.assemble()
         self.c = c
@@ -618,8 +600,8 @@ class PairContact:
 
 
 class PartlyHeld(SolverError):
-    """A pair at a node a sliding support holds in part: one line, where = "contact", not
-    retried (as ContactChain)."""
+    """The cells of two sliding supports' nodes touching (rod/self_contact.py): one line,
+    where = "contact", not retried (as ContactChain)."""
 
     def __init__(self, reason: str):
         super().__init__(reason, where="contact")
@@ -628,10 +610,9 @@ class PartlyHeld(SolverError):
 class ContactChain(SolverError):
     """A contact configuration the rows do not support (pairs pressing on each other in a
     cycle; a node pressed onto the rod and onto an obstacle at once): one line, where =
-    "contact", not retried. Retried, such a configuration met in a run in time (the
-    plectoneme's chains, before (P.5)) halved the adaptive steps for more than 10 minutes
-    instead of stopping in 25 s; one met only at a passing iterate stops the run too (statics
-    halves the load step on any SolverError)."""
+    "contact", not retried (docs/decisions.md, "Self contact: node-to-cell rows"); one met
+    only at a passing iterate stops the run too (statics halves the load step on any
+    SolverError)."""
 
     def __init__(self, reason: str):
         super().__init__(reason, where="contact")

@@ -257,16 +257,16 @@ def contact_rows(model) -> NodeContact | Contacts | None:
         _check_start(obstacles, spec, model.U.x.array, V.mesh.comm, shapes)
     model.contact = obstacles
     if spec.self_contact:
+        partly = held_nodes & ~held_position.all(axis=1)  # a sliding node's
         pairs = PairContact(
             V,
             rest,
-            held_nodes,
-            _self_geometry(model, places, rest, float(spec.radius)),
+            held_position,
+            _self_geometry(model, places, rest, float(spec.radius), partly),
             places=places,
             shares=shares,
             static_friction=spec.static_friction,
             kinetic_friction=spec.kinetic,
-            partly=held_nodes & ~held_position.all(axis=1),
             **common,
         )
         _check_self_start(pairs, model.U.x.array)
@@ -335,7 +335,7 @@ def _member_lines(structure) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def _self_geometry(
-    model, places: np.ndarray, rest: np.ndarray, radius: float
+    model, places: np.ndarray, rest: np.ndarray, radius: float, partly: np.ndarray
 ) -> SelfContactGeometry:
     """The rod's cells as global node indices (every rank's, gathered) and its nodes' arc
     lengths, for the self-contact search; the Verlet margin 2r (rebuilt when a node has moved
@@ -343,9 +343,11 @@ def _self_geometry(
     lengths, and each joint's copy replaced in the cells by its master: the copy's position
     is its master's (the joint's rows), and a reaction (P.2) on its cells then reaches the
     master's balance rows, which (C.1) (nls/constraints.py, applied before the contact's rows
-    in nls/newton.py) made the node's whole balance."""
+    in nls/newton.py) made the node's whole balance. ``partly`` (owned): the nodes a support
+    holds in part (a sliding node: no slave, nor its cells' nodes)."""
     V = model.V
     comm = V.mesh.comm
+    partly = np.concatenate(comm.allgather(np.asarray(partly, dtype=bool)))
     imap = V.dofmap.index_map
     cells = model.msh.topology.index_map(model.msh.topology.dim).size_local
     local = np.array([V.dofmap.cell_dofs(c) for c in range(cells)], dtype=np.int32)
@@ -354,7 +356,7 @@ def _self_geometry(
     structure = model.scene.structure
     if structure is None:
         return SelfContactGeometry(
-            every, np.concatenate(comm.allgather(places)), radius, 2.0 * radius
+            every, np.concatenate(comm.allgather(places)), radius, 2.0 * radius, partly=partly
         )
     master = np.arange(imap.size_global, dtype=np.int64)
     if structure.all_joints():  # each copy's master, global indices, every rank's
@@ -371,4 +373,4 @@ def _self_geometry(
         lengths,
         np.vstack(comm.allgather(rest)),
     )
-    return SelfContactGeometry(master[every], None, radius, 2.0 * radius, members)
+    return SelfContactGeometry(master[every], None, radius, 2.0 * radius, members, partly)

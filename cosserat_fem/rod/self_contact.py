@@ -7,6 +7,15 @@ Single pass: of the two directions of a contact (a node of one part of the rod o
 other, and back), the node that lies later along the rod is the slave and the cell the partner
 (a node after the cell's last node in arc length). Each slave keeps its nearest partner cell.
 
+A node held in part by a support (a ``sliding`` node: its lateral positions held, free along
+an axis) cannot close a gap across its held directions, so it is no slave, and neither is
+any other node of the cells that hold it (their *held cells*): a node elsewhere is the slave
+of a pair whose cell is a held cell, whichever direction the rule above gives. The reaction
+then reaches the held cell's nodes, the sliding node's free component included
+(nls/pair_contact.py). No node of a held cell being a slave, a pair onto a held cell is the
+end of every chain of contacts (nls/pair_contact.py (P.5)): the levels stay acyclic. Two
+held cells that touch each other have no pair: refused in one line (PartlyHeld).
+
 On a structure (:class:`Members`; docs/contact.md, "Contact on a structure") each member is a
 rod of its own with its arc a from its ``from`` node at rest:
 
@@ -33,7 +42,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosserat_fem.nls.pair_contact import Pairs
+from cosserat_fem.nls.pair_contact import Pairs, PartlyHeld
 from cosserat_fem.rod.contact_search import (
     ClosestPoints,
     VerletList,
@@ -66,7 +75,8 @@ class SelfContactGeometry:
     """The :class:`~cosserat_fem.nls.pair_contact.Pairs` of one rod whose cells are ``dofs``
     (cells, k+1) (global node indices, dof order), its nodes at arc lengths ``places`` (N,)
     [m] at rest, its surface a tube of ``radius`` r [m]; pairs within ``margin`` [m]. A
-    structure gives its ``members`` instead of ``places`` (module docstring)."""
+    structure gives its ``members`` instead of ``places`` (module docstring); ``partly`` (N,)
+    marks the nodes a support holds in part (module docstring: their cells' nodes no slaves)."""
 
     def __init__(
         self,
@@ -75,8 +85,15 @@ class SelfContactGeometry:
         radius: float,
         margin: float,
         members: Members | None = None,
+        partly: np.ndarray | None = None,
     ):
         self.dofs, self.places = dofs, places
+        #: the cells holding a node held in part, and their nodes (no slaves)
+        count = int(dofs.max(initial=-1)) + 1 if partly is None else len(partly)
+        partly = np.zeros(count, dtype=bool) if partly is None else np.asarray(partly, bool)
+        self.held_cells = partly[dofs].any(axis=1)
+        self.masters_only = np.zeros(count, dtype=bool)
+        self.masters_only[dofs[self.held_cells].ravel()] = True
         self.radius, self.margin, self.members = radius, margin, members
         self.rod = None if members is None else members.member
         if members is None:
@@ -137,12 +154,34 @@ class SelfContactGeometry:
         """Whether each (node, cell) pair's node is the slave (module docstring)."""
         if self.members is None:
             assert self.places is not None
-            return self.places[node] > self.arc[cell, 1]
-        member = self.members.member[cell]
-        count = len(self.members.starts)
-        inside = np.isin(node * count + member, self.memberships)
-        later = self.members.along(node, member) > self.arc[cell, 1]
-        return np.where(inside, later, self.top[node] > member)
+            later = self.places[node] > self.arc[cell, 1]
+        else:
+            member = self.members.member[cell]
+            count = len(self.members.starts)
+            inside = np.isin(node * count + member, self.memberships)
+            along = self.members.along(node, member) > self.arc[cell, 1]
+            later = np.where(inside, along, self.top[node] > member)
+        return ~self.masters_only[node] & (later | self.held_cells[cell])
+
+    def _check_held_cells(self, x: np.ndarray, node: np.ndarray, cell: np.ndarray) -> None:
+        """PartlyHeld (on every rank: the same positions ``x``) if a node of a held cell
+        touches another held cell: neither is a slave (module docstring), so nothing would
+        keep them apart. A node's own cells do not count (the Verlet list may pair a
+        junction's node with them: never a slave there either)."""
+        both = self.masters_only[node] & self.held_cells[cell]
+        both &= ~(self.dofs[cell] == node[:, None]).any(axis=1)
+        if not both.any():
+            return
+        node, cell = node[both], cell[both]
+        near = closest_points(x[node], x[self.dofs[cell]], self.radius, self.radius)
+        touching = near.gap <= 0.0
+        if touching.any():
+            where = x[node[touching][0]]
+            raise PartlyHeld(
+                "the cells of two supports that hold their nodes in part (sliding) touch at "
+                f"({', '.join(f'{v:.4g}' for v in where)}) m: no pair keeps them apart (not "
+                "supported)"
+            )
 
     def __call__(self, x: np.ndarray) -> Pairs:
         """The single-pass pairs at the nodes' positions ``x`` (N, 3) [m]; FloatingPointError
@@ -157,6 +196,7 @@ class SelfContactGeometry:
             )
             self.builds += 1
         node, cell = self.verlet.pairs.reshape(-1, 2).T
+        self._check_held_cells(x, node, cell)
         later = self._slaves(node, cell)
         node, cell = node[later], cell[later]
         cells = x[self.dofs[cell]]

@@ -1155,8 +1155,8 @@ def _check_contact_scene(scene: Scene) -> None:
                 raise SceneError(f"output.{key}: contact needs a [contact] table")
         return
     for i, support in enumerate(scene.structure.supports if scene.structure else ()):
-        # self contact alone takes it: its node is no slave, and a pair that would press on
-        # it is refused at run time (nls/pair_contact.py, PartlyHeld); obstacles' rows not yet
+        # self contact alone takes it: its node is no slave, nor are its cells' nodes, and the
+        # reactions reach its free component (rod/self_contact.py); obstacles' rows not yet
         if support.kind == "sliding" and scene.contact.obstacles:
             raise SceneError(
                 f"structure.supports[{i}].kind: a sliding node holds some of its positions: "
