@@ -347,16 +347,20 @@ def test_the_rod_through_itself_between_nodes_is_found_with_its_place():
     assert where.startswith("s = ") and "passes through itself between its nodes" in reason
 
 
-def jacobian_errors(data: dict, displace, history=None) -> tuple[dict, np.ndarray, np.ndarray]:
+def jacobian_errors(
+    data: dict, displace, history=None, planar: bool = True
+) -> tuple[dict, np.ndarray, np.ndarray]:
     """The Jacobian of the rows against central differences of the residual with its rows, on
     the scene ``data`` at a state ``displace(ux, uz, s, ℓ)`` sets (in place, on the scaled
     displacements along e1 and e3 at the nodes' arc lengths s [m]) plus a random 1e-7, the
     friction's history at ``history(ux, s, ℓ)`` of the state if given (else at rest), each
     node's c held at a random value in [1e6, 2e6] (so that a slave given another's shows).
-    The differences move neither the supports' dofs nor the out-of-plane positions (n keeps
-    n_y = 0 and the tangent basis its branch: T jumps where two of |n|'s components cross;
-    in the plane the slip rows' c dΔ lies along s and is projected out, so the c term is
-    checked by a mix-up of slaves, not by its size). Errors on the rows the pairs write (the
+    The differences move neither the supports' dofs nor, if ``planar``, the out-of-plane
+    positions (n keeps n_y = 0 and the tangent basis its branch: T jumps where two of |n|'s
+    components cross; in the plane the slip rows' c dΔ lies along s and is projected out,
+    so the c term is checked by a mix-up of slaves, not by its size; ``planar`` false: the
+    displacements along e2 random too, and ``displace`` gets them as a fifth argument, for
+    a state whose normal stays away from such a crossing). Errors on the rows the pairs write (the
     slaves' tangential rows) and add to (the partners'), relative to their largest, at
     ε = 1e-6 and 1e-7; the active pairs and their levels (the pairs and states must not
     change within ±ε)."""
@@ -373,8 +377,11 @@ def jacobian_errors(data: dict, displace, history=None) -> tuple[dict, np.ndarra
     rng = np.random.default_rng(2)
     u0 = rng.normal(size=model.U.x.array.size) * 1e-7
     c = 1e6 * (1.0 + rng.random(pairs.owned))  # each slave's own (P.3): a mix-up shows
-    displace(u0[x::bs], u0[z::bs], s, ell)
-    u0[y::bs] = 0.0
+    if planar:
+        displace(u0[x::bs], u0[z::bs], s, ell)
+        u0[y::bs] = 0.0
+    else:
+        displace(u0[x::bs], u0[z::bs], s, ell, u0[y::bs])
     held = np.concatenate([bc.dof_indices()[0] for bc in model.bcs])
     u0[held] = 0.0
 
@@ -392,7 +399,9 @@ def jacobian_errors(data: dict, displace, history=None) -> tuple[dict, np.ndarra
     _, active = rows(u0)
     solver._assemble_jacobian()
     v = rng.normal(size=u0.size)
-    v[y::bs], v[held] = 0.0, 0.0
+    v[held] = 0.0
+    if planar:
+        v[y::bs] = 0.0
     xv, yv = solver.A.createVecs()
     xv.array[:] = v
     solver.A.mult(xv, yv)

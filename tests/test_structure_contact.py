@@ -208,8 +208,11 @@ def test_the_jacobian_at_a_sliding_nodes_cell_is_the_derivative_of_the_rows(fric
     along e1, so that it crosses A inside X's cell (its weights all nonzero), and 5 mm down
     through it; A tilted there by a slope of 0.05 and its nodes moved unevenly along it, so
     that the normal and (with friction, sliding: the history at rest) the force have an x part
-    at X, which X's support takes, and a z part, which X's free row gets. Second order
-    (``assert_second_order``)."""
+    at X, which X's support takes, and a z part, which X's free row gets. Out of the x-z
+    plane (not ``planar``): B also moved 7 mm along its axis e2, so that the slip Δ and the
+    trial force c Δ have a part across the plane, where the slip rows' c dΔ term shows (in
+    the plane it is projected out); n stays near e3, away from a change of T's branch.
+    Second order (``assert_second_order``)."""
     from test_self_contact import assert_second_order, jacobian_errors
 
     from cosserat_fem.rod.model import build_model
@@ -223,13 +226,14 @@ def test_the_jacobian_at_a_sliding_nodes_cell_is_the_derivative_of_the_rows(fric
     x, y, z = contact_rows(model).pairs.everywhere(model.U.x.array).T
     on_b, on_a = z > R, (y == 0.0) & (z == 0.0)
 
-    def displace(ux, uz, s, ell):
+    def displace(ux, uz, s, ell, uy):
+        uy += np.where(on_b, 0.007 / ell, 0.0)
         ux -= np.where(on_b, 0.1 / ell, 0.0)
         uz -= np.where(on_b, 0.005 / ell, 0.0)
         uz += np.where(on_a, 0.05 * (x - 0.4) / ell, 0.0)
         ux += np.where(on_a, 0.003 * np.sin(40 * np.pi * x) / ell, 0.0)
 
-    errors, active, _ = jacobian_errors(data, displace)
+    errors, active, _ = jacobian_errors(data, displace, planar=False)
     assert len(active) == 1 and active[0, 2] == 2, active  # one pair, sliding (or frictionless)
     assert_second_order(errors)
 
