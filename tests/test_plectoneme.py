@@ -160,13 +160,14 @@ def test_a_sliding_end_takes_self_contact_and_its_cells_are_pressed_on():
     that cell, 0.5 r into it, is the slave of a pair on it (against the rule "the later node
     is the slave", which B's nodes would win), and none of B's cell's nodes is a slave. Two
     held cells (A's first, were A sliding too) brought into contact are refused in one line
-    with the place (PartlyHeld): neither side has a slave."""
+    with the place (PartlyHeld): neither side has a slave; apart (at rest, or 0.01 r apart)
+    they pass; at a scene's start the refusal is a SceneError."""
     from mpi4py import MPI
 
     from cosserat_fem.common.errors import SceneError
     from cosserat_fem.nls.pair_contact import PartlyHeld
     from cosserat_fem.rod.model import build_model
-    from cosserat_fem.rod.obstacles import contact_rows
+    from cosserat_fem.rod.obstacles import _check_self_start, contact_rows
     from cosserat_fem.rod.self_contact import SelfContactGeometry
     from cosserat_fem.scene.build import scene_from_dict
 
@@ -180,24 +181,36 @@ def test_a_sliding_end_takes_self_contact_and_its_cells_are_pressed_on():
     assert pairs.held_slots_all[b].tolist() == [True, True, False]
     assert pairs.held_slots_all[a].all() and pairs.held_all.sum() == 2
     (cell,) = geometry.dofs[geometry.held_cells]
-    assert b in cell and set(np.flatnonzero(geometry.masters_only)) == set(cell.tolist())
+    assert b in cell and set(np.flatnonzero(geometry.never_slaves)) == set(cell.tolist())
     x = pairs.everywhere(model.U.x.array)
     middle = int(np.argmin(np.abs(places - 0.5)))
     x[middle] = [1.5 * r, 0.0, x[cell, 2].mean()]
     found = geometry(x)
     (k,) = np.flatnonzero(found.slave == middle)
-    assert b in found.partner[k] and abs(found.gap[k] + 0.5 * r) < 1e-3 * r
-    assert not geometry.masters_only[found.slave].any()
+    assert b in found.partner[k] and abs(found.gap[k] + 0.5 * r) < 1e-9 * r  # a straight cell
+    assert not geometry.never_slaves[found.slave].any()
     partly = np.zeros(len(places), dtype=bool)
     partly[[a, b]] = True
     both = SelfContactGeometry(geometry.dofs, places, r, 2 * r, partly=partly)
     (first,) = both.dofs[both.held_cells & np.isin(both.dofs, a).any(axis=1)]
     x = pairs.everywhere(model.U.x.array)
-    x[first, 0] += 1.5 * r
+    both(x)  # at rest: no pair between the two held cells, nothing refused
+    x[first, 0] += 2.01 * r  # beside B's cell, 0.01 r apart: not touching
     x[first, 2] += x[cell, 2].mean() - x[first, 2].mean()
+    both(x)
+    x[first, 0] -= 0.51 * r  # 0.5 r into it
     with pytest.raises(PartlyHeld, match=r"^contact: the cells of two supports .* touch at") as e:
         both(x)
     assert "\n" not in str(e.value)
+
+    class Start:  # at a scene's start the same is the scene's fault: a SceneError
+        ell, geometry = 1.0, both
+
+        def everywhere(self, u):
+            return x
+
+    with pytest.raises(SceneError, match=r"^contact\.self_contact: at the start, the cells of"):
+        _check_self_start(Start(), model.U.x.array)
 
 
 @functools.cache

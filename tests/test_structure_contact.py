@@ -181,10 +181,14 @@ def test_a_sliding_node_takes_its_free_part_of_the_reaction(reverse):
     held node, X would not move and R would be (P c(b, L) − δ0)/c(b, b), 25 % higher. With
     the members reversed, A's nodes at X would be the slaves by the structure's rule; the
     nodes of X's cells are no slaves (rod/self_contact.py), so B's node presses on A there
-    too. P = 2 P_c, δ0 = 1e-4 m: the error is the geometric nonlinearity's, here O((δ0/L)²)
+    too. P = 2 P_c, δ0 = 1e-4 m: the error is the geometric nonlinearity's, here second order
     (X's turn held, the first-order term of the crossing above vanishes): measured −7.66e-6,
-    −7.79e-8, −7.79e-10 at δ0 = 1e-3, 1e-4, 1e-5 m, both orders alike to 3e-12. Bound 2e-7 at
-    1e-4 m; a reaction part lost or doubled is O(1)."""
+    −7.79e-8, −7.79e-10 at δ0 = 1e-3, 1e-4, 1e-5 m, both orders alike to 3e-12. It is a sum
+    of terms of either sign: one is A's inner half stretching as it bends between R1 and X
+    (both held along e1), N = (3/5) EA w²/a², whose geometric stiffness (6/5) N/a stiffens X
+    by 0.24 (w/r)² relative (A/I = 4/r²), w = R g(a) = 0.2 δ0, so R by +1.9e-7; the measured
+    −7.8e-8 is what is left after the others. Bound 5e-7 at 1e-4 m (about 2.5× the largest
+    term); a reaction part lost or doubled is O(1) (25 % for X's z part)."""
     delta0 = 1e-4
     closing = delta0 / c(B_AT, L)
     scene = sliding_crossing(2 * closing, delta0, reverse)
@@ -194,7 +198,7 @@ def test_a_sliding_node_takes_its_free_part_of_the_reaction(reverse):
     assert len(rows["local"]) == 1
     expected = (2 * closing * c(B_AT, L) - delta0) / (c(B_AT, B_AT) + guided(A_AT))
     force = float(rows["fN"][0] * pairs.force_scale)
-    assert abs(force / expected - 1) < 2e-7, (force, expected)
+    assert abs(force / expected - 1) < 5e-7, (force, expected)
     slave = rows["local"][0] + pairs.start
     x = pairs.everywhere(result.model.U.x.array)
     assert np.abs(x[slave, :2] - [A_AT, 0.0]).max() < 1e-6 and x[slave, 2] > R  # B's, over X

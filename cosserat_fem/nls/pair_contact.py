@@ -247,8 +247,9 @@ class PairContact:
         counts, its weight N_j(ξ) 0 or not: inside a P_k cell (k ≥ 2) a weight vanishes where
         its derivative does not, and the pair's Jacobian then adds to that node's rows.
         ContactChain if the candidates form a cycle (possible on a structure only: on one rod
-        a partner's nodes lie before its slave along the rod). The same on every rank (every
-        rank has all pairs)."""
+        a partner's nodes lie before its slave along the rod, or the partner is a sliding
+        node's cell, which holds no slave). The same on every rank (every rank has all
+        pairs)."""
         count = len(pairs.slave)
         level = np.zeros(count, dtype=np.int64)
         pressing = ~self.held_all[pairs.slave]

@@ -29,7 +29,7 @@ from cosserat_fem.common.errors import SceneError
 from cosserat_fem.common.parallel import agree
 from cosserat_fem.nls.contact import TOUCHING, NodeContact
 from cosserat_fem.nls.contacts import Contacts
-from cosserat_fem.nls.pair_contact import PairContact
+from cosserat_fem.nls.pair_contact import PairContact, PartlyHeld
 from cosserat_fem.rod.self_contact import Members, SelfContactGeometry
 from cosserat_fem.rod.structure import cell_members
 from cosserat_fem.scene.expressions import derivative
@@ -278,9 +278,13 @@ def _check_self_start(pairs: PairContact, u: np.ndarray) -> None:
     """SceneError (on every rank: each finds the same pairs) if a slave starts through its
     partner's surface, beyond round-off (1e-12 ℓ): on a structure, members whose tubes
     overlap where the exclusion at their junctions (rod/self_contact.py (J.1)) leaves them
-    paired, e.g. across a member shorter than the exclusion."""
+    paired, e.g. across a member shorter than the exclusion; or two sliding supports' cells
+    touching (the geometry's PartlyHeld, a scene's fault here)."""
     x = pairs.everywhere(u)
-    found = pairs.geometry(x)
+    try:
+        found = pairs.geometry(x)
+    except PartlyHeld as exc:
+        raise SceneError(f"contact.self_contact: at the start, {exc.reason}") from None
     if not len(found.gap) or found.gap.min() >= -TOUCHING * pairs.ell:
         return
     j = int(np.argmin(found.gap))

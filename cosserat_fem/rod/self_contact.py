@@ -92,8 +92,8 @@ class SelfContactGeometry:
         count = int(dofs.max(initial=-1)) + 1 if partly is None else len(partly)
         partly = np.zeros(count, dtype=bool) if partly is None else np.asarray(partly, bool)
         self.held_cells = partly[dofs].any(axis=1)
-        self.masters_only = np.zeros(count, dtype=bool)
-        self.masters_only[dofs[self.held_cells].ravel()] = True
+        self.never_slaves = np.zeros(count, dtype=bool)
+        self.never_slaves[dofs[self.held_cells].ravel()] = True
         self.radius, self.margin, self.members = radius, margin, members
         self.rod = None if members is None else members.member
         if members is None:
@@ -161,14 +161,14 @@ class SelfContactGeometry:
             inside = np.isin(node * count + member, self.memberships)
             along = self.members.along(node, member) > self.arc[cell, 1]
             later = np.where(inside, along, self.top[node] > member)
-        return ~self.masters_only[node] & (later | self.held_cells[cell])
+        return ~self.never_slaves[node] & (later | self.held_cells[cell])
 
     def _check_held_cells(self, x: np.ndarray, node: np.ndarray, cell: np.ndarray) -> None:
         """PartlyHeld (on every rank: the same positions ``x``) if a node of a held cell
         touches another held cell: neither is a slave (module docstring), so nothing would
         keep them apart. A node's own cells do not count (the Verlet list may pair a
         junction's node with them: never a slave there either)."""
-        both = self.masters_only[node] & self.held_cells[cell]
+        both = self.never_slaves[node] & self.held_cells[cell]
         both &= ~(self.dofs[cell] == node[:, None]).any(axis=1)
         if not both.any():
             return
