@@ -71,8 +71,8 @@ def tangent_bases(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     t2 = np.cross(n, t1)
     eye = np.eye(3)
     da = -(n[:, :, None] * e[:, None, :] + en[:, None, None] * eye)
-    dt1 = np.einsum("kij,kjl->kil", eye - t1[:, :, None] * t1[:, None, :], da) / size[:, None, None]
-    dt2 = -cross_matrix(t1) + np.einsum("kij,kjl->kil", cross_matrix(n), dt1)
+    dt1 = ((eye - t1[:, :, None] * t1[:, None, :]) @ da) / size[:, None, None]
+    dt2 = -cross_matrix(t1) + cross_matrix(n) @ dt1
     return np.stack([t1, t2], axis=1), np.stack([dt1, dt2], axis=1)
 
 

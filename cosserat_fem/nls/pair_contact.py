@@ -258,9 +258,15 @@ class PairContact:
         source, j = np.nonzero(np.broadcast_to(pressing[:, None], pairs.partner.shape))
         target = index[pairs.partner[source, j]]
         source, target = source[target >= 0], target[target >= 0]
+        order = np.argsort(target, kind="stable")  # the edges by target: one reduceat a round
+        source, target = source[order], target[order]
+        heads = np.flatnonzero(np.r_[True, target[1:] != target[:-1]]) if len(target) else order
+        targets = target[heads]
         for _ in range(count + 1):  # the longest paths: at most count rounds without a cycle
             longer = level.copy()
-            np.maximum.at(longer, target, level[source] + 1)
+            if len(targets):
+                deepest = np.maximum.reduceat(level[source] + 1, heads)
+                longer[targets] = np.maximum(level[targets], deepest)
             grew = longer != level
             if not grew.any():
                 return level
