@@ -751,3 +751,28 @@ def test_a_geometry_that_fails_is_a_retried_error_not_a_traceback():
     with pytest.raises(SolverError, match=r"^contact: self contact: ") as e:
         solver._residual()
     assert e.value.retry
+
+
+def test_an_iterate_that_moves_a_node_3_lengths_is_a_retried_error():
+    """A diverging solve's iterate (positions growing geometrically, each rebuilding the
+    search) stops as soon as a node lies more than 3 ℓ from the accepted state: a retried
+    SolverError naming the node's s and the distance; just below 3 ℓ the residual is taken.
+    (No rod node moves 3 ℓ in one step: pair_contact.DIVERGED.)"""
+    from cosserat_fem.analysis.statics import static_solver
+    from cosserat_fem.common.errors import SolverError
+    from cosserat_fem.nls.pair_contact import DIVERGED
+    from cosserat_fem.rod.model import build_model
+
+    scene = scene_from_dict(hairpin(0.0, 0.0245))
+    model = build_model(scene, MPI.COMM_SELF)
+    solver = static_solver(scene, model)
+    ell, y = model.length, model.layout.index(1)
+    end = int(np.argmax(model.V.tabulate_dof_coordinates()[:, 0]))  # s = ℓ: D
+    u = model.U.x.array
+    u[end * model.layout.size + y] = 0.99 * DIVERGED  # scaled by ℓ: just within (across)
+    solver._residual()
+    u[end * model.layout.size + y] = 1.01 * DIVERGED
+    moved = r"^contact: self contact: an iterate moved the node at s = 1\.95 m"
+    with pytest.raises(SolverError, match=moved) as e:
+        solver._residual()
+    assert e.value.retry and f"{1.01 * DIVERGED * ell:.3g} m" in str(e.value)

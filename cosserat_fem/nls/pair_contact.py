@@ -86,6 +86,12 @@ from cosserat_fem.nls.contact import (
 #: how deep [in radii] the rod's parts may pass through each other between the nodes before
 #: a step is rejected (the issue's bound for a capstan's penetration: 1 % of the radius)
 BETWEEN_NODES = 1e-2
+#: how far [in ℓ] an iterate may move a node from the last accepted state before its solve is
+#: taken as diverged and its step retried smaller: no node of a rod of length ℓ moves 3 ℓ in a
+#: step (a cantilever's end flipping over its clamp moves 2 ℓ), and a diverging full Newton
+#: grows its iterates geometrically (0.03, 0.07, 0.5, 42, 8e5 m on the thin plectoneme), each
+#: costing the search a rebuild; docs/decisions.md, "A diverging iterate stops at 3 ℓ"
+DIVERGED = 3.0
 
 
 @dataclass(frozen=True)
@@ -214,6 +220,16 @@ class PairContact:
         friction), level by level (P.5); whether the active set or a state changed on any
         rank since the last iterate (collective)."""
         self._x = self.everywhere(u)
+        moved = np.linalg.norm(self._x - self.x_old, axis=1)  # every rank: the same answer
+        far = int(np.argmax(moved)) if len(moved) else 0
+        if len(moved) and moved[far] > DIVERGED * self.ell:
+            raise SolverError(
+                f"self contact: an iterate moved the node at s = {self.places_all[far]:.4g} m "
+                f"{moved[far]:.3g} m from the accepted state, more than {DIVERGED:g} ℓ "
+                "(a diverging solve)",
+                where="contact",
+                retry=True,
+            )
         try:  # the same positions on every rank: the same answer, or the same error
             pairs = self.geometry(self._x)
         except FloatingPointError as exc:  # a diverged iterate, a degenerate closest point
