@@ -260,6 +260,19 @@ def test_compiler_warnings_do_not_reach_stderr(tmp_path, capfd, space, installed
     assert capfd.readouterr().err == ""
 
 
+def test_a_compile_leaves_no_object_and_an_empty_source_that_plain_ffcx_still_loads(tmp_path):
+    """After a compile (a process with install): no ``.o`` and an empty ``.c``
+    (:func:`jit._trim`), the library and ``.c.cached`` in place; plain FFCx (a process
+    without install) then loads the module from the cache instead of compiling it again, as
+    with the full source (its marker is the file, not its content)."""
+    cache, value = tmp_path / "cache", constant()
+    assert run({"install": True, "cache": str(cache), "constant": value})["compiled"] is True
+    assert files(cache, ".c.cached") and files(cache, ".so") and not files(cache, ".o")
+    (source,) = files(cache, ".c")
+    assert source.stat().st_size == 0
+    assert run({"install": False, "cache": str(cache), "constant": value})["compiled"] is False
+
+
 def test_compile_failure_is_one_line_naming_the_log(tmp_path, capfd, space, installed):
     """A failing C compile (a header with #error forced in by -include) raises one line with
     the compiler's first error and the path of the full log. Plain FFCx raises cffi's

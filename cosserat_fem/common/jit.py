@@ -26,6 +26,8 @@ FFCx and ``dolfinx.jit`` look up at call time) so that
   path of the full log, ``<cache>/<module>.log``.
 * an interrupted compile (KeyboardInterrupt, SystemExit) renames ``.c`` to ``.c.failed`` as
   FFCx does for errors, so that even processes without :func:`install` are not blocked.
+* a compile that succeeded leaves no object file and an empty ``.c`` (the marker FFCx reads),
+  not the source: 70 % of a cache's size (:func:`_trim`).
 * a damaged library in the cache (a partial copy of the cache, a disk error) is found before it
   is loaded and compiled again, with a warning naming it: FFCx trusts ``.c.cached``, and a
   library cut short is mapped by ``dlopen`` past its end, so the first call into it dies of
@@ -416,6 +418,19 @@ def _mark_interrupted(c_file: Path) -> None:
             os.replace(c_file, c_file.with_suffix(".c.failed"))
 
 
+def _trim(cache_dir: Path, module_name: str) -> None:
+    """After a compile that succeeded: its object file removed and its source emptied (70 %
+    of a cache: 49 and 129 of 254 MB measured), neither read again. The empty ``.c`` stays:
+    plain FFCx takes an existing ``.c`` for "compiled or compiling" and loads the library once
+    ``.c.cached`` is there; without it, it would compile the module again. The locks stay
+    too: a lock file removed while another process has it open would let a third lock a new
+    file of the same name at once."""
+    with contextlib.suppress(OSError):
+        (cache_dir / (module_name + ".o")).unlink()
+    with contextlib.suppress(OSError):
+        os.truncate(cache_dir / (module_name + ".c"), 0)
+
+
 def _remove_leftovers(cache_dir: Path, module_name: str) -> None:
     """Files of a compile that died, or of a damaged module: source, object, library, its
     digest and the ``.c.cached`` marker (removed first: a reader then takes the lock)."""
@@ -530,6 +545,7 @@ def _compile_objects(
         if captured.text.strip():  # warnings of a compile that succeeded: shown at --verbose
             LOGGER.info("C compiler output for %s:\n%s", module_name, captured.text.rstrip())
         record_digest(_library(cache_dir, module_name))
+        _trim(cache_dir, module_name)
         return result
     except BaseException as exc:
         if not isinstance(exc, Exception):  # FFCx's own clean-up runs on Exception only
