@@ -370,11 +370,11 @@ def solve_eigenproblem(problem: ModalProblem, count: int) -> list[Mode]:
     scale = max((abs(lam) for lam, _ in pairs), default=1.0)
     rigid = problem.model.scene.rigid_body_modes()
     modes = []
-    for i, (lam, shape) in enumerate(pairs[:count]):
+    every = _energy_fractions([shape for _, shape in pairs[:count]], weights)
+    for i, ((lam, shape), fractions) in enumerate(zip(pairs[:count], every, strict=True)):
         omega, note = angular_frequency(lam, problem.model.omega0, scale)
         if i < rigid:  # λ = 0 to the round-off of K's largest eigenvalues, of either sign
             omega, note = 0.0, f"rigid-body mode (λ = {lam.real:.2g}, round-off)"
-        fractions = _energy_fractions(shape, weights)
         kind = max(fractions, key=fractions.__getitem__)
         modes.append(Mode(omega, kind, fractions, _normalised(shape), lam, note))
     eps.destroy()
@@ -389,16 +389,28 @@ def _kinetic_weights(model: RodModel) -> np.ndarray:
     return np.array([trans] * 3 + [rod.density * c for c in rod.rotary_inertias])
 
 
-def _energy_fractions(shape: fem.Function, weights: np.ndarray) -> dict[str, float]:
-    """The part of the kinetic energy Σ_i ∫ w_i φ_i² dσ of mode ``shape`` in each kind of motion
-    (KINDS), ``weights`` w from :func:`_kinetic_weights` (collective)."""
-    comm = shape.function_space.mesh.comm
-    per_component = []
-    for i in range(6):
-        form = fem.form(weights[i] * shape[i] ** 2 * ufl.dx)
-        per_component.append(comm.allreduce(fem.assemble_scalar(form), op=MPI.SUM))
-    total = sum(per_component)
-    return {kind: sum(per_component[i] for i in idx) / total for kind, idx in _GROUPS.items()}
+def _energy_fractions(
+    shapes: list[fem.Function], weights: np.ndarray
+) -> list[dict[str, float]]:
+    """The part of the kinetic energy Σ_i w_i ∫ φ_i² dσ of each mode in ``shapes`` in each
+    kind of motion (KINDS), ``weights`` w from :func:`_kinetic_weights` (collective). The six
+    forms ∫ u_i² dσ are built once, on a Function the shapes are copied into (the weights
+    outside them: one compiled form whatever the rod)."""
+    if not shapes:
+        return []
+    space = shapes[0].function_space
+    comm, u = space.mesh.comm, fem.Function(space)
+    forms = [fem.form(u[i] ** 2 * ufl.dx) for i in range(6)]
+    every = []
+    for shape in shapes:
+        u.x.array[:] = shape.x.array
+        local = np.array([fem.assemble_scalar(form) for form in forms])
+        per_component = weights * comm.allreduce(local, op=MPI.SUM)
+        total = per_component.sum()
+        every.append(
+            {kind: float(per_component[list(idx)].sum() / total) for kind, idx in _GROUPS.items()}
+        )
+    return every
 
 
 def _normalised(shape: fem.Function) -> fem.Function:
