@@ -389,9 +389,7 @@ def _kinetic_weights(model: RodModel) -> np.ndarray:
     return np.array([trans] * 3 + [rod.density * c for c in rod.rotary_inertias])
 
 
-def _energy_fractions(
-    shapes: list[fem.Function], weights: np.ndarray
-) -> list[dict[str, float]]:
+def _energy_fractions(shapes: list[fem.Function], weights: np.ndarray) -> list[dict[str, float]]:
     """The part of the kinetic energy Σ_i w_i ∫ φ_i² dσ of each mode in ``shapes`` in each
     kind of motion (KINDS), ``weights`` w from :func:`_kinetic_weights` (collective). The six
     forms ∫ u_i² dσ are built once, on a Function the shapes are copied into (the weights
