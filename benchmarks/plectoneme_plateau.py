@@ -16,11 +16,14 @@
 # displacement [m], the active self-contact pairs and the least gaps. The plateau's figures
 # are the torque's mean and spread over a window of twist [Φ_a, Φ_b] after the strands meet.
 #
-#     .venv/bin/python benchmarks/plectoneme_plateau.py [cells ...] [--end t]   # default 240 300
+#     .venv/bin/python benchmarks/plectoneme_plateau.py [cells ...] [--end t] [--out DIR]
+#     .venv/bin/python benchmarks/plectoneme_plateau.py --restart DIR [--end t]
 #
 # ``--end t`` [s] stops the runs at t (the scene's end, 80 s, otherwise): the steps after the
 # strands meet are slow (docs/plectoneme.md), so a run to just past the contact is the one
-# that ends in minutes.
+# that ends in minutes. ``--out DIR`` keeps each run's outputs and checkpoints (every 0.5 s
+# of t, and where it stops) in DIR/<cells>; ``--restart DIR`` continues such a run from its
+# last checkpoint (the rows then start there).
 # %%
 from __future__ import annotations
 
@@ -58,23 +61,37 @@ def closed_form(scene) -> dict[str, float]:
     return {**forms, "r": r, "ply": math.sqrt(2 * forms["EI"] * forms["T"])}
 
 
-def run(cells: int, end: float | None = None) -> tuple[np.ndarray, float, dict]:
+#: how often a run with ``--out`` writes a checkpoint [s of t]
+CHECKPOINTS = 0.5
+
+
+def run(
+    cells: int, end: float | None = None, out: Path | None = None, restart: Path | None = None
+) -> tuple[np.ndarray, float, dict]:
     """The rows (steps, 8) of plectoneme_run's ``Record`` with column 1 the twist Φ(t), on
-    ``cells`` P3 cells (half on each member), up to ``end`` [s] (the scene's if None); the
-    run's wall time [s]; its closed forms (:func:`closed_form`), with "failure" the message of
-    a run that stopped and "failed_at" the twist it stopped at."""
-    data = tomllib.loads(SCENE.read_text())
-    for member in data["structure"]["members"]:
-        member["elements"] = cells // 2
-    if end is not None:
-        data["time"]["end"] = end
-    data.pop("output")
-    scene = api.load(data, ())
+    ``cells`` P3 cells (half on each member), up to ``end`` [s] (the scene's if None), its
+    outputs and checkpoints in ``out`` if given, or continuing the run in ``restart`` from its
+    last checkpoint (``cells`` then unused); the run's wall time [s]; its closed forms
+    (:func:`closed_form`), with "failure" the message of a run that stopped and "failed_at"
+    the twist it stopped at."""
+    checkpoint = None
+    if restart is not None:
+        overrides = {"output.checkpoint_interval": CHECKPOINTS}
+        scene, checkpoint = api.resume(restart, {**overrides, "time.end": end or 80.0})
+    else:
+        data = tomllib.loads(SCENE.read_text())
+        for member in data["structure"]["members"]:
+            member["elements"] = cells // 2
+        if end is not None:
+            data["time"]["end"] = end
+        data["output"] = {"checkpoint_interval": CHECKPOINTS, "xdmf_interval": 0.5}
+        scene = api.load(data, ())
     record = Record(1.0)
     forms = closed_form(scene)
+    forms["cells"] = sum(member.elements for member in scene.structure.members)
     start = time.perf_counter()
     try:
-        api.run(scene, None, observers=[record], record=False)
+        api.run(scene, out, observers=[record], record=False, restart=checkpoint)
     except (CosseratError, FloatingPointError) as exc:  # the latter: see docs/plectoneme.md
         forms["failure"] = str(exc)
         forms["failed_at"] = float(twist(record.attempted, scene.parameters))
@@ -130,14 +147,20 @@ def report(cells: int, rows: np.ndarray, wall: float, forms: dict) -> None:
 if __name__ == "__main__" and MPI.COMM_WORLD.size == 1:
     window = (50.0, 54.0)  # rad: after the snap (docs/plectoneme.md)
     args = sys.argv[1:]
-    end = None
-    if "--end" in args:
-        at = args.index("--end")
-        end = float(args[at + 1])
-        del args[at : at + 2]
+    options: dict[str, str] = {}
+    for name in ("--end", "--out", "--restart"):
+        if name in args:
+            at = args.index(name)
+            options[name] = args[at + 1]
+            del args[at : at + 2]
+    end = float(options["--end"]) if "--end" in options else None
+    out = Path(options["--out"]) if "--out" in options else None
+    restart = Path(options["--restart"]) if "--restart" in options else None
     results = {}
-    for cells in [int(a) for a in args] or [240, 300]:
-        rows, wall, forms = run(cells, end)
+    for cells in [int(a) for a in args] or ([0] if restart else [240, 300]):
+        folder = None if out is None else out / str(cells)
+        rows, wall, forms = run(cells, end, folder, restart)
+        cells = forms["cells"]
         report(cells, rows, wall, forms)
         results[cells] = plateau(rows, forms, window)
         print(f"  plateau over Φ in {window}: {results[cells]}")

@@ -272,7 +272,7 @@ def test_the_twisted_rod_in_time_snaps_until_its_strands_meet_without_passing_th
         assert failure is None or ("\n" not in failure and "s = " in failure)
 
 
-def test_the_plateau_scene_twists_its_straight_rod_as_gj_over_l():
+def test_the_plateau_scene_twists_its_straight_rod_as_gj_over_l(tmp_path):
     """scenes/plectoneme_plateau.toml (r = L/200, T = 300 EI/L², the twist 2 rad/s up to t1,
     a point imperfection at mid-span; docs/plectoneme.md "Towards the plateau") on 16 P3
     cells for its first 2 s (~1 s of wall): the torque at the clamp against the twist
@@ -280,10 +280,18 @@ def test_the_plateau_scene_twists_its_straight_rod_as_gj_over_l():
     [1, 4] rad within 1e-4 (the straight rod: M = GJ Φ/L; the imperfection's lateral sag,
     w/L ~ 5e-3, changes it at (w/L)² ~ 3e-5; measured −2.4e-5), so the benchmark's Φ(t) is
     the scene's turn of B (a wrong rate or t1 would move it by its own relative error); and
-    the torque's plateau over a window the run did not reach is nan (``plateau``)."""
+    the torque's plateau over a window the run did not reach is nan (``plateau``). The
+    benchmark's ``--out``/``--restart``: a run to 1 s kept in a folder and continued from its
+    checkpoint to 2 s starts its rows after 1 s and ends with the uninterrupted run's torque
+    at 2 s within 1e-4 (both the straight rod's GJ Φ/L to 3e-5; the steps differ, the first
+    run's last one cut at 1 s)."""
     from plectoneme_plateau import plateau, run
 
     rows, _, forms = run(16, end=2.0)
+    run(16, end=1.0, out=tmp_path)
+    later, _, _ = run(0, end=2.0, restart=tmp_path)
+    assert 1.0 < later[0, 0] < later[-1, 0] == rows[-1, 0] == 2.0
+    assert abs(later[-1, 2] / rows[-1, 2] - 1) < 1e-4, later[-1, 2] / rows[-1, 2] - 1
     phi, M = rows[:, 1], rows[:, 2]
     straight = (phi >= 1.0) & (phi <= 4.0)
     slope = np.polyfit(phi[straight], M[straight], 1)[0]
