@@ -53,8 +53,8 @@ fully held node: the sampled check between nodes does not look at the nodes them
 node held in part (a sliding support: held across its axis, free along it) keeps the free
 component of the reactions (P.2)/(P.4) in its balance row along the axis; it is no slave,
 nor is any node of its cells, which the other parts' nodes press on instead
-(rod/self_contact.py): a slave row there could close a gap across the held directions only
-by a force n·e/(n·e) that a lateral contact (n ⊥ e) leaves undetermined.
+(rod/self_contact.py): a slave row there would read its normal force from its one free
+balance row, f_N = F_e/(n·e), which a lateral contact (n ⊥ e) leaves undetermined.
 
 Under MPI every rank holds every node's position (an Allgatherv an iterate: 24 bytes a node)
 and finds the same pairs; each rank writes the rows of the slaves it owns, and the reactions
