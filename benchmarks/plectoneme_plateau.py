@@ -22,8 +22,9 @@
 # ``--end t`` [s] stops the runs at t (the scene's end, 80 s, otherwise): the steps after the
 # strands meet are slow (docs/plectoneme.md), so a run to just past the contact is the one
 # that ends in minutes. ``--out DIR`` keeps each run's outputs and checkpoints (every 0.5 s
-# of t, and where it stops) in DIR/<cells>; ``--restart DIR`` continues such a run from its
-# last checkpoint (the rows then start there).
+# of t, and where it stops) in DIR/<cells>; ``--restart DIR/<cells>`` continues such a run
+# from its last checkpoint in the same folder (the rows then start there; to the scene's end
+# without ``--end``).
 # %%
 from __future__ import annotations
 
@@ -71,13 +72,17 @@ def run(
     """The rows (steps, 8) of plectoneme_run's ``Record`` with column 1 the twist Φ(t), on
     ``cells`` P3 cells (half on each member), up to ``end`` [s] (the scene's if None), its
     outputs and checkpoints in ``out`` if given, or continuing the run in ``restart`` from its
-    last checkpoint (``cells`` then unused); the run's wall time [s]; its closed forms
+    last checkpoint, there (``cells`` and ``out`` then unused); the run's wall time [s]; its
+    closed forms
     (:func:`closed_form`), with "failure" the message of a run that stopped and "failed_at"
     the twist it stopped at."""
     checkpoint = None
     if restart is not None:
-        overrides = {"output.checkpoint_interval": CHECKPOINTS}
-        scene, checkpoint = api.resume(restart, {**overrides, "time.end": end or 80.0})
+        overrides: dict = {"output.checkpoint_interval": CHECKPOINTS}
+        if end is not None:
+            overrides["time.end"] = end
+        scene, checkpoint = api.resume(restart, overrides)
+        out = restart
     else:
         data = tomllib.loads(SCENE.read_text())
         for member in data["structure"]["members"]:

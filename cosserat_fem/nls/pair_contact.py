@@ -86,11 +86,13 @@ from cosserat_fem.nls.contact import (
 #: how deep [in radii] the rod's parts may pass through each other between the nodes before
 #: a step is rejected (the issue's bound for a capstan's penetration: 1 % of the radius)
 BETWEEN_NODES = 1e-2
-#: how far [in ℓ] an iterate may move a node from the last accepted state before its solve is
-#: taken as diverged and its step retried smaller: no node of a rod of length ℓ moves 3 ℓ in a
-#: step (a cantilever's end flipping over its clamp moves 2 ℓ), and a diverging full Newton
-#: grows its iterates geometrically (0.03, 0.07, 0.5, 42, 8e5 m on the thin plectoneme), each
-#: costing the search a rebuild; docs/decisions.md, "A diverging iterate stops at 3 ℓ"
+#: how far [in ℓ] an iterate may move a node from the last accepted state, the nodes' mean
+#: motion taken out, before its solve is taken as diverged and its step retried smaller. Every
+#: node of a connected rod or structure of length ℓ lies within ℓ (1 + ε) of the nodes' mean
+#: at strains ε, so whatever the step (a free rod's flight, a support's motion, a rotation) no
+#: node moves more than 2 ℓ (1 + ε) relative to the mean; a diverging full Newton grows its
+#: iterates geometrically (0.03, 0.07, 0.5, 42, 8e5 m on the thin plectoneme), each costing
+#: the search a rebuild; docs/decisions.md, "A diverging iterate stops at 3 ℓ"
 DIVERGED = 3.0
 
 
@@ -220,13 +222,14 @@ class PairContact:
         friction), level by level (P.5); whether the active set or a state changed on any
         rank since the last iterate (collective)."""
         self._x = self.everywhere(u)
-        moved = np.linalg.norm(self._x - self.x_old, axis=1)  # every rank: the same answer
+        step = self._x - self.x_old  # every rank: the same answer
+        moved = np.linalg.norm(step - step.mean(axis=0), axis=1) if len(step) else step[:, 0]
         far = int(np.argmax(moved)) if len(moved) else 0
         if len(moved) and moved[far] > DIVERGED * self.ell:
             raise SolverError(
                 f"self contact: an iterate moved the node at s = {self.places_all[far]:.4g} m "
-                f"{moved[far]:.3g} m from the accepted state, more than {DIVERGED:g} ℓ "
-                "(a diverging solve)",
+                f"{moved[far]:.3g} m from the accepted state relative to the nodes' mean, more "
+                f"than {DIVERGED:g} ℓ (a diverging solve)",
                 where="contact",
                 retry=True,
             )
@@ -276,7 +279,11 @@ class PairContact:
         source, target = source[target >= 0], target[target >= 0]
         order = np.argsort(target, kind="stable")  # the edges by target: one reduceat a round
         source, target = source[order], target[order]
-        heads = np.flatnonzero(np.r_[True, target[1:] != target[:-1]]) if len(target) else order
+        heads = (
+            np.flatnonzero(np.r_[True, target[1:] != target[:-1]])
+            if len(target)
+            else np.zeros(0, dtype=np.int64)
+        )
         targets = target[heads]
         for _ in range(count + 1):  # the longest paths: at most count rounds without a cycle
             longer = level.copy()
