@@ -213,13 +213,19 @@ def test_a_sliding_end_takes_self_contact_and_its_cells_are_pressed_on():
         _check_self_start(Start(), model.U.x.array)
 
 
+#: where the runs in time end [s]: Φ = 33 rad, past the strands' meeting (32.34 rad); the
+#: scene's 45 s would now run on past B's touching (no longer a stop: a sliding support's
+#: cells are pressed on) into the slow steps after the contact
+IN_TIME_END = 33.0
+
+
 @functools.cache
 def in_time(cells: int):
-    """scenes/plectoneme.toml on ``cells`` P3 cells (benchmarks/plectoneme_run.py ``run``):
-    its rows, wall time and closed forms."""
+    """scenes/plectoneme.toml on ``cells`` P3 cells (benchmarks/plectoneme_run.py ``run``) to
+    t = IN_TIME_END: its rows, wall time and closed forms."""
     from plectoneme_run import run
 
-    return run(cells)
+    return run(cells, (f"time.end={IN_TIME_END}",))
 
 
 @pytest.mark.long
@@ -246,7 +252,8 @@ def test_the_twisted_rod_in_time_snaps_until_its_strands_meet_without_passing_th
     guard's bound, which rejects deeper states; measured −1.0e-2 r on 64 cells, its last
     state before the guard stops it, and −9.5e-3 r on 96);
     (5) a run that stops does so in one line naming the place s (64 cells: the guard at
-    Φ = 32.630 rad; 96 cells: B's sliding node touching at Φ = 33.001 rad, 26 pairs)."""
+    Φ = 32.630 rad; 96 cells: it reaches IN_TIME_END, where B's sliding node touched
+    the ply before B's cells were pressed on)."""
     rows, _, forms = in_time(64)
     r, GJ, phi_c = 0.5 * forms["diameter"], forms["GJ"], forms["phi_c"]
     t, phi, M, dz, w, pairs, node_gap, between = rows.T
