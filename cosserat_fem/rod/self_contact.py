@@ -168,6 +168,8 @@ class SelfContactGeometry:
         touches another held cell: neither is a slave (module docstring), so nothing would
         keep them apart. A node's own cells do not count (the Verlet list may pair a
         junction's node with them: never a slave there either)."""
+        if not self.held_cells.any():  # no sliding node: nothing to check at each iterate
+            return
         both = self.never_slaves[node] & self.held_cells[cell]
         both &= ~(self.dofs[cell] == node[:, None]).any(axis=1)
         if not both.any():
