@@ -43,6 +43,9 @@ import math
 
 import numpy as np
 import pytest
+import ufl
+from dolfinx import fem
+from dolfinx.mesh import create_unit_interval
 from mpi4py import MPI
 from rod_energy import EnergyMonitor
 from test_contact import RHO, W, rod_on_plane
@@ -51,6 +54,7 @@ from cosserat_fem import api
 from cosserat_fem.rod.model import build_model
 from cosserat_fem.scene.build import scene_from_dict
 from cosserat_fem.timestepping.events import Observer
+from cosserat_fem.timestepping.integrators import make_integrator
 
 TILT = math.atan(0.02)
 #: E(0) [J] of the flat drop: w L × 1 mm
@@ -431,6 +435,60 @@ def test_adaptive_steps_take_the_impacts_too(integrator, rho_inf):
         assert worst <= (1.23e-3 + start) * (h_max / 1e-3) ** 2, (rtol, worst, h_max)
         assert worst <= 0.02, (rtol, worst)
         assert out["gap"] >= -1e-15
+
+
+class Restarts(Observer):
+    """The times [s] of the accepted steps after which BDF2 goes back to its own steps (its
+    next step the first after the midpoint steps: ``BDF2.restart``)."""
+
+    def __init__(self) -> None:
+        self.times: list[float] = []
+
+    def step_accepted(self, loop) -> None:
+        if loop.integrator._restarted:
+            self.times.append(loop.state.t)
+
+
+def test_bdf2_restarts_bit_for_bit_at_its_first_step_after_the_impact(tmp_path):
+    """BDF2, flat drop at 1 ms: the first step after the midpoint steps starts Newton from
+    U_n (``BDF2.restart``), which the checkpoint keeps: to 60 ms in one go, and to the step
+    after which BDF2 restarts, then restarted from its checkpoint there, are the same states,
+    bit for bit."""
+    restarts = Restarts()
+    data = drop("bdf2", 1e-3, tilted=False, end=0.06)
+    data["output"] = {"checkpoint_interval": 1e-3}
+    whole = api.run(scene_from_dict(data), tmp_path / "whole", observers=(restarts,))
+    assert restarts.times, "the drop lands: midpoint steps, then BDF2 again"
+    at = round(restarts.times[0], 6)
+    part = {**data, "time": {**data["time"], "end": at}}
+    api.run(scene_from_dict(part), tmp_path / "part")
+    scene, checkpoint = api.resume(tmp_path / "part", ["time.end=0.06"])
+    rest = api.run(scene, restart=checkpoint)
+    assert np.array_equal(whole.model.U.x.array, rest.model.U.x.array)
+    assert whole.summary["contact"] == rest.summary["contact"]
+
+
+def test_bdf2s_first_step_after_midpoint_steps_starts_from_u_n():
+    """BDF2's predictor on a two-dof space: the linear extrapolation (1 + ω) U_n − ω U_{n−1}
+    after two steps, U_n itself at the first step after :meth:`BDF2.restart`, and the
+    extrapolation again after that step."""
+    mesh = create_unit_interval(MPI.COMM_SELF, 1)
+    U = fem.Function(fem.FunctionSpace(mesh, ("Lagrange", 1)))
+    v = ufl.TestFunction(U.function_space)
+    bdf2 = make_integrator("bdf2", U, lambda u, udot, t: udot * v * ufl.dx, 0.0)
+    for value in (1.0, 3.0):
+        bdf2.prepare(0.1)
+        U.x.array[:] = value
+        bdf2.accept(0.1)
+    bdf2.prepare(0.2)  # ω = 2
+    assert np.allclose(U.x.array, 3.0 * 3.0 - 2.0 * 1.0)
+    bdf2.restart(None, "petsc")
+    bdf2.prepare(0.2)
+    assert np.array_equal(U.x.array, [3.0, 3.0])
+    U.x.array[:] = 4.0
+    bdf2.accept(0.2)
+    bdf2.prepare(0.2)  # ω = 1
+    assert np.allclose(U.x.array, 2.0 * 4.0 - 3.0)
 
 
 def test_a_run_among_the_midpoint_steps_restarts_bit_for_bit(tmp_path):

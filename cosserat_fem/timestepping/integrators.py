@@ -248,6 +248,9 @@ class BDF2(Integrator):
         self.a0, self.a1, self.a2 = (_constant(U) for _ in range(3))
         self.mid = _constant(U, 1.0)  # 1 for the midpoint start, 0 for BDF2 steps
         self.h_prev: float | None = None
+        #: the next BDF2 step is the first after midpoint steps (:meth:`restart`): its
+        #: predictor is U_n, not the extrapolation
+        self._restarted = False
         self._arrays()
 
     def _arrays(self) -> None:
@@ -271,7 +274,8 @@ class BDF2(Integrator):
     def prepare(self, h: float) -> None:
         """First step (and every step after ``use_one_step(True)``): the implicit-midpoint step
         from U = U_n; later steps: the BDF2 coefficients for ω = h/h_prev and the linear
-        predictor."""
+        predictor, except for the first step after midpoint steps (:meth:`restart`), which
+        starts from U = U_n."""
         self.unknown_time = self.time + h
         if self.h_prev is None or self._one_step:  # implicit-midpoint start
             self.mid.value = 1.0
@@ -285,8 +289,10 @@ class BDF2(Integrator):
         self.a1.value = -(1.0 + w) / h
         self.a2.value = w * w / ((1.0 + w) * h)
         self.time_eval.value = self.time + h
-        # Predictor: linear extrapolation through U_{n-1}, U_n.
-        self._u[:] = (1.0 + w) * self._un - w * self._unm1
+        if self._restarted:
+            self._u[:] = self._un
+        else:  # Predictor: linear extrapolation through U_{n-1}, U_n.
+            self._u[:] = (1.0 + w) * self._un - w * self._unm1
 
     def use_one_step(self, on: bool) -> None:
         """Midpoint steps from the next one on (``on``), or BDF2 again: its formula then reads
@@ -294,10 +300,19 @@ class BDF2(Integrator):
         needed)."""
         self._one_step = bool(on)
 
+    def restart(self, problem, lu_package: str) -> None:
+        """The first BDF2 step after midpoint steps starts Newton from U_n: U_{n−1} and U_n
+        are midpoint states around impacts, whose rates alternate (a pressed node's normal
+        velocity flips each undamped midpoint step), and their extrapolation would start
+        Newton from (1 + 2ω) times a flipped rate (docs/decisions.md, "BDF2's first
+        step after impacts")."""
+        self._restarted = True
+
     def accept(self, h: float) -> None:
         self._unm1[:] = self._un
         self._un[:] = self._u
         self.h_prev = h
+        self._restarted = False
         super().accept(h)
 
     def last_accepted(self) -> np.ndarray:
@@ -312,12 +327,14 @@ class BDF2(Integrator):
         self.U_nm1.x.array[:] = state_map(self.U_nm1.x.array)
 
     def state_dict(self) -> dict:
-        """Adds U_n, U_{n−1} and h_prev (NaN before the first step, which is the midpoint start)."""
+        """Adds U_n, U_{n−1}, h_prev (NaN before the first step, which is the midpoint start)
+        and whether the next step is the first after midpoint steps (1.0 or 0.0)."""
         return {
             **super().state_dict(),
             "U_n": self.space.to_full(self._un),
             "U_nm1": self.space.to_full(self._unm1),
             "h_prev": np.nan if self.h_prev is None else self.h_prev,
+            "restarted": float(self._restarted),
         }
 
     def load_state_dict(self, state: dict) -> None:
@@ -327,6 +344,7 @@ class BDF2(Integrator):
         self._unm1[:] = self.space.from_full(state["U_nm1"])
         h_prev = float(state["h_prev"])
         self.h_prev = None if np.isnan(h_prev) else h_prev
+        self._restarted = bool(state.get("restarted", 0.0))  # checkpoints before it: False
 
 
 def alpha_parameters(rho_inf: float) -> tuple[float, float, float]:
