@@ -22,9 +22,11 @@
 # ``--end t`` [s] stops the runs at t (the scene's end, 80 s, otherwise): the steps after the
 # strands meet are slow (docs/plectoneme.md), so a run to just past the contact is the one
 # that ends in minutes. ``--out DIR`` keeps each run's outputs and checkpoints (every 0.5 s
-# of t, and where it stops) in DIR/<cells>; ``--restart DIR/<cells>`` continues such a run
-# from its last checkpoint in the same folder (the rows then start there; to the scene's end
-# without ``--end``).
+# of t, and where it stops) in DIR/<cells>, and its rows in DIR/<cells>/rows.npy (every
+# ROWS_EVERY steps: a run killed keeps them); ``--restart DIR/<cells>`` continues such a run
+# from its last checkpoint in the same folder (to the scene's end without ``--end``), its rows
+# after those kept up to the checkpoint, so that the plateau is taken over the whole run
+# however often it was continued.
 # %%
 from __future__ import annotations
 
@@ -64,6 +66,46 @@ def closed_form(scene) -> dict[str, float]:
 
 #: how often a run with ``--out`` writes a checkpoint [s of t]
 CHECKPOINTS = 0.5
+#: how often a run with ``--out`` writes its rows [accepted steps]
+ROWS_EVERY = 20
+
+
+class Kept(Record):
+    """:class:`plectoneme_run.Record` whose rows, after ``earlier`` (a continued run's rows up
+    to its checkpoint), are written to ``path`` every ROWS_EVERY accepted steps and at the
+    end (:meth:`save`), column 1 the scene's twist (:func:`twist` of its ``parameters``)."""
+
+    def __init__(self, path: Path, earlier: np.ndarray, parameters: dict) -> None:
+        super().__init__(1.0)
+        self.path, self.earlier, self.parameters = path, earlier, parameters
+
+    def step_accepted(self, loop) -> None:
+        super().step_accepted(loop)
+        if len(self.rows) % ROWS_EVERY == 0:
+            self.save()
+
+    def whole(self) -> np.ndarray:
+        """The earlier rows and this run's, (steps, 8)."""
+        rows = np.concatenate([self.earlier, np.array(self.rows).reshape(-1, 8)])
+        rows[:, 1] = twist(rows[:, 0], self.parameters)
+        return rows
+
+    def save(self) -> None:
+        """The rows to ``path``, through a temporary file (a kill leaves the old or the new)."""
+        partial = self.path.with_suffix(".partial.npy")
+        np.save(partial, self.whole())
+        partial.replace(self.path)
+
+
+def kept_rows(folder: Path, checkpoint_time: float) -> np.ndarray:
+    """The rows a run in ``folder`` kept, up to ``checkpoint_time`` [s] (a run killed after
+    its last checkpoint wrote later ones, which the continued run takes again); none if it
+    kept no rows."""
+    path = folder / "rows.npy"
+    if not path.exists():
+        return np.zeros((0, 8))
+    rows = np.load(path)
+    return rows[rows[:, 0] <= checkpoint_time * (1 + 1e-12)]
 
 
 def run(
@@ -71,18 +113,20 @@ def run(
 ) -> tuple[np.ndarray, float, dict]:
     """The rows (steps, 8) of plectoneme_run's ``Record`` with column 1 the twist Φ(t), on
     ``cells`` P3 cells (half on each member), up to ``end`` [s] (the scene's if None), its
-    outputs and checkpoints in ``out`` if given, or continuing the run in ``restart`` from its
-    last checkpoint, there (``cells`` and ``out`` then unused); the run's wall time [s]; its
-    closed forms
-    (:func:`closed_form`), with "failure" the message of a run that stopped and "failed_at"
-    the twist it stopped at."""
+    outputs, checkpoints and rows (:class:`Kept`) in ``out`` if given, or continuing the run
+    in ``restart`` from its last checkpoint, there (``cells`` and ``out`` then unused; the
+    rows are then the kept ones up to the checkpoint and the new ones); the run's wall time
+    [s]; its closed forms (:func:`closed_form`), with "failure" the message of a run that
+    stopped and "failed_at" the twist it stopped at."""
     checkpoint = None
+    earlier = np.zeros((0, 8))
     if restart is not None:
         overrides: dict = {"output.checkpoint_interval": CHECKPOINTS}
         if end is not None:
             overrides["time.end"] = end
         scene, checkpoint = api.resume(restart, overrides)
         out = restart
+        earlier = kept_rows(restart, checkpoint.time)
     else:
         data = tomllib.loads(SCENE.read_text())
         for member in data["structure"]["members"]:
@@ -91,7 +135,10 @@ def run(
             data["time"]["end"] = end
         data["output"] = {"checkpoint_interval": CHECKPOINTS, "xdmf_interval": 0.5}
         scene = api.load(data, ())
-    record = Record(1.0)
+    if out is None:
+        record = Record(1.0)
+    else:
+        record = Kept(Path(out) / "rows.npy", earlier, scene.parameters)
     forms = closed_form(scene)
     forms["cells"] = sum(member.elements for member in scene.structure.members)
     start = time.perf_counter()
@@ -100,8 +147,13 @@ def run(
     except (CosseratError, FloatingPointError) as exc:  # the latter: see docs/plectoneme.md
         forms["failure"] = str(exc)
         forms["failed_at"] = float(twist(record.attempted, scene.parameters))
-    rows = np.array(record.rows)
-    rows[:, 1] = twist(rows[:, 0], scene.parameters)
+    if isinstance(record, Kept):
+        if record.rows:  # the run started in its folder (a refused folder is not written)
+            record.save()
+        rows = record.whole()
+    else:
+        rows = np.array(record.rows)
+        rows[:, 1] = twist(rows[:, 0], scene.parameters)
     return rows, time.perf_counter() - start, forms
 
 

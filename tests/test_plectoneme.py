@@ -289,15 +289,20 @@ def test_the_plateau_scene_twists_its_straight_rod_as_gj_over_l(tmp_path):
     the scene's turn of B (a wrong rate or t1 would move it by its own relative error); and
     the torque's plateau over a window the run did not reach is nan (``plateau``). The
     benchmark's ``--out``/``--restart``: a run to 1 s kept in a folder and continued from its
-    checkpoint to 2 s starts its rows after 1 s and ends with the uninterrupted run's torque
-    at 2 s within 1e-4 (both the straight rod's GJ Φ/L to 3e-5; the steps differ, the first
-    run's last one cut at 1 s)."""
+    checkpoint to 2 s ends with the uninterrupted run's torque at 2 s within 1e-4 (both the
+    straight rod's GJ Φ/L to 3e-5; the steps differ, the first run's last one cut at 1 s),
+    and its rows are the first run's (kept in the folder) and then its own; a row the first
+    run kept after its checkpoint (a run killed there) is dropped."""
     from plectoneme_plateau import plateau, run
 
     rows, _, forms = run(16, end=2.0)
-    run(16, end=1.0, out=tmp_path)
+    first, _, _ = run(16, end=1.0, out=tmp_path)
+    assert np.array_equal(np.load(tmp_path / "rows.npy"), first)
+    np.save(tmp_path / "rows.npy", np.vstack([first, first[-1] + 0.25]))  # after the checkpoint
     later, _, _ = run(0, end=2.0, restart=tmp_path)
-    assert 1.0 < later[0, 0] < later[-1, 0] == rows[-1, 0] == 2.0
+    assert np.array_equal(later[: len(first)], first)
+    assert first[-1, 0] == 1.0 < later[len(first), 0] < later[-1, 0] == rows[-1, 0] == 2.0
+    assert np.array_equal(np.load(tmp_path / "rows.npy"), later)
     assert abs(later[-1, 2] / rows[-1, 2] - 1) < 1e-4, later[-1, 2] / rows[-1, 2] - 1
     phi, M = rows[:, 1], rows[:, 2]
     straight = (phi >= 1.0) & (phi <= 4.0)
