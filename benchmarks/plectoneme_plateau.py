@@ -22,11 +22,11 @@
 # ``--end t`` [s] stops the runs at t (the scene's end, 80 s, otherwise): the steps after the
 # strands meet are slow (docs/plectoneme.md), so a run to just past the contact is the one
 # that ends in minutes. ``--out DIR`` keeps each run's outputs and checkpoints (every 0.5 s
-# of t, and where it stops) in DIR/<cells>, and its rows in DIR/<cells>/rows.npy (every
-# ROWS_EVERY steps: a run killed keeps them); ``--restart DIR/<cells>`` continues such a run
-# from its last checkpoint in the same folder (to the scene's end without ``--end``), its rows
-# after those kept up to the checkpoint, so that the plateau is taken over the whole run
-# however often it was continued.
+# of t, and where it stops) in DIR/<cells>, its rows in each checkpoint and in
+# DIR/<cells>/rows.npy (every ROWS_EVERY steps, to look at while it runs);
+# ``--restart DIR/<cells>`` continues such a run from its last checkpoint in the same folder
+# (to the scene's end without ``--end``), its rows after the checkpoint's, so that the
+# plateau is taken over the whole run however often it was continued.
 # %%
 from __future__ import annotations
 
@@ -72,8 +72,9 @@ ROWS_EVERY = 20
 
 class Kept(Record):
     """:class:`plectoneme_run.Record` whose rows, after ``earlier`` (a continued run's rows up
-    to its checkpoint), are written to ``path`` every ROWS_EVERY accepted steps and at the
-    end (:meth:`save`), column 1 the scene's twist (:func:`twist` of its ``parameters``)."""
+    to its checkpoint), go into every checkpoint (:meth:`checkpoint_parts`) and are written
+    to ``path`` every ROWS_EVERY accepted steps and at the end (:meth:`save`), column 1 the
+    scene's twist (:func:`twist` of its ``parameters``)."""
 
     def __init__(self, path: Path, earlier: np.ndarray, parameters: dict) -> None:
         super().__init__(1.0)
@@ -86,9 +87,14 @@ class Kept(Record):
 
     def whole(self) -> np.ndarray:
         """The earlier rows and this run's, (steps, 8)."""
-        rows = np.concatenate([self.earlier, np.array(self.rows).reshape(-1, 8)])
-        rows[:, 1] = twist(rows[:, 0], self.parameters)
-        return rows
+        return with_twist(
+            np.concatenate([self.earlier, np.array(self.rows).reshape(-1, 8)]), self.parameters
+        )
+
+    def checkpoint_parts(self) -> dict:
+        """The rows so far, kept with the state they lead to (the time loop's checkpoint
+        hook): a continued run takes them from the checkpoint it starts from."""
+        return {"rows": {"rows": self.whole()}}
 
     def save(self) -> None:
         """The rows to ``path``, through a temporary file (a kill leaves the old or the new)."""
@@ -97,15 +103,10 @@ class Kept(Record):
         partial.replace(self.path)
 
 
-def kept_rows(folder: Path, checkpoint_time: float) -> np.ndarray:
-    """The rows a run in ``folder`` kept, up to ``checkpoint_time`` [s] (a run killed after
-    its last checkpoint wrote later ones, which the continued run takes again); none if it
-    kept no rows."""
-    path = folder / "rows.npy"
-    if not path.exists():
-        return np.zeros((0, 8))
-    rows = np.load(path)
-    return rows[rows[:, 0] <= checkpoint_time * (1 + 1e-12)]
+def with_twist(rows: np.ndarray, parameters: dict) -> np.ndarray:
+    """``rows`` with column 1 the twist Φ(t) of the scene's ``parameters`` [rad] (in place)."""
+    rows[:, 1] = twist(rows[:, 0], parameters)
+    return rows
 
 
 def run(
@@ -126,7 +127,7 @@ def run(
             overrides["time.end"] = end
         scene, checkpoint = api.resume(restart, overrides)
         out = restart
-        earlier = kept_rows(restart, checkpoint.time)
+        earlier = checkpoint.parts.get("rows", {}).get("rows", earlier)
     else:
         data = tomllib.loads(SCENE.read_text())
         for member in data["structure"]["members"]:
@@ -152,8 +153,7 @@ def run(
             record.save()
         rows = record.whole()
     else:
-        rows = np.array(record.rows)
-        rows[:, 1] = twist(rows[:, 0], scene.parameters)
+        rows = with_twist(np.array(record.rows), scene.parameters)
     return rows, time.perf_counter() - start, forms
 
 

@@ -445,7 +445,7 @@ class Restarts(Observer):
         self.times: list[float] = []
 
     def step_accepted(self, loop) -> None:
-        if loop.integrator._restarted:
+        if loop.integrator.after_midpoint:
             self.times.append(loop.state.t)
 
 
@@ -463,6 +463,8 @@ def test_bdf2_restarts_bit_for_bit_at_its_first_step_after_the_impact(tmp_path):
     part = {**data, "time": {**data["time"], "end": at}}
     api.run(scene_from_dict(part), tmp_path / "part")
     scene, checkpoint = api.resume(tmp_path / "part", ["time.end=0.06"])
+    assert checkpoint.time == restarts.times[0]
+    assert checkpoint.parts["integrator"]["after_midpoint"] == 1.0
     rest = api.run(scene, restart=checkpoint)
     assert np.array_equal(whole.model.U.x.array, rest.model.U.x.array)
     assert whole.summary["contact"] == rest.summary["contact"]
@@ -470,8 +472,8 @@ def test_bdf2_restarts_bit_for_bit_at_its_first_step_after_the_impact(tmp_path):
 
 def test_bdf2s_first_step_after_midpoint_steps_starts_from_u_n():
     """BDF2's predictor on a two-dof space: the linear extrapolation (1 + ω) U_n − ω U_{n−1}
-    after two steps, U_n itself at the first step after :meth:`BDF2.restart`, and the
-    extrapolation again after that step."""
+    after two steps, U_n itself at the first step after :meth:`BDF2.restart` (and at its
+    retry after a rejection), and the extrapolation again after that step is accepted."""
     mesh = create_unit_interval(MPI.COMM_SELF, 1)
     U = fem.Function(fem.FunctionSpace(mesh, ("Lagrange", 1)))
     v = ufl.TestFunction(U.function_space)
@@ -484,6 +486,10 @@ def test_bdf2s_first_step_after_midpoint_steps_starts_from_u_n():
     assert np.allclose(U.x.array, 3.0 * 3.0 - 2.0 * 1.0)
     bdf2.restart(None, "petsc")
     bdf2.prepare(0.2)
+    assert np.array_equal(U.x.array, [3.0, 3.0])
+    U.x.array[:] = 9.0
+    bdf2.reject()  # its retry at a smaller step starts from U_n too
+    bdf2.prepare(0.1)
     assert np.array_equal(U.x.array, [3.0, 3.0])
     U.x.array[:] = 4.0
     bdf2.accept(0.2)

@@ -39,8 +39,9 @@ caller may ask for implicit-midpoint steps, F((U_n + U_{n+1})/2, (U_{n+1} − U_
 τ_n + h/2) = 0, by :meth:`Integrator.use_one_step` (BDF2: its start step; generalized-α: its
 own form at αm = αf = γ = ½), and go back to the method by ``use_one_step(False)`` and
 :meth:`Integrator.restart` (generalized-α: a consistent rate at the new state, as at its
-start). The midpoint rule depends on U_n only and changes the kinetic energy of a mechanical
-system by the work of its forces exactly, at a jump too (cosserat_fem/nls/contact.py,
+start; BDF2: its first step's Newton starts from U_n, not from the extrapolation of two
+midpoint states). The midpoint rule depends on U_n only and changes the kinetic energy of a
+mechanical system by the work of its forces exactly, at a jump too (cosserat_fem/nls/contact.py,
 ``NodeContact.accept``); the caller decides when (cosserat_fem/timestepping/loop.py).
 
 **The space of the state arrays.** Everything an integrator does with U is linear (stage
@@ -250,7 +251,7 @@ class BDF2(Integrator):
         self.h_prev: float | None = None
         #: the next BDF2 step is the first after midpoint steps (:meth:`restart`): its
         #: predictor is U_n, not the extrapolation
-        self._restarted = False
+        self.after_midpoint = False
         self._arrays()
 
     def _arrays(self) -> None:
@@ -289,30 +290,32 @@ class BDF2(Integrator):
         self.a1.value = -(1.0 + w) / h
         self.a2.value = w * w / ((1.0 + w) * h)
         self.time_eval.value = self.time + h
-        if self._restarted:
+        if self.after_midpoint:
             self._u[:] = self._un
         else:  # Predictor: linear extrapolation through U_{n-1}, U_n.
             self._u[:] = (1.0 + w) * self._un - w * self._unm1
 
     def use_one_step(self, on: bool) -> None:
         """Midpoint steps from the next one on (``on``), or BDF2 again: its formula then reads
-        U_{n−1}, U_n of the last midpoint step, both after the jump (no :meth:`restart`
-        needed)."""
+        U_{n−1}, U_n of the last midpoint step, both after the jump; its first step's
+        predictor is U_n (:meth:`restart`)."""
         self._one_step = bool(on)
 
     def restart(self, problem, lu_package: str) -> None:
         """The first BDF2 step after midpoint steps starts Newton from U_n: U_{n−1} and U_n
-        are midpoint states around impacts, whose rates alternate (a pressed node's normal
-        velocity flips each undamped midpoint step), and their extrapolation would start
-        Newton from (1 + 2ω) times a flipped rate (docs/decisions.md, "BDF2's first
-        step after impacts")."""
-        self._restarted = True
+        are midpoint states around impacts, whose velocity unknowns alternate (a pressed
+        node's normal velocity flips each undamped midpoint step, v_n = −v_{n−1}), and the
+        extrapolation (1 + ω) v_n − ω v_{n−1} would start Newton from (1 + 2ω) v_n
+        (docs/decisions.md, "BDF2's first step after impacts"). The flag survives a
+        rejected step (its retry starts from U_n too) and is cleared by the next accepted
+        one."""
+        self.after_midpoint = True
 
     def accept(self, h: float) -> None:
         self._unm1[:] = self._un
         self._un[:] = self._u
         self.h_prev = h
-        self._restarted = False
+        self.after_midpoint = False
         super().accept(h)
 
     def last_accepted(self) -> np.ndarray:
@@ -334,7 +337,7 @@ class BDF2(Integrator):
             "U_n": self.space.to_full(self._un),
             "U_nm1": self.space.to_full(self._unm1),
             "h_prev": np.nan if self.h_prev is None else self.h_prev,
-            "restarted": float(self._restarted),
+            "after_midpoint": float(self.after_midpoint),
         }
 
     def load_state_dict(self, state: dict) -> None:
@@ -344,7 +347,7 @@ class BDF2(Integrator):
         self._unm1[:] = self.space.from_full(state["U_nm1"])
         h_prev = float(state["h_prev"])
         self.h_prev = None if np.isnan(h_prev) else h_prev
-        self._restarted = bool(state.get("restarted", 0.0))  # checkpoints before it: False
+        self.after_midpoint = bool(state.get("after_midpoint", 0.0))  # older checkpoints: False
 
 
 def alpha_parameters(rho_inf: float) -> tuple[float, float, float]:
