@@ -56,12 +56,38 @@ def twist(t: np.ndarray | float, parameters: dict) -> np.ndarray:
     return fast * np.minimum(t, t1) + rate * np.maximum(t - t1, 0.0)
 
 
+def contact_ply(r: float, T: float, EI: float) -> tuple[float, float]:
+    """The uniform two-strand ply of an isotropic rod whose strands touch (each centreline a
+    helix of radius r [m] about the ply's axis, its tangent at θ to the axis) beside straight
+    tails under the tension T [N]: the angle θ [rad] and the torque M_p [N m] at which the
+    ply grows quasi-statically (the plateau; frictionless, the end loop left out),
+
+        M_p = min over θ of (2 r T + EI sin⁴θ / r) / sin 2θ                          (Y.1)
+
+    Turning the end by dΦ at the torque M puts dℓ = 2 r dΦ / sin 2θ of rod into the ply (its
+    writhe, −ℓ sin 2θ / (4π r), takes the turn), which pulls dℓ in against T and bends it to
+    the helix's curvature sin²θ / r (½ EI κ² dℓ); the twist density M/GJ is the same in the
+    ply and the tails, so GJ drops out (docs/plectoneme.md, "The contact ply's torque")."""
+    from scipy.optimize import minimize_scalar
+
+    def torque(theta: float) -> float:
+        return (2 * r * T + EI * math.sin(theta) ** 4 / r) / math.sin(2 * theta)
+
+    best = minimize_scalar(
+        torque, bounds=(1e-6, math.pi / 4), method="bounded", options={"xatol": 1e-12}
+    )
+    return float(best.x), torque(float(best.x))
+
+
 def closed_form(scene) -> dict[str, float]:
     """plectoneme_run's closed forms (EI, GJ, T, M_c, Φ_c, the diameter, the later rate) with
-    r [m] and √(2 EI T) [N m], the scale of a ply's torque (docs/plectoneme.md)."""
+    r [m], √(2 EI T) [N m] ("loop": a free loop's torque, the scale of the snap's) and the
+    contact ply's θ_p [rad] and torque M_p [N m] (:func:`contact_ply`)."""
     forms = plectoneme_run.closed_form(scene)
     r = forms["diameter"] / 2
-    return {**forms, "r": r, "ply": math.sqrt(2 * forms["EI"] * forms["T"])}
+    theta, M_p = contact_ply(r, forms["T"], forms["EI"])
+    loop = math.sqrt(2 * forms["EI"] * forms["T"])
+    return {**forms, "r": r, "loop": loop, "theta_p": theta, "M_p": M_p}
 
 
 #: how often a run with ``--out`` writes a checkpoint [s of t]
@@ -160,7 +186,7 @@ def run(
 # %%
 def plateau(rows: np.ndarray, forms: dict, window: tuple[float, float]) -> dict:
     """The torque over the twists Φ in ``window`` [rad]: its mean [N m], spread (max − min)
-    [N m] and slope dM/dΦ [N m/rad] (least squares), over √(2 EI T) and M_c too; B's shift
+    [N m] and slope dM/dΦ [N m/rad] (least squares), over M_p, √(2 EI T) and M_c too; B's shift
     over the window [m], the most pairs, the least gap between the nodes over r; nan if the
     run did not reach the window's end."""
     t, phi, M, dz, w, pairs, gap, between = rows.T
@@ -172,7 +198,8 @@ def plateau(rows: np.ndarray, forms: dict, window: tuple[float, float]) -> dict:
         "mean": float(m.mean()),
         "spread": float(m.max() - m.min()),
         "slope": float(np.polyfit(phi[inside], m, 1)[0]),
-        "mean/ply": float(m.mean() / forms["ply"]),
+        "mean/M_p": float(m.mean() / forms["M_p"]),
+        "mean/loop": float(m.mean() / forms["loop"]),
         "mean/M_c": float(m.mean() / forms["M_c"]),
         "shift": (float(dz[inside][0]), float(dz[inside][-1])),
         "pairs": int(pairs[inside].max()),
@@ -184,7 +211,8 @@ def report(cells: int, rows: np.ndarray, wall: float, forms: dict) -> None:
     """Print a run: some 30 rows, where it stopped, and the torque's maximum."""
     print(f"\n{cells} P3 cells ({wall:.1f} s, {len(rows)} steps); Φ_c = {forms['phi_c']:.5f} rad")
     print(forms.get("failure", "completed"))
-    print("   t [s]   Φ [rad]  M/M_c    M/√(2EIT) Δz_B [m]  max|w| [m] pairs between/r")
+    print(f"  M_p = {forms['M_p']:.5f} N m at θ_p = {math.degrees(forms['theta_p']):.3f}°")
+    print("   t [s]   Φ [rad]  M/M_c    M/√(2EIT) M/M_p    Δz_B [m]  max|w| [m] pairs between/r")
     r = forms["r"]
     touching = np.flatnonzero(rows[:, 5] > 0)
     chosen = set(range(0, len(rows), max(1, len(rows) // 30))) | {len(rows) - 1}
@@ -192,7 +220,8 @@ def report(cells: int, rows: np.ndarray, wall: float, forms: dict) -> None:
     for i in sorted(chosen):
         t, phi, M, dz, w, n, g, gb = rows[i]
         print(
-            f"{t:7.3f} {phi:8.4f} {M / forms['M_c']:8.5f} {M / forms['ply']:8.5f} {dz:+9.5f} "
+            f"{t:7.3f} {phi:8.4f} {M / forms['M_c']:8.5f} {M / forms['loop']:8.5f} "
+            f"{M / forms['M_p']:8.5f} {dz:+9.5f} "
             f"{w:9.5f} {int(n):4d} {gb / r:+8.4f}"
         )
     i = int(np.argmax(rows[:, 2]))

@@ -312,3 +312,30 @@ def test_the_plateau_scene_twists_its_straight_rod_as_gj_over_l(tmp_path):
     assert abs(slope / forms["GJ"] - 1) < 1e-4, slope / forms["GJ"] - 1
     assert forms["phi_c"] == pytest.approx(45.78112494284397, rel=1e-9)
     assert math.isnan(plateau(rows, forms, (3.0, 5.0))["mean"])
+
+
+def test_the_contact_plys_torque_meets_the_strands_equilibrium():
+    """benchmarks/plectoneme_plateau.py ``contact_ply``, the minimum (Y.1) of the energy
+    balance, against the ply's equilibrium by the Kirchhoff equations of a helical strand
+    with a frictionless line contact and no resultant across the ply (docs/plectoneme.md,
+    "The contact ply's torque"): M_p r/EI = 2 sin³θ cos θ / cos 2θ and T r²/EI =
+    sin⁴θ (1 + 2 cos²θ) / (2 cos 2θ), within 1e-6 (at a flat minimum a minimiser finds θ to
+    ~√ε θ ~ 1e-8 rad only, which moves these by ~3 δθ/θ ~ 1e-7; measured 8e-9);
+    for r → 0 its leading order M_p = (4/3) (3/2)^¼ √(EI T) √ρ, ρ = r √(T/EI) (within 1e-3
+    at ρ = 1e-4: the next order is the sines' θ² ~ 0.8 ρ; measured 4.1e-5); and the plateau
+    scene's figures the docs quote, θ_p = 15.04°, M_p = 0.318 √(2 EI T)."""
+    from plectoneme_plateau import contact_ply
+
+    EI, T = 7.853981633974483e-3, 2.356194490192345
+    for r in (1e-3, 5e-3, 2e-2):
+        theta, M = contact_ply(r, T, EI)
+        s, c, c2 = math.sin(theta), math.cos(theta), math.cos(2 * theta)
+        assert M * r / EI == pytest.approx(2 * s**3 * c / c2, rel=1e-6)
+        assert T * r**2 / EI == pytest.approx(s**4 * (1 + 2 * c**2) / (2 * c2), rel=1e-6)
+    rho = 1e-4
+    _, M = contact_ply(rho * math.sqrt(EI / T), T, EI)
+    leading = 4 / 3 * 1.5**0.25 * math.sqrt(EI * T * rho)
+    assert abs(M / leading - 1) < 1e-3, M / leading - 1
+    theta, M = contact_ply(5e-3, T, EI)
+    assert math.degrees(theta) == pytest.approx(15.04, abs=5e-3)
+    assert M / math.sqrt(2 * EI * T) == pytest.approx(0.318, abs=5e-4)
