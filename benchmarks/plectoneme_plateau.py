@@ -67,7 +67,8 @@ def contact_ply(r: float, T: float, EI: float) -> tuple[float, float]:
     Turning the end by dΦ at the torque M puts dℓ = 2 r dΦ / sin 2θ of rod into the ply (its
     writhe, −ℓ sin 2θ / (4π r), takes the turn), which pulls dℓ in against T and bends it to
     the helix's curvature sin²θ / r (½ EI κ² dℓ); the twist density M/GJ is the same in the
-    ply and the tails, so GJ drops out (docs/plectoneme.md, "The contact ply's torque")."""
+    ply and the tails, so GJ drops out (docs/plectoneme.md, "The contact ply's torque"). dℓ is
+    the rod of both strands; r, T, EI > 0; θ over [1e-6, π/4] (cos 2θ = 0 at the end)."""
     from scipy.optimize import minimize_scalar
 
     def torque(theta: float) -> float:

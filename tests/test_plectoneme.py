@@ -320,7 +320,9 @@ def test_the_contact_plys_torque_meets_the_strands_equilibrium():
     with a frictionless line contact and no resultant across the ply (docs/plectoneme.md,
     "The contact ply's torque"): M_p r/EI = 2 sin³θ cos θ / cos 2θ and T r²/EI =
     sin⁴θ (1 + 2 cos²θ) / (2 cos 2θ), within 1e-6 (at a flat minimum a minimiser finds θ to
-    ~√ε θ ~ 1e-8 rad only, which moves these by ~3 δθ/θ ~ 1e-7; measured 8e-9);
+    ~√ε θ ~ 1e-8 rad only, which moves these by ~3 δθ/θ ~ 1e-7; measured ≤ 1.5e-8): being
+    (Y.1)'s stationarity, they hold the implementation and the minimiser, not the physics
+    (docs/plectoneme.md derives both);
     for r → 0 its leading order M_p = (4/3) (3/2)^¼ √(EI T) √ρ, ρ = r √(T/EI) (within 1e-3
     at ρ = 1e-4: the next order is the sines' θ² ~ 0.8 ρ; measured 4.1e-5); and the plateau
     scene's figures the docs quote, θ_p = 15.04°, M_p = 0.318 √(2 EI T)."""
