@@ -180,7 +180,7 @@ def run(
             record.save()
         rows = record.whole()
     else:
-        rows = with_twist(np.array(record.rows), scene.parameters)
+        rows = with_twist(np.array(record.rows).reshape(-1, 8), scene.parameters)
     return rows, time.perf_counter() - start, forms
 
 
