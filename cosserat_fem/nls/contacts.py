@@ -33,6 +33,9 @@ class Contacts:
     def __len__(self) -> int:
         return len(self.pairs)
 
+    def begin_solve(self) -> None:
+        self.pairs.begin_solve()
+
     def apply_vector(self, b: np.ndarray, u: np.ndarray) -> bool:
         changed = self.pairs.apply_vector(b, u)
         if self.obstacles is None:

@@ -491,6 +491,9 @@ class NewtonSolver:
         # An exception an earlier solve's retry recovered from (under MPI a residual callback's
         # exception becomes a NaN residual) is not this solve's to report.
         self.callback_error = None
+        begin = getattr(self.contact, "begin_solve", None)  # self contact's (pair_contact.py)
+        if begin is not None:
+            begin()
         status = self._lib.cf_solve(self._sv, self._cs, self._state)
         st = self._state
         if status or st.reason <= 0:

@@ -191,6 +191,8 @@ class PairContact:
         self.flipped = np.zeros(0, dtype=np.int64)
         #: every node's position at the last iterate [m] (None before one)
         self._x: np.ndarray | None = None
+        #: whether the next iterate is a solve's first (:meth:`begin_solve`)
+        self.first = False
         self.shares = shares
         #: the outputs, as NodeContact's: each slave's contact load [N/m], its gap [m] and 1
         #: while pressed (other nodes: zeros)
@@ -216,11 +218,17 @@ class PairContact:
         return np.where(self.held_slots_all[nodes], -1, rows).astype(PETSc.IntType)
 
     # -- the rows -------------------------------------------------------------------------
+    def begin_solve(self) -> None:
+        """The next iterate is a Newton solve's first: the slaves pressed at the accepted
+        state stay pressed there whatever their test (:meth:`_press`)."""
+        self.first = True
+
     def apply_vector(self, b: np.ndarray, u: np.ndarray) -> bool:
         """Decide the pairs and their states at the iterate (u, F = ``b``, the owned values of
         the assembled residual) and write (P.1)-(P.2) into ``b`` ((P.3)-(P.4) with
         friction), level by level (P.5); whether the active set or a state changed on any
         rank since the last iterate (collective)."""
+        first, self.first = self.first, False
         self._x = self.everywhere(u)
         step = self._x - self.x_old  # every rank: the same answer
         moved = np.linalg.norm(step - step.mean(axis=0), axis=1) if len(step) else step[:, 0]
@@ -243,7 +251,7 @@ class PairContact:
         zero = ROUNDOFF * self.comm.allreduce(float(np.abs(b).max(initial=0.0)), op=MPI.MAX)
         parts = []
         for at in range(max(1, int(level.max(initial=0)) + 1)):
-            part = self._press(pairs, np.flatnonzero(mine & (level == at)), b, zero)
+            part = self._press(pairs, np.flatnonzero(mine & (level == at)), b, zero, first)
             self._pass_on(part, b)  # collective: the reactions before the next level reads
             part["level"] = np.full(len(part["local"]), at)
             parts.append(part)
@@ -252,7 +260,8 @@ class PairContact:
         slave = r["local"] + self.start
         active = np.column_stack([slave, r["partner"][:, 0], r["state"]]).astype(np.int64)
         active = active[np.argsort(slave, kind="stable")]
-        changed = not np.array_equal(active, self.active)
+        # a pair pressed against its test (a solve's first iterate) holds the solve too
+        changed = not np.array_equal(active, self.active) or bool(r["forced"].any())
         self.flipped = slave if changed else slave[:0]
         self.active = active
         self.node_state[:] = FREE
@@ -301,11 +310,17 @@ class PairContact:
             "supported"
         )
 
-    def _press(self, pairs: Pairs, here: np.ndarray, b: np.ndarray, zero: float) -> dict:
+    def _press(
+        self, pairs: Pairs, here: np.ndarray, b: np.ndarray, zero: float, first: bool
+    ) -> dict:
         """The rows' data of the pairs ``here`` (this rank's slaves of one level) that press:
         their force F̃_a = ``b`` at the slaves' balance rows (the reactions of the levels
         before included, (P.5)), the states and (P.1)/(P.3)'s rows, which are written into
-        ``b``; ``force`` is what (P.2)/(P.4) pass to the partner."""
+        ``b``; ``force`` is what (P.2)/(P.4) pass to the partner. At a solve's ``first``
+        iterate a slave pressed at the accepted state presses whatever its test: the
+        predictor's gaps (second order in the step along a curved partner) times c decide
+        the test there, and on the thin plectoneme's ply they opened most pairs at once
+        (docs/decisions.md, "A solve starts from the accepted contact set")."""
         solved = self.solved
         local = pairs.slave[here] - self.start
         n = pairs.normal[here][:, solved]
@@ -314,6 +329,10 @@ class PairContact:
         gs = pairs.gap[here] / self.ell
         c = np.zeros(len(local)) if self.c is None else self.c[local]
         on = pressed(fN, gs, None if self.c is None else c, zero)
+        forced = np.zeros(len(on), dtype=bool)
+        if first:
+            forced = ~on & np.isin(pairs.slave[here], self.accepted[:, 0])
+            on |= forced
         c = c[on]
         which = here[on]
         slave, partner, weights = pairs.slave[which], pairs.partner[which], pairs.weights[which]
@@ -357,6 +376,7 @@ class PairContact:
             gap=pairs.gap[which],
             weights=weights,
             force=force,
+            forced=forced[on],
             d_gap=pairs.d_gap[which][:, :, solved],
             d_normal=pairs.d_normal[which][:, solved][:, :, :, solved],
             d_weights=pairs.d_weights[which][:, :, :, solved],
