@@ -347,19 +347,25 @@ def test_the_rod_through_itself_between_nodes_is_found_with_its_place():
     assert where.startswith("s = ") and "passes through itself between its nodes" in reason
 
 
-def test_a_solve_starts_from_the_accepted_contact_set():
+@pytest.mark.parametrize("friction", [0.0, 0.5])
+def test_a_solve_starts_from_the_accepted_contact_set(friction):
     """The hairpin's free leg turned down onto leg 1, 0.01 r through at its end D: the pairs
     of its last fifth press and are accepted. Moved back to 1e-4 r apart at D, the test opens
-    them at an iterate, but not at a Newton solve's first (begin_solve): there the slaves
-    pressed at the accepted state press whatever their test (the predictor's gaps decide it;
-    on the thin plectoneme's ply it opened most pairs at once), and such an iterate is not
-    converged (the solve's hold); the iterate after is tested again."""
+    them at an iterate, but not at a Newton solve's first (``first_iterate``): there the
+    slaves pressed at the accepted state press whatever their test (the predictor's gaps
+    decide it; on the thin plectoneme's ply it opened most pairs at once), in their accepted
+    stick/slip state (with friction: not the slip their negative pressure would give, which
+    makes the next iterate read μ_k), and such an iterate is not converged (the solve's
+    hold); the iterate after is tested again. ``NewtonSolver.solve`` marks its first iterate
+    and clears the mark after."""
     from cosserat_fem.analysis.statics import static_solver
     from cosserat_fem.rod.model import build_model
 
     r = 0.0245
     delta0, _ = closure(r)
-    scene = scene_from_dict(hairpin(0.0, r))
+    data = hairpin(0.0, r)
+    data["contact"]["static_friction"] = friction
+    scene = scene_from_dict(data)
     model = build_model(scene, MPI.COMM_SELF)
     solver = static_solver(scene, model)
     contact, pairs = solver.contact, solver.contact.pairs
@@ -377,12 +383,23 @@ def test_a_solve_starts_from_the_accepted_contact_set():
     through = moved(0.01 * r)  # the nodes of the leg's last fifth: (δ0 + 0.01 r) a/L2 > δ0
     assert through >= 2
     contact.accept(model.U.x.array)
+    slaves = pairs.accepted[:, 0]
+    stuck = pairs.node_accepted[slaves] == 1  # STICK (frictionless: all SLIP, 2)
+    assert stuck.any() == (friction > 0) and (pairs.node_accepted[slaves] > 0).all()
     assert moved(-1e-4 * r) == 0
-    pairs.begin_solve()
+    contact.first_iterate(True)
     assert moved(-1e-4 * r) == through and pairs.least_gap > 0.0
-    pairs.begin_solve()  # the same pairs as the iterate before, pressed against their test:
+    assert (pairs.node_state[slaves] == pairs.node_accepted[slaves]).all()
+    contact.first_iterate(True)  # the same pairs as the iterate before, against their test:
     assert moved(-1e-4 * r) == through and solver._state.hold == 1  # not converged there
     assert moved(-1e-4 * r) == 0
+    marks = []
+    original = pairs.first_iterate
+    pairs.first_iterate = lambda first: marks.append(first) or original(first)
+    model.U.x.array[:] = 0.0
+    contact.accept(model.U.x.array)  # at rest: nothing pressed, converged at once
+    solver.solve()
+    assert marks == [True, False] and not pairs.first
 
 
 def jacobian_errors(

@@ -491,10 +491,16 @@ class NewtonSolver:
         # An exception an earlier solve's retry recovered from (under MPI a residual callback's
         # exception becomes a NaN residual) is not this solve's to report.
         self.callback_error = None
-        begin = getattr(self.contact, "begin_solve", None)  # self contact's (pair_contact.py)
-        if begin is not None:
-            begin()
-        status = self._lib.cf_solve(self._sv, self._cs, self._state)
+        # self contact's first iterate starts from the accepted pairs (pair_contact.py); the
+        # mark is cleared whatever happens (one try: contact's Jacobian is full, no retry)
+        first = getattr(self.contact, "first_iterate", None)
+        if first is not None:
+            first(True)
+        try:
+            status = self._lib.cf_solve(self._sv, self._cs, self._state)
+        finally:
+            if first is not None:
+                first(False)
         st = self._state
         if status or st.reason <= 0:
             self._finish(status)

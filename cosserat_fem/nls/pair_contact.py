@@ -191,7 +191,7 @@ class PairContact:
         self.flipped = np.zeros(0, dtype=np.int64)
         #: every node's position at the last iterate [m] (None before one)
         self._x: np.ndarray | None = None
-        #: whether the next iterate is a solve's first (:meth:`begin_solve`)
+        #: whether the next iterate is a solve's first (:meth:`first_iterate`)
         self.first = False
         self.shares = shares
         #: the outputs, as NodeContact's: each slave's contact load [N/m], its gap [m] and 1
@@ -218,10 +218,11 @@ class PairContact:
         return np.where(self.held_slots_all[nodes], -1, rows).astype(PETSc.IntType)
 
     # -- the rows -------------------------------------------------------------------------
-    def begin_solve(self) -> None:
-        """The next iterate is a Newton solve's first: the slaves pressed at the accepted
-        state stay pressed there whatever their test (:meth:`_press`)."""
-        self.first = True
+    def first_iterate(self, first: bool) -> None:
+        """Whether the next iterate is a Newton solve's first (set before the solve, cleared
+        after it): there the slaves pressed at the accepted state press whatever their test,
+        in the state they were accepted in (:meth:`_press`)."""
+        self.first = first
 
     def apply_vector(self, b: np.ndarray, u: np.ndarray) -> bool:
         """Decide the pairs and their states at the iterate (u, F = ``b``, the owned values of
@@ -349,6 +350,9 @@ class PairContact:
             mu = np.where(sliding, self.mu_k, self.mu_s)
             pressure = fN - c * gs
             state = np.where((size < mu * pressure) | (size == 0.0), STICK, SLIP).astype(np.int8)
+            # a pair pressed against its test (a first iterate) keeps its accepted state: its
+            # pressure is negative there, which would make it slip and then read μ_k
+            state = np.where(forced[on], self.node_accepted[slave], state).astype(np.int8)
             # (P.3): stick holds the relative slip, slip gives μ_k f_N against it
             v = np.where(
                 (state == STICK)[:, None], du, tangential(F - self.mu_k * fN[:, None] * s, n)
