@@ -359,6 +359,7 @@ def test_a_solve_starts_from_the_accepted_contact_set(friction):
     hold); the iterate after is tested again. ``NewtonSolver.solve`` marks its first iterate
     and clears the mark after."""
     from cosserat_fem.analysis.statics import static_solver
+    from cosserat_fem.nls.contact import FREE, STICK
     from cosserat_fem.rod.model import build_model
 
     r = 0.0245
@@ -384,8 +385,8 @@ def test_a_solve_starts_from_the_accepted_contact_set(friction):
     assert through >= 2
     contact.accept(model.U.x.array)
     slaves = pairs.accepted[:, 0]
-    stuck = pairs.node_accepted[slaves] == 1  # STICK (frictionless: all SLIP, 2)
-    assert stuck.any() == (friction > 0) and (pairs.node_accepted[slaves] > 0).all()
+    stuck = pairs.node_accepted[slaves] == STICK  # frictionless: all SLIP (free to slide)
+    assert stuck.any() == (friction > 0) and (pairs.node_accepted[slaves] != FREE).all()
     assert moved(-1e-4 * r) == 0
     contact.first_iterate(True)
     assert moved(-1e-4 * r) == through and pairs.least_gap > 0.0
