@@ -392,7 +392,8 @@ def test_the_midpoint_steps_are_taken_around_impacts_only():
     midpoint steps; 11 of 69 landings, 125 of 240 steps), and the tilted one with
     generalized-α at ρ∞ = 0.5 (10 of 67 landings). The midpoint rule itself (generalized-α
     at ρ∞ = 1) and a run that never touches the plane (the flat drop with ρ∞ = 0.5 stopped
-    at 12 ms, before it lands) solve no step twice. 2 s."""
+    at 12 ms, before it lands) solve no step twice, nor does the tilted drop with
+    ``time.impact_steps = false`` (nodes land, no step is a midpoint one). 2 s."""
     for tilted, step, integrator, rho_inf, end in (
         (False, 1e-3, "bdf2", None, 0.06),
         (True, 2.5e-4, "bdf2", None, 0.06),
@@ -410,6 +411,14 @@ def test_the_midpoint_steps_are_taken_around_impacts_only():
             assert summary["impact_steps_redone"] == 0
         else:
             assert first >= 1
+    # time.impact_steps = false: the nodes land (up to 7 at once) in the method's own steps
+    landings = Landings()
+    data = drop("bdf2", 2.5e-4, tilted=True, end=0.06)
+    data["time"]["impact_steps"] = False
+    summary = api.run(scene_from_dict(data), observers=(landings,)).summary
+    assert summary["impact_steps_redone"] == 0 and summary["rejected_steps"] == 0
+    assert summary["contact"]["most_nodes_in_contact"] >= 1
+    assert not any(landed or began for landed, began in landings.steps)
 
 
 @pytest.mark.parametrize(

@@ -22,13 +22,14 @@ generalized-α at 15 μs).
 from __future__ import annotations
 
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from conftest import ROOT, inject_newton_failures, run_command
 from xdmf_files import read_xdmf
 
-from cosserat_fem.analysis.restart import restart_overrides
+from cosserat_fem.analysis.restart import check_restart_scene, restart_overrides
 from cosserat_fem.analysis.simulation import run_scene
 from cosserat_fem.common.errors import SceneError
 from cosserat_fem.io.checkpoint import load_checkpoint
@@ -235,3 +236,17 @@ def test_restart_overrides():
     for key in ("rod.length", "time.integrator", "output.xdmf", "solverx.y"):
         with pytest.raises(SceneError, match=f"--set {key}: cannot change on --restart"):
             restart_overrides([f"{key}=1"])
+
+
+def test_a_checkpoint_from_before_a_key_existed_continues_at_its_default():
+    """A checkpoint written before a scene key was added (here ``time.impact_steps``) ran as
+    the key's default says: a restart at the default continues it, another value is refused
+    naming the key (check_restart_scene)."""
+    scene = scene_of("bdf2-full")
+    held = json.loads(json.dumps(scene.to_dict()))
+    del held["time"]["impact_steps"]
+    checkpoint = SimpleNamespace(meta={"scene": held}, time=0.5 * scene.time.end)
+    check_restart_scene(checkpoint, scene)
+    changed = scene_from_dict(scene.to_dict(), overrides=["time.impact_steps=false"])
+    with pytest.raises(SceneError, match="time.impact_steps: false where the checkpoint's run"):
+        check_restart_scene(checkpoint, changed)

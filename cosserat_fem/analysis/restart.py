@@ -78,11 +78,15 @@ def check_restart_scene(checkpoint: Checkpoint, scene) -> None:
     touched: a scene of other constants, loads or discretisation would continue the
     checkpoint's state as another problem, a splice of two runs."""
     from cosserat_fem.scene.build import check_later_end
+    from cosserat_fem.scene.schema import NO_DEFAULT, default_of
 
     held = _leaves(checkpoint.meta["scene"])
     given = _leaves(json.loads(json.dumps(scene.to_dict())))  # as the index holds it
     for key in dict.fromkeys([*given, *held]):
         new, old = given.get(key, _ABSENT), held.get(key, _ABSENT)
+        if old is _ABSENT and new is not _ABSENT:  # a key added since the run: its default
+            old = default_of(key)
+            old = _ABSENT if old is NO_DEFAULT else old
         same = new == old and isinstance(new, bool) == isinstance(old, bool)
         if not same and not _may_change(key):
             raise SceneError(

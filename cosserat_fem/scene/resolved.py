@@ -1018,6 +1018,12 @@ class Time:
     rtol: float = key(Number(default=1e-4, interval=Interval(0.0, 1.0, True, True)))
     atol: float = key(Number(default=1e-10, interval=POSITIVE))
     max_step: float = key(Number(default=0.0, interval=NON_NEGATIVE, unit="s"))  # 0: no limit
+    #: a step of BDF2 or generalized-α (ρ∞ < 1) that brings nodes into contact is solved
+    #: again by the implicit midpoint rule, and so are the next ones (an impact's energy
+    #: exact: cosserat_fem/timestepping/loop.py, "Impacts"); false: the method's own steps
+    #: throughout, for landings without a jump of the velocity (a slow, overdamped contact
+    #: such as a plectoneme's ply: docs/decisions.md, "Landings in an overdamped ply")
+    impact_steps: bool = key(Flag(default=True))
 
     @property
     def n_steps(self) -> int:

@@ -33,6 +33,7 @@ from cosserat_fem.scene.keys import (  # noqa: F401 - the names other modules re
     PETSC_PREFIX,
     XDMF_DEFAULT_FIELDS,
     XDMF_FIELDS,
+    Field,
     Number,
     Parameters,
     PetscOptions,
@@ -72,6 +73,21 @@ def _lookup_spec(path: list[str]) -> Any:
             raise unknown_key(key, list(spec.fields), SCHEMA)
         spec = spec.fields[name]
     return spec
+
+
+#: what :func:`default_of` gives for a key without a default
+NO_DEFAULT = object()
+
+
+def default_of(key: str) -> Any:
+    """The schema's default of the dotted leaf ``key``, or NO_DEFAULT (a required key, a
+    table, a key the schema does not know). A key added to the schema keeps the old
+    behaviour at its default: what a checkpoint or a scene written before it ran as."""
+    try:
+        spec = _lookup_spec(key.split("."))
+    except SceneError:
+        return NO_DEFAULT
+    return spec.default if isinstance(spec, Field) and not spec.required else NO_DEFAULT
 
 
 def _override_value(key: str, text: str) -> Any:

@@ -392,10 +392,10 @@ class TimeLoop:
 
     def _impacts(self):
         """The contact rows whose impacts take midpoint steps (module docstring, "Impacts"), or
-        None: none, an integrator without history to spoil, or rows that do not tell their
-        transitions."""
+        None: none, an integrator without history to spoil, a scene that asks for none
+        (``time.impact_steps`` false), or rows that do not tell their transitions."""
         contact = getattr(self.solver, "contact", None)
-        if contact is None or not self.integrator.multistep:
+        if contact is None or not self.integrator.multistep or not self.tspan.impact_steps:
             return None
         return contact if hasattr(contact, "transitions") else None
 

@@ -18,7 +18,8 @@ everything is built from it by name (issue 26 item 6).
   the keys were declared on the resolved fields: tests/data/resolved_scenes.json is that
   resolution (``Scene.to_dict`` and the derived ω0, section constants, plane, absent terms and
   step count, written by 72e1e44's code); the comparison is of those plain values, exact (the
-  same operations on the same inputs).
+  same operations on the same inputs), a key added to a table since (``time.impact_steps``)
+  at its schema default (``schema.default_of``: the behaviour before it).
 * What each support holds is one table, HELD_BY_SUPPORT, from which Supports derives the held
   components (a hinge's from its axis) and the rigid-body modes (issue 27 item 2).
 """
@@ -26,6 +27,7 @@ everything is built from it by name (issue 26 item 6).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import re
 from pathlib import Path
@@ -50,7 +52,7 @@ from cosserat_fem.scene.keys import (
 )
 from cosserat_fem.scene.keys import key as declare
 from cosserat_fem.scene.resolved import Damping, Scene, Supports, Time
-from cosserat_fem.scene.schema import SCHEMA, parse_toml
+from cosserat_fem.scene.schema import SCHEMA, default_of, parse_toml
 
 pytestmark = pytest.mark.unit
 
@@ -147,6 +149,7 @@ def test_build_fills_by_name_whatever_the_order():
         "rtol": 1e-4,
         "atol": 1e-10,
         "max_step": 0.0,
+        "impact_steps": False,
     }
     fields = dataclasses.fields(Time)
     reverse = dataclasses.make_dataclass(
@@ -175,6 +178,19 @@ RESOLVED_BEFORE = ROOT / "tests" / "data" / "resolved_scenes.json"
 SCENES_BEFORE = [ROOT / "scenes" / name for name in sorted(json.loads(RESOLVED_BEFORE.read_text()))]
 
 
+def _added(now: dict, before: dict, prefix: str = "") -> list[str]:
+    """The dotted leaf keys of the tables in ``now`` that ``before`` has but not these."""
+    added = []
+    for name, value in now.items():
+        key = f"{prefix}.{name}" if prefix else name
+        if name not in before:
+            if prefix:  # a leaf of a table 72e1e44 had (a whole new table is compared)
+                added.append(key)
+        elif isinstance(value, dict) and isinstance(before[name], dict):
+            added += _added(value, before[name], key)
+    return added
+
+
 @pytest.mark.parametrize("path", SCENES_BEFORE, ids=lambda p: p.name)
 def test_shipped_scenes_resolve_as_before(path):
     """Each shipped scene resolves to what 72e1e44 resolved (module docstring)."""
@@ -190,6 +206,11 @@ def test_shipped_scenes_resolve_as_before(path):
     }
     now = json.loads(json.dumps(now, sort_keys=True, default=repr))
     expected = before[path.name]
+    # keys added since 72e1e44 resolve at their defaults (the scene as before)
+    for key in _added(now, expected):
+        table, name = key.rsplit(".", 1)
+        value = functools.reduce(dict.get, table.split("."), now).pop(name)
+        assert value == default_of(key), key
     # The derived constants (ω0 through a square root, c33 through a tanh series,
     # forms/section.py) may differ in their last bits on another libm: numbers within 1e-14
     # relative, the rest of their text exactly. The scene's own values are compared exactly.
