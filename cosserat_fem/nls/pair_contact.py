@@ -242,8 +242,12 @@ class PairContact:
                 where="contact",
                 retry=True,
             )
-        try:  # the same positions on every rank: the same answer, or the same error
-            pairs = self.geometry(self._x)
+        # the pressed pairs (slave, partner's first node) a slave keeps at a concave corner
+        # (rod/self_contact.py), every rank's: each holds its own slaves' only
+        pressing = (self.accepted if first else self.active)[:, :2]
+        keep = np.concatenate(self.comm.allgather(pressing)).reshape(-1, 2)
+        try:  # the same positions and pairs kept on every rank: the same answer, or error
+            pairs = self.geometry(self._x, keep)
         except FloatingPointError as exc:  # a diverged iterate, a degenerate closest point
             raise SolverError(f"self contact: {exc}", where="contact", retry=True) from None
         mine = (pairs.slave >= self.start) & (pairs.slave < self.start + self.owned)

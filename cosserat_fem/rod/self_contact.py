@@ -5,7 +5,24 @@ within π r of arc (S.2)); the rows are cosserat_fem/nls/pair_contact.py's.
 
 Single pass: of the two directions of a contact (a node of one part of the rod on a cell of the
 other, and back), the node that lies later along the rod is the slave and the cell the partner
-(a node after the cell's last node in arc length). Each slave keeps its nearest partner cell.
+(a node after the cell's last node in arc length). Each slave keeps its nearest partner cell,
+except at a concave corner (below).
+
+**A concave corner.** Where two cells of the partner meet at a kink that opens towards the
+slave, the slave's closest points on both lie inside them, their gaps within round-off of
+each other (1e-9 to 2e-7 r measured on the thin plectoneme), and a Newton update that closes
+the gap to one cell's tangent puts the node nearer the other: the nearest cell alternates at
+every iterate and the solve never settles (a step shrunk to 1e-11 s stalled on it; docs/
+decisions.md, "A slave keeps its partner cell at a concave corner"). So a slave keeps the
+partner it pressed (``keep``: at the last iterate, or at the accepted state at a solve's
+first) while that cell's closest point is interior and its gap within :data:`CORNER` r of
+the nearest; the other cell is then penetrated by at most that, a thousandth of the sampled
+check's 1e-2 r between the nodes. A slave that presses none takes, of the interior
+candidates within the band of its nearest, the one first along the rod (arc length, not the
+cells' numbering: the same choice serially and under MPI, whatever the round-off), and the
+nearest if none is interior. A
+clamped closest point (a node past a cell's end) is never kept nor preferred: past a
+vertex of straight cells it would tilt the normal by up to √(2 CORNER).
 
 A node held in part by a support (a ``sliding`` node: its lateral positions held, free along
 an axis) cannot close a gap across its held directions, so it is no slave, and neither is
@@ -50,6 +67,10 @@ from cosserat_fem.rod.contact_search import (
     closest_points,
     least_gap_between_nodes,
 )
+
+#: the band [in r] within which a slave keeps its partner cell at a concave corner (module
+#: docstring)
+CORNER = 1e-5
 
 
 @dataclass(frozen=True)
@@ -185,9 +206,11 @@ class SelfContactGeometry:
                 "supported)"
             )
 
-    def __call__(self, x: np.ndarray) -> Pairs:
-        """The single-pass pairs at the nodes' positions ``x`` (N, 3) [m]; FloatingPointError
-        if a position is not finite (a NaN would make every gap NaN, never pressed)."""
+    def __call__(self, x: np.ndarray, keep: np.ndarray | None = None) -> Pairs:
+        """The single-pass pairs at the nodes' positions ``x`` (N, 3) [m], each slave with
+        its nearest partner cell or, at a concave corner, the one of ``keep`` (pairs (slave,
+        partner cell's first node), global: the module docstring); FloatingPointError if a
+        position is not finite (a NaN would make every gap NaN, never pressed)."""
         if not np.isfinite(x).all():
             node = int(np.flatnonzero(~np.isfinite(x).all(axis=1))[0])
             where = f"s = {self.places[node]:.4g} m" if self.places is not None else f"node {node}"
@@ -203,10 +226,7 @@ class SelfContactGeometry:
         node, cell = node[later], cell[later]
         cells = x[self.dofs[cell]]
         near = closest_points(x[node], cells, self.radius, self.radius)
-        # each slave's nearest partner
-        order = np.lexsort((near.gap, node))
-        if len(order):
-            order = order[np.concatenate([[True], node[order][1:] != node[order][:-1]])]
+        order = self._partners(len(x), node, cell, near, keep)
         node, cell, cells = node[order], cell[order], cells[order]
         near = ClosestPoints(
             *(getattr(near, f)[order] for f in ("xi", "point", "gap", "normal", "weights"))
@@ -215,6 +235,38 @@ class SelfContactGeometry:
         return Pairs(
             node, self.dofs[cell], near.gap, near.normal, near.weights, d.gap, d.normal, d.weights
         )
+
+    def _partners(
+        self,
+        count: int,
+        node: np.ndarray,
+        cell: np.ndarray,
+        near: ClosestPoints,
+        keep: np.ndarray | None,
+    ) -> np.ndarray:
+        """The index of each slave's partner among the candidates (``node``, ``cell``) of the
+        ``count`` nodes with
+        their closest points ``near``, one a slave in the order of the slaves: the kept cell
+        of ``keep`` if its closest point is interior and its gap within CORNER r of the
+        slave's nearest, else the interior candidate first along the rod within that band,
+        else the nearest (module docstring, "A concave corner")."""
+        if not len(node):
+            return np.zeros(0, dtype=np.int64)
+        by_node = np.argsort(node, kind="stable")
+        heads = np.flatnonzero(np.r_[True, node[by_node][1:] != node[by_node][:-1]])
+        least = np.minimum.reduceat(near.gap[by_node], heads)
+        nearest = np.empty(len(node))
+        nearest[by_node] = np.repeat(least, np.diff(np.r_[heads, len(node)]))
+        corner = (near.gap <= nearest + CORNER * self.radius) & (near.xi > 0.0) & (near.xi < 1.0)
+        kept = np.zeros(len(node), dtype=bool)
+        if keep is not None and len(keep):
+            first = np.full(count, -1, dtype=np.int64)
+            first[keep[:, 0]] = keep[:, 1]
+            kept = corner & (first[node] == self.dofs[cell, 0])
+        rank = np.where(kept, 0, np.where(corner, 1, 2))
+        along = np.where(rank == 1, self.arc[cell, 0], 0.0)
+        order = np.lexsort((self.arc[cell, 0], near.gap, along, rank, node))
+        return order[np.r_[True, node[order][1:] != node[order][:-1]]]
 
     def between_nodes(self, x: np.ndarray) -> tuple[float, float, float]:
         """The least gap [m] between the rod's parts sampled between the nodes (the rows hold
