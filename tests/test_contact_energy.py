@@ -411,7 +411,7 @@ def test_the_midpoint_steps_are_taken_around_impacts_only():
             assert summary["impact_steps_redone"] == 0
         else:
             assert first >= 1
-    # time.impact_steps = false: the nodes land (up to 7 at once) in the method's own steps
+    # time.impact_steps = false: the nodes land in the method's own steps
     landings = Landings()
     data = drop("bdf2", 2.5e-4, tilted=True, end=0.06)
     data["time"]["impact_steps"] = False

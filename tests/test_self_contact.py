@@ -396,7 +396,7 @@ def test_a_solve_starts_from_the_accepted_contact_set(friction):
     assert moved(-1e-4 * r) == 0
     marks = []
     original = pairs.first_iterate
-    pairs.first_iterate = lambda first: marks.append(first) or original(first)
+    pairs.first_iterate = lambda first, **kw: marks.append(first) or original(first, **kw)
     model.U.x.array[:] = 0.0
     contact.accept(model.U.x.array)  # at rest: nothing pressed, converged at once
     solver.solve()

@@ -34,11 +34,11 @@ class Contacts:
         return len(self.pairs)
 
     def first_iterate(self, first: bool) -> None:
-        """The pairs' :meth:`PairContact.first_iterate`, without obstacles only: a slave the
-        pairs press at a solve's first iterate whatever their test, which an obstacle also
-        presses, would stop the run (the ContactChain below) where its test lets it go."""
-        if self.obstacles is None:
-            self.pairs.first_iterate(first)
+        """The pairs' :meth:`PairContact.first_iterate`, forcing the accepted pairs without
+        obstacles only: a slave the pairs press at a solve's first iterate whatever their
+        test, which an obstacle also presses, would stop the run (the ContactChain below)
+        where its test lets it go."""
+        self.pairs.first_iterate(first, force=self.obstacles is None)
 
     def apply_vector(self, b: np.ndarray, u: np.ndarray) -> bool:
         changed = self.pairs.apply_vector(b, u)

@@ -191,8 +191,10 @@ class PairContact:
         self.flipped = np.zeros(0, dtype=np.int64)
         #: every node's position at the last iterate [m] (None before one)
         self._x: np.ndarray | None = None
-        #: whether the next iterate is a solve's first (:meth:`first_iterate`)
+        #: whether the next iterate is a solve's first, and whether it forces the accepted
+        #: pairs (:meth:`first_iterate`)
         self.first = False
+        self.force_first = True
         self.shares = shares
         #: the outputs, as NodeContact's: each slave's contact load [N/m], its gap [m] and 1
         #: while pressed (other nodes: zeros)
@@ -218,11 +220,13 @@ class PairContact:
         return np.where(self.held_slots_all[nodes], -1, rows).astype(PETSc.IntType)
 
     # -- the rows -------------------------------------------------------------------------
-    def first_iterate(self, first: bool) -> None:
+    def first_iterate(self, first: bool, force: bool = True) -> None:
         """Whether the next iterate is a Newton solve's first (set before the solve, cleared
-        after it): there the slaves pressed at the accepted state press whatever their test,
-        in the state they were accepted in (:meth:`_press`)."""
-        self.first = first
+        after it): there a slave keeps the partner cell it was accepted with at a concave
+        corner (rod/self_contact.py), and with ``force`` the slaves pressed at the accepted
+        state press whatever their test, in the state they were accepted in
+        (:meth:`_press`)."""
+        self.first, self.force_first = first, force
 
     def apply_vector(self, b: np.ndarray, u: np.ndarray) -> bool:
         """Decide the pairs and their states at the iterate (u, F = ``b``, the owned values of
@@ -256,7 +260,8 @@ class PairContact:
         zero = ROUNDOFF * self.comm.allreduce(float(np.abs(b).max(initial=0.0)), op=MPI.MAX)
         parts = []
         for at in range(max(1, int(level.max(initial=0)) + 1)):
-            part = self._press(pairs, np.flatnonzero(mine & (level == at)), b, zero, first)
+            here = np.flatnonzero(mine & (level == at))
+            part = self._press(pairs, here, b, zero, first and self.force_first)
             self._pass_on(part, b)  # collective: the reactions before the next level reads
             part["level"] = np.full(len(part["local"]), at)
             parts.append(part)

@@ -22,7 +22,9 @@ candidates within the band of its nearest, the one first along the rod (arc leng
 cells' numbering: the same choice serially and under MPI, whatever the round-off), and the
 nearest if none is interior. A
 clamped closest point (a node past a cell's end) is never kept nor preferred: past a
-vertex of straight cells it would tilt the normal by up to √(2 CORNER).
+vertex of straight cells it would tilt the normal by up to √(2 CORNER). A cell is known by
+its first node; at a structure's joint two members' cells may share it (both kept, the
+nearer wins), and "along the rod" is along each member's own arc: deterministic either way.
 
 A node held in part by a support (a ``sliding`` node: its lateral positions held, free along
 an axis) cannot close a gap across its held directions, so it is no slave, and neither is

@@ -80,14 +80,17 @@ NO_DEFAULT = object()
 
 
 def default_of(key: str) -> Any:
-    """The schema's default of the dotted leaf ``key``, or NO_DEFAULT (a required key, a
-    table, a key the schema does not know). A key added to the schema keeps the old
+    """The schema's default of the dotted leaf ``key`` as a scene's table writes it, or
+    NO_DEFAULT (a required key, one without a default, a table, a key the schema does not
+    know). A key added to the schema keeps the old
     behaviour at its default: what a checkpoint or a scene written before it ran as."""
     try:
         spec = _lookup_spec(key.split("."))
     except SceneError:
         return NO_DEFAULT
-    return spec.default if isinstance(spec, Field) and not spec.required else NO_DEFAULT
+    if not isinstance(spec, Field) or spec.required or spec.default is None:
+        return NO_DEFAULT
+    return spec.to_value(spec.default)  # as a scene's table writes it
 
 
 def _override_value(key: str, text: str) -> Any:
